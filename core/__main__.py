@@ -1,0 +1,98 @@
+"""Command line: ``python -m core render scene.npz --output out.exr [options]``."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from .scene import Scene, SceneError
+from .settings import METHODS, MUTATIONS, NORMALISATIONS, RenderSettings
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog="python -m core", description="AMCMCPPM rendering core")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("render", help="render a scene file (.npz) or a built-in scene")
+    src = r.add_mutually_exclusive_group(required=True)
+    src.add_argument("scene", nargs="?", help="scene written by Scene.save (.npz)")
+    src.add_argument("--builtin", help="built-in scene name (see core/testing/scenes.py)")
+    r.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"),
+                   help="resolution of a built-in scene")
+    r.add_argument("--output", "-o", required=True, help="EXR file to write (linear RGBA)")
+    r.add_argument("--png", help="also write a display-referred PNG")
+    d = RenderSettings()
+    r.add_argument("--passes", type=int, default=d.passes, help="passes (0 = until --time-limit)")
+    r.add_argument("--time-limit", type=float, default=d.time_limit, help="seconds (0 = no limit)")
+    r.add_argument("--seed", type=int, default=d.seed)
+    r.add_argument("--method", choices=METHODS, default=d.method)
+    r.add_argument("--target-acceptance", type=float, default=d.target_acceptance)
+    r.add_argument("--mutation", choices=MUTATIONS, default=d.mutation)
+    r.add_argument("--normalisation", choices=NORMALISATIONS, default=d.normalisation)
+    r.add_argument("--photons-per-pass", type=int, default=d.photons_per_pass)
+    r.add_argument("--chains", type=int, default=d.chains)
+    r.add_argument("--initial-radius", type=float, default=d.initial_radius_px,
+                   help="initial gather radius in pixel footprints")
+    r.add_argument("--alpha", type=float, default=d.alpha)
+    r.add_argument("--max-bounces", type=int, default=d.max_bounces)
+    r.add_argument("--workers", type=int, default=d.workers, help="0 = one per CPU core")
+    r.add_argument("--stats", help="write per-pass statistics as JSON lines to this file")
+    r.add_argument("--quiet", "-q", action="store_true")
+    return p
+
+
+def settings_from_args(a) -> RenderSettings:
+    return RenderSettings(method=a.method, passes=a.passes, time_limit=a.time_limit,
+                          photons_per_pass=a.photons_per_pass, seed=a.seed, alpha=a.alpha,
+                          initial_radius_px=a.initial_radius, max_bounces=a.max_bounces,
+                          workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
+                          mutation=a.mutation, normalisation=a.normalisation)
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        settings = settings_from_args(args)
+        if args.builtin:
+            from .testing.scenes import BUILTIN
+            if args.builtin not in BUILTIN:
+                raise SceneError(f"unknown built-in scene {args.builtin!r}; choose from {sorted(BUILTIN)}")
+            kw = {"resolution": tuple(args.resolution)} if args.resolution else {}
+            scene = BUILTIN[args.builtin](**kw)
+        else:
+            scene = Scene.load(args.scene)
+    except (SceneError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    from .imageio import write_exr, write_png
+    from .integrator import render
+
+    stats_file = open(args.stats, "w") if args.stats else None
+    t0 = time.perf_counter()
+
+    def report(result):
+        s = result.stats[-1]
+        if stats_file:
+            stats_file.write(json.dumps(s) + "\n")
+            stats_file.flush()
+        if not args.quiet:
+            print(f"pass {s['pass']:4d}  {s['elapsed_s']:7.1f} s  visible {s['visible_fraction']:.4g}"
+                  f"  acceptance {s['acceptance_rate']:.3f}  theta {s['mutation_size']:.3g}", flush=True)
+
+    try:
+        result = render(scene, settings, on_iteration=report)
+    finally:
+        if stats_file:
+            stats_file.close()
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    write_exr(args.output, result.image)
+    if args.png:
+        write_png(args.png, result.image)
+    if not args.quiet:
+        print(f"wrote {args.output} ({result.passes} passes, {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,95 @@
+"""Ray queries: the only module that talks to embreex.
+
+:class:`Accel` wraps one static embree scene holding every triangle of a
+:class:`~core.scene.Scene` and answers batched closest-hit queries.  Surface
+positions are rebuilt from the barycentrics in float64 on the hit triangle's
+plane, and new rays are spawned with an offset along the geometric normal that
+scales with the coordinate magnitude (embree works in float32).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sampling import dot
+
+# Spawned rays start this many float32 ulps (relative to the coordinate magnitude) off the surface.
+_OFFSET_ULPS = 64.0 * np.finfo(np.float32).eps
+
+
+@dataclass
+class Hits:
+    """Closest hits of a batch of n rays."""
+
+    is_hit: np.ndarray      # (n,) bool
+    prim_ids: np.ndarray    # (n,) int32 triangle index, -1 on a miss
+    t: np.ndarray           # (n,) float32 hit distance along the (unit) direction, inf on a miss
+    b1: np.ndarray          # (n,) float64 barycentric of corner 1
+    b2: np.ndarray          # (n,) float64 barycentric of corner 2
+
+
+class Accel:
+    """Embree BVH over a scene's triangles plus per-triangle data for shading."""
+
+    def __init__(self, scene):
+        corners = scene.triangle_corners().astype(np.float64)          # (T, 3, 3)
+        self.triangle_count = len(corners)
+        self.v0 = corners[:, 0]                                         # (T, 3) float64
+        self.e1 = corners[:, 1] - corners[:, 0]                         # (T, 3) float64
+        self.e2 = corners[:, 2] - corners[:, 0]                         # (T, 3) float64
+        cross = np.cross(self.e1, self.e2)
+        length = np.linalg.norm(cross, axis=1)
+        self.area = 0.5 * length                                        # (T,) float64
+        safe = np.where(length > 0, length, 1.0)
+        ng = cross / safe[:, None]
+        ng[length == 0] = (0.0, 0.0, 1.0)
+        self.geometric_normals = ng                                     # (T, 3) float64, unit
+        lo, hi = scene.bounds()
+        self.bounds = (lo, hi)
+        self.extent = float(max(np.max(hi - lo), 1e-6))
+        self.offset_floor = 1e-7 * self.extent
+        self._embree = None
+        if self.triangle_count:
+            from embreex import rtcore_scene
+            from embreex.mesh_construction import TriangleMesh
+            self._embree = rtcore_scene.EmbreeScene(robust=True)
+            TriangleMesh(self._embree, np.ascontiguousarray(corners, np.float32))
+
+    def intersect(self, origins, directions, tmax=None) -> Hits:
+        """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
+
+        origins : (n, 3) float64, world.  directions : (n, 3), unit.
+        tmax : None, a scalar or (n,) maximum distances.
+        """
+        n = len(origins)
+        if n == 0 or self._embree is None:
+            return Hits(np.zeros(n, bool), np.full(n, -1, np.int32), np.full(n, np.inf, np.float32),
+                        np.zeros(n), np.zeros(n))
+        o = np.ascontiguousarray(origins, np.float32)
+        d = np.ascontiguousarray(directions, np.float32)
+        if tmax is None:
+            dists = None
+        else:
+            dists = np.ascontiguousarray(np.broadcast_to(np.minimum(tmax, 1e37), (n,)), np.float32)
+        r = self._embree.run(o, d, dists=dists, output=1)
+        prim = r["primID"]
+        is_hit = prim >= 0
+        t = np.where(is_hit, r["tfar"], np.float32(np.inf))
+        return Hits(is_hit, np.where(is_hit, prim, -1).astype(np.int32), t,
+                    r["u"].astype(np.float64), r["v"].astype(np.float64))
+
+    def hit_positions(self, prim_ids, b1, b2):
+        """(n, 3) float64 surface points from triangle ids and barycentrics."""
+        return (self.v0[prim_ids] + b1[:, None] * self.e1[prim_ids]
+                + b2[:, None] * self.e2[prim_ids])
+
+    def spawn(self, positions, normals, directions):
+        """Origins for rays leaving ``positions`` along ``directions``.
+
+        Offset along the geometric ``normals`` to the side the direction points
+        to, by an amount that grows with the coordinate magnitude.
+        """
+        side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
+        eps = _OFFSET_ULPS * np.max(np.abs(positions), axis=1) + self.offset_floor
+        return positions + (side * eps)[:, None] * normals

@@ -1,0 +1,217 @@
+"""Materials as weighted lobes: lobe choice, sampling and evaluation on batches.
+
+Lobes (index order used everywhere): 0 diffuse, 1 glossy (GGX), 2 mirror,
+3 dielectric.  Diffuse and glossy are *non-delta* (photons are deposited on
+them and camera paths store measurement points there); mirror and dielectric
+are *delta* (camera paths continue through them).  Emission is not a lobe: it is
+added where a camera path hits an emitter.
+
+Conventions: ``wo`` points away from the surface towards the previous vertex,
+``wi`` away from the surface towards the next one.  ``ng``/``ns`` are the raw
+geometric/shading normals; :func:`face_forward` flips them to the side of a
+direction.  Throughput weights returned by :func:`scatter` are f |cos| / pdf
+divided by the lobe-choice probability.
+
+``mode="importance"`` (photons) applies the adjoint shading-normal correction
+(Veach 1997, 5.3) and no eta^2 factor at refraction; ``mode="radiance"``
+(camera paths) scales refracted radiance by 1/eta^2.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import sampling as smp
+from .sampling import dot
+
+DIFFUSE, GLOSSY, MIRROR, DIELECTRIC = 0, 1, 2, 3
+NON_DELTA = (DIFFUSE, GLOSSY)
+DELTA = (MIRROR, DIELECTRIC)
+# Glossy lobes with a smaller Blender roughness act as a perfect mirror.
+MIRROR_ROUGHNESS = 0.02
+MIN_ALPHA = 1e-4
+
+
+@dataclass
+class MaterialTable:
+    """Per-material arrays ready for shading (mirror-like glossy merged into mirror)."""
+
+    weight: np.ndarray          # (M, 4) float64 lobe weights, lobe order as above
+    color: np.ndarray           # (M, 4, 3) float64 lobe colours (diffuse colour is 1 if textured)
+    alpha: np.ndarray           # (M,) float64 GGX alpha of the glossy lobe
+    ior: np.ndarray             # (M,) float64
+    emission: np.ndarray        # (M, 3) float64 radiance
+    texture: np.ndarray         # (M,) int32 diffuse texture or -1
+    has_nondelta: np.ndarray    # (M,) bool: photons deposit / camera paths may stop here
+    has_glossy: np.ndarray      # (M,) bool: the non-delta part has a glossy lobe
+    is_emissive: np.ndarray     # (M,) bool
+
+    @staticmethod
+    def from_materials(mats) -> "MaterialTable":
+        m = mats.count
+        weight = np.zeros((m, 4))
+        color = np.zeros((m, 4, 3))
+        weight[:, DIFFUSE] = mats.diffuse_weight
+        color[:, DIFFUSE] = mats.diffuse_color
+        textured = mats.diffuse_texture >= 0
+        weight[:, GLOSSY] = mats.glossy_weight
+        color[:, GLOSSY] = mats.glossy_color
+        weight[:, MIRROR] = mats.mirror_weight
+        color[:, MIRROR] = mats.mirror_color
+        weight[:, DIELECTRIC] = mats.dielectric_weight
+        color[:, DIELECTRIC] = mats.dielectric_color
+        # Merge near-specular glossy lobes into the mirror lobe (weighted colour).
+        sharp = (mats.glossy_roughness < MIRROR_ROUGHNESS) & (weight[:, GLOSSY] > 0)
+        if sharp.any():
+            wm, wg = weight[sharp, MIRROR], weight[sharp, GLOSSY]
+            color[sharp, MIRROR] = (wm[:, None] * color[sharp, MIRROR]
+                                    + wg[:, None] * color[sharp, GLOSSY]) / (wm + wg)[:, None]
+            weight[sharp, MIRROR] = wm + wg
+            weight[sharp, GLOSSY] = 0.0
+        alpha = np.maximum(mats.glossy_roughness.astype(np.float64) ** 2, MIN_ALPHA)
+        lum = smp.luminance(color)
+        diffuse_on = (weight[:, DIFFUSE] > 0) & (textured | (lum[:, DIFFUSE] > 0))
+        glossy_on = (weight[:, GLOSSY] > 0) & (lum[:, GLOSSY] > 0)
+        emission = mats.emission.astype(np.float64)
+        return MaterialTable(weight=weight, color=color, alpha=alpha,
+                             ior=mats.ior.astype(np.float64), emission=emission,
+                             texture=mats.diffuse_texture.astype(np.int32),
+                             has_nondelta=diffuse_on | glossy_on, has_glossy=glossy_on,
+                             is_emissive=(emission > 0).any(axis=1))
+
+
+class Textures:
+    """Image textures looked up bilinearly with repeat wrapping; row 0 is v = 0."""
+
+    def __init__(self, images):
+        self.images = [np.asarray(im, np.float32) for im in images]
+
+    def lookup(self, texture_ids, uv):
+        """(n, 3) float64 colours; rows with ``texture_ids`` < 0 get 1."""
+        out = np.ones((len(texture_ids), 3))
+        for k in np.unique(texture_ids[texture_ids >= 0]):
+            sel = np.flatnonzero(texture_ids == k)
+            img = self.images[k]
+            h, w = img.shape[:2]
+            x = uv[sel, 0] * w - 0.5
+            y = uv[sel, 1] * h - 0.5
+            x0 = np.floor(x)
+            y0 = np.floor(y)
+            fx = (x - x0)[:, None]
+            fy = (y - y0)[:, None]
+            ix0 = np.mod(x0, w).astype(np.int64)
+            iy0 = np.mod(y0, h).astype(np.int64)
+            ix1 = (ix0 + 1) % w
+            iy1 = (iy0 + 1) % h
+            out[sel] = ((1 - fx) * (1 - fy) * img[iy0, ix0] + fx * (1 - fy) * img[iy0, ix1]
+                        + (1 - fx) * fy * img[iy1, ix0] + fx * fy * img[iy1, ix1])
+        return out
+
+
+def face_forward(n, v):
+    """Flip the unit normals ``n`` (n, 3) to the side of the vectors ``v``."""
+    return n * np.where(dot(n, v) < 0, -1.0, 1.0)[:, None]
+
+
+def lobe_colors(table, mat_ids, diffuse_albedo):
+    """(n, 4, 3) lobe colours at hits, with the (textured) diffuse albedo filled in."""
+    colors = table.color[mat_ids]
+    colors[:, DIFFUSE] = diffuse_albedo
+    return colors
+
+
+def lobe_scores(table, mat_ids, colors):
+    """(n, 4) unnormalised lobe-choice probabilities: weight times colour luminance."""
+    return table.weight[mat_ids] * np.maximum(smp.luminance(colors), 0.0)
+
+
+def choose_lobe(scores, u):
+    """Lobe index (n,) by ``scores``; -1 where all scores are 0.  Also the choice probability."""
+    total = scores.sum(axis=1)
+    cdf = np.cumsum(scores, axis=1)
+    target = u * total
+    lobe = np.minimum((cdf <= target[:, None]).sum(axis=1), 3)
+    # Never pick a lobe of score 0 (u exactly at a cdf step of an empty lobe).
+    chosen_score = scores[np.arange(len(lobe)), lobe]
+    bad = chosen_score <= 0
+    if bad.any():
+        lobe[bad] = np.argmax(scores[bad] > 0, axis=1)
+        chosen_score = scores[np.arange(len(lobe)), lobe]
+    prob = np.where(total > 0, chosen_score / np.where(total > 0, total, 1.0), 0.0)
+    return np.where(total > 0, lobe, -1), prob
+
+
+def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
+    """Sample a new direction from the chosen ``lobe`` at n surface points.
+
+    Returns ``(wi (n, 3), weight (n, 3), alive (n,))``: ``weight`` multiplies the
+    path throughput; dead paths (absorbed, sampled below the surface, no lobe)
+    have ``alive`` False and zero weight.
+    """
+    n = len(lobe)
+    wi = np.zeros((n, 3))
+    weight = np.zeros((n, 3))
+    alive = np.zeros(n, bool)
+    # Normals on the side of wo; the shading normal is flipped to agree with the geometric one.
+    ngf = face_forward(ng, wo)
+    nsf = face_forward(ns, ngf)
+    for k in range(4):
+        sel = np.flatnonzero(lobe == k)
+        if len(sel) == 0:
+            continue
+        w_o, n_s, n_g = wo[sel], nsf[sel], ngf[sel]
+        lw = table.weight[mat_ids[sel], k][:, None] * colors[sel, k] / prob[sel][:, None]
+        if k == DIFFUSE:
+            d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), n_s)
+            ok = dot(d, n_g) > 0
+            w = lw
+        elif k == GLOSSY:
+            alpha = table.alpha[mat_ids[sel]]
+            wo_l = smp.to_local(w_o, n_s)
+            ok_o = wo_l[:, 2] > 1e-9
+            wo_l[:, 2] = np.maximum(wo_l[:, 2], 1e-9)
+            m = smp.ggx_sample_visible_normal(wo_l, alpha, u1[sel], u2[sel])
+            wi_l = smp.reflect(wo_l, m)
+            d = smp.to_world(wi_l, n_s)
+            ok = ok_o & (wi_l[:, 2] > 0) & (dot(d, n_g) > 0)
+            ratio = smp.ggx_g2(wo_l[:, 2], wi_l[:, 2], alpha) / smp.ggx_g1(wo_l[:, 2], alpha)
+            w = lw * ratio[:, None]
+        elif k == MIRROR:
+            d = smp.reflect(w_o, n_s)
+            below = dot(d, n_g) <= 0
+            if below.any():
+                d[below] = smp.reflect(w_o[below], n_g[below])
+            ok = dot(d, n_g) > 0
+            w = lw
+        else:
+            entering = dot(w_o, ng[sel]) > 0       # wo on the front (outside) side of the surface
+            eta = np.where(entering, table.ior[mat_ids[sel]], 1.0 / table.ior[mat_ids[sel]])
+            cos_i = np.clip(dot(w_o, n_s), 0.0, 1.0)
+            fr, cos_t = smp.fresnel_dielectric(cos_i, eta)
+            is_refl = u1[sel] < fr
+            d = np.where(is_refl[:, None], smp.reflect(w_o, n_s), smp.refract(w_o, n_s, eta, cos_t))
+            side = dot(d, n_g)
+            ok = np.where(is_refl, side > 0, side < 0)
+            w = lw
+            if mode == "radiance":
+                w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
+        if mode == "importance":
+            w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
+        wi[sel] = d
+        weight[sel] = np.where(ok[:, None], w, 0.0)
+        alive[sel] = ok
+    return smp.normalize(wi), weight, alive
+
+
+def _adjoint_factor(wo, wi, ng, ns):
+    """|wo.ns| |wi.ng| / (|wo.ng| |wi.ns|): shading-normal correction for importance transport,
+    applied to the throughput after f |wi.ns| / pdf."""
+    num = np.abs(dot(wo, ns)) * np.abs(dot(wi, ng))
+    den = np.abs(dot(wo, ng)) * np.abs(dot(wi, ns))
+    return np.where(den > 1e-12, num / np.maximum(den, 1e-12), 0.0)
+
+
+def eval_glossy(alpha, wo, wi, ns):
+    """Scalar GGX reflection value f(wo, wi) around the shading normals ``ns`` (side of wo)."""
+    return smp.ggx_reflection_f(smp.to_local(wo, ns), smp.to_local(wi, ns), alpha)

@@ -1,0 +1,59 @@
+"""Everything derived once from a scene for tracing: BVH, material table, emitters."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .accel import Accel
+from .bsdf import MaterialTable, Textures, lobe_colors
+from .lights import LightSampler
+from .sampling import normalize
+
+
+@dataclass
+class Surface:
+    """Shading data at n surface points."""
+
+    position: np.ndarray    # (n, 3) float64, world
+    ng: np.ndarray          # (n, 3) float64 unit geometric normal (front side of the triangle)
+    ns: np.ndarray          # (n, 3) float64 unit shading normal (equals ng for flat shading)
+    mat_ids: np.ndarray     # (n,) int32 material index
+    colors: np.ndarray      # (n, 4, 3) float64 lobe colours (textured diffuse albedo filled in)
+
+
+class RenderContext:
+    """Scene plus acceleration structure and shading tables, built once per render/worker."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.accel = Accel(scene)
+        self.table = MaterialTable.from_materials(scene.materials)
+        self.textures = Textures(scene.textures)
+        self.lights = LightSampler(scene, self.accel, self.table)
+        self.has_shading_normals = scene.shading_normals is not None
+        self.has_textures = bool((self.table.texture >= 0).any())
+
+    def surface(self, prim_ids, b1, b2) -> Surface:
+        """Surface data at hits given by triangle ids and barycentrics."""
+        a = self.accel
+        pos = a.hit_positions(prim_ids, b1, b2)
+        ng = a.geometric_normals[prim_ids]
+        b0 = 1.0 - b1 - b2
+        if self.has_shading_normals:
+            sn = self.scene.shading_normals[prim_ids].astype(np.float64)
+            ns = normalize(b0[:, None] * sn[:, 0] + b1[:, None] * sn[:, 1] + b2[:, None] * sn[:, 2])
+            bad = ~(np.abs(ns).sum(axis=1) > 0)
+            ns[bad] = ng[bad]
+        else:
+            ns = ng
+        mat = self.scene.material_ids[prim_ids]
+        albedo = self.table.color[mat, 0]
+        if self.has_textures:
+            tex = self.table.texture[mat]
+            if (tex >= 0).any():
+                uv = self.scene.uvs[prim_ids].astype(np.float64)
+                uv = b0[:, None] * uv[:, 0] + b1[:, None] * uv[:, 1] + b2[:, None] * uv[:, 2]
+                albedo = np.where((tex >= 0)[:, None],
+                                  albedo * self.textures.lookup(tex, uv), albedo)
+        return Surface(pos, ng, ns, mat, lobe_colors(self.table, mat, albedo))

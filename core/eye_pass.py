@@ -1,0 +1,135 @@
+"""Eye pass: one camera path per pixel, through delta bounces, to a measurement point.
+
+Each pass jitters every pixel anew (and the lens sample), follows the camera
+path through mirror and glass, adds the emission it sees on the way (emitters
+and the world, directly or through delta chains) and stores a *measurement
+point* at the first hit where it picks a non-delta lobe (``algorithm.md`` 1:
+the variant in which photons carry direct light too).
+
+Glossary: ``beta`` camera-path throughput, ``wo`` direction back towards the camera.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bsdf import DIFFUSE, GLOSSY, choose_lobe, face_forward, lobe_scores, scatter
+from .camera import generate_camera_rays
+
+
+@dataclass
+class MeasurementPoints:
+    """Camera-path end points of one pass (at most one per pixel)."""
+
+    pixel_ids: np.ndarray   # (m,) int64 index of the pixel in the window, row-major from the top
+    position: np.ndarray    # (m, 3) float64, world
+    ng: np.ndarray          # (m, 3) float64 unit geometric normal, on the side of wo
+    ns: np.ndarray          # (m, 3) float64 unit shading normal, on the side of ng
+    wo: np.ndarray          # (m, 3) float64 unit direction back along the camera path
+    weight: np.ndarray      # (m, 3) float64 camera-path throughput / non-delta choice probability
+    mat_ids: np.ndarray     # (m,) int32 material
+    colors: np.ndarray      # (m, 2, 3) float64 diffuse and glossy colour at the point
+    base_radius: np.ndarray  # (m,) float64 r_1: initial_radius_px pixel footprints at the point
+
+    @property
+    def count(self) -> int:
+        return int(len(self.pixel_ids))
+
+    def take(self, sel) -> "MeasurementPoints":
+        return MeasurementPoints(*(getattr(self, f)[sel] for f in self.__dataclass_fields__))
+
+    @staticmethod
+    def concatenate(parts) -> "MeasurementPoints":
+        return MeasurementPoints(*(np.concatenate([getattr(p, f) for p in parts])
+                                   for f in MeasurementPoints.__dataclass_fields__))
+
+
+@dataclass
+class EyePassResult:
+    points: MeasurementPoints
+    emission: np.ndarray     # (n_pixels, 3) float64 emission seen directly or through delta chains
+    alpha: np.ndarray        # (n_pixels,) float64 coverage (1 unless the film is transparent)
+    rays: int                # rays traced
+
+
+def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces) -> EyePassResult:
+    """Trace one camera path per window pixel with fresh jitter from ``rng``."""
+    scene, accel, table = ctx.scene, ctx.accel, ctx.table
+    cam = scene.camera
+    x0, x1, y0, y1 = cam.window
+    n_pix = (x1 - x0) * (y1 - y0)
+    origins, dirs, tmax, footprint = generate_camera_rays(cam, rng.random((n_pix, 4)))
+    emission = np.zeros((n_pix, 3))
+    alpha = np.ones(n_pix)
+    world = np.asarray(scene.world.color, np.float64)
+    lo, hi = accel.bounds
+    extent = accel.extent
+    grows = cam.projection == "perspective"
+    pix = np.arange(n_pix)
+    beta = np.ones((n_pix, 3))
+    path_len = np.zeros(n_pix)
+    parts = []
+    rays = 0
+    for depth in range(max_bounces + 1):
+        if len(pix) == 0:
+            break
+        hits = accel.intersect(origins, dirs, tmax if depth == 0 else None)
+        rays += len(pix)
+        # Rays that leave the scene see the world (primary ones are cut out on a transparent film).
+        miss = ~hits.is_hit
+        if miss.any():
+            if depth == 0 and scene.world.film_transparent:
+                alpha[pix[miss]] = 0.0
+            elif world.any():
+                emission[pix[miss]] += beta[miss] * world   # one path per pixel: no repeats
+        h = np.flatnonzero(hits.is_hit)
+        pix, beta, dirs = pix[h], beta[h], dirs[h]
+        path_len = path_len[h] + hits.t[h]
+        footprint = footprint[h]
+        surf = ctx.surface(hits.prim_ids[h], hits.b1[h], hits.b2[h])
+        wo = -dirs
+        # Emission seen along the path (emitters are two-sided).
+        emissive = table.is_emissive[surf.mat_ids]
+        if emissive.any():
+            e = np.flatnonzero(emissive)
+            emission[pix[e]] += beta[e] * table.emission[surf.mat_ids[e]]
+        # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
+        scores = lobe_scores(table, surf.mat_ids, surf.colors)
+        u = rng.random((len(pix), 3))
+        total = scores.sum(axis=1)
+        p_nd = np.where(total > 0, (scores[:, DIFFUSE] + scores[:, GLOSSY]) / np.where(total > 0, total, 1), 0)
+        stop = u[:, 0] < p_nd
+        if stop.any():
+            s = np.flatnonzero(stop)
+            ng = face_forward(surf.ng[s], wo[s])
+            r1 = initial_radius_px * footprint[s] * (path_len[s] if grows else 1.0)
+            parts.append(MeasurementPoints(
+                pixel_ids=pix[s], position=surf.position[s], ng=ng, ns=face_forward(surf.ns[s], ng),
+                wo=wo[s], weight=beta[s] / p_nd[s][:, None], mat_ids=surf.mat_ids[s],
+                colors=surf.colors[s][:, :2], base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent)))
+        go = np.flatnonzero(~stop & (total > 0))
+        if depth == max_bounces or len(go) == 0:
+            break
+        # Continue through the delta lobes only (rescale the lobe number into the delta range).
+        delta_scores = scores[go].copy()
+        delta_scores[:, [DIFFUSE, GLOSSY]] = 0.0
+        u_delta = (u[go, 0] - p_nd[go]) / np.maximum(1.0 - p_nd[go], 1e-300)
+        lobe, prob = choose_lobe(delta_scores, np.clip(u_delta, 0.0, np.nextafter(1.0, 0.0)))
+        prob = prob * (1.0 - p_nd[go])
+        wi, weight, alive = scatter(table, surf.mat_ids[go], surf.colors[go], lobe, prob, wo[go],
+                                    surf.ng[go], surf.ns[go], u[go, 1], u[go, 2], "radiance")
+        keep = np.flatnonzero(alive)
+        g = go[keep]
+        pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
+        path_len, footprint = path_len[g], footprint[g]
+        origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
+    points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
+    return EyePassResult(points, emission, alpha, rays)
+
+
+def _empty_points():
+    z3 = np.zeros((0, 3))
+    return MeasurementPoints(np.zeros(0, np.int64), z3, z3, z3, z3, z3, np.zeros(0, np.int32),
+                             np.zeros((0, 2, 3)), np.zeros(0))
+

@@ -1,0 +1,43 @@
+"""Image files: EXR through OpenEXR (linear float), PNG through matplotlib (display-referred).
+
+Both imports are lazy: Blender writes its own images and needs neither.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def write_exr(path, rgba):
+    """Write (H, W, 4) linear RGBA, top row first, as a 32-bit float ZIP-compressed EXR."""
+    import OpenEXR
+    img = np.ascontiguousarray(rgba, np.float32)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"RGBA": img}) as f:
+        f.write(str(path))
+
+
+def read_exr(path):
+    """(H, W, 4) float32 RGBA of the first part of an EXR (RGB files get alpha 1)."""
+    import OpenEXR
+    with OpenEXR.File(str(path)) as f:
+        ch = f.channels()
+        if "RGBA" in ch:
+            return np.asarray(ch["RGBA"].pixels, np.float32)
+        rgb = np.asarray(ch["RGB"].pixels, np.float32)
+        return np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=2)
+
+
+def to_display(rgba, exposure=0.0):
+    """Linear RGBA to 8-bit-ready sRGB in [0, 1]: exposure, clip, the sRGB transfer curve."""
+    rgb = np.clip(np.asarray(rgba, np.float64)[..., :3] * 2.0 ** exposure, 0.0, 1.0)
+    srgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
+    alpha = np.clip(np.asarray(rgba, np.float64)[..., 3:4], 0.0, 1.0)
+    return np.concatenate([srgb, alpha], axis=-1)
+
+
+def write_png(path, rgba, exposure=0.0):
+    """Write a display-referred sRGB PNG (standard view, clipped) of linear RGBA."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.image
+    matplotlib.image.imsave(str(path), to_display(rgba, exposure))

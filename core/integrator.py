@@ -1,0 +1,238 @@
+"""The render loop: eye pass, measurement-point grid, photon pass, statistics.
+
+One pass (``algorithm.md`` 1, Knaus & Zwicker 2011):
+
+1. eye pass with new jitter: measurement points and the emission seen directly;
+2. radii r_i(x) = r_1(x) s_i with the global shrink s_i^2 = prod_{k<i} (k + alpha)/(k + 1);
+3. photon pass (uniform photons, or the Markov chains of :mod:`core.mcmc`) in the
+   worker pool, deposits summed per pixel;
+4. the pass estimate L_i = Vc S_i / N_i (Vc = 1 for uniform photons) is averaged
+   over passes with the eye-pass emission.
+
+The eye pass of pass i+1 is traced while the workers trace the photons of pass i.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .context import RenderContext
+from .eye_pass import trace_eye_pass
+from .parallel import make_pool
+from .photon_pass import DepositTarget
+from .settings import RenderSettings
+from .worker import STREAM_EYE
+
+PASS_STAT_KEYS = ("pass", "elapsed_s", "paths_traced", "photons_recorded", "proposals", "accepted",
+                  "acceptance_rate", "mutation_size", "exchanges", "uniform_samples", "uniform_visible",
+                  "visible_fraction", "radius")
+
+
+@dataclass
+class RenderResult:
+    """A finished (or interrupted) render."""
+
+    image: np.ndarray                           # (H, W, 4) float32 linear RGBA, top row first
+    stats: list = field(default_factory=list)   # one dict per pass
+    warnings: list = field(default_factory=list)
+    passes: int = 0                             # passes in the image
+    elapsed_s: float = 0.0                      # wall time of the render loop
+    interrupted: bool = False                   # stopped by ``should_stop``
+
+
+class Accumulator:
+    """Float64 sums over passes, turned into an image on demand."""
+
+    def __init__(self, n_pixels, normalisation):
+        self.normalisation = normalisation
+        self.emission = np.zeros((n_pixels, 3))     # sum of eye-pass emission
+        self.alpha = np.zeros(n_pixels)             # sum of coverage
+        self.photons = np.zeros((n_pixels, 3))      # sum over passes of S_p / N_p
+        self.photons_scaled = np.zeros((n_pixels, 3))  # sum over passes of Vc_p S_p / N_p
+        self.passes = 0
+        self.n_uniform = 0                          # n_U, all passes
+        self.n_visible = 0                          # n_UV, all passes
+
+    @property
+    def visible_fraction(self) -> float:
+        return self.n_visible / self.n_uniform if self.n_uniform else 0.0
+
+    def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain):
+        self.passes += 1
+        self.emission += eye.emission
+        self.alpha += eye.alpha
+        self.n_uniform += n_uniform
+        self.n_visible += n_visible
+        if recorded:
+            per_photon = pixel_sum / recorded
+            # Non-finite contributions are dropped before they reach the sums (and counted).
+            bad = ~np.isfinite(per_photon)
+            dropped = int(bad.any(axis=1).sum())
+            per_photon[bad] = 0.0
+            self.photons += per_photon
+            vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
+            self.photons_scaled += vc_pass * per_photon
+            return dropped
+        return 0
+
+    def image(self, is_chain):
+        if self.passes == 0:
+            return np.zeros((len(self.alpha), 4), np.float32)
+        if not is_chain:
+            photons = self.photons
+        elif self.normalisation == "cumulative":
+            photons = self.visible_fraction * self.photons
+        else:
+            photons = self.photons_scaled
+        rgb = (self.emission + photons) / self.passes
+        out = np.empty((len(rgb), 4), np.float32)
+        out[:, :3] = rgb
+        out[:, 3] = self.alpha / self.passes
+        return out
+
+
+def kz_radius_scales(n, alpha):
+    """s_i for passes i = 1..n: s_1 = 1, s_{i+1}^2 = s_i^2 (i + alpha) / (i + 1)."""
+    i = np.arange(1, n)
+    return np.sqrt(np.concatenate([[1.0], np.cumprod((i + alpha) / (i + 1.0))]))
+
+
+def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderResult:
+    """Render ``scene`` progressively.
+
+    on_iteration : called after every pass with the :class:`RenderResult` so far.
+    should_stop : polled between passes and photon batches; when it returns True
+        the render ends promptly with the passes finished so far.
+    """
+    settings = settings or RenderSettings()
+    scene = scene.validate()
+    t0 = time.perf_counter()
+    stop = should_stop or (lambda: False)
+    ctx = RenderContext(scene)
+    x0, x1, y0, y1 = scene.camera.window
+    width, height = x1 - x0, y1 - y0
+    n_pixels = width * height
+    is_chain = settings.method == "amcmcppm"
+    acc = Accumulator(n_pixels, settings.normalisation)
+    result = RenderResult(image=np.zeros((height, width, 4), np.float32))
+    warnings = result.warnings
+    if ctx.lights.count == 0:
+        warnings.append("the scene emits no light (no light with power, emissive material or world); "
+                        "the image shows only what the camera sees of emitters")
+    if scene.triangle_count == 0:
+        warnings.append("the scene has no geometry")
+    max_passes = settings.passes or np.iinfo(np.int64).max
+    scales = kz_radius_scales(1, settings.alpha)
+
+    def eye_pass(i):
+        rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
+        return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces)
+
+    def make_target(i, eye):
+        nonlocal scales
+        if len(scales) < i + 1:
+            scales = kz_radius_scales(2 * (i + 1), settings.alpha)
+        radius = eye.points.base_radius * scales[i]
+        return DepositTarget(eye.points, radius, ctx.table, n_pixels, ctx.has_shading_normals), radius
+
+    pool = make_pool(scene, settings, ctx)
+    warned_invisible = False
+    try:
+        pass_index = 0
+        eye = eye_pass(0)
+        target, radius = make_target(0, eye)
+        while pass_index < max_passes:
+            if stop() and pass_index > 0:
+                result.interrupted = True
+                break
+            pool.submit(pass_index, target, settings.photons_per_pass)
+            # Prepare the next pass while the workers trace photons.
+            t_next = time.perf_counter()
+            last = pass_index + 1 >= max_passes
+            if not last:
+                next_eye = eye_pass(pass_index + 1)
+                next_target, next_radius = make_target(pass_index + 1, next_eye)
+            prep_s = time.perf_counter() - t_next
+            outputs = pool.collect(stop)
+            if outputs is None:
+                result.interrupted = True
+                break
+            merged = _merge(outputs)
+            c = merged["counters"]
+            interrupted = any(o["interrupted"] for o in outputs)
+            dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
+                              c["uniform_visible"], is_chain)
+            if dropped:
+                warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
+                                f"in {dropped} pixels")
+            if is_chain and c["recorded"] == 0 and not warned_invisible:
+                warned_invisible = True
+                warnings.append(
+                    f"pass {pass_index + 1}: none of {c['uniform_samples']} uniform photon paths reached "
+                    "a surface seen by the camera; the image shows only emission so far and the "
+                    "search goes on in the next passes")
+            elapsed = time.perf_counter() - t0
+            stats = {
+                "pass": pass_index + 1,
+                "elapsed_s": elapsed,
+                "paths_traced": c["paths_traced"],
+                "photons_recorded": c["recorded"],
+                "proposals": c["proposals"],
+                "accepted": c["accepted"],
+                "acceptance_rate": c["accepted"] / c["proposals"] if c["proposals"] else 0.0,
+                "mutation_size": merged["theta_mean"] if is_chain else 0.0,
+                "exchanges": c["exchanges"],
+                "uniform_samples": c["uniform_samples"],
+                "uniform_visible": c["uniform_visible"],
+                "visible_fraction": acc.visible_fraction,
+                "radius": float(np.median(radius)) if len(radius) else 0.0,
+                "method": settings.method,
+                "visible_fraction_pass": (c["uniform_visible"] / c["uniform_samples"]
+                                          if c["uniform_samples"] else 0.0),
+                "cumulative_acceptance_rate": (merged["total_accepted"] / merged["total_proposed"]
+                                               if merged["total_proposed"] else 0.0),
+                "chains_with_state": merged["valid_chains"],
+                "initialised": c["initialised"],
+                "rays": c["rays"] + eye.rays,
+                "photon_vertices": c["vertices"],
+                "measurement_points": eye.points.count,
+                "grid_entries": target.grid.entry_count,
+                "eye_prep_s": prep_s,
+                "workers": pool.size,
+            }
+            result.stats.append(stats)
+            result.passes = acc.passes
+            result.elapsed_s = elapsed
+            result.image = acc.image(is_chain).reshape(height, width, 4)
+            if on_iteration is not None:
+                on_iteration(result)
+            pass_index += 1
+            if interrupted:
+                result.interrupted = True
+                break
+            if settings.time_limit and elapsed >= settings.time_limit:
+                break
+            if not last:
+                eye, target, radius = next_eye, next_target, next_radius
+    finally:
+        pool.close()
+    result.elapsed_s = time.perf_counter() - t0
+    result.image = acc.image(is_chain).reshape(height, width, 4)
+    return result
+
+
+def _merge(outputs):
+    """Sum the workers' results of one pass."""
+    merged = {"pixel_sum": outputs[0]["pixel_sum"].copy(), "counters": dict(outputs[0]["counters"])}
+    for o in outputs[1:]:
+        merged["pixel_sum"] += o["pixel_sum"]
+        for k, v in o["counters"].items():
+            merged["counters"][k] += v
+    valid = [o["valid_chains"] for o in outputs]
+    merged["valid_chains"] = sum(valid)
+    merged["theta_mean"] = float(np.mean([o["theta_mean"] for o in outputs]))
+    merged["total_proposed"] = sum(o["total_proposed"] for o in outputs)
+    merged["total_accepted"] = sum(o["total_accepted"] for o in outputs)
+    return merged

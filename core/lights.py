@@ -1,0 +1,195 @@
+"""Photon emission: choose an emitter by power and sample a photon ray from it.
+
+Emitters are the analytic lights of the scene, every emissive triangle and the
+world background.  Each photon uses the six light dimensions of its primary
+sample (``algorithm.md`` section 4):
+
+    [0] emitter choice  [1] position 0  [2] position 1  [3] side  [4] direction 0  [5] direction 1
+
+and carries the flux ``Phi`` = emitted power / (probability density of its
+choice), so that the sum of ``Phi`` over N photons divided by N estimates the
+total emitted power.  Units follow Cycles (``scene.py``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import sampling as smp
+from .scene import AREA_DISK, AREA_RECT, POINT, SPOT, SUN
+
+LIGHT_DIMS = 6
+# Emitter kinds in the combined table (analytic kinds keep their Lights.kind value).
+TRIANGLE, WORLD = 10, 11
+
+
+class LightSampler:
+    """Power-proportional choice over all emitters and their photon sampling."""
+
+    def __init__(self, scene, accel, table):
+        lights = scene.lights
+        self.lights = lights
+        self.accel = accel
+        lo, hi = accel.bounds
+        self.center = 0.5 * (lo + hi)
+        self.radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)  # bounding sphere radius
+        kinds, ids, powers = [], [], []
+        # Analytic lights.
+        for i in range(lights.count):
+            kinds.append(int(lights.kind[i]))
+            ids.append(i)
+            powers.append(self._light_power(i))
+        # Emissive triangles: two-sided Lambertian, power 2 pi A L.
+        tri_mat = scene.material_ids
+        emissive_tris = np.flatnonzero(table.is_emissive[tri_mat] & (accel.area > 0)) \
+            if scene.triangle_count else np.zeros(0, np.int64)
+        tri_power = (2.0 * np.pi * accel.area[emissive_tris])[:, None] * table.emission[tri_mat[emissive_tris]]
+        self.emission = table.emission
+        self.material_ids = tri_mat
+        # World: a constant environment seen through the bounding sphere.
+        world = np.asarray(scene.world.color, np.float64)
+        world_power = world * (4.0 * np.pi * np.pi * self.radius ** 2)
+        self.world_color = world
+        all_kinds = np.array(kinds + [TRIANGLE] * len(emissive_tris) + ([WORLD] if world.any() else []),
+                             np.int32)
+        all_ids = np.array(ids + list(emissive_tris) + ([0] if world.any() else []), np.int64)
+        all_power = np.concatenate([np.array(powers, np.float64).reshape(-1, 3), tri_power.reshape(-1, 3),
+                                    world_power[None] if world.any() else np.zeros((0, 3))])
+        score = smp.luminance(all_power)
+        keep = score > 0
+        self.kinds, self.ids, self.power = all_kinds[keep], all_ids[keep], all_power[keep]
+        score = score[keep]
+        self.total_power = self.power.sum(axis=0) if len(score) else np.zeros(3)
+        self.count = len(score)
+        if self.count:
+            self.cdf = np.cumsum(score) / score.sum()
+            self.cdf[-1] = 1.0
+            self.prob = score / score.sum()
+        else:
+            self.cdf = np.zeros(0)
+            self.prob = np.zeros(0)
+
+    def _light_power(self, i):
+        """RGB watts leaving analytic light ``i`` (for the choice probabilities)."""
+        L = self.lights
+        p = L.power[i].astype(np.float64)
+        kind = L.kind[i]
+        if kind == SPOT:
+            # Intensity P/(4 pi) over the cone of solid angle 2 pi (1 - cos_half), times the mean
+            # of the smoothstep edge over that cone, which is exactly 1 - blend/2.
+            cos_half = np.cos(L.spot_angle[i] / 2)
+            return p / 2 * (1.0 - cos_half) * _spot_mean_mask(L.spot_blend[i])
+        if kind == SUN:
+            return p * np.pi * self.radius ** 2
+        return p
+
+    # ------------------------------------------------------------------ sampling
+    def sample(self, u):
+        """Photon rays for primary samples ``u`` (n, >=6) in [0, 1).
+
+        Returns ``origins`` (n, 3) float64, ``directions`` (n, 3) float64 unit,
+        ``flux`` (n, 3) float64 and ``normals`` (n, 3): the emitter's geometric normal
+        where the photon leaves a mesh (for the ray offset), else 0.
+        """
+        n = len(u)
+        origins = np.zeros((n, 3))
+        dirs = np.zeros((n, 3))
+        dirs[:, 2] = 1.0
+        flux = np.zeros((n, 3))
+        normals = np.zeros((n, 3))
+        if self.count == 0 or n == 0:
+            return origins, dirs, flux, normals
+        entry = np.minimum(np.searchsorted(self.cdf, u[:, 0], side="right"), self.count - 1)
+        kind = self.kinds[entry]
+        base = self.power[entry] / self.prob[entry][:, None]       # power / choice probability
+        for k in np.unique(kind):
+            sel = np.flatnonzero(kind == k)
+            us = u[sel]
+            ids = self.ids[entry[sel]]
+            if k in (POINT, SPOT):
+                o, d, w = self._sample_sphere_light(ids, us)
+            elif k in (AREA_RECT, AREA_DISK):
+                o, d, w = self._sample_area_light(ids, us, k)
+            elif k == SUN:
+                o, d, w = self._sample_sun(ids, us)
+            elif k == TRIANGLE:
+                o, d, w, nrm = self._sample_triangle(ids, us)
+                normals[sel] = nrm
+            else:
+                o, d, w = self._sample_world(us)
+            origins[sel], dirs[sel] = o, d
+            flux[sel] = base[sel] * w[:, None]
+        return origins, dirs, flux, normals
+
+    def _sample_sphere_light(self, ids, u):
+        """Point and spot lights: direction first, then a point on the sphere's visible disk."""
+        L = self.lights
+        is_spot = L.kind[ids] == SPOT
+        cos_half = np.where(is_spot, np.cos(L.spot_angle[ids].astype(np.float64) / 2), -1.0)
+        axis = L.direction[ids].astype(np.float64)
+        local = smp.uniform_cone(u[:, 4], u[:, 5], cos_half)
+        d = smp.to_world(local, axis)
+        # Flux = power share * mask / (mean mask over the cone), so that photons average to the
+        # emitted power of the cone (uniform directions in the cone).
+        mask = np.where(is_spot, _spot_mask(local[:, 2], cos_half, L.spot_blend[ids]), 1.0)
+        w = mask / np.where(is_spot, _spot_mean_mask(L.spot_blend[ids]), 1.0)
+        r = L.radius[ids].astype(np.float64)
+        x, y = smp.concentric_disk(u[:, 1], u[:, 2])
+        t, b = smp.orthonormal_frames(d)
+        z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
+        o = L.position[ids] + r[:, None] * (x[:, None] * t + y[:, None] * b + z[:, None] * d)
+        return o, d, w
+
+    def _sample_area_light(self, ids, u, kind):
+        L = self.lights
+        if kind == AREA_RECT:
+            x, y = 2.0 * u[:, 1] - 1.0, 2.0 * u[:, 2] - 1.0
+        else:
+            x, y = smp.concentric_disk(u[:, 1], u[:, 2])
+        o = L.position[ids] + x[:, None] * L.axis_u[ids] + y[:, None] * L.axis_v[ids]
+        n = L.direction[ids].astype(np.float64)
+        d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
+        return o, d, np.ones(len(ids))
+
+    def _sample_sun(self, ids, u):
+        L = self.lights
+        cos_half = np.cos(L.sun_angle[ids].astype(np.float64) / 2)
+        d = smp.to_world(smp.uniform_cone(u[:, 4], u[:, 5], cos_half), L.direction[ids].astype(np.float64))
+        o = self._disk_origin(d, u)
+        return o, d, np.ones(len(ids))
+
+    def _sample_world(self, u):
+        d = smp.uniform_sphere(u[:, 4], u[:, 5])
+        return self._disk_origin(d, u), d, np.ones(len(u))
+
+    def _disk_origin(self, d, u):
+        """Origins on the disk of the bounding sphere perpendicular to ``d``, outside the scene."""
+        x, y = smp.concentric_disk(u[:, 1], u[:, 2])
+        t, b = smp.orthonormal_frames(d)
+        r = self.radius
+        return self.center + r * (x[:, None] * t + y[:, None] * b) - 2.0 * r * d
+
+    def _sample_triangle(self, ids, u):
+        a = self.accel
+        b1, b2 = smp.uniform_triangle(u[:, 1], u[:, 2])
+        p = a.hit_positions(ids, b1, b2)
+        ng = a.geometric_normals[ids]
+        side = np.where(u[:, 3] < 0.5, 1.0, -1.0)
+        n = ng * side[:, None]
+        d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
+        return a.spawn(p, n, d), d, np.ones(len(ids)), n
+
+
+def _spot_mean_mask(blend):
+    """Mean of :func:`_spot_mask` over directions uniform in the cone: 1 - blend/2 (blend <= 1)."""
+    return 1.0 - 0.5 * np.clip(np.asarray(blend, np.float64), 0.0, 1.0)
+
+
+def _spot_mask(cos_theta, cos_half, blend):
+    """Cycles' spot attenuation: smoothstep((cos - cos_half) / ((1 - cos_half) blend))."""
+    cos_theta, cos_half, blend = np.broadcast_arrays(np.asarray(cos_theta, np.float64),
+                                                     np.asarray(cos_half, np.float64),
+                                                     np.asarray(blend, np.float64))
+    width = (1.0 - cos_half) * blend
+    inside = cos_theta > cos_half
+    soft = smp.smoothstep((cos_theta - cos_half) / np.where(width > 0, width, 1.0))
+    return np.where(inside, np.where(width > 0, soft, 1.0), 0.0)

@@ -1,0 +1,264 @@
+"""Visibility-driven Markov chains in primary sample space (Hachisuka & Jensen 2011).
+
+C chains advance in lockstep.  Each chain pairs a *uniform* chain (target 1:
+every step a fresh uniform vector) with a *visibility* chain (target V(u)/Vc).
+One iteration, for every chain (``algorithm.md`` 2):
+
+1. draw a uniform sample u_U and trace it (one batch for all chains);
+2. replica exchange: if V(u_U) = 1 the uniform sample becomes the current state
+   and no mutation happens (a chain without a visible state yet takes it as its
+   initial state: this is the initialisation search, counted as uniform samples);
+3. otherwise mutate the current state (one batch for all such chains) and accept
+   exactly when the proposal is visible; adapt the mutation size;
+4. ``mutation="exact"`` only: after a rejection, redraw the dimensions after the
+   current state's first visible vertex (a Gibbs step on the suffix, ``algorithm.md`` 3);
+5. every chain with a visible state records its current state once.
+
+Recording is lazy: a chain's current state is recorded ``hold`` times, and the
+deposits are splatted once, multiplied by ``hold``, when the state changes or
+the pass ends (SLR's cached ``prevResults``, without its stale-cache bug: the
+cache is dropped at the end of every pass and the states are traced again
+against the next pass's measurement points).
+
+Glossary: theta = mutation size, A* = target acceptance, n_U / n_UV = uniform
+samples / visible uniform samples (the normaliser Vc ~ n_UV / n_U).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .photon_pass import point_splat
+
+THETA_MIN, THETA_MAX = 1e-4, 1e3
+
+
+def wrap_unit(x):
+    """Map to [0, 1): ``x mod 1`` with the floating-point result 1.0 sent to 0."""
+    y = np.mod(x, 1.0)
+    y[y >= 1.0] = 0.0
+    return y
+
+
+def mutate(u, theta, rng):
+    """Kelemen-style mutation of every dimension: u + sgn(2 xi0 - 1) xi1^(1/theta + 1), wrapped.
+
+    u : (n, d) states in [0, 1); theta : (n,) mutation sizes.  The step density is
+    symmetric, so the Metropolis-Hastings acceptance is V(u') (``algorithm.md`` 2).
+    """
+    xi = rng.random((2,) + u.shape)
+    step = np.where(xi[0] < 0.5, -1.0, 1.0) * xi[1] ** (1.0 / theta + 1.0)[:, None]
+    return wrap_unit(u + step)
+
+
+def adapt_theta(theta, accepted, proposed, target):
+    """theta + (A - A*) / n with A = accepted / proposed so far, clamped (no 0/0: proposed > 0)."""
+    n = np.maximum(proposed, 1)
+    return np.clip(theta + (accepted / n - target) / n, THETA_MIN, THETA_MAX)
+
+
+@dataclass
+class ChainCounters:
+    """Counts of one pass (summed over chains); merged across workers."""
+
+    iterations: int = 0          # chain iterations (one uniform sample each)
+    paths_traced: int = 0        # photon paths traced (uniform, proposals, re-traces)
+    recorded: int = 0            # photon paths recorded (N_iter of the normaliser)
+    proposals: int = 0           # mutation proposals
+    accepted: int = 0            # accepted proposals
+    exchanges: int = 0           # replica exchanges (visible uniform sample replaced a state)
+    initialised: int = 0         # chains that found their first visible state
+    uniform_samples: int = 0     # n_U of this pass
+    uniform_visible: int = 0     # n_UV of this pass
+    rays: int = 0
+    vertices: int = 0
+
+    def add(self, other: "ChainCounters") -> None:
+        for f in self.__dataclass_fields__:
+            setattr(self, f, getattr(self, f) + getattr(other, f))
+
+
+@dataclass
+class ChainSet:
+    """State of C chains: current samples, validity, adaptation counters."""
+
+    u: np.ndarray                   # (C, d) float64 current states in [0, 1)
+    valid: np.ndarray               # (C,) bool: the current state is visible
+    first_dim: np.ndarray           # (C,) int32 first visible vertex's dimension offset of the state
+    theta: np.ndarray               # (C,) float64 mutation sizes
+    proposed: np.ndarray            # (C,) int64 mutation proposals so far (all passes)
+    accepted: np.ndarray            # (C,) int64 accepted proposals so far
+    hold: np.ndarray                # (C,) int64 pending recordings of the current state
+    totals: ChainCounters = field(default_factory=ChainCounters)  # cumulative counters
+
+    @staticmethod
+    def create(n_chains, dims, theta0, rng) -> "ChainSet":
+        return ChainSet(u=rng.random((n_chains, dims)), valid=np.zeros(n_chains, bool),
+                        first_dim=np.full(n_chains, -1, np.int32),
+                        theta=np.full(n_chains, float(theta0)), proposed=np.zeros(n_chains, np.int64),
+                        accepted=np.zeros(n_chains, np.int64), hold=np.zeros(n_chains, np.int64))
+
+    @property
+    def count(self) -> int:
+        return int(len(self.u))
+
+    @property
+    def acceptance_rate(self) -> float:
+        p = int(self.proposed.sum())
+        return float(self.accepted.sum()) / p if p else 0.0
+
+
+class Recorder:
+    """Receives the chains' recordings.  Subclasses cache per-chain payloads."""
+
+    def replace(self, lanes, batch, rows):
+        """The current states of chains ``lanes`` are now the traced paths ``rows`` of ``batch``."""
+
+    def commit(self, lanes, counts):
+        """Record the current states of ``lanes`` ``counts`` times each."""
+
+
+def begin_pass(chains, trace, recorder, counters):
+    """Trace every visible state again against the new target; states no longer visible are dropped."""
+    lanes = np.flatnonzero(chains.valid)
+    if len(lanes) == 0:
+        return
+    batch = trace(chains.u[lanes], None)
+    counters.paths_traced += len(lanes)
+    counters.rays += batch.rays
+    counters.vertices += batch.vertices
+    still = batch.visible
+    chains.valid[lanes[~still]] = False
+    chains.first_dim[lanes] = np.where(still, batch.first_dim, -1)
+    keep = np.flatnonzero(still)
+    recorder.replace(lanes[keep], batch, keep)
+
+
+def end_pass(chains, recorder):
+    """Record every pending state (the cached deposits are valid only within the pass)."""
+    lanes = np.flatnonzero(chains.valid & (chains.hold > 0))
+    recorder.commit(lanes, chains.hold[lanes])
+    chains.hold[:] = 0
+
+
+def iterate(chains, trace, recorder, rng, settings, counters):
+    """Advance every chain by one iteration (see the module docstring).
+
+    ``trace(u, refresh_rng)`` traces paths for states ``u`` (n, d) and returns an
+    object with ``visible`` (n,), ``first_dim`` (n,), ``rays`` and ``vertices``;
+    with ``refresh_rng`` it redraws, in place in ``u``, the dimensions after the
+    first visible vertex (low-dimension mutation).
+    """
+    c, d = chains.u.shape
+    mode = settings.mutation
+    refresh = rng if mode in ("paper", "exact") else None
+    was_valid = chains.valid.copy()
+    counters.iterations += c
+    # 1. Uniform samples for every chain.
+    u_uniform = rng.random((c, d))
+    batch_u = trace(u_uniform, None)
+    counters.paths_traced += c
+    counters.rays += batch_u.rays
+    counters.vertices += batch_u.vertices
+    counters.uniform_samples += c
+    vis = batch_u.visible
+    counters.uniform_visible += int(vis.sum())
+    # 2. Replica exchange (or initialisation of chains without a state).
+    take = np.flatnonzero(vis)
+    if len(take):
+        _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[take], batch_u, take)
+        counters.exchanges += int(was_valid[take].sum())
+        counters.initialised += int((~was_valid[take]).sum())
+    # 3. Mutation of the other chains that have a state.
+    lanes = np.flatnonzero(was_valid & ~vis)
+    if len(lanes):
+        proposal = mutate(chains.u[lanes], chains.theta[lanes], rng)
+        batch_p = trace(proposal, refresh)
+        counters.paths_traced += len(lanes)
+        counters.rays += batch_p.rays
+        counters.vertices += batch_p.vertices
+        acc = batch_p.visible
+        counters.proposals += len(lanes)
+        counters.accepted += int(acc.sum())
+        chains.proposed[lanes] += 1
+        chains.accepted[lanes] += acc
+        chains.theta[lanes] = adapt_theta(chains.theta[lanes], chains.accepted[lanes],
+                                          chains.proposed[lanes], settings.target_acceptance)
+        a = np.flatnonzero(acc)
+        if len(a):
+            _switch(chains, recorder, lanes[a], proposal[a], batch_p.first_dim[a], batch_p, a)
+        # 4. Exact low-dimension mutation: Gibbs refresh of the rejected states' suffixes.
+        rejected = lanes[~acc]
+        if mode == "exact" and len(rejected):
+            refreshed = chains.u[rejected].copy()
+            starts = chains.first_dim[rejected]
+            cols = np.arange(d)[None, :]
+            redraw = cols >= starts[:, None]
+            refreshed[redraw] = rng.random(int(redraw.sum()))
+            batch_g = trace(refreshed, None)
+            counters.paths_traced += len(rejected)
+            counters.rays += batch_g.rays
+            counters.vertices += batch_g.vertices
+            # The prefix (and so V and the first visible vertex) is unchanged.
+            _switch(chains, recorder, rejected, refreshed, batch_g.first_dim,
+                    batch_g, np.arange(len(rejected)))
+    # 5. Every chain with a state records it once.
+    chains.hold[chains.valid] += 1
+    counters.recorded += int(chains.valid.sum())
+
+
+def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows):
+    """Make traced paths ``rows`` of ``batch`` the current states of chains ``lanes``."""
+    old = lanes[chains.valid[lanes] & (chains.hold[lanes] > 0)]
+    recorder.commit(old, chains.hold[old])
+    chains.hold[lanes] = 0
+    chains.u[lanes] = new_u
+    chains.first_dim[lanes] = new_first_dim
+    chains.valid[lanes] = True
+    recorder.replace(lanes, batch, rows)
+
+
+class DepositCache(Recorder):
+    """Deposits of every chain's current state, summed per measurement point on commit."""
+
+    def __init__(self, n_points, n_chains, glossy):
+        self.n_points = n_points
+        self.n_chains = n_chains
+        self.glossy = glossy
+        self.sum_diffuse = np.zeros((n_points, 3))
+        self.sum_glossy = np.zeros((n_points, 3)) if glossy else None
+        self.lane = np.zeros(0, np.int64)
+        self.point = np.zeros(0, np.int64)
+        self.diffuse = np.zeros((0, 3))
+        self.glossy_values = np.zeros((0, 3)) if glossy else None
+
+    def replace(self, lanes, batch, rows):
+        if len(lanes) == 0:
+            return
+        drop = np.zeros(self.n_chains, bool)
+        drop[lanes] = True
+        keep = ~drop[self.lane]
+        # Pairs of the new states: map traced path rows to chain lanes.
+        row_to_lane = np.full(len(batch.visible), -1, np.int64)
+        row_to_lane[rows] = lanes
+        new_lane = row_to_lane[batch.pair_path]
+        sel = new_lane >= 0
+        self.lane = np.concatenate([self.lane[keep], new_lane[sel]])
+        self.point = np.concatenate([self.point[keep], batch.pair_point[sel]])
+        self.diffuse = np.concatenate([self.diffuse[keep], batch.pair_diffuse[sel]])
+        if self.glossy:
+            self.glossy_values = np.concatenate([self.glossy_values[keep], batch.pair_glossy[sel]])
+
+    def commit(self, lanes, counts):
+        if len(lanes) == 0 or len(self.lane) == 0:
+            return
+        weight = np.zeros(self.n_chains)
+        weight[lanes] = counts
+        w = weight[self.lane]
+        sel = np.flatnonzero(w > 0)
+        if len(sel):
+            self.sum_diffuse += point_splat(self.point[sel], self.diffuse[sel] * w[sel, None], self.n_points)
+            if self.glossy:
+                self.sum_glossy += point_splat(self.point[sel], self.glossy_values[sel] * w[sel, None],
+                                               self.n_points)

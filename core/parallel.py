@@ -1,0 +1,209 @@
+"""Worker pools: photon passes in this process or in worker processes.
+
+Worker processes are plain Python interpreters (``sys.executable``, which inside
+Blender is its bundled Python) that load this ``core`` package from its
+directory under a private name, so the same code works from a checkout, from
+the ``bpy`` module and from an installed extension (whose package name,
+``bl_ext.<repo>.<id>.core``, does not exist in a fresh interpreter).  Messages
+are pickles of plain tuples, dicts and NumPy arrays over the workers'
+stdin/stdout; no class of ours crosses the process boundary.
+
+The pool interface is ``submit(pass_index, target, n_photons)`` followed by
+``collect(should_stop)``: the integrator prepares the next pass's eye pass while
+the workers trace photons.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import selectors
+import subprocess
+import sys
+import time
+
+from .photon_pass import DepositTarget
+from .worker import PhotonWorker, share
+
+_BOOTSTRAP = r"""
+import importlib.util, sys
+core_dir = sys.argv[1]
+spec = importlib.util.spec_from_file_location("_amcmcppm_worker_core", core_dir + "/__init__.py",
+                                              submodule_search_locations=[core_dir])
+mod = importlib.util.module_from_spec(spec)
+sys.modules["_amcmcppm_worker_core"] = mod
+spec.loader.exec_module(mod)
+from _amcmcppm_worker_core.parallel import worker_main
+worker_main()
+"""
+
+
+class WorkerError(RuntimeError):
+    """A worker process failed; the message carries its traceback."""
+
+
+class InProcessPool:
+    """One worker in this process (``workers=1``): deterministic and without start-up cost."""
+
+    def __init__(self, scene, settings, ctx=None):
+        self.worker = PhotonWorker(scene, settings, 0, 1, ctx=ctx)
+        self._job = None
+
+    @property
+    def size(self) -> int:
+        return 1
+
+    def submit(self, pass_index, target, n_photons):
+        self._job = (pass_index, target, n_photons)
+
+    def collect(self, should_stop=None):
+        pass_index, target, n_photons = self._job
+        self._job = None
+        return [self.worker.run_pass(pass_index, target, n_photons, should_stop)]
+
+    def close(self):
+        pass
+
+
+class ProcessPool:
+    """``n`` worker processes, each with its own share of every pass and its own chains."""
+
+    def __init__(self, scene, settings, n):
+        core_dir = os.path.dirname(os.path.abspath(__file__))
+        env = dict(os.environ)
+        # One thread per worker process: the workers are the parallelism.
+        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            env[var] = "1"
+        self.procs = []
+        self.settings = settings
+        try:
+            for i in range(n):
+                p = subprocess.Popen([_python_executable(), "-c", _BOOTSTRAP, core_dir],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+                self.procs.append(p)
+            arrays = scene.to_arrays()
+            settings_dict = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
+            for i, p in enumerate(self.procs):
+                _send(p, ("init", arrays, settings_dict, i, n))
+            for p in self.procs:
+                self._receive(p)
+        except BaseException:
+            self.close()
+            raise
+
+    @property
+    def size(self) -> int:
+        return len(self.procs)
+
+    def submit(self, pass_index, target, n_photons):
+        arrays = target.to_arrays()
+        for i, p in enumerate(self.procs):
+            _send(p, ("pass", pass_index, arrays, share(n_photons, i, len(self.procs))))
+
+    def collect(self, should_stop=None):
+        """Wait for every worker's result; on ``should_stop()`` stop the workers and return None."""
+        results = [None] * len(self.procs)
+        pending = set(range(len(self.procs)))
+        sel = selectors.DefaultSelector()
+        for i in pending:
+            sel.register(self.procs[i].stdout, selectors.EVENT_READ, i)
+        try:
+            while pending:
+                for key, _ in sel.select(timeout=0.1):
+                    i = key.data
+                    results[i] = self._receive(self.procs[i])
+                    pending.discard(i)
+                    sel.unregister(key.fileobj)
+                if pending and should_stop is not None and should_stop():
+                    self.close()
+                    return None
+        finally:
+            sel.close()
+        return results
+
+    def _receive(self, p):
+        try:
+            msg = pickle.load(p.stdout)
+        except EOFError:
+            code = p.wait()
+            raise WorkerError(f"photon worker process exited unexpectedly (exit code {code})") from None
+        if msg[0] == "error":
+            raise WorkerError(f"photon worker failed:\n{msg[1]}")
+        return msg[1]
+
+    def close(self):
+        for p in self.procs:
+            try:
+                if p.poll() is None:
+                    _send(p, ("stop",))
+            except OSError:
+                pass
+        deadline = time.monotonic() + 2.0
+        for p in self.procs:
+            try:
+                p.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+            for f in (p.stdin, p.stdout):
+                try:
+                    f.close()
+                except OSError:
+                    pass
+        self.procs = []
+
+
+def make_pool(scene, settings, ctx=None):
+    """In-process pool for one worker, worker processes otherwise."""
+    n = settings.worker_count
+    if n <= 1:
+        return InProcessPool(scene, settings, ctx)
+    return ProcessPool(scene, settings, n)
+
+
+def _python_executable():
+    """The interpreter for worker processes (inside Blender, its bundled Python)."""
+    exe = sys.executable
+    if exe and os.path.basename(exe).lower().startswith("python"):
+        return exe
+    # Blender older than 2.91 pointed sys.executable at itself; find its bundled Python.
+    import sysconfig
+    cand = os.path.join(sysconfig.get_paths()["scripts"], "python3" if os.name != "nt" else "python.exe")
+    return cand if os.path.exists(cand) else exe
+
+
+def _send(p, msg):
+    pickle.dump(msg, p.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+    p.stdin.flush()
+
+
+def worker_main():
+    """Entry point of a worker process: serve requests from stdin until told to stop."""
+    import traceback
+
+    from .scene import Scene
+    from .settings import RenderSettings
+
+    inp = sys.stdin.buffer
+    out = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    sys.stdout = sys.stderr          # nothing else may write into the message channel
+    worker = None
+    while True:
+        try:
+            msg = pickle.load(inp)
+        except EOFError:
+            return
+        try:
+            if msg[0] == "stop":
+                return
+            if msg[0] == "init":
+                _, arrays, settings_dict, index, n = msg
+                worker = PhotonWorker(Scene.from_arrays(arrays), RenderSettings(**settings_dict), index, n)
+                reply = ("ok", None)
+            else:
+                _, pass_index, arrays, n_photons = msg
+                target = DepositTarget.from_arrays(arrays, worker.ctx.table)
+                reply = ("ok", worker.run_pass(pass_index, target, n_photons))
+        except Exception:
+            reply = ("error", traceback.format_exc())
+        pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)
+        out.flush()

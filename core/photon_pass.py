@@ -1,0 +1,232 @@
+"""Photon tracing as a deterministic function of a primary sample, with deposits.
+
+A photon path is a function of u in [0, 1)^d with a fixed stride
+(``algorithm.md`` 4): six light dimensions, then four per bounce
+``[lobe, direction 0, direction 1, Russian roulette]``, so d = 6 + 4 B for at
+most B scattering events.  The path deposits at every vertex whose material has
+a non-delta lobe, including the first hit, and is *visible* (V(u) = 1) when any
+deposit finds a measurement point (the same test as the deposit itself).
+
+The contribution of photon p to measurement point j (pixel of j) is::
+
+    w_j f_j(wo_j, wi_p) |cos_s| / |cos_g| Phi_p / (pi r_j^2)
+
+with wi_p pointing back along the photon; dividing by the number of recorded
+photons gives one pass's radiance estimate (Knaus & Zwicker 2011).
+
+Low-dimension mutation (Watanabe et al.): when ``refresh_rng`` is given, a path
+that becomes visible at a vertex gets every dimension from that vertex's
+scattering block onwards redrawn uniformly, in place in ``u``, before it is used.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bsdf import choose_lobe, eval_glossy, face_forward, lobe_scores, scatter
+from .eye_pass import MeasurementPoints
+from .hash_grid import HashGrid
+from .lights import LIGHT_DIMS
+from .sampling import dot, luminance
+
+BOUNCE_DIMS = 4
+
+
+def path_dims(max_bounces: int) -> int:
+    """Dimensions of a photon path's primary sample."""
+    return LIGHT_DIMS + BOUNCE_DIMS * max_bounces
+
+
+def bounce_offset(bounce: int) -> int:
+    """First dimension of the scattering block at vertex ``bounce`` (0 = first surface hit)."""
+    return LIGHT_DIMS + BOUNCE_DIMS * bounce
+
+
+class DepositTarget:
+    """The measurement points of one pass, gridded, with their per-point kernel weights."""
+
+    def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None):
+        """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j."""
+        self.points = points
+        self.radius = radius
+        self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
+        self.n_pixels = n_pixels
+        self.pixel_ids = points.pixel_ids
+        self.has_shading_normals = has_shading_normals
+        kernel = 1.0 / (np.pi * radius * radius)                                   # (m,)
+        w = table.weight[points.mat_ids]
+        # Diffuse part is constant in wi: w_j * weight_d * albedo / pi / (pi r^2).
+        self.k_diffuse = (points.weight * points.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None])
+        glossy = table.has_glossy[points.mat_ids]
+        self.any_glossy = bool(glossy.any())
+        self.is_glossy = glossy
+        self.k_glossy = points.weight * points.colors[:, 1] * (w[:, 1] * kernel)[:, None]
+        self.alpha = table.alpha[points.mat_ids]
+
+    def to_arrays(self) -> dict:
+        """Plain arrays for a worker process (see :meth:`from_arrays`)."""
+        d = {f"points.{f}": getattr(self.points, f) for f in self.points.__dataclass_fields__}
+        d.update({f"grid.{k}": v for k, v in self.grid.to_arrays().items()})
+        d.update(radius=self.radius, n_pixels=self.n_pixels, has_shading_normals=self.has_shading_normals)
+        return d
+
+    @staticmethod
+    def from_arrays(d, table) -> "DepositTarget":
+        points = MeasurementPoints(**{f: d[f"points.{f}"] for f in MeasurementPoints.__dataclass_fields__})
+        grid = HashGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
+        return DepositTarget(points, d["radius"], table, int(d["n_pixels"]),
+                             bool(d["has_shading_normals"]), grid=grid)
+
+    def pair_weights(self, j, wi, cos_g):
+        """Scalar diffuse and glossy weights of pairs with points ``j`` (the points' kernels aside).
+
+        wi : (k, 3) unit directions back along the photons, or None for flat diffuse-only
+        targets; cos_g : (k,) their cosines with the points' oriented geometric normals, as
+        returned by the grid query.  The contribution of a pair is
+        ``flux * (k_diffuse[j] * wd + k_glossy[j] * wg)``.  Returns ``(wd, wg or None)``.
+        """
+        pts = self.points
+        if self.has_shading_normals:
+            cos_s = dot(wi, pts.ns[j])
+            # Photon density is flux per area of the geometric surface: |cos_s| / |cos_g|.
+            ratio = np.abs(cos_s) / np.maximum(np.abs(cos_g), 1e-4)
+            wd = np.where(cos_s > 0, ratio, 0.0)
+        else:
+            cos_s, ratio = cos_g, None
+            wd = (cos_s > 0).astype(np.float64)
+        wg = None
+        if self.any_glossy:
+            wg = np.zeros(len(j))
+            g = np.flatnonzero(self.is_glossy[j])
+            if len(g):
+                jg = j[g]
+                wg[g] = eval_glossy(self.alpha[jg], pts.wo[jg], wi[g], pts.ns[jg])
+                if ratio is not None:
+                    wg[g] *= ratio[g]
+        return wd, wg
+
+    @property
+    def needs_directions(self) -> bool:
+        return self.has_shading_normals or self.any_glossy
+
+    def to_pixels(self, sum_diffuse, sum_glossy):
+        """(n_pixels, 3) radiance sums from per-point sums of flux * weight (m, 3) each."""
+        out = np.zeros((self.n_pixels, 3))
+        val = self.k_diffuse * sum_diffuse
+        if sum_glossy is not None:
+            val += self.k_glossy * sum_glossy
+        out[self.pixel_ids] = val          # one measurement point per pixel and pass
+        return out
+
+
+def point_splat(point_ids, values, n_points):
+    """(n_points, 3) float64 sums of ``values`` (k, 3) per point (one bincount for all channels)."""
+    keys = (point_ids[:, None] * 3 + np.arange(3)).ravel()
+    return np.bincount(keys, weights=values.ravel(), minlength=3 * n_points).reshape(n_points, 3)
+
+
+@dataclass
+class PhotonBatch:
+    """What a batch of n photon paths did."""
+
+    visible: np.ndarray          # (n,) bool V(u)
+    first_dim: np.ndarray        # (n,) int32 dimensions consumed before the first visible vertex, -1
+    pair_path: np.ndarray        # (k,) int64 path index of each deposit pair (if collected)
+    pair_point: np.ndarray       # (k,) int64 measurement point of each pair
+    pair_diffuse: np.ndarray     # (k, 3) float64 flux * diffuse weight of each pair
+    pair_glossy: np.ndarray      # (k, 3) float64 flux * glossy weight, or None (no glossy points)
+    sum_diffuse: np.ndarray      # (m, 3) per-point sums of flux * diffuse weight (if splatted)
+    sum_glossy: np.ndarray       # (m, 3) per-point sums of flux * glossy weight, or None
+    rays: int                    # closest-hit rays traced (= photon path vertices attempted)
+    vertices: int                # surface hits (photon path vertices)
+
+
+def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False):
+    """Trace photon paths for primary samples ``u`` (n, d) and deposit them on ``target``.
+
+    With ``collect_pairs`` the deposits are returned per pair (for Markov chains);
+    otherwise they are summed per measurement point.
+    """
+    n = len(u)
+    accel, table = ctx.accel, ctx.table
+    origins, dirs, flux, _ = ctx.lights.sample(u[:, :LIGHT_DIMS])
+    visible = np.zeros(n, bool)
+    first_dim = np.full(n, -1, np.int32)
+    idx = np.flatnonzero(luminance(flux) > 0)
+    origins, dirs, flux = origins[idx], dirs[idx], flux[idx]
+    m = target.points.count
+    glossy = target.any_glossy
+    pairs = {"path": [], "point": [], "diffuse": [], "glossy": []}
+    sum_d = None if collect_pairs else np.zeros((m, 3))
+    sum_g = None if collect_pairs or not glossy else np.zeros((m, 3))
+    rays = vertices = 0
+    for bounce in range(max_bounces + 1):
+        if len(idx) == 0:
+            break
+        hits = accel.intersect(origins, dirs)
+        rays += len(idx)
+        h = np.flatnonzero(hits.is_hit)
+        idx, dirs, flux = idx[h], dirs[h], flux[h]
+        vertices += len(idx)
+        if len(idx) == 0:
+            break
+        surf = ctx.surface(hits.prim_ids[h], hits.b1[h], hits.b2[h])
+        wo = -dirs
+        # Deposit at non-delta vertices; a pair found makes the path visible.
+        dep = np.flatnonzero(table.has_nondelta[surf.mat_ids])
+        if len(dep) and m:
+            nrm = face_forward(surf.ng[dep], wo[dep])
+            pi, pj, cos_g = target.grid.query(surf.position[dep], nrm, wo[dep])
+            if len(pi):
+                lane = dep[pi]
+                wd, wg = target.pair_weights(pj, wo[lane] if target.needs_directions else None, cos_g)
+                f = flux[lane]
+                val_d = f * wd[:, None]
+                val_g = f * wg[:, None] if glossy else None
+                if collect_pairs:
+                    pairs["path"].append(idx[lane])
+                    pairs["point"].append(pj)
+                    pairs["diffuse"].append(val_d)
+                    pairs["glossy"].append(val_g)
+                else:
+                    sum_d += point_splat(pj, val_d, m)
+                    if glossy:
+                        sum_g += point_splat(pj, val_g, m)
+                seen = np.zeros(len(idx), bool)
+                seen[lane] = True
+                paths = idx[seen]
+                new = paths[~visible[paths]]
+                visible[new] = True
+                first_dim[new] = bounce_offset(bounce)
+                if refresh_rng is not None and len(new) and bounce < max_bounces:
+                    start = bounce_offset(bounce)
+                    u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
+        if bounce == max_bounces:
+            break
+        # Scatter with this vertex's block of dimensions.
+        block = u[idx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
+        scores = lobe_scores(table, surf.mat_ids, surf.colors)
+        lobe, prob = choose_lobe(scores, block[:, 0])
+        wi, weight, alive = scatter(table, surf.mat_ids, surf.colors, lobe, prob, wo, surf.ng, surf.ns,
+                                    block[:, 1], block[:, 2], "importance")
+        new_flux = flux * weight
+        # Russian roulette on the luminance ratio (the path stays a function of u).
+        ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)
+        q = np.minimum(1.0, ratio)
+        alive &= (block[:, 3] < q) & (q > 0)
+        keep = np.flatnonzero(alive)
+        idx = idx[keep]
+        flux = new_flux[keep] / q[keep][:, None]
+        dirs = wi[keep]
+        origins = accel.spawn(surf.position[keep], surf.ng[keep], dirs)
+    if collect_pairs and pairs["path"]:
+        pp, pj = np.concatenate(pairs["path"]), np.concatenate(pairs["point"])
+        pd = np.concatenate(pairs["diffuse"])
+        pg = np.concatenate(pairs["glossy"]) if glossy else None
+    elif collect_pairs:
+        pp, pj, pd = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
+        pg = np.zeros((0, 3)) if glossy else None
+    else:
+        pp = pj = pd = pg = None
+    return PhotonBatch(visible, first_dim, pp, pj, pd, pg, sum_d, sum_g, rays, vertices)

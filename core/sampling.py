@@ -1,0 +1,200 @@
+"""Warps from the unit square to directions and shapes, with their densities.
+
+Pure vectorised functions: inputs are arrays of uniform numbers in [0, 1), outputs
+arrays of samples.  Local directions use a frame whose +Z is the normal.
+Densities are per unit solid angle (directions) or per unit area (shapes).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+INV_PI = 1.0 / np.pi
+
+
+def luminance(rgb):
+    """Rec.709 luminance of (..., 3) linear RGB."""
+    rgb = np.asarray(rgb)
+    return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
+
+
+def dot(a, b):
+    """Row-wise dot product of (n, 3) arrays."""
+    return np.einsum("ij,ij->i", a, b)
+
+
+def normalize(v):
+    """Rows of (n, 3) scaled to unit length; zero rows stay zero."""
+    n = np.sqrt(dot(v, v))
+    return v / np.where(n > 0, n, 1.0)[:, None]
+
+
+def orthonormal_frames(n):
+    """Tangent and bitangent (n, 3) completing unit normals ``n`` (Duff et al. 2017)."""
+    sign = np.where(n[:, 2] >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    t = np.stack([1.0 + sign * n[:, 0] * n[:, 0] * a, sign * b, -sign * n[:, 0]], axis=1)
+    bt = np.stack([b, sign + n[:, 1] * n[:, 1] * a, -n[:, 1]], axis=1)
+    return t, bt
+
+
+def to_world(local, n):
+    """Rotate local directions (z = normal) into the frames around unit normals ``n``."""
+    t, b = orthonormal_frames(n)
+    return local[:, 0:1] * t + local[:, 1:2] * b + local[:, 2:3] * n
+
+
+def to_local(v, n):
+    """Express world vectors ``v`` in the frames around ``n`` (inverse of :func:`to_world`)."""
+    t, b = orthonormal_frames(n)
+    return np.stack([dot(v, t), dot(v, b), dot(v, n)], axis=1)
+
+
+def concentric_disk(u1, u2):
+    """Uniform points on the unit disk (Shirley-Chiu), area density 1/pi."""
+    a = 2.0 * u1 - 1.0
+    b = 2.0 * u2 - 1.0
+    use_a = np.abs(a) > np.abs(b)
+    r = np.where(use_a, a, b)
+    safe_a = np.where(a == 0, 1.0, a)
+    safe_b = np.where(b == 0, 1.0, b)
+    phi = np.where(use_a, (np.pi / 4) * (b / safe_a), np.pi / 2 - (np.pi / 4) * (a / safe_b))
+    phi = np.where((a == 0) & (b == 0), 0.0, phi)
+    return r * np.cos(phi), r * np.sin(phi)
+
+
+def cosine_hemisphere(u1, u2):
+    """Cosine-weighted local directions; density cos(theta)/pi."""
+    x, y = concentric_disk(u1, u2)
+    z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
+    return np.stack([x, y, z], axis=1)
+
+
+def cosine_hemisphere_pdf(cos_theta):
+    return np.maximum(cos_theta, 0.0) * INV_PI
+
+
+def uniform_sphere(u1, u2):
+    """Uniform directions on the unit sphere; density 1/(4 pi)."""
+    z = 1.0 - 2.0 * u1
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u2
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def uniform_cone(u1, u2, cos_max):
+    """Uniform local directions within ``acos(cos_max)`` of +Z; density 1/(2 pi (1 - cos_max))."""
+    z = 1.0 - u1 * (1.0 - cos_max)
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u2
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def uniform_triangle(u1, u2):
+    """Barycentrics (b1, b2) uniform over a triangle (area density 1/area)."""
+    s = np.sqrt(u1)
+    return s * (1.0 - u2), s * u2
+
+
+def smoothstep(x):
+    """Hermite smoothstep of ``x`` clamped to [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def reflect(wo, n):
+    """Mirror ``wo`` (pointing away from the surface) about ``n``."""
+    return 2.0 * dot(wo, n)[:, None] * n - wo
+
+
+def fresnel_dielectric(cos_i, eta):
+    """Unpolarised Fresnel reflectance and the refracted cosine.
+
+    ``cos_i`` >= 0 is the cosine of the incident direction on the incident side,
+    ``eta`` = n_transmitted / n_incident.  Returns ``(F, cos_t)`` with F = 1 and
+    cos_t = 0 under total internal reflection (no NaN).
+    """
+    sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+    tir = sin2_t >= 1.0
+    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    r_s = (cos_i - eta * cos_t) / np.maximum(cos_i + eta * cos_t, 1e-30)
+    r_p = (eta * cos_i - cos_t) / np.maximum(eta * cos_i + cos_t, 1e-30)
+    f = np.where(tir, 1.0, 0.5 * (r_s * r_s + r_p * r_p))
+    return np.minimum(f, 1.0), np.where(tir, 0.0, cos_t)
+
+
+def refract(wo, n, eta, cos_t):
+    """Refract ``wo`` (pointing away from the surface on ``n``'s side) through the surface.
+
+    ``eta`` = n_transmitted / n_incident and ``cos_t`` from :func:`fresnel_dielectric`.
+    """
+    cos_i = dot(wo, n)
+    return (-wo / eta[:, None]) + ((cos_i / eta) - cos_t)[:, None] * n
+
+
+# ---------------------------------------------------------------- GGX microfacets
+def ggx_d(cos_m, alpha):
+    """GGX normal distribution D(m) for the cosine of the half vector to the normal."""
+    a2 = alpha * alpha
+    c2 = cos_m * cos_m
+    denom = c2 * (a2 - 1.0) + 1.0
+    return np.where(cos_m > 0, a2 / (np.pi * denom * denom), 0.0)
+
+
+def ggx_lambda(cos_v, alpha):
+    """Smith Lambda for GGX."""
+    c2 = np.maximum(cos_v * cos_v, 1e-12)
+    t2 = np.maximum(0.0, 1.0 - c2) / c2
+    return 0.5 * (np.sqrt(1.0 + alpha * alpha * t2) - 1.0)
+
+
+def ggx_g1(cos_v, alpha):
+    return 1.0 / (1.0 + ggx_lambda(cos_v, alpha))
+
+
+def ggx_g2(cos_o, cos_i, alpha):
+    """Height-correlated Smith masking-shadowing."""
+    return 1.0 / (1.0 + ggx_lambda(cos_o, alpha) + ggx_lambda(cos_i, alpha))
+
+
+def ggx_sample_visible_normal(wo_local, alpha, u1, u2):
+    """Sample a microfacet normal from the GGX distribution of visible normals (Heitz 2018).
+
+    ``wo_local`` (n, 3) with z > 0.  The half vector's density is
+    G1(wo) max(0, wo.m) D(m) / wo.z.
+    """
+    vh = normalize(np.stack([alpha * wo_local[:, 0], alpha * wo_local[:, 1], wo_local[:, 2]], axis=1))
+    lensq = vh[:, 0] ** 2 + vh[:, 1] ** 2
+    inv = 1.0 / np.sqrt(np.where(lensq > 0, lensq, 1.0))
+    t1 = np.where((lensq > 0)[:, None], np.stack([-vh[:, 1] * inv, vh[:, 0] * inv,
+                                                  np.zeros_like(inv)], axis=1),
+                  np.array([1.0, 0.0, 0.0]))
+    t2 = np.cross(vh, t1)
+    r = np.sqrt(u1)
+    phi = 2.0 * np.pi * u2
+    p1 = r * np.cos(phi)
+    p2 = r * np.sin(phi)
+    s = 0.5 * (1.0 + vh[:, 2])
+    p2 = (1.0 - s) * np.sqrt(np.maximum(0.0, 1.0 - p1 * p1)) + s * p2
+    p3 = np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))
+    nh = p1[:, None] * t1 + p2[:, None] * t2 + p3[:, None] * vh
+    return normalize(np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(1e-9, nh[:, 2])], axis=1))
+
+
+def ggx_reflection_pdf(wo_local, wi_local, alpha):
+    """Density of :func:`ggx_sample_visible_normal` + reflection, per solid angle of wi."""
+    m = normalize(wo_local + wi_local)
+    cos_o = wo_local[:, 2]
+    d_vis = ggx_g1(cos_o, alpha) * np.maximum(0.0, dot(wo_local, m)) * ggx_d(m[:, 2], alpha) \
+        / np.maximum(cos_o, 1e-12)
+    return np.where((cos_o > 0) & (wi_local[:, 2] > 0),
+                    d_vis / np.maximum(4.0 * np.abs(dot(wo_local, m)), 1e-12), 0.0)
+
+
+def ggx_reflection_f(wo_local, wi_local, alpha):
+    """Scalar GGX reflection BSDF value (no Fresnel, no colour)."""
+    m = normalize(wo_local + wi_local)
+    cos_o, cos_i = wo_local[:, 2], wi_local[:, 2]
+    valid = (cos_o > 0) & (cos_i > 0)
+    f = ggx_d(m[:, 2], alpha) * ggx_g2(cos_o, cos_i, alpha) / np.maximum(4.0 * cos_o * cos_i, 1e-12)
+    return np.where(valid, f, 0.0)

@@ -1,0 +1,523 @@
+"""Scene description: a structure of NumPy arrays that the renderer consumes.
+
+Everything the core needs arrives through :class:`Scene`; the Blender exporter
+(``amcmcppm_addon/export``) and the built-in test scenes (``core/testing``) both
+build one.  All positions and directions are in one right-handed world space
+(Blender's, Z up, metres); all colours are linear Rec.709 RGB.
+
+Units follow Cycles (see ``shared/docs/blender.md`` section 3):
+
+* lights carry their emitted power in watts (RGB, colour already applied),
+  the sun its irradiance in W/m^2;
+* emissive materials and the world carry radiance in W/(m^2 sr).
+
+Glossary: ``T`` triangles, ``V`` vertices, ``M`` materials, ``L`` lights,
+``K`` image textures.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class SceneError(ValueError):
+    """A scene that cannot be rendered; the message says which field is wrong."""
+
+
+# Light kinds (values of ``Lights.kind``).
+POINT, SPOT, AREA_RECT, AREA_DISK, SUN = 0, 1, 2, 3, 4
+LIGHT_KIND_NAMES = {POINT: "point", SPOT: "spot", AREA_RECT: "area (rectangle)",
+                    AREA_DISK: "area (disk/ellipse)", SUN: "sun"}
+
+
+def _f32(a, shape_tail=()):
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float32).reshape((-1,) + shape_tail))
+
+
+@dataclass
+class Materials:
+    """Per-material lobe weights and parameters, shape ``(M, ...)``.
+
+    A material is a weighted sum of lobes.  Each ``*_weight`` is the mixing weight
+    of a lobe (Blender's Mix/Add node factors multiplied out); weights normally sum
+    to at most 1.  Lobes:
+
+    * diffuse: Lambertian, albedo ``diffuse_color`` or, when ``diffuse_texture``
+      is >= 0, that image texture looked up with the triangle UVs;
+    * glossy: GGX microfacet reflection, ``glossy_roughness`` is Blender's
+      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror;
+    * mirror: perfect specular reflection tinted by ``mirror_color``;
+    * dielectric: smooth glass with index of refraction ``ior``, Fresnel
+      reflection/refraction and total internal reflection, tinted by
+      ``dielectric_color`` (as Cycles' Glass colour);
+    * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides.
+    """
+
+    names: list = field(default_factory=list)          # M material names (for messages)
+    diffuse_weight: np.ndarray = None                   # (M,) float32
+    diffuse_color: np.ndarray = None                    # (M, 3) float32, linear albedo
+    diffuse_texture: np.ndarray = None                  # (M,) int32, index into Scene.textures or -1
+    glossy_weight: np.ndarray = None                    # (M,) float32
+    glossy_color: np.ndarray = None                     # (M, 3) float32
+    glossy_roughness: np.ndarray = None                 # (M,) float32 in [0, 1]
+    mirror_weight: np.ndarray = None                    # (M,) float32
+    mirror_color: np.ndarray = None                     # (M, 3) float32
+    dielectric_weight: np.ndarray = None                # (M,) float32
+    dielectric_color: np.ndarray = None                 # (M, 3) float32
+    ior: np.ndarray = None                              # (M,) float32, > 0
+    emission: np.ndarray = None                         # (M, 3) float32 radiance
+
+    ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
+                    "glossy_color", "glossy_roughness", "mirror_weight", "mirror_color",
+                    "dielectric_weight", "dielectric_color", "ior", "emission")
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    @staticmethod
+    def build(specs) -> "Materials":
+        """Build from a list of dicts, each with a ``name`` and any of the lobe keys.
+
+        Missing keys default to a black, non-scattering, non-emitting material;
+        colours may be scalars.  Example: ``{"name": "wall", "diffuse": (0.8, 0.8, 0.8)}``
+        or ``{"name": "glass", "dielectric": 1.0, "ior": 1.5}``.
+        Short keys: ``diffuse``/``glossy``/``mirror``/``dielectric`` give the colour
+        and set the weight to 1 unless ``<lobe>_weight`` is given.
+        """
+        m = len(specs)
+        out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
+        out.diffuse_weight = np.zeros(m, np.float32)
+        out.diffuse_color = np.zeros((m, 3), np.float32)
+        out.diffuse_texture = np.full(m, -1, np.int32)
+        out.glossy_weight = np.zeros(m, np.float32)
+        out.glossy_color = np.zeros((m, 3), np.float32)
+        out.glossy_roughness = np.full(m, 0.5, np.float32)
+        out.mirror_weight = np.zeros(m, np.float32)
+        out.mirror_color = np.zeros((m, 3), np.float32)
+        out.dielectric_weight = np.zeros(m, np.float32)
+        out.dielectric_color = np.ones((m, 3), np.float32)
+        out.ior = np.full(m, 1.5, np.float32)
+        out.emission = np.zeros((m, 3), np.float32)
+        for i, s in enumerate(specs):
+            for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
+                if lobe in s:
+                    getattr(out, f"{lobe}_color")[i] = np.broadcast_to(
+                        np.asarray(s[lobe], np.float32), (3,))
+                    getattr(out, f"{lobe}_weight")[i] = s.get(f"{lobe}_weight", 1.0)
+                elif f"{lobe}_weight" in s:
+                    getattr(out, f"{lobe}_weight")[i] = s[f"{lobe}_weight"]
+            if "diffuse_texture" in s:
+                out.diffuse_texture[i] = s["diffuse_texture"]
+                if "diffuse" not in s:
+                    out.diffuse_color[i] = 1.0
+                    out.diffuse_weight[i] = s.get("diffuse_weight", 1.0)
+            if "roughness" in s:
+                out.glossy_roughness[i] = s["roughness"]
+            if "ior" in s:
+                out.ior[i] = s["ior"]
+            if "emission" in s:
+                out.emission[i] = np.broadcast_to(np.asarray(s["emission"], np.float32), (3,))
+        return out
+
+
+@dataclass
+class Lights:
+    """Analytic lights, shape ``(L, ...)``; emissive meshes are materials instead.
+
+    ``kind`` selects the model (Cycles' conventions):
+
+    * POINT: a sphere of ``radius`` (0 = a point) radiating ``power`` watts
+      uniformly; radiance P/(4 pi^2 r^2), intensity P/(4 pi).
+    * SPOT: a point light masked by a cone of full angle ``spot_angle`` around
+      ``direction`` with smoothstep edge ``spot_blend``; the cone does not
+      concentrate the power (intensity stays P/(4 pi)).
+    * AREA_RECT / AREA_DISK: a one-sided Lambertian emitter facing ``direction``,
+      spanned by the half-extent vectors ``axis_u`` and ``axis_v`` (a rectangle, or
+      an ellipse with those semi-axes); radiance P/(pi A).
+    * SUN: a distant light arriving along ``direction`` with irradiance ``power``
+      (W/m^2) over a cone of angular diameter ``sun_angle``.
+    """
+
+    kind: np.ndarray = None             # (L,) int8, one of POINT, SPOT, AREA_RECT, AREA_DISK, SUN
+    position: np.ndarray = None         # (L, 3) float64, world; centre of the light (unused for SUN)
+    direction: np.ndarray = None        # (L, 3) float32, unit; emission axis (-Z of the light object)
+    axis_u: np.ndarray = None           # (L, 3) float32, world; area half-extent along local X
+    axis_v: np.ndarray = None           # (L, 3) float32, world; area half-extent along local Y
+    power: np.ndarray = None            # (L, 3) float32; watts, or W/m^2 for SUN
+    radius: np.ndarray = None           # (L,) float32; sphere radius of POINT/SPOT
+    spot_angle: np.ndarray = None       # (L,) float32; full cone angle in radians
+    spot_blend: np.ndarray = None       # (L,) float32 in [0, 1]
+    sun_angle: np.ndarray = None        # (L,) float32; angular diameter in radians
+
+    ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
+                    "spot_angle", "spot_blend", "sun_angle")
+
+    @property
+    def count(self) -> int:
+        return 0 if self.kind is None else int(len(self.kind))
+
+    @staticmethod
+    def empty() -> "Lights":
+        return Lights.build([])
+
+    @staticmethod
+    def build(specs) -> "Lights":
+        """Build from dicts with ``kind`` ("point", "spot", "area", "disk", "sun") and fields.
+
+        Example: ``{"kind": "point", "position": (0, 0, 2), "power": 100}``,
+        ``{"kind": "area", "position": p, "direction": (0, 0, -1), "size": (1, 2)}``
+        (``size`` gives full extents along axes perpendicular to ``direction``;
+        pass ``axis_u``/``axis_v`` for explicit half-extent vectors).
+        """
+        kinds = {"point": POINT, "spot": SPOT, "area": AREA_RECT, "rect": AREA_RECT,
+                 "disk": AREA_DISK, "ellipse": AREA_DISK, "sun": SUN}
+        n = len(specs)
+        out = Lights(kind=np.zeros(n, np.int8), position=np.zeros((n, 3)),
+                     direction=np.tile(np.float32([0, 0, -1]), (n, 1)),
+                     axis_u=np.zeros((n, 3), np.float32), axis_v=np.zeros((n, 3), np.float32),
+                     power=np.zeros((n, 3), np.float32), radius=np.zeros(n, np.float32),
+                     spot_angle=np.full(n, np.pi / 4, np.float32), spot_blend=np.zeros(n, np.float32),
+                     sun_angle=np.zeros(n, np.float32))
+        for i, s in enumerate(specs):
+            out.kind[i] = kinds[s["kind"]]
+            out.position[i] = s.get("position", (0, 0, 0))
+            d = np.asarray(s.get("direction", (0, 0, -1)), np.float64)
+            d = d / np.linalg.norm(d)
+            out.direction[i] = d
+            out.power[i] = np.broadcast_to(np.asarray(s.get("power", 0.0), np.float32), (3,))
+            out.radius[i] = s.get("radius", 0.0)
+            out.spot_angle[i] = s.get("spot_angle", np.pi / 4)
+            out.spot_blend[i] = s.get("spot_blend", 0.0)
+            out.sun_angle[i] = s.get("sun_angle", 0.0)
+            if "axis_u" in s:
+                out.axis_u[i] = s["axis_u"]
+                out.axis_v[i] = s["axis_v"]
+            elif out.kind[i] in (AREA_RECT, AREA_DISK):
+                sx, sy = np.broadcast_to(np.asarray(s.get("size", 1.0), np.float64), (2,))
+                u, v = orthonormal_basis(d)
+                out.axis_u[i] = u * sx / 2
+                out.axis_v[i] = v * sy / 2
+        return out
+
+
+def orthonormal_basis(n):
+    """Two unit vectors that complete the unit vector ``n`` (3,) to a right-handed basis."""
+    n = np.asarray(n, np.float64)
+    a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
+    u = np.cross(a, n)
+    u /= np.linalg.norm(u)
+    return u, np.cross(n, u)
+
+
+@dataclass
+class Camera:
+    """A pinhole, thin-lens or orthographic camera.
+
+    The camera looks along its local -Z with +Y up (Blender's convention);
+    ``world_from_camera`` maps camera space to world space.  ``frame`` is the
+    visible window of the image plane, as Blender's ``Camera.view_frame``:
+    on the plane z = -1 for a perspective camera, in camera units for an
+    orthographic one, so sensor fit, aspect ratio and shift are already in it.
+    ``border`` is the rendered sub-window in fractions of the frame with y measured
+    from the bottom (Blender's ``border_min_y``); the image produced covers
+    ``floor(border * resolution)`` pixels.
+    """
+
+    world_from_camera: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64
+    projection: str = "perspective"     # "perspective" or "orthographic"
+    frame: tuple = (-0.36, 0.36, -0.2025, 0.2025)   # (x_min, x_max, y_min, y_max)
+    resolution: tuple = (64, 36)        # (width, height) of the full frame in pixels
+    border: tuple = (0.0, 1.0, 0.0, 1.0)  # (x_min, x_max, y_min, y_max), fractions, y from bottom
+    aperture_radius: float = 0.0        # thin-lens aperture radius in world units (0 = pinhole)
+    focus_distance: float = 10.0        # distance of the plane in focus along -Z
+    clip_start: float = 0.0             # near clip along -Z
+    clip_end: float = 1e30              # far clip along -Z
+
+    @staticmethod
+    def look_at(eye, target, up=(0, 0, 1), *, lens_mm=50.0, sensor_width=36.0, sensor_height=24.0,
+                sensor_fit="AUTO", resolution=(64, 64), shift=(0.0, 0.0), **kwargs) -> "Camera":
+        """A perspective camera at ``eye`` looking at ``target``, framed as Blender does."""
+        eye, target, up = (np.asarray(v, np.float64) for v in (eye, target, up))
+        back = eye - target
+        back /= np.linalg.norm(back)
+        right = np.cross(up, back)
+        if np.linalg.norm(right) < 1e-9:
+            right = orthonormal_basis(back)[0]
+        right /= np.linalg.norm(right)
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, np.cross(back, right), back, eye
+        frame = perspective_frame(lens_mm, sensor_width, sensor_height, sensor_fit, resolution, shift)
+        return Camera(world_from_camera=m, frame=frame, resolution=tuple(int(r) for r in resolution),
+                      **kwargs)
+
+    @property
+    def window(self):
+        """Pixel window ``(x0, x1, y0, y1)`` rendered, rows counted from the top."""
+        w, h = self.resolution
+        bx0, bx1, by0, by1 = self.border
+        x0, x1 = int(np.floor(bx0 * w + 1e-9)), int(np.floor(bx1 * w + 1e-9))
+        # Blender's border y is measured from the bottom; our rows from the top.
+        y0, y1 = h - int(np.floor(by1 * h + 1e-9)), h - int(np.floor(by0 * h + 1e-9))
+        return x0, max(x1, x0), y0, max(y1, y0)
+
+
+def perspective_frame(lens_mm, sensor_width, sensor_height, sensor_fit, resolution, shift=(0.0, 0.0)):
+    """Image-plane window at z = -1 as Blender computes it (``view_frame``).
+
+    AUTO fits the larger image dimension to ``sensor_width``; HORIZONTAL fits the
+    width to ``sensor_width``; VERTICAL fits the height to ``sensor_height``.  Shift
+    is in units of the fitted dimension.
+    """
+    w, h = resolution
+    fit = sensor_fit.upper()
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if w >= h else "VERTICAL"
+        sensor = sensor_width
+    else:
+        sensor = sensor_width if fit == "HORIZONTAL" else sensor_height
+    size = sensor / lens_mm     # extent of the fitted dimension on the z = -1 plane
+    if fit == "HORIZONTAL":
+        half_w, half_h = size / 2, size / 2 * h / w
+        sx, sy = shift[0] * size, shift[1] * size
+    else:
+        half_h, half_w = size / 2, size / 2 * w / h
+        sx, sy = shift[0] * size, shift[1] * size
+    return (-half_w + sx, half_w + sx, -half_h + sy, half_h + sy)
+
+
+@dataclass
+class World:
+    """Constant background radiance seen by rays that leave the scene."""
+
+    color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) radiance
+    film_transparent: bool = False      # escaped camera rays give alpha 0 instead of the background
+
+
+@dataclass
+class Scene:
+    """A renderable scene.  See the module docstring for units and spaces."""
+
+    vertices: np.ndarray                # (V, 3) float32, world
+    triangles: np.ndarray               # (T, 3) int32, counter-clockwise = front (normal side)
+    material_ids: np.ndarray            # (T,) int32, index into ``materials``
+    materials: Materials
+    lights: Lights = field(default_factory=Lights.empty)
+    camera: Camera = field(default_factory=Camera)
+    world: World = field(default_factory=World)
+    shading_normals: np.ndarray = None  # (T, 3, 3) float32 per-corner normals, or None (flat)
+    uvs: np.ndarray = None              # (T, 3, 2) float32 per-corner texture coordinates, or None
+    textures: list = field(default_factory=list)  # K images (H, W, 3) float32, linear, row 0 = bottom
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def triangle_count(self) -> int:
+        return int(len(self.triangles))
+
+    def triangle_corners(self) -> np.ndarray:
+        """(T, 3, 3) float32 world positions of every triangle's corners."""
+        return self.vertices[self.triangles]
+
+    def bounds(self):
+        """(lo, hi) float64 (3,) of the geometry and light positions; a unit box if empty."""
+        pts = [self.vertices[np.unique(self.triangles)] if self.triangle_count else np.zeros((0, 3))]
+        if self.lights.count:
+            finite = self.lights.kind != SUN
+            pts.append(self.lights.position[finite])
+        p = np.concatenate([np.asarray(a, np.float64).reshape(-1, 3) for a in pts])
+        if len(p) == 0:
+            return np.full(3, -1.0), np.full(3, 1.0)
+        return p.min(axis=0), p.max(axis=0)
+
+    # --------------------------------------------------------------- validation
+    def validate(self) -> "Scene":
+        """Check shapes, dtypes, ranges and finiteness; raise :class:`SceneError` naming the field.
+
+        Returns ``self`` with arrays converted to the documented dtypes, so
+        ``scene = scene.validate()`` is the usual call.
+        """
+        def fail(msg):
+            raise SceneError(msg)
+
+        def arr(name, a, dtype, tail, n=None, finite=True):
+            if a is None:
+                fail(f"{name} is missing")
+            a = np.asarray(a)
+            if a.ndim != 1 + len(tail) or tuple(a.shape[1:]) != tuple(tail):
+                fail(f"{name} must have shape (n, {', '.join(map(str, tail))}) but has {a.shape}"
+                     if tail else f"{name} must be one-dimensional but has shape {a.shape}")
+            if n is not None and len(a) != n:
+                fail(f"{name} has {len(a)} rows, expected {n}")
+            if finite and np.issubdtype(a.dtype, np.floating) and not np.isfinite(a).all():
+                fail(f"{name} contains NaN or infinite values")
+            return np.ascontiguousarray(a.astype(dtype, copy=False))
+
+        self.vertices = arr("vertices", self.vertices, np.float32, (3,))
+        self.triangles = arr("triangles", self.triangles, np.int32, (3,))
+        t = len(self.triangles)
+        if t and (self.triangles.min() < 0 or self.triangles.max() >= len(self.vertices)):
+            fail(f"triangles index vertices outside [0, {len(self.vertices)})")
+        self.material_ids = arr("material_ids", self.material_ids, np.int32, (), t)
+        mats = self.materials
+        nm = mats.count
+        if t and nm == 0:
+            fail("the scene has triangles but no materials")
+        if t and (self.material_ids.min() < 0 or self.material_ids.max() >= nm):
+            fail(f"material_ids outside [0, {nm})")
+        for name in Materials.ARRAY_FIELDS:
+            tail = (3,) if name.endswith(("color", "emission")) else ()
+            dtype = np.int32 if name == "diffuse_texture" else np.float32
+            v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
+            if name != "diffuse_texture" and (v < 0).any():
+                bad = int(np.flatnonzero((v < 0).reshape(nm, -1).any(axis=1))[0])
+                fail(f"materials.{name} is negative for material '{mats.names[bad]}'")
+            setattr(mats, name, v)
+        if (mats.ior <= 0).any():
+            fail("materials.ior must be positive")
+        if ((mats.diffuse_texture < -1) | (mats.diffuse_texture >= len(self.textures))).any():
+            fail(f"materials.diffuse_texture must be -1 or an index below {len(self.textures)}")
+        if (mats.diffuse_texture >= 0).any() and self.uvs is None:
+            fail("materials use image textures but the scene has no uvs")
+        self.textures = [self._texture(i, x) for i, x in enumerate(self.textures)]
+        if self.shading_normals is not None:
+            self.shading_normals = arr("shading_normals", self.shading_normals.reshape(-1, 9),
+                                       np.float32, (9,), t).reshape(t, 3, 3)
+        if self.uvs is not None:
+            self.uvs = arr("uvs", self.uvs.reshape(-1, 6), np.float32, (6,), t).reshape(t, 3, 2)
+        lights = self.lights
+        nl = lights.count
+        for name in Lights.ARRAY_FIELDS:
+            tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
+            dtype = {"kind": np.int8, "position": np.float64}.get(name, np.float32)
+            v = arr(f"lights.{name}", getattr(lights, name), dtype, tail, nl)
+            setattr(lights, name, v)
+        if nl:
+            if ((lights.kind < POINT) | (lights.kind > SUN)).any():
+                fail("lights.kind must be one of POINT, SPOT, AREA_RECT, AREA_DISK, SUN")
+            if (lights.power < 0).any():
+                fail("lights.power must not be negative")
+            if (np.abs(np.linalg.norm(lights.direction, axis=1) - 1) > 1e-3).any():
+                fail("lights.direction must be unit vectors")
+            for name in ("radius", "spot_angle", "spot_blend", "sun_angle"):
+                if (getattr(lights, name) < 0).any():
+                    fail(f"lights.{name} must not be negative")
+        cam = self.camera
+        m = np.asarray(cam.world_from_camera, np.float64)
+        if m.shape != (4, 4) or not np.isfinite(m).all():
+            fail("camera.world_from_camera must be a finite 4x4 matrix")
+        if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+            fail("camera.world_from_camera is singular")
+        cam.world_from_camera = m
+        if cam.projection not in ("perspective", "orthographic"):
+            fail(f"camera.projection must be 'perspective' or 'orthographic', not {cam.projection!r}")
+        fx0, fx1, fy0, fy1 = (float(v) for v in cam.frame)
+        if not (np.isfinite([fx0, fx1, fy0, fy1]).all() and fx1 > fx0 and fy1 > fy0):
+            fail(f"camera.frame must be (x_min < x_max, y_min < y_max), got {cam.frame}")
+        w, h = (int(v) for v in cam.resolution)
+        if w < 1 or h < 1 or w * h > 2 ** 28:
+            fail(f"camera.resolution {cam.resolution} must be positive and at most 2^28 pixels")
+        cam.resolution = (w, h)
+        b = tuple(float(v) for v in cam.border)
+        if not (0 <= b[0] <= b[1] <= 1 and 0 <= b[2] <= b[3] <= 1):
+            fail(f"camera.border {cam.border} must satisfy 0 <= min <= max <= 1")
+        x0, x1, y0, y1 = cam.window
+        if x1 <= x0 or y1 <= y0:
+            fail(f"camera.border {cam.border} selects no pixels at resolution {cam.resolution}")
+        if cam.aperture_radius < 0 or not np.isfinite(cam.aperture_radius):
+            fail("camera.aperture_radius must be finite and not negative")
+        if cam.aperture_radius > 0 and not cam.focus_distance > 0:
+            fail("camera.focus_distance must be positive when depth of field is on")
+        if not (0 <= cam.clip_start < cam.clip_end):
+            fail("camera clip range must satisfy 0 <= clip_start < clip_end")
+        col = np.asarray(self.world.color, np.float32).reshape(-1)
+        if col.shape != (3,) or not np.isfinite(col).all() or (col < 0).any():
+            fail("world.color must be three finite non-negative numbers")
+        self.world.color = col
+        return self
+
+    @staticmethod
+    def _texture(i, x):
+        x = np.asarray(x, np.float32)
+        if x.ndim == 2:
+            x = x[:, :, None]
+        if x.ndim != 3 or x.shape[0] < 1 or x.shape[1] < 1 or x.shape[2] not in (1, 3, 4):
+            raise SceneError(f"textures[{i}] must be an (H, W, 1|3|4) image, got shape {x.shape}")
+        x = x[:, :, :3] if x.shape[2] >= 3 else np.repeat(x, 3, axis=2)
+        if not np.isfinite(x).all():
+            raise SceneError(f"textures[{i}] contains NaN or infinite values")
+        return np.ascontiguousarray(x)
+
+    # ------------------------------------------------------------------ file io
+    def to_arrays(self) -> dict:
+        """A flat dict of NumPy arrays (no objects): for ``.npz`` files and worker processes."""
+        d = {"format_version": np.int32(1), "vertices": self.vertices, "triangles": self.triangles,
+             "material_ids": self.material_ids,
+             "materials.names": np.array(self.materials.names, dtype=str)}
+        for name in Materials.ARRAY_FIELDS:
+            d[f"materials.{name}"] = getattr(self.materials, name)
+        for name in Lights.ARRAY_FIELDS:
+            d[f"lights.{name}"] = getattr(self.lights, name)
+        cam = self.camera
+        d["camera.world_from_camera"] = np.asarray(cam.world_from_camera, np.float64)
+        d["camera.projection"] = np.array(cam.projection)
+        for name in ("frame", "resolution", "border"):
+            d[f"camera.{name}"] = np.asarray(getattr(cam, name))
+        for name in ("aperture_radius", "focus_distance", "clip_start", "clip_end"):
+            d[f"camera.{name}"] = np.float64(getattr(cam, name))
+        d["world.color"] = np.asarray(self.world.color, np.float32)
+        d["world.film_transparent"] = np.bool_(self.world.film_transparent)
+        if self.shading_normals is not None:
+            d["shading_normals"] = self.shading_normals
+        if self.uvs is not None:
+            d["uvs"] = self.uvs
+        for i, tex in enumerate(self.textures):
+            d[f"textures.{i}"] = tex
+        return d
+
+    @staticmethod
+    def from_arrays(z) -> "Scene":
+        """Inverse of :meth:`to_arrays` (also accepts an open ``.npz``); validates the result."""
+        keys = set(z.keys()) if hasattr(z, "keys") else set(z.files)
+
+        def get(k, default=None):
+            return z[k] if k in keys else default
+
+        mats = Materials(names=[str(s) for s in get("materials.names", np.array([], str))])
+        for name in Materials.ARRAY_FIELDS:
+            setattr(mats, name, get(f"materials.{name}"))
+        lights = Lights(**{name: get(f"lights.{name}") for name in Lights.ARRAY_FIELDS})
+        cam = Camera(world_from_camera=get("camera.world_from_camera"),
+                     projection=str(get("camera.projection")),
+                     frame=tuple(float(v) for v in get("camera.frame")),
+                     resolution=tuple(int(v) for v in get("camera.resolution")),
+                     border=tuple(float(v) for v in get("camera.border")),
+                     **{name: float(get(f"camera.{name}")) for name in
+                        ("aperture_radius", "focus_distance", "clip_start", "clip_end")})
+        world = World(color=get("world.color"),
+                      film_transparent=bool(get("world.film_transparent", False)))
+        ntex = sum(1 for k in keys if k.startswith("textures."))
+        scene = Scene(vertices=get("vertices"), triangles=get("triangles"),
+                      material_ids=get("material_ids"), materials=mats, lights=lights,
+                      camera=cam, world=world, shading_normals=get("shading_normals"),
+                      uvs=get("uvs"), textures=[get(f"textures.{i}") for i in range(ntex)])
+        return scene.validate()
+
+    def save(self, path) -> None:
+        """Write the scene to a ``.npz`` file (no pickles; loadable with :meth:`load`)."""
+        np.savez_compressed(path, **self.to_arrays())
+
+    @staticmethod
+    def load(path) -> "Scene":
+        """Read a scene written by :meth:`save` and validate it."""
+        try:
+            z = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as e:
+            raise SceneError(f"cannot read scene file {path}: {e}") from e
+        with z:
+            return Scene.from_arrays(z)
+
+    def replace(self, **changes) -> "Scene":
+        """A shallow copy with some fields replaced (``dataclasses.replace``)."""
+        return dataclasses.replace(self, **changes)

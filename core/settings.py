@@ -1,0 +1,110 @@
+"""Render settings: one frozen dataclass; every default of the renderer lives here.
+
+Symbols follow ``shared/docs/algorithm.md``: alpha (Knaus-Zwicker radius
+reduction), A* (target acceptance), theta (mutation size).
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+
+METHODS = ("amcmcppm", "ppm")
+MUTATIONS = ("off", "paper", "exact")
+NORMALISATIONS = ("cumulative", "per_pass")
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """How to render.  Invalid values raise ``ValueError`` naming the field."""
+
+    method: str = "amcmcppm"
+    """"amcmcppm": photons from Markov chains that seek paths seen by the camera
+    (Hachisuka & Jensen 2011); "ppm": independent uniform photons (stochastic
+    progressive photon mapping, the baseline)."""
+
+    passes: int = 16
+    """Passes to render (eye pass + photon pass each); 0 = until ``time_limit``."""
+
+    time_limit: float = 0.0
+    """Stop after this many seconds of rendering (0 = no limit).  At least one pass runs."""
+
+    photons_per_pass: int = 200_000
+    """Photon paths per pass, over all workers.  PPM traces this many uniform paths;
+    AMCMCPPM runs this many chain iterations (each traces a uniform path, plus a mutated
+    one unless the uniform path is visible, and records one path once the chain has a
+    visible state)."""
+
+    seed: int = 0
+    """Random seed; the same seed, settings and worker count give the same image."""
+
+    alpha: float = 2.0 / 3.0
+    """Knaus-Zwicker radius reduction: r_{i+1}^2 = r_i^2 (i + alpha) / (i + 1)."""
+
+    initial_radius_px: float = 4.0
+    """Initial gather radius in pixel footprints at each measurement point."""
+
+    max_bounces: int = 8
+    """Most scattering events of a photon path, and most specular bounces of a camera path."""
+
+    workers: int = 0
+    """Processes tracing photons in parallel; 0 = one per CPU core, 1 = in this process."""
+
+    chains: int = 8192
+    """Markov chains advanced in lockstep, over all workers (AMCMCPPM only)."""
+
+    target_acceptance: float = 0.60
+    """Target acceptance rate A* of the mutation-size adaptation (0.234 = the original)."""
+
+    mutation: str = "paper"
+    """Low-dimension mutation: "off" mutates every dimension; "paper" redraws the dimensions
+    after the vertex at which the mutated path became visible (Watanabe et al.); "exact"
+    is the variant that keeps detailed balance (a Gibbs refresh of the suffix)."""
+
+    normalisation: str = "cumulative"
+    """Visible-fraction estimate: "cumulative" pools all uniform samples so far;
+    "per_pass" scales each pass by that pass's own fraction."""
+
+    initial_mutation_size: float = 1.0
+    """theta_1, the mutation size every chain starts with."""
+
+    def __post_init__(self):
+        def bad(name, why):
+            raise ValueError(f"RenderSettings.{name} {why} (got {getattr(self, name)!r})")
+
+        if self.method not in METHODS:
+            bad("method", f"must be one of {METHODS}")
+        if self.mutation not in MUTATIONS:
+            bad("mutation", f"must be one of {MUTATIONS}")
+        if self.normalisation not in NORMALISATIONS:
+            bad("normalisation", f"must be one of {NORMALISATIONS}")
+        if self.passes < 0:
+            bad("passes", "must be >= 0")
+        if not self.time_limit >= 0:
+            bad("time_limit", "must be >= 0")
+        if self.passes == 0 and self.time_limit == 0:
+            bad("passes", "and time_limit are both 0, so the render would never stop")
+        if self.photons_per_pass < 1:
+            bad("photons_per_pass", "must be >= 1")
+        if not 0 < self.alpha < 1:
+            bad("alpha", "must lie in (0, 1)")
+        if not 0 < self.initial_radius_px <= 1000:
+            bad("initial_radius_px", "must lie in (0, 1000]")
+        if not 1 <= self.max_bounces <= 64:
+            bad("max_bounces", "must lie in [1, 64]")
+        if self.workers < 0:
+            bad("workers", "must be >= 0")
+        if self.chains < 1:
+            bad("chains", "must be >= 1")
+        if not 0 < self.target_acceptance < 1:
+            bad("target_acceptance", "must lie in (0, 1)")
+        if not 1e-4 <= self.initial_mutation_size <= 1e3:
+            bad("initial_mutation_size", "must lie in [1e-4, 1e3]")
+
+    @property
+    def worker_count(self) -> int:
+        """Workers actually used: ``workers``, or the CPU count when it is 0."""
+        return self.workers or max(1, os.cpu_count() or 1)
+
+    def replace(self, **changes) -> "RenderSettings":
+        return dataclasses.replace(self, **changes)

@@ -1,0 +1,110 @@
+"""Photon work of one process: uniform photons (PPM) or Markov chains (AMCMCPPM).
+
+A :class:`PhotonWorker` owns its scene context, random streams and (for
+AMCMCPPM) its chains, which persist across passes.  The integrator runs one in
+its own process (``workers=1``) or several in worker processes
+(:mod:`core.parallel`), each tracing an independent share of every pass against
+the same measurement points; their per-pixel sums are merged per pass.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .context import RenderContext
+from .mcmc import ChainCounters, ChainSet, DepositCache, begin_pass, end_pass, iterate
+from .photon_pass import path_dims, trace_photons
+
+# Uniform photon paths traced per batch (bounds the memory of the deposit pairs).
+PPM_BATCH = 1 << 14
+
+# Stream identifiers for numpy SeedSequence entropy: (seed, stream, ...).
+STREAM_EYE, STREAM_PHOTONS, STREAM_CHAINS = 0, 1, 2
+
+
+def share(total, index, parts):
+    """Integer share of ``total`` for part ``index`` of ``parts`` (shares sum to ``total``)."""
+    return total // parts + (1 if index < total % parts else 0)
+
+
+class PhotonWorker:
+    """Traces the photons of one worker's share of every pass."""
+
+    def __init__(self, scene, settings, index=0, n_workers=1, ctx=None):
+        self.ctx = ctx if ctx is not None else RenderContext(scene)
+        self.settings = settings
+        self.index = index
+        self.dims = path_dims(settings.max_bounces)
+        self.chains = None
+        if settings.method == "amcmcppm":
+            n_chains = max(1, share(settings.chains, index, n_workers))
+            self.chain_rng = np.random.default_rng([settings.seed, STREAM_CHAINS, index])
+            self.chains = ChainSet.create(n_chains, self.dims, settings.initial_mutation_size,
+                                          self.chain_rng)
+
+    def run_pass(self, pass_index, target, n_photons, should_stop=None) -> dict:
+        """Trace this worker's photons of pass ``pass_index``; return sums and counters.
+
+        The result holds ``pixel_sum`` (n_pixels, 3): the summed contributions of the
+        recorded photons (not yet divided by their number or scaled by the visible
+        fraction), ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
+        """
+        stop = should_stop or (lambda: False)
+        counters = ChainCounters()
+        if self.chains is None:
+            pixel_sum, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
+            theta_mean, valid = 0.0, 0
+        else:
+            pixel_sum, interrupted = self._chain_pass(target, n_photons, counters, stop)
+            c = self.chains
+            adapted = c.proposed > 0
+            theta_mean = float(c.theta[adapted].mean()) if adapted.any() else float(c.theta.mean())
+            valid = int(c.valid.sum())
+        return {"pixel_sum": pixel_sum, "counters": dataclasses.asdict(counters),
+                "theta_mean": theta_mean, "valid_chains": valid,
+                "total_proposed": int(self.chains.proposed.sum()) if self.chains else 0,
+                "total_accepted": int(self.chains.accepted.sum()) if self.chains else 0,
+                "interrupted": interrupted}
+
+    def _uniform_pass(self, pass_index, target, n_photons, counters, stop):
+        s = self.settings
+        rng = np.random.default_rng([s.seed, STREAM_PHOTONS, pass_index, self.index])
+        m = target.points.count
+        sum_d = np.zeros((m, 3))
+        sum_g = np.zeros((m, 3)) if target.any_glossy else None
+        done = 0
+        while done < n_photons:
+            if stop():
+                return target.to_pixels(sum_d, sum_g), True
+            b = min(PPM_BATCH, n_photons - done)
+            batch = trace_photons(self.ctx, target, rng.random((b, self.dims)), s.max_bounces)
+            sum_d += batch.sum_diffuse
+            if sum_g is not None:
+                sum_g += batch.sum_glossy
+            visible = int(batch.visible.sum())
+            counters.add(ChainCounters(iterations=b, paths_traced=b, recorded=b, uniform_samples=b,
+                                       uniform_visible=visible, rays=batch.rays,
+                                       vertices=batch.vertices))
+            done += b
+        return target.to_pixels(sum_d, sum_g), False
+
+    def _chain_pass(self, target, n_photons, counters, stop):
+        s = self.settings
+        chains = self.chains
+        recorder = DepositCache(target.points.count, chains.count, target.any_glossy)
+
+        def trace(u, refresh_rng):
+            return trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
+                                 collect_pairs=True)
+
+        begin_pass(chains, trace, recorder, counters)
+        iterations = -(-n_photons // chains.count)
+        interrupted = False
+        for _ in range(iterations):
+            if stop():
+                interrupted = True
+                break
+            iterate(chains, trace, recorder, self.chain_rng, s, counters)
+        end_pass(chains, recorder)
+        return target.to_pixels(recorder.sum_diffuse, recorder.sum_glossy), interrupted
