@@ -142,8 +142,11 @@ def end_pass(chains, recorder):
     chains.hold[:] = 0
 
 
-def iterate(chains, trace, recorder, rng, settings, counters):
+def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
     """Advance every chain by one iteration (see the module docstring).
+
+    ``exchange=False`` switches replica exchange off for chains that already have a
+    state (a negative control for tests: such chains never jump between islands).
 
     ``trace(u, refresh_rng)`` traces paths for states ``u`` (n, d) and returns an
     object with ``visible`` (n,), ``first_dim`` (n,), ``rays`` and ``vertices``;
@@ -164,6 +167,8 @@ def iterate(chains, trace, recorder, rng, settings, counters):
     counters.uniform_samples += c
     vis = batch_u.visible
     counters.uniform_visible += int(vis.sum())
+    if not exchange:
+        vis = vis & ~was_valid
     # 2. Replica exchange (or initialisation of chains without a state).
     take = np.flatnonzero(vis)
     if len(take):
