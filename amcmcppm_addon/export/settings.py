@@ -1,0 +1,35 @@
+"""``scene.amcmcppm`` (a PropertyGroup) -> :class:`core.RenderSettings`.
+
+Property names equal the dataclass field names (see ``properties.py``), so the
+mapping is one loop; ``RenderSettings`` validates the values and raises a
+``ValueError`` naming the field when they cannot be rendered.
+"""
+from ...core.settings import RenderSettings
+from ..properties import CORE_SETTING_NAMES
+
+
+def render_settings_from(props, **overrides) -> RenderSettings:
+    """The core settings for the PropertyGroup ``props``, with optional field overrides."""
+    values = {name: getattr(props, name) for name in CORE_SETTING_NAMES}
+    values.update(overrides)
+    return RenderSettings(**values)
+
+
+def parse_snapshot_times(text):
+    """Sorted positive seconds from a comma-separated string ("1, 2,4" -> [1.0, 2.0, 4.0]).
+
+    Raises ``ValueError`` with a readable message for anything else.
+    """
+    times = []
+    for part in text.replace(";", ",").split(","):
+        part = part.strip()
+        if not part:
+            continue
+        try:
+            t = float(part)
+        except ValueError:
+            raise ValueError(f"snapshot time {part!r} is not a number") from None
+        if not t > 0 or t == float("inf"):
+            raise ValueError(f"snapshot time {part!r} must be a positive number of seconds")
+        times.append(t)
+    return sorted(set(times))

@@ -1,0 +1,122 @@
+"""Render settings stored in the .blend: ``scene.amcmcppm`` (one PropertyGroup on Scene).
+
+Every property that configures the renderer has the same name as the
+:class:`core.RenderSettings` field it feeds, and takes its default from that
+dataclass, so the panel, ``render.py`` and the core never disagree on a default.
+``export/settings.py`` turns the group into a ``RenderSettings``.  The last three
+properties configure optional file outputs of the engine (statistics, snapshots).
+"""
+import bpy
+from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+
+from ..core.settings import METHODS, MUTATIONS, NORMALISATIONS, RenderSettings
+
+# Enum items: (identifier = the core's value, name, description, index).
+enum_methods = (
+    ("amcmcppm", "AMCMCPPM",
+     "Adaptive Markov chain Monte Carlo progressive photon mapping: photon paths are "
+     "mutated towards paths the camera sees", 0),
+    ("ppm", "PPM",
+     "Stochastic progressive photon mapping with independent uniform photons (the baseline)", 1),
+)
+enum_mutations = (
+    ("off", "Off", "Mutate every dimension of the photon path", 0),
+    ("paper", "Paper",
+     "Redraw the dimensions after the vertex at which the mutated path became visible "
+     "(Watanabe et al.)", 1),
+    ("exact", "Exact", "Variant of the low-dimension mutation that keeps detailed balance", 2),
+)
+enum_normalisations = (
+    ("cumulative", "Cumulative", "Estimate the visible fraction from all uniform samples so far", 0),
+    ("per_pass", "Per Pass", "Scale each pass by its own visible-fraction estimate", 1),
+)
+
+for _items, _values in ((enum_methods, METHODS), (enum_mutations, MUTATIONS),
+                        (enum_normalisations, NORMALISATIONS)):
+    assert tuple(item[0] for item in _items) == tuple(_values), "enum items drifted from core.settings"
+
+_DEFAULTS = RenderSettings()
+INT_MAX = 2 ** 31 - 1
+
+
+class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
+    """Scene-level settings of the AMCMCPPM engine (``scene.amcmcppm``)."""
+
+    method: EnumProperty(
+        name="Method", items=enum_methods, default=_DEFAULTS.method,
+        description="How photon paths are generated")
+    passes: IntProperty(
+        name="Passes", default=_DEFAULTS.passes, min=0, max=INT_MAX, soft_max=4096,
+        description="Passes to render, each an eye pass and a photon pass (0 = until the time limit)")
+    time_limit: FloatProperty(
+        name="Time Limit", default=_DEFAULTS.time_limit, min=0.0, soft_max=3600.0, unit='TIME_ABSOLUTE',
+        description="Stop after this many seconds of rendering (0 = no limit; at least one pass runs)")
+    photons_per_pass: IntProperty(
+        name="Photons per Pass", default=_DEFAULTS.photons_per_pass, min=1, max=INT_MAX,
+        soft_min=1000, soft_max=10_000_000,
+        description="Photon paths traced per pass, over all workers")
+    seed: IntProperty(
+        name="Seed", default=_DEFAULTS.seed, min=0, max=INT_MAX,
+        description="Random seed; the same seed, settings and worker count give the same image")
+    alpha: FloatProperty(
+        name="Alpha", default=_DEFAULTS.alpha, min=0.01, max=0.99, precision=3,
+        description="Radius reduction per pass: r(i+1)^2 = r(i)^2 (i + alpha) / (i + 1); "
+                    "smaller shrinks faster")
+    initial_radius_px: FloatProperty(
+        name="Initial Radius", default=_DEFAULTS.initial_radius_px, min=0.01, max=1000.0, soft_max=32.0,
+        description="Initial photon gather radius, in pixel footprints at each visible point")
+    max_bounces: IntProperty(
+        name="Max Bounces", default=_DEFAULTS.max_bounces, min=1, max=64,
+        description="Most scattering events of a photon path, and most specular bounces of a camera path")
+    workers: IntProperty(
+        name="Workers", default=_DEFAULTS.workers, min=0, max=1024, soft_max=64,
+        description="Processes tracing photons in parallel (0 = one per CPU core, 1 = in Blender's "
+                    "own process)")
+    chains: IntProperty(
+        name="Chains", default=_DEFAULTS.chains, min=1, max=1 << 24, soft_max=1 << 18,
+        description="Markov chains advanced in lockstep, over all workers (AMCMCPPM only)")
+    target_acceptance: FloatProperty(
+        name="Target Acceptance", default=_DEFAULTS.target_acceptance, min=0.01, max=0.99, precision=3,
+        description="Acceptance rate the mutation size adapts towards (0.234 = the original method, "
+                    "0.60 = Watanabe et al.)")
+    mutation: EnumProperty(
+        name="Low-Dimension Mutation", items=enum_mutations, default=_DEFAULTS.mutation,
+        description="Which dimensions of a photon path a mutation changes")
+    normalisation: EnumProperty(
+        name="Normalisation", items=enum_normalisations, default=_DEFAULTS.normalisation,
+        description="How the fraction of photon paths seen by the camera is estimated")
+    initial_mutation_size: FloatProperty(
+        name="Initial Mutation Size", default=_DEFAULTS.initial_mutation_size, min=1e-4, max=1e3,
+        soft_max=10.0, precision=4,
+        description="Mutation size every chain starts with, before adaptation")
+
+    stats_path: StringProperty(
+        name="Statistics File", default="", subtype='FILE_PATH',
+        description="Append per-pass statistics to this file as JSON lines (empty = off)")
+    snapshot_times: StringProperty(
+        name="Snapshot Times", default="",
+        description="Comma-separated elapsed times in seconds at which to save the image so far, "
+                    "for example 1,2,4,8 (empty = off)")
+    snapshot_dir: StringProperty(
+        name="Snapshot Folder", default="", subtype='DIR_PATH',
+        description="Folder for the snapshot EXR files and their index snapshots.jsonl")
+
+
+# Names of the properties that map one-to-one onto core.RenderSettings fields.
+CORE_SETTING_NAMES = tuple(name for name in AMCMCPPMRenderSettings.__annotations__
+                           if name in RenderSettings.__dataclass_fields__)
+
+classes = (AMCMCPPMRenderSettings,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.amcmcppm = PointerProperty(
+        type=AMCMCPPMRenderSettings, name="AMCMCPPM Settings", description="AMCMCPPM render settings")
+
+
+def unregister():
+    del bpy.types.Scene.amcmcppm
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
