@@ -56,10 +56,12 @@ class RenderSettings:
     target_acceptance: float = 0.60
     """Target acceptance rate A* of the mutation-size adaptation (0.234 = the original)."""
 
-    mutation: str = "paper"
+    mutation: str = "exact"
     """Low-dimension mutation: "off" mutates every dimension; "paper" redraws the dimensions
-    after the vertex at which the mutated path became visible (Watanabe et al.); "exact"
-    is the variant that keeps detailed balance (a Gibbs refresh of the suffix)."""
+    after the vertex at which the mutated path became visible (Watanabe et al.), which is
+    biased when that vertex varies between paths (a few percent in a furnace); "exact" makes
+    the same proposals and also redraws the current state's suffix after a rejection, which
+    keeps detailed balance (algorithm.md 3)."""
 
     normalisation: str = "cumulative"
     """Visible-fraction estimate: "cumulative" pools all uniform samples so far;

@@ -132,21 +132,97 @@ def furnace_sphere(albedo=0.5, emission=0.5, resolution=(16, 16), radius=1.0):
     return m.build(mats, camera=cam)
 
 
-def point_over_plane(height=1.0, albedo=0.5, power=4 * np.pi, resolution=(32, 32), size=0.2,
-                     scale=1.0):
-    """A point light over a large diffuse plane, orthographic camera on a small patch at the foot.
+def point_in_sphere(radius=1.0, albedo=0.5, power=4 * np.pi, resolution=(16, 16)):
+    """A point light at the centre of a closed diffuse sphere, camera at the centre too.
 
-    Direct light only at the foot: L = albedo I / (pi h^2), I = power / (4 pi).
+    L = albedo I / (pi R^2) (1 - albedo^(B+1)) / (1 - albedo) with I = power / (4 pi) and at
+    most B scattering events per photon path.
     """
-    s = scale
-    mats = Materials.build([{"name": "plane", "diffuse": albedo}])
+    mats = Materials.build([{"name": "shell", "diffuse": albedo}])
     m = MeshBuilder()
-    big = 50.0 * height * s
-    m.add_quad((-big, -big, 0), (big, -big, 0), (big, big, 0), (-big, big, 0), 0)
-    lights = Lights.build([{"kind": "point", "position": (0, 0, height * s), "power": power * s * s}])
-    cam = Camera(world_from_camera=_look_down(0.5 * height * s), projection="orthographic",
-                 frame=(-size * s / 2, size * s / 2, -size * s / 2, size * s / 2), resolution=resolution)
+    m.add_sphere((0, 0, 0), radius, 0, n_theta=32, n_phi=64, inward=True, smooth=False)
+    lights = Lights.build([{"kind": "point", "position": (0, 0, 0), "power": power}])
+    cam = Camera.look_at((0, 0, 0), (0, 1, 0), lens_mm=20.0, resolution=resolution)
     return m.build(mats, lights, cam)
+
+
+def spot_over_plane(height=1.0, albedo=0.5, power=100.0, kernel_radius=0.3, resolution=(2, 2),
+                    patch=0.02, up_mirror=None, mirror_reflectance=0.9):
+    """A narrow spot light over a large diffuse plane; an orthographic camera sees a tiny patch
+    at the foot.  The camera's gather radius is ``kernel_radius`` (set through
+    ``initial_radius_px = kernel_radius_px(scene, kernel_radius)``).
+
+    Direct only (``max_bounces=1``): at the foot, a disk kernel of radius r averages the
+    irradiance to E_r = 2 I / r^2 (1 - h / sqrt(h^2 + r^2)), I = power / (4 pi), and L = albedo E_r / pi.
+    With ``up_mirror`` = H the spot points up at a mirror at height H instead: a pure caustic
+    with h replaced by 2 H - h and E scaled by the mirror reflectance.
+    """
+    mats = Materials.build([{"name": "plane", "diffuse": albedo},
+                            {"name": "mirror", "mirror": mirror_reflectance}])
+    m = MeshBuilder()
+    big = 20.0 * height
+    m.add_quad((-big, -big, 0), (big, -big, 0), (big, big, 0), (-big, big, 0), 0)
+    distance = height if up_mirror is None else 2 * up_mirror - height
+    # Cone just wider than the kernel, so most photons count.
+    half = np.arctan(1.15 * kernel_radius / distance)
+    if up_mirror is None:
+        spot = {"kind": "spot", "position": (0, 0, height), "direction": (0, 0, -1)}
+    else:
+        spot = {"kind": "spot", "position": (0, 0, height), "direction": (0, 0, 1)}
+        m.add_quad((-big, -big, up_mirror), (-big, big, up_mirror), (big, big, up_mirror),
+                   (big, -big, up_mirror), 1)
+    spot.update(power=power, spot_angle=2 * half, spot_blend=0.0)
+    cam = Camera(world_from_camera=_look_down(0.5 * height), projection="orthographic",
+                 frame=(-patch / 2, patch / 2, -patch / 2, patch / 2), resolution=resolution)
+    return m.build(mats, Lights.build([spot]), cam)
+
+
+def kernel_radius_px(scene, radius):
+    """``initial_radius_px`` that gives an orthographic camera the world-space gather ``radius``."""
+    fx0, fx1, _, _ = scene.camera.frame
+    return radius / ((fx1 - fx0) / scene.camera.resolution[0])
+
+
+def disk_irradiance(intensity, distance, radius):
+    """Irradiance from a point source at ``distance`` above a plane, averaged over a disk at its foot."""
+    r2 = np.asarray(radius, np.float64) ** 2
+    return 2.0 * intensity / r2 * (1.0 - distance / np.sqrt(distance ** 2 + r2))
+
+
+def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
+    """A sun at normal incidence through a glass slab onto a diffuse floor, camera under the slab.
+
+    With ``max_bounces=2`` (photons cross the two faces and land, no internal reflection):
+    E_floor = E (1 - F0)^2, F0 = ((ior - 1)/(ior + 1))^2, and L = albedo E_floor / pi.
+    """
+    mats = Materials.build([{"name": "floor", "diffuse": albedo},
+                            {"name": "glass", "dielectric": 1.0, "ior": ior}])
+    m = MeshBuilder()
+    m.add_quad((-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0), 0)
+    m.add_box((-0.3, -0.3, 1.0), (0.3, 0.3, 1.1), 1)
+    lights = Lights.build([{"kind": "sun", "direction": (0, 0, -1), "power": irradiance}])
+    cam = Camera(world_from_camera=_look_down(0.5), projection="orthographic",
+                 frame=(-0.1, 0.1, -0.1, 0.1), resolution=resolution)
+    return m.build(mats, lights, cam)
+
+
+def camera_in_glass(ior=1.5, emission=1.0, resolution=(16, 16)):
+    """An orthographic camera inside a glass cube looks at an emitter outside a face.
+
+    Radiance leaving glass gains eta^2: L = eta^2 (1 - F0) Le sum_k F0^(2k) (internal round
+    trips, each two more delta bounces; the back face shows a black world).
+    """
+    mats = Materials.build([{"name": "glass", "dielectric": 1.0, "ior": ior},
+                            {"name": "emitter", "emission": emission}])
+    m = MeshBuilder()
+    m.add_box((-1, -1, -1), (1, 1, 1), 0)
+    m.add_quad((1.5, -2, -2), (1.5, -2, 2), (1.5, 2, 2), (1.5, 2, -2), 1)
+    cam_m = np.eye(4)
+    # Camera -Z along world +X: columns are camera x, y, z axes in world space.
+    cam_m[:3, 0], cam_m[:3, 1], cam_m[:3, 2] = (0, -1, 0), (0, 0, 1), (-1, 0, 0)
+    cam = Camera(world_from_camera=cam_m, projection="orthographic", frame=(-0.5, 0.5, -0.5, 0.5),
+                 resolution=resolution)
+    return m.build(mats, camera=cam)
 
 
 def _look_down(z):
@@ -190,4 +266,6 @@ def glass_ceiling_room(resolution=(64, 48), pane=0.25):
 
 
 BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
-           "point_over_plane": point_over_plane, "glass_ceiling_room": glass_ceiling_room}
+           "point_in_sphere": point_in_sphere, "spot_over_plane": spot_over_plane,
+           "sun_through_slab": sun_through_slab, "camera_in_glass": camera_in_glass,
+           "glass_ceiling_room": glass_ceiling_room}

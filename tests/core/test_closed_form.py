@@ -1,0 +1,120 @@
+"""Closed-form scenes (testing.md 2a): image means against exact values, for SPPM and AMCMCPPM.
+
+Each render keeps its per-pass estimates (the passes are independent), so the
+tolerance is a z-test at 4 standard errors plus a small fixed margin for what
+the closed form leaves out (tessellation, kernel bias where noted).
+"""
+import numpy as np
+import pytest
+
+from core import RenderSettings, render
+from core.integrator import kz_radius_scales
+from core.testing.scenes import (camera_in_glass, disk_irradiance, furnace_sphere, kernel_radius_px,
+                                 point_in_sphere, spot_over_plane, sun_through_slab)
+
+
+def render_passes(scene, **settings):
+    """Image mean of every pass (independent estimates) and the final image."""
+    s = RenderSettings(workers=1, **settings)
+    means = []
+
+    def keep(result):
+        means.append(float(result.image[..., :3].mean()))
+        assert np.isfinite(result.image).all()
+
+    result = render(scene, s, on_iteration=keep)
+    cum = np.array(means) * np.arange(1, len(means) + 1)
+    per_pass = np.diff(np.r_[0.0, cum])
+    return per_pass, result
+
+
+def check_mean(per_pass, expected, rel_margin):
+    mean = per_pass.mean()
+    se = per_pass.std(ddof=1) / np.sqrt(len(per_pass))
+    assert abs(mean - expected) < 4 * se + rel_margin * expected, (mean, expected, se)
+    return mean, se
+
+
+METHODS = [dict(method="ppm"), dict(method="amcmcppm", chains=4096)]
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+@pytest.mark.parametrize("albedo,emission", [(0.5, 0.5), (0.8, 1.0)])
+def test_furnace_sphere_emitting_inside(method, albedo, emission):
+    bounces = 40
+    expected = emission * (1 - albedo ** (bounces + 2)) / (1 - albedo)   # eye Le + B + 1 deposits
+    per_pass, _ = render_passes(furnace_sphere(albedo, emission), passes=6, photons_per_pass=20_000,
+                                max_bounces=bounces, **method)
+    # Flat-faceted sphere of 4096 triangles: its area differs from the sphere's by ~0.2 %.
+    check_mean(per_pass, expected, 0.01)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+def test_point_light_in_sphere_is_scale_invariant(method):
+    albedo, bounces = 0.5, 30
+    means = []
+    for radius in (1e-3, 1.0, 1e4):
+        power = 4 * np.pi * radius ** 2                  # I = R^2, so L is the same at every scale
+        intensity = power / (4 * np.pi)
+        expected = albedo * intensity / (np.pi * radius ** 2) * (1 - albedo ** (bounces + 1)) / (1 - albedo)
+        per_pass, _ = render_passes(point_in_sphere(radius, albedo, power), passes=6,
+                                    photons_per_pass=20_000, max_bounces=bounces, **method)
+        means.append(check_mean(per_pass, expected, 0.01)[0])
+    assert np.ptp(means) < 0.02 * np.mean(means)
+
+
+def kernel_estimate(kernel_radius, passes=8, photons=150_000, alpha=2 / 3, **kw):
+    scene = spot_over_plane(kernel_radius=kernel_radius, **kw)
+    per_pass, _ = render_passes(scene, method="ppm", passes=passes, photons_per_pass=photons,
+                                max_bounces=1, alpha=alpha,
+                                initial_radius_px=kernel_radius_px(scene, kernel_radius))
+    return per_pass
+
+
+def test_point_light_over_plane_has_the_disk_kernel_bias():
+    albedo, power, h = 0.5, 100.0, 1.0
+    intensity = power / (4 * np.pi)
+    exact = albedo * intensity / (np.pi * h * h)            # no kernel
+    biases = []
+    for r in (0.3, 0.15):
+        per_pass = kernel_estimate(r)
+        radii = r * kz_radius_scales(len(per_pass), 2 / 3)
+        expected = albedo / np.pi * disk_irradiance(intensity, h, radii).mean()
+        mean, _ = check_mean(per_pass, expected, 0.002)
+        assert mean < exact                                    # the disk average is darker
+        biases.append(1 - mean / exact)
+    # Bias ~ 0.75 r^2 / h^2: halving the radius quarters it.
+    assert 4 * 0.8 < biases[0] / biases[1] < 4 * 1.2, biases
+
+
+def test_mirror_caustic_from_a_spot_pointing_up():
+    albedo, power, h, mirror_height, reflectance, r = 0.5, 100.0, 1.0, 2.0, 0.9, 0.2
+    intensity = power / (4 * np.pi)
+    distance = 2 * mirror_height - h                           # apparent source behind the mirror
+    scene = spot_over_plane(height=h, albedo=albedo, power=power, kernel_radius=r,
+                            up_mirror=mirror_height, mirror_reflectance=reflectance)
+    per_pass, _ = render_passes(scene, method="ppm", passes=8, photons_per_pass=100_000, max_bounces=1,
+                                initial_radius_px=kernel_radius_px(scene, r))
+    radii = r * kz_radius_scales(len(per_pass), 2 / 3)
+    expected = albedo / np.pi * reflectance * disk_irradiance(intensity, distance, radii).mean()
+    check_mean(per_pass, expected, 0.003)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+def test_sun_through_glass_slab_single_pass_transmittance(method):
+    ior, irradiance, albedo = 1.5, 10.0, 0.5
+    f0 = ((ior - 1) / (ior + 1)) ** 2
+    expected = albedo / np.pi * irradiance * (1 - f0) ** 2    # 0.9216 of the direct light
+    per_pass, _ = render_passes(sun_through_slab(ior, irradiance, albedo), passes=8,
+                                photons_per_pass=100_000, max_bounces=2, **method)
+    check_mean(per_pass, expected, 0.005)
+
+
+def test_camera_inside_glass_sees_eta_squared_radiance():
+    ior, emission, bounces = 1.5, 1.0, 8
+    f0 = ((ior - 1) / (ior + 1)) ** 2
+    round_trips = np.sum(f0 ** (2 * np.arange((bounces + 1) // 2)))
+    expected = ior ** 2 * (1 - f0) * emission * round_trips   # 2.16 Le
+    per_pass, _ = render_passes(camera_in_glass(ior, emission), method="ppm", passes=8,
+                                photons_per_pass=1000, max_bounces=bounces)
+    check_mean(per_pass, expected, 0.002)

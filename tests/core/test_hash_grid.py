@@ -1,0 +1,83 @@
+"""The measurement-point grid returns exactly the pairs a brute-force search finds."""
+import numpy as np
+import pytest
+
+from core.hash_grid import HashGrid, brute_force_query
+
+
+def random_points(rng, n, scale, offset, r_range):
+    p = offset + scale * rng.random((n, 3))
+    r = scale * rng.uniform(*r_range, size=n)
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    return p, r, nrm
+
+
+def pair_set(p, j):
+    return set(zip(p.tolist(), j.tolist()))
+
+
+@pytest.mark.parametrize("scale,offset", [(1.0, 0.0), (1e-3, 0.0), (10.0, 1e4), (1e3, -5e3)])
+@pytest.mark.parametrize("r_range", [(0.01, 0.08), (0.001, 0.3)])
+def test_grid_query_equals_brute_force(scale, offset, r_range):
+    rng = np.random.default_rng(7)
+    pts, radii, nrm = random_points(rng, 3000, scale, offset, r_range)
+    grid = HashGrid(pts, radii, nrm)
+    # Photons near the points (so many pairs exist) and elsewhere; normals from random points.
+    x = np.concatenate([pts[rng.integers(0, 3000, 1500)] + scale * 0.03 * rng.normal(size=(1500, 3)),
+                        offset + scale * (rng.random((500, 3)) * 1.4 - 0.2)])
+    xn = nrm[rng.integers(0, 3000, 2000)]
+    xn[:1000] = nrm[rng.integers(0, 3000, 1000)]
+    p, j, _ = grid.query(x, xn)
+    bp, bj = brute_force_query(x, xn, pts, radii, nrm)
+    got, want = pair_set(p, j), pair_set(bp, bj)
+    assert len(want) > 100
+    diff = got ^ want
+    # float32 distances relative to the cell: only pairs within 1e-5 of the boundary may differ.
+    for pi, pj in diff:
+        d = np.linalg.norm(x[pi] - pts[pj])
+        assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6 * scale, (pi, pj, d, radii[pj])
+
+
+def test_grid_returns_the_cosines_with_the_point_normals():
+    rng = np.random.default_rng(8)
+    pts, radii, nrm = random_points(rng, 500, 1.0, 0.0, (0.05, 0.2))
+    grid = HashGrid(pts, radii, nrm)
+    x = pts[rng.integers(0, 500, 300)]
+    xn = nrm[rng.integers(0, 500, 300)]
+    d = rng.normal(size=(300, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    p, j, cos = grid.query(x, xn, d)
+    assert len(p) > 0
+    np.testing.assert_allclose(cos, np.einsum("ij,ij->i", d[p], nrm[j]), atol=1e-6)
+
+
+def test_empty_grid_and_far_photons_return_no_pairs():
+    grid = HashGrid(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    p, j, _ = grid.query(np.zeros((5, 3)), np.tile([0, 0, 1.0], (5, 1)))
+    assert len(p) == 0 and len(j) == 0
+    grid = HashGrid(np.zeros((1, 3)), np.ones(1), np.array([[0, 0, 1.0]]))
+    p, _, _ = grid.query(np.array([[1e6, 0, 0], [0, 0, 0.5]]), np.tile([0, 0, 1.0], (2, 1)))
+    assert p.tolist() == [1]
+
+
+def test_tiny_radius_in_a_huge_scene_keeps_the_grid_bounded():
+    # pbrt-v4 #141: cell counts overflow as r -> 0.  Here r = 1e-9 of a 1e4 scene.
+    rng = np.random.default_rng(9)
+    pts = rng.random((1000, 3)) * 1e4
+    radii = np.full(1000, 1e-5)
+    nrm = np.tile([0, 0, 1.0], (1000, 1))
+    grid = HashGrid(pts, radii, nrm)
+    assert (grid.dims < 2 ** 21).all()
+    assert grid.entry_count <= 8 * 1000
+    p, j, _ = grid.query(pts[:10] + 1e-6, nrm[:10])
+    assert sorted(zip(p.tolist(), j.tolist())) == [(i, i) for i in range(10)]
+
+
+def test_back_facing_and_cross_corner_photons_are_rejected():
+    pts = np.array([[0.0, 0.0, 0.0]])
+    grid = HashGrid(pts, np.array([0.1]), np.array([[0, 0, 1.0]]))
+    x = np.array([[0.01, 0, 0]] * 3)
+    normals = np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]])   # same side, back, other wall
+    p, _, _ = grid.query(x, normals)
+    assert p.tolist() == [0]

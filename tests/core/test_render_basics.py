@@ -1,0 +1,260 @@
+"""Determinism, finiteness, bad input, stopping, workers, file formats."""
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from core import Camera, Lights, Materials, RenderSettings, Scene, SceneError, render
+from core.imageio import read_exr
+from core.integrator import kz_radius_scales
+from core.testing.scenes import MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+FAST = dict(passes=3, photons_per_pass=20_000, chains=2048, workers=1)
+
+
+def test_core_imports_without_bpy():
+    code = "import sys, core; assert 'bpy' not in sys.modules, 'core imported bpy'"
+    subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True)
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
+def test_same_seed_gives_the_same_image_and_other_seeds_differ(method):
+    scene = cornell_box((24, 24))
+    a = render(scene, RenderSettings(method=method, seed=3, **FAST)).image
+    b = render(scene, RenderSettings(method=method, seed=3, **FAST)).image
+    c = render(scene, RenderSettings(method=method, seed=4, **FAST)).image
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_two_workers_are_deterministic_and_agree_with_one():
+    scene = cornell_box((24, 24))
+    s2 = RenderSettings(method="ppm", seed=5, passes=4, photons_per_pass=40_000, workers=2)
+    a = render(scene, s2)
+    b = render(scene, s2)
+    np.testing.assert_array_equal(a.image, b.image)
+    assert a.stats[-1]["workers"] == 2
+    one = render(scene, s2.replace(workers=1)).image
+    # Different photons, same expectation: means agree within a few percent.
+    assert abs(one[..., :3].mean() / a.image[..., :3].mean() - 1) < 0.03
+
+
+HARD_SCENES = {
+    "cornell": lambda: cornell_box((16, 16)),
+    "glass_ceiling": lambda: glass_ceiling_room((20, 16)),
+    "furnace": lambda: furnace_sphere(resolution=(8, 8)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(HARD_SCENES))
+@pytest.mark.parametrize("method,mutation", [("ppm", "off"), ("amcmcppm", "off"), ("amcmcppm", "paper"),
+                                             ("amcmcppm", "exact")])
+def test_every_image_is_finite_after_every_pass(name, method, mutation):
+    seen = []
+
+    def check(result):
+        assert np.isfinite(result.image).all()
+        assert (result.image >= 0).all()
+        seen.append(result.stats[-1])
+
+    result = render(HARD_SCENES[name](), RenderSettings(method=method, mutation=mutation, **FAST),
+                    on_iteration=check)
+    assert len(seen) == 3 and result.passes == 3
+    for key in ("pass", "elapsed_s", "paths_traced", "photons_recorded", "proposals", "accepted",
+                "acceptance_rate", "mutation_size", "exchanges", "uniform_samples", "uniform_visible",
+                "visible_fraction", "radius"):
+        assert key in seen[-1]
+        assert np.isfinite(seen[-1][key])
+
+
+def test_no_lights_gives_a_warning_and_a_finite_black_image():
+    scene = cornell_box((8, 8), light="none")
+    result = render(scene, RenderSettings(**FAST))
+    assert any("emits no light" in w for w in result.warnings)
+    assert np.isfinite(result.image).all() and result.image[..., :3].max() == 0.0
+
+
+def test_empty_scene_renders_the_world():
+    scene = Scene(vertices=np.zeros((0, 3)), triangles=np.zeros((0, 3), int),
+                  material_ids=np.zeros(0, int), materials=Materials.build([]),
+                  camera=Camera(resolution=(6, 4)))
+    scene.world.color = np.float32([0.2, 0.3, 0.4])
+    result = render(scene, RenderSettings(**FAST))
+    assert result.image.shape == (4, 6, 4)
+    np.testing.assert_allclose(result.image[..., :3], np.broadcast_to([0.2, 0.3, 0.4], (4, 6, 3)), rtol=1e-6)
+    assert any("no geometry" in w for w in result.warnings)
+
+
+def test_lights_facing_away_give_a_warning_and_the_search_goes_on():
+    scene = cornell_box((12, 12))
+    # Point the area light up, out through the ceiling: no photon reaches what the camera sees.
+    scene.lights.direction[:] = (0, 0, 1)
+    scene.lights.position[:] = (0, 0, 2.5)
+    result = render(scene, RenderSettings(method="amcmcppm", **FAST))
+    assert any("search goes on" in w for w in result.warnings)
+    assert np.isfinite(result.image).all() and result.passes == 3
+
+
+def test_zero_power_light_changes_nothing():
+    scene = cornell_box((16, 16))
+    base = render(scene, RenderSettings(method="ppm", seed=1, **FAST)).image
+    lights = scene.lights
+    extra = Lights.build([{"kind": "point", "position": (0, 0, 1), "power": 0.0}])
+    for f in Lights.ARRAY_FIELDS:
+        setattr(lights, f, np.concatenate([getattr(lights, f), getattr(extra, f)]))
+    with_zero = render(scene, RenderSettings(method="ppm", seed=1, **FAST)).image
+    np.testing.assert_array_equal(base, with_zero)
+
+
+def test_degenerate_triangles_do_not_change_the_furnace():
+    settings = RenderSettings(method="ppm", passes=4, photons_per_pass=20_000, max_bounces=20, workers=1)
+    scene = furnace_sphere(resolution=(8, 8))
+    reference = render(scene, settings).image
+    rng = np.random.default_rng(0)
+    n = scene.triangle_count // 10
+    v0 = scene.vertices[scene.triangles[rng.integers(0, scene.triangle_count, n), 0]]
+    sliver = np.stack([v0, v0, v0 + 1e-9], axis=1)           # zero-area and needle triangles
+    scene.vertices = np.concatenate([scene.vertices, sliver.reshape(-1, 3)])
+    base = len(scene.triangles) * 3
+    scene.triangles = np.concatenate([scene.triangles,
+                                      np.arange(base, base + 3 * n).reshape(-1, 3)]).astype(np.int32)
+    scene.material_ids = np.concatenate([scene.material_ids, np.zeros(n, np.int32)])
+    result = render(scene.validate(), settings)
+    # Never hit and never chosen as emitters: the very same image.
+    np.testing.assert_array_equal(result.image, reference)
+    assert abs(result.image[..., :3].mean() - 1.0) < 0.05
+
+
+def test_thin_wall_lit_from_one_side_is_dark_on_the_other():
+    mats = Materials.build([{"name": "wall", "diffuse": 0.8}])
+    m = MeshBuilder()
+    # One single-sided quad (z = 0): lit from above by a sun, seen from below.
+    m.add_quad((-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0), 0)
+    cam = np.eye(4)
+    cam[:3, 2] = (0, 0, -1)        # camera z axis down: looking up (+Z)
+    cam[:3, 1] = (0, 1, 0)
+    cam[:3, 0] = (-1, 0, 0)
+    cam[:3, 3] = (0, 0, -1)
+    scene = m.build(mats, Lights.build([{"kind": "sun", "direction": (0, 0, -1), "power": 5.0}]),
+                    Camera(world_from_camera=cam, projection="orthographic", frame=(-1, 1, -1, 1),
+                           resolution=(8, 8)))
+    result = render(scene, RenderSettings(method="ppm", **FAST))
+    assert result.image[..., :3].max() == 0.0
+
+
+def test_coplanar_duplicate_floor_does_not_double_the_light():
+    scene = cornell_box((16, 16))
+    base = render(scene, RenderSettings(method="ppm", passes=4, photons_per_pass=40_000, workers=1))
+    floor = scene.triangles[:2]
+    dup = scene.replace(triangles=np.concatenate([scene.triangles, floor]),
+                        material_ids=np.concatenate([scene.material_ids, scene.material_ids[:2]])).validate()
+    twice = render(dup, RenderSettings(method="ppm", passes=4, photons_per_pass=40_000, workers=1))
+    assert abs(twice.image[..., :3].mean() / base.image[..., :3].mean() - 1) < 0.05
+
+
+def test_should_stop_returns_promptly_with_a_finite_image():
+    scene = cornell_box((32, 32))
+    calls = []
+
+    def stop():
+        calls.append(1)
+        return len(calls) > 8
+
+    t0 = time.perf_counter()
+    result = render(scene, RenderSettings(method="amcmcppm", passes=1000, photons_per_pass=50_000,
+                                          chains=1024, workers=1), should_stop=stop)
+    assert time.perf_counter() - t0 < 30
+    assert result.interrupted and result.passes < 1000
+    assert np.isfinite(result.image).all()
+
+
+def test_should_stop_with_worker_processes():
+    scene = cornell_box((32, 32))
+    t0 = time.perf_counter()
+    deadline = t0 + 3.0
+    result = render(scene, RenderSettings(method="ppm", passes=0, time_limit=60, photons_per_pass=400_000,
+                                          workers=2), should_stop=lambda: time.perf_counter() > deadline)
+    assert result.interrupted
+    assert time.perf_counter() - deadline < 5.0
+    assert np.isfinite(result.image).all()
+
+
+def test_time_limit_stops_the_render():
+    result = render(cornell_box((16, 16)), RenderSettings(method="ppm", passes=0, time_limit=1.5,
+                                                         photons_per_pass=20_000, workers=1))
+    assert result.passes >= 1
+    assert result.elapsed_s < 1.5 + 3.0
+
+
+def test_border_window_renders_the_crop():
+    scene = cornell_box((40, 20))
+    scene.camera.border = (0.25, 0.75, 0.2, 0.6)
+    result = render(scene, RenderSettings(method="ppm", **FAST))
+    assert result.image.shape == (8, 20, 4)       # 20 x 8 pixels, y from the bottom
+    assert scene.camera.window == (10, 30, 8, 16)
+
+
+def test_invalid_scenes_raise_clear_errors():
+    good = cornell_box((8, 8))
+    with pytest.raises(SceneError, match="material_ids outside"):
+        good.replace(material_ids=np.full(good.triangle_count, 99)).validate()
+    with pytest.raises(SceneError, match="NaN"):
+        bad = good.vertices.copy()
+        bad[0, 0] = np.nan
+        good.replace(vertices=bad).validate()
+    with pytest.raises(SceneError, match="triangles must have shape"):
+        good.replace(triangles=np.zeros((3, 2), int)).validate()
+    with pytest.raises(SceneError, match="selects no pixels"):
+        cam = Camera(resolution=(8, 8), border=(0.5, 0.5, 0.0, 1.0))
+        good.replace(camera=cam).validate()
+    with pytest.raises(ValueError, match="target_acceptance"):
+        RenderSettings(target_acceptance=1.5)
+    with pytest.raises(ValueError, match="never stop"):
+        RenderSettings(passes=0, time_limit=0)
+
+
+def test_scene_save_load_round_trip(tmp_path):
+    scene = glass_ceiling_room((16, 12))
+    path = tmp_path / "scene.npz"
+    scene.save(path)
+    loaded = Scene.load(path)
+    for key, value in scene.to_arrays().items():
+        np.testing.assert_array_equal(np.asarray(loaded.to_arrays()[key]), np.asarray(value), err_msg=key)
+    with pytest.raises(SceneError, match="cannot read"):
+        Scene.load(tmp_path / "missing.npz")
+
+
+def test_command_line_renders_an_exr_and_writes_stats(tmp_path):
+    scene_path = tmp_path / "box.npz"
+    cornell_box((12, 10)).save(scene_path)
+    out = tmp_path / "out.exr"
+    stats = tmp_path / "stats.jsonl"
+    proc = subprocess.run([sys.executable, "-m", "core", "render", str(scene_path), "--output", str(out),
+                           "--passes", "2", "--photons-per-pass", "5000", "--seed", "2", "--workers", "1",
+                           "--stats", str(stats), "--quiet"], cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    img = read_exr(out)
+    assert img.shape == (10, 12, 4) and np.isfinite(img).all() and img[..., :3].mean() > 0
+    lines = [json.loads(line) for line in stats.read_text().splitlines()]
+    assert [s["pass"] for s in lines] == [1, 2]
+    bad = subprocess.run([sys.executable, "-m", "core", "render", str(tmp_path / "nope.npz"), "--output",
+                          str(out)], cwd=ROOT, capture_output=True, text=True)
+    assert bad.returncode == 2 and "cannot read scene file" in bad.stderr
+
+
+def test_radius_sequence_is_stable_for_long_runs():
+    s64 = kz_radius_scales(100_000, 2 / 3)
+    assert np.all(np.diff(s64) < 0) and np.all(s64 > 0) and np.isfinite(s64).all()
+    # r_i ~ i^((alpha - 1) / 2) (SmallVCM's closed form) up to a constant.
+    ratio = s64[-1] / (100_000 ** ((2 / 3 - 1) / 2))
+    assert 0.5 < ratio < 2
+    # A float32 recursion stays within 1e-6 (relative) of float64 for 1e5 passes.
+    r2 = np.float32(1.0)
+    for i in range(1, 100_000):
+        r2 = np.float32(r2 * np.float32((i + 2 / 3) / (i + 1)))
+    assert abs(np.sqrt(r2) / s64[-1] - 1) < 1e-3
