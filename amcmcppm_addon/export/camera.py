@@ -1,0 +1,87 @@
+"""The render camera -> ``core.Camera``.
+
+The image-plane window comes from ``Camera.view_frame(scene=...)`` (sensor fit,
+aspect ratio, pixel aspect and shift included), normalised to z = -1 for
+perspective cameras.  Object scale is removed from the camera matrix, as Cycles
+does.  Depth of field follows Cycles (``intern/cycles/blender/camera.cpp``):
+aperture radius = lens / (2 f-stop) (1 / (2 f-stop) for orthographic), focus
+distance = ``dof.focus_distance`` or the distance of the focus object along
+the view axis.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ...core.scene import Camera, SceneError
+
+
+def render_resolution(render):
+    """(width, height) in pixels after the resolution percentage, as Blender computes it."""
+    pct = render.resolution_percentage
+    return max(1, render.resolution_x * pct // 100), max(1, render.resolution_y * pct // 100)
+
+
+def render_border(render):
+    """(x_min, x_max, y_min, y_max) of the border render, y from the bottom; the full frame if off."""
+    if not render.use_border:
+        return (0.0, 1.0, 0.0, 1.0)
+    return (render.border_min_x, render.border_max_x, render.border_min_y, render.border_max_y)
+
+
+def export_camera(depsgraph, camera_object=None, resolution=None, border=None, log=None) -> Camera:
+    """``core.Camera`` for ``camera_object`` (default: the scene camera) seen from ``depsgraph``.
+
+    resolution : (width, height) in pixels, percentage applied; default from the scene.
+    border : (x_min, x_max, y_min, y_max), y from the bottom; default from the scene.
+    """
+    scene = depsgraph.scene_eval
+    render = scene.render
+    ob = camera_object or scene.camera
+    if ob is None:
+        raise SceneError("the scene has no camera")
+    ob = ob.evaluated_get(depsgraph)
+    if ob.type != "CAMERA":
+        raise SceneError(f"the active camera '{ob.name}' is not a camera object")
+    cam = ob.data
+    resolution = tuple(int(v) for v in (resolution or render_resolution(render)))
+    border = tuple(float(v) for v in (border or render_border(render)))
+
+    world_from_camera = np.array(ob.matrix_world, np.float64)
+    scale = np.linalg.norm(world_from_camera[:3, :3], axis=0)
+    if (scale < 1e-12).any():
+        raise SceneError(f"camera '{ob.name}' has zero scale")
+    world_from_camera[:3, :3] /= scale
+    corners = np.array([tuple(v) for v in cam.view_frame(scene=scene)], np.float64)   # (4, 3)
+    projection = "orthographic" if cam.type == "ORTHO" else "perspective"
+    if cam.type not in ("PERSP", "ORTHO") and log is not None:
+        log.warning(f"camera '{ob.name}': {cam.type.lower()} cameras are not supported; "
+                    "rendering a perspective view with the same lens")
+    if projection == "perspective":
+        xy = corners[:, :2] / -corners[:, 2:3]
+    else:
+        xy = corners[:, :2]
+    frame = (xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max())
+
+    aperture_radius, focus_distance = 0.0, 10.0
+    dof = cam.dof
+    if dof.use_dof:
+        fstop = max(float(dof.aperture_fstop), 1e-5)
+        aperture_radius = 1.0 / (2.0 * fstop) if projection == "orthographic" \
+            else cam.lens * 1e-3 / (2.0 * fstop)
+        focus_distance = _focus_distance(depsgraph, dof, world_from_camera)
+        if focus_distance <= 0:
+            focus_distance = 1e-3
+    return Camera(world_from_camera=world_from_camera, projection=projection,
+                  frame=tuple(float(v) for v in frame), resolution=resolution, border=border,
+                  aperture_radius=float(aperture_radius), focus_distance=float(focus_distance),
+                  clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end))
+
+
+def _focus_distance(depsgraph, dof, world_from_camera):
+    target = dof.focus_object
+    if target is None:
+        return float(dof.focus_distance)
+    target = target.evaluated_get(depsgraph)
+    view_dir = world_from_camera[:3, 2]
+    offset = world_from_camera[:3, 3] - np.array(target.matrix_world.translation, np.float64)
+    return float(abs(view_dir @ offset))

@@ -1,0 +1,109 @@
+"""Blender lights -> ``core.Lights``, in Cycles' units.
+
+Follows Cycles' light sync (``intern/cycles/blender/light.cpp``) and its
+conversion to emitted quantities (``intern/cycles/scene/light.cpp``), see
+``shared/docs/blender.md`` section 3:
+
+* strength S = colour x (blackbody colour if ``use_temperature``) x energy x 2^exposure,
+  watts (W/m^2 for the sun);
+* point and spot: a sphere of radius ``shadow_soft_size`` (not scaled by the object)
+  with radiance S / (4 pi^2 r^2) (intensity S / (4 pi) when r = 0); the spot cone
+  masks it with Cycles' smoothstep blend without concentrating the power;
+* area: one-sided towards the object's -Z, extent ``size`` x ``size_y`` (square and
+  disk use ``size`` twice) along the object's X and Y axes *including the object
+  scale*, radiance S / (pi A) with A = len_u len_v (x pi/4 for disk and ellipse);
+* sun: irradiance S along the object's -Z over a cone of angular diameter ``angle``.
+
+``normalize = False`` makes Cycles skip the division by the emitting area (or by
+the sun's solid angle); the core always divides, so the power is multiplied back.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...core.scene import AREA_DISK, AREA_RECT, POINT, SPOT, SUN, Lights
+
+
+def light_strength(light) -> np.ndarray:
+    """(3,) float64 Cycles strength of a Light datablock."""
+    color = np.array(light.color[:3], np.float64)
+    if light.use_temperature:
+        color *= np.array(light.temperature_color[:3], np.float64)
+    return color * float(light.energy) * 2.0 ** float(light.exposure)
+
+
+def export_light(light, world_from_light, name, log):
+    """One ``Lights.build``-style field dict for a light object, or None if it emits nothing.
+
+    world_from_light : (4, 4) float64 object matrix (with scale).
+    """
+    m = np.asarray(world_from_light, np.float64)
+    strength = light_strength(light)
+    if (strength < 0).any():
+        log.warning(f"light '{name}' has negative strength, which photon tracing cannot emit; skipped")
+        return None
+    if not strength.any():
+        return None
+    if getattr(light, "use_nodes", False) and light.node_tree is not None:
+        log.warning(f"light '{name}': light node trees are ignored; using its colour and power")
+    position = m[:3, 3]
+    direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
+    rec = {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
+           "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3)}
+    if light.type in ("POINT", "SPOT"):
+        r = max(float(light.shadow_soft_size), 0.0)
+        if not light.normalize and r > 0:
+            strength = strength * (4.0 * math.pi * r * r)
+        rec.update(kind=POINT, radius=r, power=strength)
+        if light.type == "SPOT":
+            rec.update(kind=SPOT, spot_angle=float(light.spot_size),
+                       spot_blend=float(np.clip(light.spot_blend, 0.0, 1.0)))
+            scale = np.linalg.norm(m[:3, :3], axis=0)
+            if np.ptp(scale) > 1e-6 * scale.max():
+                log.warning(f"spot light '{name}': non-uniform object scale does not change the cone here")
+    elif light.type == "AREA":
+        size_u = float(light.size)
+        size_v = float(light.size_y) if light.shape in ("RECTANGLE", "ELLIPSE") else size_u
+        axis_u = m[:3, 0] * (size_u / 2)
+        axis_v = m[:3, 1] * (size_v / 2)
+        disk = light.shape in ("DISK", "ELLIPSE")
+        area = 4.0 * np.linalg.norm(axis_u) * np.linalg.norm(axis_v) * (math.pi / 4 if disk else 1.0)
+        if area <= 0:
+            log.warning(f"area light '{name}' has zero size; skipped")
+            return None
+        if not light.normalize:
+            strength = strength * area
+        if light.spread < math.pi - 1e-4:
+            log.warning(f"area light '{name}': spread below 180 degrees is not supported; "
+                        "it emits over the full hemisphere")
+        rec.update(kind=AREA_DISK if disk else AREA_RECT, axis_u=axis_u, axis_v=axis_v, power=strength)
+    elif light.type == "SUN":
+        angle = float(np.clip(light.angle, 0.0, math.pi))
+        if not light.normalize and angle > 0:
+            strength = strength * (math.pi * math.sin(angle / 2) ** 2)
+        rec.update(kind=SUN, sun_angle=angle, power=strength)
+    else:
+        log.warning(f"light '{name}' of type {light.type} is not supported; skipped")
+        return None
+    return rec
+
+
+def build_lights(records) -> Lights:
+    """``core.Lights`` from the dicts of :func:`export_light`."""
+    n = len(records)
+    lights = Lights(kind=np.zeros(n, np.int8), position=np.zeros((n, 3)),
+                    direction=np.zeros((n, 3), np.float32), axis_u=np.zeros((n, 3), np.float32),
+                    axis_v=np.zeros((n, 3), np.float32), power=np.zeros((n, 3), np.float32),
+                    radius=np.zeros(n, np.float32), spot_angle=np.zeros(n, np.float32),
+                    spot_blend=np.zeros(n, np.float32), sun_angle=np.zeros(n, np.float32))
+    for i, rec in enumerate(records):
+        for name in Lights.ARRAY_FIELDS:
+            getattr(lights, name)[i] = rec[name]
+    return lights
+
+
+def _unit(v, fallback):
+    n = np.linalg.norm(v)
+    return v / n if n > 1e-20 else np.asarray(fallback, np.float64)

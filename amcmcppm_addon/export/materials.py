@@ -1,0 +1,434 @@
+"""Blender materials -> ``core.Materials`` (weighted lobes) and image textures.
+
+A node walker follows the material's Cycles output (``Surface``) through
+reroutes, node groups, Mix and Add Shader nodes and reduces the shader to a
+:class:`Closure`: weights and colours of the core's lobes (diffuse, glossy,
+mirror, dielectric) plus emitted radiance.  Mix/Add combine closures linearly,
+which is exact for emission and for lobes of one kind with different colours,
+and an average for glossy roughness and IOR.
+
+Supported nodes: Principled BSDF, Diffuse, Glossy, Metallic, Glass, Refraction,
+Emission, Mix Shader, Add Shader, Image Texture (as a colour), RGB and Value
+inputs, reroutes and groups.  Anything else becomes a grey diffuse closure (for
+shaders) or the socket's own value (for colours and numbers), and the material
+gets *one* warning naming every such node.
+
+Principled BSDF mapping (``metallic`` m, ``Transmission Weight`` t, specular
+level s, base colour B):
+  * metal, weight m: glossy lobe with colour B and the node's roughness;
+  * glass, weight (1 - m) t: dielectric lobe with colour B and the node's IOR;
+  * dielectric base, weight (1 - m)(1 - t): a white (Specular Tint) glossy layer
+    whose weight is the hemispherical mean Fresnel reflectance of the IOR scaled by
+    2 s (Blender scales F0 by 2 s), over a diffuse lobe with colour B and the
+    remaining weight.
+Roughness below 0.02 is turned into a mirror by the core.  Image textures are
+kept only where the core supports them (diffuse colour); elsewhere their mean
+colour is used.  A missing image file gives a warning and Cycles' magenta.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...core.scene import Materials
+
+LOBES = ("diffuse", "glossy", "mirror", "dielectric")
+DIFFUSE, GLOSSY, MIRROR, DIELECTRIC = range(4)
+GREY = np.full(3, 0.8)                         # Cycles' default surface colour
+MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing image
+
+
+@dataclass
+class Closure:
+    """A shader reduced to the core's lobes: what one node output evaluates to."""
+
+    weight: np.ndarray = field(default_factory=lambda: np.zeros(4))        # (4,) lobe weights
+    color: np.ndarray = field(default_factory=lambda: np.zeros((4, 3)))    # (4, 3) weight * colour
+    roughness: float = 0.5          # glossy roughness (Blender's)
+    ior: float = 1.5                # dielectric index of refraction
+    emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) radiance
+    texture: int = -1               # diffuse image texture index or -1
+
+    @staticmethod
+    def lobe(index, weight, color, **kw) -> "Closure":
+        c = Closure(**kw)
+        c.weight[index] = weight
+        c.color[index] = weight * np.asarray(color, np.float64)
+        return c
+
+    def combine(self, other, fa, fb) -> "Closure":
+        """fa * self + fb * other (Mix: fa = 1 - fac, fb = fac; Add: 1, 1)."""
+        wa, wb = fa * self.weight, fb * other.weight
+        out = Closure(weight=wa + wb, color=fa * self.color + fb * other.color,
+                      emission=fa * self.emission + fb * other.emission)
+        out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
+        out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
+        out.texture = self.texture if self.texture >= 0 and wa[DIFFUSE] > 0 else other.texture
+        if out.texture >= 0:
+            # The core multiplies the diffuse colour by the texture; keep the weight, drop the
+            # colour of the untextured side (an approximation when both sides are diffuse).
+            out.color[DIFFUSE] = out.weight[DIFFUSE]
+        return out
+
+    def spec(self, name) -> dict:
+        """A ``Materials.build`` entry."""
+        s = {"name": name, "roughness": self.roughness, "ior": self.ior, "emission": self.emission}
+        for i, lobe in enumerate(LOBES):
+            w = self.weight[i]
+            s[lobe] = self.color[i] / w if w > 0 else np.zeros(3)
+            s[f"{lobe}_weight"] = w
+        if self.texture >= 0:
+            s["diffuse_texture"] = self.texture
+            s["diffuse"] = np.ones(3)
+        return s
+
+
+def _weighted(a, b, wa, wb):
+    return (a * wa + b * wb) / (wa + wb) if wa + wb > 0 else (a if wa >= wb else b)
+
+
+def mean_fresnel(ior) -> float:
+    """Cosine-weighted hemispherical mean of the unpolarised dielectric Fresnel reflectance."""
+    eta = max(float(ior), 1.0 + 1e-4)
+    mu = (np.arange(256) + 0.5) / 256          # cos(theta_i), midpoint rule for int 2 mu F dmu
+    sin_t2 = (1.0 - mu * mu) / (eta * eta)
+    cos_t = np.sqrt(1.0 - sin_t2)
+    rs = (mu - eta * cos_t) / (mu + eta * cos_t)
+    rp = (eta * mu - cos_t) / (eta * mu + cos_t)
+    f = 0.5 * (rs * rs + rp * rp)
+    return float(np.mean(2.0 * mu * f))
+
+
+def srgb_to_linear(x):
+    x = np.asarray(x, np.float32)
+    return np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4
+                    ).astype(np.float32)
+
+
+class Textures:
+    """Image datablocks -> linear float32 (H, W, 3) arrays (row 0 = bottom), one per image."""
+
+    def __init__(self, log):
+        self.log = log
+        self.images = []            # list of (H, W, 3) float32
+        self._index = {}            # image pointer -> index, or -1 if unusable
+        self._mean = {}             # index -> mean colour (3,)
+
+    def lookup(self, image, where):
+        """(texture index or -1, mean colour) of ``image``; ``where`` names the user in messages."""
+        key = image.as_pointer()
+        if key not in self._index:
+            self._index[key] = self._load(image, where)
+        i = self._index[key]
+        return i, (self._mean[i] if i >= 0 else MISSING_TEXTURE)
+
+    def _load(self, image, where):
+        try:
+            w, h = image.size
+            n = int(w) * int(h)
+            if n == 0 or len(image.pixels) != 4 * n:
+                raise RuntimeError("no pixel data")
+            px = np.empty(4 * n, np.float32)
+            image.pixels.foreach_get(px)
+        except Exception as e:     # a missing or unreadable file: Blender raises or returns nothing
+            path = getattr(image, "filepath", "") or image.name
+            self.log.warning(f"{where}: image '{image.name}' ({path}) could not be loaded ({e}); "
+                             "using a constant magenta colour")
+            return -1
+        rgb = px.reshape(int(h), int(w), 4)[:, :, :3]
+        space = image.colorspace_settings.name
+        if not image.is_float and "srgb" in space.lower():
+            rgb = srgb_to_linear(rgb)
+        rgb = np.ascontiguousarray(np.nan_to_num(rgb, nan=0.0, posinf=0.0, neginf=0.0), np.float32)
+        self.images.append(rgb)
+        i = len(self.images) - 1
+        self._mean[i] = rgb.reshape(-1, 3).mean(axis=0).astype(np.float64)
+        return i
+
+
+class MaterialExporter:
+    """Assigns core material ids to Blender materials and builds ``core.Materials``."""
+
+    def __init__(self, log):
+        self.log = log
+        self.textures = Textures(log)
+        self._specs = []            # Materials.build entries
+        self._ids = {}              # material pointer (or None for the default) -> id
+
+    @property
+    def count(self) -> int:
+        return len(self._specs)
+
+    def default_id(self) -> int:
+        """The material used where an object has no material (Cycles' grey diffuse)."""
+        if None not in self._ids:
+            self._ids[None] = self._add(Closure.lobe(DIFFUSE, 1.0, GREY).spec("default surface"))
+        return self._ids[None]
+
+    def material_id(self, material) -> int:
+        if material is None:
+            return self.default_id()
+        key = material.as_pointer()
+        if key not in self._ids:
+            walker = NodeWalker(material.name, self.textures)
+            closure = walker.material_closure(material)
+            if walker.notes:
+                self.log.warning(f"material '{material.name}': " + "; ".join(walker.notes))
+            self._ids[key] = self._add(closure.spec(material.name))
+        return self._ids[key]
+
+    def uses_textures(self, ids) -> bool:
+        return any(self._specs[i].get("diffuse_texture", -1) >= 0 for i in ids)
+
+    def emission(self):
+        """(M, 3) emitted radiance per material id."""
+        return np.array([s["emission"] for s in self._specs], np.float64).reshape(-1, 3)
+
+    def build(self) -> Materials:
+        return Materials.build(self._specs)
+
+    def _add(self, spec) -> int:
+        self._specs.append(spec)
+        return len(self._specs) - 1
+
+
+class NodeWalker:
+    """Evaluates one material's node tree into a :class:`Closure`; collects notes for a warning."""
+
+    def __init__(self, material_name, textures):
+        self.name = material_name
+        self.textures = textures
+        self.notes = []
+
+    def note(self, msg):
+        if msg not in self.notes:
+            self.notes.append(msg)
+
+    def unsupported(self, node, what):
+        self.note(f"unsupported node '{node.name}' ({node.bl_idname}) {what}")
+
+    # ----------------------------------------------------------------- entry points
+    def material_closure(self, material) -> Closure:
+        nt = material.node_tree
+        if nt is None:
+            return Closure.lobe(DIFFUSE, 1.0, material.diffuse_color[:3])
+        out = nt.get_output_node('CYCLES')
+        if out is None:
+            self.note("no material output node; rendered as its viewport colour")
+            return Closure.lobe(DIFFUSE, 1.0, material.diffuse_color[:3])
+        return self.shader(out.inputs["Surface"], ()) or Closure()
+
+    def world_color(self, world):
+        """Background radiance (3,) of a world: Background/Emission colour times strength."""
+        nt = world.node_tree
+        if nt is None:
+            return np.array(world.color[:3], np.float64)
+        out = nt.get_output_node('CYCLES')
+        if out is None:
+            return np.array(world.color[:3], np.float64)
+        src, default, stack = self.source(out.inputs["Surface"], ())
+        if src is None:
+            return np.zeros(3)
+        node = src.node
+        if node.bl_idname in ("ShaderNodeBackground", "ShaderNodeEmission"):
+            color, _ = self.color(node.inputs["Color"], stack)
+            return color * self.value(node.inputs["Strength"], stack)
+        self.unsupported(node, "in the world; using the world colour")
+        return np.array(world.color[:3], np.float64)
+
+    # ----------------------------------------------------------------- links
+    def source(self, sock, stack):
+        """Follow the links into input ``sock``.
+
+        Returns ``(output_socket, None, stack)`` for the node output that feeds it,
+        or ``(None, input_socket, stack)`` when nothing does, the input socket then
+        being the one whose ``default_value`` applies (possibly a group node's input).
+        ``stack`` is the tuple of group nodes entered so far.
+        """
+        for _ in range(10_000):         # guard against cycles in malformed trees
+            links = [ln for ln in sock.links if ln.is_valid and not ln.is_muted]
+            if not links:
+                return None, sock, stack
+            out = links[0].from_socket
+            node = out.node
+            if node.bl_idname == "NodeReroute":
+                sock = node.inputs[0]
+            elif node.bl_idname == "NodeGroupInput":
+                if not stack:
+                    return None, sock, stack
+                group = stack[-1]
+                sock = _by_identifier(group.inputs, out.identifier)
+                stack = stack[:-1]
+                if sock is None:
+                    return None, None, stack
+            elif node.bl_idname == "ShaderNodeGroup" and not node.mute:
+                tree = node.node_tree
+                gout = _group_output(tree) if tree is not None else None
+                inner = _by_identifier(gout.inputs, out.identifier) if gout is not None else None
+                if inner is None:
+                    self.note(f"node group '{node.name}' has no matching output")
+                    return None, None, stack
+                sock = inner
+                stack = stack + (node,)
+            else:
+                return out, None, stack
+        return None, None, stack
+
+    # ----------------------------------------------------------------- values
+    def value(self, sock, stack) -> float:
+        src, default, stack = self.source(sock, stack)
+        if src is None:
+            return _float_default(default)
+        node = src.node
+        if node.bl_idname == "ShaderNodeValue" and not node.mute:
+            return float(src.default_value)
+        self.unsupported(node, f"drives '{sock.name}'; using the socket's value")
+        return _float_default(sock)
+
+    def color(self, sock, stack):
+        """(rgb (3,) float64, texture index or -1) of a colour input."""
+        src, default, stack = self.source(sock, stack)
+        if src is None:
+            return _color_default(default), -1
+        node = src.node
+        if node.mute:
+            self.unsupported(node, "(muted)")
+            return _color_default(sock), -1
+        if node.bl_idname == "ShaderNodeRGB":
+            return np.array(src.default_value[:3], np.float64), -1
+        if node.bl_idname == "ShaderNodeTexImage" and src.identifier == "Color":
+            if node.image is None:
+                self.note(f"image texture '{node.name}' has no image; using magenta")
+                return MISSING_TEXTURE.copy(), -1
+            if node.inputs["Vector"].is_linked:
+                self.note(f"image texture '{node.name}': texture coordinates other than the "
+                          "default UV map are ignored")
+            index, mean = self.textures.lookup(node.image, f"material '{self.name}'")
+            return mean, index
+        self.unsupported(node, f"drives '{sock.name}'; using the socket's colour")
+        return _color_default(sock), -1
+
+    # ----------------------------------------------------------------- shaders
+    def shader(self, sock, stack):
+        """The closure feeding shader input ``sock``, or None for no closure (black)."""
+        src, _, stack = self.source(sock, stack)
+        if src is None:
+            return None
+        node = src.node
+        kind = node.bl_idname
+        handler = None if node.mute else SHADERS.get(kind)
+        if handler is None:
+            self.unsupported(node, "rendered as grey diffuse")
+            return Closure.lobe(DIFFUSE, 1.0, GREY)
+        return handler(self, node, stack)
+
+    def _mix(self, node, stack):
+        fac = float(np.clip(self.value(node.inputs[0], stack), 0.0, 1.0))
+        a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()
+        b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
+        return a.combine(b, 1.0 - fac, fac)
+
+    def _add(self, node, stack):
+        a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()
+        b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
+        return a.combine(b, 1.0, 1.0)
+
+    def _diffuse(self, node, stack):
+        color, tex = self.color(node.inputs["Color"], stack)
+        c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if tex >= 0 else color)
+        c.texture = tex
+        return c
+
+    def _glossy(self, node, stack, color_input="Color"):
+        color, _ = self.color(node.inputs[color_input], stack)
+        rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
+        return Closure.lobe(GLOSSY, 1.0, color, roughness=rough)
+
+    def _metallic(self, node, stack):
+        return self._glossy(node, stack, "Base Color")
+
+    def _glass(self, node, stack):
+        color, _ = self.color(node.inputs["Color"], stack)
+        ior = self.value(node.inputs["IOR"], stack)
+        if "Roughness" in node.inputs and self.value(node.inputs["Roughness"], stack) > 0.02:
+            self.note(f"'{node.name}': rough glass is rendered as smooth glass")
+        return Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3))
+
+    def _emission(self, node, stack):
+        color, _ = self.color(node.inputs["Color"], stack)
+        strength = self.value(node.inputs["Strength"], stack)
+        return Closure(emission=np.maximum(color * strength, 0.0))
+
+    def _principled(self, node, stack):
+        inp = node.inputs
+        base, tex = self.color(inp["Base Color"], stack)
+        m = float(np.clip(self.value(inp["Metallic"], stack), 0.0, 1.0))
+        rough = float(np.clip(self.value(inp["Roughness"], stack), 0.0, 1.0))
+        ior = max(self.value(inp["IOR"], stack), 1e-3)
+        t = float(np.clip(self.value(inp["Transmission Weight"], stack), 0.0, 1.0))
+        level = max(self.value(inp["Specular IOR Level"], stack), 0.0)
+        tint, _ = self.color(inp["Specular Tint"], stack)
+        emission, _ = self.color(inp["Emission Color"], stack)
+        strength = self.value(inp["Emission Strength"], stack)
+        if self.value(inp["Alpha"], stack) < 1.0:
+            self.note(f"'{node.name}': Alpha below 1 (transparency) is not supported")
+
+        base_color = np.ones(3) if tex >= 0 else base
+        flat_base = base                  # the texture's mean where a lobe cannot use a texture
+        dielectric = (1.0 - m) * (1.0 - t)
+        spec = dielectric * min(1.0, mean_fresnel(ior) * 2.0 * level)
+        c = Closure(roughness=rough, ior=ior, emission=np.maximum(emission * strength, 0.0))
+        c.weight[DIFFUSE] = dielectric - spec
+        c.color[DIFFUSE] = c.weight[DIFFUSE] * base_color
+        c.weight[GLOSSY] = m + spec
+        c.color[GLOSSY] = m * flat_base + spec * tint
+        c.weight[DIELECTRIC] = (1.0 - m) * t
+        c.color[DIELECTRIC] = c.weight[DIELECTRIC] * flat_base
+        c.texture = tex if c.weight[DIFFUSE] > 0 else -1
+        return c
+
+
+SHADERS = {
+    "ShaderNodeBsdfPrincipled": NodeWalker._principled,
+    "ShaderNodeBsdfDiffuse": NodeWalker._diffuse,
+    "ShaderNodeBsdfGlossy": NodeWalker._glossy,
+    "ShaderNodeBsdfAnisotropic": NodeWalker._glossy,
+    "ShaderNodeBsdfMetallic": NodeWalker._metallic,
+    "ShaderNodeBsdfGlass": NodeWalker._glass,
+    "ShaderNodeBsdfRefraction": NodeWalker._glass,
+    "ShaderNodeEmission": NodeWalker._emission,
+    "ShaderNodeMixShader": NodeWalker._mix,
+    "ShaderNodeAddShader": NodeWalker._add,
+}
+
+
+def _by_identifier(sockets, identifier):
+    for s in sockets:
+        if s.identifier == identifier:
+            return s
+    return None
+
+
+def _group_output(tree):
+    outputs = [n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"]
+    active = [n for n in outputs if n.is_active_output]
+    return (active or outputs or [None])[0]
+
+
+def _float_default(sock) -> float:
+    v = getattr(sock, "default_value", 0.0) if sock is not None else 0.0
+    try:
+        return float(v)
+    except TypeError:               # a colour or vector socket feeding a number: its mean
+        return float(np.mean(v[:3]))
+
+
+def _color_default(sock):
+    v = getattr(sock, "default_value", None) if sock is not None else None
+    if v is None:
+        return np.zeros(3)
+    try:
+        return np.array(v[:3], np.float64)
+    except TypeError:               # a number feeding a colour
+        return np.full(3, float(v))

@@ -1,0 +1,273 @@
+"""Geometry of every depsgraph object instance -> world-space triangle arrays.
+
+Meshes are read once per evaluated mesh datablock (instances share it by data
+pointer) with the attribute API and ``foreach_get`` into NumPy buffers of the
+exact dtype (``shared/docs/blender.md`` section 2), triangulated by Blender's
+``loop_triangles`` (quads and n-gons).  Instances of one mesh with one material
+assignment are transformed together in one ``einsum``: positions by
+``world_from_object``, shading normals by its inverse transpose.  Where
+det(world_from_object) < 0 (mirrored objects) the triangle winding is reversed
+so that the geometric normal, and with it the emitting side, stays outward.
+
+Glossary: ``T`` triangles, ``V`` vertices, ``L`` corners (loops), ``k`` instances.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
+# evaluated mesh as a separate MESH instance (as Cycles' ``object_is_geometry`` notes), so reading
+# them too would count their triangles twice.  Surfaces and metaballs are converted with to_mesh.
+GEOMETRY_TYPES = {"MESH", "SURFACE", "META"}
+
+
+@dataclass
+class LocalMesh:
+    """One evaluated mesh, triangulated, in object space."""
+
+    name: str
+    positions: np.ndarray       # (V, 3) float64, object space
+    triangles: np.ndarray       # (T, 3) int32 vertex indices, counter-clockwise = front
+    slots: np.ndarray           # (T,) int32 material slot index (Blender's material_index)
+    normals: np.ndarray | None  # (T, 3, 3) float32 per-corner shading normals, or None when flat
+    uvs: np.ndarray | None      # (T, 3, 2) float32 active render UV map per corner, or None
+    mesh_materials: tuple       # the mesh's own materials (used when the object has no slots)
+
+
+@dataclass
+class Geometry:
+    """All instances concatenated in world space (the arrays of ``core.Scene``)."""
+
+    vertices: np.ndarray            # (V, 3) float32, world
+    triangles: np.ndarray           # (T, 3) int32
+    material_ids: np.ndarray        # (T,) int32
+    shading_normals: np.ndarray | None  # (T, 3, 3) float32 or None
+    uvs: np.ndarray | None          # (T, 3, 2) float32 or None
+    instances: int = 0              # object instances exported
+    meshes: int = 0                 # distinct meshes read
+
+    @staticmethod
+    def empty() -> "Geometry":
+        return Geometry(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros(0, np.int32),
+                        None, None)
+
+
+class GeometryCollector:
+    """Gathers the geometry instances of a depsgraph; :meth:`finish` gives the world-space arrays.
+
+    materials : ``MaterialExporter`` assigning core material ids.
+    material_override : a Material used for every object (the view layer's override).
+    """
+
+    def __init__(self, materials, log, material_override=None):
+        self.materials = materials
+        self.log = log
+        self.material_override = material_override
+        self.meshes = {}      # mesh key -> LocalMesh, or None when it has no faces
+        self.groups = {}      # (mesh key, material ids) -> list of (4, 4) world_from_object
+
+    def add(self, inst):
+        """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
+        ob = inst.object
+        if ob.type not in GEOMETRY_TYPES or not inst.show_self:
+            return
+        key = _mesh_key(ob)
+        if key not in self.meshes:
+            self.meshes[key] = read_object_mesh(ob, self.log)
+        local = self.meshes[key]
+        if local is None:
+            return
+        materials = self.materials
+        if self.material_override is not None:
+            mat_ids = (materials.material_id(self.material_override),)
+        else:
+            slots = [slot.material for slot in ob.material_slots]
+            mat_ids = tuple(materials.material_id(m) for m in (slots or local.mesh_materials))
+            if not mat_ids:
+                mat_ids = (materials.default_id(),)
+        # Copy the matrix inside the loop: the iterator reuses its instance objects.
+        self.groups.setdefault((key, mat_ids), []).append(np.array(inst.matrix_world, np.float64))
+
+    def finish(self) -> Geometry:
+        geometry = assemble(self.meshes, self.groups, self.materials)
+        geometry.meshes = sum(1 for m in self.meshes.values() if m is not None)
+        return geometry
+
+
+def _mesh_key(ob):
+    """Instances with equal keys share one evaluated mesh."""
+    if ob.type == "MESH":
+        return ("mesh", ob.data.as_pointer())
+    # Surfaces and metaballs are converted per evaluated object.
+    return ("object", ob.original.as_pointer(), ob.data.as_pointer() if ob.data else 0)
+
+
+def read_object_mesh(ob, log):
+    """:class:`LocalMesh` of an evaluated object (modifiers applied), or None without faces."""
+    try:
+        me = ob.to_mesh()
+    except RuntimeError as e:
+        log.warning(f"object '{ob.name}': cannot convert its {ob.type.lower()} to a mesh ({e}); skipped")
+        return None
+    try:
+        if me is None:
+            return None
+        return read_mesh(me, ob.name, log)
+    finally:
+        ob.to_mesh_clear()
+
+
+def read_mesh(me, name, log):
+    """:class:`LocalMesh` of a ``bpy.types.Mesh``, or None (with an info message) without faces."""
+    n_vert = len(me.vertices)
+    if len(me.polygons) == 0:
+        if n_vert:
+            log.info(f"object '{name}' has no faces (only vertices or edges); skipped")
+        return None
+    me.calc_loop_triangles()
+    n_tri = len(me.loop_triangles)
+    n_corner = len(me.loops)
+    attrs = me.attributes
+
+    positions = np.empty(n_vert * 3, np.float32)
+    attrs["position"].data.foreach_get("vector", positions)
+    positions = positions.reshape(n_vert, 3)
+
+    tri_loops = np.empty(n_tri * 3, np.int32)
+    me.loop_triangles.foreach_get("loops", tri_loops)
+    tri_loops = tri_loops.reshape(n_tri, 3)
+    tri_poly = np.empty(n_tri, np.int32)
+    me.loop_triangle_polygons.foreach_get("value", tri_poly)
+    corner_vert = np.empty(n_corner, np.int32)
+    attrs[".corner_vert"].data.foreach_get("value", corner_vert)
+    tri_vert = corner_vert[tri_loops]
+
+    slots = np.zeros(n_tri, np.int32)
+    mat_attr = attrs.get("material_index")
+    if mat_attr is not None and mat_attr.domain == "FACE" and mat_attr.data_type == "INT":
+        poly_mat = np.empty(len(me.polygons), np.int32)
+        mat_attr.data.foreach_get("value", poly_mat)
+        slots = poly_mat[tri_poly]
+
+    normals = _corner_normals(me, tri_vert, tri_loops, tri_poly)
+    uvs = _corner_uvs(me, tri_loops)
+    return LocalMesh(name=name, positions=positions.astype(np.float64), triangles=tri_vert, slots=slots,
+                     normals=normals, uvs=uvs, mesh_materials=tuple(me.materials))
+
+
+def _corner_normals(me, tri_vert, tri_loops, tri_poly):
+    """(T, 3, 3) float32 shading normals per triangle corner, or None for flat shading."""
+    domain = me.normals_domain
+    if domain == "FACE":
+        return None
+    if domain == "POINT":
+        n = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertex_normals.foreach_get("vector", n)
+        return n.reshape(-1, 3)[tri_vert]
+    n = np.empty(len(me.loops) * 3, np.float32)
+    me.corner_normals.foreach_get("vector", n)
+    return n.reshape(-1, 3)[tri_loops]
+
+
+def _corner_uvs(me, tri_loops):
+    """(T, 3, 2) float32 coordinates of the active render UV map, or None without one."""
+    layer = next((uv for uv in me.uv_layers if uv.active_render), None)
+    if layer is None:
+        return None
+    attr = me.attributes.get(layer.name)
+    if attr is None or attr.domain != "CORNER":
+        return None
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    attr.data.foreach_get("vector", uv)
+    return uv.reshape(-1, 2)[tri_loops]
+
+
+def assemble(meshes, groups, materials) -> Geometry:
+    """Transform every instance group to world space and concatenate."""
+    parts = []
+    offset = 0
+    instances = 0
+    for (key, mat_ids), matrices in groups.items():
+        part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset)
+        parts.append(part)
+        offset += len(part["vertices"])
+        instances += len(matrices)
+    if not parts:
+        return Geometry.empty()
+    vertices = np.concatenate([p["vertices"] for p in parts]).astype(np.float32)
+    triangles = np.concatenate([p["triangles"] for p in parts])
+    material_ids = np.concatenate([p["material_ids"] for p in parts])
+    normals = None
+    if any(p["normals"] is not None for p in parts):
+        normals = np.concatenate([p["normals"] if p["normals"] is not None
+                                  else _flat_normals(vertices, p["triangles"]) for p in parts])
+    uvs = None
+    if materials.uses_textures(np.unique(material_ids)):
+        uvs = np.concatenate([p["uvs"] if p["uvs"] is not None
+                              else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
+    return Geometry(vertices=vertices, triangles=np.ascontiguousarray(triangles, np.int32),
+                    material_ids=np.ascontiguousarray(material_ids, np.int32),
+                    shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),
+                    uvs=None if uvs is None else np.ascontiguousarray(uvs, np.float32),
+                    instances=instances)
+
+
+def transform_instances(local, world_from_object, mat_ids, vertex_offset):
+    """World-space arrays of ``k`` instances of ``local``.
+
+    world_from_object : (k, 4, 4) float64.  mat_ids : (n_slots,) int32 core material
+    ids of the slots.  Returns a dict of vertices (k V, 3) float64, triangles (k T, 3)
+    int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) or
+    None and uvs (k T, 3, 2) or None.
+    """
+    k = len(world_from_object)
+    rot = world_from_object[:, :3, :3]
+    n_v, n_t = len(local.positions), len(local.triangles)
+    vertices = np.einsum("kij,vj->kvi", rot, local.positions) + world_from_object[:, None, :3, 3]
+    # Mirroring instances (det < 0) keep their front side by reversing the winding.
+    mirrored = np.linalg.det(rot) < 0
+    corner_order = np.where(mirrored[:, None], [0, 2, 1], [0, 1, 2])        # (k, 3)
+    tri = local.triangles[None, :, :] + (vertex_offset + n_v * np.arange(k))[:, None, None]
+    tri = np.take_along_axis(tri, np.broadcast_to(corner_order[:, None, :], tri.shape), axis=2)
+    slot = np.clip(local.slots, 0, len(mat_ids) - 1)
+    material_ids = np.tile(mat_ids[slot], k)
+    normals = None
+    if local.normals is not None:
+        normal_from_object = _inverse_transpose(rot)
+        n = np.einsum("kij,tcj->ktci", normal_from_object, local.normals.astype(np.float64))
+        n /= np.maximum(np.linalg.norm(n, axis=3, keepdims=True), 1e-30)
+        normals = _reorder_corners(n, corner_order).reshape(k * n_t, 3, 3)
+    uvs = None
+    if local.uvs is not None:
+        uvs = _reorder_corners(np.broadcast_to(local.uvs, (k,) + local.uvs.shape), corner_order)
+        uvs = uvs.reshape(k * n_t, 3, 2)
+    return {"vertices": vertices.reshape(k * n_v, 3), "triangles": tri.reshape(k * n_t, 3).astype(np.int32),
+            "material_ids": material_ids, "normals": normals, "uvs": uvs}
+
+
+def _reorder_corners(a, corner_order):
+    """a (k, T, 3, d) with the corners of instance i permuted by corner_order[i]."""
+    idx = np.broadcast_to(corner_order[:, None, :, None], a.shape)
+    return np.take_along_axis(a, idx, axis=2)
+
+
+def _inverse_transpose(rot):
+    """(k, 3, 3) inverse transposes; pseudo-inverse for flattened (singular) instances."""
+    det = np.linalg.det(rot)
+    singular = np.abs(det) < 1e-12 * np.maximum(np.abs(rot).max(axis=(1, 2)) ** 3, 1e-300)
+    out = np.empty_like(rot)
+    if (~singular).any():
+        out[~singular] = np.linalg.inv(rot[~singular]).transpose(0, 2, 1)
+    if singular.any():
+        out[singular] = np.linalg.pinv(rot[singular]).transpose(0, 2, 1)
+    return out
+
+
+def _flat_normals(vertices, triangles):
+    """(T, 3, 3) float32 geometric normals repeated at each corner."""
+    p = vertices[triangles].astype(np.float64)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    return np.repeat(n[:, None, :], 3, axis=1).astype(np.float32)

@@ -1,0 +1,96 @@
+"""Depsgraph -> ``core.Scene``: one pass over the object instances, then one module per data type.
+
+``export_scene`` is the only entry point; it never reads ``bpy.context`` (the
+render depsgraph carries the view layer, the evaluated scene and its objects),
+so it runs the same inside ``RenderEngine.render`` and from tests or operators
+with a viewport depsgraph.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...core.scene import Scene
+from .camera import export_camera
+from .lights import build_lights, export_light
+from .materials import MaterialExporter
+from .mesh import GeometryCollector
+from .world import export_world
+
+
+class ExportLog:
+    """Warnings and info messages of one export, each message once, in order."""
+
+    def __init__(self):
+        self.warnings = {}
+        self.infos = {}
+
+    def warning(self, msg):
+        self.warnings.setdefault(msg, None)
+
+    def info(self, msg):
+        self.infos.setdefault(msg, None)
+
+
+@dataclass
+class ExportedScene:
+    """The core scene plus what the engine reports about the export."""
+
+    scene: Scene
+    warnings: list = field(default_factory=list)
+    infos: list = field(default_factory=list)
+    seconds: float = 0.0            # wall time of the export
+    instances: int = 0              # geometry instances exported
+    meshes: int = 0                 # distinct meshes read
+
+    @property
+    def is_empty(self) -> bool:
+        """Nothing to render: no triangles, no lights and a black world."""
+        s = self.scene
+        return s.triangle_count == 0 and s.lights.count == 0 and not np.any(s.world.color)
+
+    @property
+    def emits_light(self) -> bool:
+        s = self.scene
+        emissive = s.materials.count and np.any(s.materials.emission[np.unique(s.material_ids)] > 0) \
+            if s.triangle_count else False
+        return bool(s.lights.count or np.any(s.world.color) or emissive)
+
+
+def export_scene(depsgraph, camera_object=None, resolution=None, border=None) -> ExportedScene:
+    """Export everything ``depsgraph`` shows for its view layer.
+
+    camera_object : the camera to render through (default: the scene camera).
+    resolution : (width, height) after the resolution percentage (default: the scene's).
+    border : (x_min, x_max, y_min, y_max) render border, y from the bottom (default: the scene's).
+    """
+    t0 = time.perf_counter()
+    log = ExportLog()
+    materials = MaterialExporter(log)
+    view_layer = depsgraph.view_layer_eval
+    collector = GeometryCollector(materials, log, material_override=view_layer.material_override)
+    light_records = []
+    for inst in depsgraph.object_instances:
+        if inst.object.type == "LIGHT":
+            rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
+                               inst.object.name, log)
+            if rec is not None:
+                light_records.append(rec)
+        else:
+            collector.add(inst)
+    geometry = collector.finish()
+    lights = build_lights(light_records)
+    camera = export_camera(depsgraph, camera_object, resolution, border, log)
+    world = export_world(depsgraph, materials.textures, log)
+    if materials.count == 0:
+        materials.default_id()
+    scene = Scene(vertices=geometry.vertices, triangles=geometry.triangles,
+                  material_ids=geometry.material_ids, materials=materials.build(), lights=lights,
+                  camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,
+                  textures=materials.textures.images)
+    return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
+                         seconds=time.perf_counter() - t0, instances=geometry.instances,
+                         meshes=geometry.meshes)
+

@@ -1,0 +1,28 @@
+"""The world -> ``core.World``: a constant background radiance.
+
+The world's Cycles output is followed to a Background (or Emission) node and its
+Color x Strength is used, as Cycles does for a constant background; a world
+without nodes uses ``world.color``.  The view layer's world override wins over
+the scene's world.  Textures (sky, environment maps) are not supported: they
+give one warning and the node's own colour.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ...core.scene import World
+from .materials import NodeWalker
+
+
+def export_world(depsgraph, textures, log) -> World:
+    scene = depsgraph.scene_eval
+    world = depsgraph.view_layer_eval.world_override or scene.world
+    transparent = bool(scene.render.film_transparent)
+    if world is None:
+        return World(color=np.zeros(3, np.float32), film_transparent=transparent)
+    walker = NodeWalker(world.name, textures)
+    color = walker.world_color(world)
+    if walker.notes:
+        log.warning(f"world '{world.name}': " + "; ".join(walker.notes))
+    color = np.nan_to_num(np.maximum(np.asarray(color, np.float64), 0.0))
+    return World(color=color.astype(np.float32), film_transparent=transparent)
