@@ -1,0 +1,1195 @@
+"""Statistical tests of the sampling routines (``shared/docs/testing.md`` sections 1 and 2b).
+
+Covers the warps of ``core.sampling``, GGX visible-normal sampling, the four lobes of
+``core.bsdf.scatter``, ``choose_lobe``, photon emission in ``core.lights.LightSampler`` and the MCMC
+mutation kernel of ``core.mcmc``.  Distributions are checked by a Mitsuba-style chi-square test
+(``chi2.py``) with 10^6 samples, frequencies by binomial z-tests, means by z-tests or the fixed
+tolerances the brief gives.  Every statistical test runs at the family-wise level ALPHA = 0.01
+with a Sidak correction over the STAT_TESTS hypothesis tests of this file; all seeds are fixed.
+
+Reference formulas (GGX, Fresnel, spot mask, light powers) are written out here from the papers,
+independently of ``core``, so that a test compares the code with the mathematics, not with itself.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from chi2 import ChiSquareTest, integrate_bins
+from core import bsdf
+from core import mcmc
+from core import sampling as smp
+from core.context import RenderContext
+from core.scene import Lights, Materials, World
+from core.testing.scenes import MeshBuilder
+from stats_utils import chi2_sf, gammaincc, normal_isf, sidak
+
+N = 1_000_000                     # samples per chi-square test
+TWO_PI = 2.0 * math.pi
+
+# ---------------------------------------------------------------- test parameters
+CONE_COS_MAX = (-0.6, 0.0, 0.5, 0.95, 0.9999)
+GGX_ALPHAS = (0.05, 0.3, 0.8)
+GGX_THETAS_DEG = (0.0, 45.0, 80.0, 89.0)
+DIELECTRIC_CASES = (          # (angle of wo to the normal in degrees, wo outside the glass)
+    (0.0, True), (45.0, True), (80.0, True), (20.0, False), (40.0, False))
+CHOOSE_LOBE_SCORES = (
+    (0.1, 0.2, 0.3, 0.4), (0.0, 1.0, 0.0, 3.0), (2.5, 0.0, 0.0, 0.0), (0.0, 0.0, 1e-3, 1.0),
+    (0.7, 0.0, 0.2, 0.0))
+SPOT_BLENDS = (0.0, 0.3, 1.0)
+MUTATION_THETAS = (0.05, 1.0, 20.0)
+
+# Every hypothesis test of this file (chi-square tests and z-tests), for the Sidak correction.
+STAT_TESTS = (
+    3                                       # cosine hemisphere, uniform sphere, concentric disk
+    + len(CONE_COS_MAX) + 1                 # uniform cone per cos_max, and per-sample cos_max
+    + 1                                     # uniform triangle
+    + len(GGX_ALPHAS) * len(GGX_THETAS_DEG)  # GGX reflection chi-square
+    + 2                                     # diffuse lobe: chi-square, front and back side
+    + 2                                     # glossy lobe: chi-square and E[weight] z-test
+    + 3                                     # mixed material: E[weight] z-test per channel
+    + len(DIELECTRIC_CASES)                 # dielectric reflection frequency
+    + sum(sum(v > 0 for v in s) > 1 for s in CHOOSE_LOBE_SCORES)   # choose_lobe frequencies
+    + 2                                     # point light: directions, positions on its sphere
+    + 1                                     # spot light directions
+    + 4                                     # rectangle and disk lights: directions and positions
+    + 2                                     # sun: directions and disk origins
+    + 2                                     # world: directions and disk origins
+    + 4                                     # emissive triangles: choice, side, directions, positions
+    + 1                                     # mixed lights: photon share per light (one chi-square)
+    + 2                                     # MCMC chain stays uniform: small and mixed sizes
+    + 2 * len(MUTATION_THETAS)              # mutation step density and E|step|
+    + 1                                     # wrapped mutation step
+)
+ALPHA = 0.01
+ALPHA_EACH = sidak(ALPHA, STAT_TESTS)
+Z_CRIT = normal_isf(0.5 * ALPHA_EACH)      # two-sided z threshold
+
+
+def check_chi2(sample_func, pdf_func, domain, **kwargs):
+    test = ChiSquareTest(sample_func, pdf_func, domain, sample_count=kwargs.pop("sample_count", N), **kwargs)
+    assert test.run(ALPHA_EACH), test.message
+    return test
+
+
+def assert_binomial(successes, trials, p, what):
+    """Two-sided z-test of a frequency against probability ``p``."""
+    sd = math.sqrt(max(p * (1.0 - p), 1e-300) / trials)
+    z = (successes / trials - p) / sd
+    assert abs(z) < Z_CRIT, f"{what}: frequency {successes / trials:.6f}, expected {p:.6f} (z = {z:.2f})"
+
+
+def assert_mean(values, expected, what, extra_tolerance=0.0):
+    """Two-sided z-test of a sample mean (sd estimated from the sample)."""
+    values = np.asarray(values, np.float64)
+    mean = values.mean()
+    se = values.std() / math.sqrt(len(values))
+    assert abs(mean - expected) <= Z_CRIT * se + extra_tolerance, \
+        f"{what}: mean {mean:.6g}, expected {expected:.6g} (z = {(mean - expected) / max(se, 1e-300):.2f})"
+
+
+# ---------------------------------------------------------------- frames and parametrisations
+def frames_for(axes):
+    """(n, 3, 3) rotations whose rows are (t, b, axis) for unit ``axes`` (n, 3); Gram-Schmidt."""
+    axes = np.atleast_2d(np.asarray(axes, np.float64))
+    axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+    helper = np.where((np.abs(axes[:, 0]) < 0.6)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    t = np.cross(helper, axes)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(axes, t)
+    return np.stack([t, b, axes], axis=1)
+
+
+def polar_angle(x, y):
+    """Angle of (x, y) in [0, 2 pi]."""
+    return np.mod(np.arctan2(y, x), TWO_PI)
+
+
+def dir_to_cos_phi(d, axis):
+    """(cos theta, phi) of directions ``d`` (n, 3) about ``axis`` (3,)."""
+    f = frames_for(axis)[0]
+    loc = d @ f.T
+    return np.stack([loc[:, 2], polar_angle(loc[:, 0], loc[:, 1])], axis=1)
+
+
+def cos_phi_to_dir(xy, axis):
+    f = frames_for(axis)[0]
+    c = xy[:, 0]
+    s = np.sqrt(np.maximum(0.0, 1.0 - c * c))
+    loc = np.stack([s * np.cos(xy[:, 1]), s * np.sin(xy[:, 1]), c], axis=1)
+    return loc @ f
+
+
+def dir_to_warped(d, axis, p):
+    """(t, phi) about ``axis`` with sin^2(theta/2) = t^p, i.e. 1 - cos theta = 2 t^p.
+
+    p > 1 spreads a lobe peaked around ``axis`` over many bins; the Jacobian is in :func:`warped_to_dir`.
+    """
+    f = frames_for(axis)[0]
+    loc = d @ f.T
+    s2 = 0.25 * np.sum((loc - [0.0, 0.0, 1.0]) ** 2, axis=1)      # sin^2(theta / 2), accurate near 0
+    return np.stack([np.clip(s2, 0.0, 1.0) ** (1.0 / p), polar_angle(loc[:, 0], loc[:, 1])], axis=1)
+
+
+def warped_to_dir(xy, axis, p):
+    """Directions and the Jacobian |d omega / d(t, phi)| = 2 p t^(p - 1) of :func:`dir_to_warped`."""
+    f = frames_for(axis)[0]
+    t = xy[:, 0]
+    s2 = t ** p
+    c = 1.0 - 2.0 * s2
+    s = 2.0 * np.sqrt(np.maximum(0.0, s2 * (1.0 - s2)))
+    loc = np.stack([s * np.cos(xy[:, 1]), s * np.sin(xy[:, 1]), c], axis=1)
+    return loc @ f, 2.0 * p * t ** (p - 1.0)
+
+
+def dir_to_horizon(d, phi_m, q=2.0, r=2.0):
+    """(v, w) in [0, 1] x [-1, 1] with cos theta = v^q about +Z and phi = phi_m + pi sgn(w) |w|^r.
+
+    The horizon cos theta = 0 is a bin edge and bins crowd near the horizon and the azimuth phi_m:
+    for lobes reflected at grazing angles.  Jacobian in :func:`horizon_to_dir`.
+    """
+    v = np.clip(d[:, 2], 0.0, 1.0) ** (1.0 / q)
+    dphi = np.mod(np.arctan2(d[:, 1], d[:, 0]) - phi_m + np.pi, TWO_PI) - np.pi
+    return np.stack([v, np.sign(dphi) * (np.abs(dphi) / np.pi) ** (1.0 / r)], axis=1)
+
+
+def horizon_to_dir(xy, phi_m, q=2.0, r=2.0):
+    """Directions and |d omega / d(v, w)| = q v^(q - 1) pi r |w|^(r - 1) of :func:`dir_to_horizon`."""
+    v, w = xy[:, 0], xy[:, 1]
+    c = v ** q
+    s = np.sqrt(np.maximum(0.0, 1.0 - c * c))
+    phi = phi_m + np.pi * np.sign(w) * np.abs(w) ** r
+    d = np.stack([s * np.cos(phi), s * np.sin(phi), c], axis=1)
+    return d, q * v ** (q - 1.0) * np.pi * r * np.abs(w) ** (r - 1.0)
+
+
+def disk_polar(x, y):
+    """(r^2, phi) of points (x, y): uniform points on the unit disk are uniform on [0, 1] x [0, 2 pi)."""
+    return np.stack([x * x + y * y, polar_angle(x, y)], axis=1)
+
+
+def cone_param(d, axis, cos_max):
+    """(s, phi) with s = (1 - cos theta) / (1 - cos_max): uniform in the cone <=> uniform in s, phi."""
+    f = frames_for(axis)[0]
+    loc = d @ f.T
+    one_minus_cos = 0.5 * np.sum((loc - [0.0, 0.0, 1.0]) ** 2, axis=1)
+    return np.stack([one_minus_cos / (1.0 - cos_max), polar_angle(loc[:, 0], loc[:, 1])], axis=1)
+
+
+HEMISPHERE = ((0.0, 1.0), (0.0, TWO_PI))
+SPHERE = ((-1.0, 1.0), (0.0, TWO_PI))
+UNIT_SQUARE = ((0.0, 1.0), (0.0, 1.0))
+DISK_POLAR = ((0.0, 1.0), (0.0, TWO_PI))
+WARPED = ((0.0, 1.0), (0.0, TWO_PI))       # (t, phi) of dir_to_warped
+
+
+def uniform_polar_pdf(xy):
+    return np.full(len(xy), 1.0 / TWO_PI)
+
+
+def f32(v):
+    """Values as the scene stores them (float32), in float64."""
+    return np.asarray(v, np.float32).astype(np.float64)
+
+
+def unit_vector(*v):
+    v = np.asarray(v, np.float64)
+    return v / np.linalg.norm(v)
+
+
+# ---------------------------------------------------------------- reference GGX (Walter 2007, Heitz 2018)
+def ref_ggx_d(cos_m, alpha):
+    """D(m) = 1 / (pi alpha^2 cos^4 (1 + tan^2 / alpha^2)^2) for cos_m > 0."""
+    c = np.clip(cos_m, 1e-30, 1.0)
+    tan2 = (1.0 - c * c) / (c * c)
+    d = 1.0 / (np.pi * alpha ** 2 * c ** 4 * (1.0 + tan2 / alpha ** 2) ** 2)
+    return np.where(cos_m > 0, d, 0.0)
+
+
+def ref_ggx_lambda(cos_v, alpha):
+    c = np.clip(np.abs(cos_v), 1e-30, 1.0)
+    tan2 = (1.0 - c * c) / (c * c)
+    return 0.5 * (np.sqrt(1.0 + alpha ** 2 * tan2) - 1.0)
+
+
+def ref_ggx_f_and_pdf(wo, wi, alpha):
+    """Reflection f(wo, wi) = D G2 / (4 cos_o cos_i) and the visible-normal reflection pdf
+    G1(wo) max(0, wo.m) D(m) / cos_o / (4 wo.m), for local directions (n, 3); 0 below the surface."""
+    h = wo + wi
+    m = h / np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-300)
+    cos_o, cos_i = wo[:, 2], wi[:, 2]
+    om = np.sum(wo * m, axis=1)
+    lo, li = ref_ggx_lambda(cos_o, alpha), ref_ggx_lambda(cos_i, alpha)
+    d = ref_ggx_d(m[:, 2], alpha)
+    valid = (cos_o > 0) & (cos_i > 0) & (om > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = d / (1.0 + lo + li) / (4.0 * cos_o * cos_i)
+        pdf = d / (1.0 + lo) / (4.0 * cos_o)         # G1 (wo.m) D / cos_o / (4 wo.m)
+    return np.where(valid, f, 0.0), np.where(valid, pdf, 0.0)
+
+
+def ggx_warp_power(alpha):
+    """Radial warp for chi-square histograms of GGX lobes (about 20+ bins across the lobe)."""
+    return 4.0 if alpha < 0.1 else (2.0 if alpha < 0.5 else 1.0)
+
+
+def local_direction(theta_deg, phi=0.7):
+    th = math.radians(theta_deg)
+    return np.array([math.sin(th) * math.cos(phi), math.sin(th) * math.sin(phi), math.cos(th)])
+
+
+# ---------------------------------------------------------------- reference Fresnel
+def ref_fresnel(cos_i, eta):
+    """Unpolarised Fresnel reflectance (Born & Wolf) and cos_t; eta = n_t / n_i; 1 under TIR."""
+    cos_i = np.asarray(cos_i, np.float64)
+    sin2_t = (1.0 - cos_i ** 2) / eta ** 2
+    tir = sin2_t >= 1.0
+    cos_t = np.sqrt(np.clip(1.0 - sin2_t, 0.0, 1.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+        rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return np.where(tir, 1.0, 0.5 * (rs * rs + rp * rp)), np.where(tir, 0.0, cos_t)
+
+
+# ================================================================ statistics helpers themselves
+def test_chi2_pvalue_matches_known_chi2_quantiles_and_closed_forms():
+    # Tabulated upper quantiles of the chi-square distribution.
+    known = [(3.841458820694124, 1, 0.05), (6.634896601021214, 1, 0.01), (23.209251158954356, 10, 0.01),
+             (135.80672317102676, 100, 0.01), (124.34211340400407, 100, 0.05)]
+    for x, k, p in known:
+        assert chi2_sf(x, k) == pytest.approx(p, rel=1e-9), (x, k)
+    # Closed forms: odd k = 1, 3 via erfc; even k via the Poisson sum, up to 10^4 dof.
+    for x in (0.01, 0.5, 1.0, 3.0, 10.0, 40.0):
+        assert chi2_sf(x, 1) == pytest.approx(math.erfc(math.sqrt(x / 2)), rel=1e-12, abs=1e-300)
+        assert chi2_sf(x, 3) == pytest.approx(
+            math.erfc(math.sqrt(x / 2)) + math.sqrt(2 * x / math.pi) * math.exp(-x / 2), rel=1e-11)
+        assert chi2_sf(x, 2) == pytest.approx(math.exp(-x / 2), rel=1e-12)
+    for k in (10, 200, 2000, 10_000):
+        for x in (0.8 * k, k - 1.0, k + 3.0 * math.sqrt(2 * k), 1.3 * k):
+            m, h = k // 2, x / 2
+            log_terms = [j * math.log(h) - math.lgamma(j + 1) for j in range(m)]
+            top = max(log_terms)
+            expected = math.exp(-h + top + math.log(sum(math.exp(t - top) for t in log_terms)))
+            assert chi2_sf(x, k) == pytest.approx(expected, rel=1e-9), (x, k)
+    assert gammaincc(0.5, 0.0) == 1.0
+    assert 0.0 < ALPHA_EACH < ALPHA / STAT_TESTS * 1.01
+
+
+def test_chi2_helper_rejects_a_wrong_density_and_reports_hard_failures():
+    n = 100_000
+    rng = np.random.default_rng(99)
+    uniform = rng.random((n, 2))
+
+    def run(xy, pdf, weight=None, domain=UNIT_SQUARE):
+        test = ChiSquareTest(lambda m: (xy, weight), pdf, domain, sample_count=n)
+        return test.run(ALPHA_EACH), test.message
+
+    ok, msg = run(uniform, lambda xy: np.ones(len(xy)))
+    assert ok, msg
+    ok, msg = run(uniform, lambda xy: 2.0 * xy[:, 0])                      # wrong density
+    assert not ok and "rejects" in msg
+    ok, msg = run(uniform * 1.01, lambda xy: np.ones(len(xy)))              # outside the domain
+    assert not ok and "outside" in msg
+    weight = np.ones(n)
+    weight[7] = np.nan
+    assert "NaN" in run(uniform, lambda xy: np.ones(len(xy)), weight)[1]
+    weight[7] = -1.0
+    assert "negative weight" in run(uniform, lambda xy: np.ones(len(xy)), weight)[1]
+    ok, msg = run(uniform, lambda xy: 2.0 * (xy[:, 0] < 0.5))               # mass where the pdf is 0
+    assert not ok and "zero density" in msg
+    ok, msg = run(uniform, lambda xy: np.full(len(xy), 1.2))                 # pdf integrates to 1.2
+    assert not ok and "integrates" in msg
+    weight = (uniform[:, 0] < 0.5).astype(np.float64)                       # half the samples fail
+    # Failed samples (weight 0) count in N: a pdf that loses the same mass in the same place passes,
+    # one that loses it elsewhere does not.
+    ok, msg = run(uniform, lambda xy: 1.0 * (xy[:, 0] < 0.5), weight)
+    assert ok, msg
+    ok, msg = run(uniform, lambda xy: 1.0 * (xy[:, 1] < 0.5), weight)
+    assert not ok
+
+
+# ================================================================ 1. warps
+def test_cosine_hemisphere_has_density_cos_over_pi():
+    rng = np.random.default_rng(101)
+
+    def sample(n):
+        d = smp.cosine_hemisphere(rng.random(n), rng.random(n))
+        assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-12)
+        return np.stack([d[:, 2], polar_angle(d[:, 0], d[:, 1])], axis=1), None
+
+    check_chi2(sample, lambda xy: xy[:, 0] / np.pi, HEMISPHERE)
+    c = np.linspace(-1, 1, 11)
+    assert np.allclose(smp.cosine_hemisphere_pdf(c), np.maximum(c, 0) / np.pi)
+
+
+def test_uniform_sphere_has_density_one_over_four_pi():
+    rng = np.random.default_rng(102)
+
+    def sample(n):
+        d = smp.uniform_sphere(rng.random(n), rng.random(n))
+        assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-12)
+        return dir_to_cos_phi(d, [0.0, 0.0, 1.0]), None
+
+    check_chi2(sample, lambda xy: np.full(len(xy), 1.0 / (4 * np.pi)), SPHERE)
+
+
+@pytest.mark.parametrize("cos_max", CONE_COS_MAX)
+def test_uniform_cone_is_uniform_within_cos_max(cos_max):
+    rng = np.random.default_rng(110 + CONE_COS_MAX.index(cos_max))
+
+    def sample(n):
+        d = smp.uniform_cone(rng.random(n), rng.random(n), cos_max)
+        assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-12)
+        assert (d[:, 2] >= cos_max - 1e-12).all()
+        return cone_param(d, [0.0, 0.0, 1.0], cos_max), None
+
+    # Uniform in the cone <=> uniform in (s, phi): density 1 / (2 pi (1 - cos_max)) per solid angle.
+    check_chi2(sample, uniform_polar_pdf, DISK_POLAR)
+
+
+def test_uniform_cone_accepts_per_sample_cos_max():
+    rng = np.random.default_rng(104)
+    choices = np.array([-0.5, 0.3, 0.9])
+
+    def sample(n):
+        cos_max = choices[rng.integers(0, 3, n)]
+        d = smp.uniform_cone(rng.random(n), rng.random(n), cos_max)
+        assert (d[:, 2] >= cos_max - 1e-12).all()
+        f = frames_for([0.0, 0.0, 1.0])[0]
+        loc = d @ f.T
+        s = 0.5 * np.sum((loc - [0.0, 0.0, 1.0]) ** 2, axis=1) / (1.0 - cos_max)
+        return np.stack([s, polar_angle(loc[:, 0], loc[:, 1])], axis=1), None
+
+    check_chi2(sample, uniform_polar_pdf, DISK_POLAR)
+
+
+def test_concentric_disk_is_uniform_on_the_unit_disk():
+    rng = np.random.default_rng(105)
+
+    def sample(n):
+        x, y = smp.concentric_disk(rng.random(n), rng.random(n))
+        assert (x * x + y * y <= 1.0 + 1e-12).all()
+        return disk_polar(x, y), None
+
+    check_chi2(sample, uniform_polar_pdf, DISK_POLAR)
+    # The corners and centre of the square map to the boundary and the centre.
+    x, y = smp.concentric_disk(np.array([0.5, 0.0, 1.0, 0.5]), np.array([0.5, 0.0, 0.5, 1.0]))
+    assert np.allclose(np.hypot(x, y), [0.0, 1.0, 1.0, 1.0])
+
+
+def test_uniform_triangle_barycentrics_are_uniform_over_the_triangle():
+    rng = np.random.default_rng(106)
+
+    def sample(n):
+        b1, b2 = smp.uniform_triangle(rng.random(n), rng.random(n))
+        assert ((b1 >= 0) & (b2 >= 0) & (b1 + b2 <= 1.0 + 1e-12)).all()
+        # (b1, v = b2 / (1 - b1)) maps the triangle onto the unit square; density 2 (1 - b1) there.
+        return np.stack([b1, b2 / (1.0 - b1)], axis=1), None
+
+    check_chi2(sample, lambda xy: 2.0 * (1.0 - xy[:, 0]), UNIT_SQUARE)
+
+
+def test_orthonormal_frames_to_world_and_to_local_are_rotations():
+    rng = np.random.default_rng(107)
+    n = smp.uniform_sphere(rng.random(10000), rng.random(10000))
+    special = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [0, -1, 0], [0, 0, 1.0]], np.float64)
+    near_minus_z = unit_vector(1e-9, -2e-9, -1.0)
+    n = np.concatenate([n, special, near_minus_z[None], unit_vector(1, 1, -1e-12)[None]])
+    t, b = smp.orthonormal_frames(n)
+    for u, v in ((t, t), (b, b), (n, n)):
+        assert np.allclose(np.sum(u * v, axis=1), 1.0, atol=1e-12)
+    for u, v in ((t, b), (t, n), (b, n)):
+        assert np.allclose(np.sum(u * v, axis=1), 0.0, atol=1e-12)
+    assert np.allclose(np.cross(t, b), n, atol=1e-12)             # right-handed (Duff et al. 2017)
+    v = rng.normal(size=(len(n), 3))
+    assert np.allclose(smp.to_world(smp.to_local(v, n), n), v, atol=1e-12)
+    assert np.allclose(smp.to_local(v, n)[:, 2], np.sum(v * n, axis=1), atol=1e-12)
+    e_z = np.tile([0.0, 0.0, 1.0], (len(n), 1))
+    assert np.allclose(smp.to_world(e_z, n), n, atol=1e-12)
+
+
+def test_reflect_and_refract_obey_mirror_law_and_snell():
+    rng = np.random.default_rng(108)
+    n = smp.uniform_sphere(rng.random(1000), rng.random(1000))
+    wo = smp.to_world(smp.cosine_hemisphere(rng.random(1000), rng.random(1000)), n)
+    r = smp.reflect(wo, n)
+    assert np.allclose(r + wo, 2 * np.sum(wo * n, axis=1)[:, None] * n, atol=1e-12)
+    assert np.allclose(np.linalg.norm(r, axis=1), 1.0, atol=1e-12)
+    for eta_value in (1.5, 1.0 / 1.5, 1.33):
+        eta = np.full(1000, eta_value)
+        cos_i = np.sum(wo * n, axis=1)
+        f, cos_t = smp.fresnel_dielectric(cos_i, eta)
+        ok = f < 1.0
+        t = smp.refract(wo[ok], n[ok], eta[ok], cos_t[ok])
+        assert np.allclose(np.linalg.norm(t, axis=1), 1.0, atol=1e-9)
+        assert np.allclose(-np.sum(t * n[ok], axis=1), cos_t[ok], atol=1e-9)
+        sin_i = np.linalg.norm(np.cross(wo[ok], n[ok]), axis=1)
+        sin_t = np.linalg.norm(np.cross(t, n[ok]), axis=1)
+        assert np.allclose(sin_i, eta_value * sin_t, atol=1e-9)            # Snell
+        # Coplanar with wo and n, on the far side of the tangent plane.
+        assert np.allclose(np.sum(np.cross(wo[ok], n[ok]) * t, axis=1), 0.0, atol=1e-9)
+
+
+# ================================================================ 2. GGX
+@pytest.mark.parametrize("theta_deg", GGX_THETAS_DEG)
+@pytest.mark.parametrize("alpha", GGX_ALPHAS)
+def test_ggx_visible_normal_reflection_matches_ggx_reflection_pdf(alpha, theta_deg):
+    phi_o = 0.7
+    wo = local_direction(theta_deg, phi_o)
+    mirror = np.array([-wo[0], -wo[1], wo[2]])
+    p = ggx_warp_power(alpha)
+    # Bins crowd around the mirror direction, or along the horizon for grazing incidence (where the
+    # horizon cuts the lobe and must be a bin edge).
+    grazing = theta_deg >= 60.0
+    rng = np.random.default_rng(1000 + 10 * GGX_ALPHAS.index(alpha) + GGX_THETAS_DEG.index(theta_deg))
+
+    def sample(n):
+        wo_n = np.tile(wo, (n, 1))
+        m = smp.ggx_sample_visible_normal(wo_n, np.full(n, alpha), rng.random(n), rng.random(n))
+        assert np.allclose(np.linalg.norm(m, axis=1), 1.0, atol=1e-9)
+        assert (m[:, 2] > 0).all() and (np.sum(m * wo_n, axis=1) >= -1e-9).all()
+        wi = smp.reflect(wo_n, m)
+        xy = dir_to_horizon(wi, phi_o + np.pi) if grazing else dir_to_warped(wi, mirror, p)
+        return xy, (wi[:, 2] > 0).astype(np.float64)
+
+    def pdf(xy):
+        d, jac = horizon_to_dir(xy, phi_o + np.pi) if grazing else warped_to_dir(xy, mirror, p)
+        return smp.ggx_reflection_pdf(np.tile(wo, (len(d), 1)), d, alpha) * jac
+
+    test = check_chi2(sample, pdf, ((0.0, 1.0), (-1.0, 1.0)) if grazing else WARPED, ires=8)
+    assert test.integral.sum() <= 1.0 + 1e-3
+
+
+def test_ggx_reflection_pdf_and_f_equal_the_reference_formulas():
+    rng = np.random.default_rng(1200)
+    n = 20000
+    wo = smp.cosine_hemisphere(rng.random(n), rng.random(n))
+    wi = smp.uniform_sphere(rng.random(n), rng.random(n))
+    wo[:10, 2] = np.array([1e-4, 1e-3, 0.01, 0.05, 0.1, 0.3, 0.5, 0.7, 0.9, 1.0])
+    wo[:10] /= np.linalg.norm(wo[:10], axis=1, keepdims=True)
+    for alpha in GGX_ALPHAS + (1e-3, 1.0):
+        f_ref, pdf_ref = ref_ggx_f_and_pdf(wo, wi, alpha)
+        assert np.allclose(smp.ggx_reflection_pdf(wo, wi, alpha), pdf_ref, rtol=1e-9, atol=1e-300)
+        assert np.allclose(smp.ggx_reflection_f(wo, wi, alpha), f_ref, rtol=1e-9, atol=1e-300)
+
+
+@pytest.mark.parametrize("alpha", GGX_ALPHAS)
+def test_ggx_albedo_is_below_1_01_and_sample_weight_is_f_cos_over_pdf(alpha):
+    """pbrt's energy test: E[f cos / pdf] < 1.01 over 10 directions x 16384 samples, and the weight
+    f cos / pdf of each sample equals the G2 / G1 that bsdf.scatter uses."""
+    rng = np.random.default_rng(1100 + GGX_ALPHAS.index(alpha))
+    n = 16384
+    for cos_o in np.linspace(0.02, 1.0, 10):
+        wo = np.tile([math.sqrt(1 - cos_o ** 2), 0.0, cos_o], (n, 1))
+        m = smp.ggx_sample_visible_normal(wo, np.full(n, alpha), rng.random(n), rng.random(n))
+        wi = smp.reflect(wo, m)
+        ok = wi[:, 2] > 0
+        f = smp.ggx_reflection_f(wo[ok], wi[ok], alpha)
+        pdf = smp.ggx_reflection_pdf(wo[ok], wi[ok], alpha)
+        assert (pdf > 0).all() and np.isfinite(f).all()
+        w = f * wi[ok, 2] / pdf
+        ratio = smp.ggx_g2(wo[ok, 2], wi[ok, 2], alpha) / smp.ggx_g1(wo[ok, 2], alpha)
+        assert np.allclose(w, ratio, rtol=1e-6)
+        albedo = w.sum() / n
+        assert 0.0 < albedo < 1.01, (alpha, cos_o, albedo)
+
+
+@pytest.mark.parametrize("alpha", GGX_ALPHAS)
+def test_ggx_reflection_pdf_integrates_to_at_most_one(alpha):
+    # Normal incidence: wi falls below the horizon exactly when the sampled normal is more than
+    # 45 degrees off, P(tan^2 theta_m > 1) = alpha^2 / (1 + alpha^2) for GGX, so the pdf integrates
+    # to 1 / (1 + alpha^2).  Quadrature about the mirror direction, split at the horizon.
+    p = ggx_warp_power(alpha)
+    wo = local_direction(0.0)
+
+    def pdf_normal(xy):
+        d, jac = warped_to_dir(xy, wo, p)
+        return smp.ggx_reflection_pdf(np.tile(wo, (len(d), 1)), d, alpha) * jac
+
+    t_horizon = 0.5 ** (1.0 / p)
+    total = (integrate_bins(pdf_normal, ((0.0, t_horizon), (0.0, TWO_PI)), (100, 8), 8).sum()
+             + integrate_bins(pdf_normal, ((t_horizon, 1.0), (0.0, TWO_PI)), (50, 8), 8).sum())
+    assert total == pytest.approx(1.0 / (1.0 + alpha ** 2), abs=1e-9)
+    # Oblique and grazing incidence: at most 1 (quadrature with the horizon on a bin edge).
+    for theta_deg in (60.0, 89.0, 89.9):
+        wo = local_direction(theta_deg)
+
+        def pdf(xy):
+            d, jac = horizon_to_dir(xy, 0.7 + np.pi)
+            return smp.ggx_reflection_pdf(np.tile(wo, (len(d), 1)), d, alpha) * jac
+
+        total = integrate_bins(pdf, ((0.0, 1.0), (-1.0, 1.0)), (96, 96), 8).sum()
+        assert 0.5 < total <= 1.0 + 1e-5, (theta_deg, total)
+
+
+# ================================================================ 3. bsdf.scatter per lobe
+def glossy_albedo(wo_local, alpha):
+    """Integral of the reference f cos over the hemisphere (horizon on a bin edge)."""
+    phi_m = math.atan2(wo_local[1], wo_local[0]) + np.pi
+
+    def f_cos(xy):
+        d, jac = horizon_to_dir(xy, phi_m)
+        return ref_ggx_f_and_pdf(np.tile(wo_local, (len(d), 1)), d, alpha)[0] * d[:, 2] * jac
+
+    return integrate_bins(f_cos, ((0.0, 1.0), (-1.0, 1.0)), (96, 96), 8).sum()
+
+
+def material_table(spec):
+    return bsdf.MaterialTable.from_materials(Materials.build([dict(name="m", **spec)]))
+
+
+def scatter_lobe(table, lobe, wo, ng, ns, u1, u2, mode):
+    n = len(u1)
+    mat = np.zeros(n, np.int32)
+    colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
+    return bsdf.scatter(table, mat, colors, np.full(n, lobe), np.ones(n), np.tile(wo, (n, 1)),
+                        np.tile(ng, (n, 1)), np.tile(ns, (n, 1)), u1, u2, mode)
+
+
+def adjoint_correction(wo, wi, ng, ns):
+    """pbrt's shading-normal correction for importance transport |wo.ns||wi.ng| / (|wo.ng||wi.ns|)."""
+    return (abs(wo @ ns) * np.abs(wi @ ng)) / (abs(wo @ ng) * np.abs(wi @ ns))
+
+
+@pytest.mark.parametrize("side", (1.0, -1.0), ids=("front", "back"))
+def test_diffuse_lobe_is_cosine_about_the_shading_normal_with_weight_colour(side):
+    colour = f32([0.8, 0.5, 0.2])
+    table = material_table({"diffuse": colour})
+    ng = unit_vector(0.2, -0.3, 0.9) * side
+    ns = unit_vector(0.45, -0.1, 0.85) * side          # perturbed shading normal, same side
+    wo = unit_vector(-0.3, 0.5, 0.6)                  # wo on the front side for side = 1
+    ngf = ng if wo @ ng > 0 else -ng
+    nsf = ns if ns @ ngf > 0 else -ns
+    rng = np.random.default_rng(2000 if side > 0 else 2001)
+    out = {}
+
+    def sample(n):
+        u1, u2 = rng.random(n), rng.random(n)
+        wi, w, alive = scatter_lobe(table, bsdf.DIFFUSE, wo, ng, ns, u1, u2, "radiance")
+        out.update(wi=wi, w=w, alive=alive, u1=u1, u2=u2)
+        return dir_to_cos_phi(wi, ngf), alive.astype(np.float64)
+
+    def pdf(xy):
+        d = cos_phi_to_dir(xy, ngf)
+        return np.maximum(d @ nsf, 0.0) / np.pi
+
+    check_chi2(sample, pdf, HEMISPHERE, ires=8)
+    wi, w, alive = out["wi"], out["w"], out["alive"]
+    assert np.isfinite(w).all() and np.isfinite(wi).all()
+    assert np.array_equal(alive, wi @ ngf > 0)
+    assert np.allclose(w[alive], colour, rtol=1e-6) and (w[~alive] == 0).all()
+    # Importance mode: the same directions, weights times pbrt's shading-normal correction.
+    m = 200_000
+    wi_i, w_i, alive_i = scatter_lobe(table, bsdf.DIFFUSE, wo, ng, ns, out["u1"][:m], out["u2"][:m],
+                                      "importance")
+    assert np.array_equal(wi_i, wi[:m]) and np.array_equal(alive_i, alive[:m])
+    corr = adjoint_correction(wo, wi_i[alive_i], ngf, nsf)
+    assert np.allclose(w_i[alive_i], colour * corr[:, None], rtol=1e-6) and (w_i[~alive_i] == 0).all()
+
+
+def test_diffuse_lobe_with_flat_shading_keeps_every_sample_with_weight_colour():
+    colour = f32([0.3, 0.6, 0.9])
+    table = material_table({"diffuse": colour})
+    n_ = unit_vector(-0.5, 0.5, -0.7)
+    rng = np.random.default_rng(2002)
+    for wo in (unit_vector(0.1, 0.2, -0.9), unit_vector(0.1, 0.2, 0.9)):
+        for mode in ("radiance", "importance"):
+            wi, w, alive = scatter_lobe(table, bsdf.DIFFUSE, wo, n_, n_, rng.random(20000),
+                                        rng.random(20000), mode)
+            assert alive.all()
+            assert np.allclose(w, colour, rtol=1e-9)
+            assert ((wi @ n_) * (wo @ n_) > 0).all()       # on wo's side
+
+
+def test_glossy_lobe_samples_ggx_reflection_with_weight_colour_g2_over_g1():
+    colour = f32([0.9, 0.7, 0.4])
+    roughness = 0.55
+    table = material_table({"glossy": colour, "roughness": roughness})
+    alpha = float(np.float32(roughness)) ** 2
+    assert table.alpha[0] == pytest.approx(alpha, rel=1e-12)
+    n_ = unit_vector(0.3, 0.2, 0.93)
+    f = frames_for(n_)[0]
+    wo_local = local_direction(55.0)
+    wo = wo_local @ f
+    mirror = np.array([-wo_local[0], -wo_local[1], wo_local[2]])
+    p = ggx_warp_power(alpha)
+    rng = np.random.default_rng(2010)
+    out = {}
+
+    def sample(n):
+        u1, u2 = rng.random(n), rng.random(n)
+        wi, w, alive = scatter_lobe(table, bsdf.GLOSSY, wo, n_, n_, u1, u2, "radiance")
+        out.update(wi=wi, w=w, alive=alive, u1=u1, u2=u2)
+        return dir_to_warped(wi @ f.T, mirror, p), alive.astype(np.float64)
+
+    def pdf_local(xy):
+        d, jac = warped_to_dir(xy, mirror, p)
+        return ref_ggx_f_and_pdf(np.tile(wo_local, (len(d), 1)), d, alpha)[1] * jac
+
+    check_chi2(sample, pdf_local, WARPED, ires=8)
+    wi, w, alive = out["wi"], out["w"], out["alive"]
+    assert np.isfinite(w).all() and (w[~alive] == 0).all()
+    wi_l = wi[alive] @ f.T
+    g2_over_g1 = (1.0 + ref_ggx_lambda(wo_local[2], alpha)) / (
+        1.0 + ref_ggx_lambda(wo_local[2], alpha) + ref_ggx_lambda(wi_l[:, 2], alpha))
+    # atol: core clamps cos^2 >= 1e-12 in Lambda, which changes G2 / G1 ~ 1e-6 for cos_i < 1e-6.
+    assert np.allclose(w[alive], colour * g2_over_g1[:, None], rtol=1e-6, atol=1e-5)
+
+    # E[weight] = colour * integral of f cos over the hemisphere (quadrature of the reference f).
+    albedo = glossy_albedo(wo_local, alpha)
+    assert 0.5 < albedo < 1.0
+    assert_mean(w[:, 1] / colour[1], albedo, "glossy E[weight] / colour", extra_tolerance=1e-5)
+    # Importance mode with flat shading: the same directions and weights (the correction is 1).
+    wi_i, w_i, alive_i = scatter_lobe(table, bsdf.GLOSSY, wo, n_, n_, out["u1"][:100_000],
+                                      out["u2"][:100_000], "importance")
+    assert np.array_equal(alive_i, alive[:100_000]) and np.allclose(wi_i, wi[:100_000], atol=1e-15)
+    assert np.allclose(w_i, w[:100_000], rtol=1e-9, atol=1e-12)
+
+
+def test_mixed_material_throughput_is_unbiased_through_lobe_choice_and_scatter():
+    """Diffuse 0.5 + glossy 0.3 + mirror 0.2: E[weight] = sum of weight * colour * lobe albedo."""
+    spec = {"diffuse": (0.8, 0.4, 0.2), "diffuse_weight": 0.5,
+            "glossy": (0.3, 0.9, 0.6), "glossy_weight": 0.3, "roughness": 0.55,
+            "mirror": (0.5, 0.5, 1.0), "mirror_weight": 0.2}
+    table = material_table(spec)
+    alpha = table.alpha[0]
+    n_ = unit_vector(-0.2, 0.1, 1.0)
+    wo_local = local_direction(40.0)
+    wo = wo_local @ frames_for(n_)[0]
+    rng = np.random.default_rng(2015)
+    mat = np.zeros(N, np.int32)
+    colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
+    lobe, prob = bsdf.choose_lobe(bsdf.lobe_scores(table, mat, colors), rng.random(N))
+    wi, w, alive = bsdf.scatter(table, mat, colors, lobe, prob, np.tile(wo, (N, 1)), np.tile(n_, (N, 1)),
+                                np.tile(n_, (N, 1)), rng.random(N), rng.random(N), "radiance")
+    assert np.isfinite(w).all() and (w >= 0).all()
+    expected = (0.5 * f32(spec["diffuse"]) + 0.3 * f32(spec["glossy"]) * glossy_albedo(wo_local, alpha)
+                + 0.2 * f32(spec["mirror"]))
+    for c in range(3):
+        assert_mean(w[:, c], expected[c], f"mixed material E[weight], channel {c}", extra_tolerance=1e-5)
+
+
+def test_material_table_merges_near_specular_glossy_into_the_mirror_lobe():
+    mats = Materials.build([
+        {"name": "sharp", "glossy": (0.2, 0.4, 0.8), "glossy_weight": 0.5, "roughness": 0.01,
+         "mirror": (1.0, 0.5, 0.25), "mirror_weight": 0.25},
+        {"name": "rough", "glossy": (0.2, 0.4, 0.8), "roughness": 0.02},
+        {"name": "black diffuse", "diffuse": 0.0}])
+    table = bsdf.MaterialTable.from_materials(mats)
+    assert table.weight[0].tolist() == [0.0, 0.0, 0.75, 0.0]
+    merged = (0.5 * f32([0.2, 0.4, 0.8]) + 0.25 * f32([1.0, 0.5, 0.25])) / 0.75
+    assert np.allclose(table.color[0, bsdf.MIRROR], merged)
+    assert table.weight[1, bsdf.GLOSSY] == 1.0
+    assert table.alpha[1] == pytest.approx(float(np.float32(0.02)) ** 2)
+    assert table.has_nondelta.tolist() == [False, True, False]
+    assert table.has_glossy.tolist() == [False, True, False]
+
+
+def test_mirror_lobe_returns_the_exact_reflection_with_weight_colour():
+    colour = f32([0.95, 0.9, 0.8])
+    table = material_table({"mirror": colour})
+    rng = np.random.default_rng(2020)
+    n = 5000
+    ng = smp.uniform_sphere(rng.random(n), rng.random(n))
+    wo = smp.uniform_sphere(rng.random(n), rng.random(n))
+    mat = np.zeros(n, np.int32)
+    colors = bsdf.lobe_colors(table, mat, table.color[mat, 0])
+    for mode in ("radiance", "importance"):
+        wi, w, alive = bsdf.scatter(table, mat, colors, np.full(n, bsdf.MIRROR), np.ones(n), wo, ng, ng,
+                                    rng.random(n), rng.random(n), mode)
+        expected = 2.0 * np.sum(wo * ng, axis=1)[:, None] * ng - wo
+        grazing = np.abs(np.sum(wo * ng, axis=1)) < 1e-6
+        assert np.allclose(wi, expected, atol=1e-12)
+        assert alive[~grazing].all()
+        assert np.allclose(w[alive], colour, rtol=1e-9)
+
+
+@pytest.mark.parametrize("theta_deg,outside", DIELECTRIC_CASES)
+def test_dielectric_reflects_with_fresnel_frequency_and_scales_refraction_by_eta_squared(theta_deg, outside):
+    ior = 1.5
+    colour = f32([1.0, 0.9, 0.8])
+    table = material_table({"dielectric": colour, "ior": ior})
+    ng = unit_vector(0.1, -0.4, 0.9)
+    f = frames_for(ng)[0]
+    wo = local_direction(theta_deg) @ f * (1.0 if outside else -1.0)
+    eta = ior if outside else 1.0 / ior
+    nf = ng if outside else -ng                       # normal on wo's side
+    cos_i = math.cos(math.radians(theta_deg))
+    fr, cos_t = (float(v) for v in ref_fresnel(cos_i, eta))
+    rng = np.random.default_rng(2030 + DIELECTRIC_CASES.index((theta_deg, outside)))
+    u1, u2 = rng.random(N), rng.random(N)
+    wi, w, alive = scatter_lobe(table, bsdf.DIELECTRIC, wo, ng, ng, u1, u2, "radiance")
+    m = 100_000
+    wi_i, w_i, alive_i = scatter_lobe(table, bsdf.DIELECTRIC, wo, ng, ng, u1[:m], u2[:m], "importance")
+    assert np.isfinite(wi).all() and np.isfinite(w).all() and alive.all() and alive_i.all()
+    assert np.array_equal(wi[:m], wi_i)
+    refl = wi @ nf > 0
+    assert_binomial(int(refl.sum()), N, fr, f"reflection frequency at {theta_deg} deg")
+    # Reflection exactly when u1 < F (up to rounding of F itself).
+    assert (np.abs(u1[refl != (u1 < fr)] - fr) < 1e-9).all()
+    mirror = 2 * cos_i * nf - wo
+    refracted = -wo / eta + (cos_i / eta - cos_t) * nf
+    assert np.allclose(wi[refl], mirror, atol=1e-9)
+    assert np.allclose(wi[~refl], refracted, atol=1e-9)
+    assert np.allclose(-(wi[~refl] @ nf), cos_t, atol=1e-9)
+    # Radiance mode: refraction weighted 1/eta^2 (1/1.5^2 entering, 1.5^2 leaving); importance: none.
+    assert np.allclose(w[refl], colour, rtol=1e-9)
+    assert np.allclose(w[~refl], colour / eta ** 2, rtol=1e-6)
+    assert np.allclose(w_i, colour, rtol=1e-6)
+
+
+def test_dielectric_known_values_normal_incidence_and_80_degrees():
+    f, cos_t = smp.fresnel_dielectric(np.array([1.0, math.cos(math.radians(80.0))]), np.array([1.5, 1.5]))
+    assert f[0] == pytest.approx(0.04, abs=1e-12)
+    assert cos_t[0] == pytest.approx(1.0, abs=1e-12)
+    assert f[1] == pytest.approx(0.387704354691473, abs=1e-12)
+    assert math.degrees(math.acos(cos_t[1])) == pytest.approx(41.0364, abs=1e-4)
+    # Through scatter: the refracted direction at 80 degrees makes 41.0364 degrees with -n.
+    table = material_table({"dielectric": 1.0, "ior": 1.5})
+    wo = local_direction(80.0, phi=0.0)
+    wi, w, alive = scatter_lobe(table, bsdf.DIELECTRIC, wo, [0, 0, 1.0], [0, 0, 1.0],
+                                np.array([0.999]), np.array([0.5]), "importance")
+    assert wi[0, 2] < 0 and math.degrees(math.acos(-wi[0, 2])) == pytest.approx(41.0364, abs=1e-4)
+
+
+@pytest.mark.parametrize("theta_deg", (41.9, 45.0, 60.0, 89.9, 90.0))
+def test_dielectric_total_internal_reflection_from_inside_gives_r1_t0_without_nan(theta_deg):
+    assert math.degrees(math.asin(1 / 1.5)) == pytest.approx(41.81, abs=5e-3)
+    cos_i = math.cos(math.radians(theta_deg))
+    f, cos_t = smp.fresnel_dielectric(np.array([cos_i]), np.array([1 / 1.5]))
+    assert f[0] == 1.0 and cos_t[0] == 0.0
+    colour = f32([0.9, 0.8, 0.7])
+    table = material_table({"dielectric": colour, "ior": 1.5})
+    ng = np.array([0.0, 0.0, 1.0])
+    wo = -local_direction(theta_deg)               # inside the glass: below the outward normal
+    rng = np.random.default_rng(2040)
+    n = 10000
+    for mode in ("radiance", "importance"):
+        wi, w, alive = scatter_lobe(table, bsdf.DIELECTRIC, wo, ng, ng, rng.random(n), rng.random(n), mode)
+        assert np.isfinite(wi).all() and np.isfinite(w).all()
+        if theta_deg < 90.0:
+            assert alive.all()
+            assert (wi[:, 2] < 0).all()            # every photon/path stays inside
+            assert np.allclose(wi, np.array([-wo[0], -wo[1], wo[2]]), atol=1e-9)
+            assert np.allclose(w, colour, rtol=1e-9)
+
+
+def test_fresnel_reflectance_plus_transmittance_is_one_at_every_angle():
+    cos_i = np.concatenate([np.linspace(0.0, 1.0, 20001), [1e-12, 1e-6]])
+    for eta in (1.5, 1 / 1.5, 1.33, 2.4, 1.0):
+        f, cos_t = smp.fresnel_dielectric(cos_i, np.full(len(cos_i), eta))
+        f_ref, cos_t_ref = ref_fresnel(cos_i, eta)
+        assert np.isfinite(f).all() and ((f >= 0) & (f <= 1)).all()
+        assert np.allclose(f, f_ref, atol=1e-12) and np.allclose(cos_t, cos_t_ref, atol=1e-12)
+        # Transmittance from the Fresnel amplitude coefficients t_s, t_p (energy flux ratio).
+        ok = (cos_t > 0) & (cos_i > 0)
+        ci, ct = cos_i[ok], cos_t[ok]
+        ts = 2 * ci / (ci + eta * ct)
+        tp = 2 * ci / (eta * ci + ct)
+        t = eta * ct / ci * 0.5 * (ts * ts + tp * tp)
+        assert np.allclose(f[ok] + t, 1.0, atol=1e-12), eta
+        assert (f[~ok] == 1.0).all() or eta == 1.0
+        # Reciprocity: F(cos_i, eta) = F(cos_t, 1 / eta).
+        f_back, _ = smp.fresnel_dielectric(ct, np.full(len(ct), 1 / eta))
+        assert np.allclose(f_back, f[ok], atol=1e-9)
+
+
+# ================================================================ 4. choose_lobe
+@pytest.mark.parametrize("scores", CHOOSE_LOBE_SCORES)
+def test_choose_lobe_frequencies_are_proportional_to_scores(scores):
+    s = np.asarray(scores, np.float64)
+    rng = np.random.default_rng(3000 + CHOOSE_LOBE_SCORES.index(scores))
+    lobe, prob = bsdf.choose_lobe(np.tile(s, (N, 1)), rng.random(N))
+    counts = np.bincount(lobe, minlength=4)
+    p = s / s.sum()
+    assert (counts[p == 0] == 0).all(), counts
+    assert np.allclose(prob, p[lobe], rtol=1e-12)
+    nz = p > 0
+    if nz.sum() > 1:
+        stat = float(np.sum((counts[nz] - N * p[nz]) ** 2 / (N * p[nz])))
+        pv = chi2_sf(stat, int(nz.sum()) - 1)
+        assert pv >= ALPHA_EACH, (counts, N * p, pv)
+    else:
+        assert counts[nz][0] == N
+
+
+def test_choose_lobe_never_picks_a_zero_score_lobe_at_cdf_steps():
+    rng = np.random.default_rng(3100)
+    rows = rng.random((20000, 4)) * (rng.random((20000, 4)) < 0.5)
+    rows[:, 3] *= rng.random(20000) < 0.3
+    rows = rows[rows.sum(axis=1) > 0]
+    rows = np.concatenate([rows, [[1, 0, 0, 0], [0, 0, 0, 1], [0, 1, 0, 0], [0.25, 0, 0.25, 0],
+                                  [1e-300, 0, 0, 1], [0, 0, 1, 1e-300]]])
+    total = rows.sum(axis=1)
+    cdf = np.cumsum(rows, axis=1)
+    us = [cdf[:, k] / total for k in range(4)] + [np.zeros(len(rows)), np.full(len(rows), np.nextafter(1, 0))]
+    us += [np.nextafter(cdf[:, k] / total, 0) for k in range(4)]
+    us += [np.nextafter(cdf[:, k] / total, 2) for k in range(4)]
+    for u in us:
+        u = np.clip(u, 0.0, np.nextafter(1, 0))
+        lobe, prob = bsdf.choose_lobe(rows, u)
+        picked = rows[np.arange(len(rows)), lobe]
+        assert (lobe >= 0).all() and (picked > 0).all()
+        assert np.allclose(prob, picked / total, rtol=1e-12)
+
+
+def test_choose_lobe_returns_minus_one_when_all_scores_are_zero():
+    scores = np.zeros((5, 4))
+    scores[2, 1] = 1.0
+    lobe, prob = bsdf.choose_lobe(scores, np.array([0.0, 0.3, 0.5, 0.7, np.nextafter(1, 0)]))
+    assert lobe.tolist() == [-1, -1, 1, -1, -1]
+    assert prob.tolist() == [0.0, 0.0, 1.0, 0.0, 0.0]
+
+
+# ================================================================ 5. LightSampler
+BOX_LO, BOX_HI = np.array([-1.0, -1.5, -0.5]), np.array([2.0, 1.0, 1.5])
+BOX_CENTER = 0.5 * (BOX_LO + BOX_HI)
+BOX_RADIUS = 0.5 * float(np.linalg.norm(BOX_HI - BOX_LO))
+
+
+def light_context(lights=(), emissive_triangles=(), emission=(1.0, 2.0, 0.5), world=(0.0, 0.0, 0.0)):
+    """A black box [BOX_LO, BOX_HI] (bounding sphere radius BOX_RADIUS) holding the given emitters."""
+    mats = Materials.build([{"name": "black"}, {"name": "lamp", "emission": emission}])
+    m = MeshBuilder()
+    m.add_box(tuple(BOX_LO), tuple(BOX_HI), 0, inward=True)
+    for tri in emissive_triangles:
+        m.add_triangles([tri], 1)
+    scene = m.build(mats, Lights.build(list(lights)), world=World(color=np.asarray(world, np.float32)))
+    return RenderContext(scene)
+
+
+def sample_photons(ctx, n, seed):
+    u = np.random.default_rng(seed).random((n, 6))
+    o, d, flux, normals = ctx.lights.sample(u)
+    assert np.isfinite(o).all() and np.isfinite(d).all() and np.isfinite(flux).all()
+    assert (flux >= 0).all()
+    # Unit to float32 precision here (rays are traced in float32 by accel.intersect); the documented
+    # float64 unit length is checked by test_photon_directions_are_unit_to_float64_precision.
+    assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-6)
+    return o, d, flux, normals
+
+
+def assert_mean_flux(flux, power, what):
+    power = np.asarray(power, np.float64)
+    mean = flux.mean(axis=0)
+    assert np.allclose(mean, power, rtol=0.01), f"{what}: mean flux {mean}, emitted power {power}"
+
+
+def test_point_light_emits_its_power_uniformly_over_the_sphere():
+    power = np.array([10.0, 20.0, 30.0])
+    pos = np.array([0.2, 0.1, 0.3])
+    ctx = light_context([{"kind": "point", "position": pos, "power": power}])
+    o, d, flux, _ = sample_photons(ctx, N, 4000)
+    assert_mean_flux(flux, power, "point light")
+    assert np.allclose(o, pos, atol=1e-12)
+    check_chi2(lambda n: (dir_to_cos_phi(d, [0.0, 0.0, 1.0]), None),
+               lambda xy: np.full(len(xy), 1 / (4 * np.pi)), SPHERE)
+
+
+def test_point_light_with_radius_starts_photons_on_the_hemisphere_facing_them():
+    """A Lambertian sphere seen from direction d is a uniformly bright disk: origins projected on
+    the plane perpendicular to d are uniform on the disk of the sphere's radius."""
+    radius, pos = 0.25, np.array([0.5, -0.5, 0.5])
+    ctx = light_context([{"kind": "point", "position": pos, "power": 7.0, "radius": radius}])
+    o, d, flux, _ = sample_photons(ctx, N, 4001)
+    assert_mean_flux(flux, [7.0] * 3, "spherical point light")
+    q = (o - pos) / radius
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-6)
+    z = np.sum(q * d, axis=1)
+    assert (z >= -1e-6).all()
+    fr = frames_for(d)
+    x, y = np.einsum("ij,ij->i", q, fr[:, 0]), np.einsum("ij,ij->i", q, fr[:, 1])
+    check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
+
+
+@pytest.mark.parametrize("blend", SPOT_BLENDS)
+def test_spot_light_is_uniform_in_its_cone_with_flux_following_the_smoothstep_mask(blend):
+    power, angle = np.array([40.0, 30.0, 10.0]), 1.2
+    axis = unit_vector(1.0, -1.0, -2.0)
+    ctx = light_context([{"kind": "spot", "position": (0.0, 0.0, 1.0), "direction": axis, "power": power,
+                          "spot_angle": angle, "spot_blend": blend}])
+    o, d, flux, _ = sample_photons(ctx, N, 4010 + SPOT_BLENDS.index(blend))
+    cos_half = math.cos(float(np.float32(angle)) / 2)
+    blend32 = float(np.float32(blend))
+    # Cycles: intensity P/(4 pi) times smoothstep((cos - cos_half) / ((1 - cos_half) blend)).
+    cos_theta = d @ ctx.scene.lights.direction[0].astype(np.float64)
+    t = np.clip((cos_theta - cos_half) / ((1 - cos_half) * blend32), 0, 1) if blend32 > 0 else \
+        np.ones_like(cos_theta)
+    mask = t * t * (3 - 2 * t)
+    # atol: the float32 light direction is unit only to ~1e-8, so cos theta recomputed from the photon
+    # direction differs by ~1e-7 from the cone-local one; the mask's slope is up to 1.5 / width.
+    scale = power * 0.5 * (1 - cos_half)
+    assert np.allclose(flux, scale * mask[:, None], rtol=1e-6, atol=1e-5 * scale.max())
+    # Emitted power by quadrature of the intensity over the cone.
+    c = np.linspace(cos_half, 1.0, 200001)
+    tt = np.clip((c - cos_half) / ((1 - cos_half) * blend32), 0, 1) if blend32 > 0 else np.ones_like(c)
+    emitted = power / (4 * np.pi) * TWO_PI * np.trapz(tt * tt * (3 - 2 * tt), c)
+    assert np.allclose(emitted, power / 2 * (1 - cos_half) * (1 - blend32 / 2), rtol=1e-6)
+    assert_mean_flux(flux, emitted, f"spot light, blend {blend}")
+    if blend == SPOT_BLENDS[1]:
+        check_chi2(lambda n: (cone_param(d, axis, cos_half), None), uniform_polar_pdf, DISK_POLAR)
+
+
+@pytest.mark.parametrize("kind", ("area", "disk"))
+def test_area_light_is_cosine_about_its_direction_and_uniform_over_its_shape(kind):
+    power = np.array([25.0, 20.0, 5.0])
+    axis = unit_vector(0.3, 0.2, -1.0)
+    pos = np.array([0.5, -0.2, 1.2])
+    ctx = light_context([{"kind": kind, "position": pos, "direction": axis, "size": (0.8, 0.5),
+                          "power": power}])
+    lights = ctx.scene.lights
+    au, av = lights.axis_u[0].astype(np.float64), lights.axis_v[0].astype(np.float64)
+    assert abs(au @ av) < 1e-6 and abs(au @ axis) < 1e-6
+    assert np.linalg.norm(au) == pytest.approx(0.4, rel=1e-6)
+    assert np.linalg.norm(av) == pytest.approx(0.25, rel=1e-6)
+    o, d, flux, _ = sample_photons(ctx, N, 4020 if kind == "area" else 4021)
+    assert np.allclose(flux, power, rtol=1e-9)                  # one-sided: flux = power per photon
+    assert_mean_flux(flux, power, f"{kind} light")
+    assert np.allclose((o - pos) @ axis, 0.0, atol=1e-6)
+    check_chi2(lambda n: (dir_to_cos_phi(d, axis), None), lambda xy: xy[:, 0] / np.pi, HEMISPHERE)
+    x = (o - pos) @ au / (au @ au)
+    y = (o - pos) @ av / (av @ av)
+    if kind == "area":
+        check_chi2(lambda n: (np.stack([x, y], axis=1), None), lambda xy: np.full(len(xy), 0.25),
+                   ((-1.0, 1.0), (-1.0, 1.0)))
+    else:
+        check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
+
+
+def test_sun_carries_irradiance_times_bounding_disk_area_uniformly_in_its_cone():
+    irradiance = np.array([3.0, 2.5, 2.0])
+    axis = unit_vector(-0.2, 0.4, -1.0)
+    sun_angle = 0.2
+    ctx = light_context([{"kind": "sun", "direction": axis, "power": irradiance, "sun_angle": sun_angle}])
+    assert ctx.lights.radius == pytest.approx(BOX_RADIUS, rel=1e-9)
+    o, d, flux, _ = sample_photons(ctx, N, 4030)
+    assert_mean_flux(flux, irradiance * np.pi * BOX_RADIUS ** 2, "sun")
+    cos_half = math.cos(float(np.float32(sun_angle)) / 2)
+    check_chi2(lambda n: (cone_param(d, axis, cos_half), None), uniform_polar_pdf, DISK_POLAR)
+    # Origins: uniform on the disk of radius R perpendicular to d, 2R before the scene centre.
+    q = o - BOX_CENTER
+    assert np.allclose(np.sum(q * d, axis=1), -2 * BOX_RADIUS, atol=1e-9)
+    q = q + 2 * BOX_RADIUS * d
+    fr = frames_for(d)
+    x = np.einsum("ij,ij->i", q, fr[:, 0]) / BOX_RADIUS
+    y = np.einsum("ij,ij->i", q, fr[:, 1]) / BOX_RADIUS
+    check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
+
+
+def test_world_light_emits_4_pi_squared_r_squared_radiance_uniformly():
+    radiance = np.array([0.5, 0.25, 1.0])
+    ctx = light_context(world=radiance)
+    o, d, flux, _ = sample_photons(ctx, N, 4040)
+    assert_mean_flux(flux, 4 * np.pi ** 2 * BOX_RADIUS ** 2 * radiance, "world")
+    check_chi2(lambda n: (dir_to_cos_phi(d, [0.0, 0.0, 1.0]), None),
+               lambda xy: np.full(len(xy), 1 / (4 * np.pi)), SPHERE)
+    q = o - BOX_CENTER
+    assert np.allclose(np.sum(q * d, axis=1), -2 * BOX_RADIUS, atol=1e-9)
+    q = q + 2 * BOX_RADIUS * d
+    fr = frames_for(d)
+    x = np.einsum("ij,ij->i", q, fr[:, 0]) / BOX_RADIUS
+    y = np.einsum("ij,ij->i", q, fr[:, 1]) / BOX_RADIUS
+    check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
+
+
+def test_emissive_triangles_emit_two_pi_area_radiance_from_both_sides_by_area():
+    emission = np.array([1.0, 2.0, 0.5])
+    # Triangle A in the plane z = 0.25 (area 0.5), triangle B in the plane x = 0.5 (area 0.75).
+    tri_a = np.array([[0.0, 0.0, 0.25], [1.0, 0.0, 0.25], [0.0, 1.0, 0.25]])
+    tri_b = np.array([[0.5, -1.0, 0.0], [0.5, 0.5, 0.0], [0.5, -1.0, 1.0]])
+    area_a, area_b = 0.5, 0.75
+    ctx = light_context(emissive_triangles=[tri_a, tri_b], emission=emission)
+    o, d, flux, normals = sample_photons(ctx, N, 4050)
+    assert_mean_flux(flux, TWO_PI * (area_a + area_b) * emission, "emissive triangles")
+    assert np.allclose(flux, TWO_PI * (area_a + area_b) * emission, rtol=1e-6)   # same radiance
+    on_a = np.abs(normals[:, 2]) > 0.5
+    on_b = np.abs(normals[:, 0]) > 0.5
+    assert (on_a ^ on_b).all()
+    assert_binomial(int(on_a.sum()), N, area_a / (area_a + area_b), "choice of triangle A")
+    # Triangle A: sides equally likely, directions cosine about the chosen side's normal.
+    da, na = d[on_a], normals[on_a]
+    ng = np.array([0.0, 0.0, 1.0])
+    assert np.allclose(np.abs(na @ ng), 1.0, atol=1e-12)
+    assert (np.sum(da * na, axis=1) >= 0).all()
+    assert_binomial(int((na @ ng > 0).sum()), len(na), 0.5, "front side of triangle A")
+    check_chi2(lambda n: (dir_to_cos_phi(da, ng), None), lambda xy: np.abs(xy[:, 0]) / TWO_PI, SPHERE,
+               sample_count=len(da))
+    # Triangle B: positions uniform (barycentrics from the origin, minus the normal offset).
+    ob = o[on_b]
+    assert np.allclose(ob[:, 0], 0.5, atol=1e-5)
+    e1, e2 = tri_b[1] - tri_b[0], tri_b[2] - tri_b[0]
+    b1 = (ob - tri_b[0]) @ e1 / (e1 @ e1)
+    b2 = (ob - tri_b[0]) @ e2 / (e2 @ e2)                   # e1 is perpendicular to e2
+    assert ((b1 >= -1e-9) & (b2 >= -1e-9) & (b1 + b2 <= 1 + 1e-9)).all()
+    v = np.clip(b2 / np.maximum(1.0 - b1, 1e-300), 0, 1)
+    check_chi2(lambda n: (np.stack([np.clip(b1, 0, 1), v], axis=1), None),
+               lambda xy: 2.0 * (1.0 - xy[:, 0]), UNIT_SQUARE, sample_count=len(ob))
+
+
+def test_mixed_lights_each_receive_photons_carrying_their_own_power():
+    """Point, spot, area and sun together: per emitter, the summed flux / N equals its power
+    (one chi-square over the photon counts per emitter, fixed 1 % tolerance on the powers)."""
+    lights = [{"kind": "point", "position": (-0.5, 0.0, 0.0), "power": (5.0, 5.0, 5.0)},
+              {"kind": "spot", "position": (1.5, 0.0, 0.0), "direction": (0, 0, -1),
+               "power": (40.0, 10.0, 10.0), "spot_angle": 1.0, "spot_blend": 0.5},
+              {"kind": "area", "position": (0.0, 0.5, 1.0), "direction": (0, 0, -1), "size": 0.5,
+               "power": (20.0, 20.0, 20.0)},
+              {"kind": "sun", "direction": (0, 0, -1), "power": (0.5, 0.5, 0.5)}]
+    ctx = light_context(lights)
+    o, d, flux, _ = sample_photons(ctx, N, 4060)
+    ids = np.full(N, -1)
+    ids[np.linalg.norm(o - [-0.5, 0.0, 0.0], axis=1) < 1e-9] = 0
+    ids[np.linalg.norm(o - [1.5, 0.0, 0.0], axis=1) < 1e-9] = 1
+    ids[np.abs(o[:, 2] - 1.0) < 1e-9] = 2
+    ids[np.abs(o[:, 2] - (BOX_CENTER[2] + 2 * BOX_RADIUS)) < 1e-6] = 3
+    assert (ids >= 0).all()
+    cos_half = math.cos(float(np.float32(1.0)) / 2)
+    powers = np.array([[5.0] * 3, np.array([40.0, 10.0, 10.0]) / 2 * (1 - cos_half) * 0.75, [20.0] * 3,
+                       [0.5 * np.pi * BOX_RADIUS ** 2] * 3])
+    lum = powers @ [0.2126, 0.7152, 0.0722]
+    counts = np.bincount(ids, minlength=4)
+    expected = N * lum / lum.sum()
+    assert chi2_sf(float(np.sum((counts - expected) ** 2 / expected)), 3) >= ALPHA_EACH, (counts, expected)
+    for k in range(4):
+        share = flux[ids == k].sum(axis=0) / N
+        assert np.allclose(share, powers[k], rtol=0.01), (k, share, powers[k])
+    assert_mean_flux(flux, powers.sum(axis=0), "all lights")
+
+
+def test_zero_power_lights_and_black_or_degenerate_emitters_are_never_chosen():
+    lights = [{"kind": "point", "position": (0.0, 0.0, 0.0), "power": 0.0},
+              {"kind": "spot", "position": (1.0, 0.0, 0.0), "power": 0.0},
+              {"kind": "area", "position": (0.0, 0.5, 1.0), "direction": (0, 0, -1), "size": 0.5,
+               "power": 5.0},
+              {"kind": "sun", "direction": (0, 0, -1), "power": 0.0},
+              {"kind": "disk", "position": (0.0, -0.5, 1.0), "direction": (0, 0, -1), "power": 0.0}]
+    degenerate = np.array([[0.0, 0.0, 0.5], [1.0, 0.0, 0.5], [2.0, 0.0, 0.5]])      # zero area
+    ctx = light_context(lights, emissive_triangles=[degenerate], emission=(3.0, 3.0, 3.0))
+    o, d, flux, normals = sample_photons(ctx, 100_000, 4070)
+    assert np.allclose(o[:, 2], 1.0, atol=1e-9) and (np.abs(o[:, 1] - 0.5) <= 0.25 + 1e-9).all()
+    assert np.allclose(flux, 5.0, rtol=1e-9)
+    assert (normals == 0).all()
+
+
+def test_photon_directions_are_unit_to_float64_precision():
+    """``LightSampler.sample`` documents ``directions (n, 3) float64 unit``, for every light kind."""
+    direction = unit_vector(0.3, -0.7, -0.5)
+    contexts = {kind: light_context([{"kind": kind, "position": (0.1, 0.2, 0.3), "direction": direction,
+                                      "power": 1.0, "sun_angle": 0.1, "spot_angle": 1.0, "size": 0.5}])
+                for kind in ("point", "spot", "area", "disk", "sun")}
+    contexts["world"] = light_context(world=(1.0, 1.0, 1.0))
+    triangle = np.array([[0.0, 0.0, 0.3], [0.7, 0.1, 0.5], [0.0, 1.0, 0.0]])
+    contexts["triangle"] = light_context(emissive_triangles=[triangle])
+    errors = {}
+    for kind, ctx in contexts.items():
+        _, d, _, _ = ctx.lights.sample(np.random.default_rng(4090).random((10_000, 6)))
+        errors[kind] = float(np.abs(np.linalg.norm(d, axis=1) - 1.0).max())
+    bad = {k: v for k, v in errors.items() if not v < 1e-12}
+    assert not bad, f"photon directions deviate from unit length by {bad}"
+
+
+@pytest.mark.parametrize("case", ("no lights", "all zero"))
+def test_no_emitters_give_zero_flux_without_nan(case):
+    if case == "no lights":
+        ctx = light_context()
+    else:
+        ctx = light_context([{"kind": "point", "power": 0.0}, {"kind": "sun", "power": 0.0}],
+                            emissive_triangles=[np.array([[0, 0, 0.5], [1, 0, 0.5], [0, 1, 0.5]])],
+                            emission=(0.0, 0.0, 0.0))
+    assert ctx.lights.count == 0
+    o, d, flux, normals = sample_photons(ctx, 1000, 4080)
+    assert (flux == 0).all() and (normals == 0).all()
+    o, d, flux, normals = ctx.lights.sample(np.zeros((0, 6)))
+    assert flux.shape == (0, 3)
+
+
+# ================================================================ 6. MCMC mutation
+def mutation_cdf(x, theta):
+    """CDF of the step k(x) = theta / (2 (1 + theta)) |x|^(-1 / (1 + theta)) on (-1, 1)."""
+    x = np.asarray(x, np.float64)
+    return 0.5 + 0.5 * np.sign(x) * np.abs(x) ** (theta / (1.0 + theta))
+
+
+@pytest.mark.parametrize("theta_kind", ("small", "mixed"))
+def test_mutation_chain_under_constant_target_keeps_uniform_marginals(theta_kind):
+    rng = np.random.default_rng(5000 if theta_kind == "small" else 5001)
+    chains, dims, steps = N // 2, 4, 16
+    u = rng.random((chains, dims))
+    if theta_kind == "small":
+        theta = np.full(chains, 0.02)
+    else:
+        theta = 10.0 ** rng.uniform(np.log10(mcmc.THETA_MIN), np.log10(mcmc.THETA_MAX), chains)
+    for _ in range(steps):
+        u = mcmc.mutate(u, theta, rng)           # constant target: every proposal is accepted
+        assert ((u >= 0) & (u < 1)).all()
+    pairs = np.concatenate([u[:, 0:2], u[:, 2:4]])
+    check_chi2(lambda n: (pairs, None), lambda xy: np.ones(len(xy)), UNIT_SQUARE)
+
+
+@pytest.mark.parametrize("theta", MUTATION_THETAS)
+def test_mutation_step_before_wrapping_has_density_k_and_mean_abs_theta_over_1_plus_2theta(
+        theta, monkeypatch):
+    monkeypatch.setattr(mcmc, "wrap_unit", lambda x: x)     # observe u + step before the wrap
+    rng = np.random.default_rng(5010 + MUTATION_THETAS.index(theta))
+    n = N // 2
+    step = mcmc.mutate(np.zeros((n, 2)), np.full(n, theta), rng)       # u = 0: the result is the step
+    assert ((step > -1) & (step < 1)).all()
+    q = theta / (1.0 + theta)
+    # Histogram of y = sign(step) |step|^q (the steps' own CDF scale); expected counts are CDF
+    # differences of k at the corresponding step edges: the test compares with k itself.
+    y = np.sign(step) * np.abs(step) ** q
+
+    def bin_probabilities(ex, ey):
+        sx = np.sign(ex) * np.abs(ex) ** (1 / q)
+        sy = np.sign(ey) * np.abs(ey) ** (1 / q)
+        return np.outer(np.diff(mutation_cdf(sx, theta)), np.diff(mutation_cdf(sy, theta)))
+
+    check_chi2(lambda m: (y.reshape(-1, 2), None), None, ((-1.0, 1.0), (-1.0, 1.0)), sample_count=n,
+               bin_probabilities=bin_probabilities)
+    expected_abs = theta / (1 + 2 * theta)
+    var = theta / (3 + 2 * theta) - expected_abs ** 2
+    mean_abs = np.abs(step).mean()
+    z = (mean_abs - expected_abs) / math.sqrt(var / step.size)
+    assert abs(z) < Z_CRIT, (mean_abs, expected_abs, z)
+
+
+def test_wrapped_mutation_from_zero_has_the_folded_step_density():
+    theta = 0.5
+    rng = np.random.default_rng(5020)
+    n = N // 2
+    u = mcmc.mutate(np.zeros((n, 2)), np.full(n, theta), rng)
+    assert ((u >= 0) & (u < 1)).all()
+
+    def folded(e):                  # P(wrap(step) < x) = F(x) - F(0) + F(x - 1) - F(-1), x in [0, 1]
+        return mutation_cdf(e, theta) - 0.5 + mutation_cdf(e - 1.0, theta)
+
+    check_chi2(lambda m: (u, None), None, UNIT_SQUARE, sample_count=n,
+               bin_probabilities=lambda ex, ey: np.outer(np.diff(folded(ex)), np.diff(folded(ey))))
+
+
+def test_mutation_at_the_theta_clamps_stays_finite_and_in_unit_interval():
+    rng = np.random.default_rng(5030)
+    u = np.concatenate([rng.random((1000, 3)), [[0.0, np.nextafter(1, 0), 0.5]]])
+    for theta in (mcmc.THETA_MIN, mcmc.THETA_MAX):
+        v = mcmc.mutate(u, np.full(len(u), theta), rng)
+        assert np.isfinite(v).all() and ((v >= 0) & (v < 1)).all()
+
+
+@pytest.mark.parametrize("dtype", (np.float32, np.float64))
+def test_wrap_unit_maps_tiny_negatives_and_values_just_below_one_into_unit_interval(dtype):
+    below_one = np.nextafter(dtype(1), dtype(0))
+    x = np.array([-1e-9, -1e-20, 1 - 1e-12, -0.0, 0.0, 1.0, -1.0, 2.5, -3.25, 0.3, below_one, -below_one,
+                  -np.finfo(dtype).tiny], dtype)
+    y = mcmc.wrap_unit(x.copy())
+    assert y.dtype == dtype
+    assert ((y >= 0) & (y < 1)).all(), y
+    assert (y != 1.0).all()
+    # Where x mod 1 is representable below 1 it is kept (within one rounding).
+    exact = np.mod(x.astype(np.float64), 1.0)
+    keep = exact.astype(dtype) < 1
+    assert np.allclose(y[keep], exact[keep], atol=2 * np.finfo(dtype).eps)
+    if dtype == np.float64:
+        assert y[0] == pytest.approx(1 - 1e-9, abs=1e-16)
+        assert y[2] == pytest.approx(1 - 1e-12, abs=1e-16)
