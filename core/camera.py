@@ -6,10 +6,10 @@ import numpy as np
 from . import sampling as smp
 
 
-def generate_camera_rays(camera, u):
-    """One ray per pixel of ``camera.window``, row-major from the top-left pixel.
+def generate_camera_rays(camera, pixel_ids, u):
+    """One ray per pixel ``pixel_ids`` of ``camera.window`` (row-major from its top-left pixel).
 
-    u : (n_pixels, 4) uniform numbers: pixel jitter x, y and lens sample x, y.
+    pixel_ids : (n,) int64; u : (n, 4) uniform numbers: pixel jitter x, y and lens sample x, y.
     Returns ``origins`` (n, 3) float64, ``directions`` (n, 3) float64 unit,
     ``tmax`` (n,) far-clip distances along the rays and ``footprint`` (n,): the
     width of one pixel at unit distance along the ray (perspective) or the
@@ -17,9 +17,9 @@ def generate_camera_rays(camera, u):
     """
     x0, x1, y0, y1 = camera.window
     w, h = camera.resolution
-    px, py = np.meshgrid(np.arange(x0, x1, dtype=np.float64), np.arange(y0, y1, dtype=np.float64))
-    px = px.ravel() + u[:, 0]
-    py = py.ravel() + u[:, 1]
+    row, col = np.divmod(pixel_ids, x1 - x0)
+    px = (x0 + col) + u[:, 0]
+    py = (y0 + row) + u[:, 1]
     fx0, fx1, fy0, fy1 = camera.frame
     # Image-plane coordinates: x grows to the right, y upward; rows are counted from the top.
     x = fx0 + (fx1 - fx0) * px / w

@@ -24,12 +24,12 @@ class MeasurementPoints:
 
     pixel_ids: np.ndarray   # (m,) int64 index of the pixel in the window, row-major from the top
     position: np.ndarray    # (m, 3) float64, world
-    ng: np.ndarray          # (m, 3) float64 unit geometric normal, on the side of wo
-    ns: np.ndarray          # (m, 3) float64 unit shading normal, on the side of ng
-    wo: np.ndarray          # (m, 3) float64 unit direction back along the camera path
-    weight: np.ndarray      # (m, 3) float64 camera-path throughput / non-delta choice probability
+    ng: np.ndarray          # (m, 3) float32 unit geometric normal, on the side of wo
+    ns: np.ndarray          # (m, 3) float32 unit shading normal, on the side of ng
+    wo: np.ndarray          # (m, 3) float32 unit direction back along the camera path
+    weight: np.ndarray      # (m, 3) float32 camera-path throughput / non-delta choice probability
     mat_ids: np.ndarray     # (m,) int32 material
-    colors: np.ndarray      # (m, 2, 3) float64 diffuse and glossy colour at the point
+    colors: np.ndarray      # (m, 2, 3) float32 diffuse and glossy colour at the point
     base_radius: np.ndarray  # (m,) float64 r_1: initial_radius_px pixel footprints at the point
 
     @property
@@ -53,22 +53,38 @@ class EyePassResult:
     rays: int                # rays traced
 
 
+# Camera paths traced at once (bounds the memory of big images).
+EYE_CHUNK = 1 << 18
+
+
 def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng``."""
-    scene, accel, table = ctx.scene, ctx.accel, ctx.table
-    cam = scene.camera
-    x0, x1, y0, y1 = cam.window
+    x0, x1, y0, y1 = ctx.scene.camera.window
     n_pix = (x1 - x0) * (y1 - y0)
-    origins, dirs, tmax, footprint = generate_camera_rays(cam, rng.random((n_pix, 4)))
     emission = np.zeros((n_pix, 3))
     alpha = np.ones(n_pix)
+    parts = []
+    rays = 0
+    for start in range(0, n_pix, EYE_CHUNK):
+        pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
+        points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
+                                        max_bounces)
+        parts.extend(points)
+        rays += r
+    points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
+    return EyePassResult(points, emission, alpha, rays)
+
+
+def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_bounces):
+    """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points."""
+    scene, accel, table = ctx.scene, ctx.accel, ctx.table
+    cam = scene.camera
+    origins, dirs, tmax, footprint = generate_camera_rays(cam, pix, rng.random((len(pix), 4)))
     world = np.asarray(scene.world.color, np.float64)
-    lo, hi = accel.bounds
     extent = accel.extent
     grows = cam.projection == "perspective"
-    pix = np.arange(n_pix)
-    beta = np.ones((n_pix, 3))
-    path_len = np.zeros(n_pix)
+    beta = np.ones((len(pix), 3))
+    path_len = np.zeros(len(pix))
     parts = []
     rays = 0
     for depth in range(max_bounces + 1):
@@ -104,10 +120,13 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces) -> EyePassResult:
             s = np.flatnonzero(stop)
             ng = face_forward(surf.ng[s], wo[s])
             r1 = initial_radius_px * footprint[s] * (path_len[s] if grows else 1.0)
+            f32 = np.float32
             parts.append(MeasurementPoints(
-                pixel_ids=pix[s], position=surf.position[s], ng=ng, ns=face_forward(surf.ns[s], ng),
-                wo=wo[s], weight=beta[s] / p_nd[s][:, None], mat_ids=surf.mat_ids[s],
-                colors=surf.colors[s][:, :2], base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent)))
+                pixel_ids=pix[s], position=surf.position[s], ng=ng.astype(f32),
+                ns=face_forward(surf.ns[s], ng).astype(f32), wo=wo[s].astype(f32),
+                weight=(beta[s] / p_nd[s][:, None]).astype(f32), mat_ids=surf.mat_ids[s],
+                colors=surf.colors[s][:, :2].astype(f32),
+                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent)))
         go = np.flatnonzero(~stop & (total > 0))
         if depth == max_bounces or len(go) == 0:
             break
@@ -124,12 +143,11 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces) -> EyePassResult:
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
-    points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
-    return EyePassResult(points, emission, alpha, rays)
+    return parts, rays
 
 
 def _empty_points():
-    z3 = np.zeros((0, 3))
-    return MeasurementPoints(np.zeros(0, np.int64), z3, z3, z3, z3, z3, np.zeros(0, np.int32),
-                             np.zeros((0, 2, 3)), np.zeros(0))
+    z3 = np.zeros((0, 3), np.float32)
+    return MeasurementPoints(np.zeros(0, np.int64), np.zeros((0, 3)), z3, z3, z3, z3,
+                             np.zeros(0, np.int32), np.zeros((0, 2, 3), np.float32), np.zeros(0))
 

@@ -1,15 +1,19 @@
 """Uniform grid over the measurement points, rebuilt every pass, queried by photons.
 
-Every point is inserted into each cell its search sphere (centre, radius r_j)
-overlaps, so a photon looks up exactly one cell.  Cells are identified by an
-exact 64-bit key (no hash collisions), and the build is a sort plus boundary
-detection (``argsort`` + ``flatnonzero``, SmallVCM's counting sort in NumPy).
+Every point is inserted into each cell its search sphere (centre x_j, radius
+r_j) overlaps, so a photon looks up exactly one cell.  Cells are identified by
+an exact integer key (no hash collisions).  The build packs (cell key, point
+id) into one int64 per entry and sorts that (NumPy's vectorised sort of 64-bit
+integers is several times faster than an argsort), then finds the cell
+boundaries: SmallVCM's counting sort, in NumPy.
 
-Each grid entry stores, as one float32 row, the point's position relative to
-the *entry's cell origin*, r_j^2 and the point's oriented geometric normal, plus
-the point id in the last slot.  A photon's position is taken relative to the
-same cell origin, so the distance test runs on small numbers where float32 is
-accurate to ~1e-7 of the cell size whatever the scene's coordinates.
+Each entry keeps a copy of its point's data next to it (contiguous per cell,
+so a photon's candidates are read sequentially): the point position relative
+to the entry's *cell origin*, r_j^2 and the oriented normal, in float32.  The
+photon's position is taken relative to the same cell origin, so the distance
+test runs on small numbers where float32 is accurate to ~1e-7 of the cell size
+whatever the scene's coordinates (algorithm.md 6.4 asks for float64 because of
+absolute coordinates; relative ones need no more).
 
 The deposit test (used for both the deposit and the visibility V(u) of a photon
 path, ``algorithm.md`` 2 and 6.6) is::
@@ -25,9 +29,10 @@ import numpy as np
 
 NORMAL_COS = 0.707          # SLR's threshold on the normals' cosine
 MAX_AXIS_CELLS = 1 << 20    # keeps the cell key below 2^60 whatever the radius
-ENTRY_BUDGET = 32           # grid entries per point at most (cell size grows to fit)
 CELL_PER_RADIUS = 1.0       # preferred cell size in median radii
-CHUNK_CANDIDATES = 1 << 22  # candidate pairs examined per chunk (memory bound)
+ENTRY_BUDGET = 32           # grid entries per point at most (the cell grows to fit) ...
+MAX_ENTRIES = 1 << 24       # ... and in all (bounds memory for big images)
+CHUNK_CANDIDATES = 1 << 18  # candidate pairs per chunk (temporaries stay in cache)
 
 
 class HashGrid:
@@ -38,69 +43,66 @@ class HashGrid:
         m = len(positions)
         self.point_count = m
         if m == 0:
-            self.cell_size = 1.0
-            self.origin = np.zeros(3)
-            self.dims = np.ones(3, np.int64)
+            self.cell_size, self.origin, self.dims = 1.0, np.zeros(3), np.ones(3, np.int64)
             self.cell_keys = np.zeros(0, np.int64)
             self.cell_start = np.zeros(1, np.int64)
+            self.entry_point = np.zeros(0, np.int32)
             self.entry_pos = np.zeros((3, 0), np.float32)
             self.entry_r2 = np.zeros(0, np.float32)
             self.entry_normal = np.zeros((3, 0), np.float32)
-            self.entry_point = np.zeros(0, np.int32)
             return
         lo = (positions - radii[:, None]).min(axis=0)
         hi = (positions + radii[:, None]).max(axis=0)
-        self.cell_size = c = _choose_cell_size(radii, hi - lo)
+        budget = min(ENTRY_BUDGET, max(4, MAX_ENTRIES // m))
+        self.cell_size = c = _choose_cell_size(radii, hi - lo, budget)
         self.origin = lo
         self.dims = dims = np.floor((hi - lo) / c).astype(np.int64) + 1
         # Cells spanned by every point's bounding box.
-        cmin = np.floor((positions - radii[:, None] - lo) / c).astype(np.int64)
-        cmax = np.floor((positions + radii[:, None] - lo) / c).astype(np.int64)
-        cmin = np.clip(cmin, 0, dims - 1)
-        cmax = np.clip(cmax, 0, dims - 1)
+        cmin = np.clip(np.floor((positions - radii[:, None] - lo) / c).astype(np.int64), 0, dims - 1)
+        cmax = np.clip(np.floor((positions + radii[:, None] - lo) / c).astype(np.int64), 0, dims - 1)
         span = cmax - cmin + 1                                     # (m, 3)
         count = span.prod(axis=1)
-        point_of_entry = np.repeat(np.arange(m), count)
+        base_key = cmin[:, 0] + dims[0] * (cmin[:, 1] + dims[1] * cmin[:, 2])
+        point_of_entry = np.repeat(np.arange(m, dtype=np.int64), count)
+        # Offset of each entry within its point's box: x fastest, then y, then z.
         local = np.arange(len(point_of_entry)) - np.repeat(np.cumsum(count) - count, count)
-        sx = span[point_of_entry, 0]
-        sy = span[point_of_entry, 1]
-        cell = cmin[point_of_entry] + np.stack([local % sx, (local // sx) % sy, local // (sx * sy)], axis=1)
-        keys = cell[:, 0] + dims[0] * (cell[:, 1] + dims[1] * cell[:, 2])
-        order = np.argsort(keys, kind="stable")
-        keys = keys[order]
-        point_of_entry = point_of_entry[order]
-        cell = cell[order]
+        oz, rest = np.divmod(local, np.repeat(span[:, 0] * span[:, 1], count))
+        oy, ox = np.divmod(rest, np.repeat(span[:, 0], count))
+        keys = base_key[point_of_entry] + ox + dims[0] * (oy + dims[1] * oz)
+        del local, rest, ox, oy, oz
+        if int(dims.prod()) < (1 << 31):
+            packed = (keys << 32) | point_of_entry
+            packed.sort()
+            keys = packed >> 32
+            point_of_entry = packed & 0xFFFFFFFF
+            del packed
+        else:
+            order = np.argsort(keys)
+            keys = keys[order]
+            point_of_entry = point_of_entry[order]
         first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
         self.cell_keys = keys[first]
         self.cell_start = np.r_[first, len(keys)].astype(np.int64)
-        # Structure of arrays (contiguous columns gather and compute fastest in NumPy).
-        self.entry_pos = np.ascontiguousarray((positions[point_of_entry] - (lo + cell * c)).T,
-                                              np.float32)                        # (3, E)
-        self.entry_r2 = (radii[point_of_entry] ** 2).astype(np.float32)          # (E,)
-        self.entry_normal = np.ascontiguousarray(normals[point_of_entry].T, np.float32)  # (3, E)
-        self.entry_point = point_of_entry.astype(np.int32)                      # (E,)
-
-    FIELDS = ("point_count", "cell_size", "origin", "dims", "cell_keys", "cell_start", "entry_pos",
-              "entry_r2", "entry_normal", "entry_point")
-
-    def to_arrays(self) -> dict:
-        return {f: getattr(self, f) for f in self.FIELDS}
-
-    @classmethod
-    def from_arrays(cls, d) -> "HashGrid":
-        grid = cls.__new__(cls)
-        for f in cls.FIELDS:
-            setattr(grid, f, d[f])
-        grid.point_count = int(grid.point_count)
-        grid.cell_size = float(grid.cell_size)
-        return grid
+        self.entry_point = point_of_entry.astype(np.int32)
+        # Entry data, positions relative to the entry's cell origin.
+        kx = keys % dims[0]
+        kyz = keys // dims[0]
+        cell_xyz = (kx, kyz % dims[1], kyz // dims[1])
+        del keys, kyz
+        self.entry_pos = np.empty((3, len(point_of_entry)), np.float32)
+        for k in range(3):
+            self.entry_pos[k] = positions[:, k].take(point_of_entry) - (lo[k] + cell_xyz[k] * c)
+        self.entry_r2 = (radii ** 2).astype(np.float32).take(point_of_entry)
+        self.entry_normal = np.empty((3, len(point_of_entry)), np.float32)
+        for k in range(3):
+            self.entry_normal[k] = normals[:, k].astype(np.float32).take(point_of_entry)
 
     @property
     def entry_count(self) -> int:
-        return int(len(self.entry_r2))
+        return int(len(self.entry_point))
 
     def _cells(self, x):
-        """Cell keys (n,) of positions x (n, 3) and their cell origins; key -1 outside the grid."""
+        """Cell keys (n,) of positions x (n, 3), -1 outside the grid, and integer cell coordinates."""
         cell = np.floor((x - self.origin) / self.cell_size).astype(np.int64)
         inside = ((cell >= 0) & (cell < self.dims)).all(axis=1)
         keys = cell[:, 0] + self.dims[0] * (cell[:, 1] + self.dims[1] * cell[:, 2])
@@ -169,14 +171,14 @@ class HashGrid:
         return cat(out_p), cat(out_j), cos
 
 
-def _choose_cell_size(radii, extent):
+def _choose_cell_size(radii, extent, budget):
     """Cell edge: about CELL_PER_RADIUS median radii, grown until the entries fit the budget."""
     r_med = float(np.median(radii))
     c = max(CELL_PER_RADIUS * r_med, float(np.max(extent)) / (MAX_AXIS_CELLS - 2), 1e-30)
     sample = radii if len(radii) <= 65536 else radii[:: len(radii) // 65536 + 1]
-    for _ in range(64):
+    for _ in range(200):
         # Expected cells per point for a box of side 2r at a random offset: (2r/c + 1)^3.
-        if np.mean((2.0 * sample / c + 1.0) ** 3) <= ENTRY_BUDGET:
+        if np.mean((2.0 * sample / c + 1.0) ** 3) <= budget:
             break
         c *= 1.25
     return c

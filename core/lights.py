@@ -28,6 +28,8 @@ class LightSampler:
     def __init__(self, scene, accel, table):
         lights = scene.lights
         self.lights = lights
+        # Emission axes renormalised in float64 (the scene stores them in float32).
+        self.axes = smp.normalize(lights.direction.astype(np.float64)) if lights.count else np.zeros((0, 3))
         self.accel = accel
         lo, hi = accel.bounds
         self.center = 0.5 * (lo + hi)
@@ -125,7 +127,7 @@ class LightSampler:
         L = self.lights
         is_spot = L.kind[ids] == SPOT
         cos_half = np.where(is_spot, np.cos(L.spot_angle[ids].astype(np.float64) / 2), -1.0)
-        axis = L.direction[ids].astype(np.float64)
+        axis = self.axes[ids]
         local = smp.uniform_cone(u[:, 4], u[:, 5], cos_half)
         d = smp.to_world(local, axis)
         # Flux = power share * mask / (mean mask over the cone), so that photons average to the
@@ -146,14 +148,14 @@ class LightSampler:
         else:
             x, y = smp.concentric_disk(u[:, 1], u[:, 2])
         o = L.position[ids] + x[:, None] * L.axis_u[ids] + y[:, None] * L.axis_v[ids]
-        n = L.direction[ids].astype(np.float64)
+        n = self.axes[ids]
         d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
         return o, d, np.ones(len(ids))
 
     def _sample_sun(self, ids, u):
         L = self.lights
         cos_half = np.cos(L.sun_angle[ids].astype(np.float64) / 2)
-        d = smp.to_world(smp.uniform_cone(u[:, 4], u[:, 5], cos_half), L.direction[ids].astype(np.float64))
+        d = smp.to_world(smp.uniform_cone(u[:, 4], u[:, 5], cos_half), self.axes[ids])
         o = self._disk_origin(d, u)
         return o, d, np.ones(len(ids))
 

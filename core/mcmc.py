@@ -37,8 +37,7 @@ THETA_MIN, THETA_MAX = 1e-4, 1e3
 def wrap_unit(x):
     """Map to [0, 1): ``x mod 1`` with the floating-point result 1.0 sent to 0."""
     y = np.mod(x, 1.0)
-    y[y >= 1.0] = 0.0
-    return y
+    return np.where(y >= 1.0, 0.0, y).astype(y.dtype, copy=False)
 
 
 def mutate(u, theta, rng):

@@ -8,20 +8,26 @@ the ``bpy`` module and from an installed extension (whose package name,
 are pickles of plain tuples, dicts and NumPy arrays over the workers'
 stdin/stdout; no class of ours crosses the process boundary.
 
-The pool interface is ``submit(pass_index, target, n_photons)`` followed by
-``collect(should_stop)``: the integrator prepares the next pass's eye pass while
-the workers trace photons.
+The pool interface is ``submit(pass_index, points, radius, n_pixels, n_photons)``
+followed by ``collect(should_stop)``: the integrator traces the next pass's eye
+pass while the workers build their grids and trace photons.  The measurement
+points travel as ``.npy`` files that the workers map into memory (in ``/dev/shm``
+where it exists), so a 1080p pass costs no pickling.
 """
 from __future__ import annotations
 
 import os
 import pickle
 import selectors
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 
-from .photon_pass import DepositTarget
+import numpy as np
+
+from .eye_pass import MeasurementPoints
 from .worker import PhotonWorker, share
 
 _BOOTSTRAP = r"""
@@ -52,13 +58,12 @@ class InProcessPool:
     def size(self) -> int:
         return 1
 
-    def submit(self, pass_index, target, n_photons):
-        self._job = (pass_index, target, n_photons)
+    def submit(self, pass_index, points, radius, n_pixels, n_photons):
+        self._job = (pass_index, points, radius, n_pixels, n_photons)
 
     def collect(self, should_stop=None):
-        pass_index, target, n_photons = self._job
-        self._job = None
-        return [self.worker.run_pass(pass_index, target, n_photons, should_stop)]
+        job, self._job = self._job, None
+        return [self.worker.run_pass(*job, should_stop=should_stop)]
 
     def close(self):
         pass
@@ -75,6 +80,9 @@ class ProcessPool:
             env[var] = "1"
         self.procs = []
         self.settings = settings
+        shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+        self.tmpdir = tempfile.mkdtemp(prefix="amcmcppm-", dir=shm)
+        self._pass_dir = None
         try:
             for i in range(n):
                 p = subprocess.Popen([_python_executable(), "-c", _BOOTSTRAP, core_dir],
@@ -94,10 +102,15 @@ class ProcessPool:
     def size(self) -> int:
         return len(self.procs)
 
-    def submit(self, pass_index, target, n_photons):
-        arrays = target.to_arrays()
+    def submit(self, pass_index, points, radius, n_pixels, n_photons):
+        self._pass_dir = os.path.join(self.tmpdir, f"pass{pass_index}")
+        os.makedirs(self._pass_dir)
+        arrays = {f: getattr(points, f) for f in MeasurementPoints.__dataclass_fields__}
+        arrays["radius"] = radius
+        for name, a in arrays.items():
+            np.save(os.path.join(self._pass_dir, name + ".npy"), np.ascontiguousarray(a))
         for i, p in enumerate(self.procs):
-            _send(p, ("pass", pass_index, arrays, share(n_photons, i, len(self.procs))))
+            _send(p, ("pass", pass_index, self._pass_dir, n_pixels, share(n_photons, i, len(self.procs))))
 
     def collect(self, should_stop=None):
         """Wait for every worker's result; on ``should_stop()`` stop the workers and return None."""
@@ -118,6 +131,9 @@ class ProcessPool:
                     return None
         finally:
             sel.close()
+            if self._pass_dir:
+                shutil.rmtree(self._pass_dir, ignore_errors=True)
+                self._pass_dir = None
         return results
 
     def _receive(self, p):
@@ -150,6 +166,7 @@ class ProcessPool:
                 except OSError:
                     pass
         self.procs = []
+        shutil.rmtree(self.tmpdir, ignore_errors=True)
 
 
 def make_pool(scene, settings, ctx=None):
@@ -200,9 +217,10 @@ def worker_main():
                 worker = PhotonWorker(Scene.from_arrays(arrays), RenderSettings(**settings_dict), index, n)
                 reply = ("ok", None)
             else:
-                _, pass_index, arrays, n_photons = msg
-                target = DepositTarget.from_arrays(arrays, worker.ctx.table)
-                reply = ("ok", worker.run_pass(pass_index, target, n_photons))
+                _, pass_index, folder, n_pixels, n_photons = msg
+                load = lambda name: np.load(os.path.join(folder, name + ".npy"), mmap_mode="r")  # noqa: E731
+                points = MeasurementPoints(**{f: load(f) for f in MeasurementPoints.__dataclass_fields__})
+                reply = ("ok", worker.run_pass(pass_index, points, load("radius"), n_pixels, n_photons))
         except Exception:
             reply = ("error", traceback.format_exc())
         pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)

@@ -143,7 +143,7 @@ def ggx_d(cos_m, alpha):
 
 def ggx_lambda(cos_v, alpha):
     """Smith Lambda for GGX."""
-    c2 = np.maximum(cos_v * cos_v, 1e-12)
+    c2 = np.maximum(cos_v * cos_v, 1e-300)
     t2 = np.maximum(0.0, 1.0 - c2) / c2
     return 0.5 * (np.sqrt(1.0 + alpha * alpha * t2) - 1.0)
 

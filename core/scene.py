@@ -403,6 +403,10 @@ class Scene:
             for name in ("radius", "spot_angle", "spot_blend", "sun_angle"):
                 if (getattr(lights, name) < 0).any():
                     fail(f"lights.{name} must not be negative")
+            if (lights.spot_blend > 1).any():
+                fail("lights.spot_blend must lie in [0, 1]")
+            if (lights.spot_angle > np.pi).any() or (lights.sun_angle > np.pi).any():
+                fail("lights.spot_angle and lights.sun_angle must not exceed pi")
         cam = self.camera
         m = np.asarray(cam.world_from_camera, np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():

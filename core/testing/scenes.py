@@ -265,7 +265,79 @@ def glass_ceiling_room(resolution=(64, 48), pane=0.25):
     return m.build(mats, lights, cam)
 
 
+def _room_with_hole(m, size, height, hole_center_yz, hole, material):
+    """Walls of the room [-size, size]^2 x [0, height] with a square hole in the wall x = +size."""
+    s, h = size, height
+    m.add_quad((-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0), material)            # floor
+    m.add_quad((-s, -s, h), (-s, s, h), (s, s, h), (s, -s, h), material)            # ceiling
+    m.add_quad((-s, s, 0), (s, s, 0), (s, s, h), (-s, s, h), material)              # back (+y)
+    m.add_quad((-s, -s, 0), (-s, -s, h), (s, -s, h), (s, -s, 0), material)          # front (-y)
+    m.add_quad((-s, -s, 0), (-s, s, 0), (-s, s, h), (-s, -s, h), material)          # left (-x)
+    # Right wall (x = +s, facing -x) with the hole [y0, y1] x [z0, z1], as four rectangles.
+    cy, cz = hole_center_yz
+    y0, y1, z0, z1 = cy - hole / 2, cy + hole / 2, cz - hole / 2, cz + hole / 2
+    for ya, yb, za, zb in [(-s, s, 0, z0), (-s, s, z1, h), (-s, y0, z0, z1), (y1, s, z0, z1)]:
+        m.add_quad((s, ya, za), (s, ya, zb), (s, yb, zb), (s, yb, za), material)
+
+
+def hole_mirror_glass(resolution=(64, 48), hole=0.15):
+    """Sun through a small hole in a wall onto a mirror that throws it through a glass sphere
+    onto the floor: caustics, also seen in the mirror (the paper's scene 2)."""
+    mats = Materials.build([
+        {"name": "wall", "diffuse": (0.7, 0.7, 0.7)},
+        {"name": "mirror", "mirror": (0.95, 0.95, 0.95)},
+        {"name": "glass", "dielectric": (1, 1, 1), "ior": 1.5},
+    ])
+    m = MeshBuilder()
+    hole_c = np.array([2.0, 0.0, 1.9])
+    _room_with_hole(m, 2.0, 2.5, hole_c[1:], hole, 0)
+    sun_dir = np.array([-1.0, 0.05, -0.25])
+    sun_dir /= np.linalg.norm(sun_dir)
+    # A mirror where the beam lands near the left wall, turned to send it through the sphere.
+    mirror_c = hole_c + sun_dir * (3.6 / -sun_dir[0])
+    sphere_c = np.array([0.2, 0.1, 0.4])
+    target = sphere_c + np.array([0.0, 0.0, 0.05])
+    out = target - mirror_c
+    out /= np.linalg.norm(out)
+    n = out - sun_dir
+    n /= np.linalg.norm(n)
+    u = np.cross(n, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    a = 0.35
+    corners = [mirror_c + a * (-u - v), mirror_c + a * (u - v), mirror_c + a * (u + v), mirror_c + a * (-u + v)]
+    if np.dot(np.cross(corners[1] - corners[0], corners[2] - corners[0]), n) < 0:
+        corners = corners[::-1]
+    m.add_quad(*corners, 1)
+    m.add_sphere(sphere_c, 0.35, 2, n_theta=24, n_phi=48)
+    lights = Lights.build([{"kind": "sun", "direction": sun_dir, "power": 20.0, "sun_angle": 0.01}])
+    cam = Camera.look_at((1.6, -1.8, 1.5), (-0.6, 0.3, 0.4), lens_mm=20.0, resolution=resolution)
+    return m.build(mats, lights, cam, smooth=True)
+
+
+def small_view(resolution=(64, 48), boxes=400, seed=1):
+    """A long lens sees a tiny part of a large sunlit town (the paper's scene 3)."""
+    rng = np.random.default_rng(seed)
+    mats = Materials.build([{"name": "ground", "diffuse": (0.5, 0.5, 0.45)},
+                            {"name": "building", "diffuse": (0.7, 0.6, 0.5)},
+                            {"name": "glass", "dielectric": 1.0, "ior": 1.5}])
+    m = MeshBuilder()
+    m.add_quad((-100, -100, 0), (100, -100, 0), (100, 100, 0), (-100, 100, 0), 0)
+    for _ in range(boxes):
+        c = rng.uniform(-95, 95, 2)
+        w = rng.uniform(2, 8, 2)
+        h = rng.uniform(3, 25)
+        m.add_box((c[0] - w[0] / 2, c[1] - w[1] / 2, 0), (c[0] + w[0] / 2, c[1] + w[1] / 2, h), 1)
+    # The subject: a small glass ball on the ground in a clearing, seen from far away.
+    m.add_box((-3, -3, 0), (3, 3, 0.02), 0)
+    m.add_sphere((0.0, 0.0, 0.3), 0.3, 2, n_theta=16, n_phi=32)
+    lights = Lights.build([{"kind": "sun", "direction": (-0.4, 0.3, -0.85), "power": 5.0, "sun_angle": 0.01}])
+    cam = Camera.look_at((30, -30, 12), (0.0, 0.0, 0.3), lens_mm=600.0, resolution=resolution)
+    return m.build(mats, lights, cam, smooth=True)
+
+
 BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
            "point_in_sphere": point_in_sphere, "spot_over_plane": spot_over_plane,
            "sun_through_slab": sun_through_slab, "camera_in_glass": camera_in_glass,
-           "glass_ceiling_room": glass_ceiling_room}
+           "glass_ceiling_room": glass_ceiling_room, "hole_mirror_glass": hole_mirror_glass,
+           "small_view": small_view}
