@@ -97,6 +97,22 @@ class HashGrid:
         for k in range(3):
             self.entry_normal[k] = normals[:, k].astype(np.float32).take(point_of_entry)
 
+    FIELDS = ("cell_size", "origin", "dims", "cell_keys", "cell_start", "entry_point", "entry_pos",
+              "entry_r2", "entry_normal", "point_count")
+
+    def to_arrays(self) -> dict:
+        """Plain arrays (for a worker process); :meth:`from_arrays` restores the grid."""
+        return {f: np.asarray(getattr(self, f)) for f in self.FIELDS}
+
+    @classmethod
+    def from_arrays(cls, d) -> "HashGrid":
+        grid = cls.__new__(cls)
+        for f in cls.FIELDS:
+            setattr(grid, f, d[f])
+        grid.cell_size = float(grid.cell_size)
+        grid.point_count = int(grid.point_count)
+        return grid
+
     @property
     def entry_count(self) -> int:
         return int(len(self.entry_point))

@@ -21,6 +21,7 @@ import numpy as np
 from .context import RenderContext
 from .eye_pass import trace_eye_pass
 from .parallel import make_pool
+from .photon_pass import DepositTarget
 from .settings import RenderSettings
 from .worker import STREAM_EYE
 
@@ -129,29 +130,30 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces)
 
-    def radius_of(i, eye):
+    def make_target(i, eye):
         nonlocal scales
         if len(scales) < i + 1:
             scales = kz_radius_scales(2 * (i + 1), settings.alpha)
-        return eye.points.base_radius * scales[i]
+        radius = eye.points.base_radius * scales[i]
+        return DepositTarget(eye.points, radius, ctx.table, n_pixels, ctx.has_shading_normals)
 
     pool = make_pool(scene, settings, ctx)
     warned_invisible = False
     try:
         pass_index = 0
         eye = eye_pass(0)
-        radius = radius_of(0, eye)
+        target = make_target(0, eye)
         while pass_index < max_passes:
             if stop() and pass_index > 0:
                 result.interrupted = True
                 break
-            pool.submit(pass_index, eye.points, radius, n_pixels, settings.photons_per_pass)
+            pool.submit(pass_index, target, settings.photons_per_pass)
             # Prepare the next pass while the workers trace photons.
             t_next = time.perf_counter()
             last = pass_index + 1 >= max_passes
             if not last:
                 next_eye = eye_pass(pass_index + 1)
-                next_radius = radius_of(pass_index + 1, next_eye)
+                next_target = make_target(pass_index + 1, next_eye)
             prep_s = time.perf_counter() - t_next
             outputs = pool.collect(stop)
             if outputs is None:
@@ -185,7 +187,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 "uniform_samples": c["uniform_samples"],
                 "uniform_visible": c["uniform_visible"],
                 "visible_fraction": acc.visible_fraction,
-                "radius": float(np.median(radius)) if len(radius) else 0.0,
+                "radius": float(np.median(target.radius)) if len(target.radius) else 0.0,
                 "method": settings.method,
                 "visible_fraction_pass": (c["uniform_visible"] / c["uniform_samples"]
                                           if c["uniform_samples"] else 0.0),
@@ -196,10 +198,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 "rays": c["rays"] + eye.rays,
                 "photon_vertices": c["vertices"],
                 "measurement_points": eye.points.count,
-                "grid_entries": merged["grid_entries"],
-                "grid_s": merged["grid_s"],
+                "grid_entries": target.grid.entry_count,
                 "photon_s": merged["photon_s"],
-                "eye_prep_s": prep_s,
+                "prepare_next_s": prep_s,
                 "workers": pool.size,
             }
             result.stats.append(stats)
@@ -215,7 +216,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if settings.time_limit and elapsed >= settings.time_limit:
                 break
             if not last:
-                eye, radius = next_eye, next_radius
+                eye, target = next_eye, next_target
     finally:
         pool.close()
     result.elapsed_s = time.perf_counter() - t0
@@ -235,7 +236,5 @@ def _merge(outputs):
     merged["theta_mean"] = float(np.mean([o["theta_mean"] for o in outputs]))
     merged["total_proposed"] = sum(o["total_proposed"] for o in outputs)
     merged["total_accepted"] = sum(o["total_accepted"] for o in outputs)
-    merged["grid_entries"] = outputs[0]["grid_entries"]
-    merged["grid_s"] = max(o["grid_s"] for o in outputs)
     merged["photon_s"] = max(o["photon_s"] for o in outputs)
     return merged

@@ -8,11 +8,11 @@ the ``bpy`` module and from an installed extension (whose package name,
 are pickles of plain tuples, dicts and NumPy arrays over the workers'
 stdin/stdout; no class of ours crosses the process boundary.
 
-The pool interface is ``submit(pass_index, points, radius, n_pixels, n_photons)``
-followed by ``collect(should_stop)``: the integrator traces the next pass's eye
-pass while the workers build their grids and trace photons.  The measurement
-points travel as ``.npy`` files that the workers map into memory (in ``/dev/shm``
-where it exists), so a 1080p pass costs no pickling.
+The pool interface is ``submit(pass_index, target, n_photons)`` followed by
+``collect(should_stop)``: the integrator traces the next pass's eye pass and
+builds its grid while the workers trace photons.  The measurement points and
+their grid travel as ``.npy`` files that the workers map into memory (in
+``/dev/shm`` where it exists), so a 1080p pass costs no pickling and no copy.
 """
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from .eye_pass import MeasurementPoints
+from .photon_pass import DepositTarget
 from .worker import PhotonWorker, share
 
 _BOOTSTRAP = r"""
@@ -58,8 +58,8 @@ class InProcessPool:
     def size(self) -> int:
         return 1
 
-    def submit(self, pass_index, points, radius, n_pixels, n_photons):
-        self._job = (pass_index, points, radius, n_pixels, n_photons)
+    def submit(self, pass_index, target, n_photons):
+        self._job = (pass_index, target, n_photons)
 
     def collect(self, should_stop=None):
         job, self._job = self._job, None
@@ -102,15 +102,15 @@ class ProcessPool:
     def size(self) -> int:
         return len(self.procs)
 
-    def submit(self, pass_index, points, radius, n_pixels, n_photons):
+    def submit(self, pass_index, target, n_photons):
         self._pass_dir = os.path.join(self.tmpdir, f"pass{pass_index}")
         os.makedirs(self._pass_dir)
-        arrays = {f: getattr(points, f) for f in MeasurementPoints.__dataclass_fields__}
-        arrays["radius"] = radius
-        for name, a in arrays.items():
+        names = []
+        for name, a in target.to_arrays().items():
             np.save(os.path.join(self._pass_dir, name + ".npy"), np.ascontiguousarray(a))
+            names.append(name)
         for i, p in enumerate(self.procs):
-            _send(p, ("pass", pass_index, self._pass_dir, n_pixels, share(n_photons, i, len(self.procs))))
+            _send(p, ("pass", pass_index, self._pass_dir, names, share(n_photons, i, len(self.procs))))
 
     def collect(self, should_stop=None):
         """Wait for every worker's result; on ``should_stop()`` stop the workers and return None."""
@@ -217,10 +217,10 @@ def worker_main():
                 worker = PhotonWorker(Scene.from_arrays(arrays), RenderSettings(**settings_dict), index, n)
                 reply = ("ok", None)
             else:
-                _, pass_index, folder, n_pixels, n_photons = msg
-                load = lambda name: np.load(os.path.join(folder, name + ".npy"), mmap_mode="r")  # noqa: E731
-                points = MeasurementPoints(**{f: load(f) for f in MeasurementPoints.__dataclass_fields__})
-                reply = ("ok", worker.run_pass(pass_index, points, load("radius"), n_pixels, n_photons))
+                _, pass_index, folder, names, n_photons = msg
+                arrays = {name: np.load(os.path.join(folder, name + ".npy"), mmap_mode="r") for name in names}
+                target = DepositTarget.from_arrays(arrays, worker.ctx.table)
+                reply = ("ok", worker.run_pass(pass_index, target, n_photons))
         except Exception:
             reply = ("error", traceback.format_exc())
         pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)

@@ -46,11 +46,11 @@ def bounce_offset(bounce: int) -> int:
 class DepositTarget:
     """The measurement points of one pass, gridded, with their per-point kernel weights."""
 
-    def __init__(self, points, radius, table, n_pixels, has_shading_normals):
+    def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j."""
         self.points = points
         self.radius = radius
-        self.grid = HashGrid(points.position, radius, points.ng)
+        self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
         self.n_pixels = n_pixels
         self.pixel_ids = points.pixel_ids
         self.has_shading_normals = has_shading_normals
@@ -63,6 +63,21 @@ class DepositTarget:
         self.is_glossy = glossy
         self.k_glossy = points.weight * points.colors[:, 1] * (w[:, 1] * kernel)[:, None]
         self.alpha = table.alpha[points.mat_ids]
+
+    def to_arrays(self) -> dict:
+        """Plain arrays for a worker process (see :meth:`from_arrays`)."""
+        d = {f"points.{f}": getattr(self.points, f) for f in MeasurementPoints.__dataclass_fields__}
+        d.update({f"grid.{k}": v for k, v in self.grid.to_arrays().items()})
+        d.update(radius=self.radius, n_pixels=np.int64(self.n_pixels),
+                 has_shading_normals=np.bool_(self.has_shading_normals))
+        return d
+
+    @staticmethod
+    def from_arrays(d, table) -> "DepositTarget":
+        points = MeasurementPoints(**{f: d[f"points.{f}"] for f in MeasurementPoints.__dataclass_fields__})
+        grid = HashGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
+        return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
+                             grid=grid)
 
     def pair_weights(self, j, wi, cos_g):
         """Scalar diffuse and glossy weights of pairs with points ``j`` (the points' kernels aside).

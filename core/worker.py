@@ -15,7 +15,7 @@ import numpy as np
 
 from .context import RenderContext
 from .mcmc import ChainCounters, ChainSet, DepositCache, begin_pass, end_pass, iterate
-from .photon_pass import DepositTarget, path_dims, trace_photons
+from .photon_pass import path_dims, trace_photons
 
 # Uniform photon paths traced per batch (bounds the memory of the deposit pairs).
 PPM_BATCH = 1 << 14
@@ -44,18 +44,16 @@ class PhotonWorker:
             self.chains = ChainSet.create(n_chains, self.dims, settings.initial_mutation_size,
                                           self.chain_rng)
 
-    def run_pass(self, pass_index, points, radius, n_pixels, n_photons, should_stop=None) -> dict:
+    def run_pass(self, pass_index, target, n_photons, should_stop=None) -> dict:
         """Trace this worker's photons of pass ``pass_index``; return sums and counters.
 
-        points : the pass's MeasurementPoints; radius : (m,) their gather radii.
+        target : the pass's DepositTarget (measurement points and their grid).
         The result holds ``pixel_sum`` (n_pixels, 3): the summed contributions of the
         recorded photons (not yet divided by their number or scaled by the visible
         fraction), ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
-        target = DepositTarget(points, radius, self.ctx.table, n_pixels, self.ctx.has_shading_normals)
-        grid_s = time.perf_counter() - t0
         counters = ChainCounters()
         if self.chains is None:
             pixel_sum, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
@@ -70,8 +68,7 @@ class PhotonWorker:
                 "theta_mean": theta_mean, "valid_chains": valid,
                 "total_proposed": int(self.chains.proposed.sum()) if self.chains else 0,
                 "total_accepted": int(self.chains.accepted.sum()) if self.chains else 0,
-                "interrupted": interrupted, "grid_entries": target.grid.entry_count, "grid_s": grid_s,
-                "photon_s": time.perf_counter() - t0 - grid_s}
+                "interrupted": interrupted, "photon_s": time.perf_counter() - t0}
 
     def _uniform_pass(self, pass_index, target, n_photons, counters, stop):
         s = self.settings
