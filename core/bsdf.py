@@ -145,6 +145,9 @@ def choose_lobe(scores, u):
 def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
     """Sample a new direction from the chosen ``lobe`` at n surface points.
 
+    ``ns is ng`` (flat shading, as :meth:`RenderContext.surface` returns it) skips the
+    shading-normal correction, which is then exactly 1.
+
     Returns ``(wi (n, 3), weight (n, 3), alive (n,))``: ``weight`` multiplies the
     path throughput; dead paths (absorbed, sampled below the surface, no lobe)
     have ``alive`` False and zero weight.
@@ -155,7 +158,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
     alive = np.zeros(n, bool)
     # Normals on the side of wo; the shading normal is flipped to agree with the geometric one.
     ngf = face_forward(ng, wo)
-    nsf = face_forward(ns, ngf)
+    nsf = ngf if ns is ng else face_forward(ns, ngf)
     for k in range(4):
         sel = np.flatnonzero(lobe == k)
         if len(sel) == 0:
@@ -196,7 +199,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
             w = lw
             if mode == "radiance":
                 w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
-        if mode == "importance":
+        if mode == "importance" and ns is not ng:
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
         wi[sel] = d
         weight[sel] = np.where(ok[:, None], w, 0.0)

@@ -200,6 +200,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 "measurement_points": eye.points.count,
                 "grid_entries": target.grid.entry_count,
                 "photon_s": merged["photon_s"],
+                "bookkeeping_share": (1.0 - c["trace_s"] / merged["photon_cpu_s"]
+                                      if merged["photon_cpu_s"] > 0 else 0.0),
                 "prepare_next_s": prep_s,
                 "workers": pool.size,
             }
@@ -237,4 +239,5 @@ def _merge(outputs):
     merged["total_proposed"] = sum(o["total_proposed"] for o in outputs)
     merged["total_accepted"] = sum(o["total_accepted"] for o in outputs)
     merged["photon_s"] = max(o["photon_s"] for o in outputs)
+    merged["photon_cpu_s"] = sum(o["photon_s"] for o in outputs)
     return merged

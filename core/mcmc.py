@@ -70,8 +70,9 @@ class ChainCounters:
     initialised: int = 0         # chains that found their first visible state
     uniform_samples: int = 0     # n_U of this pass
     uniform_visible: int = 0     # n_UV of this pass
-    rays: int = 0
-    vertices: int = 0
+    rays: int = 0                # closest-hit rays of the photon paths
+    vertices: int = 0            # photon path vertices (surface hits)
+    trace_s: float = 0.0         # seconds spent tracing photon paths (the rest is chain bookkeeping)
 
     def add(self, other: "ChainCounters") -> None:
         for f in self.__dataclass_fields__:
@@ -242,17 +243,18 @@ class DepositCache(Recorder):
             return
         drop = np.zeros(self.n_chains, bool)
         drop[lanes] = True
-        keep = ~drop[self.lane]
+        keep = np.flatnonzero(~drop[self.lane])
         # Pairs of the new states: map traced path rows to chain lanes.
         row_to_lane = np.full(len(batch.visible), -1, np.int64)
         row_to_lane[rows] = lanes
         new_lane = row_to_lane[batch.pair_path]
-        sel = new_lane >= 0
-        self.lane = np.concatenate([self.lane[keep], new_lane[sel]])
-        self.point = np.concatenate([self.point[keep], batch.pair_point[sel]])
-        self.diffuse = np.concatenate([self.diffuse[keep], batch.pair_diffuse[sel]])
+        sel = np.flatnonzero(new_lane >= 0)
+        self.lane = np.concatenate([self.lane.take(keep), new_lane.take(sel)])
+        self.point = np.concatenate([self.point.take(keep), batch.pair_point.take(sel)])
+        self.diffuse = np.concatenate([self.diffuse.take(keep, axis=0), batch.pair_diffuse.take(sel, axis=0)])
         if self.glossy:
-            self.glossy_values = np.concatenate([self.glossy_values[keep], batch.pair_glossy[sel]])
+            self.glossy_values = np.concatenate([self.glossy_values.take(keep, axis=0),
+                                                 batch.pair_glossy.take(sel, axis=0)])
 
     def commit(self, lanes, counts):
         if len(lanes) == 0 or len(self.lane) == 0:

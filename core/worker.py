@@ -81,7 +81,9 @@ class PhotonWorker:
             if stop():
                 return target.to_pixels(sum_d, sum_g), True
             b = min(PPM_BATCH, n_photons - done)
+            t0 = time.perf_counter()
             batch = trace_photons(self.ctx, target, rng.random((b, self.dims)), s.max_bounces)
+            counters.trace_s += time.perf_counter() - t0
             sum_d += batch.sum_diffuse
             if sum_g is not None:
                 sum_g += batch.sum_glossy
@@ -98,8 +100,11 @@ class PhotonWorker:
         recorder = DepositCache(target.points.count, chains.count, target.any_glossy)
 
         def trace(u, refresh_rng):
-            return trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
-                                 collect_pairs=True)
+            t0 = time.perf_counter()
+            batch = trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
+                                  collect_pairs=True)
+            counters.trace_s += time.perf_counter() - t0
+            return batch
 
         begin_pass(chains, trace, recorder, counters)
         iterations = -(-n_photons // chains.count)
