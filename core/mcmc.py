@@ -224,47 +224,74 @@ def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows):
     recorder.replace(lanes, batch, rows)
 
 
-class DepositCache(Recorder):
-    """Deposits of every chain's current state, summed per measurement point on commit."""
+class DepositLog(Recorder):
+    """Deposits of the chains' states, kept until their recordings are known, then summed per point.
 
-    def __init__(self, n_points, n_chains, glossy):
+    Every state that becomes current gets an id and its deposit pairs are appended to a
+    log (no per-iteration search through other chains' deposits).  ``commit`` adds to the
+    recording count of the lanes' current states.  ``flush`` splats the log, each pair
+    times its state's count so far, into per-point sums and keeps only the pairs of the
+    states that are still current; it runs when the log grows past ``flush_pairs`` and
+    at the end of the pass (the deposits are valid for that pass's points only).
+    """
+
+    def __init__(self, n_points, n_chains, glossy, flush_pairs=1 << 21):
         self.n_points = n_points
-        self.n_chains = n_chains
         self.glossy = glossy
+        self.flush_pairs = flush_pairs
         self.sum_diffuse = np.zeros((n_points, 3))
         self.sum_glossy = np.zeros((n_points, 3)) if glossy else None
-        self.lane = np.zeros(0, np.int64)
-        self.point = np.zeros(0, np.int64)
-        self.diffuse = np.zeros((0, 3))
-        self.glossy_values = np.zeros((0, 3)) if glossy else None
+        self.state_of_lane = np.full(n_chains, -1, np.int64)   # current state id of every chain
+        self.count = np.zeros(1024, np.int64)                   # recordings per state id
+        self.next_state = 0
+        self.chunks = []                                        # (state ids, points, diffuse, glossy)
+        self.logged = 0
 
     def replace(self, lanes, batch, rows):
         if len(lanes) == 0:
             return
-        drop = np.zeros(self.n_chains, bool)
-        drop[lanes] = True
-        keep = np.flatnonzero(~drop[self.lane])
-        # Pairs of the new states: map traced path rows to chain lanes.
-        row_to_lane = np.full(len(batch.visible), -1, np.int64)
-        row_to_lane[rows] = lanes
-        new_lane = row_to_lane[batch.pair_path]
-        sel = np.flatnonzero(new_lane >= 0)
-        self.lane = np.concatenate([self.lane.take(keep), new_lane.take(sel)])
-        self.point = np.concatenate([self.point.take(keep), batch.pair_point.take(sel)])
-        self.diffuse = np.concatenate([self.diffuse.take(keep, axis=0), batch.pair_diffuse.take(sel, axis=0)])
-        if self.glossy:
-            self.glossy_values = np.concatenate([self.glossy_values.take(keep, axis=0),
-                                                 batch.pair_glossy.take(sel, axis=0)])
+        ids = np.arange(self.next_state, self.next_state + len(lanes))
+        self.next_state += len(lanes)
+        if self.next_state > len(self.count):
+            grown = np.zeros(2 * self.next_state, np.int64)
+            grown[:len(self.count)] = self.count
+            self.count = grown
+        self.state_of_lane[lanes] = ids
+        row_state = np.full(len(batch.visible), -1, np.int64)
+        row_state[rows] = ids
+        state = row_state[batch.pair_path]
+        sel = np.flatnonzero(state >= 0)
+        if len(sel):
+            self.chunks.append((state.take(sel), batch.pair_point.take(sel), batch.pair_diffuse.take(sel, axis=0),
+                                batch.pair_glossy.take(sel, axis=0) if self.glossy else None))
+            self.logged += len(sel)
+            if self.logged > self.flush_pairs:
+                self.flush()
 
     def commit(self, lanes, counts):
-        if len(lanes) == 0 or len(self.lane) == 0:
+        ids = self.state_of_lane[lanes]
+        ok = ids >= 0
+        np.add.at(self.count, ids[ok], np.asarray(counts)[ok])
+
+    def flush(self):
+        """Splat the recordings so far; keep the pairs of the current states only."""
+        if not self.chunks:
             return
-        weight = np.zeros(self.n_chains)
-        weight[lanes] = counts
-        w = weight[self.lane]
-        sel = np.flatnonzero(w > 0)
-        if len(sel):
-            self.sum_diffuse += point_splat(self.point[sel], self.diffuse[sel] * w[sel, None], self.n_points)
+        state, point, diffuse, glossy = (np.concatenate(part) if part[0] is not None else None
+                                         for part in zip(*self.chunks))
+        w = self.count.take(state).astype(np.float64)
+        hit = np.flatnonzero(w > 0)
+        if len(hit):
+            self.sum_diffuse += point_splat(point.take(hit), diffuse.take(hit, axis=0) * w.take(hit)[:, None],
+                                            self.n_points)
             if self.glossy:
-                self.sum_glossy += point_splat(self.point[sel], self.glossy_values[sel] * w[sel, None],
+                self.sum_glossy += point_splat(point.take(hit), glossy.take(hit, axis=0) * w.take(hit)[:, None],
                                                self.n_points)
+        current = self.state_of_lane[self.state_of_lane >= 0]
+        self.count[current] = 0
+        alive = np.zeros(len(self.count), bool)
+        alive[current] = True
+        keep = np.flatnonzero(alive.take(state))
+        self.chunks = [(state.take(keep), point.take(keep), diffuse.take(keep, axis=0),
+                        glossy.take(keep, axis=0) if self.glossy else None)] if len(keep) else []
+        self.logged = len(keep)

@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from .context import RenderContext
-from .mcmc import ChainCounters, ChainSet, DepositCache, begin_pass, end_pass, iterate
+from .mcmc import ChainCounters, ChainSet, DepositLog, begin_pass, end_pass, iterate
 from .photon_pass import path_dims, trace_photons
 
 # Uniform photon paths traced per batch (bounds the memory of the deposit pairs).
@@ -97,7 +97,7 @@ class PhotonWorker:
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings
         chains = self.chains
-        recorder = DepositCache(target.points.count, chains.count, target.any_glossy)
+        recorder = DepositLog(target.points.count, chains.count, target.any_glossy)
 
         def trace(u, refresh_rng):
             t0 = time.perf_counter()
@@ -115,4 +115,5 @@ class PhotonWorker:
                 break
             iterate(chains, trace, recorder, self.chain_rng, s, counters)
         end_pass(chains, recorder)
+        recorder.flush()
         return target.to_pixels(recorder.sum_diffuse, recorder.sum_glossy), interrupted

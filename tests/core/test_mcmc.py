@@ -260,3 +260,48 @@ def test_mutation_stays_in_unit_cube_and_is_identity_in_the_limit():
     tiny = mutate(u, np.full(1000, THETA_MIN), rng)
     d = np.abs((tiny - u + 0.5) % 1.0 - 0.5)
     assert np.median(d) < 1e-6
+
+
+def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
+    from core.mcmc import DepositLog
+    rng = np.random.default_rng(11)
+    n_points, n_chains = 50, 8
+    results = []
+    for flush_pairs in (1 << 30, 7, 1):
+        rng = np.random.default_rng(11)
+        log = DepositLog(n_points, n_chains, glossy=True, flush_pairs=flush_pairs)
+        expected_d = np.zeros((n_points, 3))
+        expected_g = np.zeros((n_points, 3))
+        current = {}                      # lane -> (points, diffuse, glossy) of its state
+        for step in range(200):
+            lanes = np.unique(rng.integers(0, n_chains, rng.integers(1, 4)))
+            # Record the old states of those lanes some times, then replace them.
+            counts = rng.integers(0, 5, len(lanes))
+            log.commit(lanes, counts)
+            for lane, c in zip(lanes.tolist(), counts.tolist()):
+                if lane in current:
+                    p, d, g = current[lane]
+                    np.add.at(expected_d, p, d * c)
+                    np.add.at(expected_g, p, g * c)
+            k = rng.integers(0, 6, len(lanes))
+            paths = np.repeat(np.arange(len(lanes)), k)
+            batch = SimpleNamespace(visible=np.ones(len(lanes), bool), pair_path=paths,
+                                    pair_point=rng.integers(0, n_points, len(paths)),
+                                    pair_diffuse=rng.random((len(paths), 3)),
+                                    pair_glossy=rng.random((len(paths), 3)))
+            log.replace(lanes, batch, np.arange(len(lanes)))
+            for i, lane in enumerate(lanes.tolist()):
+                sel = paths == i
+                current[lane] = (batch.pair_point[sel], batch.pair_diffuse[sel], batch.pair_glossy[sel])
+        final = np.array(sorted(current))
+        counts = rng.integers(1, 4, len(final))
+        log.commit(final, counts)
+        for lane, c in zip(final.tolist(), counts.tolist()):
+            p, d, g = current[lane]
+            np.add.at(expected_d, p, d * c)
+            np.add.at(expected_g, p, g * c)
+        log.flush()
+        np.testing.assert_allclose(log.sum_diffuse, expected_d, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(log.sum_glossy, expected_g, rtol=1e-12, atol=1e-12)
+        results.append(log.sum_diffuse)
+    np.testing.assert_allclose(results[0], results[2], rtol=1e-12)
