@@ -1,10 +1,12 @@
 """Ray queries: the only module that talks to embreex.
 
 :class:`Accel` wraps one static embree scene holding every triangle of a
-:class:`~core.scene.Scene` and answers batched closest-hit queries.  Surface
-positions are rebuilt from the barycentrics in float64 on the hit triangle's
-plane, and new rays are spawned with an offset along the geometric normal that
-scales with the coordinate magnitude (embree works in float32).
+:class:`~core.scene.Scene` and answers batched closest-hit queries.  Embree
+works in float32, so it sees the scene shifted to the centre of its bounds (a
+scene far from the origin keeps its precision).  Surface positions are rebuilt
+from the barycentrics in float64 on the hit triangle's plane, and new rays are
+spawned with an offset along the geometric normal that scales with the
+coordinate magnitude in that centred frame (algorithm.md 6.4).
 """
 from __future__ import annotations
 
@@ -48,13 +50,14 @@ class Accel:
         lo, hi = scene.bounds()
         self.bounds = (lo, hi)
         self.extent = float(max(np.max(hi - lo), 1e-6))
+        self.center = 0.5 * (lo + hi)                                    # (3,) float64, embree's origin
         self.offset_floor = 1e-7 * self.extent
         self._embree = None
         if self.triangle_count:
             from embreex import rtcore_scene
             from embreex.mesh_construction import TriangleMesh
             self._embree = rtcore_scene.EmbreeScene(robust=True)
-            TriangleMesh(self._embree, np.ascontiguousarray(corners, np.float32))
+            TriangleMesh(self._embree, np.ascontiguousarray(corners - self.center, np.float32))
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -66,7 +69,7 @@ class Accel:
         if n == 0 or self._embree is None:
             return Hits(np.zeros(n, bool), np.full(n, -1, np.int32), np.full(n, np.inf, np.float32),
                         np.zeros(n), np.zeros(n))
-        o = np.ascontiguousarray(origins, np.float32)
+        o = np.ascontiguousarray(origins - self.center, np.float32)
         d = np.ascontiguousarray(directions, np.float32)
         if tmax is None:
             dists = None
@@ -91,5 +94,5 @@ class Accel:
         to, by an amount that grows with the coordinate magnitude.
         """
         side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
-        eps = _OFFSET_ULPS * np.max(np.abs(positions), axis=1) + self.offset_floor
+        eps = _OFFSET_ULPS * np.max(np.abs(positions - self.center), axis=1) + self.offset_floor
         return positions + (side * eps)[:, None] * normals
