@@ -1,0 +1,120 @@
+"""The AMCMCPPM RenderEngine: a thin class whose ``render`` runs :func:`render_final`.
+
+One final render of one view layer (``shared/docs/style.md`` 7.4):
+``export_scene(depsgraph)`` -> ``core.render(scene, settings, on_iteration, should_stop)``
+-> the render result.  Every pass reports statistics and progress; the image is
+pushed after passes 1, 3, 7, ... and then about once per second; ``test_break``
+is the core's ``should_stop``, so cancelling returns promptly with the image so
+far.  Any exception reaches Blender as ``report({'ERROR'})``: it is the only
+report that makes ``bpy.ops.render.render`` fail cleanly instead of crashing
+when ``write_still`` is set (``shared/docs/blender.md`` 1).
+"""
+from __future__ import annotations
+
+import traceback
+
+import bpy
+
+from ..core import SceneError
+from ..core.integrator import render as core_render
+from .export import export_scene, parse_snapshot_times, render_settings_from
+from .outputs import RenderOutputs
+from .result import PushSchedule, ResultWriter, progress_fraction, stats_line
+
+
+class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
+    bl_idname = "AMCMCPPM"
+    bl_label = "AMCMCPPM"
+    bl_use_preview = False
+    bl_use_postprocess = True
+    # Keep Blender's shader nodes (Principled BSDF, ...) editable while this engine is active.
+    bl_use_shading_nodes_custom = False
+
+    def __init__(self, *args, **kwargs):
+        # Blender 5.0 passes arguments to __init__; keep it cheap (it also runs for pass queries).
+        super().__init__(*args, **kwargs)
+
+    def render(self, depsgraph):
+        report_errors(self, render_final, self, depsgraph)
+
+
+def report_errors(engine, function, *args):
+    """Call ``function(*args)``; any exception becomes ``engine.report({'ERROR'}, ...)``."""
+    try:
+        function(*args)
+    except (SceneError, ValueError) as e:
+        traceback.print_exc()
+        engine.report({'ERROR'}, f"AMCMCPPM: {e}")
+    except Exception as e:
+        traceback.print_exc()
+        engine.report({'ERROR'}, f"AMCMCPPM: {type(e).__name__}: {e}")
+
+
+def render_final(engine, depsgraph):
+    """Render the view layer of ``depsgraph`` into ``engine``'s result.
+
+    ``engine`` is the RenderEngine (or an object forwarding to it): everything this
+    function does to Blender goes through its methods.
+    """
+    scene = depsgraph.scene_eval
+    props = scene.amcmcppm
+    settings = render_settings_from(props)
+    engine.update_stats("", "Exporting scene")
+    exported = export_scene(depsgraph, camera_object=engine.camera_override,
+                            resolution=(engine.resolution_x, engine.resolution_y))
+    for msg in exported.infos:
+        engine.report({'INFO'}, msg)
+    for msg in exported.warnings:
+        engine.report({'WARNING'}, msg)
+    view_layer = depsgraph.view_layer.name
+    outputs = RenderOutputs(stats_path=bpy.path.abspath(props.stats_path) if props.stats_path else "",
+                            snapshot_times=parse_snapshot_times(props.snapshot_times),
+                            snapshot_dir=bpy.path.abspath(props.snapshot_dir) if props.snapshot_dir else "",
+                            tags={"view_layer": view_layer, "frame": scene.frame_current})
+    try:
+        with ResultWriter(engine, view_layer) as writer:
+            if exported.is_empty:
+                writer.push_black()
+                engine.report({'WARNING'}, "AMCMCPPM: nothing to render (no geometry, no lights and a "
+                                           "black world); the image is black")
+                return
+            progress = Progress(engine, settings, writer, outputs)
+            engine.update_stats("", f"Building acceleration structure ({exported.scene.triangle_count:,} "
+                                    "triangles) and starting workers")
+            result = core_render(exported.scene, settings, on_iteration=progress.on_iteration,
+                                 should_stop=engine.test_break)
+            writer.push(result.image)
+            for msg in result.warnings:
+                engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
+            for msg in writer.problems:
+                engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
+            pending = outputs.pending
+            if pending:
+                engine.report({'INFO'}, f"AMCMCPPM: the render ended at {result.elapsed_s:.1f} s, before "
+                                        f"snapshot times {', '.join(f'{t:g}' for t in pending)} s")
+            done = "cancelled after" if result.interrupted else "finished in"
+            engine.update_stats("", f"{done} {result.passes} passes, {result.elapsed_s:.1f} s")
+            engine.update_progress(1.0)
+    finally:
+        outputs.close()
+
+
+class Progress:
+    """The core's ``on_iteration``: statistics, progress, files and progressive pushes."""
+
+    def __init__(self, engine, settings, writer, outputs):
+        self.engine = engine
+        self.settings = settings
+        self.writer = writer
+        self.outputs = outputs
+        self.schedule = PushSchedule(interval=1.0)
+        self.paths_total = 0
+
+    def on_iteration(self, result):
+        stats = result.stats[-1]
+        self.paths_total += int(stats.get("paths_traced", 0))
+        self.engine.update_stats("", stats_line(self.settings, stats, self.paths_total))
+        self.engine.update_progress(progress_fraction(self.settings, stats["pass"], stats["elapsed_s"]))
+        self.outputs.on_pass(result)
+        if self.schedule.due():
+            self.writer.push(result.image)

@@ -1,0 +1,57 @@
+"""Optional files the engine writes while it renders (``scene.amcmcppm`` Statistics Output).
+
+* statistics: one JSON line per pass, the core's per-pass dict plus the view layer
+  and frame, appended to ``stats_path``;
+* snapshots: at each requested elapsed time (the core's ``elapsed_s``), the image
+  of the first pass that ends at or after it, as ``snapshot_<seconds>s.exr`` in
+  ``snapshot_dir``, indexed in ``snapshots.jsonl`` there.  These feed
+  error-versus-time curves (``shared/docs/testing.md`` section 3).
+"""
+from __future__ import annotations
+
+import json
+import os
+
+from .exr import write_exr
+
+
+class RenderOutputs:
+    """Opened before the render (so bad paths fail early), fed every pass, closed after."""
+
+    def __init__(self, stats_path="", snapshot_times=(), snapshot_dir="", tags=None):
+        self.tags = dict(tags or {})
+        self.stats_file = None
+        self.pending = sorted(snapshot_times)
+        self.snapshot_dir = snapshot_dir
+        self.written = []               # (time, path) of the snapshots written
+        if self.pending and not snapshot_dir:
+            raise ValueError("snapshot times are set but the snapshot folder is empty")
+        if self.pending:
+            os.makedirs(snapshot_dir, exist_ok=True)
+        if stats_path:
+            parent = os.path.dirname(os.path.abspath(stats_path))
+            os.makedirs(parent, exist_ok=True)
+            self.stats_file = open(stats_path, "a", encoding="utf-8")
+
+    def on_pass(self, result):
+        """Record the last pass of a core ``RenderResult``."""
+        stats = result.stats[-1]
+        if self.stats_file is not None:
+            self.stats_file.write(json.dumps({**stats, **self.tags}) + "\n")
+            self.stats_file.flush()
+        while self.pending and stats["elapsed_s"] >= self.pending[0]:
+            self._snapshot(self.pending.pop(0), stats, result.image)
+
+    def _snapshot(self, t, stats, image):
+        name = f"snapshot_{t:011.3f}s.exr"
+        path = os.path.join(self.snapshot_dir, name)
+        write_exr(path, image)
+        entry = {"time": t, "elapsed_s": stats["elapsed_s"], "pass": stats["pass"], "file": name, **self.tags}
+        with open(os.path.join(self.snapshot_dir, "snapshots.jsonl"), "a", encoding="utf-8") as f:
+            f.write(json.dumps(entry) + "\n")
+        self.written.append((t, path))
+
+    def close(self):
+        if self.stats_file is not None:
+            self.stats_file.close()
+            self.stats_file = None

@@ -1,0 +1,136 @@
+"""Render Properties panels for ``scene.amcmcppm``, and Blender's own panels for our engine.
+
+Panels follow Cycles' pattern: a :class:`AMCMCPPMButtonsPanel` mixin with
+``COMPAT_ENGINES`` and ``poll``, panel classes named ``AMCMCPPM_RENDER_PT_*``.
+Each panel lists the properties it draws in ``props`` (tests check that they
+exist).  :func:`get_panels` selects Blender's built-in panels (format, output,
+colour management, camera, light, material, world) that should also show for
+this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``.
+"""
+import bpy
+
+from .engine import AMCMCPPMRenderEngine
+
+ENGINE_ID = AMCMCPPMRenderEngine.bl_idname
+
+
+class AMCMCPPMButtonsPanel:
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE_ID}
+    props = ()
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.amcmcppm
+        col = layout.column()
+        col.active = self.is_active(settings)
+        for name in self.props:
+            col.prop(settings, name)
+
+    @staticmethod
+    def is_active(settings):
+        return True
+
+
+class AMCMCPPM_RENDER_PT_sampling(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+    props = ("method", "passes", "time_limit", "photons_per_pass", "seed")
+
+
+class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    bl_label = "Markov Chains"
+    bl_parent_id = "AMCMCPPM_RENDER_PT_sampling"
+    props = ("target_acceptance", "mutation", "chains", "normalisation", "initial_mutation_size")
+
+    @staticmethod
+    def is_active(settings):
+        return settings.method == "amcmcppm"
+
+
+class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    bl_label = "Photon Gathering"
+    props = ("initial_radius_px", "alpha", "max_bounces")
+
+
+class AMCMCPPM_RENDER_PT_performance(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    bl_label = "Performance"
+    bl_options = {'DEFAULT_CLOSED'}
+    props = ("workers",)
+
+
+class AMCMCPPM_RENDER_PT_statistics_output(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    bl_label = "Statistics Output"
+    bl_options = {'DEFAULT_CLOSED'}
+    props = ("stats_path", "snapshot_times", "snapshot_dir")
+
+    def draw(self, context):
+        super().draw(context)
+        self.layout.operator("amcmcppm.export_scene", icon='EXPORT')
+
+
+classes = (
+    AMCMCPPM_RENDER_PT_sampling,
+    AMCMCPPM_RENDER_PT_markov_chains,
+    AMCMCPPM_RENDER_PT_photons,
+    AMCMCPPM_RENDER_PT_performance,
+    AMCMCPPM_RENDER_PT_statistics_output,
+)
+
+# Built-in panels for Blender's own renderer that do not fit this engine.
+EXCLUDE_PANELS = {
+    "DATA_PT_light",                # EEVEE's light panel below shows the same and more
+    "RENDER_PT_post_processing",
+    "RENDER_PT_simplify",
+    "RENDER_PT_freestyle",
+}
+# EEVEE panels with generic settings we use: light power/size, material slots and surface, world
+# surface, depth of field.
+INCLUDE_PANELS = {
+    "DATA_PT_EEVEE_light",
+    "EEVEE_MATERIAL_PT_context_material",
+    "EEVEE_MATERIAL_PT_surface",
+    "EEVEE_WORLD_PT_surface",
+    "DATA_PT_camera_dof",
+    "DATA_PT_camera_dof_aperture",
+}
+
+
+def get_panels():
+    """Built-in panel classes that should show for the AMCMCPPM engine.
+
+    Some panels share one ``COMPAT_ENGINES`` set object (``NODE_DATA_PT_light`` uses
+    ``DATA_PT_light``'s); a panel sharing the set of an excluded panel is excluded too.
+    """
+    candidates = [p for p in bpy.types.Panel.__subclasses__()
+                  if isinstance(getattr(p, "COMPAT_ENGINES", None), set)]
+    excluded_sets = [p.COMPAT_ENGINES for p in candidates if p.__name__ in EXCLUDE_PANELS]
+    panels = []
+    for panel in candidates:
+        engines = panel.COMPAT_ENGINES
+        if any(engines is s for s in excluded_sets):
+            continue
+        if "BLENDER_RENDER" in engines or panel.__name__ in INCLUDE_PANELS:
+            panels.append(panel)
+    return panels
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for panel in get_panels():
+        panel.COMPAT_ENGINES.add(ENGINE_ID)
+
+
+def unregister():
+    for panel in get_panels():
+        panel.COMPAT_ENGINES.discard(ENGINE_ID)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
