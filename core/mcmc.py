@@ -11,14 +11,16 @@ One iteration, for every chain (``algorithm.md`` 2):
 3. otherwise mutate the current state (one batch for all such chains) and accept
    exactly when the proposal is visible; adapt the mutation size;
 4. ``mutation="exact"`` only: after a rejection, redraw the dimensions after the
-   current state's first visible vertex (a Gibbs step on the suffix, ``algorithm.md`` 3);
+   current state's first visible vertex (a Gibbs step on the suffix, ``algorithm.md`` 3),
+   tracing only from that vertex on (its state is kept per chain);
 5. every chain with a visible state records its current state once.
 
-Recording is lazy: a chain's current state is recorded ``hold`` times, and the
-deposits are splatted once, multiplied by ``hold``, when the state changes or
-the pass ends (SLR's cached ``prevResults``, without its stale-cache bug: the
-cache is dropped at the end of every pass and the states are traced again
-against the next pass's measurement points).
+Recording is lazy: a state's deposits are kept with a count of its recordings and
+summed, multiplied by that count, in bulk (SLR's cached ``prevResults``, without its
+stale-cache bug: the deposits are dropped at the end of every pass and the states are
+traced again against the next pass's measurement points).  A state has two parts, the
+deposits up to its first visible vertex (the *prefix*) and after it (the *suffix*);
+the Gibbs refresh replaces only the suffix, so the two parts keep separate counts.
 
 Glossary: theta = mutation size, A* = target acceptance, n_U / n_UV = uniform
 samples / visible uniform samples (the normaliser Vc ~ n_UV / n_U).
@@ -29,7 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .photon_pass import point_splat
+from .lights import LIGHT_DIMS
+from .photon_pass import BOUNCE_DIMS, point_splat
 
 THETA_MIN, THETA_MAX = 1e-4, 1e3
 
@@ -89,15 +92,17 @@ class ChainSet:
     theta: np.ndarray               # (C,) float64 mutation sizes
     proposed: np.ndarray            # (C,) int64 mutation proposals so far (all passes)
     accepted: np.ndarray            # (C,) int64 accepted proposals so far
-    hold: np.ndarray                # (C,) int64 pending recordings of the current state
-    totals: ChainCounters = field(default_factory=ChainCounters)  # cumulative counters
+    hold: np.ndarray                # (C,) int64 pending recordings of the current suffix
+    hold_prefix: np.ndarray         # (C,) int64 pending recordings of the current prefix
+    vertex: dict = field(default_factory=dict)  # arrays (C, ...): state at the first visible vertex
 
     @staticmethod
     def create(n_chains, dims, theta0, rng) -> "ChainSet":
         return ChainSet(u=rng.random((n_chains, dims)), valid=np.zeros(n_chains, bool),
                         first_dim=np.full(n_chains, -1, np.int32),
                         theta=np.full(n_chains, float(theta0)), proposed=np.zeros(n_chains, np.int64),
-                        accepted=np.zeros(n_chains, np.int64), hold=np.zeros(n_chains, np.int64))
+                        accepted=np.zeros(n_chains, np.int64), hold=np.zeros(n_chains, np.int64),
+                        hold_prefix=np.zeros(n_chains, np.int64))
 
     @property
     def count(self) -> int:
@@ -115,8 +120,11 @@ class Recorder:
     def replace(self, lanes, batch, rows):
         """The current states of chains ``lanes`` are now the traced paths ``rows`` of ``batch``."""
 
-    def commit(self, lanes, counts):
-        """Record the current states of ``lanes`` ``counts`` times each."""
+    def replace_suffix(self, lanes, batch, rows):
+        """Only the suffixes of ``lanes`` changed, to the resumed traces ``rows`` of ``batch``."""
+
+    def commit(self, lanes, prefix_counts, suffix_counts):
+        """Record the prefixes and the suffixes of the current states of ``lanes`` so many times."""
 
 
 def begin_pass(chains, trace, recorder, counters):
@@ -132,14 +140,24 @@ def begin_pass(chains, trace, recorder, counters):
     chains.valid[lanes[~still]] = False
     chains.first_dim[lanes] = np.where(still, batch.first_dim, -1)
     keep = np.flatnonzero(still)
+    _store_vertex(chains, lanes[keep], batch, keep)
     recorder.replace(lanes[keep], batch, keep)
 
 
 def end_pass(chains, recorder):
     """Record every pending state (the cached deposits are valid only within the pass)."""
-    lanes = np.flatnonzero(chains.valid & (chains.hold > 0))
-    recorder.commit(lanes, chains.hold[lanes])
+    lanes = np.flatnonzero(chains.valid)
+    recorder.commit(lanes, chains.hold_prefix[lanes], chains.hold[lanes])
     chains.hold[:] = 0
+    chains.hold_prefix[:] = 0
+
+
+def _store_vertex(chains, lanes, batch, rows):
+    """Keep the first-visible-vertex state of traced paths ``rows`` for chains ``lanes``."""
+    for key, value in (batch.first or {}).items():
+        if key not in chains.vertex:
+            chains.vertex[key] = np.zeros((chains.count,) + value.shape[1:], value.dtype)
+        chains.vertex[key][lanes] = value[rows]
 
 
 def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
@@ -148,10 +166,12 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
     ``exchange=False`` switches replica exchange off for chains that already have a
     state (a negative control for tests: such chains never jump between islands).
 
-    ``trace(u, refresh_rng)`` traces paths for states ``u`` (n, d) and returns an
-    object with ``visible`` (n,), ``first_dim`` (n,), ``rays`` and ``vertices``;
-    with ``refresh_rng`` it redraws, in place in ``u``, the dimensions after the
-    first visible vertex (low-dimension mutation).
+    ``trace(u, refresh_rng, resume=None)`` traces paths for states ``u`` (n, d) and
+    returns an object with ``visible`` (n,), ``first_dim`` (n,), ``first`` (a dict of
+    per-path arrays describing the first visible vertex), ``rays`` and ``vertices``;
+    with ``refresh_rng`` it redraws, in place in ``u``, the dimensions after the first
+    visible vertex (low-dimension mutation); with ``resume`` (rows of such a dict) it
+    traces only from those vertices on.
     """
     c, d = chains.u.shape
     mode = settings.mutation
@@ -201,38 +221,44 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
             cols = np.arange(d)[None, :]
             redraw = cols >= starts[:, None]
             refreshed[redraw] = rng.random(int(redraw.sum()))
-            batch_g = trace(refreshed, None)
+            # The prefix (and so V and the first visible vertex) is unchanged: trace from there.
+            batch_g = trace(refreshed, None, resume={k: v[rejected] for k, v in chains.vertex.items()})
             counters.paths_traced += len(rejected)
             counters.rays += batch_g.rays
             counters.vertices += batch_g.vertices
-            # The prefix (and so V and the first visible vertex) is unchanged.
-            _switch(chains, recorder, rejected, refreshed, batch_g.first_dim,
-                    batch_g, np.arange(len(rejected)))
+            recorder.commit(rejected, np.zeros(len(rejected), np.int64), chains.hold[rejected])
+            chains.hold[rejected] = 0
+            chains.u[rejected] = refreshed
+            recorder.replace_suffix(rejected, batch_g, np.arange(len(rejected)))
     # 5. Every chain with a state records it once.
     chains.hold[chains.valid] += 1
+    chains.hold_prefix[chains.valid] += 1
     counters.recorded += int(chains.valid.sum())
 
 
 def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows):
     """Make traced paths ``rows`` of ``batch`` the current states of chains ``lanes``."""
-    old = lanes[chains.valid[lanes] & (chains.hold[lanes] > 0)]
-    recorder.commit(old, chains.hold[old])
+    old = lanes[chains.valid[lanes]]
+    recorder.commit(old, chains.hold_prefix[old], chains.hold[old])
     chains.hold[lanes] = 0
+    chains.hold_prefix[lanes] = 0
     chains.u[lanes] = new_u
     chains.first_dim[lanes] = new_first_dim
     chains.valid[lanes] = True
+    _store_vertex(chains, lanes, batch, rows)
     recorder.replace(lanes, batch, rows)
 
 
 class DepositLog(Recorder):
     """Deposits of the chains' states, kept until their recordings are known, then summed per point.
 
-    Every state that becomes current gets an id and its deposit pairs are appended to a
-    log (no per-iteration search through other chains' deposits).  ``commit`` adds to the
-    recording count of the lanes' current states.  ``flush`` splats the log, each pair
-    times its state's count so far, into per-point sums and keeps only the pairs of the
-    states that are still current; it runs when the log grows past ``flush_pairs`` and
-    at the end of the pass (the deposits are valid for that pass's points only).
+    Every state part (prefix or suffix) that becomes current gets an id and its deposit
+    pairs are appended to a log (no per-iteration search through other chains' deposits).
+    ``commit`` adds to the recording counts of the lanes' current parts.  ``flush`` splats
+    the log, each pair times its part's count so far, into per-point sums and keeps only
+    the pairs of the parts that are still current; it runs when the log grows past
+    ``flush_pairs`` and at the end of the pass (deposits are valid for that pass only).
+    Chain c's prefix lives in slot c, its suffix in slot C + c.
     """
 
     def __init__(self, n_points, n_chains, glossy, flush_pairs=1 << 21):
@@ -241,7 +267,8 @@ class DepositLog(Recorder):
         self.flush_pairs = flush_pairs
         self.sum_diffuse = np.zeros((n_points, 3))
         self.sum_glossy = np.zeros((n_points, 3)) if glossy else None
-        self.state_of_lane = np.full(n_chains, -1, np.int64)   # current state id of every chain
+        self.n_chains = n_chains
+        self.state_of_lane = np.full(2 * n_chains, -1, np.int64)   # current part id per slot
         self.count = np.zeros(1024, np.int64)                   # recordings per state id
         self.next_state = 0
         self.chunks = []                                        # (state ids, points, diffuse, glossy)
@@ -250,16 +277,43 @@ class DepositLog(Recorder):
     def replace(self, lanes, batch, rows):
         if len(lanes) == 0:
             return
-        ids = np.arange(self.next_state, self.next_state + len(lanes))
-        self.next_state += len(lanes)
+        # Pairs at the first visible vertex form the prefix, later ones the suffix.
+        first_bounce = (batch.first_dim - LIGHT_DIMS) // BOUNCE_DIMS
+        row_first = np.full(len(batch.visible), -1, np.int64)
+        row_first[rows] = first_bounce[rows]
+        is_suffix = batch.pair_bounce > row_first[batch.pair_path]
+        self._append(np.concatenate([lanes, lanes + self.n_chains]), batch, rows, is_suffix)
+
+    def replace_suffix(self, lanes, batch, rows):
+        if len(lanes) == 0:
+            return
+        self._append(lanes + self.n_chains, batch, rows, None)
+
+    def commit(self, lanes, prefix_counts, suffix_counts):
+        slots = np.concatenate([lanes, lanes + self.n_chains])
+        ids = self.state_of_lane[slots]
+        counts = np.concatenate([prefix_counts, suffix_counts])
+        ok = (ids >= 0) & (counts > 0)
+        np.add.at(self.count, ids[ok], counts[ok])
+
+    def _append(self, slots, batch, rows, is_suffix):
+        """New part ids for ``slots``; log their pairs.  With ``is_suffix`` (per pair) the first
+        half of ``slots`` takes a row's prefix pairs and the second half its suffix pairs."""
+        ids = np.arange(self.next_state, self.next_state + len(slots))
+        self.next_state += len(slots)
         if self.next_state > len(self.count):
             grown = np.zeros(2 * self.next_state, np.int64)
             grown[:len(self.count)] = self.count
             self.count = grown
-        self.state_of_lane[lanes] = ids
+        self.state_of_lane[slots] = ids
+        k = len(rows)
         row_state = np.full(len(batch.visible), -1, np.int64)
-        row_state[rows] = ids
+        row_state[rows] = ids[:k]
         state = row_state[batch.pair_path]
+        if is_suffix is not None:
+            row_suffix = np.full(len(batch.visible), -1, np.int64)
+            row_suffix[rows] = ids[k:]
+            state = np.where(is_suffix, row_suffix[batch.pair_path], state)
         sel = np.flatnonzero(state >= 0)
         if len(sel):
             self.chunks.append((state.take(sel), batch.pair_point.take(sel), batch.pair_diffuse.take(sel, axis=0),
@@ -267,11 +321,6 @@ class DepositLog(Recorder):
             self.logged += len(sel)
             if self.logged > self.flush_pairs:
                 self.flush()
-
-    def commit(self, lanes, counts):
-        ids = self.state_of_lane[lanes]
-        ok = ids >= 0
-        np.add.at(self.count, ids[ok], np.asarray(counts)[ok])
 
     def flush(self):
         """Splat the recordings so far; keep the pairs of the current states only."""

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bsdf import choose_lobe, eval_glossy, face_forward, lobe_scores, scatter
+from .context import Surface
 from .eye_pass import MeasurementPoints
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
@@ -137,42 +138,70 @@ class PhotonBatch:
     pair_point: np.ndarray       # (k,) int64 measurement point of each pair
     pair_diffuse: np.ndarray     # (k, 3) float64 flux * diffuse weight of each pair
     pair_glossy: np.ndarray      # (k, 3) float64 flux * glossy weight, or None (no glossy points)
+    pair_bounce: np.ndarray      # (k,) int16 vertex of each pair (0 = first surface hit)
+    first: dict                  # arrays (n, ...): each visible path at its first visible vertex
     sum_diffuse: np.ndarray      # (m, 3) per-point sums of flux * diffuse weight (if splatted)
     sum_glossy: np.ndarray       # (m, 3) per-point sums of flux * glossy weight, or None
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
 
 
-def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False):
+# Per-path state at a vertex before it scatters, enough to resume a trace there.
+VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "mat_ids", "colors", "wo", "flux")
+
+
+def _vertex_arrays(n):
+    return {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
+            "ns": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32), "colors": np.zeros((n, 4, 3)),
+            "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3))}
+
+
+def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None):
     """Trace photon paths for primary samples ``u`` (n, d) and deposit them on ``target``.
 
-    With ``collect_pairs`` the deposits are returned per pair (for Markov chains);
+    With ``collect_pairs`` the deposits are returned per pair (for Markov chains) together
+    with each visible path's state at its first visible vertex (``PhotonBatch.first``);
     otherwise they are summed per measurement point.
+
+    ``resume`` (arrays as ``PhotonBatch.first``, one row per path) restarts every path at
+    its recorded vertex, scattering with its (redrawn) dimensions there: the deposits at
+    and before that vertex are not repeated.  This is the Gibbs refresh of the exact
+    low-dimension mutation, which changes only the dimensions after the first visible vertex.
     """
     n = len(u)
     accel, table = ctx.accel, ctx.table
-    origins, dirs, flux, _ = ctx.lights.sample(u[:, :LIGHT_DIMS])
     visible = np.zeros(n, bool)
     first_dim = np.full(n, -1, np.int32)
-    idx = np.flatnonzero(luminance(flux) > 0)
-    origins, dirs, flux = origins[idx], dirs[idx], flux[idx]
+    if resume is None:
+        origins, dirs, flux, _ = ctx.lights.sample(u[:, :LIGHT_DIMS])
+        idx = np.flatnonzero(luminance(flux) > 0)
+        origins, dirs, flux = origins[idx], dirs[idx], flux[idx]
+        last_join = -1
+    else:
+        idx = np.zeros(0, np.int64)
+        origins, dirs, flux = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+        visible[:] = True
+        first_dim[:] = bounce_offset(resume["bounce"])
+        last_join = int(resume["bounce"].max()) if n else -1
     m = target.points.count
     glossy = target.any_glossy
-    pairs = {"path": [], "point": [], "diffuse": [], "glossy": []}
+    pairs = {"path": [], "point": [], "diffuse": [], "glossy": [], "bounce": []}
+    first = _vertex_arrays(n) if collect_pairs else None
     sum_d = None if collect_pairs else np.zeros((m, 3))
     sum_g = None if collect_pairs or not glossy else np.zeros((m, 3))
     rays = vertices = 0
     for bounce in range(max_bounces + 1):
-        if len(idx) == 0:
+        if len(idx) == 0 and bounce > last_join:
             break
-        hits = accel.intersect(origins, dirs)
-        rays += len(idx)
-        h = np.flatnonzero(hits.is_hit)
-        idx, dirs, flux = idx[h], dirs[h], flux[h]
-        vertices += len(idx)
-        if len(idx) == 0:
-            break
-        surf = ctx.surface(hits.prim_ids[h], hits.b1[h], hits.b2[h])
+        if len(idx):
+            hits = accel.intersect(origins, dirs)
+            rays += len(idx)
+            h = np.flatnonzero(hits.is_hit)
+            idx, dirs, flux = idx[h], dirs[h], flux[h]
+            vertices += len(idx)
+            surf = ctx.surface(hits.prim_ids[h], hits.b1[h], hits.b2[h])
+        else:
+            surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
         wo = -dirs
         # Deposit at non-delta vertices; a pair found makes the path visible.
         dep = np.flatnonzero(table.has_nondelta[surf.mat_ids])
@@ -182,7 +211,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             if len(pi):
                 lane = dep[pi]
                 wd, wg = target.pair_weights(pj, wo[lane] if target.needs_directions else None, cos_g)
-                f = flux[lane]
+                f = flux.take(lane, axis=0)
                 val_d = f * wd[:, None]
                 val_g = f * wg[:, None] if glossy else None
                 if collect_pairs:
@@ -190,21 +219,37 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     pairs["point"].append(pj)
                     pairs["diffuse"].append(val_d)
                     pairs["glossy"].append(val_g)
+                    pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
                 else:
                     sum_d += point_splat(pj, val_d, m)
                     if glossy:
                         sum_g += point_splat(pj, val_g, m)
                 seen = np.zeros(len(idx), bool)
                 seen[lane] = True
-                paths = idx[seen]
-                new = paths[~visible[paths]]
+                rows = np.flatnonzero(seen)
+                rows = rows[~visible[idx[rows]]]
+                new = idx[rows]
                 visible[new] = True
                 first_dim[new] = bounce_offset(bounce)
+                if collect_pairs:
+                    for key, val in (("bounce", bounce), ("position", surf.position[rows]),
+                                     ("ng", surf.ng[rows]), ("ns", surf.ns[rows]),
+                                     ("mat_ids", surf.mat_ids[rows]), ("colors", surf.colors[rows]),
+                                     ("wo", wo[rows]), ("flux", flux[rows])):
+                        first[key][new] = val
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
-        if bounce == max_bounces:
-            break
+        if resume is not None and bounce <= last_join:
+            # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
+            join = np.flatnonzero(resume["bounce"] == bounce)
+            if len(join):
+                idx = np.concatenate([idx, join])
+                flux = np.concatenate([flux, resume["flux"][join]])
+                wo = np.concatenate([wo, resume["wo"][join]])
+                surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals)
+        if bounce == max_bounces or len(idx) == 0:
+            continue
         # Scatter with this vertex's block of dimensions.
         block = u[idx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
@@ -223,11 +268,21 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         origins = accel.spawn(surf.position[keep], surf.ng[keep], dirs)
     if collect_pairs and pairs["path"]:
         pp, pj = np.concatenate(pairs["path"]), np.concatenate(pairs["point"])
-        pd = np.concatenate(pairs["diffuse"])
+        pd, pb = np.concatenate(pairs["diffuse"]), np.concatenate(pairs["bounce"])
         pg = np.concatenate(pairs["glossy"]) if glossy else None
     elif collect_pairs:
-        pp, pj, pd = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
+        pp, pj, pd, pb = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int16)
         pg = np.zeros((0, 3)) if glossy else None
     else:
-        pp = pj = pd = pg = None
-    return PhotonBatch(visible, first_dim, pp, pj, pd, pg, sum_d, sum_g, rays, vertices)
+        pp = pj = pd = pg = pb = None
+    return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
+
+
+def _join_surfaces(surf, resume, join, has_shading_normals):
+    """``surf`` followed by the recorded vertices ``join`` of ``resume``."""
+    def cat(a, key):
+        return np.concatenate([a, resume[key][join]])
+    ng = cat(surf.ng, "ng")
+    ns = cat(surf.ns, "ns") if has_shading_normals else ng
+    return Surface(cat(surf.position, "position"), ng, ns, cat(surf.mat_ids, "mat_ids"),
+                   cat(surf.colors, "colors"))

@@ -99,10 +99,10 @@ class PhotonWorker:
         chains = self.chains
         recorder = DepositLog(target.points.count, chains.count, target.any_glossy)
 
-        def trace(u, refresh_rng):
+        def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
             batch = trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
-                                  collect_pairs=True)
+                                  collect_pairs=True, resume=resume)
             counters.trace_s += time.perf_counter() - t0
             return batch
 

@@ -32,7 +32,9 @@ class BoxOracle:
     def measure(self):
         return sum(np.prod(hi - lo) for lo, hi in self.boxes)
 
-    def __call__(self, u, refresh_rng):
+    def __call__(self, u, refresh_rng, resume=None):
+        # ``resume`` needs nothing here: the prefix of a resumed state is unchanged, so the
+        # oracle's answer from ``u`` is the same.
         self.calls += 1
         n = len(u)
         label = np.full(n, -1)
@@ -51,11 +53,12 @@ class BoxOracle:
             if refresh_rng is not None and inside.any():
                 u[inside, 4:] = refresh_rng.random((int(inside.sum()), u.shape[1] - 4))
         return SimpleNamespace(visible=label >= 0, first_dim=first, rays=n, vertices=n, label=label,
-                               u5=u[:, 5].copy())
+                               u5=u[:, 5].copy(), first={"label": label.copy()})
 
 
 class OccupancyRecorder(Recorder):
-    """Counts recordings per label, per chain, and sums of u[5] over recorded states."""
+    """Counts recordings per label (a prefix property), per chain, and sums of u[5] (a suffix
+    property) over recorded states."""
 
     def __init__(self, n_chains, n_labels):
         self.label = np.full(n_chains, -1)
@@ -68,10 +71,16 @@ class OccupancyRecorder(Recorder):
         self.label[lanes] = batch.label[rows]
         self.u5[lanes] = batch.u5[rows]
 
-    def commit(self, lanes, counts):
-        np.add.at(self.counts, self.label[lanes], counts)
-        np.add.at(self.per_chain, (lanes, self.label[lanes]), counts)
-        self.u5_sum += float((self.u5[lanes] * counts).sum())
+    def replace_suffix(self, lanes, batch, rows):
+        assert (self.label[lanes] == batch.label[rows]).all(), "a suffix refresh changed the prefix"
+        self.u5[lanes] = batch.u5[rows]
+
+    def commit(self, lanes, prefix_counts, suffix_counts):
+        ok = self.label[lanes] >= 0
+        lanes, prefix_counts, suffix_counts = lanes[ok], prefix_counts[ok], suffix_counts[ok]
+        np.add.at(self.counts, self.label[lanes], prefix_counts)
+        np.add.at(self.per_chain, (lanes, self.label[lanes]), prefix_counts)
+        self.u5_sum += float((self.u5[lanes] * suffix_counts).sum())
 
 
 def run_chains(oracle, n_chains, iterations, n_labels, seed=0, exchange=True, **settings):
@@ -264,7 +273,6 @@ def test_mutation_stays_in_unit_cube_and_is_identity_in_the_limit():
 
 def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
     from core.mcmc import DepositLog
-    rng = np.random.default_rng(11)
     n_points, n_chains = 50, 8
     results = []
     for flush_pairs in (1 << 30, 7, 1):
@@ -272,34 +280,52 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
         log = DepositLog(n_points, n_chains, glossy=True, flush_pairs=flush_pairs)
         expected_d = np.zeros((n_points, 3))
         expected_g = np.zeros((n_points, 3))
-        current = {}                      # lane -> (points, diffuse, glossy) of its state
-        for step in range(200):
+        prefix, suffix = {}, {}            # lane -> (points, diffuse, glossy) of its current parts
+
+        def add(part, lane, c):
+            if lane in part:
+                p, d, g = part[lane]
+                np.add.at(expected_d, p, d * c)
+                np.add.at(expected_g, p, g * c)
+
+        def pairs(n_paths, bounces):
+            k = rng.integers(0, 6, n_paths)
+            paths = np.repeat(np.arange(n_paths), k)
+            return SimpleNamespace(visible=np.ones(n_paths, bool), pair_path=paths,
+                                   pair_point=rng.integers(0, n_points, len(paths)),
+                                   pair_diffuse=rng.random((len(paths), 3)),
+                                   pair_glossy=rng.random((len(paths), 3)),
+                                   pair_bounce=rng.choice(bounces, len(paths)).astype(np.int16),
+                                   first_dim=np.full(n_paths, 6 + 4 * 1, np.int32))
+
+        for step in range(300):
             lanes = np.unique(rng.integers(0, n_chains, rng.integers(1, 4)))
-            # Record the old states of those lanes some times, then replace them.
-            counts = rng.integers(0, 5, len(lanes))
-            log.commit(lanes, counts)
-            for lane, c in zip(lanes.tolist(), counts.tolist()):
-                if lane in current:
-                    p, d, g = current[lane]
-                    np.add.at(expected_d, p, d * c)
-                    np.add.at(expected_g, p, g * c)
-            k = rng.integers(0, 6, len(lanes))
-            paths = np.repeat(np.arange(len(lanes)), k)
-            batch = SimpleNamespace(visible=np.ones(len(lanes), bool), pair_path=paths,
-                                    pair_point=rng.integers(0, n_points, len(paths)),
-                                    pair_diffuse=rng.random((len(paths), 3)),
-                                    pair_glossy=rng.random((len(paths), 3)))
-            log.replace(lanes, batch, np.arange(len(lanes)))
+            pc, sc = rng.integers(0, 5, len(lanes)), rng.integers(0, 5, len(lanes))
+            log.commit(lanes, pc, sc)
+            for lane, a, b in zip(lanes.tolist(), pc.tolist(), sc.tolist()):
+                add(prefix, lane, a)
+                add(suffix, lane, b)
+            full = rng.random() < 0.5
+            batch = pairs(len(lanes), [1, 2, 3] if full else [2, 3])
+            rows = np.arange(len(lanes))
+            if full:
+                log.replace(lanes, batch, rows)
+            else:
+                log.replace_suffix(lanes, batch, rows)
             for i, lane in enumerate(lanes.tolist()):
-                sel = paths == i
-                current[lane] = (batch.pair_point[sel], batch.pair_diffuse[sel], batch.pair_glossy[sel])
-        final = np.array(sorted(current))
-        counts = rng.integers(1, 4, len(final))
-        log.commit(final, counts)
-        for lane, c in zip(final.tolist(), counts.tolist()):
-            p, d, g = current[lane]
-            np.add.at(expected_d, p, d * c)
-            np.add.at(expected_g, p, g * c)
+                sel = batch.pair_path == i
+                is_pre = batch.pair_bounce <= 1
+                if full:
+                    s_pre = sel & is_pre
+                    prefix[lane] = (batch.pair_point[s_pre], batch.pair_diffuse[s_pre], batch.pair_glossy[s_pre])
+                    sel = sel & ~is_pre
+                suffix[lane] = (batch.pair_point[sel], batch.pair_diffuse[sel], batch.pair_glossy[sel])
+        final = np.arange(n_chains)
+        pc, sc = rng.integers(1, 4, n_chains), rng.integers(1, 4, n_chains)
+        log.commit(final, pc, sc)
+        for lane, a, b in zip(final.tolist(), pc.tolist(), sc.tolist()):
+            add(prefix, lane, a)
+            add(suffix, lane, b)
         log.flush()
         np.testing.assert_allclose(log.sum_diffuse, expected_d, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(log.sum_glossy, expected_g, rtol=1e-12, atol=1e-12)

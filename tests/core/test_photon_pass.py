@@ -1,0 +1,76 @@
+"""The photon tracer: a deterministic function of its primary sample; resuming at a vertex."""
+import numpy as np
+
+from core.context import RenderContext
+from core.eye_pass import trace_eye_pass
+from core.photon_pass import DepositTarget, bounce_offset, path_dims, trace_photons
+from core.testing.scenes import glass_ceiling_room, hole_mirror_glass
+
+
+def setup(scene):
+    ctx = RenderContext(scene)
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
+    w, h = scene.camera.resolution
+    # Wide radii so that many paths are visible.
+    target = DepositTarget(eye.points, eye.points.base_radius * 3, ctx.table, w * h, ctx.has_shading_normals)
+    return ctx, target
+
+
+def pair_set(batch, rows_filter=None):
+    out = set()
+    for p, j, b, v in zip(batch.pair_path.tolist(), batch.pair_point.tolist(), batch.pair_bounce.tolist(),
+                          batch.pair_diffuse.tolist()):
+        out.add((p, j, b, tuple(np.round(v, 9))))
+    return out
+
+
+def test_the_same_sample_gives_the_same_path():
+    ctx, target = setup(glass_ceiling_room((24, 18)))
+    u = np.random.default_rng(1).random((4000, path_dims(8)))
+    a = trace_photons(ctx, target, u.copy(), 8, collect_pairs=True)
+    b = trace_photons(ctx, target, u.copy(), 8, collect_pairs=True)
+    assert a.visible.any()
+    np.testing.assert_array_equal(a.visible, b.visible)
+    assert pair_set(a) == pair_set(b)
+
+
+def test_resuming_at_the_first_visible_vertex_reproduces_the_suffix():
+    for scene in (glass_ceiling_room((24, 18)), hole_mirror_glass((24, 18))):
+        ctx, target = setup(scene)
+        rng = np.random.default_rng(2)
+        u = rng.random((20000, path_dims(8)))
+        full = trace_photons(ctx, target, u, 8, collect_pairs=True)
+        vis = np.flatnonzero(full.visible)
+        assert len(vis) > 20
+        # Redraw every dimension after the first visible vertex, then trace fully and resumed.
+        v = u[vis].copy()
+        for i, start in enumerate(full.first_dim[vis]):
+            v[i, start:] = rng.random(v.shape[1] - start)
+        again = trace_photons(ctx, target, v.copy(), 8, collect_pairs=True)
+        resumed = trace_photons(ctx, target, v.copy(), 8, collect_pairs=True,
+                                resume={k: a[vis] for k, a in full.first.items()})
+        assert again.visible.all() and resumed.visible.all()
+        np.testing.assert_array_equal(again.first_dim, full.first_dim[vis])
+        np.testing.assert_array_equal(resumed.first_dim, full.first_dim[vis])
+        first_bounce = (again.first_dim - 6) // 4
+        suffix = again.pair_bounce > first_bounce[again.pair_path]
+        expected = {(p, j, b, tuple(np.round(x, 9))) for p, j, b, x, s in
+                    zip(again.pair_path.tolist(), again.pair_point.tolist(), again.pair_bounce.tolist(),
+                        again.pair_diffuse.tolist(), suffix.tolist()) if s}
+        assert pair_set(resumed) == expected
+        assert resumed.rays < again.rays
+
+
+def test_low_dimension_refresh_redraws_only_after_the_first_visible_vertex():
+    ctx, target = setup(glass_ceiling_room((24, 18)))
+    u = np.random.default_rng(3).random((5000, path_dims(8)))
+    before = u.copy()
+    batch = trace_photons(ctx, target, u, 8, refresh_rng=np.random.default_rng(4), collect_pairs=True)
+    vis = np.flatnonzero(batch.visible)
+    assert len(vis)
+    for i in vis[:200]:
+        start = batch.first_dim[i]
+        np.testing.assert_array_equal(u[i, :start], before[i, :start])
+        assert (u[i, start:] != before[i, start:]).all()
+    np.testing.assert_array_equal(u[~batch.visible], before[~batch.visible])
+    assert (batch.first_dim[vis] >= bounce_offset(0)).all()
