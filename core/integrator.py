@@ -167,44 +167,14 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
-            if is_chain and c["recorded"] == 0 and not warned_invisible:
+            if c["uniform_visible"] == 0 and (not is_chain or c["recorded"] == 0) and not warned_invisible:
                 warned_invisible = True
                 warnings.append(
                     f"pass {pass_index + 1}: none of {c['uniform_samples']} uniform photon paths reached "
                     "a surface seen by the camera; the image shows only emission so far and the "
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
-            stats = {
-                "pass": pass_index + 1,
-                "elapsed_s": elapsed,
-                "paths_traced": c["paths_traced"],
-                "photons_recorded": c["recorded"],
-                "proposals": c["proposals"],
-                "accepted": c["accepted"],
-                "acceptance_rate": c["accepted"] / c["proposals"] if c["proposals"] else 0.0,
-                "mutation_size": merged["theta_mean"] if is_chain else 0.0,
-                "exchanges": c["exchanges"],
-                "uniform_samples": c["uniform_samples"],
-                "uniform_visible": c["uniform_visible"],
-                "visible_fraction": acc.visible_fraction,
-                "radius": float(np.median(target.radius)) if len(target.radius) else 0.0,
-                "method": settings.method,
-                "visible_fraction_pass": (c["uniform_visible"] / c["uniform_samples"]
-                                          if c["uniform_samples"] else 0.0),
-                "cumulative_acceptance_rate": (merged["total_accepted"] / merged["total_proposed"]
-                                               if merged["total_proposed"] else 0.0),
-                "chains_with_state": merged["valid_chains"],
-                "initialised": c["initialised"],
-                "rays": c["rays"] + eye.rays,
-                "photon_vertices": c["vertices"],
-                "measurement_points": eye.points.count,
-                "grid_entries": target.grid.entry_count,
-                "photon_s": merged["photon_s"],
-                "bookkeeping_share": (1.0 - c["trace_s"] / merged["photon_cpu_s"]
-                                      if merged["photon_cpu_s"] > 0 else 0.0),
-                "prepare_next_s": prep_s,
-                "workers": pool.size,
-            }
+            stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings)
             result.stats.append(stats)
             result.passes = acc.passes
             result.elapsed_s = elapsed
@@ -224,6 +194,41 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     result.elapsed_s = time.perf_counter() - t0
     result.image = acc.image(is_chain).reshape(height, width, 4)
     return result
+
+
+def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, settings):
+    """The statistics of one pass (``PASS_STAT_KEYS`` first, then diagnostics)."""
+    c = merged["counters"]
+    is_chain = settings.method == "amcmcppm"
+    return {
+        "pass": pass_index + 1,
+        "elapsed_s": elapsed,
+        "paths_traced": c["paths_traced"],
+        "photons_recorded": c["recorded"],
+        "proposals": c["proposals"],
+        "accepted": c["accepted"],
+        "acceptance_rate": c["accepted"] / c["proposals"] if c["proposals"] else 0.0,
+        "mutation_size": merged["theta_mean"] if is_chain else 0.0,
+        "exchanges": c["exchanges"],
+        "uniform_samples": c["uniform_samples"],
+        "uniform_visible": c["uniform_visible"],
+        "visible_fraction": acc.visible_fraction,
+        "radius": float(np.median(target.radius)) if len(target.radius) else 0.0,
+        "method": settings.method,
+        "visible_fraction_pass": c["uniform_visible"] / c["uniform_samples"] if c["uniform_samples"] else 0.0,
+        "cumulative_acceptance_rate": (merged["total_accepted"] / merged["total_proposed"]
+                                       if merged["total_proposed"] else 0.0),
+        "chains_with_state": merged["valid_chains"],
+        "initialised": c["initialised"],
+        "rays": c["rays"] + eye.rays,
+        "photon_vertices": c["vertices"],
+        "measurement_points": eye.points.count,
+        "grid_entries": target.grid.entry_count,
+        "photon_s": merged["photon_s"],
+        "bookkeeping_share": 1.0 - c["trace_s"] / merged["photon_cpu_s"] if merged["photon_cpu_s"] > 0 else 0.0,
+        "prepare_next_s": prep_s,
+        "workers": workers,
+    }
 
 
 def _merge(outputs):
