@@ -17,13 +17,17 @@ venv: $(STAMP)
 
 render: $(STAMP)
 	@mkdir -p out
-	$(PY) -m core render --builtin cornell_box --resolution 256 256 --passes 16 --output out/cornell_box.exr --png out/cornell_box.png
+	$(PY) render.py sample_blends/cornell_box.blend --output out/cornell_box.exr --png out/cornell_box.png
 
 test: $(STAMP)
 	$(PY) -m pytest -m "not slow" -q
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -m slow -q
+
+# Installable zips (one per platform, with embreex wheels) in dist/, built by Blender's own tool.
+extension: $(STAMP)
+	$(PY) tools/build_extension.py --output-dir dist
 
 bench: $(STAMP)
 	$(PY) benchmarks/throughput.py
