@@ -1,0 +1,178 @@
+"""Small scenes built with the real bpy module for the add-on tests (no operators, no UI context)."""
+from __future__ import annotations
+
+import math
+import sys
+
+import bpy  # noqa: I001 (first: bmesh and mathutils exist only after it)
+import bmesh
+import numpy as np
+from mathutils import Vector
+
+ENGINE = "AMCMCPPM"
+# Fast settings for tests: tiny images and few photons in this process.
+FAST = {"passes": 2, "time_limit": 0.0, "photons_per_pass": 4000, "workers": 1, "chains": 256}
+
+
+def package():
+    return sys.modules["amcmcppm"]
+
+
+def empty_scene(resolution=(32, 32), **settings):
+    """Factory-empty scene with our engine, a black world and the FAST settings."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = ENGINE
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    for key, value in {**FAST, **settings}.items():
+        setattr(scene.amcmcppm, key, value)
+    return scene
+
+
+# ---------------------------------------------------------------------- materials
+def _material(name, node_type, **inputs):
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    for node in list(nt.nodes):
+        if node.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(node)
+    node = nt.nodes.new(node_type)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def diffuse(name="Diffuse", color=(0.8, 0.8, 0.8)):
+    return _material(name, "ShaderNodeBsdfDiffuse", Color=(*color, 1.0))
+
+
+def emission(name="Emission", color=(1.0, 1.0, 1.0), strength=1.0):
+    return _material(name, "ShaderNodeEmission", Color=(*color, 1.0), Strength=strength)
+
+
+def glass(name="Glass", ior=1.5):
+    return _material(name, "ShaderNodeBsdfGlass", IOR=ior)
+
+
+# ---------------------------------------------------------------------- objects
+def mesh_object(name, bm, material=None, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1, 1, 1),
+                collection=None):
+    me = bpy.data.meshes.new(name)
+    bm.to_mesh(me)
+    bm.free()
+    if material is not None:
+        me.materials.append(material)
+    ob = bpy.data.objects.new(name, me)
+    ob.location, ob.rotation_euler, ob.scale = location, rotation, scale
+    (collection or bpy.context.scene.collection).objects.link(ob)
+    return ob
+
+
+def plane(name="Plane", size=2.0, material=None, **kw):
+    bm = bmesh.new()
+    bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=size / 2)
+    return mesh_object(name, bm, material, **kw)
+
+
+def cube(name="Cube", size=1.0, material=None, **kw):
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=size)
+    return mesh_object(name, bm, material, **kw)
+
+
+def disk_ngon(name="Disk", radius=1.0, segments=32, material=None, **kw):
+    """A disk made of one n-gon (segments corners)."""
+    bm = bmesh.new()
+    bmesh.ops.create_circle(bm, cap_ends=True, cap_tris=False, segments=segments, radius=radius)
+    return mesh_object(name, bm, material, **kw)
+
+
+def camera(location=(0, -4, 3), target=(0, 0, 0), lens=50.0, sensor=36.0, ortho_scale=None):
+    cam = bpy.data.cameras.new("Camera")
+    cam.lens, cam.sensor_width = lens, sensor
+    if ortho_scale is not None:
+        cam.type = "ORTHO"
+        cam.ortho_scale = ortho_scale
+    ob = bpy.data.objects.new("Camera", cam)
+    ob.location = location
+    ob.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.collection.objects.link(ob)
+    bpy.context.scene.camera = ob
+    return ob
+
+
+def light(kind, location=(0, 0, 3), target=(0, 0, 0), energy=100.0, name=None, **props):
+    data = bpy.data.lights.new(name or kind.title(), kind)
+    data.energy = energy
+    for key, value in props.items():
+        setattr(data, key, value)
+    ob = bpy.data.objects.new(data.name, data)
+    ob.location = location
+    ob.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
+def world(color=(0.0, 0.0, 0.0), strength=1.0):
+    w = bpy.data.worlds.new("World")
+    w.color = color
+    bg = w.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+    bpy.context.scene.world = w
+    return w
+
+
+# ---------------------------------------------------------------------- export and render
+def export(scene=None):
+    """Export the current scene with the viewport depsgraph (``ExportedScene``)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    return package().amcmcppm_addon.export.export_scene(depsgraph)
+
+
+def emitted_power(core_scene):
+    """(3,) total emitted power as the core's own light sampler computes it."""
+    from amcmcppm.core.context import RenderContext
+    return RenderContext(core_scene).lights.total_power
+
+
+def triangle_areas(core_scene):
+    p = core_scene.vertices[core_scene.triangles].astype(np.float64)
+    return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+
+
+def read_exr(path):
+    """(H, W, 4) float32 RGBA, top row first."""
+    import OpenEXR
+    with OpenEXR.File(str(path)) as f:
+        return np.asarray(f.channels()["RGBA"].pixels, np.float32)
+
+
+def render_exr(path, scene=None):
+    """Render the scene with write_still into an EXR at ``path`` and return its pixels."""
+    scene = scene or bpy.context.scene
+    s = scene.render.image_settings
+    s.media_type = "IMAGE"
+    s.file_format = "OPEN_EXR"
+    s.color_mode = "RGBA"
+    s.color_depth = "32"
+    scene.render.filepath = str(path)
+    scene.render.use_file_extension = False
+    bpy.ops.render.render(write_still=True)
+    return read_exr(path)
+
+
+def lit_floor_scene(resolution=(32, 32), **settings):
+    """A diffuse floor under a point light, seen from above: a quick renderable scene."""
+    scene = empty_scene(resolution, **settings)
+    plane("Floor", size=4.0, material=diffuse("Floor", (0.8, 0.8, 0.8)))
+    light("POINT", location=(0, 0, 2), energy=200.0, shadow_soft_size=0.0)
+    camera(location=(0, 0, 5), target=(0, 0, 0), lens=50.0)
+    return scene
+
+
+def deg(x):
+    return math.radians(x)

@@ -1,0 +1,344 @@
+"""The engine end to end through ``bpy.ops.render.render(write_still=True)`` (real bpy, real core).
+
+A second engine registered under another id runs the add-on's own render code through
+a forwarder that records ``update_result``/``update_stats``/``update_progress`` and can
+make ``test_break`` turn true (Esc) on its k-th call.
+"""
+from __future__ import annotations
+
+import gc
+import json
+import os
+import time
+import tracemalloc
+
+import bpy
+import numpy as np
+import pytest
+
+import blender_scenes as bs
+
+
+def engine_class():
+    from amcmcppm.amcmcppm_addon.engine import AMCMCPPMRenderEngine
+    return AMCMCPPMRenderEngine
+
+
+class Registered:
+    """Register an engine subclass for the duration of a ``with`` block."""
+
+    def __init__(self, cls):
+        self.cls = cls
+
+    def __enter__(self):
+        bpy.utils.register_class(self.cls)
+        return self.cls
+
+    def __exit__(self, *exc):
+        bpy.utils.unregister_class(self.cls)
+
+
+def test_render_is_finite_and_lit(scene, tmp_path):
+    bs.lit_floor_scene()
+    img = bs.render_exr(tmp_path / "floor.exr")
+    assert img.shape == (32, 32, 4) and np.isfinite(img).all()
+    rgb = img[..., :3].mean(axis=2)
+    assert rgb.mean() > 0.05
+    # The point light is above the centre: the centre is brighter than the corners.
+    assert rgb[12:20, 12:20].mean() > 1.5 * rgb[:4, :4].mean()
+
+
+def test_orientation_matches_cycles_convention(scene, tmp_path):
+    """An emitter in the top-left of the frame appears top-left in the written image."""
+    bs.empty_scene((32, 32))
+    bs.plane("Glow", size=1.0, material=bs.emission(strength=1.0), location=(-1.0, 1.0, 0))
+    bs.camera(location=(0, 0, 5), target=(0, 0, 0), lens=50.0)
+    img = bs.render_exr(tmp_path / "tl.exr")[..., 0]
+    h, w = img.shape
+    quadrants = [img[:h // 2, :w // 2].mean(), img[:h // 2, w // 2:].mean(),
+                 img[h // 2:, :w // 2].mean(), img[h // 2:, w // 2:].mean()]
+    assert int(np.argmax(quadrants)) == 0 and quadrants[0] > 0.1
+
+
+def test_resolution_percentage(scene, tmp_path):
+    bs.lit_floor_scene(resolution=(64, 48))
+    scene = bpy.context.scene
+    scene.render.resolution_percentage = 50
+    img = bs.render_exr(tmp_path / "half.exr")
+    assert img.shape == (24, 32, 4) and np.isfinite(img).all()
+
+
+def test_border_render(scene, tmp_path):
+    """A border box renders only that part; cropped or placed in the full frame."""
+    bs.empty_scene((40, 20))
+    # Left half of the view is an emitter, right half sees nothing.
+    bs.plane("Glow", size=4.0, material=bs.emission(strength=1.0), location=(-2.0, 0, 0))
+    bs.camera(location=(0, 0, 5), target=(0, 0, 0), lens=50.0)
+    r = bpy.context.scene.render
+    r.use_border, r.use_crop_to_border = True, True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.0, 0.25, 0.2, 0.6
+    left = bs.render_exr(tmp_path / "left.exr")
+    assert left.shape == (8, 10, 4)
+    assert left[..., 0].min() == pytest.approx(1.0, abs=1e-3)
+    r.border_min_x, r.border_max_x = 0.75, 1.0
+    right = bs.render_exr(tmp_path / "right.exr")
+    assert right.shape == (8, 10, 4) and right[..., :3].max() == 0.0
+    r.use_crop_to_border = False
+    r.border_min_x, r.border_max_x = 0.0, 0.25
+    full = bs.render_exr(tmp_path / "full.exr")
+    assert full.shape == (20, 40, 4)
+    # Rows from the top: the box y in [0.2, 0.6) from the bottom is rows 8..16.
+    assert full[8:16, :10, 0].min() == pytest.approx(1.0, abs=1e-3)
+    assert full[:8, :, :3].max() == 0.0 and full[16:, :, :3].max() == 0.0 and full[:, 10:, :3].max() == 0.0
+
+
+def test_view_layers_render_their_own_content(scene, tmp_path):
+    import OpenEXR
+    bs.empty_scene((16, 16))
+    glow_coll = bpy.data.collections.new("Glow")
+    bpy.context.scene.collection.children.link(glow_coll)
+    bs.plane("Glow", size=10.0, material=bs.emission(strength=2.0), collection=glow_coll)
+    bs.camera(location=(0, 0, 5), target=(0, 0, 0))
+    sc = bpy.context.scene
+    dark = sc.view_layers.new("Dark")
+    dark.layer_collection.children["Glow"].exclude = True
+    s = sc.render.image_settings
+    s.media_type = "MULTI_LAYER_IMAGE"
+    s.color_depth = "32"
+    sc.render.filepath = str(tmp_path / "layers.exr")
+    sc.render.use_file_extension = False
+    bpy.ops.render.render(write_still=True)
+    means = {}
+    with OpenEXR.File(str(tmp_path / "layers.exr")) as f:      # one part per layer and pass
+        for part in f.parts:
+            for name, ch in part.channels.items():
+                means[name] = float(np.mean(np.asarray(ch.pixels)[..., :3]))
+    assert means == pytest.approx({"ViewLayer.Combined": 2.0, "Dark.Combined": 0.0}, abs=1e-3)
+
+
+def test_empty_scene_gives_black_image_and_report(scene, tmp_path, capfd):
+    bs.camera()
+    img = bs.render_exr(tmp_path / "empty.exr")
+    assert np.isfinite(img).all() and img[..., :3].max() == 0.0
+    assert "nothing to render" in capfd.readouterr().out
+
+
+def test_scene_without_light_warns(scene, tmp_path, capfd):
+    bs.plane("Floor", material=bs.diffuse())
+    bs.camera()
+    img = bs.render_exr(tmp_path / "dark.exr")
+    assert np.isfinite(img).all() and img[..., :3].max() == 0.0
+    out = capfd.readouterr().out
+    assert "Warning: AMCMCPPM: the scene emits no light" in out
+
+
+def test_unsupported_and_missing_render_finite_with_warnings(scene, tmp_path, capfd):
+    bs.lit_floor_scene()
+    img_missing = bpy.data.images.new("Gone", 4, 4)
+    img_missing.source = "FILE"
+    img_missing.filepath = str(tmp_path / "gone.png")
+    mat = bs._material("Cartoon", "ShaderNodeBsdfToon")
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img_missing
+    bs.cube("Box", size=0.5, material=mat, location=(0, 0, 0.25))
+    ball = bs.cube("Ball", size=0.3, material=bs.diffuse("Painted"), location=(0.6, 0, 0.15))
+    pnt = ball.data.materials[0].node_tree
+    tex2 = pnt.nodes.new("ShaderNodeTexImage")
+    tex2.image = img_missing
+    pnt.links.new(tex2.outputs["Color"], pnt.nodes["Diffuse BSDF"].inputs["Color"])
+    img = bs.render_exr(tmp_path / "fallback.exr")
+    assert np.isfinite(img).all() and img[..., :3].mean() > 0
+    out = capfd.readouterr().out
+    assert out.count("material 'Cartoon'") == 1 and "Toon BSDF" in out
+    assert "gone.png" in out
+
+
+def test_invalid_settings_fail_cleanly(scene, tmp_path):
+    bs.lit_floor_scene()
+    props = bpy.context.scene.amcmcppm
+    props.passes, props.time_limit = 0, 0.0
+    with pytest.raises(RuntimeError, match="passes and time_limit are both 0"):
+        bs.render_exr(tmp_path / "never.exr")
+    # The process is still usable afterwards.
+    props.passes = 1
+    assert np.isfinite(bs.render_exr(tmp_path / "after.exr")).all()
+
+
+def test_exceptions_reach_blender_as_errors(scene, tmp_path):
+    bs.lit_floor_scene()
+    bpy.context.scene.amcmcppm.snapshot_times = "1, two"
+    with pytest.raises(RuntimeError, match="AMCMCPPM: snapshot time 'two' is not a number"):
+        bs.render_exr(tmp_path / "bad.exr")
+
+
+class EngineSpy:
+    """Forwards everything to the real engine; records progress calls and can press Esc.
+
+    Blender looks RNA functions up before Python overrides, so a subclass cannot
+    replace ``test_break``; the engine code instead receives this forwarder.
+    """
+
+    def __init__(self, engine, log, cancel_after=None):
+        self._engine, self._log, self._cancel_after = engine, log, cancel_after
+
+    def __getattr__(self, name):
+        return getattr(self._engine, name)
+
+    def test_break(self):
+        self._log["breaks"].append(time.perf_counter())
+        return self._cancel_after is not None and len(self._log["breaks"]) >= self._cancel_after
+
+    def update_result(self, result):
+        self._log["results"] += 1
+        self._engine.update_result(result)
+
+    def update_stats(self, stats, info):
+        self._log["stats"].append(info)
+        self._engine.update_stats(stats, info)
+
+    def update_progress(self, value):
+        self._log["progress"].append(value)
+        self._engine.update_progress(value)
+
+
+def new_log():
+    return {"breaks": [], "results": 0, "stats": [], "progress": []}
+
+
+class SpiedEngine(bpy.types.RenderEngine):
+    """Our engine's render code running through an :class:`EngineSpy` (test-only state in ``log``).
+
+    Not a subclass of the registered engine class: unregistering a subclass of a registered
+    RenderEngine breaks the parent's registration in Blender ("unable to get Python class").
+    """
+
+    bl_idname = "AMCMCPPM_TEST_SPIED"
+    bl_label = "AMCMCPPM spied"
+    bl_use_shading_nodes_custom = False
+    log = new_log()
+    cancel_after = None
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+
+    def render(self, depsgraph):
+        from amcmcppm.amcmcppm_addon.engine import render_final, report_errors
+        cls = type(self)
+        report_errors(self, render_final, EngineSpy(self, cls.log, cls.cancel_after), depsgraph)
+
+
+def render_spied(path, cancel_after=None):
+    SpiedEngine.log, SpiedEngine.cancel_after = new_log(), cancel_after
+    with Registered(SpiedEngine):
+        bpy.context.scene.render.engine = SpiedEngine.bl_idname
+        img = bs.render_exr(path)
+        done = time.perf_counter()
+    return img, SpiedEngine.log, done
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_cancel_returns_promptly_with_image(scene, tmp_path, workers):
+    bs.lit_floor_scene(passes=10_000, photons_per_pass=200_000, workers=workers)
+    img, log, done = render_spied(tmp_path / "cancelled.exr", cancel_after=3)
+    assert len(log["breaks"]) >= 3
+    assert done - log["breaks"][2] < 2.0
+    assert img.shape == (32, 32, 4) and np.isfinite(img).all()
+    assert any(s.startswith("cancelled after") for s in log["stats"])
+
+
+def test_progressive_pushes_stats_and_progress(scene, tmp_path):
+    bs.lit_floor_scene(passes=6)
+    img, log, _ = render_spied(tmp_path / "observed.exr")
+    assert np.isfinite(img).all()
+    # Pushed after pass 1 and again later (batches doubling), plus the final image; not every pass.
+    assert 3 <= log["results"] <= 7
+    pass_lines = [s for s in log["stats"] if s.startswith("Pass")]
+    assert len(pass_lines) == 6
+    for word in ("Pass 6/6", "Photons", "Acceptance", "Mutation", "Visible", "Left"):
+        assert word in pass_lines[-1], pass_lines[-1]
+    assert log["progress"] == sorted(log["progress"]) and log["progress"][-1] == 1.0
+
+
+def test_push_schedule_doubles_then_keeps_interval():
+    from amcmcppm.amcmcppm_addon.result import PushSchedule
+    now = [0.0]
+    schedule = PushSchedule(interval=1.0, clock=lambda: now[0])
+    pushed = []
+    for i in range(1, 41):
+        now[0] += 0.1           # fast passes: 0.1 s each
+        if schedule.due():
+            pushed.append(i)
+    assert pushed[:3] == [1, 3, 7]
+    gaps = np.diff(pushed[3:])
+    assert (gaps >= 8).all() and (gaps <= 11).all()      # about one push per second
+    slow = PushSchedule(interval=1.0, clock=lambda: now[0])
+    count = 0
+    for _ in range(5):
+        now[0] += 2.0           # slow passes: every pass is pushed
+        count += slow.due()
+    assert count == 5
+
+
+def test_stats_file_and_snapshots(scene, tmp_path):
+    import OpenEXR
+    bs.lit_floor_scene(passes=4)
+    props = bpy.context.scene.amcmcppm
+    props.stats_path = str(tmp_path / "stats.jsonl")
+    props.snapshot_times = "0.000001, 1000"
+    props.snapshot_dir = str(tmp_path / "snaps")
+    final = bs.render_exr(tmp_path / "final.exr")
+    lines = [json.loads(x) for x in (tmp_path / "stats.jsonl").read_text().splitlines()]
+    from amcmcppm.core.integrator import PASS_STAT_KEYS
+    assert [d["pass"] for d in lines] == [1, 2, 3, 4]
+    assert all(set(PASS_STAT_KEYS) <= set(d) for d in lines)
+    assert lines[0]["view_layer"] == "ViewLayer"
+    index = [json.loads(x) for x in (tmp_path / "snaps" / "snapshots.jsonl").read_text().splitlines()]
+    assert len(index) == 1 and index[0]["pass"] == 1
+    with OpenEXR.File(str(tmp_path / "snaps" / index[0]["file"])) as f:
+        snap = np.asarray(f.channels()["RGBA"].pixels)
+    assert snap.shape == final.shape and np.isfinite(snap).all() and snap[..., :3].mean() > 0
+
+
+def test_exr_writer_round_trip(tmp_path):
+    import OpenEXR
+    from amcmcppm.amcmcppm_addon.exr import write_exr
+    img = np.random.default_rng(1).random((7, 5, 4)).astype(np.float32)
+    write_exr(tmp_path / "x.exr", img)
+    with OpenEXR.File(str(tmp_path / "x.exr")) as f:
+        assert np.array_equal(np.asarray(f.channels()["RGBA"].pixels), img)
+
+
+def test_to_rect_flips_and_repairs():
+    from amcmcppm.amcmcppm_addon.result import to_rect
+    img = np.arange(2 * 3 * 4, dtype=np.float32).reshape(2, 3, 4)
+    rect, problems = to_rect(img, 3, 2)
+    assert problems == [] and rect.dtype == np.float32 and rect.flags["C_CONTIGUOUS"]
+    assert np.array_equal(rect.reshape(2, 3, 4), img[::-1])
+    img[0, 0, 0] = np.nan
+    rect, problems = to_rect(img, 4, 2)
+    assert np.isfinite(rect).all() and len(problems) == 2 and rect.size == 4 * 2 * 4
+
+
+def test_twenty_renders_do_not_grow_memory(scene, tmp_path):
+    def rss_mb():
+        with open(f"/proc/{os.getpid()}/status") as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("VmRSS")) / 1024
+
+    def render_once(i):
+        bs.lit_floor_scene(passes=1)
+        bs.render_exr(tmp_path / f"m{i % 2}.exr")
+        gc.collect()
+
+    for i in range(5):
+        render_once(i)
+    tracemalloc.start()
+    base_py = tracemalloc.get_traced_memory()[0]
+    base_rss = rss_mb()
+    for i in range(15):
+        render_once(i)
+    grown_py = tracemalloc.get_traced_memory()[0] - base_py
+    tracemalloc.stop()
+    grown_rss = rss_mb() - base_rss
+    assert grown_py < 0.05 * base_rss * 2 ** 20, f"Python allocations grew by {grown_py / 2 ** 20:.1f} MB"
+    assert grown_rss < 0.05 * base_rss, f"RSS grew {grown_rss:.1f} MB from {base_rss:.0f} MB"

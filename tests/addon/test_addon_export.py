@@ -1,0 +1,575 @@
+"""Depsgraph export (shared/docs/testing.md 2f): geometry, instances, materials, lights, camera, world.
+
+These export with the viewport depsgraph (``evaluated_depsgraph_get``); the render
+depsgraph path is covered by the end-to-end renders in test_addon_engine.py.
+"""
+from __future__ import annotations
+
+import math
+
+import bmesh
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix, Vector
+
+import blender_scenes as bs
+
+
+def mesh_of(triangles_scene):
+    return triangles_scene.vertices[triangles_scene.triangles].astype(np.float64)
+
+
+def geometric_normals(core_scene):
+    p = mesh_of(core_scene)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return n / np.linalg.norm(n, axis=1, keepdims=True), p.mean(axis=1)
+
+
+# ---------------------------------------------------------------------- geometry
+def test_empty_scene_exports_nothing(scene):
+    bs.camera()
+    ex = bs.export()
+    assert ex.is_empty and ex.scene.triangle_count == 0 and ex.scene.lights.count == 0
+    assert ex.scene.materials.count == 1        # a default material keeps the scene valid
+
+
+def test_faceless_mesh_is_skipped_with_info(scene):
+    bm = bmesh.new()
+    a, b, c = (bm.verts.new(p) for p in ((0, 0, 0), (1, 0, 0), (0, 1, 0)))
+    bm.edges.new((a, b))
+    bm.edges.new((b, c))
+    bs.mesh_object("Wire", bm)
+    bs.plane("Floor", material=bs.diffuse())
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.triangle_count == 2
+    assert any("'Wire'" in m and "no faces" in m for m in ex.infos)
+    assert ex.warnings == []
+
+
+def test_ngons_are_triangulated_without_changing_area_or_power(scene):
+    n, r, strength = 32, 1.0, 3.0
+    bs.disk_ngon("Disk", radius=r, segments=n, material=bs.emission("Glow", strength=strength))
+    bs.camera()
+    me = bpy.data.objects["Disk"].data
+    assert len(me.polygons) == 1 and len(me.polygons[0].vertices) == n
+    s = bs.export().scene
+    area = 0.5 * n * r * r * math.sin(2 * math.pi / n)
+    assert s.triangle_count == n - 2
+    assert bs.triangle_areas(s).sum() == pytest.approx(area, rel=1e-5)
+    # Two-sided Lambertian emitter: power = 2 pi A L.
+    assert bs.emitted_power(s) == pytest.approx(np.full(3, 2 * math.pi * area * strength), rel=1e-5)
+
+
+def test_array_modifier_is_evaluated(scene):
+    ob = bs.cube("Cube", material=bs.diffuse())
+    mod = ob.modifiers.new("Array", "ARRAY")
+    mod.count = 18
+    bs.camera()
+    assert bs.export().scene.triangle_count == 216
+
+
+def _instance_collection():
+    coll = bpy.data.collections.new("Source")
+    quad = bs.plane("Quad", size=0.5, material=bs.emission("Glow", strength=2.0), collection=coll)
+    return coll, quad
+
+
+def test_collection_instances_multiply_triangles_and_power(scene):
+    coll, _ = _instance_collection()
+    for i in range(100):
+        empty = bpy.data.objects.new(f"Instance {i}", None)
+        empty.instance_type = "COLLECTION"
+        empty.instance_collection = coll
+        empty.location = (i % 10, i // 10, 0.0)
+        scene.collection.objects.link(empty)
+    bs.camera()
+    ex = bs.export()
+    single = 2 * math.pi * 0.25 * 2.0
+    assert ex.scene.triangle_count == 200
+    assert ex.instances == 100 and ex.meshes == 1
+    assert bs.emitted_power(ex.scene) == pytest.approx(np.full(3, 100 * single), rel=1e-5)
+    # Each instance sits where its empty is.
+    centres = mesh_of(ex.scene).mean(axis=1)
+    assert sorted(set(np.round(centres[:, 0]).astype(int))) == list(range(10))
+
+
+def test_geometry_node_instances_share_one_mesh(scene):
+    _, quad = _instance_collection()
+    ng = bpy.data.node_groups.new("Scatter", "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    grid = ng.nodes.new("GeometryNodeMeshGrid")
+    grid.inputs["Vertices X"].default_value = 10
+    grid.inputs["Vertices Y"].default_value = 10
+    grid.inputs["Size X"].default_value = 20.0
+    grid.inputs["Size Y"].default_value = 20.0
+    info = ng.nodes.new("GeometryNodeObjectInfo")
+    info.inputs["Object"].default_value = quad
+    iop = ng.nodes.new("GeometryNodeInstanceOnPoints")
+    out = ng.nodes.new("NodeGroupOutput")
+    ng.links.new(grid.outputs["Mesh"], iop.inputs["Points"])
+    ng.links.new(info.outputs["Geometry"], iop.inputs["Instance"])
+    ng.links.new(iop.outputs["Instances"], out.inputs["Geometry"])
+    host = bs.mesh_object("Host", bmesh.new())
+    host.modifiers.new("GN", "NODES").node_group = ng
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.triangle_count == 200 and ex.instances == 100 and ex.meshes == 1
+    assert bs.emitted_power(ex.scene) == pytest.approx(np.full(3, 100 * 2 * math.pi * 0.25 * 2.0), rel=1e-5)
+    assert ex.scene.materials.names == ["Glow"]      # the mesh's own material (no object slots)
+
+
+@pytest.mark.parametrize("scale", [(-1, 1, 1), (1, -2, 1), (-1, -1, -1), (0.5, 0.5, -3)])
+def test_negative_scale_keeps_outward_winding_and_power(scene, scale):
+    glow = bs.emission("Glow", strength=1.5)
+    ref = bs.cube("Reference", material=glow, location=(-5, 0, 0), scale=tuple(abs(s) for s in scale))
+    bs.cube("Mirrored", material=glow, location=(5, 0, 0), scale=scale,
+            rotation=(0.3, 0.2, 0.1))
+    ref.rotation_euler = (0.3, 0.2, 0.1)
+    bs.camera()
+    s = bs.export().scene
+    n, c = geometric_normals(s)
+    left = c[:, 0] < 0
+    for part, centre in ((left, (-5, 0, 0)), (~left, (5, 0, 0))):
+        outward = np.einsum("ij,ij->i", n[part], c[part] - np.asarray(centre))
+        assert (outward > 0).all(), "triangle winding must face outward"
+    areas = bs.triangle_areas(s)
+    assert areas[left].sum() == pytest.approx(areas[~left].sum(), rel=1e-5)
+    power_ref = 2 * math.pi * areas[left].sum() * 1.5
+    assert bs.emitted_power(s) == pytest.approx(np.full(3, 2 * power_ref), rel=1e-5)
+
+
+def test_negative_scale_keeps_smooth_normals_outward(scene):
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=16, v_segments=8, radius=1.0)
+    ob = bs.mesh_object("Ball", bm, bs.diffuse(), scale=(-1, 1, 1))
+    ob.data.shade_smooth()
+    bs.camera()
+    s = bs.export().scene
+    assert s.shading_normals is not None
+    corners = mesh_of(s)
+    radial = corners / np.linalg.norm(corners, axis=2, keepdims=True)
+    assert np.einsum("tci,tci->tc", s.shading_normals, radial).min() > 0.95
+    n, _ = geometric_normals(s)
+    assert np.einsum("ti,ti->t", n, radial.mean(axis=1)).min() > 0
+
+
+def test_normals_domains(scene):
+    """Flat -> no shading normals; smooth (POINT) -> vertex normals; mixed (CORNER) -> corner normals."""
+    flat = bs.cube("Flat", material=bs.diffuse())
+    bs.camera()
+    assert flat.data.normals_domain == "FACE"
+    assert bs.export().scene.shading_normals is None
+
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=24, v_segments=12, radius=1.0)
+    ball = bs.mesh_object("Ball", bm, bs.diffuse(), location=(4, 0, 0))
+    ball.data.shade_smooth()
+    assert ball.data.normals_domain == "POINT"
+    s = bs.export().scene
+    n, c = geometric_normals(s)
+    on_ball = c[:, 0] > 2
+    # Flat triangles get their geometric normal at every corner, smooth ones the vertex normals.
+    assert np.allclose(s.shading_normals[~on_ball], n[~on_ball][:, None, :], atol=1e-5)
+    corners = mesh_of(s)[on_ball] - np.array([4.0, 0, 0])
+    radial = corners / np.linalg.norm(corners, axis=2, keepdims=True)
+    assert np.einsum("tci,tci->tc", s.shading_normals[on_ball], radial).min() > 0.99
+
+    # Sharp edges on a smooth cube: corner normals, equal to the face normals at sharp corners.
+    cube = bs.cube("Sharp", material=bs.diffuse(), location=(-4, 0, 0))
+    cube.data.shade_smooth()
+    sharp = cube.data.attributes.new("sharp_edge", "BOOLEAN", "EDGE")
+    sharp.data.foreach_set("value", [True] * len(cube.data.edges))
+    assert cube.data.normals_domain in ("CORNER", "FACE")
+    s = bs.export().scene
+    n, c = geometric_normals(s)
+    on_cube = c[:, 0] < -2
+    assert np.allclose(s.shading_normals[on_cube], n[on_cube][:, None, :], atol=1e-5)
+
+
+def test_curves_and_text_become_triangles(scene):
+    text = bpy.data.curves.new("Text", "FONT")
+    text.body = "Hi"
+    scene.collection.objects.link(bpy.data.objects.new("Text", text))
+    curve = bpy.data.curves.new("Curve", "CURVE")
+    curve.dimensions = "3D"
+    curve.bevel_depth = 0.1
+    spline = curve.splines.new("POLY")
+    spline.points.add(1)
+    spline.points[1].co = (2, 0, 0, 1)
+    scene.collection.objects.link(bpy.data.objects.new("Curve", curve))
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.triangle_count > 20
+    assert ex.meshes == 2
+
+
+def test_material_slots_and_object_links(scene):
+    red, green, blue = (bs.diffuse(n, c) for n, c in (("Red", (1, 0, 0)), ("Green", (0, 1, 0)),
+                                                      ("Blue", (0, 0, 1))))
+    ob = bs.cube("Cube", material=red)
+    ob.data.materials.append(green)
+    mat_index = np.zeros(6, np.int32)
+    mat_index[3:] = 1
+    ob.data.attributes.new("material_index", "INT", "FACE").data.foreach_set("value", mat_index)
+    bs.camera()
+    s = bs.export().scene
+    names = [s.materials.names[i] for i in s.material_ids]
+    assert names.count("Red") == 6 and names.count("Green") == 6
+    # Link slot 1 to the object instead of the mesh: the object's material wins.
+    ob.material_slots[1].link = "OBJECT"
+    ob.material_slots[1].material = blue
+    s = bs.export().scene
+    names = [s.materials.names[i] for i in s.material_ids]
+    assert names.count("Red") == 6 and names.count("Blue") == 6 and "Green" not in names
+
+
+def test_objects_without_materials_get_the_default(scene):
+    bs.cube("Bare")
+    bs.camera()
+    s = bs.export().scene
+    assert s.materials.names == ["default surface"]
+    assert s.materials.diffuse_color[0] == pytest.approx([0.8, 0.8, 0.8])
+
+
+def test_view_layer_material_override(scene):
+    bs.cube("A", material=bs.diffuse("Red", (1, 0, 0)))
+    bs.cube("B", material=bs.diffuse("Green", (0, 1, 0)), location=(3, 0, 0))
+    bpy.context.view_layer.material_override = bs.diffuse("Clay", (0.5, 0.5, 0.5))
+    bs.camera()
+    s = bs.export().scene
+    assert {s.materials.names[i] for i in s.material_ids} == {"Clay"}
+
+
+# ---------------------------------------------------------------------- materials
+def material_row(core_scene, name):
+    m = core_scene.materials
+    i = m.names.index(name)
+    return {f: getattr(m, f)[i] for f in m.ARRAY_FIELDS}
+
+
+def export_material(mat):
+    bs.plane("Plane", material=mat)
+    bs.camera()
+    ex = bs.export()
+    return material_row(ex.scene, mat.name), ex
+
+
+def principled(name, **inputs):
+    mat = bpy.data.materials.new(name)
+    node = mat.node_tree.nodes["Principled BSDF"]
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    return mat
+
+
+def test_unsupported_node_warns_once_and_falls_back_to_grey(scene):
+    mat = bs._material("Cartoon", "ShaderNodeBsdfToon")
+    row, ex = export_material(mat)
+    warnings = [w for w in ex.warnings if "Cartoon" in w]
+    assert len(warnings) == 1 and "Toon BSDF" in warnings[0] and "ShaderNodeBsdfToon" in warnings[0]
+    assert row["diffuse_weight"] == pytest.approx(1.0)
+    assert row["diffuse_color"] == pytest.approx([0.8, 0.8, 0.8])
+
+
+def test_several_unsupported_nodes_give_one_warning_naming_each(scene):
+    mat = bpy.data.materials.new("Odd")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    toon = nt.nodes.new("ShaderNodeBsdfToon")
+    translucent = nt.nodes.new("ShaderNodeBsdfTranslucent")
+    nt.links.new(toon.outputs[0], mix.inputs[1])
+    nt.links.new(translucent.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    warnings = [w for w in ex.warnings if "'Odd'" in w]
+    assert len(warnings) == 1
+    assert "Toon BSDF" in warnings[0] and "Translucent BSDF" in warnings[0]
+    assert row["diffuse_color"] == pytest.approx([0.8, 0.8, 0.8])
+
+
+def test_missing_image_warns_and_uses_a_constant_colour(scene, tmp_path):
+    img = bpy.data.images.new("Gone", 4, 4)
+    img.source = "FILE"
+    img.filepath = str(tmp_path / "does_not_exist.png")
+    img.reload()
+    mat = bs.diffuse("Textured")
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    nt.links.new(tex.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    assert any("Gone" in w and "does_not_exist.png" in w for w in ex.warnings)
+    assert row["diffuse_texture"] == -1
+    assert row["diffuse_color"] == pytest.approx([1.0, 0.0, 1.0])
+    assert ex.scene.textures == []
+
+
+def test_image_texture_is_linearised_and_uses_uvs(scene):
+    img = bpy.data.images.new("Checker", 8, 4)
+    px = np.zeros((4, 8, 4), np.float32)
+    px[:, :4, :3] = 0.5            # left half mid grey in sRGB encoding, right half black
+    px[..., 3] = 1.0
+    img.pixels.foreach_set(px.ravel())
+    img.colorspace_settings.name = "sRGB"
+    mat = bs.diffuse("Textured")
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    reroute = nt.nodes.new("NodeReroute")
+    nt.links.new(tex.outputs["Color"], reroute.inputs[0])
+    nt.links.new(reroute.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    s = ex.scene
+    assert row["diffuse_texture"] == 0 and len(s.textures) == 1
+    assert s.textures[0].shape == (4, 8, 3)
+    stored = np.empty(4 * 8 * 4, np.float32)
+    img.pixels.foreach_get(stored)
+    stored = stored.reshape(4, 8, 4)[:, :, :3]
+    expected = np.where(stored <= 0.04045, stored / 12.92, ((stored + 0.055) / 1.055) ** 2.4)
+    assert s.textures[0] == pytest.approx(expected, abs=1e-5)
+    assert s.uvs is not None and s.uvs.shape == (2, 3, 2)
+    assert s.uvs.min() >= 0 and s.uvs.max() <= 1
+
+
+def test_principled_mapping(scene):
+    base = (0.8, 0.2, 0.1, 1.0)
+    plain, _ = export_material(principled("Plastic", **{"Base Color": base, "Roughness": 0.3}))
+    assert plain["diffuse_color"] == pytest.approx(base[:3])
+    assert plain["diffuse_weight"] + plain["glossy_weight"] == pytest.approx(1.0)
+    assert 0.05 < plain["glossy_weight"] < 0.15             # mean Fresnel of IOR 1.5, level 0.5
+    assert plain["glossy_color"] == pytest.approx([1, 1, 1])
+    assert plain["glossy_roughness"] == pytest.approx(0.3)
+    metal, _ = export_material(principled("Metal", **{"Base Color": base, "Metallic": 1.0,
+                                                      "Roughness": 0.0}))
+    assert metal["glossy_weight"] == pytest.approx(1.0) and metal["diffuse_weight"] == 0
+    assert metal["glossy_color"] == pytest.approx(base[:3]) and metal["glossy_roughness"] == 0
+    glass, _ = export_material(principled("Clear", **{"Transmission Weight": 1.0, "IOR": 1.33}))
+    assert glass["dielectric_weight"] == pytest.approx(1.0) and glass["ior"] == pytest.approx(1.33)
+    no_spec, _ = export_material(principled("Matte", **{"Specular IOR Level": 0.0}))
+    assert no_spec["diffuse_weight"] == pytest.approx(1.0) and no_spec["glossy_weight"] == 0
+    lamp, _ = export_material(principled("Lamp", **{"Emission Color": (1, 0.5, 0.25, 1),
+                                                    "Emission Strength": 4.0}))
+    assert lamp["emission"] == pytest.approx([4, 2, 1])
+
+
+def test_mix_add_groups_and_basic_bsdfs(scene):
+    mat = bpy.data.materials.new("Layered")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    # A node group wrapping a Diffuse BSDF whose colour comes from the group input.
+    group = bpy.data.node_groups.new("Paint", "ShaderNodeTree")
+    group.interface.new_socket("Tint", in_out="INPUT", socket_type="NodeSocketColor")
+    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    gin, gout = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    inner = group.nodes.new("ShaderNodeBsdfDiffuse")
+    group.links.new(gin.outputs["Tint"], inner.inputs["Color"])
+    group.links.new(inner.outputs[0], gout.inputs["BSDF"])
+    paint = nt.nodes.new("ShaderNodeGroup")
+    paint.node_tree = group
+    paint.inputs["Tint"].default_value = (0.2, 0.4, 0.6, 1.0)
+    glossy = nt.nodes.new("ShaderNodeBsdfGlossy")
+    glossy.inputs["Roughness"].default_value = 0.25
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.25
+    nt.links.new(paint.outputs["BSDF"], mix.inputs[1])
+    nt.links.new(glossy.outputs[0], mix.inputs[2])
+    emit = nt.nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = 2.0
+    add = nt.nodes.new("ShaderNodeAddShader")
+    nt.links.new(mix.outputs[0], add.inputs[0])
+    nt.links.new(emit.outputs[0], add.inputs[1])
+    nt.links.new(add.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    assert not [w for w in ex.warnings if "Layered" in w]
+    assert row["diffuse_weight"] == pytest.approx(0.75)
+    assert row["diffuse_color"] == pytest.approx([0.2, 0.4, 0.6])
+    assert row["glossy_weight"] == pytest.approx(0.25) and row["glossy_roughness"] == pytest.approx(0.25)
+    assert row["emission"] == pytest.approx([2, 2, 2])
+
+    glass = bs.glass("Water", ior=1.33)
+    row, _ = export_material(glass)
+    assert row["dielectric_weight"] == 1 and row["ior"] == pytest.approx(1.33)
+    mirror = bs._material("Chrome", "ShaderNodeBsdfGlossy", Roughness=0.0)
+    row, _ = export_material(mirror)
+    assert row["glossy_weight"] == 1 and row["glossy_roughness"] == 0   # the core treats it as a mirror
+
+
+# ---------------------------------------------------------------------- lights
+def light_row(core_scene, i=0):
+    L = core_scene.lights
+    return {f: getattr(L, f)[i] for f in L.ARRAY_FIELDS}
+
+
+def export_light(kind, **props):
+    ob = bs.light(kind, location=(1, 2, 3), target=(1, 2, 0), **props)
+    bs.camera()
+    return ob, light_row(bs.export().scene)
+
+
+def test_point_light_units(scene):
+    _, row = export_light("POINT", energy=100.0, shadow_soft_size=0.25, color=(1, 0.5, 0.25), exposure=1.0)
+    assert row["power"] == pytest.approx([200, 100, 50])
+    assert row["radius"] == pytest.approx(0.25) and tuple(row["position"]) == pytest.approx((1, 2, 3))
+
+
+def test_unnormalized_point_light_matches_cycles_radiance(scene):
+    # Cycles: normalize off skips the 1/(4 pi r^2) area division -> radiance P/pi.
+    _, row = export_light("POINT", energy=10.0, shadow_soft_size=0.5, normalize=False)
+    r = 0.5
+    radiance = row["power"][0] / (4 * math.pi ** 2 * r * r)
+    assert radiance == pytest.approx(10.0 / math.pi, rel=1e-5)
+
+
+def test_temperature_multiplies_the_colour(scene):
+    ob, row = export_light("POINT", energy=10.0, use_temperature=True, temperature=3000.0)
+    expected = 10.0 * np.array(ob.data.temperature_color[:3])
+    assert row["power"] == pytest.approx(expected, rel=1e-5)
+    assert row["power"][0] > row["power"][2]
+
+
+def test_spot_light(scene):
+    _, row = export_light("SPOT", energy=50.0, spot_size=math.radians(40), spot_blend=0.3)
+    from amcmcppm.core.scene import SPOT
+    assert row["kind"] == SPOT and row["power"] == pytest.approx([50, 50, 50])
+    assert row["spot_angle"] == pytest.approx(math.radians(40)) and row["spot_blend"] == pytest.approx(0.3)
+    assert row["direction"] == pytest.approx([0, 0, -1], abs=1e-6)
+
+
+@pytest.mark.parametrize("shape,size,size_y,area", [
+    ("SQUARE", 2.0, 9.0, 4.0 * 1.5 * 0.5),
+    ("RECTANGLE", 2.0, 3.0, 6.0 * 1.5 * 0.5),
+    ("DISK", 2.0, 9.0, math.pi * 1.5 * 0.5),
+    ("ELLIPSE", 2.0, 3.0, math.pi * 1.5 * 0.5 * 1.5),
+])
+def test_area_light_shapes_include_object_scale(scene, shape, size, size_y, area):
+    from amcmcppm.core.scene import AREA_DISK, AREA_RECT
+    ob = bs.light("AREA", location=(0, 0, 3), target=(0, 0, 0), energy=100.0, shape=shape, size=size,
+                  size_y=size_y)
+    ob.scale = (1.5, 0.5, 2.0)
+    bs.camera()
+    row = light_row(bs.export().scene)
+    assert row["kind"] == (AREA_DISK if shape in ("DISK", "ELLIPSE") else AREA_RECT)
+    half_u, half_v = np.linalg.norm(row["axis_u"]), np.linalg.norm(row["axis_v"])
+    got = 4 * half_u * half_v * (math.pi / 4 if row["kind"] == AREA_DISK else 1.0)
+    assert got == pytest.approx(area, rel=1e-5)
+    assert row["direction"] == pytest.approx([0, 0, -1], abs=1e-6)
+    assert row["power"] == pytest.approx([100, 100, 100])
+    ob.data.normalize = False         # Cycles: radiance P / pi without the area division
+    row = light_row(bs.export().scene)
+    assert row["power"][0] / (math.pi * area) == pytest.approx(100 / math.pi, rel=1e-5)
+
+
+def test_sun_light(scene):
+    from amcmcppm.core.scene import SUN
+    _, row = export_light("SUN", energy=3.0, angle=math.radians(2.0))
+    assert row["kind"] == SUN and row["power"] == pytest.approx([3, 3, 3])
+    assert row["sun_angle"] == pytest.approx(math.radians(2.0))
+    assert row["direction"] == pytest.approx([0, 0, -1], abs=1e-6)
+
+
+def test_dark_and_negative_lights_are_skipped(scene):
+    bs.light("POINT", energy=0.0)
+    bs.light("POINT", energy=-5.0, name="Negative")
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.lights.count == 0
+    assert any("Negative" in w for w in ex.warnings)
+
+
+# ---------------------------------------------------------------------- camera and world
+def test_perspective_camera_matches_view_frame(scene):
+    cam = bs.camera(location=(0, -5, 1), target=(0, 0, 1), lens=35.0)
+    cam.data.shift_x, cam.data.shift_y = 0.1, -0.05
+    cam.data.sensor_fit = "VERTICAL"
+    cam.data.sensor_height = 20.0
+    scene.render.resolution_x, scene.render.resolution_y = 60, 40
+    c = bs.export().scene.camera
+    corners = np.array([tuple(v) for v in cam.data.view_frame(scene=scene)])
+    xy = corners[:, :2] / -corners[:, 2:3]
+    assert c.frame == pytest.approx((xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max()))
+    # Vertical fit: the frame height is sensor_height / lens on the z = -1 plane.
+    assert c.frame[3] - c.frame[2] == pytest.approx(20.0 / 35.0, rel=1e-5)
+    assert c.resolution == (60, 40) and c.projection == "perspective"
+    assert np.asarray(c.world_from_camera)[:3, 3] == pytest.approx([0, -5, 1])
+
+
+def test_camera_scale_is_removed_and_percentage_applied(scene):
+    cam = bs.camera(location=(0, -5, 1), target=(0, 0, 1))
+    cam.scale = (2, 2, 2)
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 101, 50, 50
+    c = bs.export().scene.camera
+    m = np.asarray(c.world_from_camera)
+    assert np.linalg.norm(m[:3, :3], axis=0) == pytest.approx([1, 1, 1])
+    assert c.resolution == (50, 25)
+
+
+def test_orthographic_camera(scene):
+    bs.camera(location=(0, 0, 5), target=(0, 0, 0), ortho_scale=4.0)
+    scene.render.resolution_x, scene.render.resolution_y = 40, 20
+    c = bs.export().scene.camera
+    assert c.projection == "orthographic"
+    assert c.frame == pytest.approx((-2.0, 2.0, -1.0, 1.0))
+
+
+def test_depth_of_field(scene):
+    cam = bs.camera(location=(0, -5, 0), target=(0, 0, 0), lens=50.0)
+    cam.data.dof.use_dof = True
+    cam.data.dof.aperture_fstop = 2.0
+    cam.data.dof.focus_distance = 3.0
+    c = bs.export().scene.camera
+    assert c.aperture_radius == pytest.approx(0.05 / 4)
+    assert c.focus_distance == pytest.approx(3.0)
+    target = bpy.data.objects.new("Focus", None)
+    target.location = (1.0, -1.0, 0.5)     # 4 m in front of the camera along its view axis
+    scene.collection.objects.link(target)
+    cam.data.dof.focus_object = target
+    assert bs.export().scene.camera.focus_distance == pytest.approx(4.0, rel=1e-5)
+    cam.data.clip_start, cam.data.clip_end = 0.5, 20.0
+    c = bs.export().scene.camera
+    assert (c.clip_start, c.clip_end) == pytest.approx((0.5, 20.0))
+
+
+def test_border_is_passed_to_the_camera(scene):
+    bs.camera()
+    r = scene.render
+    r.use_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.2, 0.6
+    assert bs.export().scene.camera.border == pytest.approx((0.25, 0.75, 0.2, 0.6))
+
+
+def test_world_background_and_override(scene):
+    bs.world((0.2, 0.4, 0.8), strength=2.5)
+    bs.camera()
+    assert bs.export().scene.world.color == pytest.approx([0.5, 1.0, 2.0])
+    other = bpy.data.worlds.new("Other")
+    other.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+    other.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.5
+    bpy.context.view_layer.world_override = other
+    assert bs.export().scene.world.color == pytest.approx([0.5, 0.5, 0.5])
+
+
+def test_world_texture_warns_and_keeps_the_colour(scene):
+    w = bs.world((0.1, 0.1, 0.1))
+    nt = w.node_tree
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    bs.camera()
+    ex = bs.export()
+    assert any("Sky Texture" in m for m in ex.warnings)
+    assert np.isfinite(ex.scene.world.color).all()
+
+
+def test_transform_helpers_match_mathutils():
+    """The instance transform used by the exporter agrees with mathutils for a mirrored matrix."""
+    from amcmcppm.amcmcppm_addon.export import mesh
+    rotation = Matrix.Rotation(0.4, 3, "Z").to_quaternion()
+    m = Matrix.LocRotScale(Vector((1, 2, 3)), rotation, Vector((-2, 1, 3)))
+    local = mesh.LocalMesh("t", np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64),
+                           np.array([[0, 1, 2]], np.int32), np.zeros(1, np.int32), None, None, ())
+    part = mesh.transform_instances(local, np.array(m)[None], np.array([0], np.int32), 0)
+    expected = [tuple(m @ Vector(p)) for p in local.positions]
+    assert part["vertices"] == pytest.approx(np.array(expected))
+    assert part["triangles"].tolist() == [[0, 2, 1]]        # mirrored: winding reversed

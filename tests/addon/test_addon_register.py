@@ -1,0 +1,135 @@
+"""Registration, defaults, panels and the extension manifest (real bpy module)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import bpy
+import pytest
+
+from conftest import ROOT, load_package
+
+sys.path.insert(0, str(ROOT / "tools"))
+import build_extension  # noqa: E402
+
+ENGINE = "AMCMCPPM"
+
+
+def same(a, b):
+    return a == b if isinstance(b, str) else a == pytest.approx(b, rel=1e-6)
+
+
+def engine_available():
+    scene = bpy.context.scene
+    old = scene.render.engine
+    try:
+        scene.render.engine = ENGINE
+    except TypeError:
+        return False
+    scene.render.engine = old
+    return True
+
+
+def test_register_unregister_repeatedly(addon):
+    """Unregister/register cycles leave no engine, property or panel behind and restore them."""
+    from amcmcppm.amcmcppm_addon import ui
+    assert engine_available()
+    for _ in range(3):
+        addon.unregister()
+        assert not engine_available()
+        assert not hasattr(bpy.types.Scene, "amcmcppm")
+        assert not any(ENGINE in p.COMPAT_ENGINES for p in ui.get_panels())
+        assert not hasattr(bpy.types, "AMCMCPPM_RENDER_PT_sampling")
+        addon.register()
+        assert engine_available()
+        assert hasattr(bpy.types.Scene, "amcmcppm")
+        assert hasattr(bpy.types, "AMCMCPPM_RENDER_PT_sampling")
+
+
+def test_root_package_imports_without_registering():
+    """pytest and Blender import the root package; bpy is needed only by register()."""
+    src = (Path(__file__).resolve().parents[2] / "__init__.py").read_text()
+    top_level = [line for line in src.splitlines() if line.startswith(("import ", "from "))]
+    assert top_level == []
+    assert callable(load_package().register)
+
+
+def test_engine_flags(addon):
+    from amcmcppm.amcmcppm_addon.engine import AMCMCPPMRenderEngine as E
+    assert (E.bl_idname, E.bl_label) == (ENGINE, "AMCMCPPM")
+    assert E.bl_use_shading_nodes_custom is False
+
+
+def test_defaults_follow_core(scene):
+    """Every core setting has a property of the same name whose default is the core's default."""
+    from amcmcppm.amcmcppm_addon.export import render_settings_from
+    from amcmcppm.core.settings import RenderSettings
+    core = RenderSettings()
+    props = scene.amcmcppm
+    for name in RenderSettings.__dataclass_fields__:
+        assert hasattr(props, name), f"no property for core setting {name}"
+        prop = props.bl_rna.properties[name]
+        assert same(prop.default, getattr(core, name)), name
+        assert prop.description, f"{name} has no description"
+    assert props.bl_rna.properties["target_acceptance"].default == pytest.approx(0.60)
+    fresh = bpy.data.scenes.new("Fresh").amcmcppm
+    settings = render_settings_from(fresh)
+    for name in RenderSettings.__dataclass_fields__:
+        assert same(getattr(settings, name), getattr(core, name)), name
+
+
+def test_enums_have_indices_and_limits(scene):
+    props = scene.amcmcppm.bl_rna.properties
+    for name in ("method", "mutation", "normalisation"):
+        values = [item.value for item in props[name].enum_items]
+        assert values == list(range(len(values)))
+    assert props["target_acceptance"].hard_min > 0 and props["target_acceptance"].hard_max < 1
+    assert props["alpha"].hard_min > 0 and props["alpha"].hard_max < 1
+    assert props["workers"].hard_min == 0
+    assert props["max_bounces"].hard_min >= 1
+
+
+def test_settings_reach_core(scene):
+    from amcmcppm.amcmcppm_addon.export import render_settings_from
+    p = scene.amcmcppm
+    p.method, p.mutation, p.target_acceptance, p.passes, p.seed = "ppm", "exact", 0.3, 7, 11
+    s = render_settings_from(p)
+    assert (s.method, s.mutation, s.passes, s.seed) == ("ppm", "exact", 7, 11)
+    assert s.target_acceptance == pytest.approx(0.3)
+
+
+def test_panels_poll_and_props_exist(scene):
+    from amcmcppm.amcmcppm_addon import ui
+    names = set(scene.amcmcppm.bl_rna.properties.keys())
+    drawn = set()
+    for panel in ui.classes:
+        assert panel.__name__.startswith("AMCMCPPM_RENDER_PT_")
+        assert panel.poll(bpy.context)
+        for prop in panel.props:
+            assert prop in names, f"{panel.__name__} draws unknown property {prop}"
+        drawn.update(panel.props)
+    # Every setting of the property group is on some panel.
+    assert drawn == names - {"rna_type", "name"}
+    scene.render.engine = "CYCLES"
+    assert not ui.AMCMCPPM_RENDER_PT_sampling.poll(bpy.context)
+
+
+def test_builtin_panels_show_for_engine(addon):
+    """Format, output, colour management, camera, light, material and world panels include us."""
+    wanted = {"RENDER_PT_format", "RENDER_PT_output", "RENDER_PT_color_management", "DATA_PT_camera",
+              "DATA_PT_camera_dof", "DATA_PT_EEVEE_light", "DATA_PT_spot",
+              "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface"}
+    panels = {p.__name__: p for p in bpy.types.Panel.__subclasses__()}
+    for name in wanted:
+        assert ENGINE in panels[name].COMPAT_ENGINES, name
+    for name in ("DATA_PT_light", "RENDER_PT_simplify"):
+        assert ENGINE not in panels[name].COMPAT_ENGINES, name
+
+
+def test_manifest_validates(repo_root):
+    """Blender's own extension validator accepts the repository root."""
+    cli = build_extension.blender_ext_cli()
+    out = subprocess.run([sys.executable, str(cli), "validate", str(repo_root)], capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr

@@ -1,0 +1,109 @@
+"""render.py as a command line tool (``python render.py scene.blend ...`` with the bpy module)."""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import blender_scenes as bs
+
+FAST = ["--passes", "2", "--photons-per-pass", "3000", "--workers", "1", "--chains", "256",
+        "--resolution-percentage", "10"]
+
+
+def run(repo_root, *args, timeout=300):
+    return subprocess.run([sys.executable, str(repo_root / "render.py"), *map(str, args)], cwd=repo_root,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def cornell(repo_root):
+    return repo_root / "sample_blends" / "cornell_box.blend"
+
+
+def test_renders_exr_png_and_stats(repo_root, cornell, tmp_path):
+    out = run(repo_root, cornell, "--output", tmp_path / "c.exr", "--png", tmp_path / "c.png",
+              "--stats", tmp_path / "stats.jsonl", "--method", "ppm", "--seed", "3", "--max-bounces", "4",
+              "--alpha", "0.5", "--initial-radius", "2", *FAST)
+    assert out.returncode == 0, out.stderr
+    assert "render.py: wrote" in out.stdout
+    img = bs.read_exr(tmp_path / "c.exr")
+    assert img.shape == (25, 25, 4) and np.isfinite(img).all() and img[..., :3].mean() > 0
+    assert (tmp_path / "c.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    stats = [json.loads(x) for x in (tmp_path / "stats.jsonl").read_text().splitlines()]
+    assert [s["pass"] for s in stats] == [1, 2]
+    assert all(s["method"] == "ppm" for s in stats)
+
+
+def test_snapshots_until_the_last_time(repo_root, cornell, tmp_path):
+    """Without --passes/--time-limit the render runs until the last snapshot time."""
+    args = [a for a in FAST if a not in ("--passes", "2")]
+    out = run(repo_root, cornell, "--output", tmp_path / "s.exr", "--snapshot-times", "0.000001,1.5",
+              "--snapshot-dir", tmp_path / "snaps", "--stats", tmp_path / "stats.jsonl", *args)
+    assert out.returncode == 0, out.stderr
+    index = [json.loads(x) for x in (tmp_path / "snaps" / "snapshots.jsonl").read_text().splitlines()]
+    assert [e["time"] for e in index] == [0.000001, 1.5]
+    assert index[0]["pass"] == 1 and index[1]["elapsed_s"] >= 1.5
+    for e in index:
+        snap = bs.read_exr(tmp_path / "snaps" / e["file"])
+        assert snap.shape == (25, 25, 4) and np.isfinite(snap).all()
+    stats = [json.loads(x) for x in (tmp_path / "stats.jsonl").read_text().splitlines()]
+    assert stats[-1]["elapsed_s"] >= 1.5 and stats[-2]["elapsed_s"] < 1.5
+
+
+def test_border_and_resolution_flags(repo_root, cornell, tmp_path):
+    out = run(repo_root, cornell, "--output", tmp_path / "b.exr", "--resolution", "40", "30",
+              "--border", "0.25", "0.75", "0.0", "0.5", *FAST[:-2])
+    assert out.returncode == 0, out.stderr
+    assert bs.read_exr(tmp_path / "b.exr").shape == (30, 40, 4)   # Blender keeps the full frame
+
+
+@pytest.mark.parametrize("args,pattern", [
+    (["--bogus"], r"unrecognized arguments: --bogus"),
+    (["--method", "bpt"], r"argument --method: invalid choice"),
+    (["--target-acceptance", "1.5"], r"--target-acceptance 1.5 is outside the allowed range"),
+    (["--output", "x.bmpx"], r"unknown image type '.bmpx'"),
+])
+def test_bad_arguments_exit_2_with_one_line(repo_root, cornell, tmp_path, args, pattern):
+    base = ["--output", tmp_path / "x.exr"] if "--output" not in args else []
+    out = run(repo_root, cornell, *base, *args)
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("render.py: error:") and re.search(pattern, lines[0])
+
+
+def test_missing_blend_exits_2(repo_root, tmp_path):
+    out = run(repo_root, tmp_path / "nope.blend", "--output", tmp_path / "x.exr")
+    assert out.returncode == 2
+    assert out.stderr.strip() == f"render.py: error: no such .blend file: {tmp_path / 'nope.blend'}"
+
+
+def test_render_failure_exits_1_with_reason(repo_root, cornell, tmp_path):
+    out = run(repo_root, cornell, "--output", tmp_path / "x.exr", "--passes", "0", "--time-limit", "0")
+    assert out.returncode == 1
+    last = out.stderr.strip().splitlines()[-1]
+    assert last.startswith("render.py: error:") and "passes and time_limit are both 0" in last
+
+
+def test_flags_mirror_the_core_cli(repo_root):
+    """Every setting flag of ``python -m core render`` exists in render.py with the same name."""
+    sys.path.insert(0, str(repo_root))
+    try:
+        import render as render_script
+        from core.__main__ import build_parser as core_parser
+    finally:
+        sys.path.remove(str(repo_root))
+    ours = {opt for a in render_script.build_parser()._actions for opt in a.option_strings}
+    core_render = next(a for a in core_parser()._actions if a.dest == "command").choices["render"]
+    theirs = {opt for a in core_render._actions for opt in a.option_strings}
+    not_settings = {"--builtin", "--resolution", "--png", "--quiet", "-q", "-h", "--help", "-o", "--output"}
+    missing = (theirs - not_settings) - ours
+    assert not missing, f"render.py lacks core flags {sorted(missing)}"
+    # And every panel setting has a flag.
+    panel = set(render_script.SETTING_FLAGS.values())
+    from amcmcppm.amcmcppm_addon.properties import CORE_SETTING_NAMES
+    assert set(CORE_SETTING_NAMES) == panel

@@ -1,0 +1,59 @@
+"""The sample scenes: each .blend opens with our engine and renders end to end with finite output."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+import blender_scenes as bs
+
+SAMPLES = ["cornell_box", "glass_ceiling", "hole_mirror_glass", "small_view", "caustic_sds"]
+
+
+def open_sample(repo_root, name):
+    bpy.ops.wm.open_mainfile(filepath=str(repo_root / "sample_blends" / f"{name}.blend"))
+    return bpy.context.scene
+
+
+@pytest.mark.parametrize("name", SAMPLES)
+def test_sample_renders_fast(addon, repo_root, tmp_path, name):
+    """Tiny and quick: 20 % resolution, two passes of few photons in this process."""
+    scene = open_sample(repo_root, name)
+    assert scene.render.engine == "AMCMCPPM"
+    p = scene.amcmcppm
+    assert p.time_limit == pytest.approx(60.0) and p.passes == 0 and p.workers == 0
+    scene.render.resolution_percentage = 20
+    p.passes, p.time_limit, p.photons_per_pass, p.workers, p.chains = 2, 0.0, 5000, 1, 512
+    img = bs.render_exr(tmp_path / f"{name}.exr")
+    w = scene.render.resolution_x * 20 // 100
+    h = scene.render.resolution_y * 20 // 100
+    assert img.shape == (h, w, 4)
+    assert np.isfinite(img).all()
+    assert img[..., :3].mean() > 1e-3
+
+
+def test_build_script_rebuilds_every_sample(addon, repo_root, tmp_path):
+    env = dict(os.environ, AMCMCPPM_SAMPLES_DIR=str(tmp_path))
+    out = subprocess.run([sys.executable, str(repo_root / "sample_blends" / "build_samples.py")], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    for name in SAMPLES:
+        path = tmp_path / f"{name}.blend"
+        assert path.is_file() and path.stat().st_size < 400_000
+        committed = repo_root / "sample_blends" / f"{name}.blend"
+        assert committed.is_file() and committed.stat().st_size < 400_000
+    assert not list(tmp_path.glob("*.blend1"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SAMPLES)
+def test_sample_renders_with_its_own_settings(addon, repo_root, tmp_path, name):
+    """The shipped settings: full resolution, all cores, the 60 s time limit."""
+    scene = open_sample(repo_root, name)
+    img = bs.render_exr(tmp_path / f"{name}.exr")
+    assert img.shape[:2] == (scene.render.resolution_y, scene.render.resolution_x)
+    assert np.isfinite(img).all() and img[..., :3].mean() > 1e-2
