@@ -196,7 +196,7 @@ def assemble(meshes, groups, materials) -> Geometry:
         instances += len(matrices)
     if not parts:
         return Geometry.empty()
-    vertices = np.concatenate([p["vertices"] for p in parts]).astype(np.float32)
+    vertices = np.concatenate([p["vertices"] for p in parts])
     triangles = np.concatenate([p["triangles"] for p in parts])
     material_ids = np.concatenate([p["material_ids"] for p in parts])
     normals = None
@@ -218,39 +218,49 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset):
     """World-space arrays of ``k`` instances of ``local``.
 
     world_from_object : (k, 4, 4) float64.  mat_ids : (n_slots,) int32 core material
-    ids of the slots.  Returns a dict of vertices (k V, 3) float64, triangles (k T, 3)
-    int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) or
-    None and uvs (k T, 3, 2) or None.
+    ids of the slots.  Returns a dict of vertices (k V, 3) float32, triangles (k T, 3)
+    int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) float32
+    or None and uvs (k T, 3, 2) float32 or None.
     """
     k = len(world_from_object)
     rot = world_from_object[:, :3, :3]
     n_v, n_t = len(local.positions), len(local.triangles)
-    vertices = np.einsum("kij,vj->kvi", rot, local.positions) + world_from_object[:, None, :3, 3]
+    # One batched matrix product per mesh: (1, V, 3) @ (k, 3, 3) -> (k, V, 3).
+    vertices = np.matmul(local.positions[None], rot.transpose(0, 2, 1)) + world_from_object[:, None, :3, 3]
     # Mirroring instances (det < 0) keep their front side by reversing the winding.
-    mirrored = np.linalg.det(rot) < 0
-    corner_order = np.where(mirrored[:, None], [0, 2, 1], [0, 1, 2])        # (k, 3)
-    tri = local.triangles[None, :, :] + (vertex_offset + n_v * np.arange(k))[:, None, None]
-    tri = np.take_along_axis(tri, np.broadcast_to(corner_order[:, None, :], tri.shape), axis=2)
+    mirrored = np.flatnonzero(np.linalg.det(rot) < 0)
+    tri = local.triangles[None, :, :] + (vertex_offset + n_v * np.arange(k, dtype=np.int64))[:, None, None]
+    _swap_corners(tri, mirrored)
     slot = np.clip(local.slots, 0, len(mat_ids) - 1)
     material_ids = np.tile(mat_ids[slot], k)
     normals = None
     if local.normals is not None:
-        normal_from_object = _inverse_transpose(rot)
-        n = np.einsum("kij,tcj->ktci", normal_from_object, local.normals.astype(np.float64))
-        n /= np.maximum(np.linalg.norm(n, axis=3, keepdims=True), 1e-30)
-        normals = _reorder_corners(n, corner_order).reshape(k * n_t, 3, 3)
+        normal_from_object = _inverse_transpose(rot).astype(np.float32)
+        n = np.matmul(local.normals.reshape(1, -1, 3), normal_from_object.transpose(0, 2, 1))
+        # Rotations keep unit length; scaled or sheared instances are renormalised.
+        gram = np.matmul(normal_from_object, normal_from_object.transpose(0, 2, 1))
+        rescale = np.flatnonzero(np.abs(gram - np.eye(3, dtype=np.float32)).max(axis=(1, 2)) > 1e-5)
+        if len(rescale):
+            m = n[rescale]
+            m /= np.maximum(np.sqrt(np.einsum("kci,kci->kc", m, m))[..., None], 1e-30)
+            n[rescale] = m
+        normals = n.reshape(k, n_t, 3, 3)
+        _swap_corners(normals, mirrored)
+        normals = normals.reshape(k * n_t, 3, 3)
     uvs = None
     if local.uvs is not None:
-        uvs = _reorder_corners(np.broadcast_to(local.uvs, (k,) + local.uvs.shape), corner_order)
+        uvs = np.repeat(local.uvs[None], k, axis=0) if (k > 1 or len(mirrored)) else local.uvs[None]
+        _swap_corners(uvs, mirrored)
         uvs = uvs.reshape(k * n_t, 3, 2)
-    return {"vertices": vertices.reshape(k * n_v, 3), "triangles": tri.reshape(k * n_t, 3).astype(np.int32),
-            "material_ids": material_ids, "normals": normals, "uvs": uvs}
+    return {"vertices": vertices.reshape(k * n_v, 3).astype(np.float32),
+            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
+            "normals": normals, "uvs": uvs}
 
 
-def _reorder_corners(a, corner_order):
-    """a (k, T, 3, d) with the corners of instance i permuted by corner_order[i]."""
-    idx = np.broadcast_to(corner_order[:, None, :, None], a.shape)
-    return np.take_along_axis(a, idx, axis=2)
+def _swap_corners(a, instances):
+    """Exchange corners 1 and 2 of every triangle of the given instances of a (k, T, 3, ...)."""
+    if len(instances):
+        a[instances, :, 1], a[instances, :, 2] = a[instances, :, 2].copy(), a[instances, :, 1].copy()
 
 
 def _inverse_transpose(rot):
