@@ -160,7 +160,8 @@ def set_output(scene, path):
     r.filepath = os.path.abspath(path)
     r.use_file_extension = False
     s = r.image_settings
-    s.media_type = "IMAGE"
+    if hasattr(s, "media_type"):        # Blender 5.0 (multilayer EXR is a media type there)
+        s.media_type = "IMAGE"
     s.file_format = FORMATS[ext]
     if ext == ".exr":
         s.color_mode = "RGBA"
@@ -220,6 +221,9 @@ def main(argv=None):
     except Failure as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return e.status
+    except Exception as e:      # Blender's -P would otherwise exit 0 after an uncaught exception
+        print(f"render.py: error: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":
