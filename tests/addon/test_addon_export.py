@@ -573,3 +573,13 @@ def test_transform_helpers_match_mathutils():
     expected = [tuple(m @ Vector(p)) for p in local.positions]
     assert part["vertices"] == pytest.approx(np.array(expected))
     assert part["triangles"].tolist() == [[0, 2, 1]]        # mirrored: winding reversed
+
+
+def test_export_operator_writes_a_core_scene(scene, tmp_path):
+    """The .npz the operator writes loads in the core alone (python -m core render scene.npz)."""
+    from amcmcppm.core.scene import Scene
+    bs.lit_floor_scene()
+    assert bpy.ops.amcmcppm.export_scene(filepath=str(tmp_path / "scene.npz")) == {"FINISHED"}
+    loaded = Scene.load(tmp_path / "scene.npz")
+    assert loaded.triangle_count == 2 and loaded.lights.count == 1
+    assert loaded.camera.resolution == (32, 32)
