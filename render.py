@@ -97,10 +97,13 @@ def script_argv(bpy):
     return [] if bpy.app.binary_path else sys.argv[1:]
 
 
-def ensure_engine(bpy, scene):
-    """Make the AMCMCPPM engine available and select it; register the add-on from here if needed."""
+def ensure_addon(bpy):
+    """Make the AMCMCPPM engine available; register the add-on from this directory if needed."""
+    scene = bpy.context.scene
+    old = scene.render.engine
     try:
         scene.render.engine = ENGINE
+        scene.render.engine = old
         return
     except TypeError:
         pass
@@ -111,7 +114,6 @@ def ensure_engine(bpy, scene):
         sys.modules[ADDON_MODULE] = module
         spec.loader.exec_module(module)
     sys.modules[ADDON_MODULE].register()
-    scene.render.engine = ENGINE
 
 
 def configure(bpy, scene, args):
@@ -178,6 +180,8 @@ def run(argv):
     import bpy
 
     args = build_parser().parse_args(script_argv(bpy) if argv is None else argv)
+    # Before opening the file, so that Blender finds the engine the file selects.
+    ensure_addon(bpy)
     if args.blend:
         if not os.path.isfile(args.blend):
             raise Failure(f"no such .blend file: {args.blend}", 2)
@@ -190,7 +194,7 @@ def run(argv):
     scene = bpy.context.scene
     if scene.camera is None:
         raise Failure(f"scene '{scene.name}' has no camera", 2)
-    ensure_engine(bpy, scene)
+    scene.render.engine = ENGINE
     configure(bpy, scene, args)
     t0 = time.perf_counter()
     try:
