@@ -134,11 +134,18 @@ def configure(bpy, scene, args):
     if args.snapshot_times:
         props.snapshot_times = args.snapshot_times
         props.snapshot_dir = os.path.abspath(args.snapshot_dir or "snapshots")
+        try:
+            times = [float(t) for t in args.snapshot_times.replace(";", ",").split(",") if t.strip()]
+        except ValueError:
+            raise Failure(f"--snapshot-times {args.snapshot_times!r}: expected numbers such as 1,2,4", 2) \
+                from None
+        if not times or min(times) <= 0:
+            raise Failure(f"--snapshot-times {args.snapshot_times!r}: expected positive seconds", 2)
         if args.passes is None and args.time_limit is None:
-            from_times = [float(t) for t in args.snapshot_times.replace(";", ",").split(",") if t.strip()]
-            props.passes, props.time_limit = 0, max(from_times)
+            props.passes, props.time_limit = 0, max(times)
     if args.stats:
         path = os.path.abspath(args.stats)
+        os.makedirs(os.path.dirname(path), exist_ok=True)
         open(path, "w").close()             # the engine appends; start from an empty file
         props.stats_path = path
     r = scene.render

@@ -181,10 +181,6 @@ class MaterialExporter:
     def uses_textures(self, ids) -> bool:
         return any(self._specs[i].get("diffuse_texture", -1) >= 0 for i in ids)
 
-    def emission(self):
-        """(M, 3) emitted radiance per material id."""
-        return np.array([s["emission"] for s in self._specs], np.float64).reshape(-1, 3)
-
     def build(self) -> Materials:
         return Materials.build(self._specs)
 

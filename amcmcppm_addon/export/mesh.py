@@ -4,7 +4,7 @@ Meshes are read once per evaluated mesh datablock (instances share it by data
 pointer) with the attribute API and ``foreach_get`` into NumPy buffers of the
 exact dtype (``shared/docs/blender.md`` section 2), triangulated by Blender's
 ``loop_triangles`` (quads and n-gons).  Instances of one mesh with one material
-assignment are transformed together in one ``einsum``: positions by
+assignment are transformed together in one batched ``matmul``: positions by
 ``world_from_object``, shading normals by its inverse transpose.  Where
 det(world_from_object) < 0 (mirrored objects) the triangle winding is reversed
 so that the geometric normal, and with it the emitting side, stays outward.
@@ -151,13 +151,13 @@ def read_mesh(me, name, log):
         mat_attr.data.foreach_get("value", poly_mat)
         slots = poly_mat[tri_poly]
 
-    normals = _corner_normals(me, tri_vert, tri_loops, tri_poly)
+    normals = _corner_normals(me, tri_vert, tri_loops)
     uvs = _corner_uvs(me, tri_loops)
     return LocalMesh(name=name, positions=positions.astype(np.float64), triangles=tri_vert, slots=slots,
                      normals=normals, uvs=uvs, mesh_materials=tuple(me.materials))
 
 
-def _corner_normals(me, tri_vert, tri_loops, tri_poly):
+def _corner_normals(me, tri_vert, tri_loops):
     """(T, 3, 3) float32 shading normals per triangle corner, or None for flat shading."""
     domain = me.normals_domain
     if domain == "FACE":

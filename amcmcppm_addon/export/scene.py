@@ -51,13 +51,6 @@ class ExportedScene:
         s = self.scene
         return s.triangle_count == 0 and s.lights.count == 0 and not np.any(s.world.color)
 
-    @property
-    def emits_light(self) -> bool:
-        s = self.scene
-        emissive = s.materials.count and np.any(s.materials.emission[np.unique(s.material_ids)] > 0) \
-            if s.triangle_count else False
-        return bool(s.lights.count or np.any(s.world.color) or emissive)
-
 
 def export_scene(depsgraph, camera_object=None, resolution=None, border=None) -> ExportedScene:
     """Export everything ``depsgraph`` shows for its view layer.

@@ -134,9 +134,12 @@ def export(scene=None):
 
 
 def emitted_power(core_scene):
-    """(3,) total emitted power as the core's own light sampler computes it."""
-    from amcmcppm.core.context import RenderContext
-    return RenderContext(core_scene).lights.total_power
+    """(3,) power emitted by the scene's emissive triangles: sum of 2 pi A L (two-sided, as Cycles).
+
+    Computed from the public ``core.Scene`` arrays (the units ``core/scene.py`` documents).
+    """
+    emission = core_scene.materials.emission[core_scene.material_ids].astype(np.float64)
+    return (2 * np.pi * triangle_areas(core_scene)) @ emission
 
 
 def triangle_areas(core_scene):

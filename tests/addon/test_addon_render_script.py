@@ -67,6 +67,7 @@ def test_border_and_resolution_flags(repo_root, cornell, tmp_path):
     (["--method", "bpt"], r"argument --method: invalid choice"),
     (["--target-acceptance", "1.5"], r"--target-acceptance 1.5 is outside the allowed range"),
     (["--output", "x.bmpx"], r"unknown image type '.bmpx'"),
+    (["--snapshot-times", "1,soon"], r"--snapshot-times '1,soon': expected numbers"),
 ])
 def test_bad_arguments_exit_2_with_one_line(repo_root, cornell, tmp_path, args, pattern):
     base = ["--output", tmp_path / "x.exr"] if "--output" not in args else []
