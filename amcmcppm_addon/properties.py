@@ -11,29 +11,36 @@ from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty,
 
 from ..core.settings import METHODS, MUTATIONS, NORMALISATIONS, RenderSettings
 
-# Enum items: (identifier = the core's value, name, description, index).
-enum_methods = (
-    ("amcmcppm", "AMCMCPPM",
-     "Adaptive Markov chain Monte Carlo progressive photon mapping: photon paths are "
-     "mutated towards paths the camera sees", 0),
-    ("ppm", "PPM",
-     "Stochastic progressive photon mapping with independent uniform photons (the baseline)", 1),
-)
-enum_mutations = (
-    ("off", "Off", "Mutate every dimension of the photon path", 0),
-    ("paper", "Paper",
-     "Redraw the dimensions after the vertex at which the mutated path became visible "
-     "(Watanabe et al.)", 1),
-    ("exact", "Exact", "Variant of the low-dimension mutation that keeps detailed balance", 2),
-)
-enum_normalisations = (
-    ("cumulative", "Cumulative", "Estimate the visible fraction from all uniform samples so far", 0),
-    ("per_pass", "Per Pass", "Scale each pass by its own visible-fraction estimate", 1),
-)
+# Enum items: identifier (the core's value) -> (name, description, index).  The index is what
+# the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
+METHOD_ITEMS = {
+    "amcmcppm": ("AMCMCPPM", "Adaptive Markov chain Monte Carlo progressive photon mapping: photon "
+                             "paths are mutated towards paths the camera sees", 0),
+    "ppm": ("PPM", "Stochastic progressive photon mapping with independent uniform photons "
+                   "(the baseline)", 1),
+}
+MUTATION_ITEMS = {
+    "off": ("Off", "Mutate every dimension of the photon path", 0),
+    "paper": ("Paper", "Redraw the dimensions after the vertex at which the mutated path became "
+                       "visible (Watanabe et al.); biased by a few percent when that vertex varies", 1),
+    "exact": ("Exact", "The paper's proposals, plus a redraw of the current state's suffix after a "
+                       "rejection, which keeps detailed balance", 2),
+}
+NORMALISATION_ITEMS = {
+    "cumulative": ("Cumulative", "Estimate the visible fraction from all uniform samples so far", 0),
+    "per_pass": ("Per Pass", "Scale each pass by its own visible-fraction estimate", 1),
+}
 
-for _items, _values in ((enum_methods, METHODS), (enum_mutations, MUTATIONS),
-                        (enum_normalisations, NORMALISATIONS)):
-    assert tuple(item[0] for item in _items) == tuple(_values), "enum items drifted from core.settings"
+
+def enum_items(values, known):
+    """EnumProperty items for the core's ``values``; a value new to the add-on still gets an item."""
+    return tuple((v, *known.get(v, (v.replace("_", " ").title(), f"Core setting value {v!r}",
+                                     100 + i))) for i, v in enumerate(values))
+
+
+enum_methods = enum_items(METHODS, METHOD_ITEMS)
+enum_mutations = enum_items(MUTATIONS, MUTATION_ITEMS)
+enum_normalisations = enum_items(NORMALISATIONS, NORMALISATION_ITEMS)
 
 _DEFAULTS = RenderSettings()
 INT_MAX = 2 ** 31 - 1

@@ -80,10 +80,17 @@ def test_defaults_follow_core(scene):
 
 
 def test_enums_have_indices_and_limits(scene):
+    from amcmcppm.amcmcppm_addon import properties as p
+    from amcmcppm.core import settings as core
     props = scene.amcmcppm.bl_rna.properties
-    for name in ("method", "mutation", "normalisation"):
-        values = [item.value for item in props[name].enum_items]
-        assert values == list(range(len(values)))
+    for name, values, known in (("method", core.METHODS, p.METHOD_ITEMS),
+                                ("mutation", core.MUTATIONS, p.MUTATION_ITEMS),
+                                ("normalisation", core.NORMALISATIONS, p.NORMALISATION_ITEMS)):
+        items = props[name].enum_items
+        assert [item.identifier for item in items] == list(values)
+        assert set(values) <= set(known), f"core {name} values the add-on does not describe"
+        assert [item.value for item in items] == [known[v][2] for v in values]
+        assert all(item.description for item in items)
     assert props["target_acceptance"].hard_min > 0 and props["target_acceptance"].hard_max < 1
     assert props["alpha"].hard_min > 0 and props["alpha"].hard_max < 1
     assert props["workers"].hard_min == 0
