@@ -34,33 +34,25 @@ class LightSampler:
         lo, hi = accel.bounds
         self.center = 0.5 * (lo + hi)
         self.radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)  # bounding sphere radius
-        kinds, ids, powers = [], [], []
-        # Analytic lights.
-        for i in range(lights.count):
-            kinds.append(int(lights.kind[i]))
-            ids.append(i)
-            powers.append(self._light_power(i))
+        # Analytic lights (a loop over the few lights, not over photons).
+        light_power = np.array([self._light_power(i) for i in range(lights.count)], np.float64).reshape(-1, 3)
         # Emissive triangles: two-sided Lambertian, power 2 pi A L.
         tri_mat = scene.material_ids
         emissive_tris = np.flatnonzero(table.is_emissive[tri_mat] & (accel.area > 0)) \
             if scene.triangle_count else np.zeros(0, np.int64)
         tri_power = (2.0 * np.pi * accel.area[emissive_tris])[:, None] * table.emission[tri_mat[emissive_tris]]
-        self.emission = table.emission
-        self.material_ids = tri_mat
         # World: a constant environment seen through the bounding sphere.
         world = np.asarray(scene.world.color, np.float64)
-        world_power = world * (4.0 * np.pi * np.pi * self.radius ** 2)
-        self.world_color = world
-        all_kinds = np.array(kinds + [TRIANGLE] * len(emissive_tris) + ([WORLD] if world.any() else []),
-                             np.int32)
-        all_ids = np.array(ids + list(emissive_tris) + ([0] if world.any() else []), np.int64)
-        all_power = np.concatenate([np.array(powers, np.float64).reshape(-1, 3), tri_power.reshape(-1, 3),
-                                    world_power[None] if world.any() else np.zeros((0, 3))])
+        n_world = 1 if world.any() else 0
+        all_kinds = np.concatenate([lights.kind.astype(np.int32) if lights.count else np.zeros(0, np.int32),
+                                    np.full(len(emissive_tris), TRIANGLE, np.int32), np.full(n_world, WORLD, np.int32)])
+        all_ids = np.concatenate([np.arange(lights.count), emissive_tris, np.zeros(n_world, np.int64)])
+        world_power = (world * 4.0 * np.pi * np.pi * self.radius ** 2).reshape(1, 3)[:n_world]
+        all_power = np.concatenate([light_power, tri_power.reshape(-1, 3), world_power])
         score = smp.luminance(all_power)
         keep = score > 0
         self.kinds, self.ids, self.power = all_kinds[keep], all_ids[keep], all_power[keep]
         score = score[keep]
-        self.total_power = self.power.sum(axis=0) if len(score) else np.zeros(3)
         self.count = len(score)
         if self.count:
             self.cdf = np.cumsum(score) / score.sum()
