@@ -156,12 +156,13 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 next_target = make_target(pass_index + 1, next_eye)
             prep_s = time.perf_counter() - t_next
             outputs = pool.collect(stop)
-            if outputs is None:
+            if outputs is None:         # stopped before any worker returned photons
                 result.interrupted = True
                 break
             merged = _merge(outputs)
             c = merged["counters"]
-            interrupted = any(o["interrupted"] for o in outputs)
+            # A stop request mid-pass returns the photons traced so far (partial pass).
+            interrupted = any(o["interrupted"] for o in outputs) or stop()
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
                               c["uniform_visible"], is_chain)
             if dropped:

@@ -16,6 +16,7 @@ their grid travel as ``.npy`` files that the workers map into memory (in
 """
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import selectors
@@ -31,7 +32,9 @@ from .photon_pass import DepositTarget
 from .worker import PhotonWorker, share
 
 _BOOTSTRAP = r"""
-import importlib.util, sys
+import importlib.util, json, os, sys
+# The parent's import path (inside Blender it holds the extension's wheels, e.g. embreex).
+sys.path.extend(p for p in json.loads(os.environ.get("AMCMCPPM_SYS_PATH", "[]")) if p not in sys.path)
 core_dir = sys.argv[1]
 spec = importlib.util.spec_from_file_location("_amcmcppm_worker_core", core_dir + "/__init__.py",
                                               submodule_search_locations=[core_dir])
@@ -41,6 +44,10 @@ spec.loader.exec_module(mod)
 from _amcmcppm_worker_core.parallel import worker_main
 worker_main()
 """
+
+
+# Seconds a worker gets to return its partial pass after a stop request.
+STOP_GRACE_S = 1.0
 
 
 class WorkerError(RuntimeError):
@@ -78,10 +85,13 @@ class ProcessPool:
         # One thread per worker process: the workers are the parallelism.
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             env[var] = "1"
+        env["AMCMCPPM_SYS_PATH"] = json.dumps([p for p in sys.path if p])
         self.procs = []
         self.settings = settings
         shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
         self.tmpdir = tempfile.mkdtemp(prefix="amcmcppm-", dir=shm)
+        # Workers poll for this file between photon batches (a stop request mid-pass).
+        self.stop_flag = os.path.join(self.tmpdir, "stop")
         self._pass_dir = None
         try:
             for i in range(n):
@@ -91,7 +101,7 @@ class ProcessPool:
             arrays = scene.to_arrays()
             settings_dict = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
             for i, p in enumerate(self.procs):
-                _send(p, ("init", arrays, settings_dict, i, n))
+                _send(p, ("init", arrays, settings_dict, i, n, self.stop_flag))
             for p in self.procs:
                 self._receive(p)
         except BaseException:
@@ -113,28 +123,38 @@ class ProcessPool:
             _send(p, ("pass", pass_index, self._pass_dir, names, share(n_photons, i, len(self.procs))))
 
     def collect(self, should_stop=None):
-        """Wait for every worker's result; on ``should_stop()`` stop the workers and return None."""
+        """Wait for every worker's result.
+
+        On ``should_stop()`` the workers are asked to stop after their current photon batch
+        and return what they traced; those that do not answer within STOP_GRACE_S are
+        killed.  Returns the results received (None if there are none).
+        """
         results = [None] * len(self.procs)
         pending = set(range(len(self.procs)))
         sel = selectors.DefaultSelector()
         for i in pending:
             sel.register(self.procs[i].stdout, selectors.EVENT_READ, i)
+        deadline = None
         try:
             while pending:
-                for key, _ in sel.select(timeout=0.1):
+                for key, _ in sel.select(timeout=0.05):
                     i = key.data
                     results[i] = self._receive(self.procs[i])
                     pending.discard(i)
                     sel.unregister(key.fileobj)
-                if pending and should_stop is not None and should_stop():
-                    self.close()
-                    return None
+                if pending and deadline is None and should_stop is not None and should_stop():
+                    open(self.stop_flag, "w").close()
+                    deadline = time.monotonic() + STOP_GRACE_S
+                if pending and deadline is not None and time.monotonic() > deadline:
+                    self.close(kill=True)
+                    break
         finally:
             sel.close()
             if self._pass_dir:
                 shutil.rmtree(self._pass_dir, ignore_errors=True)
                 self._pass_dir = None
-        return results
+        got = [r for r in results if r is not None]
+        return got or None
 
     def _receive(self, p):
         try:
@@ -146,10 +166,13 @@ class ProcessPool:
             raise WorkerError(f"photon worker failed:\n{msg[1]}")
         return msg[1]
 
-    def close(self):
+    def close(self, kill=False):
+        """Stop the workers (politely, or at once with ``kill``) and remove the shared files."""
         for p in self.procs:
             try:
-                if p.poll() is None:
+                if kill:
+                    p.kill()
+                elif p.poll() is None:
                     _send(p, ("stop",))
             except OSError:
                 pass
@@ -213,14 +236,15 @@ def worker_main():
             if msg[0] == "stop":
                 return
             if msg[0] == "init":
-                _, arrays, settings_dict, index, n = msg
+                _, arrays, settings_dict, index, n, stop_flag = msg
                 worker = PhotonWorker(Scene.from_arrays(arrays), RenderSettings(**settings_dict), index, n)
                 reply = ("ok", None)
             else:
                 _, pass_index, folder, names, n_photons = msg
                 arrays = {name: np.load(os.path.join(folder, name + ".npy"), mmap_mode="r") for name in names}
                 target = DepositTarget.from_arrays(arrays, worker.ctx.table)
-                reply = ("ok", worker.run_pass(pass_index, target, n_photons))
+                stop = lambda: os.path.exists(stop_flag)  # noqa: E731
+                reply = ("ok", worker.run_pass(pass_index, target, n_photons, should_stop=stop))
         except Exception:
             reply = ("error", traceback.format_exc())
         pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)
