@@ -29,8 +29,8 @@ import numpy as np
 
 NORMAL_COS = 0.707          # SLR's threshold on the normals' cosine
 MAX_AXIS_CELLS = 1 << 20    # keeps the cell key below 2^60 whatever the radius
-CELL_PER_RADIUS = 1.0       # preferred cell size in median radii
-ENTRY_BUDGET = 32           # grid entries per point at most (the cell grows to fit) ...
+CELL_PER_RADIUS = 2.0       # preferred cell size in median radii (benchmarks/throughput.py)
+ENTRY_BUDGET = 8            # grid entries per point at most (the cell grows to fit) ...
 MAX_ENTRIES = 1 << 24       # ... and in all (bounds memory for big images)
 CHUNK_CANDIDATES = 1 << 18  # candidate pairs per chunk (temporaries stay in cache)
 

@@ -29,7 +29,7 @@ import time
 import numpy as np
 
 from .photon_pass import DepositTarget
-from .worker import PhotonWorker, share
+from .worker import PhotonWorker
 
 _BOOTSTRAP = r"""
 import importlib.util, json, os, sys
@@ -58,7 +58,7 @@ class InProcessPool:
     """One worker in this process (``workers=1``): deterministic and without start-up cost."""
 
     def __init__(self, scene, settings, ctx=None):
-        self.worker = PhotonWorker(scene, settings, 0, 1, ctx=ctx)
+        self.worker = PhotonWorker(scene, settings, 0, ctx=ctx)
         self._job = None
 
     @property
@@ -101,7 +101,7 @@ class ProcessPool:
             arrays = scene.to_arrays()
             settings_dict = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
             for i, p in enumerate(self.procs):
-                _send(p, ("init", arrays, settings_dict, i, n, self.stop_flag))
+                _send(p, ("init", arrays, settings_dict, i, self.stop_flag))
             for p in self.procs:
                 self._receive(p)
         except BaseException:
@@ -119,8 +119,8 @@ class ProcessPool:
         for name, a in target.to_arrays().items():
             np.save(os.path.join(self._pass_dir, name + ".npy"), np.ascontiguousarray(a))
             names.append(name)
-        for i, p in enumerate(self.procs):
-            _send(p, ("pass", pass_index, self._pass_dir, names, share(n_photons, i, len(self.procs))))
+        for p in self.procs:
+            _send(p, ("pass", pass_index, self._pass_dir, names, n_photons))
 
     def collect(self, should_stop=None):
         """Wait for every worker's result.
@@ -236,8 +236,8 @@ def worker_main():
             if msg[0] == "stop":
                 return
             if msg[0] == "init":
-                _, arrays, settings_dict, index, n, stop_flag = msg
-                worker = PhotonWorker(Scene.from_arrays(arrays), RenderSettings(**settings_dict), index, n)
+                _, arrays, settings_dict, index, stop_flag = msg
+                worker = PhotonWorker(Scene.from_arrays(arrays), RenderSettings(**settings_dict), index)
                 reply = ("ok", None)
             else:
                 _, pass_index, folder, names, n_photons = msg

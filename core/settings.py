@@ -29,11 +29,11 @@ class RenderSettings:
     time_limit: float = 0.0
     """Stop after this many seconds of rendering (0 = no limit).  At least one pass runs."""
 
-    photons_per_pass: int = 200_000
-    """Photon paths per pass, over all workers.  PPM traces this many uniform paths;
-    AMCMCPPM runs this many chain iterations (each traces a uniform path, plus a mutated
-    one unless the uniform path is visible, and records one path once the chain has a
-    visible state)."""
+    photons_per_pass: int = 100_000
+    """Photon paths per pass and worker (the paper: 100,000 per thread).  PPM traces this many
+    uniform paths; AMCMCPPM runs this many chain iterations (each traces a uniform path, plus
+    a mutated one unless the uniform path is visible, and records one path once the chain has
+    a visible state).  With W workers a pass has W times as many photons."""
 
     seed: int = 0
     """Random seed; the same seed, settings and worker count give the same image."""
@@ -50,8 +50,9 @@ class RenderSettings:
     workers: int = 0
     """Processes tracing photons in parallel; 0 = one per CPU core, 1 = in this process."""
 
-    chains: int = 8192
-    """Markov chains advanced in lockstep, over all workers (AMCMCPPM only)."""
+    chains: int = 4096
+    """Markov chains advanced in lockstep by every worker (AMCMCPPM only); many chains make
+    big NumPy batches, fewer chains run more iterations each per pass."""
 
     target_acceptance: float = 0.60
     """Target acceptance rate A* of the mutation-size adaptation (0.234 = the original)."""

@@ -24,22 +24,17 @@ PPM_BATCH = 1 << 14
 STREAM_EYE, STREAM_PHOTONS, STREAM_CHAINS = 0, 1, 2
 
 
-def share(total, index, parts):
-    """Integer share of ``total`` for part ``index`` of ``parts`` (shares sum to ``total``)."""
-    return total // parts + (1 if index < total % parts else 0)
-
-
 class PhotonWorker:
     """Traces the photons of one worker's share of every pass."""
 
-    def __init__(self, scene, settings, index=0, n_workers=1, ctx=None):
+    def __init__(self, scene, settings, index=0, ctx=None):
         self.ctx = ctx if ctx is not None else RenderContext(scene)
         self.settings = settings
         self.index = index
         self.dims = path_dims(settings.max_bounces)
         self.chains = None
         if settings.method == "amcmcppm":
-            n_chains = max(1, share(settings.chains, index, n_workers))
+            n_chains = settings.chains
             self.chain_rng = np.random.default_rng([settings.seed, STREAM_CHAINS, index])
             self.chains = ChainSet.create(n_chains, self.dims, settings.initial_mutation_size,
                                           self.chain_rng)
