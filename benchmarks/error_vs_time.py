@@ -35,6 +35,7 @@ import platform
 import subprocess
 import sys
 import time
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -180,9 +181,12 @@ def analyse(scene, runs, ref, ref_var, ref_meta, time_limit, methods):
         curves = np.array(curves)
         last = [r["stats"][-1] for r in per_run]
         book = [np.median([s.get("bookkeeping_share", 0.0) for s in r["stats"]]) for r in per_run]
+        with warnings.catch_warnings():  # checkpoints before any run's first pass are all NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            median, lo, hi = (np.nanmedian(curves, axis=0), np.nanmin(curves, axis=0),
+                              np.nanmax(curves, axis=0))
         out["methods"][m] = dict(
-            median=np.nanmedian(curves, axis=0).tolist(), min=np.nanmin(curves, axis=0).tolist(),
-            max=np.nanmax(curves, axis=0).tolist(),
+            median=median.tolist(), min=lo.tolist(), max=hi.tolist(),
             final_rmse=float(np.median([r["rmse"][-1] for r in per_run])),
             final_relmse=float(np.median([r["relmse"][-1] for r in per_run])),
             final_rmse_c=float(np.median([r["rmse_c"][-1] for r in per_run])),

@@ -958,6 +958,18 @@ def test_area_light_is_cosine_about_its_direction_and_uniform_over_its_shape(kin
         check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
 
 
+def check_distant_origins(o, d):
+    """Origins of distant-light photons: uniform on the disk of radius R perpendicular to d, 2R
+    before the scene centre."""
+    q = o - BOX_CENTER
+    assert np.allclose(np.sum(q * d, axis=1), -2 * BOX_RADIUS, atol=1e-9)
+    q = q + 2 * BOX_RADIUS * d
+    fr = frames_for(d)
+    x = np.einsum("ij,ij->i", q, fr[:, 0]) / BOX_RADIUS
+    y = np.einsum("ij,ij->i", q, fr[:, 1]) / BOX_RADIUS
+    check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
+
+
 def test_sun_carries_irradiance_times_bounding_disk_area_uniformly_in_its_cone():
     irradiance = np.array([3.0, 2.5, 2.0])
     axis = unit_vector(-0.2, 0.4, -1.0)
@@ -968,14 +980,7 @@ def test_sun_carries_irradiance_times_bounding_disk_area_uniformly_in_its_cone()
     assert_mean_flux(flux, irradiance * np.pi * BOX_RADIUS ** 2, "sun")
     cos_half = math.cos(float(np.float32(sun_angle)) / 2)
     check_chi2(lambda n: (cone_param(d, axis, cos_half), None), uniform_polar_pdf, DISK_POLAR)
-    # Origins: uniform on the disk of radius R perpendicular to d, 2R before the scene centre.
-    q = o - BOX_CENTER
-    assert np.allclose(np.sum(q * d, axis=1), -2 * BOX_RADIUS, atol=1e-9)
-    q = q + 2 * BOX_RADIUS * d
-    fr = frames_for(d)
-    x = np.einsum("ij,ij->i", q, fr[:, 0]) / BOX_RADIUS
-    y = np.einsum("ij,ij->i", q, fr[:, 1]) / BOX_RADIUS
-    check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
+    check_distant_origins(o, d)
 
 
 def test_world_light_emits_4_pi_squared_r_squared_radiance_uniformly():
@@ -985,13 +990,7 @@ def test_world_light_emits_4_pi_squared_r_squared_radiance_uniformly():
     assert_mean_flux(flux, 4 * np.pi ** 2 * BOX_RADIUS ** 2 * radiance, "world")
     check_chi2(lambda n: (dir_to_cos_phi(d, [0.0, 0.0, 1.0]), None),
                lambda xy: np.full(len(xy), 1 / (4 * np.pi)), SPHERE)
-    q = o - BOX_CENTER
-    assert np.allclose(np.sum(q * d, axis=1), -2 * BOX_RADIUS, atol=1e-9)
-    q = q + 2 * BOX_RADIUS * d
-    fr = frames_for(d)
-    x = np.einsum("ij,ij->i", q, fr[:, 0]) / BOX_RADIUS
-    y = np.einsum("ij,ij->i", q, fr[:, 1]) / BOX_RADIUS
-    check_chi2(lambda n: (disk_polar(x, y), None), uniform_polar_pdf, DISK_POLAR)
+    check_distant_origins(o, d)
 
 
 def test_emissive_triangles_emit_two_pi_area_radiance_from_both_sides_by_area():
