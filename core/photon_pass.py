@@ -123,9 +123,12 @@ class DepositTarget:
 
 
 def point_splat(point_ids, values, n_points):
-    """(n_points, 3) float64 sums of ``values`` (k, 3) per point (one bincount for all channels)."""
-    keys = (point_ids[:, None] * 3 + np.arange(3)).ravel()
-    return np.bincount(keys, weights=values.ravel(), minlength=3 * n_points).reshape(n_points, 3)
+    """(n_points, 3) float64 sums of ``values`` (k, 3) per point (a bincount per channel is
+    faster than one over interleaved keys, which must be built first)."""
+    out = np.empty((n_points, 3))
+    for c in range(3):
+        out[:, c] = np.bincount(point_ids, weights=values[:, c], minlength=n_points)
+    return out
 
 
 @dataclass
