@@ -4,7 +4,8 @@ C chains advance in lockstep.  Each chain pairs a *uniform* chain (target 1:
 every step a fresh uniform vector) with a *visibility* chain (target V(u)/Vc).
 One iteration, for every chain (``algorithm.md`` 2):
 
-1. draw a uniform sample u_U and trace it (one batch for all chains);
+1. draw a uniform sample u_U and trace it (one batch for all chains; within a pass it
+   was traced in the previous iteration's proposal batch, see :class:`Prefetched`);
 2. replica exchange: if V(u_U) = 1 the uniform sample becomes the current state
    and no mutation happens (a chain without a visible state yet takes it as its
    initial state: this is the initialisation search, counted as uniform samples);
@@ -160,11 +161,29 @@ def _store_vertex(chains, lanes, batch, rows):
         chains.vertex[key][lanes] = value[rows]
 
 
-def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
+class Prefetched:
+    """Uniform samples of the next iteration, traced in one batch with this iteration's proposals.
+
+    ``u`` (C, d) are the samples as traced, ``batch`` the batch that holds them at rows
+    ``offset + arange(C)``.  Tracing them with the proposals saves a batch per iteration
+    (a batch has a fixed cost of a few milliseconds per bounce).  The low-dimension
+    refresh then also redraws their suffixes after their first visible vertex; that leaves
+    them uniform, because the vertex depends only on the dimensions before it.
+    """
+
+    def __init__(self, u, batch, offset):
+        self.u, self.batch, self.offset = u, batch, offset
+
+
+def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, prefetched=None,
+            prefetch=False):
     """Advance every chain by one iteration (see the module docstring).
 
     ``exchange=False`` switches replica exchange off for chains that already have a
     state (a negative control for tests: such chains never jump between islands).
+    ``prefetched`` (a :class:`Prefetched` from the previous iteration of the same pass)
+    supplies this iteration's uniform samples; with ``prefetch`` the next iteration's
+    are traced together with this one's proposals and returned (otherwise None).
 
     ``trace(u, refresh_rng, resume=None)`` traces paths for states ``u`` (n, d) and
     returns an object with ``visible`` (n,), ``first_dim`` (n,), ``first`` (a dict of
@@ -179,31 +198,40 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
     was_valid = chains.valid.copy()
     counters.iterations += c
     # 1. Uniform samples for every chain.
-    u_uniform = rng.random((c, d))
-    batch_u = trace(u_uniform, None)
-    counters.paths_traced += c
-    counters.rays += batch_u.rays
-    counters.vertices += batch_u.vertices
+    if prefetched is None:
+        u_uniform = rng.random((c, d))
+        batch_u = trace(u_uniform, None)
+        _count_traced(counters, c, batch_u)
+        rows_u = np.arange(c)
+    else:
+        u_uniform, batch_u = prefetched.u, prefetched.batch
+        rows_u = prefetched.offset + np.arange(c)
+    vis = batch_u.visible[rows_u]
     counters.uniform_samples += c
-    vis = batch_u.visible
     counters.uniform_visible += int(vis.sum())
     if not exchange:
         vis = vis & ~was_valid
     # 2. Replica exchange (or initialisation of chains without a state).
     take = np.flatnonzero(vis)
     if len(take):
-        _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[take], batch_u, take)
+        _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[rows_u[take]], batch_u,
+                rows_u[take])
         counters.exchanges += int(was_valid[take].sum())
         counters.initialised += int((~was_valid[take]).sum())
-    # 3. Mutation of the other chains that have a state.
+    # 3. Mutation of the other chains that have a state (with the next uniform samples).
     lanes = np.flatnonzero(was_valid & ~vis)
+    proposal = mutate(chains.u[lanes], chains.theta[lanes], rng) if len(lanes) else np.zeros((0, d))
+    u_next = rng.random((c, d)) if prefetch else None
+    upcoming = None
+    if len(lanes) or prefetch:
+        u_all = proposal if u_next is None else np.concatenate([proposal, u_next])
+        batch_p = trace(u_all, refresh)
+        _count_traced(counters, len(u_all), batch_p)
+        if prefetch:
+            upcoming = Prefetched(u_all[len(lanes):], batch_p, len(lanes))
     if len(lanes):
-        proposal = mutate(chains.u[lanes], chains.theta[lanes], rng)
-        batch_p = trace(proposal, refresh)
-        counters.paths_traced += len(lanes)
-        counters.rays += batch_p.rays
-        counters.vertices += batch_p.vertices
-        acc = batch_p.visible
+        proposal = u_all[:len(lanes)]
+        acc = batch_p.visible[:len(lanes)]
         counters.proposals += len(lanes)
         counters.accepted += int(acc.sum())
         chains.proposed[lanes] += 1
@@ -223,9 +251,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
             refreshed[redraw] = rng.random(int(redraw.sum()))
             # The prefix (and so V and the first visible vertex) is unchanged: trace from there.
             batch_g = trace(refreshed, None, resume={k: v[rejected] for k, v in chains.vertex.items()})
-            counters.paths_traced += len(rejected)
-            counters.rays += batch_g.rays
-            counters.vertices += batch_g.vertices
+            _count_traced(counters, len(rejected), batch_g)
             recorder.commit(rejected, np.zeros(len(rejected), np.int64), chains.hold[rejected])
             chains.hold[rejected] = 0
             chains.u[rejected] = refreshed
@@ -234,6 +260,13 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True):
     chains.hold[chains.valid] += 1
     chains.hold_prefix[chains.valid] += 1
     counters.recorded += int(chains.valid.sum())
+    return upcoming
+
+
+def _count_traced(counters, n, batch):
+    counters.paths_traced += n
+    counters.rays += batch.rays
+    counters.vertices += batch.vertices
 
 
 def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows):
@@ -315,12 +348,17 @@ class DepositLog(Recorder):
             row_suffix[rows] = ids[k:]
             state = np.where(is_suffix, row_suffix[batch.pair_path], state)
         sel = np.flatnonzero(state >= 0)
-        if len(sel):
+        if len(sel) == 0:
+            return
+        if len(sel) == len(state):      # every pair (e.g. a batch's visible paths all switched in)
+            self.chunks.append((state, batch.pair_point, batch.pair_diffuse,
+                                batch.pair_glossy if self.glossy else None))
+        else:
             self.chunks.append((state.take(sel), batch.pair_point.take(sel), batch.pair_diffuse.take(sel, axis=0),
                                 batch.pair_glossy.take(sel, axis=0) if self.glossy else None))
-            self.logged += len(sel)
-            if self.logged > self.flush_pairs:
-                self.flush()
+        self.logged += len(sel)
+        if self.logged > self.flush_pairs:
+            self.flush()
 
     def flush(self):
         """Splat the recordings so far; keep the pairs of the current states only."""

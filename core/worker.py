@@ -104,11 +104,13 @@ class PhotonWorker:
         begin_pass(chains, trace, recorder, counters)
         iterations = -(-n_photons // chains.count)
         interrupted = False
-        for _ in range(iterations):
+        prefetched = None
+        for i in range(iterations):
             if stop():
                 interrupted = True
                 break
-            iterate(chains, trace, recorder, self.chain_rng, s, counters)
+            prefetched = iterate(chains, trace, recorder, self.chain_rng, s, counters,
+                                 prefetched=prefetched, prefetch=i + 1 < iterations)
         end_pass(chains, recorder)
         recorder.flush()
         return target.to_pixels(recorder.sum_diffuse, recorder.sum_glossy), interrupted
