@@ -7,10 +7,11 @@ Every figure is a ratio measured in this one run (the machines are shared and no
    per second, replaying the very rays the photon pass cast, with the same batch sizes;
 2. the same without measurement points (tracing and scattering only);
 3. photon paths per second of whole renders with 2 workers against 1 worker (SPPM, AMCMCPPM);
-4. AMCMCPPM traced paths (and vertices) per second against SPPM's, same scene;
+4. AMCMCPPM traced paths (and vertices) per second against SPPM's, same scene
+   (3 and 4: medians over interleaved rounds, each ratio taken within a round);
 5. peak memory of a 1920x1080 render at default settings (main process plus the largest worker).
 
-    python benchmarks/throughput.py [--scene cornell_box] [--resolution 640 480] [--json out.json]
+    python benchmarks/throughput.py [--scene cornell_box] [--resolution 640 480] [--rounds 3] [--json out.json]
 """
 from __future__ import annotations
 
@@ -117,6 +118,7 @@ def main():
     ap.add_argument("--resolution", type=int, nargs=2, default=(640, 480))
     ap.add_argument("--paths", type=int, default=200_000, help="photon paths for the vertex rate")
     ap.add_argument("--passes", type=int, default=5, help="passes of the render-rate runs")
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the render-rate runs")
     ap.add_argument("--skip-memory", action="store_true")
     ap.add_argument("--json", help="also write the figures to this JSON file")
     a = ap.parse_args()
@@ -135,23 +137,37 @@ def main():
     out.update(trace_only_vertices_per_s=v0, trace_only_ratio=v0 / r0)
     print(f"photon pass (no points)  {v0:12,.0f} vertices/s   embree {r0:12,.0f} rays/s   ratio {v0 / r0:.3f}")
 
+    # Whole renders, interleaved in rounds: the machine's load drifts, so every ratio is taken
+    # within a round and the median over rounds is reported with its range.
     common = dict(passes=a.passes, photons_per_pass=s.photons_per_pass)
-    rates = {}
-    for method in ("ppm", "amcmcppm"):
-        for workers in (1, 2):
+    configs = [(m, w) for w in (1, 2) for m in ("ppm", "amcmcppm")]
+    ratios = {}
+    for r in range(a.rounds):
+        rates = {}
+        for method, workers in configs:
             rates[method, workers] = render_rate(scene, method=method, workers=workers, **common)
             p, v = rates[method, workers]
-            print(f"render {method:9s} workers {workers}: {p:10,.0f} paths/s {v:12,.0f} vertices/s")
+            print(f"round {r + 1}: render {method:9s} workers {workers}: {p:10,.0f} paths/s "
+                  f"{v:12,.0f} vertices/s")
+        for method in ("ppm", "amcmcppm"):
+            ratios.setdefault(f"{method}_two_worker_speedup", []).append(
+                rates[method, 2][0] / rates[method, 1][0])
+        for workers in (1, 2):
+            for k, name in ((0, "paths"), (1, "vertices")):
+                ratios.setdefault(f"amcmcppm_over_ppm_{name}_w{workers}", []).append(
+                    rates["amcmcppm", workers][k] / rates["ppm", workers][k])
+    for key, values in ratios.items():
+        out[key] = float(np.median(values))
+        out[key + "_range"] = [float(min(values)), float(max(values))]
     for method in ("ppm", "amcmcppm"):
-        sc = rates[method, 2][0] / rates[method, 1][0]
-        out[f"{method}_two_worker_speedup"] = sc
-        print(f"{method}: 2 workers / 1 worker = {sc:.2f}x")
+        key = f"{method}_two_worker_speedup"
+        print(f"{method}: 2 workers / 1 worker = {out[key]:.2f}x (median of {a.rounds} rounds; "
+              f"range {out[key + '_range'][0]:.2f}-{out[key + '_range'][1]:.2f})")
     for workers in (1, 2):
-        rp = rates["amcmcppm", workers][0] / rates["ppm", workers][0]
-        rv = rates["amcmcppm", workers][1] / rates["ppm", workers][1]
-        out[f"amcmcppm_over_ppm_paths_w{workers}"] = rp
-        out[f"amcmcppm_over_ppm_vertices_w{workers}"] = rv
-        print(f"AMCMCPPM / SPPM, {workers} worker(s): traced paths/s {rp:.2f}, vertices/s {rv:.2f}")
+        rp, rv = out[f"amcmcppm_over_ppm_paths_w{workers}"], out[f"amcmcppm_over_ppm_vertices_w{workers}"]
+        lo, hi = out[f"amcmcppm_over_ppm_paths_w{workers}_range"]
+        print(f"AMCMCPPM / SPPM, {workers} worker(s): traced paths/s {rp:.2f} (range {lo:.2f}-{hi:.2f}), "
+              f"vertices/s {rv:.2f}")
     if not a.skip_memory:
         mem = peak_memory((1920, 1080))
         out["peak_memory_1080p_mib"] = mem
