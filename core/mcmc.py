@@ -361,24 +361,30 @@ class DepositLog(Recorder):
             self.flush()
 
     def flush(self):
-        """Splat the recordings so far; keep the pairs of the current states only."""
+        """Splat the recordings so far; keep the pairs of the current states only.
+
+        Chunk by chunk (no concatenated copy of the whole log): each pair's values times
+        its part's count, summed per point; pairs of parts recorded zero times add zeros.
+        """
         if not self.chunks:
             return
-        state, point, diffuse, glossy = (np.concatenate(part) if part[0] is not None else None
-                                         for part in zip(*self.chunks))
-        w = self.count.take(state).astype(np.float64)
-        hit = np.flatnonzero(w > 0)
-        if len(hit):
-            self.sum_diffuse += point_splat(point.take(hit), diffuse.take(hit, axis=0) * w.take(hit)[:, None],
-                                            self.n_points)
-            if self.glossy:
-                self.sum_glossy += point_splat(point.take(hit), glossy.take(hit, axis=0) * w.take(hit)[:, None],
-                                               self.n_points)
         current = self.state_of_lane[self.state_of_lane >= 0]
-        self.count[current] = 0
         alive = np.zeros(len(self.count), bool)
         alive[current] = True
-        keep = np.flatnonzero(alive.take(state))
-        self.chunks = [(state.take(keep), point.take(keep), diffuse.take(keep, axis=0),
-                        glossy.take(keep, axis=0) if self.glossy else None)] if len(keep) else []
-        self.logged = len(keep)
+        sums = (self.sum_diffuse, self.sum_glossy) if self.glossy else (self.sum_diffuse,)
+        kept = []
+        for chunk in self.chunks:
+            state, point = chunk[0], chunk[1]
+            w = self.count.take(state).astype(np.float64)
+            for total, values in zip(sums, chunk[2:]):
+                for c in range(3):
+                    total[:, c] += np.bincount(point, weights=values[:, c] * w, minlength=self.n_points)
+            keep = np.flatnonzero(alive.take(state))
+            if len(keep) == len(state):
+                kept.append(chunk)
+            elif len(keep):
+                kept.append(tuple(None if a is None else a.take(keep, axis=0) for a in chunk))
+        self.count[current] = 0
+        # The kept pairs, as one chunk (later flushes then see few chunks).
+        self.chunks = [tuple(None if part[0] is None else np.concatenate(part) for part in zip(*kept))] if kept else []
+        self.logged = len(self.chunks[0][0]) if kept else 0
