@@ -377,8 +377,7 @@ class DepositLog(Recorder):
             state, point = chunk[0], chunk[1]
             w = self.count.take(state).astype(np.float64)
             for total, values in zip(sums, chunk[2:]):
-                for c in range(3):
-                    total[:, c] += np.bincount(point, weights=values[:, c] * w, minlength=self.n_points)
+                total += point_splat(point, values * w[:, None], self.n_points)
             keep = np.flatnonzero(alive.take(state))
             if len(keep) == len(state):
                 kept.append(chunk)
