@@ -154,6 +154,13 @@ def time_to_reach(elapsed, values, target):
     return float(np.exp(np.log(t0) + f * (np.log(t1) - np.log(t0))))
 
 
+def _time_cell(method, d, key):
+    """A time-to-error table cell; PPM's own row is the baseline (its T-error is defined by it)."""
+    if method == "ppm" and key == "time_to_ppm_t":
+        return "(baseline)"
+    return f"{d.get(key, float('nan')):.3g} s"
+
+
 def slope(elapsed, values):
     """Least-squares slope of log error vs log time over the last decade of the run."""
     sel = elapsed >= elapsed[-1] / 10
@@ -269,7 +276,7 @@ def report(results, args, path):
         for m, d in res["methods"].items():
             lines.append(f"| {m} | {d['final_rmse']:.4g} | {d['final_rmse_c']:.4g} | {d['final_err']:.4g} | "
                          f"{d['slope']:.2f} | "
-                         f"{d.get('time_to_ppm_t10', float('nan')):.3g} s | {d.get('time_to_ppm_t', float('nan')):.3g} s | "
+                         f"{_time_cell(m, d, 'time_to_ppm_t10')} | {_time_cell(m, d, 'time_to_ppm_t')} | "
                          f"{d['visible_fraction']:.3g} | {d['acceptance']:.3f} | {d['mutation_size']:.3g} | "
                          f"{d['bookkeeping_share']:.2f} | {d['passes']:.0f} |")
         paper = PAPER.get(scene)
