@@ -62,6 +62,46 @@ def test_ngons_are_triangulated_without_changing_area_or_power(scene):
     assert bs.emitted_power(s) == pytest.approx(np.full(3, 2 * math.pi * area * strength), rel=1e-5)
 
 
+def _polygon_mesh(name, sizes, rng):
+    """A mesh of separate polygons with ``sizes`` corners: random, often concave or non-planar."""
+    sizes = np.asarray(sizes)
+    n_corner = int(sizes.sum())
+    angle = 2 * np.pi * (np.arange(n_corner) - np.repeat(np.cumsum(sizes) - sizes, sizes)) / np.repeat(sizes, sizes)
+    co = np.stack([np.cos(angle), np.sin(angle), np.zeros(n_corner)], axis=1)
+    co += rng.normal(0.0, rng.choice([0.0, 0.3, 1.0], n_corner)[:, None], (n_corner, 3))
+    co += 3.0 * np.repeat(np.arange(len(sizes)), sizes)[:, None]
+    me = bpy.data.meshes.new(name)
+    me.vertices.add(n_corner)
+    me.vertices.foreach_set("co", co.astype(np.float32).ravel())
+    me.loops.add(n_corner)
+    me.loops.foreach_set("vertex_index", np.arange(n_corner, dtype=np.int32))
+    me.polygons.add(len(sizes))
+    me.polygons.foreach_set("loop_start", (np.cumsum(sizes) - sizes).astype(np.int32))
+    me.update()
+    return me
+
+
+@pytest.mark.parametrize("mix", ["triangles", "quads", "triangles and quads", "with n-gons"])
+def test_triangulation_is_blenders(scene, mix):
+    """Our NumPy split of triangles and quads gives Blender's loop triangles, corner for corner,
+    on random convex, concave and non-planar quads."""
+    import importlib
+    mesh_module = importlib.import_module("amcmcppm.amcmcppm_addon.export.mesh")
+    rng = np.random.default_rng(3)
+    choices = {"triangles": [3], "quads": [4], "triangles and quads": [3, 4], "with n-gons": [3, 4, 5, 7]}[mix]
+    me = _polygon_mesh("Polygons", rng.choice(choices, 4000), rng)
+    me.calc_loop_triangles()
+    expected = np.array([t.loops[:] for t in me.loop_triangles])
+    expected_poly = np.array([t.polygon_index for t in me.loop_triangles])
+    positions = np.array([v.co[:] for v in me.vertices], np.float32)
+    corner_vert = np.array([lp.vertex_index for lp in me.loops], np.int32)
+    tri_loops, tri_poly = mesh_module._triangulate(me, positions, corner_vert)
+    np.testing.assert_array_equal(tri_loops, expected)
+    np.testing.assert_array_equal(tri_poly, expected_poly)
+    local = mesh_module.read_mesh(me, "Polygons", None)
+    np.testing.assert_array_equal(local.triangles, corner_vert[expected])
+
+
 def test_array_modifier_is_evaluated(scene):
     ob = bs.cube("Cube", material=bs.diffuse())
     mod = ob.modifiers.new("Array", "ARRAY")
