@@ -12,7 +12,7 @@ Issue target: about 100 ms per million triangles.
     python benchmarks/export_speed.py [--triangles 1000000] [--repeats 3] [--json FILE]
 
 Scenes:
-    smooth      one grid mesh, smooth shaded (vertex normals), with a UV map
+    smooth      one grid mesh, smooth shaded (vertex normals), with a UV map, rotated and scaled
     mixed       the same with every other face flat (corner normals, Blender's slowest case)
     instances   1000 collection instances of one 1000-triangle mesh (per-instance cost)
 """
@@ -106,7 +106,11 @@ def build(kind, triangles):
     else:
         me = grid_mesh("Grid", int(round(np.sqrt(triangles / 2))), flat_every_other=kind == "mixed")
         me.materials.append(mat)
-        scene.collection.objects.link(bpy.data.objects.new("Grid", me))
+        ob = bpy.data.objects.new("Grid", me)
+        # Rotated and scaled unevenly, as objects usually are (normals need renormalising).
+        ob.rotation_euler = (0.3, -0.2, 0.5)
+        ob.scale = (1.5, 0.7, 1.0)
+        scene.collection.objects.link(ob)
         meshes = [(me, 1)]
     depsgraph = bpy.context.evaluated_depsgraph_get()      # evaluation is not part of the export
     return depsgraph, meshes

@@ -33,7 +33,8 @@ class LocalMesh:
     positions: np.ndarray       # (V, 3) float64, object space
     triangles: np.ndarray       # (T, 3) int32 vertex indices, counter-clockwise = front
     slots: np.ndarray           # (T,) int32 material slot index (Blender's material_index)
-    normals: np.ndarray | None  # (T, 3, 3) float32 per-corner shading normals, or None when flat
+    normals: np.ndarray | None  # (N, 3) float32 shading normals (per vertex or per corner), or None when flat
+    normal_index: np.ndarray | None  # (T, 3) int32 row of ``normals`` at each triangle corner
     uvs: np.ndarray | None      # (T, 3, 2) float32 active render UV map per corner, or None
     mesh_materials: tuple       # the mesh's own materials (used when the object has no slots)
 
@@ -147,10 +148,10 @@ def read_mesh(me, name, log):
         mat_attr.data.foreach_get("value", poly_mat)
         slots = poly_mat.take(tri_poly)
 
-    normals = _corner_normals(me, tri_vert, tri_loops)
+    normals, normal_index = _shading_normals(me, tri_vert, tri_loops)
     uvs = _corner_uvs(me, tri_loops)
     return LocalMesh(name=name, positions=positions.astype(np.float64), triangles=tri_vert, slots=slots,
-                     normals=normals, uvs=uvs, mesh_materials=tuple(me.materials))
+                     normals=normals, normal_index=normal_index, uvs=uvs, mesh_materials=tuple(me.materials))
 
 
 def _triangulate(me, positions, corner_vert):
@@ -206,18 +207,19 @@ def _cross(a, b):
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
 
 
-def _corner_normals(me, tri_vert, tri_loops):
-    """(T, 3, 3) float32 shading normals per triangle corner, or None for flat shading."""
+def _shading_normals(me, tri_vert, tri_loops):
+    """(N, 3) float32 shading normals and their (T, 3) rows at the triangle corners, or None, None
+    for flat shading.  They stay per vertex or per corner until transformed (fewer rows)."""
     domain = me.normals_domain
     if domain == "FACE":
-        return None
+        return None, None
     if domain == "POINT":
         n = np.empty(len(me.vertices) * 3, np.float32)
         me.vertex_normals.foreach_get("vector", n)
-        return np.take(n.reshape(-1, 3), tri_vert, axis=0)
+        return n.reshape(-1, 3), tri_vert
     n = np.empty(len(me.loops) * 3, np.float32)
     me.corner_normals.foreach_get("vector", n)
-    return np.take(n.reshape(-1, 3), tri_loops, axis=0)
+    return n.reshape(-1, 3), tri_loops
 
 
 def _corner_uvs(me, tri_loops):
@@ -285,15 +287,18 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset):
     normals = None
     if local.normals is not None:
         normal_from_object = _inverse_transpose(rot).astype(np.float32)
-        n = np.matmul(local.normals.reshape(1, -1, 3), normal_from_object.transpose(0, 2, 1))
+        n = np.matmul(local.normals[None], normal_from_object.transpose(0, 2, 1))      # (k, N, 3)
         # Rotations keep unit length; scaled or sheared instances are renormalised.
         gram = np.matmul(normal_from_object, normal_from_object.transpose(0, 2, 1))
         rescale = np.flatnonzero(np.abs(gram - np.eye(3, dtype=np.float32)).max(axis=(1, 2)) > 1e-5)
         if len(rescale):
-            m = n[rescale]
-            m /= np.maximum(np.sqrt(np.einsum("kci,kci->kc", m, m))[..., None], 1e-30)
-            n[rescale] = m
-        normals = n.reshape(k, n_t, 3, 3)
+            # In place when every instance needs it (no copies of the whole normal array).
+            m = n if len(rescale) == k else n[rescale]
+            length = np.sqrt(np.einsum("kci,kci->kc", m, m))
+            m /= np.maximum(length, 1e-30)[..., None]
+            if m is not n:
+                n[rescale] = m
+        normals = np.take(n, local.normal_index, axis=1)                               # (k, T, 3, 3)
         _swap_corners(normals, mirrored)
         normals = normals.reshape(k * n_t, 3, 3)
     uvs = None

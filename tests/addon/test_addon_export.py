@@ -607,12 +607,18 @@ def test_transform_helpers_match_mathutils():
     from amcmcppm.amcmcppm_addon.export import mesh
     rotation = Matrix.Rotation(0.4, 3, "Z").to_quaternion()
     m = Matrix.LocRotScale(Vector((1, 2, 3)), rotation, Vector((-2, 1, 3)))
+    vertex_normals = np.array([[0, 0, 1], [0.6, 0, 0.8], [0, 0.8, 0.6]], np.float32)
     local = mesh.LocalMesh("t", np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64),
-                           np.array([[0, 1, 2]], np.int32), np.zeros(1, np.int32), None, None, ())
+                           np.array([[0, 1, 2]], np.int32), np.zeros(1, np.int32), normals=vertex_normals,
+                           normal_index=np.array([[0, 1, 2]], np.int32), uvs=None, mesh_materials=())
     part = mesh.transform_instances(local, np.array(m)[None], np.array([0], np.int32), 0)
     expected = [tuple(m @ Vector(p)) for p in local.positions]
     assert part["vertices"] == pytest.approx(np.array(expected))
     assert part["triangles"].tolist() == [[0, 2, 1]]        # mirrored: winding reversed
+    # Shading normals: inverse transpose, renormalised, corners swapped with the winding.
+    normal_matrix = m.to_3x3().inverted().transposed()
+    expected_n = [tuple((normal_matrix @ Vector(n)).normalized()) for n in vertex_normals[[0, 2, 1]]]
+    assert part["normals"][0] == pytest.approx(np.array(expected_n), abs=1e-6)
 
 
 def test_export_operator_writes_a_core_scene(scene, tmp_path):
