@@ -255,7 +255,7 @@ def assemble(meshes, groups, materials) -> Geometry:
         normals = np.concatenate([p["normals"] if p["normals"] is not None
                                   else _flat_normals(vertices, p["triangles"]) for p in parts])
     uvs = None
-    if materials.uses_textures(np.unique(material_ids)):
+    if materials.uses_textures(np.flatnonzero(np.bincount(material_ids))):      # the ids used
         uvs = np.concatenate([p["uvs"] if p["uvs"] is not None
                               else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
     return Geometry(vertices=vertices, triangles=np.ascontiguousarray(triangles, np.int32),
