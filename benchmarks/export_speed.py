@@ -171,7 +171,8 @@ def main():
                          export_us_per_instance=1e6 * t_export / instances, distinct_triangles=distinct,
                          raw_read_ms_per_million=t_raw * per_m_read,
                          loop_triangles_ms_per_million=t_lt * per_m_read)
-        line = (f"{kind:10s} {tris:9,d} triangles, {instances:5d} instances: export {t_export * per_m:6.1f} ms "
+        line = (f"{kind:10s} {tris:9,d} triangles, {instances:5d} instances: "
+                f"export {t_export * per_m:6.1f} ms "
                 f"per million triangles, {1e6 * t_export / instances:6.0f} us per instance; reads of the "
                 f"{distinct:,d} distinct triangles: raw {t_raw * per_m_read:5.1f}, loop_triangles "
                 f"{t_lt * per_m_read:6.1f} ms per million")

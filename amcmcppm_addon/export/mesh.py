@@ -5,9 +5,10 @@ pointer) with the attribute API and ``foreach_get`` into NumPy buffers of the
 exact dtype (``shared/docs/blender.md`` section 2), and triangulated as Blender
 triangulates them: meshes of triangles and quads in NumPy with Blender's own quad
 split (``foreach_get`` of ``loop_triangles`` costs about 110 ms per million
-triangles, more than the rest of the read), meshes with n-gons by ``loop_triangles``.  Instances of one mesh with one material
-assignment are transformed together in one batched ``matmul``: positions by
-``world_from_object``, shading normals by its inverse transpose.  Where
+triangles, more than the rest of the read), meshes with n-gons by ``loop_triangles``.
+Instances of one mesh with one material assignment are transformed together in one
+batched ``matmul``: positions by ``world_from_object``, shading normals (per vertex or
+per corner, before they are spread to triangle corners) by its inverse transpose.  Where
 det(world_from_object) < 0 (mirrored objects) the triangle winding is reversed
 so that the geometric normal, and with it the emitting side, stays outward.
 

@@ -66,7 +66,8 @@ def _polygon_mesh(name, sizes, rng):
     """A mesh of separate polygons with ``sizes`` corners: random, often concave or non-planar."""
     sizes = np.asarray(sizes)
     n_corner = int(sizes.sum())
-    angle = 2 * np.pi * (np.arange(n_corner) - np.repeat(np.cumsum(sizes) - sizes, sizes)) / np.repeat(sizes, sizes)
+    corner_in_polygon = np.arange(n_corner) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    angle = 2 * np.pi * corner_in_polygon / np.repeat(sizes, sizes)
     co = np.stack([np.cos(angle), np.sin(angle), np.zeros(n_corner)], axis=1)
     co += rng.normal(0.0, rng.choice([0.0, 0.3, 1.0], n_corner)[:, None], (n_corner, 3))
     co += 3.0 * np.repeat(np.arange(len(sizes)), sizes)[:, None]
@@ -88,7 +89,8 @@ def test_triangulation_is_blenders(scene, mix):
     import importlib
     mesh_module = importlib.import_module("amcmcppm.amcmcppm_addon.export.mesh")
     rng = np.random.default_rng(3)
-    choices = {"triangles": [3], "quads": [4], "triangles and quads": [3, 4], "with n-gons": [3, 4, 5, 7]}[mix]
+    choices = {"triangles": [3], "quads": [4], "triangles and quads": [3, 4],
+               "with n-gons": [3, 4, 5, 7]}[mix]
     me = _polygon_mesh("Polygons", rng.choice(choices, 4000), rng)
     me.calc_loop_triangles()
     expected = np.array([t.loops[:] for t in me.loop_triangles])
