@@ -164,32 +164,18 @@ def _triangulate(me, positions, corner_vert):
     takes Blender's ``loop_triangles``.
     """
     n_poly, n_corner = len(me.polygons), len(corner_vert)
-    if n_corner == 3 * n_poly:                        # every polygon has at least 3 corners
-        start = 3 * np.arange(n_poly, dtype=np.int32)
-        size = np.full(n_poly, 3, np.int32)
-    else:
-        # Polygon sizes from Blender's triangle-to-polygon map (a fast array read: a k-gon has
-        # k - 2 triangles); ``polygons.foreach_get("loop_start")`` goes through RNA per item and
-        # costs 20 ms per million polygons.  Corners of a polygon are contiguous and in order.
-        tri_poly = np.empty(len(me.loop_triangle_polygons), np.int32)
-        me.loop_triangle_polygons.foreach_get("value", tri_poly)
-        size = (np.bincount(tri_poly, minlength=n_poly) + 2).astype(np.int32)
-        if int(size.sum()) == n_corner:
-            start = (np.cumsum(size) - size).astype(np.int32)
-        else:                                           # not expected; read the offsets instead
-            start = np.empty(n_poly, np.int32)
-            me.polygons.foreach_get("loop_start", start)
-            size = np.diff(start, append=np.int32(n_corner))
-    if size.max() > 4:
+    # Blender's triangle-to-polygon map is a fast array read (``polygons.loop_start`` goes
+    # through RNA per item: 20 ms per million); a k-gon has k - 2 triangles, and the corners
+    # of a polygon are contiguous and in order, so it also gives every polygon's corners.
+    tri_poly = np.empty(len(me.loop_triangle_polygons), np.int32)
+    me.loop_triangle_polygons.foreach_get("value", tri_poly)
+    size = (np.bincount(tri_poly, minlength=n_poly) + 2).astype(np.int32)
+    if size.max() > 4 or int(size.sum()) != n_corner:
         me.calc_loop_triangles()
-        n_tri = len(me.loop_triangles)
-        tri_loops = np.empty(n_tri * 3, np.int32)
+        tri_loops = np.empty(len(tri_poly) * 3, np.int32)
         me.loop_triangles.foreach_get("loops", tri_loops)
-        tri_poly = np.empty(n_tri, np.int32)
-        me.loop_triangle_polygons.foreach_get("value", tri_poly)
-        return tri_loops.reshape(n_tri, 3), tri_poly
-    n_tri_of = size - 2
-    tri_poly = np.repeat(np.arange(n_poly, dtype=np.int32), n_tri_of)
+        return tri_loops.reshape(-1, 3), tri_poly
+    start = (np.cumsum(size) - size).astype(np.int32)
     quads = np.flatnonzero(size == 4)
     if len(quads) == 0:
         return start[:, None] + np.arange(3, dtype=np.int32), tri_poly
@@ -202,7 +188,7 @@ def _triangulate(me, positions, corner_vert):
     quad_loops = q[:, None, None] + np.take(split, flip.astype(np.intp), axis=0)    # (Q, 2, 3)
     if len(quads) == n_poly:
         return quad_loops.reshape(-1, 3), tri_poly
-    first = np.cumsum(n_tri_of) - n_tri_of            # each polygon's first triangle
+    first = start - 2 * np.arange(n_poly, dtype=np.int32)   # each polygon's first triangle
     tri_loops = np.empty((len(tri_poly), 3), np.int32)
     tris = np.flatnonzero(size == 3)
     tri_loops[first[tris]] = start[tris, None] + np.arange(3, dtype=np.int32)
