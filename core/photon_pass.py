@@ -131,6 +131,16 @@ def point_splat(point_ids, values, n_points):
     return out
 
 
+def _splat_channels(point_ids, chunks, n_points):
+    """(n_points, 3) sums per point of values given as a list of (3, k_i) chunks."""
+    out = np.zeros((n_points, 3))
+    if chunks:
+        values = np.concatenate(chunks, axis=1)
+        for c in range(3):
+            out[:, c] = np.bincount(point_ids, weights=values[c], minlength=n_points)
+    return out
+
+
 @dataclass
 class PhotonBatch:
     """What a batch of n photon paths did."""
@@ -190,8 +200,6 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     glossy = target.any_glossy
     pairs = {"path": [], "point": [], "diffuse": [], "glossy": [], "bounce": []}
     first = _vertex_arrays(n) if collect_pairs else None
-    sum_d = None if collect_pairs else np.zeros((m, 3))
-    sum_g = None if collect_pairs or not glossy else np.zeros((m, 3))
     rays = vertices = 0
     for bounce in range(max_bounces + 1):
         if len(idx) == 0 and bounce > last_join:
@@ -212,21 +220,23 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             nrm = face_forward(surf.ng[dep], wo[dep])
             pi, pj, cos_g = target.grid.query(surf.position[dep], nrm, wo[dep])
             if len(pi):
-                lane = dep[pi]
+                lane = dep.take(pi)
                 wd, wg = target.pair_weights(pj, wo[lane] if target.needs_directions else None, cos_g)
-                f = flux.take(lane, axis=0)
-                val_d = f * wd[:, None]
-                val_g = f * wg[:, None] if glossy else None
                 if collect_pairs:
+                    f = flux.take(lane, axis=0)
                     pairs["path"].append(idx[lane])
                     pairs["point"].append(pj)
-                    pairs["diffuse"].append(val_d)
-                    pairs["glossy"].append(val_g)
+                    pairs["diffuse"].append(f * wd[:, None])
+                    pairs["glossy"].append(f * wg[:, None] if glossy else None)
                     pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
                 else:
-                    sum_d += point_splat(pj, val_d, m)
+                    # Channel by channel, contiguous; splatted once per call (a bincount
+                    # costs O(m) besides O(pairs), so one per vertex would cost m per bounce).
+                    pairs["point"].append(pj)
+                    f = [flux[:, c].take(lane) for c in range(3)]
+                    pairs["diffuse"].append(np.stack([fc * wd for fc in f]))
                     if glossy:
-                        sum_g += point_splat(pj, val_g, m)
+                        pairs["glossy"].append(np.stack([fc * wg for fc in f]))
                 seen = np.zeros(len(idx), bool)
                 seen[lane] = True
                 rows = np.flatnonzero(seen)
@@ -278,6 +288,12 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         pg = np.zeros((0, 3)) if glossy else None
     else:
         pp = pj = pd = pg = pb = None
+    sum_d = sum_g = None
+    if not collect_pairs:
+        pj = np.concatenate(pairs["point"]) if pairs["point"] else np.zeros(0, np.int64)
+        sum_d = _splat_channels(pj, pairs["diffuse"], m)
+        sum_g = _splat_channels(pj, pairs["glossy"], m) if glossy else None
+        pj = None
     return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
 
 
