@@ -84,8 +84,9 @@ class Accel:
 
     def hit_positions(self, prim_ids, b1, b2):
         """(n, 3) float64 surface points from triangle ids and barycentrics."""
-        return (self.v0[prim_ids] + b1[:, None] * self.e1[prim_ids]
-                + b2[:, None] * self.e2[prim_ids])
+        # take(axis=0) gathers rows ~4x faster than fancy indexing (throughout the core).
+        return (self.v0.take(prim_ids, axis=0) + b1[:, None] * self.e1.take(prim_ids, axis=0)
+                + b2[:, None] * self.e2.take(prim_ids, axis=0))
 
     def spawn(self, positions, normals, directions):
         """Origins for rays leaving ``positions`` along ``directions``.
@@ -94,5 +95,7 @@ class Accel:
         to, by an amount that grows with the coordinate magnitude.
         """
         side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
-        eps = _OFFSET_ULPS * np.max(np.abs(positions - self.center), axis=1) + self.offset_floor
+        rel = np.abs(positions - self.center)
+        # Column by column: NumPy reduces a short inner axis (max over axis 1) ~10x slower.
+        eps = _OFFSET_ULPS * np.maximum(np.maximum(rel[:, 0], rel[:, 1]), rel[:, 2]) + self.offset_floor
         return positions + (side * eps)[:, None] * normals

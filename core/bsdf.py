@@ -116,28 +116,35 @@ def face_forward(n, v):
 
 def lobe_colors(table, mat_ids, diffuse_albedo):
     """(n, 4, 3) lobe colours at hits, with the (textured) diffuse albedo filled in."""
-    colors = table.color[mat_ids]
+    colors = table.color.take(mat_ids, axis=0)
     colors[:, DIFFUSE] = diffuse_albedo
     return colors
 
 
 def lobe_scores(table, mat_ids, colors):
     """(n, 4) unnormalised lobe-choice probabilities: weight times colour luminance."""
-    return table.weight[mat_ids] * np.maximum(smp.luminance(colors), 0.0)
+    return table.weight.take(mat_ids, axis=0) * np.maximum(smp.luminance(colors), 0.0)
 
 
 def choose_lobe(scores, u):
-    """Lobe index (n,) by ``scores``; -1 where all scores are 0.  Also the choice probability."""
-    total = scores.sum(axis=1)
-    cdf = np.cumsum(scores, axis=1)
+    """Lobe index (n,) by ``scores`` (n, 4); -1 where all scores are 0.  Also the choice probability."""
+    # Column by column: NumPy reduces a short inner axis (sum/cumsum over axis 1) ~8x slower.
+    s = [scores[:, k] for k in range(4)]
+    cdf = [s[0]]
+    for k in range(1, 4):
+        cdf.append(cdf[-1] + s[k])
+    total = cdf[3]
     target = u * total
-    lobe = np.minimum((cdf <= target[:, None]).sum(axis=1), 3)
+    lobe = (cdf[0] <= target).astype(np.int64)
+    for k in (1, 2):
+        lobe += cdf[k] <= target
     # Never pick a lobe of score 0 (u exactly at a cdf step of an empty lobe).
-    chosen_score = scores[np.arange(len(lobe)), lobe]
+    flat = np.arange(len(lobe)) * 4
+    chosen_score = scores.ravel().take(flat + lobe)
     bad = chosen_score <= 0
     if bad.any():
         lobe[bad] = np.argmax(scores[bad] > 0, axis=1)
-        chosen_score = scores[np.arange(len(lobe)), lobe]
+        chosen_score = scores.ravel().take(flat + lobe)
     prob = np.where(total > 0, chosen_score / np.where(total > 0, total, 1.0), 0.0)
     return np.where(total > 0, lobe, -1), prob
 
@@ -163,14 +170,15 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
         sel = np.flatnonzero(lobe == k)
         if len(sel) == 0:
             continue
-        w_o, n_s, n_g = wo[sel], nsf[sel], ngf[sel]
-        lw = table.weight[mat_ids[sel], k][:, None] * colors[sel, k] / prob[sel][:, None]
+        w_o, n_s, n_g = wo.take(sel, axis=0), nsf.take(sel, axis=0), ngf.take(sel, axis=0)
+        m_sel = mat_ids.take(sel)
+        lw = table.weight[:, k].take(m_sel)[:, None] * colors[:, k].take(sel, axis=0) / prob.take(sel)[:, None]
         if k == DIFFUSE:
             d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), n_s)
             ok = dot(d, n_g) > 0
             w = lw
         elif k == GLOSSY:
-            alpha = table.alpha[mat_ids[sel]]
+            alpha = table.alpha.take(m_sel)
             wo_l = smp.to_local(w_o, n_s)
             ok_o = wo_l[:, 2] > 1e-9
             wo_l[:, 2] = np.maximum(wo_l[:, 2], 1e-9)
@@ -188,8 +196,9 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
             ok = dot(d, n_g) > 0
             w = lw
         else:
-            entering = dot(w_o, ng[sel]) > 0       # wo on the front (outside) side of the surface
-            eta = np.where(entering, table.ior[mat_ids[sel]], 1.0 / table.ior[mat_ids[sel]])
+            entering = dot(w_o, ng.take(sel, axis=0)) > 0       # wo on the front (outside) side of the surface
+            ior = table.ior.take(m_sel)
+            eta = np.where(entering, ior, 1.0 / ior)
             cos_i = np.clip(dot(w_o, n_s), 0.0, 1.0)
             fr, cos_t = smp.fresnel_dielectric(cos_i, eta)
             is_refl = u1[sel] < fr

@@ -38,17 +38,17 @@ class RenderContext:
         """Surface data at hits given by triangle ids and barycentrics."""
         a = self.accel
         pos = a.hit_positions(prim_ids, b1, b2)
-        ng = a.geometric_normals[prim_ids]
+        ng = a.geometric_normals.take(prim_ids, axis=0)
         b0 = 1.0 - b1 - b2
         if self.has_shading_normals:
-            sn = self.scene.shading_normals[prim_ids].astype(np.float64)
+            sn = self.scene.shading_normals.take(prim_ids, axis=0).astype(np.float64)
             ns = normalize(b0[:, None] * sn[:, 0] + b1[:, None] * sn[:, 1] + b2[:, None] * sn[:, 2])
-            bad = ~(np.abs(ns).sum(axis=1) > 0)
+            bad = np.flatnonzero(~((ns[:, 0] != 0) | (ns[:, 1] != 0) | (ns[:, 2] != 0)))
             ns[bad] = ng[bad]
         else:
             ns = ng
-        mat = self.scene.material_ids[prim_ids]
-        albedo = self.table.color[mat, 0]
+        mat = self.scene.material_ids.take(prim_ids)
+        albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]
             if (tex >= 0).any():

@@ -51,8 +51,9 @@ class HashGrid:
             self.entry_r2 = np.zeros(0, np.float32)
             self.entry_normal = np.zeros((3, 0), np.float32)
             return
-        lo = (positions - radii[:, None]).min(axis=0)
-        hi = (positions + radii[:, None]).max(axis=0)
+        # Column by column: NumPy reduces over axis 0 of an (m, 3) array ~10x slower.
+        lo = np.array([(positions[:, k] - radii).min() for k in range(3)])
+        hi = np.array([(positions[:, k] + radii).max() for k in range(3)])
         budget = min(ENTRY_BUDGET, max(4, MAX_ENTRIES // m))
         self.cell_size = c = _choose_cell_size(radii, hi - lo, budget)
         self.origin = lo
@@ -61,7 +62,7 @@ class HashGrid:
         cmin = np.clip(np.floor((positions - radii[:, None] - lo) / c).astype(np.int64), 0, dims - 1)
         cmax = np.clip(np.floor((positions + radii[:, None] - lo) / c).astype(np.int64), 0, dims - 1)
         span = cmax - cmin + 1                                     # (m, 3)
-        count = span.prod(axis=1)
+        count = span[:, 0] * span[:, 1] * span[:, 2]
         base_key = cmin[:, 0] + dims[0] * (cmin[:, 1] + dims[1] * cmin[:, 2])
         point_of_entry = np.repeat(np.arange(m, dtype=np.int64), count)
         # Offset of each entry within its point's box: x fastest, then y, then z.
@@ -120,7 +121,9 @@ class HashGrid:
     def _cells(self, x):
         """Cell keys (n,) of positions x (n, 3), -1 outside the grid, and integer cell coordinates."""
         cell = np.floor((x - self.origin) / self.cell_size).astype(np.int64)
-        inside = ((cell >= 0) & (cell < self.dims)).all(axis=1)
+        inside = (cell[:, 0] >= 0) & (cell[:, 0] < self.dims[0])     # columns: faster than all(axis=1)
+        for k in (1, 2):
+            inside &= (cell[:, k] >= 0) & (cell[:, k] < self.dims[k])
         keys = cell[:, 0] + self.dims[0] * (cell[:, 1] + self.dims[1] * cell[:, 2])
         return np.where(inside, keys, -1), cell
 
@@ -148,9 +151,10 @@ class HashGrid:
         count = count[photons]
         start = start[photons]
         # Photon positions relative to their cell origin (as the entries), normals, directions.
-        rel = (x[photons] - (self.origin + cell[photons] * self.cell_size)).T.astype(np.float32)
-        nrm = normals[photons].T.astype(np.float32)
-        dirs = None if directions is None else directions[photons].T.astype(np.float32)
+        rel = (x.take(photons, axis=0) - (self.origin + cell.take(photons, axis=0) * self.cell_size)
+               ).T.astype(np.float32)
+        nrm = normals.take(photons, axis=0).T.astype(np.float32)
+        dirs = None if directions is None else directions.take(photons, axis=0).T.astype(np.float32)
         out_p, out_j, out_c = [], [], []
         bounds = np.cumsum(count)
         lo = 0

@@ -90,7 +90,7 @@ class DepositTarget:
         """
         pts = self.points
         if self.has_shading_normals:
-            cos_s = dot(wi, pts.ns[j])
+            cos_s = dot(wi, pts.ns.take(j, axis=0))
             # Photon density is flux per area of the geometric surface: |cos_s| / |cos_g|.
             ratio = np.abs(cos_s) / np.maximum(np.abs(cos_g), 1e-4)
             wd = np.where(cos_s > 0, ratio, 0.0)
@@ -100,10 +100,11 @@ class DepositTarget:
         wg = None
         if self.any_glossy:
             wg = np.zeros(len(j))
-            g = np.flatnonzero(self.is_glossy[j])
+            g = np.flatnonzero(self.is_glossy.take(j))
             if len(g):
-                jg = j[g]
-                wg[g] = eval_glossy(self.alpha[jg], pts.wo[jg], wi[g], pts.ns[jg])
+                jg = j.take(g)
+                wg[g] = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
+                                    pts.ns.take(jg, axis=0))
                 if ratio is not None:
                     wg[g] *= ratio[g]
         return wd, wg
@@ -208,20 +209,22 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             hits = accel.intersect(origins, dirs)
             rays += len(idx)
             h = np.flatnonzero(hits.is_hit)
-            idx, dirs, flux = idx[h], dirs[h], flux[h]
+            idx, dirs, flux = idx.take(h), dirs.take(h, axis=0), flux.take(h, axis=0)
             vertices += len(idx)
-            surf = ctx.surface(hits.prim_ids[h], hits.b1[h], hits.b2[h])
+            surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
         else:
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
         wo = -dirs
         # Deposit at non-delta vertices; a pair found makes the path visible.
         dep = np.flatnonzero(table.has_nondelta[surf.mat_ids])
         if len(dep) and m:
-            nrm = face_forward(surf.ng[dep], wo[dep])
-            pi, pj, cos_g = target.grid.query(surf.position[dep], nrm, wo[dep])
+            wo_dep = wo.take(dep, axis=0)
+            nrm = face_forward(surf.ng.take(dep, axis=0), wo_dep)
+            pi, pj, cos_g = target.grid.query(surf.position.take(dep, axis=0), nrm, wo_dep)
             if len(pi):
                 lane = dep.take(pi)
-                wd, wg = target.pair_weights(pj, wo[lane] if target.needs_directions else None, cos_g)
+                wd, wg = target.pair_weights(pj, wo.take(lane, axis=0) if target.needs_directions else None,
+                                             cos_g)
                 if collect_pairs:
                     f = flux.take(lane, axis=0)
                     pairs["path"].append(idx[lane])
@@ -275,10 +278,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         q = np.minimum(1.0, ratio)
         alive &= (block[:, 3] < q) & (q > 0)
         keep = np.flatnonzero(alive)
-        idx = idx[keep]
-        flux = new_flux[keep] / q[keep][:, None]
-        dirs = wi[keep]
-        origins = accel.spawn(surf.position[keep], surf.ng[keep], dirs)
+        idx = idx.take(keep)
+        flux = new_flux.take(keep, axis=0) / q.take(keep)[:, None]
+        dirs = wi.take(keep, axis=0)
+        origins = accel.spawn(surf.position.take(keep, axis=0), surf.ng.take(keep, axis=0), dirs)
     if collect_pairs and pairs["path"]:
         pp, pj = np.concatenate(pairs["path"]), np.concatenate(pairs["point"])
         pd, pb = np.concatenate(pairs["diffuse"]), np.concatenate(pairs["bounce"])

@@ -1,0 +1,91 @@
+"""A/B of the photon pass: this checkout's ``core`` against ``core`` at another git revision.
+
+Both versions are imported into one process (the other one as ``core_base``, extracted with
+``git archive``) and traced alternately on the same scene, eye pass and random numbers, so
+each round's ratio is taken under the same machine load; the median and range over rounds
+are printed.  Use it before claiming that a change to the photon pass is faster.
+
+    python benchmarks/ab_photon_pass.py [--base HEAD] [--scene cornell_box] [--resolution 640 480]
+                                        [--rounds 10] [--paths 65536] [--pairs]
+
+``--pairs`` traces as the Markov chains do (deposit pairs collected per path) instead of
+splatting uniform photons into per-point sums.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BATCH = 1 << 14
+
+
+def extract(rev, into):
+    """``core`` at git revision ``rev`` as the package ``core_base`` under directory ``into``."""
+    archive = subprocess.run(["git", "-C", ROOT, "archive", "--prefix=core_base/", f"{rev}:core"],
+                             check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", into], input=archive, check=True)
+
+
+def photon_pass(package, scene_name, resolution, n_paths, pairs):
+    """A function tracing ``n_paths`` photons with ``package``; returns vertices per second."""
+    mod = lambda name: importlib.import_module(f"{package}.{name}")  # noqa: E731
+    settings = importlib.import_module(package).RenderSettings()
+    scene = mod("testing.scenes").BUILTIN[scene_name](resolution=resolution)
+    ctx = mod("context").RenderContext(scene)
+    eye = mod("eye_pass").trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px,
+                                         settings.max_bounces)
+    pp = mod("photon_pass")
+    target = pp.DepositTarget(eye.points, eye.points.base_radius, ctx.table, resolution[0] * resolution[1],
+                              ctx.has_shading_normals)
+    dims = pp.path_dims(settings.max_bounces)
+
+    def run():
+        rng = np.random.default_rng(1)
+        vertices = 0
+        t0 = time.perf_counter()
+        for done in range(0, n_paths, BATCH):
+            u = rng.random((min(BATCH, n_paths - done), dims))
+            vertices += pp.trace_photons(ctx, target, u, settings.max_bounces, collect_pairs=pairs).vertices
+        return vertices / (time.perf_counter() - t0)
+    return run
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--base", default="HEAD", help="git revision to compare against (default HEAD)")
+    ap.add_argument("--scene", default="cornell_box")
+    ap.add_argument("--resolution", type=int, nargs=2, default=(640, 480))
+    ap.add_argument("--rounds", type=int, default=10)
+    ap.add_argument("--paths", type=int, default=65536, help="photon paths per round and version")
+    ap.add_argument("--pairs", action="store_true", help="collect deposit pairs (as the chains do)")
+    a = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        extract(a.base, tmp)
+        sys.path.insert(0, tmp)
+        sys.path.insert(0, ROOT)
+        versions = {name: photon_pass(pkg, a.scene, tuple(a.resolution), a.paths, a.pairs)
+                    for name, pkg in (("base", "core_base"), ("this", "core"))}
+        rates = {name: [] for name in versions}
+        for run in versions.values():
+            run()                                    # warm-up
+        for _ in range(a.rounds):
+            for name, run in versions.items():
+                rates[name].append(run())
+    ratio = np.array(rates["this"]) / np.array(rates["base"])
+    mode = "pairs" if a.pairs else "splat"
+    print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {mode}, {a.rounds} rounds of {a.paths} paths: "
+          f"base ({a.base}) {np.median(rates['base']):,.0f} vertices/s, this checkout "
+          f"{np.median(rates['this']):,.0f}; this/base median {np.median(ratio):.3f} "
+          f"(range {ratio.min():.3f}-{ratio.max():.3f})")
+
+
+if __name__ == "__main__":
+    main()
