@@ -12,10 +12,14 @@ Every figure is a ratio measured in this one run (the machines are shared and no
 5. peak memory of a 1920x1080 render at default settings (main process plus the largest worker).
 
     python benchmarks/throughput.py [--scene cornell_box] [--resolution 640 480] [--rounds 3] [--json out.json]
+
+``--subdivide K`` splits every triangle into 4**K (same surfaces, same image): only the ray
+cost changes, which shows how the ratio of 1. depends on the scene's geometry.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import subprocess
@@ -81,6 +85,30 @@ def photon_pass_rate(scene, n_paths, with_points, settings):
     return vertices / t_photons, rays / t_rays, len(batches), rays, vertices, target.grid.entry_count
 
 
+def subdivide(scene, levels):
+    """The same surfaces with every triangle split into 4**levels (midpoint subdivision).
+
+    Light transport is unchanged (flat triangles stay in their plane; per-corner shading
+    normals and UVs are interpolated linearly, as the renderer does), only rays cost more.
+    """
+    corners = scene.triangle_corners().astype(np.float64)                    # (T, 3, 3)
+    extra = [a.astype(np.float64) for a in (scene.shading_normals, scene.uvs) if a is not None]
+    mats = scene.material_ids
+    for _ in range(levels):
+        def split(c):
+            m01, m12, m20 = 0.5 * (c[:, 0] + c[:, 1]), 0.5 * (c[:, 1] + c[:, 2]), 0.5 * (c[:, 2] + c[:, 0])
+            return np.concatenate([np.stack(t, axis=1) for t in
+                                   ((c[:, 0], m01, m20), (m01, c[:, 1], m12), (m20, m12, c[:, 2]),
+                                    (m01, m12, m20))])
+        corners, extra, mats = split(corners), [split(a) for a in extra], np.tile(mats, 4)
+    it = iter(extra)
+    return dataclasses.replace(
+        scene, vertices=corners.reshape(-1, 3).astype(np.float32),
+        triangles=np.arange(corners.shape[0] * 3, dtype=np.int32).reshape(-1, 3), material_ids=mats,
+        shading_normals=next(it).astype(np.float32) if scene.shading_normals is not None else None,
+        uvs=next(it).astype(np.float32) if scene.uvs is not None else None).validate()
+
+
 def render_rate(scene, **kw):
     s = RenderSettings(**kw)
     result = render(scene, s)
@@ -112,31 +140,8 @@ print(json.dumps({{"main": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", default="cornell_box", choices=sorted(BUILTIN))
-    ap.add_argument("--resolution", type=int, nargs=2, default=(640, 480))
-    ap.add_argument("--paths", type=int, default=200_000, help="photon paths for the vertex rate")
-    ap.add_argument("--passes", type=int, default=5, help="passes of the render-rate runs")
-    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the render-rate runs")
-    ap.add_argument("--skip-memory", action="store_true")
-    ap.add_argument("--json", help="also write the figures to this JSON file")
-    a = ap.parse_args()
-    scene = BUILTIN[a.scene](resolution=tuple(a.resolution))
-    s = RenderSettings()
-    out = {"scene": a.scene, "resolution": list(a.resolution), "triangles": scene.triangle_count,
-           "cpu_count": os.cpu_count()}
-    print(f"scene {a.scene} {a.resolution[0]}x{a.resolution[1]}, {scene.triangle_count} triangles")
-
-    v_rate, r_rate, n_batches, rays, vertices, entries = photon_pass_rate(scene, a.paths, True, s)
-    out.update(photon_vertices_per_s=v_rate, embree_rays_per_s=r_rate, vertex_ray_ratio=v_rate / r_rate,
-               ray_batches=n_batches, rays=rays, grid_entries=entries)
-    print(f"photon pass (deposits)   {v_rate:12,.0f} vertices/s   embree {r_rate:12,.0f} rays/s   "
-          f"ratio {v_rate / r_rate:.3f}   ({n_batches} batches, {rays:,} rays)")
-    v0, r0, *_ = photon_pass_rate(scene, a.paths, False, s)
-    out.update(trace_only_vertices_per_s=v0, trace_only_ratio=v0 / r0)
-    print(f"photon pass (no points)  {v0:12,.0f} vertices/s   embree {r0:12,.0f} rays/s   ratio {v0 / r0:.3f}")
-
+def render_ratios(scene, a, s, out):
+    """Figures 3 and 4 into ``out``."""
     # Whole renders, interleaved in rounds: the machine's load drifts, so every ratio is taken
     # within a round and the median over rounds is reported with its range.
     common = dict(passes=a.passes, photons_per_pass=s.photons_per_pass)
@@ -168,7 +173,41 @@ def main():
         lo, hi = out[f"amcmcppm_over_ppm_paths_w{workers}_range"]
         print(f"AMCMCPPM / SPPM, {workers} worker(s): traced paths/s {rp:.2f} (range {lo:.2f}-{hi:.2f}), "
               f"vertices/s {rv:.2f}")
-    if not a.skip_memory:
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="cornell_box", choices=sorted(BUILTIN))
+    ap.add_argument("--resolution", type=int, nargs=2, default=(640, 480))
+    ap.add_argument("--paths", type=int, default=200_000, help="photon paths for the vertex rate")
+    ap.add_argument("--passes", type=int, default=5, help="passes of the render-rate runs")
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the render-rate runs")
+    ap.add_argument("--subdivide", type=int, default=0, metavar="K",
+                    help="split every triangle into 4**K (dearer rays, same light transport)")
+    ap.add_argument("--skip-memory", action="store_true")
+    ap.add_argument("--skip-renders", action="store_true", help="only the photon-pass figures 1 and 2")
+    ap.add_argument("--json", help="also write the figures to this JSON file")
+    a = ap.parse_args()
+    scene = BUILTIN[a.scene](resolution=tuple(a.resolution))
+    if a.subdivide:
+        scene = subdivide(scene, a.subdivide)
+    s = RenderSettings()
+    out = {"scene": a.scene, "resolution": list(a.resolution), "triangles": scene.triangle_count,
+           "cpu_count": os.cpu_count()}
+    print(f"scene {a.scene} {a.resolution[0]}x{a.resolution[1]}, {scene.triangle_count} triangles")
+
+    v_rate, r_rate, n_batches, rays, vertices, entries = photon_pass_rate(scene, a.paths, True, s)
+    out.update(photon_vertices_per_s=v_rate, embree_rays_per_s=r_rate, vertex_ray_ratio=v_rate / r_rate,
+               ray_batches=n_batches, rays=rays, grid_entries=entries)
+    print(f"photon pass (deposits)   {v_rate:12,.0f} vertices/s   embree {r_rate:12,.0f} rays/s   "
+          f"ratio {v_rate / r_rate:.3f}   ({n_batches} batches, {rays:,} rays)")
+    v0, r0, *_ = photon_pass_rate(scene, a.paths, False, s)
+    out.update(trace_only_vertices_per_s=v0, trace_only_ratio=v0 / r0)
+    print(f"photon pass (no points)  {v0:12,.0f} vertices/s   embree {r0:12,.0f} rays/s   ratio {v0 / r0:.3f}")
+
+    if not a.skip_renders:
+        render_ratios(scene, a, s, out)
+    if not (a.skip_memory or a.skip_renders):
         mem = peak_memory((1920, 1080))
         out["peak_memory_1080p_mib"] = mem
         total = mem["main"] + mem["worker"] * max(mem["workers"] - 1, 0) + (mem["worker"] if mem["workers"] > 1 else 0)
