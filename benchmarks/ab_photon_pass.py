@@ -6,10 +6,12 @@ each round's ratio is taken under the same machine load; the median and range ov
 are printed.  Use it before claiming that a change to the photon pass is faster.
 
     python benchmarks/ab_photon_pass.py [--base HEAD] [--scene cornell_box] [--resolution 640 480]
-                                        [--rounds 10] [--paths 65536] [--pairs]
+                                        [--rounds 10] [--paths 65536] [--pairs | --render METHOD]
 
 ``--pairs`` traces as the Markov chains do (deposit pairs collected per path) instead of
-splatting uniform photons into per-point sums.
+splatting uniform photons into per-point sums.  ``--render ppm|amcmcppm`` times whole
+one-worker renders instead (eye passes, grids, chains and their deposit logs included) and
+compares photon paths per second, the first pass (start-up) left out.
 """
 from __future__ import annotations
 
@@ -58,6 +60,18 @@ def photon_pass(package, scene_name, resolution, n_paths, pairs):
     return run
 
 
+def whole_render(package, scene_name, resolution, method, passes):
+    """A function rendering with ``package`` on one worker; returns traced paths per second."""
+    core = importlib.import_module(package)
+    scene = importlib.import_module(f"{package}.testing.scenes").BUILTIN[scene_name](resolution=resolution)
+    settings = core.RenderSettings(method=method, workers=1, passes=passes)
+
+    def run():
+        stats = core.render(scene, settings).stats
+        return sum(s["paths_traced"] for s in stats[1:]) / (stats[-1]["elapsed_s"] - stats[0]["elapsed_s"])
+    return run
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="HEAD", help="git revision to compare against (default HEAD)")
@@ -65,13 +79,18 @@ def main():
     ap.add_argument("--resolution", type=int, nargs=2, default=(640, 480))
     ap.add_argument("--rounds", type=int, default=10)
     ap.add_argument("--paths", type=int, default=65536, help="photon paths per round and version")
-    ap.add_argument("--pairs", action="store_true", help="collect deposit pairs (as the chains do)")
+    how = ap.add_mutually_exclusive_group()
+    how.add_argument("--pairs", action="store_true", help="collect deposit pairs (as the chains do)")
+    how.add_argument("--render", choices=("ppm", "amcmcppm"), help="time whole one-worker renders")
+    ap.add_argument("--passes", type=int, default=4, help="passes per render (with --render)")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         extract(a.base, tmp)
         sys.path.insert(0, tmp)
         sys.path.insert(0, ROOT)
-        versions = {name: photon_pass(pkg, a.scene, tuple(a.resolution), a.paths, a.pairs)
+        res = tuple(a.resolution)
+        versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes) if a.render else
+                           photon_pass(pkg, a.scene, res, a.paths, a.pairs))
                     for name, pkg in (("base", "core_base"), ("this", "core"))}
         rates = {name: [] for name in versions}
         for run in versions.values():
@@ -80,9 +99,12 @@ def main():
             for name, run in versions.items():
                 rates[name].append(run())
     ratio = np.array(rates["this"]) / np.array(rates["base"])
-    mode = "pairs" if a.pairs else "splat"
-    print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {mode}, {a.rounds} rounds of {a.paths} paths: "
-          f"base ({a.base}) {np.median(rates['base']):,.0f} vertices/s, this checkout "
+    if a.render:
+        what, unit = f"{a.render} renders of {a.passes} passes", "paths/s"
+    else:
+        what, unit = f"{'pairs' if a.pairs else 'splat'}, {a.paths} paths", "vertices/s"
+    print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.rounds} rounds of {what}: "
+          f"base ({a.base}) {np.median(rates['base']):,.0f} {unit}, this checkout "
           f"{np.median(rates['this']):,.0f}; this/base median {np.median(ratio):.3f} "
           f"(range {ratio.min():.3f}-{ratio.max():.3f})")
 

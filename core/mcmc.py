@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .lights import LIGHT_DIMS
-from .photon_pass import BOUNCE_DIMS, point_splat
+from .photon_pass import BOUNCE_DIMS, PointSums
 
 THETA_MIN, THETA_MAX = 1e-4, 1e3
 
@@ -298,8 +298,9 @@ class DepositLog(Recorder):
         self.n_points = n_points
         self.glossy = glossy
         self.flush_pairs = flush_pairs
-        self.sum_diffuse = np.zeros((n_points, 3))
-        self.sum_glossy = np.zeros((n_points, 3)) if glossy else None
+        self._sums = PointSums(n_points, glossy)
+        self.sum_diffuse = self._sums.diffuse          # (m, 3), complete after flush()
+        self.sum_glossy = self._sums.glossy
         self.n_chains = n_chains
         self.state_of_lane = np.full(2 * n_chains, -1, np.int64)   # current part id per slot
         self.count = np.zeros(1024, np.int64)                   # recordings per state id
@@ -363,26 +364,28 @@ class DepositLog(Recorder):
     def flush(self):
         """Splat the recordings so far; keep the pairs of the current states only.
 
-        Chunk by chunk (no concatenated copy of the whole log): each pair's values times
-        its part's count, summed per point; pairs of parts recorded zero times add zeros.
+        Each pair's values times its part's count, summed per point (through
+        :class:`PointSums`, in groups of at least as many pairs as points); pairs of parts
+        recorded zero times add zeros.
         """
         if not self.chunks:
             return
         current = self.state_of_lane[self.state_of_lane >= 0]
         alive = np.zeros(len(self.count), bool)
         alive[current] = True
-        sums = (self.sum_diffuse, self.sum_glossy) if self.glossy else (self.sum_diffuse,)
         kept = []
         for chunk in self.chunks:
             state, point = chunk[0], chunk[1]
             w = self.count.take(state).astype(np.float64)
-            for total, values in zip(sums, chunk[2:]):
-                total += point_splat(point, values * w[:, None], self.n_points)
+            diffuse, glossy = chunk[2], chunk[3]
+            self._sums.add(point, [diffuse[:, c] * w for c in range(3)],
+                           [glossy[:, c] * w for c in range(3)] if self.glossy else None)
             keep = np.flatnonzero(alive.take(state))
             if len(keep) == len(state):
                 kept.append(chunk)
             elif len(keep):
                 kept.append(tuple(None if a is None else a.take(keep, axis=0) for a in chunk))
+        self._sums.flush()
         self.count[current] = 0
         # The kept pairs, as one chunk (later flushes then see few chunks).
         self.chunks = [tuple(None if part[0] is None else np.concatenate(part) for part in zip(*kept))] if kept else []

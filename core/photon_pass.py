@@ -123,23 +123,41 @@ class DepositTarget:
         return out
 
 
-def point_splat(point_ids, values, n_points):
-    """(n_points, 3) float64 sums of ``values`` (k, 3) per point (a bincount per channel is
-    faster than one over interleaved keys, which must be built first)."""
-    out = np.empty((n_points, 3))
-    for c in range(3):
-        out[:, c] = np.bincount(point_ids, weights=values[:, c], minlength=n_points)
-    return out
+class PointSums:
+    """Per-measurement-point sums of pair values (diffuse, and glossy if any), float64.
 
+    ``add`` buffers pairs; they are splatted with one bincount per channel once at least
+    ``n_points`` pairs are waiting (and by ``flush``): a bincount costs O(points) besides
+    O(pairs), so splatting every small group of pairs on its own would cost a pass over all
+    points each time (at 1080p, 2 million points, more than the pairs themselves).
+    """
 
-def _splat_channels(point_ids, chunks, n_points):
-    """(n_points, 3) sums per point of values given as a list of (3, k_i) chunks."""
-    out = np.zeros((n_points, 3))
-    if chunks:
-        values = np.concatenate(chunks, axis=1)
-        for c in range(3):
-            out[:, c] = np.bincount(point_ids, weights=values[c], minlength=n_points)
-    return out
+    def __init__(self, n_points, glossy, min_pairs=1 << 16):
+        self.n_points = n_points
+        self.diffuse = np.zeros((n_points, 3))
+        self.glossy = np.zeros((n_points, 3)) if glossy else None
+        self.min_pairs = max(n_points, min_pairs)
+        self._points, self._values, self._waiting = [], [], 0
+
+    def add(self, point_ids, diffuse, glossy=None):
+        """Pairs with points ``point_ids`` (k,) and values (3, k) (three channel rows, each
+        contiguous); ``glossy`` likewise when the sums have a glossy part."""
+        self._points.append(point_ids)
+        self._values.append((diffuse, glossy))
+        self._waiting += len(point_ids)
+        if self._waiting >= self.min_pairs:
+            self.flush()
+
+    def flush(self):
+        if not self._points:
+            return
+        points = np.concatenate(self._points) if len(self._points) > 1 else self._points[0]
+        parts = (self.diffuse, self.glossy) if self.glossy is not None else (self.diffuse,)
+        for i, out in enumerate(parts):
+            for c in range(3):
+                w = np.concatenate([v[i][c] for v in self._values])
+                out[:, c] += np.bincount(points, weights=w, minlength=self.n_points)
+        self._points, self._values, self._waiting = [], [], 0
 
 
 @dataclass
@@ -154,7 +172,7 @@ class PhotonBatch:
     pair_glossy: np.ndarray      # (k, 3) float64 flux * glossy weight, or None (no glossy points)
     pair_bounce: np.ndarray      # (k,) int16 vertex of each pair (0 = first surface hit)
     first: dict                  # arrays (n, ...): each visible path at its first visible vertex
-    sum_diffuse: np.ndarray      # (m, 3) per-point sums of flux * diffuse weight (if splatted)
+    sum_diffuse: np.ndarray      # (m, 3) per-point sums of flux * diffuse weight (if summed here)
     sum_glossy: np.ndarray       # (m, 3) per-point sums of flux * glossy weight, or None
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
@@ -170,12 +188,14 @@ def _vertex_arrays(n):
             "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3))}
 
 
-def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None):
+def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
+                  sums=None):
     """Trace photon paths for primary samples ``u`` (n, d) and deposit them on ``target``.
 
     With ``collect_pairs`` the deposits are returned per pair (for Markov chains) together
     with each visible path's state at its first visible vertex (``PhotonBatch.first``);
-    otherwise they are summed per measurement point.
+    otherwise they are summed per measurement point: into ``sums`` (a :class:`PointSums`
+    that outlives the call, e.g. one per pass) if given, else into ``PhotonBatch.sum_*``.
 
     ``resume`` (arrays as ``PhotonBatch.first``, one row per path) restarts every path at
     its recorded vertex, scattering with its (redrawn) dimensions there: the deposits at
@@ -201,6 +221,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     glossy = target.any_glossy
     pairs = {"path": [], "point": [], "diffuse": [], "glossy": [], "bounce": []}
     first = _vertex_arrays(n) if collect_pairs else None
+    own_sums = not collect_pairs and sums is None
+    if own_sums:
+        sums = PointSums(m, glossy)
     rays = vertices = 0
     for bounce in range(max_bounces + 1):
         if len(idx) == 0 and bounce > last_join:
@@ -233,13 +256,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     pairs["glossy"].append(f * wg[:, None] if glossy else None)
                     pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
                 else:
-                    # Channel by channel, contiguous; splatted once per call (a bincount
-                    # costs O(m) besides O(pairs), so one per vertex would cost m per bounce).
-                    pairs["point"].append(pj)
                     f = [flux[:, c].take(lane) for c in range(3)]
-                    pairs["diffuse"].append(np.stack([fc * wd for fc in f]))
-                    if glossy:
-                        pairs["glossy"].append(np.stack([fc * wg for fc in f]))
+                    sums.add(pj, [fc * wd for fc in f], [fc * wg for fc in f] if glossy else None)
                 seen = np.zeros(len(idx), bool)
                 seen[lane] = True
                 rows = np.flatnonzero(seen)
@@ -292,11 +310,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     else:
         pp = pj = pd = pg = pb = None
     sum_d = sum_g = None
-    if not collect_pairs:
-        pj = np.concatenate(pairs["point"]) if pairs["point"] else np.zeros(0, np.int64)
-        sum_d = _splat_channels(pj, pairs["diffuse"], m)
-        sum_g = _splat_channels(pj, pairs["glossy"], m) if glossy else None
-        pj = None
+    if own_sums:
+        sums.flush()
+        sum_d, sum_g = sums.diffuse, sums.glossy
     return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from .context import RenderContext
 from .mcmc import ChainCounters, ChainSet, DepositLog, begin_pass, end_pass, iterate
-from .photon_pass import path_dims, trace_photons
+from .photon_pass import PointSums, path_dims, trace_photons
 
 # Uniform photon paths traced per batch (bounds the memory of the deposit pairs).
 PPM_BATCH = 1 << 14
@@ -68,26 +68,23 @@ class PhotonWorker:
     def _uniform_pass(self, pass_index, target, n_photons, counters, stop):
         s = self.settings
         rng = np.random.default_rng([s.seed, STREAM_PHOTONS, pass_index, self.index])
-        m = target.points.count
-        sum_d = np.zeros((m, 3))
-        sum_g = np.zeros((m, 3)) if target.any_glossy else None
+        sums = PointSums(target.points.count, target.any_glossy)
         done = 0
         while done < n_photons:
             if stop():
-                return target.to_pixels(sum_d, sum_g), True
+                sums.flush()
+                return target.to_pixels(sums.diffuse, sums.glossy), True
             b = min(PPM_BATCH, n_photons - done)
             t0 = time.perf_counter()
-            batch = trace_photons(self.ctx, target, rng.random((b, self.dims)), s.max_bounces)
+            batch = trace_photons(self.ctx, target, rng.random((b, self.dims)), s.max_bounces, sums=sums)
             counters.trace_s += time.perf_counter() - t0
-            sum_d += batch.sum_diffuse
-            if sum_g is not None:
-                sum_g += batch.sum_glossy
             visible = int(batch.visible.sum())
             counters.add(ChainCounters(iterations=b, paths_traced=b, recorded=b, uniform_samples=b,
                                        uniform_visible=visible, rays=batch.rays,
                                        vertices=batch.vertices))
             done += b
-        return target.to_pixels(sum_d, sum_g), False
+        sums.flush()
+        return target.to_pixels(sums.diffuse, sums.glossy), False
 
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings

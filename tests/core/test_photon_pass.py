@@ -3,7 +3,7 @@ import numpy as np
 
 from core.context import RenderContext
 from core.eye_pass import trace_eye_pass
-from core.photon_pass import DepositTarget, bounce_offset, path_dims, trace_photons
+from core.photon_pass import DepositTarget, PointSums, bounce_offset, path_dims, trace_photons
 from core.testing.scenes import glass_ceiling_room, hole_mirror_glass
 
 
@@ -74,3 +74,38 @@ def test_low_dimension_refresh_redraws_only_after_the_first_visible_vertex():
         assert (u[i, start:] != before[i, start:]).all()
     np.testing.assert_array_equal(u[~batch.visible], before[~batch.visible])
     assert (batch.first_dim[vis] >= bounce_offset(0)).all()
+
+
+def test_point_sums_equal_a_direct_accumulation():
+    """Pairs added in groups of every size (some past the splat threshold) sum like np.add.at."""
+    rng = np.random.default_rng(3)
+    m = 500
+    sums = PointSums(m, glossy=True, min_pairs=0)       # threshold = m pairs
+    want_d, want_g = np.zeros((m, 3)), np.zeros((m, 3))
+    for k in (0, 1, 7, 499, 500, 1200, 3):
+        j = rng.integers(0, m, k)
+        d, g = rng.random((3, k)), rng.random((3, k))
+        sums.add(j, list(d), list(g))
+        np.add.at(want_d, j, d.T)
+        np.add.at(want_g, j, g.T)
+    sums.flush()
+    sums.flush()                                         # nothing waiting: no change
+    np.testing.assert_allclose(sums.diffuse, want_d, rtol=1e-12)
+    np.testing.assert_allclose(sums.glossy, want_g, rtol=1e-12)
+    assert want_d.sum() > 0
+
+
+def test_photons_summed_across_calls_equal_one_call():
+    """A PointSums shared by several batches (as a pass uses it) gives the sums of one batch."""
+    ctx, target = setup(glass_ceiling_room((24, 18)))
+    u = np.random.default_rng(4).random((6000, path_dims(8)))
+    whole = trace_photons(ctx, target, u.copy(), 8)
+    sums = PointSums(target.points.count, target.any_glossy)
+    for part in np.array_split(u, 3):
+        batch = trace_photons(ctx, target, part.copy(), 8, sums=sums)
+        assert batch.sum_diffuse is None
+    sums.flush()
+    assert whole.sum_diffuse.sum() > 0
+    np.testing.assert_allclose(sums.diffuse, whole.sum_diffuse, rtol=1e-9, atol=1e-12)
+    if target.any_glossy:
+        np.testing.assert_allclose(sums.glossy, whole.sum_glossy, rtol=1e-9, atol=1e-12)
