@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from core.hash_grid import HashGrid, brute_force_query
+from core.hash_grid import GROUP_SPAN, HashGrid, brute_force_query
 
 
 def random_points(rng, n, scale, offset, r_range):
@@ -81,3 +81,21 @@ def test_back_facing_and_cross_corner_photons_are_rejected():
     normals = np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]])   # same side, back, other wall
     p, _, _ = grid.query(x, normals)
     assert p.tolist() == [0]
+
+
+def test_boxes_wider_than_the_offset_groups_are_found():
+    """A few radii far above the median span more than GROUP_SPAN cells: listed separately."""
+    rng = np.random.default_rng(11)
+    pts, radii, nrm = random_points(rng, 4000, 1.0, 0.0, (0.01, 0.03))
+    radii[:40] = rng.uniform(0.2, 0.5, 40)
+    grid = HashGrid(pts, radii, nrm)
+    assert (2 * radii / grid.cell_size).max() > GROUP_SPAN + 1
+    x = pts[rng.integers(0, 4000, 3000)] + 0.05 * rng.normal(size=(3000, 3))
+    xn = nrm[rng.integers(0, 4000, 3000)]
+    p, j, _ = grid.query(x, xn)
+    bp, bj = brute_force_query(x, xn, pts, radii, nrm)
+    got, want = pair_set(p, j), pair_set(bp, bj)
+    assert len([1 for _, pj in want if pj < 40]) > 50
+    for pi, pj in got ^ want:
+        d = np.linalg.norm(x[pi] - pts[pj])
+        assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6, (pi, pj, d, radii[pj])
