@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import DIFFUSE, GLOSSY, choose_lobe, face_forward, lobe_scores, scatter
+from .bsdf import DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_scores, scatter
 from .camera import generate_camera_rays
 
 
@@ -100,32 +100,34 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             elif world.any():
                 emission[pix[miss]] += beta[miss] * world   # one path per pixel: no repeats
         h = np.flatnonzero(hits.is_hit)
-        pix, beta, dirs = pix[h], beta[h], dirs[h]
-        path_len = path_len[h] + hits.t[h]
-        footprint = footprint[h]
-        surf = ctx.surface(hits.prim_ids[h], hits.b1[h], hits.b2[h])
+        pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
+        path_len = path_len.take(h) + hits.t.take(h)
+        footprint = footprint.take(h)
+        surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
         wo = -dirs
         # Emission seen along the path (emitters are two-sided).
-        emissive = table.is_emissive[surf.mat_ids]
+        emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():
             e = np.flatnonzero(emissive)
             emission[pix[e]] += beta[e] * table.emission[surf.mat_ids[e]]
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
         u = rng.random((len(pix), 3))
-        total = scores.sum(axis=1)
-        p_nd = np.where(total > 0, (scores[:, DIFFUSE] + scores[:, GLOSSY]) / np.where(total > 0, total, 1), 0)
+        non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
+        total = non_delta + scores[:, MIRROR] + scores[:, DIELECTRIC]     # columns: sum(axis=1) is slow
+        p_nd = np.where(total > 0, non_delta / np.where(total > 0, total, 1), 0)
         stop = u[:, 0] < p_nd
         if stop.any():
             s = np.flatnonzero(stop)
-            ng = face_forward(surf.ng[s], wo[s])
-            r1 = initial_radius_px * footprint[s] * (path_len[s] if grows else 1.0)
+            rows = lambda a: a.take(s, axis=0)                      # noqa: E731
+            ng = face_forward(rows(surf.ng), rows(wo))
+            r1 = initial_radius_px * rows(footprint) * (rows(path_len) if grows else 1.0)
             f32 = np.float32
             parts.append(MeasurementPoints(
-                pixel_ids=pix[s], position=surf.position[s], ng=ng.astype(f32),
-                ns=face_forward(surf.ns[s], ng).astype(f32), wo=wo[s].astype(f32),
-                weight=(beta[s] / p_nd[s][:, None]).astype(f32), mat_ids=surf.mat_ids[s],
-                colors=surf.colors[s][:, :2].astype(f32),
+                pixel_ids=rows(pix), position=rows(surf.position), ng=ng.astype(f32),
+                ns=face_forward(rows(surf.ns), ng).astype(f32), wo=rows(wo).astype(f32),
+                weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
+                colors=surf.colors[:, :2].take(s, axis=0).astype(f32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent)))
         go = np.flatnonzero(~stop & (total > 0))
         if depth == max_bounces or len(go) == 0:
