@@ -37,7 +37,8 @@ class Accel:
     def __init__(self, scene):
         corners = scene.triangle_corners().astype(np.float64)          # (T, 3, 3)
         self.triangle_count = len(corners)
-        self.v0 = corners[:, 0]                                         # (T, 3) float64
+        # Contiguous: take() on a strided view would first copy the whole array, every call.
+        self.v0 = np.ascontiguousarray(corners[:, 0])                   # (T, 3) float64
         self.e1 = corners[:, 1] - corners[:, 0]                         # (T, 3) float64
         self.e2 = corners[:, 2] - corners[:, 0]                         # (T, 3) float64
         cross = np.cross(self.e1, self.e2)

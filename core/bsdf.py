@@ -172,7 +172,8 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
             continue
         w_o, n_s, n_g = wo.take(sel, axis=0), nsf.take(sel, axis=0), ngf.take(sel, axis=0)
         m_sel = mat_ids.take(sel)
-        lw = table.weight[:, k].take(m_sel)[:, None] * colors[:, k].take(sel, axis=0) / prob.take(sel)[:, None]
+        lw = (table.weight[:, k].take(m_sel)[:, None] * colors[:, k].take(sel, axis=0)
+              / prob.take(sel)[:, None])
         if k == DIFFUSE:
             d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), n_s)
             ok = dot(d, n_g) > 0
@@ -196,7 +197,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
             ok = dot(d, n_g) > 0
             w = lw
         else:
-            entering = dot(w_o, ng.take(sel, axis=0)) > 0       # wo on the front (outside) side of the surface
+            entering = dot(w_o, ng.take(sel, axis=0)) > 0     # wo on the front (outside) of the surface
             ior = table.ior.take(m_sel)
             eta = np.where(entering, ior, 1.0 / ior)
             cos_i = np.clip(dot(w_o, n_s), 0.0, 1.0)

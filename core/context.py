@@ -32,6 +32,10 @@ class RenderContext:
         self.textures = Textures(scene.textures)
         self.lights = LightSampler(scene, self.accel, self.table)
         self.has_shading_normals = scene.shading_normals is not None
+        # Per-triangle arrays gathered with take(), which copies a non-contiguous array first.
+        self.material_ids = np.ascontiguousarray(scene.material_ids)
+        self.shading_normals = (np.ascontiguousarray(scene.shading_normals) if self.has_shading_normals
+                                else None)
         self.has_textures = bool((self.table.texture >= 0).any())
 
     def surface(self, prim_ids, b1, b2) -> Surface:
@@ -41,13 +45,13 @@ class RenderContext:
         ng = a.geometric_normals.take(prim_ids, axis=0)
         b0 = 1.0 - b1 - b2
         if self.has_shading_normals:
-            sn = self.scene.shading_normals.take(prim_ids, axis=0).astype(np.float64)
+            sn = self.shading_normals.take(prim_ids, axis=0).astype(np.float64)
             ns = normalize(b0[:, None] * sn[:, 0] + b1[:, None] * sn[:, 1] + b2[:, None] * sn[:, 2])
             bad = np.flatnonzero(~((ns[:, 0] != 0) | (ns[:, 1] != 0) | (ns[:, 2] != 0)))
             ns[bad] = ng[bad]
         else:
             ns = ng
-        mat = self.scene.material_ids.take(prim_ids)
+        mat = self.material_ids.take(prim_ids)
         albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]

@@ -87,7 +87,8 @@ class HashGrid:
             order = np.argsort(base_key, kind="stable")
         base_sorted = base_key.take(order)
         span_sorted = [a.take(order) for a in span]
-        small = (span_sorted[0] <= GROUP_SPAN) & (span_sorted[1] <= GROUP_SPAN) & (span_sorted[2] <= GROUP_SPAN)
+        small = span_sorted[0] <= GROUP_SPAN
+        small &= (span_sorted[1] <= GROUP_SPAN) & (span_sorted[2] <= GROUP_SPAN)
         keys, points = [], []
         for oz in range(GROUP_SPAN):
             in_z = small & (span_sorted[2] > oz)
