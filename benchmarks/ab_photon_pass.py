@@ -10,8 +10,8 @@ are printed.  Use it before claiming that a change to the photon pass is faster.
 
 ``--pairs`` traces as the Markov chains do (deposit pairs collected per path) instead of
 splatting uniform photons into per-point sums.  ``--render ppm|amcmcppm`` times whole
-one-worker renders instead (eye passes, grids, chains and their deposit logs included) and
-compares photon paths per second, the first pass (start-up) left out.
+renders instead (eye passes, grids, chains and their deposit logs included; one worker
+unless ``--workers N``) and compares photon paths per second, the first pass (start-up) left out.
 """
 from __future__ import annotations
 
@@ -60,11 +60,11 @@ def photon_pass(package, scene_name, resolution, n_paths, pairs):
     return run
 
 
-def whole_render(package, scene_name, resolution, method, passes):
-    """A function rendering with ``package`` on one worker; returns traced paths per second."""
+def whole_render(package, scene_name, resolution, method, passes, workers):
+    """A function rendering with ``package`` on ``workers``; returns traced paths per second."""
     core = importlib.import_module(package)
     scene = importlib.import_module(f"{package}.testing.scenes").BUILTIN[scene_name](resolution=resolution)
-    settings = core.RenderSettings(method=method, workers=1, passes=passes)
+    settings = core.RenderSettings(method=method, workers=workers, passes=passes)
 
     def run():
         stats = core.render(scene, settings).stats
@@ -81,15 +81,16 @@ def main():
     ap.add_argument("--paths", type=int, default=65536, help="photon paths per round and version")
     how = ap.add_mutually_exclusive_group()
     how.add_argument("--pairs", action="store_true", help="collect deposit pairs (as the chains do)")
-    how.add_argument("--render", choices=("ppm", "amcmcppm"), help="time whole one-worker renders")
+    how.add_argument("--render", choices=("ppm", "amcmcppm"), help="time whole renders")
     ap.add_argument("--passes", type=int, default=4, help="passes per render (with --render)")
+    ap.add_argument("--workers", type=int, default=1, help="worker count of the renders (with --render)")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         extract(a.base, tmp)
         sys.path.insert(0, tmp)
         sys.path.insert(0, ROOT)
         res = tuple(a.resolution)
-        versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes) if a.render else
+        versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers) if a.render else
                            photon_pass(pkg, a.scene, res, a.paths, a.pairs))
                     for name, pkg in (("base", "core_base"), ("this", "core"))}
         rates = {name: [] for name in versions}
@@ -100,7 +101,7 @@ def main():
                 rates[name].append(run())
     ratio = np.array(rates["this"]) / np.array(rates["base"])
     if a.render:
-        what, unit = f"{a.render} renders of {a.passes} passes", "paths/s"
+        what, unit = f"{a.render} renders of {a.passes} passes on {a.workers} worker(s)", "paths/s"
     else:
         what, unit = f"{'pairs' if a.pairs else 'splat'}, {a.paths} paths", "vertices/s"
     print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.rounds} rounds of {what}: "
