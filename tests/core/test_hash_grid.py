@@ -99,3 +99,23 @@ def test_boxes_wider_than_the_offset_groups_are_found():
     for pi, pj in got ^ want:
         d = np.linalg.norm(x[pi] - pts[pj])
         assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6, (pi, pj, d, radii[pj])
+
+
+def test_grids_too_big_for_packed_keys_sort_by_key():
+    """Clusters far apart with small radii: more than 2^31 cells, so keys are argsorted."""
+    rng = np.random.default_rng(12)
+    a, ra, na = random_points(rng, 1500, 1.0, 0.0, (0.01, 0.03))
+    b, rb, nb = random_points(rng, 1500, 1.0, 1e4, (0.01, 0.03))
+    pts, radii, nrm = np.concatenate([a, b]), np.concatenate([ra, rb]), np.concatenate([na, nb])
+    radii[:10] = 0.3                                    # a few boxes wider than the offset groups
+    grid = HashGrid(pts, radii, nrm)
+    assert int(np.prod(grid.dims.astype(float))) >= 2 ** 31
+    x = pts[rng.integers(0, 3000, 3000)] + 0.03 * rng.normal(size=(3000, 3))
+    xn = nrm[rng.integers(0, 3000, 3000)]
+    p, j, _ = grid.query(x, xn)
+    bp, bj = brute_force_query(x, xn, pts, radii, nrm)
+    got, want = pair_set(p, j), pair_set(bp, bj)
+    assert len(want) > 100 and any(pj < 10 for _, pj in want) and any(pj >= 1500 for _, pj in want)
+    for pi, pj in got ^ want:
+        d = np.linalg.norm(x[pi] - pts[pj])
+        assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6, (pi, pj, d, radii[pj])
