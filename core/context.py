@@ -47,7 +47,8 @@ class RenderContext:
         if self.has_shading_normals:
             sn = self.shading_normals.take(prim_ids, axis=0).astype(np.float64)
             ns = normalize(b0[:, None] * sn[:, 0] + b1[:, None] * sn[:, 1] + b2[:, None] * sn[:, 2])
-            bad = np.flatnonzero(~((ns[:, 0] != 0) | (ns[:, 1] != 0) | (ns[:, 2] != 0)))
+            # Zero or NaN after interpolation: the geometric normal (columns: sum(axis=1) is slow).
+            bad = np.flatnonzero(~(np.abs(ns[:, 0]) + np.abs(ns[:, 1]) + np.abs(ns[:, 2]) > 0))
             ns[bad] = ng[bad]
         else:
             ns = ng
