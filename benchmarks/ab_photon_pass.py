@@ -26,7 +26,10 @@ import time
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
 BATCH = 1 << 14
+
+from core.testing.scenes import BUILTIN  # noqa: E402
 
 
 def extract(rev, into):
@@ -75,7 +78,7 @@ def whole_render(package, scene_name, resolution, method, passes, workers):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="HEAD", help="git revision to compare against (default HEAD)")
-    ap.add_argument("--scene", default="cornell_box")
+    ap.add_argument("--scene", default="cornell_box", choices=sorted(BUILTIN))
     ap.add_argument("--resolution", type=int, nargs=2, default=(640, 480))
     ap.add_argument("--rounds", type=int, default=10)
     ap.add_argument("--paths", type=int, default=65536, help="photon paths per round and version")
@@ -88,7 +91,6 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         extract(a.base, tmp)
         sys.path.insert(0, tmp)
-        sys.path.insert(0, ROOT)
         res = tuple(a.resolution)
         versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers) if a.render else
                            photon_pass(pkg, a.scene, res, a.paths, a.pairs))
@@ -96,9 +98,9 @@ def main():
         rates = {name: [] for name in versions}
         for run in versions.values():
             run()                                    # warm-up
-        for _ in range(a.rounds):
-            for name, run in versions.items():
-                rates[name].append(run())
+        for r in range(a.rounds):
+            for name in (("base", "this") if r % 2 == 0 else ("this", "base")):   # alternate the order
+                rates[name].append(versions[name]())
     ratio = np.array(rates["this"]) / np.array(rates["base"])
     if a.render:
         what, unit = f"{a.render} renders of {a.passes} passes on {a.workers} worker(s)", "paths/s"
