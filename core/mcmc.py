@@ -13,7 +13,8 @@ One iteration, for every chain (``algorithm.md`` 2):
    exactly when the proposal is visible; adapt the mutation size;
 4. ``mutation="exact"`` only: after a rejection, redraw the dimensions after the
    current state's first visible vertex (a Gibbs step on the suffix, ``algorithm.md`` 3),
-   tracing only from that vertex on (its state is kept per chain);
+   tracing only from that vertex on (its state is kept per chain), within a pass in the
+   next iteration's batch;
 5. every chain with a visible state records its current state once.
 
 Recording is lazy: a state's deposits are kept with a count of its recordings and
@@ -145,8 +146,18 @@ def begin_pass(chains, trace, recorder, counters):
     recorder.replace(lanes[keep], batch, keep)
 
 
-def end_pass(chains, recorder):
-    """Record every pending state (the cached deposits are valid only within the pass)."""
+def end_pass(chains, recorder, prefetched=None, trace=None, counters=None):
+    """Record every pending state (the cached deposits are valid only within the pass).
+
+    ``prefetched`` is what the last iteration returned when the pass was cut short: its
+    untraced Gibbs refreshes are traced (with ``trace``) before they are recorded.
+    """
+    if prefetched is not None and prefetched.refreshed is not None:
+        lanes, u, resume = prefetched.refreshed
+        batch = trace(u, None, resume=resume)
+        _count_traced(counters, len(lanes), batch)
+        recorder.replace_suffix(lanes, batch, np.arange(len(lanes)))
+        prefetched.refreshed = None
     lanes = np.flatnonzero(chains.valid)
     recorder.commit(lanes, chains.hold_prefix[lanes], chains.hold[lanes])
     chains.hold[:] = 0
@@ -162,17 +173,26 @@ def _store_vertex(chains, lanes, batch, rows):
 
 
 class Prefetched:
-    """Uniform samples of the next iteration, traced in one batch with this iteration's proposals.
+    """What an iteration leaves for the next one of the same pass.
 
-    ``u`` (C, d) are the samples as traced, ``batch`` the batch that holds them at rows
-    ``offset + arange(C)``.  Tracing them with the proposals saves a batch per iteration
-    (a batch has a fixed cost of a few milliseconds per bounce).  The low-dimension
-    refresh then also redraws their suffixes after their first visible vertex; that leaves
-    them uniform, because the vertex depends only on the dimensions before it.
+    ``u`` (C, d) are the next iteration's uniform samples as traced, ``batch`` the batch
+    that holds them at rows ``offset + arange(C)``.  Tracing them with the proposals saves
+    a batch per iteration (a batch has a fixed cost of a few milliseconds per bounce).  The
+    low-dimension refresh then also redraws their suffixes after their first visible
+    vertex; that leaves them uniform, because the vertex depends only on the dimensions
+    before it.
+
+    ``refreshed`` (``mutation="exact"``) is None or ``(lanes, u, resume)``: chains whose
+    suffixes were redrawn (Gibbs refresh) but not yet traced, their new states and their
+    first visible vertices.  They are traced at the end of the next iteration's batch; the
+    recorder hears of the new suffixes before that iteration's first commit, and the
+    redrawn states are already the chains' current states for the next mutation, so the
+    chains evolve exactly as if they had been traced at once.
     """
 
-    def __init__(self, u, batch, offset):
+    def __init__(self, u, batch, offset, refreshed=None):
         self.u, self.batch, self.offset = u, batch, offset
+        self.refreshed = refreshed
 
 
 def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, prefetched=None,
@@ -183,14 +203,15 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     state (a negative control for tests: such chains never jump between islands).
     ``prefetched`` (a :class:`Prefetched` from the previous iteration of the same pass)
     supplies this iteration's uniform samples; with ``prefetch`` the next iteration's
-    are traced together with this one's proposals and returned (otherwise None).
+    are traced together with this one's proposals and returned (otherwise None), and
+    the Gibbs refresh of this iteration's rejected states is left for the next batch.
 
     ``trace(u, refresh_rng, resume=None)`` traces paths for states ``u`` (n, d) and
     returns an object with ``visible`` (n,), ``first_dim`` (n,), ``first`` (a dict of
     per-path arrays describing the first visible vertex), ``rays`` and ``vertices``;
     with ``refresh_rng`` it redraws, in place in ``u``, the dimensions after the first
-    visible vertex (low-dimension mutation); with ``resume`` (rows of such a dict) it
-    traces only from those vertices on.
+    visible vertex (low-dimension mutation) of paths not resumed; with ``resume`` (k rows
+    of such a dict) it traces the last k paths only from those vertices on.
     """
     c, d = chains.u.shape
     mode = settings.mutation
@@ -198,6 +219,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     was_valid = chains.valid.copy()
     counters.iterations += c
     # 1. Uniform samples for every chain.
+    refreshed = None
     if prefetched is None:
         u_uniform = rng.random((c, d))
         batch_u = trace(u_uniform, None)
@@ -206,29 +228,36 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     else:
         u_uniform, batch_u = prefetched.u, prefetched.batch
         rows_u = prefetched.offset + np.arange(c)
+        refreshed = prefetched.refreshed
     vis = batch_u.visible[rows_u]
     counters.uniform_samples += c
     counters.uniform_visible += int(vis.sum())
     if not exchange:
         vis = vis & ~was_valid
-    # 2. Replica exchange (or initialisation of chains without a state).
     take = np.flatnonzero(vis)
+    # 3. Mutation of the other chains that have a state (with the next uniform samples and
+    # the previous iteration's Gibbs refreshes, in one batch).
+    lanes = np.flatnonzero(was_valid & ~vis)
+    proposal = mutate(chains.u[lanes], chains.theta[lanes], rng) if len(lanes) else np.zeros((0, d))
+    u_next = rng.random((c, d)) if prefetch else None
+    upcoming = None
+    parts = [proposal] + ([u_next] if prefetch else []) + ([refreshed[1]] if refreshed else [])
+    if len(lanes) or prefetch or refreshed:
+        u_all = np.concatenate(parts) if len(parts) > 1 else proposal
+        batch_p = trace(u_all, refresh, resume=refreshed[2] if refreshed else None)
+        _count_traced(counters, len(u_all), batch_p)
+        if prefetch:
+            upcoming = Prefetched(u_all[len(lanes):len(lanes) + c], batch_p, len(lanes))
+        if refreshed:
+            # The suffixes redrawn in the previous iteration (already the chains' states).
+            k = len(refreshed[0])
+            recorder.replace_suffix(refreshed[0], batch_p, np.arange(len(u_all) - k, len(u_all)))
+    # 2. Replica exchange (or initialisation of chains without a state).
     if len(take):
         _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[rows_u[take]], batch_u,
                 rows_u[take])
         counters.exchanges += int(was_valid[take].sum())
         counters.initialised += int((~was_valid[take]).sum())
-    # 3. Mutation of the other chains that have a state (with the next uniform samples).
-    lanes = np.flatnonzero(was_valid & ~vis)
-    proposal = mutate(chains.u[lanes], chains.theta[lanes], rng) if len(lanes) else np.zeros((0, d))
-    u_next = rng.random((c, d)) if prefetch else None
-    upcoming = None
-    if len(lanes) or prefetch:
-        u_all = proposal if u_next is None else np.concatenate([proposal, u_next])
-        batch_p = trace(u_all, refresh)
-        _count_traced(counters, len(u_all), batch_p)
-        if prefetch:
-            upcoming = Prefetched(u_all[len(lanes):], batch_p, len(lanes))
     if len(lanes):
         proposal = u_all[:len(lanes)]
         acc = batch_p.visible[:len(lanes)]
@@ -244,18 +273,22 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
         # 4. Exact low-dimension mutation: Gibbs refresh of the rejected states' suffixes.
         rejected = lanes[~acc]
         if mode == "exact" and len(rejected):
-            refreshed = chains.u[rejected].copy()
+            new_u = chains.u[rejected].copy()
             starts = chains.first_dim[rejected]
             cols = np.arange(d)[None, :]
             redraw = cols >= starts[:, None]
-            refreshed[redraw] = rng.random(int(redraw.sum()))
+            new_u[redraw] = rng.random(int(redraw.sum()))
             # The prefix (and so V and the first visible vertex) is unchanged: trace from there.
-            batch_g = trace(refreshed, None, resume={k: v[rejected] for k, v in chains.vertex.items()})
-            _count_traced(counters, len(rejected), batch_g)
+            resume = {k: v[rejected] for k, v in chains.vertex.items()}
             recorder.commit(rejected, np.zeros(len(rejected), np.int64), chains.hold[rejected])
             chains.hold[rejected] = 0
-            chains.u[rejected] = refreshed
-            recorder.replace_suffix(rejected, batch_g, np.arange(len(rejected)))
+            chains.u[rejected] = new_u
+            if upcoming is not None:
+                upcoming.refreshed = (rejected, new_u, resume)
+            else:
+                batch_g = trace(new_u, None, resume=resume)
+                _count_traced(counters, len(rejected), batch_g)
+                recorder.replace_suffix(rejected, batch_g, np.arange(len(rejected)))
     # 5. Every chain with a state records it once.
     chains.hold[chains.valid] += 1
     chains.hold_prefix[chains.valid] += 1

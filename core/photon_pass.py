@@ -197,26 +197,27 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     otherwise they are summed per measurement point: into ``sums`` (a :class:`PointSums`
     that outlives the call, e.g. one per pass) if given, else into ``PhotonBatch.sum_*``.
 
-    ``resume`` (arrays as ``PhotonBatch.first``, one row per path) restarts every path at
-    its recorded vertex, scattering with its (redrawn) dimensions there: the deposits at
-    and before that vertex are not repeated.  This is the Gibbs refresh of the exact
-    low-dimension mutation, which changes only the dimensions after the first visible vertex.
+    ``resume`` (arrays as ``PhotonBatch.first``, k rows) restarts the last k paths of ``u``
+    at their recorded vertices, scattering with their (redrawn) dimensions there: the
+    deposits at and before those vertices are not repeated.  This is the Gibbs refresh of
+    the exact low-dimension mutation, which changes only the dimensions after the first
+    visible vertex.  The first n - k paths are traced from the lights as usual, so one
+    batch can hold both (a batch has a fixed cost of a few milliseconds per bounce).
     """
     n = len(u)
     accel, table = ctx.accel, ctx.table
     visible = np.zeros(n, bool)
     first_dim = np.full(n, -1, np.int32)
-    if resume is None:
-        origins, dirs, flux, _ = ctx.lights.sample(u[:, :LIGHT_DIMS])
-        idx = np.flatnonzero(luminance(flux) > 0)
-        origins, dirs, flux = origins[idx], dirs[idx], flux[idx]
-        last_join = -1
-    else:
-        idx = np.zeros(0, np.int64)
-        origins, dirs, flux = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
-        visible[:] = True
-        first_dim[:] = bounce_offset(resume["bounce"])
-        last_join = int(resume["bounce"].max()) if n else -1
+    n_resumed = 0 if resume is None else len(resume["bounce"])
+    fresh = n - n_resumed
+    origins, dirs, flux, _ = ctx.lights.sample(u[:fresh, :LIGHT_DIMS])
+    idx = np.flatnonzero(luminance(flux) > 0)
+    origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
+    last_join = -1
+    if n_resumed:
+        visible[fresh:] = True
+        first_dim[fresh:] = bounce_offset(resume["bounce"])
+        last_join = int(resume["bounce"].max())
     m = target.points.count
     glossy = target.any_glossy
     pairs = {"path": [], "point": [], "diffuse": [], "glossy": [], "bounce": []}
@@ -278,7 +279,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
             join = np.flatnonzero(resume["bounce"] == bounce)
             if len(join):
-                idx = np.concatenate([idx, join])
+                idx = np.concatenate([idx, fresh + join])
                 flux = np.concatenate([flux, resume["flux"][join]])
                 wo = np.concatenate([wo, resume["wo"][join]])
                 surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals)

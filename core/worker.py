@@ -108,6 +108,6 @@ class PhotonWorker:
                 break
             prefetched = iterate(chains, trace, recorder, self.chain_rng, s, counters,
                                  prefetched=prefetched, prefetch=i + 1 < iterations)
-        end_pass(chains, recorder)
+        end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
         return target.to_pixels(recorder.sum_diffuse, recorder.sum_glossy), interrupted

@@ -33,10 +33,14 @@ class BoxOracle:
         return sum(np.prod(hi - lo) for lo, hi in self.boxes)
 
     def __call__(self, u, refresh_rng, resume=None):
-        # ``resume`` needs nothing here: the prefix of a resumed state is unchanged, so the
-        # oracle's answer from ``u`` is the same.
+        # The prefix of a resumed state (the last k rows, as in ``trace_photons``) is
+        # unchanged, so the oracle's answer from ``u`` is the same; such a path is visible
+        # from the start, so the low-dimension refresh leaves it alone.
         self.calls += 1
         n = len(u)
+        resumed = np.zeros(n, bool)
+        if resume is not None:
+            resumed[n - len(resume["label"]):] = True
         label = np.full(n, -1)
         first = np.full(n, -1, np.int32)
         for k, (lo, hi) in enumerate(self.boxes):
@@ -44,14 +48,16 @@ class BoxOracle:
             label[inside] = k
             first[inside] = 2
         if refresh_rng is not None:
-            new = label >= 0
+            new = (label >= 0) & ~resumed
             u[new, 2:] = refresh_rng.random((int(new.sum()), u.shape[1] - 2))
         for k, (lo, hi) in enumerate(self.second):
             inside = ((u[:, 2:4] >= lo) & (u[:, 2:4] < hi)).all(axis=1) & (label < 0)
             label[inside] = len(self.boxes) + k
             first[inside] = 4
-            if refresh_rng is not None and inside.any():
-                u[inside, 4:] = refresh_rng.random((int(inside.sum()), u.shape[1] - 4))
+            new = inside & ~resumed
+            if refresh_rng is not None and new.any():
+                u[new, 4:] = refresh_rng.random((int(new.sum()), u.shape[1] - 4))
+        assert (label[resumed] >= 0).all(), "a resumed state was not visible"
         return SimpleNamespace(visible=label >= 0, first_dim=first, rays=n, vertices=n, label=label,
                                u5=u[:, 5].copy(), first={"label": label.copy()})
 
@@ -98,7 +104,32 @@ def run_chains(oracle, n_chains, iterations, n_labels, seed=0, exchange=True, pr
                              prefetched=prefetched, prefetch=prefetch and i + 1 < iterations)
     assert prefetched is None
     end_pass(chains, rec)
+    # The recorder's view of every current state is the chain's (no refresh left untraced).
+    np.testing.assert_array_equal(rec.u5[chains.valid], chains.u[chains.valid, 5])
     return chains, rec, counters
+
+
+def test_a_pass_cut_short_traces_its_pending_gibbs_refreshes():
+    # With prefetch, the suffixes redrawn in an iteration are traced with the next one's batch;
+    # a pass that stops after such an iteration must trace them before recording them.
+    oracle = varying_first_vertex()
+    s = RenderSettings(mutation="exact", target_acceptance=0.6)
+    rng = np.random.default_rng(5)
+    chains = ChainSet.create(64, DIMS, s.initial_mutation_size, rng)
+    rec = OccupancyRecorder(64, 2)
+    counters = ChainCounters()
+    begin_pass(chains, oracle, rec, counters)
+    prefetched = None
+    for _ in range(20):
+        prefetched = iterate(chains, oracle, rec, rng, s, counters, prefetched=prefetched, prefetch=True)
+    assert prefetched.refreshed is not None and len(prefetched.refreshed[0])
+    lanes = prefetched.refreshed[0]
+    assert (rec.u5[lanes] != chains.u[lanes, 5]).all()       # not yet traced
+    paths = counters.paths_traced
+    end_pass(chains, rec, prefetched, oracle, counters)
+    assert counters.paths_traced == paths + len(lanes)
+    np.testing.assert_array_equal(rec.u5[chains.valid], chains.u[chains.valid, 5])
+    assert rec.counts.sum() == counters.recorded
 
 
 def test_normaliser_within_four_binomial_sigma():

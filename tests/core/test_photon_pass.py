@@ -59,6 +59,16 @@ def test_resuming_at_the_first_visible_vertex_reproduces_the_suffix():
                         again.pair_diffuse.tolist(), suffix.tolist()) if s}
         assert pair_set(resumed) == expected
         assert resumed.rays < again.rays
+        # Fresh paths and resumed ones in one batch: each part as if traced on its own.
+        w = rng.random((3000, u.shape[1]))
+        alone = trace_photons(ctx, target, w.copy(), 8, collect_pairs=True)
+        both = trace_photons(ctx, target, np.concatenate([w, v]), 8, collect_pairs=True,
+                             resume={k: a[vis] for k, a in full.first.items()})
+        np.testing.assert_array_equal(both.visible, np.concatenate([alone.visible, resumed.visible]))
+        np.testing.assert_array_equal(both.first_dim, np.concatenate([alone.first_dim, resumed.first_dim]))
+        shifted = {(p + len(w), j, b, x) for p, j, b, x in pair_set(resumed)}
+        assert pair_set(both) == pair_set(alone) | shifted
+        assert both.rays == alone.rays + resumed.rays
 
 
 def test_low_dimension_refresh_redraws_only_after_the_first_visible_vertex():
