@@ -61,7 +61,7 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     photons_per_pass: IntProperty(
         name="Photons per Pass", default=_DEFAULTS.photons_per_pass, min=1, max=INT_MAX,
         soft_min=1000, soft_max=10_000_000,
-        description="Photon paths traced per pass, over all workers")
+        description="Photon paths traced per pass by every worker (with W workers a pass has W times as many)")
     seed: IntProperty(
         name="Seed", default=_DEFAULTS.seed, min=0, max=INT_MAX,
         description="Random seed; the same seed, settings and worker count give the same image")
@@ -81,7 +81,7 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
                     "own process)")
     chains: IntProperty(
         name="Chains", default=_DEFAULTS.chains, min=1, max=1 << 24, soft_max=1 << 18,
-        description="Markov chains advanced in lockstep, over all workers (AMCMCPPM only)")
+        description="Markov chains advanced in lockstep by every worker (AMCMCPPM only)")
     target_acceptance: FloatProperty(
         name="Target Acceptance", default=_DEFAULTS.target_acceptance, min=0.01, max=0.99, precision=3,
         description="Acceptance rate the mutation size adapts towards (0.234 = the original method, "
