@@ -252,7 +252,9 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
             # The suffixes redrawn in the previous iteration (already the chains' states).
             k = len(refreshed[0])
             recorder.replace_suffix(refreshed[0], batch_p, np.arange(len(u_all) - k, len(u_all)))
-    # 2. Replica exchange (or initialisation of chains without a state).
+    # 2. Replica exchange (or initialisation of chains without a state), after the batch: the
+    # recorder hears of the previous refreshes before any commit.  Exchanged chains are not
+    # mutated, so the batch is the same either way.
     if len(take):
         _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[rows_u[take]], batch_u,
                 rows_u[take])
