@@ -38,7 +38,7 @@ def generate_camera_rays(camera, pixel_ids, u):
             o_cam = lens
             d_cam = focus - lens
         # Distances along -Z convert to distances along the ray by |d| / |d.z|.
-        scale = _norm(d_cam) / np.abs(d_cam[:, 2])
+        scale = smp.length(d_cam) / np.abs(d_cam[:, 2])
         # A pixel at the z = -1 plane, seen from distance |(x, y, -1)|.
         footprint = pixel_width / np.sqrt(x * x + y * y + 1.0)
     else:
@@ -50,7 +50,7 @@ def generate_camera_rays(camera, pixel_ids, u):
             focus = o_cam + d_cam * camera.focus_distance
             o_cam = o_cam + lens
             d_cam = focus - o_cam
-        scale = _norm(d_cam) / np.abs(d_cam[:, 2])
+        scale = smp.length(d_cam) / np.abs(d_cam[:, 2])
         footprint = np.full(n, pixel_width)
     origins = o_cam @ rot.T + m[:3, 3]
     dirs = smp.normalize(d_cam @ rot.T)
@@ -59,8 +59,3 @@ def generate_camera_rays(camera, pixel_ids, u):
     origins = origins + dirs * (camera.clip_start * scale * axis_scale)[:, None]
     tmax = np.maximum((camera.clip_end - camera.clip_start) * scale * axis_scale, 0.0)
     return origins, dirs, tmax, footprint * axis_scale
-
-
-def _norm(v):
-    """Row lengths of (n, 3) ``v`` (np.linalg.norm over axis 1 reduces a short axis: slow)."""
-    return np.sqrt(smp.dot(v, v))

@@ -22,9 +22,14 @@ def dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
+def length(v):
+    """Row lengths of (n, 3) ``v`` (``np.linalg.norm`` over axis 1 reduces a short axis: slow)."""
+    return np.sqrt(dot(v, v))
+
+
 def normalize(v):
     """Rows of (n, 3) scaled to unit length; zero rows stay zero."""
-    n = np.sqrt(dot(v, v))
+    n = length(v)
     return v / np.where(n > 0, n, 1.0)[:, None]
 
 

@@ -70,10 +70,11 @@ class PhotonWorker:
         rng = np.random.default_rng([s.seed, STREAM_PHOTONS, pass_index, self.index])
         sums = PointSums(target.points.count, target.any_glossy)
         done = 0
+        interrupted = False
         while done < n_photons:
             if stop():
-                sums.flush()
-                return target.to_pixels(sums.diffuse, sums.glossy), True
+                interrupted = True
+                break
             b = min(PPM_BATCH, n_photons - done)
             t0 = time.perf_counter()
             batch = trace_photons(self.ctx, target, rng.random((b, self.dims)), s.max_bounces, sums=sums)
@@ -84,7 +85,7 @@ class PhotonWorker:
                                        vertices=batch.vertices))
             done += b
         sums.flush()
-        return target.to_pixels(sums.diffuse, sums.glossy), False
+        return target.to_pixels(sums.diffuse, sums.glossy), interrupted
 
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings

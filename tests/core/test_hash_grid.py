@@ -17,6 +17,19 @@ def pair_set(p, j):
     return set(zip(p.tolist(), j.tolist()))
 
 
+def query_matches_brute_force(grid, x, xn, pts, radii, nrm, scale=1.0):
+    """The grid's pairs for photons ``x`` equal brute force's, except pairs at the boundary
+    (float32 distances relative to the cell: within 1e-5 of the radius).  Returns brute
+    force's pairs."""
+    p, j, _ = grid.query(x, xn)
+    bp, bj = brute_force_query(x, xn, pts, radii, nrm)
+    got, want = pair_set(p, j), pair_set(bp, bj)
+    for pi, pj in got ^ want:
+        d = np.linalg.norm(x[pi] - pts[pj])
+        assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6 * scale, (pi, pj, d, radii[pj])
+    return want
+
+
 @pytest.mark.parametrize("scale,offset", [(1.0, 0.0), (1e-3, 0.0), (10.0, 1e4), (1e3, -5e3)])
 @pytest.mark.parametrize("r_range", [(0.01, 0.08), (0.001, 0.3)])
 def test_grid_query_equals_brute_force(scale, offset, r_range):
@@ -28,15 +41,8 @@ def test_grid_query_equals_brute_force(scale, offset, r_range):
                         offset + scale * (rng.random((500, 3)) * 1.4 - 0.2)])
     xn = nrm[rng.integers(0, 3000, 2000)]
     xn[:1000] = nrm[rng.integers(0, 3000, 1000)]
-    p, j, _ = grid.query(x, xn)
-    bp, bj = brute_force_query(x, xn, pts, radii, nrm)
-    got, want = pair_set(p, j), pair_set(bp, bj)
+    want = query_matches_brute_force(grid, x, xn, pts, radii, nrm, scale)
     assert len(want) > 100
-    diff = got ^ want
-    # float32 distances relative to the cell: only pairs within 1e-5 of the boundary may differ.
-    for pi, pj in diff:
-        d = np.linalg.norm(x[pi] - pts[pj])
-        assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6 * scale, (pi, pj, d, radii[pj])
 
 
 def test_grid_returns_the_cosines_with_the_point_normals():
@@ -92,13 +98,8 @@ def test_boxes_wider_than_the_offset_groups_are_found():
     assert (2 * radii / grid.cell_size).max() > GROUP_SPAN + 1
     x = pts[rng.integers(0, 4000, 3000)] + 0.05 * rng.normal(size=(3000, 3))
     xn = nrm[rng.integers(0, 4000, 3000)]
-    p, j, _ = grid.query(x, xn)
-    bp, bj = brute_force_query(x, xn, pts, radii, nrm)
-    got, want = pair_set(p, j), pair_set(bp, bj)
+    want = query_matches_brute_force(grid, x, xn, pts, radii, nrm)
     assert len([1 for _, pj in want if pj < 40]) > 50
-    for pi, pj in got ^ want:
-        d = np.linalg.norm(x[pi] - pts[pj])
-        assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6, (pi, pj, d, radii[pj])
 
 
 def test_grids_too_big_for_packed_keys_sort_by_key():
@@ -112,10 +113,5 @@ def test_grids_too_big_for_packed_keys_sort_by_key():
     assert int(np.prod(grid.dims.astype(float))) >= 2 ** 31
     x = pts[rng.integers(0, 3000, 3000)] + 0.03 * rng.normal(size=(3000, 3))
     xn = nrm[rng.integers(0, 3000, 3000)]
-    p, j, _ = grid.query(x, xn)
-    bp, bj = brute_force_query(x, xn, pts, radii, nrm)
-    got, want = pair_set(p, j), pair_set(bp, bj)
+    want = query_matches_brute_force(grid, x, xn, pts, radii, nrm)
     assert len(want) > 100 and any(pj < 10 for _, pj in want) and any(pj >= 1500 for _, pj in want)
-    for pi, pj in got ^ want:
-        d = np.linalg.norm(x[pi] - pts[pj])
-        assert abs(d - radii[pj]) < 1e-5 * radii[pj] + 1e-6, (pi, pj, d, radii[pj])
