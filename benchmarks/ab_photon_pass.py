@@ -7,6 +7,7 @@ are printed.  Use it before claiming that a change to the photon pass is faster.
 
     python benchmarks/ab_photon_pass.py [--base HEAD] [--scene cornell_box] [--resolution 640 480]
                                         [--rounds 10] [--paths 65536] [--pairs | --render METHOD]
+                                        [--workers N] [--photons-per-pass N]
 
 ``--pairs`` traces as the Markov chains do (deposit pairs collected per path) instead of
 splatting uniform photons into per-point sums.  ``--render ppm|amcmcppm`` times whole
@@ -63,11 +64,12 @@ def photon_pass(package, scene_name, resolution, n_paths, pairs):
     return run
 
 
-def whole_render(package, scene_name, resolution, method, passes, workers):
+def whole_render(package, scene_name, resolution, method, passes, workers, photons=None):
     """A function rendering with ``package`` on ``workers``; returns traced paths per second."""
     core = importlib.import_module(package)
     scene = importlib.import_module(f"{package}.testing.scenes").BUILTIN[scene_name](resolution=resolution)
-    settings = core.RenderSettings(method=method, workers=workers, passes=passes)
+    extra = {"photons_per_pass": photons} if photons else {}
+    settings = core.RenderSettings(method=method, workers=workers, passes=passes, **extra)
 
     def run():
         stats = core.render(scene, settings).stats
@@ -87,12 +89,15 @@ def main():
     how.add_argument("--render", choices=("ppm", "amcmcppm"), help="time whole renders")
     ap.add_argument("--passes", type=int, default=4, help="passes per render (with --render)")
     ap.add_argument("--workers", type=int, default=1, help="worker count of the renders (with --render)")
+    ap.add_argument("--photons-per-pass", type=int, default=None,
+                    help="photons per pass and worker of the renders (default: each version's own)")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         extract(a.base, tmp)
         sys.path.insert(0, tmp)
         res = tuple(a.resolution)
-        versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers) if a.render else
+        versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers, a.photons_per_pass)
+                           if a.render else
                            photon_pass(pkg, a.scene, res, a.paths, a.pairs))
                     for name, pkg in (("base", "core_base"), ("this", "core"))}
         rates = {name: [] for name in versions}
@@ -104,6 +109,8 @@ def main():
     ratio = np.array(rates["this"]) / np.array(rates["base"])
     if a.render:
         what, unit = f"{a.render} renders of {a.passes} passes on {a.workers} worker(s)", "paths/s"
+        if a.photons_per_pass:
+            what += f", {a.photons_per_pass:,} photons per pass and worker"
     else:
         what, unit = f"{'pairs' if a.pairs else 'splat'}, {a.paths} paths", "vertices/s"
     print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.rounds} rounds of {what}: "
