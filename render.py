@@ -69,7 +69,8 @@ def build_parser():
     g.add_argument("--target-acceptance", type=float)
     g.add_argument("--mutation", choices=("off", "paper", "exact"))
     g.add_argument("--normalisation", choices=("cumulative", "per_pass"))
-    g.add_argument("--photons-per-pass", type=int, help="photon paths per pass and worker")
+    g.add_argument("--photons-per-pass", type=int,
+                   help="photon paths per pass and worker (0 = automatic: grows with the image)")
     g.add_argument("--workers", type=int, help="0 = one per CPU core")
     g.add_argument("--chains", type=int, help="Markov chains per worker (AMCMCPPM)")
     g.add_argument("--initial-radius", type=float, help="initial gather radius in pixel footprints")

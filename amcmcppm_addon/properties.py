@@ -9,7 +9,8 @@ properties configure optional file outputs of the engine (statistics, snapshots)
 import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..core.settings import METHODS, MUTATIONS, NORMALISATIONS, RenderSettings
+from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, METHODS, MUTATIONS, NORMALISATIONS,
+                             RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -59,9 +60,11 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         name="Time Limit", default=_DEFAULTS.time_limit, min=0.0, soft_max=3600.0, unit='TIME_ABSOLUTE',
         description="Stop after this many seconds of rendering (0 = no limit; at least one pass runs)")
     photons_per_pass: IntProperty(
-        name="Photons per Pass", default=_DEFAULTS.photons_per_pass, min=1, max=INT_MAX,
-        soft_min=1000, soft_max=10_000_000,
-        description="Photon paths traced per pass by every worker (with W workers a pass has W times as many)")
+        name="Photons per Pass", default=_DEFAULTS.photons_per_pass, min=0, max=INT_MAX,
+        soft_max=10_000_000,
+        description="Photon paths traced per pass by every worker (with W workers a pass has W times as "
+                    f"many); 0 = automatic: {AUTO_PHOTONS_MIN:,}, or {AUTO_PHOTONS_PER_PIXEL:g} per pixel "
+                    "of the image when that is more")
     seed: IntProperty(
         name="Seed", default=_DEFAULTS.seed, min=0, max=INT_MAX,
         description="Random seed; the same seed, settings and worker count give the same image")

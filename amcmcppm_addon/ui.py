@@ -9,7 +9,9 @@ this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``.
 """
 import bpy
 
+from ..core.settings import RenderSettings
 from .engine import AMCMCPPMRenderEngine
+from .export.camera import rendered_pixels
 
 ENGINE_ID = AMCMCPPMRenderEngine.bl_idname
 
@@ -43,6 +45,20 @@ class AMCMCPPMButtonsPanel:
 class AMCMCPPM_RENDER_PT_sampling(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Sampling"
     props = ("method", "passes", "time_limit", "photons_per_pass", "seed")
+
+    def draw(self, context):
+        super().draw(context)
+        text = automatic_photons_label(context.scene)
+        if text:
+            self.layout.label(text=text, icon='INFO')
+
+
+def automatic_photons_label(scene):
+    """What "Photons per Pass" = 0 (automatic) means at the scene's output size, or None."""
+    if scene.amcmcppm.photons_per_pass:
+        return None
+    n = RenderSettings().photons_for(rendered_pixels(scene.render))
+    return f"Automatic: {n:,} photons per pass and worker"
 
 
 class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):

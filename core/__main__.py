@@ -29,7 +29,8 @@ def build_parser():
     r.add_argument("--target-acceptance", type=float, default=d.target_acceptance)
     r.add_argument("--mutation", choices=MUTATIONS, default=d.mutation)
     r.add_argument("--normalisation", choices=NORMALISATIONS, default=d.normalisation)
-    r.add_argument("--photons-per-pass", type=int, default=d.photons_per_pass)
+    r.add_argument("--photons-per-pass", type=int, default=d.photons_per_pass,
+                   help="photon paths per pass and worker (0 = automatic: grows with the image)")
     r.add_argument("--chains", type=int, default=d.chains)
     r.add_argument("--initial-radius", type=float, default=d.initial_radius_px,
                    help="initial gather radius in pixel footprints")

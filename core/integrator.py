@@ -124,6 +124,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     if scene.triangle_count == 0:
         warnings.append("the scene has no geometry")
     max_passes = settings.passes or np.iinfo(np.int64).max
+    photons = settings.photons_for(n_pixels)
     scales = kz_radius_scales(1, settings.alpha)
 
     def eye_pass(i):
@@ -147,7 +148,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if stop() and pass_index > 0:
                 result.interrupted = True
                 break
-            pool.submit(pass_index, target, settings.photons_per_pass)
+            pool.submit(pass_index, target, photons)
             # Prepare the next pass while the workers trace photons.
             t_next = time.perf_counter()
             last = pass_index + 1 >= max_passes
@@ -175,7 +176,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "a surface seen by the camera; the image shows only emission so far and the "
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
-            stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings)
+            stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
+                                photons)
             result.stats.append(stats)
             result.passes = acc.passes
             result.elapsed_s = elapsed
@@ -197,7 +199,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     return result
 
 
-def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, settings):
+def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, settings, photons):
     """The statistics of one pass (``PASS_STAT_KEYS`` first, then diagnostics)."""
     c = merged["counters"]
     is_chain = settings.method == "amcmcppm"
@@ -229,6 +231,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "bookkeeping_share": 1.0 - c["trace_s"] / merged["photon_cpu_s"] if merged["photon_cpu_s"] > 0 else 0.0,
         "prepare_next_s": prep_s,
         "workers": workers,
+        "photons_per_pass": photons,
     }
 
 

@@ -28,6 +28,12 @@ def render_border(render):
     return (render.border_min_x, render.border_max_x, render.border_min_y, render.border_max_y)
 
 
+def rendered_pixels(render) -> int:
+    """Pixels the engine renders for these render settings: the border window if on."""
+    x0, x1, y0, y1 = Camera(resolution=render_resolution(render), border=render_border(render)).window
+    return (x1 - x0) * (y1 - y0)
+
+
 def export_camera(depsgraph, camera_object=None, resolution=None, border=None, log=None) -> Camera:
     """``core.Camera`` for ``camera_object`` (default: the scene camera) seen from ``depsgraph``.
 

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import bpy
+import numpy as np
 import pytest
 
 from conftest import ROOT, load_package
@@ -120,6 +121,26 @@ def test_panels_poll_and_props_exist(scene):
     assert drawn == names - {"rna_type", "name"}
     scene.render.engine = "CYCLES"
     assert not ui.AMCMCPPM_RENDER_PT_sampling.poll(bpy.context)
+
+
+def test_automatic_photon_count_label_follows_the_output_size(scene):
+    from amcmcppm.amcmcppm_addon import ui
+    from amcmcppm.core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL
+    r = scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage, r.use_border = 1920, 1080, 100, False
+    scene.amcmcppm.photons_per_pass = 0            # automatic (the default; the fixture sets 4000)
+    full = int(np.ceil(AUTO_PHOTONS_PER_PIXEL * 1920 * 1080))
+    assert ui.automatic_photons_label(scene) == f"Automatic: {full:,} photons per pass and worker"
+    r.resolution_percentage = 10                    # 192 x 108 pixels: the minimum
+    assert AUTO_PHOTONS_PER_PIXEL * 192 * 108 < AUTO_PHOTONS_MIN
+    assert f"{AUTO_PHOTONS_MIN:,}" in ui.automatic_photons_label(scene)
+    r.resolution_percentage = 100
+    r.use_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.0, 0.5, 0.0, 1.0
+    half = int(np.ceil(AUTO_PHOTONS_PER_PIXEL * 960 * 1080))
+    assert f"{half:,}" in ui.automatic_photons_label(scene)
+    scene.amcmcppm.photons_per_pass = 5000
+    assert ui.automatic_photons_label(scene) is None
 
 
 def test_builtin_panels_show_for_engine(addon):

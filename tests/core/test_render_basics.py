@@ -11,6 +11,7 @@ import pytest
 from core import Camera, Lights, Materials, RenderSettings, Scene, SceneError, render
 from core.imageio import read_exr
 from core.integrator import kz_radius_scales
+from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL
 from core.testing.scenes import MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -222,6 +223,27 @@ def test_invalid_scenes_raise_clear_errors():
         RenderSettings(target_acceptance=1.5)
     with pytest.raises(ValueError, match="never stop"):
         RenderSettings(passes=0, time_limit=0)
+    with pytest.raises(ValueError, match="photons_per_pass"):
+        RenderSettings(photons_per_pass=-1)
+
+
+def test_automatic_photon_count_grows_with_the_image_only():
+    auto = RenderSettings()
+    assert auto.photons_per_pass == 0
+    assert auto.photons_for(64 * 48) == AUTO_PHOTONS_MIN
+    assert auto.photons_for(int(AUTO_PHOTONS_MIN / AUTO_PHOTONS_PER_PIXEL)) == AUTO_PHOTONS_MIN
+    big = 1920 * 1080
+    assert auto.photons_for(big) == int(np.ceil(AUTO_PHOTONS_PER_PIXEL * big)) > AUTO_PHOTONS_MIN
+    assert auto.replace(workers=7).photons_for(big) == auto.photons_for(big)
+    assert RenderSettings(photons_per_pass=5000).photons_for(big) == 5000
+    # The render traces the automatic count for the pixels it renders: a border window of
+    # 200 x 100 pixels in a 2000 x 1000 image gets the minimum, as the whole image would not.
+    assert auto.photons_for(2000 * 1000) > auto.photons_for(200 * 100) == AUTO_PHOTONS_MIN
+    scene = cornell_box((2000, 1000))
+    scene.camera.border = (0.0, 0.1, 0.0, 0.1)
+    result = render(scene, RenderSettings(method="ppm", passes=1, workers=1))
+    assert result.stats[0]["photons_per_pass"] == AUTO_PHOTONS_MIN
+    assert result.stats[0]["paths_traced"] == AUTO_PHOTONS_MIN
 
 
 def test_scene_save_load_round_trip(tmp_path):
