@@ -12,6 +12,7 @@ Every figure is a ratio measured in this one run (the machines are shared and no
 5. peak memory of a 1920x1080 render at default settings (main process plus the largest worker).
 
     python benchmarks/throughput.py [--scene cornell_box] [--resolution 640 480] [--rounds 3] [--json out.json]
+                                    [--photons-per-pass N]
 
 ``--subdivide K`` splits every triangle into 4**K (same surfaces, same image): only the ray
 cost changes, which shows how the ratio of 1. depends on the scene's geometry.
@@ -144,7 +145,7 @@ def render_ratios(scene, a, s, out):
     """Figures 3 and 4 into ``out``."""
     # Whole renders, interleaved in rounds: the machine's load drifts, so every ratio is taken
     # within a round and the median over rounds is reported with its range.
-    common = dict(passes=a.passes, photons_per_pass=s.photons_per_pass)
+    common = dict(passes=a.passes, photons_per_pass=a.photons_per_pass)
     configs = [(m, w) for w in (1, 2) for m in ("ppm", "amcmcppm")]
     ratios = {}
     for r in range(a.rounds):
@@ -184,6 +185,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the render-rate runs")
     ap.add_argument("--subdivide", type=int, default=0, metavar="K",
                     help="split every triangle into 4**K (dearer rays, same light transport)")
+    ap.add_argument("--photons-per-pass", type=int, default=RenderSettings().photons_per_pass,
+                    help="photons per pass and worker of the render-rate runs (default: automatic)")
     ap.add_argument("--skip-memory", action="store_true")
     ap.add_argument("--skip-renders", action="store_true", help="only the photon-pass figures 1 and 2")
     ap.add_argument("--json", help="also write the figures to this JSON file")
