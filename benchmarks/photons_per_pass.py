@@ -43,29 +43,32 @@ def run_one(scene_name, resolution, method, seed, time_limit, photons, out_path,
     from core.testing.scenes import BUILTIN
 
     scene = BUILTIN[scene_name](resolution=tuple(resolution))
-    base = RenderSettings()
+    r0 = RenderSettings().initial_radius_px
     settings = RenderSettings(**METHODS[method], seed=seed, passes=0, time_limit=time_limit,
-                              photons_per_pass=photons, initial_radius_px=base.initial_radius_px * radius_scale)
+                              photons_per_pass=photons, initial_radius_px=r0 * radius_scale)
     rows = []
-    callback_s = [0.0]
     if reference is not None:
         z = np.load(reference)
         ref = z["image"]
         ref_var = (z["half_a"] - z["half_b"]) ** 2 / 4.0
 
     def keep(result):
-        t = time.perf_counter()
         s = result.stats[-1]
         row = dict(elapsed=s["elapsed_s"], paths=s["paths_traced"], photon_s=s["photon_s"],
                    prepare_s=s["prepare_next_s"])
         if reference is not None:
             row["relmse_c"] = float(errors(result.image[None], ref, ref_var)[3][0])
         rows.append(row)
-        callback_s[0] += time.perf_counter() - t
 
     result = render(scene, settings, on_iteration=keep)
-    np.savez_compressed(out_path, image=result.image[..., :3].astype(np.float32) if reference is None else
-                        np.zeros(0), rows=json.dumps(rows), callback_s=callback_s[0])
+    image = result.image[..., :3].astype(np.float32) if reference is None else np.zeros(0)
+    np.savez_compressed(out_path, image=image, rows=json.dumps(rows))
+
+
+def error_at(rows, t):
+    """relMSE of the last image finished by time t (a run ends with the pass that crosses its limit)."""
+    done = [x["relmse_c"] for x in rows if x["elapsed"] <= t]
+    return done[-1] if done else float("nan")
 
 
 def launch(*args):
@@ -113,35 +116,31 @@ def main():
         for n in a.photons:
             path = os.path.join(OUT, f"run_{a.scene}_{a.method}_{n}_{seed}.npz")
             launch(a.scene, a.resolution, a.method, seed, a.time, n, path, 1.0, ref)
-            z = np.load(path)
-            results.setdefault(n, []).append((json.loads(str(z["rows"])), float(z["callback_s"])))
+            results.setdefault(n, []).append(json.loads(str(np.load(path)["rows"])))
     w, h = a.resolution
     lines = [f"# Photons per pass: {a.scene}, {a.method}, {w}x{h}, {a.time:g} s per run, {a.seeds} seeds, "
              f"{os.cpu_count()} workers", "",
              f"Commit {git_commit()[:10]}, {platform.node()}, {time.strftime('%Y-%m-%d %H:%M')}; reference "
              f"2 x {a.reference_time:g} s.", "",
-             "| photons per pass and worker | per pixel (all workers) | passes | paths traced | photon s / pass "
-             "| prepare s / pass | corrected relMSE at T/2 | at T (per seed) | at T, relative to the first row |",
+             "| photons per pass and worker | per pixel (all workers) | passes | paths traced "
+             "| photon s / pass | prepare s / pass | corrected relMSE at T/2 | at T (per seed) "
+             "| at T, relative to the first row |",
              "|---|---|---|---|---|---|---|---|---|"]
-    def at(rows, t):
-        # The last image finished by time t (a run ends with the pass that crosses its limit).
-        done = [x["relmse_c"] for x in rows if x["elapsed"] <= t]
-        return done[-1] if done else float("nan")
-
     base = None
     for n in a.photons:
         runs = results[n]
-        finals = [at(r, a.time) for r, _ in runs]
+        finals = [error_at(r, a.time) for r in runs]
         err = float(np.median(finals))
-        half = float(np.median([at(r, a.time / 2) for r, _ in runs]))
+        half = float(np.median([error_at(r, a.time / 2) for r in runs]))
         base = base or err
-        passes = np.median([len(r) for r, _ in runs])
-        paths = np.median([sum(x["paths"] for x in r) for r, _ in runs])
-        ph = np.median([np.median([x["photon_s"] for x in r]) for r, _ in runs])
-        prep = np.median([np.median([x["prepare_s"] for x in r[:-1]] or [0]) for r, _ in runs])
+        passes = np.median([len(r) for r in runs])
+        paths = np.median([sum(x["paths"] for x in r) for r in runs])
+        ph = np.median([np.median([x["photon_s"] for x in r]) for r in runs])
+        prep = np.median([np.median([x["prepare_s"] for x in r[:-1]] or [0]) for r in runs])
         per_px = n * (os.cpu_count() or 1) / (w * h)
+        per_seed = ", ".join(f"{e:.3g}" for e in finals)
         lines.append(f"| {n:,} | {per_px:.2f} | {passes:.0f} | {paths:,.0f} | {ph:.2f} | {prep:.2f} | "
-                     f"{half:.4g} | {err:.4g} ({', '.join(f'{e:.3g}' for e in finals)}) | {err / base:.2f} |")
+                     f"{half:.4g} | {err:.4g} ({per_seed}) | {err / base:.2f} |")
     text = "\n".join(lines) + "\n"
     print(text)
     with open(os.path.join(OUT, f"report_{a.scene}_{a.method}_{w}x{h}.md"), "w") as f:

@@ -11,8 +11,8 @@ Every figure is a ratio measured in this one run (the machines are shared and no
    (3 and 4: medians over interleaved rounds, each ratio taken within a round);
 5. peak memory of a 1920x1080 render at default settings (main process plus the largest worker).
 
-    python benchmarks/throughput.py [--scene cornell_box] [--resolution 640 480] [--rounds 3] [--json out.json]
-                                    [--photons-per-pass N]
+    python benchmarks/throughput.py [--scene cornell_box] [--resolution 640 480] [--rounds 3]
+                                    [--json out.json] [--photons-per-pass N]
 
 ``--subdivide K`` splits every triangle into 4**K (same surfaces, same image): only the ray
 cost changes, which shows how the ratio of 1. depends on the scene's geometry.
@@ -141,7 +141,7 @@ print(json.dumps({{"main": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def render_ratios(scene, a, s, out):
+def render_ratios(scene, a, out):
     """Figures 3 and 4 into ``out``."""
     # Whole renders, interleaved in rounds: the machine's load drifts, so every ratio is taken
     # within a round and the median over rounds is reported with its range.
@@ -209,7 +209,7 @@ def main():
     print(f"photon pass (no points)  {v0:12,.0f} vertices/s   embree {r0:12,.0f} rays/s   ratio {v0 / r0:.3f}")
 
     if not a.skip_renders:
-        render_ratios(scene, a, s, out)
+        render_ratios(scene, a, out)
     if not (a.skip_memory or a.skip_renders):
         mem = peak_memory((1920, 1080))
         out["peak_memory_1080p_mib"] = mem
