@@ -58,13 +58,15 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Passes to render, each an eye pass and a photon pass (0 = until the time limit)")
     time_limit: FloatProperty(
         name="Time Limit", default=_DEFAULTS.time_limit, min=0.0, soft_max=3600.0, unit='TIME_ABSOLUTE',
-        description="Stop after this many seconds of rendering (0 = no limit; at least one pass runs)")
+        description="Stop after this many seconds of rendering (0 = no limit). The first pass runs whole; "
+                    "a later pass still running at the limit is cut short there")
     photons_per_pass: IntProperty(
         name="Photons per Pass", default=_DEFAULTS.photons_per_pass, min=0, max=INT_MAX,
         soft_max=10_000_000,
         description="Photon paths traced per pass by every worker (with W workers a pass has W times as "
                     f"many); 0 = automatic: {AUTO_PHOTONS_MIN:,}, or {AUTO_PHOTONS_PER_PIXEL:g} per pixel "
-                    "of the image when that is more")
+                    f"of the image when that is more, reached after a few smaller first passes "
+                    f"(from {AUTO_PHOTONS_MIN:,}) that show the first image soon")
     seed: IntProperty(
         name="Seed", default=_DEFAULTS.seed, min=0, max=INT_MAX,
         description="Random seed; the same seed, settings and worker count give the same image")

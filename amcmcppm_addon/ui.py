@@ -9,7 +9,7 @@ this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``.
 """
 import bpy
 
-from ..core.settings import RenderSettings
+from ..core.settings import AUTO_PHOTONS_MIN, RenderSettings
 from .engine import AMCMCPPMRenderEngine
 from .export.camera import rendered_pixels
 
@@ -58,7 +58,8 @@ def automatic_photons_label(scene):
     if scene.amcmcppm.photons_per_pass:
         return None
     n = RenderSettings().photons_for(rendered_pixels(scene.render))
-    return f"Automatic: {n:,} photons per pass and worker"
+    return f"Automatic: {n:,} photons per pass and worker" + (
+        f" (from {AUTO_PHOTONS_MIN:,})" if n > AUTO_PHOTONS_MIN else "")
 
 
 class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):

@@ -6,8 +6,9 @@ One pass (``algorithm.md`` 1, Knaus & Zwicker 2011):
 2. radii r_i(x) = r_1(x) s_i with the global shrink s_i^2 = prod_{k<i} (k + alpha)/(k + 1);
 3. photon pass (uniform photons, or the Markov chains of :mod:`core.mcmc`) in the
    worker pool, deposits summed per pixel;
-4. the pass estimate L_i = Vc S_i / N_i (Vc = 1 for uniform photons) is averaged
-   over passes with the eye-pass emission.
+4. the pass estimates L_i = Vc S_i / N_i (Vc = 1 for uniform photons) are averaged
+   over passes, weighted by the uniform photon paths of each pass (equal weights for
+   passes of equal size), and the eye-pass emission is averaged over passes.
 
 The eye pass of pass i+1 is traced while the workers trace the photons of pass i.
 """
@@ -43,50 +44,72 @@ class RenderResult:
 
 
 class Accumulator:
-    """Float64 sums over passes, turned into an image on demand."""
+    """Float64 sums over passes, turned into an image on demand.
+
+    The eye-pass emission is averaged over passes.  The photon estimates L_p = Vc_p S_p / N_p
+    (S_p the pass's summed contributions, N_p its recorded photons) are averaged with weights
+    w_p = the pass's uniform photon paths (PPM: its photons; AMCMCPPM: its chain iterations
+    times chains), the samples the visible fraction pools too.  Passes of the same size get
+    the same weight, as in Knaus and Zwicker's (1/P) sum_p L_p; a smaller pass (the first
+    passes of an automatic count, a pass cut short by the time limit or a stop request)
+    counts in proportion to the work it did.
+    """
 
     def __init__(self, n_pixels, normalisation):
         self.normalisation = normalisation
         self.emission = np.zeros((n_pixels, 3))     # sum of eye-pass emission
         self.alpha = np.zeros(n_pixels)             # sum of coverage
-        self.photons = np.zeros((n_pixels, 3))      # sum over passes of S_p / N_p
-        self.photons_scaled = np.zeros((n_pixels, 3))  # sum over passes of Vc_p S_p / N_p
+        self.photons = np.zeros((n_pixels, 3))      # sum over passes of w_p S_p / N_p
+        self.photons_scaled = np.zeros((n_pixels, 3))  # sum over passes of w_p Vc_p S_p / N_p
+        self.weight = 0                             # sum over passes of w_p
         self.passes = 0
         self.n_uniform = 0                          # n_U, all passes
         self.n_visible = 0                          # n_UV, all passes
+        self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
 
     @property
     def visible_fraction(self) -> float:
         return self.n_visible / self.n_uniform if self.n_uniform else 0.0
 
     def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain):
+        """Add one pass; returns the number of pixels whose non-finite photon sums were dropped.
+
+        Also sets ``last_pass_mean``: the mean over pixels and RGB of this pass's own estimate,
+        its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p.
+        """
         self.passes += 1
         self.emission += eye.emission
         self.alpha += eye.alpha
         self.n_uniform += n_uniform
         self.n_visible += n_visible
-        if recorded:
-            per_photon = pixel_sum / recorded
-            # Non-finite contributions are dropped before they reach the sums (and counted).
-            bad = ~np.isfinite(per_photon)
-            dropped = int(bad.any(axis=1).sum())
-            per_photon[bad] = 0.0
-            self.photons += per_photon
-            vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
-            self.photons_scaled += vc_pass * per_photon
-            return dropped
-        return 0
+        self.weight += n_uniform
+        self.last_pass_mean = float(eye.emission.mean())
+        if not recorded:
+            return 0
+        per_photon = pixel_sum / recorded
+        # Non-finite contributions are dropped before they reach the sums (and counted).
+        bad = ~np.isfinite(per_photon)
+        dropped = int(bad.any(axis=1).sum())
+        per_photon[bad] = 0.0
+        vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
+        self.last_pass_mean += vc_pass * float(per_photon.mean())
+        per_photon *= n_uniform
+        self.photons += per_photon
+        self.photons_scaled += vc_pass * per_photon
+        return dropped
 
     def image(self, is_chain):
         if self.passes == 0:
             return np.zeros((len(self.alpha), 4), np.float32)
-        if not is_chain:
-            photons = self.photons
-        elif self.normalisation == "cumulative":
-            photons = self.visible_fraction * self.photons
-        else:
-            photons = self.photons_scaled
-        rgb = (self.emission + photons) / self.passes
+        rgb = self.emission / self.passes
+        if self.weight:
+            if not is_chain:
+                photons = self.photons
+            elif self.normalisation == "cumulative":
+                photons = self.visible_fraction * self.photons
+            else:
+                photons = self.photons_scaled
+            rgb = rgb + photons / self.weight
         out = np.empty((len(rgb), 4), np.float32)
         out[:, :3] = rgb
         out[:, 3] = self.alpha / self.passes
@@ -124,7 +147,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     if scene.triangle_count == 0:
         warnings.append("the scene has no geometry")
     max_passes = settings.passes or np.iinfo(np.int64).max
-    photons = settings.photons_for(n_pixels)
+    deadline = t0 + settings.time_limit if settings.time_limit else None
     scales = kz_radius_scales(1, settings.alpha)
 
     def eye_pass(i):
@@ -138,32 +161,50 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         radius = eye.points.base_radius * scales[i]
         return DepositTarget(eye.points, radius, ctx.table, n_pixels, ctx.has_shading_normals)
 
+    # The worker processes start (scene, acceleration structure) while this one traces the
+    # first eye pass.
     pool = make_pool(scene, settings, ctx)
     warned_invisible = False
     try:
         pass_index = 0
         eye = eye_pass(0)
         target = make_target(0, eye)
+        last_rate = None                # photons per second per worker of the last whole pass
         while pass_index < max_passes:
             if stop() and pass_index > 0:
                 result.interrupted = True
                 break
-            pool.submit(pass_index, target, photons)
-            # Prepare the next pass while the workers trace photons.
-            t_next = time.perf_counter()
+            if deadline is not None and pass_index > 0 and time.perf_counter() >= deadline:
+                break
+            photons = settings.pass_photons(n_pixels, pass_index)
+            # The first pass runs whole; later ones are cut at the time limit.
+            t_submit = time.perf_counter()
+            budget = None if deadline is None or pass_index == 0 else max(0.0, deadline - t_submit)
+            pool.submit(pass_index, target, photons, budget)
+            # Prepare the next pass while the workers trace photons, unless it is the last, or
+            # the time limit will cut this one, or this is the first pass (whose image is
+            # shown as soon as it is done; the next pass is prepared after it).
             last = pass_index + 1 >= max_passes
-            if not last:
+            cut_expected = (budget is not None and last_rate is not None
+                            and photons / last_rate > budget)
+            next_target = None
+            prep_s = 0.0
+            if not last and pass_index > 0 and not cut_expected:
+                t_next = time.perf_counter()
                 next_eye = eye_pass(pass_index + 1)
                 next_target = make_target(pass_index + 1, next_eye)
-            prep_s = time.perf_counter() - t_next
+                prep_s = time.perf_counter() - t_next
             outputs = pool.collect(stop)
             if outputs is None:         # stopped before any worker returned photons
                 result.interrupted = True
                 break
             merged = _merge(outputs)
             c = merged["counters"]
-            # A stop request mid-pass returns the photons traced so far (partial pass).
-            interrupted = any(o["interrupted"] for o in outputs) or stop()
+            # A stop request or the time limit mid-pass returns the photons traced so far.
+            cut = any(o["interrupted"] for o in outputs)
+            interrupted = stop()
+            if not cut and merged["photon_s"] > 0:
+                last_rate = photons / merged["photon_s"]
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
                               c["uniform_visible"], is_chain)
             if dropped:
@@ -177,7 +218,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
-                                photons)
+                                photons, cut and not interrupted)
             result.stats.append(stats)
             result.passes = acc.passes
             result.elapsed_s = elapsed
@@ -188,10 +229,14 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if interrupted:
                 result.interrupted = True
                 break
-            if settings.time_limit and elapsed >= settings.time_limit:
+            if deadline is not None and time.perf_counter() >= deadline:
                 break
-            if not last:
-                eye, target = next_eye, next_target
+            if last:
+                break
+            if next_target is None:
+                next_eye = eye_pass(pass_index)
+                next_target = make_target(pass_index, next_eye)
+            eye, target = next_eye, next_target
     finally:
         pool.close()
     result.elapsed_s = time.perf_counter() - t0
@@ -199,7 +244,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     return result
 
 
-def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, settings, photons):
+def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, settings, photons, cut):
     """The statistics of one pass (``PASS_STAT_KEYS`` first, then diagnostics)."""
     c = merged["counters"]
     is_chain = settings.method == "amcmcppm"
@@ -232,6 +277,8 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "prepare_next_s": prep_s,
         "workers": workers,
         "photons_per_pass": photons,
+        "cut_at_time_limit": cut,
+        "pass_mean": acc.last_pass_mean,
     }
 
 

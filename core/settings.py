@@ -13,6 +13,7 @@ from dataclasses import dataclass
 METHODS = ("amcmcppm", "ppm")
 AUTO_PHOTONS_MIN = 100_000          # photons per pass and worker at least (automatic count)
 AUTO_PHOTONS_PER_PIXEL = 0.5        # ... and per pixel of the image (benchmarks/photons_per_pass.py)
+AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
 MUTATIONS = ("off", "paper", "exact")
 NORMALISATIONS = ("cumulative", "per_pass")
 
@@ -30,12 +31,15 @@ class RenderSettings:
     """Passes to render (eye pass + photon pass each); 0 = until ``time_limit``."""
 
     time_limit: float = 0.0
-    """Stop after this many seconds of rendering (0 = no limit).  At least one pass runs."""
+    """Stop after this many seconds of rendering (0 = no limit).  The first pass always runs
+    whole; a later pass still running at the limit is cut short there, and its photons count
+    by their number (see :class:`core.integrator.Accumulator`)."""
 
     photons_per_pass: int = 0
     """Photon paths per pass and worker; 0 = automatic: ``AUTO_PHOTONS_MIN`` (the paper's
     100,000 per thread), or ``AUTO_PHOTONS_PER_PIXEL`` per pixel of the image when that is
-    more (1,036,800 at 1920x1080; see :meth:`photons_for`).  PPM traces this many uniform paths; AMCMCPPM
+    more (1,036,800 at 1920x1080; see :meth:`photons_for`); the first passes of an automatic
+    count are smaller, so that the first image comes soon (:meth:`pass_photons`).  PPM traces this many uniform paths; AMCMCPPM
     runs this many chain iterations (each traces a uniform path, plus a mutated one unless
     the uniform path is visible, and records one path once the chain has a visible state).
     With W workers a pass has W times as many photons."""
@@ -129,6 +133,20 @@ class RenderSettings:
         if self.photons_per_pass:
             return self.photons_per_pass
         return max(AUTO_PHOTONS_MIN, int(math.ceil(AUTO_PHOTONS_PER_PIXEL * n_pixels)))
+
+    def pass_photons(self, n_pixels: int, pass_index: int) -> int:
+        """Photon paths per worker in pass ``pass_index`` (0 = the first pass).
+
+        An explicit ``photons_per_pass`` holds in every pass.  The automatic count starts at
+        ``AUTO_PHOTONS_MIN`` and grows ``AUTO_RAMP`` times a pass up to :meth:`photons_for`:
+        at 1920x1080, 100,000, 400,000, then 1,036,800 per worker, so the first image comes
+        after a tenth of a full pass (``benchmarks/first_image.py``).  Passes are weighted by
+        their photon count, so the small first passes add little noise.
+        """
+        full = self.photons_for(n_pixels)
+        if self.photons_per_pass:
+            return full
+        return int(min(full, AUTO_PHOTONS_MIN * AUTO_RAMP ** min(pass_index, 64)))
 
     def replace(self, **changes) -> "RenderSettings":
         return dataclasses.replace(self, **changes)

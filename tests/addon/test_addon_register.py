@@ -130,10 +130,11 @@ def test_automatic_photon_count_label_follows_the_output_size(scene):
     r.resolution_x, r.resolution_y, r.resolution_percentage, r.use_border = 1920, 1080, 100, False
     scene.amcmcppm.photons_per_pass = 0            # automatic (the default; the fixture sets 4000)
     full = int(np.ceil(AUTO_PHOTONS_PER_PIXEL * 1920 * 1080))
-    assert ui.automatic_photons_label(scene) == f"Automatic: {full:,} photons per pass and worker"
-    r.resolution_percentage = 10                    # 192 x 108 pixels: the minimum
+    assert ui.automatic_photons_label(scene) == (f"Automatic: {full:,} photons per pass and worker "
+                                                 f"(from {AUTO_PHOTONS_MIN:,})")
+    r.resolution_percentage = 10                    # 192 x 108 pixels: the minimum, in every pass
     assert AUTO_PHOTONS_PER_PIXEL * 192 * 108 < AUTO_PHOTONS_MIN
-    assert f"{AUTO_PHOTONS_MIN:,}" in ui.automatic_photons_label(scene)
+    assert ui.automatic_photons_label(scene) == f"Automatic: {AUTO_PHOTONS_MIN:,} photons per pass and worker"
     r.resolution_percentage = 100
     r.use_border = True
     r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.0, 0.5, 0.0, 1.0

@@ -10,8 +10,12 @@ import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, Scene, SceneError, render
 from core.imageio import read_exr
-from core.integrator import kz_radius_scales
-from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL
+from core.context import RenderContext
+from core.eye_pass import trace_eye_pass
+from core.integrator import Accumulator, kz_radius_scales
+from core.parallel import InProcessPool, ProcessPool
+from core.photon_pass import DepositTarget
+from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_RAMP
 from core.testing.scenes import MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -198,6 +202,69 @@ def test_time_limit_stops_the_render():
     assert result.elapsed_s < 1.5 + 3.0
 
 
+def test_time_limit_cuts_a_later_pass_and_counts_it_by_its_photons():
+    limit, photons = 3.0, 150_000
+    result = render(cornell_box((16, 16)), RenderSettings(method="ppm", passes=0, time_limit=limit,
+                                                         photons_per_pass=photons, workers=1))
+    assert np.isfinite(result.image).all() and not result.interrupted
+    first, *later = result.stats
+    assert not first["cut_at_time_limit"] and first["paths_traced"] == photons   # the first runs whole
+    for st in later:
+        if st["cut_at_time_limit"]:
+            assert st is result.stats[-1] and st["paths_traced"] < photons
+        else:
+            assert st["paths_traced"] == photons
+    # Only the pass that crosses the limit runs past it, and only by a photon batch or so.
+    assert result.passes >= 2 and result.stats[-2]["elapsed_s"] < limit
+    assert result.stats[-1]["cut_at_time_limit"] or result.stats[-1]["elapsed_s"] < limit + 0.5
+
+
+@pytest.mark.parametrize("pool_kind", ["in_process", "processes"])
+def test_a_pass_budget_returns_the_photons_traced_in_time(pool_kind):
+    scene = cornell_box((16, 16))
+    settings = RenderSettings(method="ppm", workers=1 if pool_kind == "in_process" else 2)
+    ctx = RenderContext(scene)
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px, settings.max_bounces)
+    target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, 256, ctx.has_shading_normals)
+    pool = InProcessPool(scene, settings, ctx) if pool_kind == "in_process" else ProcessPool(scene, settings, 2)
+    try:
+        pool.submit(0, target, 200_000)                  # no budget: every photon
+        whole = pool.collect()
+        assert all(o["counters"]["paths_traced"] == 200_000 and not o["interrupted"] for o in whole)
+        pool.submit(1, target, 50_000_000, budget_s=0.5)  # minutes of photons, half a second to trace them
+        cut = pool.collect()
+        assert len(cut) == pool.size
+        for o in cut:
+            assert o["interrupted"] and 0 < o["counters"]["paths_traced"] < 50_000_000
+            assert np.isfinite(o["pixel_sum"]).all() and o["pixel_sum"].sum() > 0
+    finally:
+        pool.close()
+
+
+def test_passes_of_different_sizes_are_weighted_by_their_photons():
+    class Eye:
+        def __init__(self, e):
+            self.emission, self.alpha = np.full((2, 3), e), np.ones(2)
+
+    acc = Accumulator(2, "cumulative")
+    s1, s2 = np.array([[10.0, 20, 30], [0, 0, 0]]), np.array([[90.0, 60, 30], [4, 4, 4]])
+    acc.add(Eye(1.0), s1, 1000, 1000, 0, False)
+    assert acc.last_pass_mean == pytest.approx(1.0 + s1.mean() / 1000)
+    acc.add(Eye(3.0), s2, 3000, 3000, 0, False)
+    assert acc.last_pass_mean == pytest.approx(3.0 + s2.mean() / 3000)
+    # Emission: the mean of the eye passes; photons: all 4000 photons pooled.
+    expected = 2.0 + (s1 + s2) / 4000
+    assert np.allclose(acc.image(False)[:, :3], expected) and np.allclose(acc.image(False)[:, 3], 1)
+    # Markov chains: L_p = Vc_p S_p / N_p weighted by the uniform samples of each pass.
+    per_pass, cumulative = Accumulator(2, "per_pass"), Accumulator(2, "cumulative")
+    for acc in (per_pass, cumulative):
+        acc.add(Eye(0.0), s1, 500, 1000, 400, True)       # Vc = 0.4, half the chains had a state
+        acc.add(Eye(0.0), s2, 2000, 3000, 600, True)      # Vc = 0.2
+    w = (1000 * s1 / 500 + 3000 * s2 / 2000) / 4000
+    assert np.allclose(cumulative.image(True)[:, :3], (1000 / 4000) * w)
+    assert np.allclose(per_pass.image(True)[:, :3], (1000 * 0.4 * s1 / 500 + 3000 * 0.2 * s2 / 2000) / 4000)
+
+
 def test_border_window_renders_the_crop():
     scene = cornell_box((40, 20))
     scene.camera.border = (0.25, 0.75, 0.2, 0.6)
@@ -239,6 +306,12 @@ def test_automatic_photon_count_grows_with_the_image_only():
     # The render traces the automatic count for the pixels it renders: a border window of
     # 200 x 100 pixels in a 2000 x 1000 image gets the minimum, as the whole image would not.
     assert auto.photons_for(2000 * 1000) > auto.photons_for(200 * 100) == AUTO_PHOTONS_MIN
+    # The automatic count starts at the minimum and grows to the full count; explicit counts hold.
+    ramp = [auto.pass_photons(big, i) for i in range(6)]
+    assert ramp[0] == AUTO_PHOTONS_MIN and ramp[1] == AUTO_RAMP * AUTO_PHOTONS_MIN
+    assert ramp == sorted(ramp) and ramp[-1] == auto.photons_for(big) and ramp.count(ramp[-1]) >= 3
+    assert [auto.pass_photons(64 * 48, i) for i in (0, 1, 50)] == [AUTO_PHOTONS_MIN] * 3
+    assert [RenderSettings(photons_per_pass=5000).pass_photons(big, i) for i in (0, 1, 9)] == [5000] * 3
     scene = cornell_box((2000, 1000))
     scene.camera.border = (0.0, 0.1, 0.0, 0.1)
     result = render(scene, RenderSettings(method="ppm", passes=1, workers=1))
