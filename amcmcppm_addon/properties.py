@@ -28,7 +28,8 @@ MUTATION_ITEMS = {
                        "rejection, which keeps detailed balance", 2),
 }
 NORMALISATION_ITEMS = {
-    "cumulative": ("Cumulative", "Estimate the visible fraction from all uniform samples so far", 0),
+    "cumulative": ("Cumulative", "Estimate the visible fraction from all passes so far, each "
+                   "weighted by its recorded photons", 0),
     "per_pass": ("Per Pass", "Scale each pass by its own visible-fraction estimate", 1),
 }
 

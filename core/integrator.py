@@ -7,8 +7,8 @@ One pass (``algorithm.md`` 1, Knaus & Zwicker 2011):
 3. photon pass (uniform photons, or the Markov chains of :mod:`core.mcmc`) in the
    worker pool, deposits summed per pixel;
 4. the pass estimates L_i = Vc S_i / N_i (Vc = 1 for uniform photons) are averaged
-   over passes, weighted by the uniform photon paths of each pass (equal weights for
-   passes of equal size), and the eye-pass emission is averaged over passes.
+   over passes, weighted by their recorded photons N_i (equal weights for passes of
+   equal size), and the eye-pass emission is averaged over passes.
 
 The eye pass of pass i+1 is traced while the workers trace the photons of pass i.
 """
@@ -46,22 +46,24 @@ class RenderResult:
 class Accumulator:
     """Float64 sums over passes, turned into an image on demand.
 
-    The eye-pass emission is averaged over passes.  The photon estimates L_p = Vc_p S_p / N_p
-    (S_p the pass's summed contributions, N_p its recorded photons) are averaged with weights
-    w_p = the pass's uniform photon paths (PPM: its photons; AMCMCPPM: its chain iterations
-    times chains), the samples the visible fraction pools too.  Passes of the same size get
-    the same weight, as in Knaus and Zwicker's (1/P) sum_p L_p; a smaller pass (the first
-    passes of an automatic count, a pass cut short by the time limit or a stop request)
-    counts in proportion to the work it did.
+    The eye-pass emission is averaged over passes.  The photons of all passes are pooled: the
+    pass estimates L_p = Vc_p S_p / N_p (S_p the pass's summed contributions, N_p its recorded
+    photons) are averaged with weights N_p, and the cumulative visible fraction is the
+    N_p-weighted mean of the passes' Vc_p.  Passes of the same size get the same weight, as in
+    Knaus and Zwicker's (1/P) sum_p L_p.  A pass with fewer photons counts less: the first
+    passes of an automatic count, a pass cut short by the time limit or a stop request, and
+    AMCMCPPM passes in which few chains have found a visible path yet (in the first pass of
+    a scene seen through glass, a few hundred recorded photons out of 200,000 chain steps).
     """
 
     def __init__(self, n_pixels, normalisation):
         self.normalisation = normalisation
         self.emission = np.zeros((n_pixels, 3))     # sum of eye-pass emission
         self.alpha = np.zeros(n_pixels)             # sum of coverage
-        self.photons = np.zeros((n_pixels, 3))      # sum over passes of w_p S_p / N_p
-        self.photons_scaled = np.zeros((n_pixels, 3))  # sum over passes of w_p Vc_p S_p / N_p
-        self.weight = 0                             # sum over passes of w_p
+        self.photons = np.zeros((n_pixels, 3))      # sum over passes of S_p
+        self.photons_scaled = np.zeros((n_pixels, 3))  # sum over passes of Vc_p S_p
+        self.recorded = 0                           # sum over passes of N_p
+        self.visible_weighted = 0.0                 # sum over passes of N_p Vc_p
         self.passes = 0
         self.n_uniform = 0                          # n_U, all passes
         self.n_visible = 0                          # n_UV, all passes
@@ -69,6 +71,7 @@ class Accumulator:
 
     @property
     def visible_fraction(self) -> float:
+        """Uniform samples that were visible, over all passes (reported in the statistics)."""
         return self.n_visible / self.n_uniform if self.n_uniform else 0.0
 
     def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain):
@@ -82,34 +85,34 @@ class Accumulator:
         self.alpha += eye.alpha
         self.n_uniform += n_uniform
         self.n_visible += n_visible
-        self.weight += n_uniform
         self.last_pass_mean = float(eye.emission.mean())
         if not recorded:
             return 0
-        per_photon = pixel_sum / recorded
         # Non-finite contributions are dropped before they reach the sums (and counted).
-        bad = ~np.isfinite(per_photon)
+        bad = ~np.isfinite(pixel_sum)
         dropped = int(bad.any(axis=1).sum())
-        per_photon[bad] = 0.0
+        if dropped:
+            pixel_sum = np.where(bad, 0.0, pixel_sum)
         vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
-        self.last_pass_mean += vc_pass * float(per_photon.mean())
-        per_photon *= n_uniform
-        self.photons += per_photon
-        self.photons_scaled += vc_pass * per_photon
+        self.recorded += recorded
+        self.visible_weighted += recorded * vc_pass
+        self.photons += pixel_sum
+        self.photons_scaled += vc_pass * pixel_sum
+        self.last_pass_mean += vc_pass * float(pixel_sum.mean()) / recorded
         return dropped
 
     def image(self, is_chain):
         if self.passes == 0:
             return np.zeros((len(self.alpha), 4), np.float32)
         rgb = self.emission / self.passes
-        if self.weight:
+        if self.recorded:
             if not is_chain:
                 photons = self.photons
             elif self.normalisation == "cumulative":
-                photons = self.visible_fraction * self.photons
+                photons = (self.visible_weighted / self.recorded) * self.photons
             else:
                 photons = self.photons_scaled
-            rgb = rgb + photons / self.weight
+            rgb = rgb + photons / self.recorded
         out = np.empty((len(rgb), 4), np.float32)
         out[:, :3] = rgb
         out[:, 3] = self.alpha / self.passes

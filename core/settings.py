@@ -74,8 +74,10 @@ class RenderSettings:
     keeps detailed balance (algorithm.md 3)."""
 
     normalisation: str = "cumulative"
-    """Visible-fraction estimate: "cumulative" pools all uniform samples so far;
-    "per_pass" scales each pass by that pass's own fraction."""
+    """Visible-fraction estimate: "cumulative" uses one fraction for all passes so far (the
+    passes' own fractions averaged with weights = their recorded photons, which pools all
+    uniform samples when the passes are alike); "per_pass" scales each pass by that pass's
+    own fraction."""
 
     initial_mutation_size: float = 1.0
     """theta_1, the mutation size every chain starts with."""

@@ -25,7 +25,7 @@ def render_passes(scene, **settings):
     if s.method == "ppm":
         # The image averages the passes weighted by their photons (AMCMCPPM's cumulative
         # visible fraction makes its image differ from the passes' own estimates).
-        n = np.array([st["uniform_samples"] for st in result.stats], float)
+        n = np.array([st["photons_recorded"] for st in result.stats], float)
         assert result.image[..., :3].mean() == pytest.approx((n * per_pass).sum() / n.sum(), rel=1e-5)
     return per_pass, result
 

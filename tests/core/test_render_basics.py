@@ -255,14 +255,15 @@ def test_passes_of_different_sizes_are_weighted_by_their_photons():
     # Emission: the mean of the eye passes; photons: all 4000 photons pooled.
     expected = 2.0 + (s1 + s2) / 4000
     assert np.allclose(acc.image(False)[:, :3], expected) and np.allclose(acc.image(False)[:, 3], 1)
-    # Markov chains: L_p = Vc_p S_p / N_p weighted by the uniform samples of each pass.
+    # Markov chains: L_p = Vc_p S_p / N_p weighted by the recorded photons N_p of each pass,
+    # and the cumulative visible fraction is the N_p-weighted mean of the passes' Vc_p.
     per_pass, cumulative = Accumulator(2, "per_pass"), Accumulator(2, "cumulative")
     for acc in (per_pass, cumulative):
         acc.add(Eye(0.0), s1, 500, 1000, 400, True)       # Vc = 0.4, half the chains had a state
         acc.add(Eye(0.0), s2, 2000, 3000, 600, True)      # Vc = 0.2
-    w = (1000 * s1 / 500 + 3000 * s2 / 2000) / 4000
-    assert np.allclose(cumulative.image(True)[:, :3], (1000 / 4000) * w)
-    assert np.allclose(per_pass.image(True)[:, :3], (1000 * 0.4 * s1 / 500 + 3000 * 0.2 * s2 / 2000) / 4000)
+    assert np.allclose(cumulative.image(True)[:, :3], (500 * 0.4 + 2000 * 0.2) / 2500 * (s1 + s2) / 2500)
+    assert np.allclose(per_pass.image(True)[:, :3], (0.4 * s1 + 0.2 * s2) / 2500)
+    assert cumulative.visible_fraction == pytest.approx(1000 / 4000)      # the reported statistic
 
 
 def test_border_window_renders_the_crop():
