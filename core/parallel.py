@@ -12,9 +12,10 @@ The pool interface is ``submit(pass_index, target, n_photons, budget_s)``
 followed by ``collect(should_stop)``: the integrator traces the next pass's eye
 pass and builds its grid while the workers trace photons.  A worker ends its
 share of a pass early (returning what it traced) when ``budget_s`` seconds have
-passed since the submission, or when ``should_stop`` asks it to.  The measurement points and
-their grid travel as ``.npy`` files that the workers map into memory (in
-``/dev/shm`` where it exists), so a 1080p pass costs no pickling and no copy.
+passed since the submission, or when ``should_stop`` asks it to.  The
+measurement points and their grid travel as ``.npy`` files that the workers map
+into memory (in ``/dev/shm`` where it exists), so a 1080p pass costs no
+pickling and no copy.
 """
 from __future__ import annotations
 
