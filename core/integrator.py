@@ -26,6 +26,9 @@ from .photon_pass import DepositTarget
 from .settings import RenderSettings
 from .worker import STREAM_EYE
 
+# A pass is not started when the time left would trace less than this share of its photons.
+MIN_CUT_PASS = 0.05
+
 PASS_STAT_KEYS = ("pass", "elapsed_s", "paths_traced", "photons_recorded", "proposals", "accepted",
                   "acceptance_rate", "mutation_size", "exchanges", "uniform_samples", "uniform_visible",
                   "visible_fraction", "radius")
@@ -177,9 +180,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if stop() and pass_index > 0:
                 result.interrupted = True
                 break
-            if deadline is not None and pass_index > 0 and time.perf_counter() >= deadline:
-                break
             photons = settings.pass_photons(n_pixels, pass_index)
+            if deadline is not None and pass_index > 0:
+                # No pass that the time limit would cut to a sliver (the eye pass is spent).
+                remaining = deadline - time.perf_counter()
+                if remaining <= 0 or (last_rate is not None and remaining * last_rate < MIN_CUT_PASS * photons):
+                    break
             # The first pass runs whole; later ones are cut at the time limit.
             t_submit = time.perf_counter()
             budget = None if deadline is None or pass_index == 0 else max(0.0, deadline - t_submit)
@@ -213,7 +219,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
-            if c["uniform_visible"] == 0 and (not is_chain or c["recorded"] == 0) and not warned_invisible:
+            if (c["uniform_samples"] and c["uniform_visible"] == 0 and (not is_chain or c["recorded"] == 0)
+                    and not warned_invisible):
                 warned_invisible = True
                 warnings.append(
                     f"pass {pass_index + 1}: none of {c['uniform_samples']} uniform photon paths reached "

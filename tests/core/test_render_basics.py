@@ -207,6 +207,7 @@ def test_time_limit_cuts_a_later_pass_and_counts_it_by_its_photons():
     result = render(cornell_box((16, 16)), RenderSettings(method="ppm", passes=0, time_limit=limit,
                                                          photons_per_pass=photons, workers=1))
     assert np.isfinite(result.image).all() and not result.interrupted
+    assert not result.warnings, result.warnings       # e.g. no "none of 0 uniform photon paths"
     first, *later = result.stats
     assert not first["cut_at_time_limit"] and first["paths_traced"] == photons   # the first runs whole
     for st in later:
