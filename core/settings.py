@@ -145,7 +145,7 @@ class RenderSettings:
         4.2 s instead of 14.9 s on the Cornell box (``benchmarks/first_image.py``).  Passes are
         weighted by their recorded photons, so the small first passes add little noise; at
         equal time (90 s) the ramp cost 1.03 (PPM, Cornell) and 1.11 (AMCMCPPM, glass) of the
-        relMSE of a fixed full count (``benchmarks/photons_per_pass.py``).
+        relMSE of a fixed full count, and 0.99 on glass at 240 s (``benchmarks/photons_per_pass.py``).
         """
         full = self.photons_for(n_pixels)
         if self.photons_per_pass:
