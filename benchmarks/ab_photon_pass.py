@@ -33,9 +33,9 @@ BATCH = 1 << 14
 from core.testing.scenes import BUILTIN  # noqa: E402
 
 
-def extract(rev, into):
-    """``core`` at git revision ``rev`` as the package ``core_base`` under directory ``into``."""
-    archive = subprocess.run(["git", "-C", ROOT, "archive", "--prefix=core_base/", f"{rev}:core"],
+def extract(rev, into, package="core_base"):
+    """``core`` at git revision ``rev`` as the package ``package`` under directory ``into``."""
+    archive = subprocess.run(["git", "-C", ROOT, "archive", f"--prefix={package}/", f"{rev}:core"],
                              check=True, capture_output=True).stdout
     subprocess.run(["tar", "-x", "-C", into], input=archive, check=True)
 

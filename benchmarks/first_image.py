@@ -23,6 +23,9 @@ import tempfile
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from ab_photon_pass import extract  # noqa: E402
 
 _RUN = r"""
 import json, sys, time
@@ -42,13 +45,6 @@ print(json.dumps({"pass_times": times, "total": total, "passes": result.passes,
 """
 
 
-def extract(rev, into):
-    """``core`` at git revision ``rev`` under directory ``into`` (importable as ``core``)."""
-    archive = subprocess.run(["git", "-C", ROOT, "archive", f"{rev}", "core"], check=True,
-                             capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", into], input=archive, check=True)
-
-
 def run(path, a):
     out = subprocess.run([sys.executable, "-c", _RUN, path, a.scene, *map(str, a.resolution), a.method,
                           str(a.time_limit), str(a.workers)], capture_output=True, text=True, check=True)
@@ -66,7 +62,7 @@ def main():
     ap.add_argument("--workers", type=int, default=0)
     a = ap.parse_args()
     base_dir = tempfile.mkdtemp(prefix="first_image_")
-    extract(a.base, base_dir)
+    extract(a.base, base_dir, package="core")
     print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]} {a.method}, time limit {a.time_limit:g} s, "
           f"workers {a.workers or 'auto'}; base {a.base}")
     rows = {"base": [], "this": []}

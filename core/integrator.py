@@ -181,21 +181,20 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 result.interrupted = True
                 break
             photons = settings.pass_photons(n_pixels, pass_index)
+            # The first pass runs whole; later ones get the time left before the limit.
+            budget = needed = None
             if deadline is not None and pass_index > 0:
-                # No pass that the time limit would cut to a sliver (the eye pass is spent).
-                remaining = deadline - time.perf_counter()
-                if remaining <= 0 or (last_rate is not None and remaining * last_rate < MIN_CUT_PASS * photons):
+                budget = deadline - time.perf_counter()
+                needed = photons / last_rate if last_rate else None
+                # No pass that the limit would cut to a sliver (its eye pass is spent already).
+                if budget <= 0 or (needed is not None and budget < MIN_CUT_PASS * needed):
                     break
-            # The first pass runs whole; later ones are cut at the time limit.
-            t_submit = time.perf_counter()
-            budget = None if deadline is None or pass_index == 0 else max(0.0, deadline - t_submit)
             pool.submit(pass_index, target, photons, budget)
             # Prepare the next pass while the workers trace photons, unless it is the last, or
             # the time limit will cut this one, or this is the first pass (whose image is
             # shown as soon as it is done; the next pass is prepared after it).
             last = pass_index + 1 >= max_passes
-            cut_expected = (budget is not None and last_rate is not None
-                            and photons / last_rate > budget)
+            cut_expected = needed is not None and needed > budget
             next_target = None
             prep_s = 0.0
             if not last and pass_index > 0 and not cut_expected:

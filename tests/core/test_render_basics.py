@@ -227,7 +227,8 @@ def test_a_pass_budget_returns_the_photons_traced_in_time(pool_kind):
     ctx = RenderContext(scene)
     eye = trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px, settings.max_bounces)
     target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, 256, ctx.has_shading_normals)
-    pool = InProcessPool(scene, settings, ctx) if pool_kind == "in_process" else ProcessPool(scene, settings, 2)
+    in_process = pool_kind == "in_process"
+    pool = InProcessPool(scene, settings, ctx) if in_process else ProcessPool(scene, settings, 2)
     try:
         pool.submit(0, target, 200_000)                  # no budget: every photon
         whole = pool.collect()
