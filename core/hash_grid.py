@@ -16,7 +16,8 @@ whatever the scene's coordinates (algorithm.md 6.4 asks for float64 because of
 absolute coordinates; relative ones need no more).
 
 The deposit test (used for both the deposit and the visibility V(u) of a photon
-path, ``algorithm.md`` 2 and 6.6) is::
+path, ``algorithm.md`` 2 and 6.6; the Markov chains' V also counts the vertices in
+``core/visible_cells.py``'s cells) is::
 
     |x_photon - x_j| < r_j   and   n_photon . n_j >= NORMAL_COS
 

@@ -24,10 +24,14 @@ from .eye_pass import trace_eye_pass
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import RenderSettings
+from .visible_cells import VisibleCells
 from .worker import STREAM_EYE
 
 # A pass is not started when the time left would trace less than this share of its photons.
 MIN_CUT_PASS = 0.05
+# Passes whose measurement points add to the chains' visible cells: the first CELL_PASSES, then
+# every CELL_EVERY-th (at 1920x1080 the cells of one pass take about a second to add).
+CELL_PASSES, CELL_EVERY = 4, 8
 
 PASS_STAT_KEYS = ("pass", "elapsed_s", "paths_traced", "photons_recorded", "proposals", "accepted",
                   "acceptance_rate", "mutation_size", "exchanges", "uniform_samples", "uniform_visible",
@@ -160,12 +164,20 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces)
 
+    # The Markov chains' visible set also holds the cells around the measurement points of the
+    # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
+    # barely changes between passes.
+    cells = VisibleCells() if is_chain else None
+
     def make_target(i, eye):
-        nonlocal scales
+        nonlocal scales, cells
         if len(scales) < i + 1:
             scales = kz_radius_scales(2 * (i + 1), settings.alpha)
-        radius = eye.points.base_radius * scales[i]
-        return DepositTarget(eye.points, radius, ctx.table, n_pixels, ctx.has_shading_normals)
+        pts = eye.points
+        radius = pts.base_radius * scales[i]
+        if cells is not None and (i < CELL_PASSES or i % CELL_EVERY == 0):
+            cells = cells.extended(pts.position, pts.ng, pts.base_radius)
+        return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.

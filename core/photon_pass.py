@@ -5,7 +5,9 @@ A photon path is a function of u in [0, 1)^d with a fixed stride
 ``[lobe, direction 0, direction 1, Russian roulette]``, so d = 6 + 4 B for at
 most B scattering events.  The path deposits at every vertex whose material has
 a non-delta lobe, including the first hit, and is *visible* (V(u) = 1) when any
-deposit finds a measurement point (the same test as the deposit itself).
+deposit finds a measurement point (the same test as the deposit itself) or, for the
+Markov chains, when a non-delta vertex lies in the target's visible cells (a superset
+that holds still between passes, ``core/visible_cells.py``).
 
 The contribution of photon p to measurement point j (pixel of j) is::
 
@@ -30,6 +32,7 @@ from .eye_pass import MeasurementPoints
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from .sampling import dot, luminance
+from .visible_cells import VisibleCells
 
 BOUNCE_DIMS = 4
 
@@ -47,10 +50,12 @@ def bounce_offset(bounce: int) -> int:
 class DepositTarget:
     """The measurement points of one pass, gridded, with their per-point kernel weights."""
 
-    def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None):
+    def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
-        table : the scene's material table."""
+        table : the scene's material table; cells : None, or the :class:`VisibleCells` that
+        also make a path visible (Markov chains; see ``core/visible_cells.py``)."""
         self.points = points
+        self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
         self.n_pixels = n_pixels
@@ -68,14 +73,17 @@ class DepositTarget:
         d.update({f"grid.{k}": v for k, v in self.grid.to_arrays().items()})
         d.update(radius=self.radius, n_pixels=np.int64(self.n_pixels),
                  has_shading_normals=np.bool_(self.has_shading_normals))
+        if self.cells is not None:
+            d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
         return d
 
     @staticmethod
     def from_arrays(d, table) -> "DepositTarget":
         points = MeasurementPoints(**{f: d[f"points.{f}"] for f in MeasurementPoints.__dataclass_fields__})
         grid = HashGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
+        cells = {k[6:]: v for k, v in d.items() if k.startswith("cells.")}
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
-                             grid=grid)
+                             grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None)
 
     def pair_weights(self, j, wi, cos_g):
         """Scalar diffuse and glossy weights of pairs with points ``j`` (the points' kernels aside).
@@ -249,12 +257,15 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         else:
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
         wo = -dirs
-        # Deposit at non-delta vertices; a pair found makes the path visible.
+        # Deposit at non-delta vertices; a pair found makes the path visible, and so does a
+        # vertex in one of the target's visible cells (if it has them).
         dep = np.flatnonzero(table.has_nondelta[surf.mat_ids])
         if len(dep) and m:
             wo_dep = wo.take(dep, axis=0)
+            x_dep = surf.position.take(dep, axis=0)
             nrm = face_forward(surf.ng.take(dep, axis=0), wo_dep)
-            pi, pj, cos_g = target.grid.query(surf.position.take(dep, axis=0), nrm, wo_dep)
+            pi, pj, cos_g = target.grid.query(x_dep, nrm, wo_dep)
+            seen = np.zeros(len(idx), bool)
             if len(pi):
                 lane = dep.take(pi)
                 wd, wg = target.pair_weights(pj, wo.take(lane, axis=0) if target.needs_directions else None,
@@ -269,8 +280,13 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 else:
                     f = [flux[:, c].take(lane) for c in range(3)]
                     sums.add(pj, [fc * wd for fc in f], [fc * wg for fc in f] if glossy else None)
-                seen = np.zeros(len(idx), bool)
                 seen[lane] = True
+            if target.cells is not None:
+                open_ = np.flatnonzero(~visible[idx.take(dep)])
+                if len(open_):
+                    inside = target.cells.contains(x_dep.take(open_, axis=0), nrm.take(open_, axis=0))
+                    seen[dep.take(open_[inside])] = True
+            if seen.any():
                 rows = np.flatnonzero(seen)
                 rows = rows[~visible[idx[rows]]]
                 new = idx[rows]

@@ -189,6 +189,24 @@ def disk_irradiance(intensity, distance, radius):
     return 2.0 * intensity / r2 * (1.0 - distance / np.sqrt(distance ** 2 + r2))
 
 
+def sky_over_floor(albedo=0.5, sky=1.0, resolution=(32, 32), size=40.0, height=2.0, pitch_deg=35.0):
+    """An open diffuse floor under a constant sky, seen at a slant: L = albedo * sky everywhere.
+
+    Nothing but the floor, so every point of its top sees the whole sky (E = pi sky).  The
+    camera (lens 35 mm) looks down ``pitch_deg`` below the horizon from ``height``: the top
+    rows see the floor at a grazing angle, the bottom rows more face on, so the spacing of
+    the measurement points relative to the gather radius varies down the image.
+    """
+    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
+    m = MeshBuilder()
+    h = size / 2
+    m.add_quad((-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0), 0)
+    pitch = np.radians(pitch_deg)
+    eye = np.array([0.0, -h / 2, height])
+    cam = Camera.look_at(eye, eye + (0.0, np.cos(pitch), -np.sin(pitch)), lens_mm=35.0, resolution=resolution)
+    return m.build(mats, camera=cam, world=World(color=np.full(3, sky, np.float32)))
+
+
 def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
     """A sun at normal incidence through a glass slab onto a diffuse floor, camera under the slab.
 

@@ -1,0 +1,102 @@
+"""The chains' visible cells: they cover every point's gather box, keep backs out and only grow."""
+import numpy as np
+
+from core.context import RenderContext
+from core.eye_pass import trace_eye_pass
+from core.photon_pass import DepositTarget, path_dims, trace_photons
+from core.testing.scenes import cornell_box
+from core.visible_cells import VisibleCells, normal_axis
+
+
+def random_points(rng, n, spread=10.0):
+    x = rng.normal(0.0, spread, (n, 3)) + 1e3          # away from the origin on purpose
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    r = np.exp(rng.uniform(np.log(0.01), np.log(2.0), n))   # several levels
+    return x, nrm, r
+
+
+def test_normal_axis_is_the_major_axis_and_its_sign():
+    n = np.random.default_rng(0).normal(size=(5000, 3))
+    k = np.argmax(np.abs(n), axis=1)
+    expected = 2 * k + (n[np.arange(len(n)), k] < 0)
+    np.testing.assert_array_equal(normal_axis(n), expected)
+
+
+def test_every_position_within_a_points_radius_is_inside():
+    rng = np.random.default_rng(1)
+    x, nrm, r = random_points(rng, 3000)
+    cells = VisibleCells().extended(x, nrm, r)
+    assert len(cells.levels) > 3
+    for _ in range(5):
+        # Anywhere in the box x +- r, with the point's own normal.
+        q = x + r[:, None] * rng.uniform(-0.999, 0.999, (len(x), 3))
+        assert cells.contains(q, nrm).all()
+
+
+def test_the_back_and_far_away_are_outside():
+    rng = np.random.default_rng(2)
+    x, nrm, r = random_points(rng, 2000)
+    nrm[:, 2] = np.abs(nrm[:, 2]) + 2.0                    # all facing +z most
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    cells = VisibleCells().extended(x, nrm, r)
+    # The opposite normal has another major-axis sign: the back of a thin wall.
+    assert cells.contains(x, nrm).all()
+    assert not cells.contains(x, -nrm).any()
+    assert not cells.contains(x + 1e3, nrm).any()
+
+
+def test_the_set_only_grows_and_survives_a_worker_round_trip():
+    rng = np.random.default_rng(3)
+    xa, na, ra = random_points(rng, 1000)
+    xb, nb, rb = random_points(rng, 1000)
+    first = VisibleCells().extended(xa, na, ra)
+    both = first.extended(xb, nb, rb)
+    assert both.contains(xa, na).all() and both.contains(xb, nb).all()
+    assert first.key_count < both.key_count
+    assert first.extended(xa, na, ra).key_count == first.key_count          # nothing new
+    assert first.base == both.base and np.array_equal(first.origin, both.origin)   # fixed by pass 1
+    again = VisibleCells.from_arrays(both.to_arrays())
+    q = np.concatenate([xa, xb, xa + 0.5])
+    nq = np.concatenate([na, nb, na])
+    np.testing.assert_array_equal(again.contains(q, nq), both.contains(q, nq))
+
+
+def test_bad_points_are_ignored():
+    cells = VisibleCells().extended(np.array([[0.0, 0, 0], [np.nan, 0, 0], [1, 1, 1]]),
+                                    np.array([[0.0, 0, 1]] * 3), np.array([0.1, 0.1, 0.0]))
+    assert cells.key_count > 0
+    assert cells.contains(np.array([[0.0, 0, 0]]), np.array([[0.0, 0, 1]]))[0]
+    assert VisibleCells().extended(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)).key_count == 0
+
+
+def test_cells_add_visible_paths_and_change_no_deposit():
+    """With cells, V is a superset of the paths that deposit; the deposits are the same."""
+    scene = cornell_box((24, 18))
+    ctx = RenderContext(scene)
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
+    pts = eye.points
+    w, h = scene.camera.resolution
+    # Gather radii of a late pass: the discs no longer cover the surfaces, the cells do.
+    radius = 0.1 * pts.base_radius
+    plain = DepositTarget(pts, radius, ctx.table, w * h, ctx.has_shading_normals)
+    cells = VisibleCells().extended(pts.position, pts.ng, pts.base_radius)
+    celled = DepositTarget(pts, radius, ctx.table, w * h, ctx.has_shading_normals, cells=cells)
+    u = np.random.default_rng(1).random((4000, path_dims(8)))
+    a = trace_photons(ctx, plain, u.copy(), 8, collect_pairs=True)
+    b = trace_photons(ctx, celled, u.copy(), 8, collect_pairs=True)
+    deposited = np.zeros(len(u), bool)
+    deposited[a.pair_path] = True
+    assert deposited.any()
+    np.testing.assert_array_equal(a.visible, deposited)
+    assert b.visible[deposited].all() and b.visible.sum() > a.visible.sum()
+    # The first visible vertex can only come earlier.
+    both = a.visible & b.visible
+    assert (b.first_dim[both] <= a.first_dim[both]).all()
+    np.testing.assert_array_equal(a.pair_path, b.pair_path)
+    np.testing.assert_array_equal(a.pair_point, b.pair_point)
+    np.testing.assert_allclose(a.pair_diffuse, b.pair_diffuse)
+    # A worker rebuilds the same target from plain arrays.
+    again = DepositTarget.from_arrays(celled.to_arrays(), ctx.table)
+    c = trace_photons(ctx, again, u.copy(), 8, collect_pairs=True)
+    np.testing.assert_array_equal(b.visible, c.visible)
