@@ -361,5 +361,6 @@ def small_view(resolution=(64, 48), boxes=400, seed=1):
 BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
            "point_in_sphere": point_in_sphere, "spot_over_plane": spot_over_plane,
            "sun_through_slab": sun_through_slab, "camera_in_glass": camera_in_glass,
+           "sky_over_floor": sky_over_floor,
            "glass_ceiling_room": glass_ceiling_room, "hole_mirror_glass": hole_mirror_glass,
            "small_view": small_view}
