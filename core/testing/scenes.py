@@ -345,16 +345,26 @@ def small_view(resolution=(64, 48), boxes=400, seed=1):
                             {"name": "glass", "dielectric": 1.0, "ior": 1.5}])
     m = MeshBuilder()
     m.add_quad((-100, -100, 0), (100, -100, 0), (100, 100, 0), (-100, 100, 0), 0)
-    for _ in range(boxes):
+    eye, target = np.array([30.0, -30.0, 12.0]), np.array([0.0, 0.0, 0.3])
+    placed = 0
+    while placed < boxes:
         c = rng.uniform(-95, 95, 2)
         w = rng.uniform(2, 8, 2)
         h = rng.uniform(3, 25)
+        # Buildings stay out of the line of sight (2 m to spare) and out of a clearing of 20 m
+        # around the subject, so no building hides it or shades it (shadows are at most 15 m).
+        reach = 0.5 * float(np.hypot(*w)) + 2.0
+        along = np.clip(np.dot(c - eye[:2], target[:2] - eye[:2]) / np.sum((target[:2] - eye[:2]) ** 2), 0, 1)
+        if (np.linalg.norm(c - (eye[:2] + along * (target[:2] - eye[:2]))) < reach
+                or np.linalg.norm(c - target[:2]) < 20.0 + reach):
+            continue
         m.add_box((c[0] - w[0] / 2, c[1] - w[1] / 2, 0), (c[0] + w[0] / 2, c[1] + w[1] / 2, h), 1)
+        placed += 1
     # The subject: a small glass ball on the ground in a clearing, seen from far away.
     m.add_box((-3, -3, 0), (3, 3, 0.02), 0)
     m.add_sphere((0.0, 0.0, 0.3), 0.3, 2, n_theta=16, n_phi=32)
     lights = Lights.build([{"kind": "sun", "direction": (-0.4, 0.3, -0.85), "power": 5.0, "sun_angle": 0.01}])
-    cam = Camera.look_at((30, -30, 12), (0.0, 0.0, 0.3), lens_mm=600.0, resolution=resolution)
+    cam = Camera.look_at(tuple(eye), tuple(target), lens_mm=600.0, resolution=resolution)
     return m.build(mats, lights, cam, smooth=True)
 
 
