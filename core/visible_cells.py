@@ -26,6 +26,14 @@ normal's axis keeps the backs of thin walls out; a surface behind another within
 (a slab thinner than a cell) is in V and only costs chain steps.  The integrator adds the
 points of the first passes and then of every eighth (``CELL_PASSES``, ``CELL_EVERY``).
 
+Lone points add no cells: a point counts only when the cell four times as wide around it
+holds at least four of the pass's points (``DENSITY_LEVELS``, ``MIN_POINTS``).  Points
+seen through a glass ball or in a curved mirror lie metres apart, at other places every
+pass; they stay visible through their own deposits, but their cells, added pass after
+pass, made V many times larger than the surface the camera sees (``small_view`` at 128x96,
+a ball on sunlit ground: 8 times PPM's visible fraction after 40 passes, now 1.2 to 1.5 times),
+and the chains spent their steps there.
+
 Cells are exact integer keys (20 bits per axis around the first pass's points, then a
 3-bit normal axis), one sorted array per level; points far outside that range clamp to
 the border cells, which can only make V larger.  V stays a superset of the contributing
@@ -38,6 +46,8 @@ import numpy as np
 AXIS_BITS = 20
 AXIS_OFFSET = 1 << (AXIS_BITS - 1)        # cell 0 of the first pass sits mid-range
 LEVEL_RANGE = 24                           # levels -24..24: cell sizes of 2^-24..2^24 base
+MIN_POINTS = 4                             # a pass's points in the cell 2^DENSITY_LEVELS times
+DENSITY_LEVELS = 2                         # as wide around a point, for the point to count
 
 
 def normal_axis(normals):
@@ -118,9 +128,10 @@ class VisibleCells:
                 keys.append((((n[0] << AXIS_BITS | n[1]) << AXIS_BITS | n[2]) << 3) | axis.take(sel))
         return np.unique(np.concatenate(keys))
 
-    def extended(self, positions, normals, radii) -> "VisibleCells":
+    def extended(self, positions, normals, radii, min_points=MIN_POINTS) -> "VisibleCells":
         """A new set: these cells plus those of points (positions, oriented normals) each in a cell
-        at least ``radii`` wide."""
+        at least ``radii`` wide, counting only points with ``min_points`` of them in the cell
+        2^DENSITY_LEVELS times as wide around them (1: every point)."""
         positions = np.asarray(positions, np.float64)
         radii = np.asarray(radii, np.float64)
         ok = np.isfinite(radii) & (radii > 0) & np.isfinite(positions).all(axis=1)
@@ -137,6 +148,10 @@ class VisibleCells:
         axis = normal_axis(np.asarray(normals, np.float64))
         for lv in range(int(level.min()), int(level.max()) + 1):
             sel = np.flatnonzero(level == lv)
+            if min_points > 1 and len(sel):
+                own = out._keys(positions.take(sel, axis=0), lv + DENSITY_LEVELS, axis.take(sel))
+                _, inverse, counts = np.unique(own, return_inverse=True, return_counts=True)
+                sel = sel[counts[inverse] >= min_points]
             if len(sel) == 0:
                 continue
             keys = out._ball_keys(positions.take(sel, axis=0), radii.take(sel), lv, axis.take(sel))

@@ -1,4 +1,5 @@
-"""The chains' visible cells: they cover every point's gather box, keep backs out and only grow."""
+"""The chains' visible cells: they cover every point's gather box, keep backs out, leave lone points out
+and only grow."""
 import numpy as np
 
 from core.context import RenderContext
@@ -26,7 +27,7 @@ def test_normal_axis_is_the_major_axis_and_its_sign():
 def test_every_position_within_a_points_radius_is_inside():
     rng = np.random.default_rng(1)
     x, nrm, r = random_points(rng, 3000)
-    cells = VisibleCells().extended(x, nrm, r)
+    cells = VisibleCells().extended(x, nrm, r, min_points=1)
     assert len(cells.levels) > 3
     for _ in range(5):
         # Anywhere in the box x +- r, with the point's own normal.
@@ -39,7 +40,7 @@ def test_the_back_and_far_away_are_outside():
     x, nrm, r = random_points(rng, 2000)
     nrm[:, 2] = np.abs(nrm[:, 2]) + 2.0                    # all facing +z most
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    cells = VisibleCells().extended(x, nrm, r)
+    cells = VisibleCells().extended(x, nrm, r, min_points=1)
     # The opposite normal has another major-axis sign: the back of a thin wall.
     assert cells.contains(x, nrm).all()
     assert not cells.contains(x, -nrm).any()
@@ -50,11 +51,11 @@ def test_the_set_only_grows_and_survives_a_worker_round_trip():
     rng = np.random.default_rng(3)
     xa, na, ra = random_points(rng, 1000)
     xb, nb, rb = random_points(rng, 1000)
-    first = VisibleCells().extended(xa, na, ra)
-    both = first.extended(xb, nb, rb)
+    first = VisibleCells().extended(xa, na, ra, min_points=1)
+    both = first.extended(xb, nb, rb, min_points=1)
     assert both.contains(xa, na).all() and both.contains(xb, nb).all()
     assert first.key_count < both.key_count
-    assert first.extended(xa, na, ra).key_count == first.key_count          # nothing new
+    assert first.extended(xa, na, ra, min_points=1).key_count == first.key_count          # nothing new
     assert first.base == both.base and np.array_equal(first.origin, both.origin)   # fixed by pass 1
     again = VisibleCells.from_arrays(both.to_arrays())
     q = np.concatenate([xa, xb, xa + 0.5])
@@ -62,9 +63,22 @@ def test_the_set_only_grows_and_survives_a_worker_round_trip():
     np.testing.assert_array_equal(again.contains(q, nq), both.contains(q, nq))
 
 
+def test_lone_points_add_nothing():
+    """Points seen through a ball lens or a curved mirror lie far apart: they stay visible through
+    their own deposits in every pass, but their cells would make V many times the surface seen."""
+    rng = np.random.default_rng(4)
+    dense = rng.uniform(0.0, 1.0, (4000, 3)) * (1.0, 1.0, 0.0)       # a square seen face on
+    lone = rng.uniform(-100.0, 100.0, (30, 3)) + (0.0, 0.0, 300.0)   # far apart, far away
+    up = np.tile((0.0, 0.0, 1.0), (4030, 1))
+    cells = VisibleCells().extended(np.concatenate([dense, lone]), up, np.full(4030, 0.05))
+    assert cells.contains(dense, up[:4000]).all()
+    assert not cells.contains(lone, up[:30]).any()
+    assert VisibleCells().extended(lone, up[:30], np.full(30, 0.05)).key_count == 0
+
+
 def test_bad_points_are_ignored():
     cells = VisibleCells().extended(np.array([[0.0, 0, 0], [np.nan, 0, 0], [1, 1, 1]]),
-                                    np.array([[0.0, 0, 1]] * 3), np.array([0.1, 0.1, 0.0]))
+                                    np.array([[0.0, 0, 1]] * 3), np.array([0.1, 0.1, 0.0]), min_points=1)
     assert cells.key_count > 0
     assert cells.contains(np.array([[0.0, 0, 0]]), np.array([[0.0, 0, 1]]))[0]
     assert VisibleCells().extended(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)).key_count == 0
