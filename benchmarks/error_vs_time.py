@@ -309,7 +309,8 @@ def main():
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--jobs", type=int, default=2, help="runs at the same time")
     ap.add_argument("--reference-time", type=float, default=1200.0, help="seconds per reference half")
-    ap.add_argument("--make-reference", action="store_true", help="(re)compute the references")
+    ap.add_argument("--make-reference", nargs="*", metavar="SCENE",
+                    help="(re)compute the references of these scenes (none named: of every scene)")
     ap.add_argument("--photons-per-pass", type=int, default=None)
     ap.add_argument("--out", default=os.path.join(ROOT, "benchmarks", "results", "error_vs_time"))
     ap.add_argument("--quick", action="store_true", help="tiny smoke run (seconds, not minutes)")
@@ -326,7 +327,8 @@ def main():
         ref_path = reference_path(scene, args.resolution)
         if args.quick:
             ref_path = os.path.join(args.out, f"{scene}_reference.npz")
-        if args.make_reference or not os.path.exists(ref_path):
+        remake = args.make_reference is not None and (not args.make_reference or scene in args.make_reference)
+        if remake or not os.path.exists(ref_path):
             print(f"{scene}: reference, 2 x {args.reference_time:g} s ...", flush=True)
             meta = make_reference(scene, args.resolution, args.reference_time, args.jobs, args.out)
             if args.quick:
