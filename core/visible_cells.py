@@ -67,6 +67,7 @@ class VisibleCells:
         self.base = float(base)                             # cell size of level 0 (0: no points yet)
         self.origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         self.levels = dict(levels or {})                    # level -> sorted unique int64 keys
+        self._box = None                                    # world bounds of all cells, on demand
 
     @property
     def key_count(self) -> int:
@@ -164,14 +165,45 @@ class VisibleCells:
             out.levels[lv] = keys
         return out
 
+    def bounds(self):
+        """(lo, hi): world-space corners of a box around every cell (empty set: lo > hi)."""
+        if self._box is None:
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            mask = (1 << AXIS_BITS) - 1
+            for lv, keys in self.levels.items():
+                if len(keys) == 0:
+                    continue
+                size = self.base * 2.0 ** lv
+                for k in range(3):
+                    c = (keys >> (3 + AXIS_BITS * (2 - k))) & mask
+                    c0, c1 = int(c.min()), int(c.max())
+                    # A border cell holds everything clamped into it, out to infinity.
+                    lo[k] = min(lo[k], -np.inf if c0 <= 1 else self.origin[k] + (c0 - AXIS_OFFSET) * size)
+                    hi[k] = max(hi[k], np.inf if c1 >= mask - 1 else
+                                self.origin[k] + (c1 + 1 - AXIS_OFFSET) * size)
+            self._box = (lo, hi)
+        return self._box
+
     def contains(self, x, normals):
         """(n,) bool: the photon vertices ``x`` with oriented normals ``normals`` lie in a visible cell."""
         inside = np.zeros(len(x), bool)
         if not self.levels or len(x) == 0:
             return inside
+        # Most photon vertices of a big scene are far from what the camera sees: a box test first.
+        lo, hi = self.bounds()
+        near = np.ones(len(x), bool)
+        for k in range(3):
+            near &= (x[:, k] >= lo[k]) & (x[:, k] <= hi[k])
+        sel = np.flatnonzero(near)
+        if len(sel) == 0:
+            return inside
+        if len(sel) < len(x):
+            x, normals = x.take(sel, axis=0), normals.take(sel, axis=0)
         axis = normal_axis(normals)
+        found = np.zeros(len(sel), bool)
         for lv, keys in self.levels.items():
-            inside |= _in_sorted(self._keys(x, lv, axis), keys)
+            found |= _in_sorted(self._keys(x, lv, axis), keys)
+        inside[sel] = found
         return inside
 
     def to_arrays(self) -> dict:

@@ -114,3 +114,19 @@ def test_cells_add_visible_paths_and_change_no_deposit():
     again = DepositTarget.from_arrays(celled.to_arrays(), ctx.table)
     c = trace_photons(ctx, again, u.copy(), 8, collect_pairs=True)
     np.testing.assert_array_equal(b.visible, c.visible)
+
+
+def test_the_bounding_box_test_changes_nothing():
+    """``contains`` skips vertices outside the cells' box; inside it, every level is still asked."""
+    rng = np.random.default_rng(5)
+    x, nrm, r = random_points(rng, 2000)
+    cells = VisibleCells().extended(x, nrm, r, min_points=1)
+    q = np.concatenate([x + r[:, None] * rng.uniform(-3, 3, (len(x), 3)), rng.normal(1e3, 100.0, (4000, 3))])
+    nq = np.concatenate([nrm, rng.normal(size=(4000, 3))])
+    expected = np.zeros(len(q), bool)
+    for lv, keys in cells.levels.items():
+        expected |= np.isin(cells._keys(q, lv, normal_axis(nq)), keys)
+    assert 0 < expected.sum() < len(q)
+    np.testing.assert_array_equal(cells.contains(q, nq), expected)
+    lo, hi = cells.bounds()
+    assert (lo < x.min(axis=0)).all() and (hi > x.max(axis=0)).all()
