@@ -32,7 +32,7 @@ from core.testing.scenes import sky_over_floor  # noqa: E402
 ALBEDO, SKY = 0.5, 1.0
 
 _RUN = r"""
-import json, sys
+import json, sys, time
 import numpy as np
 sys.path.insert(0, sys.argv[1])
 from core import RenderSettings, render
@@ -41,13 +41,16 @@ scene = Scene.load(sys.argv[2])
 args = json.loads(sys.argv[3])
 out = {}
 for method in args["methods"]:
-    bands = []
+    bands, work = [], np.zeros(3)
     for seed in range(args["seeds"]):
+        t0 = time.perf_counter()
         r = render(scene, RenderSettings(method=method, passes=args["passes"], photons_per_pass=args["photons"],
                                          initial_radius_px=args["radius"], workers=1, seed=seed))
+        work += (time.perf_counter() - t0, sum(s["paths_traced"] for s in r.stats),
+                 sum(s["photons_recorded"] for s in r.stats))
         rgb = r.image[..., :3].mean(axis=2)
         bands.append(rgb.reshape(4, rgb.shape[0] // 4, -1).mean(axis=(1, 2)).tolist())
-    out[method] = bands
+    out[method] = dict(bands=bands, work=(work / args["seeds"]).tolist())
 print(json.dumps(out))
 """
 
@@ -80,13 +83,15 @@ def main():
             versions.append((args.base, tmp))
         print(f"sky_over_floor {args.resolution[0]}x{args.resolution[1]}, {args.passes} passes of "
               f"{args.photons} photons, initial radius {args.radius} px, {args.seeds} seeds, one worker")
-        print("band means over albedo * sky, far (top) to near (bottom), +- standard error over seeds")
+        print("band means over albedo * sky, far (top) to near (bottom), +- standard error over seeds;\n"
+              "then per render: seconds, photon paths traced, photons recorded")
         for name, root in versions:
-            for method, bands in run(root, scene_path, args).items():
-                b = np.array(bands) / (ALBEDO * SKY)
+            for method, res in run(root, scene_path, args).items():
+                b = np.array(res["bands"]) / (ALBEDO * SKY)
                 se = b.std(axis=0, ddof=1) / np.sqrt(len(b)) if len(b) > 1 else np.zeros(4)
                 cells = "  ".join(f"{m:.3f} +- {e:.3f}" for m, e in zip(b.mean(axis=0), se))
-                print(f"{name:>14} {method:9} {cells}")
+                seconds, paths, recorded = res["work"]
+                print(f"{name:>14} {method:9} {cells}   {seconds:6.2f} s {paths:11,.0f} {recorded:11,.0f}")
 
 
 if __name__ == "__main__":
