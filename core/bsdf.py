@@ -12,6 +12,11 @@ geometric/shading normals; :func:`face_forward` flips them to the side of a
 direction.  Throughput weights returned by :func:`scatter` are f |cos| / pdf
 divided by the lobe-choice probability.
 
+The glossy lobe may carry Cycles' multiscatter GGX energy compensation
+(:meth:`MaterialTable.multiscatter`): a factor of the *view* direction, which makes the
+BSDF non-reciprocal, as in Cycles.  The view is ``wo`` for camera paths and measurement
+points, and the sampled ``wi`` for photons (the direction towards the camera side).
+
 ``mode="importance"`` (photons) applies the adjoint shading-normal correction
 (Veach 1997, 5.3) and no eta^2 factor at refraction; ``mode="radiance"``
 (camera paths) scales refracted radiance by 1/eta^2.
@@ -31,6 +36,9 @@ DELTA = (MIRROR, DIELECTRIC)
 # Glossy lobes with a smaller Blender roughness act as a perfect mirror.
 MIRROR_ROUGHNESS = 0.02
 MIN_ALPHA = 1e-4
+# Single-scattering GGX albedo E(mu) is tabulated per material at mu = (k / MS_NODES)^2: finer
+# towards grazing, where E changes fastest.
+MS_NODES = 32
 
 
 @dataclass
@@ -46,6 +54,8 @@ class MaterialTable:
     has_nondelta: np.ndarray    # (M,) bool: photons deposit / camera paths may stop here
     has_glossy: np.ndarray      # (M,) bool: the non-delta part has a glossy lobe
     is_emissive: np.ndarray     # (M,) bool
+    ms_albedo: np.ndarray       # (M, MS_NODES + 1) float64 single-scattering GGX albedo E (1: none)
+    ms_fresnel: np.ndarray      # (M, 3) float64 multiple-scattering Fresnel F_ms (0: single scattering)
 
     @staticmethod
     def from_materials(mats) -> "MaterialTable":
@@ -74,11 +84,55 @@ class MaterialTable:
         diffuse_on = (weight[:, DIFFUSE] > 0) & (textured | (lum[:, DIFFUSE] > 0))
         glossy_on = (weight[:, GLOSSY] > 0) & (lum[:, GLOSSY] > 0)
         emission = mats.emission.astype(np.float64)
+        ms_albedo, ms_fresnel = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter)
         return MaterialTable(weight=weight, color=color, alpha=alpha,
                              ior=mats.ior.astype(np.float64), emission=emission,
                              texture=mats.diffuse_texture.astype(np.int32),
                              has_nondelta=diffuse_on | glossy_on, has_glossy=glossy_on,
-                             is_emissive=(emission > 0).any(axis=1))
+                             is_emissive=(emission > 0).any(axis=1),
+                             ms_albedo=ms_albedo, ms_fresnel=ms_fresnel)
+
+    def multiscatter(self, mat_ids, mu):
+        """(n, 3) factors 1 + F_ms (1 - E(mu)) / E(mu) of the glossy lobes at view cosines ``mu``.
+
+        This is Cycles' energy compensation of multiscatter GGX (``microfacet_ggx_preserve_energy``,
+        after Kulla and Conty 2017): the single-scattering lobe scaled by a factor of the *view*
+        direction, so that a white lobe reflects all the light it receives from any direction.
+        The view is the camera side: a measurement point's ``wo``, or the direction a photon
+        leaves in.  Rows of materials without compensation get 1.
+        """
+        t = np.sqrt(np.clip(mu, 0.0, 1.0)) * MS_NODES
+        k = np.minimum(t.astype(np.int64), MS_NODES - 1)
+        f = t - k
+        flat = mat_ids.astype(np.int64) * (MS_NODES + 1) + k
+        e = self.ms_albedo.ravel()
+        e = (1.0 - f) * e.take(flat) + f * e.take(flat + 1)
+        return 1.0 + self.ms_fresnel.take(mat_ids, axis=0) * ((1.0 - e) / e)[:, None]
+
+
+def _multiscatter_tables(alpha, glossy_on, fresnel_ss):
+    """Per-material E(mu) at the ``MS_NODES`` + 1 nodes and F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)).
+
+    F_ms is the colour of the light that leaves after more than one microfacet bounce (the
+    appendix of Kulla and Conty, with one F_ss cancelled as in Cycles); E_avg = 2 int E mu dmu.
+    One table per distinct alpha: a few milliseconds each.
+    """
+    m = len(alpha)
+    table = np.ones((m, MS_NODES + 1))
+    fms = np.zeros((m, 3))
+    on = glossy_on & (np.asarray(fresnel_ss) > 0).any(axis=1)
+    if not on.any():
+        return table, fms
+    mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
+    fss = np.clip(np.asarray(fresnel_ss, np.float64), 0.0, 1.0)
+    for a in np.unique(alpha[on]):
+        rows = np.flatnonzero(on & (alpha == a))
+        e = smp.ggx_albedo(a, mu)
+        e_avg = 2.0 * np.trapz(e * mu, mu)
+        table[rows] = e
+        f = fss[rows]
+        fms[rows] = f * e_avg / (1.0 - f * (1.0 - e_avg))
+    return table, fms
 
 
 class Textures:
@@ -188,7 +242,9 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
             d = smp.to_world(wi_l, n_s)
             ok = ok_o & (wi_l[:, 2] > 0) & (dot(d, n_g) > 0)
             ratio = smp.ggx_g2(wo_l[:, 2], wi_l[:, 2], alpha) / smp.ggx_g1(wo_l[:, 2], alpha)
-            w = lw * ratio[:, None]
+            # Energy compensation is a factor of the view (camera-side) direction: wi for photons.
+            view_mu = wi_l[:, 2] if mode == "importance" else wo_l[:, 2]
+            w = lw * ratio[:, None] * table.multiscatter(m_sel, view_mu)
         elif k == MIRROR:
             d = smp.reflect(w_o, n_s)
             below = dot(d, n_g) <= 0

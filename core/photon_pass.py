@@ -135,6 +135,9 @@ class DepositTarget:
         if sum_glossy is not None:
             k_glossy = pts.weight * pts.colors[:, 1] * (w[:, 1] * kernel)[:, None]
             k_glossy *= sum_glossy
+            if self.table.ms_fresnel.any():
+                # Multiscatter GGX: a factor of the point's view direction (BSDF docs, bsdf.py).
+                k_glossy *= self.table.multiscatter(pts.mat_ids, dot(pts.wo, pts.ns).astype(np.float64))
             val += k_glossy
         out = np.zeros((self.n_pixels, 3))
         out[self.pixel_ids] = val          # one measurement point per pixel and pass

@@ -214,3 +214,27 @@ def ggx_reflection_f(wo_local, wi_local, alpha):
     valid = (cos_o > 0) & (cos_i > 0)
     f = ggx_d(m[:, 2], alpha) * ggx_g2(cos_o, cos_i, alpha) / np.maximum(4.0 * cos_o * cos_i, 1e-12)
     return np.where(valid, f, 0.0)
+
+
+def ggx_albedo(alpha, mu, strata=64):
+    """Directional albedo E(mu) = integral of f |cos_i| over wi of GGX reflection without Fresnel.
+
+    ``alpha`` a scalar, ``mu`` (k,) cosines of the view direction; returns (k,) float64 in
+    (0, 1].  Deterministic: the midpoint rule on a ``strata`` x ``strata`` grid of visible-normal
+    samples (``ggx_sample_visible_normal``), each weighing G2 / G1.  The radial coordinate is
+    u1 = 1 - (1 - t)^3, midpoints in t: the reflection drops below the horizon in a sliver of
+    u1 near 1 (1 - u1 < alpha^2 / (1 + alpha^2) at normal view), which uniform u1 resolves
+    badly at low roughness (0.007 off at roughness 0.3; now within 2e-4 of a 2048 x 2048 grid
+    at roughness 0.15 to 1).
+    The energy a single scattering loses is 1 - E; multiple-scattering GGX puts it back.
+    """
+    mu = np.clip(np.asarray(mu, np.float64), 1e-4, 1.0)
+    t = (np.arange(strata) + 0.5) / strata
+    u1 = np.tile(np.repeat(1.0 - (1.0 - t) ** 3, strata), len(mu))
+    jac = np.tile(np.repeat(3.0 * (1.0 - t) ** 2, strata), len(mu))
+    u2 = np.tile(np.tile(t, strata), len(mu))
+    cos_o = np.repeat(mu, strata * strata)
+    wo = np.stack([np.sqrt(1.0 - cos_o * cos_o), np.zeros_like(cos_o), cos_o], axis=1)
+    wi = reflect(wo, ggx_sample_visible_normal(wo, alpha, u1, u2))
+    w = np.where(wi[:, 2] > 0, ggx_g2(cos_o, np.maximum(wi[:, 2], 1e-12), alpha) / ggx_g1(cos_o, alpha), 0.0)
+    return (w * jac).reshape(len(mu), -1).mean(axis=1)

@@ -47,7 +47,11 @@ class Materials:
     * diffuse: Lambertian, albedo ``diffuse_color`` or, when ``diffuse_texture``
       is >= 0, that image texture looked up with the triangle UVs;
     * glossy: GGX microfacet reflection, ``glossy_roughness`` is Blender's
-      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror;
+      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.
+      ``glossy_multiscatter`` is the lobe's mean Fresnel colour F_ss for the energy that
+      scatters between microfacets more than once (Cycles' Multiscatter GGX, the default of
+      Blender's glossy nodes): a white lobe with F_ss = 1 then reflects all the light it
+      receives; 0 gives plain single-scattering GGX, which darkens with roughness;
     * mirror: perfect specular reflection tinted by ``mirror_color``;
     * dielectric: smooth glass with index of refraction ``ior``, Fresnel
       reflection/refraction and total internal reflection, tinted by
@@ -62,6 +66,7 @@ class Materials:
     glossy_weight: np.ndarray = None                    # (M,) float32
     glossy_color: np.ndarray = None                     # (M, 3) float32
     glossy_roughness: np.ndarray = None                 # (M,) float32 in [0, 1]
+    glossy_multiscatter: np.ndarray = None              # (M, 3) float32 in [0, 1]; None: glossy_color
     mirror_weight: np.ndarray = None                    # (M,) float32
     mirror_color: np.ndarray = None                     # (M, 3) float32
     dielectric_weight: np.ndarray = None                # (M,) float32
@@ -70,7 +75,7 @@ class Materials:
     emission: np.ndarray = None                         # (M, 3) float32 radiance
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
-                    "glossy_color", "glossy_roughness", "mirror_weight", "mirror_color",
+                    "glossy_color", "glossy_roughness", "glossy_multiscatter", "mirror_weight", "mirror_color",
                     "dielectric_weight", "dielectric_color", "ior", "emission")
 
     @property
@@ -85,7 +90,8 @@ class Materials:
         colours may be scalars.  Example: ``{"name": "wall", "diffuse": (0.8, 0.8, 0.8)}``
         or ``{"name": "glass", "dielectric": 1.0, "ior": 1.5}``.
         Short keys: ``diffuse``/``glossy``/``mirror``/``dielectric`` give the colour
-        and set the weight to 1 unless ``<lobe>_weight`` is given.
+        and set the weight to 1 unless ``<lobe>_weight`` is given.  ``glossy_multiscatter``
+        defaults to the glossy colour (Multiscatter GGX); give 0 for single-scattering GGX.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -95,6 +101,7 @@ class Materials:
         out.glossy_weight = np.zeros(m, np.float32)
         out.glossy_color = np.zeros((m, 3), np.float32)
         out.glossy_roughness = np.full(m, 0.5, np.float32)
+        out.glossy_multiscatter = np.zeros((m, 3), np.float32)
         out.mirror_weight = np.zeros(m, np.float32)
         out.mirror_color = np.zeros((m, 3), np.float32)
         out.dielectric_weight = np.zeros(m, np.float32)
@@ -114,6 +121,8 @@ class Materials:
                 if "diffuse" not in s:
                     out.diffuse_color[i] = 1.0
                     out.diffuse_weight[i] = s.get("diffuse_weight", 1.0)
+            out.glossy_multiscatter[i] = np.broadcast_to(
+                np.asarray(s.get("glossy_multiscatter", out.glossy_color[i]), np.float32), (3,))
             if "roughness" in s:
                 out.glossy_roughness[i] = s["roughness"]
             if "ior" in s:
@@ -369,8 +378,10 @@ class Scene:
             fail("the scene has triangles but no materials")
         if t and (self.material_ids.min() < 0 or self.material_ids.max() >= nm):
             fail(f"material_ids outside [0, {nm})")
+        if mats.glossy_multiscatter is None and mats.glossy_color is not None:
+            mats.glossy_multiscatter = np.array(mats.glossy_color, np.float32)   # Blender's default
         for name in Materials.ARRAY_FIELDS:
-            tail = (3,) if name.endswith(("color", "emission")) else ()
+            tail = (3,) if name.endswith(("color", "emission", "multiscatter")) else ()
             dtype = np.int32 if name == "diffuse_texture" else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
             if name != "diffuse_texture" and (v < 0).any():

@@ -189,15 +189,24 @@ def disk_irradiance(intensity, distance, radius):
     return 2.0 * intensity / r2 * (1.0 - distance / np.sqrt(distance ** 2 + r2))
 
 
-def sky_over_floor(albedo=0.5, sky=1.0, resolution=(32, 32), size=40.0, height=2.0, pitch_deg=35.0):
+def sky_over_floor(albedo=0.5, sky=1.0, resolution=(32, 32), size=40.0, height=2.0, pitch_deg=35.0,
+                   glossy_roughness=None, multiscatter=True):
     """An open diffuse floor under a constant sky, seen at a slant: L = albedo * sky everywhere.
 
     Nothing but the floor, so every point of its top sees the whole sky (E = pi sky).  The
     camera (lens 35 mm) looks down ``pitch_deg`` below the horizon from ``height``: the top
     rows see the floor at a grazing angle, the bottom rows more face on, so the spacing of
     the measurement points relative to the gather radius varies down the image.
+
+    With ``glossy_roughness`` the floor is a GGX reflector of colour ``albedo`` instead (a
+    white furnace when ``albedo`` is 1): with ``multiscatter`` L = sky exactly; without it
+    L = sky E(mu), the single-scattering albedo at the view cosine, which is below 1.
     """
-    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
+    if glossy_roughness is None:
+        mats = Materials.build([{"name": "floor", "diffuse": albedo}])
+    else:
+        mats = Materials.build([{"name": "floor", "glossy": albedo, "roughness": glossy_roughness,
+                                 "glossy_multiscatter": albedo if multiscatter else 0.0}])
     m = MeshBuilder()
     h = size / 2
     m.add_quad((-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0), 0)

@@ -16,7 +16,7 @@ from core.integrator import Accumulator, kz_radius_scales
 from core.parallel import InProcessPool, ProcessPool
 from core.photon_pass import DepositTarget
 from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_RAMP
-from core.testing.scenes import MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room
+from core.testing.scenes import MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room, sky_over_floor
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 FAST = dict(passes=3, photons_per_pass=20_000, chains=2048, workers=1)
@@ -331,6 +331,13 @@ def test_scene_save_load_round_trip(tmp_path):
         np.testing.assert_array_equal(np.asarray(loaded.to_arrays()[key]), np.asarray(value), err_msg=key)
     with pytest.raises(SceneError, match="cannot read"):
         Scene.load(tmp_path / "missing.npz")
+    # Files written before glossy_multiscatter existed load with Blender's default, F_ss = colour.
+    glossy = sky_over_floor(0.7, glossy_roughness=0.5, multiscatter=False)
+    assert not glossy.materials.glossy_multiscatter.any()
+    old = {k: v for k, v in glossy.to_arrays().items() if k != "materials.glossy_multiscatter"}
+    np.savez(tmp_path / "old.npz", **old)
+    loaded = Scene.load(tmp_path / "old.npz")
+    np.testing.assert_array_equal(loaded.materials.glossy_multiscatter, np.full((1, 3), 0.7, np.float32))
 
 
 def test_command_line_renders_an_exr_and_writes_stats(tmp_path):

@@ -604,9 +604,10 @@ def test_diffuse_lobe_with_flat_shading_keeps_every_sample_with_weight_colour():
 
 
 def test_glossy_lobe_samples_ggx_reflection_with_weight_colour_g2_over_g1():
+    """Single-scattering GGX (``glossy_multiscatter`` 0)."""
     colour = f32([0.9, 0.7, 0.4])
     roughness = 0.55
-    table = material_table({"glossy": colour, "roughness": roughness})
+    table = material_table({"glossy": colour, "roughness": roughness, "glossy_multiscatter": 0.0})
     alpha = float(np.float32(roughness)) ** 2
     assert table.alpha[0] == pytest.approx(alpha, rel=1e-12)
     n_ = unit_vector(0.3, 0.2, 0.93)
@@ -648,10 +649,69 @@ def test_glossy_lobe_samples_ggx_reflection_with_weight_colour_g2_over_g1():
     assert np.allclose(w_i, w[:100_000], rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize("roughness", (0.3, 0.6, 1.0))
+def test_multiscatter_table_holds_the_single_scattering_albedo_by_quadrature(roughness):
+    """With F_ss = 1 the factor is 1 / E(mu): E interpolated from the table against the
+    quadrature of the reference f cos, at angles between and on the nodes."""
+    table = material_table({"glossy": 1.0, "roughness": roughness})
+    alpha = table.alpha[0]
+    for theta in (0.0, 20.0, 45.0, 60.0, 75.0, 85.0, 88.0):
+        wo_local = local_direction(theta)
+        e = 1.0 / table.multiscatter(np.zeros(1, np.int32), wo_local[2:3])[0]
+        assert e == pytest.approx(glossy_albedo(wo_local, alpha), abs=1.5e-3), theta   # 6e-4 measured
+        assert np.all(e == e[0])
+    single = material_table({"glossy": 1.0, "roughness": roughness, "glossy_multiscatter": 0.0})
+    assert (single.multiscatter(np.zeros(3, np.int32), np.array([0.0, 0.5, 1.0])) == 1.0).all()
+
+
+@pytest.mark.parametrize("colour", (1.0, (0.9, 0.5, 0.1)), ids=("white", "copper"))
+def test_multiscatter_glossy_weights_are_single_scattering_times_the_view_factor(colour):
+    """Radiance mode: the factor of wo, so a white lobe has E[weight] = 1 at every angle and a
+    coloured one c (E + F_ms (1 - E)), F_ms = c E_avg / (1 - c (1 - E_avg)) (Cycles).  Importance
+    mode: the same directions, weighted by the factor of wi, the direction towards the camera."""
+    roughness = 0.8
+    c = np.broadcast_to(f32(colour), (3,))
+    table = material_table({"glossy": colour, "roughness": roughness})
+    alpha = table.alpha[0]
+    n_ = unit_vector(0.1, -0.2, 0.95)
+    f = frames_for(n_)[0]
+    # E_avg = 2 int E(mu) mu dmu by Gauss-Legendre over mu, then F_ms as Cycles computes it.
+    x, gw = np.polynomial.legendre.leggauss(12)
+    mus = 0.5 * (x + 1.0)
+    e_avg = sum(wk * glossy_albedo(local_direction(math.degrees(math.acos(m))), alpha) * m
+                for wk, m in zip(gw, mus))
+    fms = c * e_avg / (1.0 - c * (1.0 - e_avg))
+    assert table.ms_fresnel[0] == pytest.approx(fms, rel=3e-3)
+    rng = np.random.default_rng(2030)
+    n = 400_000
+    for theta in (10.0, 50.0, 80.0):
+        wo_local = local_direction(theta)
+        wo = wo_local @ f
+        u1, u2 = rng.random(n), rng.random(n)
+        wi, w, alive = scatter_lobe(table, bsdf.GLOSSY, wo, n_, n_, u1, u2, "radiance")
+        wi_i, w_i, alive_i = scatter_lobe(table, bsdf.GLOSSY, wo, n_, n_, u1, u2, "importance")
+        assert np.array_equal(alive, alive_i) and np.isfinite(w).all() and np.isfinite(w_i).all()
+        wi_l = wi[alive] @ f.T
+        g2_over_g1 = (1.0 + ref_ggx_lambda(wo_local[2], alpha)) / (
+            1.0 + ref_ggx_lambda(wo_local[2], alpha) + ref_ggx_lambda(wi_l[:, 2], alpha))
+        mat = np.zeros(len(wi_l), np.int32)
+        k_o = table.multiscatter(mat, np.full(len(wi_l), wo_local[2]))
+        k_i = table.multiscatter(mat, wi_l[:, 2])
+        assert np.allclose(w[alive], c * g2_over_g1[:, None] * k_o, rtol=1e-6, atol=1e-5)
+        assert np.allclose(w_i[alive], c * g2_over_g1[:, None] * k_i, rtol=1e-6, atol=1e-5)
+        e = glossy_albedo(wo_local, alpha)
+        expected = c * (e + fms * (1 - e))
+        if colour == 1.0:
+            assert expected == pytest.approx(np.ones(3), abs=1.5e-3)
+        for ch in range(3):
+            assert_mean(w[:, ch], expected[ch], f"multiscatter E[weight] at {theta} deg",
+                        extra_tolerance=1.5e-3 * c[ch])
+
+
 def test_mixed_material_throughput_is_unbiased_through_lobe_choice_and_scatter():
     """Diffuse 0.5 + glossy 0.3 + mirror 0.2: E[weight] = sum of weight * colour * lobe albedo."""
     spec = {"diffuse": (0.8, 0.4, 0.2), "diffuse_weight": 0.5,
-            "glossy": (0.3, 0.9, 0.6), "glossy_weight": 0.3, "roughness": 0.55,
+            "glossy": (0.3, 0.9, 0.6), "glossy_weight": 0.3, "roughness": 0.55, "glossy_multiscatter": 0.0,
             "mirror": (0.5, 0.5, 1.0), "mirror_weight": 0.2}
     table = material_table(spec)
     alpha = table.alpha[0]
