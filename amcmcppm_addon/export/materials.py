@@ -21,6 +21,11 @@ level s, base colour B):
     whose weight is the hemispherical mean Fresnel reflectance of the IOR scaled by
     2 s (Blender scales F0 by 2 s), over a diffuse lobe with colour B and the
     remaining weight.
+Glossy, Metallic and Principled nodes set to Multiscatter GGX (Blender's default) get the
+core's energy compensation with the mean Fresnel colour F_ss Cycles uses: the colour for
+Glossy, the F82 hemispherical mean B + (1 - B) / 21 for metals, the layer's reflectance for
+the dielectric specular layer; Mix and Add average it weighted by each glossy part's
+colour.  Other distributions are single-scattering GGX.
 Roughness below 0.02 is turned into a mirror by the core.  Image textures are
 kept only where the core supports them (diffuse colour); elsewhere their mean
 colour is used.  A missing image file gives a warning and Cycles' magenta.
@@ -49,6 +54,7 @@ class Closure:
     ior: float = 1.5                # dielectric index of refraction
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) radiance
     texture: int = -1               # diffuse image texture index or -1
+    multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -61,7 +67,8 @@ class Closure:
         """fa * self + fb * other (Mix: fa = 1 - fac, fb = fac; Add: 1, 1)."""
         wa, wb = fa * self.weight, fb * other.weight
         out = Closure(weight=wa + wb, color=fa * self.color + fb * other.color,
-                      emission=fa * self.emission + fb * other.emission)
+                      emission=fa * self.emission + fb * other.emission,
+                      multiscatter=fa * self.multiscatter + fb * other.multiscatter)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.texture = self.texture if self.texture >= 0 and wa[DIFFUSE] > 0 else other.texture
@@ -78,6 +85,8 @@ class Closure:
             w = self.weight[i]
             s[lobe] = self.color[i] / w if w > 0 else np.zeros(3)
             s[f"{lobe}_weight"] = w
+        g = self.color[GLOSSY]
+        s["glossy_multiscatter"] = np.divide(self.multiscatter, g, out=np.zeros(3), where=g > 0)
         if self.texture >= 0:
             s["diffuse_texture"] = self.texture
             s["diffuse"] = np.ones(3)
@@ -98,6 +107,12 @@ def mean_fresnel(ior) -> float:
     rp = (eta * mu - cos_t) / (eta * mu + cos_t)
     f = 0.5 * (rs * rs + rp * rp)
     return float(np.mean(2.0 * mu * f))
+
+
+def metal_fresnel(color):
+    """Hemispherical mean of the F82 metal Fresnel with a white edge tint: F0 + (1 - F0) / 21."""
+    f0 = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
+    return f0 + (1.0 - f0) / 21.0
 
 
 def srgb_to_linear(x):
@@ -336,13 +351,16 @@ class NodeWalker:
         c.texture = tex
         return c
 
-    def _glossy(self, node, stack, color_input="Color"):
+    def _glossy(self, node, stack, color_input="Color", metal=False):
         color, _ = self.color(node.inputs[color_input], stack)
         rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
-        return Closure.lobe(GLOSSY, 1.0, color, roughness=rough)
+        c = Closure.lobe(GLOSSY, 1.0, color, roughness=rough)
+        if node.distribution == "MULTI_GGX":
+            c.multiscatter = c.color[GLOSSY] * (metal_fresnel(color) if metal else color)
+        return c
 
     def _metallic(self, node, stack):
-        return self._glossy(node, stack, "Base Color")
+        return self._glossy(node, stack, "Base Color", metal=True)
 
     def _glass(self, node, stack):
         color, _ = self.color(node.inputs["Color"], stack)
@@ -379,6 +397,9 @@ class NodeWalker:
         c.color[DIFFUSE] = c.weight[DIFFUSE] * base_color
         c.weight[GLOSSY] = m + spec
         c.color[GLOSSY] = m * flat_base + spec * tint
+        if node.distribution == "MULTI_GGX":
+            layer = spec / dielectric if dielectric > 0 else 0.0      # the specular layer's reflectance
+            c.multiscatter = m * flat_base * metal_fresnel(flat_base) + spec * tint * (layer * tint)
         c.weight[DIELECTRIC] = (1.0 - m) * t
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * flat_base
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1

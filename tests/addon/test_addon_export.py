@@ -397,6 +397,46 @@ def test_principled_mapping(scene):
     assert lamp["emission"] == pytest.approx([4, 2, 1])
 
 
+def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_gets_none(scene):
+    """glossy_multiscatter is the F_ss of Cycles' energy compensation: 0 unless the node's
+    distribution is Multiscatter GGX (Blender's default)."""
+    colour = (0.9, 0.5, 0.2, 1.0)
+    glossy = bs._material("Brushed", "ShaderNodeBsdfGlossy", Color=colour, Roughness=0.5)
+    row, _ = export_material(glossy)
+    assert glossy.node_tree.nodes["Glossy BSDF"].distribution == "MULTI_GGX"
+    assert row["glossy_multiscatter"] == pytest.approx(colour[:3])
+    glossy.node_tree.nodes["Glossy BSDF"].distribution = "GGX"
+    row, _ = export_material(glossy)
+    assert row["glossy_multiscatter"] == pytest.approx([0, 0, 0])
+
+    metal, _ = export_material(principled("Copper", **{"Base Color": colour, "Metallic": 1.0}))
+    f0 = np.array(colour[:3])
+    assert metal["glossy_multiscatter"] == pytest.approx(f0 + (1 - f0) / 21, rel=1e-6)   # F82 mean
+    plastic = principled("Plastic", **{"Base Color": colour})
+    plain, _ = export_material(plastic)
+    # White specular layer of reflectance R = glossy_weight: F_ss = R.
+    assert plain["glossy_multiscatter"] == pytest.approx(np.full(3, plain["glossy_weight"]), rel=1e-6)
+    plastic.node_tree.nodes["Principled BSDF"].distribution = "GGX"
+    plain, _ = export_material(plastic)
+    assert plain["glossy_multiscatter"] == pytest.approx([0, 0, 0])
+
+    # Mix of a metal and a white Glossy: F_ss averaged with weights weight * colour per channel.
+    mat = bpy.data.materials.new("Blend")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    a, b = nt.nodes.new("ShaderNodeBsdfMetallic"), nt.nodes.new("ShaderNodeBsdfGlossy")
+    a.inputs["Base Color"].default_value = colour
+    b.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.5
+    nt.links.new(a.outputs[0], mix.inputs[1])
+    nt.links.new(b.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, _ = export_material(mat)
+    expected = (f0 * (f0 + (1 - f0) / 21) + 1.0) / (f0 + 1.0)
+    assert row["glossy_multiscatter"] == pytest.approx(expected, rel=1e-6)
+
+
 def test_mix_add_groups_and_basic_bsdfs(scene):
     mat = bpy.data.materials.new("Layered")
     nt = mat.node_tree
