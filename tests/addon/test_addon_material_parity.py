@@ -4,14 +4,20 @@ A block of the material on a grey floor, lit by the world or by an area light, 6
 passes.  The centre of the image (mostly the block) and the whole image are compared as
 linear EXR means with Cycles at 512 samples (settings of ``test_addon_parity.py``).
 
-Measured once (ours / Cycles, centre; the whole image within 0.95-1.06 for these):
-Glossy roughness 0.3 0.99 (world) and 1.06 (area; not explained yet);
-Principled (roughness 0.5 and 0.2) 0.95 to 0.97; metal (Principled, metallic 1, roughness
-0.3) 0.96 and 1.03.  Rough glossy and metal are too dark: Glossy roughness 0.6 0.83 and
-0.82, metal roughness 0.8 0.73 and 0.74.  Our GGX is single-scattering; Cycles' default
-(multiscatter GGX) keeps the energy that bounces between microfacets, which grows with
-roughness.  Those cases are strict expected failures: when the energy is compensated they
-pass, and the marks must go.
+Cycles runs without Filter Glossy (``use_cycles``): that option blurs glossy surfaces met
+after a diffuse bounce, and with it the floor lit by the light the block reflects was 15-20 %
+darker in Cycles than here (Glossy 0.3 under the area light, 1.09 in the centre and 1.06 over
+the image); without it, 0.97 and 0.99.
+
+Measured (ours / Cycles; centre, whole image), with the multiscatter GGX energy compensation
+that Cycles applies by default, world / area light:
+Glossy roughness 0.3 0.97, 0.96 (whole 0.99-1.00); Glossy 0.6 0.95, 0.96 (0.98-0.99);
+Principled (roughness 0.5 and 0.2) 0.94 to 0.96 (0.99); metal (Principled, metallic 1)
+roughness 0.3 0.98, 0.93 (0.99), roughness 0.8 0.96, 0.96 (0.98-0.99).  The block is a few
+per cent darker in every case; not explained yet (gather discs reaching past the edges of
+its 20-pixel faces are one candidate, not checked).  Before the
+compensation, rough glossy and metal were much darker (Glossy 0.6 0.83, metal 0.8 0.73):
+these cases were strict expected failures until then.
 """
 from __future__ import annotations
 
@@ -34,8 +40,6 @@ MATERIALS = {
     "metal_0.8": ("ShaderNodeBsdfPrincipled", {"Base Color": (0.9, 0.6, 0.3, 1.0), "Roughness": 0.8,
                                                "Metallic": 1.0}),
 }
-SINGLE_SCATTER_GGX = pytest.mark.xfail(strict=True, reason="single-scattering GGX loses the energy that "
-                                       "Cycles' multiscatter GGX keeps (17-27 % at roughness 0.6-0.8)")
 
 
 def build(material, light):
@@ -51,10 +55,7 @@ def build(material, light):
         bs.light("AREA", location=(-1.5, -2.0, 3.0), target=(0, 0, 0), energy=300.0, shape="SQUARE", size=1.5)
 
 
-CASES = [(m, light) for m in ("glossy_0.3", "principled_0.5", "principled_0.2", "metal_0.3")
-         for light in ("world", "area")]
-CASES += [pytest.param(m, light, marks=SINGLE_SCATTER_GGX) for m in ("glossy_0.6", "metal_0.8")
-          for light in ("world", "area")]
+CASES = [(m, light) for m in MATERIALS for light in ("world", "area")]
 
 
 @pytest.mark.parametrize("material, light", CASES)
