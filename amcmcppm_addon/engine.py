@@ -84,6 +84,7 @@ def render_final(engine, depsgraph):
             result = core_render(exported.scene, settings, on_iteration=progress.on_iteration,
                                  should_stop=engine.test_break)
             writer.push(result.image)
+            outputs.finish(result, settings.time_limit or 0.0)
             for msg in result.warnings:
                 engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
             for msg in writer.problems:

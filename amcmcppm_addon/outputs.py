@@ -3,7 +3,8 @@
 * statistics: one JSON line per pass, the core's per-pass dict plus the view layer
   and frame, appended to ``stats_path``;
 * snapshots: at each requested elapsed time (the core's ``elapsed_s``), the image
-  of the first pass that ends at or after it, as ``snapshot_<seconds>s.exr`` in
+  of the first pass that ends at or after it (or the final image, for times up to the time
+  limit that the render ended just short of), as ``snapshot_<seconds>s.exr`` in
   ``snapshot_dir``, indexed in ``snapshots.jsonl`` there.  These feed
   error-versus-time curves (``shared/docs/testing.md`` section 3).
 """
@@ -41,6 +42,16 @@ class RenderOutputs:
             self.stats_file.flush()
         while self.pending and stats["elapsed_s"] >= self.pending[0]:
             self._snapshot(self.pending.pop(0), stats, result.image)
+
+    def finish(self, result, time_limit):
+        """After the render: snapshot times up to its time limit that no pass reached get the
+        final image, unless the user stopped it.  The core ends at, or a little before, the
+        limit (it skips a last pass that the limit would cut short), so without this a render
+        run "until the last snapshot time" could miss that snapshot."""
+        if result.interrupted or time_limit <= 0 or not result.stats:
+            return
+        while self.pending and self.pending[0] <= time_limit:
+            self._snapshot(self.pending.pop(0), result.stats[-1], result.image)
 
     def _snapshot(self, t, stats, image):
         name = f"snapshot_{t:011.3f}s.exr"

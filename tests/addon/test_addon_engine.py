@@ -342,3 +342,27 @@ def test_twenty_renders_do_not_grow_memory(scene, tmp_path):
     grown_rss = rss_mb() - base_rss
     assert grown_py < 0.05 * base_rss * 2 ** 20, f"Python allocations grew by {grown_py / 2 ** 20:.1f} MB"
     assert grown_rss < 0.05 * base_rss, f"RSS grew {grown_rss:.1f} MB from {base_rss:.0f} MB"
+
+
+def test_snapshot_times_up_to_the_time_limit_get_the_final_image(tmp_path):
+    """The core may end a little before its time limit (it skips a last pass the limit would cut
+    short): a render run "until the last snapshot time" must still write that snapshot."""
+    from amcmcppm.amcmcppm_addon.outputs import RenderOutputs
+    from amcmcppm.core import RenderSettings, render
+    from amcmcppm.core.testing.scenes import cornell_box
+
+    result = render(cornell_box((8, 6)), RenderSettings(method="ppm", passes=2, workers=1, photons_per_pass=2000))
+    outputs = RenderOutputs(snapshot_times=[1e-9, 1e3, 2e3], snapshot_dir=str(tmp_path))
+    outputs.on_pass(result)
+    assert [t for t, _ in outputs.written] == [1e-9] and outputs.pending == [1e3, 2e3]
+    result.interrupted = True                       # stopped by the user: no more snapshots
+    outputs.finish(result, time_limit=1e3)
+    assert outputs.pending == [1e3, 2e3]
+    result.interrupted = False
+    outputs.finish(result, time_limit=1e3)
+    outputs.close()
+    assert outputs.pending == [2e3]
+    index = [json.loads(x) for x in (tmp_path / "snapshots.jsonl").read_text().splitlines()]
+    assert [e["time"] for e in index] == [1e-9, 1e3]
+    assert index[1]["pass"] == result.stats[-1]["pass"]
+    assert os.path.getsize(tmp_path / index[1]["file"]) > 0
