@@ -1,8 +1,9 @@
 """Eye pass: one camera path per pixel, through delta bounces, to a measurement point.
 
 Each pass jitters every pixel anew (and the lens sample), follows the camera
-path through mirror and glass, adds the emission it sees on the way (emitters
-and the world, directly or through delta chains) and stores a *measurement
+path through mirror and glass, adds the emission it sees on the way (emitters,
+the world, and the analytic lights that the ray's kind may see: ``Lights.visibility``,
+directly or through delta chains) and stores a *measurement
 point* at the first hit where it picks a non-delta lobe (``algorithm.md`` 1:
 the variant in which photons carry direct light too).
 
@@ -16,6 +17,8 @@ import numpy as np
 
 from .bsdf import DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_scores, scatter
 from .camera import generate_camera_rays
+from .sampling import dot
+from .scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 
 
 @dataclass
@@ -85,6 +88,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     grows = cam.projection == "perspective"
     beta = np.ones((len(pix), 3))
     path_len = np.zeros(len(pix))
+    # Which rays see analytic lights (Blender's ray visibility): direct camera rays, and after
+    # a delta event rays reflected (glossy) or refracted (transmission).
+    ray_kind = np.full(len(pix), VISIBLE_CAMERA, np.uint8)
     parts = []
     rays = 0
     for depth in range(max_bounces + 1):
@@ -92,6 +98,13 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             break
         hits = accel.intersect(origins, dirs, tmax if depth == 0 else None)
         rays += len(pix)
+        if ctx.lights.visible_to(VISIBLE_CAMERA if depth == 0 else VISIBLE_GLOSSY | VISIBLE_TRANSMISSION):
+            t_max = hits.t.astype(np.float64)
+            if depth == 0:
+                t_max = np.minimum(t_max, tmax)
+            seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind)
+            lit = np.flatnonzero(seen.any(axis=1))
+            emission[pix[lit]] += beta[lit] * seen[lit]
         # Rays that leave the scene see the world (primary ones are cut out on a transparent film).
         miss = ~hits.is_hit
         if miss.any():
@@ -101,6 +114,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 emission[pix[miss]] += beta[miss] * world   # one path per pixel: no repeats
         h = np.flatnonzero(hits.is_hit)
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
+        ray_kind = ray_kind.take(h)
         path_len = path_len.take(h) + hits.t.take(h)
         footprint = footprint.take(h)
         surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
@@ -142,6 +156,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                                     surf.ng[go], surf.ns[go], u[go, 1], u[go, 2], "radiance")
         keep = np.flatnonzero(alive)
         g = go[keep]
+        reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0
+        ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)

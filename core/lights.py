@@ -76,6 +76,79 @@ class LightSampler:
             return p * np.pi * self.radius ** 2
         return p
 
+    # ------------------------------------------------------------------ seen by camera rays
+    def visible_to(self, flags) -> bool:
+        """Whether any analytic light can be seen by rays of the ``VISIBLE_*`` kinds in ``flags``."""
+        L = self.lights
+        return bool(L.count and (L.visibility & flags).any())
+
+    def seen_radiance(self, origins, dirs, t_max, escaped, flags):
+        """(n, 3) radiance of the analytic lights that rays ``origins + t dirs`` cross.
+
+        Rays are camera-path segments of the kinds in ``flags`` (n,) (bits ``VISIBLE_*``); a
+        light counts when its visibility shares a bit with the ray's, it lies at 0 < t <
+        ``t_max`` (the scene hit, or the clip distance), and, for the sun, when the ray
+        ``escaped`` the scene.  Lights are transparent (Cycles adds their emission and goes
+        on), so every crossed light adds.  Radiances are those the photons are emitted with:
+        area P / (pi A) from the front only, sphere P / (4 pi^2 r^2) (spot: times its
+        smoothstep mask towards the viewer; with ``soft_falloff`` the disk of radius r through
+        the centre facing the ray's origin), sun P / (pi sin^2(angle / 2)) (Cycles).
+        A loop over the lights, each vectorised over the rays.
+        """
+        n = len(dirs)
+        out = np.zeros((n, 3))
+        L = self.lights
+        for i in np.flatnonzero(L.visibility):
+            rays = np.flatnonzero(flags & L.visibility[i])
+            if len(rays) == 0:
+                continue
+            o, d, tm = origins.take(rays, axis=0), dirs.take(rays, axis=0), t_max.take(rays)
+            p = L.power[i].astype(np.float64)
+            kind, axis = L.kind[i], self.axes[i]
+            if kind in (AREA_RECT, AREA_DISK):
+                au, av = L.axis_u[i].astype(np.float64), L.axis_v[i].astype(np.float64)
+                cross = float(np.linalg.norm(np.cross(au, av)))
+                area = (4.0 if kind == AREA_RECT else np.pi) * cross
+                if area <= 0:
+                    continue
+                cos = d @ axis
+                front = cos < 0                              # travelling into the emitting face
+                t = ((L.position[i] - o) @ axis) / np.where(front, cos, -1.0)
+                q = o + t[:, None] * d - L.position[i]
+                x, y = (q @ au) / (au @ au), (q @ av) / (av @ av)
+                inside = (np.maximum(np.abs(x), np.abs(y)) <= 1.0) if kind == AREA_RECT else (x * x + y * y <= 1.0)
+                hit = front & (t > 0) & (t < tm) & inside
+                radiance = np.broadcast_to(p / (np.pi * area), (len(rays), 3))
+            elif kind in (POINT, SPOT):
+                r = float(L.radius[i])
+                if r <= 0:
+                    continue
+                oc = o - L.position[i]
+                b = np.einsum("ij,ij->i", oc, d)
+                oc2 = np.einsum("ij,ij->i", oc, oc)
+                if L.soft_falloff[i]:
+                    # A disk of radius r through the centre, facing the ray's origin (Cycles).
+                    t = -oc2 / np.where(b < 0, b, -1.0)
+                    miss2 = oc2 + 2.0 * t * b + t * t          # |oc + t d|^2
+                    hit = (b < 0) & (oc2 > r * r) & (miss2 <= r * r) & (t > 0) & (t < tm)
+                else:
+                    disc = b * b - (oc2 - r * r)
+                    t = -b - np.sqrt(np.maximum(disc, 0.0))
+                    hit = (disc > 0) & (t > 0) & (t < tm)
+                radiance = np.broadcast_to(p / (4.0 * np.pi ** 2 * r * r), (len(rays), 3))
+                if kind == SPOT:
+                    mask = _spot_mask(-(d @ axis), np.cos(L.spot_angle[i] / 2.0), L.spot_blend[i])
+                    radiance = radiance * mask[:, None]
+            else:
+                half = float(L.sun_angle[i]) / 2.0
+                if half <= 0:
+                    continue
+                hit = escaped.take(rays) & (-(d @ axis) >= np.cos(half))
+                radiance = np.broadcast_to(p / (np.pi * np.sin(half) ** 2), (len(rays), 3))
+            sel = np.flatnonzero(hit)
+            out[rays.take(sel)] += radiance.take(sel, axis=0)
+        return out
+
     # ------------------------------------------------------------------ sampling
     def sample(self, u):
         """Photon rays for primary samples ``u`` (n, >=6) in [0, 1).

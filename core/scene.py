@@ -30,6 +30,9 @@ class SceneError(ValueError):
 POINT, SPOT, AREA_RECT, AREA_DISK, SUN = 0, 1, 2, 3, 4
 LIGHT_KIND_NAMES = {POINT: "point", SPOT: "spot", AREA_RECT: "area (rectangle)",
                     AREA_DISK: "area (disk/ellipse)", SUN: "sun"}
+# Bits of ``Lights.visibility``: which camera rays see a light (Blender's ray visibility).
+VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION = 1, 2, 4
+DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
 
 
 def _f32(a, shape_tail=()):
@@ -147,7 +150,18 @@ class Lights:
       spanned by the half-extent vectors ``axis_u`` and ``axis_v`` (a rectangle, or
       an ellipse with those semi-axes); radiance P/(pi A).
     * SUN: a distant light arriving along ``direction`` with irradiance ``power``
-      (W/m^2) over a cone of angular diameter ``sun_angle``.
+      (W/m^2) over a cone of angular diameter ``sun_angle``; radiance
+      P / (pi sin^2(sun_angle / 2)).
+
+    ``visibility`` says which camera rays see a light with that radiance (a bit mask of
+    VISIBLE_CAMERA, VISIBLE_GLOSSY: rays reflected by a mirror or glass, VISIBLE_TRANSMISSION:
+    rays refracted by glass); lights are transparent to the rays, as in Cycles, and a point or
+    sun of size 0 is never seen.  Default: seen in reflections and through glass, not directly.
+    With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light is seen
+    as a disk of ``radius`` facing the ray's origin, as Cycles then shows it, instead of a
+    sphere.  Photons leave the sphere either way: Cycles' soft falloff lowers the irradiance
+    within a few radii of the light (1/(d^2 + r^2) instead of 1/d^2), which depends on the
+    receiver and cannot be emitted as photons.
     """
 
     kind: np.ndarray = None             # (L,) int8, one of POINT, SPOT, AREA_RECT, AREA_DISK, SUN
@@ -160,9 +174,11 @@ class Lights:
     spot_angle: np.ndarray = None       # (L,) float32; full cone angle in radians
     spot_blend: np.ndarray = None       # (L,) float32 in [0, 1]
     sun_angle: np.ndarray = None        # (L,) float32; angular diameter in radians
+    visibility: np.ndarray = None       # (L,) uint8 bit mask of VISIBLE_*; None: the default
+    soft_falloff: np.ndarray = None     # (L,) bool, point/spot seen as a disk; None: True
 
     ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
-                    "spot_angle", "spot_blend", "sun_angle")
+                    "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff")
 
     @property
     def count(self) -> int:
@@ -189,7 +205,9 @@ class Lights:
                      axis_u=np.zeros((n, 3), np.float32), axis_v=np.zeros((n, 3), np.float32),
                      power=np.zeros((n, 3), np.float32), radius=np.zeros(n, np.float32),
                      spot_angle=np.full(n, np.pi / 4, np.float32), spot_blend=np.zeros(n, np.float32),
-                     sun_angle=np.zeros(n, np.float32))
+                     sun_angle=np.zeros(n, np.float32),
+                     visibility=np.full(n, DEFAULT_LIGHT_VISIBILITY, np.uint8),
+                     soft_falloff=np.ones(n, bool))
         for i, s in enumerate(specs):
             out.kind[i] = kinds[s["kind"]]
             out.position[i] = s.get("position", (0, 0, 0))
@@ -201,6 +219,8 @@ class Lights:
             out.spot_angle[i] = s.get("spot_angle", np.pi / 4)
             out.spot_blend[i] = s.get("spot_blend", 0.0)
             out.sun_angle[i] = s.get("sun_angle", 0.0)
+            out.visibility[i] = s.get("visibility", DEFAULT_LIGHT_VISIBILITY)
+            out.soft_falloff[i] = s.get("soft_falloff", True)
             if "axis_u" in s:
                 out.axis_u[i] = s["axis_u"]
                 out.axis_v[i] = s["axis_v"]
@@ -402,9 +422,14 @@ class Scene:
             self.uvs = arr("uvs", self.uvs.reshape(-1, 6), np.float32, (6,), t).reshape(t, 3, 2)
         lights = self.lights
         nl = lights.count
+        if lights.visibility is None and lights.kind is not None:
+            lights.visibility = np.full(len(lights.kind), DEFAULT_LIGHT_VISIBILITY, np.uint8)
+        if lights.soft_falloff is None and lights.kind is not None:
+            lights.soft_falloff = np.ones(len(lights.kind), bool)
         for name in Lights.ARRAY_FIELDS:
             tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
-            dtype = {"kind": np.int8, "position": np.float64}.get(name, np.float32)
+            dtype = {"kind": np.int8, "position": np.float64, "visibility": np.uint8,
+                     "soft_falloff": bool}.get(name, np.float32)
             v = arr(f"lights.{name}", getattr(lights, name), dtype, tail, nl)
             setattr(lights, name, v)
         if nl:
@@ -417,6 +442,9 @@ class Scene:
             for name in ("radius", "spot_angle", "spot_blend", "sun_angle"):
                 if (getattr(lights, name) < 0).any():
                     fail(f"lights.{name} must not be negative")
+            if (lights.visibility > 7).any():
+                fail("lights.visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY and "
+                     "VISIBLE_TRANSMISSION (0 to 7)")
             if (lights.spot_blend > 1).any():
                 fail("lights.spot_blend must lie in [0, 1]")
             if (lights.spot_angle > np.pi).any() or (lights.sun_angle > np.pi).any():

@@ -167,3 +167,57 @@ def test_white_multiscatter_glossy_floor_under_a_constant_sky_reflects_the_sky_e
     assert abs(far - 1) < 0.07 and abs(near - 1) < 0.07, (far, near)
     single = halves(False, 1, 16)
     assert (single < 0.8).all(), single
+
+
+def light_over_mirror(spec, camera_up=False, occluder=False, mirror=0.9):
+    """A light 3 m over a mirror floor; the camera 1 m over it looks down (or, ``camera_up``,
+    from the floor straight at the light).  Nothing diffuse: the image is the light alone."""
+    from core.scene import Camera, Lights, Materials
+    from core.testing.scenes import MeshBuilder
+    mats = Materials.build([{"name": "mirror", "mirror": mirror}, {"name": "black", "diffuse": 0.0}])
+    m = MeshBuilder()
+    h = 25.0
+    m.add_quad((-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0), 0)
+    if occluder:
+        m.add_quad((-0.4, -0.4, 2), (0.4, -0.4, 2), (0.4, 0.4, 2), (-0.4, 0.4, 2), 1)
+    eye, target = ((0, 0, 0.01), (0, 0, 3)) if camera_up else ((0, 0, 1), (0, 0, 0))
+    cam = Camera.look_at(eye, target, lens_mm=50.0, resolution=(16, 16))
+    spec = {"position": (0, 0, 3), "direction": (0, 0, -1), **spec}
+    return m.build(mats, Lights.build([spec]), cam)
+
+
+LIGHTS_SEEN = {   # spec, radiance
+    "area": ({"kind": "area", "size": (1.0, 1.0), "power": 10.0}, 10.0 / np.pi),
+    "ellipse": ({"kind": "disk", "size": (1.0, 0.8), "power": 10.0}, 10.0 / (np.pi * np.pi * 0.5 * 0.4)),
+    "sphere": ({"kind": "point", "radius": 0.5, "power": 10.0, "soft_falloff": False},
+               10.0 / (4 * np.pi ** 2 * 0.25)),
+    "disk-facing point": ({"kind": "point", "radius": 0.5, "power": 10.0}, 10.0 / (4 * np.pi ** 2 * 0.25)),
+    "spot": ({"kind": "spot", "radius": 0.5, "power": 10.0, "spot_angle": 1.0, "spot_blend": 0.3},
+             10.0 / (4 * np.pi ** 2 * 0.25)),
+    "sun": ({"kind": "sun", "sun_angle": np.radians(20.0), "power": 3.0}, 3.0 / (np.pi * np.sin(np.radians(10)) ** 2)),
+}
+
+
+@pytest.mark.parametrize("name", list(LIGHTS_SEEN))
+def test_lights_seen_in_a_mirror_show_their_radiance_and_follow_their_visibility(name):
+    """The centre pixels see the light's own radiance times the mirror's colour, exactly (camera
+    paths only: no photon lands on a mirror).  Lights hide from reflections when their
+    visibility says so, behind an occluder, and (area lights) from behind."""
+    from core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY
+    spec, radiance = LIGHTS_SEEN[name]
+    settings = RenderSettings(method="ppm", passes=2, photons_per_pass=100, workers=1)
+
+    def centre(scene):
+        image = render(scene, settings).image
+        assert np.isfinite(image).all()
+        return image[7:9, 7:9, :3]
+
+    np.testing.assert_allclose(centre(light_over_mirror(spec)), 0.9 * radiance, rtol=1e-5)
+    assert centre(light_over_mirror({**spec, "visibility": VISIBLE_CAMERA})).max() == 0.0
+    assert centre(light_over_mirror(spec, occluder=True)).max() == 0.0
+    if spec["kind"] in ("area", "disk"):
+        assert centre(light_over_mirror({**spec, "direction": (0, 0, 1)})).max() == 0.0
+    if spec["kind"] != "sun":       # straight at the light from the floor: camera rays only
+        assert centre(light_over_mirror(spec, camera_up=True)).max() == 0.0
+        seen = centre(light_over_mirror({**spec, "visibility": VISIBLE_CAMERA | VISIBLE_GLOSSY}, camera_up=True))
+        np.testing.assert_allclose(seen, radiance, rtol=1e-5)

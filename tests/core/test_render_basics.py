@@ -15,6 +15,7 @@ from core.eye_pass import trace_eye_pass
 from core.integrator import Accumulator, kz_radius_scales
 from core.parallel import InProcessPool, ProcessPool
 from core.photon_pass import DepositTarget
+from core.scene import DEFAULT_LIGHT_VISIBILITY
 from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_RAMP
 from core.testing.scenes import MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room, sky_over_floor
 
@@ -338,6 +339,12 @@ def test_scene_save_load_round_trip(tmp_path):
     np.savez(tmp_path / "old.npz", **old)
     loaded = Scene.load(tmp_path / "old.npz")
     np.testing.assert_array_equal(loaded.materials.glossy_multiscatter, np.full((1, 3), 0.7, np.float32))
+    # ... and lights before visibility and soft_falloff with Blender's defaults.
+    assert scene.lights.count
+    old = {k: v for k, v in scene.to_arrays().items() if k not in ("lights.visibility", "lights.soft_falloff")}
+    np.savez(tmp_path / "old_lights.npz", **old)
+    loaded = Scene.load(tmp_path / "old_lights.npz")
+    assert (loaded.lights.visibility == DEFAULT_LIGHT_VISIBILITY).all() and loaded.lights.soft_falloff.all()
 
 
 def test_command_line_renders_an_exr_and_writes_stats(tmp_path):
