@@ -14,6 +14,11 @@ conversion to emitted quantities (``intern/cycles/scene/light.cpp``), see
   scale*, radiance S / (pi A) with A = len_u len_v (x pi/4 for disk and ellipse);
 * sun: irradiance S along the object's -Z over a cone of angular diameter ``angle``.
 
+Ray visibility comes from the object (``visible_camera``, ``visible_glossy``,
+``visible_transmission``): by default Cycles shows lights in mirrors and through glass but
+not to camera rays, and so does the core.  A point or spot light with Soft Falloff (the
+default) is seen as a disk facing the viewer, as Cycles shows it; without, as a sphere.
+
 ``normalize = False`` makes Cycles skip the division by the emitting area (or by
 the sun's solid angle); the core always divides, so the power is multiplied back.
 """
@@ -23,7 +28,8 @@ import math
 
 import numpy as np
 
-from ...core.scene import AREA_DISK, AREA_RECT, POINT, SPOT, SUN, Lights
+from ...core.scene import (AREA_DISK, AREA_RECT, POINT, SPOT, SUN, VISIBLE_CAMERA, VISIBLE_GLOSSY,
+                           VISIBLE_TRANSMISSION, Lights)
 
 
 def light_strength(light) -> np.ndarray:
@@ -34,10 +40,17 @@ def light_strength(light) -> np.ndarray:
     return color * float(light.energy) * 2.0 ** float(light.exposure)
 
 
-def export_light(light, world_from_light, name, log):
+def light_visibility(obj) -> int:
+    """``Lights.visibility`` bits of a light object from its ray visibility."""
+    return ((VISIBLE_CAMERA if obj.visible_camera else 0) | (VISIBLE_GLOSSY if obj.visible_glossy else 0)
+            | (VISIBLE_TRANSMISSION if obj.visible_transmission else 0))
+
+
+def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY | VISIBLE_TRANSMISSION):
     """One ``Lights.build``-style field dict for a light object, or None if it emits nothing.
 
-    world_from_light : (4, 4) float64 object matrix (with scale).
+    world_from_light : (4, 4) float64 object matrix (with scale); visibility : bits of
+    :func:`light_visibility`.
     """
     m = np.asarray(world_from_light, np.float64)
     strength = light_strength(light)
@@ -51,7 +64,8 @@ def export_light(light, world_from_light, name, log):
     position = m[:3, 3]
     direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
     rec = {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
-           "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3)}
+           "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
+           "visibility": visibility, "soft_falloff": bool(getattr(light, "use_soft_falloff", True))}
     if light.type in ("POINT", "SPOT"):
         r = max(float(light.shadow_soft_size), 0.0)
         if not light.normalize and r > 0:
@@ -97,7 +111,8 @@ def build_lights(records) -> Lights:
                     direction=np.zeros((n, 3), np.float32), axis_u=np.zeros((n, 3), np.float32),
                     axis_v=np.zeros((n, 3), np.float32), power=np.zeros((n, 3), np.float32),
                     radius=np.zeros(n, np.float32), spot_angle=np.zeros(n, np.float32),
-                    spot_blend=np.zeros(n, np.float32), sun_angle=np.zeros(n, np.float32))
+                    spot_blend=np.zeros(n, np.float32), sun_angle=np.zeros(n, np.float32),
+                    visibility=np.zeros(n, np.uint8), soft_falloff=np.ones(n, bool))
     for i, rec in enumerate(records):
         for name in Lights.ARRAY_FIELDS:
             getattr(lights, name)[i] = rec[name]

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.scene import Scene
 from .camera import export_camera
-from .lights import build_lights, export_light
+from .lights import build_lights, export_light, light_visibility
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
 from .world import export_world
@@ -68,7 +68,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
-                               inst.object.name, log)
+                               inst.object.name, log, light_visibility(inst.object))
             if rec is not None:
                 light_records.append(rec)
         else:

@@ -671,3 +671,14 @@ def test_export_operator_writes_a_core_scene(scene, tmp_path):
     loaded = Scene.load(tmp_path / "scene.npz")
     assert loaded.triangle_count == 2 and loaded.lights.count == 1
     assert loaded.camera.resolution == (32, 32)
+
+
+def test_light_ray_visibility_and_soft_falloff(scene):
+    from amcmcppm.core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+    ob, row = export_light("POINT", energy=10.0, shadow_soft_size=0.2)
+    assert not ob.visible_camera and ob.visible_glossy and ob.visible_transmission   # Blender's defaults
+    assert row["visibility"] == VISIBLE_GLOSSY | VISIBLE_TRANSMISSION and row["soft_falloff"]
+    ob.visible_camera, ob.visible_glossy = True, False
+    ob.data.use_soft_falloff = False
+    row = light_row(bs.export().scene)
+    assert row["visibility"] == VISIBLE_CAMERA | VISIBLE_TRANSMISSION and not row["soft_falloff"]

@@ -128,3 +128,57 @@ def test_bands_match_cycles_on_a_floor_under_the_world_after_many_passes(addon, 
     assert np.isfinite(ours).all()
     assert ours[..., :3].mean() == pytest.approx(cycles[..., :3].mean(), rel=TOLERANCE)
     assert_bands_match("floor under the world", ours, cycles)
+
+
+def mirror_glass_scene(kind, view, visible):
+    """A light seen in a mirror floor, through a glass slab, or straight by the camera; nothing
+    else is lit, so both images hold only the light itself.  ``visible`` sets the object's ray
+    visibility for that view (Blender's default shows lights in mirrors and through glass)."""
+    # Only the light's edges are noisy (pixel jitter): many cheap passes, few photons (nothing
+    # but the light shows).
+    bs.empty_scene((32, 32), **dict(OURS, passes=64, photons_per_pass=1000))
+    props = {"area": dict(shape="RECTANGLE", size=1.0, size_y=0.6), "disk": dict(shape="DISK", size=1.0),
+             "point": dict(shadow_soft_size=1.0), "sphere": dict(shadow_soft_size=1.0, use_soft_falloff=False),
+             "spot": dict(shadow_soft_size=1.0, spot_size=1.5, spot_blend=0.5),
+             "sun": dict(angle=math.radians(20))}[kind]
+    blender_kind = {"disk": "AREA", "sphere": "POINT"}.get(kind, kind.upper())
+    energy = 3.0 if kind == "sun" else 10.0
+    light = bs.light(blender_kind, location=(0.2, 0.1, 3), target=(0.2, 0.1, 0), energy=energy, **props)
+    if view == "mirror":
+        bs.plane("Mirror", size=50.0, material=bs._material("Chrome", "ShaderNodeBsdfGlossy", Roughness=0.0))
+        bs.camera(location=(0, 0, 1), target=(0, 0, 0), lens=35.0)
+        light.visible_glossy = visible
+    else:
+        if view == "glass":
+            bs.cube("Slab", size=1.0, material=bs.glass("Pane", ior=1.5), location=(0, 0, 1.5), scale=(3, 3, 0.3))
+            light.visible_transmission = visible
+        else:
+            light.visible_camera = visible
+        bs.camera(location=(0, 0, 0), target=(0, 0, 3), lens=35.0)
+
+
+LIGHT_VIEWS = [("area", "mirror"), ("disk", "mirror"), ("point", "mirror"), ("sphere", "mirror"),
+               ("spot", "mirror"), ("sun", "mirror"), ("area", "glass"), ("area", "camera"), ("point", "camera")]
+
+
+@pytest.mark.parametrize("kind, view", LIGHT_VIEWS)
+def test_lights_seen_in_mirrors_through_glass_and_by_the_camera_match_cycles(addon, tmp_path, kind, view):
+    """Cycles adds the emission of lights that camera rays cross (lights are transparent to
+    them), by the ray's kind: ``visible_camera`` (off by default), ``visible_glossy`` for
+    rays a mirror or glass reflected, ``visible_transmission`` for rays glass refracted.  A
+    point light of radius 1 seen from 3 m: with Soft Falloff (the default) Cycles shows a
+    disk facing the viewer, 11 % smaller in solid angle than the sphere it shows without."""
+    means = {}
+    for visible in (True, False):
+        mirror_glass_scene(kind, view, visible)
+        use_cycles(bpy.context.scene)
+        cycles = bs.render_exr(tmp_path / "cycles.exr")
+        mirror_glass_scene(kind, view, visible)
+        ours = bs.render_exr(tmp_path / "ours.exr")
+        assert np.isfinite(ours).all()
+        means[visible] = ours[..., :3].mean(), cycles[..., :3].mean()
+    (ours_on, cycles_on), (ours_off, cycles_off) = means[True], means[False]
+    print(f"light {kind} {view}: ours {ours_on:.4f} cycles {cycles_on:.4f} ratio {ours_on / cycles_on:.4f}")
+    assert cycles_on > 0.01 and cycles_off < 1e-3 * cycles_on
+    assert ours_on == pytest.approx(cycles_on, rel=TOLERANCE)
+    assert ours_off == 0.0
