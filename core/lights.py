@@ -76,6 +76,37 @@ class LightSampler:
             return p * np.pi * self.radius ** 2
         return p
 
+    # ------------------------------------------------------------------ soft falloff
+    @property
+    def has_soft_falloff(self) -> bool:
+        """Whether any point or spot light of non-zero radius has Soft Falloff."""
+        L = self.lights
+        return bool(L.count and (np.isin(L.kind, (POINT, SPOT)) & L.soft_falloff & (L.radius > 0)).any())
+
+    def soft_falloff(self, u, positions):
+        """(n,) flux factors d^2 / (d^2 + r^2) at the first hits ``positions`` (n, 3) of photons
+        with light dimensions ``u`` (n, >=1); 1 for photons of other emitters.
+
+        Cycles shows a point or spot light with Soft Falloff as a disk of radius r facing the
+        shading point, whose irradiance at distance d is P / (4 pi (d^2 + r^2)) where the
+        sphere (what the photons leave) gives P / (4 pi d^2).  The factor, applied where the
+        photon first lands, turns the one into the other (exactly for receivers facing the
+        light; the disk's tilt towards other receivers is left out)."""
+        out = np.ones(len(u))
+        if not self.has_soft_falloff or len(u) == 0:
+            return out
+        L = self.lights
+        entry = np.minimum(np.searchsorted(self.cdf, u[:, 0], side="right"), self.count - 1)
+        sel = np.flatnonzero(np.isin(self.kinds.take(entry), (POINT, SPOT)))
+        ids = self.ids.take(entry.take(sel))
+        soft = L.soft_falloff.take(ids) & (L.radius.take(ids) > 0)
+        sel, ids = sel[soft], ids[soft]
+        offset = positions.take(sel, axis=0) - L.position.take(ids, axis=0)
+        d2 = np.einsum("ij,ij->i", offset, offset)
+        r2 = L.radius.take(ids).astype(np.float64) ** 2
+        out[sel] = d2 / (d2 + r2)
+        return out
+
     # ------------------------------------------------------------------ seen by camera rays
     def visible_to(self, flags) -> bool:
         """Whether any analytic light can be seen by rays of the ``VISIBLE_*`` kinds in ``flags``."""

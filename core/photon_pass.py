@@ -247,6 +247,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     if own_sums:
         sums = PointSums(m, glossy)
     rays = vertices = 0
+    soft = ctx.lights.has_soft_falloff
     for bounce in range(max_bounces + 1):
         if len(idx) == 0 and bounce > last_join:
             break
@@ -257,6 +258,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             idx, dirs, flux = idx.take(h), dirs.take(h, axis=0), flux.take(h, axis=0)
             vertices += len(idx)
             surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
+            if bounce == 0 and soft:
+                flux = flux * ctx.lights.soft_falloff(u[idx, :1], surf.position)[:, None]
         else:
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
         wo = -dirs

@@ -157,11 +157,11 @@ class Lights:
     VISIBLE_CAMERA, VISIBLE_GLOSSY: rays reflected by a mirror or glass, VISIBLE_TRANSMISSION:
     rays refracted by glass); lights are transparent to the rays, as in Cycles, and a point or
     sun of size 0 is never seen.  Default: seen in reflections and through glass, not directly.
-    With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light is seen
-    as a disk of ``radius`` facing the ray's origin, as Cycles then shows it, instead of a
-    sphere.  Photons leave the sphere either way: Cycles' soft falloff lowers the irradiance
-    within a few radii of the light (1/(d^2 + r^2) instead of 1/d^2), which depends on the
-    receiver and cannot be emitted as photons.
+    With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light acts as
+    Cycles then makes it: a disk of ``radius`` facing the receiver or viewer instead of a
+    sphere.  It is seen as that disk, and its irradiance at distance d is P / (4 pi (d^2 + r^2))
+    instead of the sphere's P / (4 pi d^2): photons still leave the sphere, and their flux is
+    scaled by d^2 / (d^2 + r^2) where they first land.
     """
 
     kind: np.ndarray = None             # (L,) int8, one of POINT, SPOT, AREA_RECT, AREA_DISK, SUN

@@ -221,3 +221,30 @@ def test_lights_seen_in_a_mirror_show_their_radiance_and_follow_their_visibility
         assert centre(light_over_mirror(spec, camera_up=True)).max() == 0.0
         seen = centre(light_over_mirror({**spec, "visibility": VISIBLE_CAMERA | VISIBLE_GLOSSY}, camera_up=True))
         np.testing.assert_allclose(seen, radiance, rtol=1e-5)
+
+
+@pytest.mark.parametrize("soft_falloff", (True, False), ids=("soft", "sphere"))
+def test_point_light_of_radius_half_its_height_lights_the_floor_as_cycles(soft_falloff):
+    """A point light of radius r = h / 2 over a diffuse floor, the disk kernel of radius R at its
+    foot.  As a sphere it lights the floor as a point: E = I cos / d^2.  With Soft Falloff
+    Cycles makes it a disk facing the receiver: E = I cos / (d^2 + r^2), whose mean over the
+    kernel is (2 I h / (r R^2)) (atan(sqrt(h^2 + R^2) / r) - atan(h / r)); 21 % less here."""
+    from core.scene import Camera, Lights, Materials
+    from core.testing.scenes import MeshBuilder, _look_down
+    albedo, power, h, r, kernel = 0.5, 100.0, 1.0, 0.5, 0.2
+    intensity = power / (4 * np.pi)
+    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
+    m = MeshBuilder()
+    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
+    light = {"kind": "point", "position": (0, 0, h), "power": power, "radius": r, "soft_falloff": soft_falloff}
+    cam = Camera(world_from_camera=_look_down(0.5 * h), projection="orthographic",
+                 frame=(-0.01, 0.01, -0.01, 0.01), resolution=(2, 2))
+    scene = m.build(mats, Lights.build([light]), cam)
+    per_pass, _ = render_passes(scene, method="ppm", passes=8, photons_per_pass=200_000, max_bounces=1,
+                                initial_radius_px=kernel_radius_px(scene, kernel))
+    radii = kernel * kz_radius_scales(len(per_pass), 2 / 3)
+    if soft_falloff:
+        e = 2 * intensity * h / (r * radii ** 2) * (np.arctan(np.sqrt(h * h + radii ** 2) / r) - np.arctan(h / r))
+    else:
+        e = disk_irradiance(intensity, h, radii)
+    check_mean(per_pass, albedo / np.pi * e.mean(), 0.005)
