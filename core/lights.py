@@ -121,7 +121,7 @@ class LightSampler:
         ``t_max`` (the scene hit, or the clip distance), and, for the sun, when the ray
         ``escaped`` the scene.  Lights are transparent (Cycles adds their emission and goes
         on), so every crossed light adds.  Radiances are those the photons are emitted with:
-        area P / (pi A) from the front only, sphere P / (4 pi^2 r^2) (spot: times its
+        area P / (pi A) from the front only (times its spread attenuation), sphere P / (4 pi^2 r^2) (spot: times its
         smoothstep mask towards the viewer; with ``soft_falloff`` the disk of radius r through
         the centre facing the ray's origin), sun P / (pi sin^2(angle / 2)) (Cycles).
         A loop over the lights, each vectorised over the rays.
@@ -150,6 +150,8 @@ class LightSampler:
                 inside = (np.maximum(np.abs(x), np.abs(y)) <= 1.0) if kind == AREA_RECT else (x * x + y * y <= 1.0)
                 hit = front & (t > 0) & (t < tm) & inside
                 radiance = np.broadcast_to(p / (np.pi * area), (len(rays), 3))
+                if L.spread[i] < 2.0 * FULL_SPREAD:
+                    radiance = radiance * spread_attenuation(-cos, 0.5 * float(L.spread[i]))[:, None]
             elif kind in (POINT, SPOT):
                 r = float(L.radius[i])
                 if r <= 0:
@@ -238,6 +240,8 @@ class LightSampler:
         return o, d, w
 
     def _sample_area_light(self, ids, u, kind):
+        """Cosine-distributed directions; with a spread below 180 degrees, uniform in its cone
+        weighted by the emission's density cos a att(a) / pi over the cone's 1 / (2 pi (1 - cos h))."""
         L = self.lights
         if kind == AREA_RECT:
             x, y = 2.0 * u[:, 1] - 1.0, 2.0 * u[:, 2] - 1.0
@@ -245,8 +249,17 @@ class LightSampler:
             x, y = smp.concentric_disk(u[:, 1], u[:, 2])
         o = L.position[ids] + x[:, None] * L.axis_u[ids] + y[:, None] * L.axis_v[ids]
         n = self.axes[ids]
-        d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
-        return o, d, np.ones(len(ids))
+        local = smp.cosine_hemisphere(u[:, 4], u[:, 5])
+        w = np.ones(len(ids))
+        half = 0.5 * L.spread.take(ids).astype(np.float64)
+        narrow = np.flatnonzero(half < FULL_SPREAD)
+        if len(narrow):
+            h = np.maximum(half.take(narrow), MIN_HALF_SPREAD)
+            cos_h = np.cos(h)
+            cone = smp.uniform_cone(u[narrow, 4], u[narrow, 5], cos_h)
+            local[narrow] = cone
+            w[narrow] = 2.0 * (1.0 - cos_h) * cone[:, 2] * spread_attenuation(cone[:, 2], h)
+        return o, smp.to_world(local, n), w
 
     def _sample_sun(self, ids, u):
         L = self.lights
@@ -275,6 +288,23 @@ class LightSampler:
         n = ng * side[:, None]
         d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
         return a.spawn(p, n, d), d, np.ones(len(ids)), n
+
+
+FULL_SPREAD = 0.5 * np.pi - 1e-6       # half spreads from here on are Lambertian
+MIN_HALF_SPREAD = 1e-3                  # narrower spreads are clamped (Cycles' beam is a delta)
+
+
+def spread_attenuation(cos_a, half):
+    """Cycles' area-light spread (``area_light_spread_attenuation``): a soft box whose slats
+    let through max(0, (tan h - tan a) / (tan h - h)) at angle a from the normal, h the half
+    spread; 1 for a full spread.  The emitted power stays P: cos a att(a) / pi is a density."""
+    cos_a, half = np.broadcast_arrays(np.asarray(cos_a, np.float64), np.asarray(half, np.float64))
+    h = np.clip(half, MIN_HALF_SPREAD, FULL_SPREAD)
+    tan_h = np.tan(h)
+    norm = np.where(h > 0.05, 1.0 / np.maximum(tan_h - h, 1e-300), 3.0 / h ** 3)
+    tan_a = np.sqrt(np.maximum(0.0, 1.0 - cos_a * cos_a)) / np.maximum(cos_a, 1e-12)
+    att = np.maximum((tan_h - tan_a) * norm, 0.0)
+    return np.where(cos_a > 0, np.where(half >= FULL_SPREAD, 1.0, att), 0.0)
 
 
 def _spot_mean_mask(blend):

@@ -148,7 +148,10 @@ class Lights:
       concentrate the power (intensity stays P/(4 pi)).
     * AREA_RECT / AREA_DISK: a one-sided Lambertian emitter facing ``direction``,
       spanned by the half-extent vectors ``axis_u`` and ``axis_v`` (a rectangle, or
-      an ellipse with those semi-axes); radiance P/(pi A).
+      an ellipse with those semi-axes); radiance P/(pi A), times Cycles' soft-box
+      attenuation when ``spread`` (full angle, radians) is below pi:
+      max(0, (tan(s/2) - tan a) / (tan(s/2) - s/2)) at angle a from ``direction``, which
+      keeps the emitted power.
     * SUN: a distant light arriving along ``direction`` with irradiance ``power``
       (W/m^2) over a cone of angular diameter ``sun_angle``; radiance
       P / (pi sin^2(sun_angle / 2)).
@@ -176,9 +179,10 @@ class Lights:
     sun_angle: np.ndarray = None        # (L,) float32; angular diameter in radians
     visibility: np.ndarray = None       # (L,) uint8 bit mask of VISIBLE_*; None: the default
     soft_falloff: np.ndarray = None     # (L,) bool, point/spot seen as a disk; None: True
+    spread: np.ndarray = None           # (L,) float32 in [0, pi], area lights; None: pi
 
     ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
-                    "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff")
+                    "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff", "spread")
 
     @property
     def count(self) -> int:
@@ -207,7 +211,7 @@ class Lights:
                      spot_angle=np.full(n, np.pi / 4, np.float32), spot_blend=np.zeros(n, np.float32),
                      sun_angle=np.zeros(n, np.float32),
                      visibility=np.full(n, DEFAULT_LIGHT_VISIBILITY, np.uint8),
-                     soft_falloff=np.ones(n, bool))
+                     soft_falloff=np.ones(n, bool), spread=np.full(n, np.pi, np.float32))
         for i, s in enumerate(specs):
             out.kind[i] = kinds[s["kind"]]
             out.position[i] = s.get("position", (0, 0, 0))
@@ -221,6 +225,7 @@ class Lights:
             out.sun_angle[i] = s.get("sun_angle", 0.0)
             out.visibility[i] = s.get("visibility", DEFAULT_LIGHT_VISIBILITY)
             out.soft_falloff[i] = s.get("soft_falloff", True)
+            out.spread[i] = s.get("spread", np.pi)
             if "axis_u" in s:
                 out.axis_u[i] = s["axis_u"]
                 out.axis_v[i] = s["axis_v"]
@@ -426,6 +431,8 @@ class Scene:
             lights.visibility = np.full(len(lights.kind), DEFAULT_LIGHT_VISIBILITY, np.uint8)
         if lights.soft_falloff is None and lights.kind is not None:
             lights.soft_falloff = np.ones(len(lights.kind), bool)
+        if lights.spread is None and lights.kind is not None:
+            lights.spread = np.full(len(lights.kind), np.pi, np.float32)
         for name in Lights.ARRAY_FIELDS:
             tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
             dtype = {"kind": np.int8, "position": np.float64, "visibility": np.uint8,
@@ -439,7 +446,7 @@ class Scene:
                 fail("lights.power must not be negative")
             if (np.abs(np.linalg.norm(lights.direction, axis=1) - 1) > 1e-3).any():
                 fail("lights.direction must be unit vectors")
-            for name in ("radius", "spot_angle", "spot_blend", "sun_angle"):
+            for name in ("radius", "spot_angle", "spot_blend", "sun_angle", "spread"):
                 if (getattr(lights, name) < 0).any():
                     fail(f"lights.{name} must not be negative")
             if (lights.visibility > 7).any():
@@ -447,8 +454,8 @@ class Scene:
                      "VISIBLE_TRANSMISSION (0 to 7)")
             if (lights.spot_blend > 1).any():
                 fail("lights.spot_blend must lie in [0, 1]")
-            if (lights.spot_angle > np.pi).any() or (lights.sun_angle > np.pi).any():
-                fail("lights.spot_angle and lights.sun_angle must not exceed pi")
+            if (lights.spot_angle > np.pi).any() or (lights.sun_angle > np.pi).any() or (lights.spread > np.pi).any():
+                fail("lights.spot_angle, lights.sun_angle and lights.spread must not exceed pi")
         cam = self.camera
         m = np.asarray(cam.world_from_camera, np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():

@@ -992,6 +992,36 @@ def test_spot_light_is_uniform_in_its_cone_with_flux_following_the_smoothstep_ma
         check_chi2(lambda n: (cone_param(d, axis, cos_half), None), uniform_polar_pdf, DISK_POLAR)
 
 
+@pytest.mark.parametrize("spread_deg", (10.0, 60.0, 120.0))
+def test_area_light_spread_emits_its_power_with_cycles_soft_box_distribution(spread_deg):
+    """Cycles: radiance times max(0, (tan h - tan a) / (tan h - h)), h = spread / 2.  The photons'
+    flux, weighted by direction, must follow the density cos a att(a) / pi (a chi-square test of
+    the flux-weighted angle on bins of equal probability under it) and average to the power."""
+    from core.lights import spread_attenuation
+    power = np.array([12.0, 6.0, 3.0])
+    axis = unit_vector(-0.2, 0.3, -1.0)
+    spread = math.radians(spread_deg)
+    ctx = light_context([{"kind": "area", "position": (0.0, 0.0, 1.0), "direction": axis, "size": (0.5, 0.5),
+                          "power": power, "spread": spread}])
+    o, d, flux, _ = sample_photons(ctx, N, 4030 + int(spread_deg))
+    assert_mean_flux(flux, power, f"area light, spread {spread_deg}")
+    h = float(np.float32(spread)) / 2
+    cos_a = d @ ctx.scene.lights.direction[0].astype(np.float64)
+    assert (cos_a >= math.cos(h) - 1e-6).all()
+    # CDF of the angle under cos a att(a) / pi by quadrature; 20 bins of equal probability.
+    a = np.linspace(0.0, h, 200001)
+    dens = 2.0 * np.cos(a) * np.sin(a) * spread_attenuation(np.cos(a), h)
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(a))])
+    assert cdf[-1] == pytest.approx(1.0, abs=1e-6)              # the attenuation keeps the power
+    edges = np.interp(np.linspace(0, 1, 21), cdf, a)
+    weights = flux[:, 0] / power[0]
+    counts = np.histogram(np.arccos(np.clip(cos_a, -1, 1)), bins=edges, weights=weights)[0]
+    sums2 = np.histogram(np.arccos(np.clip(cos_a, -1, 1)), bins=edges, weights=weights ** 2)[0]
+    expected = len(weights) / 20
+    z = (counts - expected) / np.sqrt(sums2)
+    assert np.abs(z).max() < 4.5, z
+
+
 @pytest.mark.parametrize("kind", ("area", "disk"))
 def test_area_light_is_cosine_about_its_direction_and_uniform_over_its_shape(kind):
     power = np.array([25.0, 20.0, 5.0])
