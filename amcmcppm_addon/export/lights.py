@@ -11,7 +11,8 @@ conversion to emitted quantities (``intern/cycles/scene/light.cpp``), see
   masks it with Cycles' smoothstep blend without concentrating the power;
 * area: one-sided towards the object's -Z, extent ``size`` x ``size_y`` (square and
   disk use ``size`` twice) along the object's X and Y axes *including the object
-  scale*, radiance S / (pi A) with A = len_u len_v (x pi/4 for disk and ellipse);
+  scale*, radiance S / (pi A) with A = len_u len_v (x pi/4 for disk and ellipse),
+  narrowed by ``spread`` as Cycles' soft box does;
 * sun: irradiance S along the object's -Z over a cone of angular diameter ``angle``.
 
 Ray visibility comes from the object (``visible_camera``, ``visible_glossy``,
@@ -65,7 +66,8 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
     rec = {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
            "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
-           "visibility": visibility, "soft_falloff": bool(getattr(light, "use_soft_falloff", True))}
+           "visibility": visibility, "soft_falloff": bool(getattr(light, "use_soft_falloff", True)),
+           "spread": math.pi}
     if light.type in ("POINT", "SPOT"):
         r = max(float(light.shadow_soft_size), 0.0)
         if not light.normalize and r > 0:
@@ -89,10 +91,8 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
             return None
         if not light.normalize:
             strength = strength * area
-        if light.spread < math.pi - 1e-4:
-            log.warning(f"area light '{name}': spread below 180 degrees is not supported; "
-                        "it emits over the full hemisphere")
-        rec.update(kind=AREA_DISK if disk else AREA_RECT, axis_u=axis_u, axis_v=axis_v, power=strength)
+        rec.update(kind=AREA_DISK if disk else AREA_RECT, axis_u=axis_u, axis_v=axis_v, power=strength,
+                   spread=float(np.clip(light.spread, 0.0, math.pi)))
     elif light.type == "SUN":
         angle = float(np.clip(light.angle, 0.0, math.pi))
         if not light.normalize and angle > 0:
@@ -112,7 +112,8 @@ def build_lights(records) -> Lights:
                     axis_v=np.zeros((n, 3), np.float32), power=np.zeros((n, 3), np.float32),
                     radius=np.zeros(n, np.float32), spot_angle=np.zeros(n, np.float32),
                     spot_blend=np.zeros(n, np.float32), sun_angle=np.zeros(n, np.float32),
-                    visibility=np.zeros(n, np.uint8), soft_falloff=np.ones(n, bool))
+                    visibility=np.zeros(n, np.uint8), soft_falloff=np.ones(n, bool),
+                    spread=np.full(n, math.pi, np.float32))
     for i, rec in enumerate(records):
         for name in Lights.ARRAY_FIELDS:
             getattr(lights, name)[i] = rec[name]

@@ -47,6 +47,10 @@ def add_emitter(kind):
     elif kind == "spot":
         bs.light("SPOT", location=(-0.5, -0.5, 3.0), target=(0, 0, 0), energy=500.0, shadow_soft_size=0.05,
                  spot_size=math.radians(45), spot_blend=0.3)
+    elif kind.startswith("spread_"):
+        # A soft box: Cycles narrows the emission to the spread (here 30 and 90 degrees).
+        bs.light("AREA", location=(-0.5, -0.8, 2.5), target=(0.3, 0.2, 0), energy=200.0, shape="SQUARE",
+                 size=0.5, spread=math.radians(float(kind.removeprefix("spread_"))))
     elif kind.startswith("area_"):
         shape = kind.removeprefix("area_").upper()
         ob = bs.light("AREA", location=(-0.5, -0.8, 2.5), target=(0, 0, 0), energy=200.0, shape=shape,
@@ -80,8 +84,8 @@ def use_cycles(scene):
     c.seed = 1
 
 
-LIGHTS = ["point", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "sun",
-          "emissive_mesh", "world"]
+LIGHTS = ["point", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "spread_30",
+          "spread_90", "sun", "emissive_mesh", "world"]
 
 
 @pytest.mark.parametrize("kind", LIGHTS)
