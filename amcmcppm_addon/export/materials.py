@@ -15,17 +15,20 @@ gets *one* warning naming every such node.
 
 Principled BSDF mapping (``metallic`` m, ``Transmission Weight`` t, specular
 level s, base colour B):
-  * metal, weight m: glossy lobe with colour B and the node's roughness;
+  * metal, weight m: glossy lobe with the mean F82 Fresnel of B (``metal_fresnel``) and the
+    node's roughness;
   * glass, weight (1 - m) t: dielectric lobe with colour B and the node's IOR;
   * dielectric base, weight (1 - m)(1 - t): a white (Specular Tint) glossy layer
     whose weight is the hemispherical mean Fresnel reflectance of the IOR scaled by
     2 s (Blender scales F0 by 2 s), over a diffuse lobe with colour B and the
     remaining weight.
+Metals (Metallic node, Principled metallic) are a glossy lobe with the metal's mean Fresnel
+reflectance as colour: of the F82-tint model (base colour, edge tint; Principled uses its
+Specular Tint) or of the physical conductor's complex IOR.
 Glossy, Metallic and Principled nodes set to Multiscatter GGX (Blender's default) get the
 core's energy compensation with the mean Fresnel colour F_ss Cycles uses: the colour for
-Glossy, the F82 hemispherical mean B + (1 - B) / 21 for metals, the layer's reflectance for
-the dielectric specular layer; Mix and Add average it weighted by each glossy part's
-colour.  Other distributions are single-scattering GGX.
+Glossy and metals, the layer's reflectance for the dielectric specular layer; Mix and Add
+average it weighted by each glossy part's colour.  Other distributions are single-scattering GGX.
 Roughness below 0.02 is turned into a mirror by the core.  Image textures are
 kept only where the core supports them (diffuse colour); elsewhere their mean
 colour is used.  A missing image file gives a warning and Cycles' magenta.
@@ -109,10 +112,29 @@ def mean_fresnel(ior) -> float:
     return float(np.mean(2.0 * mu * f))
 
 
-def metal_fresnel(color):
-    """Hemispherical mean of the F82 metal Fresnel with a white edge tint: F0 + (1 - F0) / 21."""
+def metal_fresnel(color, edge_tint=(1.0, 1.0, 1.0)):
+    """Cosine-weighted hemispherical mean of Cycles' F82-tint metal Fresnel (F0 = ``color``):
+    F(mu) = F0 + (1 - F0)(1 - mu)^5 - b mu (1 - mu)^6 averages to F0 + (1 - F0) / 21 - b / 126,
+    b the edge-tint term of ``fresnel_f82tint_B`` (0 for a white tint)."""
     f0 = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
-    return f0 + (1.0 - f0) / 21.0
+    tint = np.clip(np.asarray(edge_tint, np.float64), 0.0, 1.0)
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    b = (f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint)
+    return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
+
+
+def conductor_fresnel(ior, extinction) -> np.ndarray:
+    """Cosine-weighted hemispherical mean of the unpolarised conductor Fresnel reflectance for the
+    complex index ``ior`` + i ``extinction`` (per channel, (3,)): the Metallic node's Physical
+    Conductor mode."""
+    n = np.asarray(ior, np.float64)[:, None] + 1j * np.maximum(np.asarray(extinction, np.float64), 0.0)[:, None]
+    mu = ((np.arange(256) + 0.5) / 256)[None, :]          # midpoint rule for int 2 mu F dmu
+    cos_t = np.sqrt(1.0 - (1.0 - mu * mu) / (n * n))
+    rs = (mu - n * cos_t) / (mu + n * cos_t)
+    rp = (n * mu - cos_t) / (n * mu + cos_t)
+    f = 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
+    return np.clip(np.mean(2.0 * mu * f, axis=1), 0.0, 1.0)
 
 
 def srgb_to_linear(x):
@@ -351,16 +373,27 @@ class NodeWalker:
         c.texture = tex
         return c
 
-    def _glossy(self, node, stack, color_input="Color", metal=False):
-        color, _ = self.color(node.inputs[color_input], stack)
+    def _glossy(self, node, stack, color=None):
+        if color is None:
+            color, _ = self.color(node.inputs["Color"], stack)
         rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
         c = Closure.lobe(GLOSSY, 1.0, color, roughness=rough)
         if node.distribution == "MULTI_GGX":
-            c.multiscatter = c.color[GLOSSY] * (metal_fresnel(color) if metal else color)
+            c.multiscatter = c.color[GLOSSY] * color
         return c
 
     def _metallic(self, node, stack):
-        return self._glossy(node, stack, "Base Color", metal=True)
+        """A glossy lobe whose colour is the metal's mean Fresnel reflectance (F82 tint, or
+        the physical conductor's complex IOR); the rise towards grazing angles is averaged."""
+        if node.fresnel_type == "PHYSICAL_CONDUCTOR":
+            ior, _ = self.color(node.inputs["IOR"], stack)
+            extinction, _ = self.color(node.inputs["Extinction"], stack)
+            color = conductor_fresnel(ior, extinction)
+        else:
+            base, _ = self.color(node.inputs["Base Color"], stack)
+            tint, _ = self.color(node.inputs["Edge Tint"], stack)
+            color = metal_fresnel(base, tint)
+        return self._glossy(node, stack, color)
 
     def _glass(self, node, stack):
         color, _ = self.color(node.inputs["Color"], stack)
@@ -395,11 +428,12 @@ class NodeWalker:
         c = Closure(roughness=rough, ior=ior, emission=np.maximum(emission * strength, 0.0))
         c.weight[DIFFUSE] = dielectric - spec
         c.color[DIFFUSE] = c.weight[DIFFUSE] * base_color
+        metal = metal_fresnel(flat_base, tint)     # Cycles' metallic layer: F82 with the specular tint
         c.weight[GLOSSY] = m + spec
-        c.color[GLOSSY] = m * flat_base + spec * tint
+        c.color[GLOSSY] = m * metal + spec * tint
         if node.distribution == "MULTI_GGX":
             layer = spec / dielectric if dielectric > 0 else 0.0      # the specular layer's reflectance
-            c.multiscatter = m * flat_base * metal_fresnel(flat_base) + spec * tint * (layer * tint)
+            c.multiscatter = m * metal * metal + spec * tint * (layer * tint)
         c.weight[DIELECTRIC] = (1.0 - m) * t
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * flat_base
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1

@@ -387,7 +387,9 @@ def test_principled_mapping(scene):
     metal, _ = export_material(principled("Metal", **{"Base Color": base, "Metallic": 1.0,
                                                       "Roughness": 0.0}))
     assert metal["glossy_weight"] == pytest.approx(1.0) and metal["diffuse_weight"] == 0
-    assert metal["glossy_color"] == pytest.approx(base[:3]) and metal["glossy_roughness"] == 0
+    f0 = np.array(base[:3])
+    assert metal["glossy_color"] == pytest.approx(f0 + (1 - f0) / 21, rel=1e-6)   # mean F82 Fresnel
+    assert metal["glossy_roughness"] == 0
     glass, _ = export_material(principled("Clear", **{"Transmission Weight": 1.0, "IOR": 1.33}))
     assert glass["dielectric_weight"] == pytest.approx(1.0) and glass["ior"] == pytest.approx(1.33)
     no_spec, _ = export_material(principled("Matte", **{"Specular IOR Level": 0.0}))
@@ -421,11 +423,13 @@ def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_get
     assert plain["glossy_multiscatter"] == pytest.approx([0, 0, 0])
 
     # Mix of a metal and a white Glossy: F_ss averaged with weights weight * colour per channel.
+    f_metal = f0 + (1 - f0) / 21
     mat = bpy.data.materials.new("Blend")
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     a, b = nt.nodes.new("ShaderNodeBsdfMetallic"), nt.nodes.new("ShaderNodeBsdfGlossy")
     a.inputs["Base Color"].default_value = colour
+    a.inputs["Edge Tint"].default_value = (1.0, 1.0, 1.0, 1.0)       # b = 0 (the default tint is not white)
     b.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     mix = nt.nodes.new("ShaderNodeMixShader")
     mix.inputs["Fac"].default_value = 0.5
@@ -433,8 +437,35 @@ def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_get
     nt.links.new(b.outputs[0], mix.inputs[2])
     nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     row, _ = export_material(mat)
-    expected = (f0 * (f0 + (1 - f0) / 21) + 1.0) / (f0 + 1.0)
+    expected = (f_metal * f_metal + 1.0) / (f_metal + 1.0)
     assert row["glossy_multiscatter"] == pytest.approx(expected, rel=1e-6)
+    assert row["glossy_color"] == pytest.approx(0.5 * f_metal + 0.5, rel=1e-6)
+
+
+def test_metallic_node_colour_is_the_mean_fresnel_of_its_model(scene):
+    """F82 tint: F0 + (1 - F0) / 21 - b / 126, b from the edge tint (Cycles' fresnel_f82tint_B);
+    physical conductor: the mean of the complex-IOR Fresnel, which for k = 0 is the dielectric's."""
+    from amcmcppm.amcmcppm_addon.export.materials import mean_fresnel
+    f0, tint = np.array([0.9, 0.6, 0.3]), np.array([0.5, 0.8, 1.0])
+    mat = bs._material("Brass", "ShaderNodeBsdfMetallic", **{"Base Color": (*f0, 1.0),
+                                                             "Edge Tint": (*tint, 1.0), "Roughness": 0.4})
+    row, _ = export_material(mat)
+    f = 6 / 7
+    b = (f0 + (1 - f0) * f ** 5) * 7 / f ** 6 * (1 - tint)
+    # The same mean by quadrature of F82 itself.
+    mu = (np.arange(100000) + 0.5) / 100000
+    f82 = f0[:, None] + (1 - f0[:, None]) * (1 - mu) ** 5 - b[:, None] * mu * (1 - mu) ** 6
+    assert row["glossy_color"] == pytest.approx(np.mean(2 * mu * f82, axis=1), rel=1e-5)
+    assert row["glossy_color"][2] == pytest.approx(f0[2] + (1 - f0[2]) / 21, rel=1e-6)    # white tint: b = 0
+    node = mat.node_tree.nodes["Metallic BSDF"]
+    node.fresnel_type = "PHYSICAL_CONDUCTOR"
+    node.inputs["IOR"].default_value = (1.5, 1.5, 1.5)
+    node.inputs["Extinction"].default_value = (0.0, 0.0, 0.0)
+    row, _ = export_material(mat)
+    assert row["glossy_color"] == pytest.approx(np.full(3, mean_fresnel(1.5)), rel=1e-4)
+    node.inputs["Extinction"].default_value = (2.0, 4.0, 8.0)
+    row, _ = export_material(mat)
+    assert 0.3 < row["glossy_color"][0] < row["glossy_color"][1] < row["glossy_color"][2] < 1.0
 
 
 def test_mix_add_groups_and_basic_bsdfs(scene):
