@@ -48,6 +48,8 @@ class MaterialTable:
     weight: np.ndarray          # (M, 4) float64 lobe weights, lobe order as above
     color: np.ndarray           # (M, 4, 3) float64 lobe colours (diffuse colour is 1 if textured)
     alpha: np.ndarray           # (M,) float64 GGX alpha of the glossy lobe
+    dielectric_alpha: np.ndarray  # (M,) float64 GGX alpha of the dielectric lobe, 0 = smooth
+    reflection_tint: np.ndarray   # (M, 3) float64 dielectric reflection colour / lobe colour (1: same)
     ior: np.ndarray             # (M,) float64
     emission: np.ndarray        # (M, 3) float64 radiance
     texture: np.ndarray         # (M,) int32 diffuse texture or -1
@@ -85,12 +87,22 @@ class MaterialTable:
         glossy_on = (weight[:, GLOSSY] > 0) & (lum[:, GLOSSY] > 0)
         emission = mats.emission.astype(np.float64)
         ms_albedo, ms_fresnel = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter)
-        return MaterialTable(weight=weight, color=color, alpha=alpha,
+        glass = color[:, DIELECTRIC]
+        reflection_tint = np.divide(mats.dielectric_reflection_color.astype(np.float64), glass,
+                                    out=np.ones_like(glass), where=glass > 0)
+        rough = mats.dielectric_roughness.astype(np.float64)
+        dielectric_alpha = np.where(rough < MIRROR_ROUGHNESS, 0.0, rough * rough)
+        return MaterialTable(weight=weight, color=color, alpha=alpha, dielectric_alpha=dielectric_alpha,
+                             reflection_tint=reflection_tint,
                              ior=mats.ior.astype(np.float64), emission=emission,
                              texture=mats.diffuse_texture.astype(np.int32),
                              has_nondelta=diffuse_on | glossy_on, has_glossy=glossy_on,
                              is_emissive=(emission > 0).any(axis=1),
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel)
+
+    @property
+    def has_rough_dielectric(self) -> bool:
+        return bool(((self.dielectric_alpha > 0) & (self.weight[:, DIELECTRIC] > 0)).any())
 
     def multiscatter(self, mat_ids, mu):
         """(n, 3) factors 1 + F_ms (1 - E(mu)) / E(mu) of the glossy lobes at view cosines ``mu``.
@@ -203,8 +215,24 @@ def choose_lobe(scores, u):
     return np.where(total > 0, lobe, -1), prob
 
 
-def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
+def lobe_remainder(scores, u, lobe):
+    """(n,) the lobe-choice number ``u`` rescaled within the chosen lobe's share of ``scores``:
+    uniform on [0, 1) given the choice, so it can serve as one more random number."""
+    s = [scores[:, k] for k in range(4)]
+    before = np.zeros(len(u))
+    for k in range(1, 4):
+        before += np.where(lobe >= k, s[k - 1], 0.0)
+    total = s[0] + s[1] + s[2] + s[3]
+    chosen = scores.ravel().take(np.arange(len(u)) * 4 + np.maximum(lobe, 0))
+    r = (u * total - before) / np.where(chosen > 0, chosen, 1.0)
+    return np.clip(r, 0.0, np.nextafter(1.0, 0.0))
+
+
+def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=None):
     """Sample a new direction from the chosen ``lobe`` at n surface points.
+
+    ``u1``, ``u2`` are the direction's random numbers; rough dielectrics need a third, ``u3``
+    (e.g. :func:`lobe_remainder`), for the choice between reflection and refraction.
 
     ``ns is ng`` (flat shading, as :meth:`RenderContext.surface` returns it) skips the
     shading-normal correction, which is then exactly 1.
@@ -256,13 +284,42 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode):
             entering = dot(w_o, ng.take(sel, axis=0)) > 0     # wo on the front (outside) of the surface
             ior = table.ior.take(m_sel)
             eta = np.where(entering, ior, 1.0 / ior)
-            cos_i = np.clip(dot(w_o, n_s), 0.0, 1.0)
+            alpha = table.dielectric_alpha.take(m_sel)
+            rough = alpha > 0
+            # Rough glass: a GGX microfacet normal from the visible normals of wo (u1, u2), then
+            # Fresnel reflection or refraction about it (u3; Walter et al. 2007).  Both branches
+            # weigh G2 / G1 (f |cos| / pdf with the branch chosen by F).  Smooth glass chooses
+            # the branch with u1.
+            h = n_s
+            branch = u1[sel]
+            if rough.any():
+                if u3 is None:
+                    raise ValueError("scatter: rough dielectrics need u3")
+                r = np.flatnonzero(rough)
+                wo_l = smp.to_local(w_o[r], n_s[r])
+                wo_l[:, 2] = np.maximum(wo_l[:, 2], 1e-9)
+                m_l = smp.ggx_sample_visible_normal(wo_l, alpha[r], u1[sel][r], u2[sel][r])
+                h = n_s.copy()
+                h[r] = smp.to_world(m_l, n_s[r])
+                branch = np.where(rough, u3[sel], branch)
+            cos_i = np.clip(dot(w_o, h), 0.0, 1.0)
             fr, cos_t = smp.fresnel_dielectric(cos_i, eta)
-            is_refl = u1[sel] < fr
-            d = np.where(is_refl[:, None], smp.reflect(w_o, n_s), smp.refract(w_o, n_s, eta, cos_t))
+            is_refl = branch < fr
+            d = np.where(is_refl[:, None], smp.reflect(w_o, h), smp.refract(w_o, h, eta, cos_t))
             side = dot(d, n_g)
             ok = np.where(is_refl, side > 0, side < 0)
             w = lw
+            tint = table.reflection_tint.take(m_sel, axis=0)
+            if (tint != 1.0).any():
+                w = w * np.where(is_refl[:, None], tint, 1.0)
+            if rough.any():
+                cos_o_s = np.abs(dot(w_o, n_s))
+                cos_i_s = dot(d, n_s)
+                # The reflected or refracted direction must leave on its side of the macro surface.
+                ok &= ~rough | np.where(is_refl, cos_i_s > 0, cos_i_s < 0)
+                ratio = np.where(rough, smp.ggx_g2(cos_o_s, np.abs(cos_i_s), np.maximum(alpha, MIN_ALPHA))
+                                 / smp.ggx_g1(cos_o_s, np.maximum(alpha, MIN_ALPHA)), 1.0)
+                w = w * ratio[:, None]
             if mode == "radiance":
                 w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
         if mode == "importance" and ns is not ng:

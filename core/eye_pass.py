@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_scores, scatter
+from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_remainder, lobe_scores,
+                   scatter)
 from .camera import generate_camera_rays
 from .sampling import dot
 from .scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
@@ -150,10 +151,12 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         delta_scores = scores[go].copy()
         delta_scores[:, [DIFFUSE, GLOSSY]] = 0.0
         u_delta = (u[go, 0] - p_nd[go]) / np.maximum(1.0 - p_nd[go], 1e-300)
-        lobe, prob = choose_lobe(delta_scores, np.clip(u_delta, 0.0, np.nextafter(1.0, 0.0)))
+        u_delta = np.clip(u_delta, 0.0, np.nextafter(1.0, 0.0))
+        lobe, prob = choose_lobe(delta_scores, u_delta)
+        u3 = lobe_remainder(delta_scores, u_delta, lobe) if table.has_rough_dielectric else None
         prob = prob * (1.0 - p_nd[go])
         wi, weight, alive = scatter(table, surf.mat_ids[go], surf.colors[go], lobe, prob, wo[go],
-                                    surf.ng[go], surf.ns[go], u[go, 1], u[go, 2], "radiance")
+                                    surf.ng[go], surf.ns[go], u[go, 1], u[go, 2], "radiance", u3)
         keep = np.flatnonzero(alive)
         g = go[keep]
         reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0

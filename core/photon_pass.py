@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import choose_lobe, eval_glossy, face_forward, lobe_scores, scatter
+from .bsdf import choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores, scatter
 from .context import Surface
 from .eye_pass import MeasurementPoints
 from .hash_grid import HashGrid
@@ -321,8 +321,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         block = u[idx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
         lobe, prob = choose_lobe(scores, block[:, 0])
+        u3 = lobe_remainder(scores, block[:, 0], lobe) if table.has_rough_dielectric else None
         wi, weight, alive = scatter(table, surf.mat_ids, surf.colors, lobe, prob, wo, surf.ng, surf.ns,
-                                    block[:, 1], block[:, 2], "importance")
+                                    block[:, 1], block[:, 2], "importance", u3)
         new_flux = flux * weight
         # Russian roulette on the luminance ratio (the path stays a function of u).
         ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)

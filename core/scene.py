@@ -56,9 +56,12 @@ class Materials:
       Blender's glossy nodes): a white lobe with F_ss = 1 then reflects all the light it
       receives; 0 gives plain single-scattering GGX, which darkens with roughness;
     * mirror: perfect specular reflection tinted by ``mirror_color``;
-    * dielectric: smooth glass with index of refraction ``ior``, Fresnel
+    * dielectric: glass with index of refraction ``ior``, Fresnel
       reflection/refraction and total internal reflection, tinted by
-      ``dielectric_color`` (as Cycles' Glass colour);
+      ``dielectric_color`` (as Cycles' Glass colour; reflections by
+      ``dielectric_reflection_color`` where that differs, as Principled's white specular
+      over its tinted transmission); smooth, or rough with GGX microfacets of Blender
+      roughness ``dielectric_roughness`` (single scattering);
     * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides.
     """
 
@@ -74,12 +77,15 @@ class Materials:
     mirror_color: np.ndarray = None                     # (M, 3) float32
     dielectric_weight: np.ndarray = None                # (M,) float32
     dielectric_color: np.ndarray = None                 # (M, 3) float32
+    dielectric_roughness: np.ndarray = None             # (M,) float32 in [0, 1]; None: 0 (smooth)
+    dielectric_reflection_color: np.ndarray = None      # (M, 3) float32; None: dielectric_color
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
                     "glossy_color", "glossy_roughness", "glossy_multiscatter", "mirror_weight", "mirror_color",
-                    "dielectric_weight", "dielectric_color", "ior", "emission")
+                    "dielectric_weight", "dielectric_color", "dielectric_roughness", "dielectric_reflection_color",
+                    "ior", "emission")
 
     @property
     def count(self) -> int:
@@ -109,6 +115,8 @@ class Materials:
         out.mirror_color = np.zeros((m, 3), np.float32)
         out.dielectric_weight = np.zeros(m, np.float32)
         out.dielectric_color = np.ones((m, 3), np.float32)
+        out.dielectric_roughness = np.zeros(m, np.float32)
+        out.dielectric_reflection_color = np.ones((m, 3), np.float32)
         out.ior = np.full(m, 1.5, np.float32)
         out.emission = np.zeros((m, 3), np.float32)
         for i, s in enumerate(specs):
@@ -130,6 +138,10 @@ class Materials:
                 out.glossy_roughness[i] = s["roughness"]
             if "ior" in s:
                 out.ior[i] = s["ior"]
+            if "dielectric_roughness" in s:
+                out.dielectric_roughness[i] = s["dielectric_roughness"]
+            out.dielectric_reflection_color[i] = np.broadcast_to(np.asarray(
+                s.get("dielectric_reflection", out.dielectric_color[i]), np.float32), (3,))
             if "emission" in s:
                 out.emission[i] = np.broadcast_to(np.asarray(s["emission"], np.float32), (3,))
         return out
@@ -403,6 +415,10 @@ class Scene:
             fail("the scene has triangles but no materials")
         if t and (self.material_ids.min() < 0 or self.material_ids.max() >= nm):
             fail(f"material_ids outside [0, {nm})")
+        if mats.dielectric_reflection_color is None and mats.dielectric_color is not None:
+            mats.dielectric_reflection_color = np.array(mats.dielectric_color, np.float32)
+        if mats.dielectric_roughness is None and mats.ior is not None:
+            mats.dielectric_roughness = np.zeros(len(mats.ior), np.float32)
         if mats.glossy_multiscatter is None and mats.glossy_color is not None:
             mats.glossy_multiscatter = np.array(mats.glossy_color, np.float32)   # Blender's default
         for name in Materials.ARRAY_FIELDS:

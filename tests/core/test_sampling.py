@@ -39,6 +39,8 @@ CHOOSE_LOBE_SCORES = (
     (0.1, 0.2, 0.3, 0.4), (0.0, 1.0, 0.0, 3.0), (2.5, 0.0, 0.0, 0.0), (0.0, 0.0, 1e-3, 1.0),
     (0.7, 0.0, 0.2, 0.0))
 SPOT_BLENDS = (0.0, 0.3, 1.0)
+ROUGH_DIELECTRIC_CASES = (     # (Blender roughness, angle of wo in degrees, wo outside the glass)
+    (0.3, 30.0, True), (0.6, 70.0, True), (0.3, 35.0, False))
 MUTATION_THETAS = (0.05, 1.0, 20.0)
 
 # Every hypothesis test of this file (chi-square tests and z-tests), for the Sidak correction.
@@ -50,6 +52,8 @@ STAT_TESTS = (
     + 2                                     # diffuse lobe: chi-square, front and back side
     + 2                                     # glossy lobe: chi-square and E[weight] z-test
     + 3                                     # mixed material: E[weight] z-test per channel
+    + 2 * 3 * 3                             # multiscatter glossy: E[weight] per colour, angle, channel
+    + len(ROUGH_DIELECTRIC_CASES)           # rough dielectric chi-square
     + len(DIELECTRIC_CASES)                 # dielectric reflection frequency
     + sum(sum(v > 0 for v in s) > 1 for s in CHOOSE_LOBE_SCORES)   # choose_lobe frequencies
     + 2                                     # point light: directions, positions on its sphere
@@ -764,6 +768,90 @@ def test_mirror_lobe_returns_the_exact_reflection_with_weight_colour():
         assert np.allclose(wi, expected, atol=1e-12)
         assert alive[~grazing].all()
         assert np.allclose(w[alive], colour, rtol=1e-9)
+
+
+def ref_rough_dielectric_pdf(wo, wi, alpha, eta):
+    """Walter et al. (2007) density of wi (local, wo.z > 0) for visible-normal sampling of GGX
+    microfacets followed by Fresnel reflection or refraction (relative index ``eta``)."""
+    cos_o = wo[:, 2]
+    refl = wi[:, 2] > 0
+    m = np.where(refl[:, None], wo + wi, -(wo + eta * wi))
+    m = m / np.maximum(np.linalg.norm(m, axis=1, keepdims=True), 1e-300)
+    m = m * np.where(m[:, 2] < 0, -1.0, 1.0)[:, None]
+    om, im = np.sum(wo * m, axis=1), np.sum(wi * m, axis=1)
+    a2, c2 = alpha * alpha, m[:, 2] ** 2
+    d = a2 / (np.pi * (c2 * (a2 - 1.0) + 1.0) ** 2)
+    d_vis = np.maximum(om, 0.0) * d / (1.0 + ref_ggx_lambda(cos_o, alpha)) / cos_o
+    fr = ref_fresnel(np.clip(om, 0.0, 1.0), np.full(len(om), eta))[0]
+    pdf_r = fr * d_vis / np.maximum(4.0 * om, 1e-300)
+    denom = (om + eta * im) ** 2
+    pdf_t = (1.0 - fr) * d_vis * np.abs(im) * eta * eta / np.maximum(denom, 1e-300)
+    valid_t = (om > 0) & (im < 0)
+    return np.where(refl, pdf_r, np.where(valid_t, pdf_t, 0.0))
+
+
+@pytest.mark.parametrize("roughness,theta_deg,outside", ROUGH_DIELECTRIC_CASES)
+def test_rough_dielectric_samples_walter_microfacet_glass_with_weight_g2_over_g1(roughness, theta_deg, outside):
+    """Chi-square of the sampled directions over the sphere against Walter's density (reflection
+    above, refraction below), and each weight colour G2 / G1 (radiance: refraction / eta^2)."""
+    ior = 1.5
+    colour = f32([0.9, 0.8, 0.7])
+    table = material_table({"dielectric": colour, "ior": ior, "dielectric_roughness": roughness})
+    alpha = float(np.float32(roughness)) ** 2
+    assert table.dielectric_alpha[0] == pytest.approx(alpha, rel=1e-12)
+    n_ = unit_vector(0.1, 0.2, 0.95)
+    ng = n_ if outside else -n_                       # wo on the back side: leaving the glass
+    eta = ior if outside else 1.0 / ior
+    f = frames_for(n_)[0]
+    wo_local = local_direction(theta_deg)
+    wo = wo_local @ f
+    rng = np.random.default_rng(2040 + ROUGH_DIELECTRIC_CASES.index((roughness, theta_deg, outside)))
+    out = {}
+
+    def sample(n):
+        u1, u2, u3 = rng.random(n), rng.random(n), rng.random(n)
+        m_ = np.zeros(n, np.int32)
+        colors = bsdf.lobe_colors(table, m_, table.color[m_, bsdf.DIFFUSE])
+        wi, w, alive = bsdf.scatter(table, m_, colors, np.full(n, bsdf.DIELECTRIC), np.ones(n),
+                                    np.tile(wo, (n, 1)), np.tile(ng, (n, 1)), np.tile(ng, (n, 1)),
+                                    u1, u2, "radiance", u3)
+        out.update(wi=wi, w=w, alive=alive)
+        return dir_to_cos_phi(wi, n_), alive.astype(np.float64)
+
+    def pdf(xy):
+        d = cos_phi_to_dir(xy, n_) @ f.T
+        return ref_rough_dielectric_pdf(np.tile(wo_local, (len(d), 1)), d, alpha, eta)
+
+    check_chi2(sample, pdf, SPHERE, ires=8)
+    wi, w, alive = out["wi"], out["w"], out["alive"]
+    assert np.isfinite(w).all() and (w[~alive] == 0).all()
+    wi_l = wi[alive] @ f.T
+    refracted = wi_l[:, 2] < 0
+    assert 0.02 < refracted.mean() < 0.999
+    g2_over_g1 = (1.0 + ref_ggx_lambda(wo_local[2], alpha)) / (
+        1.0 + ref_ggx_lambda(wo_local[2], alpha) + ref_ggx_lambda(wi_l[:, 2], alpha))
+    expected = colour * (g2_over_g1 * np.where(refracted, 1.0 / eta ** 2, 1.0))[:, None]
+    assert np.allclose(w[alive], expected, rtol=1e-6, atol=1e-6)
+
+
+def test_dielectric_reflections_take_the_reflection_colour_and_refractions_the_lobe_colour():
+    colour, reflection = f32([0.9, 0.6, 0.3]), f32([1.0, 1.0, 0.5])
+    table = material_table({"dielectric": colour, "dielectric_reflection": reflection, "ior": 1.5})
+    n_ = unit_vector(0.0, 0.0, 1.0)
+    wo = local_direction(60.0)
+    rng = np.random.default_rng(2050)
+    wi, w, alive = scatter_lobe(table, bsdf.DIELECTRIC, wo, n_, n_, rng.random(20000), rng.random(20000),
+                                "importance")
+    refl = wi @ n_ > 0
+    assert alive.all() and 0 < refl.sum() < len(refl)
+    assert np.allclose(w[refl], reflection, rtol=1e-6) and np.allclose(w[~refl], colour, rtol=1e-6)
+
+
+def test_dielectric_below_the_mirror_roughness_is_smooth_glass():
+    smooth = material_table({"dielectric": 1.0, "ior": 1.5})
+    almost = material_table({"dielectric": 1.0, "ior": 1.5, "dielectric_roughness": 0.019})
+    assert smooth.dielectric_alpha[0] == 0.0 and almost.dielectric_alpha[0] == 0.0
+    assert not smooth.has_rough_dielectric and not almost.has_rough_dielectric
 
 
 @pytest.mark.parametrize("theta_deg,outside", DIELECTRIC_CASES)
