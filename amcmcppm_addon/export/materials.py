@@ -17,7 +17,8 @@ Principled BSDF mapping (``metallic`` m, ``Transmission Weight`` t, specular
 level s, base colour B):
   * metal, weight m: glossy lobe with the mean F82 Fresnel of B (``metal_fresnel``) and the
     node's roughness;
-  * glass, weight (1 - m) t: dielectric lobe with colour B and the node's IOR;
+  * glass, weight (1 - m) t: dielectric lobe with colour sqrt(B) (Cycles' tint per interface),
+    reflections tinted by the Specular Tint instead, the node's IOR and roughness;
   * dielectric base, weight (1 - m)(1 - t): a white (Specular Tint) glossy layer
     whose weight is the hemispherical mean Fresnel reflectance of the IOR scaled by
     2 s (Blender scales F0 by 2 s), over a diffuse lobe with colour B and the
@@ -29,7 +30,9 @@ Glossy, Metallic and Principled nodes set to Multiscatter GGX (Blender's default
 core's energy compensation with the mean Fresnel colour F_ss Cycles uses: the colour for
 Glossy and metals, the layer's reflectance for the dielectric specular layer; Mix and Add
 average it weighted by each glossy part's colour.  Other distributions are single-scattering GGX.
-Roughness below 0.02 is turned into a mirror by the core.  Image textures are
+Glass and Refraction keep their roughness (GGX microfacet glass, single scattering: Cycles'
+multiscatter glass keeps a little more light at high roughness).
+Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Image textures are
 kept only where the core supports them (diffuse colour); elsewhere their mean
 colour is used.  A missing image file gives a warning and Cycles' magenta.
 """
@@ -55,9 +58,11 @@ class Closure:
     color: np.ndarray = field(default_factory=lambda: np.zeros((4, 3)))    # (4, 3) weight * colour
     roughness: float = 0.5          # glossy roughness (Blender's)
     ior: float = 1.5                # dielectric index of refraction
+    dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) radiance
     texture: int = -1               # diffuse image texture index or -1
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
+    reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -71,9 +76,12 @@ class Closure:
         wa, wb = fa * self.weight, fb * other.weight
         out = Closure(weight=wa + wb, color=fa * self.color + fb * other.color,
                       emission=fa * self.emission + fb * other.emission,
-                      multiscatter=fa * self.multiscatter + fb * other.multiscatter)
+                      multiscatter=fa * self.multiscatter + fb * other.multiscatter,
+                      reflection=fa * self.glass_reflection() + fb * other.glass_reflection())
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
+        out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
+                                             wa[DIELECTRIC], wb[DIELECTRIC])
         out.texture = self.texture if self.texture >= 0 and wa[DIFFUSE] > 0 else other.texture
         if out.texture >= 0:
             # The core multiplies the diffuse colour by the texture; keep the weight, drop the
@@ -81,13 +89,19 @@ class Closure:
             out.color[DIFFUSE] = out.weight[DIFFUSE]
         return out
 
+    def glass_reflection(self) -> np.ndarray:
+        return self.color[DIELECTRIC] if self.reflection is None else self.reflection
+
     def spec(self, name) -> dict:
         """A ``Materials.build`` entry."""
-        s = {"name": name, "roughness": self.roughness, "ior": self.ior, "emission": self.emission}
+        s = {"name": name, "roughness": self.roughness, "ior": self.ior, "emission": self.emission,
+             "dielectric_roughness": self.dielectric_roughness}
         for i, lobe in enumerate(LOBES):
             w = self.weight[i]
             s[lobe] = self.color[i] / w if w > 0 else np.zeros(3)
             s[f"{lobe}_weight"] = w
+        w = self.weight[DIELECTRIC]
+        s["dielectric_reflection"] = self.glass_reflection() / w if w > 0 else np.zeros(3)
         g = self.color[GLOSSY]
         s["glossy_multiscatter"] = np.divide(self.multiscatter, g, out=np.zeros(3), where=g > 0)
         if self.texture >= 0:
@@ -398,9 +412,9 @@ class NodeWalker:
     def _glass(self, node, stack):
         color, _ = self.color(node.inputs["Color"], stack)
         ior = self.value(node.inputs["IOR"], stack)
-        if "Roughness" in node.inputs and self.value(node.inputs["Roughness"], stack) > 0.02:
-            self.note(f"'{node.name}': rough glass is rendered as smooth glass")
-        return Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3))
+        rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0)) \
+            if "Roughness" in node.inputs else 0.0
+        return Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3), dielectric_roughness=rough)
 
     def _emission(self, node, stack):
         color, _ = self.color(node.inputs["Color"], stack)
@@ -425,7 +439,8 @@ class NodeWalker:
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
         dielectric = (1.0 - m) * (1.0 - t)
         spec = dielectric * min(1.0, mean_fresnel(ior) * 2.0 * level)
-        c = Closure(roughness=rough, ior=ior, emission=np.maximum(emission * strength, 0.0))
+        c = Closure(roughness=rough, ior=ior, emission=np.maximum(emission * strength, 0.0),
+                    dielectric_roughness=rough)
         c.weight[DIFFUSE] = dielectric - spec
         c.color[DIFFUSE] = c.weight[DIFFUSE] * base_color
         metal = metal_fresnel(flat_base, tint)     # Cycles' metallic layer: F82 with the specular tint
@@ -435,7 +450,10 @@ class NodeWalker:
             layer = spec / dielectric if dielectric > 0 else 0.0      # the specular layer's reflectance
             c.multiscatter = m * metal * metal + spec * tint * (layer * tint)
         c.weight[DIELECTRIC] = (1.0 - m) * t
-        c.color[DIELECTRIC] = c.weight[DIELECTRIC] * flat_base
+        # Cycles tints Principled glass by the square root of the base colour at each interface,
+        # so that light crossing it (in and out) takes the base colour once.
+        c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))
+        c.reflection = c.weight[DIELECTRIC] * np.asarray(tint, np.float64)     # Cycles: the specular tint
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1
         return c
 

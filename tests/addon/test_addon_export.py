@@ -392,6 +392,12 @@ def test_principled_mapping(scene):
     assert metal["glossy_roughness"] == 0
     glass, _ = export_material(principled("Clear", **{"Transmission Weight": 1.0, "IOR": 1.33}))
     assert glass["dielectric_weight"] == pytest.approx(1.0) and glass["ior"] == pytest.approx(1.33)
+    tinted, _ = export_material(principled("Bottle", **{"Transmission Weight": 1.0, "Base Color": base,
+                                                        "Roughness": 0.2}))
+    # Cycles: transmission tinted by sqrt(base colour) per interface, reflections by the specular tint.
+    assert tinted["dielectric_color"] == pytest.approx(np.sqrt(base[:3]), rel=1e-6)
+    assert tinted["dielectric_reflection_color"] == pytest.approx([1, 1, 1])
+    assert tinted["dielectric_roughness"] == pytest.approx(0.2)
     no_spec, _ = export_material(principled("Matte", **{"Specular IOR Level": 0.0}))
     assert no_spec["diffuse_weight"] == pytest.approx(1.0) and no_spec["glossy_weight"] == 0
     lamp, _ = export_material(principled("Lamp", **{"Emission Color": (1, 0.5, 0.25, 1),
@@ -505,6 +511,11 @@ def test_mix_add_groups_and_basic_bsdfs(scene):
     glass = bs.glass("Water", ior=1.33)
     row, _ = export_material(glass)
     assert row["dielectric_weight"] == 1 and row["ior"] == pytest.approx(1.33)
+    assert row["dielectric_roughness"] == 0
+    glass.node_tree.nodes["Glass BSDF"].inputs["Roughness"].default_value = 0.3
+    row, ex = export_material(glass)
+    assert row["dielectric_roughness"] == pytest.approx(0.3) and not [w for w in ex.warnings if "Water" in w]
+    assert row["dielectric_reflection_color"] == pytest.approx(row["dielectric_color"])
     mirror = bs._material("Chrome", "ShaderNodeBsdfGlossy", Roughness=0.0)
     row, _ = export_material(mirror)
     assert row["glossy_weight"] == 1 and row["glossy_roughness"] == 0   # the core treats it as a mirror

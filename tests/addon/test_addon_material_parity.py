@@ -42,6 +42,14 @@ MATERIALS = {
     "metallic_f82": ("ShaderNodeBsdfMetallic", {"Base Color": (0.9, 0.5, 0.2, 1.0), "Roughness": 0.4,
                                                 "Edge Tint": (0.6, 0.8, 1.0, 1.0)}),
     "metallic_conductor": ("ShaderNodeBsdfMetallic", {"Roughness": 0.4}),    # default IOR / extinction
+    "glass_0": ("ShaderNodeBsdfGlass", {"Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.0, "IOR": 1.45}),
+    "glass_0.15": ("ShaderNodeBsdfGlass", {"Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.15, "IOR": 1.45}),
+    "glass_0.4": ("ShaderNodeBsdfGlass", {"Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.4, "IOR": 1.45}),
+    "glass_0.3_1.5": ("ShaderNodeBsdfGlass", {"Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.3, "IOR": 1.5}),
+    "principled_glass_0": ("ShaderNodeBsdfPrincipled", {"Base Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.0,
+                                                        "Transmission Weight": 1.0}),
+    "principled_glass_0.3": ("ShaderNodeBsdfPrincipled", {"Base Color": (0.9, 0.9, 0.9, 1.0), "Roughness": 0.3,
+                                                          "Transmission Weight": 1.0}),
     "metal_0.8": ("ShaderNodeBsdfPrincipled", {"Base Color": (0.9, 0.6, 0.3, 1.0), "Roughness": 0.8,
                                                "Metallic": 1.0}),
 }
@@ -54,7 +62,11 @@ def build(material, light):
     mat = bs._material(material, node, **inputs)
     if material == "metallic_conductor":
         mat.node_tree.nodes["Metallic BSDF"].fresnel_type = "PHYSICAL_CONDUCTOR"
-    bs.cube("Block", size=1.5, material=mat, location=(0, 0, 0.75), rotation=(0, 0, 0.6))
+    if material == "glass_0.4":
+        mat.node_tree.nodes["Glass BSDF"].distribution = "GGX"       # single scattering, as ours
+    # Glass floats 5 cm over the floor: in contact, its bottom face and the floor coincide.
+    lift = 0.05 if "glass" in material else 0.0
+    bs.cube("Block", size=1.5, material=mat, location=(0, 0, 0.75 + lift), rotation=(0, 0, 0.6))
     bs.camera(location=(0, -5, 4), target=(0, 0, 0.5), lens=50.0)
     if light == "world":
         bs.world((0.4, 0.5, 0.6), strength=1.0)
