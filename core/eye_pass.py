@@ -97,7 +97,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     for depth in range(max_bounces + 1):
         if len(pix) == 0:
             break
-        hits = accel.intersect(origins, dirs, tmax if depth == 0 else None)
+        hits = accel.with_contacts(accel.intersect(origins, dirs, tmax if depth == 0 else None), origins, dirs)
         rays += len(pix)
         if ctx.lights.visible_to(VISIBLE_CAMERA if depth == 0 else VISIBLE_GLOSSY | VISIBLE_TRANSMISSION):
             t_max = hits.t.astype(np.float64)

@@ -252,7 +252,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         if len(idx) == 0 and bounce > last_join:
             break
         if len(idx):
-            hits = accel.intersect(origins, dirs)
+            hits = accel.with_contacts(accel.intersect(origins, dirs), origins, dirs)
             rays += len(idx)
             h = np.flatnonzero(hits.is_hit)
             idx, dirs, flux = idx.take(h), dirs.take(h, axis=0), flux.take(h, axis=0)
