@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_remainder, lobe_scores,
-                   scatter)
+from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_remainder,
+                   lobe_scores, scatter)
 from .camera import generate_camera_rays
 from .sampling import dot
 from .scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
@@ -97,7 +97,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     for depth in range(max_bounces + 1):
         if len(pix) == 0:
             break
-        hits = accel.with_contacts(accel.intersect(origins, dirs, tmax if depth == 0 else None), origins, dirs)
+        hits = accel.intersect(origins, dirs, tmax if depth == 0 else None)
+        hits = accel.with_contacts(hits, origins, dirs)
         rays += len(pix)
         if ctx.lights.visible_to(VISIBLE_CAMERA if depth == 0 else VISIBLE_GLOSSY | VISIBLE_TRANSMISSION):
             t_max = hits.t.astype(np.float64)
@@ -111,6 +112,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         if miss.any():
             if depth == 0 and scene.world.film_transparent:
                 alpha[pix[miss]] = 0.0
+            elif ctx.lights.environment is not None:
+                m_ = np.flatnonzero(miss)
+                emission[pix[m_]] += beta[m_] * ctx.lights.environment.radiance(dirs[m_])
             elif world.any():
                 emission[pix[miss]] += beta[miss] * world   # one path per pixel: no repeats
         h = np.flatnonzero(hits.is_hit)

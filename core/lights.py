@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import sampling as smp
+from .environment import Environment
 from .scene import AREA_DISK, AREA_RECT, POINT, SPOT, SUN
 
 LIGHT_DIMS = 6
@@ -41,8 +42,12 @@ class LightSampler:
         emissive_tris = np.flatnonzero(table.is_emissive[tri_mat] & (accel.area > 0)) \
             if scene.triangle_count else np.zeros(0, np.int64)
         tri_power = (2.0 * np.pi * accel.area[emissive_tris])[:, None] * table.emission[tri_mat[emissive_tris]]
-        # World: a constant environment seen through the bounding sphere.
+        # World: a constant colour or an image (core/environment.py) seen through the bounding sphere.
         world = np.asarray(scene.world.color, np.float64)
+        texture = scene.world.texture
+        self.environment = Environment(world, texture) if texture is not None else None
+        if self.environment is not None:
+            world = self.environment.integral / (4.0 * np.pi)     # the mean radiance, for the power
         n_world = 1 if world.any() else 0
         all_kinds = np.concatenate([lights.kind.astype(np.int32) if lights.count else np.zeros(0, np.int32),
                                     np.full(len(emissive_tris), TRIANGLE, np.int32), np.full(n_world, WORLD, np.int32)])
@@ -121,9 +126,10 @@ class LightSampler:
         ``t_max`` (the scene hit, or the clip distance), and, for the sun, when the ray
         ``escaped`` the scene.  Lights are transparent (Cycles adds their emission and goes
         on), so every crossed light adds.  Radiances are those the photons are emitted with:
-        area P / (pi A) from the front only (times its spread attenuation), sphere P / (4 pi^2 r^2) (spot: times its
-        smoothstep mask towards the viewer; with ``soft_falloff`` the disk of radius r through
-        the centre facing the ray's origin), sun P / (pi sin^2(angle / 2)) (Cycles).
+        area P / (pi A) from the front only (times its spread attenuation); sphere
+        P / (4 pi^2 r^2) (spot: times its smoothstep mask towards the viewer; with
+        ``soft_falloff`` the disk of radius r through the centre facing the ray's origin);
+        sun P / (pi sin^2(angle / 2)) (Cycles).
         A loop over the lights, each vectorised over the rays.
         """
         n = len(dirs)
@@ -147,7 +153,10 @@ class LightSampler:
                 t = ((L.position[i] - o) @ axis) / np.where(front, cos, -1.0)
                 q = o + t[:, None] * d - L.position[i]
                 x, y = (q @ au) / (au @ au), (q @ av) / (av @ av)
-                inside = (np.maximum(np.abs(x), np.abs(y)) <= 1.0) if kind == AREA_RECT else (x * x + y * y <= 1.0)
+                if kind == AREA_RECT:
+                    inside = np.maximum(np.abs(x), np.abs(y)) <= 1.0
+                else:
+                    inside = x * x + y * y <= 1.0
                 hit = front & (t > 0) & (t < tm) & inside
                 radiance = np.broadcast_to(p / (np.pi * area), (len(rays), 3))
                 if L.spread[i] < 2.0 * FULL_SPREAD:
@@ -217,7 +226,7 @@ class LightSampler:
             else:
                 o, d, w = self._sample_world(us)
             origins[sel], dirs[sel] = o, d
-            flux[sel] = base[sel] * w[:, None]
+            flux[sel] = base[sel] * (w if w.ndim == 2 else w[:, None])
         return origins, dirs, flux, normals
 
     def _sample_sphere_light(self, ids, u):
@@ -269,8 +278,16 @@ class LightSampler:
         return o, d, np.ones(len(ids))
 
     def _sample_world(self, u):
-        d = smp.uniform_sphere(u[:, 4], u[:, 5])
-        return self._disk_origin(d, u), d, np.ones(len(u))
+        """Uniform directions for a constant world; for an image, directions drawn from it with
+        RGB weights L(d) / (pdf(d) int L) (mean 1: the power above is pi R^2 int L)."""
+        env = self.environment
+        if env is None:
+            d = smp.uniform_sphere(u[:, 4], u[:, 5])
+            return self._disk_origin(d, u), d, np.ones(len(u))
+        towards_sky, pdf = env.sample(u[:, 4], u[:, 5])
+        w = env.radiance(towards_sky) / (pdf[:, None] * np.where(env.integral > 0, env.integral, 1.0))
+        d = -towards_sky
+        return self._disk_origin(d, u), d, w
 
     def _disk_origin(self, d, u):
         """Origins on the disk of the bounding sphere perpendicular to ``d``, outside the scene."""

@@ -83,9 +83,9 @@ class Materials:
     emission: np.ndarray = None                         # (M, 3) float32 radiance
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
-                    "glossy_color", "glossy_roughness", "glossy_multiscatter", "mirror_weight", "mirror_color",
-                    "dielectric_weight", "dielectric_color", "dielectric_roughness", "dielectric_reflection_color",
-                    "ior", "emission")
+                    "glossy_color", "glossy_roughness", "glossy_multiscatter", "mirror_weight",
+                    "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
+                    "dielectric_reflection_color", "ior", "emission")
 
     @property
     def count(self) -> int:
@@ -336,10 +336,13 @@ def perspective_frame(lens_mm, sensor_width, sensor_height, sensor_fit, resoluti
 
 @dataclass
 class World:
-    """Constant background radiance seen by rays that leave the scene."""
+    """Background radiance seen by rays that leave the scene: ``color``, times the
+    equirectangular image ``texture`` when given (Blender's Environment Texture with its
+    default mapping; ``core/environment.py`` has the direction convention)."""
 
     color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) radiance
     film_transparent: bool = False      # escaped camera rays give alpha 0 instead of the background
+    texture: np.ndarray = None          # (H, W, 3) float32 linear, row 0 = bottom (nadir), or None
 
 
 @dataclass
@@ -470,7 +473,7 @@ class Scene:
                      "VISIBLE_TRANSMISSION (0 to 7)")
             if (lights.spot_blend > 1).any():
                 fail("lights.spot_blend must lie in [0, 1]")
-            if (lights.spot_angle > np.pi).any() or (lights.sun_angle > np.pi).any() or (lights.spread > np.pi).any():
+            if any((getattr(lights, k) > np.pi).any() for k in ("spot_angle", "sun_angle", "spread")):
                 fail("lights.spot_angle, lights.sun_angle and lights.spread must not exceed pi")
         cam = self.camera
         m = np.asarray(cam.world_from_camera, np.float64)
@@ -504,6 +507,13 @@ class Scene:
         if col.shape != (3,) or not np.isfinite(col).all() or (col < 0).any():
             fail("world.color must be three finite non-negative numbers")
         self.world.color = col
+        if self.world.texture is not None:
+            tex = np.asarray(self.world.texture, np.float32)
+            if tex.ndim != 3 or tex.shape[2] != 3 or tex.shape[0] < 1 or tex.shape[1] < 1:
+                fail(f"world.texture must have shape (H, W, 3), not {tex.shape}")
+            if not np.isfinite(tex).all() or (tex < 0).any():
+                fail("world.texture must hold finite non-negative radiance")
+            self.world.texture = np.ascontiguousarray(tex)
         return self
 
     @staticmethod
@@ -537,6 +547,8 @@ class Scene:
             d[f"camera.{name}"] = np.float64(getattr(cam, name))
         d["world.color"] = np.asarray(self.world.color, np.float32)
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
+        if self.world.texture is not None:
+            d["world.texture"] = self.world.texture
         if self.shading_normals is not None:
             d["shading_normals"] = self.shading_normals
         if self.uvs is not None:
@@ -564,7 +576,7 @@ class Scene:
                      border=tuple(float(v) for v in get("camera.border")),
                      **{name: float(get(f"camera.{name}")) for name in
                         ("aperture_radius", "focus_distance", "clip_start", "clip_end")})
-        world = World(color=get("world.color"),
+        world = World(color=get("world.color"), texture=get("world.texture"),
                       film_transparent=bool(get("world.film_transparent", False)))
         ntex = sum(1 for k in keys if k.startswith("textures."))
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),

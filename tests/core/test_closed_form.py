@@ -194,7 +194,8 @@ LIGHTS_SEEN = {   # spec, radiance
     "disk-facing point": ({"kind": "point", "radius": 0.5, "power": 10.0}, 10.0 / (4 * np.pi ** 2 * 0.25)),
     "spot": ({"kind": "spot", "radius": 0.5, "power": 10.0, "spot_angle": 1.0, "spot_blend": 0.3},
              10.0 / (4 * np.pi ** 2 * 0.25)),
-    "sun": ({"kind": "sun", "sun_angle": np.radians(20.0), "power": 3.0}, 3.0 / (np.pi * np.sin(np.radians(10)) ** 2)),
+    "sun": ({"kind": "sun", "sun_angle": np.radians(20.0), "power": 3.0},
+            3.0 / (np.pi * np.sin(np.radians(10)) ** 2)),
 }
 
 
@@ -219,7 +220,8 @@ def test_lights_seen_in_a_mirror_show_their_radiance_and_follow_their_visibility
         assert centre(light_over_mirror({**spec, "direction": (0, 0, 1)})).max() == 0.0
     if spec["kind"] != "sun":       # straight at the light from the floor: camera rays only
         assert centre(light_over_mirror(spec, camera_up=True)).max() == 0.0
-        seen = centre(light_over_mirror({**spec, "visibility": VISIBLE_CAMERA | VISIBLE_GLOSSY}, camera_up=True))
+        both = {**spec, "visibility": VISIBLE_CAMERA | VISIBLE_GLOSSY}
+        seen = centre(light_over_mirror(both, camera_up=True))
         np.testing.assert_allclose(seen, radiance, rtol=1e-5)
 
 
@@ -236,7 +238,8 @@ def test_point_light_of_radius_half_its_height_lights_the_floor_as_cycles(soft_f
     mats = Materials.build([{"name": "floor", "diffuse": albedo}])
     m = MeshBuilder()
     m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
-    light = {"kind": "point", "position": (0, 0, h), "power": power, "radius": r, "soft_falloff": soft_falloff}
+    light = {"kind": "point", "position": (0, 0, h), "power": power, "radius": r,
+             "soft_falloff": soft_falloff}
     cam = Camera(world_from_camera=_look_down(0.5 * h), projection="orthographic",
                  frame=(-0.01, 0.01, -0.01, 0.01), resolution=(2, 2))
     scene = m.build(mats, Lights.build([light]), cam)
@@ -244,7 +247,8 @@ def test_point_light_of_radius_half_its_height_lights_the_floor_as_cycles(soft_f
                                 initial_radius_px=kernel_radius_px(scene, kernel))
     radii = kernel * kz_radius_scales(len(per_pass), 2 / 3)
     if soft_falloff:
-        e = 2 * intensity * h / (r * radii ** 2) * (np.arctan(np.sqrt(h * h + radii ** 2) / r) - np.arctan(h / r))
+        e = (2 * intensity * h / (r * radii ** 2)
+             * (np.arctan(np.sqrt(h * h + radii ** 2) / r) - np.arctan(h / r)))
     else:
         e = disk_irradiance(intensity, h, radii)
     check_mean(per_pass, albedo / np.pi * e.mean(), 0.005)
@@ -264,7 +268,8 @@ def test_glass_slab_resting_on_a_floor_traps_light_as_in_closed_form(gap):
     from core.scene import Camera, Materials, World
     from core.testing.scenes import MeshBuilder, _look_down
     n, rho = 1.45, 0.5
-    mats = Materials.build([{"name": "floor", "diffuse": rho}, {"name": "glass", "dielectric": 1.0, "ior": n}])
+    mats = Materials.build([{"name": "floor", "diffuse": rho},
+                            {"name": "glass", "dielectric": 1.0, "ior": n}])
     m = MeshBuilder()
     m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
     m.add_box((-15, -15, gap), (15, 15, gap + 0.2), 1)
@@ -282,3 +287,35 @@ def test_glass_slab_resting_on_a_floor_traps_light_as_in_closed_form(gap):
         check_mean(per_pass, resting, 0.02)             # measured 1.2 % over (the slab's rim)
     else:
         assert per_pass.mean() > 1.4 * resting
+
+
+def test_floor_under_an_environment_image_gets_its_cosine_weighted_radiance():
+    """A diffuse floor under an equirectangular sky image (dark below the horizon, uneven
+    above, a bright patch): L = albedo / pi int L(w) cos dw over the upper hemisphere, the
+    integral by quadrature of the image lookup; the photons come from the image's own
+    importance sampling, so a wrong density or direction convention moves the mean."""
+    from core.environment import Environment
+    from core.scene import Camera, Materials, World
+    from core.testing.scenes import MeshBuilder, _look_down
+    rng = np.random.default_rng(7)
+    h, w = 32, 64
+    tex = np.zeros((h, w, 3), np.float32)
+    tex[h // 2:] = 0.5 + rng.random((h // 2, w, 3)).astype(np.float32)     # rows from v = 0.5 up
+    tex[h // 2 + 4:h // 2 + 8, 10:16] = 40.0                               # a sun-like patch
+    albedo = 0.5
+    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
+    m = MeshBuilder()
+    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
+    cam = Camera(world_from_camera=_look_down(1.0), projection="orthographic", frame=(-2, 2, -2, 2),
+                 resolution=(16, 16))
+    scene = m.build(mats, camera=cam, world=World(color=np.ones(3, np.float32), texture=tex))
+    per_pass, _ = render_passes(scene, method="ppm", passes=8, photons_per_pass=100_000, max_bounces=1)
+    # Quadrature of int L cos dw over the upper hemisphere (midpoints in cos theta and phi).
+    env = Environment(np.ones(3), tex)
+    c = (np.arange(400) + 0.5) / 400
+    phi = (np.arange(800) + 0.5) / 800 * 2 * np.pi
+    cc, pp = np.meshgrid(c, phi, indexing="ij")
+    s = np.sqrt(1 - cc ** 2)
+    dirs = np.stack([s * np.cos(pp), s * np.sin(pp), cc], axis=-1).reshape(-1, 3)
+    irradiance = (env.radiance(dirs).mean(axis=1) * cc.ravel()).mean() * 2 * np.pi
+    check_mean(per_pass, albedo / np.pi * irradiance, 0.01)

@@ -54,6 +54,7 @@ STAT_TESTS = (
     + 3                                     # mixed material: E[weight] z-test per channel
     + 2 * 3 * 3                             # multiscatter glossy: E[weight] per colour, angle, channel
     + len(ROUGH_DIELECTRIC_CASES)           # rough dielectric chi-square
+    + 3                                     # environment image: E[L / pdf] per channel
     + len(DIELECTRIC_CASES)                 # dielectric reflection frequency
     + sum(sum(v > 0 for v in s) > 1 for s in CHOOSE_LOBE_SCORES)   # choose_lobe frequencies
     + 2                                     # point light: directions, positions on its sphere
@@ -791,7 +792,8 @@ def ref_rough_dielectric_pdf(wo, wi, alpha, eta):
 
 
 @pytest.mark.parametrize("roughness,theta_deg,outside", ROUGH_DIELECTRIC_CASES)
-def test_rough_dielectric_samples_walter_microfacet_glass_with_weight_g2_over_g1(roughness, theta_deg, outside):
+def test_rough_dielectric_samples_walter_microfacet_glass_with_weight_g2_over_g1(roughness, theta_deg,
+                                                                                 outside):
     """Chi-square of the sampled directions over the sphere against Walter's density (reflection
     above, refraction below), and each weight colour G2 / G1 (radiance: refraction / eta^2)."""
     ior = 1.5
@@ -1370,3 +1372,26 @@ def test_wrap_unit_maps_tiny_negatives_and_values_just_below_one_into_unit_inter
     if dtype == np.float64:
         assert y[0] == pytest.approx(1 - 1e-9, abs=1e-16)
         assert y[2] == pytest.approx(1 - 1e-12, abs=1e-16)
+
+
+def test_environment_image_convention_density_and_integral():
+    """Cycles' equirectangular convention (+X the image centre, +Z the top row, +Y a quarter
+    from the left), the density of the sampled directions equal to pdf(), and the flux
+    weights L / pdf averaging to the integral of the radiance (a z-test per channel)."""
+    from core.environment import Environment
+    rng = np.random.default_rng(2060)
+    tex = (rng.random((8, 16, 3)) ** 3).astype(np.float32)
+    env = Environment(np.array([1.0, 2.0, 0.5]), tex)
+    u, v = env.uv(np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [0, 0, -1.0]]))
+    assert u[:2] == pytest.approx([0.5, 0.25]) and v[2:] == pytest.approx([1.0, 0.0])
+    # Radiance at a pixel centre is that pixel's value (bilinear weights 1 there).
+    phi, theta = np.pi - 2 * np.pi * (5.5 / 16), np.pi * (1 - 3.5 / 8)
+    d = np.array([[np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)]])
+    assert env.radiance(d)[0] == pytest.approx(tex[3, 5] * np.array([1.0, 2.0, 0.5]), rel=1e-6)
+    n = 400_000
+    d, pdf = env.sample(rng.random(n), rng.random(n))
+    assert np.allclose(np.linalg.norm(d, axis=1), 1.0) and np.allclose(env.pdf(d), pdf, rtol=1e-9)
+    w = env.radiance(d) / pdf[:, None]
+    for c in range(3):
+        assert_mean(w[:, c], env.integral[c], f"environment integral, channel {c}",
+                    extra_tolerance=0.01 * env.integral[c])

@@ -1,0 +1,96 @@
+"""The world's radiance as a function of direction: a constant, or a constant times an
+equirectangular image (Blender's Environment Texture with its default mapping).
+
+Directions map to image coordinates as in Cycles (``direction_to_equirectangular``):
+u = 1/2 - atan2(y, x) / (2 pi), v = 1 - acos(z) / pi, so the image centre faces +X, v = 1
+(the top row; row 0 of the array is the bottom, v = 0) is the zenith.  Radiance is looked
+up bilinearly (wrapping in u, clamped in v), as Cycles' default Linear interpolation.
+
+Photons leave the world in directions drawn from the image: a pixel with probability in
+proportion to its luminance times its solid angle (plus a small floor, so that no pixel that
+can be seen is never emitted from), then a direction uniform in solid angle within the
+pixel.  The density is known exactly, so every photon's flux is the radiance over it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import sampling as smp
+
+# Share of the pixel choice spread evenly over solid angle, so that dark pixels next to
+# bright ones (which bilinear lookups blend in) still get photons.
+UNIFORM_SHARE = 0.05
+
+
+class Environment:
+    """Radiance ``color`` x ``texture`` (H, W, 3) by direction; see the module docstring."""
+
+    def __init__(self, color, texture):
+        self.color = np.asarray(color, np.float64)
+        self.texture = np.asarray(texture, np.float64)
+        h, w = self.texture.shape[:2]
+        self.height, self.width = h, w
+        # Pixel rows from the bottom (v = 0, nadir) up: polar angle theta from pi down to 0.
+        cos_edges = np.cos(np.pi * (1.0 - np.arange(h + 1) / h))            # (h + 1,) -1 .. 1
+        self.cos_lo, self.cos_hi = cos_edges[:-1], cos_edges[1:]
+        solid = (2.0 * np.pi / w) * (self.cos_hi - self.cos_lo)              # (h,) per pixel
+        radiance = self.texture * self.color                                  # (h, w, 3)
+        self.integral = (radiance * solid[:, None, None]).sum(axis=(0, 1))   # (3,) int L dw
+        lum = np.maximum(smp.luminance(radiance), 0.0) * solid[:, None]
+        total = lum.sum()
+        uniform = np.broadcast_to(solid[:, None] / (4.0 * np.pi), (h, w))     # sums to 1
+        p = (1.0 - UNIFORM_SHARE) * lum / total + UNIFORM_SHARE * uniform if total > 0 else uniform
+        p = p / p.sum()
+        self.pixel_prob = p.ravel()
+        self.cdf = np.cumsum(self.pixel_prob)
+        self.cdf[-1] = 1.0
+        self.solid = solid
+
+    # ------------------------------------------------------------------ lookups
+    def uv(self, dirs):
+        u = 0.5 - np.arctan2(dirs[:, 1], dirs[:, 0]) / (2.0 * np.pi)
+        v = 1.0 - np.arccos(np.clip(dirs[:, 2], -1.0, 1.0)) / np.pi
+        return u, v
+
+    def radiance(self, dirs):
+        """(n, 3) radiance that a ray travelling along the unit directions ``dirs`` (n, 3) meets
+        at infinity."""
+        u, v = self.uv(dirs)
+        h, w = self.height, self.width
+        x = u * w - 0.5
+        y = np.clip(v * h - 0.5, 0.0, h - 1.0)
+        x0 = np.floor(x)
+        y0 = np.minimum(np.floor(y), h - 2.0) if h > 1 else np.zeros_like(y)
+        fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+        ix0 = np.mod(x0, w).astype(np.int64)
+        ix1 = (ix0 + 1) % w
+        iy0 = y0.astype(np.int64)
+        iy1 = np.minimum(iy0 + 1, h - 1)
+        t = self.texture
+        val = ((1 - fx) * (1 - fy) * t[iy0, ix0] + fx * (1 - fy) * t[iy0, ix1]
+               + (1 - fx) * fy * t[iy1, ix0] + fx * fy * t[iy1, ix1])
+        return val * self.color
+
+    def pdf(self, dirs):
+        """(n,) solid-angle density of :meth:`sample` at ``dirs``."""
+        u, v = self.uv(dirs)
+        j = np.minimum((np.mod(u, 1.0) * self.width).astype(np.int64), self.width - 1)
+        i = np.clip((v * self.height).astype(np.int64), 0, self.height - 1)
+        return self.pixel_prob.take(i * self.width + j) / self.solid.take(i)
+
+    # ------------------------------------------------------------------ sampling
+    def sample(self, u_pixel, u_a):
+        """Unit directions (n, 3) towards the sky (where light arrives from) and their density
+        (n,): a pixel by ``u_pixel`` (its remainder places phi within the pixel), cos theta
+        within the pixel by ``u_a``."""
+        k = np.minimum(np.searchsorted(self.cdf, u_pixel, side="right"), len(self.cdf) - 1)
+        before = np.where(k > 0, self.cdf.take(np.maximum(k - 1, 0)), 0.0)
+        prob = self.pixel_prob.take(k)
+        rest = np.clip((u_pixel - before) / np.where(prob > 0, prob, 1.0), 0.0, 1.0)
+        i, j = np.divmod(k, self.width)
+        u = (j + rest) / self.width
+        cos_t = self.cos_lo.take(i) + u_a * (self.cos_hi.take(i) - self.cos_lo.take(i))
+        phi = np.pi - 2.0 * np.pi * u
+        sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+        d = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=1)
+        return d, prob / self.solid.take(i)
