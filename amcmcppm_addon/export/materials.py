@@ -142,7 +142,8 @@ def conductor_fresnel(ior, extinction) -> np.ndarray:
     """Cosine-weighted hemispherical mean of the unpolarised conductor Fresnel reflectance for the
     complex index ``ior`` + i ``extinction`` (per channel, (3,)): the Metallic node's Physical
     Conductor mode."""
-    n = np.asarray(ior, np.float64)[:, None] + 1j * np.maximum(np.asarray(extinction, np.float64), 0.0)[:, None]
+    k = np.maximum(np.asarray(extinction, np.float64), 0.0)
+    n = (np.asarray(ior, np.float64) + 1j * k)[:, None]
     mu = ((np.arange(256) + 0.5) / 256)[None, :]          # midpoint rule for int 2 mu F dmu
     cos_t = np.sqrt(1.0 - (1.0 - mu * mu) / (n * n))
     rs = (mu - n * cos_t) / (mu + n * cos_t)
@@ -247,6 +248,7 @@ class NodeWalker:
         self.name = material_name
         self.textures = textures
         self.notes = []
+        self.world_texture = None       # texture index of the world's environment image, if any
 
     def note(self, msg):
         if msg not in self.notes:
@@ -279,10 +281,32 @@ class NodeWalker:
             return np.zeros(3)
         node = src.node
         if node.bl_idname in ("ShaderNodeBackground", "ShaderNodeEmission"):
+            strength = self.value(node.inputs["Strength"], stack)
+            env = self.environment_texture(node.inputs["Color"], stack)
+            if env is not None:
+                self.world_texture = env
+                return np.full(3, strength)
             color, _ = self.color(node.inputs["Color"], stack)
-            return color * self.value(node.inputs["Strength"], stack)
+            return color * strength
         self.unsupported(node, "in the world; using the world colour")
         return np.array(world.color[:3], np.float64)
+
+    def environment_texture(self, sock, stack):
+        """Texture index of an equirectangular Environment Texture feeding ``sock``, or None."""
+        src, _, stack = self.source(sock, stack)
+        if src is None or src.node.bl_idname != "ShaderNodeTexEnvironment" or src.node.mute:
+            return None
+        node = src.node
+        if node.image is None:
+            return None
+        if node.projection != "EQUIRECTANGULAR":
+            self.note(f"'{node.name}': {node.projection} projection is not supported; using the image's "
+                      "mean colour")
+            return None
+        if node.inputs["Vector"].is_linked:
+            self.note(f"'{node.name}': its Vector input (mapping, rotation) is ignored")
+        index, _ = self.textures.lookup(node.image, f"world '{self.name}'")
+        return index if index >= 0 else None
 
     # ----------------------------------------------------------------- links
     def source(self, sock, stack):

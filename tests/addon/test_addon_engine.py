@@ -351,7 +351,8 @@ def test_snapshot_times_up_to_the_time_limit_get_the_final_image(tmp_path):
     from amcmcppm.core import RenderSettings, render
     from amcmcppm.core.testing.scenes import cornell_box
 
-    result = render(cornell_box((8, 6)), RenderSettings(method="ppm", passes=2, workers=1, photons_per_pass=2000))
+    settings = RenderSettings(method="ppm", passes=2, workers=1, photons_per_pass=2000)
+    result = render(cornell_box((8, 6)), settings)
     outputs = RenderOutputs(snapshot_times=[1e-9, 1e3, 2e3], snapshot_dir=str(tmp_path))
     outputs.on_pass(result)
     assert [t for t, _ in outputs.written] == [1e-9] and outputs.pending == [1e3, 2e3]

@@ -686,6 +686,29 @@ def test_world_texture_warns_and_keeps_the_colour(scene):
     assert np.isfinite(ex.scene.world.color).all()
 
 
+def test_world_environment_texture_becomes_the_world_image(scene):
+    w = bs.world((0.0, 0.0, 0.0))
+    nt = w.node_tree
+    image = bpy.data.images.new("Studio", 8, 4, float_buffer=True)
+    rgba = np.zeros((4, 8, 4), np.float32)
+    rgba[..., 0] = np.arange(8)[None, :]
+    rgba[..., 1] = np.arange(4)[:, None]
+    rgba[..., 3] = 1.0
+    image.pixels.foreach_set(rgba.ravel())
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    nt.nodes["Background"].inputs["Strength"].default_value = 2.0
+    bs.camera()
+    ex = bs.export()
+    world = ex.scene.world
+    assert world.color == pytest.approx([2, 2, 2]) and not [m for m in ex.warnings if "world" in m]
+    np.testing.assert_array_equal(world.texture, rgba[..., :3])         # row 0 = the image's bottom
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    assert any("Vector input" in m for m in bs.export().warnings)
+
+
 def test_transform_helpers_match_mathutils():
     """The instance transform used by the exporter agrees with mathutils for a mirrored matrix."""
     from amcmcppm.amcmcppm_addon.export import mesh

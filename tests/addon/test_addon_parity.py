@@ -63,6 +63,8 @@ def add_emitter(kind):
         bs.plane("Panel", size=1.0, material=bs.emission("Panel", strength=10.0), location=(-0.5, -0.8, 2.5))
     elif kind == "world":
         bs.world((0.4, 0.5, 0.6), strength=1.0)
+    elif kind == "environment":
+        environment_world()
     else:
         raise ValueError(kind)
 
@@ -85,7 +87,28 @@ def use_cycles(scene):
 
 
 LIGHTS = ["point", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "spread_30",
-          "spread_90", "sun", "emissive_mesh", "world"]
+          "spread_90", "sun", "emissive_mesh", "world", "environment"]
+
+
+def environment_world():
+    """A world lit by an equirectangular image: a dim blue gradient sky, a dark ground and a
+    bright patch low in the sky towards -Y+X (which the camera's side of the wall sees)."""
+    h, w = 32, 64
+    v = (np.arange(h) + 0.5) / h
+    rgba = np.zeros((h, w, 4), np.float32)
+    rgba[..., 3] = 1.0
+    sky = v > 0.5
+    rgba[sky, :, 0:3] = (np.array([0.2, 0.3, 0.6], np.float32) * (0.5 + v[sky, None]))[:, None, :]
+    rgba[~sky, :, 0:3] = 0.05
+    rgba[18:22, 38:44, 0:3] = (30.0, 25.0, 20.0)
+    image = bpy.data.images.new("Sky", w, h, float_buffer=True)
+    image.pixels.foreach_set(rgba.ravel())
+    world = bs.world((0.0, 0.0, 0.0), strength=1.0)
+    nt = world.node_tree
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    nt.nodes["Background"].inputs["Strength"].default_value = 1.5
 
 
 @pytest.mark.parametrize("kind", LIGHTS)
