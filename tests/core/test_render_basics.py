@@ -341,7 +341,8 @@ def test_scene_save_load_round_trip(tmp_path):
     np.testing.assert_array_equal(loaded.materials.glossy_multiscatter, np.full((1, 3), 0.7, np.float32))
     # ... and lights before visibility and soft_falloff with Blender's defaults.
     assert scene.lights.count
-    old = {k: v for k, v in scene.to_arrays().items() if k not in ("lights.visibility", "lights.soft_falloff")}
+    new_fields = ("lights.visibility", "lights.soft_falloff", "lights.spread")
+    old = {k: v for k, v in scene.to_arrays().items() if k not in new_fields}
     np.savez(tmp_path / "old_lights.npz", **old)
     loaded = Scene.load(tmp_path / "old_lights.npz")
     assert (loaded.lights.visibility == DEFAULT_LIGHT_VISIBILITY).all() and loaded.lights.soft_falloff.all()
