@@ -1,5 +1,6 @@
 """The world's radiance as a function of direction: a constant, or a constant times an
-equirectangular image (Blender's Environment Texture with its default mapping).
+equirectangular image (Blender's Environment Texture, optionally turned by a rotation: the
+Mapping node on its vector).
 
 Directions map to image coordinates as in Cycles (``direction_to_equirectangular``):
 u = 1/2 - atan2(y, x) / (2 pi), v = 1 - acos(z) / pi, so the image centre faces +X, v = 1
@@ -25,7 +26,10 @@ UNIFORM_SHARE = 0.05
 class Environment:
     """Radiance ``color`` x ``texture`` (H, W, 3) by direction; see the module docstring."""
 
-    def __init__(self, color, texture):
+    def __init__(self, color, texture, rotation=None):
+        """``rotation`` (3, 3): the image is looked up at rotation @ d (Blender's Mapping node
+        on the texture's vector), None for the identity."""
+        self.rotation = None if rotation is None else np.asarray(rotation, np.float64)
         self.color = np.asarray(color, np.float64)
         self.texture = np.asarray(texture, np.float64)
         h, w = self.texture.shape[:2]
@@ -48,6 +52,8 @@ class Environment:
 
     # ------------------------------------------------------------------ lookups
     def uv(self, dirs):
+        if self.rotation is not None:
+            dirs = dirs @ self.rotation.T
         u = 0.5 - np.arctan2(dirs[:, 1], dirs[:, 0]) / (2.0 * np.pi)
         v = 1.0 - np.arccos(np.clip(dirs[:, 2], -1.0, 1.0)) / np.pi
         return u, v
@@ -93,4 +99,6 @@ class Environment:
         phi = np.pi - 2.0 * np.pi * u
         sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
         d = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=1)
+        if self.rotation is not None:
+            d = d @ self.rotation                   # image direction back to the world: R^T d
         return d, prob / self.solid.take(i)

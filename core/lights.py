@@ -45,7 +45,8 @@ class LightSampler:
         # World: a constant colour or an image (core/environment.py) seen through the bounding sphere.
         world = np.asarray(scene.world.color, np.float64)
         texture = scene.world.texture
-        self.environment = Environment(world, texture) if texture is not None else None
+        self.environment = (Environment(world, texture, scene.world.texture_rotation)
+                            if texture is not None else None)
         if self.environment is not None:
             world = self.environment.integral / (4.0 * np.pi)     # the mean radiance, for the power
         n_world = 1 if world.any() else 0

@@ -343,6 +343,7 @@ class World:
     color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) radiance
     film_transparent: bool = False      # escaped camera rays give alpha 0 instead of the background
     texture: np.ndarray = None          # (H, W, 3) float32 linear, row 0 = bottom (nadir), or None
+    texture_rotation: np.ndarray = None  # (3, 3) float64: the image is looked up at R d; None: identity
 
 
 @dataclass
@@ -514,6 +515,11 @@ class Scene:
             if not np.isfinite(tex).all() or (tex < 0).any():
                 fail("world.texture must hold finite non-negative radiance")
             self.world.texture = np.ascontiguousarray(tex)
+        if self.world.texture_rotation is not None:
+            rot = np.asarray(self.world.texture_rotation, np.float64)
+            if rot.shape != (3, 3) or not np.isfinite(rot).all() or abs(abs(np.linalg.det(rot)) - 1) > 1e-3:
+                fail("world.texture_rotation must be a 3 x 3 rotation matrix")
+            self.world.texture_rotation = rot
         return self
 
     @staticmethod
@@ -549,6 +555,8 @@ class Scene:
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
         if self.world.texture is not None:
             d["world.texture"] = self.world.texture
+        if self.world.texture_rotation is not None:
+            d["world.texture_rotation"] = self.world.texture_rotation
         if self.shading_normals is not None:
             d["shading_normals"] = self.shading_normals
         if self.uvs is not None:
@@ -577,6 +585,7 @@ class Scene:
                      **{name: float(get(f"camera.{name}")) for name in
                         ("aperture_radius", "focus_distance", "clip_start", "clip_end")})
         world = World(color=get("world.color"), texture=get("world.texture"),
+                      texture_rotation=get("world.texture_rotation"),
                       film_transparent=bool(get("world.film_transparent", False)))
         ntex = sum(1 for k in keys if k.startswith("textures."))
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),

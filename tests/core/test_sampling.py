@@ -1392,6 +1392,14 @@ def test_environment_image_convention_density_and_integral():
     d, pdf = env.sample(rng.random(n), rng.random(n))
     assert np.allclose(np.linalg.norm(d, axis=1), 1.0) and np.allclose(env.pdf(d), pdf, rtol=1e-9)
     w = env.radiance(d) / pdf[:, None]
+    # Turned by R, the image is looked up at R d and sampled directions come back as R^T d_image.
+    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    turned = Environment(np.array([1.0, 2.0, 0.5]), tex, rot)
+    dirs = rng.normal(size=(1000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    assert np.allclose(turned.radiance(dirs), env.radiance(dirs @ rot.T))
+    d_t, pdf_t = turned.sample(rng.random(1000), rng.random(1000))
+    assert np.allclose(turned.pdf(d_t), pdf_t, rtol=1e-9) and np.allclose(turned.integral, env.integral)
     for c in range(3):
         assert_mean(w[:, c], env.integral[c], f"environment integral, channel {c}",
                     extra_tolerance=0.01 * env.integral[c])
