@@ -249,6 +249,7 @@ class NodeWalker:
         self.textures = textures
         self.notes = []
         self.world_texture = None       # texture index of the world's environment image, if any
+        self.world_rotation = None      # (3, 3) rotation of its Mapping node, if any
 
     def note(self, msg):
         if msg not in self.notes:
@@ -304,9 +305,36 @@ class NodeWalker:
                       "mean colour")
             return None
         if node.inputs["Vector"].is_linked:
-            self.note(f"'{node.name}': its Vector input (mapping, rotation) is ignored")
+            self.world_rotation = self._mapping_rotation(node.inputs["Vector"], stack)
         index, _ = self.textures.lookup(node.image, f"world '{self.name}'")
         return index if index >= 0 else None
+
+    def _mapping_rotation(self, sock, stack):
+        """(3, 3) rotation of a Mapping node on an environment's direction, or None (with a note)
+        for anything else.  Location and a uniform scale do not move a direction's lookup."""
+        src, _, stack = self.source(sock, stack)
+        node = None if src is None else src.node
+        if node is None or node.bl_idname != "ShaderNodeMapping" or node.mute:
+            self.note("an environment's Vector input other than a Mapping node is ignored")
+            return None
+        inner, _, _ = self.source(node.inputs["Vector"], stack)
+        if inner is None or not (inner.node.bl_idname == "ShaderNodeTexCoord" and inner.name == "Generated"):
+            self.note(f"'{node.name}': only a Mapping of the world's direction (Texture Coordinate > "
+                      "Generated) is supported")
+            return None
+        if any(i.is_linked for i in (node.inputs["Rotation"], node.inputs["Scale"], node.inputs["Location"])):
+            self.note(f"'{node.name}': linked mapping inputs are ignored")
+            return None
+        scale = np.array(node.inputs["Scale"].default_value[:3], np.float64)
+        location = np.array(node.inputs["Location"].default_value[:3], np.float64)
+        moved = node.vector_type == "POINT" and np.abs(location).max() > 1e-9
+        if (node.vector_type not in ("POINT", "VECTOR") or moved or scale.min() <= 0
+                or np.ptp(scale) > 1e-6 * scale.max()):
+            self.note(f"'{node.name}': only a rotation of the environment is supported "
+                      f"(type {node.vector_type}, location {location}, scale {scale})")
+            return None
+        from mathutils import Euler
+        return np.array(Euler(node.inputs["Rotation"].default_value[:3], "XYZ").to_matrix(), np.float64)
 
     # ----------------------------------------------------------------- links
     def source(self, sock, stack):

@@ -3,9 +3,10 @@
 The world's Cycles output is followed to a Background (or Emission) node and its
 Color x Strength is used, as Cycles does for a constant background; a world
 without nodes uses ``world.color``.  The view layer's world override wins over
-the scene's world.  An Environment Texture (equirectangular, default mapping) on the
-Background colour becomes the world's image; a Mapping on its vector is ignored with a
-warning.  Other textures (sky) give one warning and the node's own colour.
+the scene's world.  An Environment Texture (equirectangular) on the Background colour
+becomes the world's image, turned by a Mapping node's rotation on its vector (other vector
+inputs are ignored with a warning).  Other textures (sky) give one warning and the node's own
+colour.
 """
 from __future__ import annotations
 
@@ -29,4 +30,5 @@ def export_world(depsgraph, textures, log) -> World:
     texture = None
     if walker.world_texture is not None:
         texture = np.maximum(textures.images[walker.world_texture], 0.0)
-    return World(color=color.astype(np.float32), film_transparent=transparent, texture=texture)
+    return World(color=color.astype(np.float32), film_transparent=transparent, texture=texture,
+                 texture_rotation=walker.world_rotation if texture is not None else None)

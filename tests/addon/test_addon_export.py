@@ -704,9 +704,17 @@ def test_world_environment_texture_becomes_the_world_image(scene):
     world = ex.scene.world
     assert world.color == pytest.approx([2, 2, 2]) and not [m for m in ex.warnings if "world" in m]
     np.testing.assert_array_equal(world.texture, rgba[..., :3])         # row 0 = the image's bottom
+    assert world.texture_rotation is None
     mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.pi / 2)
     nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
-    assert any("Vector input" in m for m in bs.export().warnings)
+    ex = bs.export()                     # an unlinked Mapping vector is (0, 0, 0) in Cycles
+    assert any("Generated" in m for m in ex.warnings) and ex.scene.world.texture_rotation is None
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    ex = bs.export()
+    assert not [m for m in ex.warnings if "world" in m]
+    np.testing.assert_allclose(ex.scene.world.texture_rotation, [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-6)
 
 
 def test_transform_helpers_match_mathutils():

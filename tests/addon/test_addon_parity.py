@@ -65,6 +65,14 @@ def add_emitter(kind):
         bs.world((0.4, 0.5, 0.6), strength=1.0)
     elif kind == "environment":
         environment_world()
+    elif kind == "environment_turned":
+        # The same image turned by a Mapping node: the patch moves behind the wall.
+        nt = environment_world().node_tree
+        mapping = nt.nodes.new("ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value = (0.0, 0.2, math.radians(100))
+        coords = nt.nodes.new("ShaderNodeTexCoord")
+        nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+        nt.links.new(mapping.outputs["Vector"], nt.nodes["Environment Texture"].inputs["Vector"])
     else:
         raise ValueError(kind)
 
@@ -87,7 +95,7 @@ def use_cycles(scene):
 
 
 LIGHTS = ["point", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "spread_30",
-          "spread_90", "sun", "emissive_mesh", "world", "environment"]
+          "spread_90", "sun", "emissive_mesh", "world", "environment", "environment_turned"]
 
 
 def environment_world():
@@ -109,6 +117,7 @@ def environment_world():
     env.image = image
     nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
     nt.nodes["Background"].inputs["Strength"].default_value = 1.5
+    return world
 
 
 @pytest.mark.parametrize("kind", LIGHTS)
