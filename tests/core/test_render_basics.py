@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from core import Camera, Lights, Materials, RenderSettings, Scene, SceneError, render
+from core import Camera, Lights, Materials, RenderSettings, Scene, SceneError, World, render
 from core.imageio import read_exr
 from core.context import RenderContext
 from core.eye_pass import trace_eye_pass
@@ -290,6 +290,20 @@ def test_invalid_scenes_raise_clear_errors():
     with pytest.raises(SceneError, match="selects no pixels"):
         cam = Camera(resolution=(8, 8), border=(0.5, 0.5, 0.0, 1.0))
         good.replace(camera=cam).validate()
+    # An environment image, light visibility and spread.
+    for texture, match in ((np.full((4, 8, 3), np.nan, np.float32), "finite non-negative"),
+                           (np.zeros((4, 8), np.float32), "shape")):
+        with pytest.raises(SceneError, match=match):
+            good.replace(world=World(color=np.ones(3, np.float32), texture=texture)).validate()
+    with pytest.raises(SceneError, match="rotation"):
+        good.replace(world=World(color=np.ones(3, np.float32), texture=np.ones((4, 8, 3), np.float32),
+                                 texture_rotation=np.eye(3) * 2)).validate()
+    lights = Lights.build([{"kind": "area", "position": (0, 0, 1), "power": 1.0, "visibility": 9}])
+    with pytest.raises(SceneError, match="visibility"):
+        good.replace(lights=lights).validate()
+    lights = Lights.build([{"kind": "area", "position": (0, 0, 1), "power": 1.0, "spread": 4.0}])
+    with pytest.raises(SceneError, match="spread"):
+        good.replace(lights=lights).validate()
     with pytest.raises(ValueError, match="target_acceptance"):
         RenderSettings(target_acceptance=1.5)
     with pytest.raises(ValueError, match="never stop"):
