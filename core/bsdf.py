@@ -158,21 +158,33 @@ class Textures:
         out = np.ones((len(texture_ids), 3))
         for k in np.unique(texture_ids[texture_ids >= 0]):
             sel = np.flatnonzero(texture_ids == k)
-            img = self.images[k]
-            h, w = img.shape[:2]
-            x = uv[sel, 0] * w - 0.5
-            y = uv[sel, 1] * h - 0.5
-            x0 = np.floor(x)
-            y0 = np.floor(y)
-            fx = (x - x0)[:, None]
-            fy = (y - y0)[:, None]
-            ix0 = np.mod(x0, w).astype(np.int64)
-            iy0 = np.mod(y0, h).astype(np.int64)
-            ix1 = (ix0 + 1) % w
-            iy1 = (iy0 + 1) % h
-            out[sel] = ((1 - fx) * (1 - fy) * img[iy0, ix0] + fx * (1 - fy) * img[iy0, ix1]
-                        + (1 - fx) * fy * img[iy1, ix0] + fx * fy * img[iy1, ix1])
+            out[sel] = bilinear(self.images[k], uv[sel, 0], uv[sel, 1])
         return out
+
+
+def bilinear(image, u, v, clamp_v=False):
+    """(n, 3) bilinear lookups of ``image`` (H, W, 3) at (u, v) (n,) each; row 0 is v = 0, and u
+    wraps around.  v wraps too, or with ``clamp_v`` stops at the first and last rows' centres
+    (an environment image's poles)."""
+    h, w = image.shape[:2]
+    x = u * w - 0.5
+    y = v * h - 0.5
+    if clamp_v:
+        y = np.clip(y, 0.0, h - 1.0)
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    fx = (x - x0)[:, None]
+    fy = (y - y0)[:, None]
+    ix0 = np.mod(x0, w).astype(np.int64)
+    ix1 = (ix0 + 1) % w
+    if clamp_v:
+        iy0 = y0.astype(np.int64)
+        iy1 = np.minimum(iy0 + 1, h - 1)
+    else:
+        iy0 = np.mod(y0, h).astype(np.int64)
+        iy1 = (iy0 + 1) % h
+    return ((1 - fx) * (1 - fy) * image[iy0, ix0] + fx * (1 - fy) * image[iy0, ix1]
+            + (1 - fx) * fy * image[iy1, ix0] + fx * fy * image[iy1, ix1])
 
 
 def face_forward(n, v):

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import sampling as smp
+from .bsdf import bilinear
 
 # Share of the pixel choice spread evenly over solid angle, so that dark pixels next to
 # bright ones (which bilinear lookups blend in) still get photons.
@@ -62,20 +63,7 @@ class Environment:
         """(n, 3) radiance that a ray travelling along the unit directions ``dirs`` (n, 3) meets
         at infinity."""
         u, v = self.uv(dirs)
-        h, w = self.height, self.width
-        x = u * w - 0.5
-        y = np.clip(v * h - 0.5, 0.0, h - 1.0)
-        x0 = np.floor(x)
-        y0 = np.minimum(np.floor(y), h - 2.0) if h > 1 else np.zeros_like(y)
-        fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-        ix0 = np.mod(x0, w).astype(np.int64)
-        ix1 = (ix0 + 1) % w
-        iy0 = y0.astype(np.int64)
-        iy1 = np.minimum(iy0 + 1, h - 1)
-        t = self.texture
-        val = ((1 - fx) * (1 - fy) * t[iy0, ix0] + fx * (1 - fy) * t[iy0, ix1]
-               + (1 - fx) * fy * t[iy1, ix0] + fx * fy * t[iy1, ix1])
-        return val * self.color
+        return bilinear(self.texture, u, v, clamp_v=True) * self.color
 
     def pdf(self, dirs):
         """(n,) solid-angle density of :meth:`sample` at ``dirs``."""
