@@ -24,6 +24,7 @@ points, and the sampled ``wi`` for photons (the direction towards the camera sid
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -58,6 +59,10 @@ class MaterialTable:
     is_emissive: np.ndarray     # (M,) bool
     ms_albedo: np.ndarray       # (M, MS_NODES + 1) float64 single-scattering GGX albedo E (1: none)
     ms_fresnel: np.ndarray      # (M, 3) float64 multiple-scattering Fresnel F_ms (0: single scattering)
+    fresnel_ior: np.ndarray     # (M,) float64 IOR of the glossy (or merged mirror) lobe's Fresnel rise
+    rise: np.ndarray            # (M, 4, 3) float64 colour added times s(c) (glossy or mirror entry)
+    layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
+    score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
 
     @staticmethod
     def from_materials(mats) -> "MaterialTable":
@@ -73,18 +78,23 @@ class MaterialTable:
         color[:, MIRROR] = mats.mirror_color
         weight[:, DIELECTRIC] = mats.dielectric_weight
         color[:, DIELECTRIC] = mats.dielectric_color
+        fresnel_ior = mats.glossy_fresnel_ior.astype(np.float64)
+        rise = np.zeros((m, 4, 3))
+        rise[:, GLOSSY] = np.where((fresnel_ior > 0)[:, None], mats.glossy_fresnel_rise, 0.0)
         # Merge near-specular glossy lobes into the mirror lobe (weighted colour).
         sharp = (mats.glossy_roughness < MIRROR_ROUGHNESS) & (weight[:, GLOSSY] > 0)
         if sharp.any():
             wm, wg = weight[sharp, MIRROR], weight[sharp, GLOSSY]
             color[sharp, MIRROR] = (wm[:, None] * color[sharp, MIRROR]
                                     + wg[:, None] * color[sharp, GLOSSY]) / (wm + wg)[:, None]
+            rise[sharp, MIRROR] = wg[:, None] * rise[sharp, GLOSSY] / (wm + wg)[:, None]
+            rise[sharp, GLOSSY] = 0.0
             weight[sharp, MIRROR] = wm + wg
             weight[sharp, GLOSSY] = 0.0
         alpha = np.maximum(mats.glossy_roughness.astype(np.float64) ** 2, MIN_ALPHA)
         lum = smp.luminance(color)
         diffuse_on = (weight[:, DIFFUSE] > 0) & (textured | (lum[:, DIFFUSE] > 0))
-        glossy_on = (weight[:, GLOSSY] > 0) & (lum[:, GLOSSY] > 0)
+        glossy_on = (weight[:, GLOSSY] > 0) & ((lum[:, GLOSSY] > 0) | (smp.luminance(rise[:, GLOSSY]) > 0))
         emission = mats.emission.astype(np.float64)
         ms_albedo, ms_fresnel = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter)
         glass = color[:, DIELECTRIC]
@@ -92,13 +102,18 @@ class MaterialTable:
                                     out=np.ones_like(glass), where=glass > 0)
         rough = mats.dielectric_roughness.astype(np.float64)
         dielectric_alpha = np.where(rough < MIRROR_ROUGHNESS, 0.0, rough * rough)
+        layered = (fresnel_ior > 0) & diffuse_on
+        layer, score_extra = _layer_tables(alpha, fresnel_ior, rise, layered, mats.diffuse_layer,
+                                           np.clip(mats.diffuse_layer_weight, 0.0, 1.0),
+                                           ms_albedo, ms_fresnel, weight)
         return MaterialTable(weight=weight, color=color, alpha=alpha, dielectric_alpha=dielectric_alpha,
                              reflection_tint=reflection_tint,
                              ior=mats.ior.astype(np.float64), emission=emission,
                              texture=mats.diffuse_texture.astype(np.int32),
                              has_nondelta=diffuse_on | glossy_on, has_glossy=glossy_on,
                              is_emissive=(emission > 0).any(axis=1),
-                             ms_albedo=ms_albedo, ms_fresnel=ms_fresnel)
+                             ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
+                             rise=rise, layer=layer, score_extra=score_extra)
 
     @property
     def has_rough_dielectric(self) -> bool:
@@ -113,13 +128,72 @@ class MaterialTable:
         The view is the camera side: a measurement point's ``wo``, or the direction a photon
         leaves in.  Rows of materials without compensation get 1.
         """
-        t = np.sqrt(np.clip(mu, 0.0, 1.0)) * MS_NODES
-        k = np.minimum(t.astype(np.int64), MS_NODES - 1)
-        f = t - k
-        flat = mat_ids.astype(np.int64) * (MS_NODES + 1) + k
-        e = self.ms_albedo.ravel()
-        e = (1.0 - f) * e.take(flat) + f * e.take(flat + 1)
+        e = _interpolate(self.ms_albedo, mat_ids, mu)
         return 1.0 + self.ms_fresnel.take(mat_ids, axis=0) * ((1.0 - e) / e)[:, None]
+
+    @cached_property
+    def has_fresnel(self) -> bool:
+        return bool((self.rise != 0).any())
+
+    @cached_property
+    def has_layer(self) -> bool:
+        return bool((self.layer != 1).any())
+
+    def fresnel_color(self, mat_ids, lobe, cos_m):
+        """(n, 3) the colour lobe ``lobe`` (GLOSSY or MIRROR) adds at microfacet cosines ``cos_m``
+        (the view direction with the microfacet normal): ``rise`` s(cos_m) (:func:`fresnel_rise`)."""
+        s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
+        return self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
+
+    def layer_factor(self, mat_ids, mu):
+        """(n,) factors of the diffuse lobe under a Fresnel layer at view cosines ``mu`` (1: none)."""
+        return _interpolate(self.layer, mat_ids, mu)
+
+
+def _interpolate(table, mat_ids, mu):
+    """Rows ``mat_ids`` of a (M, MS_NODES + 1) table at mu = (k / MS_NODES)^2, linearly in sqrt(mu)."""
+    t = np.sqrt(np.clip(mu, 0.0, 1.0)) * MS_NODES
+    k = np.minimum(t.astype(np.int64), MS_NODES - 1)
+    f = t - k
+    flat = mat_ids.astype(np.int64) * (MS_NODES + 1) + k
+    e = table.ravel()
+    return (1.0 - f) * e.take(flat) + f * e.take(flat + 1)
+
+
+def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_albedo, ms_fresnel, weight):
+    """The diffuse factor L(mu) under a Fresnel layer, per material at the ``MS_NODES`` + 1 nodes,
+    and mean lobe-score terms for the Fresnel rise and the layer.
+
+    As Cycles' Principled BSDF (``closure_layering_weight`` with ``bsdf_microfacet_estimate_albedo``):
+    L = saturate(1 - share max over channels of K (f0 + (1 - f0) S(mu))), with f0 the layer's
+    normal-incidence colour, S the lobe mean of the Fresnel rise (:func:`ggx_fresnel_rise_average`)
+    and K = E + F_ms (1 - E) the layer's energy with multiscatter GGX, 1 without (Cycles does not
+    count the single-scattering loss there), and share the part of the diffuse lobe under the
+    layer (1 for a Principled BSDF alone).  Scores use the cosine-weighted means over mu.
+    """
+    m = len(alpha)
+    layer = np.ones((m, MS_NODES + 1))
+    extra = np.zeros((m, 4))
+    on = (fresnel_ior > 0) & (rise != 0).any(axis=(1, 2))
+    if not on.any():
+        return layer, extra
+    mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
+    f0 = np.clip(np.asarray(layer_f0, np.float64), 0.0, 1.0)
+    for a, eta in set(zip(alpha[on], fresnel_ior[on])):
+        rows = np.flatnonzero(on & (alpha == a) & (fresnel_ior == eta))
+        _, s = smp.ggx_fresnel_rise_average(a, mu, max(eta, 1.0 + 1e-6))
+        s_mean = 2.0 * np.trapz(s * mu, mu)
+        for lobe in (GLOSSY, MIRROR):
+            extra[rows, lobe] = weight[rows, lobe] * smp.luminance(rise[rows, lobe]) * s_mean
+        lay = rows[layered[rows]]
+        if len(lay):
+            e = ms_albedo[lay][:, :, None]                     # (k, nodes, 1); 1 without multiscatter
+            k = e + ms_fresnel[lay, None, :] * (1.0 - e)
+            a_layer = k * (f0[lay, None, :] + (1.0 - f0[lay, None, :]) * s[None, :, None])
+            layer[lay] = np.clip(1.0 - layer_share[lay, None] * a_layer.max(axis=2), 0.0, 1.0)
+    l_mean = 2.0 * np.trapz(layer * mu, mu, axis=1)
+    extra[:, DIFFUSE] = np.where(layered, l_mean, 1.0)     # a factor, see lobe_scores
+    return layer, extra
 
 
 def _multiscatter_tables(alpha, glossy_on, fresnel_ss):
@@ -200,8 +274,15 @@ def lobe_colors(table, mat_ids, diffuse_albedo):
 
 
 def lobe_scores(table, mat_ids, colors):
-    """(n, 4) unnormalised lobe-choice probabilities: weight times colour luminance."""
-    return table.weight.take(mat_ids, axis=0) * np.maximum(smp.luminance(colors), 0.0)
+    """(n, 4) unnormalised lobe-choice probabilities: weight times colour luminance; for lobes
+    with a Fresnel rise or under a layer, with their mean over view directions."""
+    scores = table.weight.take(mat_ids, axis=0) * np.maximum(smp.luminance(colors), 0.0)
+    if table.has_fresnel:
+        extra = table.score_extra.take(mat_ids, axis=0)
+        scores[:, DIFFUSE] *= extra[:, DIFFUSE]
+        scores[:, GLOSSY] += extra[:, GLOSSY]
+        scores[:, MIRROR] += extra[:, MIRROR]
+    return scores
 
 
 def choose_lobe(scores, u):
@@ -272,6 +353,10 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), n_s)
             ok = dot(d, n_g) > 0
             w = lw
+            if table.has_layer:
+                # Under a Fresnel layer: a factor of the view (camera-side) direction, as multiscatter.
+                view = d if mode == "importance" else w_o
+                w = w * table.layer_factor(m_sel, dot(view, n_s))[:, None]
         elif k == GLOSSY:
             alpha = table.alpha.take(m_sel)
             wo_l = smp.to_local(w_o, n_s)
@@ -284,6 +369,9 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             ratio = smp.ggx_g2(wo_l[:, 2], wi_l[:, 2], alpha) / smp.ggx_g1(wo_l[:, 2], alpha)
             # Energy compensation is a factor of the view (camera-side) direction: wi for photons.
             view_mu = wi_l[:, 2] if mode == "importance" else wo_l[:, 2]
+            if table.has_fresnel:
+                lw = lw + (table.weight[:, k].take(m_sel) / prob.take(sel))[:, None] \
+                    * table.fresnel_color(m_sel, k, dot(wo_l, m))
             w = lw * ratio[:, None] * table.multiscatter(m_sel, view_mu)
         elif k == MIRROR:
             d = smp.reflect(w_o, n_s)
@@ -292,6 +380,9 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 d[below] = smp.reflect(w_o[below], n_g[below])
             ok = dot(d, n_g) > 0
             w = lw
+            if table.has_fresnel:
+                w = w + (table.weight[:, k].take(m_sel) / prob.take(sel))[:, None] \
+                    * table.fresnel_color(m_sel, k, np.abs(dot(w_o, n_s)))
         else:
             entering = dot(w_o, ng.take(sel, axis=0)) > 0     # wo on the front (outside) of the surface
             ior = table.ior.take(m_sel)
@@ -350,6 +441,15 @@ def _adjoint_factor(wo, wi, ng, ns):
     return np.where(den > 1e-12, num / np.maximum(den, 1e-12), 0.0)
 
 
-def eval_glossy(alpha, wo, wi, ns):
-    """Scalar GGX reflection value f(wo, wi) around the shading normals ``ns`` (side of wo)."""
-    return smp.ggx_reflection_f(smp.to_local(wo, ns), smp.to_local(wi, ns), alpha)
+def eval_glossy(alpha, wo, wi, ns, with_cos_h=False):
+    """Scalar GGX reflection value f(wo, wi) around the shading normals ``ns`` (side of wo).
+
+    Frame-free: the half vector h = (wo + wi) / |wo + wi| enters through cosines only, with
+    |wo + wi| = sqrt(2 + 2 wo.wi), h.n = (wo.n + wi.n) / |wo + wi| and wo.h = |wo + wi| / 2.
+    With ``with_cos_h`` also returns wo.h (the microfacet cosine of the Fresnel factor)."""
+    cos_o, cos_i = dot(wo, ns), dot(wi, ns)
+    len_h = np.sqrt(np.maximum(2.0 + 2.0 * dot(wo, wi), 1e-24))
+    f = smp.ggx_d((cos_o + cos_i) / len_h, alpha) * smp.ggx_g2(cos_o, cos_i, alpha) \
+        / np.maximum(4.0 * cos_o * cos_i, 1e-12)
+    f = np.where((cos_o > 0) & (cos_i > 0), f, 0.0)
+    return (f, 0.5 * len_h) if with_cos_h else f

@@ -31,6 +31,7 @@ from .context import Surface
 from .eye_pass import MeasurementPoints
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
+from . import sampling as smp
 from .sampling import dot, luminance
 from .visible_cells import VisibleCells
 
@@ -66,6 +67,16 @@ class DepositTarget:
         self.any_glossy = bool(glossy.any())
         self.is_glossy = glossy
         self.alpha = table.alpha.take(points.mat_ids)
+        # Glossy points whose colour rises with the Fresnel factor of the pair's half vector: their
+        # pairs carry the whole colour, and to_pixels does not multiply by one.
+        rising = glossy & (table.rise[:, 1] != 0).any(axis=1).take(points.mat_ids) if table.has_fresnel else None
+        self.rising = rising if rising is not None and rising.any() else None
+        if self.rising is not None:
+            # Per material, channel rows: the glossy colour is const + rise s(wo.h); 1 + 0 s where
+            # the colour is constant (to_pixels multiplies by it instead).
+            on = (table.rise[:, 1] != 0).any(axis=1)
+            self._const = np.where(on[:, None], table.color[:, 1], 1.0).T.copy()
+            self._rise = np.where(on[:, None], table.rise[:, 1], 0.0).T.copy()
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""
@@ -92,7 +103,8 @@ class DepositTarget:
         targets; cos_g : (k,) their cosines with the points' oriented geometric normals, as
         returned by the grid query.  The contribution of a pair is ``flux * (kd_j * wd +
         kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.  Returns
-        ``(wd, wg or None)``.
+        ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some glossy
+        points have a Fresnel rise (``MaterialTable.rise``), else (k,).
         """
         pts = self.points
         if self.has_shading_normals:
@@ -109,10 +121,18 @@ class DepositTarget:
             g = np.flatnonzero(self.is_glossy.take(j))
             if len(g):
                 jg = j.take(g)
-                wg[g] = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
-                                    pts.ns.take(jg, axis=0))
+                f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
+                                       pts.ns.take(jg, axis=0), with_cos_h=True)
                 if ratio is not None:
-                    wg[g] *= ratio[g]
+                    f *= ratio.take(g)
+                wg[g] = f
+                if self.rising is not None:
+                    mats = pts.mat_ids.take(jg)
+                    s = smp.fresnel_rise(cos_h, self.table.fresnel_ior.take(mats))
+                    rows = np.zeros((3, len(j)))
+                    for c in range(3):
+                        rows[c, g] = f * (self._const[c].take(mats) + self._rise[c].take(mats) * s)
+                    wg = rows
         return wd, wg
 
     @property
@@ -132,8 +152,13 @@ class DepositTarget:
         # Diffuse part is constant in wi: w_j * weight_d * albedo / pi / (pi r^2).
         val = pts.weight * pts.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None]
         val *= sum_diffuse
+        if self.table.has_layer:
+            val *= self.table.layer_factor(pts.mat_ids, dot(pts.wo, pts.ns).astype(np.float64))[:, None]
         if sum_glossy is not None:
-            k_glossy = pts.weight * pts.colors[:, 1] * (w[:, 1] * kernel)[:, None]
+            color = pts.colors[:, 1]
+            if self.rising is not None:
+                color = np.where(self.rising[:, None], 1.0, color)     # in the pairs (pair_weights)
+            k_glossy = pts.weight * color * (w[:, 1] * kernel)[:, None]
             k_glossy *= sum_glossy
             if self.table.ms_fresnel.any():
                 # Multiscatter GGX: a factor of the point's view direction (BSDF docs, bsdf.py).
@@ -281,11 +306,13 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     pairs["path"].append(idx[lane])
                     pairs["point"].append(pj)
                     pairs["diffuse"].append(f * wd[:, None])
-                    pairs["glossy"].append(f * wg[:, None] if glossy else None)
+                    pairs["glossy"].append((f * (wg[:, None] if wg.ndim == 1 else wg.T)) if glossy else None)
                     pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
                 else:
                     f = [flux[:, c].take(lane) for c in range(3)]
-                    sums.add(pj, [fc * wd for fc in f], [fc * wg for fc in f] if glossy else None)
+                    sums.add(pj, [fc * wd for fc in f],
+                             [fc * (wg if wg.ndim == 1 else wg[c]) for c, fc in enumerate(f)] if glossy
+                             else None)
                 seen[lane] = True
             if target.cells is not None:
                 open_ = np.flatnonzero(~visible[idx.take(dep)])

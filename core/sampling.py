@@ -228,6 +228,36 @@ def ggx_albedo(alpha, mu, strata=64):
     at roughness 0.15 to 1).
     The energy a single scattering loses is 1 - E; multiple-scattering GGX puts it back.
     """
+    w, _ = _ggx_reflection_nodes(alpha, mu, strata)
+    return w.mean(axis=1)
+
+
+def ggx_fresnel_rise_average(alpha, mu, eta, strata=64):
+    """(E(mu), S(mu)): the albedo of :func:`ggx_albedo` and the mean of :func:`fresnel_rise`
+    over the reflected light, S = integral f s(wo.m) |cos_i| / E, with the same quadrature.
+
+    S is what Cycles tabulates as ``ggx_gen_schlick_ior_s``: a specular layer of normal
+    reflectance f0 reflects E (f0 + (1 - f0) S) of the light arriving along the view.
+    """
+    w, cos_om = _ggx_reflection_nodes(alpha, mu, strata)
+    e = w.mean(axis=1)
+    s = (w * fresnel_rise(cos_om, eta)).mean(axis=1) / np.maximum(e, 1e-12)
+    return e, s
+
+
+def fresnel_rise(cos_i, eta):
+    """Cycles' Principled specular Fresnel as a blend factor: saturate((F(cos_i) - F0) / (1 - F0))
+    with the real dielectric F of relative index ``eta`` (> 1) and F0 = F(1).  The layer then
+    reflects f0 + (1 - f0) s, which is F itself for f0 = F0 (an untinted layer)."""
+    eta = np.maximum(np.asarray(eta, np.float64), 1.0 + 1e-6)
+    f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+    f, _ = fresnel_dielectric(np.clip(cos_i, 0.0, 1.0), eta)
+    return np.clip((f - f0) / (1.0 - f0), 0.0, 1.0)
+
+
+def _ggx_reflection_nodes(alpha, mu, strata):
+    """Quadrature of ``ggx_albedo``: weights (k, strata^2) whose row means are E(mu), and the
+    cosines wo.m of their microfacet normals."""
     mu = np.clip(np.asarray(mu, np.float64), 1e-4, 1.0)
     t = (np.arange(strata) + 0.5) / strata
     u1 = np.tile(np.repeat(1.0 - (1.0 - t) ** 3, strata), len(mu))
@@ -235,6 +265,7 @@ def ggx_albedo(alpha, mu, strata=64):
     u2 = np.tile(np.tile(t, strata), len(mu))
     cos_o = np.repeat(mu, strata * strata)
     wo = np.stack([np.sqrt(1.0 - cos_o * cos_o), np.zeros_like(cos_o), cos_o], axis=1)
-    wi = reflect(wo, ggx_sample_visible_normal(wo, alpha, u1, u2))
+    m = ggx_sample_visible_normal(wo, alpha, u1, u2)
+    wi = reflect(wo, m)
     w = np.where(wi[:, 2] > 0, ggx_g2(cos_o, np.maximum(wi[:, 2], 1e-12), alpha) / ggx_g1(cos_o, alpha), 0.0)
-    return (w * jac).reshape(len(mu), -1).mean(axis=1)
+    return (w * jac).reshape(len(mu), -1), dot(wo, m).reshape(len(mu), -1)

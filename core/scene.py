@@ -54,7 +54,17 @@ class Materials:
       ``glossy_multiscatter`` is the lobe's mean Fresnel colour F_ss for the energy that
       scatters between microfacets more than once (Cycles' Multiscatter GGX, the default of
       Blender's glossy nodes): a white lobe with F_ss = 1 then reflects all the light it
-      receives; 0 gives plain single-scattering GGX, which darkens with roughness;
+      receives; 0 gives plain single-scattering GGX, which darkens with roughness.
+      ``glossy_fresnel_ior`` > 0 makes part of the lobe a dielectric interface (Principled's
+      specular layer): at microfacet cosine c it reflects ``glossy_color`` +
+      ``glossy_fresnel_rise`` s(c), s = saturate((F(c) - F0) / (1 - F0)) with the real
+      dielectric Fresnel F of that IOR, so the layer's reflectance rises from its normal-incidence
+      colour to 1 at grazing angles (Cycles' Principled BSDF).  The diffuse lobe then lies
+      *under* that layer: its weight is scaled by 1 - the largest channel of the layer's albedo
+      at the view direction, the layer reflecting ``diffuse_layer`` (its normal-incidence colour
+      f0 * specular tint) + (1 - ``diffuse_layer``) s averaged over the lobe (Cycles'
+      ``closure_layering_weight``); ``diffuse_layer_weight`` is the share of the diffuse lobe
+      under the layer (a Principled mixed with a plain Diffuse: the rest keeps its weight);
     * mirror: perfect specular reflection tinted by ``mirror_color``;
     * dielectric: glass with index of refraction ``ior``, Fresnel
       reflection/refraction and total internal reflection, tinted by
@@ -73,6 +83,10 @@ class Materials:
     glossy_color: np.ndarray = None                     # (M, 3) float32
     glossy_roughness: np.ndarray = None                 # (M,) float32 in [0, 1]
     glossy_multiscatter: np.ndarray = None              # (M, 3) float32 in [0, 1]; None: glossy_color
+    glossy_fresnel_ior: np.ndarray = None               # (M,) float32, 0 = no Fresnel; None: 0
+    glossy_fresnel_rise: np.ndarray = None              # (M, 3) float32; None: 0
+    diffuse_layer: np.ndarray = None                    # (M, 3) float32 in [0, 1]; None: 0
+    diffuse_layer_weight: np.ndarray = None             # (M,) float32 in [0, 1]; None: 1
     mirror_weight: np.ndarray = None                    # (M,) float32
     mirror_color: np.ndarray = None                     # (M, 3) float32
     dielectric_weight: np.ndarray = None                # (M,) float32
@@ -83,7 +97,8 @@ class Materials:
     emission: np.ndarray = None                         # (M, 3) float32 radiance
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
-                    "glossy_color", "glossy_roughness", "glossy_multiscatter", "mirror_weight",
+                    "glossy_color", "glossy_roughness", "glossy_multiscatter", "glossy_fresnel_ior",
+                    "glossy_fresnel_rise", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission")
 
@@ -101,6 +116,8 @@ class Materials:
         Short keys: ``diffuse``/``glossy``/``mirror``/``dielectric`` give the colour
         and set the weight to 1 unless ``<lobe>_weight`` is given.  ``glossy_multiscatter``
         defaults to the glossy colour (Multiscatter GGX); give 0 for single-scattering GGX.
+        ``glossy_fresnel_ior``, ``glossy_fresnel_rise`` and ``diffuse_layer`` default to 0,
+        ``diffuse_layer_weight`` to 1.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -111,6 +128,10 @@ class Materials:
         out.glossy_color = np.zeros((m, 3), np.float32)
         out.glossy_roughness = np.full(m, 0.5, np.float32)
         out.glossy_multiscatter = np.zeros((m, 3), np.float32)
+        out.glossy_fresnel_ior = np.zeros(m, np.float32)
+        out.glossy_fresnel_rise = np.zeros((m, 3), np.float32)
+        out.diffuse_layer = np.zeros((m, 3), np.float32)
+        out.diffuse_layer_weight = np.ones(m, np.float32)
         out.mirror_weight = np.zeros(m, np.float32)
         out.mirror_color = np.zeros((m, 3), np.float32)
         out.dielectric_weight = np.zeros(m, np.float32)
@@ -136,6 +157,10 @@ class Materials:
                 np.asarray(s.get("glossy_multiscatter", out.glossy_color[i]), np.float32), (3,))
             if "roughness" in s:
                 out.glossy_roughness[i] = s["roughness"]
+            out.glossy_fresnel_ior[i] = s.get("glossy_fresnel_ior", 0.0)
+            out.diffuse_layer_weight[i] = s.get("diffuse_layer_weight", 1.0)
+            for key in ("glossy_fresnel_rise", "diffuse_layer"):
+                getattr(out, key)[i] = np.broadcast_to(np.asarray(s.get(key, 0.0), np.float32), (3,))
             if "ior" in s:
                 out.ior[i] = s["ior"]
             if "dielectric_roughness" in s:
@@ -425,8 +450,15 @@ class Scene:
             mats.dielectric_roughness = np.zeros(len(mats.ior), np.float32)
         if mats.glossy_multiscatter is None and mats.glossy_color is not None:
             mats.glossy_multiscatter = np.array(mats.glossy_color, np.float32)   # Blender's default
+        if mats.ior is not None:
+            n = len(mats.ior)
+            for name, shape in (("glossy_fresnel_ior", (n,)), ("glossy_fresnel_rise", (n, 3)),
+                                ("diffuse_layer", (n, 3)), ("diffuse_layer_weight", (n,))):
+                if getattr(mats, name) is None:
+                    setattr(mats, name, np.full(shape, 1.0 if name == "diffuse_layer_weight" else 0.0,
+                                                np.float32))
         for name in Materials.ARRAY_FIELDS:
-            tail = (3,) if name.endswith(("color", "emission", "multiscatter")) else ()
+            tail = (3,) if name.endswith(("color", "emission", "multiscatter", "rise", "layer")) else ()
             dtype = np.int32 if name == "diffuse_texture" else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
             if name != "diffuse_texture" and (v < 0).any():

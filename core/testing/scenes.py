@@ -190,7 +190,7 @@ def disk_irradiance(intensity, distance, radius):
 
 
 def sky_over_floor(albedo=0.5, sky=1.0, resolution=(32, 32), size=40.0, height=2.0, pitch_deg=35.0,
-                   glossy_roughness=None, multiscatter=True):
+                   glossy_roughness=None, multiscatter=True, material=None):
     """An open diffuse floor under a constant sky, seen at a slant: L = albedo * sky everywhere.
 
     Nothing but the floor, so every point of its top sees the whole sky (E = pi sky).  The
@@ -201,8 +201,11 @@ def sky_over_floor(albedo=0.5, sky=1.0, resolution=(32, 32), size=40.0, height=2
     With ``glossy_roughness`` the floor is a GGX reflector of colour ``albedo`` instead (a
     white furnace when ``albedo`` is 1): with ``multiscatter`` L = sky exactly; without it
     L = sky E(mu), the single-scattering albedo at the view cosine, which is below 1.
+    ``material`` (a ``Materials.build`` entry) replaces the floor's material.
     """
-    if glossy_roughness is None:
+    if material is not None:
+        mats = Materials.build([{"name": "floor", **material}])
+    elif glossy_roughness is None:
         mats = Materials.build([{"name": "floor", "diffuse": albedo}])
     else:
         mats = Materials.build([{"name": "floor", "glossy": albedo, "roughness": glossy_roughness,

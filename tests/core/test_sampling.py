@@ -531,13 +531,16 @@ def test_ggx_reflection_pdf_integrates_to_at_most_one(alpha):
 
 
 # ================================================================ 3. bsdf.scatter per lobe
-def glossy_albedo(wo_local, alpha):
-    """Integral of the reference f cos over the hemisphere (horizon on a bin edge)."""
+def glossy_albedo(wo_local, alpha, factor=None):
+    """Integral of the reference f cos over the hemisphere (horizon on a bin edge), times
+    ``factor(wo, wi)`` (n,) if given."""
     phi_m = math.atan2(wo_local[1], wo_local[0]) + np.pi
 
     def f_cos(xy):
         d, jac = horizon_to_dir(xy, phi_m)
-        return ref_ggx_f_and_pdf(np.tile(wo_local, (len(d), 1)), d, alpha)[0] * d[:, 2] * jac
+        wo = np.tile(wo_local, (len(d), 1))
+        v = ref_ggx_f_and_pdf(wo, d, alpha)[0] * d[:, 2] * jac
+        return v if factor is None else v * factor(wo, d)
 
     return integrate_bins(f_cos, ((0.0, 1.0), (-1.0, 1.0)), (96, 96), 8).sum()
 
@@ -712,6 +715,77 @@ def test_multiscatter_glossy_weights_are_single_scattering_times_the_view_factor
         for ch in range(3):
             assert_mean(w[:, ch], expected[ch], f"multiscatter E[weight] at {theta} deg",
                         extra_tolerance=1.5e-3 * c[ch])
+
+
+def test_eval_glossy_equals_the_reference_f_in_any_frame_and_gives_the_half_vector_cosine():
+    """The deposits' frame-free GGX value against the reference in the local frame of random normals."""
+    rng = np.random.default_rng(2042)
+    n = 20_000
+    ns = rng.normal(size=(n, 3))
+    ns /= np.linalg.norm(ns, axis=1, keepdims=True)
+    wo, wi = (v / np.linalg.norm(v, axis=1, keepdims=True) for v in rng.normal(size=(2, n, 3)))
+    alpha = rng.uniform(0.02, 1.0, n)
+    f, cos_h = bsdf.eval_glossy(alpha, wo, wi, ns, with_cos_h=True)
+    frames = frames_for(ns)
+    wo_l, wi_l = np.einsum("nij,nj->ni", frames, wo), np.einsum("nij,nj->ni", frames, wi)
+    ref = ref_ggx_f_and_pdf(wo_l, wi_l, alpha)[0]
+    assert (f[ref == 0] == 0).all() and (ref > 0).sum() > n // 8
+    assert np.allclose(f, ref, rtol=1e-9, atol=0)
+    h = (wo + wi) / np.linalg.norm(wo + wi, axis=1, keepdims=True)
+    assert np.allclose(cos_h, np.sum(wo * h, axis=1), atol=1e-12)
+
+
+def ref_fresnel_rise(wo, wi, eta):
+    """Cycles' Principled blend factor saturate((F(wo.h) - F0) / (1 - F0)) from the reference Fresnel."""
+    h = wo + wi
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    f0 = ((eta - 1) / (eta + 1)) ** 2
+    return np.clip((ref_fresnel(np.clip(np.sum(wo * h, axis=1), 0, 1), eta)[0] - f0) / (1 - f0), 0, 1)
+
+
+@pytest.mark.parametrize("roughness", (0.0, 0.5, 1.0))
+@pytest.mark.parametrize("tint", ((1.0, 1.0, 1.0), (1.0, 0.5, 0.2)), ids=("white", "tinted"))
+def test_principled_layer_reflects_its_fresnel_albedo_and_leaves_the_rest_to_the_diffuse(roughness, tint):
+    """Cycles' Principled dielectric: a GGX layer reflecting f0 + (1 - f0) s(wo.m), s the real
+    Fresnel curve of IOR 1.5 rescaled to [0, 1], over a diffuse lobe weighted by
+    L = 1 - max_c K_c (f0_c + (1 - f0_c) S) with S the layer's lobe mean of s and K = E + F_ms (1 - E)
+    (multiscatter).  Radiance mode, through lobe choice and scatter: E[weight] = L base + K A,
+    with E and S by quadrature of the reference f cos.  A white base and tint make it a white
+    furnace (1 at every angle), which a constant specular weight (the earlier model) is not."""
+    eta = 1.5
+    f0 = ((eta - 1) / (eta + 1)) ** 2 * f32(tint)
+    base = f32((0.8, 0.8, 0.8)) if tint[1] < 1 else np.ones(3)
+    spec = {"diffuse": base, "glossy": f0, "roughness": roughness, "glossy_fresnel_ior": eta,
+            "glossy_fresnel_rise": 1.0 - f0, "diffuse_layer": f0, "glossy_multiscatter": f0 + 0.1}
+    table = material_table(spec)
+    alpha = table.alpha[0]
+    n_ = unit_vector(0.1, 0.2, 0.9)
+    f = frames_for(n_)[0]
+    rng = np.random.default_rng(2041)
+    mat = np.zeros(N, np.int32)
+    for theta in (10.0, 50.0, 80.0):
+        wo_local = local_direction(theta)
+        if roughness == 0.0:
+            e = 1.0
+            s_mean = ref_fresnel_rise(wo_local[None], wo_local[None] * (-1, -1, 1), eta)[0]
+        else:
+            e = glossy_albedo(wo_local, alpha)
+            s_mean = glossy_albedo(wo_local, alpha, lambda wo, wi: ref_fresnel_rise(wo, wi, eta)) / e
+        k = e + table.ms_fresnel[0] * (1 - e) if roughness > 0 else np.ones(3)
+        a = k * (f0 + (1 - f0) * s_mean)
+        expected = (1 - a.max()) * base + a
+        if tint[1] == 1.0:
+            assert expected == pytest.approx(np.ones(3), abs=1e-9)
+        colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
+        lobe, prob = bsdf.choose_lobe(bsdf.lobe_scores(table, mat, colors), rng.random(N))
+        wo = np.tile(wo_local @ f, (N, 1))
+        nn = np.tile(n_, (N, 1))
+        _, w, _ = bsdf.scatter(table, mat, colors, lobe, prob, wo, nn, nn, rng.random(N), rng.random(N),
+                               "radiance")
+        assert np.isfinite(w).all() and (w >= 0).all()
+        for c in range(3):
+            assert_mean(w[:, c], expected[c], f"layered E[weight] at {theta} deg, channel {c}",
+                        extra_tolerance=2e-3)
 
 
 def test_mixed_material_throughput_is_unbiased_through_lobe_choice_and_scatter():
