@@ -19,10 +19,13 @@ level s, base colour B):
     node's roughness;
   * glass, weight (1 - m) t: dielectric lobe with colour sqrt(B) (Cycles' tint per interface),
     reflections tinted by the Specular Tint instead, the node's IOR and roughness;
-  * dielectric base, weight (1 - m)(1 - t): a white (Specular Tint) glossy layer
-    whose weight is the hemispherical mean Fresnel reflectance of the IOR scaled by
-    2 s (Blender scales F0 by 2 s), over a diffuse lobe with colour B and the
-    remaining weight.
+  * dielectric base, weight (1 - m)(1 - t): as Cycles, a glossy layer of IOR n' (the IOR
+    whose F0 is the node's F0 times 2 s, ``specular_ior``) reflecting f0 + (1 - f0) s(c),
+    f0 = F0 times the Specular Tint and s the real Fresnel curve rescaled to [0, 1]
+    (the core's ``glossy_fresnel_*``), over a diffuse lobe of colour B whose weight the core
+    scales by 1 - the layer's albedo at the view direction (``diffuse_layer``; Cycles'
+    ``closure_layering_weight``).  A Mix with other shaders keeps the share of the diffuse
+    under the layer (``diffuse_layer_weight``).
 Metals (Metallic node, Principled metallic) are a glossy lobe with the metal's mean Fresnel
 reflectance as colour: of the F82-tint model (base colour, edge tint; Principled uses its
 Specular Tint) or of the physical conductor's complex IOR.
@@ -63,6 +66,10 @@ class Closure:
     texture: int = -1               # diffuse image texture index or -1
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
+    fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
+    rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
+    layer: np.ndarray = field(default_factory=lambda: np.zeros(3))         # (3,) layered weight * f0
+    layered: float = 0.0            # diffuse weight under the Fresnel layer
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -77,8 +84,12 @@ class Closure:
         out = Closure(weight=wa + wb, color=fa * self.color + fb * other.color,
                       emission=fa * self.emission + fb * other.emission,
                       multiscatter=fa * self.multiscatter + fb * other.multiscatter,
-                      reflection=fa * self.glass_reflection() + fb * other.glass_reflection())
+                      reflection=fa * self.glass_reflection() + fb * other.glass_reflection(),
+                      rise=fa * self.rise + fb * other.rise, layer=fa * self.layer + fb * other.layer,
+                      layered=fa * self.layered + fb * other.layered)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
+        out.fresnel_ior = _weighted(self.fresnel_ior, other.fresnel_ior, wa[GLOSSY] * (self.fresnel_ior > 0),
+                                    wb[GLOSSY] * (other.fresnel_ior > 0))
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
@@ -104,6 +115,12 @@ class Closure:
         s["dielectric_reflection"] = self.glass_reflection() / w if w > 0 else np.zeros(3)
         g = self.color[GLOSSY]
         s["glossy_multiscatter"] = np.divide(self.multiscatter, g, out=np.zeros(3), where=g > 0)
+        if self.fresnel_ior > 0 and self.weight[GLOSSY] > 0:
+            s["glossy_fresnel_ior"] = self.fresnel_ior
+            s["glossy_fresnel_rise"] = self.rise / self.weight[GLOSSY]
+            if self.layered > 0 and self.weight[DIFFUSE] > 0:
+                s["diffuse_layer"] = self.layer / self.layered
+                s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
         if self.texture >= 0:
             s["diffuse_texture"] = self.texture
             s["diffuse"] = np.ones(3)
@@ -124,6 +141,17 @@ def mean_fresnel(ior) -> float:
     rp = (eta * mu - cos_t) / (eta * mu + cos_t)
     f = 0.5 * (rs * rs + rp * rp)
     return float(np.mean(2.0 * mu * f))
+
+
+def specular_ior(ior, level):
+    """Principled's specular layer: (IOR, F0) after ``Specular IOR Level`` scales F0 by 2 level
+    (Cycles: F0 = ((n - 1) / (n + 1))^2, then the IOR of the scaled F0).  An IOR below 1 acts
+    as its inverse (the same F0)."""
+    n = float(ior)
+    n = 1.0 / n if 0.0 < n < 1.0 else n
+    f0 = float(np.clip(((n - 1.0) / (n + 1.0)) ** 2 * 2.0 * level, 0.0, 0.999))
+    r = np.sqrt(f0)
+    return (1.0 + r) / (1.0 - r), f0
 
 
 def metal_fresnel(color, edge_tint=(1.0, 1.0, 1.0)):
@@ -486,21 +514,35 @@ class NodeWalker:
         strength = self.value(inp["Emission Strength"], stack)
         if self.value(inp["Alpha"], stack) < 1.0:
             self.note(f"'{node.name}': Alpha below 1 (transparency) is not supported")
+        ignored = [label for label, socket in PRINCIPLED_IGNORED
+                   if socket in inp and self.value(inp[socket], stack) > 0.0]
+        if ignored:
+            self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored; subsurface "
+                      "renders as diffuse)")
 
         base_color = np.ones(3) if tex >= 0 else base
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
         dielectric = (1.0 - m) * (1.0 - t)
-        spec = dielectric * min(1.0, mean_fresnel(ior) * 2.0 * level)
         c = Closure(roughness=rough, ior=ior, emission=np.maximum(emission * strength, 0.0),
                     dielectric_roughness=rough)
-        c.weight[DIFFUSE] = dielectric - spec
-        c.color[DIFFUSE] = c.weight[DIFFUSE] * base_color
+        c.weight[DIFFUSE] = dielectric
+        c.color[DIFFUSE] = dielectric * base_color
         metal = metal_fresnel(flat_base, tint)     # Cycles' metallic layer: F82 with the specular tint
+        eta, f0 = specular_ior(ior, level)
+        spec = dielectric if eta > 1.0 + 1e-6 else 0.0     # Cycles drops a layer of IOR 1
+        f0_tint = np.clip(f0 * np.asarray(tint, np.float64), 0.0, 1.0)
         c.weight[GLOSSY] = m + spec
-        c.color[GLOSSY] = m * metal + spec * tint
+        c.color[GLOSSY] = m * metal + spec * f0_tint
+        if spec > 0:
+            c.fresnel_ior = eta
+            c.rise = spec * (1.0 - f0_tint)
+            c.layer = spec * f0_tint
+            c.layered = spec
         if node.distribution == "MULTI_GGX":
-            layer = spec / dielectric if dielectric > 0 else 0.0      # the specular layer's reflectance
-            c.multiscatter = m * metal * metal + spec * tint * (layer * tint)
+            # F_ss of the layer as Cycles: f0 + (1 - f0) times the mean Fresnel rescaled to [0, 1].
+            f_avg = (mean_fresnel(eta) - f0) / (1.0 - f0) if spec > 0 else 0.0
+            layer_fss = f0_tint + (1.0 - f0_tint) * float(np.clip(f_avg, 0.0, 1.0))
+            c.multiscatter = m * metal * metal + spec * f0_tint * layer_fss
         c.weight[DIELECTRIC] = (1.0 - m) * t
         # Cycles tints Principled glass by the square root of the base colour at each interface,
         # so that light crossing it (in and out) takes the base colour once.
@@ -509,6 +551,12 @@ class NodeWalker:
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1
         return c
 
+
+# Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
+PRINCIPLED_IGNORED = (("Diffuse Roughness", "Diffuse Roughness"), ("Subsurface", "Subsurface Weight"),
+                      ("Coat", "Coat Weight"),
+                      ("Sheen", "Sheen Weight"), ("Anisotropic", "Anisotropic"),
+                      ("Thin Film", "Thin Film Thickness"))
 
 SHADERS = {
     "ShaderNodeBsdfPrincipled": NodeWalker._principled,

@@ -380,13 +380,38 @@ def test_principled_mapping(scene):
     base = (0.8, 0.2, 0.1, 1.0)
     plain, _ = export_material(principled("Plastic", **{"Base Color": base, "Roughness": 0.3}))
     assert plain["diffuse_color"] == pytest.approx(base[:3])
-    assert plain["diffuse_weight"] + plain["glossy_weight"] == pytest.approx(1.0)
-    assert 0.05 < plain["glossy_weight"] < 0.15             # mean Fresnel of IOR 1.5, level 0.5
-    assert plain["glossy_color"] == pytest.approx([1, 1, 1])
+    # Cycles' layering: a Fresnel layer (F0 0.04 of IOR 1.5, rising to 1) over the whole diffuse,
+    # whose weight the core scales by 1 - the layer's albedo at the view.
+    assert plain["diffuse_weight"] == pytest.approx(1.0) and plain["glossy_weight"] == pytest.approx(1.0)
+    assert plain["glossy_color"] == pytest.approx(np.full(3, 0.04), rel=1e-5)
+    assert plain["glossy_fresnel_ior"] == pytest.approx(1.5, rel=1e-5)
+    assert plain["glossy_fresnel_rise"] == pytest.approx(np.full(3, 0.96), rel=1e-5)
+    assert plain["diffuse_layer"] == pytest.approx(np.full(3, 0.04), rel=1e-5)
+    assert plain["diffuse_layer_weight"] == pytest.approx(1.0)
     assert plain["glossy_roughness"] == pytest.approx(0.3)
+    # Specular IOR Level 0.25 halves F0 (0.02), an IOR of 1.33; Specular Tint tints only F0.
+    tint = (1.0, 0.5, 0.0, 1.0)
+    half, _ = export_material(principled("Half", **{"Specular IOR Level": 0.25, "Specular Tint": tint}))
+    assert half["glossy_fresnel_ior"] == pytest.approx((1 + 0.02 ** 0.5) / (1 - 0.02 ** 0.5), rel=1e-5)
+    assert half["glossy_color"] == pytest.approx([0.02, 0.01, 0.0], rel=1e-4, abs=1e-7)
+    assert half["glossy_fresnel_rise"] == pytest.approx([0.98, 0.99, 1.0], rel=1e-5)
+    assert half["diffuse_layer"] == pytest.approx([0.02, 0.01, 0.0], rel=1e-4, abs=1e-7)
+    # Mixed half and half with a plain Diffuse: half the diffuse lies under the layer.
+    mixed = principled("Mixed")
+    nt = mixed.node_tree
+    diffuse, mix = nt.nodes.new("ShaderNodeBsdfDiffuse"), nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.5
+    nt.links.new(nt.nodes["Principled BSDF"].outputs[0], mix.inputs[1])
+    nt.links.new(diffuse.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, _ = export_material(mixed)
+    assert row["diffuse_weight"] == pytest.approx(1.0) and row["glossy_weight"] == pytest.approx(0.5)
+    assert row["diffuse_layer_weight"] == pytest.approx(0.5)
+    assert row["diffuse_layer"] == pytest.approx(np.full(3, 0.04), rel=1e-5)
     metal, _ = export_material(principled("Metal", **{"Base Color": base, "Metallic": 1.0,
                                                       "Roughness": 0.0}))
     assert metal["glossy_weight"] == pytest.approx(1.0) and metal["diffuse_weight"] == 0
+    assert metal["glossy_fresnel_ior"] == 0
     f0 = np.array(base[:3])
     assert metal["glossy_color"] == pytest.approx(f0 + (1 - f0) / 21, rel=1e-6)   # mean F82 Fresnel
     assert metal["glossy_roughness"] == 0
@@ -405,9 +430,18 @@ def test_principled_mapping(scene):
     assert lamp["emission"] == pytest.approx([4, 2, 1])
 
 
+def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
+    _, ex = export_material(principled("Paint", **{"Coat Weight": 0.5, "Sheen Weight": 0.2}))
+    warnings = [w for w in ex.warnings if "'Paint'" in w]
+    assert len(warnings) == 1 and "Coat, Sheen not supported" in warnings[0], ex.warnings
+    _, ex = export_material(principled("Plain"))
+    assert not [w for w in ex.warnings if "'Plain'" in w]
+
+
 def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_gets_none(scene):
     """glossy_multiscatter is the F_ss of Cycles' energy compensation: 0 unless the node's
     distribution is Multiscatter GGX (Blender's default)."""
+    from amcmcppm.amcmcppm_addon.export.materials import mean_fresnel
     colour = (0.9, 0.5, 0.2, 1.0)
     glossy = bs._material("Brushed", "ShaderNodeBsdfGlossy", Color=colour, Roughness=0.5)
     row, _ = export_material(glossy)
@@ -422,8 +456,9 @@ def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_get
     assert metal["glossy_multiscatter"] == pytest.approx(f0 + (1 - f0) / 21, rel=1e-6)   # F82 mean
     plastic = principled("Plastic", **{"Base Color": colour})
     plain, _ = export_material(plastic)
-    # White specular layer of reflectance R = glossy_weight: F_ss = R.
-    assert plain["glossy_multiscatter"] == pytest.approx(np.full(3, plain["glossy_weight"]), rel=1e-6)
+    # The layer's F_ss as Cycles: f0 + (1 - f0) times its mean Fresnel rescaled from [F0, 1].
+    f_avg = (mean_fresnel(1.5) - 0.04) / 0.96
+    assert plain["glossy_multiscatter"] == pytest.approx(np.full(3, 0.04 + 0.96 * f_avg), rel=1e-4)
     plastic.node_tree.nodes["Principled BSDF"].distribution = "GGX"
     plain, _ = export_material(plastic)
     assert plain["glossy_multiscatter"] == pytest.approx([0, 0, 0])
