@@ -1,0 +1,150 @@
+"""Cost of Principled's Fresnel layer in the photon pass (vertices per second, one process).
+
+Every diffuse material of a built-in scene is given one of three bases, and the three are traced
+alternately on the same eye pass and random numbers, so each round's ratios share the machine
+load (median and range over rounds):
+
+* ``diffuse``: the scene as it is;
+* ``constant``: the earlier Principled mapping, a white GGX lobe (roughness 0.5, multiscatter)
+  of weight 0.092 (mean Fresnel of IOR 1.5) over the diffuse of weight 0.908;
+* ``layered``: Cycles' layering, a GGX lobe reflecting 0.04 + 0.96 s(c) (``glossy_fresnel_*``)
+  over the whole diffuse, whose weight follows the layer's albedo at the view
+  (``diffuse_layer``).
+
+``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
+pair, layer factor per diffuse sample and per point); ``constant / diffuse`` that of a glossy
+lobe at all.
+
+A second part times the glossy deposit kernel alone on random pairs: ``bsdf.eval_glossy``
+(frame-free, cosines of the half vector only) against the earlier form that rotated both
+directions into a local frame first (``to_local`` + ``ggx_reflection_f``), alternately in the
+same rounds.
+
+    python benchmarks/layer_cost.py [--scene cornell_box] [--resolution 320 240] [--rounds 5]
+                                    [--paths 65536] [--pairs] [--eval-pairs 1000000]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+BATCH = 1 << 14
+
+from core import RenderSettings  # noqa: E402
+from core import sampling as smp  # noqa: E402
+from core.bsdf import eval_glossy  # noqa: E402
+from core.context import RenderContext  # noqa: E402
+from core.eye_pass import trace_eye_pass  # noqa: E402
+from core.photon_pass import DepositTarget, path_dims, trace_photons  # noqa: E402
+from core.testing.scenes import BUILTIN  # noqa: E402
+
+VARIANTS = ("diffuse", "constant", "layered")
+
+
+def with_base(scene, variant):
+    """``scene`` with the diffuse materials given the ``variant`` base (see the module docstring)."""
+    if variant == "diffuse":
+        return scene
+    m = scene.materials
+    on = (m.diffuse_weight > 0) & (m.glossy_weight == 0) & ~(m.emission > 0).any(axis=1)
+    m.glossy_roughness[on] = 0.5
+    if variant == "constant":
+        m.diffuse_weight[on] = 0.908
+        m.glossy_weight[on] = 0.092
+        m.glossy_color[on] = 1.0
+        m.glossy_multiscatter[on] = 1.0
+    else:
+        m.glossy_weight[on] = m.diffuse_weight[on]
+        m.glossy_color[on] = 0.04
+        m.glossy_fresnel_ior[on] = 1.5
+        m.glossy_fresnel_rise[on] = 0.96
+        m.diffuse_layer[on] = 0.04
+        m.glossy_multiscatter[on] = 0.1
+    return scene.validate()
+
+
+def photon_pass(scene_name, variant, resolution, n_paths, pairs):
+    settings = RenderSettings()
+    scene = with_base(BUILTIN[scene_name](resolution=resolution), variant)
+    ctx = RenderContext(scene)
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px, settings.max_bounces)
+    target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, resolution[0] * resolution[1],
+                           ctx.has_shading_normals)
+    dims = path_dims(settings.max_bounces)
+
+    def run():
+        rng = np.random.default_rng(1)
+        vertices = 0
+        t0 = time.perf_counter()
+        for done in range(0, n_paths, BATCH):
+            u = rng.random((min(BATCH, n_paths - done), dims))
+            vertices += trace_photons(ctx, target, u, settings.max_bounces, collect_pairs=pairs).vertices
+        return vertices / (time.perf_counter() - t0)
+    return run
+
+
+def eval_kernels(n, rng):
+    """Two timed callables evaluating GGX on the same ``n`` random pairs (see the docstring)."""
+    ns = smp.normalize(rng.normal(size=(n, 3)))
+    wo = smp.to_world(smp.cosine_hemisphere(rng.random(n), rng.random(n)), ns)
+    wi = smp.to_world(smp.cosine_hemisphere(rng.random(n), rng.random(n)), ns)
+    alpha = np.full(n, 0.25)
+
+    def frame_free():
+        return eval_glossy(alpha, wo, wi, ns)
+
+    def local_frame():
+        return smp.ggx_reflection_f(smp.to_local(wo, ns), smp.to_local(wi, ns), alpha)
+    assert np.allclose(frame_free(), local_frame(), rtol=1e-9, atol=1e-12)
+    return {"frame-free": frame_free, "local frame": local_frame}
+
+
+def timed(fn):
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="cornell_box", choices=sorted(BUILTIN))
+    ap.add_argument("--resolution", type=int, nargs=2, default=(320, 240))
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--paths", type=int, default=65536)
+    ap.add_argument("--pairs", action="store_true", help="collect deposit pairs (as the chains do)")
+    ap.add_argument("--eval-pairs", type=int, default=1_000_000, help="pairs of the eval_glossy timing")
+    a = ap.parse_args()
+    runs = {v: photon_pass(a.scene, v, tuple(a.resolution), a.paths, a.pairs) for v in VARIANTS}
+    for run in runs.values():
+        run()                                                   # warm-up
+    rates = {v: [] for v in VARIANTS}
+    for _ in range(a.rounds):
+        for v in VARIANTS:
+            rates[v].append(runs[v]())
+    print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.paths} paths, {a.rounds} rounds"
+          f"{', pairs' if a.pairs else ''}")
+    for v in VARIANTS:
+        print(f"  {v:9s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
+    for num, den in (("layered", "constant"), ("constant", "diffuse"), ("layered", "diffuse")):
+        r = np.array(rates[num]) / np.array(rates[den])
+        print(f"  {num} / {den}: {np.median(r):.3f} ({r.min():.3f}-{r.max():.3f})")
+
+    kernels = eval_kernels(a.eval_pairs, np.random.default_rng(2))
+    times = {k: [] for k in kernels}
+    for _ in range(a.rounds):
+        for k, fn in kernels.items():
+            times[k].append(timed(fn))
+    r = np.array(times["local frame"]) / np.array(times["frame-free"])
+    print(f"eval_glossy on {a.eval_pairs} pairs: frame-free {np.median(times['frame-free']) * 1e3:.0f} ms, "
+          f"local frame {np.median(times['local frame']) * 1e3:.0f} ms; "
+          f"speed-up {np.median(r):.2f} ({r.min():.2f}-{r.max():.2f})")
+
+
+if __name__ == "__main__":
+    main()
