@@ -40,11 +40,14 @@ def extract(rev, into, package="core_base"):
     subprocess.run(["tar", "-x", "-C", into], input=archive, check=True)
 
 
-def photon_pass(package, scene_name, resolution, n_paths, pairs):
-    """A function tracing ``n_paths`` photons with ``package``; returns vertices per second."""
+def photon_pass(package, scene_name, resolution, n_paths, pairs, edit=None):
+    """A function tracing ``n_paths`` photons with ``package``; returns vertices per second.
+    ``edit(scene)``, if given, changes the built-in scene first and returns it."""
     mod = lambda name: importlib.import_module(f"{package}.{name}")  # noqa: E731
     settings = importlib.import_module(package).RenderSettings()
     scene = mod("testing.scenes").BUILTIN[scene_name](resolution=resolution)
+    if edit is not None:
+        scene = edit(scene)
     ctx = mod("context").RenderContext(scene)
     eye = mod("eye_pass").trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px,
                                          settings.max_bounces)

@@ -34,15 +34,13 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
-BATCH = 1 << 14
 
-from core import RenderSettings  # noqa: E402
 from core import sampling as smp  # noqa: E402
 from core.bsdf import eval_glossy  # noqa: E402
-from core.context import RenderContext  # noqa: E402
-from core.eye_pass import trace_eye_pass  # noqa: E402
-from core.photon_pass import DepositTarget, path_dims, trace_photons  # noqa: E402
 from core.testing.scenes import BUILTIN  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from ab_photon_pass import photon_pass  # noqa: E402
 
 VARIANTS = ("diffuse", "constant", "layered")
 
@@ -67,26 +65,6 @@ def with_base(scene, variant):
         m.diffuse_layer[on] = 0.04
         m.glossy_multiscatter[on] = 0.1
     return scene.validate()
-
-
-def photon_pass(scene_name, variant, resolution, n_paths, pairs):
-    settings = RenderSettings()
-    scene = with_base(BUILTIN[scene_name](resolution=resolution), variant)
-    ctx = RenderContext(scene)
-    eye = trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px, settings.max_bounces)
-    target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, resolution[0] * resolution[1],
-                           ctx.has_shading_normals)
-    dims = path_dims(settings.max_bounces)
-
-    def run():
-        rng = np.random.default_rng(1)
-        vertices = 0
-        t0 = time.perf_counter()
-        for done in range(0, n_paths, BATCH):
-            u = rng.random((min(BATCH, n_paths - done), dims))
-            vertices += trace_photons(ctx, target, u, settings.max_bounces, collect_pairs=pairs).vertices
-        return vertices / (time.perf_counter() - t0)
-    return run
 
 
 def eval_kernels(n, rng):
@@ -120,7 +98,8 @@ def main():
     ap.add_argument("--pairs", action="store_true", help="collect deposit pairs (as the chains do)")
     ap.add_argument("--eval-pairs", type=int, default=1_000_000, help="pairs of the eval_glossy timing")
     a = ap.parse_args()
-    runs = {v: photon_pass(a.scene, v, tuple(a.resolution), a.paths, a.pairs) for v in VARIANTS}
+    runs = {v: photon_pass("core", a.scene, tuple(a.resolution), a.paths, a.pairs,
+                           edit=lambda scene, v=v: with_base(scene, v)) for v in VARIANTS}
     for run in runs.values():
         run()                                                   # warm-up
     rates = {v: [] for v in VARIANTS}

@@ -122,6 +122,19 @@ def test_camera_inside_glass_sees_eta_squared_radiance():
     check_mean(per_pass, expected, 0.002)
 
 
+def sky_halves(scene, method, seeds, passes, **settings):
+    """Mean grey of the far (top rows, grazing) and near (bottom rows, face on) half of the
+    image of ``scene`` over ``seeds`` renders of ``passes`` passes of 40,000 photons."""
+    runs = []
+    for seed in range(seeds):
+        _, result = render_passes(scene, passes=passes, photons_per_pass=40_000, seed=seed, **settings,
+                                  **method)
+        rgb = result.image[..., :3].mean(axis=2)
+        h = rgb.shape[0] // 2
+        runs.append([rgb[:h].mean(), rgb[h:].mean()])
+    return np.mean(runs, axis=0)
+
+
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
 def test_floor_under_a_constant_sky_is_albedo_times_sky_near_and_far(method):
     """L = albedo * sky on all of an open floor, in the near (face-on) and far (grazing) half.
@@ -134,13 +147,7 @@ def test_floor_under_a_constant_sky_is_albedo_times_sky_near_and_far(method):
     """
     albedo, sky = 0.5, 1.0
     scene = sky_over_floor(albedo, sky, resolution=(32, 32))
-    halves = []
-    for seed in range(3):
-        _, result = render_passes(scene, passes=24, photons_per_pass=40_000, initial_radius_px=1.5, seed=seed,
-                                  **method)
-        rgb = result.image[..., :3].mean(axis=2)
-        halves.append([rgb[:16].mean(), rgb[16:].mean()])
-    far, near = np.mean(halves, axis=0) / (albedo * sky)
+    far, near = sky_halves(scene, method, 3, 24, initial_radius_px=1.5) / (albedo * sky)
     assert abs(far - 1) < 0.10 and abs(near - 1) < 0.10, (far, near)
 
 
@@ -156,12 +163,7 @@ def test_white_multiscatter_glossy_floor_under_a_constant_sky_reflects_the_sky_e
 
     def halves(multiscatter, seeds, passes):
         scene = sky_over_floor(1.0, sky, resolution=(32, 32), glossy_roughness=0.8, multiscatter=multiscatter)
-        runs = []
-        for seed in range(seeds):
-            _, result = render_passes(scene, passes=passes, photons_per_pass=40_000, seed=seed, **method)
-            rgb = result.image[..., :3].mean(axis=2)
-            runs.append([rgb[:16].mean(), rgb[16:].mean()])
-        return np.mean(runs, axis=0) / sky
+        return sky_halves(scene, method, seeds, passes) / sky
 
     far, near = halves(True, 4, 24)
     assert abs(far - 1) < 0.07 and abs(near - 1) < 0.07, (far, near)
@@ -189,13 +191,8 @@ def test_white_principled_floor_under_a_constant_sky_reflects_the_sky_exactly(me
     sky = 1.0
 
     def halves(material, seeds, passes):
-        scene = sky_over_floor(1.0, sky, resolution=(32, 32), material=material)
-        runs = []
-        for seed in range(seeds):
-            _, result = render_passes(scene, passes=passes, photons_per_pass=40_000, seed=seed, **method)
-            rgb = result.image[..., :3].mean(axis=2)
-            runs.append([rgb[:16].mean(), rgb[16:].mean()])
-        return np.mean(runs, axis=0) / sky
+        return sky_halves(sky_over_floor(1.0, sky, resolution=(32, 32), material=material), method,
+                          seeds, passes) / sky
 
     far, near = halves(principled_white(0.5), 4, 16)
     # Glossy points without the rise in their pairs' colours measured 0.93-0.94 far.
