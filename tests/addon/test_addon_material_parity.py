@@ -23,12 +23,11 @@ candidate, not checked).  Before the compensation, rough glossy and metal were m
 """
 from __future__ import annotations
 
-import bpy
 import numpy as np
 import pytest
 
 import blender_scenes as bs
-from test_addon_parity import OURS, RESOLUTION, use_cycles
+from test_addon_parity import OURS, RESOLUTION, cycles_and_ours
 
 pytestmark = pytest.mark.slow
 
@@ -80,11 +79,7 @@ CASES = [(m, light) for m in MATERIALS for light in ("world", "area")]
 
 @pytest.mark.parametrize("material, light", CASES)
 def test_material_matches_cycles(addon, tmp_path, material, light):
-    build(material, light)
-    use_cycles(bpy.context.scene)
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build(material, light)
-    ours = bs.render_exr(tmp_path / "ours.exr")
+    cycles, ours = cycles_and_ours(lambda: build(material, light), tmp_path)
     centre = (slice(16, 48), slice(20, 44), slice(0, 3))
     c_ours, c_cycles = ours[centre].mean(), cycles[centre].mean()
     print(f"material {material} {light}: centre {c_ours / c_cycles:.3f}, "
@@ -117,11 +112,7 @@ def test_principled_floor_matches_cycles_from_face_on_to_grazing(addon, tmp_path
         bs.plane("Floor", size=60.0, material=mat)
         bs.camera(location=(0, -6, 2.5), target=(0, 0, 0), lens=35.0)
         bs.world((1.0, 1.0, 1.0), strength=1.0)
-    build()
-    use_cycles(bpy.context.scene)
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build()
-    ours = bs.render_exr(tmp_path / "ours.exr")
+    cycles, ours = cycles_and_ours(build, tmp_path)
     band_cycles = cycles[..., :3].reshape(8, -1).mean(axis=1)[1:]     # the top band holds the sky
     band_ours = ours[..., :3].reshape(8, -1).mean(axis=1)[1:]
     print(f"floor {floor}: ours / cycles {np.round(band_ours / band_cycles, 3)}")

@@ -94,6 +94,18 @@ def use_cycles(scene):
     c.seed = 1
 
 
+def cycles_and_ours(build, tmp_path):
+    """Images (Cycles, ours) of the scene ``build()`` makes, built afresh for each renderer;
+    ours is checked to be finite."""
+    build()
+    use_cycles(bpy.context.scene)
+    cycles = bs.render_exr(tmp_path / "cycles.exr")
+    build()
+    ours = bs.render_exr(tmp_path / "ours.exr")
+    assert np.isfinite(ours).all()
+    return cycles, ours
+
+
 LIGHTS = ["point", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "spread_30",
           "spread_90", "sun", "emissive_mesh", "world", "environment", "environment_turned"]
 
@@ -122,14 +134,7 @@ def environment_world():
 
 @pytest.mark.parametrize("kind", LIGHTS)
 def test_mean_matches_cycles(addon, tmp_path, kind):
-    corner_scene()
-    add_emitter(kind)
-    use_cycles(bpy.context.scene)
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    corner_scene()
-    add_emitter(kind)
-    ours = bs.render_exr(tmp_path / "ours.exr")
-    assert np.isfinite(ours).all()
+    cycles, ours = cycles_and_ours(lambda: (corner_scene(), add_emitter(kind)), tmp_path)
     mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
     print(f"parity {kind}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} ratio {mean_ours / mean_cycles:.4f}")
     assert mean_cycles > 0.02
@@ -156,12 +161,7 @@ def test_bands_match_cycles_on_a_floor_under_the_world_after_many_passes(addon, 
         bs.cube("Block", size=1.0, material=bs.diffuse("Block", (0.5, 0.5, 0.5)), location=(0, 0, 0.5))
         bs.camera(location=(0, -6, 2.5), target=(0, 0, 0), lens=35.0)
         bs.world((0.4, 0.5, 0.6), strength=1.0)
-    build()
-    use_cycles(bpy.context.scene)
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build()
-    ours = bs.render_exr(tmp_path / "ours.exr")
-    assert np.isfinite(ours).all()
+    cycles, ours = cycles_and_ours(build, tmp_path)
     assert ours[..., :3].mean() == pytest.approx(cycles[..., :3].mean(), rel=TOLERANCE)
     assert_bands_match("floor under the world", ours, cycles)
 
@@ -206,12 +206,7 @@ def test_lights_seen_in_mirrors_through_glass_and_by_the_camera_match_cycles(add
     disk facing the viewer, 11 % smaller in solid angle than the sphere it shows without."""
     means = {}
     for visible in (True, False):
-        mirror_glass_scene(kind, view, visible)
-        use_cycles(bpy.context.scene)
-        cycles = bs.render_exr(tmp_path / "cycles.exr")
-        mirror_glass_scene(kind, view, visible)
-        ours = bs.render_exr(tmp_path / "ours.exr")
-        assert np.isfinite(ours).all()
+        cycles, ours = cycles_and_ours(lambda: mirror_glass_scene(kind, view, visible), tmp_path)
         means[visible] = ours[..., :3].mean(), cycles[..., :3].mean()
     (ours_on, cycles_on), (ours_off, cycles_off) = means[True], means[False]
     print(f"light {kind} {view}: ours {ours_on:.4f} cycles {cycles_on:.4f} ratio {ours_on / cycles_on:.4f}")
@@ -230,11 +225,7 @@ def test_point_light_close_to_the_floor_matches_cycles(addon, tmp_path, soft_fal
         bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.8, 0.8, 0.8)))
         bs.light("POINT", location=(0, 0, 0.8), energy=50.0, shadow_soft_size=0.5, use_soft_falloff=soft_falloff)
         bs.camera(location=(0, -4, 3), target=(0, 0, 0), lens=35.0)
-    build()
-    use_cycles(bpy.context.scene)
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build()
-    ours = bs.render_exr(tmp_path / "ours.exr")
+    cycles, ours = cycles_and_ours(build, tmp_path)
     print(f"point near floor, soft falloff {soft_falloff}: cycles {cycles[..., :3].mean():.4f} ours / cycles "
           f"{ours[..., :3].mean() / cycles[..., :3].mean():.4f}")
     assert ours[..., :3].mean() == pytest.approx(cycles[..., :3].mean(), rel=TOLERANCE)
