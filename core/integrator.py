@@ -8,7 +8,9 @@ One pass (``algorithm.md`` 1, Knaus & Zwicker 2011):
    worker pool, deposits summed per pixel;
 4. the pass estimates L_i = Vc S_i / N_i (Vc = 1 for uniform photons) are averaged
    over passes, weighted by their recorded photons N_i (equal weights for passes of
-   equal size), and the eye-pass emission is averaged over passes.
+   equal size), and the eye-pass emission is averaged over passes; AMCMCPPM adds the
+   deposits of its uniform samples outside the chains' visible set, O_i / n_U,i, averaged
+   with weights n_U,i (``core/mcmc.py``, "Two parts").
 
 The eye pass of pass i+1 is traced while the workers trace the photons of pass i.
 """
@@ -74,6 +76,7 @@ class Accumulator:
         self.passes = 0
         self.n_uniform = 0                          # n_U, all passes
         self.n_visible = 0                          # n_UV, all passes
+        self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
 
     @property
@@ -81,11 +84,12 @@ class Accumulator:
         """Uniform samples that were visible, over all passes (reported in the statistics)."""
         return self.n_visible / self.n_uniform if self.n_uniform else 0.0
 
-    def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain):
+    def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain, outside_sum=None):
         """Add one pass; returns the number of pixels whose non-finite photon sums were dropped.
 
+        ``outside_sum``: AMCMCPPM's sums over its uniform samples outside the visible set (O_p).
         Also sets ``last_pass_mean``: the mean over pixels and RGB of this pass's own estimate,
-        its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p.
+        its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p, plus O_p / n_U.
         """
         self.passes += 1
         self.emission += eye.emission
@@ -93,13 +97,16 @@ class Accumulator:
         self.n_uniform += n_uniform
         self.n_visible += n_visible
         self.last_pass_mean = float(eye.emission.mean())
+        dropped = 0
+        if outside_sum is not None and n_uniform:
+            # Non-finite contributions are dropped before they reach the sums (and counted).
+            outside_sum, dropped = _finite(outside_sum)
+            self.outside += outside_sum
+            self.last_pass_mean += float(outside_sum.mean()) / n_uniform
         if not recorded:
-            return 0
-        # Non-finite contributions are dropped before they reach the sums (and counted).
-        bad = ~np.isfinite(pixel_sum)
-        dropped = int(bad.any(axis=1).sum())
-        if dropped:
-            pixel_sum = np.where(bad, 0.0, pixel_sum)
+            return dropped
+        pixel_sum, bad_pixels = _finite(pixel_sum)
+        dropped += bad_pixels
         vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
         self.recorded += recorded
         self.visible_weighted += recorded * vc_pass
@@ -120,10 +127,19 @@ class Accumulator:
             else:
                 photons = self.photons_scaled
             rgb = rgb + photons / self.recorded
+        if is_chain and self.n_uniform:
+            rgb = rgb + self.outside / self.n_uniform
         out = np.empty((len(rgb), 4), np.float32)
         out[:, :3] = rgb
         out[:, 3] = self.alpha / self.passes
         return out
+
+
+def _finite(pixel_sum):
+    """The sums with non-finite entries set to 0, and the number of pixels that had any."""
+    bad = ~np.isfinite(pixel_sum)
+    dropped = int(bad.any(axis=1).sum())
+    return (np.where(bad, 0.0, pixel_sum) if dropped else pixel_sum), dropped
 
 
 def kz_radius_scales(n, alpha):
@@ -226,12 +242,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if not cut and merged["photon_s"] > 0:
                 last_rate = photons / merged["photon_s"]
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
-                              c["uniform_visible"], is_chain)
+                              c["uniform_visible"], is_chain, merged["outside_sum"])
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
-            if (c["uniform_samples"] and c["uniform_visible"] == 0 and (not is_chain or c["recorded"] == 0)
-                    and not warned_invisible):
+            if (c["uniform_samples"] and c["uniform_visible"] == 0 and c["uniform_outside"] == 0
+                    and (not is_chain or c["recorded"] == 0) and not warned_invisible):
                 warned_invisible = True
                 warnings.append(
                     f"pass {pass_index + 1}: none of {c['uniform_samples']} uniform photon paths reached "
@@ -281,6 +297,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "exchanges": c["exchanges"],
         "uniform_samples": c["uniform_samples"],
         "uniform_visible": c["uniform_visible"],
+        "uniform_outside": c["uniform_outside"],
         "visible_fraction": acc.visible_fraction,
         "radius": float(np.median(target.radius)) if len(target.radius) else 0.0,
         "method": settings.method,
@@ -306,6 +323,8 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
 def _merge(outputs):
     """Sum the workers' results of one pass."""
     merged = {"pixel_sum": outputs[0]["pixel_sum"].copy(), "counters": dict(outputs[0]["counters"])}
+    outside = [o["outside_sum"] for o in outputs if o.get("outside_sum") is not None]
+    merged["outside_sum"] = np.sum(outside, axis=0) if outside else None
     for o in outputs[1:]:
         merged["pixel_sum"] += o["pixel_sum"]
         for k, v in o["counters"].items():

@@ -6,8 +6,10 @@ A photon path is a function of u in [0, 1)^d with a fixed stride
 most B scattering events.  The path deposits at every vertex whose material has
 a non-delta lobe, including the first hit, and is *visible* (V(u) = 1) when any
 deposit finds a measurement point (the same test as the deposit itself) or, for the
-Markov chains, when a non-delta vertex lies in the target's visible cells (a superset
-that holds still between passes, ``core/visible_cells.py``).
+Markov chains, when a non-delta vertex lies in the target's visible cells: a set that
+holds still between passes (``core/visible_cells.py``).  With cells, V is the cells
+alone; paths that deposit outside them (at points seen through a glass ball, whose cells
+are left out) count through the uniform samples instead (``core/mcmc.py``, "Two parts").
 
 The contribution of photon p to measurement point j (pixel of j) is::
 
@@ -54,7 +56,7 @@ class DepositTarget:
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
-        also make a path visible (Markov chains; see ``core/visible_cells.py``)."""
+        then alone make a path visible (Markov chains; see ``core/visible_cells.py``)."""
         self.points = points
         self.cells = cells
         self.radius = radius
@@ -288,8 +290,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         else:
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
         wo = -dirs
-        # Deposit at non-delta vertices; a pair found makes the path visible, and so does a
-        # vertex in one of the target's visible cells (if it has them).
+        # Deposit at non-delta vertices; a pair found makes the path visible, or, if the target
+        # has visible cells, a vertex in one of them (and nothing else).
         dep = np.flatnonzero(table.has_nondelta[surf.mat_ids])
         if len(dep) and m:
             wo_dep = wo.take(dep, axis=0)
@@ -313,7 +315,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     sums.add(pj, [fc * wd for fc in f],
                              [fc * (wg if wg.ndim == 1 else wg[c]) for c, fc in enumerate(f)] if glossy
                              else None)
-                seen[lane] = True
+                if target.cells is None:
+                    seen[lane] = True
             if target.cells is not None:
                 open_ = np.flatnonzero(~visible[idx.take(dep)])
                 if len(open_):

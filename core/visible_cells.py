@@ -1,9 +1,9 @@
 """The surface the camera has seen so far, as grid cells: a visibility that holds still between passes.
 
 Why.  AMCMCPPM's chains sample photon paths uniformly over the visible set V of primary
-sample space, and the estimate is unbiased for *any* V that contains every path that
-contributes to a measurement point (paths in V that contribute nothing are recorded with
-zero).  Hachisuka and Jensen take V = "contributes to a point of this pass".  With SPPM's
+sample space, and the estimate is unbiased for *any* V that holds still, if the paths
+outside V that contribute are counted some other way (here: by the uniform samples; paths
+in V that contribute nothing are recorded with zero).  Hachisuka and Jensen take V = "contributes to a point of this pass".  With SPPM's
 fresh, jittered measurement points every pass that set changes from pass to pass, and the
 chains carry their states over: a state survives into the next pass only if it is visible
 there too, so the surviving states are denser where the last pass's points covered the
@@ -13,9 +13,11 @@ with a few chain iterations per pass the image drifts: measured on a floor under
 constant world at 64x64 with a 1.5-pixel initial radius, the near floor 28 % too bright and
 the far floor 14 % too dark after 32 passes (PPM on the same scene: within 1 %).
 
-What.  V is now "contributes to a point of this pass" *or* "has a non-delta vertex, with a
-normal of the same major axis and sign, in a cell that the gather box (x +- r_1) of a
-measurement point of an earlier or this pass overlapped".  Cells are between one and two
+What.  V is now "has a non-delta vertex, with a normal of the same major axis and sign, in a
+cell that the gather box (x +- r_1) of a measurement point of an earlier or this pass
+overlapped".  Paths that contribute to a point outside every cell are left to the uniform
+samples, which count them directly (``core/mcmc.py``, "Two parts"): V only grows, and no
+chain state ever drops out of it.  Cells are between one and two
 of the point's initial radius r_1 wide (levels of powers of two from a base fixed by the
 first pass), so on a surface the camera sees every cell is overlapped already in the first
 pass whatever the gather radii have shrunk to, and the union over passes only grows at the
@@ -29,15 +31,15 @@ points of the first passes and then of every eighth (``CELL_PASSES``, ``CELL_EVE
 Lone points add no cells: a point counts only when the cell four times as wide around it
 holds at least four of the pass's points (``DENSITY_LEVELS``, ``MIN_POINTS``).  Points
 seen through a glass ball or in a curved mirror lie metres apart, at other places every
-pass; they stay visible through their own deposits, but their cells, added pass after
-pass, made V many times larger than the surface the camera sees (``small_view`` at 128x96,
-a ball on sunlit ground: 8 times PPM's visible fraction after 40 passes, now 1.2 to 1.5 times),
-and the chains spent their steps there.
+pass; their cells, added pass after pass, made V many times larger than the surface the
+camera sees (``small_view`` at 128x96, a ball on sunlit ground: 8 times PPM's visible
+fraction after 40 passes, now 1.2 to 1.5 times), and the chains spent their steps there.
+The paths that reach them only count through the uniform samples.
 
 Cells are exact integer keys (20 bits per axis around the first pass's points, then a
 3-bit normal axis), one sorted array per level; points far outside that range clamp to
-the border cells, which can only make V larger.  V stays a superset of the contributing
-paths whatever the cells hold, so the cells affect efficiency, never correctness.
+the border cells, which can only make V larger.  The estimate is unbiased whatever the
+cells hold, so the cells affect efficiency, never correctness.
 """
 from __future__ import annotations
 

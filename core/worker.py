@@ -45,21 +45,24 @@ class PhotonWorker:
         target : the pass's DepositTarget (measurement points and their grid).
         The result holds ``pixel_sum`` (n_pixels, 3): the summed contributions of the
         recorded photons (not yet divided by their number or scaled by the visible
-        fraction), ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
+        fraction), ``outside_sum`` (AMCMCPPM: the summed contributions of the uniform samples
+        outside the chains' visible set, to be divided by n_U; else None), ``counters`` (a
+        :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
         counters = ChainCounters()
+        outside_sum = None
         if self.chains is None:
             pixel_sum, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
             theta_mean, valid = 0.0, 0
         else:
-            pixel_sum, interrupted = self._chain_pass(target, n_photons, counters, stop)
+            pixel_sum, outside_sum, interrupted = self._chain_pass(target, n_photons, counters, stop)
             c = self.chains
             adapted = c.proposed > 0
             theta_mean = float(c.theta[adapted].mean()) if adapted.any() else float(c.theta.mean())
             valid = int(c.valid.sum())
-        return {"pixel_sum": pixel_sum, "counters": dataclasses.asdict(counters),
+        return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "counters": dataclasses.asdict(counters),
                 "theta_mean": theta_mean, "valid_chains": valid,
                 "total_proposed": int(self.chains.proposed.sum()) if self.chains else 0,
                 "total_accepted": int(self.chains.accepted.sum()) if self.chains else 0,
@@ -111,4 +114,6 @@ class PhotonWorker:
                                  prefetched=prefetched, prefetch=i + 1 < iterations)
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
-        return target.to_pixels(recorder.sum_diffuse, recorder.sum_glossy), interrupted
+        outside = (target.to_pixels(recorder.outside_diffuse, recorder.outside_glossy)
+                   if recorder.outside_pairs else None)
+        return target.to_pixels(recorder.sum_diffuse, recorder.sum_glossy), outside, interrupted

@@ -3,7 +3,12 @@ import numpy as np
 import pytest
 
 from core import RenderSettings, render
+from core.context import RenderContext
+from core.eye_pass import trace_eye_pass
+from core.photon_pass import DepositTarget
 from core.testing.scenes import cornell_box
+from core.visible_cells import VisibleCells
+from core.worker import PhotonWorker
 
 SEEDS = 4
 SCENE = dict(resolution=(16, 16))
@@ -78,3 +83,33 @@ def test_cumulative_and_per_pass_normalisation_agree():
     b = render(scene, RenderSettings(method="amcmcppm", seed=2, normalisation="per_pass", **RUN)).image
     # Same chains, only the visible-fraction weighting of the passes differs.
     assert abs(a[..., :3].mean() / b[..., :3].mean() - 1) < 0.01
+
+
+def test_paths_outside_the_chains_visible_set_count_as_plain_photon_tracing():
+    """With no visible cells no path is in the chains' V: every deposit comes from the chains'
+    uniform samples (``core/mcmc.py``, "Two parts"), and their sum over n_U is plain photon
+    tracing.  The same target's per-pass estimates from a PPM worker agree per image block."""
+    scene = cornell_box(**SCENE)
+    ctx = RenderContext(scene)
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
+    pts = eye.points
+    n_pixels = SCENE["resolution"][0] * SCENE["resolution"][1]
+    plain = DepositTarget(pts, pts.base_radius, ctx.table, n_pixels, ctx.has_shading_normals)
+    empty = DepositTarget(pts, pts.base_radius, ctx.table, n_pixels, ctx.has_shading_normals,
+                          cells=VisibleCells())
+    chain_worker = PhotonWorker(scene, RenderSettings(method="amcmcppm", chains=1024, seed=1), ctx=ctx)
+    ppm_worker = PhotonWorker(scene, RenderSettings(method="ppm", seed=1), ctx=ctx)
+    chain_est, ppm_est = [], []
+    for i in range(6):
+        out = chain_worker.run_pass(i, empty, 20_000)
+        c = out["counters"]
+        assert c["recorded"] == 0 and c["uniform_visible"] == 0 and not out["pixel_sum"].any()
+        assert c["uniform_outside"] > 0
+        chain_est.append(block_means(out["outside_sum"].reshape(16, 16, 3)) / c["uniform_samples"])
+        out = ppm_worker.run_pass(i, plain, 20_000)
+        ppm_est.append(block_means(out["pixel_sum"].reshape(16, 16, 3)) / out["counters"]["recorded"])
+    a, b = np.array(chain_est), np.array(ppm_est)
+    se = np.sqrt(a.var(axis=0, ddof=1) / len(a) + b.var(axis=0, ddof=1) / len(b))
+    # Welch t with about 10 degrees of freedom, Sidak over 4 blocks at alpha = 0.01: |t| < 4.1.
+    assert np.all(np.abs(a.mean(axis=0) - b.mean(axis=0)) < 4.1 * se), (a.mean(axis=0), b.mean(axis=0), se)
+    assert abs(a.mean() / b.mean() - 1) < 0.03

@@ -142,6 +142,50 @@ def test_normaliser_within_four_binomial_sigma():
     assert abs(v_hat - p) < 4 * sigma
 
 
+class DepositingOracle(BoxOracle):
+    """Every path "deposits" (one pair each), inside V or not; the batch keeps its samples."""
+
+    def __call__(self, u, refresh_rng, resume=None):
+        batch = super().__call__(u, refresh_rng, resume)
+        batch.pair_path = np.arange(len(u))
+        batch.u = u.copy()
+        return batch
+
+
+class OutsideRecorder(OccupancyRecorder):
+    def __init__(self, n_chains, n_labels):
+        super().__init__(n_chains, n_labels)
+        self.outside = []
+
+    def uniform(self, batch, rows):
+        self.outside.append(batch.u[rows])
+        return len(rows)
+
+
+@pytest.mark.parametrize("prefetch", [False, True])
+def test_uniform_samples_outside_the_visible_set_reach_the_recorder_once_each(prefetch):
+    """The chains count the paths in V; the uniform samples outside V count directly (module
+    docstring, "Two parts"): every one of them, once, and none inside V."""
+    box = ((0.0, 0.0), (0.7, 0.5))
+    oracle = DepositingOracle([box])
+    s = RenderSettings()
+    rng = np.random.default_rng(3)
+    chains = ChainSet.create(32, DIMS, s.initial_mutation_size, rng)
+    rec, counters = OutsideRecorder(32, 1), ChainCounters()
+    prefetched = None
+    for i in range(50):
+        prefetched = iterate(chains, oracle, rec, rng, s, counters, prefetched=prefetched,
+                             prefetch=prefetch and i + 1 < 50)
+    end_pass(chains, rec)
+    outside = np.concatenate(rec.outside)
+    assert len(outside) == counters.uniform_outside == counters.uniform_samples - counters.uniform_visible
+    inside = ((outside[:, :2] >= box[0]) & (outside[:, :2] < box[1])).all(axis=1)
+    assert not inside.any()
+    assert len(np.unique(outside, axis=0)) == len(outside)
+    p = 1 - oracle.measure()
+    assert abs(len(outside) / counters.uniform_samples - p) < 4 * np.sqrt(p * (1 - p) / counters.uniform_samples)
+
+
 def test_every_iteration_records_one_path_per_chain_with_a_state():
     oracle = BoxOracle([((0.0, 0.0), (0.3, 0.3))])
     chains, rec, c = run_chains(oracle, 16, 300, 1)

@@ -85,7 +85,8 @@ def test_bad_points_are_ignored():
 
 
 def test_cells_add_visible_paths_and_change_no_deposit():
-    """With cells, V is a superset of the paths that deposit; the deposits are the same."""
+    """With cells, V is the paths with a vertex in them: here (no lone points) a superset of the
+    paths that deposit; with no cells, V is empty.  The deposits are the same."""
     scene = cornell_box((24, 18))
     ctx = RenderContext(scene)
     eye = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
@@ -110,6 +111,11 @@ def test_cells_add_visible_paths_and_change_no_deposit():
     np.testing.assert_array_equal(a.pair_path, b.pair_path)
     np.testing.assert_array_equal(a.pair_point, b.pair_point)
     np.testing.assert_allclose(a.pair_diffuse, b.pair_diffuse)
+    # Cells alone make a path visible: with none, no path is, and the deposits stay.
+    empty = DepositTarget(pts, radius, ctx.table, w * h, ctx.has_shading_normals, cells=VisibleCells())
+    e = trace_photons(ctx, empty, u.copy(), 8, collect_pairs=True)
+    assert not e.visible.any()
+    np.testing.assert_array_equal(a.pair_path, e.pair_path)
     # A worker rebuilds the same target from plain arrays.
     again = DepositTarget.from_arrays(celled.to_arrays(), ctx.table)
     c = trace_photons(ctx, again, u.copy(), 8, collect_pairs=True)
