@@ -33,9 +33,9 @@ chains, and the rest, (1/n_U) sum f(u_U) [u_U not in V] from the uniform samples
 photon tracing would count them (:meth:`Recorder.uniform`).  Before, V also held the paths
 that deposited in the current pass; that part moved with every pass's points, the states
 in it were dropped at the next pass, and with exchanges as rare as Vc per iteration the
-chains could not refill it: on ``small_view`` (a 600 mm lens on a glass ball) the paths
-first seen at the second vertex held 0.019 of the recorded states against 0.032 +- 0.002
-of the visible uniform paths, and the rest of the image was 2 % too bright.
+chains could not refill it: on ``small_view`` (a 600 mm lens on a glass ball) the pixels
+seen through the ball came out 0.78 of SPPM's at equal radii and the rest 1.024
+(``benchmarks/outside_cells.py``; now 1.02 and 1.006).
 
 Adaptation.  theta_{i+1} = theta_i + (A_i - A*) / i (``algorithm.md`` 2), i counting the
 iterations with proposals, A_i the acceptance of *all* chains so far: one mutation size for
