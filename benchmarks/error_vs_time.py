@@ -24,7 +24,8 @@ corrected relMSE, which bright caustic pixels do not dominate.
     python benchmarks/error_vs_time.py --resolution 64 48 --time 60 --seeds 3 --jobs 2
 
 writes ``benchmarks/results/error_vs_time/`` (per-run images, curves.png, report.md,
-summary.json).  ``--quick`` is a two-minute smoke run at tiny sizes.
+summary.json).  ``--quick`` is a two-minute smoke run at tiny sizes.  ``--make-reference SCENE
+--analyse-only`` remakes a reference and measures the runs saved there against it again.
 """
 from __future__ import annotations
 
@@ -314,6 +315,8 @@ def main():
     ap.add_argument("--photons-per-pass", type=int, default=None)
     ap.add_argument("--out", default=os.path.join(ROOT, "benchmarks", "results", "error_vs_time"))
     ap.add_argument("--quick", action="store_true", help="tiny smoke run (seconds, not minutes)")
+    ap.add_argument("--analyse-only", action="store_true",
+                    help="no runs: analyse the runs saved in --out (e.g. after --make-reference)")
     args = ap.parse_args()
     if args.run_one:
         run_one(*json.loads(args.run_one))
@@ -344,9 +347,14 @@ def main():
                 runs[m].append(path)
                 jobs.append((scene, list(args.resolution), m, seed, args.time, path, 1.0,
                              args.photons_per_pass))
-        print(f"{scene}: {len(jobs)} runs of {args.time:g} s, {args.jobs} at a time ...", flush=True)
-        with ThreadPoolExecutor(max_workers=args.jobs) as ex:
-            list(ex.map(launch, jobs))
+        if args.analyse_only:
+            missing = [j[5] for j in jobs if not os.path.exists(j[5])]
+            if missing:
+                sys.exit(f"--analyse-only: no saved run {missing[0]} (run without it first)")
+        else:
+            print(f"{scene}: {len(jobs)} runs of {args.time:g} s, {args.jobs} at a time ...", flush=True)
+            with ThreadPoolExecutor(max_workers=args.jobs) as ex:
+                list(ex.map(launch, jobs))
         results[scene] = analyse(scene, runs, ref, ref_var, ref_meta, args.time, args.methods)
     plot(results, os.path.join(args.out, "curves.png"))
     text = report(results, args, os.path.join(args.out, "report.md"))
