@@ -349,18 +349,14 @@ def hole_mirror_glass(resolution=(64, 48), hole=0.15):
     return m.build(mats, lights, cam, smooth=True)
 
 
-def small_view(resolution=(64, 48), boxes=400, seed=1, ground=100.0, lens_mm=600.0):
-    """A long lens sees a tiny part of a large sunlit town (the paper's scene 3).
-
-    ``boxes=0, ground=4.0``: only the ball in its clearing on a small ground, where uniform
-    photons find the view often (a visible fraction of a few per cent); ``lens_mm=2000``:
-    the ball fills most of the view."""
+def small_view(resolution=(64, 48), boxes=400, seed=1):
+    """A long lens sees a tiny part of a large sunlit town (the paper's scene 3)."""
     rng = np.random.default_rng(seed)
     mats = Materials.build([{"name": "ground", "diffuse": (0.5, 0.5, 0.45)},
                             {"name": "building", "diffuse": (0.7, 0.6, 0.5)},
                             {"name": "glass", "dielectric": 1.0, "ior": 1.5}])
     m = MeshBuilder()
-    m.add_quad((-ground, -ground, 0), (ground, -ground, 0), (ground, ground, 0), (-ground, ground, 0), 0)
+    m.add_quad((-100, -100, 0), (100, -100, 0), (100, 100, 0), (-100, 100, 0), 0)
     eye, target = np.array([30.0, -30.0, 12.0]), np.array([0.0, 0.0, 0.3])
     placed = 0
     while placed < boxes:
@@ -380,7 +376,7 @@ def small_view(resolution=(64, 48), boxes=400, seed=1, ground=100.0, lens_mm=600
     m.add_box((-3, -3, 0), (3, 3, 0.02), 0)
     m.add_sphere((0.0, 0.0, 0.3), 0.3, 2, n_theta=16, n_phi=32)
     lights = Lights.build([{"kind": "sun", "direction": (-0.4, 0.3, -0.85), "power": 5.0, "sun_angle": 0.01}])
-    cam = Camera.look_at(tuple(eye), tuple(target), lens_mm=lens_mm, resolution=resolution)
+    cam = Camera.look_at(tuple(eye), tuple(target), lens_mm=600.0, resolution=resolution)
     return m.build(mats, lights, cam, smooth=True)
 
 
