@@ -55,7 +55,8 @@ def run(job):
     core = importlib.import_module(package)
     scenes = importlib.import_module(f"{package}.testing.scenes")
     means = []
-    settings = core.RenderSettings(method=method, passes=passes, seed=seed, workers=1, photons_per_pass=100_000)
+    settings = core.RenderSettings(method=method, passes=passes, seed=seed, workers=1,
+                                   photons_per_pass=100_000)
     result = core.render(scenes.small_view(RESOLUTION), settings,
                          on_iteration=lambda r: means.append(r.stats[-1]["pass_mean"]))
     return result.image[..., :3].mean(axis=2).ravel(), np.array(means)

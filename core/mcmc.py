@@ -159,7 +159,9 @@ class Recorder:
 
     def uniform(self, batch, rows):
         """Uniform samples ``rows`` of ``batch`` are outside V: their deposits count as they are
-        (divided by n_U, not recorded by a chain; module docstring, "Two parts")."""
+        (divided by n_U, not recorded by a chain; module docstring, "Two parts").  Returns how
+        many of them deposited."""
+        return 0
 
 
 def begin_pass(chains, trace, recorder, counters):
@@ -266,9 +268,8 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     counters.uniform_samples += c
     counters.uniform_visible += int(vis.sum())
     outside = rows_u[~vis]
-    pairs = getattr(batch_u, "pair_path", None)
-    if len(outside) and pairs is not None and len(pairs):
-        counters.uniform_outside += recorder.uniform(batch_u, outside) or 0
+    if len(outside):
+        counters.uniform_outside += recorder.uniform(batch_u, outside)
     if not exchange:
         vis = vis & ~was_valid
     take = np.flatnonzero(vis)
@@ -409,7 +410,7 @@ class DepositLog(Recorder):
         np.add.at(self.count, ids[ok], counts[ok])
 
     def uniform(self, batch, rows):
-        """Sum the deposits of paths ``rows`` of ``batch`` as they are; returns how many of them deposited."""
+        """Sum the deposits of paths ``rows`` of ``batch`` as they are; return how many deposited."""
         mask = np.zeros(len(batch.visible), bool)
         mask[rows] = True
         sel = np.flatnonzero(mask.take(batch.pair_path))

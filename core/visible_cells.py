@@ -3,9 +3,9 @@
 Why.  AMCMCPPM's chains sample photon paths uniformly over the visible set V of primary
 sample space, and the estimate is unbiased for *any* V that holds still, if the paths
 outside V that contribute are counted some other way (here: by the uniform samples; paths
-in V that contribute nothing are recorded with zero).  Hachisuka and Jensen take V = "contributes to a point of this pass".  With SPPM's
-fresh, jittered measurement points every pass that set changes from pass to pass, and the
-chains carry their states over: a state survives into the next pass only if it is visible
+in V that contribute nothing are recorded with zero).  Hachisuka and Jensen take
+V = "contributes to a point of this pass".  With SPPM's fresh, jittered measurement
+points every pass that set changes from pass to pass, and the chains carry their states over: a state survives into the next pass only if it is visible
 there too, so the surviving states are denser where the last pass's points covered the
 surface better.  Where the gather discs leave gaps (radii below the point spacing: late
 passes, or surfaces seen at a grazing angle) the coverage varies across the image, and
@@ -17,9 +17,8 @@ What.  V is now "has a non-delta vertex, with a normal of the same major axis an
 cell that the gather box (x +- r_1) of a measurement point of an earlier or this pass
 overlapped".  Paths that contribute to a point outside every cell are left to the uniform
 samples, which count them directly (``core/mcmc.py``, "Two parts"): V only grows, and no
-chain state ever drops out of it.  Cells are between one and two
-of the point's initial radius r_1 wide (levels of powers of two from a base fixed by the
-first pass), so on a surface the camera sees every cell is overlapped already in the first
+chain state ever drops out of it.  Cells are between one and two of the point's initial
+radius r_1 wide (levels of powers of two from a base fixed by the first pass), so on a surface the camera sees every cell is overlapped already in the first
 pass whatever the gather radii have shrunk to, and the union over passes only grows at the
 edges.  The set is therefore almost the same in every pass and the surviving states stay
 uniform over it.  On the floor above, after 24 passes: within 1 % near and far with the
