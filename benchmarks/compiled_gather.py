@@ -36,9 +36,7 @@ def recorded_queries(scene, n_paths, settings):
     eye = trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px, settings.max_bounces)
     w, h = scene.camera.resolution
     target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, w * h, ctx.has_shading_normals)
-    if len(target.grid.grids) != 1:
-        sys.exit("this scene's radii span several grid layers; the kernel replays one HashGrid")
-    grid = target.grid.grids[0]
+    grid = target.grid
     calls = []
     query = grid.query
 

@@ -18,8 +18,6 @@ import numpy as np
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_remainder,
                    lobe_scores, scatter)
 from .camera import generate_camera_rays
-from .differentials import (MIN_WIDTH_RATIO, beam_width, from_camera, scattered,
-                            shading_normal_derivatives, transfer)
 from .sampling import dot
 from .scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 
@@ -37,7 +35,6 @@ class MeasurementPoints:
     mat_ids: np.ndarray     # (m,) int32 material
     colors: np.ndarray      # (m, 2, 3) float32 diffuse and glossy colour at the point
     base_radius: np.ndarray  # (m,) float64 r_1: initial_radius_px pixel footprints at the point
-    straight_radius: np.ndarray  # (m,) float64 the same with footprints of the unbent path (no differentials)
 
     @property
     def count(self) -> int:
@@ -95,7 +92,6 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     # Which rays see analytic lights (Blender's ray visibility): direct camera rays, and after
     # a delta event rays reflected (glossy) or refracted (transmission).
     ray_kind = np.full(len(pix), VISIBLE_CAMERA, np.uint8)
-    diff = None          # ray differentials, from the first delta bounce on (core/differentials.py)
     parts = []
     rays = 0
     for depth in range(max_bounces + 1):
@@ -126,11 +122,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         ray_kind = ray_kind.take(h)
         path_len = path_len.take(h) + hits.t.take(h)
         footprint = footprint.take(h)
-        t_hit = hits.t.take(h).astype(np.float64)
-        prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
-        if diff is not None:
-            diff = diff.take(h)
-        surf = ctx.surface(prim, b1, b2)
+        surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
         wo = -dirs
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
@@ -148,22 +140,14 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             s = np.flatnonzero(stop)
             rows = lambda a: a.take(s, axis=0)                      # noqa: E731
             ng = face_forward(rows(surf.ng), rows(wo))
-            # A pixel's beam is footprint x path length wide, unless curved mirrors or glass
-            # spread or focus it on the way (ray differentials).
-            straight = rows(footprint) * (rows(path_len) if grows else 1.0)
-            width = straight
-            if diff is not None:
-                width = beam_width(diff.take(s), rows(dirs), rows(t_hit))
-                width = np.maximum(np.where(np.isfinite(width), width, straight), MIN_WIDTH_RATIO * straight)
-            r1 = initial_radius_px * width
+            r1 = initial_radius_px * rows(footprint) * (rows(path_len) if grows else 1.0)
             f32 = np.float32
             parts.append(MeasurementPoints(
                 pixel_ids=rows(pix), position=rows(surf.position), ng=ng.astype(f32),
                 ns=face_forward(rows(surf.ns), ng).astype(f32), wo=rows(wo).astype(f32),
                 weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
                 colors=surf.colors[:, :2].take(s, axis=0).astype(f32),
-                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
-                straight_radius=np.clip(initial_radius_px * straight, 1e-7 * extent, 0.5 * extent)))
+                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent)))
         go = np.flatnonzero(~stop & (total > 0))
         if depth == max_bounces or len(go) == 0:
             break
@@ -181,33 +165,14 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         g = go[keep]
         reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0
         ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
-        diff = _scattered_differentials(ctx, cam, diff, g, dirs, t_hit, footprint, prim, b1, b2, surf,
-                                        wi[keep], reflected)
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
     return parts, rays
 
 
-def _scattered_differentials(ctx, cam, diff, g, dirs, t_hit, footprint, prim, b1, b2, surf, wi, reflected):
-    """Differentials of the rays ``wi`` that rows ``g`` scatter into at their delta hits."""
-    d = dirs.take(g, axis=0)
-    diff = from_camera(cam, d, footprint.take(g)) if diff is None else diff.take(g)
-    ng, ns = surf.ng.take(g, axis=0), surf.ns.take(g, axis=0)
-    dp = transfer(diff, d, t_hit.take(g), ng)
-    dn = shading_normal_derivatives(ctx, prim.take(g), b1.take(g), b2.take(g), *dp)
-    # The normal the scatter used: shading, on the side of wo (as bsdf.scatter flips it).
-    wo = -d
-    ngf = face_forward(ng, wo)
-    flip = dot(ns, ngf) < 0
-    sign = np.where(flip, -1.0, 1.0)[:, None]
-    ior = ctx.table.ior.take(surf.mat_ids.take(g))
-    eta = np.where(dot(wo, ng) > 0, ior, 1.0 / np.where(ior > 0, ior, 1.0))
-    return scattered(dp, (diff.ddx, diff.ddy), wo, wi, sign * ns, [sign * x for x in dn], reflected, eta)
-
-
 def _empty_points():
     z3 = np.zeros((0, 3), np.float32)
     return MeasurementPoints(np.zeros(0, np.int64), np.zeros((0, 3)), z3, z3, z3, z3,
-                             np.zeros(0, np.int32), np.zeros((0, 2, 3), np.float32), np.zeros(0), np.zeros(0))
+                             np.zeros(0, np.int32), np.zeros((0, 2, 3), np.float32), np.zeros(0))
 

@@ -35,7 +35,6 @@ ENTRY_BUDGET = 8            # grid entries per point at most (the cell grows to 
 MAX_ENTRIES = 1 << 24       # ... and in all (bounds memory for big images)
 CHUNK_CANDIDATES = 1 << 18  # candidate pairs per chunk (temporaries stay in cache)
 GROUP_SPAN = 3              # boxes up to this many cells per axis are listed by offset groups
-LAYER_RATIO = 4.0           # radii this many times the median or more go to grids of their own
 
 
 class HashGrid:
@@ -235,67 +234,6 @@ class HashGrid:
         cat = (lambda a: np.concatenate(a)) if out_p else (lambda a: np.zeros(0, np.int64))
         cos = None if dirs is None else (np.concatenate(out_c) if out_c else np.zeros(0))
         return cat(out_p), cat(out_j), cos
-
-
-class LayeredGrid:
-    """One :class:`HashGrid` per band of radii, queried together.
-
-    A single grid sizes its cells from the median radius and grows them until the entries fit
-    the budget, so a few points with radii hundreds of times the median (seen through a glass
-    ball near its rim: ``core/differentials.py``) would make every cell huge and every photon
-    test hundreds of candidates.  Points with radii of LAYER_RATIO^k to LAYER_RATIO^(k+1)
-    median radii go to grid k instead; each grid sizes its own cells.  Pairs come out grid by
-    grid, each grouped by photon.
-    """
-
-    def __init__(self, positions, radii, normals):
-        radii = np.asarray(radii, np.float64)
-        self.point_count = len(radii)
-        band = np.zeros(len(radii), np.int64)
-        if len(radii):
-            ratio = radii / max(float(np.median(radii)), 1e-300)
-            band = np.floor(np.log(np.maximum(ratio, 1.0)) / np.log(LAYER_RATIO)).astype(np.int64)
-        self.grids, self.ids = [], []
-        for b in np.unique(band) if len(band) else [0]:
-            sel = np.flatnonzero(band == b)
-            whole = len(sel) == len(radii)
-            self.grids.append(HashGrid(positions, radii, normals) if whole else
-                              HashGrid(positions.take(sel, axis=0), radii.take(sel), normals.take(sel, axis=0)))
-            self.ids.append(None if whole else sel)
-
-    @property
-    def entry_count(self) -> int:
-        return sum(g.entry_count for g in self.grids)
-
-    def query(self, x, normals, directions=None):
-        """As :meth:`HashGrid.query`, over all the grids (point ids of the whole set)."""
-        if len(self.grids) == 1:
-            return self.grids[0].query(x, normals, directions)
-        ps, js, cs = [], [], []
-        for grid, ids in zip(self.grids, self.ids):
-            p, j, c = grid.query(x, normals, directions)
-            ps.append(p)
-            js.append(j if ids is None else ids.take(j))
-            cs.append(c)
-        return np.concatenate(ps), np.concatenate(js), None if directions is None else np.concatenate(cs)
-
-    def to_arrays(self) -> dict:
-        """Plain arrays (for a worker process); :meth:`from_arrays` restores the grids."""
-        d = {"layers": np.int64(len(self.grids)), "point_count": np.int64(self.point_count)}
-        for k, (grid, ids) in enumerate(zip(self.grids, self.ids)):
-            d.update({f"{k}.{f}": v for f, v in grid.to_arrays().items()})
-            d[f"{k}.whole"] = np.bool_(ids is None)
-            d[f"{k}.ids"] = np.zeros(0, np.int64) if ids is None else ids
-        return d
-
-    @classmethod
-    def from_arrays(cls, d) -> "LayeredGrid":
-        out = cls.__new__(cls)
-        out.point_count = int(d["point_count"])
-        out.grids = [HashGrid.from_arrays({f: d[f"{k}.{f}"] for f in HashGrid.FIELDS})
-                     for k in range(int(d["layers"]))]
-        out.ids = [None if bool(d[f"{k}.whole"]) else d[f"{k}.ids"] for k in range(int(d["layers"]))]
-        return out
 
 
 def _choose_cell_size(radii, extent, budget):

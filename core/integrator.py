@@ -192,10 +192,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         pts = eye.points
         radius = pts.base_radius * scales[i]
         if cells is not None and (i < CELL_PASSES or i % CELL_EVERY == 0):
-            # Cells from the radii of the unbent paths: through a glass ball the differentials'
-            # radii reach metres, and cells that wide hold surfaces the camera never sees
-            # (hole_mirror_glass: the roof's outside; visible fraction 7e-4 -> 0.15).
-            cells = cells.extended(pts.position, pts.ng, np.minimum(pts.base_radius, pts.straight_radius))
+            cells = cells.extended(pts.position, pts.ng, pts.base_radius)
         return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells)
 
     # The worker processes start (scene, acceleration structure) while this one traces the

@@ -31,7 +31,7 @@ import numpy as np
 from .bsdf import choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores, scatter
 from .context import Surface
 from .eye_pass import MeasurementPoints
-from .hash_grid import LayeredGrid
+from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from . import sampling as smp
 from .sampling import dot, luminance
@@ -60,7 +60,7 @@ class DepositTarget:
         self.points = points
         self.cells = cells
         self.radius = radius
-        self.grid = grid if grid is not None else LayeredGrid(points.position, radius, points.ng)
+        self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
         self.n_pixels = n_pixels
         self.pixel_ids = points.pixel_ids
         self.has_shading_normals = has_shading_normals
@@ -93,7 +93,7 @@ class DepositTarget:
     @staticmethod
     def from_arrays(d, table) -> "DepositTarget":
         points = MeasurementPoints(**{f: d[f"points.{f}"] for f in MeasurementPoints.__dataclass_fields__})
-        grid = LayeredGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
+        grid = HashGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
         cells = {k[6:]: v for k, v in d.items() if k.startswith("cells.")}
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
                              grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None)

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from core.hash_grid import GROUP_SPAN, LAYER_RATIO, HashGrid, LayeredGrid, brute_force_query
+from core.hash_grid import GROUP_SPAN, HashGrid, brute_force_query
 
 
 def random_points(rng, n, scale, offset, r_range):
@@ -115,36 +115,3 @@ def test_grids_too_big_for_packed_keys_sort_by_key():
     xn = nrm[rng.integers(0, 3000, 3000)]
     want = query_matches_brute_force(grid, x, xn, pts, radii, nrm)
     assert len(want) > 100 and any(pj < 10 for _, pj in want) and any(pj >= 1500 for _, pj in want)
-
-
-def test_layered_grid_with_radii_far_above_the_median_equals_brute_force():
-    """Points seen through a glass ball can have radii hundreds of times the median: they go to
-    grids of their own (and a single grid would have grown its cells around them)."""
-    rng = np.random.default_rng(11)
-    pts, radii, nrm = random_points(rng, 3000, 1.0, 0.0, (0.005, 0.02))
-    wide = rng.choice(3000, 60, replace=False)
-    radii[wide] *= rng.uniform(5.0, 300.0, 60)
-    grid = LayeredGrid(pts, radii, nrm)
-    assert len(grid.grids) >= 3
-    assert max(g.cell_size for g in grid.grids[:1]) < 0.1      # the usual points keep small cells
-    assert HashGrid(pts, radii, nrm).cell_size > 5 * grid.grids[0].cell_size
-    x = np.concatenate([pts[rng.integers(0, 3000, 1500)] + 0.01 * rng.normal(size=(1500, 3)),
-                        rng.random((500, 3)) * 1.4 - 0.2])
-    xn = nrm[rng.integers(0, 3000, 2000)]
-    want = query_matches_brute_force(grid, x, xn, pts, radii, nrm)
-    assert len({j for _, j in want} & set(wide.tolist())) > 20
-    # Through to_arrays (as a worker process gets it): the same pairs.
-    again = LayeredGrid.from_arrays(grid.to_arrays())
-    p1, j1, _ = grid.query(x, xn)
-    p2, j2, _ = again.query(x, xn)
-    assert pair_set(p1, j1) == pair_set(p2, j2)
-    assert again.entry_count == grid.entry_count
-
-
-def test_layered_grid_keeps_one_grid_when_radii_are_alike():
-    rng = np.random.default_rng(12)
-    pts, radii, nrm = random_points(rng, 500, 1.0, 0.0, (0.05, 0.05 * LAYER_RATIO * 0.9))
-    grid = LayeredGrid(pts, radii, nrm)
-    assert len(grid.grids) == 1 and grid.ids == [None]
-    empty = LayeredGrid(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
-    assert len(empty.query(pts, nrm)[0]) == 0
