@@ -308,6 +308,7 @@ def main():
                     help="the committed references in benchmarks/references are 64x48")
     ap.add_argument("--time", type=float, default=60.0, help="seconds per run")
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1")
     ap.add_argument("--jobs", type=int, default=2, help="runs at the same time")
     ap.add_argument("--reference-time", type=float, default=1200.0, help="seconds per reference half")
     ap.add_argument("--make-reference", nargs="*", metavar="SCENE",
@@ -342,7 +343,7 @@ def main():
         ref_var = (z["half_a"] - z["half_b"]) ** 2 / 4 if "half_a" in z.files else np.zeros_like(ref)
         jobs, runs = [], {m: [] for m in args.methods}
         for m in args.methods:
-            for seed in range(args.seeds):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 path = os.path.join(args.out, f"{scene}_{m}_s{seed}.npz")
                 runs[m].append(path)
                 jobs.append((scene, list(args.resolution), m, seed, args.time, path, 1.0,
