@@ -2,30 +2,32 @@
 
 Why.  AMCMCPPM's chains sample photon paths uniformly over the visible set V of primary
 sample space, and the estimate is unbiased for *any* V that holds still, if the paths
-outside V that contribute are counted some other way (here: by the uniform samples; paths
-in V that contribute nothing are recorded with zero).  Hachisuka and Jensen take
-V = "contributes to a point of this pass".  With SPPM's fresh, jittered measurement
-points every pass that set changes from pass to pass, and the chains carry their states over: a state survives into the next pass only if it is visible
-there too, so the surviving states are denser where the last pass's points covered the
-surface better.  Where the gather discs leave gaps (radii below the point spacing: late
-passes, or surfaces seen at a grazing angle) the coverage varies across the image, and
-with a few chain iterations per pass the image drifts: measured on a floor under a
-constant world at 64x64 with a 1.5-pixel initial radius, the near floor 28 % too bright and
-the far floor 14 % too dark after 32 passes (PPM on the same scene: within 1 %).
+outside V that contribute are counted some other way (here: by the uniform samples; paths in
+V that contribute nothing are recorded with zero).  Hachisuka and Jensen take V =
+"contributes to a point of this pass".  With SPPM's fresh, jittered measurement points every
+pass that set changes from pass to pass, and the chains carry their states over: a state
+survives into the next pass only if it is visible there too, so the surviving states are
+denser where the last pass's points covered the surface better.  Where the gather discs leave
+gaps (radii below the point spacing: late passes, or surfaces seen at a grazing angle) the
+coverage varies across the image, and with a few chain iterations per pass the image drifts:
+measured on a floor under a constant world at 64x64 with a 1.5-pixel initial radius, the
+near floor 28 % too bright and the far floor 14 % too dark after 32 passes (PPM on the same
+scene: within 1 %).
 
 What.  V is now "has a non-delta vertex, with a normal of the same major axis and sign, in a
 cell that the gather box (x +- r_1) of a measurement point of an earlier or this pass
 overlapped".  Paths that contribute to a point outside every cell are left to the uniform
 samples, which count them directly (``core/mcmc.py``, "Two parts"): V only grows, and no
 chain state ever drops out of it.  Cells are between one and two of the point's initial
-radius r_1 wide (levels of powers of two from a base fixed by the first pass), so on a surface the camera sees every cell is overlapped already in the first
-pass whatever the gather radii have shrunk to, and the union over passes only grows at the
-edges.  The set is therefore almost the same in every pass and the surviving states stay
-uniform over it.  On the floor above, after 24 passes: within 1 % near and far with the
-default radius, within 5 % with 1.5 pixels (``tests/core/test_closed_form.py``).  The
-normal's axis keeps the backs of thin walls out; a surface behind another within a cell
-(a slab thinner than a cell) is in V and only costs chain steps.  The integrator adds the
-points of the first passes and then of every eighth (``CELL_PASSES``, ``CELL_EVERY``).
+radius r_1 wide (levels of powers of two from a base fixed by the first pass), so on a
+surface the camera sees every cell is overlapped already in the first pass whatever the
+gather radii have shrunk to, and the union over passes only grows at the edges.  The set is
+therefore almost the same in every pass and the surviving states stay uniform over it.  On
+the floor above, after 24 passes: within 1 % near and far with the default radius, within
+5 % with 1.5 pixels (``tests/core/test_closed_form.py``).  The normal's axis keeps the backs of
+thin walls out; a surface behind another within a cell (a slab thinner than a cell) is in V
+and only costs chain steps.  The integrator adds the points of the first passes and then of
+every eighth (``CELL_PASSES``, ``CELL_EVERY``).
 
 Lone points add no cells: a point counts only when the cell four times as wide around it
 holds at least four of the pass's points (``DENSITY_LEVELS``, ``MIN_POINTS``).  Points
