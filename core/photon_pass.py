@@ -98,12 +98,17 @@ class DepositTarget:
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
                              grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None)
 
-    def pair_weights(self, j, wi, cos_g):
+    def pair_weights(self, j, wi, cos_g, cos_photon=None):
         """Scalar diffuse and glossy weights of pairs with points ``j`` (the points' kernels aside).
 
         wi : (k, 3) unit directions back along the photons, or None for flat diffuse-only
         targets; cos_g : (k,) their cosines with the points' oriented geometric normals, as
-        returned by the grid query.  The contribution of a pair is ``flux * (kd_j * wd +
+        returned by the grid query; cos_photon : (k,) their cosines with the geometric normal
+        where they landed (needed with shading normals).  With shading normals a pair weighs
+        |N_s . wi| / |N_g(photon) . wi|: the photon's density is flux per area of *its* facet,
+        and a point's own facet can be nearly edge-on to photons that landed on a neighbour
+        (README "Brightness parity with Cycles"); a photon from behind the point's facet
+        (cos_g <= 0) counts for nothing, as with flat shading.  The contribution of a pair is ``flux * (kd_j * wd +
         kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.  Returns
         ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some glossy
         points have a Fresnel rise (``MaterialTable.rise``), else (k,).
@@ -111,9 +116,8 @@ class DepositTarget:
         pts = self.points
         if self.has_shading_normals:
             cos_s = dot(wi, pts.ns.take(j, axis=0))
-            # Photon density is flux per area of the geometric surface: |cos_s| / |cos_g|.
-            ratio = np.abs(cos_s) / np.maximum(np.abs(cos_g), 1e-4)
-            wd = np.where(cos_s > 0, ratio, 0.0)
+            ratio = np.abs(cos_s) / np.maximum(cos_photon, 1e-4)
+            wd = np.where((cos_s > 0) & (cos_g > 0), ratio, 0.0)
         else:
             cos_s, ratio = cos_g, None
             wd = (cos_s > 0).astype(np.float64)
@@ -301,8 +305,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             seen = np.zeros(len(idx), bool)
             if len(pi):
                 lane = dep.take(pi)
+                cos_photon = dot(nrm, wo_dep).take(pi) if target.has_shading_normals else None
                 wd, wg = target.pair_weights(pj, wo.take(lane, axis=0) if target.needs_directions else None,
-                                             cos_g)
+                                             cos_g, cos_photon)
                 if collect_pairs:
                     f = flux.take(lane, axis=0)
                     pairs["path"].append(idx[lane])
