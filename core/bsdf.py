@@ -63,6 +63,7 @@ class MaterialTable:
     rise: np.ndarray            # (M, 4, 3) float64 colour added times s(c) (glossy or mirror entry)
     layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
     score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
+    normal_mapped: np.ndarray = None  # (M,) bool: a normal map bends the shading normal
 
     @staticmethod
     def from_materials(mats) -> "MaterialTable":
@@ -113,7 +114,12 @@ class MaterialTable:
                              has_nondelta=diffuse_on | glossy_on, has_glossy=glossy_on,
                              is_emissive=(emission > 0).any(axis=1),
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
-                             rise=rise, layer=layer, score_extra=score_extra)
+                             rise=rise, layer=layer, score_extra=score_extra,
+                             normal_mapped=np.asarray(mats.normal_texture) >= 0)
+
+    @property
+    def has_normal_maps(self) -> bool:
+        return self.normal_mapped is not None and bool(self.normal_mapped.any())
 
     @property
     def has_rough_dielectric(self) -> bool:
@@ -321,14 +327,16 @@ def lobe_remainder(scores, u, lobe):
     return np.clip(r, 0.0, np.nextafter(1.0, 0.0))
 
 
-def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=None):
+def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=None, nn=None):
     """Sample a new direction from the chosen ``lobe`` at n surface points.
 
     ``u1``, ``u2`` are the direction's random numbers; rough dielectrics need a third, ``u3``
     (e.g. :func:`lobe_remainder`), for the choice between reflection and refraction.
 
     ``ns is ng`` (flat shading, as :meth:`RenderContext.surface` returns it) skips the
-    shading-normal correction, which is then exactly 1.
+    shading-normal correction, which is then exactly 1.  ``nn``, the normals before a normal map
+    (None without normal maps), adds Cycles' bump-map terms (:func:`bump_shadowing`) for photons:
+    their light-side direction is ``wo``.
 
     Returns ``(wi (n, 3), weight (n, 3), alive (n,))``: ``weight`` multiplies the
     path throughput; dead paths (absorbed, sampled below the surface, no lobe)
@@ -341,6 +349,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
     # Normals on the side of wo; the shading normal is flipped to agree with the geometric one.
     ngf = face_forward(ng, wo)
     nsf = ngf if ns is ng else face_forward(ns, ngf)
+    nnf = face_forward(nn, ngf) if nn is not None and mode == "importance" else None
     for k in range(4):
         sel = np.flatnonzero(lobe == k)
         if len(sel) == 0:
@@ -427,10 +436,36 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
         if mode == "importance" and ns is not ng:
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
+        if nnf is not None and k in NON_DELTA:
+            diffuse, valid = bump_shadowing(nnf.take(sel, axis=0), n_s, w_o)
+            w = w * (diffuse if k == DIFFUSE else valid)[:, None]
         wi[sel] = d
         weight[sel] = np.where(ok[:, None], w, 0.0)
         alive[sel] = ok
     return smp.normalize(wi), weight, alive
+
+
+def bump_shadowing(nn, ns, wi):
+    """Cycles' bump-map terms for a light-side direction ``wi`` at normal-mapped points.
+
+    nn : (k, 3) the unbent (smooth) normal, ns : (k, 3) the bent one, both on one side; wi : (k, 3).
+    Returns ``(diffuse (k,), valid (k,) bool)``: ``valid`` is False where wi and ns lie on opposite
+    sides of the smooth surface (no light through the back of opaque geometry; every lobe), and
+    ``diffuse`` is the diffuse lobes' factor: 0 there, else the GGX shadowing G1 of wi about nn with
+    alpha^2 = min(tan^2(nn, ns) / 8, 1) (Conty Estevez et al. 2019, "A Microfacet-Based Shadowing
+    Function to Solve the Bump Terminator Problem"), which darkens the bent normal's light
+    towards the smooth surface's terminator.  1 where ns equals nn.
+    """
+    cos_ni = dot(nn, wi)
+    cos_nd = dot(nn, ns)
+    valid = ~(cos_ni * cos_nd * dot(ns, wi) < 0.0)
+    cos_i = np.abs(cos_ni)
+    cos_d = np.minimum(np.abs(cos_nd), 1.0)
+    alpha2 = np.minimum(0.125 * (1.0 / np.maximum(cos_d * cos_d, 1e-12) - 1.0), 1.0)
+    c2 = np.maximum(cos_i * cos_i, 1e-12)
+    g = 2.0 / (1.0 + np.sqrt(1.0 + alpha2 * (1.0 - c2) / c2))
+    g = np.where((cos_d >= 1.0) | (cos_i >= 1.0), 1.0, np.where(cos_i < 1e-6, 0.0, g))
+    return np.where(valid, g, 0.0), valid
 
 
 def _adjoint_factor(wo, wi, ng, ns):

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores, scatter
+from .bsdf import (bump_shadowing, choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores,
+                   scatter)
 from .context import Surface
 from .eye_pass import MeasurementPoints
 from .hash_grid import HashGrid
@@ -65,6 +66,9 @@ class DepositTarget:
         self.pixel_ids = points.pixel_ids
         self.has_shading_normals = has_shading_normals
         self.table = table
+        # Points with a normal map (Cycles' bump-map terms in pair_weights), or None.
+        bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
+        self.bumped = bumped if bumped is not None and bumped.any() else None
         glossy = table.has_glossy.take(points.mat_ids)
         self.any_glossy = bool(glossy.any())
         self.is_glossy = glossy
@@ -108,8 +112,9 @@ class DepositTarget:
         |N_s . wi| / |N_g(photon) . wi|: the photon's density is flux per area of *its* facet,
         and a point's own facet can be nearly edge-on to photons that landed on a neighbour
         (README "Brightness parity with Cycles"); a photon from behind the point's facet
-        (cos_g <= 0) counts for nothing, as with flat shading.  The contribution of a pair is ``flux * (kd_j * wd +
-        kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.  Returns
+        (cos_g <= 0) counts for nothing, as with flat shading.  Normal-mapped points add
+        Cycles' bump terms (:func:`~core.bsdf.bump_shadowing`).  The contribution of a pair is
+        ``flux * (kd_j * wd + kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.  Returns
         ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some glossy
         points have a Fresnel rise (``MaterialTable.rise``), else (k,).
         """
@@ -118,6 +123,17 @@ class DepositTarget:
             cos_s = dot(wi, pts.ns.take(j, axis=0))
             ratio = np.abs(cos_s) / np.maximum(cos_photon, 1e-4)
             wd = np.where((cos_s > 0) & (cos_g > 0), ratio, 0.0)
+            if self.bumped is not None:
+                on = self.bumped.take(j)
+                if on.any():
+                    b = np.flatnonzero(on)
+                    jb = j.take(b)
+                    diffuse, valid = bump_shadowing(pts.nn.take(jb, axis=0), pts.ns.take(jb, axis=0),
+                                                    wi.take(b, axis=0))
+                    bump_valid = np.ones(len(j), bool)
+                    bump_valid[b] = valid
+                    wd[b] *= diffuse
+                    ratio = np.where(bump_valid, ratio, 0.0)
         else:
             cos_s, ratio = cos_g, None
             wd = (cos_s > 0).astype(np.float64)
@@ -231,13 +247,13 @@ class PhotonBatch:
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
-VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "mat_ids", "colors", "wo", "flux")
+VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux")
 
 
 def _vertex_arrays(n):
     return {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
-            "ns": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32), "colors": np.zeros((n, 4, 3)),
-            "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3))}
+            "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
+            "colors": np.zeros((n, 4, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3))}
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
@@ -336,6 +352,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 if collect_pairs:
                     for key, val in (("bounce", bounce), ("position", surf.position[rows]),
                                      ("ng", surf.ng[rows]), ("ns", surf.ns[rows]),
+                                     ("nn", (surf.ns if surf.nn is None else surf.nn)[rows]),
                                      ("mat_ids", surf.mat_ids[rows]), ("colors", surf.colors[rows]),
                                      ("wo", wo[rows]), ("flux", flux[rows])):
                         first[key][new] = val
@@ -349,7 +366,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 idx = np.concatenate([idx, fresh + join])
                 flux = np.concatenate([flux, resume["flux"][join]])
                 wo = np.concatenate([wo, resume["wo"][join]])
-                surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals)
+                surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals, ctx.has_normal_maps)
         if bounce == max_bounces or len(idx) == 0:
             continue
         # Scatter with this vertex's block of dimensions.
@@ -358,7 +375,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         lobe, prob = choose_lobe(scores, block[:, 0])
         u3 = lobe_remainder(scores, block[:, 0], lobe) if table.has_rough_dielectric else None
         wi, weight, alive = scatter(table, surf.mat_ids, surf.colors, lobe, prob, wo, surf.ng, surf.ns,
-                                    block[:, 1], block[:, 2], "importance", u3)
+                                    block[:, 1], block[:, 2], "importance", u3, surf.nn)
         new_flux = flux * weight
         # Russian roulette on the luminance ratio (the path stays a function of u).
         ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)
@@ -385,11 +402,12 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
 
 
-def _join_surfaces(surf, resume, join, has_shading_normals):
+def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps):
     """``surf`` followed by the recorded vertices ``join`` of ``resume``."""
     def cat(a, key):
         return np.concatenate([a, resume[key][join]])
     ng = cat(surf.ng, "ng")
     ns = cat(surf.ns, "ns") if has_shading_normals else ng
+    nn = cat(surf.nn, "nn") if has_normal_maps else None
     return Surface(cat(surf.position, "position"), ng, ns, cat(surf.mat_ids, "mat_ids"),
-                   cat(surf.colors, "colors"))
+                   cat(surf.colors, "colors"), nn)

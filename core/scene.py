@@ -73,6 +73,12 @@ class Materials:
       over its tinted transmission); smooth, or rough with GGX microfacets of Blender
       roughness ``dielectric_roughness`` (single scattering);
     * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides.
+
+    A tangent-space normal map (Blender's Normal Map node) bends the shading normal of every
+    lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
+    2 c - 1 along tangent, bitangent and normal), looked up with the triangle UVs in the frame of
+    ``Scene.tangents``, with ``normal_strength`` as in Cycles (tangent-plane components times
+    the strength, the normal component blended from 1).
     """
 
     names: list = field(default_factory=list)          # M material names (for messages)
@@ -95,12 +101,15 @@ class Materials:
     dielectric_reflection_color: np.ndarray = None      # (M, 3) float32; None: dielectric_color
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
+    normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
+    normal_strength: np.ndarray = None                  # (M,) float32 >= 0; None: 1
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
                     "glossy_color", "glossy_roughness", "glossy_multiscatter", "glossy_fresnel_ior",
                     "glossy_fresnel_rise", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
-                    "dielectric_reflection_color", "ior", "emission")
+                    "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength")
+    INT_FIELDS = ("diffuse_texture", "normal_texture")
 
     @property
     def count(self) -> int:
@@ -117,7 +126,8 @@ class Materials:
         and set the weight to 1 unless ``<lobe>_weight`` is given.  ``glossy_multiscatter``
         defaults to the glossy colour (Multiscatter GGX); give 0 for single-scattering GGX.
         ``glossy_fresnel_ior``, ``glossy_fresnel_rise`` and ``diffuse_layer`` default to 0,
-        ``diffuse_layer_weight`` to 1.
+        ``diffuse_layer_weight`` to 1.  ``normal_texture`` (default -1: none) and
+        ``normal_strength`` (default 1) give a tangent-space normal map.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -140,6 +150,8 @@ class Materials:
         out.dielectric_reflection_color = np.ones((m, 3), np.float32)
         out.ior = np.full(m, 1.5, np.float32)
         out.emission = np.zeros((m, 3), np.float32)
+        out.normal_texture = np.full(m, -1, np.int32)
+        out.normal_strength = np.ones(m, np.float32)
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
                 if lobe in s:
@@ -169,6 +181,8 @@ class Materials:
                 s.get("dielectric_reflection", out.dielectric_color[i]), np.float32), (3,))
             if "emission" in s:
                 out.emission[i] = np.broadcast_to(np.asarray(s["emission"], np.float32), (3,))
+            out.normal_texture[i] = s.get("normal_texture", -1)
+            out.normal_strength[i] = s.get("normal_strength", 1.0)
         return out
 
 
@@ -384,6 +398,9 @@ class Scene:
     world: World = field(default_factory=World)
     shading_normals: np.ndarray = None  # (T, 3, 3) float32 per-corner normals, or None (flat)
     uvs: np.ndarray = None              # (T, 3, 2) float32 per-corner texture coordinates, or None
+    # (T, 3, 4) float32 per-corner tangent (xyz, world, unit; zero: no tangent frame) and bitangent
+    # sign w: bitangent = w cross(normal, tangent).  Needed by normal maps (Materials), else None.
+    tangents: np.ndarray = None
     textures: list = field(default_factory=list)  # K images (H, W, 3) float32, linear, row 0 = bottom
 
     # ------------------------------------------------------------------ queries
@@ -452,31 +469,44 @@ class Scene:
             mats.glossy_multiscatter = np.array(mats.glossy_color, np.float32)   # Blender's default
         if mats.ior is not None:
             n = len(mats.ior)
-            for name, shape in (("glossy_fresnel_ior", (n,)), ("glossy_fresnel_rise", (n, 3)),
-                                ("diffuse_layer", (n, 3)), ("diffuse_layer_weight", (n,))):
+            for name, shape, value in (("glossy_fresnel_ior", (n,), 0.0),
+                                       ("glossy_fresnel_rise", (n, 3), 0.0),
+                                       ("diffuse_layer", (n, 3), 0.0), ("diffuse_layer_weight", (n,), 1.0),
+                                       ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0)):
                 if getattr(mats, name) is None:
-                    setattr(mats, name, np.full(shape, 1.0 if name == "diffuse_layer_weight" else 0.0,
-                                                np.float32))
+                    setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INT_FIELDS
+                                                else np.float32))
         for name in Materials.ARRAY_FIELDS:
             tail = (3,) if name.endswith(("color", "emission", "multiscatter", "rise", "layer")) else ()
-            dtype = np.int32 if name == "diffuse_texture" else np.float32
+            dtype = np.int32 if name in Materials.INT_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
-            if name != "diffuse_texture" and (v < 0).any():
+            if name not in Materials.INT_FIELDS and (v < 0).any():
                 bad = int(np.flatnonzero((v < 0).reshape(nm, -1).any(axis=1))[0])
                 fail(f"materials.{name} is negative for material '{mats.names[bad]}'")
             setattr(mats, name, v)
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
-        if ((mats.diffuse_texture < -1) | (mats.diffuse_texture >= len(self.textures))).any():
-            fail(f"materials.diffuse_texture must be -1 or an index below {len(self.textures)}")
-        if (mats.diffuse_texture >= 0).any() and self.uvs is None:
+        for name in Materials.INT_FIELDS:
+            v = getattr(mats, name)
+            if ((v < -1) | (v >= len(self.textures))).any():
+                fail(f"materials.{name} must be -1 or an index below {len(self.textures)}")
+        if ((mats.diffuse_texture >= 0) | (mats.normal_texture >= 0)).any() and self.uvs is None:
             fail("materials use image textures but the scene has no uvs")
+        if (mats.normal_texture >= 0).any() and self.tangents is None:
+            fail("materials use normal maps but the scene has no tangents")
         self.textures = [self._texture(i, x) for i, x in enumerate(self.textures)]
+        def per_corner(name, a, k):
+            a = np.asarray(a)
+            if a.shape != (t, 3, k):
+                fail(f"{name} must have shape (T, 3, {k}) = ({t}, 3, {k}) but has {a.shape}")
+            return arr(name, a.reshape(t, 3 * k), np.float32, (3 * k,), t).reshape(t, 3, k)
+
         if self.shading_normals is not None:
-            self.shading_normals = arr("shading_normals", self.shading_normals.reshape(-1, 9),
-                                       np.float32, (9,), t).reshape(t, 3, 3)
+            self.shading_normals = per_corner("shading_normals", self.shading_normals, 3)
         if self.uvs is not None:
-            self.uvs = arr("uvs", self.uvs.reshape(-1, 6), np.float32, (6,), t).reshape(t, 3, 2)
+            self.uvs = per_corner("uvs", self.uvs, 2)
+        if self.tangents is not None:
+            self.tangents = per_corner("tangents", self.tangents, 4)
         lights = self.lights
         nl = lights.count
         if lights.visibility is None and lights.kind is not None:
@@ -593,6 +623,8 @@ class Scene:
             d["shading_normals"] = self.shading_normals
         if self.uvs is not None:
             d["uvs"] = self.uvs
+        if self.tangents is not None:
+            d["tangents"] = self.tangents
         for i, tex in enumerate(self.textures):
             d[f"textures.{i}"] = tex
         return d
@@ -623,7 +655,8 @@ class Scene:
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),
                       material_ids=get("material_ids"), materials=mats, lights=lights,
                       camera=cam, world=world, shading_normals=get("shading_normals"),
-                      uvs=get("uvs"), textures=[get(f"textures.{i}") for i in range(ntex)])
+                      uvs=get("uvs"), tangents=get("tangents"),
+                      textures=[get(f"textures.{i}") for i in range(ntex)])
         return scene.validate()
 
     def save(self, path) -> None:

@@ -9,9 +9,10 @@ and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF, Diffuse, Glossy, Metallic, Glass, Refraction,
 Emission, Mix Shader, Add Shader, Image Texture (as a colour), RGB and Value
-inputs, reroutes and groups.  Anything else becomes a grey diffuse closure (for
-shaders) or the socket's own value (for colours and numbers), and the material
-gets *one* warning naming every such node.
+inputs, reroutes and groups, and a tangent-space Normal Map node fed by an Image Texture
+on a BSDF's Normal input (one normal map per material: the first one a Mix or Add meets).
+Anything else becomes a grey diffuse closure (for shaders) or the socket's own value (for
+colours and numbers), and the material gets *one* warning naming every such node.
 
 Principled BSDF mapping (``metallic`` m, ``Transmission Weight`` t, specular
 level s, base colour B):
@@ -70,6 +71,7 @@ class Closure:
     rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
     layer: np.ndarray = field(default_factory=lambda: np.zeros(3))         # (3,) layered weight * f0
     layered: float = 0.0            # diffuse weight under the Fresnel layer
+    normal_map: tuple = None        # (texture index, strength, uv map name) of a tangent-space normal map
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -94,6 +96,9 @@ class Closure:
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
         out.texture = self.texture if self.texture >= 0 and wa[DIFFUSE] > 0 else other.texture
+        # One normal map per material: the first side's that has weight.
+        maps = [m for m, f in ((self.normal_map, fa), (other.normal_map, fb)) if m is not None and f > 0]
+        out.normal_map = maps[0] if maps else None
         if out.texture >= 0:
             # The core multiplies the diffuse colour by the texture; keep the weight, drop the
             # colour of the untextured side (an approximation when both sides are diffuse).
@@ -124,6 +129,8 @@ class Closure:
         if self.texture >= 0:
             s["diffuse_texture"] = self.texture
             s["diffuse"] = np.ones(3)
+        if self.normal_map is not None:
+            s["normal_texture"], s["normal_strength"], s["normal_uv_map"] = self.normal_map
         return s
 
 
@@ -253,13 +260,24 @@ class MaterialExporter:
         if key not in self._ids:
             walker = NodeWalker(material.name, self.textures)
             closure = walker.material_closure(material)
+            cycles = getattr(material, "cycles", None)
+            if closure.normal_map is not None and not getattr(cycles, "use_bump_map_correction", True):
+                walker.note("Bump Map Correction off is not supported (rendered with it on)")
             if walker.notes:
                 self.log.warning(f"material '{material.name}': " + "; ".join(walker.notes))
             self._ids[key] = self._add(closure.spec(material.name))
         return self._ids[key]
 
     def uses_textures(self, ids) -> bool:
-        return any(self._specs[i].get("diffuse_texture", -1) >= 0 for i in ids)
+        """Whether any of the material ``ids`` looks up an image with the UVs (colour or normal map)."""
+        return any(self._specs[i].get("diffuse_texture", -1) >= 0 or "normal_texture" in self._specs[i]
+                   for i in ids)
+
+    def normal_map_uv(self, ids):
+        """The UV map name ('' = the active render map) of the first of ``ids`` with a normal map,
+        or None when none has one."""
+        specs = (self._specs[i] for i in ids)
+        return next((s["normal_uv_map"] for s in specs if "normal_texture" in s), None)
 
     def build(self) -> Materials:
         return Materials.build(self._specs)
@@ -448,7 +466,33 @@ class NodeWalker:
         if handler is None:
             self.unsupported(node, "rendered as grey diffuse")
             return Closure.lobe(DIFFUSE, 1.0, GREY)
-        return handler(self, node, stack)
+        closure = handler(self, node, stack)
+        if "Normal" in node.inputs and closure.normal_map is None:
+            closure.normal_map = self.normal_map(node.inputs["Normal"], stack)
+        return closure
+
+    def normal_map(self, sock, stack):
+        """(texture index, strength, uv map name) of a tangent-space Normal Map node fed by an
+        image into a BSDF's ``Normal`` input, or None (unlinked, or unsupported: noted)."""
+        src, _, stack = self.source(sock, stack)
+        if src is None:
+            return None
+        node = src.node
+        if node.bl_idname != "ShaderNodeNormalMap" or node.mute:
+            self.unsupported(node, f"drives '{sock.name}'; using the surface's own normal")
+            return None
+        if node.space != "TANGENT":
+            self.note(f"normal map '{node.name}': {node.space.lower()} space is not supported "
+                      "(only tangent space); using the surface's own normal")
+            return None
+        strength = max(self.value(node.inputs["Strength"], stack), 0.0)
+        color, tex = self.color(node.inputs["Color"], stack)
+        if tex < 0:
+            if np.abs(color - (0.5, 0.5, 1.0)).max() > 1e-6:
+                self.note(f"normal map '{node.name}': a constant colour is not supported (only an "
+                          "image texture); using the surface's own normal")
+            return None
+        return tex, strength, node.uv_map
 
     def _mix(self, node, stack):
         fac = float(np.clip(self.value(node.inputs[0], stack), 0.0, 1.0))

@@ -11,6 +11,9 @@ batched ``matmul``: positions by ``world_from_object``, shading normals (per ver
 per corner, before they are spread to triangle corners) by its inverse transpose.  Where
 det(world_from_object) < 0 (mirrored objects) the triangle winding is reversed
 so that the geometric normal, and with it the emitting side, stays outward.
+Meshes that a normal-mapped material covers are read again with Blender's MikkTSpace
+tangents (``Mesh.calc_tangents``), which are transformed as the normals are; their bitangent
+sign flips on mirrored instances, so that w (N x T) stays the object's bitangent.
 
 Glossary: ``T`` triangles, ``V`` vertices, ``L`` corners (loops), ``k`` instances.
 """
@@ -38,6 +41,8 @@ class LocalMesh:
     normal_index: np.ndarray | None  # (T, 3) int32 row of ``normals`` at each triangle corner
     uvs: np.ndarray | None      # (T, 3, 2) float32 active render UV map per corner, or None
     mesh_materials: tuple       # the mesh's own materials (used when the object has no slots)
+    tangents: np.ndarray | None = None  # (T, 3, 4) float32 tangent and bitangent sign per corner, or None
+    uv_map: str = ""            # name of the active render UV map ('' without one)
 
 
 @dataclass
@@ -49,13 +54,14 @@ class Geometry:
     material_ids: np.ndarray        # (T,) int32
     shading_normals: np.ndarray | None  # (T, 3, 3) float32 or None
     uvs: np.ndarray | None          # (T, 3, 2) float32 or None
+    tangents: np.ndarray | None = None  # (T, 3, 4) float32 or None
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
     @staticmethod
     def empty() -> "Geometry":
         return Geometry(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros(0, np.int32),
-                        None, None)
+                        None, None, None)
 
 
 class GeometryCollector:
@@ -91,6 +97,13 @@ class GeometryCollector:
             mat_ids = tuple(materials.material_id(m) for m in (slots or local.mesh_materials))
             if not mat_ids:
                 mat_ids = (materials.default_id(),)
+        uv_map = materials.normal_map_uv(mat_ids)
+        if uv_map is not None and local.tangents is None and local.uvs is not None:
+            if uv_map and uv_map != local.uv_map:
+                self.log.warning(f"object '{ob.name}': its normal map uses UV map '{uv_map}'; the "
+                                 f"active render UV map '{local.uv_map}' is used instead")
+            local = read_object_mesh(ob, self.log, tangents=True) or local
+            self.meshes[key] = local
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         self.groups.setdefault((key, mat_ids), []).append(np.array(inst.matrix_world, np.float64))
 
@@ -108,8 +121,9 @@ def _mesh_key(ob):
     return ("object", ob.original.as_pointer(), ob.data.as_pointer() if ob.data else 0)
 
 
-def read_object_mesh(ob, log):
-    """:class:`LocalMesh` of an evaluated object (modifiers applied), or None without faces."""
+def read_object_mesh(ob, log, tangents=False):
+    """:class:`LocalMesh` of an evaluated object (modifiers applied), or None without faces;
+    with ``tangents`` also its tangent frames (for normal maps)."""
     try:
         me = ob.to_mesh()
     except RuntimeError as e:
@@ -118,13 +132,17 @@ def read_object_mesh(ob, log):
     try:
         if me is None:
             return None
-        return read_mesh(me, ob.name, log)
+        return read_mesh(me, ob.name, log, tangents)
     finally:
         ob.to_mesh_clear()
 
 
-def read_mesh(me, name, log):
-    """:class:`LocalMesh` of a ``bpy.types.Mesh``, or None (with an info message) without faces."""
+def read_mesh(me, name, log, tangents=False, triangulated=False):
+    """:class:`LocalMesh` of a ``bpy.types.Mesh``, or None (with an info message) without faces.
+
+    With ``tangents``, a mesh with n-gons (for which Blender computes no tangents) is read from a
+    triangulated copy (``triangulated``: this is that copy).
+    """
     n_vert = len(me.vertices)
     if len(me.polygons) == 0:
         if n_vert:
@@ -150,9 +168,24 @@ def read_mesh(me, name, log):
         slots = poly_mat.take(tri_poly)
 
     normals, normal_index = _shading_normals(me, tri_vert, tri_loops)
-    uvs = _corner_uvs(me, tri_loops)
+    layer = next((uv for uv in me.uv_layers if uv.active_render), None)
+    uvs = _corner_uvs(me, layer, tri_loops)
+    frames = None
+    if tangents and uvs is not None:
+        frames = _corner_tangents(me, layer, tri_loops)
+        if frames is None and not triangulated:
+            copy = _triangulated_copy(me)
+            try:
+                return read_mesh(copy, name, log, tangents, triangulated=True)
+            finally:
+                import bpy
+                bpy.data.meshes.remove(copy)
+        if frames is None:
+            log.warning(f"object '{name}': Blender computed no tangents for its normal map; "
+                        "the normal map is ignored")
     return LocalMesh(name=name, positions=positions.astype(np.float64), triangles=tri_vert, slots=slots,
-                     normals=normals, normal_index=normal_index, uvs=uvs, mesh_materials=tuple(me.materials))
+                     normals=normals, normal_index=normal_index, uvs=uvs, mesh_materials=tuple(me.materials),
+                     tangents=frames, uv_map=layer.name if layer is not None else "")
 
 
 def _triangulate(me, positions, corner_vert):
@@ -218,9 +251,8 @@ def _shading_normals(me, tri_vert, tri_loops):
     return n.reshape(-1, 3), tri_loops
 
 
-def _corner_uvs(me, tri_loops):
-    """(T, 3, 2) float32 coordinates of the active render UV map, or None without one."""
-    layer = next((uv for uv in me.uv_layers if uv.active_render), None)
+def _corner_uvs(me, layer, tri_loops):
+    """(T, 3, 2) float32 coordinates of UV map ``layer`` (the active render one), or None without one."""
     if layer is None:
         return None
     attr = me.attributes.get(layer.name)
@@ -229,6 +261,40 @@ def _corner_uvs(me, tri_loops):
     uv = np.empty(len(me.loops) * 2, np.float32)
     attr.data.foreach_get("vector", uv)
     return np.take(uv.reshape(-1, 2), tri_loops, axis=0)
+
+
+def _corner_tangents(me, layer, tri_loops):
+    """(T, 3, 4) float32 MikkTSpace tangents (object space) and bitangent signs of UV map ``layer``
+    at the triangle corners, as Cycles computes them; None where Blender cannot (it refuses
+    meshes with n-gons)."""
+    try:
+        me.calc_tangents(uvmap=layer.name)
+    except RuntimeError:
+        return None
+    n = len(me.loops)
+    t = np.empty(n * 3, np.float32)
+    me.loops.foreach_get("tangent", t)
+    sign = np.empty(n, np.float32)
+    me.loops.foreach_get("bitangent_sign", sign)
+    frames = np.concatenate([t.reshape(-1, 3), sign[:, None]], axis=1)
+    return np.take(frames, tri_loops, axis=0)
+
+
+def _triangulated_copy(me):
+    """A new mesh datablock: ``me`` with every face triangulated (same materials and UVs)."""
+    import bmesh
+    import bpy
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(me)
+        bmesh.ops.triangulate(bm, faces=bm.faces[:])
+        copy = bpy.data.meshes.new(f"{me.name} (triangulated)")
+        bm.to_mesh(copy)
+    finally:
+        bm.free()
+    for m in me.materials:
+        copy.materials.append(m)
+    return copy
 
 
 def assemble(meshes, groups, materials) -> Geometry:
@@ -250,14 +316,20 @@ def assemble(meshes, groups, materials) -> Geometry:
     if any(p["normals"] is not None for p in parts):
         normals = np.concatenate([p["normals"] if p["normals"] is not None
                                   else _flat_normals(vertices, p["triangles"]) for p in parts])
-    uvs = None
-    if materials.uses_textures(np.flatnonzero(np.bincount(material_ids))):      # the ids used
+    uvs = tangents = None
+    used = np.flatnonzero(np.bincount(material_ids))
+    if materials.uses_textures(used):
         uvs = np.concatenate([p["uvs"] if p["uvs"] is not None
                               else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
+    if materials.normal_map_uv(used) is not None:
+        # Zero tangents (meshes without UVs or a tangent frame) keep the unbent normal, as in Cycles.
+        tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
+                                   else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])
     return Geometry(vertices=vertices, triangles=np.ascontiguousarray(triangles, np.int32),
                     material_ids=np.ascontiguousarray(material_ids, np.int32),
                     shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),
                     uvs=None if uvs is None else np.ascontiguousarray(uvs, np.float32),
+                    tangents=None if tangents is None else np.ascontiguousarray(tangents, np.float32),
                     instances=instances)
 
 
@@ -267,7 +339,7 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset):
     world_from_object : (k, 4, 4) float64.  mat_ids : (n_slots,) int32 core material
     ids of the slots.  Returns a dict of vertices (k V, 3) float32, triangles (k T, 3)
     int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) float32
-    or None and uvs (k T, 3, 2) float32 or None.
+    or None, uvs (k T, 3, 2) float32 or None and tangents (k T, 3, 4) float32 or None.
     """
     k = len(world_from_object)
     rot = world_from_object[:, :3, :3]
@@ -280,9 +352,11 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset):
     _swap_corners(tri, mirrored)
     slot = np.clip(local.slots, 0, len(mat_ids) - 1)
     material_ids = np.tile(mat_ids[slot], k)
-    normals = None
-    if local.normals is not None:
+    normals = tangents = None
+    normal_from_object = None
+    if local.normals is not None or local.tangents is not None:
         normal_from_object = _inverse_transpose(rot).astype(np.float32)
+    if local.normals is not None:
         n = np.matmul(local.normals[None], normal_from_object.transpose(0, 2, 1))      # (k, N, 3)
         # Rotations keep unit length; scaled or sheared instances are renormalised.
         gram = np.matmul(normal_from_object, normal_from_object.transpose(0, 2, 1))
@@ -302,9 +376,19 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset):
         uvs = np.repeat(local.uvs[None], k, axis=0) if (k > 1 or len(mirrored)) else local.uvs[None]
         _swap_corners(uvs, mirrored)
         uvs = uvs.reshape(k * n_t, 3, 2)
+    if local.tangents is not None:
+        # Tangents as the normals (Cycles transforms the bent normal with the normal matrix), unit
+        # length; the bitangent sign flips where the instance mirrors: N x T flips there.
+        t = np.matmul(local.tangents[None, :, :, :3], normal_from_object[:, None].transpose(0, 1, 3, 2))
+        t /= np.maximum(np.sqrt(np.einsum("ktci,ktci->ktc", t, t)), 1e-30)[..., None]
+        det_sign = np.where(np.linalg.det(rot) < 0, -1.0, 1.0).astype(np.float32)
+        sign = local.tangents[None, :, :, 3] * det_sign[:, None, None]
+        tangents = np.concatenate([t, sign[..., None]], axis=3)                       # (k, T, 3, 4)
+        _swap_corners(tangents, mirrored)
+        tangents = tangents.reshape(k * n_t, 3, 4)
     return {"vertices": vertices.reshape(k * n_v, 3).astype(np.float32),
             "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
-            "normals": normals, "uvs": uvs}
+            "normals": normals, "uvs": uvs, "tangents": tangents}
 
 
 def _swap_corners(a, instances):

@@ -236,6 +236,33 @@ def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
     return m.build(mats, lights, cam)
 
 
+def sun_over_normal_mapped_floor(tangent_space_normal, sun_toward=(0.0, 0.0, 1.0), tangent=(1.0, 0.0, 0.0),
+                                 sign=1.0, strength=1.0, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
+    """A flat diffuse floor (z = 0, uv = xy) with a constant tangent-space normal map under a sun.
+
+    ``tangent_space_normal`` (3,) is the map's normal (stored as (n + 1) / 2), ``tangent`` and
+    ``sign`` the floor's tangent frame.  With shading normal N the floor's radiance is
+    albedo E max(0, N . l) / pi for the unit direction ``sun_toward`` l (the sun's irradiance E
+    is on a plane facing it), whatever the camera sees from above.
+    """
+    n = np.asarray(tangent_space_normal, np.float64)
+    tex = np.broadcast_to(((n / np.linalg.norm(n) + 1.0) / 2.0).astype(np.float32), (2, 2, 3))
+    plain = Materials.build([{"name": "floor", "diffuse": albedo}])
+    m = MeshBuilder()
+    m.add_quad((-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0), 0)
+    l = np.asarray(sun_toward, np.float64)
+    lights = Lights.build([{"kind": "sun", "direction": -l / np.linalg.norm(l), "power": irradiance}])
+    cam = Camera(world_from_camera=_look_down(0.5), projection="orthographic",
+                 frame=(-0.1, 0.1, -0.1, 0.1), resolution=resolution)
+    scene = m.build(plain, lights, cam)
+    corners = scene.vertices[scene.triangles]                                   # (T, 3, 3)
+    frame = np.concatenate([np.asarray(tangent, np.float32), [sign]]).astype(np.float32)
+    mats = Materials.build([{"name": "floor", "diffuse": albedo, "normal_texture": 0,
+                             "normal_strength": strength}])
+    return scene.replace(materials=mats, uvs=corners[..., :2] + 0.5, textures=[np.array(tex)],
+                         tangents=np.broadcast_to(frame, (len(corners), 3, 4))).validate()
+
+
 def camera_in_glass(ior=1.5, emission=1.0, resolution=(16, 16)):
     """An orthographic camera inside a glass cube looks at an emitter outside a face.
 

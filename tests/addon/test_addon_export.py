@@ -376,6 +376,120 @@ def test_image_texture_is_linearised_and_uses_uvs(scene):
     assert s.uvs.min() >= 0 and s.uvs.max() <= 1
 
 
+def normal_mapped(name, rgb=(0.7, 0.5, 0.9), strength=0.7, bsdf="ShaderNodeBsdfPrincipled"):
+    """A material whose BSDF's Normal input takes a tangent-space Normal Map of a constant image."""
+    img = bpy.data.images.new(f"{name} normals", 4, 4)
+    img.colorspace_settings.name = "Non-Color"      # first: changing it regenerates the pixels
+    img.pixels.foreach_set(np.tile(np.array([*rgb, 1.0], np.float32), 16))
+    mat = bs._material(name, bsdf)
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    nmap.inputs["Strength"].default_value = strength
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    bsdf_node = next(n for n in nt.nodes if n.bl_idname == bsdf)
+    nt.links.new(nmap.outputs["Normal"], bsdf_node.inputs["Normal"])
+    return mat
+
+
+def uv_plane(name, material, **kw):
+    """A 2 m plane in z = 0 whose UVs run along +x (u) and +y (v)."""
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")                 # calc_uvs fills an existing layer
+    bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=1.0, calc_uvs=True)
+    return bs.mesh_object(name, bm, material, **kw)
+
+
+@pytest.mark.parametrize("transform, tangent, sign", [
+    ({}, (1, 0, 0), 1.0),
+    ({"rotation": (0, 0, math.pi / 2)}, (0, 1, 0), 1.0),          # turned: the tangent turns along
+    ({"scale": (-1, 1, 1)}, (-1, 0, 0), -1.0),                    # mirrored: B = w (N x T) stays +y
+    ({"scale": (3, 3, 3), "location": (1, 2, 0)}, (1, 0, 0), 1.0),
+])
+def test_normal_map_exports_the_image_strength_and_mikktspace_tangents(scene, transform, tangent, sign):
+    mat = normal_mapped("Bumpy")
+    uv_plane("Plane", mat, **transform)
+    bs.camera()
+    ex = bs.export()
+    s = ex.scene
+    row = material_row(s, "Bumpy")
+    assert row["normal_texture"] == 0 and row["normal_strength"] == pytest.approx(0.7)
+    assert row["diffuse_texture"] == -1
+    # Stored as bytes (1/255 steps) and not linearised (sRGB would make 0.7 into 0.45).
+    assert s.textures[0] == pytest.approx(np.broadcast_to([0.7, 0.5, 0.9], (4, 4, 3)), abs=2.5e-3)
+    assert s.uvs is not None and s.tangents is not None and s.tangents.shape == (2, 3, 4)
+    assert s.tangents[..., :3].reshape(-1, 3) == pytest.approx(np.tile(tangent, (6, 1)), abs=1e-5)
+    assert s.tangents[..., 3] == pytest.approx(np.full((2, 3), sign))
+    # The object's bitangent (its +v direction) in world space is w (N x T).
+    n, _ = geometric_normals(s)
+    b = sign * np.cross(n, np.asarray(tangent, float))
+    v_world = np.array(Matrix(bpy.data.objects["Plane"].matrix_world).to_3x3() @ Vector((0, 1, 0)))
+    assert b == pytest.approx(np.tile(v_world / np.linalg.norm(v_world), (2, 1)), abs=1e-5)
+    assert not [w for w in ex.warnings if "Bumpy" in w]
+
+
+def test_normal_mapped_ngons_are_read_from_a_triangulated_copy(scene):
+    """Blender computes no tangents for meshes with n-gons: the exporter triangulates a copy."""
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")
+    bmesh.ops.create_circle(bm, cap_ends=True, cap_tris=False, segments=12, radius=1.0, calc_uvs=True)
+    ob = bs.mesh_object("Disk", bm, normal_mapped("Bumpy"))
+    meshes = len(bpy.data.meshes)
+    bs.camera()
+    ex = bs.export()
+    s = ex.scene
+    assert s.triangle_count == 10 and not ex.warnings
+    assert bs.triangle_areas(s).sum() == pytest.approx(6 * math.sin(math.pi / 6), rel=1e-5)   # 12-gon area
+    t = s.tangents[..., :3].reshape(-1, 3)
+    assert np.linalg.norm(t, axis=1) == pytest.approx(np.ones(30), abs=1e-5)
+    assert np.abs(t[:, 2]).max() < 1e-5 and (np.abs(s.tangents[..., 3]) == 1).all()
+    assert len(bpy.data.meshes) == meshes and len(ob.data.polygons) == 1      # copy removed, mesh kept
+
+
+def test_normal_map_on_a_mesh_without_uvs_keeps_the_normal_and_an_unmapped_mesh_gets_zero_tangents(scene):
+    bs.plane("NoUV", material=normal_mapped("Bumpy"))                 # create_grid without UVs
+    uv_plane("Plain", bs.diffuse("Plain"), location=(3, 0, 0))
+    bs.camera()
+    s = bs.export().scene
+    assert s.tangents is not None and (s.tangents == 0).all()     # no frame anywhere: unbent, as Cycles
+
+
+@pytest.mark.parametrize("case, message", [
+    ("object_space", "object space is not supported"),
+    ("bump", "Bump"),
+    ("constant", "constant colour"),
+])
+def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message):
+    mat = normal_mapped("Odd")
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    if case == "object_space":
+        nt.nodes["Normal Map"].space = "OBJECT"
+    elif case == "bump":
+        bump = nt.nodes.new("ShaderNodeBump")
+        nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    else:
+        nt.links.remove(nt.nodes["Normal Map"].inputs["Color"].links[0])
+        nt.nodes["Normal Map"].inputs["Color"].default_value = (0.7, 0.5, 0.9, 1.0)
+    uv_plane("Plane", mat)
+    bs.camera()
+    ex = bs.export()
+    assert material_row(ex.scene, "Odd")["normal_texture"] == -1
+    assert ex.scene.tangents is None
+    assert any("Odd" in w and message in w for w in ex.warnings), ex.warnings
+
+
+def test_normal_map_with_bump_map_correction_off_warns(scene):
+    mat = normal_mapped("Sharp")
+    mat.cycles.use_bump_map_correction = False
+    uv_plane("Plane", mat)
+    bs.camera()
+    ex = bs.export()
+    assert material_row(ex.scene, "Sharp")["normal_texture"] == 0
+    assert any("Sharp" in w and "Bump Map Correction" in w for w in ex.warnings), ex.warnings
+
+
 def test_principled_mapping(scene):
     base = (0.8, 0.2, 0.1, 1.0)
     plain, _ = export_material(principled("Plastic", **{"Base Color": base, "Roughness": 0.3}))

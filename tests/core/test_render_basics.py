@@ -17,7 +17,8 @@ from core.parallel import InProcessPool, ProcessPool
 from core.photon_pass import DepositTarget
 from core.scene import DEFAULT_LIGHT_VISIBILITY
 from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_RAMP
-from core.testing.scenes import MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room, sky_over_floor
+from core.testing.scenes import (MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room, sky_over_floor,
+                                 sun_over_normal_mapped_floor)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 FAST = dict(passes=3, photons_per_pass=20_000, chains=2048, workers=1)
@@ -360,6 +361,33 @@ def test_scene_save_load_round_trip(tmp_path):
     np.savez(tmp_path / "old_lights.npz", **old)
     loaded = Scene.load(tmp_path / "old_lights.npz")
     assert (loaded.lights.visibility == DEFAULT_LIGHT_VISIBILITY).all() and loaded.lights.soft_falloff.all()
+    # ... and materials before normal maps with none.
+    old = {k: v for k, v in scene.to_arrays().items() if not k.startswith("materials.normal_")}
+    np.savez(tmp_path / "old_materials.npz", **old)
+    loaded = Scene.load(tmp_path / "old_materials.npz")
+    assert (loaded.materials.normal_texture == -1).all() and (loaded.materials.normal_strength == 1).all()
+
+
+def test_normal_mapped_scene_validates_round_trips_and_names_what_is_missing(tmp_path):
+    scene = sun_over_normal_mapped_floor((0.3, 0.0, 1.0), tangent=(0.0, 1.0, 0.0), sign=-1.0)
+    scene.save(tmp_path / "mapped.npz")
+    loaded = Scene.load(tmp_path / "mapped.npz")
+    np.testing.assert_array_equal(loaded.tangents, scene.tangents)
+    np.testing.assert_array_equal(loaded.materials.normal_texture, [0])
+    with pytest.raises(SceneError, match="no tangents"):
+        scene.replace(tangents=None).validate()
+    with pytest.raises(SceneError, match="tangents must have shape"):
+        scene.replace(tangents=np.zeros((scene.triangle_count, 3, 3), np.float32)).validate()
+    with pytest.raises(SceneError, match="normal_texture must be -1 or an index below 1"):
+        bad = scene.materials.normal_texture.copy()
+        scene.materials.normal_texture[:] = 3
+        try:
+            scene.validate()
+        finally:
+            scene.materials.normal_texture[:] = bad
+    with pytest.raises(SceneError, match="normal_strength is negative"):
+        scene.materials.normal_strength[:] = -1.0
+        scene.validate()
 
 
 def test_command_line_renders_an_exr_and_writes_stats(tmp_path):
