@@ -35,18 +35,20 @@ class MeasurementPoints:
     mat_ids: np.ndarray     # (m,) int32 material
     colors: np.ndarray      # (m, 2, 3) float32 diffuse and glossy colour at the point
     base_radius: np.ndarray  # (m,) float64 r_1: initial_radius_px pixel footprints at the point
-    nn: np.ndarray          # (m, 3) float32 shading normal before a normal map (else ns), side of ng
+    nn: np.ndarray = None   # (m, 3) float32 shading normal before normal maps, side of ng; None without
 
     @property
     def count(self) -> int:
         return int(len(self.pixel_ids))
 
     def take(self, sel) -> "MeasurementPoints":
-        return MeasurementPoints(*(getattr(self, f)[sel] for f in self.__dataclass_fields__))
+        return MeasurementPoints(*(None if getattr(self, f) is None else getattr(self, f)[sel]
+                                   for f in self.__dataclass_fields__))
 
     @staticmethod
     def concatenate(parts) -> "MeasurementPoints":
-        return MeasurementPoints(*(np.concatenate([getattr(p, f) for p in parts])
+        return MeasurementPoints(*(None if getattr(parts[0], f) is None
+                                   else np.concatenate([getattr(p, f) for p in parts])
                                    for f in MeasurementPoints.__dataclass_fields__))
 
 
@@ -149,7 +151,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
                 colors=surf.colors[:, :2].take(s, axis=0).astype(f32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
-                nn=face_forward(rows(surf.ns if surf.nn is None else surf.nn), ng).astype(f32)))
+                nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32)))
         go = np.flatnonzero(~stop & (total > 0))
         if depth == max_bounces or len(go) == 0:
             break
@@ -176,5 +178,5 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
 def _empty_points():
     z3 = np.zeros((0, 3), np.float32)
     return MeasurementPoints(np.zeros(0, np.int64), np.zeros((0, 3)), z3, z3, z3, z3,
-                             np.zeros(0, np.int32), np.zeros((0, 2, 3), np.float32), np.zeros(0), z3)
+                             np.zeros(0, np.int32), np.zeros((0, 2, 3), np.float32), np.zeros(0))
 

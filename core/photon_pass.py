@@ -86,7 +86,8 @@ class DepositTarget:
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""
-        d = {f"points.{f}": getattr(self.points, f) for f in MeasurementPoints.__dataclass_fields__}
+        d = {f"points.{f}": getattr(self.points, f) for f in MeasurementPoints.__dataclass_fields__
+             if getattr(self.points, f) is not None}
         d.update({f"grid.{k}": v for k, v in self.grid.to_arrays().items()})
         d.update(radius=self.radius, n_pixels=np.int64(self.n_pixels),
                  has_shading_normals=np.bool_(self.has_shading_normals))
@@ -96,7 +97,8 @@ class DepositTarget:
 
     @staticmethod
     def from_arrays(d, table) -> "DepositTarget":
-        points = MeasurementPoints(**{f: d[f"points.{f}"] for f in MeasurementPoints.__dataclass_fields__})
+        points = MeasurementPoints(**{f: d[f"points.{f}"] for f in MeasurementPoints.__dataclass_fields__
+                                      if f"points.{f}" in d})
         grid = HashGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
         cells = {k[6:]: v for k, v in d.items() if k.startswith("cells.")}
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
