@@ -43,6 +43,7 @@ class LocalMesh:
     mesh_materials: tuple       # the mesh's own materials (used when the object has no slots)
     tangents: np.ndarray | None = None  # (T, 3, 4) float32 tangent and bitangent sign per corner, or None
     uv_map: str = ""            # name of the active render UV map ('' without one)
+    tangents_read: bool = False  # read with tangents (which may still be None: Blender had none)
 
 
 @dataclass
@@ -98,7 +99,7 @@ class GeometryCollector:
             if not mat_ids:
                 mat_ids = (materials.default_id(),)
         uv_map = materials.normal_map_uv(mat_ids)
-        if uv_map is not None and local.tangents is None and local.uvs is not None:
+        if uv_map is not None and not local.tangents_read and local.uvs is not None:
             if uv_map and uv_map != local.uv_map:
                 self.log.warning(f"object '{ob.name}': its normal map uses UV map '{uv_map}'; the "
                                  f"active render UV map '{local.uv_map}' is used instead")
@@ -185,7 +186,8 @@ def read_mesh(me, name, log, tangents=False, triangulated=False):
                         "the normal map is ignored")
     return LocalMesh(name=name, positions=positions.astype(np.float64), triangles=tri_vert, slots=slots,
                      normals=normals, normal_index=normal_index, uvs=uvs, mesh_materials=tuple(me.materials),
-                     tangents=frames, uv_map=layer.name if layer is not None else "")
+                     tangents=frames, uv_map=layer.name if layer is not None else "",
+                     tangents_read=tangents)
 
 
 def _triangulate(me, positions, corner_vert):
