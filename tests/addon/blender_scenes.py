@@ -57,6 +57,35 @@ def glass(name="Glass", ior=1.5):
     return _material(name, "ShaderNodeBsdfGlass", IOR=ior)
 
 
+def add_normal_map(mat, normals, bsdf="Diffuse BSDF", strength=1.0):
+    """Feed ``bsdf``'s Normal input of ``mat`` from a tangent-space Normal Map of an image.
+
+    normals : (H, W, 3) unit tangent-space normals (stored as (n + 1) / 2, non-colour data).
+    Returns the Normal Map node.
+    """
+    h, w = normals.shape[:2]
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = (np.asarray(normals) + 1.0) / 2.0
+    img = bpy.data.images.new(f"{mat.name} normals", w, h)
+    img.colorspace_settings.name = "Non-Color"      # first: changing it regenerates the pixels
+    img.pixels.foreach_set(rgba.ravel())
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    nmap.inputs["Strength"].default_value = strength
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], nt.nodes[bsdf].inputs["Normal"])
+    return nmap
+
+
+def tilted(degrees, towards=0):
+    """Unit tangent-space normal tilted ``degrees`` towards the tangent (0) or bitangent (1)."""
+    n = np.array([0.0, 0.0, math.cos(math.radians(degrees))])
+    n[towards] = math.sin(math.radians(degrees))
+    return n
+
+
 # ---------------------------------------------------------------------- objects
 def mesh_object(name, bm, material=None, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1, 1, 1),
                 collection=None):

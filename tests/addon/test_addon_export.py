@@ -376,20 +376,11 @@ def test_image_texture_is_linearised_and_uses_uvs(scene):
     assert s.uvs.min() >= 0 and s.uvs.max() <= 1
 
 
-def normal_mapped(name, rgb=(0.7, 0.5, 0.9), strength=0.7, bsdf="ShaderNodeBsdfPrincipled"):
-    """A material whose BSDF's Normal input takes a tangent-space Normal Map of a constant image."""
-    img = bpy.data.images.new(f"{name} normals", 4, 4)
-    img.colorspace_settings.name = "Non-Color"      # first: changing it regenerates the pixels
-    img.pixels.foreach_set(np.tile(np.array([*rgb, 1.0], np.float32), 16))
-    mat = bs._material(name, bsdf)
-    nt = mat.node_tree
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = img
-    nmap = nt.nodes.new("ShaderNodeNormalMap")
-    nmap.inputs["Strength"].default_value = strength
-    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
-    bsdf_node = next(n for n in nt.nodes if n.bl_idname == bsdf)
-    nt.links.new(nmap.outputs["Normal"], bsdf_node.inputs["Normal"])
+def normal_mapped(name, rgb=(0.7, 0.5, 0.9)):
+    """A Principled material whose Normal input takes a tangent-space Normal Map (strength 0.7)
+    of a constant image of colour ``rgb``."""
+    mat = principled(name)
+    bs.add_normal_map(mat, np.broadcast_to(2.0 * np.asarray(rgb) - 1.0, (4, 4, 3)), "Principled BSDF", 0.7)
     return mat
 
 

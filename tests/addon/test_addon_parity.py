@@ -242,21 +242,10 @@ def test_normal_map_matches_cycles(addon, tmp_path, scale):
     brighter and darker than Cycles' median must match."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
-        tilt = np.radians(35.0)
-        rgb = np.zeros((4, 16, 4), np.float32)
-        rgb[:, :8, :3] = (np.array([np.sin(tilt), 0.0, np.cos(tilt)]) + 1) / 2
-        rgb[:, 8:, :3] = (np.array([0.0, np.sin(tilt), np.cos(tilt)]) + 1) / 2
-        rgb[..., 3] = 1.0
-        img = bpy.data.images.new("Normals", 16, 4)
-        img.colorspace_settings.name = "Non-Color"
-        img.pixels.foreach_set(rgb.ravel())
+        normals = np.zeros((4, 16, 3))
+        normals[:, :8], normals[:, 8:] = bs.tilted(35.0, 0), bs.tilted(35.0, 1)
         mat = bs.diffuse("Floor", (0.8, 0.8, 0.8))
-        nt = mat.node_tree
-        tex = nt.nodes.new("ShaderNodeTexImage")
-        tex.image = img
-        nmap = nt.nodes.new("ShaderNodeNormalMap")
-        nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
-        nt.links.new(nmap.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+        bs.add_normal_map(mat, normals)
         bm = bmesh.new()
         bm.loops.layers.uv.new("UVMap")
         bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=2.0, calc_uvs=True)
@@ -286,20 +275,9 @@ def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_p
     Quarters of the lit pixels by brightness in Cycles."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
-        tilt = np.radians(40.0)
-        rgb = np.ones((4, 4, 4), np.float32)
-        rgb[..., :3] = (np.array([np.sin(tilt), 0.0, np.cos(tilt)]) + 1) / 2
-        img = bpy.data.images.new("Normals", 4, 4)
-        img.colorspace_settings.name = "Non-Color"
-        img.pixels.foreach_set(rgb.ravel())
         mat = bs.diffuse("Ball", (0.8, 0.8, 0.8))
-        nt = mat.node_tree
         if with_map:
-            tex = nt.nodes.new("ShaderNodeTexImage")
-            tex.image = img
-            nmap = nt.nodes.new("ShaderNodeNormalMap")
-            nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
-            nt.links.new(nmap.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+            bs.add_normal_map(mat, np.broadcast_to(bs.tilted(40.0), (4, 4, 3)))
         bm = bmesh.new()
         bm.loops.layers.uv.new("UVMap")
         bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=1.0, calc_uvs=True)
