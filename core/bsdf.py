@@ -63,7 +63,7 @@ class MaterialTable:
     rise: np.ndarray            # (M, 4, 3) float64 colour added times s(c) (glossy or mirror entry)
     layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
     score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
-    normal_mapped: np.ndarray = None  # (M,) bool: a normal map bends the shading normal
+    normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map bends the shading normal
 
     @staticmethod
     def from_materials(mats) -> "MaterialTable":
@@ -115,7 +115,8 @@ class MaterialTable:
                              is_emissive=(emission > 0).any(axis=1),
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
                              rise=rise, layer=layer, score_extra=score_extra,
-                             normal_mapped=np.asarray(mats.normal_texture) >= 0)
+                             normal_mapped=(np.asarray(mats.normal_texture) >= 0)
+                             | (np.asarray(mats.bump_texture) >= 0))
 
     @property
     def has_normal_maps(self) -> bool:
@@ -241,11 +242,34 @@ class Textures:
             out[sel] = bilinear(self.images[k], uv[sel, 0], uv[sel, 1])
         return out
 
+    def gradient(self, texture_ids, uv):
+        """(d/du, d/dv), each (n, 3) float64, of the bilinear lookups (every id >= 0)."""
+        du, dv = np.zeros((len(texture_ids), 3)), np.zeros((len(texture_ids), 3))
+        for k in np.unique(texture_ids):
+            sel = np.flatnonzero(texture_ids == k)
+            du[sel], dv[sel] = bilinear_gradient(self.images[k], uv[sel, 0], uv[sel, 1])
+        return du, dv
+
 
 def bilinear(image, u, v, clamp_v=False):
     """(n, 3) bilinear lookups of ``image`` (H, W, 3) at (u, v) (n,) each; row 0 is v = 0, and u
     wraps around.  v wraps too, or with ``clamp_v`` stops at the first and last rows' centres
     (an environment image's poles)."""
+    fx, fy, a, b, c, d = _bilinear_cell(image, u, v, clamp_v)
+    return (1 - fx) * (1 - fy) * a + fx * (1 - fy) * b + (1 - fx) * fy * c + fx * fy * d
+
+
+def bilinear_gradient(image, u, v):
+    """(d/du, d/dv), each (n, 3), of :func:`bilinear` (u and v wrap): the exact derivatives of
+    the interpolated image, constant across each cell of four texel centres."""
+    h, w = image.shape[:2]
+    fx, fy, a, b, c, d = _bilinear_cell(image, u, v, False)
+    return w * ((1 - fy) * (b - a) + fy * (d - c)), h * ((1 - fx) * (c - a) + fx * (d - b))
+
+
+def _bilinear_cell(image, u, v, clamp_v):
+    """Fractions (n, 1) fx, fy and the four texels (n, 3) around (u, v): lower left, lower
+    right, upper left, upper right."""
     h, w = image.shape[:2]
     x = u * w - 0.5
     y = v * h - 0.5
@@ -263,8 +287,7 @@ def bilinear(image, u, v, clamp_v=False):
     else:
         iy0 = np.mod(y0, h).astype(np.int64)
         iy1 = (iy0 + 1) % h
-    return ((1 - fx) * (1 - fy) * image[iy0, ix0] + fx * (1 - fy) * image[iy0, ix1]
-            + (1 - fx) * fy * image[iy1, ix0] + fx * fy * image[iy1, ix1])
+    return fx, fy, image[iy0, ix0], image[iy0, ix1], image[iy1, ix0], image[iy1, ix1]
 
 
 def face_forward(n, v):

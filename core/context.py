@@ -10,6 +10,9 @@ from .bsdf import MaterialTable, Textures, lobe_colors
 from .lights import LightSampler
 from .sampling import normalize
 
+# Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
 
 @dataclass
 class Surface:
@@ -32,10 +35,15 @@ class RenderContext:
         self.table = MaterialTable.from_materials(scene.materials)
         self.textures = Textures(scene.textures)
         self.lights = LightSampler(scene, self.accel, self.table)
-        # Normal maps: per-material image index (-1: none) and strength.
-        self.normal_texture = np.ascontiguousarray(scene.materials.normal_texture, np.int32)
-        self.normal_strength = np.asarray(scene.materials.normal_strength, np.float64)
-        self.has_normal_maps = bool((self.normal_texture >= 0).any())
+        # Normal and bump maps: per-material image index (-1: none) and parameters.
+        mats = scene.materials
+        self.normal_texture = np.ascontiguousarray(mats.normal_texture, np.int32)
+        self.normal_strength = np.asarray(mats.normal_strength, np.float64)
+        self.bump_texture = np.ascontiguousarray(mats.bump_texture, np.int32)
+        self.bump_strength = np.asarray(mats.bump_strength, np.float64)
+        self.bump_distance = np.asarray(mats.bump_distance, np.float64)
+        # Either bends the shading normal (the name stays: Cycles treats both alike).
+        self.has_normal_maps = bool((self.normal_texture >= 0).any() or (self.bump_texture >= 0).any())
         self.has_shading_normals = scene.shading_normals is not None or self.has_normal_maps
         # Per-triangle arrays gathered with take(), which copies a non-contiguous array first.
         self.material_ids = np.ascontiguousarray(scene.material_ids)
@@ -60,6 +68,7 @@ class RenderContext:
         if self.has_normal_maps:
             nn = ns.copy()
             self._apply_normal_maps(ns, prim_ids, b0, b1, b2, mat)
+            self._apply_bump_maps(ns, prim_ids, b0, b1, b2, mat)
         albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]
@@ -97,6 +106,45 @@ class RenderContext:
         n = normalize((c[:, 0] * s)[:, None] * t + (c[:, 1] * s)[:, None] * b + cz[:, None] * n0)
         no_frame = ~(np.abs(t).sum(axis=1) > 0)
         n[no_frame] = n0[no_frame]
+        _replace_bad(n, n0)
+        ns[sel] = n
+
+    def _apply_bump_maps(self, ns, prim_ids, b0, b1, b2, mat):
+        """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).
+
+        As Cycles' Bump node, with the exact gradient of the bilinear height h (the image's
+        luminance) instead of finite differences over the pixel footprint: with the triangle's
+        dP/du, dP/dv, R_u = dP/dv x N, R_v = N x dP/du and det = dP/du . R_u,
+        N' = normalize(|det| N - d sign(det) (h_u R_u + h_v R_v)), d the distance, and then
+        normalize(s N' + (1 - s) N) for strength s.  Triangles without a UV parametrisation keep N.
+        """
+        tex = self.bump_texture.take(mat)
+        sel = np.flatnonzero(tex >= 0)
+        if len(sel) == 0:
+            return
+        p = prim_ids.take(sel)
+        uvs = self.scene.uvs.take(p, axis=0).astype(np.float64)                        # (k, 3, 2)
+        w0, w1, w2 = b0.take(sel)[:, None], b1.take(sel)[:, None], b2.take(sel)[:, None]
+        uv = w0 * uvs[:, 0] + w1 * uvs[:, 1] + w2 * uvs[:, 2]
+        e1, e2 = self.accel.e1.take(p, axis=0), self.accel.e2.take(p, axis=0)
+        d1, d2 = uvs[:, 1] - uvs[:, 0], uvs[:, 2] - uvs[:, 0]
+        det_uv = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+        ok = np.abs(det_uv) > 1e-20
+        inv = np.where(ok, 1.0 / np.where(ok, det_uv, 1.0), 0.0)[:, None]
+        dpdu = (d2[:, 1:2] * e1 - d1[:, 1:2] * e2) * inv
+        dpdv = (d1[:, 0:1] * e2 - d2[:, 0:1] * e1) * inv
+        gu, gv = self.textures.gradient(tex.take(sel), uv)
+        hu, hv = gu @ LUMINANCE, gv @ LUMINANCE
+        m = mat.take(sel)
+        n0 = ns.take(sel, axis=0)
+        ru, rv = np.cross(dpdv, n0), np.cross(n0, dpdu)
+        det = np.einsum("ki,ki->k", dpdu, ru)
+        d = self.bump_distance.take(m)
+        n = normalize(np.abs(det)[:, None] * n0
+                      - (d * np.sign(det))[:, None] * (hu[:, None] * ru + hv[:, None] * rv))
+        s = np.maximum(self.bump_strength.take(m), 0.0)[:, None]
+        n = normalize(s * n + (1.0 - s) * n0)
+        n[~ok] = n0[~ok]
         _replace_bad(n, n0)
         ns[sel] = n
 

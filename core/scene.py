@@ -78,7 +78,10 @@ class Materials:
     lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
     2 c - 1 along tangent, bitangent and normal), looked up with the triangle UVs in the frame of
     ``Scene.tangents``, with ``normal_strength`` as in Cycles (tangent-plane components times
-    the strength, the normal component blended from 1).
+    the strength, the normal component blended from 1).  A bump map (Blender's Bump node) then
+    bends it further: ``bump_texture`` >= 0 is the image whose luminance is the height,
+    ``bump_distance`` its scale (negative: inverted) and ``bump_strength`` the blend towards
+    the bumped normal, as Cycles' Bump node with the height's exact surface gradient.
     """
 
     names: list = field(default_factory=list)          # M material names (for messages)
@@ -103,13 +106,18 @@ class Materials:
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
     normal_strength: np.ndarray = None                  # (M,) float32 >= 0; None: 1
+    bump_texture: np.ndarray = None                     # (M,) int32, index into Scene.textures or -1
+    bump_strength: np.ndarray = None                    # (M,) float32 >= 0; None: 1
+    bump_distance: np.ndarray = None                    # (M,) float32, any sign; None: 1
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
                     "glossy_color", "glossy_roughness", "glossy_multiscatter", "glossy_fresnel_ior",
                     "glossy_fresnel_rise", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
-                    "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength")
-    INT_FIELDS = ("diffuse_texture", "normal_texture")
+                    "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
+                    "bump_texture", "bump_strength", "bump_distance")
+    INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")
+    SIGNED_FIELDS = INT_FIELDS + ("bump_distance",)
 
     @property
     def count(self) -> int:
@@ -127,7 +135,8 @@ class Materials:
         defaults to the glossy colour (Multiscatter GGX); give 0 for single-scattering GGX.
         ``glossy_fresnel_ior``, ``glossy_fresnel_rise`` and ``diffuse_layer`` default to 0,
         ``diffuse_layer_weight`` to 1.  ``normal_texture`` (default -1: none) and
-        ``normal_strength`` (default 1) give a tangent-space normal map.
+        ``normal_strength`` (default 1) give a tangent-space normal map, ``bump_texture``
+        (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -152,6 +161,9 @@ class Materials:
         out.emission = np.zeros((m, 3), np.float32)
         out.normal_texture = np.full(m, -1, np.int32)
         out.normal_strength = np.ones(m, np.float32)
+        out.bump_texture = np.full(m, -1, np.int32)
+        out.bump_strength = np.ones(m, np.float32)
+        out.bump_distance = np.ones(m, np.float32)
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
                 if lobe in s:
@@ -183,6 +195,9 @@ class Materials:
                 out.emission[i] = np.broadcast_to(np.asarray(s["emission"], np.float32), (3,))
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
+            out.bump_texture[i] = s.get("bump_texture", -1)
+            out.bump_strength[i] = s.get("bump_strength", 1.0)
+            out.bump_distance[i] = s.get("bump_distance", 1.0)
         return out
 
 
@@ -472,7 +487,9 @@ class Scene:
             for name, shape, value in (("glossy_fresnel_ior", (n,), 0.0),
                                        ("glossy_fresnel_rise", (n, 3), 0.0),
                                        ("diffuse_layer", (n, 3), 0.0), ("diffuse_layer_weight", (n,), 1.0),
-                                       ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0)):
+                                       ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
+                                       ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
+                                       ("bump_distance", (n,), 1.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INT_FIELDS
                                                 else np.float32))
@@ -480,7 +497,7 @@ class Scene:
             tail = (3,) if name.endswith(("color", "emission", "multiscatter", "rise", "layer")) else ()
             dtype = np.int32 if name in Materials.INT_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
-            if name not in Materials.INT_FIELDS and (v < 0).any():
+            if name not in Materials.SIGNED_FIELDS and (v < 0).any():
                 bad = int(np.flatnonzero((v < 0).reshape(nm, -1).any(axis=1))[0])
                 fail(f"materials.{name} is negative for material '{mats.names[bad]}'")
             setattr(mats, name, v)
@@ -490,7 +507,7 @@ class Scene:
             v = getattr(mats, name)
             if ((v < -1) | (v >= len(self.textures))).any():
                 fail(f"materials.{name} must be -1 or an index below {len(self.textures)}")
-        if ((mats.diffuse_texture >= 0) | (mats.normal_texture >= 0)).any() and self.uvs is None:
+        if any((getattr(mats, name) >= 0).any() for name in Materials.INT_FIELDS) and self.uvs is None:
             fail("materials use image textures but the scene has no uvs")
         if (mats.normal_texture >= 0).any() and self.tangents is None:
             fail("materials use normal maps but the scene has no tangents")

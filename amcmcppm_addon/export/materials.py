@@ -9,8 +9,9 @@ and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF, Diffuse, Glossy, Metallic, Glass, Refraction,
 Emission, Mix Shader, Add Shader, Image Texture (as a colour), RGB and Value
-inputs, reroutes and groups, and a tangent-space Normal Map node fed by an Image Texture
-on a BSDF's Normal input (one normal map per material: the first one a Mix or Add meets).
+inputs, reroutes and groups, and on a BSDF's Normal input a tangent-space Normal Map node
+fed by an Image Texture, a Bump node whose Height comes from an Image Texture, or a Bump on
+a Normal Map (one of each per material: the first that a Mix or Add meets).
 Anything else becomes a grey diffuse closure (for shaders) or the socket's own value (for
 colours and numbers), and the material gets *one* warning naming every such node.
 
@@ -72,6 +73,7 @@ class Closure:
     layer: np.ndarray = field(default_factory=lambda: np.zeros(3))         # (3,) layered weight * f0
     layered: float = 0.0            # diffuse weight under the Fresnel layer
     normal_map: tuple = None        # (texture index, strength, uv map name) of a tangent-space normal map
+    bump: tuple = None              # (texture index, strength, distance) of a bump map
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -96,9 +98,9 @@ class Closure:
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
         out.texture = self.texture if self.texture >= 0 and wa[DIFFUSE] > 0 else other.texture
-        # One normal map per material: the first side's that has weight.
-        maps = [m for m, f in ((self.normal_map, fa), (other.normal_map, fb)) if m is not None and f > 0]
-        out.normal_map = maps[0] if maps else None
+        # One bent normal per material: the first side's that has weight.
+        bent = [c for c, f in ((self, fa), (other, fb)) if f > 0 and (c.normal_map or c.bump)]
+        out.normal_map, out.bump = (bent[0].normal_map, bent[0].bump) if bent else (None, None)
         if out.texture >= 0:
             # The core multiplies the diffuse colour by the texture; keep the weight, drop the
             # colour of the untextured side (an approximation when both sides are diffuse).
@@ -131,6 +133,8 @@ class Closure:
             s["diffuse"] = np.ones(3)
         if self.normal_map is not None:
             s["normal_texture"], s["normal_strength"], s["normal_uv_map"] = self.normal_map
+        if self.bump is not None:
+            s["bump_texture"], s["bump_strength"], s["bump_distance"] = self.bump
         return s
 
 
@@ -261,7 +265,8 @@ class MaterialExporter:
             walker = NodeWalker(material.name, self.textures)
             closure = walker.material_closure(material)
             cycles = getattr(material, "cycles", None)
-            if closure.normal_map is not None and not getattr(cycles, "use_bump_map_correction", True):
+            bent = closure.normal_map is not None or closure.bump is not None
+            if bent and not getattr(cycles, "use_bump_map_correction", True):
                 walker.note("Bump Map Correction off is not supported (rendered with it on)")
             if walker.notes:
                 self.log.warning(f"material '{material.name}': " + "; ".join(walker.notes))
@@ -271,7 +276,7 @@ class MaterialExporter:
     def uses_textures(self, ids) -> bool:
         """Whether any of the material ``ids`` looks up an image with the UVs (colour or normal map)."""
         return any(self._specs[i].get("diffuse_texture", -1) >= 0 or "normal_texture" in self._specs[i]
-                   for i in ids)
+                   or "bump_texture" in self._specs[i] for i in ids)
 
     def normal_map_uv(self, ids):
         """The UV map name ('' = the active render map) of the first of ``ids`` with a normal map,
@@ -467,20 +472,51 @@ class NodeWalker:
             self.unsupported(node, "rendered as grey diffuse")
             return Closure.lobe(DIFFUSE, 1.0, GREY)
         closure = handler(self, node, stack)
-        if "Normal" in node.inputs and closure.normal_map is None:
-            closure.normal_map = self.normal_map(node.inputs["Normal"], stack)
+        if "Normal" in node.inputs and closure.normal_map is None and closure.bump is None:
+            closure.normal_map, closure.bump = self.bent_normal(node.inputs["Normal"], stack)
         return closure
 
-    def normal_map(self, sock, stack):
-        """(texture index, strength, uv map name) of a tangent-space Normal Map node fed by an
-        image into a BSDF's ``Normal`` input, or None (unlinked, or unsupported: noted)."""
+    def bent_normal(self, sock, stack):
+        """(normal map or None, bump or None) feeding a ``Normal`` input: a Normal Map node
+        (:meth:`normal_map`), a Bump node whose Height is an image's colour, whose own Normal
+        may take a Normal Map; anything else is noted and leaves the normal alone."""
         src, _, stack = self.source(sock, stack)
         if src is None:
-            return None
+            return None, None
         node = src.node
-        if node.bl_idname != "ShaderNodeNormalMap" or node.mute:
+        if node.bl_idname == "ShaderNodeNormalMap" and not node.mute:
+            return self.normal_map(node, stack), None
+        if node.bl_idname != "ShaderNodeBump" or node.mute:
             self.unsupported(node, f"drives '{sock.name}'; using the surface's own normal")
-            return None
+            return None, None
+        inner, inner_bump = self.bent_normal(node.inputs["Normal"], stack)
+        if inner_bump is not None:
+            self.note(f"bump '{node.name}': a Bump on a Bump is not supported; using the inner one")
+            return inner, inner_bump
+        hsrc, _, _ = self.source(node.inputs["Height"], stack)
+        if hsrc is None:
+            return inner, None              # a constant height bends nothing
+        hnode = hsrc.node
+        if hnode.bl_idname != "ShaderNodeTexImage" or hsrc.identifier != "Color" or hnode.mute:
+            self.unsupported(hnode, f"drives the height of bump '{node.name}' (only an Image Texture's "
+                             "Color is supported); no bump")
+            return inner, None
+        if hnode.image is None:
+            self.note(f"image texture '{hnode.name}' has no image; no bump")
+            return inner, None
+        if hnode.inputs["Vector"].is_linked:
+            self.note(f"image texture '{hnode.name}': texture coordinates other than the "
+                      "default UV map are ignored")
+        tex, _ = self.textures.lookup(hnode.image, f"material '{self.name}'")
+        if tex < 0:
+            return inner, None
+        strength = max(self.value(node.inputs["Strength"], stack), 0.0)
+        distance = self.value(node.inputs["Distance"], stack) * (-1.0 if node.invert else 1.0)
+        return inner, (tex, strength, distance)
+
+    def normal_map(self, node, stack):
+        """(texture index, strength, uv map name) of a tangent-space Normal Map ``node`` fed by an
+        image, or None (unsupported: noted)."""
         if node.space != "TANGENT":
             self.note(f"normal map '{node.name}': {node.space.lower()} space is not supported "
                       "(only tangent space); using the surface's own normal")

@@ -247,20 +247,38 @@ def sun_over_normal_mapped_floor(tangent_space_normal, sun_toward=(0.0, 0.0, 1.0
     """
     n = np.asarray(tangent_space_normal, np.float64)
     tex = np.broadcast_to(((n / np.linalg.norm(n) + 1.0) / 2.0).astype(np.float32), (2, 2, 3))
-    plain = Materials.build([{"name": "floor", "diffuse": albedo}])
+    frame = np.concatenate([np.asarray(tangent, np.float32), [sign]]).astype(np.float32)
+    return _sunlit_textured_floor({"normal_texture": 0, "normal_strength": strength}, np.array(tex),
+                                  sun_toward, irradiance, albedo, resolution,
+                                  tangents=np.broadcast_to(frame, (2, 3, 4)))
+
+
+def sun_over_bumped_floor(slope, distance=1.0, strength=1.0, sun_toward=(0.0, 0.0, 1.0), irradiance=10.0,
+                          albedo=0.5, resolution=(8, 8)):
+    """A flat diffuse floor (z = 0, uv = xy + 0.5) with a bump map whose height rises by
+    ``slope`` per unit of u (a grey ramp image), under a sun.  Cycles' Bump node then bends the
+    normal to normalize(z - distance slope x) before the strength blend."""
+    w = 64
+    ramp = slope * (np.arange(w) + 0.5) / w
+    tex = np.repeat(np.broadcast_to(ramp[None, :, None], (2, w, 1)), 3, axis=2).astype(np.float32)
+    return _sunlit_textured_floor({"bump_texture": 0, "bump_strength": strength, "bump_distance": distance},
+                                  tex, sun_toward, irradiance, albedo, resolution)
+
+
+def _sunlit_textured_floor(spec, texture, sun_toward, irradiance, albedo, resolution, tangents=None):
+    """The 1 m floor of the two builders above (two triangles, uv = xy + 0.5), its diffuse
+    material with the extra ``spec`` keys and image ``texture``, a sun and a camera from above."""
     m = MeshBuilder()
     m.add_quad((-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0), 0)
     l = np.asarray(sun_toward, np.float64)
     lights = Lights.build([{"kind": "sun", "direction": -l / np.linalg.norm(l), "power": irradiance}])
     cam = Camera(world_from_camera=_look_down(0.5), projection="orthographic",
                  frame=(-0.1, 0.1, -0.1, 0.1), resolution=resolution)
-    scene = m.build(plain, lights, cam)
+    scene = m.build(Materials.build([{"name": "floor", "diffuse": albedo}]), lights, cam)
     corners = scene.vertices[scene.triangles]                                   # (T, 3, 3)
-    frame = np.concatenate([np.asarray(tangent, np.float32), [sign]]).astype(np.float32)
-    mats = Materials.build([{"name": "floor", "diffuse": albedo, "normal_texture": 0,
-                             "normal_strength": strength}])
-    return scene.replace(materials=mats, uvs=corners[..., :2] + 0.5, textures=[np.array(tex)],
-                         tangents=np.broadcast_to(frame, (len(corners), 3, 4))).validate()
+    mats = Materials.build([{"name": "floor", "diffuse": albedo, **spec}])
+    return scene.replace(materials=mats, uvs=corners[..., :2] + 0.5, textures=[texture],
+                         tangents=tangents).validate()
 
 
 def camera_in_glass(ior=1.5, emission=1.0, resolution=(16, 16)):

@@ -448,7 +448,8 @@ def test_normal_map_on_a_mesh_without_uvs_keeps_the_normal_and_an_unmapped_mesh_
 
 @pytest.mark.parametrize("case, message", [
     ("object_space", "object space is not supported"),
-    ("bump", "Bump"),
+    ("bump_of_a_noise", "Noise Texture"),
+    ("vector_math", "Vector Math"),
     ("constant", "constant colour"),
 ])
 def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message):
@@ -457,9 +458,13 @@ def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message
     bsdf = nt.nodes["Principled BSDF"]
     if case == "object_space":
         nt.nodes["Normal Map"].space = "OBJECT"
-    elif case == "bump":
+    elif case == "bump_of_a_noise":
         bump = nt.nodes.new("ShaderNodeBump")
+        noise = nt.nodes.new("ShaderNodeTexNoise")
+        nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
         nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    elif case == "vector_math":
+        nt.links.new(nt.nodes.new("ShaderNodeVectorMath").outputs[0], bsdf.inputs["Normal"])
     else:
         nt.links.remove(nt.nodes["Normal Map"].inputs["Color"].links[0])
         nt.nodes["Normal Map"].inputs["Color"].default_value = (0.7, 0.5, 0.9, 1.0)
@@ -469,6 +474,30 @@ def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message
     assert material_row(ex.scene, "Odd")["normal_texture"] == -1
     assert ex.scene.tangents is None
     assert any("Odd" in w and message in w for w in ex.warnings), ex.warnings
+
+
+@pytest.mark.parametrize("invert", [False, True])
+def test_bump_node_exports_its_height_image_strength_and_distance_over_a_normal_map(scene, invert):
+    mat = normal_mapped("Bumpy")
+    nt = mat.node_tree
+    img = bpy.data.images.new("Heights", 8, 2)
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.invert = invert
+    bump.inputs["Strength"].default_value = 0.6
+    bump.inputs["Distance"].default_value = 0.02
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    nt.links.new(tex.outputs["Color"], bump.inputs["Height"])
+    nt.links.new(nt.nodes["Normal Map"].outputs["Normal"], bump.inputs["Normal"])
+    nt.links.new(bump.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Normal"])
+    uv_plane("Plane", mat)
+    bs.camera()
+    ex = bs.export()
+    row = material_row(ex.scene, "Bumpy")
+    assert row["normal_texture"] == 0 and row["bump_texture"] == 1 and ex.scene.textures[1].shape == (2, 8, 3)
+    assert row["bump_strength"] == pytest.approx(0.6)
+    assert row["bump_distance"] == pytest.approx(-0.02 if invert else 0.02)
+    assert ex.scene.tangents is not None and not [w for w in ex.warnings if "Bumpy" in w]
 
 
 def test_normal_map_with_bump_map_correction_off_warns(scene):

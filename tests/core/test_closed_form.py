@@ -11,7 +11,7 @@ from core import RenderSettings, render
 from core.integrator import kz_radius_scales
 from core.testing.scenes import (camera_in_glass, disk_irradiance, furnace_sphere, kernel_radius_px,
                                  point_in_sphere, sky_over_floor, spot_over_plane,
-                                 sun_over_normal_mapped_floor, sun_through_slab)
+                                 sun_over_bumped_floor, sun_over_normal_mapped_floor, sun_through_slab)
 
 
 def render_passes(scene, **settings):
@@ -113,6 +113,13 @@ def test_sun_through_glass_slab_single_pass_transmittance(method):
     check_mean(per_pass, expected, 0.005)
 
 
+def bump_shadowing_g(n, cos_i):
+    """Cycles' bump shadowing: GGX G1 with alpha^2 = tan^2(n, z) / 8 at the light's cosine
+    ``cos_i`` to z, the unbent normal (Conty Estevez et al. 2019)."""
+    alpha2 = min(0.125 * (np.dot(n, n) / n[2] ** 2 - 1), 1.0)
+    return 2 / (1 + np.sqrt(1 + alpha2 * (1 - cos_i ** 2) / cos_i ** 2))
+
+
 A40 = np.radians(40.0)
 TILT_X = (np.sin(A40), 0.0, np.cos(A40))         # the map's normal, 40 degrees towards the tangent
 TILT_Y = (0.0, np.sin(A40), np.cos(A40))         # ... towards the bitangent
@@ -140,14 +147,34 @@ def test_normal_map_bends_the_shading_normal_as_cycles(method, case):
         # by min(strength, 1) (80 degrees at strength 0.5: 40 degrees, against 71 without the blend).
         n = np.array([normal[0] * strength, normal[1] * strength, 1 + (normal[2] - 1) * min(strength, 1.0)])
         cos_nl = n[2] / np.linalg.norm(n)
-    # G1 of GGX with alpha^2 = tan^2(N, Ng) / 8 at the sun's angle from Ng (Conty Estevez et al.).
-    alpha2 = min(0.125 * (np.linalg.norm(n) ** 2 / n[2] ** 2 - 1), 1.0)
-    cos_i = np.asarray(sun)[2] / np.linalg.norm(sun)
-    g = 2 / (1 + np.sqrt(1 + alpha2 * (1 - cos_i ** 2) / cos_i ** 2))
+    g = bump_shadowing_g(n, np.asarray(sun)[2] / np.linalg.norm(sun))
     irradiance, albedo = 10.0, 0.5
     scene = sun_over_normal_mapped_floor(normal, sun, tangent, sign, strength, irradiance, albedo)
     per_pass, _ = render_passes(scene, passes=6, photons_per_pass=50_000, max_bounces=1, **method)
     check_mean(per_pass, albedo / np.pi * irradiance * cos_nl * g, 0.01)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+@pytest.mark.parametrize("distance, strength, towards", [
+    (0.8, 1.0, -1.0),         # the sun where the bumped normal points: N . l = 1
+    (0.8, 1.0, 1.0),          # the mirror image: N . l = cos(2 atan 0.8)
+    (-0.8, 1.0, 1.0),         # a negative distance (Invert) bends the other way: 1 again
+    (0.8, 0.5, -1.0),         # strength 0.5: halfway between z and the bumped normal
+], ids=["facing", "away", "inverted", "half_strength"])
+def test_bump_map_bends_the_shading_normal_as_cycles(method, distance, strength, towards):
+    """A sun over a floor whose height rises along u: Cycles' Bump node gives the normal
+    normalize(z - d h_u x), blended with z by the strength; radiance albedo E (N . l) G / pi."""
+    slope = 1.0
+    bent = np.array([-distance * slope, 0.0, 1.0])
+    bent /= np.linalg.norm(bent)
+    sun = np.array([towards * np.sin(np.arctan(0.8)), 0.0, np.cos(np.arctan(0.8))])
+    n = strength * bent + (1 - strength) * np.array([0.0, 0.0, 1.0])
+    n /= np.linalg.norm(n)
+    irradiance, albedo = 10.0, 0.5
+    scene = sun_over_bumped_floor(slope, distance, strength, sun, irradiance, albedo)
+    expected = albedo / np.pi * irradiance * max(n @ sun, 0.0) * bump_shadowing_g(n, sun[2])
+    per_pass, _ = render_passes(scene, passes=6, photons_per_pass=50_000, max_bounces=1, **method)
+    check_mean(per_pass, expected, 0.01)
 
 
 def test_camera_inside_glass_sees_eta_squared_radiance():

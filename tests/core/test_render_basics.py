@@ -1,4 +1,5 @@
 """Determinism, finiteness, bad input, stopping, workers, file formats."""
+import dataclasses
 import json
 import os
 import subprocess
@@ -18,7 +19,7 @@ from core.photon_pass import DepositTarget
 from core.scene import DEFAULT_LIGHT_VISIBILITY
 from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_RAMP
 from core.testing.scenes import (MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room, sky_over_floor,
-                                 sun_over_normal_mapped_floor)
+                                 sun_over_bumped_floor, sun_over_normal_mapped_floor)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 FAST = dict(passes=3, photons_per_pass=20_000, chains=2048, workers=1)
@@ -361,11 +362,13 @@ def test_scene_save_load_round_trip(tmp_path):
     np.savez(tmp_path / "old_lights.npz", **old)
     loaded = Scene.load(tmp_path / "old_lights.npz")
     assert (loaded.lights.visibility == DEFAULT_LIGHT_VISIBILITY).all() and loaded.lights.soft_falloff.all()
-    # ... and materials before normal maps with none.
-    old = {k: v for k, v in scene.to_arrays().items() if not k.startswith("materials.normal_")}
+    # ... and materials before normal and bump maps with none.
+    old = {k: v for k, v in scene.to_arrays().items()
+           if not k.startswith(("materials.normal_", "materials.bump_"))}
     np.savez(tmp_path / "old_materials.npz", **old)
     loaded = Scene.load(tmp_path / "old_materials.npz")
     assert (loaded.materials.normal_texture == -1).all() and (loaded.materials.normal_strength == 1).all()
+    assert (loaded.materials.bump_texture == -1).all() and (loaded.materials.bump_distance == 1).all()
 
 
 def test_normal_mapped_scene_validates_round_trips_and_names_what_is_missing(tmp_path):
@@ -385,6 +388,10 @@ def test_normal_mapped_scene_validates_round_trips_and_names_what_is_missing(tmp
             scene.validate()
         finally:
             scene.materials.normal_texture[:] = bad
+    bumped = sun_over_bumped_floor(1.0, distance=-0.5)       # a negative distance is Invert: valid
+    assert bumped.materials.bump_distance[0] == -0.5
+    with pytest.raises(SceneError, match="bump_texture must be -1 or an index below 1"):
+        bumped.replace(materials=dataclasses.replace(bumped.materials, bump_texture=np.array([1]))).validate()
     with pytest.raises(SceneError, match="normal_strength is negative"):
         scene.materials.normal_strength[:] = -1.0
         scene.validate()
