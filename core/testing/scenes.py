@@ -238,12 +238,12 @@ def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
 
 def sun_over_normal_mapped_floor(tangent_space_normal, sun_toward=(0.0, 0.0, 1.0), tangent=(1.0, 0.0, 0.0),
                                  sign=1.0, strength=1.0, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
-    """A flat diffuse floor (z = 0, uv = xy) with a constant tangent-space normal map under a sun.
+    """A flat diffuse floor (z = 0, uv = xy + 0.5) with a constant tangent-space normal map under a sun.
 
     ``tangent_space_normal`` (3,) is the map's normal (stored as (n + 1) / 2), ``tangent`` and
     ``sign`` the floor's tangent frame.  With shading normal N the floor's radiance is
-    albedo E max(0, N . l) / pi for the unit direction ``sun_toward`` l (the sun's irradiance E
-    is on a plane facing it), whatever the camera sees from above.
+    albedo E max(0, N . l) G / pi for the unit direction ``sun_toward`` l (the sun's irradiance E
+    is on a plane facing it; G Cycles' bump shadowing), whatever the camera sees from above.
     """
     n = np.asarray(tangent_space_normal, np.float64)
     tex = np.broadcast_to(((n / np.linalg.norm(n) + 1.0) / 2.0).astype(np.float32), (2, 2, 3))
