@@ -47,12 +47,16 @@ def test_snapshots_until_the_last_time(repo_root, cornell, tmp_path):
     assert out.returncode == 0, out.stderr
     index = [json.loads(x) for x in (tmp_path / "snaps" / "snapshots.jsonl").read_text().splitlines()]
     assert [e["time"] for e in index] == [0.000001, 1.5]
-    assert index[0]["pass"] == 1 and index[1]["elapsed_s"] >= 1.5
     for e in index:
         snap = bs.read_exr(tmp_path / "snaps" / e["file"])
         assert snap.shape == (25, 25, 4) and np.isfinite(snap).all()
     stats = [json.loads(x) for x in (tmp_path / "stats.jsonl").read_text().splitlines()]
-    assert stats[-1]["elapsed_s"] >= 1.5 and stats[-2]["elapsed_s"] < 1.5
+    # The last snapshot is the final image.  The core ends at the limit, or up to one pass before
+    # it when it skips a pass the limit would cut short (RenderOutputs.finish): 1.498 s was seen.
+    elapsed = [s["elapsed_s"] for s in stats]
+    longest = max(np.diff([0.0] + elapsed))
+    assert index[0]["pass"] == 1 and index[1]["pass"] == stats[-1]["pass"]
+    assert elapsed[-1] + longest >= 1.5 and (len(elapsed) < 2 or elapsed[-2] < 1.5)
 
 
 def test_border_and_resolution_flags(repo_root, cornell, tmp_path):
