@@ -265,8 +265,17 @@ def test_normal_map_matches_cycles(addon, tmp_path, scale):
     assert o[~bright].mean() == pytest.approx(c[~bright].mean(), rel=BAND_TOLERANCE)
 
 
-@pytest.mark.parametrize("with_map", [True, False], ids=["normal_map", "smooth_only"])
-def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_path, with_map):
+PRINCIPLED_MAP_GAP = pytest.mark.xfail(strict=True, reason=(
+    "Principled (specular 0.5) under a normal map: 0.92 of Cycles, quarters 0.875-0.966, where the "
+    "same with specular 0 gives 0.996 and without the map 1.002; Cycles' specular layer takes a normal "
+    "kept valid for reflection (ensure_valid_specular_reflection), not modelled; not investigated further"))
+
+
+@pytest.mark.parametrize("with_map, bsdf", [
+    (True, "ShaderNodeBsdfDiffuse"), (False, "ShaderNodeBsdfDiffuse"), (False, "ShaderNodeBsdfPrincipled"),
+    pytest.param(True, "ShaderNodeBsdfPrincipled", marks=PRINCIPLED_MAP_GAP),
+], ids=["normal_map", "smooth_only", "principled", "principled_normal_map"])
+def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_path, with_map, bsdf):
     """A smooth UV sphere lit from the side by a sun.  With a map that tilts the normal 40 degrees
     towards the tangent (MikkTSpace tangents that turn around the sphere) the light reaches past
     the smooth terminator, and Cycles darkens it there with its bump shadowing term (0.138
@@ -275,9 +284,11 @@ def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_p
     Quarters of the lit pixels by brightness in Cycles."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
-        mat = bs.diffuse("Ball", (0.8, 0.8, 0.8))
+        colour = "Color" if bsdf == "ShaderNodeBsdfDiffuse" else "Base Color"
+        mat = bs._material("Ball", bsdf, **{colour: (0.8, 0.8, 0.8, 1.0)})
         if with_map:
-            bs.add_normal_map(mat, np.broadcast_to(bs.tilted(40.0), (4, 4, 3)))
+            bs.add_normal_map(mat, np.broadcast_to(bs.tilted(40.0), (4, 4, 3)),
+                              next(n.name for n in mat.node_tree.nodes if n.bl_idname == bsdf))
         bm = bmesh.new()
         bm.loops.layers.uv.new("UVMap")
         bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=1.0, calc_uvs=True)
@@ -285,7 +296,7 @@ def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_p
         ob.data.shade_smooth()
         bs.camera(location=(0, -6, 0), target=(0, 0, 0), ortho_scale=2.4)
         bs.light("SUN", location=(3, 0, 1), target=(0, 0, 0), energy=3.0, angle=0.0)
-    assert_quarters_match(f"sphere, map {with_map}", *cycles_and_ours(build, tmp_path))
+    assert_quarters_match(f"sphere, {bsdf}, map {with_map}", *cycles_and_ours(build, tmp_path))
 
 
 def assert_quarters_match(name, cycles, ours):
