@@ -491,6 +491,30 @@ def bump_shadowing(nn, ns, wi):
     return np.where(valid, g, 0.0), valid
 
 
+def valid_reflection_normal(ng, i, n):
+    """Cycles' ``ensure_valid_specular_reflection``: ``n`` (k, 3), tilted towards the geometric
+    normal ``ng`` just enough that the mirror direction of the view ``i`` (k, 3; all on ng's
+    side) stays above the surface by min(0.9 i.ng, 0.01).  Cycles gives it to the glossy layers
+    of a bump- or normal-mapped surface, seen from ``i``."""
+    i_z = dot(i, ng)
+    threshold = np.minimum(0.9 * i_z, 0.01)
+    r = 2.0 * dot(n, i)[:, None] * n - i
+    bad = dot(ng, r) < threshold
+    if not bad.any():
+        return n
+    out = n.copy()
+    g, v, nb, t, iz = ng[bad], i[bad], n[bad], threshold[bad], i_z[bad]
+    x = smp.normalize(nb - dot(nb, g)[:, None] * g)
+    i_x = dot(v, x)
+    a = i_x * i_x + iz * iz
+    b = 2.0 * (a + iz * t)
+    c = (t + iz) ** 2
+    root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+    nz2 = np.where(i_x < 0, 0.25 * (b + root), 0.25 * (b - root)) / np.maximum(a, 1e-30)
+    out[bad] = np.sqrt(np.maximum(1.0 - nz2, 0.0))[:, None] * x + np.sqrt(np.maximum(nz2, 0.0))[:, None] * g
+    return out
+
+
 def _adjoint_factor(wo, wi, ng, ns):
     """|wo.ns| |wi.ng| / (|wo.ng| |wi.ns|): shading-normal correction for importance transport,
     applied to the throughput after f |wi.ns| / pdf."""

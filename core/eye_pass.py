@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_remainder,
-                   lobe_scores, scatter)
+                   lobe_scores, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from .sampling import dot
 from .scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
@@ -36,6 +36,7 @@ class MeasurementPoints:
     colors: np.ndarray      # (m, 2, 3) float32 diffuse and glossy colour at the point
     base_radius: np.ndarray  # (m,) float64 r_1: initial_radius_px pixel footprints at the point
     nn: np.ndarray = None   # (m, 3) float32 shading normal before normal maps, side of ng; None without
+    ns_glossy: np.ndarray = None  # (m, 3) float32 glossy lobes' normal (valid_reflection_normal); None: ns
 
     @property
     def count(self) -> int:
@@ -145,13 +146,22 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             ng = face_forward(rows(surf.ng), rows(wo))
             r1 = initial_radius_px * rows(footprint) * (rows(path_len) if grows else 1.0)
             f32 = np.float32
+            ns = face_forward(rows(surf.ns), ng)
+            ns_glossy = None
+            if surf.nn is not None:
+                # Cycles keeps a bent normal's reflection of the view valid for glossy lobes.
+                bent = table.normal_mapped.take(rows(surf.mat_ids))
+                ns_glossy = ns.copy()
+                ns_glossy[bent] = valid_reflection_normal(ng[bent], rows(wo)[bent], ns[bent])
+                ns_glossy = ns_glossy.astype(f32)
             parts.append(MeasurementPoints(
                 pixel_ids=rows(pix), position=rows(surf.position), ng=ng.astype(f32),
-                ns=face_forward(rows(surf.ns), ng).astype(f32), wo=rows(wo).astype(f32),
+                ns=ns.astype(f32), wo=rows(wo).astype(f32),
                 weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
                 colors=surf.colors[:, :2].take(s, axis=0).astype(f32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
-                nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32)))
+                nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
+                ns_glossy=ns_glossy))
         go = np.flatnonzero(~stop & (total > 0))
         if depth == max_bounces or len(go) == 0:
             break

@@ -145,9 +145,15 @@ class DepositTarget:
             g = np.flatnonzero(self.is_glossy.take(j))
             if len(g):
                 jg = j.take(g)
+                nsg = pts.ns if pts.ns_glossy is None else pts.ns_glossy
                 f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
-                                       pts.ns.take(jg, axis=0), with_cos_h=True)
-                if ratio is not None:
+                                       nsg.take(jg, axis=0), with_cos_h=True)
+                if ratio is not None and pts.ns_glossy is not None:
+                    # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal.
+                    ratio_g = np.abs(dot(wi.take(g, axis=0), nsg.take(jg, axis=0))) / np.maximum(
+                        cos_photon.take(g), 1e-4)
+                    f *= np.where(ratio.take(g) > 0, ratio_g, 0.0)
+                elif ratio is not None:
                     f *= ratio.take(g)
                 wg[g] = f
                 if self.rising is not None:
@@ -177,7 +183,8 @@ class DepositTarget:
         val = pts.weight * pts.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None]
         val *= sum_diffuse
         if self.table.has_layer:
-            val *= self.table.layer_factor(pts.mat_ids, dot(pts.wo, pts.ns).astype(np.float64))[:, None]
+            nsg = pts.ns if pts.ns_glossy is None else pts.ns_glossy
+            val *= self.table.layer_factor(pts.mat_ids, dot(pts.wo, nsg).astype(np.float64))[:, None]
         if sum_glossy is not None:
             color = pts.colors[:, 1]
             if self.rising is not None:
@@ -186,7 +193,8 @@ class DepositTarget:
             k_glossy *= sum_glossy
             if self.table.ms_fresnel.any():
                 # Multiscatter GGX: a factor of the point's view direction (BSDF docs, bsdf.py).
-                k_glossy *= self.table.multiscatter(pts.mat_ids, dot(pts.wo, pts.ns).astype(np.float64))
+                nsg = pts.ns if pts.ns_glossy is None else pts.ns_glossy
+                k_glossy *= self.table.multiscatter(pts.mat_ids, dot(pts.wo, nsg).astype(np.float64))
             val += k_glossy
         out = np.zeros((self.n_pixels, 3))
         out[self.pixel_ids] = val          # one measurement point per pixel and pass

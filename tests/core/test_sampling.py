@@ -1478,3 +1478,31 @@ def test_environment_image_convention_density_and_integral():
     for c in range(3):
         assert_mean(w[:, c], env.integral[c], f"environment integral, channel {c}",
                     extra_tolerance=0.01 * env.integral[c])
+
+
+def test_valid_reflection_normal_keeps_the_view_reflection_above_the_surface():
+    """Cycles' ensure_valid_specular_reflection: unchanged where the mirror direction of the view
+    is above the surface, else tilted towards ng, in the plane of n and ng, just enough."""
+    rng = np.random.default_rng(4)
+    k = 20000
+    ng = np.tile([0.0, 0.0, 1.0], (k, 1))
+    i = rng.normal(size=(k, 3))
+    i[:, 2] = np.abs(i[:, 2]) + 1e-3
+    i /= np.linalg.norm(i, axis=1, keepdims=True)
+    n = rng.normal(size=(k, 3))
+    n[:, 2] = np.abs(n[:, 2]) + 0.2
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    out = bsdf.valid_reflection_normal(ng, i, n)
+
+    def reflect_z(m):
+        return (2 * np.einsum("ki,ki->k", m, i)[:, None] * m - i)[:, 2]
+
+    threshold = np.minimum(0.9 * i[:, 2], 0.01)
+    was_valid = reflect_z(n) >= threshold
+    assert 0.05 < was_valid.mean() < 0.95                       # both cases occur
+    np.testing.assert_array_equal(out[was_valid], n[was_valid])
+    fixed = ~was_valid
+    np.testing.assert_allclose(np.linalg.norm(out[fixed], axis=1), 1.0, atol=1e-9)
+    np.testing.assert_allclose(reflect_z(out)[fixed], threshold[fixed], atol=1e-6)   # just enough
+    plane = np.cross(n[fixed], ng[fixed])
+    np.testing.assert_allclose(np.einsum("ki,ki->k", plane, out[fixed]), 0.0, atol=1e-9)
