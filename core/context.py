@@ -43,13 +43,15 @@ class RenderContext:
         self.bump_strength = np.asarray(mats.bump_strength, np.float64)
         self.bump_distance = np.asarray(mats.bump_distance, np.float64)
         # Either bends the shading normal (the name stays: Cycles treats both alike).
-        self.has_normal_maps = bool((self.normal_texture >= 0).any() or (self.bump_texture >= 0).any())
+        self.has_normal_maps = self.table.has_normal_maps
         self.has_shading_normals = scene.shading_normals is not None or self.has_normal_maps
         # Per-triangle arrays gathered with take(), which copies a non-contiguous array first.
         self.material_ids = np.ascontiguousarray(scene.material_ids)
         self.shading_normals = (np.ascontiguousarray(scene.shading_normals)
                                 if scene.shading_normals is not None else None)
         self.has_textures = bool((self.table.texture >= 0).any())
+        # Materials that look an image up with the UVs (colour, normal or bump map).
+        self.uses_uvs = (self.table.texture >= 0) | self.table.normal_mapped
 
     def surface(self, prim_ids, b1, b2) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics."""
@@ -58,28 +60,30 @@ class RenderContext:
         ng = a.geometric_normals.take(prim_ids, axis=0)
         b0 = 1.0 - b1 - b2
         mat = self.material_ids.take(prim_ids)
+        bary = (b0[:, None], b1[:, None], b2[:, None])
         if self.shading_normals is not None:
-            sn = self.shading_normals.take(prim_ids, axis=0).astype(np.float64)
-            ns = normalize(b0[:, None] * sn[:, 0] + b1[:, None] * sn[:, 1] + b2[:, None] * sn[:, 2])
+            ns = normalize(_interpolate(self.shading_normals.take(prim_ids, axis=0), bary))
             _replace_bad(ns, ng)
         else:
             ns = ng.copy() if self.has_normal_maps else ng
+        # Texture coordinates, once for every image lookup at these hits.
+        uv = None
+        if self.uses_uvs.take(mat).any():
+            uv = _interpolate(self.scene.uvs.take(prim_ids, axis=0), bary)
         nn = None
         if self.has_normal_maps:
             nn = ns.copy()
-            self._apply_normal_maps(ns, prim_ids, b0, b1, b2, mat)
-            self._apply_bump_maps(ns, prim_ids, b0, b1, b2, mat)
+            self._apply_normal_maps(ns, prim_ids, bary, uv, mat)
+            self._apply_bump_maps(ns, prim_ids, uv, mat)
         albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]
             if (tex >= 0).any():
-                uv = self.scene.uvs[prim_ids].astype(np.float64)
-                uv = b0[:, None] * uv[:, 0] + b1[:, None] * uv[:, 1] + b2[:, None] * uv[:, 2]
                 albedo = np.where((tex >= 0)[:, None],
                                   albedo * self.textures.lookup(tex, uv), albedo)
         return Surface(pos, ng, ns, mat, lobe_colors(self.table, mat, albedo), nn)
 
-    def _apply_normal_maps(self, ns, prim_ids, b0, b1, b2, mat):
+    def _apply_normal_maps(self, ns, prim_ids, bary, uv, mat):
         """Bend ``ns`` (n, 3) in place where the material has a tangent-space normal map.
 
         As Cycles' Normal Map node: c = 2 rgb - 1, (c_x, c_y) times the strength s and c_z
@@ -91,13 +95,9 @@ class RenderContext:
         sel = np.flatnonzero(tex >= 0)
         if len(sel) == 0:
             return
-        p = prim_ids.take(sel)
-        w0, w1, w2 = b0.take(sel)[:, None], b1.take(sel)[:, None], b2.take(sel)[:, None]
-        uv = self.scene.uvs.take(p, axis=0).astype(np.float64)
-        uv = w0 * uv[:, 0] + w1 * uv[:, 1] + w2 * uv[:, 2]
-        tg = self.scene.tangents.take(p, axis=0).astype(np.float64)
-        tg = w0 * tg[:, 0] + w1 * tg[:, 1] + w2 * tg[:, 2]                  # (k, 4): xyz and sign
-        c = 2.0 * self.textures.lookup(tex.take(sel), uv) - 1.0
+        tg = _interpolate(self.scene.tangents.take(prim_ids.take(sel), axis=0),
+                          tuple(w.take(sel, axis=0) for w in bary))           # (k, 4): xyz and sign
+        c = 2.0 * self.textures.lookup(tex.take(sel), uv.take(sel, axis=0)) - 1.0
         s = self.normal_strength.take(mat.take(sel))
         n0 = ns.take(sel, axis=0)
         t = tg[:, :3]
@@ -109,7 +109,7 @@ class RenderContext:
         _replace_bad(n, n0)
         ns[sel] = n
 
-    def _apply_bump_maps(self, ns, prim_ids, b0, b1, b2, mat):
+    def _apply_bump_maps(self, ns, prim_ids, uv, mat):
         """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).
 
         As Cycles' Bump node, with the exact gradient of the bilinear height h (the image's
@@ -124,8 +124,6 @@ class RenderContext:
             return
         p = prim_ids.take(sel)
         uvs = self.scene.uvs.take(p, axis=0).astype(np.float64)                        # (k, 3, 2)
-        w0, w1, w2 = b0.take(sel)[:, None], b1.take(sel)[:, None], b2.take(sel)[:, None]
-        uv = w0 * uvs[:, 0] + w1 * uvs[:, 1] + w2 * uvs[:, 2]
         e1, e2 = self.accel.e1.take(p, axis=0), self.accel.e2.take(p, axis=0)
         d1, d2 = uvs[:, 1] - uvs[:, 0], uvs[:, 2] - uvs[:, 0]
         det_uv = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
@@ -133,7 +131,7 @@ class RenderContext:
         inv = np.where(ok, 1.0 / np.where(ok, det_uv, 1.0), 0.0)[:, None]
         dpdu = (d2[:, 1:2] * e1 - d1[:, 1:2] * e2) * inv
         dpdv = (d1[:, 0:1] * e2 - d2[:, 0:1] * e1) * inv
-        gu, gv = self.textures.gradient(tex.take(sel), uv)
+        gu, gv = self.textures.gradient(tex.take(sel), uv.take(sel, axis=0))
         hu, hv = gu @ LUMINANCE, gv @ LUMINANCE
         m = mat.take(sel)
         n0 = ns.take(sel, axis=0)
@@ -147,6 +145,13 @@ class RenderContext:
         n[~ok] = n0[~ok]
         _replace_bad(n, n0)
         ns[sel] = n
+
+
+def _interpolate(corners, bary):
+    """(k, c) float64 values inside triangles from their (k, 3, c) corner values and the
+    barycentric weights ``bary`` ((k, 1) each, of corners 0, 1, 2)."""
+    c = corners.astype(np.float64)
+    return bary[0] * c[:, 0] + bary[1] * c[:, 1] + bary[2] * c[:, 2]
 
 
 def _replace_bad(n, fallback):

@@ -42,6 +42,11 @@ class MeasurementPoints:
     def count(self) -> int:
         return int(len(self.pixel_ids))
 
+    @property
+    def glossy_normals(self) -> np.ndarray:
+        """(m, 3) float32 normals of the glossy lobes: ``ns_glossy``, or ``ns`` without one."""
+        return self.ns if self.ns_glossy is None else self.ns_glossy
+
     def take(self, sel) -> "MeasurementPoints":
         return MeasurementPoints(*(None if getattr(self, f) is None else getattr(self, f)[sel]
                                    for f in self.__dataclass_fields__))

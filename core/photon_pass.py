@@ -116,9 +116,9 @@ class DepositTarget:
         (README "Brightness parity with Cycles"); a photon from behind the point's facet
         (cos_g <= 0) counts for nothing, as with flat shading.  Normal-mapped points add
         Cycles' bump terms (:func:`~core.bsdf.bump_shadowing`).  The contribution of a pair is
-        ``flux * (kd_j * wd + kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.  Returns
-        ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some glossy
-        points have a Fresnel rise (``MaterialTable.rise``), else (k,).
+        ``flux * (kd_j * wd + kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.
+        Returns ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some
+        glossy points have a Fresnel rise (``MaterialTable.rise``), else (k,).
         """
         pts = self.points
         if self.has_shading_normals:
@@ -132,10 +132,8 @@ class DepositTarget:
                     jb = j.take(b)
                     diffuse, valid = bump_shadowing(pts.nn.take(jb, axis=0), pts.ns.take(jb, axis=0),
                                                     wi.take(b, axis=0))
-                    bump_valid = np.ones(len(j), bool)
-                    bump_valid[b] = valid
                     wd[b] *= diffuse
-                    ratio = np.where(bump_valid, ratio, 0.0)
+                    ratio[b[~valid]] = 0.0          # glossy pairs too (wg below)
         else:
             cos_s, ratio = cos_g, None
             wd = (cos_s > 0).astype(np.float64)
@@ -145,16 +143,17 @@ class DepositTarget:
             g = np.flatnonzero(self.is_glossy.take(j))
             if len(g):
                 jg = j.take(g)
-                nsg = pts.ns if pts.ns_glossy is None else pts.ns_glossy
+                nsg = pts.glossy_normals.take(jg, axis=0)
                 f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
-                                       nsg.take(jg, axis=0), with_cos_h=True)
-                if ratio is not None and pts.ns_glossy is not None:
-                    # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal.
-                    ratio_g = np.abs(dot(wi.take(g, axis=0), nsg.take(jg, axis=0))) / np.maximum(
-                        cos_photon.take(g), 1e-4)
-                    f *= np.where(ratio.take(g) > 0, ratio_g, 0.0)
-                elif ratio is not None:
-                    f *= ratio.take(g)
+                                       nsg, with_cos_h=True)
+                if ratio is not None:
+                    if pts.ns_glossy is not None:
+                        # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal (0 where
+                        # the bump terms made the pair invalid).
+                        f *= np.where(ratio.take(g) > 0, np.abs(dot(wi.take(g, axis=0), nsg))
+                                      / np.maximum(cos_photon.take(g), 1e-4), 0.0)
+                    else:
+                        f *= ratio.take(g)
                 wg[g] = f
                 if self.rising is not None:
                     mats = pts.mat_ids.take(jg)
@@ -183,8 +182,8 @@ class DepositTarget:
         val = pts.weight * pts.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None]
         val *= sum_diffuse
         if self.table.has_layer:
-            nsg = pts.ns if pts.ns_glossy is None else pts.ns_glossy
-            val *= self.table.layer_factor(pts.mat_ids, dot(pts.wo, nsg).astype(np.float64))[:, None]
+            val *= self.table.layer_factor(pts.mat_ids,
+                                           dot(pts.wo, pts.glossy_normals).astype(np.float64))[:, None]
         if sum_glossy is not None:
             color = pts.colors[:, 1]
             if self.rising is not None:
@@ -193,8 +192,8 @@ class DepositTarget:
             k_glossy *= sum_glossy
             if self.table.ms_fresnel.any():
                 # Multiscatter GGX: a factor of the point's view direction (BSDF docs, bsdf.py).
-                nsg = pts.ns if pts.ns_glossy is None else pts.ns_glossy
-                k_glossy *= self.table.multiscatter(pts.mat_ids, dot(pts.wo, nsg).astype(np.float64))
+                k_glossy *= self.table.multiscatter(pts.mat_ids,
+                                                    dot(pts.wo, pts.glossy_normals).astype(np.float64))
             val += k_glossy
         out = np.zeros((self.n_pixels, 3))
         out[self.pixel_ids] = val          # one measurement point per pixel and pass

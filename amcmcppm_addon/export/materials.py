@@ -493,21 +493,8 @@ class NodeWalker:
         if inner_bump is not None:
             self.note(f"bump '{node.name}': a Bump on a Bump is not supported; using the inner one")
             return inner, inner_bump
-        hsrc, _, _ = self.source(node.inputs["Height"], stack)
-        if hsrc is None:
-            return inner, None              # a constant height bends nothing
-        hnode = hsrc.node
-        if hnode.bl_idname != "ShaderNodeTexImage" or hsrc.identifier != "Color" or hnode.mute:
-            self.unsupported(hnode, f"drives the height of bump '{node.name}' (only an Image Texture's "
-                             "Color is supported); no bump")
-            return inner, None
-        if hnode.image is None:
-            self.note(f"image texture '{hnode.name}' has no image; no bump")
-            return inner, None
-        if hnode.inputs["Vector"].is_linked:
-            self.note(f"image texture '{hnode.name}': texture coordinates other than the "
-                      "default UV map are ignored")
-        tex, _ = self.textures.lookup(hnode.image, f"material '{self.name}'")
+        # An image's colour (its luminance in the core); a constant height bends nothing.
+        _, tex = self.color(node.inputs["Height"], stack)
         if tex < 0:
             return inner, None
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)

@@ -383,8 +383,8 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset):
         # length; the bitangent sign flips where the instance mirrors: N x T flips there.
         t = np.matmul(local.tangents[None, :, :, :3], normal_from_object[:, None].transpose(0, 1, 3, 2))
         t /= np.maximum(np.sqrt(np.einsum("ktci,ktci->ktc", t, t)), 1e-30)[..., None]
-        det_sign = np.where(np.linalg.det(rot) < 0, -1.0, 1.0).astype(np.float32)
-        sign = local.tangents[None, :, :, 3] * det_sign[:, None, None]
+        sign = np.repeat(local.tangents[None, :, :, 3], k, axis=0)
+        sign[mirrored] *= -1.0
         tangents = np.concatenate([t, sign[..., None]], axis=3)                       # (k, T, 3, 4)
         _swap_corners(tangents, mirrored)
         tangents = tangents.reshape(k * n_t, 3, 4)
