@@ -64,6 +64,7 @@ class MaterialTable:
     layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
     score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
     normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map bends the shading normal
+    program: np.ndarray = None        # (M,) int32 procedural diffuse colour (Materials.programs) or -1
 
     @staticmethod
     def from_materials(mats) -> "MaterialTable":
@@ -72,7 +73,9 @@ class MaterialTable:
         color = np.zeros((m, 4, 3))
         weight[:, DIFFUSE] = mats.diffuse_weight
         color[:, DIFFUSE] = mats.diffuse_color
-        textured = mats.diffuse_texture >= 0
+        program = (np.asarray(mats.diffuse_program, np.int32) if mats.diffuse_program is not None
+                   else np.full(m, -1, np.int32))
+        textured = (mats.diffuse_texture >= 0) | (program >= 0)
         weight[:, GLOSSY] = mats.glossy_weight
         color[:, GLOSSY] = mats.glossy_color
         weight[:, MIRROR] = mats.mirror_weight
@@ -116,7 +119,7 @@ class MaterialTable:
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
                              rise=rise, layer=layer, score_extra=score_extra,
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
-                             | (np.asarray(mats.bump_texture) >= 0))
+                             | (np.asarray(mats.bump_texture) >= 0), program=program)
 
     @property
     def has_normal_maps(self) -> bool:

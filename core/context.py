@@ -7,6 +7,7 @@ import numpy as np
 
 from .accel import Accel
 from .bsdf import MaterialTable, Textures, lobe_colors
+from .procedural import HitAttributes, evaluate_color
 from .lights import LightSampler
 from .sampling import normalize
 
@@ -52,6 +53,10 @@ class RenderContext:
         self.has_textures = bool((self.table.texture >= 0).any())
         # Materials that look an image up with the UVs (colour, normal or bump map).
         self.uses_uvs = (self.table.texture >= 0) | self.table.normal_mapped
+        # Procedural diffuse colours: the programs and the coordinates they read.
+        self.programs = scene.materials.programs
+        self.has_programs = bool((self.table.program >= 0).any())
+        self.coordinates = {"generated": scene.generated, "object": scene.object_coords, "uv": scene.uvs}
 
     def surface(self, prim_ids, b1, b2) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics."""
@@ -81,7 +86,21 @@ class RenderContext:
             if (tex >= 0).any():
                 albedo = np.where((tex >= 0)[:, None],
                                   albedo * self.textures.lookup(tex, uv), albedo)
+        if self.has_programs:
+            albedo = self._apply_programs(albedo, prim_ids, bary, mat)
         return Surface(pos, ng, ns, mat, lobe_colors(self.table, mat, albedo), nn)
+
+    def _apply_programs(self, albedo, prim_ids, bary, mat):
+        """``albedo`` (n, 3) (a fresh array: scaled in place) times the procedural colour where
+        the material has a program."""
+        program = self.table.program.take(mat)
+        if not (program >= 0).any():
+            return albedo
+        for k in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == k)
+            attrs = HitAttributes(self.coordinates, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary))
+            albedo[sel] *= evaluate_color(self.programs[k], attrs, self.textures.images)
+        return albedo
 
     def _apply_normal_maps(self, ns, prim_ids, bary, uv, mat):
         """Bend ``ns`` (n, 3) in place where the material has a tangent-space normal map.

@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import procedural
+
 
 class SceneError(ValueError):
     """A scene that cannot be rendered; the message says which field is wrong."""
@@ -48,7 +50,9 @@ class Materials:
     to at most 1.  Lobes:
 
     * diffuse: Lambertian, albedo ``diffuse_color`` or, when ``diffuse_texture``
-      is >= 0, that image texture looked up with the triangle UVs;
+      is >= 0, that image texture looked up with the triangle UVs, or, when
+      ``diffuse_program`` is >= 0, that entry of ``programs`` (a tree of Blender's texture
+      and colour nodes, ``core/procedural.py``) evaluated at the hit, times ``diffuse_color``;
     * glossy: GGX microfacet reflection, ``glossy_roughness`` is Blender's
       roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.
       ``glossy_multiscatter`` is the lobe's mean Fresnel colour F_ss for the energy that
@@ -109,15 +113,18 @@ class Materials:
     bump_texture: np.ndarray = None                     # (M,) int32, index into Scene.textures or -1
     bump_strength: np.ndarray = None                    # (M,) float32 >= 0; None: 1
     bump_distance: np.ndarray = None                    # (M,) float32, any sign; None: 1
+    diffuse_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
+    programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
                     "glossy_color", "glossy_roughness", "glossy_multiscatter", "glossy_fresnel_ior",
                     "glossy_fresnel_rise", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
-                    "bump_texture", "bump_strength", "bump_distance")
-    INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")
-    SIGNED_FIELDS = INT_FIELDS + ("bump_distance",)
+                    "bump_texture", "bump_strength", "bump_distance", "diffuse_program")
+    INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
+    INDEX_FIELDS = INT_FIELDS + ("diffuse_program",)
+    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
 
     @property
     def count(self) -> int:
@@ -137,6 +144,8 @@ class Materials:
         ``diffuse_layer_weight`` to 1.  ``normal_texture`` (default -1: none) and
         ``normal_strength`` (default 1) give a tangent-space normal map, ``bump_texture``
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
+        ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
+        colour, which then defaults to 1 (equal programs are stored once).
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -164,6 +173,8 @@ class Materials:
         out.bump_texture = np.full(m, -1, np.int32)
         out.bump_strength = np.ones(m, np.float32)
         out.bump_distance = np.ones(m, np.float32)
+        out.diffuse_program = np.full(m, -1, np.int32)
+        stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
                 if lobe in s:
@@ -172,8 +183,14 @@ class Materials:
                     getattr(out, f"{lobe}_weight")[i] = s.get(f"{lobe}_weight", 1.0)
                 elif f"{lobe}_weight" in s:
                     getattr(out, f"{lobe}_weight")[i] = s[f"{lobe}_weight"]
-            if "diffuse_texture" in s:
-                out.diffuse_texture[i] = s["diffuse_texture"]
+            if "diffuse_program" in s:
+                key = procedural.to_json(s["diffuse_program"])
+                if key not in stored:
+                    stored[key] = len(out.programs)
+                    out.programs.append(procedural.from_json(key))
+                out.diffuse_program[i] = stored[key]
+            if "diffuse_texture" in s or "diffuse_program" in s:
+                out.diffuse_texture[i] = s.get("diffuse_texture", -1)
                 if "diffuse" not in s:
                     out.diffuse_color[i] = 1.0
                     out.diffuse_weight[i] = s.get("diffuse_weight", 1.0)
@@ -417,6 +434,11 @@ class Scene:
     # sign w: bitangent = w cross(normal, tangent).  Needed by normal maps (Materials), else None.
     tangents: np.ndarray = None
     textures: list = field(default_factory=list)  # K images (H, W, 3) float32, linear, row 0 = bottom
+    # Per-corner coordinates of procedural textures (Materials.programs), or None when none reads
+    # them: (T, 3, 3) float32 Blender's Generated (the object's texture space mapped to [0, 1]^3)
+    # and Object (object-space position) coordinates.
+    generated: np.ndarray = None
+    object_coords: np.ndarray = None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -489,13 +511,13 @@ class Scene:
                                        ("diffuse_layer", (n, 3), 0.0), ("diffuse_layer_weight", (n,), 1.0),
                                        ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
-                                       ("bump_distance", (n,), 1.0)):
+                                       ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1)):
                 if getattr(mats, name) is None:
-                    setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INT_FIELDS
+                    setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
             tail = (3,) if name.endswith(("color", "emission", "multiscatter", "rise", "layer")) else ()
-            dtype = np.int32 if name in Materials.INT_FIELDS else np.float32
+            dtype = np.int32 if name in Materials.INDEX_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
             if name not in Materials.SIGNED_FIELDS and (v < 0).any():
                 bad = int(np.flatnonzero((v < 0).reshape(nm, -1).any(axis=1))[0])
@@ -503,6 +525,7 @@ class Scene:
             setattr(mats, name, v)
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
+        self._validate_programs(fail)
         for name in Materials.INT_FIELDS:
             v = getattr(mats, name)
             if ((v < -1) | (v >= len(self.textures))).any():
@@ -524,6 +547,9 @@ class Scene:
             self.uvs = per_corner("uvs", self.uvs, 2)
         if self.tangents is not None:
             self.tangents = per_corner("tangents", self.tangents, 4)
+        for name in ("generated", "object_coords"):
+            if getattr(self, name) is not None:
+                setattr(self, name, per_corner(name, getattr(self, name), 3))
         lights = self.lights
         nl = lights.count
         if lights.visibility is None and lights.kind is not None:
@@ -601,6 +627,22 @@ class Scene:
             self.world.texture_rotation = rot
         return self
 
+    def _validate_programs(self, fail):
+        mats = self.materials
+        mats.programs = [procedural.from_json(p) if isinstance(p, str) else p for p in mats.programs]
+        v = mats.diffuse_program
+        if ((v < -1) | (v >= len(mats.programs))).any():
+            fail(f"materials.diffuse_program must be -1 or an index below {len(mats.programs)}")
+        coords = {"generated": self.generated, "object": self.object_coords, "uv": self.uvs}
+        for i, program in enumerate(mats.programs):
+            try:
+                procedural.validate(program, len(self.textures))
+            except procedural.ProgramError as e:
+                fail(f"materials.programs[{i}]: {e}")
+            for name in procedural.attributes_used(program):
+                if coords[name] is None and (v == i).any():
+                    fail(f"materials.programs[{i}] reads '{name}' coordinates but the scene has none")
+
     @staticmethod
     def _texture(i, x):
         x = np.asarray(x, np.float32)
@@ -621,6 +663,8 @@ class Scene:
              "materials.names": np.array(self.materials.names, dtype=str)}
         for name in Materials.ARRAY_FIELDS:
             d[f"materials.{name}"] = getattr(self.materials, name)
+        if self.materials.programs:
+            d["materials.programs"] = np.array([procedural.to_json(p) for p in self.materials.programs], str)
         for name in Lights.ARRAY_FIELDS:
             d[f"lights.{name}"] = getattr(self.lights, name)
         cam = self.camera
@@ -642,6 +686,9 @@ class Scene:
             d["uvs"] = self.uvs
         if self.tangents is not None:
             d["tangents"] = self.tangents
+        for name in ("generated", "object_coords"):
+            if getattr(self, name) is not None:
+                d[name] = getattr(self, name)
         for i, tex in enumerate(self.textures):
             d[f"textures.{i}"] = tex
         return d
@@ -657,6 +704,7 @@ class Scene:
         mats = Materials(names=[str(s) for s in get("materials.names", np.array([], str))])
         for name in Materials.ARRAY_FIELDS:
             setattr(mats, name, get(f"materials.{name}"))
+        mats.programs = [str(p) for p in get("materials.programs", np.array([], str))]
         lights = Lights(**{name: get(f"lights.{name}") for name in Lights.ARRAY_FIELDS})
         cam = Camera(world_from_camera=get("camera.world_from_camera"),
                      projection=str(get("camera.projection")),
@@ -672,7 +720,8 @@ class Scene:
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),
                       material_ids=get("material_ids"), materials=mats, lights=lights,
                       camera=cam, world=world, shading_normals=get("shading_normals"),
-                      uvs=get("uvs"), tangents=get("tangents"),
+                      uvs=get("uvs"), tangents=get("tangents"), generated=get("generated"),
+                      object_coords=get("object_coords"),
                       textures=[get(f"textures.{i}") for i in range(ntex)])
         return scene.validate()
 

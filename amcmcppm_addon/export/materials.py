@@ -47,7 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...core import procedural
 from ...core.scene import Materials
+from .procedural import FLOAT, VEC, ExpressionBuilder
 
 LOBES = ("diffuse", "glossy", "mirror", "dielectric")
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC = range(4)
@@ -65,7 +67,7 @@ class Closure:
     ior: float = 1.5                # dielectric index of refraction
     dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) radiance
-    texture: int = -1               # diffuse image texture index or -1
+    texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
@@ -97,11 +99,11 @@ class Closure:
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
-        out.texture = self.texture if self.texture >= 0 and wa[DIFFUSE] > 0 else other.texture
+        out.texture = self.texture if textured(self.texture) and wa[DIFFUSE] > 0 else other.texture
         # One bent normal per material: the first side's that has weight.
         bent = [c for c, f in ((self, fa), (other, fb)) if f > 0 and (c.normal_map or c.bump)]
         out.normal_map, out.bump = (bent[0].normal_map, bent[0].bump) if bent else (None, None)
-        if out.texture >= 0:
+        if textured(out.texture):
             # The core multiplies the diffuse colour by the texture; keep the weight, drop the
             # colour of the untextured side (an approximation when both sides are diffuse).
             out.color[DIFFUSE] = out.weight[DIFFUSE]
@@ -128,7 +130,10 @@ class Closure:
             if self.layered > 0 and self.weight[DIFFUSE] > 0:
                 s["diffuse_layer"] = self.layer / self.layered
                 s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
-        if self.texture >= 0:
+        if isinstance(self.texture, dict):
+            s["diffuse_program"] = self.texture
+            s["diffuse"] = np.ones(3)
+        elif self.texture >= 0:
             s["diffuse_texture"] = self.texture
             s["diffuse"] = np.ones(3)
         if self.normal_map is not None:
@@ -136,6 +141,11 @@ class Closure:
         if self.bump is not None:
             s["bump_texture"], s["bump_strength"], s["bump_distance"] = self.bump
         return s
+
+
+def textured(source) -> bool:
+    """Whether a colour source (:meth:`NodeWalker.color`) varies over the surface."""
+    return isinstance(source, dict) or source >= 0
 
 
 def _weighted(a, b, wa, wb):
@@ -214,6 +224,10 @@ class Textures:
         i = self._index[key]
         return i, (self._mean[i] if i >= 0 else MISSING_TEXTURE)
 
+    def mean(self, index):
+        """(3,) mean colour of loaded image ``index``."""
+        return self._mean[index]
+
     def _load(self, image, where):
         try:
             w, h = image.size
@@ -276,7 +290,15 @@ class MaterialExporter:
     def uses_textures(self, ids) -> bool:
         """Whether any of the material ``ids`` looks up an image with the UVs (colour or normal map)."""
         return any(self._specs[i].get("diffuse_texture", -1) >= 0 or "normal_texture" in self._specs[i]
-                   or "bump_texture" in self._specs[i] for i in ids)
+                   or "bump_texture" in self._specs[i] for i in ids) or "uv" in self.coordinates_used(ids)
+
+    def coordinates_used(self, ids) -> set:
+        """Names of the coordinates (generated, object, uv) the procedural colours of ``ids`` read."""
+        used = set()
+        for i in ids:
+            if "diffuse_program" in self._specs[i]:
+                used |= procedural.attributes_used(self._specs[i]["diffuse_program"])
+        return used
 
     def normal_map_uv(self, ids):
         """The UV map name ('' = the active render map) of the first of ``ids`` with a normal map,
@@ -299,6 +321,7 @@ class NodeWalker:
         self.name = material_name
         self.textures = textures
         self.notes = []
+        self.programs = ExpressionBuilder(self)
         self.world_texture = None       # texture index of the world's environment image, if any
         self.world_rotation = None      # (3, 3) rotation of its Mapping node, if any
 
@@ -427,37 +450,23 @@ class NodeWalker:
 
     # ----------------------------------------------------------------- values
     def value(self, sock, stack) -> float:
-        src, default, stack = self.source(sock, stack)
-        if src is None:
-            return _float_default(default)
-        node = src.node
-        if node.bl_idname == "ShaderNodeValue" and not node.mute:
-            return float(src.default_value)
-        self.unsupported(node, f"drives '{sock.name}'; using the socket's value")
-        return _float_default(sock)
+        """A number input: its value, or the mean of the texture driving it (noted)."""
+        return float(self.programs.constant_of(sock, stack, FLOAT))
 
     def color(self, sock, stack):
-        """(rgb (3,) float64, texture index or -1) of a colour input."""
-        src, default, stack = self.source(sock, stack)
-        if src is None:
-            return _color_default(default), -1
-        node = src.node
-        if node.mute:
-            self.unsupported(node, "(muted)")
-            return _color_default(sock), -1
-        if node.bl_idname == "ShaderNodeRGB":
-            return np.array(src.default_value[:3], np.float64), -1
-        if node.bl_idname == "ShaderNodeTexImage" and src.identifier == "Color":
-            if node.image is None:
-                self.note(f"image texture '{node.name}' has no image; using magenta")
-                return MISSING_TEXTURE.copy(), -1
-            if node.inputs["Vector"].is_linked:
-                self.note(f"image texture '{node.name}': texture coordinates other than the "
-                          "default UV map are ignored")
-            index, mean = self.textures.lookup(node.image, f"material '{self.name}'")
-            return mean, index
-        self.unsupported(node, f"drives '{sock.name}'; using the socket's colour")
-        return _color_default(sock), -1
+        """(mean rgb (3,) float64, source) of a colour input; source is -1 (a constant), an image
+        index (an Image Texture on the active UV map, the core's plain textures) or a program
+        (``core/procedural.py``) of the texture and colour nodes feeding it."""
+        e = self.programs.expression(sock, stack, VEC)
+        if not isinstance(e, dict):
+            return np.array(e, np.float64), -1
+        if (e["op"] == "image" and e.get("output", "Color") == "Color"
+                and e["vector"] == {"op": "attribute", "name": "uv"}):
+            return self.textures.mean(e["texture"]), e["texture"]
+        mean = procedural.mean_color(e, self.textures.images)
+        if not procedural.attributes_used(e):
+            return mean, -1                     # constant nodes only: the same everywhere
+        return mean, e
 
     # ----------------------------------------------------------------- shaders
     def shader(self, sock, stack):
@@ -495,6 +504,10 @@ class NodeWalker:
             return inner, inner_bump
         # An image's colour (its luminance in the core); a constant height bends nothing.
         _, tex = self.color(node.inputs["Height"], stack)
+        if isinstance(tex, dict):
+            self.note(f"bump '{node.name}': a procedural height is not supported (only an image "
+                      "texture's colour); using the surface's own normal")
+            return inner, None
         if tex < 0:
             return inner, None
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
@@ -510,6 +523,10 @@ class NodeWalker:
             return None
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         color, tex = self.color(node.inputs["Color"], stack)
+        if isinstance(tex, dict):
+            self.note(f"normal map '{node.name}': a procedural colour is not supported (only an image "
+                      "texture); using the surface's own normal")
+            return None
         if tex < 0:
             if np.abs(color - (0.5, 0.5, 1.0)).max() > 1e-6:
                 self.note(f"normal map '{node.name}': a constant colour is not supported (only an "
@@ -530,7 +547,7 @@ class NodeWalker:
 
     def _diffuse(self, node, stack):
         color, tex = self.color(node.inputs["Color"], stack)
-        c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if tex >= 0 else color)
+        c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if textured(tex) else color)
         c.texture = tex
         return c
 
@@ -587,7 +604,7 @@ class NodeWalker:
             self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored; subsurface "
                       "renders as diffuse)")
 
-        base_color = np.ones(3) if tex >= 0 else base
+        base_color = np.ones(3) if textured(tex) else base
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
         dielectric = (1.0 - m) * (1.0 - t)
         c = Closure(roughness=rough, ior=ior, emission=np.maximum(emission * strength, 0.0),
@@ -650,21 +667,3 @@ def _group_output(tree):
     outputs = [n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"]
     active = [n for n in outputs if n.is_active_output]
     return (active or outputs or [None])[0]
-
-
-def _float_default(sock) -> float:
-    v = getattr(sock, "default_value", 0.0) if sock is not None else 0.0
-    try:
-        return float(v)
-    except TypeError:               # a colour or vector socket feeding a number: its mean
-        return float(np.mean(v[:3]))
-
-
-def _color_default(sock):
-    v = getattr(sock, "default_value", None) if sock is not None else None
-    if v is None:
-        return np.zeros(3)
-    try:
-        return np.array(v[:3], np.float64)
-    except TypeError:               # a number feeding a colour
-        return np.full(3, float(v))

@@ -44,6 +44,15 @@ class LocalMesh:
     tangents: np.ndarray | None = None  # (T, 3, 4) float32 tangent and bitangent sign per corner, or None
     uv_map: str = ""            # name of the active render UV map ('' without one)
     tangents_read: bool = False  # read with tangents (which may still be None: Blender had none)
+    texspace: tuple = ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))  # texture space (location, size): Generated
+
+    def corner_coordinates(self):
+        """(object, generated), each (T, 3, 3) float32: Blender's Object and Generated texture
+        coordinates at the triangle corners (Generated maps the texture space to [0, 1]^3)."""
+        obj = self.positions[self.triangles]
+        loc, size = (np.asarray(v, np.float64) for v in self.texspace)
+        half = np.where(size != 0.0, 0.5 / np.where(size != 0.0, size, 1.0), 0.0)
+        return obj.astype(np.float32), ((obj - loc) * half + 0.5).astype(np.float32)
 
 
 @dataclass
@@ -56,6 +65,8 @@ class Geometry:
     shading_normals: np.ndarray | None  # (T, 3, 3) float32 or None
     uvs: np.ndarray | None          # (T, 3, 2) float32 or None
     tangents: np.ndarray | None = None  # (T, 3, 4) float32 or None
+    object_coords: np.ndarray | None = None  # (T, 3, 3) float32 or None (procedural textures)
+    generated: np.ndarray | None = None      # (T, 3, 3) float32 or None (procedural textures)
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
@@ -187,7 +198,8 @@ def read_mesh(me, name, log, tangents=False, triangulated=False):
     return LocalMesh(name=name, positions=positions.astype(np.float64), triangles=tri_vert, slots=slots,
                      normals=normals, normal_index=normal_index, uvs=uvs, mesh_materials=tuple(me.materials),
                      tangents=frames, uv_map=layer.name if layer is not None else "",
-                     tangents_read=tangents)
+                     tangents_read=tangents,
+                     texspace=(tuple(me.texspace_location), tuple(me.texspace_size)))
 
 
 def _triangulate(me, positions, corner_vert):
@@ -304,8 +316,11 @@ def assemble(meshes, groups, materials) -> Geometry:
     parts = []
     offset = 0
     instances = 0
+    # Coordinates of procedural textures, when some material reads them (for every triangle).
+    coordinates = materials.coordinates_used({i for _, ids in groups for i in ids}) & {"object", "generated"}
     for (key, mat_ids), matrices in groups.items():
-        part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset)
+        part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
+                                   coordinates)
         parts.append(part)
         offset += len(part["vertices"])
         instances += len(matrices)
@@ -323,6 +338,7 @@ def assemble(meshes, groups, materials) -> Geometry:
     if materials.uses_textures(used):
         uvs = np.concatenate([p["uvs"] if p["uvs"] is not None
                               else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
+    coords = {name: np.concatenate([p[name] for p in parts]) for name in coordinates}
     if materials.normal_map_uv(used) is not None:
         # Zero tangents (meshes without UVs or a tangent frame) keep the unbent normal, as in Cycles.
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
@@ -332,16 +348,18 @@ def assemble(meshes, groups, materials) -> Geometry:
                     shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),
                     uvs=None if uvs is None else np.ascontiguousarray(uvs, np.float32),
                     tangents=None if tangents is None else np.ascontiguousarray(tangents, np.float32),
+                    object_coords=coords.get("object"), generated=coords.get("generated"),
                     instances=instances)
 
 
-def transform_instances(local, world_from_object, mat_ids, vertex_offset):
+def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordinates=()):
     """World-space arrays of ``k`` instances of ``local``.
 
     world_from_object : (k, 4, 4) float64.  mat_ids : (n_slots,) int32 core material
     ids of the slots.  Returns a dict of vertices (k V, 3) float32, triangles (k T, 3)
     int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) float32
-    or None, uvs (k T, 3, 2) float32 or None and tangents (k T, 3, 4) float32 or None.
+    or None, uvs (k T, 3, 2) float32 or None and tangents (k T, 3, 4) float32 or None, and for
+    each name in ``coordinates`` ("object", "generated") those texture coordinates (k T, 3, 3).
     """
     k = len(world_from_object)
     rot = world_from_object[:, :3, :3]
@@ -388,9 +406,17 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset):
         tangents = np.concatenate([t, sign[..., None]], axis=3)                       # (k, T, 3, 4)
         _swap_corners(tangents, mirrored)
         tangents = tangents.reshape(k * n_t, 3, 4)
-    return {"vertices": vertices.reshape(k * n_v, 3).astype(np.float32),
-            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
-            "normals": normals, "uvs": uvs, "tangents": tangents}
+    out = {"vertices": vertices.reshape(k * n_v, 3).astype(np.float32),
+           "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
+           "normals": normals, "uvs": uvs, "tangents": tangents}
+    # Texture coordinates of procedural textures: each instance's own object space.
+    for name, c in zip(("object", "generated"), local.corner_coordinates() if coordinates else ()):
+        if name not in coordinates:
+            continue
+        c = np.repeat(c[None], k, axis=0)
+        _swap_corners(c, mirrored)
+        out[name] = c.reshape(k * n_t, 3, 3)
+    return out
 
 
 def _swap_corners(a, instances):

@@ -431,3 +431,17 @@ BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
            "sky_over_floor": sky_over_floor,
            "glass_ceiling_room": glass_ceiling_room, "hole_mirror_glass": hole_mirror_glass,
            "small_view": small_view}
+
+
+def sun_over_procedural_floor(program, irradiance=10.0, resolution=(32, 32)):
+    """The 1 m floor of :func:`sun_over_normal_mapped_floor` under a sun straight above, its
+    diffuse colour the procedural ``program`` (``core/procedural.py``); object and generated
+    coordinates are the world position (the floor is its own object at the origin, its texture
+    space the unit square around it: generated = xy + 0.5, z 0.5), uv = xy + 0.5.  Radiance:
+    colour(x) E / pi."""
+    scene = _sunlit_textured_floor({}, np.ones((1, 1, 3), np.float32), (0, 0, 1), irradiance, 1.0,
+                                   resolution)
+    corners = scene.vertices[scene.triangles].astype(np.float32)
+    generated = corners + np.float32(0.5)
+    mats = Materials.build([{"name": "floor", "diffuse_program": program}])
+    return scene.replace(materials=mats, object_coords=corners, generated=generated).validate()

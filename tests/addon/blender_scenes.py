@@ -208,3 +208,71 @@ def lit_floor_scene(resolution=(32, 32), **settings):
 
 def deg(x):
     return math.radians(x)
+
+
+# ---------------------------------------------------------------------- procedural textures
+def texture_plane(connect, resolution=(48, 48), size=2.0, location=(0, 0, 0), rotation=(0, 0, 0),
+                  scale=(1, 1, 1)):
+    """A size x size plane (UVs 0..1) seen straight from above by an orthographic camera that
+    frames exactly the plane at the origin: image right is +x, image up is +y.
+
+    ``connect(nt)`` adds nodes to the plane material's tree and returns the colour (or float)
+    output socket under test; it drives the Color of a Diffuse BSDF (what our exporter reads).
+    Returns the material and the world positions (H, W, 3) of the pixel centres on the plane
+    (top row first) when the plane is neither moved nor turned.
+    """
+    scene = empty_scene(resolution)
+    mat = diffuse("Textured")
+    nt = mat.node_tree
+    nt.links.new(connect(nt), nt.nodes["Diffuse BSDF"].inputs["Color"])
+    ob = plane("Plane", size=size, material=mat, location=location, rotation=rotation, scale=scale)
+    ob.data.uv_layers.new(name="UVMap")         # Blender's default: the quad spans 0..1
+    camera(location=(0, 0, 5), target=(0, 0, 0), ortho_scale=size)
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    w, h = resolution
+    x = -size / 2 + (np.arange(w) + 0.5) * size / w
+    y = size / 2 - (np.arange(h) + 0.5) * size / h
+    xy = np.stack(np.meshgrid(x, y), axis=-1)
+    return mat, np.concatenate([xy, np.zeros((h, w, 1))], axis=-1)
+
+
+def cycles_texture_values(mat, path):
+    """What Cycles evaluates the texture of :func:`texture_plane`'s material to at each pixel
+    centre: (H, W, 3).  The socket feeding the Diffuse BSDF is moved to an Emission shader of
+    strength 1 (seen directly, 'Standard' view: the pixel is the colour), one sample per pixel
+    and a pixel filter of 0.01 pixel, so each pixel is the texture at its centre."""
+    nt = mat.node_tree
+    socket = nt.nodes["Diffuse BSDF"].inputs["Color"].links[0].from_socket
+    emit = nt.nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = 1.0
+    nt.links.new(socket, emit.inputs["Color"])
+    nt.links.new(emit.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
+    c.filter_width = 0.01
+    c.seed = 1
+    try:
+        return render_exr(path)[..., :3].astype(np.float64)
+    finally:
+        # Back to the Diffuse BSDF and our engine: the scene can then be exported as built.
+        nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        nt.nodes.remove(emit)
+        scene.render.engine = ENGINE
+
+
+def our_texture_values(positions):
+    """The diffuse colour our exporter and core give the current scene's surfaces at world
+    ``positions`` (H, W, 3), hit by rays straight down from above: (H, W, 3) float64, NaN where
+    a ray misses."""
+    from amcmcppm.core.bsdf import DIFFUSE
+    from amcmcppm.core.context import RenderContext
+    ctx = RenderContext(export().scene)
+    p = positions.reshape(-1, 3)
+    origins = p + np.array([0.0, 0.0, 1.0])
+    hits = ctx.accel.intersect(origins, np.tile([0.0, 0.0, -1.0], (len(p), 1)))
+    hit = np.flatnonzero(hits.prim_ids >= 0)
+    colors = np.full((len(p), 3), np.nan)
+    colors[hit] = ctx.surface(hits.prim_ids[hit], hits.b1[hit], hits.b2[hit]).colors[:, DIFFUSE]
+    return colors.reshape(positions.shape)

@@ -448,7 +448,7 @@ def test_normal_map_on_a_mesh_without_uvs_keeps_the_normal_and_an_unmapped_mesh_
 
 @pytest.mark.parametrize("case, message", [
     ("object_space", "object space is not supported"),
-    ("bump_of_a_noise", "Noise Texture"),
+    ("bump_of_a_noise", "procedural height is not supported"),
     ("vector_math", "Vector Math"),
     ("constant", "constant colour"),
 ])

@@ -9,7 +9,7 @@ import pytest
 
 from core import RenderSettings, render
 from core.integrator import kz_radius_scales
-from core.testing.scenes import (camera_in_glass, disk_irradiance, furnace_sphere, kernel_radius_px,
+from core.testing.scenes import (camera_in_glass, sun_over_procedural_floor, disk_irradiance, furnace_sphere, kernel_radius_px,
                                  point_in_sphere, sky_over_floor, spot_over_plane,
                                  sun_over_bumped_floor, sun_over_normal_mapped_floor, sun_through_slab)
 
@@ -433,3 +433,33 @@ def test_floor_under_an_environment_image_gets_its_cosine_weighted_radiance():
     dirs = np.stack([s * np.cos(pp), s * np.sin(pp), cc], axis=-1).reshape(-1, 3)
     irradiance = (env.radiance(dirs).mean(axis=1) * cc.ravel()).mean() * 2 * np.pi
     check_mean(per_pass, albedo / np.pi * irradiance, 0.01)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+def test_procedural_checker_floor_reflects_each_cells_colour(method):
+    """A sun straight above a floor whose diffuse colour is a checker of object coordinates (four
+    cells in view): every pixel away from the cell edges is colour E / pi.  The irradiance the
+    photons give is uniform, so the colour must come from the point where the camera sees the
+    floor, not from where the photons landed."""
+    c1, c2 = np.array([0.8, 0.3, 0.1]), np.array([0.1, 0.2, 0.6])
+    program = {"op": "checker", "vector": {"op": "attribute", "name": "object"},
+               "color1": c1.tolist(), "color2": c2.tolist(), "scale": 4.0}
+    irradiance, n = 10.0, 32
+    scene = sun_over_procedural_floor(program, irradiance, resolution=(n, n))
+    result = render(scene, RenderSettings(workers=1, passes=6, photons_per_pass=50_000, max_bounces=1,
+                                          **method))
+    # Cells of 0.25 m: the 0.2 m view shows the corners of four, meeting at the image centre.
+    # Top left: x < 0 (cell -1), y > 0 (cell 0), z cell 0 -> colour 1 (Cycles' parity rule).
+    img = result.image[..., :3]
+    expected = np.where(np.arange(n)[:, None, None] < n // 2,
+                        np.where(np.arange(n)[None, :, None] < n // 2, c1, c2),
+                        np.where(np.arange(n)[None, :, None] < n // 2, c2, c1)) * irradiance / np.pi
+    away = np.ones((n, n), bool)
+    away[n // 2 - 2:n // 2 + 2, :] = away[:, n // 2 - 2:n // 2 + 2] = False
+    for quadrant in ((slice(0, n // 2), slice(0, n // 2)), (slice(0, n // 2), slice(n // 2, n))):
+        sel = away[quadrant]
+        ratio = img[quadrant][sel].mean(axis=0) / expected[quadrant][sel].mean(axis=0)
+        np.testing.assert_allclose(ratio, 1.0, rtol=0.03)
+    # Pixel by pixel the colour is exact: the ratio of channels is the cell's.
+    np.testing.assert_allclose((img[..., 0] / img[..., 2])[away], (expected[..., 0] / expected[..., 2])[away],
+                               rtol=1e-6)

@@ -1,0 +1,341 @@
+"""Blender texture and colour nodes -> the core's procedural programs (``core/procedural.py``).
+
+:class:`ExpressionBuilder` follows the links into a socket and returns either a constant (a
+float, or three floats for colour and vector sockets) or a program node dict, inserting the
+type conversions Cycles makes where a link joins sockets of different types (colour to float
+by luminance, vector to float by the average, float to colour as grey).  Supported nodes:
+Texture Coordinate (Generated, Object, UV) and UV Map, Mapping (all four types), Image
+Texture (flat projection, repeat), Checker, Gradient, Noise and Voronoi Textures, Color Ramp
+(sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; the common
+blend modes) and the legacy MixRGB, Math (the common operations), Map Range (float), Invert,
+Gamma, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB and Value.  Anything else is
+named in the material's warning and replaced by the input socket's own value.  Settings that
+Cycles lets vary over the surface but the core takes as constants (a texture's Scale, Detail,
+...; Mapping's Location, Rotation, Scale) use the mean of what drives them, with a note.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ...core import procedural
+
+RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
+FLOAT, VEC = "float", "vec"
+SOCKET_KIND = {"VALUE": FLOAT, "INT": FLOAT, "BOOLEAN": FLOAT, "RGBA": VEC, "VECTOR": VEC}
+
+
+class ExpressionBuilder:
+    """Builds program expressions for one material; ``walker`` is its ``NodeWalker`` (links,
+    notes, images)."""
+
+    def __init__(self, walker):
+        self.walker = walker
+        self._memo = {}
+
+    # ----------------------------------------------------------------- entry points
+    def expression(self, sock, stack, want):
+        """Constant or node dict of what feeds input ``sock``, as ``want`` (FLOAT or VEC)."""
+        src, default, stack = self.walker.source(sock, stack)
+        if src is None:
+            return _constant(default if default is not None else sock, want)
+        node = src.node
+        handler = None if node.mute else NODES.get(node.bl_idname)
+        if handler is None:
+            self.walker.unsupported(node, f"drives '{sock.name}'; using the socket's value"
+                                    if not node.mute else "(muted)")
+            return _constant(sock, want)
+        key = (node.as_pointer(), tuple(g.as_pointer() for g in stack))
+        if key not in self._memo:
+            self._memo[key] = handler(self, node, stack)
+        built = self._memo[key]
+        if built is None:                               # the handler noted why
+            return _constant(sock, want)
+        value = built.get(src.identifier, built.get(src.name))
+        if value is None:
+            self.walker.unsupported(node, f"output '{src.name}' drives '{sock.name}'; using the socket's value")
+            return _constant(sock, want)
+        return _convert(value, SOCKET_KIND.get(src.type, VEC), src.type, want)
+
+    def constant_of(self, sock, stack, want=FLOAT):
+        """A setting the core takes as a constant: the socket's value, or the mean of what
+        drives it (noted)."""
+        e = self.expression(sock, stack, want)
+        if not isinstance(e, dict):
+            return e
+        mean = procedural.evaluate(e, procedural.SampledAttributes(), self.walker.textures.images)
+        mean = float(np.mean(mean)) if want == FLOAT else mean.mean(axis=0).tolist()
+        if not procedural.attributes_used(e):
+            return mean                                 # constant nodes only (Math of numbers...)
+        self.walker.note(f"'{sock.node.name}': {sock.name} varies over the surface, which is not supported "
+                         f"here; using its mean {np.round(mean, 3).tolist()}")
+        return mean
+
+    def input(self, node, name, stack, want):
+        sock = node.inputs[name] if name in node.inputs else next(s for s in node.inputs if s.identifier == name)
+        return self.expression(sock, stack, want)
+
+    def vector_or(self, node, stack, default_attribute):
+        """The node's Vector input, or the coordinates Cycles uses when it is not linked."""
+        sock = node.inputs["Vector"]
+        if not any(ln.is_valid and not ln.is_muted for ln in sock.links):
+            return {"op": "attribute", "name": default_attribute}
+        return self.expression(sock, stack, VEC)
+
+
+# ---------------------------------------------------------------------- conversions
+def _constant(sock, want):
+    value = getattr(sock, "default_value", 0.0)
+    try:
+        v = [float(x) for x in value][:3]
+    except TypeError:
+        v = float(value)
+    if want == FLOAT:
+        if isinstance(v, float):
+            return v
+        return float(np.dot(v, procedural.LUMINANCE)) if sock.type == "RGBA" else float(np.mean(v))
+    return [v, v, v] if isinstance(v, float) else (v + [0.0] * 3)[:3]
+
+
+def _convert(value, kind, socket_type, want):
+    """``value`` of an output of ``kind`` as ``want`` (Cycles' implicit conversions)."""
+    if kind == want:
+        return value
+    if not isinstance(value, dict):             # a constant output (RGB, Value, missing image)
+        if want == VEC:
+            return [float(value)] * 3
+        return float(np.dot(value, procedural.LUMINANCE)) if socket_type == "RGBA" else float(np.mean(value))
+    if want == VEC:
+        return {"op": "splat", "value": value}
+    if socket_type == "RGBA":
+        return {"op": "gray", "color": value}
+    return {"op": "average", "vector": value}
+
+
+def _out(op, **outputs):
+    """Outputs (by socket identifier) of one program node ``op``."""
+    return {name: {**op, "output": out} for name, out in outputs.items()}
+
+
+# ---------------------------------------------------------------------- nodes
+def _tex_coord(b, node, stack):
+    out = {"Generated": {"op": "attribute", "name": "generated"},
+           "UV": {"op": "attribute", "name": "uv"}}
+    if node.object is None:
+        out["Object"] = {"op": "attribute", "name": "object"}
+    else:
+        b.walker.note(f"'{node.name}': Object coordinates of another object are not supported")
+    return out
+
+
+def _uv_map(b, node, stack):
+    if node.uv_map:
+        b.walker.note(f"'{node.name}': UV map '{node.uv_map}' is not supported (the active render UV "
+                      "map is used)")
+    return {"UV": {"op": "attribute", "name": "uv"}}
+
+
+def _rgb(b, node, stack):
+    return {"Color": [float(x) for x in node.outputs[0].default_value[:3]]}
+
+
+def _value(b, node, stack):
+    return {"Value": float(node.outputs[0].default_value)}
+
+
+def _mapping(b, node, stack):
+    from mathutils import Euler
+    # Vector and Normal mappings have no Location input.
+    const = [b.constant_of(node.inputs[k], stack, VEC) if k in node.inputs else default
+             for k, default in (("Location", [0.0] * 3), ("Rotation", [0.0] * 3), ("Scale", [1.0] * 3))]
+    loc, rot, scale = (np.asarray(v, np.float64) for v in const)
+    r = np.array(Euler(rot, "XYZ").to_matrix(), np.float64)
+    inv_scale = np.where(scale != 0.0, 1.0 / np.where(scale != 0.0, scale, 1.0), 0.0)
+    kind = node.vector_type
+    op = {"op": "affine", "vector": b.expression(node.inputs["Vector"], stack, VEC)}
+    if kind == "POINT":
+        op.update(matrix=r * scale, post=loc)
+    elif kind == "TEXTURE":
+        op.update(matrix=inv_scale[:, None] * r.T, pre=loc)
+    elif kind == "VECTOR":
+        op.update(matrix=r * scale)
+    else:                                               # NORMAL
+        op.update(matrix=r * inv_scale, normalize=True)
+    op["matrix"] = op["matrix"].tolist()
+    for k in ("pre", "post"):
+        if k in op:
+            op[k] = op[k].tolist()
+    return {"Vector": op}
+
+
+def _image(b, node, stack):
+    w = b.walker
+    if node.image is None:
+        w.note(f"image texture '{node.name}' has no image; using magenta")
+        return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
+    index, _ = w.textures.lookup(node.image, f"material '{w.name}'")
+    if index < 0:
+        return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
+    if node.projection != "FLAT":
+        w.note(f"image texture '{node.name}': {node.projection.lower()} projection is not supported "
+               "(flat is used)")
+    if node.extension != "REPEAT":
+        w.note(f"image texture '{node.name}': extension {node.extension.lower()} is not supported "
+               "(repeat is used)")
+    op = {"op": "image", "texture": index, "vector": b.vector_or(node, stack, "uv")}
+    return {"Color": op, "Alpha": 1.0}
+
+
+def _checker(b, node, stack):
+    op = {"op": "checker", "vector": b.vector_or(node, stack, "generated"),
+          "color1": b.input(node, "Color1", stack, VEC), "color2": b.input(node, "Color2", stack, VEC),
+          "scale": b.input(node, "Scale", stack, FLOAT)}
+    return _out(op, Color="Color", Fac="Fac")
+
+
+def _gradient(b, node, stack):
+    op = {"op": "gradient", "vector": b.vector_or(node, stack, "generated"),
+          "gradient_type": node.gradient_type}
+    return _out(op, Color="Color", Fac="Fac")
+
+
+def _settings(b, node, stack, names):
+    """The node's numeric settings that its current type shows (Blender removes the others)."""
+    return {key: b.constant_of(node.inputs[name], stack) for key, name in names.items()
+            if name in node.inputs and node.inputs[name].enabled}
+
+
+def _noise(b, node, stack):
+    op = {"op": "noise", "vector": b.vector_or(node, stack, "generated"),
+          "dimensions": node.noise_dimensions, "noise_type": node.noise_type,
+          "normalize": bool(node.normalize),
+          **_settings(b, node, stack, {"scale": "Scale", "detail": "Detail", "roughness": "Roughness",
+                                       "lacunarity": "Lacunarity", "distortion": "Distortion",
+                                       "offset": "Offset", "gain": "Gain", "w": "W"})}
+    return _out(op, Fac="Fac", Color="Color")
+
+
+def _voronoi(b, node, stack):
+    op = {"op": "voronoi", "vector": b.vector_or(node, stack, "generated"),
+          "dimensions": node.voronoi_dimensions, "feature": node.feature, "metric": node.distance,
+          "normalize": bool(node.normalize),
+          **_settings(b, node, stack, {"scale": "Scale", "detail": "Detail", "roughness": "Roughness",
+                                       "lacunarity": "Lacunarity", "smoothness": "Smoothness",
+                                       "exponent": "Exponent", "randomness": "Randomness", "w": "W"})}
+    return _out(op, Distance="Distance", Color="Color", Position="Position", Radius="Radius")
+
+
+def _ramp(b, node, stack):
+    ramp = node.color_ramp
+    table = [list(ramp.evaluate(i / (RAMP_TABLE_SIZE - 1))) for i in range(RAMP_TABLE_SIZE)]
+    op = {"op": "ramp", "fac": b.input(node, "Fac", stack, FLOAT), "table": table,
+          "interpolate": ramp.interpolation != "CONSTANT"}
+    return _out(op, Color="Color", Alpha="Alpha")
+
+
+def _mix(b, node, stack):
+    kind = node.data_type
+    if kind == "RGBA":
+        blend = _blend_mode(b, node)
+        op = {"op": "mix_color", "blend": blend, "fac": b.input(node, "Factor_Float", stack, FLOAT),
+              "a": b.input(node, "A_Color", stack, VEC), "b": b.input(node, "B_Color", stack, VEC),
+              "clamp_factor": bool(node.clamp_factor), "clamp_result": bool(node.clamp_result)}
+        return {"Result_Color": op}
+    if kind == "FLOAT":
+        op = {"op": "mix_float", "fac": b.input(node, "Factor_Float", stack, FLOAT),
+              "a": b.input(node, "A_Float", stack, FLOAT), "b": b.input(node, "B_Float", stack, FLOAT),
+              "clamp_factor": bool(node.clamp_factor)}
+        return {"Result_Float": op}
+    if kind == "VECTOR" and node.factor_mode == "UNIFORM":
+        op = {"op": "mix_vector", "fac": b.input(node, "Factor_Float", stack, FLOAT),
+              "a": b.input(node, "A_Vector", stack, VEC), "b": b.input(node, "B_Vector", stack, VEC),
+              "clamp_factor": bool(node.clamp_factor)}
+        return {"Result_Vector": op}
+    b.walker.unsupported(node, f"(mix of type {kind.lower()} / {node.factor_mode.lower()})")
+    return None
+
+
+def _mix_rgb(b, node, stack):
+    op = {"op": "mix_color", "blend": _blend_mode(b, node), "fac": b.input(node, "Fac", stack, FLOAT),
+          "a": b.input(node, "Color1", stack, VEC), "b": b.input(node, "Color2", stack, VEC),
+          "clamp_factor": True, "clamp_result": bool(node.use_clamp)}
+    return {"Color": op}
+
+
+def _blend_mode(b, node):
+    if node.blend_type in procedural.BLEND_MODES:
+        return node.blend_type
+    b.walker.note(f"'{node.name}': blend mode {node.blend_type.lower()} is not supported (mix is used)")
+    return "MIX"
+
+
+def _math(b, node, stack):
+    if node.operation not in procedural.MATH:
+        b.walker.unsupported(node, f"(operation {node.operation.lower()})")
+        return None
+    ins = [s for s in node.inputs]
+    op = {"op": "math", "operation": node.operation, "clamp": bool(node.use_clamp),
+          **{k: b.expression(s, stack, FLOAT) for k, s in zip("abc", ins)}}
+    return {"Value": op}
+
+
+def _map_range(b, node, stack):
+    if node.data_type != "FLOAT":
+        b.walker.unsupported(node, "(vector map range)")
+        return None
+    names = {"value": "Value", "from_min": "From Min", "from_max": "From Max", "to_min": "To Min",
+             "to_max": "To Max", "steps": "Steps"}
+    op = {"op": "map_range", "interpolation": node.interpolation_type, "clamp": bool(node.clamp),
+          **{k: b.input(node, name, stack, FLOAT) for k, name in names.items()}}
+    return {"Result": op}
+
+
+def _invert(b, node, stack):
+    return {"Color": {"op": "invert", "fac": b.input(node, "Fac", stack, FLOAT),
+                      "color": b.input(node, "Color", stack, VEC)}}
+
+
+def _gamma(b, node, stack):
+    return {"Color": {"op": "gamma", "color": b.input(node, "Color", stack, VEC),
+                      "gamma": b.input(node, "Gamma", stack, FLOAT)}}
+
+
+def _bright_contrast(b, node, stack):
+    return {"Color": {"op": "bright_contrast", "color": b.input(node, "Color", stack, VEC),
+                      "bright": b.input(node, "Bright", stack, FLOAT),
+                      "contrast": b.input(node, "Contrast", stack, FLOAT)}}
+
+
+def _separate_xyz(b, node, stack):
+    return _out({"op": "separate", "vector": b.input(node, "Vector", stack, VEC)}, X="X", Y="Y", Z="Z")
+
+
+def _separate_color(b, node, stack):
+    if node.mode != "RGB":
+        b.walker.unsupported(node, f"(mode {node.mode})")
+        return None
+    return _out({"op": "separate", "vector": b.input(node, "Color", stack, VEC)},
+                Red="Red", Green="Green", Blue="Blue")
+
+
+def _combine_xyz(b, node, stack):
+    return {"Vector": {"op": "combine", **{k: b.input(node, k.upper(), stack, FLOAT) for k in "xyz"}}}
+
+
+def _combine_color(b, node, stack):
+    if node.mode != "RGB":
+        b.walker.unsupported(node, f"(mode {node.mode})")
+        return None
+    return {"Color": {"op": "combine", **{k: b.input(node, name, stack, FLOAT)
+                                          for k, name in zip("xyz", ("Red", "Green", "Blue"))}}}
+
+
+NODES = {
+    "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeRGB": _rgb,
+    "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
+    "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,
+    "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeValToRGB": _ramp, "ShaderNodeMix": _mix,
+    "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
+    "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeBrightContrast": _bright_contrast,
+    "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
+    "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,
+}

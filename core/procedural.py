@@ -1,0 +1,472 @@
+"""Procedural colour programs: Blender's texture and colour nodes, evaluated at surface hits.
+
+A material's diffuse colour may be a *program*: a tree of nodes as plain JSON-able dicts,
+which the exporter builds from the material's node graph and this module evaluates,
+vectorised over all hits of the material at once.  A node is ``{"op": name, ...}``; its inputs
+are numbers (float sockets), lists of three numbers (colour and vector sockets) or nodes, and a
+node input picks one of the node's outputs with ``"output"`` (default: the op's first).  Inputs
+are typed as in Blender: the exporter inserts the conversions (``gray``, ``average``, ``splat``)
+where a link joins sockets of different types, as Cycles does.
+
+Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
+
+* ``attribute`` name = generated | object | uv: -> Vector.  Per-corner coordinates of the scene
+  (``Scene.generated``, ``Scene.object_coords``, ``Scene.uvs`` as (u, v, 0)), interpolated.
+* ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
+  (the Mapping node, its four types folded into M by the exporter).
+* ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
+* ``gradient`` vector, gradient_type: -> Color, Fac (``gradient.h``).
+* ``noise`` vector and the Noise Texture's settings: -> Fac, Color (``core/noise.py``).
+* ``voronoi`` vector and the Voronoi Texture's settings: -> Distance, Color, Position, Radius
+  (``core/voronoi.py``).
+* ``image`` texture (index into the scene's images), vector: -> Color (bilinear, repeat), Alpha = 1.
+* ``ramp`` fac, table (N x 4 RGBA, Blender's colour band sampled at i / (N - 1)), interpolate:
+  -> Color, Alpha (``ramp_util.h``'s table lookup; the exporter samples the band with Blender).
+* ``mix_color`` blend, fac, a, b, clamp_factor, clamp_result: -> Result (``color_util.h``).
+* ``mix_float`` / ``mix_vector`` fac, a, b, clamp_factor: -> Result.
+* ``math`` operation, a, b, c, clamp: -> Value (``math_util.h``, the common operations).
+* ``map_range`` interpolation, value, from_min, from_max, to_min, to_max, steps, clamp: -> Result.
+* ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast:
+  -> Color.
+* ``separate`` vector: -> X, Y, Z (also Red, Green, Blue); ``combine`` x, y, z: -> Vector.
+* ``gray`` color: -> Value (Rec. 709 luminance, Cycles' colour-to-float); ``average`` vector:
+  -> Value (vector-to-float); ``splat`` value: -> Vector (float-to-colour/vector).
+
+Everything runs in float64 where Cycles uses float32.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from .bsdf import bilinear
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
+ATTRIBUTES = ("generated", "object", "uv")
+
+
+class ProgramError(ValueError):
+    """A malformed program (unknown op, missing input, bad texture index)."""
+
+
+class HitAttributes:
+    """Texture coordinates of k hits, interpolated when a program first asks for them.
+
+    corners : dict name -> (T, 3, c) per-corner arrays (c = 3, or 2 for ``uv``) or None;
+    prim_ids : (k,) triangle ids; bary : (b0, b1, b2), (k, 1) each."""
+
+    def __init__(self, corners, prim_ids, bary):
+        self.corners, self.prim_ids, self.bary = corners, prim_ids, bary
+        self._cache = {}
+
+    @property
+    def count(self) -> int:
+        return len(self.prim_ids)
+
+    def get(self, name):
+        if name not in self._cache:
+            c = self.corners.get(name)
+            if c is None:
+                raise ProgramError(f"the program needs '{name}' coordinates, which the scene lacks")
+            c = c.take(self.prim_ids, axis=0).astype(np.float64)
+            v = self.bary[0] * c[:, 0] + self.bary[1] * c[:, 1] + self.bary[2] * c[:, 2]
+            if v.shape[1] == 2:
+                v = np.concatenate([v, np.zeros((len(v), 1))], axis=1)
+            self._cache[name] = v
+        return self._cache[name]
+
+
+class SampledAttributes:
+    """Stand-in coordinates for an average of a program over a surface: generated uniform in
+    the unit cube, object in [-1, 1]^3, uv in the unit square (seeded, reproducible)."""
+
+    def __init__(self, n=4096, seed=0):
+        rng = np.random.default_rng(seed)
+        g = rng.random((n, 3))
+        self._values = {"generated": g, "object": 2.0 * g - 1.0,
+                        "uv": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1)}
+
+    @property
+    def count(self) -> int:
+        return len(self._values["generated"])
+
+    def get(self, name):
+        return self._values[name]
+
+
+def evaluate(program, attrs, images, output=None):
+    """Value of ``program`` (a node dict) at the hits of ``attrs``: (k,) or (k, 3) float64.
+
+    images : the scene's images (H, W, 3), for ``image`` nodes."""
+    return _Evaluator(attrs, images).output(program if output is None else {**program, "output": output})
+
+
+def evaluate_color(program, attrs, images):
+    """(k, 3) float64 colour of ``program`` (a float result is grey), NaN and negatives -> 0."""
+    v = evaluate(program, attrs, images)
+    if v.ndim == 1:
+        v = np.repeat(v[:, None], 3, axis=1)
+    return np.nan_to_num(np.maximum(v, 0.0), nan=0.0, posinf=0.0)
+
+
+def mean_color(program, images, n=4096):
+    """(3,) mean colour of ``program`` over :class:`SampledAttributes`: what a lobe that cannot
+    vary over the surface uses."""
+    return evaluate_color(program, SampledAttributes(n), images).mean(axis=0)
+
+
+def attributes_used(program) -> set:
+    """Names of the coordinates ``program`` reads (``image`` nodes read the uvs)."""
+    used = set()
+    for node in _nodes(program):
+        if node["op"] == "attribute":
+            used.add(node["name"])
+    return used
+
+
+def to_json(program) -> str:
+    return json.dumps(program, separators=(",", ":"), default=_jsonable)
+
+
+def from_json(text):
+    return json.loads(text)
+
+
+def validate(program, n_images):
+    """Raise :class:`ProgramError` naming the first problem of ``program``."""
+    if not isinstance(program, dict):
+        raise ProgramError(f"a program must be a node dict, not {type(program).__name__}")
+    for node in _nodes(program):
+        op = node.get("op")
+        if op not in OPS:
+            raise ProgramError(f"unknown program op {op!r}")
+        outputs = OUTPUTS[op]
+        if node.get("output", outputs[0]) not in outputs:
+            raise ProgramError(f"op '{op}' has no output {node.get('output')!r} (it has {outputs})")
+        for name in REQUIRED.get(op, ()):
+            if name not in node:
+                raise ProgramError(f"op '{op}' lacks its input '{name}'")
+        if op == "attribute" and node["name"] not in ATTRIBUTES:
+            raise ProgramError(f"unknown attribute {node['name']!r} (known: {ATTRIBUTES})")
+        if op == "image" and not 0 <= int(node["texture"]) < n_images:
+            raise ProgramError(f"image node texture {node['texture']} is not below {n_images}")
+        if op == "ramp":
+            table = np.asarray(node["table"], np.float64)
+            if table.ndim != 2 or table.shape[0] < 2 or table.shape[1] != 4 or not np.isfinite(table).all():
+                raise ProgramError(f"ramp table must be finite (N >= 2, 4), not {table.shape}")
+
+
+def _nodes(program):
+    """Every node of the tree (depth first)."""
+    stack = [program]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            yield node
+            stack.extend(v for v in node.values() if isinstance(v, dict))
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"cannot store {type(x).__name__} in a program")
+
+
+class _Evaluator:
+    """One evaluation: inputs resolved recursively, each node evaluated once (by identity)."""
+
+    def __init__(self, attrs, images):
+        self.attrs, self.images, self.k = attrs, images, attrs.count
+        self._done = {}
+
+    def output(self, node):
+        key = id(node)
+        if key not in self._done:
+            self._done[key] = (node, OPS[node["op"]](self, node))
+        outputs = self._done[key][1]
+        return outputs[node.get("output", OUTPUTS[node["op"]][0])]
+
+    def float(self, node, name, default=0.0):
+        v = node.get(name, default)
+        if isinstance(v, dict):
+            v = self.output(v)
+            return v if v.ndim == 1 else v @ LUMINANCE
+        return np.full(self.k, float(np.mean(v)))
+
+    def vec(self, node, name, default=(0.0, 0.0, 0.0)):
+        v = node.get(name, default)
+        if isinstance(v, dict):
+            v = self.output(v)
+            return v if v.ndim == 2 else np.repeat(v[:, None], 3, axis=1)
+        return np.broadcast_to(np.asarray(v, np.float64).reshape(-1)[:3] if np.ndim(v) else np.full(3, v),
+                               (self.k, 3)).copy()
+
+    def scalar(self, node, name, default=0.0) -> float:
+        """A setting that must not vary over the surface (the exporter stores constants)."""
+        v = node.get(name, default)
+        if isinstance(v, dict):
+            return float(np.mean(self.float(node, name)))
+        return float(v)
+
+
+# ---------------------------------------------------------------------- ops
+def _attribute(ev, node):
+    return {"Vector": ev.attrs.get(node["name"])}
+
+
+def _affine(ev, node):
+    v = ev.vec(node, "vector") - np.asarray(node.get("pre", (0, 0, 0)), np.float64)
+    out = v @ np.asarray(node["matrix"], np.float64).T + np.asarray(node.get("post", (0, 0, 0)), np.float64)
+    if node.get("normalize"):
+        length = np.sqrt((out * out).sum(axis=1))
+        out = np.where(length[:, None] > 0, out / np.where(length > 0, length, 1.0)[:, None], 0.0)
+    return {"Vector": out}
+
+
+def _checker(ev, node):
+    p = ev.vec(node, "vector") * ev.float(node, "scale", 5.0)[:, None]
+    # Cycles nudges the coordinates off exact integers ("precision issues on unit coordinates").
+    cell = np.abs(np.floor((p + 1e-6) * 0.999999)).astype(np.int64) % 2
+    fac = ((cell[:, 0] == cell[:, 1]) == (cell[:, 2] == 1)).astype(np.float64)
+    color = np.where(fac[:, None] == 1.0, ev.vec(node, "color1"), ev.vec(node, "color2"))
+    return {"Color": color, "Fac": fac}
+
+
+def _gradient(ev, node):
+    p = ev.vec(node, "vector")
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    kind = node.get("gradient_type", "LINEAR")
+    if kind == "QUADRATIC":
+        f = np.maximum(x, 0.0) ** 2
+    elif kind == "EASING":
+        r = np.clip(x, 0.0, 1.0)
+        f = 3.0 * r * r - 2.0 * r * r * r
+    elif kind == "DIAGONAL":
+        f = (x + y) * 0.5
+    elif kind == "RADIAL":
+        f = np.arctan2(y, x) / (2.0 * np.pi) + 0.5
+    elif kind in ("QUADRATIC_SPHERE", "SPHERICAL"):
+        r = np.maximum(0.999999 - np.sqrt(x * x + y * y + z * z), 0.0)
+        f = r * r if kind == "QUADRATIC_SPHERE" else r
+    else:
+        f = x
+    f = np.clip(f, 0.0, 1.0)
+    return {"Color": np.repeat(f[:, None], 3, axis=1), "Fac": f}
+
+
+def _noise(ev, node):
+    from .noise import noise_texture
+    fac, color = noise_texture(
+        ev.vec(node, "vector"), ev.scalar(node, "scale", 5.0), ev.scalar(node, "detail", 2.0),
+        ev.scalar(node, "roughness", 0.5), ev.scalar(node, "lacunarity", 2.0),
+        ev.scalar(node, "distortion", 0.0), noise_type=node.get("noise_type", "FBM"),
+        normalize=bool(node.get("normalize", True)), offset=ev.scalar(node, "offset", 0.0),
+        gain=ev.scalar(node, "gain", 1.0), dimensions=node.get("dimensions", "3D"),
+        w=ev.scalar(node, "w", 0.0))
+    return {"Fac": fac, "Color": color}
+
+
+def _voronoi(ev, node):
+    from .voronoi import voronoi_texture
+    out = voronoi_texture(
+        ev.vec(node, "vector"), ev.scalar(node, "scale", 5.0), detail=ev.scalar(node, "detail", 0.0),
+        roughness=ev.scalar(node, "roughness", 0.5), lacunarity=ev.scalar(node, "lacunarity", 2.0),
+        randomness=ev.scalar(node, "randomness", 1.0), feature=node.get("feature", "F1"),
+        metric=node.get("metric", "EUCLIDEAN"), exponent=ev.scalar(node, "exponent", 0.5),
+        smoothness=ev.scalar(node, "smoothness", 1.0), normalize=bool(node.get("normalize", False)),
+        dimensions=node.get("dimensions", "3D"), w=ev.scalar(node, "w", 0.0))
+    zeros = np.zeros(ev.k)
+    return {"Distance": out.get("Distance", zeros), "Color": out.get("Color", np.zeros((ev.k, 3))),
+            "Position": out.get("Position", np.zeros((ev.k, 3))), "Radius": out.get("Radius", zeros)}
+
+
+def _image(ev, node):
+    p = ev.vec(node, "vector")
+    return {"Color": bilinear(ev.images[int(node["texture"])], p[:, 0], p[:, 1]), "Alpha": np.ones(ev.k)}
+
+
+def _ramp(ev, node):
+    table = np.asarray(node["table"], np.float64)
+    size = len(table)
+    f = np.clip(np.nan_to_num(ev.float(node, "fac"), nan=0.0), 0.0, 1.0) * (size - 1)
+    i = np.clip(f.astype(np.int64), 0, size - 1)
+    out = table[i]
+    if node.get("interpolate", True):
+        t = (f - i)[:, None]
+        out = np.where(t > 0, (1.0 - t) * out + t * table[np.minimum(i + 1, size - 1)], out)
+    return {"Color": out[:, :3], "Alpha": out[:, 3]}
+
+
+def _mix_color(ev, node):
+    t = ev.float(node, "fac", 0.5)
+    if node.get("clamp_factor", True):
+        t = np.clip(t, 0.0, 1.0)
+    a, b = ev.vec(node, "a"), ev.vec(node, "b")
+    out = _blend(node.get("blend", "MIX"), t[:, None], a, b)
+    if node.get("clamp_result", False):
+        out = np.clip(out, 0.0, 1.0)
+    return {"Result": out}
+
+
+def _blend(kind, t, a, b):
+    """Blender's colour blend modes (``color_util.h``), t (k, 1), a and b (k, 3)."""
+    lerp = lambda x: (1.0 - t) * a + t * x      # noqa: E731
+    simple = {"MIX": lambda: b, "ADD": lambda: a + b, "MULTIPLY": lambda: a * b,
+              "SUBTRACT": lambda: a - b, "DIFFERENCE": lambda: np.abs(a - b),
+              "DARKEN": lambda: np.minimum(a, b), "LIGHTEN": lambda: np.maximum(a, b),
+              "EXCLUSION": lambda: a + b - 2.0 * a * b}
+    if kind in simple:
+        return lerp(simple[kind]())
+    if kind == "SCREEN":
+        return 1.0 - ((1.0 - t) + t * (1.0 - b)) * (1.0 - a)
+    if kind == "OVERLAY":
+        low = a * ((1.0 - t) + 2.0 * t * b)
+        high = 1.0 - ((1.0 - t) + 2.0 * t * (1.0 - b)) * (1.0 - a)
+        return np.where(a < 0.5, low, high)
+    if kind == "DIVIDE":
+        return np.where(b != 0.0, (1.0 - t) * a + t * a / np.where(b != 0.0, b, 1.0), a)
+    if kind == "LINEAR_LIGHT":
+        return a + t * (2.0 * b - 1.0)
+    if kind == "SOFT_LIGHT":
+        screen = 1.0 - (1.0 - b) * (1.0 - a)
+        return (1.0 - t) * a + t * ((1.0 - a) * b * a + a * screen)
+    raise ProgramError(f"unsupported blend mode {kind!r}")
+
+
+BLEND_MODES = ("MIX", "ADD", "MULTIPLY", "SUBTRACT", "DIFFERENCE", "DARKEN", "LIGHTEN", "EXCLUSION",
+               "SCREEN", "OVERLAY", "DIVIDE", "LINEAR_LIGHT", "SOFT_LIGHT")
+
+
+def _mix_float(ev, node):
+    t = ev.float(node, "fac", 0.5)
+    if node.get("clamp_factor", True):
+        t = np.clip(t, 0.0, 1.0)
+    return {"Result": (1.0 - t) * ev.float(node, "a") + t * ev.float(node, "b")}
+
+
+def _mix_vector(ev, node):
+    t = ev.float(node, "fac", 0.5)
+    if node.get("clamp_factor", True):
+        t = np.clip(t, 0.0, 1.0)
+    return {"Result": (1.0 - t[:, None]) * ev.vec(node, "a") + t[:, None] * ev.vec(node, "b")}
+
+
+def _safe_divide(a, b):
+    return np.where(b != 0.0, a / np.where(b != 0.0, b, 1.0), 0.0)
+
+
+def _safe_power(a, b):
+    bad = (a < 0.0) & (b != np.floor(b))
+    with np.errstate(all="ignore"):
+        return np.where(bad, 0.0, np.power(np.where(bad, 1.0, a), b))
+
+
+MATH = {
+    "ADD": lambda a, b, c: a + b, "SUBTRACT": lambda a, b, c: a - b,
+    "MULTIPLY": lambda a, b, c: a * b, "DIVIDE": lambda a, b, c: _safe_divide(a, b),
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c, "POWER": lambda a, b, c: _safe_power(a, b),
+    "SQRT": lambda a, b, c: np.sqrt(np.maximum(a, 0.0)), "ABSOLUTE": lambda a, b, c: np.abs(a),
+    "MINIMUM": lambda a, b, c: np.minimum(a, b), "MAXIMUM": lambda a, b, c: np.maximum(a, b),
+    "LESS_THAN": lambda a, b, c: (a < b).astype(np.float64),
+    "GREATER_THAN": lambda a, b, c: (a > b).astype(np.float64),
+    "SIGN": lambda a, b, c: np.sign(a), "ROUND": lambda a, b, c: np.floor(a + 0.5),
+    "FLOOR": lambda a, b, c: np.floor(a), "CEIL": lambda a, b, c: np.ceil(a),
+    "TRUNC": lambda a, b, c: np.trunc(a), "FRACT": lambda a, b, c: a - np.floor(a),
+    "MODULO": lambda a, b, c: np.where(b != 0.0, np.fmod(a, np.where(b != 0.0, b, 1.0)), 0.0),
+    "FLOORED_MODULO": lambda a, b, c: np.where(b != 0.0, a - np.floor(_safe_divide(a, b)) * b, 0.0),
+    "SINE": lambda a, b, c: np.sin(a), "COSINE": lambda a, b, c: np.cos(a),
+    "SNAP": lambda a, b, c: np.floor(_safe_divide(a, b)) * b,
+    "SMOOTH_MIN": None, "SMOOTH_MAX": None,
+}
+MATH = {k: v for k, v in MATH.items() if v is not None}
+
+
+def _math(ev, node):
+    op = node.get("operation", "ADD")
+    if op not in MATH:
+        raise ProgramError(f"unsupported math operation {op!r}")
+    with np.errstate(all="ignore"):
+        v = MATH[op](ev.float(node, "a"), ev.float(node, "b"), ev.float(node, "c"))
+    if node.get("clamp"):
+        v = np.clip(v, 0.0, 1.0)
+    return {"Value": v}
+
+
+def _map_range(ev, node):
+    v = ev.float(node, "value")
+    f0, f1 = ev.float(node, "from_min", 0.0), ev.float(node, "from_max", 1.0)
+    t0, t1 = ev.float(node, "to_min", 0.0), ev.float(node, "to_max", 1.0)
+    f = _safe_divide(v - f0, f1 - f0)
+    kind = node.get("interpolation", "LINEAR")
+    if kind == "STEPPED":
+        steps = ev.float(node, "steps", 4.0)
+        f = np.where(steps > 0.0, np.floor(f * (steps + 1.0)) / np.where(steps > 0.0, steps, 1.0), 0.0)
+    elif kind == "SMOOTHSTEP":
+        f = np.clip(f, 0.0, 1.0)
+        f = (3.0 - 2.0 * f) * f * f
+    elif kind == "SMOOTHERSTEP":
+        f = np.clip(f, 0.0, 1.0)
+        f = f * f * f * (f * (f * 6.0 - 15.0) + 10.0)
+    out = t0 + f * (t1 - t0)
+    if node.get("clamp", True) and kind in ("LINEAR", "STEPPED"):
+        out = np.where(t0 > t1, np.clip(out, t1, t0), np.clip(out, t0, t1))
+    return {"Result": out}
+
+
+def _invert(ev, node):
+    t = ev.float(node, "fac", 1.0)[:, None]
+    c = ev.vec(node, "color")
+    return {"Color": (1.0 - t) * c + t * (1.0 - c)}
+
+
+def _gamma(ev, node):
+    c = ev.vec(node, "color")
+    g = ev.float(node, "gamma", 1.0)[:, None]
+    with np.errstate(all="ignore"):
+        return {"Color": np.where(c > 0.0, np.power(np.maximum(c, 0.0), g), c)}
+
+
+def _bright_contrast(ev, node):
+    a = 1.0 + ev.float(node, "contrast")[:, None]
+    b = ev.float(node, "bright")[:, None] - (a - 1.0) * 0.5
+    return {"Color": np.maximum(a * ev.vec(node, "color") + b, 0.0)}
+
+
+def _separate(ev, node):
+    v = ev.vec(node, "vector")
+    return {"X": v[:, 0], "Y": v[:, 1], "Z": v[:, 2], "Red": v[:, 0], "Green": v[:, 1], "Blue": v[:, 2]}
+
+
+def _combine(ev, node):
+    return {"Vector": np.stack([ev.float(node, "x"), ev.float(node, "y"), ev.float(node, "z")], axis=1)}
+
+
+def _gray(ev, node):
+    return {"Value": ev.vec(node, "color") @ LUMINANCE}
+
+
+def _average(ev, node):
+    return {"Value": ev.vec(node, "vector").mean(axis=1)}
+
+
+def _splat(ev, node):
+    return {"Vector": np.repeat(ev.float(node, "value")[:, None], 3, axis=1)}
+
+
+OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
+       "noise": _noise, "voronoi": _voronoi, "image": _image, "ramp": _ramp, "mix_color": _mix_color,
+       "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math, "map_range": _map_range,
+       "invert": _invert, "gamma": _gamma, "bright_contrast": _bright_contrast, "separate": _separate,
+       "combine": _combine, "gray": _gray, "average": _average, "splat": _splat}
+OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
+           "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
+           "voronoi": ("Distance", "Color", "Position", "Radius"), "image": ("Color", "Alpha"),
+           "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
+           "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "invert": ("Color",),
+           "gamma": ("Color",), "bright_contrast": ("Color",),
+           "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
+           "gray": ("Value",), "average": ("Value",), "splat": ("Vector",)}
+REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "ramp": ("table",)}

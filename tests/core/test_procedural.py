@@ -1,0 +1,136 @@
+"""Procedural colour programs (``core/procedural.py``): ops against hand values, validation,
+files.  Their agreement with Cycles is ``tests/addon/test_procedural_parity.py``'s."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core import procedural
+from core.scene import Scene, SceneError
+from core.testing.scenes import sun_over_procedural_floor
+
+
+class Points:
+    """Attributes at given points (every coordinate name gives the same positions)."""
+
+    def __init__(self, p):
+        self.p = np.asarray(p, np.float64)
+
+    @property
+    def count(self):
+        return len(self.p)
+
+    def get(self, name):
+        return self.p
+
+
+def run(program, points, output=None):
+    return procedural.evaluate(program, Points(points), [], output)
+
+
+OBJECT = {"op": "attribute", "name": "object"}
+
+
+def test_checker_alternates_by_the_parity_of_the_cells():
+    program = {"op": "checker", "vector": OBJECT, "color1": [1, 0, 0], "color2": [0, 0, 1], "scale": 2.0}
+    pts = [(0.1, 0.1, 0.1), (0.6, 0.1, 0.1), (0.6, 0.6, 0.1), (-0.1, 0.1, 0.1), (0.1, 0.1, 0.6)]
+    fac = run(program, pts, "Fac")
+    # Cells (0,0,0) (1,0,0) (1,1,0) (-1 -> |1|,0,0) (0,0,1): colour 1 where (x%2 == y%2) == z%2.
+    np.testing.assert_array_equal(fac, [0, 1, 0, 1, 1])
+    np.testing.assert_array_equal(run(program, pts)[:, 0], fac)
+
+
+def test_ramp_interpolates_its_table_and_holds_it_when_constant():
+    table = [[0, 0, 0, 1], [1, 0.5, 0, 1], [1, 1, 1, 0]]
+    fac = {"op": "separate", "vector": OBJECT, "output": "X"}
+    ramp = {"op": "ramp", "fac": fac, "table": table}
+    pts = [(0.0, 0, 0), (0.25, 0, 0), (0.75, 0, 0), (2.0, 0, 0), (-1.0, 0, 0)]
+    np.testing.assert_allclose(run(ramp, pts), [[0, 0, 0], [0.5, 0.25, 0], [1, 0.75, 0.5], [1, 1, 1], [0, 0, 0]])
+    np.testing.assert_allclose(run({**ramp, "interpolate": False}, pts)[:, 1], [0, 0, 0.5, 1, 0])
+    np.testing.assert_allclose(run(ramp, pts, "Alpha"), [1, 1, 0.5, 0, 1])
+
+
+@pytest.mark.parametrize("blend, expected", [
+    ("MIX", 0.25 * 0.4 + 0.75 * 0.8), ("ADD", 0.4 + 0.75 * 0.8), ("MULTIPLY", 0.4 * (0.25 + 0.75 * 0.8)),
+    ("SUBTRACT", 0.4 - 0.75 * 0.8), ("SCREEN", 1 - (0.25 + 0.75 * 0.2) * 0.6),
+    ("DIVIDE", 0.25 * 0.4 + 0.75 * 0.5), ("LINEAR_LIGHT", 0.4 + 0.75 * 0.6),
+    ("OVERLAY", 0.4 * (0.25 + 1.5 * 0.8)), ("DARKEN", 0.4), ("LIGHTEN", 0.25 * 0.4 + 0.75 * 0.8),
+])
+def test_blend_modes(blend, expected):
+    program = {"op": "mix_color", "blend": blend, "fac": 0.75, "a": [0.4] * 3, "b": [0.8] * 3}
+    np.testing.assert_allclose(run(program, [(0, 0, 0)]), [[expected] * 3])
+
+
+def test_math_is_safe_where_cycles_is():
+    a = {"op": "separate", "vector": OBJECT, "output": "X"}
+    pts = [(-2.0, 0, 0), (0.0, 0, 0), (3.0, 0, 0)]
+    np.testing.assert_allclose(run({"op": "math", "operation": "DIVIDE", "a": 1.0, "b": a}, pts), [-0.5, 0, 1 / 3])
+    np.testing.assert_allclose(run({"op": "math", "operation": "POWER", "a": a, "b": 0.5}, pts),
+                               [0, 0, np.sqrt(3)])          # negative base, fractional exponent: 0
+    np.testing.assert_allclose(run({"op": "math", "operation": "POWER", "a": a, "b": 2.0}, pts), [4, 0, 9])
+    np.testing.assert_allclose(run({"op": "math", "operation": "SUBTRACT", "a": a, "b": 1.0, "clamp": True},
+                                   pts), [0, 0, 1])
+    stepped = {"op": "map_range", "interpolation": "STEPPED", "value": a, "from_min": -2.0, "from_max": 3.0,
+               "steps": 2.0}
+    np.testing.assert_allclose(run(stepped, pts), [0, 0.5, 1])
+
+
+def test_conversions_follow_cycles():
+    color = {"op": "attribute", "name": "object"}
+    pts = [(1.0, 0.0, 0.0), (0.2, 0.4, 0.6)]
+    np.testing.assert_allclose(run({"op": "gray", "color": color}, pts), [0.2126, 0.2126 * 0.2 + 0.7152 * 0.4
+                                                                            + 0.0722 * 0.6])
+    np.testing.assert_allclose(run({"op": "average", "vector": color}, pts), [1 / 3, 0.4])
+    assert run({"op": "splat", "value": 0.3}, pts).shape == (2, 3)
+
+
+def test_mapping_matrix_and_normalize():
+    m = [[0, -2, 0], [2, 0, 0], [0, 0, 2]]
+    program = {"op": "affine", "vector": OBJECT, "matrix": m, "pre": [1, 0, 0], "post": [0, 0, 5]}
+    np.testing.assert_allclose(run(program, [(2.0, 1.0, 1.0)]), [[-2, 2, 7]])
+    np.testing.assert_allclose(run({**program, "normalize": True}, [(2.0, 1.0, 1.0)]),
+                               [np.array([-2, 2, 7]) / np.sqrt(57)])
+
+
+def test_colours_are_finite_and_non_negative():
+    program = {"op": "math", "operation": "DIVIDE", "a": {"op": "separate", "vector": OBJECT, "output": "X"},
+               "b": 0.0}
+    sub = {"op": "mix_color", "blend": "SUBTRACT", "fac": 1.0, "a": [0.1] * 3, "b": [0.5] * 3}
+    for p in (program, sub):
+        c = procedural.evaluate_color(p, Points([(1.0, 0, 0), (-1.0, 0, 0)]), [])
+        assert np.isfinite(c).all() and (c >= 0).all()
+
+
+@pytest.mark.parametrize("program, message", [
+    ({"op": "wave"}, "unknown program op"),
+    ({"op": "checker", "vector": {"op": "attribute", "name": "camera"}}, "unknown attribute"),
+    ({"op": "checker", "output": "Alpha"}, "has no output"),
+    ({"op": "image", "texture": 3, "vector": OBJECT}, "not below"),
+    ({"op": "ramp", "fac": 0.5, "table": [[0, 0, 0]]}, "ramp table"),
+    ({"op": "affine", "vector": OBJECT}, "lacks its input 'matrix'"),
+])
+def test_scene_validation_names_a_bad_program(program, message):
+    scene = sun_over_procedural_floor({"op": "checker", "vector": OBJECT, "color1": [1, 1, 1], "color2": [0, 0, 0]})
+    scene.materials.programs = [program]
+    with pytest.raises(SceneError, match=message):
+        scene.validate()
+
+
+def test_scene_validation_asks_for_the_coordinates_a_program_reads():
+    scene = sun_over_procedural_floor({"op": "gradient", "vector": {"op": "attribute", "name": "generated"}})
+    with pytest.raises(SceneError, match="reads 'generated' coordinates"):
+        scene.replace(generated=None).validate()
+    with pytest.raises(SceneError, match="generated must have shape"):
+        scene.replace(generated=scene.generated[:1]).validate()
+
+
+def test_programs_and_coordinates_survive_a_file(tmp_path):
+    program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": [0.5, 0.6, 0.7],
+               "b": {"op": "gradient", "vector": {"op": "attribute", "name": "generated"}, "output": "Color"}}
+    scene = sun_over_procedural_floor(program)
+    scene.save(tmp_path / "s.npz")
+    loaded = Scene.load(tmp_path / "s.npz")
+    assert loaded.materials.programs == [program]
+    np.testing.assert_array_equal(loaded.materials.diffuse_program, [0])
+    np.testing.assert_array_equal(loaded.generated, scene.generated)
+    np.testing.assert_array_equal(loaded.object_coords, scene.object_coords)
