@@ -95,6 +95,18 @@ def _grad4(h, f):
 _GRAD = {1: _grad1, 2: _grad2, 3: _grad3, 4: _grad4}
 
 
+def _gradient_table(d):
+    """(16 or 32, d) float64: the gradient each hash value picks, as :func:`_grad2` .. :func:`_grad4`
+    compute it (their result is the dot product of that row with the offsets: components are 0 or
+    +-1, +-2 for 2D's v, so the sums come out bit for bit as the selects give them)."""
+    size = {2: 8, 3: 16, 4: 32}[d]
+    h = np.arange(size, dtype=np.uint32)
+    return np.stack([_GRAD[d](h, list(np.eye(d)[k][:, None] * np.ones(size))) for k in range(d)], axis=1)
+
+
+_GRAD_TABLE = {d: _gradient_table(d) for d in (2, 3, 4)}
+
+
 def perlin(p):
     """Cycles' ``perlin_Nd`` (unscaled Perlin gradient noise) at points ``p`` (n, d) -> (n,) float64."""
     p = np.asarray(p, dtype=np.float64)
@@ -103,9 +115,18 @@ def perlin(p):
     frac = p - cell
     cell = cell.astype(np.int64)
     corners = np.empty((2,) * d + (n,))
+    table = _GRAD_TABLE.get(d)
     for corner in itertools.product((0, 1), repeat=d):
         h = _HASH[d](*(cell[:, k] + corner[k] for k in range(d)))
-        corners[corner] = _GRAD[d](h, [frac[:, k] - corner[k] for k in range(d)])
+        offsets = [frac[:, k] - corner[k] for k in range(d)]
+        if table is None:
+            corners[corner] = _grad1(h, offsets)
+            continue
+        rows = (h & np.uint32(len(table) - 1)).astype(np.intp)
+        g = table[:, 0].take(rows) * offsets[0]
+        for k in range(1, d):
+            g += table[:, k].take(rows) * offsets[k]
+        corners[corner] = g
     u = fade(frac)
     for k in range(d):                         # mix along x, then y, ...
         corners = corners[0] + u[:, k] * (corners[1] - corners[0])
@@ -260,14 +281,15 @@ def _node_coordinates(vector, w, scale, dimensions):
 
 
 def noise_texture(vector, scale, detail, roughness, lacunarity, distortion, *, noise_type="FBM",
-                  normalize=True, offset=0.0, gain=1.0, dimensions="3D", w=0.0):
+                  normalize=True, offset=0.0, gain=1.0, dimensions="3D", w=0.0, color=True):
     """The Noise Texture node's (Fac, Color) as Cycles computes them.
 
     vector : (n, 3) float64 texture coordinates (the node's Vector input; 1D mode ignores it).
     scale, detail, roughness, lacunarity, distortion, offset, gain : the node's scalar inputs.
     noise_type : one of NOISE_TYPES (the node's "Type"); normalize : its "Normalize" (fBM only).
     dimensions : "1D", "2D" (x, y), "3D" or "4D" (x, y, z, W); w : the W input, scalar or (n,).
-    Returns fac (n,) float64 and color (n, 3) float64 (R = fac).
+    Returns fac (n,) float64 and color (n, 3) float64 (R = fac), or None without ``color`` (as
+    Cycles, which skips the G and B fractals when the Color output is not linked: 3x cheaper).
     """
     scale, roughness, lacunarity, distortion, offset, gain = (
         _f32(x) for x in (scale, roughness, lacunarity, distortion, offset, gain))
@@ -277,6 +299,8 @@ def noise_texture(vector, scale, detail, roughness, lacunarity, distortion, *, n
     d = p.shape[1]
     args = (detail, roughness, lacunarity, offset, gain, noise_type, bool(normalize))
     fac = noise_select(p, *args)
+    if not color:
+        return fac, None
     green = noise_select(p + random_offset(d, float(d)), *args)
     blue = noise_select(p + random_offset(d, float(d + 1)), *args)
     return fac, np.stack([fac, green, blue], axis=1)

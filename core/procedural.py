@@ -265,7 +265,7 @@ def _noise(ev, node):
         ev.scalar(node, "distortion", 0.0), noise_type=node.get("noise_type", "FBM"),
         normalize=bool(node.get("normalize", True)), offset=ev.scalar(node, "offset", 0.0),
         gain=ev.scalar(node, "gain", 1.0), dimensions=node.get("dimensions", "3D"),
-        w=ev.scalar(node, "w", 0.0))
+        w=ev.scalar(node, "w", 0.0), color=node.get("output", "Fac") == "Color")
     return {"Fac": fac, "Color": color}
 
 
