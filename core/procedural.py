@@ -17,7 +17,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
 * ``gradient`` vector, gradient_type: -> Color, Fac (``gradient.h``).
 * ``noise`` vector and the Noise Texture's settings: -> Fac, Color (``core/noise.py``).
-* ``voronoi`` vector and the Voronoi Texture's settings: -> Distance, Color, Position, Radius
+* ``voronoi`` vector and the Voronoi Texture's settings: -> Distance, Color, Position, W, Radius
   (``core/voronoi.py``).
 * ``image`` texture (index into the scene's images), vector: -> Color (bilinear, repeat), Alpha = 1.
 * ``ramp`` fac, table (N x 4 RGBA, Blender's colour band sampled at i / (N - 1)), interpolate:
@@ -26,8 +26,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``mix_float`` / ``mix_vector`` fac, a, b, clamp_factor: -> Result.
 * ``math`` operation, a, b, c, clamp: -> Value (``math_util.h``, the common operations).
 * ``map_range`` interpolation, value, from_min, from_max, to_min, to_max, steps, clamp: -> Result.
-* ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast:
-  -> Color.
+* ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
+  ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
 * ``separate`` vector: -> X, Y, Z (also Red, Green, Blue); ``combine`` x, y, z: -> Vector.
 * ``gray`` color: -> Value (Rec. 709 luminance, Cycles' colour-to-float); ``average`` vector:
   -> Value (vector-to-float); ``splat`` value: -> Vector (float-to-colour/vector).
@@ -278,9 +278,7 @@ def _voronoi(ev, node):
         metric=node.get("metric", "EUCLIDEAN"), exponent=ev.scalar(node, "exponent", 0.5),
         smoothness=ev.scalar(node, "smoothness", 1.0), normalize=bool(node.get("normalize", False)),
         dimensions=node.get("dimensions", "3D"), w=ev.scalar(node, "w", 0.0))
-    zeros = np.zeros(ev.k)
-    return {"Distance": out.get("Distance", zeros), "Color": out.get("Color", np.zeros((ev.k, 3))),
-            "Position": out.get("Position", np.zeros((ev.k, 3))), "Radius": out.get("Radius", zeros)}
+    return {name: out[name] for name in OUTPUTS["voronoi"]}
 
 
 def _image(ev, node):
@@ -333,11 +331,78 @@ def _blend(kind, t, a, b):
     if kind == "SOFT_LIGHT":
         screen = 1.0 - (1.0 - b) * (1.0 - a)
         return (1.0 - t) * a + t * ((1.0 - a) * b * a + a * screen)
+    if kind == "DODGE":
+        d = 1.0 - t * b
+        with np.errstate(all="ignore"):
+            q = np.where(d > 0.0, a / np.where(d > 0.0, d, 1.0), 1.0)
+        return np.where(a != 0.0, np.minimum(q, 1.0), a)
+    if kind == "BURN":
+        d = (1.0 - t) + t * b
+        with np.errstate(all="ignore"):
+            q = 1.0 - (1.0 - a) / np.where(d > 0.0, d, 1.0)
+        return np.where(d > 0.0, np.clip(q, 0.0, 1.0), 0.0)
+    if kind in ("HUE", "SATURATION", "VALUE", "COLOR"):
+        return _blend_hsv(kind, t, a, b)
     raise ProgramError(f"unsupported blend mode {kind!r}")
 
 
+def _blend_hsv(kind, t, a, b):
+    """Hue, Saturation, Value and Color blends: the HSV components of a taken from b."""
+    ha, hb = rgb_to_hsv(a), rgb_to_hsv(b)
+    if kind == "VALUE":
+        ha[:, 2] = (1.0 - t[:, 0]) * ha[:, 2] + t[:, 0] * hb[:, 2]
+        return hsv_to_rgb(ha)
+    if kind == "SATURATION":
+        out = ha.copy()
+        out[:, 1] = (1.0 - t[:, 0]) * ha[:, 1] + t[:, 0] * hb[:, 1]
+        return np.where(ha[:, 1:2] != 0.0, hsv_to_rgb(out), a)
+    out = ha.copy()
+    out[:, 0] = hb[:, 0]
+    if kind == "COLOR":
+        out[:, 1] = hb[:, 1]
+    return np.where(hb[:, 1:2] != 0.0, (1.0 - t) * a + t * hsv_to_rgb(out), a)
+
+
+def rgb_to_hsv(c):
+    """(k, 3) hue, saturation, value of (k, 3) RGB colours (Cycles' ``rgb_to_hsv``)."""
+    r, g, b = c[:, 0], c[:, 1], c[:, 2]
+    cmax, cmin = np.maximum(r, np.maximum(g, b)), np.minimum(r, np.minimum(g, b))
+    delta = cmax - cmin
+    s = np.where(cmax != 0.0, delta / np.where(cmax != 0.0, cmax, 1.0), 0.0)
+    d = np.where(delta != 0.0, delta, 1.0)
+    cr, cg, cb = (cmax - r) / d, (cmax - g) / d, (cmax - b) / d
+    h = np.where(r == cmax, cb - cg, np.where(g == cmax, 2.0 + cr - cb, 4.0 + cg - cr)) / 6.0
+    h = np.where(h < 0.0, h + 1.0, h)
+    return np.stack([np.where(s != 0.0, h, 0.0), s, cmax], axis=1)
+
+
+def hsv_to_rgb(hsv):
+    """(k, 3) RGB of (k, 3) hue, saturation, value (Cycles' ``hsv_to_rgb``)."""
+    h, s, v = hsv[:, 0], hsv[:, 1], hsv[:, 2]
+    h = np.where(h == 1.0, 0.0, h) * 6.0
+    i = np.floor(h)
+    f = h - i
+    p, q, t = v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f))
+    sector = np.clip(i, 0, 5).astype(np.int64)[:, None]
+    rows = np.stack([np.stack(x, axis=1) for x in ((v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v),
+                                                   (v, p, q))])
+    rgb = rows[sector[:, 0], np.arange(len(h))]
+    return np.where((s != 0.0)[:, None], rgb, np.stack([v, v, v], axis=1))
+
+
+def _hsv(ev, node):
+    c = ev.vec(node, "color")
+    hsv = rgb_to_hsv(c)
+    hsv[:, 0] = np.mod(hsv[:, 0] + ev.float(node, "hue", 0.5) + 0.5, 1.0)
+    hsv[:, 1] = np.clip(hsv[:, 1] * ev.float(node, "saturation", 1.0), 0.0, 1.0)
+    hsv[:, 2] *= ev.float(node, "value", 1.0)
+    fac = ev.float(node, "fac", 1.0)[:, None]
+    return {"Color": np.maximum(fac * hsv_to_rgb(hsv) + (1.0 - fac) * c, 0.0)}
+
+
 BLEND_MODES = ("MIX", "ADD", "MULTIPLY", "SUBTRACT", "DIFFERENCE", "DARKEN", "LIGHTEN", "EXCLUSION",
-               "SCREEN", "OVERLAY", "DIVIDE", "LINEAR_LIGHT", "SOFT_LIGHT")
+               "SCREEN", "OVERLAY", "DIVIDE", "LINEAR_LIGHT", "SOFT_LIGHT", "DODGE", "BURN", "HUE",
+               "SATURATION", "VALUE", "COLOR")
 
 
 def _mix_float(ev, node):
@@ -459,14 +524,14 @@ def _splat(ev, node):
 OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
        "noise": _noise, "voronoi": _voronoi, "image": _image, "ramp": _ramp, "mix_color": _mix_color,
        "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math, "map_range": _map_range,
-       "invert": _invert, "gamma": _gamma, "bright_contrast": _bright_contrast, "separate": _separate,
+       "invert": _invert, "gamma": _gamma, "hsv": _hsv, "bright_contrast": _bright_contrast, "separate": _separate,
        "combine": _combine, "gray": _gray, "average": _average, "splat": _splat}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
-           "voronoi": ("Distance", "Color", "Position", "Radius"), "image": ("Color", "Alpha"),
+           "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "image": ("Color", "Alpha"),
            "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "invert": ("Color",),
-           "gamma": ("Color",), "bright_contrast": ("Color",),
+           "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "ramp": ("table",)}

@@ -8,7 +8,7 @@ Texture Coordinate (Generated, Object, UV) and UV Map, Mapping (all four types),
 Texture (flat projection, repeat), Checker, Gradient, Noise and Voronoi Textures, Color Ramp
 (sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; the common
 blend modes) and the legacy MixRGB, Math (the common operations), Map Range (float), Invert,
-Gamma, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB and Value.  Anything else is
+Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB and Value.  Anything else is
 named in the material's warning and replaced by the input socket's own value.  Settings that
 Cycles lets vary over the surface but the core takes as constants (a texture's Scale, Detail,
 ...; Mapping's Location, Rotation, Scale) use the mean of what drives them, with a note.
@@ -221,7 +221,7 @@ def _voronoi(b, node, stack):
           **_settings(b, node, stack, {"scale": "Scale", "detail": "Detail", "roughness": "Roughness",
                                        "lacunarity": "Lacunarity", "smoothness": "Smoothness",
                                        "exponent": "Exponent", "randomness": "Randomness", "w": "W"})}
-    return _out(op, Distance="Distance", Color="Color", Position="Position", Radius="Radius")
+    return _out(op, Distance="Distance", Color="Color", Position="Position", W="W", Radius="Radius")
 
 
 def _ramp(b, node, stack):
@@ -299,6 +299,13 @@ def _gamma(b, node, stack):
                       "gamma": b.input(node, "Gamma", stack, FLOAT)}}
 
 
+def _hsv(b, node, stack):
+    return {"Color": {"op": "hsv", "color": b.input(node, "Color", stack, VEC),
+                      "hue": b.input(node, "Hue", stack, FLOAT),
+                      "saturation": b.input(node, "Saturation", stack, FLOAT),
+                      "value": b.input(node, "Value", stack, FLOAT), "fac": b.input(node, "Fac", stack, FLOAT)}}
+
+
 def _bright_contrast(b, node, stack):
     return {"Color": {"op": "bright_contrast", "color": b.input(node, "Color", stack, VEC),
                       "bright": b.input(node, "Bright", stack, FLOAT),
@@ -335,7 +342,8 @@ NODES = {
     "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,
     "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeValToRGB": _ramp, "ShaderNodeMix": _mix,
     "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
-    "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeBrightContrast": _bright_contrast,
+    "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,
+    "ShaderNodeBrightContrast": _bright_contrast,
     "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,
 }

@@ -75,11 +75,11 @@ def gradient(kind, mapping="POINT"):
 
 
 def blend(mode, legacy=False):
-    """A mix of a checker and a gradient (both non-trivial colours) with ``mode``."""
+    """A mix of a checker and a noise's colour (both coloured) with ``mode``."""
     def build(nt):
         c = node(nt, "ShaderNodeTexChecker", Scale=2.0, Color1=(0.9, 0.6, 0.2, 1.0),
                  Color2=(0.2, 0.1, 0.8, 1.0))
-        g = node(nt, "ShaderNodeTexGradient", gradient_type="DIAGONAL")
+        g = node(nt, "ShaderNodeTexNoise", Scale=2.0)
         nt.links.new(coords(nt, "Generated"), g.inputs["Vector"])
         if legacy:
             m = node(nt, "ShaderNodeMixRGB", blend_type=mode, Fac=0.7)
@@ -168,6 +168,23 @@ def noise(output, **settings):
     return build
 
 
+def hue_saturation_value(nt):
+    """Hue/Saturation/Value of a Noise Texture's Color, shifted, saturated and partly mixed back."""
+    n = node(nt, "ShaderNodeTexNoise", Scale=3.0)
+    h = node(nt, "ShaderNodeHueSaturation", Hue=0.3, Saturation=1.8, Value=1.2, Fac=0.8)
+    nt.links.new(n.outputs["Color"], h.inputs["Color"])
+    return h.outputs["Color"]
+
+
+def voronoi(output, **settings):
+    """A Voronoi Texture on Object coordinates through a Mapping, one of its outputs."""
+    def build(nt):
+        v = node(nt, "ShaderNodeTexVoronoi", **settings)
+        nt.links.new(coords(nt, "Object", "POINT", Location=(0.3, 0.1, 0.2)), v.inputs["Vector"])
+        return v.outputs[output]
+    return build
+
+
 CASES = {
     "checker_generated": checker_default,
     "ramp_linear": ramp_over_gradient("LINEAR"),
@@ -179,11 +196,17 @@ CASES = {
     "mapping_normal": gradient("DIAGONAL", "NORMAL"),
     **{f"mix_{m.lower()}": blend(m) for m in ("MIX", "MULTIPLY", "SCREEN", "OVERLAY", "SUBTRACT", "DIVIDE",
                                               "DIFFERENCE", "EXCLUSION", "DARKEN", "LIGHTEN", "LINEAR_LIGHT",
-                                              "SOFT_LIGHT", "ADD")},
+                                              "SOFT_LIGHT", "ADD", "DODGE", "BURN", "HUE", "SATURATION",
+                                              "VALUE", "COLOR")},
+    "hue_saturation_value": hue_saturation_value,
     "mixrgb_multiply": blend("MULTIPLY", legacy=True),
     "arithmetic": arithmetic,
     "image_mapped_uv": image_on_mapped_uv,
     "conversions": value_to_colour,
+    "voronoi_f1_color": voronoi("Color", Scale=4.0),
+    "voronoi_f2_distance": voronoi("Distance", Scale=3.0, feature="F2", distance="MANHATTAN"),
+    "voronoi_edges_fractal": voronoi("Distance", Scale=3.0, feature="DISTANCE_TO_EDGE", Detail=2.0),
+    "voronoi_smooth_position": voronoi("Position", Scale=2.0, feature="SMOOTH_F1", Smoothness=0.4),
     "noise_fac_ramp": noise("Fac", Scale=4.0, Detail=3.5, Roughness=0.6),
     "noise_color_distorted": noise("Color", Scale=2.5, Distortion=0.8, noise_type="RIDGED_MULTIFRACTAL"),
 }
