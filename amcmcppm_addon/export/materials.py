@@ -8,8 +8,10 @@ which is exact for emission and for lobes of one kind with different colours,
 and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF, Diffuse, Glossy, Metallic, Glass, Refraction,
-Emission, Mix Shader, Add Shader, Image Texture (as a colour), RGB and Value
-inputs, reroutes and groups, and on a BSDF's Normal input a tangent-space Normal Map node
+Emission, Mix Shader, Add Shader, reroutes and groups; on colour and number inputs the texture
+and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a program the core
+evaluates at each hit, an Image Texture on the active UV map stays a plain image texture; other
+inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
 fed by an Image Texture, a Bump node whose Height comes from an Image Texture, or a Bump on
 a Normal Map (one of each per material: the first that a Mix or Add meets).
 Anything else becomes a grey diffuse closure (for shaders) or the socket's own value (for
@@ -37,7 +39,7 @@ Glossy and metals, the layer's reflectance for the dielectric specular layer; Mi
 average it weighted by each glossy part's colour.  Other distributions are single-scattering GGX.
 Glass and Refraction keep their roughness (GGX microfacet glass, single scattering: Cycles'
 multiscatter glass keeps a little more light at high roughness).
-Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Image textures are
+Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Textures are
 kept only where the core supports them (diffuse colour); elsewhere their mean
 colour is used.  A missing image file gives a warning and Cycles' magenta.
 """

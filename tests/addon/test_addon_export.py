@@ -376,6 +376,110 @@ def test_image_texture_is_linearised_and_uses_uvs(scene):
     assert s.uvs.min() >= 0 and s.uvs.max() <= 1
 
 
+def test_procedural_colour_becomes_a_program_with_the_coordinates_it_reads(scene):
+    """A Principled base colour from a checker on Generated coordinates mixed with a gradient on
+    Object coordinates: a program, and per-corner coordinates for every triangle (the plain
+    object's too, which reads none); the texture's mean stands in where a lobe cannot vary."""
+    mat = principled("Procedural")
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    gradient = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], gradient.inputs["Vector"])
+    mix = nt.nodes.new("ShaderNodeMixRGB")
+    nt.links.new(checker.outputs["Color"], mix.inputs["Color1"])
+    nt.links.new(gradient.outputs["Fac"], mix.inputs["Color2"])
+    nt.links.new(mix.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
+    bs.plane("Plane", size=3.0, material=mat, location=(1, 2, 0), rotation=(0, 0, 0.5))
+    bs.plane("Plain", material=bs.diffuse("Plain"), location=(5, 0, 0))
+    bs.camera()
+    ex = bs.export()
+    s = ex.scene
+    row = material_row(s, "Procedural")
+    assert row["diffuse_program"] == 0 and row["diffuse_texture"] == -1
+    assert row["diffuse_color"] == pytest.approx([1, 1, 1])
+    program = s.materials.programs[0]
+    assert program["op"] == "mix_color" and program["a"]["op"] == "checker"
+    assert program["a"]["vector"] == {"op": "attribute", "name": "generated"}      # unlinked: Generated
+    assert program["b"] == {"op": "splat", "value": {"op": "gradient", "output": "Fac", "gradient_type": "LINEAR",
+                                                     "vector": {"op": "attribute", "name": "object"}}}
+    assert material_row(s, "Plain")["diffuse_program"] == -1
+    assert s.generated.shape == s.object_coords.shape == (4, 3, 3) and s.uvs is None
+    textured = np.flatnonzero(s.material_ids == s.materials.names.index("Procedural"))
+    # Object coordinates undo the object's transform; Generated maps its texture space to [0, 1].
+    corners = s.object_coords[textured].reshape(-1, 3)
+    assert np.abs(corners[:, :2]).max() == pytest.approx(1.5) and np.abs(corners[:, 2]).max() == 0
+    gen = s.generated[textured].reshape(-1, 3)
+    np.testing.assert_allclose(gen, corners / 3.0 + 0.5, atol=1e-6)
+    assert not any("Procedural" in w for w in ex.warnings), ex.warnings
+
+
+def test_textures_on_inputs_that_cannot_vary_use_their_mean_with_a_warning(scene):
+    mat = principled("Rough", Metallic=1.0)
+    nt = mat.node_tree
+    ramp = nt.nodes.new("ShaderNodeValToRGB")         # black to white over a gradient: mean 0.5
+    gradient = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(gradient.outputs["Fac"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Roughness"])
+    row, ex = export_material(mat)
+    assert row["glossy_roughness"] == pytest.approx(0.5, abs=0.02)
+    assert has_no_programs(ex.scene)
+    assert any("Rough" in w and "Roughness varies over the surface" in w for w in ex.warnings), ex.warnings
+
+
+def has_no_programs(core_scene):
+    """No procedural colour and no coordinates for one."""
+    return core_scene.materials.programs == [] and core_scene.generated is None
+
+
+def test_constant_node_graphs_fold_into_constants(scene):
+    """Math of numbers and a Mix of colours vary nowhere: plain values, no program, no warning."""
+    mat = bs.diffuse("Folded")
+    nt = mat.node_tree
+    mix = nt.nodes.new("ShaderNodeMixRGB")
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Fac"].default_value = 1.0
+    mix.inputs["Color1"].default_value = (0.5, 0.8, 1.0, 1.0)
+    mix.inputs["Color2"].default_value = (0.5, 0.5, 0.5, 1.0)
+    nt.links.new(mix.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    assert row["diffuse_color"] == pytest.approx([0.25, 0.4, 0.5]) and row["diffuse_program"] == -1
+    assert has_no_programs(ex.scene) and not ex.warnings
+
+
+def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
+    mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
+    nt = mat.node_tree
+    gabor = nt.nodes.new("ShaderNodeTexGabor")
+    nt.links.new(gabor.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    assert row["diffuse_color"] == pytest.approx([0.3, 0.4, 0.5]) and row["diffuse_program"] == -1
+    assert any("'Odd'" in w and "Gabor" in w for w in ex.warnings), ex.warnings
+
+
+def test_instances_get_their_own_object_coordinates(scene):
+    """Two instances of one mesh, one mirrored: the same object-space corners (swapped with
+    the mirrored winding), whatever their world placement."""
+    mat = bs.diffuse("Cells")
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], checker.inputs["Vector"])
+    nt.links.new(checker.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    a = bs.plane("A", material=mat, location=(0, 0, 0))
+    b = bpy.data.objects.new("B", a.data)
+    b.location, b.scale = (4, 0, 1), (-2, 1, 1)
+    bpy.context.scene.collection.objects.link(b)
+    bs.camera()
+    s = bs.export().scene
+    assert len(s.triangles) == 4
+    world = s.vertices[s.triangles]
+    shifted = np.abs(world[..., 0] - s.object_coords[..., 0]).max(axis=1) > 1
+    assert shifted.sum() == 2                       # B's triangles are elsewhere in the world ...
+    key = lambda c: sorted(map(tuple, np.round(c.reshape(-1, 3), 5)))        # noqa: E731
+    assert key(s.object_coords[shifted]) == key(s.object_coords[~shifted])   # ... with A's object coords
+    # The corners follow the winding: mapping object to world by B's transform gives the vertices.
+    np.testing.assert_allclose(s.object_coords[shifted] * [-2, 1, 1] + [4, 0, 1], world[shifted], atol=1e-6)
+
+
 def normal_mapped(name, rgb=(0.7, 0.5, 0.9)):
     """A Principled material whose Normal input takes a tangent-space Normal Map (strength 0.7)
     of a constant image of colour ``rgb``."""
