@@ -40,6 +40,8 @@ import json
 
 import numpy as np
 
+from . import noise as _noise_module
+from . import voronoi as _voronoi_module
 from .bsdf import bilinear
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
@@ -147,14 +149,32 @@ def validate(program, n_images):
         for name in REQUIRED.get(op, ()):
             if name not in node:
                 raise ProgramError(f"op '{op}' lacks its input '{name}'")
-        if op == "attribute" and node["name"] not in ATTRIBUTES:
-            raise ProgramError(f"unknown attribute {node['name']!r} (known: {ATTRIBUTES})")
         if op == "image" and not 0 <= int(node["texture"]) < n_images:
             raise ProgramError(f"image node texture {node['texture']} is not below {n_images}")
+        for key, value in node.items():
+            _check_value(op, key, value)
         if op == "ramp":
             table = np.asarray(node["table"], np.float64)
             if table.ndim != 2 or table.shape[0] < 2 or table.shape[1] != 4 or not np.isfinite(table).all():
                 raise ProgramError(f"ramp table must be finite (N >= 2, 4), not {table.shape}")
+
+
+def _check_value(op, key, value):
+    """A node's setting must be one of its op's choices, an input a number, three numbers or a node."""
+    if key in ("op", "output") or isinstance(value, dict):
+        return
+    choices = CHOICES.get((op, key))
+    if choices is not None:
+        if value not in choices:
+            raise ProgramError(f"op '{op}': {key} {value!r} is not one of {tuple(choices)}")
+        return
+    if key in ("table", "matrix", "pre", "post"):
+        return                                      # arrays, checked by their op
+    ok = isinstance(value, (bool, int, float)) or (
+        isinstance(value, list) and len(value) == 3 and all(isinstance(x, (int, float)) for x in value))
+    if not ok or not np.isfinite(value).all():
+        raise ProgramError(f"op '{op}': input {key} must be a finite number, three numbers or a node, "
+                           f"not {value!r}")
 
 
 def _nodes(program):
@@ -258,8 +278,7 @@ def _gradient(ev, node):
 
 
 def _noise(ev, node):
-    from .noise import noise_texture
-    fac, color = noise_texture(
+    fac, color = _noise_module.noise_texture(
         ev.vec(node, "vector"), ev.scalar(node, "scale", 5.0), ev.scalar(node, "detail", 2.0),
         ev.scalar(node, "roughness", 0.5), ev.scalar(node, "lacunarity", 2.0),
         ev.scalar(node, "distortion", 0.0), noise_type=node.get("noise_type", "FBM"),
@@ -270,8 +289,7 @@ def _noise(ev, node):
 
 
 def _voronoi(ev, node):
-    from .voronoi import voronoi_texture
-    out = voronoi_texture(
+    out = _voronoi_module.voronoi_texture(
         ev.vec(node, "vector"), ev.scalar(node, "scale", 5.0), detail=ev.scalar(node, "detail", 0.0),
         roughness=ev.scalar(node, "roughness", 0.5), lacunarity=ev.scalar(node, "lacunarity", 2.0),
         randomness=ev.scalar(node, "randomness", 1.0), feature=node.get("feature", "F1"),
@@ -535,3 +553,10 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "ramp": ("table",)}
+GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
+# Settings chosen from a list (the others are numbers, colours or nodes).
+CHOICES = {("attribute", "name"): ATTRIBUTES, ("mix_color", "blend"): BLEND_MODES, ("math", "operation"): MATH,
+           ("gradient", "gradient_type"): GRADIENT_TYPES, ("noise", "noise_type"): _noise_module.NOISE_TYPES,
+           ("noise", "dimensions"): _noise_module.DIMENSIONS, ("voronoi", "feature"): _voronoi_module.FEATURES,
+           ("voronoi", "metric"): _voronoi_module.METRICS, ("voronoi", "dimensions"): _voronoi_module.DIMENSIONS,
+           ("map_range", "interpolation"): ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP")}

@@ -103,11 +103,15 @@ def test_colours_are_finite_and_non_negative():
 
 @pytest.mark.parametrize("program, message", [
     ({"op": "wave"}, "unknown program op"),
-    ({"op": "checker", "vector": {"op": "attribute", "name": "camera"}}, "unknown attribute"),
+    ({"op": "checker", "vector": {"op": "attribute", "name": "camera"}}, "name .camera. is not one of"),
     ({"op": "checker", "output": "Alpha"}, "has no output"),
     ({"op": "image", "texture": 3, "vector": OBJECT}, "not below"),
     ({"op": "ramp", "fac": 0.5, "table": [[0, 0, 0]]}, "ramp table"),
     ({"op": "affine", "vector": OBJECT}, "lacks its input 'matrix'"),
+    ({"op": "mix_color", "blend": "GLOW", "a": [0, 0, 0], "b": [1, 1, 1]}, "blend 'GLOW' is not one of"),
+    ({"op": "math", "operation": "ADD", "a": "two"}, "input a must be a finite number"),
+    ({"op": "checker", "vector": OBJECT, "scale": float("nan")}, "input scale must be a finite number"),
+    ({"op": "noise", "vector": OBJECT, "noise_type": "PERLIN"}, "noise_type 'PERLIN'"),
 ])
 def test_scene_validation_names_a_bad_program(program, message):
     scene = sun_over_procedural_floor({"op": "checker", "vector": OBJECT, "color1": [1, 1, 1], "color2": [0, 0, 0]})
