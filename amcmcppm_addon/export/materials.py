@@ -86,8 +86,12 @@ class Closure:
         c.color[index] = weight * np.asarray(color, np.float64)
         return c
 
-    def combine(self, other, fa, fb) -> "Closure":
-        """fa * self + fb * other (Mix: fa = 1 - fac, fb = fac; Add: 1, 1)."""
+    def combine(self, other, fa, fb, fac=None) -> "Closure":
+        """fa * self + fb * other (Mix: fa = 1 - fac, fb = fac; Add: 1, 1).
+
+        ``fac`` : a program for a Mix factor that varies over the surface (fa, fb are then its
+        mean's): the diffuse colours are mixed by it exactly, point by point (weight times
+        colour, divided by the mean diffuse weight), the other lobes by its mean."""
         wa, wb = fa * self.weight, fb * other.weight
         out = Closure(weight=wa + wb, color=fa * self.color + fb * other.color,
                       emission=fa * self.emission + fb * other.emission,
@@ -101,15 +105,38 @@ class Closure:
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
-        out.texture = self.texture if textured(self.texture) and wa[DIFFUSE] > 0 else other.texture
         # One bent normal per material: the first side's that has weight.
         bent = [c for c, f in ((self, fa), (other, fb)) if f > 0 and (c.normal_map or c.bump)]
         out.normal_map, out.bump = (bent[0].normal_map, bent[0].bump) if bent else (None, None)
-        if textured(out.texture):
-            # The core multiplies the diffuse colour by the texture; keep the weight, drop the
-            # colour of the untextured side (an approximation when both sides are diffuse).
-            out.color[DIFFUSE] = out.weight[DIFFUSE]
+        total = out.weight[DIFFUSE]
+        if total > 0 and (textured(self.texture) or textured(other.texture) or fac is not None):
+            # The core multiplies the diffuse colour by a program: sum both sides' weight times
+            # colour (each times its factor) and divide by the summed weight.
+            shares = (fa, fb) if fac is None else (_one_minus(fac), fac)
+            terms = [_times(c.diffuse_term(), f) for c, f, w in zip((self, other), shares, (wa, wb))
+                     if w[DIFFUSE] > 0]
+            mixed = terms[0] if len(terms) == 1 else _plus(*terms)
+            out.texture = _times(mixed, 1.0 / total)
+            out.color[DIFFUSE] = total
         return out
+
+    def diffuse_term(self):
+        """Weight times colour of the diffuse lobe: three numbers or a program."""
+        w = self.color[DIFFUSE]
+        if not textured(self.texture):
+            return w.tolist()
+        source = self.texture if isinstance(self.texture, dict) else {
+            "op": "image", "texture": int(self.texture), "vector": {"op": "attribute", "name": "uv"}}
+        return _times(source, w)
+
+    def same_except_diffuse(self, other) -> bool:
+        """Whether the two closures differ in their diffuse lobes only (a varying Mix factor is then
+        exact)."""
+        other_lobes = [k for k in range(4) if k != DIFFUSE]
+        return (np.allclose(self.color[other_lobes], other.color[other_lobes])
+                and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
+                and np.allclose(self.emission, other.emission) and np.isclose(self.roughness, other.roughness)
+                and np.isclose(self.ior, other.ior))
 
     def glass_reflection(self) -> np.ndarray:
         return self.color[DIELECTRIC] if self.reflection is None else self.reflection
@@ -143,6 +170,28 @@ class Closure:
         if self.bump is not None:
             s["bump_texture"], s["bump_strength"], s["bump_distance"] = self.bump
         return s
+
+
+def _times(a, f):
+    """Program (or constant) ``a`` (a colour) times ``f``: a number, three numbers or a float program."""
+    if isinstance(f, dict):
+        return {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": a, "b": {"op": "splat", "value": f}}
+    f = np.broadcast_to(np.asarray(f, np.float64), (3,))
+    if not isinstance(a, dict):
+        return (np.asarray(a, np.float64) * f).tolist()
+    if (f == 1.0).all():
+        return a
+    return {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": a, "b": f.tolist()}
+
+
+def _plus(a, b):
+    if not isinstance(a, dict) and not isinstance(b, dict):
+        return (np.asarray(a) + np.asarray(b)).tolist()
+    return {"op": "mix_color", "blend": "ADD", "fac": 1.0, "a": a, "b": b}
+
+
+def _one_minus(f):
+    return {"op": "math", "operation": "SUBTRACT", "a": 1.0, "b": f}
 
 
 def textured(source) -> bool:
@@ -537,9 +586,19 @@ class NodeWalker:
         return tex, strength, node.uv_map
 
     def _mix(self, node, stack):
-        fac = float(np.clip(self.value(node.inputs[0], stack), 0.0, 1.0))
+        f = self.programs.expression(node.inputs[0], stack, FLOAT)
         a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()
         b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
+        if isinstance(f, dict) and procedural.attributes_used(f):
+            # A factor that varies over the surface (a mask): exact for the diffuse colours.
+            f = {"op": "math", "operation": "MINIMUM", "a": {"op": "math", "operation": "MAXIMUM", "a": f,
+                                                            "b": 0.0}, "b": 1.0}
+            mean = float(procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images).mean())
+            if not a.same_except_diffuse(b):
+                self.note(f"'{node.name}': a varying Fac mixes the diffuse colours point by point and "
+                          f"the other parts of the shaders by its mean {mean:.3f}")
+            return a.combine(b, 1.0 - mean, mean, fac=f)
+        fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
         return a.combine(b, 1.0 - fac, fac)
 
     def _add(self, node, stack):

@@ -446,6 +446,34 @@ def test_constant_node_graphs_fold_into_constants(scene):
     assert has_no_programs(ex.scene) and not ex.warnings
 
 
+def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact_for_the_diffuse_part(scene):
+    """Mix Shader(Diffuse, Glossy) by a gradient (mean 0.5 over the texture space): the diffuse
+    colour becomes (1 - F) colour / mean(1 - F), the glossy weight F's mean, with a note."""
+    mat = bpy.data.materials.new("Masked")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+    glossy = nt.nodes.new("ShaderNodeBsdfGlossy")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    gradient = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(gradient.outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(diffuse.outputs[0], mix.inputs[1])
+    nt.links.new(glossy.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    assert row["diffuse_weight"] == pytest.approx(0.5, abs=0.02)
+    assert row["glossy_weight"] == pytest.approx(0.5, abs=0.02)
+    assert row["diffuse_program"] == 0 and row["diffuse_color"] == pytest.approx([1, 1, 1])
+    from amcmcppm.core import procedural
+    program = ex.scene.materials.programs[0]
+    pts = procedural.SampledAttributes(64)
+    colour = procedural.evaluate(program, pts, [])
+    x = np.clip(pts.get("generated")[:, 0], 0, 1)
+    np.testing.assert_allclose(colour, (1 - x)[:, None] * [0.2, 0.4, 0.6] / row["diffuse_weight"], rtol=1e-6)
+    assert any("'Masked'" in w and "mixes the diffuse colours point by point" in w for w in ex.warnings)
+
+
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
     mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
     nt = mat.node_tree

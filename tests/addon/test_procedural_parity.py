@@ -256,3 +256,51 @@ def test_generated_and_object_coordinates_follow_the_object(addon, tmp_path):
     on = np.isfinite(ours).all(axis=2)
     assert 0.5 < on.mean() < 1.0 and (cycles[~on] == 0).all()
     compare(ours[on][None], cycles[on][None], "moved object")
+
+
+@pytest.mark.parametrize("factor", ["noise_mask", "constant"])
+def test_a_mix_shader_of_two_coloured_diffuse_shaders_mixes_their_colours_point_by_point(addon, tmp_path, factor):
+    """A Mix Shader whose Fac is a noise mask (or a constant) between a Diffuse BSDF coloured by a
+    checker and a plain blue one: the core's diffuse colour at each point is (1 - F) A + F B.
+    Cycles shows the same mix when both shaders are Emission shaders of the same colours."""
+    import bpy
+
+    def build(nt):
+        checker = node(nt, "ShaderNodeTexChecker", Scale=3.0, Color1=(0.9, 0.6, 0.2, 1.0))
+        return checker.outputs["Color"]
+
+    mat, positions = bs.texture_plane(build)
+    nt = mat.node_tree
+    first = nt.nodes["Diffuse BSDF"]
+    second = node(nt, "ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.9, 1.0))
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    if factor == "noise_mask":
+        mask = node(nt, "ShaderNodeTexNoise", Scale=2.0)
+        ramp = nt.nodes.new("ShaderNodeValToRGB")
+        ramp.color_ramp.elements[0].position, ramp.color_ramp.elements[1].position = 0.35, 0.65
+        nt.links.new(mask.outputs["Fac"], ramp.inputs["Fac"])
+        nt.links.new(ramp.outputs["Color"], mix.inputs["Fac"])
+    else:
+        mix.inputs["Fac"].default_value = 0.3
+    nt.links.new(first.outputs[0], mix.inputs[1])
+    nt.links.new(second.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    ours = bs.our_texture_values(positions)
+    warnings = bs.export().warnings
+    assert not any("Textured" in w for w in warnings), warnings       # exact: no note
+    # Cycles: the two BSDFs become emissions of their colours.
+    for bsdf in (first, second):
+        emit = nt.nodes.new("ShaderNodeEmission")
+        links = bsdf.inputs["Color"].links
+        if links:
+            nt.links.new(links[0].from_socket, emit.inputs["Color"])
+        else:
+            emit.inputs["Color"].default_value = bsdf.inputs["Color"].default_value
+        nt.links.new(emit.outputs[0], bsdf.outputs[0].links[0].to_socket)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising, c.filter_width = "CPU", 1, False, False, 0.01
+    cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3].astype(np.float64)
+    assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
+    compare(ours, cycles, f"mix shader, {factor}")
