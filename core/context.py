@@ -56,7 +56,8 @@ class RenderContext:
         # Procedural diffuse colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs
         self.has_programs = bool((self.table.program >= 0).any())
-        self.coordinates = {"generated": scene.generated, "object": scene.object_coords, "uv": scene.uvs}
+        self.coordinates = {"generated": scene.generated, "object": scene.object_coords, "uv": scene.uvs,
+                            "color": scene.vertex_colors}
 
     def surface(self, prim_ids, b1, b2) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics."""

@@ -10,8 +10,9 @@ where a link joins sockets of different types, as Cycles does.
 
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
-* ``attribute`` name = generated | object | uv: -> Vector.  Per-corner coordinates of the scene
-  (``Scene.generated``, ``Scene.object_coords``, ``Scene.uvs`` as (u, v, 0)), interpolated.
+* ``attribute`` name = generated | object | uv | color: -> Vector.  Per-corner data of the scene
+  (``Scene.generated``, ``Scene.object_coords``, ``Scene.uvs`` as (u, v, 0), ``Scene.vertex_colors``),
+  interpolated.
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
@@ -45,7 +46,7 @@ from . import voronoi as _voronoi_module
 from .bsdf import bilinear
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
-ATTRIBUTES = ("generated", "object", "uv")
+ATTRIBUTES = ("generated", "object", "uv", "color")
 
 
 class ProgramError(ValueError):
@@ -80,14 +81,15 @@ class HitAttributes:
 
 
 class SampledAttributes:
-    """Stand-in coordinates for an average of a program over a surface: generated uniform in
-    the unit cube, object in [-1, 1]^3, uv in the unit square (seeded, reproducible)."""
+    """Stand-in coordinates for an average of a program over a surface: generated (and vertex
+    colours) uniform in the unit cube, object in [-1, 1]^3, uv in the unit square (seeded,
+    reproducible)."""
 
     def __init__(self, n=4096, seed=0):
         rng = np.random.default_rng(seed)
         g = rng.random((n, 3))
         self._values = {"generated": g, "object": 2.0 * g - 1.0,
-                        "uv": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1)}
+                        "uv": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1), "color": g}
 
     @property
     def count(self) -> int:

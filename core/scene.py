@@ -439,6 +439,7 @@ class Scene:
     # and Object (object-space position) coordinates.
     generated: np.ndarray = None
     object_coords: np.ndarray = None
+    vertex_colors: np.ndarray = None    # (T, 3, 3) float32 linear RGB per corner (Color Attribute), or None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -547,7 +548,7 @@ class Scene:
             self.uvs = per_corner("uvs", self.uvs, 2)
         if self.tangents is not None:
             self.tangents = per_corner("tangents", self.tangents, 4)
-        for name in ("generated", "object_coords"):
+        for name in ("generated", "object_coords", "vertex_colors"):
             if getattr(self, name) is not None:
                 setattr(self, name, per_corner(name, getattr(self, name), 3))
         lights = self.lights
@@ -633,7 +634,8 @@ class Scene:
         v = mats.diffuse_program
         if ((v < -1) | (v >= len(mats.programs))).any():
             fail(f"materials.diffuse_program must be -1 or an index below {len(mats.programs)}")
-        coords = {"generated": self.generated, "object": self.object_coords, "uv": self.uvs}
+        coords = {"generated": self.generated, "object": self.object_coords, "uv": self.uvs,
+                  "color": self.vertex_colors}
         for i, program in enumerate(mats.programs):
             try:
                 procedural.validate(program, len(self.textures))
@@ -686,7 +688,7 @@ class Scene:
             d["uvs"] = self.uvs
         if self.tangents is not None:
             d["tangents"] = self.tangents
-        for name in ("generated", "object_coords"):
+        for name in ("generated", "object_coords", "vertex_colors"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for i, tex in enumerate(self.textures):
@@ -721,7 +723,7 @@ class Scene:
                       material_ids=get("material_ids"), materials=mats, lights=lights,
                       camera=cam, world=world, shading_normals=get("shading_normals"),
                       uvs=get("uvs"), tangents=get("tangents"), generated=get("generated"),
-                      object_coords=get("object_coords"),
+                      object_coords=get("object_coords"), vertex_colors=get("vertex_colors"),
                       textures=[get(f"textures.{i}") for i in range(ntex)])
         return scene.validate()
 

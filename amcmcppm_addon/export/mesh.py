@@ -45,6 +45,7 @@ class LocalMesh:
     uv_map: str = ""            # name of the active render UV map ('' without one)
     tangents_read: bool = False  # read with tangents (which may still be None: Blender had none)
     texspace: tuple = ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))  # texture space (location, size): Generated
+    colors: np.ndarray | None = None  # (T, 3, 3) float32 linear render colour attribute per corner, or None
 
     def corner_coordinates(self):
         """(object, generated), each (T, 3, 3) float32: Blender's Object and Generated texture
@@ -67,6 +68,7 @@ class Geometry:
     tangents: np.ndarray | None = None  # (T, 3, 4) float32 or None
     object_coords: np.ndarray | None = None  # (T, 3, 3) float32 or None (procedural textures)
     generated: np.ndarray | None = None      # (T, 3, 3) float32 or None (procedural textures)
+    colors: np.ndarray | None = None         # (T, 3, 3) float32 or None (Color Attribute nodes)
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
@@ -199,7 +201,8 @@ def read_mesh(me, name, log, tangents=False, triangulated=False):
                      normals=normals, normal_index=normal_index, uvs=uvs, mesh_materials=tuple(me.materials),
                      tangents=frames, uv_map=layer.name if layer is not None else "",
                      tangents_read=tangents,
-                     texspace=(tuple(me.texspace_location), tuple(me.texspace_size)))
+                     texspace=(tuple(me.texspace_location), tuple(me.texspace_size)),
+                     colors=_corner_colors(me, tri_vert, tri_loops))
 
 
 def _triangulate(me, positions, corner_vert):
@@ -277,6 +280,22 @@ def _corner_uvs(me, layer, tri_loops):
     return np.take(uv.reshape(-1, 2), tri_loops, axis=0)
 
 
+def _corner_colors(me, tri_vert, tri_loops):
+    """(T, 3, 3) float32 scene-linear RGB of the render colour attribute (Cycles' default for a
+    Color Attribute node) at the triangle corners, or None without one."""
+    attrs = me.color_attributes
+    index = attrs.render_color_index
+    if not len(attrs) or not 0 <= index < len(attrs):
+        return None
+    attr = attrs[index]
+    if attr.domain not in ("POINT", "CORNER"):
+        return None
+    rgba = np.empty(len(attr.data) * 4, np.float32)
+    attr.data.foreach_get("color", rgba)         # linear for byte colours too
+    rows = tri_vert if attr.domain == "POINT" else tri_loops
+    return np.take(rgba.reshape(-1, 4)[:, :3], rows, axis=0)
+
+
 def _corner_tangents(me, layer, tri_loops):
     """(T, 3, 4) float32 MikkTSpace tangents (object space) and bitangent signs of UV map ``layer``
     at the triangle corners, as Cycles computes them; None where Blender cannot (it refuses
@@ -317,7 +336,8 @@ def assemble(meshes, groups, materials) -> Geometry:
     offset = 0
     instances = 0
     # Coordinates of procedural textures, when some material reads them (for every triangle).
-    coordinates = materials.coordinates_used({i for _, ids in groups for i in ids}) & {"object", "generated"}
+    coordinates = (materials.coordinates_used({i for _, ids in groups for i in ids})
+                   & {"object", "generated", "color"})
     for (key, mat_ids), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
@@ -349,6 +369,7 @@ def assemble(meshes, groups, materials) -> Geometry:
                     uvs=None if uvs is None else np.ascontiguousarray(uvs, np.float32),
                     tangents=None if tangents is None else np.ascontiguousarray(tangents, np.float32),
                     object_coords=coords.get("object"), generated=coords.get("generated"),
+                    colors=coords.get("color"),
                     instances=instances)
 
 
@@ -410,10 +431,12 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
            "normals": normals, "uvs": uvs, "tangents": tangents}
     # Texture coordinates of procedural textures: each instance's own object space.
-    for name, c in zip(("object", "generated"), local.corner_coordinates() if coordinates else ()):
-        if name not in coordinates:
-            continue
-        c = np.repeat(c[None], k, axis=0)
+    per_corner = dict(zip(("object", "generated"), local.corner_coordinates())) if coordinates else {}
+    if "color" in coordinates:
+        # Meshes without a colour attribute read black, as in Cycles.
+        per_corner["color"] = local.colors if local.colors is not None else np.zeros((n_t, 3, 3), np.float32)
+    for name in coordinates:
+        c = np.repeat(per_corner[name][None], k, axis=0)
         _swap_corners(c, mirrored)
         out[name] = c.reshape(k * n_t, 3, 3)
     return out

@@ -4,7 +4,7 @@
 float, or three floats for colour and vector sockets) or a program node dict, inserting the
 type conversions Cycles makes where a link joins sockets of different types (colour to float
 by luminance, vector to float by the average, float to colour as grey).  Supported nodes:
-Texture Coordinate (Generated, Object, UV) and UV Map, Mapping (all four types), Image
+Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Mapping (all four types), Image
 Texture (flat projection, repeat), Checker, Gradient, Noise and Voronoi Textures, Color Ramp
 (sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; the common
 blend modes) and the legacy MixRGB, Math (the common operations), Map Range (float), Invert,
@@ -132,6 +132,13 @@ def _uv_map(b, node, stack):
         b.walker.note(f"'{node.name}': UV map '{node.uv_map}' is not supported (the active render UV "
                       "map is used)")
     return {"UV": {"op": "attribute", "name": "uv"}}
+
+
+def _color_attribute(b, node, stack):
+    if node.layer_name:
+        b.walker.note(f"'{node.name}': colour attribute '{node.layer_name}' is not supported (the render "
+                      "colour attribute is used)")
+    return {"Color": {"op": "attribute", "name": "color"}, "Alpha": 1.0}
 
 
 def _rgb(b, node, stack):
@@ -337,7 +344,8 @@ def _combine_color(b, node, stack):
 
 
 NODES = {
-    "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeRGB": _rgb,
+    "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
+    "ShaderNodeRGB": _rgb,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
     "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,
     "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeValToRGB": _ramp, "ShaderNodeMix": _mix,

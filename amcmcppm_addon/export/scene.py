@@ -83,7 +83,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                   material_ids=geometry.material_ids, materials=materials.build(), lights=lights,
                   camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,
                   tangents=geometry.tangents, generated=geometry.generated,
-                  object_coords=geometry.object_coords,
+                  object_coords=geometry.object_coords, vertex_colors=geometry.colors,
                   textures=materials.textures.images)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,

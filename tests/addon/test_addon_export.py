@@ -474,6 +474,19 @@ def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact_for_the_diffus
     assert any("'Masked'" in w and "mixes the diffuse colours point by point" in w for w in ex.warnings)
 
 
+def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_noted(scene):
+    mat = bs.diffuse("Painted")
+    nt = mat.node_tree
+    attr = nt.nodes.new("ShaderNodeVertexColor")
+    attr.layer_name = "Dirt"
+    nt.links.new(attr.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    assert row["diffuse_program"] == 0
+    assert ex.scene.vertex_colors is not None and (ex.scene.vertex_colors == 0).all()
+    assert ex.scene.generated is None and ex.scene.uvs is None
+    assert any("'Painted'" in w and "'Dirt'" in w for w in ex.warnings), ex.warnings
+
+
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
     mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
     nt = mat.node_tree

@@ -304,3 +304,30 @@ def test_a_mix_shader_of_two_coloured_diffuse_shaders_mixes_their_colours_point_
     cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3].astype(np.float64)
     assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
     compare(ours, cycles, f"mix shader, {factor}")
+
+
+@pytest.mark.parametrize("domain, kind", [("CORNER", "BYTE_COLOR"), ("POINT", "FLOAT_COLOR")])
+def test_color_attribute_matches_cycles(addon, tmp_path, domain, kind):
+    """The render colour attribute (byte colours are stored in sRGB, read linear), interpolated
+    across the plane's triangles, times a gradient."""
+    def build(nt):
+        mul = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY")
+        socket(mul.inputs, "Factor_Float").default_value = 1.0
+        nt.links.new(nt.nodes.new("ShaderNodeVertexColor").outputs["Color"], socket(mul.inputs, "A_Color"))
+        g = node(nt, "ShaderNodeTexGradient", gradient_type="SPHERICAL")
+        nt.links.new(coords(nt, "Object"), g.inputs["Vector"])
+        nt.links.new(g.outputs["Color"], socket(mul.inputs, "B_Color"))
+        return socket(mul.outputs, "Result_Color")
+
+    import bpy
+    mat, positions = bs.texture_plane(build)
+    me = bpy.data.objects["Plane"].data
+    me.color_attributes.new("Other", "FLOAT_COLOR", "POINT")          # not the render one
+    attr = me.color_attributes.new("Paint", kind, domain)
+    me.color_attributes.render_color_index = list(me.color_attributes).index(attr)
+    rgba = np.array([[0.9, 0.1, 0.1, 1], [0.1, 0.8, 0.2, 1], [0.2, 0.3, 0.9, 1], [0.7, 0.7, 0.1, 1]], np.float32)
+    attr.data.foreach_set("color", rgba[np.arange(len(attr.data)) % 4].ravel())
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
+    compare(ours, cycles, f"colour attribute {domain} {kind}")
