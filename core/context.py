@@ -7,8 +7,8 @@ import numpy as np
 
 from .accel import Accel
 from .bsdf import MaterialTable, Textures, lobe_colors
-from .procedural import HitAttributes, evaluate_color
 from .lights import LightSampler
+from .procedural import HitAttributes, evaluate_color
 from .sampling import normalize
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -99,7 +99,8 @@ class RenderContext:
             return albedo
         for k in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == k)
-            attrs = HitAttributes(self.coordinates, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary))
+            attrs = HitAttributes(self.coordinates, prim_ids.take(sel),
+                                  tuple(w.take(sel, axis=0) for w in bary))
             albedo[sel] *= evaluate_color(self.programs[k], attrs, self.textures.images)
         return albedo
 

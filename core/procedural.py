@@ -20,6 +20,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``noise`` vector and the Noise Texture's settings: -> Fac, Color (``core/noise.py``).
 * ``voronoi`` vector and the Voronoi Texture's settings: -> Distance, Color, Position, W, Radius
   (``core/voronoi.py``).
+* ``wave``, ``brick``, ``magic`` vector and the node's settings: -> Color, Fac; ``white_noise``
+  vector, dimensions, w: -> Value, Color (``core/pattern_textures.py``).
 * ``image`` texture (index into the scene's images), vector: -> Color (bilinear, repeat), Alpha = 1.
 * ``ramp`` fac, table (N x 4 RGBA, Blender's colour band sampled at i / (N - 1)), interpolate:
   -> Color, Alpha (``ramp_util.h``'s table lookup; the exporter samples the band with Blender).
@@ -42,6 +44,7 @@ import json
 import numpy as np
 
 from . import noise as _noise_module
+from . import pattern_textures as _patterns
 from . import voronoi as _voronoi_module
 from .bsdf import bilinear
 
@@ -121,7 +124,7 @@ def mean_color(program, images, n=4096):
 
 
 def attributes_used(program) -> set:
-    """Names of the coordinates ``program`` reads (``image`` nodes read the uvs)."""
+    """Names of the per-corner data (``ATTRIBUTES``) ``program`` reads."""
     used = set()
     for node in _nodes(program):
         if node["op"] == "attribute":
@@ -151,14 +154,13 @@ def validate(program, n_images):
         for name in REQUIRED.get(op, ()):
             if name not in node:
                 raise ProgramError(f"op '{op}' lacks its input '{name}'")
-        if op == "image" and not 0 <= int(node["texture"]) < n_images:
-            raise ProgramError(f"image node texture {node['texture']} is not below {n_images}")
+        if op == "image" and not (isinstance(node["texture"], int) and 0 <= node["texture"] < n_images):
+            raise ProgramError(f"image node texture {node['texture']!r} is not an index below {n_images}")
         for key, value in node.items():
             _check_value(op, key, value)
-        if op == "ramp":
-            table = np.asarray(node["table"], np.float64)
-            if table.ndim != 2 or table.shape[0] < 2 or table.shape[1] != 4 or not np.isfinite(table).all():
-                raise ProgramError(f"ramp table must be finite (N >= 2, 4), not {table.shape}")
+        for key, shape in ARRAYS.get(op, {}).items():
+            if key in node:
+                _check_array(op, key, node[key], shape)
 
 
 def _check_value(op, key, value):
@@ -177,6 +179,19 @@ def _check_value(op, key, value):
     if not ok or not np.isfinite(value).all():
         raise ProgramError(f"op '{op}': input {key} must be a finite number, three numbers or a node, "
                            f"not {value!r}")
+
+
+def _check_array(op, key, value, shape):
+    """An op's array setting: finite, of ``shape`` (None: any length >= 2 along that axis)."""
+    try:
+        a = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        a = None
+    ok = (a is not None and a.ndim == len(shape) and np.isfinite(a).all()
+          and all(n == k if k is not None else n >= 2 for n, k in zip(a.shape, shape)))
+    if not ok:
+        raise ProgramError(f"op '{op}': {key} must be a finite array of shape "
+                           f"{tuple('N' if k is None else k for k in shape)}")
 
 
 def _nodes(program):
@@ -299,6 +314,37 @@ def _voronoi(ev, node):
         smoothness=ev.scalar(node, "smoothness", 1.0), normalize=bool(node.get("normalize", False)),
         dimensions=node.get("dimensions", "3D"), w=ev.scalar(node, "w", 0.0))
     return {name: out[name] for name in OUTPUTS["voronoi"]}
+
+
+def _wave(ev, node):
+    return _patterns.wave_texture(
+        ev.vec(node, "vector"), wave_type=node.get("wave_type", "BANDS"),
+        bands_direction=node.get("bands_direction", "X"), rings_direction=node.get("rings_direction", "X"),
+        wave_profile=node.get("wave_profile", "SIN"), scale=ev.scalar(node, "scale", 5.0),
+        distortion=ev.scalar(node, "distortion", 0.0), detail=ev.scalar(node, "detail", 2.0),
+        detail_scale=ev.scalar(node, "detail_scale", 1.0), detail_roughness=ev.scalar(node, "detail_roughness", 0.5),
+        phase_offset=ev.scalar(node, "phase_offset", 0.0))
+
+
+def _brick(ev, node):
+    return _patterns.brick_texture(
+        ev.vec(node, "vector"), color1=ev.vec(node, "color1", (0.8,) * 3), color2=ev.vec(node, "color2", (0.2,) * 3),
+        mortar=ev.vec(node, "mortar", (0.0,) * 3), scale=ev.scalar(node, "scale", 5.0),
+        mortar_size=ev.scalar(node, "mortar_size", 0.02), mortar_smooth=ev.scalar(node, "mortar_smooth", 0.1),
+        bias=ev.scalar(node, "bias", 0.0), brick_width=ev.scalar(node, "brick_width", 0.5),
+        row_height=ev.scalar(node, "row_height", 0.25), offset=ev.scalar(node, "offset", 0.5),
+        offset_frequency=max(int(node.get("offset_frequency", 2)), 1), squash=ev.scalar(node, "squash", 1.0),
+        squash_frequency=max(int(node.get("squash_frequency", 2)), 1))      # Blender's range starts at 1
+
+
+def _magic(ev, node):
+    return _patterns.magic_texture(ev.vec(node, "vector"), depth=int(np.clip(node.get("depth", 2), 0, 10)),
+                                   scale=ev.scalar(node, "scale", 5.0), distortion=ev.scalar(node, "distortion", 1.0))
+
+
+def _white_noise(ev, node):
+    return _patterns.white_noise_texture(ev.vec(node, "vector"), dimensions=node.get("dimensions", "3D"),
+                                         w=ev.float(node, "w", 0.0))
 
 
 def _image(ev, node):
@@ -542,13 +588,16 @@ def _splat(ev, node):
 
 
 OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
-       "noise": _noise, "voronoi": _voronoi, "image": _image, "ramp": _ramp, "mix_color": _mix_color,
+       "noise": _noise, "voronoi": _voronoi, "wave": _wave, "brick": _brick, "magic": _magic,
+       "white_noise": _white_noise, "image": _image, "ramp": _ramp, "mix_color": _mix_color,
        "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math, "map_range": _map_range,
        "invert": _invert, "gamma": _gamma, "hsv": _hsv, "bright_contrast": _bright_contrast, "separate": _separate,
        "combine": _combine, "gray": _gray, "average": _average, "splat": _splat}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
-           "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "image": ("Color", "Alpha"),
+           "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
+           "brick": ("Color", "Fac"), "magic": ("Color", "Fac"), "white_noise": ("Value", "Color"),
+           "image": ("Color", "Alpha"),
            "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
@@ -561,4 +610,9 @@ CHOICES = {("attribute", "name"): ATTRIBUTES, ("mix_color", "blend"): BLEND_MODE
            ("gradient", "gradient_type"): GRADIENT_TYPES, ("noise", "noise_type"): _noise_module.NOISE_TYPES,
            ("noise", "dimensions"): _noise_module.DIMENSIONS, ("voronoi", "feature"): _voronoi_module.FEATURES,
            ("voronoi", "metric"): _voronoi_module.METRICS, ("voronoi", "dimensions"): _voronoi_module.DIMENSIONS,
-           ("map_range", "interpolation"): ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP")}
+           ("map_range", "interpolation"): ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP"),
+           ("wave", "wave_type"): _patterns.WAVE_TYPES, ("wave", "bands_direction"): _patterns.BANDS_DIRECTIONS,
+           ("wave", "rings_direction"): _patterns.RINGS_DIRECTIONS, ("wave", "wave_profile"): _patterns.WAVE_PROFILES,
+           ("white_noise", "dimensions"): _patterns.DIMENSIONS}
+# Array settings and their shapes (None: N >= 2).
+ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)}}

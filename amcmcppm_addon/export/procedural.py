@@ -5,7 +5,8 @@ float, or three floats for colour and vector sockets) or a program node dict, in
 type conversions Cycles makes where a link joins sockets of different types (colour to float
 by luminance, vector to float by the average, float to colour as grey).  Supported nodes:
 Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Mapping (all four types), Image
-Texture (flat projection, repeat), Checker, Gradient, Noise and Voronoi Textures, Color Ramp
+Texture (flat projection, repeat), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White
+Noise Textures, Color Ramp
 (sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; the common
 blend modes) and the legacy MixRGB, Math (the common operations), Map Range (float), Invert,
 Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB and Value.  Anything else is
@@ -231,6 +232,40 @@ def _voronoi(b, node, stack):
     return _out(op, Distance="Distance", Color="Color", Position="Position", W="W", Radius="Radius")
 
 
+def _wave(b, node, stack):
+    op = {"op": "wave", "vector": b.vector_or(node, stack, "generated"), "wave_type": node.wave_type,
+          "bands_direction": node.bands_direction, "rings_direction": node.rings_direction,
+          "wave_profile": node.wave_profile,
+          **_settings(b, node, stack, {"scale": "Scale", "distortion": "Distortion", "detail": "Detail",
+                                       "detail_scale": "Detail Scale", "detail_roughness": "Detail Roughness",
+                                       "phase_offset": "Phase Offset"})}
+    return _out(op, Color="Color", Fac="Fac")
+
+
+def _brick(b, node, stack):
+    op = {"op": "brick", "vector": b.vector_or(node, stack, "generated"),
+          **{k: b.input(node, name, stack, VEC) for k, name in
+             (("color1", "Color1"), ("color2", "Color2"), ("mortar", "Mortar"))},
+          "offset": float(node.offset), "offset_frequency": int(node.offset_frequency),
+          "squash": float(node.squash), "squash_frequency": int(node.squash_frequency),
+          **_settings(b, node, stack, {"scale": "Scale", "mortar_size": "Mortar Size",
+                                       "mortar_smooth": "Mortar Smooth", "bias": "Bias",
+                                       "brick_width": "Brick Width", "row_height": "Row Height"})}
+    return _out(op, Color="Color", Fac="Fac")
+
+
+def _magic(b, node, stack):
+    op = {"op": "magic", "vector": b.vector_or(node, stack, "generated"), "depth": int(node.turbulence_depth),
+          **_settings(b, node, stack, {"scale": "Scale", "distortion": "Distortion"})}
+    return _out(op, Color="Color", Fac="Fac")
+
+
+def _white_noise(b, node, stack):
+    op = {"op": "white_noise", "vector": b.vector_or(node, stack, "generated"),
+          "dimensions": node.noise_dimensions, "w": b.input(node, "W", stack, FLOAT)}
+    return _out(op, Value="Value", Color="Color")
+
+
 def _ramp(b, node, stack):
     ramp = node.color_ramp
     table = [list(ramp.evaluate(i / (RAMP_TABLE_SIZE - 1))) for i in range(RAMP_TABLE_SIZE)]
@@ -348,7 +383,9 @@ NODES = {
     "ShaderNodeRGB": _rgb,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
     "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,
-    "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeValToRGB": _ramp, "ShaderNodeMix": _mix,
+    "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeTexWave": _wave, "ShaderNodeTexBrick": _brick,
+    "ShaderNodeTexMagic": _magic, "ShaderNodeTexWhiteNoise": _white_noise, "ShaderNodeValToRGB": _ramp,
+    "ShaderNodeMix": _mix,
     "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
     "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,
     "ShaderNodeBrightContrast": _bright_contrast,

@@ -176,6 +176,31 @@ def hue_saturation_value(nt):
     return h.outputs["Color"]
 
 
+def brick_over_checker(nt):
+    """Bricks (smooth mortar, offset and squashed rows) whose second colour is a checker."""
+    b = node(nt, "ShaderNodeTexBrick", Scale=2.0, offset=0.3, squash=1.4, squash_frequency=3,
+             Bias=0.2, **{"Mortar Smooth": 0.3, "Mortar Size": 0.05})
+    c = node(nt, "ShaderNodeTexChecker", Scale=6.0, Color1=(0.9, 0.1, 0.1, 1.0))
+    nt.links.new(c.outputs["Color"], b.inputs["Color2"])
+    return b.outputs["Color"]
+
+
+def white_noise_snapped(nt):
+    """White noise hashes the float bits of its input: snapped to cells of 1/8 (floor of 8 x the
+    object coordinates), away from where a pixel centre's rounding could pick another cell."""
+    scale = node(nt, "ShaderNodeMapping", vector_type="POINT", Scale=(8.0, 8.0, 8.0))
+    nt.links.new(coords(nt, "Object"), scale.inputs["Vector"])
+    floor = [node(nt, "ShaderNodeMath", operation="FLOOR") for _ in range(3)]
+    sep, comb = nt.nodes.new("ShaderNodeSeparateXYZ"), nt.nodes.new("ShaderNodeCombineXYZ")
+    nt.links.new(scale.outputs["Vector"], sep.inputs["Vector"])
+    for f, axis in zip(floor, "XYZ"):
+        nt.links.new(sep.outputs[axis], f.inputs[0])
+        nt.links.new(f.outputs[0], comb.inputs[axis])
+    w = node(nt, "ShaderNodeTexWhiteNoise")
+    nt.links.new(comb.outputs["Vector"], w.inputs["Vector"])
+    return w.outputs["Color"]
+
+
 def voronoi(output, **settings):
     """A Voronoi Texture on Object coordinates through a Mapping, one of its outputs."""
     def build(nt):
@@ -207,6 +232,12 @@ CASES = {
     "voronoi_f2_distance": voronoi("Distance", Scale=3.0, feature="F2", distance="MANHATTAN"),
     "voronoi_edges_fractal": voronoi("Distance", Scale=3.0, feature="DISTANCE_TO_EDGE", Detail=2.0),
     "voronoi_smooth_position": voronoi("Position", Scale=2.0, feature="SMOOTH_F1", Smoothness=0.4),
+    "wave_rings_distorted": lambda nt: node(nt, "ShaderNodeTexWave", wave_type="RINGS",
+                                            rings_direction="SPHERICAL", wave_profile="SAW", Scale=3.0,
+                                            Distortion=2.0).outputs["Color"],
+    "brick_over_checker": brick_over_checker,
+    "magic": lambda nt: node(nt, "ShaderNodeTexMagic", turbulence_depth=3, Scale=2.0).outputs["Color"],
+    "white_noise_snapped": white_noise_snapped,
     "noise_fac_ramp": noise("Fac", Scale=4.0, Detail=3.5, Roughness=0.6),
     "noise_color_distorted": noise("Color", Scale=2.5, Distortion=0.8, noise_type="RIDGED_MULTIFRACTAL"),
 }
