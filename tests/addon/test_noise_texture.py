@@ -48,15 +48,22 @@ def _settings(case):
     return kw, opts
 
 
+def shifted_object_coordinates(nt, shift):
+    """Output socket of Object coordinates plus ``shift`` (a Vector Math Add)."""
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    add = nt.nodes.new("ShaderNodeVectorMath")
+    add.operation = "ADD"
+    add.inputs[1].default_value = shift
+    nt.links.new(coords.outputs["Object"], add.inputs[0])
+    return add.outputs["Vector"]
+
+
 def _connect(case, output):
     """Node graph builder for texture_plane: returns the Noise Texture's ``output`` socket."""
     kw, opts = _settings(case)
 
     def connect(nt):
-        coords = nt.nodes.new("ShaderNodeTexCoord")
-        add = nt.nodes.new("ShaderNodeVectorMath")
-        add.operation = "ADD"
-        add.inputs[1].default_value = SHIFT
+        shifted = shifted_object_coordinates(nt, SHIFT)
         noise = nt.nodes.new("ShaderNodeTexNoise")
         noise.noise_type = opts.get("noise_type", "FBM")
         noise.normalize = opts.get("normalize", True)
@@ -65,13 +72,12 @@ def _connect(case, output):
                  "distortion": "Distortion", "offset": "Offset", "gain": "Gain", "w": "W"}
         for key, value in kw.items():
             noise.inputs[names[key]].default_value = value
-        nt.links.new(coords.outputs["Object"], add.inputs[0])
         if opts.get("dimensions") == "1D":         # no Vector socket: W = x
             xyz = nt.nodes.new("ShaderNodeSeparateXYZ")
-            nt.links.new(add.outputs["Vector"], xyz.inputs[0])
+            nt.links.new(shifted, xyz.inputs[0])
             nt.links.new(xyz.outputs["X"], noise.inputs["W"])
         else:
-            nt.links.new(add.outputs["Vector"], noise.inputs["Vector"])
+            nt.links.new(shifted, noise.inputs["Vector"])
         return noise.outputs[0] if output == "fac" else noise.outputs["Color"]
 
     return connect
@@ -126,15 +132,11 @@ def test_large_coordinates_fac_matches_cycles(addon, tmp_path):
     big = np.array([1.2e6, -1.6e6, 1.1e6])
 
     def connect(nt):
-        coords = nt.nodes.new("ShaderNodeTexCoord")
-        add = nt.nodes.new("ShaderNodeVectorMath")
-        add.operation = "ADD"
-        add.inputs[1].default_value = big
+        shifted = shifted_object_coordinates(nt, big)
         noise = nt.nodes.new("ShaderNodeTexNoise")
         for name, value in (("Scale", 1.0), ("Detail", 2.0), ("Roughness", 0.5), ("Lacunarity", 2.0)):
             noise.inputs[name].default_value = value
-        nt.links.new(coords.outputs["Object"], add.inputs[0])
-        nt.links.new(add.outputs["Vector"], noise.inputs["Vector"])
+        nt.links.new(shifted, noise.inputs["Vector"])
         return noise.outputs[0]
 
     from amcmcppm.core.noise import noise_texture
