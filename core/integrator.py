@@ -130,9 +130,13 @@ class Accumulator:
         if is_chain and self.n_uniform:
             rgb = rgb + self.outside / self.n_uniform
         out = np.empty((len(rgb), 4), np.float32)
-        out[:, :3] = rgb
+        # Sums beyond float32 (a scene whose albedos above 1 feed on themselves) stay finite.
+        out[:, :3] = np.minimum(rgb, FLOAT32_MAX)
         out[:, 3] = self.alpha / self.passes
         return out
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _finite(pixel_sum):

@@ -50,6 +50,10 @@ from .bsdf import bilinear
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color")
+# Largest albedo a program may give: above 1 a surface adds light (Cycles allows it, and a Mix
+# Shader mask divided by its mean weight may exceed 1), but a program gone wild (a power, a
+# division by ~0) must not overflow the photons' flux over many bounces.
+COLOR_MAX = 100.0
 
 
 class ProgramError(ValueError):
@@ -110,11 +114,11 @@ def evaluate(program, attrs, images, output=None):
 
 
 def evaluate_color(program, attrs, images):
-    """(k, 3) float64 colour of ``program`` (a float result is grey), NaN and negatives -> 0."""
+    """(k, 3) float64 colour of ``program`` (a float result is grey) in [0, COLOR_MAX]; NaN -> 0."""
     v = evaluate(program, attrs, images)
     if v.ndim == 1:
         v = np.repeat(v[:, None], 3, axis=1)
-    return np.nan_to_num(np.maximum(v, 0.0), nan=0.0, posinf=0.0)
+    return np.clip(np.nan_to_num(v, nan=0.0), 0.0, COLOR_MAX)
 
 
 def mean_color(program, images, n=4096):

@@ -102,7 +102,7 @@ def test_colours_are_finite_and_non_negative():
 
 
 @pytest.mark.parametrize("program, message", [
-    ({"op": "wave"}, "unknown program op"),
+    ({"op": "gabor"}, "unknown program op"),
     ({"op": "checker", "vector": {"op": "attribute", "name": "camera"}}, "name .camera. is not one of"),
     ({"op": "checker", "output": "Alpha"}, "has no output"),
     ({"op": "image", "texture": 3, "vector": OBJECT}, "not an index below"),

@@ -100,7 +100,21 @@ def extreme_values():
     return m.build(mats, lights, cam)
 
 
-SCENES = {"parallel_mirrors": parallel_mirrors, "light_trapped_in_glass": light_trapped_in_glass,
+def wild_procedural_colour():
+    """A room whose walls' colour is a program gone wild: 1 / x (up to 1e7 near the plane x = 0,
+    negative beyond it), to the power 40, times a noise: the colours are clamped, the image finite."""
+    room = cornell_like()
+    x = {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}
+    wild = {"op": "math", "operation": "POWER", "a": {"op": "math", "operation": "DIVIDE", "a": 1.0, "b": x},
+            "b": 40.0}
+    noise = {"op": "noise", "vector": {"op": "attribute", "name": "object"}, "scale": 3.0, "output": "Color"}
+    program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": {"op": "splat", "value": wild}, "b": noise}
+    mats = Materials.build([{"name": "wall", "diffuse_program": program}, {"name": "lamp", "emission": 5.0}])
+    corners = room.vertices[room.triangles]
+    return room.replace(materials=mats, object_coords=corners).validate()
+
+
+SCENES = {"parallel_mirrors": parallel_mirrors, "wild_procedural_colour": wild_procedural_colour, "light_trapped_in_glass": light_trapped_in_glass,
           "camera_inside_glass_sphere": camera_inside_glass_sphere,
           "tiny_scale": lambda: cornell_like(scale=1e-4),
           "far_from_origin": lambda: cornell_like(scale=1.0, offset=(1e5, -2e5, 3e4)),
