@@ -23,6 +23,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``wave``, ``brick``, ``magic`` vector and the node's settings: -> Color, Fac; ``white_noise``
   vector, dimensions, w: -> Value, Color (``core/pattern_textures.py``).
 * ``image`` texture (index into the scene's images), vector: -> Color (bilinear, repeat), Alpha = 1.
+* ``environment`` texture, vector (a direction): -> Color (equirectangular), Alpha = 1.
 * ``ramp`` fac, table (N x 4 RGBA, Blender's colour band sampled at i / (N - 1)), interpolate:
   -> Color, Alpha (``ramp_util.h``'s table lookup; the exporter samples the band with Blender).
 * ``mix_color`` blend, fac, a, b, clamp_factor, clamp_result: -> Result (``color_util.h``).
@@ -87,6 +88,34 @@ class HitAttributes:
         return self._cache[name]
 
 
+class DirectionAttributes:
+    """The coordinates of a world shader: Generated and Object are the direction (Cycles), the
+    uvs and colours zero.  directions : (k, 3) unit float64."""
+
+    def __init__(self, directions):
+        self.directions = np.asarray(directions, np.float64)
+
+    @property
+    def count(self) -> int:
+        return len(self.directions)
+
+    def get(self, name):
+        return self.directions if name in ("generated", "object") else np.zeros_like(self.directions)
+
+
+def equirectangular_directions(width, height):
+    """(height, width, 3) unit directions of the pixel centres of an equirectangular image in the
+    core's layout (row 0 = the bottom, v = (i + 1/2) / height; u = (j + 1/2) / width; see
+    ``core/environment.py``)."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    phi = np.pi - 2.0 * np.pi * u                      # u = 1/2 - phi / 2 pi
+    theta = np.pi * (1.0 - v)                          # v = 1 - theta / pi
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    return np.stack([st * np.cos(phi)[None], st * np.sin(phi)[None], np.broadcast_to(ct, (height, width))],
+                    axis=-1)
+
+
 class SampledAttributes:
     """Stand-in coordinates for an average of a program over a surface: generated (and vertex
     colours) uniform in the unit cube, object in [-1, 1]^3, uv in the unit square (seeded,
@@ -130,7 +159,7 @@ def mean_color(program, images, n=4096):
 def attributes_used(program) -> set:
     """Names of the per-corner data (``ATTRIBUTES``) ``program`` reads."""
     used = set()
-    for node in _nodes(program):
+    for node in nodes(program):
         if node["op"] == "attribute":
             used.add(node["name"])
     return used
@@ -148,7 +177,7 @@ def validate(program, n_images):
     """Raise :class:`ProgramError` naming the first problem of ``program``."""
     if not isinstance(program, dict):
         raise ProgramError(f"a program must be a node dict, not {type(program).__name__}")
-    for node in _nodes(program):
+    for node in nodes(program):
         op = node.get("op")
         if op not in OPS:
             raise ProgramError(f"unknown program op {op!r}")
@@ -158,7 +187,8 @@ def validate(program, n_images):
         for name in REQUIRED.get(op, ()):
             if name not in node:
                 raise ProgramError(f"op '{op}' lacks its input '{name}'")
-        if op == "image" and not (isinstance(node["texture"], int) and 0 <= node["texture"] < n_images):
+        if op in ("image", "environment") and not (isinstance(node["texture"], int)
+                                                   and 0 <= node["texture"] < n_images):
             raise ProgramError(f"image node texture {node['texture']!r} is not an index below {n_images}")
         for key, value in node.items():
             _check_value(op, key, value)
@@ -198,7 +228,7 @@ def _check_array(op, key, value, shape):
                            f"{tuple('N' if k is None else k for k in shape)}")
 
 
-def _nodes(program):
+def nodes(program):
     """Every node of the tree (depth first)."""
     stack = [program]
     while stack:
@@ -349,6 +379,17 @@ def _magic(ev, node):
 def _white_noise(ev, node):
     return _patterns.white_noise_texture(ev.vec(node, "vector"), dimensions=node.get("dimensions", "3D"),
                                          w=ev.float(node, "w", 0.0))
+
+
+def _environment(ev, node):
+    """An equirectangular image looked up by direction (Cycles' ``direction_to_equirectangular``:
+    u = 1/2 - atan2(y, x) / 2 pi, v = 1 - acos(z) / pi; bilinear, wrapping in u, clamped in v)."""
+    d = ev.vec(node, "vector")
+    length = np.sqrt((d * d).sum(axis=1))
+    z = np.where(length > 0, d[:, 2] / np.where(length > 0, length, 1.0), 0.0)
+    u = 0.5 - np.arctan2(d[:, 1], d[:, 0]) / (2.0 * np.pi)
+    v = 1.0 - np.arccos(np.clip(z, -1.0, 1.0)) / np.pi
+    return {"Color": bilinear(ev.images[int(node["texture"])], u, v, clamp_v=True), "Alpha": np.ones(ev.k)}
 
 
 def _image(ev, node):
@@ -593,7 +634,7 @@ def _splat(ev, node):
 
 OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
        "noise": _noise, "voronoi": _voronoi, "wave": _wave, "brick": _brick, "magic": _magic,
-       "white_noise": _white_noise, "image": _image, "ramp": _ramp, "mix_color": _mix_color,
+       "white_noise": _white_noise, "image": _image, "environment": _environment, "ramp": _ramp, "mix_color": _mix_color,
        "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math, "map_range": _map_range,
        "invert": _invert, "gamma": _gamma, "hsv": _hsv, "bright_contrast": _bright_contrast, "separate": _separate,
        "combine": _combine, "gray": _gray, "average": _average, "splat": _splat}
@@ -601,13 +642,14 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
            "brick": ("Color", "Fac"), "magic": ("Color", "Fac"), "white_noise": ("Value", "Color"),
-           "image": ("Color", "Alpha"),
+           "image": ("Color", "Alpha"), "environment": ("Color", "Alpha"),
            "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",)}
-REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "ramp": ("table",)}
+REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "environment": ("texture",),
+            "ramp": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
 # Settings chosen from a list (the others are numbers, colours or nodes).
 CHOICES = {("attribute", "name"): ATTRIBUTES, ("mix_color", "blend"): BLEND_MODES, ("math", "operation"): MATH,

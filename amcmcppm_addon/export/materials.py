@@ -194,6 +194,26 @@ def _one_minus(f):
     return {"op": "math", "operation": "SUBTRACT", "a": 1.0, "b": f}
 
 
+def _plain_environment(e):
+    """(texture index, rotation (3, 3) or None) when program ``e`` is an Environment Texture of the
+    direction, at most turned (a Mapping whose matrix is a positive multiple of a rotation and
+    which moves nothing: the lookup normalises the direction); else None."""
+    if e.get("op") != "environment" or e.get("output", "Color") != "Color":
+        return None
+    direction = {"op": "attribute", "name": "generated"}
+    v = e["vector"]
+    if v == direction:
+        return e["texture"], None
+    if not (isinstance(v, dict) and v.get("op") == "affine" and v["vector"] == direction
+            and not v.get("normalize") and not np.any(v.get("pre", 0.0)) and not np.any(v.get("post", 0.0))):
+        return None
+    m = np.asarray(v["matrix"], np.float64)
+    scale = float(np.cbrt(np.linalg.det(m)))
+    if scale <= 0 or not np.allclose(m @ m.T, scale * scale * np.eye(3), atol=1e-6 * scale * scale):
+        return None
+    return e["texture"], m / scale
+
+
 def textured(source) -> bool:
     """Whether a colour source (:meth:`NodeWalker.color`) varies over the surface."""
     return isinstance(source, dict) or source >= 0
@@ -375,6 +395,7 @@ class NodeWalker:
         self.programs = ExpressionBuilder(self)
         self.world_texture = None       # texture index of the world's environment image, if any
         self.world_rotation = None      # (3, 3) rotation of its Mapping node, if any
+        self.world_program = None       # program of the direction for any other varying world colour
 
     def note(self, msg):
         if msg not in self.notes:
@@ -395,7 +416,12 @@ class NodeWalker:
         return self.shader(out.inputs["Surface"], ()) or Closure()
 
     def world_color(self, world):
-        """Background radiance (3,) of a world: Background/Emission colour times strength."""
+        """Background radiance (3,) of a world: Background/Emission colour times strength.
+
+        A colour that varies with the direction is left in ``world_program`` (a program of the
+        direction, which the world export bakes into an image) unless it is an equirectangular
+        Environment Texture, at most turned by a Mapping node, which becomes ``world_texture``
+        (and ``world_rotation``) as it is; the returned colour then multiplies either."""
         nt = world.node_tree
         if nt is None:
             return np.array(world.color[:3], np.float64)
@@ -408,58 +434,18 @@ class NodeWalker:
         node = src.node
         if node.bl_idname in ("ShaderNodeBackground", "ShaderNodeEmission"):
             strength = self.value(node.inputs["Strength"], stack)
-            env = self.environment_texture(node.inputs["Color"], stack)
-            if env is not None:
-                self.world_texture = env
-                return np.full(3, strength)
-            color, _ = self.color(node.inputs["Color"], stack)
-            return color * strength
+            e = self.programs.expression(node.inputs["Color"], stack, VEC)
+            if not isinstance(e, dict) or not procedural.attributes_used(e):
+                color, _ = self.color(node.inputs["Color"], stack)
+                return color * strength
+            plain = _plain_environment(e)
+            if plain is not None:
+                self.world_texture, self.world_rotation = plain
+            else:
+                self.world_program = e
+            return np.full(3, strength)
         self.unsupported(node, "in the world; using the world colour")
         return np.array(world.color[:3], np.float64)
-
-    def environment_texture(self, sock, stack):
-        """Texture index of an equirectangular Environment Texture feeding ``sock``, or None."""
-        src, _, stack = self.source(sock, stack)
-        if src is None or src.node.bl_idname != "ShaderNodeTexEnvironment" or src.node.mute:
-            return None
-        node = src.node
-        if node.image is None:
-            return None
-        if node.projection != "EQUIRECTANGULAR":
-            self.note(f"'{node.name}': {node.projection} projection is not supported; using the image's "
-                      "mean colour")
-            return None
-        if node.inputs["Vector"].is_linked:
-            self.world_rotation = self._mapping_rotation(node.inputs["Vector"], stack)
-        index, _ = self.textures.lookup(node.image, f"world '{self.name}'")
-        return index if index >= 0 else None
-
-    def _mapping_rotation(self, sock, stack):
-        """(3, 3) rotation of a Mapping node on an environment's direction, or None (with a note)
-        for anything else.  Location and a uniform scale do not move a direction's lookup."""
-        src, _, stack = self.source(sock, stack)
-        node = None if src is None else src.node
-        if node is None or node.bl_idname != "ShaderNodeMapping" or node.mute:
-            self.note("an environment's Vector input other than a Mapping node is ignored")
-            return None
-        inner, _, _ = self.source(node.inputs["Vector"], stack)
-        if inner is None or not (inner.node.bl_idname == "ShaderNodeTexCoord" and inner.name == "Generated"):
-            self.note(f"'{node.name}': only a Mapping of the world's direction (Texture Coordinate > "
-                      "Generated) is supported")
-            return None
-        if any(i.is_linked for i in (node.inputs["Rotation"], node.inputs["Scale"], node.inputs["Location"])):
-            self.note(f"'{node.name}': linked mapping inputs are ignored")
-            return None
-        scale = np.array(node.inputs["Scale"].default_value[:3], np.float64)
-        location = np.array(node.inputs["Location"].default_value[:3], np.float64)
-        moved = node.vector_type == "POINT" and np.abs(location).max() > 1e-9
-        if (node.vector_type not in ("POINT", "VECTOR") or moved or scale.min() <= 0
-                or np.ptp(scale) > 1e-6 * scale.max()):
-            self.note(f"'{node.name}': only a rotation of the environment is supported "
-                      f"(type {node.vector_type}, location {location}, scale {scale})")
-            return None
-        from mathutils import Euler
-        return np.array(Euler(node.inputs["Rotation"].default_value[:3], "XYZ").to_matrix(), np.float64)
 
     # ----------------------------------------------------------------- links
     def source(self, sock, stack):

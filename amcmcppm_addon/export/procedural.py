@@ -193,6 +193,21 @@ def _image(b, node, stack):
     return {"Color": op, "Alpha": 1.0}
 
 
+def _environment(b, node, stack):
+    w = b.walker
+    if node.image is None:
+        w.note(f"environment texture '{node.name}' has no image; using magenta")
+        return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
+    if node.projection != "EQUIRECTANGULAR":
+        w.note(f"'{node.name}': {node.projection.lower()} projection is not supported")
+        return None
+    index, _ = w.textures.lookup(node.image, f"'{w.name}'")
+    if index < 0:
+        return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
+    return {"Color": {"op": "environment", "texture": index, "vector": b.vector_or(node, stack, "generated")},
+            "Alpha": 1.0}
+
+
 def _checker(b, node, stack):
     op = {"op": "checker", "vector": b.vector_or(node, stack, "generated"),
           "color1": b.input(node, "Color1", stack, VEC), "color2": b.input(node, "Color2", stack, VEC),
@@ -382,6 +397,7 @@ NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
     "ShaderNodeRGB": _rgb,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
+    "ShaderNodeTexEnvironment": _environment,
     "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,
     "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeTexWave": _wave, "ShaderNodeTexBrick": _brick,
     "ShaderNodeTexMagic": _magic, "ShaderNodeTexWhiteNoise": _white_noise, "ShaderNodeValToRGB": _ramp,

@@ -1,19 +1,25 @@
-"""The world -> ``core.World``: a constant background radiance.
+"""The world -> ``core.World``: a background radiance by direction.
 
 The world's Cycles output is followed to a Background (or Emission) node and its
 Color x Strength is used, as Cycles does for a constant background; a world
 without nodes uses ``world.color``.  The view layer's world override wins over
 the scene's world.  An Environment Texture (equirectangular) on the Background colour
-becomes the world's image, turned by a Mapping node's rotation on its vector (other vector
-inputs are ignored with a warning).  Other textures (sky) give one warning and the node's own
-colour.
+becomes the world's image as it is, turned by a Mapping node's rotation on its vector.  Any
+other colour that varies with the direction (texture and colour nodes of ``procedural.py`` on
+the world's direction: an environment moved or mixed, a gradient sky...) is evaluated at the
+pixel centres of an equirectangular image (``BAKE_WIDTH`` wide, or as wide as the largest
+environment image in it, up to ``BAKE_MAX_WIDTH``) that becomes the world's image.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ...core import procedural
 from ...core.scene import World
 from .materials import NodeWalker
+
+BAKE_WIDTH = 1024          # equirectangular image of a procedural world (height: half)
+BAKE_MAX_WIDTH = 4096
 
 
 def export_world(depsgraph, textures, log) -> World:
@@ -30,5 +36,22 @@ def export_world(depsgraph, textures, log) -> World:
     texture = None
     if walker.world_texture is not None:
         texture = np.maximum(textures.images[walker.world_texture], 0.0)
+    elif walker.world_program is not None:
+        texture = bake_world(walker.world_program, textures.images)
     return World(color=color.astype(np.float32), film_transparent=transparent, texture=texture,
                  texture_rotation=walker.world_rotation if texture is not None else None)
+
+
+def bake_world(program, images):
+    """(H, W, 3) float32 equirectangular image of ``program`` (a function of the direction) in the
+    core's layout, evaluated at the pixel centres."""
+    widths = [images[n["texture"]].shape[1] for n in procedural.nodes(program) if n["op"] == "environment"]
+    width = int(min(max([BAKE_WIDTH, *widths]), BAKE_MAX_WIDTH))
+    height = width // 2
+    dirs = procedural.equirectangular_directions(width, height).reshape(-1, 3)
+    rgb = procedural.evaluate(program, procedural.DirectionAttributes(dirs), images)
+    if rgb.ndim == 1:
+        rgb = np.repeat(rgb[:, None], 3, axis=1)
+    # Radiance, not an albedo: no upper bound (an HDR sun), but finite and non-negative.
+    rgb = np.nan_to_num(np.maximum(rgb, 0.0), nan=0.0, posinf=0.0)
+    return rgb.reshape(height, width, 3).astype(np.float32)

@@ -1022,13 +1022,19 @@ def test_world_environment_texture_becomes_the_world_image(scene):
     mapping = nt.nodes.new("ShaderNodeMapping")
     mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.pi / 2)
     nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
-    ex = bs.export()                     # an unlinked Mapping vector is (0, 0, 0) in Cycles
-    assert any("Generated" in m for m in ex.warnings) and ex.scene.world.texture_rotation is None
+    ex = bs.export()                     # an unlinked Mapping vector is (0, 0, 0) in Cycles: one colour
+    assert ex.scene.world.texture is None and np.isfinite(ex.scene.world.color).all()
     coords = nt.nodes.new("ShaderNodeTexCoord")
     nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
     ex = bs.export()
     assert not [m for m in ex.warnings if "world" in m]
     np.testing.assert_allclose(ex.scene.world.texture_rotation, [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-6)
+    # Moved (a Point mapping's location changes the direction looked up): baked, exactly.
+    mapping.inputs["Location"].default_value = (0.0, 0.0, 0.5)
+    ex = bs.export()
+    world = ex.scene.world
+    assert world.texture_rotation is None and world.texture.shape == (512, 1024, 3)
+    assert not [m for m in ex.warnings if "world" in m]
 
 
 def test_transform_helpers_match_mathutils():

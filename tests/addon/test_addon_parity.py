@@ -378,3 +378,40 @@ def test_procedural_textures_match_cycles(addon, tmp_path):
     # The checker shows: the darker colour's pixels are darker in both.
     lum_c, lum_o = c @ [0.2126, 0.7152, 0.0722], o @ [0.2126, 0.7152, 0.0722]
     assert np.corrcoef(lum_c, lum_o)[0, 1] > 0.9
+
+
+def test_procedural_world_matches_cycles(addon, tmp_path):
+    """The corner lit only by a world whose colour varies with the direction: a Color Ramp over a
+    Gradient of the direction turned to run from the nadir to the zenith (a dark ground, an orange
+    horizon, a blue zenith), plus a Noise for clouds.  The exporter bakes it into an image."""
+    def build():
+        corner_scene()
+        world = bs.world((0.0, 0.0, 0.0), strength=1.5)
+        nt = world.node_tree
+        mapping = nt.nodes.new("ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value = (0.0, math.radians(-90.0), 0.0)     # x <- z
+        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Generated"], mapping.inputs["Vector"])
+        gradient = nt.nodes.new("ShaderNodeTexGradient")
+        nt.links.new(mapping.outputs["Vector"], gradient.inputs["Vector"])
+        ramp = nt.nodes.new("ShaderNodeValToRGB")
+        band = ramp.color_ramp
+        band.elements[0].color = (0.05, 0.04, 0.03, 1.0)
+        band.elements[1].position = 0.02
+        band.elements[1].color = (1.0, 0.5, 0.2, 1.0)
+        band.elements.new(0.6).color = (0.2, 0.4, 1.0, 1.0)
+        nt.links.new(gradient.outputs["Fac"], ramp.inputs["Fac"])
+        noise = nt.nodes.new("ShaderNodeTexNoise")
+        noise.inputs["Scale"].default_value = 4.0
+        mix = nt.nodes.new("ShaderNodeMixRGB")
+        mix.blend_type = "SCREEN"
+        mix.inputs["Fac"].default_value = 0.3
+        nt.links.new(ramp.outputs["Color"], mix.inputs["Color1"])
+        nt.links.new(noise.outputs["Fac"], mix.inputs["Color2"])
+        nt.links.new(mix.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    c, o = cycles[..., :3].reshape(-1, 3), ours[..., :3].reshape(-1, 3)
+    ratio = o.mean(axis=0) / c.mean(axis=0)
+    print(f"procedural world: ours / cycles by channel {np.round(ratio, 4)}")
+    np.testing.assert_allclose(ratio, 1.0, rtol=TOLERANCE)
+    for k in range(3):
+        assert_bands_match(f"procedural world, channel {k}", ours[..., k:k + 1], cycles[..., k:k + 1])
