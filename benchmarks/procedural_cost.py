@@ -23,6 +23,7 @@ sys.path.insert(0, ROOT)
 from ab_photon_pass import photon_pass  # noqa: E402
 
 from core.scene import Materials  # noqa: E402
+from core.testing.scenes import with_one_object  # noqa: E402
 
 OBJECT = {"op": "attribute", "name": "object"}
 NOISE = {"op": "noise", "vector": OBJECT, "scale": 5.0, "detail": 2.0, "roughness": 0.5, "lacunarity": 2.0}
@@ -45,9 +46,7 @@ def with_program(program):
                  zip(scene.materials.names, scene.materials.diffuse_color, scene.materials.emission)]
         specs[0] = {**specs[0], "diffuse_program": program}
         del specs[0]["diffuse"]
-        corners = scene.vertices[scene.triangles]
-        return scene.replace(materials=Materials.build(specs), object_coords=corners,
-                             generated=corners).validate()
+        return with_one_object(scene.replace(materials=Materials.build(specs))).validate()
     return edit
 
 

@@ -56,8 +56,6 @@ class RenderContext:
         # Procedural diffuse colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs
         self.has_programs = bool((self.table.program >= 0).any())
-        self.coordinates = {"generated": scene.generated, "object": scene.object_coords, "uv": scene.uvs,
-                            "color": scene.vertex_colors}
 
     def surface(self, prim_ids, b1, b2) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics."""
@@ -88,10 +86,10 @@ class RenderContext:
                 albedo = np.where((tex >= 0)[:, None],
                                   albedo * self.textures.lookup(tex, uv), albedo)
         if self.has_programs:
-            albedo = self._apply_programs(albedo, prim_ids, bary, mat)
+            albedo = self._apply_programs(albedo, prim_ids, bary, pos, mat)
         return Surface(pos, ng, ns, mat, lobe_colors(self.table, mat, albedo), nn)
 
-    def _apply_programs(self, albedo, prim_ids, bary, mat):
+    def _apply_programs(self, albedo, prim_ids, bary, pos, mat):
         """``albedo`` (n, 3) (a fresh array: scaled in place) times the procedural colour where
         the material has a program."""
         program = self.table.program.take(mat)
@@ -99,8 +97,8 @@ class RenderContext:
             return albedo
         for k in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == k)
-            attrs = HitAttributes(self.coordinates, prim_ids.take(sel),
-                                  tuple(w.take(sel, axis=0) for w in bary))
+            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
+                                  pos.take(sel, axis=0))
             albedo[sel] *= evaluate_color(self.programs[k], attrs, self.textures.images)
         return albedo
 

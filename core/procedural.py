@@ -10,9 +10,10 @@ where a link joins sockets of different types, as Cycles does.
 
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
-* ``attribute`` name = generated | object | uv | color: -> Vector.  Per-corner data of the scene
-  (``Scene.generated``, ``Scene.object_coords``, ``Scene.uvs`` as (u, v, 0), ``Scene.vertex_colors``),
-  interpolated.
+* ``attribute`` name = generated | object | uv | color: -> Vector.  Blender's Generated and Object
+  coordinates (the hit in its object's space, ``Scene.object_from_world``, and that object's
+  texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs``
+  as (u, v, 0) and ``Scene.vertex_colors``, interpolated.
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
@@ -62,13 +63,13 @@ class ProgramError(ValueError):
 
 
 class HitAttributes:
-    """Texture coordinates of k hits, interpolated when a program first asks for them.
+    """Texture coordinates of k hits, computed when a program first asks for them.
 
-    corners : dict name -> (T, 3, c) per-corner arrays (c = 3, or 2 for ``uv``) or None;
-    prim_ids : (k,) triangle ids; bary : (b0, b1, b2), (k, 1) each."""
+    scene : the ``Scene`` (its uvs, vertex colours and objects); prim_ids : (k,) triangle ids;
+    bary : (b0, b1, b2), (k, 1) each; positions : (k, 3) float64 world positions of the hits."""
 
-    def __init__(self, corners, prim_ids, bary):
-        self.corners, self.prim_ids, self.bary = corners, prim_ids, bary
+    def __init__(self, scene, prim_ids, bary, positions):
+        self.scene, self.prim_ids, self.bary, self.positions = scene, prim_ids, bary, positions
         self._cache = {}
 
     @property
@@ -77,15 +78,32 @@ class HitAttributes:
 
     def get(self, name):
         if name not in self._cache:
-            c = self.corners.get(name)
-            if c is None:
-                raise ProgramError(f"the program needs '{name}' coordinates, which the scene lacks")
-            c = c.take(self.prim_ids, axis=0).astype(np.float64)
-            v = self.bary[0] * c[:, 0] + self.bary[1] * c[:, 1] + self.bary[2] * c[:, 2]
-            if v.shape[1] == 2:
-                v = np.concatenate([v, np.zeros((len(v), 1))], axis=1)
-            self._cache[name] = v
+            self._cache[name] = self._object(name) if name in ("object", "generated") else self._corners(name)
         return self._cache[name]
+
+    def _corners(self, name):
+        c = {"uv": self.scene.uvs, "color": self.scene.vertex_colors}[name]
+        if c is None:
+            raise ProgramError(f"the program needs '{name}' data, which the scene lacks")
+        c = c.take(self.prim_ids, axis=0).astype(np.float64)
+        v = self.bary[0] * c[:, 0] + self.bary[1] * c[:, 1] + self.bary[2] * c[:, 2]
+        if v.shape[1] == 2:
+            v = np.concatenate([v, np.zeros((len(v), 1))], axis=1)
+        return v
+
+    def _object(self, name):
+        s = self.scene
+        if s.object_ids is None:
+            raise ProgramError(f"the program needs '{name}' coordinates, which the scene lacks")
+        obj = s.object_ids.take(self.prim_ids)
+        m = s.object_from_world.take(obj, axis=0)                               # (k, 3, 4)
+        p = np.einsum("kij,kj->ki", m[:, :, :3], self.positions) + m[:, :, 3]
+        if name == "object":
+            return p
+        space = s.texture_spaces.take(obj, axis=0)                               # (k, 2, 3)
+        size = space[:, 1]
+        half = np.where(size != 0.0, 0.5 / np.where(size != 0.0, size, 1.0), 0.0)
+        return (p - space[:, 0]) * half + 0.5
 
 
 class DirectionAttributes:

@@ -434,11 +434,14 @@ class Scene:
     # sign w: bitangent = w cross(normal, tangent).  Needed by normal maps (Materials), else None.
     tangents: np.ndarray = None
     textures: list = field(default_factory=list)  # K images (H, W, 3) float32, linear, row 0 = bottom
-    # Per-corner coordinates of procedural textures (Materials.programs), or None when none reads
-    # them: (T, 3, 3) float32 Blender's Generated (the object's texture space mapped to [0, 1]^3)
-    # and Object (object-space position) coordinates.
-    generated: np.ndarray = None
-    object_coords: np.ndarray = None
+    # The objects (instances) of procedural textures' Object and Generated coordinates, or None
+    # when no program reads them: object_ids (T,) int32 each triangle's object; object_from_world
+    # (O, 3, 4) float64 the affine map of a world position into its object's space; texture_spaces
+    # (O, 2, 3) float64 the location and size of each object's texture space (Generated maps it to
+    # [0, 1]^3: (p_object - location) / (2 size) + 1/2, 1/2 along an axis of size 0).
+    object_ids: np.ndarray = None
+    object_from_world: np.ndarray = None
+    texture_spaces: np.ndarray = None
     vertex_colors: np.ndarray = None    # (T, 3, 3) float32 linear RGB per corner (Color Attribute), or None
 
     # ------------------------------------------------------------------ queries
@@ -548,9 +551,10 @@ class Scene:
             self.uvs = per_corner("uvs", self.uvs, 2)
         if self.tangents is not None:
             self.tangents = per_corner("tangents", self.tangents, 4)
-        for name in ("generated", "object_coords", "vertex_colors"):
-            if getattr(self, name) is not None:
-                setattr(self, name, per_corner(name, getattr(self, name), 3))
+        if self.vertex_colors is not None:
+            self.vertex_colors = per_corner("vertex_colors", self.vertex_colors, 3)
+        if self.object_ids is not None:
+            self._validate_objects(fail, arr, t)
         lights = self.lights
         nl = lights.count
         if lights.visibility is None and lights.kind is not None:
@@ -628,13 +632,26 @@ class Scene:
             self.world.texture_rotation = rot
         return self
 
+    def _validate_objects(self, fail, arr, t):
+        self.object_ids = arr("object_ids", self.object_ids, np.int32, (), t)
+        for name in ("object_from_world", "texture_spaces"):
+            if getattr(self, name) is None:
+                fail(f"{name} is missing (the scene has object_ids)")
+        n = len(self.object_from_world)
+        self.object_from_world = arr("object_from_world", np.asarray(self.object_from_world).reshape(n, 12),
+                                     np.float64, (12,)).reshape(n, 3, 4)
+        self.texture_spaces = arr("texture_spaces", np.asarray(self.texture_spaces).reshape(-1, 6), np.float64,
+                                  (6,), n).reshape(n, 2, 3)
+        if t and (self.object_ids.min() < 0 or self.object_ids.max() >= n):
+            fail(f"object_ids outside [0, {n})")
+
     def _validate_programs(self, fail):
         mats = self.materials
         mats.programs = [procedural.from_json(p) if isinstance(p, str) else p for p in mats.programs]
         v = mats.diffuse_program
         if ((v < -1) | (v >= len(mats.programs))).any():
             fail(f"materials.diffuse_program must be -1 or an index below {len(mats.programs)}")
-        coords = {"generated": self.generated, "object": self.object_coords, "uv": self.uvs,
+        coords = {"generated": self.object_ids, "object": self.object_ids, "uv": self.uvs,
                   "color": self.vertex_colors}
         for i, program in enumerate(mats.programs):
             try:
@@ -688,7 +705,7 @@ class Scene:
             d["uvs"] = self.uvs
         if self.tangents is not None:
             d["tangents"] = self.tangents
-        for name in ("generated", "object_coords", "vertex_colors"):
+        for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for i, tex in enumerate(self.textures):
@@ -722,8 +739,9 @@ class Scene:
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),
                       material_ids=get("material_ids"), materials=mats, lights=lights,
                       camera=cam, world=world, shading_normals=get("shading_normals"),
-                      uvs=get("uvs"), tangents=get("tangents"), generated=get("generated"),
-                      object_coords=get("object_coords"), vertex_colors=get("vertex_colors"),
+                      uvs=get("uvs"), tangents=get("tangents"), vertex_colors=get("vertex_colors"),
+                      object_ids=get("object_ids"), object_from_world=get("object_from_world"),
+                      texture_spaces=get("texture_spaces"),
                       textures=[get(f"textures.{i}") for i in range(ntex)])
         return scene.validate()
 

@@ -47,14 +47,6 @@ class LocalMesh:
     texspace: tuple = ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))  # texture space (location, size): Generated
     colors: np.ndarray | None = None  # (T, 3, 3) float32 linear render colour attribute per corner, or None
 
-    def corner_coordinates(self):
-        """(object, generated), each (T, 3, 3) float32: Blender's Object and Generated texture
-        coordinates at the triangle corners (Generated maps the texture space to [0, 1]^3)."""
-        obj = self.positions[self.triangles]
-        loc, size = (np.asarray(v, np.float64) for v in self.texspace)
-        half = np.where(size != 0.0, 0.5 / np.where(size != 0.0, size, 1.0), 0.0)
-        return obj.astype(np.float32), ((obj - loc) * half + 0.5).astype(np.float32)
-
 
 @dataclass
 class Geometry:
@@ -66,9 +58,11 @@ class Geometry:
     shading_normals: np.ndarray | None  # (T, 3, 3) float32 or None
     uvs: np.ndarray | None          # (T, 3, 2) float32 or None
     tangents: np.ndarray | None = None  # (T, 3, 4) float32 or None
-    object_coords: np.ndarray | None = None  # (T, 3, 3) float32 or None (procedural textures)
-    generated: np.ndarray | None = None      # (T, 3, 3) float32 or None (procedural textures)
     colors: np.ndarray | None = None         # (T, 3, 3) float32 or None (Color Attribute nodes)
+    # Objects of procedural textures' Object and Generated coordinates, or None (core.Scene):
+    object_ids: np.ndarray | None = None          # (T,) int32 each triangle's instance
+    object_from_world: np.ndarray | None = None   # (O, 3, 4) float64
+    texture_spaces: np.ndarray | None = None      # (O, 2, 3) float64 location and size
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
@@ -335,12 +329,14 @@ def assemble(meshes, groups, materials) -> Geometry:
     parts = []
     offset = 0
     instances = 0
-    # Coordinates of procedural textures, when some material reads them (for every triangle).
-    coordinates = (materials.coordinates_used({i for _, ids in groups for i in ids})
-                   & {"object", "generated", "color"})
+    # Data of procedural textures, when some material reads it (for every triangle).
+    coordinates = materials.coordinates_used({i for _, ids in groups for i in ids})
+    objects = bool(coordinates & {"object", "generated"})
     for (key, mat_ids), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
+        if objects:
+            part["object_ids"] += instances
         parts.append(part)
         offset += len(part["vertices"])
         instances += len(matrices)
@@ -358,7 +354,8 @@ def assemble(meshes, groups, materials) -> Geometry:
     if materials.uses_textures(used):
         uvs = np.concatenate([p["uvs"] if p["uvs"] is not None
                               else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
-    coords = {name: np.concatenate([p[name] for p in parts]) for name in coordinates}
+    objects = {name: np.concatenate([p[name] for p in parts])
+               for name in ("object_ids", "object_from_world", "texture_spaces") if name in parts[0]}
     if materials.normal_map_uv(used) is not None:
         # Zero tangents (meshes without UVs or a tangent frame) keep the unbent normal, as in Cycles.
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
@@ -368,19 +365,21 @@ def assemble(meshes, groups, materials) -> Geometry:
                     shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),
                     uvs=None if uvs is None else np.ascontiguousarray(uvs, np.float32),
                     tangents=None if tangents is None else np.ascontiguousarray(tangents, np.float32),
-                    object_coords=coords.get("object"), generated=coords.get("generated"),
-                    colors=coords.get("color"),
+                    colors=np.concatenate([p["color"] for p in parts]) if "color" in coordinates else None,
+                    **objects,
                     instances=instances)
 
 
-def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordinates=()):
+def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordinates=frozenset()):
     """World-space arrays of ``k`` instances of ``local``.
 
     world_from_object : (k, 4, 4) float64.  mat_ids : (n_slots,) int32 core material
     ids of the slots.  Returns a dict of vertices (k V, 3) float32, triangles (k T, 3)
     int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) float32
-    or None, uvs (k T, 3, 2) float32 or None and tangents (k T, 3, 4) float32 or None, and for
-    each name in ``coordinates`` ("object", "generated") those texture coordinates (k T, 3, 3).
+    or None, uvs (k T, 3, 2) float32 or None and tangents (k T, 3, 4) float32 or None; with
+    "object" or "generated" in ``coordinates`` also object_ids (k T,) int32 (0 .. k - 1, the
+    instance), object_from_world (k, 3, 4) float64 and texture_spaces (k, 2, 3) float64, and with
+    "color" the render colour attribute per corner, color (k T, 3, 3) float32 (black without one).
     """
     k = len(world_from_object)
     rot = world_from_object[:, :3, :3]
@@ -431,14 +430,16 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
            "normals": normals, "uvs": uvs, "tangents": tangents}
     # Texture coordinates of procedural textures: each instance's own object space.
-    per_corner = dict(zip(("object", "generated"), local.corner_coordinates())) if coordinates else {}
+    if coordinates & {"object", "generated"}:
+        out["object_ids"] = np.repeat(np.arange(k, dtype=np.int32), n_t)
+        out["object_from_world"] = np.linalg.inv(world_from_object)[:, :3, :4]
+        out["texture_spaces"] = np.repeat(np.asarray(local.texspace, np.float64)[None], k, axis=0)
     if "color" in coordinates:
         # Meshes without a colour attribute read black, as in Cycles.
-        per_corner["color"] = local.colors if local.colors is not None else np.zeros((n_t, 3, 3), np.float32)
-    for name in coordinates:
-        c = np.repeat(per_corner[name][None], k, axis=0)
+        c = local.colors if local.colors is not None else np.zeros((n_t, 3, 3), np.float32)
+        c = np.repeat(c[None], k, axis=0)
         _swap_corners(c, mirrored)
-        out[name] = c.reshape(k * n_t, 3, 3)
+        out["color"] = c.reshape(k * n_t, 3, 3)
     return out
 
 

@@ -82,8 +82,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     scene = Scene(vertices=geometry.vertices, triangles=geometry.triangles,
                   material_ids=geometry.material_ids, materials=materials.build(), lights=lights,
                   camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,
-                  tangents=geometry.tangents, generated=geometry.generated,
-                  object_coords=geometry.object_coords, vertex_colors=geometry.colors,
+                  tangents=geometry.tangents, vertex_colors=geometry.colors, object_ids=geometry.object_ids,
+                  object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
                   textures=materials.textures.images)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,

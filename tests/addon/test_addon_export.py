@@ -403,13 +403,17 @@ def test_procedural_colour_becomes_a_program_with_the_coordinates_it_reads(scene
     assert program["b"] == {"op": "splat", "value": {"op": "gradient", "output": "Fac", "gradient_type": "LINEAR",
                                                      "vector": {"op": "attribute", "name": "object"}}}
     assert material_row(s, "Plain")["diffuse_program"] == -1
-    assert s.generated.shape == s.object_coords.shape == (4, 3, 3) and s.uvs is None
+    assert s.object_ids.shape == (4,) and s.object_from_world.shape == (2, 3, 4) and s.uvs is None
     textured = np.flatnonzero(s.material_ids == s.materials.names.index("Procedural"))
     # Object coordinates undo the object's transform; Generated maps its texture space to [0, 1].
-    corners = s.object_coords[textured].reshape(-1, 3)
-    assert np.abs(corners[:, :2]).max() == pytest.approx(1.5) and np.abs(corners[:, 2]).max() == 0
-    gen = s.generated[textured].reshape(-1, 3)
-    np.testing.assert_allclose(gen, corners / 3.0 + 0.5, atol=1e-6)
+    corners = s.vertices[s.triangles[textured]].reshape(-1, 3).astype(np.float64)
+    from amcmcppm.core.procedural import HitAttributes
+    tri = np.repeat(textured, 3)
+    bary = tuple((np.tile(np.eye(3), (len(textured), 1))[:, k:k + 1]) for k in range(3))
+    attrs = HitAttributes(s, tri, bary, corners)
+    obj = attrs.get("object")
+    assert np.abs(obj[:, :2]).max() == pytest.approx(1.5) and np.abs(obj[:, 2]).max() < 1e-6
+    np.testing.assert_allclose(attrs.get("generated"), obj * [1 / 3, 1 / 3, 0] + 0.5, atol=1e-6)
     assert not any("Procedural" in w for w in ex.warnings), ex.warnings
 
 
@@ -428,7 +432,7 @@ def test_textures_on_inputs_that_cannot_vary_use_their_mean_with_a_warning(scene
 
 def has_no_programs(core_scene):
     """No procedural colour and no coordinates for one."""
-    return core_scene.materials.programs == [] and core_scene.generated is None
+    return core_scene.materials.programs == [] and core_scene.object_ids is None
 
 
 def test_constant_node_graphs_fold_into_constants(scene):
@@ -483,7 +487,7 @@ def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_not
     row, ex = export_material(mat)
     assert row["diffuse_program"] == 0
     assert ex.scene.vertex_colors is not None and (ex.scene.vertex_colors == 0).all()
-    assert ex.scene.generated is None and ex.scene.uvs is None
+    assert ex.scene.object_ids is None and ex.scene.uvs is None
     assert any("'Painted'" in w and "'Dirt'" in w for w in ex.warnings), ex.warnings
 
 
@@ -498,8 +502,8 @@ def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(s
 
 
 def test_instances_get_their_own_object_coordinates(scene):
-    """Two instances of one mesh, one mirrored: the same object-space corners (swapped with
-    the mirrored winding), whatever their world placement."""
+    """Two instances of one mesh, one mirrored: each triangle's object maps its world corners back
+    to the same object-space corners, whatever the instance's placement."""
     mat = bs.diffuse("Cells")
     nt = mat.node_tree
     checker = nt.nodes.new("ShaderNodeTexChecker")
@@ -511,14 +515,15 @@ def test_instances_get_their_own_object_coordinates(scene):
     bpy.context.scene.collection.objects.link(b)
     bs.camera()
     s = bs.export().scene
-    assert len(s.triangles) == 4
-    world = s.vertices[s.triangles]
-    shifted = np.abs(world[..., 0] - s.object_coords[..., 0]).max(axis=1) > 1
+    assert len(s.triangles) == 4 and len(s.object_from_world) == 2
+    world = s.vertices[s.triangles].astype(np.float64)                       # (4, 3, 3)
+    local = np.einsum("tij,tcj->tci", s.object_from_world[s.object_ids][:, :, :3], world) \
+        + s.object_from_world[s.object_ids][:, None, :, 3]
+    shifted = np.abs(world[..., 0] - local[..., 0]).max(axis=1) > 1
     assert shifted.sum() == 2                       # B's triangles are elsewhere in the world ...
     key = lambda c: sorted(map(tuple, np.round(c.reshape(-1, 3), 5)))        # noqa: E731
-    assert key(s.object_coords[shifted]) == key(s.object_coords[~shifted])   # ... with A's object coords
-    # The corners follow the winding: mapping object to world by B's transform gives the vertices.
-    np.testing.assert_allclose(s.object_coords[shifted] * [-2, 1, 1] + [4, 0, 1], world[shifted], atol=1e-6)
+    assert key(local[shifted]) == key(local[~shifted])                      # ... with A's object coords
+    assert np.abs(local).max() == pytest.approx(1.0, abs=1e-6)
 
 
 def normal_mapped(name, rgb=(0.7, 0.5, 0.9)):

@@ -125,9 +125,27 @@ def test_scene_validation_names_a_bad_program(program, message):
 def test_scene_validation_asks_for_the_coordinates_a_program_reads():
     scene = sun_over_procedural_floor({"op": "gradient", "vector": {"op": "attribute", "name": "generated"}})
     with pytest.raises(SceneError, match="reads 'generated' coordinates"):
-        scene.replace(generated=None).validate()
-    with pytest.raises(SceneError, match="generated must have shape"):
-        scene.replace(generated=scene.generated[:1]).validate()
+        scene.replace(object_ids=None).validate()
+    with pytest.raises(SceneError, match="object_ids outside"):
+        scene.replace(object_ids=scene.object_ids + 1).validate()
+    with pytest.raises(SceneError, match="texture_spaces is missing"):
+        scene.replace(texture_spaces=None).validate()
+
+
+def test_object_and_generated_coordinates_follow_the_object():
+    """A hit's Object coordinates undo its object's transform; Generated maps the texture space."""
+    from core.context import RenderContext
+    program = {"op": "attribute", "name": "object"}
+    scene = sun_over_procedural_floor(program)
+    turn = np.array([[0.0, -2.0, 0.0, 1.0], [2.0, 0.0, 0.0, -1.0], [0.0, 0.0, 2.0, 0.5]])   # 2 x a quarter turn
+    scene = scene.replace(object_from_world=turn[None], texture_spaces=np.array([[[0.5, 0, 0], [2, 1, 0]]]))
+    attrs = procedural.HitAttributes(scene, np.array([0, 1]), (np.full((2, 1), 0.2), np.full((2, 1), 0.3),
+                                                                np.full((2, 1), 0.5)),
+                                     np.array([[0.1, 0.2, 0.0], [-0.3, 0.1, 0.0]]))
+    obj = attrs.get("object")
+    np.testing.assert_allclose(obj, [[1 - 0.4, -1 + 0.2, 0.5], [1 - 0.2, -1 - 0.6, 0.5]])
+    np.testing.assert_allclose(attrs.get("generated"), (obj - [0.5, 0, 0]) * [0.25, 0.5, 0] + 0.5)
+    assert RenderContext(scene.validate()).has_programs
 
 
 def test_programs_and_coordinates_survive_a_file(tmp_path):
@@ -138,5 +156,5 @@ def test_programs_and_coordinates_survive_a_file(tmp_path):
     loaded = Scene.load(tmp_path / "s.npz")
     assert loaded.materials.programs == [program]
     np.testing.assert_array_equal(loaded.materials.diffuse_program, [0])
-    np.testing.assert_array_equal(loaded.generated, scene.generated)
-    np.testing.assert_array_equal(loaded.object_coords, scene.object_coords)
+    for name in ("object_ids", "object_from_world", "texture_spaces"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(scene, name))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, render
-from core.testing.scenes import MeshBuilder
+from core.testing.scenes import MeshBuilder, with_one_object
 
 RUN = dict(passes=2, photons_per_pass=6000, chains=512, workers=1, max_bounces=12)
 
@@ -110,8 +110,7 @@ def wild_procedural_colour():
     noise = {"op": "noise", "vector": {"op": "attribute", "name": "object"}, "scale": 3.0, "output": "Color"}
     program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": {"op": "splat", "value": wild}, "b": noise}
     mats = Materials.build([{"name": "wall", "diffuse_program": program}, {"name": "lamp", "emission": 5.0}])
-    corners = room.vertices[room.triangles]
-    return room.replace(materials=mats, object_coords=corners).validate()
+    return with_one_object(room.replace(materials=mats)).validate()
 
 
 SCENES = {"parallel_mirrors": parallel_mirrors, "wild_procedural_colour": wild_procedural_colour, "light_trapped_in_glass": light_trapped_in_glass,
