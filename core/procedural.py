@@ -374,13 +374,15 @@ def _wave(ev, node):
         bands_direction=node.get("bands_direction", "X"), rings_direction=node.get("rings_direction", "X"),
         wave_profile=node.get("wave_profile", "SIN"), scale=ev.scalar(node, "scale", 5.0),
         distortion=ev.scalar(node, "distortion", 0.0), detail=ev.scalar(node, "detail", 2.0),
-        detail_scale=ev.scalar(node, "detail_scale", 1.0), detail_roughness=ev.scalar(node, "detail_roughness", 0.5),
+        detail_scale=ev.scalar(node, "detail_scale", 1.0),
+        detail_roughness=ev.scalar(node, "detail_roughness", 0.5),
         phase_offset=ev.scalar(node, "phase_offset", 0.0))
 
 
 def _brick(ev, node):
     return _patterns.brick_texture(
-        ev.vec(node, "vector"), color1=ev.vec(node, "color1", (0.8,) * 3), color2=ev.vec(node, "color2", (0.2,) * 3),
+        ev.vec(node, "vector"), color1=ev.vec(node, "color1", (0.8,) * 3),
+        color2=ev.vec(node, "color2", (0.2,) * 3),
         mortar=ev.vec(node, "mortar", (0.0,) * 3), scale=ev.scalar(node, "scale", 5.0),
         mortar_size=ev.scalar(node, "mortar_size", 0.02), mortar_smooth=ev.scalar(node, "mortar_smooth", 0.1),
         bias=ev.scalar(node, "bias", 0.0), brick_width=ev.scalar(node, "brick_width", 0.5),
@@ -391,7 +393,8 @@ def _brick(ev, node):
 
 def _magic(ev, node):
     return _patterns.magic_texture(ev.vec(node, "vector"), depth=int(np.clip(node.get("depth", 2), 0, 10)),
-                                   scale=ev.scalar(node, "scale", 5.0), distortion=ev.scalar(node, "distortion", 1.0))
+                                   scale=ev.scalar(node, "scale", 5.0),
+                                   distortion=ev.scalar(node, "distortion", 1.0))
 
 
 def _white_noise(ev, node):
@@ -652,10 +655,11 @@ def _splat(ev, node):
 
 OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
        "noise": _noise, "voronoi": _voronoi, "wave": _wave, "brick": _brick, "magic": _magic,
-       "white_noise": _white_noise, "image": _image, "environment": _environment, "ramp": _ramp, "mix_color": _mix_color,
-       "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math, "map_range": _map_range,
-       "invert": _invert, "gamma": _gamma, "hsv": _hsv, "bright_contrast": _bright_contrast, "separate": _separate,
-       "combine": _combine, "gray": _gray, "average": _average, "splat": _splat}
+       "white_noise": _white_noise, "image": _image, "environment": _environment, "ramp": _ramp,
+       "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
+       "map_range": _map_range, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
+       "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
+       "average": _average, "splat": _splat}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -666,17 +670,19 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",)}
-REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "environment": ("texture",),
-            "ramp": ("table",)}
+REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
+            "environment": ("texture",), "ramp": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
 # Settings chosen from a list (the others are numbers, colours or nodes).
-CHOICES = {("attribute", "name"): ATTRIBUTES, ("mix_color", "blend"): BLEND_MODES, ("math", "operation"): MATH,
-           ("gradient", "gradient_type"): GRADIENT_TYPES, ("noise", "noise_type"): _noise_module.NOISE_TYPES,
-           ("noise", "dimensions"): _noise_module.DIMENSIONS, ("voronoi", "feature"): _voronoi_module.FEATURES,
-           ("voronoi", "metric"): _voronoi_module.METRICS, ("voronoi", "dimensions"): _voronoi_module.DIMENSIONS,
-           ("map_range", "interpolation"): ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP"),
-           ("wave", "wave_type"): _patterns.WAVE_TYPES, ("wave", "bands_direction"): _patterns.BANDS_DIRECTIONS,
-           ("wave", "rings_direction"): _patterns.RINGS_DIRECTIONS, ("wave", "wave_profile"): _patterns.WAVE_PROFILES,
-           ("white_noise", "dimensions"): _patterns.DIMENSIONS}
+CHOICES = {
+    ("attribute", "name"): ATTRIBUTES, ("mix_color", "blend"): BLEND_MODES, ("math", "operation"): MATH,
+    ("gradient", "gradient_type"): GRADIENT_TYPES, ("noise", "noise_type"): _noise_module.NOISE_TYPES,
+    ("noise", "dimensions"): _noise_module.DIMENSIONS, ("voronoi", "feature"): _voronoi_module.FEATURES,
+    ("voronoi", "metric"): _voronoi_module.METRICS, ("voronoi", "dimensions"): _voronoi_module.DIMENSIONS,
+    ("map_range", "interpolation"): ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP"),
+    ("wave", "wave_type"): _patterns.WAVE_TYPES, ("wave", "bands_direction"): _patterns.BANDS_DIRECTIONS,
+    ("wave", "rings_direction"): _patterns.RINGS_DIRECTIONS,
+    ("wave", "wave_profile"): _patterns.WAVE_PROFILES,
+    ("white_noise", "dimensions"): _patterns.DIMENSIONS}
 # Array settings and their shapes (None: N >= 2).
 ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)}}

@@ -640,8 +640,8 @@ class Scene:
         n = len(self.object_from_world)
         self.object_from_world = arr("object_from_world", np.asarray(self.object_from_world).reshape(n, 12),
                                      np.float64, (12,)).reshape(n, 3, 4)
-        self.texture_spaces = arr("texture_spaces", np.asarray(self.texture_spaces).reshape(-1, 6), np.float64,
-                                  (6,), n).reshape(n, 2, 3)
+        spaces = np.asarray(self.texture_spaces).reshape(-1, 6)
+        self.texture_spaces = arr("texture_spaces", spaces, np.float64, (6,), n).reshape(n, 2, 3)
         if t and (self.object_ids.min() < 0 or self.object_ids.max() >= n):
             fail(f"object_ids outside [0, {n})")
 

@@ -4,15 +4,16 @@
 float, or three floats for colour and vector sockets) or a program node dict, inserting the
 type conversions Cycles makes where a link joins sockets of different types (colour to float
 by luminance, vector to float by the average, float to colour as grey).  Supported nodes:
-Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Mapping (all four types), Image
-Texture (flat projection, repeat), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White
-Noise Textures, Color Ramp
-(sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; the common
-blend modes) and the legacy MixRGB, Math (the common operations), Map Range (float), Invert,
-Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB and Value.  Anything else is
-named in the material's warning and replaced by the input socket's own value.  Settings that
-Cycles lets vary over the surface but the core takes as constants (a texture's Scale, Detail,
-...; Mapping's Location, Rotation, Scale) use the mean of what drives them, with a note.
+Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Mapping
+(all four types), Image Texture (flat projection, repeat), Environment Texture
+(equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise
+Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector,
+colour; 19 blend modes) and the legacy MixRGB, Math (the common operations), Map Range (float),
+Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB
+and Value.  Anything else is named in the material's warning and replaced by the input socket's
+own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
+texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
+them, with a note.
 """
 from __future__ import annotations
 
@@ -53,7 +54,8 @@ class ExpressionBuilder:
             return _constant(sock, want)
         value = built.get(src.identifier, built.get(src.name))
         if value is None:
-            self.walker.unsupported(node, f"output '{src.name}' drives '{sock.name}'; using the socket's value")
+            self.walker.unsupported(node, f"output '{src.name}' drives '{sock.name}'; using the socket's "
+                                    "value")
             return _constant(sock, want)
         return _convert(value, SOCKET_KIND.get(src.type, VEC), src.type, want)
 
@@ -67,12 +69,13 @@ class ExpressionBuilder:
         mean = float(np.mean(mean)) if want == FLOAT else mean.mean(axis=0).tolist()
         if not procedural.attributes_used(e):
             return mean                                 # constant nodes only (Math of numbers...)
-        self.walker.note(f"'{sock.node.name}': {sock.name} varies over the surface, which is not supported "
-                         f"here; using its mean {np.round(mean, 3).tolist()}")
+        self.walker.note(f"'{sock.node.name}': {sock.name} varies over the surface, which is not "
+                         f"supported here; using its mean {np.round(mean, 3).tolist()}")
         return mean
 
     def input(self, node, name, stack, want):
-        sock = node.inputs[name] if name in node.inputs else next(s for s in node.inputs if s.identifier == name)
+        sock = (node.inputs[name] if name in node.inputs
+                else next(s for s in node.inputs if s.identifier == name))
         return self.expression(sock, stack, want)
 
     def vector_or(self, node, stack, default_attribute):
@@ -360,7 +363,8 @@ def _hsv(b, node, stack):
     return {"Color": {"op": "hsv", "color": b.input(node, "Color", stack, VEC),
                       "hue": b.input(node, "Hue", stack, FLOAT),
                       "saturation": b.input(node, "Saturation", stack, FLOAT),
-                      "value": b.input(node, "Value", stack, FLOAT), "fac": b.input(node, "Fac", stack, FLOAT)}}
+                      "value": b.input(node, "Value", stack, FLOAT),
+                      "fac": b.input(node, "Fac", stack, FLOAT)}}
 
 
 def _bright_contrast(b, node, stack):

@@ -442,11 +442,12 @@ def sun_over_procedural_floor(program, irradiance=10.0, resolution=(32, 32)):
     scene = _sunlit_textured_floor({}, np.ones((1, 1, 3), np.float32), (0, 0, 1), irradiance, 1.0,
                                    resolution)
     mats = Materials.build([{"name": "floor", "diffuse_program": program}])
-    return with_one_object(scene.replace(materials=mats), texture_space=((0, 0, 0), (0.5, 0.5, 0))).validate()
+    return with_one_object(scene.replace(materials=mats), ((0, 0, 0), (0.5, 0.5, 0))).validate()
 
 
 def with_one_object(scene, texture_space=((0, 0, 0), (1, 1, 1))):
     """``scene`` with every triangle in one object at the world's origin (Object coordinates are
     world positions) of texture space (location, size)."""
     return scene.replace(object_ids=np.zeros(scene.triangle_count, np.int32),
-                         object_from_world=np.eye(3, 4)[None], texture_spaces=np.array([texture_space], float))
+                         object_from_world=np.eye(3, 4)[None],
+                         texture_spaces=np.array([texture_space], float))

@@ -400,8 +400,9 @@ def test_procedural_colour_becomes_a_program_with_the_coordinates_it_reads(scene
     program = s.materials.programs[0]
     assert program["op"] == "mix_color" and program["a"]["op"] == "checker"
     assert program["a"]["vector"] == {"op": "attribute", "name": "generated"}      # unlinked: Generated
-    assert program["b"] == {"op": "splat", "value": {"op": "gradient", "output": "Fac", "gradient_type": "LINEAR",
-                                                     "vector": {"op": "attribute", "name": "object"}}}
+    gradient = {"op": "gradient", "output": "Fac", "gradient_type": "LINEAR",
+                "vector": {"op": "attribute", "name": "object"}}
+    assert program["b"] == {"op": "splat", "value": gradient}
     assert material_row(s, "Plain")["diffuse_program"] == -1
     assert s.object_ids.shape == (4,) and s.object_from_world.shape == (2, 3, 4) and s.uvs is None
     textured = np.flatnonzero(s.material_ids == s.materials.names.index("Procedural"))

@@ -87,7 +87,8 @@ def blend(mode, legacy=False):
         else:
             m = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type=mode)
             socket(m.inputs, "Factor_Float").default_value = 0.7
-            a, b, out = socket(m.inputs, "A_Color"), socket(m.inputs, "B_Color"), socket(m.outputs, "Result_Color")
+            a, b = socket(m.inputs, "A_Color"), socket(m.inputs, "B_Color")
+            out = socket(m.outputs, "Result_Color")
         nt.links.new(c.outputs["Color"], a)
         nt.links.new(g.outputs["Color"], b)
         return out
@@ -135,7 +136,8 @@ def image_on_mapped_uv(nt):
                            .astype(np.float32).ravel())
     t = nt.nodes.new("ShaderNodeTexImage")
     t.image = img
-    nt.links.new(coords(nt, "UV", "POINT", Rotation=(0.0, 0.0, 0.4), Scale=(1.7, 1.2, 1.0)), t.inputs["Vector"])
+    uv = coords(nt, "UV", "POINT", Rotation=(0.0, 0.0, 0.4), Scale=(1.7, 1.2, 1.0))
+    nt.links.new(uv, t.inputs["Vector"])
     return t.outputs["Color"]
 
 
@@ -290,7 +292,7 @@ def test_generated_and_object_coordinates_follow_the_object(addon, tmp_path):
 
 
 @pytest.mark.parametrize("factor", ["noise_mask", "constant"])
-def test_a_mix_shader_of_two_coloured_diffuse_shaders_mixes_their_colours_point_by_point(addon, tmp_path, factor):
+def test_a_mix_shader_of_two_diffuse_shaders_mixes_their_colours_point_by_point(addon, tmp_path, factor):
     """A Mix Shader whose Fac is a noise mask (or a constant) between a Diffuse BSDF coloured by a
     checker and a plain blue one: the core's diffuse colour at each point is (1 - F) A + F B.
     Cycles shows the same mix when both shaders are Emission shaders of the same colours."""
@@ -331,7 +333,8 @@ def test_a_mix_shader_of_two_coloured_diffuse_shaders_mixes_their_colours_point_
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
     c = scene.cycles
-    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising, c.filter_width = "CPU", 1, False, False, 0.01
+    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
+    c.filter_width = 0.01
     cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3].astype(np.float64)
     assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
     compare(ours, cycles, f"mix shader, {factor}")
@@ -356,7 +359,8 @@ def test_color_attribute_matches_cycles(addon, tmp_path, domain, kind):
     me.color_attributes.new("Other", "FLOAT_COLOR", "POINT")          # not the render one
     attr = me.color_attributes.new("Paint", kind, domain)
     me.color_attributes.render_color_index = list(me.color_attributes).index(attr)
-    rgba = np.array([[0.9, 0.1, 0.1, 1], [0.1, 0.8, 0.2, 1], [0.2, 0.3, 0.9, 1], [0.7, 0.7, 0.1, 1]], np.float32)
+    rgba = np.array([[0.9, 0.1, 0.1, 1], [0.1, 0.8, 0.2, 1], [0.2, 0.3, 0.9, 1], [0.7, 0.7, 0.1, 1]],
+                    np.float32)
     attr.data.foreach_set("color", rgba[np.arange(len(attr.data)) % 4].ravel())
     ours = bs.our_texture_values(positions)
     cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")

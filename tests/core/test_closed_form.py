@@ -9,9 +9,10 @@ import pytest
 
 from core import RenderSettings, render
 from core.integrator import kz_radius_scales
-from core.testing.scenes import (camera_in_glass, sun_over_procedural_floor, disk_irradiance, furnace_sphere, kernel_radius_px,
+from core.testing.scenes import (camera_in_glass, disk_irradiance, furnace_sphere, kernel_radius_px,
                                  point_in_sphere, sky_over_floor, spot_over_plane,
-                                 sun_over_bumped_floor, sun_over_normal_mapped_floor, sun_through_slab)
+                                 sun_over_bumped_floor, sun_over_normal_mapped_floor,
+                                 sun_over_procedural_floor, sun_through_slab)
 
 
 def render_passes(scene, **settings):

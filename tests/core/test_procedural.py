@@ -45,7 +45,8 @@ def test_ramp_interpolates_its_table_and_holds_it_when_constant():
     fac = {"op": "separate", "vector": OBJECT, "output": "X"}
     ramp = {"op": "ramp", "fac": fac, "table": table}
     pts = [(0.0, 0, 0), (0.25, 0, 0), (0.75, 0, 0), (2.0, 0, 0), (-1.0, 0, 0)]
-    np.testing.assert_allclose(run(ramp, pts), [[0, 0, 0], [0.5, 0.25, 0], [1, 0.75, 0.5], [1, 1, 1], [0, 0, 0]])
+    np.testing.assert_allclose(run(ramp, pts),
+                               [[0, 0, 0], [0.5, 0.25, 0], [1, 0.75, 0.5], [1, 1, 1], [0, 0, 0]])
     np.testing.assert_allclose(run({**ramp, "interpolate": False}, pts)[:, 1], [0, 0, 0.5, 1, 0])
     np.testing.assert_allclose(run(ramp, pts, "Alpha"), [1, 1, 0.5, 0, 1])
 
@@ -64,7 +65,8 @@ def test_blend_modes(blend, expected):
 def test_math_is_safe_where_cycles_is():
     a = {"op": "separate", "vector": OBJECT, "output": "X"}
     pts = [(-2.0, 0, 0), (0.0, 0, 0), (3.0, 0, 0)]
-    np.testing.assert_allclose(run({"op": "math", "operation": "DIVIDE", "a": 1.0, "b": a}, pts), [-0.5, 0, 1 / 3])
+    divide = {"op": "math", "operation": "DIVIDE", "a": 1.0, "b": a}
+    np.testing.assert_allclose(run(divide, pts), [-0.5, 0, 1 / 3])
     np.testing.assert_allclose(run({"op": "math", "operation": "POWER", "a": a, "b": 0.5}, pts),
                                [0, 0, np.sqrt(3)])          # negative base, fractional exponent: 0
     np.testing.assert_allclose(run({"op": "math", "operation": "POWER", "a": a, "b": 2.0}, pts), [4, 0, 9])
@@ -116,7 +118,8 @@ def test_colours_are_finite_and_non_negative():
     ({"op": "noise", "vector": OBJECT, "noise_type": "PERLIN"}, "noise_type 'PERLIN'"),
 ])
 def test_scene_validation_names_a_bad_program(program, message):
-    scene = sun_over_procedural_floor({"op": "checker", "vector": OBJECT, "color1": [1, 1, 1], "color2": [0, 0, 0]})
+    checker = {"op": "checker", "vector": OBJECT, "color1": [1, 1, 1], "color2": [0, 0, 0]}
+    scene = sun_over_procedural_floor(checker)
     scene.materials.programs = [program]
     with pytest.raises(SceneError, match=message):
         scene.validate()
@@ -137,7 +140,8 @@ def test_object_and_generated_coordinates_follow_the_object():
     from core.context import RenderContext
     program = {"op": "attribute", "name": "object"}
     scene = sun_over_procedural_floor(program)
-    turn = np.array([[0.0, -2.0, 0.0, 1.0], [2.0, 0.0, 0.0, -1.0], [0.0, 0.0, 2.0, 0.5]])   # 2 x a quarter turn
+    # Twice a quarter turn about z, and a shift.
+    turn = np.array([[0.0, -2.0, 0.0, 1.0], [2.0, 0.0, 0.0, -1.0], [0.0, 0.0, 2.0, 0.5]])
     scene = scene.replace(object_from_world=turn[None], texture_spaces=np.array([[[0.5, 0, 0], [2, 1, 0]]]))
     attrs = procedural.HitAttributes(scene, np.array([0, 1]), (np.full((2, 1), 0.2), np.full((2, 1), 0.3),
                                                                 np.full((2, 1), 0.5)),

@@ -108,12 +108,14 @@ def wild_procedural_colour():
     wild = {"op": "math", "operation": "POWER", "a": {"op": "math", "operation": "DIVIDE", "a": 1.0, "b": x},
             "b": 40.0}
     noise = {"op": "noise", "vector": {"op": "attribute", "name": "object"}, "scale": 3.0, "output": "Color"}
-    program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": {"op": "splat", "value": wild}, "b": noise}
+    program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": {"op": "splat", "value": wild},
+               "b": noise}
     mats = Materials.build([{"name": "wall", "diffuse_program": program}, {"name": "lamp", "emission": 5.0}])
     return with_one_object(room.replace(materials=mats)).validate()
 
 
-SCENES = {"parallel_mirrors": parallel_mirrors, "wild_procedural_colour": wild_procedural_colour, "light_trapped_in_glass": light_trapped_in_glass,
+SCENES = {"parallel_mirrors": parallel_mirrors, "wild_procedural_colour": wild_procedural_colour,
+          "light_trapped_in_glass": light_trapped_in_glass,
           "camera_inside_glass_sphere": camera_inside_glass_sphere,
           "tiny_scale": lambda: cornell_like(scale=1e-4),
           "far_from_origin": lambda: cornell_like(scale=1.0, offset=(1e5, -2e5, 3e4)),
