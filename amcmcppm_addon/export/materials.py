@@ -190,6 +190,12 @@ def _plus(a, b):
     return {"op": "mix_color", "blend": "ADD", "fac": 1.0, "a": a, "b": b}
 
 
+def _clamp01(f):
+    """Float program ``f`` clamped to [0, 1] (a mix factor, as Cycles clamps it)."""
+    low = {"op": "math", "operation": "MAXIMUM", "a": f, "b": 0.0}
+    return {"op": "math", "operation": "MINIMUM", "a": low, "b": 1.0}
+
+
 def _one_minus(f):
     return {"op": "math", "operation": "SUBTRACT", "a": 1.0, "b": f}
 
@@ -577,9 +583,8 @@ class NodeWalker:
         b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
         if isinstance(f, dict) and procedural.attributes_used(f):
             # A factor that varies over the surface (a mask): exact for the diffuse colours.
-            f = {"op": "math", "operation": "MINIMUM", "a": {"op": "math", "operation": "MAXIMUM", "a": f,
-                                                            "b": 0.0}, "b": 1.0}
-            mean = float(procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images).mean())
+            f = _clamp01(f)
+            mean = self._mean(f)
             if not a.same_except_diffuse(b):
                 self.note(f"'{node.name}': a varying Fac mixes the diffuse colours point by point and "
                           f"the other parts of the shaders by its mean {mean:.3f}")
@@ -632,13 +637,35 @@ class NodeWalker:
         strength = self.value(node.inputs["Strength"], stack)
         return Closure(emission=np.maximum(color * strength, 0.0))
 
-    def _principled(self, node, stack):
+    def _mean(self, f) -> float:
+        """Mean of float program ``f`` over stand-in coordinates."""
+        return float(procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images).mean())
+
+    def _principled(self, node, stack, fixed=None):
+        """Principled BSDF.  Its Metallic and Transmission Weight mix its metal, glass and
+        dielectric parts linearly (Cycles), so a texture on either (a metallic map) makes it a
+        Mix of the node at 0 and at 1 by that texture (``Closure.combine``: exact for the diffuse
+        colour); ``fixed`` holds the values so set."""
         inp = node.inputs
+        fixed = fixed or {}
+        for name in ("Metallic", "Transmission Weight"):
+            f = self.programs.expression(inp[name], stack, FLOAT)
+            if name not in fixed and isinstance(f, dict) and procedural.attributes_used(f):
+                f = _clamp01(f)
+                mean = self._mean(f)
+                a = self._principled(node, stack, {**fixed, name: 0.0})
+                b = self._principled(node, stack, {**fixed, name: 1.0})
+                if not a.same_except_diffuse(b):
+                    self.note(f"'{node.name}': a varying {name} mixes the diffuse colour point by point and "
+                              f"the other parts by its mean {mean:.3f}")
+                return a.combine(b, 1.0 - mean, mean, fac=f)
         base, tex = self.color(inp["Base Color"], stack)
-        m = float(np.clip(self.value(inp["Metallic"], stack), 0.0, 1.0))
+        m = fixed.get("Metallic")
+        m = float(np.clip(self.value(inp["Metallic"], stack), 0.0, 1.0)) if m is None else m
         rough = float(np.clip(self.value(inp["Roughness"], stack), 0.0, 1.0))
         ior = max(self.value(inp["IOR"], stack), 1e-3)
-        t = float(np.clip(self.value(inp["Transmission Weight"], stack), 0.0, 1.0))
+        t = fixed.get("Transmission Weight")
+        t = float(np.clip(self.value(inp["Transmission Weight"], stack), 0.0, 1.0)) if t is None else t
         level = max(self.value(inp["Specular IOR Level"], stack), 0.0)
         tint, _ = self.color(inp["Specular Tint"], stack)
         emission, _ = self.color(inp["Emission Color"], stack)

@@ -492,6 +492,28 @@ def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_not
     assert any("'Painted'" in w and "'Dirt'" in w for w in ex.warnings), ex.warnings
 
 
+def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
+    """Metallic from a checker's Fac: the diffuse colour is the base colour where the checker is 0
+    and nothing where it is 1 (divided by the mean diffuse weight); the glossy lobe takes the
+    mean metal share, with a note."""
+    mat = principled("Rusty", **{"Base Color": (0.8, 0.4, 0.2, 1.0)})
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Metallic"])
+    row, ex = export_material(mat)
+    from amcmcppm.core import procedural
+    pts = procedural.SampledAttributes(256)
+    checker_fac = {"op": "checker", "vector": {"op": "attribute", "name": "generated"}, "scale": 5.0,
+                   "color1": [1, 1, 1], "color2": [0, 0, 0], "output": "Fac"}
+    m = procedural.evaluate(checker_fac, pts, [])
+    mean = procedural.evaluate(checker_fac, procedural.SampledAttributes(), []).mean()   # the exporter's
+    assert 0.3 < mean < 0.7
+    assert row["diffuse_weight"] == pytest.approx(1 - mean)
+    colour = procedural.evaluate(ex.scene.materials.programs[0], pts, [])
+    np.testing.assert_allclose(colour * row["diffuse_weight"], (1 - m)[:, None] * [0.8, 0.4, 0.2], rtol=1e-5)
+    assert any("'Rusty'" in w and "varying Metallic" in w for w in ex.warnings), ex.warnings
+
+
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
     mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
     nt = mat.node_tree
