@@ -19,6 +19,9 @@ Glossy with roughness 0 as a mirror), so Cycles renders the same files.
   courtyard (scene 3).
 * ``caustic_sds``: a glass sphere's caustic on the floor, seen only through a
   glass block and in a mirror (specular-diffuse-specular paths).
+* ``checker_caustic``: a glass sphere and a glass Suzanne throw caustics onto a
+  procedural checker floor (Checker on Object coordinates) in front of a wall
+  coloured by a Noise Texture through a Color Ramp, under a small spot light.
 """
 from __future__ import annotations
 
@@ -351,7 +354,42 @@ def caustic_sds():
     return b.finish("caustic_sds", (320, 240), photons_per_pass=100_000)
 
 
-SCENES = {f.__name__: f for f in (cornell_box, glass_ceiling, hole_mirror_glass, small_view, caustic_sds)}
+def checker_caustic():
+    b = SceneBuilder()
+    floor = b.diffuse("Checker floor", (0.8, 0.8, 0.8))
+    nt = floor.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 2.0
+    checker.inputs["Color1"].default_value = (0.75, 0.72, 0.65, 1.0)
+    checker.inputs["Color2"].default_value = (0.12, 0.14, 0.2, 1.0)
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], checker.inputs["Vector"])
+    nt.links.new(checker.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    wall = b.diffuse("Noise wall", (0.5, 0.5, 0.5))
+    nt = wall.node_tree
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    noise.inputs["Detail"].default_value = 4.0
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.15, 0.25, 0.4, 1.0)
+    ramp.color_ramp.elements[1].color = (0.7, 0.6, 0.45, 1.0)
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    glass = b.glass("Glass", ior=1.5)
+    tinted = b.glass("Green glass", ior=1.45, color=(0.7, 0.95, 0.75))
+    b.polygons("Floor", [[(-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0)]], floor)
+    b.polygons("Wall", [[(-4, 2.5, 0), (4, 2.5, 0), (4, 2.5, 3), (-4, 2.5, 3)]], wall)
+    b.sphere("Glass sphere", (-0.7, 0.4, 0.55), 0.55, glass)
+    b.monkey("Glass Suzanne", (0.8, 0.6, 0.5), (math.radians(-20), 0.0, math.radians(25)), (0.5, 0.5, 0.5),
+             tinted)
+    b.light("Spot", "SPOT", (-1.5, -1.0, 3.2), target=(0.0, 0.5, 0.4), energy=1500.0,
+            spot_size=math.radians(40.0), spot_blend=0.1, shadow_soft_size=0.03)
+    b.camera((0.0, -3.5, 1.6), (0.0, 0.5, 0.3), lens=35.0)
+    b.world((0.02, 0.02, 0.025))
+    return b.finish("checker_caustic", (320, 240), photons_per_pass=100_000)
+
+
+SCENES = {f.__name__: f for f in (cornell_box, glass_ceiling, hole_mirror_glass, small_view, caustic_sds,
+                                  checker_caustic)}
 
 
 def main(argv):
