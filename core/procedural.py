@@ -25,6 +25,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
   vector, dimensions, w: -> Value, Color (``core/pattern_textures.py``).
 * ``image`` texture (index into the scene's images), vector: -> Color (bilinear, repeat), Alpha = 1.
 * ``environment`` texture, vector (a direction): -> Color (equirectangular), Alpha = 1.
+* ``sky`` vector (a direction) and the Sky Texture's settings: -> Color, the sky without its sun
+  disc (``core/sky.py``; the world export adds the disc as a sun light).
 * ``ramp`` fac, table (N x 4 RGBA, Blender's colour band sampled at i / (N - 1)), interpolate:
   -> Color, Alpha (``ramp_util.h``'s table lookup; the exporter samples the band with Blender).
 * ``mix_color`` blend, fac, a, b, clamp_factor, clamp_result: -> Result (``color_util.h``).
@@ -47,6 +49,7 @@ import numpy as np
 
 from . import noise as _noise_module
 from . import pattern_textures as _patterns
+from . import sky as _sky_module
 from . import voronoi as _voronoi_module
 from .bsdf import bilinear
 
@@ -224,7 +227,7 @@ def _check_value(op, key, value):
         if value not in choices:
             raise ProgramError(f"op '{op}': {key} {value!r} is not one of {tuple(choices)}")
         return
-    if key in ("table", "matrix", "pre", "post"):
+    if key in ("table", "matrix", "pre", "post", "sun_direction"):
         return                                      # arrays, checked by their op
     ok = isinstance(value, (bool, int, float)) or (
         isinstance(value, list) and len(value) == 3 and all(isinstance(x, (int, float)) for x in value))
@@ -270,6 +273,7 @@ class _Evaluator:
     def __init__(self, attrs, images):
         self.attrs, self.images, self.k = attrs, images, attrs.count
         self._done = {}
+        self.sky_cache = _sky_module.SkyTextureCache()      # a Sky Texture's bake, once per evaluation
 
     def output(self, node):
         key = id(node)
@@ -411,6 +415,23 @@ def _environment(ev, node):
     u = 0.5 - np.arctan2(d[:, 1], d[:, 0]) / (2.0 * np.pi)
     v = 1.0 - np.arccos(np.clip(z, -1.0, 1.0)) / np.pi
     return {"Color": bilinear(ev.images[int(node["texture"])], u, v, clamp_v=True), "Alpha": np.ones(ev.k)}
+
+
+def _sky(ev, node):
+    """Blender's Sky Texture without its sun disc (``core/sky.py``); the vector is a direction."""
+    d = ev.vec(node, "vector")
+    length = np.sqrt((d * d).sum(axis=1))
+    d = np.where(length[:, None] > 0, d / np.where(length > 0, length, 1.0)[:, None], [0.0, 0.0, 1.0])
+    sun_direction = node.get("sun_direction")
+    color = _sky_module.sky_radiance(
+        d, sky_type=node.get("sky_type", "MULTIPLE_SCATTERING"),
+        sun_elevation=ev.scalar(node, "sun_elevation"), sun_rotation=ev.scalar(node, "sun_rotation"),
+        altitude=ev.scalar(node, "altitude", 100.0), air_density=ev.scalar(node, "air_density", 1.0),
+        aerosol_density=ev.scalar(node, "aerosol_density", 1.0),
+        ozone_density=ev.scalar(node, "ozone_density", 1.0), turbidity=ev.scalar(node, "turbidity", 2.2),
+        sun_direction=None if sun_direction is None else np.asarray(sun_direction, np.float64),
+        cache=ev.sky_cache)
+    return {"Color": color}
 
 
 def _image(ev, node):
@@ -655,7 +676,8 @@ def _splat(ev, node):
 
 OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
        "noise": _noise, "voronoi": _voronoi, "wave": _wave, "brick": _brick, "magic": _magic,
-       "white_noise": _white_noise, "image": _image, "environment": _environment, "ramp": _ramp,
+       "white_noise": _white_noise, "image": _image, "environment": _environment, "sky": _sky,
+       "ramp": _ramp,
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
@@ -664,7 +686,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
            "brick": ("Color", "Fac"), "magic": ("Color", "Fac"), "white_noise": ("Value", "Color"),
-           "image": ("Color", "Alpha"), "environment": ("Color", "Alpha"),
+           "image": ("Color", "Alpha"), "environment": ("Color", "Alpha"), "sky": ("Color",),
            "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
@@ -683,6 +705,8 @@ CHOICES = {
     ("wave", "wave_type"): _patterns.WAVE_TYPES, ("wave", "bands_direction"): _patterns.BANDS_DIRECTIONS,
     ("wave", "rings_direction"): _patterns.RINGS_DIRECTIONS,
     ("wave", "wave_profile"): _patterns.WAVE_PROFILES,
-    ("white_noise", "dimensions"): _patterns.DIMENSIONS}
+    ("white_noise", "dimensions"): _patterns.DIMENSIONS,
+    ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM")}
 # Array settings and their shapes (None: N >= 2).
-ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)}}
+ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)},
+          "sky": {"sun_direction": (3,)}}

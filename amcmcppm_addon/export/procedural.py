@@ -80,8 +80,8 @@ class ExpressionBuilder:
 
     def vector_or(self, node, stack, default_attribute):
         """The node's Vector input, or the coordinates Cycles uses when it is not linked."""
-        sock = node.inputs["Vector"]
-        if not any(ln.is_valid and not ln.is_muted for ln in sock.links):
+        sock = node.inputs.get("Vector")
+        if sock is None or not any(ln.is_valid and not ln.is_muted for ln in sock.links):
             return {"op": "attribute", "name": default_attribute}
         return self.expression(sock, stack, VEC)
 
@@ -209,6 +209,18 @@ def _environment(b, node, stack):
         return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
     return {"Color": {"op": "environment", "texture": index, "vector": b.vector_or(node, stack, "generated")},
             "Alpha": 1.0}
+
+
+def _sky(b, node, stack):
+    if node.sky_type not in ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"):
+        b.walker.note(f"'{node.name}': the {node.sky_type.replace('_', '-').title()} sky is not supported")
+        return None
+    op = {"op": "sky", "vector": b.vector_or(node, stack, "generated"), "sky_type": node.sky_type,
+          **{k: float(getattr(node, k)) for k in ("sun_elevation", "sun_rotation", "altitude", "air_density",
+                                                  "aerosol_density", "ozone_density", "turbidity",
+                                                  "sun_size", "sun_intensity")},
+          "sun_disc": bool(node.sun_disc), "sun_direction": [float(x) for x in node.sun_direction]}
+    return {"Color": op}
 
 
 def _checker(b, node, stack):
@@ -401,7 +413,7 @@ NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
     "ShaderNodeRGB": _rgb,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
-    "ShaderNodeTexEnvironment": _environment,
+    "ShaderNodeTexEnvironment": _environment, "ShaderNodeTexSky": _sky,
     "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,
     "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeTexWave": _wave, "ShaderNodeTexBrick": _brick,
     "ShaderNodeTexMagic": _magic, "ShaderNodeTexWhiteNoise": _white_noise, "ShaderNodeValToRGB": _ramp,

@@ -74,9 +74,9 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
         else:
             collector.add(inst)
     geometry = collector.finish()
-    lights = build_lights(light_records)
+    world, world_lights = export_world(depsgraph, materials.textures, log)
+    lights = build_lights(light_records + world_lights)
     camera = export_camera(depsgraph, camera_object, resolution, border, log)
-    world = export_world(depsgraph, materials.textures, log)
     if materials.count == 0:
         materials.default_id()
     scene = Scene(vertices=geometry.vertices, triangles=geometry.triangles,

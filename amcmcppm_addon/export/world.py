@@ -8,26 +8,30 @@ becomes the world's image as it is, turned by a Mapping node's rotation on its v
 other colour that varies with the direction (texture and colour nodes of ``procedural.py`` on
 the world's direction: an environment moved or mixed, a gradient sky...) is evaluated at the
 pixel centres of an equirectangular image (``BAKE_WIDTH`` wide, or as wide as the largest
-environment image in it, up to ``BAKE_MAX_WIDTH``) that becomes the world's image.
+environment image in it, up to ``BAKE_MAX_WIDTH``) that becomes the world's image.  A Sky
+Texture (``core/sky.py``) is baked so without its sun disc, which becomes a sun light of the
+disc's direction, size and irradiance (times the Background's strength) when the sky is the
+Background's colour itself; a disc that other nodes change is left out with a warning.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ...core import procedural
-from ...core.scene import World
+from ...core import procedural, sky
+from ...core.scene import SUN, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, World
 from .materials import NodeWalker
 
 BAKE_WIDTH = 1024          # equirectangular image of a procedural world (height: half)
 BAKE_MAX_WIDTH = 4096
 
 
-def export_world(depsgraph, textures, log) -> World:
+def export_world(depsgraph, textures, log):
+    """(``core.World``, list of light records of ``lights.export_light``'s form: a sky's sun disc)."""
     scene = depsgraph.scene_eval
     world = depsgraph.view_layer_eval.world_override or scene.world
     transparent = bool(scene.render.film_transparent)
     if world is None:
-        return World(color=np.zeros(3, np.float32), film_transparent=transparent)
+        return World(color=np.zeros(3, np.float32), film_transparent=transparent), []
     walker = NodeWalker(world.name, textures)
     color = walker.world_color(world)
     if walker.notes:
@@ -36,10 +40,37 @@ def export_world(depsgraph, textures, log) -> World:
     texture = None
     if walker.world_texture is not None:
         texture = np.maximum(textures.images[walker.world_texture], 0.0)
-    elif walker.world_program is not None:
+    lights = []
+    if walker.world_texture is None and walker.world_program is not None:
         texture = bake_world(walker.world_program, textures.images)
+        lights = sun_disc_lights(walker.world_program, color, world.name, log)
     return World(color=color.astype(np.float32), film_transparent=transparent, texture=texture,
-                 texture_rotation=walker.world_rotation if texture is not None else None)
+                 texture_rotation=walker.world_rotation if texture is not None else None), lights
+
+
+def sun_disc_lights(program, strength, world_name, log):
+    """A sun light record for the disc of a Sky Texture that is the world's colour, times
+    ``strength`` (3,); none (with a warning) for discs of skies that other nodes change."""
+    if program["op"] == "sky" and program.get("sun_disc"):
+        disc = sky.sun_disc(sky_type=program["sky_type"], sun_disc=True, sun_size=program["sun_size"],
+                            sun_intensity=program["sun_intensity"], sun_elevation=program["sun_elevation"],
+                            sun_rotation=program["sun_rotation"], altitude=program["altitude"],
+                            air_density=program["air_density"], aerosol_density=program["aerosol_density"],
+                            ozone_density=program["ozone_density"])
+        if disc is None:
+            return []
+        power = np.maximum(disc["irradiance"] * strength, 0.0)
+        if not power.any():
+            return []
+        return [{"kind": SUN, "position": np.zeros(3), "direction": -disc["direction"], "radius": 0.0,
+                 "spot_angle": np.pi / 4, "spot_blend": 0.0, "sun_angle": float(disc["angle"]),
+                 "axis_u": np.zeros(3), "axis_v": np.zeros(3), "power": power, "soft_falloff": True,
+                 "spread": np.pi, "visibility": VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION}]
+    if any(n["op"] == "sky" and n.get("sun_disc") and n["sky_type"] != "PREETHAM"
+           for n in procedural.nodes(program)):
+        log.warning(f"world '{world_name}': the sun disc of a Sky Texture that other nodes change is "
+                    "left out (the sky itself is kept)")
+    return []
 
 
 def bake_world(program, images):

@@ -1021,11 +1021,48 @@ def test_world_texture_warns_and_keeps_the_colour(scene):
     w = bs.world((0.1, 0.1, 0.1))
     nt = w.node_tree
     sky = nt.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = "HOSEK_WILKIE"
     nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
     bs.camera()
     ex = bs.export()
-    assert any("Sky Texture" in m for m in ex.warnings)
-    assert np.isfinite(ex.scene.world.color).all()
+    assert any("Hosek-Wilkie sky is not supported" in m for m in ex.warnings), ex.warnings
+    assert np.isfinite(ex.scene.world.color).all() and ex.scene.world.texture is None
+
+
+@pytest.mark.parametrize("through_mix", [False, True])
+def test_sky_texture_becomes_an_image_and_a_sun(scene, through_mix):
+    """Blender 5.0's default sky: baked without its disc, which becomes a sun light (times the
+    Background's strength) pointing from the disc; a sky mixed with another colour keeps no disc."""
+    w = bs.world((0.0, 0.0, 0.0), strength=2.0)
+    nt = w.node_tree
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    sky.sun_elevation, sky.sun_rotation = math.radians(30.0), math.radians(90.0)
+    out = sky.outputs["Color"]
+    if through_mix:
+        mix = nt.nodes.new("ShaderNodeMixRGB")
+        mix.inputs["Fac"].default_value = 0.5
+        nt.links.new(out, mix.inputs["Color1"])
+        out = mix.outputs["Color"]
+    nt.links.new(out, nt.nodes["Background"].inputs["Color"])
+    bs.camera()
+    ex = bs.export()
+    world, lights = ex.scene.world, ex.scene.lights
+    assert world.texture.shape == (512, 1024, 3) and world.color == pytest.approx([2, 2, 2])
+    zenith = world.texture[-1].mean(axis=0)
+    assert zenith[2] > zenith[0] > 0                                 # a blue sky
+    if through_mix:
+        assert lights.count == 0
+        assert any("sun disc" in m for m in ex.warnings), ex.warnings
+        return
+    from amcmcppm.core.sky import sun_disc
+    disc = sun_disc(sky_type="MULTIPLE_SCATTERING", sun_elevation=math.radians(30.0),
+                    sun_rotation=math.radians(90.0))
+    assert lights.count == 1 and lights.kind[0] == 4                  # SUN
+    np.testing.assert_allclose(lights.power[0], 2.0 * disc["irradiance"], rtol=1e-5)
+    np.testing.assert_allclose(-lights.direction[0], disc["direction"], atol=1e-6)
+    assert disc["direction"][2] == pytest.approx(math.sin(math.radians(30.0)), abs=1e-6)
+    assert lights.sun_angle[0] == pytest.approx(sky.sun_size)
+    assert not [m for m in ex.warnings if "world" in m]
 
 
 def test_world_environment_texture_becomes_the_world_image(scene):

@@ -415,3 +415,24 @@ def test_procedural_world_matches_cycles(addon, tmp_path):
     np.testing.assert_allclose(ratio, 1.0, rtol=TOLERANCE)
     for k in range(3):
         assert_bands_match(f"procedural world, channel {k}", ours[..., k:k + 1], cycles[..., k:k + 1])
+
+
+@pytest.mark.parametrize("sky_type", ["MULTIPLE_SCATTERING", "SINGLE_SCATTERING"])
+def test_sky_texture_world_matches_cycles(addon, tmp_path, sky_type):
+    """The corner under Blender's Sky Texture: the sky baked into an image, its sun disc a sun
+    light (``amcmcppm_addon/export/world.py``).  The sun casts the wall's shadow onto the floor."""
+    def build():
+        corner_scene()
+        world = bs.world((0.0, 0.0, 0.0), strength=0.2)
+        nt = world.node_tree
+        sky = nt.nodes.new("ShaderNodeTexSky")
+        sky.sky_type = sky_type
+        sky.sun_elevation, sky.sun_rotation = math.radians(35.0), math.radians(200.0)
+        nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    c, o = cycles[..., :3].reshape(-1, 3), ours[..., :3].reshape(-1, 3)
+    ratio = o.mean(axis=0) / c.mean(axis=0)
+    print(f"sky {sky_type}: cycles mean {c.mean(axis=0).round(4)}, ours / cycles by channel {np.round(ratio, 4)}")
+    np.testing.assert_allclose(ratio, 1.0, rtol=TOLERANCE)
+    for k in range(3):
+        assert_bands_match(f"sky {sky_type}, channel {k}", ours[..., k:k + 1], cycles[..., k:k + 1])
