@@ -46,6 +46,7 @@ class LocalMesh:
     tangents_read: bool = False  # read with tangents (which may still be None: Blender had none)
     texspace: tuple = ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))  # texture space (location, size): Generated
     colors: np.ndarray | None = None  # (T, 3, 3) float32 linear render colour attribute per corner, or None
+    colors_read: bool = False   # read with its colour attribute (a material's Color Attribute node)
 
 
 @dataclass
@@ -106,11 +107,15 @@ class GeometryCollector:
             if not mat_ids:
                 mat_ids = (materials.default_id(),)
         uv_map = materials.normal_map_uv(mat_ids)
-        if uv_map is not None and not local.tangents_read and local.uvs is not None:
-            if uv_map and uv_map != local.uv_map:
-                self.log.warning(f"object '{ob.name}': its normal map uses UV map '{uv_map}'; the "
-                                 f"active render UV map '{local.uv_map}' is used instead")
-            local = read_object_mesh(ob, self.log, tangents=True) or local
+        tangents = uv_map is not None and not local.tangents_read and local.uvs is not None
+        colors = "color" in materials.coordinates_used(mat_ids) and not local.colors_read
+        if tangents and uv_map and uv_map != local.uv_map:
+            self.log.warning(f"object '{ob.name}': its normal map uses UV map '{uv_map}'; the "
+                             f"active render UV map '{local.uv_map}' is used instead")
+        if tangents or colors:
+            # Read again with what the materials need (each only when some material needs it).
+            local = read_object_mesh(ob, self.log, tangents=tangents or local.tangents_read,
+                                     colors=colors or local.colors_read) or local
             self.meshes[key] = local
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         self.groups.setdefault((key, mat_ids), []).append(np.array(inst.matrix_world, np.float64))
@@ -129,9 +134,10 @@ def _mesh_key(ob):
     return ("object", ob.original.as_pointer(), ob.data.as_pointer() if ob.data else 0)
 
 
-def read_object_mesh(ob, log, tangents=False):
+def read_object_mesh(ob, log, tangents=False, colors=False):
     """:class:`LocalMesh` of an evaluated object (modifiers applied), or None without faces;
-    with ``tangents`` also its tangent frames (for normal maps)."""
+    with ``tangents`` also its tangent frames (for normal maps), with ``colors`` its render colour
+    attribute (for Color Attribute nodes)."""
     try:
         me = ob.to_mesh()
     except RuntimeError as e:
@@ -140,16 +146,17 @@ def read_object_mesh(ob, log, tangents=False):
     try:
         if me is None:
             return None
-        return read_mesh(me, ob.name, log, tangents)
+        return read_mesh(me, ob.name, log, tangents, colors=colors)
     finally:
         ob.to_mesh_clear()
 
 
-def read_mesh(me, name, log, tangents=False, triangulated=False):
+def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False):
     """:class:`LocalMesh` of a ``bpy.types.Mesh``, or None (with an info message) without faces.
 
     With ``tangents``, a mesh with n-gons (for which Blender computes no tangents) is read from a
-    triangulated copy (``triangulated``: this is that copy).
+    triangulated copy (``triangulated``: this is that copy); with ``colors`` its render colour
+    attribute is read too.
     """
     n_vert = len(me.vertices)
     if len(me.polygons) == 0:
@@ -184,7 +191,7 @@ def read_mesh(me, name, log, tangents=False, triangulated=False):
         if frames is None and not triangulated:
             copy = _triangulated_copy(me)
             try:
-                return read_mesh(copy, name, log, tangents, triangulated=True)
+                return read_mesh(copy, name, log, tangents, triangulated=True, colors=colors)
             finally:
                 import bpy
                 bpy.data.meshes.remove(copy)
@@ -196,7 +203,7 @@ def read_mesh(me, name, log, tangents=False, triangulated=False):
                      tangents=frames, uv_map=layer.name if layer is not None else "",
                      tangents_read=tangents,
                      texspace=(tuple(me.texspace_location), tuple(me.texspace_size)),
-                     colors=_corner_colors(me, tri_vert, tri_loops))
+                     colors=_corner_colors(me, tri_vert, tri_loops) if colors else None, colors_read=colors)
 
 
 def _triangulate(me, positions, corner_vert):
