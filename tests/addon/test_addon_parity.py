@@ -345,6 +345,18 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
     assert_quarters_match(f"bump, invert {invert}", cycles, ours)
 
 
+def assert_channels_match(name, cycles, ours):
+    """Image means per channel within TOLERANCE and each channel's bands (coloured scenes: a grey
+    mean can hide a wrong colour); returns the (n, 3) pixels of both, Cycles' first."""
+    c, o = cycles[..., :3].reshape(-1, 3), ours[..., :3].reshape(-1, 3)
+    ratio = o.mean(axis=0) / c.mean(axis=0)
+    print(f"{name}: cycles mean {c.mean(axis=0).round(4)}, ours / cycles by channel {np.round(ratio, 4)}")
+    np.testing.assert_allclose(ratio, 1.0, rtol=TOLERANCE)
+    for k in range(3):
+        assert_bands_match(f"{name}, channel {k}", ours[..., k:k + 1], cycles[..., k:k + 1])
+    return c, o
+
+
 def test_procedural_textures_match_cycles(addon, tmp_path):
     """The corner under an area light, its floor a Principled BSDF whose base colour is a checker
     of 50 cm cells (Object coordinates), its wall a Diffuse BSDF coloured by a Noise Texture's
@@ -369,12 +381,7 @@ def test_procedural_textures_match_cycles(addon, tmp_path):
         wall.links.new(noise.outputs["Color"], wall.nodes["Diffuse BSDF"].inputs["Color"])
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
-    c, o = cycles[..., :3].reshape(-1, 3), ours[..., :3].reshape(-1, 3)
-    ratio = o.mean(axis=0) / c.mean(axis=0)
-    print(f"procedural textures: ours / cycles by channel {np.round(ratio, 4)}")
-    np.testing.assert_allclose(ratio, 1.0, rtol=TOLERANCE)
-    for k in range(3):
-        assert_bands_match(f"procedural textures, channel {k}", ours[..., k:k + 1], cycles[..., k:k + 1])
+    c, o = assert_channels_match("procedural textures", cycles, ours)
     # The checker shows: the darker colour's pixels are darker in both.
     lum_c, lum_o = c @ [0.2126, 0.7152, 0.0722], o @ [0.2126, 0.7152, 0.0722]
     assert np.corrcoef(lum_c, lum_o)[0, 1] > 0.9
@@ -408,13 +415,7 @@ def test_procedural_world_matches_cycles(addon, tmp_path):
         nt.links.new(ramp.outputs["Color"], mix.inputs["Color1"])
         nt.links.new(noise.outputs["Fac"], mix.inputs["Color2"])
         nt.links.new(mix.outputs["Color"], nt.nodes["Background"].inputs["Color"])
-    cycles, ours = cycles_and_ours(build, tmp_path)
-    c, o = cycles[..., :3].reshape(-1, 3), ours[..., :3].reshape(-1, 3)
-    ratio = o.mean(axis=0) / c.mean(axis=0)
-    print(f"procedural world: ours / cycles by channel {np.round(ratio, 4)}")
-    np.testing.assert_allclose(ratio, 1.0, rtol=TOLERANCE)
-    for k in range(3):
-        assert_bands_match(f"procedural world, channel {k}", ours[..., k:k + 1], cycles[..., k:k + 1])
+    assert_channels_match("procedural world", *cycles_and_ours(build, tmp_path))
 
 
 @pytest.mark.parametrize("sky_type", ["MULTIPLE_SCATTERING", "SINGLE_SCATTERING"])
@@ -429,10 +430,4 @@ def test_sky_texture_world_matches_cycles(addon, tmp_path, sky_type):
         sky.sky_type = sky_type
         sky.sun_elevation, sky.sun_rotation = math.radians(35.0), math.radians(200.0)
         nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
-    cycles, ours = cycles_and_ours(build, tmp_path)
-    c, o = cycles[..., :3].reshape(-1, 3), ours[..., :3].reshape(-1, 3)
-    ratio = o.mean(axis=0) / c.mean(axis=0)
-    print(f"sky {sky_type}: cycles mean {c.mean(axis=0).round(4)}, ours / cycles by channel {np.round(ratio, 4)}")
-    np.testing.assert_allclose(ratio, 1.0, rtol=TOLERANCE)
-    for k in range(3):
-        assert_bands_match(f"sky {sky_type}, channel {k}", ours[..., k:k + 1], cycles[..., k:k + 1])
+    assert_channels_match(f"sky {sky_type}", *cycles_and_ours(build, tmp_path))
