@@ -366,3 +366,44 @@ def test_color_attribute_matches_cycles(addon, tmp_path, domain, kind):
     cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
     assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
     compare(ours, cycles, f"colour attribute {domain} {kind}")
+
+
+def test_textures_inside_node_groups_match_cycles(addon, tmp_path):
+    """A node group (a checker of the group's Scale and Tint inputs, behind a reroute) used twice
+    with other inputs, mixed by a noise: groups, group inputs and reroutes are followed."""
+    import bpy
+
+    def tiles_group():
+        group = bpy.data.node_groups.new("Tiles", "ShaderNodeTree")
+        group.interface.new_socket("Scale", in_out="INPUT", socket_type="NodeSocketFloat")
+        group.interface.new_socket("Tint", in_out="INPUT", socket_type="NodeSocketColor")
+        group.interface.new_socket("Color", in_out="OUTPUT", socket_type="NodeSocketColor")
+        g_in, g_out = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+        checker = group.nodes.new("ShaderNodeTexChecker")
+        group.links.new(g_in.outputs["Scale"], checker.inputs["Scale"])
+        group.links.new(g_in.outputs["Tint"], checker.inputs["Color1"])
+        reroute = group.nodes.new("NodeReroute")
+        group.links.new(checker.outputs["Color"], reroute.inputs[0])
+        group.links.new(reroute.outputs[0], g_out.inputs["Color"])
+        return group
+
+    def build(nt):
+        group = tiles_group()          # after texture_plane's factory reset
+        a, b = nt.nodes.new("ShaderNodeGroup"), nt.nodes.new("ShaderNodeGroup")
+        for g, scale, tint in ((a, 3.0, (0.9, 0.2, 0.1, 1.0)), (b, 7.0, (0.1, 0.6, 0.9, 1.0))):
+            g.node_tree = group
+            g.inputs["Scale"].default_value = scale
+            g.inputs["Tint"].default_value = tint
+        mix = node(nt, "ShaderNodeMix", data_type="RGBA")
+        noise = node(nt, "ShaderNodeTexNoise", Scale=2.0)
+        nt.links.new(noise.outputs["Fac"], socket(mix.inputs, "Factor_Float"))
+        nt.links.new(a.outputs["Color"], socket(mix.inputs, "A_Color"))
+        nt.links.new(b.outputs["Color"], socket(mix.inputs, "B_Color"))
+        return socket(mix.outputs, "Result_Color")
+
+    mat, positions = bs.texture_plane(build)
+    ours = bs.our_texture_values(positions)
+    assert not [w for w in bs.export().warnings if "Textured" in w]
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
+    compare(ours, cycles, "node groups")
