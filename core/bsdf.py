@@ -65,6 +65,8 @@ class MaterialTable:
     score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
     normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map bends the shading normal
     program: np.ndarray = None        # (M,) int32 procedural diffuse colour (Materials.programs) or -1
+    glossy_program: np.ndarray = None  # (M,) int32 procedural glossy colour or -1 ...
+    glossy_program_lobe: np.ndarray = None  # (M,) int64 ... of this lobe (MIRROR where a sharp glossy merged)
 
     @staticmethod
     def from_materials(mats) -> "MaterialTable":
@@ -76,6 +78,8 @@ class MaterialTable:
         program = (np.asarray(mats.diffuse_program, np.int32) if mats.diffuse_program is not None
                    else np.full(m, -1, np.int32))
         textured = (mats.diffuse_texture >= 0) | (program >= 0)
+        glossy_program = (np.asarray(mats.glossy_program, np.int32) if mats.glossy_program is not None
+                          else np.full(m, -1, np.int32))
         weight[:, GLOSSY] = mats.glossy_weight
         color[:, GLOSSY] = mats.glossy_color
         weight[:, MIRROR] = mats.mirror_weight
@@ -119,7 +123,9 @@ class MaterialTable:
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
                              rise=rise, layer=layer, score_extra=score_extra,
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
-                             | (np.asarray(mats.bump_texture) >= 0), program=program)
+                             | (np.asarray(mats.bump_texture) >= 0), program=program,
+                             glossy_program=glossy_program,
+                             glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR))
 
     @property
     def has_normal_maps(self) -> bool:
@@ -291,6 +297,19 @@ def _bilinear_cell(image, u, v, clamp_v):
         iy0 = np.mod(y0, h).astype(np.int64)
         iy1 = (iy0 + 1) % h
     return fx, fy, image[iy0, ix0], image[iy0, ix1], image[iy1, ix0], image[iy1, ix1]
+
+
+def metal_fresnel(color, edge_tint=(1.0, 1.0, 1.0)):
+    """Cosine-weighted hemispherical mean of Cycles' F82-tint metal Fresnel (F0 = ``color``, any
+    shape (..., 3), as ``edge_tint``):
+    F(mu) = F0 + (1 - F0)(1 - mu)^5 - b mu (1 - mu)^6 averages to F0 + (1 - F0) / 21 - b / 126,
+    b the edge-tint term of ``fresnel_f82tint_B`` (0 for a white tint)."""
+    f0 = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
+    tint = np.clip(np.asarray(edge_tint, np.float64), 0.0, 1.0)
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    b = (f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint)
+    return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
 
 
 def face_forward(n, v):

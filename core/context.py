@@ -56,6 +56,7 @@ class RenderContext:
         # Procedural diffuse colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs
         self.has_programs = bool((self.table.program >= 0).any())
+        self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
 
     def surface(self, prim_ids, b1, b2) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics."""
@@ -86,21 +87,24 @@ class RenderContext:
                 albedo = np.where((tex >= 0)[:, None],
                                   albedo * self.textures.lookup(tex, uv), albedo)
         if self.has_programs:
-            albedo = self._apply_programs(albedo, prim_ids, bary, pos, mat)
-        return Surface(pos, ng, ns, mat, lobe_colors(self.table, mat, albedo), nn)
+            for sel, color in self._program_colors(self.table.program, prim_ids, bary, pos, mat):
+                albedo[sel] *= color           # a fresh array (take or where above)
+        colors = lobe_colors(self.table, mat, albedo)
+        if self.has_glossy_programs:
+            lobe = self.table.glossy_program_lobe
+            for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat):
+                colors[sel, lobe.take(mat.take(sel))] *= color
+        return Surface(pos, ng, ns, mat, colors, nn)
 
-    def _apply_programs(self, albedo, prim_ids, bary, pos, mat):
-        """``albedo`` (n, 3) (a fresh array: scaled in place) times the procedural colour where
-        the material has a program."""
-        program = self.table.program.take(mat)
-        if not (program >= 0).any():
-            return albedo
-        for k in np.unique(program[program >= 0]):
-            sel = np.flatnonzero(program == k)
+    def _program_colors(self, programs, prim_ids, bary, pos, mat):
+        """(hit indices, (k, 3) colours) for each program in ``programs`` (per material, -1: none)
+        that some of the hits' materials have."""
+        program = programs.take(mat)
+        for p in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == p)
             attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
                                   pos.take(sel, axis=0))
-            albedo[sel] *= evaluate_color(self.programs[k], attrs, self.textures.images)
-        return albedo
+            yield sel, evaluate_color(self.programs[p], attrs, self.textures.images)
 
     def _apply_normal_maps(self, ns, prim_ids, bary, uv, mat):
         """Bend ``ns`` (n, 3) in place where the material has a tangent-space normal map.

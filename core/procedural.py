@@ -33,6 +33,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``mix_float`` / ``mix_vector`` fac, a, b, clamp_factor: -> Result.
 * ``math`` operation, a, b, c, clamp: -> Value (``math_util.h``, the common operations).
 * ``map_range`` interpolation, value, from_min, from_max, to_min, to_max, steps, clamp: -> Result.
+* ``metal`` color, tint: -> Color, a metal's mean F82-tint Fresnel reflectance (its glossy colour).
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
 * ``separate`` vector: -> X, Y, Z (also Red, Green, Blue); ``combine`` x, y, z: -> Vector.
@@ -51,7 +52,7 @@ from . import noise as _noise_module
 from . import pattern_textures as _patterns
 from . import sky as _sky_module
 from . import voronoi as _voronoi_module
-from .bsdf import bilinear
+from .bsdf import bilinear, metal_fresnel
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color")
@@ -634,6 +635,12 @@ def _map_range(ev, node):
     return {"Result": out}
 
 
+def _metal(ev, node):
+    """The mean F82-tint Fresnel reflectance of a metal of base colour ``color`` and edge ``tint``
+    (the colour the core gives a metal's glossy lobe, ``bsdf.metal_fresnel``)."""
+    return {"Color": metal_fresnel(ev.vec(node, "color"), ev.vec(node, "tint", (1.0, 1.0, 1.0)))}
+
+
 def _invert(ev, node):
     t = ev.float(node, "fac", 1.0)[:, None]
     c = ev.vec(node, "color")
@@ -679,7 +686,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "white_noise": _white_noise, "image": _image, "environment": _environment, "sky": _sky,
        "ramp": _ramp,
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
-       "map_range": _map_range, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
+       "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
        "average": _average, "splat": _splat}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
@@ -688,7 +695,8 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "brick": ("Color", "Fac"), "magic": ("Color", "Fac"), "white_noise": ("Value", "Color"),
            "image": ("Color", "Alpha"), "environment": ("Color", "Alpha"), "sky": ("Color",),
            "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
-           "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "invert": ("Color",),
+           "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "metal": ("Color",),
+           "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",)}

@@ -54,7 +54,9 @@ class Materials:
       ``diffuse_program`` is >= 0, that entry of ``programs`` (a tree of Blender's texture
       and colour nodes, ``core/procedural.py``) evaluated at the hit, times ``diffuse_color``;
     * glossy: GGX microfacet reflection, ``glossy_roughness`` is Blender's
-      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.
+      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.  Its colour
+      ``glossy_color`` is multiplied by the program ``glossy_program`` (when >= 0) at each hit;
+      such a lobe has no Fresnel rise.
       ``glossy_multiscatter`` is the lobe's mean Fresnel colour F_ss for the energy that
       scatters between microfacets more than once (Cycles' Multiscatter GGX, the default of
       Blender's glossy nodes): a white lobe with F_ss = 1 then reflects all the light it
@@ -114,6 +116,7 @@ class Materials:
     bump_strength: np.ndarray = None                    # (M,) float32 >= 0; None: 1
     bump_distance: np.ndarray = None                    # (M,) float32, any sign; None: 1
     diffuse_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
+    glossy_program: np.ndarray = None                   # (M,) int32, index into programs or -1; None: -1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -121,9 +124,10 @@ class Materials:
                     "glossy_fresnel_rise", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
-                    "bump_texture", "bump_strength", "bump_distance", "diffuse_program")
+                    "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
-    INDEX_FIELDS = INT_FIELDS + ("diffuse_program",)
+    PROGRAM_FIELDS = ("diffuse_program", "glossy_program")                  # program indices
+    INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
 
     @property
@@ -145,7 +149,8 @@ class Materials:
         ``normal_strength`` (default 1) give a tangent-space normal map, ``bump_texture``
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
         ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
-        colour, which then defaults to 1 (equal programs are stored once).
+        colour, which then defaults to 1, and ``glossy_program`` one for the glossy colour (equal
+        programs are stored once).
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -174,6 +179,7 @@ class Materials:
         out.bump_strength = np.ones(m, np.float32)
         out.bump_distance = np.ones(m, np.float32)
         out.diffuse_program = np.full(m, -1, np.int32)
+        out.glossy_program = np.full(m, -1, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -183,12 +189,13 @@ class Materials:
                     getattr(out, f"{lobe}_weight")[i] = s.get(f"{lobe}_weight", 1.0)
                 elif f"{lobe}_weight" in s:
                     getattr(out, f"{lobe}_weight")[i] = s[f"{lobe}_weight"]
-            if "diffuse_program" in s:
-                key = procedural.to_json(s["diffuse_program"])
-                if key not in stored:
-                    stored[key] = len(out.programs)
-                    out.programs.append(procedural.from_json(key))
-                out.diffuse_program[i] = stored[key]
+            for field_name in Materials.PROGRAM_FIELDS:
+                if field_name in s:
+                    key = procedural.to_json(s[field_name])
+                    if key not in stored:
+                        stored[key] = len(out.programs)
+                        out.programs.append(procedural.from_json(key))
+                    getattr(out, field_name)[i] = stored[key]
             if "diffuse_texture" in s or "diffuse_program" in s:
                 out.diffuse_texture[i] = s.get("diffuse_texture", -1)
                 if "diffuse" not in s:
@@ -515,7 +522,8 @@ class Scene:
                                        ("diffuse_layer", (n, 3), 0.0), ("diffuse_layer_weight", (n,), 1.0),
                                        ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
-                                       ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1)):
+                                       ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1),
+                                       ("glossy_program", (n,), -1)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
@@ -648,9 +656,15 @@ class Scene:
     def _validate_programs(self, fail):
         mats = self.materials
         mats.programs = [procedural.from_json(p) if isinstance(p, str) else p for p in mats.programs]
-        v = mats.diffuse_program
-        if ((v < -1) | (v >= len(mats.programs))).any():
-            fail(f"materials.diffuse_program must be -1 or an index below {len(mats.programs)}")
+        for name in Materials.PROGRAM_FIELDS:
+            v = getattr(mats, name)
+            if ((v < -1) | (v >= len(mats.programs))).any():
+                fail(f"materials.{name} must be -1 or an index below {len(mats.programs)}")
+        used = np.concatenate([getattr(mats, name) for name in Materials.PROGRAM_FIELDS])
+        rising = np.flatnonzero((mats.glossy_program >= 0) & (mats.glossy_fresnel_ior > 0))
+        if len(rising):
+            fail(f"material '{mats.names[rising[0]]}': a glossy_program cannot vary a glossy lobe with a "
+                 "Fresnel rise (glossy_fresnel_ior)")
         coords = {"generated": self.object_ids, "object": self.object_ids, "uv": self.uvs,
                   "color": self.vertex_colors}
         for i, program in enumerate(mats.programs):
@@ -659,7 +673,7 @@ class Scene:
             except procedural.ProgramError as e:
                 fail(f"materials.programs[{i}]: {e}")
             for name in procedural.attributes_used(program):
-                if coords[name] is None and (v == i).any():
+                if coords[name] is None and (used == i).any():
                     fail(f"materials.programs[{i}] reads '{name}' coordinates but the scene has none")
 
     @staticmethod

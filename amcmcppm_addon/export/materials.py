@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import procedural
+from ...core.bsdf import metal_fresnel
 from ...core.scene import Materials
 from .procedural import FLOAT, VEC, ExpressionBuilder
 
@@ -70,6 +71,7 @@ class Closure:
     dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) radiance
     texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
+    glossy_texture: dict = None     # program of the glossy colour where it varies (color[GLOSSY]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
@@ -118,7 +120,28 @@ class Closure:
             mixed = terms[0] if len(terms) == 1 else _plus(*terms)
             out.texture = _times(mixed, 1.0 / total)
             out.color[DIFFUSE] = total
+        out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
         return out
+
+    def _mixed_glossy(self, other, wa, wb, fa, fb, fac):
+        """The glossy colour program of fa * self + fb * other, or None: mixed as the diffuse
+        colours (weight times colour) where some side varies or the factor does, unless a side's
+        glossy lobe has a Fresnel rise (the core keeps such lobes constant): the mean then."""
+        total = wa[GLOSSY] + wb[GLOSSY]
+        sides = [(c, f, w) for c, f, w in zip((self, other), (fa, fb) if fac is None else
+                                              (_one_minus(fac), fac), (wa, wb)) if w[GLOSSY] > 0]
+        if total <= 0 or any(c.fresnel_ior > 0 for c, _, _ in sides):
+            return None
+        if fac is None and not any(c.glossy_texture is not None for c, _, _ in sides):
+            return None
+        terms = [_times(c.glossy_term(), f) for c, f, _ in sides]
+        return _times(terms[0] if len(terms) == 1 else _plus(*terms), 1.0 / total)
+
+    def glossy_term(self):
+        """Weight times colour of the glossy lobe: three numbers or a program."""
+        if self.glossy_texture is None:
+            return self.color[GLOSSY].tolist()
+        return _times(self.glossy_texture, self.weight[GLOSSY])
 
     def diffuse_term(self):
         """Weight times colour of the diffuse lobe: three numbers or a program."""
@@ -130,9 +153,10 @@ class Closure:
         return _times(source, w)
 
     def same_except_diffuse(self, other) -> bool:
-        """Whether the two closures differ in their diffuse lobes only (a varying Mix factor is then
-        exact)."""
-        other_lobes = [k for k in range(4) if k != DIFFUSE]
+        """Whether the two closures differ in their diffuse lobes only, or also in a glossy colour
+        and weight without a Fresnel rise (a varying Mix factor is then exact)."""
+        rise = self.fresnel_ior > 0 or other.fresnel_ior > 0
+        other_lobes = [k for k in range(4) if k != DIFFUSE and (rise or k != GLOSSY)]
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
                 and np.allclose(self.emission, other.emission) and np.isclose(self.roughness, other.roughness)
@@ -159,6 +183,9 @@ class Closure:
             if self.layered > 0 and self.weight[DIFFUSE] > 0:
                 s["diffuse_layer"] = self.layer / self.layered
                 s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
+        if self.glossy_texture is not None and self.weight[GLOSSY] > 0:
+            s["glossy_program"] = self.glossy_texture
+            s["glossy"] = np.ones(3)
         if isinstance(self.texture, dict):
             s["diffuse_program"] = self.texture
             s["diffuse"] = np.ones(3)
@@ -170,6 +197,16 @@ class Closure:
         if self.bump is not None:
             s["bump_texture"], s["bump_strength"], s["bump_distance"] = self.bump
         return s
+
+
+def _program_of(source, constant):
+    """The program of a colour source (:meth:`NodeWalker.color`): itself, an image's lookup with
+    the active UV map, or (-1) the ``constant`` colour as three numbers."""
+    if isinstance(source, dict):
+        return source
+    if source >= 0:
+        return {"op": "image", "texture": int(source), "vector": {"op": "attribute", "name": "uv"}}
+    return [float(x) for x in constant]
 
 
 def _times(a, f):
@@ -250,18 +287,6 @@ def specular_ior(ior, level):
     f0 = float(np.clip(((n - 1.0) / (n + 1.0)) ** 2 * 2.0 * level, 0.0, 0.999))
     r = np.sqrt(f0)
     return (1.0 + r) / (1.0 - r), f0
-
-
-def metal_fresnel(color, edge_tint=(1.0, 1.0, 1.0)):
-    """Cosine-weighted hemispherical mean of Cycles' F82-tint metal Fresnel (F0 = ``color``):
-    F(mu) = F0 + (1 - F0)(1 - mu)^5 - b mu (1 - mu)^6 averages to F0 + (1 - F0) / 21 - b / 126,
-    b the edge-tint term of ``fresnel_f82tint_B`` (0 for a white tint)."""
-    f0 = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
-    tint = np.clip(np.asarray(edge_tint, np.float64), 0.0, 1.0)
-    f = 6.0 / 7.0
-    f5 = f ** 5
-    b = (f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint)
-    return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
 
 
 def conductor_fresnel(ior, extinction) -> np.ndarray:
@@ -370,11 +395,12 @@ class MaterialExporter:
                    or "bump_texture" in self._specs[i] for i in ids) or "uv" in self.coordinates_used(ids)
 
     def coordinates_used(self, ids) -> set:
-        """Names of the coordinates (generated, object, uv) the procedural colours of ``ids`` read."""
+        """Names of the data (``procedural.ATTRIBUTES``) the procedural colours of ``ids`` read."""
         used = set()
         for i in ids:
-            if "diffuse_program" in self._specs[i]:
-                used |= procedural.attributes_used(self._specs[i]["diffuse_program"])
+            for key in Materials.PROGRAM_FIELDS:
+                if key in self._specs[i]:
+                    used |= procedural.attributes_used(self._specs[i][key])
         return used
 
     def normal_map_uv(self, ids):
@@ -603,11 +629,14 @@ class NodeWalker:
         c.texture = tex
         return c
 
-    def _glossy(self, node, stack, color=None):
+    def _glossy(self, node, stack, color=None, program=None):
+        """A glossy lobe of (mean) ``color``, varying as ``program`` if given."""
         if color is None:
-            color, _ = self.color(node.inputs["Color"], stack)
+            color, tex = self.color(node.inputs["Color"], stack)
+            program = _program_of(tex, color) if textured(tex) else None
         rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
         c = Closure.lobe(GLOSSY, 1.0, color, roughness=rough)
+        c.glossy_texture = program
         if node.distribution == "MULTI_GGX":
             c.multiscatter = c.color[GLOSSY] * color
         return c
@@ -620,9 +649,13 @@ class NodeWalker:
             extinction, _ = self.color(node.inputs["Extinction"], stack)
             color = conductor_fresnel(ior, extinction)
         else:
-            base, _ = self.color(node.inputs["Base Color"], stack)
-            tint, _ = self.color(node.inputs["Edge Tint"], stack)
+            base, base_tex = self.color(node.inputs["Base Color"], stack)
+            tint, tint_tex = self.color(node.inputs["Edge Tint"], stack)
             color = metal_fresnel(base, tint)
+            if textured(base_tex) or textured(tint_tex):
+                program = {"op": "metal", "color": _program_of(base_tex, base),
+                           "tint": _program_of(tint_tex, tint)}
+                return self._glossy(node, stack, color, program)
         return self._glossy(node, stack, color)
 
     def _glass(self, node, stack):
@@ -707,6 +740,10 @@ class NodeWalker:
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))
         c.reflection = c.weight[DIELECTRIC] * np.asarray(tint, np.float64)     # Cycles: the specular tint
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1
+        if m > 0 and spec == 0 and textured(tex):
+            # A metal (no dielectric layer): its colour follows the base colour's texture.
+            c.glossy_texture = {"op": "metal", "color": _program_of(tex, base),
+                                "tint": [float(x) for x in tint]}
         return c
 
 

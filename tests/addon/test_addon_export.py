@@ -451,9 +451,10 @@ def test_constant_node_graphs_fold_into_constants(scene):
     assert has_no_programs(ex.scene) and not ex.warnings
 
 
-def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact_for_the_diffuse_part(scene):
+def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact(scene):
     """Mix Shader(Diffuse, Glossy) by a gradient (mean 0.5 over the texture space): the diffuse
-    colour becomes (1 - F) colour / mean(1 - F), the glossy weight F's mean, with a note."""
+    colour becomes (1 - F) colour / mean(1 - F) and the glossy colour F white / mean(F), over the
+    weights' means: exact, so no note."""
     mat = bpy.data.materials.new("Masked")
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
@@ -476,7 +477,10 @@ def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact_for_the_diffus
     colour = procedural.evaluate(program, pts, [])
     x = np.clip(pts.get("generated")[:, 0], 0, 1)
     np.testing.assert_allclose(colour, (1 - x)[:, None] * [0.2, 0.4, 0.6] / row["diffuse_weight"], rtol=1e-6)
-    assert any("'Masked'" in w and "mixes the diffuse colours point by point" in w for w in ex.warnings)
+    glossy = procedural.evaluate(ex.scene.materials.programs[row["glossy_program"]], pts, [])
+    np.testing.assert_allclose(glossy, x[:, None] * [0.8, 0.8, 0.8] / row["glossy_weight"], rtol=1e-6)
+    assert row["glossy_color"] == pytest.approx([1, 1, 1])
+    assert not [w for w in ex.warnings if "'Masked'" in w], ex.warnings
 
 
 def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_noted(scene):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core import procedural
-from core.scene import Scene, SceneError
+from core.scene import Materials, Scene, SceneError
 from core.testing.scenes import sun_over_procedural_floor
 
 
@@ -162,3 +162,31 @@ def test_programs_and_coordinates_survive_a_file(tmp_path):
     np.testing.assert_array_equal(loaded.materials.diffuse_program, [0])
     for name in ("object_ids", "object_from_world", "texture_spaces"):
         np.testing.assert_array_equal(getattr(loaded, name), getattr(scene, name))
+
+
+@pytest.mark.parametrize("roughness, lobe", [(0.4, "glossy"), (0.0, "mirror")])
+def test_glossy_program_colours_the_glossy_lobe_or_the_mirror_it_merged_into(roughness, lobe):
+    """``glossy_program`` scales the glossy lobe's colour at each hit (the mirror lobe's for a sharp
+    glossy, which the core merges into it); the diffuse colour keeps its own."""
+    from core.bsdf import DIFFUSE, GLOSSY, MIRROR
+    from core.context import RenderContext
+    checker = {"op": "checker", "vector": OBJECT, "color1": [1.0, 0.5, 0.25], "color2": [0.2, 0.2, 0.2],
+               "scale": 4.0}
+    floor = sun_over_procedural_floor(checker)
+    mats = Materials.build([{"name": "floor", "diffuse": 0.3, "diffuse_weight": 0.5, "glossy": 1.0,
+                             "glossy_weight": 0.5, "roughness": roughness, "glossy_program": checker}])
+    ctx = RenderContext(floor.replace(materials=mats).validate())
+    bary = (np.full((2, 1), 0.25), np.full((2, 1), 0.25), np.full((2, 1), 0.5))
+    surf = ctx.surface(np.array([0, 1]), bary[1][:, 0], bary[2][:, 0])
+    expected = procedural.evaluate(checker, Points(surf.position), [])
+    k = GLOSSY if lobe == "glossy" else MIRROR
+    np.testing.assert_allclose(surf.colors[:, k], expected)
+    np.testing.assert_allclose(surf.colors[:, DIFFUSE], 0.3)
+
+
+def test_a_glossy_program_with_a_fresnel_rise_is_refused():
+    floor = sun_over_procedural_floor({"op": "attribute", "name": "object"})
+    mats = Materials.build([{"name": "layered", "glossy": 1.0, "glossy_fresnel_ior": 1.5,
+                             "glossy_program": {"op": "splat", "value": 0.5}}])
+    with pytest.raises(SceneError, match="cannot vary a glossy lobe with a Fresnel rise"):
+        floor.replace(materials=mats).validate()
