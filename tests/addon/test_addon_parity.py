@@ -357,6 +357,25 @@ def assert_channels_match(name, cycles, ours, rtol=TOLERANCE, band_rtol=BAND_TOL
     return c, o
 
 
+def floor_shader(kind):
+    """The corner's floor material with its Diffuse BSDF replaced by a new ``kind`` node: (tree, node)."""
+    nt = bpy.data.materials["Floor"].node_tree
+    nt.nodes.remove(nt.nodes["Diffuse BSDF"])
+    bsdf = nt.nodes.new(kind)
+    nt.links.new(bsdf.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return nt, bsdf
+
+
+def object_checker(nt, scale, color1, color2):
+    """Colour output of a Checker Texture on Object coordinates added to ``nt``."""
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = scale
+    checker.inputs["Color1"].default_value = (*color1, 1.0)
+    checker.inputs["Color2"].default_value = (*color2, 1.0)
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], checker.inputs["Vector"])
+    return checker.outputs["Color"]
+
+
 def test_procedural_textures_match_cycles(addon, tmp_path):
     """The corner under an area light, its floor a Principled BSDF whose base colour is a checker
     of 50 cm cells (Object coordinates), its wall a Diffuse BSDF coloured by a Noise Texture's
@@ -364,17 +383,8 @@ def test_procedural_textures_match_cycles(addon, tmp_path):
     coloured wall must come out as in Cycles.  Each channel is compared: the colours differ."""
     def build():
         corner_scene()
-        floor = bpy.data.materials["Floor"]
-        nt = floor.node_tree
-        nt.nodes.remove(nt.nodes["Diffuse BSDF"])
-        bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
-        nt.links.new(bsdf.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-        checker = nt.nodes.new("ShaderNodeTexChecker")
-        checker.inputs["Scale"].default_value = 2.0
-        checker.inputs["Color1"].default_value = (0.8, 0.6, 0.2, 1.0)
-        checker.inputs["Color2"].default_value = (0.1, 0.3, 0.7, 1.0)
-        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], checker.inputs["Vector"])
-        nt.links.new(checker.outputs["Color"], bsdf.inputs["Base Color"])
+        nt, bsdf = floor_shader("ShaderNodeBsdfPrincipled")
+        nt.links.new(object_checker(nt, 2.0, (0.8, 0.6, 0.2), (0.1, 0.3, 0.7)), bsdf.inputs["Base Color"])
         wall = bpy.data.materials["Wall"].node_tree
         noise = wall.nodes.new("ShaderNodeTexNoise")
         noise.inputs["Scale"].default_value = 3.0
@@ -440,19 +450,12 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
     (``Materials.glossy_program``; the metal's mean F82 Fresnel of its base colour per point)."""
     def build():
         corner_scene()
-        nt = bpy.data.materials["Floor"].node_tree
-        nt.nodes.remove(nt.nodes["Diffuse BSDF"])
         if shader == "glossy_checker":
-            bsdf = nt.nodes.new("ShaderNodeBsdfGlossy")
+            nt, bsdf = floor_shader("ShaderNodeBsdfGlossy")
             bsdf.inputs["Roughness"].default_value = 0.3
-            tex = nt.nodes.new("ShaderNodeTexChecker")
-            tex.inputs["Scale"].default_value = 1.0
-            tex.inputs["Color1"].default_value = (0.9, 0.7, 0.2, 1.0)
-            tex.inputs["Color2"].default_value = (0.1, 0.3, 0.8, 1.0)
-            nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], tex.inputs["Vector"])
-            nt.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
+            nt.links.new(object_checker(nt, 1.0, (0.9, 0.7, 0.2), (0.1, 0.3, 0.8)), bsdf.inputs["Color"])
         else:
-            bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+            nt, bsdf = floor_shader("ShaderNodeBsdfPrincipled")
             bsdf.inputs["Metallic"].default_value = 1.0
             bsdf.inputs["Roughness"].default_value = 0.35
             noise = nt.nodes.new("ShaderNodeTexNoise")
@@ -462,7 +465,6 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
             ramp.color_ramp.elements[1].color = (0.9, 0.9, 0.92, 1.0)
             nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
             nt.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
-        nt.links.new(bsdf.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
     # Metals reflect their mean F82 Fresnel colour at every angle (README Limitations): the blue
