@@ -1,8 +1,9 @@
 """Procedural colour programs: Blender's texture and colour nodes, evaluated at surface hits.
 
-A material's diffuse colour may be a *program*: a tree of nodes as plain JSON-able dicts,
-which the exporter builds from the material's node graph and this module evaluates,
-vectorised over all hits of the material at once.  A node is ``{"op": name, ...}``; its inputs
+A material's diffuse colour, or the colour of its glossy lobe without a Fresnel rise, may be a
+*program*: a tree of nodes as plain JSON-able dicts, which the exporter builds from the
+material's node graph and this module evaluates, vectorised over all hits of the material at
+once; a world's colour may be one of the direction, which the exporter bakes into an image.  A node is ``{"op": name, ...}``; its inputs
 are numbers (float sockets), lists of three numbers (colour and vector sockets) or nodes, and a
 node input picks one of the node's outputs with ``"output"`` (default: the op's first).  Inputs
 are typed as in Blender: the exporter inserts the conversions (``gray``, ``average``, ``splat``)
