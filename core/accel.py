@@ -154,3 +154,10 @@ class Accel:
         rel = np.abs(positions - self.center)
         # Column by column: NumPy reduces a short inner axis (max over axis 1) ~10x slower.
         return _OFFSET_ULPS * np.maximum(np.maximum(rel[:, 0], rel[:, 1]), rel[:, 2]) + self.offset_floor
+
+
+def interpolate_corners(corners, bary):
+    """(k, c) float64 values inside triangles from their (k, 3, c) corner values and the
+    barycentric weights ``bary`` ((k, 1) each, of corners 0, 1, 2)."""
+    c = corners.astype(np.float64)
+    return bary[0] * c[:, 0] + bary[1] * c[:, 1] + bary[2] * c[:, 2]

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accel import Accel
+from .accel import Accel, interpolate_corners
 from .bsdf import MaterialTable, Textures, lobe_colors
 from .lights import LightSampler
 from .procedural import HitAttributes, evaluate_color
@@ -67,14 +67,14 @@ class RenderContext:
         mat = self.material_ids.take(prim_ids)
         bary = (b0[:, None], b1[:, None], b2[:, None])
         if self.shading_normals is not None:
-            ns = normalize(_interpolate(self.shading_normals.take(prim_ids, axis=0), bary))
+            ns = normalize(interpolate_corners(self.shading_normals.take(prim_ids, axis=0), bary))
             _replace_bad(ns, ng)
         else:
             ns = ng.copy() if self.has_normal_maps else ng
         # Texture coordinates, once for every image lookup at these hits.
         uv = None
         if self.uses_uvs.take(mat).any():
-            uv = _interpolate(self.scene.uvs.take(prim_ids, axis=0), bary)
+            uv = interpolate_corners(self.scene.uvs.take(prim_ids, axis=0), bary)
         nn = None
         if self.has_normal_maps:
             nn = ns.copy()
@@ -118,7 +118,7 @@ class RenderContext:
         sel = np.flatnonzero(tex >= 0)
         if len(sel) == 0:
             return
-        tg = _interpolate(self.scene.tangents.take(prim_ids.take(sel), axis=0),
+        tg = interpolate_corners(self.scene.tangents.take(prim_ids.take(sel), axis=0),
                           tuple(w.take(sel, axis=0) for w in bary))           # (k, 4): xyz and sign
         c = 2.0 * self.textures.lookup(tex.take(sel), uv.take(sel, axis=0)) - 1.0
         s = self.normal_strength.take(mat.take(sel))
@@ -168,13 +168,6 @@ class RenderContext:
         n[~ok] = n0[~ok]
         _replace_bad(n, n0)
         ns[sel] = n
-
-
-def _interpolate(corners, bary):
-    """(k, c) float64 values inside triangles from their (k, 3, c) corner values and the
-    barycentric weights ``bary`` ((k, 1) each, of corners 0, 1, 2)."""
-    c = corners.astype(np.float64)
-    return bary[0] * c[:, 0] + bary[1] * c[:, 1] + bary[2] * c[:, 2]
 
 
 def _replace_bad(n, fallback):

@@ -53,11 +53,7 @@ class Environment:
 
     # ------------------------------------------------------------------ lookups
     def uv(self, dirs):
-        if self.rotation is not None:
-            dirs = dirs @ self.rotation.T
-        u = 0.5 - np.arctan2(dirs[:, 1], dirs[:, 0]) / (2.0 * np.pi)
-        v = 1.0 - np.arccos(np.clip(dirs[:, 2], -1.0, 1.0)) / np.pi
-        return u, v
+        return equirectangular_uv(dirs if self.rotation is None else dirs @ self.rotation.T)
 
     def radiance(self, dirs):
         """(n, 3) radiance that a ray travelling along the unit directions ``dirs`` (n, 3) meets
@@ -90,3 +86,26 @@ class Environment:
         if self.rotation is not None:
             d = d @ self.rotation                   # image direction back to the world: R^T d
         return d, prob / self.solid.take(i)
+
+
+def equirectangular_uv(dirs):
+    """Image coordinates (u, v), (n,) each, of directions ``dirs`` (n, 3) (any length; zero: the
+    image centre): u = 1/2 - atan2(y, x) / 2 pi, v = 1 - acos(z / |d|) / pi (module docstring)."""
+    length = np.sqrt((dirs * dirs).sum(axis=1))
+    z = np.where(length > 0, dirs[:, 2] / np.where(length > 0, length, 1.0), 0.0)
+    u = 0.5 - np.arctan2(dirs[:, 1], dirs[:, 0]) / (2.0 * np.pi)
+    v = 1.0 - np.arccos(np.clip(z, -1.0, 1.0)) / np.pi
+    return u, v
+
+
+def equirectangular_directions(width, height):
+    """(height, width, 3) unit directions of the pixel centres of an equirectangular image in the
+    layout above (row 0 = the bottom, v = (i + 1/2) / height; u = (j + 1/2) / width): the
+    inverse of :func:`equirectangular_uv`."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    phi = np.pi - 2.0 * np.pi * u                      # u = 1/2 - phi / 2 pi
+    theta = np.pi * (1.0 - v)                          # v = 1 - theta / pi
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    return np.stack([st * np.cos(phi)[None], st * np.sin(phi)[None], np.broadcast_to(ct, (height, width))],
+                    axis=-1)

@@ -3,11 +3,12 @@
 A material's diffuse colour, or the colour of its glossy lobe without a Fresnel rise, may be a
 *program*: a tree of nodes as plain JSON-able dicts, which the exporter builds from the
 material's node graph and this module evaluates, vectorised over all hits of the material at
-once; a world's colour may be one of the direction, which the exporter bakes into an image.  A node is ``{"op": name, ...}``; its inputs
-are numbers (float sockets), lists of three numbers (colour and vector sockets) or nodes, and a
-node input picks one of the node's outputs with ``"output"`` (default: the op's first).  Inputs
-are typed as in Blender: the exporter inserts the conversions (``gray``, ``average``, ``splat``)
-where a link joins sockets of different types, as Cycles does.
+once; a world's colour may be one of the direction, which the exporter bakes into an image.
+A node is ``{"op": name, ...}``; its inputs are numbers (float sockets), lists of three numbers
+(colour and vector sockets) or nodes, and a node input picks one of the node's outputs with
+``"output"`` (default: the op's first).  Inputs are typed as in Blender: the exporter inserts
+the conversions (``gray``, ``average``, ``splat``) where a link joins sockets of different types,
+as Cycles does.
 
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
@@ -53,7 +54,9 @@ from . import noise as _noise_module
 from . import pattern_textures as _patterns
 from . import sky as _sky_module
 from . import voronoi as _voronoi_module
+from .accel import interpolate_corners
 from .bsdf import bilinear, metal_fresnel
+from .environment import equirectangular_uv
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color")
@@ -90,8 +93,7 @@ class HitAttributes:
         c = {"uv": self.scene.uvs, "color": self.scene.vertex_colors}[name]
         if c is None:
             raise ProgramError(f"the program needs '{name}' data, which the scene lacks")
-        c = c.take(self.prim_ids, axis=0).astype(np.float64)
-        v = self.bary[0] * c[:, 0] + self.bary[1] * c[:, 1] + self.bary[2] * c[:, 2]
+        v = interpolate_corners(c.take(self.prim_ids, axis=0), self.bary)
         if v.shape[1] == 2:
             v = np.concatenate([v, np.zeros((len(v), 1))], axis=1)
         return v
@@ -124,19 +126,6 @@ class DirectionAttributes:
 
     def get(self, name):
         return self.directions if name in ("generated", "object") else np.zeros_like(self.directions)
-
-
-def equirectangular_directions(width, height):
-    """(height, width, 3) unit directions of the pixel centres of an equirectangular image in the
-    core's layout (row 0 = the bottom, v = (i + 1/2) / height; u = (j + 1/2) / width; see
-    ``core/environment.py``)."""
-    u = (np.arange(width) + 0.5) / width
-    v = (np.arange(height) + 0.5) / height
-    phi = np.pi - 2.0 * np.pi * u                      # u = 1/2 - phi / 2 pi
-    theta = np.pi * (1.0 - v)                          # v = 1 - theta / pi
-    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
-    return np.stack([st * np.cos(phi)[None], st * np.sin(phi)[None], np.broadcast_to(ct, (height, width))],
-                    axis=-1)
 
 
 class SampledAttributes:
@@ -177,6 +166,17 @@ def mean_color(program, images, n=4096):
     """(3,) mean colour of ``program`` over :class:`SampledAttributes`: what a lobe that cannot
     vary over the surface uses."""
     return evaluate_color(program, SampledAttributes(n), images).mean(axis=0)
+
+
+def varies(program) -> bool:
+    """Whether ``program`` (a node dict, or a constant) depends on the hit: reads some attribute."""
+    return isinstance(program, dict) and bool(attributes_used(program))
+
+
+def mean_value(program, images):
+    """Mean of ``program`` over :class:`SampledAttributes`: a float, or (3,) for a colour or vector."""
+    v = evaluate(program, SampledAttributes(), images)
+    return float(v.mean()) if v.ndim == 1 else v.mean(axis=0)
 
 
 def attributes_used(program) -> set:
@@ -229,8 +229,8 @@ def _check_value(op, key, value):
         if value not in choices:
             raise ProgramError(f"op '{op}': {key} {value!r} is not one of {tuple(choices)}")
         return
-    if key in ("table", "matrix", "pre", "post", "sun_direction"):
-        return                                      # arrays, checked by their op
+    if key in ARRAYS.get(op, {}):
+        return                                      # arrays, checked in validate
     ok = isinstance(value, (bool, int, float)) or (
         isinstance(value, list) and len(value) == 3 and all(isinstance(x, (int, float)) for x in value))
     if not ok or not np.isfinite(value).all():
@@ -411,11 +411,7 @@ def _white_noise(ev, node):
 def _environment(ev, node):
     """An equirectangular image looked up by direction (Cycles' ``direction_to_equirectangular``:
     u = 1/2 - atan2(y, x) / 2 pi, v = 1 - acos(z) / pi; bilinear, wrapping in u, clamped in v)."""
-    d = ev.vec(node, "vector")
-    length = np.sqrt((d * d).sum(axis=1))
-    z = np.where(length > 0, d[:, 2] / np.where(length > 0, length, 1.0), 0.0)
-    u = 0.5 - np.arctan2(d[:, 1], d[:, 0]) / (2.0 * np.pi)
-    v = 1.0 - np.arccos(np.clip(z, -1.0, 1.0)) / np.pi
+    u, v = equirectangular_uv(ev.vec(node, "vector"))
     return {"Color": bilinear(ev.images[int(node["texture"])], u, v, clamp_v=True), "Alpha": np.ones(ev.k)}
 
 

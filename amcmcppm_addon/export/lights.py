@@ -64,10 +64,7 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         log.warning(f"light '{name}': light node trees are ignored; using its colour and power")
     position = m[:3, 3]
     direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
-    rec = {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
-           "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
-           "visibility": visibility, "soft_falloff": bool(getattr(light, "use_soft_falloff", True)),
-           "spread": math.pi}
+    rec = light_record(position, direction, visibility, bool(getattr(light, "use_soft_falloff", True)))
     if light.type in ("POINT", "SPOT"):
         r = max(float(light.shadow_soft_size), 0.0)
         if not light.normalize and r > 0:
@@ -102,6 +99,13 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         log.warning(f"light '{name}' of type {light.type} is not supported; skipped")
         return None
     return rec
+
+
+def light_record(position, direction, visibility, soft_falloff=True, **fields) -> dict:
+    """A light's field dict (``build_lights``): the given fields over neutral defaults."""
+    return {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
+            "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
+            "visibility": visibility, "soft_falloff": soft_falloff, "spread": math.pi, **fields}
 
 
 def build_lights(records) -> Lights:

@@ -467,7 +467,7 @@ class NodeWalker:
         if node.bl_idname in ("ShaderNodeBackground", "ShaderNodeEmission"):
             strength = self.value(node.inputs["Strength"], stack)
             e = self.programs.expression(node.inputs["Color"], stack, VEC)
-            if not isinstance(e, dict) or not procedural.attributes_used(e):
+            if not procedural.varies(e):
                 color, _ = self.color(node.inputs["Color"], stack)
                 return color * strength
             plain = _plain_environment(e)
@@ -533,7 +533,7 @@ class NodeWalker:
                 and e["vector"] == {"op": "attribute", "name": "uv"}):
             return self.textures.mean(e["texture"]), e["texture"]
         mean = procedural.mean_color(e, self.textures.images)
-        if not procedural.attributes_used(e):
+        if not procedural.varies(e):
             return mean, -1                     # constant nodes only: the same everywhere
         return mean, e
 
@@ -607,14 +607,8 @@ class NodeWalker:
         f = self.programs.expression(node.inputs[0], stack, FLOAT)
         a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()
         b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
-        if isinstance(f, dict) and procedural.attributes_used(f):
-            # A factor that varies over the surface (a mask): exact for the diffuse colours.
-            f = _clamp01(f)
-            mean = self._mean(f)
-            if not a.same_except_diffuse(b):
-                self.note(f"'{node.name}': a varying Fac mixes the diffuse colours point by point and "
-                          f"the other parts of the shaders by its mean {mean:.3f}")
-            return a.combine(b, 1.0 - mean, mean, fac=f)
+        if procedural.varies(f):
+            return self._masked_mix(node, "Fac", f, a, b)
         fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
         return a.combine(b, 1.0 - fac, fac)
 
@@ -670,9 +664,16 @@ class NodeWalker:
         strength = self.value(node.inputs["Strength"], stack)
         return Closure(emission=np.maximum(color * strength, 0.0))
 
-    def _mean(self, f) -> float:
-        """Mean of float program ``f`` over stand-in coordinates."""
-        return float(procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images).mean())
+    def _masked_mix(self, node, what, f, a, b) -> Closure:
+        """Closures ``a`` and ``b`` mixed by ``f``, a float program that varies over the surface (a
+        mask; clamped to [0, 1] as Cycles does): exact for the diffuse colours and the glossy ones
+        without a Fresnel rise (``Closure.combine``), the rest by f's mean, noted."""
+        f = _clamp01(f)
+        mean = procedural.mean_value(f, self.textures.images)
+        if not a.same_except_diffuse(b):
+            self.note(f"'{node.name}': a varying {what} mixes the diffuse colours point by point and the "
+                      f"other parts by its mean {mean:.3f}")
+        return a.combine(b, 1.0 - mean, mean, fac=f)
 
     def _principled(self, node, stack, fixed=None):
         """Principled BSDF.  Its Metallic and Transmission Weight mix its metal, glass and
@@ -683,15 +684,9 @@ class NodeWalker:
         fixed = fixed or {}
         for name in ("Metallic", "Transmission Weight"):
             f = self.programs.expression(inp[name], stack, FLOAT)
-            if name not in fixed and isinstance(f, dict) and procedural.attributes_used(f):
-                f = _clamp01(f)
-                mean = self._mean(f)
-                a = self._principled(node, stack, {**fixed, name: 0.0})
-                b = self._principled(node, stack, {**fixed, name: 1.0})
-                if not a.same_except_diffuse(b):
-                    self.note(f"'{node.name}': a varying {name} mixes the diffuse colour point by point and "
-                              f"the other parts by its mean {mean:.3f}")
-                return a.combine(b, 1.0 - mean, mean, fac=f)
+            if name not in fixed and procedural.varies(f):
+                return self._masked_mix(node, name, f, self._principled(node, stack, {**fixed, name: 0.0}),
+                                        self._principled(node, stack, {**fixed, name: 1.0}))
         base, tex = self.color(inp["Base Color"], stack)
         m = fixed.get("Metallic")
         m = float(np.clip(self.value(inp["Metallic"], stack), 0.0, 1.0)) if m is None else m

@@ -65,9 +65,9 @@ class ExpressionBuilder:
         e = self.expression(sock, stack, want)
         if not isinstance(e, dict):
             return e
-        mean = procedural.evaluate(e, procedural.SampledAttributes(), self.walker.textures.images)
-        mean = float(np.mean(mean)) if want == FLOAT else mean.mean(axis=0).tolist()
-        if not procedural.attributes_used(e):
+        mean = procedural.mean_value(e, self.walker.textures.images)
+        mean = mean if want == FLOAT else mean.tolist()
+        if not procedural.varies(e):
             return mean                                 # constant nodes only (Math of numbers...)
         self.walker.note(f"'{sock.node.name}': {sock.name} varies over the surface, which is not "
                          f"supported here; using its mean {np.round(mean, 3).tolist()}")
@@ -88,16 +88,13 @@ class ExpressionBuilder:
 
 # ---------------------------------------------------------------------- conversions
 def _constant(sock, want):
+    """A socket's own value as ``want``."""
     value = getattr(sock, "default_value", 0.0)
     try:
-        v = [float(x) for x in value][:3]
+        v = ([float(x) for x in value] + [0.0] * 3)[:3]
     except TypeError:
-        v = float(value)
-    if want == FLOAT:
-        if isinstance(v, float):
-            return v
-        return float(np.dot(v, procedural.LUMINANCE)) if sock.type == "RGBA" else float(np.mean(v))
-    return [v, v, v] if isinstance(v, float) else (v + [0.0] * 3)[:3]
+        return _convert(float(value), FLOAT, "VALUE", want)
+    return _convert(v, VEC, sock.type, want)
 
 
 def _convert(value, kind, socket_type, want):

@@ -18,7 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural, sky
+from ...core.environment import equirectangular_directions
 from ...core.scene import SUN, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, World
+from .lights import light_record
 from .materials import NodeWalker
 
 BAKE_WIDTH = 1024          # equirectangular image of a procedural world (height: half)
@@ -62,10 +64,10 @@ def sun_disc_lights(program, strength, world_name, log):
         power = np.maximum(disc["irradiance"] * strength, 0.0)
         if not power.any():
             return []
-        return [{"kind": SUN, "position": np.zeros(3), "direction": -disc["direction"], "radius": 0.0,
-                 "spot_angle": np.pi / 4, "spot_blend": 0.0, "sun_angle": float(disc["angle"]),
-                 "axis_u": np.zeros(3), "axis_v": np.zeros(3), "power": power, "soft_falloff": True,
-                 "spread": np.pi, "visibility": VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION}]
+        # Part of the world: seen by the camera, in mirrors and through glass.
+        visibility = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+        return [light_record(np.zeros(3), -disc["direction"], visibility, kind=SUN,
+                             sun_angle=float(disc["angle"]), power=power)]
     if any(n["op"] == "sky" and n.get("sun_disc") and n["sky_type"] != "PREETHAM"
            for n in procedural.nodes(program)):
         log.warning(f"world '{world_name}': the sun disc of a Sky Texture that other nodes change is "
@@ -79,7 +81,7 @@ def bake_world(program, images):
     widths = [images[n["texture"]].shape[1] for n in procedural.nodes(program) if n["op"] == "environment"]
     width = int(min(max([BAKE_WIDTH, *widths]), BAKE_MAX_WIDTH))
     height = width // 2
-    dirs = procedural.equirectangular_directions(width, height).reshape(-1, 3)
+    dirs = equirectangular_directions(width, height).reshape(-1, 3)
     rgb = procedural.evaluate(program, procedural.DirectionAttributes(dirs), images)
     if rgb.ndim == 1:
         rgb = np.repeat(rgb[:, None], 3, axis=1)
