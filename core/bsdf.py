@@ -67,6 +67,7 @@ class MaterialTable:
     program: np.ndarray = None        # (M,) int32 procedural diffuse colour (Materials.programs) or -1
     glossy_program: np.ndarray = None  # (M,) int32 procedural glossy colour or -1 ...
     glossy_program_lobe: np.ndarray = None  # (M,) int64 ... of this lobe (MIRROR where a sharp glossy merged)
+    emission_program: np.ndarray = None     # (M,) int32 procedural factor of ``emission`` or -1
 
     @staticmethod
     def from_materials(mats) -> "MaterialTable":
@@ -80,6 +81,8 @@ class MaterialTable:
         textured = (mats.diffuse_texture >= 0) | (program >= 0)
         glossy_program = (np.asarray(mats.glossy_program, np.int32) if mats.glossy_program is not None
                           else np.full(m, -1, np.int32))
+        emission_program = (np.asarray(mats.emission_program, np.int32) if mats.emission_program is not None
+                            else np.full(m, -1, np.int32))
         weight[:, GLOSSY] = mats.glossy_weight
         color[:, GLOSSY] = mats.glossy_color
         weight[:, MIRROR] = mats.mirror_weight
@@ -125,7 +128,8 @@ class MaterialTable:
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
                              | (np.asarray(mats.bump_texture) >= 0), program=program,
                              glossy_program=glossy_program,
-                             glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR))
+                             glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
+                             emission_program=emission_program)
 
     @property
     def has_normal_maps(self) -> bool:

@@ -8,7 +8,7 @@ import numpy as np
 from .accel import Accel, interpolate_corners
 from .bsdf import MaterialTable, Textures, lobe_colors
 from .lights import LightSampler
-from .procedural import HitAttributes, evaluate_color
+from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate_color
 from .sampling import normalize
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -35,7 +35,13 @@ class RenderContext:
         self.accel = Accel(scene)
         self.table = MaterialTable.from_materials(scene.materials)
         self.textures = Textures(scene.textures)
-        self.lights = LightSampler(scene, self.accel, self.table)
+        # Procedural colours: the programs and the coordinates they read.
+        self.programs = scene.materials.programs
+        self.has_programs = bool((self.table.program >= 0).any())
+        self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
+        self.has_emission_programs = bool((self.table.emission_program >= 0).any())
+        self.material_ids = np.ascontiguousarray(scene.material_ids)
+        self.lights = LightSampler(scene, self.accel, self.table, self.emitted)
         # Normal and bump maps: per-material image index (-1: none) and parameters.
         mats = scene.materials
         self.normal_texture = np.ascontiguousarray(mats.normal_texture, np.int32)
@@ -47,16 +53,11 @@ class RenderContext:
         self.has_normal_maps = self.table.has_normal_maps
         self.has_shading_normals = scene.shading_normals is not None or self.has_normal_maps
         # Per-triangle arrays gathered with take(), which copies a non-contiguous array first.
-        self.material_ids = np.ascontiguousarray(scene.material_ids)
         self.shading_normals = (np.ascontiguousarray(scene.shading_normals)
                                 if scene.shading_normals is not None else None)
         self.has_textures = bool((self.table.texture >= 0).any())
         # Materials that look an image up with the UVs (colour, normal or bump map).
         self.uses_uvs = (self.table.texture >= 0) | self.table.normal_mapped
-        # Procedural diffuse colours: the programs and the coordinates they read.
-        self.programs = scene.materials.programs
-        self.has_programs = bool((self.table.program >= 0).any())
-        self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
 
     def surface(self, prim_ids, b1, b2) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics."""
@@ -96,15 +97,31 @@ class RenderContext:
                 colors[sel, lobe.take(mat.take(sel))] *= color
         return Surface(pos, ng, ns, mat, colors, nn)
 
-    def _program_colors(self, programs, prim_ids, bary, pos, mat):
-        """(hit indices, (k, 3) colours) for each program in ``programs`` (per material, -1: none)
-        that some of the hits' materials have."""
+    def emitted(self, prim_ids, b1, b2, mat=None, positions=None):
+        """(n, 3) float64 radiance emitted at the points of triangles ``prim_ids`` with barycentrics
+        ``b1``, ``b2``: the material's emission times its emission program there (``mat`` (n,) and
+        ``positions`` (n, 3) when the caller has them)."""
+        if mat is None:
+            mat = self.material_ids.take(prim_ids)
+        out = self.table.emission.take(mat, axis=0)
+        if self.has_emission_programs:
+            if positions is None:
+                positions = self.accel.hit_positions(prim_ids, b1, b2)
+            bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
+            programs = self.table.emission_program
+            for sel, factor in self._program_colors(programs, prim_ids, bary, positions, mat, EMISSION_MAX):
+                out[sel] *= factor
+        return out
+
+    def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX):
+        """(hit indices, (k, 3) colours in [0, ``limit``]) for each program in ``programs`` (per
+        material, -1: none) that some of the hits' materials have."""
         program = programs.take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
             attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
                                   pos.take(sel, axis=0))
-            yield sel, evaluate_color(self.programs[p], attrs, self.textures.images)
+            yield sel, evaluate_color(self.programs[p], attrs, self.textures.images, limit)
 
     def _apply_normal_maps(self, ns, prim_ids, bary, uv, mat):
         """Bend ``ns`` (n, 3) in place where the material has a tangent-space normal map.

@@ -131,13 +131,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         ray_kind = ray_kind.take(h)
         path_len = path_len.take(h) + hits.t.take(h)
         footprint = footprint.take(h)
-        surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
+        prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
+        surf = ctx.surface(prim, b1, b2)
         wo = -dirs
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():
             e = np.flatnonzero(emissive)
-            emission[pix[e]] += beta[e] * table.emission[surf.mat_ids[e]]
+            emission[pix[e]] += beta[e] * ctx.emitted(prim.take(e), b1.take(e), b2.take(e),
+                                                      surf.mat_ids.take(e), surf.position.take(e, axis=0))
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
         u = rng.random((len(pix), 3))

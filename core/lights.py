@@ -21,13 +21,22 @@ from .scene import AREA_DISK, AREA_RECT, POINT, SPOT, SUN
 LIGHT_DIMS = 6
 # Emitter kinds in the combined table (analytic kinds keep their Lights.kind value).
 TRIANGLE, WORLD = 10, 11
+# Textured emitters: the power of each emissive triangle is estimated from its radiance at up to
+# TEXTURED_POWER_SIDE^2 stratified points (fewer when the mesh has more than TEXTURED_POWER_BUDGET
+# / that many triangles), kept at least TEXTURED_POWER_FLOOR times its material's mean.
+TEXTURED_POWER_SIDE = 4
+TEXTURED_POWER_BUDGET = 1 << 18
+TEXTURED_POWER_FLOOR = 0.05
 
 
 class LightSampler:
     """Power-proportional choice over all emitters and their photon sampling."""
 
-    def __init__(self, scene, accel, table):
+    def __init__(self, scene, accel, table, emitted=None):
         lights = scene.lights
+        # Radiance at points of emissive triangles (RenderContext.emitted), for textured emitters.
+        self.emitted = emitted
+        self.textured_emitters = emitted is not None and bool((table.emission_program >= 0).any())
         self.lights = lights
         # Emission axes renormalised in float64 (the scene stores them in float32).
         self.axes = smp.normalize(lights.direction.astype(np.float64)) if lights.count else np.zeros((0, 3))
@@ -42,6 +51,9 @@ class LightSampler:
         emissive_tris = np.flatnonzero(table.is_emissive[tri_mat] & (accel.area > 0)) \
             if scene.triangle_count else np.zeros(0, np.int64)
         tri_power = (2.0 * np.pi * accel.area[emissive_tris])[:, None] * table.emission[tri_mat[emissive_tris]]
+        if self.textured_emitters:
+            textured = np.flatnonzero(table.emission_program.take(tri_mat.take(emissive_tris)) >= 0)
+            tri_power[textured] = self._textured_power(emissive_tris.take(textured), tri_mat)
         # World: a constant colour or an image (core/environment.py) seen through the bounding sphere.
         world = np.asarray(scene.world.color, np.float64)
         texture = scene.world.texture
@@ -222,8 +234,15 @@ class LightSampler:
             elif k == SUN:
                 o, d, w = self._sample_sun(ids, us)
             elif k == TRIANGLE:
-                o, d, w, nrm = self._sample_triangle(ids, us)
+                o, d, emitted, nrm = self._sample_triangle(ids, us)
                 normals[sel] = nrm
+                w = np.ones(len(ids))
+                if emitted is not None:
+                    # A textured emitter: the power the point emits over the choice probability,
+                    # exact whatever the estimate of the triangle's power behind that probability.
+                    origins[sel], dirs[sel] = o, d
+                    flux[sel] = emitted / self.prob[entry[sel]][:, None]
+                    continue
             else:
                 o, d, w = self._sample_world(us)
             origins[sel], dirs[sel] = o, d
@@ -302,6 +321,8 @@ class LightSampler:
         return self.center + r * (x[:, None] * t + y[:, None] * b) - 2.0 * r * d
 
     def _sample_triangle(self, ids, u):
+        """Origins, directions, the power 2 pi A L(x) (n, 3) the chosen points emit (None unless
+        some emission is textured: that of the triangle, ``power``) and the normals."""
         a = self.accel
         b1, b2 = smp.uniform_triangle(u[:, 1], u[:, 2])
         p = a.hit_positions(ids, b1, b2)
@@ -309,7 +330,35 @@ class LightSampler:
         side = np.where(u[:, 3] < 0.5, 1.0, -1.0)
         n = ng * side[:, None]
         d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
-        return a.spawn(p, n, d), d, np.ones(len(ids)), n
+        emitted = None
+        if self.textured_emitters:
+            emitted = (2.0 * np.pi * a.area.take(ids))[:, None] * self.emitted(ids, b1, b2, positions=p)
+        return a.spawn(p, n, d), d, emitted, n
+
+    def _textured_power(self, tris, tri_mat):
+        """(k, 3) estimated power 2 pi A mean(L) of emissive triangles ``tris`` with an emission
+        program: L at TEXTURED_POWER_POINTS stratified points each (fewer on big meshes), kept
+        above TEXTURED_POWER_FLOOR times their material's mean so that no triangle that emits
+        somewhere goes unchosen (photon fluxes stay exact: ``sample``)."""
+        area = self.accel.area.take(tris)
+        side = int(np.clip(np.sqrt(TEXTURED_POWER_BUDGET / max(len(tris), 1)), 1, TEXTURED_POWER_SIDE))
+        g = (np.arange(side) + 0.5) / side
+        u1, u2 = (x.ravel() for x in np.meshgrid(g, g, indexing="ij"))
+        b1, b2 = smp.uniform_triangle(u1, u2)
+        k = len(b1)
+        mean = np.zeros((len(tris), 3))
+        chunk = max(1, TEXTURED_POWER_BUDGET // k)
+        for start in range(0, len(tris), chunk):
+            part = tris[start:start + chunk]
+            ids = np.repeat(part, k)
+            radiance = self.emitted(ids, np.tile(b1, len(part)), np.tile(b2, len(part)))
+            mean[start:start + chunk] = radiance.reshape(len(part), k, 3).mean(axis=1)
+        mats = tri_mat.take(tris)
+        for m in np.unique(mats):
+            rows = np.flatnonzero(mats == m)
+            material_mean = (area[rows, None] * mean[rows]).sum(axis=0) / max(area[rows].sum(), 1e-300)
+            mean[rows] = np.maximum(mean[rows], TEXTURED_POWER_FLOOR * material_mean)
+        return (2.0 * np.pi * area)[:, None] * mean
 
 
 FULL_SPREAD = 0.5 * np.pi - 1e-6       # half spreads from here on are Lambertian

@@ -1,9 +1,10 @@
 """Procedural colour programs: Blender's texture and colour nodes, evaluated at surface hits.
 
-A material's diffuse colour, or the colour of its glossy lobe without a Fresnel rise, may be a
-*program*: a tree of nodes as plain JSON-able dicts, which the exporter builds from the
-material's node graph and this module evaluates, vectorised over all hits of the material at
-once; a world's colour may be one of the direction, which the exporter bakes into an image.
+A material's diffuse colour, the colour of its glossy lobe without a Fresnel rise, or the factor
+of its emission may be a *program*: a tree of nodes as plain JSON-able dicts, which the exporter
+builds from the material's node graph and this module evaluates, vectorised over all hits of the
+material at once; a world's colour may be one of the direction, which the exporter bakes into an
+image.
 A node is ``{"op": name, ...}``; its inputs are numbers (float sockets), lists of three numbers
 (colour and vector sockets) or nodes, and a node input picks one of the node's outputs with
 ``"output"`` (default: the op's first).  Inputs are typed as in Blender: the exporter inserts
@@ -64,6 +65,9 @@ ATTRIBUTES = ("generated", "object", "uv", "color")
 # Shader mask divided by its mean weight may exceed 1), but a program gone wild (a power, a
 # division by ~0) must not overflow the photons' flux over many bounces.
 COLOR_MAX = 100.0
+# Largest factor an emission program may give (emission is not multiplied along a path, and a
+# sky or a lamp in an HDR image may be thousands of times its mean; inf stays finite).
+EMISSION_MAX = 1e30
 
 
 class ProgramError(ValueError):
@@ -154,12 +158,12 @@ def evaluate(program, attrs, images, output=None):
     return _Evaluator(attrs, images).output(program if output is None else {**program, "output": output})
 
 
-def evaluate_color(program, attrs, images):
-    """(k, 3) float64 colour of ``program`` (a float result is grey) in [0, COLOR_MAX]; NaN -> 0."""
+def evaluate_color(program, attrs, images, limit=COLOR_MAX):
+    """(k, 3) float64 colour of ``program`` (a float result is grey) in [0, ``limit``]; NaN -> 0."""
     v = evaluate(program, attrs, images)
     if v.ndim == 1:
         v = np.repeat(v[:, None], 3, axis=1)
-    return np.clip(np.nan_to_num(v, nan=0.0), 0.0, COLOR_MAX)
+    return np.clip(np.nan_to_num(v, nan=0.0), 0.0, limit)
 
 
 def mean_color(program, images, n=4096):

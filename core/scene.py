@@ -78,7 +78,8 @@ class Materials:
       ``dielectric_reflection_color`` where that differs, as Principled's white specular
       over its tinted transmission); smooth, or rough with GGX microfacets of Blender
       roughness ``dielectric_roughness`` (single scattering);
-    * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides.
+    * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides, times the
+      program ``emission_program`` (when >= 0) at each point (a textured emitter).
 
     A tangent-space normal map (Blender's Normal Map node) bends the shading normal of every
     lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
@@ -117,6 +118,7 @@ class Materials:
     bump_distance: np.ndarray = None                    # (M,) float32, any sign; None: 1
     diffuse_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
     glossy_program: np.ndarray = None                   # (M,) int32, index into programs or -1; None: -1
+    emission_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -124,9 +126,10 @@ class Materials:
                     "glossy_fresnel_rise", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
-                    "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program")
+                    "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
+                    "emission_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
-    PROGRAM_FIELDS = ("diffuse_program", "glossy_program")                  # program indices
+    PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program")     # program indices
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
 
@@ -149,8 +152,8 @@ class Materials:
         ``normal_strength`` (default 1) give a tangent-space normal map, ``bump_texture``
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
         ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
-        colour, which then defaults to 1, and ``glossy_program`` one for the glossy colour (equal
-        programs are stored once).
+        colour, which then defaults to 1, ``glossy_program`` one for the glossy colour and
+        ``emission_program`` one that multiplies ``emission`` (equal programs are stored once).
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -180,6 +183,7 @@ class Materials:
         out.bump_distance = np.ones(m, np.float32)
         out.diffuse_program = np.full(m, -1, np.int32)
         out.glossy_program = np.full(m, -1, np.int32)
+        out.emission_program = np.full(m, -1, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -523,7 +527,7 @@ class Scene:
                                        ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
                                        ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1),
-                                       ("glossy_program", (n,), -1)):
+                                       ("glossy_program", (n,), -1), ("emission_program", (n,), -1)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))

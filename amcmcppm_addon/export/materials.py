@@ -69,7 +69,8 @@ class Closure:
     roughness: float = 0.5          # glossy roughness (Blender's)
     ior: float = 1.5                # dielectric index of refraction
     dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
-    emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) radiance
+    emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) (mean) radiance
+    emission_texture: dict = None   # program of the radiance where it varies (emission: its mean)
     texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
     glossy_texture: dict = None     # program of the glossy colour where it varies (color[GLOSSY]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
@@ -121,7 +122,24 @@ class Closure:
             out.texture = _times(mixed, 1.0 / total)
             out.color[DIFFUSE] = total
         out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
+        out.emission_texture = self._mixed_emission(other, fa, fb, fac)
         return out
+
+    def _mixed_emission(self, other, fa, fb, fac):
+        """The radiance program of fa * self + fb * other, or None where it is constant."""
+        if self.emission_texture is None and other.emission_texture is None and (
+                fac is None or np.allclose(self.emission, other.emission)):
+            return None
+        if self.emission_texture == other.emission_texture and np.allclose(self.emission, other.emission):
+            return _times(self.emission_texture, 1.0 if fac is not None else fa + fb)   # e.g. both halves
+        shares = (fa, fb) if fac is None else (_one_minus(fac), fac)               # of a Principled
+        terms = [_times(c.emission_term(), f) for c, f in zip((self, other), shares)
+                 if c.emission_texture is not None or c.emission.any()]
+        return terms[0] if len(terms) == 1 else _plus(*terms)
+
+    def emission_term(self):
+        """The emitted radiance: three numbers or a program."""
+        return self.emission.tolist() if self.emission_texture is None else self.emission_texture
 
     def _mixed_glossy(self, other, wa, wb, fa, fb, fac):
         """The glossy colour program of fa * self + fb * other, or None: mixed as the diffuse
@@ -159,7 +177,7 @@ class Closure:
         other_lobes = [k for k in range(4) if k != DIFFUSE and (rise or k != GLOSSY)]
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
-                and np.allclose(self.emission, other.emission) and np.isclose(self.roughness, other.roughness)
+                and np.isclose(self.roughness, other.roughness)
                 and np.isclose(self.ior, other.ior))
 
     def glass_reflection(self) -> np.ndarray:
@@ -186,6 +204,11 @@ class Closure:
         if self.glossy_texture is not None and self.weight[GLOSSY] > 0:
             s["glossy_program"] = self.glossy_texture
             s["glossy"] = np.ones(3)
+        if self.emission_texture is not None and self.emission.any():
+            # The core multiplies the emission by the program: scaled to a mean near 1.
+            scale = float(self.emission.max())
+            s["emission"] = np.full(3, scale)
+            s["emission_program"] = _times(self.emission_texture, 1.0 / scale)
         if isinstance(self.texture, dict):
             s["diffuse_program"] = self.texture
             s["diffuse"] = np.ones(3)
@@ -660,9 +683,23 @@ class NodeWalker:
         return Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3), dielectric_roughness=rough)
 
     def _emission(self, node, stack):
-        color, _ = self.color(node.inputs["Color"], stack)
-        strength = self.value(node.inputs["Strength"], stack)
-        return Closure(emission=np.maximum(color * strength, 0.0))
+        return self.emitted(node.inputs["Color"], node.inputs["Strength"], stack)
+
+    def emitted(self, color_sock, strength_sock, stack) -> Closure:
+        """An emission of colour times strength (Cycles: both sides, negative gives nothing here);
+        a texture on either makes the radiance a program (``emission_texture``)."""
+        color, tex = self.color(color_sock, stack)
+        f = self.programs.expression(strength_sock, stack, FLOAT)
+        if not procedural.varies(f):
+            strength = self.value(strength_sock, stack)
+            c = Closure(emission=np.maximum(color * strength, 0.0))
+            if textured(tex) and strength > 0:
+                c.emission_texture = _times(_program_of(tex, color), strength)
+            return c
+        program = _times(_program_of(tex, color), f)
+        values = procedural.evaluate(program, procedural.SampledAttributes(), self.textures.images)
+        mean = np.maximum(values, 0.0).mean(axis=0)
+        return Closure(emission=mean, emission_texture=program)
 
     def _masked_mix(self, node, what, f, a, b) -> Closure:
         """Closures ``a`` and ``b`` mixed by ``f``, a float program that varies over the surface (a
@@ -696,8 +733,7 @@ class NodeWalker:
         t = float(np.clip(self.value(inp["Transmission Weight"], stack), 0.0, 1.0)) if t is None else t
         level = max(self.value(inp["Specular IOR Level"], stack), 0.0)
         tint, _ = self.color(inp["Specular Tint"], stack)
-        emission, _ = self.color(inp["Emission Color"], stack)
-        strength = self.value(inp["Emission Strength"], stack)
+        emitted = self.emitted(inp["Emission Color"], inp["Emission Strength"], stack)
         if self.value(inp["Alpha"], stack) < 1.0:
             self.note(f"'{node.name}': Alpha below 1 (transparency) is not supported")
         ignored = [label for label, socket in PRINCIPLED_IGNORED
@@ -709,8 +745,8 @@ class NodeWalker:
         base_color = np.ones(3) if textured(tex) else base
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
         dielectric = (1.0 - m) * (1.0 - t)
-        c = Closure(roughness=rough, ior=ior, emission=np.maximum(emission * strength, 0.0),
-                    dielectric_roughness=rough)
+        c = Closure(roughness=rough, ior=ior, emission=emitted.emission,
+                    emission_texture=emitted.emission_texture, dielectric_roughness=rough)
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
         metal = metal_fresnel(flat_base, tint)     # Cycles' metallic layer: F82 with the specular tint

@@ -123,13 +123,22 @@ def _add_rotated_box(m, center_xy_z, size, angle, material):
         m.normals[k] = m.normals[k] @ rot.T
 
 
-def furnace_sphere(albedo=0.5, emission=0.5, resolution=(16, 16), radius=1.0):
-    """Camera at the centre of a closed diffuse sphere that also emits: L = Le / (1 - albedo)."""
-    mats = Materials.build([{"name": "shell", "diffuse": albedo, "emission": emission}])
+def furnace_sphere(albedo=0.5, emission=0.5, resolution=(16, 16), radius=1.0, emission_program=None):
+    """Camera at the centre of a closed diffuse sphere that also emits: L = Le / (1 - albedo).
+
+    With ``emission_program`` (``core/procedural.py``, Object coordinates = world) the radiance
+    emitted is ``emission`` times the program at each point, and the sphere's irradiance stays
+    uniform (any two patches of a sphere's inside see each other alike): L(x) = Le(x) +
+    albedo mean(Le) / (1 - albedo), mean(Le) over the area."""
+    spec = {"name": "shell", "diffuse": albedo, "emission": emission}
     m = MeshBuilder()
     m.add_sphere((0, 0, 0), radius, 0, n_theta=32, n_phi=64, inward=True, smooth=False)
     cam = Camera.look_at((0, 0, 0), (0, 1, 0), lens_mm=20.0, resolution=resolution)
-    return m.build(mats, camera=cam)
+    scene = m.build(Materials.build([spec]), camera=cam)
+    if emission_program is None:
+        return scene
+    mats = Materials.build([{**spec, "emission_program": emission_program}])
+    return with_one_object(scene).replace(materials=mats).validate()
 
 
 def point_in_sphere(radius=1.0, albedo=0.5, power=4 * np.pi, resolution=(16, 16)):
