@@ -40,8 +40,8 @@ average it weighted by each glossy part's colour.  Other distributions are singl
 Glass and Refraction keep their roughness (GGX microfacet glass, single scattering: Cycles'
 multiscatter glass keeps a little more light at high roughness).
 Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Textures are
-kept only where the core supports them (diffuse colour); elsewhere their mean
-colour is used.  A missing image file gives a warning and Cycles' magenta.
+kept only where the core supports them (the diffuse colour, a glossy colour without a Fresnel
+rise, the emission's colour and strength); elsewhere their mean is used.  A missing image file gives a warning and Cycles' magenta.
 """
 from __future__ import annotations
 

@@ -262,10 +262,10 @@ def cycles_texture_values(mat, path):
         scene.render.engine = ENGINE
 
 
-def our_texture_values(positions):
-    """The diffuse colour our exporter and core give the current scene's surfaces at world
-    ``positions`` (H, W, 3), hit by rays straight down from above: (H, W, 3) float64, NaN where
-    a ray misses."""
+def our_texture_values(positions, emitted=False):
+    """The diffuse colour (or with ``emitted`` the radiance emitted) our exporter and core give
+    the current scene's surfaces at world ``positions`` (H, W, 3), hit by rays straight down from
+    above: (H, W, 3) float64, NaN where a ray misses."""
     from amcmcppm.core.bsdf import DIFFUSE
     from amcmcppm.core.context import RenderContext
     ctx = RenderContext(export().scene)
@@ -274,5 +274,6 @@ def our_texture_values(positions):
     hits = ctx.accel.intersect(origins, np.tile([0.0, 0.0, -1.0], (len(p), 1)))
     hit = np.flatnonzero(hits.prim_ids >= 0)
     colors = np.full((len(p), 3), np.nan)
-    colors[hit] = ctx.surface(hits.prim_ids[hit], hits.b1[hit], hits.b2[hit]).colors[:, DIFFUSE]
+    prim, b1, b2 = hits.prim_ids[hit], hits.b1[hit], hits.b2[hit]
+    colors[hit] = ctx.emitted(prim, b1, b2) if emitted else ctx.surface(prim, b1, b2).colors[:, DIFFUSE]
     return colors.reshape(positions.shape)

@@ -431,6 +431,30 @@ def test_textures_on_inputs_that_cannot_vary_use_their_mean_with_a_warning(scene
     assert any("Rough" in w and "Roughness varies over the surface" in w for w in ex.warnings), ex.warnings
 
 
+def test_textured_emission_becomes_one_program_scaled_to_its_mean(scene):
+    """A Principled BSDF with a checker Emission Color of strength 20 and a metallic map: the
+    emission is the checker's mean's largest channel times a program of about 1 (the texture's
+    own range, not 20 times it: the core clamps nothing below 1e30 there, and keeps the numbers
+    readable), and the metallic map's two halves share that one program instead of mixing it
+    with itself."""
+    mat = principled("Glowing", **{"Emission Strength": 20.0})
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    checker = nt.nodes.new("ShaderNodeTexChecker")       # 0.8 and 0.2 grey: mean 0.5
+    nt.links.new(checker.outputs["Color"], bsdf.inputs["Emission Color"])
+    nt.links.new(nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], bsdf.inputs["Metallic"])
+    row, ex = export_material(mat)
+    s = ex.scene
+    assert row["emission"] == pytest.approx([10.0] * 3, rel=0.02)
+    program = s.materials.programs[row["emission_program"]]
+    from amcmcppm.core import procedural
+    values = procedural.evaluate_color(program, procedural.SampledAttributes(), s.textures, limit=1e30)
+    assert set(np.unique(values.round(4))) <= {round(0.2 * 20 / row["emission"][0], 4),
+                                               round(0.8 * 20 / row["emission"][0], 4)}
+    assert "checker" in procedural.to_json(program) and procedural.to_json(program).count("checker") == 1
+    assert row["diffuse_program"] >= 0                   # the metallic map mixes the base colours
+
+
 def has_no_programs(core_scene):
     """No procedural colour and no coordinates for one."""
     return core_scene.materials.programs == [] and core_scene.object_ids is None

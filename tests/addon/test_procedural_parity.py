@@ -407,3 +407,64 @@ def test_textures_inside_node_groups_match_cycles(addon, tmp_path):
     cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
     assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
     compare(ours, cycles, "node groups")
+
+
+@pytest.mark.parametrize("shader", ["emission_mix", "principled", "diffuse_emission_mask"])
+def test_textured_emission_matches_cycles(addon, tmp_path, shader):
+    """The radiance a textured emitter emits at each point (``Materials.emission_program``), against
+    Cycles seeing the plane directly under a black world (the pixel is the emission):
+
+    * ``emission_mix``: a Mix Shader by a noise mask of an Emission coloured by a checker
+      (strength 3) and a plain blue one (strength 0.5);
+    * ``principled``: a black Principled BSDF whose Emission Color is a checker and whose
+      Emission Strength is a gradient times 5;
+    * ``diffuse_emission_mask``: a Diffuse BSDF and a checker Emission mixed by a noise mask."""
+    import bpy
+
+    def build(nt):
+        return node(nt, "ShaderNodeTexChecker", Scale=3.0, Color1=(0.9, 0.6, 0.2, 1.0)).outputs["Color"]
+
+    mat, positions = bs.texture_plane(build)
+    nt = mat.node_tree
+    out = nt.nodes["Material Output"].inputs["Surface"]
+    checker = nt.nodes["Diffuse BSDF"].inputs["Color"].links[0].from_socket
+
+    def mask():
+        noise = node(nt, "ShaderNodeTexNoise", Scale=2.0)
+        return noise.outputs["Fac"]
+
+    def emission(color, strength):
+        e = node(nt, "ShaderNodeEmission", Strength=strength)
+        if isinstance(color, tuple):
+            e.inputs["Color"].default_value = color
+        else:
+            nt.links.new(color, e.inputs["Color"])
+        return e.outputs[0]
+
+    if shader == "principled":
+        bsdf = node(nt, "ShaderNodeBsdfPrincipled", **{"Base Color": (0.0, 0.0, 0.0, 1.0)})
+        nt.links.new(checker, bsdf.inputs["Emission Color"])
+        times = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        times.inputs[1].default_value = 5.0
+        nt.links.new(node(nt, "ShaderNodeTexGradient").outputs["Fac"], times.inputs[0])
+        nt.links.new(times.outputs[0], bsdf.inputs["Emission Strength"])
+        nt.links.new(bsdf.outputs[0], out)
+    else:
+        mix = nt.nodes.new("ShaderNodeMixShader")
+        nt.links.new(mask(), mix.inputs["Fac"])
+        first = (emission((0.1, 0.2, 0.9, 1.0), 0.5) if shader == "emission_mix"
+                 else nt.nodes["Diffuse BSDF"].outputs[0])
+        nt.links.new(first, mix.inputs[1])
+        nt.links.new(emission(checker, 3.0), mix.inputs[2])
+        nt.links.new(mix.outputs[0], out)
+    ours = bs.our_texture_values(positions, emitted=True)
+    warnings = bs.export().warnings
+    assert not any("Textured" in w for w in warnings), warnings       # exact: no note
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
+    c.filter_width = 0.01
+    cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3].astype(np.float64)
+    assert np.ptp(cycles, axis=(0, 1)).max() > 0.5
+    compare(ours, cycles, f"emission, {shader}")

@@ -101,8 +101,9 @@ def extreme_values():
 
 
 def wild_procedural_colour():
-    """A room whose walls' colour is a program gone wild: 1 / x (up to 1e7 near the plane x = 0,
-    negative beyond it), to the power 40, times a noise: the colours are clamped, the image finite."""
+    """A room whose walls' colour and lamp's emission are a program gone wild: 1 / x (up to 1e7
+    near the plane x = 0, negative beyond it), to the power 40, times a noise: the colours are
+    clamped (to 100, the emission to 1e30), the image finite."""
     room = cornell_like()
     x = {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}
     wild = {"op": "math", "operation": "POWER", "a": {"op": "math", "operation": "DIVIDE", "a": 1.0, "b": x},
@@ -110,7 +111,8 @@ def wild_procedural_colour():
     noise = {"op": "noise", "vector": {"op": "attribute", "name": "object"}, "scale": 3.0, "output": "Color"}
     program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": {"op": "splat", "value": wild},
                "b": noise}
-    mats = Materials.build([{"name": "wall", "diffuse_program": program}, {"name": "lamp", "emission": 5.0}])
+    mats = Materials.build([{"name": "wall", "diffuse_program": program},
+                            {"name": "lamp", "emission": 5.0, "emission_program": program}])
     return with_one_object(room.replace(materials=mats)).validate()
 
 
