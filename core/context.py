@@ -6,9 +6,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel, interpolate_corners
-from .bsdf import MaterialTable, Textures, lobe_colors
+from .bsdf import ROUGHNESS_LEVELS, MaterialTable, Textures, lobe_colors, roughness_variants
 from .lights import LightSampler
-from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate_color
+from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import normalize
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -33,17 +33,21 @@ class RenderContext:
     def __init__(self, scene):
         self.scene = scene
         self.accel = Accel(scene)
-        self.table = MaterialTable.from_materials(scene.materials)
+        # The materials, and a copy per roughness level of those with a roughness map.
+        self.materials, self.roughness_first = roughness_variants(scene.materials)
+        copies = np.arange(self.materials.count) >= scene.materials.count
+        self.table = MaterialTable.from_materials(self.materials, coarse=copies)
         self.textures = Textures(scene.textures)
         # Procedural colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs
+        self.has_roughness_programs = bool((self.roughness_first >= 0).any())
         self.has_programs = bool((self.table.program >= 0).any())
         self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
         self.has_emission_programs = bool((self.table.emission_program >= 0).any())
         self.material_ids = np.ascontiguousarray(scene.material_ids)
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted)
         # Normal and bump maps: per-material image index (-1: none) and parameters.
-        mats = scene.materials
+        mats = self.materials
         self.normal_texture = np.ascontiguousarray(mats.normal_texture, np.int32)
         self.normal_strength = np.asarray(mats.normal_strength, np.float64)
         self.bump_texture = np.ascontiguousarray(mats.bump_texture, np.int32)
@@ -67,6 +71,8 @@ class RenderContext:
         b0 = 1.0 - b1 - b2
         mat = self.material_ids.take(prim_ids)
         bary = (b0[:, None], b1[:, None], b2[:, None])
+        if self.has_roughness_programs:
+            self._pick_roughness(mat, prim_ids, bary, pos)
         if self.shading_normals is not None:
             ns = normalize(interpolate_corners(self.shading_normals.take(prim_ids, axis=0), bary))
             _replace_bad(ns, ng)
@@ -96,6 +102,20 @@ class RenderContext:
             for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat):
                 colors[sel, lobe.take(mat.take(sel))] *= color
         return Surface(pos, ng, ns, mat, colors, nn)
+
+    def _pick_roughness(self, mat, prim_ids, bary, pos):
+        """Replace, in place, the materials ``mat`` (n,) that have a roughness map by their copy of
+        the nearest roughness level (``bsdf.roughness_variants``) at these hits."""
+        program = self.materials.roughness_program.take(mat)
+        for p in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == p)
+            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
+                                  pos.take(sel, axis=0))
+            value = evaluate(self.programs[p], attrs, self.textures.images)
+            if value.ndim == 2:
+                value = value @ LUMINANCE                   # a colour drives it: Cycles' conversion
+            level = np.rint(np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * (ROUGHNESS_LEVELS - 1))
+            mat[sel] = self.roughness_first.take(mat.take(sel)) + level.astype(np.int32)
 
     def emitted(self, prim_ids, b1, b2, mat=None, positions=None):
         """(n, 3) float64 radiance emitted at the points of triangles ``prim_ids`` with barycentrics

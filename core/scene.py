@@ -54,7 +54,9 @@ class Materials:
       ``diffuse_program`` is >= 0, that entry of ``programs`` (a tree of Blender's texture
       and colour nodes, ``core/procedural.py``) evaluated at the hit, times ``diffuse_color``;
     * glossy: GGX microfacet reflection, ``glossy_roughness`` is Blender's
-      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.  Its colour
+      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.  A
+      ``roughness_program`` (when >= 0; a float program) gives the roughness at each hit instead
+      (a roughness map), rounded to one of ``bsdf.ROUGHNESS_LEVELS`` levels in [0, 1].  Its colour
       ``glossy_color`` is multiplied by the program ``glossy_program`` (when >= 0) at each hit;
       such a lobe has no Fresnel rise.
       ``glossy_multiscatter`` is the lobe's mean Fresnel colour F_ss for the energy that
@@ -119,6 +121,7 @@ class Materials:
     diffuse_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
     glossy_program: np.ndarray = None                   # (M,) int32, index into programs or -1; None: -1
     emission_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
+    roughness_program: np.ndarray = None                # (M,) int32, index into programs or -1; None: -1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -127,9 +130,9 @@ class Materials:
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
-                    "emission_program")
+                    "emission_program", "roughness_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
-    PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program")     # program indices
+    PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
 
@@ -153,7 +156,8 @@ class Materials:
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
         ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
         colour, which then defaults to 1, ``glossy_program`` one for the glossy colour and
-        ``emission_program`` one that multiplies ``emission`` (equal programs are stored once).
+        ``emission_program`` one that multiplies ``emission`` and ``roughness_program`` one for the
+        glossy roughness (equal programs are stored once).
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -184,6 +188,7 @@ class Materials:
         out.diffuse_program = np.full(m, -1, np.int32)
         out.glossy_program = np.full(m, -1, np.int32)
         out.emission_program = np.full(m, -1, np.int32)
+        out.roughness_program = np.full(m, -1, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -527,7 +532,8 @@ class Scene:
                                        ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
                                        ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1),
-                                       ("glossy_program", (n,), -1), ("emission_program", (n,), -1)):
+                                       ("glossy_program", (n,), -1), ("emission_program", (n,), -1),
+                                       ("roughness_program", (n,), -1)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))

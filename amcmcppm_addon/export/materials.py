@@ -41,7 +41,8 @@ Glass and Refraction keep their roughness (GGX microfacet glass, single scatteri
 multiscatter glass keeps a little more light at high roughness).
 Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Textures are
 kept only where the core supports them (the diffuse colour, a glossy colour without a Fresnel
-rise, the emission's colour and strength); elsewhere their mean is used.  A missing image file gives a warning and Cycles' magenta.
+rise, the glossy roughness, the emission's colour and strength); elsewhere their mean is used.
+A missing image file gives a warning and Cycles' magenta.
 """
 from __future__ import annotations
 
@@ -66,7 +67,8 @@ class Closure:
 
     weight: np.ndarray = field(default_factory=lambda: np.zeros(4))        # (4,) lobe weights
     color: np.ndarray = field(default_factory=lambda: np.zeros((4, 3)))    # (4, 3) weight * colour
-    roughness: float = 0.5          # glossy roughness (Blender's)
+    roughness: float = 0.5          # glossy roughness (Blender's; its mean where it varies)
+    roughness_texture: dict = None  # float program of the glossy roughness where it varies (a map)
     ior: float = 1.5                # dielectric index of refraction
     dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) (mean) radiance
@@ -103,6 +105,10 @@ class Closure:
                       rise=fa * self.rise + fb * other.rise, layer=fa * self.layer + fb * other.layer,
                       layered=fa * self.layered + fb * other.layered)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
+        if self.roughness_texture is not None or other.roughness_texture is not None:
+            # Averaged as the constants, by the glossy weights (a map with a constant, or two maps).
+            terms = [(c.roughness_term(), w[GLOSSY]) for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
+            out.roughness_texture = _float_average(terms) if terms else None
         out.fresnel_ior = _weighted(self.fresnel_ior, other.fresnel_ior, wa[GLOSSY] * (self.fresnel_ior > 0),
                                     wb[GLOSSY] * (other.fresnel_ior > 0))
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
@@ -136,6 +142,10 @@ class Closure:
         terms = [_times(c.emission_term(), f) for c, f in zip((self, other), shares)
                  if c.emission_texture is not None or c.emission.any()]
         return terms[0] if len(terms) == 1 else _plus(*terms)
+
+    def roughness_term(self):
+        """The glossy roughness: a number or a float program."""
+        return self.roughness if self.roughness_texture is None else self.roughness_texture
 
     def emission_term(self):
         """The emitted radiance: three numbers or a program."""
@@ -204,6 +214,8 @@ class Closure:
         if self.glossy_texture is not None and self.weight[GLOSSY] > 0:
             s["glossy_program"] = self.glossy_texture
             s["glossy"] = np.ones(3)
+        if self.roughness_texture is not None and self.weight[GLOSSY] > 0:
+            s["roughness_program"] = self.roughness_texture
         if self.emission_texture is not None and self.emission.any():
             # The core multiplies the emission by the program: scaled to a mean near 1.
             scale = float(self.emission.max())
@@ -242,6 +254,18 @@ def _times(a, f):
     if (f == 1.0).all():
         return a
     return {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": a, "b": f.tolist()}
+
+
+def _float_average(terms):
+    """sum w x / sum w of (x, w) pairs, x a number or a float program; a program if any x is."""
+    total = sum(w for _, w in terms)
+    if all(x == terms[0][0] for x, _ in terms):
+        return terms[0][0]                      # e.g. the two halves of a Principled's metallic map
+    out = None
+    for x, w in terms:
+        term = {"op": "math", "operation": "MULTIPLY", "a": x, "b": w / total}
+        out = term if out is None else {"op": "math", "operation": "ADD", "a": out, "b": term}
+    return out
 
 
 def _plus(a, b):
@@ -651,9 +675,10 @@ class NodeWalker:
         if color is None:
             color, tex = self.color(node.inputs["Color"], stack)
             program = _program_of(tex, color) if textured(tex) else None
-        rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
+        rough, rough_map = self.roughness(node.inputs["Roughness"], stack)
         c = Closure.lobe(GLOSSY, 1.0, color, roughness=rough)
         c.glossy_texture = program
+        c.roughness_texture = rough_map
         if node.distribution == "MULTI_GGX":
             c.multiscatter = c.color[GLOSSY] * color
         return c
@@ -674,6 +699,15 @@ class NodeWalker:
                            "tint": _program_of(tint_tex, tint)}
                 return self._glossy(node, stack, color, program)
         return self._glossy(node, stack, color)
+
+    def roughness(self, sock, stack):
+        """(mean roughness in [0, 1], float program or None) of a glossy Roughness input: a texture
+        on it (a roughness map) stays a program, which the core evaluates at each hit."""
+        f = self.programs.expression(sock, stack, FLOAT)
+        if not procedural.varies(f):
+            return float(np.clip(self.value(sock, stack), 0.0, 1.0)), None
+        clamped = _clamp01(f)
+        return float(procedural.mean_value(clamped, self.textures.images)), clamped
 
     def _glass(self, node, stack):
         color, _ = self.color(node.inputs["Color"], stack)
@@ -727,7 +761,7 @@ class NodeWalker:
         base, tex = self.color(inp["Base Color"], stack)
         m = fixed.get("Metallic")
         m = float(np.clip(self.value(inp["Metallic"], stack), 0.0, 1.0)) if m is None else m
-        rough = float(np.clip(self.value(inp["Roughness"], stack), 0.0, 1.0))
+        rough, rough_map = self.roughness(inp["Roughness"], stack)
         ior = max(self.value(inp["IOR"], stack), 1e-3)
         t = fixed.get("Transmission Weight")
         t = float(np.clip(self.value(inp["Transmission Weight"], stack), 0.0, 1.0)) if t is None else t
@@ -746,7 +780,8 @@ class NodeWalker:
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
         dielectric = (1.0 - m) * (1.0 - t)
         c = Closure(roughness=rough, ior=ior, emission=emitted.emission,
-                    emission_texture=emitted.emission_texture, dielectric_roughness=rough)
+                    emission_texture=emitted.emission_texture, dielectric_roughness=rough,
+                    roughness_texture=rough_map)
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
         metal = metal_fresnel(flat_base, tint)     # Cycles' metallic layer: F82 with the specular tint
@@ -766,6 +801,9 @@ class NodeWalker:
             layer_fss = f0_tint + (1.0 - f0_tint) * float(np.clip(f_avg, 0.0, 1.0))
             c.multiscatter = m * metal * metal + spec * f0_tint * layer_fss
         c.weight[DIELECTRIC] = (1.0 - m) * t
+        if rough_map is not None and c.weight[DIELECTRIC] > 0:
+            self.note(f"'{node.name}': a varying Roughness roughens the glass by its mean {rough:.3f} "
+                      "(a roughness map varies the glossy reflection only)")
         # Cycles tints Principled glass by the square root of the base colour at each interface,
         # so that light crossing it (in and out) takes the base colour once.
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))

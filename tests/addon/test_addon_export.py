@@ -419,16 +419,42 @@ def test_procedural_colour_becomes_a_program_with_the_coordinates_it_reads(scene
 
 
 def test_textures_on_inputs_that_cannot_vary_use_their_mean_with_a_warning(scene):
-    mat = principled("Rough", Metallic=1.0)
+    mat = principled("Refractive", Metallic=1.0)
     nt = mat.node_tree
     ramp = nt.nodes.new("ShaderNodeValToRGB")         # black to white over a gradient: mean 0.5
     gradient = nt.nodes.new("ShaderNodeTexGradient")
     nt.links.new(gradient.outputs["Fac"], ramp.inputs["Fac"])
-    nt.links.new(ramp.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Roughness"])
+    ramp.color_ramp.elements[1].color = (3.0, 3.0, 3.0, 1.0)      # to 3: mean 1.5
+    nt.links.new(ramp.outputs["Color"], nt.nodes["Principled BSDF"].inputs["IOR"])
     row, ex = export_material(mat)
-    assert row["glossy_roughness"] == pytest.approx(0.5, abs=0.02)
+    assert row["ior"] == pytest.approx(1.5, abs=0.05)
     assert has_no_programs(ex.scene)
-    assert any("Rough" in w and "Roughness varies over the surface" in w for w in ex.warnings), ex.warnings
+    assert any("Refractive" in w and "IOR varies over the surface" in w for w in ex.warnings), ex.warnings
+
+
+def test_a_roughness_map_becomes_a_program_clamped_to_one(scene):
+    """A Principled BSDF's Roughness from a gradient times 2 (0 to 2): a float program clamped to
+    [0, 1] (mean 0.75), the same one for both halves of a metallic map, and the glass of a
+    transmissive one roughened by the mean, with a note."""
+    mat = principled("Mapped", **{"Transmission Weight": 0.5})
+    nt = mat.node_tree
+    times = nt.nodes.new("ShaderNodeMath")
+    times.operation = "MULTIPLY"
+    times.inputs[1].default_value = 2.0
+    nt.links.new(nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], times.inputs[0])
+    nt.links.new(times.outputs[0], nt.nodes["Principled BSDF"].inputs["Roughness"])
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Metallic"])
+    row, ex = export_material(mat)
+    s = ex.scene
+    program = s.materials.programs[row["roughness_program"]]
+    from amcmcppm.core import procedural
+    assert procedural.to_json(program).count('"op":"gradient"') == 1
+    values = procedural.evaluate(program, procedural.SampledAttributes(), [])
+    assert values.min() >= 0.0 and values.max() == 1.0 and values.mean() == pytest.approx(0.75, abs=0.02)
+    assert row["glossy_roughness"] == pytest.approx(0.75, abs=0.02)
+    assert row["dielectric_roughness"] == pytest.approx(0.75, abs=0.02)
+    assert any("Mapped" in w and "roughens the glass by its mean" in w for w in ex.warnings), ex.warnings
 
 
 def test_textured_emission_becomes_one_program_scaled_to_its_mean(scene):
