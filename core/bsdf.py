@@ -55,10 +55,11 @@ def roughness_variants(mats):
     copy k with roughness k / (ROUGHNESS_LEVELS - 1) and no program, and ``first`` (M,) int32 the
     index of a material's first copy (-1: none).  The copies get every per-material table of the
     core (multiscatter, layer, a mirror below 0.02) as any material; a hit picks its copy
-    (``RenderContext.surface``).  Without roughness programs: ``mats`` itself."""
+    (``RenderContext.surface``).  Without roughness programs (or glossy lobes): ``mats`` itself."""
     program = mats.roughness_program
     first = np.full(mats.count, -1, np.int32)
-    mapped = np.flatnonzero(program >= 0) if program is not None else np.zeros(0, np.int64)
+    mapped = (np.flatnonzero((program >= 0) & (mats.glossy_weight > 0)) if program is not None
+              else np.zeros(0, np.int64))
     if len(mapped) == 0:
         return mats, first
     first[mapped] = mats.count + ROUGHNESS_LEVELS * np.arange(len(mapped))

@@ -1,0 +1,84 @@
+"""What a roughness map costs: the material table's build and the photon pass.
+
+The Cornell box's white material (floor, ceiling, back wall and both boxes) becomes a Principled-
+like dielectric (a diffuse base under a specular layer of IOR 1.5, multiscatter GGX) of constant
+roughness 0.4, then of a roughness map (a Noise Texture's Fac through a ramp from 0.1 to 0.7, on
+Object coordinates).  Printed: the time to build the render context (the map's material is
+copied at ``bsdf.ROUGHNESS_LEVELS`` roughness levels, each with its albedo and layer tables;
+median of ``--rounds``) and the photon vertices per second of the map relative to the constant
+(rounds alternating, median and range; one run).
+
+    python benchmarks/roughness_map_cost.py [--resolution 320 240] [--rounds 5] [--paths 65536]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+from ab_photon_pass import photon_pass  # noqa: E402
+
+from core.context import RenderContext  # noqa: E402
+from core.scene import Materials  # noqa: E402
+from core.testing.scenes import BUILTIN, with_one_object  # noqa: E402
+
+OBJECT = {"op": "attribute", "name": "object"}
+NOISE = {"op": "noise", "vector": OBJECT, "scale": 5.0, "detail": 2.0, "roughness": 0.5, "lacunarity": 2.0,
+         "output": "Fac"}
+ROUGHNESS_MAP = {"op": "map_range", "value": NOISE, "from_min": 0.0, "from_max": 1.0, "to_min": 0.1,
+                 "to_max": 0.7}
+LAYER = {"glossy": 0.04, "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": 0.96, "diffuse_layer": 0.04}
+
+
+def with_layer(roughness_map):
+    """An ``edit`` for ``photon_pass``: the first material gets the specular layer, of roughness 0.4
+    or of ``ROUGHNESS_MAP``."""
+    def edit(scene):
+        specs = [{"name": n, "diffuse": c, "emission": e} for n, c, e in
+                 zip(scene.materials.names, scene.materials.diffuse_color, scene.materials.emission)]
+        specs[0] = {**specs[0], **LAYER, "roughness": 0.4}
+        if roughness_map:
+            specs[0]["roughness_program"] = ROUGHNESS_MAP
+        return with_one_object(scene.replace(materials=Materials.build(specs))).validate()
+    return edit
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--resolution", type=int, nargs=2, default=(320, 240))
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--paths", type=int, default=65536)
+    a = ap.parse_args()
+    variants = {"constant": with_layer(False), "map": with_layer(True)}
+    scene = BUILTIN["cornell_box"](resolution=tuple(a.resolution))
+    builds = {name: [] for name in variants}
+    for _ in range(a.rounds):
+        for name, edit in variants.items():
+            edited = edit(scene)
+            t0 = time.perf_counter()
+            RenderContext(edited)
+            builds[name].append(time.perf_counter() - t0)
+    print(f"render context build, median of {a.rounds}: " +
+          ", ".join(f"{name} {np.median(t):.2f} s" for name, t in builds.items()))
+    runs = {name: photon_pass("core", "cornell_box", tuple(a.resolution), a.paths, False, edit)
+            for name, edit in variants.items()}
+    rates = {name: [] for name in runs}
+    for run in runs.values():
+        run()                                        # warm-up
+    for r in range(a.rounds):
+        for name in (list(runs) if r % 2 == 0 else list(runs)[::-1]):
+            rates[name].append(runs[name]())
+    ratio = np.array(rates["map"]) / np.array(rates["constant"])
+    print(f"photon pass, {a.rounds} rounds of {a.paths} paths: constant roughness "
+          f"{np.median(rates['constant']):,.0f} vertices/s, roughness map {np.median(rates['map']):,.0f}: "
+          f"{np.median(ratio):.3f} of the constant (range {ratio.min():.3f}-{ratio.max():.3f})")
+
+
+if __name__ == "__main__":
+    main()
