@@ -80,7 +80,7 @@ class MaterialTable:
     color: np.ndarray           # (M, 4, 3) float64 lobe colours (diffuse colour is 1 if textured)
     alpha: np.ndarray           # (M,) float64 GGX alpha of the glossy lobe
     dielectric_alpha: np.ndarray  # (M,) float64 GGX alpha of the dielectric lobe, 0 = smooth
-    reflection_tint: np.ndarray   # (M, 3) float64 dielectric reflection colour / lobe colour (1: same)
+    reflection: np.ndarray        # (M, 3) float64 dielectric reflection colour (the lobe's colour: same)
     ior: np.ndarray             # (M,) float64
     emission: np.ndarray        # (M, 3) float64 radiance
     texture: np.ndarray         # (M,) int32 diffuse texture or -1
@@ -98,6 +98,7 @@ class MaterialTable:
     glossy_program: np.ndarray = None  # (M,) int32 procedural glossy colour or -1 ...
     glossy_program_lobe: np.ndarray = None  # (M,) int64 ... of this lobe (MIRROR where a sharp glossy merged)
     emission_program: np.ndarray = None     # (M,) int32 procedural factor of ``emission`` or -1
+    dielectric_program: np.ndarray = None   # (M,) int32 procedural transmitted colour of the glass or -1
 
     @staticmethod
     def from_materials(mats, coarse=None) -> "MaterialTable":
@@ -142,9 +143,13 @@ class MaterialTable:
         glossy_on = (weight[:, GLOSSY] > 0) & ((lum[:, GLOSSY] > 0) | (smp.luminance(rise[:, GLOSSY]) > 0))
         emission = mats.emission.astype(np.float64)
         ms_albedo, ms_fresnel = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter, coarse)
+        dielectric_program = (np.asarray(mats.dielectric_program, np.int32)
+                              if mats.dielectric_program is not None else np.full(m, -1, np.int32))
+        # A glass reflects its reflection colour where it transmits at all, or with a program (which
+        # varies the transmitted colour only) always.
         glass = color[:, DIELECTRIC]
-        reflection_tint = np.divide(mats.dielectric_reflection_color.astype(np.float64), glass,
-                                    out=np.ones_like(glass), where=glass > 0)
+        reflection = np.where(((glass > 0) | (dielectric_program >= 0)[:, None]),
+                              mats.dielectric_reflection_color.astype(np.float64), 0.0)
         rough = mats.dielectric_roughness.astype(np.float64)
         dielectric_alpha = np.where(rough < MIRROR_ROUGHNESS, 0.0, rough * rough)
         layered = (fresnel_ior > 0) & diffuse_on
@@ -152,7 +157,7 @@ class MaterialTable:
                                            np.clip(mats.diffuse_layer_weight, 0.0, 1.0),
                                            ms_albedo, ms_fresnel, weight, coarse)
         return MaterialTable(weight=weight, color=color, alpha=alpha, dielectric_alpha=dielectric_alpha,
-                             reflection_tint=reflection_tint,
+                             reflection=reflection,
                              ior=mats.ior.astype(np.float64), emission=emission,
                              texture=mats.diffuse_texture.astype(np.int32),
                              has_nondelta=diffuse_on | glossy_on, has_glossy=glossy_on,
@@ -163,7 +168,7 @@ class MaterialTable:
                              | (np.asarray(mats.bump_texture) >= 0), program=program,
                              glossy_program=glossy_program,
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
-                             emission_program=emission_program)
+                             emission_program=emission_program, dielectric_program=dielectric_program)
 
     @property
     def has_normal_maps(self) -> bool:
@@ -184,6 +189,12 @@ class MaterialTable:
         """
         e = _interpolate(self.ms_albedo, mat_ids, mu)
         return 1.0 + self.ms_fresnel.take(mat_ids, axis=0) * ((1.0 - e) / e)[:, None]
+
+    @cached_property
+    def reflection_differs(self) -> bool:
+        """Whether some glass reflects another colour than it transmits (or may, by a program)."""
+        return bool((self.dielectric_program >= 0).any()
+                    or (self.reflection != self.color[:, DIELECTRIC]).any())
 
     @cached_property
     def has_fresnel(self) -> bool:
@@ -510,9 +521,11 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             side = dot(d, n_g)
             ok = np.where(is_refl, side > 0, side < 0)
             w = lw
-            tint = table.reflection_tint.take(m_sel, axis=0)
-            if (tint != 1.0).any():
-                w = w * np.where(is_refl[:, None], tint, 1.0)
+            if table.reflection_differs:
+                # Reflections take the material's reflection colour, refractions the hit's colour.
+                reflected = (table.weight[:, k].take(m_sel)[:, None] * table.reflection.take(m_sel, axis=0)
+                             / prob.take(sel)[:, None])
+                w = np.where(is_refl[:, None], reflected, w)
             if rough.any():
                 cos_o_s = np.abs(dot(w_o, n_s))
                 cos_i_s = dot(d, n_s)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel, interpolate_corners
-from .bsdf import ROUGHNESS_LEVELS, MaterialTable, Textures, lobe_colors, roughness_variants
+from .bsdf import DIELECTRIC, ROUGHNESS_LEVELS, MaterialTable, Textures, lobe_colors, roughness_variants
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import normalize
@@ -44,6 +44,7 @@ class RenderContext:
         self.has_programs = bool((self.table.program >= 0).any())
         self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
         self.has_emission_programs = bool((self.table.emission_program >= 0).any())
+        self.has_dielectric_programs = bool((self.table.dielectric_program >= 0).any())
         self.material_ids = np.ascontiguousarray(scene.material_ids)
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted)
         # Normal and bump maps: per-material image index (-1: none) and parameters.
@@ -101,6 +102,9 @@ class RenderContext:
             lobe = self.table.glossy_program_lobe
             for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat):
                 colors[sel, lobe.take(mat.take(sel))] *= color
+        if self.has_dielectric_programs:
+            for sel, color in self._program_colors(self.table.dielectric_program, prim_ids, bary, pos, mat):
+                colors[sel, DIELECTRIC] *= color
         return Surface(pos, ng, ns, mat, colors, nn)
 
     def _pick_roughness(self, mat, prim_ids, bary, pos):

@@ -78,7 +78,9 @@ class Materials:
       reflection/refraction and total internal reflection, tinted by
       ``dielectric_color`` (as Cycles' Glass colour; reflections by
       ``dielectric_reflection_color`` where that differs, as Principled's white specular
-      over its tinted transmission); smooth, or rough with GGX microfacets of Blender
+      over its tinted transmission); the transmitted colour is multiplied by the program
+      ``dielectric_program`` (when >= 0) at each hit (stained glass), the reflected one is not;
+      smooth, or rough with GGX microfacets of Blender
       roughness ``dielectric_roughness`` (single scattering);
     * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides, times the
       program ``emission_program`` (when >= 0) at each point (a textured emitter).
@@ -122,6 +124,7 @@ class Materials:
     glossy_program: np.ndarray = None                   # (M,) int32, index into programs or -1; None: -1
     emission_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
     roughness_program: np.ndarray = None                # (M,) int32, index into programs or -1; None: -1
+    dielectric_program: np.ndarray = None               # (M,) int32, index into programs or -1; None: -1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -130,9 +133,10 @@ class Materials:
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
-                    "emission_program", "roughness_program")
+                    "emission_program", "roughness_program", "dielectric_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
-    PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program")
+    PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
+                      "dielectric_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
 
@@ -156,8 +160,9 @@ class Materials:
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
         ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
         colour, which then defaults to 1, ``glossy_program`` one for the glossy colour and
-        ``emission_program`` one that multiplies ``emission`` and ``roughness_program`` one for the
-        glossy roughness (equal programs are stored once).
+        ``emission_program`` one that multiplies ``emission``, ``roughness_program`` one for the
+        glossy roughness and ``dielectric_program`` one for the glass's transmitted colour, which
+        then defaults to 1 (equal programs are stored once).
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -189,6 +194,7 @@ class Materials:
         out.glossy_program = np.full(m, -1, np.int32)
         out.emission_program = np.full(m, -1, np.int32)
         out.roughness_program = np.full(m, -1, np.int32)
+        out.dielectric_program = np.full(m, -1, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -210,6 +216,9 @@ class Materials:
                 if "diffuse" not in s:
                     out.diffuse_color[i] = 1.0
                     out.diffuse_weight[i] = s.get("diffuse_weight", 1.0)
+            if "dielectric_program" in s and "dielectric" not in s:
+                out.dielectric_color[i] = 1.0
+                out.dielectric_weight[i] = s.get("dielectric_weight", 1.0)
             out.glossy_multiscatter[i] = np.broadcast_to(
                 np.asarray(s.get("glossy_multiscatter", out.glossy_color[i]), np.float32), (3,))
             if "roughness" in s:
@@ -533,7 +542,7 @@ class Scene:
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
                                        ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1),
                                        ("glossy_program", (n,), -1), ("emission_program", (n,), -1),
-                                       ("roughness_program", (n,), -1)):
+                                       ("roughness_program", (n,), -1), ("dielectric_program", (n,), -1)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))

@@ -41,7 +41,8 @@ Glass and Refraction keep their roughness (GGX microfacet glass, single scatteri
 multiscatter glass keeps a little more light at high roughness).
 Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Textures are
 kept only where the core supports them (the diffuse colour, a glossy colour without a Fresnel
-rise, the glossy roughness, the emission's colour and strength); elsewhere their mean is used.
+rise, the glossy roughness, the emission's colour and strength, the colour a glass transmits);
+elsewhere their mean is used.
 A missing image file gives a warning and Cycles' magenta.
 """
 from __future__ import annotations
@@ -75,6 +76,7 @@ class Closure:
     emission_texture: dict = None   # program of the radiance where it varies (emission: its mean)
     texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
     glossy_texture: dict = None     # program of the glossy colour where it varies (color[GLOSSY]: its mean)
+    dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
@@ -129,7 +131,19 @@ class Closure:
             out.color[DIFFUSE] = total
         out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
         out.emission_texture = self._mixed_emission(other, fa, fb, fac)
+        out.dielectric_texture = self._mixed_dielectric(other, wa, wb)
         return out
+
+    def _mixed_dielectric(self, other, wa, wb):
+        """The program of the mix's transmitted colour, or None: kept where one side alone has
+        glass, or both the same glass; two different glasses take their mean colours."""
+        sides = [c for c, w in ((self, wa), (other, wb)) if w[DIELECTRIC] > 0]
+        if len(sides) == 1:
+            return sides[0].dielectric_texture
+        a, b = self.color[DIELECTRIC], other.color[DIELECTRIC]          # weight times colour
+        same = (self.dielectric_texture == other.dielectric_texture
+                and np.allclose(a * wb[DIELECTRIC], b * wa[DIELECTRIC]))
+        return self.dielectric_texture if same else None
 
     def _mixed_emission(self, other, fa, fb, fac):
         """The radiance program of fa * self + fb * other, or None where it is constant."""
@@ -211,6 +225,9 @@ class Closure:
             if self.layered > 0 and self.weight[DIFFUSE] > 0:
                 s["diffuse_layer"] = self.layer / self.layered
                 s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
+        if self.dielectric_texture is not None and self.weight[DIELECTRIC] > 0:
+            s["dielectric_program"] = self.dielectric_texture
+            s["dielectric"] = np.ones(3)
         if self.glossy_texture is not None and self.weight[GLOSSY] > 0:
             s["glossy_program"] = self.glossy_texture
             s["glossy"] = np.ones(3)
@@ -710,11 +727,16 @@ class NodeWalker:
         return float(procedural.mean_value(clamped, self.textures.images)), clamped
 
     def _glass(self, node, stack):
-        color, _ = self.color(node.inputs["Color"], stack)
+        """Glass and Refraction: a textured colour (stained glass) tints the light the glass lets
+        through point by point, its reflections by the texture's mean (a few per cent of the light)."""
+        color, tex = self.color(node.inputs["Color"], stack)
         ior = self.value(node.inputs["IOR"], stack)
         rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0)) \
             if "Roughness" in node.inputs else 0.0
-        return Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3), dielectric_roughness=rough)
+        c = Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3), dielectric_roughness=rough)
+        if textured(tex):
+            c.dielectric_texture = _program_of(tex, color)
+        return c
 
     def _emission(self, node, stack):
         return self.emitted(node.inputs["Color"], node.inputs["Strength"], stack)
@@ -808,6 +830,8 @@ class NodeWalker:
         # so that light crossing it (in and out) takes the base colour once.
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))
         c.reflection = c.weight[DIELECTRIC] * np.asarray(tint, np.float64)     # Cycles: the specular tint
+        if textured(tex) and c.weight[DIELECTRIC] > 0:
+            c.dielectric_texture = {"op": "gamma", "color": _program_of(tex, base), "gamma": 0.5}
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1
         if m > 0 and spec == 0 and textured(tex):
             # A metal (no dielectric layer): its colour follows the base colour's texture.

@@ -481,6 +481,38 @@ def test_textured_emission_becomes_one_program_scaled_to_its_mean(scene):
     assert row["diffuse_program"] >= 0                   # the metallic map mixes the base colours
 
 
+def test_stained_glass_becomes_a_program_of_the_transmitted_colour(scene):
+    """A Glass BSDF coloured by a checker: the transmitted colour is the checker (colour 1 times
+    the program), the reflection its mean; a Principled glass: the square root of its base colour
+    per interface (a gamma of 0.5), reflecting its specular tint."""
+    from amcmcppm.core import procedural
+    glass = bs.glass("Stained")
+    nt = glass.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")             # 0.8 and 0.2 grey: mean 0.5
+    nt.links.new(checker.outputs["Color"], nt.nodes["Glass BSDF"].inputs["Color"])
+    principled_glass = principled("Tinted", **{"Transmission Weight": 1.0})
+    pt = principled_glass.node_tree
+    pt.links.new(pt.nodes.new("ShaderNodeTexChecker").outputs["Color"],
+                 pt.nodes["Principled BSDF"].inputs["Base Color"])
+    bs.plane("Plane", material=glass)
+    bs.plane("Other", material=principled_glass, location=(3, 0, 0))
+    bs.camera()
+    ex = bs.export()
+    s = ex.scene
+    row = material_row(s, "Stained")
+    program = s.materials.programs[row["dielectric_program"]]
+    assert program["op"] == "checker"
+    assert row["dielectric_color"] == pytest.approx([1, 1, 1])
+    assert row["dielectric_reflection_color"] == pytest.approx([0.5] * 3, abs=0.02)
+    tinted = material_row(s, "Tinted")
+    program = s.materials.programs[tinted["dielectric_program"]]
+    assert program["op"] == "gamma" and program["gamma"] == 0.5 and program["color"]["op"] == "checker"
+    assert tinted["dielectric_reflection_color"] == pytest.approx([1, 1, 1])
+    values = procedural.evaluate_color(program, procedural.SampledAttributes(), s.textures)
+    assert set(np.unique(values.round(4))) == {round(0.2 ** 0.5, 4), round(0.8 ** 0.5, 4)}
+    assert not any("Stained" in w or "Tinted" in w for w in ex.warnings), ex.warnings
+
+
 def has_no_programs(core_scene):
     """No procedural colour and no coordinates for one."""
     return core_scene.materials.programs == [] and core_scene.object_ids is None
