@@ -5,14 +5,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accel import Accel, interpolate_corners
+from .accel import Accel, Hits, interpolate_corners
 from .bsdf import DIELECTRIC, ROUGHNESS_LEVELS, MaterialTable, Textures, lobe_colors, roughness_variants
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
-from .sampling import normalize
+from .sampling import dot, normalize
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+# Transparent surfaces a ray may cross (RenderContext.trace); the next one it meets is opaque.
+MAX_TRANSPARENT_CROSSINGS = 64
 
 
 @dataclass
@@ -46,9 +48,15 @@ class RenderContext:
         self.has_emission_programs = bool((self.table.emission_program >= 0).any())
         self.has_dielectric_programs = bool((self.table.dielectric_program >= 0).any())
         self.material_ids = np.ascontiguousarray(scene.material_ids)
+        mats = self.materials
+        # Transparency: materials a ray may pass through (Materials.opacity, opacity_program).
+        self.opacity = np.asarray(mats.opacity, np.float64)
+        self.opacity_program = np.asarray(mats.opacity_program, np.int32)
+        self.transparent_color = np.asarray(mats.transparent_color, np.float64)
+        self.see_through = (self.opacity < 1.0) | (self.opacity_program >= 0)
+        self.has_transparency = bool(self.see_through.any())
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted)
         # Normal and bump maps: per-material image index (-1: none) and parameters.
-        mats = self.materials
         self.normal_texture = np.ascontiguousarray(mats.normal_texture, np.int32)
         self.normal_strength = np.asarray(mats.normal_strength, np.float64)
         self.bump_texture = np.ascontiguousarray(mats.bump_texture, np.int32)
@@ -63,6 +71,68 @@ class RenderContext:
         self.has_textures = bool((self.table.texture >= 0).any())
         # Materials that look an image up with the UVs (colour, normal or bump map).
         self.uses_uvs = (self.table.texture >= 0) | self.table.normal_mapped
+
+    def trace(self, origins, dirs, tmax=None, uniforms=None):
+        """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
+
+        A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
+        the hit, decided by ``uniforms(rows, crossing)`` ((k,) numbers in [0, 1) for the rays
+        ``rows`` at their ``crossing``-th transparent hit); otherwise the ray goes on from there,
+        tinted by the material's transparent colour, up to ``MAX_TRANSPARENT_CROSSINGS`` times.
+        Returns ``(hits, factor, opacity)``: the hits (``t`` from the original origins; glass
+        resting on a surface resolved, ``Accel.with_contacts``), the (n, 3) tint of the crossings
+        and the (n,) opacity where each ray stopped (1 on opaque surfaces; the rays that stop
+        there are that share of those that arrive: photons deposit flux / opacity), or None, None
+        when the scene has no transparent material."""
+        accel = self.accel
+        hits = accel.with_contacts(accel.intersect(origins, dirs, tmax), origins, dirs)
+        if not self.has_transparency or not hits.is_hit.any():
+            return hits, None, None
+        n = len(dirs)
+        is_hit, prim, b1, b2 = hits.is_hit.copy(), hits.prim_ids.copy(), hits.b1.copy(), hits.b2.copy()
+        t = hits.t.astype(np.float64)
+        limit = None if tmax is None else np.broadcast_to(np.asarray(tmax, np.float64), (n,))
+        factor = np.ones((n, 3))
+        stopped = np.ones(n)
+        rows = np.flatnonzero(is_hit)
+        for crossing in range(MAX_TRANSPARENT_CROSSINGS):
+            rows = rows[self.see_through.take(self.material_ids.take(prim.take(rows)))]
+            if len(rows) == 0:
+                break
+            p = accel.hit_positions(prim.take(rows), b1.take(rows), b2.take(rows))
+            opacity = self._opacity(prim.take(rows), b1.take(rows), b2.take(rows), p)
+            through = (uniforms(rows, crossing) >= opacity) & (opacity < 1.0)
+            stopped[rows[~through]] = opacity[~through]
+            rows, p = rows[through], p[through]
+            if len(rows) == 0:
+                break
+            pr = prim.take(rows)
+            factor[rows] *= self.transparent_color.take(self.material_ids.take(pr), axis=0)
+            d = dirs.take(rows, axis=0)
+            start = accel.spawn(p, accel.geometric_normals.take(pr, axis=0), d)
+            travelled = t.take(rows) + dot(start - p, d)
+            left = None if limit is None else np.maximum(limit.take(rows) - travelled, 0.0)
+            nxt = accel.with_contacts(accel.intersect(start, d, left), start, d)
+            is_hit[rows], prim[rows], b1[rows], b2[rows] = nxt.is_hit, nxt.prim_ids, nxt.b1, nxt.b2
+            t[rows] = travelled + nxt.t
+            rows = rows[nxt.is_hit]
+        return Hits(is_hit, prim, t.astype(np.float32), b1, b2), factor, stopped
+
+    def _opacity(self, prim_ids, b1, b2, positions):
+        """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's."""
+        mat = self.material_ids.take(prim_ids)
+        out = self.opacity.take(mat)
+        program = self.opacity_program.take(mat)
+        bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
+        for p in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == p)
+            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
+                                  positions.take(sel, axis=0))
+            value = evaluate(self.programs[p], attrs, self.textures.images)
+            if value.ndim == 2:
+                value = value @ LUMINANCE                   # a colour drives it: Cycles' conversion
+            out[sel] = np.clip(np.nan_to_num(value, nan=1.0), 0.0, 1.0)
+        return out
 
     def surface(self, prim_ids, b1, b2) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics."""

@@ -106,8 +106,11 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     for depth in range(max_bounces + 1):
         if len(pix) == 0:
             break
-        hits = accel.intersect(origins, dirs, tmax if depth == 0 else None)
-        hits = accel.with_contacts(hits, origins, dirs)
+        # A camera path stops on a transparent surface as often as it is opaque, with its weight.
+        hits, through, _ = ctx.trace(origins, dirs, tmax if depth == 0 else None,
+                                     lambda rows, crossing: rng.random(len(rows)))
+        if through is not None:
+            beta = beta * through                            # transparent surfaces crossed
         rays += len(pix)
         if ctx.lights.visible_to(VISIBLE_CAMERA if depth == 0 else VISIBLE_GLOSSY | VISIBLE_TRANSMISSION):
             t_max = hits.t.astype(np.float64)

@@ -30,15 +30,29 @@ import numpy as np
 
 from .bsdf import (bump_shadowing, choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores,
                    scatter)
-from .context import Surface
+from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from . import sampling as smp
 from .sampling import dot, luminance
+from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
 
 BOUNCE_DIMS = 4
+
+
+def _crossing_uniforms(u, idx, bounce):
+    """``RenderContext.trace``'s numbers for the photons of paths ``idx`` at vertex ``bounce``: a
+    hash of their light position dimensions, the vertex and the crossing, so that a path stays a
+    function of its primary sample (the chains' mutations need that), yet no dimension is used
+    twice."""
+    def uniforms(rows, crossing):
+        paths = idx.take(rows)
+        key = np.full(len(rows), bounce * MAX_TRANSPARENT_CROSSINGS + crossing, np.uint32)
+        r = hash_uint3_to_float(float_as_uint(u[paths, 1]), float_as_uint(u[paths, 2]), key)
+        return np.minimum(r, 1.0 - 2.0 ** -33)
+    return uniforms
 
 
 def path_dims(max_bounces: int) -> int:
@@ -308,7 +322,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         if len(idx) == 0 and bounce > last_join:
             break
         if len(idx):
-            hits = accel.with_contacts(accel.intersect(origins, dirs), origins, dirs)
+            hits, through, opacity = ctx.trace(origins, dirs, None, _crossing_uniforms(u, idx, bounce))
+            if through is not None:
+                flux = flux * through                        # transparent surfaces crossed
             rays += len(idx)
             h = np.flatnonzero(hits.is_hit)
             idx, dirs, flux = idx.take(h), dirs.take(h, axis=0), flux.take(h, axis=0)
@@ -316,8 +332,12 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
             if bounce == 0 and soft:
                 flux = flux * ctx.lights.soft_falloff(u[idx, :1], surf.position)[:, None]
+            # A photon stops on a transparent surface with the probability of its opacity there,
+            # and deposits the flux of all that arrive: its own over that probability.
+            deposited = flux if opacity is None else flux / np.maximum(opacity.take(h), 1e-12)[:, None]
         else:
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+            deposited = flux
         wo = -dirs
         # Deposit at non-delta vertices; a pair found makes the path visible, or, if the target
         # has visible cells, a vertex in one of them (and nothing else).
@@ -334,14 +354,14 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 wd, wg = target.pair_weights(pj, wo.take(lane, axis=0) if target.needs_directions else None,
                                              cos_g, cos_photon)
                 if collect_pairs:
-                    f = flux.take(lane, axis=0)
+                    f = deposited.take(lane, axis=0)
                     pairs["path"].append(idx[lane])
                     pairs["point"].append(pj)
                     pairs["diffuse"].append(f * wd[:, None])
                     pairs["glossy"].append((f * (wg[:, None] if wg.ndim == 1 else wg.T)) if glossy else None)
                     pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
                 else:
-                    f = [flux[:, c].take(lane) for c in range(3)]
+                    f = [deposited[:, c].take(lane) for c in range(3)]
                     sums.add(pj, [fc * wd for fc in f],
                              [fc * (wg if wg.ndim == 1 else wg[c]) for c, fc in enumerate(f)] if glossy
                              else None)

@@ -85,6 +85,12 @@ class Materials:
     * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides, times the
       program ``emission_program`` (when >= 0) at each point (a textured emitter).
 
+    Transparency (Principled's Alpha, a Transparent BSDF mixed in): the surface is the material
+    above with probability ``opacity`` (or the float program ``opacity_program`` at the hit,
+    when >= 0: an alpha map), and otherwise lets the ray through unchanged, tinted by
+    ``transparent_color`` (``RenderContext.trace``; Cycles' stochastic transparency).  The lobe
+    weights and emission describe the opaque part alone.
+
     A tangent-space normal map (Blender's Normal Map node) bends the shading normal of every
     lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
     2 c - 1 along tangent, bitangent and normal), looked up with the triangle UVs in the frame of
@@ -125,6 +131,9 @@ class Materials:
     emission_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
     roughness_program: np.ndarray = None                # (M,) int32, index into programs or -1; None: -1
     dielectric_program: np.ndarray = None               # (M,) int32, index into programs or -1; None: -1
+    opacity: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 1
+    opacity_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
+    transparent_color: np.ndarray = None                # (M, 3) float32; None: 1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -133,10 +142,11 @@ class Materials:
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
-                    "emission_program", "roughness_program", "dielectric_program")
+                    "emission_program", "roughness_program", "dielectric_program", "opacity",
+                    "opacity_program", "transparent_color")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
-                      "dielectric_program")
+                      "dielectric_program", "opacity_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
 
@@ -161,8 +171,9 @@ class Materials:
         ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
         colour, which then defaults to 1, ``glossy_program`` one for the glossy colour and
         ``emission_program`` one that multiplies ``emission``, ``roughness_program`` one for the
-        glossy roughness and ``dielectric_program`` one for the glass's transmitted colour, which
-        then defaults to 1 (equal programs are stored once).
+        glossy roughness, ``dielectric_program`` one for the glass's transmitted colour, which
+        then defaults to 1, and ``opacity_program`` one for the opacity (equal programs are stored
+        once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -195,6 +206,9 @@ class Materials:
         out.emission_program = np.full(m, -1, np.int32)
         out.roughness_program = np.full(m, -1, np.int32)
         out.dielectric_program = np.full(m, -1, np.int32)
+        out.opacity = np.ones(m, np.float32)
+        out.opacity_program = np.full(m, -1, np.int32)
+        out.transparent_color = np.ones((m, 3), np.float32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -235,6 +249,9 @@ class Materials:
                 s.get("dielectric_reflection", out.dielectric_color[i]), np.float32), (3,))
             if "emission" in s:
                 out.emission[i] = np.broadcast_to(np.asarray(s["emission"], np.float32), (3,))
+            out.opacity[i] = s.get("opacity", 1.0)
+            out.transparent_color[i] = np.broadcast_to(
+                np.asarray(s.get("transparent_color", 1.0), np.float32), (3,))
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
             out.bump_texture[i] = s.get("bump_texture", -1)
@@ -542,7 +559,9 @@ class Scene:
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
                                        ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1),
                                        ("glossy_program", (n,), -1), ("emission_program", (n,), -1),
-                                       ("roughness_program", (n,), -1), ("dielectric_program", (n,), -1)):
+                                       ("roughness_program", (n,), -1), ("dielectric_program", (n,), -1),
+                                       ("opacity", (n,), 1.0), ("opacity_program", (n,), -1),
+                                       ("transparent_color", (n, 3), 1.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
@@ -556,6 +575,9 @@ class Scene:
             setattr(mats, name, v)
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
+        if (mats.opacity > 1).any():
+            bad = mats.names[int(np.argmax(mats.opacity > 1))]
+            fail(f"materials.opacity is above 1 for material '{bad}'")
         self._validate_programs(fail)
         for name in Materials.INT_FIELDS:
             v = getattr(mats, name)

@@ -7,8 +7,8 @@ mirror, dielectric) plus emitted radiance.  Mix/Add combine closures linearly,
 which is exact for emission and for lobes of one kind with different colours,
 and an average for glossy roughness and IOR.
 
-Supported nodes: Principled BSDF, Diffuse, Glossy, Metallic, Glass, Refraction,
-Emission, Mix Shader, Add Shader, reroutes and groups; on colour and number inputs the texture
+Supported nodes: Principled BSDF (with its Alpha), Diffuse, Glossy, Metallic, Glass, Refraction,
+Emission, Transparent, Mix Shader, Add Shader, reroutes and groups; on colour and number inputs the texture
 and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a program the core
 evaluates at each hit, an Image Texture on the active UV map stays a plain image texture; other
 inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
@@ -47,6 +47,7 @@ A missing image file gives a warning and Cycles' magenta.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,6 +84,9 @@ class Closure:
     rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
     layer: np.ndarray = field(default_factory=lambda: np.zeros(3))         # (3,) layered weight * f0
     layered: float = 0.0            # diffuse weight under the Fresnel layer
+    transparent: np.ndarray = field(default_factory=lambda: np.zeros(3))   # (3,) weight * colour let through
+    transparent_weight: float = 0.0  # weight of the Transparent part (1 - the mean opacity)
+    opacity_texture: dict = None    # float program of the opacity where it varies (an alpha map)
     normal_map: tuple = None        # (texture index, strength, uv map name) of a tangent-space normal map
     bump: tuple = None              # (texture index, strength, distance) of a bump map
 
@@ -105,7 +109,9 @@ class Closure:
                       multiscatter=fa * self.multiscatter + fb * other.multiscatter,
                       reflection=fa * self.glass_reflection() + fb * other.glass_reflection(),
                       rise=fa * self.rise + fb * other.rise, layer=fa * self.layer + fb * other.layer,
-                      layered=fa * self.layered + fb * other.layered)
+                      layered=fa * self.layered + fb * other.layered,
+                      transparent=fa * self.transparent + fb * other.transparent,
+                      transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
         if self.roughness_texture is not None or other.roughness_texture is not None:
             # Averaged as the constants, by the glossy weights (a map with a constant, or two maps).
@@ -132,7 +138,28 @@ class Closure:
         out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
         out.emission_texture = self._mixed_emission(other, fa, fb, fac)
         out.dielectric_texture = self._mixed_dielectric(other, wa, wb)
+        out.opacity_texture = self._mixed_opacity(other, fa, fb, fac)
         return out
+
+    def opacity_term(self):
+        """The opacity: a number or a float program."""
+        return 1.0 - self.transparent_weight if self.opacity_texture is None else self.opacity_texture
+
+    def _mixed_opacity(self, other, fa, fb, fac):
+        """The opacity program of fa * self + fb * other, or None where it is constant."""
+        if self.opacity_texture is None and other.opacity_texture is None and (
+                fac is None or np.isclose(self.transparent_weight, other.transparent_weight)):
+            return None
+        if fac is None:
+            terms = [(c.opacity_term(), f) for c, f in ((self, fa), (other, fb)) if f > 0]
+            return _float_average(terms) if terms else None
+        a, b = self.opacity_term(), other.opacity_term()
+        return {"op": "mix_float", "fac": fac, "a": a, "b": b}
+
+    @property
+    def only_transparent(self) -> bool:
+        """Whether this is a Transparent BSDF alone (nothing that scatters or emits)."""
+        return self.transparent_weight > 0 and not self.weight.any() and not self.emission.any()
 
     def _mixed_dielectric(self, other, wa, wb):
         """The program of the mix's transmitted colour, or None: kept where one side alone has
@@ -204,11 +231,44 @@ class Closure:
                 and np.isclose(self.roughness, other.roughness)
                 and np.isclose(self.ior, other.ior))
 
+    def _transparency(self) -> dict:
+        """The ``Materials.build`` keys of the Transparent part: opacity (or its program) and tint."""
+        s = {"opacity": float(np.clip(1.0 - self.transparent_weight, 0.0, 1.0)),
+             "transparent_color": self.transparent / self.transparent_weight}
+        if self.opacity_texture is not None:
+            s["opacity_program"] = _clamp01(self.opacity_texture)
+        return s
+
+    def _opaque_part(self) -> "Closure":
+        """The closure without its Transparent part, divided by its opacity (the core shades a
+        surface only where a ray stops on it, with probability the opacity): the weights by the
+        mean opacity, the programs that carry a varying opacity (a Mix by an alpha mask puts it
+        into the mixed colours) by the opacity at each point over that mean."""
+        o = 1.0 - self.transparent_weight
+        if o <= 0.0:
+            return Closure(roughness=self.roughness, ior=self.ior)
+        scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
+                                                             "rise", "layer", "layered")}
+        out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
+                                  opacity_texture=None,
+                                  reflection=None if self.reflection is None else self.reflection / o)
+        if self.opacity_texture is not None:
+            # o_mean / o(x) (Cycles' Divide gives 0 where o(x) is 0: never shaded there).
+            per_point = {"op": "math", "operation": "DIVIDE", "a": o, "b": self.opacity_texture}
+            out.texture = _times(self.texture, per_point) if isinstance(self.texture, dict) else self.texture
+            out.glossy_texture = (None if self.glossy_texture is None
+                                  else _times(self.glossy_texture, per_point))
+            out.emission_texture = (None if self.emission_texture is None
+                                    else _times(self.emission_texture, per_point))
+        return out
+
     def glass_reflection(self) -> np.ndarray:
         return self.color[DIELECTRIC] if self.reflection is None else self.reflection
 
     def spec(self, name) -> dict:
         """A ``Materials.build`` entry."""
+        if self.transparent_weight > 0:
+            return self._opaque_part().spec(name) | self._transparency()
         s = {"name": name, "roughness": self.roughness, "ior": self.ior, "emission": self.emission,
              "dielectric_roughness": self.dielectric_roughness}
         for i, lobe in enumerate(LOBES):
@@ -738,6 +798,10 @@ class NodeWalker:
             c.dielectric_texture = _program_of(tex, color)
         return c
 
+    def _transparent(self, node, stack):
+        color, _ = self.color(node.inputs["Color"], stack)
+        return Closure(transparent=np.clip(color, 0.0, None), transparent_weight=1.0)
+
     def _emission(self, node, stack):
         return self.emitted(node.inputs["Color"], node.inputs["Strength"], stack)
 
@@ -763,13 +827,25 @@ class NodeWalker:
         without a Fresnel rise (``Closure.combine``), the rest by f's mean, noted."""
         f = _clamp01(f)
         mean = procedural.mean_value(f, self.textures.images)
-        if not a.same_except_diffuse(b):
+        if not (a.same_except_diffuse(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': a varying {what} mixes the diffuse colours point by point and the "
                       f"other parts by its mean {mean:.3f}")
         return a.combine(b, 1.0 - mean, mean, fac=f)
 
-    def _principled(self, node, stack, fixed=None):
-        """Principled BSDF.  Its Metallic and Transmission Weight mix its metal, glass and
+    def _principled(self, node, stack):
+        """Principled BSDF (:meth:`_principled_opaque`) with its Alpha: a Mix with a white
+        Transparent BSDF by it (point by point for an alpha map, as a Mix Shader's mask)."""
+        c = self._principled_opaque(node, stack)
+        sock = node.inputs["Alpha"]
+        alpha = self.programs.expression(sock, stack, FLOAT)
+        clear = Closure(transparent=np.ones(3), transparent_weight=1.0)
+        if procedural.varies(alpha):
+            return self._masked_mix(node, "Alpha", alpha, clear, c)
+        a = float(np.clip(self.value(sock, stack), 0.0, 1.0))
+        return c if a >= 1.0 else clear.combine(c, 1.0 - a, a)
+
+    def _principled_opaque(self, node, stack, fixed=None):
+        """Principled BSDF without its Alpha.  Its Metallic and Transmission Weight mix its metal, glass and
         dielectric parts linearly (Cycles), so a texture on either (a metallic map) makes it a
         Mix of the node at 0 and at 1 by that texture (``Closure.combine``: exact for the diffuse
         colour); ``fixed`` holds the values so set."""
@@ -778,8 +854,8 @@ class NodeWalker:
         for name in ("Metallic", "Transmission Weight"):
             f = self.programs.expression(inp[name], stack, FLOAT)
             if name not in fixed and procedural.varies(f):
-                return self._masked_mix(node, name, f, self._principled(node, stack, {**fixed, name: 0.0}),
-                                        self._principled(node, stack, {**fixed, name: 1.0}))
+                at = [self._principled_opaque(node, stack, {**fixed, name: v}) for v in (0.0, 1.0)]
+                return self._masked_mix(node, name, f, *at)
         base, tex = self.color(inp["Base Color"], stack)
         m = fixed.get("Metallic")
         m = float(np.clip(self.value(inp["Metallic"], stack), 0.0, 1.0)) if m is None else m
@@ -790,8 +866,6 @@ class NodeWalker:
         level = max(self.value(inp["Specular IOR Level"], stack), 0.0)
         tint, _ = self.color(inp["Specular Tint"], stack)
         emitted = self.emitted(inp["Emission Color"], inp["Emission Strength"], stack)
-        if self.value(inp["Alpha"], stack) < 1.0:
-            self.note(f"'{node.name}': Alpha below 1 (transparency) is not supported")
         ignored = [label for label, socket in PRINCIPLED_IGNORED
                    if socket in inp and self.value(inp[socket], stack) > 0.0]
         if ignored:
@@ -855,6 +929,7 @@ SHADERS = {
     "ShaderNodeBsdfGlass": NodeWalker._glass,
     "ShaderNodeBsdfRefraction": NodeWalker._glass,
     "ShaderNodeEmission": NodeWalker._emission,
+    "ShaderNodeBsdfTransparent": NodeWalker._transparent,
     "ShaderNodeMixShader": NodeWalker._mix,
     "ShaderNodeAddShader": NodeWalker._add,
 }

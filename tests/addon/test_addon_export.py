@@ -513,6 +513,49 @@ def test_stained_glass_becomes_a_program_of_the_transmitted_colour(scene):
     assert not any("Stained" in w or "Tinted" in w for w in ex.warnings), ex.warnings
 
 
+def test_alpha_and_transparent_bsdf_become_an_opacity(scene):
+    """Principled Alpha 0.25: opacity 0.25, the lobes and emission those of the opaque node; a Mix
+    Shader of a tinted Transparent BSDF and a textured Diffuse by a gradient mask: the opacity is
+    the mask (a program), the transparent colour the tint, and the diffuse colour the texture
+    itself (the mask divided out), with no note."""
+    from amcmcppm.core import procedural
+    half = principled("Half", Alpha=0.25, **{"Base Color": (0.5, 0.2, 0.1, 1.0), "Emission Strength": 2.0,
+                                             "Emission Color": (1.0, 1.0, 1.0, 1.0)})
+    solid = principled("Solid", **{"Base Color": (0.5, 0.2, 0.1, 1.0), "Emission Strength": 2.0,
+                                   "Emission Color": (1.0, 1.0, 1.0, 1.0)})
+    mask = bpy.data.materials.new("Mask")
+    nt = mask.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    clear = nt.nodes.new("ShaderNodeBsdfTransparent")
+    clear.inputs["Color"].default_value = (1.0, 0.5, 0.25, 1.0)
+    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Color"], diffuse.inputs["Color"])
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(clear.outputs[0], mix.inputs[1])
+    nt.links.new(diffuse.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    for i, mat in enumerate((half, solid, mask)):
+        bs.plane(mat.name, material=mat, location=(3 * i, 0, 0))
+    bs.camera()
+    ex = bs.export()
+    s = ex.scene
+    h, o, m = (material_row(s, name) for name in ("Half", "Solid", "Mask"))
+    assert h["opacity"] == pytest.approx(0.25) and o["opacity"] == 1.0 and h["opacity_program"] == -1
+    for key in ("diffuse_weight", "glossy_weight", "diffuse_color", "glossy_color", "emission"):
+        np.testing.assert_allclose(h[key], o[key], rtol=1e-5, err_msg=key)
+    assert m["opacity_program"] >= 0 and m["opacity"] == pytest.approx(0.5, abs=0.02)
+    np.testing.assert_allclose(m["transparent_color"], [1.0, 0.5, 0.25])
+    assert m["diffuse_weight"] == pytest.approx(1.0)
+    pts = procedural.SampledAttributes()
+    colour = procedural.evaluate_color(s.materials.programs[m["diffuse_program"]], pts, s.textures)
+    opacity = procedural.evaluate(s.materials.programs[m["opacity_program"]], pts, s.textures)
+    shown = opacity > 0.01                              # where the surface is ever shaded
+    assert set(np.unique(colour[shown].round(4))) == {0.2, 0.8}
+    assert not any("Mask" in w or "Half" in w for w in ex.warnings), ex.warnings
+
+
 def has_no_programs(core_scene):
     """No procedural colour and no coordinates for one."""
     return core_scene.materials.programs == [] and core_scene.object_ids is None
