@@ -22,6 +22,10 @@ Glossy with roughness 0 as a mirror), so Cycles renders the same files.
 * ``checker_caustic``: a glass sphere and a glass Suzanne throw caustics onto a
   procedural checker floor (Checker on Object coordinates) in front of a wall
   coloured by a Noise Texture through a Color Ramp, under a small spot light.
+* ``stained_window``: a room lit by the sun through leaves cut out by an alpha map
+  (Principled Alpha) and a stained-glass window (a Glass BSDF coloured by Voronoi
+  cells), onto a floor whose roughness a noise varies, with a lamp panel on the
+  back wall whose emission a Wave Texture bands.
 """
 from __future__ import annotations
 
@@ -388,8 +392,70 @@ def checker_caustic():
     return b.finish("checker_caustic", (320, 240), photons_per_pass=100_000)
 
 
+def stained_window():
+    b = SceneBuilder()
+    wall = b.diffuse("Plaster", (0.72, 0.7, 0.66))
+    # Stained glass: a Glass BSDF coloured by Voronoi cells (random colours, lightened).
+    stained = b.glass("Stained glass", ior=1.5)
+    nt = stained.node_tree
+    cells = nt.nodes.new("ShaderNodeTexVoronoi")
+    cells.inputs["Scale"].default_value = 5.0
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], cells.inputs["Vector"])
+    lighten = nt.nodes.new("ShaderNodeMixRGB")
+    lighten.inputs["Fac"].default_value = 0.3
+    lighten.inputs["Color2"].default_value = (1.0, 1.0, 1.0, 1.0)
+    nt.links.new(cells.outputs["Color"], lighten.inputs["Color1"])
+    nt.links.new(lighten.outputs["Color"], nt.nodes["Glass BSDF"].inputs["Color"])
+    # The floor: a Principled BSDF whose roughness a noise varies from 0.15 to 0.55.
+    floor = b._material("Floor", "ShaderNodeBsdfPrincipled", (0.35, 0.22, 0.12),
+                        **{"Base Color": (0.35, 0.22, 0.12, 1.0)})
+    nt = floor.node_tree
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.15, 0.15, 0.15, 1.0)
+    ramp.color_ramp.elements[1].color = (0.55, 0.55, 0.55, 1.0)
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Roughness"])
+    # Leaves outside the window: green discs cut out of planes by an alpha map.
+    leaves = b._material("Leaves", "ShaderNodeBsdfPrincipled", (0.15, 0.35, 0.08),
+                         **{"Base Color": (0.15, 0.35, 0.08, 1.0)})
+    nt = leaves.node_tree
+    discs = nt.nodes.new("ShaderNodeTexVoronoi")
+    discs.inputs["Scale"].default_value = 2.5
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], discs.inputs["Vector"])
+    inside = nt.nodes.new("ShaderNodeMath")
+    inside.operation = "LESS_THAN"
+    inside.inputs[1].default_value = 0.45
+    nt.links.new(discs.outputs["Distance"], inside.inputs[0])
+    nt.links.new(inside.outputs[0], nt.nodes["Principled BSDF"].inputs["Alpha"])
+    # A lamp panel on the back wall whose emission a Wave Texture bands.
+    lamp = b.emission("Lamp panel", (1.0, 0.8, 0.55), 6.0)
+    nt = lamp.node_tree
+    wave = nt.nodes.new("ShaderNodeTexWave")
+    wave.inputs["Scale"].default_value = 3.0
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], wave.inputs["Vector"])
+    nt.links.new(wave.outputs["Fac"], nt.nodes["Emission"].inputs["Strength"])
+    # A room 5 x 4 x 2.6 m with a 1.6 x 1.4 m window in the wall at x = -2.5.
+    room(b, "Room", (-2.5, -2, 0), (2.5, 2, 2.6), wall,
+         holes={"left": (0.3, 0.7, 0.8 / 2.6, 2.2 / 2.6)})
+    b.polygons("Floor", [[(-2.49, -1.99, 0.001), (2.49, -1.99, 0.001), (2.49, 1.99, 0.001),
+                          (-2.49, 1.99, 0.001)]], floor)
+    b.box("Window", (-2.51, -0.8, 0.8), (-2.49, 0.8, 2.2), stained)
+    for i, (y, z, tilt) in enumerate(((-0.5, 1.9, 20.0), (0.4, 1.4, -15.0))):
+        b.polygons(f"Leaves {i}", [[(0, -0.6, -0.45), (0, 0.6, -0.45), (0, 0.6, 0.45), (0, -0.6, 0.45)]],
+                   leaves).location = (-3.0 - 0.15 * i, y, z)
+        bpy.data.objects[f"Leaves {i}"].rotation_euler = (math.radians(tilt), 0.0, math.radians(10.0))
+    b.polygons("Lamp", [[(-0.4, 1.99, 1.5), (0.4, 1.99, 1.5), (0.4, 1.99, 2.0), (-0.4, 1.99, 2.0)]], lamp)
+    b.light("Sun", "SUN", (-6.0, 0.0, 5.0), target=(0.0, 0.3, 0.0), energy=6.0, angle=math.radians(1.0),
+            color=(1.0, 0.95, 0.85))
+    b.camera((2.3, -1.8, 1.5), (-1.0, 0.2, 0.5), lens=20.0)
+    b.world((0.04, 0.05, 0.07))
+    return b.finish("stained_window", (320, 240), exposure=1.0, photons_per_pass=100_000)
+
+
 SCENES = {f.__name__: f for f in (cornell_box, glass_ceiling, hole_mirror_glass, small_view, caustic_sds,
-                                  checker_caustic)}
+                                  checker_caustic, stained_window)}
 
 
 def main(argv):

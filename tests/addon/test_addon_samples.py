@@ -11,7 +11,8 @@ import pytest
 
 import blender_scenes as bs
 
-SAMPLES = ["cornell_box", "glass_ceiling", "hole_mirror_glass", "small_view", "caustic_sds", "checker_caustic"]
+SAMPLES = ["cornell_box", "glass_ceiling", "hole_mirror_glass", "small_view", "caustic_sds", "checker_caustic",
+           "stained_window"]
 
 
 def open_sample(repo_root, name):

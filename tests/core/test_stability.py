@@ -116,7 +116,27 @@ def wild_procedural_colour():
     return with_one_object(room.replace(materials=mats)).validate()
 
 
+def transparent_stack():
+    """The room cut by 100 parallel veils between the lamp and the floor, each of an opacity that
+    1 / x makes 0 to 1 and wild in between (a value the program clamps), and the camera looking
+    through all of them: rays cross at most 64 and stop on the next."""
+    room = cornell_like()
+    x = {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}
+    wild = {"op": "math", "operation": "DIVIDE", "a": 0.01, "b": x}
+    specs = [{"name": "wall", "diffuse": 0.7}, {"name": "lamp", "emission": 5.0},
+             {"name": "veil", "diffuse": 0.5}]
+    m = MeshBuilder()
+    m.tris, m.mats = [room.triangle_corners()], [room.material_ids]
+    m.normals = [np.zeros((room.triangle_count, 3, 3))]
+    for z in np.linspace(0.1, 1.9, 100):
+        m.add_quad((-1, -1, z), (1, -1, z), (1, 1, z), (-1, 1, z), 2)
+    scene = m.build(Materials.build(specs), camera=room.camera)
+    specs[2] = {**specs[2], "opacity_program": wild, "transparent_color": (1.0, 0.9, 0.8)}
+    return with_one_object(scene).replace(materials=Materials.build(specs)).validate()
+
+
 SCENES = {"parallel_mirrors": parallel_mirrors, "wild_procedural_colour": wild_procedural_colour,
+          "transparent_stack": transparent_stack,
           "light_trapped_in_glass": light_trapped_in_glass,
           "camera_inside_glass_sphere": camera_inside_glass_sphere,
           "tiny_scale": lambda: cornell_like(scale=1e-4),
