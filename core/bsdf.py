@@ -93,7 +93,7 @@ class MaterialTable:
     rise: np.ndarray            # (M, 4, 3) float64 colour added times s(c) (glossy or mirror entry)
     layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
     score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
-    normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map bends the shading normal
+    normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map (image or program) bends the normal
     program: np.ndarray = None        # (M,) int32 procedural diffuse colour (Materials.programs) or -1
     glossy_program: np.ndarray = None  # (M,) int32 procedural glossy colour or -1 ...
     glossy_program_lobe: np.ndarray = None  # (M,) int64 ... of this lobe (MIRROR where a sharp glossy merged)
@@ -165,7 +165,8 @@ class MaterialTable:
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
                              rise=rise, layer=layer, score_extra=score_extra,
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
-                             | (np.asarray(mats.bump_texture) >= 0), program=program,
+                             | (np.asarray(mats.bump_texture) >= 0)
+                             | (np.asarray(_or_none(mats.bump_program, m)) >= 0), program=program,
                              glossy_program=glossy_program,
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
                              emission_program=emission_program, dielectric_program=dielectric_program)
@@ -213,6 +214,11 @@ class MaterialTable:
     def layer_factor(self, mat_ids, mu):
         """(n,) factors of the diffuse lobe under a Fresnel layer at view cosines ``mu`` (1: none)."""
         return _interpolate(self.layer, mat_ids, mu)
+
+
+def _or_none(indices, m):
+    """Per-material program indices, -1 for all when absent."""
+    return np.full(m, -1, np.int32) if indices is None else indices
 
 
 def _interpolate(table, mat_ids, mu):

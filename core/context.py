@@ -15,6 +15,8 @@ from .sampling import dot, normalize
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 # Transparent surfaces a ray may cross (RenderContext.trace); the next one it meets is opaque.
 MAX_TRANSPARENT_CROSSINGS = 64
+# Step of a procedural bump's finite differences, relative to the scene's size (Accel.extent).
+BUMP_STEP = 1e-5
 
 
 @dataclass
@@ -70,7 +72,8 @@ class RenderContext:
                                 if scene.shading_normals is not None else None)
         self.has_textures = bool((self.table.texture >= 0).any())
         # Materials that look an image up with the UVs (colour, normal or bump map).
-        self.uses_uvs = (self.table.texture >= 0) | self.table.normal_mapped
+        self.uses_uvs = (self.table.texture >= 0) | (self.normal_texture >= 0) | (self.bump_texture >= 0)
+        self.bump_program = np.asarray(mats.bump_program, np.int32)
 
     def trace(self, origins, dirs, tmax=None, uniforms=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
@@ -157,7 +160,7 @@ class RenderContext:
         if self.has_normal_maps:
             nn = ns.copy()
             self._apply_normal_maps(ns, prim_ids, bary, uv, mat)
-            self._apply_bump_maps(ns, prim_ids, uv, mat)
+            self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat)
         albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]
@@ -243,31 +246,57 @@ class RenderContext:
         _replace_bad(n, n0)
         ns[sel] = n
 
-    def _apply_bump_maps(self, ns, prim_ids, uv, mat):
+    def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat):
         """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).
 
-        As Cycles' Bump node, with the exact gradient of the bilinear height h (the image's
-        luminance) instead of finite differences over the pixel footprint: with the triangle's
-        dP/du, dP/dv, R_u = dP/dv x N, R_v = N x dP/du and det = dP/du . R_u,
+        As Cycles' Bump node, with the height's gradient along a parametrisation (u, v) of the
+        triangle instead of finite differences over the pixel footprint: with dP/du, dP/dv,
+        R_u = dP/dv x N, R_v = N x dP/du and det = dP/du . R_u,
         N' = normalize(|det| N - d sign(det) (h_u R_u + h_v R_v)), d the distance, and then
-        normalize(s N' + (1 - s) N) for strength s.  Triangles without a UV parametrisation keep N.
+        normalize(s N' + (1 - s) N) for strength s (the result does not depend on the
+        parametrisation).  An image's height (its luminance) takes the UVs and the bilinear
+        image's exact gradient (triangles without a UV parametrisation keep N); a program's
+        (``Materials.bump_program``) the barycentrics b1, b2 (dP/db = the edges) and forward
+        differences of ``BUMP_STEP`` times the scene's size along each edge.
         """
         tex = self.bump_texture.take(mat)
         sel = np.flatnonzero(tex >= 0)
-        if len(sel) == 0:
-            return
-        p = prim_ids.take(sel)
-        uvs = self.scene.uvs.take(p, axis=0).astype(np.float64)                        # (k, 3, 2)
-        e1, e2 = self.accel.e1.take(p, axis=0), self.accel.e2.take(p, axis=0)
-        d1, d2 = uvs[:, 1] - uvs[:, 0], uvs[:, 2] - uvs[:, 0]
-        det_uv = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
-        ok = np.abs(det_uv) > 1e-20
-        inv = np.where(ok, 1.0 / np.where(ok, det_uv, 1.0), 0.0)[:, None]
-        dpdu = (d2[:, 1:2] * e1 - d1[:, 1:2] * e2) * inv
-        dpdv = (d1[:, 0:1] * e2 - d2[:, 0:1] * e1) * inv
-        gu, gv = self.textures.gradient(tex.take(sel), uv.take(sel, axis=0))
-        hu, hv = gu @ LUMINANCE, gv @ LUMINANCE
-        m = mat.take(sel)
+        if len(sel):
+            p = prim_ids.take(sel)
+            uvs = self.scene.uvs.take(p, axis=0).astype(np.float64)                    # (k, 3, 2)
+            e1, e2 = self.accel.e1.take(p, axis=0), self.accel.e2.take(p, axis=0)
+            d1, d2 = uvs[:, 1] - uvs[:, 0], uvs[:, 2] - uvs[:, 0]
+            det_uv = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+            ok = np.abs(det_uv) > 1e-20
+            inv = np.where(ok, 1.0 / np.where(ok, det_uv, 1.0), 0.0)[:, None]
+            dpdu = (d2[:, 1:2] * e1 - d1[:, 1:2] * e2) * inv
+            dpdv = (d1[:, 0:1] * e2 - d2[:, 0:1] * e1) * inv
+            gu, gv = self.textures.gradient(tex.take(sel), uv.take(sel, axis=0))
+            self._bend(ns, sel, mat.take(sel), dpdu, dpdv, gu @ LUMINANCE, gv @ LUMINANCE, ok)
+        program = self.bump_program.take(mat)
+        for k in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == k)
+            p = prim_ids.take(sel)
+            e1, e2 = self.accel.e1.take(p, axis=0), self.accel.e2.take(p, axis=0)
+            b = [w.take(sel, axis=0) for w in bary]
+            x = pos.take(sel, axis=0)
+            step = BUMP_STEP * self.accel.extent
+            s1 = step / np.maximum(np.linalg.norm(e1, axis=1), 1e-300)
+            s2 = step / np.maximum(np.linalg.norm(e2, axis=1), 1e-300)
+            heights = []
+            for db1, db2, moved in ((0.0, 0.0, x), (s1, 0.0, x + s1[:, None] * e1),
+                                    (0.0, s2, x + s2[:, None] * e2)):
+                shifted = (b[0] - np.reshape(db1 + db2, (-1, 1)), b[1] + np.reshape(db1, (-1, 1)),
+                           b[2] + np.reshape(db2, (-1, 1)))
+                attrs = HitAttributes(self.scene, p, shifted, moved)
+                h = evaluate(self.programs[k], attrs, self.textures.images)
+                heights.append(h @ LUMINANCE if h.ndim == 2 else h)
+            hu, hv = (heights[1] - heights[0]) / s1, (heights[2] - heights[0]) / s2
+            self._bend(ns, sel, mat.take(sel), e1, e2, np.nan_to_num(hu), np.nan_to_num(hv),
+                       np.ones(len(sel), bool))
+
+    def _bend(self, ns, sel, m, dpdu, dpdv, hu, hv, ok):
+        """Cycles' Bump formula (:meth:`_apply_bump_maps`) at rows ``sel`` of ``ns``, in place."""
         n0 = ns.take(sel, axis=0)
         ru, rv = np.cross(dpdv, n0), np.cross(n0, dpdu)
         det = np.einsum("ki,ki->k", dpdu, ru)

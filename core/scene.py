@@ -98,7 +98,9 @@ class Materials:
     the strength, the normal component blended from 1).  A bump map (Blender's Bump node) then
     bends it further: ``bump_texture`` >= 0 is the image whose luminance is the height,
     ``bump_distance`` its scale (negative: inverted) and ``bump_strength`` the blend towards
-    the bumped normal, as Cycles' Bump node with the height's exact surface gradient.
+    the bumped normal, as Cycles' Bump node with the height's exact surface gradient; or
+    ``bump_program`` >= 0, a float program of the height (a procedural bump), whose gradient is
+    taken by finite differences along the triangle's edges.
     """
 
     names: list = field(default_factory=list)          # M material names (for messages)
@@ -131,6 +133,7 @@ class Materials:
     emission_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
     roughness_program: np.ndarray = None                # (M,) int32, index into programs or -1; None: -1
     dielectric_program: np.ndarray = None               # (M,) int32, index into programs or -1; None: -1
+    bump_program: np.ndarray = None                     # (M,) int32, index into programs or -1; None: -1
     opacity: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 1
     opacity_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
     transparent_color: np.ndarray = None                # (M, 3) float32; None: 1
@@ -142,11 +145,11 @@ class Materials:
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
-                    "emission_program", "roughness_program", "dielectric_program", "opacity",
+                    "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
-                      "dielectric_program", "opacity_program")
+                      "dielectric_program", "bump_program", "opacity_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
 
@@ -206,6 +209,7 @@ class Materials:
         out.emission_program = np.full(m, -1, np.int32)
         out.roughness_program = np.full(m, -1, np.int32)
         out.dielectric_program = np.full(m, -1, np.int32)
+        out.bump_program = np.full(m, -1, np.int32)
         out.opacity = np.ones(m, np.float32)
         out.opacity_program = np.full(m, -1, np.int32)
         out.transparent_color = np.ones((m, 3), np.float32)
@@ -560,7 +564,8 @@ class Scene:
                                        ("bump_distance", (n,), 1.0), ("diffuse_program", (n,), -1),
                                        ("glossy_program", (n,), -1), ("emission_program", (n,), -1),
                                        ("roughness_program", (n,), -1), ("dielectric_program", (n,), -1),
-                                       ("opacity", (n,), 1.0), ("opacity_program", (n,), -1),
+                                       ("bump_program", (n,), -1), ("opacity", (n,), 1.0),
+                                       ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS

@@ -88,7 +88,7 @@ class Closure:
     transparent_weight: float = 0.0  # weight of the Transparent part (1 - the mean opacity)
     opacity_texture: dict = None    # float program of the opacity where it varies (an alpha map)
     normal_map: tuple = None        # (texture index, strength, uv map name) of a tangent-space normal map
-    bump: tuple = None              # (texture index, strength, distance) of a bump map
+    bump: tuple = None              # (texture index or height program, strength, distance) of a bump map
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -307,7 +307,8 @@ class Closure:
         if self.normal_map is not None:
             s["normal_texture"], s["normal_strength"], s["normal_uv_map"] = self.normal_map
         if self.bump is not None:
-            s["bump_texture"], s["bump_strength"], s["bump_distance"] = self.bump
+            source, s["bump_strength"], s["bump_distance"] = self.bump
+            s["bump_program" if isinstance(source, dict) else "bump_texture"] = source
         return s
 
 
@@ -695,14 +696,15 @@ class NodeWalker:
         if inner_bump is not None:
             self.note(f"bump '{node.name}': a Bump on a Bump is not supported; using the inner one")
             return inner, inner_bump
-        # An image's colour (its luminance in the core); a constant height bends nothing.
-        _, tex = self.color(node.inputs["Height"], stack)
-        if isinstance(tex, dict):
-            self.note(f"bump '{node.name}': a procedural height is not supported (only an image "
-                      "texture's colour); using the surface's own normal")
+        # An image's colour (its luminance in the core), or any other texture as a program of the
+        # height; a constant height bends nothing.
+        height = self.programs.expression(node.inputs["Height"], stack, FLOAT)
+        if not procedural.varies(height):
             return inner, None
-        if tex < 0:
-            return inner, None
+        image = height.get("color") if height.get("op") == "gray" else None
+        on_uvs = isinstance(image, dict) and image.get("vector") == {"op": "attribute", "name": "uv"}
+        plain = on_uvs and image["op"] == "image" and image.get("output", "Color") == "Color"
+        tex = image["texture"] if plain else height
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         distance = self.value(node.inputs["Distance"], stack) * (-1.0 if node.invert else 1.0)
         return inner, (tex, strength, distance)

@@ -263,15 +263,23 @@ def sun_over_normal_mapped_floor(tangent_space_normal, sun_toward=(0.0, 0.0, 1.0
 
 
 def sun_over_bumped_floor(slope, distance=1.0, strength=1.0, sun_toward=(0.0, 0.0, 1.0), irradiance=10.0,
-                          albedo=0.5, resolution=(8, 8)):
+                          albedo=0.5, resolution=(8, 8), procedural=False):
     """A flat diffuse floor (z = 0, uv = xy + 0.5) with a bump map whose height rises by
-    ``slope`` per unit of u (a grey ramp image), under a sun.  Cycles' Bump node then bends the
-    normal to normalize(z - distance slope x) before the strength blend."""
+    ``slope`` per unit of u (a grey ramp image; with ``procedural``, the program slope x of the
+    Object coordinates), under a sun.  Cycles' Bump node then bends the normal to
+    normalize(z - distance slope x) before the strength blend."""
     w = 64
     ramp = slope * (np.arange(w) + 0.5) / w
     tex = np.repeat(np.broadcast_to(ramp[None, :, None], (2, w, 1)), 3, axis=2).astype(np.float32)
-    return _sunlit_textured_floor({"bump_texture": 0, "bump_strength": strength, "bump_distance": distance},
-                                  tex, sun_toward, irradiance, albedo, resolution)
+    spec = {"bump_texture": 0, "bump_strength": strength, "bump_distance": distance}
+    scene = _sunlit_textured_floor(spec, tex, sun_toward, irradiance, albedo, resolution)
+    if not procedural:
+        return scene
+    x = {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}
+    height = {"op": "math", "operation": "MULTIPLY", "a": x, "b": slope}
+    spec = {"name": "floor", "diffuse": albedo, "bump_program": height, "bump_strength": strength,
+            "bump_distance": distance}
+    return with_one_object(scene.replace(materials=Materials.build([spec]), textures=[])).validate()
 
 
 def _sunlit_textured_floor(spec, texture, sun_toward, irradiance, albedo, resolution, tangents=None):

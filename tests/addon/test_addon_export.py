@@ -750,7 +750,6 @@ def test_normal_map_on_a_mesh_without_uvs_keeps_the_normal_and_an_unmapped_mesh_
 
 @pytest.mark.parametrize("case, message", [
     ("object_space", "object space is not supported"),
-    ("bump_of_a_noise", "procedural height is not supported"),
     ("vector_math", "Vector Math"),
     ("constant", "constant colour"),
 ])
@@ -760,11 +759,6 @@ def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message
     bsdf = nt.nodes["Principled BSDF"]
     if case == "object_space":
         nt.nodes["Normal Map"].space = "OBJECT"
-    elif case == "bump_of_a_noise":
-        bump = nt.nodes.new("ShaderNodeBump")
-        noise = nt.nodes.new("ShaderNodeTexNoise")
-        nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
-        nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
     elif case == "vector_math":
         nt.links.new(nt.nodes.new("ShaderNodeVectorMath").outputs[0], bsdf.inputs["Normal"])
     else:
@@ -776,6 +770,26 @@ def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message
     assert material_row(ex.scene, "Odd")["normal_texture"] == -1
     assert ex.scene.tangents is None
     assert any("Odd" in w and message in w for w in ex.warnings), ex.warnings
+
+
+def test_bump_of_a_noise_becomes_a_height_program(scene):
+    """A Bump whose Height is a Noise's Fac: a bump program (no image, no UVs or tangents needed)
+    with the node's strength and (inverted) distance."""
+    mat = principled("Noisy")
+    nt = mat.node_tree
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.invert = True
+    bump.inputs["Strength"].default_value = 0.7
+    bump.inputs["Distance"].default_value = 0.05
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Normal"])
+    row, ex = export_material(mat)
+    program = ex.scene.materials.programs[row["bump_program"]]
+    assert program["op"] == "noise" and program["output"] == "Fac"
+    assert row["bump_texture"] == -1 and row["bump_strength"] == pytest.approx(0.7)
+    assert row["bump_distance"] == pytest.approx(-0.05)
+    assert ex.scene.uvs is None and ex.scene.tangents is None and not ex.warnings
 
 
 @pytest.mark.parametrize("invert", [False, True])

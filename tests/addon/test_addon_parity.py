@@ -675,3 +675,27 @@ def test_an_alpha_map_renders_as_the_geometry_it_cuts(addon, tmp_path):
     np.testing.assert_allclose(mapped.mean(axis=(0, 1)), cut.mean(axis=(0, 1)), rtol=2e-3)
     assert (np.abs(mapped - cut) < 0.01 * cut.max()).mean() > 0.98
     assert np.ptp(mapped[..., 1]) > 1.0                  # the cells and the holes do show
+
+
+def test_procedural_bump_matches_cycles(addon, tmp_path):
+    """The corner's floor a Principled BSDF (roughness 0.3) bumped by a Noise Texture (scale 3 on
+    Object coordinates: bumps of some 30 cm; distance 0.1), under the area light: the bent
+    normals shade the diffuse and glossy parts point by point (``Materials.bump_program``)."""
+    def build():
+        corner_scene()
+        nt, bsdf = floor_shader("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Roughness"].default_value = 0.3
+        bump = nt.nodes.new("ShaderNodeBump")
+        bump.inputs["Distance"].default_value = 0.1
+        noise = nt.nodes.new("ShaderNodeTexNoise")
+        noise.inputs["Scale"].default_value = 3.0
+        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
+        nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+        nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+        add_emitter("area_square")
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    c, o = assert_channels_match("procedural bump", cycles, ours)
+    lum_c, lum_o = c @ [0.2126, 0.7152, 0.0722], o @ [0.2126, 0.7152, 0.0722]
+    # With the flat floor (before): 1.007 of Cycles, pixel correlation 0.983; bumped 0.994, 0.995.
+    print(f"procedural bump: pixel correlation {np.corrcoef(lum_c, lum_o)[0, 1]:.3f}")
+    assert np.corrcoef(lum_c, lum_o)[0, 1] > 0.99

@@ -162,9 +162,11 @@ def test_normal_map_bends_the_shading_normal_as_cycles(method, case):
     (-0.8, 1.0, 1.0),         # a negative distance (Invert) bends the other way: 1 again
     (0.8, 0.5, -1.0),         # strength 0.5: halfway between z and the bumped normal
 ], ids=["facing", "away", "inverted", "half_strength"])
-def test_bump_map_bends_the_shading_normal_as_cycles(method, distance, strength, towards):
-    """A sun over a floor whose height rises along u: Cycles' Bump node gives the normal
-    normalize(z - d h_u x), blended with z by the strength; radiance albedo E (N . l) G / pi."""
+@pytest.mark.parametrize("procedural", [False, True], ids=["image", "program"])
+def test_bump_map_bends_the_shading_normal_as_cycles(method, distance, strength, towards, procedural):
+    """A sun over a floor whose height rises along u (an image, or a program of the Object
+    coordinates): Cycles' Bump node gives the normal normalize(z - d h_u x), blended with z by
+    the strength; radiance albedo E (N . l) G / pi."""
     slope = 1.0
     bent = np.array([-distance * slope, 0.0, 1.0])
     bent /= np.linalg.norm(bent)
@@ -172,7 +174,7 @@ def test_bump_map_bends_the_shading_normal_as_cycles(method, distance, strength,
     n = strength * bent + (1 - strength) * np.array([0.0, 0.0, 1.0])
     n /= np.linalg.norm(n)
     irradiance, albedo = 10.0, 0.5
-    scene = sun_over_bumped_floor(slope, distance, strength, sun, irradiance, albedo)
+    scene = sun_over_bumped_floor(slope, distance, strength, sun, irradiance, albedo, procedural=procedural)
     expected = albedo / np.pi * irradiance * max(n @ sun, 0.0) * bump_shadowing_g(n, sun[2])
     per_pass, _ = render_passes(scene, passes=6, photons_per_pass=50_000, max_bounces=1, **method)
     check_mean(per_pass, expected, 0.01)
