@@ -40,6 +40,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
 * ``separate`` vector: -> X, Y, Z (also Red, Green, Blue); ``combine`` x, y, z: -> Vector.
+* ``blackbody`` temperature: -> Color (Cycles' fit of the Planckian locus, luminance 1).
 * ``gray`` color: -> Value (Rec. 709 luminance, Cycles' colour-to-float); ``average`` vector:
   -> Value (vector-to-float); ``splat`` value: -> Vector (float-to-colour/vector).
 
@@ -678,6 +679,52 @@ def _average(ev, node):
     return {"Value": ev.vec(node, "vector").mean(axis=1)}
 
 
+# Cycles' fit of the Planckian locus in Rec. 709 (``svm_math_blackbody_color_rec709``, Blender
+# 4.x/5.x, normalised to luminance 1): R, G = a / t + b t + c, B = ((a t + b) t + c) t + d, per
+# range of temperatures from these knots.
+BLACKBODY_KNOTS = np.array([965.0, 1167.0, 1449.0, 1902.0, 3315.0, 6365.0])
+BLACKBODY_R = np.array([[1.61919106e+03, -2.05010916e-03, 5.02995757e+00],
+                        [2.48845471e+03, -1.11330907e-03, 3.22621544e+00],
+                        [3.34143193e+03, -4.86551192e-04, 1.76486769e+00],
+                        [4.09461742e+03, -1.27446582e-04, 7.25731635e-01],
+                        [4.67028036e+03, 2.91258199e-05, 1.26703442e-01],
+                        [4.59509185e+03, 2.87495649e-05, 1.50345020e-01],
+                        [3.78717450e+03, 9.35907826e-06, 3.99075871e-01]], np.float32)
+BLACKBODY_G = np.array([[-4.88999748e+02, 6.04330754e-04, -7.55807526e-02],
+                        [-7.55994277e+02, 3.16730098e-04, 4.78306139e-01],
+                        [-1.02363977e+03, 1.20223470e-04, 9.36662319e-01],
+                        [-1.26571316e+03, 4.87340896e-06, 1.27054498e+00],
+                        [-1.42529332e+03, -4.01150431e-05, 1.43972784e+00],
+                        [-1.17554822e+03, -2.16378048e-05, 1.30408023e+00],
+                        [-5.00799571e+02, -4.59832026e-06, 1.09098763e+00]], np.float32)
+BLACKBODY_B = np.array([[5.96945309e-11, -4.85742887e-08, -9.70622247e-05, -4.07936148e-03],
+                        [2.40430366e-11, 5.55021075e-08, -1.98503712e-04, 2.89312858e-02],
+                        [-1.40949732e-11, 1.89878968e-07, -3.56632824e-04, 9.10767778e-02],
+                        [-3.61460868e-11, 2.84822009e-07, -4.93211319e-04, 1.56723440e-01],
+                        [-1.97075738e-11, 1.75359352e-07, -2.50542825e-04, -2.22783266e-02],
+                        [-1.61997957e-13, -1.64216008e-08, 3.86216271e-04, -7.38077418e-01],
+                        [6.72650283e-13, -2.73078809e-08, 4.24098264e-04, -7.52335691e-01]], np.float32)
+BLACKBODY_HOT = np.array([0.8262954810464208, 0.9945080501520986, 1.566307710274283])     # >= 12000 K
+BLACKBODY_COLD = np.array([5.413294490189271, -0.20319390035873933, -0.0822535242887164])  # < 800 K
+
+
+def blackbody(t):
+    """(k, 3) Rec. 709 colour of temperatures ``t`` (k,) in kelvin (Cycles' Blackbody node)."""
+    t = np.asarray(t, np.float64)
+    i = np.searchsorted(BLACKBODY_KNOTS, t, side="right")
+    r, g, b = (table.astype(np.float64).take(i, axis=0) for table in (BLACKBODY_R, BLACKBODY_G, BLACKBODY_B))
+    with np.errstate(all="ignore"):
+        inv = 1.0 / t
+        out = np.stack([r[:, 0] * inv + r[:, 1] * t + r[:, 2], g[:, 0] * inv + g[:, 1] * t + g[:, 2],
+                        ((b[:, 0] * t + b[:, 1]) * t + b[:, 2]) * t + b[:, 3]], axis=1)
+    out = np.where((t >= 12000.0)[:, None], BLACKBODY_HOT, out)
+    return np.where((t < 800.0)[:, None] | np.isnan(t)[:, None], BLACKBODY_COLD, out)
+
+
+def _blackbody(ev, node):
+    return {"Color": blackbody(ev.float(node, "temperature", 1500.0))}
+
+
 def _splat(ev, node):
     return {"Vector": np.repeat(ev.float(node, "value")[:, None], 3, axis=1)}
 
@@ -689,7 +736,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
-       "average": _average, "splat": _splat}
+       "average": _average, "splat": _splat, "blackbody": _blackbody}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -700,7 +747,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
-           "gray": ("Value",), "average": ("Value",), "splat": ("Vector",)}
+           "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "environment": ("texture",), "ramp": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")

@@ -142,6 +142,10 @@ def _color_attribute(b, node, stack):
     return {"Color": {"op": "attribute", "name": "color"}, "Alpha": 1.0}
 
 
+def _blackbody(b, node, stack):
+    return {"Color": {"op": "blackbody", "temperature": b.input(node, "Temperature", stack, FLOAT)}}
+
+
 def _rgb(b, node, stack):
     return {"Color": [float(x) for x in node.outputs[0].default_value[:3]]}
 
@@ -408,7 +412,7 @@ def _combine_color(b, node, stack):
 
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
-    "ShaderNodeRGB": _rgb,
+    "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
     "ShaderNodeTexEnvironment": _environment, "ShaderNodeTexSky": _sky,
     "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,

@@ -212,8 +212,40 @@ def voronoi(output, **settings):
     return build
 
 
+def blackbody_checker(temperature):
+    """A checker of a Blackbody colour (a lamp's usual colour) and its half."""
+    def build(nt):
+        bb = node(nt, "ShaderNodeBlackbody", Temperature=temperature)
+        c = node(nt, "ShaderNodeTexChecker", Scale=3.0)
+        nt.links.new(bb.outputs["Color"], c.inputs["Color1"])
+        half = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY")
+        socket(half.inputs, "Factor_Float").default_value = 1.0
+        nt.links.new(bb.outputs["Color"], socket(half.inputs, "A_Color"))
+        socket(half.inputs, "B_Color").default_value = (0.5, 0.5, 0.5, 1.0)
+        nt.links.new(socket(half.outputs, "Result_Color"), c.inputs["Color2"])
+        return c.outputs["Color"]
+    return build
+
+
+def blackbody_over_gradient(nt):
+    """Temperatures from 500 to 13,000 K across the plane: every range of Cycles' fit."""
+    g = node(nt, "ShaderNodeTexGradient")
+    r = node(nt, "ShaderNodeMapRange", **{"To Min": 500.0, "To Max": 13000.0})
+    nt.links.new(g.outputs["Fac"], r.inputs["Value"])
+    bb = node(nt, "ShaderNodeBlackbody")
+    nt.links.new(r.outputs["Result"], bb.inputs["Temperature"])
+    half = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY")     # within the clamp
+    socket(half.inputs, "Factor_Float").default_value = 1.0
+    nt.links.new(bb.outputs["Color"], socket(half.inputs, "A_Color"))
+    socket(half.inputs, "B_Color").default_value = (0.2, 0.2, 0.2, 1.0)
+    return socket(half.outputs, "Result_Color")
+
+
 CASES = {
     "checker_generated": checker_default,
+    "blackbody_gradient": blackbody_over_gradient,
+    "blackbody_2700": blackbody_checker(2700.0),
+    "blackbody_9000": blackbody_checker(9000.0),
     "ramp_linear": ramp_over_gradient("LINEAR"),
     "ramp_constant": ramp_over_gradient("CONSTANT"),
     "ramp_ease": ramp_over_gradient("EASE"),

@@ -190,3 +190,17 @@ def test_a_glossy_program_with_a_fresnel_rise_is_refused():
                              "glossy_program": {"op": "splat", "value": 0.5}}])
     with pytest.raises(SceneError, match="cannot vary a glossy lobe with a Fresnel rise"):
         floor.replace(materials=mats).validate()
+
+
+def test_blackbody_follows_cycles_fit():
+    """Blender 5.0's own light temperature colours (``Light.temperature_color``) and the fit's
+    ends: below 800 K and from 12,000 K constant."""
+    c = procedural.blackbody(np.array([2700.0, 9000.0, 500.0, 799.0, 12000.0, 20000.0]))
+    np.testing.assert_allclose(c[0], [1.9350767, 0.80353075, 0.19172148], rtol=1e-6)
+    np.testing.assert_allclose(c[1], [0.9041047, 0.99395841, 1.3429724], rtol=1e-6)
+    np.testing.assert_array_equal(c[2], c[3])
+    np.testing.assert_array_equal(c[4], c[5])
+    np.testing.assert_allclose(c[:2] @ procedural.LUMINANCE, 1.0, atol=2e-4)
+    program = {"op": "blackbody", "temperature": {"op": "math", "operation": "MULTIPLY", "a": 3000.0,
+                                                  "b": {"op": "separate", "vector": OBJECT, "output": "X"}}}
+    np.testing.assert_allclose(run(program, [(0.9, 0, 0), (3.0, 0, 0)]), c[[0, 1]], rtol=1e-6)
