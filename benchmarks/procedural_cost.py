@@ -37,13 +37,18 @@ VARIANTS = {
 }
 
 
+def cornell_specs(scene):
+    """``Materials.build`` entries of the Cornell box's (diffuse or emitting) materials."""
+    m = scene.materials
+    return [{"name": n, "diffuse": c, "emission": e} for n, c, e in zip(m.names, m.diffuse_color, m.emission)]
+
+
 def with_program(program):
     """An ``edit`` for ``photon_pass``: the first material's diffuse colour becomes ``program``."""
     def edit(scene):
         if program is None:
             return scene
-        specs = [{"name": n, "diffuse": c, "emission": e} for n, c, e in
-                 zip(scene.materials.names, scene.materials.diffuse_color, scene.materials.emission)]
+        specs = cornell_specs(scene)
         specs[0] = {**specs[0], "diffuse_program": program}
         del specs[0]["diffuse"]
         return with_one_object(scene.replace(materials=Materials.build(specs))).validate()

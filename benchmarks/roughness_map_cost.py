@@ -23,6 +23,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from ab_photon_pass import photon_pass  # noqa: E402
+from procedural_cost import cornell_specs  # noqa: E402
 
 from core.context import RenderContext  # noqa: E402
 from core.scene import Materials  # noqa: E402
@@ -40,8 +41,7 @@ def with_layer(roughness_map):
     """An ``edit`` for ``photon_pass``: the first material gets the specular layer, of roughness 0.4
     or of ``ROUGHNESS_MAP``."""
     def edit(scene):
-        specs = [{"name": n, "diffuse": c, "emission": e} for n, c, e in
-                 zip(scene.materials.names, scene.materials.diffuse_color, scene.materials.emission)]
+        specs = cornell_specs(scene)
         specs[0] = {**specs[0], **LAYER, "roughness": 0.4}
         if roughness_map:
             specs[0]["roughness_program"] = ROUGHNESS_MAP

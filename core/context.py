@@ -125,15 +125,8 @@ class RenderContext:
         """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's."""
         mat = self.material_ids.take(prim_ids)
         out = self.opacity.take(mat)
-        program = self.opacity_program.take(mat)
         bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
-        for p in np.unique(program[program >= 0]):
-            sel = np.flatnonzero(program == p)
-            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
-                                  positions.take(sel, axis=0))
-            value = evaluate(self.programs[p], attrs, self.textures.images)
-            if value.ndim == 2:
-                value = value @ LUMINANCE                   # a colour drives it: Cycles' conversion
+        for sel, value in self._program_values(self.opacity_program, prim_ids, bary, positions, mat):
             out[sel] = np.clip(np.nan_to_num(value, nan=1.0), 0.0, 1.0)
         return out
 
@@ -183,14 +176,7 @@ class RenderContext:
     def _pick_roughness(self, mat, prim_ids, bary, pos):
         """Replace, in place, the materials ``mat`` (n,) that have a roughness map by their copy of
         the nearest roughness level (``bsdf.roughness_variants``) at these hits."""
-        program = self.materials.roughness_program.take(mat)
-        for p in np.unique(program[program >= 0]):
-            sel = np.flatnonzero(program == p)
-            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
-                                  pos.take(sel, axis=0))
-            value = evaluate(self.programs[p], attrs, self.textures.images)
-            if value.ndim == 2:
-                value = value @ LUMINANCE                   # a colour drives it: Cycles' conversion
+        for sel, value in self._program_values(self.materials.roughness_program, prim_ids, bary, pos, mat):
             level = np.rint(np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * (ROUGHNESS_LEVELS - 1))
             mat[sel] = self.roughness_first.take(mat.take(sel)) + level.astype(np.int32)
 
@@ -209,6 +195,17 @@ class RenderContext:
             for sel, factor in self._program_colors(programs, prim_ids, bary, positions, mat, EMISSION_MAX):
                 out[sel] *= factor
         return out
+
+    def _program_values(self, programs, prim_ids, bary, pos, mat):
+        """(hit indices, (k,) numbers) for each float program in ``programs`` (per material, -1:
+        none) that some of the hits' materials have; a colour counts by its luminance (Cycles)."""
+        program = programs.take(mat)
+        for p in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == p)
+            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
+                                  pos.take(sel, axis=0))
+            value = evaluate(self.programs[p], attrs, self.textures.images)
+            yield sel, (value @ LUMINANCE if value.ndim == 2 else value)
 
     def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX):
         """(hit indices, (k, 3) colours in [0, ``limit``]) for each program in ``programs`` (per

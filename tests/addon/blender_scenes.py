@@ -248,18 +248,25 @@ def cycles_texture_values(mat, path):
     nt.links.new(socket, emit.inputs["Color"])
     nt.links.new(emit.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    c = scene.cycles
-    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
-    c.filter_width = 0.01
-    c.seed = 1
     try:
-        return render_exr(path)[..., :3].astype(np.float64)
+        return cycles_pixel_centres(path)
     finally:
         # Back to the Diffuse BSDF and our engine: the scene can then be exported as built.
         nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], nt.nodes["Material Output"].inputs["Surface"])
         nt.nodes.remove(emit)
         scene.render.engine = ENGINE
+
+
+def cycles_pixel_centres(path):
+    """The current scene rendered by Cycles at one sample with a 0.01-pixel filter (each pixel is
+    what the camera sees through its centre): (H, W, 3) float64.  Leaves Cycles selected."""
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
+    c.filter_width = 0.01
+    c.seed = 1
+    return render_exr(path)[..., :3].astype(np.float64)
 
 
 def our_texture_values(positions, emitted=False):

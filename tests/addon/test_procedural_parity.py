@@ -328,7 +328,6 @@ def test_a_mix_shader_of_two_diffuse_shaders_mixes_their_colours_point_by_point(
     """A Mix Shader whose Fac is a noise mask (or a constant) between a Diffuse BSDF coloured by a
     checker and a plain blue one: the core's diffuse colour at each point is (1 - F) A + F B.
     Cycles shows the same mix when both shaders are Emission shaders of the same colours."""
-    import bpy
 
     def build(nt):
         checker = node(nt, "ShaderNodeTexChecker", Scale=3.0, Color1=(0.9, 0.6, 0.2, 1.0))
@@ -362,12 +361,7 @@ def test_a_mix_shader_of_two_diffuse_shaders_mixes_their_colours_point_by_point(
         else:
             emit.inputs["Color"].default_value = bsdf.inputs["Color"].default_value
         nt.links.new(emit.outputs[0], bsdf.outputs[0].links[0].to_socket)
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    c = scene.cycles
-    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
-    c.filter_width = 0.01
-    cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3].astype(np.float64)
+    cycles = bs.cycles_pixel_centres(tmp_path / "cycles.exr")
     assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
     compare(ours, cycles, f"mix shader, {factor}")
 
@@ -451,7 +445,6 @@ def test_textured_emission_matches_cycles(addon, tmp_path, shader):
     * ``principled``: a black Principled BSDF whose Emission Color is a checker and whose
       Emission Strength is a gradient times 5;
     * ``diffuse_emission_mask``: a Diffuse BSDF and a checker Emission mixed by a noise mask."""
-    import bpy
 
     def build(nt):
         return node(nt, "ShaderNodeTexChecker", Scale=3.0, Color1=(0.9, 0.6, 0.2, 1.0)).outputs["Color"]
@@ -492,12 +485,7 @@ def test_textured_emission_matches_cycles(addon, tmp_path, shader):
     ours = bs.our_texture_values(positions, emitted=True)
     warnings = bs.export().warnings
     assert not any("Textured" in w for w in warnings), warnings       # exact: no note
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    c = scene.cycles
-    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
-    c.filter_width = 0.01
-    cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3].astype(np.float64)
+    cycles = bs.cycles_pixel_centres(tmp_path / "cycles.exr")
     assert np.ptp(cycles, axis=(0, 1)).max() > 0.5
     compare(ours, cycles, f"emission, {shader}")
 
@@ -509,7 +497,6 @@ def test_procedural_bump_matches_cycles(addon, tmp_path, height):
     0.01 so that Cycles' finite differences over the pixel footprint approach the gradient ours
     takes along the triangle's edges).  A Noise on Generated coordinates (strength 0.8, distance
     0.3), or a Wave on Object coordinates of a turned plane (distance 0.05, inverted)."""
-    import bpy
 
     def build(nt):
         return node(nt, "ShaderNodeRGB").outputs[0]              # the diffuse colour: unused here
@@ -539,12 +526,7 @@ def test_procedural_bump_matches_cycles(addon, tmp_path, height):
     emit = nt.nodes.new("ShaderNodeEmission")
     nt.links.new(bump.outputs["Normal"], emit.inputs["Color"])
     nt.links.new(emit.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    c = scene.cycles
-    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
-    c.filter_width = 0.01
-    cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3].astype(np.float64)
+    cycles = bs.cycles_pixel_centres(tmp_path / "cycles.exr")
     inside = np.isfinite(ours).all(axis=2)
     if moved:
         inside &= (np.abs(cycles).sum(axis=2) > 0)
