@@ -40,7 +40,9 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
 * ``separate`` vector: -> X, Y, Z (also Red, Green, Blue); ``combine`` x, y, z: -> Vector.
-* ``blackbody`` temperature: -> Color (Cycles' fit of the Planckian locus, luminance 1).
+* ``blackbody`` temperature: -> Color (Cycles' fit of the Planckian locus, luminance 1);
+  ``unpremultiply`` color, alpha: -> Color (colour / alpha where 0 < alpha < 1: an image's straight
+  colour after filtering it premultiplied, as Cycles).
 * ``gray`` color: -> Value (Rec. 709 luminance, Cycles' colour-to-float); ``average`` vector:
   -> Value (vector-to-float); ``splat`` value: -> Vector (float-to-colour/vector).
 
@@ -725,6 +727,14 @@ def _blackbody(ev, node):
     return {"Color": blackbody(ev.float(node, "temperature", 1500.0))}
 
 
+def _unpremultiply(ev, node):
+    """Cycles' ``color_unpremultiply``: colour / alpha where 0 < alpha < 1."""
+    c = ev.vec(node, "color")
+    a = ev.float(node, "alpha", 1.0)[:, None]
+    partial = (a > 0.0) & (a < 1.0)
+    return {"Color": np.where(partial, c / np.where(partial, a, 1.0), c)}
+
+
 def _splat(ev, node):
     return {"Vector": np.repeat(ev.float(node, "value")[:, None], 3, axis=1)}
 
@@ -736,7 +746,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
-       "average": _average, "splat": _splat, "blackbody": _blackbody}
+       "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -747,7 +757,8 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
-           "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",)}
+           "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
+           "unpremultiply": ("Color",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "environment": ("texture",), "ramp": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")

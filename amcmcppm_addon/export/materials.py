@@ -428,6 +428,12 @@ def conductor_fresnel(ior, extinction) -> np.ndarray:
     return np.clip(np.mean(2.0 * mu * f, axis=1), 0.0, 1.0)
 
 
+def linear_to_srgb(x):
+    x = np.asarray(x, np.float32)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * np.maximum(x, 0.0031308) ** (1 / 2.4) - 0.055
+                    ).astype(np.float32)
+
+
 def srgb_to_linear(x):
     x = np.asarray(x, np.float32)
     return np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4
@@ -442,6 +448,11 @@ class Textures:
         self.images = []            # list of (H, W, 3) float32
         self._index = {}            # image pointer -> index, or -1 if unusable
         self._mean = {}             # index -> mean colour (3,)
+        self._alpha_plane = {}      # index -> (H, W) float32 alpha of an image that has one
+        self._alpha = {}            # index -> texture index of its alpha (grey), once read; and
+                                    # ("premultiplied", index) -> that of its colour times alpha
+        self._byte = {}             # index of a byte image with alpha -> whether it was sRGB (made linear)
+        self._data = {}             # index -> whether the image is non-colour data (no premultiplying)
 
     def lookup(self, image, where):
         """(texture index or -1, mean colour) of ``image``; ``where`` names the user in messages."""
@@ -454,6 +465,39 @@ class Textures:
     def mean(self, index):
         """(3,) mean colour of loaded image ``index``."""
         return self._mean[index]
+
+    def premultiplied(self, index):
+        """Texture index of loaded image ``index``'s colour times its alpha, as Cycles filters an
+        image with alpha (and gives its Color when the Alpha output is not used): byte images are
+        stored straight (8-bit sRGB ones are multiplied before they are made linear), float ones
+        premultiplied already.  ``index`` itself for opaque images and non-colour data."""
+        if index not in self._alpha_plane or self._data.get(index) or index not in self._byte:
+            return index
+        key = ("premultiplied", index)
+        if key not in self._alpha:
+            a = self._alpha_plane[index][:, :, None]
+            rgb = self.images[index]
+            rgb = srgb_to_linear(linear_to_srgb(rgb) * a) if self._byte[index] else rgb * a
+            self.images.append(np.ascontiguousarray(rgb, np.float32))
+            self._alpha[key] = len(self.images) - 1
+            self._mean[self._alpha[key]] = rgb.reshape(-1, 3).mean(axis=0).astype(np.float64)
+        return self._alpha[key]
+
+    def is_byte(self, index):
+        """Whether loaded image ``index`` has alpha and 8-bit pixels (stored straight)."""
+        return index in self._byte
+
+    def alpha(self, index):
+        """Texture index of loaded image ``index``'s alpha as a grey image, or None when it is
+        opaque everywhere (no alpha channel, or alpha mode None)."""
+        if index not in self._alpha_plane:
+            return None
+        if index not in self._alpha:
+            a = self._alpha_plane[index]
+            self.images.append(np.ascontiguousarray(np.repeat(a[:, :, None], 3, axis=2)))
+            self._alpha[index] = len(self.images) - 1
+            self._mean[self._alpha[index]] = np.full(3, float(a.mean()))
+        return self._alpha[index]
 
     def _load(self, image, where):
         try:
@@ -468,14 +512,23 @@ class Textures:
             self.log.warning(f"{where}: image '{image.name}' ({path}) could not be loaded ({e}); "
                              "using a constant magenta colour")
             return -1
-        rgb = px.reshape(int(h), int(w), 4)[:, :, :3]
+        rgba = px.reshape(int(h), int(w), 4)
+        rgb = rgba[:, :, :3]
+        alpha = np.nan_to_num(np.clip(rgba[:, :, 3], 0.0, 1.0), nan=1.0)
+        keep_alpha = getattr(image, "alpha_mode", "STRAIGHT") != "NONE" and (alpha < 1.0).any()
         space = image.colorspace_settings.name
-        if not image.is_float and "srgb" in space.lower():
+        byte_srgb = not image.is_float and "srgb" in space.lower()
+        if byte_srgb:
             rgb = srgb_to_linear(rgb)
         rgb = np.ascontiguousarray(np.nan_to_num(rgb, nan=0.0, posinf=0.0, neginf=0.0), np.float32)
         self.images.append(rgb)
         i = len(self.images) - 1
         self._mean[i] = rgb.reshape(-1, 3).mean(axis=0).astype(np.float64)
+        if keep_alpha:
+            self._alpha_plane[i] = np.ascontiguousarray(alpha, np.float32)
+            if not image.is_float:
+                self._byte[i] = byte_srgb
+            self._data[i] = bool(getattr(image.colorspace_settings, "is_data", False))
         return i
 
 

@@ -193,8 +193,21 @@ def _image(b, node, stack):
     if node.extension != "REPEAT":
         w.note(f"image texture '{node.name}': extension {node.extension.lower()} is not supported "
                "(repeat is used)")
-    op = {"op": "image", "texture": index, "vector": b.vector_or(node, stack, "uv")}
-    return {"Color": op, "Alpha": 1.0}
+    vector = b.vector_or(node, stack, "uv")
+    # Cycles filters an image with alpha premultiplied.  Its Color is that, or when the Alpha output
+    # is used, that divided by the filtered alpha: for float images (stored premultiplied) after
+    # filtering, for byte ones (stored straight) in their 8-bit space, which gives back the colour
+    # as painted.
+    alpha = w.textures.alpha(index) if node.outputs["Alpha"].is_linked else None
+    if alpha is None:
+        return {"Color": {"op": "image", "texture": w.textures.premultiplied(index), "vector": vector},
+                "Alpha": 1.0}
+    alpha_op = {"op": "separate", "output": "X",
+                "vector": {"op": "image", "texture": alpha, "vector": vector}}
+    color = {"op": "image", "texture": index, "vector": vector}
+    if not w.textures.is_byte(index):
+        color = {"op": "unpremultiply", "color": color, "alpha": alpha_op}
+    return {"Color": color, "Alpha": alpha_op}
 
 
 def _environment(b, node, stack):

@@ -204,3 +204,11 @@ def test_blackbody_follows_cycles_fit():
     program = {"op": "blackbody", "temperature": {"op": "math", "operation": "MULTIPLY", "a": 3000.0,
                                                   "b": {"op": "separate", "vector": OBJECT, "output": "X"}}}
     np.testing.assert_allclose(run(program, [(0.9, 0, 0), (3.0, 0, 0)]), c[[0, 1]], rtol=1e-6)
+
+
+def test_unpremultiply_divides_only_partial_alpha():
+    """Cycles' ``color_unpremultiply``: colour / alpha where 0 < alpha < 1, unchanged at 0 and 1."""
+    x = {"op": "separate", "vector": OBJECT, "output": "X"}
+    program = {"op": "unpremultiply", "color": [0.2, 0.4, 0.6], "alpha": x}
+    out = run(program, [(0.5, 0, 0), (0.0, 0, 0), (1.0, 0, 0), (2.0, 0, 0)])
+    np.testing.assert_allclose(out, [[0.4, 0.8, 1.2], [0.2, 0.4, 0.6], [0.2, 0.4, 0.6], [0.2, 0.4, 0.6]])
