@@ -26,7 +26,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
   (``core/voronoi.py``).
 * ``wave``, ``brick``, ``magic`` vector and the node's settings: -> Color, Fac; ``white_noise``
   vector, dimensions, w: -> Value, Color (``core/pattern_textures.py``).
-* ``image`` texture (index into the scene's images), vector: -> Color (bilinear, repeat), Alpha = 1.
+* ``image`` texture (index into the scene's images), vector, extension (REPEAT, EXTEND, CLIP,
+  MIRROR), interpolation (Linear, Closest): -> Color, Alpha = 1 (:func:`image_lookup`).
 * ``environment`` texture, vector (a direction): -> Color (equirectangular), Alpha = 1.
 * ``sky`` vector (a direction) and the Sky Texture's settings: -> Color, the sky without its sun
   disc (``core/sky.py``; the world export adds the disc as a sun light).
@@ -441,7 +442,51 @@ def _sky(ev, node):
 
 def _image(ev, node):
     p = ev.vec(node, "vector")
-    return {"Color": bilinear(ev.images[int(node["texture"])], p[:, 0], p[:, 1]), "Alpha": np.ones(ev.k)}
+    image = ev.images[int(node["texture"])]
+    extension = node.get("extension", "REPEAT")
+    if extension == "REPEAT" and node.get("interpolation", "Linear") == "Linear":
+        color = bilinear(image, p[:, 0], p[:, 1])
+    else:
+        color = image_lookup(image, p[:, 0], p[:, 1], extension, node.get("interpolation", "Linear"))
+    return {"Color": color, "Alpha": np.ones(ev.k)}
+
+
+def image_lookup(image, u, v, extension="REPEAT", interpolation="Linear"):
+    """(n, 3) lookups of ``image`` (H, W, 3; row 0 is v = 0) at (u, v) as Cycles' Image Texture
+    (``kernel/device/cpu/image.h``): ``interpolation`` Linear (bilinear between texel centres) or
+    Closest (the texel under the point), and texels outside the image by ``extension``: REPEAT
+    (wrap), EXTEND (the edge texel), CLIP (black) or MIRROR (reflected)."""
+    h, w = image.shape[:2]
+    u = np.nan_to_num(np.asarray(u, np.float64))
+    v = np.nan_to_num(np.asarray(v, np.float64))
+    flat = image.reshape(-1, 3)
+
+    def fetch(ix, iy):
+        inside = np.ones(len(ix), bool)
+        if extension == "CLIP":
+            inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+        ix, iy = _wrap(ix, w, extension), _wrap(iy, h, extension)
+        return np.where(inside[:, None], flat.take(iy * w + ix, axis=0), 0.0)
+
+    if interpolation == "Closest":
+        return fetch(np.floor(u * w).astype(np.int64), np.floor(v * h).astype(np.int64))
+    x, y = u * w - 0.5, v * h - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    ix, iy = x0.astype(np.int64), y0.astype(np.int64)
+    return ((1 - fx) * (1 - fy) * fetch(ix, iy) + fx * (1 - fy) * fetch(ix + 1, iy)
+            + (1 - fx) * fy * fetch(ix, iy + 1) + fx * fy * fetch(ix + 1, iy + 1))
+
+
+def _wrap(i, size, extension):
+    """Texel indices ``i`` brought into [0, size) by ``extension`` (CLIP's outside ones are masked
+    by the caller)."""
+    if extension == "REPEAT":
+        return np.mod(i, size)
+    if extension == "MIRROR":                        # Cycles' wrap_mirror
+        m = np.mod(np.abs(i + (i < 0)), 2 * size)
+        return np.where(m >= size, 2 * size - m - 1, m)
+    return np.clip(i, 0, size - 1)                  # EXTEND, and CLIP inside
 
 
 def _ramp(ev, node):
@@ -773,7 +818,9 @@ CHOICES = {
     ("wave", "rings_direction"): _patterns.RINGS_DIRECTIONS,
     ("wave", "wave_profile"): _patterns.WAVE_PROFILES,
     ("white_noise", "dimensions"): _patterns.DIMENSIONS,
-    ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM")}
+    ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"),
+    ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
+    ("image", "interpolation"): ("Linear", "Closest")}
 # Array settings and their shapes (None: N >= 2).
 ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)},
           "sky": {"sun_direction": (3,)}}

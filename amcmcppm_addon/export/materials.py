@@ -707,7 +707,7 @@ class NodeWalker:
         e = self.programs.expression(sock, stack, VEC)
         if not isinstance(e, dict):
             return np.array(e, np.float64), -1
-        if (e["op"] == "image" and e.get("output", "Color") == "Color"
+        if (e["op"] == "image" and e.get("output", "Color") == "Color" and "extension" not in e
                 and e["vector"] == {"op": "attribute", "name": "uv"}):
             return self.textures.mean(e["texture"]), e["texture"]
         mean = procedural.mean_color(e, self.textures.images)
@@ -756,7 +756,8 @@ class NodeWalker:
             return inner, None
         image = height.get("color") if height.get("op") == "gray" else None
         on_uvs = isinstance(image, dict) and image.get("vector") == {"op": "attribute", "name": "uv"}
-        plain = on_uvs and image["op"] == "image" and image.get("output", "Color") == "Color"
+        plain = (on_uvs and image["op"] == "image" and image.get("output", "Color") == "Color"
+                 and "extension" not in image)
         tex = image["texture"] if plain else height
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         distance = self.value(node.inputs["Distance"], stack) * (-1.0 if node.invert else 1.0)

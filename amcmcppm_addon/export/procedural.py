@@ -190,9 +190,12 @@ def _image(b, node, stack):
     if node.projection != "FLAT":
         w.note(f"image texture '{node.name}': {node.projection.lower()} projection is not supported "
                "(flat is used)")
-    if node.extension != "REPEAT":
-        w.note(f"image texture '{node.name}': extension {node.extension.lower()} is not supported "
-               "(repeat is used)")
+    interpolation = node.interpolation if node.interpolation in ("Linear", "Closest") else "Linear"
+    if interpolation != node.interpolation:
+        w.note(f"image texture '{node.name}': {node.interpolation.lower()} interpolation is not supported "
+               "(linear is used)")
+    settings = {} if (node.extension, interpolation) == ("REPEAT", "Linear") else {
+        "extension": node.extension, "interpolation": interpolation}
     vector = b.vector_or(node, stack, "uv")
     # Cycles filters an image with alpha premultiplied.  Its Color is that, or when the Alpha output
     # is used, that divided by the filtered alpha: for float images (stored premultiplied) after
@@ -200,11 +203,11 @@ def _image(b, node, stack):
     # as painted.
     alpha = w.textures.alpha(index) if node.outputs["Alpha"].is_linked else None
     if alpha is None:
-        return {"Color": {"op": "image", "texture": w.textures.premultiplied(index), "vector": vector},
-                "Alpha": 1.0}
+        return {"Color": {"op": "image", "texture": w.textures.premultiplied(index), "vector": vector,
+                          **settings}, "Alpha": 1.0}
     alpha_op = {"op": "separate", "output": "X",
-                "vector": {"op": "image", "texture": alpha, "vector": vector}}
-    color = {"op": "image", "texture": index, "vector": vector}
+                "vector": {"op": "image", "texture": alpha, "vector": vector, **settings}}
+    color = {"op": "image", "texture": index, "vector": vector, **settings}
     if not w.textures.is_byte(index):
         color = {"op": "unpremultiply", "color": color, "alpha": alpha_op}
     return {"Color": color, "Alpha": alpha_op}

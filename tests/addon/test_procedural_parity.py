@@ -125,6 +125,16 @@ def arithmetic(nt):
     return inv.outputs["Color"]
 
 
+def image_on_mapped_uv_with(extension, interpolation):
+    """:func:`image_on_mapped_uv` with the node's extension and interpolation (the UVs leave the
+    image on every side)."""
+    def build(nt):
+        out = image_on_mapped_uv(nt)
+        out.node.extension, out.node.interpolation = extension, interpolation
+        return out
+    return build
+
+
 def image_on_mapped_uv(nt):
     """An image looked up at turned and scaled UVs (not the plain UV map)."""
     import bpy
@@ -261,6 +271,9 @@ CASES = {
     "mixrgb_multiply": blend("MULTIPLY", legacy=True),
     "arithmetic": arithmetic,
     "image_mapped_uv": image_on_mapped_uv,
+    **{f"image_{e.lower()}_{i.lower()}": image_on_mapped_uv_with(e, i)
+       for e, i in (("EXTEND", "Linear"), ("CLIP", "Linear"), ("MIRROR", "Linear"), ("REPEAT", "Closest"),
+                    ("CLIP", "Closest"), ("MIRROR", "Closest"))},
     "conversions": value_to_colour,
     "voronoi_f1_color": voronoi("Color", Scale=4.0),
     "voronoi_f2_distance": voronoi("Distance", Scale=3.0, feature="F2", distance="MANHATTAN"),
