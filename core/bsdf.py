@@ -142,7 +142,12 @@ class MaterialTable:
         diffuse_on = (weight[:, DIFFUSE] > 0) & (textured | (lum[:, DIFFUSE] > 0))
         glossy_on = (weight[:, GLOSSY] > 0) & ((lum[:, GLOSSY] > 0) | (smp.luminance(rise[:, GLOSSY]) > 0))
         emission = mats.emission.astype(np.float64)
-        ms_albedo, ms_fresnel = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter, coarse)
+        # One quadrature per (alpha, IOR) of a Fresnel rise gives its mean S and the albedo E, which
+        # the multiscatter tables then reuse.
+        albedo = {}
+        rise_means = _rise_means(alpha, fresnel_ior, rise, coarse, albedo)
+        ms_albedo, ms_fresnel = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter, coarse,
+                                                     albedo)
         dielectric_program = (np.asarray(mats.dielectric_program, np.int32)
                               if mats.dielectric_program is not None else np.full(m, -1, np.int32))
         # A glass reflects its reflection colour where it transmits at all, or with a program (which
@@ -155,7 +160,7 @@ class MaterialTable:
         layered = (fresnel_ior > 0) & diffuse_on
         layer, score_extra = _layer_tables(alpha, fresnel_ior, rise, layered, mats.diffuse_layer,
                                            np.clip(mats.diffuse_layer_weight, 0.0, 1.0),
-                                           ms_albedo, ms_fresnel, weight, coarse)
+                                           ms_albedo, ms_fresnel, weight, rise_means)
         return MaterialTable(weight=weight, color=color, alpha=alpha, dielectric_alpha=dielectric_alpha,
                              reflection=reflection,
                              ior=mats.ior.astype(np.float64), emission=emission,
@@ -231,8 +236,22 @@ def _interpolate(table, mat_ids, mu):
     return (1.0 - f) * e.take(flat) + f * e.take(flat + 1)
 
 
+def _rise_means(alpha, fresnel_ior, rise, coarse, albedo):
+    """{(alpha, IOR): S(mu)} at the ``MS_NODES`` + 1 nodes for the rows with a Fresnel rise
+    (:func:`ggx_fresnel_rise_average`); the albedo E(mu) each quadrature gives along goes into
+    ``albedo`` under (alpha, strata)."""
+    on = (fresnel_ior > 0) & (rise != 0).any(axis=(1, 2))
+    mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
+    means = {}
+    for a, eta in set(zip(alpha[on], fresnel_ior[on])):
+        strata = _strata(coarse[on & (alpha == a) & (fresnel_ior == eta)])
+        e, means[(a, eta)] = smp.ggx_fresnel_rise_average(a, mu, max(eta, 1.0 + 1e-6), strata)
+        albedo.setdefault((a, strata), e)
+    return means
+
+
 def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_albedo, ms_fresnel, weight,
-                  coarse):
+                  rise_means):
     """The diffuse factor L(mu) under a Fresnel layer, per material at the ``MS_NODES`` + 1 nodes,
     and mean lobe-score terms for the Fresnel rise and the layer.
 
@@ -242,6 +261,7 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
     and K = E + F_ms (1 - E) the layer's energy with multiscatter GGX, 1 without (Cycles does not
     count the single-scattering loss there), and share the part of the diffuse lobe under the
     layer (1 for a Principled BSDF alone).  Scores use the cosine-weighted means over mu.
+    ``rise_means`` is :func:`_rise_means`'s.
     """
     m = len(alpha)
     layer = np.ones((m, MS_NODES + 1))
@@ -253,7 +273,7 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
     f0 = np.clip(np.asarray(layer_f0, np.float64), 0.0, 1.0)
     for a, eta in set(zip(alpha[on], fresnel_ior[on])):
         rows = np.flatnonzero(on & (alpha == a) & (fresnel_ior == eta))
-        _, s = smp.ggx_fresnel_rise_average(a, mu, max(eta, 1.0 + 1e-6), _strata(coarse[rows]))
+        s = rise_means[(a, eta)]
         s_mean = 2.0 * np.trapz(s * mu, mu)
         for lobe in (GLOSSY, MIRROR):
             extra[rows, lobe] = weight[rows, lobe] * smp.luminance(rise[rows, lobe]) * s_mean
@@ -273,12 +293,13 @@ def _strata(coarse):
     return COARSE_STRATA if coarse.all() else EXACT_STRATA
 
 
-def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse):
+def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse, albedo):
     """Per-material E(mu) at the ``MS_NODES`` + 1 nodes and F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)).
 
     F_ms is the colour of the light that leaves after more than one microfacet bounce (the
     appendix of Kulla and Conty, with one F_ss cancelled as in Cycles); E_avg = 2 int E mu dmu.
-    One table per distinct alpha: a few milliseconds each.
+    One table per distinct alpha: a few milliseconds each, none where ``albedo`` (a dict by
+    (alpha, strata)) has it already.
     """
     m = len(alpha)
     table = np.ones((m, MS_NODES + 1))
@@ -290,7 +311,10 @@ def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse):
     fss = np.clip(np.asarray(fresnel_ss, np.float64), 0.0, 1.0)
     for a in np.unique(alpha[on]):
         rows = np.flatnonzero(on & (alpha == a))
-        e = smp.ggx_albedo(a, mu, _strata(coarse[rows]))
+        strata = _strata(coarse[rows])
+        e = albedo.get((a, strata))
+        if e is None:
+            e = smp.ggx_albedo(a, mu, strata)
         e_avg = 2.0 * np.trapz(e * mu, mu)
         table[rows] = e
         f = fss[rows]
