@@ -26,6 +26,9 @@ Glossy with roughness 0 as a mirror), so Cycles renders the same files.
   (Principled Alpha) and a stained-glass window (a Glass BSDF coloured by Voronoi
   cells), onto a floor whose roughness a noise varies, with a lamp panel on the
   back wall whose emission a Wave Texture bands.
+* ``pool_caustics``: the sun through a water surface (Glass of IOR 1.33 bumped by a
+  Noise Texture) throws caustics onto a pool's tiles (a Brick Texture), which the
+  camera sees through the water (specular-diffuse-specular paths).
 """
 from __future__ import annotations
 
@@ -454,8 +457,51 @@ def stained_window():
     return b.finish("stained_window", (320, 240), exposure=1.0, photons_per_pass=100_000)
 
 
+def pool_caustics():
+    b = SceneBuilder()
+    # Tiles: a Brick Texture on Object coordinates (white tiles, grey grout).
+    tiles = b.diffuse("Tiles", (0.7, 0.75, 0.78))
+    nt = tiles.node_tree
+    brick = nt.nodes.new("ShaderNodeTexBrick")
+    brick.inputs["Scale"].default_value = 4.0
+    brick.inputs["Color1"].default_value = (0.55, 0.75, 0.85, 1.0)
+    brick.inputs["Color2"].default_value = (0.45, 0.68, 0.8, 1.0)
+    brick.inputs["Mortar"].default_value = (0.25, 0.27, 0.3, 1.0)
+    brick.offset = 0.0
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], brick.inputs["Vector"])
+    nt.links.new(brick.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    # The water's surface: a Glass BSDF (IOR 1.33) whose normal a Noise Texture bumps.
+    water = b.glass("Water", ior=1.33, color=(0.9, 0.97, 1.0))
+    nt = water.node_tree
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    noise.inputs["Detail"].default_value = 3.0
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.08
+    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], nt.nodes["Glass BSDF"].inputs["Normal"])
+    deck = b.diffuse("Deck", (0.6, 0.55, 0.48))
+    # A basin 4 x 3 m and 1.2 m deep, its rim at z = 0, filled to z = -0.1.
+    b.polygons("Basin", [[(-2, -1.5, -1.2), (2, -1.5, -1.2), (2, 1.5, -1.2), (-2, 1.5, -1.2)],
+                         [(-2, 1.5, -1.2), (2, 1.5, -1.2), (2, 1.5, 0), (-2, 1.5, 0)],
+                         [(-2, -1.5, 0), (2, -1.5, 0), (2, -1.5, -1.2), (-2, -1.5, -1.2)],
+                         [(-2, -1.5, -1.2), (-2, 1.5, -1.2), (-2, 1.5, 0), (-2, -1.5, 0)],
+                         [(2, -1.5, 0), (2, 1.5, 0), (2, 1.5, -1.2), (2, -1.5, -1.2)]], tiles)
+    b.polygons("Deck", [[(-4, -4, 0), (4, -4, 0), (4, -1.5, 0), (-4, -1.5, 0)],
+                        [(-4, 1.5, 0), (4, 1.5, 0), (4, 4, 0), (-4, 4, 0)],
+                        [(-4, -1.5, 0), (-2, -1.5, 0), (-2, 1.5, 0), (-4, 1.5, 0)],
+                        [(2, -1.5, 0), (4, -1.5, 0), (4, 1.5, 0), (2, 1.5, 0)]], deck)
+    b.polygons("Water surface", [[(-2, -1.5, -0.1), (2, -1.5, -0.1), (2, 1.5, -0.1), (-2, 1.5, -0.1)]], water)
+    b.light("Sun", "SUN", (0, 0, 10), target=(0.6, 0.4, -3.0), energy=4.0, angle=math.radians(0.5),
+            color=(1.0, 0.96, 0.9))
+    b.camera((0.0, -4.2, 2.6), (0.0, 0.2, -0.9), lens=28.0)
+    b.world((0.25, 0.35, 0.5), strength=0.6)
+    return b.finish("pool_caustics", (320, 240), photons_per_pass=100_000)
+
+
 SCENES = {f.__name__: f for f in (cornell_box, glass_ceiling, hole_mirror_glass, small_view, caustic_sds,
-                                  checker_caustic, stained_window)}
+                                  checker_caustic, stained_window, pool_caustics)}
 
 
 def main(argv):
