@@ -13,7 +13,7 @@ as Cycles does.
 
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
-* ``attribute`` name = generated | object | uv | color: -> Vector.  Blender's Generated and Object
+* ``attribute`` name = generated | object | uv | color | normal: -> Vector.  Blender's Generated and Object
   coordinates (the hit in its object's space, ``Scene.object_from_world``, and that object's
   texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs``
   as (u, v, 0) and ``Scene.vertex_colors``, interpolated.
@@ -27,7 +27,9 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``wave``, ``brick``, ``magic`` vector and the node's settings: -> Color, Fac; ``white_noise``
   vector, dimensions, w: -> Value, Color (``core/pattern_textures.py``).
 * ``image`` texture (index into the scene's images), vector, extension (REPEAT, EXTEND, CLIP,
-  MIRROR), interpolation (Linear, Closest): -> Color, Alpha = 1 (:func:`image_lookup`).
+  MIRROR), interpolation (Linear, Closest), projection (FLAT, BOX: three flat lookups weighted
+  by the object-space normal, :func:`box_weights`), blend: -> Color, Alpha = 1
+  (:func:`image_lookup`).
 * ``environment`` texture, vector (a direction): -> Color (equirectangular), Alpha = 1.
 * ``sky`` vector (a direction) and the Sky Texture's settings: -> Color, the sky without its sun
   disc (``core/sky.py``; the world export adds the disc as a sun light).
@@ -64,7 +66,7 @@ from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
-ATTRIBUTES = ("generated", "object", "uv", "color")
+ATTRIBUTES = ("generated", "object", "uv", "color", "normal")
 # Largest albedo a program may give: above 1 a surface adds light (Cycles allows it, and a Mix
 # Shader mask divided by its mean weight may exceed 1), but a program gone wild (a power, a
 # division by ~0) must not overflow the photons' flux over many bounces.
@@ -94,8 +96,33 @@ class HitAttributes:
 
     def get(self, name):
         if name not in self._cache:
-            self._cache[name] = self._object(name) if name in ("object", "generated") else self._corners(name)
+            if name == "normal":
+                value = self._normal()
+            elif name in ("object", "generated"):
+                value = self._object(name)
+            else:
+                value = self._corners(name)
+            self._cache[name] = value
         return self._cache[name]
+
+    def _normal(self):
+        """The object-space normal (Cycles' Texture Coordinate Normal, and a box projection's): the
+        interpolated shading normal (the facet's without one) through the inverse transpose of
+        the object's transform; its side is the triangle's front."""
+        s = self.scene
+        if s.object_ids is None:
+            raise ProgramError("the program needs 'normal' coordinates, which the scene lacks")
+        if s.shading_normals is not None:
+            corners = s.shading_normals.take(self.prim_ids, axis=0).astype(np.float64)
+            n = interpolate_corners(corners, self.bary)
+        else:
+            c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
+            n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        world_from_object = np.linalg.inv(s.object_from_world[:, :, :3])        # (O, 3, 3)
+        w = world_from_object.take(s.object_ids.take(self.prim_ids), axis=0)
+        n = np.einsum("kji,kj->ki", w, n)                                         # W^T n
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
     def _corners(self, name):
         c = {"uv": self.scene.uvs, "color": self.scene.vertex_colors}[name]
@@ -133,7 +160,9 @@ class DirectionAttributes:
         return len(self.directions)
 
     def get(self, name):
-        return self.directions if name in ("generated", "object") else np.zeros_like(self.directions)
+        if name in ("generated", "object", "normal"):
+            return self.directions
+        return np.zeros_like(self.directions)
 
 
 class SampledAttributes:
@@ -144,8 +173,10 @@ class SampledAttributes:
     def __init__(self, n=4096, seed=0):
         rng = np.random.default_rng(seed)
         g = rng.random((n, 3))
+        d = rng.normal(size=(n, 3))
         self._values = {"generated": g, "object": 2.0 * g - 1.0,
-                        "uv": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1), "color": g}
+                        "uv": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1), "color": g,
+                        "normal": d / np.linalg.norm(d, axis=1, keepdims=True)}
 
     @property
     def count(self) -> int:
@@ -193,6 +224,8 @@ def attributes_used(program) -> set:
     for node in nodes(program):
         if node["op"] == "attribute":
             used.add(node["name"])
+        elif node["op"] == "image" and node.get("projection", "FLAT") == "BOX":
+            used.add("normal")
     return used
 
 
@@ -444,11 +477,62 @@ def _image(ev, node):
     p = ev.vec(node, "vector")
     image = ev.images[int(node["texture"])]
     extension = node.get("extension", "REPEAT")
-    if extension == "REPEAT" and node.get("interpolation", "Linear") == "Linear":
-        color = bilinear(image, p[:, 0], p[:, 1])
-    else:
-        color = image_lookup(image, p[:, 0], p[:, 1], extension, node.get("interpolation", "Linear"))
+    interpolation = node.get("interpolation", "Linear")
+
+    def lookup(u, v):
+        if extension == "REPEAT" and interpolation == "Linear":
+            return bilinear(image, u, v)
+        return image_lookup(image, u, v, extension, interpolation)
+
+    if node.get("projection", "FLAT") == "FLAT":
+        return {"Color": lookup(p[:, 0], p[:, 1]), "Alpha": np.ones(ev.k)}
+    # Box: three flat projections along the object-space axes, weighted by the normal.
+    n = ev.attrs.get("normal")
+    weights = box_weights(n, float(node.get("blend", 0.0)))
+    color = np.zeros((ev.k, 3))
+    faces = ((n[:, 0] < 0.0, p[:, 1], p[:, 2]), (n[:, 1] > 0.0, p[:, 0], p[:, 2]),
+             (n[:, 2] > 0.0, p[:, 1], p[:, 0]))
+    for axis, (flip, u, v) in enumerate(faces):
+        rows = np.flatnonzero(weights[:, axis] > 0.0)
+        if len(rows):
+            uu = np.where(flip, 1.0 - u, u).take(rows)
+            color[rows] += weights[rows, axis, None] * lookup(uu, v.take(rows))
     return {"Color": color, "Alpha": np.ones(ev.k)}
+
+
+def box_weights(normals, blend):
+    """(k, 3) weights of the x, y and z projections of Cycles' box-projected Image Texture
+    (``svm_node_tex_image_box``) for object-space ``normals`` (k, 3) and ``blend``: one axis
+    where it dominates, else blends of two or three."""
+    a = np.abs(np.asarray(normals, np.float64))
+    total = a.sum(axis=1, keepdims=True)
+    a = np.divide(a, total, out=np.full_like(a, 1.0 / 3.0), where=total > 0)
+    x, y, z = a[:, 0], a[:, 1], a[:, 2]
+    limit = 0.5 * (1.0 + blend)
+    w = np.zeros_like(a)
+    only_x = (x > limit * (x + y)) & (x > limit * (x + z))
+    only_y = ~only_x & (y > limit * (x + y)) & (y > limit * (y + z))
+    only_z = ~only_x & ~only_y & (z > limit * (x + z)) & (z > limit * (y + z))
+    rest = ~(only_x | only_y | only_z)
+    w[only_x, 0] = w[only_y, 1] = w[only_z, 2] = 1.0
+    if blend <= 0.0:
+        w[rest, 0] = 1.0                                          # Cycles' fallback: one side
+        return w
+    with np.errstate(all="ignore"):
+        xy = rest & (z < (1.0 - limit) * (y + x))
+        yz = rest & ~xy & (x < (1.0 - limit) * (y + z))
+        xz = rest & ~xy & ~yz & (y < (1.0 - limit) * (x + z))
+        three = rest & ~xy & ~yz & ~xz
+        ramp = lambda t: np.clip((t - 0.5 * (1.0 - blend)) / blend, 0.0, 1.0)  # noqa: E731
+        wx = ramp(x / (x + y))
+        w[xy, 0], w[xy, 1] = wx[xy], 1.0 - wx[xy]
+        wy = ramp(y / (y + z))
+        w[yz, 1], w[yz, 2] = wy[yz], 1.0 - wy[yz]
+        wxz = ramp(x / (x + z))
+        w[xz, 0], w[xz, 2] = wxz[xz], 1.0 - wxz[xz]
+        for k, c in enumerate((x, y, z)):
+            w[three, k] = (((2.0 - limit) * c + (limit - 1.0)) / (2.0 * limit - 1.0))[three]
+    return w
 
 
 def image_lookup(image, u, v, extension="REPEAT", interpolation="Linear"):
@@ -820,7 +904,7 @@ CHOICES = {
     ("white_noise", "dimensions"): _patterns.DIMENSIONS,
     ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"),
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
-    ("image", "interpolation"): ("Linear", "Closest")}
+    ("image", "interpolation"): ("Linear", "Closest"), ("image", "projection"): ("FLAT", "BOX")}
 # Array settings and their shapes (None: N >= 2).
 ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)},
           "sky": {"sun_direction": (3,)}}

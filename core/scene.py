@@ -711,7 +711,8 @@ class Scene:
         if len(rising):
             fail(f"material '{mats.names[rising[0]]}': a glossy_program cannot vary a glossy lobe with a "
                  "Fresnel rise (glossy_fresnel_ior)")
-        coords = {"generated": self.object_ids, "object": self.object_ids, "uv": self.uvs,
+        coords = {"generated": self.object_ids, "object": self.object_ids, "normal": self.object_ids,
+                  "uv": self.uvs,
                   "color": self.vertex_colors}
         for i, program in enumerate(mats.programs):
             try:

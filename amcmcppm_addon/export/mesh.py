@@ -338,7 +338,7 @@ def assemble(meshes, groups, materials) -> Geometry:
     instances = 0
     # Data of procedural textures, when some material reads it (for every triangle).
     coordinates = materials.coordinates_used({i for _, ids in groups for i in ids})
-    objects = bool(coordinates & {"object", "generated"})
+    objects = bool(coordinates & {"object", "generated", "normal"})
     for (key, mat_ids), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
@@ -384,7 +384,7 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
     ids of the slots.  Returns a dict of vertices (k V, 3) float32, triangles (k T, 3)
     int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) float32
     or None, uvs (k T, 3, 2) float32 or None and tangents (k T, 3, 4) float32 or None; with
-    "object" or "generated" in ``coordinates`` also object_ids (k T,) int32 (0 .. k - 1, the
+    "object", "generated" or "normal" in ``coordinates`` also object_ids (k T,) int32 (0 .. k - 1, the
     instance), object_from_world (k, 3, 4) float64 and texture_spaces (k, 2, 3) float64, and with
     "color" the render colour attribute per corner, color (k T, 3, 3) float32 (black without one).
     """
@@ -437,7 +437,7 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
            "normals": normals, "uvs": uvs, "tangents": tangents}
     # Texture coordinates of procedural textures: each instance's own object space.
-    if coordinates & {"object", "generated"}:
+    if coordinates & {"object", "generated", "normal"}:
         out["object_ids"] = np.repeat(np.arange(k, dtype=np.int32), n_t)
         out["object_from_world"] = np.linalg.inv(world_from_object)[:, :3, :4]
         out["texture_spaces"] = np.repeat(np.asarray(local.texspace, np.float64)[None], k, axis=0)

@@ -120,7 +120,7 @@ def _out(op, **outputs):
 # ---------------------------------------------------------------------- nodes
 def _tex_coord(b, node, stack):
     out = {"Generated": {"op": "attribute", "name": "generated"},
-           "UV": {"op": "attribute", "name": "uv"}}
+           "UV": {"op": "attribute", "name": "uv"}, "Normal": {"op": "attribute", "name": "normal"}}
     if node.object is None:
         out["Object"] = {"op": "attribute", "name": "object"}
     else:
@@ -187,7 +187,7 @@ def _image(b, node, stack):
     index, _ = w.textures.lookup(node.image, f"material '{w.name}'")
     if index < 0:
         return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
-    if node.projection != "FLAT":
+    if node.projection not in ("FLAT", "BOX"):
         w.note(f"image texture '{node.name}': {node.projection.lower()} projection is not supported "
                "(flat is used)")
     interpolation = node.interpolation if node.interpolation in ("Linear", "Closest") else "Linear"
@@ -196,6 +196,8 @@ def _image(b, node, stack):
                "(linear is used)")
     settings = {} if (node.extension, interpolation) == ("REPEAT", "Linear") else {
         "extension": node.extension, "interpolation": interpolation}
+    if node.projection == "BOX":
+        settings.update(projection="BOX", blend=float(node.projection_blend))
     vector = b.vector_or(node, stack, "uv")
     # Cycles filters an image with alpha premultiplied.  Its Color is that, or when the Alpha output
     # is used, that divided by the filtered alpha: for float images (stored premultiplied) after
