@@ -57,7 +57,8 @@ class RenderContext:
         self.transparent_color = np.asarray(mats.transparent_color, np.float64)
         self.see_through = (self.opacity < 1.0) | (self.opacity_program >= 0)
         self.has_transparency = bool(self.see_through.any())
-        self.lights = LightSampler(scene, self.accel, self.table, self.emitted)
+        self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
+                                   (self.table.emission_program >= 0) | (self.opacity_program >= 0))
         # Normal and bump maps: per-material image index (-1: none) and parameters.
         self.normal_texture = np.ascontiguousarray(mats.normal_texture, np.int32)
         self.normal_strength = np.asarray(mats.normal_strength, np.float64)
@@ -194,6 +195,16 @@ class RenderContext:
             programs = self.table.emission_program
             for sel, factor in self._program_colors(programs, prim_ids, bary, positions, mat, EMISSION_MAX):
                 out[sel] *= factor
+        return out
+
+    def emitted_out(self, prim_ids, b1, b2, mat=None, positions=None):
+        """(n, 3) radiance that leaves the points of emissive triangles: :meth:`emitted` times the
+        opacity there (a half-transparent emitter emits half: Cycles' Alpha scales emission)."""
+        out = self.emitted(prim_ids, b1, b2, mat, positions)
+        if self.has_transparency:
+            if positions is None:
+                positions = self.accel.hit_positions(prim_ids, b1, b2)
+            out *= self._opacity(prim_ids, b1, b2, positions)[:, None]
         return out
 
     def _program_values(self, programs, prim_ids, bary, pos, mat):

@@ -32,11 +32,17 @@ TEXTURED_POWER_FLOOR = 0.05
 class LightSampler:
     """Power-proportional choice over all emitters and their photon sampling."""
 
-    def __init__(self, scene, accel, table, emitted=None):
+    def __init__(self, scene, accel, table, emitted=None, opacity=None, varies=None):
         lights = scene.lights
-        # Radiance at points of emissive triangles (RenderContext.emitted), for textured emitters.
+        # Radiance leaving points of emissive triangles, emission times opacity
+        # (RenderContext.emitted_out), for emitters where it varies (``varies`` per material);
+        # ``opacity`` (per material, constant) scales the others.
         self.emitted = emitted
-        self.textured_emitters = emitted is not None and bool((table.emission_program >= 0).any())
+        m = table.emission.shape[0]
+        self.opacity = np.ones(m) if opacity is None else np.asarray(opacity, np.float64)
+        self.varies = np.zeros(m, bool) if varies is None else np.asarray(varies, bool)
+        emissive_varies = self.varies & table.is_emissive
+        self.textured_emitters = emitted is not None and bool(emissive_varies.any())
         self.lights = lights
         # Emission axes renormalised in float64 (the scene stores them in float32).
         self.axes = smp.normalize(lights.direction.astype(np.float64)) if lights.count else np.zeros((0, 3))
@@ -50,9 +56,11 @@ class LightSampler:
         tri_mat = scene.material_ids
         emissive_tris = np.flatnonzero(table.is_emissive[tri_mat] & (accel.area > 0)) \
             if scene.triangle_count else np.zeros(0, np.int64)
-        tri_power = (2.0 * np.pi * accel.area[emissive_tris])[:, None] * table.emission[tri_mat[emissive_tris]]
+        emissive_mats = tri_mat.take(emissive_tris)
+        tri_power = ((2.0 * np.pi * accel.area[emissive_tris] * self.opacity.take(emissive_mats))[:, None]
+                     * table.emission.take(emissive_mats, axis=0))
         if self.textured_emitters:
-            textured = np.flatnonzero(table.emission_program.take(tri_mat.take(emissive_tris)) >= 0)
+            textured = np.flatnonzero(self.varies.take(emissive_mats))
             tri_power[textured] = self._textured_power(emissive_tris.take(textured), tri_mat)
         # World: a constant colour or an image (core/environment.py) seen through the bounding sphere.
         world = np.asarray(scene.world.color, np.float64)

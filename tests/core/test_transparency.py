@@ -33,8 +33,8 @@ def leaf_over_floor(leaf, irradiance=10.0, albedo=0.5, resolution=(16, 16)):
 
 
 def settings(**kw):
-    return RenderSettings(workers=1, passes=6, photons_per_pass=60_000, seed=1, initial_radius_px=1.5,
-                          **{"max_bounces": 3, **kw})
+    return RenderSettings(**{"workers": 1, "passes": 6, "photons_per_pass": 60_000, "seed": 1,
+                             "initial_radius_px": 1.5, "max_bounces": 3, **kw})
 
 
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
@@ -90,3 +90,30 @@ def test_crossings_are_decided_by_the_opacity_and_limited():
 def test_opacity_above_one_is_refused():
     with pytest.raises(SceneError, match="opacity is above 1 for material 'leaf'"):
         leaf_over_floor({"diffuse": 0.5, "opacity": 1.5})
+
+
+@pytest.mark.parametrize("opacity", [0.25, "program"])
+def test_a_transparent_emitter_emits_its_opaque_share(opacity):
+    """Cycles' Alpha scales emission: a floor emitting 3 at opacity 0.25 (or an opacity program
+    of 0.25) sends photons of a quarter of its power, and the camera sees 3 a quarter of the time."""
+    spec = {"diffuse": 0.0, "emission": 3.0}
+    if opacity == "program":
+        spec["opacity_program"] = {"op": "math", "operation": "ADD", "a": 0.25,
+                                   "b": {"op": "math", "operation": "MULTIPLY", "a": 0.0, "b": {
+                                       "op": "separate", "vector": {"op": "attribute", "name": "object"},
+                                       "output": "X"}}}
+    else:
+        spec["opacity"] = opacity
+    m = MeshBuilder()
+    m.add_quad((-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0), 0)
+    cam_to_world = np.eye(4)
+    cam_to_world[2, 3] = 0.5
+    cam = Camera(world_from_camera=cam_to_world, projection="orthographic", frame=(-0.2, 0.2, -0.2, 0.2),
+                 resolution=(8, 8))
+    scene = with_one_object(m.build(Materials.build([{"name": "floor"}]), camera=cam))
+    scene = scene.replace(materials=Materials.build([{"name": "floor", **spec}])).validate()
+    lights = RenderContext(scene).lights
+    _, _, flux, _ = lights.sample(np.random.default_rng(0).random((20_000, 6)))
+    np.testing.assert_allclose(flux.mean(axis=0), 2 * np.pi * 3.0 * 0.25, rtol=1e-9)
+    image = render(scene, settings(passes=40, photons_per_pass=100)).image[..., :3]
+    assert image.mean() == pytest.approx(0.25 * 3.0, rel=0.05)
