@@ -246,7 +246,7 @@ class LightSampler:
                 normals[sel] = nrm
                 w = np.ones(len(ids))
                 if emitted is not None:
-                    # A textured emitter: the power the point emits over the choice probability,
+                    # Radiance varies: the power the point emits over the choice probability,
                     # exact whatever the estimate of the triangle's power behind that probability.
                     origins[sel], dirs[sel] = o, d
                     flux[sel] = emitted / self.prob[entry[sel]][:, None]
@@ -330,7 +330,8 @@ class LightSampler:
 
     def _sample_triangle(self, ids, u):
         """Origins, directions, the power 2 pi A L(x) (n, 3) the chosen points emit (None unless
-        some emission is textured: that of the triangle, ``power``) and the normals."""
+        some emitter's radiance varies over it: then that of the triangle, ``power``) and the
+        normals."""
         a = self.accel
         b1, b2 = smp.uniform_triangle(u[:, 1], u[:, 2])
         p = a.hit_positions(ids, b1, b2)
@@ -344,10 +345,10 @@ class LightSampler:
         return a.spawn(p, n, d), d, emitted, n
 
     def _textured_power(self, tris, tri_mat):
-        """(k, 3) estimated power 2 pi A mean(L) of emissive triangles ``tris`` with an emission
-        program: L at TEXTURED_POWER_POINTS stratified points each (fewer on big meshes), kept
-        above TEXTURED_POWER_FLOOR times their material's mean so that no triangle that emits
-        somewhere goes unchosen (photon fluxes stay exact: ``sample``)."""
+        """(k, 3) estimated power 2 pi A mean(L) of emissive triangles ``tris`` whose radiance
+        varies (an emission or opacity program): L at TEXTURED_POWER_SIDE^2 stratified points
+        each (fewer on big meshes), kept above TEXTURED_POWER_FLOOR times their material's mean so
+        that no triangle that emits somewhere goes unchosen (photon fluxes stay exact: ``sample``)."""
         area = self.accel.area.take(tris)
         side = int(np.clip(np.sqrt(TEXTURED_POWER_BUDGET / max(len(tris), 1)), 1, TEXTURED_POWER_SIDE))
         g = (np.arange(side) + 0.5) / side

@@ -175,7 +175,8 @@ class Materials:
         colour, which then defaults to 1, ``glossy_program`` one for the glossy colour and
         ``emission_program`` one that multiplies ``emission``, ``roughness_program`` one for the
         glossy roughness, ``dielectric_program`` one for the glass's transmitted colour, which
-        then defaults to 1, and ``opacity_program`` one for the opacity (equal programs are stored
+        then defaults to 1, ``bump_program`` one for a bump's height (with ``bump_strength`` and
+        ``bump_distance``) and ``opacity_program`` one for the opacity (equal programs are stored
         once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
         """
         m = len(specs)

@@ -382,6 +382,14 @@ def _plain_environment(e):
     return e["texture"], m / scale
 
 
+def _plain_image(e) -> bool:
+    """Whether program ``e`` is an Image Texture's Color on the UV map with the default settings
+    (repeat, linear, flat): what the core's plain image textures do."""
+    return (isinstance(e, dict) and e.get("op") == "image" and e.get("output", "Color") == "Color"
+            and e.get("vector") == {"op": "attribute", "name": "uv"}
+            and not set(e) - {"op", "texture", "vector", "output"})
+
+
 def textured(source) -> bool:
     """Whether a colour source (:meth:`NodeWalker.color`) varies over the surface."""
     return isinstance(source, dict) or source >= 0
@@ -707,8 +715,7 @@ class NodeWalker:
         e = self.programs.expression(sock, stack, VEC)
         if not isinstance(e, dict):
             return np.array(e, np.float64), -1
-        if (e["op"] == "image" and e.get("output", "Color") == "Color" and "extension" not in e
-                and e["vector"] == {"op": "attribute", "name": "uv"}):
+        if _plain_image(e):
             return self.textures.mean(e["texture"]), e["texture"]
         mean = procedural.mean_color(e, self.textures.images)
         if not procedural.varies(e):
@@ -755,10 +762,7 @@ class NodeWalker:
         if not procedural.varies(height):
             return inner, None
         image = height.get("color") if height.get("op") == "gray" else None
-        on_uvs = isinstance(image, dict) and image.get("vector") == {"op": "attribute", "name": "uv"}
-        plain = (on_uvs and image["op"] == "image" and image.get("output", "Color") == "Color"
-                 and "extension" not in image)
-        tex = image["texture"] if plain else height
+        tex = image["texture"] if _plain_image(image) else height
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         distance = self.value(node.inputs["Distance"], stack) * (-1.0 if node.invert else 1.0)
         return inner, (tex, strength, distance)
