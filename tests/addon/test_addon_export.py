@@ -349,6 +349,24 @@ def test_missing_image_warns_and_uses_a_constant_colour(scene, tmp_path):
     assert ex.scene.textures == []
 
 
+@pytest.mark.parametrize("setting", [("projection", "BOX"), ("extension", "CLIP"),
+                                     ("interpolation", "Closest")])
+def test_an_image_with_other_settings_is_a_program(scene, setting):
+    """An Image Texture on the UV map with a box projection, another extension or Closest is a
+    program with that setting, not the core's plain (flat, repeat, linear) image texture."""
+    img = bpy.data.images.new("Tiles", 4, 4)
+    mat = bs.diffuse("Set")
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    setattr(tex, *setting)
+    nt.links.new(tex.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    assert row["diffuse_texture"] == -1
+    program = ex.scene.materials.programs[row["diffuse_program"]]
+    assert program["op"] == "image" and program[setting[0]] == setting[1]
+
+
 def test_image_texture_is_linearised_and_uses_uvs(scene):
     img = bpy.data.images.new("Checker", 8, 4)
     px = np.zeros((4, 8, 4), np.float32)
