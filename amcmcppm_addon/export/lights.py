@@ -22,6 +22,9 @@ default) is seen as a disk facing the viewer, as Cycles shows it; without, as a 
 
 ``normalize = False`` makes Cycles skip the division by the emitting area (or by
 the sun's solid angle); the core always divides, so the power is multiplied back.
+
+A light with nodes (``use_nodes``) multiplies its strength by its Emission node's Color times
+Strength (:func:`node_factor`: constants, Blackbody included; a texture takes its mean, noted).
 """
 from __future__ import annotations
 
@@ -61,7 +64,9 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     if not strength.any():
         return None
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
-        log.warning(f"light '{name}': light node trees are ignored; using its colour and power")
+        strength = strength * node_factor(light.node_tree, name, log)
+        if not strength.any():
+            return None
     position = m[:3, 3]
     direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
     rec = light_record(position, direction, visibility, bool(getattr(light, "use_soft_falloff", True)))
@@ -99,6 +104,30 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         log.warning(f"light '{name}' of type {light.type} is not supported; skipped")
         return None
     return rec
+
+
+def node_factor(tree, name, log) -> np.ndarray:
+    """(3,) factor of a light's node tree on its strength: Color x Strength of the Emission node
+    feeding its output (Cycles), 0 with nothing linked; other shaders are noted and count as 1."""
+    from .materials import NodeWalker, Textures
+    walker = NodeWalker(f"light '{name}'", Textures(log))
+    out = tree.get_output_node("CYCLES")
+    src, _, stack = walker.source(out.inputs["Surface"], ()) if out is not None else (None, None, ())
+    factor = np.ones(3)
+    if out is None:
+        walker.note("no light output node; using its colour and power")
+    elif src is None:
+        factor = np.zeros(3)
+    elif src.node.bl_idname == "ShaderNodeEmission" and not src.node.mute:
+        color, source = walker.color(src.node.inputs["Color"], stack)
+        if isinstance(source, dict) or source >= 0:
+            walker.note("a texture on its Emission Color takes its mean")
+        factor = np.maximum(color * walker.value(src.node.inputs["Strength"], stack), 0.0)
+    else:
+        walker.unsupported(src.node, "in a light's nodes; using its colour and power")
+    if walker.notes:
+        log.warning(f"light '{name}': " + "; ".join(walker.notes))
+    return factor
 
 
 def light_record(position, direction, visibility, soft_falloff=True, **fields) -> dict:

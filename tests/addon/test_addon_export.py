@@ -1042,6 +1042,29 @@ def test_point_light_units(scene):
     assert row["radius"] == pytest.approx(0.25) and tuple(row["position"]) == pytest.approx((1, 2, 3))
 
 
+def test_light_nodes_scale_the_power(scene):
+    """A light with nodes: its Emission's Color (a Blackbody of 3000 K) times Strength (2)
+    multiply its power; with nothing on its output it emits nothing."""
+    from amcmcppm.core.procedural import blackbody
+    light = bpy.data.lights.new("Warm", "POINT")
+    light.energy = 100.0
+    light.use_nodes = True
+    nt = light.node_tree
+    emission = nt.nodes["Emission"]
+    emission.inputs["Strength"].default_value = 2.0
+    bb = nt.nodes.new("ShaderNodeBlackbody")
+    bb.inputs["Temperature"].default_value = 3000.0
+    nt.links.new(bb.outputs["Color"], emission.inputs["Color"])
+    ob = bpy.data.objects.new("Warm", light)
+    bpy.context.scene.collection.objects.link(ob)
+    bs.camera()
+    ex = bs.export()
+    np.testing.assert_allclose(ex.scene.lights.power[0], 200.0 * blackbody([3000.0])[0], rtol=1e-5)
+    assert not any("Warm" in w for w in ex.warnings), ex.warnings
+    nt.links.remove(nt.nodes["Light Output"].inputs["Surface"].links[0])
+    assert bs.export().scene.lights.count == 0
+
+
 def test_unnormalized_point_light_matches_cycles_radiance(scene):
     # Cycles: normalize off skips the 1/(4 pi r^2) area division -> radiance P/pi.
     _, row = export_light("POINT", energy=10.0, shadow_soft_size=0.5, normalize=False)

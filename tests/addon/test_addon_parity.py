@@ -45,6 +45,15 @@ def corner_scene():
 def add_emitter(kind):
     if kind == "point":
         bs.light("POINT", location=(0.8, -0.5, 2.5), energy=300.0, shadow_soft_size=0.1)
+    elif kind == "point_nodes":
+        # Light nodes: a Blackbody of 3500 K at Strength 1.5 on the Emission multiply the power.
+        ob = bs.light("POINT", location=(0.8, -0.5, 2.5), energy=200.0, shadow_soft_size=0.1)
+        ob.data.use_nodes = True
+        nt = ob.data.node_tree
+        nt.nodes["Emission"].inputs["Strength"].default_value = 1.5
+        bb = nt.nodes.new("ShaderNodeBlackbody")
+        bb.inputs["Temperature"].default_value = 3500.0
+        nt.links.new(bb.outputs["Color"], nt.nodes["Emission"].inputs["Color"])
     elif kind == "spot":
         bs.light("SPOT", location=(-0.5, -0.5, 3.0), target=(0, 0, 0), energy=500.0, shadow_soft_size=0.05,
                  spot_size=math.radians(45), spot_blend=0.3)
@@ -107,7 +116,7 @@ def cycles_and_ours(build, tmp_path):
     return cycles, ours
 
 
-LIGHTS = ["point", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "spread_30",
+LIGHTS = ["point", "point_nodes", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "spread_30",
           "spread_90", "sun", "emissive_mesh", "world", "environment", "environment_turned"]
 
 
