@@ -7,6 +7,7 @@ import numpy as np
 
 from .accel import Accel, Hits, interpolate_corners
 from .bsdf import DIELECTRIC, ROUGHNESS_LEVELS, MaterialTable, Textures, lobe_colors, roughness_variants
+from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, normalize
@@ -59,6 +60,9 @@ class RenderContext:
         self.has_transparency = bool(self.see_through.any())
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
                                    (self.table.emission_program >= 0) | (self.opacity_program >= 0))
+        # What camera rays that leave the scene see, when it differs from the world (World.camera):
+        # a function of the directions (n, 3) -> radiance (n, 3), or None.
+        self.camera_background = _background(scene.world.camera)
         # Normal and bump maps: per-material image index (-1: none) and parameters.
         self.normal_texture = np.ascontiguousarray(mats.normal_texture, np.int32)
         self.normal_strength = np.asarray(mats.normal_strength, np.float64)
@@ -316,6 +320,16 @@ class RenderContext:
         n[~ok] = n0[~ok]
         _replace_bad(n, n0)
         ns[sel] = n
+
+
+def _background(world):
+    """Radiance by direction of ``world`` (a ``World``: colour, times its image), or None."""
+    if world is None:
+        return None
+    color = np.asarray(world.color, np.float64)
+    if world.texture is None:
+        return lambda dirs: np.broadcast_to(color, (len(dirs), 3))
+    return Environment(color, world.texture, world.texture_rotation).radiance
 
 
 def _replace_bad(n, fallback):

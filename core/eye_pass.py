@@ -124,6 +124,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         if miss.any():
             if depth == 0 and scene.world.film_transparent:
                 alpha[pix[miss]] = 0.0
+            elif depth == 0 and ctx.camera_background is not None:
+                m_ = np.flatnonzero(miss)                   # the world camera rays see (Light Path)
+                emission[pix[m_]] += beta[m_] * ctx.camera_background(dirs[m_])
             elif ctx.lights.environment is not None:
                 m_ = np.flatnonzero(miss)
                 emission[pix[m_]] += beta[m_] * ctx.lights.environment.radiance(dirs[m_])

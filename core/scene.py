@@ -462,6 +462,30 @@ class World:
     film_transparent: bool = False      # escaped camera rays give alpha 0 instead of the background
     texture: np.ndarray = None          # (H, W, 3) float32 linear, row 0 = bottom (nadir), or None
     texture_rotation: np.ndarray = None  # (3, 3) float64: the image is looked up at R d; None: identity
+    # What rays leaving the camera straight into the sky see instead (Blender's Light Path "Is
+    # Camera Ray" between two Backgrounds): a World of its own (color, texture, texture_rotation),
+    # or None: the same as every other ray.
+    camera: "World" = None
+
+
+def _validate_background(w, name, fail):
+    """Check and normalise the colour, image and rotation of World ``w`` (``name`` in messages)."""
+    col = np.asarray(w.color, np.float32).reshape(-1)
+    if col.shape != (3,) or not np.isfinite(col).all() or (col < 0).any():
+        fail(f"{name}.color must be three finite non-negative numbers")
+    w.color = col
+    if w.texture is not None:
+        tex = np.asarray(w.texture, np.float32)
+        if tex.ndim != 3 or tex.shape[2] != 3 or tex.shape[0] < 1 or tex.shape[1] < 1:
+            fail(f"{name}.texture must have shape (H, W, 3), not {tex.shape}")
+        if not np.isfinite(tex).all() or (tex < 0).any():
+            fail(f"{name}.texture must hold finite non-negative radiance")
+        w.texture = np.ascontiguousarray(tex)
+    if w.texture_rotation is not None:
+        rot = np.asarray(w.texture_rotation, np.float64)
+        if rot.shape != (3, 3) or not np.isfinite(rot).all() or abs(abs(np.linalg.det(rot)) - 1) > 1e-3:
+            fail(f"{name}.texture_rotation must be a 3 x 3 rotation matrix")
+        w.texture_rotation = rot
 
 
 @dataclass
@@ -669,22 +693,9 @@ class Scene:
             fail("camera.focus_distance must be positive when depth of field is on")
         if not (0 <= cam.clip_start < cam.clip_end):
             fail("camera clip range must satisfy 0 <= clip_start < clip_end")
-        col = np.asarray(self.world.color, np.float32).reshape(-1)
-        if col.shape != (3,) or not np.isfinite(col).all() or (col < 0).any():
-            fail("world.color must be three finite non-negative numbers")
-        self.world.color = col
-        if self.world.texture is not None:
-            tex = np.asarray(self.world.texture, np.float32)
-            if tex.ndim != 3 or tex.shape[2] != 3 or tex.shape[0] < 1 or tex.shape[1] < 1:
-                fail(f"world.texture must have shape (H, W, 3), not {tex.shape}")
-            if not np.isfinite(tex).all() or (tex < 0).any():
-                fail("world.texture must hold finite non-negative radiance")
-            self.world.texture = np.ascontiguousarray(tex)
-        if self.world.texture_rotation is not None:
-            rot = np.asarray(self.world.texture_rotation, np.float64)
-            if rot.shape != (3, 3) or not np.isfinite(rot).all() or abs(abs(np.linalg.det(rot)) - 1) > 1e-3:
-                fail("world.texture_rotation must be a 3 x 3 rotation matrix")
-            self.world.texture_rotation = rot
+        _validate_background(self.world, "world", fail)
+        if self.world.camera is not None:
+            _validate_background(self.world.camera, "world.camera", fail)
         return self
 
     def _validate_objects(self, fail, arr, t):
@@ -761,6 +772,12 @@ class Scene:
             d["world.texture"] = self.world.texture
         if self.world.texture_rotation is not None:
             d["world.texture_rotation"] = self.world.texture_rotation
+        camera_world = self.world.camera
+        if camera_world is not None:
+            d["world.camera.color"] = np.asarray(camera_world.color, np.float32)
+            for key in ("texture", "texture_rotation"):
+                if getattr(camera_world, key) is not None:
+                    d[f"world.camera.{key}"] = getattr(camera_world, key)
         if self.shading_normals is not None:
             d["shading_normals"] = self.shading_normals
         if self.uvs is not None:
@@ -794,9 +811,12 @@ class Scene:
                      border=tuple(float(v) for v in get("camera.border")),
                      **{name: float(get(f"camera.{name}")) for name in
                         ("aperture_radius", "focus_distance", "clip_start", "clip_end")})
+        camera_world = (World(color=get("world.camera.color"), texture=get("world.camera.texture"),
+                              texture_rotation=get("world.camera.texture_rotation"))
+                        if "world.camera.color" in keys else None)
         world = World(color=get("world.color"), texture=get("world.texture"),
                       texture_rotation=get("world.texture_rotation"),
-                      film_transparent=bool(get("world.film_transparent", False)))
+                      film_transparent=bool(get("world.film_transparent", False)), camera=camera_world)
         ntex = sum(1 for k in keys if k.startswith("textures."))
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),
                       material_ids=get("material_ids"), materials=mats, lights=lights,

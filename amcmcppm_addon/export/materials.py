@@ -614,6 +614,8 @@ class NodeWalker:
         self.world_texture = None       # texture index of the world's environment image, if any
         self.world_rotation = None      # (3, 3) rotation of its Mapping node, if any
         self.world_program = None       # program of the direction for any other varying world colour
+        self.camera_walker = None       # what camera rays see (Light Path's Is Camera Ray), its own
+        self.camera_color = None        # world_* and colour, or None: the same as the other rays
 
     def note(self, msg):
         if msg not in self.notes:
@@ -647,6 +649,28 @@ class NodeWalker:
         if out is None:
             return np.array(world.color[:3], np.float64)
         src, default, stack = self.source(out.inputs["Surface"], ())
+        if src is None:
+            return np.zeros(3)
+        node = src.node
+        camera_mix = node.bl_idname == "ShaderNodeMixShader" and not node.mute
+        if camera_mix and self._is_camera_ray(node.inputs[0], stack):
+            # Light Path's Is Camera Ray: the second shader for camera rays, the first for the rest.
+            self.camera_walker = NodeWalker(self.name, self.textures)
+            self.camera_color = self.camera_walker._background(
+                *self.source(_by_identifier(node.inputs, "Shader_001"), stack)[::2], world)
+            self.notes += [n for n in self.camera_walker.notes if n not in self.notes]
+            return self._background(*self.source(_by_identifier(node.inputs, "Shader"), stack)[::2], world)
+        return self._background(src, stack, world)
+
+    def _is_camera_ray(self, sock, stack) -> bool:
+        """Whether ``sock`` is fed by a Light Path node's Is Camera Ray output."""
+        src, _, _ = self.source(sock, stack)
+        return (src is not None and src.node.bl_idname == "ShaderNodeLightPath" and not src.node.mute
+                and src.name == "Is Camera Ray")
+
+    def _background(self, src, stack, world):
+        """The radiance (3,) of the world shader output ``src`` (None: black), as
+        :meth:`world_color`."""
         if src is None:
             return np.zeros(3)
         node = src.node

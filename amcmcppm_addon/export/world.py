@@ -38,6 +38,16 @@ def export_world(depsgraph, textures, log):
     color = walker.world_color(world)
     if walker.notes:
         log.warning(f"world '{world.name}': " + "; ".join(walker.notes))
+    out, lights = _background(walker, color, textures, world.name, log)
+    out.film_transparent = transparent
+    if walker.camera_walker is not None:
+        out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log)
+    return out, lights
+
+
+def _background(walker, color, textures, world_name, log):
+    """(``core.World`` of what a world walker found, sun-disc light records): its colour times its
+    environment image, or the bake of its program of the direction."""
     color = np.nan_to_num(np.maximum(np.asarray(color, np.float64), 0.0))
     texture = None
     if walker.world_texture is not None:
@@ -45,8 +55,8 @@ def export_world(depsgraph, textures, log):
     lights = []
     if walker.world_texture is None and walker.world_program is not None:
         texture = bake_world(walker.world_program, textures.images)
-        lights = sun_disc_lights(walker.world_program, color, world.name, log)
-    return World(color=color.astype(np.float32), film_transparent=transparent, texture=texture,
+        lights = sun_disc_lights(walker.world_program, color, world_name, log)
+    return World(color=color.astype(np.float32), texture=texture,
                  texture_rotation=walker.world_rotation if texture is not None else None), lights
 
 

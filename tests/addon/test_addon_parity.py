@@ -116,8 +116,8 @@ def cycles_and_ours(build, tmp_path):
     return cycles, ours
 
 
-LIGHTS = ["point", "point_nodes", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse", "spread_30",
-          "spread_90", "sun", "emissive_mesh", "world", "environment", "environment_turned"]
+LIGHTS = ["point", "point_nodes", "spot", "area_square", "area_rectangle", "area_disk", "area_ellipse",
+          "spread_30", "spread_90", "sun", "emissive_mesh", "world", "environment", "environment_turned"]
 
 
 def environment_world():
@@ -707,3 +707,28 @@ def test_procedural_bump_matches_cycles(addon, tmp_path):
     c, o = assert_channels_match("procedural bump", cycles, ours)
     # With the flat floor (before): 1.007 of Cycles, pixel correlation 0.983; bumped 0.994, 0.995.
     assert pixel_correlation("procedural bump", c, o) > 0.99
+
+
+def test_camera_sees_its_own_world_through_light_path(addon, tmp_path):
+    """A world that is a Mix Shader by Light Path's Is Camera Ray: a blue Background lights the
+    corner, a bright white one is what the camera sees past it (``World.camera``)."""
+    def build():
+        corner_scene()
+        bs.camera(location=(0, -5, 2.5), target=(0, 1.5, 2.5), lens=30.0)      # over the wall's top
+        world = bs.world((0.3, 0.4, 0.6), strength=1.0)
+        nt = world.node_tree
+        white = nt.nodes.new("ShaderNodeBackground")
+        white.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        white.inputs["Strength"].default_value = 3.0
+        mix = nt.nodes.new("ShaderNodeMixShader")
+        nt.links.new(nt.nodes.new("ShaderNodeLightPath").outputs["Is Camera Ray"], mix.inputs[0])
+        nt.links.new(nt.nodes["Background"].outputs[0], mix.inputs[1])
+        nt.links.new(white.outputs[0], mix.inputs[2])
+        nt.links.new(mix.outputs[0], nt.nodes["World Output"].inputs["Surface"])
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    sky = (cycles[..., :3] > 2.9).all(axis=2)              # the camera's own white sky
+    print(f"camera world: {sky.mean():.3f} of the pixels see the sky")
+    assert 0.02 < sky.mean() < 0.9
+    np.testing.assert_allclose(ours[sky, :3], 3.0, rtol=1e-3)
+    c, o = assert_channels_match("camera world, lit part", cycles[~sky][None], ours[~sky][None])
+    assert pixel_correlation("camera world", c, o) > 0.95

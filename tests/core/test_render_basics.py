@@ -426,3 +426,19 @@ def test_radius_sequence_is_stable_for_long_runs():
     for i in range(1, 100_000):
         r2 = np.float32(r2 * np.float32((i + 2 / 3) / (i + 1)))
     assert abs(np.sqrt(r2) / s64[-1] - 1) < 1e-3
+
+
+def test_camera_rays_see_the_camera_world_and_the_rest_the_world(tmp_path):
+    """``World.camera`` (Light Path's Is Camera Ray): rays from the camera straight into the sky
+    see 5, while the floor is lit by the world of 1 (L = albedo x 1), also after a file trip."""
+    from core.testing.scenes import sky_over_floor
+    scene = sky_over_floor(albedo=0.5, sky=1.0, resolution=(16, 16), pitch_deg=5.0)
+    scene.world.camera = World(color=np.full(3, 5.0, np.float32))
+    scene.save(tmp_path / "s.npz")
+    loaded = Scene.load(tmp_path / "s.npz")
+    np.testing.assert_array_equal(loaded.world.camera.color, 5.0)
+    image = render(loaded, RenderSettings(workers=1, passes=3, photons_per_pass=20_000)).image[..., :3]
+    sky = image.max(axis=2) > 4.0
+    assert 0.1 < sky.mean() < 0.9
+    np.testing.assert_allclose(image[sky], 5.0, rtol=1e-6)
+    assert image[-4:].mean() == pytest.approx(0.5, rel=0.1)          # the floor, away from the horizon
