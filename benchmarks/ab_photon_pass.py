@@ -80,6 +80,19 @@ def whole_render(package, scene_name, resolution, method, passes, workers, photo
     return run
 
 
+def interleaved_rates(runs, rounds):
+    """{name: [rate per round]} of the functions ``runs`` (name -> function returning a rate), after
+    one warm-up call each, taking turns in an order that reverses every round (the machines are
+    shared: neighbours' load falls on all alike)."""
+    rates = {name: [] for name in runs}
+    for run in runs.values():
+        run()                                        # warm-up
+    for r in range(rounds):
+        for name in (list(runs) if r % 2 == 0 else list(runs)[::-1]):
+            rates[name].append(runs[name]())
+    return rates
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="HEAD", help="git revision to compare against (default HEAD)")
@@ -103,12 +116,7 @@ def main():
                            if a.render else
                            photon_pass(pkg, a.scene, res, a.paths, a.pairs))
                     for name, pkg in (("base", "core_base"), ("this", "core"))}
-        rates = {name: [] for name in versions}
-        for run in versions.values():
-            run()                                    # warm-up
-        for r in range(a.rounds):
-            for name in (("base", "this") if r % 2 == 0 else ("this", "base")):   # alternate the order
-                rates[name].append(versions[name]())
+        rates = interleaved_rates(versions, a.rounds)
     ratio = np.array(rates["this"]) / np.array(rates["base"])
     if a.render:
         what, unit = f"{a.render} renders of {a.passes} passes on {a.workers} worker(s)", "paths/s"

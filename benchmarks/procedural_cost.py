@@ -20,7 +20,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from ab_photon_pass import photon_pass  # noqa: E402
+from ab_photon_pass import interleaved_rates, photon_pass  # noqa: E402
 
 from core.scene import Materials  # noqa: E402
 from core.testing.scenes import with_one_object  # noqa: E402
@@ -63,13 +63,7 @@ def main():
     a = ap.parse_args()
     runs = {name: photon_pass("core", "cornell_box", tuple(a.resolution), a.paths, False, with_program(p))
             for name, p in VARIANTS.items()}
-    rates = {name: [] for name in runs}
-    for run in runs.values():
-        run()                                        # warm-up
-    for r in range(a.rounds):
-        names = list(runs) if r % 2 == 0 else list(runs)[::-1]
-        for name in names:
-            rates[name].append(runs[name]())
+    rates = interleaved_rates(runs, a.rounds)
     plain = np.array(rates["plain"])
     print(f"cornell_box {a.resolution[0]}x{a.resolution[1]}, {a.rounds} rounds of {a.paths} paths: "
           f"plain colour {np.median(plain):,.0f} vertices/s")

@@ -22,7 +22,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from ab_photon_pass import photon_pass  # noqa: E402
+from ab_photon_pass import interleaved_rates, photon_pass  # noqa: E402
 from procedural_cost import cornell_specs  # noqa: E402
 
 from core.context import RenderContext  # noqa: E402
@@ -68,12 +68,7 @@ def main():
           ", ".join(f"{name} {np.median(t):.2f} s" for name, t in builds.items()))
     runs = {name: photon_pass("core", "cornell_box", tuple(a.resolution), a.paths, False, edit)
             for name, edit in variants.items()}
-    rates = {name: [] for name in runs}
-    for run in runs.values():
-        run()                                        # warm-up
-    for r in range(a.rounds):
-        for name in (list(runs) if r % 2 == 0 else list(runs)[::-1]):
-            rates[name].append(runs[name]())
+    rates = interleaved_rates(runs, a.rounds)
     ratio = np.array(rates["map"]) / np.array(rates["constant"])
     print(f"photon pass, {a.rounds} rounds of {a.paths} paths: constant roughness "
           f"{np.median(rates['constant']):,.0f} vertices/s, roughness map {np.median(rates['map']):,.0f}: "

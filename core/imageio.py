@@ -27,10 +27,16 @@ def read_exr(path):
         return np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=2)
 
 
+def linear_to_srgb(x):
+    """The sRGB transfer curve of linear values ``x`` (>= 0), same shape."""
+    x = np.asarray(x)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.maximum(x, 0.0031308) ** (1 / 2.4) - 0.055)
+
+
 def to_display(rgba, exposure=0.0):
     """Linear RGBA to 8-bit-ready sRGB in [0, 1]: exposure, clip, the sRGB transfer curve."""
     rgb = np.clip(np.asarray(rgba, np.float64)[..., :3] * 2.0 ** exposure, 0.0, 1.0)
-    srgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
+    srgb = linear_to_srgb(rgb)
     alpha = np.clip(np.asarray(rgba, np.float64)[..., 3:4], 0.0, 1.0)
     return np.concatenate([srgb, alpha], axis=-1)
 

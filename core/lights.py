@@ -242,19 +242,17 @@ class LightSampler:
             elif k == SUN:
                 o, d, w = self._sample_sun(ids, us)
             elif k == TRIANGLE:
-                o, d, emitted, nrm = self._sample_triangle(ids, us)
+                o, d, emitted, nrm = self._sample_triangle(ids, us, self.power[entry[sel]])
                 normals[sel] = nrm
-                w = np.ones(len(ids))
-                if emitted is not None:
-                    # Radiance varies: the power the point emits over the choice probability,
-                    # exact whatever the estimate of the triangle's power behind that probability.
-                    origins[sel], dirs[sel] = o, d
-                    flux[sel] = emitted / self.prob[entry[sel]][:, None]
-                    continue
             else:
                 o, d, w = self._sample_world(us)
             origins[sel], dirs[sel] = o, d
-            flux[sel] = base[sel] * (w if w.ndim == 2 else w[:, None])
+            if k == TRIANGLE:
+                # The power the chosen points emit over the choice probability: exact whatever
+                # estimate of the triangle's power set that probability.
+                flux[sel] = emitted / self.prob[entry[sel]][:, None]
+            else:
+                flux[sel] = base[sel] * (w if w.ndim == 2 else w[:, None])
         return origins, dirs, flux, normals
 
     def _entries(self, u0):
@@ -328,10 +326,9 @@ class LightSampler:
         r = self.radius
         return self.center + r * (x[:, None] * t + y[:, None] * b) - 2.0 * r * d
 
-    def _sample_triangle(self, ids, u):
-        """Origins, directions, the power 2 pi A L(x) (n, 3) the chosen points emit (None unless
-        some emitter's radiance varies over it: then that of the triangle, ``power``) and the
-        normals."""
+    def _sample_triangle(self, ids, u, power):
+        """Origins, directions, the power 2 pi A L(x) (n, 3) the chosen points emit (the
+        triangles' ``power`` (n, 3) unless some emitter's radiance varies) and the normals."""
         a = self.accel
         b1, b2 = smp.uniform_triangle(u[:, 1], u[:, 2])
         p = a.hit_positions(ids, b1, b2)
@@ -339,7 +336,7 @@ class LightSampler:
         side = np.where(u[:, 3] < 0.5, 1.0, -1.0)
         n = ng * side[:, None]
         d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
-        emitted = None
+        emitted = power
         if self.textured_emitters:
             emitted = (2.0 * np.pi * a.area.take(ids))[:, None] * self.emitted(ids, b1, b2, positions=p)
         return a.spawn(p, n, d), d, emitted, n

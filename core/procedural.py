@@ -118,9 +118,9 @@ class HitAttributes:
         else:
             c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
             n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
-        world_from_object = np.linalg.inv(s.object_from_world[:, :, :3])        # (O, 3, 3)
-        w = world_from_object.take(s.object_ids.take(self.prim_ids), axis=0)
-        n = np.einsum("kji,kj->ki", w, n)                                         # W^T n
+        objects, which = np.unique(s.object_ids.take(self.prim_ids), return_inverse=True)
+        world_from_object = np.linalg.inv(s.object_from_world.take(objects, axis=0)[:, :, :3])
+        n = np.einsum("kji,kj->ki", world_from_object.take(which, axis=0), n)      # W^T n
         length = np.linalg.norm(n, axis=1, keepdims=True)
         return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 

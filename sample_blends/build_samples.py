@@ -95,6 +95,9 @@ class SceneBuilder:
     def mirror(self, name, color=(0.95, 0.95, 0.95)):
         return self._material(name, "ShaderNodeBsdfGlossy", color, Color=(*color, 1.0), Roughness=0.0)
 
+    def principled(self, name, color):
+        return self._material(name, "ShaderNodeBsdfPrincipled", color, **{"Base Color": (*color, 1.0)})
+
     def emission(self, name, color, strength):
         return self._material(name, "ShaderNodeEmission", color, Color=(*color, 1.0), Strength=strength)
 
@@ -196,6 +199,26 @@ class SceneBuilder:
         bpy.context.preferences.filepaths.save_version = 0       # no .blend1 backups
         bpy.ops.wm.save_as_mainfile(filepath=path, compress=True)
         return path
+
+
+def texture(nt, kind, on_object=True, **inputs):
+    """A texture node ``kind`` added to ``nt`` with ``inputs`` set, on Object coordinates (else
+    on its default, Generated)."""
+    node = nt.nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    if on_object:
+        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], node.inputs["Vector"])
+    return node
+
+
+def ramp(nt, fac, low, high):
+    """The Color output of a Color Ramp from ``low`` to ``high`` (RGB) over the socket ``fac``."""
+    node = nt.nodes.new("ShaderNodeValToRGB")
+    node.color_ramp.elements[0].color = (*low, 1.0)
+    node.color_ramp.elements[1].color = (*high, 1.0)
+    nt.links.new(fac, node.inputs["Fac"])
+    return node.outputs["Color"]
 
 
 def rect_with_hole(corner, u, v, hole):
@@ -365,22 +388,14 @@ def checker_caustic():
     b = SceneBuilder()
     floor = b.diffuse("Checker floor", (0.8, 0.8, 0.8))
     nt = floor.node_tree
-    checker = nt.nodes.new("ShaderNodeTexChecker")
-    checker.inputs["Scale"].default_value = 2.0
-    checker.inputs["Color1"].default_value = (0.75, 0.72, 0.65, 1.0)
-    checker.inputs["Color2"].default_value = (0.12, 0.14, 0.2, 1.0)
-    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], checker.inputs["Vector"])
+    checker = texture(nt, "ShaderNodeTexChecker", Scale=2.0, Color1=(0.75, 0.72, 0.65, 1.0),
+                      Color2=(0.12, 0.14, 0.2, 1.0))
     nt.links.new(checker.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     wall = b.diffuse("Noise wall", (0.5, 0.5, 0.5))
     nt = wall.node_tree
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 3.0
-    noise.inputs["Detail"].default_value = 4.0
-    ramp = nt.nodes.new("ShaderNodeValToRGB")
-    ramp.color_ramp.elements[0].color = (0.15, 0.25, 0.4, 1.0)
-    ramp.color_ramp.elements[1].color = (0.7, 0.6, 0.45, 1.0)
-    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
-    nt.links.new(ramp.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    noise = texture(nt, "ShaderNodeTexNoise", on_object=False, Scale=3.0, Detail=4.0)
+    nt.links.new(ramp(nt, noise.outputs["Fac"], (0.15, 0.25, 0.4), (0.7, 0.6, 0.45)),
+                 nt.nodes["Diffuse BSDF"].inputs["Color"])
     glass = b.glass("Glass", ior=1.5)
     tinted = b.glass("Green glass", ior=1.45, color=(0.7, 0.95, 0.75))
     b.polygons("Floor", [[(-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0)]], floor)
@@ -401,32 +416,22 @@ def stained_window():
     # Stained glass: a Glass BSDF coloured by Voronoi cells (random colours, lightened).
     stained = b.glass("Stained glass", ior=1.5)
     nt = stained.node_tree
-    cells = nt.nodes.new("ShaderNodeTexVoronoi")
-    cells.inputs["Scale"].default_value = 5.0
-    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], cells.inputs["Vector"])
+    cells = texture(nt, "ShaderNodeTexVoronoi", Scale=5.0)
     lighten = nt.nodes.new("ShaderNodeMixRGB")
     lighten.inputs["Fac"].default_value = 0.3
     lighten.inputs["Color2"].default_value = (1.0, 1.0, 1.0, 1.0)
     nt.links.new(cells.outputs["Color"], lighten.inputs["Color1"])
     nt.links.new(lighten.outputs["Color"], nt.nodes["Glass BSDF"].inputs["Color"])
     # The floor: a Principled BSDF whose roughness a noise varies from 0.15 to 0.55.
-    floor = b._material("Floor", "ShaderNodeBsdfPrincipled", (0.35, 0.22, 0.12),
-                        **{"Base Color": (0.35, 0.22, 0.12, 1.0)})
+    floor = b.principled("Floor", (0.35, 0.22, 0.12))
     nt = floor.node_tree
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 4.0
-    ramp = nt.nodes.new("ShaderNodeValToRGB")
-    ramp.color_ramp.elements[0].color = (0.15, 0.15, 0.15, 1.0)
-    ramp.color_ramp.elements[1].color = (0.55, 0.55, 0.55, 1.0)
-    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
-    nt.links.new(ramp.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Roughness"])
+    noise = texture(nt, "ShaderNodeTexNoise", on_object=False, Scale=4.0)
+    nt.links.new(ramp(nt, noise.outputs["Fac"], (0.15,) * 3, (0.55,) * 3),
+                 nt.nodes["Principled BSDF"].inputs["Roughness"])
     # Leaves outside the window: green discs cut out of planes by an alpha map.
-    leaves = b._material("Leaves", "ShaderNodeBsdfPrincipled", (0.15, 0.35, 0.08),
-                         **{"Base Color": (0.15, 0.35, 0.08, 1.0)})
+    leaves = b.principled("Leaves", (0.15, 0.35, 0.08))
     nt = leaves.node_tree
-    discs = nt.nodes.new("ShaderNodeTexVoronoi")
-    discs.inputs["Scale"].default_value = 2.5
-    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], discs.inputs["Vector"])
+    discs = texture(nt, "ShaderNodeTexVoronoi", Scale=2.5)
     inside = nt.nodes.new("ShaderNodeMath")
     inside.operation = "LESS_THAN"
     inside.inputs[1].default_value = 0.45
@@ -435,9 +440,7 @@ def stained_window():
     # A lamp panel on the back wall whose emission a Wave Texture bands.
     lamp = b.emission("Lamp panel", (1.0, 0.8, 0.55), 6.0)
     nt = lamp.node_tree
-    wave = nt.nodes.new("ShaderNodeTexWave")
-    wave.inputs["Scale"].default_value = 3.0
-    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], wave.inputs["Vector"])
+    wave = texture(nt, "ShaderNodeTexWave", Scale=3.0)
     nt.links.new(wave.outputs["Fac"], nt.nodes["Emission"].inputs["Strength"])
     # A room 5 x 4 x 2.6 m with a 1.6 x 1.4 m window in the wall at x = -2.5.
     room(b, "Room", (-2.5, -2, 0), (2.5, 2, 2.6), wall,
@@ -462,21 +465,14 @@ def pool_caustics():
     # Tiles: a Brick Texture on Object coordinates (white tiles, grey grout).
     tiles = b.diffuse("Tiles", (0.7, 0.75, 0.78))
     nt = tiles.node_tree
-    brick = nt.nodes.new("ShaderNodeTexBrick")
-    brick.inputs["Scale"].default_value = 4.0
-    brick.inputs["Color1"].default_value = (0.55, 0.75, 0.85, 1.0)
-    brick.inputs["Color2"].default_value = (0.45, 0.68, 0.8, 1.0)
-    brick.inputs["Mortar"].default_value = (0.25, 0.27, 0.3, 1.0)
+    brick = texture(nt, "ShaderNodeTexBrick", Scale=4.0, Color1=(0.55, 0.75, 0.85, 1.0),
+                    Color2=(0.45, 0.68, 0.8, 1.0), Mortar=(0.25, 0.27, 0.3, 1.0))
     brick.offset = 0.0
-    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], brick.inputs["Vector"])
     nt.links.new(brick.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     # The water's surface: a Glass BSDF (IOR 1.33) whose normal a Noise Texture bumps.
     water = b.glass("Water", ior=1.33, color=(0.9, 0.97, 1.0))
     nt = water.node_tree
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 2.5
-    noise.inputs["Detail"].default_value = 3.0
-    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
+    noise = texture(nt, "ShaderNodeTexNoise", Scale=2.5, Detail=3.0)
     bump = nt.nodes.new("ShaderNodeBump")
     bump.inputs["Distance"].default_value = 0.08
     nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])

@@ -54,6 +54,7 @@ import numpy as np
 
 from ...core import procedural
 from ...core.bsdf import metal_fresnel
+from ...core.imageio import linear_to_srgb
 from ...core.scene import Materials
 from .procedural import FLOAT, VEC, ExpressionBuilder
 
@@ -436,12 +437,6 @@ def conductor_fresnel(ior, extinction) -> np.ndarray:
     return np.clip(np.mean(2.0 * mu * f, axis=1), 0.0, 1.0)
 
 
-def linear_to_srgb(x):
-    x = np.asarray(x, np.float32)
-    return np.where(x <= 0.0031308, x * 12.92, 1.055 * np.maximum(x, 0.0031308) ** (1 / 2.4) - 0.055
-                    ).astype(np.float32)
-
-
 def srgb_to_linear(x):
     x = np.asarray(x, np.float32)
     return np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4
@@ -456,11 +451,10 @@ class Textures:
         self.images = []            # list of (H, W, 3) float32
         self._index = {}            # image pointer -> index, or -1 if unusable
         self._mean = {}             # index -> mean colour (3,)
-        self._alpha_plane = {}      # index -> (H, W) float32 alpha of an image that has one
-        self._alpha = {}            # index -> texture index of its alpha (grey), once read; and
-                                    # ("premultiplied", index) -> that of its colour times alpha
-        self._byte = {}             # index of a byte image with alpha -> whether it was sRGB (made linear)
-        self._data = {}             # index -> whether the image is non-colour data (no premultiplying)
+        # index of an image with alpha -> (alpha (H, W) float32, byte: None for a float image, else
+        # whether it was 8-bit sRGB, made linear here; whether it is non-colour data)
+        self._alpha = {}
+        self._derived = {}          # (kind, index) -> texture index of an image made from image index
 
     def lookup(self, image, where):
         """(texture index or -1, mean colour) of ``image``; ``where`` names the user in messages."""
@@ -479,33 +473,35 @@ class Textures:
         image with alpha (and gives its Color when the Alpha output is not used): byte images are
         stored straight (8-bit sRGB ones are multiplied before they are made linear), float ones
         premultiplied already.  ``index`` itself for opaque images and non-colour data."""
-        if index not in self._alpha_plane or self._data.get(index) or index not in self._byte:
+        if not self.is_byte(index) or self._alpha[index][2]:
             return index
-        key = ("premultiplied", index)
-        if key not in self._alpha:
-            a = self._alpha_plane[index][:, :, None]
-            rgb = self.images[index]
-            rgb = srgb_to_linear(linear_to_srgb(rgb) * a) if self._byte[index] else rgb * a
-            self.images.append(np.ascontiguousarray(rgb, np.float32))
-            self._alpha[key] = len(self.images) - 1
-            self._mean[self._alpha[key]] = rgb.reshape(-1, 3).mean(axis=0).astype(np.float64)
-        return self._alpha[key]
+        plane, srgb, _ = self._alpha[index]
+        a = plane[:, :, None]
+        rgb = self.images[index]
+        return self._derive("premultiplied", index,
+                            lambda: srgb_to_linear(linear_to_srgb(rgb) * a) if srgb else rgb * a)
 
     def is_byte(self, index):
         """Whether loaded image ``index`` has alpha and 8-bit pixels (stored straight)."""
-        return index in self._byte
+        return index in self._alpha and self._alpha[index][1] is not None
 
     def alpha(self, index):
         """Texture index of loaded image ``index``'s alpha as a grey image, or None when it is
         opaque everywhere (no alpha channel, or alpha mode None)."""
-        if index not in self._alpha_plane:
-            return None
         if index not in self._alpha:
-            a = self._alpha_plane[index]
-            self.images.append(np.ascontiguousarray(np.repeat(a[:, :, None], 3, axis=2)))
-            self._alpha[index] = len(self.images) - 1
-            self._mean[self._alpha[index]] = np.full(3, float(a.mean()))
-        return self._alpha[index]
+            return None
+        plane = self._alpha[index][0]
+        return self._derive("alpha", index, lambda: np.repeat(plane[:, :, None], 3, axis=2))
+
+    def _derive(self, kind, index, make):
+        """Texture index of the image ``make()`` builds from image ``index``, built once."""
+        key = (kind, index)
+        if key not in self._derived:
+            rgb = np.ascontiguousarray(make(), np.float32)
+            self.images.append(rgb)
+            self._derived[key] = len(self.images) - 1
+            self._mean[self._derived[key]] = rgb.reshape(-1, 3).mean(axis=0).astype(np.float64)
+        return self._derived[key]
 
     def _load(self, image, where):
         try:
@@ -533,10 +529,8 @@ class Textures:
         i = len(self.images) - 1
         self._mean[i] = rgb.reshape(-1, 3).mean(axis=0).astype(np.float64)
         if keep_alpha:
-            self._alpha_plane[i] = np.ascontiguousarray(alpha, np.float32)
-            if not image.is_float:
-                self._byte[i] = byte_srgb
-            self._data[i] = bool(getattr(image.colorspace_settings, "is_data", False))
+            self._alpha[i] = (np.ascontiguousarray(alpha, np.float32), None if image.is_float else byte_srgb,
+                              bool(getattr(image.colorspace_settings, "is_data", False)))
         return i
 
 
