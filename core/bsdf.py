@@ -72,6 +72,45 @@ def roughness_variants(mats):
     return dataclasses.replace(mats, names=names, **changes), first
 
 
+def coat_variants(mats):
+    """(materials, coat_row) for materials ``mats`` (``scene.Materials``) some of which have a
+    coat: the materials followed by one coat material per distinct (weight, roughness, IOR), and
+    ``coat_row`` int32 the coat material of each of them (-1: none, and for the coat materials).  A coat material is the coat alone: a glossy lobe of weight
+    ``coat_weight`` that reflects F0 + (1 - F0) s(c) = F(c) (``glossy_fresnel_ior`` the coat's
+    IOR) with multiscatter F_ss the mean Fresnel (Cycles' ``bsdf_microfacet_setup_fresnel_
+    dielectric``), without normal or bump maps.  Without coats: ``mats`` itself."""
+    weight = np.asarray(mats.coat_weight if mats.coat_weight is not None else np.zeros(mats.count), np.float64)
+    coat_row = np.full(mats.count, -1, np.int32)
+    coated = np.flatnonzero(weight > 0)
+    if len(coated) == 0:
+        return mats, coat_row
+    keys = np.stack([weight[coated], mats.coat_roughness[coated], mats.coat_ior[coated]], axis=1)
+    unique, which = np.unique(keys, axis=0, return_inverse=True)
+    coat_row[coated] = mats.count + which.ravel()
+    k = len(unique)
+    rows = np.concatenate([np.arange(mats.count), np.zeros(k, np.int64)])
+    changes = {name: np.ascontiguousarray(getattr(mats, name)[rows]) for name in mats.ARRAY_FIELDS}
+    new = slice(mats.count, None)
+    for name in mats.ARRAY_FIELDS:
+        if name in mats.INDEX_FIELDS:
+            changes[name][new] = -1
+        elif name not in ("ior", "glossy_roughness"):
+            changes[name][new] = 0.0
+    ior = np.maximum(unique[:, 2], 1.0)
+    f0 = ((ior - 1.0) / (ior + 1.0)) ** 2
+    changes["glossy_weight"][new] = unique[:, 0]
+    changes["glossy_roughness"][new] = unique[:, 1]
+    changes["glossy_color"][new] = f0[:, None]
+    changes["glossy_fresnel_ior"][new] = ior
+    changes["glossy_fresnel_rise"][new] = 1.0 - f0[:, None]
+    changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
+    for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "diffuse_layer_weight"):
+        changes[name][new] = 1.0
+    names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique]
+    return (dataclasses.replace(mats, names=names, **changes),
+            np.concatenate([coat_row, np.full(k, -1, np.int32)]))
+
+
 @dataclass
 class MaterialTable:
     """Per-material arrays ready for shading (mirror-like glossy merged into mirror)."""
@@ -99,12 +138,15 @@ class MaterialTable:
     glossy_program_lobe: np.ndarray = None  # (M,) int64 ... of this lobe (MIRROR where a sharp glossy merged)
     emission_program: np.ndarray = None     # (M,) int32 procedural factor of ``emission`` or -1
     dielectric_program: np.ndarray = None   # (M,) int32 procedural transmitted colour of the glass or -1
+    coat_row: np.ndarray = None             # (M,) int32 the coat's material (coat_variants) or -1
+    coat_factor: np.ndarray = None          # (M, MS_NODES + 1, 3) float64 factor under the coat at mu
+    coat_score: np.ndarray = None           # (M, 2) float64 mean lobe-score totals: coat, factor under it
 
     @staticmethod
-    def from_materials(mats, coarse=None) -> "MaterialTable":
+    def from_materials(mats, coarse=None, coat_row=None) -> "MaterialTable":
         """The table of materials ``mats``; ``coarse`` (M,) bool marks rows whose GGX albedo
         tables may use the coarser quadrature ``COARSE_STRATA`` (the copies of a roughness map:
-        1e-3 of the exact albedo, 7 times faster)."""
+        1e-3 of the exact albedo, 7 times faster); ``coat_row`` is :func:`coat_variants`'s."""
         m = mats.count
         coarse = np.zeros(m, bool) if coarse is None else np.asarray(coarse, bool)
         weight = np.zeros((m, 4))
@@ -161,11 +203,17 @@ class MaterialTable:
         layer, score_extra = _layer_tables(alpha, fresnel_ior, rise, layered, mats.diffuse_layer,
                                            np.clip(mats.diffuse_layer_weight, 0.0, 1.0),
                                            ms_albedo, ms_fresnel, weight, rise_means)
+        coat_row = np.full(m, -1, np.int32) if coat_row is None else np.asarray(coat_row, np.int32)
+        has_nondelta = diffuse_on | glossy_on
+        coat_factor, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo,
+                                               ms_fresnel)
+        coated = np.flatnonzero(coat_row >= 0)
+        has_nondelta[coated] |= has_nondelta[coat_row[coated]]
         return MaterialTable(weight=weight, color=color, alpha=alpha, dielectric_alpha=dielectric_alpha,
                              reflection=reflection,
                              ior=mats.ior.astype(np.float64), emission=emission,
                              texture=mats.diffuse_texture.astype(np.int32),
-                             has_nondelta=diffuse_on | glossy_on, has_glossy=glossy_on,
+                             has_nondelta=has_nondelta, has_glossy=glossy_on,
                              is_emissive=(emission > 0).any(axis=1),
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
                              rise=rise, layer=layer, score_extra=score_extra,
@@ -174,7 +222,8 @@ class MaterialTable:
                              | (np.asarray(_or_none(mats.bump_program, m)) >= 0), program=program,
                              glossy_program=glossy_program,
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
-                             emission_program=emission_program, dielectric_program=dielectric_program)
+                             emission_program=emission_program, dielectric_program=dielectric_program,
+                             coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score)
 
     @property
     def has_normal_maps(self) -> bool:
@@ -209,6 +258,20 @@ class MaterialTable:
     @cached_property
     def has_layer(self) -> bool:
         return bool((self.layer != 1).any())
+
+    @cached_property
+    def has_coat(self) -> bool:
+        return self.coat_row is not None and bool((self.coat_row >= 0).any())
+
+    def coat_attenuation(self, mat_ids, mu):
+        """(n, 3) factors of everything under the coats of materials ``mat_ids`` (all coated) at
+        view cosines ``mu`` (:class:`~core.scene.Materials`: the coat's albedo and its tint)."""
+        t = np.sqrt(np.clip(mu, 0.0, 1.0)) * MS_NODES
+        k = np.minimum(t.astype(np.int64), MS_NODES - 1)
+        f = (t - k)[:, None]
+        flat = mat_ids.astype(np.int64) * (MS_NODES + 1) + k
+        e = self.coat_factor.reshape(-1, 3)
+        return (1.0 - f) * e.take(flat, axis=0) + f * e.take(flat + 1, axis=0)
 
     def fresnel_color(self, mat_ids, lobe, cos_m):
         """(n, 3) the colour lobe ``lobe`` (GLOSSY or MIRROR) adds at microfacet cosines ``cos_m``
@@ -286,6 +349,39 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
     l_mean = 2.0 * np.trapz(layer * mu, mu, axis=1)
     extra[:, DIFFUSE] = np.where(layered, l_mean, 1.0)     # a factor, see lobe_scores
     return layer, extra
+
+
+def _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo, ms_fresnel):
+    """(factor (M, MS_NODES + 1, 3), score (M, 2)): the factor under each material's coat at
+    the nodes mu = (k / MS_NODES)^2, and, for the choice between the coat and what lies under
+    it (:func:`pick_coat`), the coat's cosine-weighted mean albedo and the mean luminance of
+    the factor.  As Cycles' Principled BSDF: 1 - w K(mu) (F0 + (1 - F0) S(mu)) (the coat's
+    albedo as ``bsdf_microfacet_estimate_albedo`` of a dielectric GGX lobe, K its multiscatter
+    energy) times 1 - w + w tint^(1 / cos_t), the tint of the path through the coat refracted
+    to cos_t."""
+    m = len(coat_row)
+    factor = np.ones((m, MS_NODES + 1, 3))
+    score = np.zeros((m, 2))
+    coated = np.flatnonzero(coat_row >= 0)
+    if len(coated) == 0:
+        return factor, score
+    mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
+    for i in coated:
+        c = coat_row[i]
+        w = float(mats.coat_weight[i])
+        eta = float(fresnel_ior[c])
+        f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+        s = rise_means.get((alpha[c], fresnel_ior[c]), np.zeros(MS_NODES + 1))
+        e = ms_albedo[c]
+        k = e + ms_fresnel[c, 0] * (1.0 - e)
+        albedo = k * (f0 + (1.0 - f0) * s)
+        cos_t = np.sqrt(np.maximum(1.0 - (1.0 - mu * mu) / (eta * eta), 1e-12))
+        tint = np.clip(np.asarray(mats.coat_tint[i], np.float64), 0.0, 1.0)
+        through = 1.0 - w + w * tint[None, :] ** (1.0 / cos_t[:, None])
+        factor[i] = np.clip(1.0 - w * albedo, 0.0, 1.0)[:, None] * through
+        score[i, 0] = w * 2.0 * np.trapz(albedo * mu, mu)
+        score[i, 1] = 2.0 * np.trapz(smp.luminance(factor[i]) * mu, mu)
+    return factor, score
 
 
 def _strata(coarse):
@@ -419,6 +515,47 @@ def lobe_scores(table, mat_ids, colors):
         scores[:, GLOSSY] += extra[:, GLOSSY]
         scores[:, MIRROR] += extra[:, MIRROR]
     return scores
+
+
+# Least chance of either layer of a coated surface (pick_coat) where both reflect light.
+MIN_LAYER_CHANCE = 0.05
+
+
+def pick_coat(table, mat_ids, colors, scores, u):
+    """Choose, at hits of coated materials, the coat or what lies under it.
+
+    ``scores`` are :func:`lobe_scores` of ``mat_ids``, ``u`` (n,) a uniform number.  The coat
+    is chosen with probability p = C / (C + B) (clamped to [MIN_LAYER_CHANCE, 1 -
+    MIN_LAYER_CHANCE] when both are positive), C the coat's mean albedo and B the scores' total
+    times the mean factor under the coat.  Returns ``(mat_ids, colors, scores, scale, under, u)``:
+    the coat's material, colours and scores where it was chosen, the others unchanged; ``scale``
+    (n,) 1 / the chosen layer's probability (1 without a coat); ``under`` the rows that chose
+    what lies under a coat (whose weights then take :meth:`MaterialTable.coat_attenuation` at
+    the view direction); and ``u`` rescaled within the choice (still uniform).
+    """
+    n = len(mat_ids)
+    scale = np.ones(n)
+    rows = np.flatnonzero(table.coat_row.take(mat_ids) >= 0)
+    if len(rows) == 0:
+        return mat_ids, colors, scores, scale, rows, u
+    m = mat_ids.take(rows)
+    coat = table.coat_score[:, 0].take(m)
+    base = scores[rows].sum(axis=1) * table.coat_score[:, 1].take(m)
+    total = coat + base
+    p = np.where(total > 0, coat / np.where(total > 0, total, 1.0), 1.0)
+    p = np.where((coat > 0) & (base > 0), np.clip(p, MIN_LAYER_CHANCE, 1.0 - MIN_LAYER_CHANCE), p)
+    u_rows = u.take(rows)
+    on_coat = u_rows < p
+    mat_ids, colors, scores, u = mat_ids.copy(), colors.copy(), scores.copy(), u.copy()
+    c = rows[on_coat]
+    mat_ids[c] = table.coat_row.take(m[on_coat])
+    colors[c] = table.color.take(mat_ids.take(c), axis=0)
+    scores[c] = lobe_scores(table, mat_ids.take(c), colors[c])
+    chosen = np.where(on_coat, p, 1.0 - p)
+    scale[rows] = 1.0 / np.maximum(chosen, 1e-300)
+    u[rows] = np.clip(np.where(on_coat, u_rows / np.maximum(p, 1e-300),
+                               (u_rows - p) / np.maximum(1.0 - p, 1e-300)), 0.0, np.nextafter(1.0, 0.0))
+    return mat_ids, colors, scores, scale, rows[~on_coat], u
 
 
 def choose_lobe(scores, u):

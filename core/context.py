@@ -6,7 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel, Hits, interpolate_corners
-from .bsdf import DIELECTRIC, ROUGHNESS_LEVELS, MaterialTable, Textures, lobe_colors, roughness_variants
+from .bsdf import (DIELECTRIC, ROUGHNESS_LEVELS, MaterialTable, Textures, coat_variants, lobe_colors,
+                   roughness_variants)
 from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
@@ -38,10 +39,12 @@ class RenderContext:
     def __init__(self, scene):
         self.scene = scene
         self.accel = Accel(scene)
-        # The materials, and a copy per roughness level of those with a roughness map.
+        # The materials, a copy per roughness level of those with a roughness map, and the coats.
         self.materials, self.roughness_first = roughness_variants(scene.materials)
         copies = np.arange(self.materials.count) >= scene.materials.count
-        self.table = MaterialTable.from_materials(self.materials, coarse=copies)
+        self.materials, coat_row = coat_variants(self.materials)
+        copies = np.concatenate([copies, np.zeros(self.materials.count - len(copies), bool)])
+        self.table = MaterialTable.from_materials(self.materials, coarse=copies, coat_row=coat_row)
         self.textures = Textures(scene.textures)
         # Procedural colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs

@@ -11,12 +11,13 @@ Glossary: ``beta`` camera-path throughput, ``wo`` direction back towards the cam
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_remainder,
-                   lobe_scores, scatter, valid_reflection_normal)
+                   lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from .sampling import dot
 from .scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
@@ -144,10 +145,22 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():
             e = np.flatnonzero(emissive)
-            emission[pix[e]] += beta[e] * ctx.emitted(prim.take(e), b1.take(e), b2.take(e),
-                                                      surf.mat_ids.take(e), surf.position.take(e, axis=0))
+            seen = ctx.emitted(prim.take(e), b1.take(e), b2.take(e), surf.mat_ids.take(e),
+                               surf.position.take(e, axis=0))
+            if table.has_coat:
+                seen = seen * coat_attenuation(table, surf, wo, e)
+            emission[pix[e]] += beta[e] * seen
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
+        if table.has_coat:
+            # The coat or what lies under it (with its factor at the view direction wo).
+            mats, colors, scores, layer_scale, under, _ = pick_coat(table, surf.mat_ids, surf.colors, scores,
+                                                                    rng.random(len(pix)))
+            beta = beta * layer_scale[:, None]
+            if len(under):
+                beta[under] *= coat_attenuation(table, surf, wo, under)
+            ns = surf.ns if surf.nn is None else np.where((mats != surf.mat_ids)[:, None], surf.nn, surf.ns)
+            surf = dataclasses.replace(surf, ns=ns, mat_ids=mats, colors=colors)
         u = rng.random((len(pix), 3))
         non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
         total = non_delta + scores[:, MIRROR] + scores[:, DIELECTRIC]     # columns: sum(axis=1) is slow
@@ -196,6 +209,20 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
     return parts, rays
+
+
+def coat_attenuation(table, surf, wo, rows):
+    """(k, 3) factors under the coats at hits ``rows`` of ``surf`` seen from ``wo`` (rows whose
+    materials have no coat get 1): :meth:`~core.bsdf.MaterialTable.coat_attenuation` at the view
+    cosine with the normal before normal and bump maps."""
+    mats = surf.mat_ids.take(rows)
+    out = np.ones((len(rows), 3))
+    coated = np.flatnonzero(table.coat_row.take(mats) >= 0)
+    if len(coated):
+        r = rows.take(coated)
+        n_c = (surf.ns if surf.nn is None else surf.nn).take(r, axis=0)
+        out[coated] = table.coat_attenuation(mats.take(coated), np.abs(dot(wo.take(r, axis=0), n_c)))
+    return out
 
 
 def _empty_points():

@@ -43,6 +43,10 @@ class LightSampler:
         self.varies = np.zeros(m, bool) if varies is None else np.asarray(varies, bool)
         emissive_varies = self.varies & table.is_emissive
         self.textured_emitters = emitted is not None and bool(emissive_varies.any())
+        # Emitters under a coat (Materials.coat_weight) emit through it: its factor at the direction.
+        self.coated_emitters = bool(table.has_coat and scene.triangle_count
+                                    and (table.coat_row[scene.material_ids] >= 0).any())
+        self.table, self.material_ids = table, scene.material_ids
         self.lights = lights
         # Emission axes renormalised in float64 (the scene stores them in float32).
         self.axes = smp.normalize(lights.direction.astype(np.float64)) if lights.count else np.zeros((0, 3))
@@ -339,6 +343,13 @@ class LightSampler:
         emitted = power
         if self.textured_emitters:
             emitted = (2.0 * np.pi * a.area.take(ids))[:, None] * self.emitted(ids, b1, b2, positions=p)
+        if self.coated_emitters:
+            mats = self.material_ids.take(ids)
+            coated = np.flatnonzero(self.table.coat_row.take(mats) >= 0)
+            if len(coated):
+                # The photon's cosine with the emitter (flat: the coat's normal is the facet's).
+                emitted = np.array(emitted, np.float64)
+                emitted[coated] *= self.table.coat_attenuation(mats.take(coated), np.abs(smp.dot(d, n).take(coated)))
         return a.spawn(p, n, d), d, emitted, n
 
     def _textured_power(self, tris, tri_mat):

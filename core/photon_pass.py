@@ -29,9 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bsdf import (bump_shadowing, choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores,
-                   scatter)
+                   pick_coat, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
-from .eye_pass import MeasurementPoints
+from .eye_pass import MeasurementPoints, coat_attenuation
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from . import sampling as smp
@@ -400,11 +400,21 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             continue
         # Scatter with this vertex's block of dimensions.
         block = u[idx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
-        scores = lobe_scores(table, surf.mat_ids, surf.colors)
-        lobe, prob = choose_lobe(scores, block[:, 0])
-        u3 = lobe_remainder(scores, block[:, 0], lobe) if table.has_rough_dielectric else None
-        wi, weight, alive = scatter(table, surf.mat_ids, surf.colors, lobe, prob, wo, surf.ng, surf.ns,
+        mats, colors, ns, u0 = surf.mat_ids, surf.colors, surf.ns, block[:, 0]
+        scores = lobe_scores(table, mats, colors)
+        if table.has_coat:
+            # The coat or what lies under it, by the lobe-choice number (rescaled for the lobes).
+            mats, colors, scores, layer_scale, under, u0 = pick_coat(table, mats, colors, scores, u0)
+            ns = _coat_normals(surf, mats)
+        lobe, prob = choose_lobe(scores, u0)
+        u3 = lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric else None
+        wi, weight, alive = scatter(table, mats, colors, lobe, prob, wo, surf.ng, ns,
                                     block[:, 1], block[:, 2], "importance", u3, surf.nn)
+        if table.has_coat:
+            # Under a coat: its factor at the view (camera-side) direction, for photons the new one.
+            weight *= layer_scale[:, None]
+            if len(under):
+                weight[under] *= coat_attenuation(table, surf, wi, under)
         new_flux = flux * weight
         # Russian roulette on the luminance ratio (the path stays a function of u).
         ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)
@@ -429,6 +439,14 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         sums.flush()
         sum_d, sum_g = sums.diffuse, sums.glossy
     return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
+
+
+def _coat_normals(surf, mats):
+    """Shading normals at hits whose materials ``mats`` (after :func:`~core.bsdf.pick_coat`) may be
+    coats: the normal before normal and bump maps there, which do not bend a coat."""
+    if surf.nn is None:
+        return surf.ns
+    return np.where((mats != surf.mat_ids)[:, None], surf.nn, surf.ns)
 
 
 def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps):

@@ -255,6 +255,15 @@ def fresnel_rise(cos_i, eta):
     return np.clip((f - f0) / (1.0 - f0), 0.0, 1.0)
 
 
+def mean_fresnel(ior) -> float:
+    """Cosine-weighted hemispherical mean of the unpolarised dielectric Fresnel reflectance
+    (Cycles' ``fresnel_dielectric_Fss``), 2 int F(mu) mu dmu, by the midpoint rule."""
+    eta = max(float(ior), 1.0 + 1e-4)
+    mu = (np.arange(256) + 0.5) / 256
+    f, _ = fresnel_dielectric(mu, eta)
+    return float(np.mean(2.0 * mu * f))
+
+
 def _ggx_reflection_nodes(alpha, mu, strata):
     """Quadrature of ``ggx_albedo``: weights (k, strata^2) whose row means are E(mu), and the
     cosines wo.m of their microfacet normals."""

@@ -91,6 +91,16 @@ class Materials:
     ``transparent_color`` (``RenderContext.trace``; Cycles' stochastic transparency).  The lobe
     weights and emission describe the opaque part alone.
 
+    A coat (Principled's Coat) lies over all of that: a GGX dielectric interface of weight
+    ``coat_weight`` (0: none), Blender roughness ``coat_roughness`` and index ``coat_ior``, which
+    reflects ``coat_weight`` F(c) at microfacet cosine c (the real dielectric Fresnel, with
+    multiscatter energy compensation; untinted).  Everything under it (every lobe and the
+    emission) is scaled at the view direction's cosine mu with the surface normal before normal
+    and bump maps (which do not bend the coat) by
+    (1 - ``coat_weight`` K(mu) (F0 + (1 - F0) S(mu))) (1 - ``coat_weight`` + ``coat_weight``
+    ``coat_tint`` ^ (1 / cos_t(mu))), as Cycles: the coat's albedo at mu (K and S as for the
+    Fresnel layer above) and the tint of a path through the coat refracted to cos_t.
+
     A tangent-space normal map (Blender's Normal Map node) bends the shading normal of every
     lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
     2 c - 1 along tangent, bitangent and normal), looked up with the triangle UVs in the frame of
@@ -137,6 +147,10 @@ class Materials:
     opacity: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 1
     opacity_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
     transparent_color: np.ndarray = None                # (M, 3) float32; None: 1
+    coat_weight: np.ndarray = None                      # (M,) float32 in [0, 1]; None: 0
+    coat_roughness: np.ndarray = None                   # (M,) float32 in [0, 1]; None: 0.03
+    coat_ior: np.ndarray = None                         # (M,) float32 >= 1; None: 1.5
+    coat_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -146,7 +160,8 @@ class Materials:
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
-                    "opacity_program", "transparent_color")
+                    "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
+                    "coat_tint")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program")
@@ -178,6 +193,8 @@ class Materials:
         then defaults to 1, ``bump_program`` one for a bump's height (with ``bump_strength`` and
         ``bump_distance``) and ``opacity_program`` one for the opacity (equal programs are stored
         once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
+        ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
+        ``coat_tint`` (1) give it a coat.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -214,6 +231,10 @@ class Materials:
         out.opacity = np.ones(m, np.float32)
         out.opacity_program = np.full(m, -1, np.int32)
         out.transparent_color = np.ones((m, 3), np.float32)
+        out.coat_weight = np.zeros(m, np.float32)
+        out.coat_roughness = np.full(m, 0.03, np.float32)
+        out.coat_ior = np.full(m, 1.5, np.float32)
+        out.coat_tint = np.ones((m, 3), np.float32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -257,6 +278,10 @@ class Materials:
             out.opacity[i] = s.get("opacity", 1.0)
             out.transparent_color[i] = np.broadcast_to(
                 np.asarray(s.get("transparent_color", 1.0), np.float32), (3,))
+            out.coat_weight[i] = s.get("coat", 0.0)
+            out.coat_roughness[i] = s.get("coat_roughness", 0.03)
+            out.coat_ior[i] = s.get("coat_ior", 1.5)
+            out.coat_tint[i] = np.broadcast_to(np.asarray(s.get("coat_tint", 1.0), np.float32), (3,))
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
             out.bump_texture[i] = s.get("bump_texture", -1)
@@ -591,12 +616,14 @@ class Scene:
                                        ("roughness_program", (n,), -1), ("dielectric_program", (n,), -1),
                                        ("bump_program", (n,), -1), ("opacity", (n,), 1.0),
                                        ("opacity_program", (n,), -1),
-                                       ("transparent_color", (n, 3), 1.0)):
+                                       ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
+                                       ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
+                                       ("coat_tint", (n, 3), 1.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
-            tail = (3,) if name.endswith(("color", "emission", "multiscatter", "rise", "layer")) else ()
+            tail = (3,) if name.endswith(("color", "emission", "multiscatter", "rise", "layer", "tint")) else ()
             dtype = np.int32 if name in Materials.INDEX_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
             if name not in Materials.SIGNED_FIELDS and (v < 0).any():
@@ -605,9 +632,12 @@ class Scene:
             setattr(mats, name, v)
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
-        if (mats.opacity > 1).any():
-            bad = mats.names[int(np.argmax(mats.opacity > 1))]
-            fail(f"materials.opacity is above 1 for material '{bad}'")
+        for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("coat_roughness", 0.0, 1.0),
+                                ("coat_ior", 1.0, np.inf)):
+            v = getattr(mats, name)
+            if ((v < low) | (v > high)).any():
+                bad = mats.names[int(np.argmax((v < low) | (v > high)))]
+                fail(f"materials.{name} is outside [{low}, {high}] for material '{bad}'")
         self._validate_programs(fail)
         for name in Materials.INT_FIELDS:
             v = getattr(mats, name)

@@ -55,6 +55,7 @@ import numpy as np
 from ...core import procedural
 from ...core.bsdf import metal_fresnel
 from ...core.imageio import linear_to_srgb
+from ...core.sampling import mean_fresnel
 from ...core.scene import Materials
 from .procedural import FLOAT, VEC, ExpressionBuilder
 
@@ -398,18 +399,6 @@ def textured(source) -> bool:
 
 def _weighted(a, b, wa, wb):
     return (a * wa + b * wb) / (wa + wb) if wa + wb > 0 else (a if wa >= wb else b)
-
-
-def mean_fresnel(ior) -> float:
-    """Cosine-weighted hemispherical mean of the unpolarised dielectric Fresnel reflectance."""
-    eta = max(float(ior), 1.0 + 1e-4)
-    mu = (np.arange(256) + 0.5) / 256          # cos(theta_i), midpoint rule for int 2 mu F dmu
-    sin_t2 = (1.0 - mu * mu) / (eta * eta)
-    cos_t = np.sqrt(1.0 - sin_t2)
-    rs = (mu - eta * cos_t) / (mu + eta * cos_t)
-    rp = (eta * mu - cos_t) / (eta * mu + cos_t)
-    f = 0.5 * (rs * rs + rp * rp)
-    return float(np.mean(2.0 * mu * f))
 
 
 def specular_ior(ior, level):

@@ -88,7 +88,7 @@ def test_crossings_are_decided_by_the_opacity_and_limited():
 
 
 def test_opacity_above_one_is_refused():
-    with pytest.raises(SceneError, match="opacity is above 1 for material 'leaf'"):
+    with pytest.raises(SceneError, match=r"opacity is outside \[0.0, 1.0\] for material 'leaf'"):
         leaf_over_floor({"diffuse": 0.5, "opacity": 1.5})
 
 
