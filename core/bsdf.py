@@ -141,6 +141,7 @@ class MaterialTable:
     coat_row: np.ndarray = None             # (M,) int32 the coat's material (coat_variants) or -1
     coat_factor: np.ndarray = None          # (M, MS_NODES + 1, 3) float64 factor under the coat at mu
     coat_score: np.ndarray = None           # (M, 2) float64 mean lobe-score totals: coat, factor under it
+    is_coat: np.ndarray = None              # (M,) bool: a coat's material (camera paths go on through it)
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None) -> "MaterialTable":
@@ -223,7 +224,8 @@ class MaterialTable:
                              glossy_program=glossy_program,
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
                              emission_program=emission_program, dielectric_program=dielectric_program,
-                             coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score)
+                             coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
+                             is_coat=np.isin(np.arange(m), coat_row[coated]))
 
     @property
     def has_normal_maps(self) -> bool:

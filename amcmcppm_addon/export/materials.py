@@ -91,6 +91,10 @@ class Closure:
     opacity_texture: dict = None    # float program of the opacity where it varies (an alpha map)
     normal_map: tuple = None        # (texture index, strength, uv map name) of a tangent-space normal map
     bump: tuple = None              # (texture index or height program, strength, distance) of a bump map
+    coat: float = 0.0               # weight of a coat over everything (Principled's Coat), 0: none
+    coat_roughness: float = 0.03    # the coat's roughness, IOR and tint
+    coat_ior: float = 1.5
+    coat_tint: np.ndarray = field(default_factory=lambda: np.ones(3))
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -124,6 +128,13 @@ class Closure:
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
+        # A coat lies over the whole material (one coat per material, NodeWalker._note_coats):
+        # its weight mixes as the lobes', its parameters by the coats' weights.
+        ca, cb = fa * self.coat, fb * other.coat
+        out.coat = ca + cb
+        out.coat_roughness = _weighted(self.coat_roughness, other.coat_roughness, ca, cb)
+        out.coat_ior = _weighted(self.coat_ior, other.coat_ior, ca, cb)
+        out.coat_tint = (ca * self.coat_tint + cb * other.coat_tint) / out.coat if out.coat > 0 else np.ones(3)
         # One bent normal per material: the first side's that has weight.
         bent = [c for c, f in ((self, fa), (other, fb)) if f > 0 and (c.normal_map or c.bump)]
         out.normal_map, out.bump = (bent[0].normal_map, bent[0].bump) if bent else (None, None)
@@ -223,6 +234,11 @@ class Closure:
             "op": "image", "texture": int(self.texture), "vector": {"op": "attribute", "name": "uv"}}
         return _times(source, w)
 
+    def same_coat(self, other) -> bool:
+        """Whether both closures have the same coat (or none)."""
+        return (np.isclose(self.coat, other.coat) and np.isclose(self.coat_roughness, other.coat_roughness)
+                and np.isclose(self.coat_ior, other.coat_ior) and np.allclose(self.coat_tint, other.coat_tint))
+
     def same_except_diffuse(self, other) -> bool:
         """Whether the two closures differ in their diffuse lobes only, or also in a glossy colour
         and weight without a Fresnel rise (a varying Mix factor is then exact)."""
@@ -250,7 +266,7 @@ class Closure:
         if o <= 0.0:
             return Closure(roughness=self.roughness, ior=self.ior)
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
-                                                             "rise", "layer", "layered")}
+                                                             "rise", "layer", "layered", "coat")}
         out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
                                   opacity_texture=None,
                                   reflection=None if self.reflection is None else self.reflection / o)
@@ -306,6 +322,9 @@ class Closure:
         elif self.texture >= 0:
             s["diffuse_texture"] = self.texture
             s["diffuse"] = np.ones(3)
+        if self.coat > 0:
+            s.update(coat=min(self.coat, 1.0), coat_roughness=self.coat_roughness, coat_ior=self.coat_ior,
+                     coat_tint=self.coat_tint)
         if self.normal_map is not None:
             s["normal_texture"], s["normal_strength"], s["normal_uv_map"] = self.normal_map
         if self.bump is not None:
@@ -801,12 +820,22 @@ class NodeWalker:
         if procedural.varies(f):
             return self._masked_mix(node, "Fac", f, a, b)
         fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
+        if 0.0 < fac < 1.0:
+            self._note_coats(node, a, b)
         return a.combine(b, 1.0 - fac, fac)
 
     def _add(self, node, stack):
         a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()
         b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
+        self._note_coats(node, a, b)
         return a.combine(b, 1.0, 1.0)
+
+    def _note_coats(self, node, a, b):
+        """Note a mix of shaders with different coats: the core has one coat per material, which
+        then lies over both (weighted), where Cycles coats only its own Principled BSDF."""
+        if not (a.same_coat(b) or a.only_transparent or b.only_transparent):
+            self.note(f"'{node.name}': mixes shaders with different coats; one coat (weighted) "
+                      "covers both")
 
     def _diffuse(self, node, stack):
         color, tex = self.color(node.inputs["Color"], stack)
@@ -893,6 +922,7 @@ class NodeWalker:
         mask; clamped to [0, 1] as Cycles does): exact for the diffuse colours and the glossy ones
         without a Fresnel rise (``Closure.combine``), the rest by f's mean, noted."""
         f = _clamp01(f)
+        self._note_coats(node, a, b)
         mean = procedural.mean_value(f, self.textures.images)
         if not (a.same_except_diffuse(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': a varying {what} mixes the diffuse colours point by point and the "
@@ -933,6 +963,10 @@ class NodeWalker:
         level = max(self.value(inp["Specular IOR Level"], stack), 0.0)
         tint, _ = self.color(inp["Specular Tint"], stack)
         emitted = self.emitted(inp["Emission Color"], inp["Emission Strength"], stack)
+        coat = float(np.clip(self.value(inp["Coat Weight"], stack), 0.0, 1.0)) if "Coat Weight" in inp else 0.0
+        if coat > 0 and inp["Coat Normal"].is_linked:
+            self.note(f"'{node.name}': Coat Normal not supported (the coat takes the surface's normal "
+                      "before normal and bump maps, Cycles' default)")
         ignored = [label for label, socket in PRINCIPLED_IGNORED
                    if socket in inp and self.value(inp[socket], stack) > 0.0]
         if ignored:
@@ -945,6 +979,13 @@ class NodeWalker:
         c = Closure(roughness=rough, ior=ior, emission=emitted.emission,
                     emission_texture=emitted.emission_texture, dielectric_roughness=rough,
                     roughness_texture=rough_map)
+        if coat > 0:
+            # Cycles: roughness and tint saturated, the IOR at least 1.
+            c.coat = coat
+            c.coat_roughness = float(np.clip(self.value(inp["Coat Roughness"], stack), 0.0, 1.0))
+            c.coat_ior = max(self.value(inp["Coat IOR"], stack), 1.0)
+            tint, _ = self.color(inp["Coat Tint"], stack)
+            c.coat_tint = np.clip(tint, 0.0, 1.0)
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
         metal = metal_fresnel(flat_base, tint)     # Cycles' metallic layer: F82 with the specular tint
@@ -983,7 +1024,6 @@ class NodeWalker:
 
 # Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
 PRINCIPLED_IGNORED = (("Diffuse Roughness", "Diffuse Roughness"), ("Subsurface", "Subsurface Weight"),
-                      ("Coat", "Coat Weight"),
                       ("Sheen", "Sheen Weight"), ("Anisotropic", "Anisotropic"),
                       ("Thin Film", "Thin Film Thickness"))
 

@@ -899,11 +899,31 @@ def test_principled_mapping(scene):
 
 
 def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
-    _, ex = export_material(principled("Paint", **{"Coat Weight": 0.5, "Sheen Weight": 0.2}))
+    _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Anisotropic": 0.5}))
     warnings = [w for w in ex.warnings if "'Paint'" in w]
-    assert len(warnings) == 1 and "Coat, Sheen not supported" in warnings[0], ex.warnings
+    assert len(warnings) == 1 and "Sheen, Anisotropic not supported" in warnings[0], ex.warnings
     _, ex = export_material(principled("Plain"))
     assert not [w for w in ex.warnings if "'Plain'" in w]
+
+
+def test_principled_coat_is_exported_with_cycles_clamps(scene):
+    """Coat Weight, Roughness, IOR and Tint reach the core (weight and tint saturated, the IOR at
+    least 1, as Cycles); no coat without weight; a linked Coat Normal is noted."""
+    row, ex = export_material(principled("Varnish", **{"Coat Weight": 0.7, "Coat Roughness": 0.2,
+                                                       "Coat IOR": 1.8, "Coat Tint": (1.2, 0.5, 0.25, 1)}))
+    assert row["coat_weight"] == pytest.approx(0.7) and row["coat_roughness"] == pytest.approx(0.2)
+    assert row["coat_ior"] == pytest.approx(1.8) and row["coat_tint"] == pytest.approx([1.0, 0.5, 0.25])
+    assert not [w for w in ex.warnings if "'Varnish'" in w]
+    row, _ = export_material(principled("Low", **{"Coat Weight": 0.5, "Coat IOR": 0.5}))
+    assert row["coat_ior"] == pytest.approx(1.0)
+    row, _ = export_material(principled("Bare"))
+    assert row["coat_weight"] == 0
+    mat = principled("Bumped", **{"Coat Weight": 1.0})
+    nt = mat.node_tree
+    bump = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(bump.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Coat Normal"])
+    _, ex = export_material(mat)
+    assert any("Coat Normal not supported" in w for w in ex.warnings), ex.warnings
 
 
 def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_gets_none(scene):
