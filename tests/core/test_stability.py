@@ -135,7 +135,29 @@ def transparent_stack():
     return with_one_object(scene).replace(materials=Materials.build(specs)).validate()
 
 
-SCENES = {"parallel_mirrors": parallel_mirrors, "wild_procedural_colour": wild_procedural_colour,
+def extreme_coats():
+    """The room's walls, lamp and two boxes under extreme coats: IOR 1 (a coat that reflects
+    nothing) with a black tint over the walls, a coat of IOR 1e6 and roughness 1 over a glass box,
+    a sharp coat over a mirror box, a coat of weight 1e-8 over the lamp, and a roughness map under a
+    coat on the floor."""
+    room = cornell_like()
+    wild = {"op": "math", "operation": "DIVIDE", "a": 0.01,
+            "b": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}}
+    specs = [{"name": "wall", "diffuse": 0.7, "coat": 1.0, "coat_ior": 1.0, "coat_tint": 0.0, "glossy": 0.5},
+             {"name": "lamp", "emission": 5.0, "coat": 1e-8, "coat_tint": (1.0, 0.0, 1e-30)},
+             {"name": "glass", "dielectric": 1.0, "coat": 1.0, "coat_ior": 1e6, "coat_roughness": 1.0},
+             {"name": "mirror", "mirror": 1.0, "coat": 1.0, "coat_roughness": 0.0}]
+    m = MeshBuilder()
+    m.tris, m.mats = [room.triangle_corners()], [room.material_ids]
+    m.normals = [np.zeros((room.triangle_count, 3, 3))]
+    m.add_box((-0.7, -0.3, 0), (-0.1, 0.3, 0.8), 2)
+    m.add_box((0.2, -0.2, 0), (0.7, 0.3, 1.2), 3)
+    scene = m.build(Materials.build(specs), camera=room.camera)
+    specs[0] = {**specs[0], "roughness_program": wild}
+    return with_one_object(scene).replace(materials=Materials.build(specs)).validate()
+
+
+SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats, "wild_procedural_colour": wild_procedural_colour,
           "transparent_stack": transparent_stack,
           "light_trapped_in_glass": light_trapped_in_glass,
           "camera_inside_glass_sphere": camera_inside_glass_sphere,
