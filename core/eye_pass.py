@@ -159,16 +159,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             beta = beta * layer_scale[:, None]
             if len(under):
                 beta[under] *= coat_attenuation(table, surf, wo, under)
-            ns = surf.ns if surf.nn is None else np.where((mats != surf.mat_ids)[:, None], surf.nn, surf.ns)
-            surf = dataclasses.replace(surf, ns=ns, mat_ids=mats, colors=colors)
+            surf = dataclasses.replace(surf, ns=coat_normals(surf, mats), mat_ids=mats, colors=colors)
         u = rng.random((len(pix), 3))
         non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
         total = non_delta + scores[:, MIRROR] + scores[:, DIELECTRIC]     # columns: sum(axis=1) is slow
         through_coat = None
         if table.has_coat:
-            # Camera paths go on through a coat's glossy lobe (sampled as a mirror's direction):
-            # photons could hardly find its narrow lobe (Cycles' default roughness is 0.03), and
-            # the path then sees lights and the world in the coat.
+            # Camera paths go on through a coat's glossy lobe (a direction sampled from it), as
+            # through a mirror: photons could hardly find its narrow lobe (Cycles' default
+            # roughness is 0.03), and the path then sees lights and the world in the coat.
             through_coat = table.is_coat.take(surf.mat_ids)
             non_delta = np.where(through_coat, 0.0, non_delta)
         p_nd = np.where(total > 0, non_delta / np.where(total > 0, total, 1), 0)
@@ -218,6 +217,14 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
     return parts, rays
+
+
+def coat_normals(surf, mats):
+    """Shading normals at hits whose materials ``mats`` (after :func:`~core.bsdf.pick_coat`) may be
+    coats: the normal before normal and bump maps there, which do not bend a coat."""
+    if surf.nn is None:
+        return surf.ns
+    return np.where((mats != surf.mat_ids)[:, None], surf.nn, surf.ns)
 
 
 def coat_attenuation(table, surf, wo, rows):

@@ -349,7 +349,8 @@ class LightSampler:
             if len(coated):
                 # The photon's cosine with the emitter (flat: the coat's normal is the facet's).
                 emitted = np.array(emitted, np.float64)
-                emitted[coated] *= self.table.coat_attenuation(mats.take(coated), np.abs(smp.dot(d, n).take(coated)))
+                mu = np.abs(smp.dot(d, n).take(coated))
+                emitted[coated] *= self.table.coat_attenuation(mats.take(coated), mu)
         return a.spawn(p, n, d), d, emitted, n
 
     def _textured_power(self, tris, tri_mat):

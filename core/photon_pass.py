@@ -31,7 +31,7 @@ import numpy as np
 from .bsdf import (bump_shadowing, choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores,
                    pick_coat, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
-from .eye_pass import MeasurementPoints, coat_attenuation
+from .eye_pass import MeasurementPoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from . import sampling as smp
@@ -405,7 +405,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         if table.has_coat:
             # The coat or what lies under it, by the lobe-choice number (rescaled for the lobes).
             mats, colors, scores, layer_scale, under, u0 = pick_coat(table, mats, colors, scores, u0)
-            ns = _coat_normals(surf, mats)
+            ns = coat_normals(surf, mats)
         lobe, prob = choose_lobe(scores, u0)
         u3 = lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric else None
         wi, weight, alive = scatter(table, mats, colors, lobe, prob, wo, surf.ng, ns,
@@ -439,14 +439,6 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         sums.flush()
         sum_d, sum_g = sums.diffuse, sums.glossy
     return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
-
-
-def _coat_normals(surf, mats):
-    """Shading normals at hits whose materials ``mats`` (after :func:`~core.bsdf.pick_coat`) may be
-    coats: the normal before normal and bump maps there, which do not bend a coat."""
-    if surf.nn is None:
-        return surf.ns
-    return np.where((mats != surf.mat_ids)[:, None], surf.nn, surf.ns)
 
 
 def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps):

@@ -623,7 +623,8 @@ class Scene:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
-            tail = (3,) if name.endswith(("color", "emission", "multiscatter", "rise", "layer", "tint")) else ()
+            colour = name.endswith(("color", "emission", "multiscatter", "rise", "layer", "tint"))
+            tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INDEX_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
             if name not in Materials.SIGNED_FIELDS and (v < 0).any():
@@ -632,8 +633,8 @@ class Scene:
             setattr(mats, name, v)
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
-        for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("coat_roughness", 0.0, 1.0),
-                                ("coat_ior", 1.0, np.inf)):
+        for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0),
+                                ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf)):
             v = getattr(mats, name)
             if ((v < low) | (v > high)).any():
                 bad = mats.names[int(np.argmax((v < low) | (v > high)))]

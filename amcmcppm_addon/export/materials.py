@@ -134,7 +134,8 @@ class Closure:
         out.coat = ca + cb
         out.coat_roughness = _weighted(self.coat_roughness, other.coat_roughness, ca, cb)
         out.coat_ior = _weighted(self.coat_ior, other.coat_ior, ca, cb)
-        out.coat_tint = (ca * self.coat_tint + cb * other.coat_tint) / out.coat if out.coat > 0 else np.ones(3)
+        out.coat_tint = ((ca * self.coat_tint + cb * other.coat_tint) / out.coat if out.coat > 0
+                         else np.ones(3))
         # One bent normal per material: the first side's that has weight.
         bent = [c for c, f in ((self, fa), (other, fb)) if f > 0 and (c.normal_map or c.bump)]
         out.normal_map, out.bump = (bent[0].normal_map, bent[0].bump) if bent else (None, None)
@@ -236,8 +237,10 @@ class Closure:
 
     def same_coat(self, other) -> bool:
         """Whether both closures have the same coat (or none)."""
-        return (np.isclose(self.coat, other.coat) and np.isclose(self.coat_roughness, other.coat_roughness)
-                and np.isclose(self.coat_ior, other.coat_ior) and np.allclose(self.coat_tint, other.coat_tint))
+        return bool(np.isclose(self.coat, other.coat)
+                    and np.isclose(self.coat_roughness, other.coat_roughness)
+                    and np.isclose(self.coat_ior, other.coat_ior)
+                    and np.allclose(self.coat_tint, other.coat_tint))
 
     def same_except_diffuse(self, other) -> bool:
         """Whether the two closures differ in their diffuse lobes only, or also in a glossy colour
@@ -963,7 +966,7 @@ class NodeWalker:
         level = max(self.value(inp["Specular IOR Level"], stack), 0.0)
         tint, _ = self.color(inp["Specular Tint"], stack)
         emitted = self.emitted(inp["Emission Color"], inp["Emission Strength"], stack)
-        coat = float(np.clip(self.value(inp["Coat Weight"], stack), 0.0, 1.0)) if "Coat Weight" in inp else 0.0
+        coat = float(np.clip(self.value(inp["Coat Weight"], stack), 0.0, 1.0))
         if coat > 0 and inp["Coat Normal"].is_linked:
             self.note(f"'{node.name}': Coat Normal not supported (the coat takes the surface's normal "
                       "before normal and bump maps, Cycles' default)")

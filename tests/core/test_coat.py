@@ -63,16 +63,17 @@ def rendered_halves(scene, method, seeds, passes):
     return np.mean(runs, axis=0)
 
 
+FURNACE = "white under a rough coat (a furnace)"
 COATS = {
-    "white under a rough coat (a furnace)": {"diffuse": 1.0, "coat": 1.0, "coat_roughness": 0.3},
+    FURNACE: {"diffuse": 1.0, "coat": 1.0, "coat_roughness": 0.3},
     "tinted half coat of IOR 2": {"diffuse": 0.8, "coat": 0.6, "coat_roughness": 0.5, "coat_ior": 2.0,
                                   "coat_tint": (1.0, 0.5, 0.25)},
     "sharp coat (a mirror)": {"diffuse": 0.5, "coat": 1.0, "coat_roughness": 0.01},
 }
 
 
-CASES = [("white under a rough coat (a furnace)", METHODS[0]), ("white under a rough coat (a furnace)", METHODS[1]),
-         ("tinted half coat of IOR 2", METHODS[0]), ("sharp coat (a mirror)", METHODS[1])]
+CASES = [(FURNACE, METHODS[0]), (FURNACE, METHODS[1]), ("tinted half coat of IOR 2", METHODS[0]),
+         ("sharp coat (a mirror)", METHODS[1])]
 
 
 @pytest.mark.parametrize("name, method", CASES, ids=lambda x: x["method"] if isinstance(x, dict) else x)
@@ -137,8 +138,8 @@ def test_an_emitter_under_a_coat_emits_through_it():
     from core.scene import Camera, World
     from core.testing.scenes import MeshBuilder
     for coat in (0.0, 1.0):
-        mats = Materials.build([{"name": "panel", "emission": 1.0, "coat": coat, "coat_tint": (1.0, 1.0, 0.5)},
-                                {"name": "floor", "diffuse": 0.5}])
+        panel = {"name": "panel", "emission": 1.0, "coat": coat, "coat_tint": (1.0, 1.0, 0.5)}
+        mats = Materials.build([panel, {"name": "floor", "diffuse": 0.5}])
         m = MeshBuilder()
         m.add_quad((-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1), 0)
         m.add_quad((-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0), 1)

@@ -157,7 +157,8 @@ def extreme_coats():
     return with_one_object(scene).replace(materials=Materials.build(specs)).validate()
 
 
-SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats, "wild_procedural_colour": wild_procedural_colour,
+SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
+          "wild_procedural_colour": wild_procedural_colour,
           "transparent_stack": transparent_stack,
           "light_trapped_in_glass": light_trapped_in_glass,
           "camera_inside_glass_sphere": camera_inside_glass_sphere,
