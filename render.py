@@ -38,7 +38,7 @@ SETTING_FLAGS = {
     "target_acceptance": "target_acceptance", "mutation": "mutation", "normalisation": "normalisation",
     "photons_per_pass": "photons_per_pass", "workers": "workers", "chains": "chains",
     "initial_radius": "initial_radius_px", "alpha": "alpha", "max_bounces": "max_bounces",
-    "initial_mutation_size": "initial_mutation_size",
+    "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
 }
 
 
@@ -77,6 +77,8 @@ def build_parser():
     g.add_argument("--alpha", type=float)
     g.add_argument("--max-bounces", type=int)
     g.add_argument("--initial-mutation-size", type=float)
+    g.add_argument("--glossy-through", type=float,
+                   help="camera paths go on through glossy lobes smoother than this roughness")
     f = p.add_argument_group("frame")
     f.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"), help="resolution before percentage")
     f.add_argument("--resolution-percentage", type=int, metavar="P")

@@ -36,6 +36,8 @@ def build_parser():
                    help="initial gather radius in pixel footprints")
     r.add_argument("--alpha", type=float, default=d.alpha)
     r.add_argument("--max-bounces", type=int, default=d.max_bounces)
+    r.add_argument("--glossy-through", type=float, default=d.glossy_through_roughness,
+                   help="camera paths go on through glossy lobes smoother than this roughness")
     r.add_argument("--workers", type=int, default=d.workers, help="0 = one per CPU core")
     r.add_argument("--stats", help="write per-pass statistics as JSON lines to this file")
     r.add_argument("--quiet", "-q", action="store_true")
@@ -47,7 +49,8 @@ def settings_from_args(a) -> RenderSettings:
                           photons_per_pass=a.photons_per_pass, seed=a.seed, alpha=a.alpha,
                           initial_radius_px=a.initial_radius, max_bounces=a.max_bounces,
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
-                          mutation=a.mutation, normalisation=a.normalisation)
+                          mutation=a.mutation, normalisation=a.normalisation,
+                          glossy_through_roughness=a.glossy_through)
 
 
 def main(argv=None) -> int:

@@ -142,13 +142,15 @@ class MaterialTable:
     coat_row: np.ndarray = None             # (M,) int32 the coat's material (coat_variants) or -1
     coat_factor: np.ndarray = None          # (M, MS_NODES + 1, 3) float64 factor under the coat at mu
     coat_score: np.ndarray = None           # (M, 2) float64 mean lobe-score totals: coat, factor under it
-    is_coat: np.ndarray = None              # (M,) bool: a coat's material (camera paths go on through it)
+    glossy_through: np.ndarray = None       # (M,) bool: camera paths go on through the glossy lobe
 
     @staticmethod
-    def from_materials(mats, coarse=None, coat_row=None) -> "MaterialTable":
+    def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
         """The table of materials ``mats``; ``coarse`` (M,) bool marks rows whose GGX albedo
         tables may use the coarser quadrature ``COARSE_STRATA`` (the copies of a roughness map:
-        1e-3 of the exact albedo, 7 times faster); ``coat_row`` is :func:`coat_variants`'s."""
+        1e-3 of the exact albedo, 7 times faster); ``coat_row`` is :func:`coat_variants`'s.
+        Camera paths go on through the glossy lobes (coats' included) of a roughness below
+        ``through_roughness`` (``glossy_through``) instead of ending there."""
         m = mats.count
         coarse = np.zeros(m, bool) if coarse is None else np.asarray(coarse, bool)
         weight = np.zeros((m, 4))
@@ -226,7 +228,7 @@ class MaterialTable:
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
                              emission_program=emission_program, dielectric_program=dielectric_program,
                              coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
-                             is_coat=np.isin(np.arange(m), coat_row[coated]))
+                             glossy_through=glossy_on & (mats.glossy_roughness < through_roughness))
 
     @property
     def has_normal_maps(self) -> bool:
@@ -261,6 +263,10 @@ class MaterialTable:
     @cached_property
     def has_layer(self) -> bool:
         return bool((self.layer != 1).any())
+
+    @cached_property
+    def has_glossy_through(self) -> bool:
+        return self.glossy_through is not None and bool(self.glossy_through.any())
 
     @cached_property
     def has_coat(self) -> bool:

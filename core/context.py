@@ -12,6 +12,7 @@ from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, normalize
+from .settings import GLOSSY_THROUGH_ROUGHNESS
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -36,7 +37,8 @@ class Surface:
 class RenderContext:
     """Scene plus acceleration structure and shading tables, built once per render/worker."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, glossy_through_roughness=GLOSSY_THROUGH_ROUGHNESS):
+        """``glossy_through_roughness``: ``RenderSettings.glossy_through_roughness``."""
         self.scene = scene
         self.accel = Accel(scene)
         # The materials, a copy per roughness level of those with a roughness map, and the coats.
@@ -44,7 +46,8 @@ class RenderContext:
         copies = np.arange(self.materials.count) >= scene.materials.count
         self.materials, coat_row = coat_variants(self.materials)
         copies = np.concatenate([copies, np.zeros(self.materials.count - len(copies), bool)])
-        self.table = MaterialTable.from_materials(self.materials, coarse=copies, coat_row=coat_row)
+        self.table = MaterialTable.from_materials(self.materials, coarse=copies, coat_row=coat_row,
+                                                  through_roughness=glossy_through_roughness)
         self.textures = Textures(scene.textures)
         # Procedural colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs

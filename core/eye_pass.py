@@ -163,13 +163,14 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         u = rng.random((len(pix), 3))
         non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
         total = non_delta + scores[:, MIRROR] + scores[:, DIELECTRIC]     # columns: sum(axis=1) is slow
-        through_coat = None
-        if table.has_coat:
-            # Camera paths go on through a coat's glossy lobe (a direction sampled from it), as
-            # through a mirror: photons could hardly find its narrow lobe (Cycles' default
-            # roughness is 0.03), and the path then sees lights and the world in the coat.
-            through_coat = table.is_coat.take(surf.mat_ids)
-            non_delta = np.where(through_coat, 0.0, non_delta)
+        through = None
+        if table.has_glossy_through:
+            # Camera paths go on through smooth glossy lobes (a direction sampled from the lobe),
+            # as through a mirror: photons could hardly find such narrow lobes (Cycles' default
+            # coat roughness is 0.03), and the path then sees lights and the world in them.  The
+            # diffuse part still ends the path (benchmarks/glossy_through.py).
+            through = table.glossy_through.take(surf.mat_ids)
+            non_delta = np.where(through, scores[:, DIFFUSE], non_delta)
         p_nd = np.where(total > 0, non_delta / np.where(total > 0, total, 1), 0)
         stop = u[:, 0] < p_nd
         if stop.any():
@@ -200,8 +201,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         # Continue through the delta lobes only (rescale the lobe number into the delta range).
         delta_scores = scores[go].copy()
         delta_scores[:, [DIFFUSE, GLOSSY]] = 0.0
-        if through_coat is not None:
-            delta_scores[:, GLOSSY] = np.where(through_coat[go], scores[go, GLOSSY], 0.0)
+        if through is not None:
+            delta_scores[:, GLOSSY] = np.where(through[go], scores[go, GLOSSY], 0.0)
         u_delta = (u[go, 0] - p_nd[go]) / np.maximum(1.0 - p_nd[go], 1e-300)
         u_delta = np.clip(u_delta, 0.0, np.nextafter(1.0, 0.0))
         lobe, prob = choose_lobe(delta_scores, u_delta)

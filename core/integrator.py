@@ -163,7 +163,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     scene = scene.validate()
     t0 = time.perf_counter()
     stop = should_stop or (lambda: False)
-    ctx = RenderContext(scene)
+    ctx = RenderContext(scene, settings.glossy_through_roughness)
     x0, x1, y0, y1 = scene.camera.window
     width, height = x1 - x0, y1 - y0
     n_pixels = width * height

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 METHODS = ("amcmcppm", "ppm")
 AUTO_PHOTONS_MIN = 100_000          # photons per pass and worker at least (automatic count)
 AUTO_PHOTONS_PER_PIXEL = 0.5        # ... and per pixel of the image (benchmarks/photons_per_pass.py)
+GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins below, loses above
 AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
 MUTATIONS = ("off", "paper", "exact")
 NORMALISATIONS = ("cumulative", "per_pass")
@@ -82,6 +83,12 @@ class RenderSettings:
     initial_mutation_size: float = 1.0
     """theta_1, the mutation size every chain starts with."""
 
+    glossy_through_roughness: float = GLOSSY_THROUGH_ROUGHNESS
+    """Camera paths go on through glossy lobes (coats' too) of a smaller roughness (Blender's), as
+    through a mirror, instead of ending on them to gather photons: photons find narrow lobes
+    rarely, while a path through a wide lobe meets small lights by chance (measured with
+    ``benchmarks/glossy_through.py``)."""
+
     def __post_init__(self):
         def bad(name, why):
             raise ValueError(f"RenderSettings.{name} {why} (got {getattr(self, name)!r})")
@@ -114,6 +121,8 @@ class RenderSettings:
             bad("target_acceptance", "must lie in (0, 1)")
         if not 1e-4 <= self.initial_mutation_size <= 1e3:
             bad("initial_mutation_size", "must lie in [1e-4, 1e3]")
+        if not 0 <= self.glossy_through_roughness <= 1:
+            bad("glossy_through_roughness", "must lie in [0, 1]")
 
     @property
     def worker_count(self) -> int:

@@ -28,7 +28,7 @@ class PhotonWorker:
     """Traces the photons of one worker's share of every pass."""
 
     def __init__(self, scene, settings, index=0, ctx=None):
-        self.ctx = ctx if ctx is not None else RenderContext(scene)
+        self.ctx = ctx if ctx is not None else RenderContext(scene, settings.glossy_through_roughness)
         self.settings = settings
         self.index = index
         self.dims = path_dims(settings.max_bounces)
