@@ -100,9 +100,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="How the fraction of photon paths seen by the camera is estimated")
     glossy_through_roughness: FloatProperty(
         name="Glossy Through", default=_DEFAULTS.glossy_through_roughness, min=0.0, max=1.0, precision=3,
-        description="Camera paths go on through glossy surfaces (and coats) smoother than this "
-                    "roughness, as through a mirror, instead of gathering photons there: photons rarely "
-                    "find narrow lobes, and paths through wide ones meet small lights by chance")
+        description="Camera paths go on through glossy surfaces without a diffuse part (metals, "
+                    "coats) smoother than this roughness, as through a mirror, instead of gathering "
+                    "photons there: photons rarely find narrow lobes, and paths through wide ones meet "
+                    "small lights by chance")
     initial_mutation_size: FloatProperty(
         name="Initial Mutation Size", default=_DEFAULTS.initial_mutation_size, min=1e-4, max=1e3,
         soft_max=10.0, precision=4,

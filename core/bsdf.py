@@ -149,8 +149,9 @@ class MaterialTable:
         """The table of materials ``mats``; ``coarse`` (M,) bool marks rows whose GGX albedo
         tables may use the coarser quadrature ``COARSE_STRATA`` (the copies of a roughness map:
         1e-3 of the exact albedo, 7 times faster); ``coat_row`` is :func:`coat_variants`'s.
-        Camera paths go on through the glossy lobes (coats' included) of a roughness below
-        ``through_roughness`` (``glossy_through``) instead of ending there."""
+        Camera paths go on through glossy lobes (coats' included) of a roughness below
+        ``through_roughness`` that have no diffuse lobe beside them (``glossy_through``) instead
+        of ending there; so no measurement point holds such a material."""
         m = mats.count
         coarse = np.zeros(m, bool) if coarse is None else np.asarray(coarse, bool)
         weight = np.zeros((m, 4))
@@ -228,7 +229,8 @@ class MaterialTable:
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
                              emission_program=emission_program, dielectric_program=dielectric_program,
                              coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
-                             glossy_through=glossy_on & (mats.glossy_roughness < through_roughness))
+                             glossy_through=glossy_on & ~diffuse_on
+                             & (mats.glossy_roughness < through_roughness))
 
     @property
     def has_normal_maps(self) -> bool:

@@ -165,12 +165,12 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         total = non_delta + scores[:, MIRROR] + scores[:, DIELECTRIC]     # columns: sum(axis=1) is slow
         through = None
         if table.has_glossy_through:
-            # Camera paths go on through smooth glossy lobes (a direction sampled from the lobe),
-            # as through a mirror: photons could hardly find such narrow lobes (Cycles' default
-            # coat roughness is 0.03), and the path then sees lights and the world in them.  The
-            # diffuse part still ends the path (benchmarks/glossy_through.py).
+            # Camera paths go on through smooth glossy lobes without a diffuse lobe beside them (a
+            # direction sampled from the lobe), as through a mirror: photons could hardly find
+            # such narrow lobes (Cycles' default coat roughness is 0.03), and the path then sees
+            # lights and the world in them (benchmarks/glossy_through.py).
             through = table.glossy_through.take(surf.mat_ids)
-            non_delta = np.where(through, scores[:, DIFFUSE], non_delta)
+            non_delta = np.where(through, 0.0, non_delta)
         p_nd = np.where(total > 0, non_delta / np.where(total > 0, total, 1), 0)
         stop = u[:, 0] < p_nd
         if stop.any():

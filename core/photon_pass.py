@@ -84,8 +84,6 @@ class DepositTarget:
         bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
         self.bumped = bumped if bumped is not None and bumped.any() else None
         glossy = table.has_glossy.take(points.mat_ids)
-        if table.has_glossy_through:
-            glossy &= ~table.glossy_through.take(points.mat_ids)     # camera paths went on through it
         self.any_glossy = bool(glossy.any())
         self.is_glossy = glossy
         self.alpha = table.alpha.take(points.mat_ids)

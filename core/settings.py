@@ -84,10 +84,11 @@ class RenderSettings:
     """theta_1, the mutation size every chain starts with."""
 
     glossy_through_roughness: float = GLOSSY_THROUGH_ROUGHNESS
-    """Camera paths go on through glossy lobes (coats' too) of a smaller roughness (Blender's), as
-    through a mirror, instead of ending on them to gather photons: photons find narrow lobes
-    rarely, while a path through a wide lobe meets small lights by chance (measured with
-    ``benchmarks/glossy_through.py``)."""
+    """Camera paths go on through glossy lobes (metals, Glossy BSDFs, coats) of a smaller roughness
+    (Blender's), as through a mirror, instead of ending on them to gather photons: photons find
+    narrow lobes rarely, while a path through a wide lobe meets small lights by chance.  Not
+    through a glossy lobe with a diffuse one beside it (Principled's specular layer), where the
+    point weighs both (measured with ``benchmarks/glossy_through.py``)."""
 
     def __post_init__(self):
         def bad(name, why):
