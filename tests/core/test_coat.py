@@ -159,3 +159,15 @@ def test_an_emitter_under_a_coat_emits_through_it():
     # Face on (the camera): 1 - A(1) ~ 0.96 in R, G and times the tint 0.5 in B.
     assert ratio[0] == pytest.approx(ratio[1], rel=0.01)
     assert 0.9 < ratio[0] < 0.99 and ratio[2] == pytest.approx(0.5 * ratio[0], rel=0.05)
+
+
+def test_coats_survive_a_file_round_trip_and_bad_values_are_refused(tmp_path):
+    from core.scene import Scene, SceneError
+    spec = {"diffuse": 0.5, "coat": 0.7, "coat_roughness": 0.2, "coat_ior": 1.7, "coat_tint": (1.0, 0.5, 0.2)}
+    sky_over_floor(resolution=(4, 4), material=spec).save(tmp_path / "coat.npz")
+    mats = Scene.load(tmp_path / "coat.npz").materials
+    assert (mats.coat_weight[0], mats.coat_roughness[0], mats.coat_ior[0]) == pytest.approx((0.7, 0.2, 1.7))
+    assert mats.coat_tint[0] == pytest.approx([1.0, 0.5, 0.2])
+    for key, value in (("coat", 1.5), ("coat_ior", 0.5), ("coat_roughness", -0.1)):
+        with pytest.raises(SceneError, match=f"materials.{key if key != 'coat' else 'coat_weight'}"):
+            sky_over_floor(resolution=(4, 4), material={**spec, key: value})
