@@ -80,7 +80,7 @@ def coat_variants(mats):
     F0 + (1 - F0) s(c) = F(c) (``glossy_fresnel_ior`` the coat's IOR) with multiscatter F_ss the
     mean Fresnel (Cycles' ``bsdf_microfacet_setup_fresnel_dielectric``), without normal or bump
     maps.  Without coats: ``mats`` itself."""
-    weight = np.asarray(_or_none(mats.coat_weight, mats.count, 0.0), np.float64)
+    weight = np.asarray(mats.coat_weight, np.float64)
     coat_row = np.full(mats.count, -1, np.int32)
     coated = np.flatnonzero(weight > 0)
     if len(coated) == 0:
@@ -295,9 +295,9 @@ class MaterialTable:
         return _interpolate(self.layer, mat_ids, mu)
 
 
-def _or_none(values, m, absent=-1):
-    """Per-material values (program indices by default), ``absent`` for all when None."""
-    return np.full(m, absent, np.float64 if absent != -1 else np.int32) if values is None else values
+def _or_none(indices, m):
+    """Per-material program indices, -1 for all when absent."""
+    return np.full(m, -1, np.int32) if indices is None else indices
 
 
 def _interpolate(table, mat_ids, mu):

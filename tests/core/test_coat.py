@@ -13,7 +13,7 @@ import pytest
 
 from core import RenderSettings, render
 from core import sampling as smp
-from core.bsdf import MIN_ALPHA, MIRROR_ROUGHNESS, MaterialTable, coat_variants, pick_coat
+from core.bsdf import MIN_ALPHA, MIRROR_ROUGHNESS, MaterialTable, coat_variants, lobe_scores, pick_coat
 from core.camera import generate_camera_rays
 from core.scene import Materials
 from core.testing.scenes import sky_over_floor
@@ -123,7 +123,6 @@ def test_coat_rows_are_shared_and_the_choice_is_unbiased():
     n = 200_000
     ids = np.zeros(n, np.int32)
     colors = table.color.take(ids, axis=0)
-    from core.bsdf import lobe_scores
     scores = lobe_scores(table, ids, colors)
     rng = np.random.default_rng(1)
     new_ids, _, _, scale, under, u = pick_coat(table, ids, colors, scores, rng.random(n))
