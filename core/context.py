@@ -12,12 +12,17 @@ from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, normalize
+from .scene import AREA_DISK, AREA_RECT, POINT, SPOT
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 # Transparent surfaces a ray may cross (RenderContext.trace); the next one it meets is opaque.
 MAX_TRANSPARENT_CROSSINGS = 64
+# Probe rays that find the volume a point lies in (RenderContext.enclosing_medium): a direction
+# off the axes (scenes are often axis-aligned: no probe along an edge) and the surfaces they cross.
+PROBE_DIRECTION = np.array([0.0123, 0.0371, 1.0]) / np.linalg.norm([0.0123, 0.0371, 1.0])
+MAX_PROBE_CROSSINGS = 64
 # Step of a procedural bump's finite differences, relative to the scene's size (Accel.extent).
 BUMP_STEP = 1e-5
 
@@ -64,6 +69,11 @@ class RenderContext:
         self.transparent_color = np.asarray(mats.transparent_color, np.float64)
         self.see_through = (self.opacity < 1.0) | (self.opacity_program >= 0)
         self.has_transparency = bool(self.see_through.any())
+        # Volumes (Materials.volume_absorption): per-material coefficients, and which have one.
+        self.absorption = np.asarray(mats.volume_absorption, np.float64)
+        self.absorbs = (self.absorption > 0).any(axis=1)
+        self.has_volumes = bool(self.absorbs.any())
+        self._eye_medium = self._light_media = None     # found when first needed
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
                                    (self.table.emission_program >= 0) | (self.opacity_program >= 0))
         # What camera rays that leave the scene see, when it differs from the world (World.camera):
@@ -86,27 +96,38 @@ class RenderContext:
         self.uses_uvs = (self.table.texture >= 0) | (self.normal_texture >= 0) | (self.bump_texture >= 0)
         self.bump_program = np.asarray(mats.bump_program, np.int32)
 
-    def trace(self, origins, dirs, tmax=None, uniforms=None):
+    def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
         the hit, decided by ``uniforms(rows, crossing)`` ((k,) numbers in [0, 1) for the rays
         ``rows`` at their ``crossing``-th transparent hit); otherwise the ray goes on from there,
         tinted by the material's transparent colour, up to ``MAX_TRANSPARENT_CROSSINGS`` times.
-        Returns ``(hits, factor, opacity)``: the hits (``t`` from the original origins; glass
-        resting on a surface resolved, ``Accel.with_contacts``), the (n, 3) tint of the crossings
-        and the (n,) opacity where each ray stopped (1 on opaque surfaces; the rays that stop
-        there are that share of those that arrive: photons deposit flux / opacity), or None, None
-        when the scene has no transparent material."""
+        ``medium`` (n,) int32 is the material whose volume each ray starts in (-1: none; None:
+        all -1), as :meth:`next_medium` tracks it; each segment that ends on a hit is absorbed
+        by its volume (``Materials.volume_absorption``; rays that leave the scene are not).
+        Returns ``(hits, factor, opacity, medium)``: the hits (``t`` from the original origins;
+        glass resting on a surface resolved, ``Accel.with_contacts``), the (n, 3) tint of the
+        crossings and volumes, the (n,) opacity where each ray stopped (1 on opaque surfaces; the
+        rays that stop there are that share of those that arrive: photons deposit flux /
+        opacity) and the (n,) volume each ray arrives in at its hit; the factor is None without
+        transparent or absorbing materials, the opacity without transparent ones, and the
+        medium is returned as given (None stays None) without absorbing materials."""
         accel = self.accel
-        hits = accel.with_contacts(accel.intersect(origins, dirs, tmax), origins, dirs)
-        if not self.has_transparency or not hits.is_hit.any():
-            return hits, None, None
         n = len(dirs)
+        raw = accel.intersect(origins, dirs, tmax)
+        factor = None
+        if self.has_volumes:
+            medium = np.full(n, -1, np.int32) if medium is None else np.array(medium, np.int32)
+            factor = np.ones((n, 3))
+            self._absorb(factor, medium, np.arange(n), raw, dirs)
+        hits = accel.with_contacts(raw, origins, dirs)
+        if not self.has_transparency or not hits.is_hit.any():
+            return hits, factor, None, medium
         is_hit, prim, b1, b2 = hits.is_hit.copy(), hits.prim_ids.copy(), hits.b1.copy(), hits.b2.copy()
         t = hits.t.astype(np.float64)
         limit = None if tmax is None else np.broadcast_to(np.asarray(tmax, np.float64), (n,))
-        factor = np.ones((n, 3))
+        factor = np.ones((n, 3)) if factor is None else factor
         stopped = np.ones(n)
         rows = np.flatnonzero(is_hit)
         for crossing in range(MAX_TRANSPARENT_CROSSINGS):
@@ -123,14 +144,112 @@ class RenderContext:
             pr = prim.take(rows)
             factor[rows] *= self.transparent_color.take(self.material_ids.take(pr), axis=0)
             d = dirs.take(rows, axis=0)
+            if self.has_volumes:
+                medium[rows] = self.next_medium(medium.take(rows), pr, d, -d)
             start = accel.spawn(p, accel.geometric_normals.take(pr, axis=0), d)
             travelled = t.take(rows) + dot(start - p, d)
             left = None if limit is None else np.maximum(limit.take(rows) - travelled, 0.0)
-            nxt = accel.with_contacts(accel.intersect(start, d, left), start, d)
+            raw = accel.intersect(start, d, left)
+            if self.has_volumes:
+                self._absorb(factor, medium, rows, raw, d)
+            nxt = accel.with_contacts(raw, start, d)
             is_hit[rows], prim[rows], b1[rows], b2[rows] = nxt.is_hit, nxt.prim_ids, nxt.b1, nxt.b2
             t[rows] = travelled + nxt.t
             rows = rows[nxt.is_hit]
-        return Hits(is_hit, prim, t.astype(np.float32), b1, b2), factor, stopped
+        return Hits(is_hit, prim, t.astype(np.float32), b1, b2), factor, stopped, medium
+
+    def _absorb(self, factor, medium, rows, raw, dirs):
+        """Absorb the segments of rays ``rows`` that end on the hits ``raw`` (before contacts;
+        ``dirs`` their directions) in ``factor``, and set ``medium`` to the volume each one was
+        in: the tracked one, or that of a surface hit from the back (the ray was inside it)."""
+        h = np.flatnonzero(raw.is_hit)
+        if len(h) == 0:
+            return
+        prim = raw.prim_ids.take(h)
+        mat = self.material_ids.take(prim)
+        back = dot(dirs.take(h, axis=0), self.accel.geometric_normals.take(prim, axis=0)) > 0
+        r = rows.take(h)
+        inside = np.where(back & self.absorbs.take(mat), mat, medium.take(r))
+        medium[r] = inside
+        a = np.flatnonzero(inside >= 0)
+        if len(a):
+            sigma = self.absorption.take(inside.take(a), axis=0)
+            factor[r.take(a)] *= np.exp(-sigma * raw.t.take(h.take(a)).astype(np.float64)[:, None])
+
+    def enclosing_medium(self, points):
+        """(n,) int32 the volume each of ``points`` lies in (-1: none), as Cycles finds a
+        camera's: a probe ray from each point walks through every surface; the first one of an
+        absorbing material that it leaves (meets from the back) without having gone into it
+        along the probe encloses the point.  A single slot tracks the volume the probe went
+        into, so a point is found in the innermost of nested volumes only when the probe
+        crosses no other volume before leaving it."""
+        n = len(points)
+        found = np.full(n, -1, np.int32)
+        if not self.has_volumes or n == 0:
+            return found
+        entered = np.full(n, -1, np.int32)
+        rows = np.arange(n)
+        origins = np.asarray(points, np.float64)
+        d = np.broadcast_to(PROBE_DIRECTION, (n, 3))
+        for _ in range(MAX_PROBE_CROSSINGS):
+            hits = self.accel.intersect(origins, d)
+            h = np.flatnonzero(hits.is_hit)
+            rows, origins, d = rows.take(h), origins.take(h, axis=0), d.take(h, axis=0)
+            if len(rows) == 0:
+                break
+            prim = hits.prim_ids.take(h)
+            mat = self.material_ids.take(prim)
+            ng = self.accel.geometric_normals.take(prim, axis=0)
+            back = dot(d, ng) > 0
+            volume = self.absorbs.take(mat)
+            inside = entered.take(rows)
+            into = volume & ~back & (inside < 0)
+            entered[rows[into]] = mat[into]
+            out = volume & back & (inside == mat)
+            entered[rows[out]] = -1
+            done = volume & back & (inside < 0)
+            found[rows[done]] = mat[done]
+            go = np.flatnonzero(~done)
+            p = self.accel.hit_positions(prim.take(go), hits.b1.take(h).take(go), hits.b2.take(h).take(go))
+            rows, d = rows.take(go), d.take(go, axis=0)
+            origins = self.accel.spawn(p, ng.take(go, axis=0), d)
+        return found
+
+    def camera_medium(self, origins):
+        """(n,) the volume camera rays from ``origins`` start in (:meth:`enclosing_medium`; a
+        perspective camera's is its eye's, found once)."""
+        cam = self.scene.camera
+        if cam.projection != "perspective":
+            return self.enclosing_medium(origins)
+        if self._eye_medium is None:
+            eye = np.asarray(cam.world_from_camera, np.float64)[:3, 3]
+            self._eye_medium = int(self.enclosing_medium(eye[None])[0])
+        return np.full(len(origins), self._eye_medium, np.int32)
+
+    def light_medium(self, u0):
+        """(n,) the volume photons of light-choice numbers ``u0`` start in: that of the point,
+        spot or area light's centre (:meth:`enclosing_medium`, found once); -1 for the sun, the
+        world and emitting triangles (a path that starts inside still is inside where it leaves)."""
+        if self._light_media is None:
+            kinds = self.lights.kinds
+            self._light_media = np.full(len(kinds), -1, np.int32)
+            placed = np.flatnonzero(np.isin(kinds, (POINT, SPOT, AREA_RECT, AREA_DISK)))
+            if len(placed):
+                centres = np.asarray(self.scene.lights.position, np.float64)[self.lights.ids[placed]]
+                self._light_media[placed] = self.enclosing_medium(centres)
+        return self._light_media.take(self.lights.entries(u0))
+
+    def next_medium(self, medium, prim_ids, wi, wo):
+        """(n,) the volumes of paths that arrived in ``medium`` at triangles ``prim_ids`` from
+        ``wo`` and leave along ``wi``: a path that goes through the surface into its back enters
+        the material's volume (if it has one; otherwise it stays where it was), one that goes
+        out through its front leaves it (to none); a reflected path stays."""
+        mat = self.material_ids.take(prim_ids)
+        ng = self.accel.geometric_normals.take(prim_ids, axis=0)
+        into, came = dot(wi, ng), dot(wo, ng)
+        enter = (into < 0) & (came > 0) & self.absorbs.take(mat)
+        leave = (into > 0) & (came < 0) & (medium == mat)
+        return np.where(enter, mat, np.where(leave, -1, medium)).astype(np.int32)
 
     def _opacity(self, prim_ids, b1, b2, positions):
         """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's."""

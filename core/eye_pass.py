@@ -102,16 +102,18 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     # Which rays see analytic lights (Blender's ray visibility): direct camera rays, and after
     # a delta event rays reflected (glossy) or refracted (transmission).
     ray_kind = np.full(len(pix), VISIBLE_CAMERA, np.uint8)
+    # The volume each path is in (RenderContext.trace), in scenes with volumes.
+    medium = ctx.camera_medium(origins) if ctx.has_volumes else None
     parts = []
     rays = 0
     for depth in range(max_bounces + 1):
         if len(pix) == 0:
             break
         # A camera path stops on a transparent surface as often as it is opaque, with its weight.
-        hits, through, _ = ctx.trace(origins, dirs, tmax if depth == 0 else None,
-                                     lambda rows, crossing: rng.random(len(rows)))
+        hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None,
+                                             lambda rows, crossing: rng.random(len(rows)), medium)
         if through is not None:
-            beta = beta * through                            # transparent surfaces crossed
+            beta = beta * through                            # transparent surfaces and volumes crossed
         rays += len(pix)
         if ctx.lights.visible_to(VISIBLE_CAMERA if depth == 0 else VISIBLE_GLOSSY | VISIBLE_TRANSMISSION):
             t_max = hits.t.astype(np.float64)
@@ -136,6 +138,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         h = np.flatnonzero(hits.is_hit)
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
         ray_kind = ray_kind.take(h)
+        medium = None if medium is None else medium.take(h)
         path_len = path_len.take(h) + hits.t.take(h)
         footprint = footprint.take(h)
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
@@ -214,6 +217,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         g = go[keep]
         reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0
         ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
+        if medium is not None:
+            medium = ctx.next_medium(medium[g], prim[g], wi[keep], wo[g])
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)

@@ -126,7 +126,7 @@ class LightSampler:
         if not self.has_soft_falloff or len(u) == 0:
             return out
         L = self.lights
-        entry = self._entries(u[:, 0])
+        entry = self.entries(u[:, 0])
         sel = np.flatnonzero(np.isin(self.kinds.take(entry), (POINT, SPOT)))
         ids = self.ids.take(entry.take(sel))
         soft = L.soft_falloff.take(ids) & (L.radius.take(ids) > 0)
@@ -232,7 +232,7 @@ class LightSampler:
         normals = np.zeros((n, 3))
         if self.count == 0 or n == 0:
             return origins, dirs, flux, normals
-        entry = self._entries(u[:, 0])
+        entry = self.entries(u[:, 0])
         kind = self.kinds[entry]
         base = self.power[entry] / self.prob[entry][:, None]       # power / choice probability
         for k in np.unique(kind):
@@ -259,7 +259,7 @@ class LightSampler:
                 flux[sel] = base[sel] * (w if w.ndim == 2 else w[:, None])
         return origins, dirs, flux, normals
 
-    def _entries(self, u0):
+    def entries(self, u0):
         """(n,) emitter of each photon from its first light dimension (power-proportional)."""
         return np.minimum(np.searchsorted(self.cdf, u0, side="right"), self.count - 1)
 

@@ -270,13 +270,14 @@ class PhotonBatch:
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
-VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux")
+VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium")
 
 
 def _vertex_arrays(n):
     return {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
-            "colors": np.zeros((n, 4, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3))}
+            "colors": np.zeros((n, 4, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
+            "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32)}
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
@@ -318,16 +319,23 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         sums = PointSums(m, glossy)
     rays = vertices = 0
     soft = ctx.lights.has_soft_falloff
+    volumes = ctx.has_volumes
+    # The volume each path is in (RenderContext.trace).
+    medium = ctx.light_medium(u[idx, 0]) if volumes else np.full(len(idx), -1, np.int32)
+    prim = np.zeros(0, np.int32)
     for bounce in range(max_bounces + 1):
         if len(idx) == 0 and bounce > last_join:
             break
         if len(idx):
-            hits, through, opacity = ctx.trace(origins, dirs, None, _crossing_uniforms(u, idx, bounce))
+            crossing = _crossing_uniforms(u, idx, bounce)
+            hits, through, opacity, medium = ctx.trace(origins, dirs, None, crossing, medium)
             if through is not None:
-                flux = flux * through                        # transparent surfaces crossed
+                flux = flux * through                        # transparent surfaces and volumes crossed
             rays += len(idx)
             h = np.flatnonzero(hits.is_hit)
             idx, dirs, flux = idx.take(h), dirs.take(h, axis=0), flux.take(h, axis=0)
+            prim = hits.prim_ids.take(h)
+            medium = medium.take(h) if volumes else np.full(len(h), -1, np.int32)
             vertices += len(idx)
             surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
             if bounce == 0 and soft:
@@ -337,6 +345,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             deposited = flux if opacity is None else flux / np.maximum(opacity.take(h), 1e-12)[:, None]
         else:
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+            prim, medium = np.zeros(0, np.int32), np.zeros(0, np.int32)
             deposited = flux
         wo = -dirs
         # Deposit at non-delta vertices; a pair found makes the path visible, or, if the target
@@ -383,7 +392,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                                      ("ng", surf.ng[rows]), ("ns", surf.ns[rows]),
                                      ("nn", (surf.ns if surf.nn is None else surf.nn)[rows]),
                                      ("mat_ids", surf.mat_ids[rows]), ("colors", surf.colors[rows]),
-                                     ("wo", wo[rows]), ("flux", flux[rows])):
+                                     ("wo", wo[rows]), ("flux", flux[rows]), ("prim", prim[rows]),
+                                     ("medium", medium[rows])):
                         first[key][new] = val
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
@@ -395,6 +405,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 idx = np.concatenate([idx, fresh + join])
                 flux = np.concatenate([flux, resume["flux"][join]])
                 wo = np.concatenate([wo, resume["wo"][join]])
+                prim = np.concatenate([prim, resume["prim"][join]])
+                medium = np.concatenate([medium, resume["medium"][join]])
                 surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals, ctx.has_normal_maps)
         if bounce == max_bounces or len(idx) == 0:
             continue
@@ -424,6 +436,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         idx = idx.take(keep)
         flux = new_flux.take(keep, axis=0) / q.take(keep)[:, None]
         dirs = wi.take(keep, axis=0)
+        if volumes:
+            medium = ctx.next_medium(medium.take(keep), prim.take(keep), dirs, wo.take(keep, axis=0))
         origins = accel.spawn(surf.position.take(keep, axis=0), surf.ng.take(keep, axis=0), dirs)
     if collect_pairs and pairs["path"]:
         pp, pj = np.concatenate(pairs["path"]), np.concatenate(pairs["point"])

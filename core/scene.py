@@ -101,6 +101,14 @@ class Materials:
     ``coat_tint`` ^ (1 / cos_t(mu))), as Cycles: the coat's albedo at mu (K and S as for the
     Fresnel layer above) and the tint of a path through the coat refracted to cos_t.
 
+    A volume (Blender's Volume Absorption, Principled Volume's absorption) fills the mesh:
+    ``volume_absorption`` (per channel, per scene unit of length; 0: none) scales light along a
+    path segment inside it by exp(-``volume_absorption`` length), Beer-Lambert without
+    scattering.  A path is inside the material whose surface it last went into (refracted or
+    crossed as transparent towards the back of the triangles), and inside it when it meets that
+    material's surface from the back (a path that starts inside: a camera or lamp in the water).
+    A material with no surface (opacity 0) and a volume is Cycles' volume-only mesh.
+
     A tangent-space normal map (Blender's Normal Map node) bends the shading normal of every
     lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
     2 c - 1 along tangent, bitangent and normal), looked up with the triangle UVs in the frame of
@@ -151,6 +159,7 @@ class Materials:
     coat_roughness: np.ndarray = None                   # (M,) float32 in [0, 1]; None: 0.03
     coat_ior: np.ndarray = None                         # (M,) float32 >= 1; None: 1.5
     coat_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
+    volume_absorption: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -161,7 +170,7 @@ class Materials:
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
-                    "coat_tint")
+                    "coat_tint", "volume_absorption")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program")
@@ -194,7 +203,7 @@ class Materials:
         ``bump_distance``) and ``opacity_program`` one for the opacity (equal programs are stored
         once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
-        ``coat_tint`` (1) give it a coat.
+        ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -235,6 +244,7 @@ class Materials:
         out.coat_roughness = np.full(m, 0.03, np.float32)
         out.coat_ior = np.full(m, 1.5, np.float32)
         out.coat_tint = np.ones((m, 3), np.float32)
+        out.volume_absorption = np.zeros((m, 3), np.float32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -282,6 +292,8 @@ class Materials:
             out.coat_roughness[i] = s.get("coat_roughness", 0.03)
             out.coat_ior[i] = s.get("coat_ior", 1.5)
             out.coat_tint[i] = np.broadcast_to(np.asarray(s.get("coat_tint", 1.0), np.float32), (3,))
+            out.volume_absorption[i] = np.broadcast_to(
+                np.asarray(s.get("volume_absorption", 0.0), np.float32), (3,))
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
             out.bump_texture[i] = s.get("bump_texture", -1)
@@ -618,12 +630,13 @@ class Scene:
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
-                                       ("coat_tint", (n, 3), 1.0)):
+                                       ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
-            colour = name.endswith(("color", "emission", "multiscatter", "rise", "layer", "tint"))
+            colour = name.endswith(("color", "emission", "multiscatter", "rise", "layer", "tint",
+                                    "absorption"))
             tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INDEX_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)

@@ -157,7 +157,32 @@ def extreme_coats():
     return with_one_object(scene).replace(materials=Materials.build(specs)).validate()
 
 
+def extreme_volumes():
+    """The room (walls and lamp) inside a volume-only box that also holds the camera, with
+    absorbing boxes in it: glass absorbing 1e30 per metre, a volume-only box absorbing 1e-30 in
+    one channel and 1e6 in another around the lamp, a single open quad that absorbs (no inside),
+    and a glass box nested in a volume-only one, both absorbing."""
+    room = cornell_like()
+    specs = [{"name": "wall", "diffuse": 0.7}, {"name": "lamp", "emission": 5.0},
+             {"name": "air", "opacity": 0.0, "volume_absorption": 0.05},
+             {"name": "dark glass", "dielectric": 1.0, "volume_absorption": 1e30},
+             {"name": "gas", "opacity": 0.0, "volume_absorption": (1e-30, 1e6, 0.0)},
+             {"name": "sheet", "diffuse": 0.5, "opacity": 0.5, "volume_absorption": 3.0},
+             {"name": "inner glass", "dielectric": 1.0, "ior": 1.33, "volume_absorption": (0.0, 2.0, 9.0)}]
+    m = MeshBuilder()
+    m.tris, m.mats = [room.triangle_corners()], [room.material_ids]
+    m.normals = [np.zeros((room.triangle_count, 3, 3))]
+    m.add_box((-1.5, -1.5, -0.5), (1.5, 1.5, 2.5), 2)
+    m.add_box((-0.7, -0.3, 0), (-0.1, 0.3, 0.8), 3)
+    m.add_box((-0.4, -0.4, 1.8), (0.4, 0.4, 1.99), 4)
+    m.add_quad((0.1, -0.5, 0.3), (0.9, -0.5, 0.3), (0.9, 0.5, 0.3), (0.1, 0.5, 0.3), 5)
+    m.add_box((0.2, -0.2, 0.5), (0.7, 0.3, 1.2), 4)
+    m.add_box((0.3, -0.1, 0.6), (0.6, 0.2, 1.1), 6)
+    return m.build(Materials.build(specs), camera=room.camera)
+
+
 SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
+          "extreme_volumes": extreme_volumes,
           "wild_procedural_colour": wild_procedural_colour,
           "transparent_stack": transparent_stack,
           "light_trapped_in_glass": light_trapped_in_glass,

@@ -72,7 +72,7 @@ def test_crossings_are_decided_by_the_opacity_and_limited():
     origins = np.tile([0.0, 0.0, 1.0], (n, 1)) + spread
     dirs = np.tile([0.0, 0.0, -1.0], (n, 1))
     rng = np.random.default_rng(1)
-    hits, tint, opacity = ctx.trace(origins, dirs, None, lambda rows, crossing: rng.random(len(rows)))
+    hits, tint, opacity, _ = ctx.trace(origins, dirs, None, lambda rows, crossing: rng.random(len(rows)))
     on_floor = ctx.material_ids[hits.prim_ids] == 0
     assert on_floor.mean() == pytest.approx(0.75, abs=0.015)
     np.testing.assert_allclose(hits.t[on_floor], 1.0, rtol=1e-5)          # from the original origins
@@ -83,7 +83,7 @@ def test_crossings_are_decided_by_the_opacity_and_limited():
     # Always transparent: every ray reaches the floor; never: none does.
     for opacity, expected in ((0.0, 1.0), (1.0, 0.0)):
         ctx = RenderContext(leaf_over_floor({"diffuse": 0.5, "opacity": opacity}))
-        hits, _, _ = ctx.trace(origins, dirs, None, lambda rows, crossing: rng.random(len(rows)))
+        hits, _, _, _ = ctx.trace(origins, dirs, None, lambda rows, crossing: rng.random(len(rows)))
         assert (ctx.material_ids[hits.prim_ids] == 0).mean() == expected
 
 
