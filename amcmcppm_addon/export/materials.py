@@ -44,6 +44,11 @@ kept only where the core supports them (the diffuse colour, a glossy colour with
 rise, the glossy roughness, the emission's colour and strength, the colour a glass transmits);
 elsewhere their mean is used.
 A missing image file gives a warning and Cycles' magenta.
+
+The Volume output: Volume Absorption and Principled Volume (their Add and Mix) become the
+core's ``volume_absorption``, Cycles' absorption coefficient; their scattering and emission
+are noted and left out.  A material with a volume and no Surface is Cycles' volume-only mesh:
+a surface that lets every ray through (opacity 0).
 """
 from __future__ import annotations
 
@@ -577,7 +582,10 @@ class MaterialExporter:
                 walker.note("Bump Map Correction off is not supported (rendered with it on)")
             if walker.notes:
                 self.log.warning(f"material '{material.name}': " + "; ".join(walker.notes))
-            self._ids[key] = self._add(closure.spec(material.name))
+            spec = closure.spec(material.name)
+            if walker.absorption is not None and walker.absorption.any():
+                spec["volume_absorption"] = walker.absorption
+            self._ids[key] = self._add(spec)
         return self._ids[key]
 
     def uses_textures(self, ids) -> bool:
@@ -621,6 +629,7 @@ class NodeWalker:
         self.world_program = None       # program of the direction for any other varying world colour
         self.camera_walker = None       # what camera rays see (Light Path's Is Camera Ray), its own
         self.camera_color = None        # world_* and colour, or None: the same as the other rays
+        self.absorption = None          # (3,) the material's volume absorption (material_closure), or None
 
     def note(self, msg):
         if msg not in self.notes:
@@ -638,7 +647,12 @@ class NodeWalker:
         if out is None:
             self.note("no material output node; rendered as its viewport colour")
             return Closure.lobe(DIFFUSE, 1.0, material.diffuse_color[:3])
-        return self.shader(out.inputs["Surface"], ()) or Closure()
+        closure = self.shader(out.inputs["Surface"], ())
+        self.absorption = self.volume(out.inputs["Volume"], ())
+        if closure is None and self.absorption is not None:
+            # No surface, a volume: Cycles' volume-only mesh, whose surface lets every ray through.
+            return Closure(transparent=np.ones(3), transparent_weight=1.0)
+        return closure or Closure()
 
     def world_color(self, world):
         """Background radiance (3,) of a world: Background/Emission colour times strength.
@@ -653,6 +667,8 @@ class NodeWalker:
         out = nt.get_output_node('CYCLES')
         if out is None:
             return np.array(world.color[:3], np.float64)
+        if self.source(out.inputs["Volume"], ())[0] is not None:
+            self.note("the world's volume is not supported (left out)")
         src, default, stack = self.source(out.inputs["Surface"], ())
         if src is None:
             return np.zeros(3)
@@ -767,6 +783,54 @@ class NodeWalker:
         if "Normal" in node.inputs and closure.normal_map is None and closure.bump is None:
             closure.normal_map, closure.bump = self.bent_normal(node.inputs["Normal"], stack)
         return closure
+
+    def volume(self, sock, stack):
+        """(3,) absorption coefficient (per unit of length, Cycles' extinction of absorption) of the
+        volume shader feeding ``sock``, or None when nothing does.  Volume Absorption absorbs
+        (1 - Color) Density, Principled Volume (1 - Color)(1 - sqrt(Absorption Color)) Density;
+        scattering (Volume Scatter, Principled Volume's Color) and volume emission are noted and
+        left out, textures on the inputs take their means (noted)."""
+        src, _, stack = self.source(sock, stack)
+        if src is None:
+            return None
+        node = src.node
+        kind = "muted" if node.mute else node.bl_idname
+
+        def color(name):
+            value = self.programs.constant_of(node.inputs[name], stack, VEC)
+            return np.maximum(np.array(value, np.float64), 0.0)
+
+        def density():
+            return max(self.value(node.inputs["Density"], stack), 0.0)
+
+        if kind == "ShaderNodeVolumeAbsorption":
+            return np.maximum(1.0 - color("Color"), 0.0) * density()
+        if kind == "ShaderNodeVolumePrincipled":
+            scatter, d = color("Color"), density()
+            if d > 0 and scatter.any():
+                self.note(f"'{node.name}': the volume's scattering is not supported (only its absorption)")
+            if (self.value(node.inputs["Emission Strength"], stack) > 0
+                    or self.value(node.inputs["Blackbody Intensity"], stack) > 0):
+                self.note(f"'{node.name}': volume emission is not supported (left out)")
+            kept = np.maximum(1.0 - np.sqrt(color("Absorption Color")), 0.0)
+            return np.maximum(1.0 - scatter, 0.0) * kept * d
+        if kind in ("ShaderNodeAddShader", "ShaderNodeMixShader"):
+            a = self.volume(_by_identifier(node.inputs, "Shader"), stack)
+            b = self.volume(_by_identifier(node.inputs, "Shader_001"), stack)
+            if a is None and b is None:
+                return None
+            fa, fb = 1.0, 1.0
+            if kind == "ShaderNodeMixShader":
+                fb = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
+                fa = 1.0 - fb
+            return fa * (np.zeros(3) if a is None else a) + fb * (np.zeros(3) if b is None else b)
+        if kind == "ShaderNodeVolumeScatter":
+            self.note(f"'{node.name}': volume scattering is not supported (left out)")
+        elif kind == "ShaderNodeEmission":
+            self.note(f"'{node.name}': volume emission is not supported (left out)")
+        elif kind != "muted":
+            self.unsupported(node, "as a volume; left out")
+        return np.zeros(3)
 
     def bent_normal(self, sock, stack):
         """(normal map or None, bump or None) feeding a ``Normal`` input: a Normal Map node

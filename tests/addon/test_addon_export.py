@@ -926,6 +926,72 @@ def test_principled_coat_is_exported_with_cycles_clamps(scene):
     assert any("Coat Normal not supported" in w for w in ex.warnings), ex.warnings
 
 
+def volume_material(name, kind, surface=None, **inputs):
+    """A material whose Volume output is a new ``kind`` node with ``inputs``, its Surface a new
+    ``surface`` node (None: unlinked): (material, volume node)."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    out = nt.nodes["Material Output"]
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    if surface is not None:
+        nt.links.new(nt.nodes.new(surface).outputs[0], out.inputs["Surface"])
+    node = nt.nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    nt.links.new(node.outputs[0], out.inputs["Volume"])
+    return mat, node
+
+
+def test_volume_absorption_is_exported_as_cycles_extinction(scene):
+    """Volume Absorption absorbs (1 - Color) Density per metre, Principled Volume
+    (1 - Color)(1 - sqrt(Absorption Color)) Density (Cycles' svm_node_principled_volume; these
+    measured with Cycles 5.0: a 1 m volume-only cube against the white sky gave exp(-(1 - C) D)
+    within 0.1 %).  A volume without a surface makes the surface let everything through; scattering,
+    volume emission and a world volume are noted."""
+    mat, _ = volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
+                             Color=(0.2, 0.5, 1.2, 1), Density=2.0)
+    row, ex = export_material(mat)
+    assert row["volume_absorption"] == pytest.approx([1.6, 1.0, 0.0])
+    assert row["dielectric_weight"] == 1 and row["opacity"] == 1
+    assert not [w for w in ex.warnings if "'Tinted glass'" in w], ex.warnings
+
+    mat, _ = volume_material("Smoke", "ShaderNodeVolumePrincipled", None, Color=(0.0, 0.0, 0.0, 1),
+                             Density=3.0, **{"Absorption Color": (0.25, 0.5, 0.0, 1)})
+    row, ex = export_material(mat)
+    assert row["volume_absorption"] == pytest.approx(3.0 * (1.0 - np.sqrt([0.25, 0.5, 0.0])))
+    assert row["opacity"] == 0 and row["transparent_color"] == pytest.approx([1, 1, 1])
+    assert not [w for w in ex.warnings if "'Smoke'" in w], ex.warnings
+
+    mat, node = volume_material("Fog", "ShaderNodeVolumePrincipled", "ShaderNodeBsdfDiffuse")
+    node.inputs["Emission Strength"].default_value = 1.0
+    row, ex = export_material(mat)
+    assert row["volume_absorption"] == pytest.approx(np.full(3, 0.5))      # grey 0.5, density 1
+    warning = next(w for w in ex.warnings if "'Fog'" in w)
+    assert "scattering is not supported" in warning and "emission is not supported" in warning
+
+    # A Mix of an absorption with a scatter: the absorption at its share, the scatter noted.
+    mat, mix = volume_material("Mixed", "ShaderNodeMixShader", None)
+    mix.inputs[0].default_value = 0.25
+    nt = mat.node_tree
+    absorb = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    absorb.inputs["Color"].default_value = (0.0, 0.5, 1.0, 1)
+    absorb.inputs["Density"].default_value = 4.0
+    nt.links.new(absorb.outputs[0], mix.inputs[1])
+    nt.links.new(nt.nodes.new("ShaderNodeVolumeScatter").outputs[0], mix.inputs[2])
+    row, ex = export_material(mat)
+    assert row["volume_absorption"] == pytest.approx([3.0, 1.5, 0.0])
+    assert any("volume scattering is not supported" in w for w in ex.warnings if "'Mixed'" in w)
+
+    row, _ = export_material(principled("Plain"))
+    assert row["volume_absorption"] == pytest.approx([0, 0, 0]) and row["opacity"] == 1
+
+    world = bs.world((0.1, 0.1, 0.1))
+    scatter = world.node_tree.nodes.new("ShaderNodeVolumeScatter")
+    world.node_tree.links.new(scatter.outputs[0], world.node_tree.nodes["World Output"].inputs["Volume"])
+    ex = bs.export()
+    assert any("world's volume is not supported" in w for w in ex.warnings), ex.warnings
+
+
 def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_gets_none(scene):
     """glossy_multiscatter is the F_ss of Cycles' energy compensation: 0 unless the node's
     distribution is Multiscatter GGX (Blender's default)."""

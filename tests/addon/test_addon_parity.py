@@ -597,6 +597,40 @@ def test_stained_glass_matches_cycles(addon, tmp_path, shader):
     assert min(block_correlation(f"stained glass, {shader}", cycles, ours)) > 0.996
 
 
+@pytest.mark.parametrize("shader", ["absorbing_glass", "volume_only"])
+def test_absorbing_volumes_match_cycles(addon, tmp_path, shader):
+    """The corner under the area light with a 20 cm thick slab over the floor holding a volume
+    that absorbs: a Glass BSDF with a Volume Absorption (blue-green glass), or no surface and a
+    Principled Volume that only absorbs (a coloured gas in its invisible box, lifted off the floor:
+    a face in the floor's plane that lets rays through would let them under the floor).  The light
+    through the slab onto the floor and what the camera sees through it are tinted by the path
+    lengths inside, as in Cycles."""
+    def build():
+        corner_scene()
+        mat = bpy.data.materials.new("Absorbing")
+        nt = mat.node_tree
+        out = nt.nodes["Material Output"]
+        nt.nodes.remove(nt.nodes["Principled BSDF"])
+        if shader == "absorbing_glass":
+            glass = nt.nodes.new("ShaderNodeBsdfGlass")
+            glass.inputs["IOR"].default_value = 1.5
+            nt.links.new(glass.outputs[0], out.inputs["Surface"])
+            volume = nt.nodes.new("ShaderNodeVolumeAbsorption")
+            volume.inputs["Color"].default_value = (0.2, 0.7, 0.8, 1.0)
+            volume.inputs["Density"].default_value = 5.0
+        else:
+            volume = nt.nodes.new("ShaderNodeVolumePrincipled")
+            volume.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+            volume.inputs["Absorption Color"].default_value = (0.9, 0.4, 0.1, 1.0)
+            volume.inputs["Density"].default_value = 4.0
+        nt.links.new(volume.outputs[0], out.inputs["Volume"])
+        bs.cube("Slab", size=1.0, material=mat, location=(-0.3, -0.5, 0.5), scale=(2.0, 2.0, 0.2))
+        add_emitter("area_square")
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_channels_match(f"volume, {shader}", cycles, ours, rtol=0.02)
+    assert min(block_correlation(f"volume, {shader}", cycles, ours)) > 0.99
+
+
 def block_correlation(name, cycles, ours, size=4):
     """Correlation per channel of the means of ``size`` x ``size`` pixel blocks of the two images
     (the layout of the light where single pixels are noisy), printed."""
