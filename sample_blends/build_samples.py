@@ -27,8 +27,9 @@ Glossy with roughness 0 as a mirror), so Cycles renders the same files.
   cells), onto a floor whose roughness a noise varies, with a lamp panel on the
   back wall whose emission a Wave Texture bands.
 * ``pool_caustics``: the sun through a water surface (Glass of IOR 1.33 bumped by a
-  Noise Texture) throws caustics onto a pool's tiles (a Brick Texture), which the
-  camera sees through the water (specular-diffuse-specular paths).
+  Noise Texture, over a Volume Absorption that tints the deep water) throws caustics
+  onto a pool's tiles (a Brick Texture), which the camera sees through the water
+  (specular-diffuse-specular paths).
 """
 from __future__ import annotations
 
@@ -469,9 +470,15 @@ def pool_caustics():
                     Color2=(0.45, 0.68, 0.8, 1.0), Mortar=(0.25, 0.27, 0.3, 1.0))
     brick.offset = 0.0
     nt.links.new(brick.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
-    # The water's surface: a Glass BSDF (IOR 1.33) whose normal a Noise Texture bumps.
-    water = b.glass("Water", ior=1.33, color=(0.9, 0.97, 1.0))
+    # The water's surface: a Glass BSDF (IOR 1.33) whose normal a Noise Texture bumps, over a
+    # Volume Absorption that takes red out of the light the deeper it goes (0.4 / 0.1 / 0.05 a
+    # metre: light down to the floor and back up keeps 0.41 / 0.80 / 0.89).
+    water = b.glass("Water", ior=1.33, color=(1.0, 1.0, 1.0))
     nt = water.node_tree
+    absorb = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    absorb.inputs["Color"].default_value = (0.6, 0.9, 0.95, 1.0)
+    absorb.inputs["Density"].default_value = 1.0
+    nt.links.new(absorb.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
     noise = texture(nt, "ShaderNodeTexNoise", Scale=2.5, Detail=3.0)
     bump = nt.nodes.new("ShaderNodeBump")
     bump.inputs["Distance"].default_value = 0.08
