@@ -217,9 +217,9 @@ class RenderContext:
 
     def camera_medium(self, origins):
         """(n,) the volume camera rays from ``origins`` start in (:meth:`enclosing_medium`; a
-        perspective camera's is its eye's, found once)."""
+        perspective or panoramic camera's is its eye's, found once)."""
         cam = self.scene.camera
-        if cam.projection != "perspective":
+        if cam.projection == "orthographic":
             return self.enclosing_medium(origins)
         if self._eye_medium is None:
             eye = np.asarray(cam.world_from_camera, np.float64)[:3, 3]

@@ -20,7 +20,7 @@ from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forwar
                    lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from .sampling import dot
-from .scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 
 
 @dataclass
@@ -94,9 +94,14 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     origins, dirs, tmax, footprint = generate_camera_rays(cam, pix, rng.random((len(pix), 4)))
+    if cam.projection in PANORAMAS:
+        # Pixels outside a fisheye's circle see nothing: black and opaque, as in Cycles.
+        sees = np.flatnonzero(dirs.any(axis=1))
+        pix, origins, dirs = pix.take(sees), origins.take(sees, axis=0), dirs.take(sees, axis=0)
+        tmax, footprint = tmax.take(sees), footprint.take(sees)
     world = np.asarray(scene.world.color, np.float64)
     extent = accel.extent
-    grows = cam.projection == "perspective"
+    grows = cam.projection != "orthographic"         # footprints grow with the distance
     beta = np.ones((len(pix), 3))
     path_len = np.zeros(len(pix))
     # Which rays see analytic lights (Blender's ray visibility): direct camera rays, and after

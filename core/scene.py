@@ -30,6 +30,9 @@ class SceneError(ValueError):
 
 # Light kinds (values of ``Lights.kind``).
 POINT, SPOT, AREA_RECT, AREA_DISK, SUN = 0, 1, 2, 3, 4
+# Camera.projection: the panoramic ones are Cycles' panorama types of the same names.
+PANORAMAS = ("equirectangular", "fisheye_equidistant", "fisheye_equisolid", "mirrorball")
+PROJECTIONS = ("perspective", "orthographic") + PANORAMAS
 LIGHT_KIND_NAMES = {POINT: "point", SPOT: "spot", AREA_RECT: "area (rectangle)",
                     AREA_DISK: "area (disk/ellipse)", SUN: "sun"}
 # Bits of ``Lights.visibility``: which camera rays see a light (Blender's ray visibility).
@@ -425,10 +428,22 @@ class Camera:
     ``border`` is the rendered sub-window in fractions of the frame with y measured
     from the bottom (Blender's ``border_min_y``); the image produced covers
     ``floor(border * resolution)`` pixels.
+
+    Panoramic cameras (Cycles' panorama types) see from their eye in every direction that
+    their projection maps the image to (``core.camera.panorama_directions``; ``frame``, the
+    aperture and the focus do not apply, clip distances are along the rays):
+    ``equirectangular`` over ``latitude_range`` and ``longitude_range`` (radians, longitude
+    0 straight ahead and growing to the right, latitude 0 at the camera's horizon);
+    ``fisheye_equidistant`` (angle from the view axis proportional to the distance from the
+    image centre, ``fisheye_fov`` across the image, an ellipse on a non-square image);
+    ``fisheye_equisolid`` (a real fisheye lens of focal length ``fisheye_lens`` mm on the
+    ``sensor_size`` (width, height) in mm the image covers, its circle ``fisheye_fov`` wide);
+    ``mirrorball`` (the reflection in a mirror ball that fills the image).  Pixels outside a
+    fisheye's circle or the ball see nothing (black, opaque), as in Cycles.
     """
 
     world_from_camera: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64
-    projection: str = "perspective"     # "perspective" or "orthographic"
+    projection: str = "perspective"     # "perspective", "orthographic" or one of PANORAMAS
     frame: tuple = (-0.36, 0.36, -0.2025, 0.2025)   # (x_min, x_max, y_min, y_max)
     resolution: tuple = (64, 36)        # (width, height) of the full frame in pixels
     border: tuple = (0.0, 1.0, 0.0, 1.0)  # (x_min, x_max, y_min, y_max), fractions, y from bottom
@@ -436,6 +451,13 @@ class Camera:
     focus_distance: float = 10.0        # distance of the plane in focus along -Z
     clip_start: float = 0.0             # near clip along -Z
     clip_end: float = 1e30              # far clip along -Z
+    latitude_range: tuple = (-np.pi / 2, np.pi / 2)    # equirectangular (min, max), radians
+    longitude_range: tuple = (-np.pi, np.pi)          # equirectangular (min, max), radians
+    fisheye_fov: float = np.pi          # fisheyes' field of view, radians
+    fisheye_lens: float = 10.5          # equisolid fisheye's focal length, mm
+    sensor_size: tuple = (36.0, 24.0)   # equisolid fisheye: (width, height) of the image in mm
+
+    PANORAMA_FIELDS = ("latitude_range", "longitude_range", "fisheye_fov", "fisheye_lens", "sensor_size")
 
     @staticmethod
     def look_at(eye, target, up=(0, 0, 1), *, lens_mm=50.0, sensor_width=36.0, sensor_height=24.0,
@@ -716,8 +738,26 @@ class Scene:
         if abs(np.linalg.det(m[:3, :3])) < 1e-12:
             fail("camera.world_from_camera is singular")
         cam.world_from_camera = m
-        if cam.projection not in ("perspective", "orthographic"):
-            fail(f"camera.projection must be 'perspective' or 'orthographic', not {cam.projection!r}")
+        if cam.projection not in PROJECTIONS:
+            fail(f"camera.projection must be one of {PROJECTIONS}, not {cam.projection!r}")
+        for name in ("latitude_range", "longitude_range", "sensor_size"):
+            v = np.asarray(getattr(cam, name), np.float64)
+            if v.shape != (2,) or not np.isfinite(v).all():
+                fail(f"camera.{name} must be two finite numbers, got {getattr(cam, name)}")
+            setattr(cam, name, (float(v[0]), float(v[1])))
+        lat = cam.latitude_range
+        if max(abs(lat[0]), abs(lat[1])) > np.pi / 2 + 1e-6 or lat[0] == lat[1]:
+            fail(f"camera.latitude_range {lat} must span an angle within [-pi/2, pi/2]")
+        cam.latitude_range = tuple(float(np.clip(v, -np.pi / 2, np.pi / 2)) for v in lat)
+        if cam.longitude_range[0] == cam.longitude_range[1]:
+            fail(f"camera.longitude_range {cam.longitude_range} must span an angle")
+        for name in ("fisheye_fov", "fisheye_lens"):
+            v = float(getattr(cam, name))
+            if not (np.isfinite(v) and v > 0):
+                fail(f"camera.{name} must be positive, got {v}")
+            setattr(cam, name, v)
+        if min(cam.sensor_size) <= 0:
+            fail(f"camera.sensor_size {cam.sensor_size} must be positive")
         fx0, fx1, fy0, fy1 = (float(v) for v in cam.frame)
         if not (np.isfinite([fx0, fx1, fy0, fy1]).all() and fx1 > fx0 and fy1 > fy0):
             fail(f"camera.frame must be (x_min < x_max, y_min < y_max), got {cam.frame}")
@@ -810,6 +850,8 @@ class Scene:
             d[f"camera.{name}"] = np.asarray(getattr(cam, name))
         for name in ("aperture_radius", "focus_distance", "clip_start", "clip_end"):
             d[f"camera.{name}"] = np.float64(getattr(cam, name))
+        for name in Camera.PANORAMA_FIELDS:
+            d[f"camera.{name}"] = np.asarray(getattr(cam, name), np.float64)
         d["world.color"] = np.asarray(self.world.color, np.float32)
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
         if self.world.texture is not None:
@@ -854,7 +896,8 @@ class Scene:
                      resolution=tuple(int(v) for v in get("camera.resolution")),
                      border=tuple(float(v) for v in get("camera.border")),
                      **{name: float(get(f"camera.{name}")) for name in
-                        ("aperture_radius", "focus_distance", "clip_start", "clip_end")})
+                        ("aperture_radius", "focus_distance", "clip_start", "clip_end")},
+                     **_panorama_fields(get))
         camera_world = (World(color=get("world.camera.color"), texture=get("world.camera.texture"),
                               texture_rotation=get("world.camera.texture_rotation"))
                         if "world.camera.color" in keys else None)
@@ -888,3 +931,13 @@ class Scene:
     def replace(self, **changes) -> "Scene":
         """A shallow copy with some fields replaced (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
+
+
+def _panorama_fields(get):
+    """The panoramic camera's fields stored in a file (files from before panoramas have none)."""
+    out = {}
+    for name in Camera.PANORAMA_FIELDS:
+        v = get(f"camera.{name}")
+        if v is not None:
+            out[name] = float(v) if np.ndim(v) == 0 else tuple(float(x) for x in v)
+    return out
