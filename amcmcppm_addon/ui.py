@@ -93,6 +93,39 @@ class AMCMCPPM_RENDER_PT_statistics_output(AMCMCPPMButtonsPanel, bpy.types.Panel
         self.layout.operator("amcmcppm.export_scene", icon='EXPORT')
 
 
+class AMCMCPPM_CAMERA_PT_panorama(bpy.types.Panel):
+    """A panoramic camera's settings under Blender's Lens panel, which draws them for Cycles only."""
+    bl_label = "Panorama"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "data"
+    bl_parent_id = "DATA_PT_lens"
+    COMPAT_ENGINES = {ENGINE_ID}
+    # The camera properties drawn for each panorama type (the others render as equirectangular).
+    props = {"EQUIRECTANGULAR": ("latitude_min", "latitude_max", "longitude_min", "longitude_max"),
+             "FISHEYE_EQUIDISTANT": ("fisheye_fov",),
+             "FISHEYE_EQUISOLID": ("fisheye_lens", "fisheye_fov"),
+             "MIRRORBALL": ()}
+
+    @classmethod
+    def poll(cls, context):
+        cam = context.camera
+        return context.engine in cls.COMPAT_ENGINES and cam is not None and cam.type == 'PANO'
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        cam = context.camera
+        col = layout.column()
+        col.prop(cam, "panorama_type")
+        names = self.props.get(cam.panorama_type)
+        if names is None:
+            col.label(text="Not supported: renders as Equirectangular", icon='ERROR')
+        for name in names or ():
+            col.prop(cam, name)
+
+
 classes = (
     AMCMCPPM_RENDER_PT_sampling,
     AMCMCPPM_RENDER_PT_markov_chains,
@@ -139,8 +172,12 @@ def get_panels():
     return panels
 
 
+# Panels outside the Render Properties.
+other_classes = (AMCMCPPM_CAMERA_PT_panorama,)
+
+
 def register():
-    for cls in classes:
+    for cls in classes + other_classes:
         bpy.utils.register_class(cls)
     for panel in get_panels():
         panel.COMPAT_ENGINES.add(ENGINE_ID)
@@ -149,5 +186,5 @@ def register():
 def unregister():
     for panel in get_panels():
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
-    for cls in reversed(classes):
+    for cls in reversed(classes + other_classes):
         bpy.utils.unregister_class(cls)

@@ -6,7 +6,11 @@ perspective cameras.  Object scale is removed from the camera matrix, as Cycles
 does.  Depth of field follows Cycles (``intern/cycles/blender/camera.cpp``):
 aperture radius = lens / (2 f-stop) (1 / (2 f-stop) for orthographic), focus
 distance = ``dof.focus_distance`` or the distance of the focus object along
-the view axis.
+the view axis.  Panoramic cameras map their type and settings to the core's
+panoramas (equirectangular, the two fisheyes, mirror ball); the equisolid
+fisheye's sensor is fitted to the image as Blender fits it (``sensor_fit``).
+Cycles' other panorama types and a panoramic camera's depth of field are
+noted; those render as an equirectangular view, this one without depth of field.
 """
 from __future__ import annotations
 
@@ -58,10 +62,9 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
         raise SceneError(f"camera '{ob.name}' has zero scale")
     world_from_camera[:3, :3] /= scale
     corners = np.array([tuple(v) for v in cam.view_frame(scene=scene)], np.float64)   # (4, 3)
+    if cam.type == "PANO":
+        return _panorama(ob, cam, world_from_camera, resolution, border, log)
     projection = "orthographic" if cam.type == "ORTHO" else "perspective"
-    if cam.type not in ("PERSP", "ORTHO") and log is not None:
-        log.warning(f"camera '{ob.name}': {cam.type.lower()} cameras are not supported; "
-                    "rendering a perspective view with the same lens")
     if projection == "perspective":
         xy = corners[:, :2] / -corners[:, 2:3]
     else:
@@ -81,6 +84,38 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
                   frame=tuple(float(v) for v in frame), resolution=resolution, border=border,
                   aperture_radius=float(aperture_radius), focus_distance=float(focus_distance),
                   clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end))
+
+
+PANORAMA_TYPES = {"EQUIRECTANGULAR": "equirectangular", "FISHEYE_EQUIDISTANT": "fisheye_equidistant",
+                  "FISHEYE_EQUISOLID": "fisheye_equisolid", "MIRRORBALL": "mirrorball"}
+
+
+def _panorama(ob, cam, world_from_camera, resolution, border, log):
+    """``core.Camera`` of a panoramic camera (Cycles' projections, ``core.camera``)."""
+    notes = []
+    projection = PANORAMA_TYPES.get(cam.panorama_type)
+    if projection is None:
+        notes.append(f"the {cam.panorama_type.lower().replace('_', ' ')} panorama is not supported; "
+                     "rendering an equirectangular one")
+        projection = "equirectangular"
+    if cam.dof.use_dof:
+        notes.append("depth of field is not supported on panoramic cameras (rendered sharp)")
+    if notes and log is not None:
+        log.warning(f"camera '{ob.name}': " + "; ".join(notes))
+    w, h = resolution
+    sw, sh = float(cam.sensor_width), float(cam.sensor_height)
+    fit = cam.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if w >= h else "AUTO_VERTICAL"
+    # Blender fits the sensor's width (AUTO: along the longer side) or height to the image.
+    sensor = {"HORIZONTAL": (sw, sw * h / w), "AUTO_VERTICAL": (sw * w / h, sw),
+              "VERTICAL": (sh * w / h, sh)}[fit]
+    return Camera(world_from_camera=world_from_camera, projection=projection, resolution=resolution,
+                  border=border, clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end),
+                  latitude_range=(float(cam.latitude_min), float(cam.latitude_max)),
+                  longitude_range=(float(cam.longitude_min), float(cam.longitude_max)),
+                  fisheye_fov=float(cam.fisheye_fov), fisheye_lens=float(cam.fisheye_lens),
+                  sensor_size=sensor)
 
 
 def _focus_distance(depsgraph, dof, world_from_camera):

@@ -1268,6 +1268,66 @@ def test_depth_of_field(scene):
     assert (c.clip_start, c.clip_end) == pytest.approx((0.5, 20.0))
 
 
+PANORAMAS = [("EQUIRECTANGULAR", (8, 4), {}),
+             ("EQUIRECTANGULAR", (6, 4), dict(latitude_min=-0.5, latitude_max=1.0, longitude_min=-1.0,
+                                              longitude_max=0.5)),
+             ("FISHEYE_EQUIDISTANT", (6, 4), {}), ("FISHEYE_EQUIDISTANT", (4, 6), dict(fisheye_fov=4.0)),
+             ("FISHEYE_EQUISOLID", (6, 4), {}),
+             ("FISHEYE_EQUISOLID", (5, 7), dict(fisheye_lens=8.0, fisheye_fov=3.5, sensor_width=30.0)),
+             ("FISHEYE_EQUISOLID", (7, 5), dict(fisheye_lens=8.0, fisheye_fov=3.5, sensor_height=20.0,
+                                                sensor_fit="VERTICAL")),
+             ("MIRRORBALL", (6, 4), {})]
+
+
+@pytest.mark.parametrize("kind, resolution, settings", PANORAMAS,
+                         ids=[f"{k.lower()}_{r[0]}x{r[1]}" for k, r, _ in PANORAMAS])
+def test_panoramic_cameras_see_the_directions_cycles_sees(scene, tmp_path, kind, resolution, settings):
+    """Cycles renders a world whose colour is the ray's direction (Texture Coordinate Generated,
+    times 0.5 plus 0.5) at each pixel's centre through a turned panoramic camera; the core's camera
+    rays through the same centres point the same way (1e-4), and see nothing at the same pixels
+    (outside a fisheye's circle or the ball: black in Cycles).  Before, a panoramic camera
+    rendered a perspective view with a warning."""
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    world = bs.world()
+    nt = world.node_tree
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    scale = nt.nodes.new("ShaderNodeVectorMath")
+    scale.operation = "MULTIPLY_ADD"
+    scale.inputs[1].default_value = scale.inputs[2].default_value = (0.5, 0.5, 0.5)
+    nt.links.new(coords.outputs["Generated"], scale.inputs[0])
+    nt.links.new(scale.outputs[0], nt.nodes["Background"].inputs["Color"])
+    cam = bs.camera(location=(0.3, -0.2, 0.5), target=(1.0, 2.0, 1.2))
+    cam.data.type = "PANO"
+    cam.data.panorama_type = kind
+    for key, value in settings.items():
+        setattr(cam.data, key, value)
+    ex = bs.export()
+    assert not [w for w in ex.warnings if "camera" in w], ex.warnings
+    seen = bs.cycles_pixel_centres(tmp_path / "directions.exr").reshape(-1, 3)
+    from amcmcppm.core.camera import generate_camera_rays
+    c = ex.scene.camera
+    w, h = resolution
+    origins, dirs, _, _ = generate_camera_rays(c, np.arange(w * h), np.full((w * h, 4), 0.5))
+    sees = dirs.any(axis=1)
+    np.testing.assert_array_equal(sees, seen.any(axis=1))
+    assert sees.sum() >= w * h // 2
+    np.testing.assert_allclose(dirs[sees], 2.0 * seen[sees] - 1.0, atol=1e-4)
+    # From the eye, clipped at clip_start along the rays.
+    eye = origins[sees] - c.clip_start * dirs[sees]
+    np.testing.assert_allclose(eye, np.tile([0.3, -0.2, 0.5], (sees.sum(), 1)), atol=1e-6)
+
+
+def test_other_panoramas_and_their_depth_of_field_are_noted(scene):
+    cam = bs.camera()
+    cam.data.type = "PANO"
+    cam.data.panorama_type = "CENTRAL_CYLINDRICAL"
+    cam.data.dof.use_dof = True
+    ex = bs.export()
+    assert ex.scene.camera.projection == "equirectangular"
+    assert any("central cylindrical panorama is not supported" in w and "depth of field" in w
+               for w in ex.warnings), ex.warnings
+
+
 def test_border_is_passed_to_the_camera(scene):
     bs.camera()
     r = scene.render

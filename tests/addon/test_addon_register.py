@@ -9,6 +9,7 @@ import bpy
 import numpy as np
 import pytest
 
+import blender_scenes as bs
 from conftest import ROOT, load_package
 
 sys.path.insert(0, str(ROOT / "tools"))
@@ -142,6 +143,25 @@ def test_automatic_photon_count_label_follows_the_output_size(scene):
     assert f"{half:,}" in ui.automatic_photons_label(scene)
     scene.amcmcppm.photons_per_pass = 5000
     assert ui.automatic_photons_label(scene) is None
+
+
+def test_panorama_panel_shows_a_panoramic_cameras_settings(scene):
+    """Blender's Lens panel draws a panoramic camera's type and settings for Cycles only: our own
+    subpanel does for our engine, for every type the core renders."""
+    from amcmcppm.amcmcppm_addon import ui
+    panel = ui.AMCMCPPM_CAMERA_PT_panorama
+    assert getattr(bpy.types, panel.__name__) is panel
+    cam = bs.camera()
+    with bpy.context.temp_override(camera=cam.data):
+        assert not panel.poll(bpy.context)
+        cam.data.type = "PANO"
+        assert panel.poll(bpy.context)
+        scene.render.engine = "CYCLES"
+        assert not panel.poll(bpy.context)
+    from amcmcppm.amcmcppm_addon.export.camera import PANORAMA_TYPES
+    assert set(panel.props) == set(PANORAMA_TYPES)
+    known = set(bpy.types.Camera.bl_rna.properties.keys())
+    assert all(name in known for names in panel.props.values() for name in names)
 
 
 def test_builtin_panels_show_for_engine(addon):
