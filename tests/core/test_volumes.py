@@ -20,7 +20,7 @@ import pytest
 from core import RenderSettings, render
 from core.context import RenderContext
 from core.scene import Camera, Lights, Materials, Scene, SceneError, World
-from core.testing.scenes import MeshBuilder, _look_down, sun_through_slab
+from core.testing.scenes import MeshBuilder, sun_through_slab
 
 METHODS = [dict(method="ppm"), dict(method="amcmcppm", chains=4096)]
 SIGMA = np.array([0.0, 2.0, 8.0])
@@ -33,6 +33,13 @@ def render_mean(scene, **settings):
 
     result = render(scene, RenderSettings(workers=1, **settings), on_iteration=check)
     return result.image[..., :3].reshape(-1, 3).mean(axis=0)
+
+
+def look_down(z):
+    """A camera matrix at height ``z`` looking straight down (camera -Z is world -Z)."""
+    m = np.eye(4)
+    m[:3, 3] = (0.0, 0.0, z)
+    return m
 
 
 def e3(tau):
@@ -62,7 +69,7 @@ def box_before_emitter(camera_z, sigma=SIGMA, emission=1.0):
     m = MeshBuilder()
     m.add_box((-1, -1, 0), (1, 1, 1), 0)
     m.add_quad((-2, -2, -1), (2, -2, -1), (2, 2, -1), (-2, 2, -1), 1)
-    cam = Camera(world_from_camera=_look_down(camera_z), projection="orthographic",
+    cam = Camera(world_from_camera=look_down(camera_z), projection="orthographic",
                  frame=(-0.2, 0.2, -0.2, 0.2), resolution=(4, 4))
     return m.build(mats, camera=cam)
 
@@ -100,7 +107,7 @@ def pool(sigma=SIGMA, depth=0.5, albedo=0.5, sky=1.0, width=8.0):
     h = width / 2
     m.add_quad((-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0), 0)
     m.add_box((-h, -h, -0.01), (h, h, depth), 1)
-    cam = Camera(world_from_camera=_look_down(depth + 1.0), projection="orthographic",
+    cam = Camera(world_from_camera=look_down(depth + 1.0), projection="orthographic",
                  frame=(-0.5, 0.5, -0.5, 0.5), resolution=(8, 8))
     return m.build(mats, camera=cam, world=World(color=np.full(3, sky, np.float32)))
 
@@ -153,7 +160,7 @@ def test_a_lamp_inside_a_volume_lights_the_floor_through_it(method):
     0.2 % of 0.25 m there), so the channels' ratios are exp(-sigma 0.25) within 2 %."""
     scene = pool(depth=0.5, sky=0.0)
     lights = Lights.build([{"kind": "point", "position": (0.0, 0.0, 0.25), "power": 100.0}])
-    cam = Camera(world_from_camera=_look_down(1.5), projection="orthographic",
+    cam = Camera(world_from_camera=look_down(1.5), projection="orthographic",
                  frame=(-0.02, 0.02, -0.02, 0.02), resolution=(16, 16))
     scene = scene.replace(lights=lights, camera=cam, world=World(color=np.zeros(3, np.float32))).validate()
     got = render_mean(scene, passes=4, photons_per_pass=60_000, max_bounces=3, **method)
