@@ -85,6 +85,8 @@ def render_final(engine, depsgraph):
                                  should_stop=engine.test_break)
             writer.push(result.image)
             outputs.finish(result, settings.time_limit or 0.0)
+            effects = ", ".join(result.effects) or "none (diffuse surfaces and lights only)"
+            engine.report({'INFO'}, f"AMCMCPPM: optional effects this scene calls for: {effects}")
             for msg in result.warnings:
                 engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
             for msg in writer.problems:

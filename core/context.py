@@ -6,13 +6,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel, Hits, interpolate_corners
-from .bsdf import (DIELECTRIC, ROUGHNESS_LEVELS, MaterialTable, Textures, coat_variants, lobe_colors,
-                   roughness_variants)
+from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, MaterialTable, Textures, coat_variants,
+                   lobe_colors, roughness_variants)
 from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, normalize
-from .scene import AREA_DISK, AREA_RECT, POINT, SPOT
+from .scene import AREA_DISK, AREA_RECT, PANORAMAS, POINT, SPOT
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -95,6 +95,36 @@ class RenderContext:
         # Materials that look an image up with the UVs (colour, normal or bump map).
         self.uses_uvs = (self.table.texture >= 0) | (self.normal_texture >= 0) | (self.bump_texture >= 0)
         self.bump_program = np.asarray(mats.bump_program, np.int32)
+
+    @property
+    def effects(self) -> tuple:
+        """Names of the optional effects this scene calls for, each simulated only when named
+        here (its code runs behind the flag that makes it appear): specular transport (mirrors,
+        glass, rough glass, camera paths through smooth glossy lobes), glossy lobes and their
+        layers (Fresnel layers, coats), textures (images, procedural, roughness maps, normal and
+        bump maps, textured emitters), transparency, volumes, an environment image, and the
+        camera's depth of field or panorama."""
+        table, w = self.table, self.table.weight
+        cam = self.scene.camera
+        flags = (("mirrors", (w[:, MIRROR] > 0).any()),
+                 ("glass", (w[:, DIELECTRIC] > 0).any()),
+                 ("rough glass", table.has_rough_dielectric),
+                 ("glossy", table.has_glossy.any()),
+                 ("camera paths through glossy", table.has_glossy_through),
+                 ("Fresnel layers", table.has_layer),
+                 ("coats", table.has_coat),
+                 ("image textures", self.has_textures),
+                 ("procedural textures", self.has_programs or self.has_glossy_programs
+                  or self.has_emission_programs or self.has_dielectric_programs),
+                 ("roughness maps", self.has_roughness_programs),
+                 ("normal and bump maps", self.has_normal_maps),
+                 ("textured emitters", self.lights.textured_emitters),
+                 ("transparency", self.has_transparency),
+                 ("volumes", self.has_volumes),
+                 ("environment image", self.lights.environment is not None),
+                 ("depth of field", cam.aperture_radius > 0 and cam.projection not in PANORAMAS),
+                 ("panorama", cam.projection in PANORAMAS))
+        return tuple(name for name, on in flags if on)
 
     def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.

@@ -50,6 +50,7 @@ class RenderResult:
     passes: int = 0                             # passes in the image
     elapsed_s: float = 0.0                      # wall time of the render loop
     interrupted: bool = False                   # stopped by ``should_stop``
+    effects: tuple = ()                         # the optional effects simulated (RenderContext.effects)
 
 
 class Accumulator:
@@ -169,7 +170,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     n_pixels = width * height
     is_chain = settings.method == "amcmcppm"
     acc = Accumulator(n_pixels, settings.normalisation)
-    result = RenderResult(image=np.zeros((height, width, 4), np.float32))
+    result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects)
     warnings = result.warnings
     if ctx.lights.count == 0:
         warnings.append("the scene emits no light (no light with power, emissive material or world); "

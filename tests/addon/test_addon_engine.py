@@ -154,6 +154,20 @@ def test_unsupported_and_missing_render_finite_with_warnings(scene, tmp_path, ca
     assert "gone.png" in out
 
 
+def test_render_reports_the_effects_the_scene_calls_for(scene, tmp_path, capfd):
+    """An INFO report names the optional effects simulated (``RenderContext.effects``)."""
+    bs.lit_floor_scene()
+    bs.render_exr(tmp_path / "plain.exr")
+    plain = "optional effects this scene calls for: none (diffuse surfaces and lights only)"
+    assert plain in capfd.readouterr().out
+    mat = bs.glass("Tinted")
+    absorb = mat.node_tree.nodes.new("ShaderNodeVolumeAbsorption")
+    mat.node_tree.links.new(absorb.outputs[0], mat.node_tree.nodes["Material Output"].inputs["Volume"])
+    bs.cube("Block", size=0.4, material=mat, location=(0, 0, 0.5))
+    bs.render_exr(tmp_path / "glass.exr")
+    assert "optional effects this scene calls for: glass, volumes" in capfd.readouterr().out
+
+
 def test_invalid_settings_fail_cleanly(scene, tmp_path):
     bs.lit_floor_scene()
     props = bpy.context.scene.amcmcppm

@@ -442,3 +442,23 @@ def test_camera_rays_see_the_camera_world_and_the_rest_the_world(tmp_path):
     assert 0.1 < sky.mean() < 0.9
     np.testing.assert_allclose(image[sky], 5.0, rtol=1e-6)
     assert image[-4:].mean() == pytest.approx(0.5, rel=0.1)          # the floor, away from the horizon
+
+
+def test_effects_name_what_the_scene_calls_for():
+    """``RenderContext.effects`` (and ``RenderResult.effects``) name the optional machinery a
+    scene needs; a scene without it does not run it (for volumes: no factor, no medium)."""
+    plain = cornell_box(resolution=(8, 8))
+    ctx = RenderContext(plain)
+    assert ctx.effects == ()
+    assert not (ctx.has_volumes or ctx.has_transparency or ctx.table.has_coat or ctx.has_normal_maps)
+    hits, factor, opacity, medium = ctx.trace(np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, -1.0]]))
+    assert factor is None and opacity is None and medium is None
+    mats = plain.materials
+    specs = [{"name": n, "diffuse": mats.diffuse_color[i], "emission": mats.emission[i]}
+             for i, n in enumerate(mats.names)]
+    specs[0].update(dielectric=1.0, volume_absorption=0.5, coat=0.5, opacity=0.9)
+    scene = plain.replace(materials=Materials.build(specs)).validate()
+    effects = RenderContext(scene).effects
+    assert {"glass", "coats", "transparency", "volumes", "glossy"} <= set(effects), effects
+    result = render(scene, RenderSettings(passes=1, photons_per_pass=1000, workers=1))
+    assert result.effects == effects and np.isfinite(result.image).all()
