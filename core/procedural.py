@@ -37,7 +37,13 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
   -> Color, Alpha (``ramp_util.h``'s table lookup; the exporter samples the band with Blender).
 * ``mix_color`` blend, fac, a, b, clamp_factor, clamp_result: -> Result (``color_util.h``).
 * ``mix_float`` / ``mix_vector`` fac, a, b, clamp_factor: -> Result.
-* ``math`` operation, a, b, c, clamp: -> Value (``math_util.h``, the common operations).
+* ``math`` operation, a, b, c, clamp: -> Value (``math_util.h``, every operation).
+* ``vector_math`` operation, a, b, c, scale: -> Vector, Value (``svm_vector_math``).
+* ``clamp`` clamp_type (MINMAX, RANGE), value, min, max: -> Result.
+* ``curves`` color, fac, table (N x 3: each component's curve sampled over [min_x, max_x]),
+  min_x, max_x, extrapolate: -> Color (RGB Curves, its combined curve folded into the table,
+  and Vector Curves; ``svm_node_curves``); ``float_curve`` value, fac, table (N), min_x, max_x,
+  extrapolate: -> Value (Float Curve).  The exporter samples the curves with Blender.
 * ``map_range`` interpolation, value, from_min, from_max, to_min, to_max, steps, clamp: -> Result.
 * ``metal`` color, tint: -> Color, a metal's mean F82-tint Fresnel reflectance (its glossy colour).
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
@@ -731,9 +737,45 @@ MATH = {
     "FLOORED_MODULO": lambda a, b, c: np.where(b != 0.0, a - np.floor(_safe_divide(a, b)) * b, 0.0),
     "SINE": lambda a, b, c: np.sin(a), "COSINE": lambda a, b, c: np.cos(a),
     "SNAP": lambda a, b, c: np.floor(_safe_divide(a, b)) * b,
-    "SMOOTH_MIN": None, "SMOOTH_MAX": None,
+    "LOGARITHM": lambda a, b, c: _safe_log(a, b),
+    "INVERSE_SQRT": lambda a, b, c: np.where(a > 0.0, 1.0 / np.sqrt(np.where(a > 0.0, a, 1.0)), 0.0),
+    "EXPONENT": lambda a, b, c: np.exp(a),
+    "RADIANS": lambda a, b, c: a * (np.pi / 180.0), "DEGREES": lambda a, b, c: a * (180.0 / np.pi),
+    "TANGENT": lambda a, b, c: np.tan(a), "ARCSINE": lambda a, b, c: np.arcsin(np.clip(a, -1.0, 1.0)),
+    "ARCCOSINE": lambda a, b, c: np.arccos(np.clip(a, -1.0, 1.0)), "ARCTANGENT": lambda a, b, c: np.arctan(a),
+    "ARCTAN2": lambda a, b, c: np.arctan2(a, b), "SINH": lambda a, b, c: np.sinh(a),
+    "COSH": lambda a, b, c: np.cosh(a), "TANH": lambda a, b, c: np.tanh(a),
+    "COMPARE": lambda a, b, c: ((a == b) | (np.abs(a - b) <= np.maximum(c, FLT_EPSILON))).astype(np.float64),
+    "WRAP": lambda a, b, c: _wrapf(a, b, c), "PINGPONG": lambda a, b, c: _pingpong(a, b),
+    "SMOOTH_MIN": lambda a, b, c: _smooth_min(a, b, c), "SMOOTH_MAX": lambda a, b, c: -_smooth_min(-a, -b, c),
 }
-MATH = {k: v for k, v in MATH.items() if v is not None}
+
+
+FLT_EPSILON = float(np.finfo(np.float32).eps)
+
+
+def _safe_log(a, b):
+    """log_b(a), 0 where a or b is not positive (Cycles' ``safe_logf``)."""
+    ok = (a > 0.0) & (b > 0.0)
+    return np.where(ok, _safe_divide(np.log(np.where(ok, a, 1.0)), np.log(np.where(ok, b, 2.0))), 0.0)
+
+
+def _wrapf(value, high, low):
+    """Cycles' ``wrapf``: ``value`` wrapped into [low, high)."""
+    span = high - low
+    return np.where(span != 0.0, value - span * np.floor(_safe_divide(value - low, span)), low)
+
+
+def _pingpong(a, b):
+    """Cycles' ``pingpongf``: ``a`` bounced between 0 and ``b``."""
+    x = _safe_divide(a - b, b * 2.0)
+    return np.where(b != 0.0, np.abs((x - np.floor(x)) * b * 2.0 - b), 0.0)
+
+
+def _smooth_min(a, b, k):
+    """Cycles' ``smoothminf``: the minimum, rounded over a distance ``k``."""
+    h = _safe_divide(np.maximum(k - np.abs(a - b), 0.0), k)
+    return np.where(k != 0.0, np.minimum(a, b) - h * h * h * k / 6.0, np.minimum(a, b))
 
 
 def _math(ev, node):
@@ -745,6 +787,115 @@ def _math(ev, node):
     if node.get("clamp"):
         v = np.clip(v, 0.0, 1.0)
     return {"Value": v}
+
+
+def _per_component(fn):
+    """A vector operation applying the float one ``fn`` (a, b, c) to each component."""
+    return lambda a, b, c, s: fn(a, b, c)
+
+
+def _vector_safe_normalize(a):
+    n = np.sqrt(np.einsum("ij,ij->i", a, a))[:, None]
+    return np.where(n > 0.0, a / np.where(n > 0.0, n, 1.0), 0.0)
+
+
+def _project(a, b):
+    bb = np.einsum("ij,ij->i", b, b)[:, None]
+    return np.where(bb != 0.0, b * np.einsum("ij,ij->i", a, b)[:, None] / np.where(bb != 0.0, bb, 1.0), 0.0)
+
+
+def _reflect(a, b):
+    n = _vector_safe_normalize(b)
+    return a - 2.0 * np.einsum("ij,ij->i", n, a)[:, None] * n
+
+
+def _refract(a, b, eta):
+    n = _vector_safe_normalize(b)
+    d = np.einsum("ij,ij->i", n, a)
+    k = 1.0 - eta * eta * (1.0 - d * d)
+    out = eta[:, None] * a - (eta * d + np.sqrt(np.maximum(k, 0.0)))[:, None] * n
+    return np.where((k < 0.0)[:, None], 0.0, out)
+
+
+# Blender's Vector Math node (Cycles' ``svm_vector_math``): (a, b, c, scale) -> vector, per
+# operation; VECTOR_VALUES give a Value instead.
+VECTOR_MATH = {
+    "ADD": lambda a, b, c, s: a + b, "SUBTRACT": lambda a, b, c, s: a - b,
+    "MULTIPLY": lambda a, b, c, s: a * b, "DIVIDE": lambda a, b, c, s: _safe_divide(a, b),
+    "MULTIPLY_ADD": lambda a, b, c, s: a * b + c, "CROSS_PRODUCT": lambda a, b, c, s: np.cross(a, b),
+    "PROJECT": lambda a, b, c, s: _project(a, b), "REFLECT": lambda a, b, c, s: _reflect(a, b),
+    "REFRACT": lambda a, b, c, s: _refract(a, b, s),
+    "FACEFORWARD": lambda a, b, c, s: np.where((np.einsum("ij,ij->i", c, b) < 0.0)[:, None], a, -a),
+    "SCALE": lambda a, b, c, s: a * s[:, None], "NORMALIZE": lambda a, b, c, s: _vector_safe_normalize(a),
+    "SNAP": _per_component(MATH["SNAP"]), "FLOOR": _per_component(MATH["FLOOR"]),
+    "CEIL": _per_component(MATH["CEIL"]), "MODULO": _per_component(MATH["MODULO"]),
+    "WRAP": _per_component(MATH["WRAP"]), "FRACTION": _per_component(MATH["FRACT"]),
+    "ABSOLUTE": _per_component(MATH["ABSOLUTE"]), "POWER": _per_component(MATH["POWER"]),
+    "SIGN": _per_component(MATH["SIGN"]), "MINIMUM": _per_component(MATH["MINIMUM"]),
+    "MAXIMUM": _per_component(MATH["MAXIMUM"]), "SINE": _per_component(MATH["SINE"]),
+    "COSINE": _per_component(MATH["COSINE"]), "TANGENT": _per_component(MATH["TANGENT"]),
+}
+VECTOR_VALUES = {
+    "DOT_PRODUCT": lambda a, b: np.einsum("ij,ij->i", a, b),
+    "DISTANCE": lambda a, b: np.sqrt(np.einsum("ij,ij->i", a - b, a - b)),
+    "LENGTH": lambda a, b: np.sqrt(np.einsum("ij,ij->i", a, a)),
+}
+
+
+def _vector_math(ev, node):
+    op = node.get("operation", "ADD")
+    a, b, c = ev.vec(node, "a"), ev.vec(node, "b"), ev.vec(node, "c")
+    zeros_v, zeros_f = np.zeros((ev.k, 3)), np.zeros(ev.k)
+    with np.errstate(all="ignore"):
+        if op in VECTOR_VALUES:
+            return {"Vector": zeros_v, "Value": VECTOR_VALUES[op](a, b)}
+        return {"Vector": VECTOR_MATH[op](a, b, c, ev.float(node, "scale", 1.0)), "Value": zeros_f}
+
+
+def _clamp(ev, node):
+    v, lo, hi = ev.float(node, "value"), ev.float(node, "min", 0.0), ev.float(node, "max", 1.0)
+    if node.get("clamp_type", "MINMAX") == "RANGE":
+        lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    return {"Result": np.minimum(np.maximum(v, lo), hi)}
+
+
+def _curve_lookup(table, f, extrapolate):
+    """Cycles' ``rgb_ramp_lookup`` of (N, c) ``table`` at (k, c) positions ``f`` in [0, 1],
+    interpolated, and past the ends along the end segments' slopes with ``extrapolate``."""
+    size = len(table)
+    cols = np.arange(table.shape[1])
+    x = np.clip(np.nan_to_num(f, nan=0.0), 0.0, 1.0) * (size - 1)
+    i = np.clip(x.astype(np.int64), 0, size - 1)
+    t = x - i
+    out = np.where(t > 0.0, (1.0 - t) * table[i, cols] + t * table[np.minimum(i + 1, size - 1), cols],
+                   table[i, cols])
+    if extrapolate:
+        low, high = f < 0.0, f > 1.0
+        out = np.where(low, table[0] + (table[0] - table[1]) * (-f) * (size - 1), out)
+        out = np.where(high, table[-1] + (table[-1] - table[-2]) * (f - 1.0) * (size - 1), out)
+    return out
+
+
+def _curves(ev, node):
+    """RGB Curves / Vector Curves (``svm_node_curves``): each component through its column of
+    ``table``, sampled over [min_x, max_x], mixed with the input by ``fac``."""
+    c = ev.vec(node, "color")
+    lo, hi = node.get("min_x", 0.0), node.get("max_x", 1.0)
+    f = _safe_divide(c - lo, np.full_like(c, hi - lo))
+    curved = _curve_lookup(np.asarray(node["table"], np.float64), f, node.get("extrapolate", True))
+    t = ev.float(node, "fac", 1.0)[:, None]
+    return {"Color": (1.0 - t) * c + t * curved}
+
+
+def _float_curve(ev, node):
+    """Float Curve (``svm_node_curve``): the value through ``table`` over [min_x, max_x]."""
+    v = ev.float(node, "value")
+    lo, hi = node.get("min_x", 0.0), node.get("max_x", 1.0)
+    f = _safe_divide(v - lo, np.full_like(v, hi - lo))[:, None]
+    table = np.asarray(node["table"], np.float64)[:, None]
+    curved = _curve_lookup(table, f, node.get("extrapolate", True))[:, 0]
+    t = ev.float(node, "fac", 1.0)
+    return {"Value": (1.0 - t) * v + t * curved}
 
 
 def _map_range(ev, node):
@@ -875,7 +1026,8 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
-       "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply}
+       "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
+       "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -887,9 +1039,10 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
-           "unpremultiply": ("Color",)}
+           "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
+           "curves": ("Color",), "float_curve": ("Value",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
-            "environment": ("texture",), "ramp": ("table",)}
+            "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
 # Settings chosen from a list (the others are numbers, colours or nodes).
 CHOICES = {
@@ -904,7 +1057,9 @@ CHOICES = {
     ("white_noise", "dimensions"): _patterns.DIMENSIONS,
     ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"),
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
-    ("image", "interpolation"): ("Linear", "Closest"), ("image", "projection"): ("FLAT", "BOX")}
+    ("image", "interpolation"): ("Linear", "Closest"), ("image", "projection"): ("FLAT", "BOX"),
+    ("vector_math", "operation"): tuple(VECTOR_MATH) + tuple(VECTOR_VALUES),
+    ("clamp", "clamp_type"): ("MINMAX", "RANGE")}
 # Array settings and their shapes (None: N >= 2).
 ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)},
-          "sky": {"sun_direction": (3,)}}
+          "sky": {"sun_direction": (3,)}, "curves": {"table": (None, 3)}, "float_curve": {"table": (None,)}}

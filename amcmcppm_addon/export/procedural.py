@@ -8,7 +8,8 @@ Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render 
 (all four types), Image Texture (flat projection, repeat), Environment Texture
 (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise
 Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector,
-colour; 19 blend modes) and the legacy MixRGB, Math (the common operations), Map Range (float),
+colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Clamp, Map
+Range (float), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
 Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB
 and Value.  Anything else is named in the material's warning and replaced by the input socket's
 own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
@@ -369,6 +370,64 @@ def _math(b, node, stack):
     return {"Value": op}
 
 
+def _vector_math(b, node, stack):
+    if node.operation not in procedural.CHOICES[("vector_math", "operation")]:
+        b.walker.unsupported(node, f"(operation {node.operation.lower()})")
+        return None
+    vectors = [s for s in node.inputs if s.type == "VECTOR"]
+    op = {"op": "vector_math", "operation": node.operation,
+          **{k: b.expression(s, stack, VEC) for k, s in zip("abc", vectors)},
+          "scale": b.input(node, "Scale", stack, FLOAT)}
+    return _out(op, Vector="Vector", Value="Value")
+
+
+def _clamp(b, node, stack):
+    op = {"op": "clamp", "clamp_type": node.clamp_type, "value": b.input(node, "Value", stack, FLOAT),
+          "min": b.input(node, "Min", stack, FLOAT), "max": b.input(node, "Max", stack, FLOAT)}
+    return {"Result": op}
+
+
+def _curve_tables(mapping, curves, combined=None):
+    """(table (RAMP_TABLE_SIZE, len(curves)), min_x, max_x, extrapolate) of a curve mapping, as
+    Cycles bakes it (``curvemapping_color_to_array``): every curve sampled over the x range of all
+    the mapping's curves it uses, through ``combined`` first if given (RGB Curves' C curve)."""
+    mapping.initialize()
+    mapping.update()
+    used = list(curves) + ([combined] if combined is not None else [])
+    lo = min(c.points[0].location[0] for c in used)
+    hi = max(c.points[-1].location[0] for c in used)
+    table = []
+    for i in range(RAMP_TABLE_SIZE):
+        t = lo + i / (RAMP_TABLE_SIZE - 1) * (hi - lo)
+        x = mapping.evaluate(combined, t) if combined is not None else t
+        table.append([mapping.evaluate(c, x) for c in curves])
+    return table, lo, hi, mapping.extend == "EXTRAPOLATED"
+
+
+def _rgb_curves(b, node, stack):
+    mapping = node.mapping
+    table, lo, hi, extrapolate = _curve_tables(mapping, mapping.curves[:3], mapping.curves[3])
+    return {"Color": {"op": "curves", "color": b.input(node, "Color", stack, VEC),
+                      "fac": b.input(node, "Fac", stack, FLOAT), "table": table, "min_x": lo, "max_x": hi,
+                      "extrapolate": extrapolate}}
+
+
+def _vector_curves(b, node, stack):
+    mapping = node.mapping
+    table, lo, hi, extrapolate = _curve_tables(mapping, mapping.curves[:3])
+    return {"Vector": {"op": "curves", "color": b.input(node, "Vector", stack, VEC),
+                       "fac": b.input(node, "Fac", stack, FLOAT), "table": table, "min_x": lo, "max_x": hi,
+                       "extrapolate": extrapolate}}
+
+
+def _float_curve(b, node, stack):
+    mapping = node.mapping
+    table, lo, hi, extrapolate = _curve_tables(mapping, mapping.curves[:1])
+    return {"Value": {"op": "float_curve", "value": b.input(node, "Value", stack, FLOAT),
+                      "fac": b.input(node, "Factor", stack, FLOAT), "table": [row[0] for row in table],
+                      "min_x": lo, "max_x": hi, "extrapolate": extrapolate}}
+
+
 def _map_range(b, node, stack):
     if node.data_type != "FLOAT":
         b.walker.unsupported(node, "(vector map range)")
@@ -442,4 +501,6 @@ NODES = {
     "ShaderNodeBrightContrast": _bright_contrast,
     "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,
+    "ShaderNodeVectorMath": _vector_math, "ShaderNodeClamp": _clamp, "ShaderNodeRGBCurve": _rgb_curves,
+    "ShaderNodeVectorCurve": _vector_curves, "ShaderNodeFloatCurve": _float_curve,
 }

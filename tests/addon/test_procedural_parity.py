@@ -251,6 +251,81 @@ def blackbody_over_gradient(nt):
     return socket(half.outputs, "Result_Color")
 
 
+def math_chain(*ops):
+    """A Combine Color of three Math nodes of the Object coordinates' x and y: (operation,
+    first input, second input, third) per channel, where inputs are 'x', 'y' or numbers."""
+    def build(nt):
+        sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+        nt.links.new(coords(nt, "Object"), sep.inputs["Vector"])
+        comb = nt.nodes.new("ShaderNodeCombineColor")
+        for channel, (operation, *args) in zip(("Red", "Green", "Blue"), ops):
+            m = node(nt, "ShaderNodeMath", operation=operation)
+            for sock, arg in zip(m.inputs, args):
+                if isinstance(arg, str):
+                    nt.links.new(sep.outputs[arg.upper()], sock)
+                else:
+                    sock.default_value = arg
+            nt.links.new(m.outputs[0], comb.inputs[channel])
+        return comb.outputs["Color"]
+    return build
+
+
+def vector_math(*ops):
+    """Vector Math nodes in a chain from the Object coordinates, each (operation, b, c, scale)
+    with constant other inputs; a value operation's output goes on as grey."""
+    def build(nt):
+        out = coords(nt, "Object")
+        for operation, b, c, scale in ops:
+            m = node(nt, "ShaderNodeVectorMath", operation=operation)
+            nt.links.new(out, m.inputs[0])
+            m.inputs[1].default_value, m.inputs[2].default_value = b, c
+            socket(m.inputs, "Scale").default_value = scale       # hidden unless the operation uses it
+            out = m.outputs["Value"] if operation in ("DOT_PRODUCT", "LENGTH", "DISTANCE") else m.outputs[0]
+        return out
+    return build
+
+
+def clamped(kind, low, high):
+    """A Clamp of the Object x (RANGE swaps a minimum above the maximum, MINMAX does not)."""
+    def build(nt):
+        sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+        nt.links.new(coords(nt, "Object"), sep.inputs["Vector"])
+        c = node(nt, "ShaderNodeClamp", clamp_type=kind, Min=low, Max=high)
+        nt.links.new(sep.outputs["X"], c.inputs["Value"])
+        ramp = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        nt.links.new(c.outputs[0], ramp.inputs[0])
+        ramp.inputs[1].default_value = 1.3
+        return ramp.outputs[0]
+    return build
+
+
+def curves(kind, extend):
+    """An RGB Curves (its C and R curves bent), Vector Curves (X and Z bent) or Float Curve on
+    coordinates that leave the curves' range (extrapolated or extended flat: HORIZONTAL)."""
+    def build(nt):
+        tc = coords(nt, "Object", "POINT", Scale=(1.5, 1.2, 1.0), Location=(0.2, 0.0, 0.4))
+        n = nt.nodes.new({"rgb": "ShaderNodeRGBCurve", "vector": "ShaderNodeVectorCurve",
+                          "float": "ShaderNodeFloatCurve"}[kind])
+        mapping = n.mapping
+        mapping.extend = extend
+        bent = {"rgb": (3, 0), "vector": (0, 2), "float": (0,)}[kind]
+        for i, k in enumerate(bent):
+            curve = mapping.curves[k]
+            curve.points.new(0.3 if i == 0 else 0.6, 0.6 if i == 0 else 0.2)
+            curve.points[-1].location = (curve.points[-1].location[0], 0.8)
+        mapping.update()
+        if kind == "float":
+            sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+            nt.links.new(tc, sep.inputs["Vector"])
+            nt.links.new(sep.outputs["X"], n.inputs["Value"])
+            n.inputs["Factor"].default_value = 0.9
+            return n.outputs["Value"]
+        nt.links.new(tc, n.inputs[1])
+        n.inputs["Fac"].default_value = 0.8
+        return n.outputs[0]
+    return build
+
+
 CASES = {
     "checker_generated": checker_default,
     "blackbody_gradient": blackbody_over_gradient,
@@ -287,6 +362,33 @@ CASES = {
     "white_noise_snapped": white_noise_snapped,
     "noise_fac_ramp": noise("Fac", Scale=4.0, Detail=3.5, Roughness=0.6),
     "noise_color_distorted": noise("Color", Scale=2.5, Distortion=0.8, noise_type="RIDGED_MULTIFRACTAL"),
+    "math_inverse_trig": math_chain(("ARCTAN2", "x", "y"), ("ARCCOSINE", "y"), ("ARCSINE", "x")),
+    "math_exp_log": math_chain(("LOGARITHM", "x", 3.0), ("EXPONENT", "y"), ("INVERSE_SQRT", "x")),
+    "math_hyperbolic": math_chain(("TANH", "x"), ("SINH", "y"), ("COSH", "x")),
+    "math_wrap_pingpong": math_chain(("WRAP", "x", 0.7, 0.1), ("PINGPONG", "y", 0.35), ("TANGENT", "x")),
+    "math_smooth_compare": math_chain(("SMOOTH_MIN", "x", "y", 0.4), ("SMOOTH_MAX", "x", "y", 0.3),
+                                      ("COMPARE", "x", "y", 0.23)),
+    "math_degrees": math_chain(("DEGREES", "x"), ("RADIANS", "y"), ("TRUNC", "x")),
+    "vector_math_geometry": vector_math(("CROSS_PRODUCT", (0.3, 0.8, 0.5), (0, 0, 0), 1.0),
+                                        ("REFLECT", (0.2, 0.5, 1.0), (0, 0, 0), 1.0),
+                                        ("PROJECT", (1.0, 0.4, 0.2), (0, 0, 0), 1.0),
+                                        ("ABSOLUTE", (0, 0, 0), (0, 0, 0), 1.0)),
+    "vector_math_refract": vector_math(("NORMALIZE", (0, 0, 0), (0, 0, 0), 1.0),
+                                       ("REFRACT", (0.3, 0.2, 1.0), (0, 0, 0), 0.7),
+                                       ("FACEFORWARD", (0.1, 0.9, 0.3), (0.5, -0.2, 0.4), 1.0),
+                                       ("MULTIPLY_ADD", (0.8, 0.6, 0.4), (0.5, 0.5, 0.5), 1.0)),
+    "vector_math_wrap_snap": vector_math(("SCALE", (0, 0, 0), (0, 0, 0), 2.5),
+                                         ("WRAP", (1.0, 0.8, 0.6), (0.1, 0.2, 0.0), 1.0),
+                                         ("SNAP", (0.3, 0.25, 0.2), (0, 0, 0), 1.0),
+                                         ("POWER", (1.5, 2.0, 0.5), (0, 0, 0), 1.0)),
+    "vector_math_values": vector_math(("DISTANCE", (0.4, 0.3, 0.0), (0, 0, 0), 1.0)),
+    "vector_math_dot": vector_math(("DOT_PRODUCT", (0.6, -0.3, 0.2), (0, 0, 0), 1.0)),
+    "clamp_minmax": clamped("MINMAX", 0.2, 0.7),
+    "clamp_range": clamped("RANGE", 0.7, 0.2),
+    "rgb_curves_extrapolated": curves("rgb", "EXTRAPOLATED"),
+    "rgb_curves_horizontal": curves("rgb", "HORIZONTAL"),
+    "vector_curves": curves("vector", "EXTRAPOLATED"),
+    "float_curve": curves("float", "HORIZONTAL"),
 }
 
 

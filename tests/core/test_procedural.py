@@ -77,6 +77,28 @@ def test_math_is_safe_where_cycles_is():
     np.testing.assert_allclose(run(stepped, pts), [0, 0.5, 1])
 
 
+def test_vector_math_clamp_and_curves_where_cycles_is_safe():
+    """Division and normalisation by zero give 0, a refraction past the critical angle 0; a Clamp
+    of RANGE swaps its bounds; curves hold or extrapolate past their range."""
+    pts = [(0.0, 0, 0), (3.0, 4.0, 0)]
+    def vm(operation, **kw):
+        return {"op": "vector_math", "operation": operation, "a": OBJECT, **kw}
+    np.testing.assert_allclose(run(vm("NORMALIZE"), pts), [[0, 0, 0], [0.6, 0.8, 0]])
+    np.testing.assert_allclose(run(vm("DIVIDE", b=[0.0, 2.0, 0.0]), pts), [[0, 0, 0], [0, 2, 0]])
+    np.testing.assert_allclose(run({**vm("LENGTH"), "output": "Value"}, pts), [0, 5])
+    grazing = {"op": "vector_math", "operation": "REFRACT", "a": [0.8, 0.0, -0.6], "b": [0, 0, 1],
+               "scale": 1.5}
+    np.testing.assert_allclose(run(grazing, pts), 0.0)                      # total internal reflection
+    x = {"op": "separate", "vector": OBJECT, "output": "X"}
+    swapped = {"op": "clamp", "clamp_type": "RANGE", "value": x, "min": 2, "max": 1}
+    np.testing.assert_allclose(run(swapped, pts), [1, 2])
+    np.testing.assert_allclose(run({"op": "clamp", "value": x, "min": 2, "max": 1}, pts), [1, 1])
+    ramp = {"op": "float_curve", "value": x, "table": [0.0, 0.5, 1.0], "min_x": 0.0, "max_x": 2.0}
+    np.testing.assert_allclose(run({**ramp, "extrapolate": True}, pts), [0, 1.5])
+    np.testing.assert_allclose(run({**ramp, "extrapolate": False}, pts), [0, 1.0])
+    np.testing.assert_allclose(run({**ramp, "fac": 0.5, "extrapolate": False}, pts), [0, 2.0])
+
+
 def test_conversions_follow_cycles():
     color = {"op": "attribute", "name": "object"}
     pts = [(1.0, 0.0, 0.0), (0.2, 0.4, 0.6)]
@@ -116,6 +138,9 @@ def test_colours_are_finite_and_non_negative():
     ({"op": "math", "operation": "ADD", "a": "two"}, "input a must be a finite number"),
     ({"op": "checker", "vector": OBJECT, "scale": float("nan")}, "input scale must be a finite number"),
     ({"op": "noise", "vector": OBJECT, "noise_type": "PERLIN"}, "noise_type 'PERLIN'"),
+    ({"op": "vector_math", "operation": "SLERP", "a": OBJECT}, "operation 'SLERP' is not one of"),
+    ({"op": "curves", "color": OBJECT, "table": [[0, 0], [1, 1]]}, "table must be a finite array of shape"),
+    ({"op": "float_curve", "value": 0.5}, "lacks its input 'table'"),
 ])
 def test_scene_validation_names_a_bad_program(program, message):
     checker = {"op": "checker", "vector": OBJECT, "color1": [1, 1, 1], "color2": [0, 0, 0]}
