@@ -404,20 +404,22 @@ def _curve_tables(mapping, curves, combined=None):
     return table, lo, hi, mapping.extend == "EXTRAPOLATED"
 
 
-def _rgb_curves(b, node, stack):
+def _component_curves(b, node, stack, socket, combined):
+    """RGB Curves (``socket`` Color, its C curve ``combined`` first) or Vector Curves (Vector)."""
     mapping = node.mapping
-    table, lo, hi, extrapolate = _curve_tables(mapping, mapping.curves[:3], mapping.curves[3])
-    return {"Color": {"op": "curves", "color": b.input(node, "Color", stack, VEC),
-                      "fac": b.input(node, "Fac", stack, FLOAT), "table": table, "min_x": lo, "max_x": hi,
-                      "extrapolate": extrapolate}}
+    table, lo, hi, extrapolate = _curve_tables(mapping, mapping.curves[:3],
+                                               mapping.curves[3] if combined else None)
+    return {socket: {"op": "curves", "color": b.input(node, socket, stack, VEC),
+                     "fac": b.input(node, "Fac", stack, FLOAT), "table": table, "min_x": lo, "max_x": hi,
+                     "extrapolate": extrapolate}}
+
+
+def _rgb_curves(b, node, stack):
+    return _component_curves(b, node, stack, "Color", combined=True)
 
 
 def _vector_curves(b, node, stack):
-    mapping = node.mapping
-    table, lo, hi, extrapolate = _curve_tables(mapping, mapping.curves[:3])
-    return {"Vector": {"op": "curves", "color": b.input(node, "Vector", stack, VEC),
-                       "fac": b.input(node, "Fac", stack, FLOAT), "table": table, "min_x": lo, "max_x": hi,
-                       "extrapolate": extrapolate}}
+    return _component_curves(b, node, stack, "Vector", combined=False)
 
 
 def _float_curve(b, node, stack):

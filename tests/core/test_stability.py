@@ -103,7 +103,8 @@ def extreme_values():
 def wild_procedural_colour():
     """A room whose walls' colour and lamp's emission are a program gone wild: 1 / x (up to 1e7
     near the plane x = 0, negative beyond it), to the power 40, times a noise: the colours are
-    clamped (to 100, the emission to 1e30), the image finite."""
+    clamped (to 100, the emission to 1e30), the image finite.  The walls' bump height and glossy
+    roughness overflow too (inf, and NaN from the tangent of inf)."""
     room = cornell_like()
     x = {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}
     wild = {"op": "math", "operation": "POWER", "a": {"op": "math", "operation": "DIVIDE", "a": 1.0, "b": x},
@@ -111,7 +112,14 @@ def wild_procedural_colour():
     noise = {"op": "noise", "vector": {"op": "attribute", "name": "object"}, "scale": 3.0, "output": "Color"}
     program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": {"op": "splat", "value": wild},
                "b": noise}
-    mats = Materials.build([{"name": "wall", "diffuse_program": program},
+    # Overflowing heights and roughness: exp(1000 x) is inf beyond x = 0.71, its tangent NaN there.
+    scaled = {"op": "math", "operation": "MULTIPLY", "a": x, "b": 1000.0}
+    blowup = {"op": "math", "operation": "EXPONENT", "a": scaled}
+    tangent = {"op": "math", "operation": "TANGENT", "a": blowup}
+    height = {"op": "vector_math", "operation": "DOT_PRODUCT", "output": "Value",
+              "a": {"op": "splat", "value": tangent}, "b": [1, -1, 1]}
+    mats = Materials.build([{"name": "wall", "diffuse_program": program, "bump_program": height,
+                             "glossy": 0.5, "roughness_program": blowup},
                             {"name": "lamp", "emission": 5.0, "emission_program": program}])
     return with_one_object(room.replace(materials=mats)).validate()
 
