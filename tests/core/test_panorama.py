@@ -55,8 +55,8 @@ def test_a_panorama_over_a_floor_under_the_sky_sees_albedo_times_sky(name, metho
     def check(result):
         assert np.isfinite(result.image).all()
 
-    result = render(scene, RenderSettings(passes=4, photons_per_pass=40_000, seed=1, workers=1, method=method),
-                    on_iteration=check)
+    settings = RenderSettings(passes=4, photons_per_pass=40_000, seed=1, workers=1, method=method)
+    result = render(scene, settings, on_iteration=check)
     img = result.image.reshape(-1, 4)
     # Seeds 0-3 measured 0.961-1.032 of the closed form (SPPM and AMCMCPPM, all four projections).
     assert img[floor, :3].mean() == pytest.approx(0.5, rel=0.05)
@@ -74,7 +74,8 @@ def test_panoramas_survive_a_file_round_trip_and_bad_ranges_are_refused(tmp_path
     assert (cam.projection, cam.fisheye_fov, cam.fisheye_lens, cam.sensor_size) == \
         ("fisheye_equisolid", 2.4, 8.0, (30.0, 20.0))
     # A file from before panoramas: the defaults.
-    arrays = {k: v for k, v in scene.to_arrays().items() if not k.startswith(("camera.fisheye", "camera.sensor"))}
+    arrays = {k: v for k, v in scene.to_arrays().items()
+              if not k.startswith(("camera.fisheye", "camera.sensor"))}
     assert Scene.from_arrays(arrays).camera.fisheye_lens == 10.5
     for bad in (dict(projection="cylinder"), dict(projection="equirectangular", latitude_range=(-2.0, 0.0)),
                 dict(projection="equirectangular", longitude_range=(1.0, 1.0)),
