@@ -69,6 +69,9 @@ class RenderContext:
         self.transparent_color = np.asarray(mats.transparent_color, np.float64)
         self.see_through = (self.opacity < 1.0) | (self.opacity_program >= 0)
         self.has_transparency = bool(self.see_through.any())
+        # Triangles hidden from some camera-path rays (Scene.triangle_visibility).
+        self.triangle_visibility = scene.triangle_visibility
+        self.has_hidden = self.triangle_visibility is not None and bool((self.triangle_visibility != 7).any())
         # Volumes (Materials.volume_absorption): per-material coefficients, and which have one.
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
         self.absorbs = (self.absorption > 0).any(axis=1)
@@ -102,8 +105,8 @@ class RenderContext:
         here (its code runs behind the flag that makes it appear): specular transport (mirrors,
         glass, rough glass, camera paths through smooth glossy lobes), glossy lobes and their
         layers (Fresnel layers, coats), textures (images, procedural, roughness maps, normal and
-        bump maps, textured emitters), transparency, volumes, an environment image, and the
-        camera's depth of field or panorama."""
+        bump maps, textured emitters), transparency, objects hidden from some camera rays,
+        volumes, an environment image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
@@ -120,13 +123,14 @@ class RenderContext:
                  ("normal and bump maps", self.has_normal_maps),
                  ("textured emitters", self.lights.textured_emitters),
                  ("transparency", self.has_transparency),
+                 ("objects hidden from camera rays", self.has_hidden),
                  ("volumes", self.has_volumes),
                  ("environment image", self.lights.environment is not None),
                  ("depth of field", cam.aperture_radius > 0 and cam.projection not in PANORAMAS),
                  ("panorama", cam.projection in PANORAMAS))
         return tuple(name for name, on in flags if on)
 
-    def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None):
+    def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -136,13 +140,17 @@ class RenderContext:
         ``medium`` (n,) int32 is the material whose volume each ray starts in (-1: none; None:
         all -1), as :meth:`next_medium` tracks it; each segment that ends on a hit is absorbed
         by its volume (``Materials.volume_absorption``; rays that leave the scene are not).
+        ``ray_kind`` (n,) uint8 (camera paths: VISIBLE_CAMERA, VISIBLE_GLOSSY or
+        VISIBLE_TRANSMISSION) makes the rays go through triangles hidden from their kind
+        (``Scene.triangle_visibility``); without it (photons) every triangle stops them.
         Returns ``(hits, factor, opacity, medium)``: the hits (``t`` from the original origins;
         glass resting on a surface resolved, ``Accel.with_contacts``), the (n, 3) tint of the
         crossings and volumes, the (n,) opacity where each ray stopped (1 on opaque surfaces; the
         rays that stop there are that share of those that arrive: photons deposit flux /
-        opacity) and the (n,) volume each ray arrives in at its hit; the factor is None without
-        transparent or absorbing materials, the opacity without transparent ones, and the
-        medium is returned as given (None stays None) without absorbing materials."""
+        opacity) and the (n,) volume each ray arrives in at its hit; the factor and the opacity
+        are None when no transparent surface (nor, for the factor, volume; nor, for camera
+        paths, hidden triangle) can act, and the medium is returned as given (None stays None)
+        without absorbing materials."""
         accel = self.accel
         n = len(dirs)
         raw = accel.intersect(origins, dirs, tmax)
@@ -152,7 +160,8 @@ class RenderContext:
             factor = np.ones((n, 3))
             self._absorb(factor, medium, np.arange(n), raw, dirs)
         hits = accel.with_contacts(raw, origins, dirs)
-        if not self.has_transparency or not hits.is_hit.any():
+        hiding = self.has_hidden and ray_kind is not None
+        if not (self.has_transparency or hiding) or not hits.is_hit.any():
             return hits, factor, None, medium
         is_hit, prim, b1, b2 = hits.is_hit.copy(), hits.prim_ids.copy(), hits.b1.copy(), hits.b2.copy()
         t = hits.t.astype(np.float64)
@@ -161,18 +170,29 @@ class RenderContext:
         stopped = np.ones(n)
         rows = np.flatnonzero(is_hit)
         for crossing in range(MAX_TRANSPARENT_CROSSINGS):
-            rows = rows[self.see_through.take(self.material_ids.take(prim.take(rows)))]
+            pr = prim.take(rows)
+            # Triangles hidden from these rays (object ray visibility) let them through untouched.
+            unseen = ((self.triangle_visibility.take(pr) & ray_kind.take(rows)) == 0 if hiding
+                      else np.zeros(len(rows), bool))
+            clear = self.see_through.take(self.material_ids.take(pr)) & ~unseen
+            rows, unseen, clear = rows[unseen | clear], unseen[unseen | clear], clear[unseen | clear]
             if len(rows) == 0:
                 break
             p = accel.hit_positions(prim.take(rows), b1.take(rows), b2.take(rows))
-            opacity = self._opacity(prim.take(rows), b1.take(rows), b2.take(rows), p)
-            through = (uniforms(rows, crossing) >= opacity) & (opacity < 1.0)
-            stopped[rows[~through]] = opacity[~through]
-            rows, p = rows[through], p[through]
+            through = unseen.copy()
+            if clear.any():
+                c = np.flatnonzero(clear)
+                rc = rows.take(c)
+                opacity = self._opacity(prim.take(rc), b1.take(rc), b2.take(rc), p.take(c, axis=0))
+                crossed = (uniforms(rc, crossing) >= opacity) & (opacity < 1.0)
+                stopped[rc[~crossed]] = opacity[~crossed]
+                through[c] = crossed
+            rows, p, clear = rows[through], p[through], clear[through]
             if len(rows) == 0:
                 break
             pr = prim.take(rows)
-            factor[rows] *= self.transparent_color.take(self.material_ids.take(pr), axis=0)
+            tinted = rows[clear]
+            factor[tinted] *= self.transparent_color.take(self.material_ids.take(pr[clear]), axis=0)
             d = dirs.take(rows, axis=0)
             if self.has_volumes:
                 medium[rows] = self.next_medium(medium.take(rows), pr, d, -d)

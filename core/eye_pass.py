@@ -116,7 +116,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             break
         # A camera path stops on a transparent surface as often as it is opaque, with its weight.
         hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None,
-                                             lambda rows, crossing: rng.random(len(rows)), medium)
+                                             lambda rows, crossing: rng.random(len(rows)), medium, ray_kind)
         if through is not None:
             beta = beta * through                            # transparent surfaces and volumes crossed
         rays += len(pix)

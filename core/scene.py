@@ -573,6 +573,10 @@ class Scene:
     object_from_world: np.ndarray = None
     texture_spaces: np.ndarray = None
     vertex_colors: np.ndarray = None    # (T, 3, 3) float32 linear RGB per corner (Color Attribute), or None
+    # (T,) uint8 the camera-path rays that see each triangle (Blender's object ray visibility, bits
+    # as Lights.visibility: VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION), or None: all of
+    # them.  The others go through it (RenderContext.trace); photons always meet it.
+    triangle_visibility: np.ndarray = None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -700,6 +704,11 @@ class Scene:
             self.vertex_colors = per_corner("vertex_colors", self.vertex_colors, 3)
         if self.object_ids is not None:
             self._validate_objects(fail, arr, t)
+        if self.triangle_visibility is not None:
+            self.triangle_visibility = arr("triangle_visibility", self.triangle_visibility, np.uint8, (), t)
+            if t and self.triangle_visibility.max() > 7:
+                fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY and "
+                     "VISIBLE_TRANSMISSION (0 to 7)")
         lights = self.lights
         nl = lights.count
         if lights.visibility is None and lights.kind is not None:
@@ -870,7 +879,8 @@ class Scene:
             d["uvs"] = self.uvs
         if self.tangents is not None:
             d["tangents"] = self.tangents
-        for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces"):
+        for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces",
+                     "triangle_visibility"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for i, tex in enumerate(self.textures):
@@ -910,7 +920,7 @@ class Scene:
                       camera=cam, world=world, shading_normals=get("shading_normals"),
                       uvs=get("uvs"), tangents=get("tangents"), vertex_colors=get("vertex_colors"),
                       object_ids=get("object_ids"), object_from_world=get("object_from_world"),
-                      texture_spaces=get("texture_spaces"),
+                      texture_spaces=get("texture_spaces"), triangle_visibility=get("triangle_visibility"),
                       textures=[get(f"textures.{i}") for i in range(ntex)])
         return scene.validate()
 

@@ -44,8 +44,11 @@ def light_strength(light) -> np.ndarray:
     return color * float(light.energy) * 2.0 ** float(light.exposure)
 
 
-def light_visibility(obj) -> int:
-    """``Lights.visibility`` bits of a light object from its ray visibility."""
+def ray_visibility(obj) -> int:
+    """The camera-path rays that see an object (Object > Visibility > Ray Visibility: Camera,
+    Glossy, Transmission) as ``Lights.visibility`` bits, which ``Scene.triangle_visibility``
+    shares.  A mesh's Diffuse, Shadow and Volume Scatter boxes concern rays that photons stand in
+    for, which always meet it."""
     return ((VISIBLE_CAMERA if obj.visible_camera else 0) | (VISIBLE_GLOSSY if obj.visible_glossy else 0)
             | (VISIBLE_TRANSMISSION if obj.visible_transmission else 0))
 
@@ -54,7 +57,7 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     """One ``Lights.build``-style field dict for a light object, or None if it emits nothing.
 
     world_from_light : (4, 4) float64 object matrix (with scale); visibility : bits of
-    :func:`light_visibility`.
+    :func:`ray_visibility`.
     """
     m = np.asarray(world_from_light, np.float64)
     strength = light_strength(light)

@@ -23,6 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+from .lights import ray_visibility
+
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
 # evaluated mesh as a separate MESH instance (as Cycles' ``object_is_geometry`` notes), so reading
 # them too would count their triangles twice.  Surfaces and metaballs are converted with to_mesh.
@@ -64,6 +67,8 @@ class Geometry:
     object_ids: np.ndarray | None = None          # (T,) int32 each triangle's instance
     object_from_world: np.ndarray | None = None   # (O, 3, 4) float64
     texture_spaces: np.ndarray | None = None      # (O, 2, 3) float64 location and size
+    # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility), or None: all
+    triangle_visibility: np.ndarray | None = None
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
@@ -85,7 +90,7 @@ class GeometryCollector:
         self.log = log
         self.material_override = material_override
         self.meshes = {}      # mesh key -> LocalMesh, or None when it has no faces
-        self.groups = {}      # (mesh key, material ids) -> list of (4, 4) world_from_object
+        self.groups = {}      # (mesh key, material ids, ray visibility) -> list of (4, 4) world_from_object
 
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
@@ -118,12 +123,17 @@ class GeometryCollector:
                                      colors=colors or local.colors_read) or local
             self.meshes[key] = local
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
-        self.groups.setdefault((key, mat_ids), []).append(np.array(inst.matrix_world, np.float64))
+        self.groups.setdefault((key, mat_ids, ray_visibility(ob)), []).append(
+            np.array(inst.matrix_world, np.float64))
 
     def finish(self) -> Geometry:
         geometry = assemble(self.meshes, self.groups, self.materials)
         geometry.meshes = sum(1 for m in self.meshes.values() if m is not None)
         return geometry
+
+
+# Every camera-path ray: a triangle seen by all of them needs no visibility array.
+ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
 
 
 def _mesh_key(ob):
@@ -337,11 +347,12 @@ def assemble(meshes, groups, materials) -> Geometry:
     offset = 0
     instances = 0
     # Data of procedural textures, when some material reads it (for every triangle).
-    coordinates = materials.coordinates_used({i for _, ids in groups for i in ids})
+    coordinates = materials.coordinates_used({i for _, ids, _ in groups for i in ids})
     objects = bool(coordinates & {"object", "generated", "normal"})
-    for (key, mat_ids), matrices in groups.items():
+    for (key, mat_ids, visibility), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
+        part["visibility"] = np.full(len(part["triangles"]), visibility, np.uint8)
         if objects:
             part["object_ids"] += instances
         parts.append(part)
@@ -367,6 +378,7 @@ def assemble(meshes, groups, materials) -> Geometry:
         # Zero tangents (meshes without UVs or a tangent frame) keep the unbent normal, as in Cycles.
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
                                    else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])
+    visibility = np.concatenate([p["visibility"] for p in parts])
     return Geometry(vertices=vertices, triangles=np.ascontiguousarray(triangles, np.int32),
                     material_ids=np.ascontiguousarray(material_ids, np.int32),
                     shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),
@@ -374,6 +386,7 @@ def assemble(meshes, groups, materials) -> Geometry:
                     tangents=None if tangents is None else np.ascontiguousarray(tangents, np.float32),
                     colors=np.concatenate([p["color"] for p in parts]) if "color" in coordinates else None,
                     **objects,
+                    triangle_visibility=visibility if (visibility != ALL_RAYS).any() else None,
                     instances=instances)
 
 

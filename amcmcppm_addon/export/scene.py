@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.scene import Scene
 from .camera import export_camera
-from .lights import build_lights, export_light, light_visibility
+from .lights import build_lights, export_light, ray_visibility
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
 from .world import export_world
@@ -68,7 +68,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
-                               inst.object.name, log, light_visibility(inst.object))
+                               inst.object.name, log, ray_visibility(inst.object))
             if rec is not None:
                 light_records.append(rec)
         else:
@@ -84,7 +84,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                   camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,
                   tangents=geometry.tangents, vertex_colors=geometry.colors, object_ids=geometry.object_ids,
                   object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
-                  textures=materials.textures.images)
+                  triangle_visibility=geometry.triangle_visibility, textures=materials.textures.images)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,
                          meshes=geometry.meshes)

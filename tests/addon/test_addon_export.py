@@ -992,6 +992,23 @@ def test_volume_absorption_is_exported_as_cycles_extinction(scene):
     assert any("world's volume is not supported" in w for w in ex.warnings), ex.warnings
 
 
+def test_object_ray_visibility_reaches_the_triangles(scene):
+    """Object > Visibility > Ray Visibility (Camera, Glossy, Transmission) becomes each triangle's
+    ``Scene.triangle_visibility`` bits; a scene where every object is seen by every ray has none."""
+    from amcmcppm.core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+    bs.camera()
+    shown = bs.plane("Shown", material=bs.diffuse("Grey"))
+    assert bs.export().scene.triangle_visibility is None
+    hidden = bs.plane("Hidden", material=bs.diffuse("Grey"), location=(0, 0, 1))
+    hidden.visible_camera = hidden.visible_transmission = False
+    ex = bs.export()
+    vis = ex.scene.triangle_visibility
+    z = ex.scene.vertices[ex.scene.triangles].mean(axis=1)[:, 2]
+    assert set(vis[z > 0.5]) == {VISIBLE_GLOSSY}
+    assert set(vis[z < 0.5]) == {VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION}
+    assert shown.visible_camera
+
+
 def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_gets_none(scene):
     """glossy_multiscatter is the F_ss of Cycles' energy compensation: 0 unless the node's
     distribution is Multiscatter GGX (Blender's default)."""

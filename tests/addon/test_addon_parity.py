@@ -631,6 +631,22 @@ def test_absorbing_volumes_match_cycles(addon, tmp_path, shader):
     assert min(block_correlation(f"volume, {shader}", cycles, ours)) > 0.99
 
 
+def test_a_light_panel_hidden_from_the_camera_matches_cycles(addon, tmp_path):
+    """Object > Visibility > Ray Visibility > Camera off: a light panel (an emissive mesh over the
+    corner, in view) that the camera does not see but that lights the floor, as in Cycles (before:
+    the panel showed, a bright quad in the image).  Glossy and transmission visibility have their
+    closed forms in ``tests/core/test_ray_visibility.py``."""
+    def build():
+        corner_scene()
+        panel = bs.plane("Panel", size=1.0, material=bs.emission("Panel", (1.0, 0.9, 0.8), 8.0),
+                         location=(0.0, -0.6, 1.4), rotation=(math.radians(200), 0, 0))
+        panel.visible_camera = False
+        bs.world((0.05, 0.05, 0.05))
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_channels_match("panel hidden from the camera", cycles, ours)
+    assert min(block_correlation("panel hidden from the camera", cycles, ours)) > 0.99
+
+
 def block_correlation(name, cycles, ours, size=4):
     """Correlation per channel of the means of ``size`` x ``size`` pixel blocks of the two images
     (the layout of the light where single pixels are noisy), printed."""
