@@ -12,7 +12,8 @@ from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, normalize
-from .scene import AREA_DISK, AREA_RECT, PANORAMAS, POINT, SPOT
+from .scene import (AREA_DISK, AREA_RECT, PANORAMAS, POINT, SPOT, VISIBLE_CAMERA, VISIBLE_GLOSSY,
+                    VISIBLE_TRANSMISSION)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -71,7 +72,9 @@ class RenderContext:
         self.has_transparency = bool(self.see_through.any())
         # Triangles hidden from some camera-path rays (Scene.triangle_visibility).
         self.triangle_visibility = scene.triangle_visibility
-        self.has_hidden = self.triangle_visibility is not None and bool((self.triangle_visibility != 7).any())
+        every_ray = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+        self.has_hidden = (self.triangle_visibility is not None
+                           and bool((self.triangle_visibility != every_ray).any()))
         # Volumes (Materials.volume_absorption): per-material coefficients, and which have one.
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
         self.absorbs = (self.absorption > 0).any(axis=1)
