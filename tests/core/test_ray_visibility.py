@@ -33,7 +33,8 @@ def mirror_under_camera(veil, emitter):
     cam = Camera(world_from_camera=look, projection="orthographic", frame=(-0.5, 0.5, -0.5, 0.5),
                  resolution=(4, 4))
     scene = m.build(mats, camera=cam, world=World(color=np.zeros(3, np.float32)))
-    return scene.replace(triangle_visibility=np.repeat(np.array([ALL, emitter, veil], np.uint8), 2)).validate()
+    bits = np.repeat(np.array([ALL, emitter, veil], np.uint8), 2)              # two triangles each
+    return scene.replace(triangle_visibility=bits).validate()
 
 
 @pytest.mark.parametrize("veil, emitter, expected", [
