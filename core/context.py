@@ -263,7 +263,8 @@ class RenderContext:
             done = volume & back & (inside < 0)
             found[rows[done]] = mat[done]
             go = np.flatnonzero(~done)
-            p = self.accel.hit_positions(prim.take(go), hits.b1.take(h).take(go), hits.b2.take(h).take(go))
+            hit = h.take(go)
+            p = self.accel.hit_positions(prim.take(go), hits.b1.take(hit), hits.b2.take(hit))
             rows, d = rows.take(go), d.take(go, axis=0)
             origins = self.accel.spawn(p, ng.take(go, axis=0), d)
         return found

@@ -337,7 +337,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             prim = hits.prim_ids.take(h)
             medium = medium.take(h) if volumes else np.full(len(h), -1, np.int32)
             vertices += len(idx)
-            surf = ctx.surface(hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h))
+            surf = ctx.surface(prim, hits.b1.take(h), hits.b2.take(h))
             if bounce == 0 and soft:
                 flux = flux * ctx.lights.soft_falloff(u[idx, :1], surf.position)[:, None]
             # A photon stops on a transparent surface with the probability of its opacity there,

@@ -61,9 +61,9 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     if (scale < 1e-12).any():
         raise SceneError(f"camera '{ob.name}' has zero scale")
     world_from_camera[:3, :3] /= scale
-    corners = np.array([tuple(v) for v in cam.view_frame(scene=scene)], np.float64)   # (4, 3)
     if cam.type == "PANO":
         return _panorama(ob, cam, world_from_camera, resolution, border, log)
+    corners = np.array([tuple(v) for v in cam.view_frame(scene=scene)], np.float64)   # (4, 3)
     projection = "orthographic" if cam.type == "ORTHO" else "perspective"
     if projection == "perspective":
         xy = corners[:, :2] / -corners[:, 2:3]
