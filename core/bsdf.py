@@ -131,6 +131,8 @@ class MaterialTable:
     ms_fresnel: np.ndarray      # (M, 3) float64 multiple-scattering Fresnel F_ms (0: single scattering)
     fresnel_ior: np.ndarray     # (M,) float64 IOR of the glossy (or merged mirror) lobe's Fresnel rise
     rise: np.ndarray            # (M, 4, 3) float64 colour added times s(c) (glossy or mirror entry)
+    edge: np.ndarray            # (M, 4, 3) float64 metal colour added times (1 - c)^5 (glossy or mirror)
+    dip: np.ndarray             # (M, 4, 3) float64 metal colour taken away times c (1 - c)^6
     layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
     score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
     normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map (image or program) bends the normal
@@ -174,20 +176,26 @@ class MaterialTable:
         fresnel_ior = mats.glossy_fresnel_ior.astype(np.float64)
         rise = np.zeros((m, 4, 3))
         rise[:, GLOSSY] = np.where((fresnel_ior > 0)[:, None], mats.glossy_fresnel_rise, 0.0)
+        edge = np.zeros((m, 4, 3))
+        dip = np.zeros((m, 4, 3))
+        edge[:, GLOSSY] = mats.glossy_metal_rise
+        dip[:, GLOSSY] = mats.glossy_metal_dip
         # Merge near-specular glossy lobes into the mirror lobe (weighted colour).
         sharp = (mats.glossy_roughness < MIRROR_ROUGHNESS) & (weight[:, GLOSSY] > 0)
         if sharp.any():
             wm, wg = weight[sharp, MIRROR], weight[sharp, GLOSSY]
             color[sharp, MIRROR] = (wm[:, None] * color[sharp, MIRROR]
                                     + wg[:, None] * color[sharp, GLOSSY]) / (wm + wg)[:, None]
-            rise[sharp, MIRROR] = wg[:, None] * rise[sharp, GLOSSY] / (wm + wg)[:, None]
-            rise[sharp, GLOSSY] = 0.0
+            for curve in (rise, edge, dip):
+                curve[sharp, MIRROR] = wg[:, None] * curve[sharp, GLOSSY] / (wm + wg)[:, None]
+                curve[sharp, GLOSSY] = 0.0
             weight[sharp, MIRROR] = wm + wg
             weight[sharp, GLOSSY] = 0.0
         alpha = np.maximum(mats.glossy_roughness.astype(np.float64) ** 2, MIN_ALPHA)
         lum = smp.luminance(color)
         diffuse_on = (weight[:, DIFFUSE] > 0) & (textured | (lum[:, DIFFUSE] > 0))
-        glossy_on = (weight[:, GLOSSY] > 0) & ((lum[:, GLOSSY] > 0) | (smp.luminance(rise[:, GLOSSY]) > 0))
+        glossy_on = (weight[:, GLOSSY] > 0) & ((lum[:, GLOSSY] > 0) | (smp.luminance(rise[:, GLOSSY]) > 0)
+                                               | (smp.luminance(edge[:, GLOSSY]) > 0))
         emission = mats.emission.astype(np.float64)
         # One quadrature per (alpha, IOR) of a Fresnel rise gives its mean S and the albedo E, which
         # the multiscatter tables then reuse.
@@ -208,6 +216,9 @@ class MaterialTable:
         layer, score_extra = _layer_tables(alpha, fresnel_ior, rise, layered, mats.diffuse_layer,
                                            np.clip(mats.diffuse_layer_weight, 0.0, 1.0),
                                            ms_albedo, ms_fresnel, weight, rise_means)
+        for lobe in (GLOSSY, MIRROR):
+            # The metal curve's cosine-weighted means: (1 - mu)^5 gives 1/21, mu (1 - mu)^6 1/126.
+            score_extra[:, lobe] += weight[:, lobe] * smp.luminance(edge[:, lobe] / 21.0 - dip[:, lobe] / 126.0)
         coat_row = np.full(m, -1, np.int32) if coat_row is None else np.asarray(coat_row, np.int32)
         has_nondelta = diffuse_on | glossy_on
         coat_factor, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo,
@@ -221,7 +232,7 @@ class MaterialTable:
                              has_nondelta=has_nondelta, has_glossy=glossy_on,
                              is_emissive=(emission > 0).any(axis=1),
                              ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
-                             rise=rise, layer=layer, score_extra=score_extra,
+                             rise=rise, edge=edge, dip=dip, layer=layer, score_extra=score_extra,
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
                              | (np.asarray(mats.bump_texture) >= 0)
                              | (np.asarray(_or_none(mats.bump_program, m)) >= 0), program=program,
@@ -259,8 +270,17 @@ class MaterialTable:
                     or (self.reflection != self.color[:, DIELECTRIC]).any())
 
     @cached_property
+    def rises(self) -> np.ndarray:
+        """(M, 4) bool: the lobe's colour changes with the microfacet cosine (:meth:`fresnel_color`)."""
+        return (self.rise != 0).any(axis=2) | (self.edge != 0).any(axis=2) | (self.dip != 0).any(axis=2)
+
+    @cached_property
     def has_fresnel(self) -> bool:
-        return bool((self.rise != 0).any())
+        return bool(self.rises.any())
+
+    @cached_property
+    def has_metal_curve(self) -> bool:
+        return bool((self.edge != 0).any() or (self.dip != 0).any())
 
     @cached_property
     def has_layer(self) -> bool:
@@ -286,9 +306,22 @@ class MaterialTable:
 
     def fresnel_color(self, mat_ids, lobe, cos_m):
         """(n, 3) the colour lobe ``lobe`` (GLOSSY or MIRROR) adds at microfacet cosines ``cos_m``
-        (the view direction with the microfacet normal): ``rise`` s(cos_m) (:func:`fresnel_rise`)."""
+        (the view direction with the microfacet normal) to its constant colour: ``rise`` s(cos_m)
+        (:func:`fresnel_rise`) plus a metal's ``edge`` (1 - c)^5 - ``dip`` c (1 - c)^6 (Cycles'
+        F82 tint, ``Materials``), the metal's reflectance kept within [0, 1] as Cycles saturates it."""
         s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
-        return self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
+        out = self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
+        if self.has_metal_curve:
+            c = np.clip(cos_m, 0.0, 1.0)
+            p = 1.0 - c
+            p5 = p * p
+            p5 *= p5 * p
+            e, d = self.edge[:, lobe].take(mat_ids, axis=0), self.dip[:, lobe].take(mat_ids, axis=0)
+            total = out + e * p5[:, None] - d * (c * p5 * p)[:, None]
+            base = self.color[:, lobe].take(mat_ids, axis=0)
+            metal = ((e != 0) | (d != 0)).any(axis=1)
+            out = np.where(metal[:, None], np.clip(total, -base, np.maximum(1.0 - base, 0.0)), total)
+        return out
 
     def layer_factor(self, mat_ids, mu):
         """(n,) factors of the diffuse lobe under a Fresnel layer at view cosines ``mu`` (1: none)."""
@@ -342,6 +375,7 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
     extra = np.zeros((m, 4))
     on = (fresnel_ior > 0) & (rise != 0).any(axis=(1, 2))
     if not on.any():
+        extra[:, DIFFUSE] = 1.0                           # a factor, see lobe_scores
         return layer, extra
     mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
     f0 = np.clip(np.asarray(layer_f0, np.float64), 0.0, 1.0)
@@ -491,17 +525,26 @@ def _bilinear_cell(image, u, v, clamp_v):
     return fx, fy, image[iy0, ix0], image[iy0, ix1], image[iy1, ix0], image[iy1, ix1]
 
 
+def metal_curve(color, edge_tint=(1.0, 1.0, 1.0)):
+    """(F0, rise, dip), each (..., 3), of Cycles' F82-tint metal Fresnel (F0 = ``color``, clamped
+    to [0, 1] as ``edge_tint``): F(c) = F0 + rise (1 - c)^5 - dip c (1 - c)^6 with rise = 1 - F0
+    and dip = b of ``fresnel_f82tint_B``, which makes F at cos = 1/7 the Schlick curve there
+    times the tint (``Materials.glossy_metal_rise`` and ``glossy_metal_dip``)."""
+    f0 = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
+    tint = np.clip(np.asarray(edge_tint, np.float64), 0.0, 1.0)
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    dip = (f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint)
+    return f0, 1.0 - f0, dip
+
+
 def metal_fresnel(color, edge_tint=(1.0, 1.0, 1.0)):
     """Cosine-weighted hemispherical mean of Cycles' F82-tint metal Fresnel (F0 = ``color``, any
     shape (..., 3), as ``edge_tint``):
     F(mu) = F0 + (1 - F0)(1 - mu)^5 - b mu (1 - mu)^6 averages to F0 + (1 - F0) / 21 - b / 126,
     b the edge-tint term of ``fresnel_f82tint_B`` (0 for a white tint)."""
-    f0 = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
-    tint = np.clip(np.asarray(edge_tint, np.float64), 0.0, 1.0)
-    f = 6.0 / 7.0
-    f5 = f ** 5
-    b = (f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint)
-    return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
+    f0, rise, dip = metal_curve(color, edge_tint)
+    return np.clip(f0 + rise / 21.0 - dip / 126.0, 0.0, 1.0)
 
 
 def face_forward(n, v):

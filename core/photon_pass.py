@@ -28,13 +28,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import (bump_shadowing, choose_lobe, eval_glossy, face_forward, lobe_remainder, lobe_scores,
-                   pick_coat, scatter)
+from .bsdf import (GLOSSY, bump_shadowing, choose_lobe, eval_glossy, face_forward, lobe_remainder,
+                   lobe_scores, pick_coat, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
-from . import sampling as smp
 from .sampling import dot, luminance
 from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
@@ -89,14 +88,12 @@ class DepositTarget:
         self.alpha = table.alpha.take(points.mat_ids)
         # Glossy points whose colour rises with the Fresnel factor of the pair's half vector: their
         # pairs carry the whole colour, and to_pixels does not multiply by one.
-        rising = glossy & (table.rise[:, 1] != 0).any(axis=1).take(points.mat_ids) if table.has_fresnel else None
+        rising = glossy & table.rises[:, GLOSSY].take(points.mat_ids) if table.has_fresnel else None
         self.rising = rising if rising is not None and rising.any() else None
         if self.rising is not None:
-            # Per material, channel rows: the glossy colour is const + rise s(wo.h); 1 + 0 s where
+            # Per material: the glossy colour is const + table.fresnel_color(wo.h); 1 + 0 where
             # the colour is constant (to_pixels multiplies by it instead).
-            on = (table.rise[:, 1] != 0).any(axis=1)
-            self._const = np.where(on[:, None], table.color[:, 1], 1.0).T.copy()
-            self._rise = np.where(on[:, None], table.rise[:, 1], 0.0).T.copy()
+            self._const = np.where(table.rises[:, GLOSSY, None], table.color[:, GLOSSY], 1.0)
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""
@@ -171,10 +168,9 @@ class DepositTarget:
                 wg[g] = f
                 if self.rising is not None:
                     mats = pts.mat_ids.take(jg)
-                    s = smp.fresnel_rise(cos_h, self.table.fresnel_ior.take(mats))
+                    color = self._const.take(mats, axis=0) + self.table.fresnel_color(mats, GLOSSY, cos_h)
                     rows = np.zeros((3, len(j)))
-                    for c in range(3):
-                        rows[c, g] = f * (self._const[c].take(mats) + self._rise[c].take(mats) * s)
+                    rows[:, g] = (f[:, None] * color).T
                     wg = rows
         return wd, wg
 

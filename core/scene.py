@@ -75,7 +75,12 @@ class Materials:
       at the view direction, the layer reflecting ``diffuse_layer`` (its normal-incidence colour
       f0 * specular tint) + (1 - ``diffuse_layer``) s averaged over the lobe (Cycles'
       ``closure_layering_weight``); ``diffuse_layer_weight`` is the share of the diffuse lobe
-      under the layer (a Principled mixed with a plain Diffuse: the rest keeps its weight);
+      under the layer (a Principled mixed with a plain Diffuse: the rest keeps its weight).
+      ``glossy_metal_rise`` and ``glossy_metal_dip`` give a metal's Fresnel curve (Cycles'
+      F82-tint model): at microfacet cosine c the lobe reflects ``glossy_color`` +
+      ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]
+      (F0 = the colour, rise = 1 - F0, dip = b of ``fresnel_f82tint_B``); either may sit beside
+      a dielectric rise (a Principled BSDF partly metallic), the parts adding up;
     * mirror: perfect specular reflection tinted by ``mirror_color``;
     * dielectric: glass with index of refraction ``ior``, Fresnel
       reflection/refraction and total internal reflection, tinted by
@@ -134,6 +139,8 @@ class Materials:
     glossy_multiscatter: np.ndarray = None              # (M, 3) float32 in [0, 1]; None: glossy_color
     glossy_fresnel_ior: np.ndarray = None               # (M,) float32, 0 = no Fresnel; None: 0
     glossy_fresnel_rise: np.ndarray = None              # (M, 3) float32; None: 0
+    glossy_metal_rise: np.ndarray = None                # (M, 3) float32 >= 0; None: 0
+    glossy_metal_dip: np.ndarray = None                 # (M, 3) float32, any sign; None: 0
     diffuse_layer: np.ndarray = None                    # (M, 3) float32 in [0, 1]; None: 0
     diffuse_layer_weight: np.ndarray = None             # (M,) float32 in [0, 1]; None: 1
     mirror_weight: np.ndarray = None                    # (M,) float32
@@ -167,7 +174,7 @@ class Materials:
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
                     "glossy_color", "glossy_roughness", "glossy_multiscatter", "glossy_fresnel_ior",
-                    "glossy_fresnel_rise", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
+                    "glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
@@ -178,7 +185,7 @@ class Materials:
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
-    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance",)
+    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip")
 
     @property
     def count(self) -> int:
@@ -194,7 +201,8 @@ class Materials:
         Short keys: ``diffuse``/``glossy``/``mirror``/``dielectric`` give the colour
         and set the weight to 1 unless ``<lobe>_weight`` is given.  ``glossy_multiscatter``
         defaults to the glossy colour (Multiscatter GGX); give 0 for single-scattering GGX.
-        ``glossy_fresnel_ior``, ``glossy_fresnel_rise`` and ``diffuse_layer`` default to 0,
+        ``glossy_fresnel_ior``, ``glossy_fresnel_rise``, ``glossy_metal_rise``, ``glossy_metal_dip``
+        and ``diffuse_layer`` default to 0,
         ``diffuse_layer_weight`` to 1.  ``normal_texture`` (default -1: none) and
         ``normal_strength`` (default 1) give a tangent-space normal map, ``bump_texture``
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
@@ -219,6 +227,8 @@ class Materials:
         out.glossy_multiscatter = np.zeros((m, 3), np.float32)
         out.glossy_fresnel_ior = np.zeros(m, np.float32)
         out.glossy_fresnel_rise = np.zeros((m, 3), np.float32)
+        out.glossy_metal_rise = np.zeros((m, 3), np.float32)
+        out.glossy_metal_dip = np.zeros((m, 3), np.float32)
         out.diffuse_layer = np.zeros((m, 3), np.float32)
         out.diffuse_layer_weight = np.ones(m, np.float32)
         out.mirror_weight = np.zeros(m, np.float32)
@@ -278,7 +288,7 @@ class Materials:
                 out.glossy_roughness[i] = s["roughness"]
             out.glossy_fresnel_ior[i] = s.get("glossy_fresnel_ior", 0.0)
             out.diffuse_layer_weight[i] = s.get("diffuse_layer_weight", 1.0)
-            for key in ("glossy_fresnel_rise", "diffuse_layer"):
+            for key in ("glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer"):
                 getattr(out, key)[i] = np.broadcast_to(np.asarray(s.get(key, 0.0), np.float32), (3,))
             if "ior" in s:
                 out.ior[i] = s["ior"]
@@ -646,6 +656,8 @@ class Scene:
             n = len(mats.ior)
             for name, shape, value in (("glossy_fresnel_ior", (n,), 0.0),
                                        ("glossy_fresnel_rise", (n, 3), 0.0),
+                                       ("glossy_metal_rise", (n, 3), 0.0),
+                                       ("glossy_metal_dip", (n, 3), 0.0),
                                        ("diffuse_layer", (n, 3), 0.0), ("diffuse_layer_weight", (n,), 1.0),
                                        ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
@@ -661,7 +673,7 @@ class Scene:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
-            colour = name.endswith(("color", "emission", "multiscatter", "rise", "layer", "tint",
+            colour = name.endswith(("color", "emission", "multiscatter", "rise", "dip", "layer", "tint",
                                     "absorption"))
             tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INDEX_FIELDS else np.float32
@@ -812,10 +824,12 @@ class Scene:
             if ((v < -1) | (v >= len(mats.programs))).any():
                 fail(f"materials.{name} must be -1 or an index below {len(mats.programs)}")
         used = np.concatenate([getattr(mats, name) for name in Materials.PROGRAM_FIELDS])
-        rising = np.flatnonzero((mats.glossy_program >= 0) & (mats.glossy_fresnel_ior > 0))
+        rising = np.flatnonzero((mats.glossy_program >= 0) & ((mats.glossy_fresnel_ior > 0)
+                                                                | (mats.glossy_metal_rise != 0).any(axis=1)
+                                                                | (mats.glossy_metal_dip != 0).any(axis=1)))
         if len(rising):
             fail(f"material '{mats.names[rising[0]]}': a glossy_program cannot vary a glossy lobe with a "
-                 "Fresnel rise (glossy_fresnel_ior)")
+                 "Fresnel rise (glossy_fresnel_ior, glossy_metal_rise, glossy_metal_dip)")
         coords = {"generated": self.object_ids, "object": self.object_ids, "normal": self.object_ids,
                   "uv": self.uvs,
                   "color": self.vertex_colors}

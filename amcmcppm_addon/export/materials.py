@@ -19,8 +19,8 @@ colours and numbers), and the material gets *one* warning naming every such node
 
 Principled BSDF mapping (``metallic`` m, ``Transmission Weight`` t, specular
 level s, base colour B):
-  * metal, weight m: glossy lobe with the mean F82 Fresnel of B (``metal_fresnel``) and the
-    node's roughness;
+  * metal, weight m: glossy lobe with the F82 Fresnel curve of B and the Specular Tint
+    (``metal_curve``) and the node's roughness;
   * glass, weight (1 - m) t: dielectric lobe with colour sqrt(B) (Cycles' tint per interface),
     reflections tinted by the Specular Tint instead, the node's IOR and roughness;
   * dielectric base, weight (1 - m)(1 - t): as Cycles, a glossy layer of IOR n' (the IOR
@@ -30,9 +30,12 @@ level s, base colour B):
     scales by 1 - the layer's albedo at the view direction (``diffuse_layer``; Cycles'
     ``closure_layering_weight``).  A Mix with other shaders keeps the share of the diffuse
     under the layer (``diffuse_layer_weight``).
-Metals (Metallic node, Principled metallic) are a glossy lobe with the metal's mean Fresnel
-reflectance as colour: of the F82-tint model (base colour, edge tint; Principled uses its
-Specular Tint) or of the physical conductor's complex IOR.
+Metals (Metallic node, Principled metallic) are a glossy lobe whose colour follows the metal's
+Fresnel curve by the microfacet angle (``Materials.glossy_metal_rise`` and ``glossy_metal_dip``):
+the F82-tint model (base colour, edge tint; Principled uses its Specular Tint), or that model
+through the physical conductor's reflectance face on and at cos = 1/7 (``conductor_f82``).  A
+texture on a metal's colours makes its colour a program of the curve's mean at each point
+(``metal`` in ``core/procedural.py``), without the curve.
 Glossy, Metallic and Principled nodes set to Multiscatter GGX (Blender's default) get the
 core's energy compensation with the mean Fresnel colour F_ss Cycles uses: the colour for
 Glossy and metals, the layer's reflectance for the dielectric specular layer; Mix and Add
@@ -58,7 +61,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import procedural
-from ...core.bsdf import metal_fresnel
+from ...core.bsdf import metal_curve, metal_fresnel
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import mean_fresnel
 from ...core.scene import Materials
@@ -89,6 +92,8 @@ class Closure:
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
     rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
+    metal_rise: np.ndarray = field(default_factory=lambda: np.zeros(3))    # (3,) weight * a metal's rise
+    metal_dip: np.ndarray = field(default_factory=lambda: np.zeros(3))     # (3,) weight * its dip (F82 tint)
     layer: np.ndarray = field(default_factory=lambda: np.zeros(3))         # (3,) layered weight * f0
     layered: float = 0.0            # diffuse weight under the Fresnel layer
     transparent: np.ndarray = field(default_factory=lambda: np.zeros(3))   # (3,) weight * colour let through
@@ -120,6 +125,8 @@ class Closure:
                       multiscatter=fa * self.multiscatter + fb * other.multiscatter,
                       reflection=fa * self.glass_reflection() + fb * other.glass_reflection(),
                       rise=fa * self.rise + fb * other.rise, layer=fa * self.layer + fb * other.layer,
+                      metal_rise=fa * self.metal_rise + fb * other.metal_rise,
+                      metal_dip=fa * self.metal_dip + fb * other.metal_dip,
                       layered=fa * self.layered + fb * other.layered,
                       transparent=fa * self.transparent + fb * other.transparent,
                       transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight)
@@ -211,14 +218,20 @@ class Closure:
         """The emitted radiance: three numbers or a program."""
         return self.emission.tolist() if self.emission_texture is None else self.emission_texture
 
+    @property
+    def rises(self) -> bool:
+        """Whether the glossy colour changes with the angle (a dielectric rise or a metal curve)."""
+        return self.fresnel_ior > 0 or bool(self.metal_rise.any() or self.metal_dip.any())
+
     def _mixed_glossy(self, other, wa, wb, fa, fb, fac):
         """The glossy colour program of fa * self + fb * other, or None: mixed as the diffuse
         colours (weight times colour) where some side varies or the factor does, unless a side's
-        glossy lobe has a Fresnel rise (the core keeps such lobes constant): the mean then."""
+        glossy lobe has a Fresnel rise or a metal curve (the core keeps such lobes constant): the
+        mean then."""
         total = wa[GLOSSY] + wb[GLOSSY]
         sides = [(c, f, w) for c, f, w in zip((self, other), (fa, fb) if fac is None else
                                               (_one_minus(fac), fac), (wa, wb)) if w[GLOSSY] > 0]
-        if total <= 0 or any(c.fresnel_ior > 0 for c, _, _ in sides):
+        if total <= 0 or any(c.rises for c, _, _ in sides):
             return None
         if fac is None and not any(c.glossy_texture is not None for c, _, _ in sides):
             return None
@@ -250,7 +263,7 @@ class Closure:
     def same_except_diffuse(self, other) -> bool:
         """Whether the two closures differ in their diffuse lobes only, or also in a glossy colour
         and weight without a Fresnel rise (a varying Mix factor is then exact)."""
-        rise = self.fresnel_ior > 0 or other.fresnel_ior > 0
+        rise = self.rises or other.rises
         other_lobes = [k for k in range(4) if k != DIFFUSE and (rise or k != GLOSSY)]
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
@@ -274,7 +287,8 @@ class Closure:
         if o <= 0.0:
             return Closure(roughness=self.roughness, ior=self.ior)
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
-                                                             "rise", "layer", "layered", "coat")}
+                                                             "rise", "metal_rise", "metal_dip", "layer",
+                                                             "layered", "coat")}
         out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
                                   opacity_texture=None,
                                   reflection=None if self.reflection is None else self.reflection / o)
@@ -311,6 +325,9 @@ class Closure:
             if self.layered > 0 and self.weight[DIFFUSE] > 0:
                 s["diffuse_layer"] = self.layer / self.layered
                 s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
+        if (self.metal_rise.any() or self.metal_dip.any()) and self.weight[GLOSSY] > 0:
+            s["glossy_metal_rise"] = self.metal_rise / self.weight[GLOSSY]
+            s["glossy_metal_dip"] = self.metal_dip / self.weight[GLOSSY]
         if self.dielectric_texture is not None and self.weight[DIELECTRIC] > 0:
             s["dielectric_program"] = self.dielectric_texture
             s["dielectric"] = np.ones(3)
@@ -439,18 +456,32 @@ def specular_ior(ior, level):
     return (1.0 + r) / (1.0 - r), f0
 
 
-def conductor_fresnel(ior, extinction) -> np.ndarray:
-    """Cosine-weighted hemispherical mean of the unpolarised conductor Fresnel reflectance for the
-    complex index ``ior`` + i ``extinction`` (per channel, (3,)): the Metallic node's Physical
-    Conductor mode."""
+def conductor_reflectance(ior, extinction, mu) -> np.ndarray:
+    """(3, len(mu)) unpolarised Fresnel reflectance of the complex index ``ior`` + i
+    ``extinction`` (per channel, (3,)) at the cosines ``mu``: the Metallic node's Physical Conductor."""
     k = np.maximum(np.asarray(extinction, np.float64), 0.0)
     n = (np.asarray(ior, np.float64) + 1j * k)[:, None]
-    mu = ((np.arange(256) + 0.5) / 256)[None, :]          # midpoint rule for int 2 mu F dmu
+    mu = np.asarray(mu, np.float64)[None, :]
     cos_t = np.sqrt(1.0 - (1.0 - mu * mu) / (n * n))
     rs = (mu - n * cos_t) / (mu + n * cos_t)
     rp = (n * mu - cos_t) / (n * mu + cos_t)
-    f = 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
-    return np.clip(np.mean(2.0 * mu * f, axis=1), 0.0, 1.0)
+    return np.clip(0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2), 0.0, 1.0)
+
+
+def conductor_fresnel(ior, extinction) -> np.ndarray:
+    """Cosine-weighted hemispherical mean of :func:`conductor_reflectance`, (3,)."""
+    mu = (np.arange(256) + 0.5) / 256                     # midpoint rule for int 2 mu F dmu
+    return np.clip(np.mean(2.0 * mu * conductor_reflectance(ior, extinction, mu), axis=1), 0.0, 1.0)
+
+
+def conductor_f82(ior, extinction):
+    """(F0, edge tint), each (3,): the F82-tint curve (``core.bsdf.metal_curve``) through the
+    conductor's reflectance face on and at cos = 1/7, where the curve's tint term acts most
+    (the tint clamped to [0, 1] there)."""
+    f = conductor_reflectance(ior, extinction, [1.0, 1.0 / 7.0])
+    f0, f82 = f[:, 0], f[:, 1]
+    schlick = f0 + (1.0 - f0) * (6.0 / 7.0) ** 5
+    return f0, np.clip(f82 / np.maximum(schlick, 1e-12), 0.0, 1.0)
 
 
 def srgb_to_linear(x):
@@ -924,21 +955,29 @@ class NodeWalker:
         return c
 
     def _metallic(self, node, stack):
-        """A glossy lobe whose colour is the metal's mean Fresnel reflectance (F82 tint, or
-        the physical conductor's complex IOR); the rise towards grazing angles is averaged."""
+        """A glossy lobe with the metal's Fresnel curve by angle: Cycles' F82 tint of the base
+        colour and edge tint, or that curve through the physical conductor's reflectance face on
+        and at cos = 1/7 (``conductor_f82``), F_ss the mean of the conductor's own curve.  A
+        texture on the colours makes the lobe's colour a program of the curve's mean instead."""
         if node.fresnel_type == "PHYSICAL_CONDUCTOR":
             ior, _ = self.color(node.inputs["IOR"], stack)
             extinction, _ = self.color(node.inputs["Extinction"], stack)
-            color = conductor_fresnel(ior, extinction)
+            base, tint = conductor_f82(ior, extinction)
+            mean = conductor_fresnel(ior, extinction)
         else:
             base, base_tex = self.color(node.inputs["Base Color"], stack)
             tint, tint_tex = self.color(node.inputs["Edge Tint"], stack)
-            color = metal_fresnel(base, tint)
+            mean = metal_fresnel(base, tint)
             if textured(base_tex) or textured(tint_tex):
                 program = {"op": "metal", "color": _program_of(base_tex, base),
                            "tint": _program_of(tint_tex, tint)}
-                return self._glossy(node, stack, color, program)
-        return self._glossy(node, stack, color)
+                return self._glossy(node, stack, mean, program)
+        f0, rise, dip = metal_curve(base, tint)
+        c = self._glossy(node, stack, f0)
+        c.metal_rise, c.metal_dip = rise.copy(), dip.copy()          # weight 1
+        if node.distribution == "MULTI_GGX":
+            c.multiscatter = f0 * mean
+        return c
 
     def roughness(self, sock, stack):
         """(mean roughness in [0, 1], float program or None) of a glossy Roughness input: a texture
@@ -1055,10 +1094,18 @@ class NodeWalker:
             c.coat_tint = np.clip(tint, 0.0, 1.0)
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
-        metal = metal_fresnel(flat_base, tint)     # Cycles' metallic layer: F82 with the specular tint
         eta, f0 = specular_ior(ior, level)
         spec = dielectric if eta > 1.0 + 1e-6 else 0.0     # Cycles drops a layer of IOR 1
         f0_tint = np.clip(f0 * np.asarray(tint, np.float64), 0.0, 1.0)
+        # Cycles' metallic layer: F82 with the specular tint, its curve by angle; a textured base
+        # colour without a dielectric layer makes it a program of the curve's mean (below).
+        metal_mean = metal_fresnel(flat_base, tint)
+        metal_program = m > 0 and spec == 0 and textured(tex)
+        metal, metal_rise, metal_dip = metal_curve(flat_base, tint)
+        if metal_program:
+            metal = metal_mean
+        else:
+            c.metal_rise, c.metal_dip = m * metal_rise, m * metal_dip
         c.weight[GLOSSY] = m + spec
         c.color[GLOSSY] = m * metal + spec * f0_tint
         if spec > 0:
@@ -1070,7 +1117,7 @@ class NodeWalker:
             # F_ss of the layer as Cycles: f0 + (1 - f0) times the mean Fresnel rescaled to [0, 1].
             f_avg = (mean_fresnel(eta) - f0) / (1.0 - f0) if spec > 0 else 0.0
             layer_fss = f0_tint + (1.0 - f0_tint) * float(np.clip(f_avg, 0.0, 1.0))
-            c.multiscatter = m * metal * metal + spec * f0_tint * layer_fss
+            c.multiscatter = m * metal * metal_mean + spec * f0_tint * layer_fss
         c.weight[DIELECTRIC] = (1.0 - m) * t
         if rough_map is not None and c.weight[DIELECTRIC] > 0:
             self.note(f"'{node.name}': a varying Roughness roughens the glass by its mean {rough:.3f} "
@@ -1082,7 +1129,7 @@ class NodeWalker:
         if textured(tex) and c.weight[DIELECTRIC] > 0:
             c.dielectric_texture = {"op": "gamma", "color": _program_of(tex, base), "gamma": 0.5}
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1
-        if m > 0 and spec == 0 and textured(tex):
+        if metal_program:
             # A metal (no dielectric layer): its colour follows the base colour's texture.
             c.glossy_texture = {"op": "metal", "color": _program_of(tex, base),
                                 "tint": [float(x) for x in tint]}
