@@ -218,7 +218,8 @@ class MaterialTable:
                                            ms_albedo, ms_fresnel, weight, rise_means)
         for lobe in (GLOSSY, MIRROR):
             # The metal curve's cosine-weighted means: (1 - mu)^5 gives 1/21, mu (1 - mu)^6 1/126.
-            score_extra[:, lobe] += weight[:, lobe] * smp.luminance(edge[:, lobe] / 21.0 - dip[:, lobe] / 126.0)
+            mean = edge[:, lobe] / 21.0 - dip[:, lobe] / 126.0
+            score_extra[:, lobe] += weight[:, lobe] * smp.luminance(mean)
         coat_row = np.full(m, -1, np.int32) if coat_row is None else np.asarray(coat_row, np.int32)
         has_nondelta = diffuse_on | glossy_on
         coat_factor, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo,

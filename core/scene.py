@@ -174,7 +174,8 @@ class Materials:
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
                     "glossy_color", "glossy_roughness", "glossy_multiscatter", "glossy_fresnel_ior",
-                    "glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer", "diffuse_layer_weight", "mirror_weight",
+                    "glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer",
+                    "diffuse_layer_weight", "mirror_weight",
                     "mirror_color", "dielectric_weight", "dielectric_color", "dielectric_roughness",
                     "dielectric_reflection_color", "ior", "emission", "normal_texture", "normal_strength",
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",

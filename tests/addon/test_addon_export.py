@@ -1095,7 +1095,7 @@ def test_metallic_node_gives_the_fresnel_curve_of_its_model(scene):
               - row["glossy_metal_dip"][:, None] * mu * (1 - mu) ** 6)
     error = np.abs(fitted - conductor_reflectance(ior, k, mu))
     print(f"gold: F82 fit within {error.max(axis=1)} of the conductor's Fresnel")
-    assert error.max() < 0.03          # measured 0.006 / 0.004 / 0.023 (the mean, as before: 0.06 / 0.21 / 0.59)
+    assert error.max() < 0.03      # measured 0.006 / 0.004 / 0.023 (the mean, as before: 0.06 / 0.21 / 0.59)
     assert 0.3 < row["glossy_color"][2] < row["glossy_color"][1] < row["glossy_color"][0] < 1.0
 
 
