@@ -217,8 +217,7 @@ class MaterialTable:
                                            np.clip(mats.diffuse_layer_weight, 0.0, 1.0),
                                            ms_albedo, ms_fresnel, weight, rise_means)
         for lobe in (GLOSSY, MIRROR):
-            # The metal curve's cosine-weighted means: (1 - mu)^5 gives 1/21, mu (1 - mu)^6 1/126.
-            mean = edge[:, lobe] / 21.0 - dip[:, lobe] / 126.0
+            mean = _metal_mean_rise(color[:, lobe], edge[:, lobe], dip[:, lobe])
             score_extra[:, lobe] += weight[:, lobe] * smp.luminance(mean)
         coat_row = np.full(m, -1, np.int32) if coat_row is None else np.asarray(coat_row, np.int32)
         has_nondelta = diffuse_on | glossy_on
@@ -342,6 +341,23 @@ def _interpolate(table, mat_ids, mu):
     flat = mat_ids.astype(np.int64) * (MS_NODES + 1) + k
     e = table.ravel()
     return (1.0 - f) * e.take(flat) + f * e.take(flat + 1)
+
+
+def _metal_mean_rise(base, edge, dip, nodes=64):
+    """(M, 3) the cosine-weighted mean of what a metal's curve adds to its constant colour
+    ``base``, base + edge (1 - mu)^5 - dip mu (1 - mu)^6 kept within [0, 1] as in
+    :meth:`MaterialTable.fresnel_color`, less ``base`` (0 for rows without a curve): for lobe
+    scores."""
+    on = ((edge != 0) | (dip != 0)).any(axis=1)
+    out = np.zeros_like(base)
+    if not on.any():
+        return out
+    mu = (np.arange(nodes) + 0.5) / nodes
+    p = 1.0 - mu
+    b, e, d = base[on, :, None], edge[on, :, None], dip[on, :, None]
+    curve = np.clip(b + e * p ** 5 - d * mu * p ** 6, 0.0, np.maximum(1.0, b))
+    out[on] = np.mean(2.0 * mu * curve, axis=2) - base[on]
+    return out
 
 
 def _rise_means(alpha, fresnel_ior, rise, coarse, albedo):
@@ -567,8 +583,9 @@ def lobe_scores(table, mat_ids, colors):
     if table.has_fresnel:
         extra = table.score_extra.take(mat_ids, axis=0)
         scores[:, DIFFUSE] *= extra[:, DIFFUSE]
-        scores[:, GLOSSY] += extra[:, GLOSSY]
-        scores[:, MIRROR] += extra[:, MIRROR]
+        # (a metal's curve may dip below its F0 on average: never below 0)
+        scores[:, GLOSSY] = np.maximum(scores[:, GLOSSY] + extra[:, GLOSSY], 0.0)
+        scores[:, MIRROR] = np.maximum(scores[:, MIRROR] + extra[:, MIRROR], 0.0)
     return scores
 
 

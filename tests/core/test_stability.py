@@ -79,8 +79,11 @@ def degenerate_emitters():
 
 
 def extreme_values():
-    mats = Materials.build([{"name": "floor", "diffuse": 1.0}, {"name": "rough", "glossy": 1.0, "roughness": 1.0},
-                            {"name": "sharp", "glossy": 1.0, "roughness": 0.0},
+    # The glossy boxes are metals whose F82 curve is out of all bounds (saturated to [0, 1]).
+    mats = Materials.build([{"name": "floor", "diffuse": 1.0},
+                            {"name": "rough", "glossy": 1.0, "roughness": 1.0, "glossy_metal_rise": 1e30,
+                             "glossy_metal_dip": -1e30},
+                            {"name": "sharp", "glossy": 1.0, "roughness": 0.0, "glossy_metal_dip": 1e30},
                             {"name": "ior1", "dielectric": 1.0, "ior": 1.0}, {"name": "black"}])
     m = MeshBuilder()
     m.add_quad((-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0), 0)
