@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from core import RenderSettings, render
-from core.bsdf import MaterialTable, metal_fresnel
+from core.bsdf import MaterialTable, lobe_scores, metal_fresnel
 from core import sampling as smp
 from core.scene import Camera, Materials, SceneError, World
 from core.testing.scenes import MeshBuilder
@@ -154,3 +154,13 @@ def test_metal_curves_survive_a_file_round_trip_and_are_refused_with_a_program(t
         floor_scene(bad, 0.5)
     with pytest.raises(SceneError, match="glossy_metal_rise is negative"):
         floor_scene(metal(0.3, glossy_metal_rise=-0.1), 0.5)
+
+
+def test_a_black_metal_with_a_dipping_tint_is_still_chosen_as_a_lobe():
+    """F0 = 0 and an edge tint of 0: the curve's unclipped mean is below 0 (1/21 - b/126), yet it
+    reflects towards grazing angles, so its lobe keeps a positive score."""
+    table = MaterialTable.from_materials(Materials.build([metal(0.5, f0=np.zeros(3), tint=np.zeros(3))]))
+    ids = np.zeros(1, np.int64)
+    scores = lobe_scores(table, ids, table.color.take(ids, axis=0))
+    assert scores[0, 1] > 0.004 and (scores >= 0).all()     # the clipped mean: 0.0044
+    assert table.fresnel_color(ids, 1, np.array([0.02]))[0] == pytest.approx(np.full(3, 0.8), abs=0.1)
