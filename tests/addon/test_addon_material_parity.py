@@ -20,8 +20,10 @@ curve by angle (when they took its mean as a constant colour: 1.02, 0.96; 0.98, 
 curve itself matches Cycles within 1 % on smooth and rough metal floors, test_addon_parity.py
 and the floor test here).  The rest of the block is a few per cent darker in every case, a
 *diffuse* block too (0.8 grey under the area light: 0.966 at 16 passes, 0.970 at 64; the
-metal at 0.3 0.939 and 0.961); not explained yet (gather discs reaching past the edges of its
-20-pixel faces are one candidate, not checked).  Before the compensation, rough glossy and metal were much darker
+metal at 0.3 0.939 and 0.961).  That is the gather discs' bias at the block's edges and
+shadows, linear in their radius: the diffuse block's centre is 0.982 / 0.966 / 0.925 of
+Cycles with an initial radius of 0.75 / 1.5 / 3 pixels, and 0.982 at 128 x 128 pixels with
+1.5 (so about 1.00 at radius 0); its lit top face and the shadows' edges take most of it.  Before the compensation, rough glossy and metal were much darker
 (Glossy 0.6 0.83, metal 0.8 0.73): these cases were strict expected failures until then.
 """
 from __future__ import annotations
