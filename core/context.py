@@ -12,8 +12,8 @@ from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, normalize
-from .scene import (AREA_DISK, AREA_RECT, PANORAMAS, POINT, SPOT, VISIBLE_CAMERA, VISIBLE_GLOSSY,
-                    VISIBLE_TRANSMISSION)
+from .scene import (AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT, VISIBLE_CAMERA,
+                    VISIBLE_GLOSSY, VISIBLE_TRANSMISSION)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -74,7 +74,11 @@ class RenderContext:
         self.triangle_visibility = scene.triangle_visibility
         every_ray = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
         self.has_hidden = (self.triangle_visibility is not None
-                           and bool((self.triangle_visibility != every_ray).any()))
+                           and bool(((self.triangle_visibility & every_ray) != every_ray).any()))
+        # Holdouts (Materials.holdout, HOLDOUT_OBJECT): what camera rays that meet them cut out.
+        self.holdout = np.asarray(mats.holdout, np.float64)
+        self.has_holdout = bool((self.holdout > 0).any()) or (
+            self.triangle_visibility is not None and bool((self.triangle_visibility & HOLDOUT_OBJECT).any()))
         # Volumes (Materials.volume_absorption): per-material coefficients, and which have one.
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
         self.absorbs = (self.absorption > 0).any(axis=1)
@@ -127,6 +131,7 @@ class RenderContext:
                  ("textured emitters", self.lights.textured_emitters),
                  ("transparency", self.has_transparency),
                  ("objects hidden from camera rays", self.has_hidden),
+                 ("holdout", self.has_holdout),
                  ("volumes", self.has_volumes),
                  ("environment image", self.lights.environment is not None),
                  ("depth of field", cam.aperture_radius > 0 and cam.projection not in PANORAMAS),
@@ -268,6 +273,14 @@ class RenderContext:
             rows, d = rows.take(go), d.take(go, axis=0)
             origins = self.accel.spawn(p, ng.take(go, axis=0), d)
         return found
+
+    def holdout_at(self, prim, mat_ids):
+        """(n,) the holdout share of hits on triangles ``prim`` of materials ``mat_ids``: the
+        material's ``holdout``, 1 on a holdout object's triangles."""
+        h = self.holdout.take(mat_ids)
+        if self.triangle_visibility is not None:
+            h = np.where((self.triangle_visibility.take(prim) & HOLDOUT_OBJECT) != 0, 1.0, h)
+        return h
 
     def camera_medium(self, origins):
         """(n,) the volume camera rays from ``origins`` start in (:meth:`enclosing_medium`; a

@@ -141,6 +141,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             elif world.any():
                 emission[pix[miss]] += beta[miss] * world   # one path per pixel: no repeats
         h = np.flatnonzero(hits.is_hit)
+        if depth == 0 and ctx.has_holdout and len(h):
+            # Holdouts cut camera rays that meet them directly out of the pixel (Cycles, with or
+            # without a transparent film); a whole holdout ends the path there.
+            met = hits.prim_ids.take(h)
+            share = ctx.holdout_at(met, ctx.material_ids.take(met))
+            cut = h.take(np.flatnonzero(share > 0))
+            alpha[pix.take(cut)] -= share[share > 0] * beta.take(cut, axis=0).mean(axis=1)
+            np.maximum(alpha, 0.0, out=alpha)
+            h = h.take(np.flatnonzero(share < 1.0))
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
         ray_kind = ray_kind.take(h)
         medium = None if medium is None else medium.take(h)

@@ -37,6 +37,9 @@ LIGHT_KIND_NAMES = {POINT: "point", SPOT: "spot", AREA_RECT: "area (rectangle)",
                     AREA_DISK: "area (disk/ellipse)", SUN: "sun"}
 # Bits of ``Lights.visibility``: which camera rays see a light (Blender's ray visibility).
 VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION = 1, 2, 4
+# Scene.triangle_visibility: the triangle's object is a holdout (Blender's Object > Visibility >
+# Mask > Holdout): camera rays that meet it directly cut its pixel out (Materials.holdout).
+HOLDOUT_OBJECT = 8
 DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
 
 
@@ -117,6 +120,13 @@ class Materials:
     material's surface from the back (a path that starts inside: a camera or lamp in the water).
     A material with no surface (opacity 0) and a volume is Cycles' volume-only mesh.
 
+    ``holdout`` (Blender's Holdout shader, in [0, 1]) is the share of a pixel that the surface
+    cuts out of the image where camera rays meet it directly or through transparent surfaces
+    (Cycles: whether the film is transparent or not): the pixel's alpha loses holdout times the
+    ray's weight, and at 1 the path ends there (no colour, no emission).  Its lobes (what the rest
+    of a Mix with a Holdout leaves) shade the pixel as usual, and every other ray and photon sees
+    only them.
+
     A tangent-space normal map (Blender's Normal Map node) bends the shading normal of every
     lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
     2 c - 1 along tangent, bitangent and normal), looked up with the triangle UVs in the frame of
@@ -170,6 +180,7 @@ class Materials:
     coat_ior: np.ndarray = None                         # (M,) float32 >= 1; None: 1.5
     coat_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
     volume_absorption: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
+    holdout: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 0
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -181,7 +192,7 @@ class Materials:
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
-                    "coat_tint", "volume_absorption")
+                    "coat_tint", "volume_absorption", "holdout")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program")
@@ -215,7 +226,8 @@ class Materials:
         ``bump_distance``) and ``opacity_program`` one for the opacity (equal programs are stored
         once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
-        ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume.
+        ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume, ``holdout`` (0) a
+        holdout share.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -259,6 +271,7 @@ class Materials:
         out.coat_ior = np.full(m, 1.5, np.float32)
         out.coat_tint = np.ones((m, 3), np.float32)
         out.volume_absorption = np.zeros((m, 3), np.float32)
+        out.holdout = np.zeros(m, np.float32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
@@ -308,6 +321,7 @@ class Materials:
             out.coat_tint[i] = np.broadcast_to(np.asarray(s.get("coat_tint", 1.0), np.float32), (3,))
             out.volume_absorption[i] = np.broadcast_to(
                 np.asarray(s.get("volume_absorption", 0.0), np.float32), (3,))
+            out.holdout[i] = s.get("holdout", 0.0)
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
             out.bump_texture[i] = s.get("bump_texture", -1)
@@ -586,7 +600,8 @@ class Scene:
     vertex_colors: np.ndarray = None    # (T, 3, 3) float32 linear RGB per corner (Color Attribute), or None
     # (T,) uint8 the camera-path rays that see each triangle (Blender's object ray visibility, bits
     # as Lights.visibility: VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION), or None: all of
-    # them.  The others go through it (RenderContext.trace); photons always meet it.
+    # them.  The others go through it (RenderContext.trace); photons always meet it.  The bit
+    # HOLDOUT_OBJECT makes it a holdout for camera rays (as Materials.holdout = 1).
     triangle_visibility: np.ndarray = None
 
     # ------------------------------------------------------------------ queries
@@ -669,7 +684,8 @@ class Scene:
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
-                                       ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0)):
+                                       ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0),
+                                       ("holdout", (n,), 0.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
@@ -685,7 +701,7 @@ class Scene:
             setattr(mats, name, v)
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
-        for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0),
+        for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf)):
             v = getattr(mats, name)
             if ((v < low) | (v > high)).any():
@@ -719,9 +735,9 @@ class Scene:
             self._validate_objects(fail, arr, t)
         if self.triangle_visibility is not None:
             self.triangle_visibility = arr("triangle_visibility", self.triangle_visibility, np.uint8, (), t)
-            if t and self.triangle_visibility.max() > 7:
-                fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY and "
-                     "VISIBLE_TRANSMISSION (0 to 7)")
+            if t and self.triangle_visibility.max() > 15:
+                fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY, "
+                     "VISIBLE_TRANSMISSION and HOLDOUT_OBJECT (0 to 15)")
         lights = self.lights
         nl = lights.count
         if lights.visibility is None and lights.kind is not None:

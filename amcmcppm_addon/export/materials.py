@@ -8,8 +8,8 @@ which is exact for emission and for lobes of one kind with different colours,
 and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF (with its Alpha), Diffuse, Glossy, Metallic, Glass, Refraction,
-Emission, Transparent, Mix Shader, Add Shader, reroutes and groups; on colour and number inputs the texture
-and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a program the core
+Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups; on colour and number
+inputs the texture and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a program the core
 evaluates at each hit, an Image Texture on the active UV map stays a plain image texture; other
 inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
 fed by an Image Texture, a Bump node whose Height comes from an Image Texture, or a Bump on
@@ -105,6 +105,7 @@ class Closure:
     coat_roughness: float = 0.03    # the coat's roughness, IOR and tint
     coat_ior: float = 1.5
     coat_tint: np.ndarray = field(default_factory=lambda: np.ones(3))
+    holdout: float = 0.0            # weight of a Holdout shader (what camera rays cut out)
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -129,7 +130,8 @@ class Closure:
                       metal_dip=fa * self.metal_dip + fb * other.metal_dip,
                       layered=fa * self.layered + fb * other.layered,
                       transparent=fa * self.transparent + fb * other.transparent,
-                      transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight)
+                      transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight,
+                      holdout=fa * self.holdout + fb * other.holdout)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
         if self.roughness_texture is not None or other.roughness_texture is not None:
             # Averaged as the constants, by the glossy weights (a map with a constant, or two maps).
@@ -288,7 +290,7 @@ class Closure:
             return Closure(roughness=self.roughness, ior=self.ior)
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
                                                              "rise", "metal_rise", "metal_dip", "layer",
-                                                             "layered", "coat")}
+                                                             "layered", "coat", "holdout")}
         out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
                                   opacity_texture=None,
                                   reflection=None if self.reflection is None else self.reflection / o)
@@ -347,6 +349,8 @@ class Closure:
         elif self.texture >= 0:
             s["diffuse_texture"] = self.texture
             s["diffuse"] = np.ones(3)
+        if self.holdout > 0:
+            s["holdout"] = min(self.holdout, 1.0)
         if self.coat > 0:
             s.update(coat=min(self.coat, 1.0), coat_roughness=self.coat_roughness, coat_ior=self.coat_ior,
                      coat_tint=self.coat_tint)
@@ -1000,6 +1004,10 @@ class NodeWalker:
             c.dielectric_texture = _program_of(tex, color)
         return c
 
+    def _holdout(self, node, stack):
+        """Holdout: black for every ray, and what camera rays that meet it cut out of the image."""
+        return Closure(holdout=1.0)
+
     def _transparent(self, node, stack):
         color, _ = self.color(node.inputs["Color"], stack)
         return Closure(transparent=np.clip(color, 0.0, None), transparent_weight=1.0)
@@ -1151,6 +1159,7 @@ SHADERS = {
     "ShaderNodeBsdfRefraction": NodeWalker._glass,
     "ShaderNodeEmission": NodeWalker._emission,
     "ShaderNodeBsdfTransparent": NodeWalker._transparent,
+    "ShaderNodeHoldout": NodeWalker._holdout,
     "ShaderNodeMixShader": NodeWalker._mix,
     "ShaderNodeAddShader": NodeWalker._add,
 }

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+from ...core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 from .lights import ray_visibility
 
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
@@ -67,7 +67,8 @@ class Geometry:
     object_ids: np.ndarray | None = None          # (T,) int32 each triangle's instance
     object_from_world: np.ndarray | None = None   # (O, 3, 4) float64
     texture_spaces: np.ndarray | None = None      # (O, 2, 3) float64 location and size
-    # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility), or None: all
+    # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
+    # HOLDOUT_OBJECT for a holdout object's, or None: all rays, no holdout
     triangle_visibility: np.ndarray | None = None
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
@@ -123,7 +124,8 @@ class GeometryCollector:
                                      colors=colors or local.colors_read) or local
             self.meshes[key] = local
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
-        self.groups.setdefault((key, mat_ids, ray_visibility(ob)), []).append(
+        flags = ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
+        self.groups.setdefault((key, mat_ids, flags), []).append(
             np.array(inst.matrix_world, np.float64))
 
     def finish(self) -> Geometry:

@@ -861,3 +861,59 @@ def test_smooth_metals_reflect_the_sky_by_their_fresnel_curve_as_in_cycles(addon
     bands = [x[..., :3].reshape(8, -1, 3).mean(axis=1)[1:] for x in (cycles, ours)]
     print(f"{metal}: ours / cycles by band (face on last)\n{np.round(bands[1] / bands[0], 4)}")
     np.testing.assert_allclose(bands[1], bands[0], rtol=tolerance)
+
+
+def holdout_scene(kind, view, film_transparent):
+    """A card of a holdout ('object': an emitting card whose object is a holdout; 'shader': a
+    Holdout shader; 'mix': a Mix of a Holdout and a green emission by 0.25) seen straight, in a
+    mirror floor, or through a Transparent BSDF, over a glowing floor under a blue-grey world."""
+    bs.empty_scene((16, 16), **dict(OURS, passes=1, photons_per_pass=2000))
+    bs.world((0.2, 0.3, 0.4), 1.0)
+    bpy.context.scene.render.film_transparent = film_transparent
+    if view == "mirror":
+        bs.plane("Mirror", size=40.0, material=bs._material("Chrome", "ShaderNodeBsdfGlossy", Roughness=0.0),
+                 location=(0, 0, -1))
+    else:
+        bs.plane("Floor", size=40.0, material=bs.emission("Glow", (1.0, 0.5, 0.25), 2.0), location=(0, 0, -1))
+    if view == "veil":
+        bs.plane("Veil", size=40.0, material=bs._material("Clear", "ShaderNodeBsdfTransparent"),
+                 location=(0, 0, 1))
+    if kind == "shader":
+        mat = bs._material("Hold", "ShaderNodeHoldout")
+    else:
+        mat = bs.emission("Card", (0.0, 1.0, 0.0), 1.0)
+        if kind == "mix":
+            nt = mat.node_tree
+            hold, mix = nt.nodes.new("ShaderNodeHoldout"), nt.nodes.new("ShaderNodeMixShader")
+            mix.inputs["Fac"].default_value = 0.25
+            nt.links.new(hold.outputs[0], mix.inputs[1])
+            nt.links.new(nt.nodes["Emission"].outputs[0], mix.inputs[2])
+            nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    card = bs.plane("Card", size=40.0 if view == "mirror" else 1.0, material=mat,
+                    location=(0, 0, 5) if view == "mirror" else (0, 0, 0),
+                    rotation=(math.pi, 0, 0) if view == "mirror" else (0, 0, 0))
+    card.is_holdout = kind == "object"
+    bs.camera(location=(0, 0, 3), target=(0, 0, 0), lens=200.0)
+
+
+HOLDOUTS = [(kind, view, film) for kind in ("object", "shader", "mix") for view in ("straight", "veil")
+            for film in (False, True)] + [("object", "mirror", False), ("shader", "mirror", True)]
+
+
+@pytest.mark.parametrize("kind, view, film_transparent", HOLDOUTS,
+                         ids=[f"{k}-{v}-{'transparent' if f else 'opaque'}" for k, v, f in HOLDOUTS])
+def test_holdouts_cut_pixels_out_as_in_cycles(addon, tmp_path, kind, view, film_transparent):
+    """Cycles cuts a holdout (object or shader) out of the pixels camera rays meet it in, straight
+    or through a Transparent BSDF, with an opaque film too (black, alpha 0; the Mix: a quarter of
+    the green, alpha 0.25); in a mirror a holdout object shows its material and a Holdout shader
+    is black, alpha 1.  Before, the Holdout shader was an unsupported grey diffuse and a holdout
+    object rendered as any other."""
+    holdout_scene(kind, view, film_transparent)
+    use_cycles(bpy.context.scene)
+    bpy.context.scene.cycles.samples = 16
+    cycles = bs.render_exr(tmp_path / "cycles.exr").reshape(-1, 4).mean(axis=0)
+    holdout_scene(kind, view, film_transparent)
+    ours = bs.render_exr(tmp_path / "ours.exr").reshape(-1, 4).mean(axis=0)
+    print(f"{kind} {view} film {'transparent' if film_transparent else 'opaque'}: cycles {np.round(cycles, 4)}, "
+          f"ours {np.round(ours, 4)}")
+    np.testing.assert_allclose(ours, cycles, atol=2e-3)
