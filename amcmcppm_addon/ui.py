@@ -126,6 +126,35 @@ class AMCMCPPM_CAMERA_PT_panorama(bpy.types.Panel):
             col.prop(cam, name)
 
 
+class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
+    """The object's ray visibility under Blender's Visibility panel (which draws it for Cycles and
+    EEVEE only), for the rays our engine follows: camera rays, and camera paths a mirror or glass
+    reflected (Glossy) or refracted (Transmission).  Diffuse and shadow rays are photons here,
+    which always meet the object.  Blender's panel draws the Holdout mask."""
+    bl_label = "Ray Visibility"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "object"
+    bl_parent_id = "OBJECT_PT_visibility"
+    COMPAT_ENGINES = {ENGINE_ID}
+    OBJECT_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'LIGHT'}
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.object
+        return context.engine in cls.COMPAT_ENGINES and ob is not None and ob.type in cls.OBJECT_TYPES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        ob = context.object
+        col = layout.column(heading="Rays")
+        col.prop(ob, "visible_camera", text="Camera", toggle=False)
+        col.prop(ob, "visible_glossy", text="Glossy", toggle=False)
+        col.prop(ob, "visible_transmission", text="Transmission", toggle=False)
+
+
 classes = (
     AMCMCPPM_RENDER_PT_sampling,
     AMCMCPPM_RENDER_PT_markov_chains,
@@ -173,7 +202,7 @@ def get_panels():
 
 
 # Panels outside the Render Properties.
-other_classes = (AMCMCPPM_CAMERA_PT_panorama,)
+other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility)
 
 
 def register():

@@ -164,6 +164,24 @@ def test_panorama_panel_shows_a_panoramic_cameras_settings(scene):
     assert all(name in known for names in panel.props.values() for name in names)
 
 
+def test_ray_visibility_panel_shows_the_rays_the_engine_follows(scene):
+    """Blender's Visibility panel draws an object's ray visibility for Cycles and EEVEE only (and
+    the Holdout mask for every engine): our subpanel draws the boxes the exporter reads."""
+    from amcmcppm.amcmcppm_addon import ui
+    panel = ui.AMCMCPPM_OBJECT_PT_ray_visibility
+    assert getattr(bpy.types, panel.__name__) is panel
+    assert ENGINE in bpy.types.OBJECT_PT_visibility.COMPAT_ENGINES
+    card = bs.plane("Card")
+    cam = bs.camera()
+    with bpy.context.temp_override(object=card):
+        assert panel.poll(bpy.context)
+        scene.render.engine = "CYCLES"
+        assert not panel.poll(bpy.context)
+        scene.render.engine = ENGINE
+    with bpy.context.temp_override(object=cam):
+        assert not panel.poll(bpy.context)
+
+
 def test_builtin_panels_show_for_engine(addon):
     """Format, output, colour management, camera, light, material and world panels include us."""
     wanted = {"RENDER_PT_format", "RENDER_PT_output", "RENDER_PT_color_management", "DATA_PT_camera",
