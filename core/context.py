@@ -111,9 +111,10 @@ class RenderContext:
         """Names of the optional effects this scene calls for, each simulated only when named
         here (its code runs behind the flag that makes it appear): specular transport (mirrors,
         glass, rough glass, camera paths through smooth glossy lobes), glossy lobes and their
-        layers (Fresnel layers, coats), textures (images, procedural, roughness maps, normal and
-        bump maps, textured emitters), transparency, objects hidden from some camera rays,
-        volumes, an environment image, and the camera's depth of field or panorama."""
+        layers (Fresnel layers, metals' Fresnel curves, coats), textures (images, procedural,
+        roughness maps, normal and bump maps, textured emitters), transparency, objects hidden from
+        some camera rays, holdouts, volumes, an environment image, and the camera's depth of field
+        or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
@@ -122,6 +123,7 @@ class RenderContext:
                  ("glossy", table.has_glossy.any()),
                  ("camera paths through glossy", table.has_glossy_through),
                  ("Fresnel layers", table.has_layer),
+                 ("metal Fresnel curves", table.has_metal_curve),
                  ("coats", table.has_coat),
                  ("image textures", self.has_textures),
                  ("procedural textures", self.has_programs or self.has_glossy_programs
