@@ -1012,6 +1012,33 @@ def test_object_ray_visibility_reaches_the_triangles(scene):
     assert shown.visible_camera
 
 
+def test_holdout_shaders_and_objects_are_exported(scene):
+    """A Holdout shader is a holdout share of 1 and no lobes; in a Mix with a Diffuse by 0.25 the
+    share is 0.75 and the diffuse weight 0.25; a holdout object's triangles get HOLDOUT_OBJECT
+    besides their ray visibility."""
+    from amcmcppm.core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+    row, ex = export_material(bs._material("Hold", "ShaderNodeHoldout"))
+    assert row["holdout"] == 1.0 and row["diffuse_weight"] == row["glossy_weight"] == 0 and not ex.warnings
+    mat = bs.diffuse("Half")
+    nt = mat.node_tree
+    hold, mix = nt.nodes.new("ShaderNodeHoldout"), nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.25
+    nt.links.new(hold.outputs[0], mix.inputs[1])
+    nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, _ = export_material(mat)
+    assert row["holdout"] == pytest.approx(0.75) and row["diffuse_weight"] == pytest.approx(0.25)
+    bs.camera()
+    bs.plane("Shown", material=bs.diffuse("Grey"))
+    card = bs.plane("Card", material=bs.diffuse("Grey"), location=(0, 0, 1))
+    card.is_holdout = True
+    ex = bs.export()
+    vis = ex.scene.triangle_visibility
+    z = ex.scene.vertices[ex.scene.triangles].mean(axis=1)[:, 2]
+    every = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+    assert set(vis[z > 0.5]) == {every | HOLDOUT_OBJECT} and set(vis[z < 0.5]) == {every}
+
+
 def test_multiscatter_ggx_gets_cycles_mean_fresnel_colour_and_single_scatter_gets_none(scene):
     """glossy_multiscatter is the F_ss of Cycles' energy compensation: 0 unless the node's
     distribution is Multiscatter GGX (Blender's default)."""
