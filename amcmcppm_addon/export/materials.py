@@ -221,6 +221,22 @@ class Closure:
         return self.emission.tolist() if self.emission_texture is None else self.emission_texture
 
     @property
+    def diffuse_only(self) -> bool:
+        """Whether this is a diffuse lobe alone (a Diffuse BSDF, textured or not)."""
+        return self._only(DIFFUSE)
+
+    @property
+    def glossy_only(self) -> bool:
+        """Whether this is a glossy lobe alone without a Fresnel curve or a texture (a Glossy BSDF)."""
+        return self._only(GLOSSY) and not self.rises and self.glossy_texture is None
+
+    def _only(self, lobe) -> bool:
+        others = np.delete(self.weight, lobe)
+        return bool(self.weight[lobe] > 0 and not others.any() and not self.emission.any()
+                    and self.transparent_weight == 0 and self.coat == 0 and self.holdout == 0
+                    and not self.layered)
+
+    @property
     def rises(self) -> bool:
         """Whether the glossy colour changes with the angle (a dielectric rise or a metal curve)."""
         return self.fresnel_ior > 0 or bool(self.metal_rise.any() or self.metal_dip.any())
@@ -360,6 +376,21 @@ class Closure:
             source, s["bump_strength"], s["bump_distance"] = self.bump
             s["bump_program" if isinstance(source, dict) else "bump_texture"] = source
         return s
+
+
+def _fresnel_layer(a, b, eta) -> Closure:
+    """A Mix of a diffuse-only closure ``a`` and a glossy-only one ``b`` by the Fresnel curve of
+    IOR ``eta`` at the view direction (Cycles: (1 - F(wo.N)) a + F(wo.N) b), as the layering of
+    Principled's dielectric base: ``b``'s colour C rises along the Fresnel curve of the microfacet
+    normal (C F0 + C (1 - F0) s(c)), with its own F_ss (C) for multiscatter, over ``a``'s diffuse
+    lobe, which loses the layer's albedo at the view direction.  Exact for a smooth glossy under
+    a white light; for a rough one the curve follows the microfacet normal, not the surface's."""
+    f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+    glossy = dataclasses.replace(b, color=b.color * f0, multiscatter=b.multiscatter * f0,
+                                 fresnel_ior=eta, rise=b.color[GLOSSY] * (1.0 - f0))
+    w = a.weight[DIFFUSE]
+    base = dataclasses.replace(a, layer=np.full(3, w * f0), layered=w)
+    return base.combine(glossy, 1.0, 1.0)
 
 
 def _program_of(source, constant):
@@ -916,15 +947,33 @@ class NodeWalker:
         return tex, strength, node.uv_map
 
     def _mix(self, node, stack):
-        f = self.programs.expression(node.inputs[0], stack, FLOAT)
         a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()
         b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
+        eta = self._fresnel_factor(node.inputs[0], stack)
+        if eta is not None and a.diffuse_only and b.glossy_only:
+            return _fresnel_layer(a, b, eta)
+        f = self.programs.expression(node.inputs[0], stack, FLOAT)
         if procedural.varies(f):
             return self._masked_mix(node, "Fac", f, a, b)
         fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
         if 0.0 < fac < 1.0:
             self._note_coats(node, a, b)
         return a.combine(b, 1.0 - fac, fac)
+
+    def _fresnel_factor(self, sock, stack):
+        """The IOR of a Fresnel curve that drives a Mix Shader's factor (a Fresnel node, or Layer
+        Weight's Fresnel output of IOR 1 / (1 - Blend), on the surface's own normal), or None."""
+        src, _, stack = self.source(sock, stack)
+        if src is None or src.node.mute or src.node.inputs["Normal"].is_linked:
+            return None
+        node, constant = src.node, self.programs.constant_of
+        if node.bl_idname == "ShaderNodeFresnel" and src.identifier == "Fac":
+            eta = float(constant(node.inputs["IOR"], stack))
+        elif node.bl_idname == "ShaderNodeLayerWeight" and src.identifier == "Fresnel":
+            eta = 1.0 / max(1.0 - float(constant(node.inputs["Blend"], stack)), 1e-5)
+        else:
+            return None
+        return eta if eta > 1.0 + 1e-6 else None
 
     def _add(self, node, stack):
         a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()

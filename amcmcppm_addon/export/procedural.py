@@ -11,7 +11,8 @@ Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float
 colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Clamp, Map
 Range (float), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
 Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB
-and Value.  Anything else is named in the material's warning and replaced by the input socket's
+and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
+know the view direction).  Anything else is named in the material's warning and replaced by the input socket's
 own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
 texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
 them, with a note.
@@ -21,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
+from ...core.sampling import fresnel_dielectric
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
 FLOAT, VEC = "float", "vec"
@@ -489,6 +491,41 @@ def _combine_color(b, node, stack):
                                           for k, name in zip("xyz", ("Red", "Green", "Blue"))}}}
 
 
+def _view_mean(b, node, what, values):
+    """The cosine-weighted mean over view directions 2 int f(mu) mu dmu of a factor ``values``
+    (a function of the view cosines mu) that Cycles takes from the view direction at each
+    point, which the core's programs do not know: a constant, noted."""
+    mu = (np.arange(512) + 0.5) / 512
+    mean = float(np.mean(2.0 * mu * values(mu)))
+    b.walker.note(f"'{node.name}': {what} depends on the view direction, which is not supported "
+                  f"here; using its mean over view directions {mean:.3f}")
+    return mean
+
+
+def _dielectric(mu, eta):
+    return fresnel_dielectric(mu, np.full_like(mu, eta))[0]
+
+
+def _fresnel(b, node, stack):
+    """Fresnel: Cycles' dielectric Fresnel of the IOR at the view cosine with the normal, taken
+    as its mean (``_view_mean``; the Normal input is not read)."""
+    eta = max(float(b.constant_of(node.inputs["IOR"], stack)), 1e-5)
+    return {"Fac": _view_mean(b, node, "its factor", lambda mu: _dielectric(mu, eta))}
+
+
+def _layer_weight(b, node, stack):
+    """Layer Weight: Fresnel (of IOR 1 / (1 - Blend)) and Facing (1 - mu^e, e = 2 Blend below
+    0.5, else 0.5 / (1 - Blend)), as in Cycles' ``svm_node_layer_weight``, each taken as its
+    mean over view directions (``_view_mean``)."""
+    blend = float(b.constant_of(node.inputs["Blend"], stack))
+    eta = 1.0 / max(1.0 - blend, 1e-5)
+    edge = float(np.clip(blend, 0.0, 1.0 - 1e-5))
+    power = 1.0 if blend == 0.5 else (2.0 * edge if edge < 0.5 else 0.5 / (1.0 - edge))
+    return {"Fresnel": _view_mean(b, node, "its Fresnel output",
+                                  lambda mu: fresnel_dielectric(mu, np.full_like(mu, eta))[0]),
+            "Facing": _view_mean(b, node, "its Facing output", lambda mu: 1.0 - mu ** power)}
+
+
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
     "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
@@ -505,4 +542,5 @@ NODES = {
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,
     "ShaderNodeVectorMath": _vector_math, "ShaderNodeClamp": _clamp, "ShaderNodeRGBCurve": _rgb_curves,
     "ShaderNodeVectorCurve": _vector_curves, "ShaderNodeFloatCurve": _float_curve,
+    "ShaderNodeFresnel": _fresnel, "ShaderNodeLayerWeight": _layer_weight,
 }

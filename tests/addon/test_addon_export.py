@@ -1012,6 +1012,39 @@ def test_object_ray_visibility_reaches_the_triangles(scene):
     assert shown.visible_camera
 
 
+def fresnel_mix(name, factor_node, output, **inputs):
+    """A Mix of a red Diffuse and a white Glossy by ``factor_node``'s ``output``."""
+    mat = bs.diffuse(name, (0.8, 0.1, 0.1))
+    nt = mat.node_tree
+    glossy, mix = nt.nodes.new("ShaderNodeBsdfGlossy"), nt.nodes.new("ShaderNodeMixShader")
+    glossy.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    factor = nt.nodes.new(factor_node)
+    for key, value in inputs.items():
+        factor.inputs[key].default_value = value
+    nt.links.new(factor.outputs[output], mix.inputs["Fac"])
+    nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], mix.inputs[1])
+    nt.links.new(glossy.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def test_a_mix_by_a_fresnel_curve_is_a_layer_and_other_view_factors_their_mean(scene):
+    """Mix(Diffuse, Glossy) by a Fresnel node: the glossy rises along the Fresnel curve of its IOR
+    from C F0, over a diffuse whose layer reflects F0 (both at weight 1); by Layer Weight's Facing:
+    the factor's mean over view directions, 1 - 2 / (e + 2) (e = 2 Blend), noted."""
+    row, ex = export_material(fresnel_mix("Fresnel", "ShaderNodeFresnel", "Fac", IOR=1.45))
+    f0 = (0.45 / 2.45) ** 2
+    assert row["glossy_fresnel_ior"] == pytest.approx(1.45) and not ex.warnings
+    assert row["glossy_weight"] == pytest.approx(1.0) and row["diffuse_weight"] == pytest.approx(1.0)
+    assert row["glossy_color"] == pytest.approx(np.full(3, f0), rel=1e-5)
+    assert row["glossy_fresnel_rise"] == pytest.approx(np.full(3, 1 - f0), rel=1e-5)
+    assert row["diffuse_layer"] == pytest.approx(np.full(3, f0), rel=1e-5)
+    assert row["glossy_multiscatter"] == pytest.approx(np.ones(3), rel=1e-5)        # the Glossy's own
+    row, ex = export_material(fresnel_mix("Facing", "ShaderNodeLayerWeight", "Facing", Blend=0.3))
+    assert row["glossy_weight"] == pytest.approx(1 - 2 / 2.6, rel=1e-3) and row["glossy_fresnel_ior"] == 0
+    assert any("depends on the view direction" in w for w in ex.warnings), ex.warnings
+
+
 def test_holdout_shaders_and_objects_are_exported(scene):
     """A Holdout shader is a holdout share of 1 and no lobes; in a Mix with a Diffuse by 0.25 the
     share is 0.75 and the diffuse weight 0.25; a holdout object's triangles get HOLDOUT_OBJECT

@@ -917,3 +917,46 @@ def test_holdouts_cut_pixels_out_as_in_cycles(addon, tmp_path, kind, view, film_
     print(f"{kind} {view} film {'transparent' if film_transparent else 'opaque'}: cycles {np.round(cycles, 4)}, "
           f"ours {np.round(ours, 4)}")
     np.testing.assert_allclose(ours, cycles, atol=2e-3)
+
+
+# factor -> (tolerance of the channel means, of the bands): the Facing's mean is an approximation
+# (1.08 / 1.33 / 1.33 of Cycles, bands up to 2.4 where the view is grazing), kept from regressing.
+VIEW_FACTORS = {"fresnel": (0.03, 0.05), "layer_weight_fresnel": (0.03, 0.05), "facing": (0.4, 1.5)}
+
+
+@pytest.mark.parametrize("factor", list(VIEW_FACTORS))
+def test_mix_factors_of_the_view_direction_match_cycles(addon, tmp_path, factor):
+    """The corner's floor a Mix of a red Diffuse and a white Glossy (roughness 0.2) by a Fresnel
+    node (IOR 1.45), Layer Weight's Fresnel (Blend 0.31: the same IOR) or its Facing (Blend 0.3),
+    under the area light.  Cycles takes these factors from the view direction at each point.
+    A Fresnel curve makes the Mix a layer, as Principled's dielectric base (the glossy rising
+    along the curve, the diffuse under it losing what it reflects); a Facing factor takes its
+    mean over view directions (0.23), noted.  Measured: Fresnel (either node) 0.998 / 0.994 /
+    0.994 of Cycles, bands 0.976-1.016; Facing 1.08 / 1.33 / 1.33.  Before, all were unsupported
+    nodes replaced by the Mix's own factor (0.5): 1.108 / 2.33 / 2.33 for the Fresnel, 1.14 /
+    2.01 / 2.01 for the Facing."""
+    def build():
+        corner_scene()
+        add_emitter("area_square")
+        nt, diffuse = floor_shader("ShaderNodeBsdfDiffuse")
+        diffuse.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
+        glossy, mix = nt.nodes.new("ShaderNodeBsdfGlossy"), nt.nodes.new("ShaderNodeMixShader")
+        glossy.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        glossy.inputs["Roughness"].default_value = 0.2
+        if factor == "fresnel":
+            node = nt.nodes.new("ShaderNodeFresnel")
+            node.inputs["IOR"].default_value = 1.45
+            out = node.outputs["Fac"]
+        else:
+            node = nt.nodes.new("ShaderNodeLayerWeight")
+            node.inputs["Blend"].default_value = 0.3 if factor == "facing" else 1.0 - 1.0 / 1.45
+            out = node.outputs["Facing" if factor == "facing" else "Fresnel"]
+        nt.links.new(out, mix.inputs["Fac"])
+        nt.links.new(diffuse.outputs[0], mix.inputs[1])
+        nt.links.new(glossy.outputs[0], mix.inputs[2])
+        nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    noted = any("depends on the view direction" in w for w in bs.export().warnings)
+    assert noted == (factor == "facing")
+    rtol, band_rtol = VIEW_FACTORS[factor]
+    assert_channels_match(f"mix by {factor}", cycles, ours, rtol=rtol, band_rtol=band_rtol)
