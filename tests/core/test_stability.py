@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, render
+from core.scene import HOLDOUT_OBJECT
 from core.testing.scenes import MeshBuilder, with_one_object
 
 RUN = dict(passes=2, photons_per_pass=6000, chains=512, workers=1, max_bounces=12)
@@ -130,7 +131,8 @@ def wild_procedural_colour():
 def transparent_stack():
     """The room cut by 100 parallel veils between the lamp and the floor, each of an opacity that
     1 / x makes 0 to 1 and wild in between (a value the program clamps), and the camera looking
-    through all of them: rays cross at most 64 and stop on the next."""
+    through all of them: rays cross at most 64 and stop on the next.  The veils are half
+    holdouts, and the lamp a holdout object: the pixels lose alpha through 64 crossings."""
     room = cornell_like()
     x = {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}
     wild = {"op": "math", "operation": "DIVIDE", "a": 0.01, "b": x}
@@ -142,8 +144,10 @@ def transparent_stack():
     for z in np.linspace(0.1, 1.9, 100):
         m.add_quad((-1, -1, z), (1, -1, z), (1, 1, z), (-1, 1, z), 2)
     scene = m.build(Materials.build(specs), camera=room.camera)
-    specs[2] = {**specs[2], "opacity_program": wild, "transparent_color": (1.0, 0.9, 0.8)}
-    return with_one_object(scene).replace(materials=Materials.build(specs)).validate()
+    specs[2] = {**specs[2], "opacity_program": wild, "transparent_color": (1.0, 0.9, 0.8), "holdout": 0.5}
+    flags = np.where(scene.material_ids == 1, 7 | HOLDOUT_OBJECT, 7).astype(np.uint8)
+    return with_one_object(scene).replace(materials=Materials.build(specs),
+                                          triangle_visibility=flags).validate()
 
 
 def extreme_coats():
