@@ -1,6 +1,7 @@
-"""Cost of Principled's Fresnel layer in the photon pass (vertices per second, one process).
+"""Cost of Principled's Fresnel layer and of metals' Fresnel curve in the photon pass (vertices
+per second, one process).
 
-Every diffuse material of a built-in scene is given one of three bases, and the three are traced
+Every diffuse material of a built-in scene is given one of five bases, and the five are traced
 alternately on the same eye pass and random numbers, so each round's ratios share the machine
 load (median and range over rounds):
 
@@ -9,8 +10,12 @@ load (median and range over rounds):
   of weight 0.092 (mean Fresnel of IOR 1.5) over the diffuse of weight 0.908;
 * ``layered``: Cycles' layering, a GGX lobe reflecting 0.04 + 0.96 s(c) (``glossy_fresnel_*``)
   over the whole diffuse, whose weight follows the layer's albedo at the view
-  (``diffuse_layer``).
+  (``diffuse_layer``);
+* ``metal``: a gold-like metal of roughness 0.5 coloured by its F82 curve's mean (how metals were
+  exported before their curve: ``bsdf.metal_fresnel``);
+* ``metal_curve``: the same metal with its curve by angle (``glossy_metal_rise`` and ``_dip``).
 
+``metal_curve / metal`` is the price of the curve (a colour per deposit pair and per sample);
 ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
 pair, layer factor per diffuse sample and per point); ``constant / diffuse`` that of a glossy
 lobe at all.
@@ -36,13 +41,14 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from core import sampling as smp  # noqa: E402
-from core.bsdf import eval_glossy  # noqa: E402
+from core.bsdf import eval_glossy, metal_curve, metal_fresnel  # noqa: E402
 from core.testing.scenes import BUILTIN  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from ab_photon_pass import photon_pass  # noqa: E402
 
-VARIANTS = ("diffuse", "constant", "layered")
+VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve")
+GOLD, GOLD_TINT = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.6])
 
 
 def with_base(scene, variant):
@@ -52,7 +58,16 @@ def with_base(scene, variant):
     m = scene.materials
     on = (m.diffuse_weight > 0) & (m.glossy_weight == 0) & ~(m.emission > 0).any(axis=1)
     m.glossy_roughness[on] = 0.5
-    if variant == "constant":
+    if variant.startswith("metal"):
+        f0, rise, dip = metal_curve(GOLD, GOLD_TINT)
+        m.diffuse_weight[on] = 0.0
+        m.glossy_weight[on] = 1.0
+        m.glossy_color[on] = metal_fresnel(GOLD, GOLD_TINT) if variant == "metal" else f0
+        m.glossy_multiscatter[on] = metal_fresnel(GOLD, GOLD_TINT)
+        if variant == "metal_curve":
+            m.glossy_metal_rise[on] = rise
+            m.glossy_metal_dip[on] = dip
+    elif variant == "constant":
         m.diffuse_weight[on] = 0.908
         m.glossy_weight[on] = 0.092
         m.glossy_color[on] = 1.0
@@ -109,8 +124,9 @@ def main():
     print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.paths} paths, {a.rounds} rounds"
           f"{', pairs' if a.pairs else ''}")
     for v in VARIANTS:
-        print(f"  {v:9s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
-    for num, den in (("layered", "constant"), ("constant", "diffuse"), ("layered", "diffuse")):
+        print(f"  {v:11s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
+    for num, den in (("layered", "constant"), ("constant", "diffuse"), ("layered", "diffuse"),
+                     ("metal_curve", "metal")):
         r = np.array(rates[num]) / np.array(rates[den])
         print(f"  {num} / {den}: {np.median(r):.3f} ({r.min():.3f}-{r.max():.3f})")
 

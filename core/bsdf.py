@@ -309,19 +309,40 @@ class MaterialTable:
         (the view direction with the microfacet normal) to its constant colour: ``rise`` s(cos_m)
         (:func:`fresnel_rise`) plus a metal's ``edge`` (1 - c)^5 - ``dip`` c (1 - c)^6 (Cycles'
         F82 tint, ``Materials``), the metal's reflectance kept within [0, 1] as Cycles saturates it."""
-        s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
-        out = self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
-        if self.has_metal_curve:
-            c = np.clip(cos_m, 0.0, 1.0)
-            p = 1.0 - c
-            p5 = p * p
-            p5 *= p5 * p
-            e, d = self.edge[:, lobe].take(mat_ids, axis=0), self.dip[:, lobe].take(mat_ids, axis=0)
-            total = out + e * p5[:, None] - d * (c * p5 * p)[:, None]
-            base = self.color[:, lobe].take(mat_ids, axis=0)
-            metal = ((e != 0) | (d != 0)).any(axis=1)
-            out = np.where(metal[:, None], np.clip(total, -base, np.maximum(1.0 - base, 0.0)), total)
-        return out
+        out = None
+        if self.has_dielectric_rise:
+            s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
+            out = self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
+        if not self.has_metal_curve:
+            return out if out is not None else np.zeros((len(mat_ids), 3))
+        edge, dip, low, high, metal = self._metal_rows[lobe]
+        c = np.clip(cos_m, 0.0, 1.0)
+        p = 1.0 - c
+        p5 = p * p
+        p5 *= p5 * p
+        curve = edge.take(mat_ids, axis=0) * p5[:, None]
+        curve -= dip.take(mat_ids, axis=0) * (c * p5 * p)[:, None]
+        if out is None:                                 # metals alone (rows without a curve: 0)
+            return np.clip(curve, low.take(mat_ids, axis=0), high.take(mat_ids, axis=0), out=curve)
+        total = out + curve
+        clipped = np.clip(total, low.take(mat_ids, axis=0), high.take(mat_ids, axis=0))
+        return np.where(metal.take(mat_ids)[:, None], clipped, total)
+
+    @cached_property
+    def has_dielectric_rise(self) -> bool:
+        return bool((self.rise != 0).any())
+
+    @cached_property
+    def _metal_rows(self):
+        """Per lobe (GLOSSY, MIRROR): contiguous (M, 3) edge and dip, the bounds -colour and
+        max(1 - colour, 0) of what a metal's curve may add, and (M,) which rows have a curve."""
+        rows = {}
+        for lobe in (GLOSSY, MIRROR):
+            base = self.color[:, lobe]
+            edge, dip = np.ascontiguousarray(self.edge[:, lobe]), np.ascontiguousarray(self.dip[:, lobe])
+            metal = ((edge != 0) | (dip != 0)).any(axis=1)
+            rows[lobe] = (edge, dip, -base, np.maximum(1.0 - base, 0.0), metal)
+        return rows
 
     def layer_factor(self, mat_ids, mu):
         """(n,) factors of the diffuse lobe under a Fresnel layer at view cosines ``mu`` (1: none)."""
