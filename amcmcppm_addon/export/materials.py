@@ -9,9 +9,9 @@ and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF (with its Alpha), Diffuse, Glossy, Metallic, Glass, Refraction,
 Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups; on colour and number
-inputs the texture and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a program the core
-evaluates at each hit, an Image Texture on the active UV map stays a plain image texture; other
-inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
+inputs the texture and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a
+program the core evaluates at each hit, an Image Texture on the active UV map stays a plain image
+texture; other inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
 fed by an Image Texture, a Bump node whose Height comes from an Image Texture, or a Bump on
 a Normal Map (one of each per material: the first that a Mix or Add meets).
 Anything else becomes a grey diffuse closure (for shaders) or the socket's own value (for
@@ -964,9 +964,11 @@ class NodeWalker:
         """The IOR of a Fresnel curve that drives a Mix Shader's factor (a Fresnel node, or Layer
         Weight's Fresnel output of IOR 1 / (1 - Blend), on the surface's own normal), or None."""
         src, _, stack = self.source(sock, stack)
-        if src is None or src.node.mute or src.node.inputs["Normal"].is_linked:
+        if src is None or src.node.mute or src.node.bl_idname not in FRESNEL_FACTORS:
             return None
         node, constant = src.node, self.programs.constant_of
+        if node.inputs["Normal"].is_linked:
+            return None
         if node.bl_idname == "ShaderNodeFresnel" and src.identifier == "Fac":
             eta = float(constant(node.inputs["IOR"], stack))
         elif node.bl_idname == "ShaderNodeLayerWeight" and src.identifier == "Fresnel":
@@ -1192,6 +1194,9 @@ class NodeWalker:
                                 "tint": [float(x) for x in tint]}
         return c
 
+
+# Nodes whose output may be a Fresnel curve of the view direction (NodeWalker._fresnel_factor).
+FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")
 
 # Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
 PRINCIPLED_IGNORED = (("Diffuse Roughness", "Diffuse Roughness"), ("Subsurface", "Subsurface Weight"),

@@ -23,8 +23,9 @@ and the floor test here).  The rest of the block is a few per cent darker in eve
 metal at 0.3 0.939 and 0.961).  That is the gather discs' bias at the block's edges and
 shadows, linear in their radius: the diffuse block's centre is 0.982 / 0.966 / 0.925 of
 Cycles with an initial radius of 0.75 / 1.5 / 3 pixels, and 0.982 at 128 x 128 pixels with
-1.5 (so about 1.00 at radius 0); its lit top face and the shadows' edges take most of it.  Before the compensation, rough glossy and metal were much darker
-(Glossy 0.6 0.83, metal 0.8 0.73): these cases were strict expected failures until then.
+1.5 (so about 1.00 at radius 0); its lit top face and the shadows' edges take most of it.
+Before the compensation, rough glossy and metal were much darker (Glossy 0.6 0.83, metal 0.8
+0.73): these cases were strict expected failures until then.
 """
 from __future__ import annotations
 

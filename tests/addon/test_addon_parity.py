@@ -914,8 +914,8 @@ def test_holdouts_cut_pixels_out_as_in_cycles(addon, tmp_path, kind, view, film_
     cycles = bs.render_exr(tmp_path / "cycles.exr").reshape(-1, 4).mean(axis=0)
     holdout_scene(kind, view, film_transparent)
     ours = bs.render_exr(tmp_path / "ours.exr").reshape(-1, 4).mean(axis=0)
-    print(f"{kind} {view} film {'transparent' if film_transparent else 'opaque'}: cycles {np.round(cycles, 4)}, "
-          f"ours {np.round(ours, 4)}")
+    film = "transparent" if film_transparent else "opaque"
+    print(f"{kind} {view} film {film}: cycles {np.round(cycles, 4)}, ours {np.round(ours, 4)}")
     np.testing.assert_allclose(ours, cycles, atol=2e-3)
 
 

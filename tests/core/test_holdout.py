@@ -27,8 +27,8 @@ def card_scene(card, mirror=False, veil=False, holdout_object=False, film_transp
     at z = 0 (facing down, seen in a mirror at z = -1 instead of the floor, with ``mirror``), an
     orthographic camera looking straight down at z = 3 (through a clear Transparent veil at z = 1
     with ``veil``)."""
-    specs = [{"name": "floor", "emission": (1.0, 0.5, 0.25)} if not mirror else {"name": "mirror", "mirror": 1.0},
-             card, {"name": "veil", "opacity": 0.0}]
+    floor = {"name": "mirror", "mirror": 1.0} if mirror else {"name": "floor", "emission": (1.0, 0.5, 0.25)}
+    specs = [floor, card, {"name": "veil", "opacity": 0.0}]
     m = MeshBuilder()
     m.add_quad((-5, -5, -1), (5, -5, -1), (5, 5, -1), (-5, 5, -1), 0)
     z = 2.0 if mirror else 0.0
@@ -98,7 +98,8 @@ def test_holdouts_are_checked_and_survive_a_file_round_trip(tmp_path):
 def test_only_the_pixels_that_see_the_holdout_lose_their_alpha():
     """A holdout card over the left half of the view: the left half black with alpha 0, the right
     half the glowing floor with alpha 1."""
-    mats = Materials.build([{"name": "floor", "emission": (1.0, 0.5, 0.25)}, {"name": "card", "holdout": 1.0}])
+    mats = Materials.build([{"name": "floor", "emission": (1.0, 0.5, 0.25)},
+                            {"name": "card", "holdout": 1.0}])
     m = MeshBuilder()
     m.add_quad((-5, -5, -1), (5, -5, -1), (5, 5, -1), (-5, 5, -1), 0)
     m.add_quad((-5, -5, 0), (0, -5, 0), (0, 5, 0), (-5, 5, 0), 1)
