@@ -878,6 +878,9 @@ def holdout_scene(kind, view, film_transparent):
     if view == "veil":
         bs.plane("Veil", size=40.0, material=bs._material("Clear", "ShaderNodeBsdfTransparent"),
                  location=(0, 0, 1))
+    elif view == "glass":          # of IOR 1: the refracted ray goes straight on
+        bs.plane("Glass", size=40.0, material=bs._material("Pane", "ShaderNodeBsdfGlass", IOR=1.0001,
+                                                           Roughness=0.0), location=(0, 0, 1))
     if kind == "shader":
         mat = bs._material("Hold", "ShaderNodeHoldout")
     else:
@@ -897,17 +900,19 @@ def holdout_scene(kind, view, film_transparent):
 
 
 HOLDOUTS = [(kind, view, film) for kind in ("object", "shader", "mix") for view in ("straight", "veil")
-            for film in (False, True)] + [("object", "mirror", False), ("shader", "mirror", True)]
+            for film in (False, True)] + [("object", "mirror", False), ("shader", "mirror", True),
+                                          ("object", "glass", False), ("shader", "glass", True)]
 
 
 @pytest.mark.parametrize("kind, view, film_transparent", HOLDOUTS,
                          ids=[f"{k}-{v}-{'transparent' if f else 'opaque'}" for k, v, f in HOLDOUTS])
 def test_holdouts_cut_pixels_out_as_in_cycles(addon, tmp_path, kind, view, film_transparent):
-    """Cycles cuts a holdout (object or shader) out of the pixels camera rays meet it in, straight
-    or through a Transparent BSDF, with an opaque film too (black, alpha 0; the Mix: a quarter of
-    the green, alpha 0.25); in a mirror a holdout object shows its material and a Holdout shader
-    is black, alpha 1.  Before, the Holdout shader was an unsupported grey diffuse and a holdout
-    object rendered as any other."""
+    """Cycles cuts a holdout (object or shader) out of the pixels camera rays meet it in, straight or
+    through a Transparent BSDF, with an opaque film too (black, alpha 0; the Mix: a quarter of
+    the green, alpha 0.25); in a mirror or through glass a holdout object shows its material and
+    a Holdout shader is black, alpha 1 (Cycles' glass of IOR 1.0001 passes 0.996 of the green).
+    Before, the Holdout shader was an unsupported grey diffuse and a holdout object rendered as
+    any other."""
     holdout_scene(kind, view, film_transparent)
     use_cycles(bpy.context.scene)
     bpy.context.scene.cycles.samples = 16
@@ -916,7 +921,7 @@ def test_holdouts_cut_pixels_out_as_in_cycles(addon, tmp_path, kind, view, film_
     ours = bs.render_exr(tmp_path / "ours.exr").reshape(-1, 4).mean(axis=0)
     film = "transparent" if film_transparent else "opaque"
     print(f"{kind} {view} film {film}: cycles {np.round(cycles, 4)}, ours {np.round(ours, 4)}")
-    np.testing.assert_allclose(ours, cycles, atol=2e-3)
+    np.testing.assert_allclose(ours, cycles, atol=5e-3 if view == "glass" else 2e-3)
 
 
 # factor -> (tolerance of the channel means, of the bands): the Facing's mean is an approximation
