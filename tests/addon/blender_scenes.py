@@ -53,6 +53,18 @@ def emission(name="Emission", color=(1.0, 1.0, 1.0), strength=1.0):
     return _material(name, "ShaderNodeEmission", Color=(*color, 1.0), Strength=strength)
 
 
+def mix_with_holdout(mat, shader, fac):
+    """Make ``mat``'s surface a Mix Shader of a Holdout (factor 0) and its node ``shader`` (factor
+    1) by ``fac``."""
+    nt = mat.node_tree
+    hold, mix = nt.nodes.new("ShaderNodeHoldout"), nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = fac
+    nt.links.new(hold.outputs[0], mix.inputs[1])
+    nt.links.new(nt.nodes[shader].outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
 def glass(name="Glass", ior=1.5):
     return _material(name, "ShaderNodeBsdfGlass", IOR=ior)
 

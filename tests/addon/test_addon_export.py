@@ -1052,14 +1052,7 @@ def test_holdout_shaders_and_objects_are_exported(scene):
     from amcmcppm.core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
     row, ex = export_material(bs._material("Hold", "ShaderNodeHoldout"))
     assert row["holdout"] == 1.0 and row["diffuse_weight"] == row["glossy_weight"] == 0 and not ex.warnings
-    mat = bs.diffuse("Half")
-    nt = mat.node_tree
-    hold, mix = nt.nodes.new("ShaderNodeHoldout"), nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Fac"].default_value = 0.25
-    nt.links.new(hold.outputs[0], mix.inputs[1])
-    nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    row, _ = export_material(mat)
+    row, _ = export_material(bs.mix_with_holdout(bs.diffuse("Half"), "Diffuse BSDF", 0.25))
     assert row["holdout"] == pytest.approx(0.75) and row["diffuse_weight"] == pytest.approx(0.25)
     bs.camera()
     bs.plane("Shown", material=bs.diffuse("Grey"))

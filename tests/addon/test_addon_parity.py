@@ -886,12 +886,7 @@ def holdout_scene(kind, view, film_transparent):
     else:
         mat = bs.emission("Card", (0.0, 1.0, 0.0), 1.0)
         if kind == "mix":
-            nt = mat.node_tree
-            hold, mix = nt.nodes.new("ShaderNodeHoldout"), nt.nodes.new("ShaderNodeMixShader")
-            mix.inputs["Fac"].default_value = 0.25
-            nt.links.new(hold.outputs[0], mix.inputs[1])
-            nt.links.new(nt.nodes["Emission"].outputs[0], mix.inputs[2])
-            nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+            bs.mix_with_holdout(mat, "Emission", 0.25)
     card = bs.plane("Card", size=40.0 if view == "mirror" else 1.0, material=mat,
                     location=(0, 0, 5) if view == "mirror" else (0, 0, 0),
                     rotation=(math.pi, 0, 0) if view == "mirror" else (0, 0, 0))
