@@ -14,6 +14,10 @@ program the core evaluates at each hit, an Image Texture on the active UV map st
 texture; other inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
 fed by an Image Texture, a Bump node whose Height comes from an Image Texture, or a Bump on
 a Normal Map (one of each per material: the first that a Mix or Add meets).
+A Mix Shader of a Diffuse and a Glossy BSDF by a Fresnel curve (Fresnel node, Layer Weight's
+Fresnel) is a Fresnel layer (``_fresnel_layer``); a Mix of any shader and a clear Transparent
+BSDF by Light Path's Is Camera, Glossy or Transmission Ray is that shader hidden from those rays
+(``Closure.hidden_rays``, the object's ray visibility of its triangles).
 Anything else becomes a grey diffuse closure (for shaders) or the socket's own value (for
 colours and numbers), and the material gets *one* warning naming every such node.
 
@@ -64,7 +68,7 @@ from ...core import procedural
 from ...core.bsdf import metal_curve, metal_fresnel
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import mean_fresnel
-from ...core.scene import Materials
+from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials
 from .procedural import FLOAT, VEC, ExpressionBuilder
 
 LOBES = ("diffuse", "glossy", "mirror", "dielectric")
@@ -106,6 +110,7 @@ class Closure:
     coat_ior: float = 1.5
     coat_tint: np.ndarray = field(default_factory=lambda: np.ones(3))
     holdout: float = 0.0            # weight of a Holdout shader (what camera rays cut out)
+    hidden_rays: int = 0            # VISIBLE_* bits of the camera-path rays that pass through it
 
     @staticmethod
     def lobe(index, weight, color, **kw) -> "Closure":
@@ -131,7 +136,8 @@ class Closure:
                       layered=fa * self.layered + fb * other.layered,
                       transparent=fa * self.transparent + fb * other.transparent,
                       transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight,
-                      holdout=fa * self.holdout + fb * other.holdout)
+                      holdout=fa * self.holdout + fb * other.holdout,
+                      hidden_rays=self.hidden_rays & other.hidden_rays)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
         if self.roughness_texture is not None or other.roughness_texture is not None:
             # Averaged as the constants, by the glossy weights (a map with a constant, or two maps).
@@ -219,6 +225,11 @@ class Closure:
     def emission_term(self):
         """The emitted radiance: three numbers or a program."""
         return self.emission.tolist() if self.emission_texture is None else self.emission_texture
+
+    @property
+    def clear(self) -> bool:
+        """Whether this is a white Transparent BSDF alone (lets every ray through untinted)."""
+        return self.only_transparent and bool(np.allclose(self.transparent, self.transparent_weight))
 
     @property
     def diffuse_only(self) -> bool:
@@ -624,6 +635,7 @@ class MaterialExporter:
         self.textures = Textures(log)
         self._specs = []            # Materials.build entries
         self._ids = {}              # material pointer (or None for the default) -> id
+        self._hidden = {}           # id -> VISIBLE_* bits of the rays that pass through it (Light Path)
 
     @property
     def count(self) -> int:
@@ -652,7 +664,17 @@ class MaterialExporter:
             if walker.absorption is not None and walker.absorption.any():
                 spec["volume_absorption"] = walker.absorption
             self._ids[key] = self._add(spec)
+            if closure.hidden_rays:
+                self._hidden[self._ids[key]] = closure.hidden_rays
         return self._ids[key]
+
+    def hidden_rays(self) -> np.ndarray:
+        """(M,) uint8 the VISIBLE_* bits of the camera-path rays each material lets through (a
+        Mix with a clear Transparent BSDF by Light Path's Is Camera, Glossy or Transmission Ray)."""
+        out = np.zeros(self.count, np.uint8)
+        for i, bits in self._hidden.items():
+            out[i] = bits
+        return out
 
     def uses_textures(self, ids) -> bool:
         """Whether any of the material ``ids`` looks up an image with the UVs (colour or normal map)."""
@@ -751,9 +773,14 @@ class NodeWalker:
 
     def _is_camera_ray(self, sock, stack) -> bool:
         """Whether ``sock`` is fed by a Light Path node's Is Camera Ray output."""
+        return self._light_path_output(sock, stack) == "Is Camera Ray"
+
+    def _light_path_output(self, sock, stack):
+        """The name of the Light Path node's output that feeds ``sock``, or None."""
         src, _, _ = self.source(sock, stack)
-        return (src is not None and src.node.bl_idname == "ShaderNodeLightPath" and not src.node.mute
-                and src.name == "Is Camera Ray")
+        if src is None or src.node.bl_idname != "ShaderNodeLightPath" or src.node.mute:
+            return None
+        return src.name
 
     def _background(self, src, stack, world):
         """The radiance (3,) of the world shader output ``src`` (None: black), as
@@ -952,6 +979,11 @@ class NodeWalker:
         eta = self._fresnel_factor(node.inputs[0], stack)
         if eta is not None and a.diffuse_only and b.glossy_only:
             return _fresnel_layer(a, b, eta)
+        ray = LIGHT_PATH_RAYS.get(self._light_path_output(node.inputs[0], stack))
+        if ray is not None and b.clear:
+            # Light Path's Is Camera (Glossy, Transmission) Ray into a clear Transparent BSDF: those
+            # rays go through, every other ray sees the first shader (the object's ray visibility).
+            return dataclasses.replace(a, hidden_rays=a.hidden_rays | ray)
         f = self.programs.expression(node.inputs[0], stack, FLOAT)
         if procedural.varies(f):
             return self._masked_mix(node, "Fac", f, a, b)
@@ -1194,6 +1226,10 @@ class NodeWalker:
                                 "tint": [float(x) for x in tint]}
         return c
 
+
+# Light Path outputs a Mix with a clear Transparent BSDF turns into ray visibility (Closure.hidden_rays).
+LIGHT_PATH_RAYS = {"Is Camera Ray": VISIBLE_CAMERA, "Is Glossy Ray": VISIBLE_GLOSSY,
+                   "Is Transmission Ray": VISIBLE_TRANSMISSION}
 
 # Nodes whose output may be a Fresnel curve of the view direction (NodeWalker._fresnel_factor).
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")

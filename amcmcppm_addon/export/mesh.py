@@ -381,6 +381,9 @@ def assemble(meshes, groups, materials) -> Geometry:
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
                                    else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])
     visibility = np.concatenate([p["visibility"] for p in parts])
+    hidden = materials.hidden_rays()
+    if hidden.any():
+        visibility &= ~hidden.take(material_ids)          # Light Path mixes (materials.py)
     return Geometry(vertices=vertices, triangles=np.ascontiguousarray(triangles, np.int32),
                     material_ids=np.ascontiguousarray(material_ids, np.int32),
                     shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),

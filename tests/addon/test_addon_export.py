@@ -1045,6 +1045,36 @@ def test_a_mix_by_a_fresnel_curve_is_a_layer_and_other_view_factors_their_mean(s
     assert any("depends on the view direction" in w for w in ex.warnings), ex.warnings
 
 
+@pytest.mark.parametrize("ray, bit", [("Is Camera Ray", 1), ("Is Glossy Ray", 2), ("Is Transmission Ray", 4)])
+def test_a_light_path_mix_with_a_clear_transparent_is_ray_visibility(scene, ray, bit):
+    """Mix(Emission, clear Transparent) by a Light Path ray output: the emission, its triangles
+    hidden from that kind of camera-path ray; with a tinted Transparent the Light Path node stays
+    unsupported (noted, the Mix's own factor)."""
+    def panel(tint):
+        mat = bs.emission(f"Panel {ray} {tint}", (1.0, 0.9, 0.8), 8.0)
+        nt = mat.node_tree
+        clear, mix, path = (nt.nodes.new(t) for t in ("ShaderNodeBsdfTransparent", "ShaderNodeMixShader",
+                                                      "ShaderNodeLightPath"))
+        clear.inputs["Color"].default_value = (1.0, tint, 1.0, 1.0)
+        nt.links.new(path.outputs[ray], mix.inputs["Fac"])
+        nt.links.new(nt.nodes["Emission"].outputs[0], mix.inputs[1])
+        nt.links.new(clear.outputs[0], mix.inputs[2])
+        nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        return mat
+    bs.camera()
+    bs.plane("Floor", material=bs.diffuse("Grey"))
+    bs.plane("Panel", material=panel(1.0), location=(0, 0, 1))
+    ex = bs.export()
+    z = ex.scene.vertices[ex.scene.triangles].mean(axis=1)[:, 2]
+    assert set(ex.scene.triangle_visibility[z > 0.5]) == {7 & ~bit}
+    assert set(ex.scene.triangle_visibility[z < 0.5]) == {7}
+    row = material_row(ex.scene, f"Panel {ray} 1.0")
+    assert row["emission"] == pytest.approx([8.0, 7.2, 6.4]) and row["opacity"] == 1.0
+    assert not any("Light Path" in w for w in ex.warnings)
+    row, ex = export_material(panel(0.5))
+    assert any("Light Path" in w for w in ex.warnings) and row["opacity"] == pytest.approx(0.5)
+
+
 def test_holdout_shaders_and_objects_are_exported(scene):
     """A Holdout shader is a holdout share of 1 and no lobes; in a Mix with a Diffuse by 0.25 the
     share is 0.75 and the diffuse weight 0.25; a holdout object's triangles get HOLDOUT_OBJECT

@@ -647,6 +647,30 @@ def test_a_light_panel_hidden_from_the_camera_matches_cycles(addon, tmp_path):
     assert min(block_correlation("panel hidden from the camera", cycles, ours)) > 0.99
 
 
+def test_a_light_panel_made_invisible_by_light_path_matches_cycles(addon, tmp_path):
+    """The classic invisible light: the panel's material a Mix of its Emission and a clear
+    Transparent BSDF by Light Path's Is Camera Ray, which the exporter turns into the object's
+    ray visibility (the same image as ``test_a_light_panel_hidden_from_the_camera_matches_cycles``).
+    Before, the Light Path node was unsupported and the Mix took its own factor (0.5): a
+    half-bright, half-transparent panel in view, giving half the light."""
+    def build():
+        corner_scene()
+        mat = bs.emission("Panel", (1.0, 0.9, 0.8), 8.0)
+        nt = mat.node_tree
+        clear, mix, path = (nt.nodes.new(t) for t in ("ShaderNodeBsdfTransparent", "ShaderNodeMixShader",
+                                                      "ShaderNodeLightPath"))
+        nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+        nt.links.new(nt.nodes["Emission"].outputs[0], mix.inputs[1])
+        nt.links.new(clear.outputs[0], mix.inputs[2])
+        nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        bs.plane("Panel", size=1.0, material=mat, location=(0.0, -0.6, 1.4), rotation=(math.radians(200), 0, 0))
+        bs.world((0.05, 0.05, 0.05))
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert not any("Light Path" in w for w in bs.export().warnings)
+    assert_channels_match("panel hidden by Is Camera Ray", cycles, ours)
+    assert min(block_correlation("panel hidden by Is Camera Ray", cycles, ours)) > 0.99
+
+
 def block_correlation(name, cycles, ours, size=4):
     """Correlation per channel of the means of ``size`` x ``size`` pixel blocks of the two images
     (the layout of the light where single pixels are noisy), printed."""
