@@ -663,7 +663,8 @@ def test_a_light_panel_made_invisible_by_light_path_matches_cycles(addon, tmp_pa
         nt.links.new(nt.nodes["Emission"].outputs[0], mix.inputs[1])
         nt.links.new(clear.outputs[0], mix.inputs[2])
         nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-        bs.plane("Panel", size=1.0, material=mat, location=(0.0, -0.6, 1.4), rotation=(math.radians(200), 0, 0))
+        bs.plane("Panel", size=1.0, material=mat, location=(0.0, -0.6, 1.4),
+                 rotation=(math.radians(200), 0, 0))
         bs.world((0.05, 0.05, 0.05))
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert not any("Light Path" in w for w in bs.export().warnings)
