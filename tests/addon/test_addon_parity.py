@@ -647,6 +647,7 @@ def test_a_light_panel_hidden_from_the_camera_matches_cycles(addon, tmp_path):
     assert min(block_correlation("panel hidden from the camera", cycles, ours)) > 0.99
 
 
+@pytest.mark.slow          # the mapping is in test_addon_export; this renders it against Cycles
 def test_a_light_panel_made_invisible_by_light_path_matches_cycles(addon, tmp_path):
     """The classic invisible light: the panel's material a Mix of its Emission and a clear
     Transparent BSDF by Light Path's Is Camera Ray, which the exporter turns into the object's
@@ -949,7 +950,8 @@ def test_holdouts_cut_pixels_out_as_in_cycles(addon, tmp_path, kind, view, film_
 VIEW_FACTORS = {"fresnel": (0.03, 0.05), "layer_weight_fresnel": (0.03, 0.05), "facing": (0.4, 1.5)}
 
 
-@pytest.mark.parametrize("factor", list(VIEW_FACTORS))
+@pytest.mark.parametrize("factor", [f if f == "fresnel" else pytest.param(f, marks=pytest.mark.slow)
+                                    for f in VIEW_FACTORS])
 def test_mix_factors_of_the_view_direction_match_cycles(addon, tmp_path, factor):
     """The corner's floor a Mix of a red Diffuse and a white Glossy (roughness 0.2) by a Fresnel
     node (IOR 1.45), Layer Weight's Fresnel (Blend 0.31: the same IOR) or its Facing (Blend 0.3),
