@@ -12,8 +12,8 @@ colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Ma
 Range (float), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
 Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB
 and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
-know the view direction).  Anything else is named in the material's warning and replaced by the input socket's
-own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
+know the view direction).  Anything else is named in the material's warning and replaced by the
+input socket's own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
 texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
 them, with a note.
 """
@@ -521,8 +521,7 @@ def _layer_weight(b, node, stack):
     eta = 1.0 / max(1.0 - blend, 1e-5)
     edge = float(np.clip(blend, 0.0, 1.0 - 1e-5))
     power = 1.0 if blend == 0.5 else (2.0 * edge if edge < 0.5 else 0.5 / (1.0 - edge))
-    return {"Fresnel": _view_mean(b, node, "its Fresnel output",
-                                  lambda mu: fresnel_dielectric(mu, np.full_like(mu, eta))[0]),
+    return {"Fresnel": _view_mean(b, node, "its Fresnel output", lambda mu: _dielectric(mu, eta)),
             "Facing": _view_mean(b, node, "its Facing output", lambda mu: 1.0 - mu ** power)}
 
 
