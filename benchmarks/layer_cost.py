@@ -45,7 +45,7 @@ from core.bsdf import eval_glossy, metal_curve, metal_fresnel  # noqa: E402
 from core.testing.scenes import BUILTIN  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ab_photon_pass import photon_pass  # noqa: E402
+from ab_photon_pass import interleaved_rates, photon_pass  # noqa: E402
 
 VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve")
 GOLD, GOLD_TINT = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.6])
@@ -115,12 +115,7 @@ def main():
     a = ap.parse_args()
     runs = {v: photon_pass("core", a.scene, tuple(a.resolution), a.paths, a.pairs,
                            edit=lambda scene, v=v: with_base(scene, v)) for v in VARIANTS}
-    for run in runs.values():
-        run()                                                   # warm-up
-    rates = {v: [] for v in VARIANTS}
-    for _ in range(a.rounds):
-        for v in VARIANTS:
-            rates[v].append(runs[v]())
+    rates = interleaved_rates(runs, a.rounds)
     print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.paths} paths, {a.rounds} rounds"
           f"{', pairs' if a.pairs else ''}")
     for v in VARIANTS:

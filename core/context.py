@@ -276,10 +276,10 @@ class RenderContext:
             origins = self.accel.spawn(p, ng.take(go, axis=0), d)
         return found
 
-    def holdout_at(self, prim, mat_ids):
-        """(n,) the holdout share of hits on triangles ``prim`` of materials ``mat_ids``: the
-        material's ``holdout``, 1 on a holdout object's triangles."""
-        h = self.holdout.take(mat_ids)
+    def holdout_at(self, prim):
+        """(n,) the holdout share of hits on triangles ``prim``: their material's ``holdout``, 1
+        on a holdout object's triangles."""
+        h = self.holdout.take(self.material_ids.take(prim))
         if self.triangle_visibility is not None:
             h = np.where((self.triangle_visibility.take(prim) & HOLDOUT_OBJECT) != 0, 1.0, h)
         return h

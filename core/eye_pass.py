@@ -144,8 +144,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         if depth == 0 and ctx.has_holdout and len(h):
             # Holdouts cut camera rays that meet them directly out of the pixel (Cycles, with or
             # without a transparent film); a whole holdout ends the path there.
-            met = hits.prim_ids.take(h)
-            share = ctx.holdout_at(met, ctx.material_ids.take(met))
+            share = ctx.holdout_at(hits.prim_ids.take(h))
             cut = h.take(np.flatnonzero(share > 0))
             alpha[pix.take(cut)] -= share[share > 0] * beta.take(cut, axis=0).mean(axis=1)
             np.maximum(alpha, 0.0, out=alpha)

@@ -70,6 +70,7 @@ from . import voronoi as _voronoi_module
 from .accel import interpolate_corners
 from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
+from .sampling import dot, length, normalize
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal")
@@ -579,15 +580,24 @@ def _wrap(i, size, extension):
     return np.clip(i, 0, size - 1)                  # EXTEND, and CLIP inside
 
 
-def _ramp(ev, node):
-    table = np.asarray(node["table"], np.float64)
+def _table_lookup(table, f, interpolate=True):
+    """Cycles' ``rgb_ramp_lookup`` of (N, c) ``table`` at positions ``f`` in [0, 1] (clamped; NaN
+    as 0), (k, c) a column each or (k, 1) one for all: linearly between entries with
+    ``interpolate``, else the entry below."""
     size = len(table)
-    f = np.clip(np.nan_to_num(ev.float(node, "fac"), nan=0.0), 0.0, 1.0) * (size - 1)
-    i = np.clip(f.astype(np.int64), 0, size - 1)
-    out = table[i]
-    if node.get("interpolate", True):
-        t = (f - i)[:, None]
-        out = np.where(t > 0, (1.0 - t) * out + t * table[np.minimum(i + 1, size - 1)], out)
+    x = np.clip(np.nan_to_num(f, nan=0.0), 0.0, 1.0) * (size - 1)
+    i = np.clip(x.astype(np.int64), 0, size - 1)
+    cols = np.arange(table.shape[1])
+    out = table[i, cols]
+    if interpolate:
+        t = x - i
+        out = np.where(t > 0.0, (1.0 - t) * out + t * table[np.minimum(i + 1, size - 1), cols], out)
+    return out
+
+
+def _ramp(ev, node):
+    out = _table_lookup(np.asarray(node["table"], np.float64), ev.float(node, "fac")[:, None],
+                        node.get("interpolate", True))
     return {"Color": out[:, :3], "Alpha": out[:, 3]}
 
 
@@ -794,24 +804,19 @@ def _per_component(fn):
     return lambda a, b, c, s: fn(a, b, c)
 
 
-def _vector_safe_normalize(a):
-    n = np.sqrt(np.einsum("ij,ij->i", a, a))[:, None]
-    return np.where(n > 0.0, a / np.where(n > 0.0, n, 1.0), 0.0)
-
-
 def _project(a, b):
-    bb = np.einsum("ij,ij->i", b, b)[:, None]
-    return np.where(bb != 0.0, b * np.einsum("ij,ij->i", a, b)[:, None] / np.where(bb != 0.0, bb, 1.0), 0.0)
+    bb = dot(b, b)[:, None]
+    return np.where(bb != 0.0, b * dot(a, b)[:, None] / np.where(bb != 0.0, bb, 1.0), 0.0)
 
 
 def _reflect(a, b):
-    n = _vector_safe_normalize(b)
-    return a - 2.0 * np.einsum("ij,ij->i", n, a)[:, None] * n
+    n = normalize(b)
+    return a - 2.0 * dot(n, a)[:, None] * n
 
 
 def _refract(a, b, eta):
-    n = _vector_safe_normalize(b)
-    d = np.einsum("ij,ij->i", n, a)
+    n = normalize(b)
+    d = dot(n, a)
     k = 1.0 - eta * eta * (1.0 - d * d)
     out = eta[:, None] * a - (eta * d + np.sqrt(np.maximum(k, 0.0)))[:, None] * n
     return np.where((k < 0.0)[:, None], 0.0, out)
@@ -825,8 +830,8 @@ VECTOR_MATH = {
     "MULTIPLY_ADD": lambda a, b, c, s: a * b + c, "CROSS_PRODUCT": lambda a, b, c, s: np.cross(a, b),
     "PROJECT": lambda a, b, c, s: _project(a, b), "REFLECT": lambda a, b, c, s: _reflect(a, b),
     "REFRACT": lambda a, b, c, s: _refract(a, b, s),
-    "FACEFORWARD": lambda a, b, c, s: np.where((np.einsum("ij,ij->i", c, b) < 0.0)[:, None], a, -a),
-    "SCALE": lambda a, b, c, s: a * s[:, None], "NORMALIZE": lambda a, b, c, s: _vector_safe_normalize(a),
+    "FACEFORWARD": lambda a, b, c, s: np.where((dot(c, b) < 0.0)[:, None], a, -a),
+    "SCALE": lambda a, b, c, s: a * s[:, None], "NORMALIZE": lambda a, b, c, s: normalize(a),
     "SNAP": _per_component(MATH["SNAP"]), "FLOOR": _per_component(MATH["FLOOR"]),
     "CEIL": _per_component(MATH["CEIL"]), "MODULO": _per_component(MATH["MODULO"]),
     "WRAP": _per_component(MATH["WRAP"]), "FRACTION": _per_component(MATH["FRACT"]),
@@ -836,9 +841,8 @@ VECTOR_MATH = {
     "COSINE": _per_component(MATH["COSINE"]), "TANGENT": _per_component(MATH["TANGENT"]),
 }
 VECTOR_VALUES = {
-    "DOT_PRODUCT": lambda a, b: np.einsum("ij,ij->i", a, b),
-    "DISTANCE": lambda a, b: np.sqrt(np.einsum("ij,ij->i", a - b, a - b)),
-    "LENGTH": lambda a, b: np.sqrt(np.einsum("ij,ij->i", a, a)),
+    "DOT_PRODUCT": lambda a, b: dot(a, b), "DISTANCE": lambda a, b: length(a - b),
+    "LENGTH": lambda a, b: length(a),
 }
 
 
@@ -863,12 +867,7 @@ def _curve_lookup(table, f, extrapolate):
     """Cycles' ``rgb_ramp_lookup`` of (N, c) ``table`` at (k, c) positions ``f`` in [0, 1],
     interpolated, and past the ends along the end segments' slopes with ``extrapolate``."""
     size = len(table)
-    cols = np.arange(table.shape[1])
-    x = np.clip(np.nan_to_num(f, nan=0.0), 0.0, 1.0) * (size - 1)
-    i = np.clip(x.astype(np.int64), 0, size - 1)
-    t = x - i
-    out = np.where(t > 0.0, (1.0 - t) * table[i, cols] + t * table[np.minimum(i + 1, size - 1), cols],
-                   table[i, cols])
+    out = _table_lookup(table, f)
     if extrapolate:
         low, high = f < 0.0, f > 1.0
         out = np.where(low, table[0] + (table[0] - table[1]) * (-f) * (size - 1), out)
