@@ -1,10 +1,11 @@
 """Materials as weighted lobes: lobe choice, sampling and evaluation on batches.
 
 Lobes (index order used everywhere): 0 diffuse, 1 glossy (GGX), 2 mirror,
-3 dielectric.  Diffuse and glossy are *non-delta* (photons are deposited on
-them and camera paths store measurement points there); mirror and dielectric
-are *delta* (camera paths continue through them).  Emission is not a lobe: it is
-added where a camera path hits an emitter.
+3 dielectric, and 4 translucent (Lambertian transmission) in tables of scenes that have
+it (``MaterialTable.lobes``: 4 or 5 columns).  Diffuse, glossy and translucent are
+*non-delta* (photons are deposited on them and camera paths store measurement points
+there); mirror and dielectric are *delta* (camera paths continue through them).
+Emission is not a lobe: it is added where a camera path hits an emitter.
 
 Conventions: ``wo`` points away from the surface towards the previous vertex,
 ``wi`` away from the surface towards the next one.  ``ng``/``ns`` are the raw
@@ -32,8 +33,8 @@ import numpy as np
 from . import sampling as smp
 from .sampling import dot
 
-DIFFUSE, GLOSSY, MIRROR, DIELECTRIC = 0, 1, 2, 3
-NON_DELTA = (DIFFUSE, GLOSSY)
+DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = 0, 1, 2, 3, 4
+REFLECTING = (DIFFUSE, GLOSSY)          # the non-delta lobes that reflect
 DELTA = (MIRROR, DIELECTRIC)
 # Glossy lobes with a smaller Blender roughness act as a perfect mirror.
 MIRROR_ROUGHNESS = 0.02
@@ -116,8 +117,8 @@ def coat_variants(mats):
 class MaterialTable:
     """Per-material arrays ready for shading (mirror-like glossy merged into mirror)."""
 
-    weight: np.ndarray          # (M, 4) float64 lobe weights, lobe order as above
-    color: np.ndarray           # (M, 4, 3) float64 lobe colours (diffuse colour is 1 if textured)
+    weight: np.ndarray          # (M, L) float64 lobe weights, lobe order as above (L = lobes)
+    color: np.ndarray           # (M, L, 3) float64 lobe colours (diffuse colour is 1 if textured)
     alpha: np.ndarray           # (M,) float64 GGX alpha of the glossy lobe
     dielectric_alpha: np.ndarray  # (M,) float64 GGX alpha of the dielectric lobe, 0 = smooth
     reflection: np.ndarray        # (M, 3) float64 dielectric reflection colour (the lobe's colour: same)
@@ -130,11 +131,11 @@ class MaterialTable:
     ms_albedo: np.ndarray       # (M, MS_NODES + 1) float64 single-scattering GGX albedo E (1: none)
     ms_fresnel: np.ndarray      # (M, 3) float64 multiple-scattering Fresnel F_ms (0: single scattering)
     fresnel_ior: np.ndarray     # (M,) float64 IOR of the glossy (or merged mirror) lobe's Fresnel rise
-    rise: np.ndarray            # (M, 4, 3) float64 colour added times s(c) (glossy or mirror entry)
-    edge: np.ndarray            # (M, 4, 3) float64 metal colour added times (1 - c)^5 (glossy or mirror)
-    dip: np.ndarray             # (M, 4, 3) float64 metal colour taken away times c (1 - c)^6
+    rise: np.ndarray            # (M, L, 3) float64 colour added times s(c) (glossy or mirror entry)
+    edge: np.ndarray            # (M, L, 3) float64 metal colour added times (1 - c)^5 (glossy or mirror)
+    dip: np.ndarray             # (M, L, 3) float64 metal colour taken away times c (1 - c)^6
     layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
-    score_extra: np.ndarray     # (M, 4) float64 lobe-score terms of the rise and the layer (mean)
+    score_extra: np.ndarray     # (M, L) float64 lobe-score terms of the rise and the layer (mean)
     normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map (image or program) bends the normal
     program: np.ndarray = None        # (M,) int32 procedural diffuse colour (Materials.programs) or -1
     glossy_program: np.ndarray = None  # (M,) int32 procedural glossy colour or -1 ...
@@ -156,8 +157,15 @@ class MaterialTable:
         of ending there; so no measurement point holds such a material."""
         m = mats.count
         coarse = np.zeros(m, bool) if coarse is None else np.asarray(coarse, bool)
-        weight = np.zeros((m, 4))
-        color = np.zeros((m, 4, 3))
+        translucent = _or_zeros(mats.translucent_weight, m)
+        translucent_color = _or_zeros(mats.translucent_color, (m, 3))
+        translucent_on = (translucent > 0) & (smp.luminance(translucent_color) > 0)
+        lobes = 5 if translucent_on.any() else 4
+        weight = np.zeros((m, lobes))
+        color = np.zeros((m, lobes, 3))
+        if lobes == 5:
+            weight[:, TRANSLUCENT] = np.where(translucent_on, translucent, 0.0)
+            color[:, TRANSLUCENT] = translucent_color
         weight[:, DIFFUSE] = mats.diffuse_weight
         color[:, DIFFUSE] = mats.diffuse_color
         program = (np.asarray(mats.diffuse_program, np.int32) if mats.diffuse_program is not None
@@ -174,10 +182,10 @@ class MaterialTable:
         weight[:, DIELECTRIC] = mats.dielectric_weight
         color[:, DIELECTRIC] = mats.dielectric_color
         fresnel_ior = mats.glossy_fresnel_ior.astype(np.float64)
-        rise = np.zeros((m, 4, 3))
+        rise = np.zeros((m, lobes, 3))
         rise[:, GLOSSY] = np.where((fresnel_ior > 0)[:, None], mats.glossy_fresnel_rise, 0.0)
-        edge = np.zeros((m, 4, 3))
-        dip = np.zeros((m, 4, 3))
+        edge = np.zeros((m, lobes, 3))
+        dip = np.zeros((m, lobes, 3))
         edge[:, GLOSSY] = mats.glossy_metal_rise
         dip[:, GLOSSY] = mats.glossy_metal_dip
         # Merge near-specular glossy lobes into the mirror lobe (weighted colour).
@@ -220,7 +228,7 @@ class MaterialTable:
             mean = _metal_mean_rise(color[:, lobe], edge[:, lobe], dip[:, lobe])
             score_extra[:, lobe] += weight[:, lobe] * smp.luminance(mean)
         coat_row = np.full(m, -1, np.int32) if coat_row is None else np.asarray(coat_row, np.int32)
-        has_nondelta = diffuse_on | glossy_on
+        has_nondelta = diffuse_on | glossy_on | translucent_on
         coat_factor, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo,
                                                ms_fresnel)
         coated = np.flatnonzero(coat_row >= 0)
@@ -242,6 +250,22 @@ class MaterialTable:
                              coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
                              glossy_through=glossy_on & ~diffuse_on
                              & (mats.glossy_roughness < through_roughness))
+
+    @property
+    def lobes(self) -> int:
+        """Columns of the lobe arrays: 5 with a translucent lobe in the scene, else 4."""
+        return self.weight.shape[1]
+
+    @cached_property
+    def has_translucent(self) -> bool:
+        return self.lobes > TRANSLUCENT
+
+    @cached_property
+    def translucent(self) -> np.ndarray:
+        """(M,) bool: the material transmits diffusely (a translucent lobe)."""
+        if not self.has_translucent:
+            return np.zeros(len(self.weight), bool)
+        return self.weight[:, TRANSLUCENT] > 0
 
     @property
     def has_normal_maps(self) -> bool:
@@ -354,6 +378,11 @@ def _or_none(indices, m):
     return np.full(m, -1, np.int32) if indices is None else indices
 
 
+def _or_zeros(values, shape):
+    """Per-material values as float64, zeros when absent."""
+    return np.zeros(shape) if values is None else np.asarray(values, np.float64)
+
+
 def _interpolate(table, mat_ids, mu):
     """Rows ``mat_ids`` of a (M, MS_NODES + 1) table at mu = (k / MS_NODES)^2, linearly in sqrt(mu)."""
     t = np.sqrt(np.clip(mu, 0.0, 1.0)) * MS_NODES
@@ -410,7 +439,7 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
     """
     m = len(alpha)
     layer = np.ones((m, MS_NODES + 1))
-    extra = np.zeros((m, 4))
+    extra = np.zeros(weight.shape)
     on = (fresnel_ior > 0) & (rise != 0).any(axis=(1, 2))
     if not on.any():
         extra[:, DIFFUSE] = 1.0                           # a factor, see lobe_scores
@@ -591,14 +620,14 @@ def face_forward(n, v):
 
 
 def lobe_colors(table, mat_ids, diffuse_albedo):
-    """(n, 4, 3) lobe colours at hits, with the (textured) diffuse albedo filled in."""
+    """(n, L, 3) lobe colours at hits, with the (textured) diffuse albedo filled in."""
     colors = table.color.take(mat_ids, axis=0)
     colors[:, DIFFUSE] = diffuse_albedo
     return colors
 
 
 def lobe_scores(table, mat_ids, colors):
-    """(n, 4) unnormalised lobe-choice probabilities: weight times colour luminance; for lobes
+    """(n, L) unnormalised lobe-choice probabilities: weight times colour luminance; for lobes
     with a Fresnel rise or under a layer, with their mean over view directions."""
     scores = table.weight.take(mat_ids, axis=0) * np.maximum(smp.luminance(colors), 0.0)
     if table.has_fresnel:
@@ -652,19 +681,20 @@ def pick_coat(table, mat_ids, colors, scores, u):
 
 
 def choose_lobe(scores, u):
-    """Lobe index (n,) by ``scores`` (n, 4); -1 where all scores are 0.  Also the choice probability."""
+    """Lobe index (n,) by ``scores`` (n, L); -1 where all scores are 0.  Also the choice probability."""
     # Column by column: NumPy reduces a short inner axis (sum/cumsum over axis 1) ~8x slower.
-    s = [scores[:, k] for k in range(4)]
+    lobes = scores.shape[1]
+    s = [scores[:, k] for k in range(lobes)]
     cdf = [s[0]]
-    for k in range(1, 4):
+    for k in range(1, lobes):
         cdf.append(cdf[-1] + s[k])
-    total = cdf[3]
+    total = cdf[-1]
     target = u * total
     lobe = (cdf[0] <= target).astype(np.int64)
-    for k in (1, 2):
+    for k in range(1, lobes - 1):
         lobe += cdf[k] <= target
     # Never pick a lobe of score 0 (u exactly at a cdf step of an empty lobe).
-    flat = np.arange(len(lobe)) * 4
+    flat = np.arange(len(lobe)) * lobes
     chosen_score = scores.ravel().take(flat + lobe)
     bad = chosen_score <= 0
     if bad.any():
@@ -677,12 +707,14 @@ def choose_lobe(scores, u):
 def lobe_remainder(scores, u, lobe):
     """(n,) the lobe-choice number ``u`` rescaled within the chosen lobe's share of ``scores``:
     uniform on [0, 1) given the choice, so it can serve as one more random number."""
-    s = [scores[:, k] for k in range(4)]
+    lobes = scores.shape[1]
+    s = [scores[:, k] for k in range(lobes)]
     before = np.zeros(len(u))
-    for k in range(1, 4):
+    total = s[0].copy()
+    for k in range(1, lobes):
         before += np.where(lobe >= k, s[k - 1], 0.0)
-    total = s[0] + s[1] + s[2] + s[3]
-    chosen = scores.ravel().take(np.arange(len(u)) * 4 + np.maximum(lobe, 0))
+        total += s[k]
+    chosen = scores.ravel().take(np.arange(len(u)) * lobes + np.maximum(lobe, 0))
     r = (u * total - before) / np.where(chosen > 0, chosen, 1.0)
     return np.clip(r, 0.0, np.nextafter(1.0, 0.0))
 
@@ -710,7 +742,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
     ngf = face_forward(ng, wo)
     nsf = ngf if ns is ng else face_forward(ns, ngf)
     nnf = face_forward(nn, ngf) if nn is not None and mode == "importance" else None
-    for k in range(4):
+    for k in range(table.lobes):
         sel = np.flatnonzero(lobe == k)
         if len(sel) == 0:
             continue
@@ -718,7 +750,12 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
         m_sel = mat_ids.take(sel)
         lw = (table.weight[:, k].take(m_sel)[:, None] * colors[:, k].take(sel, axis=0)
               / prob.take(sel)[:, None])
-        if k == DIFFUSE:
+        if k == TRANSLUCENT:
+            # Lambertian transmission: cosine-distributed on the other side.
+            d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), -n_s)
+            ok = dot(d, n_g) < 0
+            w = lw
+        elif k == DIFFUSE:
             d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), n_s)
             ok = dot(d, n_g) > 0
             w = lw
@@ -798,7 +835,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
         if mode == "importance" and ns is not ng:
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
-        if nnf is not None and k in NON_DELTA:
+        if nnf is not None and k in REFLECTING:
             diffuse, valid = bump_shadowing(nnf.take(sel, axis=0), n_s, w_o)
             w = w * (diffuse if k == DIFFUSE else valid)[:, None]
         wi[sel] = d

@@ -110,17 +110,18 @@ class RenderContext:
     def effects(self) -> tuple:
         """Names of the optional effects this scene calls for, each simulated only when named
         here (its code runs behind the flag that makes it appear): specular transport (mirrors,
-        glass, rough glass, camera paths through smooth glossy lobes), glossy lobes and their
-        layers (Fresnel layers, metals' Fresnel curves, coats), textures (images, procedural,
-        roughness maps, normal and bump maps, textured emitters), transparency, objects hidden from
-        some camera rays, holdouts, volumes, an environment image, and the camera's depth of field
-        or panorama."""
+        glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
+        thin diffuse surfaces), glossy lobes and their layers (Fresnel layers, metals' Fresnel
+        curves, coats), textures (images, procedural, roughness maps, normal and bump maps,
+        textured emitters), transparency, objects hidden from some camera rays, holdouts, volumes,
+        an environment image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
                  ("glass", (w[:, DIELECTRIC] > 0).any()),
                  ("rough glass", table.has_rough_dielectric),
                  ("glossy", table.has_glossy.any()),
+                 ("translucency", table.has_translucent),
                  ("camera paths through glossy", table.has_glossy_through),
                  ("Fresnel layers", table.has_layer),
                  ("metal Fresnel curves", table.has_metal_curve),

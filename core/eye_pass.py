@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, choose_lobe, face_forward, lobe_remainder,
-                   lobe_scores, pick_coat, scatter, valid_reflection_normal)
+from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, TRANSLUCENT, choose_lobe, face_forward,
+                   lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from .sampling import dot
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
@@ -178,6 +178,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             surf = dataclasses.replace(surf, ns=coat_normals(surf, mats), mat_ids=mats, colors=colors)
         u = rng.random((len(pix), 3))
         non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
+        if table.has_translucent:
+            non_delta = non_delta + scores[:, TRANSLUCENT]
         total = non_delta + scores[:, MIRROR] + scores[:, DIELECTRIC]     # columns: sum(axis=1) is slow
         through = None
         if table.has_glossy_through:
@@ -217,6 +219,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         # Continue through the delta lobes only (rescale the lobe number into the delta range).
         delta_scores = scores[go].copy()
         delta_scores[:, [DIFFUSE, GLOSSY]] = 0.0
+        if table.has_translucent:
+            delta_scores[:, TRANSLUCENT] = 0.0
         if through is not None:
             delta_scores[:, GLOSSY] = np.where(through[go], scores[go, GLOSSY], 0.0)
         u_delta = (u[go, 0] - p_nd[go]) / np.maximum(1.0 - p_nd[go], 1e-300)

@@ -25,11 +25,12 @@ scattering block onwards redrawn uniformly, in place in ``u``, before it is used
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from .bsdf import (GLOSSY, bump_shadowing, choose_lobe, eval_glossy, face_forward, lobe_remainder,
-                   lobe_scores, pick_coat, scatter)
+from .bsdf import (DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy, face_forward,
+                   lobe_remainder, lobe_scores, pick_coat, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
@@ -94,6 +95,11 @@ class DepositTarget:
             # Per material: the glossy colour is const + table.fresnel_color(wo.h); 1 + 0 where
             # the colour is constant (to_pixels multiplies by it instead).
             self._const = np.where(table.rises[:, GLOSSY, None], table.color[:, GLOSSY], 1.0)
+        # Points of translucent materials, or None: photons that land on the other side of their
+        # surface reach them through the translucent lobe (``back`` pairs), and their diffuse pairs
+        # carry the colour of the lobe they go through (to_pixels then multiplies by 1).
+        translucent = table.translucent.take(points.mat_ids) if table.has_translucent else None
+        self.translucent = translucent if translucent is not None and translucent.any() else None
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""
@@ -115,7 +121,23 @@ class DepositTarget:
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
                              grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None)
 
-    def pair_weights(self, j, wi, cos_g, cos_photon=None):
+    @cached_property
+    def _sides(self):
+        """(front (m, 3), back (m, 3)) diffuse pair colours of the points with translucent
+        materials: the diffuse weight times the albedo (under a Fresnel layer, times its factor at
+        the view direction) and the translucent weight times its colour; 1 and 0 elsewhere."""
+        pts, table, t = self.points, self.table, self.translucent
+        mats = pts.mat_ids
+        front = np.ones((len(mats), 3))
+        back = np.zeros((len(mats), 3))
+        front[t] = pts.colors[t, 0] * table.weight[mats[t], DIFFUSE, None]
+        if table.has_layer:
+            mu = dot(pts.wo[t], pts.glossy_normals[t]).astype(np.float64)
+            front[t] *= table.layer_factor(mats[t], mu)[:, None]
+        back[t] = table.color[mats[t], TRANSLUCENT] * table.weight[mats[t], TRANSLUCENT, None]
+        return front, back
+
+    def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None):
         """Scalar diffuse and glossy weights of pairs with points ``j`` (the points' kernels aside).
 
         wi : (k, 3) unit directions back along the photons, or None for flat diffuse-only
@@ -128,8 +150,12 @@ class DepositTarget:
         (cos_g <= 0) counts for nothing, as with flat shading.  Normal-mapped points add
         Cycles' bump terms (:func:`~core.bsdf.bump_shadowing`).  The contribution of a pair is
         ``flux * (kd_j * wd + kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.
+        ``back`` (k,) bool marks pairs of photons that landed on the other side of a translucent
+        point's surface (their ``wi`` and ``cos_g`` mirrored through it, so on the point's side):
+        they weigh only in the diffuse part, by the translucent lobe.
         Returns ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some
-        glossy points have a Fresnel rise (``MaterialTable.rise``), else (k,).
+        glossy points have a Fresnel rise (``MaterialTable.rise``), else (k,); wd likewise when some
+        points are translucent (:attr:`_sides`).
         """
         pts = self.points
         if self.has_shading_normals:
@@ -151,7 +177,7 @@ class DepositTarget:
         wg = None
         if self.any_glossy:
             wg = np.zeros(len(j))
-            g = np.flatnonzero(self.is_glossy.take(j))
+            g = np.flatnonzero(self.is_glossy.take(j) if back is None else self.is_glossy.take(j) & ~back)
             if len(g):
                 jg = j.take(g)
                 nsg = pts.glossy_normals.take(jg, axis=0)
@@ -172,6 +198,13 @@ class DepositTarget:
                     rows = np.zeros((3, len(j)))
                     rows[:, g] = (f[:, None] * color).T
                     wg = rows
+        if self.translucent is not None:
+            front, behind = self._sides
+            color = front.take(j, axis=0)
+            if back is not None:
+                b = np.flatnonzero(back)
+                color[b] = behind.take(j.take(b), axis=0)
+            wd = color.T * wd
         return wd, wg
 
     @property
@@ -189,11 +222,18 @@ class DepositTarget:
         kernel = 1.0 / (np.pi * self.radius * self.radius)                         # (m,)
         w = self.table.weight.take(pts.mat_ids, axis=0)
         # Diffuse part is constant in wi: w_j * weight_d * albedo / pi / (pi r^2).
-        val = pts.weight * pts.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None]
+        if self.translucent is None:
+            val = pts.weight * pts.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None]
+        else:
+            # (translucent points: the colours are in the pairs)
+            val = pts.weight * np.where(self.translucent[:, None], 1.0, pts.colors[:, 0] * w[:, :1]) \
+                * (kernel / np.pi)[:, None]
         val *= sum_diffuse
         if self.table.has_layer:
-            val *= self.table.layer_factor(pts.mat_ids,
-                                           dot(pts.wo, pts.glossy_normals).astype(np.float64))[:, None]
+            layer = self.table.layer_factor(pts.mat_ids, dot(pts.wo, pts.glossy_normals).astype(np.float64))
+            if self.translucent is not None:
+                layer[self.translucent] = 1.0
+            val *= layer[:, None]
         if sum_glossy is not None:
             color = pts.colors[:, 1]
             if self.rising is not None:
@@ -269,10 +309,10 @@ class PhotonBatch:
 VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium")
 
 
-def _vertex_arrays(n):
+def _vertex_arrays(n, lobes):
     return {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
-            "colors": np.zeros((n, 4, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
+            "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
             "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32)}
 
 
@@ -309,7 +349,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     m = target.points.count
     glossy = target.any_glossy
     pairs = {"path": [], "point": [], "diffuse": [], "glossy": [], "bounce": []}
-    first = _vertex_arrays(n) if collect_pairs else None
+    first = _vertex_arrays(n, table.lobes) if collect_pairs else None
     own_sums = not collect_pairs and sums is None
     if own_sums:
         sums = PointSums(m, glossy)
@@ -352,22 +392,36 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             x_dep = surf.position.take(dep, axis=0)
             nrm = face_forward(surf.ng.take(dep, axis=0), wo_dep)
             pi, pj, cos_g = target.grid.query(x_dep, nrm, wo_dep)
+            sides = back = None
+            if target.translucent is not None:
+                # Photons on a translucent surface also reach the points on its other side.
+                sides = np.flatnonzero(table.translucent.take(surf.mat_ids.take(dep)))
+                if len(sides):
+                    bi, bj, bcos = target.grid.query(x_dep.take(sides, axis=0), -nrm.take(sides, axis=0),
+                                                     -wo_dep.take(sides, axis=0))
+                    back = np.concatenate([np.zeros(len(pi), bool), np.ones(len(bi), bool)])
+                    pi, pj = np.concatenate([pi, sides.take(bi)]), np.concatenate([pj, bj])
+                    cos_g = np.concatenate([cos_g, bcos])
             seen = np.zeros(len(idx), bool)
             if len(pi):
                 lane = dep.take(pi)
                 cos_photon = dot(nrm, wo_dep).take(pi) if target.has_shading_normals else None
-                wd, wg = target.pair_weights(pj, wo.take(lane, axis=0) if target.needs_directions else None,
-                                             cos_g, cos_photon)
+                wi_pairs = None
+                if target.needs_directions:
+                    wi_pairs = wo.take(lane, axis=0)
+                    if back is not None:
+                        wi_pairs[back] *= -1.0           # mirrored through the surface, as cos_g
+                wd, wg = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back)
                 if collect_pairs:
                     f = deposited.take(lane, axis=0)
                     pairs["path"].append(idx[lane])
                     pairs["point"].append(pj)
-                    pairs["diffuse"].append(f * wd[:, None])
+                    pairs["diffuse"].append(f * (wd[:, None] if wd.ndim == 1 else wd.T))
                     pairs["glossy"].append((f * (wg[:, None] if wg.ndim == 1 else wg.T)) if glossy else None)
                     pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
                 else:
                     f = [deposited[:, c].take(lane) for c in range(3)]
-                    sums.add(pj, [fc * wd for fc in f],
+                    sums.add(pj, [fc * (wd if wd.ndim == 1 else wd[c]) for c, fc in enumerate(f)],
                              [fc * (wg if wg.ndim == 1 else wg[c]) for c, fc in enumerate(f)] if glossy
                              else None)
                 if target.cells is None:
@@ -376,6 +430,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 open_ = np.flatnonzero(~visible[idx.take(dep)])
                 if len(open_):
                     inside = target.cells.contains(x_dep.take(open_, axis=0), nrm.take(open_, axis=0))
+                    if sides is not None and len(sides):
+                        # (or seen on the other side of a translucent surface)
+                        t = np.flatnonzero(table.translucent.take(surf.mat_ids.take(dep.take(open_))))
+                        inside[t] |= target.cells.contains(x_dep.take(open_[t], axis=0),
+                                                           -nrm.take(open_[t], axis=0))
                     seen[dep.take(open_[inside])] = True
             if seen.any():
                 rows = np.flatnonzero(seen)

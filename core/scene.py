@@ -84,6 +84,9 @@ class Materials:
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]
       (F0 = the colour, rise = 1 - F0, dip = b of ``fresnel_f82tint_B``); either may sit beside
       a dielectric rise (a Principled BSDF partly metallic), the parts adding up;
+    * translucent: Lambertian transmission (Blender's Translucent BSDF), colour
+      ``translucent_color``: light that arrives on one side leaves the other side with a
+      cosine distribution, f = colour / pi;
     * mirror: perfect specular reflection tinted by ``mirror_color``;
     * dielectric: glass with index of refraction ``ior``, Fresnel
       reflection/refraction and total internal reflection, tinted by
@@ -181,6 +184,8 @@ class Materials:
     coat_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
     volume_absorption: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     holdout: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 0
+    translucent_weight: np.ndarray = None               # (M,) float32; None: 0
+    translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -192,7 +197,7 @@ class Materials:
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
-                    "coat_tint", "volume_absorption", "holdout")
+                    "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program")
@@ -210,7 +215,7 @@ class Materials:
         Missing keys default to a black, non-scattering, non-emitting material;
         colours may be scalars.  Example: ``{"name": "wall", "diffuse": (0.8, 0.8, 0.8)}``
         or ``{"name": "glass", "dielectric": 1.0, "ior": 1.5}``.
-        Short keys: ``diffuse``/``glossy``/``mirror``/``dielectric`` give the colour
+        Short keys: ``diffuse``/``glossy``/``mirror``/``dielectric``/``translucent`` give the colour
         and set the weight to 1 unless ``<lobe>_weight`` is given.  ``glossy_multiscatter``
         defaults to the glossy colour (Multiscatter GGX); give 0 for single-scattering GGX.
         ``glossy_fresnel_ior``, ``glossy_fresnel_rise``, ``glossy_metal_rise``, ``glossy_metal_dip``
@@ -272,9 +277,11 @@ class Materials:
         out.coat_tint = np.ones((m, 3), np.float32)
         out.volume_absorption = np.zeros((m, 3), np.float32)
         out.holdout = np.zeros(m, np.float32)
+        out.translucent_weight = np.zeros(m, np.float32)
+        out.translucent_color = np.zeros((m, 3), np.float32)
         stored = {}
         for i, s in enumerate(specs):
-            for lobe in ("diffuse", "glossy", "mirror", "dielectric"):
+            for lobe in ("diffuse", "glossy", "mirror", "dielectric", "translucent"):
                 if lobe in s:
                     getattr(out, f"{lobe}_color")[i] = np.broadcast_to(
                         np.asarray(s[lobe], np.float32), (3,))
@@ -685,7 +692,8 @@ class Scene:
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
                                        ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0),
-                                       ("holdout", (n,), 0.0)):
+                                       ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
+                                       ("translucent_color", (n, 3), 0.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))

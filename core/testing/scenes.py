@@ -245,6 +245,37 @@ def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
     return m.build(mats, lights, cam)
 
 
+def sun_through_sheet(material, irradiance=10.0, floor_albedo=None, resolution=(8, 8), half=20.0,
+                      shading_normal=None):
+    """A sun at normal incidence on a thin horizontal sheet (``material``, a ``Materials.build``
+    entry; half-size ``half`` at z = 1, front up) and an orthographic camera at z = 0.5.
+
+    Without a floor the camera looks up at the sheet's underside: a translucent colour T there
+    shows L = T E / pi (nothing lights the underside from below).  With ``floor_albedo`` rho
+    a diffuse floor lies at z = 0 and the camera looks down at it: under a sheet of diffuse
+    colour D (its underside reflects the floor's light back) the floor's radiosity is
+    B = rho T E / (1 - rho D) (infinite planes; the sheet's size makes the view factor 0.998),
+    L = B / pi.  ``shading_normal`` (3,) gives the sheet that shading normal at every corner."""
+    specs = [{"name": "sheet", **material}]
+    if floor_albedo is not None:
+        specs.append({"name": "floor", "diffuse": floor_albedo})
+    m = MeshBuilder()
+    h = half
+    m.add_quad((-h, -h, 1.0), (h, -h, 1.0), (h, h, 1.0), (-h, h, 1.0), 0)
+    smooth = shading_normal is not None
+    if smooth:
+        m.normals[-1][:] = np.asarray(shading_normal, np.float64) / np.linalg.norm(shading_normal)
+    if floor_albedo is not None:
+        m.add_quad((-h, -h, 0.0), (h, -h, 0.0), (h, h, 0.0), (-h, h, 0.0), 1)
+    lights = Lights.build([{"kind": "sun", "direction": (0, 0, -1), "power": irradiance}])
+    pose = _look_down(0.5)
+    if floor_albedo is None:
+        pose[:3, :3] = np.diag([1.0, -1.0, -1.0])          # turned over: looking straight up
+    cam = Camera(world_from_camera=pose, projection="orthographic", frame=(-0.2, 0.2, -0.2, 0.2),
+                 resolution=resolution)
+    return m.build(Materials.build(specs), lights, cam, smooth=smooth)
+
+
 def sun_over_normal_mapped_floor(tangent_space_normal, sun_toward=(0.0, 0.0, 1.0), tangent=(1.0, 0.0, 0.0),
                                  sign=1.0, strength=1.0, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
     """A flat diffuse floor (z = 0, uv = xy + 0.5) with a constant tangent-space normal map under a sun.

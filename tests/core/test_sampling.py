@@ -612,6 +612,76 @@ def test_diffuse_lobe_with_flat_shading_keeps_every_sample_with_weight_colour():
             assert ((wi @ n_) * (wo @ n_) > 0).all()       # on wo's side
 
 
+@pytest.mark.parametrize("side", (1.0, -1.0), ids=("front", "back"))
+def test_translucent_lobe_is_cosine_about_the_shading_normal_on_the_other_side(side):
+    """Blender's Translucent BSDF: f = colour / pi on the side opposite wo, sampled by the
+    cosine about the (flipped) shading normal, so every kept sample weighs the colour (times
+    the adjoint shading-normal correction for photons); samples that the shading normal sends
+    back to wo's side of the geometric normal die."""
+    colour = f32([0.7, 0.4, 0.1])
+    table = material_table({"translucent": colour})
+    assert table.lobes == 5 and table.has_nondelta[0] and table.translucent[0]
+    ng = unit_vector(0.2, -0.3, 0.9) * side
+    ns = unit_vector(0.45, -0.1, 0.85) * side
+    wo = unit_vector(-0.3, 0.5, 0.6)
+    ngf = ng if wo @ ng > 0 else -ng
+    nsf = ns if ns @ ngf > 0 else -ns
+    rng = np.random.default_rng(2020 if side > 0 else 2021)
+    out = {}
+
+    def sample(n):
+        u1, u2 = rng.random(n), rng.random(n)
+        wi, w, alive = scatter_lobe(table, bsdf.TRANSLUCENT, wo, ng, ns, u1, u2, "radiance")
+        out.update(wi=wi, w=w, alive=alive, u1=u1, u2=u2)
+        return dir_to_cos_phi(wi, -ngf), alive.astype(np.float64)
+
+    def pdf(xy):
+        d = cos_phi_to_dir(xy, -ngf)
+        return np.maximum(-(d @ nsf), 0.0) / np.pi
+
+    check_chi2(sample, pdf, HEMISPHERE, ires=8)
+    wi, w, alive = out["wi"], out["w"], out["alive"]
+    assert np.isfinite(w).all() and np.isfinite(wi).all()
+    assert np.array_equal(alive, wi @ ngf < 0) and 0.9 < alive.mean() < 1.0
+    assert np.allclose(w[alive], colour, rtol=1e-6) and (w[~alive] == 0).all()
+    m = 200_000
+    wi_i, w_i, alive_i = scatter_lobe(table, bsdf.TRANSLUCENT, wo, ng, ns, out["u1"][:m], out["u2"][:m],
+                                      "importance")
+    assert np.array_equal(wi_i, wi[:m]) and np.array_equal(alive_i, alive[:m])
+    corr = adjoint_correction(wo, wi_i[alive_i], ngf, nsf)
+    assert np.allclose(w_i[alive_i], colour * corr[:, None], rtol=1e-6) and (w_i[~alive_i] == 0).all()
+
+
+def test_translucent_beside_other_lobes_keeps_the_throughput_unbiased_on_both_sides():
+    """Diffuse 0.4 + translucent 0.35 + mirror 0.25 with flat shading: E[weight] is the sum of
+    weight * colour, split by side: the reflected part above, the translucent colour below.
+    Without translucency the table keeps four lobe columns."""
+    spec = {"diffuse": (0.8, 0.4, 0.2), "diffuse_weight": 0.4, "translucent": (0.2, 0.9, 0.5),
+            "translucent_weight": 0.35, "mirror": (0.5, 0.5, 1.0), "mirror_weight": 0.25}
+    table = material_table(spec)
+    assert material_table({"diffuse": 0.5}).lobes == 4 and table.lobes == 5
+    n_ = unit_vector(-0.2, 0.1, 1.0)
+    wo = unit_vector(0.3, -0.2, 0.8)
+    rng = np.random.default_rng(2022)
+    mat = np.zeros(N, np.int32)
+    colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
+    scores = bsdf.lobe_scores(table, mat, colors)
+    u = rng.random(N)
+    lobe, prob = bsdf.choose_lobe(scores, u)
+    r = bsdf.lobe_remainder(scores, u, lobe)
+    assert set(np.unique(lobe)) == {bsdf.DIFFUSE, bsdf.MIRROR, bsdf.TRANSLUCENT}
+    assert 0.0 <= r.min() and r.max() < 1.0 and abs(r.mean() - 0.5) < 0.002
+    wi, w, alive = bsdf.scatter(table, mat, colors, lobe, prob, np.tile(wo, (N, 1)), np.tile(n_, (N, 1)),
+                                np.tile(n_, (N, 1)), rng.random(N), rng.random(N), "importance")
+    assert alive.all() and np.isfinite(w).all()
+    below = wi @ n_ < 0
+    assert np.array_equal(below, lobe == bsdf.TRANSLUCENT)
+    reflected = 0.4 * f32(spec["diffuse"]) + 0.25 * f32(spec["mirror"])
+    for c in range(3):
+        assert_mean(np.where(below, 0.0, w[:, c]), reflected[c], f"reflected, channel {c}")
+        assert_mean(np.where(below, w[:, c], 0.0), 0.35 * spec["translucent"][c], f"transmitted, channel {c}")
+
+
 def test_glossy_lobe_samples_ggx_reflection_with_weight_colour_g2_over_g1():
     """Single-scattering GGX (``glossy_multiscatter`` 0)."""
     colour = f32([0.9, 0.7, 0.4])
