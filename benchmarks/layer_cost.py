@@ -1,7 +1,7 @@
-"""Cost of Principled's Fresnel layer and of metals' Fresnel curve in the photon pass (vertices
-per second, one process).
+"""Cost of Principled's Fresnel layer, of metals' Fresnel curve and of translucency in the photon
+pass (vertices per second, one process).
 
-Every diffuse material of a built-in scene is given one of five bases, and the five are traced
+Every diffuse material of a built-in scene is given one of six bases, and the six are traced
 alternately on the same eye pass and random numbers, so each round's ratios share the machine
 load (median and range over rounds):
 
@@ -13,9 +13,14 @@ load (median and range over rounds):
   (``diffuse_layer``);
 * ``metal``: a gold-like metal of roughness 0.5 coloured by its F82 curve's mean (how metals were
   exported before their curve: ``bsdf.metal_fresnel``);
-* ``metal_curve``: the same metal with its curve by angle (``glossy_metal_rise`` and ``_dip``).
+* ``metal_curve``: the same metal with its curve by angle (``glossy_metal_rise`` and ``_dip``);
+* ``translucent``: half of the diffuse colour reflected, half let through (a Mix of a Diffuse
+  and a Translucent BSDF by 0.5 of one colour): a fifth lobe, photons that scatter through the
+  surface, and a second grid query for every photon that lands on it (the points on its other
+  side: in a closed room none, so this is the price of looking).
 
-``metal_curve / metal`` is the price of the curve (a colour per deposit pair and per sample);
+``translucent / diffuse`` is the price of translucency; ``metal_curve / metal`` is the price of the
+curve (a colour per deposit pair and per sample);
 ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
 pair, layer factor per diffuse sample and per point); ``constant / diffuse`` that of a glossy
 lobe at all.
@@ -47,7 +52,7 @@ from core.testing.scenes import BUILTIN  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from ab_photon_pass import interleaved_rates, photon_pass  # noqa: E402
 
-VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve")
+VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve", "translucent")
 GOLD, GOLD_TINT = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.6])
 
 
@@ -58,7 +63,11 @@ def with_base(scene, variant):
     m = scene.materials
     on = (m.diffuse_weight > 0) & (m.glossy_weight == 0) & ~(m.emission > 0).any(axis=1)
     m.glossy_roughness[on] = 0.5
-    if variant.startswith("metal"):
+    if variant == "translucent":
+        m.diffuse_weight[on] *= 0.5
+        m.translucent_weight[on] = m.diffuse_weight[on]
+        m.translucent_color[on] = m.diffuse_color[on]
+    elif variant.startswith("metal"):
         f0, rise, dip = metal_curve(GOLD, GOLD_TINT)
         m.diffuse_weight[on] = 0.0
         m.glossy_weight[on] = 1.0
@@ -121,7 +130,7 @@ def main():
     for v in VARIANTS:
         print(f"  {v:11s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
     for num, den in (("layered", "constant"), ("constant", "diffuse"), ("layered", "diffuse"),
-                     ("metal_curve", "metal")):
+                     ("metal_curve", "metal"), ("translucent", "diffuse")):
         r = np.array(rates[num]) / np.array(rates[den])
         print(f"  {num} / {den}: {np.median(r):.3f} ({r.min():.3f}-{r.max():.3f})")
 

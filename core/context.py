@@ -36,7 +36,7 @@ class Surface:
     ng: np.ndarray          # (n, 3) float64 unit geometric normal (front side of the triangle)
     ns: np.ndarray          # (n, 3) float64 unit shading normal (is ng for flat shading without normal maps)
     mat_ids: np.ndarray     # (n,) int32 material index
-    colors: np.ndarray      # (n, 4, 3) float64 lobe colours (textured diffuse albedo filled in)
+    colors: np.ndarray      # (n, L, 3) float64 lobe colours (textured diffuse albedo filled in)
     nn: np.ndarray = None   # (n, 3) float64 shading normal before normal maps; None without normal maps
 
 

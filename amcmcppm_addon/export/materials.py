@@ -3,13 +3,13 @@
 A node walker follows the material's Cycles output (``Surface``) through
 reroutes, node groups, Mix and Add Shader nodes and reduces the shader to a
 :class:`Closure`: weights and colours of the core's lobes (diffuse, glossy,
-mirror, dielectric) plus emitted radiance.  Mix/Add combine closures linearly,
+mirror, dielectric, translucent) plus emitted radiance.  Mix/Add combine closures linearly,
 which is exact for emission and for lobes of one kind with different colours,
 and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF (with its Alpha), Diffuse, Glossy, Metallic, Glass, Refraction,
-Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups; on colour and number
-inputs the texture and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a
+Translucent, Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups; on colour
+and number inputs the texture and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a
 program the core evaluates at each hit, an Image Texture on the active UV map stays a plain image
 texture; other inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
 fed by an Image Texture, a Bump node whose Height comes from an Image Texture, or a Bump on
@@ -71,8 +71,8 @@ from ...core.sampling import mean_fresnel
 from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials
 from .procedural import FLOAT, VEC, ExpressionBuilder
 
-LOBES = ("diffuse", "glossy", "mirror", "dielectric")
-DIFFUSE, GLOSSY, MIRROR, DIELECTRIC = range(4)
+LOBES = ("diffuse", "glossy", "mirror", "dielectric", "translucent")
+DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
 GREY = np.full(3, 0.8)                         # Cycles' default surface colour
 MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing image
 
@@ -81,8 +81,8 @@ MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing
 class Closure:
     """A shader reduced to the core's lobes: what one node output evaluates to."""
 
-    weight: np.ndarray = field(default_factory=lambda: np.zeros(4))        # (4,) lobe weights
-    color: np.ndarray = field(default_factory=lambda: np.zeros((4, 3)))    # (4, 3) weight * colour
+    weight: np.ndarray = field(default_factory=lambda: np.zeros(len(LOBES)))        # (5,) lobe weights
+    color: np.ndarray = field(default_factory=lambda: np.zeros((len(LOBES), 3)))    # (5, 3) weight * colour
     roughness: float = 0.5          # glossy roughness (Blender's; its mean where it varies)
     roughness_texture: dict = None  # float program of the glossy roughness where it varies (a map)
     ior: float = 1.5                # dielectric index of refraction
@@ -293,7 +293,7 @@ class Closure:
         """Whether the two closures differ in their diffuse lobes only, or also in a glossy colour
         and weight without a Fresnel rise (a varying Mix factor is then exact)."""
         rise = self.rises or other.rises
-        other_lobes = [k for k in range(4) if k != DIFFUSE and (rise or k != GLOSSY)]
+        other_lobes = [k for k in range(len(LOBES)) if k != DIFFUSE and (rise or k != GLOSSY)]
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
                 and np.isclose(self.roughness, other.roughness)
@@ -1087,6 +1087,16 @@ class NodeWalker:
             c.dielectric_texture = _program_of(tex, color)
         return c
 
+    def _translucent(self, node, stack):
+        """Translucent BSDF: the core's translucent lobe (Lambertian transmission).  Its colour is
+        one per material: a texture on it gives its mean, noted."""
+        color, tex = self.color(node.inputs["Color"], stack)
+        if textured(tex):
+            mean = ", ".join(f"{x:.3f}" for x in color)
+            self.note(f"'{node.name}': a varying Color is not supported on a Translucent BSDF (its mean "
+                      f"({mean}) is used)")
+        return Closure.lobe(TRANSLUCENT, 1.0, np.clip(color, 0.0, None))
+
     def _holdout(self, node, stack):
         """Holdout: black for every ray, and what camera rays that meet it cut out of the image."""
         return Closure(holdout=1.0)
@@ -1249,6 +1259,7 @@ SHADERS = {
     "ShaderNodeBsdfRefraction": NodeWalker._glass,
     "ShaderNodeEmission": NodeWalker._emission,
     "ShaderNodeBsdfTransparent": NodeWalker._transparent,
+    "ShaderNodeBsdfTranslucent": NodeWalker._translucent,
     "ShaderNodeHoldout": NodeWalker._holdout,
     "ShaderNodeMixShader": NodeWalker._mix,
     "ShaderNodeAddShader": NodeWalker._add,

@@ -65,6 +65,19 @@ def mix_with_holdout(mat, shader, fac):
     return mat
 
 
+def leaf(name="Leaf", diffuse=(0.8, 0.8, 0.8), translucent=(0.8, 0.8, 0.8), fac=0.5):
+    """A Mix Shader of a Diffuse (factor 0) and a Translucent BSDF (factor 1) by ``fac``."""
+    mat = _material(name, "ShaderNodeBsdfDiffuse", Color=(*diffuse, 1.0))
+    nt = mat.node_tree
+    back, mix = nt.nodes.new("ShaderNodeBsdfTranslucent"), nt.nodes.new("ShaderNodeMixShader")
+    back.inputs["Color"].default_value = (*translucent, 1.0)
+    mix.inputs["Fac"].default_value = fac
+    nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], mix.inputs[1])
+    nt.links.new(back.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
 def glass(name="Glass", ior=1.5):
     return _material(name, "ShaderNodeBsdfGlass", IOR=ior)
 

@@ -321,14 +321,14 @@ def test_several_unsupported_nodes_give_one_warning_naming_each(scene):
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     mix = nt.nodes.new("ShaderNodeMixShader")
     toon = nt.nodes.new("ShaderNodeBsdfToon")
-    translucent = nt.nodes.new("ShaderNodeBsdfTranslucent")
+    sheen = nt.nodes.new("ShaderNodeBsdfSheen")
     nt.links.new(toon.outputs[0], mix.inputs[1])
-    nt.links.new(translucent.outputs[0], mix.inputs[2])
+    nt.links.new(sheen.outputs[0], mix.inputs[2])
     nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     row, ex = export_material(mat)
     warnings = [w for w in ex.warnings if "'Odd'" in w]
     assert len(warnings) == 1
-    assert "Toon BSDF" in warnings[0] and "Translucent BSDF" in warnings[0]
+    assert "Toon BSDF" in warnings[0] and "Sheen BSDF" in warnings[0]
     assert row["diffuse_color"] == pytest.approx([0.8, 0.8, 0.8])
 
 
@@ -1073,6 +1073,30 @@ def test_a_light_path_mix_with_a_clear_transparent_is_ray_visibility(scene, ray,
     assert not any("Light Path" in w for w in ex.warnings)
     row, ex = export_material(panel(0.5))
     assert any("Light Path" in w for w in ex.warnings) and row["opacity"] == pytest.approx(0.5)
+
+
+def test_translucent_bsdf_is_the_translucent_lobe_mixed_by_weight(scene):
+    """A Translucent BSDF is the core's translucent lobe of its colour; a Mix with a Diffuse by
+    0.4 weighs it 0.4 and the diffuse 0.6; a texture on its colour gives its mean, noted."""
+    from amcmcppm.core.context import RenderContext
+    row, ex = export_material(bs._material("Paper", "ShaderNodeBsdfTranslucent", Color=(0.9, 0.6, 0.3, 1.0)))
+    assert row["translucent_weight"] == 1.0 and row["diffuse_weight"] == 0.0 and not ex.warnings
+    assert row["translucent_color"] == pytest.approx([0.9, 0.6, 0.3])
+    row, ex = export_material(bs.leaf("Leaf", (0.1, 0.5, 0.1), (0.3, 0.8, 0.2), 0.4))
+    assert row["translucent_weight"] == pytest.approx(0.4) and row["diffuse_weight"] == pytest.approx(0.6)
+    assert row["translucent_color"] == pytest.approx([0.3, 0.8, 0.2])
+    assert row["diffuse_color"] == pytest.approx([0.1, 0.5, 0.1]) and not ex.warnings
+    assert "translucency" in RenderContext(ex.scene).effects
+    mat = bs.leaf("Veined", fac=1.0)
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Color1"].default_value = (1.0, 1.0, 1.0, 1.0)
+    checker.inputs["Color2"].default_value = (0.0, 0.0, 0.0, 1.0)
+    nt.links.new(checker.outputs["Color"], nt.nodes["Translucent BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    notes = [w for w in ex.warnings if "Veined" in w]
+    assert len(notes) == 1 and "Translucent BSDF" in notes[0] and "mean" in notes[0], notes
+    assert row["translucent_color"] == pytest.approx([0.5, 0.5, 0.5], abs=0.05)
 
 
 def test_holdout_shaders_and_objects_are_exported(scene):
