@@ -1,7 +1,7 @@
 """Cost of Principled's Fresnel layer, of metals' Fresnel curve and of translucency in the photon
 pass (vertices per second, one process).
 
-Every diffuse material of a built-in scene is given one of six bases, and the six are traced
+Every diffuse material of a built-in scene is given one of these bases, and all are traced
 alternately on the same eye pass and random numbers, so each round's ratios share the machine
 load (median and range over rounds):
 
@@ -17,11 +17,13 @@ load (median and range over rounds):
 * ``translucent``: half of the diffuse colour reflected, half let through (a Mix of a Diffuse
   and a Translucent BSDF by 0.5 of one colour): a fifth lobe, photons that scatter through the
   surface, and a second grid query for every photon that lands on it (the points on its other
-  side: in a closed room none, so this is the price of looking).
+  side: in a closed room none, so this is the price of looking);
+* ``translucent_one``: the same for the last diffuse material alone (the Cornell box's green
+  wall): the second query then looks among the translucent points alone (``back_grid``).
 
-``translucent / diffuse`` is the price of translucency; ``metal_curve / metal`` is the price of the
-curve (a colour per deposit pair and per sample);
-``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
+``translucent / diffuse`` is the price of translucency everywhere, ``translucent_one / diffuse`` on
+one wall; ``metal_curve / metal`` is the price of the curve (a colour per deposit pair and per
+sample); ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
 pair, layer factor per diffuse sample and per point); ``constant / diffuse`` that of a glossy
 lobe at all.
 
@@ -52,7 +54,7 @@ from core.testing.scenes import BUILTIN  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from ab_photon_pass import interleaved_rates, photon_pass  # noqa: E402
 
-VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve", "translucent")
+VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve", "translucent", "translucent_one")
 GOLD, GOLD_TINT = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.6])
 
 
@@ -63,7 +65,9 @@ def with_base(scene, variant):
     m = scene.materials
     on = (m.diffuse_weight > 0) & (m.glossy_weight == 0) & ~(m.emission > 0).any(axis=1)
     m.glossy_roughness[on] = 0.5
-    if variant == "translucent":
+    if variant.startswith("translucent"):
+        if variant == "translucent_one":
+            on = np.arange(len(on)) == np.flatnonzero(on)[-1]
         m.diffuse_weight[on] *= 0.5
         m.translucent_weight[on] = m.diffuse_weight[on]
         m.translucent_color[on] = m.diffuse_color[on]
@@ -128,9 +132,9 @@ def main():
     print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.paths} paths, {a.rounds} rounds"
           f"{', pairs' if a.pairs else ''}")
     for v in VARIANTS:
-        print(f"  {v:11s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
+        print(f"  {v:15s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
     for num, den in (("layered", "constant"), ("constant", "diffuse"), ("layered", "diffuse"),
-                     ("metal_curve", "metal"), ("translucent", "diffuse")):
+                     ("metal_curve", "metal"), ("translucent", "diffuse"), ("translucent_one", "diffuse")):
         r = np.array(rates[num]) / np.array(rates[den])
         print(f"  {num} / {den}: {np.median(r):.3f} ({r.min():.3f}-{r.max():.3f})")
 

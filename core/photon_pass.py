@@ -122,6 +122,19 @@ class DepositTarget:
                              grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None)
 
     @cached_property
+    def back_grid(self):
+        """(grid, ids) for the back pairs: a grid of the translucent points alone and their point
+        indices (the grid's own are 0..k-1), or the whole grid and None when every point is
+        translucent.  Built where first needed (in the worker), once per pass: a photon on a
+        surface far from any translucent point then costs a cell lookup instead of a second
+        search among the candidates of its cell (``layer_cost.py``)."""
+        ids = np.flatnonzero(self.translucent)
+        if len(ids) == len(self.translucent):
+            return self.grid, None
+        pts = self.points
+        return HashGrid(pts.position.take(ids, axis=0), self.radius.take(ids), pts.ng.take(ids, axis=0)), ids
+
+    @cached_property
     def _sides(self):
         """(front (m, 3), back (m, 3)) diffuse pair colours of the points with translucent
         materials: the diffuse weight times the albedo (under a Fresnel layer, times its factor at
@@ -397,8 +410,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 # Photons on a translucent surface also reach the points on its other side.
                 sides = np.flatnonzero(table.translucent.take(surf.mat_ids.take(dep)))
                 if len(sides):
-                    bi, bj, bcos = target.grid.query(x_dep.take(sides, axis=0), -nrm.take(sides, axis=0),
-                                                     -wo_dep.take(sides, axis=0))
+                    grid, ids = target.back_grid
+                    bi, bj, bcos = grid.query(x_dep.take(sides, axis=0), -nrm.take(sides, axis=0),
+                                              -wo_dep.take(sides, axis=0))
+                    if ids is not None:
+                        bj = ids.take(bj)
                     back = np.concatenate([np.zeros(len(pi), bool), np.ones(len(bi), bool)])
                     pi, pj = np.concatenate([pi, sides.take(bi)]), np.concatenate([pj, bj])
                     cos_g = np.concatenate([cos_g, bcos])

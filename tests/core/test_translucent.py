@@ -101,3 +101,33 @@ def test_translucency_round_trips_through_a_scene_file_and_old_files_get_none(tm
     bad = Materials.build([{"name": "sheet", "translucent": -0.5}])
     with pytest.raises(ValueError, match="translucent_color is negative"):
         scene.replace(materials=bad).validate()
+
+
+def test_back_pairs_from_the_grid_of_translucent_points_are_the_whole_grids_translucent_pairs():
+    """``DepositTarget.back_grid`` holds the translucent points alone (the red wall of a Cornell
+    box, half diffuse, half translucent): photons near the points, with any normal, find there
+    exactly the pairs the whole grid gives them with translucent points."""
+    from core.context import RenderContext
+    from core.eye_pass import trace_eye_pass
+    from core.photon_pass import DepositTarget
+    from core.testing.scenes import cornell_box
+
+    scene = cornell_box(resolution=(24, 24))
+    m = scene.materials
+    m.diffuse_weight[1], m.translucent_weight[1], m.translucent_color[1] = 0.5, 0.5, (0.6, 0.2, 0.2)
+    ctx = RenderContext(scene.validate())
+    pts = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8).points
+    target = DepositTarget(pts, pts.base_radius, ctx.table, 24 * 24, ctx.has_shading_normals)
+    assert target.translucent is not None and 0 < target.translucent.mean() < 0.5
+    grid, ids = target.back_grid
+    assert grid is not target.grid and np.array_equal(ids, np.flatnonzero(target.translucent))
+    rng = np.random.default_rng(1)
+    k = rng.integers(0, pts.count, 20_000)
+    x = pts.position[k] + rng.normal(scale=0.03, size=(len(k), 3))
+    n = np.where(rng.random((len(k), 1)) < 0.5, 1.0, -1.0) * pts.ng[k].astype(np.float64)
+    pi, pj, _ = grid.query(x, n)
+    got = set(zip(pi.tolist(), ids[pj].tolist()))
+    wi, wj, _ = target.grid.query(x, n)
+    keep = target.translucent[wj]
+    want = set(zip(wi[keep].tolist(), wj[keep].tolist()))
+    assert len(want) > 1000 and got == want
