@@ -80,8 +80,9 @@ def degenerate_emitters():
 
 
 def extreme_values():
-    # The glossy boxes are metals whose F82 curve is out of all bounds (saturated to [0, 1]).
-    mats = Materials.build([{"name": "floor", "diffuse": 1.0},
+    # The glossy boxes are metals whose F82 curve is out of all bounds (saturated to [0, 1]); the
+    # floor reflects all it gets and lets as much through (a gain of 2).
+    mats = Materials.build([{"name": "floor", "diffuse": 1.0, "translucent": 1.0},
                             {"name": "rough", "glossy": 1.0, "roughness": 1.0, "glossy_metal_rise": 1e30,
                              "glossy_metal_dip": -1e30},
                             {"name": "sharp", "glossy": 1.0, "roughness": 0.0, "glossy_metal_dip": 1e30},
