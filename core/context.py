@@ -6,8 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel, Hits, interpolate_corners
-from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, MaterialTable, Textures, coat_variants,
-                   lobe_colors, roughness_variants)
+from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TRANSLUCENT, MaterialTable, Textures,
+                   coat_variants, lobe_colors, roughness_variants)
 from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
@@ -62,6 +62,8 @@ class RenderContext:
         self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
         self.has_emission_programs = bool((self.table.emission_program >= 0).any())
         self.has_dielectric_programs = bool((self.table.dielectric_program >= 0).any())
+        table = self.table
+        self.has_translucent_programs = bool((table.translucent_program[table.translucent] >= 0).any())
         self.material_ids = np.ascontiguousarray(scene.material_ids)
         mats = self.materials
         # Transparency: materials a ray may pass through (Materials.opacity, opacity_program).
@@ -128,7 +130,8 @@ class RenderContext:
                  ("coats", table.has_coat),
                  ("image textures", self.has_textures),
                  ("procedural textures", self.has_programs or self.has_glossy_programs
-                  or self.has_emission_programs or self.has_dielectric_programs),
+                  or self.has_emission_programs or self.has_dielectric_programs
+                  or self.has_translucent_programs),
                  ("roughness maps", self.has_roughness_programs),
                  ("normal and bump maps", self.has_normal_maps),
                  ("textured emitters", self.lights.textured_emitters),
@@ -371,6 +374,9 @@ class RenderContext:
         if self.has_dielectric_programs:
             for sel, color in self._program_colors(self.table.dielectric_program, prim_ids, bary, pos, mat):
                 colors[sel, DIELECTRIC] *= color
+        if self.has_translucent_programs:
+            for sel, color in self._program_colors(self.table.translucent_program, prim_ids, bary, pos, mat):
+                colors[sel, TRANSLUCENT] *= color
         return Surface(pos, ng, ns, mat, colors, nn)
 
     def _pick_roughness(self, mat, prim_ids, bary, pos):

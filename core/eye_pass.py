@@ -34,7 +34,8 @@ class MeasurementPoints:
     wo: np.ndarray          # (m, 3) float32 unit direction back along the camera path
     weight: np.ndarray      # (m, 3) float32 camera-path throughput / non-delta choice probability
     mat_ids: np.ndarray     # (m,) int32 material
-    colors: np.ndarray      # (m, 2, 3) float32 diffuse and glossy colour at the point
+    colors: np.ndarray      # (m, 2, 3) float32 diffuse and glossy colour at the point, and (m, 3, 3) the
+    #                         translucent colour third in scenes with translucency
     base_radius: np.ndarray  # (m,) float64 r_1: initial_radius_px pixel footprints at the point
     nn: np.ndarray = None   # (m, 3) float32 shading normal before normal maps, side of ng; None without
     ns_glossy: np.ndarray = None  # (m, 3) float32 glossy lobes' normal (valid_reflection_normal); None: ns
@@ -101,6 +102,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         tmax, footprint = tmax.take(sees), footprint.take(sees)
     world = np.asarray(scene.world.color, np.float64)
     extent = accel.extent
+    # The lobe colours a measurement point keeps (MeasurementPoints.colors).
+    point_lobes = [DIFFUSE, GLOSSY, TRANSLUCENT] if table.has_translucent else slice(DIFFUSE, GLOSSY + 1)
     grows = cam.projection != "orthographic"         # footprints grow with the distance
     beta = np.ones((len(pix), 3))
     path_len = np.zeros(len(pix))
@@ -209,7 +212,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 pixel_ids=rows(pix), position=rows(surf.position), ng=ng.astype(f32),
                 ns=ns.astype(f32), wo=rows(wo).astype(f32),
                 weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
-                colors=surf.colors[:, :2].take(s, axis=0).astype(f32),
+                colors=surf.colors[:, point_lobes].take(s, axis=0).astype(f32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
                 ns_glossy=ns_glossy))

@@ -138,7 +138,8 @@ class DepositTarget:
     def _sides(self):
         """(front (m, 3), back (m, 3)) diffuse pair colours of the points with translucent
         materials: the diffuse weight times the albedo (under a Fresnel layer, times its factor at
-        the view direction) and the translucent weight times its colour; 1 and 0 elsewhere."""
+        the view direction) and the translucent weight times its colour at the point; 1 and 0
+        elsewhere."""
         pts, table, t = self.points, self.table, self.translucent
         mats = pts.mat_ids
         front = np.ones((len(mats), 3))
@@ -147,7 +148,7 @@ class DepositTarget:
         if table.has_layer:
             mu = dot(pts.wo[t], pts.glossy_normals[t]).astype(np.float64)
             front[t] *= table.layer_factor(mats[t], mu)[:, None]
-        back[t] = table.color[mats[t], TRANSLUCENT] * table.weight[mats[t], TRANSLUCENT, None]
+        back[t] = pts.colors[t, 2] * table.weight[mats[t], TRANSLUCENT, None]
         return front, back
 
     def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None):

@@ -85,8 +85,9 @@ class Materials:
       (F0 = the colour, rise = 1 - F0, dip = b of ``fresnel_f82tint_B``); either may sit beside
       a dielectric rise (a Principled BSDF partly metallic), the parts adding up;
     * translucent: Lambertian transmission (Blender's Translucent BSDF), colour
-      ``translucent_color``: light that arrives on one side leaves the other side with a
-      cosine distribution, f = colour / pi;
+      ``translucent_color`` times the program ``translucent_program`` (when >= 0) at each hit:
+      light that arrives on one side leaves the other side with a cosine distribution,
+      f = colour / pi;
     * mirror: perfect specular reflection tinted by ``mirror_color``;
     * dielectric: glass with index of refraction ``ior``, Fresnel
       reflection/refraction and total internal reflection, tinted by
@@ -186,6 +187,7 @@ class Materials:
     holdout: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 0
     translucent_weight: np.ndarray = None               # (M,) float32; None: 0
     translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
+    translucent_program: np.ndarray = None              # (M,) int32, index into programs or -1; None: -1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -197,10 +199,11 @@ class Materials:
                     "bump_texture", "bump_strength", "bump_distance", "diffuse_program", "glossy_program",
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
-                    "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color")
+                    "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
+                    "translucent_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
-                      "dielectric_program", "bump_program", "opacity_program")
+                      "dielectric_program", "bump_program", "opacity_program", "translucent_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip")
 
@@ -227,7 +230,8 @@ class Materials:
         colour, which then defaults to 1, ``glossy_program`` one for the glossy colour and
         ``emission_program`` one that multiplies ``emission``, ``roughness_program`` one for the
         glossy roughness, ``dielectric_program`` one for the glass's transmitted colour, which
-        then defaults to 1, ``bump_program`` one for a bump's height (with ``bump_strength`` and
+        then defaults to 1, ``translucent_program`` one for the translucent colour (likewise),
+        ``bump_program`` one for a bump's height (with ``bump_strength`` and
         ``bump_distance``) and ``opacity_program`` one for the opacity (equal programs are stored
         once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
@@ -279,6 +283,7 @@ class Materials:
         out.holdout = np.zeros(m, np.float32)
         out.translucent_weight = np.zeros(m, np.float32)
         out.translucent_color = np.zeros((m, 3), np.float32)
+        out.translucent_program = np.full(m, -1, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric", "translucent"):
@@ -300,6 +305,9 @@ class Materials:
                 if "diffuse" not in s:
                     out.diffuse_color[i] = 1.0
                     out.diffuse_weight[i] = s.get("diffuse_weight", 1.0)
+            if "translucent_program" in s and "translucent" not in s:
+                out.translucent_color[i] = 1.0
+                out.translucent_weight[i] = s.get("translucent_weight", 1.0)
             if "dielectric_program" in s and "dielectric" not in s:
                 out.dielectric_color[i] = 1.0
                 out.dielectric_weight[i] = s.get("dielectric_weight", 1.0)
@@ -693,7 +701,7 @@ class Scene:
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
                                        ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0),
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
-                                       ("translucent_color", (n, 3), 0.0)):
+                                       ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))

@@ -48,7 +48,8 @@ Glass and Refraction keep their roughness (GGX microfacet glass, single scatteri
 multiscatter glass keeps a little more light at high roughness).
 Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Textures are
 kept only where the core supports them (the diffuse colour, a glossy colour without a Fresnel
-rise, the glossy roughness, the emission's colour and strength, the colour a glass transmits);
+rise, the glossy roughness, the emission's colour and strength, the colour a glass transmits,
+the translucent colour);
 elsewhere their mean is used.
 A missing image file gives a warning and Cycles' magenta.
 
@@ -92,6 +93,7 @@ class Closure:
     texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
     glossy_texture: dict = None     # program of the glossy colour where it varies (color[GLOSSY]: its mean)
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
+    translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
@@ -171,7 +173,8 @@ class Closure:
             out.color[DIFFUSE] = total
         out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
         out.emission_texture = self._mixed_emission(other, fa, fb, fac)
-        out.dielectric_texture = self._mixed_dielectric(other, wa, wb)
+        out.dielectric_texture = self._mixed_lobe_program(other, wa, wb, DIELECTRIC, "dielectric_texture")
+        out.translucent_texture = self._mixed_lobe_program(other, wa, wb, TRANSLUCENT, "translucent_texture")
         out.opacity_texture = self._mixed_opacity(other, fa, fb, fac)
         return out
 
@@ -195,16 +198,16 @@ class Closure:
         """Whether this is a Transparent BSDF alone (nothing that scatters or emits)."""
         return self.transparent_weight > 0 and not self.weight.any() and not self.emission.any()
 
-    def _mixed_dielectric(self, other, wa, wb):
-        """The program of the mix's transmitted colour, or None: kept where one side alone has
-        glass, or both the same glass; two different glasses take their mean colours."""
-        sides = [c for c, w in ((self, wa), (other, wb)) if w[DIELECTRIC] > 0]
+    def _mixed_lobe_program(self, other, wa, wb, lobe, name):
+        """The program ``name`` of the mix's colour of lobe ``lobe`` (the glass's transmitted
+        colour, the translucent colour), or None: kept where one side alone has the lobe, or both
+        the same program and colour; two different ones take their mean colours."""
+        sides = [c for c, w in ((self, wa), (other, wb)) if w[lobe] > 0]
         if len(sides) == 1:
-            return sides[0].dielectric_texture
-        a, b = self.color[DIELECTRIC], other.color[DIELECTRIC]          # weight times colour
-        same = (self.dielectric_texture == other.dielectric_texture
-                and np.allclose(a * wb[DIELECTRIC], b * wa[DIELECTRIC]))
-        return self.dielectric_texture if same else None
+            return getattr(sides[0], name)
+        a, b = self.color[lobe], other.color[lobe]          # weight times colour
+        same = getattr(self, name) == getattr(other, name) and np.allclose(a * wb[lobe], b * wa[lobe])
+        return getattr(self, name) if same else None
 
     def _mixed_emission(self, other, fa, fb, fac):
         """The radiance program of fa * self + fb * other, or None where it is constant."""
@@ -360,6 +363,9 @@ class Closure:
         if self.dielectric_texture is not None and self.weight[DIELECTRIC] > 0:
             s["dielectric_program"] = self.dielectric_texture
             s["dielectric"] = np.ones(3)
+        if self.translucent_texture is not None and self.weight[TRANSLUCENT] > 0:
+            s["translucent_program"] = self.translucent_texture
+            s["translucent"] = np.ones(3)
         if self.glossy_texture is not None and self.weight[GLOSSY] > 0:
             s["glossy_program"] = self.glossy_texture
             s["glossy"] = np.ones(3)
@@ -1088,14 +1094,13 @@ class NodeWalker:
         return c
 
     def _translucent(self, node, stack):
-        """Translucent BSDF: the core's translucent lobe (Lambertian transmission).  Its colour is
-        one per material: a texture on it gives its mean, noted."""
+        """Translucent BSDF: the core's translucent lobe (Lambertian transmission); a texture on
+        its colour (a leaf's veins) makes that colour a program the core evaluates at each hit."""
         color, tex = self.color(node.inputs["Color"], stack)
+        c = Closure.lobe(TRANSLUCENT, 1.0, np.clip(color, 0.0, None))
         if textured(tex):
-            mean = ", ".join(f"{x:.3f}" for x in color)
-            self.note(f"'{node.name}': a varying Color is not supported on a Translucent BSDF (its mean "
-                      f"({mean}) is used)")
-        return Closure.lobe(TRANSLUCENT, 1.0, np.clip(color, 0.0, None))
+            c.translucent_texture = _program_of(tex, color)
+        return c
 
     def _holdout(self, node, stack):
         """Holdout: black for every ray, and what camera rays that meet it cut out of the image."""

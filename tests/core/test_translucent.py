@@ -131,3 +131,26 @@ def test_back_pairs_from_the_grid_of_translucent_points_are_the_whole_grids_tran
     keep = target.translucent[wj]
     want = set(zip(wi[keep].tolist(), wj[keep].tolist()))
     assert len(want) > 1000 and got == want
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+def test_a_translucent_colour_from_a_program_shows_where_the_light_comes_through(method):
+    """The sunlit sheet seen from below, its translucent colour a program: A where object x < 0,
+    B beyond (``translucent_program``).  Each side's outer quarter of the view shows its own
+    T E / pi: the back pairs take the colour at the point; the image's mean alone would not
+    tell a program from its mean."""
+    a, b = np.array([0.9, 0.6, 0.3]), np.array([0.2, 0.8, 0.4])
+    x = {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}
+    program = {"op": "mix_color", "blend": "MIX", "a": a.tolist(), "b": b.tolist(),
+               "fac": {"op": "math", "operation": "GREATER_THAN", "a": x, "b": 0.0}}
+    from core.testing.scenes import with_one_object
+    plain = sun_through_sheet({"translucent": 1.0}, E, half=3.0)
+    mats = Materials.build([{"name": "sheet", "translucent_program": program}])
+    scene = with_one_object(plain.replace(materials=mats)).validate()
+    assert scene.materials.translucent_weight[0] == 1.0
+    images = [render(scene, RenderSettings(workers=1, passes=6, photons_per_pass=40_000, seed=s,
+                                           initial_radius_px=1.0, **method)).image for s in range(3)]
+    left = np.mean([im[:, :2, :3].mean(axis=(0, 1)) for im in images], axis=0)
+    right = np.mean([im[:, -2:, :3].mean(axis=(0, 1)) for im in images], axis=0)
+    np.testing.assert_allclose(left, a * E / np.pi, rtol=0.06)
+    np.testing.assert_allclose(right, b * E / np.pi, rtol=0.06)
