@@ -19,11 +19,13 @@ load (median and range over rounds):
   surface, and a second grid query for every photon that lands on it (the points on its other
   side: in a closed room none, so this is the price of looking);
 * ``translucent_one``: the same for the last diffuse material alone (the Cornell box's green
-  wall): the second query then looks among the translucent points alone (``back_grid``).
+  wall): the second query then looks among the translucent points alone (``back_grid``);
+* ``rough_diffuse``: every diffuse material of roughness 1 (Cycles' Oren-Nayar with its energy
+  compensation, ``bsdf.rough_diffuse_factor``, per sample and per deposit pair).
 
 ``translucent / diffuse`` is the price of translucency everywhere, ``translucent_one / diffuse`` on
-one wall; ``metal_curve / metal`` is the price of the curve (a colour per deposit pair and per
-sample); ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
+one wall, ``rough_diffuse / diffuse`` that of diffuse roughness; ``metal_curve / metal`` is the
+price of the curve (a colour per deposit pair and per sample); ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
 pair, layer factor per diffuse sample and per point); ``constant / diffuse`` that of a glossy
 lobe at all.
 
@@ -54,7 +56,8 @@ from core.testing.scenes import BUILTIN  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from ab_photon_pass import interleaved_rates, photon_pass  # noqa: E402
 
-VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve", "translucent", "translucent_one")
+VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve", "translucent", "translucent_one",
+            "rough_diffuse")
 GOLD, GOLD_TINT = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.6])
 
 
@@ -65,7 +68,9 @@ def with_base(scene, variant):
     m = scene.materials
     on = (m.diffuse_weight > 0) & (m.glossy_weight == 0) & ~(m.emission > 0).any(axis=1)
     m.glossy_roughness[on] = 0.5
-    if variant.startswith("translucent"):
+    if variant == "rough_diffuse":
+        m.diffuse_roughness[on] = 1.0
+    elif variant.startswith("translucent"):
         if variant == "translucent_one":
             on = np.arange(len(on)) == np.flatnonzero(on)[-1]
         m.diffuse_weight[on] *= 0.5
@@ -134,7 +139,8 @@ def main():
     for v in VARIANTS:
         print(f"  {v:15s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
     for num, den in (("layered", "constant"), ("constant", "diffuse"), ("layered", "diffuse"),
-                     ("metal_curve", "metal"), ("translucent", "diffuse"), ("translucent_one", "diffuse")):
+                     ("metal_curve", "metal"), ("translucent", "diffuse"), ("translucent_one", "diffuse"),
+                     ("rough_diffuse", "diffuse")):
         r = np.array(rates[num]) / np.array(rates[den])
         print(f"  {num} / {den}: {np.median(r):.3f} ({r.min():.3f}-{r.max():.3f})")
 

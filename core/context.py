@@ -113,10 +113,11 @@ class RenderContext:
         """Names of the optional effects this scene calls for, each simulated only when named
         here (its code runs behind the flag that makes it appear): specular transport (mirrors,
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
-        thin diffuse surfaces), glossy lobes and their layers (Fresnel layers, metals' Fresnel
-        curves, coats), textures (images, procedural, roughness maps, normal and bump maps,
-        textured emitters), transparency, objects hidden from some camera rays, holdouts, volumes,
-        an environment image, and the camera's depth of field or panorama."""
+        thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes and their layers (Fresnel
+        layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
+        normal and bump maps, textured emitters), transparency, objects hidden from some camera
+        rays, holdouts, volumes, an environment image, and the camera's depth of field or
+        panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
@@ -124,6 +125,7 @@ class RenderContext:
                  ("rough glass", table.has_rough_dielectric),
                  ("glossy", table.has_glossy.any()),
                  ("translucency", table.has_translucent),
+                 ("rough diffuse", table.has_rough_diffuse),
                  ("camera paths through glossy", table.has_glossy_through),
                  ("Fresnel layers", table.has_layer),
                  ("metal Fresnel curves", table.has_metal_curve),

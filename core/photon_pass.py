@@ -30,7 +30,8 @@ from functools import cached_property
 import numpy as np
 
 from .bsdf import (DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy, face_forward,
-                   lobe_remainder, lobe_scores, pick_coat, scatter)
+                   lobe_remainder, lobe_scores, pick_coat, rough_diffuse_factor, rough_diffuse_terms,
+                   scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
@@ -96,10 +97,13 @@ class DepositTarget:
             # the colour is constant (to_pixels multiplies by it instead).
             self._const = np.where(table.rises[:, GLOSSY, None], table.color[:, GLOSSY], 1.0)
         # Points of translucent materials, or None: photons that land on the other side of their
-        # surface reach them through the translucent lobe (``back`` pairs), and their diffuse pairs
-        # carry the colour of the lobe they go through (to_pixels then multiplies by 1).
-        translucent = table.translucent.take(points.mat_ids) if table.has_translucent else None
-        self.translucent = translucent if translucent is not None and translucent.any() else None
+        # surface reach them through the translucent lobe (``back`` pairs).  Points of rough diffuse
+        # materials, or None: their diffuse pairs weigh by the directions (rough_diffuse_factor).
+        # The diffuse pairs of either carry their colour (``coloured``; to_pixels multiplies by 1).
+        self.translucent = _some(table.translucent.take(points.mat_ids) if table.has_translucent else None)
+        self.rough = _some(table.is_rough_diffuse.take(points.mat_ids) if table.has_rough_diffuse else None)
+        self.coloured = (self.translucent if self.rough is None else self.rough if self.translucent is None
+                         else self.translucent | self.rough)
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""
@@ -136,20 +140,30 @@ class DepositTarget:
 
     @cached_property
     def _sides(self):
-        """(front (m, 3), back (m, 3)) diffuse pair colours of the points with translucent
-        materials: the diffuse weight times the albedo (under a Fresnel layer, times its factor at
-        the view direction) and the translucent weight times its colour at the point; 1 and 0
-        elsewhere."""
-        pts, table, t = self.points, self.table, self.translucent
+        """(front (m, 3), back (m, 3)) diffuse pair colours of the ``coloured`` points: the
+        diffuse weight times the albedo (under a Fresnel layer, times its factor at the view
+        direction; 1 elsewhere) and, for translucent ones, the translucent weight times its colour
+        at the point (0 elsewhere)."""
+        pts, table, c = self.points, self.table, self.coloured
         mats = pts.mat_ids
         front = np.ones((len(mats), 3))
         back = np.zeros((len(mats), 3))
-        front[t] = pts.colors[t, 0] * table.weight[mats[t], DIFFUSE, None]
+        front[c] = pts.colors[c, 0] * table.weight[mats[c], DIFFUSE, None]
         if table.has_layer:
-            mu = dot(pts.wo[t], pts.glossy_normals[t]).astype(np.float64)
-            front[t] *= table.layer_factor(mats[t], mu)[:, None]
-        back[t] = pts.colors[t, 2] * table.weight[mats[t], TRANSLUCENT, None]
+            mu = dot(pts.wo[c], pts.glossy_normals[c]).astype(np.float64)
+            front[c] *= table.layer_factor(mats[c], mu)[:, None]
+        if self.translucent is not None:
+            t = self.translucent
+            back[t] = pts.colors[t, 2] * table.weight[mats[t], TRANSLUCENT, None]
         return front, back
+
+    @cached_property
+    def _rough_terms(self):
+        """(a, b (m,), ms (m, 3), cos_v (m,)) at the points' view directions
+        (:func:`~core.bsdf.rough_diffuse_terms`; only the rough points' are used)."""
+        pts = self.points
+        cos_v = dot(pts.wo, pts.ns).astype(np.float64)
+        return (*rough_diffuse_terms(self.table, pts.mat_ids, pts.colors[:, 0], cos_v), cos_v)
 
     def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None):
         """Scalar diffuse and glossy weights of pairs with points ``j`` (the points' kernels aside).
@@ -166,10 +180,11 @@ class DepositTarget:
         ``flux * (kd_j * wd + kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.
         ``back`` (k,) bool marks pairs of photons that landed on the other side of a translucent
         point's surface (their ``wi`` and ``cos_g`` mirrored through it, so on the point's side):
-        they weigh only in the diffuse part, by the translucent lobe.
+        they weigh only in the diffuse part, by the translucent lobe.  Pairs with points of a rough
+        diffuse lobe weigh by :func:`~core.bsdf.rough_diffuse_factor` of their directions besides.
         Returns ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some
         glossy points have a Fresnel rise (``MaterialTable.rise``), else (k,); wd likewise when some
-        points are translucent (:attr:`_sides`).
+        points are translucent or rough (``coloured``, :attr:`_sides`).
         """
         pts = self.points
         if self.has_shading_normals:
@@ -212,9 +227,19 @@ class DepositTarget:
                     rows = np.zeros((3, len(j)))
                     rows[:, g] = (f[:, None] * color).T
                     wg = rows
-        if self.translucent is not None:
+        if self.coloured is not None:
             front, behind = self._sides
             color = front.take(j, axis=0)
+            if self.rough is not None:
+                r = self.rough.take(j) if back is None else self.rough.take(j) & ~back
+                r = np.flatnonzero(r)
+                if len(r):
+                    jr = j.take(r)
+                    ta, tb, tm, cos_v = self._rough_terms
+                    wi_r, ns_r = wi.take(r, axis=0), pts.ns.take(jr, axis=0)
+                    terms = (ta.take(jr), tb.take(jr), tm.take(jr, axis=0))
+                    color[r] *= rough_diffuse_factor(self.table, None, None, dot(wi_r, ns_r), cos_v.take(jr),
+                                                     dot(wi_r, pts.wo.take(jr, axis=0)), terms=terms)
             if back is not None:
                 b = np.flatnonzero(back)
                 color[b] = behind.take(j.take(b), axis=0)
@@ -223,7 +248,7 @@ class DepositTarget:
 
     @property
     def needs_directions(self) -> bool:
-        return self.has_shading_normals or self.any_glossy
+        return self.has_shading_normals or self.any_glossy or self.rough is not None
 
     def to_pixels(self, sum_diffuse, sum_glossy):
         """(n_pixels, 3) radiance sums from per-point sums of flux * weight (m, 3) each.
@@ -236,17 +261,17 @@ class DepositTarget:
         kernel = 1.0 / (np.pi * self.radius * self.radius)                         # (m,)
         w = self.table.weight.take(pts.mat_ids, axis=0)
         # Diffuse part is constant in wi: w_j * weight_d * albedo / pi / (pi r^2).
-        if self.translucent is None:
+        if self.coloured is None:
             val = pts.weight * pts.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None]
         else:
-            # (translucent points: the colours are in the pairs)
-            val = pts.weight * np.where(self.translucent[:, None], 1.0, pts.colors[:, 0] * w[:, :1]) \
+            # (translucent and rough points: the colours are in the pairs)
+            val = pts.weight * np.where(self.coloured[:, None], 1.0, pts.colors[:, 0] * w[:, :1]) \
                 * (kernel / np.pi)[:, None]
         val *= sum_diffuse
         if self.table.has_layer:
             layer = self.table.layer_factor(pts.mat_ids, dot(pts.wo, pts.glossy_normals).astype(np.float64))
-            if self.translucent is not None:
-                layer[self.translucent] = 1.0
+            if self.coloured is not None:
+                layer[self.coloured] = 1.0
             val *= layer[:, None]
         if sum_glossy is not None:
             color = pts.colors[:, 1]
@@ -262,6 +287,11 @@ class DepositTarget:
         out = np.zeros((self.n_pixels, 3))
         out[self.pixel_ids] = val          # one measurement point per pixel and pass
         return out
+
+
+def _some(mask):
+    """``mask`` if any of it is set, else None."""
+    return mask if mask is not None and mask.any() else None
 
 
 class PointSums:

@@ -59,6 +59,9 @@ class Materials:
       is >= 0, that image texture looked up with the triangle UVs, or, when
       ``diffuse_program`` is >= 0, that entry of ``programs`` (a tree of Blender's texture
       and colour nodes, ``core/procedural.py``) evaluated at the hit, times ``diffuse_color``;
+      ``diffuse_roughness`` > 0 makes it Cycles' rough diffuse (Blender's Diffuse BSDF Roughness,
+      Principled's Diffuse Roughness): Fujii's improved Oren-Nayar with the OpenPBR energy
+      compensation (``bsdf.rough_diffuse_factor``);
     * glossy: GGX microfacet reflection, ``glossy_roughness`` is Blender's
       roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.  A
       ``roughness_program`` (when >= 0; a float program) gives the roughness at each hit instead
@@ -157,6 +160,7 @@ class Materials:
     glossy_metal_dip: np.ndarray = None                 # (M, 3) float32, any sign; None: 0
     diffuse_layer: np.ndarray = None                    # (M, 3) float32 in [0, 1]; None: 0
     diffuse_layer_weight: np.ndarray = None             # (M,) float32 in [0, 1]; None: 1
+    diffuse_roughness: np.ndarray = None                # (M,) float32 in [0, 1]; None: 0 (Lambert)
     mirror_weight: np.ndarray = None                    # (M,) float32
     mirror_color: np.ndarray = None                     # (M, 3) float32
     dielectric_weight: np.ndarray = None                # (M,) float32
@@ -200,7 +204,7 @@ class Materials:
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
-                    "translucent_program")
+                    "translucent_program", "diffuse_roughness")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program")
@@ -223,7 +227,7 @@ class Materials:
         defaults to the glossy colour (Multiscatter GGX); give 0 for single-scattering GGX.
         ``glossy_fresnel_ior``, ``glossy_fresnel_rise``, ``glossy_metal_rise``, ``glossy_metal_dip``
         and ``diffuse_layer`` default to 0,
-        ``diffuse_layer_weight`` to 1.  ``normal_texture`` (default -1: none) and
+        ``diffuse_layer_weight`` to 1, ``diffuse_roughness`` to 0.  ``normal_texture`` (default -1: none) and
         ``normal_strength`` (default 1) give a tangent-space normal map, ``bump_texture``
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
         ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
@@ -253,6 +257,7 @@ class Materials:
         out.glossy_metal_dip = np.zeros((m, 3), np.float32)
         out.diffuse_layer = np.zeros((m, 3), np.float32)
         out.diffuse_layer_weight = np.ones(m, np.float32)
+        out.diffuse_roughness = np.zeros(m, np.float32)
         out.mirror_weight = np.zeros(m, np.float32)
         out.mirror_color = np.zeros((m, 3), np.float32)
         out.dielectric_weight = np.zeros(m, np.float32)
@@ -317,6 +322,7 @@ class Materials:
                 out.glossy_roughness[i] = s["roughness"]
             out.glossy_fresnel_ior[i] = s.get("glossy_fresnel_ior", 0.0)
             out.diffuse_layer_weight[i] = s.get("diffuse_layer_weight", 1.0)
+            out.diffuse_roughness[i] = s.get("diffuse_roughness", 0.0)
             for key in ("glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer"):
                 getattr(out, key)[i] = np.broadcast_to(np.asarray(s.get(key, 0.0), np.float32), (3,))
             if "ior" in s:
@@ -701,7 +707,8 @@ class Scene:
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
                                        ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0),
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
-                                       ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1)):
+                                       ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
+                                       ("diffuse_roughness", (n,), 0.0)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
                                                 else np.float32))
@@ -718,6 +725,7 @@ class Scene:
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
+                                ("diffuse_roughness", 0.0, 1.0),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf)):
             v = getattr(mats, name)
             if ((v < low) | (v > high)).any():

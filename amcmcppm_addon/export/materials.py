@@ -40,6 +40,8 @@ the F82-tint model (base colour, edge tint; Principled uses its Specular Tint), 
 through the physical conductor's reflectance face on and at cos = 1/7 (``conductor_f82``).  A
 texture on a metal's colours makes its colour a program of the curve's mean at each point
 (``metal`` in ``core/procedural.py``), without the curve.
+The Diffuse BSDF's Roughness and Principled's Diffuse Roughness become the core's rough diffuse
+(``diffuse_roughness``, Cycles' Oren-Nayar); a Mix weighs them by the diffuse weights.
 Glossy, Metallic and Principled nodes set to Multiscatter GGX (Blender's default) get the
 core's energy compensation with the mean Fresnel colour F_ss Cycles uses: the colour for
 Glossy and metals, the layer's reflectance for the dielectric specular layer; Mix and Add
@@ -85,6 +87,7 @@ class Closure:
     weight: np.ndarray = field(default_factory=lambda: np.zeros(len(LOBES)))        # (5,) lobe weights
     color: np.ndarray = field(default_factory=lambda: np.zeros((len(LOBES), 3)))    # (5, 3) weight * colour
     roughness: float = 0.5          # glossy roughness (Blender's; its mean where it varies)
+    diffuse_roughness: float = 0.0  # diffuse roughness (Oren-Nayar; its mean where it varies)
     roughness_texture: dict = None  # float program of the glossy roughness where it varies (a map)
     ior: float = 1.5                # dielectric index of refraction
     dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
@@ -141,6 +144,8 @@ class Closure:
                       holdout=fa * self.holdout + fb * other.holdout,
                       hidden_rays=self.hidden_rays & other.hidden_rays)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
+        out.diffuse_roughness = _weighted(self.diffuse_roughness, other.diffuse_roughness, wa[DIFFUSE],
+                                          wb[DIFFUSE])
         if self.roughness_texture is not None or other.roughness_texture is not None:
             # Averaged as the constants, by the glossy weights (a map with a constant, or two maps).
             terms = [(c.roughness_term(), w[GLOSSY]) for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
@@ -384,6 +389,8 @@ class Closure:
             s["diffuse"] = np.ones(3)
         if self.holdout > 0:
             s["holdout"] = min(self.holdout, 1.0)
+        if self.diffuse_roughness > 0 and self.weight[DIFFUSE] > 0:
+            s["diffuse_roughness"] = float(np.clip(self.diffuse_roughness, 0.0, 1.0))
         if self.coat > 0:
             s.update(coat=min(self.coat, 1.0), coat_roughness=self.coat_roughness, coat_ior=self.coat_ior,
                      coat_tint=self.coat_tint)
@@ -1029,9 +1036,11 @@ class NodeWalker:
                       "covers both")
 
     def _diffuse(self, node, stack):
+        """Diffuse BSDF: Lambert, or with a Roughness Cycles' rough diffuse (Oren-Nayar)."""
         color, tex = self.color(node.inputs["Color"], stack)
         c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if textured(tex) else color)
         c.texture = tex
+        c.diffuse_roughness = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
         return c
 
     def _glossy(self, node, stack, color=None, program=None):
@@ -1190,7 +1199,8 @@ class NodeWalker:
         dielectric = (1.0 - m) * (1.0 - t)
         c = Closure(roughness=rough, ior=ior, emission=emitted.emission,
                     emission_texture=emitted.emission_texture, dielectric_roughness=rough,
-                    roughness_texture=rough_map)
+                    roughness_texture=rough_map,
+                    diffuse_roughness=float(np.clip(self.value(inp["Diffuse Roughness"], stack), 0.0, 1.0)))
         if coat > 0:
             # Cycles: roughness and tint saturated, the IOR at least 1.
             c.coat = coat
@@ -1250,7 +1260,7 @@ LIGHT_PATH_RAYS = {"Is Camera Ray": VISIBLE_CAMERA, "Is Glossy Ray": VISIBLE_GLO
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")
 
 # Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
-PRINCIPLED_IGNORED = (("Diffuse Roughness", "Diffuse Roughness"), ("Subsurface", "Subsurface Weight"),
+PRINCIPLED_IGNORED = (("Subsurface", "Subsurface Weight"),
                       ("Sheen", "Sheen Weight"), ("Anisotropic", "Anisotropic"),
                       ("Thin Film", "Thin Film Thickness"))
 

@@ -1102,6 +1102,27 @@ def test_translucent_bsdf_is_the_translucent_lobe_mixed_by_weight(scene):
     assert "procedural textures" in RenderContext(ex.scene).effects
 
 
+def test_diffuse_roughness_is_exported_from_the_diffuse_and_principled_bsdfs(scene):
+    """The Diffuse BSDF's Roughness and Principled's Diffuse Roughness become
+    ``diffuse_roughness`` (no longer noted as unsupported); a Mix weighs them by the diffuse
+    weights; 0 stays Lambert."""
+    row, ex = export_material(bs._material("Clay", "ShaderNodeBsdfDiffuse", Roughness=0.8))
+    assert row["diffuse_roughness"] == pytest.approx(0.8) and not ex.warnings
+    row, ex = export_material(principled("Matte", **{"Diffuse Roughness": 0.6}))
+    assert row["diffuse_roughness"] == pytest.approx(0.6) and not ex.warnings
+    row, _ = export_material(bs.leaf("Half", fac=0.5))
+    assert row["diffuse_roughness"] == 0.0
+    mat = bs._material("Mixed", "ShaderNodeBsdfDiffuse", Roughness=0.8)
+    nt = mat.node_tree
+    smooth, mix = nt.nodes.new("ShaderNodeBsdfDiffuse"), nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.25
+    nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], mix.inputs[1])
+    nt.links.new(smooth.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, _ = export_material(mat)
+    assert row["diffuse_roughness"] == pytest.approx(0.75 * 0.8)
+
+
 def test_holdout_shaders_and_objects_are_exported(scene):
     """A Holdout shader is a holdout share of 1 and no lobes; in a Mix with a Diffuse by 0.25 the
     share is 0.75 and the diffuse weight 0.25; a holdout object's triangles get HOLDOUT_OBJECT
