@@ -60,7 +60,8 @@ def cornell_like(scale=1.0, offset=(0.0, 0.0, 0.0)):
 
 
 def grazing_view():
-    mats = Materials.build([{"name": "floor", "diffuse": 0.8}])
+    # (a rough diffuse floor: its Oren-Nayar terms at cosines near 0 on both sides)
+    mats = Materials.build([{"name": "floor", "diffuse": 0.8, "diffuse_roughness": 1.0}])
     m = MeshBuilder()
     m.add_quad((-100, -100, 0), (100, -100, 0), (100, 100, 0), (-100, 100, 0), 0)
     # Camera 1 mm above the plane, looking along it (89.97 degrees from the normal).
