@@ -65,16 +65,23 @@ def mix_with_holdout(mat, shader, fac):
     return mat
 
 
+def mix_in(mat, shader, node_type, fac):
+    """Make ``mat``'s surface a Mix Shader of its node ``shader`` (factor 0) and a new node of
+    ``node_type`` (factor 1) by ``fac``; returns the new node."""
+    nt = mat.node_tree
+    other, mix = nt.nodes.new(node_type), nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = fac
+    nt.links.new(nt.nodes[shader].outputs[0], mix.inputs[1])
+    nt.links.new(other.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return other
+
+
 def leaf(name="Leaf", diffuse=(0.8, 0.8, 0.8), translucent=(0.8, 0.8, 0.8), fac=0.5):
     """A Mix Shader of a Diffuse (factor 0) and a Translucent BSDF (factor 1) by ``fac``."""
     mat = _material(name, "ShaderNodeBsdfDiffuse", Color=(*diffuse, 1.0))
-    nt = mat.node_tree
-    back, mix = nt.nodes.new("ShaderNodeBsdfTranslucent"), nt.nodes.new("ShaderNodeMixShader")
+    back = mix_in(mat, "Diffuse BSDF", "ShaderNodeBsdfTranslucent", fac)
     back.inputs["Color"].default_value = (*translucent, 1.0)
-    mix.inputs["Fac"].default_value = fac
-    nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], mix.inputs[1])
-    nt.links.new(back.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     return mat
 
 

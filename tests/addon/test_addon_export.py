@@ -866,12 +866,7 @@ def test_principled_mapping(scene):
     assert half["diffuse_layer"] == pytest.approx([0.02, 0.01, 0.0], rel=1e-4, abs=1e-7)
     # Mixed half and half with a plain Diffuse: half the diffuse lies under the layer.
     mixed = principled("Mixed")
-    nt = mixed.node_tree
-    diffuse, mix = nt.nodes.new("ShaderNodeBsdfDiffuse"), nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Fac"].default_value = 0.5
-    nt.links.new(nt.nodes["Principled BSDF"].outputs[0], mix.inputs[1])
-    nt.links.new(diffuse.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bs.mix_in(mixed, "Principled BSDF", "ShaderNodeBsdfDiffuse", 0.5)
     row, _ = export_material(mixed)
     assert row["diffuse_weight"] == pytest.approx(1.0) and row["glossy_weight"] == pytest.approx(0.5)
     assert row["diffuse_layer_weight"] == pytest.approx(0.5)
@@ -1113,12 +1108,7 @@ def test_diffuse_roughness_is_exported_from_the_diffuse_and_principled_bsdfs(sce
     row, _ = export_material(bs.leaf("Half", fac=0.5))
     assert row["diffuse_roughness"] == 0.0
     mat = bs._material("Mixed", "ShaderNodeBsdfDiffuse", Roughness=0.8)
-    nt = mat.node_tree
-    smooth, mix = nt.nodes.new("ShaderNodeBsdfDiffuse"), nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Fac"].default_value = 0.25
-    nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], mix.inputs[1])
-    nt.links.new(smooth.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bs.mix_in(mat, "Diffuse BSDF", "ShaderNodeBsdfDiffuse", 0.25)          # a smooth one
     row, _ = export_material(mat)
     assert row["diffuse_roughness"] == pytest.approx(0.75 * 0.8)
 

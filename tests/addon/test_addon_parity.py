@@ -888,6 +888,26 @@ METALS = {
 }
 
 
+def sky_floor_bands(tmp_path, material, size, cycles_samples, **ours):
+    """Seven bands (grazing first, the horizon band left out) of a floor of size ``size`` and
+    material ``material()`` under a white sky, seen at a slant: (Cycles', ours); ours is checked to
+    be finite and free of export warnings."""
+    def build():
+        bs.empty_scene(RESOLUTION, **dict(OURS, **ours))
+        bs.plane("Floor", size=size, material=material())
+        bs.camera(location=(0, -6, 2.5), target=(0, 0, 0), lens=35.0)
+        bs.world((1.0, 1.0, 1.0), strength=1.0)
+    build()
+    use_cycles(bpy.context.scene)
+    bpy.context.scene.cycles.samples = cycles_samples
+    cycles = bs.render_exr(tmp_path / "cycles.exr")
+    build()
+    assert not bs.export().warnings
+    ours = bs.render_exr(tmp_path / "ours.exr")
+    assert np.isfinite(ours).all()
+    return tuple(x[..., :3].reshape(8, -1, 3).mean(axis=1)[1:] for x in (cycles, ours))
+
+
 @pytest.mark.parametrize("metal", list(METALS))
 def test_smooth_metals_reflect_the_sky_by_their_fresnel_curve_as_in_cycles(addon, tmp_path, metal):
     """A smooth metal floor under a white sky, from face on (the bottom of the image) to grazing
@@ -897,25 +917,15 @@ def test_smooth_metals_reflect_the_sky_by_their_fresnel_curve_as_in_cycles(addon
     filter).  Before, metals took the curve's mean as a constant colour."""
     node_type, inputs, tolerance = METALS[metal]
 
-    def build():
-        bs.empty_scene(RESOLUTION, **dict(OURS, passes=1, photons_per_pass=1000))
+    def material():
         mat = bs._material("Metal", node_type, Roughness=0.0)
         node = mat.node_tree.nodes[-1]
         if metal == "conductor":
             node.fresnel_type = "PHYSICAL_CONDUCTOR"        # (its sockets show only then)
         for key, value in inputs.items():
             node.inputs[key].default_value = value
-        bs.plane("Floor", size=200.0, material=mat)
-        bs.camera(location=(0, -6, 2.5), target=(0, 0, 0), lens=35.0)
-        bs.world((1.0, 1.0, 1.0), strength=1.0)
-    build()
-    use_cycles(bpy.context.scene)
-    bpy.context.scene.cycles.samples = 16
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build()
-    ours = bs.render_exr(tmp_path / "ours.exr")
-    assert np.isfinite(ours).all()
-    bands = [x[..., :3].reshape(8, -1, 3).mean(axis=1)[1:] for x in (cycles, ours)]
+        return mat
+    bands = sky_floor_bands(tmp_path, material, 200.0, 16, passes=1, photons_per_pass=1000)
     print(f"{metal}: ours / cycles by band (face on last)\n{np.round(bands[1] / bands[0], 4)}")
     np.testing.assert_allclose(bands[1], bands[0], rtol=tolerance)
 
@@ -931,26 +941,12 @@ def test_rough_diffuse_matches_cycles_from_face_on_to_grazing(addon, tmp_path, s
     (Principled) at 16 passes, as a Lambert floor matches its colour in the same set-up
     (0.986-1.011).  Before, the roughness was ignored (Lambert: 0.5 in every band, 17 % over
     Cycles face on)."""
-    def build():
-        bs.empty_scene(RESOLUTION, **dict(OURS, passes=16, photons_per_pass=100_000))
+    def material():
         if shader == "diffuse":
-            mat = bs._material("Clay", "ShaderNodeBsdfDiffuse", Color=(0.5, 0.3, 0.9, 1.0), Roughness=1.0)
-        else:
-            mat = bs._material("Clay", "ShaderNodeBsdfPrincipled", **{"Base Color": (0.5, 0.3, 0.9, 1.0),
-                                                                      "Diffuse Roughness": 0.7,
-                                                                      "Roughness": 0.5})
-        bs.plane("Floor", size=40.0, material=mat)
-        bs.camera(location=(0, -6, 2.5), target=(0, 0, 0), lens=35.0)
-        bs.world((1.0, 1.0, 1.0), strength=1.0)
-    build()
-    use_cycles(bpy.context.scene)
-    bpy.context.scene.cycles.samples = 256
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build()
-    assert not bs.export().warnings
-    ours = bs.render_exr(tmp_path / "ours.exr")
-    assert np.isfinite(ours).all()
-    bands = [x[..., :3].reshape(8, -1, 3).mean(axis=1)[1:] for x in (cycles, ours)]
+            return bs._material("Clay", "ShaderNodeBsdfDiffuse", Color=(0.5, 0.3, 0.9, 1.0), Roughness=1.0)
+        inputs = {"Base Color": (0.5, 0.3, 0.9, 1.0), "Diffuse Roughness": 0.7, "Roughness": 0.5}
+        return bs._material("Clay", "ShaderNodeBsdfPrincipled", **inputs)
+    bands = sky_floor_bands(tmp_path, material, 40.0, 256, passes=16, photons_per_pass=100_000)
     print(f"rough {shader}: cycles by band\n{np.round(bands[0], 4)}\nours / cycles\n"
           f"{np.round(bands[1] / bands[0], 4)}")
     np.testing.assert_allclose(bands[1], bands[0], rtol=0.03)

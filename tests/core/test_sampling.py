@@ -562,37 +562,43 @@ def adjoint_correction(wo, wi, ng, ns):
     return (abs(wo @ ns) * np.abs(wi @ ng)) / (abs(wo @ ng) * np.abs(wi @ ns))
 
 
+@pytest.mark.parametrize("lobe", ("diffuse", "translucent"))
 @pytest.mark.parametrize("side", (1.0, -1.0), ids=("front", "back"))
-def test_diffuse_lobe_is_cosine_about_the_shading_normal_with_weight_colour(side):
+def test_diffuse_and_translucent_lobes_are_cosine_about_the_shading_normal_with_weight_colour(side, lobe):
+    """The diffuse lobe samples the cosine about the shading normal on wo's side; the translucent
+    lobe (Blender's Translucent BSDF: f = colour / pi on the other side) about the flipped one.
+    Every kept sample weighs the colour (times the adjoint shading-normal correction for photons);
+    samples that the shading normal sends to the wrong side of the geometric normal die."""
     colour = f32([0.8, 0.5, 0.2])
-    table = material_table({"diffuse": colour})
+    table = material_table({lobe: colour})
+    k, away = (bsdf.DIFFUSE, 1.0) if lobe == "diffuse" else (bsdf.TRANSLUCENT, -1.0)
+    assert table.lobes == (4 if lobe == "diffuse" else 5) and table.has_nondelta[0]
     ng = unit_vector(0.2, -0.3, 0.9) * side
     ns = unit_vector(0.45, -0.1, 0.85) * side          # perturbed shading normal, same side
     wo = unit_vector(-0.3, 0.5, 0.6)                  # wo on the front side for side = 1
     ngf = ng if wo @ ng > 0 else -ng
     nsf = ns if ns @ ngf > 0 else -ns
-    rng = np.random.default_rng(2000 if side > 0 else 2001)
+    rng = np.random.default_rng((2000 if side > 0 else 2001) + 20 * (lobe != "diffuse"))
     out = {}
 
     def sample(n):
         u1, u2 = rng.random(n), rng.random(n)
-        wi, w, alive = scatter_lobe(table, bsdf.DIFFUSE, wo, ng, ns, u1, u2, "radiance")
+        wi, w, alive = scatter_lobe(table, k, wo, ng, ns, u1, u2, "radiance")
         out.update(wi=wi, w=w, alive=alive, u1=u1, u2=u2)
-        return dir_to_cos_phi(wi, ngf), alive.astype(np.float64)
+        return dir_to_cos_phi(wi, away * ngf), alive.astype(np.float64)
 
     def pdf(xy):
-        d = cos_phi_to_dir(xy, ngf)
-        return np.maximum(d @ nsf, 0.0) / np.pi
+        d = cos_phi_to_dir(xy, away * ngf)
+        return np.maximum(away * (d @ nsf), 0.0) / np.pi
 
     check_chi2(sample, pdf, HEMISPHERE, ires=8)
     wi, w, alive = out["wi"], out["w"], out["alive"]
     assert np.isfinite(w).all() and np.isfinite(wi).all()
-    assert np.array_equal(alive, wi @ ngf > 0)
+    assert np.array_equal(alive, away * (wi @ ngf) > 0) and 0.9 < alive.mean() < 1.0
     assert np.allclose(w[alive], colour, rtol=1e-6) and (w[~alive] == 0).all()
     # Importance mode: the same directions, weights times pbrt's shading-normal correction.
     m = 200_000
-    wi_i, w_i, alive_i = scatter_lobe(table, bsdf.DIFFUSE, wo, ng, ns, out["u1"][:m], out["u2"][:m],
-                                      "importance")
+    wi_i, w_i, alive_i = scatter_lobe(table, k, wo, ng, ns, out["u1"][:m], out["u2"][:m], "importance")
     assert np.array_equal(wi_i, wi[:m]) and np.array_equal(alive_i, alive[:m])
     corr = adjoint_correction(wo, wi_i[alive_i], ngf, nsf)
     assert np.allclose(w_i[alive_i], colour * corr[:, None], rtol=1e-6) and (w_i[~alive_i] == 0).all()
@@ -610,46 +616,6 @@ def test_diffuse_lobe_with_flat_shading_keeps_every_sample_with_weight_colour():
             assert alive.all()
             assert np.allclose(w, colour, rtol=1e-9)
             assert ((wi @ n_) * (wo @ n_) > 0).all()       # on wo's side
-
-
-@pytest.mark.parametrize("side", (1.0, -1.0), ids=("front", "back"))
-def test_translucent_lobe_is_cosine_about_the_shading_normal_on_the_other_side(side):
-    """Blender's Translucent BSDF: f = colour / pi on the side opposite wo, sampled by the
-    cosine about the (flipped) shading normal, so every kept sample weighs the colour (times
-    the adjoint shading-normal correction for photons); samples that the shading normal sends
-    back to wo's side of the geometric normal die."""
-    colour = f32([0.7, 0.4, 0.1])
-    table = material_table({"translucent": colour})
-    assert table.lobes == 5 and table.has_nondelta[0] and table.translucent[0]
-    ng = unit_vector(0.2, -0.3, 0.9) * side
-    ns = unit_vector(0.45, -0.1, 0.85) * side
-    wo = unit_vector(-0.3, 0.5, 0.6)
-    ngf = ng if wo @ ng > 0 else -ng
-    nsf = ns if ns @ ngf > 0 else -ns
-    rng = np.random.default_rng(2020 if side > 0 else 2021)
-    out = {}
-
-    def sample(n):
-        u1, u2 = rng.random(n), rng.random(n)
-        wi, w, alive = scatter_lobe(table, bsdf.TRANSLUCENT, wo, ng, ns, u1, u2, "radiance")
-        out.update(wi=wi, w=w, alive=alive, u1=u1, u2=u2)
-        return dir_to_cos_phi(wi, -ngf), alive.astype(np.float64)
-
-    def pdf(xy):
-        d = cos_phi_to_dir(xy, -ngf)
-        return np.maximum(-(d @ nsf), 0.0) / np.pi
-
-    check_chi2(sample, pdf, HEMISPHERE, ires=8)
-    wi, w, alive = out["wi"], out["w"], out["alive"]
-    assert np.isfinite(w).all() and np.isfinite(wi).all()
-    assert np.array_equal(alive, wi @ ngf < 0) and 0.9 < alive.mean() < 1.0
-    assert np.allclose(w[alive], colour, rtol=1e-6) and (w[~alive] == 0).all()
-    m = 200_000
-    wi_i, w_i, alive_i = scatter_lobe(table, bsdf.TRANSLUCENT, wo, ng, ns, out["u1"][:m], out["u2"][:m],
-                                      "importance")
-    assert np.array_equal(wi_i, wi[:m]) and np.array_equal(alive_i, alive[:m])
-    corr = adjoint_correction(wo, wi_i[alive_i], ngf, nsf)
-    assert np.allclose(w_i[alive_i], colour * corr[:, None], rtol=1e-6) and (w_i[~alive_i] == 0).all()
 
 
 def test_translucent_beside_other_lobes_keeps_the_throughput_unbiased_on_both_sides():
