@@ -102,8 +102,9 @@ class DepositTarget:
         # The diffuse pairs of either carry their colour (``coloured``; to_pixels multiplies by 1).
         self.translucent = _some(table.translucent.take(points.mat_ids) if table.has_translucent else None)
         self.rough = _some(table.is_rough_diffuse.take(points.mat_ids) if table.has_rough_diffuse else None)
-        self.coloured = (self.translucent if self.rough is None else self.rough if self.translucent is None
-                         else self.translucent | self.rough)
+        either = table.has_translucent or table.has_rough_diffuse
+        self.coloured = _some((table.translucent | table.is_rough_diffuse).take(points.mat_ids) if either
+                              else None)
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""

@@ -72,7 +72,7 @@ from ...core.bsdf import metal_curve, metal_fresnel
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import mean_fresnel
 from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials
-from .procedural import FLOAT, VEC, ExpressionBuilder
+from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
 
 LOBES = ("diffuse", "glossy", "mirror", "dielectric", "translucent")
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
@@ -1017,7 +1017,7 @@ class NodeWalker:
         if node.bl_idname == "ShaderNodeFresnel" and src.identifier == "Fac":
             eta = float(constant(node.inputs["IOR"], stack))
         elif node.bl_idname == "ShaderNodeLayerWeight" and src.identifier == "Fresnel":
-            eta = 1.0 / max(1.0 - float(constant(node.inputs["Blend"], stack)), 1e-5)
+            eta = layer_weight_ior(float(constant(node.inputs["Blend"], stack)))
         else:
             return None
         return eta if eta > 1.0 + 1e-6 else None

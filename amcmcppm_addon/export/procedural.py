@@ -513,12 +513,17 @@ def _fresnel(b, node, stack):
     return {"Fac": _view_mean(b, node, "its factor", lambda mu: _dielectric(mu, eta))}
 
 
+def layer_weight_ior(blend):
+    """The IOR of Layer Weight's Fresnel output for its ``blend``: 1 / (1 - Blend), as Cycles."""
+    return 1.0 / max(1.0 - blend, 1e-5)
+
+
 def _layer_weight(b, node, stack):
     """Layer Weight: Fresnel (of IOR 1 / (1 - Blend)) and Facing (1 - mu^e, e = 2 Blend below
     0.5, else 0.5 / (1 - Blend)), as in Cycles' ``svm_node_layer_weight``, each taken as its
     mean over view directions (``_view_mean``)."""
     blend = float(b.constant_of(node.inputs["Blend"], stack))
-    eta = 1.0 / max(1.0 - blend, 1e-5)
+    eta = layer_weight_ior(blend)
     edge = float(np.clip(blend, 0.0, 1.0 - 1e-5))
     power = 1.0 if blend == 0.5 else (2.0 * edge if edge < 0.5 else 0.5 / (1.0 - edge))
     return {"Fresnel": _view_mean(b, node, "its Fresnel output", lambda mu: _dielectric(mu, eta)),
