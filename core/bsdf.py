@@ -20,7 +20,11 @@ points, and the sampled ``wi`` for photons (the direction towards the camera sid
 
 ``mode="importance"`` (photons) applies the adjoint shading-normal correction
 (Veach 1997, 5.3) and no eta^2 factor at refraction; ``mode="radiance"``
-(camera paths) scales refracted radiance by 1/eta^2.
+(camera paths) scales refracted radiance by 1/eta^2.  With shading normals, photons leave the
+Lambertian lobes (diffuse, translucent) cosine-distributed about the *geometric* normal with
+weight |wo.N_s| / |wo.N_g|: Cycles' lobe, max(N_s.wo, 0) / pi for any view on the surface's
+side, has that exact adjoint (sampling about N_s left the views between the two hemispheres
+dark; ``test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles[bumped]``).
 """
 from __future__ import annotations
 
@@ -832,15 +836,23 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
         m_sel = mat_ids.take(sel)
         lw = (table.weight[:, k].take(m_sel)[:, None] * colors[:, k].take(sel, axis=0)
               / prob.take(sel)[:, None])
-        if k == TRANSLUCENT:
-            # Lambertian transmission: cosine-distributed on the other side.
-            d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), -n_s)
-            ok = dot(d, n_g) < 0
-            w = lw
-        elif k == DIFFUSE:
-            d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), n_s)
-            ok = dot(d, n_g) > 0
-            w = lw
+        if k in (DIFFUSE, TRANSLUCENT):
+            # Lambertian reflection, or transmission (cosine-distributed on the other side).
+            out = 1.0 if k == DIFFUSE else -1.0
+            if mode == "importance" and ns is not ng:
+                # Photons: the exact adjoint of Cycles' lobe, whose value depends on the light's
+                # side alone (max(N . wo, 0) / pi, any view on the surface's side): they leave
+                # cosine-distributed about the geometric normal, weighing |wo . N_s| / |wo . N_g|,
+                # and none where wo lies below the shading normal.
+                cos_s = dot(w_o, n_s)
+                d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), out * n_g)
+                ok = cos_s > 0
+                w = lw * (np.maximum(cos_s, 0.0) / np.maximum(dot(w_o, n_g), 1e-12))[:, None]
+            else:
+                d = smp.to_world(smp.cosine_hemisphere(u1[sel], u2[sel]), out * n_s)
+                ok = out * dot(d, n_g) > 0
+                w = lw
+        if k == DIFFUSE:
             if table.has_rough_diffuse:
                 r = np.flatnonzero(table.is_rough_diffuse.take(m_sel))
                 if len(r):
@@ -878,7 +890,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             if table.has_fresnel:
                 w = w + (table.weight[:, k].take(m_sel) / prob.take(sel))[:, None] \
                     * table.fresnel_color(m_sel, k, np.abs(dot(w_o, n_s)))
-        else:
+        elif k == DIELECTRIC:
             entering = dot(w_o, ng.take(sel, axis=0)) > 0     # wo on the front (outside) of the surface
             ior = table.ior.take(m_sel)
             eta = np.where(entering, ior, 1.0 / ior)
@@ -922,7 +934,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 w = w * ratio[:, None]
             if mode == "radiance":
                 w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
-        if mode == "importance" and ns is not ng:
+        if mode == "importance" and ns is not ng and k not in (DIFFUSE, TRANSLUCENT):
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
         if nnf is not None and k in REFLECTING:
             diffuse, valid = bump_shadowing(nnf.take(sel, axis=0), n_s, w_o)

@@ -199,6 +199,11 @@ class DepositTarget:
                     jb = j.take(b)
                     diffuse, valid = bump_shadowing(pts.nn.take(jb, axis=0), pts.ns.take(jb, axis=0),
                                                     wi.take(b, axis=0))
+                    if back is not None:
+                        # Light through a translucent lobe: the validity alone (the photons'
+                        # scatter through it takes no shadowing term either; Cycles applies it
+                        # to its light samples, not to its BSDF samples).
+                        diffuse = np.where(back.take(b), valid, diffuse)
                     wd[b] *= diffuse
                     ratio[b[~valid]] = 0.0          # glossy pairs too (wg below)
         else:
