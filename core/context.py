@@ -115,9 +115,9 @@ class RenderContext:
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
         thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes and their layers (Fresnel
         layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
-        normal and bump maps, textured emitters), transparency, objects hidden from some camera
-        rays, holdouts, volumes, an environment image, and the camera's depth of field or
-        panorama."""
+        normal and bump maps, textured emitters), lights' angular (IES) profiles, transparency,
+        objects hidden from some camera rays, holdouts, volumes, an environment image, and the
+        camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
@@ -137,6 +137,7 @@ class RenderContext:
                  ("roughness maps", self.has_roughness_programs),
                  ("normal and bump maps", self.has_normal_maps),
                  ("textured emitters", self.lights.textured_emitters),
+                 ("light profiles", self.lights.has_profiles),
                  ("transparency", self.has_transparency),
                  ("objects hidden from camera rays", self.has_hidden),
                  ("holdout", self.has_holdout),

@@ -54,8 +54,15 @@ class LightSampler:
         lo, hi = accel.bounds
         self.center = 0.5 * (lo + hi)
         self.radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)  # bounding sphere radius
+        self.profile_mean = np.maximum(profile_means(lights.profiles), 1e-12)
+        self.has_profiles = bool(lights.count and (lights.profile >= 0).any())
+        # Directions of lights with a profile are drawn from it (cells of its table by their
+        # mean value times solid angle, uniform within a cell).
+        self.profile_cdf = profile_cdfs(lights.profiles) if self.has_profiles else None
         # Analytic lights (a loop over the few lights, not over photons).
-        light_power = np.array([self._light_power(i) for i in range(lights.count)], np.float64).reshape(-1, 3)
+        self.light_scale = np.array([self._light_scale(i) for i in range(lights.count)], np.float64)
+        light_power = (lights.power.astype(np.float64) * self.light_scale[:, None]).reshape(-1, 3) \
+            if lights.count else np.zeros((0, 3))
         # Emissive triangles: two-sided Lambertian, power 2 pi A L.
         tri_mat = scene.material_ids
         emissive_tris = np.flatnonzero(table.is_emissive[tri_mat] & (accel.area > 0)) \
@@ -92,19 +99,48 @@ class LightSampler:
             self.cdf = np.zeros(0)
             self.prob = np.zeros(0)
 
-    def _light_power(self, i):
-        """RGB watts leaving analytic light ``i`` (for the choice probabilities)."""
+    def _light_scale(self, i):
+        """The factor of light ``i``'s ``Lights.power`` that gives the watts it emits (for the
+        choice probabilities)."""
         L = self.lights
-        p = L.power[i].astype(np.float64)
         kind = L.kind[i]
+        # An angular profile: its mean over the sphere (the cone's mean is left out: only the
+        # choice of lights uses this).
+        scale = float(self.profile_mean[L.profile[i]]) if L.profile[i] >= 0 else 1.0
         if kind == SPOT:
             # Intensity P/(4 pi) over the cone of solid angle 2 pi (1 - cos_half), times the mean
             # of the smoothstep edge over that cone, which is exactly 1 - blend/2.
             cos_half = np.cos(L.spot_angle[i] / 2)
-            return p / 2 * (1.0 - cos_half) * _spot_mean_mask(L.spot_blend[i])
+            return scale / 2 * (1.0 - cos_half) * _spot_mean_mask(L.spot_blend[i])
         if kind == SUN:
-            return p * np.pi * self.radius ** 2
-        return p
+            return scale * np.pi * self.radius ** 2
+        return scale
+
+    def _sample_profile(self, ids, u1, u2):
+        """(directions (n, 3), pdf per steradian (n,)) drawn from the profiles of lights ``ids``."""
+        L = self.lights
+        table = L.profiles
+        rows, cols = table.shape[1] - 1, table.shape[2] - 1
+        k = L.profile.take(ids)
+        cdf = self.profile_cdf
+        cell = np.empty(len(ids), np.int64)
+        for j in np.unique(k):                   # a loop over the few profiles
+            sel = np.flatnonzero(k == j)
+            cell[sel] = np.minimum(np.searchsorted(cdf[j], u1[sel], side="right"), rows * cols - 1)
+        lo = np.where(cell > 0, cdf[k, np.maximum(cell - 1, 0)], 0.0)
+        p_cell = np.maximum(cdf[k, cell] - lo, 1e-300)
+        t = np.clip((u1 - lo) / p_cell, 0.0, 1.0)                  # the remainder of u1, in the cell
+        r, c = np.divmod(cell, cols)
+        cos_a, cos_b = np.cos(r * (np.pi / rows)), np.cos((r + 1) * (np.pi / rows))
+        cos_v = cos_a + t * (cos_b - cos_a)
+        h = (c + u2) * (2.0 * np.pi / cols)
+        sin_v = np.sqrt(np.maximum(1.0 - cos_v * cos_v, 0.0))
+        # Local (x, y, z) = (-sin v sin h, -sin v cos h, -cos v), z along -direction.
+        d = (-(sin_v * np.sin(h))[:, None] * L.axis_u.take(ids, axis=0)
+             - (sin_v * np.cos(h))[:, None] * L.axis_v.take(ids, axis=0)
+             + cos_v[:, None] * L.direction.take(ids, axis=0))
+        solid = (cos_a - cos_b) * (2.0 * np.pi / cols)
+        return smp.normalize(d), p_cell / solid
 
     # ------------------------------------------------------------------ soft falloff
     @property
@@ -206,6 +242,8 @@ class LightSampler:
                 if kind == SPOT:
                     mask = _spot_mask(-(d @ axis), np.cos(L.spot_angle[i] / 2.0), L.spot_blend[i])
                     radiance = radiance * mask[:, None]
+                if L.profile[i] >= 0:
+                    radiance = radiance * profile_factor(L, np.full(len(rays), i), -d)[:, None]
             else:
                 half = float(L.sun_angle[i]) / 2.0
                 if half <= 0:
@@ -275,6 +313,17 @@ class LightSampler:
         # emitted power of the cone (uniform directions in the cone).
         mask = np.where(is_spot, _spot_mask(local[:, 2], cos_half, L.spot_blend[ids]), 1.0)
         w = mask / np.where(is_spot, _spot_mean_mask(L.spot_blend[ids]), 1.0)
+        if self.has_profiles:
+            # Lights with an angular profile draw their directions from it; the flux is then
+            # P f(d) mask(d) / (4 pi pdf(d)), over the scale of P that their choice used.
+            p = np.flatnonzero(L.profile.take(ids) >= 0)
+            if len(p):
+                ip = ids.take(p)
+                dp, pdf = self._sample_profile(ip, u[p, 4], u[p, 5])
+                d[p] = dp
+                cos_axis = np.einsum("ij,ij->i", dp, axis[p])
+                mask_p = np.where(is_spot[p], _spot_mask(cos_axis, cos_half[p], L.spot_blend[ip]), 1.0)
+                w[p] = mask_p * profile_factor(L, ip, dp) / (4.0 * np.pi * pdf * self.light_scale.take(ip))
         r = L.radius[ids].astype(np.float64)
         x, y = smp.concentric_disk(u[:, 1], u[:, 2])
         t, b = smp.orthonormal_frames(d)
@@ -381,6 +430,64 @@ class LightSampler:
 
 FULL_SPREAD = 0.5 * np.pi - 1e-6       # half spreads from here on are Lambertian
 MIN_HALF_SPREAD = 1e-3                  # narrower spreads are clamped (Cycles' beam is a delta)
+
+
+def profile_factor(lights, ids, dirs):
+    """(n,) factors of the angular profiles (``Lights.profile``) of lights ``ids`` (n,) towards
+    unit directions ``dirs`` (n, 3) leaving them; 1 for lights without one.  Bilinear in the
+    table, which the exporter samples from Cycles' IES lookup."""
+    out = np.ones(len(ids))
+    k = lights.profile.take(ids)
+    sel = np.flatnonzero(k >= 0)
+    if len(sel) == 0:
+        return out
+    ids, k, d = ids.take(sel), k.take(sel), dirs.take(sel, axis=0)
+    x = np.einsum("ij,ij->i", d, lights.axis_u.take(ids, axis=0))
+    y = np.einsum("ij,ij->i", d, lights.axis_v.take(ids, axis=0))
+    z = -np.einsum("ij,ij->i", d, lights.direction.take(ids, axis=0))
+    table = lights.profiles
+    rows, cols = table.shape[1] - 1, table.shape[2] - 1
+    v = np.arccos(np.clip(-z, -1.0, 1.0)) * (rows / np.pi)
+    h = (np.arctan2(x, y) + np.pi) * (cols / (2.0 * np.pi))
+    v0 = np.minimum(v.astype(np.int64), rows - 1)
+    h0 = np.clip(h.astype(np.int64), 0, cols - 1)
+    fv, fh = np.clip(v - v0, 0.0, 1.0), np.clip(h - h0, 0.0, 1.0)
+    flat = table.reshape(len(table), -1)
+    at = lambda r, c: flat[k, r * (cols + 1) + c]                  # noqa: E731
+    out[sel] = ((1.0 - fv) * ((1.0 - fh) * at(v0, h0) + fh * at(v0, h0 + 1))
+                + fv * ((1.0 - fh) * at(v0 + 1, h0) + fh * at(v0 + 1, h0 + 1)))
+    return out
+
+
+def profile_cdfs(profiles):
+    """(P, cells) cumulative probabilities of the cells of each profile's table (row-major), by
+    the mean of their corners times their solid angle; uniform for a profile that is all 0."""
+    table = np.asarray(profiles, np.float64)
+    rows, cols = table.shape[1] - 1, table.shape[2] - 1
+    v = np.linspace(0.0, np.pi, rows + 1)
+    solid = (np.cos(v[:-1]) - np.cos(v[1:]))[None, :, None] * (2.0 * np.pi / cols)
+    mean = 0.25 * (table[:, :-1, :-1] + table[:, 1:, :-1] + table[:, :-1, 1:] + table[:, 1:, 1:])
+    weight = (mean * solid).reshape(len(table), -1)
+    empty = weight.sum(axis=1) <= 0
+    weight[empty] = 1.0
+    cdf = np.cumsum(weight, axis=1)
+    cdf /= cdf[:, -1:]
+    cdf[:, -1] = 1.0
+    return cdf
+
+
+def profile_means(profiles):
+    """(P,) mean of each profile over the sphere of directions (sin-weighted over its rows)."""
+    if profiles is None:
+        return np.zeros(0)
+    table = np.asarray(profiles, np.float64)
+    v = np.linspace(0.0, np.pi, table.shape[1])
+    # Trapezoids along both angles, the last column (360 degrees) being the first again.
+    w_v = np.sin(v) * np.gradient(v)
+    w_h = np.full(table.shape[2], 1.0)
+    w_h[[0, -1]] = 0.5
+    total = np.einsum("pvh,v,h->p", table, w_v, w_h)
+    return total / (w_v.sum() * w_h.sum())
 
 
 def spread_attenuation(cos_a, half):

@@ -376,6 +376,12 @@ class Lights:
     VISIBLE_CAMERA, VISIBLE_GLOSSY: rays reflected by a mirror or glass, VISIBLE_TRANSMISSION:
     rays refracted by glass); lights are transparent to the rays, as in Cycles, and a point or
     sun of size 0 is never seen.  Default: seen in reflections and through glass, not directly.
+    ``profile`` (L,) indexes ``profiles``, a point or spot light's angular profile (Blender's IES
+    Texture on its Emission Strength; -1: none, the default): its intensity in a direction d is
+    multiplied by ``profiles[k]`` at the angles of d in the light's frame (``axis_u``, ``axis_v``
+    its unit X and Y axes there, ``-direction`` its Z): v = acos(-z) in [0, pi] down the rows,
+    h = atan2(x, y) + pi in [0, 2 pi] along the columns, both sampled at equal steps with their
+    ends included (Cycles' IES lookup, tabulated; bilinear in between).
     With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light acts as
     Cycles then makes it: a disk of ``radius`` facing the receiver or viewer instead of a
     sphere.  It is seen as that disk, and its irradiance at distance d is P / (4 pi (d^2 + r^2))
@@ -396,9 +402,12 @@ class Lights:
     visibility: np.ndarray = None       # (L,) uint8 bit mask of VISIBLE_*; None: the default
     soft_falloff: np.ndarray = None     # (L,) bool, point/spot seen as a disk; None: True
     spread: np.ndarray = None           # (L,) float32 in [0, pi], area lights; None: pi
+    profile: np.ndarray = None          # (L,) int16 index into ``profiles`` or -1; None: all -1
+    profiles: np.ndarray = None         # (P, V, H) float32 >= 0 angular profiles, or None
 
     ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
-                    "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff", "spread")
+                    "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff", "spread",
+                    "profile")
 
     @property
     def count(self) -> int:
@@ -427,7 +436,8 @@ class Lights:
                      spot_angle=np.full(n, np.pi / 4, np.float32), spot_blend=np.zeros(n, np.float32),
                      sun_angle=np.zeros(n, np.float32),
                      visibility=np.full(n, DEFAULT_LIGHT_VISIBILITY, np.uint8),
-                     soft_falloff=np.ones(n, bool), spread=np.full(n, np.pi, np.float32))
+                     soft_falloff=np.ones(n, bool), spread=np.full(n, np.pi, np.float32),
+                     profile=np.full(n, -1, np.int16))
         for i, s in enumerate(specs):
             out.kind[i] = kinds[s["kind"]]
             out.position[i] = s.get("position", (0, 0, 0))
@@ -442,6 +452,7 @@ class Lights:
             out.visibility[i] = s.get("visibility", DEFAULT_LIGHT_VISIBILITY)
             out.soft_falloff[i] = s.get("soft_falloff", True)
             out.spread[i] = s.get("spread", np.pi)
+            out.profile[i] = s.get("profile", -1)
             if "axis_u" in s:
                 out.axis_u[i] = s["axis_u"]
                 out.axis_v[i] = s["axis_v"]
@@ -450,6 +461,8 @@ class Lights:
                 u, v = orthonormal_basis(d)
                 out.axis_u[i] = u * sx / 2
                 out.axis_v[i] = v * sy / 2
+            elif out.profile[i] >= 0:
+                out.axis_u[i], out.axis_v[i] = orthonormal_basis(-d)     # the light's X and Y
         return out
 
 
@@ -770,10 +783,12 @@ class Scene:
             lights.soft_falloff = np.ones(len(lights.kind), bool)
         if lights.spread is None and lights.kind is not None:
             lights.spread = np.full(len(lights.kind), np.pi, np.float32)
+        if lights.profile is None and lights.kind is not None:
+            lights.profile = np.full(len(lights.kind), -1, np.int16)
         for name in Lights.ARRAY_FIELDS:
             tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
             dtype = {"kind": np.int8, "position": np.float64, "visibility": np.uint8,
-                     "soft_falloff": bool}.get(name, np.float32)
+                     "soft_falloff": bool, "profile": np.int16}.get(name, np.float32)
             v = arr(f"lights.{name}", getattr(lights, name), dtype, tail, nl)
             setattr(lights, name, v)
         if nl:
@@ -793,6 +808,7 @@ class Scene:
                 fail("lights.spot_blend must lie in [0, 1]")
             if any((getattr(lights, k) > np.pi).any() for k in ("spot_angle", "sun_angle", "spread")):
                 fail("lights.spot_angle, lights.sun_angle and lights.spread must not exceed pi")
+        self._validate_profiles(fail, lights)
         cam = self.camera
         m = np.asarray(cam.world_from_camera, np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():
@@ -895,6 +911,29 @@ class Scene:
             raise SceneError(f"textures[{i}] contains NaN or infinite values")
         return np.ascontiguousarray(x)
 
+    @staticmethod
+    def _validate_profiles(fail, lights):
+        """``lights.profiles`` and the ``profile`` indices into it (see :class:`Lights`)."""
+        table = lights.profiles
+        if table is not None:
+            table = np.asarray(table, np.float32)
+            if table.ndim != 3 or min(table.shape[1:]) < 2:
+                fail("lights.profiles must be a (P, V, H) array with V, H >= 2")
+            if not np.isfinite(table).all() or (table < 0).any():
+                fail("lights.profiles must be finite and not negative")
+            lights.profiles = np.ascontiguousarray(table)
+        used = np.flatnonzero(lights.profile >= 0) if lights.count else np.zeros(0, np.int64)
+        if len(used) == 0:
+            return
+        if table is None or (lights.profile.take(used) >= len(table)).any() or (lights.profile < -1).any():
+            fail("lights.profile must be -1 or an index into lights.profiles")
+        if not np.isin(lights.kind.take(used), (POINT, SPOT)).all():
+            fail("lights.profile applies to point and spot lights only")
+        frame = np.stack([lights.axis_u.take(used, axis=0), lights.axis_v.take(used, axis=0),
+                          -lights.direction.take(used, axis=0)], axis=1).astype(np.float64)
+        if (np.abs(frame @ frame.transpose(0, 2, 1) - np.eye(3)) > 1e-3).any():
+            fail("a light with a profile needs unit, orthogonal axis_u, axis_v and direction")
+
     # ------------------------------------------------------------------ file io
     def to_arrays(self) -> dict:
         """A flat dict of NumPy arrays (no objects): for ``.npz`` files and worker processes."""
@@ -907,6 +946,8 @@ class Scene:
             d["materials.programs"] = np.array([procedural.to_json(p) for p in self.materials.programs], str)
         for name in Lights.ARRAY_FIELDS:
             d[f"lights.{name}"] = getattr(self.lights, name)
+        if self.lights.profiles is not None:
+            d["lights.profiles"] = self.lights.profiles
         cam = self.camera
         d["camera.world_from_camera"] = np.asarray(cam.world_from_camera, np.float64)
         d["camera.projection"] = np.array(cam.projection)
@@ -954,7 +995,8 @@ class Scene:
         for name in Materials.ARRAY_FIELDS:
             setattr(mats, name, get(f"materials.{name}"))
         mats.programs = [str(p) for p in get("materials.programs", np.array([], str))]
-        lights = Lights(**{name: get(f"lights.{name}") for name in Lights.ARRAY_FIELDS})
+        lights = Lights(**{name: get(f"lights.{name}") for name in Lights.ARRAY_FIELDS},
+                        profiles=get("lights.profiles"))
         cam = Camera(world_from_camera=get("camera.world_from_camera"),
                      projection=str(get("camera.projection")),
                      frame=tuple(float(v) for v in get("camera.frame")),

@@ -25,6 +25,10 @@ the sun's solid angle); the core always divides, so the power is multiplied back
 
 A light with nodes (``use_nodes``) multiplies its strength by its Emission node's Color times
 Strength (:func:`node_factor`: constants, Blackbody included; a texture takes its mean, noted).
+An IES Texture on a point or spot light's Emission Strength gives it an angular profile
+(``Lights.profile``, tabulated by ``ies.py`` as Cycles reads the file) in the light's own frame
+(Cycles looks the profile up by the light's Normal coordinate); the light's X and Y axes go to
+``axis_u`` and ``axis_v``.
 """
 from __future__ import annotations
 
@@ -66,13 +70,19 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         return None
     if not strength.any():
         return None
+    profile = None
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
-        strength = strength * node_factor(light.node_tree, name, log)
+        factor, profile = node_factor(light.node_tree, name, log, light.type in ("POINT", "SPOT"))
+        strength = strength * factor
         if not strength.any():
             return None
     position = m[:3, 3]
     direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
     rec = light_record(position, direction, visibility, bool(getattr(light, "use_soft_falloff", True)))
+    if profile is not None:
+        # The light's frame for the profile: its X and Y axes, made orthonormal with -direction.
+        x = _unit(m[:3, 0] - (m[:3, 0] @ direction) * direction, fallback=(1.0, 0.0, 0.0))
+        rec.update(profile=profile, axis_u=x, axis_v=np.cross(-direction, x))
     if light.type in ("POINT", "SPOT"):
         r = max(float(light.shadow_soft_size), 0.0)
         if not light.normalize and r > 0:
@@ -109,14 +119,16 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     return rec
 
 
-def node_factor(tree, name, log) -> np.ndarray:
-    """(3,) factor of a light's node tree on its strength: Color x Strength of the Emission node
-    feeding its output (Cycles), 0 with nothing linked; other shaders are noted and count as 1."""
+def node_factor(tree, name, log, profiles=True):
+    """((3,) factor, profile table or None) of a light's node tree: Color x Strength of the
+    Emission node feeding its output (Cycles), 0 with nothing linked; other shaders are noted and
+    count as 1.  An IES Texture on the Strength (with ``profiles``: point and spot lights) gives
+    its own Strength as the factor and the file's profile (``ies.tabulate``)."""
     from .materials import NodeWalker, Textures
     walker = NodeWalker(f"light '{name}'", Textures(log))
     out = tree.get_output_node("CYCLES")
     src, _, stack = walker.source(out.inputs["Surface"], ()) if out is not None else (None, None, ())
-    factor = np.ones(3)
+    factor, profile = np.ones(3), None
     if out is None:
         walker.note("no light output node; using its colour and power")
     elif src is None:
@@ -125,19 +137,59 @@ def node_factor(tree, name, log) -> np.ndarray:
         color, source = walker.color(src.node.inputs["Color"], stack)
         if isinstance(source, dict) or source >= 0:
             walker.note("a texture on its Emission Color takes its mean")
-        factor = np.maximum(color * walker.value(src.node.inputs["Strength"], stack), 0.0)
+        ies, ies_stack = _ies_node(walker, src.node.inputs["Strength"], stack)
+        if ies is None:
+            strength = walker.value(src.node.inputs["Strength"], stack)
+        elif not profiles:
+            walker.note("an IES Texture lights point and spot lights only; ignored")
+            strength = 1.0
+        else:
+            strength, profile = _ies_profile(walker, ies, ies_stack)
+        factor = np.maximum(color * strength, 0.0)
     else:
         walker.unsupported(src.node, "in a light's nodes; using its colour and power")
     if walker.notes:
         log.warning(f"light '{name}': " + "; ".join(walker.notes))
-    return factor
+    return factor, profile
+
+
+def _ies_node(walker, sock, stack):
+    """(IES Texture node, its stack) whose Fac feeds ``sock`` directly, or (None, None)."""
+    src, _, stack = walker.source(sock, stack)
+    if src is None or src.node.bl_idname != "ShaderNodeTexIES" or src.node.mute:
+        return None, None
+    return src.node, stack
+
+
+def _ies_profile(walker, node, stack):
+    """(strength, table or None) of an IES Texture node: its Strength and the profile of its
+    file (internal text or external path); a file that cannot be read is noted and lights
+    evenly."""
+    import bpy
+    from . import ies
+    strength = walker.value(node.inputs["Strength"], stack)
+    if node.inputs["Vector"].is_linked:
+        walker.note(f"IES Texture '{node.name}': a linked Vector is ignored (the light's own frame)")
+    try:
+        if node.mode == "INTERNAL":
+            if node.ies is None:
+                raise ies.IESError("no text datablock")
+            text = node.ies.as_string()
+        else:
+            with open(bpy.path.abspath(node.filepath), encoding="utf-8", errors="replace") as f:
+                text = f.read()
+        return strength, ies.tabulate(text)
+    except (OSError, ies.IESError) as e:
+        walker.note(f"IES Texture '{node.name}': cannot read its profile ({e}); the light shines evenly")
+        return strength, None
 
 
 def light_record(position, direction, visibility, soft_falloff=True, **fields) -> dict:
     """A light's field dict (``build_lights``): the given fields over neutral defaults."""
     return {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
             "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
-            "visibility": visibility, "soft_falloff": soft_falloff, "spread": math.pi, **fields}
+            "visibility": visibility, "soft_falloff": soft_falloff, "spread": math.pi, "profile": None,
+            **fields}
 
 
 def build_lights(records) -> Lights:
@@ -149,10 +201,16 @@ def build_lights(records) -> Lights:
                     radius=np.zeros(n, np.float32), spot_angle=np.zeros(n, np.float32),
                     spot_blend=np.zeros(n, np.float32), sun_angle=np.zeros(n, np.float32),
                     visibility=np.zeros(n, np.uint8), soft_falloff=np.ones(n, bool),
-                    spread=np.full(n, math.pi, np.float32))
+                    spread=np.full(n, math.pi, np.float32), profile=np.full(n, -1, np.int16))
+    tables = []
     for i, rec in enumerate(records):
         for name in Lights.ARRAY_FIELDS:
-            getattr(lights, name)[i] = rec[name]
+            if name != "profile":
+                getattr(lights, name)[i] = rec[name]
+        if rec.get("profile") is not None:
+            lights.profile[i] = len(tables)
+            tables.append(rec["profile"])
+    lights.profiles = np.stack(tables) if tables else None
     return lights
 
 

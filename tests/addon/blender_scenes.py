@@ -177,6 +177,32 @@ def light(kind, location=(0, 0, 3), target=(0, 0, 0), energy=100.0, name=None, *
     return ob
 
 
+def ies_text(vertical=range(0, 91, 15), horizontal=range(0, 361, 45), candela=800.0):
+    """A type C IES file whose candela values fall off with the vertical angle v and vary with the
+    horizontal angle h as 1 + 0.6 cos(h - 60 degrees) (no mirror symmetry: a profile turned or
+    mirrored in the light's frame shows)."""
+    v, h = np.radians(list(vertical)), np.radians(list(horizontal))
+    values = candela * np.sqrt(np.cos(v))[None, :] * (1.0 + 0.6 * np.cos(h - np.radians(60)))[:, None]
+    lines = ["IESNA:LM-63-2002", "[TEST] a test profile", "TILT=NONE",
+             f"1 -1 1.0 {len(v)} {len(h)} 1 2 0.1 0.1 0.0", "1.0 1.0 50",
+             " ".join(f"{a:g}" for a in vertical), " ".join(f"{a:g}" for a in horizontal)]
+    lines += [" ".join(f"{x:.3f}" for x in row) for row in values]
+    return "\n".join(lines) + "\n"
+
+
+def add_ies(ob, text, strength=1.0):
+    """Feed the light object ``ob``'s Emission Strength from an IES Texture of ``text`` (internal)."""
+    ob.data.use_nodes = True
+    nt = ob.data.node_tree
+    node = nt.nodes.new("ShaderNodeTexIES")
+    node.mode = "INTERNAL"
+    node.ies = bpy.data.texts.new("profile.ies")
+    node.ies.write(text)
+    node.inputs["Strength"].default_value = strength
+    nt.links.new(node.outputs["Fac"], nt.nodes["Emission"].inputs["Strength"])
+    return node
+
+
 def world(color=(0.0, 0.0, 0.0), strength=1.0):
     w = bpy.data.worlds.new("World")
     w.color = color

@@ -1308,6 +1308,65 @@ def test_light_nodes_scale_the_power(scene):
     assert bs.export().scene.lights.count == 0
 
 
+def test_an_ies_texture_gives_a_point_light_its_profile_in_the_lights_frame(scene):
+    """An IES Texture (Strength 2) on a turned point light's Emission Strength: the power is the
+    light's times 2, the profile the file's candela values times 4 pi / 177.83 (Cycles' factor)
+    at its own angles (where Cycles' Catmull-Rom lookup returns the data), 0 from 90 degrees up
+    (the file stops there), and the frame the light's X and Y axes."""
+    from amcmcppm.amcmcppm_addon.export import ies
+    ob = bs.light("POINT", location=(0, 0, 2), energy=10.0)
+    ob.rotation_euler = (0.3, -0.2, 0.9)
+    bs.add_ies(ob, bs.ies_text(), strength=2.0)
+    bs.camera()
+    ex = bs.export()
+    assert not ex.warnings
+    lights = ex.scene.lights
+    np.testing.assert_allclose(lights.power[0], 20.0, rtol=1e-6)
+    assert lights.profile[0] == 0 and lights.profiles.shape == (1, *ies.GRID)
+    m = np.array(ob.matrix_world)
+    np.testing.assert_allclose(lights.axis_u[0], m[:3, 0], atol=1e-6)
+    np.testing.assert_allclose(lights.axis_v[0], m[:3, 1], atol=1e-6)
+    table = lights.profiles[0]
+    for v in (0, 15, 45, 75):
+        for h in (0, 45, 135, 270):
+            candela = 800.0 * np.sqrt(np.cos(np.radians(v))) * (1.0 + 0.6 * np.cos(np.radians(h - 60)))
+            assert table[v, h] == pytest.approx(candela * ies.CANDELA_TO_WATT, rel=1e-5), (v, h)
+    assert (table[90:] == 0).all() and (table[:89] > 0).all()
+    np.testing.assert_allclose(table[:, -1], table[:, 0], rtol=1e-5)       # 360 degrees is 0 again
+
+
+def test_ies_files_are_read_as_cycles_reads_them(scene):
+    """One quadrant of a type C file is mirrored to the whole circle; the candela multiplier and
+    the ballast factors scale the values; TILT=INCLUDE data is skipped; type A files, files cut
+    short and missing files are not read (the light shines evenly, with a warning)."""
+    from amcmcppm.amcmcppm_addon.export import ies
+    quadrant = bs.ies_text(horizontal=(0, 30, 60, 90))
+    table = ies.tabulate(quadrant)
+    for h in (30, 60):
+        for mirror in (180 - h, 180 + h, 360 - h):
+            np.testing.assert_allclose(table[:90, mirror], table[:90, h], rtol=1e-6)
+    scaled = quadrant.replace("1 -1 1.0 ", "1 -1 2.0 ").replace("\n1.0 1.0 50", "\n0.5 0.8 50")
+    np.testing.assert_allclose(ies.tabulate(scaled), 0.8 * table, rtol=1e-6)
+    tilted = quadrant.replace("TILT=NONE", "TILT=INCLUDE\n1\n2\n0 90\n1.0 0.5")
+    np.testing.assert_allclose(ies.tabulate(tilted), table, rtol=1e-6)
+    for bad in (quadrant.replace("1 -1 1.0 7 4 1 ", "1 -1 1.0 7 4 3 "), quadrant[:200], "no tilt line"):
+        with pytest.raises(ies.IESError):
+            ies.tabulate(bad)
+    ob = bs.light("SPOT", location=(0, 0, 2), energy=10.0)
+    node = bs.add_ies(ob, quadrant)
+    node.mode = "EXTERNAL"
+    node.filepath = "/nonexistent/profile.ies"
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.lights.count == 1 and ex.scene.lights.profile[0] == -1
+    assert any("cannot read its profile" in w for w in ex.warnings), ex.warnings
+    sun = bs.light("SUN", energy=2.0)
+    bs.add_ies(sun, quadrant)
+    ex = bs.export()
+    assert any("point and spot lights only" in w for w in ex.warnings), ex.warnings
+    assert (ex.scene.lights.profile == -1).all()
+
+
 def test_unnormalized_point_light_matches_cycles_radiance(scene):
     # Cycles: normalize off skips the 1/(4 pi r^2) area division -> radiance P/pi.
     _, row = export_light("POINT", energy=10.0, shadow_soft_size=0.5, normalize=False)

@@ -695,6 +695,25 @@ def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(ad
     np.testing.assert_allclose(ratio, 1.0, rtol=0.05)
 
 
+@pytest.mark.parametrize("kind", ["POINT", "SPOT"])
+def test_a_light_with_an_ies_profile_matches_cycles(addon, tmp_path, kind):
+    """A point (or wide spot) light 1.5 m over the corner's floor, turned 40 degrees about the
+    vertical and tilted 25 degrees, with an IES Texture on its Emission Strength: the pool of light
+    it casts follows the profile (falling off with the vertical angle, brighter on one side)."""
+    def build():
+        corner_scene()
+        ob = bs.light(kind, location=(0.3, -0.4, 1.5), energy=1.0, shadow_soft_size=0.05,
+                      **({"spot_size": math.radians(150), "spot_blend": 0.1} if kind == "SPOT" else {}))
+        ob.rotation_euler = (math.radians(25), 0.0, math.radians(40))
+        bs.add_ies(ob, bs.ies_text(), strength=2.0)
+        bs.world((0.0, 0.0, 0.0))
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert not bs.export().warnings
+    name = f"IES profile, {kind.lower()}"
+    assert_channels_match(name, cycles, ours)
+    assert min(block_correlation(name, cycles, ours)) > 0.99
+
+
 @pytest.mark.slow          # the mapping is in test_addon_export; this renders it against Cycles
 def test_a_light_panel_made_invisible_by_light_path_matches_cycles(addon, tmp_path):
     """The classic invisible light: the panel's material a Mix of its Emission and a clear

@@ -289,9 +289,10 @@ def test_white_principled_floor_under_a_constant_sky_reflects_the_sky_exactly(me
     assert (control < 0.9).all(), control
 
 
-def light_over_mirror(spec, camera_up=False, occluder=False, mirror=0.9):
+def light_over_mirror(spec, camera_up=False, occluder=False, mirror=0.9, profiles=None):
     """A light 3 m over a mirror floor; the camera 1 m over it looks down (or, ``camera_up``,
-    from the floor straight at the light).  Nothing diffuse: the image is the light alone."""
+    from the floor straight at the light).  Nothing diffuse: the image is the light alone.
+    ``profiles``: the lights' angular profiles (``Lights.profiles``)."""
     from core.scene import Camera, Lights, Materials
     from core.testing.scenes import MeshBuilder
     mats = Materials.build([{"name": "mirror", "mirror": mirror}, {"name": "black", "diffuse": 0.0}])
@@ -303,7 +304,9 @@ def light_over_mirror(spec, camera_up=False, occluder=False, mirror=0.9):
     eye, target = ((0, 0, 0.01), (0, 0, 3)) if camera_up else ((0, 0, 1), (0, 0, 0))
     cam = Camera.look_at(eye, target, lens_mm=50.0, resolution=(16, 16))
     spec = {"position": (0, 0, 3), "direction": (0, 0, -1), **spec}
-    return m.build(mats, Lights.build([spec]), cam)
+    lights = Lights.build([spec])
+    lights.profiles = profiles
+    return m.build(mats, lights, cam)
 
 
 LIGHTS_SEEN = {   # spec, radiance
