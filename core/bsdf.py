@@ -105,7 +105,7 @@ def coat_variants(mats):
         elif name not in ("ior", "glossy_roughness"):
             changes[name][new] = 0.0
     ior = np.maximum(unique[:, 2], 1.0)
-    f0 = ((ior - 1.0) / (ior + 1.0)) ** 2
+    f0 = smp.dielectric_f0(ior)
     changes["glossy_weight"][new] = unique[:, 0]
     changes["glossy_roughness"][new] = unique[:, 1]
     changes["glossy_color"][new] = f0[:, None]
@@ -568,7 +568,7 @@ def _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo, ms_f
         c = coat_row[i]
         w = float(mats.coat_weight[i])
         eta = float(fresnel_ior[c])
-        f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+        f0 = smp.dielectric_f0(eta)
         s = rise_means.get((alpha[c], fresnel_ior[c]), np.zeros(MS_NODES + 1))
         e = ms_albedo[c]
         k = e + ms_fresnel[c, 0] * (1.0 - e)

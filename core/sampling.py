@@ -245,12 +245,17 @@ def ggx_fresnel_rise_average(alpha, mu, eta, strata=64):
     return e, s
 
 
+def dielectric_f0(eta):
+    """Reflectance face on, ((eta - 1) / (eta + 1))^2, of a dielectric of relative index ``eta``."""
+    return ((eta - 1.0) / (eta + 1.0)) ** 2
+
+
 def fresnel_rise(cos_i, eta):
     """Cycles' Principled specular Fresnel as a blend factor: saturate((F(cos_i) - F0) / (1 - F0))
     with the real dielectric F of relative index ``eta`` (> 1) and F0 = F(1).  The layer then
     reflects f0 + (1 - f0) s, which is F itself for f0 = F0 (an untinted layer)."""
     eta = np.maximum(np.asarray(eta, np.float64), 1.0 + 1e-6)
-    f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+    f0 = dielectric_f0(eta)
     f, _ = fresnel_dielectric(np.clip(cos_i, 0.0, 1.0), eta)
     return np.clip((f - f0) / (1.0 - f0), 0.0, 1.0)
 

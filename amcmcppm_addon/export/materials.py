@@ -70,7 +70,7 @@ import numpy as np
 from ...core import procedural
 from ...core.bsdf import metal_curve, metal_fresnel
 from ...core.imageio import linear_to_srgb
-from ...core.sampling import mean_fresnel
+from ...core.sampling import dielectric_f0, mean_fresnel
 from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials
 from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
 
@@ -409,7 +409,7 @@ def _fresnel_layer(a, b, eta) -> Closure:
     normal (C F0 + C (1 - F0) s(c)), with its own F_ss (C) for multiscatter, over ``a``'s diffuse
     lobe, which loses the layer's albedo at the view direction.  Exact for a smooth glossy under
     a white light; for a rough one the curve follows the microfacet normal, not the surface's."""
-    f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+    f0 = dielectric_f0(eta)
     glossy = dataclasses.replace(b, color=b.color * f0, multiscatter=b.multiscatter * f0,
                                  fresnel_ior=eta, rise=b.color[GLOSSY] * (1.0 - f0))
     w = a.weight[DIFFUSE]
@@ -510,7 +510,7 @@ def specular_ior(ior, level):
     as its inverse (the same F0)."""
     n = float(ior)
     n = 1.0 / n if 0.0 < n < 1.0 else n
-    f0 = float(np.clip(((n - 1.0) / (n + 1.0)) ** 2 * 2.0 * level, 0.0, 0.999))
+    f0 = float(np.clip(dielectric_f0(n) * 2.0 * level, 0.0, 0.999))
     r = np.sqrt(f0)
     return (1.0 + r) / (1.0 - r), f0
 
