@@ -222,6 +222,8 @@ class LightSampler:
                 radiance = np.broadcast_to(p / (np.pi * area), (len(rays), 3))
                 if L.spread[i] < 2.0 * FULL_SPREAD:
                     radiance = radiance * spread_attenuation(-cos, 0.5 * float(L.spread[i]))[:, None]
+                if L.profile[i] >= 0:
+                    radiance = radiance * profile_factor(L, np.full(len(rays), i), -d)[:, None]
             elif kind in (POINT, SPOT):
                 r = float(L.radius[i])
                 if r <= 0:
@@ -351,7 +353,12 @@ class LightSampler:
             cone = smp.uniform_cone(u[narrow, 4], u[narrow, 5], cos_h)
             local[narrow] = cone
             w[narrow] = 2.0 * (1.0 - cos_h) * cone[:, 2] * spread_attenuation(cone[:, 2], h)
-        return o, smp.to_world(local, n), w
+        d = smp.to_world(local, n)
+        if self.has_profiles:
+            # An angular profile weighs the directions (over its mean, which the choice used).
+            k = L.profile.take(ids)
+            w = w * profile_factor(L, ids, d) / np.where(k >= 0, self.light_scale.take(ids), 1.0)
+        return o, d, w
 
     def _sample_sun(self, ids, u):
         L = self.lights
@@ -442,8 +449,9 @@ def profile_factor(lights, ids, dirs):
     if len(sel) == 0:
         return out
     ids, k, d = ids.take(sel), k.take(sel), dirs.take(sel, axis=0)
-    x = np.einsum("ij,ij->i", d, lights.axis_u.take(ids, axis=0))
-    y = np.einsum("ij,ij->i", d, lights.axis_v.take(ids, axis=0))
+    # (Area lights' axes are half extents: only their directions count.)
+    x = np.einsum("ij,ij->i", d, smp.normalize(lights.axis_u.take(ids, axis=0).astype(np.float64)))
+    y = np.einsum("ij,ij->i", d, smp.normalize(lights.axis_v.take(ids, axis=0).astype(np.float64)))
     z = -np.einsum("ij,ij->i", d, lights.direction.take(ids, axis=0))
     table = lights.profiles
     rows, cols = table.shape[1] - 1, table.shape[2] - 1

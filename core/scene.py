@@ -376,10 +376,11 @@ class Lights:
     VISIBLE_CAMERA, VISIBLE_GLOSSY: rays reflected by a mirror or glass, VISIBLE_TRANSMISSION:
     rays refracted by glass); lights are transparent to the rays, as in Cycles, and a point or
     sun of size 0 is never seen.  Default: seen in reflections and through glass, not directly.
-    ``profile`` (L,) indexes ``profiles``, a point or spot light's angular profile (Blender's IES
-    Texture on its Emission Strength; -1: none, the default): its intensity in a direction d is
-    multiplied by ``profiles[k]`` at the angles of d in the light's frame (``axis_u``, ``axis_v``
-    its unit X and Y axes there, ``-direction`` its Z): v = acos(-z) in [0, pi] down the rows,
+    ``profile`` (L,) indexes ``profiles``, a point, spot or area light's angular profile (Blender's
+    IES Texture on its Emission Strength; -1: none, the default): its intensity in a direction d
+    is multiplied by ``profiles[k]`` at the angles of d in the light's frame (``axis_u``,
+    ``axis_v`` the directions of its X and Y axes, unit for point and spot lights, ``-direction``
+    its Z): v = acos(-z) in [0, pi] down the rows,
     h = atan2(x, y) + pi in [0, 2 pi] along the columns, both sampled at equal steps with their
     ends included (Cycles' IES lookup, tabulated; bilinear in between).
     With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light acts as
@@ -927,12 +928,13 @@ class Scene:
             return
         if table is None or (lights.profile.take(used) >= len(table)).any() or (lights.profile < -1).any():
             fail("lights.profile must be -1 or an index into lights.profiles")
-        if not np.isin(lights.kind.take(used), (POINT, SPOT)).all():
-            fail("lights.profile applies to point and spot lights only")
+        if (lights.kind.take(used) == SUN).any():
+            fail("lights.profile applies to point, spot and area lights only")
         frame = np.stack([lights.axis_u.take(used, axis=0), lights.axis_v.take(used, axis=0),
                           -lights.direction.take(used, axis=0)], axis=1).astype(np.float64)
+        frame /= np.maximum(np.linalg.norm(frame, axis=2, keepdims=True), 1e-30)
         if (np.abs(frame @ frame.transpose(0, 2, 1) - np.eye(3)) > 1e-3).any():
-            fail("a light with a profile needs unit, orthogonal axis_u, axis_v and direction")
+            fail("a light with a profile needs orthogonal axis_u, axis_v and direction")
 
     # ------------------------------------------------------------------ file io
     def to_arrays(self) -> dict:

@@ -25,10 +25,11 @@ the sun's solid angle); the core always divides, so the power is multiplied back
 
 A light with nodes (``use_nodes``) multiplies its strength by its Emission node's Color times
 Strength (:func:`node_factor`: constants, Blackbody included; a texture takes its mean, noted).
-An IES Texture on a point or spot light's Emission Strength gives it an angular profile
+An IES Texture on a point, spot or area light's Emission Strength gives it an angular profile
 (``Lights.profile``, tabulated by ``ies.py`` as Cycles reads the file) in the light's own frame
-(Cycles looks the profile up by the light's Normal coordinate); the light's X and Y axes go to
-``axis_u`` and ``axis_v``.
+(Cycles looks the profile up by the light's Normal coordinate, the direction towards the lit
+point); a point or spot light's X and Y axes go to ``axis_u`` and ``axis_v``.  The sun takes the
+profile's value along its -Z, the one direction its light has.
 """
 from __future__ import annotations
 
@@ -72,17 +73,20 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         return None
     profile = None
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
-        factor, profile = node_factor(light.node_tree, name, log, light.type in ("POINT", "SPOT"))
+        factor, profile = node_factor(light.node_tree, name, log, light.type != "SUN")
         strength = strength * factor
         if not strength.any():
             return None
     position = m[:3, 3]
     direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
     rec = light_record(position, direction, visibility, bool(getattr(light, "use_soft_falloff", True)))
-    if profile is not None:
-        # The light's frame for the profile: its X and Y axes, made orthonormal with -direction.
+    if profile is not None and light.type != "AREA":
+        # The light's frame for the profile: its X and Y axes, made orthonormal with -direction
+        # (an area light's axes are its half extents, set below).
         x = _unit(m[:3, 0] - (m[:3, 0] @ direction) * direction, fallback=(1.0, 0.0, 0.0))
         rec.update(profile=profile, axis_u=x, axis_v=np.cross(-direction, x))
+    elif profile is not None:
+        rec.update(profile=profile)
     if light.type in ("POINT", "SPOT"):
         r = max(float(light.shadow_soft_size), 0.0)
         if not light.normalize and r > 0:
@@ -122,8 +126,9 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
 def node_factor(tree, name, log, profiles=True):
     """((3,) factor, profile table or None) of a light's node tree: Color x Strength of the
     Emission node feeding its output (Cycles), 0 with nothing linked; other shaders are noted and
-    count as 1.  An IES Texture on the Strength (with ``profiles``: point and spot lights) gives
-    its own Strength as the factor and the file's profile (``ies.tabulate``)."""
+    count as 1.  An IES Texture on the Strength gives its own Strength as the factor and, with
+    ``profiles`` (point, spot and area lights), the file's profile (``ies.tabulate``); without
+    (the sun), the factor takes the profile's value along the light's -Z, as in Cycles."""
     from .materials import NodeWalker, Textures
     walker = NodeWalker(f"light '{name}'", Textures(log))
     out = tree.get_output_node("CYCLES")
@@ -140,11 +145,11 @@ def node_factor(tree, name, log, profiles=True):
         ies, ies_stack = _ies_node(walker, src.node.inputs["Strength"], stack)
         if ies is None:
             strength = walker.value(src.node.inputs["Strength"], stack)
-        elif not profiles:
-            walker.note("an IES Texture lights point and spot lights only; ignored")
-            strength = 1.0
         else:
             strength, profile = _ies_profile(walker, ies, ies_stack)
+            if not profiles and profile is not None:
+                # The sun's light has one direction, the light's -Z (v = 0, h = pi): one factor.
+                strength, profile = strength * float(profile[0, (profile.shape[1] - 1) // 2]), None
         factor = np.maximum(color * strength, 0.0)
     else:
         walker.unsupported(src.node, "in a light's nodes; using its colour and power")

@@ -1338,7 +1338,9 @@ def test_an_ies_texture_gives_a_point_light_its_profile_in_the_lights_frame(scen
 def test_ies_files_are_read_as_cycles_reads_them(scene):
     """One quadrant of a type C file is mirrored to the whole circle; the candela multiplier and
     the ballast factors scale the values; TILT=INCLUDE data is skipped; type A files, files cut
-    short and missing files are not read (the light shines evenly, with a warning)."""
+    short and missing files are not read (the light shines evenly, with a warning).  An area
+    light takes the profile as point and spot lights do; the sun, whose light has one direction,
+    its value along the sun's -Z."""
     from amcmcppm.amcmcppm_addon.export import ies
     quadrant = bs.ies_text(horizontal=(0, 30, 60, 90))
     table = ies.tabulate(quadrant)
@@ -1361,10 +1363,14 @@ def test_ies_files_are_read_as_cycles_reads_them(scene):
     assert ex.scene.lights.count == 1 and ex.scene.lights.profile[0] == -1
     assert any("cannot read its profile" in w for w in ex.warnings), ex.warnings
     sun = bs.light("SUN", energy=2.0)
-    bs.add_ies(sun, quadrant)
+    bs.add_ies(sun, quadrant, strength=0.5)
+    area = bs.light("AREA", energy=3.0, size=0.5)
+    bs.add_ies(area, quadrant)
     ex = bs.export()
-    assert any("point and spot lights only" in w for w in ex.warnings), ex.warnings
-    assert (ex.scene.lights.profile == -1).all()
+    lights = ex.scene.lights
+    assert lights.count == 3 and list(lights.profile) == [-1, -1, 0], lights.profile
+    np.testing.assert_allclose(lights.power[1], 2.0 * 0.5 * table[0, 180], rtol=1e-5)
+    np.testing.assert_allclose(lights.profiles[0], table, rtol=1e-6)
 
 
 def test_unnormalized_point_light_matches_cycles_radiance(scene):

@@ -10,7 +10,7 @@ import pytest
 
 from core import RenderSettings, render
 from core.lights import LightSampler, profile_factor, profile_means
-from core.scene import Camera, Lights, Materials, SceneError
+from core.scene import SUN, Camera, Lights, Materials, SceneError
 from core.testing.scenes import MeshBuilder, _look_down
 
 from test_closed_form import check_mean, light_over_mirror, render_passes
@@ -89,6 +89,29 @@ def test_photons_of_a_profiled_light_carry_its_intensity_in_every_direction():
         np.testing.assert_allclose(flux[inside, 0].sum() / n, expected, rtol=0.02)
 
 
+def test_photons_of_a_profiled_area_light_carry_its_radiance_times_the_profile():
+    """An area light's photons leave cosine-distributed and carry the profile's value: the flux
+    in a band of directions is P / pi int f cos."""
+    from core.accel import Accel
+    from core.bsdf import MaterialTable
+    m = MeshBuilder()
+    m.add_quad((-5, -5, -3), (5, -5, -3), (5, 5, -3), (-5, 5, -3), 0)
+    spec = profiled({"kind": "area", "power": 6.0})
+    spec.update(axis_u=0.3 * ROT[:, 0], axis_v=0.2 * ROT[:, 1])             # half extents
+    scene = m.build(Materials.build([{"name": "floor", "diffuse": 0.5}]), lights_with_profile([spec]),
+                    Camera())
+    sampler = LightSampler(scene, Accel(scene), MaterialTable.from_materials(scene.materials))
+    n = 1_000_000
+    _, d, flux, _ = sampler.sample(np.random.default_rng(4).random((n, 6)))
+    v, h = angles(d)
+    for lo, hi in ((0.0, 0.5), (1.0, 1.5)):
+        inside = (v >= lo) & (v < hi) & (h < np.pi)
+        expected = 6.0 / np.pi * (np.pi * (np.sin(hi) ** 2 - np.sin(lo) ** 2) / 2
+                                  + 0.6 * np.pi * (np.cos(lo) ** 3 - np.cos(hi) ** 3) / 3
+                                  + 0.6 * (np.sin(hi) ** 3 - np.sin(lo) ** 3) / 3)
+        np.testing.assert_allclose(flux[inside, 0].sum() / n, expected, rtol=0.02)
+
+
 def test_photons_leave_only_where_the_profile_shines():
     """A downlight's profile (0 from 90 degrees up, a narrow beam): photons are drawn from it, so
     none goes up or is wasted, and the flux still sums to the profile's power."""
@@ -113,17 +136,20 @@ def test_photons_leave_only_where_the_profile_shines():
     np.testing.assert_allclose(flux[:, 0].mean(), expected, rtol=0.01)
 
 
-def test_a_profiled_light_seen_in_a_mirror_shows_its_radiance_times_the_profile():
+@pytest.mark.parametrize("kind", ("point", "area"))
+def test_a_profiled_light_seen_in_a_mirror_shows_its_radiance_times_the_profile(kind):
     """Straight down from the light to the mirror and back up to the camera: v = 0, f = 1.6 (the
     four centre pixels, symmetric about the axis: their sin h terms cancel, and 0.6 (1 - cos v)
     over their 2.5 degrees takes off less than 4e-4)."""
-    spec = {"kind": "point", "radius": 0.5, "power": 10.0, "position": (0, 0, 3),
+    spec = {"kind": kind, "radius": 0.5, "power": 10.0, "position": (0, 0, 3),
             "direction": (0, 0, -1), "axis_u": (1, 0, 0), "axis_v": (0, 1, 0), "profile": 0}
+    if kind == "area":
+        spec.update(axis_u=(0.5, 0, 0), axis_v=(0, 0.5, 0))                # 1 m square
     scene = light_over_mirror(spec, profiles=table())
     image = render(scene, RenderSettings(method="ppm", passes=2, photons_per_pass=100,
                                                     workers=1)).image
     centre = image[7:9, 7:9, :3]
-    expected = 0.9 * 1.6 * 10.0 / (4 * np.pi ** 2 * 0.25)
+    expected = 0.9 * 1.6 * 10.0 / (4 * np.pi ** 2 * 0.25 if kind == "point" else np.pi * 1.0)
     np.testing.assert_allclose(centre.mean(axis=(0, 1)), expected, rtol=5e-4)
     assert np.ptp(centre[..., 0]) > 1e-3                   # (the pixels do differ by their h)
 
@@ -170,8 +196,8 @@ def test_profiles_round_trip_through_a_file_and_are_validated(tmp_path):
     assert (old.validate().lights.profile == -1).all()
     for change, message in (({"profiles": None}, "index into lights.profiles"),
                             ({"profiles": -table(19, 37)}, "not negative"),
-                            ({"axis_u": np.float32([[2, 0, 0]])}, "unit, orthogonal"),
-                            ({"kind": np.int8([3])}, "point and spot lights only")):
+                            ({"axis_u": np.float32([[1, 0, 1]])}, "orthogonal axis_u"),
+                            ({"kind": np.int8([SUN])}, "point, spot and area lights only")):
         bad = light_over_mirror(spot, profiles=table(19, 37))
         for key, value in change.items():
             setattr(bad.lights, key, value)
