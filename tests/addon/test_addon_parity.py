@@ -695,20 +695,24 @@ def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(ad
     np.testing.assert_allclose(ratio, 1.0, rtol=0.05)
 
 
-@pytest.mark.parametrize("kind", ["POINT", "SPOT", "AREA"])
+@pytest.mark.parametrize("kind", ["POINT", "SPOT", "AREA", "SUN"])
 def test_a_light_with_an_ies_profile_matches_cycles(addon, tmp_path, kind):
     """A point (or wide spot) light 1.5 m over the corner's floor, turned 40 degrees about the
     vertical and tilted 25 degrees, with an IES Texture on its Emission Strength: the pool of light
     it casts follows the profile (falling off with the vertical angle, brighter on one side).  An
     area light (0.5 m) looks its profile up by the direction of the lit point too: 0.994 of
-    Cycles; with the profile's value along its normal alone (a first guess), 1.235."""
+    Cycles; with the profile's value along its normal alone (a first guess), 1.235.  The sun's
+    light has one direction: the profile's value along its -Z scales it (0.994)."""
     def build():
         corner_scene()
         extra = {"SPOT": {"spot_size": math.radians(150), "spot_blend": 0.1}, "AREA": {"size": 0.5}}
         ob = bs.light(kind, location=(0.3, -0.4, 1.5), energy=1.0,
                       **({"shadow_soft_size": 0.05} if kind != "AREA" else {}), **extra.get(kind, {}))
         ob.rotation_euler = (math.radians(25), 0.0, math.radians(40))
-        bs.add_ies(ob, bs.ies_text(), strength=2.0)
+        if kind == "SUN":       # one direction: the profile's value along -Z (one at the pole)
+            bs.add_ies(ob, bs.ies_text(horizontal=(0,)), strength=0.02)
+        else:
+            bs.add_ies(ob, bs.ies_text(), strength=2.0)
         bs.world((0.0, 0.0, 0.0))
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert not bs.export().warnings
