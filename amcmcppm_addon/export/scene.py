@@ -65,7 +65,11 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     view_layer = depsgraph.view_layer_eval
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override)
     light_records = []
+    linked = set()
     for inst in depsgraph.object_instances:
+        links = getattr(inst.object, "light_linking", None)
+        if links is not None and (links.receiver_collection or links.blocker_collection):
+            linked.add(inst.object.name)
         if inst.object.type == "LIGHT":
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
                                inst.object.name, log, ray_visibility(inst.object))
@@ -73,6 +77,9 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                 light_records.append(rec)
         else:
             collector.add(inst)
+    if linked:
+        names = ", ".join(f"'{n}'" for n in sorted(linked)[:5]) + (" ..." if len(linked) > 5 else "")
+        log.warning(f"light and shadow linking is not supported; {names} light and shadow every object")
     geometry = collector.finish()
     world, world_lights = export_world(depsgraph, materials.textures, log)
     lights = build_lights(light_records + world_lights)

@@ -1373,6 +1373,17 @@ def test_ies_files_are_read_as_cycles_reads_them(scene):
     np.testing.assert_allclose(lights.profiles[0], table, rtol=1e-6)
 
 
+def test_light_linking_is_named_as_unsupported(scene):
+    """Light and shadow linking (Object > Shading > Light Linking) is not modelled: the export
+    says so, naming the lights, and lights every object."""
+    ob = bs.light("POINT", location=(0, 0, 2), energy=10.0)
+    bs.camera()
+    assert not any("linking" in w for w in bs.export().warnings)
+    ob.light_linking.receiver_collection = bpy.data.collections.new("Receivers")
+    warnings = bs.export().warnings
+    assert any("linking is not supported" in w and f"'{ob.name}'" in w for w in warnings), warnings
+
+
 def test_unnormalized_point_light_matches_cycles_radiance(scene):
     # Cycles: normalize off skips the 1/(4 pi r^2) area division -> radiance P/pi.
     _, row = export_light("POINT", energy=10.0, shadow_soft_size=0.5, normalize=False)
