@@ -82,7 +82,8 @@ def degenerate_emitters():
 
 def extreme_values():
     # The glossy boxes are metals whose F82 curve is out of all bounds (saturated to [0, 1]); the
-    # floor reflects all it gets and lets as much through (a gain of 2).
+    # floor reflects all it gets and lets as much through (a gain of 2).  Light profiles: one hot
+    # cell of 1e6 in zeros (the 1e12 W point light), all zeros (a spot), and a tiny disk's.
     mats = Materials.build([{"name": "floor", "diffuse": 1.0, "translucent": 1.0},
                             {"name": "rough", "glossy": 1.0, "roughness": 1.0, "glossy_metal_rise": 1e30,
                              "glossy_metal_dip": -1e30},
@@ -100,8 +101,15 @@ def extreme_values():
         {"kind": "spot", "position": (-1, 1, 3), "direction": (0, 0, -1), "power": 100, "spot_angle": np.pi,
          "spot_blend": 1.0},
         {"kind": "sun", "direction": (0, 0.2, -1), "power": 1.0, "sun_angle": np.pi},
-        {"kind": "disk", "position": (0, 0, 2.5), "direction": (0, 0, -1), "size": (1e-9, 1e-9), "power": 5},
+        {"kind": "disk", "position": (0, 0, 2.5), "direction": (0, 0, -1), "size": (1e-9, 1e-9), "power": 5,
+         "profile": 0},
+        {"kind": "spot", "position": (0.5, 0, 3), "direction": (0, 0, -1), "power": 100, "profile": 1},
     ])
+    lights.profile[0] = 0
+    profiles = np.zeros((2, 19, 37), np.float32)
+    profiles[0, 3, 5] = 1e6
+    lights.profiles = profiles
+    lights.axis_u[[0, 5]], lights.axis_v[[0, 5]] = (1, 0, 0), (0, 1, 0)
     cam = _cam((0, -5, 3), (0, 0, 0.5), aperture_radius=0.5, focus_distance=1e-3)
     return m.build(mats, lights, cam)
 
