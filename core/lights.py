@@ -56,9 +56,17 @@ class LightSampler:
         self.radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)  # bounding sphere radius
         self.profile_mean = np.maximum(profile_means(lights.profiles), 1e-12)
         self.has_profiles = bool(lights.count and (lights.profile >= 0).any())
-        # Directions of lights with a profile are drawn from it (cells of its table by their
-        # mean value times solid angle, uniform within a cell).
-        self.profile_cdf = profile_cdfs(lights.profiles) if self.has_profiles else None
+        # Directions of point and spot lights with a profile are drawn from it (cells of its
+        # table by their mean value times solid angle, uniform within a cell; a spot's cone, around
+        # the profile's v = 0, keeps the rows that start inside it): one table per light, -1 none.
+        self.profile_cdf, self.cdf_row = None, None
+        sampled = np.flatnonzero((lights.profile >= 0) & np.isin(lights.kind, (POINT, SPOT))) \
+            if self.has_profiles else np.zeros(0, np.int64)
+        if len(sampled):
+            cones = np.where(lights.kind.take(sampled) == SPOT, 0.5 * lights.spot_angle.take(sampled), np.pi)
+            self.profile_cdf = profile_cdfs(lights.profiles.take(lights.profile.take(sampled), axis=0), cones)
+            self.cdf_row = np.full(lights.count, -1, np.int64)
+            self.cdf_row[sampled] = np.arange(len(sampled))
         # Analytic lights (a loop over the few lights, not over photons).
         self.light_scale = np.array([self._light_scale(i) for i in range(lights.count)], np.float64)
         light_power = (lights.power.astype(np.float64) * self.light_scale[:, None]).reshape(-1, 3) \
@@ -121,10 +129,10 @@ class LightSampler:
         L = self.lights
         table = L.profiles
         rows, cols = table.shape[1] - 1, table.shape[2] - 1
-        k = L.profile.take(ids)
+        k = self.cdf_row.take(ids)
         cdf = self.profile_cdf
         cell = np.empty(len(ids), np.int64)
-        for j in np.unique(k):                   # a loop over the few profiles
+        for j in np.unique(k):                   # a loop over the few profiled lights
             sel = np.flatnonzero(k == j)
             cell[sel] = np.minimum(np.searchsorted(cdf[j], u1[sel], side="right"), rows * cols - 1)
         lo = np.where(cell > 0, cdf[k, np.maximum(cell - 1, 0)], 0.0)
@@ -467,15 +475,17 @@ def profile_factor(lights, ids, dirs):
     return out
 
 
-def profile_cdfs(profiles):
+def profile_cdfs(profiles, cones):
     """(P, cells) cumulative probabilities of the cells of each profile's table (row-major), by
-    the mean of their corners times their solid angle; uniform for a profile that is all 0."""
+    the mean of their corners times their solid angle, the rows that start beyond each cone's half
+    angle ``cones`` (P,) left out; uniform for a profile that is all 0 there."""
     table = np.asarray(profiles, np.float64)
     rows, cols = table.shape[1] - 1, table.shape[2] - 1
     v = np.linspace(0.0, np.pi, rows + 1)
     solid = (np.cos(v[:-1]) - np.cos(v[1:]))[None, :, None] * (2.0 * np.pi / cols)
     mean = 0.25 * (table[:, :-1, :-1] + table[:, 1:, :-1] + table[:, :-1, 1:] + table[:, 1:, 1:])
-    weight = (mean * solid).reshape(len(table), -1)
+    inside = v[None, :-1] < np.asarray(cones, np.float64)[:, None]            # (P, rows)
+    weight = (mean * solid * inside[:, :, None]).reshape(len(table), -1)
     empty = weight.sum(axis=1) <= 0
     weight[empty] = 1.0
     cdf = np.cumsum(weight, axis=1)

@@ -380,9 +380,9 @@ class Lights:
     IES Texture on its Emission Strength; -1: none, the default): its intensity in a direction d
     is multiplied by ``profiles[k]`` at the angles of d in the light's frame (``axis_u``,
     ``axis_v`` the directions of its X and Y axes, unit for point and spot lights, ``-direction``
-    its Z): v = acos(-z) in [0, pi] down the rows,
-    h = atan2(x, y) + pi in [0, 2 pi] along the columns, both sampled at equal steps with their
-    ends included (Cycles' IES lookup, tabulated; bilinear in between).
+    its Z): v = acos(-z) in [0, pi] down the rows, h = atan2(x, y) + pi in [0, 2 pi] along the
+    columns, both sampled at equal steps with their ends included (Cycles' IES lookup,
+    tabulated; bilinear in between).
     With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light acts as
     Cycles then makes it: a disk of ``radius`` facing the receiver or viewer instead of a
     sphere.  It is seen as that disk, and its irradiance at distance d is P / (4 pi (d^2 + r^2))

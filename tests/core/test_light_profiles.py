@@ -114,7 +114,8 @@ def test_photons_of_a_profiled_area_light_carry_its_radiance_times_the_profile()
 
 def test_photons_leave_only_where_the_profile_shines():
     """A downlight's profile (0 from 90 degrees up, a narrow beam): photons are drawn from it, so
-    none goes up or is wasted, and the flux still sums to the profile's power."""
+    none goes up or is wasted, and the flux still sums to the profile's power.  A narrow spot's
+    cone keeps its photons too."""
     from core.accel import Accel
     from core.bsdf import MaterialTable
     tab = table()
@@ -133,6 +134,16 @@ def test_photons_leave_only_where_the_profile_shines():
     assert v_d.max() < np.radians(31.0) and (flux[:, 0] > 0).mean() > 0.99
     # int_0^(30 deg) (cos v - cos 30)^2 sin v dv 2 pi, times P / (4 pi): (1 - cos 30)^3 / 3 * P / 2
     expected = (1.0 - edge) ** 3 / 3.0 * 10.0 / 2.0
+    np.testing.assert_allclose(flux[:, 0].mean(), expected, rtol=0.01)
+    # A spot of 20 degrees with the wide test profile: its photons stay in the cone's rows.
+    half = np.radians(10.0)
+    spot = profiled({"kind": "spot", "power": 10.0, "spot_angle": 2 * half, "spot_blend": 0.0})
+    scene = m.build(Materials.build([{"name": "floor", "diffuse": 0.5}]), lights_with_profile([spot]),
+                    Camera())
+    sampler = LightSampler(scene, Accel(scene), MaterialTable.from_materials(scene.materials))
+    _, d, flux, _ = sampler.sample(np.random.default_rng(6).random((n, 6)))
+    assert angles(d)[0].max() < half + np.radians(1.0) and (flux[:, 0] > 0).mean() > 0.9
+    expected = 10.0 / 2.0 * ((1.0 - np.cos(half)) + 0.6 * np.sin(half) ** 2 / 2)
     np.testing.assert_allclose(flux[:, 0].mean(), expected, rtol=0.01)
 
 
