@@ -695,7 +695,8 @@ def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(ad
     np.testing.assert_allclose(ratio, 1.0, rtol=0.05)
 
 
-@pytest.mark.parametrize("kind", ["POINT", "SPOT", "AREA", "SUN"])
+@pytest.mark.parametrize("kind", ["POINT", "SPOT", "AREA",
+                                  pytest.param("SUN", marks=pytest.mark.slow)])   # (one factor: export test)
 def test_a_light_with_an_ies_profile_matches_cycles(addon, tmp_path, kind):
     """A point (or wide spot) light 1.5 m over the corner's floor, turned 40 degrees about the
     vertical and tilted 25 degrees, with an IES Texture on its Emission Strength: the pool of light
