@@ -1351,6 +1351,13 @@ def test_ies_files_are_read_as_cycles_reads_them(scene):
     np.testing.assert_allclose(ies.tabulate(scaled), 0.8 * table, rtol=1e-6)
     tilted = quadrant.replace("TILT=NONE", "TILT=INCLUDE\n1\n2\n0 90\n1.0 0.5")
     np.testing.assert_allclose(ies.tabulate(tilted), table, rtol=1e-6)
+    # A file with Windows line ends, one horizontal angle and the whole vertical range: Cycles'
+    # Catmull-Rom at 45 degrees between 100 and 50 (with 50 again past the pole) is 81.25.
+    crlf = "\r\n".join(["IESNA:LM-63-2002", "[TEST] X", "TILT=NONE", "1 1000 1 3 1 1 2 0.1 1.2 0.05",
+                         "1 1 12", "0 90 180", "0", "100 50 0", ""])
+    round_ = ies.tabulate(crlf) / ies.CANDELA_TO_WATT
+    np.testing.assert_allclose(round_[[0, 45, 90], 0], [100.0, 81.25, 50.0], rtol=1e-6)
+    np.testing.assert_allclose(round_, np.broadcast_to(round_[:, :1], round_.shape), rtol=1e-5, atol=1e-6)
     for bad in (quadrant.replace("1 -1 1.0 7 4 1 ", "1 -1 1.0 7 4 3 "), quadrant[:200], "no tilt line"):
         with pytest.raises(ies.IESError):
             ies.tabulate(bad)
