@@ -465,7 +465,7 @@ def profile_factor(lights, ids, dirs):
     rows, cols = table.shape[1] - 1, table.shape[2] - 1
     v = np.arccos(np.clip(-z, -1.0, 1.0)) * (rows / np.pi)
     h = (np.arctan2(x, y) + np.pi) * (cols / (2.0 * np.pi))
-    v0 = np.minimum(v.astype(np.int64), rows - 1)
+    v0 = np.clip(v.astype(np.int64), 0, rows - 1)
     h0 = np.clip(h.astype(np.int64), 0, cols - 1)
     fv, fh = np.clip(v - v0, 0.0, 1.0), np.clip(h - h0, 0.0, 1.0)
     flat = table.reshape(len(table), -1)

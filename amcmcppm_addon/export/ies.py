@@ -72,8 +72,13 @@ def process(kind, v, h, intensity):
         v, h, intensity = _process_type_b(v, h, intensity)
     else:
         h, intensity = _process_type_c(v, h, intensity)
-    return (np.radians(np.array(v, np.float64)), np.radians(np.array(h, np.float64)),
-            np.array(intensity, np.float64))
+    v, h = np.radians(np.array(v, np.float64)), np.radians(np.array(h, np.float64))
+    if (np.diff(v) <= 0).any() or (np.diff(h) <= 0).any():
+        raise IESError("the angles do not increase")
+    intensity = np.array(intensity, np.float64)
+    if not np.isfinite(intensity).all():
+        raise IESError("candela values that are not finite")
+    return v, h, intensity
 
 
 def _process_type_c(v, h, intensity):

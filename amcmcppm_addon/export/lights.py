@@ -184,7 +184,7 @@ def _ies_profile(walker, node, stack):
             with open(bpy.path.abspath(node.filepath), encoding="utf-8", errors="replace") as f:
                 text = f.read()
         return strength, ies.tabulate(text)
-    except (OSError, ies.IESError) as e:
+    except (OSError, ValueError, IndexError) as e:          # (ies.IESError is a ValueError)
         walker.note(f"IES Texture '{node.name}': cannot read its profile ({e}); the light shines evenly")
         return strength, None
 

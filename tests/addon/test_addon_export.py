@@ -1358,7 +1358,8 @@ def test_ies_files_are_read_as_cycles_reads_them(scene):
     round_ = ies.tabulate(crlf) / ies.CANDELA_TO_WATT
     np.testing.assert_allclose(round_[[0, 45, 90], 0], [100.0, 81.25, 50.0], rtol=1e-6)
     np.testing.assert_allclose(round_, np.broadcast_to(round_[:, :1], round_.shape), rtol=1e-5, atol=1e-6)
-    for bad in (quadrant.replace("1 -1 1.0 7 4 1 ", "1 -1 1.0 7 4 3 "), quadrant[:200], "no tilt line"):
+    for bad in (quadrant.replace("1 -1 1.0 7 4 1 ", "1 -1 1.0 7 4 3 "), quadrant[:200], "no tilt line",
+                quadrant.replace("\n0 30 60 90\n", "\n0 30 30 90\n")):          # an angle twice
         with pytest.raises(ies.IESError):
             ies.tabulate(bad)
     ob = bs.light("SPOT", location=(0, 0, 2), energy=10.0)
