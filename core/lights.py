@@ -56,15 +56,21 @@ class LightSampler:
         self.radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)  # bounding sphere radius
         self.profile_mean = np.maximum(profile_means(lights.profiles), 1e-12)
         self.has_profiles = bool(lights.count and (lights.profile >= 0).any())
-        # Directions of point and spot lights with a profile are drawn from it (cells of its
-        # table by their mean value times solid angle, uniform within a cell; a spot's cone, around
-        # the profile's v = 0, keeps the rows that start inside it): one table per light, -1 none.
+        # Directions of lights with a profile are drawn from it (cells of its table by their mean
+        # value times solid angle, uniform within a cell; a spot's cone, around the profile's v = 0,
+        # keeps the rows that start inside it; an area light's, times the cosine at the row's
+        # start, the rows of its front): one table per light, -1 none.  Area lights with a
+        # narrow spread keep their cone's directions, weighted.
         self.profile_cdf, self.cdf_row = None, None
-        sampled = np.flatnonzero((lights.profile >= 0) & np.isin(lights.kind, (POINT, SPOT))) \
+        full = ~np.isin(lights.kind, (AREA_RECT, AREA_DISK)) | (0.5 * lights.spread >= FULL_SPREAD)
+        sampled = np.flatnonzero((lights.profile >= 0) & (lights.kind != SUN) & full) \
             if self.has_profiles else np.zeros(0, np.int64)
         if len(sampled):
-            cones = np.where(lights.kind.take(sampled) == SPOT, 0.5 * lights.spot_angle.take(sampled), np.pi)
-            self.profile_cdf = profile_cdfs(lights.profiles.take(lights.profile.take(sampled), axis=0), cones)
+            kinds = lights.kind.take(sampled)
+            cones = np.where(kinds == SPOT, 0.5 * lights.spot_angle.take(sampled),
+                             np.where(kinds == POINT, np.pi, 0.5 * np.pi))
+            self.profile_cdf = profile_cdfs(lights.profiles.take(lights.profile.take(sampled), axis=0), cones,
+                                            lambert=np.isin(kinds, (AREA_RECT, AREA_DISK)))
             self.cdf_row = np.full(lights.count, -1, np.int64)
             self.cdf_row[sampled] = np.arange(len(sampled))
         # Analytic lights (a loop over the few lights, not over photons).
@@ -143,9 +149,11 @@ class LightSampler:
         cos_v = cos_a + t * (cos_b - cos_a)
         h = (c + u2) * (2.0 * np.pi / cols)
         sin_v = np.sqrt(np.maximum(1.0 - cos_v * cos_v, 0.0))
-        # Local (x, y, z) = (-sin v sin h, -sin v cos h, -cos v), z along -direction.
-        d = (-(sin_v * np.sin(h))[:, None] * L.axis_u.take(ids, axis=0)
-             - (sin_v * np.cos(h))[:, None] * L.axis_v.take(ids, axis=0)
+        # Local (x, y, z) = (-sin v sin h, -sin v cos h, -cos v), z along -direction (an area
+        # light's axes are its half extents: their directions).
+        axis_u = smp.normalize(L.axis_u.take(ids, axis=0).astype(np.float64))
+        axis_v = smp.normalize(L.axis_v.take(ids, axis=0).astype(np.float64))
+        d = (-(sin_v * np.sin(h))[:, None] * axis_u - (sin_v * np.cos(h))[:, None] * axis_v
              + cos_v[:, None] * L.direction.take(ids, axis=0))
         solid = (cos_a - cos_b) * (2.0 * np.pi / cols)
         return smp.normalize(d), p_cell / solid
@@ -363,8 +371,15 @@ class LightSampler:
             w[narrow] = 2.0 * (1.0 - cos_h) * cone[:, 2] * spread_attenuation(cone[:, 2], h)
         d = smp.to_world(local, n)
         if self.has_profiles:
-            # An angular profile weighs the directions (over its mean, which the choice used).
+            # An angular profile weighs the directions (over its mean, which the choice used);
+            # where the profile is sampled, its directions replace the cosine's: the flux is then
+            # P f(d) cos / (pi pdf(d)).
             k = L.profile.take(ids)
+            drawn = np.flatnonzero(self.cdf_row.take(ids) >= 0) if self.cdf_row is not None else []
+            if len(drawn):
+                dp, pdf = self._sample_profile(ids.take(drawn), u[drawn, 4], u[drawn, 5])
+                d[drawn] = dp
+                w[drawn] = np.maximum(np.einsum("ij,ij->i", dp, n[drawn]), 0.0) / (np.pi * pdf)
             w = w * profile_factor(L, ids, d) / np.where(k >= 0, self.light_scale.take(ids), 1.0)
         return o, d, w
 
@@ -475,16 +490,20 @@ def profile_factor(lights, ids, dirs):
     return out
 
 
-def profile_cdfs(profiles, cones):
+def profile_cdfs(profiles, cones, lambert=None):
     """(P, cells) cumulative probabilities of the cells of each profile's table (row-major), by
     the mean of their corners times their solid angle, the rows that start beyond each cone's half
-    angle ``cones`` (P,) left out; uniform for a profile that is all 0 there."""
+    angle ``cones`` (P,) left out, and times the cosine at the row's start where ``lambert`` (P,)
+    bool (area lights); uniform for a profile that is all 0 there."""
     table = np.asarray(profiles, np.float64)
     rows, cols = table.shape[1] - 1, table.shape[2] - 1
     v = np.linspace(0.0, np.pi, rows + 1)
     solid = (np.cos(v[:-1]) - np.cos(v[1:]))[None, :, None] * (2.0 * np.pi / cols)
     mean = 0.25 * (table[:, :-1, :-1] + table[:, 1:, :-1] + table[:, :-1, 1:] + table[:, 1:, 1:])
-    inside = v[None, :-1] < np.asarray(cones, np.float64)[:, None]            # (P, rows)
+    inside = (v[None, :-1] < np.asarray(cones, np.float64)[:, None]).astype(np.float64)   # (P, rows)
+    if lambert is not None:
+        cosine = np.maximum(np.cos(v[None, :-1]), 0.0)
+        inside = np.where(np.asarray(lambert)[:, None], inside * cosine, inside)
     weight = (mean * solid * inside[:, :, None]).reshape(len(table), -1)
     empty = weight.sum(axis=1) <= 0
     weight[empty] = 1.0

@@ -114,8 +114,8 @@ def test_photons_of_a_profiled_area_light_carry_its_radiance_times_the_profile()
 
 def test_photons_leave_only_where_the_profile_shines():
     """A downlight's profile (0 from 90 degrees up, a narrow beam): photons are drawn from it, so
-    none goes up or is wasted, and the flux still sums to the profile's power.  A narrow spot's
-    cone keeps its photons too."""
+    none goes up or is wasted, and the flux still sums to the profile's power; an area light's
+    too, with its cosine.  A narrow spot's cone keeps its photons as well."""
     from core.accel import Accel
     from core.bsdf import MaterialTable
     tab = table()
@@ -134,6 +134,17 @@ def test_photons_leave_only_where_the_profile_shines():
     assert v_d.max() < np.radians(31.0) and (flux[:, 0] > 0).mean() > 0.99
     # int_0^(30 deg) (cos v - cos 30)^2 sin v dv 2 pi, times P / (4 pi): (1 - cos 30)^3 / 3 * P / 2
     expected = (1.0 - edge) ** 3 / 3.0 * 10.0 / 2.0
+    np.testing.assert_allclose(flux[:, 0].mean(), expected, rtol=0.01)
+    # An area light with the beam: its photons too (P / pi int f cos: 2 P int_c^1 (x - c)^2 x dx).
+    area = profiled({"kind": "area", "power": 10.0})
+    area.update(axis_u=0.2 * ROT[:, 0], axis_v=0.2 * ROT[:, 1])
+    lights = Lights.build([area])
+    lights.profiles = tab
+    scene = m.build(Materials.build([{"name": "floor", "diffuse": 0.5}]), lights, Camera())
+    sampler = LightSampler(scene, Accel(scene), MaterialTable.from_materials(scene.materials))
+    _, d, flux, _ = sampler.sample(np.random.default_rng(8).random((n, 6)))
+    assert angles(d)[0].max() < np.radians(31.0) and (flux[:, 0] > 0).mean() > 0.99
+    expected = 2.0 * 10.0 * (0.25 - 2.0 * edge / 3.0 + edge ** 2 / 2.0 - edge ** 4 / 12.0)
     np.testing.assert_allclose(flux[:, 0].mean(), expected, rtol=0.01)
     # A spot of 20 degrees with the wide test profile: its photons stay in the cone's rows.
     half = np.radians(10.0)
