@@ -1,4 +1,4 @@
-"""Angular light profiles (``Lights.profile``: Blender's IES Texture on a point or spot light).
+"""Angular light profiles (``Lights.profile``: Blender's IES Texture on a point, spot or area light).
 
 A profile multiplies a light's intensity by a table over the angles of the direction in the
 light's frame: v = acos(-z) down the rows (0: straight along the light's -Z), h = atan2(x, y) + pi
