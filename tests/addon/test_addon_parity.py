@@ -366,6 +366,13 @@ def assert_channels_match(name, cycles, ours, rtol=TOLERANCE, band_rtol=BAND_TOL
     return c, o
 
 
+def assert_image_matches(name, cycles, ours, rtol=TOLERANCE):
+    """:func:`assert_channels_match`, and the 4 x 4 blocks' layout correlated above 0.99 in every
+    channel (:func:`block_correlation`): the means and where the light falls."""
+    assert_channels_match(name, cycles, ours, rtol=rtol)
+    assert min(block_correlation(name, cycles, ours)) > 0.99
+
+
 def pixel_correlation(name, c, o):
     """Correlation of the luminance of the (n, 3) pixels of Cycles' ``c`` and ours ``o``, printed."""
     lum = [x @ [0.2126, 0.7152, 0.0722] for x in (c, o)]
@@ -627,8 +634,7 @@ def test_absorbing_volumes_match_cycles(addon, tmp_path, shader):
         bs.cube("Slab", size=1.0, material=mat, location=(-0.3, -0.5, 0.5), scale=(2.0, 2.0, 0.2))
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
-    assert_channels_match(f"volume, {shader}", cycles, ours, rtol=0.02)
-    assert min(block_correlation(f"volume, {shader}", cycles, ours)) > 0.99
+    assert_image_matches(f"volume, {shader}", cycles, ours, rtol=0.02)
 
 
 def test_a_light_panel_hidden_from_the_camera_matches_cycles(addon, tmp_path):
@@ -643,8 +649,7 @@ def test_a_light_panel_hidden_from_the_camera_matches_cycles(addon, tmp_path):
         panel.visible_camera = False
         bs.world((0.05, 0.05, 0.05))
     cycles, ours = cycles_and_ours(build, tmp_path)
-    assert_channels_match("panel hidden from the camera", cycles, ours)
-    assert min(block_correlation("panel hidden from the camera", cycles, ours)) > 0.99
+    assert_image_matches("panel hidden from the camera", cycles, ours)
 
 
 @pytest.mark.parametrize("relief", [None, "veins", "bumps"], ids=["plain", "checker", "bumped"])
@@ -686,8 +691,7 @@ def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(ad
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert not bs.export().warnings
     name = f"translucent screen{f', {relief}' if relief else ''}"
-    assert_channels_match(name, cycles, ours)
-    assert min(block_correlation(name, cycles, ours)) > 0.99
+    assert_image_matches(name, cycles, ours)
     h, w = cycles.shape[:2]
     strip = np.s_[int(0.625 * h):int(0.75 * h), w // 4:3 * w // 4]       # the floor just in front
     ratio = ours[strip][..., :3].mean(axis=(0, 1)) / cycles[strip][..., :3].mean(axis=(0, 1))
@@ -720,8 +724,7 @@ def test_a_light_with_an_ies_profile_matches_cycles(addon, tmp_path, kind):
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert not bs.export().warnings
     name = f"IES profile, {kind.lower()}"
-    assert_channels_match(name, cycles, ours)
-    assert min(block_correlation(name, cycles, ours)) > 0.99
+    assert_image_matches(name, cycles, ours)
 
 
 @pytest.mark.slow          # the mapping is in test_addon_export; this renders it against Cycles
@@ -746,8 +749,7 @@ def test_a_light_panel_made_invisible_by_light_path_matches_cycles(addon, tmp_pa
         bs.world((0.05, 0.05, 0.05))
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert not any("Light Path" in w for w in bs.export().warnings)
-    assert_channels_match("panel hidden by Is Camera Ray", cycles, ours)
-    assert min(block_correlation("panel hidden by Is Camera Ray", cycles, ours)) > 0.99
+    assert_image_matches("panel hidden by Is Camera Ray", cycles, ours)
 
 
 def block_correlation(name, cycles, ours, size=4):
