@@ -12,8 +12,8 @@ from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, normalize
-from .scene import (AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT, VISIBLE_CAMERA,
-                    VISIBLE_GLOSSY, VISIBLE_TRANSMISSION)
+from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
+                    VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -88,6 +88,15 @@ class RenderContext:
         self._eye_medium = self._light_media = None     # found when first needed
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
                                    (self.table.emission_program >= 0) | (self.opacity_program >= 0))
+        # Light linking (Scene.receiver_sets): each triangle's receiver set and each emissive one's
+        # links, when some emitter leaves a set out (else None: every emitter lights everything).
+        self.receiver_sets = self.emitter_links = None
+        if self.lights.has_links:
+            t = scene.triangle_count
+            self.receiver_sets = (scene.receiver_sets if scene.receiver_sets is not None
+                                  else np.zeros(t, np.uint8))
+            self.emitter_links = (scene.emitter_links if scene.emitter_links is not None
+                                  else np.full(t, ALL_LINKS, np.uint64))
         # What camera rays that leave the scene see, when it differs from the world (World.camera):
         # a function of the directions (n, 3) -> radiance (n, 3), or None.
         self.camera_background = _background(scene.world.camera)
@@ -115,9 +124,9 @@ class RenderContext:
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
         thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes and their layers (Fresnel
         layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
-        normal and bump maps, textured emitters), lights' angular (IES) profiles, transparency,
-        objects hidden from some camera rays, holdouts, volumes, an environment image, and the
-        camera's depth of field or panorama."""
+        normal and bump maps, textured emitters), lights' angular (IES) profiles, light linking,
+        transparency, objects hidden from some camera rays, holdouts, volumes, an environment
+        image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
@@ -138,6 +147,7 @@ class RenderContext:
                  ("normal and bump maps", self.has_normal_maps),
                  ("textured emitters", self.lights.textured_emitters),
                  ("light profiles", self.lights.has_profiles),
+                 ("light linking", self.lights.has_links),
                  ("transparency", self.has_transparency),
                  ("objects hidden from camera rays", self.has_hidden),
                  ("holdout", self.has_holdout),

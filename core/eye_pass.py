@@ -112,6 +112,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     ray_kind = np.full(len(pix), VISIBLE_CAMERA, np.uint8)
     # The volume each path is in (RenderContext.trace), in scenes with volumes.
     medium = ctx.camera_medium(origins) if ctx.has_volumes else None
+    # With light linking, the receiver set of the triangle each path last scattered at (None while
+    # the paths are camera rays, which see every emitter).
+    sets = None
     parts = []
     rays = 0
     for depth in range(max_bounces + 1):
@@ -127,7 +130,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             t_max = hits.t.astype(np.float64)
             if depth == 0:
                 t_max = np.minimum(t_max, tmax)
-            seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind)
+            seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind, sets)
             lit = np.flatnonzero(seen.any(axis=1))
             emission[pix[lit]] += beta[lit] * seen[lit]
         # Rays that leave the scene see the world (primary ones are cut out on a transparent film).
@@ -155,6 +158,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
         ray_kind = ray_kind.take(h)
         medium = None if medium is None else medium.take(h)
+        sets = None if sets is None else sets.take(h)
         path_len = path_len.take(h) + hits.t.take(h)
         footprint = footprint.take(h)
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
@@ -168,6 +172,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                                surf.position.take(e, axis=0))
             if table.has_coat:
                 seen = seen * coat_attenuation(table, surf, wo, e)
+            if sets is not None:
+                links = ctx.emitter_links.take(prim.take(e))
+                seen = seen * ((links >> sets.take(e).astype(np.uint64)) & np.uint64(1))[:, None]
             emission[pix[e]] += beta[e] * seen
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
@@ -239,6 +246,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
         if medium is not None:
             medium = ctx.next_medium(medium[g], prim[g], wi[keep], wo[g])
+        if ctx.receiver_sets is not None:
+            sets = ctx.receiver_sets.take(prim[g])
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)

@@ -16,7 +16,7 @@ import numpy as np
 
 from . import sampling as smp
 from .environment import Environment
-from .scene import AREA_DISK, AREA_RECT, POINT, SPOT, SUN
+from .scene import ALL_LINKS, AREA_DISK, AREA_RECT, POINT, SPOT, SUN
 
 LIGHT_DIMS = 6
 # Emitter kinds in the combined table (analytic kinds keep their Lights.kind value).
@@ -103,6 +103,14 @@ class LightSampler:
         score = smp.luminance(all_power)
         keep = score > 0
         self.kinds, self.ids, self.power = all_kinds[keep], all_ids[keep], all_power[keep]
+        # Light linking: the receiver sets each emitter lights (Scene.receiver_sets; the world
+        # lights all of them), and whether any emitter leaves one out.
+        tri_links = (scene.emitter_links.take(emissive_tris) if scene.emitter_links is not None
+                     else np.full(len(emissive_tris), ALL_LINKS, np.uint64))
+        light_links = lights.links if lights.count else np.zeros(0, np.uint64)
+        all_links = np.concatenate([light_links, tri_links, np.full(n_world, ALL_LINKS, np.uint64)])
+        self.links = all_links[keep]
+        self.has_links = bool((self.links != ALL_LINKS).any())
         score = score[keep]
         self.count = len(score)
         if self.count:
@@ -195,7 +203,7 @@ class LightSampler:
         L = self.lights
         return bool(L.count and (L.visibility & flags).any())
 
-    def seen_radiance(self, origins, dirs, t_max, escaped, flags):
+    def seen_radiance(self, origins, dirs, t_max, escaped, flags, sets=None):
         """(n, 3) radiance of the analytic lights that rays ``origins + t dirs`` cross.
 
         Rays are camera-path segments of the kinds in ``flags`` (n,) (bits ``VISIBLE_*``); a
@@ -206,14 +214,19 @@ class LightSampler:
         area P / (pi A) from the front only (times its spread attenuation); sphere
         P / (4 pi^2 r^2) (spot: times its smoothstep mask towards the viewer; with
         ``soft_falloff`` the disk of radius r through the centre facing the ray's origin);
-        sun P / (pi sin^2(angle / 2)) (Cycles).
+        sun P / (pi sin^2(angle / 2)) (Cycles).  ``sets`` (n,), for rays that left a reflection or
+        refraction: the receiver set of its triangle (Scene.receiver_sets); a linked light counts
+        only for those it lights (camera rays see every light, as in Cycles).
         A loop over the lights, each vectorised over the rays.
         """
         n = len(dirs)
         out = np.zeros((n, 3))
         L = self.lights
         for i in np.flatnonzero(L.visibility):
-            rays = np.flatnonzero(flags & L.visibility[i])
+            seen = flags & L.visibility[i]
+            if sets is not None and L.links[i] != ALL_LINKS:
+                seen = np.where((L.links[i] >> sets.astype(np.uint64)) & np.uint64(1), seen, 0)
+            rays = np.flatnonzero(seen)
             if len(rays) == 0:
                 continue
             o, d, tm = origins.take(rays, axis=0), dirs.take(rays, axis=0), t_max.take(rays)
@@ -314,6 +327,12 @@ class LightSampler:
             else:
                 flux[sel] = base[sel] * (w if w.ndim == 2 else w[:, None])
         return origins, dirs, flux, normals
+
+    def lights_sets(self, u0, sets):
+        """(n,) bool: whether the emitters of photons with first light dimensions ``u0`` (n,)
+        light receiver sets ``sets`` (n,) (Scene.receiver_sets)."""
+        links = self.links.take(self.entries(u0))
+        return ((links >> sets.astype(np.uint64)) & np.uint64(1)).astype(bool)
 
     def entries(self, u0):
         """(n,) emitter of each photon from its first light dimension (power-proportional)."""

@@ -419,6 +419,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 flux = flux * through                        # transparent surfaces and volumes crossed
             rays += len(idx)
             h = np.flatnonzero(hits.is_hit)
+            if bounce == 0 and ctx.receiver_sets is not None and len(h):
+                # Light linking: a photon ends where it first lands on a triangle its emitter
+                # does not light (which then neither shows that light nor passes it on).
+                sets = ctx.receiver_sets.take(hits.prim_ids.take(h))
+                h = h.take(np.flatnonzero(ctx.lights.lights_sets(u[idx.take(h), 0], sets)))
             idx, dirs, flux = idx.take(h), dirs.take(h, axis=0), flux.take(h, axis=0)
             prim = hits.prim_ids.take(h)
             medium = medium.take(h) if volumes else np.full(len(h), -1, np.int32)

@@ -41,6 +41,10 @@ VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION = 1, 2, 4
 # Mask > Holdout): camera rays that meet it directly cut its pixel out (Materials.holdout).
 HOLDOUT_OBJECT = 8
 DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
+# Light linking (Scene.receiver_sets, Scene.emitter_links, Lights.links): an emitter whose mask
+# has every bit set lights every receiver set.
+ALL_LINKS = np.uint64(0xFFFFFFFFFFFFFFFF)
+MAX_RECEIVER_SETS = 64
 
 
 def _f32(a, shape_tail=()):
@@ -383,6 +387,8 @@ class Lights:
     its Z): v = acos(-z) in [0, pi] down the rows, h = atan2(x, y) + pi in [0, 2 pi] along the
     columns, both sampled at equal steps with their ends included (Cycles' IES lookup,
     tabulated; bilinear in between).
+    ``links`` (L,) says which receiver sets each light lights (light linking, bit s for
+    ``Scene.receiver_sets`` value s; ``ALL_LINKS``, the default, lights everything).
     With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light acts as
     Cycles then makes it: a disk of ``radius`` facing the receiver or viewer instead of a
     sphere.  It is seen as that disk, and its irradiance at distance d is P / (4 pi (d^2 + r^2))
@@ -405,10 +411,11 @@ class Lights:
     spread: np.ndarray = None           # (L,) float32 in [0, pi], area lights; None: pi
     profile: np.ndarray = None          # (L,) int16 index into ``profiles`` or -1; None: all -1
     profiles: np.ndarray = None         # (P, V, H) float32 >= 0 angular profiles, or None
+    links: np.ndarray = None            # (L,) uint64 receiver sets lit (Scene.receiver_sets); None: all
 
     ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
                     "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff", "spread",
-                    "profile")
+                    "profile", "links")
 
     @property
     def count(self) -> int:
@@ -438,7 +445,7 @@ class Lights:
                      sun_angle=np.zeros(n, np.float32),
                      visibility=np.full(n, DEFAULT_LIGHT_VISIBILITY, np.uint8),
                      soft_falloff=np.ones(n, bool), spread=np.full(n, np.pi, np.float32),
-                     profile=np.full(n, -1, np.int16))
+                     profile=np.full(n, -1, np.int16), links=np.full(n, ALL_LINKS, np.uint64))
         for i, s in enumerate(specs):
             out.kind[i] = kinds[s["kind"]]
             out.position[i] = s.get("position", (0, 0, 0))
@@ -454,6 +461,7 @@ class Lights:
             out.soft_falloff[i] = s.get("soft_falloff", True)
             out.spread[i] = s.get("spread", np.pi)
             out.profile[i] = s.get("profile", -1)
+            out.links[i] = np.uint64(s.get("links", ALL_LINKS))
             if "axis_u" in s:
                 out.axis_u[i] = s["axis_u"]
                 out.axis_v[i] = s["axis_v"]
@@ -638,6 +646,15 @@ class Scene:
     # them.  The others go through it (RenderContext.trace); photons always meet it.  The bit
     # HOLDOUT_OBJECT makes it a holdout for camera rays (as Materials.holdout = 1).
     triangle_visibility: np.ndarray = None
+    # Light linking (Blender's Object > Shading > Light Linking, receivers; Cycles' light sets), or
+    # None: every emitter lights every triangle.  receiver_sets (T,) uint8 the set (0 to 63) each
+    # triangle receives light as; emitter_links (T,) uint64 for emissive triangles the sets their
+    # light reaches, bit s for set s (Lights.links for lights).  An emitter lights a triangle
+    # directly only if its bit for the triangle's set is on: a photon that first lands on a
+    # triangle its emitter does not light ends there, and a camera path sees an emitter after a
+    # reflection or refraction only if it lights the set of that vertex's triangle (Cycles).
+    receiver_sets: np.ndarray = None
+    emitter_links: np.ndarray = None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -776,6 +793,12 @@ class Scene:
             if t and self.triangle_visibility.max() > 15:
                 fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY, "
                      "VISIBLE_TRANSMISSION and HOLDOUT_OBJECT (0 to 15)")
+        if self.receiver_sets is not None:
+            self.receiver_sets = arr("receiver_sets", self.receiver_sets, np.uint8, (), t)
+            if t and self.receiver_sets.max() >= MAX_RECEIVER_SETS:
+                fail(f"receiver_sets must lie in [0, {MAX_RECEIVER_SETS})")
+        if self.emitter_links is not None:
+            self.emitter_links = arr("emitter_links", self.emitter_links, np.uint64, (), t)
         lights = self.lights
         nl = lights.count
         if lights.visibility is None and lights.kind is not None:
@@ -786,10 +809,12 @@ class Scene:
             lights.spread = np.full(len(lights.kind), np.pi, np.float32)
         if lights.profile is None and lights.kind is not None:
             lights.profile = np.full(len(lights.kind), -1, np.int16)
+        if lights.links is None and lights.kind is not None:
+            lights.links = np.full(len(lights.kind), ALL_LINKS, np.uint64)
         for name in Lights.ARRAY_FIELDS:
             tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
             dtype = {"kind": np.int8, "position": np.float64, "visibility": np.uint8,
-                     "soft_falloff": bool, "profile": np.int16}.get(name, np.float32)
+                     "soft_falloff": bool, "profile": np.int16, "links": np.uint64}.get(name, np.float32)
             v = arr(f"lights.{name}", getattr(lights, name), dtype, tail, nl)
             setattr(lights, name, v)
         if nl:
@@ -978,7 +1003,7 @@ class Scene:
         if self.tangents is not None:
             d["tangents"] = self.tangents
         for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces",
-                     "triangle_visibility"):
+                     "triangle_visibility", "receiver_sets", "emitter_links"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for i, tex in enumerate(self.textures):
@@ -1020,6 +1045,7 @@ class Scene:
                       uvs=get("uvs"), tangents=get("tangents"), vertex_colors=get("vertex_colors"),
                       object_ids=get("object_ids"), object_from_world=get("object_from_world"),
                       texture_spaces=get("texture_spaces"), triangle_visibility=get("triangle_visibility"),
+                      receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
                       textures=[get(f"textures.{i}") for i in range(ntex)])
         return scene.validate()
 
