@@ -70,6 +70,10 @@ class Geometry:
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
     # HOLDOUT_OBJECT for a holdout object's, or None: all rays, no holdout
     triangle_visibility: np.ndarray | None = None
+    # Light linking (export/linking.py), or None without: (T,) uint8 each triangle's receiver set
+    # and (T,) int16 its object's receiver collection as an emitter (-1: none)
+    receiver_sets: np.ndarray | None = None
+    emitter_collections: np.ndarray | None = None
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
@@ -84,14 +88,18 @@ class GeometryCollector:
 
     materials : ``MaterialExporter`` assigning core material ids.
     material_override : a Material used for every object (the view layer's override).
+    linking : the depsgraph's ``LightLinking``, or None.
     """
 
-    def __init__(self, materials, log, material_override=None):
+    def __init__(self, materials, log, material_override=None, linking=None):
         self.materials = materials
         self.log = log
         self.material_override = material_override
+        self.linking = linking
         self.meshes = {}      # mesh key -> LocalMesh, or None when it has no faces
-        self.groups = {}      # (mesh key, material ids, ray visibility) -> list of (4, 4) world_from_object
+        # (mesh key, material ids, ray visibility, (receiver set, emitter collection) or None)
+        # -> list of (4, 4) world_from_object
+        self.groups = {}
 
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
@@ -125,7 +133,8 @@ class GeometryCollector:
             self.meshes[key] = local
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         flags = ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
-        self.groups.setdefault((key, mat_ids, flags), []).append(
+        link = None if self.linking is None else (self.linking.receiver_set(ob), self.linking.collection(ob))
+        self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))
 
     def finish(self) -> Geometry:
@@ -349,12 +358,13 @@ def assemble(meshes, groups, materials) -> Geometry:
     offset = 0
     instances = 0
     # Data of procedural textures, when some material reads it (for every triangle).
-    coordinates = materials.coordinates_used({i for _, ids, _ in groups for i in ids})
+    coordinates = materials.coordinates_used({i for _, ids, _, _ in groups for i in ids})
     objects = bool(coordinates & {"object", "generated", "normal"})
-    for (key, mat_ids, visibility), matrices in groups.items():
+    for (key, mat_ids, visibility, link), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
         part["visibility"] = np.full(len(part["triangles"]), visibility, np.uint8)
+        part["link"] = link
         if objects:
             part["object_ids"] += instances
         parts.append(part)
@@ -381,6 +391,11 @@ def assemble(meshes, groups, materials) -> Geometry:
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
                                    else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])
     visibility = np.concatenate([p["visibility"] for p in parts])
+    links = {}
+    if parts[0]["link"] is not None:
+        sizes = [len(p["triangles"]) for p in parts]
+        links = dict(receiver_sets=np.repeat(np.uint8([p["link"][0] for p in parts]), sizes),
+                     emitter_collections=np.repeat(np.int16([p["link"][1] for p in parts]), sizes))
     hidden = materials.hidden_rays()
     if hidden.any():
         visibility &= ~hidden.take(material_ids)          # Light Path mixes (materials.py)
@@ -392,7 +407,7 @@ def assemble(meshes, groups, materials) -> Geometry:
                     colors=np.concatenate([p["color"] for p in parts]) if "color" in coordinates else None,
                     **objects,
                     triangle_visibility=visibility if (visibility != ALL_RAYS).any() else None,
-                    instances=instances)
+                    instances=instances, **links)
 
 
 def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordinates=frozenset()):

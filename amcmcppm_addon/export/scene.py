@@ -15,6 +15,7 @@ import numpy as np
 from ...core.scene import Scene
 from .camera import export_camera
 from .lights import build_lights, export_light, ray_visibility
+from .linking import LightLinking
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
 from .world import export_world
@@ -63,25 +64,35 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     log = ExportLog()
     materials = MaterialExporter(log)
     view_layer = depsgraph.view_layer_eval
-    collector = GeometryCollector(materials, log, material_override=view_layer.material_override)
-    light_records = []
-    linked = set()
+    linking = LightLinking.from_depsgraph(depsgraph, log)
+    collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
+                                  linking=linking)
+    light_records, light_collections = [], []
+    blockers = set()
     for inst in depsgraph.object_instances:
         links = getattr(inst.object, "light_linking", None)
-        if links is not None and (links.receiver_collection or links.blocker_collection):
-            linked.add(inst.object.name)
+        if links is not None and links.blocker_collection:
+            blockers.add(inst.object.name)
         if inst.object.type == "LIGHT":
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
                                inst.object.name, log, ray_visibility(inst.object))
             if rec is not None:
                 light_records.append(rec)
+                light_collections.append(-1 if linking is None else linking.collection(inst.object))
         else:
             collector.add(inst)
-    if linked:
-        names = ", ".join(f"'{n}'" for n in sorted(linked)[:5]) + (" ..." if len(linked) > 5 else "")
-        log.warning(f"light and shadow linking is not supported; {names} light and shadow every object")
+    if blockers:
+        names = ", ".join(f"'{n}'" for n in sorted(blockers)[:5]) + (" ..." if len(blockers) > 5 else "")
+        log.warning(f"shadow linking is not supported; every object shadows the light of {names}")
     geometry = collector.finish()
     world, world_lights = export_world(depsgraph, materials.textures, log)
+    receiver_sets = emitter_links = None
+    if linking is not None:
+        for rec, link in zip(light_records, linking.links(light_collections)):
+            rec["links"] = link
+        if geometry.receiver_sets is not None:
+            receiver_sets = geometry.receiver_sets
+            emitter_links = linking.links(geometry.emitter_collections)
     lights = build_lights(light_records + world_lights)
     camera = export_camera(depsgraph, camera_object, resolution, border, log)
     if materials.count == 0:
@@ -91,7 +102,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                   camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,
                   tangents=geometry.tangents, vertex_colors=geometry.colors, object_ids=geometry.object_ids,
                   object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
-                  triangle_visibility=geometry.triangle_visibility, textures=materials.textures.images)
+                  triangle_visibility=geometry.triangle_visibility, receiver_sets=receiver_sets,
+                  emitter_links=emitter_links, textures=materials.textures.images)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,
                          meshes=geometry.meshes)

@@ -1381,15 +1381,62 @@ def test_ies_files_are_read_as_cycles_reads_them(scene):
     np.testing.assert_allclose(lights.profiles[0], table, rtol=1e-6)
 
 
-def test_light_linking_is_named_as_unsupported(scene):
-    """Light and shadow linking (Object > Shading > Light Linking) is not modelled: the export
-    says so, naming the lights, and lights every object."""
-    ob = bs.light("POINT", location=(0, 0, 2), energy=10.0)
+def _lit(core, light_links, name):
+    """Whether an emitter with ``light_links`` lights the object whose material is ``name``."""
+    sets = core.receiver_sets[core.material_ids == core.materials.names.index(name)]
+    assert len(sets) and (sets == sets[0]).all()
+    return bool((int(light_links) >> int(sets[0])) & 1)
+
+
+def test_light_linking_receivers_follow_blenders_include_and_exclude_rules(scene):
+    """Object > Shading > Light Linking > Receivers: a collection that includes objects lights only
+    those (a child collection's state holds for everything in it, the collection's own entry for
+    an object wins over it); one that only excludes lights all but those; a light without one
+    lights everything; an emissive mesh's collection sets its triangles' links.  Shadow linking
+    (blockers) is named in a warning."""
+    from amcmcppm.core.scene import ALL_LINKS
+    objects = {n: bs.cube(n, material=bs.diffuse(n), location=(3 * i, 0, 0)) for i, n in enumerate("ABCD")}
+    glow = bs.plane("Glow", material=bs.emission("Glow", strength=2.0), location=(0, 0, 4))
     bs.camera()
-    assert not any("linking" in w for w in bs.export().warnings)
-    ob.light_linking.receiver_collection = bpy.data.collections.new("Receivers")
+    l1 = bs.light("POINT", location=(0, 0, 2), energy=10.0, name="L1")
+    l2 = bs.light("POINT", location=(2, 0, 2), energy=10.0, name="L2")
+    bs.light("POINT", location=(4, 0, 2), energy=10.0, name="L3")
+    core = bs.export().scene
+    assert core.receiver_sets is None and (core.lights.links == ALL_LINKS).all()
+
+    # L1: includes B and a child collection holding C and D, whose own entry for D excludes it.
+    r1 = bpy.data.collections.new("R1")
+    child = bpy.data.collections.new("Child")
+    r1.children.link(child)
+    child.objects.link(objects["C"])
+    child.objects.link(objects["D"])
+    r1.objects.link(objects["B"])
+    r1.objects.link(objects["D"])
+    r1.collection_objects[1].light_linking.link_state = "EXCLUDE"
+    l1.light_linking.receiver_collection = r1
+    # L2 and the emissive plane: exclude A only.
+    r2 = bpy.data.collections.new("R2")
+    r2.objects.link(objects["A"])
+    r2.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    l2.light_linking.receiver_collection = r2
+    glow.light_linking.receiver_collection = r2
+    exported = bs.export()
+    core = exported.scene
+    assert not any("linking" in w for w in exported.warnings), exported.warnings
+    links = dict(zip(["L1", "L2", "L3"], core.lights.links))
+    names = "ABCD"
+    assert [_lit(core, links["L1"], n) for n in names] == [False, True, True, False]
+    assert [_lit(core, links["L2"], n) for n in names] == [False, True, True, True]
+    assert [_lit(core, links["L3"], n) for n in names] == [True] * 4
+    glow_links = core.emitter_links[core.material_ids == core.materials.names.index("Glow")]
+    assert (glow_links == glow_links[0]).all()
+    assert [_lit(core, glow_links[0], n) for n in names] == [False, True, True, True]
+    # The other meshes' links are those of emitters without a collection.
+    assert (core.emitter_links[core.material_ids != core.materials.names.index("Glow")] == ALL_LINKS).all()
+
+    l2.light_linking.blocker_collection = r2
     warnings = bs.export().warnings
-    assert any("linking is not supported" in w and f"'{ob.name}'" in w for w in warnings), warnings
+    assert any("shadow linking is not supported" in w and "'L2'" in w for w in warnings), warnings
 
 
 def test_unnormalized_point_light_matches_cycles_radiance(scene):
