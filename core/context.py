@@ -97,6 +97,11 @@ class RenderContext:
                                   else np.zeros(t, np.uint8))
             self.emitter_links = (scene.emitter_links if scene.emitter_links is not None
                                   else np.full(t, ALL_LINKS, np.uint64))
+        # Shadow linking (Scene.blocker_sets): each triangle's blocker set, or None.
+        self.blocker_sets = None
+        if self.lights.has_shadow_links:
+            self.blocker_sets = (scene.blocker_sets if scene.blocker_sets is not None
+                                 else np.zeros(scene.triangle_count, np.uint8))
         # What camera rays that leave the scene see, when it differs from the world (World.camera):
         # a function of the directions (n, 3) -> radiance (n, 3), or None.
         self.camera_background = _background(scene.world.camera)
@@ -124,8 +129,8 @@ class RenderContext:
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
         thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes and their layers (Fresnel
         layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
-        normal and bump maps, textured emitters), lights' angular (IES) profiles, light linking,
-        transparency, objects hidden from some camera rays, holdouts, volumes, an environment
+        normal and bump maps, textured emitters), lights' angular (IES) profiles, light and shadow
+        linking, transparency, objects hidden from some camera rays, holdouts, volumes, an environment
         image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
@@ -148,6 +153,7 @@ class RenderContext:
                  ("textured emitters", self.lights.textured_emitters),
                  ("light profiles", self.lights.has_profiles),
                  ("light linking", self.lights.has_links),
+                 ("shadow linking", self.lights.has_shadow_links),
                  ("transparency", self.has_transparency),
                  ("objects hidden from camera rays", self.has_hidden),
                  ("holdout", self.has_holdout),
@@ -157,7 +163,7 @@ class RenderContext:
                  ("panorama", cam.projection in PANORAMAS))
         return tuple(name for name, on in flags if on)
 
-    def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None):
+    def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -170,6 +176,11 @@ class RenderContext:
         ``ray_kind`` (n,) uint8 (camera paths: VISIBLE_CAMERA, VISIBLE_GLOSSY or
         VISIBLE_TRANSMISSION) makes the rays go through triangles hidden from their kind
         (``Scene.triangle_visibility``); without it (photons) every triangle stops them.
+        ``shadow`` (n,) uint64, for photons leaving their emitter: the blocker sets that shadow it
+        (shadow linking, ``Lights.shadow_links``); a triangle of another set stops such a ray with
+        probability 1/2 (by the same numbers), and both the rays it stops and those that go on
+        through it carry twice the flux in the factor: each surface on the way gets the direct
+        light it would get without that triangle.
         Returns ``(hits, factor, opacity, medium)``: the hits (``t`` from the original origins;
         glass resting on a surface resolved, ``Accel.with_contacts``), the (n, 3) tint of the
         crossings and volumes, the (n,) opacity where each ray stopped (1 on opaque surfaces; the
@@ -188,7 +199,8 @@ class RenderContext:
             self._absorb(factor, medium, np.arange(n), raw, dirs)
         hits = accel.with_contacts(raw, origins, dirs)
         hiding = self.has_hidden and ray_kind is not None
-        if not (self.has_transparency or hiding) or not hits.is_hit.any():
+        shadow = shadow if shadow is not None and self.blocker_sets is not None else None
+        if not (self.has_transparency or hiding or shadow is not None) or not hits.is_hit.any():
             return hits, factor, None, medium
         is_hit, prim, b1, b2 = hits.is_hit.copy(), hits.prim_ids.copy(), hits.b1.copy(), hits.b2.copy()
         t = hits.t.astype(np.float64)
@@ -202,16 +214,35 @@ class RenderContext:
             unseen = ((self.triangle_visibility.take(pr) & ray_kind.take(rows)) == 0 if hiding
                       else np.zeros(len(rows), bool))
             clear = self.see_through.take(self.material_ids.take(pr)) & ~unseen
-            rows, unseen, clear = rows[unseen | clear], unseen[unseen | clear], clear[unseen | clear]
+            passing = np.zeros(len(rows), bool)
+            if shadow is not None:
+                # Triangles that do not shadow the photon's emitter (shadow linking).
+                sets = self.blocker_sets.take(pr).astype(np.uint64)
+                passing = ((shadow.take(rows) >> sets) & np.uint64(1)) == 0
+            sel = unseen | clear | passing
+            rows, unseen, clear, passing = rows[sel], unseen[sel], clear[sel], passing[sel]
             if len(rows) == 0:
                 break
             p = accel.hit_positions(prim.take(rows), b1.take(rows), b2.take(rows))
             through = unseen.copy()
+            u = np.zeros(len(rows))
+            need = np.flatnonzero(clear | passing)
+            if len(need):
+                u[need] = uniforms(rows.take(need), crossing)
+            if passing.any():
+                # Stop here or go on, each with probability 1/2 (the number rescaled for the
+                # opacity of those that stop), and twice the flux either way; no tint going on.
+                q = np.flatnonzero(passing)
+                factor[rows.take(q)] *= 2.0
+                go = u.take(q) >= 0.5
+                through[q[go]] = True
+                u[q] = np.where(go, 2.0 * u.take(q) - 1.0, 2.0 * u.take(q))
+                clear = clear & ~through
             if clear.any():
                 c = np.flatnonzero(clear)
                 rc = rows.take(c)
                 opacity = self._opacity(prim.take(rc), b1.take(rc), b2.take(rc), p.take(c, axis=0))
-                crossed = (uniforms(rc, crossing) >= opacity) & (opacity < 1.0)
+                crossed = (u.take(c) >= opacity) & (opacity < 1.0)
                 stopped[rc[~crossed]] = opacity[~crossed]
                 through[c] = crossed
             rows, p, clear = rows[through], p[through], clear[through]

@@ -103,14 +103,18 @@ class LightSampler:
         score = smp.luminance(all_power)
         keep = score > 0
         self.kinds, self.ids, self.power = all_kinds[keep], all_ids[keep], all_power[keep]
-        # Light linking: the receiver sets each emitter lights (Scene.receiver_sets; the world
-        # lights all of them), and whether any emitter leaves one out.
-        tri_links = (scene.emitter_links.take(emissive_tris) if scene.emitter_links is not None
-                     else np.full(len(emissive_tris), ALL_LINKS, np.uint64))
-        light_links = lights.links if lights.count else np.zeros(0, np.uint64)
-        all_links = np.concatenate([light_links, tri_links, np.full(n_world, ALL_LINKS, np.uint64)])
-        self.links = all_links[keep]
+        # Light and shadow linking: the receiver sets each emitter lights (Scene.receiver_sets) and
+        # the blocker sets that shadow it (Scene.blocker_sets), the world's all of them, and
+        # whether any emitter leaves one out.
+        def per_emitter(light_links, tri_links):
+            tri = (tri_links.take(emissive_tris) if tri_links is not None
+                   else np.full(len(emissive_tris), ALL_LINKS, np.uint64))
+            light = light_links if lights.count else np.zeros(0, np.uint64)
+            return np.concatenate([light, tri, np.full(n_world, ALL_LINKS, np.uint64)])[keep]
+        self.links = per_emitter(lights.links, scene.emitter_links)
         self.has_links = bool((self.links != ALL_LINKS).any())
+        self.shadow_links = per_emitter(lights.shadow_links, scene.emitter_shadow_links)
+        self.has_shadow_links = bool((self.shadow_links != ALL_LINKS).any())
         score = score[keep]
         self.count = len(score)
         if self.count:

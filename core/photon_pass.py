@@ -414,7 +414,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             break
         if len(idx):
             crossing = _crossing_uniforms(u, idx, bounce)
-            hits, through, opacity, medium = ctx.trace(origins, dirs, None, crossing, medium)
+            shadow = None
+            if bounce == 0 and ctx.blocker_sets is not None:
+                # Shadow linking: what shadows each photon's emitter on its way from it.
+                shadow = ctx.lights.shadow_links.take(ctx.lights.entries(u[idx, 0]))
+            hits, through, opacity, medium = ctx.trace(origins, dirs, None, crossing, medium, shadow=shadow)
             if through is not None:
                 flux = flux * through                        # transparent surfaces and volumes crossed
             rays += len(idx)

@@ -41,8 +41,8 @@ VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION = 1, 2, 4
 # Mask > Holdout): camera rays that meet it directly cut its pixel out (Materials.holdout).
 HOLDOUT_OBJECT = 8
 DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
-# Light linking (Scene.receiver_sets, Scene.emitter_links, Lights.links): an emitter whose mask
-# has every bit set lights every receiver set.
+# Light and shadow linking (Scene.receiver_sets, Scene.blocker_sets and the emitters' links): an
+# emitter whose mask has every bit set lights every receiver set, or is shadowed by every blocker set.
 ALL_LINKS = np.uint64(0xFFFFFFFFFFFFFFFF)
 MAX_RECEIVER_SETS = 64
 
@@ -388,7 +388,8 @@ class Lights:
     columns, both sampled at equal steps with their ends included (Cycles' IES lookup,
     tabulated; bilinear in between).
     ``links`` (L,) says which receiver sets each light lights (light linking, bit s for
-    ``Scene.receiver_sets`` value s; ``ALL_LINKS``, the default, lights everything).
+    ``Scene.receiver_sets`` value s; ``ALL_LINKS``, the default, lights everything), and
+    ``shadow_links`` (L,) which blocker sets shadow it (shadow linking, ``Scene.blocker_sets``).
     With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light acts as
     Cycles then makes it: a disk of ``radius`` facing the receiver or viewer instead of a
     sphere.  It is seen as that disk, and its irradiance at distance d is P / (4 pi (d^2 + r^2))
@@ -412,10 +413,11 @@ class Lights:
     profile: np.ndarray = None          # (L,) int16 index into ``profiles`` or -1; None: all -1
     profiles: np.ndarray = None         # (P, V, H) float32 >= 0 angular profiles, or None
     links: np.ndarray = None            # (L,) uint64 receiver sets lit (Scene.receiver_sets); None: all
+    shadow_links: np.ndarray = None     # (L,) uint64 blocker sets that shadow (Scene.blocker_sets); None: all
 
     ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
                     "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff", "spread",
-                    "profile", "links")
+                    "profile", "links", "shadow_links")
 
     @property
     def count(self) -> int:
@@ -445,7 +447,8 @@ class Lights:
                      sun_angle=np.zeros(n, np.float32),
                      visibility=np.full(n, DEFAULT_LIGHT_VISIBILITY, np.uint8),
                      soft_falloff=np.ones(n, bool), spread=np.full(n, np.pi, np.float32),
-                     profile=np.full(n, -1, np.int16), links=np.full(n, ALL_LINKS, np.uint64))
+                     profile=np.full(n, -1, np.int16), links=np.full(n, ALL_LINKS, np.uint64),
+                     shadow_links=np.full(n, ALL_LINKS, np.uint64))
         for i, s in enumerate(specs):
             out.kind[i] = kinds[s["kind"]]
             out.position[i] = s.get("position", (0, 0, 0))
@@ -462,6 +465,7 @@ class Lights:
             out.spread[i] = s.get("spread", np.pi)
             out.profile[i] = s.get("profile", -1)
             out.links[i] = np.uint64(s.get("links", ALL_LINKS))
+            out.shadow_links[i] = np.uint64(s.get("shadow_links", ALL_LINKS))
             if "axis_u" in s:
                 out.axis_u[i] = s["axis_u"]
                 out.axis_v[i] = s["axis_v"]
@@ -655,6 +659,14 @@ class Scene:
     # reflection or refraction only if it lights the set of that vertex's triangle (Cycles).
     receiver_sets: np.ndarray = None
     emitter_links: np.ndarray = None
+    # Shadow linking, or None: every triangle shadows every emitter.  blocker_sets (T,) uint8 each
+    # triangle's blocker set; emitter_shadow_links (T,) uint64 for emissive triangles the sets that
+    # shadow them (Lights.shadow_links for lights).  A triangle that does not shadow an emitter
+    # still receives its direct light, and so does what lies behind it: photons on their way from
+    # the emitter stop on such a triangle or pass it, each with probability 1/2 and twice the flux
+    # (Cycles' shadow rays skip it for every surface behind).
+    blocker_sets: np.ndarray = None
+    emitter_shadow_links: np.ndarray = None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -793,12 +805,14 @@ class Scene:
             if t and self.triangle_visibility.max() > 15:
                 fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY, "
                      "VISIBLE_TRANSMISSION and HOLDOUT_OBJECT (0 to 15)")
-        if self.receiver_sets is not None:
-            self.receiver_sets = arr("receiver_sets", self.receiver_sets, np.uint8, (), t)
-            if t and self.receiver_sets.max() >= MAX_RECEIVER_SETS:
-                fail(f"receiver_sets must lie in [0, {MAX_RECEIVER_SETS})")
-        if self.emitter_links is not None:
-            self.emitter_links = arr("emitter_links", self.emitter_links, np.uint64, (), t)
+        for sets, links in (("receiver_sets", "emitter_links"), ("blocker_sets", "emitter_shadow_links")):
+            if getattr(self, sets) is not None:
+                v = arr(sets, getattr(self, sets), np.uint8, (), t)
+                if t and v.max() >= MAX_RECEIVER_SETS:
+                    fail(f"{sets} must lie in [0, {MAX_RECEIVER_SETS})")
+                setattr(self, sets, v)
+            if getattr(self, links) is not None:
+                setattr(self, links, arr(links, getattr(self, links), np.uint64, (), t))
         lights = self.lights
         nl = lights.count
         if lights.visibility is None and lights.kind is not None:
@@ -809,12 +823,14 @@ class Scene:
             lights.spread = np.full(len(lights.kind), np.pi, np.float32)
         if lights.profile is None and lights.kind is not None:
             lights.profile = np.full(len(lights.kind), -1, np.int16)
-        if lights.links is None and lights.kind is not None:
-            lights.links = np.full(len(lights.kind), ALL_LINKS, np.uint64)
+        for name in ("links", "shadow_links"):
+            if getattr(lights, name) is None and lights.kind is not None:
+                setattr(lights, name, np.full(len(lights.kind), ALL_LINKS, np.uint64))
         for name in Lights.ARRAY_FIELDS:
             tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
             dtype = {"kind": np.int8, "position": np.float64, "visibility": np.uint8,
-                     "soft_falloff": bool, "profile": np.int16, "links": np.uint64}.get(name, np.float32)
+                     "soft_falloff": bool, "profile": np.int16, "links": np.uint64,
+                     "shadow_links": np.uint64}.get(name, np.float32)
             v = arr(f"lights.{name}", getattr(lights, name), dtype, tail, nl)
             setattr(lights, name, v)
         if nl:
@@ -1003,7 +1019,8 @@ class Scene:
         if self.tangents is not None:
             d["tangents"] = self.tangents
         for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces",
-                     "triangle_visibility", "receiver_sets", "emitter_links"):
+                     "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
+                     "emitter_shadow_links"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for i, tex in enumerate(self.textures):
@@ -1046,6 +1063,7 @@ class Scene:
                       object_ids=get("object_ids"), object_from_world=get("object_from_world"),
                       texture_spaces=get("texture_spaces"), triangle_visibility=get("triangle_visibility"),
                       receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
+                      blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),
                       textures=[get(f"textures.{i}") for i in range(ntex)])
         return scene.validate()
 

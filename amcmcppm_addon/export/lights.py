@@ -194,7 +194,7 @@ def light_record(position, direction, visibility, soft_falloff=True, **fields) -
     return {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
             "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
             "visibility": visibility, "soft_falloff": soft_falloff, "spread": math.pi, "profile": None,
-            "links": ALL_LINKS, **fields}
+            "links": ALL_LINKS, "shadow_links": ALL_LINKS, **fields}
 
 
 def build_lights(records) -> Lights:
@@ -207,7 +207,7 @@ def build_lights(records) -> Lights:
                     spot_blend=np.zeros(n, np.float32), sun_angle=np.zeros(n, np.float32),
                     visibility=np.zeros(n, np.uint8), soft_falloff=np.ones(n, bool),
                     spread=np.full(n, math.pi, np.float32), profile=np.full(n, -1, np.int16),
-                    links=np.full(n, ALL_LINKS, np.uint64))
+                    links=np.full(n, ALL_LINKS, np.uint64), shadow_links=np.full(n, ALL_LINKS, np.uint64))
     tables = []
     for i, rec in enumerate(records):
         for name in Lights.ARRAY_FIELDS:

@@ -1,15 +1,19 @@
-"""Light linking (Object > Shading > Light Linking > Receivers) -> the core's receiver sets.
+"""Light and shadow linking (Object > Shading > Light Linking) -> the core's receiver and
+blocker sets.
 
 Blender's rules (its depsgraph light-linking cache, which Cycles reads): an emitter, a light or
 an emissive mesh object, with a receiver collection lights an object unless the collection
 excludes it, and, when the collection includes any object, only the objects it includes.  An
 object's state in a collection is that of the collection's own entry for it, or else of the
 child collection (first level) that holds it, however deep; the collection's own entries win,
-and among children the last.  An emitter without a receiver collection lights everything.
+and among children the last.  An emitter without a receiver collection lights everything.  The
+blocker collection says in the same way which objects shadow the emitter.
 
-Objects lit alike by every emitter share a receiver set (``Scene.receiver_sets``); an emitter's
-links (``Lights.links``, ``Scene.emitter_links``) have bit s set when it lights set s.  Set 0
-holds the objects no collection names.  Cycles allows 64 sets; so does the core.
+Objects lit (or shadowing) alike for every emitter share a receiver (blocker) set
+(``Scene.receiver_sets``, ``Scene.blocker_sets``); an emitter's links (``Lights.links``,
+``Scene.emitter_links``; ``Lights.shadow_links``, ``Scene.emitter_shadow_links``) have bit s set
+when it lights (is shadowed by) set s.  Set 0 holds the objects no collection names.  Cycles
+allows 64 sets of each kind; so does the core.
 """
 from __future__ import annotations
 
@@ -48,11 +52,12 @@ def collection_states(collection) -> dict:
 
 
 class LightLinking:
-    """The receiver collections of a depsgraph's emitters and the receiver sets found so far."""
+    """The receiver (or blocker) collections of a depsgraph's emitters and the sets found so far."""
 
-    def __init__(self, emitters, collections, log):
+    def __init__(self, emitters, collections, log, kind="receiver"):
         """emitters : {object key: collection index}; collections : list of
-        :func:`collection_states` dicts."""
+        :func:`collection_states` dicts; kind : "receiver" or "blocker" (for messages)."""
+        self.kind = kind
         self.emitters = emitters
         self.collections = collections
         self.has_include = [INCLUDE in states.values() for states in collections]
@@ -62,12 +67,13 @@ class LightLinking:
         self._objects = {}
 
     @staticmethod
-    def from_depsgraph(depsgraph, log):
-        """The depsgraph's light linking, or None when no emitter has a receiver collection."""
+    def from_depsgraph(depsgraph, log, kind="receiver"):
+        """The depsgraph's light linking (``kind`` "receiver") or shadow linking ("blocker"), or
+        None when no emitter has such a collection."""
         emitters, index, collections = {}, {}, []
         for data in depsgraph.ids:
             links = getattr(data, "light_linking", None)
-            coll = getattr(links, "receiver_collection", None)
+            coll = getattr(links, f"{kind}_collection", None)
             if coll is None:
                 continue
             coll = _original(coll)
@@ -76,10 +82,11 @@ class LightLinking:
                 c = index[coll.as_pointer()] = len(collections)
                 collections.append(collection_states(coll))
             emitters[_key(data)] = c
-        return LightLinking(emitters, collections, log) if collections else None
+        return LightLinking(emitters, collections, log, kind) if collections else None
 
-    def receiver_set(self, ob) -> int:
-        """The receiver set of object ``ob`` (its lit-by vector over the collections)."""
+    def object_set(self, ob) -> int:
+        """The receiver (blocker) set of object ``ob``: its vector over the collections of
+        being lit by (shadowing) their emitters."""
         k = _key(ob)
         s = self._objects.get(k)
         if s is None:
@@ -88,8 +95,9 @@ class LightLinking:
             s = self.sets.get(lit)
             if s is None:
                 if len(self.sets) >= MAX_RECEIVER_SETS:
-                    self.log.warning(f"light linking: more than {MAX_RECEIVER_SETS} different receiver "
-                                     f"sets; '{ob.name}' and later ones are lit as unnamed objects")
+                    self.log.warning(f"{'light' if self.kind == 'receiver' else 'shadow'} linking: more "
+                                     f"than {MAX_RECEIVER_SETS} different {self.kind} sets; '{ob.name}' "
+                                     "and later ones are taken as objects no collection names")
                     s = 0
                 else:
                     s = self.sets[lit] = len(self.sets)
@@ -97,7 +105,8 @@ class LightLinking:
         return s
 
     def collection(self, ob) -> int:
-        """The receiver collection index of emitter ``ob``, or -1 (it lights everything)."""
+        """The collection index of emitter ``ob``, or -1 (it lights everything, or everything
+        shadows it)."""
         return self.emitters.get(_key(ob), -1)
 
     def masks(self) -> np.ndarray:

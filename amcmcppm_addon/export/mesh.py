@@ -70,10 +70,13 @@ class Geometry:
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
     # HOLDOUT_OBJECT for a holdout object's, or None: all rays, no holdout
     triangle_visibility: np.ndarray | None = None
-    # Light linking (export/linking.py), or None without: (T,) uint8 each triangle's receiver set
-    # and (T,) int16 its object's receiver collection as an emitter (-1: none)
+    # Light and shadow linking (export/linking.py), or None without: (T,) uint8 each triangle's
+    # receiver (blocker) set and (T,) int16 its object's receiver (blocker) collection as an
+    # emitter (-1: none)
     receiver_sets: np.ndarray | None = None
     emitter_collections: np.ndarray | None = None
+    blocker_sets: np.ndarray | None = None
+    shadow_collections: np.ndarray | None = None
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
@@ -88,17 +91,18 @@ class GeometryCollector:
 
     materials : ``MaterialExporter`` assigning core material ids.
     material_override : a Material used for every object (the view layer's override).
-    linking : the depsgraph's ``LightLinking``, or None.
+    linking : the depsgraph's light and shadow ``LightLinking`` (receivers, blockers), each or
+    both None.
     """
 
-    def __init__(self, materials, log, material_override=None, linking=None):
+    def __init__(self, materials, log, material_override=None, linking=(None, None)):
         self.materials = materials
         self.log = log
         self.material_override = material_override
         self.linking = linking
         self.meshes = {}      # mesh key -> LocalMesh, or None when it has no faces
-        # (mesh key, material ids, ray visibility, (receiver set, emitter collection) or None)
-        # -> list of (4, 4) world_from_object
+        # (mesh key, material ids, ray visibility, per kind of linking (set, emitter collection)
+        # or None) -> list of (4, 4) world_from_object
         self.groups = {}
 
     def add(self, inst):
@@ -133,7 +137,7 @@ class GeometryCollector:
             self.meshes[key] = local
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         flags = ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
-        link = None if self.linking is None else (self.linking.receiver_set(ob), self.linking.collection(ob))
+        link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))
 
@@ -392,10 +396,12 @@ def assemble(meshes, groups, materials) -> Geometry:
                                    else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])
     visibility = np.concatenate([p["visibility"] for p in parts])
     links = {}
-    if parts[0]["link"] is not None:
-        sizes = [len(p["triangles"]) for p in parts]
-        links = dict(receiver_sets=np.repeat(np.uint8([p["link"][0] for p in parts]), sizes),
-                     emitter_collections=np.repeat(np.int16([p["link"][1] for p in parts]), sizes))
+    sizes = [len(p["triangles"]) for p in parts]
+    for k, (sets, collections) in enumerate((("receiver_sets", "emitter_collections"),
+                                              ("blocker_sets", "shadow_collections"))):
+        if parts[0]["link"][k] is not None:
+            links[sets] = np.repeat(np.uint8([p["link"][k][0] for p in parts]), sizes)
+            links[collections] = np.repeat(np.int16([p["link"][k][1] for p in parts]), sizes)
     hidden = materials.hidden_rays()
     if hidden.any():
         visibility &= ~hidden.take(material_ids)          # Light Path mixes (materials.py)

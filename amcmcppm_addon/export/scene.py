@@ -64,35 +64,34 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     log = ExportLog()
     materials = MaterialExporter(log)
     view_layer = depsgraph.view_layer_eval
-    linking = LightLinking.from_depsgraph(depsgraph, log)
+    # Light and shadow linking (receiver and blocker collections), each None when unused.
+    linking = (LightLinking.from_depsgraph(depsgraph, log, "receiver"),
+               LightLinking.from_depsgraph(depsgraph, log, "blocker"))
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
                                   linking=linking)
-    light_records, light_collections = [], []
-    blockers = set()
+    light_records, light_objects = [], []
     for inst in depsgraph.object_instances:
-        links = getattr(inst.object, "light_linking", None)
-        if links is not None and links.blocker_collection:
-            blockers.add(inst.object.name)
         if inst.object.type == "LIGHT":
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
                                inst.object.name, log, ray_visibility(inst.object))
             if rec is not None:
                 light_records.append(rec)
-                light_collections.append(-1 if linking is None else linking.collection(inst.object))
+                light_objects.append(inst.object)
         else:
             collector.add(inst)
-    if blockers:
-        names = ", ".join(f"'{n}'" for n in sorted(blockers)[:5]) + (" ..." if len(blockers) > 5 else "")
-        log.warning(f"shadow linking is not supported; every object shadows the light of {names}")
     geometry = collector.finish()
     world, world_lights = export_world(depsgraph, materials.textures, log)
-    receiver_sets = emitter_links = None
-    if linking is not None:
-        for rec, link in zip(light_records, linking.links(light_collections)):
-            rec["links"] = link
-        if geometry.receiver_sets is not None:
-            receiver_sets = geometry.receiver_sets
-            emitter_links = linking.links(geometry.emitter_collections)
+    sets = {}         # the scene's per-triangle sets and emitter links
+    names = (("links", "receiver_sets", "emitter_links", "emitter_collections"),
+             ("shadow_links", "blocker_sets", "emitter_shadow_links", "shadow_collections"))
+    for kind, (light_key, set_key, links_key, collections_key) in zip(linking, names):
+        if kind is None:
+            continue
+        for rec, link in zip(light_records, kind.links([kind.collection(ob) for ob in light_objects])):
+            rec[light_key] = link
+        if getattr(geometry, set_key) is not None:
+            sets[set_key] = getattr(geometry, set_key)
+            sets[links_key] = kind.links(getattr(geometry, collections_key))
     lights = build_lights(light_records + world_lights)
     camera = export_camera(depsgraph, camera_object, resolution, border, log)
     if materials.count == 0:
@@ -102,8 +101,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                   camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,
                   tangents=geometry.tangents, vertex_colors=geometry.colors, object_ids=geometry.object_ids,
                   object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
-                  triangle_visibility=geometry.triangle_visibility, receiver_sets=receiver_sets,
-                  emitter_links=emitter_links, textures=materials.textures.images)
+                  triangle_visibility=geometry.triangle_visibility, textures=materials.textures.images, **sets)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,
                          meshes=geometry.meshes)

@@ -1388,12 +1388,12 @@ def _lit(core, light_links, name):
     return bool((int(light_links) >> int(sets[0])) & 1)
 
 
-def test_light_linking_receivers_follow_blenders_include_and_exclude_rules(scene):
+def test_light_and_shadow_linking_follow_blenders_include_and_exclude_rules(scene):
     """Object > Shading > Light Linking > Receivers: a collection that includes objects lights only
     those (a child collection's state holds for everything in it, the collection's own entry for
     an object wins over it); one that only excludes lights all but those; a light without one
     lights everything; an emissive mesh's collection sets its triangles' links.  Shadow linking
-    (blockers) is named in a warning."""
+    (Blockers) follows the same rules."""
     from amcmcppm.core.scene import ALL_LINKS
     objects = {n: bs.cube(n, material=bs.diffuse(n), location=(3 * i, 0, 0)) for i, n in enumerate("ABCD")}
     glow = bs.plane("Glow", material=bs.emission("Glow", strength=2.0), location=(0, 0, 4))
@@ -1434,9 +1434,25 @@ def test_light_linking_receivers_follow_blenders_include_and_exclude_rules(scene
     # The other meshes' links are those of emitters without a collection.
     assert (core.emitter_links[core.material_ids != core.materials.names.index("Glow")] == ALL_LINKS).all()
 
+    # Shadow linking: L2's blockers are all but A; the emissive plane's only B (and C, D excluded).
     l2.light_linking.blocker_collection = r2
-    warnings = bs.export().warnings
-    assert any("shadow linking is not supported" in w and "'L2'" in w for w in warnings), warnings
+    r3 = bpy.data.collections.new("R3")
+    for n, state in zip("BCD", ("INCLUDE", "EXCLUDE", "EXCLUDE")):
+        r3.objects.link(objects[n])
+        r3.collection_objects[-1].light_linking.link_state = state
+    glow.light_linking.blocker_collection = r3
+    core = bs.export().scene
+    shadow = dict(zip(["L1", "L2", "L3"], core.lights.shadow_links))
+
+    def blocks(links, name):
+        sets = core.blocker_sets[core.material_ids == core.materials.names.index(name)]
+        return bool((int(links) >> int(sets[0])) & 1)
+    assert [blocks(shadow["L2"], n) for n in names] == [False, True, True, True]
+    assert [blocks(shadow["L1"], n) for n in names] == [True] * 4
+    glow_shadow = core.emitter_shadow_links[core.material_ids == core.materials.names.index("Glow")]
+    assert [blocks(glow_shadow[0], n) for n in names] == [False, True, False, False]
+    # Light linking is unchanged by it.
+    assert [_lit(core, core.lights.links[0], n) for n in names] == [False, True, True, False]
 
 
 def test_unnormalized_point_light_matches_cycles_radiance(scene):

@@ -1,7 +1,8 @@
 """Light linking (``Scene.receiver_sets``, ``Scene.emitter_links``, ``Lights.links``): an emitter
 lights directly only the triangles of the receiver sets it links; its light goes on from those
 as from any surface; camera rays see every emitter, reflections only those that light the
-mirror's set (Cycles' rules)."""
+mirror's set (Cycles' rules).  Shadow linking (``Scene.blocker_sets``, ``Lights.shadow_links``):
+only the triangles of the blocker sets an emitter names shadow its direct light."""
 import numpy as np
 import pytest
 
@@ -81,6 +82,29 @@ def test_linked_light_reaches_the_unlinked_floor_only_through_the_linked_sheet(m
             assert image[..., :3].max() == 0.0
 
 
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+def test_a_sheet_that_does_not_shadow_the_sun_leaves_the_floor_lit(method):
+    """Shadow linking: a black sheet (half-size 3 m) 1 m over a floor of albedo 0.5, the camera
+    between them looking down.  The sun shadowed by the floor's blocker set alone: the floor
+    under the sheet gets its whole direct light, rho E / pi (photons stop on the sheet or pass
+    it, each half the time with twice the flux).  Shadowed by the sheet's set: black."""
+    rho, e = 0.5, 10.0
+    plain = sun_through_sheet({"diffuse": 0.0}, e, floor_albedo=rho, half=3.0)
+    sets = np.uint8([1, 1, 0, 0])                      # the sheet's two triangles, then the floor's
+    for shadow_links, expected in ((1, rho * e / np.pi), (2, 0.0)):
+        lights = Lights.build([{"kind": "sun", "direction": (0, 0, -1), "power": e,
+                                "shadow_links": shadow_links}])
+        scene = plain.replace(lights=lights, blocker_sets=sets).validate()
+        result = finite_render(scene, passes=6, photons_per_pass=150_000, **method)
+        assert "shadow linking" in result.effects
+        image = result.image[..., :3]
+        if expected:
+            # 4 seeds of PPM at 200,000 photons: 0.988-1.027 of it.
+            np.testing.assert_allclose(image.mean(axis=(0, 1)), expected, rtol=0.05)
+        else:
+            assert image.max() == 0.0
+
+
 def test_reflections_show_only_lights_that_light_the_mirror():
     """An area light over a mirror (set 1 here): linked to set 1 the mirror shows it exactly, to
     set 0 it shows nothing; a camera looking straight at a light sees it whatever its links (Cycles
@@ -115,7 +139,8 @@ def test_reflections_show_only_lights_that_light_the_mirror():
 
 def test_links_round_trip_through_a_scene_file_and_are_validated(tmp_path):
     scene = two_floors(np.uint64(2), ALL_LINKS)
-    scene = scene.replace(emitter_links=np.uint64([3, 3, ALL_LINKS, 5])).validate()
+    scene = scene.replace(emitter_links=np.uint64([3, 3, ALL_LINKS, 5]), blocker_sets=np.uint8([2, 2, 0, 0]),
+                          emitter_shadow_links=np.uint64([1, 1, 1, ALL_LINKS])).validate()
     path = tmp_path / "linked.npz"
     scene.save(path)
     loaded = type(scene).load(path)
@@ -123,11 +148,16 @@ def test_links_round_trip_through_a_scene_file_and_are_validated(tmp_path):
     np.testing.assert_array_equal(loaded.emitter_links, scene.emitter_links)
     np.testing.assert_array_equal(loaded.lights.links, [2, ALL_LINKS])
     assert loaded.lights.links.dtype == np.uint64
+    np.testing.assert_array_equal(loaded.blocker_sets, [2, 2, 0, 0])
+    np.testing.assert_array_equal(loaded.emitter_shadow_links, scene.emitter_shadow_links)
+    assert (loaded.lights.shadow_links == ALL_LINKS).all()
     # Files from before light linking: every emitter lights everything.
-    old = scene.replace(receiver_sets=None, emitter_links=None,
-                        lights=Lights(**{**scene.lights.__dict__, "links": None})).validate()
-    assert (old.lights.links == ALL_LINKS).all()
+    old = scene.replace(receiver_sets=None, emitter_links=None, blocker_sets=None, emitter_shadow_links=None,
+                        lights=Lights(**{**scene.lights.__dict__, "links": None, "shadow_links": None})).validate()
+    assert (old.lights.links == ALL_LINKS).all() and (old.lights.shadow_links == ALL_LINKS).all()
     with pytest.raises(SceneError, match="receiver_sets must lie in"):
         scene.replace(receiver_sets=np.uint8([0, 0, 64, 0])).validate()
     with pytest.raises(SceneError, match="receiver_sets has 3 rows"):
         scene.replace(receiver_sets=np.uint8([0, 0, 1])).validate()
+    with pytest.raises(SceneError, match="blocker_sets must lie in"):
+        scene.replace(blocker_sets=np.uint8([0, 0, 99, 0])).validate()
