@@ -182,6 +182,17 @@ def test_ray_visibility_panel_shows_the_rays_the_engine_follows(scene):
         assert not panel.poll(bpy.context)
 
 
+def test_light_linking_panels_show_for_engine(scene):
+    """Object > Shading > Light Linking and Shadow Linking (Blender's panels, whose parent lists
+    the engines that show them) show for lights and meshes: the exporter reads both."""
+    assert ENGINE in bpy.types.OBJECT_PT_shading.COMPAT_ENGINES
+    for name in ("OBJECT_PT_light_linking", "OBJECT_PT_shadow_linking"):
+        assert getattr(bpy.types, name).bl_parent_id == "OBJECT_PT_shading"
+    for ob in (bs.plane("Card"), bs.light("POINT")):
+        with bpy.context.temp_override(object=ob):
+            assert bpy.types.OBJECT_PT_shading.poll(bpy.context)
+
+
 def test_builtin_panels_show_for_engine(addon):
     """Format, output, colour management, camera, light, material and world panels include us."""
     wanted = {"RENDER_PT_format", "RENDER_PT_output", "RENDER_PT_color_management", "DATA_PT_camera",
