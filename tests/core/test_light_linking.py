@@ -35,7 +35,8 @@ def two_floors(links_a, links_b, resolution=(32, 16)):
                            {"kind": "sun", "power": 1.0, "links": links_b}])
     pose = np.eye(4)
     pose[2, 3] = 1.0
-    cam = Camera(world_from_camera=pose, projection="orthographic", frame=(-2, 2, -1, 1), resolution=resolution)
+    cam = Camera(world_from_camera=pose, projection="orthographic", frame=(-2, 2, -1, 1),
+                 resolution=resolution)
     scene = m.build(Materials.build([{"name": "floor", "diffuse": 0.5}]), lights, cam)
     return scene.replace(receiver_sets=np.repeat(np.uint8([0, 1]), 2)).validate()
 
@@ -152,8 +153,9 @@ def test_links_round_trip_through_a_scene_file_and_are_validated(tmp_path):
     np.testing.assert_array_equal(loaded.emitter_shadow_links, scene.emitter_shadow_links)
     assert (loaded.lights.shadow_links == ALL_LINKS).all()
     # Files from before light linking: every emitter lights everything.
+    unlinked = Lights(**{**scene.lights.__dict__, "links": None, "shadow_links": None})
     old = scene.replace(receiver_sets=None, emitter_links=None, blocker_sets=None, emitter_shadow_links=None,
-                        lights=Lights(**{**scene.lights.__dict__, "links": None, "shadow_links": None})).validate()
+                        lights=unlinked).validate()
     assert (old.lights.links == ALL_LINKS).all() and (old.lights.shadow_links == ALL_LINKS).all()
     with pytest.raises(SceneError, match="receiver_sets must lie in"):
         scene.replace(receiver_sets=np.uint8([0, 0, 64, 0])).validate()
