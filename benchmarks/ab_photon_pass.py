@@ -52,8 +52,11 @@ def photon_pass(package, scene_name, resolution, n_paths, pairs, edit=None):
     eye = mod("eye_pass").trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px,
                                          settings.max_bounces)
     pp = mod("photon_pass")
+    vol = getattr(eye, "volume", None)            # (revisions with scattering volumes)
+    extra = ({"volume": vol, "volume_radius": vol.base_radius, "media": ctx.anisotropy}
+             if vol is not None and vol.count else {})
     target = pp.DepositTarget(eye.points, eye.points.base_radius, ctx.table, resolution[0] * resolution[1],
-                              ctx.has_shading_normals)
+                              ctx.has_shading_normals, **extra)
     dims = pp.path_dims(settings.max_bounces)
 
     def run():

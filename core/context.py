@@ -11,7 +11,7 @@ from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TRANSLUCENT, MaterialTa
 from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
-from .sampling import dot, normalize
+from .sampling import dot, forced_flight, free_flight, normalize
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
@@ -81,10 +81,16 @@ class RenderContext:
         self.holdout = np.asarray(mats.holdout, np.float64)
         self.has_holdout = bool((self.holdout > 0).any()) or (
             self.triangle_visibility is not None and bool((self.triangle_visibility & HOLDOUT_OBJECT).any()))
-        # Volumes (Materials.volume_absorption): per-material coefficients, and which have one.
+        # Volumes (Materials.volume_absorption, volume_scattering): per-material coefficients, which
+        # have a volume, and which scatter.
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
-        self.absorbs = (self.absorption > 0).any(axis=1)
-        self.has_volumes = bool(self.absorbs.any())
+        self.scattering = np.asarray(mats.volume_scattering, np.float64)
+        self.extinction = self.absorption + self.scattering
+        self.anisotropy = np.asarray(mats.volume_anisotropy, np.float64)
+        self.scatters = (self.scattering > 0).any(axis=1)
+        self.volumetric = (self.absorption > 0).any(axis=1) | self.scatters
+        self.has_volumes = bool(self.volumetric.any())
+        self.has_scattering = bool(self.scatters.any())
         self._eye_medium = self._light_media = None     # found when first needed
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
                                    (self.table.emission_program >= 0) | (self.opacity_program >= 0))
@@ -158,12 +164,14 @@ class RenderContext:
                  ("objects hidden from camera rays", self.has_hidden),
                  ("holdout", self.has_holdout),
                  ("volumes", self.has_volumes),
+                 ("scattering volumes", self.has_scattering),
                  ("environment image", self.lights.environment is not None),
                  ("depth of field", cam.aperture_radius > 0 and cam.projection not in PANORAMAS),
                  ("panorama", cam.projection in PANORAMAS))
         return tuple(name for name, on in flags if on)
 
-    def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None):
+    def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None,
+              distances=None, throughput=None, origin_normals=None, forced=False):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -172,7 +180,21 @@ class RenderContext:
         tinted by the material's transparent colour, up to ``MAX_TRANSPARENT_CROSSINGS`` times.
         ``medium`` (n,) int32 is the material whose volume each ray starts in (-1: none; None:
         all -1), as :meth:`next_medium` tracks it; each segment that ends on a hit is absorbed
-        by its volume (``Materials.volume_absorption``; rays that leave the scene are not).
+        by its volume (``Materials.volume_absorption``; rays that leave the scene are not).  In a
+        volume that scatters (``Materials.volume_scattering``) the segment ends at a distance drawn
+        by ``distances(rows, segment)`` (numbers like ``uniforms``, for the rays' ``segment``-th
+        segment; :func:`~core.sampling.free_flight`, its channel by the rays' ``throughput`` (n, 3)
+        times the volume's albedo) where that falls before the hit: the ray
+        stops in the volume there (``hits.scatter_t``, ``is_hit`` False), the factor holding
+        T(t) / p(t) (without the scattering coefficient); those that reach the hit carry
+        T / P(reach).  Without ``distances`` volumes only absorb.  ``hits.planes`` (n, 2) give the
+        stopped rays' distances to the planes of the faces their segment entered and left the
+        volume by (the first segment's entry face is ``origin_normals`` (n, 3) at the origins,
+        if given; inf: none), for the gather spheres that reach out of the volume.  With
+        ``forced`` (camera paths) no ray stops: every segment in a scattering volume gets a point
+        at a distance drawn inside it (:func:`~core.sampling.forced_flight`) and the ray goes on
+        with T(L); ``hits.forced`` = (rays, t, weight (k, 3) of the point with the factor before
+        the segment, ends, planes (k, 2), volumes) of those points, or None.
         ``ray_kind`` (n,) uint8 (camera paths: VISIBLE_CAMERA, VISIBLE_GLOSSY or
         VISIBLE_TRANSMISSION) makes the rays go through triangles hidden from their kind
         (``Scene.triangle_visibility``); without it (photons) every triangle stops them.
@@ -182,7 +204,9 @@ class RenderContext:
         through it carry twice the flux in the factor: each surface on the way gets the direct
         light it would get without that triangle.
         Returns ``(hits, factor, opacity, medium)``: the hits (``t`` from the original origins;
-        glass resting on a surface resolved, ``Accel.with_contacts``), the (n, 3) tint of the
+        glass resting on a surface resolved, ``Accel.with_contacts``; ``hits.scatter_t`` (n,) the
+        distance of the rays that stopped in a volume, inf for the others, or None when no ray
+        can), the (n, 3) tint of the
         crossings and volumes, the (n,) opacity where each ray stopped (1 on opaque surfaces; the
         rays that stop there are that share of those that arrive: photons deposit flux /
         opacity) and the (n,) volume each ray arrives in at its hit; the factor and the opacity
@@ -193,14 +217,23 @@ class RenderContext:
         n = len(dirs)
         raw = accel.intersect(origins, dirs, tmax)
         factor = None
+        stops = None            # (scatter_t, ends, planes) of the rays that stop in volumes, or
+        if distances is not None and self.has_scattering:     # a list of the forced points
+            stops = [] if forced else (np.full(n, np.inf), np.full(n, np.inf), np.full((n, 2), np.inf))
+        else:
+            distances = None
         if self.has_volumes:
             medium = np.full(n, -1, np.int32) if medium is None else np.array(medium, np.int32)
             factor = np.ones((n, 3))
-            self._absorb(factor, medium, np.arange(n), raw, dirs)
+            self._absorb(factor, medium, np.arange(n), raw, dirs, distances, 0, stops, throughput, origin_normals)
         hits = accel.with_contacts(raw, origins, dirs)
+        if stops is not None and not forced:
+            hits = _stop_in_volumes(hits, *stops)
         hiding = self.has_hidden and ray_kind is not None
         shadow = shadow if shadow is not None and self.blocker_sets is not None else None
         if not (self.has_transparency or hiding or shadow is not None) or not hits.is_hit.any():
+            if forced and stops:
+                hits.forced = _forced_points(stops)
             return hits, factor, None, medium
         is_hit, prim, b1, b2 = hits.is_hit.copy(), hits.prim_ids.copy(), hits.b1.copy(), hits.b2.copy()
         t = hits.t.astype(np.float64)
@@ -258,18 +291,41 @@ class RenderContext:
             travelled = t.take(rows) + dot(start - p, d)
             left = None if limit is None else np.maximum(limit.take(rows) - travelled, 0.0)
             raw = accel.intersect(start, d, left)
+            seg = None
+            if stops is not None:
+                k = len(rows)
+                seg = [] if forced else (np.full(k, np.inf), np.full(k, np.inf), np.full((k, 2), np.inf))
             if self.has_volumes:
-                self._absorb(factor, medium, rows, raw, d)
+                self._absorb(factor, medium, rows, raw, d, distances, crossing + 1, seg, throughput,
+                             accel.geometric_normals.take(pr, axis=0))
             nxt = accel.with_contacts(raw, start, d)
+            if forced:
+                for rr, tt, ww, ee, pp, mm in seg or ():   # (rr are the rays' own numbers)
+                    off = travelled.take(np.searchsorted(rows, rr))
+                    stops.append((rr, tt + off, ww, ee + off, pp, mm))
+            elif seg is not None:
+                nxt = _stop_in_volumes(nxt, *seg)
+                stops[0][rows] = travelled + seg[0]
+                stops[1][rows] = travelled + seg[1]
+                stops[2][rows] = seg[2]
             is_hit[rows], prim[rows], b1[rows], b2[rows] = nxt.is_hit, nxt.prim_ids, nxt.b1, nxt.b2
             t[rows] = travelled + nxt.t
             rows = rows[nxt.is_hit]
-        return Hits(is_hit, prim, t.astype(np.float32), b1, b2), factor, stopped, medium
+        scatter = (None,) * 3 if stops is None or forced else stops
+        out = Hits(is_hit, prim, t.astype(np.float32), b1, b2, *scatter)
+        if forced and stops:
+            out.forced = _forced_points(stops)
+        return out, factor, stopped, medium
 
-    def _absorb(self, factor, medium, rows, raw, dirs):
+    def _absorb(self, factor, medium, rows, raw, dirs, distances=None, segment=0, stops_out=None,
+                throughput=None, entry_normals=None):
         """Absorb the segments of rays ``rows`` that end on the hits ``raw`` (before contacts;
         ``dirs`` their directions) in ``factor``, and set ``medium`` to the volume each one was
-        in: the tracked one, or that of a surface hit from the back (the ray was inside it)."""
+        in: the tracked one, or that of a surface hit from the back (the ray was inside it).
+        With ``distances`` (see :meth:`trace`), segments in a scattering volume draw where they
+        stop instead: ``stops_out`` = (scatter_t, ends, planes), each len(rows) long, get the
+        distances of those that stop, of the hits their segments went to, and to the planes of
+        the faces their segments started from (``entry_normals``, if given) and went to."""
         h = np.flatnonzero(raw.is_hit)
         if len(h) == 0:
             return
@@ -277,12 +333,58 @@ class RenderContext:
         mat = self.material_ids.take(prim)
         back = dot(dirs.take(h, axis=0), self.accel.geometric_normals.take(prim, axis=0)) > 0
         r = rows.take(h)
-        inside = np.where(back & self.absorbs.take(mat), mat, medium.take(r))
+        inside = np.where(back & self.volumetric.take(mat), mat, medium.take(r))
         medium[r] = inside
         a = np.flatnonzero(inside >= 0)
+        if len(a) == 0:
+            return
+        vol = inside.take(a)
+        length = raw.t.take(h.take(a)).astype(np.float64)
+        if distances is not None and isinstance(stops_out, list):
+            # Forced points: one inside every segment in a scattering volume; all rays go on.
+            s = np.flatnonzero(self.scatters.take(vol))
+            if len(s):
+                rs, ms = r.take(a.take(s)), vol.take(s)
+                thr = factor.take(rs, axis=0) * (1.0 if throughput is None else throughput.take(rs, axis=0))
+                seg_len = length.take(s)
+                t, weight, transmitted = forced_flight(self.extinction.take(ms, axis=0),
+                                                       self.scattering.take(ms, axis=0), distances(rs, segment),
+                                                       seg_len, thr)
+                at = h.take(a.take(s))
+                d_at = dirs.take(at, axis=0)
+                n_exit = self.accel.geometric_normals.take(raw.prim_ids.take(at), axis=0)
+                planes = np.full((len(s), 2), np.inf)
+                planes[:, 1] = (seg_len - t) * np.abs(dot(d_at, n_exit))
+                if entry_normals is not None:
+                    planes[:, 0] = t * np.abs(dot(d_at, entry_normals.take(at, axis=0)))
+                stops_out.append((rs, t, factor.take(rs, axis=0) * weight, seg_len, planes, ms))
+                factor[rs] *= transmitted
+                keep = np.ones(len(a), bool)
+                keep[s] = False
+                a, vol, length = a[keep], vol[keep], length[keep]
+        elif distances is not None:
+            s = np.flatnonzero(self.scatters.take(vol))
+            if len(s):
+                rs, ms = r.take(a.take(s)), vol.take(s)
+                thr = factor.take(rs, axis=0) * (1.0 if throughput is None else throughput.take(rs, axis=0))
+                t, stops, weight = free_flight(self.extinction.take(ms, axis=0), self.scattering.take(ms, axis=0),
+                                               distances(rs, segment), length.take(s), thr)
+                factor[rs] *= weight
+                scatter_t, ends, planes = stops_out
+                at = h.take(a.take(s[stops]))
+                scatter_t[at] = t[stops]
+                ends[at] = length.take(s)[stops]
+                d_at = dirs.take(at, axis=0)
+                n_exit = self.accel.geometric_normals.take(raw.prim_ids.take(at), axis=0)
+                planes[at, 1] = (ends[at] - t[stops]) * np.abs(dot(d_at, n_exit))
+                if entry_normals is not None:
+                    planes[at, 0] = t[stops] * np.abs(dot(d_at, entry_normals.take(at, axis=0)))
+                keep = np.ones(len(a), bool)
+                keep[s] = False
+                a, vol, length = a[keep], vol[keep], length[keep]
         if len(a):
-            sigma = self.absorption.take(inside.take(a), axis=0)
-            factor[r.take(a)] *= np.exp(-sigma * raw.t.take(h.take(a)).astype(np.float64)[:, None])
+            sigma = self.absorption.take(vol, axis=0)
+            factor[r.take(a)] *= np.exp(-sigma * length[:, None])
 
     def enclosing_medium(self, points):
         """(n,) int32 the volume each of ``points`` lies in (-1: none), as Cycles finds a
@@ -309,7 +411,7 @@ class RenderContext:
             mat = self.material_ids.take(prim)
             ng = self.accel.geometric_normals.take(prim, axis=0)
             back = dot(d, ng) > 0
-            volume = self.absorbs.take(mat)
+            volume = self.volumetric.take(mat)
             inside = entered.take(rows)
             into = volume & ~back & (inside < 0)
             entered[rows[into]] = mat[into]
@@ -364,7 +466,7 @@ class RenderContext:
         mat = self.material_ids.take(prim_ids)
         ng = self.accel.geometric_normals.take(prim_ids, axis=0)
         into, came = dot(wi, ng), dot(wo, ng)
-        enter = (into < 0) & (came > 0) & self.absorbs.take(mat)
+        enter = (into < 0) & (came > 0) & self.volumetric.take(mat)
         leave = (into > 0) & (came < 0) & (medium == mat)
         return np.where(enter, mat, np.where(leave, -1, medium)).astype(np.int32)
 
@@ -565,6 +667,23 @@ class RenderContext:
         n[~ok] = n0[~ok]
         _replace_bad(n, n0)
         ns[sel] = n
+
+
+def _forced_points(parts):
+    """The forced volume points of a trace as (rays, t, weight, ends, planes, volumes), each
+    concatenated over the segments."""
+    return tuple(np.concatenate([p[k] for p in parts]) for k in range(6))
+
+
+def _stop_in_volumes(hits, scatter_t, ends, planes):
+    """``hits`` with the rays that stopped in a volume (finite ``scatter_t``) no longer hitting:
+    their ``t`` the distance where they stopped, ``scatter_t``, ``ends`` and ``planes`` attached."""
+    stop = np.isfinite(scatter_t)
+    if not stop.any():
+        return Hits(hits.is_hit, hits.prim_ids, hits.t, hits.b1, hits.b2, scatter_t, ends, planes)
+    return Hits(hits.is_hit & ~stop, np.where(stop, -1, hits.prim_ids).astype(np.int32),
+                np.where(stop, scatter_t, hits.t).astype(np.float32), hits.b1, hits.b2, scatter_t, ends,
+                planes)
 
 
 def _background(world):

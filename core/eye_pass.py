@@ -61,11 +61,41 @@ class MeasurementPoints:
 
 
 @dataclass
+class VolumePoints:
+    """Points of one pass's camera paths in scattering volumes, one in every segment that crosses
+    one (so a pixel may have several, besides its :class:`MeasurementPoints` point): they gather
+    the photons that scattered within a sphere around them."""
+
+    pixel_ids: np.ndarray   # (k,) int64 pixel in the window
+    position: np.ndarray    # (k, 3) float64, world
+    wo: np.ndarray          # (k, 3) float32 unit direction back along the camera path
+    weight: np.ndarray      # (k, 3) float32 camera-path throughput to it, times T(t) / p(t) in its segment
+    mat_ids: np.ndarray     # (k,) int32 the material whose volume it lies in
+    base_radius: np.ndarray  # (k,) float64 r_1, as MeasurementPoints.base_radius
+    planes: np.ndarray      # (k, 2) float64 distances to the planes of the faces its camera ray
+    #                         entered and would have left the volume by (inf: none)
+
+    @property
+    def count(self) -> int:
+        return int(len(self.pixel_ids))
+
+    @staticmethod
+    def concatenate(parts) -> "VolumePoints":
+        if not parts:
+            z3 = np.zeros((0, 3), np.float32)
+            return VolumePoints(np.zeros(0, np.int64), np.zeros((0, 3)), z3, z3, np.zeros(0, np.int32),
+                                np.zeros(0), np.zeros((0, 2)))
+        return VolumePoints(*(np.concatenate([getattr(p, f) for p in parts])
+                              for f in VolumePoints.__dataclass_fields__))
+
+
+@dataclass
 class EyePassResult:
     points: MeasurementPoints
     emission: np.ndarray     # (n_pixels, 3) float64 emission seen directly or through delta chains
     alpha: np.ndarray        # (n_pixels,) float64 coverage (1 unless the film is transparent)
     rays: int                # rays traced
+    volume: VolumePoints = None  # camera paths that stopped in scattering volumes
 
 
 # Camera paths traced at once (bounds the memory of big images).
@@ -78,20 +108,21 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces) -> EyePassResult:
     n_pix = (x1 - x0) * (y1 - y0)
     emission = np.zeros((n_pix, 3))
     alpha = np.ones(n_pix)
-    parts = []
+    parts, volume = [], []
     rays = 0
     for start in range(0, n_pix, EYE_CHUNK):
         pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
-                                        max_bounces)
+                                        max_bounces, volume)
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
-    return EyePassResult(points, emission, alpha, rays)
+    return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume))
 
 
-def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_bounces):
-    """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points."""
+def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_bounces, volume):
+    """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
+    (and appends the :class:`VolumePoints` of paths that stopped in volumes to ``volume``)."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     origins, dirs, tmax, footprint = generate_camera_rays(cam, pix, rng.random((len(pix), 4)))
@@ -115,14 +146,31 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     # With light linking, the receiver set of the triangle each path last scattered at (None while
     # the paths are camera rays, which see every emitter).
     sets = None
+    origin_normals = None       # geometric normals where the paths left their last surface
     parts = []
     rays = 0
     for depth in range(max_bounces + 1):
         if len(pix) == 0:
             break
         # A camera path stops on a transparent surface as often as it is opaque, with its weight.
-        hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None,
-                                             lambda rows, crossing: rng.random(len(rows)), medium, ray_kind)
+        numbers = lambda rows, crossing: rng.random(len(rows))          # noqa: E731
+        hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None, numbers, medium,
+                                             ray_kind, distances=numbers, throughput=beta,
+                                             origin_normals=origin_normals, forced=True)
+        if hits.forced is not None:
+            # A point in every segment through a scattering volume (the path goes on through it).
+            rows, t_v, w_v, ends, planes, media = hits.forced
+            # The gather sphere is as wide as a surface point's where the segment ends (the
+            # volume's far side): a point near the camera, with a footprint-sized sphere, would
+            # almost never find a photon, and then one at a huge weight.
+            reach = path_len.take(rows) + ends
+            r1 = initial_radius_px * footprint.take(rows) * (reach if grows else 1.0)
+            volume.append(VolumePoints(
+                pixel_ids=pix.take(rows),
+                position=origins.take(rows, axis=0) + t_v[:, None] * dirs.take(rows, axis=0),
+                wo=(-dirs.take(rows, axis=0)).astype(np.float32),
+                weight=(beta.take(rows, axis=0) * w_v).astype(np.float32), mat_ids=media.astype(np.int32),
+                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes))
         if through is not None:
             beta = beta * through                            # transparent surfaces and volumes crossed
         rays += len(pix)
@@ -251,6 +299,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
+        origin_normals = surf.ng[g]
     return parts, rays
 
 

@@ -194,11 +194,17 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         nonlocal scales, cells
         if len(scales) < i + 1:
             scales = kz_radius_scales(2 * (i + 1), settings.alpha)
-        pts = eye.points
+        pts, vol = eye.points, eye.volume
         radius = pts.base_radius * scales[i]
+        # Points in volumes gather in spheres: radii that shrink as the cube root of the same
+        # sequence (r^3 by (i + alpha) / (i + 1), Knaus and Zwicker's rule in three dimensions).
+        vol_radius = vol.base_radius * scales[i] ** (2.0 / 3.0) if vol is not None and vol.count else None
         if cells is not None and (i < CELL_PASSES or i % CELL_EVERY == 0):
             cells = cells.extended(pts.position, pts.ng, pts.base_radius)
-        return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells)
+            if vol_radius is not None:
+                cells = cells.extended(vol.position, None, vol.base_radius, volume=True)
+        return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
+                             volume=vol, volume_radius=vol_radius, media=ctx.anisotropy)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.
@@ -314,6 +320,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "rays": c["rays"] + eye.rays,
         "photon_vertices": c["vertices"],
         "measurement_points": eye.points.count,
+        "volume_points": 0 if eye.volume is None else eye.volume.count,
         "grid_entries": target.grid.entry_count,
         "photon_s": merged["photon_s"],
         "bookkeeping_share": 1.0 - c["trace_s"] / merged["photon_cpu_s"] if merged["photon_cpu_s"] > 0 else 0.0,

@@ -33,24 +33,31 @@ from .bsdf import (DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, ev
                    lobe_remainder, lobe_scores, pick_coat, rough_diffuse_factor, rough_diffuse_terms,
                    scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
-from .eye_pass import MeasurementPoints, coat_attenuation, coat_normals
+from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
-from .sampling import dot, luminance
+from .sampling import dot, hg_phase, luminance, sample_hg
 from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
 
 BOUNCE_DIMS = 4
 
 
-def _crossing_uniforms(u, idx, bounce):
+# Keys of the hashed numbers for the distances in scattering volumes (after the crossings').
+DISTANCE_KEYS = 1 << 24
+
+
+def _crossing_uniforms(u, idx, bounce, base=0):
     """``RenderContext.trace``'s numbers for the photons of paths ``idx`` at vertex ``bounce``: a
     hash of their light position dimensions, the vertex and the crossing, so that a path stays a
     function of its primary sample (the chains' mutations need that), yet no dimension is used
-    twice."""
+    twice.  With ``base`` = DISTANCE_KEYS, the numbers for the distances in scattering volumes
+    (per segment: a crossing starts a new one).  A mutation of the light's position dimensions
+    draws them anew; the other dimensions leave them as they are."""
     def uniforms(rows, crossing):
         paths = idx.take(rows)
-        key = np.full(len(rows), bounce * MAX_TRANSPARENT_CROSSINGS + crossing, np.uint32)
+        stride = MAX_TRANSPARENT_CROSSINGS + (1 if base else 0)       # segments: one more than crossings
+        key = np.full(len(rows), base + bounce * stride + crossing, np.uint32)
         r = hash_uint3_to_float(float_as_uint(u[paths, 1]), float_as_uint(u[paths, 2]), key)
         return np.minimum(r, 1.0 - 2.0 ** -33)
     return uniforms
@@ -67,13 +74,26 @@ def bounce_offset(bounce: int) -> int:
 
 
 class DepositTarget:
-    """The measurement points of one pass, gridded, with their per-point kernel weights."""
+    """The measurement points of one pass, gridded, with their per-point kernel weights.
 
-    def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None):
+    Volume points (:class:`~core.eye_pass.VolumePoints`) follow the m surface points in the
+    numbering of the sums: point m + k is volume point k."""
+
+    def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
+                 volume=None, volume_radius=None, volume_grid=None, media=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
-        then alone make a path visible (Markov chains; see ``core/visible_cells.py``)."""
+        then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
+        volume : VolumePoints with at least one point, or None; volume_radius : (k,) their
+        radii; media : (M,) float64 the materials' phase anisotropy g (for the volume points)."""
         self.points = points
+        self.volume = volume if volume is not None and volume.count else None
+        self.volume_radius = volume_radius
+        self.media = media
+        if self.volume is not None and volume_grid is None:
+            volume_grid = HashGrid(self.volume.position, volume_radius, _volume_normals(self.volume.count))
+        self.volume_grid = volume_grid if self.volume is not None else None
+        self.n_points = points.count + (0 if self.volume is None else self.volume.count)
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -115,6 +135,10 @@ class DepositTarget:
                  has_shading_normals=np.bool_(self.has_shading_normals))
         if self.cells is not None:
             d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
+        if self.volume is not None:
+            d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__})
+            d.update({f"vgrid.{k}": v for k, v in self.volume_grid.to_arrays().items()})
+            d.update(volume_radius=self.volume_radius, media=self.media)
         return d
 
     @staticmethod
@@ -123,8 +147,25 @@ class DepositTarget:
                                       if f"points.{f}" in d})
         grid = HashGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
         cells = {k[6:]: v for k, v in d.items() if k.startswith("cells.")}
+        volume = vgrid = None
+        if "volume.pixel_ids" in d:
+            volume = VolumePoints(**{f: d[f"volume.{f}"] for f in VolumePoints.__dataclass_fields__})
+            vgrid = HashGrid.from_arrays({k[6:]: v for k, v in d.items() if k.startswith("vgrid.")})
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
-                             grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None)
+                             grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None,
+                             volume=volume, volume_radius=d.get("volume_radius"), volume_grid=vgrid,
+                             media=d.get("media"))
+
+    def volume_pairs(self, x, d):
+        """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the
+        volume points: (photon rows, point numbers (m + k), phase function values)."""
+        pi, pj, _ = self.volume_grid.query(x, _volume_normals(len(x)), None)
+        if len(pi) == 0:
+            return pi, pj, np.zeros(0)
+        vol = self.volume
+        cos = dot(d.take(pi, axis=0), vol.wo.take(pj, axis=0))
+        phase = hg_phase(cos, self.media.take(vol.mat_ids.take(pj)))
+        return pi, pj + self.points.count, phase
 
     @cached_property
     def back_grid(self):
@@ -273,7 +314,7 @@ class DepositTarget:
             # (translucent and rough points: the colours are in the pairs)
             val = pts.weight * np.where(self.coloured[:, None], 1.0, pts.colors[:, 0] * w[:, :1]) \
                 * (kernel / np.pi)[:, None]
-        val *= sum_diffuse
+        val *= sum_diffuse[:pts.count]
         if self.table.has_layer:
             layer = self.table.layer_factor(pts.mat_ids, dot(pts.wo, pts.glossy_normals).astype(np.float64))
             if self.coloured is not None:
@@ -284,15 +325,41 @@ class DepositTarget:
             if self.rising is not None:
                 color = np.where(self.rising[:, None], 1.0, color)     # in the pairs (pair_weights)
             k_glossy = pts.weight * color * (w[:, 1] * kernel)[:, None]
-            k_glossy *= sum_glossy
+            k_glossy *= sum_glossy[:pts.count]
             if self.table.ms_fresnel.any():
                 # Multiscatter GGX: a factor of the point's view direction (BSDF docs, bsdf.py).
                 k_glossy *= self.table.multiscatter(pts.mat_ids,
                                                     dot(pts.wo, pts.glossy_normals).astype(np.float64))
             val += k_glossy
         out = np.zeros((self.n_pixels, 3))
+        m = self.points.count
         out[self.pixel_ids] = val          # one measurement point per pixel and pass
+        if self.volume is not None:
+            # Volume points: w_j sum(flux phase) / (4/3 pi r_j^3) (the flux holds the scattering
+            # coefficient, the weight the camera path's transmittance over its density).
+            r = self.volume_radius
+            kernel = 3.0 / (4.0 * np.pi * r * r * r) / _inside_share(self.volume.planes, r)
+            np.add.at(out, self.volume.pixel_ids, self.volume.weight * sum_diffuse[m:] * kernel[:, None])
         return out
+
+
+def _inside_share(planes, r):
+    """(k,) the share of spheres of radii ``r`` on the volume's side of the faces at distances
+    ``planes`` (k, 2) (the entry and exit faces of their camera rays, taken as planes): photons
+    only lie inside the volume, and a sphere that reaches out of it would otherwise find too few
+    (at a face, half).  Kept at least 1/4."""
+    share = np.ones(len(r))
+    for k in range(planes.shape[1]):
+        h = np.clip(r - planes[:, k], 0.0, 2.0 * r)            # height of the cap beyond the plane
+        share -= h * h * (3.0 * r - h) / (4.0 * r ** 3)
+    return np.maximum(share, 0.25)
+
+
+def _volume_normals(n):
+    """The normals the volume points' grid is built and queried with (the normal test passes)."""
+    out = np.zeros((n, 3), np.float32)
+    out[:, 2] = 1.0
+    return out
 
 
 def _some(mask):
@@ -356,14 +423,15 @@ class PhotonBatch:
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
-VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium")
+VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium",
+                 "volume")
 
 
 def _vertex_arrays(n, lobes):
     return {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
             "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
-            "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32)}
+            "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32), "volume": np.zeros(n, bool)}
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
@@ -402,7 +470,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     first = _vertex_arrays(n, table.lobes) if collect_pairs else None
     own_sums = not collect_pairs and sums is None
     if own_sums:
-        sums = PointSums(m, glossy)
+        sums = PointSums(target.n_points, glossy)
     rays = vertices = 0
     soft = ctx.lights.has_soft_falloff
     volumes = ctx.has_volumes
@@ -418,10 +486,24 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             if bounce == 0 and ctx.blocker_sets is not None:
                 # Shadow linking: what shadows each photon's emitter on its way from it.
                 shadow = ctx.lights.shadow_links.take(ctx.lights.entries(u[idx, 0]))
-            hits, through, opacity, medium = ctx.trace(origins, dirs, None, crossing, medium, shadow=shadow)
+            distances = _crossing_uniforms(u, idx, bounce, DISTANCE_KEYS) if ctx.has_scattering else None
+            hits, through, opacity, medium = ctx.trace(origins, dirs, None, crossing, medium, shadow=shadow,
+                                                       distances=distances, throughput=flux)
             if through is not None:
                 flux = flux * through                        # transparent surfaces and volumes crossed
             rays += len(idx)
+            vert = None
+            if hits.scatter_t is not None:
+                # Photons that stopped in a scattering volume: a vertex there.
+                v = np.flatnonzero(np.isfinite(hits.scatter_t))
+                if len(v):
+                    x_v = origins.take(v, axis=0) + hits.scatter_t.take(v)[:, None] * dirs.take(v, axis=0)
+                    f_v = flux.take(v, axis=0)
+                    if bounce == 0 and soft:
+                        f_v = f_v * ctx.lights.soft_falloff(u[idx.take(v), :1], x_v)[:, None]
+                    vert = {"idx": idx.take(v), "position": x_v, "d": dirs.take(v, axis=0), "flux": f_v,
+                            "medium": medium.take(v)}
+                    vertices += len(v)
             h = np.flatnonzero(hits.is_hit)
             if bounce == 0 and ctx.receiver_sets is not None and len(h):
                 # Light linking: a photon ends where it first lands on a triangle its emitter
@@ -442,6 +524,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
             prim, medium = np.zeros(0, np.int32), np.zeros(0, np.int32)
             deposited = flux
+            vert = None
         wo = -dirs
         # Deposit at non-delta vertices; a pair found makes the path visible, or, if the target
         # has visible cells, a vertex in one of them (and nothing else).
@@ -515,9 +598,19 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
+        if vert is not None:
+            _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums,
+                                collect_pairs, glossy, refresh_rng, max_bounces)
         if resume is not None and bounce <= last_join:
             # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
             join = np.flatnonzero(resume["bounce"] == bounce)
+            in_volume = resume["volume"].take(join)
+            if in_volume.any():
+                jv = join[in_volume]
+                joined = {"idx": fresh + jv, "position": resume["position"][jv], "d": -resume["wo"][jv],
+                          "flux": resume["flux"][jv], "medium": resume["medium"][jv]}
+                vert = joined if vert is None else {k: np.concatenate([vert[k], joined[k]]) for k in vert}
+                join = join[~in_volume]
             if len(join):
                 idx = np.concatenate([idx, fresh + join])
                 flux = np.concatenate([flux, resume["flux"][join]])
@@ -525,37 +618,56 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 prim = np.concatenate([prim, resume["prim"][join]])
                 medium = np.concatenate([medium, resume["medium"][join]])
                 surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals, ctx.has_normal_maps)
-        if bounce == max_bounces or len(idx) == 0:
+        if bounce == max_bounces or (len(idx) == 0 and vert is None):
             continue
-        # Scatter with this vertex's block of dimensions.
-        block = u[idx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
-        mats, colors, ns, u0 = surf.mat_ids, surf.colors, surf.ns, block[:, 0]
-        scores = lobe_scores(table, mats, colors)
-        if table.has_coat:
-            # The coat or what lies under it, by the lobe-choice number (rescaled for the lobes).
-            mats, colors, scores, layer_scale, under, u0 = pick_coat(table, mats, colors, scores, u0)
-            ns = coat_normals(surf, mats)
-        lobe, prob = choose_lobe(scores, u0)
-        u3 = lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric else None
-        wi, weight, alive = scatter(table, mats, colors, lobe, prob, wo, surf.ng, ns,
-                                    block[:, 1], block[:, 2], "importance", u3, surf.nn)
-        if table.has_coat:
-            # Under a coat: its factor at the view (camera-side) direction, for photons the new one.
-            weight *= layer_scale[:, None]
-            if len(under):
-                weight[under] *= coat_attenuation(table, surf, wi, under)
-        new_flux = flux * weight
-        # Russian roulette on the luminance ratio (the path stays a function of u).
-        ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)
-        q = np.minimum(1.0, ratio)
-        alive &= (block[:, 3] < q) & (q > 0)
-        keep = np.flatnonzero(alive)
-        idx = idx.take(keep)
-        flux = new_flux.take(keep, axis=0) / q.take(keep)[:, None]
-        dirs = wi.take(keep, axis=0)
-        if volumes:
-            medium = ctx.next_medium(medium.take(keep), prim.take(keep), dirs, wo.take(keep, axis=0))
-        origins = accel.spawn(surf.position.take(keep, axis=0), surf.ng.take(keep, axis=0), dirs)
+        if len(idx):
+            # Scatter with this vertex's block of dimensions.
+            block = u[idx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
+            mats, colors, ns, u0 = surf.mat_ids, surf.colors, surf.ns, block[:, 0]
+            scores = lobe_scores(table, mats, colors)
+            if table.has_coat:
+                # The coat or what lies under it, by the lobe-choice number (rescaled for the lobes).
+                mats, colors, scores, layer_scale, under, u0 = pick_coat(table, mats, colors, scores, u0)
+                ns = coat_normals(surf, mats)
+            lobe, prob = choose_lobe(scores, u0)
+            u3 = lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric else None
+            wi, weight, alive = scatter(table, mats, colors, lobe, prob, wo, surf.ng, ns,
+                                        block[:, 1], block[:, 2], "importance", u3, surf.nn)
+            if table.has_coat:
+                # Under a coat: its factor at the view (camera-side) direction, for photons the new one.
+                weight *= layer_scale[:, None]
+                if len(under):
+                    weight[under] *= coat_attenuation(table, surf, wi, under)
+            new_flux = flux * weight
+            # Russian roulette on the luminance ratio (the path stays a function of u).
+            ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)
+            q = np.minimum(1.0, ratio)
+            alive &= (block[:, 3] < q) & (q > 0)
+            keep = np.flatnonzero(alive)
+            idx = idx.take(keep)
+            flux = new_flux.take(keep, axis=0) / q.take(keep)[:, None]
+            dirs = wi.take(keep, axis=0)
+            if volumes:
+                medium = ctx.next_medium(medium.take(keep), prim.take(keep), dirs, wo.take(keep, axis=0))
+            origins = accel.spawn(surf.position.take(keep, axis=0), surf.ng.take(keep, axis=0), dirs)
+        else:
+            flux, dirs, origins = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+            medium = np.zeros(0, np.int32)
+        if vert is not None:
+            # Photons in volumes scatter by the phase function (its density: weight 1), with
+            # Russian roulette on the scattering coefficient's share of the flux.
+            vidx = vert["idx"]
+            block = u[vidx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
+            vmed = vert["medium"]
+            d_v = sample_hg(vert["d"], ctx.anisotropy.take(vmed), block[:, 1], block[:, 2])
+            f_v = vert["flux"] * ctx.scattering.take(vmed, axis=0)
+            q = np.minimum(1.0, luminance(f_v) / np.maximum(luminance(vert["flux"]), 1e-300))
+            keep = np.flatnonzero((block[:, 3] < q) & (q > 0))
+            idx = np.concatenate([idx, vidx.take(keep)])
+            flux = np.concatenate([flux, f_v.take(keep, axis=0) / q.take(keep)[:, None]])
+            dirs = np.concatenate([dirs, d_v.take(keep, axis=0)])
+            medium = np.concatenate([medium, vmed.take(keep)])
+            origins = np.concatenate([origins, vert["position"].take(keep, axis=0)])
     if collect_pairs and pairs["path"]:
         pp, pj = np.concatenate(pairs["path"]), np.concatenate(pairs["point"])
         pd, pb = np.concatenate(pairs["diffuse"]), np.concatenate(pairs["bounce"])
@@ -570,6 +682,49 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         sums.flush()
         sum_d, sum_g = sums.diffuse, sums.glossy
     return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
+
+
+def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, collect_pairs,
+                        glossy, refresh_rng, max_bounces):
+    """Deposits of the photons that stopped in scattering volumes at vertex ``bounce`` (``vert``:
+    their paths, positions, travel directions, arrival flux and volumes) on the target's volume
+    points: flux times the scattering coefficient times the phase function towards each point's
+    camera path.  As on surfaces, a pair found (or, with visible cells, a vertex in one of the
+    volume cells) makes the path visible, and the paths that become so are recorded in
+    ``first`` (``volume`` set) and have their later dimensions redrawn with ``refresh_rng``."""
+    idx, x, d, vmed = vert["idx"], vert["position"], vert["d"], vert["medium"]
+    seen = np.zeros(len(idx), bool)
+    if target.volume is not None:
+        pi, pj, phase = target.volume_pairs(x, d)
+        if len(pi):
+            f = (vert["flux"] * ctx.scattering.take(vmed, axis=0)).take(pi, axis=0) * phase[:, None]
+            if collect_pairs:
+                pairs["path"].append(idx.take(pi))
+                pairs["point"].append(pj)
+                pairs["diffuse"].append(f)
+                pairs["glossy"].append(np.zeros_like(f) if glossy else None)
+                pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
+            else:
+                sums.add(pj, [f[:, c] for c in range(3)], [np.zeros(len(pj))] * 3 if glossy else None)
+            if target.cells is None:
+                seen[pi] = True
+    if target.cells is not None:
+        open_ = np.flatnonzero(~visible[idx])
+        if len(open_):
+            seen[open_[target.cells.contains_volume(x.take(open_, axis=0))]] = True
+    rows = np.flatnonzero(seen & ~visible[idx])
+    if len(rows) == 0:
+        return
+    new = idx[rows]
+    visible[new] = True
+    first_dim[new] = bounce_offset(bounce)
+    if first is not None:
+        for key, val in (("bounce", bounce), ("position", x[rows]), ("mat_ids", vmed[rows]), ("wo", -d[rows]),
+                         ("flux", vert["flux"][rows]), ("prim", -1), ("medium", vmed[rows]), ("volume", True)):
+            first[key][new] = val
+    if refresh_rng is not None and bounce < max_bounces:
+        start = bounce_offset(bounce)
+        u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
 
 
 def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps):

@@ -283,3 +283,96 @@ def _ggx_reflection_nodes(alpha, mu, strata):
     wi = reflect(wo, m)
     w = np.where(wi[:, 2] > 0, ggx_g2(cos_o, np.maximum(wi[:, 2], 1e-12), alpha) / ggx_g1(cos_o, alpha), 0.0)
     return (w * jac).reshape(len(mu), -1), dot(wo, m).reshape(len(mu), -1)
+
+
+def hg_phase(cos_theta, g):
+    """Henyey-Greenstein phase function (per steradian) at the cosine between the direction
+    light travels in and the one it leaves in; ``g`` > 0 scatters forwards, 0 evenly (1/(4 pi))."""
+    g = np.asarray(g, np.float64)
+    denom = 1.0 + g * g - 2.0 * g * cos_theta
+    return (1.0 - g * g) / (4.0 * np.pi * denom * np.sqrt(np.maximum(denom, 1e-300)))
+
+
+def sample_hg(d, g, u1, u2):
+    """Directions (n, 3) scattered from travel directions ``d`` (n, 3) with the Henyey-Greenstein
+    phase function of ``g`` (n,): its density exactly, so the weight is 1."""
+    g = np.asarray(g, np.float64)
+    small = np.abs(g) < 1e-3
+    gs = np.where(small, 0.5, g)
+    s = (1.0 - gs * gs) / (1.0 + gs - 2.0 * gs * u1)
+    cos = np.where(small, 1.0 - 2.0 * u1, (1.0 + gs * gs - s * s) / (2.0 * gs))
+    cos = np.clip(cos, -1.0, 1.0)
+    r = np.sqrt(np.maximum(0.0, 1.0 - cos * cos))
+    phi = 2.0 * np.pi * u2
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), cos], axis=1)
+    return normalize(to_world(local, d))
+
+
+def free_flight(sigma_t, sigma_s, u, length, throughput=None):
+    """Distances sampled in homogeneous media of extinction ``sigma_t`` and scattering ``sigma_s``
+    (n, 3) along segments of ``length`` (n,) (inf: unbounded): a channel chosen by ``u`` (n,) with
+    probabilities proportional to the path's ``throughput`` (n, 3) times the albedo (evenly
+    without), then the distance from that channel's exponential; the density is the mixture
+    over the channels (Cycles' ``volume_sample_channel``), which keeps the weights bounded along
+    a path.
+
+    Returns ``(t, scattered, weight)``: the distance (n,), whether it falls inside the segment
+    (n,) bool, and (n, 3) the transmittance over the density: T(t) / p(t) for the scattered
+    (without the scattering coefficient) and T(L) / P(t > L) for the rest.
+    """
+    n = len(u)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        albedo = np.where(sigma_t > 0, sigma_s / np.where(sigma_t > 0, sigma_t, 1.0), 0.0)
+    w = albedo if throughput is None else np.abs(throughput) * albedo
+    total = w.sum(axis=1)
+    prob = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
+    cum = np.cumsum(prob, axis=1)
+    c = np.minimum((u[:, None] >= cum[:, :2]).sum(axis=1), 2)
+    lo = np.where(c > 0, np.take_along_axis(cum, np.maximum(c - 1, 0)[:, None], axis=1)[:, 0], 0.0)
+    pc = np.take_along_axis(prob, c[:, None], axis=1)[:, 0]
+    v = np.clip((u - lo) / np.where(pc > 0, pc, 1.0), 0.0, 1.0 - 2.0 ** -53)
+    sc = np.take_along_axis(sigma_t, c[:, None], axis=1)[:, 0]
+    with np.errstate(divide="ignore"):
+        t = np.where(sc > 0, -np.log1p(-v) / np.where(sc > 0, sc, 1.0), np.inf)
+    scattered = t < length
+    at = np.where(scattered, t, length)
+    finite = np.isfinite(at)
+    tr = np.exp(-sigma_t * np.where(finite, at, 0.0)[:, None])          # (n, 3) T per channel
+    tr[~finite] = 0.0
+    pdf = (prob * np.where(scattered[:, None], sigma_t * tr, tr)).sum(axis=1)
+    weight = np.where(pdf[:, None] > 0, tr / np.where(pdf > 0, pdf, 1.0)[:, None], 0.0)
+    return t, scattered, weight
+
+
+def forced_flight(sigma_t, sigma_s, u, length, throughput=None):
+    """A distance inside each segment of ``length`` (n,) of homogeneous media (as
+    :func:`free_flight`: the channel by ``throughput`` times the albedo, ``u`` (n,)), drawn from
+    that channel's exponential cut at the segment's end, so that every segment gets a point.
+
+    Returns ``(t, weight, transmittance)``: the distance (n,), T(t) / p(t) (n, 3) with p the
+    mixture of the cut densities (estimates int_0^L T(t) f(t) dt as weight f(t)), and T(L)
+    (n, 3), what goes on to the segment's end.
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        albedo = np.where(sigma_t > 0, sigma_s / np.where(sigma_t > 0, sigma_t, 1.0), 0.0)
+    w = albedo if throughput is None else np.abs(throughput) * albedo
+    total = w.sum(axis=1)
+    prob = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
+    cum = np.cumsum(prob, axis=1)
+    c = np.minimum((u[:, None] >= cum[:, :2]).sum(axis=1), 2)
+    lo = np.where(c > 0, np.take_along_axis(cum, np.maximum(c - 1, 0)[:, None], axis=1)[:, 0], 0.0)
+    pc = np.take_along_axis(prob, c[:, None], axis=1)[:, 0]
+    v = np.clip((u - lo) / np.where(pc > 0, pc, 1.0), 0.0, 1.0 - 2.0 ** -53)
+    length = length[:, None]
+    reach = -np.expm1(-sigma_t * length)                               # (n, 3) 1 - T(L)
+    sc = np.take_along_axis(sigma_t, c[:, None], axis=1)[:, 0]
+    rc = np.take_along_axis(reach, c[:, None], axis=1)[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(sc > 0, -np.log1p(-v * rc) / np.where(sc > 0, sc, 1.0), v * length[:, 0])
+    tr = np.exp(-sigma_t * t[:, None])
+    # Each channel's cut density (uniform over the segment where its extinction is 0).
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dens = np.where(reach > 0, sigma_t * tr / np.where(reach > 0, reach, 1.0), 1.0 / length)
+    pdf = (prob * dens).sum(axis=1)
+    weight = np.where(pdf[:, None] > 0, tr / np.where(pdf > 0, pdf, 1.0)[:, None], 0.0)
+    return t, weight, np.exp(-sigma_t * length)

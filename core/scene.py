@@ -130,6 +130,10 @@ class Materials:
     crossed as transparent towards the back of the triangles), and inside it when it meets that
     material's surface from the back (a path that starts inside: a camera or lamp in the water).
     A material with no surface (opacity 0) and a volume is Cycles' volume-only mesh.
+    ``volume_scattering`` (per channel, per length; 0: none) makes the volume scatter light as
+    well (Volume Scatter, Principled Volume): light is lost to extinction ``volume_absorption``
+    + ``volume_scattering`` along a segment, and scattered with the Henyey-Greenstein phase
+    function of ``volume_anisotropy`` g in (-1, 1) (0: isotropic; > 0: forwards).
 
     ``holdout`` (Blender's Holdout shader, in [0, 1]) is the share of a pixel that the surface
     cuts out of the image where camera rays meet it directly or through transparent surfaces
@@ -192,6 +196,8 @@ class Materials:
     coat_ior: np.ndarray = None                         # (M,) float32 >= 1; None: 1.5
     coat_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
     volume_absorption: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
+    volume_scattering: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
+    volume_anisotropy: np.ndarray = None                # (M,) float32 in (-1, 1); None: 0
     holdout: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 0
     translucent_weight: np.ndarray = None               # (M,) float32; None: 0
     translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
@@ -208,12 +214,12 @@ class Materials:
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
-                    "translucent_program", "diffuse_roughness")
+                    "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
-    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip")
+    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy")
 
     @property
     def count(self) -> int:
@@ -243,7 +249,8 @@ class Materials:
         ``bump_distance``) and ``opacity_program`` one for the opacity (equal programs are stored
         once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
-        ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume, ``holdout`` (0) a
+        ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume, which
+        ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter, ``holdout`` (0) a
         holdout share.
         """
         m = len(specs)
@@ -289,6 +296,8 @@ class Materials:
         out.coat_ior = np.full(m, 1.5, np.float32)
         out.coat_tint = np.ones((m, 3), np.float32)
         out.volume_absorption = np.zeros((m, 3), np.float32)
+        out.volume_scattering = np.zeros((m, 3), np.float32)
+        out.volume_anisotropy = np.zeros(m, np.float32)
         out.holdout = np.zeros(m, np.float32)
         out.translucent_weight = np.zeros(m, np.float32)
         out.translucent_color = np.zeros((m, 3), np.float32)
@@ -346,6 +355,9 @@ class Materials:
             out.coat_tint[i] = np.broadcast_to(np.asarray(s.get("coat_tint", 1.0), np.float32), (3,))
             out.volume_absorption[i] = np.broadcast_to(
                 np.asarray(s.get("volume_absorption", 0.0), np.float32), (3,))
+            out.volume_scattering[i] = np.broadcast_to(
+                np.asarray(s.get("volume_scattering", 0.0), np.float32), (3,))
+            out.volume_anisotropy[i] = s.get("volume_anisotropy", 0.0)
             out.holdout[i] = s.get("holdout", 0.0)
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
@@ -749,6 +761,7 @@ class Scene:
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
                                        ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0),
+                                       ("volume_scattering", (n, 3), 0.0), ("volume_anisotropy", (n,), 0.0),
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
                                        ("diffuse_roughness", (n,), 0.0)):
@@ -757,7 +770,7 @@ class Scene:
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
             colour = name.endswith(("color", "emission", "multiscatter", "rise", "dip", "layer", "tint",
-                                    "absorption"))
+                                    "absorption", "scattering"))
             tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INDEX_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
@@ -768,7 +781,7 @@ class Scene:
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
-                                ("diffuse_roughness", 0.0, 1.0),
+                                ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf)):
             v = getattr(mats, name)
             if ((v < low) | (v > high)).any():

@@ -51,6 +51,7 @@ AXIS_OFFSET = 1 << (AXIS_BITS - 1)        # cell 0 of the first pass sits mid-ra
 LEVEL_RANGE = 24                           # levels -24..24: cell sizes of 2^-24..2^24 base
 MIN_POINTS = 4                             # a pass's points in the cell 2^DENSITY_LEVELS times
 DENSITY_LEVELS = 2                         # as wide around a point, for the point to count
+VOLUME_AXIS = 6                            # the "normal axis" of points in scattering volumes
 
 
 def normal_axis(normals):
@@ -132,13 +133,16 @@ class VisibleCells:
                 keys.append((((n[0] << AXIS_BITS | n[1]) << AXIS_BITS | n[2]) << 3) | axis.take(sel))
         return np.unique(np.concatenate(keys))
 
-    def extended(self, positions, normals, radii, min_points=MIN_POINTS) -> "VisibleCells":
+    def extended(self, positions, normals, radii, min_points=MIN_POINTS, volume=False) -> "VisibleCells":
         """A new set: these cells plus those of points (positions, oriented normals) each in a cell
         at least ``radii`` wide, counting only points with ``min_points`` of them in the cell
-        2^DENSITY_LEVELS times as wide around them (1: every point)."""
+        2^DENSITY_LEVELS times as wide around them (1: every point).  ``volume``: the points lie
+        in scattering volumes (no normals; cells of their own, :meth:`contains_volume`)."""
         positions = np.asarray(positions, np.float64)
         radii = np.asarray(radii, np.float64)
         ok = np.isfinite(radii) & (radii > 0) & np.isfinite(positions).all(axis=1)
+        if volume:
+            normals = np.zeros((len(positions), 3))
         if not ok.all():
             positions, normals, radii = positions[ok], np.asarray(normals)[ok], radii[ok]
         if len(radii) == 0:
@@ -149,7 +153,8 @@ class VisibleCells:
         out = VisibleCells(base, origin, self.levels)
         # The smallest level whose cells are at least as large as the point's radius.
         level = np.clip(np.ceil(np.log2(radii / base) - 1e-9), -LEVEL_RANGE, LEVEL_RANGE).astype(np.int64)
-        axis = normal_axis(np.asarray(normals, np.float64))
+        axis = (np.full(len(radii), VOLUME_AXIS, np.int64) if volume
+                else normal_axis(np.asarray(normals, np.float64)))
         for lv in range(int(level.min()), int(level.max()) + 1):
             sel = np.flatnonzero(level == lv)
             if min_points > 1 and len(sel):
@@ -187,7 +192,11 @@ class VisibleCells:
             self._box = (lo, hi)
         return self._box
 
-    def contains(self, x, normals):
+    def contains_volume(self, x):
+        """(n,) bool: the photon vertices ``x`` in scattering volumes lie in a visible volume cell."""
+        return self.contains(x, None, volume=True)
+
+    def contains(self, x, normals, volume=False):
         """(n,) bool: the photon vertices ``x`` with oriented normals ``normals`` lie in a visible cell."""
         inside = np.zeros(len(x), bool)
         if not self.levels or len(x) == 0:
@@ -201,8 +210,9 @@ class VisibleCells:
         if len(sel) == 0:
             return inside
         if len(sel) < len(x):
-            x, normals = x.take(sel, axis=0), normals.take(sel, axis=0)
-        axis = normal_axis(normals)
+            x = x.take(sel, axis=0)
+            normals = None if volume else normals.take(sel, axis=0)
+        axis = np.full(len(x), VOLUME_AXIS, np.int64) if volume else normal_axis(normals)
         found = np.zeros(len(sel), bool)
         for lv, keys in self.levels.items():
             found |= _in_sorted(self._keys(x, lv, axis), keys)

@@ -71,7 +71,7 @@ class PhotonWorker:
     def _uniform_pass(self, pass_index, target, n_photons, counters, stop):
         s = self.settings
         rng = np.random.default_rng([s.seed, STREAM_PHOTONS, pass_index, self.index])
-        sums = PointSums(target.points.count, target.any_glossy)
+        sums = PointSums(target.n_points, target.any_glossy)
         done = 0
         interrupted = False
         while done < n_photons:
@@ -93,7 +93,7 @@ class PhotonWorker:
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings
         chains = self.chains
-        recorder = DepositLog(target.points.count, chains.count, target.any_glossy)
+        recorder = DepositLog(target.n_points, chains.count, target.any_glossy)
 
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()

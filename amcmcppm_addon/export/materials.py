@@ -55,9 +55,10 @@ the translucent colour);
 elsewhere their mean is used.
 A missing image file gives a warning and Cycles' magenta.
 
-The Volume output: Volume Absorption and Principled Volume (their Add and Mix) become the
-core's ``volume_absorption``, Cycles' absorption coefficient; their scattering and emission
-are noted and left out.  A material with a volume and no Surface is Cycles' volume-only mesh:
+The Volume output: Volume Absorption, Volume Scatter and Principled Volume (their Add and Mix)
+become the core's ``volume_absorption``, ``volume_scattering`` and ``volume_anisotropy``,
+Cycles' coefficients; volume emission is noted and left out.  A material with a volume and no
+Surface is Cycles' volume-only mesh:
 a surface that lets every ray through (opacity 0).
 """
 from __future__ import annotations
@@ -78,6 +79,7 @@ LOBES = ("diffuse", "glossy", "mirror", "dielectric", "translucent")
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
 GREY = np.full(3, 0.8)                         # Cycles' default surface colour
 MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing image
+MAX_ANISOTROPY = 0.99                           # |g| of volumes' phase functions (Materials.volume_anisotropy)
 
 
 @dataclass
@@ -674,8 +676,9 @@ class MaterialExporter:
             if walker.notes:
                 self.log.warning(f"material '{material.name}': " + "; ".join(walker.notes))
             spec = closure.spec(material.name)
-            if walker.absorption is not None and walker.absorption.any():
-                spec["volume_absorption"] = walker.absorption
+            if walker.medium is not None and (walker.medium[0].any() or walker.medium[1].any()):
+                spec.update(volume_absorption=walker.medium[0], volume_scattering=walker.medium[1],
+                            volume_anisotropy=walker.medium[2])
             self._ids[key] = self._add(spec)
             if closure.hidden_rays:
                 self._hidden[self._ids[key]] = closure.hidden_rays
@@ -730,7 +733,7 @@ class NodeWalker:
         self.world_program = None       # program of the direction for any other varying world colour
         self.camera_walker = None       # what camera rays see (Light Path's Is Camera Ray), its own
         self.camera_color = None        # world_* and colour, or None: the same as the other rays
-        self.absorption = None          # (3,) the material's volume absorption (material_closure), or None
+        self.medium = None              # the material's volume (absorption, scattering, g; volume()), or None
 
     def note(self, msg):
         if msg not in self.notes:
@@ -749,8 +752,8 @@ class NodeWalker:
             self.note("no material output node; rendered as its viewport colour")
             return Closure.lobe(DIFFUSE, 1.0, material.diffuse_color[:3])
         closure = self.shader(out.inputs["Surface"], ())
-        self.absorption = self.volume(out.inputs["Volume"], ())
-        if closure is None and self.absorption is not None:
+        self.medium = self.volume(out.inputs["Volume"], ())
+        if closure is None and self.medium is not None:
             # No surface, a volume: Cycles' volume-only mesh, whose surface lets every ray through.
             return Closure(transparent=np.ones(3), transparent_weight=1.0)
         return closure or Closure()
@@ -891,16 +894,20 @@ class NodeWalker:
         return closure
 
     def volume(self, sock, stack):
-        """(3,) absorption coefficient (per unit of length, Cycles' extinction of absorption) of the
-        volume shader feeding ``sock``, or None when nothing does.  Volume Absorption absorbs
-        (1 - Color) Density, Principled Volume (1 - Color)(1 - sqrt(Absorption Color)) Density;
-        scattering (Volume Scatter, Principled Volume's Color) and volume emission are noted and
-        left out, textures on the inputs take their means (noted)."""
+        """(absorption (3,), scattering (3,), anisotropy g) of the volume shader feeding ``sock``
+        (coefficients per unit of length, as Cycles), or None when nothing does.  Volume
+        Absorption absorbs (1 - Color) Density; Volume Scatter scatters Color Density with the
+        Henyey-Greenstein phase function of its Anisotropy (other phase functions are noted and
+        taken as that); Principled Volume scatters Color Density and absorbs (1 - Color)(1 -
+        sqrt(Absorption Color)) Density.  Add and Mix add the coefficients; scatterers of
+        different anisotropy get their mean weighted by the scattering (noted).  Volume emission
+        is noted and left out; textures on the inputs take their means (noted)."""
         src, _, stack = self.source(sock, stack)
         if src is None:
             return None
         node = src.node
         kind = "muted" if node.mute else node.bl_idname
+        zero = np.zeros(3)
 
         def color(name):
             value = self.programs.constant_of(node.inputs[name], stack, VEC)
@@ -909,17 +916,26 @@ class NodeWalker:
         def density():
             return max(self.value(node.inputs["Density"], stack), 0.0)
 
+        def anisotropy():
+            sock = node.inputs.get("Anisotropy")        # absent for some phase functions
+            if sock is None or not getattr(sock, "enabled", True):
+                return 0.0
+            return float(np.clip(self.value(sock, stack), -MAX_ANISOTROPY, MAX_ANISOTROPY))
+
         if kind == "ShaderNodeVolumeAbsorption":
-            return np.maximum(1.0 - color("Color"), 0.0) * density()
+            return np.maximum(1.0 - color("Color"), 0.0) * density(), zero, 0.0
+        if kind == "ShaderNodeVolumeScatter":
+            if getattr(node, "phase", "HENYEY_GREENSTEIN") != "HENYEY_GREENSTEIN":
+                self.note(f"'{node.name}': the {node.phase.replace('_', ' ').title()} phase function is "
+                          "not supported (Henyey-Greenstein used, of its Anisotropy where it has one)")
+            return zero, color("Color") * density(), anisotropy()
         if kind == "ShaderNodeVolumePrincipled":
             scatter, d = color("Color"), density()
-            if d > 0 and scatter.any():
-                self.note(f"'{node.name}': the volume's scattering is not supported (only its absorption)")
             if (self.value(node.inputs["Emission Strength"], stack) > 0
                     or self.value(node.inputs["Blackbody Intensity"], stack) > 0):
                 self.note(f"'{node.name}': volume emission is not supported (left out)")
             kept = np.maximum(1.0 - np.sqrt(color("Absorption Color")), 0.0)
-            return np.maximum(1.0 - scatter, 0.0) * kept * d
+            return np.maximum(1.0 - scatter, 0.0) * kept * d, scatter * d, anisotropy()
         if kind in ("ShaderNodeAddShader", "ShaderNodeMixShader"):
             a = self.volume(_by_identifier(node.inputs, "Shader"), stack)
             b = self.volume(_by_identifier(node.inputs, "Shader_001"), stack)
@@ -929,14 +945,17 @@ class NodeWalker:
             if kind == "ShaderNodeMixShader":
                 fb = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
                 fa = 1.0 - fb
-            return fa * (np.zeros(3) if a is None else a) + fb * (np.zeros(3) if b is None else b)
-        if kind == "ShaderNodeVolumeScatter":
-            self.note(f"'{node.name}': volume scattering is not supported (left out)")
-        elif kind == "ShaderNodeEmission":
+            a, b = a or (zero, zero, 0.0), b or (zero, zero, 0.0)
+            wa, wb = fa * a[1].mean(), fb * b[1].mean()
+            if wa > 0 and wb > 0 and a[2] != b[2]:
+                self.note(f"'{node.name}': volumes of different anisotropy scatter with their mean")
+            g = (wa * a[2] + wb * b[2]) / (wa + wb) if wa + wb > 0 else 0.0
+            return fa * a[0] + fb * b[0], fa * a[1] + fb * b[1], g
+        if kind == "ShaderNodeEmission":
             self.note(f"'{node.name}': volume emission is not supported (left out)")
         elif kind != "muted":
             self.unsupported(node, "as a volume; left out")
-        return np.zeros(3)
+        return zero, zero, 0.0
 
     def bent_normal(self, sock, stack):
         """(normal map or None, bump or None) feeding a ``Normal`` input: a Normal Map node

@@ -940,12 +940,14 @@ def volume_material(name, kind, surface=None, **inputs):
     return mat, node
 
 
-def test_volume_absorption_is_exported_as_cycles_extinction(scene):
+def test_volumes_are_exported_as_cycles_coefficients(scene):
     """Volume Absorption absorbs (1 - Color) Density per metre, Principled Volume
-    (1 - Color)(1 - sqrt(Absorption Color)) Density (Cycles' svm_node_principled_volume; these
-    measured with Cycles 5.0: a 1 m volume-only cube against the white sky gave exp(-(1 - C) D)
-    within 0.1 %).  A volume without a surface makes the surface let everything through; scattering,
-    volume emission and a world volume are noted."""
+    (1 - Color)(1 - sqrt(Absorption Color)) Density and scatters Color Density, Volume Scatter
+    scatters Color Density (Cycles' svm_node_principled_volume and svm_node_closure_volume; the
+    absorption measured with Cycles 5.0: a 1 m volume-only cube against the white sky gave
+    exp(-(1 - C) D) within 0.1 %); the scatterers' Anisotropy is the phase function's g.  A volume
+    without a surface makes the surface let everything through; volume emission, phase functions
+    other than Henyey-Greenstein and a world volume are noted."""
     mat, _ = volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
                              Color=(0.2, 0.5, 1.2, 1), Density=2.0)
     row, ex = export_material(mat)
@@ -960,14 +962,26 @@ def test_volume_absorption_is_exported_as_cycles_extinction(scene):
     assert row["opacity"] == 0 and row["transparent_color"] == pytest.approx([1, 1, 1])
     assert not [w for w in ex.warnings if "'Smoke'" in w], ex.warnings
 
-    mat, node = volume_material("Fog", "ShaderNodeVolumePrincipled", "ShaderNodeBsdfDiffuse")
+    mat, node = volume_material("Fog", "ShaderNodeVolumePrincipled", "ShaderNodeBsdfDiffuse", Anisotropy=0.3)
     node.inputs["Emission Strength"].default_value = 1.0
     row, ex = export_material(mat)
     assert row["volume_absorption"] == pytest.approx(np.full(3, 0.5))      # grey 0.5, density 1
+    assert row["volume_scattering"] == pytest.approx(np.full(3, 0.5))
+    assert row["volume_anisotropy"] == pytest.approx(0.3)
     warning = next(w for w in ex.warnings if "'Fog'" in w)
-    assert "scattering is not supported" in warning and "emission is not supported" in warning
+    assert "scattering" not in warning and "emission is not supported" in warning
 
-    # A Mix of an absorption with a scatter: the absorption at its share, the scatter noted.
+    mat, node = volume_material("Haze", "ShaderNodeVolumeScatter", None, Color=(0.9, 0.8, 0.7, 1),
+                                Density=0.5, Anisotropy=-0.4)
+    row, ex = export_material(mat)
+    assert row["volume_scattering"] == pytest.approx([0.45, 0.4, 0.35])
+    assert row["volume_absorption"] == pytest.approx([0, 0, 0]) and row["volume_anisotropy"] == pytest.approx(-0.4)
+    assert not [w for w in ex.warnings if "'Haze'" in w], ex.warnings
+    node.phase = "RAYLEIGH"
+    _, ex = export_material(mat)
+    assert any("Rayleigh phase function is not supported" in w for w in ex.warnings if "'Haze'" in w)
+
+    # A Mix of an absorption with a scatter: each at its share.
     mat, mix = volume_material("Mixed", "ShaderNodeMixShader", None)
     mix.inputs[0].default_value = 0.25
     nt = mat.node_tree
@@ -978,7 +992,8 @@ def test_volume_absorption_is_exported_as_cycles_extinction(scene):
     nt.links.new(nt.nodes.new("ShaderNodeVolumeScatter").outputs[0], mix.inputs[2])
     row, ex = export_material(mat)
     assert row["volume_absorption"] == pytest.approx([3.0, 1.5, 0.0])
-    assert any("volume scattering is not supported" in w for w in ex.warnings if "'Mixed'" in w)
+    assert row["volume_scattering"] == pytest.approx(np.full(3, 0.8 * 0.25))  # the default grey 0.8
+    assert not [w for w in ex.warnings if "'Mixed'" in w], ex.warnings
 
     row, _ = export_material(principled("Plain"))
     assert row["volume_absorption"] == pytest.approx([0, 0, 0]) and row["opacity"] == 1

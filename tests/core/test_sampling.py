@@ -330,6 +330,50 @@ def test_cosine_hemisphere_has_density_cos_over_pi():
     assert np.allclose(smp.cosine_hemisphere_pdf(c), np.maximum(c, 0) / np.pi)
 
 
+@pytest.mark.parametrize("g", [0.0, 0.45, -0.8])
+def test_henyey_greenstein_sampling_has_the_phase_function_as_density(g):
+    """Volumes scatter photons by the Henyey-Greenstein phase function: the sampled directions
+    about a travel direction have density ``hg_phase`` exactly (chi-square, the travel direction
+    off every axis), and the mean cosine is g."""
+    rng = np.random.default_rng(140 + int(10 * g))
+    axis = unit_vector(0.3, -0.5, 0.8)
+
+    def sample(n):
+        d = smp.sample_hg(np.tile(axis, (n, 1)), np.full(n, g), rng.random(n), rng.random(n))
+        assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-12)
+        return dir_to_cos_phi(d, axis), None
+
+    check_chi2(sample, lambda xy: smp.hg_phase(xy[:, 0], g), SPHERE)
+    d = smp.sample_hg(np.tile(axis, (200_000, 1)), np.full(200_000, g), rng.random(200_000), rng.random(200_000))
+    assert_mean(d @ axis, g, "mean cosine")
+
+
+def test_free_flight_weights_keep_the_transmitted_and_scattered_light():
+    """Over a segment of length L in a medium of coloured extinction, the distances sampled by
+    ``free_flight`` with weights give E[weight; reaches L] = exp(-sigma_t L) per channel and
+    E[weight sigma_s f(t); stops] = int_0^L sigma_s exp(-sigma_t t) f(t) dt (here f = 1 and f = t),
+    whatever the throughput that picks the channel; the weights stay bounded."""
+    rng = np.random.default_rng(150)
+    n = 400_000
+    sigma_s = np.array([0.2, 1.0, 2.5])
+    sigma_t = sigma_s + np.array([0.3, 0.0, 0.5])
+    length = 1.3
+    for throughput in (None, np.array([1.0, 0.2, 0.05])):
+        thr = None if throughput is None else np.tile(throughput, (n, 1))
+        t, stops, w = smp.free_flight(np.tile(sigma_t, (n, 1)), np.tile(sigma_s, (n, 1)), rng.random(n),
+                                      np.full(n, length), thr)
+        assert np.isfinite(w).all() and (w >= 0).all()
+        assert (t[stops] < length).all() and (t[~stops] >= length).all()
+        for c in range(3):
+            passed = np.where(stops, 0.0, w[:, c])
+            assert_mean(passed, np.exp(-sigma_t[c] * length), f"transmittance {c}")
+            scattered = np.where(stops, w[:, c] * sigma_s[c], 0.0)
+            a = sigma_t[c]
+            assert_mean(scattered, sigma_s[c] / a * (1 - np.exp(-a * length)), f"scattered {c}")
+            first_moment = sigma_s[c] * (1 - np.exp(-a * length) * (1 + a * length)) / a ** 2
+            assert_mean(np.where(stops, w[:, c] * sigma_s[c] * t, 0.0), first_moment, f"int t {c}")
+
+
 def test_uniform_sphere_has_density_one_over_four_pi():
     rng = np.random.default_rng(102)
 

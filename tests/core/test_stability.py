@@ -206,8 +206,33 @@ def extreme_volumes():
     return m.build(Materials.build(specs), camera=room.camera)
 
 
+def extreme_scattering():
+    """The room inside a fog box that also holds the camera and scatters almost straight on
+    (g = 0.99), with scattering boxes in it: one scattering 1e6 per metre around the lamp, one
+    scattering 1e-30 in one channel and 1e3 in another almost straight back (g = -0.99), a
+    glass box that scatters inside, an open quad that scatters (no inside), and a scattering
+    box nested in the glass one."""
+    room = cornell_like()
+    specs = [{"name": "wall", "diffuse": 0.7}, {"name": "lamp", "emission": 5.0},
+             {"name": "fog", "opacity": 0.0, "volume_scattering": 0.5, "volume_anisotropy": 0.99},
+             {"name": "dense", "opacity": 0.0, "volume_scattering": 1e6, "volume_absorption": 1.0},
+             {"name": "odd", "opacity": 0.0, "volume_scattering": (1e-30, 1e3, 0.0), "volume_anisotropy": -0.99},
+             {"name": "milky glass", "dielectric": 1.0, "volume_scattering": 5.0, "volume_absorption": 0.1},
+             {"name": "veil", "diffuse": 0.3, "opacity": 0.5, "volume_scattering": 3.0}]
+    m = MeshBuilder()
+    m.tris, m.mats = [room.triangle_corners()], [room.material_ids]
+    m.normals = [np.zeros((room.triangle_count, 3, 3))]
+    m.add_box((-1.5, -1.5, -0.5), (1.5, 1.5, 2.5), 2)
+    m.add_box((-0.4, -0.4, 1.8), (0.4, 0.4, 1.99), 3)
+    m.add_box((-0.7, -0.3, 0), (-0.1, 0.3, 0.8), 4)
+    m.add_box((0.2, -0.2, 0.5), (0.7, 0.3, 1.2), 5)
+    m.add_box((0.3, -0.1, 0.6), (0.6, 0.2, 1.1), 4)
+    m.add_quad((0.1, -0.5, 0.3), (0.9, -0.5, 0.3), (0.9, 0.5, 0.3), (0.1, 0.5, 0.3), 6)
+    return m.build(Materials.build(specs), camera=room.camera)
+
+
 SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
-          "extreme_volumes": extreme_volumes,
+          "extreme_volumes": extreme_volumes, "extreme_scattering": extreme_scattering,
           "wild_procedural_colour": wild_procedural_colour,
           "transparent_stack": transparent_stack,
           "light_trapped_in_glass": light_trapped_in_glass,
