@@ -225,7 +225,8 @@ class RenderContext:
         if self.has_volumes:
             medium = np.full(n, -1, np.int32) if medium is None else np.array(medium, np.int32)
             factor = np.ones((n, 3))
-            self._absorb(factor, medium, np.arange(n), raw, dirs, distances, 0, stops, throughput, origin_normals)
+            self._absorb(factor, medium, np.arange(n), raw, dirs, distances, 0, stops, throughput,
+                         origin_normals)
         hits = accel.with_contacts(raw, origins, dirs)
         if stops is not None and not forced:
             hits = _stop_in_volumes(hits, *stops)
@@ -348,8 +349,8 @@ class RenderContext:
                 thr = factor.take(rs, axis=0) * (1.0 if throughput is None else throughput.take(rs, axis=0))
                 seg_len = length.take(s)
                 t, weight, transmitted = forced_flight(self.extinction.take(ms, axis=0),
-                                                       self.scattering.take(ms, axis=0), distances(rs, segment),
-                                                       seg_len, thr)
+                                                       self.scattering.take(ms, axis=0),
+                                                       distances(rs, segment), seg_len, thr)
                 at = h.take(a.take(s))
                 d_at = dirs.take(at, axis=0)
                 n_exit = self.accel.geometric_normals.take(raw.prim_ids.take(at), axis=0)
@@ -367,8 +368,9 @@ class RenderContext:
             if len(s):
                 rs, ms = r.take(a.take(s)), vol.take(s)
                 thr = factor.take(rs, axis=0) * (1.0 if throughput is None else throughput.take(rs, axis=0))
-                t, stops, weight = free_flight(self.extinction.take(ms, axis=0), self.scattering.take(ms, axis=0),
-                                               distances(rs, segment), length.take(s), thr)
+                t, stops, weight = free_flight(self.extinction.take(ms, axis=0),
+                                               self.scattering.take(ms, axis=0), distances(rs, segment),
+                                               length.take(s), thr)
                 factor[rs] *= weight
                 scatter_t, ends, planes = stops_out
                 at = h.take(a.take(s[stops]))

@@ -720,7 +720,8 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
     first_dim[new] = bounce_offset(bounce)
     if first is not None:
         for key, val in (("bounce", bounce), ("position", x[rows]), ("mat_ids", vmed[rows]), ("wo", -d[rows]),
-                         ("flux", vert["flux"][rows]), ("prim", -1), ("medium", vmed[rows]), ("volume", True)):
+                         ("flux", vert["flux"][rows]), ("prim", -1), ("medium", vmed[rows]),
+                         ("volume", True)):
             first[key][new] = val
     if refresh_rng is not None and bounce < max_bounces:
         start = bounce_offset(bounce)

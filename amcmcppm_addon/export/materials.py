@@ -79,7 +79,7 @@ LOBES = ("diffuse", "glossy", "mirror", "dielectric", "translucent")
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
 GREY = np.full(3, 0.8)                         # Cycles' default surface colour
 MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing image
-MAX_ANISOTROPY = 0.99                           # |g| of volumes' phase functions (Materials.volume_anisotropy)
+MAX_ANISOTROPY = 0.99                           # |g| of volumes' phase functions (volume_anisotropy)
 
 
 @dataclass

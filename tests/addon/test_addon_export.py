@@ -975,7 +975,8 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
                                 Density=0.5, Anisotropy=-0.4)
     row, ex = export_material(mat)
     assert row["volume_scattering"] == pytest.approx([0.45, 0.4, 0.35])
-    assert row["volume_absorption"] == pytest.approx([0, 0, 0]) and row["volume_anisotropy"] == pytest.approx(-0.4)
+    assert row["volume_absorption"] == pytest.approx([0, 0, 0])
+    assert row["volume_anisotropy"] == pytest.approx(-0.4)
     assert not [w for w in ex.warnings if "'Haze'" in w], ex.warnings
     node.phase = "RAYLEIGH"
     _, ex = export_material(mat)

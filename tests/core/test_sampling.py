@@ -344,7 +344,8 @@ def test_henyey_greenstein_sampling_has_the_phase_function_as_density(g):
         return dir_to_cos_phi(d, axis), None
 
     check_chi2(sample, lambda xy: smp.hg_phase(xy[:, 0], g), SPHERE)
-    d = smp.sample_hg(np.tile(axis, (200_000, 1)), np.full(200_000, g), rng.random(200_000), rng.random(200_000))
+    n = 200_000
+    d = smp.sample_hg(np.tile(axis, (n, 1)), np.full(n, g), rng.random(n), rng.random(n))
     assert_mean(d @ axis, g, "mean cosine")
 
 

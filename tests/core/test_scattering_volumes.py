@@ -51,7 +51,8 @@ def sunlit_slab(g, from_below, thickness=0.5, resolution=(16, 16), half=2.0):
         pose[2, 3] = 0.5
     else:
         pose[2, 3] = 2.5 + thickness
-    cam = Camera(world_from_camera=pose, projection="orthographic", frame=(-1, 1, -1, 1), resolution=resolution)
+    cam = Camera(world_from_camera=pose, projection="orthographic", frame=(-1, 1, -1, 1),
+                 resolution=resolution)
     lights = Lights.build([{"kind": "sun", "direction": (0, 0, -1), "power": E}])
     return m.build(mats, lights, cam)
 

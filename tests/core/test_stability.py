@@ -216,7 +216,8 @@ def extreme_scattering():
     specs = [{"name": "wall", "diffuse": 0.7}, {"name": "lamp", "emission": 5.0},
              {"name": "fog", "opacity": 0.0, "volume_scattering": 0.5, "volume_anisotropy": 0.99},
              {"name": "dense", "opacity": 0.0, "volume_scattering": 1e6, "volume_absorption": 1.0},
-             {"name": "odd", "opacity": 0.0, "volume_scattering": (1e-30, 1e3, 0.0), "volume_anisotropy": -0.99},
+             {"name": "odd", "opacity": 0.0, "volume_scattering": (1e-30, 1e3, 0.0),
+              "volume_anisotropy": -0.99},
              {"name": "milky glass", "dielectric": 1.0, "volume_scattering": 5.0, "volume_absorption": 0.1},
              {"name": "veil", "diffuse": 0.3, "opacity": 0.5, "volume_scattering": 3.0}]
     m = MeshBuilder()
