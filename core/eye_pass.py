@@ -5,7 +5,8 @@ path through mirror and glass, adds the emission it sees on the way (emitters,
 the world, and the analytic lights that the ray's kind may see: ``Lights.visibility``,
 directly or through delta chains) and stores a *measurement
 point* at the first hit where it picks a non-delta lobe (``algorithm.md`` 1:
-the variant in which photons carry direct light too).
+the variant in which photons carry direct light too).  Every segment through a
+scattering volume also gets a :class:`VolumePoints` point (the path goes on).
 
 Glossary: ``beta`` camera-path throughput, ``wo`` direction back towards the camera.
 """
@@ -95,7 +96,7 @@ class EyePassResult:
     emission: np.ndarray     # (n_pixels, 3) float64 emission seen directly or through delta chains
     alpha: np.ndarray        # (n_pixels,) float64 coverage (1 unless the film is transparent)
     rays: int                # rays traced
-    volume: VolumePoints = None  # camera paths that stopped in scattering volumes
+    volume: VolumePoints = None  # the camera paths' points in scattering volumes
 
 
 # Camera paths traced at once (bounds the memory of big images).
@@ -122,7 +123,7 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces) -> EyePassResult:
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_bounces, volume):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
-    (and appends the :class:`VolumePoints` of paths that stopped in volumes to ``volume``)."""
+    (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``)."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     origins, dirs, tmax, footprint = generate_camera_rays(cam, pix, rng.random((len(pix), 4)))
