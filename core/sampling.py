@@ -308,6 +308,21 @@ def sample_hg(d, g, u1, u2):
     return normalize(to_world(local, d))
 
 
+def _pick_channel(sigma_t, sigma_s, u, throughput):
+    """(probabilities (n, 3), chosen channel (n,), the number rescaled within its choice (n,)):
+    channels by ``throughput`` times the albedo (evenly where that is 0)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        albedo = np.where(sigma_t > 0, sigma_s / np.where(sigma_t > 0, sigma_t, 1.0), 0.0)
+    w = albedo if throughput is None else np.abs(throughput) * albedo
+    total = w.sum(axis=1)
+    prob = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
+    cum = np.cumsum(prob, axis=1)
+    c = np.minimum((u[:, None] >= cum[:, :2]).sum(axis=1), 2)
+    lo = np.where(c > 0, np.take_along_axis(cum, np.maximum(c - 1, 0)[:, None], axis=1)[:, 0], 0.0)
+    pc = np.take_along_axis(prob, c[:, None], axis=1)[:, 0]
+    return prob, c, np.clip((u - lo) / np.where(pc > 0, pc, 1.0), 0.0, 1.0 - 2.0 ** -53)
+
+
 def free_flight(sigma_t, sigma_s, u, length, throughput=None):
     """Distances sampled in homogeneous media of extinction ``sigma_t`` and scattering ``sigma_s``
     (n, 3) along segments of ``length`` (n,) (inf: unbounded): a channel chosen by ``u`` (n,) with
@@ -320,17 +335,7 @@ def free_flight(sigma_t, sigma_s, u, length, throughput=None):
     (n,) bool, and (n, 3) the transmittance over the density: T(t) / p(t) for the scattered
     (without the scattering coefficient) and T(L) / P(t > L) for the rest.
     """
-    n = len(u)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        albedo = np.where(sigma_t > 0, sigma_s / np.where(sigma_t > 0, sigma_t, 1.0), 0.0)
-    w = albedo if throughput is None else np.abs(throughput) * albedo
-    total = w.sum(axis=1)
-    prob = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
-    cum = np.cumsum(prob, axis=1)
-    c = np.minimum((u[:, None] >= cum[:, :2]).sum(axis=1), 2)
-    lo = np.where(c > 0, np.take_along_axis(cum, np.maximum(c - 1, 0)[:, None], axis=1)[:, 0], 0.0)
-    pc = np.take_along_axis(prob, c[:, None], axis=1)[:, 0]
-    v = np.clip((u - lo) / np.where(pc > 0, pc, 1.0), 0.0, 1.0 - 2.0 ** -53)
+    prob, c, v = _pick_channel(sigma_t, sigma_s, u, throughput)
     sc = np.take_along_axis(sigma_t, c[:, None], axis=1)[:, 0]
     with np.errstate(divide="ignore"):
         t = np.where(sc > 0, -np.log1p(-v) / np.where(sc > 0, sc, 1.0), np.inf)
@@ -353,16 +358,7 @@ def forced_flight(sigma_t, sigma_s, u, length, throughput=None):
     mixture of the cut densities (estimates int_0^L T(t) f(t) dt as weight f(t)), and T(L)
     (n, 3), what goes on to the segment's end.
     """
-    with np.errstate(invalid="ignore", divide="ignore"):
-        albedo = np.where(sigma_t > 0, sigma_s / np.where(sigma_t > 0, sigma_t, 1.0), 0.0)
-    w = albedo if throughput is None else np.abs(throughput) * albedo
-    total = w.sum(axis=1)
-    prob = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
-    cum = np.cumsum(prob, axis=1)
-    c = np.minimum((u[:, None] >= cum[:, :2]).sum(axis=1), 2)
-    lo = np.where(c > 0, np.take_along_axis(cum, np.maximum(c - 1, 0)[:, None], axis=1)[:, 0], 0.0)
-    pc = np.take_along_axis(prob, c[:, None], axis=1)[:, 0]
-    v = np.clip((u - lo) / np.where(pc > 0, pc, 1.0), 0.0, 1.0 - 2.0 ** -53)
+    prob, c, v = _pick_channel(sigma_t, sigma_s, u, throughput)
     length = length[:, None]
     reach = -np.expm1(-sigma_t * length)                               # (n, 3) 1 - T(L)
     sc = np.take_along_axis(sigma_t, c[:, None], axis=1)[:, 0]

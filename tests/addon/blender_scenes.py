@@ -77,6 +77,22 @@ def mix_in(mat, shader, node_type, fac):
     return other
 
 
+def volume_material(name, kind, surface=None, **inputs):
+    """A material whose Volume output is a new ``kind`` node with ``inputs``, its Surface a new
+    ``surface`` node (None: unlinked): (material, volume node)."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    out = nt.nodes["Material Output"]
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    if surface is not None:
+        nt.links.new(nt.nodes.new(surface).outputs[0], out.inputs["Surface"])
+    node = nt.nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    nt.links.new(node.outputs[0], out.inputs["Volume"])
+    return mat, node
+
+
 def leaf(name="Leaf", diffuse=(0.8, 0.8, 0.8), translucent=(0.8, 0.8, 0.8), fac=0.5):
     """A Mix Shader of a Diffuse (factor 0) and a Translucent BSDF (factor 1) by ``fac``."""
     mat = _material(name, "ShaderNodeBsdfDiffuse", Color=(*diffuse, 1.0))

@@ -924,22 +924,6 @@ def test_principled_coat_is_exported_with_cycles_clamps(scene):
     assert any("Coat Normal not supported" in w for w in ex.warnings), ex.warnings
 
 
-def volume_material(name, kind, surface=None, **inputs):
-    """A material whose Volume output is a new ``kind`` node with ``inputs``, its Surface a new
-    ``surface`` node (None: unlinked): (material, volume node)."""
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    out = nt.nodes["Material Output"]
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    if surface is not None:
-        nt.links.new(nt.nodes.new(surface).outputs[0], out.inputs["Surface"])
-    node = nt.nodes.new(kind)
-    for key, value in inputs.items():
-        node.inputs[key].default_value = value
-    nt.links.new(node.outputs[0], out.inputs["Volume"])
-    return mat, node
-
-
 def test_volumes_are_exported_as_cycles_coefficients(scene):
     """Volume Absorption absorbs (1 - Color) Density per metre, Principled Volume
     (1 - Color)(1 - sqrt(Absorption Color)) Density and scatters Color Density, Volume Scatter
@@ -948,21 +932,22 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     exp(-(1 - C) D) within 0.1 %); the scatterers' Anisotropy is the phase function's g.  A volume
     without a surface makes the surface let everything through; volume emission, phase functions
     other than Henyey-Greenstein and a world volume are noted."""
-    mat, _ = volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
+    mat, _ = bs.volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
                              Color=(0.2, 0.5, 1.2, 1), Density=2.0)
     row, ex = export_material(mat)
     assert row["volume_absorption"] == pytest.approx([1.6, 1.0, 0.0])
     assert row["dielectric_weight"] == 1 and row["opacity"] == 1
     assert not [w for w in ex.warnings if "'Tinted glass'" in w], ex.warnings
 
-    mat, _ = volume_material("Smoke", "ShaderNodeVolumePrincipled", None, Color=(0.0, 0.0, 0.0, 1),
+    mat, _ = bs.volume_material("Smoke", "ShaderNodeVolumePrincipled", None, Color=(0.0, 0.0, 0.0, 1),
                              Density=3.0, **{"Absorption Color": (0.25, 0.5, 0.0, 1)})
     row, ex = export_material(mat)
     assert row["volume_absorption"] == pytest.approx(3.0 * (1.0 - np.sqrt([0.25, 0.5, 0.0])))
     assert row["opacity"] == 0 and row["transparent_color"] == pytest.approx([1, 1, 1])
     assert not [w for w in ex.warnings if "'Smoke'" in w], ex.warnings
 
-    mat, node = volume_material("Fog", "ShaderNodeVolumePrincipled", "ShaderNodeBsdfDiffuse", Anisotropy=0.3)
+    mat, node = bs.volume_material("Fog", "ShaderNodeVolumePrincipled", "ShaderNodeBsdfDiffuse",
+                                   Anisotropy=0.3)
     node.inputs["Emission Strength"].default_value = 1.0
     row, ex = export_material(mat)
     assert row["volume_absorption"] == pytest.approx(np.full(3, 0.5))      # grey 0.5, density 1
@@ -971,7 +956,7 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     warning = next(w for w in ex.warnings if "'Fog'" in w)
     assert "scattering" not in warning and "emission is not supported" in warning
 
-    mat, node = volume_material("Haze", "ShaderNodeVolumeScatter", None, Color=(0.9, 0.8, 0.7, 1),
+    mat, node = bs.volume_material("Haze", "ShaderNodeVolumeScatter", None, Color=(0.9, 0.8, 0.7, 1),
                                 Density=0.5, Anisotropy=-0.4)
     row, ex = export_material(mat)
     assert row["volume_scattering"] == pytest.approx([0.45, 0.4, 0.35])
@@ -983,7 +968,7 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     assert any("Rayleigh phase function is not supported" in w for w in ex.warnings if "'Haze'" in w)
 
     # A Mix of an absorption with a scatter: each at its share.
-    mat, mix = volume_material("Mixed", "ShaderNodeMixShader", None)
+    mat, mix = bs.volume_material("Mixed", "ShaderNodeMixShader", None)
     mix.inputs[0].default_value = 0.25
     nt = mat.node_tree
     absorb = nt.nodes.new("ShaderNodeVolumeAbsorption")

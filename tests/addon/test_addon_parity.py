@@ -142,7 +142,8 @@ def environment_world():
     return world
 
 
-@pytest.mark.parametrize("kind", LIGHTS)
+@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.slow) if k == "environment_turned" else k
+                                  for k in LIGHTS])
 def test_mean_matches_cycles(addon, tmp_path, kind):
     cycles, ours = cycles_and_ours(lambda: (corner_scene(), add_emitter(kind)), tmp_path)
     mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
@@ -400,6 +401,7 @@ def object_checker(nt, scale, color1, color2):
     return checker.outputs["Color"]
 
 
+@pytest.mark.slow          # (make test's budget; test_procedural_parity.py has the nodes one by one)
 def test_procedural_textures_match_cycles(addon, tmp_path):
     """The corner under an area light, its floor a Principled BSDF whose base colour is a checker
     of 50 cm cells (Object coordinates), its wall a Diffuse BSDF coloured by a Noise Texture's
@@ -420,6 +422,7 @@ def test_procedural_textures_match_cycles(addon, tmp_path):
     assert pixel_correlation("procedural textures", c, o) > 0.9
 
 
+@pytest.mark.slow          # (make test's budget)
 def test_procedural_world_matches_cycles(addon, tmp_path):
     """The corner lit only by a world whose colour varies with the direction: a Color Ramp over a
     Gradient of the direction turned to run from the nadir to the zenith (a dark ground, an orange
@@ -451,7 +454,8 @@ def test_procedural_world_matches_cycles(addon, tmp_path):
     assert_channels_match("procedural world", *cycles_and_ours(build, tmp_path))
 
 
-@pytest.mark.parametrize("sky_type", ["MULTIPLE_SCATTERING", "SINGLE_SCATTERING"])
+@pytest.mark.parametrize("sky_type", ["MULTIPLE_SCATTERING",
+                                      pytest.param("SINGLE_SCATTERING", marks=pytest.mark.slow)])
 def test_sky_texture_world_matches_cycles(addon, tmp_path, sky_type):
     """The corner under Blender's Sky Texture: the sky baked into an image, its sun disc a sun
     light (``amcmcppm_addon/export/world.py``).  The sun casts the wall's shadow onto the floor."""
@@ -466,7 +470,7 @@ def test_sky_texture_world_matches_cycles(addon, tmp_path, sky_type):
     assert_channels_match(f"sky {sky_type}", *cycles_and_ours(build, tmp_path))
 
 
-@pytest.mark.parametrize("shader", ["glossy_checker", "metal_noise"])
+@pytest.mark.parametrize("shader", ["glossy_checker", pytest.param("metal_noise", marks=pytest.mark.slow)])
 def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
     """The corner's floor as a Glossy BSDF (roughness 0.3) coloured by a checker, or a Principled
     metal whose base colour is a noise through a ramp: the glossy colour varies point by point
@@ -500,7 +504,8 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
     assert pixel_correlation(f"textured glossy, {shader}", c, o) > 0.95
 
 
-@pytest.mark.parametrize("shader", ["emission_checker", "principled_strength_map"])
+@pytest.mark.parametrize("shader", ["emission_checker",
+                                    pytest.param("principled_strength_map", marks=pytest.mark.slow)])
 def test_textured_emission_matches_cycles(addon, tmp_path, shader):
     """The corner lit only by a 1 m panel whose emission varies over it: an Emission shader coloured
     by a checker of a warm and a cool colour (its four cells light the floor unevenly), or a
@@ -566,7 +571,8 @@ def test_roughness_maps_match_cycles(addon, tmp_path, shader):
     assert pixel_correlation(f"roughness map, {shader}", c, o) > 0.98
 
 
-@pytest.mark.parametrize("shader", ["glass_checker", "principled_noise"])
+@pytest.mark.parametrize("shader", ["glass_checker",
+                                    pytest.param("principled_noise", marks=pytest.mark.slow)])
 def test_stained_glass_matches_cycles(addon, tmp_path, shader):
     """The corner under the area light with a 2 m pane of glass 50 cm over the floor whose colour is a
     texture: a Glass BSDF coloured by a checker of 50 cm cells in a warm and a cool colour, or a
@@ -614,23 +620,12 @@ def test_absorbing_volumes_match_cycles(addon, tmp_path, shader):
     lengths inside, as in Cycles."""
     def build():
         corner_scene()
-        mat = bpy.data.materials.new("Absorbing")
-        nt = mat.node_tree
-        out = nt.nodes["Material Output"]
-        nt.nodes.remove(nt.nodes["Principled BSDF"])
         if shader == "absorbing_glass":
-            glass = nt.nodes.new("ShaderNodeBsdfGlass")
-            glass.inputs["IOR"].default_value = 1.5
-            nt.links.new(glass.outputs[0], out.inputs["Surface"])
-            volume = nt.nodes.new("ShaderNodeVolumeAbsorption")
-            volume.inputs["Color"].default_value = (0.2, 0.7, 0.8, 1.0)
-            volume.inputs["Density"].default_value = 5.0
+            mat, _ = bs.volume_material("Absorbing", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
+                                        Color=(0.2, 0.7, 0.8, 1.0), Density=5.0)
         else:
-            volume = nt.nodes.new("ShaderNodeVolumePrincipled")
-            volume.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-            volume.inputs["Absorption Color"].default_value = (0.9, 0.4, 0.1, 1.0)
-            volume.inputs["Density"].default_value = 4.0
-        nt.links.new(volume.outputs[0], out.inputs["Volume"])
+            mat, _ = bs.volume_material("Absorbing", "ShaderNodeVolumePrincipled", Color=(0.0, 0.0, 0.0, 1.0),
+                                        Density=4.0, **{"Absorption Color": (0.9, 0.4, 0.1, 1.0)})
         bs.cube("Slab", size=1.0, material=mat, location=(-0.3, -0.5, 0.5), scale=(2.0, 2.0, 0.2))
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
@@ -652,7 +647,8 @@ def test_a_light_panel_hidden_from_the_camera_matches_cycles(addon, tmp_path):
     assert_image_matches("panel hidden from the camera", cycles, ours)
 
 
-@pytest.mark.parametrize("relief", [None, "veins", "bumps"], ids=["plain", "checker", "bumped"])
+@pytest.mark.parametrize("relief", [None, "veins", pytest.param("bumps", marks=pytest.mark.slow)],
+                         ids=["plain", "checker", "bumped"])
 def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(addon, tmp_path, relief):
     """A paper screen standing on the corner's floor (a Mix of a Diffuse and a Translucent BSDF)
     between the camera and an area light that faces its back: the camera sees its front glow
@@ -699,7 +695,7 @@ def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(ad
     np.testing.assert_allclose(ratio, 1.0, rtol=0.05)
 
 
-@pytest.mark.parametrize("kind", ["POINT", "SPOT", "AREA",
+@pytest.mark.parametrize("kind", ["POINT", "SPOT", pytest.param("AREA", marks=pytest.mark.slow),
                                   pytest.param("SUN", marks=pytest.mark.slow)])   # (one factor: export test)
 def test_a_light_with_an_ies_profile_matches_cycles(addon, tmp_path, kind):
     """A point (or wide spot) light 1.5 m over the corner's floor, turned 40 degrees about the
@@ -774,7 +770,8 @@ def leaf_material():
 LEAF = dict(location=(-0.3, -0.5, 0.6))
 
 
-@pytest.mark.parametrize("shader", ["mix_transparent_noise", "alpha_constant"])
+@pytest.mark.parametrize("shader", [pytest.param("mix_transparent_noise", marks=pytest.mark.slow),
+                                    "alpha_constant"])
 def test_transparency_matches_cycles(addon, tmp_path, shader):
     """The corner under the area light with a 2 m leaf 60 cm over the floor that lets light
     through: a Mix Shader of a Transparent BSDF tinted yellow and a green Diffuse BSDF by a noise
@@ -816,6 +813,7 @@ def test_transparency_matches_cycles(addon, tmp_path, shader):
 
 
 
+@pytest.mark.slow          # (make test's budget; tests/core/test_transparency.py has the closed forms)
 def test_an_alpha_map_renders_as_the_geometry_it_cuts(addon, tmp_path):
     """The leaf's Alpha a checker's Fac (50 cm cells, 0 or 1) against the leaf cut into the
     checker's opaque cells as separate planes: the same image (the eye pass draws its own numbers
@@ -850,6 +848,7 @@ def test_an_alpha_map_renders_as_the_geometry_it_cuts(addon, tmp_path):
     assert np.ptp(mapped[..., 1]) > 1.0                  # the cells and the holes do show
 
 
+@pytest.mark.slow          # (make test's budget: 17 s)
 def test_procedural_bump_matches_cycles(addon, tmp_path):
     """The corner's floor a Principled BSDF (roughness 0.3) bumped by a Noise Texture (scale 3 on
     Object coordinates: bumps of some 30 cm; distance 0.1), under the area light: the bent
@@ -1164,6 +1163,7 @@ def test_a_mirror_shows_only_the_emitters_linked_to_it_as_in_cycles(addon, tmp_p
     assert ours[:20, ..., :3].max() < 3.0 and cycles[:20, ..., :3].max() < 3.0
 
 
+@pytest.mark.slow          # (make test's budget; the closed form is in tests/core/test_light_linking.py)
 def test_shadow_linking_matches_cycles(addon, tmp_path):
     """Object > Shading > Light Linking > Blockers: a point light whose blocker collection holds
     a ball alone shines through a grey board hung between it and the floor (the board's top is
@@ -1198,22 +1198,13 @@ def test_scattering_volumes_match_cycles(addon, tmp_path, shader):
     with a warning (the fog absorbed only its Principled share, and a Volume Scatter did nothing)."""
     def build():
         corner_scene()
-        mat = bpy.data.materials.new("Fog")
-        nt = mat.node_tree
-        out = nt.nodes["Material Output"]
-        nt.nodes.remove(nt.nodes["Principled BSDF"])
         if shader == "scatter":
-            volume = nt.nodes.new("ShaderNodeVolumeScatter")
-            volume.inputs["Color"].default_value = (0.9, 0.8, 0.6, 1.0)
-            volume.inputs["Density"].default_value = 0.6
-            volume.inputs["Anisotropy"].default_value = 0.4
+            mat, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Color=(0.9, 0.8, 0.6, 1.0),
+                                        Density=0.6, Anisotropy=0.4)
         else:
-            volume = nt.nodes.new("ShaderNodeVolumePrincipled")
-            volume.inputs["Color"].default_value = (0.7, 0.8, 0.9, 1.0)
-            volume.inputs["Density"].default_value = 0.8
-            volume.inputs["Anisotropy"].default_value = -0.2
-            volume.inputs["Absorption Color"].default_value = (0.5, 0.5, 0.5, 1.0)
-        nt.links.new(volume.outputs[0], out.inputs["Volume"])
+            mat, _ = bs.volume_material("Fog", "ShaderNodeVolumePrincipled", Color=(0.7, 0.8, 0.9, 1.0),
+                                        Density=0.8, Anisotropy=-0.2,
+                                        **{"Absorption Color": (0.5, 0.5, 0.5, 1.0)})
         bs.cube("FogBox", size=1.0, material=mat, location=(0.0, -0.5, 1.0), scale=(3.0, 3.0, 1.9))
         bs.light("SPOT", location=(-0.5, -0.5, 3.0), target=(0.3, 0, 0), energy=800.0, shadow_soft_size=0.05,
                  spot_size=math.radians(35), spot_blend=0.2)

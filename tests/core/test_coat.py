@@ -74,7 +74,7 @@ COATS = {
 
 # The chains' photons have the same closed form (the furnace with AMCMCPPM measured 1.006 / 1.012);
 # one case each keeps the fast tier short, and the chains' case (20 s) is in the slow tier.
-CASES = [(FURNACE, METHODS[0]), ("tinted half coat of IOR 2", METHODS[0]),
+CASES = [(FURNACE, METHODS[0]), pytest.param("tinted half coat of IOR 2", METHODS[0], marks=pytest.mark.slow),
          pytest.param("sharp coat (a mirror)", METHODS[1], marks=pytest.mark.slow)]
 
 
@@ -95,6 +95,7 @@ def test_coated_floor_under_a_constant_sky_matches_the_closed_form(name, method)
     assert (np.abs(control[0] / want[0] - 1) > 0.08).all(), control / want
 
 
+@pytest.mark.slow          # (make test's budget: 12 s; the coated floors check the coat's albedo too)
 def test_a_coat_alone_reflects_its_albedo():
     """A black base under a coat: only the coat's reflection, small face on (about F0 = 0.04) and
     larger at grazing views.  At roughness 0.1 camera paths go on through the coat

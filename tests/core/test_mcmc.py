@@ -196,7 +196,7 @@ def test_every_iteration_records_one_path_per_chain_with_a_state():
     assert c.recorded == c.initialised + c.exchanges + c.proposals
 
 
-@pytest.mark.parametrize("start", [1e-3, 0.5])
+@pytest.mark.parametrize("start", [pytest.param(1e-3, marks=pytest.mark.slow), 0.5])
 # The paper's 23.4 % (the baseline the seed paper improves on) in the slow tier: make test's budget.
 @pytest.mark.parametrize("target", [pytest.param(0.234, marks=pytest.mark.slow), 0.60])
 def test_acceptance_settles_on_target_from_small_and_large_steps(target, start):
