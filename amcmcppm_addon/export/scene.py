@@ -69,14 +69,15 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                LightLinking.from_depsgraph(depsgraph, log, "blocker"))
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
                                   linking=linking)
-    light_records, light_objects = [], []
+    light_records, light_collections = [], []
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
                                inst.object.name, log, ray_visibility(inst.object))
             if rec is not None:
                 light_records.append(rec)
-                light_objects.append(inst.object)
+                # (read here: the iterator reuses its instance objects)
+                light_collections.append([-1 if k is None else k.collection(inst.object) for k in linking])
         else:
             collector.add(inst)
     geometry = collector.finish()
@@ -84,10 +85,10 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     sets = {}         # the scene's per-triangle sets and emitter links
     names = (("links", "receiver_sets", "emitter_links", "emitter_collections"),
              ("shadow_links", "blocker_sets", "emitter_shadow_links", "shadow_collections"))
-    for kind, (light_key, set_key, links_key, collections_key) in zip(linking, names):
+    for i, (kind, (light_key, set_key, links_key, collections_key)) in enumerate(zip(linking, names)):
         if kind is None:
             continue
-        for rec, link in zip(light_records, kind.links([kind.collection(ob) for ob in light_objects])):
+        for rec, link in zip(light_records, kind.links([c[i] for c in light_collections])):
             rec[light_key] = link
         if getattr(geometry, set_key) is not None:
             sets[set_key] = getattr(geometry, set_key)
