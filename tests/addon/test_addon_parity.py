@@ -142,8 +142,8 @@ def environment_world():
     return world
 
 
-@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.slow) if k == "environment_turned" else k
-                                  for k in LIGHTS])
+@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.slow) if k.startswith("environment")
+                                  else k for k in LIGHTS])
 def test_mean_matches_cycles(addon, tmp_path, kind):
     cycles, ours = cycles_and_ours(lambda: (corner_scene(), add_emitter(kind)), tmp_path)
     mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
@@ -539,7 +539,8 @@ def test_textured_emission_matches_cycles(addon, tmp_path, shader):
     assert pixel_correlation(f"textured emission, {shader}", c, o) > 0.985
 
 
-@pytest.mark.parametrize("shader", ["principled_checker", "glossy_noise"])
+@pytest.mark.parametrize("shader", ["principled_checker",
+                                    pytest.param("glossy_noise", marks=pytest.mark.slow)])
 def test_roughness_maps_match_cycles(addon, tmp_path, shader):
     """The corner's floor with a roughness map, under the area light: a grey Principled BSDF whose
     Roughness is a checker of 0.1 and 0.6 (50 cm cells), or a Glossy BSDF whose Roughness is a
@@ -896,7 +897,7 @@ def test_camera_sees_its_own_world_through_light_path(addon, tmp_path):
     assert pixel_correlation("camera world", c, o) > 0.95
 
 
-@pytest.mark.parametrize("shader", ["red_paint", "tinted_varnish"])
+@pytest.mark.parametrize("shader", [pytest.param("red_paint", marks=pytest.mark.slow), "tinted_varnish"])
 def test_principled_coat_matches_cycles(addon, tmp_path, shader):
     """The corner's floor a coated Principled BSDF under the area light and a grey world: a red
     paint (roughness 0.5) under a coat of roughness 0.1, or a light base under a sharp coat
@@ -977,9 +978,10 @@ def test_smooth_metals_reflect_the_sky_by_their_fresnel_curve_as_in_cycles(addon
     np.testing.assert_allclose(bands[1], bands[0], rtol=tolerance)
 
 
-# (the Principled case in the slow tier: make test's budget; the closed forms are in
+# (both cases in the slow tier: make test's budget; the closed forms are in
 # tests/core/test_rough_diffuse.py)
-@pytest.mark.parametrize("shader", ["diffuse", pytest.param("principled", marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("shader", ["diffuse", "principled"])
 def test_rough_diffuse_matches_cycles_from_face_on_to_grazing(addon, tmp_path, shader):
     """A 40 m floor of Cycles' rough diffuse (a Diffuse BSDF of Roughness 1, or a Principled BSDF
     of Diffuse Roughness 0.7) under a white sky: seven bands from grazing to face on against

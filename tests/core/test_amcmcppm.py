@@ -28,7 +28,7 @@ def sppm_blocks():
                      for s in range(SEEDS)])
 
 
-@pytest.mark.parametrize("mutation", ["off", "paper", "exact"])
+@pytest.mark.parametrize("mutation", [pytest.param("off", marks=pytest.mark.slow), "paper", "exact"])
 def test_amcmcppm_agrees_with_sppm_in_mean(sppm_blocks, mutation):
     scene = cornell_box(**SCENE)
     blocks = np.array([block_means(render(scene, RenderSettings(method="amcmcppm", mutation=mutation,

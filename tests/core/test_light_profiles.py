@@ -176,7 +176,7 @@ def test_a_profiled_light_seen_in_a_mirror_shows_its_radiance_times_the_profile(
     assert np.ptp(centre[..., 0]) > 1e-3                   # (the pixels do differ by their h)
 
 
-@pytest.mark.parametrize("kind", ("point", "spot"))
+@pytest.mark.parametrize("kind", (pytest.param("point", marks=pytest.mark.slow), "spot"))
 def test_a_profiled_light_lights_the_floor_by_its_intensity_in_each_direction(kind):
     """A light 1 m over a diffuse floor; a small orthographic patch 0.8 m off its foot.  The
     floor's radiance there is albedo / pi  I f(v, h) cos / d^2 (a small kernel: its curvature

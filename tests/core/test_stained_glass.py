@@ -42,7 +42,9 @@ def test_the_program_tints_what_the_glass_transmits_not_what_it_reflects():
     assert ctx.table.reflection_differs
 
 
-@pytest.mark.parametrize("method", [dict(method="ppm"), dict(method="amcmcppm", chains=1024)],
+@pytest.mark.parametrize("method", [dict(method="ppm"),
+                                    pytest.param(dict(method="amcmcppm", chains=1024),
+                                                 marks=pytest.mark.slow)],
                          ids=lambda m: m["method"])
 def test_floor_under_stained_glass_takes_each_cells_colour_twice(method):
     ior, irradiance, albedo, n = 1.5, 10.0, 0.5, 16
