@@ -30,8 +30,6 @@ class Hits:
     b1: np.ndarray          # (n,) float64 barycentric of corner 1
     b2: np.ndarray          # (n,) float64 barycentric of corner 2
     scatter_t: np.ndarray = None  # (n,) float64 distance where a ray stopped in a volume, inf; or None
-    segment_end: np.ndarray = None  # (n,) float64 for those, where the segment they stopped in ended
-    planes: np.ndarray = None       # (n, 2) float64 their distances to its entry and exit faces' planes
     forced: tuple = None            # RenderContext.trace's forced volume points, or None
 
 

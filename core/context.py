@@ -13,7 +13,7 @@ from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
 from .sampling import dot, forced_flight, free_flight, normalize
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
-                    VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION)
+                    VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -187,14 +187,14 @@ class RenderContext:
         times the volume's albedo) where that falls before the hit: the ray
         stops in the volume there (``hits.scatter_t``, ``is_hit`` False), the factor holding
         T(t) / p(t) (without the scattering coefficient); those that reach the hit carry
-        T / P(reach).  Without ``distances`` volumes only absorb.  ``hits.planes`` (n, 2) give the
-        stopped rays' distances to the planes of the faces their segment entered and left the
-        volume by (the first segment's entry face is ``origin_normals`` (n, 3) at the origins,
-        if given; inf: none), for the gather spheres that reach out of the volume.  With
-        ``forced`` (camera paths) no ray stops: every segment in a scattering volume gets a point
-        at a distance drawn inside it (:func:`~core.sampling.forced_flight`) and the ray goes on
-        with T(L); ``hits.forced`` = (rays, t, weight (k, 3) of the point with the factor before
-        the segment, ends, planes (k, 2), volumes) of those points, or None.
+        T / P(reach).  Without ``distances`` volumes only absorb.  With ``forced`` (camera paths)
+        no ray stops: every segment in a scattering volume gets a point at a distance drawn inside
+        it (:func:`~core.sampling.forced_flight`) and the ray goes on with T(L); ``hits.forced``
+        = (rays, t, weight (k, 3) of the point with the factor before the segment, the segment's
+        end, planes (k, 2), volumes) of those points, or None.  ``planes`` are the points'
+        distances to the planes of the faces their segment entered and left the volume by (the
+        first segment's entry face is ``origin_normals`` (n, 3) at the origins, if given; inf:
+        none), for the gather spheres that reach out of the volume.
         ``ray_kind`` (n,) uint8 (camera paths: VISIBLE_CAMERA, VISIBLE_GLOSSY or
         VISIBLE_TRANSMISSION) makes the rays go through triangles hidden from their kind
         (``Scene.triangle_visibility``); without it (photons) every triangle stops them.
@@ -217,9 +217,9 @@ class RenderContext:
         n = len(dirs)
         raw = accel.intersect(origins, dirs, tmax)
         factor = None
-        stops = None            # (scatter_t, ends, planes) of the rays that stop in volumes, or
-        if distances is not None and self.has_scattering:     # a list of the forced points
-            stops = [] if forced else (np.full(n, np.inf), np.full(n, np.inf), np.full((n, 2), np.inf))
+        stops = None            # scatter_t (n,) of the rays that stop in volumes, or a list of the
+        if distances is not None and self.has_scattering:     # forced points
+            stops = [] if forced else np.full(n, np.inf)
         else:
             distances = None
         if self.has_volumes:
@@ -229,7 +229,7 @@ class RenderContext:
                          origin_normals)
         hits = accel.with_contacts(raw, origins, dirs)
         if stops is not None and not forced:
-            hits = _stop_in_volumes(hits, *stops)
+            hits = _stop_in_volumes(hits, stops)
         hiding = self.has_hidden and ray_kind is not None
         shadow = shadow if shadow is not None and self.blocker_sets is not None else None
         if not (self.has_transparency or hiding or shadow is not None) or not hits.is_hit.any():
@@ -251,8 +251,8 @@ class RenderContext:
             passing = np.zeros(len(rows), bool)
             if shadow is not None:
                 # Triangles that do not shadow the photon's emitter (shadow linking).
-                sets = self.blocker_sets.take(pr).astype(np.uint64)
-                passing = ((shadow.take(rows) >> sets) & np.uint64(1)) == 0
+                sets = self.blocker_sets.take(pr)
+                passing = ~linked(shadow.take(rows), sets)
             sel = unseen | clear | passing
             rows, unseen, clear, passing = rows[sel], unseen[sel], clear[sel], passing[sel]
             if len(rows) == 0:
@@ -294,26 +294,22 @@ class RenderContext:
             raw = accel.intersect(start, d, left)
             seg = None
             if stops is not None:
-                k = len(rows)
-                seg = [] if forced else (np.full(k, np.inf), np.full(k, np.inf), np.full((k, 2), np.inf))
+                seg = [] if forced else np.full(len(rows), np.inf)
             if self.has_volumes:
                 self._absorb(factor, medium, rows, raw, d, distances, crossing + 1, seg, throughput,
-                             accel.geometric_normals.take(pr, axis=0))
+                             accel.geometric_normals.take(pr, axis=0) if forced else None)
             nxt = accel.with_contacts(raw, start, d)
             if forced:
                 for rr, tt, ww, ee, pp, mm in seg or ():   # (rr are the rays' own numbers)
                     off = travelled.take(np.searchsorted(rows, rr))
                     stops.append((rr, tt + off, ww, ee + off, pp, mm))
             elif seg is not None:
-                nxt = _stop_in_volumes(nxt, *seg)
-                stops[0][rows] = travelled + seg[0]
-                stops[1][rows] = travelled + seg[1]
-                stops[2][rows] = seg[2]
+                nxt = _stop_in_volumes(nxt, seg)
+                stops[rows] = travelled + seg
             is_hit[rows], prim[rows], b1[rows], b2[rows] = nxt.is_hit, nxt.prim_ids, nxt.b1, nxt.b2
             t[rows] = travelled + nxt.t
             rows = rows[nxt.is_hit]
-        scatter = (None,) * 3 if stops is None or forced else stops
-        out = Hits(is_hit, prim, t.astype(np.float32), b1, b2, *scatter)
+        out = Hits(is_hit, prim, t.astype(np.float32), b1, b2, None if forced else stops)
         if forced and stops:
             out.forced = _forced_points(stops)
         return out, factor, stopped, medium
@@ -324,9 +320,10 @@ class RenderContext:
         ``dirs`` their directions) in ``factor``, and set ``medium`` to the volume each one was
         in: the tracked one, or that of a surface hit from the back (the ray was inside it).
         With ``distances`` (see :meth:`trace`), segments in a scattering volume draw where they
-        stop instead: ``stops_out`` = (scatter_t, ends, planes), each len(rows) long, get the
-        distances of those that stop, of the hits their segments went to, and to the planes of
-        the faces their segments started from (``entry_normals``, if given) and went to."""
+        stop instead: ``stops_out`` (len(rows),) gets the distances of those that stop; or, a list,
+        gets a forced point in each such segment (rays, t, weight, segment length, distances to
+        the planes of the faces the segment started from (``entry_normals``, if given) and went
+        to, volumes)."""
         h = np.flatnonzero(raw.is_hit)
         if len(h) == 0:
             return
@@ -372,15 +369,7 @@ class RenderContext:
                                                self.scattering.take(ms, axis=0), distances(rs, segment),
                                                length.take(s), thr)
                 factor[rs] *= weight
-                scatter_t, ends, planes = stops_out
-                at = h.take(a.take(s[stops]))
-                scatter_t[at] = t[stops]
-                ends[at] = length.take(s)[stops]
-                d_at = dirs.take(at, axis=0)
-                n_exit = self.accel.geometric_normals.take(raw.prim_ids.take(at), axis=0)
-                planes[at, 1] = (ends[at] - t[stops]) * np.abs(dot(d_at, n_exit))
-                if entry_normals is not None:
-                    planes[at, 0] = t[stops] * np.abs(dot(d_at, entry_normals.take(at, axis=0)))
+                stops_out[h.take(a.take(s[stops]))] = t[stops]
                 keep = np.ones(len(a), bool)
                 keep[s] = False
                 a, vol, length = a[keep], vol[keep], length[keep]
@@ -677,15 +666,14 @@ def _forced_points(parts):
     return tuple(np.concatenate([p[k] for p in parts]) for k in range(6))
 
 
-def _stop_in_volumes(hits, scatter_t, ends, planes):
+def _stop_in_volumes(hits, scatter_t):
     """``hits`` with the rays that stopped in a volume (finite ``scatter_t``) no longer hitting:
-    their ``t`` the distance where they stopped, ``scatter_t``, ``ends`` and ``planes`` attached."""
+    their ``t`` the distance where they stopped, ``scatter_t`` attached."""
     stop = np.isfinite(scatter_t)
     if not stop.any():
-        return Hits(hits.is_hit, hits.prim_ids, hits.t, hits.b1, hits.b2, scatter_t, ends, planes)
+        return Hits(hits.is_hit, hits.prim_ids, hits.t, hits.b1, hits.b2, scatter_t)
     return Hits(hits.is_hit & ~stop, np.where(stop, -1, hits.prim_ids).astype(np.int32),
-                np.where(stop, scatter_t, hits.t).astype(np.float32), hits.b1, hits.b2, scatter_t, ends,
-                planes)
+                np.where(stop, scatter_t, hits.t).astype(np.float32), hits.b1, hits.b2, scatter_t)
 
 
 def _background(world):

@@ -21,7 +21,7 @@ from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, TRANSLUCENT, choose_lobe
                    lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from .sampling import dot
-from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
 
 
 @dataclass
@@ -222,8 +222,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             if table.has_coat:
                 seen = seen * coat_attenuation(table, surf, wo, e)
             if sets is not None:
-                links = ctx.emitter_links.take(prim.take(e))
-                seen = seen * ((links >> sets.take(e).astype(np.uint64)) & np.uint64(1))[:, None]
+                seen = seen * linked(ctx.emitter_links.take(prim.take(e)), sets.take(e))[:, None]
             emission[pix[e]] += beta[e] * seen
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
         scores = lobe_scores(table, surf.mat_ids, surf.colors)

@@ -16,7 +16,7 @@ import numpy as np
 
 from . import sampling as smp
 from .environment import Environment
-from .scene import ALL_LINKS, AREA_DISK, AREA_RECT, POINT, SPOT, SUN
+from .scene import ALL_LINKS, AREA_DISK, AREA_RECT, POINT, SPOT, SUN, linked
 
 LIGHT_DIMS = 6
 # Emitter kinds in the combined table (analytic kinds keep their Lights.kind value).
@@ -229,7 +229,7 @@ class LightSampler:
         for i in np.flatnonzero(L.visibility):
             seen = flags & L.visibility[i]
             if sets is not None and L.links[i] != ALL_LINKS:
-                seen = np.where((L.links[i] >> sets.astype(np.uint64)) & np.uint64(1), seen, 0)
+                seen = np.where(linked(L.links[i], sets), seen, 0)
             rays = np.flatnonzero(seen)
             if len(rays) == 0:
                 continue
@@ -335,8 +335,7 @@ class LightSampler:
     def lights_sets(self, u0, sets):
         """(n,) bool: whether the emitters of photons with first light dimensions ``u0`` (n,)
         light receiver sets ``sets`` (n,) (Scene.receiver_sets)."""
-        links = self.links.take(self.entries(u0))
-        return ((links >> sets.astype(np.uint64)) & np.uint64(1)).astype(bool)
+        return linked(self.links.take(self.entries(u0)), sets)
 
     def entries(self, u0):
         """(n,) emitter of each photon from its first light dimension (power-proportional)."""

@@ -47,6 +47,12 @@ ALL_LINKS = np.uint64(0xFFFFFFFFFFFFFFFF)
 MAX_RECEIVER_SETS = 64
 
 
+def linked(links, sets):
+    """(n,) bool: whether emitters of ``links`` (n,) uint64 (or one) light (or are shadowed by)
+    the sets ``sets`` (n,): bit s of the links."""
+    return ((np.asarray(links, np.uint64) >> np.asarray(sets).astype(np.uint64)) & np.uint64(1)).astype(bool)
+
+
 def _f32(a, shape_tail=()):
     return np.ascontiguousarray(np.asarray(a, dtype=np.float32).reshape((-1,) + shape_tail))
 
