@@ -655,13 +655,18 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             medium = np.zeros(0, np.int32)
         if vert is not None:
             # Photons in volumes scatter by the phase function (its density: weight 1), with
-            # Russian roulette on the scattering coefficient's share of the flux.
+            # Russian roulette on the albedo (the scattering's share of the extinction, for the
+            # photon's colour).  The arriving flux holds T / p(t), about 1 / extinction: against
+            # it, the scattered flux's share would be the scattering coefficient itself, which
+            # (per unit of length) in thin fog killed most photons and multiplied the survivors'
+            # flux by 1 / extinction at every scattering (x 6 each in a 0.17 / m fog).
             vidx = vert["idx"]
             block = u[vidx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
             vmed = vert["medium"]
             d_v = sample_hg(vert["d"], ctx.anisotropy.take(vmed), block[:, 1], block[:, 2])
             f_v = vert["flux"] * ctx.scattering.take(vmed, axis=0)
-            q = np.minimum(1.0, luminance(f_v) / np.maximum(luminance(vert["flux"]), 1e-300))
+            f_t = vert["flux"] * ctx.extinction.take(vmed, axis=0)
+            q = np.minimum(1.0, luminance(f_v) / np.maximum(luminance(f_t), 1e-300))
             keep = np.flatnonzero((block[:, 3] < q) & (q > 0))
             idx = np.concatenate([idx, vidx.take(keep)])
             flux = np.concatenate([flux, f_v.take(keep, axis=0) / q.take(keep)[:, None]])
