@@ -11,7 +11,7 @@ from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TRANSLUCENT, MaterialTa
 from .environment import Environment
 from .lights import LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
-from .sampling import dot, forced_flight, free_flight, normalize
+from .sampling import dot, forced_flight, free_flight, normalize, transmittance
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
@@ -24,6 +24,10 @@ MAX_TRANSPARENT_CROSSINGS = 64
 # off the axes (scenes are often axis-aligned: no probe along an edge) and the surfaces they cross.
 PROBE_DIRECTION = np.array([0.0123, 0.0371, 1.0]) / np.linalg.norm([0.0123, 0.0371, 1.0])
 MAX_PROBE_CROSSINGS = 64
+# Rays that leave the scene into the world's volume stop (photons) or get camera points within
+# this many times the scene's size (Accel.extent); light that would scatter further out is lost
+# (a photon 1000 scene sizes away comes back into the scene's solid angle once in a million).
+FAR_EXTENTS = 1e3
 # Step of a procedural bump's finite differences, relative to the scene's size (Accel.extent).
 BUMP_STEP = 1e-5
 
@@ -85,15 +89,28 @@ class RenderContext:
         # have a volume, and which scatter.
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
         self.scattering = np.asarray(mats.volume_scattering, np.float64)
-        self.extinction = self.absorption + self.scattering
         self.anisotropy = np.asarray(mats.volume_anisotropy, np.float64)
+        # The world's volume (World.volume_*): one more row after the materials', the medium
+        # ``outside`` every mesh volume (-1: none, empty space).
+        world = scene.world
+        self.outside = -1
+        if world.has_volume:
+            self.outside = len(self.absorption)
+            self.absorption = np.vstack([self.absorption, np.asarray(world.volume_absorption, np.float64)])
+            self.scattering = np.vstack([self.scattering, np.asarray(world.volume_scattering, np.float64)])
+            self.anisotropy = np.append(self.anisotropy, float(world.volume_anisotropy))
+        self.extinction = self.absorption + self.scattering
         self.scatters = (self.scattering > 0).any(axis=1)
         self.volumetric = (self.absorption > 0).any(axis=1) | self.scatters
         self.has_volumes = bool(self.volumetric.any())
         self.has_scattering = bool(self.scatters.any())
         self._eye_medium = self._light_media = None     # found when first needed
+        # Light from afar (the sun, the world) comes through the world's unbounded volume only in
+        # the channels it does not attenuate.
+        through = (self.extinction[self.outside] == 0).astype(np.float64) if self.outside >= 0 else None
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
-                                   (self.table.emission_program >= 0) | (self.opacity_program >= 0))
+                                   (self.table.emission_program >= 0) | (self.opacity_program >= 0),
+                                   distant_transmittance=through)
         # Light linking (Scene.receiver_sets): each triangle's receiver set and each emissive one's
         # links, when some emitter leaves a set out (else None: every emitter lights everything).
         self.receiver_sets = self.emitter_links = None
@@ -136,8 +153,8 @@ class RenderContext:
         thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes and their layers (Fresnel
         layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
         normal and bump maps, textured emitters), lights' angular (IES) profiles, light and shadow
-        linking, transparency, objects hidden from some camera rays, holdouts, volumes, an environment
-        image, and the camera's depth of field or panorama."""
+        linking, transparency, objects hidden from some camera rays, holdouts, volumes (the world's
+        too), an environment image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
@@ -165,31 +182,36 @@ class RenderContext:
                  ("holdout", self.has_holdout),
                  ("volumes", self.has_volumes),
                  ("scattering volumes", self.has_scattering),
+                 ("world volume", self.outside >= 0),
                  ("environment image", self.lights.environment is not None),
                  ("depth of field", cam.aperture_radius > 0 and cam.projection not in PANORAMAS),
                  ("panorama", cam.projection in PANORAMAS))
         return tuple(name for name, on in flags if on)
 
     def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None,
-              distances=None, throughput=None, origin_normals=None, forced=False):
+              distances=None, throughput=None, origin_normals=None, forced=0, cut=False):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
         the hit, decided by ``uniforms(rows, crossing)`` ((k,) numbers in [0, 1) for the rays
         ``rows`` at their ``crossing``-th transparent hit); otherwise the ray goes on from there,
         tinted by the material's transparent colour, up to ``MAX_TRANSPARENT_CROSSINGS`` times.
-        ``medium`` (n,) int32 is the material whose volume each ray starts in (-1: none; None:
-        all -1), as :meth:`next_medium` tracks it; each segment that ends on a hit is absorbed
-        by its volume (``Materials.volume_absorption``; rays that leave the scene are not).  In a
+        ``medium`` (n,) int32 is the material whose volume each ray starts in (-1: none;
+        ``outside``: the world's; None: all ``outside``), as :meth:`next_medium` tracks it; each
+        segment that ends on a hit is absorbed by its volume (``Materials.volume_absorption``;
+        rays that leave the scene are not, but in the world's volume, which is unbounded, they
+        are extinguished in the channels it attenuates, past ``tmax`` too, as in Cycles; with
+        ``cut``, rays that reach ``tmax`` in any volume are attenuated to there).  In a
         volume that scatters (``Materials.volume_scattering``) the segment ends at a distance drawn
         by ``distances(rows, segment)`` (numbers like ``uniforms``, for the rays' ``segment``-th
         segment; :func:`~core.sampling.free_flight`, its channel by the rays' ``throughput`` (n, 3)
         times the volume's albedo) where that falls before the hit: the ray
         stops in the volume there (``hits.scatter_t``, ``is_hit`` False), the factor holding
         T(t) / p(t) (without the scattering coefficient); those that reach the hit carry
-        T / P(reach).  Without ``distances`` volumes only absorb.  With ``forced`` (camera paths)
-        no ray stops: every segment in a scattering volume gets a point at a distance drawn inside
-        it (:func:`~core.sampling.forced_flight`) and the ray goes on with T(L); ``hits.forced``
+        T / P(reach).  Without ``distances`` volumes only absorb.  With ``forced`` > 0 (camera
+        paths) no ray stops: every segment in a scattering volume gets that many points at
+        distances drawn inside it, stratified (:func:`~core.sampling.forced_flight`, each with
+        1 / ``forced`` of the weight) and the ray goes on with T(L); ``hits.forced``
         = (rays, t, weight (k, 3) of the point with the factor before the segment, the segment's
         end, planes (k, 2), volumes) of those points, or None.  ``planes`` are the points'
         distances to the planes of the faces their segment entered and left the volume by (the
@@ -222,11 +244,12 @@ class RenderContext:
             stops = [] if forced else np.full(n, np.inf)
         else:
             distances = None
+        limit = None if tmax is None else np.broadcast_to(np.asarray(tmax, np.float64), (n,))
         if self.has_volumes:
-            medium = np.full(n, -1, np.int32) if medium is None else np.array(medium, np.int32)
+            medium = np.full(n, self.outside, np.int32) if medium is None else np.array(medium, np.int32)
             factor = np.ones((n, 3))
             self._absorb(factor, medium, np.arange(n), raw, dirs, distances, 0, stops, throughput,
-                         origin_normals)
+                         origin_normals, limit if cut else None, forced)
         hits = accel.with_contacts(raw, origins, dirs)
         if stops is not None and not forced:
             hits = _stop_in_volumes(hits, stops)
@@ -238,7 +261,6 @@ class RenderContext:
             return hits, factor, None, medium
         is_hit, prim, b1, b2 = hits.is_hit.copy(), hits.prim_ids.copy(), hits.b1.copy(), hits.b2.copy()
         t = hits.t.astype(np.float64)
-        limit = None if tmax is None else np.broadcast_to(np.asarray(tmax, np.float64), (n,))
         factor = np.ones((n, 3)) if factor is None else factor
         stopped = np.ones(n)
         rows = np.flatnonzero(is_hit)
@@ -297,7 +319,8 @@ class RenderContext:
                 seg = [] if forced else np.full(len(rows), np.inf)
             if self.has_volumes:
                 self._absorb(factor, medium, rows, raw, d, distances, crossing + 1, seg, throughput,
-                             accel.geometric_normals.take(pr, axis=0) if forced else None)
+                             accel.geometric_normals.take(pr, axis=0) if forced else None,
+                             left if cut else None, forced)
             nxt = accel.with_contacts(raw, start, d)
             if forced:
                 for rr, tt, ww, ee, pp, mm in seg or ():   # (rr are the rays' own numbers)
@@ -315,47 +338,71 @@ class RenderContext:
         return out, factor, stopped, medium
 
     def _absorb(self, factor, medium, rows, raw, dirs, distances=None, segment=0, stops_out=None,
-                throughput=None, entry_normals=None):
+                throughput=None, entry_normals=None, limit=None, forced=1):
         """Absorb the segments of rays ``rows`` that end on the hits ``raw`` (before contacts;
         ``dirs`` their directions) in ``factor``, and set ``medium`` to the volume each one was
         in: the tracked one, or that of a surface hit from the back (the ray was inside it).
+        Rays that miss in a volume go on to ``limit`` (len(rows),) (None or inf: to infinity, where
+        only the world's volume, ``outside``, reaches; other volumes leave them as they are).
         With ``distances`` (see :meth:`trace`), segments in a scattering volume draw where they
-        stop instead: ``stops_out`` (len(rows),) gets the distances of those that stop; or, a list,
-        gets a forced point in each such segment (rays, t, weight, segment length, distances to
-        the planes of the faces the segment started from (``entry_normals``, if given) and went
-        to, volumes)."""
-        h = np.flatnonzero(raw.is_hit)
+        stop instead: ``stops_out`` (len(rows),) gets the distances of those that stop; or, a
+        list, gets ``forced`` points in each such segment (rays, t, weight, segment length,
+        distances to the planes of the faces the segment started from (``entry_normals``, if
+        given) and went to, volumes)."""
+        hit = raw.is_hit
+        if self.outside >= 0 or limit is not None:
+            # Misses in a volume: in the world's, or cut short by the limit.
+            now = medium.take(rows)
+            cut = np.isfinite(limit) if limit is not None else False
+            hit = hit | ((now >= 0) & ((now == self.outside) | cut))
+        h = np.flatnonzero(hit)
         if len(h) == 0:
             return
-        prim = raw.prim_ids.take(h)
-        mat = self.material_ids.take(prim)
-        back = dot(dirs.take(h, axis=0), self.accel.geometric_normals.take(prim, axis=0)) > 0
+        on = raw.is_hit.take(h)
         r = rows.take(h)
-        inside = np.where(back & self.volumetric.take(mat), mat, medium.take(r))
+        inside = medium.take(r)
+        if on.any():
+            prim = np.where(on, raw.prim_ids.take(h), 0)
+            mat = self.material_ids.take(prim)
+            back = on & (dot(dirs.take(h, axis=0), self.accel.geometric_normals.take(prim, axis=0)) > 0)
+            inside = np.where(back & self.volumetric.take(mat), mat, inside)
         medium[r] = inside
         a = np.flatnonzero(inside >= 0)
         if len(a) == 0:
             return
         vol = inside.take(a)
-        length = raw.t.take(h.take(a)).astype(np.float64)
+        end = np.full(len(h), np.inf) if limit is None else limit.take(h)
+        length = np.where(on, raw.t.take(h).astype(np.float64), end).take(a)
+        # Points and stops on an unbounded segment are drawn within FAR_EXTENTS scene sizes.
+        far = FAR_EXTENTS * self.accel.extent
         if distances is not None and isinstance(stops_out, list):
-            # Forced points: one inside every segment in a scattering volume; all rays go on.
+            # Forced points: ``forced`` inside every segment in a scattering volume, their numbers
+            # stratified (a whole image's points then vary less than with one per segment, for
+            # the same photons; README "Camera points in fog"); all rays go on.
             s = np.flatnonzero(self.scatters.take(vol))
             if len(s):
                 rs, ms = r.take(a.take(s)), vol.take(s)
                 thr = factor.take(rs, axis=0) * (1.0 if throughput is None else throughput.take(rs, axis=0))
-                seg_len = length.take(s)
-                t, weight, transmitted = forced_flight(self.extinction.take(ms, axis=0),
-                                                       self.scattering.take(ms, axis=0),
-                                                       distances(rs, segment), seg_len, thr)
+                seg_len = np.minimum(length.take(s), far)
+                unbounded = np.flatnonzero(~np.isfinite(length.take(s)))
+                sig_t, sig_s = self.extinction.take(ms, axis=0), self.scattering.take(ms, axis=0)
+                u = distances(rs, segment)
                 at = h.take(a.take(s))
                 d_at = dirs.take(at, axis=0)
-                n_exit = self.accel.geometric_normals.take(raw.prim_ids.take(at), axis=0)
-                planes = np.full((len(s), 2), np.inf)
-                planes[:, 1] = (seg_len - t) * np.abs(dot(d_at, n_exit))
-                if entry_normals is not None:
-                    planes[:, 0] = t * np.abs(dot(d_at, entry_normals.take(at, axis=0)))
-                stops_out.append((rs, t, factor.take(rs, axis=0) * weight, seg_len, planes, ms))
+                exits = np.flatnonzero(on.take(a.take(s)))            # (a miss leaves by no face)
+                n_exit = self.accel.geometric_normals.take(raw.prim_ids.take(at.take(exits)), axis=0)
+                cos_exit = np.abs(dot(d_at.take(exits, axis=0), n_exit))
+                cos_entry = (np.abs(dot(d_at, entry_normals.take(at, axis=0))) if entry_normals is not None
+                             else None)
+                for k in range(forced):
+                    t, weight, transmitted = forced_flight(sig_t, sig_s, (k + u) / forced, seg_len, thr)
+                    planes = np.full((len(s), 2), np.inf)
+                    planes[exits, 1] = (seg_len.take(exits) - t.take(exits)) * cos_exit
+                    if cos_entry is not None:
+                        planes[:, 0] = t * cos_entry
+                    point_weight = factor.take(rs, axis=0) * (weight / forced)
+                    stops_out.append((rs, t, point_weight, length.take(s), planes, ms))
+                transmitted[unbounded] = 0.0 + (sig_t.take(unbounded, axis=0) == 0)    # T(inf)
                 factor[rs] *= transmitted
                 keep = np.ones(len(a), bool)
                 keep[s] = False
@@ -367,25 +414,33 @@ class RenderContext:
                 thr = factor.take(rs, axis=0) * (1.0 if throughput is None else throughput.take(rs, axis=0))
                 t, stops, weight = free_flight(self.extinction.take(ms, axis=0),
                                                self.scattering.take(ms, axis=0), distances(rs, segment),
-                                               length.take(s), thr)
+                                               np.minimum(length.take(s), far), thr)
                 factor[rs] *= weight
                 stops_out[h.take(a.take(s[stops]))] = t[stops]
                 keep = np.ones(len(a), bool)
                 keep[s] = False
                 a, vol, length = a[keep], vol[keep], length[keep]
         if len(a):
-            sigma = self.absorption.take(vol, axis=0)
-            factor[r.take(a)] *= np.exp(-sigma * length[:, None])
+            factor[r.take(a)] *= transmittance(self.absorption.take(vol, axis=0), length)
+
+    def factor_to(self, origins, dirs, t, medium, ray_kind):
+        """(n, 3) what reaches distances ``t`` (n,) (inf: infinity) along camera-path rays that
+        get there (they crossed every transparent surface before): the tints of those surfaces
+        and the transmittance of the volumes on the way, from ``medium`` (n,) at the origins."""
+        crossing = lambda rows, k: np.full(len(rows), 1.0 - 2.0 ** -53)     # noqa: E731
+        _, factor, _, _ = self.trace(origins, dirs, t, crossing, medium, ray_kind, distances=crossing,
+                                     forced=1, cut=True)
+        return np.ones((len(dirs), 3)) if factor is None else factor
 
     def enclosing_medium(self, points):
-        """(n,) int32 the volume each of ``points`` lies in (-1: none), as Cycles finds a
-        camera's: a probe ray from each point walks through every surface; the first one of an
-        absorbing material that it leaves (meets from the back) without having gone into it
-        along the probe encloses the point.  A single slot tracks the volume the probe went
+        """(n,) int32 the volume each of ``points`` lies in (``outside``: none of the meshes'), as
+        Cycles finds a camera's: a probe ray from each point walks through every surface; the
+        first one of an absorbing material that it leaves (meets from the back) without having
+        gone into it along the probe encloses the point.  A single slot tracks the volume the probe went
         into, so a point is found in the innermost of nested volumes only when the probe
         crosses no other volume before leaving it."""
         n = len(points)
-        found = np.full(n, -1, np.int32)
+        found = np.full(n, self.outside, np.int32)
         if not self.has_volumes or n == 0:
             return found
         entered = np.full(n, -1, np.int32)
@@ -438,11 +493,12 @@ class RenderContext:
 
     def light_medium(self, u0):
         """(n,) the volume photons of light-choice numbers ``u0`` start in: that of the point,
-        spot or area light's centre (:meth:`enclosing_medium`, found once); -1 for the sun, the
-        world and emitting triangles (a path that starts inside still is inside where it leaves)."""
+        spot or area light's centre (:meth:`enclosing_medium`, found once); ``outside`` for the
+        sun, the world and emitting triangles (a path that starts inside still is inside where it
+        leaves)."""
         if self._light_media is None:
             kinds = self.lights.kinds
-            self._light_media = np.full(len(kinds), -1, np.int32)
+            self._light_media = np.full(len(kinds), self.outside, np.int32)
             placed = np.flatnonzero(np.isin(kinds, (POINT, SPOT, AREA_RECT, AREA_DISK)))
             if len(placed):
                 centres = np.asarray(self.scene.lights.position, np.float64)[self.lights.ids[placed]]
@@ -453,13 +509,13 @@ class RenderContext:
         """(n,) the volumes of paths that arrived in ``medium`` at triangles ``prim_ids`` from
         ``wo`` and leave along ``wi``: a path that goes through the surface into its back enters
         the material's volume (if it has one; otherwise it stays where it was), one that goes
-        out through its front leaves it (to none); a reflected path stays."""
+        out through its front leaves it (to ``outside``); a reflected path stays."""
         mat = self.material_ids.take(prim_ids)
         ng = self.accel.geometric_normals.take(prim_ids, axis=0)
         into, came = dot(wi, ng), dot(wo, ng)
         enter = (into < 0) & (came > 0) & self.volumetric.take(mat)
         leave = (into > 0) & (came < 0) & (medium == mat)
-        return np.where(enter, mat, np.where(leave, -1, medium)).astype(np.int32)
+        return np.where(enter, mat, np.where(leave, self.outside, medium)).astype(np.int32)
 
     def _opacity(self, prim_ids, b1, b2, positions):
         """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's."""

@@ -32,7 +32,10 @@ TEXTURED_POWER_FLOOR = 0.05
 class LightSampler:
     """Power-proportional choice over all emitters and their photon sampling."""
 
-    def __init__(self, scene, accel, table, emitted=None, opacity=None, varies=None):
+    def __init__(self, scene, accel, table, emitted=None, opacity=None, varies=None,
+                 distant_transmittance=None):
+        """``distant_transmittance`` (3,): the share of the light from afar (the sun, the world)
+        that reaches the scene (the world's volume, RenderContext.outside), or None: all."""
         lights = scene.lights
         # Radiance leaving points of emissive triangles, emission times opacity
         # (RenderContext.emitted_out), for emitters where it varies (``varies`` per material);
@@ -99,6 +102,11 @@ class LightSampler:
                                     np.full(len(emissive_tris), TRIANGLE, np.int32), np.full(n_world, WORLD, np.int32)])
         all_ids = np.concatenate([np.arange(lights.count), emissive_tris, np.zeros(n_world, np.int64)])
         world_power = (world * 4.0 * np.pi * np.pi * self.radius ** 2).reshape(1, 3)[:n_world]
+        if distant_transmittance is not None:
+            far = np.asarray(distant_transmittance, np.float64)
+            light_power = np.where((lights.kind == SUN)[:, None], light_power * far, light_power) \
+                if lights.count else light_power
+            world_power = world_power * far
         all_power = np.concatenate([light_power, tri_power.reshape(-1, 3), world_power])
         score = smp.luminance(all_power)
         keep = score > 0
@@ -207,7 +215,7 @@ class LightSampler:
         L = self.lights
         return bool(L.count and (L.visibility & flags).any())
 
-    def seen_radiance(self, origins, dirs, t_max, escaped, flags, sets=None):
+    def seen_radiance(self, origins, dirs, t_max, escaped, flags, sets=None, attenuation=None):
         """(n, 3) radiance of the analytic lights that rays ``origins + t dirs`` cross.
 
         Rays are camera-path segments of the kinds in ``flags`` (n,) (bits ``VISIBLE_*``); a
@@ -220,7 +228,10 @@ class LightSampler:
         ``soft_falloff`` the disk of radius r through the centre facing the ray's origin);
         sun P / (pi sin^2(angle / 2)) (Cycles).  ``sets`` (n,), for rays that left a reflection or
         refraction: the receiver set of its triangle (Scene.receiver_sets); a linked light counts
-        only for those it lights (camera rays see every light, as in Cycles).
+        only for those it lights (camera rays see every light, as in Cycles).  ``attenuation``,
+        a function of (rays (k,), distances (k,)) -> (k, 3), is what reaches each light crossed
+        from the rays' origins (transparent surfaces and volumes on the way; inf for the sun), or
+        None: nothing in between.
         A loop over the lights, each vectorised over the rays.
         """
         n = len(dirs)
@@ -285,8 +296,12 @@ class LightSampler:
                     continue
                 hit = escaped.take(rays) & (-(d @ axis) >= np.cos(half))
                 radiance = np.broadcast_to(p / (np.pi * np.sin(half) ** 2), (len(rays), 3))
+                t = np.full(len(rays), np.inf)
             sel = np.flatnonzero(hit)
-            out[rays.take(sel)] += radiance.take(sel, axis=0)
+            radiance = radiance.take(sel, axis=0)
+            if attenuation is not None and len(sel):
+                radiance = radiance * attenuation(rays.take(sel), t.take(sel))
+            out[rays.take(sel)] += radiance
         return out
 
     # ------------------------------------------------------------------ sampling

@@ -615,6 +615,21 @@ class World:
     # Camera Ray" between two Backgrounds): a World of its own (color, texture, texture_rotation),
     # or None: the same as every other ray.
     camera: "World" = None
+    # The world's volume (Blender's World > Volume): a homogeneous medium filling everything
+    # outside the meshes' volumes, with the coefficients of Materials.volume_absorption,
+    # volume_scattering and volume_anisotropy.  It is unbounded, as in Cycles: rays that leave
+    # the scene through it are extinguished in every channel it attenuates, so the background,
+    # the sun and the world's light do not get through it (only light from emitters in it).
+    volume_absorption: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) >= 0
+    volume_scattering: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) >= 0
+    volume_anisotropy: float = 0.0      # Henyey-Greenstein g in [-0.99, 0.99]
+
+    VOLUME_FIELDS = ("volume_absorption", "volume_scattering", "volume_anisotropy")
+
+    @property
+    def has_volume(self) -> bool:
+        """Whether the world's volume attenuates some channel."""
+        return bool(np.any(self.volume_absorption) or np.any(self.volume_scattering))
 
 
 def _validate_background(w, name, fail):
@@ -635,6 +650,19 @@ def _validate_background(w, name, fail):
         if rot.shape != (3, 3) or not np.isfinite(rot).all() or abs(abs(np.linalg.det(rot)) - 1) > 1e-3:
             fail(f"{name}.texture_rotation must be a 3 x 3 rotation matrix")
         w.texture_rotation = rot
+
+
+def _validate_world_volume(w, fail):
+    """Check and normalise the coefficients of World ``w``'s volume."""
+    for name in ("volume_absorption", "volume_scattering"):
+        value = np.asarray(getattr(w, name), np.float32).reshape(-1)
+        if value.shape != (3,) or not np.isfinite(value).all() or (value < 0).any():
+            fail(f"world.{name} must be three finite non-negative numbers")
+        setattr(w, name, value)
+    g = np.asarray(w.volume_anisotropy, np.float64).reshape(-1)
+    if g.shape != (1,) or not -0.99 <= g[0] <= 0.99:
+        fail("world.volume_anisotropy must be a number in [-0.99, 0.99]")
+    w.volume_anisotropy = float(g[0])
 
 
 @dataclass
@@ -917,6 +945,7 @@ class Scene:
         if not (0 <= cam.clip_start < cam.clip_end):
             fail("camera clip range must satisfy 0 <= clip_start < clip_end")
         _validate_background(self.world, "world", fail)
+        _validate_world_volume(self.world, fail)
         if self.world.camera is not None:
             _validate_background(self.world.camera, "world.camera", fail)
         return self
@@ -1025,6 +1054,9 @@ class Scene:
             d["world.texture"] = self.world.texture
         if self.world.texture_rotation is not None:
             d["world.texture_rotation"] = self.world.texture_rotation
+        if self.world.has_volume:
+            for name in World.VOLUME_FIELDS:
+                d[f"world.{name}"] = np.asarray(getattr(self.world, name), np.float32)
         camera_world = self.world.camera
         if camera_world is not None:
             d["world.camera.color"] = np.asarray(camera_world.color, np.float32)
@@ -1073,7 +1105,9 @@ class Scene:
                         if "world.camera.color" in keys else None)
         world = World(color=get("world.color"), texture=get("world.texture"),
                       texture_rotation=get("world.texture_rotation"),
-                      film_transparent=bool(get("world.film_transparent", False)), camera=camera_world)
+                      film_transparent=bool(get("world.film_transparent", False)), camera=camera_world,
+                      **{name: get(f"world.{name}") for name in World.VOLUME_FIELDS
+                         if f"world.{name}" in keys})
         ntex = sum(1 for k in keys if k.startswith("textures."))
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),
                       material_ids=get("material_ids"), materials=mats, lights=lights,

@@ -480,13 +480,33 @@ def small_view(resolution=(64, 48), boxes=400, seed=1):
     return m.build(mats, lights, cam, smooth=True)
 
 
+def corner_in_world_fog(resolution=(64, 64)):
+    """A floor and a wall in a world filled with fog (World.volume_*: scattering 0.14 / 0.16 /
+    0.18 per metre, g = -0.2, absorbing a tenth of that), lit by a spot whose beam shows and a
+    small point light; no sky (the world's volume would take it).  The camera is in the fog."""
+    mats = Materials.build([{"name": "floor", "diffuse": 0.8}, {"name": "wall", "diffuse": 0.5}])
+    m = MeshBuilder()
+    m.add_quad((-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0), 0)
+    m.add_quad((-5, 1.5, -3), (5, 1.5, -3), (5, 1.5, 3), (-5, 1.5, 3), 1)
+    spot_dir = np.array([0.8, 0.5, -3.0]) / np.linalg.norm([0.8, 0.5, -3.0])
+    lights = Lights.build([{"kind": "spot", "position": (-0.5, -0.5, 3.0), "direction": spot_dir,
+                            "power": 800.0, "radius": 0.05, "spot_angle": np.radians(35.0),
+                            "spot_blend": 0.2},
+                           {"kind": "point", "position": (1.2, 0.5, 1.0), "power": 100.0, "radius": 0.1}])
+    world = World(volume_scattering=np.array([0.14, 0.16, 0.18]),
+                  volume_absorption=np.array([0.018, 0.012, 0.006]), volume_anisotropy=-0.2)
+    cam = Camera.look_at((0, -5, 5), (0, 0, 0), lens_mm=35.0, resolution=resolution)
+    return m.build(mats, lights, cam, world)
+
+
 BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
            "point_in_sphere": point_in_sphere, "spot_over_plane": spot_over_plane,
            "sun_through_slab": sun_through_slab, "camera_in_glass": camera_in_glass,
            "sky_over_floor": sky_over_floor,
            "glass_ceiling_room": glass_ceiling_room, "hole_mirror_glass": hole_mirror_glass,
            "small_view": small_view,
-           "foggy_glass_ceiling_room": lambda resolution=(64, 48): glass_ceiling_room(resolution, fog=0.4)}
+           "foggy_glass_ceiling_room": lambda resolution=(64, 48): glass_ceiling_room(resolution, fog=0.4),
+           "corner_in_world_fog": corner_in_world_fog}
 
 
 def sun_over_procedural_floor(program, irradiance=10.0, resolution=(32, 32)):

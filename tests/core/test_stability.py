@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, render
-from core.scene import HOLDOUT_OBJECT
+from core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, World
 from core.testing.scenes import MeshBuilder, with_one_object
 
 RUN = dict(passes=2, photons_per_pass=6000, chains=512, workers=1, max_bounces=12)
@@ -232,8 +232,28 @@ def extreme_scattering():
     return m.build(Materials.build(specs), camera=room.camera)
 
 
+def extreme_world_volume():
+    """The scattering extremes of :func:`extreme_scattering` inside a world whose volume scatters
+    1e-30 per metre in red, 50 in green and not at all in blue, almost straight back (g = -0.99),
+    and absorbs 1e6 in blue: the camera and the lamp sit in its densest channel, a sun and a sky
+    come through in blue alone, a point light of radius 0.1 is seen by the camera, and the room
+    is opened by a missing wall (rays leave into the unbounded fog)."""
+    scene = extreme_scattering()
+    keep = np.flatnonzero(~np.all(scene.triangle_corners()[:, :, 1] > 0.999, axis=1))   # the wall y = 1
+    m = MeshBuilder()
+    m.tris, m.mats = [scene.triangle_corners()[keep]], [scene.material_ids[keep]]
+    m.normals = [np.zeros((len(keep), 3, 3))]
+    lights = Lights.build([{"kind": "sun", "direction": (0.3, 0.2, -1.0), "power": 5.0, "angle": 0.1},
+                           {"kind": "point", "position": (0.5, 0.5, 1.5), "power": 50.0, "radius": 0.1,
+                            "visibility": VISIBLE_CAMERA}])
+    world = World(color=np.full(3, 0.5, np.float32), volume_scattering=np.array([1e-30, 50.0, 0.0]),
+                  volume_absorption=np.array([0.0, 0.0, 1e6]), volume_anisotropy=-0.99)
+    return m.build(scene.materials, lights, scene.camera, world)
+
+
 SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
           "extreme_volumes": extreme_volumes, "extreme_scattering": extreme_scattering,
+          "extreme_world_volume": extreme_world_volume,
           "wild_procedural_colour": wild_procedural_colour,
           "transparent_stack": transparent_stack,
           "light_trapped_in_glass": light_trapped_in_glass,
