@@ -759,7 +759,8 @@ class NodeWalker:
         return closure or Closure()
 
     def world_color(self, world):
-        """Background radiance (3,) of a world: Background/Emission colour times strength.
+        """Background radiance (3,) of a world: Background/Emission colour times strength (its
+        Volume goes to ``medium``, as a material's).
 
         A colour that varies with the direction is left in ``world_program`` (a program of the
         direction, which the world export bakes into an image) unless it is an equirectangular
@@ -771,8 +772,7 @@ class NodeWalker:
         out = nt.get_output_node('CYCLES')
         if out is None:
             return np.array(world.color[:3], np.float64)
-        if self.source(out.inputs["Volume"], ())[0] is not None:
-            self.note("the world's volume is not supported (left out)")
+        self.medium = self.volume(out.inputs["Volume"], ())
         src, default, stack = self.source(out.inputs["Surface"], ())
         if src is None:
             return np.zeros(3)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...core.scene import Scene
+from ...core.scene import SUN, Scene
 from .camera import export_camera
 from .lights import build_lights, export_light, ray_visibility
 from .linking import LightLinking
@@ -94,6 +94,10 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
             sets[set_key] = getattr(geometry, set_key)
             sets[links_key] = kind.links(getattr(geometry, collections_key))
     lights = build_lights(light_records + world_lights)
+    if world.has_volume and (np.any(world.color) or world.texture is not None or (lights.kind == SUN).any()):
+        log.warning("the world's volume fills all space, so (as in Cycles) the sun and the world's light "
+                    "do not get through it in the colours it attenuates; light the fog with point, spot or "
+                    "area lights or emitters")
     camera = export_camera(depsgraph, camera_object, resolution, border, log)
     if materials.count == 0:
         materials.default_id()

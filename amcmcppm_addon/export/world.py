@@ -12,6 +12,10 @@ environment image in it, up to ``BAKE_MAX_WIDTH``) that becomes the world's imag
 Texture (``core/sky.py``) is baked so without its sun disc, which becomes a sun light of the
 disc's direction, size and irradiance (times the Background's strength) when the sky is the
 Background's colour itself; a disc that other nodes change is left out with a warning.
+
+The world's Volume (Volume Absorption, Volume Scatter, Principled Volume, as a material's)
+fills all space outside the meshes' volumes, unbounded as in Cycles: the sun and the world's
+own light then reach nothing in the channels it attenuates (``export_scene`` warns).
 """
 from __future__ import annotations
 
@@ -40,6 +44,11 @@ def export_world(depsgraph, textures, log):
         log.warning(f"world '{world.name}': " + "; ".join(walker.notes))
     out, lights = _background(walker, color, textures, world.name, log)
     out.film_transparent = transparent
+    if walker.medium is not None:
+        absorption, scattering, g = walker.medium
+        out.volume_absorption = absorption.astype(np.float32)
+        out.volume_scattering = scattering.astype(np.float32)
+        out.volume_anisotropy = float(g)
     if walker.camera_walker is not None:
         out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log)
     return out, lights

@@ -930,8 +930,8 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     scatters Color Density (Cycles' svm_node_principled_volume and svm_node_closure_volume; the
     absorption measured with Cycles 5.0: a 1 m volume-only cube against the white sky gave
     exp(-(1 - C) D) within 0.1 %); the scatterers' Anisotropy is the phase function's g.  A volume
-    without a surface makes the surface let everything through; volume emission, phase functions
-    other than Henyey-Greenstein and a world volume are noted."""
+    without a surface makes the surface let everything through; volume emission and phase
+    functions other than Henyey-Greenstein are noted."""
     mat, _ = bs.volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
                              Color=(0.2, 0.5, 1.2, 1), Density=2.0)
     row, ex = export_material(mat)
@@ -984,11 +984,42 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     row, _ = export_material(principled("Plain"))
     assert row["volume_absorption"] == pytest.approx([0, 0, 0]) and row["opacity"] == 1
 
-    world = bs.world((0.1, 0.1, 0.1))
-    scatter = world.node_tree.nodes.new("ShaderNodeVolumeScatter")
-    world.node_tree.links.new(scatter.outputs[0], world.node_tree.nodes["World Output"].inputs["Volume"])
+
+def world_volume(kind, color=(0.0, 0.0, 0.0), **inputs):
+    """The scene's world of background ``color`` with a new ``kind`` node of ``inputs`` on its
+    Volume output."""
+    world = bs.world(color)
+    nt = world.node_tree
+    node = nt.nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    nt.links.new(node.outputs[0], nt.nodes["World Output"].inputs["Volume"])
+    return world
+
+
+def test_the_world_volume_is_exported_as_the_world_medium(scene):
+    """World > Volume becomes ``World.volume_*`` with a material volume's coefficients.  A sun or
+    a world that emits gets a warning, since (as in Cycles) their light does not get through;
+    point lights alone do not."""
+    bs.camera()
+    world_volume("ShaderNodeVolumePrincipled", Color=(0.5, 0.5, 0.5, 1.0), Density=0.2, Anisotropy=0.3,
+                 **{"Absorption Color": (0.0, 0.0, 0.0, 1.0)})
+    bs.light("POINT", location=(0, 0, 2), energy=100.0)
     ex = bs.export()
-    assert any("world's volume is not supported" in w for w in ex.warnings), ex.warnings
+    world = ex.scene.world
+    assert world.volume_scattering == pytest.approx(np.full(3, 0.1))
+    assert world.volume_absorption == pytest.approx(np.full(3, 0.1))
+    assert world.volume_anisotropy == pytest.approx(0.3)
+    assert not any("world's volume" in w for w in ex.warnings), ex.warnings
+
+    world_volume("ShaderNodeVolumeAbsorption", (0.1, 0.1, 0.1), Color=(1.0, 1.0, 0.0, 1.0), Density=2.0)
+    ex = bs.export()
+    assert ex.scene.world.volume_absorption == pytest.approx([0.0, 0.0, 2.0])
+    assert not ex.scene.world.volume_scattering.any()
+    assert any("world's volume fills all space" in w for w in ex.warnings), ex.warnings
+
+    bs.world((0.1, 0.1, 0.1))
+    assert not bs.export().scene.world.has_volume
 
 
 def test_object_ray_visibility_reaches_the_triangles(scene):
