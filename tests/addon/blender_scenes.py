@@ -229,6 +229,18 @@ def world(color=(0.0, 0.0, 0.0), strength=1.0):
     return w
 
 
+def world_volume(kind, color=(0.0, 0.0, 0.0), **inputs):
+    """The scene's new world of background ``color`` with a new ``kind`` node of ``inputs`` on its
+    Volume output."""
+    w = world(color)
+    nt = w.node_tree
+    node = nt.nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    nt.links.new(node.outputs[0], nt.nodes["World Output"].inputs["Volume"])
+    return w
+
+
 # ---------------------------------------------------------------------- export and render
 def export(scene=None):
     """Export the current scene with the viewport depsgraph (``ExportedScene``)."""

@@ -985,24 +985,12 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     assert row["volume_absorption"] == pytest.approx([0, 0, 0]) and row["opacity"] == 1
 
 
-def world_volume(kind, color=(0.0, 0.0, 0.0), **inputs):
-    """The scene's world of background ``color`` with a new ``kind`` node of ``inputs`` on its
-    Volume output."""
-    world = bs.world(color)
-    nt = world.node_tree
-    node = nt.nodes.new(kind)
-    for key, value in inputs.items():
-        node.inputs[key].default_value = value
-    nt.links.new(node.outputs[0], nt.nodes["World Output"].inputs["Volume"])
-    return world
-
-
 def test_the_world_volume_is_exported_as_the_world_medium(scene):
     """World > Volume becomes ``World.volume_*`` with a material volume's coefficients.  A sun or
     a world that emits gets a warning, since (as in Cycles) their light does not get through;
     point lights alone do not."""
     bs.camera()
-    world_volume("ShaderNodeVolumePrincipled", Color=(0.5, 0.5, 0.5, 1.0), Density=0.2, Anisotropy=0.3,
+    bs.world_volume("ShaderNodeVolumePrincipled", Color=(0.5, 0.5, 0.5, 1.0), Density=0.2, Anisotropy=0.3,
                  **{"Absorption Color": (0.0, 0.0, 0.0, 1.0)})
     bs.light("POINT", location=(0, 0, 2), energy=100.0)
     ex = bs.export()
@@ -1012,7 +1000,7 @@ def test_the_world_volume_is_exported_as_the_world_medium(scene):
     assert world.volume_anisotropy == pytest.approx(0.3)
     assert not any("world's volume" in w for w in ex.warnings), ex.warnings
 
-    world_volume("ShaderNodeVolumeAbsorption", (0.1, 0.1, 0.1), Color=(1.0, 1.0, 0.0, 1.0), Density=2.0)
+    bs.world_volume("ShaderNodeVolumeAbsorption", (0.1, 0.1, 0.1), Color=(1.0, 1.0, 0.0, 1.0), Density=2.0)
     ex = bs.export()
     assert ex.scene.world.volume_absorption == pytest.approx([0.0, 0.0, 2.0])
     assert not ex.scene.world.volume_scattering.any()

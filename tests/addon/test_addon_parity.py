@@ -104,11 +104,14 @@ def use_cycles(scene):
     c.seed = 1
 
 
-def cycles_and_ours(build, tmp_path):
+def cycles_and_ours(build, tmp_path, volume_bounces=None):
     """Images (Cycles, ours) of the scene ``build()`` makes, built afresh for each renderer;
-    ours is checked to be finite."""
+    ours is checked to be finite.  ``volume_bounces``: Cycles' (its default is 0, single
+    scattering)."""
     build()
     use_cycles(bpy.context.scene)
+    if volume_bounces is not None:
+        bpy.context.scene.cycles.volume_bounces = volume_bounces
     cycles = bs.render_exr(tmp_path / "cycles.exr")
     build()
     ours = bs.render_exr(tmp_path / "ours.exr")
@@ -163,6 +166,7 @@ def assert_bands_match(name, ours, cycles, rtol=BAND_TOLERANCE):
     np.testing.assert_allclose(band_ours[lit], band_cycles[lit], rtol=rtol)
 
 
+@pytest.mark.slow       # (test_mean_matches_cycles[world] stays in the fast tier)
 def test_bands_match_cycles_on_a_floor_under_the_world_after_many_passes(addon, tmp_path):
     """AMCMCPPM's chains once drifted from pass to pass towards surfaces seen face on: after 32
     passes the near floor was too bright and the far floor too dark (``core/visible_cells.py``)."""
@@ -1211,17 +1215,12 @@ def test_scattering_volumes_match_cycles(addon, tmp_path, shader):
         bs.light("SPOT", location=(-0.5, -0.5, 3.0), target=(0.3, 0, 0), energy=800.0, shadow_soft_size=0.05,
                  spot_size=math.radians(35), spot_blend=0.2)
 
-    build()
-    use_cycles(bpy.context.scene)
-    bpy.context.scene.cycles.volume_bounces = OURS["max_bounces"]
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build()
-    ours = bs.render_exr(tmp_path / "ours.exr")
-    assert np.isfinite(ours).all()
+    cycles, ours = cycles_and_ours(build, tmp_path, volume_bounces=OURS["max_bounces"])
     assert_image_matches(f"fog, {shader}", cycles, ours)
 
 
-@pytest.mark.parametrize("shader", ["scatter", pytest.param("principled", marks=pytest.mark.slow)])
+@pytest.mark.slow       # (the closed forms of test_world_volume.py, its box equivalence and the fog box
+@pytest.mark.parametrize("shader", ["scatter", "principled"])     # against Cycles stay fast)
 def test_world_volumes_match_cycles(addon, tmp_path, shader):
     """The corner in a world filled with fog (World > Volume: a Volume Scatter of Density 0.15,
     Anisotropy 0.5, or a Principled Volume that also absorbs, Density 0.2, Anisotropy -0.2), lit
@@ -1231,27 +1230,15 @@ def test_world_volumes_match_cycles(addon, tmp_path, shader):
     bands of the Principled case came out 0.88-1.23: fireflies.)"""
     def build():
         corner_scene()
-        world = bs.world((0.0, 0.0, 0.0))
-        nt = world.node_tree
         if shader == "scatter":
-            node = nt.nodes.new("ShaderNodeVolumeScatter")
-            values = {"Color": (0.9, 0.8, 0.6, 1.0), "Density": 0.15, "Anisotropy": 0.5}
+            bs.world_volume("ShaderNodeVolumeScatter", Color=(0.9, 0.8, 0.6, 1.0), Density=0.15,
+                            Anisotropy=0.5)
         else:
-            node = nt.nodes.new("ShaderNodeVolumePrincipled")
-            values = {"Color": (0.7, 0.8, 0.9, 1.0), "Density": 0.2, "Anisotropy": -0.2,
-                      "Absorption Color": (0.5, 0.5, 0.5, 1.0)}
-        for key, value in values.items():
-            node.inputs[key].default_value = value
-        nt.links.new(node.outputs[0], nt.nodes["World Output"].inputs["Volume"])
+            bs.world_volume("ShaderNodeVolumePrincipled", Color=(0.7, 0.8, 0.9, 1.0), Density=0.2,
+                            Anisotropy=-0.2, **{"Absorption Color": (0.5, 0.5, 0.5, 1.0)})
         bs.light("SPOT", location=(-0.5, -0.5, 3.0), target=(0.3, 0, 0), energy=800.0, shadow_soft_size=0.05,
                  spot_size=math.radians(35), spot_blend=0.2)
         bs.light("POINT", location=(1.2, 0.5, 1.0), energy=100.0, shadow_soft_size=0.1)
 
-    build()
-    use_cycles(bpy.context.scene)
-    bpy.context.scene.cycles.volume_bounces = OURS["max_bounces"]
-    cycles = bs.render_exr(tmp_path / "cycles.exr")
-    build()
-    ours = bs.render_exr(tmp_path / "ours.exr")
-    assert np.isfinite(ours).all()
+    cycles, ours = cycles_and_ours(build, tmp_path, volume_bounces=OURS["max_bounces"])
     assert_image_matches(f"world fog, {shader}", cycles, ours)

@@ -146,7 +146,7 @@ def test_the_world_volume_renders_as_a_volume_box_around_the_scene():
     """The built-in corner in world fog, and the same with the world clear and the fog in a
     volume-only box 400 m wide around everything (camera and lights inside): the same paths, the
     same image (PPM, same seed; only light beyond the box, 200 m out, may differ)."""
-    scene = BUILTIN["corner_in_world_fog"]((24, 24))
+    scene = BUILTIN["corner_in_world_fog"]((16, 16))
     world = scene.world
     fog = {"name": "fog", "opacity": 0.0, "volume_scattering": world.volume_scattering,
            "volume_absorption": world.volume_absorption, "volume_anisotropy": world.volume_anisotropy}
@@ -156,7 +156,7 @@ def test_the_world_volume_renders_as_a_volume_box_around_the_scene():
     m.normals = [np.zeros((scene.triangle_count, 3, 3))]
     m.add_box((-200, -200, -200), (200, 200, 200), 2)
     boxed = m.build(mats, scene.lights, scene.camera, World())
-    settings = dict(method="ppm", passes=2, photons_per_pass=20_000)
+    settings = dict(method="ppm", passes=2, photons_per_pass=10_000)
     a, b = (finite_render(s, **settings).image[..., :3] for s in (scene, boxed))
     assert a.mean() > 0.05
     np.testing.assert_allclose(b.mean(axis=(0, 1)), a.mean(axis=(0, 1)), rtol=1e-3)    # (measured 1e-5)
