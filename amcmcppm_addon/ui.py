@@ -170,13 +170,15 @@ EXCLUDE_PANELS = {
     "RENDER_PT_simplify",
     "RENDER_PT_freestyle",
 }
-# EEVEE panels with generic settings we use: light power/size, material slots and surface, world
-# surface, depth of field.
+# EEVEE panels with generic settings we use: light power/size, material slots, surface and volume,
+# world surface and volume, depth of field.
 INCLUDE_PANELS = {
     "DATA_PT_EEVEE_light",
     "EEVEE_MATERIAL_PT_context_material",
     "EEVEE_MATERIAL_PT_surface",
+    "EEVEE_MATERIAL_PT_volume",
     "EEVEE_WORLD_PT_surface",
+    "EEVEE_WORLD_PT_volume",
     "DATA_PT_camera_dof",
     "DATA_PT_camera_dof_aperture",
 }

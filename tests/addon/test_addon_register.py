@@ -194,10 +194,12 @@ def test_light_linking_panels_show_for_engine(scene):
 
 
 def test_builtin_panels_show_for_engine(addon):
-    """Format, output, colour management, camera, light, material and world panels include us."""
+    """Format, output, colour management, camera, light, material and world panels include us
+    (the material's and the world's Volume too)."""
     wanted = {"RENDER_PT_format", "RENDER_PT_output", "RENDER_PT_color_management", "DATA_PT_camera",
               "DATA_PT_camera_dof", "DATA_PT_EEVEE_light", "DATA_PT_spot",
-              "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface"}
+              "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface", "EEVEE_MATERIAL_PT_volume",
+              "EEVEE_WORLD_PT_surface", "EEVEE_WORLD_PT_volume"}
     panels = {p.__name__: p for p in bpy.types.Panel.__subclasses__()}
     for name in wanted:
         assert ENGINE in panels[name].COMPAT_ENGINES, name
