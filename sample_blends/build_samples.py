@@ -30,6 +30,8 @@ Glossy with roughness 0 as a mirror), so Cycles renders the same files.
   Noise Texture, over a Volume Absorption that tints the deep water) throws caustics
   onto a pool's tiles (a Brick Texture), which the camera sees through the water
   (specular-diffuse-specular paths).
+* ``foggy_glass_ceiling``: the glass-ceiling room, its plaster darker, in a world full of
+  haze (World > Volume: a Principled Volume): the light through the pane shows as a beam.
 """
 from __future__ import annotations
 
@@ -280,7 +282,8 @@ def cornell_box():
     return b.finish("cornell_box", (256, 256), view_transform="Standard", photons_per_pass=100_000)
 
 
-def glass_ceiling():
+def glass_ceiling_room():
+    """The glass-ceiling room's builder, not yet saved (glass_ceiling, foggy_glass_ceiling)."""
     b = SceneBuilder()
     wall = b.diffuse("Plaster", (0.75, 0.72, 0.68))
     floor = b.diffuse("Floor", (0.45, 0.32, 0.22))
@@ -297,7 +300,29 @@ def glass_ceiling():
             color=(1.0, 0.95, 0.88))
     b.camera((1.7, -1.8, 1.5), (-0.3, 0.5, 0.6), lens=22.0)
     b.world((0.0, 0.0, 0.0))
-    return b.finish("glass_ceiling", (320, 240), photons_per_pass=100_000)
+    return b
+
+
+def glass_ceiling():
+    return glass_ceiling_room().finish("glass_ceiling", (320, 240), photons_per_pass=100_000)
+
+
+def foggy_glass_ceiling():
+    """The glass-ceiling room in a world full of haze (World > Volume: a Principled Volume of
+    Density 0.06, Anisotropy 0.3), its plaster darker: the light through the pane shows as a beam."""
+    b = glass_ceiling_room()
+    # Darker plaster, so that the beam stands out against the light the walls send around.
+    plaster = bpy.data.materials["Plaster"]
+    plaster.node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value = (0.2, 0.19, 0.18, 1.0)
+    plaster.diffuse_color = (0.2, 0.19, 0.18, 1.0)
+    nt = b.scene.world.node_tree
+    fog = nt.nodes.new("ShaderNodeVolumePrincipled")
+    fog.location = (0, -200)
+    fog.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1.0)
+    fog.inputs["Density"].default_value = 0.06
+    fog.inputs["Anisotropy"].default_value = 0.3
+    nt.links.new(fog.outputs[0], nt.nodes["World Output"].inputs["Volume"])
+    return b.finish("foggy_glass_ceiling", (320, 240), photons_per_pass=100_000)
 
 
 def hole_mirror_glass():
@@ -504,7 +529,7 @@ def pool_caustics():
 
 
 SCENES = {f.__name__: f for f in (cornell_box, glass_ceiling, hole_mirror_glass, small_view, caustic_sds,
-                                  checker_caustic, stained_window, pool_caustics)}
+                                  checker_caustic, stained_window, pool_caustics, foggy_glass_ceiling)}
 
 
 def main(argv):
