@@ -216,11 +216,13 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind, sets, attenuation)
             lit = np.flatnonzero(seen.any(axis=1))
             emission[pix[lit]] += beta_in[lit] * seen[lit]
-        # Rays that leave the scene see the world (primary ones are cut out on a transparent film).
+        # Rays that leave the scene see the world (primary ones are cut out on a transparent film,
+        # as far as what they crossed lets them through: Cycles' alpha is 1 - the mean of the
+        # throughput, e.g. 0.5 behind a Transparent BSDF of mean colour 0.5, 1 in world fog).
         miss = ~hits.is_hit
         if miss.any():
             if depth == 0 and scene.world.film_transparent:
-                alpha[pix[miss]] = 0.0
+                alpha[pix[miss]] = np.clip(1.0 - beta[miss].mean(axis=1), 0.0, 1.0)
             elif depth == 0 and ctx.camera_background is not None:
                 m_ = np.flatnonzero(miss)                   # the world camera rays see (Light Path)
                 emission[pix[m_]] += beta[m_] * ctx.camera_background(dirs[m_])

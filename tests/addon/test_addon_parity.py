@@ -1242,3 +1242,30 @@ def test_world_volumes_match_cycles(addon, tmp_path, shader):
 
     cycles, ours = cycles_and_ours(build, tmp_path, volume_bounces=OURS["max_bounces"])
     assert_image_matches(f"world fog, {shader}", cycles, ours)
+
+
+@pytest.mark.parametrize("case", ["volume_box", "transparent_bsdf", "world_volume"])
+def test_transparent_film_alpha_matches_cycles(addon, tmp_path, case):
+    """With Film > Transparent, a camera ray that leaves the scene gives its pixel 1 minus the mean
+    of what got through: through a volume-only box of Volume Absorption (Cycles 0.351), a
+    Transparent BSDF of colour 0.2 / 0.5 / 0.8 (0.5), a world of Volume Absorption that
+    attenuates two channels (0.667).  Before, these pixels had alpha 0."""
+    def build():
+        bs.empty_scene((16, 16))
+        bs.camera(location=(0, -5, 0), target=(0, 0, 0), lens=50.0)
+        bpy.context.scene.render.film_transparent = True
+        if case == "volume_box":
+            mat, _ = bs.volume_material("Fog", "ShaderNodeVolumeAbsorption", Color=(0.0, 0.5, 1.0, 1.0),
+                                        Density=1.0)
+            bs.cube("Box", size=1.0, material=mat, scale=(20.0, 1.0, 20.0))
+        elif case == "transparent_bsdf":
+            mat = bs._material("Veil", "ShaderNodeBsdfTransparent", Color=(0.2, 0.5, 0.8, 1.0))
+            bs.plane("Veil", size=20.0, material=mat, rotation=(math.pi / 2, 0, 0))
+        else:
+            bs.world_volume("ShaderNodeVolumeAbsorption", (0.3, 0.3, 0.3), Color=(0.0, 0.5, 1.0, 1.0),
+                            Density=0.05)
+
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    print(f"alpha {case}: cycles {cycles[..., 3].mean():.4f} ours {ours[..., 3].mean():.4f}")
+    assert cycles[..., 3].mean() > 0.3
+    np.testing.assert_allclose(ours[..., 3], cycles[..., 3], atol=0.01)
