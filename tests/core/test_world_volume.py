@@ -12,6 +12,9 @@ Closed forms:
   through untouched in the channels it does not attenuate;
 * a lamp seen through the fog shows its radiance times the transmittance to its surface (not
   to the next surface behind it, nor zero when nothing lies behind it).
+
+Also: the world's fog renders as the same fog in a volume-only box around the scene, and a
+transparent film keeps the alpha of what camera rays crossed on their way out.
 """
 from __future__ import annotations
 
