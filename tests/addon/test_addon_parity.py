@@ -145,8 +145,13 @@ def environment_world():
     return world
 
 
-@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.slow) if k.startswith("environment")
-                                  else k for k in LIGHTS])
+# In the slow tier: the environment images, and the rectangle, ellipse and 30-degree spread, whose
+# square, disk and 90-degree siblings stay fast (make test's budget).
+SLOW_LIGHTS = ("environment", "environment_turned", "area_rectangle", "area_ellipse", "spread_30")
+
+
+@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.slow) if k in SLOW_LIGHTS else k
+                                  for k in LIGHTS])
 def test_mean_matches_cycles(addon, tmp_path, kind):
     cycles, ours = cycles_and_ours(lambda: (corner_scene(), add_emitter(kind)), tmp_path)
     mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
@@ -652,7 +657,8 @@ def test_a_light_panel_hidden_from_the_camera_matches_cycles(addon, tmp_path):
     assert_image_matches("panel hidden from the camera", cycles, ours)
 
 
-@pytest.mark.parametrize("relief", [None, "veins", pytest.param("bumps", marks=pytest.mark.slow)],
+@pytest.mark.parametrize("relief", [None, pytest.param("veins", marks=pytest.mark.slow),
+                                    pytest.param("bumps", marks=pytest.mark.slow)],
                          ids=["plain", "checker", "bumped"])
 def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(addon, tmp_path, relief):
     """A paper screen standing on the corner's floor (a Mix of a Diffuse and a Translucent BSDF)
@@ -700,7 +706,8 @@ def test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles(ad
     np.testing.assert_allclose(ratio, 1.0, rtol=0.05)
 
 
-@pytest.mark.parametrize("kind", ["POINT", "SPOT", pytest.param("AREA", marks=pytest.mark.slow),
+@pytest.mark.parametrize("kind", ["POINT", pytest.param("SPOT", marks=pytest.mark.slow),
+                                  pytest.param("AREA", marks=pytest.mark.slow),
                                   pytest.param("SUN", marks=pytest.mark.slow)])   # (one factor: export test)
 def test_a_light_with_an_ies_profile_matches_cycles(addon, tmp_path, kind):
     """A point (or wide spot) light 1.5 m over the corner's floor, turned 40 degrees about the

@@ -207,7 +207,8 @@ def sky_halves(scene, method, seeds, passes, per_seed=False, **settings):
     return np.array(runs) if per_seed else np.mean(runs, axis=0)
 
 
-@pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
+@pytest.mark.parametrize("method", [METHODS[0], pytest.param(METHODS[1], marks=pytest.mark.slow)],
+                         ids=lambda m: m["method"])     # (the chains' case: make test's budget)
 def test_floor_under_a_constant_sky_is_albedo_times_sky_near_and_far(method):
     """L = albedo * sky on all of an open floor, in the near (face-on) and far (grazing) half.
 

@@ -88,7 +88,9 @@ def furnace(resolution=(24, 24), radius=1.0, scattering=(0.5, 1.0, 2.0)):
     return m.build(mats, Lights.empty(), cam)
 
 
-@pytest.mark.parametrize("method", [METHODS[0], METHODS[1],
+# The chains' cases in the slow tier (make test's budget; the fog box against Cycles runs the
+# chains in the fast tier).
+@pytest.mark.parametrize("method", [METHODS[0], pytest.param(METHODS[1], marks=pytest.mark.slow),
                                     pytest.param(dict(method="amcmcppm", chains=2048, mutation="paper"),
                                                  marks=pytest.mark.slow)],
                          ids=["ppm", "amcmcppm", "amcmcppm-paper"])
