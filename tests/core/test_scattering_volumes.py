@@ -100,10 +100,13 @@ def test_a_scattering_furnace_keeps_its_radiance(method):
     walls' photons brought after any number of scatterings.  (Gather spheres near the wall,
     taken as a plane, lose a little; paths longer than 8 scatterings are cut.)  AMCMCPPM's
     default mutation, ``exact``, resumes paths at their first visible vertex, here mostly one in
-    the volume."""
+    the volume.  The ``paper`` mutation is biased where that vertex varies between paths (README,
+    "Bias of the low-dimension mutation"): in blue, the deepest channel, three seeds came out
+    0.960-0.972 (``exact`` 0.977-0.978 and PPM 0.978-1.011 over two), so it gets 5 %."""
     result = finite_render(furnace(), passes=8, photons_per_pass=60_000, initial_radius_px=2.0, **method)
     assert result.stats[-1]["volume_points"] == 24 * 24 * MAX_SEGMENT_POINTS       # every pixel
-    np.testing.assert_allclose(result.image[..., :3].mean(axis=(0, 1)), 1.0, rtol=0.035)
+    rtol = 0.05 if method.get("mutation") == "paper" else 0.035
+    np.testing.assert_allclose(result.image[..., :3].mean(axis=(0, 1)), 1.0, rtol=rtol)
 
 
 def test_a_wide_furnace_of_thin_fog_keeps_its_radiance_without_fireflies():
