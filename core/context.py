@@ -402,7 +402,8 @@ class RenderContext:
                         planes[:, 0] = t * cos_entry
                     point_weight = factor.take(rs, axis=0) * (weight / forced)
                     stops_out.append((rs, t, point_weight, length.take(s), planes, ms))
-                transmitted[unbounded] = 0.0 + (sig_t.take(unbounded, axis=0) == 0)    # T(inf)
+                transmitted[unbounded] = transmittance(sig_t.take(unbounded, axis=0),
+                                                       length.take(s).take(unbounded))       # T(inf)
                 factor[rs] *= transmitted
                 keep = np.ones(len(a), bool)
                 keep[s] = False

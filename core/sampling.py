@@ -319,20 +319,14 @@ def transmittance(sigma, length):
     return np.exp(-optical_depth(sigma, length))
 
 
-def _pick_channel(sigma_t, sigma_s, u, throughput, length=None):
+def _pick_channel(sigma_t, sigma_s, u, throughput):
     """(probabilities (n, 3), chosen channel (n,), the number rescaled within its choice (n,)):
-    channels by ``throughput`` times the albedo (evenly where that is 0: among the channels that
-    attenuate, on segments of infinite ``length`` (n,), which only those can end)."""
+    channels by ``throughput`` times the albedo (evenly where that is 0)."""
     with np.errstate(invalid="ignore", divide="ignore"):
         albedo = np.where(sigma_t > 0, sigma_s / np.where(sigma_t > 0, sigma_t, 1.0), 0.0)
     w = albedo if throughput is None else np.abs(throughput) * albedo
     total = w.sum(axis=1)
-    even = np.full_like(sigma_t, 1.0 / 3.0)
-    if length is not None:
-        unbounded = ~np.isfinite(length)
-        live = (sigma_t > 0) | ~unbounded[:, None]
-        even = live / np.maximum(live.sum(axis=1), 1)[:, None]
-    prob = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], even)
+    prob = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
     cum = np.cumsum(prob, axis=1)
     c = np.minimum((u[:, None] >= cum[:, :2]).sum(axis=1), 2)
     lo = np.where(c > 0, np.take_along_axis(cum, np.maximum(c - 1, 0)[:, None], axis=1)[:, 0], 0.0)
@@ -352,7 +346,7 @@ def free_flight(sigma_t, sigma_s, u, length, throughput=None):
     (n,) bool, and (n, 3) the transmittance over the density: T(t) / p(t) for the scattered
     (without the scattering coefficient) and T(L) / P(t > L) for the rest.
     """
-    prob, c, v = _pick_channel(sigma_t, sigma_s, u, throughput, length)
+    prob, c, v = _pick_channel(sigma_t, sigma_s, u, throughput)
     sc = np.take_along_axis(sigma_t, c[:, None], axis=1)[:, 0]
     with np.errstate(divide="ignore"):
         t = np.where(sc > 0, -np.log1p(-v) / np.where(sc > 0, sc, 1.0), np.inf)
@@ -375,7 +369,7 @@ def forced_flight(sigma_t, sigma_s, u, length, throughput=None):
     mixture of the cut densities (estimates int_0^L T(t) f(t) dt as weight f(t)), and T(L)
     (n, 3), what goes on to the segment's end.
     """
-    prob, c, v = _pick_channel(sigma_t, sigma_s, u, throughput, length)
+    prob, c, v = _pick_channel(sigma_t, sigma_s, u, throughput)
     tau = optical_depth(sigma_t, length)
     reach = -np.expm1(-tau)                                            # (n, 3) 1 - T(L)
     sc = np.take_along_axis(sigma_t, c[:, None], axis=1)[:, 0]
@@ -383,8 +377,8 @@ def forced_flight(sigma_t, sigma_s, u, length, throughput=None):
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(sc > 0, -np.log1p(-v * rc) / np.where(sc > 0, sc, 1.0), v * length)
     tr = np.exp(-sigma_t * t[:, None])
-    # Each channel's cut density (uniform over the segment where its extinction is 0; such a
-    # channel has no density on an unbounded segment, where it is never chosen).
+    # Each channel's cut density (uniform over the segment where its extinction is 0; the camera's
+    # segments into the world's unbounded volume come cut to RenderContext's FAR_EXTENTS).
     with np.errstate(divide="ignore", invalid="ignore"):
         dens = np.where(reach > 0, sigma_t * tr / np.where(reach > 0, reach, 1.0), 1.0 / length[:, None])
     pdf = (prob * dens).sum(axis=1)
