@@ -57,6 +57,7 @@ class Accel:
         self.offset_floor = 1e-7 * self.extent
         self._embree = None
         self._contact = None            # embree scene of the non-glass triangles (see with_contacts())
+        self._ids = None                # the scene's triangles this one holds (subset()), None: all
         if self.triangle_count:
             from embreex import rtcore_scene
             from embreex.mesh_construction import TriangleMesh
@@ -90,9 +91,26 @@ class Accel:
         r = self._embree.run(o, d, dists=dists, output=1)
         prim = r["primID"]
         is_hit = prim >= 0
+        if self._ids is not None:
+            prim = np.where(is_hit, self._ids.take(np.maximum(prim, 0)), -1)
         t = np.where(is_hit, r["tfar"], np.float32(np.inf))
         return Hits(is_hit, np.where(is_hit, prim, -1).astype(np.int32), t,
                     r["u"].astype(np.float64), r["v"].astype(np.float64))
+
+    def subset(self, tri_ids) -> "Accel":
+        """A query over triangles ``tri_ids`` alone (a glowing volume's mesh), in this one's frame:
+        its :meth:`intersect` gives the hits' indices in the whole scene."""
+        out = Accel.__new__(Accel)
+        out.__dict__.update(self.__dict__)
+        out._contact = None
+        out._ids = np.asarray(tri_ids, np.int64)
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+        out._embree = rtcore_scene.EmbreeScene(robust=True)
+        v0, e1, e2 = (a.take(out._ids, axis=0) for a in (self.v0, self.e1, self.e2))
+        corners = np.stack([v0, v0 + e1, v0 + e2], axis=1) - self.center
+        TriangleMesh(out._embree, np.ascontiguousarray(corners, np.float32))
+        return out
 
     def hit_positions(self, prim_ids, b1, b2):
         """(n, 3) float64 surface points from triangle ids and barycentrics."""

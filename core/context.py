@@ -9,9 +9,9 @@ from .accel import Accel, Hits, interpolate_corners
 from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TRANSLUCENT, MaterialTable, Textures,
                    coat_variants, lobe_colors, roughness_variants)
 from .environment import Environment
-from .lights import LightSampler
+from .lights import VOLUME, LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
-from .sampling import dot, forced_flight, free_flight, normalize, transmittance
+from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
@@ -90,6 +90,7 @@ class RenderContext:
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
         self.scattering = np.asarray(mats.volume_scattering, np.float64)
         self.anisotropy = np.asarray(mats.volume_anisotropy, np.float64)
+        self.volume_emission = np.asarray(mats.volume_emission, np.float64)
         # The world's volume (World.volume_*): one more row after the materials', the medium
         # ``outside`` every mesh volume (-1: none, empty space).
         world = scene.world
@@ -99,9 +100,12 @@ class RenderContext:
             self.absorption = np.vstack([self.absorption, np.asarray(world.volume_absorption, np.float64)])
             self.scattering = np.vstack([self.scattering, np.asarray(world.volume_scattering, np.float64)])
             self.anisotropy = np.append(self.anisotropy, float(world.volume_anisotropy))
+            self.volume_emission = np.vstack([self.volume_emission, np.zeros(3)])
         self.extinction = self.absorption + self.scattering
         self.scatters = (self.scattering > 0).any(axis=1)
-        self.volumetric = (self.absorption > 0).any(axis=1) | self.scatters
+        self.glows = (self.volume_emission > 0).any(axis=1)
+        self.volumetric = (self.absorption > 0).any(axis=1) | self.scatters | self.glows
+        self.has_volume_emission = bool(self.glows.any())
         self.has_volumes = bool(self.volumetric.any())
         self.has_scattering = bool(self.scatters.any())
         self._eye_medium = self._light_media = None     # found when first needed
@@ -110,7 +114,7 @@ class RenderContext:
         through = (self.extinction[self.outside] == 0).astype(np.float64) if self.outside >= 0 else None
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
                                    (self.table.emission_program >= 0) | (self.opacity_program >= 0),
-                                   distant_transmittance=through)
+                                   distant_transmittance=through, volume_emission=self.volume_emission)
         # Light linking (Scene.receiver_sets): each triangle's receiver set and each emissive one's
         # links, when some emitter leaves a set out (else None: every emitter lights everything).
         self.receiver_sets = self.emitter_links = None
@@ -183,13 +187,14 @@ class RenderContext:
                  ("volumes", self.has_volumes),
                  ("scattering volumes", self.has_scattering),
                  ("world volume", self.outside >= 0),
+                 ("volume emission", self.has_volume_emission),
                  ("environment image", self.lights.environment is not None),
                  ("depth of field", cam.aperture_radius > 0 and cam.projection not in PANORAMAS),
                  ("panorama", cam.projection in PANORAMAS))
         return tuple(name for name, on in flags if on)
 
     def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None,
-              distances=None, throughput=None, origin_normals=None, forced=0, cut=False):
+              distances=None, throughput=None, origin_normals=None, forced=0, cut=False, glow=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -217,6 +222,9 @@ class RenderContext:
         distances to the planes of the faces their segment entered and left the volume by (the
         first segment's entry face is ``origin_normals`` (n, 3) at the origins, if given; inf:
         none), for the gather spheres that reach out of the volume.
+        ``glow`` (n, 3), for camera paths, gets the radiance that glowing volumes
+        (``Materials.volume_emission``) send along the rays to their origins, through what
+        lies between (the factor at each segment's start).
         ``ray_kind`` (n,) uint8 (camera paths: VISIBLE_CAMERA, VISIBLE_GLOSSY or
         VISIBLE_TRANSMISSION) makes the rays go through triangles hidden from their kind
         (``Scene.triangle_visibility``); without it (photons) every triangle stops them.
@@ -249,7 +257,7 @@ class RenderContext:
             medium = np.full(n, self.outside, np.int32) if medium is None else np.array(medium, np.int32)
             factor = np.ones((n, 3))
             self._absorb(factor, medium, np.arange(n), raw, dirs, distances, 0, stops, throughput,
-                         origin_normals, limit if cut else None, forced)
+                         origin_normals, limit if cut else None, forced, glow)
         hits = accel.with_contacts(raw, origins, dirs)
         if stops is not None and not forced:
             hits = _stop_in_volumes(hits, stops)
@@ -320,7 +328,7 @@ class RenderContext:
             if self.has_volumes:
                 self._absorb(factor, medium, rows, raw, d, distances, crossing + 1, seg, throughput,
                              accel.geometric_normals.take(pr, axis=0) if forced else None,
-                             left if cut else None, forced)
+                             left if cut else None, forced, glow)
             nxt = accel.with_contacts(raw, start, d)
             if forced:
                 for rr, tt, ww, ee, pp, mm in seg or ():   # (rr are the rays' own numbers)
@@ -338,7 +346,7 @@ class RenderContext:
         return out, factor, stopped, medium
 
     def _absorb(self, factor, medium, rows, raw, dirs, distances=None, segment=0, stops_out=None,
-                throughput=None, entry_normals=None, limit=None, forced=1):
+                throughput=None, entry_normals=None, limit=None, forced=1, glow=None):
         """Absorb the segments of rays ``rows`` that end on the hits ``raw`` (before contacts;
         ``dirs`` their directions) in ``factor``, and set ``medium`` to the volume each one was
         in: the tracked one, or that of a surface hit from the back (the ray was inside it).
@@ -348,7 +356,8 @@ class RenderContext:
         stop instead: ``stops_out`` (len(rows),) gets the distances of those that stop; or, a
         list, gets ``forced`` points in each such segment (rays, t, weight, segment length,
         distances to the planes of the faces the segment started from (``entry_normals``, if
-        given) and went to, volumes)."""
+        given) and went to, volumes).  ``glow`` (n, 3), if given, gets the radiance glowing
+        volumes send along the segments (:func:`~core.sampling.volume_glow`, times ``factor``)."""
         hit = raw.is_hit
         if self.outside >= 0 or limit is not None:
             # Misses in a volume: in the world's, or cut short by the limit.
@@ -375,6 +384,13 @@ class RenderContext:
         length = np.where(on, raw.t.take(h).astype(np.float64), end).take(a)
         # Points and stops on an unbounded segment are drawn within FAR_EXTENTS scene sizes.
         far = FAR_EXTENTS * self.accel.extent
+        if glow is not None and self.has_volume_emission:
+            e = np.flatnonzero(self.glows.take(vol))
+            if len(e):
+                re, ve = r.take(a.take(e)), vol.take(e)
+                glow[re] += factor.take(re, axis=0) * volume_glow(
+                    self.extinction.take(ve, axis=0), self.volume_emission.take(ve, axis=0),
+                    np.minimum(length.take(e), far))
         if distances is not None and isinstance(stops_out, list):
             # Forced points: ``forced`` inside every segment in a scattering volume, their numbers
             # stratified (a whole image's points then vary less than with one per segment, for
@@ -494,12 +510,14 @@ class RenderContext:
 
     def light_medium(self, u0):
         """(n,) the volume photons of light-choice numbers ``u0`` start in: that of the point,
-        spot or area light's centre (:meth:`enclosing_medium`, found once); ``outside`` for the
-        sun, the world and emitting triangles (a path that starts inside still is inside where it
-        leaves)."""
+        spot or area light's centre (:meth:`enclosing_medium`, found once); a glowing volume's
+        own; ``outside`` for the sun, the world and emitting triangles (a path that starts inside
+        still is inside where it leaves)."""
         if self._light_media is None:
             kinds = self.lights.kinds
             self._light_media = np.full(len(kinds), self.outside, np.int32)
+            glowing = kinds == VOLUME
+            self._light_media[glowing] = self.lights.ids[glowing]
             placed = np.flatnonzero(np.isin(kinds, (POINT, SPOT, AREA_RECT, AREA_DISK)))
             if len(placed):
                 centres = np.asarray(self.scene.lights.position, np.float64)[self.lights.ids[placed]]

@@ -2,7 +2,7 @@
 
 Each pass jitters every pixel anew (and the lens sample), follows the camera
 path through mirror and glass, adds the emission it sees on the way (emitters,
-the world, and the analytic lights that the ray's kind may see: ``Lights.visibility``,
+glowing volumes, the world, and the analytic lights that the ray's kind may see: ``Lights.visibility``,
 directly or through delta chains) and stores a *measurement
 point* at the first hit where it picks a non-delta lobe (``algorithm.md`` 1:
 the variant in which photons carry direct light too).  Every segment through a
@@ -177,9 +177,10 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         # A camera path stops on a transparent surface as often as it is opaque, with its weight.
         numbers = lambda rows, crossing: rng.random(len(rows))          # noqa: E731
         medium_in = medium
+        glow = np.zeros((len(pix), 3)) if ctx.has_volume_emission else None
         hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None, numbers, medium,
                                              ray_kind, distances=numbers, throughput=beta,
-                                             origin_normals=origin_normals, forced=per_segment)
+                                             origin_normals=origin_normals, forced=per_segment, glow=glow)
         if hits.forced is not None:
             # A point in every segment through a scattering volume (the path goes on through it).
             rows, t_v, w_v, ends, planes, media = hits.forced
@@ -202,6 +203,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 weight=(beta.take(rows, axis=0) * w_v).astype(np.float32), mat_ids=media.astype(np.int32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes))
         beta_in = beta
+        if glow is not None:
+            lit = np.flatnonzero(glow.any(axis=1))             # glowing volumes on the way
+            emission[pix[lit]] += beta.take(lit, axis=0) * glow.take(lit, axis=0)
         if through is not None:
             beta = beta * through                            # transparent surfaces and volumes crossed
         rays += len(pix)

@@ -1,7 +1,7 @@
 """Photon emission: choose an emitter by power and sample a photon ray from it.
 
-Emitters are the analytic lights of the scene, every emissive triangle and the
-world background.  Each photon uses the six light dimensions of its primary
+Emitters are the analytic lights of the scene, every emissive triangle, every
+glowing volume and the world background.  Each photon uses the six light dimensions of its primary
 sample (``algorithm.md`` section 4):
 
     [0] emitter choice  [1] position 0  [2] position 1  [3] side  [4] direction 0  [5] direction 1
@@ -20,7 +20,10 @@ from .scene import ALL_LINKS, AREA_DISK, AREA_RECT, POINT, SPOT, SUN, linked
 
 LIGHT_DIMS = 6
 # Emitter kinds in the combined table (analytic kinds keep their Lights.kind value).
-TRIANGLE, WORLD = 10, 11
+TRIANGLE, WORLD, VOLUME = 10, 11, 12
+# A glowing volume's photons start on lines through its mesh, each traced through at most this many
+# of the mesh's faces (GlowingVolume).
+MAX_GLOW_CROSSINGS = 64
 # Textured emitters: the power of each emissive triangle is estimated from its radiance at up to
 # TEXTURED_POWER_SIDE^2 stratified points (fewer when the mesh has more than TEXTURED_POWER_BUDGET
 # / that many triangles), kept at least TEXTURED_POWER_FLOOR times its material's mean.
@@ -33,9 +36,10 @@ class LightSampler:
     """Power-proportional choice over all emitters and their photon sampling."""
 
     def __init__(self, scene, accel, table, emitted=None, opacity=None, varies=None,
-                 distant_transmittance=None):
+                 distant_transmittance=None, volume_emission=None):
         """``distant_transmittance`` (3,): the share of the light from afar (the sun, the world)
-        that reaches the scene (the world's volume, RenderContext.outside), or None: all."""
+        that reaches the scene (the world's volume, RenderContext.outside), or None: all.
+        ``volume_emission`` (>= M, 3): each material's ``Materials.volume_emission``, or None."""
         lights = scene.lights
         # Radiance leaving points of emissive triangles, emission times opacity
         # (RenderContext.emitted_out), for emitters where it varies (``varies`` per material);
@@ -98,16 +102,31 @@ class LightSampler:
         if self.environment is not None:
             world = self.environment.integral / (4.0 * np.pi)     # the mean radiance, for the power
         n_world = 1 if world.any() else 0
+        # Glowing volumes: 4 pi E V each, V the volume their material's triangles enclose.
+        self.volumes = {}
+        if volume_emission is not None and scene.triangle_count:
+            glowing = (np.asarray(volume_emission, np.float64)[:scene.materials.count] > 0).any(axis=1)
+            for m in np.flatnonzero(glowing):          # a loop over the few glowing materials
+                tris = np.flatnonzero(tri_mat == m)
+                if len(tris):
+                    v = GlowingVolume(accel, tris)
+                    if v.volume > 0:
+                        self.volumes[int(m)] = v
+        glow_mats = np.array(sorted(self.volumes), np.int64)
+        glow_power = (4.0 * np.pi * np.array([self.volumes[m].volume for m in glow_mats]))[:, None] * (
+            np.asarray(volume_emission, np.float64)[glow_mats] if len(glow_mats) else np.zeros((0, 3)))
+        n_volumes = len(glow_mats)
         all_kinds = np.concatenate([lights.kind.astype(np.int32) if lights.count else np.zeros(0, np.int32),
-                                    np.full(len(emissive_tris), TRIANGLE, np.int32), np.full(n_world, WORLD, np.int32)])
-        all_ids = np.concatenate([np.arange(lights.count), emissive_tris, np.zeros(n_world, np.int64)])
+                                    np.full(len(emissive_tris), TRIANGLE, np.int32), np.full(n_world, WORLD, np.int32),
+                                    np.full(n_volumes, VOLUME, np.int32)])
+        all_ids = np.concatenate([np.arange(lights.count), emissive_tris, np.zeros(n_world, np.int64), glow_mats])
         world_power = (world * 4.0 * np.pi * np.pi * self.radius ** 2).reshape(1, 3)[:n_world]
         if distant_transmittance is not None:
             far = np.asarray(distant_transmittance, np.float64)
             light_power = np.where((lights.kind == SUN)[:, None], light_power * far, light_power) \
                 if lights.count else light_power
             world_power = world_power * far
-        all_power = np.concatenate([light_power, tri_power.reshape(-1, 3), world_power])
+        all_power = np.concatenate([light_power, tri_power.reshape(-1, 3), world_power, glow_power])
         score = smp.luminance(all_power)
         keep = score > 0
         self.kinds, self.ids, self.power = all_kinds[keep], all_ids[keep], all_power[keep]
@@ -118,7 +137,7 @@ class LightSampler:
             tri = (tri_links.take(emissive_tris) if tri_links is not None
                    else np.full(len(emissive_tris), ALL_LINKS, np.uint64))
             light = light_links if lights.count else np.zeros(0, np.uint64)
-            return np.concatenate([light, tri, np.full(n_world, ALL_LINKS, np.uint64)])[keep]
+            return np.concatenate([light, tri, np.full(n_world + n_volumes, ALL_LINKS, np.uint64)])[keep]
         self.links = per_emitter(lights.links, scene.emitter_links)
         self.has_links = bool((self.links != ALL_LINKS).any())
         self.shadow_links = per_emitter(lights.shadow_links, scene.emitter_shadow_links)
@@ -336,6 +355,8 @@ class LightSampler:
             elif k == TRIANGLE:
                 o, d, emitted, nrm = self._sample_triangle(ids, us, self.power[entry[sel]])
                 normals[sel] = nrm
+            elif k == VOLUME:
+                o, d, w = self._sample_volume(ids, us)
             else:
                 o, d, w = self._sample_world(us)
             origins[sel], dirs[sel] = o, d
@@ -439,6 +460,15 @@ class LightSampler:
         d = -towards_sky
         return self._disk_origin(d, u), d, w
 
+    def _sample_volume(self, ids, u):
+        """Glowing volumes ``ids`` (materials): points from :meth:`GlowingVolume.sample`, directions
+        uniform over the sphere."""
+        o, w = np.zeros((len(ids), 3)), np.zeros(len(ids))
+        for m in np.unique(ids):
+            sel = np.flatnonzero(ids == m)
+            o[sel], w[sel] = self.volumes[int(m)].sample(u[sel, 1], u[sel, 2], u[sel, 3])
+        return o, smp.uniform_sphere(u[:, 4], u[:, 5]), w
+
     def _disk_origin(self, d, u):
         """Origins on the disk of the bounding sphere perpendicular to ``d``, outside the scene."""
         x, y = smp.concentric_disk(u[:, 1], u[:, 2])
@@ -493,6 +523,71 @@ class LightSampler:
             material_mean = (area[rows, None] * mean[rows]).sum(axis=0) / max(area[rows].sum(), 1e-300)
             mean[rows] = np.maximum(mean[rows], TEXTURED_POWER_FLOOR * material_mean)
         return (2.0 * np.pi * area)[:, None] * mean
+
+
+class GlowingVolume:
+    """Points inside the closed mesh of a glowing volume (``Materials.volume_emission``) from
+    three numbers each, for photons: a line parallel to the longest side of the mesh's bounding
+    box through a point of the box's cross-section (the first two), traced through the mesh's
+    faces (the inside is where more faces were gone into through their front than left, as
+    ``RenderContext.next_medium`` tracks a path), and a point uniform on the line's inside (the
+    third).  Weighting each point by A L / V (A the cross-section's area, L the inside length of
+    its line, V the mesh's volume) makes the points' mean that of points uniform in the volume;
+    lines that miss it carry 0."""
+
+    def __init__(self, accel, tris):
+        self.accel = accel.subset(tris)
+        v0, e1, e2 = (a.take(tris, axis=0) for a in (accel.v0, accel.e1, accel.e2))
+        corners = np.concatenate([v0, v0 + e1, v0 + e2])
+        self.lo, self.hi = corners.min(axis=0), corners.max(axis=0)
+        # The divergence theorem over the faces (about the box's centre, for precision).
+        c = 0.5 * (self.lo + self.hi)
+        self.volume = abs(float(np.einsum("ij,ij->", v0 - c, np.cross(e1, e2)))) / 6.0
+        size = self.hi - self.lo
+        self.axis = int(np.argmax(size))
+        self.across = [k for k in range(3) if k != self.axis]
+        self.area = float(size[self.across[0]] * size[self.across[1]])
+
+    def sample(self, u1, u2, u3):
+        """(points (n, 3), weights A L / V (n,))."""
+        n, k = len(u1), self.axis
+        i, j = self.across
+        start = self.lo[k] - 0.01 * (self.hi[k] - self.lo[k]) - self.accel.offset_floor
+        o = np.empty((n, 3))
+        o[:, i] = self.lo[i] + u1 * (self.hi[i] - self.lo[i])
+        o[:, j] = self.lo[j] + u2 * (self.hi[j] - self.lo[j])
+        o[:, k] = start
+        d = np.zeros((n, 3))
+        d[:, k] = 1.0
+        # The crossings along each line: where (t from the start) and how deep inside after it.
+        ts = np.full((n, MAX_GLOW_CROSSINGS), np.inf)
+        depths = np.zeros((n, MAX_GLOW_CROSSINGS), np.int32)
+        depth = np.zeros(n, np.int32)
+        rows, origins = np.arange(n), o
+        for c in range(MAX_GLOW_CROSSINGS):        # a loop over crossings, as over bounces
+            hits = self.accel.intersect(origins, d.take(rows, axis=0))
+            h = np.flatnonzero(hits.is_hit)
+            rows = rows.take(h)
+            if len(rows) == 0:
+                break
+            prim = hits.prim_ids.take(h)
+            p = self.accel.hit_positions(prim, hits.b1.take(h), hits.b2.take(h))
+            ng = self.accel.geometric_normals.take(prim, axis=0)
+            ts[rows, c] = p[:, k] - start
+            depth[rows] += np.where(ng[:, k] < 0, 1, -1).astype(np.int32)
+            depths[rows, c] = depth.take(rows)
+            origins = self.accel.spawn(p, ng, d.take(rows, axis=0))
+        ts = np.where(np.isfinite(ts), ts, 0.0)
+        inside = np.where((depths[:, :-1] > 0) & (ts[:, 1:] > 0), np.maximum(np.diff(ts, axis=1), 0.0), 0.0)
+        cum = np.cumsum(inside, axis=1)
+        total = cum[:, -1]
+        target = u3 * total
+        piece = np.minimum((cum <= target[:, None]).sum(axis=1), inside.shape[1] - 1)
+        before = np.where(piece > 0, np.take_along_axis(cum, np.maximum(piece - 1, 0)[:, None], axis=1)[:, 0], 0.0)
+        t = np.take_along_axis(ts, piece[:, None], axis=1)[:, 0] + (target - before)
+        points = o.copy()
+        points[:, k] = start + np.where(total > 0, t, 0.0)
+        return points, self.area * total / self.volume
 
 
 FULL_SPREAD = 0.5 * np.pi - 1e-6       # half spreads from here on are Lambertian

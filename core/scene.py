@@ -140,6 +140,11 @@ class Materials:
     well (Volume Scatter, Principled Volume): light is lost to extinction ``volume_absorption``
     + ``volume_scattering`` along a segment, and scattered with the Henyey-Greenstein phase
     function of ``volume_anisotropy`` g in (-1, 1) (0: isotropic; > 0: forwards).
+    ``volume_emission`` (per channel, radiance per length; 0: none) makes it glow (Principled
+    Volume's emission, an Emission shader on the Volume output): every length ds of a path inside
+    adds ``volume_emission`` ds of radiance, itself attenuated by what lies between, and the
+    volume emits 4 pi ``volume_emission`` V watts (V its mesh's volume) as photons, evenly in
+    all directions.  It is a volume on its own (a glowing gas that neither absorbs nor scatters).
 
     ``holdout`` (Blender's Holdout shader, in [0, 1]) is the share of a pixel that the surface
     cuts out of the image where camera rays meet it directly or through transparent surfaces
@@ -204,6 +209,7 @@ class Materials:
     volume_absorption: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     volume_scattering: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     volume_anisotropy: np.ndarray = None                # (M,) float32 in (-1, 1); None: 0
+    volume_emission: np.ndarray = None                  # (M, 3) float32 >= 0, radiance / length; None: 0
     holdout: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 0
     translucent_weight: np.ndarray = None               # (M,) float32; None: 0
     translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
@@ -220,7 +226,8 @@ class Materials:
                     "emission_program", "roughness_program", "dielectric_program", "bump_program", "opacity",
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
-                    "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy")
+                    "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
+                    "volume_emission")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program")
@@ -256,8 +263,8 @@ class Materials:
         once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
         ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume, which
-        ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter, ``holdout`` (0) a
-        holdout share.
+        ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter and
+        ``volume_emission`` (0) glow (or that alone), ``holdout`` (0) a holdout share.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -304,6 +311,7 @@ class Materials:
         out.volume_absorption = np.zeros((m, 3), np.float32)
         out.volume_scattering = np.zeros((m, 3), np.float32)
         out.volume_anisotropy = np.zeros(m, np.float32)
+        out.volume_emission = np.zeros((m, 3), np.float32)
         out.holdout = np.zeros(m, np.float32)
         out.translucent_weight = np.zeros(m, np.float32)
         out.translucent_color = np.zeros((m, 3), np.float32)
@@ -364,6 +372,7 @@ class Materials:
             out.volume_scattering[i] = np.broadcast_to(
                 np.asarray(s.get("volume_scattering", 0.0), np.float32), (3,))
             out.volume_anisotropy[i] = s.get("volume_anisotropy", 0.0)
+            out.volume_emission[i] = np.broadcast_to(np.asarray(s.get("volume_emission", 0.0), np.float32), (3,))
             out.holdout[i] = s.get("holdout", 0.0)
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
@@ -796,6 +805,7 @@ class Scene:
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
                                        ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0),
                                        ("volume_scattering", (n, 3), 0.0), ("volume_anisotropy", (n,), 0.0),
+                                       ("volume_emission", (n, 3), 0.0),
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
                                        ("diffuse_roughness", (n,), 0.0)):
