@@ -57,8 +57,9 @@ A missing image file gives a warning and Cycles' magenta.
 
 The Volume output: Volume Absorption, Volume Scatter and Principled Volume (their Add and Mix)
 become the core's ``volume_absorption``, ``volume_scattering`` and ``volume_anisotropy``,
-Cycles' coefficients; volume emission is noted and left out.  A material with a volume and no
-Surface is Cycles' volume-only mesh:
+Cycles' coefficients, and Principled Volume's emission (Emission Strength and Color, Blackbody) and
+an Emission shader on the Volume output its ``volume_emission`` (the world's is noted and left
+out).  A material with a volume and no Surface is Cycles' volume-only mesh:
 a surface that lets every ray through (opacity 0).
 """
 from __future__ import annotations
@@ -80,6 +81,9 @@ DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
 GREY = np.full(3, 0.8)                         # Cycles' default surface colour
 MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing image
 MAX_ANISOTROPY = 0.99                           # |g| of volumes' phase functions (volume_anisotropy)
+# Principled Volume's blackbody emission per T^4 (Cycles: the Stefan-Boltzmann constant 5.670373e-8
+# W m^-2 K^-4, times 1e-6, over pi).
+STEFAN_BOLTZMANN_CYCLES = 5.670373e-14 / np.pi
 
 
 @dataclass
@@ -676,9 +680,9 @@ class MaterialExporter:
             if walker.notes:
                 self.log.warning(f"material '{material.name}': " + "; ".join(walker.notes))
             spec = closure.spec(material.name)
-            if walker.medium is not None and (walker.medium[0].any() or walker.medium[1].any()):
+            if walker.medium is not None and any(np.any(walker.medium[i]) for i in (0, 1, 3)):
                 spec.update(volume_absorption=walker.medium[0], volume_scattering=walker.medium[1],
-                            volume_anisotropy=walker.medium[2])
+                            volume_anisotropy=walker.medium[2], volume_emission=walker.medium[3])
             self._ids[key] = self._add(spec)
             if closure.hidden_rays:
                 self._hidden[self._ids[key]] = closure.hidden_rays
@@ -733,7 +737,7 @@ class NodeWalker:
         self.world_program = None       # program of the direction for any other varying world colour
         self.camera_walker = None       # what camera rays see (Light Path's Is Camera Ray), its own
         self.camera_color = None        # world_* and colour, or None: the same as the other rays
-        self.medium = None              # the material's volume (absorption, scattering, g; volume()), or None
+        self.medium = None              # the material's volume (absorption, scattering, g, emission; volume())
 
     def note(self, msg):
         if msg not in self.notes:
@@ -773,6 +777,8 @@ class NodeWalker:
         if out is None:
             return np.array(world.color[:3], np.float64)
         self.medium = self.volume(out.inputs["Volume"], ())
+        if self.medium is not None and self.medium[3].any():
+            self.note("volume emission in the world is not supported (left out)")
         src, default, stack = self.source(out.inputs["Surface"], ())
         if src is None:
             return np.zeros(3)
@@ -894,14 +900,18 @@ class NodeWalker:
         return closure
 
     def volume(self, sock, stack):
-        """(absorption (3,), scattering (3,), anisotropy g) of the volume shader feeding ``sock``
-        (coefficients per unit of length, as Cycles), or None when nothing does.  Volume
+        """(absorption (3,), scattering (3,), anisotropy g, emission (3,)) of the volume shader
+        feeding ``sock`` (coefficients and emission per unit of length, as Cycles), or None when
+        nothing does.  Volume
         Absorption absorbs (1 - Color) Density; Volume Scatter scatters Color Density with the
         Henyey-Greenstein phase function of its Anisotropy (other phase functions are noted and
         taken as that); Principled Volume scatters Color Density and absorbs (1 - Color)(1 -
         sqrt(Absorption Color)) Density.  Add and Mix add the coefficients; scatterers of
-        different anisotropy get their mean weighted by the scattering (noted).  Volume emission
-        is noted and left out; textures on the inputs take their means (noted)."""
+        different anisotropy get their mean weighted by the scattering (noted).  Principled
+        Volume emits Emission Strength Emission Color plus, with Blackbody Intensity b > 0,
+        Blackbody Tint (1 - b + b T^4) 5.670373e-14 / pi times the Blackbody colour of its
+        Temperature T (Cycles' Stefan-Boltzmann law), neither scaled by the Density; an Emission
+        shader emits Color Strength.  Textures on the inputs take their means (noted)."""
         src, _, stack = self.source(sock, stack)
         if src is None:
             return None
@@ -923,19 +933,23 @@ class NodeWalker:
             return float(np.clip(self.value(sock, stack), -MAX_ANISOTROPY, MAX_ANISOTROPY))
 
         if kind == "ShaderNodeVolumeAbsorption":
-            return np.maximum(1.0 - color("Color"), 0.0) * density(), zero, 0.0
+            return np.maximum(1.0 - color("Color"), 0.0) * density(), zero, 0.0, zero
         if kind == "ShaderNodeVolumeScatter":
             if getattr(node, "phase", "HENYEY_GREENSTEIN") != "HENYEY_GREENSTEIN":
                 self.note(f"'{node.name}': the {node.phase.replace('_', ' ').title()} phase function is "
                           "not supported (Henyey-Greenstein used, of its Anisotropy where it has one)")
-            return zero, color("Color") * density(), anisotropy()
+            return zero, color("Color") * density(), anisotropy(), zero
         if kind == "ShaderNodeVolumePrincipled":
             scatter, d = color("Color"), density()
-            if (self.value(node.inputs["Emission Strength"], stack) > 0
-                    or self.value(node.inputs["Blackbody Intensity"], stack) > 0):
-                self.note(f"'{node.name}': volume emission is not supported (left out)")
+            emission = max(self.value(node.inputs["Emission Strength"], stack), 0.0) * color("Emission Color")
+            b = self.value(node.inputs["Blackbody Intensity"], stack)
+            t = max(self.value(node.inputs["Temperature"], stack), 0.0)
+            if b > 0:
+                intensity = STEFAN_BOLTZMANN_CYCLES * (1.0 - b + b * t ** 4)
+                glow = color("Blackbody Tint") * intensity * np.maximum(procedural.blackbody([t])[0], 0.0)
+                emission = emission + np.maximum(glow, 0.0)
             kept = np.maximum(1.0 - np.sqrt(color("Absorption Color")), 0.0)
-            return np.maximum(1.0 - scatter, 0.0) * kept * d, scatter * d, anisotropy()
+            return np.maximum(1.0 - scatter, 0.0) * kept * d, scatter * d, anisotropy(), emission
         if kind in ("ShaderNodeAddShader", "ShaderNodeMixShader"):
             a = self.volume(_by_identifier(node.inputs, "Shader"), stack)
             b = self.volume(_by_identifier(node.inputs, "Shader_001"), stack)
@@ -945,17 +959,17 @@ class NodeWalker:
             if kind == "ShaderNodeMixShader":
                 fb = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
                 fa = 1.0 - fb
-            a, b = a or (zero, zero, 0.0), b or (zero, zero, 0.0)
+            a, b = a or (zero, zero, 0.0, zero), b or (zero, zero, 0.0, zero)
             wa, wb = fa * a[1].mean(), fb * b[1].mean()
             if wa > 0 and wb > 0 and a[2] != b[2]:
                 self.note(f"'{node.name}': volumes of different anisotropy scatter with their mean")
             g = (wa * a[2] + wb * b[2]) / (wa + wb) if wa + wb > 0 else 0.0
-            return fa * a[0] + fb * b[0], fa * a[1] + fb * b[1], g
+            return fa * a[0] + fb * b[0], fa * a[1] + fb * b[1], g, fa * a[3] + fb * b[3]
         if kind == "ShaderNodeEmission":
-            self.note(f"'{node.name}': volume emission is not supported (left out)")
-        elif kind != "muted":
+            return zero, zero, 0.0, color("Color") * max(self.value(node.inputs["Strength"], stack), 0.0)
+        if kind != "muted":
             self.unsupported(node, "as a volume; left out")
-        return zero, zero, 0.0
+        return zero, zero, 0.0, zero
 
     def bent_normal(self, sock, stack):
         """(normal map or None, bump or None) feeding a ``Normal`` input: a Normal Map node

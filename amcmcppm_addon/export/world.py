@@ -45,7 +45,7 @@ def export_world(depsgraph, textures, log):
     out, lights = _background(walker, color, textures, world.name, log)
     out.film_transparent = transparent
     if walker.medium is not None:
-        absorption, scattering, g = walker.medium
+        absorption, scattering, g, _ = walker.medium          # (its emission is noted, left out)
         out.volume_absorption = absorption.astype(np.float32)
         out.volume_scattering = scattering.astype(np.float32)
         out.volume_anisotropy = float(g)

@@ -930,8 +930,10 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     scatters Color Density (Cycles' svm_node_principled_volume and svm_node_closure_volume; the
     absorption measured with Cycles 5.0: a 1 m volume-only cube against the white sky gave
     exp(-(1 - C) D) within 0.1 %); the scatterers' Anisotropy is the phase function's g.  A volume
-    without a surface makes the surface let everything through; volume emission and phase
-    functions other than Henyey-Greenstein are noted."""
+    without a surface makes the surface let everything through; phase functions other than
+    Henyey-Greenstein are noted.  Emission: Principled Volume's Emission Strength times Color
+    plus its blackbody, an Emission shader's Color times Strength, Mixes at their shares."""
+    from amcmcppm.core.procedural import blackbody
     mat, _ = bs.volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
                              Color=(0.2, 0.5, 1.2, 1), Density=2.0)
     row, ex = export_material(mat)
@@ -948,13 +950,22 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
 
     mat, node = bs.volume_material("Fog", "ShaderNodeVolumePrincipled", "ShaderNodeBsdfDiffuse",
                                    Anisotropy=0.3)
-    node.inputs["Emission Strength"].default_value = 1.0
+    node.inputs["Emission Strength"].default_value = 2.0
+    node.inputs["Emission Color"].default_value = (1.0, 0.5, 0.25, 1)
     row, ex = export_material(mat)
     assert row["volume_absorption"] == pytest.approx(np.full(3, 0.5))      # grey 0.5, density 1
     assert row["volume_scattering"] == pytest.approx(np.full(3, 0.5))
     assert row["volume_anisotropy"] == pytest.approx(0.3)
-    warning = next(w for w in ex.warnings if "'Fog'" in w)
-    assert "scattering" not in warning and "emission is not supported" in warning
+    assert row["volume_emission"] == pytest.approx([2.0, 1.0, 0.5])       # (not scaled by the density)
+    assert not [w for w in ex.warnings if "'Fog'" in w], ex.warnings
+    node.inputs["Emission Strength"].default_value = 0.0
+    node.inputs["Blackbody Intensity"].default_value = 0.5
+    node.inputs["Blackbody Tint"].default_value = (1.0, 1.0, 0.5, 1)
+    node.inputs["Temperature"].default_value = 1500.0
+    row, _ = export_material(mat)
+    intensity = 5.670373e-14 / np.pi * (0.5 + 0.5 * 1500.0 ** 4)
+    colour = np.maximum(blackbody([1500.0])[0], 0.0)          # (its blue is a little below 0)
+    assert row["volume_emission"] == pytest.approx(intensity * np.array([1, 1, 0.5]) * colour, rel=1e-5)
 
     mat, node = bs.volume_material("Haze", "ShaderNodeVolumeScatter", None, Color=(0.9, 0.8, 0.7, 1),
                                 Density=0.5, Anisotropy=-0.4)
@@ -979,7 +990,15 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     row, ex = export_material(mat)
     assert row["volume_absorption"] == pytest.approx([3.0, 1.5, 0.0])
     assert row["volume_scattering"] == pytest.approx(np.full(3, 0.8 * 0.25))  # the default grey 0.8
+    assert not row["volume_emission"].any()
     assert not [w for w in ex.warnings if "'Mixed'" in w], ex.warnings
+    glow = nt.nodes.new("ShaderNodeEmission")
+    glow.inputs["Color"].default_value = (0.2, 0.4, 0.8, 1)
+    glow.inputs["Strength"].default_value = 5.0
+    nt.links.new(glow.outputs[0], mix.inputs[2])
+    row, _ = export_material(mat)
+    assert row["volume_emission"] == pytest.approx(0.25 * 5.0 * np.array([0.2, 0.4, 0.8]))
+    assert not row["volume_scattering"].any()
 
     row, _ = export_material(principled("Plain"))
     assert row["volume_absorption"] == pytest.approx([0, 0, 0]) and row["opacity"] == 1
