@@ -540,9 +540,11 @@ class GlowingVolume:
         v0, e1, e2 = (a.take(tris, axis=0) for a in (accel.v0, accel.e1, accel.e2))
         corners = np.concatenate([v0, v0 + e1, v0 + e2])
         self.lo, self.hi = corners.min(axis=0), corners.max(axis=0)
-        # The divergence theorem over the faces (about the box's centre, for precision).
+        # The divergence theorem over the faces (about the box's centre, for precision): > 0 for
+        # a closed mesh whose faces point out; a mesh whose faces point in has no inside (the
+        # paths' tracking agrees), and gets no photons.
         c = 0.5 * (self.lo + self.hi)
-        self.volume = abs(float(np.einsum("ij,ij->", v0 - c, np.cross(e1, e2)))) / 6.0
+        self.volume = float(np.einsum("ij,ij->", v0 - c, np.cross(e1, e2))) / 6.0
         size = self.hi - self.lo
         self.axis = int(np.argmax(size))
         self.across = [k for k in range(3) if k != self.axis]

@@ -186,14 +186,20 @@ def extreme_volumes():
     """The room (walls and lamp) inside a volume-only box that also holds the camera, with
     absorbing boxes in it: glass absorbing 1e30 per metre, a volume-only box absorbing 1e-30 in
     one channel and 1e6 in another around the lamp, a single open quad that absorbs (no inside),
-    and a glass box nested in a volume-only one, both absorbing."""
+    and a glass box nested in a volume-only one, both absorbing.  Some glow: the box around the
+    lamp 1e6 per metre in the channel it hardly absorbs, the open quad (no volume: no photons), a
+    box of 1 micrometre glowing 1e12 that scatters 1e3, and a box whose faces point inwards
+    (its inside is outside)."""
     room = cornell_like()
     specs = [{"name": "wall", "diffuse": 0.7}, {"name": "lamp", "emission": 5.0},
              {"name": "air", "opacity": 0.0, "volume_absorption": 0.05},
              {"name": "dark glass", "dielectric": 1.0, "volume_absorption": 1e30},
-             {"name": "gas", "opacity": 0.0, "volume_absorption": (1e-30, 1e6, 0.0)},
-             {"name": "sheet", "diffuse": 0.5, "opacity": 0.5, "volume_absorption": 3.0},
-             {"name": "inner glass", "dielectric": 1.0, "ior": 1.33, "volume_absorption": (0.0, 2.0, 9.0)}]
+             {"name": "gas", "opacity": 0.0, "volume_absorption": (1e-30, 1e6, 0.0),
+              "volume_emission": (1e6, 1e-30, 0.0)},
+             {"name": "sheet", "diffuse": 0.5, "opacity": 0.5, "volume_absorption": 3.0, "volume_emission": 2.0},
+             {"name": "inner glass", "dielectric": 1.0, "ior": 1.33, "volume_absorption": (0.0, 2.0, 9.0)},
+             {"name": "ember", "opacity": 0.0, "volume_emission": 1e12, "volume_scattering": 1e3},
+             {"name": "inside out", "opacity": 0.0, "volume_emission": 1.0}]
     m = MeshBuilder()
     m.tris, m.mats = [room.triangle_corners()], [room.material_ids]
     m.normals = [np.zeros((room.triangle_count, 3, 3))]
@@ -203,6 +209,8 @@ def extreme_volumes():
     m.add_quad((0.1, -0.5, 0.3), (0.9, -0.5, 0.3), (0.9, 0.5, 0.3), (0.1, 0.5, 0.3), 5)
     m.add_box((0.2, -0.2, 0.5), (0.7, 0.3, 1.2), 4)
     m.add_box((0.3, -0.1, 0.6), (0.6, 0.2, 1.1), 6)
+    m.add_box((0.0, 0.0, 1.0), (1e-6, 1e-6, 1.000001), 7)
+    m.add_box((-0.9, 0.5, 0.1), (-0.5, 0.9, 0.5), 8, inward=True)
     return m.build(Materials.build(specs), camera=room.camera)
 
 

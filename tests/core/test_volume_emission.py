@@ -128,6 +128,8 @@ def test_photons_start_uniformly_inside_any_closed_mesh():
     accel = Accel(scene)
     volume = GlowingVolume(accel, np.flatnonzero(scene.material_ids == 0))
     assert volume.volume == pytest.approx(3.0 - 0.125, rel=1e-9)
+    # The hollow's faces alone point inwards: no inside (paths never enter it either), no photons.
+    assert GlowingVolume(accel, np.arange(12, 24)).volume == pytest.approx(-0.125, rel=1e-9)
     u = np.random.default_rng(3).random((400_000, 3))
     points, weight = volume.sample(u[:, 0], u[:, 1], u[:, 2])
     assert np.isfinite(points).all() and np.isfinite(weight).all()
