@@ -61,12 +61,10 @@ class MeshBuilder:
         area = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
         keep = area > 1e-12 * radius * radius
         tris, nrm = tris[keep], nrm[keep]
-        # Orient outward: with this parametrisation the winding faces inward.
-        if not inward:
+        # This parametrisation's winding faces outward (so do ``dirs``); turn both for a room.
+        if inward:
             tris = tris[:, ::-1]
-            nrm = nrm[:, ::-1]
-        else:
-            nrm = -nrm
+            nrm = -nrm[:, ::-1]
         self.add_triangles(tris, material, nrm if smooth else None)
 
     def build(self, materials, lights=None, camera=None, world=None, smooth=False):
@@ -499,6 +497,28 @@ def corner_in_world_fog(resolution=(64, 64)):
     return m.build(mats, lights, cam, world)
 
 
+def glowing_glass_ball(resolution=(64, 48)):
+    """A room lit only by a glowing gas inside a solid glass ball on its floor: every photon
+    leaves through the glass (the room is lit by refracted light alone), and the camera sees the
+    glow through the glass.  The gas (a sphere of radius 0.2 in a ball of
+    0.35, IOR 1.5) glows orange, 20 per metre, and scatters and absorbs a little; a blue box
+    and a grey ball stand in the room."""
+    mats = Materials.build([{"name": "wall", "diffuse": 0.7}, {"name": "floor", "diffuse": (0.5, 0.45, 0.4)},
+                            {"name": "glass", "dielectric": 1.0, "ior": 1.5},
+                            {"name": "gas", "opacity": 0.0, "volume_emission": (20.0, 9.0, 3.0),
+                             "volume_scattering": 1.5, "volume_absorption": 0.5, "volume_anisotropy": 0.2},
+                            {"name": "box", "diffuse": (0.1, 0.2, 0.6)}])
+    m = MeshBuilder()
+    m.add_box((-2, -2, 0), (2, 2, 2.5), 0, inward=True)
+    m.add_quad((-1.99, -1.99, 0.001), (1.99, -1.99, 0.001), (1.99, 1.99, 0.001), (-1.99, 1.99, 0.001), 1)
+    m.add_sphere((0, 0.2, 0.351), 0.35, 2, n_theta=32, n_phi=64)
+    m.add_sphere((0, 0.2, 0.351), 0.2, 3, n_theta=16, n_phi=32)
+    _add_rotated_box(m, (0.9, 0.6, 0.0), (0.5, 0.5, 0.6), 0.5, 4)
+    m.add_sphere((-0.9, 0.9, 0.3), 0.3, 0, n_theta=16, n_phi=32)
+    cam = Camera.look_at((1.6, -1.8, 1.3), (0.0, 0.3, 0.3), lens_mm=24.0, resolution=resolution)
+    return m.build(mats, Lights.empty(), cam, smooth=True)
+
+
 BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
            "point_in_sphere": point_in_sphere, "spot_over_plane": spot_over_plane,
            "sun_through_slab": sun_through_slab, "camera_in_glass": camera_in_glass,
@@ -506,7 +526,7 @@ BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
            "glass_ceiling_room": glass_ceiling_room, "hole_mirror_glass": hole_mirror_glass,
            "small_view": small_view,
            "foggy_glass_ceiling_room": lambda resolution=(64, 48): glass_ceiling_room(resolution, fog=0.4),
-           "corner_in_world_fog": corner_in_world_fog}
+           "corner_in_world_fog": corner_in_world_fog, "glowing_glass_ball": glowing_glass_ball}
 
 
 def sun_over_procedural_floor(program, irradiance=10.0, resolution=(32, 32)):

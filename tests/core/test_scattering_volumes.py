@@ -83,7 +83,7 @@ def furnace(resolution=(24, 24), radius=1.0, scattering=(0.5, 1.0, 2.0)):
     mats = Materials.build([{"name": "wall", "emission": 1.0, "diffuse": 0.0,
                              "volume_scattering": scattering, "volume_anisotropy": 0.5}])
     m = MeshBuilder()
-    m.add_sphere((0, 0, 0), radius, 0, n_theta=24, n_phi=48, inward=True)   # (these winding faces out)
+    m.add_sphere((0, 0, 0), radius, 0, n_theta=24, n_phi=48)      # (faces out: the fog is inside)
     cam = Camera.look_at((0, 0, 0), (1, 0.2, 0.1), lens_mm=30.0, resolution=resolution)
     return m.build(mats, Lights.empty(), cam)
 

@@ -93,8 +93,8 @@ def glowing_furnace(resolution=(24, 24)):
     radius 0.99 that absorbs sigma_a, emits E = sigma_a (so E / sigma_a = 1) and scatters."""
     sigma_a, sigma_s = np.array([0.5, 1.0, 0.5]), np.array([1.0, 0.5, 1.5])
     m = MeshBuilder()
-    m.add_sphere((0, 0, 0), 1.0, 0)
-    m.add_sphere((0, 0, 0), 0.99, 1, inward=True)        # (this winding faces out)
+    m.add_sphere((0, 0, 0), 1.0, 0, inward=True)
+    m.add_sphere((0, 0, 0), 0.99, 1)
     mats = Materials.build([{"name": "wall", "emission": 1.0, "diffuse": 0.0},
                             {"name": "gas", "opacity": 0.0, "volume_emission": sigma_a,
                              "volume_absorption": sigma_a, "volume_scattering": sigma_s,

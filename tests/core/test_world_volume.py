@@ -77,7 +77,7 @@ def world_furnace(resolution=(24, 24)):
     """A closed sphere of radius 1 whose black walls emit 1 and hold no volume of their own; the
     world's volume, inside it, scatters (0.5 / 1 / 2, g = 0.5) without absorbing."""
     m = MeshBuilder()
-    m.add_sphere((0, 0, 0), 1.0, 0, n_theta=24, n_phi=48, inward=True)   # (these winding faces out)
+    m.add_sphere((0, 0, 0), 1.0, 0, n_theta=24, n_phi=48, inward=True)
     cam = Camera.look_at((0, 0, 0), (1, 0.2, 0.1), lens_mm=30.0, resolution=resolution)
     world = World(volume_scattering=np.array([0.5, 1.0, 2.0]), volume_anisotropy=0.5)
     return m.build(Materials.build([{"name": "wall", "emission": 1.0, "diffuse": 0.0}]), Lights.empty(),
