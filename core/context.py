@@ -158,7 +158,7 @@ class RenderContext:
         layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
         normal and bump maps, textured emitters), lights' angular (IES) profiles, light and shadow
         linking, transparency, objects hidden from some camera rays, holdouts, volumes (the world's
-        too), an environment image, and the camera's depth of field or panorama."""
+        too; glowing ones), an environment image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),

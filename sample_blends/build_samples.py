@@ -32,6 +32,9 @@ Glossy with roughness 0 as a mirror), so Cycles renders the same files.
   (specular-diffuse-specular paths).
 * ``foggy_glass_ceiling``: the glass-ceiling room, its plaster darker, in a world full of
   haze (World > Volume: a Principled Volume): the light through the pane shows as a beam.
+* ``glass_lantern``: a room lit only by a glowing gas (a Principled Volume's Emission inside a
+  volume-only sphere) held in a solid glass ball on the floor: all its light leaves through
+  the glass, so the whole room is lit by caustics.
 """
 from __future__ import annotations
 
@@ -528,8 +531,45 @@ def pool_caustics():
     return b.finish("pool_caustics", (320, 240), photons_per_pass=100_000)
 
 
+def glass_lantern():
+    """A glowing gas in a solid glass ball (radius 0.35 m, IOR 1.5) on the floor of a closed
+    room, its only light: a volume-only sphere of radius 0.2 m whose Principled Volume emits an
+    orange Emission Strength 20 and scatters a little (Density 1.5, Anisotropy 0.2)."""
+    b = SceneBuilder()
+    wall = b.diffuse("Plaster", (0.7, 0.7, 0.7))
+    floor = b.diffuse("Floor", (0.5, 0.45, 0.4))
+    blue = b.diffuse("Blue", (0.1, 0.2, 0.6))
+    glass = b.glass("Ball glass", ior=1.5)
+    gas = bpy.data.materials.new("Glowing gas")
+    gas.diffuse_color = (1.0, 0.45, 0.15, 1.0)
+    nt = gas.node_tree
+    for node in list(nt.nodes):
+        if node.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(node)
+    glow = nt.nodes.new("ShaderNodeVolumePrincipled")
+    glow.inputs["Color"].default_value = (0.75, 0.75, 0.75, 1.0)
+    glow.inputs["Density"].default_value = 1.5
+    glow.inputs["Anisotropy"].default_value = 0.2
+    glow.inputs["Emission Strength"].default_value = 20.0
+    glow.inputs["Emission Color"].default_value = (1.0, 0.45, 0.15, 1.0)
+    nt.links.new(glow.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    room(b, "Room", (-2, -2, 0), (2, 2, 2.5), wall)
+    b.polygons("Floor", [[(-1.99, -1.99, 0.001), (1.99, -1.99, 0.001), (1.99, 1.99, 0.001),
+                          (-1.99, 1.99, 0.001)]], floor)
+    b.sphere("Glass ball", (0.0, 0.2, 0.351), 0.35, glass)
+    b.sphere("Gas", (0.0, 0.2, 0.351), 0.2, gas, segments=32, rings=16)
+    cube = b.box("Cube", (-0.25, -0.25, -0.3), (0.25, 0.25, 0.3), blue)
+    cube.location = (0.9, 0.6, 0.3)
+    cube.rotation_euler = (0, 0, 0.5)
+    b.sphere("Ball", (-0.9, 0.9, 0.3), 0.3, wall)
+    b.camera((1.6, -1.8, 1.3), (0.0, 0.3, 0.3), lens=24.0)
+    b.world((0.0, 0.0, 0.0))
+    return b.finish("glass_lantern", (320, 240), photons_per_pass=100_000)
+
+
 SCENES = {f.__name__: f for f in (cornell_box, glass_ceiling, hole_mirror_glass, small_view, caustic_sds,
-                                  checker_caustic, stained_window, pool_caustics, foggy_glass_ceiling)}
+                                  checker_caustic, stained_window, pool_caustics, foggy_glass_ceiling,
+                                  glass_lantern)}
 
 
 def main(argv):
