@@ -561,12 +561,12 @@ class GlowingVolume:
         o[:, k] = start
         d = np.zeros((n, 3))
         d[:, k] = 1.0
-        # The crossings along each line: where (t from the start) and how deep inside after it.
-        ts = np.full((n, MAX_GLOW_CROSSINGS), np.inf)
-        depths = np.zeros((n, MAX_GLOW_CROSSINGS), np.int32)
+        # The crossings along each line, a column each: where (t from the start; 0: none) and how
+        # deep inside the line is after it.
+        ts, depths = [np.zeros(n)], [np.zeros(n, np.int32)]
         depth = np.zeros(n, np.int32)
         rows, origins = np.arange(n), o
-        for c in range(MAX_GLOW_CROSSINGS):        # a loop over crossings, as over bounces
+        for _ in range(MAX_GLOW_CROSSINGS):        # a loop over crossings, as over bounces
             hits = self.accel.intersect(origins, d.take(rows, axis=0))
             h = np.flatnonzero(hits.is_hit)
             rows = rows.take(h)
@@ -575,12 +575,17 @@ class GlowingVolume:
             prim = hits.prim_ids.take(h)
             p = self.accel.hit_positions(prim, hits.b1.take(h), hits.b2.take(h))
             ng = self.accel.geometric_normals.take(prim, axis=0)
-            ts[rows, c] = p[:, k] - start
             depth[rows] += np.where(ng[:, k] < 0, 1, -1).astype(np.int32)
-            depths[rows, c] = depth.take(rows)
+            t, after = np.zeros(n), np.zeros(n, np.int32)
+            t[rows], after[rows] = p[:, k] - start, depth.take(rows)
+            ts.append(t)
+            depths.append(after)
             origins = self.accel.spawn(p, ng, d.take(rows, axis=0))
-        ts = np.where(np.isfinite(ts), ts, 0.0)
+        ts, depths = np.stack(ts, axis=1), np.stack(depths, axis=1)
+        # The inside lengths between crossings (a crossing's column 0: it had none).
         inside = np.where((depths[:, :-1] > 0) & (ts[:, 1:] > 0), np.maximum(np.diff(ts, axis=1), 0.0), 0.0)
+        if inside.shape[1] == 0:
+            return o, np.zeros(n)
         cum = np.cumsum(inside, axis=1)
         total = cum[:, -1]
         target = u3 * total
