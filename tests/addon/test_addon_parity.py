@@ -1251,8 +1251,8 @@ def test_world_volumes_match_cycles(addon, tmp_path, shader):
     assert_image_matches(f"world fog, {shader}", cycles, ours)
 
 
-@pytest.mark.parametrize("case", ["principled", pytest.param("emission_shader", marks=pytest.mark.slow),
-                                  pytest.param("blackbody", marks=pytest.mark.slow)])
+@pytest.mark.slow       # (make test's budget; the closed forms of test_volume_emission.py stay fast)
+@pytest.mark.parametrize("case", ["principled", "emission_shader", "blackbody"])
 def test_glowing_volumes_match_cycles(addon, tmp_path, case):
     """A glowing volume-only cube (1.2 m) over the corner, its only light: a Principled Volume
     that scatters (Density 0.5, Anisotropy 0.2) and emits an orange Emission Strength 3; an

@@ -3,7 +3,8 @@
 Each scene below is built to provoke a known failure of photon mappers or MCMC
 samplers (testing.md 2e): endless specular bounces, trapped light, far-from-origin
 and tiny coordinates, grazing views, degenerate emitters, extreme values and
-parameter edges.  Both methods and every low-dimension mutation mode run on each.
+parameter edges.  Both methods and every low-dimension mutation mode run on each (the
+modes other than the default in the slow tier).
 """
 import numpy as np
 import pytest
@@ -272,8 +273,11 @@ SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
           "extreme_values": extreme_values}
 
 
-@pytest.mark.parametrize("mode", [dict(method="ppm"), dict(method="amcmcppm", mutation="off"),
-                                  dict(method="amcmcppm", mutation="paper"),
+# The chains' other mutation modes share all but their mutation with the default (exact): they run in
+# the slow tier (make test's budget).
+@pytest.mark.parametrize("mode", [dict(method="ppm"),
+                                  pytest.param(dict(method="amcmcppm", mutation="off"), marks=pytest.mark.slow),
+                                  pytest.param(dict(method="amcmcppm", mutation="paper"), marks=pytest.mark.slow),
                                   dict(method="amcmcppm", mutation="exact")],
                          ids=["ppm", "mcmc-off", "mcmc-paper", "mcmc-exact"])
 @pytest.mark.parametrize("name", sorted(SCENES))
