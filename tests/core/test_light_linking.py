@@ -6,10 +6,10 @@ only the triangles of the blocker sets an emitter names shadow its direct light.
 import numpy as np
 import pytest
 
-from core import RenderSettings, render
 from core.scene import ALL_LINKS, Lights, Materials, SceneError
 from core.testing.scenes import MeshBuilder, sun_through_sheet
 
+from render_utils import finite_render
 from test_closed_form import light_over_mirror
 from test_translucent import view_factor_to_square
 
@@ -17,12 +17,6 @@ METHODS = [dict(method="ppm"), dict(method="amcmcppm", chains=4096)]
 # The chains' cases of the closed forms below but one run in the slow tier (the photons' rules
 # are the same code for both methods).
 PPM_FAST = [METHODS[0], pytest.param(METHODS[1], marks=pytest.mark.slow)]
-
-
-def finite_render(scene, **settings):
-    def check(result):
-        assert np.isfinite(result.image).all()
-    return render(scene, RenderSettings(workers=1, **settings), on_iteration=check)
 
 
 def two_floors(links_a, links_b, resolution=(32, 16)):

@@ -20,22 +20,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core import RenderSettings, render
 from core.eye_pass import MAX_SEGMENT_POINTS
 from core.sampling import hg_phase
 from core.scene import Camera, Lights, Materials, SceneError
 from core.testing.scenes import MeshBuilder
+from render_utils import finite_render
 
 METHODS = [dict(method="ppm"), dict(method="amcmcppm", chains=2048)]
 E = 10.0
 SIGMA_S = np.array([0.1, 0.25, 0.05])
 SIGMA_A = np.array([0.1, 0.05, 0.2])
-
-
-def finite_render(scene, **settings):
-    def check(result):
-        assert np.isfinite(result.image).all()
-    return render(scene, RenderSettings(workers=1, **settings), on_iteration=check)
 
 
 def sunlit_slab(g, from_below, thickness=0.5, resolution=(16, 16), half=2.0):

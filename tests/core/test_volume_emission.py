@@ -18,19 +18,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core import RenderSettings, render
 from core.accel import Accel
 from core.lights import GlowingVolume
 from core.scene import Camera, Lights, Materials
 from core.testing.scenes import MeshBuilder
+from render_utils import finite_render
 
 RHO = 0.5
-
-
-def finite_render(scene, **settings):
-    def check(result):
-        assert np.isfinite(result.image).all()
-    return render(scene, RenderSettings(workers=1, **settings), on_iteration=check)
 
 
 def orthographic(pose, half, resolution):

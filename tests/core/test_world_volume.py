@@ -21,19 +21,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core import RenderSettings, render
 from core.eye_pass import MAX_SEGMENT_POINTS
 from core.scene import VISIBLE_CAMERA, Camera, Lights, Materials, SceneError, World
 from core.testing.scenes import BUILTIN, MeshBuilder
+from render_utils import finite_render
 
 SIGMA = np.array([0.3, 0.1, 0.02])          # absorption per metre, per channel
 RHO = 0.5
-
-
-def finite_render(scene, **settings):
-    def check(result):
-        assert np.isfinite(result.image).all()
-    return render(scene, RenderSettings(workers=1, **settings), on_iteration=check)
 
 
 def looking_down(z, half, resolution):
