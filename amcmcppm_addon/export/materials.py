@@ -902,11 +902,10 @@ class NodeWalker:
     def volume(self, sock, stack):
         """(absorption (3,), scattering (3,), anisotropy g, emission (3,)) of the volume shader
         feeding ``sock`` (coefficients and emission per unit of length, as Cycles), or None when
-        nothing does.  Volume
-        Absorption absorbs (1 - Color) Density; Volume Scatter scatters Color Density with the
-        Henyey-Greenstein phase function of its Anisotropy (other phase functions are noted and
-        taken as that); Principled Volume scatters Color Density and absorbs (1 - Color)(1 -
-        sqrt(Absorption Color)) Density.  Add and Mix add the coefficients; scatterers of
+        nothing does.  Volume Absorption absorbs (1 - Color) Density; Volume Scatter scatters
+        Color Density with the Henyey-Greenstein phase function of its Anisotropy (other phase
+        functions are noted and taken as that); Principled Volume scatters Color Density and
+        absorbs (1 - Color)(1 - sqrt(Absorption Color)) Density.  Add and Mix add the coefficients; scatterers of
         different anisotropy get their mean weighted by the scattering (noted).  Principled
         Volume emits Emission Strength Emission Color plus, with Blackbody Intensity b > 0,
         Blackbody Tint (1 - b + b T^4) 5.670373e-14 / pi times the Blackbody colour of its
