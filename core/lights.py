@@ -117,9 +117,10 @@ class LightSampler:
             np.asarray(volume_emission, np.float64)[glow_mats] if len(glow_mats) else np.zeros((0, 3)))
         n_volumes = len(glow_mats)
         all_kinds = np.concatenate([lights.kind.astype(np.int32) if lights.count else np.zeros(0, np.int32),
-                                    np.full(len(emissive_tris), TRIANGLE, np.int32), np.full(n_world, WORLD, np.int32),
-                                    np.full(n_volumes, VOLUME, np.int32)])
-        all_ids = np.concatenate([np.arange(lights.count), emissive_tris, np.zeros(n_world, np.int64), glow_mats])
+                                    np.full(len(emissive_tris), TRIANGLE, np.int32),
+                                    np.full(n_world, WORLD, np.int32), np.full(n_volumes, VOLUME, np.int32)])
+        all_ids = np.concatenate([np.arange(lights.count), emissive_tris, np.zeros(n_world, np.int64),
+                                  glow_mats])
         world_power = (world * 4.0 * np.pi * np.pi * self.radius ** 2).reshape(1, 3)[:n_world]
         if distant_transmittance is not None:
             far = np.asarray(distant_transmittance, np.float64)
@@ -590,7 +591,8 @@ class GlowingVolume:
         total = cum[:, -1]
         target = u3 * total
         piece = np.minimum((cum <= target[:, None]).sum(axis=1), inside.shape[1] - 1)
-        before = np.where(piece > 0, np.take_along_axis(cum, np.maximum(piece - 1, 0)[:, None], axis=1)[:, 0], 0.0)
+        before = np.where(piece > 0, np.take_along_axis(cum, np.maximum(piece - 1, 0)[:, None], axis=1)[:, 0],
+                          0.0)
         t = np.take_along_axis(ts, piece[:, None], axis=1)[:, 0] + (target - before)
         points = o.copy()
         points[:, k] = start + np.where(total > 0, t, 0.0)

@@ -372,7 +372,8 @@ class Materials:
             out.volume_scattering[i] = np.broadcast_to(
                 np.asarray(s.get("volume_scattering", 0.0), np.float32), (3,))
             out.volume_anisotropy[i] = s.get("volume_anisotropy", 0.0)
-            out.volume_emission[i] = np.broadcast_to(np.asarray(s.get("volume_emission", 0.0), np.float32), (3,))
+            out.volume_emission[i] = np.broadcast_to(
+                np.asarray(s.get("volume_emission", 0.0), np.float32), (3,))
             out.holdout[i] = s.get("holdout", 0.0)
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)

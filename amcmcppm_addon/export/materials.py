@@ -737,7 +737,7 @@ class NodeWalker:
         self.world_program = None       # program of the direction for any other varying world colour
         self.camera_walker = None       # what camera rays see (Light Path's Is Camera Ray), its own
         self.camera_color = None        # world_* and colour, or None: the same as the other rays
-        self.medium = None              # the material's volume (absorption, scattering, g, emission; volume())
+        self.medium = None              # the material's volume (volume(): absorption, scattering, g, glow)
 
     def note(self, msg):
         if msg not in self.notes:
@@ -905,12 +905,13 @@ class NodeWalker:
         nothing does.  Volume Absorption absorbs (1 - Color) Density; Volume Scatter scatters
         Color Density with the Henyey-Greenstein phase function of its Anisotropy (other phase
         functions are noted and taken as that); Principled Volume scatters Color Density and
-        absorbs (1 - Color)(1 - sqrt(Absorption Color)) Density.  Add and Mix add the coefficients; scatterers of
-        different anisotropy get their mean weighted by the scattering (noted).  Principled
-        Volume emits Emission Strength Emission Color plus, with Blackbody Intensity b > 0,
-        Blackbody Tint (1 - b + b T^4) 5.670373e-14 / pi times the Blackbody colour of its
-        Temperature T (Cycles' Stefan-Boltzmann law), neither scaled by the Density; an Emission
-        shader emits Color Strength.  Textures on the inputs take their means (noted)."""
+        absorbs (1 - Color)(1 - sqrt(Absorption Color)) Density.  Add and Mix add the
+        coefficients; scatterers of different anisotropy get their mean weighted by the
+        scattering (noted).  Principled Volume emits Emission Strength Emission Color plus, with
+        Blackbody Intensity b > 0, Blackbody Tint (1 - b + b T^4) 5.670373e-14 / pi times the
+        Blackbody colour of its Temperature T (Cycles' Stefan-Boltzmann law), neither scaled by
+        the Density; an Emission shader emits Color Strength.  Textures on the inputs take their
+        means (noted)."""
         src, _, stack = self.source(sock, stack)
         if src is None:
             return None

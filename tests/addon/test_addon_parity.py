@@ -1268,7 +1268,8 @@ def test_glowing_volumes_match_cycles(addon, tmp_path, case):
             node.inputs["Emission Strength"].default_value = 3.0
             node.inputs["Emission Color"].default_value = (1.0, 0.5, 0.2, 1.0)
         elif case == "emission_shader":
-            mat, _ = bs.volume_material("Glow", "ShaderNodeEmission", Color=(0.3, 0.6, 1.0, 1.0), Strength=2.0)
+            mat, _ = bs.volume_material("Glow", "ShaderNodeEmission", Color=(0.3, 0.6, 1.0, 1.0),
+                                        Strength=2.0)
         else:
             mat, node = bs.volume_material("Glow", "ShaderNodeVolumePrincipled", Color=(0.5, 0.5, 0.5, 1.0),
                                            Density=0.3)

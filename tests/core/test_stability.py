@@ -197,7 +197,8 @@ def extreme_volumes():
              {"name": "dark glass", "dielectric": 1.0, "volume_absorption": 1e30},
              {"name": "gas", "opacity": 0.0, "volume_absorption": (1e-30, 1e6, 0.0),
               "volume_emission": (1e6, 1e-30, 0.0)},
-             {"name": "sheet", "diffuse": 0.5, "opacity": 0.5, "volume_absorption": 3.0, "volume_emission": 2.0},
+             {"name": "sheet", "diffuse": 0.5, "opacity": 0.5, "volume_absorption": 3.0,
+              "volume_emission": 2.0},
              {"name": "inner glass", "dielectric": 1.0, "ior": 1.33, "volume_absorption": (0.0, 2.0, 9.0)},
              {"name": "ember", "opacity": 0.0, "volume_emission": 1e12, "volume_scattering": 1e3},
              {"name": "inside out", "opacity": 0.0, "volume_emission": 1.0}]
@@ -275,9 +276,12 @@ SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
 
 # The chains' other mutation modes share all but their mutation with the default (exact): they run in
 # the slow tier (make test's budget).
+SLOW = pytest.mark.slow
+
+
 @pytest.mark.parametrize("mode", [dict(method="ppm"),
-                                  pytest.param(dict(method="amcmcppm", mutation="off"), marks=pytest.mark.slow),
-                                  pytest.param(dict(method="amcmcppm", mutation="paper"), marks=pytest.mark.slow),
+                                  pytest.param(dict(method="amcmcppm", mutation="off"), marks=SLOW),
+                                  pytest.param(dict(method="amcmcppm", mutation="paper"), marks=SLOW),
                                   dict(method="amcmcppm", mutation="exact")],
                          ids=["ppm", "mcmc-off", "mcmc-paper", "mcmc-exact"])
 @pytest.mark.parametrize("name", sorted(SCENES))
