@@ -104,17 +104,17 @@ class LightSampler:
         n_world = 1 if world.any() else 0
         # Glowing volumes: 4 pi E V each, V the volume their material's triangles enclose.
         self.volumes = {}
-        if volume_emission is not None and scene.triangle_count:
-            glowing = (np.asarray(volume_emission, np.float64)[:scene.materials.count] > 0).any(axis=1)
-            for m in np.flatnonzero(glowing):          # a loop over the few glowing materials
+        glow = np.zeros((0, 3)) if volume_emission is None else np.asarray(volume_emission, np.float64)
+        if scene.triangle_count:
+            for m in np.flatnonzero((glow[:scene.materials.count] > 0).any(axis=1)):   # the few glowing ones
                 tris = np.flatnonzero(tri_mat == m)
                 if len(tris):
                     v = GlowingVolume(accel, tris)
                     if v.volume > 0:
                         self.volumes[int(m)] = v
         glow_mats = np.array(sorted(self.volumes), np.int64)
-        glow_power = (4.0 * np.pi * np.array([self.volumes[m].volume for m in glow_mats]))[:, None] * (
-            np.asarray(volume_emission, np.float64)[glow_mats] if len(glow_mats) else np.zeros((0, 3)))
+        volume = np.array([self.volumes[m].volume for m in glow_mats], np.float64)
+        glow_power = 4.0 * np.pi * volume[:, None] * glow.take(glow_mats, axis=0)
         n_volumes = len(glow_mats)
         all_kinds = np.concatenate([lights.kind.astype(np.int32) if lights.count else np.zeros(0, np.int32),
                                     np.full(len(emissive_tris), TRIANGLE, np.int32),

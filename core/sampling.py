@@ -324,8 +324,8 @@ def volume_glow(sigma_t, emission, length):
     (n, 3) per length sends along a segment of ``length`` (n,) (finite) to its start: the integral
     of ``emission`` T(s) ds, ``emission`` (1 - T(L)) / ``sigma_t`` (``emission`` L where
     ``sigma_t`` is 0, or so small that the difference would lose its digits)."""
+    tau = optical_depth(sigma_t, length)
     length = np.asarray(length, np.float64)[:, None]
-    tau = sigma_t * length
     small = tau < 1e-6
     with np.errstate(invalid="ignore", divide="ignore"):
         share = np.where(small, length * (1.0 - 0.5 * tau), -np.expm1(-tau) / np.where(small, 1.0, sigma_t))
