@@ -3,6 +3,10 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+# Test processes (pytest-xdist).  Two on this 2-core machine: the fast tier took 8 min 35 s
+# against 14 min 0 s in one process (same clean clone, one after the other); one process
+# leaves a core idle while a test waits on Cycles, on a worker pool or on NumPy's single thread.
+TEST_JOBS ?= 2
 
 .PHONY: render test test-slow bench extension clean
 
@@ -20,10 +24,10 @@ render: $(STAMP)
 	$(PY) render.py sample_blends/cornell_box.blend --output out/cornell_box.exr --png out/cornell_box.png
 
 test: $(STAMP)
-	$(PY) -m pytest -m "not slow" -q
+	$(PY) -m pytest -m "not slow" -q -n $(TEST_JOBS)
 
 test-slow: $(STAMP)
-	$(PY) -m pytest -m slow -q
+	$(PY) -m pytest -m slow -q -n $(TEST_JOBS)
 
 # Installable zips (one per platform, with embreex wheels) in dist/, built by Blender's own tool.
 extension: $(STAMP)
