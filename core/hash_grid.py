@@ -22,7 +22,9 @@ path, ``algorithm.md`` 2 and 6.6; the Markov chains' V also counts the vertices 
     |x_photon - x_j| < r_j   and   n_photon . n_j >= NORMAL_COS
 
 with both normals flipped to the side the light and the camera arrive from; the
-normal test rejects photons on the back of thin walls and across corners.
+normal test rejects photons on the back of thin walls and across corners.  A grid
+built without normals (points in volumes, which gather in spheres) keeps none and
+tests the distance alone.
 """
 from __future__ import annotations
 
@@ -41,7 +43,8 @@ class HashGrid:
     """Grid of measurement points for radius queries."""
 
     def __init__(self, positions, radii, normals):
-        """positions (m, 3) float64; radii (m,) float64 > 0; normals (m, 3) unit, oriented."""
+        """positions (m, 3) float64; radii (m,) float64 > 0; normals (m, 3) unit, oriented, or None
+        (no normal test)."""
         m = len(positions)
         self.point_count = m
         if m == 0:
@@ -136,9 +139,10 @@ class HashGrid:
         for k in range(3):
             self.entry_pos[k] = positions[:, k].take(point_of_entry) - (lo[k] + cell_xyz[k] * c)
         self.entry_r2 = (radii ** 2).astype(np.float32).take(point_of_entry)
-        self.entry_normal = np.empty((3, len(point_of_entry)), np.float32)
-        for k in range(3):
-            self.entry_normal[k] = normals[:, k].astype(np.float32).take(point_of_entry)
+        self.entry_normal = np.empty((3, len(point_of_entry) if normals is not None else 0), np.float32)
+        if normals is not None:
+            for k in range(3):
+                self.entry_normal[k] = normals[:, k].astype(np.float32).take(point_of_entry)
 
     FIELDS = ("cell_size", "origin", "dims", "cell_keys", "cell_start", "entry_point", "entry_pos",
               "entry_r2", "entry_normal", "point_count")
@@ -160,6 +164,11 @@ class HashGrid:
     def entry_count(self) -> int:
         return int(len(self.entry_point))
 
+    @property
+    def has_normals(self) -> bool:
+        """Whether the entries hold normals (and the query tests them)."""
+        return self.entry_normal.shape[1] == len(self.entry_point)
+
     def _cells(self, x):
         """Cell keys (n,) of positions x (n, 3), -1 outside the grid, and integer cell coordinates."""
         cell = np.floor((x - self.origin) / self.cell_size).astype(np.int64)
@@ -173,14 +182,17 @@ class HashGrid:
         """Pairs (photon index, point id) that pass the deposit test.
 
         x : (n, 3) float64 photon positions; normals : (n, 3) unit geometric normals
-        flipped towards the side the photon arrived from; directions : optional
-        (n, 3) unit vectors, whose cosine with each pair's point normal is returned.
+        flipped towards the side the photon arrived from, or None for a grid built without
+        normals; directions : optional (n, 3) unit vectors, whose cosine with each pair's
+        point normal is returned (a grid with normals only).
         Returns ``(photon_idx (k,) int64, point_ids (k,) int64, cosines (k,) or None)``,
         grouped by photon (photons in the order of their cells, not of ``x``).
         """
         n = len(x)
         if n == 0 or len(self.cell_keys) == 0:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), None if directions is None else np.zeros(0)
+        if (normals is None) == self.has_normals or (directions is not None and not self.has_normals):
+            raise ValueError("HashGrid.query: normals (and directions) go with a grid built with normals")
         keys, cell = self._cells(x)
         pos = np.minimum(np.searchsorted(self.cell_keys, keys), len(self.cell_keys) - 1)
         found = (self.cell_keys[pos] == keys) & (keys >= 0)
@@ -195,7 +207,7 @@ class HashGrid:
         # Photon positions relative to their cell origin (as the entries), normals, directions.
         rel = (x.take(photons, axis=0) - (self.origin + cell.take(photons, axis=0) * self.cell_size)
                ).T.astype(np.float32)
-        nrm = normals.take(photons, axis=0).T.astype(np.float32)
+        nrm = None if normals is None else normals.take(photons, axis=0).T.astype(np.float32)
         dirs = None if directions is None else directions.take(photons, axis=0).T.astype(np.float32)
         out_p, out_j, out_c = [], [], []
         bounds = np.cumsum(count)
@@ -215,14 +227,15 @@ class HashGrid:
                 d *= d
                 d2 += d
             near = np.flatnonzero(d2 < self.entry_r2.take(eidx))
-            # Normal test on the survivors.
             e = eidx[near]
             ph = np.repeat(np.arange(lo, hi), cnt)[near]
-            cos_n = self.entry_normal[0].take(e) * nrm[0].take(ph)
-            cos_n += self.entry_normal[1].take(e) * nrm[1].take(ph)
-            cos_n += self.entry_normal[2].take(e) * nrm[2].take(ph)
-            ok = np.flatnonzero(cos_n >= NORMAL_COS)
-            e, ph = e[ok], ph[ok]
+            if nrm is not None:
+                # Normal test on the survivors.
+                cos_n = self.entry_normal[0].take(e) * nrm[0].take(ph)
+                cos_n += self.entry_normal[1].take(e) * nrm[1].take(ph)
+                cos_n += self.entry_normal[2].take(e) * nrm[2].take(ph)
+                ok = np.flatnonzero(cos_n >= NORMAL_COS)
+                e, ph = e[ok], ph[ok]
             out_p.append(photons[ph])
             out_j.append(self.entry_point.take(e).astype(np.int64))
             if dirs is not None:
@@ -250,8 +263,11 @@ def _choose_cell_size(radii, extent, budget):
 
 
 def brute_force_query(x, normals, positions, radii, point_normals):
-    """Reference for tests: all (photon, point) pairs passing the deposit test, in float64."""
+    """Reference for tests: all (photon, point) pairs passing the deposit test, in float64
+    (the distance test alone when ``normals`` is None)."""
     d2 = ((x[:, None, :] - positions[None, :, :]) ** 2).sum(axis=2)
-    ok = (d2 < radii[None, :] ** 2) & (normals @ point_normals.T >= NORMAL_COS)
+    ok = d2 < radii[None, :] ** 2
+    if normals is not None:
+        ok &= normals @ point_normals.T >= NORMAL_COS
     p, j = np.nonzero(ok)
     return p.astype(np.int64), j.astype(np.int64)

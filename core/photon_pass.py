@@ -91,7 +91,7 @@ class DepositTarget:
         self.volume_radius = volume_radius
         self.media = media
         if self.volume is not None and volume_grid is None:
-            volume_grid = HashGrid(self.volume.position, volume_radius, _volume_normals(self.volume.count))
+            volume_grid = HashGrid(self.volume.position, volume_radius, None)
         self.volume_grid = volume_grid if self.volume is not None else None
         self.n_points = points.count + (0 if self.volume is None else self.volume.count)
         self.cells = cells
@@ -159,7 +159,7 @@ class DepositTarget:
     def volume_pairs(self, x, d):
         """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the
         volume points: (photon rows, point numbers (m + k), phase function values)."""
-        pi, pj, _ = self.volume_grid.query(x, _volume_normals(len(x)), None)
+        pi, pj, _ = self.volume_grid.query(x, None)
         if len(pi) == 0:
             return pi, pj, np.zeros(0)
         vol = self.volume
@@ -353,13 +353,6 @@ def _inside_share(planes, r):
         h = np.clip(r - planes[:, k], 0.0, 2.0 * r)            # height of the cap beyond the plane
         share -= h * h * (3.0 * r - h) / (4.0 * r ** 3)
     return np.maximum(share, 0.25)
-
-
-def _volume_normals(n):
-    """The normals the volume points' grid is built and queried with (the normal test passes)."""
-    out = np.zeros((n, 3), np.float32)
-    out[:, 2] = 1.0
-    return out
 
 
 def _some(mask):

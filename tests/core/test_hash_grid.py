@@ -45,6 +45,23 @@ def test_grid_query_equals_brute_force(scale, offset, r_range):
     assert len(want) > 100
 
 
+@pytest.mark.parametrize("scale,offset", [(1.0, 0.0), (10.0, 1e4)])
+def test_grid_without_normals_tests_the_distance_alone(scale, offset):
+    """Volume points' grid: spheres, no normal test; mixing the two kinds is an error."""
+    rng = np.random.default_rng(9)
+    pts, radii, nrm = random_points(rng, 2000, scale, offset, (0.01, 0.1))
+    grid = HashGrid(pts, radii, None)
+    assert not grid.has_normals and HashGrid(pts, radii, nrm).has_normals
+    x = pts[rng.integers(0, 2000, 1500)] + scale * 0.03 * rng.normal(size=(1500, 3))
+    want = query_matches_brute_force(grid, x, None, pts, radii, None, scale)
+    with_normals = pair_set(*brute_force_query(x, nrm[rng.integers(0, 2000, 1500)], pts, radii, nrm))
+    assert len(want) > 2 * len(with_normals) > 100     # the normal test would have dropped most
+    with pytest.raises(ValueError, match="normals"):
+        grid.query(x, nrm[:1500])
+    with pytest.raises(ValueError, match="normals"):
+        HashGrid(pts, radii, nrm).query(x, None)
+
+
 def test_grid_returns_the_cosines_with_the_point_normals():
     rng = np.random.default_rng(8)
     pts, radii, nrm = random_points(rng, 500, 1.0, 0.0, (0.05, 0.2))
