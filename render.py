@@ -62,7 +62,7 @@ def build_parser():
                    help="image to write: .exr (linear float RGBA) or .png/.jpg/.tif (colour managed)")
     p.add_argument("--png", help="also write a colour-managed PNG")
     g = p.add_argument_group("settings (default: the .blend's values)")
-    g.add_argument("--method", choices=("amcmcppm", "ppm"))
+    g.add_argument("--method", choices=("amcmcppm", "ppm", "auto"))
     g.add_argument("--passes", type=int, help="passes (0 = until --time-limit)")
     g.add_argument("--time-limit", type=float, help="seconds (0 = no limit)")
     g.add_argument("--seed", type=int)

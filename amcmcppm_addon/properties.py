@@ -9,8 +9,8 @@ properties configure optional file outputs of the engine (statistics, snapshots)
 import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, METHODS, MUTATIONS, NORMALISATIONS,
-                             RenderSettings)
+from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, METHODS,
+                             MUTATIONS, NORMALISATIONS, RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -19,6 +19,9 @@ METHOD_ITEMS = {
                              "paths are mutated towards paths the camera sees", 0),
     "ppm": ("PPM", "Stochastic progressive photon mapping with independent uniform photons "
                    "(the baseline)", 1),
+    "auto": ("Automatic", "AMCMCPPM, or uniform photons from the second pass on when many of the "
+                          f"first pass's uniform photon paths are visible (at least "
+                          f"{AUTO_UNIFORM_VISIBLE:.0%}), where the chains cost more than they find", 2),
 }
 MUTATION_ITEMS = {
     "off": ("Off", "Mutate every dimension of the photon path", 0),

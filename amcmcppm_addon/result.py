@@ -137,7 +137,7 @@ def stats_line(settings, stats, photons_total) -> str:
     p = stats["pass"]
     parts = [f"Pass {p}/{settings.passes}" if settings.passes else f"Pass {p}",
              f"Photons {photons_total:,}"]
-    if settings.method == "amcmcppm":
+    if stats.get("method") == "amcmcppm":
         parts += [f"Acceptance {stats['acceptance_rate']:.2f}", f"Mutation {stats['mutation_size']:.3g}"]
     parts.append(f"Visible {stats['visible_fraction']:.3g}")
     left = time_left(settings, p, stats["elapsed_s"])

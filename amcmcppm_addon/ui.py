@@ -69,7 +69,7 @@ class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
     @staticmethod
     def is_active(settings):
-        return settings.method == "amcmcppm"
+        return settings.method != "ppm"
 
 
 class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):

@@ -9,6 +9,7 @@ scene) and each method:
     a60            AMCMCPPM, target acceptance 60 %, full mutation
     a60-paper      ... plus the paper's low-dimension mutation (Watanabe et al.)
     a60-exact      ... plus the detailed-balance-preserving low-dimension mutation (our default)
+    auto           a60-exact's first pass, then uniform photons if many uniform paths are visible
 
 every run is a separate process (``--jobs`` at a time, one worker each) that keeps the
 image after every pass.  Errors are RMSE and relMSE = mean((I - R)^2 / (R^2 + 0.01)) on
@@ -55,6 +56,7 @@ METHODS = {
     "a60": dict(method="amcmcppm", target_acceptance=0.60, mutation="off"),
     "a60-paper": dict(method="amcmcppm", target_acceptance=0.60, mutation="paper"),
     "a60-exact": dict(method="amcmcppm", target_acceptance=0.60, mutation="exact"),
+    "auto": dict(method="auto", target_acceptance=0.60, mutation="exact"),
 }
 REFERENCE_METHOD = "a60-exact"
 REFERENCE_RADIUS = 0.25     # the references' initial radius, in units of the runs' (module docstring)
@@ -312,7 +314,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run-one", help=argparse.SUPPRESS)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
-    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
+    ap.add_argument("--methods", nargs="+", default=[m for m in METHODS if m != "auto"],
+                    choices=list(METHODS))
     ap.add_argument("--resolution", type=int, nargs=2, default=(64, 48),
                     help="the committed references in benchmarks/references are 64x48")
     ap.add_argument("--time", type=float, default=60.0, help="seconds per run")

@@ -13,6 +13,8 @@ One pass (``algorithm.md`` 1, Knaus & Zwicker 2011):
    with weights n_U,i (``core/mcmc.py``, "Two parts").
 
 The eye pass of pass i+1 is traced while the workers trace the photons of pass i.
+``method="auto"`` runs the chains' first pass and, when many of its uniform samples were
+visible, goes on with uniform photons in a new accumulator (``RenderSettings.method``).
 """
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ from .context import RenderContext
 from .eye_pass import trace_eye_pass
 from .parallel import make_pool
 from .photon_pass import DepositTarget
-from .settings import RenderSettings
+from .settings import AUTO_UNIFORM_VISIBLE, RenderSettings
 from .visible_cells import VisibleCells
 from .worker import STREAM_EYE
 
@@ -51,6 +53,7 @@ class RenderResult:
     elapsed_s: float = 0.0                      # wall time of the render loop
     interrupted: bool = False                   # stopped by ``should_stop``
     effects: tuple = ()                         # the optional effects simulated (RenderContext.effects)
+    method: str = ""                            # "amcmcppm" or "ppm": what made the image's photons
 
 
 class Accumulator:
@@ -168,9 +171,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     x0, x1, y0, y1 = scene.camera.window
     width, height = x1 - x0, y1 - y0
     n_pixels = width * height
-    is_chain = settings.method == "amcmcppm"
+    is_chain = settings.method != "ppm"
     acc = Accumulator(n_pixels, settings.normalisation)
-    result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects)
+    result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects,
+                          method="amcmcppm" if is_chain else "ppm")
     warnings = result.warnings
     if ctx.lights.count == 0:
         warnings.append("the scene emits no light (no light with power, emissive material or world); "
@@ -228,7 +232,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 # No pass that the limit would cut to a sliver (its eye pass is spent already).
                 if budget <= 0 or (needed is not None and budget < MIN_CUT_PASS * needed):
                     break
-            pool.submit(pass_index, target, photons, budget)
+            pool.submit(pass_index, target, photons, budget, uniform=not is_chain)
             # Prepare the next pass while the workers trace photons, unless it is the last, or
             # the time limit will cut this one, or this is the first pass (whose image is
             # shown as soon as it is done; the next pass is prepared after it).
@@ -266,11 +270,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
-                                photons, cut and not interrupted)
+                                photons, cut and not interrupted, is_chain)
             result.stats.append(stats)
             result.passes = acc.passes
             result.elapsed_s = elapsed
             result.image = acc.image(is_chain).reshape(height, width, 4)
+            result.method = "amcmcppm" if is_chain else "ppm"
             if on_iteration is not None:
                 on_iteration(result)
             pass_index += 1
@@ -281,6 +286,13 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 break
             if last:
                 break
+            if (settings.method == "auto" and pass_index == 1 and c["uniform_samples"]
+                    and c["uniform_visible"] >= AUTO_UNIFORM_VISIBLE * c["uniform_samples"]):
+                # Many uniform paths are visible: uniform photons from here on, and an image of
+                # their passes alone (RenderSettings.method).  The next pass is not prepared yet
+                # (none is while the first runs), so it is made without the chains' cells.
+                is_chain, cells, last_rate = False, None, None
+                acc = Accumulator(n_pixels, settings.normalisation)
             if next_target is None:
                 next_eye = eye_pass(pass_index)
                 next_target = make_target(pass_index, next_eye)
@@ -288,14 +300,15 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     finally:
         pool.close()
     result.elapsed_s = time.perf_counter() - t0
-    result.image = acc.image(is_chain).reshape(height, width, 4)
+    if acc.passes:      # (after the switch of "auto", the first image stands until a pass lands)
+        result.image = acc.image(is_chain).reshape(height, width, 4)
     return result
 
 
-def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, settings, photons, cut):
+def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, settings, photons, cut,
+                is_chain):
     """The statistics of one pass (``PASS_STAT_KEYS`` first, then diagnostics)."""
     c = merged["counters"]
-    is_chain = settings.method == "amcmcppm"
     return {
         "pass": pass_index + 1,
         "elapsed_s": elapsed,
@@ -311,7 +324,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "uniform_outside": c["uniform_outside"],
         "visible_fraction": acc.visible_fraction,
         "radius": float(np.median(target.radius)) if len(target.radius) else 0.0,
-        "method": settings.method,
+        "method": "amcmcppm" if is_chain else "ppm",
         "visible_fraction_pass": c["uniform_visible"] / c["uniform_samples"] if c["uniform_samples"] else 0.0,
         "cumulative_acceptance_rate": (merged["total_accepted"] / merged["total_proposed"]
                                        if merged["total_proposed"] else 0.0),

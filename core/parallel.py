@@ -68,15 +68,15 @@ class InProcessPool:
     def size(self) -> int:
         return 1
 
-    def submit(self, pass_index, target, n_photons, budget_s=None):
+    def submit(self, pass_index, target, n_photons, budget_s=None, uniform=False):
         deadline = None if budget_s is None else time.perf_counter() + budget_s
-        self._job = (pass_index, target, n_photons, deadline)
+        self._job = (pass_index, target, n_photons, deadline, uniform)
 
     def collect(self, should_stop=None):
-        (pass_index, target, n_photons, deadline), self._job = self._job, None
+        (pass_index, target, n_photons, deadline, uniform), self._job = self._job, None
         user_stop = should_stop or (lambda: False)
         stop = user_stop if deadline is None else (lambda: time.perf_counter() >= deadline or user_stop())
-        return [self.worker.run_pass(pass_index, target, n_photons, should_stop=stop)]
+        return [self.worker.run_pass(pass_index, target, n_photons, should_stop=stop, uniform=uniform)]
 
     def close(self):
         pass
@@ -118,7 +118,7 @@ class ProcessPool:
     def size(self) -> int:
         return len(self.procs)
 
-    def submit(self, pass_index, target, n_photons, budget_s=None):
+    def submit(self, pass_index, target, n_photons, budget_s=None, uniform=False):
         if self._starting:
             for p in self.procs:
                 self._receive(p)
@@ -130,7 +130,7 @@ class ProcessPool:
             np.save(os.path.join(self._pass_dir, name + ".npy"), np.ascontiguousarray(a))
             names.append(name)
         for p in self.procs:
-            _send(p, ("pass", pass_index, self._pass_dir, names, n_photons, budget_s))
+            _send(p, ("pass", pass_index, self._pass_dir, names, n_photons, budget_s, uniform))
 
     def collect(self, should_stop=None):
         """Wait for every worker's result.
@@ -250,14 +250,15 @@ def worker_main():
                 worker = PhotonWorker(Scene.from_arrays(arrays), RenderSettings(**settings_dict), index)
                 reply = ("ok", None)
             else:
-                _, pass_index, folder, names, n_photons, budget_s = msg
+                _, pass_index, folder, names, n_photons, budget_s, uniform = msg
                 end = None if budget_s is None else time.perf_counter() + budget_s
                 arrays = {name: np.load(os.path.join(folder, name + ".npy"), mmap_mode="r") for name in names}
                 target = DepositTarget.from_arrays(arrays, worker.ctx.table)
 
                 def stop():
                     return (end is not None and time.perf_counter() >= end) or os.path.exists(stop_flag)
-                reply = ("ok", worker.run_pass(pass_index, target, n_photons, should_stop=stop))
+                reply = ("ok", worker.run_pass(pass_index, target, n_photons, should_stop=stop,
+                                               uniform=uniform))
         except Exception:
             reply = ("error", traceback.format_exc())
         pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)

@@ -10,7 +10,10 @@ import math
 import os
 from dataclasses import dataclass
 
-METHODS = ("amcmcppm", "ppm")
+METHODS = ("amcmcppm", "ppm", "auto")
+# "auto": uniform photons from the second pass on when at least this share of the first pass's
+# uniform samples were visible (benchmarks/error_vs_time.py; RenderSettings.method).
+AUTO_UNIFORM_VISIBLE = 0.3
 AUTO_PHOTONS_MIN = 100_000          # photons per pass and worker at least (automatic count)
 AUTO_PHOTONS_PER_PIXEL = 0.5        # ... and per pixel of the image (benchmarks/photons_per_pass.py)
 GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins below, loses above
@@ -26,7 +29,13 @@ class RenderSettings:
     method: str = "amcmcppm"
     """"amcmcppm": photons from Markov chains that seek paths seen by the camera
     (Hachisuka & Jensen 2011); "ppm": independent uniform photons (stochastic
-    progressive photon mapping, the baseline)."""
+    progressive photon mapping, the baseline); "auto": the chains' first pass, then uniform
+    photons when at least ``AUTO_UNIFORM_VISIBLE`` of that pass's uniform samples were visible,
+    else the chains on.  The chains sample the visible paths uniformly, so where a share f of
+    uniform paths is visible they record at most 1/f times as many useful photons per path
+    as uniform photons do, while an iteration traces up to two paths and keeps its books;
+    at f >= 0.3 they cannot gain what they cost.  The image then starts again from the second
+    pass."""
 
     passes: int = 16
     """Passes to render (eye pass + photon pass each); 0 = until ``time_limit``."""

@@ -33,16 +33,17 @@ class PhotonWorker:
         self.index = index
         self.dims = path_dims(settings.max_bounces)
         self.chains = None
-        if settings.method == "amcmcppm":
+        if settings.method != "ppm":
             n_chains = settings.chains
             self.chain_rng = np.random.default_rng([settings.seed, STREAM_CHAINS, index])
             self.chains = ChainSet.create(n_chains, self.dims, settings.initial_mutation_size,
                                           self.chain_rng)
 
-    def run_pass(self, pass_index, target, n_photons, should_stop=None) -> dict:
+    def run_pass(self, pass_index, target, n_photons, should_stop=None, uniform=False) -> dict:
         """Trace this worker's photons of pass ``pass_index``; return sums and counters.
 
-        target : the pass's DepositTarget (measurement points and their grid).
+        target : the pass's DepositTarget (measurement points and their grid); uniform : trace
+        uniform photons even if this worker has chains (``method="auto"`` after its switch).
         The result holds ``pixel_sum`` (n_pixels, 3): the summed contributions of the
         recorded photons (not yet divided by their number or scaled by the visible
         fraction), ``outside_sum`` (AMCMCPPM: the summed contributions of the uniform samples
@@ -53,19 +54,19 @@ class PhotonWorker:
         t0 = time.perf_counter()
         counters = ChainCounters()
         outside_sum = None
-        if self.chains is None:
+        chains = None if uniform else self.chains
+        if chains is None:
             pixel_sum, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
             theta_mean, valid = 0.0, 0
         else:
             pixel_sum, outside_sum, interrupted = self._chain_pass(target, n_photons, counters, stop)
-            c = self.chains
-            adapted = c.proposed > 0
-            theta_mean = float(c.theta[adapted].mean()) if adapted.any() else float(c.theta.mean())
-            valid = int(c.valid.sum())
+            adapted = chains.proposed > 0
+            theta_mean = float(chains.theta[adapted].mean()) if adapted.any() else float(chains.theta.mean())
+            valid = int(chains.valid.sum())
         return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "counters": dataclasses.asdict(counters),
                 "theta_mean": theta_mean, "valid_chains": valid,
-                "total_proposed": int(self.chains.proposed.sum()) if self.chains else 0,
-                "total_accepted": int(self.chains.accepted.sum()) if self.chains else 0,
+                "total_proposed": int(chains.proposed.sum()) if chains else 0,
+                "total_accepted": int(chains.accepted.sum()) if chains else 0,
                 "interrupted": interrupted, "photon_s": time.perf_counter() - t0}
 
     def _uniform_pass(self, pass_index, target, n_photons, counters, stop):
