@@ -7,7 +7,7 @@ are printed.  Use it before claiming that a change to the photon pass is faster.
 
     python benchmarks/ab_photon_pass.py [--base HEAD] [--scene cornell_box] [--resolution 640 480]
                                         [--rounds 10] [--paths 65536] [--pairs | --render METHOD]
-                                        [--workers N] [--photons-per-pass N]
+                                        [--workers N] [--photons-per-pass N] [--isotropic]
 
 ``--pairs`` traces as the Markov chains do (deposit pairs collected per path) instead of
 splatting uniform photons into per-point sums.  ``--render ppm|amcmcppm`` times whole
@@ -96,6 +96,14 @@ def interleaved_rates(runs, rounds):
     return rates
 
 
+def isotropic(scene):
+    """``scene`` with every volume's anisotropy (materials' and the world's) set to 0."""
+    if scene.materials.volume_anisotropy is not None:
+        scene.materials.volume_anisotropy[:] = 0.0
+    scene.world.volume_anisotropy = 0.0
+    return scene
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="HEAD", help="git revision to compare against (default HEAD)")
@@ -110,14 +118,17 @@ def main():
     ap.add_argument("--workers", type=int, default=1, help="worker count of the renders (with --render)")
     ap.add_argument("--photons-per-pass", type=int, default=None,
                     help="photons per pass and worker of the renders (default: each version's own)")
+    ap.add_argument("--isotropic", action="store_true",
+                    help="the scene's volumes scatter evenly (anisotropy 0, Cycles' default)")
     a = ap.parse_args()
+    edit = isotropic if a.isotropic else None
     with tempfile.TemporaryDirectory() as tmp:
         extract(a.base, tmp)
         sys.path.insert(0, tmp)
         res = tuple(a.resolution)
         versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers, a.photons_per_pass)
                            if a.render else
-                           photon_pass(pkg, a.scene, res, a.paths, a.pairs))
+                           photon_pass(pkg, a.scene, res, a.paths, a.pairs, edit))
                     for name, pkg in (("base", "core_base"), ("this", "core"))}
         rates = interleaved_rates(versions, a.rounds)
     ratio = np.array(rates["this"]) / np.array(rates["base"])

@@ -40,6 +40,8 @@ from .sampling import dot, hg_phase, luminance, sample_hg
 from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
 
+ISOTROPIC_PHASE = 1.0 / (4.0 * np.pi)      # hg_phase at g = 0, to the bit
+
 BOUNCE_DIMS = 4
 
 
@@ -158,14 +160,22 @@ class DepositTarget:
 
     def volume_pairs(self, x, d):
         """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the
-        volume points: (photon rows, point numbers (m + k), phase function values)."""
+        volume points: (photon rows, point numbers (m + k), phase function values), the last
+        one number 1/(4 pi) when every volume point's medium scatters evenly."""
         pi, pj, _ = self.volume_grid.query(x, None)
         if len(pi) == 0:
             return pi, pj, np.zeros(0)
+        if self._isotropic:
+            return pi, pj + self.points.count, ISOTROPIC_PHASE
         vol = self.volume
         cos = dot(d.take(pi, axis=0), vol.wo.take(pj, axis=0))
         phase = hg_phase(cos, self.media.take(vol.mat_ids.take(pj)))
         return pi, pj + self.points.count, phase
+
+    @cached_property
+    def _isotropic(self) -> bool:
+        """Whether every volume point's medium has anisotropy 0 (Cycles' default)."""
+        return not self.media.take(np.unique(self.volume.mat_ids)).any()
 
     @cached_property
     def back_grid(self):
@@ -378,7 +388,7 @@ class PointSums:
 
     def add(self, point_ids, diffuse, glossy=None):
         """Pairs with points ``point_ids`` (k,) and values (3, k) (three channel rows, each
-        contiguous); ``glossy`` likewise when the sums have a glossy part."""
+        contiguous); ``glossy`` likewise, or None for pairs without a glossy part."""
         self._points.append(point_ids)
         self._values.append((diffuse, glossy))
         self._waiting += len(point_ids)
@@ -389,11 +399,16 @@ class PointSums:
         if not self._points:
             return
         points = np.concatenate(self._points) if len(self._points) > 1 else self._points[0]
-        parts = (self.diffuse, self.glossy) if self.glossy is not None else (self.diffuse,)
-        for i, out in enumerate(parts):
+        for c in range(3):
+            w = np.concatenate([v[0][c] for v in self._values])
+            self.diffuse[:, c] += np.bincount(points, weights=w, minlength=self.n_points)
+        with_glossy = [i for i, v in enumerate(self._values) if v[1] is not None]
+        if self.glossy is not None and with_glossy:
+            if len(with_glossy) < len(self._values):
+                points = np.concatenate([self._points[i] for i in with_glossy])
             for c in range(3):
-                w = np.concatenate([v[i][c] for v in self._values])
-                out[:, c] += np.bincount(points, weights=w, minlength=self.n_points)
+                w = np.concatenate([self._values[i][1][c] for i in with_glossy])
+                self.glossy[:, c] += np.bincount(points, weights=w, minlength=self.n_points)
         self._points, self._values, self._waiting = [], [], 0
 
 
@@ -695,7 +710,9 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
     if target.volume is not None:
         pi, pj, phase = target.volume_pairs(x, d)
         if len(pi):
-            f = (vert["flux"] * ctx.scattering.take(vmed, axis=0)).take(pi, axis=0) * phase[:, None]
+            f = vert["flux"] * ctx.scattering.take(vmed, axis=0)
+            # One phase value for all pairs (even scattering) multiplies the photons, not the pairs.
+            f = (f * phase).take(pi, axis=0) if np.ndim(phase) == 0 else f.take(pi, axis=0) * phase[:, None]
             if collect_pairs:
                 pairs["path"].append(idx.take(pi))
                 pairs["point"].append(pj)
@@ -703,7 +720,7 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
                 pairs["glossy"].append(np.zeros_like(f) if glossy else None)
                 pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
             else:
-                sums.add(pj, [f[:, c] for c in range(3)], [np.zeros(len(pj))] * 3 if glossy else None)
+                sums.add(pj, [f[:, c] for c in range(3)])      # (no glossy part: zeros)
             if target.cells is None:
                 seen[pi] = True
     if target.cells is not None:

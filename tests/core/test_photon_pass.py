@@ -87,17 +87,20 @@ def test_low_dimension_refresh_redraws_only_after_the_first_visible_vertex():
 
 
 def test_point_sums_equal_a_direct_accumulation():
-    """Pairs added in groups of every size (some past the splat threshold) sum like np.add.at."""
+    """Pairs added in groups of every size (some past the splat threshold, some without a glossy
+    part) sum like np.add.at."""
     rng = np.random.default_rng(3)
     m = 500
     sums = PointSums(m, glossy=True, min_pairs=0)       # threshold = m pairs
     want_d, want_g = np.zeros((m, 3)), np.zeros((m, 3))
-    for k in (0, 1, 7, 499, 500, 1200, 3):
+    for i, k in enumerate((0, 1, 7, 499, 500, 1200, 3, 800, 2)):
         j = rng.integers(0, m, k)
         d, g = rng.random((3, k)), rng.random((3, k))
-        sums.add(j, list(d), list(g))
+        with_glossy = i % 3 != 1         # some groups without a glossy part (volume pairs)
+        sums.add(j, list(d), list(g) if with_glossy else None)
         np.add.at(want_d, j, d.T)
-        np.add.at(want_g, j, g.T)
+        if with_glossy:
+            np.add.at(want_g, j, g.T)
     sums.flush()
     sums.flush()                                         # nothing waiting: no change
     np.testing.assert_allclose(sums.diffuse, want_d, rtol=1e-12)
@@ -119,3 +122,30 @@ def test_photons_summed_across_calls_equal_one_call():
     np.testing.assert_allclose(sums.diffuse, whole.sum_diffuse, rtol=1e-9, atol=1e-12)
     if target.any_glossy:
         np.testing.assert_allclose(sums.glossy, whole.sum_glossy, rtol=1e-9, atol=1e-12)
+
+
+def test_volume_pairs_of_even_scattering_share_one_phase_value():
+    """Media of anisotropy 0 give the volume pairs one phase value, hg_phase's at g = 0 to the bit;
+    other media give each pair its own (the same pairs either way)."""
+    from core.photon_pass import ISOTROPIC_PHASE
+    from core.sampling import hg_phase
+    from core.testing.scenes import corner_in_world_fog
+    assert ISOTROPIC_PHASE == hg_phase(np.array([-1.0, 0.3, 1.0]), 0.0)[1]
+    rng = np.random.default_rng(5)
+    ctx = RenderContext(corner_in_world_fog((24, 18)))          # world fog of g = -0.2
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
+    vol = eye.volume
+    x = vol.position[rng.integers(0, vol.count, 400)] + 0.01 * rng.normal(size=(400, 3))
+    d = rng.normal(size=(400, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    found = []
+    for media in (np.zeros_like(ctx.anisotropy), ctx.anisotropy):
+        target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, 24 * 18, ctx.has_shading_normals,
+                               volume=vol, volume_radius=vol.base_radius, media=media)
+        found.append(target.volume_pairs(x, d))
+    (pi, pj, phase), (pi2, pj2, phase2) = found
+    assert len(pi) > 100 and ctx.anisotropy.any()
+    assert np.ndim(phase) == 0 and phase == ISOTROPIC_PHASE
+    np.testing.assert_array_equal(pi, pi2)
+    np.testing.assert_array_equal(pj, pj2)
+    assert phase2.shape == pi.shape and phase2.std() > 0
