@@ -140,8 +140,9 @@ def test_volume_pairs_of_even_scattering_share_one_phase_value():
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     found = []
     for media in (np.zeros_like(ctx.anisotropy), ctx.anisotropy):
-        target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, 24 * 18, ctx.has_shading_normals,
-                               volume=vol, volume_radius=vol.base_radius, media=media)
+        target = DepositTarget(eye.points, eye.points.base_radius, ctx.table, 24 * 18,
+                               ctx.has_shading_normals, volume=vol, volume_radius=vol.base_radius,
+                               media=media)
         found.append(target.volume_pairs(x, d))
     (pi, pj, phase), (pi2, pj2, phase2) = found
     assert len(pi) > 100 and ctx.anisotropy.any()
