@@ -21,7 +21,7 @@ METHOD_ITEMS = {
                    "(the baseline)", 1),
     "auto": ("Automatic", "AMCMCPPM, or uniform photons from the second pass on when many of the "
                           f"first pass's uniform photon paths are visible (at least "
-                          f"{AUTO_UNIFORM_VISIBLE:.0%}), where the chains cost more than they find", 2),
+                          f"{AUTO_UNIFORM_VISIBLE:.0%}), where the chains gain little for what they cost", 2),
 }
 MUTATION_ITEMS = {
     "off": ("Off", "Mutate every dimension of the photon path", 0),

@@ -24,8 +24,8 @@ expectation, so mean((I - R)^2 - (A - B)^2 / 4) estimates the true mean squared 
 (references made before 2026-11-27, ``radius_scales`` in their metadata) differ by their
 kernel bias as well, which the correction then takes for noise; on a bright caustic (the
 sun through a hole, 64x48) that difference was larger than the errors measured.  The
-smaller radius keeps the reference's own kernel bias below the runs'.  The time-to-error table uses the
-corrected relMSE, which bright caustic pixels do not dominate.
+smaller radius keeps the reference's own kernel bias below the runs'.  The time-to-error table
+uses the corrected relMSE, which bright caustic pixels do not dominate.
 
     python benchmarks/error_vs_time.py --resolution 64 48 --time 60 --seeds 3 --jobs 2
 

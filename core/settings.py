@@ -33,9 +33,9 @@ class RenderSettings:
     photons when at least ``AUTO_UNIFORM_VISIBLE`` of that pass's uniform samples were visible,
     else the chains on.  The chains sample the visible paths uniformly, so where a share f of
     uniform paths is visible they record at most 1/f times as many useful photons per path
-    as uniform photons do, while an iteration traces up to two paths and keeps its books;
-    at f >= 0.3 they cannot gain what they cost.  The image then starts again from the second
-    pass."""
+    as uniform photons do, while an iteration traces up to two paths and keeps its books
+    (two to three uniform paths' time); at f >= 0.3 that bound, 3.3, is about what they cost.
+    The image then starts again from the second pass."""
 
     passes: int = 16
     """Passes to render (eye pass + photon pass each); 0 = until ``time_limit``."""
