@@ -178,7 +178,7 @@ class HashGrid:
         keys = cell[:, 0] + self.dims[0] * (cell[:, 1] + self.dims[1] * cell[:, 2])
         return np.where(inside, keys, -1), cell
 
-    def query(self, x, normals, directions=None):
+    def query(self, x, normals, directions=None, inner=False):
         """Pairs (photon index, point id) that pass the deposit test.
 
         x : (n, 3) float64 photon positions; normals : (n, 3) unit geometric normals
@@ -186,11 +186,14 @@ class HashGrid:
         normals; directions : optional (n, 3) unit vectors, whose cosine with each pair's
         point normal is returned (a grid with normals only).
         Returns ``(photon_idx (k,) int64, point_ids (k,) int64, cosines (k,) or None)``,
-        grouped by photon (photons in the order of their cells, not of ``x``).
+        grouped by photon (photons in the order of their cells, not of ``x``); with ``inner``
+        also a (k,) bool: the pair lies within half the point's radius.
         """
         n = len(x)
         if n == 0 or len(self.cell_keys) == 0:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64), None if directions is None else np.zeros(0)
+            empty = (np.zeros(0, np.int64), np.zeros(0, np.int64),
+                     None if directions is None else np.zeros(0))
+            return empty + (np.zeros(0, bool),) if inner else empty
         if (normals is None) == self.has_normals or (directions is not None and not self.has_normals):
             raise ValueError("HashGrid.query: normals (and directions) go with a grid built with normals")
         keys, cell = self._cells(x)
@@ -209,7 +212,7 @@ class HashGrid:
                ).T.astype(np.float32)
         nrm = None if normals is None else normals.take(photons, axis=0).T.astype(np.float32)
         dirs = None if directions is None else directions.take(photons, axis=0).T.astype(np.float32)
-        out_p, out_j, out_c = [], [], []
+        out_p, out_j, out_c, out_i = [], [], [], []
         bounds = np.cumsum(count)
         lo = 0
         while lo < len(photons):
@@ -226,9 +229,12 @@ class HashGrid:
                 d -= np.repeat(rel[axis, lo:hi], cnt)
                 d *= d
                 d2 += d
-            near = np.flatnonzero(d2 < self.entry_r2.take(eidx))
+            r2 = self.entry_r2.take(eidx)
+            near = np.flatnonzero(d2 < r2)
             e = eidx[near]
             ph = np.repeat(np.arange(lo, hi), cnt)[near]
+            if inner:
+                half = 4.0 * d2.take(near) < r2.take(near)
             if nrm is not None:
                 # Normal test on the survivors.
                 cos_n = self.entry_normal[0].take(e) * nrm[0].take(ph)
@@ -236,6 +242,10 @@ class HashGrid:
                 cos_n += self.entry_normal[2].take(e) * nrm[2].take(ph)
                 ok = np.flatnonzero(cos_n >= NORMAL_COS)
                 e, ph = e[ok], ph[ok]
+                if inner:
+                    half = half.take(ok)
+            if inner:
+                out_i.append(half)
             out_p.append(photons[ph])
             out_j.append(self.entry_point.take(e).astype(np.int64))
             if dirs is not None:
@@ -246,6 +256,8 @@ class HashGrid:
             lo = hi
         cat = (lambda a: np.concatenate(a)) if out_p else (lambda a: np.zeros(0, np.int64))
         cos = None if dirs is None else (np.concatenate(out_c) if out_c else np.zeros(0))
+        if inner:
+            return cat(out_p), cat(out_j), cos, (np.concatenate(out_i) if out_i else np.zeros(0, bool))
         return cat(out_p), cat(out_j), cos
 
 
@@ -262,12 +274,15 @@ def _choose_cell_size(radii, extent, budget):
     return c
 
 
-def brute_force_query(x, normals, positions, radii, point_normals):
+def brute_force_query(x, normals, positions, radii, point_normals, inner=False):
     """Reference for tests: all (photon, point) pairs passing the deposit test, in float64
-    (the distance test alone when ``normals`` is None)."""
+    (the distance test alone when ``normals`` is None); with ``inner`` also whether each pair
+    lies within half the point's radius."""
     d2 = ((x[:, None, :] - positions[None, :, :]) ** 2).sum(axis=2)
     ok = d2 < radii[None, :] ** 2
     if normals is not None:
         ok &= normals @ point_normals.T >= NORMAL_COS
     p, j = np.nonzero(ok)
+    if inner:
+        return p.astype(np.int64), j.astype(np.int64), 4.0 * d2[p, j] < radii[j] ** 2
     return p.astype(np.int64), j.astype(np.int64)

@@ -132,3 +132,30 @@ def test_grids_too_big_for_packed_keys_sort_by_key():
     xn = nrm[rng.integers(0, 3000, 3000)]
     want = query_matches_brute_force(grid, x, xn, pts, radii, nrm)
     assert len(want) > 100 and any(pj < 10 for _, pj in want) and any(pj >= 1500 for _, pj in want)
+
+
+@pytest.mark.parametrize("normals", [True, False], ids=["surfaces", "volumes"])
+def test_inner_flags_mark_the_pairs_within_half_the_radius(normals):
+    """``inner=True`` also says which pairs lie within r/2 (the bias correction's second gather):
+    the same flags as brute force, but for pairs within float32 rounding of r/2."""
+    rng = np.random.default_rng(11)
+    pts, radii, nrm = random_points(rng, 2000, 1.0, 0.0, (0.02, 0.1))
+    grid = HashGrid(pts, radii, nrm if normals else None)
+    x = pts[rng.integers(0, 2000, 1500)] + 0.03 * rng.normal(size=(1500, 3))
+    xn = nrm[rng.integers(0, 2000, 1500)] if normals else None
+    p, j, _, inner = grid.query(x, xn, inner=True)
+    bp, bj, binner = brute_force_query(x, xn, pts, radii, nrm if normals else None, inner=True)
+    assert p.dtype == np.int64 and inner.dtype == bool and len(inner) == len(p)
+    plain = grid.query(x, xn)
+    assert np.array_equal(p, plain[0]) and np.array_equal(j, plain[1])     # the same pairs
+    got = dict(zip(zip(p.tolist(), j.tolist()), inner.tolist()))
+    want = dict(zip(zip(bp.tolist(), bj.tolist()), binner.tolist()))
+    common = got.keys() & want.keys()
+    inside = sum(want[k] for k in common)
+    assert len(common) > 0.99 * len(want) and 0.1 * len(common) < inside < 0.5 * len(common)
+    for key in common:
+        if got[key] != want[key]:
+            d = np.linalg.norm(x[key[0]] - pts[key[1]])
+            assert abs(d - 0.5 * radii[key[1]]) < 1e-5 * radii[key[1]], (key, d, radii[key[1]])
+    empty = HashGrid(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)) if normals else None)
+    assert [len(a) for a in empty.query(x, xn, inner=True) if a is not None] == [0, 0, 0]
