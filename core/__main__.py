@@ -35,6 +35,8 @@ def build_parser():
     r.add_argument("--initial-radius", type=float, default=d.initial_radius_px,
                    help="initial gather radius in pixel footprints")
     r.add_argument("--alpha", type=float, default=d.alpha)
+    r.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=d.bias_correction,
+                   help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     r.add_argument("--max-bounces", type=int, default=d.max_bounces)
     r.add_argument("--glossy-through", type=float, default=d.glossy_through_roughness,
                    help="camera paths go on through glossy lobes smoother than this roughness")
@@ -50,7 +52,7 @@ def settings_from_args(a) -> RenderSettings:
                           initial_radius_px=a.initial_radius, max_bounces=a.max_bounces,
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
                           mutation=a.mutation, normalisation=a.normalisation,
-                          glossy_through_roughness=a.glossy_through)
+                          glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction)
 
 
 def main(argv=None) -> int:

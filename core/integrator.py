@@ -10,7 +10,9 @@ One pass (``algorithm.md`` 1, Knaus & Zwicker 2011):
    over passes, weighted by their recorded photons N_i (equal weights for passes of
    equal size), and the eye-pass emission is averaged over passes; AMCMCPPM adds the
    deposits of its uniform samples outside the chains' visible set, O_i / n_U,i, averaged
-   with weights n_U,i (``core/mcmc.py``, "Two parts").
+   with weights n_U,i (``core/mcmc.py``, "Two parts");
+5. with ``bias_correction`` the same estimate at half the radius, B, is kept too, and the
+   image is A + w (B - A) with one weight w for the image (``Accumulator._corrected``).
 
 The eye pass of pass i+1 is traced while the workers trace the photons of pass i.
 ``method="auto"`` runs the chains' first pass and, when many of its uniform samples were
@@ -69,7 +71,7 @@ class Accumulator:
     a scene seen through glass, a few hundred recorded photons out of 200,000 chain steps).
     """
 
-    def __init__(self, n_pixels, normalisation):
+    def __init__(self, n_pixels, normalisation, bias_correction=False):
         self.normalisation = normalisation
         self.emission = np.zeros((n_pixels, 3))     # sum of eye-pass emission
         self.alpha = np.zeros(n_pixels)             # sum of coverage
@@ -82,19 +84,33 @@ class Accumulator:
         self.n_visible = 0                          # n_UV, all passes
         self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
+        # The estimate at half the radius (RenderSettings.bias_correction): the differences
+        # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
+        # spread, and the sum of Vc_p T_p (per-pass normalisation).
+        self.bias_correction = bias_correction
+        self.bias_weight = 0.0                      # w of the last image (image = A + w D)
+        if bias_correction:
+            self.diff = None                        # _Spread of T_p over N_p (made by the first pass)
+            self.outside_diff = None                # _Spread of the outside part's T_p over n_U,p
+            self.diff_scaled = np.zeros((n_pixels, 3)) if normalisation == "per_pass" else None
 
     @property
     def visible_fraction(self) -> float:
         """Uniform samples that were visible, over all passes (reported in the statistics)."""
         return self.n_visible / self.n_uniform if self.n_uniform else 0.0
 
-    def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain, outside_sum=None):
+    def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain, outside_sum=None,
+            inner_sum=None, outside_inner=None):
         """Add one pass; returns the number of pixels whose non-finite photon sums were dropped.
 
         ``outside_sum``: AMCMCPPM's sums over its uniform samples outside the visible set (O_p).
+        ``inner_sum``, ``outside_inner``: the same sums at half the radius (with
+        ``bias_correction``; both or neither when there are outside sums).
         Also sets ``last_pass_mean``: the mean over pixels and RGB of this pass's own estimate,
         its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p, plus O_p / n_U.
         """
+        if self.bias_correction and inner_sum is None:
+            raise ValueError("Accumulator.add: a bias-corrected image needs the inner sums")
         self.passes += 1
         self.emission += eye.emission
         self.alpha += eye.alpha
@@ -104,12 +120,17 @@ class Accumulator:
         dropped = 0
         if outside_sum is not None and n_uniform:
             # Non-finite contributions are dropped before they reach the sums (and counted).
-            outside_sum, dropped = _finite(outside_sum)
+            outside_sum, dropped, outside_inner = _finite(outside_sum, outside_inner)
             self.outside += outside_sum
             self.last_pass_mean += float(outside_sum.mean()) / n_uniform
+        if self.bias_correction and is_chain and n_uniform:
+            # (a pass whose uniform samples outside V deposited nothing adds a zero difference)
+            if self.outside_diff is None:
+                self.outside_diff = _Spread(len(self.outside))
+            self.outside_diff.add(None if outside_sum is None else outside_inner - outside_sum, n_uniform)
         if not recorded:
             return dropped
-        pixel_sum, bad_pixels = _finite(pixel_sum)
+        pixel_sum, bad_pixels, inner_sum = _finite(pixel_sum, inner_sum)
         dropped += bad_pixels
         vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
         self.recorded += recorded
@@ -117,37 +138,128 @@ class Accumulator:
         self.photons += pixel_sum
         self.photons_scaled += vc_pass * pixel_sum
         self.last_pass_mean += vc_pass * float(pixel_sum.mean()) / recorded
+        if self.bias_correction:
+            t = inner_sum - pixel_sum
+            if self.diff is None:
+                self.diff = _Spread(len(t))
+            self.diff.add(t, recorded)
+            if self.diff_scaled is not None:
+                self.diff_scaled += vc_pass * t
         return dropped
 
     def image(self, is_chain):
         if self.passes == 0:
             return np.zeros((len(self.alpha), 4), np.float32)
         rgb = self.emission / self.passes
+        scale = 1.0         # of S / N in the image (the cumulative visible fraction for the chains)
         if self.recorded:
             if not is_chain:
                 photons = self.photons
             elif self.normalisation == "cumulative":
-                photons = (self.visible_weighted / self.recorded) * self.photons
+                scale = self.visible_weighted / self.recorded
+                photons = scale * self.photons
             else:
+                scale = self.visible_weighted / self.recorded
                 photons = self.photons_scaled
             rgb = rgb + photons / self.recorded
         if is_chain and self.n_uniform:
             rgb = rgb + self.outside / self.n_uniform
+        if self.bias_correction:
+            rgb = self._corrected(rgb, is_chain, scale)
         out = np.empty((len(rgb), 4), np.float32)
         # Sums beyond float32 (a scene whose albedos above 1 feed on themselves) stay finite.
         out[:, :3] = np.minimum(rgb, FLOAT32_MAX)
         out[:, 3] = self.alpha / self.passes
         return out
 
+    def _corrected(self, rgb, is_chain, scale):
+        """The image A + w D, clamped at 0: D = (estimate at r/2) - (estimate at r), w in
+        [0, 4/3] minimising the estimated relMSE over the image (RenderSettings.bias_correction).
+
+        Kernel bias grows as r^2, so E[D] = -3b/4 for A's bias b, and b^2 is estimated per pixel
+        by (16/9)(D^2 - Var D).  The image's relMSE, summed over pixels weighted by
+        1 / (A^2 + 0.01), is sum (1 - 3w/4)^2 b^2 + Var A + w^2 Var D, smallest at
+        w = sum(1.5 b^2) / sum(9/8 b^2 + 2 Var D).  Cov(A, D) is left out: photons of even
+        density make it 0, as the gather at r/2 is a quarter of the one at r (Cov(A, B) = Var A).
+        Var D comes from the spread of the passes' differences (:class:`_Spread`), of the
+        recorded photons' and of the outside part's."""
+        self.bias_weight = 0.0
+        n = self.recorded
+        if self.diff is None or not n:
+            return rgb
+        var_d = self.diff.variance(n)
+        if var_d is None:
+            return rgb
+        var_d = scale * scale * var_d
+        if self.diff_scaled is not None and is_chain:
+            d = self.diff_scaled / n
+        else:
+            d = scale * self.diff.total / n
+        if is_chain and self.outside_diff is not None and self.n_uniform:
+            var_o = self.outside_diff.variance(self.n_uniform)
+            if var_o is None:
+                return rgb
+            d = d + self.outside_diff.total / self.n_uniform
+            var_d = var_d + var_o
+        with np.errstate(over="ignore", invalid="ignore"):
+            bias2 = (16.0 / 9.0) * (d * d - var_d)
+            weight = 1.0 / (rgb * rgb + 0.01)
+            num = float(np.sum(weight * 1.5 * bias2))
+            den = float(np.sum(weight * (9.0 / 8.0 * bias2 + 2.0 * var_d)))
+        if not (np.isfinite(num) and np.isfinite(den)) or den <= 0.0 or num <= 0.0:
+            return rgb
+        self.bias_weight = min(num / den, 4.0 / 3.0)
+        return np.maximum(rgb + self.bias_weight * d, 0.0)
+
+
+class _Spread:
+    """Sum over passes of per-pixel differences T_p (n_pixels, 3), each from N_p samples, and
+    their spread about the mean, for the variance of the sum.
+
+    A pass of N_p samples has Var T_p = sigma^2 N_p, estimated over the p passes by
+    (sum T_p^2 / N_p - (sum T_p)^2 / sum N_p) / (p - 1).  The passes are taken as independent;
+    the Markov chains carry their states from pass to pass, and yet the weights w this gives
+    them came out near the best ones (README, "Kernel-bias correction")."""
+
+    def __init__(self, n_pixels):
+        self.total = np.zeros((n_pixels, 3))        # sum of T_p
+        self.n = 0                                  # sum of N_p
+        self.passes = 0
+        self._moment = np.zeros((n_pixels, 3))      # sum of T_p^2 / N_p
+
+    def add(self, t, n):
+        """A pass's differences ``t`` (None: all zero) from ``n`` samples."""
+        if t is not None:
+            self.total += t
+            self._moment += t * t / n
+        self.n += n
+        self.passes += 1
+
+    def variance(self, n):
+        """(n_pixels, 3) estimated variance of ``total / n``, or None before BIAS_MIN_PASSES."""
+        if self.passes < BIAS_MIN_PASSES:
+            return None
+        with np.errstate(over="ignore", invalid="ignore"):
+            sigma2 = (self._moment - self.total * self.total / self.n) / (self.passes - 1)
+        return np.maximum(sigma2, 0.0) * (self.n / (n * n))
+
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+# Passes with photons before the bias correction starts (it needs their spread).
+BIAS_MIN_PASSES = 4
 
 
-def _finite(pixel_sum):
-    """The sums with non-finite entries set to 0, and the number of pixels that had any."""
+def _finite(pixel_sum, inner_sum=None):
+    """The sums with non-finite entries set to 0, and the number of pixels that had any; with
+    ``inner_sum`` (the sums at half the radius) also those, zeroed in the same pixels."""
     bad = ~np.isfinite(pixel_sum)
+    if inner_sum is not None:
+        bad |= ~np.isfinite(inner_sum)
     dropped = int(bad.any(axis=1).sum())
-    return (np.where(bad, 0.0, pixel_sum) if dropped else pixel_sum), dropped
+    if dropped:
+        pixel_sum = np.where(bad, 0.0, pixel_sum)
+        inner_sum = None if inner_sum is None else np.where(bad, 0.0, inner_sum)
+    return pixel_sum, dropped, inner_sum
 
 
 def kz_radius_scales(n, alpha):
@@ -172,7 +284,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     width, height = x1 - x0, y1 - y0
     n_pixels = width * height
     is_chain = settings.method != "ppm"
-    acc = Accumulator(n_pixels, settings.normalisation)
+    acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction)
     result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects,
                           method="amcmcppm" if is_chain else "ppm")
     warnings = result.warnings
@@ -208,7 +320,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if vol_radius is not None:
                 cells = cells.extended(vol.position, None, vol.base_radius, volume=True)
         return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
-                             volume=vol, volume_radius=vol_radius, media=ctx.anisotropy)
+                             volume=vol, volume_radius=vol_radius, media=ctx.anisotropy,
+                             inner=settings.bias_correction)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.
@@ -257,7 +370,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if not cut and merged["photon_s"] > 0:
                 last_rate = photons / merged["photon_s"]
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
-                              c["uniform_visible"], is_chain, merged["outside_sum"])
+                              c["uniform_visible"], is_chain, merged["outside_sum"], merged["inner_sum"],
+                              merged["outside_inner"])
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
@@ -269,12 +383,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "a surface seen by the camera; the image shows only emission so far and the "
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
+            result.image = acc.image(is_chain).reshape(height, width, 4)
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
                                 photons, cut and not interrupted, is_chain)
             result.stats.append(stats)
             result.passes = acc.passes
             result.elapsed_s = elapsed
-            result.image = acc.image(is_chain).reshape(height, width, 4)
             result.method = "amcmcppm" if is_chain else "ppm"
             if on_iteration is not None:
                 on_iteration(result)
@@ -292,7 +406,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 # their passes alone (RenderSettings.method).  The next pass is not prepared yet
                 # (none is while the first runs), so it is made without the chains' cells.
                 is_chain, cells, last_rate = False, None, None
-                acc = Accumulator(n_pixels, settings.normalisation)
+                acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction)
             if next_target is None:
                 next_eye = eye_pass(pass_index)
                 next_target = make_target(pass_index, next_eye)
@@ -342,16 +456,17 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "photons_per_pass": photons,
         "cut_at_time_limit": cut,
         "pass_mean": acc.last_pass_mean,
+        "bias_weight": acc.bias_weight,
     }
 
 
 def _merge(outputs):
     """Sum the workers' results of one pass."""
-    merged = {"pixel_sum": outputs[0]["pixel_sum"].copy(), "counters": dict(outputs[0]["counters"])}
-    outside = [o["outside_sum"] for o in outputs if o.get("outside_sum") is not None]
-    merged["outside_sum"] = np.sum(outside, axis=0) if outside else None
+    merged = {"counters": dict(outputs[0]["counters"])}
+    for key in ("pixel_sum", "outside_sum", "inner_sum", "outside_inner"):
+        sums = [o[key] for o in outputs if o.get(key) is not None]
+        merged[key] = np.sum(sums, axis=0) if sums else None
     for o in outputs[1:]:
-        merged["pixel_sum"] += o["pixel_sum"]
         for k, v in o["counters"].items():
             merged["counters"][k] += v
     valid = [o["valid_chains"] for o in outputs]

@@ -79,16 +79,21 @@ class DepositTarget:
     """The measurement points of one pass, gridded, with their per-point kernel weights.
 
     Volume points (:class:`~core.eye_pass.VolumePoints`) follow the m surface points in the
-    numbering of the sums: point m + k is volume point k."""
+    numbering of the sums: point m + k is volume point k.  With ``inner`` the pairs within half
+    a surface point's radius are deposited a second time, on slot ``n_points + j`` of the sums
+    (``n_slots`` slots in all), for the second estimate at half the radius
+    (:meth:`inner_pixels`, ``RenderSettings.bias_correction``)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
-                 volume=None, volume_radius=None, volume_grid=None, media=None):
+                 volume=None, volume_radius=None, volume_grid=None, media=None, inner=False):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
         volume : VolumePoints with at least one point, or None; volume_radius : (k,) their
-        radii; media : (M,) float64 the materials' phase anisotropy g (for the volume points)."""
+        radii; media : (M,) float64 the materials' phase anisotropy g (for the volume points);
+        inner : also sum the pairs within half the radius (see the class docstring)."""
         self.points = points
+        self.inner = bool(inner)
         self.volume = volume if volume is not None and volume.count else None
         self.volume_radius = volume_radius
         self.media = media
@@ -96,6 +101,7 @@ class DepositTarget:
             volume_grid = HashGrid(self.volume.position, volume_radius, None)
         self.volume_grid = volume_grid if self.volume is not None else None
         self.n_points = points.count + (0 if self.volume is None else self.volume.count)
+        self.n_slots = 2 * self.n_points if self.inner else self.n_points
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -134,7 +140,7 @@ class DepositTarget:
              if getattr(self.points, f) is not None}
         d.update({f"grid.{k}": v for k, v in self.grid.to_arrays().items()})
         d.update(radius=self.radius, n_pixels=np.int64(self.n_pixels),
-                 has_shading_normals=np.bool_(self.has_shading_normals))
+                 has_shading_normals=np.bool_(self.has_shading_normals), inner=np.bool_(self.inner))
         if self.cells is not None:
             d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
         if self.volume is not None:
@@ -156,7 +162,7 @@ class DepositTarget:
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
                              grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None,
                              volume=volume, volume_radius=d.get("volume_radius"), volume_grid=vgrid,
-                             media=d.get("media"))
+                             media=d.get("media"), inner=bool(d.get("inner", False)))
 
     def volume_pairs(self, x, d):
         """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the
@@ -308,14 +314,29 @@ class DepositTarget:
         return self.has_shading_normals or self.any_glossy or self.rough is not None
 
     def to_pixels(self, sum_diffuse, sum_glossy):
-        """(n_pixels, 3) radiance sums from per-point sums of flux * weight (m, 3) each.
+        """(n_pixels, 3) radiance sums from per-point sums of flux * weight (``n_slots``, 3) each.
 
         The points' factors are computed here, by the worker that made the sums, and not when
         the target is built: the main process builds one for its grid only, and at 1920x1080
         these products made its preparation of a pass longer (whole renders with 100,000
         photons per pass and worker 1.08x faster without them, ``ab_photon_pass.py``)."""
+        return self._pixels(sum_diffuse, sum_glossy, 0)
+
+    def inner_pixels(self, sum_diffuse, sum_glossy):
+        """As :meth:`to_pixels` for the estimate at half the radius: the surface points' inner
+        slots over a quarter of the area; the volume points' part is the same as in
+        :meth:`to_pixels` (their gathers have no inner estimate)."""
+        if not self.inner:
+            raise ValueError("DepositTarget.inner_pixels: the target was built without inner sums")
+        return self._pixels(sum_diffuse, sum_glossy, self.n_points)
+
+    def _pixels(self, sum_diffuse, sum_glossy, offset):
+        """to_pixels of the surface slots ``offset`` .. ``offset + m`` (at half the radius if
+        ``offset``), with the volume points' slots."""
         pts = self.points
-        kernel = 1.0 / (np.pi * self.radius * self.radius)                         # (m,)
+        m = self.points.count
+        radius = self.radius if not offset else 0.5 * self.radius
+        kernel = 1.0 / (np.pi * radius * radius)                                   # (m,)
         w = self.table.weight.take(pts.mat_ids, axis=0)
         # Diffuse part is constant in wi: w_j * weight_d * albedo / pi / (pi r^2).
         if self.coloured is None:
@@ -324,7 +345,7 @@ class DepositTarget:
             # (translucent and rough points: the colours are in the pairs)
             val = pts.weight * np.where(self.coloured[:, None], 1.0, pts.colors[:, 0] * w[:, :1]) \
                 * (kernel / np.pi)[:, None]
-        val *= sum_diffuse[:pts.count]
+        val *= sum_diffuse[offset:offset + m]
         if self.table.has_layer:
             layer = self.table.layer_factor(pts.mat_ids, dot(pts.wo, pts.glossy_normals).astype(np.float64))
             if self.coloured is not None:
@@ -335,22 +356,29 @@ class DepositTarget:
             if self.rising is not None:
                 color = np.where(self.rising[:, None], 1.0, color)     # in the pairs (pair_weights)
             k_glossy = pts.weight * color * (w[:, 1] * kernel)[:, None]
-            k_glossy *= sum_glossy[:pts.count]
+            k_glossy *= sum_glossy[offset:offset + m]
             if self.table.ms_fresnel.any():
                 # Multiscatter GGX: a factor of the point's view direction (BSDF docs, bsdf.py).
                 k_glossy *= self.table.multiscatter(pts.mat_ids,
                                                     dot(pts.wo, pts.glossy_normals).astype(np.float64))
             val += k_glossy
         out = np.zeros((self.n_pixels, 3))
-        m = self.points.count
         out[self.pixel_ids] = val          # one measurement point per pixel and pass
         if self.volume is not None:
             # Volume points: w_j sum(flux phase) / (4/3 pi r_j^3) (the flux holds the scattering
             # coefficient, the weight the camera path's transmittance over its density).
             r = self.volume_radius
             kernel = 3.0 / (4.0 * np.pi * r * r * r) / _inside_share(self.volume.planes, r)
-            np.add.at(out, self.volume.pixel_ids, self.volume.weight * sum_diffuse[m:] * kernel[:, None])
+            np.add.at(out, self.volume.pixel_ids,
+                      self.volume.weight * sum_diffuse[m:self.n_points] * kernel[:, None])
         return out
+
+
+def _twice(values, rows):
+    """``values`` followed by its ``rows`` once more (None stays None)."""
+    if values is None:
+        return None
+    return np.concatenate([values, values.take(rows, axis=0)])
 
 
 def _inside_share(planes, r):
@@ -478,7 +506,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     first = _vertex_arrays(n, table.lobes) if collect_pairs else None
     own_sums = not collect_pairs and sums is None
     if own_sums:
-        sums = PointSums(target.n_points, glossy)
+        sums = PointSums(target.n_slots, glossy)
     rays = vertices = 0
     soft = ctx.lights.has_soft_falloff
     volumes = ctx.has_volumes
@@ -541,20 +569,25 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             wo_dep = wo.take(dep, axis=0)
             x_dep = surf.position.take(dep, axis=0)
             nrm = face_forward(surf.ng.take(dep, axis=0), wo_dep)
-            pi, pj, cos_g = target.grid.query(x_dep, nrm, wo_dep)
+            found = target.grid.query(x_dep, nrm, wo_dep, inner=target.inner)
+            pi, pj, cos_g = found[:3]
+            near = found[3] if target.inner else None
             sides = back = None
             if target.translucent is not None:
                 # Photons on a translucent surface also reach the points on its other side.
                 sides = np.flatnonzero(table.translucent.take(surf.mat_ids.take(dep)))
                 if len(sides):
                     grid, ids = target.back_grid
-                    bi, bj, bcos = grid.query(x_dep.take(sides, axis=0), -nrm.take(sides, axis=0),
-                                              -wo_dep.take(sides, axis=0))
+                    found = grid.query(x_dep.take(sides, axis=0), -nrm.take(sides, axis=0),
+                                       -wo_dep.take(sides, axis=0), inner=target.inner)
+                    bi, bj, bcos = found[:3]
                     if ids is not None:
                         bj = ids.take(bj)
                     back = np.concatenate([np.zeros(len(pi), bool), np.ones(len(bi), bool)])
                     pi, pj = np.concatenate([pi, sides.take(bi)]), np.concatenate([pj, bj])
                     cos_g = np.concatenate([cos_g, bcos])
+                    if near is not None:
+                        near = np.concatenate([near, found[3]])
             seen = np.zeros(len(idx), bool)
             if len(pi):
                 lane = dep.take(pi)
@@ -565,18 +598,30 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     if back is not None:
                         wi_pairs[back] *= -1.0           # mirrored through the surface, as cos_g
                 wd, wg = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back)
+                # The pairs within half the radius once more, on the inner slots.
+                again = None if near is None else np.flatnonzero(near)
                 if collect_pairs:
                     f = deposited.take(lane, axis=0)
-                    pairs["path"].append(idx[lane])
+                    path = idx[lane]
+                    dv = f * (wd[:, None] if wd.ndim == 1 else wd.T)
+                    gv = (f * (wg[:, None] if wg.ndim == 1 else wg.T)) if glossy else None
+                    if again is not None:
+                        path, dv, gv = (_twice(a, again) for a in (path, dv, gv))
+                        pj = np.concatenate([pj, pj.take(again) + target.n_points])
+                    pairs["path"].append(path)
                     pairs["point"].append(pj)
-                    pairs["diffuse"].append(f * (wd[:, None] if wd.ndim == 1 else wd.T))
-                    pairs["glossy"].append((f * (wg[:, None] if wg.ndim == 1 else wg.T)) if glossy else None)
+                    pairs["diffuse"].append(dv)
+                    pairs["glossy"].append(gv)
                     pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
                 else:
                     f = [deposited[:, c].take(lane) for c in range(3)]
-                    sums.add(pj, [fc * (wd if wd.ndim == 1 else wd[c]) for c, fc in enumerate(f)],
-                             [fc * (wg if wg.ndim == 1 else wg[c]) for c, fc in enumerate(f)] if glossy
-                             else None)
+                    dv = [fc * (wd if wd.ndim == 1 else wd[c]) for c, fc in enumerate(f)]
+                    gv = [fc * (wg if wg.ndim == 1 else wg[c]) for c, fc in enumerate(f)] if glossy else None
+                    if again is not None:
+                        dv = [_twice(v, again) for v in dv]
+                        gv = None if gv is None else [_twice(v, again) for v in gv]
+                        pj = np.concatenate([pj, pj.take(again) + target.n_points])
+                    sums.add(pj, dv, gv)
                 if target.cells is None:
                     seen[lane] = True
             if target.cells is not None:

@@ -63,6 +63,15 @@ class RenderSettings:
     initial_radius_px: float = 4.0
     """Initial gather radius in pixel footprints at each measurement point."""
 
+    bias_correction: bool = True
+    """Correct the image for the photon gathers' kernel bias: every gather also sums the
+    photons within half its radius, and the image is A + w (B - A) of the estimates A at the
+    radius and B at half of it, clamped at 0 (w = 4/3 removes a bias that grows as r^2, the
+    Richardson extrapolation; w = 0 is the plain estimate).  One w for the whole image, from
+    the passes' spread: the one that minimises the estimated relMSE (noise of the extrapolation
+    against the bias it removes; :meth:`core.integrator.Accumulator._corrected`).  Volume
+    gathers are not corrected."""
+
     max_bounces: int = 8
     """Most scattering events of a photon path, and most specular bounces of a camera path."""
 

@@ -47,23 +47,28 @@ class PhotonWorker:
         The result holds ``pixel_sum`` (n_pixels, 3): the summed contributions of the
         recorded photons (not yet divided by their number or scaled by the visible
         fraction), ``outside_sum`` (AMCMCPPM: the summed contributions of the uniform samples
-        outside the chains' visible set, to be divided by n_U; else None), ``counters`` (a
-        :class:`ChainCounters` as a dict) and chain figures.
+        outside the chains' visible set, to be divided by n_U; else None), ``inner_sum`` and
+        ``outside_inner`` (the same at half the radius if the target has inner sums, else
+        None), ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
         counters = ChainCounters()
-        outside_sum = None
+        outside_sum = outside_inner = None
         chains = None if uniform else self.chains
         if chains is None:
-            pixel_sum, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
+            sums, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
             theta_mean, valid = 0.0, 0
         else:
-            pixel_sum, outside_sum, interrupted = self._chain_pass(target, n_photons, counters, stop)
+            sums, outside, interrupted = self._chain_pass(target, n_photons, counters, stop)
+            if outside is not None:
+                outside_sum, outside_inner = _pixels(target, *outside)
             adapted = chains.proposed > 0
             theta_mean = float(chains.theta[adapted].mean()) if adapted.any() else float(chains.theta.mean())
             valid = int(chains.valid.sum())
-        return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "counters": dataclasses.asdict(counters),
+        pixel_sum, inner_sum = _pixels(target, *sums)
+        return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "inner_sum": inner_sum,
+                "outside_inner": outside_inner, "counters": dataclasses.asdict(counters),
                 "theta_mean": theta_mean, "valid_chains": valid,
                 "total_proposed": int(chains.proposed.sum()) if chains else 0,
                 "total_accepted": int(chains.accepted.sum()) if chains else 0,
@@ -72,7 +77,7 @@ class PhotonWorker:
     def _uniform_pass(self, pass_index, target, n_photons, counters, stop):
         s = self.settings
         rng = np.random.default_rng([s.seed, STREAM_PHOTONS, pass_index, self.index])
-        sums = PointSums(target.n_points, target.any_glossy)
+        sums = PointSums(target.n_slots, target.any_glossy)
         done = 0
         interrupted = False
         while done < n_photons:
@@ -89,12 +94,12 @@ class PhotonWorker:
                                        vertices=batch.vertices))
             done += b
         sums.flush()
-        return target.to_pixels(sums.diffuse, sums.glossy), interrupted
+        return (sums.diffuse, sums.glossy), interrupted
 
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings
         chains = self.chains
-        recorder = DepositLog(target.n_points, chains.count, target.any_glossy)
+        recorder = DepositLog(target.n_slots, chains.count, target.any_glossy)
 
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
@@ -115,6 +120,11 @@ class PhotonWorker:
                                  prefetched=prefetched, prefetch=i + 1 < iterations)
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
-        outside = (target.to_pixels(recorder.outside_diffuse, recorder.outside_glossy)
-                   if recorder.outside_pairs else None)
-        return target.to_pixels(recorder.sum_diffuse, recorder.sum_glossy), outside, interrupted
+        outside = (recorder.outside_diffuse, recorder.outside_glossy) if recorder.outside_pairs else None
+        return (recorder.sum_diffuse, recorder.sum_glossy), outside, interrupted
+
+
+def _pixels(target, sum_diffuse, sum_glossy):
+    """(pixel sums, pixel sums at half the radius or None) of per-slot sums."""
+    inner = target.inner_pixels(sum_diffuse, sum_glossy) if target.inner else None
+    return target.to_pixels(sum_diffuse, sum_glossy), inner

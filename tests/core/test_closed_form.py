@@ -16,7 +16,12 @@ from core.testing.scenes import (camera_in_glass, disk_irradiance, furnace_spher
 
 
 def render_passes(scene, **settings):
-    """Image mean of every pass's own estimate (independent for PPM) and the final image."""
+    """Image mean of every pass's own estimate (independent for PPM) and the final image.
+
+    The closed forms are of the plain estimate at the gather radius (with its kernel bias where
+    noted), so the image is rendered without the bias correction unless asked for; the corrected
+    image has its own closed-form test in ``test_bias_correction.py``."""
+    settings.setdefault("bias_correction", False)
     s = RenderSettings(workers=1, **settings)
 
     def check(result):

@@ -1,0 +1,103 @@
+"""The kernel-bias correction (RenderSettings.bias_correction): a second gather at half the
+radius, and one weight for the whole image towards the extrapolation that removes an r^2 bias."""
+import numpy as np
+import pytest
+
+from core import RenderSettings, render
+from core.integrator import BIAS_MIN_PASSES, Accumulator
+from core.testing.scenes import BUILTIN, disk_irradiance, kernel_radius_px, spot_over_plane
+
+
+class Eye:
+    def __init__(self, n):
+        self.emission = np.zeros((n, 3))
+        self.alpha = np.ones(n)
+
+
+def synthetic_passes(acc, rng, truth, bias, noise, passes=40, photons=1000):
+    """Passes whose sums at r estimate truth + bias and at r/2 truth + bias / 4, with Poisson-like
+    noise (the inner sum's own noise twice the outer's, as for a quarter of the area)."""
+    n = len(truth)
+    for _ in range(passes):
+        outer_noise = noise * np.sqrt(photons) * rng.normal(size=(n, 3))
+        s = photons * (truth + bias) + outer_noise
+        own_noise = np.sqrt(3) * noise * np.sqrt(photons) * rng.normal(size=(n, 3))
+        inner = photons * (truth + bias / 4) + outer_noise + own_noise
+        acc.add(Eye(n), s, photons, photons, photons, False, inner_sum=inner)
+
+
+def test_a_bias_that_grows_as_r_squared_is_extrapolated_away():
+    rng = np.random.default_rng(1)
+    truth = rng.uniform(0.2, 1.0, (3000, 3))
+    acc = Accumulator(3000, "cumulative", bias_correction=True)
+    synthetic_passes(acc, rng, truth, bias=0.2 * truth, noise=0.05)
+    img = acc.image(False)[:, :3]
+    assert acc.bias_weight == pytest.approx(4 / 3, abs=0.05)
+    plain = Accumulator(3000, "cumulative")
+    synthetic_passes(plain, np.random.default_rng(1), truth, bias=0.2 * truth, noise=0.05)
+    err, err_plain = np.abs(img / truth - 1).mean(), np.abs(plain.image(False)[:, :3] / truth - 1).mean()
+    assert err < 0.02 < 0.19 < err_plain
+
+
+def test_noise_without_bias_keeps_the_plain_estimate():
+    rng = np.random.default_rng(2)
+    truth = rng.uniform(0.2, 1.0, (3000, 3))
+    acc = Accumulator(3000, "cumulative", bias_correction=True)
+    synthetic_passes(acc, rng, truth, bias=0.0, noise=1.0)
+    assert acc.image(False) is not None and 0.0 <= acc.bias_weight < 0.1
+
+
+def test_no_correction_before_enough_passes_and_never_a_negative_pixel():
+    rng = np.random.default_rng(3)
+    truth = np.full((500, 3), 0.01)
+    acc = Accumulator(500, "cumulative", bias_correction=True)
+    synthetic_passes(acc, rng, truth, bias=0.5, noise=0.01, passes=BIAS_MIN_PASSES - 1)
+    acc.image(False)
+    assert acc.bias_weight == 0.0
+    synthetic_passes(acc, rng, truth, bias=0.5, noise=0.01, passes=1)
+    img = acc.image(False)
+    assert acc.bias_weight > 1 and (img >= 0).all() and np.isfinite(img).all()
+    with pytest.raises(ValueError, match="inner sums"):
+        acc.add(Eye(500), np.zeros((500, 3)), 10, 10, 10, False)
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
+def test_point_light_over_a_plane_loses_its_kernel_bias(method):
+    """At the foot of a point light, a disk kernel of radius 0.3 h reads 6.3 % dark; the
+    extrapolation from r and r/2 leaves 0.1 % (closed forms in ``spot_over_plane``)."""
+    albedo, power, h, r = 0.5, 100.0, 1.0, 0.3
+    intensity = power / (4 * np.pi)
+    exact = albedo * intensity / (np.pi * h * h)
+    scene = spot_over_plane(kernel_radius=r, resolution=(4, 4))
+    images = {}
+    for correct in (False, True):
+        result = render(scene, RenderSettings(method=method, passes=10, photons_per_pass=100_000,
+                                              max_bounces=1, workers=1, bias_correction=correct,
+                                              initial_radius_px=kernel_radius_px(scene, r)))
+        images[correct] = result.image[..., :3].mean()
+    weight = result.stats[-1]["bias_weight"]
+    plain_bias = 1 - disk_irradiance(intensity, h, r) * albedo / np.pi / exact
+    assert plain_bias > 0.05
+    # The plain image is dark (less than at r: the radius shrinks over the passes).
+    assert images[False] < (1 - 0.5 * plain_bias) * exact
+    assert abs(images[True] / exact - 1) < 0.25 * plain_bias, (images, exact, weight)
+    assert weight > 0.9
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm", "auto"])
+def test_the_plain_estimate_is_unchanged_and_every_image_finite(method):
+    """The correction adds a gather and changes no photon: the passes' own (plain) estimates
+    are those of a render without it, to the bit; with two workers the inner sums merge."""
+    scene = BUILTIN["glowing_glass_ball"](resolution=(24, 18))
+    runs = {}
+    for correct, workers in ((False, 1), (True, 1), (True, 2)):
+        images = []
+        result = render(scene, RenderSettings(method=method, passes=6, photons_per_pass=8000, workers=workers,
+                                              bias_correction=correct),
+                        on_iteration=lambda r: images.append(np.isfinite(r.image).all()))
+        assert all(images) and len(images) == 6
+        runs[correct, workers] = result
+    assert ([s["pass_mean"] for s in runs[False, 1].stats] == [s["pass_mean"] for s in runs[True, 1].stats])
+    assert all(s["bias_weight"] == 0.0 for s in runs[False, 1].stats)
+    assert runs[True, 1].stats[-1]["bias_weight"] > 0.0
+    assert runs[True, 2].stats[-1]["bias_weight"] > 0.0
