@@ -39,6 +39,7 @@ SETTING_FLAGS = {
     "photons_per_pass": "photons_per_pass", "workers": "workers", "chains": "chains",
     "initial_radius": "initial_radius_px", "alpha": "alpha", "max_bounces": "max_bounces",
     "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
+    "bias_correction": "bias_correction",
 }
 
 
@@ -75,6 +76,8 @@ def build_parser():
     g.add_argument("--chains", type=int, help="Markov chains per worker (AMCMCPPM)")
     g.add_argument("--initial-radius", type=float, help="initial gather radius in pixel footprints")
     g.add_argument("--alpha", type=float)
+    g.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=None,
+                   help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     g.add_argument("--max-bounces", type=int)
     g.add_argument("--initial-mutation-size", type=float)
     g.add_argument("--glossy-through", type=float,

@@ -7,7 +7,7 @@ dataclass, so the panel, ``render.py`` and the core never disagree on a default.
 properties configure optional file outputs of the engine (statistics, snapshots).
 """
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, METHODS,
                              MUTATIONS, NORMALISATIONS, RenderSettings)
@@ -81,6 +81,11 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     initial_radius_px: FloatProperty(
         name="Initial Radius", default=_DEFAULTS.initial_radius_px, min=0.01, max=1000.0, soft_max=32.0,
         description="Initial photon gather radius, in pixel footprints at each visible point")
+    bias_correction: BoolProperty(
+        name="Bias Correction", default=_DEFAULTS.bias_correction,
+        description="Also gather the photons within half the radius and correct the image towards "
+                    "the extrapolation that removes the blur of the gather radius, as far as the "
+                    "noise allows (one weight for the whole image)")
     max_bounces: IntProperty(
         name="Max Bounces", default=_DEFAULTS.max_bounces, min=1, max=64,
         description="Most scattering events of a photon path, and most specular bounces of a camera path")
