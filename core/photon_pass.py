@@ -452,8 +452,8 @@ class PhotonBatch:
     pair_glossy: np.ndarray      # (k, 3) float64 flux * glossy weight, or None (no glossy points)
     pair_bounce: np.ndarray      # (k,) int16 vertex of each pair (0 = first surface hit)
     first: dict                  # arrays (n, ...): each visible path at its first visible vertex
-    sum_diffuse: np.ndarray      # (m, 3) per-point sums of flux * diffuse weight (if summed here)
-    sum_glossy: np.ndarray       # (m, 3) per-point sums of flux * glossy weight, or None
+    sum_diffuse: np.ndarray      # (n_slots, 3) per-slot sums of flux * diffuse weight (if summed here)
+    sum_glossy: np.ndarray       # (n_slots, 3) per-slot sums of flux * glossy weight, or None
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
 
