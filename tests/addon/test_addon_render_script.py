@@ -112,3 +112,18 @@ def test_flags_mirror_the_core_cli(repo_root):
     panel = set(render_script.SETTING_FLAGS.values())
     from amcmcppm.amcmcppm_addon.properties import CORE_SETTING_NAMES
     assert set(CORE_SETTING_NAMES) == panel
+
+
+def test_bias_correction_flag_reaches_the_render(repo_root, cornell, tmp_path):
+    """--no-bias-correction renders the plain estimate (weight 0 in every pass); by default the
+    weight of the kernel-bias correction is in the statistics from the fourth pass on."""
+    weights = {}
+    for flag in ("--bias-correction", "--no-bias-correction"):
+        stats_path = tmp_path / f"{flag}.jsonl"
+        out = run(repo_root, cornell, "--output", tmp_path / "c.exr", "--stats", stats_path, "--method", "ppm",
+                  flag, *FAST, "--passes", "5")
+        assert out.returncode == 0, out.stderr
+        weights[flag] = [json.loads(x)["bias_weight"] for x in stats_path.read_text().splitlines()]
+    assert len(weights["--bias-correction"]) == 5
+    assert weights["--no-bias-correction"] == [0.0] * 5
+    assert weights["--bias-correction"][:3] == [0.0] * 3 and weights["--bias-correction"][-1] > 0
