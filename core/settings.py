@@ -138,6 +138,8 @@ class RenderSettings:
             bad("chains", "must be >= 1")
         if not 0 < self.target_acceptance < 1:
             bad("target_acceptance", "must lie in (0, 1)")
+        if not isinstance(self.bias_correction, bool):
+            bad("bias_correction", "must be True or False")
         if not 1e-4 <= self.initial_mutation_size <= 1e3:
             bad("initial_mutation_size", "must lie in [1e-4, 1e3]")
         if not 0 <= self.glossy_through_roughness <= 1:

@@ -312,6 +312,8 @@ def test_invalid_scenes_raise_clear_errors():
         RenderSettings(passes=0, time_limit=0)
     with pytest.raises(ValueError, match="photons_per_pass"):
         RenderSettings(photons_per_pass=-1)
+    with pytest.raises(ValueError, match="bias_correction"):
+        RenderSettings(bias_correction="no")
 
 
 def test_automatic_photon_count_grows_with_the_image_only():
