@@ -80,8 +80,8 @@ class DepositTarget:
 
     Volume points (:class:`~core.eye_pass.VolumePoints`) follow the m surface points in the
     numbering of the sums: point m + k is volume point k.  With ``inner`` the pairs within half
-    a surface point's radius are deposited a second time, on slot ``n_points + j`` of the sums
-    (``n_slots`` slots in all), for the second estimate at half the radius
+    surface point j's radius are deposited a second time, on slot ``n_points + j`` of the sums
+    (``n_slots`` = n_points + m slots in all), for the second estimate at half the radius
     (:meth:`inner_pixels`, ``RenderSettings.bias_correction``)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
@@ -101,7 +101,7 @@ class DepositTarget:
             volume_grid = HashGrid(self.volume.position, volume_radius, None)
         self.volume_grid = volume_grid if self.volume is not None else None
         self.n_points = points.count + (0 if self.volume is None else self.volume.count)
-        self.n_slots = 2 * self.n_points if self.inner else self.n_points
+        self.n_slots = self.n_points + (points.count if self.inner else 0)   # (no inner volume slots)
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -600,6 +600,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 wd, wg = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back)
                 # The pairs within half the radius once more, on the inner slots.
                 again = None if near is None else np.flatnonzero(near)
+                slots = pj if again is None else np.concatenate([pj, pj.take(again) + target.n_points])
                 if collect_pairs:
                     f = deposited.take(lane, axis=0)
                     path = idx[lane]
@@ -607,12 +608,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     gv = (f * (wg[:, None] if wg.ndim == 1 else wg.T)) if glossy else None
                     if again is not None:
                         path, dv, gv = (_twice(a, again) for a in (path, dv, gv))
-                        pj = np.concatenate([pj, pj.take(again) + target.n_points])
                     pairs["path"].append(path)
-                    pairs["point"].append(pj)
+                    pairs["point"].append(slots)
                     pairs["diffuse"].append(dv)
                     pairs["glossy"].append(gv)
-                    pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
+                    pairs["bounce"].append(np.full(len(slots), bounce, np.int16))
                 else:
                     f = [deposited[:, c].take(lane) for c in range(3)]
                     dv = [fc * (wd if wd.ndim == 1 else wd[c]) for c, fc in enumerate(f)]
@@ -620,8 +620,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     if again is not None:
                         dv = [_twice(v, again) for v in dv]
                         gv = None if gv is None else [_twice(v, again) for v in gv]
-                        pj = np.concatenate([pj, pj.take(again) + target.n_points])
-                    sums.add(pj, dv, gv)
+                    sums.add(slots, dv, gv)
                 if target.cells is None:
                     seen[lane] = True
             if target.cells is not None:
