@@ -86,13 +86,15 @@ class Accumulator:
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
-        # spread, and the sum of Vc_p T_p (per-pass normalisation).
+        # spread, the sum of Vc_p T_p (per-pass normalisation) and, for the chains, the sum of
+        # X_p, T_p of the even chains minus T_p of the odd ones.
         self.bias_correction = bias_correction
         self.bias_weight = 0.0                      # w of the last image (image = A + w D)
         if bias_correction:
             self.diff = None                        # _Spread of T_p over N_p (made by the first pass)
             self.outside_diff = None                # _Spread of the outside part's T_p over n_U,p
             self.diff_scaled = np.zeros((n_pixels, 3)) if normalisation == "per_pass" else None
+            self.halves = None                      # sum of X_p (made by the first chain pass)
 
     @property
     def visible_fraction(self) -> float:
@@ -100,17 +102,20 @@ class Accumulator:
         return self.n_visible / self.n_uniform if self.n_uniform else 0.0
 
     def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain, outside_sum=None,
-            inner_sum=None, outside_inner=None):
+            inner_sum=None, outside_inner=None, half_diff=None):
         """Add one pass; returns the number of pixels whose non-finite photon sums were dropped.
 
         ``outside_sum``: AMCMCPPM's sums over its uniform samples outside the visible set (O_p).
         ``inner_sum``, ``outside_inner``: the same sums at half the radius (with
-        ``bias_correction``; both or neither when there are outside sums).
+        ``bias_correction``; both or neither when there are outside sums).  ``half_diff``: with
+        ``bias_correction``, the chains' X_p (PhotonWorker.run_pass).
         Also sets ``last_pass_mean``: the mean over pixels and RGB of this pass's own estimate,
         its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p, plus O_p / n_U.
         """
         if self.bias_correction and inner_sum is None:
             raise ValueError("Accumulator.add: a bias-corrected image needs the inner sums")
+        if self.bias_correction and is_chain and recorded and half_diff is None:
+            raise ValueError("Accumulator.add: a bias-corrected chain image needs the halves' difference")
         self.passes += 1
         self.emission += eye.emission
         self.alpha += eye.alpha
@@ -120,7 +125,7 @@ class Accumulator:
         dropped = 0
         if outside_sum is not None and n_uniform:
             # Non-finite contributions are dropped before they reach the sums (and counted).
-            outside_sum, dropped, outside_inner = _finite(outside_sum, outside_inner)
+            dropped, (outside_sum, outside_inner) = _finite(outside_sum, outside_inner)
             self.outside += outside_sum
             self.last_pass_mean += float(outside_sum.mean()) / n_uniform
         if self.bias_correction and is_chain and n_uniform:
@@ -130,7 +135,7 @@ class Accumulator:
             self.outside_diff.add(None if outside_sum is None else outside_inner - outside_sum, n_uniform)
         if not recorded:
             return dropped
-        pixel_sum, bad_pixels, inner_sum = _finite(pixel_sum, inner_sum)
+        bad_pixels, (pixel_sum, inner_sum, half_diff) = _finite(pixel_sum, inner_sum, half_diff)
         dropped += bad_pixels
         vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
         self.recorded += recorded
@@ -145,6 +150,10 @@ class Accumulator:
             self.diff.add(t, recorded)
             if self.diff_scaled is not None:
                 self.diff_scaled += vc_pass * t
+            if is_chain:
+                if self.halves is None:
+                    self.halves = np.zeros_like(t)
+                self.halves += half_diff
         return dropped
 
     def image(self, is_chain):
@@ -177,15 +186,23 @@ class Accumulator:
         1 / (A^2 + 0.01), is sum (1 - 3w/4)^2 b^2 + Var A + w^2 Var D, smallest at
         w = sum(1.5 b^2) / sum(9/8 b^2 + 2 Var D).  Cov(A, D) is left out: photons of even
         density make it 0, as the gather at r/2 is a quarter of the one at r (Cov(A, B) = Var A).
-        Var D comes from the spread of the passes' differences (:class:`_Spread`), of the
-        recorded photons' and of the outside part's."""
+        Var D comes from the spread of the passes' differences (:class:`_Spread`) for uniform
+        photons and the chains' outside part.  The chains keep their states from pass to pass,
+        so for their recorded photons that spread is too small where few fresh states come in
+        (on glass_ceiling_room w came out 1.2 where 0.8 was best); their Var T is X^2 instead,
+        X = sum_p X_p of two independent halves of the chains (even and odd), as
+        E[X^2] = Var T_even + Var T_odd = Var T when the halves are alike.  That is one degree
+        of freedom per pixel, but w depends on Var D only through its weighted sum over the
+        image."""
         self.bias_weight = 0.0
         n = self.recorded
-        if self.diff is None or not n:
+        if self.diff is None or not n or self.diff.passes < BIAS_MIN_PASSES:
             return rgb
-        var_d = self.diff.variance(n)
-        if var_d is None:
-            return rgb
+        if is_chain and self.halves is not None:
+            with np.errstate(over="ignore"):
+                var_d = self.halves * self.halves / (n * n)
+        else:
+            var_d = self.diff.variance(n)
         var_d = scale * scale * var_d
         if self.diff_scaled is not None and is_chain:
             d = self.diff_scaled / n
@@ -215,8 +232,8 @@ class _Spread:
     A pass of N_p samples has Var T_p = sigma^2 N_p, estimated over the p passes by
     (sum T_p^2 / N_p - (sum T_p)^2 / sum N_p) / (p - 1).  The passes are taken as independent.
     The Markov chains carry their states from pass to pass, so for them this underestimates the
-    variance where few fresh states come in: w came out near the best on four test scenes and
-    too high on glass_ceiling_room (README, "Kernel-bias correction")."""
+    variance where few fresh states come in; their recorded photons' variance comes from two
+    halves of the chains instead (``Accumulator._corrected``)."""
 
     def __init__(self, n_pixels):
         self.total = np.zeros((n_pixels, 3))        # sum of T_p
@@ -246,17 +263,17 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 BIAS_MIN_PASSES = 4
 
 
-def _finite(pixel_sum, inner_sum=None):
-    """The sums with non-finite entries set to 0, and the number of pixels that had any; with
-    ``inner_sum`` (the sums at half the radius) also those, zeroed in the same pixels."""
-    bad = ~np.isfinite(pixel_sum)
-    if inner_sum is not None:
-        bad |= ~np.isfinite(inner_sum)
+def _finite(*sums):
+    """(the number of pixels with a non-finite entry in any of ``sums``, the sums with those
+    entries set to 0 in every one): sums of one pass of shape (n_pixels, 3), or None."""
+    bad = None
+    for s in sums:
+        if s is not None:
+            bad = ~np.isfinite(s) if bad is None else bad | ~np.isfinite(s)
     dropped = int(bad.any(axis=1).sum())
     if dropped:
-        pixel_sum = np.where(bad, 0.0, pixel_sum)
-        inner_sum = None if inner_sum is None else np.where(bad, 0.0, inner_sum)
-    return pixel_sum, dropped, inner_sum
+        sums = tuple(None if s is None else np.where(bad, 0.0, s) for s in sums)
+    return dropped, sums
 
 
 def kz_radius_scales(n, alpha):
@@ -368,7 +385,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 last_rate = photons / merged["photon_s"]
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
                               c["uniform_visible"], is_chain, merged["outside_sum"], merged["inner_sum"],
-                              merged["outside_inner"])
+                              merged["outside_inner"], merged["half_diff"])
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
@@ -460,7 +477,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
 def _merge(outputs):
     """Sum the workers' results of one pass."""
     merged = {"counters": dict(outputs[0]["counters"])}
-    for key in ("pixel_sum", "outside_sum", "inner_sum", "outside_inner"):
+    for key in ("pixel_sum", "outside_sum", "inner_sum", "outside_inner", "half_diff"):
         sums = [o[key] for o in outputs if o.get(key) is not None]
         merged[key] = np.sum(sums, axis=0) if sums else None
     for o in outputs[1:]:

@@ -367,9 +367,14 @@ class DepositLog(Recorder):
     the pairs of the parts that are still current; it runs when the log grows past
     ``flush_pairs`` and at the end of the pass (deposits are valid for that pass only).
     Chain c's prefix lives in slot c, its suffix in slot C + c.
+
+    With ``halves`` it also sums the even chains' deposits minus the odd chains'
+    (``half_diffuse``, ``half_glossy``): two independent halves of the chains, whose difference
+    estimates the spread of the sums (``core.integrator.Accumulator``; the chains keep their
+    states from pass to pass, so the spread of the passes underestimates it).
     """
 
-    def __init__(self, n_points, n_chains, glossy, flush_pairs=1 << 21):
+    def __init__(self, n_points, n_chains, glossy, flush_pairs=1 << 21, halves=False):
         self.n_points = n_points
         self.glossy = glossy
         self.flush_pairs = flush_pairs
@@ -386,6 +391,10 @@ class DepositLog(Recorder):
         self.next_state = 0
         self.chunks = []                                        # (state ids, points, diffuse, glossy)
         self.logged = 0
+        self._halves = PointSums(n_points, glossy) if halves else None
+        self.half_diffuse = self._halves.diffuse if halves else None     # (m, 3), after flush()
+        self.half_glossy = self._halves.glossy if halves else None
+        self.sign = np.zeros(len(self.count))                   # +1 (even chain) or -1 per state id
 
     def replace(self, lanes, batch, rows):
         if len(lanes) == 0:
@@ -433,7 +442,11 @@ class DepositLog(Recorder):
             grown = np.zeros(2 * self.next_state, np.int64)
             grown[:len(self.count)] = self.count
             self.count = grown
+            sign = np.zeros(len(grown))
+            sign[:len(self.sign)] = self.sign
+            self.sign = sign
         self.state_of_lane[slots] = ids
+        self.sign[ids] = 1.0 - 2.0 * (slots % self.n_chains % 2)
         k = len(rows)
         row_state = np.full(len(batch.visible), -1, np.int64)
         row_state[rows] = ids[:k]
@@ -475,12 +488,18 @@ class DepositLog(Recorder):
             diffuse, glossy = chunk[2], chunk[3]
             self._sums.add(point, [diffuse[:, c] * w for c in range(3)],
                            [glossy[:, c] * w for c in range(3)] if self.glossy else None)
+            if self._halves is not None:
+                w = w * self.sign.take(state)
+                self._halves.add(point, [diffuse[:, c] * w for c in range(3)],
+                                 [glossy[:, c] * w for c in range(3)] if self.glossy else None)
             keep = np.flatnonzero(alive.take(state))
             if len(keep) == len(state):
                 kept.append(chunk)
             elif len(keep):
                 kept.append(tuple(None if a is None else a.take(keep, axis=0) for a in chunk))
         self._sums.flush()
+        if self._halves is not None:
+            self._halves.flush()
         self.count[current] = 0
         # The kept pairs, as one chunk (later flushes then see few chunks).
         self.chunks = [tuple(None if part[0] is None else np.concatenate(part) for part in zip(*kept))] if kept else []

@@ -49,26 +49,31 @@ class PhotonWorker:
         fraction), ``outside_sum`` (AMCMCPPM: the summed contributions of the uniform samples
         outside the chains' visible set, to be divided by n_U; else None), ``inner_sum`` and
         ``outside_inner`` (the same at half the radius if the target has inner sums, else
-        None), ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
+        None), ``half_diff`` (AMCMCPPM with inner sums: the even chains' (inner - outer) pixel
+        sums minus the odd chains', for the spread of the difference; else None), ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
         counters = ChainCounters()
-        outside_sum = outside_inner = None
+        outside_sum = outside_inner = half_diff = None
         chains = None if uniform else self.chains
         if chains is None:
             sums, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
             theta_mean, valid = 0.0, 0
         else:
-            sums, outside, interrupted = self._chain_pass(target, n_photons, counters, stop)
+            sums, outside, halves, interrupted = self._chain_pass(target, n_photons, counters, stop)
             if outside is not None:
                 outside_sum, outside_inner = _pixels(target, *outside)
+            if target.inner:
+                outer, inner = _pixels(target, *halves)
+                half_diff = inner - outer
             adapted = chains.proposed > 0
             theta_mean = float(chains.theta[adapted].mean()) if adapted.any() else float(chains.theta.mean())
             valid = int(chains.valid.sum())
         pixel_sum, inner_sum = _pixels(target, *sums)
         return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "inner_sum": inner_sum,
-                "outside_inner": outside_inner, "counters": dataclasses.asdict(counters),
+                "outside_inner": outside_inner, "half_diff": half_diff,
+                "counters": dataclasses.asdict(counters),
                 "theta_mean": theta_mean, "valid_chains": valid,
                 "total_proposed": int(chains.proposed.sum()) if chains else 0,
                 "total_accepted": int(chains.accepted.sum()) if chains else 0,
@@ -99,7 +104,7 @@ class PhotonWorker:
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings
         chains = self.chains
-        recorder = DepositLog(target.n_slots, chains.count, target.any_glossy)
+        recorder = DepositLog(target.n_slots, chains.count, target.any_glossy, halves=target.inner)
 
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
@@ -121,7 +126,8 @@ class PhotonWorker:
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
         outside = (recorder.outside_diffuse, recorder.outside_glossy) if recorder.outside_pairs else None
-        return (recorder.sum_diffuse, recorder.sum_glossy), outside, interrupted
+        halves = (recorder.half_diffuse, recorder.half_glossy)
+        return (recorder.sum_diffuse, recorder.sum_glossy), outside, halves, interrupted
 
 
 def _pixels(target, sum_diffuse, sum_glossy):

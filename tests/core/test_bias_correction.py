@@ -61,6 +61,35 @@ def test_no_correction_before_enough_passes_and_never_a_negative_pixel():
         acc.add(Eye(500), np.zeros((500, 3)), 10, 10, 10, False)
 
 
+def chain_passes(acc, rng, truth, bias, noise, passes=40, photons=1000):
+    """Chain passes whose error in T lasts over the passes, each half of the chains keeping its
+    own (chains whose states do not move): the passes do not spread, the halves do."""
+    n = len(truth)
+    lasting = noise * rng.normal(size=(2, n, 3))
+    for _ in range(passes):
+        s = photons * (truth + bias)
+        t = 0.5 * photons * (-0.75 * bias + lasting)           # T of each half
+        acc.add(Eye(n), s, photons, photons, photons, True, inner_sum=s + t.sum(axis=0),
+                half_diff=t[0] - t[1])
+
+
+def test_the_chains_variance_comes_from_their_halves():
+    """Without bias, an error that lasts over the passes keeps w near 0 (the spread of the passes
+    would see no noise and give 4/3); a bias larger than the halves' difference still gives 4/3."""
+    rng = np.random.default_rng(4)
+    truth = rng.uniform(0.2, 1.0, (3000, 3))
+    noisy = Accumulator(3000, "cumulative", bias_correction=True)
+    chain_passes(noisy, rng, truth, bias=0.0, noise=0.1)
+    noisy.image(True)
+    assert noisy.bias_weight < 0.15
+    biased = Accumulator(3000, "cumulative", bias_correction=True)
+    chain_passes(biased, rng, truth, bias=0.2 * truth, noise=0.005)
+    img = biased.image(True)[:, :3]
+    assert biased.bias_weight > 1.25 and np.abs(img / truth - 1).mean() < 0.02
+    with pytest.raises(ValueError, match="halves"):
+        biased.add(Eye(3000), np.ones((3000, 3)), 10, 10, 10, True, inner_sum=np.ones((3000, 3)))
+
+
 @pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
 def test_point_light_over_a_plane_loses_its_kernel_bias(method):
     """At the foot of a point light, a disk kernel of radius 0.3 h reads 6.3 % dark; the

@@ -386,9 +386,11 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
     results = []
     for flush_pairs in (1 << 30, 7, 1):
         rng = np.random.default_rng(11)
-        log = DepositLog(n_points, n_chains, glossy=True, flush_pairs=flush_pairs)
+        log = DepositLog(n_points, n_chains, glossy=True, flush_pairs=flush_pairs, halves=True)
         expected_d = np.zeros((n_points, 3))
         expected_g = np.zeros((n_points, 3))
+        halves_d = np.zeros((n_points, 3))       # even lanes' sums minus odd lanes'
+        halves_g = np.zeros((n_points, 3))
         prefix, suffix = {}, {}            # lane -> (points, diffuse, glossy) of its current parts
 
         def add(part, lane, c):
@@ -396,6 +398,9 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
                 p, d, g = part[lane]
                 np.add.at(expected_d, p, d * c)
                 np.add.at(expected_g, p, g * c)
+                sign = 1 if lane % 2 == 0 else -1
+                np.add.at(halves_d, p, sign * d * c)
+                np.add.at(halves_g, p, sign * g * c)
 
         def pairs(n_paths, bounces):
             # ``off`` unrelated paths come first (as when proposals and prefetched uniform
@@ -442,5 +447,8 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
         log.flush()
         np.testing.assert_allclose(log.sum_diffuse, expected_d, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(log.sum_glossy, expected_g, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(log.half_diffuse, halves_d, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(log.half_glossy, halves_g, rtol=1e-12, atol=1e-12)
+        assert np.abs(halves_d).sum() > 0.1 * np.abs(expected_d).sum()
         results.append(log.sum_diffuse)
     np.testing.assert_allclose(results[0], results[2], rtol=1e-12)
