@@ -108,7 +108,8 @@ class Accumulator:
         ``outside_sum``: AMCMCPPM's sums over its uniform samples outside the visible set (O_p).
         ``inner_sum``, ``outside_inner``: the same sums at half the radius (with
         ``bias_correction``; both or neither when there are outside sums).  ``half_diff``: with
-        ``bias_correction``, the chains' X_p (PhotonWorker.run_pass).
+        ``bias_correction``, the chains' X_p (one worker's even chains' T_p minus its odd
+        chains', ``PhotonWorker.run_pass``, or the workers' difference, ``_halves_difference``).
         Also sets ``last_pass_mean``: the mean over pixels and RGB of this pass's own estimate,
         its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p, plus O_p / n_U.
         """
@@ -190,10 +191,10 @@ class Accumulator:
         photons and the chains' outside part.  The chains keep their states from pass to pass,
         so for their recorded photons that spread is too small where few fresh states come in
         (on glass_ceiling_room w came out 1.2 where 0.8 was best); their Var T is X^2 instead,
-        X = sum_p X_p of two independent halves of the chains (even and odd), as
-        E[X^2] = Var T_even + Var T_odd = Var T when the halves are alike.  That is one degree
-        of freedom per pixel, but w depends on Var D only through its weighted sum over the
-        image."""
+        X = sum_p X_p of two independent halves of the chains (two workers' chains, or one
+        worker's even and odd chains), as E[X^2] = Var T_even + Var T_odd = Var T when the
+        halves are alike.  That is one degree of freedom per pixel, but w depends on Var D only
+        through its weighted sum over the image."""
         self.bias_weight = 0.0
         n = self.recorded
         if self.diff is None or not n or self.diff.passes < BIAS_MIN_PASSES:
@@ -376,7 +377,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if outputs is None:         # stopped before any worker returned photons
                 result.interrupted = True
                 break
-            merged = _merge(outputs)
+            merged = _merge(outputs, halves=is_chain and settings.bias_correction)
             c = merged["counters"]
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)
@@ -474,12 +475,15 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
     }
 
 
-def _merge(outputs):
-    """Sum the workers' results of one pass."""
+def _merge(outputs, halves=False):
+    """Sum the workers' results of one pass; with ``halves`` (chains, bias correction) and two
+    or more workers, ``half_diff`` is :func:`_halves_difference`."""
     merged = {"counters": dict(outputs[0]["counters"])}
     for key in ("pixel_sum", "outside_sum", "inner_sum", "outside_inner", "half_diff"):
         sums = [o[key] for o in outputs if o.get(key) is not None]
         merged[key] = np.sum(sums, axis=0) if sums else None
+    if halves and len(outputs) > 1 and merged["inner_sum"] is not None:
+        merged["half_diff"] = _halves_difference(outputs)
     for o in outputs[1:]:
         for k, v in o["counters"].items():
             merged["counters"][k] += v
@@ -491,3 +495,27 @@ def _merge(outputs):
     merged["photon_s"] = max(o["photon_s"] for o in outputs)
     merged["photon_cpu_s"] = sum(o["photon_s"] for o in outputs)
     return merged
+
+
+def _halves_difference(outputs):
+    """The chains' X_p (``Accumulator``) of a pass traced by two or more workers, whose chains
+    are independent: the sum over pairs of workers (0 and 1, 2 and 3, ...) of
+    sqrt(N_b / N_a) T_a - sqrt(N_a / N_b) T_b, T = inner - outer pixel sums and N the recorded
+    photons.  With Var T_k = N_k sigma^2 a pair has mean 0 and variance (N_a + N_b) sigma^2, also
+    when a pass cut short leaves the workers unequal; X is scaled by sqrt(N / N_paired) for the
+    workers left out (an odd count, or a pair with a worker that recorded nothing), so that
+    E[X^2] = Var T.  No extra sums are traced for it."""
+    x = np.zeros_like(outputs[0]["pixel_sum"])
+    recorded = [o["counters"]["recorded"] for o in outputs]
+    paired = 0
+    # (non-finite sums give non-finite entries, dropped by Accumulator.add with the others)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(0, len(outputs) - 1, 2):
+            (a, b), (n_a, n_b) = outputs[i:i + 2], recorded[i:i + 2]
+            if n_a and n_b:
+                x += np.sqrt(n_b / n_a) * (a["inner_sum"] - a["pixel_sum"])
+                x -= np.sqrt(n_a / n_b) * (b["inner_sum"] - b["pixel_sum"])
+                paired += n_a + n_b
+        if paired:
+            x *= np.sqrt(sum(recorded) / paired)
+    return x

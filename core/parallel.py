@@ -61,7 +61,7 @@ class InProcessPool:
     """One worker in this process (``workers=1``): deterministic and without start-up cost."""
 
     def __init__(self, scene, settings, ctx=None):
-        self.worker = PhotonWorker(scene, settings, 0, ctx=ctx)
+        self.worker = PhotonWorker(scene, settings, 0, ctx=ctx, lane_halves=True)
         self._job = None
 
     @property

@@ -25,12 +25,17 @@ STREAM_EYE, STREAM_PHOTONS, STREAM_CHAINS = 0, 1, 2
 
 
 class PhotonWorker:
-    """Traces the photons of one worker's share of every pass."""
+    """Traces the photons of one worker's share of every pass.
 
-    def __init__(self, scene, settings, index=0, ctx=None):
+    ``lane_halves``: a worker that is the only one splits its chains into halves for the
+    bias correction's variance (``half_diff`` of :meth:`run_pass`); with two or more workers
+    the workers are the halves (``core.integrator._halves_difference``)."""
+
+    def __init__(self, scene, settings, index=0, ctx=None, lane_halves=False):
         self.ctx = ctx if ctx is not None else RenderContext(scene, settings.glossy_through_roughness)
         self.settings = settings
         self.index = index
+        self.lane_halves = lane_halves
         self.dims = path_dims(settings.max_bounces)
         self.chains = None
         if settings.method != "ppm":
@@ -49,8 +54,9 @@ class PhotonWorker:
         fraction), ``outside_sum`` (AMCMCPPM: the summed contributions of the uniform samples
         outside the chains' visible set, to be divided by n_U; else None), ``inner_sum`` and
         ``outside_inner`` (the same at half the radius if the target has inner sums, else
-        None), ``half_diff`` (AMCMCPPM with inner sums: the even chains' (inner - outer) pixel
-        sums minus the odd chains', for the spread of the difference; else None), ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
+        None), ``half_diff`` (with ``lane_halves``, AMCMCPPM and inner sums: the even chains'
+        (inner - outer) pixel sums minus the odd chains'; else None), ``counters`` (a
+        :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
@@ -64,9 +70,10 @@ class PhotonWorker:
             sums, outside, halves, interrupted = self._chain_pass(target, n_photons, counters, stop)
             if outside is not None:
                 outside_sum, outside_inner = _pixels(target, *outside)
-            if target.inner:
+            if halves is not None:
                 outer, inner = _pixels(target, *halves)
-                half_diff = inner - outer
+                with np.errstate(over="ignore", invalid="ignore"):     # (dropped by the Accumulator)
+                    half_diff = inner - outer
             adapted = chains.proposed > 0
             theta_mean = float(chains.theta[adapted].mean()) if adapted.any() else float(chains.theta.mean())
             valid = int(chains.valid.sum())
@@ -104,7 +111,8 @@ class PhotonWorker:
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings
         chains = self.chains
-        recorder = DepositLog(target.n_slots, chains.count, target.any_glossy, halves=target.inner)
+        halves = target.inner and self.lane_halves
+        recorder = DepositLog(target.n_slots, chains.count, target.any_glossy, halves=halves)
 
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
@@ -126,7 +134,7 @@ class PhotonWorker:
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
         outside = (recorder.outside_diffuse, recorder.outside_glossy) if recorder.outside_pairs else None
-        halves = (recorder.half_diffuse, recorder.half_glossy)
+        halves = (recorder.half_diffuse, recorder.half_glossy) if halves else None
         return (recorder.sum_diffuse, recorder.sum_glossy), outside, halves, interrupted
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from core import RenderSettings, render
-from core.integrator import BIAS_MIN_PASSES, Accumulator
+from core.integrator import BIAS_MIN_PASSES, Accumulator, _halves_difference
 from core.testing.scenes import BUILTIN, disk_irradiance, kernel_radius_px, spot_over_plane
 
 
@@ -88,6 +88,23 @@ def test_the_chains_variance_comes_from_their_halves():
     assert biased.bias_weight > 1.25 and np.abs(img / truth - 1).mean() < 0.02
     with pytest.raises(ValueError, match="halves"):
         biased.add(Eye(3000), np.ones((3000, 3)), 10, 10, 10, True, inner_sum=np.ones((3000, 3)))
+
+
+@pytest.mark.parametrize("workers", [2, 3, 4])
+def test_the_workers_difference_has_the_variance_of_their_sum(workers):
+    """Workers of unequal photon counts (a pass cut short): X has mean 0 and E[X^2] = Var T."""
+    rng = np.random.default_rng(5)
+    n, mu, sigma = 20000, 0.3, 0.5
+    recorded = rng.integers(500, 2000, workers)
+    outputs = []
+    for n_k in recorded:
+        t = n_k * mu + sigma * np.sqrt(n_k) * rng.normal(size=(n, 3))      # Var T_k = N_k sigma^2
+        outer = rng.uniform(0, 5, (n, 3))
+        outputs.append({"pixel_sum": outer, "inner_sum": outer + t, "counters": {"recorded": int(n_k)}})
+    x = _halves_difference(outputs)
+    var_t = sigma ** 2 * recorded.sum()
+    assert abs(x.mean()) < 5 * np.sqrt(var_t / x.size)
+    assert 0.95 * var_t < (x * x).mean() < 1.05 * var_t
 
 
 @pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
