@@ -185,8 +185,10 @@ class Accumulator:
         Kernel bias grows as r^2, so E[D] = -3b/4 for A's bias b, and b^2 is estimated per pixel
         by (16/9)(D^2 - Var D).  The image's relMSE, summed over pixels weighted by
         1 / (A^2 + 0.01), is sum (1 - 3w/4)^2 b^2 + Var A + w^2 Var D, smallest at
-        w = sum(1.5 b^2) / sum(9/8 b^2 + 2 Var D).  Cov(A, D) is left out: photons of even
-        density make it 0, as the gather at r/2 is a quarter of the one at r (Cov(A, B) = Var A).
+        w = sum(1.5 b^2) / sum(9/8 b^2 + 2 Var D) = (4/3) (1 - V / S), V = sum Var D and
+        S = sum D^2 (weighted): Richardson's 4/3 less the share of noise in D^2, 0 when V >= S.
+        Cov(A, D) is left out: photons of even density make it 0, as the gather at r/2 is a
+        quarter of the one at r (Cov(A, B) = Var A).
         Var D comes from the spread of the passes' differences (:class:`_Spread`) for uniform
         photons and the chains' outside part.  The chains keep their states from pass to pass,
         so for their recorded photons that spread is too small where few fresh states come in
@@ -216,13 +218,12 @@ class Accumulator:
             d = d + self.outside_diff.total / self.n_uniform
             var_d = var_d + var_o
         with np.errstate(over="ignore", invalid="ignore"):
-            bias2 = (16.0 / 9.0) * (d * d - var_d)
             weight = 1.0 / (rgb * rgb + 0.01)
-            num = float(np.sum(weight * 1.5 * bias2))
-            den = float(np.sum(weight * (9.0 / 8.0 * bias2 + 2.0 * var_d)))
-        if not (np.isfinite(num) and np.isfinite(den)) or den <= 0.0 or num <= 0.0:
+            noise = float(np.sum(weight * var_d))
+            square = float(np.sum(weight * d * d))
+        if not (np.isfinite(noise) and np.isfinite(square)) or noise >= square:
             return rgb
-        self.bias_weight = min(num / den, 4.0 / 3.0)
+        self.bias_weight = 4.0 / 3.0 * (1.0 - noise / square)
         return np.maximum(rgb + self.bias_weight * d, 0.0)
 
 
