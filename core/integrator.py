@@ -198,9 +198,25 @@ class Accumulator:
         halves are alike.  That is one degree of freedom per pixel, but w depends on Var D only
         through its weighted sum over the image."""
         self.bias_weight = 0.0
-        n = self.recorded
-        if self.diff is None or not n or self.diff.passes < BIAS_MIN_PASSES:
+        diff = self.difference(is_chain, scale)
+        if diff is None:
             return rgb
+        d, var_d = diff
+        with np.errstate(over="ignore", invalid="ignore"):
+            weight = 1.0 / (rgb * rgb + 0.01)
+            noise = float(np.sum(weight * var_d))
+            square = float(np.sum(weight * d * d))
+        if not (np.isfinite(noise) and np.isfinite(square)) or noise >= square:
+            return rgb
+        self.bias_weight = 4.0 / 3.0 * (1.0 - noise / square)
+        return np.maximum(rgb + self.bias_weight * d, 0.0)
+
+    def difference(self, is_chain, scale=1.0):
+        """(D, Var D) per pixel, (n_pixels, 3) each, for :meth:`_corrected` (``scale``: the chains'
+        cumulative visible fraction), or None before BIAS_MIN_PASSES passes with photons."""
+        n = self.recorded
+        if not self.bias_correction or self.diff is None or not n or self.diff.passes < BIAS_MIN_PASSES:
+            return None
         if is_chain and self.halves is not None:
             with np.errstate(over="ignore"):
                 var_d = self.halves * self.halves / (n * n)
@@ -214,17 +230,10 @@ class Accumulator:
         if is_chain and self.outside_diff is not None and self.n_uniform:
             var_o = self.outside_diff.variance(self.n_uniform)
             if var_o is None:
-                return rgb
+                return None
             d = d + self.outside_diff.total / self.n_uniform
             var_d = var_d + var_o
-        with np.errstate(over="ignore", invalid="ignore"):
-            weight = 1.0 / (rgb * rgb + 0.01)
-            noise = float(np.sum(weight * var_d))
-            square = float(np.sum(weight * d * d))
-        if not (np.isfinite(noise) and np.isfinite(square)) or noise >= square:
-            return rgb
-        self.bias_weight = 4.0 / 3.0 * (1.0 - noise / square)
-        return np.maximum(rgb + self.bias_weight * d, 0.0)
+        return d, var_d
 
 
 class _Spread:
