@@ -394,7 +394,7 @@ class DepositLog(Recorder):
         self._halves = PointSums(n_points, glossy) if halves else None
         self.half_diffuse = self._halves.diffuse if halves else None     # (m, 3), after flush()
         self.half_glossy = self._halves.glossy if halves else None
-        self.sign = np.zeros(len(self.count))                   # +1 (even chain) or -1 per state id
+        self.sign = np.zeros(len(self.count)) if halves else None   # +1 (even chain) or -1 per state id
 
     def replace(self, lanes, batch, rows):
         if len(lanes) == 0:
@@ -442,11 +442,13 @@ class DepositLog(Recorder):
             grown = np.zeros(2 * self.next_state, np.int64)
             grown[:len(self.count)] = self.count
             self.count = grown
-            sign = np.zeros(len(grown))
-            sign[:len(self.sign)] = self.sign
-            self.sign = sign
+            if self.sign is not None:
+                sign = np.zeros(len(grown))
+                sign[:len(self.sign)] = self.sign
+                self.sign = sign
         self.state_of_lane[slots] = ids
-        self.sign[ids] = 1.0 - 2.0 * (slots % self.n_chains % 2)
+        if self.sign is not None:
+            self.sign[ids] = 1.0 - 2.0 * (slots % self.n_chains % 2)
         k = len(rows)
         row_state = np.full(len(batch.visible), -1, np.int64)
         row_state[rows] = ids[:k]
