@@ -66,8 +66,8 @@ def main():
     ap.add_argument("--time", type=float, default=60.0, help="seconds per render")
     args = ap.parse_args()
     grid = np.linspace(0.0, 4.0 / 3.0, STEPS)
-    print("| scene | workers | seed | passes | best w | its relMSE | plain relMSE | renderer's w | its relMSE "
-          "| renderer / best |")
+    print("| scene | workers | seed | passes | best w | its relMSE | plain relMSE | renderer's w "
+          "| its relMSE | renderer / best |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.scenes:
         z = np.load(os.path.join(REFERENCES, f"{name}_64x48.npz"))
@@ -83,7 +83,8 @@ def main():
                 best = int(np.argmin(errors))
                 chosen = rel_mse(np.maximum(a + w * d, 0.0), ref, ref_var)
                 print(f"| {name} | {workers} | {seed} | {passes} | {grid[best]:.2f} | {errors[best]:.4g} "
-                      f"| {errors[0]:.4g} | {w:.2f} | {chosen:.4g} | {chosen / errors[best]:.3f} |", flush=True)
+                      f"| {errors[0]:.4g} | {w:.2f} | {chosen:.4g} | {chosen / errors[best]:.3f} |",
+                      flush=True)
 
 
 if __name__ == "__main__":
