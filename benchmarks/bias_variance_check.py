@@ -4,8 +4,10 @@ The weight of the kernel-bias correction is w = (4/3)(1 - V/S), V the weighted s
 of Var D (``Accumulator.difference``).  This renders a scene with several seeds, the same
 settings and a fixed number of passes, and compares the V each render estimates with the V of
 the spread of D between the renders (no reference needed).  For the Markov chains it shows both
-estimates: the halves of the chains (the renderer's) and the spread of the passes (stop 32's,
-which takes the passes as independent).  Weights 1 / (A^2 + 0.01) with A the seeds' mean image.
+estimates and the larger, which the renderer uses: the halves of the chains (they share the eye
+passes, so they miss the noise of the measurement points' jitter) and the spread of the passes
+(which takes the passes as independent, and the chains' are not).  Weights 1 / (A^2 + 0.01) with
+A the seeds' mean image.
 
     python benchmarks/bias_variance_check.py [--scenes glass_ceiling_room small_view ...]
         [--method amcmcppm] [--seeds 8] [--passes 40] [--workers 1] [--jobs 2]
@@ -40,10 +42,9 @@ def run_one(scene_name, method, seed, passes, workers, out_path):
         out = original(acc, rgb, is_chain, scale)
         diff = acc.difference(is_chain, scale)
         if diff is not None:
-            passes_var = scale * scale * acc.diff.variance(acc.recorded)
-            if is_chain and acc.outside_diff is not None and acc.n_uniform:
-                passes_var = passes_var + acc.outside_diff.variance(acc.n_uniform)
-            last.update(a=rgb.copy(), d=diff[0], var=diff[1], var_passes=passes_var, w=acc.bias_weight)
+            d, variances = diff         # (the spread of the passes[, the chains' halves])
+            last.update(a=rgb.copy(), d=d, var_passes=variances[0], var_halves=variances[-1],
+                        w=acc.bias_weight)
         return out
 
     integrator.Accumulator._corrected = keep
@@ -68,17 +69,18 @@ def main():
         name, method, seed, passes, workers, out = args.run_one
         run_one(name, method, int(seed), int(passes), int(workers), out)
         return
-    print(f"{args.method}, {args.seeds} seeds, {args.passes} passes, {args.workers} worker(s) per render, 64x48")
-    print("| scene | S (mean D^2) | V from the seeds' spread | V, halves (renderer) / spread "
-          "| V, passes / spread | w: mean over seeds |")
-    print("|---|---|---|---|---|---|")
+    print(f"{args.method}, {args.seeds} seeds, {args.passes} passes, {args.workers} worker(s) per render, "
+          "64x48")
+    print("| scene | S (mean D^2) | V from the seeds' spread | V, halves / spread | V, passes / spread "
+          "| V, the larger (renderer) / spread | w: mean over seeds |")
+    print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.scenes:
             paths = [os.path.join(tmp, f"{name}_{s}.npz") for s in range(args.seeds)]
 
             def job(seed):
-                cmd = [sys.executable, os.path.abspath(__file__), "--run-one", name, args.method, str(seed),
-                       str(args.passes), str(args.workers), paths[seed]]
+                cmd = [sys.executable, os.path.abspath(__file__), "--run-one", name, args.method,
+                       str(seed), str(args.passes), str(args.workers), paths[seed]]
                 subprocess.run(cmd, check=True)
 
             with ThreadPoolExecutor(max_workers=args.jobs) as ex:
@@ -89,11 +91,12 @@ def main():
             d = np.array([r["d"] for r in runs])
             spread = float(np.sum(weight * d.var(axis=0, ddof=1)))
             square = float(np.mean([np.sum(weight * r["d"] ** 2) for r in runs]))
-            halves = float(np.mean([np.sum(weight * r["var"]) for r in runs]))
-            passes = float(np.mean([np.sum(weight * r["var_passes"]) for r in runs]))
+            halves = np.array([np.sum(weight * r["var_halves"]) for r in runs])
+            passes = np.array([np.sum(weight * r["var_passes"]) for r in runs])
+            larger = np.maximum(halves, passes)
             w = float(np.mean([r["w"] for r in runs]))
-            print(f"| {name} | {square:.4g} | {spread:.4g} | {halves / spread:.2f} | {passes / spread:.2f} "
-                  f"| {w:.2f} |", flush=True)
+            print(f"| {name} | {square:.4g} | {spread:.4g} | {halves.mean() / spread:.2f} "
+                  f"| {passes.mean() / spread:.2f} | {larger.mean() / spread:.2f} | {w:.2f} |", flush=True)
 
 
 if __name__ == "__main__":

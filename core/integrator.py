@@ -192,19 +192,22 @@ class Accumulator:
         Var D comes from the spread of the passes' differences (:class:`_Spread`) for uniform
         photons and the chains' outside part.  The chains keep their states from pass to pass,
         so for their recorded photons that spread is too small where few fresh states come in
-        (on glass_ceiling_room w came out 1.2 where 0.8 was best); their Var T is X^2 instead,
-        X = sum_p X_p of two independent halves of the chains (two workers' chains, or one
-        worker's even and odd chains), as E[X^2] = Var T_even + Var T_odd = Var T when the
-        halves are alike.  That is one degree of freedom per pixel, but w depends on Var D only
-        through its weighted sum over the image."""
+        (on glass_ceiling_room w came out 1.2 where 0.8 was best, V a third of the spread of D
+        over seeds); their Var T is also X^2, X = sum_p X_p of two independent halves of the
+        chains (two workers' chains, or one worker's even and odd chains), as
+        E[X^2] = Var T_even + Var T_odd = Var T when the halves are alike.  That is one degree
+        of freedom per pixel, but w depends on Var D only through V.  The halves share the eye
+        passes, so X misses the noise of the measurement points' jitter, which the spread of
+        the passes holds (on the Cornell box at 64x48 X gave two thirds of V, the passes all of
+        it): V is the larger of the two (``benchmarks/bias_variance_check.py``)."""
         self.bias_weight = 0.0
         diff = self.difference(is_chain, scale)
         if diff is None:
             return rgb
-        d, var_d = diff
+        d, variances = diff
         with np.errstate(over="ignore", invalid="ignore"):
             weight = 1.0 / (rgb * rgb + 0.01)
-            noise = float(np.sum(weight * var_d))
+            noise = max(float(np.sum(weight * v)) for v in variances)
             square = float(np.sum(weight * d * d))
         if not (np.isfinite(noise) and np.isfinite(square)) or noise >= square:
             return rgb
@@ -212,17 +215,19 @@ class Accumulator:
         return np.maximum(rgb + self.bias_weight * d, 0.0)
 
     def difference(self, is_chain, scale=1.0):
-        """(D, Var D) per pixel, (n_pixels, 3) each, for :meth:`_corrected` (``scale``: the chains'
-        cumulative visible fraction), or None before BIAS_MIN_PASSES passes with photons."""
+        """(D, estimates of Var D) per pixel for :meth:`_corrected`, or None before
+        BIAS_MIN_PASSES passes with photons: D (n_pixels, 3) and a tuple of (n_pixels, 3)
+        estimates, each too small in its own way (the image uses the largest weighted sum): the
+        spread of the passes, and for the chains also their halves.  ``scale``: the chains'
+        cumulative visible fraction."""
         n = self.recorded
         if not self.bias_correction or self.diff is None or not n or self.diff.passes < BIAS_MIN_PASSES:
             return None
+        variances = [self.diff.variance(n)]
         if is_chain and self.halves is not None:
             with np.errstate(over="ignore"):
-                var_d = self.halves * self.halves / (n * n)
-        else:
-            var_d = self.diff.variance(n)
-        var_d = scale * scale * var_d
+                variances.append(self.halves * self.halves / (n * n))
+        variances = [scale * scale * v for v in variances]
         if self.diff_scaled is not None and is_chain:
             d = self.diff_scaled / n
         else:
@@ -232,8 +237,8 @@ class Accumulator:
             if var_o is None:
                 return None
             d = d + self.outside_diff.total / self.n_uniform
-            var_d = var_d + var_o
-        return d, var_d
+            variances = [v + var_o for v in variances]
+        return d, tuple(variances)
 
 
 class _Spread:

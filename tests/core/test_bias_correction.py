@@ -61,21 +61,24 @@ def test_no_correction_before_enough_passes_and_never_a_negative_pixel():
         acc.add(Eye(500), np.zeros((500, 3)), 10, 10, 10, False)
 
 
-def chain_passes(acc, rng, truth, bias, noise, passes=40, photons=1000):
+def chain_passes(acc, rng, truth, bias, noise, passes=40, photons=1000, shared=0.0):
     """Chain passes whose error in T lasts over the passes, each half of the chains keeping its
-    own (chains whose states do not move): the passes do not spread, the halves do."""
+    own (chains whose states do not move): the passes do not spread, the halves do.  ``shared``:
+    a fresh error each pass common to both halves (as the measurement points' jitter): the
+    passes spread, the halves do not."""
     n = len(truth)
     lasting = noise * rng.normal(size=(2, n, 3))
     for _ in range(passes):
         s = photons * (truth + bias)
-        t = 0.5 * photons * (-0.75 * bias + lasting)           # T of each half
+        t = 0.5 * photons * (-0.75 * bias + lasting + shared * rng.normal(size=(n, 3)))   # T of each half
         acc.add(Eye(n), s, photons, photons, photons, True, inner_sum=s + t.sum(axis=0),
                 half_diff=t[0] - t[1])
 
 
-def test_the_chains_variance_comes_from_their_halves():
+def test_the_chains_variance_comes_from_their_halves_or_their_passes():
     """Without bias, an error that lasts over the passes keeps w near 0 (the spread of the passes
-    would see no noise and give 4/3); a bias larger than the halves' difference still gives 4/3."""
+    would see no noise and give 4/3), and so does a fresh error each pass that both halves share
+    (the halves would see none); a bias larger than the halves' difference still gives 4/3."""
     rng = np.random.default_rng(4)
     truth = rng.uniform(0.2, 1.0, (3000, 3))
     noisy = Accumulator(3000, "cumulative", bias_correction=True)
@@ -86,6 +89,11 @@ def test_the_chains_variance_comes_from_their_halves():
     chain_passes(biased, rng, truth, bias=0.2 * truth, noise=0.005)
     img = biased.image(True)[:, :3]
     assert biased.bias_weight > 1.25 and np.abs(img / truth - 1).mean() < 0.02
+    # Noise the halves share (the eye passes') is seen by the spread of the passes.
+    shared = Accumulator(3000, "cumulative", bias_correction=True)
+    chain_passes(shared, rng, truth, bias=0.0, noise=0.0, shared=0.1 * np.sqrt(40))
+    shared.image(True)
+    assert shared.bias_weight < 0.15
     with pytest.raises(ValueError, match="halves"):
         biased.add(Eye(3000), np.ones((3000, 3)), 10, 10, 10, True, inner_sum=np.ones((3000, 3)))
 
