@@ -68,7 +68,7 @@ class RenderSettings:
     photons within half its radius, and the image is A + w (B - A) of the estimates A at the
     radius and B at half of it, clamped at 0 (w = 4/3 removes a bias that grows as r^2, the
     Richardson extrapolation; w = 0 is the plain estimate).  One w for the whole image, from
-    the spread of the passes (of two halves of the Markov chains for theirs): the one that
+    the spread of the passes (for the Markov chains also of two halves of the chains): the one that
     minimises the estimated relMSE (noise of the extrapolation against the bias it removes;
     :meth:`core.integrator.Accumulator._corrected`).  Volume gathers are not corrected."""
 
