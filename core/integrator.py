@@ -207,9 +207,11 @@ class Accumulator:
         d, variances = diff
         with np.errstate(over="ignore", invalid="ignore"):
             weight = 1.0 / (rgb * rgb + 0.01)
-            noise = max(float(np.sum(weight * v)) for v in variances)
-            square = float(np.sum(weight * d * d))
-        if not (np.isfinite(noise) and np.isfinite(square)) or noise >= square:
+            sums = [float(np.sum(weight * v)) for v in variances] + [float(np.sum(weight * d * d))]
+        if not np.isfinite(sums).all():
+            return rgb
+        noise, square = max(sums[:-1]), sums[-1]
+        if noise >= square:
             return rgb
         self.bias_weight = 4.0 / 3.0 * (1.0 - noise / square)
         return np.maximum(rgb + self.bias_weight * d, 0.0)
