@@ -250,8 +250,8 @@ class _Spread:
     A pass of N_p samples has Var T_p = sigma^2 N_p, estimated over the p passes by
     (sum T_p^2 / N_p - (sum T_p)^2 / sum N_p) / (p - 1).  The passes are taken as independent.
     The Markov chains carry their states from pass to pass, so for them this underestimates the
-    variance where few fresh states come in; their recorded photons' variance comes from two
-    halves of the chains instead (``Accumulator._corrected``)."""
+    variance where few fresh states come in; for their recorded photons the image also
+    estimates it from two halves of the chains and takes the larger (``Accumulator._corrected``)."""
 
     def __init__(self, n_pixels):
         self.total = np.zeros((n_pixels, 3))        # sum of T_p
