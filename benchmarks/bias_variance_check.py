@@ -28,31 +28,20 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 
 def run_one(scene_name, method, seed, passes, workers, out_path):
     """One render in this process; saves A, D and both variance estimates of the last image."""
-    from core import RenderSettings, integrator, render
+    from bias_weight_oracle import render_parts
+    from core import RenderSettings
     from core.testing.scenes import BUILTIN
 
-    last = {}
-    original = integrator.Accumulator._corrected
-
-    def keep(acc, rgb, is_chain, scale):
-        out = original(acc, rgb, is_chain, scale)
-        diff = acc.difference(is_chain, scale)
-        if diff is not None:
-            d, variances = diff         # (the spread of the passes[, the chains' halves])
-            last.update(a=rgb.copy(), d=d, var_passes=variances[0], var_halves=variances[-1],
-                        w=acc.bias_weight)
-        return out
-
-    integrator.Accumulator._corrected = keep
     scene = BUILTIN[scene_name](resolution=(64, 48))
-    render(scene, RenderSettings(method=method, seed=seed, passes=passes, workers=workers))
-    if not last:
-        raise RuntimeError("no corrected image (fewer passes than BIAS_MIN_PASSES?)")
-    np.savez(out_path, **last)
+    a, d, variances, w, _ = render_parts(scene, RenderSettings(method=method, seed=seed, passes=passes,
+                                                                workers=workers))
+    # (the spread of the passes[, the chains' halves])
+    np.savez(out_path, a=a, d=d, var_passes=variances[0], var_halves=variances[-1], w=w)
 
 
 def main():

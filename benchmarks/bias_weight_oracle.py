@@ -23,17 +23,20 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from core import RenderSettings, render  # noqa: E402
 from core import integrator  # noqa: E402
 from core.testing.scenes import BUILTIN  # noqa: E402
+from error_vs_time import errors, reference_path  # noqa: E402
 
-REFERENCES = os.path.join(ROOT, "benchmarks", "references")
 STEPS = 25          # w = 0, 1/18, ..., 4/3
+RESOLUTION = (64, 48)
 
 
 def render_parts(scene, settings):
-    """Render; return (A, D, w of the renderer, passes) of the last image, A and D (n_pixels, 3)."""
+    """Render; return (A, D, estimates of Var D, w of the renderer, passes) of the last image:
+    A and D (n_pixels, 3) and ``Accumulator.difference``'s tuple of (n_pixels, 3) estimates."""
     last = {}
     original = integrator.Accumulator._corrected
 
@@ -49,12 +52,8 @@ def render_parts(scene, settings):
         integrator.Accumulator._corrected = original
     if last.get("diff") is None:
         raise RuntimeError("no corrected image: fewer passes than BIAS_MIN_PASSES, or the correction off")
-    return last["a"], last["diff"][0], last["w"], result.passes
-
-
-def rel_mse(image, ref, ref_var):
-    """error_vs_time's relMSE, the reference's own noise removed."""
-    return float(np.mean(((image - ref) ** 2 - ref_var) / (ref * ref + 0.01)))
+    d, variances = last["diff"]
+    return last["a"], d, variances, last["w"], result.passes
 
 
 def main():
@@ -70,21 +69,20 @@ def main():
           "| its relMSE | renderer / best |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.scenes:
-        z = np.load(os.path.join(REFERENCES, f"{name}_64x48.npz"))
-        ref = z["image"][..., :3].astype(np.float64).reshape(-1, 3)
-        ref_var = ((z["half_a"][..., :3].astype(np.float64) - z["half_b"][..., :3]) ** 2 / 4).reshape(-1, 3)
-        scene = BUILTIN[name](resolution=(64, 48))
+        z = np.load(reference_path(name, RESOLUTION))
+        ref = z["image"][..., :3].astype(np.float64)
+        ref_var = (z["half_a"][..., :3].astype(np.float64) - z["half_b"][..., :3]) ** 2 / 4
+        scene = BUILTIN[name](resolution=RESOLUTION)
         for workers in args.workers:
             for seed in range(args.seeds):
                 settings = RenderSettings(method=args.method, seed=seed, passes=0, time_limit=args.time,
                                           workers=workers)
-                a, d, w, passes = render_parts(scene, settings)
-                errors = [rel_mse(np.maximum(a + x * d, 0.0), ref, ref_var) for x in grid]
-                best = int(np.argmin(errors))
-                chosen = rel_mse(np.maximum(a + w * d, 0.0), ref, ref_var)
-                print(f"| {name} | {workers} | {seed} | {passes} | {grid[best]:.2f} | {errors[best]:.4g} "
-                      f"| {errors[0]:.4g} | {w:.2f} | {chosen:.4g} | {chosen / errors[best]:.3f} |",
-                      flush=True)
+                a, d, _, w, passes = render_parts(scene, settings)
+                images = np.maximum(a + np.append(grid, w)[:, None, None] * d, 0.0).reshape(-1, *ref.shape)
+                rel = errors(images, ref, ref_var)[3]       # corrected relMSE per image
+                best = int(np.argmin(rel[:-1]))
+                print(f"| {name} | {workers} | {seed} | {passes} | {grid[best]:.2f} | {rel[best]:.4g} "
+                      f"| {rel[0]:.4g} | {w:.2f} | {rel[-1]:.4g} | {rel[-1] / rel[best]:.3f} |", flush=True)
 
 
 if __name__ == "__main__":
