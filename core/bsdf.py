@@ -43,6 +43,10 @@ DELTA = (MIRROR, DIELECTRIC)
 # Glossy lobes with a smaller Blender roughness act as a perfect mirror.
 MIRROR_ROUGHNESS = 0.02
 MIN_ALPHA = 1e-4
+# Where an anisotropic glossy lobe's tangent comes from (``Materials.glossy_tangent``, Blender's
+# Tangent node): around the object's X, Y or Z axis through the centre of its texture space
+# (radial, from the Generated coordinates; Z is Cycles' default), or the UV map's tangents.
+TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, TANGENT_UV = 0, 1, 2, 3
 # Single-scattering GGX albedo E(mu) is tabulated per material at mu = (k / MS_NODES)^2: finer
 # towards grazing, where E changes fastest.
 MS_NODES = 32
@@ -112,7 +116,8 @@ def coat_variants(mats):
     changes["glossy_fresnel_ior"][new] = ior
     changes["glossy_fresnel_rise"][new] = 1.0 - f0[:, None]
     changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
-    for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "diffuse_layer_weight"):
+    for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "diffuse_layer_weight",
+                 "glossy_stretch"):
         changes[name][new] = 1.0
     names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique]
     return (dataclasses.replace(mats, names=names, **changes),
@@ -155,6 +160,11 @@ class MaterialTable:
     glossy_through: np.ndarray = None       # (M,) bool: camera paths go on through the glossy lobe
     rough_diffuse: np.ndarray = None        # (M, 4) float64 a, b, Eavg / (1 - Eavg), 1 - Eavg of a rough
     #                                         diffuse lobe (rough_diffuse_factor); Lambert: 1 / pi, 0, 0, 0
+    anisotropic: np.ndarray = None          # (M,) bool: the glossy lobe's alphas differ along a tangent
+    alpha_x: np.ndarray = None              # (M,) float64 its alpha along the tangent (``alpha`` where
+    alpha_y: np.ndarray = None              # isotropic) and across it; ``alpha`` is then sqrt(ax ay)
+    rotation: np.ndarray = None             # (M,) float64 the tangent's turn about the normal (turns)
+    tangent_axis: np.ndarray = None         # (M,) int32 Materials.glossy_tangent
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -213,6 +223,13 @@ class MaterialTable:
         diffuse_on = (weight[:, DIFFUSE] > 0) & (textured | (lum[:, DIFFUSE] > 0))
         glossy_on = (weight[:, GLOSSY] > 0) & ((lum[:, GLOSSY] > 0) | (smp.luminance(rise[:, GLOSSY]) > 0)
                                                | (smp.luminance(edge[:, GLOSSY]) > 0))
+        # Anisotropy: alpha times and over the stretch along and across the tangent, each in
+        # [MIN_ALPHA, 1] (Cycles saturates them); the albedo tables take sqrt(ax ay) (Cycles).
+        stretch = np.ones(m) if mats.glossy_stretch is None else np.asarray(mats.glossy_stretch, np.float64)
+        anisotropic = glossy_on & (np.abs(stretch - 1.0) > 1e-6)
+        alpha_x = np.where(anisotropic, np.clip(alpha * stretch, MIN_ALPHA, 1.0), alpha)
+        alpha_y = np.where(anisotropic, np.clip(alpha / stretch, MIN_ALPHA, 1.0), alpha)
+        alpha = np.where(anisotropic, np.sqrt(alpha_x * alpha_y), alpha)
         emission = mats.emission.astype(np.float64)
         # One quadrature per (alpha, IOR) of a Fresnel rise gives its mean S and the albedo E, which
         # the multiscatter tables then reuse.
@@ -260,7 +277,12 @@ class MaterialTable:
                              coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
                              glossy_through=glossy_on & ~diffuse_on
                              & (mats.glossy_roughness < through_roughness),
-                             rough_diffuse=_rough_diffuse_table(_or_zeros(mats.diffuse_roughness, m)))
+                             rough_diffuse=_rough_diffuse_table(_or_zeros(mats.diffuse_roughness, m)),
+                             anisotropic=anisotropic, alpha_x=alpha_x, alpha_y=alpha_y,
+                             rotation=_or_zeros(mats.glossy_rotation, m),
+                             tangent_axis=(np.full(m, TANGENT_RADIAL_Z, np.int32)
+                                           if mats.glossy_tangent is None
+                                           else np.asarray(mats.glossy_tangent, np.int32)))
 
     @property
     def lobes(self) -> int:
@@ -288,6 +310,11 @@ class MaterialTable:
         if not self.has_translucent:
             return np.zeros(len(self.weight), bool)
         return self.weight[:, TRANSLUCENT] > 0
+
+    @cached_property
+    def has_anisotropy(self) -> bool:
+        """Whether some glossy lobe is anisotropic (its points need a tangent)."""
+        return self.anisotropic is not None and bool(self.anisotropic.any())
 
     @property
     def has_normal_maps(self) -> bool:
@@ -805,7 +832,7 @@ def lobe_remainder(scores, u, lobe):
     return np.clip(r, 0.0, np.nextafter(1.0, 0.0))
 
 
-def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=None, nn=None):
+def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=None, nn=None, tangent=None):
     """Sample a new direction from the chosen ``lobe`` at n surface points.
 
     ``u1``, ``u2`` are the direction's random numbers; rough dielectrics need a third, ``u3``
@@ -814,7 +841,8 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
     ``ns is ng`` (flat shading, as :meth:`RenderContext.surface` returns it) skips the
     shading-normal correction, which is then exactly 1.  ``nn``, the normals before a normal map
     (None without normal maps), adds Cycles' bump-map terms (:func:`bump_shadowing`) for photons:
-    their light-side direction is ``wo``.
+    their light-side direction is ``wo``.  ``tangent`` (n, 3) (``Surface.tangent``) orients the
+    anisotropic glossy lobes (``MaterialTable.anisotropic``); None in scenes without them.
 
     Returns ``(wi (n, 3), weight (n, 3), alive (n,))``: ``weight`` multiplies the
     path throughput; dead paths (absorbed, sampled below the surface, no lobe)
@@ -872,8 +900,19 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             m = smp.ggx_sample_visible_normal(wo_l, alpha, u1[sel], u2[sel])
             wi_l = smp.reflect(wo_l, m)
             d = smp.to_world(wi_l, n_s)
-            ok = ok_o & (wi_l[:, 2] > 0) & (dot(d, n_g) > 0)
             ratio = smp.ggx_g2(wo_l[:, 2], wi_l[:, 2], alpha) / smp.ggx_g1(wo_l[:, 2], alpha)
+            if table.has_anisotropy:
+                a = np.flatnonzero(table.anisotropic.take(m_sel))
+                if len(a) and tangent is None:
+                    raise ValueError("scatter: anisotropic glossy lobes need tangents")
+                if len(a):
+                    # Their own frames along the tangent (rows of the local arrays in other
+                    # frames: only z and wo.m are read below).
+                    ma, sa = m_sel.take(a), sel.take(a)
+                    wo_l[a], m[a], wi_l[a], d[a], ratio[a] = _scatter_anisotropic(
+                        table.alpha_x.take(ma), table.alpha_y.take(ma), w_o.take(a, axis=0),
+                        n_s.take(a, axis=0), tangent.take(sa, axis=0), u1[sa], u2[sa])
+            ok = ok_o & (wi_l[:, 2] > 0) & (dot(d, n_g) > 0)
             # Energy compensation is a factor of the view (camera-side) direction: wi for photons.
             view_mu = wi_l[:, 2] if mode == "importance" else wo_l[:, 2]
             if table.has_fresnel:
@@ -945,6 +984,19 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
     return smp.normalize(wi), weight, alive
 
 
+def _scatter_anisotropic(alpha_x, alpha_y, wo, ns, tangent, u1, u2):
+    """Anisotropic GGX reflection about ``ns`` (k, 3) in the frames of ``tangent`` (k, 3):
+    ``(wo, m, wi)`` local (k, 3) each, ``wi`` in world (k, 3) and the weight G2 / G1."""
+    x, y = smp.tangent_frames(ns, tangent)
+    wo_l = np.stack([dot(wo, x), dot(wo, y), np.maximum(dot(wo, ns), 1e-9)], axis=1)
+    m = smp.ggx_sample_visible_normal(wo_l, alpha_x, u1, u2, alpha_y)
+    wi_l = smp.reflect(wo_l, m)
+    d = wi_l[:, :1] * x + wi_l[:, 1:2] * y + wi_l[:, 2:] * ns
+    lambda_o = smp.ggx_lambda_aniso(wo_l, alpha_x, alpha_y)
+    ratio = (1.0 + lambda_o) / (1.0 + lambda_o + smp.ggx_lambda_aniso(wi_l, alpha_x, alpha_y))
+    return wo_l, m, wi_l, d, ratio
+
+
 def bump_shadowing(nn, ns, wi):
     """Cycles' bump-map terms for a light-side direction ``wi`` at normal-mapped points.
 
@@ -1012,3 +1064,18 @@ def eval_glossy(alpha, wo, wi, ns, with_cos_h=False):
         / np.maximum(4.0 * cos_o * cos_i, 1e-12)
     f = np.where((cos_o > 0) & (cos_i > 0), f, 0.0)
     return (f, 0.5 * len_h) if with_cos_h else f
+
+
+def eval_glossy_anisotropic(alpha_x, alpha_y, wo, wi, ns, tangent):
+    """(f, wo.h): :func:`eval_glossy` of anisotropic GGX, alpha_x along ``tangent`` (k, 3)
+    projected onto the planes of ``ns`` (Cycles' ``bsdf_aniso_D`` and ``bsdf_aniso_lambda``)."""
+    x, y = smp.tangent_frames(ns, tangent)
+    cos_o, cos_i = dot(wo, ns), dot(wi, ns)
+    h = smp.normalize(wo + wi)
+    h_l = np.stack([dot(h, x), dot(h, y), dot(h, ns)], axis=1)
+    wo_l = np.stack([dot(wo, x), dot(wo, y), cos_o], axis=1)
+    wi_l = np.stack([dot(wi, x), dot(wi, y), cos_i], axis=1)
+    g2 = 1.0 / (1.0 + smp.ggx_lambda_aniso(wo_l, alpha_x, alpha_y)
+                + smp.ggx_lambda_aniso(wi_l, alpha_x, alpha_y))
+    f = smp.ggx_d_aniso(h_l, alpha_x, alpha_y) * g2 / np.maximum(4.0 * cos_o * cos_i, 1e-12)
+    return np.where((cos_o > 0) & (cos_i > 0), f, 0.0), dot(wo, h)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel, Hits, interpolate_corners
-from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TRANSLUCENT, MaterialTable, Textures,
+from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT, MaterialTable, Textures,
                    coat_variants, lobe_colors, roughness_variants)
 from .environment import Environment
 from .lights import VOLUME, LightSampler
@@ -42,6 +42,8 @@ class Surface:
     mat_ids: np.ndarray     # (n,) int32 material index
     colors: np.ndarray      # (n, L, 3) float64 lobe colours (textured diffuse albedo filled in)
     nn: np.ndarray = None   # (n, 3) float64 shading normal before normal maps; None without normal maps
+    tangent: np.ndarray = None  # (n, 3) float64 unit tangent of anisotropic glossy lobes (0 at other
+    #                             points; :meth:`RenderContext.tangents`); None in scenes without them
 
 
 class RenderContext:
@@ -154,7 +156,8 @@ class RenderContext:
         """Names of the optional effects this scene calls for, each simulated only when named
         here (its code runs behind the flag that makes it appear): specular transport (mirrors,
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
-        thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes and their layers (Fresnel
+        thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes (anisotropic ones need
+        tangents at every hit) and their layers (Fresnel
         layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
         normal and bump maps, textured emitters), lights' angular (IES) profiles, light and shadow
         linking, transparency, objects hidden from some camera rays, holdouts, volumes (the world's
@@ -165,6 +168,7 @@ class RenderContext:
                  ("glass", (w[:, DIELECTRIC] > 0).any()),
                  ("rough glass", table.has_rough_dielectric),
                  ("glossy", table.has_glossy.any()),
+                 ("anisotropic glossy", table.has_anisotropy),
                  ("translucency", table.has_translucent),
                  ("rough diffuse", table.has_rough_diffuse),
                  ("camera paths through glossy", table.has_glossy_through),
@@ -589,7 +593,63 @@ class RenderContext:
         if self.has_translucent_programs:
             for sel, color in self._program_colors(self.table.translucent_program, prim_ids, bary, pos, mat):
                 colors[sel, TRANSLUCENT] *= color
-        return Surface(pos, ng, ns, mat, colors, nn)
+        tangent = None
+        if self.table.has_anisotropy:
+            tangent = self.tangents(prim_ids, bary, pos, mat, ns if nn is None else nn, ns)
+        return Surface(pos, ng, ns, mat, colors, nn, tangent)
+
+    def tangents(self, prim_ids, bary, pos, mat, smooth, ns):
+        """(n, 3) the tangents of anisotropic glossy lobes at hits (0 where the material ``mat`` has
+        none), as Cycles' Tangent node and closure: the radial direction about an object axis
+        through the centre of the texture space (from the Generated coordinates; without
+        objects the world position) or the UV map's tangent, taken to world space as a normal
+        is, made perpendicular to the ``smooth`` normal (before normal maps), then turned about
+        the shading normal ``ns`` by the material's rotation."""
+        out = np.zeros((len(mat), 3))
+        sel = np.flatnonzero(self.table.anisotropic.take(mat))
+        if len(sel) == 0:
+            return out
+        m = mat.take(sel)
+        axis = self.table.tangent_axis.take(m)
+        w = tuple(b.take(sel, axis=0) for b in bary)
+        raw = np.zeros((len(sel), 3))
+        uv = np.flatnonzero(axis == TANGENT_UV)
+        if len(uv):
+            raw[uv] = interpolate_corners(self.scene.tangents.take(prim_ids.take(sel.take(uv)), axis=0),
+                                          tuple(b.take(uv, axis=0) for b in w))[:, :3]
+        radial = np.flatnonzero(axis != TANGENT_UV)
+        if len(radial):
+            r = sel.take(radial)
+            scene = self.scene
+            if scene.object_ids is None:
+                c = pos.take(r, axis=0) - 0.5                       # Cycles without Generated
+            else:
+                attrs = HitAttributes(scene, prim_ids.take(r), tuple(b.take(radial, axis=0) for b in w),
+                                      pos.take(r, axis=0))
+                c = attrs.get("generated") - 0.5
+            x, y, z = c[:, 0], c[:, 1], c[:, 2]
+            zero = np.zeros(len(r))
+            a = axis.take(radial)[:, None]
+            t = np.where(a == 0, np.stack([zero, -z, y], axis=1),
+                         np.where(a == 1, np.stack([-z, zero, x], axis=1), np.stack([-y, x, zero], axis=1)))
+            if scene.object_ids is not None:
+                # A normal's transform: A^T t with A the object-from-world matrix.
+                objects = scene.object_from_world.take(scene.object_ids.take(prim_ids.take(r)), axis=0)
+                t = np.einsum("kji,kj->ki", objects[:, :, :3], t)
+            raw[radial] = t
+        n = smooth.take(sel, axis=0)
+        across = np.cross(raw, n)
+        length = np.sqrt(dot(across, across))
+        t = np.cross(n, across / np.where(length > 0, length, 1.0)[:, None])
+        turn = self.table.rotation.take(m)
+        if (turn != 0).any():
+            # Rodrigues' rotation about the shading normal (Cycles' rotate_around_axis).
+            k = ns.take(sel, axis=0)
+            angle = 2.0 * np.pi * turn
+            cos, sin = np.cos(angle)[:, None], np.sin(angle)[:, None]
+            t = t * cos + np.cross(k, t) * sin + k * (dot(k, t)[:, None] * (1.0 - cos))
+        out[sel] = t
+        return out
 
     def _pick_roughness(self, mat, prim_ids, bary, pos):
         """Replace, in place, the materials ``mat`` (n,) that have a roughness map by their copy of

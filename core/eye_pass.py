@@ -40,6 +40,7 @@ class MeasurementPoints:
     base_radius: np.ndarray  # (m,) float64 r_1: initial_radius_px pixel footprints at the point
     nn: np.ndarray = None   # (m, 3) float32 shading normal before normal maps, side of ng; None without
     ns_glossy: np.ndarray = None  # (m, 3) float32 glossy lobes' normal (valid_reflection_normal); None: ns
+    tangent: np.ndarray = None    # (m, 3) float32 anisotropic glossy lobes' tangent (Surface.tangent); None
 
     @property
     def count(self) -> int:
@@ -310,7 +311,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 colors=surf.colors[:, point_lobes].take(s, axis=0).astype(f32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
-                ns_glossy=ns_glossy))
+                ns_glossy=ns_glossy,
+                tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32)))
         go = np.flatnonzero(~stop & (total > 0))
         if depth == max_bounces or len(go) == 0:
             break
@@ -327,7 +329,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         u3 = lobe_remainder(delta_scores, u_delta, lobe) if table.has_rough_dielectric else None
         prob = prob * (1.0 - p_nd[go])
         wi, weight, alive = scatter(table, surf.mat_ids[go], surf.colors[go], lobe, prob, wo[go],
-                                    surf.ng[go], surf.ns[go], u[go, 1], u[go, 2], "radiance", u3)
+                                    surf.ng[go], surf.ns[go], u[go, 1], u[go, 2], "radiance", u3,
+                                    tangent=None if surf.tangent is None else surf.tangent[go])
         keep = np.flatnonzero(alive)
         g = go[keep]
         reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0

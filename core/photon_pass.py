@@ -29,9 +29,9 @@ from functools import cached_property
 
 import numpy as np
 
-from .bsdf import (DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy, face_forward,
-                   lobe_remainder, lobe_scores, pick_coat, rough_diffuse_factor, rough_diffuse_terms,
-                   scatter)
+from .bsdf import (DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
+                   eval_glossy_anisotropic, face_forward, lobe_remainder, lobe_scores, pick_coat,
+                   rough_diffuse_factor, rough_diffuse_terms, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
@@ -116,6 +116,9 @@ class DepositTarget:
         self.any_glossy = bool(glossy.any())
         self.is_glossy = glossy
         self.alpha = table.alpha.take(points.mat_ids)
+        # Points of anisotropic glossy lobes (None: none), evaluated in their tangents' frames.
+        self.anisotropic = _some(glossy & table.anisotropic.take(points.mat_ids) if table.has_anisotropy
+                                 else None)
         # Glossy points whose colour rises with the Fresnel factor of the pair's half vector: their
         # pairs carry the whole colour, and to_pixels does not multiply by one.
         rising = glossy & table.rises[:, GLOSSY].take(points.mat_ids) if table.has_fresnel else None
@@ -275,6 +278,15 @@ class DepositTarget:
                 nsg = pts.glossy_normals.take(jg, axis=0)
                 f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
                                        nsg, with_cos_h=True)
+                if self.anisotropic is not None:
+                    a = np.flatnonzero(self.anisotropic.take(jg))
+                    if len(a):
+                        ja, mats = jg.take(a), pts.mat_ids.take(jg.take(a))
+                        f[a], cos_h[a] = eval_glossy_anisotropic(
+                            self.table.alpha_x.take(mats), self.table.alpha_y.take(mats),
+                            pts.wo.take(ja, axis=0).astype(np.float64), wi.take(g.take(a), axis=0),
+                            nsg.take(a, axis=0).astype(np.float64),
+                            pts.tangent.take(ja, axis=0).astype(np.float64))
                 if ratio is not None:
                     if pts.ns_glossy is not None:
                         # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal (0 where
@@ -460,14 +472,15 @@ class PhotonBatch:
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
 VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium",
-                 "volume")
+                 "volume", "tangent")
 
 
 def _vertex_arrays(n, lobes):
     return {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
             "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
-            "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32), "volume": np.zeros(n, bool)}
+            "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32), "volume": np.zeros(n, bool),
+            "tangent": np.zeros((n, 3))}
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
@@ -645,7 +658,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                                      ("nn", (surf.ns if surf.nn is None else surf.nn)[rows]),
                                      ("mat_ids", surf.mat_ids[rows]), ("colors", surf.colors[rows]),
                                      ("wo", wo[rows]), ("flux", flux[rows]), ("prim", prim[rows]),
-                                     ("medium", medium[rows])):
+                                     ("medium", medium[rows]),
+                                     ("tangent", 0.0 if surf.tangent is None else surf.tangent[rows])):
                         first[key][new] = val
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
@@ -669,7 +683,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 wo = np.concatenate([wo, resume["wo"][join]])
                 prim = np.concatenate([prim, resume["prim"][join]])
                 medium = np.concatenate([medium, resume["medium"][join]])
-                surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals, ctx.has_normal_maps)
+                surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals, ctx.has_normal_maps,
+                                      table.has_anisotropy)
         if bounce == max_bounces or (len(idx) == 0 and vert is None):
             continue
         if len(idx):
@@ -684,7 +699,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             lobe, prob = choose_lobe(scores, u0)
             u3 = lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric else None
             wi, weight, alive = scatter(table, mats, colors, lobe, prob, wo, surf.ng, ns,
-                                        block[:, 1], block[:, 2], "importance", u3, surf.nn)
+                                        block[:, 1], block[:, 2], "importance", u3, surf.nn, surf.tangent)
             if table.has_coat:
                 # Under a coat: its factor at the view (camera-side) direction, for photons the new one.
                 weight *= layer_scale[:, None]
@@ -787,12 +802,13 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
         u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
 
 
-def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps):
+def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps, has_anisotropy):
     """``surf`` followed by the recorded vertices ``join`` of ``resume``."""
     def cat(a, key):
         return np.concatenate([a, resume[key][join]])
     ng = cat(surf.ng, "ng")
     ns = cat(surf.ns, "ns") if has_shading_normals else ng
     nn = cat(surf.nn, "nn") if has_normal_maps else None
+    tangent = cat(surf.tangent, "tangent") if has_anisotropy else None
     return Surface(cat(surf.position, "position"), ng, ns, cat(surf.mat_ids, "mat_ids"),
-                   cat(surf.colors, "colors"), nn)
+                   cat(surf.colors, "colors"), nn, tangent)

@@ -173,13 +173,15 @@ def ggx_g2(cos_o, cos_i, alpha):
     return 1.0 / (1.0 + ggx_lambda(cos_o, alpha) + ggx_lambda(cos_i, alpha))
 
 
-def ggx_sample_visible_normal(wo_local, alpha, u1, u2):
+def ggx_sample_visible_normal(wo_local, alpha, u1, u2, alpha_y=None):
     """Sample a microfacet normal from the GGX distribution of visible normals (Heitz 2018).
 
     ``wo_local`` (n, 3) with z > 0.  The half vector's density is
-    G1(wo) max(0, wo.m) D(m) / wo.z.
+    G1(wo) max(0, wo.m) D(m) / wo.z.  With ``alpha_y`` the distribution is anisotropic:
+    ``alpha`` along the local x axis, ``alpha_y`` along y (:func:`ggx_d_aniso`).
     """
-    vh = normalize(np.stack([alpha * wo_local[:, 0], alpha * wo_local[:, 1], wo_local[:, 2]], axis=1))
+    ay = alpha if alpha_y is None else alpha_y
+    vh = normalize(np.stack([alpha * wo_local[:, 0], ay * wo_local[:, 1], wo_local[:, 2]], axis=1))
     lensq = vh[:, 0] ** 2 + vh[:, 1] ** 2
     inv = 1.0 / np.sqrt(np.where(lensq > 0, lensq, 1.0))
     t1 = np.where((lensq > 0)[:, None], np.stack([-vh[:, 1] * inv, vh[:, 0] * inv,
@@ -194,7 +196,36 @@ def ggx_sample_visible_normal(wo_local, alpha, u1, u2):
     p2 = (1.0 - s) * np.sqrt(np.maximum(0.0, 1.0 - p1 * p1)) + s * p2
     p3 = np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))
     nh = p1[:, None] * t1 + p2[:, None] * t2 + p3[:, None] * vh
-    return normalize(np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(1e-9, nh[:, 2])], axis=1))
+    return normalize(np.stack([alpha * nh[:, 0], ay * nh[:, 1], np.maximum(1e-9, nh[:, 2])], axis=1))
+
+
+def ggx_d_aniso(m_local, alpha_x, alpha_y):
+    """Anisotropic GGX D(m) for local microfacet normals (z = normal, alpha_x along x; Heitz
+    2014); :func:`ggx_d` when both alphas are equal."""
+    x, y, z = m_local[:, 0] / alpha_x, m_local[:, 1] / alpha_y, m_local[:, 2]
+    t = x * x + y * y + z * z
+    return np.where(z > 0, 1.0 / (np.pi * alpha_x * alpha_y * t * t), 0.0)
+
+
+def ggx_lambda_aniso(v_local, alpha_x, alpha_y):
+    """Smith Lambda of anisotropic GGX for local directions ``v_local`` (n, 3): the isotropic
+    one with the alpha of v's azimuth, sqrt(alpha_x^2 cos^2 phi + alpha_y^2 sin^2 phi)."""
+    z2 = np.maximum(v_local[:, 2] * v_local[:, 2], 1e-300)
+    s = ((alpha_x * v_local[:, 0]) ** 2 + (alpha_y * v_local[:, 1]) ** 2) / z2
+    return 0.5 * (np.sqrt(1.0 + s) - 1.0)
+
+
+def tangent_frames(n, t):
+    """(x, y) (n, 3) completing unit normals ``n`` with x along tangents ``t`` projected onto
+    their planes and y = n x x (Cycles' ``make_orthonormals_tangent``); where a tangent is
+    (nearly) along its normal, the frame of :func:`orthonormal_frames`."""
+    x = t - dot(t, n)[:, None] * n
+    length = np.sqrt(dot(x, x))
+    bad = length < 1e-9
+    x = x / np.where(bad, 1.0, length)[:, None]
+    if bad.any():
+        x[bad] = orthonormal_frames(n[bad])[0]
+    return x, np.cross(n, x)
 
 
 def ggx_reflection_pdf(wo_local, wi_local, alpha):

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import procedural
+from .bsdf import TANGENT_RADIAL_Z, TANGENT_UV
 
 
 class SceneError(ValueError):
@@ -96,7 +97,13 @@ class Materials:
       F82-tint model): at microfacet cosine c the lobe reflects ``glossy_color`` +
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]
       (F0 = the colour, rise = 1 - F0, dip = b of ``fresnel_f82tint_B``); either may sit beside
-      a dielectric rise (a Principled BSDF partly metallic), the parts adding up;
+      a dielectric rise (a Principled BSDF partly metallic), the parts adding up.
+      ``glossy_stretch`` s != 1 makes the lobe anisotropic (Blender's Anisotropy): alpha s along
+      a tangent and alpha / s across it (each at most 1), the tangent from ``glossy_tangent``
+      (``bsdf.TANGENT_*``: around the object's X, Y or Z axis (Z, 2, is Blender's default) from
+      the Generated coordinates, or 3, the UV map's ``Scene.tangents``) turned about the normal
+      by ``glossy_rotation`` turns.  Cycles' Glossy BSDF of Anisotropy a has s = 1 - a for
+      a >= 0 and 1 / (1 + a) below; Principled's s = 1 / sqrt(1 - 0.9 a);
     * translucent: Lambertian transmission (Blender's Translucent BSDF), colour
       ``translucent_color`` times the program ``translucent_program`` (when >= 0) at each hit:
       light that arrives on one side leaves the other side with a cosine distribution,
@@ -177,6 +184,9 @@ class Materials:
     glossy_fresnel_rise: np.ndarray = None              # (M, 3) float32; None: 0
     glossy_metal_rise: np.ndarray = None                # (M, 3) float32 >= 0; None: 0
     glossy_metal_dip: np.ndarray = None                 # (M, 3) float32, any sign; None: 0
+    glossy_stretch: np.ndarray = None                   # (M,) float32 in [0.01, 100]; None: 1 (isotropic)
+    glossy_rotation: np.ndarray = None                  # (M,) float32 turns, any sign; None: 0
+    glossy_tangent: np.ndarray = None                   # (M,) int32 bsdf.TANGENT_*; None: 2 (radial Z)
     diffuse_layer: np.ndarray = None                    # (M, 3) float32 in [0, 1]; None: 0
     diffuse_layer_weight: np.ndarray = None             # (M,) float32 in [0, 1]; None: 1
     diffuse_roughness: np.ndarray = None                # (M,) float32 in [0, 1]; None: 0 (Lambert)
@@ -227,12 +237,14 @@ class Materials:
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
-                    "volume_emission")
+                    "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
-    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy")
+    INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent",)                       # stored as int32
+    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
+                                    "glossy_rotation")
 
     @property
     def count(self) -> int:
@@ -265,6 +277,8 @@ class Materials:
         ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume, which
         ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter and
         ``volume_emission`` (0) glow (or that alone), ``holdout`` (0) a holdout share.
+        ``glossy_stretch`` (1), ``glossy_rotation`` (0) and ``glossy_tangent`` (2) make the
+        glossy lobe anisotropic.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -279,6 +293,9 @@ class Materials:
         out.glossy_fresnel_rise = np.zeros((m, 3), np.float32)
         out.glossy_metal_rise = np.zeros((m, 3), np.float32)
         out.glossy_metal_dip = np.zeros((m, 3), np.float32)
+        out.glossy_stretch = np.ones(m, np.float32)
+        out.glossy_rotation = np.zeros(m, np.float32)
+        out.glossy_tangent = np.full(m, TANGENT_RADIAL_Z, np.int32)
         out.diffuse_layer = np.zeros((m, 3), np.float32)
         out.diffuse_layer_weight = np.ones(m, np.float32)
         out.diffuse_roughness = np.zeros(m, np.float32)
@@ -350,6 +367,9 @@ class Materials:
             out.glossy_fresnel_ior[i] = s.get("glossy_fresnel_ior", 0.0)
             out.diffuse_layer_weight[i] = s.get("diffuse_layer_weight", 1.0)
             out.diffuse_roughness[i] = s.get("diffuse_roughness", 0.0)
+            out.glossy_stretch[i] = s.get("glossy_stretch", 1.0)
+            out.glossy_rotation[i] = s.get("glossy_rotation", 0.0)
+            out.glossy_tangent[i] = s.get("glossy_tangent", TANGENT_RADIAL_Z)
             for key in ("glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer"):
                 getattr(out, key)[i] = np.broadcast_to(np.asarray(s.get(key, 0.0), np.float32), (3,))
             if "ior" in s:
@@ -809,15 +829,17 @@ class Scene:
                                        ("volume_emission", (n, 3), 0.0),
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
-                                       ("diffuse_roughness", (n,), 0.0)):
+                                       ("diffuse_roughness", (n,), 0.0), ("glossy_stretch", (n,), 1.0),
+                                       ("glossy_rotation", (n,), 0.0),
+                                       ("glossy_tangent", (n,), TANGENT_RADIAL_Z)):
                 if getattr(mats, name) is None:
-                    setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INDEX_FIELDS
+                    setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INTEGER_FIELDS
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
             colour = name.endswith(("color", "emission", "multiscatter", "rise", "dip", "layer", "tint",
                                     "absorption", "scattering"))
             tail = (3,) if colour else ()
-            dtype = np.int32 if name in Materials.INDEX_FIELDS else np.float32
+            dtype = np.int32 if name in Materials.INTEGER_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
             if name not in Materials.SIGNED_FIELDS and (v < 0).any():
                 bad = int(np.flatnonzero((v < 0).reshape(nm, -1).any(axis=1))[0])
@@ -827,7 +849,8 @@ class Scene:
             fail("materials.ior must be positive")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
-                                ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf)):
+                                ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
+                                ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV)):
             v = getattr(mats, name)
             if ((v < low) | (v > high)).any():
                 bad = mats.names[int(np.argmax((v < low) | (v > high)))]
@@ -841,6 +864,10 @@ class Scene:
             fail("materials use image textures but the scene has no uvs")
         if (mats.normal_texture >= 0).any() and self.tangents is None:
             fail("materials use normal maps but the scene has no tangents")
+        uv_tangents = (mats.glossy_tangent == TANGENT_UV) & (mats.glossy_stretch != 1.0)
+        if uv_tangents.any() and self.tangents is None:
+            fail("materials take an anisotropic glossy lobe's tangent from the UV map but the scene has "
+                 "no tangents")
         self.textures = [self._texture(i, x) for i, x in enumerate(self.textures)]
         def per_corner(name, a, k):
             a = np.asarray(a)

@@ -459,11 +459,11 @@ def test_effects_name_what_the_scene_calls_for():
     specs = [{"name": n, "diffuse": mats.diffuse_color[i], "emission": mats.emission[i]}
              for i, n in enumerate(mats.names)]
     specs[0].update(dielectric=1.0, volume_absorption=0.5, coat=0.5, opacity=0.9, holdout=0.5)
-    specs[1].update(glossy=0.5, glossy_metal_rise=0.5)
+    specs[1].update(glossy=0.5, glossy_metal_rise=0.5, glossy_stretch=2.0)
     specs[2].update(translucent=0.3)
     scene = plain.replace(materials=Materials.build(specs)).validate()
     effects = RenderContext(scene).effects
     assert {"glass", "coats", "transparency", "volumes", "glossy", "holdout",
-            "metal Fresnel curves", "translucency"} <= set(effects), effects
+            "metal Fresnel curves", "translucency", "anisotropic glossy"} <= set(effects), effects
     result = render(scene, RenderSettings(passes=1, photons_per_pass=1000, workers=1))
     assert result.effects == effects and np.isfinite(result.image).all()
