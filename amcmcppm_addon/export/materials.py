@@ -40,6 +40,11 @@ the F82-tint model (base colour, edge tint; Principled uses its Specular Tint), 
 through the physical conductor's reflectance face on and at cos = 1/7 (``conductor_f82``).  A
 texture on a metal's colours makes its colour a program of the curve's mean at each point
 (``metal`` in ``core/procedural.py``), without the curve.
+Anisotropy (Glossy and Metallic Anisotropy, Principled's Anisotropic) becomes the core's
+``glossy_stretch`` (alpha s along the tangent, alpha / s across it, Cycles' alphas), with the
+Rotation and the Tangent input: unlinked, Cycles' default radial tangent about the object's Z
+axis (the scene then carries the objects' Generated coordinates), or a Tangent node (radial about
+its axis, or its UV map's tangents); anything else there is noted.
 The Diffuse BSDF's Roughness and Principled's Diffuse Roughness become the core's rough diffuse
 (``diffuse_roughness``, Cycles' Oren-Nayar); a Mix weighs them by the diffuse weights.
 Glossy, Metallic and Principled nodes set to Multiscatter GGX (Blender's default) get the
@@ -70,7 +75,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import procedural
-from ...core.bsdf import metal_curve, metal_fresnel
+from ...core.bsdf import (TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, TANGENT_UV, metal_curve,
+                          metal_fresnel)
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import dielectric_f0, mean_fresnel
 from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials
@@ -79,6 +85,7 @@ from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
 LOBES = ("diffuse", "glossy", "mirror", "dielectric", "translucent")
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
 GREY = np.full(3, 0.8)                         # Cycles' default surface colour
+TANGENT_DEFAULT = (TANGENT_RADIAL_Z, None)     # an unlinked Tangent input (Cycles' default Tangent node)
 MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing image
 MAX_ANISOTROPY = 0.99                           # |g| of volumes' phase functions (volume_anisotropy)
 # Principled Volume's blackbody emission per T^4 (Cycles: the Stefan-Boltzmann constant 5.670373e-8
@@ -95,6 +102,9 @@ class Closure:
     roughness: float = 0.5          # glossy roughness (Blender's; its mean where it varies)
     diffuse_roughness: float = 0.0  # diffuse roughness (Oren-Nayar; its mean where it varies)
     roughness_texture: dict = None  # float program of the glossy roughness where it varies (a map)
+    stretch: float = 1.0            # glossy anisotropy: alpha x s along the tangent, alpha / s across
+    rotation: float = 0.0           # the tangent's turn about the normal (turns)
+    tangent: tuple = TANGENT_DEFAULT  # (core.bsdf.TANGENT_*, UV map name or None) of the tangent
     ior: float = 1.5                # dielectric index of refraction
     dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) (mean) radiance
@@ -150,6 +160,13 @@ class Closure:
                       holdout=fa * self.holdout + fb * other.holdout,
                       hidden_rays=self.hidden_rays & other.hidden_rays)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
+        # Anisotropy: the stretch's geometric mean by the glossy weights, the tangent and its
+        # rotation of the first anisotropic side (as the roughness, one lobe per material).
+        out.stretch = float(np.exp(_weighted(np.log(self.stretch), np.log(other.stretch), wa[GLOSSY],
+                                             wb[GLOSSY])))
+        turned = [c for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0 and c.anisotropic]
+        if turned:
+            out.rotation, out.tangent = turned[0].rotation, turned[0].tangent
         out.diffuse_roughness = _weighted(self.diffuse_roughness, other.diffuse_roughness, wa[DIFFUSE],
                                           wb[DIFFUSE])
         if self.roughness_texture is not None or other.roughness_texture is not None:
@@ -188,6 +205,10 @@ class Closure:
         out.translucent_texture = self._mixed_lobe_program(other, wa, wb, TRANSLUCENT, "translucent_texture")
         out.opacity_texture = self._mixed_opacity(other, fa, fb, fac)
         return out
+
+    @property
+    def anisotropic(self) -> bool:
+        return abs(self.stretch - 1.0) > 1e-6
 
     def opacity_term(self):
         """The opacity: a number or a float program."""
@@ -310,7 +331,7 @@ class Closure:
         other_lobes = [k for k in range(len(LOBES)) if k != DIFFUSE and (rise or k != GLOSSY)]
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
-                and np.isclose(self.roughness, other.roughness)
+                and np.isclose(self.roughness, other.roughness) and np.isclose(self.stretch, other.stretch)
                 and np.isclose(self.ior, other.ior))
 
     def _transparency(self) -> dict:
@@ -382,6 +403,11 @@ class Closure:
             s["glossy"] = np.ones(3)
         if self.roughness_texture is not None and self.weight[GLOSSY] > 0:
             s["roughness_program"] = self.roughness_texture
+        if self.anisotropic and self.weight[GLOSSY] > 0:
+            s.update(glossy_stretch=float(np.clip(self.stretch, 0.01, 100.0)), glossy_rotation=self.rotation,
+                     glossy_tangent=self.tangent[0])
+            if self.tangent[0] == TANGENT_UV:
+                s["tangent_uv_map"] = self.tangent[1]
         if self.emission_texture is not None and self.emission.any():
             # The core multiplies the emission by the program: scaled to a mean near 1.
             scale = float(self.emission.max())
@@ -702,19 +728,26 @@ class MaterialExporter:
                    or "bump_texture" in self._specs[i] for i in ids) or "uv" in self.coordinates_used(ids)
 
     def coordinates_used(self, ids) -> set:
-        """Names of the data (``procedural.ATTRIBUTES``) the procedural colours of ``ids`` read."""
+        """Names of the data (``procedural.ATTRIBUTES``) the procedural colours of ``ids`` read
+        (and "generated" for an anisotropic glossy lobe's radial tangent)."""
         used = set()
         for i in ids:
             for key in Materials.PROGRAM_FIELDS:
                 if key in self._specs[i]:
                     used |= procedural.attributes_used(self._specs[i][key])
+            if self._specs[i].get("glossy_tangent", TANGENT_UV) != TANGENT_UV:
+                used.add("generated")
         return used
 
-    def normal_map_uv(self, ids):
-        """The UV map name ('' = the active render map) of the first of ``ids`` with a normal map,
-        or None when none has one."""
-        specs = (self._specs[i] for i in ids)
-        return next((s["normal_uv_map"] for s in specs if "normal_texture" in s), None)
+    def tangent_uv(self, ids):
+        """The UV map name ('' = the active render map) of the first of ``ids`` that needs the UV
+        map's tangents (a normal map, an anisotropic glossy lobe oriented by them), or None."""
+        for s in (self._specs[i] for i in ids):
+            if "normal_texture" in s:
+                return s["normal_uv_map"]
+            if "tangent_uv_map" in s:
+                return s["tangent_uv_map"]
+        return None
 
     def build(self) -> Materials:
         return Materials.build(self._specs)
@@ -1085,6 +1118,13 @@ class NodeWalker:
         c = Closure.lobe(GLOSSY, 1.0, color, roughness=rough)
         c.glossy_texture = program
         c.roughness_texture = rough_map
+        # Cycles' Glossy and Metallic anisotropy a in [-0.99, 0.99]: alpha (1 - a) along the
+        # tangent and alpha / (1 - a) across it, or alpha / (1 + a) and alpha (1 + a) below 0.
+        a = float(np.clip(self.value(node.inputs["Anisotropy"], stack), -0.99, 0.99))
+        if abs(a) > 1e-4:
+            c.stretch = 1.0 - a if a >= 0 else 1.0 / (1.0 + a)
+            c.rotation = self.value(node.inputs["Rotation"], stack)
+            c.tangent = self.tangent(node.inputs["Tangent"], stack)
         if node.distribution == "MULTI_GGX":
             c.multiscatter = c.color[GLOSSY] * color
         return c
@@ -1113,6 +1153,22 @@ class NodeWalker:
         if node.distribution == "MULTI_GGX":
             c.multiscatter = f0 * mean
         return c
+
+    def tangent(self, sock, stack):
+        """(core.bsdf.TANGENT_*, UV map name or None) of a BSDF's Tangent input: Blender's Tangent
+        node (radial about an axis, or a UV map's tangents) or, unlinked, Cycles' default (radial
+        about Z); anything else is noted and takes the default."""
+        src, _, stack = self.source(sock, stack)
+        if src is None:
+            return TANGENT_DEFAULT
+        node = src.node
+        if node.bl_idname != "ShaderNodeTangent" or node.mute:
+            self.note(f"'{node.name}' on a Tangent input is not supported (the radial tangent about "
+                      "the object's Z axis is used, Cycles' default)")
+            return TANGENT_DEFAULT
+        if node.direction_type == "UV_MAP":
+            return TANGENT_UV, node.uv_map
+        return {"X": TANGENT_RADIAL_X, "Y": TANGENT_RADIAL_Y}.get(node.axis, TANGENT_RADIAL_Z), None
 
     def roughness(self, sock, stack):
         """(mean roughness in [0, 1], float program or None) of a glossy Roughness input: a texture
@@ -1221,6 +1277,7 @@ class NodeWalker:
         if coat > 0 and inp["Coat Normal"].is_linked:
             self.note(f"'{node.name}': Coat Normal not supported (the coat takes the surface's normal "
                       "before normal and bump maps, Cycles' default)")
+        aniso = float(np.clip(self.value(inp["Anisotropic"], stack), 0.0, 1.0))
         ignored = [label for label, socket in PRINCIPLED_IGNORED
                    if socket in inp and self.value(inp[socket], stack) > 0.0]
         if ignored:
@@ -1234,6 +1291,12 @@ class NodeWalker:
                     emission_texture=emitted.emission_texture, dielectric_roughness=rough,
                     roughness_texture=rough_map,
                     diffuse_roughness=float(np.clip(self.value(inp["Diffuse Roughness"], stack), 0.0, 1.0)))
+        if aniso > 0:
+            # Cycles: alpha / aspect along the tangent and alpha aspect across it, aspect =
+            # sqrt(1 - 0.9 a), for the metal and the specular layer (its glass stays isotropic).
+            c.stretch = 1.0 / np.sqrt(1.0 - 0.9 * aniso)
+            c.rotation = self.value(inp["Anisotropic Rotation"], stack)
+            c.tangent = self.tangent(inp["Tangent"], stack)
         if coat > 0:
             # Cycles: roughness and tint saturated, the IOR at least 1.
             c.coat = coat
@@ -1294,8 +1357,7 @@ FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")
 
 # Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
 PRINCIPLED_IGNORED = (("Subsurface", "Subsurface Weight"),
-                      ("Sheen", "Sheen Weight"), ("Anisotropic", "Anisotropic"),
-                      ("Thin Film", "Thin Film Thickness"))
+                      ("Sheen", "Sheen Weight"), ("Thin Film", "Thin Film Thickness"))
 
 SHADERS = {
     "ShaderNodeBsdfPrincipled": NodeWalker._principled,

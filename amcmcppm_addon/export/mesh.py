@@ -124,12 +124,12 @@ class GeometryCollector:
             mat_ids = tuple(materials.material_id(m) for m in (slots or local.mesh_materials))
             if not mat_ids:
                 mat_ids = (materials.default_id(),)
-        uv_map = materials.normal_map_uv(mat_ids)
+        uv_map = materials.tangent_uv(mat_ids)
         tangents = uv_map is not None and not local.tangents_read and local.uvs is not None
         colors = "color" in materials.coordinates_used(mat_ids) and not local.colors_read
         if tangents and uv_map and uv_map != local.uv_map:
-            self.log.warning(f"object '{ob.name}': its normal map uses UV map '{uv_map}'; the "
-                             f"active render UV map '{local.uv_map}' is used instead")
+            self.log.warning(f"object '{ob.name}': its normal map or anisotropic tangent uses UV map "
+                             f"'{uv_map}'; the active render UV map '{local.uv_map}' is used instead")
         if tangents or colors:
             # Read again with what the materials need (each only when some material needs it).
             local = read_object_mesh(ob, self.log, tangents=tangents or local.tangents_read,
@@ -390,7 +390,7 @@ def assemble(meshes, groups, materials) -> Geometry:
                               else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
     objects = {name: np.concatenate([p[name] for p in parts])
                for name in ("object_ids", "object_from_world", "texture_spaces") if name in parts[0]}
-    if materials.normal_map_uv(used) is not None:
+    if materials.tangent_uv(used) is not None:
         # Zero tangents (meshes without UVs or a tangent frame) keep the unbent normal, as in Cycles.
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
                                    else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])

@@ -897,9 +897,10 @@ def test_principled_mapping(scene):
 
 
 def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
-    _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Anisotropic": 0.5}))
+    _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Thin Film Thickness": 100.0,
+                                                   "Anisotropic": 0.5}))
     warnings = [w for w in ex.warnings if "'Paint'" in w]
-    assert len(warnings) == 1 and "Sheen, Anisotropic not supported" in warnings[0], ex.warnings
+    assert len(warnings) == 1 and "Sheen, Thin Film not supported" in warnings[0], ex.warnings
     _, ex = export_material(principled("Plain"))
     assert not [w for w in ex.warnings if "'Plain'" in w]
 
@@ -1813,3 +1814,55 @@ def test_light_ray_visibility_and_soft_falloff(scene):
     ob.data.use_soft_falloff = False
     row = light_row(bs.export().scene)
     assert row["visibility"] == VISIBLE_CAMERA | VISIBLE_TRANSMISSION and not row["soft_falloff"]
+
+
+def _glossy_with_tangent(name, tangent_node=None, **inputs):
+    """A Glossy BSDF material with ``inputs``; ``tangent_node`` (bl_idname, attributes) feeds its
+    Tangent input."""
+    mat = bs._material(name, "ShaderNodeBsdfAnisotropic", **inputs)
+    if tangent_node is not None:
+        kind, attrs = tangent_node
+        nt = mat.node_tree
+        node = nt.nodes.new(kind)
+        for key, value in attrs.items():
+            setattr(node, key, value)
+        bsdf_node = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfAnisotropic")
+        nt.links.new(node.outputs[0], bsdf_node.inputs["Tangent"])
+    return mat
+
+
+def test_anisotropy_reaches_the_core_with_cycles_alphas_and_tangents(scene):
+    """Glossy and Metallic Anisotropy a: stretch 1 - a (a >= 0) or 1 / (1 + a) (Cycles: alpha_x =
+    alpha (1 - a), alpha_y = alpha / (1 - a)); Principled's Anisotropic a: 1 / sqrt(1 - 0.9 a)
+    (alpha / aspect, alpha aspect); their rotations in turns.  Unlinked, the tangent is radial
+    about Z and the scene carries the objects' Generated coordinates; a Tangent node gives its
+    axis or the UV map (the scene then has the UV map's tangents); anything else is noted."""
+    from core.bsdf import TANGENT_RADIAL_X, TANGENT_RADIAL_Z, TANGENT_UV
+    row, ex = export_material(bs._material("Brushed", "ShaderNodeBsdfAnisotropic", Anisotropy=0.5,
+                                           Rotation=0.125))
+    assert row["glossy_stretch"] == pytest.approx(0.5) and row["glossy_rotation"] == pytest.approx(0.125)
+    assert row["glossy_tangent"] == TANGENT_RADIAL_Z and ex.scene.object_ids is not None
+    row, _ = export_material(bs._material("Across", "ShaderNodeBsdfAnisotropic", Anisotropy=-0.5))
+    assert row["glossy_stretch"] == pytest.approx(2.0)
+    row, _ = export_material(bs._material("Steel", "ShaderNodeBsdfMetallic", Anisotropy=0.3))
+    assert row["glossy_stretch"] == pytest.approx(0.7)
+    row, _ = export_material(principled("Pan", **{"Metallic": 1.0, "Anisotropic": 0.6,
+                                                  "Anisotropic Rotation": 0.3}))
+    assert row["glossy_stretch"] == pytest.approx(1.0 / math.sqrt(1.0 - 0.54), rel=1e-6)
+    assert row["glossy_rotation"] == pytest.approx(0.3)
+    row, _ = export_material(principled("Isotropic", Metallic=1.0))
+    assert row["glossy_stretch"] == 1.0
+    row, _ = export_material(_glossy_with_tangent("AxisX", ("ShaderNodeTangent", {"axis": "X"}),
+                                                  Anisotropy=0.4))
+    assert row["glossy_tangent"] == TANGENT_RADIAL_X
+    row, ex = export_material(_glossy_with_tangent("Noted", ("ShaderNodeCombineXYZ", {}), Anisotropy=0.4))
+    assert row["glossy_tangent"] == TANGENT_RADIAL_Z
+    assert any("'Noted'" in w and "Tangent input is not supported" in w for w in ex.warnings), ex.warnings
+    mat = _glossy_with_tangent("ByUV", ("ShaderNodeTangent", {"direction_type": "UV_MAP"}), Anisotropy=0.4)
+    ob = bs.plane("Plane", material=mat)
+    ob.data.uv_layers.new(name="UVMap")
+    bs.camera()
+    ex = bs.export()
+    row = material_row(ex.scene, "ByUV")
+    assert row["glossy_tangent"] == TANGENT_UV and ex.scene.tangents is not None
+    assert np.abs(ex.scene.tangents[..., :3]).sum() > 0
