@@ -14,6 +14,9 @@ load (median and range over rounds):
 * ``metal``: a gold-like metal of roughness 0.5 coloured by its F82 curve's mean (how metals were
   exported before their curve: ``bsdf.metal_fresnel``);
 * ``metal_curve``: the same metal with its curve by angle (``glossy_metal_rise`` and ``_dip``);
+* ``metal_brushed``: that metal anisotropic (``glossy_stretch`` 3, Blender's default radial
+  tangent from the Generated coordinates of one object around the scene): a tangent at every
+  hit, the anisotropic sampler and the anisotropic deposit kernel;
 * ``translucent``: half of the diffuse colour reflected, half let through (a Mix of a Diffuse
   and a Translucent BSDF by 0.5 of one colour): a fifth lobe, photons that scatter through the
   surface, and a second grid query for every photon that lands on it (the points on its other
@@ -25,7 +28,7 @@ load (median and range over rounds):
 
 ``translucent / diffuse`` is the price of translucency everywhere, ``translucent_one / diffuse`` on
 one wall, ``rough_diffuse / diffuse`` that of diffuse roughness; ``metal_curve / metal`` is the
-price of the curve (a colour per deposit pair and per sample); ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
+price of the curve and ``metal_brushed / metal_curve`` that of anisotropy (a colour per deposit pair and per sample); ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
 pair, layer factor per diffuse sample and per point); ``constant / diffuse`` that of a glossy
 lobe at all.
 
@@ -51,13 +54,13 @@ sys.path.insert(0, ROOT)
 
 from core import sampling as smp  # noqa: E402
 from core.bsdf import eval_glossy, metal_curve, metal_fresnel  # noqa: E402
-from core.testing.scenes import BUILTIN  # noqa: E402
+from core.testing.scenes import BUILTIN, with_one_object  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from ab_photon_pass import interleaved_rates, photon_pass  # noqa: E402
 
-VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve", "translucent", "translucent_one",
-            "rough_diffuse")
+VARIANTS = ("diffuse", "constant", "layered", "metal", "metal_curve", "metal_brushed", "translucent",
+            "translucent_one", "rough_diffuse")
 GOLD, GOLD_TINT = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.8, 0.6])
 
 
@@ -82,9 +85,13 @@ def with_base(scene, variant):
         m.glossy_weight[on] = 1.0
         m.glossy_color[on] = metal_fresnel(GOLD, GOLD_TINT) if variant == "metal" else f0
         m.glossy_multiscatter[on] = metal_fresnel(GOLD, GOLD_TINT)
-        if variant == "metal_curve":
+        if variant != "metal":
             m.glossy_metal_rise[on] = rise
             m.glossy_metal_dip[on] = dip
+        if variant == "metal_brushed":
+            m.glossy_stretch[on] = 3.0
+            lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+            scene = with_one_object(scene, (0.5 * (lo + hi), 0.5 * (hi - lo)))
     elif variant == "constant":
         m.diffuse_weight[on] = 0.908
         m.glossy_weight[on] = 0.092
@@ -139,7 +146,8 @@ def main():
     for v in VARIANTS:
         print(f"  {v:15s} {np.median(rates[v]) / 1e3:8.1f} k vertices/s")
     for num, den in (("layered", "constant"), ("constant", "diffuse"), ("layered", "diffuse"),
-                     ("metal_curve", "metal"), ("translucent", "diffuse"), ("translucent_one", "diffuse"),
+                     ("metal_curve", "metal"), ("metal_brushed", "metal_curve"), ("translucent", "diffuse"),
+                     ("translucent_one", "diffuse"),
                      ("rough_diffuse", "diffuse")):
         r = np.array(rates[num]) / np.array(rates[den])
         print(f"  {num} / {den}: {np.median(r):.3f} ({r.min():.3f}-{r.max():.3f})")
