@@ -1069,13 +1069,25 @@ def eval_glossy(alpha, wo, wi, ns, with_cos_h=False):
 def eval_glossy_anisotropic(alpha_x, alpha_y, wo, wi, ns, tangent):
     """(f, wo.h): :func:`eval_glossy` of anisotropic GGX, alpha_x along ``tangent`` (k, 3)
     projected onto the planes of ``ns`` (Cycles' ``bsdf_aniso_D`` and ``bsdf_aniso_lambda``)."""
-    x, y = smp.tangent_frames(ns, tangent)
-    cos_o, cos_i = dot(wo, ns), dot(wi, ns)
-    h = smp.normalize(wo + wi)
-    h_l = np.stack([dot(h, x), dot(h, y), dot(h, ns)], axis=1)
-    wo_l = np.stack([dot(wo, x), dot(wo, y), cos_o], axis=1)
-    wi_l = np.stack([dot(wi, x), dot(wi, y), cos_i], axis=1)
-    g2 = 1.0 / (1.0 + smp.ggx_lambda_aniso(wo_l, alpha_x, alpha_y)
-                + smp.ggx_lambda_aniso(wi_l, alpha_x, alpha_y))
-    f = smp.ggx_d_aniso(h_l, alpha_x, alpha_y) * g2 / np.maximum(4.0 * cos_o * cos_i, 1e-12)
-    return np.where((cos_o > 0) & (cos_i > 0), f, 0.0), dot(wo, h)
+    x, _ = smp.tangent_frames(ns, tangent)
+    return glossy_anisotropic_value(alpha_x, alpha_y, dot(wo, ns), dot(wi, ns), dot(wo, wi), dot(wo, x),
+                                    dot(wi, x))
+
+
+def glossy_anisotropic_value(alpha_x, alpha_y, cos_o, cos_i, cos_oi, wo_x, wi_x):
+    """(f, wo.h) of anisotropic GGX from cosines of unit directions: wo and wi with the normal
+    (``cos_o``, ``cos_i``), with each other and with the unit tangent x in the normal's plane.
+    Frame-free as :func:`eval_glossy`: a direction's component along y = n x x squared is
+    1 - (its z)^2 - (its x)^2, and the half vector's components are the sums over |wo + wi|."""
+    len_h = np.sqrt(np.maximum(2.0 + 2.0 * cos_oi, 1e-24))
+    h_n, h_x = (cos_o + cos_i) / len_h, (wo_x + wi_x) / len_h
+    h_y2 = np.maximum(1.0 - h_n * h_n - h_x * h_x, 0.0)
+    t = h_x * h_x / (alpha_x * alpha_x) + h_y2 / (alpha_y * alpha_y) + h_n * h_n
+    d = np.where(h_n > 0, 1.0 / (np.pi * alpha_x * alpha_y * t * t), 0.0)
+
+    def lam(c, v_x):
+        c2 = np.maximum(c * c, 1e-300)
+        s = (alpha_x * alpha_x * v_x * v_x + alpha_y * alpha_y * np.maximum(1.0 - c * c - v_x * v_x, 0.0)) / c2
+        return 0.5 * (np.sqrt(1.0 + s) - 1.0)
+    f = d / (1.0 + lam(cos_o, wo_x) + lam(cos_i, wi_x)) / np.maximum(4.0 * cos_o * cos_i, 1e-12)
+    return np.where((cos_o > 0) & (cos_i > 0), f, 0.0), 0.5 * len_h

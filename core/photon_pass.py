@@ -30,13 +30,13 @@ from functools import cached_property
 import numpy as np
 
 from .bsdf import (DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
-                   eval_glossy_anisotropic, face_forward, lobe_remainder, lobe_scores, pick_coat,
+                   face_forward, glossy_anisotropic_value, lobe_remainder, lobe_scores, pick_coat,
                    rough_diffuse_factor, rough_diffuse_terms, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
-from .sampling import dot, hg_phase, luminance, sample_hg
+from .sampling import dot, hg_phase, luminance, sample_hg, tangent_frames
 from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
 
@@ -119,6 +119,17 @@ class DepositTarget:
         # Points of anisotropic glossy lobes (None: none), evaluated in their tangents' frames.
         self.anisotropic = _some(glossy & table.anisotropic.take(points.mat_ids) if table.has_anisotropy
                                  else None)
+        if self.anisotropic is not None:
+            # Per point: the alphas, the tangent in the glossy normal's plane (x) and wo . x.
+            a = np.flatnonzero(self.anisotropic)
+            mats = points.mat_ids.take(a)
+            self._alpha_x, self._alpha_y = np.zeros(points.count), np.zeros(points.count)
+            self._alpha_x[a], self._alpha_y[a] = table.alpha_x.take(mats), table.alpha_y.take(mats)
+            x, _ = tangent_frames(points.glossy_normals.take(a, axis=0).astype(np.float64),
+                                  points.tangent.take(a, axis=0).astype(np.float64))
+            self._x = np.zeros((points.count, 3))
+            self._x[a] = x
+            self._wo_x = dot(points.wo.astype(np.float64), self._x)
         # Glossy points whose colour rises with the Fresnel factor of the pair's half vector: their
         # pairs carry the whole colour, and to_pixels does not multiply by one.
         rising = glossy & table.rises[:, GLOSSY].take(points.mat_ids) if table.has_fresnel else None
@@ -136,6 +147,26 @@ class DepositTarget:
         either = table.has_translucent or table.has_rough_diffuse
         self.coloured = _some((table.translucent | table.is_rough_diffuse).take(points.mat_ids) if either
                               else None)
+
+    def _glossy_mixed(self, jg, g, wi, nsg):
+        """(f, wo.h) of the glossy pairs ``g`` (points ``jg``, glossy normals ``nsg``) where some
+        points' lobes are anisotropic (:func:`~core.bsdf.glossy_anisotropic_value`, per-point
+        parts precomputed)."""
+        f, cos_h = np.zeros(len(g)), np.zeros(len(g))
+        aniso = self.anisotropic.take(jg)
+        wo = self.points.wo
+        for sel, is_aniso in ((np.flatnonzero(~aniso), False), (np.flatnonzero(aniso), True)):
+            if len(sel) == 0:
+                continue
+            js, wi_s, n_s = jg.take(sel), wi.take(g.take(sel), axis=0), nsg.take(sel, axis=0)
+            wo_s = wo.take(js, axis=0)
+            if is_aniso:
+                f[sel], cos_h[sel] = glossy_anisotropic_value(
+                    self._alpha_x.take(js), self._alpha_y.take(js), dot(wo_s, n_s), dot(wi_s, n_s),
+                    dot(wo_s, wi_s), self._wo_x.take(js), dot(wi_s, self._x.take(js, axis=0)))
+            else:
+                f[sel], cos_h[sel] = eval_glossy(self.alpha.take(js), wo_s, wi_s, n_s, with_cos_h=True)
+        return f, cos_h
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""
@@ -276,17 +307,11 @@ class DepositTarget:
             if len(g):
                 jg = j.take(g)
                 nsg = pts.glossy_normals.take(jg, axis=0)
-                f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
-                                       nsg, with_cos_h=True)
-                if self.anisotropic is not None:
-                    a = np.flatnonzero(self.anisotropic.take(jg))
-                    if len(a):
-                        ja, mats = jg.take(a), pts.mat_ids.take(jg.take(a))
-                        f[a], cos_h[a] = eval_glossy_anisotropic(
-                            self.table.alpha_x.take(mats), self.table.alpha_y.take(mats),
-                            pts.wo.take(ja, axis=0).astype(np.float64), wi.take(g.take(a), axis=0),
-                            nsg.take(a, axis=0).astype(np.float64),
-                            pts.tangent.take(ja, axis=0).astype(np.float64))
+                if self.anisotropic is None:
+                    f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
+                                           nsg, with_cos_h=True)
+                else:
+                    f, cos_h = self._glossy_mixed(jg, g, wi, nsg)
                 if ratio is not None:
                     if pts.ns_glossy is not None:
                         # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal (0 where
