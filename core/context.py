@@ -604,7 +604,9 @@ class RenderContext:
         through the centre of the texture space (from the Generated coordinates; without
         objects the world position) or the UV map's tangent, taken to world space as a normal
         is, made perpendicular to the ``smooth`` normal (before normal maps), then turned about
-        the shading normal ``ns`` by the material's rotation."""
+        the shading normal ``ns`` by the material's rotation (about the front side's normal: Cycles
+        turns about the normal facing the ray, which on a back face turns the other way; a
+        quarter or half turn gives the same lobe either way)."""
         out = np.zeros((len(mat), 3))
         sel = np.flatnonzero(self.table.anisotropic.take(mat))
         if len(sel) == 0:
