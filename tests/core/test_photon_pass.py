@@ -4,7 +4,7 @@ import numpy as np
 from core.context import RenderContext
 from core.eye_pass import trace_eye_pass
 from core.photon_pass import DepositTarget, PointSums, bounce_offset, path_dims, trace_photons
-from core.testing.scenes import glass_ceiling_room, hole_mirror_glass
+from core.testing.scenes import cornell_box, glass_ceiling_room, hole_mirror_glass, with_one_object
 
 
 def setup(scene):
@@ -34,8 +34,21 @@ def test_the_same_sample_gives_the_same_path():
     assert pair_set(a) == pair_set(b)
 
 
+def brushed_cornell_box(resolution):
+    """The Cornell box with its diffuse walls half an anisotropic glossy (radial tangents about
+    the box's vertical axis): a resumed path scatters from its first visible vertex in that
+    vertex's recorded tangent frame."""
+    scene = cornell_box(resolution)
+    m = scene.materials
+    on = (m.diffuse_weight > 0) & ~(m.emission > 0).any(axis=1)
+    m.diffuse_weight[on] *= 0.5
+    m.glossy_weight[on], m.glossy_color[on], m.glossy_roughness[on], m.glossy_stretch[on] = 0.5, 0.8, 0.4, 3.0
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    return with_one_object(scene, (0.5 * (lo + hi), 0.5 * (hi - lo))).validate()
+
+
 def test_resuming_at_the_first_visible_vertex_reproduces_the_suffix():
-    for scene in (glass_ceiling_room((24, 18)), hole_mirror_glass((24, 18))):
+    for scene in (glass_ceiling_room((24, 18)), hole_mirror_glass((24, 18)), brushed_cornell_box((24, 18))):
         ctx, target = setup(scene)
         rng = np.random.default_rng(2)
         u = rng.random((20000, path_dims(8)))
