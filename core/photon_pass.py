@@ -120,16 +120,19 @@ class DepositTarget:
         self.anisotropic = _some(glossy & table.anisotropic.take(points.mat_ids) if table.has_anisotropy
                                  else None)
         if self.anisotropic is not None:
-            # Per point: the alphas, the tangent in the glossy normal's plane (x) and wo . x.
+            # Per point: the alphas, the tangent in the glossy normal's plane (x) and wo . x
+            # (float32 as the points: 24 bytes a point in scenes with anisotropy).
             a = np.flatnonzero(self.anisotropic)
             mats = points.mat_ids.take(a)
-            self._alpha_x, self._alpha_y = np.zeros(points.count), np.zeros(points.count)
+            self._alpha_x = np.zeros(points.count, np.float32)
+            self._alpha_y = np.zeros(points.count, np.float32)
             self._alpha_x[a], self._alpha_y[a] = table.alpha_x.take(mats), table.alpha_y.take(mats)
             x, _ = tangent_frames(points.glossy_normals.take(a, axis=0).astype(np.float64),
                                   points.tangent.take(a, axis=0).astype(np.float64))
-            self._x = np.zeros((points.count, 3))
+            self._x = np.zeros((points.count, 3), np.float32)
             self._x[a] = x
-            self._wo_x = dot(points.wo.astype(np.float64), self._x)
+            self._wo_x = np.zeros(points.count, np.float32)
+            self._wo_x[a] = dot(points.wo.take(a, axis=0).astype(np.float64), x)
         # Glossy points whose colour rises with the Fresnel factor of the pair's half vector: their
         # pairs carry the whole colour, and to_pixels does not multiply by one.
         rising = glossy & table.rises[:, GLOSSY].take(points.mat_ids) if table.has_fresnel else None
