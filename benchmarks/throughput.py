@@ -121,14 +121,19 @@ def render_rate(scene, **kw):
     return paths / t, vertices / t
 
 
-def peak_memory(resolution, timeout=900):
-    """Peak RSS (MiB) of a default-settings render at ``resolution`` in a fresh process."""
+def peak_memory(resolution, timeout=900, base=None):
+    """Peak RSS (MiB) of a default-settings render at ``resolution`` in a fresh process; ``base``:
+    a variant of ``layer_cost.with_base`` for the diffuse materials (e.g. "metal_brushed")."""
     code = f"""
 import resource, sys, json
 sys.path.insert(0, {ROOT!r})
+sys.path.insert(0, {os.path.join(ROOT, "benchmarks")!r})
 from core import render, RenderSettings
 from core.testing.scenes import cornell_box
+from layer_cost import with_base
 scene = cornell_box({tuple(resolution)!r})
+if {base!r} is not None:
+    scene = with_base(scene, {base!r})
 r = render(scene, RenderSettings(passes=2))
 print(json.dumps({{"main": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                   "worker": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
@@ -188,6 +193,9 @@ def main():
     ap.add_argument("--photons-per-pass", type=int, default=RenderSettings().photons_per_pass,
                     help="photons per pass and worker of the render-rate runs (default: automatic)")
     ap.add_argument("--skip-memory", action="store_true")
+    ap.add_argument("--memory-base", default=None,
+                    help="the 1080p memory with the diffuse materials made this layer_cost.py variant "
+                         "(e.g. metal_brushed)")
     ap.add_argument("--skip-renders", action="store_true", help="only the photon-pass figures 1 and 2")
     ap.add_argument("--json", help="also write the figures to this JSON file")
     a = ap.parse_args()
@@ -211,7 +219,7 @@ def main():
     if not a.skip_renders:
         render_ratios(scene, a, out)
     if not (a.skip_memory or a.skip_renders):
-        mem = peak_memory((1920, 1080))
+        mem = peak_memory((1920, 1080), base=a.memory_base)
         out["peak_memory_1080p_mib"] = mem
         total = mem["main"] + mem["worker"] * max(mem["workers"] - 1, 0) + (mem["worker"] if mem["workers"] > 1 else 0)
         out["peak_memory_1080p_total_mib"] = total

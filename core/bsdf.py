@@ -1069,7 +1069,7 @@ def eval_glossy(alpha, wo, wi, ns, with_cos_h=False):
 def eval_glossy_anisotropic(alpha_x, alpha_y, wo, wi, ns, tangent):
     """(f, wo.h): :func:`eval_glossy` of anisotropic GGX, alpha_x along ``tangent`` (k, 3)
     projected onto the planes of ``ns`` (Cycles' ``bsdf_aniso_D`` and ``bsdf_aniso_lambda``)."""
-    x, _ = smp.tangent_frames(ns, tangent)
+    x = smp.tangent_axes(ns, tangent)
     return glossy_anisotropic_value(alpha_x, alpha_y, dot(wo, ns), dot(wi, ns), dot(wo, wi), dot(wo, x),
                                     dot(wi, x))
 
@@ -1087,7 +1087,8 @@ def glossy_anisotropic_value(alpha_x, alpha_y, cos_o, cos_i, cos_oi, wo_x, wi_x)
 
     def lam(c, v_x):
         c2 = np.maximum(c * c, 1e-300)
-        s = (alpha_x * alpha_x * v_x * v_x + alpha_y * alpha_y * np.maximum(1.0 - c * c - v_x * v_x, 0.0)) / c2
+        v_y2 = np.maximum(1.0 - c * c - v_x * v_x, 0.0)
+        s = (alpha_x * alpha_x * v_x * v_x + alpha_y * alpha_y * v_y2) / c2
         return 0.5 * (np.sqrt(1.0 + s) - 1.0)
     f = d / (1.0 + lam(cos_o, wo_x) + lam(cos_i, wi_x)) / np.maximum(4.0 * cos_o * cos_i, 1e-12)
     return np.where((cos_o > 0) & (cos_i > 0), f, 0.0), 0.5 * len_h

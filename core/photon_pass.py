@@ -36,7 +36,7 @@ from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
-from .sampling import dot, hg_phase, luminance, sample_hg, tangent_frames
+from .sampling import dot, hg_phase, luminance, sample_hg, tangent_axes
 from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
 
@@ -127,12 +127,11 @@ class DepositTarget:
             self._alpha_x = np.zeros(points.count, np.float32)
             self._alpha_y = np.zeros(points.count, np.float32)
             self._alpha_x[a], self._alpha_y[a] = table.alpha_x.take(mats), table.alpha_y.take(mats)
-            x, _ = tangent_frames(points.glossy_normals.take(a, axis=0).astype(np.float64),
-                                  points.tangent.take(a, axis=0).astype(np.float64))
             self._x = np.zeros((points.count, 3), np.float32)
-            self._x[a] = x
+            self._x[a] = tangent_axes(points.glossy_normals.take(a, axis=0),
+                                      points.tangent.take(a, axis=0))
             self._wo_x = np.zeros(points.count, np.float32)
-            self._wo_x[a] = dot(points.wo.take(a, axis=0).astype(np.float64), x)
+            self._wo_x[a] = dot(points.wo.take(a, axis=0), self._x.take(a, axis=0))
         # Glossy points whose colour rises with the Fresnel factor of the pair's half vector: their
         # pairs carry the whole colour, and to_pixels does not multiply by one.
         rising = glossy & table.rises[:, GLOSSY].take(points.mat_ids) if table.has_fresnel else None

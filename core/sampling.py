@@ -219,13 +219,20 @@ def tangent_frames(n, t):
     """(x, y) (n, 3) completing unit normals ``n`` with x along tangents ``t`` projected onto
     their planes and y = n x x (Cycles' ``make_orthonormals_tangent``); where a tangent is
     (nearly) along its normal, the frame of :func:`orthonormal_frames`."""
+    x = tangent_axes(n, t)
+    return x, np.cross(n, x)
+
+
+def tangent_axes(n, t):
+    """The x axes of :func:`tangent_frames`, in the dtype of the inputs (float32 points keep
+    their temporaries small)."""
     x = t - dot(t, n)[:, None] * n
     length = np.sqrt(dot(x, x))
-    bad = length < 1e-9
-    x = x / np.where(bad, 1.0, length)[:, None]
+    bad = length < (1e-9 if x.dtype == np.float64 else 1e-5)
+    x /= np.where(bad, 1.0, length)[:, None]
     if bad.any():
-        x[bad] = orthonormal_frames(n[bad])[0]
-    return x, np.cross(n, x)
+        x[bad] = orthonormal_frames(n[bad].astype(np.float64))[0]
+    return x
 
 
 def ggx_reflection_pdf(wo_local, wi_local, alpha):
