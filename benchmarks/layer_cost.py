@@ -28,9 +28,10 @@ load (median and range over rounds):
 
 ``translucent / diffuse`` is the price of translucency everywhere, ``translucent_one / diffuse`` on
 one wall, ``rough_diffuse / diffuse`` that of diffuse roughness; ``metal_curve / metal`` is the
-price of the curve and ``metal_brushed / metal_curve`` that of anisotropy (a colour per deposit pair and per sample); ``layered / constant`` is the price of the Fresnel machinery (rise per sample and per deposit
-pair, layer factor per diffuse sample and per point); ``constant / diffuse`` that of a glossy
-lobe at all.
+price of the curve (a colour per deposit pair and per sample), ``metal_brushed / metal_curve``
+that of anisotropy; ``layered / constant`` is the price of the Fresnel machinery (rise per
+sample and per deposit pair, layer factor per diffuse sample and per point); ``constant /
+diffuse`` that of a glossy lobe at all.
 
 A second part times the glossy deposit kernel alone on random pairs: ``bsdf.eval_glossy``
 (frame-free, cosines of the half vector only) against the earlier form that rotated both
