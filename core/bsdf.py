@@ -893,25 +893,9 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 view = d if mode == "importance" else w_o
                 w = w * table.layer_factor(m_sel, dot(view, n_s))[:, None]
         elif k == GLOSSY:
-            alpha = table.alpha.take(m_sel)
-            wo_l = smp.to_local(w_o, n_s)
-            ok_o = wo_l[:, 2] > 1e-9
-            wo_l[:, 2] = np.maximum(wo_l[:, 2], 1e-9)
-            m = smp.ggx_sample_visible_normal(wo_l, alpha, u1[sel], u2[sel])
-            wi_l = smp.reflect(wo_l, m)
-            d = smp.to_world(wi_l, n_s)
-            ratio = smp.ggx_g2(wo_l[:, 2], wi_l[:, 2], alpha) / smp.ggx_g1(wo_l[:, 2], alpha)
-            if table.has_anisotropy:
-                a = np.flatnonzero(table.anisotropic.take(m_sel))
-                if len(a) and tangent is None:
-                    raise ValueError("scatter: anisotropic glossy lobes need tangents")
-                if len(a):
-                    # Their own frames along the tangent (rows of the local arrays in other
-                    # frames: only z and wo.m are read below).
-                    ma, sa = m_sel.take(a), sel.take(a)
-                    wo_l[a], m[a], wi_l[a], d[a], ratio[a] = _scatter_anisotropic(
-                        table.alpha_x.take(ma), table.alpha_y.take(ma), w_o.take(a, axis=0),
-                        n_s.take(a, axis=0), tangent.take(sa, axis=0), u1[sa], u2[sa])
+            ok_o = dot(w_o, n_s) > 1e-9
+            wo_l, m, wi_l, d, ratio = _sample_glossy(table, m_sel, w_o, n_s, u1[sel], u2[sel],
+                                                     None if tangent is None else tangent.take(sel, axis=0))
             ok = ok_o & (wi_l[:, 2] > 0) & (dot(d, n_g) > 0)
             # Energy compensation is a factor of the view (camera-side) direction: wi for photons.
             view_mu = wi_l[:, 2] if mode == "importance" else wo_l[:, 2]
@@ -982,6 +966,42 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
         weight[sel] = np.where(ok[:, None], w, 0.0)
         alive[sel] = ok
     return smp.normalize(wi), weight, alive
+
+
+def _sample_glossy(table, mat_ids, wo, ns, u1, u2, tangent):
+    """GGX reflection of ``wo`` (k, 3) about ``ns`` (k, 3) for materials ``mat_ids``: ``(wo, m,
+    wi)`` local (k, 3) each, ``wi`` in world (k, 3) and the weight G2 / G1.  Anisotropic lobes
+    are sampled in the frames of ``tangent`` (k, 3), the others in :func:`~core.sampling.to_local`'s
+    (rows of the local arrays in different frames: callers read only z and wo.m)."""
+    aniso = table.anisotropic.take(mat_ids) if table.has_anisotropy else None
+    if aniso is None or not aniso.any():
+        return _scatter_isotropic(table.alpha.take(mat_ids), wo, ns, u1, u2)
+    if tangent is None:
+        raise ValueError("scatter: anisotropic glossy lobes need tangents")
+    k = len(mat_ids)
+    out = (np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty(k))
+    a, i = np.flatnonzero(aniso), np.flatnonzero(~aniso)
+    rows = lambda x, r: x.take(r, axis=0)                                   # noqa: E731
+    ma = mat_ids.take(a)
+    parts = [(a, _scatter_anisotropic(table.alpha_x.take(ma), table.alpha_y.take(ma), rows(wo, a),
+                                      rows(ns, a), rows(tangent, a), u1.take(a), u2.take(a)))]
+    if len(i):
+        parts.append((i, _scatter_isotropic(table.alpha.take(mat_ids.take(i)), rows(wo, i), rows(ns, i),
+                                            u1.take(i), u2.take(i))))
+    for r, part in parts:
+        for o, p in zip(out, part):
+            o[r] = p
+    return out
+
+
+def _scatter_isotropic(alpha, wo, ns, u1, u2):
+    """:func:`_sample_glossy` of isotropic lobes, in the frames of :func:`~core.sampling.to_local`."""
+    wo_l = smp.to_local(wo, ns)
+    wo_l[:, 2] = np.maximum(wo_l[:, 2], 1e-9)
+    m = smp.ggx_sample_visible_normal(wo_l, alpha, u1, u2)
+    wi_l = smp.reflect(wo_l, m)
+    ratio = smp.ggx_g2(wo_l[:, 2], wi_l[:, 2], alpha) / smp.ggx_g1(wo_l[:, 2], alpha)
+    return wo_l, m, wi_l, smp.to_world(wi_l, ns), ratio
 
 
 def _scatter_anisotropic(alpha_x, alpha_y, wo, ns, tangent, u1, u2):
@@ -1066,17 +1086,11 @@ def eval_glossy(alpha, wo, wi, ns, with_cos_h=False):
     return (f, 0.5 * len_h) if with_cos_h else f
 
 
-def eval_glossy_anisotropic(alpha_x, alpha_y, wo, wi, ns, tangent):
-    """(f, wo.h): :func:`eval_glossy` of anisotropic GGX, alpha_x along ``tangent`` (k, 3)
-    projected onto the planes of ``ns`` (Cycles' ``bsdf_aniso_D`` and ``bsdf_aniso_lambda``)."""
-    x = smp.tangent_axes(ns, tangent)
-    return glossy_anisotropic_value(alpha_x, alpha_y, dot(wo, ns), dot(wi, ns), dot(wo, wi), dot(wo, x),
-                                    dot(wi, x))
-
-
 def glossy_anisotropic_value(alpha_x, alpha_y, cos_o, cos_i, cos_oi, wo_x, wi_x):
-    """(f, wo.h) of anisotropic GGX from cosines of unit directions: wo and wi with the normal
-    (``cos_o``, ``cos_i``), with each other and with the unit tangent x in the normal's plane.
+    """(f, wo.h): :func:`eval_glossy` of anisotropic GGX (Cycles' ``bsdf_aniso_D`` and
+    ``bsdf_aniso_lambda``) from cosines of unit directions: wo and wi with the normal
+    (``cos_o``, ``cos_i``), with each other and with the unit tangent x in the normal's plane
+    (:func:`~core.sampling.tangent_axes`; alpha_x lies along it).
     Frame-free as :func:`eval_glossy`: a direction's component along y = n x x squared is
     1 - (its z)^2 - (its x)^2, and the half vector's components are the sums over |wo + wi|."""
     len_h = np.sqrt(np.maximum(2.0 + 2.0 * cos_oi, 1e-24))

@@ -502,12 +502,15 @@ VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "w
                  "volume", "tangent")
 
 
-def _vertex_arrays(n, lobes):
-    return {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
+def _vertex_arrays(n, lobes, tangents=False):
+    """Per-path vertex records (``VERTEX_FIELDS``; ``tangent`` only with ``tangents``)."""
+    out = {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
             "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
-            "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32), "volume": np.zeros(n, bool),
-            "tangent": np.zeros((n, 3))}
+            "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32), "volume": np.zeros(n, bool)}
+    if tangents:
+        out["tangent"] = np.zeros((n, 3))
+    return out
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
@@ -543,7 +546,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     m = target.points.count
     glossy = target.any_glossy
     pairs = {"path": [], "point": [], "diffuse": [], "glossy": [], "bounce": []}
-    first = _vertex_arrays(n, table.lobes) if collect_pairs else None
+    first = _vertex_arrays(n, table.lobes, table.has_anisotropy) if collect_pairs else None
     own_sums = not collect_pairs and sums is None
     if own_sums:
         sums = PointSums(target.n_slots, glossy)
@@ -685,9 +688,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                                      ("nn", (surf.ns if surf.nn is None else surf.nn)[rows]),
                                      ("mat_ids", surf.mat_ids[rows]), ("colors", surf.colors[rows]),
                                      ("wo", wo[rows]), ("flux", flux[rows]), ("prim", prim[rows]),
-                                     ("medium", medium[rows]),
-                                     ("tangent", 0.0 if surf.tangent is None else surf.tangent[rows])):
+                                     ("medium", medium[rows])):
                         first[key][new] = val
+                    if surf.tangent is not None:
+                        first["tangent"][new] = surf.tangent[rows]
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))

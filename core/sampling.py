@@ -178,7 +178,7 @@ def ggx_sample_visible_normal(wo_local, alpha, u1, u2, alpha_y=None):
 
     ``wo_local`` (n, 3) with z > 0.  The half vector's density is
     G1(wo) max(0, wo.m) D(m) / wo.z.  With ``alpha_y`` the distribution is anisotropic:
-    ``alpha`` along the local x axis, ``alpha_y`` along y (:func:`ggx_d_aniso`).
+    ``alpha`` along the local x axis, ``alpha_y`` along y (Heitz 2014).
     """
     ay = alpha if alpha_y is None else alpha_y
     vh = normalize(np.stack([alpha * wo_local[:, 0], ay * wo_local[:, 1], wo_local[:, 2]], axis=1))
@@ -197,14 +197,6 @@ def ggx_sample_visible_normal(wo_local, alpha, u1, u2, alpha_y=None):
     p3 = np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))
     nh = p1[:, None] * t1 + p2[:, None] * t2 + p3[:, None] * vh
     return normalize(np.stack([alpha * nh[:, 0], ay * nh[:, 1], np.maximum(1e-9, nh[:, 2])], axis=1))
-
-
-def ggx_d_aniso(m_local, alpha_x, alpha_y):
-    """Anisotropic GGX D(m) for local microfacet normals (z = normal, alpha_x along x; Heitz
-    2014); :func:`ggx_d` when both alphas are equal."""
-    x, y, z = m_local[:, 0] / alpha_x, m_local[:, 1] / alpha_y, m_local[:, 2]
-    t = x * x + y * y + z * z
-    return np.where(z > 0, 1.0 / (np.pi * alpha_x * alpha_y * t * t), 0.0)
 
 
 def ggx_lambda_aniso(v_local, alpha_x, alpha_y):
