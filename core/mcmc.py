@@ -369,31 +369,27 @@ class DepositLog(Recorder):
     Chain c's prefix lives in slot c, its suffix in slot C + c.
 
     With ``halves`` it also sums the even chains' deposits minus the odd chains'
-    (``half_diffuse``, ``half_glossy``): two independent halves of the chains, whose difference
+    (``half_sums``): two independent halves of the chains, whose difference
     estimates the spread of the sums (``core.integrator.Accumulator``; the chains keep their
     states from pass to pass, so the spread of the passes underestimates it).
     """
 
-    def __init__(self, n_points, n_chains, glossy, flush_pairs=1 << 21, halves=False):
+    def __init__(self, n_points, n_chains, flush_pairs=1 << 21, halves=False):
         self.n_points = n_points
-        self.glossy = glossy
         self.flush_pairs = flush_pairs
-        self._sums = PointSums(n_points, glossy)
-        self.sum_diffuse = self._sums.diffuse          # (m, 3), complete after flush()
-        self.sum_glossy = self._sums.glossy
-        self._outside = PointSums(n_points, glossy)  # deposits of uniform samples outside V
-        self.outside_diffuse = self._outside.diffuse   # (m, 3), complete after flush()
-        self.outside_glossy = self._outside.glossy
+        self._sums = PointSums(n_points)
+        self.sums = self._sums.total                    # (m, 3), complete after flush()
+        self._outside = PointSums(n_points)             # deposits of uniform samples outside V
+        self.outside_sums = self._outside.total         # (m, 3), complete after flush()
         self.outside_pairs = 0
         self.n_chains = n_chains
         self.state_of_lane = np.full(2 * n_chains, -1, np.int64)   # current part id per slot
         self.count = np.zeros(1024, np.int64)                   # recordings per state id
         self.next_state = 0
-        self.chunks = []                                        # (state ids, points, diffuse, glossy)
+        self.chunks = []                                        # (state ids, points, values)
         self.logged = 0
-        self._halves = PointSums(n_points, glossy) if halves else None
-        self.half_diffuse = self._halves.diffuse if halves else None     # (m, 3), after flush()
-        self.half_glossy = self._halves.glossy if halves else None
+        self._halves = PointSums(n_points) if halves else None
+        self.half_sums = self._halves.total if halves else None      # (m, 3), after flush()
         self.sign = np.zeros(len(self.count)) if halves else None   # +1 (even chain) or -1 per state id
 
     def replace(self, lanes, batch, rows):
@@ -425,11 +421,8 @@ class DepositLog(Recorder):
         sel = np.flatnonzero(mask.take(batch.pair_path))
         if len(sel) == 0:
             return 0
-        point = batch.pair_point.take(sel)
-        diffuse = batch.pair_diffuse.take(sel, axis=0)
-        glossy = batch.pair_glossy.take(sel, axis=0) if self.glossy else None
-        self._outside.add(point, [diffuse[:, c] for c in range(3)],
-                          [glossy[:, c] for c in range(3)] if self.glossy else None)
+        value = batch.pair_value.take(sel, axis=0)
+        self._outside.add(batch.pair_point.take(sel), [value[:, c] for c in range(3)])
         self.outside_pairs += len(sel)
         return len(np.unique(batch.pair_path.take(sel)))
 
@@ -461,11 +454,9 @@ class DepositLog(Recorder):
         if len(sel) == 0:
             return
         if len(sel) == len(state):      # every pair (e.g. a batch's visible paths all switched in)
-            self.chunks.append((state, batch.pair_point, batch.pair_diffuse,
-                                batch.pair_glossy if self.glossy else None))
+            self.chunks.append((state, batch.pair_point, batch.pair_value))
         else:
-            self.chunks.append((state.take(sel), batch.pair_point.take(sel), batch.pair_diffuse.take(sel, axis=0),
-                                batch.pair_glossy.take(sel, axis=0) if self.glossy else None))
+            self.chunks.append((state.take(sel), batch.pair_point.take(sel), batch.pair_value.take(sel, axis=0)))
         self.logged += len(sel)
         if self.logged > self.flush_pairs:
             self.flush()
@@ -487,22 +478,20 @@ class DepositLog(Recorder):
         for chunk in self.chunks:
             state, point = chunk[0], chunk[1]
             w = self.count.take(state).astype(np.float64)
-            diffuse, glossy = chunk[2], chunk[3]
-            self._sums.add(point, [diffuse[:, c] * w for c in range(3)],
-                           [glossy[:, c] * w for c in range(3)] if self.glossy else None)
+            value = chunk[2]
+            self._sums.add(point, [value[:, c] * w for c in range(3)])
             if self._halves is not None:
                 w = w * self.sign.take(state)
-                self._halves.add(point, [diffuse[:, c] * w for c in range(3)],
-                                 [glossy[:, c] * w for c in range(3)] if self.glossy else None)
+                self._halves.add(point, [value[:, c] * w for c in range(3)])
             keep = np.flatnonzero(alive.take(state))
             if len(keep) == len(state):
                 kept.append(chunk)
             elif len(keep):
-                kept.append(tuple(None if a is None else a.take(keep, axis=0) for a in chunk))
+                kept.append(tuple(a.take(keep, axis=0) for a in chunk))
         self._sums.flush()
         if self._halves is not None:
             self._halves.flush()
         self.count[current] = 0
         # The kept pairs, as one chunk (later flushes then see few chunks).
-        self.chunks = [tuple(None if part[0] is None else np.concatenate(part) for part in zip(*kept))] if kept else []
+        self.chunks = [tuple(np.concatenate(part) for part in zip(*kept))] if kept else []
         self.logged = len(self.chunks[0][0]) if kept else 0

@@ -260,7 +260,8 @@ class DepositTarget:
         return (*rough_diffuse_terms(self.table, pts.mat_ids, pts.colors[:, 0], cos_v), cos_v)
 
     def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None):
-        """Scalar diffuse and glossy weights of pairs with points ``j`` (the points' kernels aside).
+        """What pairs with points ``j`` are worth per unit of photon flux (the points' throughput
+        and kernel aside, :meth:`to_pixels`).
 
         wi : (k, 3) unit directions back along the photons, or None for flat diffuse-only
         targets; cos_g : (k,) their cosines with the points' oriented geometric normals, as
@@ -270,17 +271,22 @@ class DepositTarget:
         and a point's own facet can be nearly edge-on to photons that landed on a neighbour
         (README "Brightness parity with Cycles"); a photon from behind the point's facet
         (cos_g <= 0) counts for nothing, as with flat shading.  Normal-mapped points add
-        Cycles' bump terms (:func:`~core.bsdf.bump_shadowing`).  The contribution of a pair is
-        ``flux * (kd_j * wd + kg_j * wg)`` with the points' factors kd, kg of :meth:`to_pixels`.
+        Cycles' bump terms (:func:`~core.bsdf.bump_shadowing`).
         ``back`` (k,) bool marks pairs of photons that landed on the other side of a translucent
         point's surface (their ``wi`` and ``cos_g`` mirrored through it, so on the point's side):
         they weigh only in the diffuse part, by the translucent lobe.  Pairs with points of a rough
         diffuse lobe weigh by :func:`~core.bsdf.rough_diffuse_factor` of their directions besides.
-        Returns ``(wd, wg or None)``; wg is (3, k), a colour per pair in channel rows, when some
-        glossy points have a Fresnel rise (``MaterialTable.rise``), else (k,); wd likewise when some
-        points are translucent or rough (``coloured``, :attr:`_sides`).
+
+        A pair's diffuse weight wd is that geometry (times its colour at the ``coloured``
+        points, :attr:`_sides`), its glossy weight wg the lobe's f (times its colour at the
+        ``rising`` points).  Pairs with glossy points carry the whole ``d_j wd + g_j wg`` of
+        the points' factors (:attr:`_factors`); the others carry wd, and :meth:`to_pixels`
+        multiplies their sums by d_j.  So a point has one sum, not one per lobe (at 1920x1080
+        with inner sums, 96 MiB less per sum a worker keeps, and half the pair values to log).
+        Returns (k,) or, when the pairs carry colours, (3, k) in channel rows.
         """
         pts = self.points
+        ratio = None
         if self.has_shading_normals:
             cos_s = dot(wi, pts.ns.take(j, axis=0))
             ratio = np.abs(cos_s) / np.maximum(cos_photon, 1e-4)
@@ -298,37 +304,9 @@ class DepositTarget:
                         # to its light samples, not to its BSDF samples).
                         diffuse = np.where(back.take(b), valid, diffuse)
                     wd[b] *= diffuse
-                    ratio[b[~valid]] = 0.0          # glossy pairs too (wg below)
+                    ratio[b[~valid]] = 0.0          # glossy pairs too (below)
         else:
-            cos_s, ratio = cos_g, None
-            wd = (cos_s > 0).astype(np.float64)
-        wg = None
-        if self.any_glossy:
-            wg = np.zeros(len(j))
-            g = np.flatnonzero(self.is_glossy.take(j) if back is None else self.is_glossy.take(j) & ~back)
-            if len(g):
-                jg = j.take(g)
-                nsg = pts.glossy_normals.take(jg, axis=0)
-                if self.anisotropic is None:
-                    f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
-                                           nsg, with_cos_h=True)
-                else:
-                    f, cos_h = self._glossy_mixed(jg, g, wi, nsg)
-                if ratio is not None:
-                    if pts.ns_glossy is not None:
-                        # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal (0 where
-                        # the bump terms made the pair invalid).
-                        f *= np.where(ratio.take(g) > 0, np.abs(dot(wi.take(g, axis=0), nsg))
-                                      / np.maximum(cos_photon.take(g), 1e-4), 0.0)
-                    else:
-                        f *= ratio.take(g)
-                wg[g] = f
-                if self.rising is not None:
-                    mats = pts.mat_ids.take(jg)
-                    color = self._const.take(mats, axis=0) + self.table.fresnel_color(mats, GLOSSY, cos_h)
-                    rows = np.zeros((3, len(j)))
-                    rows[:, g] = (f[:, None] * color).T
-                    wg = rows
+            wd = (cos_g > 0).astype(np.float64)
         if self.coloured is not None:
             front, behind = self._sides
             color = front.take(j, axis=0)
@@ -346,61 +324,113 @@ class DepositTarget:
                 b = np.flatnonzero(back)
                 color[b] = behind.take(j.take(b), axis=0)
             wd = color.T * wd
-        return wd, wg
+        if not self.any_glossy:
+            return wd
+        s = np.flatnonzero(self.is_glossy.take(j))
+        if len(s) == 0:
+            return wd
+        d_fac, g_fac = self._factors
+        w = wd if wd.ndim == 2 else np.broadcast_to(wd, (3, len(j))).copy()
+        js = j.take(s)
+        w[:, s] *= d_fac.take(js, axis=0).T
+        g = s if back is None else s.take(np.flatnonzero(~back.take(s)))
+        if len(g) == 0:
+            return w
+        jg = j.take(g) if back is not None else js
+        nsg = pts.glossy_normals.take(jg, axis=0)
+        if self.anisotropic is None:
+            f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
+                                   nsg, with_cos_h=True)
+        else:
+            f, cos_h = self._glossy_mixed(jg, g, wi, nsg)
+        if ratio is not None:
+            if pts.ns_glossy is not None:
+                # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal (0 where
+                # the bump terms made the pair invalid).
+                f *= np.where(ratio.take(g) > 0, np.abs(dot(wi.take(g, axis=0), nsg))
+                              / np.maximum(cos_photon.take(g), 1e-4), 0.0)
+            else:
+                f *= ratio.take(g)
+        wg = g_fac.take(jg, axis=0).T * f
+        if self.rising is not None:
+            mats = pts.mat_ids.take(jg)
+            wg *= (self._const.take(mats, axis=0) + self.table.fresnel_color(mats, GLOSSY, cos_h)).T
+        w[:, g] += wg
+        return w
+
+    @cached_property
+    def _factors(self):
+        """(d, g) (m, 3) float32: per point, what a pair's diffuse and glossy weights
+        (:meth:`pair_weights`) are worth besides the point's throughput and kernel.  d: the
+        diffuse lobe's weight times its albedo over pi (1 over pi at the ``coloured`` points,
+        whose pairs carry both), under a Fresnel layer times its factor at the view direction;
+        g: the glossy lobe's weight times its colour (1 at the ``rising`` points, whose pairs
+        carry it), with multiscatter GGX times the compensation at the view direction (a
+        factor of the point's view direction, BSDF docs in bsdf.py); None without glossy
+        points.  Computed where first needed, in the worker that deposits: the main process
+        builds a target for its grid only, and at 1920x1080 these products made its preparation
+        of a pass longer (whole renders with 100,000 photons per pass and worker 1.08x faster
+        without them, ``ab_photon_pass.py``)."""
+        pts, table = self.points, self.table
+        mats, f32 = pts.mat_ids, np.float32
+        # (in float32 from the start, and a lobe's weights alone: at 1920x1080 the temporaries
+        # of the whole (m, lobes) weights in float64 took 218 MiB)
+        w_d = (table.weight[:, DIFFUSE] / np.pi).astype(f32).take(mats)
+        if self.coloured is None:
+            d = pts.colors[:, 0] * w_d[:, None]
+        else:
+            d = np.where(self.coloured[:, None], f32(1.0 / np.pi), pts.colors[:, 0] * w_d[:, None])
+        mu = None
+        if table.has_layer:
+            mu = dot(pts.wo, pts.glossy_normals).astype(np.float64)
+            layer = table.layer_factor(mats, mu).astype(f32)
+            if self.coloured is not None:
+                layer[self.coloured] = 1.0
+            d *= layer[:, None]
+        if not self.any_glossy:
+            return d, None
+        color = pts.colors[:, 1]
+        if self.rising is not None:
+            color = np.where(self.rising[:, None], f32(1.0), color)
+        g = color * table.weight[:, GLOSSY].astype(f32).take(mats)[:, None]
+        if table.ms_fresnel.any():
+            if mu is None:
+                mu = dot(pts.wo, pts.glossy_normals).astype(np.float64)
+            g *= table.multiscatter(mats, mu)
+        return d, g
 
     @property
     def needs_directions(self) -> bool:
         return self.has_shading_normals or self.any_glossy or self.rough is not None
 
-    def to_pixels(self, sum_diffuse, sum_glossy):
-        """(n_pixels, 3) radiance sums from per-point sums of flux * weight (``n_slots``, 3) each.
+    def to_pixels(self, sums):
+        """(n_pixels, 3) radiance sums from the per-slot sums of flux times :meth:`pair_weights`
+        (``n_slots``, 3)."""
+        return self._pixels(sums, 0)
 
-        The points' factors are computed here, by the worker that made the sums, and not when
-        the target is built: the main process builds one for its grid only, and at 1920x1080
-        these products made its preparation of a pass longer (whole renders with 100,000
-        photons per pass and worker 1.08x faster without them, ``ab_photon_pass.py``)."""
-        return self._pixels(sum_diffuse, sum_glossy, 0)
-
-    def inner_pixels(self, sum_diffuse, sum_glossy):
+    def inner_pixels(self, sums):
         """As :meth:`to_pixels` for the estimate at half the radius: the surface points' inner
         slots over a quarter of the area; the volume points' part is the same as in
         :meth:`to_pixels` (their gathers have no inner estimate)."""
         if not self.inner:
             raise ValueError("DepositTarget.inner_pixels: the target was built without inner sums")
-        return self._pixels(sum_diffuse, sum_glossy, self.n_points)
+        return self._pixels(sums, self.n_points)
 
-    def _pixels(self, sum_diffuse, sum_glossy, offset):
+    def _pixels(self, sums, offset):
         """to_pixels of the surface slots ``offset`` .. ``offset + m`` (at half the radius if
         ``offset``), with the volume points' slots."""
         pts = self.points
         m = self.points.count
         radius = self.radius if not offset else 0.5 * self.radius
         kernel = 1.0 / (np.pi * radius * radius)                                   # (m,)
-        w = self.table.weight.take(pts.mat_ids, axis=0)
-        # Diffuse part is constant in wi: w_j * weight_d * albedo / pi / (pi r^2).
-        if self.coloured is None:
-            val = pts.weight * pts.colors[:, 0] * (w[:, 0] * kernel / np.pi)[:, None]
+        # w_j (throughput) times the kernel, and d_j where the pairs do not carry it.
+        d = self._factors[0]
+        val = pts.weight * kernel[:, None]
+        if self.any_glossy:
+            val *= np.where(self.is_glossy[:, None], np.float32(1.0), d)
         else:
-            # (translucent and rough points: the colours are in the pairs)
-            val = pts.weight * np.where(self.coloured[:, None], 1.0, pts.colors[:, 0] * w[:, :1]) \
-                * (kernel / np.pi)[:, None]
-        val *= sum_diffuse[offset:offset + m]
-        if self.table.has_layer:
-            layer = self.table.layer_factor(pts.mat_ids, dot(pts.wo, pts.glossy_normals).astype(np.float64))
-            if self.coloured is not None:
-                layer[self.coloured] = 1.0
-            val *= layer[:, None]
-        if sum_glossy is not None:
-            color = pts.colors[:, 1]
-            if self.rising is not None:
-                color = np.where(self.rising[:, None], 1.0, color)     # in the pairs (pair_weights)
-            k_glossy = pts.weight * color * (w[:, 1] * kernel)[:, None]
-            k_glossy *= sum_glossy[offset:offset + m]
-            if self.table.ms_fresnel.any():
-                # Multiscatter GGX: a factor of the point's view direction (BSDF docs, bsdf.py).
-                k_glossy *= self.table.multiscatter(pts.mat_ids,
-                                                    dot(pts.wo, pts.glossy_normals).astype(np.float64))
-            val += k_glossy
+            val *= d
+        val *= sums[offset:offset + m]
         out = np.zeros((self.n_pixels, 3))
         out[self.pixel_ids] = val          # one measurement point per pixel and pass
         if self.volume is not None:
@@ -409,7 +439,7 @@ class DepositTarget:
             r = self.volume_radius
             kernel = 3.0 / (4.0 * np.pi * r * r * r) / _inside_share(self.volume.planes, r)
             np.add.at(out, self.volume.pixel_ids,
-                      self.volume.weight * sum_diffuse[m:self.n_points] * kernel[:, None])
+                      self.volume.weight * sums[m:self.n_points] * kernel[:, None])
         return out
 
 
@@ -438,7 +468,7 @@ def _some(mask):
 
 
 class PointSums:
-    """Per-measurement-point sums of pair values (diffuse, and glossy if any), float64.
+    """Per-slot sums of pair values (:meth:`DepositTarget.pair_weights` times the flux), float64.
 
     ``add`` buffers pairs; they are splatted with one bincount per channel once at least
     ``n_points`` pairs are waiting (and by ``flush``): a bincount costs O(points) besides
@@ -446,18 +476,17 @@ class PointSums:
     points each time (at 1080p, 2 million points, more than the pairs themselves).
     """
 
-    def __init__(self, n_points, glossy, min_pairs=1 << 16):
+    def __init__(self, n_points, min_pairs=1 << 16):
         self.n_points = n_points
-        self.diffuse = np.zeros((n_points, 3))
-        self.glossy = np.zeros((n_points, 3)) if glossy else None
+        self.total = np.zeros((n_points, 3))
         self.min_pairs = max(n_points, min_pairs)
         self._points, self._values, self._waiting = [], [], 0
 
-    def add(self, point_ids, diffuse, glossy=None):
-        """Pairs with points ``point_ids`` (k,) and values (3, k) (three channel rows, each
-        contiguous); ``glossy`` likewise, or None for pairs without a glossy part."""
+    def add(self, point_ids, values):
+        """Pairs with points ``point_ids`` (k,) and ``values`` (3, k) (three channel rows, each
+        contiguous)."""
         self._points.append(point_ids)
-        self._values.append((diffuse, glossy))
+        self._values.append(values)
         self._waiting += len(point_ids)
         if self._waiting >= self.min_pairs:
             self.flush()
@@ -467,15 +496,8 @@ class PointSums:
             return
         points = np.concatenate(self._points) if len(self._points) > 1 else self._points[0]
         for c in range(3):
-            w = np.concatenate([v[0][c] for v in self._values])
-            self.diffuse[:, c] += np.bincount(points, weights=w, minlength=self.n_points)
-        with_glossy = [i for i, v in enumerate(self._values) if v[1] is not None]
-        if self.glossy is not None and with_glossy:
-            if len(with_glossy) < len(self._values):
-                points = np.concatenate([self._points[i] for i in with_glossy])
-            for c in range(3):
-                w = np.concatenate([self._values[i][1][c] for i in with_glossy])
-                self.glossy[:, c] += np.bincount(points, weights=w, minlength=self.n_points)
+            w = np.concatenate([v[c] for v in self._values]) if len(self._values) > 1 else self._values[0][c]
+            self.total[:, c] += np.bincount(points, weights=w, minlength=self.n_points)
         self._points, self._values, self._waiting = [], [], 0
 
 
@@ -487,12 +509,10 @@ class PhotonBatch:
     first_dim: np.ndarray        # (n,) int32 dimensions consumed before the first visible vertex, -1
     pair_path: np.ndarray        # (k,) int64 path index of each deposit pair (if collected)
     pair_point: np.ndarray       # (k,) int64 measurement point of each pair
-    pair_diffuse: np.ndarray     # (k, 3) float64 flux * diffuse weight of each pair
-    pair_glossy: np.ndarray      # (k, 3) float64 flux * glossy weight, or None (no glossy points)
+    pair_value: np.ndarray       # (k, 3) float64 flux * DepositTarget.pair_weights of each pair
     pair_bounce: np.ndarray      # (k,) int16 vertex of each pair (0 = first surface hit)
     first: dict                  # arrays (n, ...): each visible path at its first visible vertex
-    sum_diffuse: np.ndarray      # (n_slots, 3) per-slot sums of flux * diffuse weight (if summed here)
-    sum_glossy: np.ndarray       # (n_slots, 3) per-slot sums of flux * glossy weight, or None
+    sums: np.ndarray             # (n_slots, 3) per-slot sums of the pair values (if summed here)
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
 
@@ -544,12 +564,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         first_dim[fresh:] = bounce_offset(resume["bounce"])
         last_join = int(resume["bounce"].max())
     m = target.points.count
-    glossy = target.any_glossy
-    pairs = {"path": [], "point": [], "diffuse": [], "glossy": [], "bounce": []}
+    pairs = {"path": [], "point": [], "value": [], "bounce": []}
     first = _vertex_arrays(n, table.lobes, table.has_anisotropy) if collect_pairs else None
     own_sums = not collect_pairs and sums is None
     if own_sums:
-        sums = PointSums(target.n_slots, glossy)
+        sums = PointSums(target.n_slots)
     rays = vertices = 0
     soft = ctx.lights.has_soft_falloff
     volumes = ctx.has_volumes
@@ -640,30 +659,26 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     wi_pairs = wo.take(lane, axis=0)
                     if back is not None:
                         wi_pairs[back] *= -1.0           # mirrored through the surface, as cos_g
-                wd, wg = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back)
+                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back)
                 # The pairs within half the radius once more, on the inner slots.
                 again = None if near is None else np.flatnonzero(near)
                 slots = pj if again is None else np.concatenate([pj, pj.take(again) + target.n_points])
                 if collect_pairs:
                     f = deposited.take(lane, axis=0)
                     path = idx[lane]
-                    dv = f * (wd[:, None] if wd.ndim == 1 else wd.T)
-                    gv = (f * (wg[:, None] if wg.ndim == 1 else wg.T)) if glossy else None
+                    v = f * (w[:, None] if w.ndim == 1 else w.T)
                     if again is not None:
-                        path, dv, gv = (_twice(a, again) for a in (path, dv, gv))
+                        path, v = _twice(path, again), _twice(v, again)
                     pairs["path"].append(path)
                     pairs["point"].append(slots)
-                    pairs["diffuse"].append(dv)
-                    pairs["glossy"].append(gv)
+                    pairs["value"].append(v)
                     pairs["bounce"].append(np.full(len(slots), bounce, np.int16))
                 else:
                     f = [deposited[:, c].take(lane) for c in range(3)]
-                    dv = [fc * (wd if wd.ndim == 1 else wd[c]) for c, fc in enumerate(f)]
-                    gv = [fc * (wg if wg.ndim == 1 else wg[c]) for c, fc in enumerate(f)] if glossy else None
+                    v = [fc * (w if w.ndim == 1 else w[c]) for c, fc in enumerate(f)]
                     if again is not None:
-                        dv = [_twice(v, again) for v in dv]
-                        gv = None if gv is None else [_twice(v, again) for v in gv]
-                    sums.add(slots, dv, gv)
+                        v = [_twice(vc, again) for vc in v]
+                    sums.add(slots, v)
                 if target.cells is None:
                     seen[lane] = True
             if target.cells is not None:
@@ -697,7 +712,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
         if vert is not None:
             _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums,
-                                collect_pairs, glossy, refresh_rng, max_bounces)
+                                collect_pairs, refresh_rng, max_bounces)
         if resume is not None and bounce <= last_join:
             # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
             join = np.flatnonzero(resume["bounce"] == bounce)
@@ -773,22 +788,20 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             origins = np.concatenate([origins, vert["position"].take(keep, axis=0)])
     if collect_pairs and pairs["path"]:
         pp, pj = np.concatenate(pairs["path"]), np.concatenate(pairs["point"])
-        pd, pb = np.concatenate(pairs["diffuse"]), np.concatenate(pairs["bounce"])
-        pg = np.concatenate(pairs["glossy"]) if glossy else None
+        pv, pb = np.concatenate(pairs["value"]), np.concatenate(pairs["bounce"])
     elif collect_pairs:
-        pp, pj, pd, pb = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int16)
-        pg = np.zeros((0, 3)) if glossy else None
+        pp, pj, pv, pb = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int16)
     else:
-        pp = pj = pd = pg = pb = None
-    sum_d = sum_g = None
+        pp = pj = pv = pb = None
+    total = None
     if own_sums:
         sums.flush()
-        sum_d, sum_g = sums.diffuse, sums.glossy
-    return PhotonBatch(visible, first_dim, pp, pj, pd, pg, pb, first, sum_d, sum_g, rays, vertices)
+        total = sums.total
+    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices)
 
 
 def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, collect_pairs,
-                        glossy, refresh_rng, max_bounces):
+                        refresh_rng, max_bounces):
     """Deposits of the photons that stopped in scattering volumes at vertex ``bounce`` (``vert``:
     their paths, positions, travel directions, arrival flux and volumes) on the target's volume
     points: flux times the scattering coefficient times the phase function towards each point's
@@ -806,11 +819,10 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
             if collect_pairs:
                 pairs["path"].append(idx.take(pi))
                 pairs["point"].append(pj)
-                pairs["diffuse"].append(f)
-                pairs["glossy"].append(np.zeros_like(f) if glossy else None)
+                pairs["value"].append(f)
                 pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
             else:
-                sums.add(pj, [f[:, c] for c in range(3)])      # (no glossy part: zeros)
+                sums.add(pj, [f[:, c] for c in range(3)])
             if target.cells is None:
                 seen[pi] = True
     if target.cells is not None:

@@ -69,15 +69,15 @@ class PhotonWorker:
         else:
             sums, outside, halves, interrupted = self._chain_pass(target, n_photons, counters, stop)
             if outside is not None:
-                outside_sum, outside_inner = _pixels(target, *outside)
+                outside_sum, outside_inner = _pixels(target, outside)
             if halves is not None:
-                outer, inner = _pixels(target, *halves)
+                outer, inner = _pixels(target, halves)
                 with np.errstate(over="ignore", invalid="ignore"):     # (dropped by the Accumulator)
                     half_diff = inner - outer
             adapted = chains.proposed > 0
             theta_mean = float(chains.theta[adapted].mean()) if adapted.any() else float(chains.theta.mean())
             valid = int(chains.valid.sum())
-        pixel_sum, inner_sum = _pixels(target, *sums)
+        pixel_sum, inner_sum = _pixels(target, sums)
         return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "inner_sum": inner_sum,
                 "outside_inner": outside_inner, "half_diff": half_diff,
                 "counters": dataclasses.asdict(counters),
@@ -89,7 +89,7 @@ class PhotonWorker:
     def _uniform_pass(self, pass_index, target, n_photons, counters, stop):
         s = self.settings
         rng = np.random.default_rng([s.seed, STREAM_PHOTONS, pass_index, self.index])
-        sums = PointSums(target.n_slots, target.any_glossy)
+        sums = PointSums(target.n_slots)
         done = 0
         interrupted = False
         while done < n_photons:
@@ -106,13 +106,13 @@ class PhotonWorker:
                                        vertices=batch.vertices))
             done += b
         sums.flush()
-        return (sums.diffuse, sums.glossy), interrupted
+        return sums.total, interrupted
 
     def _chain_pass(self, target, n_photons, counters, stop):
         s = self.settings
         chains = self.chains
         halves = target.inner and self.lane_halves
-        recorder = DepositLog(target.n_slots, chains.count, target.any_glossy, halves=halves)
+        recorder = DepositLog(target.n_slots, chains.count, halves=halves)
 
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
@@ -133,12 +133,12 @@ class PhotonWorker:
                                  prefetched=prefetched, prefetch=i + 1 < iterations)
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
-        outside = (recorder.outside_diffuse, recorder.outside_glossy) if recorder.outside_pairs else None
-        halves = (recorder.half_diffuse, recorder.half_glossy) if halves else None
-        return (recorder.sum_diffuse, recorder.sum_glossy), outside, halves, interrupted
+        outside = recorder.outside_sums if recorder.outside_pairs else None
+        halves = recorder.half_sums if halves else None
+        return recorder.sums, outside, halves, interrupted
 
 
-def _pixels(target, sum_diffuse, sum_glossy):
+def _pixels(target, sums):
     """(pixel sums, pixel sums at half the radius or None) of per-slot sums."""
-    inner = target.inner_pixels(sum_diffuse, sum_glossy) if target.inner else None
-    return target.to_pixels(sum_diffuse, sum_glossy), inner
+    inner = target.inner_pixels(sums) if target.inner else None
+    return target.to_pixels(sums), inner

@@ -386,21 +386,17 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
     results = []
     for flush_pairs in (1 << 30, 7, 1):
         rng = np.random.default_rng(11)
-        log = DepositLog(n_points, n_chains, glossy=True, flush_pairs=flush_pairs, halves=True)
-        expected_d = np.zeros((n_points, 3))
-        expected_g = np.zeros((n_points, 3))
-        halves_d = np.zeros((n_points, 3))       # even lanes' sums minus odd lanes'
-        halves_g = np.zeros((n_points, 3))
-        prefix, suffix = {}, {}            # lane -> (points, diffuse, glossy) of its current parts
+        log = DepositLog(n_points, n_chains, flush_pairs=flush_pairs, halves=True)
+        expected = np.zeros((n_points, 3))
+        halves = np.zeros((n_points, 3))         # even lanes' sums minus odd lanes'
+        prefix, suffix = {}, {}            # lane -> (points, values) of its current parts
 
         def add(part, lane, c):
             if lane in part:
-                p, d, g = part[lane]
-                np.add.at(expected_d, p, d * c)
-                np.add.at(expected_g, p, g * c)
+                p, v = part[lane]
+                np.add.at(expected, p, v * c)
                 sign = 1 if lane % 2 == 0 else -1
-                np.add.at(halves_d, p, sign * d * c)
-                np.add.at(halves_g, p, sign * g * c)
+                np.add.at(halves, p, sign * v * c)
 
         def pairs(n_paths, bounces):
             # ``off`` unrelated paths come first (as when proposals and prefetched uniform
@@ -410,8 +406,7 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
             paths = np.repeat(np.arange(n_paths), k)
             return SimpleNamespace(visible=np.ones(n_paths, bool), pair_path=paths,
                                    pair_point=rng.integers(0, n_points, len(paths)),
-                                   pair_diffuse=rng.random((len(paths), 3)),
-                                   pair_glossy=rng.random((len(paths), 3)),
+                                   pair_value=rng.random((len(paths), 3)),
                                    pair_bounce=rng.choice(bounces, len(paths)).astype(np.int16),
                                    first_dim=np.full(n_paths, 6 + 4 * 1, np.int32))
 
@@ -435,9 +430,9 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
                 is_pre = batch.pair_bounce <= 1
                 if full:
                     s_pre = sel & is_pre
-                    prefix[lane] = (batch.pair_point[s_pre], batch.pair_diffuse[s_pre], batch.pair_glossy[s_pre])
+                    prefix[lane] = (batch.pair_point[s_pre], batch.pair_value[s_pre])
                     sel = sel & ~is_pre
-                suffix[lane] = (batch.pair_point[sel], batch.pair_diffuse[sel], batch.pair_glossy[sel])
+                suffix[lane] = (batch.pair_point[sel], batch.pair_value[sel])
         final = np.arange(n_chains)
         pc, sc = rng.integers(1, 4, n_chains), rng.integers(1, 4, n_chains)
         log.commit(final, pc, sc)
@@ -445,10 +440,8 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
             add(prefix, lane, a)
             add(suffix, lane, b)
         log.flush()
-        np.testing.assert_allclose(log.sum_diffuse, expected_d, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(log.sum_glossy, expected_g, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(log.half_diffuse, halves_d, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(log.half_glossy, halves_g, rtol=1e-12, atol=1e-12)
-        assert np.abs(halves_d).sum() > 0.1 * np.abs(expected_d).sum()
-        results.append(log.sum_diffuse)
+        np.testing.assert_allclose(log.sums, expected, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(log.half_sums, halves, rtol=1e-12, atol=1e-12)
+        assert np.abs(halves).sum() > 0.1 * np.abs(expected).sum()
+        results.append(log.sums)
     np.testing.assert_allclose(results[0], results[2], rtol=1e-12)

@@ -19,7 +19,7 @@ def setup(scene):
 def pair_set(batch, rows_filter=None):
     out = set()
     for p, j, b, v in zip(batch.pair_path.tolist(), batch.pair_point.tolist(), batch.pair_bounce.tolist(),
-                          batch.pair_diffuse.tolist()):
+                          batch.pair_value.tolist()):
         out.add((p, j, b, tuple(np.round(v, 9))))
     return out
 
@@ -71,7 +71,7 @@ def test_resuming_at_the_first_visible_vertex_reproduces_the_suffix():
         suffix = again.pair_bounce > first_bounce[again.pair_path]
         expected = {(p, j, b, tuple(np.round(x, 9))) for p, j, b, x, s in
                     zip(again.pair_path.tolist(), again.pair_point.tolist(), again.pair_bounce.tolist(),
-                        again.pair_diffuse.tolist(), suffix.tolist()) if s}
+                        again.pair_value.tolist(), suffix.tolist()) if s}
         assert pair_set(resumed) == expected
         assert resumed.rays < again.rays
         # Fresh paths and resumed ones in one batch: each part as if traced on its own.
@@ -102,25 +102,20 @@ def test_low_dimension_refresh_redraws_only_after_the_first_visible_vertex():
 
 
 def test_point_sums_equal_a_direct_accumulation():
-    """Pairs added in groups of every size (some past the splat threshold, some without a glossy
-    part) sum like np.add.at."""
+    """Pairs added in groups of every size (some past the splat threshold) sum like np.add.at."""
     rng = np.random.default_rng(3)
     m = 500
-    sums = PointSums(m, glossy=True, min_pairs=0)       # threshold = m pairs
-    want_d, want_g = np.zeros((m, 3)), np.zeros((m, 3))
-    for i, k in enumerate((0, 1, 7, 499, 500, 1200, 3, 800, 2)):
+    sums = PointSums(m, min_pairs=0)                    # threshold = m pairs
+    want = np.zeros((m, 3))
+    for k in (0, 1, 7, 499, 500, 1200, 3, 800, 2):
         j = rng.integers(0, m, k)
-        d, g = rng.random((3, k)), rng.random((3, k))
-        with_glossy = i % 3 != 1         # some groups without a glossy part (volume pairs)
-        sums.add(j, list(d), list(g) if with_glossy else None)
-        np.add.at(want_d, j, d.T)
-        if with_glossy:
-            np.add.at(want_g, j, g.T)
+        v = rng.random((3, k))
+        sums.add(j, list(v))
+        np.add.at(want, j, v.T)
     sums.flush()
     sums.flush()                                         # nothing waiting: no change
-    np.testing.assert_allclose(sums.diffuse, want_d, rtol=1e-12)
-    np.testing.assert_allclose(sums.glossy, want_g, rtol=1e-12)
-    assert want_d.sum() > 0
+    np.testing.assert_allclose(sums.total, want, rtol=1e-12)
+    assert want.sum() > 0
 
 
 def test_photons_summed_across_calls_equal_one_call():
@@ -128,15 +123,13 @@ def test_photons_summed_across_calls_equal_one_call():
     ctx, target = setup(glass_ceiling_room((24, 18)))
     u = np.random.default_rng(4).random((6000, path_dims(8)))
     whole = trace_photons(ctx, target, u.copy(), 8)
-    sums = PointSums(target.points.count, target.any_glossy)
+    sums = PointSums(target.points.count)
     for part in np.array_split(u, 3):
         batch = trace_photons(ctx, target, part.copy(), 8, sums=sums)
-        assert batch.sum_diffuse is None
+        assert batch.sums is None
     sums.flush()
-    assert whole.sum_diffuse.sum() > 0
-    np.testing.assert_allclose(sums.diffuse, whole.sum_diffuse, rtol=1e-9, atol=1e-12)
-    if target.any_glossy:
-        np.testing.assert_allclose(sums.glossy, whole.sum_glossy, rtol=1e-9, atol=1e-12)
+    assert whole.sums.sum() > 0
+    np.testing.assert_allclose(sums.total, whole.sums, rtol=1e-9, atol=1e-12)
 
 
 def test_volume_pairs_of_even_scattering_share_one_phase_value():

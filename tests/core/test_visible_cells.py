@@ -110,7 +110,7 @@ def test_cells_add_visible_paths_and_change_no_deposit():
     assert (b.first_dim[both] <= a.first_dim[both]).all()
     np.testing.assert_array_equal(a.pair_path, b.pair_path)
     np.testing.assert_array_equal(a.pair_point, b.pair_point)
-    np.testing.assert_allclose(a.pair_diffuse, b.pair_diffuse)
+    np.testing.assert_allclose(a.pair_value, b.pair_value)
     # Cells alone make a path visible: with none, no path is, and the deposits stay.
     empty = DepositTarget(pts, radius, ctx.table, w * h, ctx.has_shading_normals, cells=VisibleCells())
     e = trace_photons(ctx, empty, u.copy(), 8, collect_pairs=True)
