@@ -8,11 +8,14 @@ are printed.  Use it before claiming that a change to the photon pass is faster.
     python benchmarks/ab_photon_pass.py [--base HEAD] [--scene cornell_box] [--resolution 640 480]
                                         [--rounds 10] [--paths 65536] [--pairs | --render METHOD]
                                         [--workers N] [--photons-per-pass N] [--isotropic]
+                                        [--materials VARIANT]
 
 ``--pairs`` traces as the Markov chains do (deposit pairs collected per path) instead of
 splatting uniform photons into per-point sums.  ``--render ppm|amcmcppm`` times whole
 renders instead (eye passes, grids, chains and their deposit logs included; one worker
 unless ``--workers N``) and compares photon paths per second, the first pass (start-up) left out.
+``--materials`` gives the scene's diffuse materials one of ``layer_cost.py``'s bases (e.g.
+``metal_curve``: every wall a rough gold, so that every deposit pair is a glossy one).
 """
 from __future__ import annotations
 
@@ -70,10 +73,12 @@ def photon_pass(package, scene_name, resolution, n_paths, pairs, edit=None):
     return run
 
 
-def whole_render(package, scene_name, resolution, method, passes, workers, photons=None):
+def whole_render(package, scene_name, resolution, method, passes, workers, photons=None, edit=None):
     """A function rendering with ``package`` on ``workers``; returns traced paths per second."""
     core = importlib.import_module(package)
     scene = importlib.import_module(f"{package}.testing.scenes").BUILTIN[scene_name](resolution=resolution)
+    if edit is not None:
+        scene = edit(scene)
     extra = {"photons_per_pass": photons} if photons else {}
     settings = core.RenderSettings(method=method, workers=workers, passes=passes, **extra)
 
@@ -120,13 +125,19 @@ def main():
                     help="photons per pass and worker of the renders (default: each version's own)")
     ap.add_argument("--isotropic", action="store_true",
                     help="the scene's volumes scatter evenly (anisotropy 0, Cycles' default)")
+    ap.add_argument("--materials", default=None,
+                    help="a layer_cost.py base for the diffuse materials (e.g. metal_curve)")
     a = ap.parse_args()
     edit = isotropic if a.isotropic else None
+    if a.materials:
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        from layer_cost import with_base
+        edit = (lambda scene, f=edit: with_base(scene if f is None else f(scene), a.materials))
     with tempfile.TemporaryDirectory() as tmp:
         extract(a.base, tmp)
         sys.path.insert(0, tmp)
         res = tuple(a.resolution)
-        versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers, a.photons_per_pass)
+        versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers, a.photons_per_pass, edit)
                            if a.render else
                            photon_pass(pkg, a.scene, res, a.paths, a.pairs, edit))
                     for name, pkg in (("base", "core_base"), ("this", "core"))}

@@ -329,38 +329,50 @@ class DepositTarget:
         s = np.flatnonzero(self.is_glossy.take(j))
         if len(s) == 0:
             return wd
+        # The pairs with glossy points (s), of which those that are not back pairs (g) have a
+        # glossy part; built apart and put in place once (none of that when all pairs are so).
         d_fac, g_fac = self._factors
-        w = wd if wd.ndim == 2 else np.broadcast_to(wd, (3, len(j))).copy()
-        js = j.take(s)
-        w[:, s] *= d_fac.take(js, axis=0).T
-        g = s if back is None else s.take(np.flatnonzero(~back.take(s)))
-        if len(g) == 0:
-            return w
-        jg = j.take(g) if back is not None else js
-        nsg = pts.glossy_normals.take(jg, axis=0)
-        if self.anisotropic is None:
-            f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
-                                   nsg, with_cos_h=True)
+        whole = len(s) == len(j)
+        js = j if whole else j.take(s)
+        w_s = d_fac.take(js, axis=1) * (wd if whole else wd.take(s, axis=-1))        # (3, |s|)
+        if back is None:
+            g, jg, in_s = s, js, None
         else:
-            f, cos_h = self._glossy_mixed(jg, g, wi, nsg)
-        if ratio is not None:
-            if pts.ns_glossy is not None:
-                # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal (0 where
-                # the bump terms made the pair invalid).
-                f *= np.where(ratio.take(g) > 0, np.abs(dot(wi.take(g, axis=0), nsg))
-                              / np.maximum(cos_photon.take(g), 1e-4), 0.0)
+            in_s = np.flatnonzero(~back.take(s))
+            g, jg = s.take(in_s), js.take(in_s)
+        if len(g):
+            nsg = pts.glossy_normals.take(jg, axis=0)
+            if self.anisotropic is None:
+                f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
+                                       nsg, with_cos_h=True)
             else:
-                f *= ratio.take(g)
-        wg = g_fac.take(jg, axis=0).T * f
-        if self.rising is not None:
-            mats = pts.mat_ids.take(jg)
-            wg *= (self._const.take(mats, axis=0) + self.table.fresnel_color(mats, GLOSSY, cos_h)).T
-        w[:, g] += wg
+                f, cos_h = self._glossy_mixed(jg, g, wi, nsg)
+            if ratio is not None:
+                if pts.ns_glossy is not None:
+                    # |wi . N| / |N_g(photon) . wi| with the glossy lobes' own normal (0 where
+                    # the bump terms made the pair invalid).
+                    f *= np.where(ratio.take(g) > 0, np.abs(dot(wi.take(g, axis=0), nsg))
+                                  / np.maximum(cos_photon.take(g), 1e-4), 0.0)
+                else:
+                    f *= ratio.take(g)
+            wg = g_fac.take(jg, axis=1) * f
+            if self.rising is not None:
+                mats = pts.mat_ids.take(jg)
+                wg *= (self._const.take(mats, axis=0) + self.table.fresnel_color(mats, GLOSSY, cos_h)).T
+            if in_s is None:
+                w_s += wg
+            else:
+                w_s[:, in_s] += wg
+        if whole:
+            return w_s
+        w = np.empty((3, len(j)))
+        w[:] = wd
+        w[:, s] = w_s
         return w
 
     @cached_property
     def _factors(self):
-        """(d, g) (m, 3) float32: per point, what a pair's diffuse and glossy weights
+        """(d, g) (3, m) float32 (channel rows): per point, what a pair's diffuse and glossy weights
         (:meth:`pair_weights`) are worth besides the point's throughput and kernel.  d: the
         diffuse lobe's weight times its albedo over pi (1 over pi at the ``coloured`` points,
         whose pairs carry both), under a Fresnel layer times its factor at the view direction;
@@ -388,7 +400,7 @@ class DepositTarget:
                 layer[self.coloured] = 1.0
             d *= layer[:, None]
         if not self.any_glossy:
-            return d, None
+            return np.ascontiguousarray(d.T), None
         color = pts.colors[:, 1]
         if self.rising is not None:
             color = np.where(self.rising[:, None], f32(1.0), color)
@@ -397,7 +409,7 @@ class DepositTarget:
             if mu is None:
                 mu = dot(pts.wo, pts.glossy_normals).astype(np.float64)
             g *= table.multiscatter(mats, mu)
-        return d, g
+        return np.ascontiguousarray(d.T), np.ascontiguousarray(g.T)
 
     @property
     def needs_directions(self) -> bool:
@@ -424,7 +436,7 @@ class DepositTarget:
         radius = self.radius if not offset else 0.5 * self.radius
         kernel = 1.0 / (np.pi * radius * radius)                                   # (m,)
         # w_j (throughput) times the kernel, and d_j where the pairs do not carry it.
-        d = self._factors[0]
+        d = self._factors[0].T
         val = pts.weight * kernel[:, None]
         if self.any_glossy:
             val *= np.where(self.is_glossy[:, None], np.float32(1.0), d)
