@@ -154,6 +154,7 @@ class MaterialTable:
     emission_program: np.ndarray = None     # (M,) int32 procedural factor of ``emission`` or -1
     dielectric_program: np.ndarray = None   # (M,) int32 procedural transmitted colour of the glass or -1
     translucent_program: np.ndarray = None  # (M,) int32 procedural translucent colour or -1
+    rotation_program: np.ndarray = None     # (M,) int32 float program of an anisotropic lobe's turn or -1
     coat_row: np.ndarray = None             # (M,) int32 the coat's material (coat_variants) or -1
     coat_factor: np.ndarray = None          # (M, MS_NODES + 1, 3) float64 factor under the coat at mu
     coat_score: np.ndarray = None           # (M, 2) float64 mean lobe-score totals: coat, factor under it
@@ -274,6 +275,8 @@ class MaterialTable:
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
                              emission_program=emission_program, dielectric_program=dielectric_program,
                              translucent_program=np.asarray(_or_none(mats.translucent_program, m), np.int32),
+                             rotation_program=np.where(anisotropic, _or_none(mats.rotation_program, m),
+                                                       -1).astype(np.int32),
                              coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
                              glossy_through=glossy_on & ~diffuse_on
                              & (mats.glossy_roughness < through_roughness),

@@ -70,6 +70,7 @@ class RenderContext:
         self.has_dielectric_programs = bool((self.table.dielectric_program >= 0).any())
         table = self.table
         self.has_translucent_programs = bool((table.translucent_program[table.translucent] >= 0).any())
+        self.has_rotation_programs = bool((table.rotation_program >= 0).any())
         self.material_ids = np.ascontiguousarray(scene.material_ids)
         mats = self.materials
         # Transparency: materials a ray may pass through (Materials.opacity, opacity_program).
@@ -180,6 +181,7 @@ class RenderContext:
                   or self.has_emission_programs or self.has_dielectric_programs
                   or self.has_translucent_programs),
                  ("roughness maps", self.has_roughness_programs),
+                 ("rotation maps", self.has_rotation_programs),
                  ("normal and bump maps", self.has_normal_maps),
                  ("textured emitters", self.lights.textured_emitters),
                  ("light profiles", self.lights.has_profiles),
@@ -604,9 +606,9 @@ class RenderContext:
         through the centre of the texture space (from the Generated coordinates; without
         objects the world position) or the UV map's tangent, taken to world space as a normal
         is, made perpendicular to the ``smooth`` normal (before normal maps), then turned about
-        the shading normal ``ns`` by the material's rotation (about the front side's normal: Cycles
-        turns about the normal facing the ray, which on a back face turns the other way; a
-        quarter or half turn gives the same lobe either way)."""
+        the shading normal ``ns`` by the material's rotation or its rotation map's value at the
+        hit (about the front side's normal: Cycles turns about the normal facing the ray, which on
+        a back face turns the other way; a quarter or half turn gives the same lobe either way)."""
         out = np.zeros((len(mat), 3))
         sel = np.flatnonzero(self.table.anisotropic.take(mat))
         if len(sel) == 0:
@@ -643,7 +645,11 @@ class RenderContext:
         across = np.cross(raw, n)
         length = np.sqrt(dot(across, across))
         t = np.cross(n, across / np.where(length > 0, length, 1.0)[:, None])
-        turn = self.table.rotation.take(m)
+        turn = self.table.rotation.take(m).astype(np.float64)
+        if self.has_rotation_programs:
+            for s, value in self._program_values(self.table.rotation_program, prim_ids.take(sel), w,
+                                                 pos.take(sel, axis=0), m):
+                turn[s] = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
         if (turn != 0).any():
             # Rodrigues' rotation about the shading normal (Cycles' rotate_around_axis).
             k = ns.take(sel, axis=0)

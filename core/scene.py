@@ -102,7 +102,8 @@ class Materials:
       a tangent and alpha / s across it (each at most 1), the tangent from ``glossy_tangent``
       (``bsdf.TANGENT_*``: around the object's X, Y or Z axis (Z, 2, is Blender's default) from
       the Generated coordinates, or 3, the UV map's ``Scene.tangents``) turned about the normal
-      by ``glossy_rotation`` turns.  Cycles' Glossy BSDF of Anisotropy a has s = 1 - a for
+      by ``glossy_rotation`` turns, or by the float program ``rotation_program`` (when >= 0) at
+      each hit (a rotation map, e.g. spun metal).  Cycles' Glossy BSDF of Anisotropy a has s = 1 - a for
       a >= 0 and 1 / (1 + a) below; Principled's s = 1 / sqrt(1 - 0.9 a);
     * translucent: Lambertian transmission (Blender's Translucent BSDF), colour
       ``translucent_color`` times the program ``translucent_program`` (when >= 0) at each hit:
@@ -224,6 +225,7 @@ class Materials:
     translucent_weight: np.ndarray = None               # (M,) float32; None: 0
     translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
     translucent_program: np.ndarray = None              # (M,) int32, index into programs or -1; None: -1
+    rotation_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -237,10 +239,12 @@ class Materials:
                     "opacity_program", "transparent_color", "coat_weight", "coat_roughness", "coat_ior",
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
-                    "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent")
+                    "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
+                    "rotation_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
-                      "dielectric_program", "bump_program", "opacity_program", "translucent_program")
+                      "dielectric_program", "bump_program", "opacity_program", "translucent_program",
+                      "rotation_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent",)                       # stored as int32
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
@@ -278,7 +282,8 @@ class Materials:
         ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter and
         ``volume_emission`` (0) glow (or that alone), ``holdout`` (0) a holdout share.
         ``glossy_stretch`` (1), ``glossy_rotation`` (0) and ``glossy_tangent`` (2) make the
-        glossy lobe anisotropic.
+        glossy lobe anisotropic; ``rotation_program``, a float program, turns its tangent by the
+        program's value at each hit instead of ``glossy_rotation``.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -333,6 +338,7 @@ class Materials:
         out.translucent_weight = np.zeros(m, np.float32)
         out.translucent_color = np.zeros((m, 3), np.float32)
         out.translucent_program = np.full(m, -1, np.int32)
+        out.rotation_program = np.full(m, -1, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric", "translucent"):
@@ -830,7 +836,7 @@ class Scene:
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
                                        ("diffuse_roughness", (n,), 0.0), ("glossy_stretch", (n,), 1.0),
-                                       ("glossy_rotation", (n,), 0.0),
+                                       ("glossy_rotation", (n,), 0.0), ("rotation_program", (n,), -1),
                                        ("glossy_tangent", (n,), TANGENT_RADIAL_Z)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INTEGER_FIELDS

@@ -42,9 +42,10 @@ texture on a metal's colours makes its colour a program of the curve's mean at e
 (``metal`` in ``core/procedural.py``), without the curve.
 Anisotropy (Glossy and Metallic Anisotropy, Principled's Anisotropic) becomes the core's
 ``glossy_stretch`` (alpha s along the tangent, alpha / s across it, Cycles' alphas), with the
-Rotation and the Tangent input: unlinked, Cycles' default radial tangent about the object's Z
-axis (the scene then carries the objects' Generated coordinates), or a Tangent node (radial about
-its axis, or its UV map's tangents); anything else there is noted.
+Rotation (a texture on it stays a program, ``rotation_program``: a rotation map) and the Tangent
+input: unlinked, Cycles' default radial tangent about the object's Z axis (the scene then carries
+the objects' Generated coordinates), or a Tangent node (radial about its axis, or its UV map's
+tangents); anything else there is noted.
 The Diffuse BSDF's Roughness and Principled's Diffuse Roughness become the core's rough diffuse
 (``diffuse_roughness``, Cycles' Oren-Nayar); a Mix weighs them by the diffuse weights.
 Glossy, Metallic and Principled nodes set to Multiscatter GGX (Blender's default) get the
@@ -103,7 +104,8 @@ class Closure:
     diffuse_roughness: float = 0.0  # diffuse roughness (Oren-Nayar; its mean where it varies)
     roughness_texture: dict = None  # float program of the glossy roughness where it varies (a map)
     stretch: float = 1.0            # glossy anisotropy: alpha x s along the tangent, alpha / s across
-    rotation: float = 0.0           # the tangent's turn about the normal (turns)
+    rotation: float = 0.0           # the tangent's turn about the normal (turns; its mean where it varies)
+    rotation_texture: dict = None   # float program of that turn where it varies (a rotation map)
     tangent: tuple = TANGENT_DEFAULT  # (core.bsdf.TANGENT_*, UV map name or None) of the tangent
     ior: float = 1.5                # dielectric index of refraction
     dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
@@ -167,6 +169,7 @@ class Closure:
         turned = [c for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0 and c.anisotropic]
         if turned:
             out.rotation, out.tangent = turned[0].rotation, turned[0].tangent
+            out.rotation_texture = turned[0].rotation_texture
         out.diffuse_roughness = _weighted(self.diffuse_roughness, other.diffuse_roughness, wa[DIFFUSE],
                                           wb[DIFFUSE])
         if self.roughness_texture is not None or other.roughness_texture is not None:
@@ -408,6 +411,8 @@ class Closure:
                      glossy_tangent=self.tangent[0])
             if self.tangent[0] == TANGENT_UV:
                 s["tangent_uv_map"] = self.tangent[1]
+            if self.rotation_texture is not None:
+                s["rotation_program"] = self.rotation_texture
         if self.emission_texture is not None and self.emission.any():
             # The core multiplies the emission by the program: scaled to a mean near 1.
             scale = float(self.emission.max())
@@ -1123,7 +1128,7 @@ class NodeWalker:
         a = float(np.clip(self.value(node.inputs["Anisotropy"], stack), -0.99, 0.99))
         if abs(a) > 1e-4:
             c.stretch = 1.0 - a if a >= 0 else 1.0 / (1.0 + a)
-            c.rotation = self.value(node.inputs["Rotation"], stack)
+            c.rotation, c.rotation_texture = self.rotation(node.inputs["Rotation"], stack)
             c.tangent = self.tangent(node.inputs["Tangent"], stack)
         if node.distribution == "MULTI_GGX":
             c.multiscatter = c.color[GLOSSY] * color
@@ -1169,6 +1174,15 @@ class NodeWalker:
         if node.direction_type == "UV_MAP":
             return TANGENT_UV, node.uv_map
         return {"X": TANGENT_RADIAL_X, "Y": TANGENT_RADIAL_Y}.get(node.axis, TANGENT_RADIAL_Z), None
+
+    def rotation(self, sock, stack):
+        """(mean turn, float program or None) of an anisotropic lobe's Rotation input: a texture on
+        it (a rotation map: spun metal, brushed patterns) stays a program, which turns the
+        tangent at each hit in the core, as in Cycles."""
+        f = self.programs.expression(sock, stack, FLOAT)
+        if not procedural.varies(f):
+            return self.value(sock, stack), None
+        return float(procedural.mean_value(f, self.textures.images)), f
 
     def roughness(self, sock, stack):
         """(mean roughness in [0, 1], float program or None) of a glossy Roughness input: a texture
@@ -1295,7 +1309,7 @@ class NodeWalker:
             # Cycles: alpha / aspect along the tangent and alpha aspect across it, aspect =
             # sqrt(1 - 0.9 a), for the metal and the specular layer (its glass stays isotropic).
             c.stretch = 1.0 / np.sqrt(1.0 - 0.9 * aniso)
-            c.rotation = self.value(inp["Anisotropic Rotation"], stack)
+            c.rotation, c.rotation_texture = self.rotation(inp["Anisotropic Rotation"], stack)
             c.tangent = self.tangent(inp["Tangent"], stack)
         if coat > 0:
             # Cycles: roughness and tint saturated, the IOR at least 1.

@@ -1866,3 +1866,44 @@ def test_anisotropy_reaches_the_core_with_cycles_alphas_and_tangents(scene):
     row = material_row(ex.scene, "ByUV")
     assert row["glossy_tangent"] == TANGENT_UV and ex.scene.tangents is not None
     assert np.abs(ex.scene.tangents[..., :3]).sum() > 0
+
+
+def test_a_rotation_map_becomes_a_program_of_the_tangents_turn(scene):
+    """A texture on an anisotropic lobe's Rotation (a spun-metal pattern: a gradient times 0.5)
+    stays a float program the core evaluates at each hit, with the mean as the constant and no
+    note; on an isotropic lobe it is dropped; a Mix keeps the anisotropic side's map."""
+    def mapped(name, node_kind, socket, **inputs):
+        mat = bs._material(name, node_kind, **inputs) if node_kind else principled(name, **inputs)
+        nt = mat.node_tree
+        times = nt.nodes.new("ShaderNodeMath")
+        times.operation = "MULTIPLY"
+        times.inputs[1].default_value = 0.5
+        nt.links.new(nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], times.inputs[0])
+        bsdf_node = next(n for n in nt.nodes if n.bl_idname in ("ShaderNodeBsdfAnisotropic",
+                                                                 "ShaderNodeBsdfPrincipled"))
+        nt.links.new(times.outputs[0], bsdf_node.inputs[socket])
+        return mat
+
+    from amcmcppm.core import procedural
+    row, ex = export_material(mapped("Spun", "ShaderNodeBsdfAnisotropic", "Rotation", Anisotropy=0.6))
+    program = ex.scene.materials.programs[row["rotation_program"]]
+    values = procedural.evaluate(program, procedural.SampledAttributes(), [])
+    assert values.min() >= 0.0 and values.max() == pytest.approx(0.5, abs=0.01)
+    assert row["glossy_rotation"] == pytest.approx(values.mean(), abs=0.01)
+    assert not any("Spun" in w for w in ex.warnings), ex.warnings
+    from amcmcppm.core.context import RenderContext
+    assert "rotation maps" in RenderContext(ex.scene).effects
+    row, ex = export_material(mapped("Pan", None, "Anisotropic Rotation", Metallic=1.0, Anisotropic=0.5))
+    assert row["rotation_program"] >= 0 and row["glossy_stretch"] > 1.0
+    row, ex = export_material(mapped("Round", "ShaderNodeBsdfAnisotropic", "Rotation", Anisotropy=0.0))
+    assert row["rotation_program"] == -1 and row["glossy_stretch"] == 1.0
+    mat = mapped("Mixed", "ShaderNodeBsdfAnisotropic", "Rotation", Anisotropy=0.6)
+    nt = mat.node_tree
+    glossy = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfAnisotropic")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.5
+    nt.links.new(nt.nodes.new("ShaderNodeBsdfDiffuse").outputs[0], mix.inputs[1])
+    nt.links.new(glossy.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    assert row["rotation_program"] >= 0 and row["diffuse_weight"] == pytest.approx(0.5)

@@ -176,6 +176,33 @@ def test_a_sunlit_brushed_floor_gathers_the_reference_lobe(method, tangent, rota
     assert np.ptp(img.mean(axis=2)) < 0.1 * expected
 
 
+def test_a_rotation_map_turns_the_tangent_at_each_hit():
+    """``rotation_program``: a map that turns the tangent a quarter on the floor's x > 0 half and
+    not at all on the other.  Each half of the image equals, to rounding, the render with that
+    rotation everywhere (same seed: the same photons reach the same points; only the points'
+    lobes differ): 7.4 with the tangent along the sun's azimuth, 0.084 across it."""
+    half = {"op": "math", "operation": "GREATER_THAN",
+            "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"},
+            "b": 0.0}
+    quarter = {"op": "math", "operation": "MULTIPLY", "a": half, "b": 0.25}
+    settings = RenderSettings(method="ppm", passes=3, photons_per_pass=20000, workers=1, seed=4)
+    images = []
+    for rotation, program in ((0.0, None), (0.25, None), (0.0, quarter)):
+        scene = with_one_object(sunlit_floor((1, 0, 0), rotation), ((0, 0, 0), (0.5, 0.5, 0)))
+        if program is not None:
+            spec = {"name": "brushed", "glossy": 1.0, "roughness": (0.32 * 0.08) ** 0.25,
+                    "glossy_multiscatter": 0.0, "glossy_stretch": 2.0, "glossy_tangent": bsdf.TANGENT_UV,
+                    "rotation_program": program}
+            scene = scene.replace(materials=Materials.build([spec])).validate()
+            assert "rotation maps" in RenderContext(scene).effects
+        images.append(render(scene, settings).image[..., :3])
+    along, across, mapped = images
+    w = mapped.shape[1] // 2
+    assert along.mean() > 20 * across.mean()
+    np.testing.assert_allclose(mapped[:, :w], along[:, :w], rtol=1e-5)
+    np.testing.assert_allclose(mapped[:, w:], across[:, w:], rtol=1e-5)
+
+
 def test_radial_tangents_turn_about_the_objects_axis():
     """``RenderContext.tangents`` for Blender's default (radial about Z) and the X and Y axes, on
     an object turned 30 degrees about z, moved, and with a texture space of its own: the
