@@ -73,7 +73,11 @@ from .environment import equirectangular_uv
 from .sampling import dot, length, normalize
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
-ATTRIBUTES = ("generated", "object", "uv", "color", "normal")
+ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
+              "object_info")
+# Blender's Object Info per object (``Scene.object_info``): "object_location" the object's origin
+# in world space, "object_color" its colour, "object_info" (Alpha, Object Index, Random).
+OBJECT_INFO = ("object_location", "object_color", "object_info")
 # Largest albedo a program may give: above 1 a surface adds light (Cycles allows it, and a Mix
 # Shader mask divided by its mean weight may exceed 1), but a program gone wild (a power, a
 # division by ~0) must not overflow the photons' flux over many bounces.
@@ -107,6 +111,8 @@ class HitAttributes:
                 value = self._normal()
             elif name in ("object", "generated"):
                 value = self._object(name)
+            elif name in OBJECT_INFO:
+                value = self._object_info(name)
             else:
                 value = self._corners(name)
             self._cache[name] = value
@@ -139,6 +145,22 @@ class HitAttributes:
         if v.shape[1] == 2:
             v = np.concatenate([v, np.zeros((len(v), 1))], axis=1)
         return v
+
+    def _object_info(self, name):
+        """(k, 3) Object Info of the hits' objects (``OBJECT_INFO``)."""
+        s = self.scene
+        if s.object_ids is None:
+            raise ProgramError(f"the program needs '{name}' of objects, which the scene lacks")
+        objects, which = np.unique(s.object_ids.take(self.prim_ids), return_inverse=True)
+        if name == "object_location":
+            # The origin: -A^-1 b of the object-from-world map (A, b) (pseudo-inverse: a flattened
+            # object has no inverse).
+            m = s.object_from_world.take(objects, axis=0)
+            values = -np.matmul(np.linalg.pinv(m[:, :, :3]), m[:, :, 3:])[:, :, 0]
+        else:
+            info = s.object_info.take(objects, axis=0).astype(np.float64)
+            values = info[:, 3:6] if name == "object_color" else info[:, :3]
+        return values.take(which.ravel(), axis=0)
 
     def _object(self, name):
         s = self.scene
@@ -174,8 +196,9 @@ class DirectionAttributes:
 
 class SampledAttributes:
     """Stand-in coordinates for an average of a program over a surface: generated (and vertex
-    colours) uniform in the unit cube, object in [-1, 1]^3, uv in the unit square (seeded,
-    reproducible)."""
+    colours) uniform in the unit cube, object in [-1, 1]^3, uv in the unit square; for Object
+    Info, locations in [-1, 1]^3, colours in the unit cube, alpha 1, index 0 and Random uniform
+    in [0, 1] (seeded, reproducible)."""
 
     def __init__(self, n=4096, seed=0):
         rng = np.random.default_rng(seed)
@@ -183,7 +206,9 @@ class SampledAttributes:
         d = rng.normal(size=(n, 3))
         self._values = {"generated": g, "object": 2.0 * g - 1.0,
                         "uv": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1), "color": g,
-                        "normal": d / np.linalg.norm(d, axis=1, keepdims=True)}
+                        "normal": d / np.linalg.norm(d, axis=1, keepdims=True),
+                        "object_location": 2.0 * g - 1.0, "object_color": g,
+                        "object_info": np.concatenate([np.ones((n, 1)), np.zeros((n, 1)), g[:, :1]], axis=1)}
 
     @property
     def count(self) -> int:

@@ -726,6 +726,9 @@ class Scene:
     object_ids: np.ndarray = None
     object_from_world: np.ndarray = None
     texture_spaces: np.ndarray = None
+    # (O, 6) float32 Blender's Object Info of each object: Alpha, Object Index (the pass index),
+    # Random (Cycles' random number in [0, 1]) and Color (rgb); None: zeros (``validate``).
+    object_info: np.ndarray = None
     vertex_colors: np.ndarray = None    # (T, 3, 3) float32 linear RGB per corner (Color Attribute), or None
     # (T,) uint8 the camera-path rays that see each triangle (Blender's object ray visibility, bits
     # as Lights.visibility: VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION), or None: all of
@@ -1004,6 +1007,8 @@ class Scene:
                                      np.float64, (12,)).reshape(n, 3, 4)
         spaces = np.asarray(self.texture_spaces).reshape(-1, 6)
         self.texture_spaces = arr("texture_spaces", spaces, np.float64, (6,), n).reshape(n, 2, 3)
+        info = np.zeros((n, 6), np.float32) if self.object_info is None else self.object_info
+        self.object_info = arr("object_info", info, np.float32, (6,), n)
         if t and (self.object_ids.min() < 0 or self.object_ids.max() >= n):
             fail(f"object_ids outside [0, {n})")
 
@@ -1022,6 +1027,8 @@ class Scene:
             fail(f"material '{mats.names[rising[0]]}': a glossy_program cannot vary a glossy lobe with a "
                  "Fresnel rise (glossy_fresnel_ior, glossy_metal_rise, glossy_metal_dip)")
         coords = {"generated": self.object_ids, "object": self.object_ids, "normal": self.object_ids,
+                  "object_location": self.object_ids, "object_color": self.object_ids,
+                  "object_info": self.object_ids,
                   "uv": self.uvs,
                   "color": self.vertex_colors}
         for i, program in enumerate(mats.programs):
@@ -1113,7 +1120,7 @@ class Scene:
             d["uvs"] = self.uvs
         if self.tangents is not None:
             d["tangents"] = self.tangents
-        for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces",
+        for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces", "object_info",
                      "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
                      "emitter_shadow_links"):
             if getattr(self, name) is not None:
@@ -1158,7 +1165,8 @@ class Scene:
                       camera=cam, world=world, shading_normals=get("shading_normals"),
                       uvs=get("uvs"), tangents=get("tangents"), vertex_colors=get("vertex_colors"),
                       object_ids=get("object_ids"), object_from_world=get("object_from_world"),
-                      texture_spaces=get("texture_spaces"), triangle_visibility=get("triangle_visibility"),
+                      texture_spaces=get("texture_spaces"), object_info=get("object_info"),
+                      triangle_visibility=get("triangle_visibility"),
                       receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
                       blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),
                       textures=[get(f"textures.{i}") for i in range(ntex)])

@@ -702,7 +702,7 @@ class MaterialExporter:
             return self.default_id()
         key = material.as_pointer()
         if key not in self._ids:
-            walker = NodeWalker(material.name, self.textures)
+            walker = NodeWalker(material.name, self.textures, material.pass_index)
             closure = walker.material_closure(material)
             cycles = getattr(material, "cycles", None)
             bent = closure.normal_map is not None or closure.bump is not None
@@ -765,9 +765,10 @@ class MaterialExporter:
 class NodeWalker:
     """Evaluates one material's node tree into a :class:`Closure`; collects notes for a warning."""
 
-    def __init__(self, material_name, textures):
+    def __init__(self, material_name, textures, pass_index=0):
         self.name = material_name
         self.textures = textures
+        self.pass_index = pass_index    # the material's pass index (Object Info's Material Index)
         self.notes = []
         self.programs = ExpressionBuilder(self)
         self.world_texture = None       # texture index of the world's environment image, if any

@@ -23,7 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.procedural import OBJECT_INFO
 from ...core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+from ...core.texture_hash import hash_uint2
 from .lights import ray_visibility
 
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
@@ -67,6 +69,7 @@ class Geometry:
     object_ids: np.ndarray | None = None          # (T,) int32 each triangle's instance
     object_from_world: np.ndarray | None = None   # (O, 3, 4) float64
     texture_spaces: np.ndarray | None = None      # (O, 2, 3) float64 location and size
+    object_info: np.ndarray | None = None         # (O, 6) float32 Object Info (core.Scene.object_info)
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
     # HOLDOUT_OBJECT for a holdout object's, or None: all rays, no holdout
     triangle_visibility: np.ndarray | None = None
@@ -102,8 +105,9 @@ class GeometryCollector:
         self.linking = linking
         self.meshes = {}      # mesh key -> LocalMesh, or None when it has no faces
         # (mesh key, material ids, ray visibility, per kind of linking (set, emitter collection)
-        # or None) -> list of (4, 4) world_from_object
+        # or None) -> list of (4, 4) world_from_object, and the same keys -> list of (6,) Object Info
         self.groups = {}
+        self.infos = {}
 
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
@@ -140,15 +144,41 @@ class GeometryCollector:
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))
+        self.infos.setdefault((key, mat_ids, flags, link), []).append(object_info(inst))
 
     def finish(self) -> Geometry:
-        geometry = assemble(self.meshes, self.groups, self.materials)
+        geometry = assemble(self.meshes, self.groups, self.materials, self.infos)
         geometry.meshes = sum(1 for m in self.meshes.values() if m is not None)
         return geometry
 
 
 # Every camera-path ray: a triangle seen by all of them needs no visibility array.
 ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+
+
+def object_info(inst):
+    """(6,) float32 Blender's Object Info of a depsgraph instance as Cycles sets it (``Scene.object_info``):
+    Alpha and Color (the object's colour; an instance's come from the object that instances it),
+    Object Index (the object's pass index) and Random, the instance's ``random_id`` for an
+    instance (a particle, a collection or geometry-nodes instance) and else Cycles' hash of the
+    object's name, in [0, 1] as ``random_id / 0xFFFFFFFF`` in float32 (checked against Cycles:
+    ``test_object_info_matches_cycles``)."""
+    ob = inst.object
+    rid = (inst.random_id & 0xFFFFFFFF) if inst.is_instance else cycles_name_hash(ob.name)
+    random = np.float32(rid) * np.float32(1.0 / 0xFFFFFFFF)
+    colored = inst.parent if inst.is_instance and inst.parent is not None else ob
+    r, g, b, alpha = (float(x) for x in colored.color)
+    return np.array([alpha, float(ob.pass_index), random, r, g, b], np.float32)
+
+
+def cycles_name_hash(name):
+    """Cycles' random_id of an object that is not an instance: ``hash_uint2(hash_string(name), 0)``,
+    hash_string multiplying by 37 and adding each byte of the UTF-8 name (as unsigned: a name
+    with non-ASCII letters matches Cycles so, not with signed chars)."""
+    h = 0
+    for byte in name.encode("utf-8"):
+        h = (h * 37 + byte) & 0xFFFFFFFF
+    return int(hash_uint2(np.uint32(h), np.uint32(0)))
 
 
 def _mesh_key(ob):
@@ -356,14 +386,15 @@ def _triangulated_copy(me):
     return copy
 
 
-def assemble(meshes, groups, materials) -> Geometry:
-    """Transform every instance group to world space and concatenate."""
+def assemble(meshes, groups, materials, infos=None) -> Geometry:
+    """Transform every instance group to world space and concatenate; ``infos``: the groups'
+    Object Info rows (:func:`object_info`), kept when some material reads them."""
     parts = []
     offset = 0
     instances = 0
     # Data of procedural textures, when some material reads it (for every triangle).
     coordinates = materials.coordinates_used({i for _, ids, _, _ in groups for i in ids})
-    objects = bool(coordinates & {"object", "generated", "normal"})
+    objects = bool(coordinates & {"object", "generated", "normal", *OBJECT_INFO})
     for (key, mat_ids, visibility, link), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
@@ -371,6 +402,8 @@ def assemble(meshes, groups, materials) -> Geometry:
         part["link"] = link
         if objects:
             part["object_ids"] += instances
+            if coordinates & set(OBJECT_INFO) and infos is not None:
+                part["object_info"] = np.stack(infos[key, mat_ids, visibility, link]).astype(np.float32)
         parts.append(part)
         offset += len(part["vertices"])
         instances += len(matrices)
@@ -389,7 +422,8 @@ def assemble(meshes, groups, materials) -> Geometry:
         uvs = np.concatenate([p["uvs"] if p["uvs"] is not None
                               else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
     objects = {name: np.concatenate([p[name] for p in parts])
-               for name in ("object_ids", "object_from_world", "texture_spaces") if name in parts[0]}
+               for name in ("object_ids", "object_from_world", "texture_spaces", "object_info")
+               if name in parts[0]}
     if materials.tangent_uv(used) is not None:
         # Zero tangents (meshes without UVs or a tangent frame) keep the unbent normal, as in Cycles.
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
@@ -423,8 +457,9 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
     ids of the slots.  Returns a dict of vertices (k V, 3) float32, triangles (k T, 3)
     int32 offset by ``vertex_offset``, material_ids (k T,), normals (k T, 3, 3) float32
     or None, uvs (k T, 3, 2) float32 or None and tangents (k T, 3, 4) float32 or None; with
-    "object", "generated" or "normal" in ``coordinates`` also object_ids (k T,) int32 (0 .. k - 1, the
-    instance), object_from_world (k, 3, 4) float64 and texture_spaces (k, 2, 3) float64, and with
+    "object", "generated", "normal" or Object Info in ``coordinates`` also object_ids (k T,) int32
+    (0 .. k - 1, the instance), object_from_world (k, 3, 4) float64 and texture_spaces (k, 2, 3)
+    float64, and with
     "color" the render colour attribute per corner, color (k T, 3, 3) float32 (black without one).
     """
     k = len(world_from_object)
@@ -476,7 +511,7 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
            "normals": normals, "uvs": uvs, "tangents": tangents}
     # Texture coordinates of procedural textures: each instance's own object space.
-    if coordinates & {"object", "generated", "normal"}:
+    if coordinates & {"object", "generated", "normal", *OBJECT_INFO}:
         out["object_ids"] = np.repeat(np.arange(k, dtype=np.int32), n_t)
         out["object_from_world"] = np.linalg.inv(world_from_object)[:, :3, :4]
         out["texture_spaces"] = np.repeat(np.asarray(local.texspace, np.float64)[None], k, axis=0)

@@ -4,7 +4,9 @@
 float, or three floats for colour and vector sockets) or a program node dict, inserting the
 type conversions Cycles makes where a link joins sockets of different types (colour to float
 by luminance, vector to float by the average, float to colour as grey).  Supported nodes:
-Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Mapping
+Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Object Info
+(per object: Location, Color, Alpha, Object Index and Random as Cycles sets them; Material Index
+the material's pass index), Mapping
 (all four types), Image Texture (flat projection, repeat), Environment Texture
 (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise
 Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector,
@@ -129,6 +131,16 @@ def _tex_coord(b, node, stack):
     else:
         b.walker.note(f"'{node.name}': Object coordinates of another object are not supported")
     return out
+
+
+def _object_info(b, node, stack):
+    info = {"op": "attribute", "name": "object_info"}          # (Alpha, Object Index, Random)
+    return {"Location": {"op": "attribute", "name": "object_location"},
+            "Color": {"op": "attribute", "name": "object_color"},
+            "Alpha": {"op": "separate", "vector": info, "output": "X"},
+            "Object Index": {"op": "separate", "vector": info, "output": "Y"},
+            "Random": {"op": "separate", "vector": info, "output": "Z"},
+            "Material Index": float(b.walker.pass_index)}
 
 
 def _uv_map(b, node, stack):
@@ -532,6 +544,7 @@ def _layer_weight(b, node, stack):
 
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
+    "ShaderNodeObjectInfo": _object_info,
     "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
     "ShaderNodeTexEnvironment": _environment, "ShaderNodeTexSky": _sky,

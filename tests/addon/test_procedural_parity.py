@@ -740,3 +740,71 @@ def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, gra
     else:
         # Discontinuities: where the dominant axis changes (blend 0) a pixel may fall either side.
         assert (err < 2e-3).mean() > 0.97
+
+
+def test_object_info_matches_cycles(addon, tmp_path):
+    """Object Info, per object as Cycles sets it: four quarter planes sharing one material, named
+    in ASCII and not (Cycles hashes the name of an object that is not an instance: its Random),
+    one of them a collection instance (Random from the instance), with their own colours, alphas
+    and pass indices, the material its own pass index (Material Index).  The colour is
+    (Random, Object Index / 10 + Material Index / 20, Alpha) + Color / 2 + (Location + 1) / 10.
+    Cycles takes an instance's Color and Alpha from its instancer (the empty), its Object Index
+    from the instanced object, and hashes a name's UTF-8 bytes as unsigned (all three were seen
+    here first: signed bytes and the instanced object's colour failed)."""
+    import bpy
+
+    def build(nt):
+        info = nt.nodes.new("ShaderNodeObjectInfo")
+        index = node(nt, "ShaderNodeMath", operation="MULTIPLY_ADD")
+        nt.links.new(info.outputs["Object Index"], index.inputs[0])
+        index.inputs[1].default_value = 0.1
+        material = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        nt.links.new(info.outputs["Material Index"], material.inputs[0])
+        material.inputs[1].default_value = 0.05
+        nt.links.new(material.outputs[0], index.inputs[2])
+        xyz = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(info.outputs["Random"], xyz.inputs["X"])
+        nt.links.new(index.outputs[0], xyz.inputs["Y"])
+        nt.links.new(info.outputs["Alpha"], xyz.inputs["Z"])
+        color = node(nt, "ShaderNodeVectorMath", operation="MULTIPLY_ADD")
+        nt.links.new(info.outputs["Color"], color.inputs[0])
+        color.inputs[1].default_value = (0.5, 0.5, 0.5)
+        nt.links.new(xyz.outputs[0], color.inputs[2])
+        where = node(nt, "ShaderNodeVectorMath", operation="MULTIPLY_ADD")
+        nt.links.new(info.outputs["Location"], where.inputs[0])
+        where.inputs[1].default_value = (0.1, 0.1, 0.1)
+        where.inputs[2].default_value = (0.1, 0.1, 0.1)
+        total = node(nt, "ShaderNodeVectorMath", operation="ADD")
+        nt.links.new(color.outputs[0], total.inputs[0])
+        nt.links.new(where.outputs[0], total.inputs[1])
+        return total.outputs[0]
+
+    mat, positions = bs.texture_plane(build, size=2.0)
+    mat.pass_index = 3
+    first = bpy.data.objects["Plane"]
+    first.scale, first.location = (0.5, 0.5, 1.0), (-0.5, 0.5, 0.0)
+    quarters = [first, bs.plane("Quarter ünï", size=1.0, material=mat, location=(0.5, 0.5, 0.0)),
+                bs.plane("Q3", size=1.0, material=mat, location=(-0.5, -0.5, 0.0))]
+    # The fourth quarter: a collection instance of a plane kept out of the scene.
+    coll = bpy.data.collections.new("Tile")
+    tile = bpy.data.objects.new("Tile plane", bs.plane("Tile source", size=1.0, material=mat).data)
+    bpy.data.objects.remove(bpy.data.objects["Tile source"])
+    coll.objects.link(tile)
+    holder = bpy.data.objects.new("Tile holder", None)
+    holder.instance_type, holder.instance_collection = "COLLECTION", coll
+    holder.location = (0.5, -0.5, 0.0)
+    bpy.context.scene.collection.objects.link(holder)
+    colors = ((0.9, 0.2, 0.1, 0.3), (0.1, 0.7, 0.3, 0.6), (0.2, 0.3, 0.8, 0.9), (0.5, 0.5, 0.1, 0.4))
+    for ob, color, index in zip(quarters + [tile], colors, (1, 2, 5, 7)):
+        ob.color, ob.pass_index = color, index
+    holder.color = (0.3, 0.6, 0.9, 0.8)          # an instance's colour and alpha: its instancer's
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    assert np.isfinite(ours).all()
+    h, w = ours.shape[:2]
+    quarters = [cycles[:h // 2, :w // 2], cycles[:h // 2, w // 2:], cycles[h // 2:, :w // 2],
+                cycles[h // 2:, w // 2:]]
+    red = [float(np.median(q[..., 0])) for q in quarters]
+    print("object info: Cycles' quarters' red", np.round(red, 4))
+    assert np.ptp(red) > 0.05                 # the objects' Random differ
+    compare(ours, cycles, "object info")

@@ -177,6 +177,37 @@ def test_object_and_generated_coordinates_follow_the_object():
     assert RenderContext(scene.validate()).has_programs
 
 
+def test_object_info_reads_each_objects_row(tmp_path):
+    """Object Info (``Scene.object_info``): the floor's two triangles as two objects, one turned a
+    quarter about z and moved; each hit reads its object's origin in world space, its colour and
+    (Alpha, Object Index, Random).  Without rows the values are 0; the rows survive a file and a
+    bad shape is named."""
+    program = {"op": "attribute", "name": "object_info"}
+    scene = sun_over_procedural_floor(program)
+    # Object from world: a quarter turn about z and a shift.
+    turn = np.array([[0.0, 1.0, 0.0, -0.5], [-1.0, 0.0, 0.0, 0.25], [0.0, 0.0, 1.0, 2.0]])
+    info = np.array([[0.5, 3, 0.25, 0.9, 0.1, 0.2], [1.0, 7, 0.75, 0.3, 0.4, 0.5]], np.float32)
+    scene = scene.replace(object_ids=np.array([0, 1], np.int32),
+                          object_from_world=np.stack([np.eye(3, 4), turn]),
+                          texture_spaces=np.zeros((2, 2, 3)), object_info=info).validate()
+    bary = tuple(np.full((2, 1), w) for w in (0.2, 0.3, 0.5))
+    positions = np.array([[0.1, 0.2, 0.0], [-0.3, 0.1, 0.0]])
+    attrs = procedural.HitAttributes(scene, np.array([1, 0]), bary, positions)
+    np.testing.assert_allclose(attrs.get("object_info"), info[[1, 0], :3])
+    np.testing.assert_allclose(attrs.get("object_color"), info[[1, 0], 3:])
+    # Object 1's origin: the world point its map takes to 0, (0.25, 0.5, -2).
+    np.testing.assert_allclose(attrs.get("object_location"), [[0.25, 0.5, -2.0], [0.0, 0.0, 0.0]], atol=1e-12)
+    scene.save(tmp_path / "s.npz")
+    np.testing.assert_array_equal(Scene.load(tmp_path / "s.npz").object_info, info)
+    plain = scene.replace(object_info=None).validate()
+    assert not procedural.HitAttributes(plain, np.array([0]), tuple(b[:1] for b in bary),
+                                        np.zeros((1, 3))).get("object_info").any()
+    with pytest.raises(SceneError, match="object_info must have shape"):
+        scene.replace(object_info=info[:, :5]).validate()
+    with pytest.raises(SceneError, match="reads 'object_info' coordinates"):
+        scene.replace(object_ids=None).validate()
+
+
 def test_programs_and_coordinates_survive_a_file(tmp_path):
     program = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": [0.5, 0.6, 0.7],
                "b": {"op": "gradient", "vector": {"op": "attribute", "name": "generated"}, "output": "Color"}}
