@@ -39,7 +39,7 @@ SETTING_FLAGS = {
     "photons_per_pass": "photons_per_pass", "workers": "workers", "chains": "chains",
     "initial_radius": "initial_radius_px", "alpha": "alpha", "max_bounces": "max_bounces",
     "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
-    "bias_correction": "bias_correction",
+    "bias_correction": "bias_correction", "edge_coverage": "edge_coverage",
 }
 
 
@@ -78,6 +78,8 @@ def build_parser():
     g.add_argument("--alpha", type=float)
     g.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=None,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
+    g.add_argument("--edge-coverage", action=argparse.BooleanOptionalAction, default=None,
+                   help="keep gathers near surface edges from darkening (--no-edge-coverage: off)")
     g.add_argument("--max-bounces", type=int)
     g.add_argument("--initial-mutation-size", type=float)
     g.add_argument("--glossy-through", type=float,

@@ -74,7 +74,8 @@ class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
 class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Photon Gathering"
-    props = ("initial_radius_px", "alpha", "bias_correction", "max_bounces", "glossy_through_roughness")
+    props = ("initial_radius_px", "alpha", "bias_correction", "edge_coverage", "max_bounces",
+             "glossy_through_roughness")
 
 
 class AMCMCPPM_RENDER_PT_performance(AMCMCPPMButtonsPanel, bpy.types.Panel):

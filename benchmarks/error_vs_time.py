@@ -66,6 +66,10 @@ METHODS = {
     "ppm-uncorrected": dict(method="ppm", bias_correction=False),
     "a60-exact-uncorrected": dict(method="amcmcppm", target_acceptance=0.60, mutation="exact",
                                   bias_correction=False),
+    # The same without the edge coverage (RenderSettings.edge_coverage), as before it.
+    "ppm-no-edges": dict(method="ppm", edge_coverage=False),
+    "a60-exact-no-edges": dict(method="amcmcppm", target_acceptance=0.60, mutation="exact",
+                               edge_coverage=False),
 }
 # The references' method: uncorrected, as all references made before the correction.
 REFERENCE_METHOD = "a60-exact-uncorrected"

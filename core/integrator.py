@@ -26,12 +26,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .context import RenderContext
+from .coverage import point_coverage
 from .eye_pass import trace_eye_pass
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, RenderSettings
 from .visible_cells import VisibleCells
-from .worker import STREAM_EYE
+from .worker import STREAM_COVERAGE, STREAM_EYE
 
 # A pass is not started when the time left would trace less than this share of its photons.
 MIN_CUT_PASS = 0.05
@@ -351,9 +352,16 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             cells = cells.extended(pts.position, pts.ng, pts.base_radius)
             if vol_radius is not None:
                 cells = cells.extended(vol.position, None, vol.base_radius, volume=True)
+        coverage = inner_coverage = None
+        if settings.edge_coverage and pts.count:
+            rng = np.random.default_rng([settings.seed, STREAM_COVERAGE, i])
+            # (reach: the disc's radius in pixel footprints this pass, and the jitter's pixel)
+            coverage, inner_coverage = point_coverage(ctx, pts, radius, width, height,
+                                                      settings.initial_radius_px * scales[i] + 1.0, rng,
+                                                      inner=settings.bias_correction)
         return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
                              volume=vol, volume_radius=vol_radius, media=ctx.anisotropy,
-                             inner=settings.bias_correction)
+                             inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.

@@ -85,14 +85,19 @@ class DepositTarget:
     (:meth:`inner_pixels`, ``RenderSettings.bias_correction``)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
-                 volume=None, volume_radius=None, volume_grid=None, media=None, inner=False):
+                 volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
+                 coverage=None, inner_coverage=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
         volume : VolumePoints with at least one point, or None; volume_radius : (k,) their
         radii; media : (M,) float64 the materials' phase anisotropy g (for the volume points);
-        inner : also sum the pairs within half the radius (see the class docstring)."""
+        inner : also sum the pairs within half the radius (see the class docstring);
+        coverage, inner_coverage : None, or (m,) the share of each point's disc (of the radius,
+        of half of it) that lies on a surface (``core/coverage.py``): the kernel's area is
+        that share of pi r^2."""
         self.points = points
+        self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
         self.volume = volume if volume is not None and volume.count else None
         self.volume_radius = volume_radius
@@ -177,6 +182,9 @@ class DepositTarget:
         d.update({f"grid.{k}": v for k, v in self.grid.to_arrays().items()})
         d.update(radius=self.radius, n_pixels=np.int64(self.n_pixels),
                  has_shading_normals=np.bool_(self.has_shading_normals), inner=np.bool_(self.inner))
+        for name in ("coverage", "inner_coverage"):
+            if getattr(self, name) is not None:
+                d[name] = getattr(self, name)
         if self.cells is not None:
             d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
         if self.volume is not None:
@@ -198,7 +206,8 @@ class DepositTarget:
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
                              grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None,
                              volume=volume, volume_radius=d.get("volume_radius"), volume_grid=vgrid,
-                             media=d.get("media"), inner=bool(d.get("inner", False)))
+                             media=d.get("media"), inner=bool(d.get("inner", False)),
+                             coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"))
 
     def volume_pairs(self, x, d):
         """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the
@@ -435,6 +444,9 @@ class DepositTarget:
         m = self.points.count
         radius = self.radius if not offset else 0.5 * self.radius
         kernel = 1.0 / (np.pi * radius * radius)                                   # (m,)
+        coverage = self.coverage if not offset else self.inner_coverage
+        if coverage is not None:
+            kernel /= coverage
         # w_j (throughput) times the kernel, and d_j where the pairs do not carry it.
         d = self._factors[0].T
         val = pts.weight * kernel[:, None]

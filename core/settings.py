@@ -72,6 +72,13 @@ class RenderSettings:
     minimises the estimated relMSE (noise of the extrapolation against the bias it removes;
     :meth:`core.integrator.Accumulator._corrected`).  Volume gathers are not corrected."""
 
+    edge_coverage: bool = True
+    """Divide each surface gather by the share of its disc that lies on a surface photons can
+    land on (``core/coverage.py``): near an edge (a table's rim, a room's corner, a leaf cut by an
+    alpha map) the disc reaches off the surface and the plain estimate is too dark, by up to half
+    at the edge.  Probed only near discontinuities of the image's points; elsewhere the share is
+    exactly 1."""
+
     max_bounces: int = 8
     """Most scattering events of a photon path, and most specular bounces of a camera path."""
 
@@ -140,6 +147,8 @@ class RenderSettings:
             bad("target_acceptance", "must lie in (0, 1)")
         if not isinstance(self.bias_correction, bool):
             bad("bias_correction", "must be True or False")
+        if not isinstance(self.edge_coverage, bool):
+            bad("edge_coverage", "must be True or False")
         if not 1e-4 <= self.initial_mutation_size <= 1e3:
             bad("initial_mutation_size", "must lie in [1e-4, 1e3]")
         if not 0 <= self.glossy_through_roughness <= 1:

@@ -825,6 +825,37 @@ def test_transparency_matches_cycles(addon, tmp_path, shader):
 
 
 
+@pytest.mark.slow
+def test_the_corner_where_floor_meets_wall_matches_cycles(addon, tmp_path):
+    """The corner scene under a sun from the camera's side, which lights the floor and the wall:
+    the gathers along the line where they meet reach behind the wall, where no photon lands.
+    Against Cycles (2048 samples), 32 passes: without the edge coverage the image row of the
+    corner line came out 0.76 of Cycles' and the relMSE was 0.00154; with it 0.98 and 0.00058."""
+    images = []
+    for which in ("cycles", False, True):
+        corner_scene()
+        sun = bs.light("SUN", location=(0, -3, 3), target=(0, 0, 0), energy=3.0)
+        sun.data.angle = 0.01
+        scene = bpy.context.scene
+        scene.amcmcppm.passes, scene.amcmcppm.photons_per_pass = 32, 100_000
+        if which == "cycles":
+            use_cycles(scene)
+            scene.cycles.samples = 2048
+        else:
+            scene.amcmcppm.edge_coverage = which
+        images.append(bs.render_exr(tmp_path / f"corner_{which}.exr")[..., :3].astype(np.float64))
+    cycles, plain, covered = images
+    rel = {name: float((((img - cycles) ** 2) / (cycles ** 2 + 0.01)).mean())
+           for name, img in (("plain", plain), ("covered", covered))}
+    rows = lambda img: img.mean(axis=(1, 2)) / cycles.mean(axis=(1, 2))        # noqa: E731
+    line = np.argmin(rows(plain))
+    print(f"corner: relMSE {rel}, the corner line's row {line}: plain {rows(plain)[line]:.3f}, "
+          f"covered {rows(covered)[line]:.3f}")
+    assert rows(plain)[line] < 0.97
+    assert rows(covered)[line] == pytest.approx(1.0, abs=0.04)
+    assert rel["covered"] < 0.6 * rel["plain"]
+
+
 @pytest.mark.slow          # (make test's budget; tests/core/test_transparency.py has the closed forms)
 def test_an_alpha_map_renders_as_the_geometry_it_cuts(addon, tmp_path):
     """The leaf's Alpha a checker's Fac (50 cm cells, 0 or 1) against the leaf cut into the
