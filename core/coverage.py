@@ -2,27 +2,26 @@
 
 A point gathers the photons within its radius r whose surface faces as its own does
 (``core/hash_grid.py``) and divides their flux by the disc's area, pi r^2.  Near an edge of
-its surface (a table's rim, the floor where it meets a wall, a leaf cut by an alpha map) part of
-that disc holds no surface and receives no photons, so the estimate is too dark there, by up to
+its surface (a table's rim, a floor that ends at a wall, a leaf cut by an alpha map) part of
+that disc holds no surface and receives no photons, so the estimate is too dark, by up to
 half at the edge itself (README, "Edges").  The disc's *covered* share c corrects it: the
 kernel becomes 1 / (c pi r^2).
 
 c is estimated with probes on the point's tangent plane: ``DIRECTIONS`` directions, turned by a
 random angle per point, at the radii of ``RINGS`` (each ring the middle of an equal share of the
-disc's area).  A probe at offset o (|o| = rho) is covered when
-
-* a ray from p + h n along o reaches p + h n + o without meeting a surface that faces
-  otherwise than the point's (a wall rising in between: a concave corner), with h = ``LIFT`` r;
-  one that faces as the point's is its own surface curving up (a bowl): covered; else
-* a ray from p + h n + o along -n meets, within 2 h, a surface that faces as the point's does
-  (``NORMAL_COS``), whose material has a lobe photons deposit on and which is not cut away there
-  by its opacity (a convex edge or a hole: nothing below).
+disc's area).  A probe at offset o is covered when a ray from p + h n + o along -n (h =
+``LIFT`` r) meets, within 2 h, a surface that faces as the point's does (``NORMAL_COS``), whose
+material has a lobe photons deposit on and which is not cut away there by its opacity.  That is
+the grid's own notion of the disc: it gathers photons within the radius whatever lies between
+(a thin wall standing on a floor that runs on under it does not stop the photons on its other
+side), so the probes do not look for walls either; a floor that ends at a wall, or a surface
+that ends at an edge, has nothing below the probes beyond it.
 
 The share is the covered probes' (each ring weighs the same), kept at least ``MIN_COVERAGE``.
 Inside a surface every probe is covered and c is exactly 1, so the estimate there is unchanged.
 On a sphere the area within a ball of radius r about a point of it is pi r^2 whatever the
-sphere's radius (Archimedes), and the probes find it whole as long as r is below about the
-sphere's radius (the surface then stays within 2 h below the probes).
+sphere's radius (Archimedes); the probes reach h above and below the plane, which holds the
+sphere for radii up to about its own.
 """
 from __future__ import annotations
 
@@ -37,7 +36,7 @@ DIRECTIONS = 8
 # distance, rings so placed are off by at most 5.4 % with two rings, 3.7 % with three and 2.8 %
 # with four (probes in the directions being exact there).
 RINGS = tuple(float(np.sqrt((k + 0.5) / 4)) for k in range(4))
-LIFT = 0.25               # height of the probes' rays above the tangent plane, in radii
+LIFT = 0.5                # height of the probes' rays above the tangent plane, in radii
 MIN_COVERAGE = 0.25       # (a point on a sliver of a surface keeps at most 4 times the kernel)
 
 
@@ -69,39 +68,25 @@ def _probe(ctx, position, n, dirs, radius, ring):
     """(m, D) bool: which probes at ``ring`` r along ``dirs`` (m, D, 3) are covered."""
     m, k = dirs.shape[:2]
     lift = LIFT * radius
-    rho = np.repeat(ring * radius, k)
-    origins = np.repeat(position + n * lift[:, None], k, axis=0)
-    d = dirs.reshape(-1, 3)
-    normals = np.repeat(n, k, axis=0)
-    along = ctx.accel.intersect(origins, d, rho)
-    covered = ~along.is_hit
-    go = np.flatnonzero(covered)
-    blocked = np.flatnonzero(along.is_hit)
-    if len(blocked):
-        # A surface facing as the point's stops the ray where its own surface curves up (inside
-        # a bowl or a sphere): it goes on, and the probe is covered.
-        facing = np.abs(dot(ctx.accel.geometric_normals.take(along.prim_ids.take(blocked), axis=0),
-                            normals.take(blocked, axis=0)))
-        covered[blocked] = facing >= NORMAL_COS
-    if len(go):
-        ends = origins.take(go, axis=0) + d.take(go, axis=0) * rho.take(go)[:, None]
-        down = -normals.take(go, axis=0)
-        below = ctx.accel.intersect(ends, down, 2.0 * np.repeat(lift, k).take(go))
-        ok = below.is_hit.copy()
-        h = np.flatnonzero(ok)
-        if len(h):
-            prim = below.prim_ids.take(h)
-            facing = np.abs(dot(ctx.accel.geometric_normals.take(prim, axis=0), down.take(h, axis=0)))
-            mats = ctx.material_ids.take(prim)
-            land = (facing >= NORMAL_COS) & ctx.table.has_nondelta.take(mats)
-            if ctx.has_transparency:
-                t = np.flatnonzero(land & ctx.see_through.take(mats))
-                if len(t):
-                    ht = h.take(t)
-                    hit_pos = ends.take(ht, axis=0) + down.take(ht, axis=0) * below.t.take(ht)[:, None].astype(np.float64)
-                    land[t] = ctx._opacity(prim.take(t), below.b1.take(ht), below.b2.take(ht), hit_pos) > 0.0
-            ok[h] = land
-        covered[go] = ok
+    starts = (position + n * lift[:, None])[:, None, :] + dirs * (ring * radius)[:, None, None]
+    starts = starts.reshape(-1, 3)
+    down = -np.repeat(n, k, axis=0)
+    below = ctx.accel.intersect(starts, down, 2.0 * np.repeat(lift, k))
+    covered = below.is_hit.copy()
+    h = np.flatnonzero(covered)
+    if len(h):
+        prim = below.prim_ids.take(h)
+        facing = np.abs(dot(ctx.accel.geometric_normals.take(prim, axis=0), down.take(h, axis=0)))
+        mats = ctx.material_ids.take(prim)
+        land = (facing >= NORMAL_COS) & ctx.table.has_nondelta.take(mats)
+        if ctx.has_transparency:
+            t = np.flatnonzero(land & ctx.see_through.take(mats))
+            if len(t):
+                ht = h.take(t)
+                depth = below.t.take(ht)[:, None].astype(np.float64)
+                at = starts.take(ht, axis=0) + down.take(ht, axis=0) * depth
+                land[t] = ctx._opacity(prim.take(t), below.b1.take(ht), below.b2.take(ht), at) > 0.0
+        covered[h] = land
     return covered.reshape(m, k)
 
 

@@ -141,7 +141,7 @@ def test_point_light_over_a_plane_loses_its_kernel_bias(method):
 @pytest.mark.parametrize("method", ["ppm", "amcmcppm", "auto"])
 def test_the_plain_estimate_is_unchanged_and_every_image_finite(method):
     """The correction adds a gather and changes no photon: the passes' own (plain) estimates
-    are those of a render without it, to the bit; with two workers the inner sums merge."""
+    are those of a render without it, to rounding; with two workers the inner sums merge."""
     scene = BUILTIN["glowing_glass_ball"](resolution=(24, 18))
     runs = {}
     for correct, workers in ((False, 1), (True, 1), (True, 2)):
@@ -151,7 +151,9 @@ def test_the_plain_estimate_is_unchanged_and_every_image_finite(method):
                         on_iteration=lambda r: images.append(np.isfinite(r.image).all()))
         assert all(images) and len(images) == 6
         runs[correct, workers] = result
-    assert ([s["pass_mean"] for s in runs[False, 1].stats] == [s["pass_mean"] for s in runs[True, 1].stats])
+    # (to rounding: the inner slots change how the pairs are grouped into the splats' sums)
+    np.testing.assert_allclose([s["pass_mean"] for s in runs[True, 1].stats],
+                               [s["pass_mean"] for s in runs[False, 1].stats], rtol=1e-12)
     assert all(s["bias_weight"] == 0.0 for s in runs[False, 1].stats)
     assert runs[True, 1].stats[-1]["bias_weight"] > 0.0
     assert runs[True, 2].stats[-1]["bias_weight"] > 0.0
