@@ -58,3 +58,31 @@ def test_sample_renders_with_its_own_settings(addon, repo_root, tmp_path, name):
     img = bs.render_exr(tmp_path / f"{name}.exr")
     assert img.shape[:2] == (scene.render.resolution_y, scene.render.resolution_x)
     assert np.isfinite(img).all() and img[..., :3].mean() > 1e-2
+
+
+@pytest.mark.slow
+def test_cornell_box_edges_match_cycles(addon, repo_root, tmp_path):
+    """The sample Cornell box at 128 x 96 against Cycles (4096 samples), 40 passes of 100,000
+    photons on 2 workers, default settings with and without the edge coverage (README, "Edges"):
+    the walls, floor, ceiling and blocks all end at one another, so every corner line is an edge.
+    Measured: relMSE 0.00400 without, 0.00137 with; image mean 0.9885 and 1.0009 of Cycles';
+    the 1st percentile of the pixels' ratios 0.63 and 0.84."""
+    from test_addon_parity import use_cycles
+    images = {}
+    for which in ("cycles", False, True):
+        scene = open_sample(repo_root, "cornell_box")
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 128, 96, 100
+        p = scene.amcmcppm
+        p.passes, p.time_limit, p.workers, p.photons_per_pass, p.seed = 40, 0.0, 2, 100000, 3
+        if which == "cycles":
+            use_cycles(scene)
+            scene.cycles.samples = 4096
+        else:
+            p.edge_coverage = which
+        images[which] = bs.render_exr(tmp_path / f"{which}.exr")[..., :3].astype(np.float64)
+    cycles = images.pop("cycles")
+    rel = {k: float((((img - cycles) ** 2) / (cycles ** 2 + 0.01)).mean()) for k, img in images.items()}
+    means = {k: float(img.mean() / cycles.mean()) for k, img in images.items()}
+    print(f"Cornell box against Cycles: relMSE {rel}, mean ratio {means}")
+    assert rel[True] < 0.6 * rel[False]
+    assert means[True] == pytest.approx(1.0, abs=0.01)
