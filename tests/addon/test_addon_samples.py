@@ -71,7 +71,8 @@ def test_cornell_box_edges_match_cycles(addon, repo_root, tmp_path):
     images = {}
     for which in ("cycles", False, True):
         scene = open_sample(repo_root, "cornell_box")
-        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 128, 96, 100
+        r = scene.render
+        r.resolution_x, r.resolution_y, r.resolution_percentage = 128, 96, 100
         p = scene.amcmcppm
         p.passes, p.time_limit, p.workers, p.photons_per_pass, p.seed = 40, 0.0, 2, 100000, 3
         if which == "cycles":
