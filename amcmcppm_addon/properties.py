@@ -88,9 +88,9 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
                     "noise allows (one weight for the whole image)")
     edge_coverage: BoolProperty(
         name="Edge Coverage", default=_DEFAULTS.edge_coverage,
-        description="Divide each gather near an edge of its surface (a table's rim, a room's corner, "
-                    "a leaf cut by an alpha map) by the share of its disc on the surface, so that edges "
-                    "do not darken while the radius is large")
+        description="Divide each gather near an edge of its surface (a table's rim, a floor that ends "
+                    "at a wall, a leaf cut by an alpha map) by the share of its disc on the surface, so "
+                    "that edges do not darken while the radius is large")
     max_bounces: IntProperty(
         name="Max Bounces", default=_DEFAULTS.max_bounces, min=1, max=64,
         description="Most scattering events of a photon path, and most specular bounces of a camera path")

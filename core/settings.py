@@ -74,10 +74,10 @@ class RenderSettings:
 
     edge_coverage: bool = True
     """Divide each surface gather by the share of its disc that lies on a surface photons can
-    land on (``core/coverage.py``): near an edge (a table's rim, a room's corner, a leaf cut by an
-    alpha map) the disc reaches off the surface and the plain estimate is too dark, by up to half
-    at the edge.  Probed only near discontinuities of the image's points; elsewhere the share is
-    exactly 1."""
+    land on (``core/coverage.py``): near an edge (a table's rim, a floor that ends at a wall, a leaf
+    cut by an alpha map) the disc reaches off the surface and the plain estimate is too dark, by up
+    to half at the edge.  Probed only near discontinuities of the image's points; elsewhere the
+    share is exactly 1."""
 
     max_bounces: int = 8
     """Most scattering events of a photon path, and most specular bounces of a camera path."""

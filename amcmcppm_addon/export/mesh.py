@@ -130,7 +130,8 @@ class GeometryCollector:
                 mat_ids = (materials.default_id(),)
         uv_map = materials.tangent_uv(mat_ids)
         tangents = uv_map is not None and not local.tangents_read and local.uvs is not None
-        colors = "color" in materials.coordinates_used(mat_ids) and not local.colors_read
+        used = materials.coordinates_used(mat_ids)
+        colors = "color" in used and not local.colors_read
         if tangents and uv_map and uv_map != local.uv_map:
             self.log.warning(f"object '{ob.name}': its normal map or anisotropic tangent uses UV map "
                              f"'{uv_map}'; the active render UV map '{local.uv_map}' is used instead")
@@ -144,7 +145,10 @@ class GeometryCollector:
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))
-        self.infos.setdefault((key, mat_ids, flags, link), []).append(object_info(inst))
+        # (only for materials that read it: a name's hash costs microseconds, and scattered
+        # scenes have millions of instances)
+        self.infos.setdefault((key, mat_ids, flags, link), []).append(
+            object_info(inst) if used & set(OBJECT_INFO) else None)
 
     def finish(self) -> Geometry:
         geometry = assemble(self.meshes, self.groups, self.materials, self.infos)
@@ -403,7 +407,8 @@ def assemble(meshes, groups, materials, infos=None) -> Geometry:
         if objects:
             part["object_ids"] += instances
             if coordinates & set(OBJECT_INFO) and infos is not None:
-                part["object_info"] = np.stack(infos[key, mat_ids, visibility, link]).astype(np.float32)
+                rows = infos[key, mat_ids, visibility, link]
+                part["object_info"] = np.stack([np.zeros(6, np.float32) if r is None else r for r in rows])
         parts.append(part)
         offset += len(part["vertices"])
         instances += len(matrices)
