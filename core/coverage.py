@@ -38,6 +38,7 @@ DIRECTIONS = 8
 RINGS = tuple(float(np.sqrt((k + 0.5) / 4)) for k in range(4))
 LIFT = 0.5                # height of the probes' rays above the tangent plane, in radii
 MIN_COVERAGE = 0.25       # (a point on a sliver of a surface keeps at most 4 times the kernel)
+PASSES = 3                # surfaces a probe's ray goes through (glass) before it gives up
 
 
 def disc_coverage(ctx, position, normal, radius, rng):
@@ -65,28 +66,49 @@ def disc_coverage(ctx, position, normal, radius, rng):
 
 
 def _probe(ctx, position, n, dirs, radius, ring):
-    """(m, D) bool: which probes at ``ring`` r along ``dirs`` (m, D, 3) are covered."""
+    """(m, D) bool: which probes at ``ring`` r along ``dirs`` (m, D, 3) are covered.  A ray that
+    first meets a surface photons pass (glass, a mirror: no lobe to land on) goes on through it,
+    up to ``PASSES`` times, and a glass face resting on another surface counts as that surface
+    (``Accel.with_contacts``: the floor under a glass block)."""
     m, k = dirs.shape[:2]
     lift = LIFT * radius
     starts = (position + n * lift[:, None])[:, None, :] + dirs * (ring * radius)[:, None, None]
     starts = starts.reshape(-1, 3)
     down = -np.repeat(n, k, axis=0)
-    below = ctx.accel.intersect(starts, down, 2.0 * np.repeat(lift, k))
-    covered = below.is_hit.copy()
-    h = np.flatnonzero(covered)
-    if len(h):
+    left = 2.0 * np.repeat(lift, k)                      # length left to each ray
+    covered = np.zeros(m * k, bool)
+    rows = np.arange(m * k)
+    origins = starts
+    for _ in range(PASSES):
+        d = down.take(rows, axis=0)
+        below = ctx.accel.with_contacts(ctx.accel.intersect(origins, d, left.take(rows)), origins, d)
+        h = np.flatnonzero(below.is_hit)
+        if len(h) == 0:
+            break
         prim = below.prim_ids.take(h)
-        facing = np.abs(dot(ctx.accel.geometric_normals.take(prim, axis=0), down.take(h, axis=0)))
         mats = ctx.material_ids.take(prim)
-        land = (facing >= NORMAL_COS) & ctx.table.has_nondelta.take(mats)
+        solid = ctx.table.has_nondelta.take(mats)
+        facing = np.abs(dot(ctx.accel.geometric_normals.take(prim, axis=0), d.take(h, axis=0)))
+        land = solid & (facing >= NORMAL_COS)
         if ctx.has_transparency:
             t = np.flatnonzero(land & ctx.see_through.take(mats))
             if len(t):
                 ht = h.take(t)
-                depth = below.t.take(ht)[:, None].astype(np.float64)
-                at = starts.take(ht, axis=0) + down.take(ht, axis=0) * depth
+                at = ctx.accel.hit_positions(prim.take(t), below.b1.take(ht), below.b2.take(ht))
                 land[t] = ctx._opacity(prim.take(t), below.b1.take(ht), below.b2.take(ht), at) > 0.0
-        covered[h] = land
+        covered[rows.take(h[land])] = True
+        # Through the surfaces photons pass, with what is left of the ray.
+        on = h[~solid]
+        if len(on) == 0:
+            break
+        t_hit = below.t.take(on).astype(np.float64)
+        hit_at = origins.take(on, axis=0) + d.take(on, axis=0) * t_hit[:, None]
+        rows_on = rows.take(on)
+        left[rows_on] -= t_hit
+        keep = np.flatnonzero(left.take(rows_on) > 0)
+        rows = rows_on.take(keep)
+        through = ctx.accel.geometric_normals.take(below.prim_ids.take(on.take(keep)), axis=0)
+        origins = ctx.accel.spawn(hit_at.take(keep, axis=0), through, down.take(rows, axis=0))
     return covered.reshape(m, k)
 
 
