@@ -141,19 +141,19 @@ def test_point_light_over_a_plane_loses_its_kernel_bias(method):
 @pytest.mark.parametrize("method", ["ppm", "amcmcppm", "auto"])
 def test_the_plain_estimate_is_unchanged_and_every_image_finite(method):
     """The correction adds a gather and changes no photon: the passes' own (plain) estimates
-    are those of a render without it, to rounding; with two workers the inner sums merge."""
+    are those of a render without it, to the bit; with two workers the inner sums merge."""
     scene = BUILTIN["glowing_glass_ball"](resolution=(24, 18))
     runs = {}
     for correct, workers in ((False, 1), (True, 1), (True, 2)):
         images = []
+        # (edge coverage off: its per-point kernel factors expose, in the last bit, that the
+        # inner slots group the splats' pairs differently; the photons are the same)
         result = render(scene, RenderSettings(method=method, passes=6, photons_per_pass=8000, workers=workers,
-                                              bias_correction=correct),
+                                              bias_correction=correct, edge_coverage=False),
                         on_iteration=lambda r: images.append(np.isfinite(r.image).all()))
         assert all(images) and len(images) == 6
         runs[correct, workers] = result
-    # (to rounding: the inner slots change how the pairs are grouped into the splats' sums)
-    np.testing.assert_allclose([s["pass_mean"] for s in runs[True, 1].stats],
-                               [s["pass_mean"] for s in runs[False, 1].stats], rtol=1e-12)
+    assert ([s["pass_mean"] for s in runs[False, 1].stats] == [s["pass_mean"] for s in runs[True, 1].stats])
     assert all(s["bias_weight"] == 0.0 for s in runs[False, 1].stats)
     assert runs[True, 1].stats[-1]["bias_weight"] > 0.0
     assert runs[True, 2].stats[-1]["bias_weight"] > 0.0
