@@ -54,6 +54,12 @@ MS_NODES = 32
 # material with roughness k / (ROUGHNESS_LEVELS - 1): steps of 1/64, at most 0.008 off.  Each copy
 # costs its tables (about 10 ms each for the albedo and the layer, ``COARSE_STRATA``).
 ROUGHNESS_LEVELS = 65
+# An anisotropy map (Materials.stretch_program) picks, at each hit, one of this many copies of its
+# material with stretch s = 100^((2k - (STRETCH_LEVELS - 1)) / (STRETCH_LEVELS - 1)): even in log s
+# over [0.01, 100], s = 1 a level, steps of a factor 1.075 (at most 3.7 % off).  The copies share
+# their tables (they depend on sqrt(ax ay), the same unless the stretch saturates an alpha).
+STRETCH_LEVELS = 129
+STRETCH_RANGE = 100.0
 # Strata of the GGX albedo quadrature (sampling.ggx_albedo) per table: exact, and for those copies.
 EXACT_STRATA, COARSE_STRATA = 64, 32
 # Diffuse roughness below this is Lambert, as in Cycles (``diffuse_roughness_is_almost_zero``).
@@ -79,7 +85,46 @@ def roughness_variants(mats):
     levels = np.linspace(0.0, 1.0, ROUGHNESS_LEVELS, dtype=np.float32)
     changes["glossy_roughness"][mats.count:] = np.tile(levels, len(mapped))
     changes["roughness_program"][mats.count:] = -1
+    changes["stretch_program"][mats.count:] = -1          # such a material keeps its stretch
     names = list(mats.names) + [f"{mats.names[m]} (roughness {r:.3f})" for m in mapped for r in levels]
+    return dataclasses.replace(mats, names=names, **changes), first
+
+
+def stretch_levels():
+    """(STRETCH_LEVELS,) float64 the stretches of an anisotropy map's copies (``stretch_variants``)."""
+    return STRETCH_RANGE ** np.linspace(-1.0, 1.0, STRETCH_LEVELS)
+
+
+def stretch_level(stretch):
+    """Index of the copy (``stretch_variants``) nearest in log s to each of ``stretch`` (NaN: s = 1)."""
+    s = np.clip(np.nan_to_num(np.asarray(stretch, np.float64), nan=1.0, posinf=STRETCH_RANGE, neginf=1.0),
+                1.0 / STRETCH_RANGE, STRETCH_RANGE)
+    half = (STRETCH_LEVELS - 1) / 2
+    return np.rint((np.log(s) / np.log(STRETCH_RANGE) + 1.0) * half).astype(np.int32)
+
+
+def stretch_variants(mats):
+    """(materials, first) for materials ``mats`` (``scene.Materials``) whose glossy stretch may
+    come from a program (an anisotropy map): the materials followed by ``STRETCH_LEVELS`` copies
+    of each such one, copy k with stretch ``stretch_levels()[k]`` and no program, and ``first``
+    (M,) int32 the index of a material's first copy (-1: none); a hit picks its copy
+    (``RenderContext.surface``).  A material that also has a roughness map keeps its constant
+    stretch (its copies would multiply).  Without anisotropy maps: ``mats`` itself."""
+    program = mats.stretch_program
+    first = np.full(mats.count, -1, np.int32)
+    if program is None:
+        return mats, first
+    rough = mats.roughness_program if mats.roughness_program is not None else np.full(mats.count, -1)
+    mapped = np.flatnonzero((program >= 0) & (mats.glossy_weight > 0) & (rough < 0))
+    if len(mapped) == 0:
+        return mats, first
+    first[mapped] = mats.count + STRETCH_LEVELS * np.arange(len(mapped))
+    rows = np.concatenate([np.arange(mats.count), np.repeat(mapped, STRETCH_LEVELS)])
+    changes = {name: np.ascontiguousarray(getattr(mats, name)[rows]) for name in mats.ARRAY_FIELDS}
+    levels = stretch_levels()
+    changes["glossy_stretch"][mats.count:] = np.tile(levels, len(mapped))
+    changes["stretch_program"][mats.count:] = -1
+    names = list(mats.names) + [f"{mats.names[m]} (stretch {s:.3g})" for m in mapped for s in levels]
     return dataclasses.replace(mats, names=names, **changes), first
 
 

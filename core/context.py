@@ -7,7 +7,7 @@ import numpy as np
 
 from .accel import Accel, Hits, interpolate_corners
 from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT, MaterialTable, Textures,
-                   coat_variants, lobe_colors, roughness_variants)
+                   coat_variants, lobe_colors, roughness_variants, stretch_level, stretch_variants)
 from .environment import Environment
 from .lights import VOLUME, LightSampler
 from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
@@ -53,8 +53,10 @@ class RenderContext:
         """``glossy_through_roughness``: ``RenderSettings.glossy_through_roughness``."""
         self.scene = scene
         self.accel = Accel(scene)
-        # The materials, a copy per roughness level of those with a roughness map, and the coats.
+        # The materials, a copy per roughness level of those with a roughness map, per stretch
+        # level of those with an anisotropy map, and the coats.
         self.materials, self.roughness_first = roughness_variants(scene.materials)
+        self.materials, self.stretch_first = stretch_variants(self.materials)
         copies = np.arange(self.materials.count) >= scene.materials.count
         self.materials, coat_row = coat_variants(self.materials)
         copies = np.concatenate([copies, np.zeros(self.materials.count - len(copies), bool)])
@@ -64,6 +66,7 @@ class RenderContext:
         # Procedural colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs
         self.has_roughness_programs = bool((self.roughness_first >= 0).any())
+        self.has_stretch_programs = bool((self.stretch_first >= 0).any())
         self.has_programs = bool((self.table.program >= 0).any())
         self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
         self.has_emission_programs = bool((self.table.emission_program >= 0).any())
@@ -182,6 +185,7 @@ class RenderContext:
                   or self.has_translucent_programs),
                  ("roughness maps", self.has_roughness_programs),
                  ("rotation maps", self.has_rotation_programs),
+                 ("anisotropy maps", self.has_stretch_programs),
                  ("normal and bump maps", self.has_normal_maps),
                  ("textured emitters", self.lights.textured_emitters),
                  ("light profiles", self.lights.has_profiles),
@@ -561,6 +565,8 @@ class RenderContext:
         bary = (b0[:, None], b1[:, None], b2[:, None])
         if self.has_roughness_programs:
             self._pick_roughness(mat, prim_ids, bary, pos)
+        if self.has_stretch_programs:
+            self._pick_stretch(mat, prim_ids, bary, pos)
         if self.shading_normals is not None:
             ns = normalize(interpolate_corners(self.shading_normals.take(prim_ids, axis=0), bary))
             _replace_bad(ns, ng)
@@ -665,6 +671,12 @@ class RenderContext:
         for sel, value in self._program_values(self.materials.roughness_program, prim_ids, bary, pos, mat):
             level = np.rint(np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * (ROUGHNESS_LEVELS - 1))
             mat[sel] = self.roughness_first.take(mat.take(sel)) + level.astype(np.int32)
+
+    def _pick_stretch(self, mat, prim_ids, bary, pos):
+        """Replace, in place, the materials ``mat`` (n,) that have an anisotropy map by their copy of
+        the nearest stretch level (``bsdf.stretch_variants``) at these hits."""
+        for sel, value in self._program_values(self.materials.stretch_program, prim_ids, bary, pos, mat):
+            mat[sel] = self.stretch_first.take(mat.take(sel)) + stretch_level(value)
 
     def emitted(self, prim_ids, b1, b2, mat=None, positions=None):
         """(n, 3) float64 radiance emitted at the points of triangles ``prim_ids`` with barycentrics

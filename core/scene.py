@@ -103,8 +103,12 @@ class Materials:
       (``bsdf.TANGENT_*``: around the object's X, Y or Z axis (Z, 2, is Blender's default) from
       the Generated coordinates, or 3, the UV map's ``Scene.tangents``) turned about the normal
       by ``glossy_rotation`` turns, or by the float program ``rotation_program`` (when >= 0) at
-      each hit (a rotation map, e.g. spun metal).  Cycles' Glossy BSDF of Anisotropy a has s = 1 - a for
-      a >= 0 and 1 / (1 + a) below; Principled's s = 1 / sqrt(1 - 0.9 a);
+      each hit (a rotation map, e.g. spun metal).  A ``stretch_program`` (when >= 0; a float
+      program) gives s at each hit instead (an anisotropy map), clamped to [0.01, 100] and
+      rounded to one of ``bsdf.STRETCH_LEVELS`` levels even in log s (at most 3.7 % off); a
+      material that also has a ``roughness_program`` keeps ``glossy_stretch``.  Cycles' Glossy
+      BSDF of Anisotropy a has s = 1 - a for a >= 0 and 1 / (1 + a) below; Principled's
+      s = 1 / sqrt(1 - 0.9 a);
     * translucent: Lambertian transmission (Blender's Translucent BSDF), colour
       ``translucent_color`` times the program ``translucent_program`` (when >= 0) at each hit:
       light that arrives on one side leaves the other side with a cosine distribution,
@@ -226,6 +230,7 @@ class Materials:
     translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
     translucent_program: np.ndarray = None              # (M,) int32, index into programs or -1; None: -1
     rotation_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
+    stretch_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -240,11 +245,11 @@ class Materials:
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
-                    "rotation_program")
+                    "rotation_program", "stretch_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
-                      "rotation_program")
+                      "rotation_program", "stretch_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent",)                       # stored as int32
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
@@ -283,7 +288,8 @@ class Materials:
         ``volume_emission`` (0) glow (or that alone), ``holdout`` (0) a holdout share.
         ``glossy_stretch`` (1), ``glossy_rotation`` (0) and ``glossy_tangent`` (2) make the
         glossy lobe anisotropic; ``rotation_program``, a float program, turns its tangent by the
-        program's value at each hit instead of ``glossy_rotation``.
+        program's value at each hit instead of ``glossy_rotation``, and ``stretch_program``, a float
+        program, gives the stretch at each hit instead of ``glossy_stretch``.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -339,6 +345,7 @@ class Materials:
         out.translucent_color = np.zeros((m, 3), np.float32)
         out.translucent_program = np.full(m, -1, np.int32)
         out.rotation_program = np.full(m, -1, np.int32)
+        out.stretch_program = np.full(m, -1, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric", "translucent"):
@@ -840,6 +847,7 @@ class Scene:
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
                                        ("diffuse_roughness", (n,), 0.0), ("glossy_stretch", (n,), 1.0),
                                        ("glossy_rotation", (n,), 0.0), ("rotation_program", (n,), -1),
+                                       ("stretch_program", (n,), -1),
                                        ("glossy_tangent", (n,), TANGENT_RADIAL_Z)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INTEGER_FIELDS
@@ -873,7 +881,8 @@ class Scene:
             fail("materials use image textures but the scene has no uvs")
         if (mats.normal_texture >= 0).any() and self.tangents is None:
             fail("materials use normal maps but the scene has no tangents")
-        uv_tangents = (mats.glossy_tangent == TANGENT_UV) & (mats.glossy_stretch != 1.0)
+        uv_tangents = (mats.glossy_tangent == TANGENT_UV) & ((mats.glossy_stretch != 1.0)
+                                                             | (mats.stretch_program >= 0))
         if uv_tangents.any() and self.tangents is None:
             fail("materials take an anisotropic glossy lobe's tangent from the UV map but the scene has "
                  "no tangents")

@@ -203,6 +203,56 @@ def test_a_rotation_map_turns_the_tangent_at_each_hit():
     np.testing.assert_allclose(mapped[:, w:], across[:, w:], rtol=1e-5)
 
 
+def test_an_anisotropy_map_stretches_the_lobe_at_each_hit():
+    """``stretch_program``: a map that gives the floor's x > 0 half a stretch of 0.49 (narrow along
+    the sun's azimuth) and the other half 2.05 (wide).  Each half of the image equals, to
+    rounding, the render with that stretch everywhere (both are levels of ``bsdf.stretch_levels``;
+    same seed: the same photons reach the same points), and a roughness map on the same material
+    keeps its constant stretch."""
+    wide, narrow = bsdf.stretch_levels()[[74, 54]]
+    half = {"op": "math", "operation": "GREATER_THAN",
+            "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"},
+            "b": 0.0}
+    program = {"op": "math", "operation": "MULTIPLY_ADD", "a": half, "b": float(narrow - wide),
+               "c": float(wide)}
+    settings = RenderSettings(method="ppm", passes=3, photons_per_pass=20000, workers=1, seed=4)
+    spec = {"name": "brushed", "glossy": 1.0, "roughness": (0.32 * 0.08) ** 0.25,
+            "glossy_multiscatter": 0.0, "glossy_tangent": bsdf.TANGENT_UV}
+    base = with_one_object(sunlit_floor((1, 0, 0)), ((0, 0, 0), (0.5, 0.5, 0)))
+    images = []
+    for extra in ({"glossy_stretch": float(wide)}, {"glossy_stretch": float(narrow)},
+                  {"stretch_program": program},
+                  {"glossy_stretch": float(wide), "stretch_program": program,
+                   "roughness_program": {"op": "math", "operation": "ADD", "a": 0.0,
+                                         "b": spec["roughness"]}}):
+        scene = base.replace(materials=Materials.build([dict(spec, **extra)])).validate()
+        effects = RenderContext(scene).effects
+        assert ("anisotropy maps" in effects) == (extra.keys() == {"stretch_program"}), effects
+        images.append(render(scene, settings).image[..., :3])
+    along, across, mapped, rough_mapped = images
+    w = mapped.shape[1] // 2
+    assert along.mean() > 20 * across.mean()
+    np.testing.assert_allclose(mapped[:, :w], along[:, :w], rtol=1e-5)
+    np.testing.assert_allclose(mapped[:, w:], across[:, w:], rtol=1e-5)
+    np.testing.assert_allclose(rough_mapped, along, rtol=0.02)
+
+
+def test_stretch_levels_are_even_in_log_s_and_include_isotropy():
+    """The copies of an anisotropy map: s = 1 and the range's ends are levels; a value maps to
+    the nearest level in log s (at most half a step, 3.7 %, off), out-of-range and NaN values
+    to the ends and to s = 1."""
+    levels = bsdf.stretch_levels()
+    assert len(levels) == bsdf.STRETCH_LEVELS
+    assert levels[(bsdf.STRETCH_LEVELS - 1) // 2] == 1.0
+    np.testing.assert_allclose(levels[[0, -1]], [0.01, 100.0])
+    s = np.exp(np.random.default_rng(1).uniform(np.log(0.01), np.log(100.0), 10000))
+    picked = levels[bsdf.stretch_level(s)]
+    assert np.abs(np.log(picked / s)).max() <= 0.5 * np.log(levels[1] / levels[0]) + 1e-12
+    assert np.abs(picked / s - 1.0).max() < 0.037
+    assert list(bsdf.stretch_level([1e-6, 1e6, np.nan, -1.0])) == [0, bsdf.STRETCH_LEVELS - 1,
+                                                                   (bsdf.STRETCH_LEVELS - 1) // 2, 0]
+
+
 def test_radial_tangents_turn_about_the_objects_axis():
     """``RenderContext.tangents`` for Blender's default (radial about Z) and the X and Y axes, on
     an object turned 30 degrees about z, moved, and with a texture space of its own: the
@@ -246,6 +296,10 @@ def test_anisotropy_is_validated():
                            "glossy_tangent": bsdf.TANGENT_UV}])
     with pytest.raises(SceneError, match="no tangents"):
         floor.replace(materials=uv).validate()
+    mapped = Materials.build([{"name": "g", "glossy": 1.0, "stretch_program": {"op": "attribute", "name": "uv"},
+                               "glossy_tangent": bsdf.TANGENT_UV}])
+    with pytest.raises(SceneError, match="no tangents"):
+        floor.replace(materials=mapped).validate()
     for bad in (0.0, 1e3):
         mats = Materials.build([{"name": "g", "glossy": 1.0, "glossy_stretch": bad}])
         with pytest.raises(SceneError, match="glossy_stretch"):
