@@ -1,4 +1,4 @@
-"""What a roughness map costs: the material table's build and the photon pass.
+"""What a roughness map (or an anisotropy map) costs: the material table's build and the photon pass.
 
 The Cornell box's white material (floor, ceiling, back wall and both boxes) becomes a Principled-
 like dielectric (a diffuse base under a specular layer of IOR 1.5, multiscatter GGX) of constant
@@ -6,9 +6,13 @@ roughness 0.4, then of a roughness map (a Noise Texture's Fac through a ramp fro
 Object coordinates).  Printed: the time to build the render context (the map's material is
 copied at ``bsdf.ROUGHNESS_LEVELS`` roughness levels, each with its albedo and layer tables;
 median of ``--rounds``) and the photon vertices per second of the map relative to the constant
-(rounds alternating, median and range; one run).
+(rounds alternating, median and range; one run).  ``--kind anisotropy``: the white material
+becomes a brushed metal instead (F82 gold, roughness 0.4, radial tangent) of constant stretch 2, then
+of an anisotropy map (the same noise through a ramp from stretch 1 to 4; the material is copied at
+``bsdf.STRETCH_LEVELS`` stretches, which share their tables).
 
-    python benchmarks/roughness_map_cost.py [--resolution 320 240] [--rounds 5] [--paths 65536]
+    python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy] [--resolution 320 240]
+        [--rounds 5] [--paths 65536]
 """
 from __future__ import annotations
 
@@ -35,6 +39,9 @@ NOISE = {"op": "noise", "vector": OBJECT, "scale": 5.0, "detail": 2.0, "roughnes
 ROUGHNESS_MAP = {"op": "map_range", "value": NOISE, "from_min": 0.0, "from_max": 1.0, "to_min": 0.1,
                  "to_max": 0.7}
 LAYER = {"glossy": 0.04, "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": 0.96, "diffuse_layer": 0.04}
+BRUSHED = {"glossy": [1.0, 0.78, 0.34], "glossy_metal_rise": [0.0, 0.22, 0.66], "glossy_multiscatter": 0.0,
+           "roughness": 0.4, "glossy_stretch": 2.0}
+STRETCH_MAP = dict(ROUGHNESS_MAP, to_min=1.0, to_max=4.0)
 
 
 def with_layer(roughness_map):
@@ -49,13 +56,27 @@ def with_layer(roughness_map):
     return edit
 
 
+def brushed(stretch_map):
+    """An ``edit`` for ``photon_pass``: the first material becomes a brushed metal of stretch 2 or
+    of ``STRETCH_MAP``."""
+    def edit(scene):
+        specs = cornell_specs(scene)
+        specs[0] = {"name": specs[0].get("name", "white"), **BRUSHED}
+        if stretch_map:
+            specs[0]["stretch_program"] = STRETCH_MAP
+        return with_one_object(scene.replace(materials=Materials.build(specs))).validate()
+    return edit
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kind", choices=("roughness", "anisotropy"), default="roughness")
     ap.add_argument("--resolution", type=int, nargs=2, default=(320, 240))
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--paths", type=int, default=65536)
     a = ap.parse_args()
-    variants = {"constant": with_layer(False), "map": with_layer(True)}
+    make = with_layer if a.kind == "roughness" else brushed
+    variants = {"constant": make(False), "map": make(True)}
     scene = BUILTIN["cornell_box"](resolution=tuple(a.resolution))
     builds = {name: [] for name in variants}
     for _ in range(a.rounds):
@@ -70,8 +91,8 @@ def main():
             for name, edit in variants.items()}
     rates = interleaved_rates(runs, a.rounds)
     ratio = np.array(rates["map"]) / np.array(rates["constant"])
-    print(f"photon pass, {a.rounds} rounds of {a.paths} paths: constant roughness "
-          f"{np.median(rates['constant']):,.0f} vertices/s, roughness map {np.median(rates['map']):,.0f}: "
+    print(f"photon pass, {a.rounds} rounds of {a.paths} paths: constant {a.kind} "
+          f"{np.median(rates['constant']):,.0f} vertices/s, {a.kind} map {np.median(rates['map']):,.0f}: "
           f"{np.median(ratio):.3f} of the constant (range {ratio.min():.3f}-{ratio.max():.3f})")
 
 

@@ -41,7 +41,9 @@ through the physical conductor's reflectance face on and at cos = 1/7 (``conduct
 texture on a metal's colours makes its colour a program of the curve's mean at each point
 (``metal`` in ``core/procedural.py``), without the curve.
 Anisotropy (Glossy and Metallic Anisotropy, Principled's Anisotropic) becomes the core's
-``glossy_stretch`` (alpha s along the tangent, alpha / s across it, Cycles' alphas), with the
+``glossy_stretch`` (alpha s along the tangent, alpha / s across it, Cycles' alphas; a texture on
+it stays a program of s, ``stretch_program``: an anisotropy map, its mean where the material also
+has a roughness map, noted), with the
 Rotation (a texture on it stays a program, ``rotation_program``: a rotation map) and the Tangent
 input: unlinked, Cycles' default radial tangent about the object's Z axis (the scene then carries
 the objects' Generated coordinates), or a Tangent node (radial about its axis, or its UV map's
@@ -56,8 +58,8 @@ Glass and Refraction keep their roughness (GGX microfacet glass, single scatteri
 multiscatter glass keeps a little more light at high roughness).
 Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Textures are
 kept only where the core supports them (the diffuse colour, a glossy colour without a Fresnel
-rise, the glossy roughness, the emission's colour and strength, the colour a glass transmits,
-the translucent colour);
+rise, the glossy roughness, anisotropy and rotation, the emission's colour and strength, the colour
+a glass transmits, the translucent colour);
 elsewhere their mean is used.
 A missing image file gives a warning and Cycles' magenta.
 
@@ -104,6 +106,7 @@ class Closure:
     diffuse_roughness: float = 0.0  # diffuse roughness (Oren-Nayar; its mean where it varies)
     roughness_texture: dict = None  # float program of the glossy roughness where it varies (a map)
     stretch: float = 1.0            # glossy anisotropy: alpha x s along the tangent, alpha / s across
+    stretch_texture: dict = None    # float program of s where the anisotropy varies (an anisotropy map)
     rotation: float = 0.0           # the tangent's turn about the normal (turns; its mean where it varies)
     rotation_texture: dict = None   # float program of that turn where it varies (a rotation map)
     tangent: tuple = TANGENT_DEFAULT  # (core.bsdf.TANGENT_*, UV map name or None) of the tangent
@@ -170,6 +173,10 @@ class Closure:
         if turned:
             out.rotation, out.tangent = turned[0].rotation, turned[0].tangent
             out.rotation_texture = turned[0].rotation_texture
+        if any(c.stretch_texture is not None for c in turned):
+            # The map's geometric mean by the glossy weights, as the constants'.
+            terms = [(c.log_stretch_term(), w[GLOSSY]) for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
+            out.stretch_texture = {"op": "math", "operation": "EXPONENT", "a": _float_average(terms)}
         out.diffuse_roughness = _weighted(self.diffuse_roughness, other.diffuse_roughness, wa[DIFFUSE],
                                           wb[DIFFUSE])
         if self.roughness_texture is not None or other.roughness_texture is not None:
@@ -211,7 +218,13 @@ class Closure:
 
     @property
     def anisotropic(self) -> bool:
-        return abs(self.stretch - 1.0) > 1e-6
+        return abs(self.stretch - 1.0) > 1e-6 or self.stretch_texture is not None
+
+    def log_stretch_term(self):
+        """log of the stretch: a number or a float program."""
+        if self.stretch_texture is None:
+            return float(np.log(self.stretch))
+        return {"op": "math", "operation": "LOGARITHM", "a": self.stretch_texture, "b": float(np.e)}
 
     def opacity_term(self):
         """The opacity: a number or a float program."""
@@ -413,6 +426,8 @@ class Closure:
                 s["tangent_uv_map"] = self.tangent[1]
             if self.rotation_texture is not None:
                 s["rotation_program"] = self.rotation_texture
+            if self.stretch_texture is not None:
+                s["stretch_program"] = self.stretch_texture
         if self.emission_texture is not None and self.emission.any():
             # The core multiplies the emission by the program: scaled to a mean near 1.
             scale = float(self.emission.max())
@@ -498,6 +513,25 @@ def _clamp01(f):
     """Float program ``f`` clamped to [0, 1] (a mix factor, as Cycles clamps it)."""
     low = {"op": "math", "operation": "MAXIMUM", "a": f, "b": 0.0}
     return {"op": "math", "operation": "MINIMUM", "a": low, "b": 1.0}
+
+
+def _math(operation, a, b=0.0):
+    """Blender's Math node ``operation`` of numbers or float programs: a number if both are."""
+    if isinstance(a, dict) or isinstance(b, dict):
+        return {"op": "math", "operation": operation, "a": a, "b": b}
+    return float(procedural.MATH[operation](np.float64(a), np.float64(b), 0.0))
+
+
+def _glossy_stretch(a):
+    """The Glossy BSDF's stretch (1 - max(a, 0)) / (1 + min(a, 0)) of anisotropy ``a``, a number or
+    a float program."""
+    return _math("DIVIDE", _math("SUBTRACT", 1.0, _math("MAXIMUM", a, 0.0)),
+                 _math("ADD", 1.0, _math("MINIMUM", a, 0.0)))
+
+
+def _principled_stretch(a):
+    """Principled's stretch 1 / sqrt(1 - 0.9 a) of anisotropy ``a``, a number or a float program."""
+    return _math("INVERSE_SQRT", _math("SUBTRACT", 1.0, _math("MULTIPLY", 0.9, a)))
 
 
 def _one_minus(f):
@@ -1125,10 +1159,11 @@ class NodeWalker:
         c.glossy_texture = program
         c.roughness_texture = rough_map
         # Cycles' Glossy and Metallic anisotropy a in [-0.99, 0.99]: alpha (1 - a) along the
-        # tangent and alpha / (1 - a) across it, or alpha / (1 + a) and alpha (1 + a) below 0.
-        a = float(np.clip(self.value(node.inputs["Anisotropy"], stack), -0.99, 0.99))
-        if abs(a) > 1e-4:
-            c.stretch = 1.0 - a if a >= 0 else 1.0 / (1.0 + a)
+        # tangent and alpha / (1 - a) across it, or alpha / (1 + a) and alpha (1 + a) below 0:
+        # s = (1 - max(a, 0)) / (1 + min(a, 0)).
+        c.stretch, c.stretch_texture = self.anisotropy(node.inputs["Anisotropy"], stack, rough_map,
+                                                       -0.99, 0.99, _glossy_stretch)
+        if c.anisotropic:
             c.rotation, c.rotation_texture = self.rotation(node.inputs["Rotation"], stack)
             c.tangent = self.tangent(node.inputs["Tangent"], stack)
         if node.distribution == "MULTI_GGX":
@@ -1175,6 +1210,23 @@ class NodeWalker:
         if node.direction_type == "UV_MAP":
             return TANGENT_UV, node.uv_map
         return {"X": TANGENT_RADIAL_X, "Y": TANGENT_RADIAL_Y}.get(node.axis, TANGENT_RADIAL_Z), None
+
+    def anisotropy(self, sock, stack, rough_map, low, high, stretch):
+        """(stretch, float program of it or None) of an Anisotropy input clamped to [``low``,
+        ``high``], ``stretch`` the node's float program of s from its anisotropy program.  A
+        texture on it (an anisotropy map) stays a program, which the core evaluates at each hit,
+        except beside a roughness map ``rough_map`` (the core keeps one of them: its mean, noted);
+        s = 1 (isotropic) where |a| <= 1e-4."""
+        f = self.programs.expression(sock, stack, FLOAT)
+        if not procedural.varies(f):
+            a = float(np.clip(self.value(sock, stack), low, high))
+            return (1.0, None) if abs(a) <= 1e-4 else (float(stretch(a)), None)
+        program = stretch(_math("MINIMUM", _math("MAXIMUM", f, low), high))
+        mean = float(procedural.mean_value(program, self.textures.images))
+        if rough_map is not None:
+            self.note(f"'{sock.node.name}': a texture on Anisotropy beside a roughness map takes its mean")
+            return mean, None
+        return mean, program
 
     def rotation(self, sock, stack):
         """(mean turn, float program or None) of an anisotropic lobe's Rotation input: a texture on
@@ -1292,7 +1344,10 @@ class NodeWalker:
         if coat > 0 and inp["Coat Normal"].is_linked:
             self.note(f"'{node.name}': Coat Normal not supported (the coat takes the surface's normal "
                       "before normal and bump maps, Cycles' default)")
-        aniso = float(np.clip(self.value(inp["Anisotropic"], stack), 0.0, 1.0))
+        # Cycles: alpha / aspect along the tangent and alpha aspect across it, aspect =
+        # sqrt(1 - 0.9 a), for the metal and the specular layer (its glass stays isotropic).
+        stretch, stretch_map = self.anisotropy(inp["Anisotropic"], stack, rough_map, 0.0, 1.0,
+                                               _principled_stretch)
         ignored = [label for label, socket in PRINCIPLED_IGNORED
                    if socket in inp and self.value(inp[socket], stack) > 0.0]
         if ignored:
@@ -1306,10 +1361,8 @@ class NodeWalker:
                     emission_texture=emitted.emission_texture, dielectric_roughness=rough,
                     roughness_texture=rough_map,
                     diffuse_roughness=float(np.clip(self.value(inp["Diffuse Roughness"], stack), 0.0, 1.0)))
-        if aniso > 0:
-            # Cycles: alpha / aspect along the tangent and alpha aspect across it, aspect =
-            # sqrt(1 - 0.9 a), for the metal and the specular layer (its glass stays isotropic).
-            c.stretch = 1.0 / np.sqrt(1.0 - 0.9 * aniso)
+        c.stretch, c.stretch_texture = stretch, stretch_map
+        if c.anisotropic:
             c.rotation, c.rotation_texture = self.rotation(inp["Anisotropic Rotation"], stack)
             c.tangent = self.tangent(inp["Tangent"], stack)
         if coat > 0:

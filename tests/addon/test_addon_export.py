@@ -1868,6 +1868,67 @@ def test_anisotropy_reaches_the_core_with_cycles_alphas_and_tangents(scene):
     assert np.abs(ex.scene.tangents[..., :3]).sum() > 0
 
 
+def test_an_anisotropy_map_becomes_a_program_of_the_stretch(scene):
+    """A texture on Anisotropy (a gradient times a factor) stays a float program of the stretch s
+    the core evaluates at each hit, Cycles' alphas: 1 - a for the Glossy BSDF's a >= 0, 1 / (1 + a)
+    below, Principled's 1 / sqrt(1 - 0.9 a); the rotation is then read as for any anisotropy.  A
+    Mix with an isotropic glossy takes the geometric mean; beside a roughness map it is noted and
+    takes its mean."""
+    from amcmcppm.core import procedural
+
+    def mapped(name, node_kind, socket, factor, rough_map=False, **inputs):
+        mat = bs._material(name, node_kind, **inputs) if node_kind else principled(name, **inputs)
+        nt = mat.node_tree
+        times = nt.nodes.new("ShaderNodeMath")
+        times.operation = "MULTIPLY"
+        times.inputs[1].default_value = factor
+        gradient = nt.nodes.new("ShaderNodeTexGradient")
+        nt.links.new(gradient.outputs["Fac"], times.inputs[0])
+        bsdf_node = next(n for n in nt.nodes if n.bl_idname in ("ShaderNodeBsdfAnisotropic",
+                                                                 "ShaderNodeBsdfPrincipled"))
+        nt.links.new(times.outputs[0], bsdf_node.inputs[socket])
+        if rough_map:
+            nt.links.new(gradient.outputs["Fac"], bsdf_node.inputs["Roughness"])
+        return mat
+
+    attrs = procedural.SampledAttributes()
+
+    def stretches(row, ex):
+        assert row["stretch_program"] >= 0, ex.warnings
+        return procedural.evaluate(ex.scene.materials.programs[row["stretch_program"]], attrs, [])
+
+    for name, factor, low, high in (("Brushed", 0.9, 0.1, 1.0), ("Across", -0.9, 1.0, 10.0)):
+        row, ex = export_material(mapped(name, "ShaderNodeBsdfAnisotropic", "Anisotropy", factor))
+        s = stretches(row, ex)
+        assert s.min() == pytest.approx(low, rel=0.02) and s.max() == pytest.approx(high, rel=0.02)
+        assert row["glossy_stretch"] == pytest.approx(s.mean(), rel=0.01)
+        assert not any(name in w for w in ex.warnings), ex.warnings
+    from amcmcppm.core.context import RenderContext
+    assert "anisotropy maps" in RenderContext(ex.scene).effects
+    row, ex = export_material(mapped("Pan", None, "Anisotropic", 1.0, Metallic=1.0))
+    s = stretches(row, ex)
+    assert s.min() == pytest.approx(1.0, rel=0.02) and s.max() == pytest.approx(10 ** 0.5, rel=0.02)
+    # Mixed half and half with an isotropic glossy: exp(log(s) / 2).
+    mat = mapped("Mixed", "ShaderNodeBsdfAnisotropic", "Anisotropy", 0.9)
+    nt = mat.node_tree
+    glossy = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfAnisotropic")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.5
+    plain = nt.nodes.new("ShaderNodeBsdfAnisotropic")
+    plain.inputs["Anisotropy"].default_value = 0.0
+    nt.links.new(plain.outputs[0], mix.inputs[1])
+    nt.links.new(glossy.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    s_mixed = stretches(row, ex)
+    row_b, ex_b = export_material(mapped("Brushed2", "ShaderNodeBsdfAnisotropic", "Anisotropy", 0.9))
+    np.testing.assert_allclose(s_mixed ** 2, stretches(row_b, ex_b), rtol=1e-9)
+    row, ex = export_material(mapped("Both", "ShaderNodeBsdfAnisotropic", "Anisotropy", 0.9, rough_map=True))
+    assert row["stretch_program"] == -1 and row["roughness_program"] >= 0
+    assert row["glossy_stretch"] == pytest.approx(0.55, rel=0.05)
+    assert any("Both" in w and "Anisotropy" in w for w in ex.warnings), ex.warnings
+
+
 def test_a_rotation_map_becomes_a_program_of_the_tangents_turn(scene):
     """A texture on an anisotropic lobe's Rotation (a spun-metal pattern: a gradient times 0.5)
     stays a float program the core evaluates at each hit, with the mean as the constant and no
