@@ -29,7 +29,9 @@ sun through a hole, 64x48) that difference was larger than the errors measured. 
 smaller radius keeps the reference's own kernel bias below the runs'.  The references are
 rendered without the kernel-bias correction (``REFERENCE_METHOD``, as all made before it), so
 their own kernel bias, a sixteenth of the uncorrected runs', stays in them and bounds how low a
-corrected run's error can be measured.  The time-to-error table uses the corrected relMSE,
+corrected run's error can be measured; they have the edge coverage (``RenderSettings.edge_coverage``)
+since the references of 2026-11-27 16:00 (``edge_coverage`` in their metadata), so surfaces' edges
+come out at their brightness instead of darkened by the part of the kernel beyond them.  The time-to-error table uses the corrected relMSE,
 which bright caustic pixels do not dominate.
 
     python benchmarks/error_vs_time.py --resolution 64 48 --time 60 --seeds 3 --jobs 2
@@ -138,6 +140,7 @@ def make_reference(scene, resolution, seconds, jobs, tmp, radius_scale=REFERENCE
     meta = dict(scene=scene, resolution=list(resolution), method=REFERENCE_METHOD, seconds_per_half=seconds,
                 passes=[len(a["elapsed"]), len(b["elapsed"])], seeds=[1001, 1002],
                 radius_scales=[radius_scale, radius_scale],
+                edge_coverage=METHODS[REFERENCE_METHOD].get("edge_coverage", True),
                 split_half_rmse=split_half, mean=float(0.5 * (img_a + img_b).mean()), commit=git_commit(),
                 machine=f"{platform.node()} {platform.processor()} {os.cpu_count()} cpus",
                 wall_s=time.time() - t0, date=time.strftime("%Y-%m-%d %H:%M:%S"))
