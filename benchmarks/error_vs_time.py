@@ -29,10 +29,11 @@ sun through a hole, 64x48) that difference was larger than the errors measured. 
 smaller radius keeps the reference's own kernel bias below the runs'.  The references are
 rendered without the kernel-bias correction (``REFERENCE_METHOD``, as all made before it), so
 their own kernel bias, a sixteenth of the uncorrected runs', stays in them and bounds how low a
-corrected run's error can be measured; they have the edge coverage (``RenderSettings.edge_coverage``)
-since the references of 2026-11-27 16:00 (``edge_coverage`` in their metadata), so surfaces' edges
-come out at their brightness instead of darkened by the part of the kernel beyond them.  The time-to-error table uses the corrected relMSE,
-which bright caustic pixels do not dominate.
+corrected run's error can be measured; they have the edge coverage
+(``RenderSettings.edge_coverage``) since the references of 2026-11-27 16:00 (``edge_coverage`` in
+their metadata), so surfaces' edges come out at their brightness instead of darkened by the part
+of the kernel beyond them.  The time-to-error table uses the corrected relMSE, which bright
+caustic pixels do not dominate.
 
     python benchmarks/error_vs_time.py --resolution 64 48 --time 60 --seeds 3 --jobs 2
 

@@ -296,8 +296,8 @@ def test_anisotropy_is_validated():
                            "glossy_tangent": bsdf.TANGENT_UV}])
     with pytest.raises(SceneError, match="no tangents"):
         floor.replace(materials=uv).validate()
-    mapped = Materials.build([{"name": "g", "glossy": 1.0, "stretch_program": {"op": "attribute", "name": "uv"},
-                               "glossy_tangent": bsdf.TANGENT_UV}])
+    mapped = Materials.build([{"name": "g", "glossy": 1.0, "glossy_tangent": bsdf.TANGENT_UV,
+                               "stretch_program": {"op": "attribute", "name": "uv"}}])
     with pytest.raises(SceneError, match="no tangents"):
         floor.replace(materials=mapped).validate()
     for bad in (0.0, 1e3):
