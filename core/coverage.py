@@ -67,9 +67,11 @@ def disc_coverage(ctx, position, normal, radius, rng):
 
 def _probe(ctx, position, n, dirs, radius, ring):
     """(m, D) bool: which probes at ``ring`` r along ``dirs`` (m, D, 3) are covered.  A ray that
-    first meets a surface photons pass (glass, a mirror: no lobe to land on) goes on through it,
-    up to ``PASSES`` times, and a glass face resting on another surface counts as that surface
-    (``Accel.with_contacts``: the floor under a glass block)."""
+    first meets a surface it does not land on (glass or a mirror, with no lobe to land on; one
+    that faces otherwise, or is cut away there by its opacity) goes on through it, up to
+    ``PASSES`` times, as the grid gathers through whatever lies between; a glass face resting on
+    another surface counts as that surface (``Accel.with_contacts``: the floor under a glass
+    block)."""
     m, k = dirs.shape[:2]
     lift = LIFT * radius
     starts = (position + n * lift[:, None])[:, None, :] + dirs * (ring * radius)[:, None, None]
@@ -87,9 +89,8 @@ def _probe(ctx, position, n, dirs, radius, ring):
             break
         prim = below.prim_ids.take(h)
         mats = ctx.material_ids.take(prim)
-        solid = ctx.table.has_nondelta.take(mats)
         facing = np.abs(dot(ctx.accel.geometric_normals.take(prim, axis=0), d.take(h, axis=0)))
-        land = solid & (facing >= NORMAL_COS)
+        land = ctx.table.has_nondelta.take(mats) & (facing >= NORMAL_COS)
         if ctx.has_transparency:
             t = np.flatnonzero(land & ctx.see_through.take(mats))
             if len(t):
@@ -97,8 +98,8 @@ def _probe(ctx, position, n, dirs, radius, ring):
                 at = ctx.accel.hit_positions(prim.take(t), below.b1.take(ht), below.b2.take(ht))
                 land[t] = ctx._opacity(prim.take(t), below.b1.take(ht), below.b2.take(ht), at) > 0.0
         covered[rows.take(h[land])] = True
-        # Through the surfaces photons pass, with what is left of the ray.
-        on = h[~solid]
+        # On through the surfaces it did not land on, with what is left of the ray.
+        on = h[~land]
         if len(on) == 0:
             break
         t_hit = below.t.take(on).astype(np.float64)

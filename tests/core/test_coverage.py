@@ -98,6 +98,28 @@ def test_an_alpha_cut_edge_is_an_edge():
     assert covered[20:76, 49:80].max() == 0.0
 
 
+def test_probes_go_on_through_surfaces_they_do_not_land_on():
+    """Over the floor's middle, 2 cm up, lies a sheet cut away everywhere (opacity 0) or a panel
+    tilted 45 degrees: photons reach the floor through the first and the grid gathers through
+    the second, so the probes go on through both and find the disc whole (before they stopped
+    there: the share 0.25, four times too bright)."""
+    for opacity, tilt in ((0.0, 0.0), (1.0, 0.5)):
+        m = MeshBuilder()
+        m.add_quad((-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0), 0)
+        m.add_quad((-0.3, -0.3, 0.02), (0.3, -0.3, 0.02 + 0.6 * tilt), (0.3, 0.3, 0.02 + 0.6 * tilt),
+                   (-0.3, 0.3, 0.02), 1)
+        lights = Lights.build([{"kind": "sun", "direction": (0, 0, -1), "power": SUN}])
+        cam = Camera(world_from_camera=_look_down(2.0), projection="orthographic",
+                     frame=(-0.6, 0.6, -0.6, 0.6), resolution=(8, 8))
+        mats = Materials.build([{"name": "floor", "diffuse": ALBEDO},
+                                {"name": "sheet", "diffuse": ALBEDO, "opacity": opacity}])
+        ctx = RenderContext(m.build(mats, lights, cam).validate())
+        points = np.array([[0.0, 0.0, 0.0], [0.05, -0.1, 0.0]])
+        up = np.tile([0.0, 0.0, 1.0], (2, 1))
+        share = disc_coverage(ctx, points, up, np.full(2, 0.1), np.random.default_rng(0))
+        np.testing.assert_array_equal(share, 1.0)
+
+
 def test_the_inside_of_a_surface_is_untouched():
     """A camera that sees only the floor's inside: no point is near an edge, the coverage is not
     even computed, and the image is the same to the bit."""
