@@ -149,7 +149,7 @@ def coat_variants(mats):
     changes = {name: np.ascontiguousarray(getattr(mats, name)[rows]) for name in mats.ARRAY_FIELDS}
     new = slice(mats.count, None)
     for name in mats.ARRAY_FIELDS:
-        if name in mats.INDEX_FIELDS:
+        if name in mats.INDEX_FIELDS or name == "glossy_metal_tint":
             changes[name][new] = -1
         elif name not in ("ior", "glossy_roughness"):
             changes[name][new] = 0.0
@@ -186,6 +186,7 @@ class MaterialTable:
     is_emissive: np.ndarray     # (M,) bool
     ms_albedo: np.ndarray       # (M, MS_NODES + 1) float64 single-scattering GGX albedo E (1: none)
     ms_fresnel: np.ndarray      # (M, 3) float64 multiple-scattering Fresnel F_ms (0: single scattering)
+    ms_e_avg: np.ndarray        # (M,) float64 E_avg of the compensated lobes (0: single scattering)
     fresnel_ior: np.ndarray     # (M,) float64 IOR of the glossy (or merged mirror) lobe's Fresnel rise
     rise: np.ndarray            # (M, L, 3) float64 colour added times s(c) (glossy or mirror entry)
     edge: np.ndarray            # (M, L, 3) float64 metal colour added times (1 - c)^5 (glossy or mirror)
@@ -211,6 +212,10 @@ class MaterialTable:
     alpha_y: np.ndarray = None              # isotropic) and across it; ``alpha`` is then sqrt(ax ay)
     rotation: np.ndarray = None             # (M,) float64 the tangent's turn about the normal (turns)
     tangent_axis: np.ndarray = None         # (M,) int32 Materials.glossy_tangent
+    hit_metal: np.ndarray = None            # (M,) bool: the metal's curve follows the lobe's colour at each
+    #                                         hit (Materials.glossy_metal_tint), in lobe ``hit_metal_lobe``
+    hit_metal_lobe: np.ndarray = None       # (M,) int64 GLOSSY, or MIRROR where a sharp glossy merged
+    hit_metal_dip: np.ndarray = None        # (M, 3) float64 the dip per unit Schlick value at 1/7 (below)
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -281,8 +286,8 @@ class MaterialTable:
         # the multiscatter tables then reuse.
         albedo = {}
         rise_means = _rise_means(alpha, fresnel_ior, rise, coarse, albedo)
-        ms_albedo, ms_fresnel = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter, coarse,
-                                                     albedo)
+        ms_albedo, ms_fresnel, ms_e_avg = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter,
+                                                               coarse, albedo)
         dielectric_program = (np.asarray(mats.dielectric_program, np.int32)
                               if mats.dielectric_program is not None else np.full(m, -1, np.int32))
         # A glass reflects its reflection colour where it transmits at all, or with a program (which
@@ -301,6 +306,8 @@ class MaterialTable:
             score_extra[:, lobe] += weight[:, lobe] * smp.luminance(mean)
         coat_row = np.full(m, -1, np.int32) if coat_row is None else np.asarray(coat_row, np.int32)
         has_nondelta = diffuse_on | glossy_on | translucent_on
+        tint = _or_none(mats.glossy_metal_tint, (m, 3)).astype(np.float64)
+        hit_metal = (tint >= 0).all(axis=1) & ((weight[:, GLOSSY] > 0) | (weight[:, MIRROR] > 0))
         coat_factor, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo,
                                                ms_fresnel)
         coated = np.flatnonzero(coat_row >= 0)
@@ -311,7 +318,8 @@ class MaterialTable:
                              texture=mats.diffuse_texture.astype(np.int32),
                              has_nondelta=has_nondelta, has_glossy=glossy_on,
                              is_emissive=(emission > 0).any(axis=1),
-                             ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, fresnel_ior=fresnel_ior,
+                             ms_albedo=ms_albedo, ms_fresnel=ms_fresnel, ms_e_avg=ms_e_avg,
+                             fresnel_ior=fresnel_ior,
                              rise=rise, edge=edge, dip=dip, layer=layer, score_extra=score_extra,
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
                              | (np.asarray(mats.bump_texture) >= 0)
@@ -330,7 +338,11 @@ class MaterialTable:
                              rotation=_or_zeros(mats.glossy_rotation, m),
                              tangent_axis=(np.full(m, TANGENT_RADIAL_Z, np.int32)
                                            if mats.glossy_tangent is None
-                                           else np.asarray(mats.glossy_tangent, np.int32)))
+                                           else np.asarray(mats.glossy_tangent, np.int32)),
+                             hit_metal=hit_metal,
+                             hit_metal_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
+                             hit_metal_dip=np.where(hit_metal[:, None], F82_DIP * (1.0 - np.clip(tint, 0.0, 1.0)),
+                                                    0.0))
 
     @property
     def lobes(self) -> int:
@@ -372,17 +384,31 @@ class MaterialTable:
     def has_rough_dielectric(self) -> bool:
         return bool(((self.dielectric_alpha > 0) & (self.weight[:, DIELECTRIC] > 0)).any())
 
-    def multiscatter(self, mat_ids, mu):
+    def multiscatter(self, mat_ids, mu, base=None):
         """(n, 3) factors 1 + F_ms (1 - E(mu)) / E(mu) of the glossy lobes at view cosines ``mu``.
 
         This is Cycles' energy compensation of multiscatter GGX (``microfacet_ggx_preserve_energy``,
         after Kulla and Conty 2017): the single-scattering lobe scaled by a factor of the *view*
         direction, so that a white lobe reflects all the light it receives from any direction.
         The view is the camera side: a measurement point's ``wo``, or the direction a photon
-        leaves in.  Rows of materials without compensation get 1.
+        leaves in.  Rows of materials without compensation get 1.  ``base`` (n, 3), the glossy
+        colours at the hits, gives the metals whose curve follows it (``hit_metal``) F_ss, the mean
+        of that curve (:func:`metal_fresnel`), hit by hit; needed where the table has them.
         """
         e = _interpolate(self.ms_albedo, mat_ids, mu)
-        return 1.0 + self.ms_fresnel.take(mat_ids, axis=0) * ((1.0 - e) / e)[:, None]
+        fms = self.ms_fresnel.take(mat_ids, axis=0)
+        if self.has_hit_metal:
+            h = np.flatnonzero(self.hit_metal.take(mat_ids) & (self.ms_e_avg.take(mat_ids) > 0))
+            if len(h):
+                if base is None:
+                    raise ValueError("multiscatter: metals with a per-hit curve need the hits' colours")
+                m = mat_ids.take(h)
+                f0 = np.clip(np.asarray(base, np.float64).take(h, axis=0), 0.0, 1.0)
+                dip = (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(m, axis=0)
+                fss = np.clip(f0 + (1.0 - f0) / 21.0 - dip / 126.0, 0.0, 1.0)
+                e_avg = self.ms_e_avg.take(m)[:, None]
+                fms[h] = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
+        return 1.0 + fms * ((1.0 - e) / e)[:, None]
 
     @cached_property
     def reflection_differs(self) -> bool:
@@ -393,7 +419,16 @@ class MaterialTable:
     @cached_property
     def rises(self) -> np.ndarray:
         """(M, 4) bool: the lobe's colour changes with the microfacet cosine (:meth:`fresnel_color`)."""
-        return (self.rise != 0).any(axis=2) | (self.edge != 0).any(axis=2) | (self.dip != 0).any(axis=2)
+        out = (self.rise != 0).any(axis=2) | (self.edge != 0).any(axis=2) | (self.dip != 0).any(axis=2)
+        if self.has_hit_metal:
+            rows = np.flatnonzero(self.hit_metal)
+            out[rows, self.hit_metal_lobe.take(rows)] = True
+        return out
+
+    @cached_property
+    def has_hit_metal(self) -> bool:
+        """Whether some metal's curve follows its colour at each hit (a textured metal)."""
+        return self.hit_metal is not None and bool(self.hit_metal.any())
 
     @cached_property
     def has_fresnel(self) -> bool:
@@ -401,7 +436,7 @@ class MaterialTable:
 
     @cached_property
     def has_metal_curve(self) -> bool:
-        return bool((self.edge != 0).any() or (self.dip != 0).any())
+        return bool((self.edge != 0).any() or (self.dip != 0).any()) or self.has_hit_metal
 
     @cached_property
     def has_layer(self) -> bool:
@@ -425,11 +460,13 @@ class MaterialTable:
         e = self.coat_factor.reshape(-1, 3)
         return (1.0 - f) * e.take(flat, axis=0) + f * e.take(flat + 1, axis=0)
 
-    def fresnel_color(self, mat_ids, lobe, cos_m):
+    def fresnel_color(self, mat_ids, lobe, cos_m, base=None):
         """(n, 3) the colour lobe ``lobe`` (GLOSSY or MIRROR) adds at microfacet cosines ``cos_m``
         (the view direction with the microfacet normal) to its constant colour: ``rise`` s(cos_m)
         (:func:`fresnel_rise`) plus a metal's ``edge`` (1 - c)^5 - ``dip`` c (1 - c)^6 (Cycles'
-        F82 tint, ``Materials``), the metal's reflectance kept within [0, 1] as Cycles saturates it."""
+        F82 tint, ``Materials``), the metal's reflectance kept within [0, 1] as Cycles saturates it.
+        ``base`` (n, 3), the lobe's colour at each hit, gives the curve of the metals whose F0 it is
+        (``hit_metal``: edge 1 - F0, dip b(F0, tint)); needed where the table has them."""
         out = None
         if self.has_dielectric_rise:
             s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
@@ -437,17 +474,30 @@ class MaterialTable:
         if not self.has_metal_curve:
             return out if out is not None else np.zeros((len(mat_ids), 3))
         edge, dip, low, high, metal = self._metal_rows[lobe]
+        edge, dip, low, high = (a.take(mat_ids, axis=0) for a in (edge, dip, low, high))
+        metal = metal.take(mat_ids)
+        if self.has_hit_metal:
+            h = np.flatnonzero(self.hit_metal.take(mat_ids) & (self.hit_metal_lobe.take(mat_ids) == lobe))
+            if len(h):
+                if base is None:
+                    raise ValueError("fresnel_color: metals with a per-hit curve need the hits' colours")
+                b = np.asarray(base, np.float64).take(h, axis=0)
+                f0 = np.clip(b, 0.0, 1.0)
+                edge[h] = 1.0 - f0
+                dip[h] = (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(mat_ids.take(h), axis=0)
+                low[h] = -b
+                high[h] = np.maximum(1.0 - b, 0.0)
+                metal[h] = True
         c = np.clip(cos_m, 0.0, 1.0)
         p = 1.0 - c
         p5 = p * p
         p5 *= p5 * p
-        curve = edge.take(mat_ids, axis=0) * p5[:, None]
-        curve -= dip.take(mat_ids, axis=0) * (c * p5 * p)[:, None]
+        curve = edge * p5[:, None]
+        curve -= dip * (c * p5 * p)[:, None]
         if out is None:                                 # metals alone (rows without a curve: 0)
-            return np.clip(curve, low.take(mat_ids, axis=0), high.take(mat_ids, axis=0), out=curve)
+            return np.clip(curve, low, high, out=curve)
         total = out + curve
-        clipped = np.clip(total, low.take(mat_ids, axis=0), high.take(mat_ids, axis=0))
-        return np.where(metal.take(mat_ids)[:, None], clipped, total)
+        return np.where(metal[:, None], np.clip(total, low, high), total)
 
     @cached_property
     def has_dielectric_rise(self) -> bool:
@@ -663,7 +713,8 @@ def _strata(coarse):
 
 
 def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse, albedo):
-    """Per-material E(mu) at the ``MS_NODES`` + 1 nodes and F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)).
+    """Per-material E(mu) at the ``MS_NODES`` + 1 nodes, F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg))
+    and E_avg (0 where a material has no compensation).
 
     F_ms is the colour of the light that leaves after more than one microfacet bounce (the
     appendix of Kulla and Conty, with one F_ss cancelled as in Cycles); E_avg = 2 int E mu dmu.
@@ -673,9 +724,10 @@ def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse, albedo):
     m = len(alpha)
     table = np.ones((m, MS_NODES + 1))
     fms = np.zeros((m, 3))
+    e_avgs = np.zeros(m)
     on = glossy_on & (np.asarray(fresnel_ss) > 0).any(axis=1)
     if not on.any():
-        return table, fms
+        return table, fms, e_avgs
     mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
     fss = np.clip(np.asarray(fresnel_ss, np.float64), 0.0, 1.0)
     for a in np.unique(alpha[on]):
@@ -688,7 +740,8 @@ def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse, albedo):
         table[rows] = e
         f = fss[rows]
         fms[rows] = f * e_avg / (1.0 - f * (1.0 - e_avg))
-    return table, fms
+        e_avgs[rows] = e_avg
+    return table, fms, e_avgs
 
 
 class Textures:
@@ -753,6 +806,12 @@ def _bilinear_cell(image, u, v, clamp_v):
     return fx, fy, image[iy0, ix0], image[iy0, ix1], image[iy1, ix0], image[iy1, ix1]
 
 
+# Cycles' F82 tint (``fresnel_f82tint_B``): the Schlick curve's (1 - c)^5 at c = 1/7, and the factor
+# 7 / (f^5 f), f = 6/7, that makes b of F0 and the tint (F0 + (1 - F0) F82_SCHLICK) F82_DIP (1 - tint).
+F82_SCHLICK = (6.0 / 7.0) ** 5
+F82_DIP = 7.0 / (6.0 / 7.0) ** 6
+
+
 def metal_curve(color, edge_tint=(1.0, 1.0, 1.0)):
     """(F0, rise, dip), each (..., 3), of Cycles' F82-tint metal Fresnel (F0 = ``color``, clamped
     to [0, 1] as ``edge_tint``): F(c) = F0 + rise (1 - c)^5 - dip c (1 - c)^6 with rise = 1 - F0
@@ -760,9 +819,7 @@ def metal_curve(color, edge_tint=(1.0, 1.0, 1.0)):
     times the tint (``Materials.glossy_metal_rise`` and ``glossy_metal_dip``)."""
     f0 = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
     tint = np.clip(np.asarray(edge_tint, np.float64), 0.0, 1.0)
-    f = 6.0 / 7.0
-    f5 = f ** 5
-    dip = (f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint)
+    dip = (f0 + (1.0 - f0) * F82_SCHLICK) * F82_DIP * (1.0 - tint)
     return f0, 1.0 - f0, dip
 
 
@@ -797,6 +854,18 @@ def lobe_scores(table, mat_ids, colors):
         # (a metal's curve may dip below its F0 on average: never below 0)
         scores[:, GLOSSY] = np.maximum(scores[:, GLOSSY] + extra[:, GLOSSY], 0.0)
         scores[:, MIRROR] = np.maximum(scores[:, MIRROR] + extra[:, MIRROR], 0.0)
+    if table.has_hit_metal:
+        # Metals whose curve follows the hit's colour: the curve's mean, F0 + (1 - F0) / 21 - b / 126
+        # (:func:`metal_fresnel` unclipped), of the hit's F0, kept above (1 - F0) / 210 where a dipping
+        # tint takes it below 0 (a black metal still reflects at grazing angles).
+        h = np.flatnonzero(table.hit_metal.take(mat_ids))
+        if len(h):
+            m = mat_ids.take(h)
+            lobe = table.hit_metal_lobe.take(m)
+            f0 = np.clip(colors[h, lobe], 0.0, 1.0)
+            dip = (f0 + (1.0 - f0) * F82_SCHLICK) * table.hit_metal_dip.take(m, axis=0)
+            mean = np.maximum(f0 + (1.0 - f0) / 21.0 - dip / 126.0, (1.0 - f0) / 210.0)
+            scores[h, lobe] = table.weight[m, lobe] * smp.luminance(mean)
     return scores
 
 
@@ -949,8 +1018,8 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             view_mu = wi_l[:, 2] if mode == "importance" else wo_l[:, 2]
             if table.has_fresnel:
                 lw = lw + (table.weight[:, k].take(m_sel) / prob.take(sel))[:, None] \
-                    * table.fresnel_color(m_sel, k, dot(wo_l, m))
-            w = lw * ratio[:, None] * table.multiscatter(m_sel, view_mu)
+                    * table.fresnel_color(m_sel, k, dot(wo_l, m), colors[:, k].take(sel, axis=0))
+            w = lw * ratio[:, None] * table.multiscatter(m_sel, view_mu, colors[:, k].take(sel, axis=0))
         elif k == MIRROR:
             d = smp.reflect(w_o, n_s)
             below = dot(d, n_g) <= 0
@@ -960,7 +1029,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             w = lw
             if table.has_fresnel:
                 w = w + (table.weight[:, k].take(m_sel) / prob.take(sel))[:, None] \
-                    * table.fresnel_color(m_sel, k, np.abs(dot(w_o, n_s)))
+                    * table.fresnel_color(m_sel, k, np.abs(dot(w_o, n_s)), colors[:, k].take(sel, axis=0))
         elif k == DIELECTRIC:
             entering = dot(w_o, ng.take(sel, axis=0)) > 0     # wo on the front (outside) of the surface
             ior = table.ior.take(m_sel)

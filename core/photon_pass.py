@@ -145,6 +145,12 @@ class DepositTarget:
             # Per material: the glossy colour is const + table.fresnel_color(wo.h); 1 + 0 where
             # the colour is constant (to_pixels multiplies by it instead).
             self._const = np.where(table.rises[:, GLOSSY, None], table.color[:, GLOSSY], 1.0)
+        # The glossy colours of the points, where some metal's curve follows its colour at each
+        # hit (their F0: ``MaterialTable.hit_metal``); None otherwise.
+        self._hit_base = None
+        if self.rising is not None and table.has_hit_metal and (table.hit_metal.take(points.mat_ids)
+                                                                & self.rising).any():
+            self._hit_base = points.colors[:, 1]
         # Points of translucent materials, or None: photons that land on the other side of their
         # surface reach them through the translucent lobe (``back`` pairs).  Points of rough diffuse
         # materials, or None: their diffuse pairs weigh by the directions (rough_diffuse_factor).
@@ -367,7 +373,13 @@ class DepositTarget:
             wg = g_fac.take(jg, axis=1) * f
             if self.rising is not None:
                 mats = pts.mat_ids.take(jg)
-                wg *= (self._const.take(mats, axis=0) + self.table.fresnel_color(mats, GLOSSY, cos_h)).T
+                if self._hit_base is None:
+                    wg *= (self._const.take(mats, axis=0) + self.table.fresnel_color(mats, GLOSSY, cos_h)).T
+                else:
+                    base = self._hit_base.take(jg, axis=0)
+                    const = np.where(self.table.hit_metal.take(mats)[:, None], base,
+                                     self._const.take(mats, axis=0))
+                    wg *= (const + self.table.fresnel_color(mats, GLOSSY, cos_h, base)).T
             if in_s is None:
                 w_s += wg
             else:
@@ -410,14 +422,15 @@ class DepositTarget:
             d *= layer[:, None]
         if not self.any_glossy:
             return np.ascontiguousarray(d.T), None
-        color = pts.colors[:, 1]
+        base = pts.colors[:, 1]
+        color = base
         if self.rising is not None:
             color = np.where(self.rising[:, None], f32(1.0), color)
         g = color * table.weight[:, GLOSSY].astype(f32).take(mats)[:, None]
         if table.ms_fresnel.any():
             if mu is None:
                 mu = dot(pts.wo, pts.glossy_normals).astype(np.float64)
-            g *= table.multiscatter(mats, mu)
+            g *= table.multiscatter(mats, mu, base)
         return np.ascontiguousarray(d.T), np.ascontiguousarray(g.T)
 
     @property

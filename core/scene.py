@@ -98,6 +98,11 @@ class Materials:
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]
       (F0 = the colour, rise = 1 - F0, dip = b of ``fresnel_f82tint_B``); either may sit beside
       a dielectric rise (a Principled BSDF partly metallic), the parts adding up.
+      ``glossy_metal_tint`` >= 0 (an edge tint in [0, 1]; -1: none) makes the lobe a metal whose
+      F0 is its colour at each hit (``glossy_color`` times ``glossy_program``: a textured metal):
+      it reflects that curve with rise 1 - F0 and dip b(F0, tint) of the hit's own F0, so a
+      textured metal brightens towards grazing angles point by point (the rise and dip above
+      are then 0).
       ``glossy_stretch`` s != 1 makes the lobe anisotropic (Blender's Anisotropy): alpha s along
       a tangent and alpha / s across it (each at most 1), the tangent from ``glossy_tangent``
       (``bsdf.TANGENT_*``: around the object's X, Y or Z axis (Z, 2, is Blender's default) from
@@ -189,6 +194,7 @@ class Materials:
     glossy_fresnel_rise: np.ndarray = None              # (M, 3) float32; None: 0
     glossy_metal_rise: np.ndarray = None                # (M, 3) float32 >= 0; None: 0
     glossy_metal_dip: np.ndarray = None                 # (M, 3) float32, any sign; None: 0
+    glossy_metal_tint: np.ndarray = None                # (M, 3) float32 in [0, 1] or -1 (none); None: -1
     glossy_stretch: np.ndarray = None                   # (M,) float32 in [0.01, 100]; None: 1 (isotropic)
     glossy_rotation: np.ndarray = None                  # (M,) float32 turns, any sign; None: 0
     glossy_tangent: np.ndarray = None                   # (M,) int32 bsdf.TANGENT_*; None: 2 (radial Z)
@@ -245,7 +251,7 @@ class Materials:
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
-                    "rotation_program", "stretch_program")
+                    "rotation_program", "stretch_program", "glossy_metal_tint")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -253,7 +259,7 @@ class Materials:
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent",)                       # stored as int32
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
-                                    "glossy_rotation")
+                                    "glossy_rotation", "glossy_metal_tint")
 
     @property
     def count(self) -> int:
@@ -289,7 +295,9 @@ class Materials:
         ``glossy_stretch`` (1), ``glossy_rotation`` (0) and ``glossy_tangent`` (2) make the
         glossy lobe anisotropic; ``rotation_program``, a float program, turns its tangent by the
         program's value at each hit instead of ``glossy_rotation``, and ``stretch_program``, a float
-        program, gives the stretch at each hit instead of ``glossy_stretch``.
+        program, gives the stretch at each hit instead of ``glossy_stretch``.  ``glossy_metal_tint``
+        (default -1: none) makes a textured glossy lobe a metal of that edge tint whose F0 is its
+        colour at each hit.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -304,6 +312,7 @@ class Materials:
         out.glossy_fresnel_rise = np.zeros((m, 3), np.float32)
         out.glossy_metal_rise = np.zeros((m, 3), np.float32)
         out.glossy_metal_dip = np.zeros((m, 3), np.float32)
+        out.glossy_metal_tint = np.full((m, 3), -1.0, np.float32)
         out.glossy_stretch = np.ones(m, np.float32)
         out.glossy_rotation = np.zeros(m, np.float32)
         out.glossy_tangent = np.full(m, TANGENT_RADIAL_Z, np.int32)
@@ -385,6 +394,8 @@ class Materials:
             out.glossy_tangent[i] = s.get("glossy_tangent", TANGENT_RADIAL_Z)
             for key in ("glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer"):
                 getattr(out, key)[i] = np.broadcast_to(np.asarray(s.get(key, 0.0), np.float32), (3,))
+            out.glossy_metal_tint[i] = np.broadcast_to(np.asarray(s.get("glossy_metal_tint", -1.0),
+                                                              np.float32), (3,))
             if "ior" in s:
                 out.ior[i] = s["ior"]
             if "dielectric_roughness" in s:
@@ -830,6 +841,7 @@ class Scene:
                                        ("glossy_fresnel_rise", (n, 3), 0.0),
                                        ("glossy_metal_rise", (n, 3), 0.0),
                                        ("glossy_metal_dip", (n, 3), 0.0),
+                                       ("glossy_metal_tint", (n, 3), -1.0),
                                        ("diffuse_layer", (n, 3), 0.0), ("diffuse_layer_weight", (n,), 1.0),
                                        ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
@@ -864,6 +876,13 @@ class Scene:
             setattr(mats, name, v)
         if (mats.ior <= 0).any():
             fail("materials.ior must be positive")
+        tint = mats.glossy_metal_tint
+        per_hit = (tint >= 0).any(axis=1)
+        odd = per_hit & (((tint < 0) | (tint > 1)).any(axis=1) | (mats.glossy_fresnel_ior > 0)
+                         | (mats.glossy_metal_rise != 0).any(axis=1) | (mats.glossy_metal_dip != 0).any(axis=1))
+        if odd.any():
+            fail(f"materials.glossy_metal_tint of material '{mats.names[int(np.argmax(odd))]}' must be -1 or "
+                 "in [0, 1] in every channel, on a lobe without a Fresnel rise, rise or dip")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
