@@ -116,6 +116,8 @@ class Closure:
     emission_texture: dict = None   # program of the radiance where it varies (emission: its mean)
     texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
     glossy_texture: dict = None     # program of the glossy colour where it varies (color[GLOSSY]: its mean)
+    metal_texture: dict = None      # program of a metal's F0 where it varies (glossy_texture: its curve's mean)
+    metal_tint: np.ndarray = None   # (3,) that metal's edge tint
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
@@ -210,6 +212,11 @@ class Closure:
             out.texture = _times(mixed, 1.0 / total)
             out.color[DIFFUSE] = total
         out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
+        # A textured metal keeps its curve per point where it is the whole glossy lobe at one
+        # weight; mixed with other glossy lobes or by a varying factor, its curve's mean per point.
+        glossy = [c for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
+        if fac is None and len(glossy) == 1 and glossy[0].metal_texture is not None:
+            out.metal_texture, out.metal_tint = glossy[0].metal_texture, glossy[0].metal_tint
         out.emission_texture = self._mixed_emission(other, fa, fb, fac)
         out.dielectric_texture = self._mixed_lobe_program(other, wa, wb, DIELECTRIC, "dielectric_texture")
         out.translucent_texture = self._mixed_lobe_program(other, wa, wb, TRANSLUCENT, "translucent_texture")
@@ -378,6 +385,7 @@ class Closure:
             out.texture = _times(self.texture, per_point) if isinstance(self.texture, dict) else self.texture
             out.glossy_texture = (None if self.glossy_texture is None
                                   else _times(self.glossy_texture, per_point))
+            out.metal_texture = out.metal_tint = None         # the curve's mean times the opacity
             out.emission_texture = (None if self.emission_texture is None
                                     else _times(self.emission_texture, per_point))
         return out
@@ -417,6 +425,10 @@ class Closure:
         if self.glossy_texture is not None and self.weight[GLOSSY] > 0:
             s["glossy_program"] = self.glossy_texture
             s["glossy"] = np.ones(3)
+        if self.metal_texture is not None and self.weight[GLOSSY] > 0:
+            # The core takes the F82 curve of each hit's F0 (Materials.glossy_metal_tint).
+            s["glossy_program"] = self.metal_texture
+            s["glossy_metal_tint"] = np.clip(np.asarray(self.metal_tint, np.float64), 0.0, 1.0)
         if self.roughness_texture is not None and self.weight[GLOSSY] > 0:
             s["roughness_program"] = self.roughness_texture
         if self.anisotropic and self.weight[GLOSSY] > 0:
@@ -513,6 +525,11 @@ def _clamp01(f):
     """Float program ``f`` clamped to [0, 1] (a mix factor, as Cycles clamps it)."""
     low = {"op": "math", "operation": "MAXIMUM", "a": f, "b": 0.0}
     return {"op": "math", "operation": "MINIMUM", "a": low, "b": 1.0}
+
+
+def _clamped_color(c):
+    """Colour program ``c`` kept within [0, 1] in every channel (a metal's F0, as Cycles saturates it)."""
+    return {"op": "mix_color", "fac": 0.0, "a": c, "b": [0.0, 0.0, 0.0], "clamp_result": True}
 
 
 def _math(operation, a, b=0.0):
@@ -1187,7 +1204,10 @@ class NodeWalker:
             if textured(base_tex) or textured(tint_tex):
                 program = {"op": "metal", "color": _program_of(base_tex, base),
                            "tint": _program_of(tint_tex, tint)}
-                return self._glossy(node, stack, mean, program)
+                c = self._glossy(node, stack, mean, program)
+                if not textured(tint_tex):
+                    c.metal_texture, c.metal_tint = _clamped_color(_program_of(base_tex, base)), tint
+                return c
         f0, rise, dip = metal_curve(base, tint)
         c = self._glossy(node, stack, f0)
         c.metal_rise, c.metal_dip = rise.copy(), dip.copy()          # weight 1
@@ -1370,8 +1390,8 @@ class NodeWalker:
             c.coat = coat
             c.coat_roughness = float(np.clip(self.value(inp["Coat Roughness"], stack), 0.0, 1.0))
             c.coat_ior = max(self.value(inp["Coat IOR"], stack), 1.0)
-            tint, _ = self.color(inp["Coat Tint"], stack)
-            c.coat_tint = np.clip(tint, 0.0, 1.0)
+            coat_tint, _ = self.color(inp["Coat Tint"], stack)
+            c.coat_tint = np.clip(coat_tint, 0.0, 1.0)
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
         eta, f0 = specular_ior(ior, level)
@@ -1410,9 +1430,11 @@ class NodeWalker:
             c.dielectric_texture = {"op": "gamma", "color": _program_of(tex, base), "gamma": 0.5}
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1
         if metal_program:
-            # A metal (no dielectric layer): its colour follows the base colour's texture.
+            # A metal (no dielectric layer): its F0 follows the base colour's texture, and its
+            # curve's mean too where it is mixed (Closure.combine).
             c.glossy_texture = {"op": "metal", "color": _program_of(tex, base),
                                 "tint": [float(x) for x in tint]}
+            c.metal_texture, c.metal_tint = _clamped_color(_program_of(tex, base)), np.asarray(tint, np.float64)
         return c
 
 

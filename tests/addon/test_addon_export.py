@@ -915,6 +915,18 @@ def test_principled_coat_is_exported_with_cycles_clamps(scene):
     assert not [w for w in ex.warnings if "'Varnish'" in w]
     row, _ = export_material(principled("Low", **{"Coat Weight": 0.5, "Coat IOR": 0.5}))
     assert row["coat_ior"] == pytest.approx(1.0)
+    # The coat's tint tints the coat only: the specular layer and a metal keep the Specular Tint
+    # (the Coat Tint took its place before).
+    for metallic in (0.0, 1.0):
+        row, _ = export_material(principled("Tinted", **{"Coat Weight": 0.5, "Coat Tint": (0.2, 0.4, 1.0, 1),
+                                                         "Specular Tint": (1.0, 0.5, 0.25, 1),
+                                                         "Metallic": metallic}))
+        assert row["coat_tint"] == pytest.approx([0.2, 0.4, 1.0])
+        if metallic:
+            b = (0.8 + 0.2 * (6 / 7) ** 5) * 7 / (6 / 7) ** 6 * np.array([0.0, 0.5, 0.75])
+            assert row["glossy_metal_dip"] == pytest.approx(b, rel=1e-5)
+        else:
+            assert row["diffuse_layer"] == pytest.approx([0.04, 0.02, 0.01], rel=1e-4)
     row, _ = export_material(principled("Bare"))
     assert row["coat_weight"] == 0
     mat = principled("Bumped", **{"Coat Weight": 1.0})
@@ -1258,6 +1270,50 @@ def test_metallic_node_gives_the_fresnel_curve_of_its_model(scene):
     print(f"gold: F82 fit within {error.max(axis=1)} of the conductor's Fresnel")
     assert error.max() < 0.03      # measured 0.006 / 0.004 / 0.023 (the mean, as before: 0.06 / 0.21 / 0.59)
     assert 0.3 < row["glossy_color"][2] < row["glossy_color"][1] < row["glossy_color"][0] < 1.0
+
+
+def test_a_textured_metal_keeps_the_fresnel_curve_of_each_points_colour(scene):
+    """A texture on a metal's base colour (Principled metallic 1, or the Metallic node's F82
+    tint) makes its F0 a program, clamped to [0, 1], with the edge tint beside it
+    (``glossy_metal_tint``): the core takes the curve of each hit's F0.  Where the metal is not
+    the whole glossy lobe (a Mix with a Glossy BSDF, or by a varying factor) or its Edge Tint is
+    textured, the lobe's colour stays the program of the curve's mean per point (as before)."""
+    def checkered(mat, socket, node_name):
+        nt = mat.node_tree
+        checker = nt.nodes.new("ShaderNodeTexChecker")
+        checker.inputs["Color1"].default_value = (0.95, 0.6, 0.2, 1)
+        checker.inputs["Color2"].default_value = (0.9, 0.9, 0.92, 1)
+        nt.links.new(checker.outputs["Color"], nt.nodes[node_name].inputs[socket])
+        return mat
+
+    def program(row, ex):
+        return ex.scene.materials.programs[row["glossy_program"]]
+
+    tint = (1.0, 0.6, 0.3)
+    mat = checkered(principled("Rusty", **{"Metallic": 1.0, "Specular Tint": (*tint, 1)}), "Base Color",
+                    "Principled BSDF")
+    row, ex = export_material(mat)
+    assert row["glossy_metal_tint"] == pytest.approx(tint)
+    assert row["glossy_color"] == pytest.approx([1, 1, 1]) and row["glossy_weight"] == pytest.approx(1.0)
+    assert not row["glossy_metal_rise"].any() and not row["glossy_metal_dip"].any()
+    p = program(row, ex)
+    assert p["op"] == "mix_color" and p["clamp_result"] and p["a"]["op"] == "checker"
+    metallic = checkered(bs._material("Brass", "ShaderNodeBsdfMetallic", **{"Edge Tint": (*tint, 1)}),
+                         "Base Color", "Metallic BSDF")
+    row, ex = export_material(metallic)
+    assert row["glossy_metal_tint"] == pytest.approx(tint) and program(row, ex)["a"]["op"] == "checker"
+    edge = checkered(bs._material("Edged", "ShaderNodeBsdfMetallic"), "Edge Tint", "Metallic BSDF")
+    row, ex = export_material(edge)
+    assert row["glossy_metal_tint"] == pytest.approx([-1, -1, -1]) and program(row, ex)["op"] == "metal"
+    # Mixed at a constant factor with a Diffuse BSDF: still the whole glossy lobe.
+    half = checkered(principled("Half", **{"Metallic": 1.0}), "Base Color", "Principled BSDF")
+    bs.mix_in(half, "Principled BSDF", "ShaderNodeBsdfDiffuse", 0.5)
+    row, ex = export_material(half)
+    assert row["glossy_metal_tint"] == pytest.approx([1, 1, 1]) and row["glossy_weight"] == pytest.approx(0.5)
+    shared = checkered(principled("Shared", **{"Metallic": 1.0}), "Base Color", "Principled BSDF")
+    bs.mix_in(shared, "Principled BSDF", "ShaderNodeBsdfGlossy", 0.5)
+    row, ex = export_material(shared)
+    assert row["glossy_metal_tint"] == pytest.approx([-1, -1, -1]) and row["glossy_program"] >= 0
 
 
 def test_mix_add_groups_and_basic_bsdfs(scene):
