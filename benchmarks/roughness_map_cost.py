@@ -9,9 +9,13 @@ median of ``--rounds``) and the photon vertices per second of the map relative t
 (rounds alternating, median and range; one run).  ``--kind anisotropy``: the white material
 becomes a brushed metal instead (F82 gold, roughness 0.4, radial tangent) of constant stretch 2, then
 of an anisotropy map (the same noise through a ramp from stretch 1 to 4; the material is copied at
-``bsdf.STRETCH_LEVELS`` stretches, which share their tables).
+``bsdf.STRETCH_LEVELS`` stretches, which share their tables).  ``--kind metal``: the white material
+becomes a rough (0.4) metal whose base colour is the same noise through a ramp from copper to
+silver, first with the F82 curve's mean per point as its colour (the ``metal`` program: the
+"constant" row, as before stop 37), then with the curve of each hit's F0
+(``Materials.glossy_metal_tint``: the "map" row).
 
-    python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy] [--resolution 320 240]
+    python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy|metal] [--resolution 320 240]
         [--rounds 5] [--paths 65536]
 """
 from __future__ import annotations
@@ -68,14 +72,33 @@ def brushed(stretch_map):
     return edit
 
 
+COPPER_TO_SILVER = {"op": "mix_color", "fac": NOISE, "a": [0.95, 0.6, 0.2], "b": [0.9, 0.9, 0.92]}
+METAL_TINT = [1.0, 0.8, 0.6]
+
+
+def textured_metal(per_hit):
+    """An ``edit`` for ``photon_pass``: the first material becomes a rough metal of base colour
+    ``COPPER_TO_SILVER``, with the curve's mean per point or (``per_hit``) the curve of each hit."""
+    def edit(scene):
+        specs = cornell_specs(scene)
+        specs[0] = {"name": specs[0].get("name", "white"), "glossy": 1.0, "roughness": 0.4,
+                    "glossy_multiscatter": 1.0}
+        if per_hit:
+            specs[0].update(glossy_program=COPPER_TO_SILVER, glossy_metal_tint=METAL_TINT)
+        else:
+            specs[0]["glossy_program"] = {"op": "metal", "color": COPPER_TO_SILVER, "tint": METAL_TINT}
+        return with_one_object(scene.replace(materials=Materials.build(specs))).validate()
+    return edit
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kind", choices=("roughness", "anisotropy"), default="roughness")
+    ap.add_argument("--kind", choices=("roughness", "anisotropy", "metal"), default="roughness")
     ap.add_argument("--resolution", type=int, nargs=2, default=(320, 240))
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--paths", type=int, default=65536)
     a = ap.parse_args()
-    make = with_layer if a.kind == "roughness" else brushed
+    make = {"roughness": with_layer, "anisotropy": brushed, "metal": textured_metal}[a.kind]
     variants = {"constant": make(False), "map": make(True)}
     scene = BUILTIN["cornell_box"](resolution=tuple(a.resolution))
     builds = {name: [] for name in variants}

@@ -436,7 +436,12 @@ class MaterialTable:
 
     @cached_property
     def has_metal_curve(self) -> bool:
-        return bool((self.edge != 0).any() or (self.dip != 0).any()) or self.has_hit_metal
+        return self.has_row_metal_curve or self.has_hit_metal
+
+    @cached_property
+    def has_row_metal_curve(self) -> bool:
+        """Whether some material has a metal curve of its own (``edge``, ``dip``)."""
+        return bool((self.edge != 0).any() or (self.dip != 0).any())
 
     @cached_property
     def has_layer(self) -> bool:
@@ -467,37 +472,56 @@ class MaterialTable:
         F82 tint, ``Materials``), the metal's reflectance kept within [0, 1] as Cycles saturates it.
         ``base`` (n, 3), the lobe's colour at each hit, gives the curve of the metals whose F0 it is
         (``hit_metal``: edge 1 - F0, dip b(F0, tint)); needed where the table has them."""
-        out = None
-        if self.has_dielectric_rise:
-            s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
-            out = self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
-        if not self.has_metal_curve:
-            return out if out is not None else np.zeros((len(mat_ids), 3))
-        edge, dip, low, high, metal = self._metal_rows[lobe]
-        edge, dip, low, high = (a.take(mat_ids, axis=0) for a in (edge, dip, low, high))
-        metal = metal.take(mat_ids)
+        hit = None
         if self.has_hit_metal:
-            h = np.flatnonzero(self.hit_metal.take(mat_ids) & (self.hit_metal_lobe.take(mat_ids) == lobe))
-            if len(h):
-                if base is None:
-                    raise ValueError("fresnel_color: metals with a per-hit curve need the hits' colours")
-                b = np.asarray(base, np.float64).take(h, axis=0)
-                f0 = np.clip(b, 0.0, 1.0)
-                edge[h] = 1.0 - f0
-                dip[h] = (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(mat_ids.take(h), axis=0)
-                low[h] = -b
-                high[h] = np.maximum(1.0 - b, 0.0)
-                metal[h] = True
+            hit = self.hit_metal.take(mat_ids) & (self.hit_metal_lobe.take(mat_ids) == lobe)
+            if not hit.any():
+                hit = None
+            elif base is None:
+                raise ValueError("fresnel_color: metals with a per-hit curve need the hits' colours")
+        if hit is None:
+            return self._row_fresnel_color(mat_ids, lobe, cos_m)
+        if hit.all():
+            return self._hit_metal_curve(mat_ids, cos_m, base)
+        out = np.empty((len(mat_ids), 3))
+        h, r = np.flatnonzero(hit), np.flatnonzero(~hit)
+        out[h] = self._hit_metal_curve(mat_ids.take(h), cos_m.take(h), np.asarray(base).take(h, axis=0))
+        out[r] = self._row_fresnel_color(mat_ids.take(r), lobe, cos_m.take(r))
+        return out
+
+    def _hit_metal_curve(self, mat_ids, cos_m, base):
+        """(n, 3) :meth:`fresnel_color` of metals whose F0 is the hits' colour ``base`` (n, 3)."""
+        b = np.asarray(base, np.float64)
+        f0 = np.clip(b, 0.0, 1.0)
         c = np.clip(cos_m, 0.0, 1.0)
         p = 1.0 - c
         p5 = p * p
         p5 *= p5 * p
-        curve = edge * p5[:, None]
+        curve = (1.0 - f0) * p5[:, None]
+        dip = (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(mat_ids, axis=0)
         curve -= dip * (c * p5 * p)[:, None]
+        return np.clip(curve, -b, np.maximum(1.0 - b, 0.0), out=curve)
+
+    def _row_fresnel_color(self, mat_ids, lobe, cos_m):
+        """:meth:`fresnel_color` of the materials' own (per-row) curves."""
+        out = None
+        if self.has_dielectric_rise:
+            s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
+            out = self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
+        if not self.has_row_metal_curve:
+            return out if out is not None else np.zeros((len(mat_ids), 3))
+        edge, dip, low, high, metal = self._metal_rows[lobe]
+        c = np.clip(cos_m, 0.0, 1.0)
+        p = 1.0 - c
+        p5 = p * p
+        p5 *= p5 * p
+        curve = edge.take(mat_ids, axis=0) * p5[:, None]
+        curve -= dip.take(mat_ids, axis=0) * (c * p5 * p)[:, None]
         if out is None:                                 # metals alone (rows without a curve: 0)
-            return np.clip(curve, low, high, out=curve)
+            return np.clip(curve, low.take(mat_ids, axis=0), high.take(mat_ids, axis=0), out=curve)
         total = out + curve
-        return np.where(metal[:, None], np.clip(total, low, high), total)
+        clipped = np.clip(total, low.take(mat_ids, axis=0), high.take(mat_ids, axis=0))
+        return np.where(metal.take(mat_ids)[:, None], clipped, total)
 
     @cached_property
     def has_dielectric_rise(self) -> bool:
