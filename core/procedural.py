@@ -945,7 +945,9 @@ def _map_range(ev, node):
 
 def _metal(ev, node):
     """The mean F82-tint Fresnel reflectance of a metal of base colour ``color`` and edge ``tint``
-    (the colour the core gives a textured metal's glossy lobe, ``bsdf.metal_fresnel``)."""
+    (the colour the core gives a textured metal's glossy lobe where it cannot take the curve of
+    each hit's F0: a textured edge tint, or a metal mixed with other glossy lobes;
+    ``bsdf.metal_fresnel``)."""
     return {"Color": metal_fresnel(ev.vec(node, "color"), ev.vec(node, "tint", (1.0, 1.0, 1.0)))}
 
 

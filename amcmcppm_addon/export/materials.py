@@ -38,8 +38,11 @@ Metals (Metallic node, Principled metallic) are a glossy lobe whose colour follo
 Fresnel curve by the microfacet angle (``Materials.glossy_metal_rise`` and ``glossy_metal_dip``):
 the F82-tint model (base colour, edge tint; Principled uses its Specular Tint), or that model
 through the physical conductor's reflectance face on and at cos = 1/7 (``conductor_f82``).  A
-texture on a metal's colours makes its colour a program of the curve's mean at each point
-(``metal`` in ``core/procedural.py``), without the curve.
+texture on a metal's base colour makes its F0 a program beside its edge tint
+(``Materials.glossy_metal_tint``), and the core takes the curve of each hit's F0; a textured edge
+tint, or such a metal sharing the glossy lobe (a Mix with another glossy shader, or by a varying
+factor), makes its colour a program of the curve's mean at each point (``metal`` in
+``core/procedural.py``), without the curve.
 Anisotropy (Glossy and Metallic Anisotropy, Principled's Anisotropic) becomes the core's
 ``glossy_stretch`` (alpha s along the tangent, alpha / s across it, Cycles' alphas; a texture on
 it stays a program of s, ``stretch_program``: an anisotropy map, its mean where the material also
@@ -1191,7 +1194,8 @@ class NodeWalker:
         """A glossy lobe with the metal's Fresnel curve by angle: Cycles' F82 tint of the base
         colour and edge tint, or that curve through the physical conductor's reflectance face on
         and at cos = 1/7 (``conductor_f82``), F_ss the mean of the conductor's own curve.  A
-        texture on the colours makes the lobe's colour a program of the curve's mean instead."""
+        texture on the base colour makes the F0 a program (``Closure.metal_texture``), one on the
+        edge tint the lobe's colour a program of the curve's mean instead."""
         if node.fresnel_type == "PHYSICAL_CONDUCTOR":
             ior, _ = self.color(node.inputs["IOR"], stack)
             extinction, _ = self.color(node.inputs["Extinction"], stack)
