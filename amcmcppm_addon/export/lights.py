@@ -20,6 +20,9 @@ Ray visibility comes from the object (``visible_camera``, ``visible_glossy``,
 not to camera rays, and so does the core.  A point or spot light with Soft Falloff (the
 default) is seen as a disk facing the viewer, as Cycles shows it; without, as a sphere.
 
+An area light marked as a Cycles portal (``cycles.is_portal``) is left out: in Cycles it only
+guides the sampling of the world through a window, emits nothing and is invisible.
+
 ``normalize = False`` makes Cycles skip the division by the emitting area (or by
 the sun's solid angle); the core always divides, so the power is multiplied back.
 
@@ -65,6 +68,12 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     :func:`ray_visibility`.
     """
     m = np.asarray(world_from_light, np.float64)
+    if light.type == "AREA" and getattr(getattr(light, "cycles", None), "is_portal", False):
+        # Cycles' portal only guides its sampling of the world through a window: it emits
+        # nothing and nothing sees it.  Photons leave the world wherever it lights the scene.
+        log.info(f"area light '{name}' is a Cycles portal: it emits nothing here either (photons need no "
+                 "portals to find the windows)")
+        return None
     strength = light_strength(light)
     if (strength < 0).any():
         log.warning(f"light '{name}' has negative strength, which photon tracing cannot emit; skipped")

@@ -1598,6 +1598,29 @@ def test_area_light_shapes_include_object_scale(scene, shape, size, size_y, area
     assert row["power"][0] / (math.pi * area) == pytest.approx(100 / math.pi, rel=1e-5)
 
 
+def test_a_shadow_catcher_is_named_in_a_warning(scene):
+    floor = bs.plane("Catcher", material=bs.diffuse("Grey", (0.5, 0.5, 0.5)))
+    floor.is_shadow_catcher = True
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.triangle_count == 2
+    assert any("'Catcher' is a shadow catcher" in w for w in ex.warnings), ex.warnings
+
+
+def test_a_portal_area_light_is_left_out(scene):
+    """Cycles' light portals (an area light in a window, ``cycles.is_portal``) guide its sampling
+    of the world and emit nothing: exported as a light they would shine as a bright panel in the
+    window.  Noted; an ordinary area light beside it stays."""
+    portal = bs.light("AREA", location=(0, 0, 3), energy=100.0, name="Window", size=2.0)
+    portal.data.cycles.is_portal = True
+    bs.light("AREA", location=(0, 1, 3), energy=50.0, name="Lamp")
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.lights.count == 1
+    assert light_row(ex.scene)["power"] == pytest.approx([50, 50, 50])
+    assert any("'Window' is a Cycles portal" in i for i in ex.infos), ex.infos
+
+
 def test_sun_light(scene):
     from amcmcppm.core.scene import SUN
     _, row = export_light("SUN", energy=3.0, angle=math.radians(2.0))
