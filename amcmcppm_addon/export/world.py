@@ -13,6 +13,9 @@ Texture (``core/sky.py``) is baked so without its sun disc, which becomes a sun 
 disc's direction, size and irradiance (times the Background's strength) when the sky is the
 Background's colour itself; a disc that other nodes change is left out with a warning.
 
+World > Ray Visibility > Camera off makes what camera rays see past the scene black (``World.camera``);
+the other ray types' boxes are named in a warning when off.
+
 The world's Volume (Volume Absorption, Volume Scatter, Principled Volume, as a material's)
 fills all space outside the meshes' volumes, unbounded as in Cycles: the sun and the world's
 own light then reach nothing in the channels it attenuates (``export_scene`` warns).
@@ -51,6 +54,18 @@ def export_world(depsgraph, textures, log):
         out.volume_anisotropy = float(g)
     if walker.camera_walker is not None:
         out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log)
+    visibility = getattr(world, "cycles_visibility", None)
+    if visibility is not None and not getattr(visibility, "camera", True):
+        # World > Ray Visibility > Camera off: camera rays see black past the scene (and no sun disc).
+        out.camera = World(color=np.zeros(3, np.float32))
+        for rec in lights:
+            rec["visibility"] &= ~VISIBLE_CAMERA
+    off = [label for label, attr in (("Diffuse", "diffuse"), ("Glossy", "glossy"),
+                                     ("Transmission", "transmission"), ("Volume Scatter", "scatter"))
+           if visibility is not None and not getattr(visibility, attr, True)]
+    if off:
+        log.warning(f"world '{world.name}': Ray Visibility off for {', '.join(off)} is not supported (the "
+                    "world reaches those rays)")
     return out, lights
 
 

@@ -1770,6 +1770,22 @@ def test_world_background_and_override(scene):
     assert bs.export().scene.world.color == pytest.approx([0.5, 0.5, 0.5])
 
 
+def test_world_ray_visibility_camera_off_shows_black_past_the_scene(scene):
+    """World > Ray Visibility > Camera off: camera rays see black past the scene while the world
+    still lights it (``World.camera``); other ray types off are named in a warning."""
+    w = bs.world((0.2, 0.4, 0.8), strength=2.5)
+    bs.camera()
+    assert bs.export().scene.world.camera is None
+    w.cycles_visibility.camera = False
+    ex = bs.export()
+    assert ex.scene.world.color == pytest.approx([0.5, 1.0, 2.0])
+    assert ex.scene.world.camera is not None and not ex.scene.world.camera.color.any()
+    assert not [m for m in ex.warnings if "Ray Visibility" in m]
+    w.cycles_visibility.glossy = False
+    ex = bs.export()
+    assert any("Ray Visibility off for Glossy is not supported" in m for m in ex.warnings), ex.warnings
+
+
 def test_world_texture_warns_and_keeps_the_colour(scene):
     w = bs.world((0.1, 0.1, 0.1))
     nt = w.node_tree
