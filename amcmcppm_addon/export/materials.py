@@ -1169,6 +1169,15 @@ class NodeWalker:
         c.diffuse_roughness = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
         return c
 
+    def _subsurface(self, node, stack):
+        """Subsurface Scattering BSDF: a diffuse lobe of its colour (the core has no subsurface
+        model; Principled's Subsurface Weight renders so too), noted."""
+        self.note(f"'{node.name}': subsurface scattering is not supported (rendered as diffuse of its colour)")
+        color, tex = self.color(node.inputs["Color"], stack)
+        c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if textured(tex) else color)
+        c.texture = tex
+        return c
+
     def _glossy(self, node, stack, color=None, program=None):
         """A glossy lobe of (mean) ``color``, varying as ``program`` if given."""
         if color is None:
@@ -1456,6 +1465,7 @@ PRINCIPLED_IGNORED = (("Subsurface", "Subsurface Weight"),
 SHADERS = {
     "ShaderNodeBsdfPrincipled": NodeWalker._principled,
     "ShaderNodeBsdfDiffuse": NodeWalker._diffuse,
+    "ShaderNodeSubsurfaceScattering": NodeWalker._subsurface,
     "ShaderNodeBsdfGlossy": NodeWalker._glossy,
     "ShaderNodeBsdfAnisotropic": NodeWalker._glossy,
     "ShaderNodeBsdfMetallic": NodeWalker._metallic,

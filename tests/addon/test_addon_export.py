@@ -896,6 +896,14 @@ def test_principled_mapping(scene):
     assert lamp["emission"] == pytest.approx([4, 2, 1])
 
 
+def test_a_subsurface_scattering_bsdf_renders_as_diffuse_of_its_colour(scene):
+    mat = bs._material("Skin", "ShaderNodeSubsurfaceScattering", **{"Color": (0.8, 0.5, 0.4, 1.0)})
+    row, ex = export_material(mat)
+    assert row["diffuse_color"] == pytest.approx([0.8, 0.5, 0.4]) and row["diffuse_weight"] == 1
+    assert any("'Skin'" in w and "subsurface scattering is not supported" in w for w in ex.warnings)
+    assert not any("unsupported node" in w for w in ex.warnings if "'Skin'" in w), ex.warnings
+
+
 def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
     _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Thin Film Thickness": 100.0,
                                                    "Anisotropic": 0.5}))
