@@ -924,7 +924,9 @@ class NodeWalker:
 
         Returns ``(output_socket, None, stack)`` for the node output that feeds it,
         or ``(None, input_socket, stack)`` when nothing does, the input socket then
-        being the one whose ``default_value`` applies (possibly a group node's input).
+        being the one whose ``default_value`` applies (possibly a group node's input or a muted
+        node's), or ``(None, None, stack)`` when a muted node passes nothing to the output.
+        Reroutes, group boundaries and muted nodes are followed through.
         ``stack`` is the tuple of group nodes entered so far.
         """
         for _ in range(10_000):         # guard against cycles in malformed trees
@@ -943,7 +945,15 @@ class NodeWalker:
                 stack = stack[:-1]
                 if sock is None:
                     return None, None, stack
-            elif node.bl_idname == "ShaderNodeGroup" and not node.mute:
+            elif node.mute:
+                # Blender's muting: the node passes the input of its internal link to this output
+                # (a Mix Shader its first shader, an Invert its colour); without one (a BSDF)
+                # nothing comes out.
+                through = [ln for ln in node.internal_links if ln.to_socket.identifier == out.identifier]
+                if not through:
+                    return None, None, stack
+                sock = through[0].from_socket
+            elif node.bl_idname == "ShaderNodeGroup":
                 tree = node.node_tree
                 gout = _group_output(tree) if tree is not None else None
                 inner = _by_identifier(gout.inputs, out.identifier) if gout is not None else None

@@ -896,6 +896,32 @@ def test_principled_mapping(scene):
     assert lamp["emission"] == pytest.approx([4, 2, 1])
 
 
+def test_muted_nodes_pass_their_internal_links_through(scene):
+    """Blender's muting: a muted Mix Shader passes its first shader, a muted Invert its colour, a
+    muted BSDF nothing (black); before, each was an unsupported node rendered grey."""
+    mixed = bs.diffuse("Mixed", (0.2, 0.4, 0.6))
+    bs.mix_in(mixed, "Diffuse BSDF", "ShaderNodeBsdfGlossy", 0.7)
+    mixed.node_tree.nodes["Mix Shader"].mute = True
+    row, ex = export_material(mixed)
+    assert row["diffuse_color"] == pytest.approx([0.2, 0.4, 0.6]) and row["diffuse_weight"] == 1
+    assert row["glossy_weight"] == 0 and not [w for w in ex.warnings if "'Mixed'" in w], ex.warnings
+    inverted = bs.diffuse("Inverted")
+    nt = inverted.node_tree
+    invert = nt.nodes.new("ShaderNodeInvert")
+    invert.inputs["Color"].default_value = (0.9, 0.5, 0.1, 1)
+    invert.mute = True
+    nt.links.new(invert.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, _ = export_material(inverted)
+    assert row["diffuse_color"] == pytest.approx([0.9, 0.5, 0.1])
+    invert.mute = False
+    row, _ = export_material(inverted)
+    assert row["diffuse_color"] == pytest.approx([0.1, 0.5, 0.9])
+    black = bs.diffuse("Muted")
+    black.node_tree.nodes["Diffuse BSDF"].mute = True
+    row, ex = export_material(black)
+    assert row["diffuse_weight"] == 0 and row["glossy_weight"] == 0 and not row["emission"].any()
+
+
 def test_a_subsurface_scattering_bsdf_renders_as_diffuse_of_its_colour(scene):
     mat = bs._material("Skin", "ShaderNodeSubsurfaceScattering", **{"Color": (0.8, 0.5, 0.4, 1.0)})
     row, ex = export_material(mat)
