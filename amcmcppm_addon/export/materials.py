@@ -853,7 +853,38 @@ class NodeWalker:
         if closure is None and self.medium is not None:
             # No surface, a volume: Cycles' volume-only mesh, whose surface lets every ray through.
             return Closure(transparent=np.ones(3), transparent_weight=1.0)
+        bump = self.displacement(out.inputs["Displacement"], material)
+        if bump is not None and closure is not None:
+            if closure.normal_map is not None or closure.bump is not None:
+                self.note("the Displacement output is ignored beside the shader's own normal or bump map")
+            else:
+                closure.bump = bump
         return closure or Closure()
+
+    def displacement(self, sock, material):
+        """The bump (as :meth:`bent_normal`'s) of a Displacement node on the material output's
+        Displacement: Cycles' default Displacement Method, Bump Only, bends the normal as a Bump
+        node of Distance ``Scale`` and Strength 1 on the same Height (the Midlevel, a constant,
+        bends nothing).  True displacement (the other methods) is not supported: bump, noted; so
+        is anything but a Displacement node (a Vector Displacement: ignored, noted)."""
+        src, _, stack = self.source(sock, ())
+        if src is None:
+            return None
+        node = src.node
+        if node.bl_idname != "ShaderNodeDisplacement":
+            self.unsupported(node, "drives the Displacement output; ignored")
+            return None
+        method = getattr(material, "displacement_method", "BUMP")
+        if method != "BUMP":
+            self.note(f"displacement method {method.title()} is not supported: rendered as bump only")
+        if node.inputs["Normal"].is_linked:
+            self.note(f"displacement '{node.name}': a linked Normal is ignored (the surface's own is used)")
+        height = self.programs.expression(node.inputs["Height"], stack, FLOAT)
+        if not procedural.varies(height):
+            return None
+        image = height.get("color") if height.get("op") == "gray" else None
+        tex = image["texture"] if _plain_image(image) else height
+        return tex, 1.0, self.value(node.inputs["Scale"], stack)
 
     def world_color(self, world):
         """Background radiance (3,) of a world: Background/Emission colour times strength (its

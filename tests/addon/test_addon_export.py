@@ -896,6 +896,33 @@ def test_principled_mapping(scene):
     assert lamp["emission"] == pytest.approx([4, 2, 1])
 
 
+def test_a_displacement_node_becomes_a_bump(scene):
+    """Material Output > Displacement from a Displacement node: Cycles' default method (Bump Only)
+    bends the normal as a Bump of Distance = Scale; true displacement and a Vector Displacement
+    are noted, and a shader with its own bump keeps it."""
+    mat = bs.diffuse("Bumpy")
+    nt = mat.node_tree
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    disp.inputs["Scale"].default_value = 0.3
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Fac"], disp.inputs["Height"])
+    nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+    row, ex = export_material(mat)
+    assert row["bump_program"] >= 0 and row["bump_strength"] == pytest.approx(1.0)
+    assert row["bump_distance"] == pytest.approx(0.3)
+    assert not [w for w in ex.warnings if "'Bumpy'" in w], ex.warnings
+    mat.displacement_method = "BOTH"
+    row, ex = export_material(mat)
+    assert row["bump_program"] >= 0
+    assert any("displacement method Both is not supported" in w for w in ex.warnings), ex.warnings
+    flat = bs.diffuse("Flat")
+    nt = flat.node_tree
+    vector = nt.nodes.new("ShaderNodeVectorDisplacement")
+    nt.links.new(vector.outputs[0], nt.nodes["Material Output"].inputs["Displacement"])
+    row, ex = export_material(flat)
+    assert row["bump_program"] < 0 and any("ShaderNodeVectorDisplacement" in w for w in ex.warnings)
+
+
 def test_muted_nodes_pass_their_internal_links_through(scene):
     """Blender's muting: a muted Mix Shader passes its first shader, a muted Invert its colour, a
     muted BSDF nothing (black); before, each was an unsupported node rendered grey."""

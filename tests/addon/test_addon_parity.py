@@ -330,11 +330,13 @@ def assert_quarters_match(name, cycles, ours):
     assert abs(ratios[0] - 1.0) < 0.12
 
 
-@pytest.mark.parametrize("invert", [False, True])
+@pytest.mark.parametrize("invert", [False, True, "displacement"])
 def test_bump_map_matches_cycles(addon, tmp_path, invert):
     """A diffuse floor whose Bump node takes its height from an image of two sine waves along u
     (the normal swings up to 32 degrees either way), under a sun at 45 degrees; inverted, the
-    bright and dark slopes swap."""
+    bright and dark slopes swap.  ``displacement``: the same height through a Displacement node
+    (Scale 0.2) on the material output, which Cycles' default Displacement Method (Bump Only)
+    turns into the same bump."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
         u = (np.arange(32) + 0.5) / 32
@@ -347,11 +349,17 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
         nt = mat.node_tree
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
-        bump = nt.nodes.new("ShaderNodeBump")
-        bump.invert = invert
-        bump.inputs["Distance"].default_value = 0.2
-        nt.links.new(tex.outputs["Color"], bump.inputs["Height"])
-        nt.links.new(bump.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+        if invert == "displacement":
+            disp = nt.nodes.new("ShaderNodeDisplacement")
+            disp.inputs["Scale"].default_value = 0.2
+            nt.links.new(tex.outputs["Color"], disp.inputs["Height"])
+            nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+        else:
+            bump = nt.nodes.new("ShaderNodeBump")
+            bump.invert = invert
+            bump.inputs["Distance"].default_value = 0.2
+            nt.links.new(tex.outputs["Color"], bump.inputs["Height"])
+            nt.links.new(bump.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
         bm = bmesh.new()
         bm.loops.layers.uv.new("UVMap")
         bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=1.0, calc_uvs=True)
