@@ -80,6 +80,8 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         return None
     if not strength.any():
         return None
+    if not getattr(light, "use_shadow", True):
+        log.warning(f"light '{name}': Cast Shadow off is not supported (its light is shadowed here)")
     profile = None
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
         factor, profile = node_factor(light.node_tree, name, log, light.type != "SUN")

@@ -82,6 +82,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
             collector.add(inst)
     geometry = collector.finish()
     world, world_lights = export_world(depsgraph, materials.textures, log)
+    if depsgraph.scene_eval.render.use_motion_blur:
+        log.warning("motion blur is not supported: the frame renders at its own instant")
     sets = {}         # the scene's per-triangle sets and emitter links
     names = (("links", "receiver_sets", "emitter_links", "emitter_collections"),
              ("shadow_links", "blocker_sets", "emitter_shadow_links", "shadow_collections"))

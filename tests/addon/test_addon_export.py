@@ -1668,6 +1668,16 @@ def test_a_shadow_catcher_is_named_in_a_warning(scene):
     assert any("'Catcher' is a shadow catcher" in w for w in ex.warnings), ex.warnings
 
 
+def test_motion_blur_and_shadowless_lights_are_named_in_warnings(scene):
+    bs.light("POINT", energy=10.0, name="Shadowless").data.use_shadow = False
+    bs.camera()
+    assert not [w for w in bs.export().warnings if "motion blur" in w]
+    scene.render.use_motion_blur = True
+    ex = bs.export()
+    assert any("motion blur is not supported" in w for w in ex.warnings), ex.warnings
+    assert any("'Shadowless': Cast Shadow off" in w for w in ex.warnings), ex.warnings
+
+
 def test_a_portal_area_light_is_left_out(scene):
     """Cycles' light portals (an area light in a window, ``cycles.is_portal``) guide its sampling
     of the world and emit nothing: exported as a light they would shine as a bright panel in the
