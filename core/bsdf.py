@@ -341,8 +341,8 @@ class MaterialTable:
                                            else np.asarray(mats.glossy_tangent, np.int32)),
                              hit_metal=hit_metal,
                              hit_metal_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
-                             hit_metal_dip=np.where(hit_metal[:, None], F82_DIP * (1.0 - np.clip(tint, 0.0, 1.0)),
-                                                    0.0))
+                             hit_metal_dip=np.where(hit_metal[:, None],
+                                                    F82_DIP * (1.0 - np.clip(tint, 0.0, 1.0)), 0.0))
 
     @property
     def lobes(self) -> int:

@@ -378,7 +378,8 @@ class DepositTarget:
                 else:
                     base = self._hit_base.take(jg, axis=0)
                     hit = self.table.hit_metal.take(mats)
-                    const = base if hit.all() else np.where(hit[:, None], base, self._const.take(mats, axis=0))
+                    const = (base if hit.all()
+                             else np.where(hit[:, None], base, self._const.take(mats, axis=0)))
                     wg *= (const + self.table.fresnel_color(mats, GLOSSY, cos_h, base)).T
             if in_s is None:
                 w_s += wg

@@ -879,7 +879,8 @@ class Scene:
         tint = mats.glossy_metal_tint
         per_hit = (tint >= 0).any(axis=1)
         odd = per_hit & (((tint < 0) | (tint > 1)).any(axis=1) | (mats.glossy_fresnel_ior > 0)
-                         | (mats.glossy_metal_rise != 0).any(axis=1) | (mats.glossy_metal_dip != 0).any(axis=1))
+                         | (mats.glossy_metal_rise != 0).any(axis=1)
+                         | (mats.glossy_metal_dip != 0).any(axis=1))
         if odd.any():
             fail(f"materials.glossy_metal_tint of material '{mats.names[int(np.argmax(odd))]}' must be -1 or "
                  "in [0, 1] in every channel, on a lobe without a Fresnel rise, rise or dip")

@@ -119,7 +119,7 @@ class Closure:
     emission_texture: dict = None   # program of the radiance where it varies (emission: its mean)
     texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
     glossy_texture: dict = None     # program of the glossy colour where it varies (color[GLOSSY]: its mean)
-    metal_texture: dict = None      # program of a metal's F0 where it varies (glossy_texture: its curve's mean)
+    metal_texture: dict = None      # program of a metal's F0 where it varies (glossy_texture: curve's mean)
     metal_tint: np.ndarray = None   # (3,) that metal's edge tint
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
@@ -1213,7 +1213,8 @@ class NodeWalker:
     def _subsurface(self, node, stack):
         """Subsurface Scattering BSDF: a diffuse lobe of its colour (the core has no subsurface
         model; Principled's Subsurface Weight renders so too), noted."""
-        self.note(f"'{node.name}': subsurface scattering is not supported (rendered as diffuse of its colour)")
+        self.note(f"'{node.name}': subsurface scattering is not supported (rendered as diffuse of its "
+                  "colour)")
         color, tex = self.color(node.inputs["Color"], stack)
         c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if textured(tex) else color)
         c.texture = tex
@@ -1488,7 +1489,8 @@ class NodeWalker:
             # curve's mean too where it is mixed (Closure.combine).
             c.glossy_texture = {"op": "metal", "color": _program_of(tex, base),
                                 "tint": [float(x) for x in tint]}
-            c.metal_texture, c.metal_tint = _clamped_color(_program_of(tex, base)), np.asarray(tint, np.float64)
+            c.metal_texture = _clamped_color(_program_of(tex, base))
+            c.metal_tint = np.asarray(tint, np.float64)
         return c
 
 

@@ -141,8 +141,8 @@ class GeometryCollector:
                                      colors=colors or local.colors_read) or local
             self.meshes[key] = local
         if getattr(ob, "is_shadow_catcher", False):
-            self.log.warning(f"object '{ob.name}' is a shadow catcher, which is not supported: it renders as an "
-                             "ordinary surface")
+            self.log.warning(f"object '{ob.name}' is a shadow catcher, which is not supported: it renders "
+                             "as an ordinary surface")
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         flags = ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
