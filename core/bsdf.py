@@ -403,9 +403,8 @@ class MaterialTable:
                 if base is None:
                     raise ValueError("multiscatter: metals with a per-hit curve need the hits' colours")
                 m = mat_ids.take(h)
-                f0 = np.clip(np.asarray(base, np.float64).take(h, axis=0), 0.0, 1.0)
-                dip = (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(m, axis=0)
-                fss = np.clip(f0 + (1.0 - f0) / 21.0 - dip / 126.0, 0.0, 1.0)
+                f0, dip = self.hit_metal_f0_dip(m, np.asarray(base).take(h, axis=0))
+                fss = np.clip(f82_mean(f0, dip), 0.0, 1.0)
                 e_avg = self.ms_e_avg.take(m)[:, None]
                 fms[h] = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
         return 1.0 + fms * ((1.0 - e) / e)[:, None]
@@ -489,16 +488,21 @@ class MaterialTable:
         out[r] = self._row_fresnel_color(mat_ids.take(r), lobe, cos_m.take(r))
         return out
 
+    def hit_metal_f0_dip(self, mat_ids, base):
+        """(F0, dip) (n, 3) of the metals ``mat_ids`` (``hit_metal``) whose F0 is the hits' colour
+        ``base`` (n, 3), clamped to [0, 1]: dip = b(F0, tint) of Cycles' F82 tint."""
+        f0 = np.clip(np.asarray(base, np.float64), 0.0, 1.0)
+        return f0, (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(mat_ids, axis=0)
+
     def _hit_metal_curve(self, mat_ids, cos_m, base):
         """(n, 3) :meth:`fresnel_color` of metals whose F0 is the hits' colour ``base`` (n, 3)."""
         b = np.asarray(base, np.float64)
-        f0 = np.clip(b, 0.0, 1.0)
+        f0, dip = self.hit_metal_f0_dip(mat_ids, b)
         c = np.clip(cos_m, 0.0, 1.0)
         p = 1.0 - c
         p5 = p * p
         p5 *= p5 * p
         curve = (1.0 - f0) * p5[:, None]
-        dip = (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(mat_ids, axis=0)
         curve -= dip * (c * p5 * p)[:, None]
         return np.clip(curve, -b, np.maximum(1.0 - b, 0.0), out=curve)
 
@@ -852,8 +856,14 @@ def metal_fresnel(color, edge_tint=(1.0, 1.0, 1.0)):
     shape (..., 3), as ``edge_tint``):
     F(mu) = F0 + (1 - F0)(1 - mu)^5 - b mu (1 - mu)^6 averages to F0 + (1 - F0) / 21 - b / 126,
     b the edge-tint term of ``fresnel_f82tint_B`` (0 for a white tint)."""
-    f0, rise, dip = metal_curve(color, edge_tint)
-    return np.clip(f0 + rise / 21.0 - dip / 126.0, 0.0, 1.0)
+    f0, _, dip = metal_curve(color, edge_tint)
+    return np.clip(f82_mean(f0, dip), 0.0, 1.0)
+
+
+def f82_mean(f0, dip):
+    """The cosine-weighted mean F0 + (1 - F0) / 21 - b / 126 of the F82-tint curve of ``f0`` and
+    ``dip`` = b, unclipped (:func:`metal_fresnel` clips it)."""
+    return f0 + (1.0 - f0) / 21.0 - dip / 126.0
 
 
 def face_forward(n, v):
@@ -886,9 +896,8 @@ def lobe_scores(table, mat_ids, colors):
         if len(h):
             m = mat_ids.take(h)
             lobe = table.hit_metal_lobe.take(m)
-            f0 = np.clip(colors[h, lobe], 0.0, 1.0)
-            dip = (f0 + (1.0 - f0) * F82_SCHLICK) * table.hit_metal_dip.take(m, axis=0)
-            mean = np.maximum(f0 + (1.0 - f0) / 21.0 - dip / 126.0, (1.0 - f0) / 210.0)
+            f0, dip = table.hit_metal_f0_dip(m, colors[h, lobe])
+            mean = np.maximum(f82_mean(f0, dip), (1.0 - f0) / 210.0)
             scores[h, lobe] = table.weight[m, lobe] * smp.luminance(mean)
     return scores
 

@@ -879,12 +879,8 @@ class NodeWalker:
             self.note(f"displacement method {method.title()} is not supported: rendered as bump only")
         if node.inputs["Normal"].is_linked:
             self.note(f"displacement '{node.name}': a linked Normal is ignored (the surface's own is used)")
-        height = self.programs.expression(node.inputs["Height"], stack, FLOAT)
-        if not procedural.varies(height):
-            return None
-        image = height.get("color") if height.get("op") == "gray" else None
-        tex = image["texture"] if _plain_image(image) else height
-        return tex, 1.0, self.value(node.inputs["Scale"], stack)
+        tex = self._bump_height(node.inputs["Height"], stack)
+        return None if tex is None else (tex, 1.0, self.value(node.inputs["Scale"], stack))
 
     def world_color(self, world):
         """Background radiance (3,) of a world: Background/Emission colour times strength (its
@@ -1122,16 +1118,22 @@ class NodeWalker:
         if inner_bump is not None:
             self.note(f"bump '{node.name}': a Bump on a Bump is not supported; using the inner one")
             return inner, inner_bump
-        # An image's colour (its luminance in the core), or any other texture as a program of the
-        # height; a constant height bends nothing.
-        height = self.programs.expression(node.inputs["Height"], stack, FLOAT)
-        if not procedural.varies(height):
+        tex = self._bump_height(node.inputs["Height"], stack)
+        if tex is None:
             return inner, None
-        image = height.get("color") if height.get("op") == "gray" else None
-        tex = image["texture"] if _plain_image(image) else height
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         distance = self.value(node.inputs["Distance"], stack) * (-1.0 if node.invert else 1.0)
         return inner, (tex, strength, distance)
+
+    def _bump_height(self, sock, stack):
+        """A bump's height source from input ``sock``: an image's index (the core takes its colour's
+        luminance) or any other texture as a float program; None for a constant height, which bends
+        nothing."""
+        height = self.programs.expression(sock, stack, FLOAT)
+        if not procedural.varies(height):
+            return None
+        image = height.get("color") if height.get("op") == "gray" else None
+        return image["texture"] if _plain_image(image) else height
 
     def normal_map(self, node, stack):
         """(texture index, strength, uv map name) of a tangent-space Normal Map ``node`` fed by an

@@ -54,19 +54,26 @@ def export_world(depsgraph, textures, log):
         out.volume_anisotropy = float(g)
     if walker.camera_walker is not None:
         out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log)
+    _ray_visibility(world, out, lights, log)
+    return out, lights
+
+
+def _ray_visibility(world, out, lights, log):
+    """World > Ray Visibility: Camera off makes camera rays see black past the scene (``out.camera``)
+    and hides the sun disc's light ``lights`` from them; the other boxes off are named in a warning."""
     visibility = getattr(world, "cycles_visibility", None)
-    if visibility is not None and not getattr(visibility, "camera", True):
-        # World > Ray Visibility > Camera off: camera rays see black past the scene (and no sun disc).
+    if visibility is None:
+        return
+    if not visibility.camera:
         out.camera = World(color=np.zeros(3, np.float32))
         for rec in lights:
             rec["visibility"] &= ~VISIBLE_CAMERA
     off = [label for label, attr in (("Diffuse", "diffuse"), ("Glossy", "glossy"),
                                      ("Transmission", "transmission"), ("Volume Scatter", "scatter"))
-           if visibility is not None and not getattr(visibility, attr, True)]
+           if not getattr(visibility, attr)]
     if off:
         log.warning(f"world '{world.name}': Ray Visibility off for {', '.join(off)} is not supported (the "
                     "world reaches those rays)")
-    return out, lights
 
 
 def _background(walker, color, textures, world_name, log):
