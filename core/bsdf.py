@@ -162,7 +162,7 @@ def coat_variants(mats):
     changes["glossy_fresnel_rise"][new] = 1.0 - f0[:, None]
     changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
     for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "diffuse_layer_weight",
-                 "glossy_stretch"):
+                 "glossy_stretch", "glossy_metal_share"):
         changes[name][new] = 1.0
     names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique]
     return (dataclasses.replace(mats, names=names, **changes),
@@ -216,6 +216,8 @@ class MaterialTable:
     #                                         hit (Materials.glossy_metal_tint), in lobe ``hit_metal_lobe``
     hit_metal_lobe: np.ndarray = None       # (M,) int64 GLOSSY, or MIRROR where a sharp glossy merged
     hit_metal_dip: np.ndarray = None        # (M, 3) float64 the dip per unit Schlick value at 1/7 (below)
+    hit_metal_share: np.ndarray = None      # (M,) float64 the metal's share k of such a lobe (1: all of it)
+    hit_metal_rest: np.ndarray = None       # (M, 3) float64 the rest's colour: the lobe's colour is k F0 + rest
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -342,7 +344,11 @@ class MaterialTable:
                              hit_metal=hit_metal,
                              hit_metal_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
                              hit_metal_dip=np.where(hit_metal[:, None],
-                                                    F82_DIP * (1.0 - np.clip(tint, 0.0, 1.0)), 0.0))
+                                                    F82_DIP * (1.0 - np.clip(tint, 0.0, 1.0)), 0.0),
+                             hit_metal_share=np.where(hit_metal, np.clip(_or_ones(mats.glossy_metal_share, m),
+                                                                         1e-6, 1.0), 1.0),
+                             hit_metal_rest=np.where(hit_metal[:, None],
+                                                     _or_zeros(mats.glossy_metal_rest, (m, 3)), 0.0))
 
     @property
     def lobes(self) -> int:
@@ -405,6 +411,14 @@ class MaterialTable:
                 m = mat_ids.take(h)
                 f0, dip = self.hit_metal_f0_dip(m, np.asarray(base).take(h, axis=0))
                 fss = np.clip(f82_mean(f0, dip), 0.0, 1.0)
+                if self.has_partial_metal:
+                    # Beside the rest (share 1 - k, its own F_ss in ms_fss): the two F_ss weighted by
+                    # the parts' mean reflectances, k F_ss and (1 - k) F_ss_rest.
+                    k = self.hit_metal_share.take(m)[:, None]
+                    rest = (1.0 - k) * self.ms_fss.take(m, axis=0)
+                    total = k * fss + rest
+                    fss = np.divide(k * fss * fss + rest * self.ms_fss.take(m, axis=0), total,
+                                    out=np.zeros_like(total), where=total > 0)
                 e_avg = self.ms_e_avg.take(m)[:, None]
                 fms[h] = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
         return 1.0 + fms * ((1.0 - e) / e)[:, None]
@@ -428,6 +442,19 @@ class MaterialTable:
     def has_hit_metal(self) -> bool:
         """Whether some metal's curve follows its colour at each hit (a textured metal)."""
         return self.hit_metal is not None and bool(self.hit_metal.any())
+
+    @cached_property
+    def has_partial_metal(self) -> bool:
+        """Whether some such metal is only part of its lobe (``hit_metal_share`` < 1)."""
+        return self.has_hit_metal and bool((self.hit_metal_share < 1.0).any())
+
+    @cached_property
+    def ms_fss(self) -> np.ndarray:
+        """(M, 3) F_ss of each row from its F_ms and E_avg (0 where there is no compensation): for a
+        partly metallic lobe, the rest's (``Materials.glossy_metal_share``)."""
+        e = self.ms_e_avg[:, None]
+        return np.divide(self.ms_fresnel, e + self.ms_fresnel * (1.0 - e), out=np.zeros_like(self.ms_fresnel),
+                         where=e > 0)
 
     @cached_property
     def has_fresnel(self) -> bool:
@@ -480,31 +507,48 @@ class MaterialTable:
                 raise ValueError("fresnel_color: metals with a per-hit curve need the hits' colours")
         if hit is None:
             return self._row_fresnel_color(mat_ids, lobe, cos_m)
-        if hit.all():
+        if hit.all() and not self.has_partial_metal:
             return self._hit_metal_curve(mat_ids, cos_m, base)
         out = np.empty((len(mat_ids), 3))
         h, r = np.flatnonzero(hit), np.flatnonzero(~hit)
-        out[h] = self._hit_metal_curve(mat_ids.take(h), cos_m.take(h), np.asarray(base).take(h, axis=0))
-        out[r] = self._row_fresnel_color(mat_ids.take(r), lobe, cos_m.take(r))
+        mh, ch = mat_ids.take(h), cos_m.take(h)
+        out[h] = self._hit_metal_curve(mh, ch, np.asarray(base).take(h, axis=0))
+        if self.has_partial_metal:
+            # The rest of a partly metallic lobe: its dielectric rise (Materials.glossy_metal_share).
+            out[h] += self._row_fresnel_color(mh, lobe, ch)
+        if len(r):
+            out[r] = self._row_fresnel_color(mat_ids.take(r), lobe, cos_m.take(r))
         return out
 
     def hit_metal_f0_dip(self, mat_ids, base):
-        """(F0, dip) (n, 3) of the metals ``mat_ids`` (``hit_metal``) whose F0 is the hits' colour
-        ``base`` (n, 3), clamped to [0, 1]: dip = b(F0, tint) of Cycles' F82 tint."""
-        f0 = np.clip(np.asarray(base, np.float64), 0.0, 1.0)
+        """(F0, dip) (n, 3) of the metals ``mat_ids`` (``hit_metal``) whose F0 comes from the hits'
+        colour ``base`` (n, 3), (base - rest) / k (k the metal's share of the lobe, rest the colour
+        of the other part; F0 = base for a whole metal), clamped to [0, 1]: dip = b(F0, tint) of
+        Cycles' F82 tint."""
+        f0 = np.clip(self._hit_metal_raw_f0(mat_ids, base), 0.0, 1.0)
         return f0, (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(mat_ids, axis=0)
 
-    def _hit_metal_curve(self, mat_ids, cos_m, base):
-        """(n, 3) :meth:`fresnel_color` of metals whose F0 is the hits' colour ``base`` (n, 3)."""
+    def _hit_metal_raw_f0(self, mat_ids, base):
         b = np.asarray(base, np.float64)
-        f0, dip = self.hit_metal_f0_dip(mat_ids, b)
+        if not self.has_partial_metal:
+            return b
+        return (b - self.hit_metal_rest.take(mat_ids, axis=0)) / self.hit_metal_share.take(mat_ids)[:, None]
+
+    def _hit_metal_curve(self, mat_ids, cos_m, base):
+        """(n, 3) what the metal part of lobes whose F0 follows the hits' colour ``base`` (n, 3)
+        adds at microfacet cosines ``cos_m``: k times its curve less F0, the metal kept within [0, 1]."""
+        b = self._hit_metal_raw_f0(mat_ids, base)
+        f0, dip = self.hit_metal_f0_dip(mat_ids, base)
         c = np.clip(cos_m, 0.0, 1.0)
         p = 1.0 - c
         p5 = p * p
         p5 *= p5 * p
         curve = (1.0 - f0) * p5[:, None]
         curve -= dip * (c * p5 * p)[:, None]
-        return np.clip(curve, -b, np.maximum(1.0 - b, 0.0), out=curve)
+        np.clip(curve, -b, np.maximum(1.0 - b, 0.0), out=curve)
+        if self.has_partial_metal:
+            curve *= self.hit_metal_share.take(mat_ids)[:, None]
+        return curve
 
     def _row_fresnel_color(self, mat_ids, lobe, cos_m):
         """:meth:`fresnel_color` of the materials' own (per-row) curves."""
@@ -546,6 +590,11 @@ class MaterialTable:
     def layer_factor(self, mat_ids, mu):
         """(n,) factors of the diffuse lobe under a Fresnel layer at view cosines ``mu`` (1: none)."""
         return _interpolate(self.layer, mat_ids, mu)
+
+
+def _or_ones(values, m):
+    """Per-material values, 1 for all when absent."""
+    return np.ones(m) if values is None else np.asarray(values, np.float64)
 
 
 def _or_none(indices, m):
@@ -898,7 +947,14 @@ def lobe_scores(table, mat_ids, colors):
             lobe = table.hit_metal_lobe.take(m)
             f0, dip = table.hit_metal_f0_dip(m, colors[h, lobe])
             mean = np.maximum(f82_mean(f0, dip), (1.0 - f0) / 210.0)
-            scores[h, lobe] = table.weight[m, lobe] * smp.luminance(mean)
+            if table.has_partial_metal:
+                # k times that, and the rest: its colour and its rise's mean (in score_extra).
+                mean = (table.hit_metal_share.take(m)[:, None] * mean
+                        + table.hit_metal_rest.take(m, axis=0))
+                scores[h, lobe] = (table.weight[m, lobe] * smp.luminance(mean)
+                                   + table.score_extra[m, lobe])
+            else:
+                scores[h, lobe] = table.weight[m, lobe] * smp.luminance(mean)
     return scores
 
 

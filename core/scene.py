@@ -102,7 +102,13 @@ class Materials:
       F0 is its colour at each hit (``glossy_color`` times ``glossy_program``: a textured metal):
       it reflects that curve with rise 1 - F0 and dip b(F0, tint) of the hit's own F0, so a
       textured metal brightens towards grazing angles point by point (the rise and dip above
-      are then 0).
+      are then 0).  ``glossy_metal_share`` k < 1 makes such a metal only part of the lobe, beside
+      a dielectric layer (a Principled BSDF partly metallic with a textured base colour): the
+      lobe's colour at a hit is k F0 + ``glossy_metal_rest`` (the layer's normal-incidence
+      colour), so F0 = (colour - rest) / k; it reflects k times the metal's curve of that F0
+      plus the rest and its Fresnel rise (``glossy_fresnel_ior``, ``glossy_fresnel_rise``), and
+      ``glossy_multiscatter`` is then the rest's F_ss (the two F_ss are weighted by the parts'
+      mean reflectances).
       ``glossy_stretch`` s != 1 makes the lobe anisotropic (Blender's Anisotropy): alpha s along
       a tangent and alpha / s across it (each at most 1), the tangent from ``glossy_tangent``
       (``bsdf.TANGENT_*``: around the object's X, Y or Z axis (Z, 2, is Blender's default) from
@@ -195,6 +201,8 @@ class Materials:
     glossy_metal_rise: np.ndarray = None                # (M, 3) float32 >= 0; None: 0
     glossy_metal_dip: np.ndarray = None                 # (M, 3) float32, any sign; None: 0
     glossy_metal_tint: np.ndarray = None                # (M, 3) float32 in [0, 1] or -1 (none); None: -1
+    glossy_metal_share: np.ndarray = None               # (M,) float32 in (0, 1]; None: 1
+    glossy_metal_rest: np.ndarray = None                # (M, 3) float32 in [0, 1]; None: 0
     glossy_stretch: np.ndarray = None                   # (M,) float32 in [0.01, 100]; None: 1 (isotropic)
     glossy_rotation: np.ndarray = None                  # (M,) float32 turns, any sign; None: 0
     glossy_tangent: np.ndarray = None                   # (M,) int32 bsdf.TANGENT_*; None: 2 (radial Z)
@@ -251,7 +259,8 @@ class Materials:
                     "coat_tint", "volume_absorption", "holdout", "translucent_weight", "translucent_color",
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
-                    "rotation_program", "stretch_program", "glossy_metal_tint")
+                    "rotation_program", "stretch_program", "glossy_metal_tint", "glossy_metal_share",
+                    "glossy_metal_rest")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -297,7 +306,8 @@ class Materials:
         program's value at each hit instead of ``glossy_rotation``, and ``stretch_program``, a float
         program, gives the stretch at each hit instead of ``glossy_stretch``.  ``glossy_metal_tint``
         (default -1: none) makes a textured glossy lobe a metal of that edge tint whose F0 is its
-        colour at each hit.
+        colour at each hit; ``glossy_metal_share`` (1) and ``glossy_metal_rest`` (0) make it part
+        of the lobe beside a dielectric layer.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -313,6 +323,8 @@ class Materials:
         out.glossy_metal_rise = np.zeros((m, 3), np.float32)
         out.glossy_metal_dip = np.zeros((m, 3), np.float32)
         out.glossy_metal_tint = np.full((m, 3), -1.0, np.float32)
+        out.glossy_metal_share = np.ones(m, np.float32)
+        out.glossy_metal_rest = np.zeros((m, 3), np.float32)
         out.glossy_stretch = np.ones(m, np.float32)
         out.glossy_rotation = np.zeros(m, np.float32)
         out.glossy_tangent = np.full(m, TANGENT_RADIAL_Z, np.int32)
@@ -395,6 +407,9 @@ class Materials:
             for key in ("glossy_fresnel_rise", "glossy_metal_rise", "glossy_metal_dip", "diffuse_layer"):
                 getattr(out, key)[i] = np.broadcast_to(np.asarray(s.get(key, 0.0), np.float32), (3,))
             out.glossy_metal_tint[i] = np.broadcast_to(np.asarray(s.get("glossy_metal_tint", -1.0),
+                                                              np.float32), (3,))
+            out.glossy_metal_share[i] = s.get("glossy_metal_share", 1.0)
+            out.glossy_metal_rest[i] = np.broadcast_to(np.asarray(s.get("glossy_metal_rest", 0.0),
                                                               np.float32), (3,))
             if "ior" in s:
                 out.ior[i] = s["ior"]
@@ -842,6 +857,7 @@ class Scene:
                                        ("glossy_metal_rise", (n, 3), 0.0),
                                        ("glossy_metal_dip", (n, 3), 0.0),
                                        ("glossy_metal_tint", (n, 3), -1.0),
+                                       ("glossy_metal_share", (n,), 1.0), ("glossy_metal_rest", (n, 3), 0.0),
                                        ("diffuse_layer", (n, 3), 0.0), ("diffuse_layer_weight", (n,), 1.0),
                                        ("normal_texture", (n,), -1), ("normal_strength", (n,), 1.0),
                                        ("bump_texture", (n,), -1), ("bump_strength", (n,), 1.0),
@@ -866,7 +882,7 @@ class Scene:
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
             colour = name.endswith(("color", "emission", "multiscatter", "rise", "dip", "layer", "tint",
-                                    "absorption", "scattering"))
+                                    "absorption", "scattering", "rest"))
             tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INTEGER_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
@@ -878,12 +894,19 @@ class Scene:
             fail("materials.ior must be positive")
         tint = mats.glossy_metal_tint
         per_hit = (tint >= 0).any(axis=1)
-        odd = per_hit & (((tint < 0) | (tint > 1)).any(axis=1) | (mats.glossy_fresnel_ior > 0)
+        odd = per_hit & (((tint < 0) | (tint > 1)).any(axis=1)
+                         | ((mats.glossy_fresnel_ior > 0) & (mats.glossy_metal_share >= 1.0))
                          | (mats.glossy_metal_rise != 0).any(axis=1)
                          | (mats.glossy_metal_dip != 0).any(axis=1))
         if odd.any():
             fail(f"materials.glossy_metal_tint of material '{mats.names[int(np.argmax(odd))]}' must be -1 or "
-                 "in [0, 1] in every channel, on a lobe without a Fresnel rise, rise or dip")
+                 "in [0, 1] in every channel, on a lobe without a metal rise or dip, and without a "
+                 "Fresnel rise unless glossy_metal_share < 1")
+        share, rest = mats.glossy_metal_share, mats.glossy_metal_rest
+        odd = ((share <= 0) | (share > 1)) | (rest > 1).any(axis=1)
+        if odd.any():
+            fail(f"material '{mats.names[int(np.argmax(odd))]}': glossy_metal_share must be in (0, 1] and "
+                 "glossy_metal_rest in [0, 1]")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
@@ -1049,12 +1072,14 @@ class Scene:
             if ((v < -1) | (v >= len(mats.programs))).any():
                 fail(f"materials.{name} must be -1 or an index below {len(mats.programs)}")
         used = np.concatenate([getattr(mats, name) for name in Materials.PROGRAM_FIELDS])
-        rising = np.flatnonzero((mats.glossy_program >= 0) & ((mats.glossy_fresnel_ior > 0)
+        partial = (mats.glossy_metal_tint >= 0).all(axis=1) & (mats.glossy_metal_share < 1.0)
+        rising = np.flatnonzero((mats.glossy_program >= 0) & (((mats.glossy_fresnel_ior > 0) & ~partial)
                                                                 | (mats.glossy_metal_rise != 0).any(axis=1)
                                                                 | (mats.glossy_metal_dip != 0).any(axis=1)))
         if len(rising):
             fail(f"material '{mats.names[rising[0]]}': a glossy_program cannot vary a glossy lobe with a "
-                 "Fresnel rise (glossy_fresnel_ior, glossy_metal_rise, glossy_metal_dip)")
+                 "Fresnel rise (glossy_fresnel_ior, glossy_metal_rise, glossy_metal_dip) unless it is a metal "
+                 "beside a dielectric layer (glossy_metal_tint, glossy_metal_share < 1)")
         coords = {"generated": self.object_ids, "object": self.object_ids, "normal": self.object_ids,
                   "object_location": self.object_ids, "object_color": self.object_ids,
                   "object_info": self.object_ids,

@@ -251,3 +251,74 @@ def test_a_textured_metal_floor_equals_each_metal_on_its_half(method):
     np.testing.assert_allclose(mapped[:, :w], second[:, :w], rtol=1e-5)
     print("mean curve / curve:", means[:, w:].mean(axis=(0, 1)) / first[:, w:].mean(axis=(0, 1)),
           means[:, :w].mean(axis=(0, 1)) / second[:, :w].mean(axis=(0, 1)))
+
+
+def partial_metal(f0, share, tint, rest, rest_fss, **kw):
+    """A glossy lobe that is ``share`` of a metal of F0 ``f0`` beside a dielectric layer of IOR 1.5
+    whose normal-incidence colour ``rest`` rises to 1 - share at grazing angles, as plain rows: the
+    metal's curve (``glossy_metal_rise``, ``glossy_metal_dip``) beside the layer's rise, with the F_ss of
+    both weighted by their mean reflectances (``MaterialTable.multiscatter``)."""
+    fm = np.clip(metal_fresnel(f0, tint), 0.0, 1.0)
+    fss = (share * fm * fm + (1.0 - share) * rest_fss ** 2) / (share * fm + (1.0 - share) * rest_fss)
+    return {"name": "part metal", "glossy": share * f0 + rest, "glossy_metal_rise": share * (1.0 - f0),
+            "glossy_metal_dip": share * f82_b(f0, tint), "glossy_fresnel_ior": 1.5,
+            "glossy_fresnel_rise": (1.0 - share) - rest, "glossy_multiscatter": fss, **kw}
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
+def test_a_partly_metallic_textured_floor_equals_each_plain_lobe_on_its_half(method):
+    """A Principled BSDF half metallic (share 0.4) on a textured base colour: its glossy lobe is the
+    metal of each hit's F0, recovered from the hit's colour 0.4 F0 + rest, beside the dielectric
+    layer's rise (``glossy_metal_share``, ``glossy_metal_rest``).  Half by half, and to rounding, it
+    renders as the floors of the plain rows of either colour; before, a glossy program could not
+    carry the layer at all (the exporter took the metal's mean colour)."""
+    tint = np.array([1.0, 0.9, 0.8])        # no dip below 0: the metal's and the rows' clipping agree
+    other = np.array([0.2, 0.6, 0.95])
+    for f0 in (F0, other):
+        assert (f82(np.linspace(0, 1, 201), f0, f82_b(f0, tint)) > 0).all()
+    share, f0t = 0.4, 0.04 * np.array([1.0, 0.8, 0.6])
+    rest, rest_fss = (1.0 - share) * f0t, np.array([0.09, 0.08, 0.07])
+    half = {"op": "math", "operation": "GREATER_THAN",
+            "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"},
+            "b": 0.0}
+    colour = {"op": "mix_color", "fac": half, "a": rgb(share * other + rest), "b": rgb(share * F0 + rest)}
+    theta = np.radians(70.0)
+    images = []
+    for spec in (partial_metal(F0, share, tint, rest, rest_fss, roughness=0.4),
+                 partial_metal(other, share, tint, rest, rest_fss, roughness=0.4),
+                 {"name": "mapped", "glossy": 1.0, "roughness": 0.4, "glossy_program": colour,
+                  "glossy_metal_tint": tint, "glossy_metal_share": share, "glossy_metal_rest": rest,
+                  "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": (1.0 - share) - rest,
+                  "glossy_multiscatter": rest_fss}):
+        scene = with_one_object(floor_scene(metal(0.4), theta)).replace(
+            materials=Materials.build([spec])).validate()
+        res = render(scene, RenderSettings(method=method, passes=3, photons_per_pass=20000, workers=1,
+                                           seed=5, chains=1024))
+        assert np.isfinite(res.image).all()
+        images.append(res.image[..., :3])
+    first, second, mapped = images
+    w = mapped.shape[1] // 2
+    assert np.abs(first - second).max() > 0.02
+    np.testing.assert_allclose(mapped[:, w:], first[:, w:], rtol=1e-5)
+    np.testing.assert_allclose(mapped[:, :w], second[:, :w], rtol=1e-5)
+
+
+def test_a_partly_metallic_lobe_recovers_its_metal_and_refuses_bad_shares():
+    """The table's colour for a share-k metal beside a layer is rest + k F(c) of the F0 in the hit's
+    colour, plus the layer's rise; its score counts both parts; shares outside (0, 1] are refused."""
+    share, rest = 0.25, np.array([0.03, 0.02, 0.01])
+    spec = {"name": "m", "glossy": 1.0, "roughness": 0.5, "glossy_program": rgb(F0),
+            "glossy_metal_tint": TINT, "glossy_metal_share": share, "glossy_metal_rest": rest,
+            "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": 0.5}
+    table = MaterialTable.from_materials(Materials.build([spec]))
+    c = np.array([1.0, 0.5, 1.0 / 7.0, 0.05])
+    ids = np.zeros(len(c), np.int64)
+    base = np.tile(share * F0 + rest, (len(c), 1))
+    expected = rest + share * f82(c, F0, f82_b(F0, TINT)) + 0.5 * smp.fresnel_rise(c, np.full(len(c), 1.5))[:, None]
+    np.testing.assert_allclose(base + table.fresnel_color(ids, 1, c, base), expected, atol=1e-7)
+    score = lobe_scores(table, ids[:1], np.stack([np.zeros(3), base[0], np.zeros(3), np.zeros(3)])[None])
+    assert score[0, 1] > smp.luminance(share * metal_fresnel(F0, TINT) + rest)
+    for bad in ({"glossy_metal_share": 0.0}, {"glossy_metal_share": 1.5}, {"glossy_metal_rest": 1.2},
+                {"glossy_metal_share": 1.0}):
+        with pytest.raises(SceneError, match="glossy_metal"):
+            floor_scene(dict(spec, **bad), 0.5)
