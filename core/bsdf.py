@@ -75,8 +75,8 @@ def roughness_variants(mats):
     (``RenderContext.surface``).  Without roughness programs (or glossy lobes): ``mats`` itself."""
     program = mats.roughness_program
     first = np.full(mats.count, -1, np.int32)
-    mapped = (np.flatnonzero((program >= 0) & (mats.glossy_weight > 0)) if program is not None
-              else np.zeros(0, np.int64))
+    mapped = (np.flatnonzero((program >= 0) & (mats.glossy_weight > 0) & ~_picks_level(mats))
+              if program is not None else np.zeros(0, np.int64))
     if len(mapped) == 0:
         return mats, first
     first[mapped] = mats.count + ROUGHNESS_LEVELS * np.arange(len(mapped))
@@ -88,6 +88,12 @@ def roughness_variants(mats):
     changes["stretch_program"][mats.count:] = -1          # such a material keeps its stretch
     names = list(mats.names) + [f"{mats.names[m]} (roughness {r:.3f})" for m in mapped for r in levels]
     return dataclasses.replace(mats, names=names, **changes), first
+
+
+def _picks_level(mats):
+    """(M,) bool: the material picks one of its levels at each hit (``Materials.level_program``), so
+    it is never shaded itself and needs no copies."""
+    return np.zeros(mats.count, bool) if mats.level_program is None else mats.level_program >= 0
 
 
 def stretch_levels():
@@ -115,7 +121,7 @@ def stretch_variants(mats):
     if program is None:
         return mats, first
     rough = mats.roughness_program if mats.roughness_program is not None else np.full(mats.count, -1)
-    mapped = np.flatnonzero((program >= 0) & (mats.glossy_weight > 0) & (rough < 0))
+    mapped = np.flatnonzero((program >= 0) & (mats.glossy_weight > 0) & (rough < 0) & ~_picks_level(mats))
     if len(mapped) == 0:
         return mats, first
     first[mapped] = mats.count + STRETCH_LEVELS * np.arange(len(mapped))

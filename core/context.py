@@ -66,6 +66,8 @@ class RenderContext:
         # Procedural colours: the programs and the coordinates they read.
         self.programs = scene.materials.programs
         self.has_roughness_programs = bool((self.roughness_first >= 0).any())
+        levels = scene.materials.level_program
+        self.has_level_programs = levels is not None and bool((levels >= 0).any())
         self.has_stretch_programs = bool((self.stretch_first >= 0).any())
         self.has_programs = bool((self.table.program >= 0).any())
         self.has_glossy_programs = bool((self.table.glossy_program >= 0).any())
@@ -563,6 +565,8 @@ class RenderContext:
         b0 = 1.0 - b1 - b2
         mat = self.material_ids.take(prim_ids)
         bary = (b0[:, None], b1[:, None], b2[:, None])
+        if self.has_level_programs:
+            self._pick_level(mat, prim_ids, bary, pos)
         if self.has_roughness_programs:
             self._pick_roughness(mat, prim_ids, bary, pos)
         if self.has_stretch_programs:
@@ -664,6 +668,16 @@ class RenderContext:
             t = t * cos + np.cross(k, t) * sin + k * (dot(k, t)[:, None] * (1.0 - cos))
         out[sel] = t
         return out
+
+    def _pick_level(self, mat, prim_ids, bary, pos):
+        """Replace, in place, the materials ``mat`` (n,) that pick one of their levels at each hit
+        (``Materials.level_program``) by the level nearest the program's value there."""
+        mats = self.materials
+        for sel, value in self._program_values(mats.level_program, prim_ids, bary, pos, mat):
+            m = mat.take(sel)
+            top = mats.level_count.take(m) - 1
+            level = np.rint(np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * top).astype(np.int32)
+            mat[sel] = mats.level_first.take(m) + level
 
     def _pick_roughness(self, mat, prim_ids, bary, pos):
         """Replace, in place, the materials ``mat`` (n,) that have a roughness map by their copy of

@@ -169,6 +169,13 @@ class Materials:
     volume emits 4 pi ``volume_emission`` V watts (V its mesh's volume) as photons, evenly in
     all directions.  It is a volume on its own (a glowing gas that neither absorbs nor scatters).
 
+    A material may stand for a family of others picked point by point (a Principled BSDF's
+    Metallic map): where ``level_program`` >= 0, that float program's value p at a hit, clamped to
+    [0, 1], picks material ``level_first`` + round(p (``level_count`` - 1)) of ``level_count``
+    consecutive ones (its levels, themselves without a ``level_program``), which then shades the
+    hit in its place (its lobes, maps and coat; the material itself keeps what is decided before
+    shading: its emission, opacity, volume and holdout, which its levels should share).
+
     ``holdout`` (Blender's Holdout shader, in [0, 1]) is the share of a pixel that the surface
     cuts out of the image where camera rays meet it directly or through transparent surfaces
     (Cycles: whether the film is transparent or not): the pixel's alpha loses holdout times the
@@ -245,6 +252,9 @@ class Materials:
     translucent_program: np.ndarray = None              # (M,) int32, index into programs or -1; None: -1
     rotation_program: np.ndarray = None                 # (M,) int32, index into programs or -1; None: -1
     stretch_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
+    level_program: np.ndarray = None                    # (M,) int32, index into programs or -1; None: -1
+    level_first: np.ndarray = None                      # (M,) int32, a material index or -1; None: -1
+    level_count: np.ndarray = None                      # (M,) int32 >= 0; None: 0
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
@@ -260,15 +270,15 @@ class Materials:
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
                     "rotation_program", "stretch_program", "glossy_metal_tint", "glossy_metal_share",
-                    "glossy_metal_rest")
+                    "glossy_metal_rest", "level_program", "level_first", "level_count")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
-                      "rotation_program", "stretch_program")
+                      "rotation_program", "stretch_program", "level_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
-    INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent",)                       # stored as int32
+    INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count")   # stored as int32
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
-                                    "glossy_rotation", "glossy_metal_tint")
+                                    "glossy_rotation", "glossy_metal_tint", "level_first")
 
     @property
     def count(self) -> int:
@@ -307,7 +317,8 @@ class Materials:
         program, gives the stretch at each hit instead of ``glossy_stretch``.  ``glossy_metal_tint``
         (default -1: none) makes a textured glossy lobe a metal of that edge tint whose F0 is its
         colour at each hit; ``glossy_metal_share`` (1) and ``glossy_metal_rest`` (0) make it part
-        of the lobe beside a dielectric layer.
+        of the lobe beside a dielectric layer.  ``level_program`` (a float program), ``level_first``
+        and ``level_count`` make it pick one of that many materials, its levels, at each hit.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -367,6 +378,9 @@ class Materials:
         out.translucent_program = np.full(m, -1, np.int32)
         out.rotation_program = np.full(m, -1, np.int32)
         out.stretch_program = np.full(m, -1, np.int32)
+        out.level_program = np.full(m, -1, np.int32)
+        out.level_first = np.full(m, -1, np.int32)
+        out.level_count = np.zeros(m, np.int32)
         stored = {}
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric", "translucent"):
@@ -409,6 +423,8 @@ class Materials:
             out.glossy_metal_tint[i] = np.broadcast_to(np.asarray(s.get("glossy_metal_tint", -1.0),
                                                               np.float32), (3,))
             out.glossy_metal_share[i] = s.get("glossy_metal_share", 1.0)
+            out.level_first[i] = s.get("level_first", -1)
+            out.level_count[i] = s.get("level_count", 0)
             out.glossy_metal_rest[i] = np.broadcast_to(np.asarray(s.get("glossy_metal_rest", 0.0),
                                                               np.float32), (3,))
             if "ior" in s:
@@ -875,7 +891,8 @@ class Scene:
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
                                        ("diffuse_roughness", (n,), 0.0), ("glossy_stretch", (n,), 1.0),
                                        ("glossy_rotation", (n,), 0.0), ("rotation_program", (n,), -1),
-                                       ("stretch_program", (n,), -1),
+                                       ("stretch_program", (n,), -1), ("level_program", (n,), -1),
+                                       ("level_first", (n,), -1), ("level_count", (n,), 0),
                                        ("glossy_tangent", (n,), TANGENT_RADIAL_Z)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INTEGER_FIELDS
@@ -916,6 +933,7 @@ class Scene:
                 bad = mats.names[int(np.argmax((v < low) | (v > high)))]
                 fail(f"materials.{name} is outside [{low}, {high}] for material '{bad}'")
         self._validate_programs(fail)
+        self._validate_levels(fail)
         for name in Materials.INT_FIELDS:
             v = getattr(mats, name)
             if ((v < -1) | (v >= len(self.textures))).any():
@@ -1063,6 +1081,21 @@ class Scene:
         self.object_info = arr("object_info", info, np.float32, (6,), n)
         if t and (self.object_ids.min() < 0 or self.object_ids.max() >= n):
             fail(f"object_ids outside [0, {n})")
+
+    def _validate_levels(self, fail):
+        mats = self.materials
+        on = mats.level_program >= 0
+        if not on.any():
+            return
+        first, count = mats.level_first[on], mats.level_count[on]
+        bad = (count < 2) | (first < 0) | (first + count > mats.count)
+        if not bad.any():
+            rows = np.concatenate([np.arange(f, f + c) for f, c in zip(first, count)])
+            bad = np.zeros_like(bad) if not (mats.level_program[rows] >= 0).any() else np.ones_like(bad)
+        if bad.any():
+            name = mats.names[int(np.flatnonzero(on)[int(np.argmax(bad))])]
+            fail(f"material '{name}': level_first and level_count must name at least 2 materials of the "
+                 "scene, none of them with a level_program")
 
     def _validate_programs(self, fail):
         mats = self.materials

@@ -121,6 +121,8 @@ class Closure:
     glossy_texture: dict = None     # program of the glossy colour where it varies (color[GLOSSY]: its mean)
     metal_texture: dict = None      # program of a metal's F0 where it varies (glossy_texture: curve's mean)
     metal_tint: np.ndarray = None   # (3,) that metal's edge tint
+    metal_layer: tuple = None       # (share, rest colour (3,), rest F_ss (3,)) of such a metal beside a
+    #                                 dielectric layer in one glossy lobe (Materials.glossy_metal_share)
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
@@ -220,6 +222,7 @@ class Closure:
         glossy = [c for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
         if fac is None and len(glossy) == 1 and glossy[0].metal_texture is not None:
             out.metal_texture, out.metal_tint = glossy[0].metal_texture, glossy[0].metal_tint
+            out.metal_layer = glossy[0].metal_layer
         out.emission_texture = self._mixed_emission(other, fa, fb, fac)
         out.dielectric_texture = self._mixed_lobe_program(other, wa, wb, DIELECTRIC, "dielectric_texture")
         out.translucent_texture = self._mixed_lobe_program(other, wa, wb, TRANSLUCENT, "translucent_texture")
@@ -388,7 +391,7 @@ class Closure:
             out.texture = _times(self.texture, per_point) if isinstance(self.texture, dict) else self.texture
             out.glossy_texture = (None if self.glossy_texture is None
                                   else _times(self.glossy_texture, per_point))
-            out.metal_texture = out.metal_tint = None         # the curve's mean times the opacity
+            out.metal_texture = out.metal_tint = out.metal_layer = None   # the curve's mean times the opacity
             out.emission_texture = (None if self.emission_texture is None
                                     else _times(self.emission_texture, per_point))
         return out
@@ -416,7 +419,8 @@ class Closure:
             if self.layered > 0 and self.weight[DIFFUSE] > 0:
                 s["diffuse_layer"] = self.layer / self.layered
                 s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
-        if (self.metal_rise.any() or self.metal_dip.any()) and self.weight[GLOSSY] > 0:
+        curve = self.metal_rise.any() or self.metal_dip.any()
+        if curve and self.weight[GLOSSY] > 0 and self.metal_texture is None:
             s["glossy_metal_rise"] = self.metal_rise / self.weight[GLOSSY]
             s["glossy_metal_dip"] = self.metal_dip / self.weight[GLOSSY]
         if self.dielectric_texture is not None and self.weight[DIELECTRIC] > 0:
@@ -432,6 +436,11 @@ class Closure:
             # The core takes the F82 curve of each hit's F0 (Materials.glossy_metal_tint).
             s["glossy_program"] = self.metal_texture
             s["glossy_metal_tint"] = np.clip(np.asarray(self.metal_tint, np.float64), 0.0, 1.0)
+            if self.metal_layer is not None:
+                # Beside a dielectric layer: the program gives k F0 + rest, the rest's own F_ss.
+                s["glossy_metal_share"], s["glossy_metal_rest"], fss = self.metal_layer
+                s["glossy"] = np.ones(3)
+                s["glossy_multiscatter"] = fss
         if self.roughness_texture is not None and self.weight[GLOSSY] > 0:
             s["roughness_program"] = self.roughness_texture
         if self.anisotropic and self.weight[GLOSSY] > 0:
@@ -1455,11 +1464,11 @@ class NodeWalker:
         spec = dielectric if eta > 1.0 + 1e-6 else 0.0     # Cycles drops a layer of IOR 1
         f0_tint = np.clip(f0 * np.asarray(tint, np.float64), 0.0, 1.0)
         # Cycles' metallic layer: F82 with the specular tint, its curve by angle; a textured base
-        # colour without a dielectric layer makes it a program of the curve's mean (below).
+        # colour makes its F0 a program (below).
         metal_mean = metal_fresnel(flat_base, tint)
-        metal_program = m > 0 and spec == 0 and textured(tex)
+        metal_program = m > 0 and textured(tex)
         metal, metal_rise, metal_dip = metal_curve(flat_base, tint)
-        if metal_program:
+        if metal_program and spec == 0:
             metal = metal_mean
         else:
             c.metal_rise, c.metal_dip = m * metal_rise, m * metal_dip
@@ -1470,6 +1479,7 @@ class NodeWalker:
             c.rise = spec * (1.0 - f0_tint)
             c.layer = spec * f0_tint
             c.layered = spec
+        layer_fss = np.zeros(3)
         if node.distribution == "MULTI_GGX":
             # F_ss of the layer as Cycles: f0 + (1 - f0) times the mean Fresnel rescaled to [0, 1].
             f_avg = (mean_fresnel(eta) - f0) / (1.0 - f0) if spec > 0 else 0.0
@@ -1487,12 +1497,20 @@ class NodeWalker:
             c.dielectric_texture = {"op": "gamma", "color": _program_of(tex, base), "gamma": 0.5}
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1
         if metal_program:
-            # A metal (no dielectric layer): its F0 follows the base colour's texture, and its
-            # curve's mean too where it is mixed (Closure.combine).
-            c.glossy_texture = {"op": "metal", "color": _program_of(tex, base),
-                                "tint": [float(x) for x in tint]}
-            c.metal_texture = _clamped_color(_program_of(tex, base))
+            # The metal's F0 follows the base colour's texture.  Alone in the glossy lobe, its
+            # curve's mean too where it is mixed (Closure.combine); beside the dielectric layer
+            # (0 < m < 1), the lobe's colour is k F0 + rest per unit weight (k = m / (m + spec)), and
+            # mixed the lobe keeps the curve of the mean F0 (the core has no program beside a rise).
+            f0_program = _clamped_color(_program_of(tex, base))
             c.metal_tint = np.asarray(tint, np.float64)
+            if spec == 0:
+                c.glossy_texture = {"op": "metal", "color": _program_of(tex, base),
+                                    "tint": [float(x) for x in tint]}
+                c.metal_texture = f0_program
+            else:
+                k, rest = m / (m + spec), spec * f0_tint / (m + spec)
+                c.metal_texture = _plus(_times(f0_program, k), rest.tolist())
+                c.metal_layer = (k, rest, layer_fss)
         return c
 
 

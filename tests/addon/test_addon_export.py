@@ -1375,6 +1375,29 @@ def test_a_textured_metal_keeps_the_fresnel_curve_of_each_points_colour(scene):
     bs.mix_in(shared, "Principled BSDF", "ShaderNodeBsdfGlossy", 0.5)
     row, ex = export_material(shared)
     assert row["glossy_metal_tint"] == pytest.approx([-1, -1, -1]) and row["glossy_program"] >= 0
+    # Partly metallic: the metal's share k of the lobe beside the dielectric layer, the program
+    # k F0 + rest, the rest's F_ss (f0 + (1 - f0) times the rescaled mean Fresnel), no row curve.
+    part = checkered(principled("Part", **{"Metallic": 0.3, "Specular Tint": (*tint, 1)}), "Base Color",
+                     "Principled BSDF")
+    row, ex = export_material(part)
+    f0t = 0.04 * np.array(tint)
+    assert row["glossy_metal_tint"] == pytest.approx(tint) and row["glossy_weight"] == pytest.approx(1.0)
+    assert row["glossy_metal_share"] == pytest.approx(0.3) and row["glossy_fresnel_ior"] == pytest.approx(1.5)
+    np.testing.assert_allclose(row["glossy_metal_rest"], 0.7 * f0t, rtol=1e-5)
+    np.testing.assert_allclose(row["glossy_fresnel_rise"], 0.7 * (1.0 - f0t), rtol=1e-5)
+    assert row["glossy_color"] == pytest.approx([1, 1, 1])
+    assert not row["glossy_metal_rise"].any() and not row["glossy_metal_dip"].any()
+    assert ((row["glossy_multiscatter"] > f0t) & (row["glossy_multiscatter"] < 0.15)).all()
+    p = program(row, ex)
+    assert p["blend"] == "ADD" and p["b"] == pytest.approx((0.7 * f0t).tolist())
+    assert p["a"]["blend"] == "MULTIPLY" and p["a"]["a"]["clamp_result"] and p["a"]["b"] == pytest.approx([0.3] * 3)
+    # The same under a varying factor (an alpha map): the curve of the mean F0, no program.
+    nt = part.node_tree
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Alpha"])
+    row, ex = export_material(part)
+    assert row["glossy_metal_tint"] == pytest.approx([-1, -1, -1]) and row["glossy_program"] < 0
+    assert row["glossy_metal_rise"].any() and row["glossy_metal_share"] == pytest.approx(1.0)
 
 
 def test_mix_add_groups_and_basic_bsdfs(scene):

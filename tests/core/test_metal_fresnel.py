@@ -322,3 +322,52 @@ def test_a_partly_metallic_lobe_recovers_its_metal_and_refuses_bad_shares():
                 {"glossy_metal_share": 1.0}):
         with pytest.raises(SceneError, match="glossy_metal"):
             floor_scene(dict(spec, **bad), 0.5)
+
+
+HALF = {"op": "math", "operation": "GREATER_THAN",
+        "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}, "b": 0.0}
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
+def test_a_metallic_map_picks_each_points_material_level(method):
+    """A material whose levels (``Materials.level_program``) are a partly metallic textured lobe
+    (metallic level 0) and a rough plain metal with a roughness map (level 1), picked by the
+    floor's halves: half by half, and to rounding, it renders as the floor of either level (the
+    material itself, a grey diffuse, is never shaded).  A level's roughness map picks its own copy
+    (``bsdf.roughness_variants``)."""
+    tint = np.array([1.0, 0.9, 0.8])
+    share, rest, rest_fss = 0.4, 0.024 * np.array([1.0, 0.8, 0.6]), np.array([0.09, 0.08, 0.07])
+    first = {"name": "part", "glossy": 1.0, "roughness": 0.3, "glossy_program": rgb(share * F0 + rest),
+             "glossy_metal_tint": tint, "glossy_metal_share": share, "glossy_metal_rest": rest,
+             "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": (1.0 - share) - rest,
+             "glossy_multiscatter": rest_fss, "diffuse": [0.5, 0.3, 0.2], "diffuse_weight": 0.6,
+             "diffuse_layer": rest / 0.6}
+    second = dict(metal(0.375, glossy_multiscatter=metal_fresnel(F0, TINT)),
+                  roughness_program={"op": "math", "operation": "ADD", "a": 0.0, "b": 0.375},
+                  roughness=0.9)
+    theta = np.radians(60.0)
+    images = []
+    for specs in ([first], [second],
+                  [{"name": "picks", "diffuse": 0.5, "level_program": HALF, "level_first": 1, "level_count": 2},
+                   first, second]):
+        scene = with_one_object(floor_scene(metal(0.4), theta)).replace(
+            materials=Materials.build(specs)).validate()
+        res = render(scene, RenderSettings(method=method, passes=3, photons_per_pass=20000, workers=1,
+                                           seed=5, chains=1024))
+        assert np.isfinite(res.image).all()
+        images.append(res.image[..., :3])
+    a, b, picked = images
+    w = picked.shape[1] // 2
+    assert np.abs(a - b).max() > 0.05
+    np.testing.assert_allclose(picked[:, :w], a[:, :w], rtol=1e-5)      # x < 0: level 0
+    np.testing.assert_allclose(picked[:, w:], b[:, w:], rtol=1e-5)
+
+
+def test_material_levels_are_validated():
+    base = {"name": "picks", "diffuse": 0.5, "level_program": HALF, "level_first": 1, "level_count": 2}
+    plain = {"name": "plain", "diffuse": 0.3}
+    for specs in ([base, plain], [dict(base, level_count=1), plain, plain], [dict(base, level_first=-1), plain, plain],
+                  [base, plain, dict(base, level_first=0)]):
+        scene = floor_scene(plain, 0.5)
+        with pytest.raises(SceneError, match="level_first and level_count"):
+            with_one_object(scene).replace(materials=Materials.build(specs)).validate()
