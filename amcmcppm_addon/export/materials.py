@@ -123,6 +123,9 @@ class Closure:
     metal_tint: np.ndarray = None   # (3,) that metal's edge tint
     metal_layer: tuple = None       # (share, rest colour (3,), rest F_ss (3,)) of such a metal beside a
     #                                 dielectric layer in one glossy lobe (Materials.glossy_metal_share)
+    levels: tuple = None            # (float program in [0, 1], [Closure]) the closures a map picks from
+    #                                 point by point (a metallic map, Materials.level_program); this
+    #                                 closure is then their mix by the map's mean
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
@@ -227,6 +230,11 @@ class Closure:
         out.dielectric_texture = self._mixed_lobe_program(other, wa, wb, DIELECTRIC, "dielectric_texture")
         out.translucent_texture = self._mixed_lobe_program(other, wa, wb, TRANSLUCENT, "translucent_texture")
         out.opacity_texture = self._mixed_opacity(other, fa, fb, fac)
+        # One side's levels, each mixed as the whole (both sides': neither, the mean stands).
+        if self.levels is not None and other.levels is None:
+            out.levels = (self.levels[0], [c.combine(other, fa, fb, fac) for c in self.levels[1]])
+        elif other.levels is not None and self.levels is None:
+            out.levels = (other.levels[0], [self.combine(c, fa, fb, fac) for c in other.levels[1]])
         return out
 
     @property
@@ -475,6 +483,12 @@ class Closure:
         if self.bump is not None:
             source, s["bump_strength"], s["bump_distance"] = self.bump
             s["bump_program" if isinstance(source, dict) else "bump_texture"] = source
+        if self.levels is not None:
+            # MaterialSet adds the levels' rows after this one (level_first, level_count).
+            program, closures = self.levels
+            count = len(closures)
+            s["level_program"] = program
+            s["levels"] = [c.spec(f"{name} (level {k}/{count - 1})") for k, c in enumerate(closures)]
         return s
 
 
@@ -792,14 +806,15 @@ class MaterialExporter:
 
     def uses_textures(self, ids) -> bool:
         """Whether any of the material ``ids`` looks up an image with the UVs (colour or normal map)."""
+        rows = self._with_levels(ids)
         return any(self._specs[i].get("diffuse_texture", -1) >= 0 or "normal_texture" in self._specs[i]
-                   or "bump_texture" in self._specs[i] for i in ids) or "uv" in self.coordinates_used(ids)
+                   or "bump_texture" in self._specs[i] for i in rows) or "uv" in self.coordinates_used(ids)
 
     def coordinates_used(self, ids) -> set:
         """Names of the data (``procedural.ATTRIBUTES``) the procedural colours of ``ids`` read
         (and "generated" for an anisotropic glossy lobe's radial tangent)."""
         used = set()
-        for i in ids:
+        for i in self._with_levels(ids):
             for key in Materials.PROGRAM_FIELDS:
                 if key in self._specs[i]:
                     used |= procedural.attributes_used(self._specs[i][key])
@@ -810,7 +825,7 @@ class MaterialExporter:
     def tangent_uv(self, ids):
         """The UV map name ('' = the active render map) of the first of ``ids`` that needs the UV
         map's tangents (a normal map, an anisotropic glossy lobe oriented by them), or None."""
-        for s in (self._specs[i] for i in ids):
+        for s in (self._specs[i] for i in self._with_levels(ids)):
             if "normal_texture" in s:
                 return s["normal_uv_map"]
             if "tangent_uv_map" in s:
@@ -821,8 +836,23 @@ class MaterialExporter:
         return Materials.build(self._specs)
 
     def _add(self, spec) -> int:
+        """Add ``spec`` and, after it, its levels' rows (``Closure.levels``); its index."""
+        levels = spec.pop("levels", [])
         self._specs.append(spec)
-        return len(self._specs) - 1
+        index = len(self._specs) - 1
+        if levels:
+            spec.update(level_first=index + 1, level_count=len(levels))
+            self._specs.extend(levels)
+        return index
+
+    def _with_levels(self, ids):
+        """Material ``ids`` and the rows of their levels."""
+        out = []
+        for i in ids:
+            s = self._specs[i]
+            out.append(i)
+            out.extend(range(s["level_first"], s["level_first"] + s["level_count"]) if "level_first" in s else ())
+        return out
 
 
 class NodeWalker:
@@ -867,7 +897,8 @@ class NodeWalker:
             if closure.normal_map is not None or closure.bump is not None:
                 self.note("the Displacement output is ignored beside the shader's own normal or bump map")
             else:
-                closure.bump = bump
+                for c in [closure] + (closure.levels[1] if closure.levels is not None else []):
+                    c.bump = bump
         return closure or Closure()
 
     def displacement(self, sock, material):
@@ -1380,14 +1411,15 @@ class NodeWalker:
         mean = np.maximum(values, 0.0).mean(axis=0)
         return Closure(emission=mean, emission_texture=program)
 
-    def _masked_mix(self, node, what, f, a, b) -> Closure:
+    def _masked_mix(self, node, what, f, a, b, noted=True) -> Closure:
         """Closures ``a`` and ``b`` mixed by ``f``, a float program that varies over the surface (a
         mask; clamped to [0, 1] as Cycles does): exact for the diffuse colours and the glossy ones
-        without a Fresnel rise (``Closure.combine``), the rest by f's mean, noted."""
+        without a Fresnel rise (``Closure.combine``), the rest by f's mean, noted (unless not
+        ``noted``)."""
         f = _clamp01(f)
         self._note_coats(node, a, b)
         mean = procedural.mean_value(f, self.textures.images)
-        if not (a.same_except_diffuse(b) or a.only_transparent or b.only_transparent):
+        if noted and not (a.same_except_diffuse(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': a varying {what} mixes the diffuse colours point by point and the "
                       f"other parts by its mean {mean:.3f}")
         return a.combine(b, 1.0 - mean, mean, fac=f)
@@ -1406,16 +1438,22 @@ class NodeWalker:
 
     def _principled_opaque(self, node, stack, fixed=None):
         """Principled BSDF without its Alpha.  Its Metallic and Transmission Weight mix its metal, glass and
-        dielectric parts linearly (Cycles), so a texture on either (a metallic map) makes it a
-        Mix of the node at 0 and at 1 by that texture (``Closure.combine``: exact for the diffuse
-        colour); ``fixed`` holds the values so set."""
+        dielectric parts linearly (Cycles), so a texture on either makes it a Mix of the node at 0
+        and at 1 by that texture (``Closure.combine``: exact for the diffuse colour).  A metallic
+        map also gives the node at ``METALLIC_LEVELS`` values of Metallic, of which the core picks
+        the nearest at each point (``Closure.levels``); ``fixed`` holds the values so set."""
         inp = node.inputs
         fixed = fixed or {}
         for name in ("Metallic", "Transmission Weight"):
             f = self.programs.expression(inp[name], stack, FLOAT)
             if name not in fixed and procedural.varies(f):
                 at = [self._principled_opaque(node, stack, {**fixed, name: v}) for v in (0.0, 1.0)]
-                return self._masked_mix(node, name, f, *at)
+                if name != "Metallic":
+                    return self._masked_mix(node, name, f, *at)
+                c = self._masked_mix(node, name, f, *at, noted=False)
+                c.levels = (_clamp01(f), [self._principled_opaque(node, stack, {**fixed, name: float(v)})
+                                          for v in np.linspace(0.0, 1.0, METALLIC_LEVELS)])
+                return c
         base, tex = self.color(inp["Base Color"], stack)
         m = fixed.get("Metallic")
         m = float(np.clip(self.value(inp["Metallic"], stack), 0.0, 1.0)) if m is None else m
@@ -1517,6 +1555,10 @@ class NodeWalker:
 # Light Path outputs a Mix with a clear Transparent BSDF turns into ray visibility (Closure.hidden_rays).
 LIGHT_PATH_RAYS = {"Is Camera Ray": VISIBLE_CAMERA, "Is Glossy Ray": VISIBLE_GLOSSY,
                    "Is Transmission Ray": VISIBLE_TRANSMISSION}
+
+# A Principled BSDF's metallic map picks, point by point, the nearest of this many values of
+# Metallic, steps of 1/16 (``Closure.levels``; each costs the core a material row and its tables).
+METALLIC_LEVELS = 17
 
 # Nodes whose output may be a Fresnel curve of the view direction (NodeWalker._fresnel_factor).
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")

@@ -640,9 +640,11 @@ def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_not
 
 
 def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
-    """Metallic from a checker's Fac: the diffuse colour is the base colour where the checker is 0
-    and nothing where it is 1 (divided by the mean diffuse weight); the glossy lobe takes the
-    mean metal share, with a note."""
+    """Metallic from a checker's Fac: the material's own row (what the core keeps for what is decided
+    before shading) mixes the diffuse colour point by point (the base colour where the checker is
+    0, nothing where it is 1, divided by the mean diffuse weight) and the rest by the mean metal
+    share; its levels, the node at 17 values of Metallic, follow it in the table and the checker
+    picks one at each point (``Materials.level_program``), so no part is noted as averaged."""
     mat = principled("Rusty", **{"Base Color": (0.8, 0.4, 0.2, 1.0)})
     nt = mat.node_tree
     checker = nt.nodes.new("ShaderNodeTexChecker")
@@ -658,7 +660,21 @@ def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
     assert row["diffuse_weight"] == pytest.approx(1 - mean)
     colour = procedural.evaluate(ex.scene.materials.programs[0], pts, [])
     np.testing.assert_allclose(colour * row["diffuse_weight"], (1 - m)[:, None] * [0.8, 0.4, 0.2], rtol=1e-5)
-    assert any("'Rusty'" in w and "varying Metallic" in w for w in ex.warnings), ex.warnings
+    assert not any("'Rusty'" in w and "Metallic" in w for w in ex.warnings), ex.warnings
+    mats = ex.scene.materials
+    i = mats.names.index("Rusty")
+    assert row["level_first"] == i + 1 and row["level_count"] == 17
+    picks = procedural.evaluate(mats.programs[row["level_program"]], pts, [])
+    np.testing.assert_allclose(picks, m, atol=1e-6)
+    levels = [material_row(ex.scene, f"Rusty (level {k}/16)") for k in (0, 8, 16)]
+    assert [r["diffuse_weight"] for r in levels] == pytest.approx([1.0, 0.5, 0.0])
+    assert [r["glossy_weight"] for r in levels] == pytest.approx([1.0, 1.0, 1.0])
+    assert levels[0]["diffuse_color"] == pytest.approx([0.8, 0.4, 0.2])
+    assert not levels[0]["glossy_metal_rise"].any() and levels[0]["glossy_fresnel_ior"] == pytest.approx(1.5)
+    assert levels[2]["glossy_color"] == pytest.approx([0.8, 0.4, 0.2]) and levels[2]["glossy_fresnel_ior"] == 0
+    np.testing.assert_allclose(levels[2]["glossy_metal_rise"], [0.2, 0.6, 0.8], rtol=1e-5)
+    np.testing.assert_allclose(levels[1]["glossy_metal_rise"], [0.1, 0.3, 0.4], rtol=1e-5)   # half the lobe
+    assert all(r["level_program"] == -1 for r in levels)
 
 
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):

@@ -488,12 +488,15 @@ def test_sky_texture_world_matches_cycles(addon, tmp_path, sky_type):
 
 
 @pytest.mark.parametrize("shader", ["glossy_checker", pytest.param("metal_noise", marks=pytest.mark.slow),
-                                    pytest.param("part_metal_noise", marks=pytest.mark.slow)])
+                                    pytest.param("part_metal_noise", marks=pytest.mark.slow),
+                                    pytest.param("metallic_map", marks=pytest.mark.slow)])
 def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
     """The corner's floor as a Glossy BSDF (roughness 0.3) coloured by a checker, or a Principled
-    metal whose base colour is a noise through a ramp: the glossy colour varies point by point
+    metal whose base colour is a noise through a ramp, half metallic on that base, or with a
+    metallic map (another noise): the glossy colour varies point by point
     (``Materials.glossy_program``; the metal's F82 curve of its base colour per point,
-    ``Materials.glossy_metal_tint``)."""
+    ``Materials.glossy_metal_tint``, beside the dielectric layer, ``glossy_metal_share``; the
+    map's levels, ``Materials.level_program``)."""
     def build():
         corner_scene()
         if shader == "glossy_checker":
@@ -511,13 +514,24 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
             ramp.color_ramp.elements[1].color = (0.9, 0.9, 0.92, 1.0)
             nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
             nt.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+            if shader == "metallic_map":
+                # Metallic from a finer noise, 0.35-0.65 stretched to 0-1: metal, paint and between.
+                spots = nt.nodes.new("ShaderNodeTexNoise")
+                spots.inputs["Scale"].default_value = 2.5
+                stretch = nt.nodes.new("ShaderNodeMapRange")
+                stretch.inputs["From Min"].default_value, stretch.inputs["From Max"].default_value = 0.35, 0.65
+                nt.links.new(spots.outputs["Fac"], stretch.inputs["Value"])
+                nt.links.new(stretch.outputs["Result"], bsdf.inputs["Metallic"])
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
     # The copper-to-silver metal with its F82 curve per point: 1.002 / 1.001 / 1.000, bands
     # 0.973-1.011, pixel correlation 0.999; with the curve's mean colour per point (before) the
     # blue came out 3 % bright over the image and 6 % in one band (1.002 / 1.013 / 1.032), and
     # 10 % over the image with the texture's mean colour.  The glossy checker: 1.13 / 1.06 / 0.90
-    # with the mean, 0.99-1.00 with the program.
+    # with the mean, 0.99-1.00 with the program.  Half metallic on the textured base: 0.995 / 0.995 /
+    # 0.994, correlation 0.998 (before, the metal's mean colour and curve: 0.991 / 1.005 / 1.030).
+    # The metallic map (levels of Metallic picked point by point): 0.994 / 0.994 / 0.994, bands
+    # 0.979-1.000, correlation 0.997; before, the glossy lobe at the map's mean share: 1.23 in all.
     c, o = assert_channels_match(f"textured glossy, {shader}", cycles, ours)
     assert pixel_correlation(f"textured glossy, {shader}", c, o) > (0.95 if shader == "glossy_checker" else 0.99)
 
