@@ -13,9 +13,14 @@ of an anisotropy map (the same noise through a ramp from stretch 1 to 4; the mat
 becomes a rough (0.4) metal whose base colour is the same noise through a ramp from copper to
 silver, first with the F82 curve's mean per point as its colour (the ``metal`` program: the
 "constant" row, as before stop 37), then with the curve of each hit's F0
-(``Materials.glossy_metal_tint``: the "map" row).
+(``Materials.glossy_metal_tint``: the "map" row).  ``--kind metallic``: the white material becomes a
+Principled BSDF of that base colour and the roughness map whose Metallic is another noise, first as
+the exporter made it before stop 38 (one row: the node at 0 and 1 mixed by the map's mean, the diffuse
+colour point by point), then as now (that row picks one of 17 levels of Metallic at each hit,
+``Materials.level_program``; each level has the roughness map, so 17 x 65 copies).
 
-    python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy|metal] [--resolution 320 240]
+    python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy|metal|metallic]
+        [--resolution 320 240]
         [--rounds 5] [--paths 65536]
 """
 from __future__ import annotations
@@ -91,14 +96,59 @@ def textured_metal(per_hit):
     return edit
 
 
+METALLIC_MAP = {"op": "map_range", "value": dict(NOISE, scale=2.5), "from_min": 0.35, "from_max": 0.65,
+                "to_min": 0.0, "to_max": 1.0, "clamp": True}
+
+
+def principled_at(metallic, name):
+    """The core's row of a Principled BSDF of base colour ``COPPER_TO_SILVER``, ``ROUGHNESS_MAP``, IOR 1.5
+    and Metallic ``metallic`` (as the exporter makes it, untinted specular, multiscatter GGX)."""
+    k = metallic
+    spec = {"name": name, "diffuse_weight": 1.0 - k, "diffuse_program": COPPER_TO_SILVER, "glossy": 1.0,
+            "roughness": 0.4, "roughness_program": ROUGHNESS_MAP, "diffuse_layer": 0.04,
+            "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": (1.0 - k) * 0.96, "glossy_multiscatter": 0.09}
+    if k >= 1.0:
+        spec.update(glossy_fresnel_ior=0.0, glossy_fresnel_rise=0.0, glossy_multiscatter=1.0)
+    if k > 0:
+        f0 = {"op": "mix_color", "fac": 0.0, "a": COPPER_TO_SILVER, "b": [0.0, 0.0, 0.0], "clamp_result": True}
+        spec.update(glossy_program={"op": "mix_color", "blend": "ADD", "fac": 1.0, "b": [(1.0 - k) * 0.04] * 3,
+                                    "a": {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": f0,
+                                          "b": [k] * 3}},
+                    glossy_metal_tint=METAL_TINT)
+        if k < 1.0:
+            spec.update(glossy_metal_share=k, glossy_metal_rest=(1.0 - k) * 0.04)
+    else:
+        spec["glossy"] = 0.04
+    return spec
+
+
+def metallic_map(levels):
+    """An ``edit`` for ``photon_pass``: the first material becomes a Principled BSDF with a metallic map,
+    without (the mean, as before) or with its 17 levels."""
+    def edit(scene):
+        specs = cornell_specs(scene)
+        name = specs[0].get("name", "white")
+        mean = principled_at(0.5, name)          # (the map's mean: about 0.5)
+        mean.update(glossy=0.5 * 0.04 + 0.5 * 0.7, glossy_fresnel_rise=0.48, glossy_multiscatter=0.5)
+        del mean["glossy_program"], mean["glossy_metal_tint"], mean["glossy_metal_share"], mean["glossy_metal_rest"]
+        specs[0] = mean
+        if levels:
+            first = len(specs)
+            specs[0].update(level_program=METALLIC_MAP, level_first=first, level_count=17)
+            specs += [principled_at(k, f"{name} {k}") for k in np.linspace(0.0, 1.0, 17)]
+        return with_one_object(scene.replace(materials=Materials.build(specs))).validate()
+    return edit
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kind", choices=("roughness", "anisotropy", "metal"), default="roughness")
+    ap.add_argument("--kind", choices=("roughness", "anisotropy", "metal", "metallic"), default="roughness")
     ap.add_argument("--resolution", type=int, nargs=2, default=(320, 240))
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--paths", type=int, default=65536)
     a = ap.parse_args()
-    make = {"roughness": with_layer, "anisotropy": brushed, "metal": textured_metal}[a.kind]
+    make = {"roughness": with_layer, "anisotropy": brushed, "metal": textured_metal,
+            "metallic": metallic_map}[a.kind]
     variants = {"constant": make(False), "map": make(True)}
     scene = BUILTIN["cornell_box"](resolution=tuple(a.resolution))
     builds = {name: [] for name in variants}

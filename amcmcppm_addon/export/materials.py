@@ -198,7 +198,7 @@ class Closure:
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
-        # A coat lies over the whole material (one coat per material, NodeWalker._note_coats):
+        # A coat lies over the whole material (one coat per material, NodeWalker._note_mixed):
         # its weight mixes as the lobes', its parameters by the coats' weights.
         ca, cb = fa * self.coat, fb * other.coat
         out.coat = ca + cb
@@ -1211,7 +1211,7 @@ class NodeWalker:
             return self._masked_mix(node, "Fac", f, a, b)
         fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
         if 0.0 < fac < 1.0:
-            self._note_coats(node, a, b)
+            self._note_mixed(node, a, b)
         return a.combine(b, 1.0 - fac, fac)
 
     def _fresnel_factor(self, sock, stack):
@@ -1234,15 +1234,19 @@ class NodeWalker:
     def _add(self, node, stack):
         a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()
         b = self.shader(_by_identifier(node.inputs, "Shader_001"), stack) or Closure()
-        self._note_coats(node, a, b)
+        self._note_mixed(node, a, b)
         return a.combine(b, 1.0, 1.0)
 
-    def _note_coats(self, node, a, b):
+    def _note_mixed(self, node, a, b):
         """Note a mix of shaders with different coats: the core has one coat per material, which
-        then lies over both (weighted), where Cycles coats only its own Principled BSDF."""
+        then lies over both (weighted), where Cycles coats only its own Principled BSDF; and one of
+        two shaders with metallic maps, whose levels (``Closure.levels``) do not mix."""
         if not (a.same_coat(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': mixes shaders with different coats; one coat (weighted) "
                       "covers both")
+        if a.levels is not None and b.levels is not None:
+            self.note(f"'{node.name}': mixes two shaders with metallic maps; their metal and specular "
+                      "parts take the maps' means")
 
     def _diffuse(self, node, stack):
         """Diffuse BSDF: Lambert, or with a Roughness Cycles' rough diffuse (Oren-Nayar)."""
@@ -1417,7 +1421,7 @@ class NodeWalker:
         without a Fresnel rise (``Closure.combine``), the rest by f's mean, noted (unless not
         ``noted``)."""
         f = _clamp01(f)
-        self._note_coats(node, a, b)
+        self._note_mixed(node, a, b)
         mean = procedural.mean_value(f, self.textures.images)
         if noted and not (a.same_except_diffuse(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': a varying {what} mixes the diffuse colours point by point and the "

@@ -675,6 +675,21 @@ def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
     np.testing.assert_allclose(levels[2]["glossy_metal_rise"], [0.2, 0.6, 0.8], rtol=1e-5)
     np.testing.assert_allclose(levels[1]["glossy_metal_rise"], [0.1, 0.3, 0.4], rtol=1e-5)   # half the lobe
     assert all(r["level_program"] == -1 for r in levels)
+    # Mixed with a Diffuse BSDF at 0.5: the levels are mixed too; with a second metallic map: none.
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    diffuse = bs.mix_in(mat, "Principled BSDF", "ShaderNodeBsdfDiffuse", 0.5)
+    row, ex = export_material(mat)
+    level = material_row(ex.scene, "Rusty (level 16/16)")
+    assert row["level_count"] == 17 and level["diffuse_weight"] == pytest.approx(0.5)
+    assert level["glossy_weight"] == pytest.approx(0.5)
+    nt.nodes.remove(diffuse)
+    other = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    nt.links.new(other.outputs[0], nt.nodes["Mix Shader"].inputs[2])
+    nt.links.new(checker.outputs["Color"], other.inputs["Metallic"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert row["level_program"] == -1 and row["level_count"] == 0
+    assert any("'Mix Shader'" in w and "two shaders with metallic maps" in w for w in ex.warnings), ex.warnings
 
 
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
