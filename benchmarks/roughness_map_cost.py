@@ -111,10 +111,7 @@ def principled_at(metallic, name):
         spec.update(glossy_fresnel_ior=0.0, glossy_fresnel_rise=0.0, glossy_multiscatter=1.0)
     if k > 0:
         f0 = {"op": "mix_color", "fac": 0.0, "a": COPPER_TO_SILVER, "b": [0.0, 0.0, 0.0], "clamp_result": True}
-        spec.update(glossy_program={"op": "mix_color", "blend": "ADD", "fac": 1.0, "b": [(1.0 - k) * 0.04] * 3,
-                                    "a": {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": f0,
-                                          "b": [k] * 3}},
-                    glossy_metal_tint=METAL_TINT)
+        spec.update(glossy_program=f0, glossy_metal_tint=METAL_TINT)
         if k < 1.0:
             spec.update(glossy_metal_share=k, glossy_metal_rest=(1.0 - k) * 0.04)
     else:

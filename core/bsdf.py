@@ -531,7 +531,10 @@ class MaterialTable:
         colour ``base`` (n, 3), (base - rest) / k (k the metal's share of the lobe, rest the colour
         of the other part; F0 = base for a whole metal), clamped to [0, 1]: dip = b(F0, tint) of
         Cycles' F82 tint."""
-        f0 = np.clip(self._hit_metal_raw_f0(mat_ids, base), 0.0, 1.0)
+        return self._f0_dip(mat_ids, self._hit_metal_raw_f0(mat_ids, base))
+
+    def _f0_dip(self, mat_ids, raw):
+        f0 = np.clip(raw, 0.0, 1.0)
         return f0, (f0 + (1.0 - f0) * F82_SCHLICK) * self.hit_metal_dip.take(mat_ids, axis=0)
 
     def _hit_metal_raw_f0(self, mat_ids, base):
@@ -544,7 +547,7 @@ class MaterialTable:
         """(n, 3) what the metal part of lobes whose F0 follows the hits' colour ``base`` (n, 3)
         adds at microfacet cosines ``cos_m``: k times its curve less F0, the metal kept within [0, 1]."""
         b = self._hit_metal_raw_f0(mat_ids, base)
-        f0, dip = self.hit_metal_f0_dip(mat_ids, base)
+        f0, dip = self._f0_dip(mat_ids, b)
         c = np.clip(cos_m, 0.0, 1.0)
         p = 1.0 - c
         p5 = p * p

@@ -599,6 +599,15 @@ class RenderContext:
             lobe = self.table.glossy_program_lobe
             for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat):
                 colors[sel, lobe.take(mat.take(sel))] *= color
+        if self.table.has_partial_metal:
+            # A metal that is part k of its lobe: the colour so far is its F0, the lobe's k F0 + rest.
+            t = self.table
+            part = np.flatnonzero(t.hit_metal.take(mat) & (t.hit_metal_share.take(mat) < 1.0))
+            if len(part):
+                m = mat.take(part)
+                lobe = t.hit_metal_lobe.take(m)
+                colors[part, lobe] = (t.hit_metal_share.take(m)[:, None] * colors[part, lobe]
+                                      + t.hit_metal_rest.take(m, axis=0))
         if self.has_dielectric_programs:
             for sel, color in self._program_colors(self.table.dielectric_program, prim_ids, bary, pos, mat):
                 colors[sel, DIELECTRIC] *= color

@@ -104,9 +104,9 @@ class Materials:
       textured metal brightens towards grazing angles point by point (the rise and dip above
       are then 0).  ``glossy_metal_share`` k < 1 makes such a metal only part of the lobe, beside
       a dielectric layer (a Principled BSDF partly metallic with a textured base colour): the
-      lobe's colour at a hit is k F0 + ``glossy_metal_rest`` (the layer's normal-incidence
-      colour), so F0 = (colour - rest) / k; it reflects k times the metal's curve of that F0
-      plus the rest and its Fresnel rise (``glossy_fresnel_ior``, ``glossy_fresnel_rise``), and
+      colour and program then give F0, and the lobe's colour at a hit is k F0 +
+      ``glossy_metal_rest`` (the layer's normal-incidence colour); it reflects k times the
+      metal's curve of that F0 plus the rest and its Fresnel rise (``glossy_fresnel_ior``, ``glossy_fresnel_rise``), and
       ``glossy_multiscatter`` is then the rest's F_ss (the two F_ss are weighted by the parts'
       mean reflectances).
       ``glossy_stretch`` s != 1 makes the lobe anisotropic (Blender's Anisotropy): alpha s along

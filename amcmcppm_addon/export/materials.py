@@ -445,7 +445,7 @@ class Closure:
             s["glossy_program"] = self.metal_texture
             s["glossy_metal_tint"] = np.clip(np.asarray(self.metal_tint, np.float64), 0.0, 1.0)
             if self.metal_layer is not None:
-                # Beside a dielectric layer: the program gives k F0 + rest, the rest's own F_ss.
+                # Beside a dielectric layer: the share k and the rest's colour and own F_ss.
                 s["glossy_metal_share"], s["glossy_metal_rest"], fss = self.metal_layer
                 s["glossy"] = np.ones(3)
                 s["glossy_multiscatter"] = fss
@@ -1541,18 +1541,16 @@ class NodeWalker:
         if metal_program:
             # The metal's F0 follows the base colour's texture.  Alone in the glossy lobe, its
             # curve's mean too where it is mixed (Closure.combine); beside the dielectric layer
-            # (0 < m < 1), the lobe's colour is k F0 + rest per unit weight (k = m / (m + spec)), and
-            # mixed the lobe keeps the curve of the mean F0 (the core has no program beside a rise).
-            f0_program = _clamped_color(_program_of(tex, base))
+            # (0 < m < 1), the lobe's colour is k F0 + rest per unit weight (k = m / (m + spec);
+            # the same F0 program at every metallic level of a map), and mixed the lobe keeps the
+            # curve of the mean F0 (the core has no program beside a rise).
+            c.metal_texture = _clamped_color(_program_of(tex, base))
             c.metal_tint = np.asarray(tint, np.float64)
             if spec == 0:
                 c.glossy_texture = {"op": "metal", "color": _program_of(tex, base),
                                     "tint": [float(x) for x in tint]}
-                c.metal_texture = f0_program
             else:
-                k, rest = m / (m + spec), spec * f0_tint / (m + spec)
-                c.metal_texture = _plus(_times(f0_program, k), rest.tolist())
-                c.metal_layer = (k, rest, layer_fss)
+                c.metal_layer = (m / (m + spec), spec * f0_tint / (m + spec), layer_fss)
         return c
 
 

@@ -268,7 +268,7 @@ def partial_metal(f0, share, tint, rest, rest_fss, **kw):
 @pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
 def test_a_partly_metallic_textured_floor_equals_each_plain_lobe_on_its_half(method):
     """A Principled BSDF half metallic (share 0.4) on a textured base colour: its glossy lobe is the
-    metal of each hit's F0, recovered from the hit's colour 0.4 F0 + rest, beside the dielectric
+    metal of each hit's F0, from the program (the lobe's colour is 0.4 F0 + rest), beside the dielectric
     layer's rise (``glossy_metal_share``, ``glossy_metal_rest``).  Half by half, and to rounding, it
     renders as the floors of the plain rows of either colour; before, a glossy program could not
     carry the layer at all (the exporter took the metal's mean colour)."""
@@ -281,7 +281,7 @@ def test_a_partly_metallic_textured_floor_equals_each_plain_lobe_on_its_half(met
     half = {"op": "math", "operation": "GREATER_THAN",
             "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"},
             "b": 0.0}
-    colour = {"op": "mix_color", "fac": half, "a": rgb(share * other + rest), "b": rgb(share * F0 + rest)}
+    colour = {"op": "mix_color", "fac": half, "a": rgb(other), "b": rgb(F0)}
     theta = np.radians(70.0)
     images = []
     for spec in (partial_metal(F0, share, tint, rest, rest_fss, roughness=0.4),
@@ -337,7 +337,7 @@ def test_a_metallic_map_picks_each_points_material_level(method):
     (``bsdf.roughness_variants``)."""
     tint = np.array([1.0, 0.9, 0.8])
     share, rest, rest_fss = 0.4, 0.024 * np.array([1.0, 0.8, 0.6]), np.array([0.09, 0.08, 0.07])
-    first = {"name": "part", "glossy": 1.0, "roughness": 0.3, "glossy_program": rgb(share * F0 + rest),
+    first = {"name": "part", "glossy": 1.0, "roughness": 0.3, "glossy_program": rgb(F0),
              "glossy_metal_tint": tint, "glossy_metal_share": share, "glossy_metal_rest": rest,
              "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": (1.0 - share) - rest,
              "glossy_multiscatter": rest_fss, "diffuse": [0.5, 0.3, 0.2], "diffuse_weight": 0.6,
