@@ -34,12 +34,15 @@ level s, base colour B):
     scales by 1 - the layer's albedo at the view direction (``diffuse_layer``; Cycles'
     ``closure_layering_weight``).  A Mix with other shaders keeps the share of the diffuse
     under the layer (``diffuse_layer_weight``).
+  A texture on m (a metallic map) or else on t gives the node at ``MAP_LEVELS`` values of it,
+  which the core picks from point by point (``Closure.levels``, ``Materials.level_program``).
 Metals (Metallic node, Principled metallic) are a glossy lobe whose colour follows the metal's
 Fresnel curve by the microfacet angle (``Materials.glossy_metal_rise`` and ``glossy_metal_dip``):
 the F82-tint model (base colour, edge tint; Principled uses its Specular Tint), or that model
 through the physical conductor's reflectance face on and at cos = 1/7 (``conductor_f82``).  A
 texture on a metal's base colour makes its F0 a program beside its edge tint
-(``Materials.glossy_metal_tint``), and the core takes the curve of each hit's F0; a textured edge
+(``Materials.glossy_metal_tint``), and the core takes the curve of each hit's F0 (beside the
+specular layer of a Principled partly metallic: ``glossy_metal_share``); a textured edge
 tint, or such a metal sharing the glossy lobe (a Mix with another glossy shader, or by a varying
 factor), makes its colour a program of the curve's mean at each point (``metal`` in
 ``core/procedural.py``), without the curve.
@@ -1443,20 +1446,22 @@ class NodeWalker:
     def _principled_opaque(self, node, stack, fixed=None):
         """Principled BSDF without its Alpha.  Its Metallic and Transmission Weight mix its metal, glass and
         dielectric parts linearly (Cycles), so a texture on either makes it a Mix of the node at 0
-        and at 1 by that texture (``Closure.combine``: exact for the diffuse colour).  A metallic
-        map also gives the node at ``METALLIC_LEVELS`` values of Metallic, of which the core picks
-        the nearest at each point (``Closure.levels``); ``fixed`` holds the values so set."""
+        and at 1 by that texture (``Closure.combine``: exact for the diffuse colour), and also gives
+        the node at ``MAP_LEVELS`` values of it, of which the core picks the nearest at each point
+        (``Closure.levels``; a metallic map, or a transmission map where Metallic is constant:
+        with both, each level of Metallic mixes its transmission by the map's mean, noted);
+        ``fixed`` holds the values so set."""
         inp = node.inputs
         fixed = fixed or {}
         for name in ("Metallic", "Transmission Weight"):
             f = self.programs.expression(inp[name], stack, FLOAT)
             if name not in fixed and procedural.varies(f):
                 at = [self._principled_opaque(node, stack, {**fixed, name: v}) for v in (0.0, 1.0)]
-                if name != "Metallic":
+                if fixed:                   # within a metallic map's levels: the mix, noted
                     return self._masked_mix(node, name, f, *at)
                 c = self._masked_mix(node, name, f, *at, noted=False)
                 c.levels = (_clamp01(f), [self._principled_opaque(node, stack, {**fixed, name: float(v)})
-                                          for v in np.linspace(0.0, 1.0, METALLIC_LEVELS)])
+                                          for v in np.linspace(0.0, 1.0, MAP_LEVELS)])
                 return c
         base, tex = self.color(inp["Base Color"], stack)
         m = fixed.get("Metallic")
@@ -1558,9 +1563,10 @@ class NodeWalker:
 LIGHT_PATH_RAYS = {"Is Camera Ray": VISIBLE_CAMERA, "Is Glossy Ray": VISIBLE_GLOSSY,
                    "Is Transmission Ray": VISIBLE_TRANSMISSION}
 
-# A Principled BSDF's metallic map picks, point by point, the nearest of this many values of
-# Metallic, steps of 1/16 (``Closure.levels``; each costs the core a material row and its tables).
-METALLIC_LEVELS = 17
+# A Principled BSDF's metallic (or transmission) map picks, point by point, the nearest of this many
+# values of Metallic, steps of 1/16 (``Closure.levels``; each costs the core a material row and its
+# tables).
+MAP_LEVELS = 17
 
 # Nodes whose output may be a Fresnel curve of the view direction (NodeWalker._fresnel_factor).
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")

@@ -692,6 +692,31 @@ def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
     assert any("'Mix Shader'" in w and "two shaders with metallic maps" in w for w in ex.warnings), ex.warnings
 
 
+def test_a_transmission_map_picks_levels_and_beside_a_metallic_map_takes_its_mean(scene):
+    """Transmission Weight from a checker: levels of it as for a metallic map (glass at 1, the
+    dielectric at 0).  With a metallic map too, the levels are Metallic's and each mixes its
+    transmission by the map's mean, noted; no level has levels of its own."""
+    mat = principled("Pane", **{"Base Color": (0.8, 0.8, 0.8, 1.0)})
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Transmission Weight"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 17 and row["dielectric_weight"] == pytest.approx(0.5, abs=0.2)
+    first, last = (material_row(ex.scene, f"Pane (level {k}/16)") for k in (0, 16))
+    assert first["dielectric_weight"] == 0 and first["diffuse_weight"] == pytest.approx(1.0)
+    assert last["dielectric_weight"] == pytest.approx(1.0) and last["diffuse_weight"] == 0
+    assert not any("'Pane'" in w and "Transmission" in w for w in ex.warnings), ex.warnings
+    gradient = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(gradient.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Metallic"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    mats = ex.scene.materials
+    assert row["level_count"] == 17 and (mats.level_program >= 0).sum() == 1
+    first = material_row(ex.scene, "Pane (level 0/16)")
+    assert 0.2 < first["dielectric_weight"] < 0.8 and first["glossy_metal_rise"].sum() == 0
+    assert any("'Pane'" in w and "varying Transmission Weight" in w for w in ex.warnings), ex.warnings
+
+
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
     mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
     nt = mat.node_tree
