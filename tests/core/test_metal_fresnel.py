@@ -363,9 +363,17 @@ def test_a_metallic_map_picks_each_points_material_level(method):
     np.testing.assert_allclose(picked[:, w:], b[:, w:], rtol=1e-5)
 
 
-def test_material_levels_are_validated():
+def test_material_levels_are_validated(tmp_path):
     base = {"name": "picks", "diffuse": 0.5, "level_program": HALF, "level_first": 1, "level_count": 2}
     plain = {"name": "plain", "diffuse": 0.3}
+    part = {"name": "part", "glossy": 1.0, "glossy_program": rgb(F0), "glossy_metal_tint": TINT,
+            "glossy_metal_share": 0.5, "glossy_metal_rest": 0.02, "glossy_fresnel_ior": 1.5,
+            "glossy_fresnel_rise": 0.48}
+    scene = with_one_object(floor_scene(plain, 0.5)).replace(materials=Materials.build([base, plain, part]))
+    scene.validate().save(tmp_path / "levels.npz")
+    back = type(scene).load(tmp_path / "levels.npz").materials
+    for name in ("level_program", "level_first", "level_count", "glossy_metal_share", "glossy_metal_rest"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(scene.materials, name))
     for specs in ([base, plain], [dict(base, level_count=1), plain, plain], [dict(base, level_first=-1), plain, plain],
                   [base, plain, dict(base, level_first=0)]):
         scene = floor_scene(plain, 0.5)
