@@ -196,8 +196,9 @@ class Closure:
             # Averaged as the constants, by the glossy weights (a map with a constant, or two maps).
             terms = [(c.roughness_term(), w[GLOSSY]) for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
             out.roughness_texture = _float_average(terms) if terms else None
-        out.fresnel_ior = _weighted(self.fresnel_ior, other.fresnel_ior, wa[GLOSSY] * (self.fresnel_ior > 0),
-                                    wb[GLOSSY] * (other.fresnel_ior > 0))
+        rising = (wa[GLOSSY] * (self.fresnel_ior > 0), wb[GLOSSY] * (other.fresnel_ior > 0))
+        # (no rising glossy part left, e.g. one side at factor 0: none)
+        out.fresnel_ior = _weighted(self.fresnel_ior, other.fresnel_ior, *rising) if sum(rising) > 0 else 0.0
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
@@ -1211,7 +1212,14 @@ class NodeWalker:
             return dataclasses.replace(a, hidden_rays=a.hidden_rays | ray)
         f = self.programs.expression(node.inputs[0], stack, FLOAT)
         if procedural.varies(f):
-            return self._masked_mix(node, "Fac", f, a, b)
+            exact = a.same_except_diffuse(b) or a.only_transparent or b.only_transparent
+            if exact or a.levels is not None or b.levels is not None:
+                return self._masked_mix(node, "Fac", f, a, b)
+            # A mask between shaders that differ beyond their diffuse colours: levels of the factor,
+            # as a Principled's metallic map (the mix by the mask's mean for what comes before shading).
+            c = self._masked_mix(node, "Fac", f, a, b, noted=False)
+            c.levels = (_clamp01(f), [a.combine(b, 1.0 - k, k) for k in np.linspace(0.0, 1.0, MAP_LEVELS)])
+            return c
         fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
         if 0.0 < fac < 1.0:
             self._note_mixed(node, a, b)

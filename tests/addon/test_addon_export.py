@@ -626,6 +626,43 @@ def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact(scene):
     assert not [w for w in ex.warnings if "'Masked'" in w], ex.warnings
 
 
+def test_a_mask_between_a_metal_and_a_paint_picks_levels_of_the_mask(scene):
+    """Mix Shader(Principled paint, Principled metal) by a gradient: they differ beyond their diffuse
+    colours, so the mix gets levels of the factor (``Closure.levels``), each a constant mix: level 0
+    the paint, level 16 the metal (its curve), level 8 half of each; no note.  A Principled with a
+    metallic map on one side keeps its own levels and the mask mixes by its mean, noted."""
+    from amcmcppm.core import procedural
+    mat = bpy.data.materials.new("Rust")
+    nt = mat.node_tree
+    paint = nt.nodes["Principled BSDF"]
+    paint.inputs["Base Color"].default_value = (0.1, 0.2, 0.6, 1.0)
+    metal = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    metal.inputs["Metallic"].default_value = 1.0
+    metal.inputs["Base Color"].default_value = (0.9, 0.6, 0.3, 1.0)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(paint.outputs[0], mix.inputs[1])
+    nt.links.new(metal.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 17 and row["level_program"] >= 0
+    first, middle, last = (material_row(ex.scene, f"Rust (level {k}/16)") for k in (0, 8, 16))
+    assert first["diffuse_color"] == pytest.approx([0.1, 0.2, 0.6]) and first["diffuse_weight"] == 1.0
+    assert not first["glossy_metal_rise"].any() and first["glossy_fresnel_ior"] == pytest.approx(1.5)
+    assert last["diffuse_weight"] == 0 and last["glossy_color"] == pytest.approx([0.9, 0.6, 0.3])
+    np.testing.assert_allclose(last["glossy_metal_rise"], [0.1, 0.4, 0.7], rtol=1e-5)
+    assert middle["diffuse_weight"] == pytest.approx(0.5)
+    np.testing.assert_allclose(middle["glossy_metal_rise"], [0.05, 0.2, 0.35], rtol=1e-5)
+    assert not [w for w in ex.warnings if "'Rust'" in w], ex.warnings
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], metal.inputs["Metallic"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    mats = ex.scene.materials
+    assert (mats.level_program >= 0).sum() == 1
+    assert "noise" in procedural.to_json(mats.programs[mats.level_program[mats.names.index("Rust")]])
+    assert any("'Rust'" in w and "varying Fac" in w for w in ex.warnings), ex.warnings
+
+
 def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_noted(scene):
     mat = bs.diffuse("Painted")
     nt = mat.node_tree

@@ -489,11 +489,13 @@ def test_sky_texture_world_matches_cycles(addon, tmp_path, sky_type):
 
 @pytest.mark.parametrize("shader", ["glossy_checker", pytest.param("metal_noise", marks=pytest.mark.slow),
                                     pytest.param("part_metal_noise", marks=pytest.mark.slow),
-                                    pytest.param("metallic_map", marks=pytest.mark.slow)])
+                                    pytest.param("metallic_map", marks=pytest.mark.slow),
+                                    pytest.param("masked_metal", marks=pytest.mark.slow)])
 def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
     """The corner's floor as a Glossy BSDF (roughness 0.3) coloured by a checker, or a Principled
     metal whose base colour is a noise through a ramp, half metallic on that base, or with a
-    metallic map (another noise): the glossy colour varies point by point
+    metallic map (another noise), or that noise as the mask of a Mix Shader of the metal and a
+    paint: the glossy colour varies point by point
     (``Materials.glossy_program``; the metal's F82 curve of its base colour per point,
     ``Materials.glossy_metal_tint``, beside the dielectric layer, ``glossy_metal_share``; the
     map's levels, ``Materials.level_program``)."""
@@ -514,14 +516,26 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
             ramp.color_ramp.elements[1].color = (0.9, 0.9, 0.92, 1.0)
             nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
             nt.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
-            if shader == "metallic_map":
-                # Metallic from a finer noise, 0.35-0.65 stretched to 0-1: metal, paint and between.
+            if shader in ("metallic_map", "masked_metal"):
+                # Metallic from a finer noise, 0.35-0.65 stretched to 0-1: metal, paint and between;
+                # or that noise as the mask of a Mix Shader of the metal and a blue paint of its roughness.
                 spots = nt.nodes.new("ShaderNodeTexNoise")
                 spots.inputs["Scale"].default_value = 2.5
                 stretch = nt.nodes.new("ShaderNodeMapRange")
                 stretch.inputs["From Min"].default_value, stretch.inputs["From Max"].default_value = 0.35, 0.65
                 nt.links.new(spots.outputs["Fac"], stretch.inputs["Value"])
-                nt.links.new(stretch.outputs["Result"], bsdf.inputs["Metallic"])
+                if shader == "metallic_map":
+                    nt.links.new(stretch.outputs["Result"], bsdf.inputs["Metallic"])
+                else:
+                    bsdf.inputs["Metallic"].default_value = 1.0
+                    paint = nt.nodes.new("ShaderNodeBsdfPrincipled")
+                    paint.inputs["Base Color"].default_value = (0.1, 0.25, 0.7, 1.0)
+                    paint.inputs["Roughness"].default_value = 0.35
+                    mix = nt.nodes.new("ShaderNodeMixShader")
+                    nt.links.new(stretch.outputs["Result"], mix.inputs["Fac"])
+                    nt.links.new(paint.outputs[0], mix.inputs[1])
+                    nt.links.new(bsdf.outputs[0], mix.inputs[2])
+                    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
     # The copper-to-silver metal with its F82 curve per point: 1.002 / 1.001 / 1.000, bands
@@ -532,6 +546,10 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
     # 0.994, correlation 0.998 (before, the metal's mean colour and curve: 0.991 / 1.005 / 1.030).
     # The metallic map (levels of Metallic picked point by point): 0.994 / 0.994 / 0.994, bands
     # 0.979-1.000, correlation 0.997; before, the glossy lobe at the map's mean share: 1.23 in all.
+    # The mask between the metal and a paint (levels of the Mix Shader's factor): 0.995 / 1.003 /
+    # 1.006, bands 0.983-1.023, correlation 0.996; before, the mask's mean for all but the diffuse:
+    # 1.52 / 1.38 / 1.20.  With the paint at roughness 0.6 instead, the levels between take one lobe
+    # of the weighted roughness: 1.025 / 1.020 / 1.011, bands 0.88-1.21 (a dimmer, wider highlight).
     c, o = assert_channels_match(f"textured glossy, {shader}", cycles, ours)
     assert pixel_correlation(f"textured glossy, {shader}", c, o) > (0.95 if shader == "glossy_checker" else 0.99)
 
