@@ -172,6 +172,25 @@ def textured_metal(roughness, f0_program, tint=TINT, **kw):
             "glossy_metal_tint": tint, **kw}
 
 
+# A float program: 1 on the floor's x > 0 half (object coordinates), 0 on the rest.
+HALF = {"op": "math", "operation": "GREATER_THAN",
+        "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}, "b": 0.0}
+
+
+def floor_images(material_lists, theta, method):
+    """The (h, w, 3) images of the floor at ``theta`` of each list of material specs (the first one
+    the floor's), rendered with the same seed by ``method``."""
+    images = []
+    for specs in material_lists:
+        scene = with_one_object(floor_scene(metal(0.4), theta)).replace(
+            materials=Materials.build(specs)).validate()
+        res = render(scene, RenderSettings(method=method, passes=3, photons_per_pass=20000, workers=1,
+                                           seed=5, chains=1024))
+        assert np.isfinite(res.image).all()
+        images.append(res.image[..., :3])
+    return images
+
+
 def rgb(colour):
     """A program of the constant ``colour``."""
     c = [float(x) for x in colour]
@@ -227,24 +246,13 @@ def test_a_textured_metal_floor_equals_each_metal_on_its_half(method):
     curve's mean colour per point instead (as before) the halves' channels came out 0.95 to 2.4
     times these at 70 degrees (the blue of F0 0.1 most)."""
     other = np.array([0.2, 0.6, 0.95])
-    half = {"op": "math", "operation": "GREATER_THAN",
-            "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"},
-            "b": 0.0}
-    program = {"op": "mix_color", "fac": half, "a": rgb(other), "b": rgb(F0)}
-    theta = np.radians(70.0)
-    images = []
-    for spec in (metal(0.4, f0=F0, glossy_multiscatter=metal_fresnel(F0, TINT)),
-                 metal(0.4, f0=other, glossy_multiscatter=metal_fresnel(other, TINT)),
-                 textured_metal(0.4, program, glossy_multiscatter=1.0),
-                 dict(textured_metal(0.4, {"op": "metal", "color": program, "tint": list(TINT)}),
-                      glossy_metal_tint=-1.0)):
-        scene = with_one_object(floor_scene(metal(0.4), theta)).replace(
-            materials=Materials.build([spec])).validate()
-        res = render(scene, RenderSettings(method=method, passes=3, photons_per_pass=20000, workers=1,
-                                           seed=5, chains=1024))
-        assert np.isfinite(res.image).all()
-        images.append(res.image[..., :3])
-    first, second, mapped, means = images
+    program = {"op": "mix_color", "fac": HALF, "a": rgb(other), "b": rgb(F0)}
+    first, second, mapped, means = floor_images(
+        [[metal(0.4, f0=F0, glossy_multiscatter=metal_fresnel(F0, TINT))],
+         [metal(0.4, f0=other, glossy_multiscatter=metal_fresnel(other, TINT))],
+         [textured_metal(0.4, program, glossy_multiscatter=1.0)],
+         [dict(textured_metal(0.4, {"op": "metal", "color": program, "tint": list(TINT)}), glossy_metal_tint=-1.0)]],
+        np.radians(70.0), method)
     w = mapped.shape[1] // 2
     assert np.abs(first - second).max() > 0.05
     np.testing.assert_allclose(mapped[:, w:], first[:, w:], rtol=1e-5)
@@ -278,25 +286,15 @@ def test_a_partly_metallic_textured_floor_equals_each_plain_lobe_on_its_half(met
         assert (f82(np.linspace(0, 1, 201), f0, f82_b(f0, tint)) > 0).all()
     share, f0t = 0.4, 0.04 * np.array([1.0, 0.8, 0.6])
     rest, rest_fss = (1.0 - share) * f0t, np.array([0.09, 0.08, 0.07])
-    half = {"op": "math", "operation": "GREATER_THAN",
-            "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"},
-            "b": 0.0}
-    colour = {"op": "mix_color", "fac": half, "a": rgb(other), "b": rgb(F0)}
-    theta = np.radians(70.0)
-    images = []
-    for spec in (partial_metal(F0, share, tint, rest, rest_fss, roughness=0.4),
-                 partial_metal(other, share, tint, rest, rest_fss, roughness=0.4),
-                 {"name": "mapped", "glossy": 1.0, "roughness": 0.4, "glossy_program": colour,
-                  "glossy_metal_tint": tint, "glossy_metal_share": share, "glossy_metal_rest": rest,
-                  "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": (1.0 - share) - rest,
-                  "glossy_multiscatter": rest_fss}):
-        scene = with_one_object(floor_scene(metal(0.4), theta)).replace(
-            materials=Materials.build([spec])).validate()
-        res = render(scene, RenderSettings(method=method, passes=3, photons_per_pass=20000, workers=1,
-                                           seed=5, chains=1024))
-        assert np.isfinite(res.image).all()
-        images.append(res.image[..., :3])
-    first, second, mapped = images
+    colour = {"op": "mix_color", "fac": HALF, "a": rgb(other), "b": rgb(F0)}
+    first, second, mapped = floor_images(
+        [[partial_metal(F0, share, tint, rest, rest_fss, roughness=0.4)],
+         [partial_metal(other, share, tint, rest, rest_fss, roughness=0.4)],
+         [{"name": "mapped", "glossy": 1.0, "roughness": 0.4, "glossy_program": colour,
+           "glossy_metal_tint": tint, "glossy_metal_share": share, "glossy_metal_rest": rest,
+           "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": (1.0 - share) - rest,
+           "glossy_multiscatter": rest_fss}]],
+        np.radians(70.0), method)
     w = mapped.shape[1] // 2
     assert np.abs(first - second).max() > 0.02
     np.testing.assert_allclose(mapped[:, w:], first[:, w:], rtol=1e-5)
@@ -324,9 +322,6 @@ def test_a_partly_metallic_lobe_recovers_its_metal_and_refuses_bad_shares():
             floor_scene(dict(spec, **bad), 0.5)
 
 
-HALF = {"op": "math", "operation": "GREATER_THAN",
-        "a": {"op": "separate", "vector": {"op": "attribute", "name": "object"}, "output": "X"}, "b": 0.0}
-
 
 @pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
 def test_a_metallic_map_picks_each_points_material_level(method):
@@ -345,18 +340,8 @@ def test_a_metallic_map_picks_each_points_material_level(method):
     second = dict(metal(0.375, glossy_multiscatter=metal_fresnel(F0, TINT)),
                   roughness_program={"op": "math", "operation": "ADD", "a": 0.0, "b": 0.375},
                   roughness=0.9)
-    theta = np.radians(60.0)
-    images = []
-    for specs in ([first], [second],
-                  [{"name": "picks", "diffuse": 0.5, "level_program": HALF, "level_first": 1, "level_count": 2},
-                   first, second]):
-        scene = with_one_object(floor_scene(metal(0.4), theta)).replace(
-            materials=Materials.build(specs)).validate()
-        res = render(scene, RenderSettings(method=method, passes=3, photons_per_pass=20000, workers=1,
-                                           seed=5, chains=1024))
-        assert np.isfinite(res.image).all()
-        images.append(res.image[..., :3])
-    a, b, picked = images
+    picks = {"name": "picks", "diffuse": 0.5, "level_program": HALF, "level_first": 1, "level_count": 2}
+    a, b, picked = floor_images([[first], [second], [picks, first, second]], np.radians(60.0), method)
     w = picked.shape[1] // 2
     assert np.abs(a - b).max() > 0.05
     np.testing.assert_allclose(picked[:, :w], a[:, :w], rtol=1e-5)      # x < 0: level 0
