@@ -110,7 +110,8 @@ def principled_at(metallic, name):
     if k >= 1.0:
         spec.update(glossy_fresnel_ior=0.0, glossy_fresnel_rise=0.0, glossy_multiscatter=1.0)
     if k > 0:
-        f0 = {"op": "mix_color", "fac": 0.0, "a": COPPER_TO_SILVER, "b": [0.0, 0.0, 0.0], "clamp_result": True}
+        f0 = {"op": "mix_color", "fac": 0.0, "a": COPPER_TO_SILVER, "b": [0.0, 0.0, 0.0],
+              "clamp_result": True}
         spec.update(glossy_program=f0, glossy_metal_tint=METAL_TINT)
         if k < 1.0:
             spec.update(glossy_metal_share=k, glossy_metal_rest=(1.0 - k) * 0.04)
@@ -127,7 +128,8 @@ def metallic_map(levels):
         name = specs[0].get("name", "white")
         mean = principled_at(0.5, name)          # (the map's mean: about 0.5)
         mean.update(glossy=0.5 * 0.04 + 0.5 * 0.7, glossy_fresnel_rise=0.48, glossy_multiscatter=0.5)
-        del mean["glossy_program"], mean["glossy_metal_tint"], mean["glossy_metal_share"], mean["glossy_metal_rest"]
+        for key in ("glossy_program", "glossy_metal_tint", "glossy_metal_share", "glossy_metal_rest"):
+            del mean[key]
         specs[0] = mean
         if levels:
             first = len(specs)

@@ -223,7 +223,7 @@ class MaterialTable:
     hit_metal_lobe: np.ndarray = None       # (M,) int64 GLOSSY, or MIRROR where a sharp glossy merged
     hit_metal_dip: np.ndarray = None        # (M, 3) float64 the dip per unit Schlick value at 1/7 (below)
     hit_metal_share: np.ndarray = None      # (M,) float64 the metal's share k of such a lobe (1: all of it)
-    hit_metal_rest: np.ndarray = None       # (M, 3) float64 the rest's colour: the lobe's colour is k F0 + rest
+    hit_metal_rest: np.ndarray = None       # (M, 3) float64 the rest's colour (the lobe's: k F0 + rest)
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":

@@ -106,9 +106,9 @@ class Materials:
       a dielectric layer (a Principled BSDF partly metallic with a textured base colour): the
       colour and program then give F0, and the lobe's colour at a hit is k F0 +
       ``glossy_metal_rest`` (the layer's normal-incidence colour); it reflects k times the
-      metal's curve of that F0 plus the rest and its Fresnel rise (``glossy_fresnel_ior``, ``glossy_fresnel_rise``), and
-      ``glossy_multiscatter`` is then the rest's F_ss (the two F_ss are weighted by the parts'
-      mean reflectances).
+      metal's curve of that F0 plus the rest and its Fresnel rise (``glossy_fresnel_ior``,
+      ``glossy_fresnel_rise``), and ``glossy_multiscatter`` is then the rest's F_ss (the two
+      F_ss are weighted by the parts' mean reflectances).
       ``glossy_stretch`` s != 1 makes the lobe anisotropic (Blender's Anisotropy): alpha s along
       a tangent and alpha / s across it (each at most 1), the tangent from ``glossy_tangent``
       (``bsdf.TANGENT_*``: around the object's X, Y or Z axis (Z, 2, is Blender's default) from
@@ -1111,8 +1111,8 @@ class Scene:
                                                                 | (mats.glossy_metal_dip != 0).any(axis=1)))
         if len(rising):
             fail(f"material '{mats.names[rising[0]]}': a glossy_program cannot vary a glossy lobe with a "
-                 "Fresnel rise (glossy_fresnel_ior, glossy_metal_rise, glossy_metal_dip) unless it is a metal "
-                 "beside a dielectric layer (glossy_metal_tint, glossy_metal_share < 1)")
+                 "Fresnel rise (glossy_fresnel_ior, glossy_metal_rise, glossy_metal_dip) unless it is a "
+                 "metal beside a dielectric layer (glossy_metal_tint, glossy_metal_share < 1)")
         coords = {"generated": self.object_ids, "object": self.object_ids, "normal": self.object_ids,
                   "object_location": self.object_ids, "object_color": self.object_ids,
                   "object_info": self.object_ids,

@@ -855,7 +855,8 @@ class MaterialExporter:
         for i in ids:
             s = self._specs[i]
             out.append(i)
-            out.extend(range(s["level_first"], s["level_first"] + s["level_count"]) if "level_first" in s else ())
+            if "level_first" in s:
+                out.extend(range(s["level_first"], s["level_first"] + s["level_count"]))
         return out
 
 

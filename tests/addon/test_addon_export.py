@@ -708,7 +708,8 @@ def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
     assert [r["glossy_weight"] for r in levels] == pytest.approx([1.0, 1.0, 1.0])
     assert levels[0]["diffuse_color"] == pytest.approx([0.8, 0.4, 0.2])
     assert not levels[0]["glossy_metal_rise"].any() and levels[0]["glossy_fresnel_ior"] == pytest.approx(1.5)
-    assert levels[2]["glossy_color"] == pytest.approx([0.8, 0.4, 0.2]) and levels[2]["glossy_fresnel_ior"] == 0
+    assert levels[2]["glossy_color"] == pytest.approx([0.8, 0.4, 0.2])
+    assert levels[2]["glossy_fresnel_ior"] == 0
     np.testing.assert_allclose(levels[2]["glossy_metal_rise"], [0.2, 0.6, 0.8], rtol=1e-5)
     np.testing.assert_allclose(levels[1]["glossy_metal_rise"], [0.1, 0.3, 0.4], rtol=1e-5)   # half the lobe
     assert all(r["level_program"] == -1 for r in levels)
@@ -726,7 +727,8 @@ def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
     bpy.data.objects.remove(bpy.data.objects["Plane"])
     row, ex = export_material(mat)
     assert row["level_program"] == -1 and row["level_count"] == 0
-    assert any("'Mix Shader'" in w and "two shaders with metallic maps" in w for w in ex.warnings), ex.warnings
+    assert any("'Mix Shader'" in w and "two shaders with metallic maps" in w
+               for w in ex.warnings), ex.warnings
 
 
 def test_a_transmission_map_picks_levels_and_beside_a_metallic_map_takes_its_mean(scene):

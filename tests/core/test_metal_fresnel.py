@@ -251,7 +251,8 @@ def test_a_textured_metal_floor_equals_each_metal_on_its_half(method):
         [[metal(0.4, f0=F0, glossy_multiscatter=metal_fresnel(F0, TINT))],
          [metal(0.4, f0=other, glossy_multiscatter=metal_fresnel(other, TINT))],
          [textured_metal(0.4, program, glossy_multiscatter=1.0)],
-         [dict(textured_metal(0.4, {"op": "metal", "color": program, "tint": list(TINT)}), glossy_metal_tint=-1.0)]],
+         [dict(textured_metal(0.4, {"op": "metal", "color": program, "tint": list(TINT)}),
+               glossy_metal_tint=-1.0)]],
         np.radians(70.0), method)
     w = mapped.shape[1] // 2
     assert np.abs(first - second).max() > 0.05
@@ -312,7 +313,8 @@ def test_a_partly_metallic_lobe_recovers_its_metal_and_refuses_bad_shares():
     c = np.array([1.0, 0.5, 1.0 / 7.0, 0.05])
     ids = np.zeros(len(c), np.int64)
     base = np.tile(share * F0 + rest, (len(c), 1))
-    expected = rest + share * f82(c, F0, f82_b(F0, TINT)) + 0.5 * smp.fresnel_rise(c, np.full(len(c), 1.5))[:, None]
+    rise = smp.fresnel_rise(c, np.full(len(c), 1.5))[:, None]
+    expected = rest + share * f82(c, F0, f82_b(F0, TINT)) + 0.5 * rise
     np.testing.assert_allclose(base + table.fresnel_color(ids, 1, c, base), expected, atol=1e-7)
     score = lobe_scores(table, ids[:1], np.stack([np.zeros(3), base[0], np.zeros(3), np.zeros(3)])[None])
     assert score[0, 1] > smp.luminance(share * metal_fresnel(F0, TINT) + rest)
@@ -359,8 +361,8 @@ def test_material_levels_are_validated(tmp_path):
     back = type(scene).load(tmp_path / "levels.npz").materials
     for name in ("level_program", "level_first", "level_count", "glossy_metal_share", "glossy_metal_rest"):
         np.testing.assert_array_equal(getattr(back, name), getattr(scene.materials, name))
-    for specs in ([base, plain], [dict(base, level_count=1), plain, plain], [dict(base, level_first=-1), plain, plain],
-                  [base, plain, dict(base, level_first=0)]):
+    for specs in ([base, plain], [dict(base, level_count=1), plain, plain],
+                  [dict(base, level_first=-1), plain, plain], [base, plain, dict(base, level_first=0)]):
         scene = floor_scene(plain, 0.5)
         with pytest.raises(SceneError, match="level_first and level_count"):
             with_one_object(scene).replace(materials=Materials.build(specs)).validate()
