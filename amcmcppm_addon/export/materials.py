@@ -127,8 +127,9 @@ class Closure:
     metal_layer: tuple = None       # (share, rest colour (3,), rest F_ss (3,)) of such a metal beside a
     #                                 dielectric layer in one glossy lobe (Materials.glossy_metal_share)
     levels: tuple = None            # (float program in [0, 1], [Closure]) the closures a map picks from
-    #                                 point by point (a metallic map, Materials.level_program); this
-    #                                 closure is then their mix by the map's mean
+    #                                 point by point (a metallic or transmission map, a Mix Shader's
+    #                                 mask; Materials.level_program); this closure is their mix by the
+    #                                 map's mean
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
@@ -1252,13 +1253,14 @@ class NodeWalker:
     def _note_mixed(self, node, a, b):
         """Note a mix of shaders with different coats: the core has one coat per material, which
         then lies over both (weighted), where Cycles coats only its own Principled BSDF; and one of
-        two shaders with metallic maps, whose levels (``Closure.levels``) do not mix."""
+        two shaders that both have levels (``Closure.levels``: metallic or transmission maps, masks),
+        which do not mix."""
         if not (a.same_coat(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': mixes shaders with different coats; one coat (weighted) "
                       "covers both")
         if a.levels is not None and b.levels is not None:
-            self.note(f"'{node.name}': mixes two shaders with metallic maps; their metal and specular "
-                      "parts take the maps' means")
+            self.note(f"'{node.name}': mixes two shaders that both vary by a map (metallic, transmission or "
+                      "a mask); their parts other than the diffuse take the maps' means")
 
     def _diffuse(self, node, stack):
         """Diffuse BSDF: Lambert, or with a Roughness Cycles' rough diffuse (Oren-Nayar)."""

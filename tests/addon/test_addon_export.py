@@ -727,7 +727,7 @@ def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
     bpy.data.objects.remove(bpy.data.objects["Plane"])
     row, ex = export_material(mat)
     assert row["level_program"] == -1 and row["level_count"] == 0
-    assert any("'Mix Shader'" in w and "two shaders with metallic maps" in w
+    assert any("'Mix Shader'" in w and "two shaders that both vary by a map" in w
                for w in ex.warnings), ex.warnings
 
 
