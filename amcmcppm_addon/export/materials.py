@@ -41,10 +41,11 @@ Fresnel curve by the microfacet angle (``Materials.glossy_metal_rise`` and ``glo
 the F82-tint model (base colour, edge tint; Principled uses its Specular Tint), or that model
 through the physical conductor's reflectance face on and at cos = 1/7 (``conductor_f82``).  A
 texture on a metal's base colour makes its F0 a program beside its edge tint
-(``Materials.glossy_metal_tint``), and the core takes the curve of each hit's F0 (beside the
-specular layer of a Principled partly metallic: ``glossy_metal_share``); a textured edge
-tint, or such a metal sharing the glossy lobe (a Mix with another glossy shader, or by a varying
-factor), makes its colour a program of the curve's mean at each point (``metal`` in
+(``Materials.glossy_metal_tint``), and the core takes the curve of each hit's F0, also beside a
+plain glossy colour in the same lobe (the specular layer of a Principled partly metallic, a
+Glossy BSDF or a paint mixed in at a constant factor: ``glossy_metal_share``); a textured edge
+tint, or such a metal sharing the glossy lobe with another metal's curve or by a varying factor,
+makes its colour the curve's mean (at each point where it can: ``metal`` in
 ``core/procedural.py``), without the curve.
 Anisotropy (Glossy and Metallic Anisotropy, Principled's Anisotropic) becomes the core's
 ``glossy_stretch`` (alpha s along the tangent, alpha / s across it, Cycles' alphas; a texture on
@@ -227,10 +228,12 @@ class Closure:
         out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
         # A textured metal keeps its curve per point where it is the whole glossy lobe at one
         # weight; mixed with other glossy lobes or by a varying factor, its curve's mean per point.
-        glossy = [c for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
-        if fac is None and len(glossy) == 1 and glossy[0].metal_texture is not None:
-            out.metal_texture, out.metal_tint = glossy[0].metal_texture, glossy[0].metal_tint
-            out.metal_layer = glossy[0].metal_layer
+        glossy = [(c, f) for c, f, w in ((self, fa, wa), (other, fb, wb)) if w[GLOSSY] > 0]
+        if fac is None and len(glossy) == 1 and glossy[0][0].metal_texture is not None:
+            out.metal_texture, out.metal_tint = glossy[0][0].metal_texture, glossy[0][0].metal_tint
+            out.metal_layer = glossy[0][0].metal_layer
+        elif fac is None and len(glossy) == 2:
+            out._metal_beside(*glossy)
         out.emission_texture = self._mixed_emission(other, fa, fb, fac)
         out.dielectric_texture = self._mixed_lobe_program(other, wa, wb, DIELECTRIC, "dielectric_texture")
         out.translucent_texture = self._mixed_lobe_program(other, wa, wb, TRANSLUCENT, "translucent_texture")
@@ -241,6 +244,25 @@ class Closure:
         elif other.levels is not None and self.levels is None:
             out.levels = (other.levels[0], [self.combine(c, fa, fb, fac) for c in other.levels[1]])
         return out
+
+    def _metal_beside(self, a, b):
+        """Where one of the two glossy parts ``a`` and ``b`` ((closure, factor) each) mixed into this
+        closure is a whole textured metal and the other a plain glossy colour, constant, with or
+        without a dielectric rise (a paint; a Mix of metal and paint, or a mask's level between
+        them): keep the metal's curve per hit beside it (``metal_layer``: the metal's share of
+        the lobe, the paint's colour and F_ss per unit weight)."""
+        for (metal, fm), (paint, fp) in ((a, b), (b, a)):
+            if (metal.metal_texture is not None and metal.metal_layer is None and paint.metal_texture is None
+                    and paint.glossy_texture is None and not (paint.metal_rise.any() or paint.metal_dip.any())):
+                total = self.weight[GLOSSY]
+                share, colour = fm * metal.weight[GLOSSY] / total, paint.color[GLOSSY]
+                rest = fp * colour / total
+                if share > 1.0 - 1e-6 or (rest > 1.0).any():     # (the core's bounds: the mean then)
+                    return
+                fss = np.divide(paint.multiscatter, colour, out=np.zeros(3), where=colour > 0)
+                self.metal_texture, self.metal_tint = metal.metal_texture, metal.metal_tint
+                self.metal_layer = (share, rest, fss)
+                return
 
     @property
     def anisotropic(self) -> bool:

@@ -1431,9 +1431,10 @@ def test_metallic_node_gives_the_fresnel_curve_of_its_model(scene):
 def test_a_textured_metal_keeps_the_fresnel_curve_of_each_points_colour(scene):
     """A texture on a metal's base colour (Principled metallic 1, or the Metallic node's F82
     tint) makes its F0 a program, clamped to [0, 1], with the edge tint beside it
-    (``glossy_metal_tint``): the core takes the curve of each hit's F0.  Where the metal is not
-    the whole glossy lobe (a Mix with a Glossy BSDF, or by a varying factor) or its Edge Tint is
-    textured, the lobe's colour stays the program of the curve's mean per point (as before)."""
+    (``glossy_metal_tint``): the core takes the curve of each hit's F0, also where it shares the
+    lobe with a plain glossy colour (a Glossy BSDF, a Principled's specular layer, a paint mixed
+    in: ``glossy_metal_share``).  Where it shares the lobe with another metal's curve or mixes by
+    a varying factor, or its Edge Tint is textured, the lobe keeps the curve's mean."""
     def checkered(mat, socket, node_name):
         nt = mat.node_tree
         checker = nt.nodes.new("ShaderNodeTexChecker")
@@ -1466,10 +1467,19 @@ def test_a_textured_metal_keeps_the_fresnel_curve_of_each_points_colour(scene):
     bs.mix_in(half, "Principled BSDF", "ShaderNodeBsdfDiffuse", 0.5)
     row, ex = export_material(half)
     assert row["glossy_metal_tint"] == pytest.approx([1, 1, 1]) and row["glossy_weight"] == pytest.approx(0.5)
+    # Beside a plain Glossy BSDF (0.8 grey) at 0.5: the metal is half of the lobe, the grey the rest.
+    beside = checkered(principled("Beside", **{"Metallic": 1.0}), "Base Color", "Principled BSDF")
+    bs.mix_in(beside, "Principled BSDF", "ShaderNodeBsdfGlossy", 0.5)
+    row, ex = export_material(beside)
+    assert row["glossy_metal_tint"] == pytest.approx([1, 1, 1]) and row["glossy_metal_share"] == pytest.approx(0.5)
+    np.testing.assert_allclose(row["glossy_metal_rest"], [0.4] * 3, rtol=1e-5)
+    assert row["glossy_fresnel_ior"] == 0
+    # Beside a plain metal with its own curve: one lobe of the constant colours and that curve.
     shared = checkered(principled("Shared", **{"Metallic": 1.0}), "Base Color", "Principled BSDF")
-    bs.mix_in(shared, "Principled BSDF", "ShaderNodeBsdfGlossy", 0.5)
+    bs.mix_in(shared, "Principled BSDF", "ShaderNodeBsdfMetallic", 0.5)
     row, ex = export_material(shared)
-    assert row["glossy_metal_tint"] == pytest.approx([-1, -1, -1]) and row["glossy_program"] >= 0
+    assert row["glossy_metal_tint"] == pytest.approx([-1, -1, -1]) and row["glossy_program"] == -1
+    assert row["glossy_metal_rise"].any()
     # Partly metallic: the metal's share k of the lobe beside the dielectric layer, the program
     # F0 (the lobe's colour is k F0 + rest), the rest's F_ss (f0 + (1 - f0) times the rescaled
     # mean Fresnel), no row curve.
@@ -1486,6 +1496,16 @@ def test_a_textured_metal_keeps_the_fresnel_curve_of_each_points_colour(scene):
     assert ((row["glossy_multiscatter"] > f0t) & (row["glossy_multiscatter"] < 0.15)).all()
     p = program(row, ex)
     assert p["op"] == "mix_color" and p["clamp_result"] and p["a"]["op"] == "checker"
+    # A textured metal and a paint mixed at 0.3 (or a mask's level between them) as the same lobe.
+    mixed = checkered(principled("Mixed", **{"Metallic": 1.0, "Specular Tint": (*tint, 1)}), "Base Color",
+                      "Principled BSDF")
+    bs.mix_in(mixed, "Principled BSDF", "ShaderNodeBsdfPrincipled", 0.7)
+    row, ex = export_material(mixed)
+    assert row["glossy_metal_share"] == pytest.approx(0.3) and row["glossy_fresnel_ior"] == pytest.approx(1.5)
+    np.testing.assert_allclose(row["glossy_metal_rest"], [0.7 * 0.04] * 3, rtol=1e-5)
+    np.testing.assert_allclose(row["glossy_fresnel_rise"], [0.7 * 0.96] * 3, rtol=1e-5)
+    assert row["glossy_metal_tint"] == pytest.approx(tint) and program(row, ex)["clamp_result"]
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
     # The same under a varying factor (an alpha map): the curve of the mean F0, no program.
     nt = part.node_tree
     noise = nt.nodes.new("ShaderNodeTexNoise")
