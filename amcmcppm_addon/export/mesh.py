@@ -32,6 +32,9 @@ from .lights import ray_visibility
 # evaluated mesh as a separate MESH instance (as Cycles' ``object_is_geometry`` notes), so reading
 # them too would count their triangles twice.  Surfaces and metaballs are converted with to_mesh.
 GEOMETRY_TYPES = {"MESH", "SURFACE", "META"}
+# Object types Cycles renders that the core has no primitive for (named in a warning).
+UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud",
+                     "VOLUME": "a volume object (OpenVDB grids)"}
 
 
 @dataclass
@@ -113,7 +116,12 @@ class GeometryCollector:
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
         ob = inst.object
         if ob.type not in GEOMETRY_TYPES or not inst.show_self:
+            if ob.type in UNSUPPORTED_TYPES and inst.show_self:
+                self.log.warning(f"object '{ob.name}' is {UNSUPPORTED_TYPES[ob.type]}, which is not supported: "
+                                 "not rendered")
             return
+        if not inst.is_instance and any(_renders_hair(m) for m in ob.modifiers):
+            self.log.warning(f"object '{ob.name}': its hair particles are not supported: not rendered")
         key = _mesh_key(ob)
         if key not in self.meshes:
             self.meshes[key] = read_object_mesh(ob, self.log)
@@ -161,6 +169,14 @@ class GeometryCollector:
 
 # Every camera-path ray: a triangle seen by all of them needs no visibility array.
 ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+
+
+def _renders_hair(modifier) -> bool:
+    """Whether ``modifier`` is a particle system that renders as hair strands (Cycles' curves)."""
+    if modifier.type != "PARTICLE_SYSTEM" or not modifier.show_render:
+        return False
+    settings = modifier.particle_system.settings
+    return settings.type == "HAIR" and settings.render_type == "PATH"
 
 
 def object_info(inst):

@@ -1806,6 +1806,29 @@ def test_a_shadow_catcher_is_named_in_a_warning(scene):
     assert any("'Catcher' is a shadow catcher" in w for w in ex.warnings), ex.warnings
 
 
+def test_hair_point_clouds_and_volume_objects_are_named_in_warnings(scene):
+    """Object types Cycles renders without a mesh (hair curves, point clouds, OpenVDB volumes) and
+    a mesh's hair particles are named, not silently left out; the mesh itself still renders, and
+    a particle system switched off for renders is not named."""
+    for name, data in (("Fur", bpy.data.hair_curves.new("Fur")), ("Dots", bpy.data.pointclouds.new("Dots")),
+                       ("Smoke", bpy.data.volumes.new("Smoke"))):
+        bpy.context.scene.collection.objects.link(bpy.data.objects.new(name, data))
+    bpy.data.objects["Fur"].data.add_curves([4, 4])
+    hairy = bs.plane("Hairy")
+    hairy.modifiers.new("Hair", "PARTICLE_SYSTEM")
+    hairy.particle_systems[0].settings.type = "HAIR"
+    bald = bs.plane("Bald", location=(3, 0, 0))
+    bald.modifiers.new("Hair", "PARTICLE_SYSTEM").show_render = False
+    bald.particle_systems[0].settings.type = "HAIR"
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.triangle_count == 4
+    for expected in ("'Fur' is hair curves", "'Dots' is a point cloud", "'Smoke' is a volume object",
+                     "'Hairy': its hair particles"):
+        assert any(expected in w for w in ex.warnings), (expected, ex.warnings)
+    assert not any("'Bald'" in w for w in ex.warnings), ex.warnings
+
+
 def test_motion_blur_and_shadowless_lights_are_named_in_warnings(scene):
     bs.light("POINT", energy=10.0, name="Shadowless").data.use_shadow = False
     bs.camera()
