@@ -117,8 +117,8 @@ class GeometryCollector:
         ob = inst.object
         if ob.type not in GEOMETRY_TYPES or not inst.show_self:
             if ob.type in UNSUPPORTED_TYPES and inst.show_self:
-                self.log.warning(f"object '{ob.name}' is {UNSUPPORTED_TYPES[ob.type]}, which is not supported: "
-                                 "not rendered")
+                self.log.warning(f"object '{ob.name}' is {UNSUPPORTED_TYPES[ob.type]}, which is not "
+                                 "supported: not rendered")
             return
         if not inst.is_instance and any(_renders_hair(m) for m in ob.modifiers):
             self.log.warning(f"object '{ob.name}': its hair particles are not supported: not rendered")

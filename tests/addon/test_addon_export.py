@@ -1810,8 +1810,8 @@ def test_hair_point_clouds_and_volume_objects_are_named_in_warnings(scene):
     """Object types Cycles renders without a mesh (hair curves, point clouds, OpenVDB volumes) and
     a mesh's hair particles are named, not silently left out; the mesh itself still renders, and
     a particle system switched off for renders is not named."""
-    for name, data in (("Fur", bpy.data.hair_curves.new("Fur")), ("Dots", bpy.data.pointclouds.new("Dots")),
-                       ("Smoke", bpy.data.volumes.new("Smoke"))):
+    for name, data in (("Fur", bpy.data.hair_curves.new("Fur")),
+                       ("Dots", bpy.data.pointclouds.new("Dots")), ("Smoke", bpy.data.volumes.new("Smoke"))):
         bpy.context.scene.collection.objects.link(bpy.data.objects.new(name, data))
     bpy.data.objects["Fur"].data.add_curves([4, 4])
     hairy = bs.plane("Hairy")
