@@ -252,8 +252,9 @@ class Closure:
         them): keep the metal's curve per hit beside it (``metal_layer``: the metal's share of
         the lobe, the paint's colour and F_ss per unit weight)."""
         for (metal, fm), (paint, fp) in ((a, b), (b, a)):
+            curve = paint.metal_rise.any() or paint.metal_dip.any()
             if (metal.metal_texture is not None and metal.metal_layer is None and paint.metal_texture is None
-                    and paint.glossy_texture is None and not (paint.metal_rise.any() or paint.metal_dip.any())):
+                    and paint.glossy_texture is None and not curve):
                 total = self.weight[GLOSSY]
                 share, colour = fm * metal.weight[GLOSSY] / total, paint.color[GLOSSY]
                 rest = fp * colour / total

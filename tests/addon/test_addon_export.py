@@ -1471,7 +1471,8 @@ def test_a_textured_metal_keeps_the_fresnel_curve_of_each_points_colour(scene):
     beside = checkered(principled("Beside", **{"Metallic": 1.0}), "Base Color", "Principled BSDF")
     bs.mix_in(beside, "Principled BSDF", "ShaderNodeBsdfGlossy", 0.5)
     row, ex = export_material(beside)
-    assert row["glossy_metal_tint"] == pytest.approx([1, 1, 1]) and row["glossy_metal_share"] == pytest.approx(0.5)
+    assert row["glossy_metal_tint"] == pytest.approx([1, 1, 1])
+    assert row["glossy_metal_share"] == pytest.approx(0.5)
     np.testing.assert_allclose(row["glossy_metal_rest"], [0.4] * 3, rtol=1e-5)
     assert row["glossy_fresnel_ior"] == 0
     # Beside a plain metal with its own curve: one lobe of the constant colours and that curve.
