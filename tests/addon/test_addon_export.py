@@ -676,7 +676,7 @@ def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_not
     assert any("'Painted'" in w and "'Dirt'" in w for w in ex.warnings), ex.warnings
 
 
-def test_a_metallic_map_mixes_the_principled_at_zero_and_one(scene):
+def test_a_metallic_map_mixes_the_principled_at_zero_and_one_and_picks_its_levels(scene):
     """Metallic from a checker's Fac: the material's own row (what the core keeps for what is decided
     before shading) mixes the diffuse colour point by point (the base colour where the checker is
     0, nothing where it is 1, divided by the mean diffuse weight) and the rest by the mean metal
