@@ -16,8 +16,9 @@ silver, first with the F82 curve's mean per point as its colour (the ``metal`` p
 (``Materials.glossy_metal_tint``: the "map" row).  ``--kind metallic``: the white material becomes a
 Principled BSDF of that base colour and the roughness map whose Metallic is another noise, first as
 the exporter made it before stop 38 (one row: the node at 0 and 1 mixed by the map's mean, the diffuse
-colour point by point), then as now (that row picks one of 17 levels of Metallic at each hit,
-``Materials.level_program``; each level has the roughness map, so 17 x 65 copies).
+colour point by point), then as now (that row picks one of 17 levels of Metallic at each hit, one of
+the two around the map's value by the fraction between them, ``Materials.level_program``; each
+level has the roughness map, so 17 x 65 copies).
 
     python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy|metal|metallic]
         [--resolution 320 240]

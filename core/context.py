@@ -557,8 +557,9 @@ class RenderContext:
             out[sel] = np.clip(np.nan_to_num(value, nan=1.0), 0.0, 1.0)
         return out
 
-    def surface(self, prim_ids, b1, b2) -> Surface:
-        """Surface data at hits given by triangle ids and barycentrics."""
+    def surface(self, prim_ids, b1, b2, pick=None) -> Surface:
+        """Surface data at hits given by triangle ids and barycentrics; ``pick`` (n,) uniform
+        numbers choose the materials' levels (``Materials.level_program``; None: the nearest)."""
         a = self.accel
         pos = a.hit_positions(prim_ids, b1, b2)
         ng = a.geometric_normals.take(prim_ids, axis=0)
@@ -566,7 +567,7 @@ class RenderContext:
         mat = self.material_ids.take(prim_ids)
         bary = (b0[:, None], b1[:, None], b2[:, None])
         if self.has_level_programs:
-            self._pick_level(mat, prim_ids, bary, pos)
+            self._pick_level(mat, prim_ids, bary, pos, pick)
         if self.has_roughness_programs:
             self._pick_roughness(mat, prim_ids, bary, pos)
         if self.has_stretch_programs:
@@ -678,15 +679,23 @@ class RenderContext:
         out[sel] = t
         return out
 
-    def _pick_level(self, mat, prim_ids, bary, pos):
+    def _pick_level(self, mat, prim_ids, bary, pos, pick=None):
         """Replace, in place, the materials ``mat`` (n,) that pick one of their levels at each hit
-        (``Materials.level_program``) by the level nearest the program's value there."""
+        (``Materials.level_program``) by a level: with ``pick`` ((n,) uniform numbers) one of the
+        two around the program's value there, the upper with the probability of the value's
+        fraction between them (``Materials``); without, the nearest."""
         mats = self.materials
         for sel, value in self._program_values(mats.level_program, prim_ids, bary, pos, mat):
             m = mat.take(sel)
             top = mats.level_count.take(m) - 1
-            level = np.rint(np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * top).astype(np.int32)
-            mat[sel] = mats.level_first.take(m) + level
+            x = np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * top
+            if pick is None:
+                level = np.rint(x)
+            else:
+                level = np.floor(x)
+                level += pick.take(sel) < x - level
+                np.minimum(level, top, out=level)
+            mat[sel] = mats.level_first.take(m) + level.astype(np.int32)
 
     def _pick_roughness(self, mat, prim_ids, bary, pos):
         """Replace, in place, the materials ``mat`` (n,) that have a roughness map by their copy of

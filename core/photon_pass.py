@@ -45,8 +45,10 @@ ISOTROPIC_PHASE = 1.0 / (4.0 * np.pi)      # hg_phase at g = 0, to the bit
 BOUNCE_DIMS = 4
 
 
-# Keys of the hashed numbers for the distances in scattering volumes (after the crossings').
+# Keys of the hashed numbers for the distances in scattering volumes (after the crossings'), and
+# for the pick of a material's level at a surface vertex (Materials.level_program).
 DISTANCE_KEYS = 1 << 24
+LEVEL_KEYS = 1 << 25
 
 
 def _crossing_uniforms(u, idx, bounce, base=0):
@@ -650,7 +652,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             prim = hits.prim_ids.take(h)
             medium = medium.take(h) if volumes else np.full(len(h), -1, np.int32)
             vertices += len(idx)
-            surf = ctx.surface(prim, hits.b1.take(h), hits.b2.take(h))
+            pick = None
+            if ctx.has_level_programs:
+                pick = _crossing_uniforms(u, idx, bounce, LEVEL_KEYS)(np.arange(len(idx)), 0)
+            surf = ctx.surface(prim, hits.b1.take(h), hits.b2.take(h), pick)
             if bounce == 0 and soft:
                 flux = flux * ctx.lights.soft_falloff(u[idx, :1], surf.position)[:, None]
             # A photon stops on a transparent surface with the probability of its opacity there,

@@ -170,11 +170,15 @@ class Materials:
     all directions.  It is a volume on its own (a glowing gas that neither absorbs nor scatters).
 
     A material may stand for a family of others picked point by point (a Principled BSDF's
-    Metallic map): where ``level_program`` >= 0, that float program's value p at a hit, clamped to
-    [0, 1], picks material ``level_first`` + round(p (``level_count`` - 1)) of ``level_count``
-    consecutive ones (its levels, themselves without a ``level_program``), which then shades the
+    Metallic map, a Mix Shader's mask): where ``level_program`` >= 0, that float program's value p
+    at a hit, clamped to [0, 1], picks one of ``level_count`` consecutive materials from
+    ``level_first`` on (its levels, themselves without a ``level_program``), which then shades the
     hit in its place (its lobes, maps and coat; the material itself keeps what is decided before
-    shading: its emission, opacity, volume and holdout, which its levels should share).
+    shading: its emission, opacity, volume and holdout, which its levels should share).  With
+    p (``level_count`` - 1) = i + t, level i + 1 with probability t and level i otherwise (a
+    random number per hit: the camera path's, or a hash of the photon path's primary sample), so
+    the expected material is linear in p: with two levels, exactly their mix by p, whatever they
+    hold (Cycles' Mix Shader).
 
     ``holdout`` (Blender's Holdout shader, in [0, 1]) is the share of a pixel that the surface
     cuts out of the image where camera rays meet it directly or through transparent surfaces

@@ -34,8 +34,9 @@ level s, base colour B):
     scales by 1 - the layer's albedo at the view direction (``diffuse_layer``; Cycles'
     ``closure_layering_weight``).  A Mix with other shaders keeps the share of the diffuse
     under the layer (``diffuse_layer_weight``).
-  A texture on m (a metallic map) or else on t gives the node at ``MAP_LEVELS`` values of it,
-  which the core picks from point by point (``Closure.levels``, ``Materials.level_program``).
+  A texture on m (a metallic map) or else on t gives the node at ``MAP_LEVELS`` values of it as
+  levels, of which the core picks one of the two around the map's value at each point, by the
+  fraction between them (``Closure.levels``, ``Materials.level_program``): their mix, exactly.
 Metals (Metallic node, Principled metallic) are a glossy lobe whose colour follows the metal's
 Fresnel curve by the microfacet angle (``Materials.glossy_metal_rise`` and ``glossy_metal_dip``):
 the F82-tint model (base colour, edge tint; Principled uses its Specular Tint), or that model
@@ -128,9 +129,9 @@ class Closure:
     metal_layer: tuple = None       # (share, rest colour (3,), rest F_ss (3,)) of such a metal beside a
     #                                 dielectric layer in one glossy lobe (Materials.glossy_metal_share)
     levels: tuple = None            # (float program in [0, 1], [Closure]) the closures a map picks from
-    #                                 point by point (a metallic or transmission map, a Mix Shader's
-    #                                 mask; Materials.level_program); this closure is their mix by the
-    #                                 map's mean
+    #                                 at each point by its value (a metallic or transmission map, a Mix
+    #                                 Shader's mask; Materials.level_program); this closure is their
+    #                                 mix by the map's mean
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
@@ -388,6 +389,41 @@ class Closure:
                     and np.isclose(self.coat_roughness, other.coat_roughness)
                     and np.isclose(self.coat_ior, other.coat_ior)
                     and np.allclose(self.coat_tint, other.coat_tint))
+
+    def mixes_exactly(self, other) -> bool:
+        """Whether this closure and ``other`` mixed at any constant factor (``combine``) are their
+        mix exactly in the core, which has one lobe of each kind per material: lobes that both
+        have agree in what the core keeps one of (the glossy roughness, anisotropy and its maps,
+        the layer's IOR, the glass's IOR and roughness, the diffuse roughness, the coat), and at
+        most one side's glossy colour varies over the surface (a textured metal only beside a
+        plain colour: ``_metal_beside``)."""
+        def both(lobe):
+            return self.weight[lobe] > 0 and other.weight[lobe] > 0
+
+        if both(GLOSSY):
+            same = (np.isclose(self.roughness, other.roughness) and np.isclose(self.stretch, other.stretch)
+                    and np.isclose(self.rotation, other.rotation) and self.tangent == other.tangent
+                    and all(getattr(self, k) is None and getattr(other, k) is None
+                            for k in ("roughness_texture", "stretch_texture", "rotation_texture")))
+            if not same or (self.fresnel_ior > 0 and other.fresnel_ior > 0
+                            and not np.isclose(self.fresnel_ior, other.fresnel_ior)):
+                return False
+            varies = [c for c in (self, other) if c.glossy_texture is not None or c.metal_texture is not None]
+            if len(varies) == 2:
+                return False
+            if varies:
+                plain = other if varies[0] is self else self
+                if varies[0].metal_texture is None and (self.rises or other.rises):
+                    return False            # (a glossy program cannot sit beside a Fresnel rise)
+                curve = plain.metal_rise.any() or plain.metal_dip.any()
+                if varies[0].metal_texture is not None and (varies[0].metal_layer is not None or curve):
+                    return False
+        if both(DIELECTRIC) and not (np.isclose(self.ior, other.ior)
+                                     and np.isclose(self.dielectric_roughness, other.dielectric_roughness)):
+            return False
+        if both(DIFFUSE) and not np.isclose(self.diffuse_roughness, other.diffuse_roughness):
+            return False
+        return self.same_coat(other) or self.coat == 0 or other.coat == 0
 
     def same_except_diffuse(self, other) -> bool:
         """Whether the two closures differ in their diffuse lobes only, or also in a glossy colour
@@ -1240,10 +1276,13 @@ class NodeWalker:
             exact = a.same_except_diffuse(b) or a.only_transparent or b.only_transparent
             if exact or a.levels is not None or b.levels is not None:
                 return self._masked_mix(node, "Fac", f, a, b)
-            # A mask between shaders that differ beyond their diffuse colours: levels of the factor,
-            # as a Principled's metallic map (the mix by the mask's mean for what comes before shading).
+            # A mask between shaders that differ beyond their diffuse colours: levels the core picks
+            # by the mask (the mix by the mask's mean for what comes before shading), constant mixes
+            # where those are exact, else the two shaders themselves (exact, but noisier where
+            # the mask is between 0 and 1: a pick of either at each point).
             c = self._masked_mix(node, "Fac", f, a, b, noted=False)
-            c.levels = (_clamp01(f), [a.combine(b, 1.0 - k, k) for k in np.linspace(0.0, 1.0, MAP_LEVELS)])
+            steps = np.linspace(0.0, 1.0, MAP_LEVELS) if a.mixes_exactly(b) else (0.0, 1.0)
+            c.levels = (_clamp01(f), [a.combine(b, 1.0 - k, k) for k in steps])
             return c
         fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
         if 0.0 < fac < 1.0:
@@ -1481,10 +1520,10 @@ class NodeWalker:
         """Principled BSDF without its Alpha.  Its Metallic and Transmission Weight mix its metal, glass and
         dielectric parts linearly (Cycles), so a texture on either makes it a Mix of the node at 0
         and at 1 by that texture (``Closure.combine``: exact for the diffuse colour), and also gives
-        the node at ``MAP_LEVELS`` values of it, of which the core picks the nearest at each point
-        (``Closure.levels``; a metallic map, or a transmission map where Metallic is constant:
-        with both, each level of Metallic mixes its transmission by the map's mean, noted);
-        ``fixed`` holds the values so set."""
+        the node at ``MAP_LEVELS`` values of it as levels the core picks from by the texture at each
+        point (``Closure.levels``; a metallic map, or a transmission map where Metallic is
+        constant: with both, each level of Metallic mixes its transmission by the map's mean,
+        noted); ``fixed`` holds the values so set."""
         inp = node.inputs
         fixed = fixed or {}
         for name in ("Metallic", "Transmission Weight"):
@@ -1597,9 +1636,10 @@ class NodeWalker:
 LIGHT_PATH_RAYS = {"Is Camera Ray": VISIBLE_CAMERA, "Is Glossy Ray": VISIBLE_GLOSSY,
                    "Is Transmission Ray": VISIBLE_TRANSMISSION}
 
-# A Principled BSDF's metallic (or transmission) map picks, point by point, the nearest of this many
-# values of Metallic, steps of 1/16 (``Closure.levels``; each costs the core a material row and its
-# tables).
+# A map between two closures that mix exactly at a constant factor (a Principled BSDF's metallic or
+# transmission map, most masks) gives this many levels at factors k / 16; the core picks one of the
+# two around the map's value at each point, by the fraction between them (exact, and the pick's
+# noise is that of neighbours 1/16 apart).  Each costs the core a material row and its tables.
 MAP_LEVELS = 17
 
 # Nodes whose output may be a Fresnel curve of the view direction (NodeWalker._fresnel_factor).

@@ -629,8 +629,9 @@ def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact(scene):
 def test_a_mask_between_a_metal_and_a_paint_picks_levels_of_the_mask(scene):
     """Mix Shader(Principled paint, Principled metal) by a gradient: they differ beyond their diffuse
     colours, so the mix gets levels of the factor (``Closure.levels``), each a constant mix: level 0
-    the paint, level 16 the metal (its curve), level 8 half of each; no note.  A Principled with a
-    metallic map on one side keeps its own levels and the mask mixes by its mean, noted."""
+    the paint, level 16 the metal (its curve), level 8 half of each; no note.  Of different
+    roughness, the two themselves.  A Principled with a metallic map on one side keeps its own
+    levels and the mask mixes by its mean, noted."""
     from amcmcppm.core import procedural
     mat = bpy.data.materials.new("Rust")
     nt = mat.node_tree
@@ -654,6 +655,14 @@ def test_a_mask_between_a_metal_and_a_paint_picks_levels_of_the_mask(scene):
     assert middle["diffuse_weight"] == pytest.approx(0.5)
     np.testing.assert_allclose(middle["glossy_metal_rise"], [0.05, 0.2, 0.35], rtol=1e-5)
     assert not [w for w in ex.warnings if "'Rust'" in w], ex.warnings
+    # Of different roughness, a constant mix is one lobe of their mean roughness: the two
+    # themselves are the levels (the core picks either by the mask).
+    metal.inputs["Roughness"].default_value = 0.2
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    first, last = (material_row(ex.scene, f"Rust (level {k}/1)") for k in (0, 1))
+    assert row["level_count"] == 2 and first["glossy_roughness"] == pytest.approx(0.5)
+    assert last["glossy_roughness"] == pytest.approx(0.2) and last["diffuse_weight"] == 0
     nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], metal.inputs["Metallic"])
     bpy.data.objects.remove(bpy.data.objects["Plane"])
     row, ex = export_material(mat)

@@ -15,6 +15,8 @@ angle theta from the floor's normal (every pixel sees the floor at theta):
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -366,3 +368,46 @@ def test_material_levels_are_validated(tmp_path):
         scene = floor_scene(plain, 0.5)
         with pytest.raises(SceneError, match="level_first and level_count"):
             with_one_object(scene).replace(materials=Materials.build(specs)).validate()
+
+
+def test_a_level_between_two_is_picked_with_the_programs_fraction():
+    """``RenderContext.surface`` with pick numbers: a program of 0.3 over three levels (x = 0.6
+    between levels 0 and 1) picks level 1 at the hits whose number is below 0.6, level 0 at the
+    others, never level 2; without numbers, the nearest (level 1)."""
+    from core.context import RenderContext
+    plain = [{"name": f"level {k}", "diffuse": 0.1 * (k + 1)} for k in range(3)]
+    picks = {"name": "picks", "diffuse": 0.5, "level_first": 1, "level_count": 3,
+             "level_program": {"op": "math", "operation": "ADD", "a": 0.0, "b": 0.3}}
+    scene = with_one_object(floor_scene(metal(0.4), 0.5)).replace(
+        materials=Materials.build([picks] + plain)).validate()
+    ctx = RenderContext(scene)
+    n = 1000
+    prim = np.zeros(n, np.int64)
+    b = np.full(n, 0.25)
+    numbers = (np.arange(n) + 0.5) / n
+    mats = ctx.surface(prim, b, b, numbers).mat_ids
+    assert set(np.unique(mats)) == {1, 2} and (mats == 2).mean() == pytest.approx(0.6)
+    np.testing.assert_array_equal(mats == 2, numbers < 0.6)
+    assert (ctx.surface(prim, b, b).mat_ids == 2).all()
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
+def test_a_map_between_two_levels_renders_their_mix(method):
+    """A floor whose map is 0.3 everywhere between a red and a blue diffuse of the same green (levels
+    0 and 1) under a white sky: each hit takes the blue with probability 0.3, so the floor's albedo
+    is 0.7 red + 0.3 blue = (0.59, 0.2, 0.31).  The green, the same for both, gives the photon
+    density (whose noise every channel shares), and the red and blue over it match that albedo
+    within the noise of the picks (2 %); the nearest level (red) would give 0.8 and 0.1."""
+    red, blue = {"name": "red", "diffuse": [0.8, 0.2, 0.1]}, {"name": "blue", "diffuse": [0.1, 0.2, 0.8]}
+    level = {"name": "picks", "diffuse": 0.5, "level_first": 1, "level_count": 2,
+             "level_program": {"op": "math", "operation": "ADD", "a": 0.0, "b": 0.3}}
+    scene = with_one_object(floor_scene(metal(0.4), np.radians(40.0))).replace(
+        materials=Materials.build([level, red, blue]))
+    scene = scene.replace(camera=dataclasses.replace(scene.camera, resolution=(16, 16))).validate()
+    res = render(scene, RenderSettings(method=method, passes=24, photons_per_pass=20000, workers=1, seed=3,
+                                       chains=1024))
+    assert np.isfinite(res.image).all()
+    mean = res.image[..., :3].reshape(-1, 3).mean(axis=0)
+    albedo = 0.2 * mean / mean[1]
+    print("albedo:", albedo)
+    np.testing.assert_allclose(albedo, [0.59, 0.2, 0.31], rtol=0.02)
