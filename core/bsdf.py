@@ -421,10 +421,11 @@ class MaterialTable:
                     # Beside the rest (share 1 - k, its own F_ss in ms_fss): the two F_ss weighted by
                     # the parts' mean reflectances, k F_ss and (1 - k) F_ss_rest.
                     k = self.hit_metal_share.take(m)[:, None]
-                    rest = (1.0 - k) * self.ms_fss.take(m, axis=0)
+                    f_rest = self.ms_fss.take(m, axis=0)
+                    rest = (1.0 - k) * f_rest
                     total = k * fss + rest
-                    fss = np.divide(k * fss * fss + rest * self.ms_fss.take(m, axis=0), total,
-                                    out=np.zeros_like(total), where=total > 0)
+                    fss = np.divide(k * fss * fss + rest * f_rest, total, out=np.zeros_like(total),
+                                    where=total > 0)
                 e_avg = self.ms_e_avg.take(m)[:, None]
                 fms[h] = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
         return 1.0 + fms * ((1.0 - e) / e)[:, None]
@@ -957,13 +958,10 @@ def lobe_scores(table, mat_ids, colors):
             f0, dip = table.hit_metal_f0_dip(m, colors[h, lobe])
             mean = np.maximum(f82_mean(f0, dip), (1.0 - f0) / 210.0)
             if table.has_partial_metal:
-                # k times that, and the rest: its colour and its rise's mean (in score_extra).
-                mean = (table.hit_metal_share.take(m)[:, None] * mean
-                        + table.hit_metal_rest.take(m, axis=0))
-                scores[h, lobe] = (table.weight[m, lobe] * smp.luminance(mean)
-                                   + table.score_extra[m, lobe])
-            else:
-                scores[h, lobe] = table.weight[m, lobe] * smp.luminance(mean)
+                # k times that, and the rest: its colour (its rise's mean is in score_extra, 0 for a
+                # whole metal).
+                mean = table.hit_metal_share.take(m)[:, None] * mean + table.hit_metal_rest.take(m, axis=0)
+            scores[h, lobe] = table.weight[m, lobe] * smp.luminance(mean) + table.score_extra[m, lobe]
     return scores
 
 

@@ -253,9 +253,7 @@ class Closure:
         them): keep the metal's curve per hit beside it (``metal_layer``: the metal's share of
         the lobe, the paint's colour and F_ss per unit weight)."""
         for (metal, fm), (paint, fp) in ((a, b), (b, a)):
-            curve = paint.metal_rise.any() or paint.metal_dip.any()
-            if (metal.metal_texture is not None and metal.metal_layer is None and paint.metal_texture is None
-                    and paint.glossy_texture is None and not curve):
+            if metal.beside_plain(paint):
                 total = self.weight[GLOSSY]
                 share, colour = fm * metal.weight[GLOSSY] / total, paint.color[GLOSSY]
                 rest = fp * colour / total
@@ -390,6 +388,13 @@ class Closure:
                     and np.isclose(self.coat_ior, other.coat_ior)
                     and np.allclose(self.coat_tint, other.coat_tint))
 
+    def beside_plain(self, other) -> bool:
+        """Whether this closure's glossy lobe is a whole textured metal and ``other``'s a plain
+        colour (no texture, no metal curve): the two share a lobe exactly (``_metal_beside``)."""
+        curve = other.metal_rise.any() or other.metal_dip.any()
+        return (self.metal_texture is not None and self.metal_layer is None and other.metal_texture is None
+                and other.glossy_texture is None and not curve)
+
     def mixes_exactly(self, other) -> bool:
         """Whether this closure and ``other`` mixed at any constant factor (``combine``) are their
         mix exactly in the core, which has one lobe of each kind per material: lobes that both
@@ -413,11 +418,11 @@ class Closure:
                 return False
             if varies:
                 plain = other if varies[0] is self else self
-                if varies[0].metal_texture is None and (self.rises or other.rises):
+                if varies[0].metal_texture is not None:
+                    if not varies[0].beside_plain(plain):
+                        return False
+                elif self.rises or other.rises:
                     return False            # (a glossy program cannot sit beside a Fresnel rise)
-                curve = plain.metal_rise.any() or plain.metal_dip.any()
-                if varies[0].metal_texture is not None and (varies[0].metal_layer is not None or curve):
-                    return False
         if both(DIELECTRIC) and not (np.isclose(self.ior, other.ior)
                                      and np.isclose(self.dielectric_roughness, other.dielectric_roughness)):
             return False
@@ -1533,8 +1538,9 @@ class NodeWalker:
                 if fixed:                   # within a metallic map's levels: the mix, noted
                     return self._masked_mix(node, name, f, *at)
                 c = self._masked_mix(node, name, f, *at, noted=False)
-                c.levels = (_clamp01(f), [self._principled_opaque(node, stack, {**fixed, name: float(v)})
-                                          for v in np.linspace(0.0, 1.0, MAP_LEVELS)])
+                between = [self._principled_opaque(node, stack, {**fixed, name: float(v)})
+                           for v in np.linspace(0.0, 1.0, MAP_LEVELS)[1:-1]]
+                c.levels = (_clamp01(f), [at[0], *between, at[1]])
                 return c
         base, tex = self.color(inp["Base Color"], stack)
         m = fixed.get("Metallic")
