@@ -18,9 +18,15 @@ Principled BSDF of that base colour and the roughness map whose Metallic is anot
 the exporter made it before stop 38 (one row: the node at 0 and 1 mixed by the map's mean, the diffuse
 colour point by point), then as now (that row picks one of 17 levels of Metallic at each hit, one of
 the two around the map's value by the fraction between them, ``Materials.level_program``; each
-level has the roughness map, so 17 x 65 copies).
+level has the roughness map, so 17 x 65 copies).  ``--kind mask``: the white material becomes a Mix
+Shader of a Principled paint (a blue-to-white noise base colour) and that copper-to-silver metal (both
+of roughness 0.4) by a noise mask, first as one row of the mask's mean (the "constant" row), then
+with the 17 levels of the mask as the exporter makes them: each level's diffuse colour is the
+paint's noise, one program for all ("map"), or as the exporter made it before stop 39, the noise
+times (1 - k) w divided by (1 - k) w, a different program at each level ("distinct", evaluated
+once per level present in a batch).
 
-    python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy|metal|metallic]
+    python benchmarks/roughness_map_cost.py [--kind roughness|anisotropy|metal|metallic|mask]
         [--resolution 320 240]
         [--rounds 5] [--paths 65536]
 """
@@ -101,13 +107,17 @@ METALLIC_MAP = {"op": "map_range", "value": dict(NOISE, scale=2.5), "from_min": 
                 "to_min": 0.0, "to_max": 1.0, "clamp": True}
 
 
-def principled_at(metallic, name):
+def principled_at(metallic, name, diffuse=COPPER_TO_SILVER, roughness=ROUGHNESS_MAP):
     """The core's row of a Principled BSDF of base colour ``COPPER_TO_SILVER``, ``ROUGHNESS_MAP``, IOR 1.5
-    and Metallic ``metallic`` (as the exporter makes it, untinted specular, multiscatter GGX)."""
+    and Metallic ``metallic`` (as the exporter makes it, untinted specular, multiscatter GGX); its
+    diffuse colour ``diffuse`` instead (a mask's level between a paint and a metal), its roughness the
+    float program ``roughness`` (None: 0.4)."""
     k = metallic
-    spec = {"name": name, "diffuse_weight": 1.0 - k, "diffuse_program": COPPER_TO_SILVER, "glossy": 1.0,
-            "roughness": 0.4, "roughness_program": ROUGHNESS_MAP, "diffuse_layer": 0.04,
+    spec = {"name": name, "diffuse_weight": 1.0 - k, "diffuse_program": diffuse, "glossy": 1.0,
+            "roughness": 0.4, "diffuse_layer": 0.04,
             "glossy_fresnel_ior": 1.5, "glossy_fresnel_rise": (1.0 - k) * 0.96, "glossy_multiscatter": 0.09}
+    if roughness is not None:
+        spec["roughness_program"] = roughness
     if k >= 1.0:
         spec.update(glossy_fresnel_ior=0.0, glossy_fresnel_rise=0.0, glossy_multiscatter=1.0)
     if k > 0:
@@ -140,16 +150,48 @@ def metallic_map(levels):
     return edit
 
 
+PAINT = {"op": "mix_color", "fac": dict(NOISE, scale=9.0), "a": [0.1, 0.2, 0.6], "b": [0.9, 0.9, 0.9]}
+
+
+def masked(levels):
+    """An ``edit`` for ``photon_pass``: the first material becomes a Mix Shader of ``PAINT`` and the
+    textured metal by a noise mask: its mean (``levels`` None), or its 17 levels, each diffuse colour
+    one program (``"map"``) or a program of its own (``"distinct"``)."""
+    def edit(scene):
+        specs = cornell_specs(scene)
+        name = specs[0].get("name", "white")
+        mean = principled_at(0.5, name, PAINT, None)
+        mean.update(glossy=0.5 * 0.04 + 0.5 * 0.7, glossy_fresnel_rise=0.48, glossy_multiscatter=0.5)
+        for key in ("glossy_program", "glossy_metal_tint", "glossy_metal_share", "glossy_metal_rest"):
+            del mean[key]
+        specs[0] = mean
+        if levels is not None:
+            first = len(specs)
+            specs[0].update(level_program=METALLIC_MAP, level_first=first, level_count=17)
+            for k in np.linspace(0.0, 1.0, 17):
+                diffuse = PAINT
+                if levels == "distinct" and 0 < k < 1:
+                    w = [(1.0 - k) * 1.0] * 3
+                    scaled = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": PAINT, "b": w}
+                    diffuse = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": scaled,
+                               "b": [1.0 / w[0]] * 3}
+                specs.append(principled_at(k, f"{name} {k}", diffuse, None))
+        return with_one_object(scene.replace(materials=Materials.build(specs))).validate()
+    return edit
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kind", choices=("roughness", "anisotropy", "metal", "metallic"), default="roughness")
+    ap.add_argument("--kind", choices=("roughness", "anisotropy", "metal", "metallic", "mask"), default="roughness")
     ap.add_argument("--resolution", type=int, nargs=2, default=(320, 240))
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--paths", type=int, default=65536)
     a = ap.parse_args()
     make = {"roughness": with_layer, "anisotropy": brushed, "metal": textured_metal,
-            "metallic": metallic_map}[a.kind]
-    variants = {"constant": make(False), "map": make(True)}
+            "metallic": metallic_map, "mask": masked}[a.kind]
+    variants = {"constant": make(None), "map": make("map")}
+    if a.kind == "mask":
+        variants["distinct"] = make("distinct")
     scene = BUILTIN["cornell_box"](resolution=tuple(a.resolution))
     builds = {name: [] for name in variants}
     for _ in range(a.rounds):
@@ -163,10 +205,12 @@ def main():
     runs = {name: photon_pass("core", "cornell_box", tuple(a.resolution), a.paths, False, edit)
             for name, edit in variants.items()}
     rates = interleaved_rates(runs, a.rounds)
-    ratio = np.array(rates["map"]) / np.array(rates["constant"])
-    print(f"photon pass, {a.rounds} rounds of {a.paths} paths: constant {a.kind} "
-          f"{np.median(rates['constant']):,.0f} vertices/s, {a.kind} map {np.median(rates['map']):,.0f}: "
-          f"{np.median(ratio):.3f} of the constant (range {ratio.min():.3f}-{ratio.max():.3f})")
+    for name in list(variants)[1:]:
+        ratio = np.array(rates[name]) / np.array(rates["constant"])
+        print(f"photon pass, {a.rounds} rounds of {a.paths} paths: constant {a.kind} "
+              f"{np.median(rates['constant']):,.0f} vertices/s, {a.kind} {name} "
+              f"{np.median(rates[name]):,.0f}: {np.median(ratio):.3f} of the constant "
+              f"(range {ratio.min():.3f}-{ratio.max():.3f})")
 
 
 if __name__ == "__main__":

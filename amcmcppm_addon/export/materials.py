@@ -593,9 +593,19 @@ def _times(a, f):
     f = np.broadcast_to(np.asarray(f, np.float64), (3,))
     if not isinstance(a, dict):
         return (np.asarray(a, np.float64) * f).tolist()
-    if (f == 1.0).all():
+    if _scaled(a):
+        # One factor, not a chain of them: a product that rounds to 1 is then the program itself,
+        # which the levels of a mask share (the core evaluates a program once per batch).
+        a, f = a["a"], f * np.asarray(a["b"], np.float64)
+    if np.allclose(f, 1.0, rtol=0.0, atol=1e-12):
         return a
     return {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": a, "b": f.tolist()}
+
+
+def _scaled(e) -> bool:
+    """Whether program ``e`` is a program times three constants (what ``_times`` makes)."""
+    return (e.get("op") == "mix_color" and e.get("blend") == "MULTIPLY" and e.get("fac") == 1.0
+            and isinstance(e.get("b"), list) and len(e) == 5)
 
 
 def _float_average(terms):

@@ -672,6 +672,40 @@ def test_a_mask_between_a_metal_and_a_paint_picks_levels_of_the_mask(scene):
     assert any("'Rust'" in w and "varying Fac" in w for w in ex.warnings), ex.warnings
 
 
+def test_a_masks_levels_share_the_paints_texture(scene):
+    """Mix Shader(Principled paint of a noise base colour, metal) by a noise mask: every level with a
+    diffuse part has the paint's noise as its colour program, one program for all (the core evaluates
+    a program once per batch; a program per level halved the photon pass,
+    ``benchmarks/roughness_map_cost.py --kind mask``), and its weight times colour is (1 - k) times
+    the paint's."""
+    from amcmcppm.core import procedural
+    mat = bpy.data.materials.new("Rusty paint")
+    nt = mat.node_tree
+    paint = nt.nodes["Principled BSDF"]
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Color"], paint.inputs["Base Color"])
+    metal = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    metal.inputs["Metallic"].default_value = 1.0
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mask = nt.nodes.new("ShaderNodeTexNoise")
+    mask.inputs["Scale"].default_value = 2.0
+    nt.links.new(mask.outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(paint.outputs[0], mix.inputs[1])
+    nt.links.new(metal.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    mats = ex.scene.materials
+    first, count = row["level_first"], row["level_count"]
+    assert count == 17
+    programs = mats.diffuse_program[first:first + count]
+    assert len(set(programs[:-1].tolist())) == 1 and programs[-1] == -1     # (level 16: the metal)
+    pts = procedural.SampledAttributes(64)
+    noise = procedural.evaluate(mats.programs[programs[0]], pts, [])
+    for k in (1, 5, 15):
+        level = material_row(ex.scene, f"Rusty paint (level {k}/16)")
+        colour = level["diffuse_weight"] * level["diffuse_color"] * noise
+        np.testing.assert_allclose(colour, (1 - k / 16) * noise, rtol=1e-9)
+
+
 def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_noted(scene):
     mat = bs.diffuse("Painted")
     nt = mat.node_tree
