@@ -431,14 +431,19 @@ class Closure:
         return self.same_coat(other) or self.coat == 0 or other.coat == 0
 
     def same_except_diffuse(self, other) -> bool:
-        """Whether the two closures differ in their diffuse lobes only, or also in a glossy colour
-        and weight without a Fresnel rise (a varying Mix factor is then exact)."""
+        """Whether the two closures differ in their diffuse colours and weights only, or also in a
+        glossy colour and weight without a Fresnel rise or a textured metal's curve (a varying Mix
+        factor is then exact); their coats and diffuse roughness agree (the core has one of each
+        per material)."""
         rise = self.rises or other.rises
         other_lobes = [k for k in range(len(LOBES)) if k != DIFFUSE and (rise or k != GLOSSY)]
+        rough = self.weight[DIFFUSE] > 0 and other.weight[DIFFUSE] > 0 and not np.isclose(
+            self.diffuse_roughness, other.diffuse_roughness)
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
                 and np.isclose(self.roughness, other.roughness) and np.isclose(self.stretch, other.stretch)
-                and np.isclose(self.ior, other.ior))
+                and np.isclose(self.ior, other.ior) and self.same_coat(other) and not rough
+                and self.metal_texture is None and other.metal_texture is None)
 
     def _transparency(self) -> dict:
         """The ``Materials.build`` keys of the Transparent part: opacity (or its program) and tint."""
@@ -1506,18 +1511,36 @@ class NodeWalker:
         mean = np.maximum(values, 0.0).mean(axis=0)
         return Closure(emission=mean, emission_texture=program)
 
-    def _masked_mix(self, node, what, f, a, b, noted=True) -> Closure:
+    def _masked_mix(self, node, what, f, a, b, noted=True, one_node=False) -> Closure:
         """Closures ``a`` and ``b`` mixed by ``f``, a float program that varies over the surface (a
         mask; clamped to [0, 1] as Cycles does): exact for the diffuse colours and the glossy ones
         without a Fresnel rise (``Closure.combine``), the rest by f's mean, noted (unless not
-        ``noted``)."""
+        ``noted``).  ``one_node``: ``a`` and ``b`` are one Principled BSDF at two values of an
+        input, whose coat covers all of it (no note of different coats)."""
         f = _clamp01(f)
-        self._note_mixed(node, a, b)
+        if not one_node:
+            self._note_mixed(node, a, b)
         mean = procedural.mean_value(f, self.textures.images)
         if noted and not (a.same_except_diffuse(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': a varying {what} mixes the diffuse colours point by point and the "
                       f"other parts by its mean {mean:.3f}")
         return a.combine(b, 1.0 - mean, mean, fac=f)
+
+    def _specular_levels(self, node, stack, f) -> Closure:
+        """The Principled BSDF ``node`` whose Specular IOR Level is the float program ``f`` (a
+        specular map): the node at the map's mean, with the node at ``MAP_LEVELS`` values of the
+        level from 0 to the map's largest value over stand-in coordinates (at least 1: an image's
+        range) as its levels, which the core picks from by f over that at each point.  The level
+        scales the layer's F0, not a mix of two shaders: between two neighbouring levels the pick
+        takes their mix, and above the largest value the largest level."""
+        f = _math("MAXIMUM", f, 0.0)
+        values = procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images)
+        top = max(1.0, float(values.max()))
+        c = self._principled_opaque(node, stack, {SPECULAR_LEVEL: float(values.mean())})
+        levels = [self._principled_opaque(node, stack, {SPECULAR_LEVEL: float(v)})
+                  for v in np.linspace(0.0, top, MAP_LEVELS)]
+        c.levels = (_clamp01(_math("MULTIPLY", f, 1.0 / top)), levels)
+        return c
 
     def _principled(self, node, stack):
         """Principled BSDF (:meth:`_principled_opaque`) with its Alpha: a Mix with a white
@@ -1532,22 +1555,28 @@ class NodeWalker:
         return c if a >= 1.0 else clear.combine(c, 1.0 - a, a)
 
     def _principled_opaque(self, node, stack, fixed=None):
-        """Principled BSDF without its Alpha.  Its Metallic and Transmission Weight mix its metal, glass and
-        dielectric parts linearly (Cycles), so a texture on either makes it a Mix of the node at 0
-        and at 1 by that texture (``Closure.combine``: exact for the diffuse colour), and also gives
-        the node at ``MAP_LEVELS`` values of it as levels the core picks from by the texture at each
-        point (``Closure.levels``; a metallic map, or a transmission map where Metallic is
-        constant: with both, each level of Metallic mixes its transmission by the map's mean,
-        noted); ``fixed`` holds the values so set."""
+        """Principled BSDF without its Alpha.  Its Metallic, Transmission Weight and Coat Weight mix
+        its metal, glass, dielectric and coated parts linearly (Cycles), so a texture on one makes
+        it a Mix of the node at 0 and at 1 by that texture (``Closure.combine``: exact for the
+        diffuse colour), and also gives the node at ``MAP_LEVELS`` values of it as levels the core
+        picks from by the texture at each point (``Closure.levels``: a metallic map, else a
+        transmission map, else a coat map; within the first one's levels, the others mix by
+        their maps' means, noted).  A specular map (Specular IOR Level) where none of those varies
+        gives levels too (:meth:`_specular_levels`); ``fixed`` holds the values so set."""
         inp = node.inputs
         fixed = fixed or {}
-        for name in ("Metallic", "Transmission Weight"):
+        for name in LINEAR_LEVEL_INPUTS + (SPECULAR_LEVEL,):
             f = self.programs.expression(inp[name], stack, FLOAT)
-            if name not in fixed and procedural.varies(f):
+            if name in fixed or not procedural.varies(f):
+                continue
+            if name == SPECULAR_LEVEL:
+                if not fixed:               # (within another map's levels: its mean, noted below)
+                    return self._specular_levels(node, stack, f)
+            else:
                 at = [self._principled_opaque(node, stack, {**fixed, name: v}) for v in (0.0, 1.0)]
-                if fixed:                   # within a metallic map's levels: the mix, noted
-                    return self._masked_mix(node, name, f, *at)
-                c = self._masked_mix(node, name, f, *at, noted=False)
+                if fixed:                   # within another map's levels: the mix, noted
+                    return self._masked_mix(node, name, f, *at, one_node=True)
+                c = self._masked_mix(node, name, f, *at, noted=False, one_node=True)
                 between = [self._principled_opaque(node, stack, {**fixed, name: float(v)})
                            for v in np.linspace(0.0, 1.0, MAP_LEVELS)[1:-1]]
                 c.levels = (_clamp01(f), [at[0], *between, at[1]])
@@ -1559,10 +1588,12 @@ class NodeWalker:
         ior = max(self.value(inp["IOR"], stack), 1e-3)
         t = fixed.get("Transmission Weight")
         t = float(np.clip(self.value(inp["Transmission Weight"], stack), 0.0, 1.0)) if t is None else t
-        level = max(self.value(inp["Specular IOR Level"], stack), 0.0)
+        level = fixed.get(SPECULAR_LEVEL)
+        level = max(self.value(inp[SPECULAR_LEVEL], stack), 0.0) if level is None else level
         tint, _ = self.color(inp["Specular Tint"], stack)
         emitted = self.emitted(inp["Emission Color"], inp["Emission Strength"], stack)
-        coat = float(np.clip(self.value(inp["Coat Weight"], stack), 0.0, 1.0))
+        coat = fixed.get("Coat Weight")
+        coat = float(np.clip(self.value(inp["Coat Weight"], stack), 0.0, 1.0)) if coat is None else coat
         if coat > 0 and inp["Coat Normal"].is_linked:
             self.note(f"'{node.name}': Coat Normal not supported (the coat takes the surface's normal "
                       "before normal and bump maps, Cycles' default)")
@@ -1657,6 +1688,12 @@ LIGHT_PATH_RAYS = {"Is Camera Ray": VISIBLE_CAMERA, "Is Glossy Ray": VISIBLE_GLO
 # two around the map's value at each point, by the fraction between them (exact, and the pick's
 # noise is that of neighbours 1/16 apart).  Each costs the core a material row and its tables.
 MAP_LEVELS = 17
+
+# Principled inputs by which Cycles mixes the node's parts linearly (metal, glass, coat): a map on one
+# gives the node at MAP_LEVELS values of it in [0, 1], in this order of precedence; then a specular
+# map (NodeWalker._principled_opaque).
+LINEAR_LEVEL_INPUTS = ("Metallic", "Transmission Weight", "Coat Weight")
+SPECULAR_LEVEL = "Specular IOR Level"
 
 # Nodes whose output may be a Fresnel curve of the view direction (NodeWalker._fresnel_factor).
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")

@@ -672,6 +672,112 @@ def test_a_mask_between_a_metal_and_a_paint_picks_levels_of_the_mask(scene):
     assert any("'Rust'" in w and "varying Fac" in w for w in ex.warnings), ex.warnings
 
 
+def test_a_coat_map_picks_levels_of_the_coat(scene):
+    """Coat Weight from a checker (a varnish worn off in squares): levels of it as for a metallic
+    map, level k the node with a coat of weight k / 16 (its roughness and IOR), no note of a mix
+    of different coats (the coat covers the whole node at every level).  Within a metallic map's
+    levels, each mixes its coat by the map's mean, noted."""
+    mat = principled("Varnish", **{"Base Color": (0.5, 0.3, 0.1, 1.0), "Coat Roughness": 0.1,
+                                   "Coat IOR": 1.6})
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Coat Weight"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 17 and 0.3 < row["coat_weight"] < 0.7
+    levels = [material_row(ex.scene, f"Varnish (level {k}/16)") for k in (0, 4, 16)]
+    assert [r["coat_weight"] for r in levels] == pytest.approx([0.0, 0.25, 1.0])
+    assert levels[1]["coat_roughness"] == pytest.approx(0.1) and levels[2]["coat_ior"] == pytest.approx(1.6)
+    assert all(r["diffuse_color"] == pytest.approx([0.5, 0.3, 0.1]) for r in levels)
+    assert not [w for w in ex.warnings if "'Varnish'" in w], ex.warnings
+    gradient = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(gradient.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Metallic"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 17 and (ex.scene.materials.level_program >= 0).sum() == 1
+    assert 0.3 < material_row(ex.scene, "Varnish (level 0/16)")["coat_weight"] < 0.7
+    assert any("'Varnish'" in w and "varying Coat Weight" in w for w in ex.warnings), ex.warnings
+    assert not any("different coats" in w for w in ex.warnings), ex.warnings
+
+
+def test_a_mask_between_coated_and_bare_or_rough_and_smooth_diffuse_picks_levels(scene):
+    """Mix Shader by a checker of a coated and a bare Principled BSDF (wet patches), otherwise
+    alike: the core has one coat per material, so a point-by-point mix would coat both by the
+    mask's mean; the mix gets levels of the mask instead, level k coated at k / 16.  So does a mask
+    between Diffuse BSDFs of different roughness (one diffuse roughness per material: the two
+    themselves as levels)."""
+    mat = principled("Wet", **{"Base Color": (0.3, 0.2, 0.1, 1.0)})
+    nt = mat.node_tree
+    wet = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    wet.inputs["Base Color"].default_value = (0.15, 0.1, 0.05, 1.0)
+    wet.inputs["Coat Weight"].default_value = 1.0
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(nt.nodes["Principled BSDF"].outputs[0], mix.inputs[1])
+    nt.links.new(wet.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 17
+    levels = [material_row(ex.scene, f"Wet (level {k}/16)") for k in (0, 8, 16)]
+    assert [r["coat_weight"] for r in levels] == pytest.approx([0.0, 0.5, 1.0])
+    assert levels[16 // 8]["diffuse_color"] == pytest.approx([0.15, 0.1, 0.05])
+    mat = bpy.data.materials.new("Mossy")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    rough, smooth = (nt.nodes.new("ShaderNodeBsdfDiffuse") for _ in range(2))
+    rough.inputs["Roughness"].default_value = 0.8
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(rough.outputs[0], mix.inputs[1])
+    nt.links.new(smooth.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 2
+    assert [material_row(ex.scene, f"Mossy (level {k}/1)")["diffuse_roughness"] for k in (0, 1)] == \
+        pytest.approx([0.8, 0.0])
+
+
+def test_a_specular_map_picks_levels_of_the_specular_ior_level(scene):
+    """Specular IOR Level from a checker times 2 (0 or 2): the node at 17 levels from 0 to the map's
+    largest value, 2, each the row a constant Specular IOR Level exports (the layer's Fresnel
+    IOR and colour), the pick the map over 2; the row itself is the node at the map's mean; no
+    note.  Under 1 the levels still reach 1 (an image's range)."""
+    from amcmcppm.core import procedural
+    mat = principled("Glaze", **{"Base Color": (0.2, 0.5, 0.3, 1.0)})
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    double = nt.nodes.new("ShaderNodeMath")
+    double.operation = "MULTIPLY"
+    double.inputs[1].default_value = 2.0
+    nt.links.new(checker.outputs["Fac"], double.inputs[0])
+    nt.links.new(double.outputs[0], nt.nodes["Principled BSDF"].inputs["Specular IOR Level"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 17
+    assert not [w for w in ex.warnings if "'Glaze'" in w], ex.warnings
+    pts = procedural.SampledAttributes(256)
+    fac = procedural.evaluate({"op": "checker", "vector": {"op": "attribute", "name": "generated"},
+                               "scale": 5.0, "color1": [1, 1, 1], "color2": [0, 0, 0], "output": "Fac"}, pts, [])
+    picks = procedural.evaluate(ex.scene.materials.programs[row["level_program"]], pts, [])
+    np.testing.assert_allclose(picks, fac, atol=1e-6)
+    levels = {k: material_row(ex.scene, f"Glaze (level {k}/16)") for k in (0, 4, 8, 16)}
+    keys = ("glossy_weight", "glossy_color", "glossy_fresnel_ior", "glossy_fresnel_rise", "diffuse_layer",
+            "diffuse_weight", "diffuse_color")
+    for k, level in levels.items():
+        bpy.data.objects.remove(bpy.data.objects["Plane"])
+        plain, _ = export_material(principled(f"Plain {k}", **{"Base Color": (0.2, 0.5, 0.3, 1.0),
+                                                                "Specular IOR Level": k / 8}))
+        for key in keys:
+            np.testing.assert_allclose(level[key], plain[key], rtol=1e-6, atol=1e-9, err_msg=f"{k} {key}")
+    assert levels[0]["glossy_weight"] == 0 and levels[16]["glossy_fresnel_ior"] > levels[8]["glossy_fresnel_ior"]
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Specular IOR Level"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 17
+    np.testing.assert_allclose(procedural.evaluate(ex.scene.materials.programs[row["level_program"]], pts, []),
+                               fac, atol=1e-6)
+    assert material_row(ex.scene, "Glaze (level 8/16)")["glossy_fresnel_ior"] == pytest.approx(1.5)
+
+
 def test_a_masks_levels_share_the_paints_texture(scene):
     """Mix Shader(Principled paint of a noise base colour, metal) by a noise mask: every level with a
     diffuse part has the paint's noise as its colour program, one program for all (the core evaluates
