@@ -67,15 +67,18 @@ ROUGH_DIFFUSE_MIN = 1e-5
 
 
 def roughness_variants(mats):
-    """(materials, first) for materials ``mats`` (``scene.Materials``) whose glossy roughness may
-    come from a program: the materials followed by ``ROUGHNESS_LEVELS`` copies of each such one,
-    copy k with roughness k / (ROUGHNESS_LEVELS - 1) and no program, and ``first`` (M,) int32 the
-    index of a material's first copy (-1: none).  The copies get every per-material table of the
-    core (multiscatter, layer, a mirror below 0.02) as any material; a hit picks its copy
-    (``RenderContext.surface``).  Without roughness programs (or glossy lobes): ``mats`` itself."""
+    """(materials, first) for materials ``mats`` (``scene.Materials``) whose glossy roughness, or
+    glass roughness (``dielectric_roughness`` -1), may come from a program: the materials
+    followed by ``ROUGHNESS_LEVELS`` copies of each such one, copy k with roughness
+    k / (ROUGHNESS_LEVELS - 1) (the glass's too where it follows the program) and no program, and
+    ``first`` (M,) int32 the index of a material's first copy (-1: none).  The copies get every
+    per-material table of the core (multiscatter, layer, a mirror below 0.02) as any material; a
+    hit picks its copy (``RenderContext.surface``).  Without roughness programs (or glossy or
+    such glass lobes): ``mats`` itself."""
     program = mats.roughness_program
     first = np.full(mats.count, -1, np.int32)
-    mapped = (np.flatnonzero((program >= 0) & (mats.glossy_weight > 0) & ~_picks_level(mats))
+    follows = (mats.dielectric_roughness < 0) & (mats.dielectric_weight > 0)
+    mapped = (np.flatnonzero((program >= 0) & ((mats.glossy_weight > 0) | follows) & ~_picks_level(mats))
               if program is not None else np.zeros(0, np.int64))
     if len(mapped) == 0:
         return mats, first
@@ -84,7 +87,12 @@ def roughness_variants(mats):
     changes = {name: np.ascontiguousarray(getattr(mats, name)[rows]) for name in mats.ARRAY_FIELDS}
     levels = np.linspace(0.0, 1.0, ROUGHNESS_LEVELS, dtype=np.float32)
     changes["glossy_roughness"][mats.count:] = np.tile(levels, len(mapped))
+    glass = changes["dielectric_roughness"]
+    glass[mats.count:] = np.where(glass[mats.count:] < 0, np.tile(levels, len(mapped)), glass[mats.count:])
     changes["roughness_program"][mats.count:] = -1
+    # (a program on a material without such lobes changes nothing: dropped, so that no hit picks
+    # copies it has not got)
+    changes["roughness_program"][np.flatnonzero((program >= 0) & (first < 0) & ~_picks_level(mats))] = -1
     changes["stretch_program"][mats.count:] = -1          # such a material keeps its stretch
     names = list(mats.names) + [f"{mats.names[m]} (roughness {r:.3f})" for m in mapped for r in levels]
     return dataclasses.replace(mats, names=names, **changes), first

@@ -132,7 +132,9 @@ class Materials:
       over its tinted transmission); the transmitted colour is multiplied by the program
       ``dielectric_program`` (when >= 0) at each hit (stained glass), the reflected one is not;
       smooth, or rough with GGX microfacets of Blender
-      roughness ``dielectric_roughness`` (single scattering);
+      roughness ``dielectric_roughness`` (single scattering); -1 there takes the roughness
+      map's value at each hit (``roughness_program``, which then varies both lobes' roughness:
+      Principled's one Roughness, a Glass BSDF's roughness map);
     * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides, times the
       program ``emission_program`` (when >= 0) at each point (a textured emitter).
 
@@ -224,7 +226,8 @@ class Materials:
     mirror_color: np.ndarray = None                     # (M, 3) float32
     dielectric_weight: np.ndarray = None                # (M,) float32
     dielectric_color: np.ndarray = None                 # (M, 3) float32
-    dielectric_roughness: np.ndarray = None             # (M,) float32 in [0, 1]; None: 0 (smooth)
+    dielectric_roughness: np.ndarray = None             # (M,) float32 in [0, 1] or -1 (the roughness
+    #                                                     program's); None: 0 (smooth)
     dielectric_reflection_color: np.ndarray = None      # (M, 3) float32; None: dielectric_color
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
@@ -282,7 +285,8 @@ class Materials:
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count")   # stored as int32
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
-                                    "glossy_rotation", "glossy_metal_tint", "level_first")
+                                    "glossy_rotation", "glossy_metal_tint", "level_first",
+                                    "dielectric_roughness")
 
     @property
     def count(self) -> int:
@@ -936,6 +940,11 @@ class Scene:
             if ((v < low) | (v > high)).any():
                 bad = mats.names[int(np.argmax((v < low) | (v > high)))]
                 fail(f"materials.{name} is outside [{low}, {high}] for material '{bad}'")
+        rough = mats.dielectric_roughness
+        odd = ~(((rough >= 0) & (rough <= 1)) | ((rough == -1) & (mats.roughness_program >= 0)))
+        if odd.any():
+            fail(f"material '{mats.names[int(np.argmax(odd))]}': dielectric_roughness must be in [0, 1], or -1 "
+                 "(the roughness program's) where roughness_program is set")
         self._validate_programs(fail)
         self._validate_levels(fail)
         for name in Materials.INT_FIELDS:
