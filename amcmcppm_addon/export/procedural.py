@@ -12,8 +12,8 @@ the material's pass index), Mapping
 Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector,
 colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Clamp, Map
 Range (float), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
-Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, Separate/Combine XYZ and Color (RGB), RGB
-and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
+Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color
+(RGB), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
 know the view direction).  Anything else is named in the material's warning and replaced by the
 input socket's own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
 texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
@@ -460,6 +460,11 @@ def _invert(b, node, stack):
                       "color": b.input(node, "Color", stack, VEC)}}
 
 
+def _rgb_to_bw(b, node, stack):
+    """RGB to BW: the colour's luminance (Cycles' ``linear_rgb_to_gray``, Rec. 709)."""
+    return {"Val": {"op": "gray", "color": b.input(node, "Color", stack, VEC)}}
+
+
 def _gamma(b, node, stack):
     return {"Color": {"op": "gamma", "color": b.input(node, "Color", stack, VEC),
                       "gamma": b.input(node, "Gamma", stack, FLOAT)}}
@@ -554,6 +559,7 @@ NODES = {
     "ShaderNodeMix": _mix,
     "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
     "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,
+    "ShaderNodeRGBToBW": _rgb_to_bw,
     "ShaderNodeBrightContrast": _bright_contrast,
     "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,

@@ -285,6 +285,13 @@ def vector_math(*ops):
     return build
 
 
+def rgb_to_bw(nt):
+    """RGB to BW of the arithmetic graph's colour (Rec. 709 luminance, as Cycles' colour-to-float)."""
+    bw = nt.nodes.new("ShaderNodeRGBToBW")
+    nt.links.new(arithmetic(nt), bw.inputs["Color"])
+    return bw.outputs["Val"]
+
+
 def clamped(kind, low, high):
     """A Clamp of the Object x (RANGE swaps a minimum above the maximum, MINMAX does not)."""
     def build(nt):
@@ -383,6 +390,7 @@ CASES = {
                                          ("POWER", (1.5, 2.0, 0.5), (0, 0, 0), 1.0)),
     "vector_math_values": vector_math(("DISTANCE", (0.4, 0.3, 0.0), (0, 0, 0), 1.0)),
     "vector_math_dot": vector_math(("DOT_PRODUCT", (0.6, -0.3, 0.2), (0, 0, 0), 1.0)),
+    "rgb_to_bw": rgb_to_bw,
     "clamp_minmax": clamped("MINMAX", 0.2, 0.7),
     "clamp_range": clamped("RANGE", 0.7, 0.2),
     "rgb_curves_extrapolated": curves("rgb", "EXTRAPOLATED"),
