@@ -119,7 +119,8 @@ class Closure:
     rotation_texture: dict = None   # float program of that turn where it varies (a rotation map)
     tangent: tuple = TANGENT_DEFAULT  # (core.bsdf.TANGENT_*, UV map name or None) of the tangent
     ior: float = 1.5                # dielectric index of refraction
-    dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's)
+    dielectric_roughness: float = 0.0   # dielectric (glass) roughness (Blender's; its mean where it varies)
+    dielectric_roughness_texture: dict = None  # float program of it where it varies (a glass roughness map)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))      # (3,) (mean) radiance
     emission_texture: dict = None   # program of the radiance where it varies (emission: its mean)
     texture: object = -1            # diffuse colour source: -1, an image index or a program (dict)
@@ -205,6 +206,10 @@ class Closure:
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
+        if self.dielectric_roughness_texture is not None or other.dielectric_roughness_texture is not None:
+            terms = [(c.dielectric_roughness_term(), w[DIELECTRIC]) for c, w in ((self, wa), (other, wb))
+                     if w[DIELECTRIC] > 0]
+            out.dielectric_roughness_texture = _float_average(terms) if terms else None
         # A coat lies over the whole material (one coat per material, NodeWalker._note_mixed):
         # its weight mixes as the lobes', its parameters by the coats' weights.
         ca, cb = fa * self.coat, fb * other.coat
@@ -321,6 +326,22 @@ class Closure:
         """The glossy roughness: a number or a float program."""
         return self.roughness if self.roughness_texture is None else self.roughness_texture
 
+    def dielectric_roughness_term(self):
+        """The glass's roughness: a number or a float program."""
+        return (self.dielectric_roughness if self.dielectric_roughness_texture is None
+                else self.dielectric_roughness_texture)
+
+    def glass_roughness_map(self):
+        """The float program the glass's roughness follows in the core (``roughness_program`` with
+        ``dielectric_roughness`` -1), or None: a glass roughness map is kept where the material has
+        no glossy lobe or one of the same map (Principled's one Roughness), the core having one
+        roughness program per material; elsewhere its mean stands (noted by the walker)."""
+        if self.dielectric_roughness_texture is None or self.weight[DIELECTRIC] <= 0:
+            return None
+        if self.weight[GLOSSY] > 0 and self.roughness_texture != self.dielectric_roughness_texture:
+            return None
+        return self.dielectric_roughness_texture
+
     def emission_term(self):
         """The emitted radiance: three numbers or a program."""
         return self.emission.tolist() if self.emission_texture is None else self.emission_texture
@@ -424,7 +445,9 @@ class Closure:
                 elif self.rises or other.rises:
                     return False            # (a glossy program cannot sit beside a Fresnel rise)
         if both(DIELECTRIC) and not (np.isclose(self.ior, other.ior)
-                                     and np.isclose(self.dielectric_roughness, other.dielectric_roughness)):
+                                     and np.isclose(self.dielectric_roughness, other.dielectric_roughness)
+                                     and self.dielectric_roughness_texture is None
+                                     and other.dielectric_roughness_texture is None):
             return False
         if both(DIFFUSE) and not np.isclose(self.diffuse_roughness, other.diffuse_roughness):
             return False
@@ -439,10 +462,13 @@ class Closure:
         other_lobes = [k for k in range(len(LOBES)) if k != DIFFUSE and (rise or k != GLOSSY)]
         rough = self.weight[DIFFUSE] > 0 and other.weight[DIFFUSE] > 0 and not np.isclose(
             self.diffuse_roughness, other.diffuse_roughness)
+        glass = self.weight[DIELECTRIC] > 0 and other.weight[DIELECTRIC] > 0 and not (
+            np.isclose(self.dielectric_roughness, other.dielectric_roughness)
+            and self.dielectric_roughness_texture == other.dielectric_roughness_texture)
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
                 and np.isclose(self.roughness, other.roughness) and np.isclose(self.stretch, other.stretch)
-                and np.isclose(self.ior, other.ior) and self.same_coat(other) and not rough
+                and np.isclose(self.ior, other.ior) and self.same_coat(other) and not rough and not glass
                 and self.metal_texture is None and other.metal_texture is None)
 
     def _transparency(self) -> dict:
@@ -525,6 +551,10 @@ class Closure:
                 s["glossy_multiscatter"] = fss
         if self.roughness_texture is not None and self.weight[GLOSSY] > 0:
             s["roughness_program"] = self.roughness_texture
+        glass_map = self.glass_roughness_map()
+        if glass_map is not None:
+            # The core's roughness copies take the map's level for the glass as well.
+            s["roughness_program"], s["dielectric_roughness"] = glass_map, -1.0
         if self.anisotropic and self.weight[GLOSSY] > 0:
             s.update(glossy_stretch=float(np.clip(self.stretch, 0.01, 100.0)), glossy_rotation=self.rotation,
                      glossy_tangent=self.tangent[0])
@@ -977,6 +1007,11 @@ class NodeWalker:
         if closure is None and self.medium is not None:
             # No surface, a volume: Cycles' volume-only mesh, whose surface lets every ray through.
             return Closure(transparent=np.ones(3), transparent_weight=1.0)
+        for c in [closure] + (closure.levels[1] if closure is not None and closure.levels is not None else []):
+            if c is not None and c.dielectric_roughness_texture is not None and c.glass_roughness_map() is None \
+                    and c.weight[DIELECTRIC] > 0:
+                self.note(f"a varying glass roughness beside a glossy lobe of another roughness takes its "
+                          f"mean {c.dielectric_roughness:.3f} (one roughness map per material)")
         bump = self.displacement(out.inputs["Displacement"], material)
         if bump is not None and closure is not None:
             if closure.normal_map is not None or closure.bump is not None:
@@ -1468,9 +1503,10 @@ class NodeWalker:
         through point by point, its reflections by the texture's mean (a few per cent of the light)."""
         color, tex = self.color(node.inputs["Color"], stack)
         ior = self.value(node.inputs["IOR"], stack)
-        rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0)) \
-            if "Roughness" in node.inputs else 0.0
-        c = Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3), dielectric_roughness=rough)
+        rough, rough_map = self.roughness(node.inputs["Roughness"], stack) if "Roughness" in node.inputs \
+            else (0.0, None)
+        c = Closure.lobe(DIELECTRIC, 1.0, color, ior=max(ior, 1e-3), dielectric_roughness=rough,
+                         dielectric_roughness_texture=rough_map)
         if textured(tex):
             c.dielectric_texture = _program_of(tex, color)
         return c
@@ -1654,8 +1690,7 @@ class NodeWalker:
             c.multiscatter = m * metal * metal_mean + spec * f0_tint * layer_fss
         c.weight[DIELECTRIC] = (1.0 - m) * t
         if rough_map is not None and c.weight[DIELECTRIC] > 0:
-            self.note(f"'{node.name}': a varying Roughness roughens the glass by its mean {rough:.3f} "
-                      "(a roughness map varies the glossy reflection only)")
+            c.dielectric_roughness_texture = rough_map      # (the glass follows the map too)
         # Cycles tints Principled glass by the square root of the base colour at each interface,
         # so that light crossing it (in and out) takes the base colour once.
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))

@@ -452,8 +452,9 @@ def test_textures_on_inputs_that_cannot_vary_use_their_mean_with_a_warning(scene
 
 def test_a_roughness_map_becomes_a_program_clamped_to_one(scene):
     """A Principled BSDF's Roughness from a gradient times 2 (0 to 2): a float program clamped to
-    [0, 1] (mean 0.75), the same one for both halves of a metallic map, and the glass of a
-    transmissive one roughened by the mean, with a note."""
+    [0, 1] (mean 0.75), the same one for both halves of a metallic map and for the glass of a
+    transmissive one (``dielectric_roughness`` -1: the core's roughness copies roughen the glass
+    too; before stop 39 it took the mean, noted), in the row and in every level."""
     mat = principled("Mapped", **{"Transmission Weight": 0.5})
     nt = mat.node_tree
     times = nt.nodes.new("ShaderNodeMath")
@@ -471,8 +472,55 @@ def test_a_roughness_map_becomes_a_program_clamped_to_one(scene):
     values = procedural.evaluate(program, procedural.SampledAttributes(), [])
     assert values.min() >= 0.0 and values.max() == 1.0 and values.mean() == pytest.approx(0.75, abs=0.02)
     assert row["glossy_roughness"] == pytest.approx(0.75, abs=0.02)
-    assert row["dielectric_roughness"] == pytest.approx(0.75, abs=0.02)
-    assert any("Mapped" in w and "roughens the glass by its mean" in w for w in ex.warnings), ex.warnings
+    assert row["dielectric_roughness"] == -1
+    for k in (0, 8):
+        level = material_row(s, f"Mapped (level {k}/16)")
+        assert level["dielectric_roughness"] == -1 and level["roughness_program"] == row["roughness_program"]
+        assert level["dielectric_weight"] == pytest.approx(0.5 * (1 - k / 16))
+    assert not any("Mapped" in w and "glass" in w for w in ex.warnings), ex.warnings
+
+
+def test_a_glass_roughness_map_roughens_the_glass_point_by_point(scene):
+    """A Glass BSDF whose Roughness is a gradient: the row's glass follows the clamped program
+    (``dielectric_roughness`` -1, ``roughness_program``), no note.  Mixed at 0.5 with a Glossy BSDF of
+    constant roughness the core has one roughness program for both, so the glass takes the map's
+    mean, noted.  A mask between two glasses of different roughness gives the two as levels."""
+    from amcmcppm.core import procedural
+    mat = bpy.data.materials.new("Frosted")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    glass = nt.nodes.new("ShaderNodeBsdfGlass")
+    gradient = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(gradient.outputs["Fac"], glass.inputs["Roughness"])
+    nt.links.new(glass.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    assert row["dielectric_roughness"] == -1 and row["dielectric_weight"] == pytest.approx(1.0)
+    pts = procedural.SampledAttributes(64)
+    values = procedural.evaluate(ex.scene.materials.programs[row["roughness_program"]], pts, [])
+    np.testing.assert_allclose(values, np.clip(pts.get("generated")[:, 0], 0, 1), atol=1e-6)
+    assert not [w for w in ex.warnings if "'Frosted'" in w], ex.warnings
+    bs.mix_in(mat, "Glass BSDF", "ShaderNodeBsdfGlossy", 0.5)
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert row["dielectric_roughness"] == pytest.approx(0.5, abs=0.02)
+    assert row["glossy_roughness"] == pytest.approx(0.5) and row["roughness_program"] == -1
+    assert any("'Frosted'" in w and "varying glass roughness" in w for w in ex.warnings), ex.warnings
+    mat = bpy.data.materials.new("Two panes")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    clear, frosted = (nt.nodes.new("ShaderNodeBsdfGlass") for _ in range(2))
+    clear.inputs["Roughness"].default_value = 0.0
+    frosted.inputs["Roughness"].default_value = 0.6
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(clear.outputs[0], mix.inputs[1])
+    nt.links.new(frosted.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 2
+    assert [material_row(ex.scene, f"Two panes (level {k}/1)")["dielectric_roughness"] for k in (0, 1)] == \
+        pytest.approx([0.0, 0.6])
 
 
 def test_textured_emission_becomes_one_program_scaled_to_its_mean(scene):
