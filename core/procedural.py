@@ -13,10 +13,12 @@ as Cycles does.
 
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
-* ``attribute`` name = generated | object | uv | color | normal: -> Vector.  Blender's Generated and Object
+* ``attribute`` name = generated | object | uv | color | normal | position | world_normal |
+  true_normal (and Object Info's, ``OBJECT_INFO``): -> Vector.  Blender's Generated and Object
   coordinates (the hit in its object's space, ``Scene.object_from_world``, and that object's
   texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs``
-  as (u, v, 0) and ``Scene.vertex_colors``, interpolated.
+  as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's Position, Normal and
+  True Normal in world space (``GEOMETRY``).
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
@@ -74,7 +76,12 @@ from .sampling import dot, length, normalize
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
-              "object_info")
+              "object_info", "position", "world_normal", "true_normal")
+# Blender's Geometry node: "position" the hit's world position, "world_normal" the world-space
+# shading normal (interpolated where the mesh is smooth), "true_normal" the facet's; both normals
+# on the triangle's front (Cycles turns them towards the ray on a back face; a program does not
+# know the ray).
+GEOMETRY = ("position", "world_normal", "true_normal")
 # Blender's Object Info per object (``Scene.object_info``): "object_location" the object's origin
 # in world space, "object_color" its colour, "object_info" (Alpha, Object Index, Random).
 OBJECT_INFO = ("object_location", "object_color", "object_info")
@@ -109,6 +116,8 @@ class HitAttributes:
         if name not in self._cache:
             if name == "normal":
                 value = self._normal()
+            elif name in GEOMETRY:
+                value = self._geometry(name)
             elif name in ("object", "generated"):
                 value = self._object(name)
             elif name in OBJECT_INFO:
@@ -134,6 +143,19 @@ class HitAttributes:
         objects, which = np.unique(s.object_ids.take(self.prim_ids), return_inverse=True)
         world_from_object = np.linalg.inv(s.object_from_world.take(objects, axis=0)[:, :, :3])
         n = np.einsum("kji,kj->ki", world_from_object.take(which, axis=0), n)      # W^T n
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+    def _geometry(self, name):
+        """(k, 3) world position, shading normal or facet normal of the hits (``GEOMETRY``)."""
+        s = self.scene
+        if name == "position":
+            return np.asarray(self.positions, np.float64)
+        if name == "world_normal" and s.shading_normals is not None:
+            n = interpolate_corners(s.shading_normals.take(self.prim_ids, axis=0).astype(np.float64), self.bary)
+        else:
+            c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
+            n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         length = np.linalg.norm(n, axis=1, keepdims=True)
         return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
@@ -178,8 +200,9 @@ class HitAttributes:
 
 
 class DirectionAttributes:
-    """The coordinates of a world shader: Generated and Object are the direction (Cycles), the
-    uvs and colours zero.  directions : (k, 3) unit float64."""
+    """The coordinates of a world shader: Generated, Object and the Geometry's Position are the
+    direction (Cycles), its normals the opposite, the uvs and colours zero.  directions : (k, 3)
+    unit float64."""
 
     def __init__(self, directions):
         self.directions = np.asarray(directions, np.float64)
@@ -189,8 +212,10 @@ class DirectionAttributes:
         return len(self.directions)
 
     def get(self, name):
-        if name in ("generated", "object", "normal"):
+        if name in ("generated", "object", "normal", "position"):
             return self.directions
+        if name in ("world_normal", "true_normal"):
+            return -self.directions                 # (Cycles' background: N = Ng = -D)
         return np.zeros_like(self.directions)
 
 
@@ -208,7 +233,9 @@ class SampledAttributes:
                         "uv": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1), "color": g,
                         "normal": d / np.linalg.norm(d, axis=1, keepdims=True),
                         "object_location": 2.0 * g - 1.0, "object_color": g,
-                        "object_info": np.concatenate([np.ones((n, 1)), np.zeros((n, 1)), g[:, :1]], axis=1)}
+                        "object_info": np.concatenate([np.ones((n, 1)), np.zeros((n, 1)), g[:, :1]], axis=1),
+                        "position": 2.0 * g - 1.0}
+        self._values["world_normal"] = self._values["true_normal"] = self._values["normal"]
 
     @property
     def count(self) -> int:

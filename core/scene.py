@@ -1130,7 +1130,8 @@ class Scene:
                   "object_location": self.object_ids, "object_color": self.object_ids,
                   "object_info": self.object_ids,
                   "uv": self.uvs,
-                  "color": self.vertex_colors}
+                  "color": self.vertex_colors,
+                  "position": self.vertices, "world_normal": self.vertices, "true_normal": self.vertices}
         for i, program in enumerate(mats.programs):
             try:
                 procedural.validate(program, len(self.textures))

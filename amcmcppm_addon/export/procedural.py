@@ -6,7 +6,8 @@ type conversions Cycles makes where a link joins sockets of different types (col
 by luminance, vector to float by the average, float to colour as grey).  Supported nodes:
 Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Object Info
 (per object: Location, Color, Alpha, Object Index and Random as Cycles sets them; Material Index
-the material's pass index), Mapping
+the material's pass index), Geometry (Position, Normal and True Normal, in world space, on the
+front of the triangle), Mapping
 (all four types), Image Texture (flat projection, repeat), Environment Texture
 (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise
 Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector,
@@ -131,6 +132,14 @@ def _tex_coord(b, node, stack):
     else:
         b.walker.note(f"'{node.name}': Object coordinates of another object are not supported")
     return out
+
+
+def _geometry(b, node, stack):
+    """Geometry: Position, Normal and True Normal in world space (on the triangle's front: Cycles
+    turns them towards the ray on a back face); the other outputs are noted where used."""
+    return {"Position": {"op": "attribute", "name": "position"},
+            "Normal": {"op": "attribute", "name": "world_normal"},
+            "True Normal": {"op": "attribute", "name": "true_normal"}}
 
 
 def _object_info(b, node, stack):
@@ -549,7 +558,7 @@ def _layer_weight(b, node, stack):
 
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
-    "ShaderNodeObjectInfo": _object_info,
+    "ShaderNodeObjectInfo": _object_info, "ShaderNodeNewGeometry": _geometry,
     "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
     "ShaderNodeTexEnvironment": _environment, "ShaderNodeTexSky": _sky,

@@ -711,17 +711,24 @@ def test_image_alpha_matches_cycles(addon, tmp_path, is_float, output):
         assert (err < 0.01).mean() > 0.8 and err.max() < 0.15
 
 
-@pytest.mark.parametrize("graph", ["normal", "box_sharp", "box_blended"])
+@pytest.mark.parametrize("graph", ["normal", "box_sharp", "box_blended", "geometry_normal",
+                                   "geometry_true_normal", "geometry_position"])
 def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, graph):
     """A smooth, turned and unevenly scaled sphere seen from above: the Texture Coordinate's
-    Normal (the object-space shading normal), and an image box-projected on Object coordinates
-    (blend 0 and 0.3), whose three projections the normal weighs (``procedural.box_weights``)."""
+    Normal (the object-space shading normal), an image box-projected on Object coordinates
+    (blend 0 and 0.3), whose three projections the normal weighs (``procedural.box_weights``), and
+    the Geometry node's Normal, True Normal (the facet's) and Position, in world space (stop 39;
+    before, an unsupported node)."""
     import bmesh
     import bpy
 
     def build(nt):
         if graph == "normal":
             return nt.nodes.new("ShaderNodeTexCoord").outputs["Normal"]
+        if graph.startswith("geometry_"):
+            output = {"geometry_normal": "Normal", "geometry_true_normal": "True Normal",
+                      "geometry_position": "Position"}[graph]
+            return nt.nodes.new("ShaderNodeNewGeometry").outputs[output]
         out = image_on_mapped_uv(nt)
         t = out.node
         t.projection = "BOX"
@@ -743,7 +750,7 @@ def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, gra
     err = np.abs(ours[on] - np.maximum(cycles[on], 0.0)).max(axis=1)
     print(f"{graph}: max {err.max():.2e}, 99th percentile {np.percentile(err, 99):.2e}, "
           f"share within 2e-3 {(err < 2e-3).mean():.3f}")
-    if graph == "normal":
+    if graph in ("normal", "geometry_normal", "geometry_position"):
         assert np.percentile(err, 99) < 2e-3
     else:
         # Discontinuities: where the dominant axis changes (blend 0) a pixel may fall either side.

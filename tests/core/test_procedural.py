@@ -177,6 +177,34 @@ def test_object_and_generated_coordinates_follow_the_object():
     assert RenderContext(scene.validate()).has_programs
 
 
+def test_geometry_attributes_are_the_hits_world_position_and_normals():
+    """Geometry's Position is the hit's world position; Normal the interpolated shading normal
+    (the facet's without shading normals), True Normal the facet's, both unit, on the front; in a
+    world shader Position is the direction and the normals its opposite (Cycles' background).  A
+    scene without objects still has them."""
+    scene = sun_over_procedural_floor({"op": "attribute", "name": "position"})
+    scene = scene.replace(object_ids=None, object_from_world=None, texture_spaces=None).validate()
+    bary = tuple(np.full((2, 1), w) for w in (0.2, 0.3, 0.5))
+    positions = np.array([[0.1, 0.2, 0.0], [-0.3, 0.1, 0.0]])
+    attrs = procedural.HitAttributes(scene, np.array([1, 0]), bary, positions)
+    np.testing.assert_array_equal(attrs.get("position"), positions)
+    np.testing.assert_allclose(attrs.get("true_normal"), [[0, 0, 1], [0, 0, 1]], atol=1e-12)
+    np.testing.assert_allclose(attrs.get("world_normal"), [[0, 0, 1], [0, 0, 1]], atol=1e-12)
+    tilted = np.zeros((2, 3, 3), np.float32)
+    tilted[:, :, 2] = 1.0
+    tilted[:, 0] = [0.6, 0.0, 0.8]                       # corner 0 leans towards +x
+    smooth = scene.replace(shading_normals=tilted).validate()
+    got = procedural.HitAttributes(smooth, np.array([1, 0]), bary, positions).get("world_normal")
+    expected = 0.2 * np.array([0.6, 0.0, 0.8]) + 0.8 * np.array([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(got, np.tile(expected / np.linalg.norm(expected), (2, 1)), rtol=1e-6)
+    np.testing.assert_allclose(procedural.HitAttributes(smooth, np.array([1, 0]), bary, positions)
+                               .get("true_normal"), [[0, 0, 1], [0, 0, 1]], atol=1e-12)
+    d = np.array([[0.0, 0.6, 0.8]])
+    world = procedural.DirectionAttributes(d)
+    np.testing.assert_array_equal(world.get("position"), d)
+    np.testing.assert_array_equal(world.get("world_normal"), -d)
+
+
 def test_object_info_reads_each_objects_row(tmp_path):
     """Object Info (``Scene.object_info``): the floor's two triangles as two objects, one turned a
     quarter about z and moved; each hit reads its object's origin in world space, its colour and
