@@ -18,7 +18,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
   coordinates (the hit in its object's space, ``Scene.object_from_world``, and that object's
   texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs``
   as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's Position, Normal and
-  True Normal in world space (``GEOMETRY``).
+  True Normal in world space (``GEOMETRY``); ``named:`` + a name, ``Scene.attributes[name]``
+  interpolated (``NAMED``).
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
@@ -82,6 +83,10 @@ ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location",
 # on the triangle's front (Cycles turns them towards the ray on a back face; a program does not
 # know the ray).
 GEOMETRY = ("position", "world_normal", "true_normal")
+# An attribute named NAMED + a mesh attribute's name reads ``Scene.attributes[name]`` per corner
+# (Blender's Attribute node, a Color Attribute or UV Map node naming a layer); 0 where the scene
+# has no such attribute (Cycles: a missing attribute reads 0).
+NAMED = "named:"
 # Blender's Object Info per object (``Scene.object_info``): "object_location" the object's origin
 # in world space, "object_color" its colour, "object_info" (Alpha, Object Index, Random).
 OBJECT_INFO = ("object_location", "object_color", "object_info")
@@ -122,6 +127,8 @@ class HitAttributes:
                 value = self._object(name)
             elif name in OBJECT_INFO:
                 value = self._object_info(name)
+            elif name.startswith(NAMED):
+                value = self._named(name[len(NAMED):])
             else:
                 value = self._corners(name)
             self._cache[name] = value
@@ -158,6 +165,13 @@ class HitAttributes:
             n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         length = np.linalg.norm(n, axis=1, keepdims=True)
         return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+    def _named(self, name):
+        """(k, 3) mesh attribute ``name`` (``Scene.attributes``) interpolated at the hits; 0 without it."""
+        values = (self.scene.attributes or {}).get(name)
+        if values is None:
+            return np.zeros((self.count, 3))
+        return interpolate_corners(values.take(self.prim_ids, axis=0).astype(np.float64), self.bary)
 
     def _corners(self, name):
         c = {"uv": self.scene.uvs, "color": self.scene.vertex_colors}[name]
@@ -242,6 +256,8 @@ class SampledAttributes:
         return len(self._values["generated"])
 
     def get(self, name):
+        if name.startswith(NAMED):
+            return self._values["color"]            # (a mesh attribute: uniform in the unit cube)
         return self._values[name]
 
 
@@ -325,6 +341,9 @@ def _check_value(op, key, value):
     if key in ("op", "output") or isinstance(value, dict):
         return
     choices = CHOICES.get((op, key))
+    if (op, key) == ("attribute", "name") and isinstance(value, str) and value.startswith(NAMED) \
+            and len(value) > len(NAMED):
+        return                                      # a mesh attribute's name
     if choices is not None:
         if value not in choices:
             raise ProgramError(f"op '{op}': {key} {value!r} is not one of {tuple(choices)}")

@@ -787,6 +787,10 @@ class Scene:
     # Random (Cycles' random number in [0, 1]) and Color (rgb); None: zeros (``validate``).
     object_info: np.ndarray = None
     vertex_colors: np.ndarray = None    # (T, 3, 3) float32 linear RGB per corner (Color Attribute), or None
+    # Named mesh attributes that programs read (``procedural.NAMED``): {name: (T, 3, 3) float32 per
+    # corner}, a float attribute repeated in x, y and z, a 2D one (x, y, 0), a colour linear RGB;
+    # 0 on meshes without it.  None: none.
+    attributes: dict = None
     # (T,) uint8 the camera-path rays that see each triangle (Blender's object ray visibility, bits
     # as Lights.visibility: VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION), or None: all of
     # them.  The others go through it (RenderContext.trace); photons always meet it.  The bit
@@ -975,6 +979,10 @@ class Scene:
             self.tangents = per_corner("tangents", self.tangents, 4)
         if self.vertex_colors is not None:
             self.vertex_colors = per_corner("vertex_colors", self.vertex_colors, 3)
+        if self.attributes is not None:
+            if not all(isinstance(k, str) and k for k in self.attributes):
+                fail("attributes must be named by non-empty strings")
+            self.attributes = {k: per_corner(f"attributes['{k}']", v, 3) for k, v in self.attributes.items()}
         if self.object_ids is not None:
             self._validate_objects(fail, arr, t)
         if self.triangle_visibility is not None:
@@ -1138,6 +1146,8 @@ class Scene:
             except procedural.ProgramError as e:
                 fail(f"materials.programs[{i}]: {e}")
             for name in procedural.attributes_used(program):
+                if name.startswith(procedural.NAMED):
+                    continue                        # (0 where the scene lacks it, as in Cycles)
                 if coords[name] is None and (used == i).any():
                     fail(f"materials.programs[{i}] reads '{name}' coordinates but the scene has none")
 
@@ -1226,6 +1236,8 @@ class Scene:
                      "emitter_shadow_links"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
+        for name, values in (self.attributes or {}).items():
+            d[f"attributes.{name}"] = values
         for i, tex in enumerate(self.textures):
             d[f"textures.{i}"] = tex
         return d
@@ -1270,7 +1282,9 @@ class Scene:
                       triangle_visibility=get("triangle_visibility"),
                       receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
                       blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),
-                      textures=[get(f"textures.{i}") for i in range(ntex)])
+                      textures=[get(f"textures.{i}") for i in range(ntex)],
+                      attributes={k[len("attributes."):]: z[k] for k in sorted(keys)
+                                  if k.startswith("attributes.")} or None)
         return scene.validate()
 
     def save(self, path) -> None:

@@ -19,11 +19,11 @@ Glossary: ``T`` triangles, ``V`` vertices, ``L`` corners (loops), ``k`` instance
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...core.procedural import OBJECT_INFO
+from ...core.procedural import NAMED, OBJECT_INFO
 from ...core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 from ...core.texture_hash import hash_uint2
 from .lights import ray_visibility
@@ -55,6 +55,10 @@ class LocalMesh:
     texspace: tuple = ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))  # texture space (location, size): Generated
     colors: np.ndarray | None = None  # (T, 3, 3) float32 linear render colour attribute per corner, or None
     colors_read: bool = False   # read with its colour attribute (a material's Color Attribute node)
+    # Named attributes (Attribute, Color Attribute and UV Map nodes naming one): {name: (T, 3, 3)
+    # float32 per corner} of those the mesh has among ``attributes_read``, the names asked for
+    attributes: dict = field(default_factory=dict)
+    attributes_read: frozenset = frozenset()
 
 
 @dataclass
@@ -68,6 +72,7 @@ class Geometry:
     uvs: np.ndarray | None          # (T, 3, 2) float32 or None
     tangents: np.ndarray | None = None  # (T, 3, 4) float32 or None
     colors: np.ndarray | None = None         # (T, 3, 3) float32 or None (Color Attribute nodes)
+    attributes: dict | None = None           # {name: (T, 3, 3) float32} named attributes (core.Scene)
     # Objects of procedural textures' Object and Generated coordinates, or None (core.Scene):
     object_ids: np.ndarray | None = None          # (T,) int32 each triangle's instance
     object_from_world: np.ndarray | None = None   # (O, 3, 4) float64
@@ -140,13 +145,15 @@ class GeometryCollector:
         tangents = uv_map is not None and not local.tangents_read and local.uvs is not None
         used = materials.coordinates_used(mat_ids)
         colors = "color" in used and not local.colors_read
+        named = frozenset(n[len(NAMED):] for n in used if n.startswith(NAMED))
         if tangents and uv_map and uv_map != local.uv_map:
             self.log.warning(f"object '{ob.name}': its normal map or anisotropic tangent uses UV map "
                              f"'{uv_map}'; the active render UV map '{local.uv_map}' is used instead")
-        if tangents or colors:
+        if tangents or colors or not named <= local.attributes_read:
             # Read again with what the materials need (each only when some material needs it).
             local = read_object_mesh(ob, self.log, tangents=tangents or local.tangents_read,
-                                     colors=colors or local.colors_read) or local
+                                     colors=colors or local.colors_read,
+                                     attributes=named | local.attributes_read) or local
             self.meshes[key] = local
         if getattr(ob, "is_shadow_catcher", False):
             self.log.warning(f"object '{ob.name}' is a shadow catcher, which is not supported: it renders "
@@ -212,10 +219,10 @@ def _mesh_key(ob):
     return ("object", ob.original.as_pointer(), ob.data.as_pointer() if ob.data else 0)
 
 
-def read_object_mesh(ob, log, tangents=False, colors=False):
+def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset()):
     """:class:`LocalMesh` of an evaluated object (modifiers applied), or None without faces;
     with ``tangents`` also its tangent frames (for normal maps), with ``colors`` its render colour
-    attribute (for Color Attribute nodes)."""
+    attribute (for Color Attribute nodes), and the named ``attributes`` it has."""
     try:
         me = ob.to_mesh()
     except RuntimeError as e:
@@ -224,17 +231,17 @@ def read_object_mesh(ob, log, tangents=False, colors=False):
     try:
         if me is None:
             return None
-        return read_mesh(me, ob.name, log, tangents, colors=colors)
+        return read_mesh(me, ob.name, log, tangents, colors=colors, attributes=attributes)
     finally:
         ob.to_mesh_clear()
 
 
-def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False):
+def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, attributes=frozenset()):
     """:class:`LocalMesh` of a ``bpy.types.Mesh``, or None (with an info message) without faces.
 
     With ``tangents``, a mesh with n-gons (for which Blender computes no tangents) is read from a
     triangulated copy (``triangulated``: this is that copy); with ``colors`` its render colour
-    attribute is read too.
+    attribute is read too, and the named ``attributes`` it has (:func:`_corner_attribute`).
     """
     n_vert = len(me.vertices)
     if len(me.polygons) == 0:
@@ -269,7 +276,8 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False):
         if frames is None and not triangulated:
             copy = _triangulated_copy(me)
             try:
-                return read_mesh(copy, name, log, tangents, triangulated=True, colors=colors)
+                return read_mesh(copy, name, log, tangents, triangulated=True, colors=colors,
+                                 attributes=attributes)
             finally:
                 import bpy
                 bpy.data.meshes.remove(copy)
@@ -281,7 +289,9 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False):
                      tangents=frames, uv_map=layer.name if layer is not None else "",
                      tangents_read=tangents,
                      texspace=(tuple(me.texspace_location), tuple(me.texspace_size)),
-                     colors=_corner_colors(me, tri_vert, tri_loops) if colors else None, colors_read=colors)
+                     colors=_corner_colors(me, tri_vert, tri_loops) if colors else None, colors_read=colors,
+                     attributes=_named_attributes(me, attributes, tri_vert, tri_loops, tri_poly, name, log),
+                     attributes_read=frozenset(attributes))
 
 
 def _triangulate(me, positions, corner_vert):
@@ -373,6 +383,41 @@ def _corner_colors(me, tri_vert, tri_loops):
     attr.data.foreach_get("color", rgba)         # linear for byte colours too
     rows = tri_vert if attr.domain == "POINT" else tri_loops
     return np.take(rgba.reshape(-1, 4)[:, :3], rows, axis=0)
+
+
+# Blender attribute data types the core reads: (property, components, buffer dtype).
+ATTRIBUTE_TYPES = {"FLOAT": ("value", 1, np.float32), "INT": ("value", 1, np.int32),
+                   "INT8": ("value", 1, np.int32), "BOOLEAN": ("value", 1, bool),
+                   "FLOAT_VECTOR": ("vector", 3, np.float32), "FLOAT2": ("vector", 2, np.float32),
+                   "INT32_2D": ("value", 2, np.int32), "FLOAT_COLOR": ("color", 4, np.float32),
+                   "BYTE_COLOR": ("color", 4, np.float32)}
+
+
+def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
+    """{name: (T, 3, 3) float32} of the ``names`` the mesh has as attributes Cycles reads by name (a
+    float repeated in x, y, z; a 2D value (x, y, 0); a colour's linear RGB), per triangle corner
+    from its point, corner or face domain; the others are left out (0, as in Cycles), an unusable
+    one with a warning."""
+    out = {}
+    for name in sorted(names):
+        attr = me.attributes.get(name)
+        if attr is None:
+            continue
+        kind = ATTRIBUTE_TYPES.get(attr.data_type)
+        rows = {"POINT": tri_vert, "CORNER": tri_loops,
+                "FACE": np.repeat(np.asarray(tri_poly)[:, None], 3, axis=1)}.get(attr.domain)
+        if kind is None or rows is None:
+            log.warning(f"object '{mesh_name}': attribute '{name}' ({attr.data_type.lower()} on the "
+                        f"{attr.domain.lower()} domain) cannot be read; it reads 0")
+            continue
+        prop, k, dtype = kind
+        flat = np.empty(len(attr.data) * k, dtype)
+        attr.data.foreach_get(prop, flat)
+        values = flat.reshape(-1, k).astype(np.float32)
+        values = {1: np.repeat(values, 3, axis=1), 2: np.pad(values, ((0, 0), (0, 1))), 3: values,
+                  4: values[:, :3]}[k]
+        out[name] = np.take(values, rows, axis=0)
+    return out
 
 
 def _corner_tangents(me, layer, tri_loops):
@@ -469,6 +514,8 @@ def assemble(meshes, groups, materials, infos=None) -> Geometry:
                     uvs=None if uvs is None else np.ascontiguousarray(uvs, np.float32),
                     tangents=None if tangents is None else np.ascontiguousarray(tangents, np.float32),
                     colors=np.concatenate([p["color"] for p in parts]) if "color" in coordinates else None,
+                    attributes={key[len(NAMED):]: np.concatenate([p[key] for p in parts])
+                                for key in sorted(coordinates) if key.startswith(NAMED)} or None,
                     **objects,
                     triangle_visibility=visibility if (visibility != ALL_RAYS).any() else None,
                     instances=instances, **links)
@@ -539,12 +586,13 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
         out["object_ids"] = np.repeat(np.arange(k, dtype=np.int32), n_t)
         out["object_from_world"] = np.linalg.inv(world_from_object)[:, :3, :4]
         out["texture_spaces"] = np.repeat(np.asarray(local.texspace, np.float64)[None], k, axis=0)
-    if "color" in coordinates:
-        # Meshes without a colour attribute read black, as in Cycles.
-        c = local.colors if local.colors is not None else np.zeros((n_t, 3, 3), np.float32)
-        c = np.repeat(c[None], k, axis=0)
-        _swap_corners(c, mirrored)
-        out["color"] = c.reshape(k * n_t, 3, 3)
+    for key in coordinates:
+        if key == "color" or key.startswith(NAMED):
+            # Meshes without such a colour attribute (or named one) read 0, as in Cycles.
+            c = local.colors if key == "color" else local.attributes.get(key[len(NAMED):])
+            c = np.repeat((c if c is not None else np.zeros((n_t, 3, 3), np.float32))[None], k, axis=0)
+            _swap_corners(c, mirrored)
+            out[key] = c.reshape(k * n_t, 3, 3)
     return out
 
 

@@ -4,7 +4,8 @@
 float, or three floats for colour and vector sockets) or a program node dict, inserting the
 type conversions Cycles makes where a link joins sockets of different types (colour to float
 by luminance, vector to float by the average, float to colour as grey).  Supported nodes:
-Texture Coordinate (Generated, Object, UV), UV Map, Color Attribute (the render one), Object Info
+Texture Coordinate (Generated, Object, UV), UV Map (the active render one or a named one), Color
+Attribute (the render one or a named one), Attribute (a mesh attribute by name), Object Info
 (per object: Location, Color, Alpha, Object Index and Random as Cycles sets them; Material Index
 the material's pass index), Geometry (Position, Normal and True Normal, in world space, on the
 front of the triangle), Mapping
@@ -152,18 +153,53 @@ def _object_info(b, node, stack):
             "Material Index": float(b.walker.pass_index)}
 
 
+def _named(name):
+    """The program of mesh attribute ``name`` (``procedural.NAMED``)."""
+    return {"op": "attribute", "name": procedural.NAMED + name}
+
+
 def _uv_map(b, node, stack):
-    if node.uv_map:
-        b.walker.note(f"'{node.name}': UV map '{node.uv_map}' is not supported (the active render UV "
-                      "map is used)")
-    return {"UV": {"op": "attribute", "name": "uv"}}
+    if node.from_instancer:
+        b.walker.note(f"'{node.name}': UV maps from the instancer are not supported (the object's are used)")
+    return {"UV": _named(node.uv_map) if node.uv_map else {"op": "attribute", "name": "uv"}}
 
 
 def _color_attribute(b, node, stack):
+    """Color Attribute: the render colour attribute, or the one it names (its Alpha then noted)."""
     if node.layer_name:
-        b.walker.note(f"'{node.name}': colour attribute '{node.layer_name}' is not supported (the render "
-                      "colour attribute is used)")
+        return {"Color": _named(node.layer_name)}
     return {"Color": {"op": "attribute", "name": "color"}, "Alpha": 1.0}
+
+
+# Cycles' standard attribute names (``Attribute::standard_name``), which an Attribute node reads
+# instead of a mesh attribute of that name: the volume grids' read 0 on a surface, Generated and the
+# UV map are the texture coordinates, the others are not modelled here.
+VOLUME_ATTRIBUTES = ("density", "color", "flame", "heat", "temperature", "velocity", "velocity_x",
+                     "velocity_y", "velocity_z")
+STANDARD_COORDINATES = {"generated": "generated", "uv": "uv"}
+OTHER_STANDARD_ATTRIBUTES = ("N", "Ng", "tangent", "tangent_sign", "vertex_color", "undeformed",
+                             "undisplaced", "motion_P", "motion_N", "particle", "curve_intercept",
+                             "curve_length", "curve_random", "point_random", "ptex_face_id", "ptex_uv",
+                             "pointiness", "random_per_island", "generated_transform", "shadow_transparency")
+
+
+def _attribute(b, node, stack):
+    """Attribute of the Geometry type: the mesh attribute of that name (a float, vector, colour or
+    2D one; 0 on meshes without it) as Color and Vector, its average as Fac (Cycles); Cycles'
+    standard names first (``VOLUME_ATTRIBUTES``: 0; Generated and UV); Alpha, the other standard
+    names and the Object, Instancer and View Layer types are noted."""
+    name = node.attribute_name
+    if node.attribute_type != "GEOMETRY" or not name or name in OTHER_STANDARD_ATTRIBUTES:
+        kind = node.attribute_type.lower().replace("_", " ")
+        what = (f"attributes of the {kind} type" if name and node.attribute_type != "GEOMETRY"
+                else f"the attribute '{name}'" if name else "no attribute name")
+        b.walker.note(f"'{node.name}': {what} not supported")
+        return None
+    if name in VOLUME_ATTRIBUTES:
+        return {"Color": [0.0, 0.0, 0.0], "Vector": [0.0, 0.0, 0.0], "Fac": 0.0}
+    value = ({"op": "attribute", "name": STANDARD_COORDINATES[name]} if name in STANDARD_COORDINATES
+             else _named(name))
+    return {"Color": value, "Vector": value, "Fac": {"op": "average", "vector": value}}
 
 
 def _blackbody(b, node, stack):
@@ -559,6 +595,7 @@ def _layer_weight(b, node, stack):
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
     "ShaderNodeObjectInfo": _object_info, "ShaderNodeNewGeometry": _geometry,
+    "ShaderNodeAttribute": _attribute,
     "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,
     "ShaderNodeTexEnvironment": _environment, "ShaderNodeTexSky": _sky,

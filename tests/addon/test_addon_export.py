@@ -861,6 +861,9 @@ def test_a_masks_levels_share_the_paints_texture(scene):
 
 
 def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_noted(scene):
+    """The render colour attribute of a mesh without one reads black; a Color Attribute node that
+    names a layer reads that layer (``Scene.attributes``, stop 39; before, the render one, noted),
+    black on a mesh without it, and its Alpha output is noted."""
     mat = bs.diffuse("Painted")
     nt = mat.node_tree
     attr = nt.nodes.new("ShaderNodeVertexColor")
@@ -868,9 +871,57 @@ def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_not
     nt.links.new(attr.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     row, ex = export_material(mat)
     assert row["diffuse_program"] == 0
-    assert ex.scene.vertex_colors is not None and (ex.scene.vertex_colors == 0).all()
+    assert ex.scene.vertex_colors is None and ex.scene.attributes is not None
+    assert (ex.scene.attributes["Dirt"] == 0).all() and ex.scene.attributes["Dirt"].shape == (2, 3, 3)
     assert ex.scene.object_ids is None and ex.scene.uvs is None
-    assert any("'Painted'" in w and "'Dirt'" in w for w in ex.warnings), ex.warnings
+    assert not any("'Painted'" in w for w in ex.warnings), ex.warnings
+    nt.links.new(attr.outputs["Alpha"], nt.nodes["Diffuse BSDF"].inputs["Roughness"])
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert any("'Painted'" in w and "'Alpha'" in w for w in ex.warnings), ex.warnings
+
+
+def test_named_attributes_follow_each_mesh_and_instance(scene, tmp_path):
+    """An Attribute node naming a point attribute that one mesh has and another lacks, the first
+    also instanced mirrored: ``Scene.attributes`` holds each triangle's corner values (its mesh's
+    values at its corners, the mirrored instance's corners swapped as its triangles are, zero on
+    the mesh without it), and survives a scene file."""
+    mat = bs.diffuse("Heat map")
+    nt = mat.node_tree
+    node = nt.nodes.new("ShaderNodeAttribute")
+    node.attribute_name = "warmth"
+    nt.links.new(node.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    hot = bs.plane("Hot", material=mat, location=(-3, 0, 0))
+    values = np.array([0.1, 0.9, 0.4, 0.7], np.float32)
+    hot.data.attributes.new("warmth", "FLOAT", "POINT").data.foreach_set("value", values)
+    bs.plane("Cold", material=mat, location=(3, 0, 0))
+    mirrored = bpy.data.objects.new("Mirror", hot.data)
+    bpy.context.scene.collection.objects.link(mirrored)
+    mirrored.location, mirrored.scale = (0, 4, 0), (-1, 1, 1)
+    bs.camera()
+    ex = bs.export()
+    s = ex.scene
+    attrs = s.attributes["warmth"]
+    assert attrs.shape == (6, 3, 3)                                         # three planes
+    np.testing.assert_array_equal(attrs[..., 0], attrs[..., 2])             # a float: x = y = z
+    corners = s.vertices[s.triangles]                                        # (T, 3, 3) world
+    local = hot.data.vertices
+    for t in range(len(s.triangles)):
+        centre = corners[t].mean(axis=0)
+        origin = (-3, 0, 0) if centre[0] < -1 else (3, 0, 0) if centre[0] > 1 else (0, 4, 0)
+        if origin == (3, 0, 0):
+            assert not attrs[t].any()
+            continue
+        for c in range(3):
+            p = corners[t, c] - origin
+            if origin == (0, 4, 0):
+                p[0] = -p[0]
+            v = min(range(len(local)), key=lambda i: np.linalg.norm(np.array(local[i].co) - p))
+            assert attrs[t, c, 0] == pytest.approx(values[v])
+    s.save(tmp_path / "s.npz")
+    back = type(s).load(tmp_path / "s.npz")
+    np.testing.assert_array_equal(back.attributes["warmth"], attrs)
+    assert not [w for w in ex.warnings if "Heat map" in w], ex.warnings
 
 
 def test_a_metallic_map_mixes_the_principled_at_zero_and_one_and_picks_its_levels(scene):

@@ -517,6 +517,55 @@ def test_color_attribute_matches_cycles(addon, tmp_path, domain, kind):
     compare(ours, cycles, f"colour attribute {domain} {kind}")
 
 
+@pytest.mark.parametrize("graph", ["attribute_float", "attribute_vector_fac", "named_color", "named_uv",
+                                   "standard_heat", "standard_uv"])
+def test_named_attributes_match_cycles(addon, tmp_path, graph):
+    """Attributes read by name (stop 39; before, the Attribute node was unsupported and the Color
+    Attribute and UV Map nodes used the render layers): an Attribute node's Color of a float point
+    attribute written as in geometry nodes, its Fac of a vector corner attribute (the average), a
+    Color Attribute node naming a colour layer that is not the render one, and a UV Map node naming
+    the second UV map (each times a gradient, on the plane's two triangles).  Cycles' standard
+    names come first: 'heat' reads its volume grid, 0 on a surface, though the mesh has a 'heat'
+    attribute, and 'uv' the render UV map (each plus the gradient)."""
+    import bpy
+
+    def build(nt):
+        blend = "ADD" if graph.startswith("standard_") else "MULTIPLY"
+        mul = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type=blend)
+        socket(mul.inputs, "Factor_Float").default_value = 1.0
+        if graph == "named_color":
+            source = node(nt, "ShaderNodeVertexColor", layer_name="Dirt").outputs["Color"]
+        elif graph == "named_uv":
+            source = node(nt, "ShaderNodeUVMap", uv_map="Detail").outputs["UV"]
+        elif graph.startswith("standard_"):
+            source = node(nt, "ShaderNodeAttribute", attribute_name=graph[len("standard_"):]).outputs["Color"]
+        else:
+            scalar = graph == "attribute_float"
+            attr = node(nt, "ShaderNodeAttribute", attribute_name="warmth" if scalar else "flow")
+            source = attr.outputs["Color" if scalar else "Fac"]
+        nt.links.new(source, socket(mul.inputs, "A_Color"))
+        g = node(nt, "ShaderNodeTexGradient", gradient_type="SPHERICAL")
+        nt.links.new(coords(nt, "Object"), g.inputs["Vector"])
+        nt.links.new(g.outputs["Color"], socket(mul.inputs, "B_Color"))
+        return socket(mul.outputs, "Result_Color")
+
+    mat, positions = bs.texture_plane(build)
+    me = bpy.data.objects["Plane"].data
+    for name in ("warmth", "heat"):
+        me.attributes.new(name, "FLOAT", "POINT").data.foreach_set("value", [0.1, 0.9, 0.4, 0.7])
+    flow = me.attributes.new("flow", "FLOAT_VECTOR", "CORNER")
+    flow.data.foreach_set("vector", [0.9, 0.1, 0.2, 0.1, 0.8, 0.3, 0.2, 0.3, 0.9, 0.7, 0.7, 0.1])
+    me.color_attributes.new("Render", "FLOAT_COLOR", "POINT")         # the render one: black
+    dirt = me.color_attributes.new("Dirt", "BYTE_COLOR", "CORNER")
+    dirt.data.foreach_set("color", [0.9, 0.1, 0.1, 1, 0.1, 0.8, 0.2, 1, 0.2, 0.3, 0.9, 1, 0.7, 0.7, 0.1, 1])
+    detail = me.uv_layers.new(name="Detail")
+    detail.data.foreach_set("uv", [0.2, 0.1, 0.9, 0.3, 0.6, 0.8, 0.1, 0.7])
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
+    compare(ours, cycles, f"named attribute, {graph}")
+
+
 def test_textures_inside_node_groups_match_cycles(addon, tmp_path):
     """A node group (a checker of the group's Scale and Tint inputs, behind a reroute) used twice
     with other inputs, mixed by a noise: groups, group inputs and reroutes are followed."""

@@ -205,6 +205,27 @@ def test_geometry_attributes_are_the_hits_world_position_and_normals():
     np.testing.assert_array_equal(world.get("world_normal"), -d)
 
 
+def test_a_named_attribute_is_interpolated_and_reads_zero_where_the_scene_lacks_it(tmp_path):
+    """``named:`` + a name reads ``Scene.attributes[name]`` at the hits' barycentrics, 0 without it
+    (Cycles); its shape is checked, and it survives a scene file."""
+    program = {"op": "attribute", "name": procedural.NAMED + "wear"}
+    scene = sun_over_procedural_floor(program)
+    wear = np.arange(18, dtype=np.float32).reshape(2, 3, 3) / 18
+    with_wear = scene.replace(attributes={"wear": wear}).validate()
+    bary = tuple(np.full((2, 1), w) for w in (0.2, 0.3, 0.5))
+    got = procedural.HitAttributes(with_wear, np.array([1, 0]), bary, np.zeros((2, 3))).get(program["name"])
+    np.testing.assert_allclose(got, np.einsum("c,tck->tk", [0.2, 0.3, 0.5], wear[[1, 0]]), rtol=1e-6)
+    lacking = procedural.HitAttributes(scene.validate(), np.array([0]), tuple(b[:1] for b in bary),
+                                       np.zeros((1, 3)))
+    assert not lacking.get(program["name"]).any()
+    with_wear.save(tmp_path / "s.npz")
+    np.testing.assert_array_equal(Scene.load(tmp_path / "s.npz").attributes["wear"], wear)
+    with pytest.raises(SceneError, match=r"attributes\['wear'\] must have shape"):
+        scene.replace(attributes={"wear": wear[:, :, :2]}).validate()
+    with pytest.raises(procedural.ProgramError, match="name"):
+        procedural.validate({"op": "attribute", "name": procedural.NAMED}, 0)
+
+
 def test_object_info_reads_each_objects_row(tmp_path):
     """Object Info (``Scene.object_info``): the floor's two triangles as two objects, one turned a
     quarter about z and moved; each hit reads its object's origin in world space, its colour and
