@@ -12,8 +12,8 @@ front of the triangle), Mapping
 (all four types), Image Texture (flat projection, repeat), Environment Texture
 (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise
 Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector,
-colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Clamp, Map
-Range (float), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
+colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector Rotate
+(a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
 Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color
 (RGB), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
 know the view direction).  Anything else is named in the material's warning and replaced by the
@@ -490,14 +490,50 @@ def _float_curve(b, node, stack):
 
 
 def _map_range(b, node, stack):
-    if node.data_type != "FLOAT":
-        b.walker.unsupported(node, "(vector map range)")
-        return None
+    """Map Range: the float one, or the vector one as the float one per component (Cycles'
+    ``svm_map_range_vector``)."""
     names = {"value": "Value", "from_min": "From Min", "from_max": "From Max", "to_min": "To Min",
              "to_max": "To Max", "steps": "Steps"}
-    op = {"op": "map_range", "interpolation": node.interpolation_type, "clamp": bool(node.clamp),
-          **{k: b.input(node, name, stack, FLOAT) for k, name in names.items()}}
-    return {"Result": op}
+    settings = {"op": "map_range", "interpolation": node.interpolation_type, "clamp": bool(node.clamp)}
+    if node.data_type == "FLOAT":
+        return {"Result": {**settings, **{k: b.input(node, name, stack, FLOAT) for k, name in names.items()}}}
+    vectors = {k: b.input(node, "Vector" if k == "value" else name.replace(" ", "_") + "_FLOAT3", stack, VEC)
+               for k, name in names.items()}
+    axes = [{**settings, **{k: _component(v, axis) for k, v in vectors.items()}} for axis in range(3)]
+    return {"Vector": {"op": "combine", "x": axes[0], "y": axes[1], "z": axes[2]}}
+
+
+def _component(v, axis):
+    """Component ``axis`` of a vector: three numbers or a program."""
+    if isinstance(v, dict):
+        return {"op": "separate", "vector": v, "output": "XYZ"[axis]}
+    return float(v[axis])
+
+
+def _vector_rotate(b, node, stack):
+    """Vector Rotate (Cycles' ``svm_node_vector_rotate``) as the affine op: about an axis (its own,
+    or X, Y, Z) by an angle, or by Euler XYZ angles, around the Center, inverted or not.  The
+    rotation is taken as a constant (its mean where a texture drives it, noted)."""
+    from mathutils import Euler, Matrix
+    inp = node.inputs
+    vector = b.expression(inp["Vector"], stack, VEC)
+    if node.rotation_type == "EULER_XYZ":
+        m = np.array(Euler(b.constant_of(inp["Rotation"], stack, VEC), "XYZ").to_matrix(), np.float64)
+        m = m.T if node.invert else m
+    else:
+        axis = np.asarray({"X_AXIS": (1.0, 0.0, 0.0), "Y_AXIS": (0.0, 1.0, 0.0), "Z_AXIS": (0.0, 0.0, 1.0)}.get(
+            node.rotation_type) or b.constant_of(inp["Axis"], stack, VEC), np.float64)
+        length = float(np.linalg.norm(axis))
+        if length == 0.0:
+            return {"Vector": vector}                   # (Cycles: no axis, no turn)
+        angle = float(b.constant_of(inp["Angle"], stack, FLOAT))
+        m = np.array(Matrix.Rotation(-angle if node.invert else angle, 3, axis / length), np.float64)
+    center = b.expression(inp["Center"], stack, VEC)
+    op = {"op": "affine", "vector": vector, "matrix": m.tolist()}
+    if not isinstance(center, dict):
+        return {"Vector": {**op, "pre": list(center), "post": list(center)}}
+    op["vector"] = {"op": "vector_math", "operation": "SUBTRACT", "a": vector, "b": center}
+    return {"Vector": {"op": "vector_math", "operation": "ADD", "a": op, "b": center}}
 
 
 def _invert(b, node, stack):
@@ -605,7 +641,7 @@ NODES = {
     "ShaderNodeMix": _mix,
     "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
     "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,
-    "ShaderNodeRGBToBW": _rgb_to_bw,
+    "ShaderNodeRGBToBW": _rgb_to_bw, "ShaderNodeVectorRotate": _vector_rotate,
     "ShaderNodeBrightContrast": _bright_contrast,
     "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,

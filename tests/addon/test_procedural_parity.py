@@ -285,6 +285,37 @@ def vector_math(*ops):
     return build
 
 
+def vector_rotate(rotation_type, invert=False, textured_center=False, **inputs):
+    """Vector Rotate of the Object coordinates (then a checker of them, so that the turn shows)."""
+    def build(nt):
+        r = node(nt, "ShaderNodeVectorRotate", rotation_type=rotation_type, invert=invert, **inputs)
+        nt.links.new(coords(nt, "Object"), r.inputs["Vector"])
+        if textured_center:
+            nt.links.new(node(nt, "ShaderNodeTexNoise").outputs["Color"], r.inputs["Center"])
+        checker = node(nt, "ShaderNodeTexChecker", Scale=2.0)
+        nt.links.new(r.outputs["Vector"], checker.inputs["Vector"])
+        mix = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MIX")
+        socket(mix.inputs, "Factor_Float").default_value = 0.5
+        nt.links.new(checker.outputs["Color"], socket(mix.inputs, "A_Color"))
+        nt.links.new(r.outputs["Vector"], socket(mix.inputs, "B_Color"))
+        return socket(mix.outputs, "Result_Color")
+    return build
+
+
+def map_range_vector(interpolation):
+    """Map Range of the Object coordinates as vectors (per component), clamped."""
+    def build(nt):
+        m = node(nt, "ShaderNodeMapRange", data_type="FLOAT_VECTOR", interpolation_type=interpolation,
+                 clamp=True)
+        nt.links.new(coords(nt, "Object"), m.inputs["Vector"])
+        for identifier, value in (("From_Min_FLOAT3", (-0.8, -0.5, 0.0)), ("From_Max_FLOAT3", (0.6, 0.9, 1.0)),
+                                  ("To_Min_FLOAT3", (0.1, 0.9, 0.2)), ("To_Max_FLOAT3", (0.9, 0.0, 0.7)),
+                                  ("Steps_FLOAT3", (3.0, 5.0, 2.0))):
+            socket(m.inputs, identifier).default_value = value
+        return socket(m.outputs, "Vector")
+    return build
+
+
 def rgb_to_bw(nt):
     """RGB to BW of the arithmetic graph's colour (Rec. 709 luminance, as Cycles' colour-to-float)."""
     bw = nt.nodes.new("ShaderNodeRGBToBW")
@@ -391,6 +422,14 @@ CASES = {
     "vector_math_values": vector_math(("DISTANCE", (0.4, 0.3, 0.0), (0, 0, 0), 1.0)),
     "vector_math_dot": vector_math(("DOT_PRODUCT", (0.6, -0.3, 0.2), (0, 0, 0), 1.0)),
     "rgb_to_bw": rgb_to_bw,
+    "vector_rotate_axis": vector_rotate("AXIS_ANGLE", Axis=(0.3, 0.5, 0.8), Angle=0.7, Center=(0.2, -0.1, 0.0)),
+    "vector_rotate_z_inverted": vector_rotate("Z_AXIS", invert=True, Angle=0.5),
+    "vector_rotate_euler": vector_rotate("EULER_XYZ", Rotation=(0.3, -0.4, 0.9), Center=(0.1, 0.2, 0.3)),
+    "vector_rotate_euler_inverted_noise_center": vector_rotate("EULER_XYZ", invert=True, textured_center=True,
+                                                               Rotation=(0.3, -0.4, 0.9)),
+    "map_range_vector_linear": map_range_vector("LINEAR"),
+    "map_range_vector_stepped": map_range_vector("STEPPED"),
+    "map_range_vector_smoothstep": map_range_vector("SMOOTHSTEP"),
     "clamp_minmax": clamped("MINMAX", 0.2, 0.7),
     "clamp_range": clamped("RANGE", 0.7, 0.2),
     "rgb_curves_extrapolated": curves("rgb", "EXTRAPOLATED"),
