@@ -13,7 +13,8 @@ front of the triangle), Mapping
 (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise
 Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector,
 colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector Rotate
-(a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
+(a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and Float
+Curve (sampled by Blender as Cycles bakes them),
 Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color
 (RGB), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
 know the view direction).  Anything else is named in the material's warning and replaced by the
@@ -521,8 +522,8 @@ def _vector_rotate(b, node, stack):
         m = np.array(Euler(b.constant_of(inp["Rotation"], stack, VEC), "XYZ").to_matrix(), np.float64)
         m = m.T if node.invert else m
     else:
-        axis = np.asarray({"X_AXIS": (1.0, 0.0, 0.0), "Y_AXIS": (0.0, 1.0, 0.0), "Z_AXIS": (0.0, 0.0, 1.0)}.get(
-            node.rotation_type) or b.constant_of(inp["Axis"], stack, VEC), np.float64)
+        fixed = {"X_AXIS": (1.0, 0.0, 0.0), "Y_AXIS": (0.0, 1.0, 0.0), "Z_AXIS": (0.0, 0.0, 1.0)}
+        axis = np.asarray(fixed.get(node.rotation_type) or b.constant_of(inp["Axis"], stack, VEC), np.float64)
         length = float(np.linalg.norm(axis))
         if length == 0.0:
             return {"Vector": vector}                   # (Cycles: no axis, no turn)

@@ -308,9 +308,9 @@ def map_range_vector(interpolation):
         m = node(nt, "ShaderNodeMapRange", data_type="FLOAT_VECTOR", interpolation_type=interpolation,
                  clamp=True)
         nt.links.new(coords(nt, "Object"), m.inputs["Vector"])
-        for identifier, value in (("From_Min_FLOAT3", (-0.8, -0.5, 0.0)), ("From_Max_FLOAT3", (0.6, 0.9, 1.0)),
-                                  ("To_Min_FLOAT3", (0.1, 0.9, 0.2)), ("To_Max_FLOAT3", (0.9, 0.0, 0.7)),
-                                  ("Steps_FLOAT3", (3.0, 5.0, 2.0))):
+        for identifier, value in (("From_Min_FLOAT3", (-0.8, -0.5, 0.0)),
+                                  ("From_Max_FLOAT3", (0.6, 0.9, 1.0)), ("To_Min_FLOAT3", (0.1, 0.9, 0.2)),
+                                  ("To_Max_FLOAT3", (0.9, 0.0, 0.7)), ("Steps_FLOAT3", (3.0, 5.0, 2.0))):
             socket(m.inputs, identifier).default_value = value
         return socket(m.outputs, "Vector")
     return build
