@@ -182,7 +182,8 @@ def masked(levels):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kind", choices=("roughness", "anisotropy", "metal", "metallic", "mask"), default="roughness")
+    ap.add_argument("--kind", choices=("roughness", "anisotropy", "metal", "metallic", "mask"),
+                    default="roughness")
     ap.add_argument("--resolution", type=int, nargs=2, default=(320, 240))
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--paths", type=int, default=65536)

@@ -159,7 +159,8 @@ class HitAttributes:
         if name == "position":
             return np.asarray(self.positions, np.float64)
         if name == "world_normal" and s.shading_normals is not None:
-            n = interpolate_corners(s.shading_normals.take(self.prim_ids, axis=0).astype(np.float64), self.bary)
+            corners = s.shading_normals.take(self.prim_ids, axis=0).astype(np.float64)
+            n = interpolate_corners(corners, self.bary)
         else:
             c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
             n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])

@@ -947,8 +947,8 @@ class Scene:
         rough = mats.dielectric_roughness
         odd = ~(((rough >= 0) & (rough <= 1)) | ((rough == -1) & (mats.roughness_program >= 0)))
         if odd.any():
-            fail(f"material '{mats.names[int(np.argmax(odd))]}': dielectric_roughness must be in [0, 1], or -1 "
-                 "(the roughness program's) where roughness_program is set")
+            fail(f"material '{mats.names[int(np.argmax(odd))]}': dielectric_roughness must be in [0, 1], "
+                 "or -1 (the roughness program's) where roughness_program is set")
         self._validate_programs(fail)
         self._validate_levels(fail)
         for name in Materials.INT_FIELDS:

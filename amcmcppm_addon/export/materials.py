@@ -1007,9 +1007,10 @@ class NodeWalker:
         if closure is None and self.medium is not None:
             # No surface, a volume: Cycles' volume-only mesh, whose surface lets every ray through.
             return Closure(transparent=np.ones(3), transparent_weight=1.0)
-        for c in [closure] + (closure.levels[1] if closure is not None and closure.levels is not None else []):
-            if c is not None and c.dielectric_roughness_texture is not None and c.glass_roughness_map() is None \
-                    and c.weight[DIELECTRIC] > 0:
+        levels = closure.levels[1] if closure is not None and closure.levels is not None else []
+        for c in [closure] + levels:
+            if (c is not None and c.dielectric_roughness_texture is not None and c.weight[DIELECTRIC] > 0
+                    and c.glass_roughness_map() is None):
                 self.note(f"a varying glass roughness beside a glossy lobe of another roughness takes its "
                           f"mean {c.dielectric_roughness:.3f} (one roughness map per material)")
         bump = self.displacement(out.inputs["Displacement"], material)

@@ -803,8 +803,9 @@ def test_a_specular_map_picks_levels_of_the_specular_ior_level(scene):
     assert row["level_count"] == 17
     assert not [w for w in ex.warnings if "'Glaze'" in w], ex.warnings
     pts = procedural.SampledAttributes(256)
-    fac = procedural.evaluate({"op": "checker", "vector": {"op": "attribute", "name": "generated"},
-                               "scale": 5.0, "color1": [1, 1, 1], "color2": [0, 0, 0], "output": "Fac"}, pts, [])
+    checker_fac = {"op": "checker", "vector": {"op": "attribute", "name": "generated"}, "scale": 5.0,
+                   "color1": [1, 1, 1], "color2": [0, 0, 0], "output": "Fac"}
+    fac = procedural.evaluate(checker_fac, pts, [])
     picks = procedural.evaluate(ex.scene.materials.programs[row["level_program"]], pts, [])
     np.testing.assert_allclose(picks, fac, atol=1e-6)
     levels = {k: material_row(ex.scene, f"Glaze (level {k}/16)") for k in (0, 4, 8, 16)}
@@ -816,13 +817,14 @@ def test_a_specular_map_picks_levels_of_the_specular_ior_level(scene):
                                                                 "Specular IOR Level": k / 8}))
         for key in keys:
             np.testing.assert_allclose(level[key], plain[key], rtol=1e-6, atol=1e-9, err_msg=f"{k} {key}")
-    assert levels[0]["glossy_weight"] == 0 and levels[16]["glossy_fresnel_ior"] > levels[8]["glossy_fresnel_ior"]
+    assert levels[0]["glossy_weight"] == 0
+    assert levels[16]["glossy_fresnel_ior"] > levels[8]["glossy_fresnel_ior"]
     nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Specular IOR Level"])
     bpy.data.objects.remove(bpy.data.objects["Plane"])
     row, ex = export_material(mat)
     assert row["level_count"] == 17
-    np.testing.assert_allclose(procedural.evaluate(ex.scene.materials.programs[row["level_program"]], pts, []),
-                               fac, atol=1e-6)
+    picks = procedural.evaluate(ex.scene.materials.programs[row["level_program"]], pts, [])
+    np.testing.assert_allclose(picks, fac, atol=1e-6)
     assert material_row(ex.scene, "Glaze (level 8/16)")["glossy_fresnel_ior"] == pytest.approx(1.5)
 
 

@@ -79,8 +79,8 @@ def test_a_glass_roughness_map_picks_the_glass_copy_of_its_roughness():
     a program is refused."""
     ramp = {"op": "math", "operation": "ADD", "a": axis("X"), "b": 0.5}
     for spec in ({"glossy": 0.04, "dielectric": 0.9}, {"dielectric": 1.0}):
-        scene = glossy_floor([{"name": "pane", "dielectric_roughness": -1, "ior": 1.5, "roughness_program": ramp,
-                               **spec},
+        scene = glossy_floor([{"name": "pane", "dielectric_roughness": -1, "ior": 1.5,
+                               "roughness_program": ramp, **spec},
                               {"name": "matte", "diffuse": 0.5, "roughness_program": ramp}])
         ctx = RenderContext(scene)
         assert ctx.materials.roughness_program[1] == -1
@@ -94,8 +94,8 @@ def test_a_glass_roughness_map_picks_the_glass_copy_of_its_roughness():
         assert (surf.mat_ids[20:] == 1).all()
         if "glossy" in spec:
             glossy = level >= 0.02
-            np.testing.assert_allclose(np.sqrt(ctx.table.alpha.take(surf.mat_ids[:20]))[glossy], level[glossy],
-                                       atol=1e-6)
+            roughness = np.sqrt(ctx.table.alpha.take(surf.mat_ids[:20]))
+            np.testing.assert_allclose(roughness[glossy], level[glossy], atol=1e-6)
     with pytest.raises(SceneError, match="dielectric_roughness"):
         glossy_floor([{"name": "pane", "dielectric": 1.0, "dielectric_roughness": -1}])
 
