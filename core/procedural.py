@@ -51,6 +51,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``metal`` color, tint: -> Color, a metal's mean F82-tint Fresnel reflectance (its glossy colour).
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
+* ``color_space`` color, conversion (RGB_TO_HSV, HSV_TO_RGB, RGB_TO_HSL, HSL_TO_RGB; Separate and
+  Combine Color in HSV and HSL mode): -> Color.
 * ``separate`` vector: -> X, Y, Z (also Red, Green, Blue); ``combine`` x, y, z: -> Vector.
 * ``blackbody`` temperature: -> Color (Cycles' fit of the Planckian locus, luminance 1);
   ``unpremultiply`` color, alpha: -> Color (colour / alpha where 0 < alpha < 1: an image's straight
@@ -758,11 +760,43 @@ def hsv_to_rgb(hsv):
     i = np.floor(h)
     f = h - i
     p, q, t = v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f))
-    sector = np.clip(i, 0, 5).astype(np.int64)[:, None]
+    sector = np.where((i >= 0.0) & (i <= 4.0), i, 5.0).astype(np.int64)[:, None]   # (Cycles' else: 5)
     rows = np.stack([np.stack(x, axis=1) for x in ((v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v),
                                                    (v, p, q))])
     rgb = rows[sector[:, 0], np.arange(len(h))]
     return np.where((s != 0.0)[:, None], rgb, np.stack([v, v, v], axis=1))
+
+
+def rgb_to_hsl(c):
+    """(k, 3) hue, saturation, lightness of (k, 3) RGB colours (Cycles' ``rgb_to_hsl``)."""
+    r, g, b = c[:, 0], c[:, 1], c[:, 2]
+    cmax, cmin = np.maximum(r, np.maximum(g, b)), np.minimum(r, np.minimum(g, b))
+    lightness = np.minimum(1.0, (cmax + cmin) / 2.0)
+    d = cmax - cmin
+    dd = np.where(d != 0.0, d, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(lightness > 0.5, d / (2.0 - cmax - cmin), d / (cmax + cmin))
+    h = np.where(cmax == r, (g - b) / dd + np.where(g < b, 6.0, 0.0),
+                 np.where(cmax == g, (b - r) / dd + 2.0, (r - g) / dd + 4.0))
+    flat = cmax == cmin
+    return np.stack([np.where(flat, 0.0, h) / 6.0, np.where(flat, 0.0, s), lightness], axis=1)
+
+
+def hsl_to_rgb(hsl):
+    """(k, 3) RGB of (k, 3) hue, saturation, lightness (Cycles' ``hsl_to_rgb``)."""
+    h, s, lightness = hsl[:, 0:1], hsl[:, 1:2], hsl[:, 2:3]
+    n = np.concatenate([np.abs(h * 6.0 - 3.0) - 1.0, 2.0 - np.abs(h * 6.0 - 2.0), 2.0 - np.abs(h * 6.0 - 4.0)],
+                       axis=1)
+    chroma = (1.0 - np.abs(2.0 * lightness - 1.0)) * s
+    return (np.clip(n, 0.0, 1.0) - 0.5) * chroma + lightness
+
+
+COLOR_SPACES = {"RGB_TO_HSV": rgb_to_hsv, "HSV_TO_RGB": hsv_to_rgb, "RGB_TO_HSL": rgb_to_hsl,
+                "HSL_TO_RGB": hsl_to_rgb}
+
+
+def _color_space(ev, node):
+    return {"Color": COLOR_SPACES[node["conversion"]](ev.vec(node, "color"))}
 
 
 def _hsv(ev, node):
@@ -1099,6 +1133,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
+       "color_space": _color_space,
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
@@ -1109,12 +1144,12 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "metal": ("Color",),
            "invert": ("Color",),
-           "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",),
+           "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",), "color_space": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
            "curves": ("Color",), "float_curve": ("Value",)}
-REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
+REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "color_space": ("conversion",),
             "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
 # Settings chosen from a list (the others are numbers, colours or nodes).
@@ -1132,7 +1167,7 @@ CHOICES = {
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
     ("image", "interpolation"): ("Linear", "Closest"), ("image", "projection"): ("FLAT", "BOX"),
     ("vector_math", "operation"): tuple(VECTOR_MATH) + tuple(VECTOR_VALUES),
-    ("clamp", "clamp_type"): ("MINMAX", "RANGE")}
+    ("clamp", "clamp_type"): ("MINMAX", "RANGE"), ("color_space", "conversion"): tuple(COLOR_SPACES)}
 # Array settings and their shapes (None: N >= 2).
 ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)},
           "sky": {"sun_direction": (3,)}, "curves": {"table": (None, 3)}, "float_curve": {"table": (None,)}}

@@ -16,7 +16,7 @@ colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Ma
 (a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and Float
 Curve (sampled by Blender as Cycles bakes them),
 Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color
-(RGB), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
+(RGB, HSV, HSL), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
 know the view direction).  Anything else is named in the material's warning and replaced by the
 input socket's own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
 texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
@@ -571,11 +571,11 @@ def _separate_xyz(b, node, stack):
 
 
 def _separate_color(b, node, stack):
+    """Separate Color: RGB, or HSV or HSL (Cycles' ``rgb_to_hsv``, ``rgb_to_hsl``) in its three outputs."""
+    color = b.input(node, "Color", stack, VEC)
     if node.mode != "RGB":
-        b.walker.unsupported(node, f"(mode {node.mode})")
-        return None
-    return _out({"op": "separate", "vector": b.input(node, "Color", stack, VEC)},
-                Red="Red", Green="Green", Blue="Blue")
+        color = {"op": "color_space", "conversion": f"RGB_TO_{node.mode}", "color": color}
+    return _out({"op": "separate", "vector": color}, Red="Red", Green="Green", Blue="Blue")
 
 
 def _combine_xyz(b, node, stack):
@@ -583,11 +583,12 @@ def _combine_xyz(b, node, stack):
 
 
 def _combine_color(b, node, stack):
+    """Combine Color: RGB, or from HSV or HSL (Cycles' ``hsv_to_rgb``, ``hsl_to_rgb``)."""
+    color = {"op": "combine", **{k: b.input(node, name, stack, FLOAT)
+                                 for k, name in zip("xyz", ("Red", "Green", "Blue"))}}
     if node.mode != "RGB":
-        b.walker.unsupported(node, f"(mode {node.mode})")
-        return None
-    return {"Color": {"op": "combine", **{k: b.input(node, name, stack, FLOAT)
-                                          for k, name in zip("xyz", ("Red", "Green", "Blue"))}}}
+        color = {"op": "color_space", "conversion": f"{node.mode}_TO_RGB", "color": color}
+    return {"Color": color}
 
 
 def _view_mean(b, node, what, values):

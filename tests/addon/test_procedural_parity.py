@@ -316,6 +316,34 @@ def map_range_vector(interpolation):
     return build
 
 
+def color_modes(mode):
+    """Separate Color in ``mode`` of the arithmetic graph's colour, its outputs shifted (Hue + 0.3 +
+    Object x, Saturation times 1.2, the third minus 0.1) and joined by Combine Color in that mode:
+    both conversions, with hues outside [0, 1)."""
+    def build(nt):
+        sep = node(nt, "ShaderNodeSeparateColor", mode=mode)
+        nt.links.new(arithmetic(nt), sep.inputs["Color"])
+        x = nt.nodes.new("ShaderNodeSeparateXYZ")
+        nt.links.new(coords(nt, "Object"), x.inputs["Vector"])
+        hue = node(nt, "ShaderNodeMath", operation="ADD")
+        nt.links.new(sep.outputs[0], hue.inputs[0])
+        nt.links.new(x.outputs["X"], hue.inputs[1])
+        shift = node(nt, "ShaderNodeMath", operation="ADD")
+        nt.links.new(hue.outputs[0], shift.inputs[0])
+        shift.inputs[1].default_value = 0.3
+        sat = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        nt.links.new(sep.outputs[1], sat.inputs[0])
+        sat.inputs[1].default_value = 1.2
+        third = node(nt, "ShaderNodeMath", operation="SUBTRACT")
+        nt.links.new(sep.outputs[2], third.inputs[0])
+        third.inputs[1].default_value = 0.1
+        comb = node(nt, "ShaderNodeCombineColor", mode=mode)
+        for k, out in enumerate((shift, sat, third)):
+            nt.links.new(out.outputs[0], comb.inputs[k])
+        return comb.outputs["Color"]
+    return build
+
+
 def rgb_to_bw(nt):
     """RGB to BW of the arithmetic graph's colour (Rec. 709 luminance, as Cycles' colour-to-float)."""
     bw = nt.nodes.new("ShaderNodeRGBToBW")
@@ -422,6 +450,8 @@ CASES = {
     "vector_math_values": vector_math(("DISTANCE", (0.4, 0.3, 0.0), (0, 0, 0), 1.0)),
     "vector_math_dot": vector_math(("DOT_PRODUCT", (0.6, -0.3, 0.2), (0, 0, 0), 1.0)),
     "rgb_to_bw": rgb_to_bw,
+    "color_hsv": color_modes("HSV"),
+    "color_hsl": color_modes("HSL"),
     "vector_rotate_axis": vector_rotate("AXIS_ANGLE", Axis=(0.3, 0.5, 0.8), Angle=0.7,
                                         Center=(0.2, -0.1, 0.0)),
     "vector_rotate_z_inverted": vector_rotate("Z_AXIS", invert=True, Angle=0.5),
