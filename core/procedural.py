@@ -785,8 +785,8 @@ def rgb_to_hsl(c):
 def hsl_to_rgb(hsl):
     """(k, 3) RGB of (k, 3) hue, saturation, lightness (Cycles' ``hsl_to_rgb``)."""
     h, s, lightness = hsl[:, 0:1], hsl[:, 1:2], hsl[:, 2:3]
-    n = np.concatenate([np.abs(h * 6.0 - 3.0) - 1.0, 2.0 - np.abs(h * 6.0 - 2.0), 2.0 - np.abs(h * 6.0 - 4.0)],
-                       axis=1)
+    n = np.concatenate([np.abs(h * 6.0 - 3.0) - 1.0, 2.0 - np.abs(h * 6.0 - 2.0),
+                        2.0 - np.abs(h * 6.0 - 4.0)], axis=1)
     chroma = (1.0 - np.abs(2.0 * lightness - 1.0)) * s
     return (np.clip(n, 0.0, 1.0) - 0.5) * chroma + lightness
 
@@ -1149,7 +1149,8 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
            "curves": ("Color",), "float_curve": ("Value",)}
-REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",), "color_space": ("conversion",),
+REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
+            "color_space": ("conversion",),
             "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
 # Settings chosen from a list (the others are numbers, colours or nodes).

@@ -16,7 +16,8 @@ colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Ma
 (a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and Float
 Curve (sampled by Blender as Cycles bakes them),
 Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color
-(RGB, HSV, HSL), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
+(RGB, HSV, HSL), RGB and Value; Fresnel and Layer Weight as their means over view directions
+(noted: programs do not
 know the view direction).  Anything else is named in the material's warning and replaced by the
 input socket's own value.  Settings that Cycles lets vary over the surface but the core takes as constants (a
 texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
