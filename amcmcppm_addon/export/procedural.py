@@ -12,8 +12,8 @@ triangle), Mapping (all four types), Image Texture (flat and box projections, ev
 linear or closest), Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi, Wave,
 Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it),
 Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector
-Math, Vector Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector
-Curves and Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma,
+Math, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB Curves,
+Vector Curves and Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma,
 Hue/Saturation/Value, Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color (RGB, HSV, HSL),
 RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
 know the view direction). Anything else is named in the material's warning and replaced by the
@@ -541,6 +541,18 @@ def _invert(b, node, stack):
                       "color": b.input(node, "Color", stack, VEC)}}
 
 
+def _normal(b, node, stack):
+    """Normal: its direction (the Normal output's own value, normalised as Cycles does) and Dot, that
+    direction's dot product with the normalised input (Cycles' ``svm_node_normal``)."""
+    direction = np.asarray(node.outputs["Normal"].default_value, np.float64)
+    length = float(np.linalg.norm(direction))
+    direction = (direction / length if length > 0.0 else direction).tolist()
+    unit = {"op": "vector_math", "operation": "NORMALIZE", "a": b.input(node, "Normal", stack, VEC)}
+    return {"Normal": direction,
+            "Dot": {"op": "vector_math", "operation": "DOT_PRODUCT", "a": direction, "b": unit,
+                    "output": "Value"}}
+
+
 def _rgb_to_bw(b, node, stack):
     """RGB to BW: the colour's luminance (Cycles' ``linear_rgb_to_gray``, Rec. 709)."""
     return {"Val": {"op": "gray", "color": b.input(node, "Color", stack, VEC)}}
@@ -643,6 +655,7 @@ NODES = {
     "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
     "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,
     "ShaderNodeRGBToBW": _rgb_to_bw, "ShaderNodeVectorRotate": _vector_rotate,
+    "ShaderNodeNormal": _normal,
     "ShaderNodeBrightContrast": _bright_contrast,
     "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,

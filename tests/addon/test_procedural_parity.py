@@ -344,6 +344,19 @@ def color_modes(mode):
     return build
 
 
+def normal_dot(nt):
+    """The Normal node's Dot of its direction with the Object coordinates (normalised), and its
+    Normal output, mixed."""
+    n = nt.nodes.new("ShaderNodeNormal")
+    n.outputs["Normal"].default_value = (0.3, 0.5, 0.81)
+    nt.links.new(coords(nt, "Object"), n.inputs["Normal"])
+    mix = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MIX")
+    nt.links.new(n.outputs["Dot"], socket(mix.inputs, "Factor_Float"))
+    nt.links.new(n.outputs["Normal"], socket(mix.inputs, "A_Color"))
+    socket(mix.inputs, "B_Color").default_value = (0.9, 0.2, 0.1, 1.0)
+    return socket(mix.outputs, "Result_Color")
+
+
 def rgb_to_bw(nt):
     """RGB to BW of the arithmetic graph's colour (Rec. 709 luminance, as Cycles' colour-to-float)."""
     bw = nt.nodes.new("ShaderNodeRGBToBW")
@@ -450,6 +463,7 @@ CASES = {
     "vector_math_values": vector_math(("DISTANCE", (0.4, 0.3, 0.0), (0, 0, 0), 1.0)),
     "vector_math_dot": vector_math(("DOT_PRODUCT", (0.6, -0.3, 0.2), (0, 0, 0), 1.0)),
     "rgb_to_bw": rgb_to_bw,
+    "normal_dot": normal_dot,
     "color_hsv": color_modes("HSV"),
     "color_hsl": color_modes("HSL"),
     "vector_rotate_axis": vector_rotate("AXIS_ANGLE", Axis=(0.3, 0.5, 0.8), Angle=0.7,
