@@ -18,7 +18,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
   coordinates (the hit in its object's space, ``Scene.object_from_world``, and that object's
   texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs``
   as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's Position, Normal and
-  True Normal in world space (``GEOMETRY``); ``named:`` + a name, ``Scene.attributes[name]``
+  True Normal in world space (``GEOMETRY``); the Texture Coordinate's Camera and Window
+  (``VIEW``); ``named:`` + a name, ``Scene.attributes[name]``
   interpolated (``NAMED``).
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
@@ -79,12 +80,16 @@ from .sampling import dot, length, normalize
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
-              "object_info", "position", "world_normal", "true_normal")
+              "object_info", "position", "world_normal", "true_normal", "camera", "window")
 # Blender's Geometry node: "position" the hit's world position, "world_normal" the world-space
 # shading normal (interpolated where the mesh is smooth), "true_normal" the facet's; both normals
 # on the triangle's front (Cycles turns them towards the ray on a back face; a program does not
 # know the ray).
 GEOMETRY = ("position", "world_normal", "true_normal")
+# Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
+# depth in front) and Window (where the hit lands in the frame, (0, 0) at its bottom left, z = 0;
+# perspective and orthographic cameras, 0 for panoramic ones).
+VIEW = ("camera", "window")
 # An attribute named NAMED + a mesh attribute's name reads ``Scene.attributes[name]`` per corner
 # (Blender's Attribute node, a Color Attribute or UV Map node naming a layer); 0 where the scene
 # has no such attribute (Cycles: a missing attribute reads 0).
@@ -125,6 +130,8 @@ class HitAttributes:
                 value = self._normal()
             elif name in GEOMETRY:
                 value = self._geometry(name)
+            elif name in VIEW:
+                value = self._view(name)
             elif name in ("object", "generated"):
                 value = self._object(name)
             elif name in OBJECT_INFO:
@@ -168,6 +175,24 @@ class HitAttributes:
             n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         length = np.linalg.norm(n, axis=1, keepdims=True)
         return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+    def _view(self, name):
+        """(k, 3) Camera or Window coordinates of the hits (``VIEW``)."""
+        cam = self.scene.camera
+        p = np.concatenate([np.asarray(self.positions, np.float64), np.ones((self.count, 1))], axis=1)
+        c = (p @ np.linalg.inv(np.asarray(cam.world_from_camera, np.float64)).T)[:, :3]
+        if name == "camera":
+            return c * [1.0, 1.0, -1.0]
+        out = np.zeros((self.count, 3))
+        if cam.projection in ("perspective", "orthographic"):
+            x0, x1, y0, y1 = cam.frame
+            xy = c[:, :2]
+            if cam.projection == "perspective":
+                depth = -c[:, 2:3]
+                xy = np.divide(xy, depth, out=np.zeros_like(xy), where=depth != 0.0)
+            out[:, 0] = (xy[:, 0] - x0) / (x1 - x0)
+            out[:, 1] = (xy[:, 1] - y0) / (y1 - y0)
+        return out
 
     def _named(self, name):
         """(k, 3) mesh attribute ``name`` (``Scene.attributes``) interpolated at the hits; 0 without it."""
@@ -251,7 +276,8 @@ class SampledAttributes:
                         "normal": d / np.linalg.norm(d, axis=1, keepdims=True),
                         "object_location": 2.0 * g - 1.0, "object_color": g,
                         "object_info": np.concatenate([np.ones((n, 1)), np.zeros((n, 1)), g[:, :1]], axis=1),
-                        "position": 2.0 * g - 1.0}
+                        "position": 2.0 * g - 1.0, "camera": 2.0 * g - 1.0,
+                        "window": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1)}
         self._values["world_normal"] = self._values["true_normal"] = self._values["normal"]
 
     @property

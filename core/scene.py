@@ -1139,7 +1139,8 @@ class Scene:
                   "object_info": self.object_ids,
                   "uv": self.uvs,
                   "color": self.vertex_colors,
-                  "position": self.vertices, "world_normal": self.vertices, "true_normal": self.vertices}
+                  "position": self.vertices, "world_normal": self.vertices, "true_normal": self.vertices,
+                  "camera": self.vertices, "window": self.vertices}
         for i, program in enumerate(mats.programs):
             try:
                 procedural.validate(program, len(self.textures))

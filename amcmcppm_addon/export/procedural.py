@@ -4,22 +4,22 @@
 float, or three floats for colour and vector sockets) or a program node dict, inserting the
 type conversions Cycles makes where a link joins sockets of different types (colour to float
 by luminance, vector to float by the average, float to colour as grey). Supported nodes: Texture
-Coordinate (Generated, Object, UV), UV Map (the active render one or a named one), Color Attribute
-(the render one or a named one), Attribute (a mesh attribute by name), Object Info (per object:
-Location, Color, Alpha, Object Index and Random as Cycles sets them; Material Index the material's
-pass index), Geometry (Position, Normal and True Normal, in world space, on the front of the
-triangle), Mapping (all four types), Image Texture (flat and box projections, every extension,
-linear or closest), Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi, Wave,
-Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it),
-Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector
-Math, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB Curves,
-Vector Curves and Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma,
-Hue/Saturation/Value, Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color (RGB, HSV, HSL),
-RGB and Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not
-know the view direction). Anything else is named in the material's warning and replaced by the
-input socket's own value. Settings that Cycles lets vary over the surface but the core takes as
-constants (a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of
-what drives them, with a note.
+Coordinate (Generated, Object, UV, Normal, Camera, Window), UV Map (the active render one or a
+named one), Color Attribute (the render one or a named one), Attribute (a mesh attribute by name),
+Object Info (per object: Location, Color, Alpha, Object Index and Random as Cycles sets them;
+Material Index the material's pass index), Geometry (Position, Normal and True Normal, in world
+space, on the front of the triangle), Mapping (all four types), Image Texture (flat and box
+projections, every extension, linear or closest), Environment Texture (equirectangular), Checker,
+Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by
+Blender itself, as Cycles bakes it), Mix (float, vector, colour; 19 blend modes) and the legacy
+MixRGB, Math (every operation), Vector Math, Normal, Vector Rotate (a constant rotation), Clamp,
+Map Range (float and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as
+Cycles bakes them), Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW,
+Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and Value; Fresnel and Layer Weight as their
+means over view directions (noted: programs do not know the view direction). Anything else is named
+in the material's warning and replaced by the input socket's own value. Settings that Cycles lets
+vary over the surface but the core takes as constants (a texture's Scale, Detail, ...; Mapping's
+Location, Rotation, Scale) use the mean of what drives them, with a note.
 """
 from __future__ import annotations
 
@@ -127,7 +127,8 @@ def _out(op, **outputs):
 # ---------------------------------------------------------------------- nodes
 def _tex_coord(b, node, stack):
     out = {"Generated": {"op": "attribute", "name": "generated"},
-           "UV": {"op": "attribute", "name": "uv"}, "Normal": {"op": "attribute", "name": "normal"}}
+           "UV": {"op": "attribute", "name": "uv"}, "Normal": {"op": "attribute", "name": "normal"},
+           "Camera": {"op": "attribute", "name": "camera"}, "Window": {"op": "attribute", "name": "window"}}
     if node.object is None:
         out["Object"] = {"op": "attribute", "name": "object"}
     else:

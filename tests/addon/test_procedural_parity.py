@@ -890,6 +890,52 @@ def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, gra
         assert (err < 2e-3).mean() > 0.97
 
 
+@pytest.mark.parametrize("output, camera_kind", [("Camera", "perspective"), ("Window", "perspective"),
+                                                 ("Window", "orthographic")])
+def test_camera_and_window_coordinates_match_cycles(addon, tmp_path, output, camera_kind):
+    """Texture Coordinate's Camera (the hit in camera space, depth positive in front) and Window
+    (where it lands in the frame) on a plane seen at a slant by a shifted camera whose sensor fits
+    the height: ours at each pixel centre's camera ray against Cycles' (stop 39; before, each was
+    an unsupported output, replaced by the socket's value)."""
+    import bpy
+
+    from amcmcppm.core.bsdf import DIFFUSE
+    from amcmcppm.core.camera import generate_camera_rays
+    from amcmcppm.core.context import RenderContext
+
+    def build(nt):
+        out = nt.nodes.new("ShaderNodeTexCoord").outputs[output]
+        if output == "Window":
+            return out
+        scaled = node(nt, "ShaderNodeVectorMath", operation="SCALE", Scale=0.25)
+        nt.links.new(out, scaled.inputs[0])
+        return scaled.outputs["Vector"]
+
+    mat, _ = bs.texture_plane(build, resolution=(40, 30), size=6.0, rotation=(0.3, 0.0, 0.2))
+    bpy.data.objects.remove(bpy.data.objects["Camera"])
+    cam = bs.camera(location=(1.0, -5.0, 4.0), target=(0.3, 0.2, 0.0), lens=35.0,
+                    ortho_scale=4.5 if camera_kind == "orthographic" else None)
+    cam.data.sensor_fit, cam.data.shift_x = "VERTICAL", 0.1
+    ours_scene = bs.export().scene
+    ctx = RenderContext(ours_scene)
+    w, h = ours_scene.camera.resolution
+    ids = np.arange(w * h)
+    origins, dirs, _, _ = generate_camera_rays(ours_scene.camera, ids,
+                                               np.tile([0.5, 0.5, 0.0, 0.0], (len(ids), 1)))
+    hits = ctx.accel.intersect(origins, dirs)
+    hit = np.flatnonzero(hits.prim_ids >= 0)
+    ours = np.full((w * h, 3), np.nan)
+    ours[hit] = ctx.surface(hits.prim_ids[hit], hits.b1[hit], hits.b2[hit]).colors[:, DIFFUSE]
+    ours = ours.reshape(h, w, 3)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    on = np.isfinite(ours).all(axis=2)
+    assert 0.3 < on.mean() and np.ptp(cycles[on], axis=0).max() > 0.1
+    err = np.abs(ours[on] - np.maximum(cycles[on], 0.0)).max(axis=1)
+    print(f"texture coordinate {output}, {camera_kind}: max {err.max():.2e}, "
+          f"99th percentile {np.percentile(err, 99):.2e}")
+    assert np.percentile(err, 99) < 1e-4
+
+
 def test_object_info_matches_cycles(addon, tmp_path):
     """Object Info, per object as Cycles sets it: four quarter planes sharing one material, named
     in ASCII and not (Cycles hashes the name of an object that is not an instance: its Random),
