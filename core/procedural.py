@@ -52,6 +52,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``metal`` color, tint: -> Color, a metal's mean F82-tint Fresnel reflectance (its glossy colour).
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
+* ``vector_transform`` vector, type, convert_from, convert_to (Vector Transform): -> Vector.
 * ``color_space`` color, conversion (RGB_TO_HSV, HSV_TO_RGB, RGB_TO_HSL, HSL_TO_RGB; Separate and
   Combine Color in HSV and HSL mode): -> Color.
 * ``separate`` vector: -> X, Y, Z (also Red, Green, Blue); ``combine`` x, y, z: -> Vector.
@@ -175,6 +176,22 @@ class HitAttributes:
             n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         length = np.linalg.norm(n, axis=1, keepdims=True)
         return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+    def object_transforms(self, inverse=False):
+        """(k, 3, 4) the affine maps of world positions into the hits' objects' spaces (``inverse``:
+        out of them into the world; a pseudo-inverse for a flattened object)."""
+        s = self.scene
+        if s.object_ids is None:
+            raise ProgramError("the program needs the objects' transforms, which the scene lacks")
+        m = np.asarray(s.object_from_world, np.float64)
+        if inverse:
+            m = _affine_inverse(m)
+        return m.take(s.object_ids.take(self.prim_ids), axis=0)
+
+    def camera_from_world(self):
+        """(4, 4) world to Cycles' camera space (x right, y up, z the depth in front)."""
+        flip = np.diag([1.0, 1.0, -1.0, 1.0])
+        return flip @ np.linalg.inv(np.asarray(self.scene.camera.world_from_camera, np.float64))
 
     def _view(self, name):
         """(k, 3) Camera or Window coordinates of the hits (``VIEW``)."""
@@ -330,6 +347,9 @@ def attributes_used(program) -> set:
             used.add(node["name"])
         elif node["op"] == "image" and node.get("projection", "FLAT") == "BOX":
             used.add("normal")
+        elif node["op"] == "vector_transform":
+            spaces = {node.get("convert_from", "WORLD"), node.get("convert_to", "OBJECT")}
+            used |= {"object"} & {s.lower() for s in spaces} | ({"camera"} if "CAMERA" in spaces else set())
     return used
 
 
@@ -825,6 +845,49 @@ def _color_space(ev, node):
     return {"Color": COLOR_SPACES[node["conversion"]](ev.vec(node, "color"))}
 
 
+def _vector_transform(ev, node):
+    """Cycles' ``svm_node_vector_transform``: a point, vector or normal (by the inverse transpose,
+    normalised) from world, object or camera space to another; object spaces need the hits'
+    objects (none in a world shader or over stand-in coordinates: unchanged), camera spaces the
+    camera (none there either)."""
+    v = ev.vec(node, "vector")
+    point, normal = (node.get("type", "VECTOR") == kind for kind in ("POINT", "NORMAL"))
+    src, dst = node.get("convert_from", "WORLD"), node.get("convert_to", "OBJECT")
+    has_objects = hasattr(ev.attrs, "object_transforms")
+    camera = ev.attrs.camera_from_world() if hasattr(ev.attrs, "camera_from_world") else None
+
+    def affine(m, x):                                   # m (3, 4) or (k, 3, 4)
+        linear = m[..., :3]
+        if normal:                                      # (normals: the inverse transpose)
+            linear = np.swapaxes(np.linalg.pinv(linear), -1, -2)
+        if m.ndim == 2:
+            return x @ linear.T + (m[:, 3] if point else 0.0)
+        return np.einsum("kij,kj->ki", linear, x) + (m[:, :, 3] if point else 0.0)
+
+    if src == "WORLD" or src == "CAMERA":
+        if src == "CAMERA" and dst != "CAMERA" and camera is not None:
+            v = affine(_affine_inverse(camera[:3]), v)
+        if dst == "CAMERA" and src == "WORLD" and camera is not None:
+            v = affine(camera[:3], v)
+        elif dst == "OBJECT" and has_objects:
+            v = affine(ev.attrs.object_transforms(), v)
+    elif src == "OBJECT":
+        if dst != "OBJECT" and has_objects:
+            v = affine(ev.attrs.object_transforms(inverse=True), v)
+        if dst == "CAMERA" and camera is not None:
+            v = affine(camera[:3], v)
+    if normal:
+        n = np.sqrt((v * v).sum(axis=1, keepdims=True))
+        v = np.divide(v, n, out=np.zeros_like(v), where=n > 0.0)
+    return {"Vector": v}
+
+
+def _affine_inverse(m):
+    """The inverses of affine maps ``m`` (..., 3, 4) (pseudo-inverses where flattened)."""
+    a = np.linalg.pinv(m[..., :3])
+    return np.concatenate([a, -(a @ m[..., 3:])], axis=-1)
+
+
 def _hsv(ev, node):
     c = ev.vec(node, "color")
     hsv = rgb_to_hsv(c)
@@ -1159,7 +1222,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
-       "color_space": _color_space,
+       "color_space": _color_space, "vector_transform": _vector_transform,
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
@@ -1171,6 +1234,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "metal": ("Color",),
            "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",), "color_space": ("Color",),
+           "vector_transform": ("Vector",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
@@ -1194,7 +1258,10 @@ CHOICES = {
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
     ("image", "interpolation"): ("Linear", "Closest"), ("image", "projection"): ("FLAT", "BOX"),
     ("vector_math", "operation"): tuple(VECTOR_MATH) + tuple(VECTOR_VALUES),
-    ("clamp", "clamp_type"): ("MINMAX", "RANGE"), ("color_space", "conversion"): tuple(COLOR_SPACES)}
+    ("clamp", "clamp_type"): ("MINMAX", "RANGE"), ("color_space", "conversion"): tuple(COLOR_SPACES),
+    ("vector_transform", "type"): ("POINT", "VECTOR", "NORMAL"),
+    ("vector_transform", "convert_from"): ("WORLD", "OBJECT", "CAMERA"),
+    ("vector_transform", "convert_to"): ("WORLD", "OBJECT", "CAMERA")}
 # Array settings and their shapes (None: N >= 2).
 ARRAYS = {"ramp": {"table": (None, 4)}, "affine": {"matrix": (3, 3), "pre": (3,), "post": (3,)},
           "sky": {"sun_direction": (3,)}, "curves": {"table": (None, 3)}, "float_curve": {"table": (None,)}}

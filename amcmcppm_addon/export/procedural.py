@@ -12,9 +12,9 @@ space, on the front of the triangle), Mapping (all four types), Image Texture (f
 projections, every extension, linear or closest), Environment Texture (equirectangular), Checker,
 Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by
 Blender itself, as Cycles bakes it), Mix (float, vector, colour; 19 blend modes) and the legacy
-MixRGB, Math (every operation), Vector Math, Normal, Vector Rotate (a constant rotation), Clamp,
-Map Range (float and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as
-Cycles bakes them), Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW,
+MixRGB, Math (every operation), Vector Math, Vector Transform, Normal, Vector Rotate (a constant
+rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and Float Curve (sampled
+by Blender as Cycles bakes them), Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW,
 Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and Value; Fresnel and Layer Weight as their
 means over view directions (noted: programs do not know the view direction). Anything else is named
 in the material's warning and replaced by the input socket's own value. Settings that Cycles lets
@@ -554,6 +554,12 @@ def _normal(b, node, stack):
                     "output": "Value"}}
 
 
+def _vector_transform(b, node, stack):
+    """Vector Transform between world, object and camera space (core ``vector_transform``)."""
+    return {"Vector": {"op": "vector_transform", "type": node.vector_type, "convert_from": node.convert_from,
+                       "convert_to": node.convert_to, "vector": b.input(node, "Vector", stack, VEC)}}
+
+
 def _rgb_to_bw(b, node, stack):
     """RGB to BW: the colour's luminance (Cycles' ``linear_rgb_to_gray``, Rec. 709)."""
     return {"Val": {"op": "gray", "color": b.input(node, "Color", stack, VEC)}}
@@ -656,7 +662,7 @@ NODES = {
     "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
     "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,
     "ShaderNodeRGBToBW": _rgb_to_bw, "ShaderNodeVectorRotate": _vector_rotate,
-    "ShaderNodeNormal": _normal,
+    "ShaderNodeNormal": _normal, "ShaderNodeVectorTransform": _vector_transform,
     "ShaderNodeBrightContrast": _bright_contrast,
     "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,

@@ -844,20 +844,38 @@ def test_image_alpha_matches_cycles(addon, tmp_path, is_float, output):
         assert (err < 0.01).mean() > 0.8 and err.max() < 0.15
 
 
+TRANSFORMS = {"transform_object_point_to_world": ("Object", "POINT", "OBJECT", "WORLD"),
+              "transform_world_vector_to_object": ("Normal", "VECTOR", "WORLD", "OBJECT"),
+              "transform_object_normal_to_camera": ("Object", "NORMAL", "OBJECT", "CAMERA"),
+              "transform_world_point_to_camera": ("Position", "POINT", "WORLD", "CAMERA"),
+              "transform_camera_point_to_object": ("Position", "POINT", "CAMERA", "OBJECT")}
+
+
 @pytest.mark.parametrize("graph", ["normal", "box_sharp", "box_blended", "geometry_normal",
-                                   "geometry_true_normal", "geometry_position"])
+                                   "geometry_true_normal", "geometry_position", *TRANSFORMS])
 def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, graph):
     """A smooth, turned and unevenly scaled sphere seen from above: the Texture Coordinate's
     Normal (the object-space shading normal), an image box-projected on Object coordinates
     (blend 0 and 0.3), whose three projections the normal weighs (``procedural.box_weights``), and
-    the Geometry node's Normal, True Normal (the facet's) and Position, in world space (stop 39;
-    before, an unsupported node)."""
+    the Geometry node's Normal, True Normal (the facet's) and Position, in world space, and Vector
+    Transform between world, object and camera space (stop 39; before, unsupported nodes)."""
     import bmesh
     import bpy
 
     def build(nt):
         if graph == "normal":
             return nt.nodes.new("ShaderNodeTexCoord").outputs["Normal"]
+        if graph in TRANSFORMS:
+            source, kind, src, dst = TRANSFORMS[graph]
+            t = node(nt, "ShaderNodeVectorTransform", vector_type=kind, convert_from=src, convert_to=dst)
+            origin = (nt.nodes.new("ShaderNodeTexCoord").outputs[source] if source == "Object"
+                      else nt.nodes.new("ShaderNodeNewGeometry").outputs[source])
+            nt.links.new(origin, t.inputs["Vector"])
+            scaled = node(nt, "ShaderNodeVectorMath", operation="MULTIPLY_ADD")
+            nt.links.new(t.outputs["Vector"], scaled.inputs[0])
+            scaled.inputs[1].default_value = (0.25, 0.25, 0.25)
+            scaled.inputs[2].default_value = (0.5, 0.5, 0.5)
+            return scaled.outputs["Vector"]
         if graph.startswith("geometry_"):
             output = {"geometry_normal": "Normal", "geometry_true_normal": "True Normal",
                       "geometry_position": "Position"}[graph]
@@ -883,7 +901,7 @@ def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, gra
     err = np.abs(ours[on] - np.maximum(cycles[on], 0.0)).max(axis=1)
     print(f"{graph}: max {err.max():.2e}, 99th percentile {np.percentile(err, 99):.2e}, "
           f"share within 2e-3 {(err < 2e-3).mean():.3f}")
-    if graph in ("normal", "geometry_normal", "geometry_position"):
+    if graph in ("normal", "geometry_normal", "geometry_position", *TRANSFORMS):
         assert np.percentile(err, 99) < 2e-3
     else:
         # Discontinuities: where the dominant axis changes (blend 0) a pixel may fall either side.
