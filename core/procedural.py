@@ -664,9 +664,10 @@ def box_weights(normals, blend):
 
 def image_lookup(image, u, v, extension="REPEAT", interpolation="Linear"):
     """(n, 3) lookups of ``image`` (H, W, 3; row 0 is v = 0) at (u, v) as Cycles' Image Texture
-    (``kernel/device/cpu/image.h``): ``interpolation`` Linear (bilinear between texel centres) or
-    Closest (the texel under the point), and texels outside the image by ``extension``: REPEAT
-    (wrap), EXTEND (the edge texel), CLIP (black) or MIRROR (reflected)."""
+    (``kernel/device/cpu/image.h``): ``interpolation`` Linear (bilinear between texel centres),
+    Closest (the texel under the point) or Cubic (the cubic B-spline of the 4 x 4 texels around,
+    Cycles' ``interp_cubic``, which its CPU also takes for Smart), and texels outside the image by
+    ``extension``: REPEAT (wrap), EXTEND (the edge texel), CLIP (black) or MIRROR (reflected)."""
     h, w = image.shape[:2]
     u = np.nan_to_num(np.asarray(u, np.float64))
     v = np.nan_to_num(np.asarray(v, np.float64))
@@ -685,8 +686,23 @@ def image_lookup(image, u, v, extension="REPEAT", interpolation="Linear"):
     x0, y0 = np.floor(x), np.floor(y)
     fx, fy = (x - x0)[:, None], (y - y0)[:, None]
     ix, iy = x0.astype(np.int64), y0.astype(np.int64)
+    if interpolation == "Cubic":
+        wx, wy = _cubic_bspline(fx), _cubic_bspline(fy)
+        out = np.zeros((len(ix), 3))
+        for j in range(4):
+            row = np.zeros((len(ix), 3))
+            for i in range(4):
+                row += wx[i] * fetch(ix + i - 1, iy + j - 1)
+            out += wy[j] * row
+        return out
     return ((1 - fx) * (1 - fy) * fetch(ix, iy) + fx * (1 - fy) * fetch(ix + 1, iy)
             + (1 - fx) * fy * fetch(ix, iy + 1) + fx * fy * fetch(ix + 1, iy + 1))
+
+
+def _cubic_bspline(t):
+    """The four cubic B-spline weights (Cycles' ``SET_CUBIC_SPLINE_WEIGHTS``) at fractions ``t``."""
+    return ((((-1.0 / 6.0) * t + 0.5) * t - 0.5) * t + 1.0 / 6.0, ((0.5 * t - 1.0) * t) * t + 2.0 / 3.0,
+            ((-0.5 * t + 0.5) * t + 0.5) * t + 1.0 / 6.0, (1.0 / 6.0) * t * t * t)
 
 
 def _wrap(i, size, extension):
@@ -1256,7 +1272,7 @@ CHOICES = {
     ("white_noise", "dimensions"): _patterns.DIMENSIONS,
     ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"),
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
-    ("image", "interpolation"): ("Linear", "Closest"), ("image", "projection"): ("FLAT", "BOX"),
+    ("image", "interpolation"): ("Linear", "Closest", "Cubic"), ("image", "projection"): ("FLAT", "BOX"),
     ("vector_math", "operation"): tuple(VECTOR_MATH) + tuple(VECTOR_VALUES),
     ("clamp", "clamp_type"): ("MINMAX", "RANGE"), ("color_space", "conversion"): tuple(COLOR_SPACES),
     ("vector_transform", "type"): ("POINT", "VECTOR", "NORMAL"),

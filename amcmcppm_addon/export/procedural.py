@@ -9,7 +9,7 @@ named one), Color Attribute (the render one or a named one), Attribute (a mesh a
 Object Info (per object: Location, Color, Alpha, Object Index and Random as Cycles sets them;
 Material Index the material's pass index), Geometry (Position, Normal and True Normal, in world
 space, on the front of the triangle), Mapping (all four types), Image Texture (flat and box
-projections, every extension, linear or closest), Environment Texture (equirectangular), Checker,
+projections, every extension, linear, closest, cubic or smart), Environment Texture (equirectangular), Checker,
 Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by
 Blender itself, as Cycles bakes it), Mix (float, vector, colour; 19 blend modes) and the legacy
 MixRGB, Math (every operation), Vector Math, Vector Transform, Normal, Vector Rotate (a constant
@@ -251,10 +251,8 @@ def _image(b, node, stack):
     if node.projection not in ("FLAT", "BOX"):
         w.note(f"image texture '{node.name}': {node.projection.lower()} projection is not supported "
                "(flat is used)")
-    interpolation = node.interpolation if node.interpolation in ("Linear", "Closest") else "Linear"
-    if interpolation != node.interpolation:
-        w.note(f"image texture '{node.name}': {node.interpolation.lower()} interpolation is not supported "
-               "(linear is used)")
+    # Cycles' CPU takes Smart as Cubic.
+    interpolation = "Cubic" if node.interpolation == "Smart" else node.interpolation
     settings = {} if (node.extension, interpolation) == ("REPEAT", "Linear") else {
         "extension": node.extension, "interpolation": interpolation}
     if node.projection == "BOX":

@@ -427,7 +427,8 @@ CASES = {
     "image_mapped_uv": image_on_mapped_uv,
     **{f"image_{e.lower()}_{i.lower()}": image_on_mapped_uv_with(e, i)
        for e, i in (("EXTEND", "Linear"), ("CLIP", "Linear"), ("MIRROR", "Linear"), ("REPEAT", "Closest"),
-                    ("CLIP", "Closest"), ("MIRROR", "Closest"))},
+                    ("CLIP", "Closest"), ("MIRROR", "Closest"), ("REPEAT", "Cubic"), ("EXTEND", "Cubic"),
+                    ("CLIP", "Cubic"), ("MIRROR", "Smart"))},
     "conversions": value_to_colour,
     "voronoi_f1_color": voronoi("Color", Scale=4.0),
     "voronoi_f2_distance": voronoi("Distance", Scale=3.0, feature="F2", distance="MANHATTAN"),
