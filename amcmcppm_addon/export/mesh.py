@@ -25,7 +25,7 @@ import numpy as np
 
 from ...core.procedural import NAMED, OBJECT_INFO
 from ...core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
-from ...core.texture_hash import hash_uint2
+from ...core.texture_hash import hash_uint2, hash_uint_to_float
 from .lights import ray_visibility
 
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
@@ -393,6 +393,43 @@ ATTRIBUTE_TYPES = {"FLOAT": ("value", 1, np.float32), "INT": ("value", 1, np.int
                    "BYTE_COLOR": ("color", 4, np.float32)}
 
 
+# The name under which Geometry's Random Per Island is kept in ``Scene.attributes`` (Blender's
+# internal names start with a dot: no attribute of the mesh has it).
+RANDOM_PER_ISLAND = ".random_per_island"
+
+
+def random_per_island(me, tri_vert):
+    """(T,) float32 Cycles' Random Per Island of each triangle: ``hash_uint_to_float`` of the root
+    of its first vertex's island, the islands joined edge by edge in Blender's order by Cycles'
+    union by rank (``DisjointSet``), whose roots the hash sees; a Python loop over the edges (at
+    export, only for materials that read it)."""
+    n_edges = len(me.edges)
+    pairs = np.empty(n_edges * 2, np.int32)
+    me.edges.foreach_get("vertices", pairs)
+    parent = list(range(len(me.vertices)))
+    rank = [0] * len(parent)
+
+    def find(x):
+        root = x
+        while parent[root] != root:
+            root = parent[root]
+        while parent[x] != root:
+            parent[x], x = root, parent[x]
+        return root
+
+    for a, b in pairs.reshape(-1, 2).tolist():
+        ra, rb = find(a), find(b)
+        if ra == rb:
+            continue
+        if rank[ra] < rank[rb]:
+            ra, rb = rb, ra
+        parent[rb] = ra
+        if rank[ra] == rank[rb]:
+            rank[ra] += 1
+    roots = np.array([find(v) for v in range(len(parent))], np.int64)
+    return hash_uint_to_float(roots.take(tri_vert[:, 0])).astype(np.float32)
+
+
 def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
     """{name: (T, 3, 3) float32} of the ``names`` the mesh has as attributes Cycles reads by name (a
     float repeated in x, y, z; a 2D value (x, y, 0); a colour's linear RGB), per triangle corner
@@ -400,6 +437,9 @@ def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
     one with a warning."""
     out = {}
     for name in sorted(names):
+        if name == RANDOM_PER_ISLAND:
+            out[name] = np.repeat(random_per_island(me, tri_vert)[:, None, None], 3, axis=1).repeat(3, axis=2)
+            continue
         attr = me.attributes.get(name)
         if attr is None:
             continue

@@ -955,6 +955,49 @@ def test_camera_and_window_coordinates_match_cycles(addon, tmp_path, output, cam
     assert np.percentile(err, 99) < 1e-4
 
 
+def test_random_per_island_matches_cycles(addon, tmp_path):
+    """Geometry's Random Per Island on one mesh of 24 separate quads (planks: their islands joined
+    in Blender's edge order, two of them bridged by an edge) and the Attribute node's
+    'random_per_island' (Cycles' standard name): each island's own number, as Cycles'."""
+    import bmesh
+    import bpy
+
+    def build(nt):
+        geometry = nt.nodes.new("ShaderNodeNewGeometry")
+        attr = node(nt, "ShaderNodeAttribute", attribute_name="random_per_island")
+        mix = node(nt, "ShaderNodeMix", data_type="RGBA", blend_type="MIX")
+        nt.links.new(geometry.outputs["Random Per Island"], socket(mix.inputs, "Factor_Float"))
+        socket(mix.inputs, "A_Color").default_value = (0.9, 0.1, 0.2, 1.0)
+        nt.links.new(attr.outputs["Color"], socket(mix.inputs, "B_Color"))
+        return socket(mix.outputs, "Result_Color")
+
+    mat, positions = bs.texture_plane(build, size=2.0)
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    bm = bmesh.new()
+    rng = np.random.default_rng(3)
+    quads = []
+    for row in range(6):
+        for col in range(4):
+            x0, y0 = -1.0 + col * 0.5, -1.0 + row * 0.3333
+            corners = [bm.verts.new((x0 + dx, y0 + dy, 0.0)) for dx, dy in ((0.02, 0.02), (0.48, 0.02),
+                                                                              (0.48, 0.31), (0.02, 0.31))]
+            quads.append(bm.faces.new(corners))
+    bm.verts.ensure_lookup_table()
+    bm.edges.new((quads[0].verts[1], quads[1].verts[0]))             # two planks joined by an edge
+    order = rng.permutation(len(bm.verts))
+    for i, v in enumerate(bm.verts):
+        v.index = int(order[i])
+    bm.verts.sort()
+    bs.mesh_object("Planks", bm, mat)
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    on = np.isfinite(ours).all(axis=2)
+    assert 0.6 < on.mean() and np.ptp(cycles[on], axis=0).max() > 0.3
+    err = np.abs(ours[on] - cycles[on]).max(axis=1)
+    print(f"random per island: max {err.max():.2e}, share within 1e-4 {(err < 1e-4).mean():.3f}")
+    assert (err < 1e-4).mean() > 0.99
+
+
 def test_object_info_matches_cycles(addon, tmp_path):
     """Object Info, per object as Cycles sets it: four quarter planes sharing one material, named
     in ASCII and not (Cycles hashes the name of an object that is not an instance: its Random),
