@@ -396,6 +396,47 @@ ATTRIBUTE_TYPES = {"FLOAT": ("value", 1, np.float32), "INT": ("value", 1, np.int
 # The name under which Geometry's Random Per Island is kept in ``Scene.attributes`` (Blender's
 # internal names start with a dot: no attribute of the mesh has it).
 RANDOM_PER_ISLAND = ".random_per_island"
+POINTINESS = ".pointiness"                      # (and Geometry's Pointiness)
+
+
+def pointiness(me):
+    """(V,) float64 Cycles' Pointiness (``attr_create_pointiness``) of each vertex: vertices at the
+    same place welded, the angle between the welded vertex normal and the mean of the unit edges
+    leaving it, over pi, then blurred once with its edge neighbours (the mean of itself and
+    them)."""
+    n = len(me.vertices)
+    if n == 0:
+        return np.zeros(0)
+    co = np.empty(n * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    co = co.reshape(n, 3).astype(np.float64)
+    normals = np.empty(n * 3, np.float32)
+    me.vertices.foreach_get("normal", normals)
+    normals = normals.reshape(n, 3).astype(np.float64)
+    # Duplicates: vertices at the same position (Cycles: within sqrt(FLT_EPSILON)) share the first.
+    _, first, orig = np.unique(np.round(co / 1e-4), axis=0, return_index=True, return_inverse=True)
+    orig = first.take(orig.ravel())
+    welded = np.zeros((n, 3))
+    np.add.at(welded, orig, normals)
+    length = np.linalg.norm(welded, axis=1, keepdims=True)
+    welded = np.divide(welded, length, out=np.zeros_like(welded), where=length > 0).take(orig, axis=0)
+    pairs = np.empty(len(me.edges) * 2, np.int32)
+    me.edges.foreach_get("vertices", pairs)
+    e = orig.take(pairs.reshape(-1, 2))
+    e = np.unique(np.sort(e[e[:, 0] != e[:, 1]], axis=1), axis=0)          # each welded edge once
+    d = co.take(e[:, 1], axis=0) - co.take(e[:, 0], axis=0)
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+    accum, count = np.zeros((n, 3)), np.zeros(n)
+    np.add.at(accum, e[:, 0], d)
+    np.add.at(accum, e[:, 1], -d)
+    np.add.at(count, e.ravel(), 1.0)
+    mean = np.divide(accum, count[:, None], out=np.zeros_like(accum), where=count[:, None] > 0)
+    raw = np.where(count > 0, np.arccos(np.clip((welded * mean).sum(axis=1), -1.0, 1.0)) / np.pi, 0.0)
+    blurred = raw.copy()
+    np.add.at(blurred, e[:, 0], raw.take(e[:, 1]))
+    np.add.at(blurred, e[:, 1], raw.take(e[:, 0]))
+    blurred /= count + 1.0
+    return blurred.take(orig)
 
 
 def random_per_island(me, tri_vert):
@@ -437,8 +478,12 @@ def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
     one with a warning."""
     out = {}
     for name in sorted(names):
-        if name == RANDOM_PER_ISLAND:
-            out[name] = np.repeat(random_per_island(me, tri_vert)[:, None, None], 3, axis=1).repeat(3, axis=2)
+        if name in (RANDOM_PER_ISLAND, POINTINESS):
+            if name == RANDOM_PER_ISLAND:
+                values = np.repeat(random_per_island(me, tri_vert)[:, None], 3, axis=1)     # (T, 3)
+            else:
+                values = pointiness(me).take(tri_vert)
+            out[name] = np.repeat(values[:, :, None], 3, axis=2).astype(np.float32)
             continue
         attr = me.attributes.get(name)
         if attr is None:

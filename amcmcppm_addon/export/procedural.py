@@ -28,7 +28,7 @@ import numpy as np
 
 from ...core import procedural
 from ...core.sampling import fresnel_dielectric
-from .mesh import RANDOM_PER_ISLAND
+from .mesh import POINTINESS, RANDOM_PER_ISLAND
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
 FLOAT, VEC = "float", "vec"
@@ -140,12 +140,14 @@ def _tex_coord(b, node, stack):
 
 def _geometry(b, node, stack):
     """Geometry: Position, Normal and True Normal in world space (on the triangle's front: Cycles
-    turns them towards the ray on a back face) and Random Per Island (``mesh.random_per_island``);
+    turns them towards the ray on a back face), Random Per Island and Pointiness
+    (``mesh.random_per_island``, ``mesh.pointiness``);
     the other outputs are noted where used."""
     return {"Position": {"op": "attribute", "name": "position"},
             "Normal": {"op": "attribute", "name": "world_normal"},
             "True Normal": {"op": "attribute", "name": "true_normal"},
-            "Random Per Island": {"op": "separate", "vector": _named(RANDOM_PER_ISLAND), "output": "X"}}
+            "Random Per Island": {"op": "separate", "vector": _named(RANDOM_PER_ISLAND), "output": "X"},
+            "Pointiness": {"op": "separate", "vector": _named(POINTINESS), "output": "X"}}
 
 
 def _object_info(b, node, stack):
@@ -182,11 +184,11 @@ def _color_attribute(b, node, stack):
 VOLUME_ATTRIBUTES = ("density", "color", "flame", "heat", "temperature", "velocity", "velocity_x",
                      "velocity_y", "velocity_z")
 STANDARD_COORDINATES = {"generated": "generated", "uv": "uv"}
-STANDARD_NAMED = {"random_per_island": RANDOM_PER_ISLAND}
+STANDARD_NAMED = {"random_per_island": RANDOM_PER_ISLAND, "pointiness": POINTINESS}
 OTHER_STANDARD_ATTRIBUTES = ("N", "Ng", "tangent", "tangent_sign", "vertex_color", "undeformed",
                              "undisplaced", "motion_P", "motion_N", "particle", "curve_intercept",
                              "curve_length", "curve_random", "point_random", "ptex_face_id", "ptex_uv",
-                             "pointiness", "generated_transform", "shadow_transparency")
+                             "generated_transform", "shadow_transparency")
 
 
 def _attribute(b, node, stack):

@@ -998,6 +998,37 @@ def test_random_per_island_matches_cycles(addon, tmp_path):
     assert (err < 1e-4).mean() > 0.99
 
 
+def test_pointiness_matches_cycles(addon, tmp_path):
+    """Geometry's Pointiness on a lumpy sphere (vertices pushed in and out), stretched from
+    [0.4, 0.6] to [0, 1]: each vertex's angle between its normal and its mean edge, blurred once
+    over its neighbours, interpolated over the triangles as Cycles'."""
+    import bmesh
+    import bpy
+
+    def build(nt):
+        stretch = node(nt, "ShaderNodeMapRange")
+        stretch.inputs["From Min"].default_value, stretch.inputs["From Max"].default_value = 0.4, 0.6
+        nt.links.new(nt.nodes.new("ShaderNodeNewGeometry").outputs["Pointiness"], stretch.inputs["Value"])
+        return stretch.outputs["Result"]
+
+    mat, positions = bs.texture_plane(build, size=2.0)
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=0.8)
+    rng = np.random.default_rng(5)
+    for v in bm.verts:                      # (below z = 1, where our_texture_values' rays start)
+        v.co *= 1.0 + 0.1 * np.clip(rng.standard_normal(), -2.0, 2.0)
+    ob = bs.mesh_object("Lumpy", bm, mat)
+    ob.data.shade_smooth()
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    on = np.isfinite(ours).all(axis=2)
+    assert 0.4 < on.mean() and np.ptp(cycles[on], axis=0).max() > 0.3
+    err = np.abs(ours[on] - cycles[on]).max(axis=1)
+    print(f"pointiness: max {err.max():.2e}, 99th percentile {np.percentile(err, 99):.2e}")
+    assert err.max() < 1e-3
+
+
 def test_object_info_matches_cycles(addon, tmp_path):
     """Object Info, per object as Cycles sets it: four quarter planes sharing one material, named
     in ASCII and not (Cycles hashes the name of an object that is not an instance: its Random),
