@@ -52,6 +52,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``metal`` color, tint: -> Color, a metal's mean F82-tint Fresnel reflectance (its glossy colour).
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
+* ``wavelength`` wavelength (nm): -> Color (Cycles' Wavelength node).
 * ``vector_transform`` vector, type, convert_from, convert_to (Vector Transform): -> Vector.
 * ``color_space`` color, conversion (RGB_TO_HSV, HSV_TO_RGB, RGB_TO_HSL, HSL_TO_RGB; Separate and
   Combine Color in HSV and HSL mode): -> Color.
@@ -1176,6 +1177,57 @@ def _average(ev, node):
 # Cycles' fit of the Planckian locus in Rec. 709 (``svm_math_blackbody_color_rec709``, Blender
 # 4.x/5.x, normalised to luminance 1): R, G = a / t + b t + c, B = ((a t + b) t + c) t + d, per
 # range of temperatures from these knots.
+# The CIE 1931 colour matching functions x, y, z at 380, 385, ..., 780 nm (the table Cycles'
+# Wavelength node interpolates, as in John Walker's public-domain specrend).
+CIE_XYZ = np.array([
+    0.0014, 0.0000, 0.0065, 0.0022, 0.0001, 0.0105, 0.0042, 0.0001, 0.0201, 0.0076, 0.0002, 0.0362,
+    0.0143, 0.0004, 0.0679, 0.0232, 0.0006, 0.1102, 0.0435, 0.0012, 0.2074, 0.0776, 0.0022, 0.3713,
+    0.1344, 0.0040, 0.6456, 0.2148, 0.0073, 1.0391, 0.2839, 0.0116, 1.3856, 0.3285, 0.0168, 1.6230,
+    0.3483, 0.0230, 1.7471, 0.3481, 0.0298, 1.7826, 0.3362, 0.0380, 1.7721, 0.3187, 0.0480, 1.7441,
+    0.2908, 0.0600, 1.6692, 0.2511, 0.0739, 1.5281, 0.1954, 0.0910, 1.2876, 0.1421, 0.1126, 1.0419,
+    0.0956, 0.1390, 0.8130, 0.0580, 0.1693, 0.6162, 0.0320, 0.2080, 0.4652, 0.0147, 0.2586, 0.3533,
+    0.0049, 0.3230, 0.2720, 0.0024, 0.4073, 0.2123, 0.0093, 0.5030, 0.1582, 0.0291, 0.6082, 0.1117,
+    0.0633, 0.7100, 0.0782, 0.1096, 0.7932, 0.0573, 0.1655, 0.8620, 0.0422, 0.2257, 0.9149, 0.0298,
+    0.2904, 0.9540, 0.0203, 0.3597, 0.9803, 0.0134, 0.4334, 0.9950, 0.0087, 0.5121, 1.0000, 0.0057,
+    0.5945, 0.9950, 0.0039, 0.6784, 0.9786, 0.0027, 0.7621, 0.9520, 0.0021, 0.8425, 0.9154, 0.0018,
+    0.9163, 0.8700, 0.0017, 0.9786, 0.8163, 0.0014, 1.0263, 0.7570, 0.0011, 1.0567, 0.6949, 0.0010,
+    1.0622, 0.6310, 0.0008, 1.0456, 0.5668, 0.0006, 1.0026, 0.5030, 0.0003, 0.9384, 0.4412, 0.0002,
+    0.8544, 0.3810, 0.0002, 0.7514, 0.3210, 0.0001, 0.6424, 0.2650, 0.0000, 0.5419, 0.2170, 0.0000,
+    0.4479, 0.1750, 0.0000, 0.3608, 0.1382, 0.0000, 0.2835, 0.1070, 0.0000, 0.2187, 0.0816, 0.0000,
+    0.1649, 0.0610, 0.0000, 0.1212, 0.0446, 0.0000, 0.0874, 0.0320, 0.0000, 0.0636, 0.0232, 0.0000,
+    0.0468, 0.0170, 0.0000, 0.0329, 0.0119, 0.0000, 0.0227, 0.0082, 0.0000, 0.0158, 0.0057, 0.0000,
+    0.0114, 0.0041, 0.0000, 0.0081, 0.0029, 0.0000, 0.0058, 0.0021, 0.0000, 0.0041, 0.0015, 0.0000,
+    0.0029, 0.0010, 0.0000, 0.0020, 0.0007, 0.0000, 0.0014, 0.0005, 0.0000, 0.0010, 0.0004, 0.0000,
+    0.0007, 0.0002, 0.0000, 0.0005, 0.0002, 0.0000, 0.0003, 0.0001, 0.0000, 0.0002, 0.0001, 0.0000,
+    0.0002, 0.0001, 0.0000, 0.0001, 0.0000, 0.0000, 0.0001, 0.0000, 0.0000, 0.0001, 0.0000, 0.0000,
+    0.0000, 0.0000, 0.0000]).reshape(81, 3)
+
+
+def _xyz_to_rec709():
+    """(3, 3) CIE XYZ to linear Rec. 709 (its primaries and D65 white; Cycles' Wavelength node
+    matches it to 2e-6, where an adaptation from Blender's XYZ role, illuminant E, was 0.08 off)."""
+    def xyz(x, y):
+        return np.array([x / y, 1.0, (1.0 - x - y) / y])
+    primaries = np.stack([xyz(0.64, 0.33), xyz(0.30, 0.60), xyz(0.15, 0.06)], axis=1)
+    rgb_to_xyz = primaries * np.linalg.solve(primaries, xyz(0.3127, 0.3290))
+    return np.linalg.inv(rgb_to_xyz)
+
+
+XYZ_TO_RGB = _xyz_to_rec709()
+
+
+def _wavelength(ev, node):
+    """Cycles' ``svm_node_wavelength``: the colour matching functions at the wavelength (nm; 0 off
+    380 to 780), in linear Rec. 709, over 2.52, clamped at 0."""
+    ii = (ev.float(node, "wavelength", 500.0) - 380.0) / 5.0
+    i = np.trunc(ii)
+    inside = (i >= 0.0) & (i < 80.0)
+    k = np.where(inside, i, 0.0).astype(np.int64)
+    t = (ii - i)[:, None]
+    xyz = np.where(inside[:, None], (1.0 - t) * CIE_XYZ[k] + t * CIE_XYZ[k + 1], 0.0)
+    return {"Color": np.maximum(xyz @ XYZ_TO_RGB.T / 2.52, 0.0)}
+
+
 BLACKBODY_KNOTS = np.array([965.0, 1167.0, 1449.0, 1902.0, 3315.0, 6365.0])
 BLACKBODY_R = np.array([[1.61919106e+03, -2.05010916e-03, 5.02995757e+00],
                         [2.48845471e+03, -1.11330907e-03, 3.22621544e+00],
@@ -1238,7 +1290,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
-       "color_space": _color_space, "vector_transform": _vector_transform,
+       "color_space": _color_space, "vector_transform": _vector_transform, "wavelength": _wavelength,
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
@@ -1250,7 +1302,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "metal": ("Color",),
            "invert": ("Color",),
            "gamma": ("Color",), "hsv": ("Color",), "bright_contrast": ("Color",), "color_space": ("Color",),
-           "vector_transform": ("Vector",),
+           "vector_transform": ("Vector",), "wavelength": ("Color",),
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),

@@ -15,12 +15,12 @@ Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector, 
 modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector Transform, Normal, Vector
 Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and
 Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma, Hue/Saturation/Value,
-Bright/Contrast, RGB to BW, Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and Value; Fresnel
-and Layer Weight as their means over view directions (noted: programs do not know the view
-direction). Anything else is named in the material's warning and replaced by the input socket's own
-value. Settings that Cycles lets vary over the surface but the core takes as constants (a texture's
-Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives them, with a
-note.
+Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and
+Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not know
+the view direction). Anything else is named in the material's warning and replaced by the input
+socket's own value. Settings that Cycles lets vary over the surface but the core takes as constants
+(a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
+them, with a note.
 """
 from __future__ import annotations
 
@@ -565,6 +565,10 @@ def _vector_transform(b, node, stack):
                        "convert_to": node.convert_to, "vector": b.input(node, "Vector", stack, VEC)}}
 
 
+def _wavelength(b, node, stack):
+    return {"Color": {"op": "wavelength", "wavelength": b.input(node, "Wavelength", stack, FLOAT)}}
+
+
 def _rgb_to_bw(b, node, stack):
     """RGB to BW: the colour's luminance (Cycles' ``linear_rgb_to_gray``, Rec. 709)."""
     return {"Val": {"op": "gray", "color": b.input(node, "Color", stack, VEC)}}
@@ -668,6 +672,7 @@ NODES = {
     "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,
     "ShaderNodeRGBToBW": _rgb_to_bw, "ShaderNodeVectorRotate": _vector_rotate,
     "ShaderNodeNormal": _normal, "ShaderNodeVectorTransform": _vector_transform,
+    "ShaderNodeWavelength": _wavelength,
     "ShaderNodeBrightContrast": _bright_contrast,
     "ShaderNodeSeparateXYZ": _separate_xyz, "ShaderNodeSeparateColor": _separate_color,
     "ShaderNodeCombineXYZ": _combine_xyz, "ShaderNodeCombineColor": _combine_color,

@@ -357,6 +357,19 @@ def normal_dot(nt):
     return socket(mix.outputs, "Result_Color")
 
 
+def wavelength(nt):
+    """The Wavelength node over 360 to 800 nm along the Object x (past both ends of its table)."""
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(coords(nt, "Object"), sep.inputs["Vector"])
+    nm = node(nt, "ShaderNodeMapRange")
+    nm.inputs["From Min"].default_value, nm.inputs["From Max"].default_value = -1.0, 1.0
+    nm.inputs["To Min"].default_value, nm.inputs["To Max"].default_value = 360.0, 800.0
+    nt.links.new(sep.outputs["X"], nm.inputs["Value"])
+    w = nt.nodes.new("ShaderNodeWavelength")
+    nt.links.new(nm.outputs["Result"], w.inputs["Wavelength"])
+    return w.outputs["Color"]
+
+
 def rgb_to_bw(nt):
     """RGB to BW of the arithmetic graph's colour (Rec. 709 luminance, as Cycles' colour-to-float)."""
     bw = nt.nodes.new("ShaderNodeRGBToBW")
@@ -465,6 +478,7 @@ CASES = {
     "vector_math_dot": vector_math(("DOT_PRODUCT", (0.6, -0.3, 0.2), (0, 0, 0), 1.0)),
     "rgb_to_bw": rgb_to_bw,
     "normal_dot": normal_dot,
+    "wavelength": wavelength,
     "color_hsv": color_modes("HSV"),
     "color_hsl": color_modes("HSL"),
     "vector_rotate_axis": vector_rotate("AXIS_ANGLE", Axis=(0.3, 0.5, 0.8), Angle=0.7,
