@@ -453,6 +453,18 @@ class Closure:
             return False
         return self.same_coat(other) or self.coat == 0 or other.coat == 0
 
+    def same_diffuse_base(self, other) -> bool:
+        """Whether both closures have a diffuse lobe of the same weight, roughness and layering
+        (the share under a Fresnel layer and its colour): their mix at any factor then differs in
+        the diffuse colour alone, so a mask's levels can all take its point-by-point mix."""
+        wa, wb = self.weight[DIFFUSE], other.weight[DIFFUSE]
+        if wa <= 0 or wb <= 0 or not np.isclose(wa, wb) or not np.isclose(self.layered, other.layered):
+            return False
+        layer_a = self.layer / self.layered if self.layered > 0 else np.zeros(3)
+        layer_b = other.layer / other.layered if other.layered > 0 else np.zeros(3)
+        return bool(np.allclose(layer_a, layer_b)
+                    and np.isclose(self.diffuse_roughness, other.diffuse_roughness))
+
     def same_except_diffuse(self, other) -> bool:
         """Whether the two closures differ in their diffuse colours and weights only, or also in a
         glossy colour and weight without a Fresnel rise or a textured metal's curve (a varying Mix
@@ -1338,7 +1350,15 @@ class NodeWalker:
             # the mask is between 0 and 1: a pick of either at each point).
             c = self._masked_mix(node, "Fac", f, a, b, noted=False)
             steps = np.linspace(0.0, 1.0, MAP_LEVELS) if a.mixes_exactly(b) else (0.0, 1.0)
-            c.levels = (_clamp01(f), [a.combine(b, 1.0 - k, k) for k in steps])
+            levels = [a.combine(b, 1.0 - k, k) for k in steps]
+            if len(steps) > 2 and (textured(a.texture) or textured(b.texture)) and a.same_diffuse_base(b):
+                # Every level's diffuse lobe is the same but for its colour: each takes the mask's
+                # point-by-point mix, one program for all (a program of its own per level made
+                # the core evaluate the textures once per level, benchmarks/roughness_map_cost.py
+                # --kind mask), and exact without the pick's noise.
+                for level in levels:
+                    level.texture, level.color[DIFFUSE] = c.texture, c.color[DIFFUSE]
+            c.levels = (_clamp01(f), levels)
             return c
         fac = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
         if 0.0 < fac < 1.0:

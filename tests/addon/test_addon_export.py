@@ -785,6 +785,46 @@ def test_a_mask_between_coated_and_bare_or_rough_and_smooth_diffuse_picks_levels
         pytest.approx([0.8, 0.0])
 
 
+def test_a_masks_levels_between_textured_and_plain_paints_share_the_point_by_point_diffuse(scene):
+    """Mix Shader by a noise mask of a Principled of a noise base colour and a coated one of a plain
+    colour (wet patches on a textured ground): the diffuse lobes differ in colour alone, so every
+    level takes the mask's point-by-point mix of the two colours, one program (the levels' own
+    constant mixes were a program each), and keeps its own coat."""
+    from amcmcppm.core import procedural
+    mat = bpy.data.materials.new("Wet ground")
+    nt = mat.node_tree
+    dry = nt.nodes["Principled BSDF"]
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Color"], dry.inputs["Base Color"])
+    wet = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    wet.inputs["Base Color"].default_value = (0.1, 0.08, 0.05, 1.0)
+    wet.inputs["Coat Weight"].default_value = 1.0
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mask = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(mask.outputs["Fac"], mix.inputs["Fac"])
+    nt.links.new(dry.outputs[0], mix.inputs[1])
+    nt.links.new(wet.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, ex = export_material(mat)
+    mats = ex.scene.materials
+    first, count = row["level_first"], row["level_count"]
+    assert count == 17
+    assert len(set(mats.diffuse_program[first:first + count].tolist())) == 1
+    pts = procedural.SampledAttributes(64)
+    x = np.clip(pts.get("generated")[:, 0], 0.0, 1.0)
+    noise = {"op": "noise", "vector": {"op": "attribute", "name": "generated"}, "dimensions": "3D",
+             "noise_type": "FBM", "normalize": True, "scale": 5.0, "detail": 2.0, "roughness": 0.5,
+             "lacunarity": 2.0, "distortion": 0.0, "output": "Color"}
+    expected = (1 - x)[:, None] * procedural.evaluate(noise, pts, []) + x[:, None] * [0.1, 0.08, 0.05]
+    for k in (0, 8, 16):
+        level = material_row(ex.scene, f"Wet ground (level {k}/16)")
+        program = mats.programs[level["diffuse_program"]]
+        colour = level["diffuse_color"] * procedural.evaluate(program, pts, [])
+        np.testing.assert_allclose(colour * level["diffuse_weight"], expected, rtol=1e-5, atol=1e-7)
+        assert level["coat_weight"] == pytest.approx(k / 16)
+    # (the core's one coat per material covers both shaders at each level, noted)
+    assert [w for w in ex.warnings if "'Wet ground'" in w and "different coats" not in w] == []
+
+
 def test_a_specular_map_picks_levels_of_the_specular_ior_level(scene):
     """Specular IOR Level from a checker times 2 (0 or 2): the node at 17 levels from 0 to the map's
     largest value, 2, each the row a constant Specular IOR Level exports (the layer's Fresnel

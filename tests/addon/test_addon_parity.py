@@ -561,7 +561,7 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("shader", ["coat_map", "specular_map", "wet_mask"])
+@pytest.mark.parametrize("shader", ["coat_map", "specular_map", "wet_mask", "wet_mask_textured"])
 def test_principled_maps_match_cycles(addon, tmp_path, shader):
     """The corner's floor as a dark blue Principled BSDF (roughness 0.5) whose Coat Weight (a
     smooth coat) or Specular IOR Level (0 to 2) is a noise stretched to [0, 1] or [0, 2], or a Mix
@@ -586,6 +586,15 @@ def test_principled_maps_match_cycles(addon, tmp_path, shader):
             stretch.inputs["To Max"].default_value = 2.0
             nt.links.new(stretch.outputs["Result"], bsdf.inputs["Specular IOR Level"])
         else:
+            if shader == "wet_mask_textured":
+                # The dry ground's colour a noise of blues (the levels share its point-by-point mix).
+                ramp = nt.nodes.new("ShaderNodeValToRGB")
+                ramp.color_ramp.elements[0].color = (0.02, 0.05, 0.3, 1.0)
+                ramp.color_ramp.elements[1].color = (0.3, 0.5, 0.9, 1.0)
+                grain = nt.nodes.new("ShaderNodeTexNoise")
+                grain.inputs["Scale"].default_value = 6.0
+                nt.links.new(grain.outputs["Fac"], ramp.inputs["Fac"])
+                nt.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
             wet = nt.nodes.new("ShaderNodeBsdfPrincipled")
             wet.inputs["Base Color"].default_value = (0.02, 0.04, 0.2, 1.0)
             wet.inputs["Roughness"].default_value = 0.5
