@@ -276,11 +276,15 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, a
         if frames is None and not triangulated:
             copy = _triangulated_copy(me)
             try:
-                return read_mesh(copy, name, log, tangents, triangulated=True, colors=colors,
-                                 attributes=attributes)
+                local = read_mesh(copy, name, log, tangents, triangulated=True, colors=colors,
+                                  attributes=attributes)
             finally:
                 import bpy
                 bpy.data.meshes.remove(copy)
+            # (the copy has the same vertices but more edges: the edge-based ones from the mesh itself)
+            local.attributes.update(_named_attributes(me, set(attributes) & {RANDOM_PER_ISLAND, POINTINESS},
+                                                      local.triangles, None, None, name, log))
+            return local
         if frames is None:
             log.warning(f"object '{name}': Blender computed no tangents for its normal map; "
                         "the normal map is ignored")
@@ -474,8 +478,9 @@ def random_per_island(me, tri_vert):
 def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
     """{name: (T, 3, 3) float32} of the ``names`` the mesh has as attributes Cycles reads by name (a
     float repeated in x, y, z; a 2D value (x, y, 0); a colour's linear RGB), per triangle corner
-    from its point, corner or face domain; the others are left out (0, as in Cycles), an unusable
-    one with a warning."""
+    from its point, corner or face domain (``tri_loops``, ``tri_poly``: None where only the two
+    computed ones, ``RANDOM_PER_ISLAND`` and ``POINTINESS``, are asked for); the others are left
+    out (0, as in Cycles), an unusable one with a warning."""
     out = {}
     for name in sorted(names):
         if name in (RANDOM_PER_ISLAND, POINTINESS):

@@ -1097,6 +1097,42 @@ def uv_plane(name, material, **kw):
     return bs.mesh_object(name, bm, material, **kw)
 
 
+def test_island_and_pointiness_of_normal_mapped_ngons_come_from_the_mesh_itself(scene):
+    """Random Per Island and Pointiness of a mesh with n-gons and a normal map (read from a
+    triangulated copy, which has more edges): the same at every vertex as without the normal map
+    (the mesh's own edges, as Cycles)."""
+    def values(mapped):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        mat = normal_mapped("Bumpy") if mapped else principled("Bumpy")
+        nt = mat.node_tree
+        geometry = nt.nodes.new("ShaderNodeNewGeometry")
+        nt.links.new(geometry.outputs["Random Per Island"], nt.nodes["Principled BSDF"].inputs["Roughness"])
+        nt.links.new(geometry.outputs["Pointiness"], nt.nodes["Principled BSDF"].inputs["Metallic"])
+        bm = bmesh.new()
+        bm.loops.layers.uv.new("UVMap")
+        for x in (-1.5, 1.5):
+            bmesh.ops.create_circle(bm, cap_ends=True, segments=12, radius=1.0, calc_uvs=True,
+                                    matrix=Matrix.Translation((x, 0.0, 0.1 * x)))
+        for k, v in enumerate(bm.verts):                  # a wavy rim: the diagonals change the angles
+            v.co.z += 0.3 * math.sin(2.0 * k)
+        bs.mesh_object("Disks", bm, mat)
+        bs.camera()
+        s = bs.export().scene
+        corners = s.vertices[s.triangles].reshape(-1, 3)
+        out = {}
+        for name in (".random_per_island", ".pointiness"):
+            v = s.attributes[name][..., 0].reshape(-1)
+            out[name] = {tuple(np.round(p, 4)): float(x) for p, x in zip(corners, v)}
+        return out
+
+    plain, mapped = values(False), values(True)
+    for name in plain:
+        assert plain[name].keys() == mapped[name].keys()
+        for p, x in plain[name].items():
+            assert mapped[name][p] == pytest.approx(x, abs=1e-6), (name, p)
+    assert len(set(plain[".random_per_island"].values())) == 2                 # two islands
+
+
 @pytest.mark.parametrize("transform, tangent, sign", [
     ({}, (1, 0, 0), 1.0),
     ({"rotation": (0, 0, math.pi / 2)}, (0, 1, 0), 1.0),          # turned: the tangent turns along
