@@ -1174,9 +1174,6 @@ def _average(ev, node):
     return {"Value": ev.vec(node, "vector").mean(axis=1)}
 
 
-# Cycles' fit of the Planckian locus in Rec. 709 (``svm_math_blackbody_color_rec709``, Blender
-# 4.x/5.x, normalised to luminance 1): R, G = a / t + b t + c, B = ((a t + b) t + c) t + d, per
-# range of temperatures from these knots.
 # The CIE 1931 colour matching functions x, y, z at 380, 385, ..., 780 nm (the table Cycles'
 # Wavelength node interpolates, as in John Walker's public-domain specrend).
 CIE_XYZ = np.array([
@@ -1228,6 +1225,9 @@ def _wavelength(ev, node):
     return {"Color": np.maximum(xyz @ XYZ_TO_RGB.T / 2.52, 0.0)}
 
 
+# Cycles' fit of the Planckian locus in Rec. 709 (``svm_math_blackbody_color_rec709``, Blender
+# 4.x/5.x, normalised to luminance 1): R, G = a / t + b t + c, B = ((a t + b) t + c) t + d, per
+# range of temperatures from these knots.
 BLACKBODY_KNOTS = np.array([965.0, 1167.0, 1449.0, 1902.0, 3315.0, 6365.0])
 BLACKBODY_R = np.array([[1.61919106e+03, -2.05010916e-03, 5.02995757e+00],
                         [2.48845471e+03, -1.11330907e-03, 3.22621544e+00],
