@@ -77,6 +77,17 @@ def mix_in(mat, shader, node_type, fac):
     return other
 
 
+def mix_shaders(nt, fac, first, second):
+    """Make tree ``nt``'s surface a Mix Shader of nodes ``first`` (factor 0) and ``second`` (factor
+    1) by the output socket ``fac`` (a mask); returns the Mix node."""
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(fac, mix.inputs["Fac"])
+    nt.links.new(first.outputs[0], mix.inputs[1])
+    nt.links.new(second.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mix
+
+
 def volume_material(name, kind, surface=None, **inputs):
     """A material whose Volume output is a new ``kind`` node with ``inputs``, its Surface a new
     ``surface`` node (None: unlinked): (material, volume node)."""

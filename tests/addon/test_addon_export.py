@@ -480,6 +480,24 @@ def test_a_roughness_map_becomes_a_program_clamped_to_one(scene):
     assert not any("Mapped" in w and "glass" in w for w in ex.warnings), ex.warnings
 
 
+def assert_two_shaders_are_the_levels(name, kind, roughness, field):
+    """A Mix Shader by a checker of two ``kind`` nodes of Roughness ``roughness`` (two values) is
+    not a constant mix in the core: the two shaders themselves are its levels, with their own
+    ``field`` (the material row's roughness of that lobe)."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    first, second = (nt.nodes.new(kind) for _ in range(2))
+    first.inputs["Roughness"].default_value, second.inputs["Roughness"].default_value = roughness
+    bs.mix_shaders(nt, nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], first, second)
+    if "Plane" in bpy.data.objects:
+        bpy.data.objects.remove(bpy.data.objects["Plane"])
+    row, ex = export_material(mat)
+    assert row["level_count"] == 2
+    levels = [material_row(ex.scene, f"{name} (level {k}/1)") for k in (0, 1)]
+    assert [level[field] for level in levels] == pytest.approx(roughness)
+
+
 def test_a_glass_roughness_map_roughens_the_glass_point_by_point(scene):
     """A Glass BSDF whose Roughness is a gradient: the row's glass follows the clamped program
     (``dielectric_roughness`` -1, ``roughness_program``), no note.  Mixed at 0.5 with a Glossy BSDF of
@@ -505,22 +523,7 @@ def test_a_glass_roughness_map_roughens_the_glass_point_by_point(scene):
     assert row["dielectric_roughness"] == pytest.approx(0.5, abs=0.02)
     assert row["glossy_roughness"] == pytest.approx(0.5) and row["roughness_program"] == -1
     assert any("'Frosted'" in w and "varying glass roughness" in w for w in ex.warnings), ex.warnings
-    mat = bpy.data.materials.new("Two panes")
-    nt = mat.node_tree
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    clear, frosted = (nt.nodes.new("ShaderNodeBsdfGlass") for _ in range(2))
-    clear.inputs["Roughness"].default_value = 0.0
-    frosted.inputs["Roughness"].default_value = 0.6
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], mix.inputs["Fac"])
-    nt.links.new(clear.outputs[0], mix.inputs[1])
-    nt.links.new(frosted.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    bpy.data.objects.remove(bpy.data.objects["Plane"])
-    row, ex = export_material(mat)
-    assert row["level_count"] == 2
-    assert [material_row(ex.scene, f"Two panes (level {k}/1)")["dielectric_roughness"] for k in (0, 1)] == \
-        pytest.approx([0.0, 0.6])
+    assert_two_shaders_are_the_levels("Two panes", "ShaderNodeBsdfGlass", (0.0, 0.6), "dielectric_roughness")
 
 
 def test_textured_emission_becomes_one_program_scaled_to_its_mean(scene):
@@ -597,11 +600,7 @@ def test_alpha_and_transparent_bsdf_become_an_opacity(scene):
     diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
     checker = nt.nodes.new("ShaderNodeTexChecker")
     nt.links.new(checker.outputs["Color"], diffuse.inputs["Color"])
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    nt.links.new(nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], mix.inputs["Fac"])
-    nt.links.new(clear.outputs[0], mix.inputs[1])
-    nt.links.new(diffuse.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bs.mix_shaders(nt, nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], clear, diffuse)
     for i, mat in enumerate((half, solid, mask)):
         bs.plane(mat.name, material=mat, location=(3 * i, 0, 0))
     bs.camera()
@@ -688,11 +687,7 @@ def test_a_mask_between_a_metal_and_a_paint_picks_levels_of_the_mask(scene):
     metal = nt.nodes.new("ShaderNodeBsdfPrincipled")
     metal.inputs["Metallic"].default_value = 1.0
     metal.inputs["Base Color"].default_value = (0.9, 0.6, 0.3, 1.0)
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    nt.links.new(nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], mix.inputs["Fac"])
-    nt.links.new(paint.outputs[0], mix.inputs[1])
-    nt.links.new(metal.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bs.mix_shaders(nt, nt.nodes.new("ShaderNodeTexGradient").outputs["Fac"], paint, metal)
     row, ex = export_material(mat)
     assert row["level_count"] == 17 and row["level_program"] >= 0
     first, middle, last = (material_row(ex.scene, f"Rust (level {k}/16)") for k in (0, 8, 16))
@@ -758,31 +753,14 @@ def test_a_mask_between_coated_and_bare_or_rough_and_smooth_diffuse_picks_levels
     wet = nt.nodes.new("ShaderNodeBsdfPrincipled")
     wet.inputs["Base Color"].default_value = (0.15, 0.1, 0.05, 1.0)
     wet.inputs["Coat Weight"].default_value = 1.0
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], mix.inputs["Fac"])
-    nt.links.new(nt.nodes["Principled BSDF"].outputs[0], mix.inputs[1])
-    nt.links.new(wet.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    bs.mix_shaders(nt, checker.outputs["Fac"], nt.nodes["Principled BSDF"], wet)
     row, ex = export_material(mat)
     assert row["level_count"] == 17
     levels = [material_row(ex.scene, f"Wet (level {k}/16)") for k in (0, 8, 16)]
     assert [r["coat_weight"] for r in levels] == pytest.approx([0.0, 0.5, 1.0])
-    assert levels[16 // 8]["diffuse_color"] == pytest.approx([0.15, 0.1, 0.05])
-    mat = bpy.data.materials.new("Mossy")
-    nt = mat.node_tree
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    rough, smooth = (nt.nodes.new("ShaderNodeBsdfDiffuse") for _ in range(2))
-    rough.inputs["Roughness"].default_value = 0.8
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], mix.inputs["Fac"])
-    nt.links.new(rough.outputs[0], mix.inputs[1])
-    nt.links.new(smooth.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    bpy.data.objects.remove(bpy.data.objects["Plane"])
-    row, ex = export_material(mat)
-    assert row["level_count"] == 2
-    assert [material_row(ex.scene, f"Mossy (level {k}/1)")["diffuse_roughness"] for k in (0, 1)] == \
-        pytest.approx([0.8, 0.0])
+    assert levels[2]["diffuse_color"] == pytest.approx([0.15, 0.1, 0.05])          # (level 16)
+    assert_two_shaders_are_the_levels("Mossy", "ShaderNodeBsdfDiffuse", (0.8, 0.0), "diffuse_roughness")
 
 
 def test_a_masks_levels_between_textured_and_plain_paints_share_the_point_by_point_diffuse(scene):
@@ -798,12 +776,8 @@ def test_a_masks_levels_between_textured_and_plain_paints_share_the_point_by_poi
     wet = nt.nodes.new("ShaderNodeBsdfPrincipled")
     wet.inputs["Base Color"].default_value = (0.1, 0.08, 0.05, 1.0)
     wet.inputs["Coat Weight"].default_value = 1.0
-    mix = nt.nodes.new("ShaderNodeMixShader")
     mask = nt.nodes.new("ShaderNodeTexGradient")
-    nt.links.new(mask.outputs["Fac"], mix.inputs["Fac"])
-    nt.links.new(dry.outputs[0], mix.inputs[1])
-    nt.links.new(wet.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bs.mix_shaders(nt, mask.outputs["Fac"], dry, wet)
     row, ex = export_material(mat)
     mats = ex.scene.materials
     first, count = row["level_first"], row["level_count"]
@@ -881,13 +855,9 @@ def test_a_masks_levels_share_the_paints_texture(scene):
     nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Color"], paint.inputs["Base Color"])
     metal = nt.nodes.new("ShaderNodeBsdfPrincipled")
     metal.inputs["Metallic"].default_value = 1.0
-    mix = nt.nodes.new("ShaderNodeMixShader")
     mask = nt.nodes.new("ShaderNodeTexNoise")
     mask.inputs["Scale"].default_value = 2.0
-    nt.links.new(mask.outputs["Fac"], mix.inputs["Fac"])
-    nt.links.new(paint.outputs[0], mix.inputs[1])
-    nt.links.new(metal.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bs.mix_shaders(nt, mask.outputs["Fac"], paint, metal)
     row, ex = export_material(mat)
     mats = ex.scene.materials
     first, count = row["level_first"], row["level_count"]

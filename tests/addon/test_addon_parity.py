@@ -399,6 +399,24 @@ def pixel_correlation(name, c, o):
     return r
 
 
+def assert_pixels_match(name, cycles, ours, least):
+    """:func:`assert_channels_match`, and the pixels' luminance correlated above ``least``."""
+    c, o = assert_channels_match(name, cycles, ours)
+    assert pixel_correlation(name, c, o) > least
+
+
+def stretched_spots(nt):
+    """A Map Range node added to ``nt`` of a Noise Texture of scale 2.5 whose 0.35-0.65 is stretched
+    to 0-1 (clamped): patches of 0 and 1 with soft edges, a map or mask."""
+    spots = nt.nodes.new("ShaderNodeTexNoise")
+    spots.inputs["Scale"].default_value = 2.5
+    stretch = nt.nodes.new("ShaderNodeMapRange")
+    stretch.inputs["From Min"].default_value = 0.35
+    stretch.inputs["From Max"].default_value = 0.65
+    nt.links.new(spots.outputs["Fac"], stretch.inputs["Value"])
+    return stretch
+
+
 def floor_shader(kind):
     """The corner's floor material with its Diffuse BSDF replaced by a new ``kind`` node: (tree, node)."""
     nt = bpy.data.materials["Floor"].node_tree
@@ -519,12 +537,7 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
             if shader in ("metallic_map", "masked_metal"):
                 # Metallic from a finer noise, 0.35-0.65 stretched to 0-1: metal, paint and between;
                 # or that noise as the mask of a Mix Shader of the metal and a blue paint of its roughness.
-                spots = nt.nodes.new("ShaderNodeTexNoise")
-                spots.inputs["Scale"].default_value = 2.5
-                stretch = nt.nodes.new("ShaderNodeMapRange")
-                stretch.inputs["From Min"].default_value = 0.35
-                stretch.inputs["From Max"].default_value = 0.65
-                nt.links.new(spots.outputs["Fac"], stretch.inputs["Value"])
+                stretch = stretched_spots(nt)
                 if shader == "metallic_map":
                     nt.links.new(stretch.outputs["Result"], bsdf.inputs["Metallic"])
                 else:
@@ -532,11 +545,7 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
                     paint = nt.nodes.new("ShaderNodeBsdfPrincipled")
                     paint.inputs["Base Color"].default_value = (0.1, 0.25, 0.7, 1.0)
                     paint.inputs["Roughness"].default_value = 0.35
-                    mix = nt.nodes.new("ShaderNodeMixShader")
-                    nt.links.new(stretch.outputs["Result"], mix.inputs["Fac"])
-                    nt.links.new(paint.outputs[0], mix.inputs[1])
-                    nt.links.new(bsdf.outputs[0], mix.inputs[2])
-                    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+                    bs.mix_shaders(nt, stretch.outputs["Result"], paint, bsdf)
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
     # The copper-to-silver metal with its F82 curve per point: 1.002 / 1.001 / 1.000, bands
@@ -555,9 +564,8 @@ def test_textured_glossy_colours_match_cycles(addon, tmp_path, shader):
     # weighted roughness): 0.992 / 0.992 / 0.993, bands 0.969-1.008, but correlation 0.889 at 8
     # passes (the picks' noise); 17 levels of the weighted roughness gave 1.024 / 1.011 / 1.000 and
     # red bands 0.87-1.19.
-    c, o = assert_channels_match(f"textured glossy, {shader}", cycles, ours)
     least = 0.95 if shader == "glossy_checker" else 0.99
-    assert pixel_correlation(f"textured glossy, {shader}", c, o) > least
+    assert_pixels_match(f"textured glossy, {shader}", cycles, ours, least)
 
 
 @pytest.mark.slow
@@ -573,12 +581,7 @@ def test_principled_maps_match_cycles(addon, tmp_path, shader):
         nt, bsdf = floor_shader("ShaderNodeBsdfPrincipled")
         bsdf.inputs["Base Color"].default_value = (0.05, 0.1, 0.4, 1.0)
         bsdf.inputs["Roughness"].default_value = 0.5
-        spots = nt.nodes.new("ShaderNodeTexNoise")
-        spots.inputs["Scale"].default_value = 2.5
-        stretch = nt.nodes.new("ShaderNodeMapRange")
-        stretch.inputs["From Min"].default_value = 0.35
-        stretch.inputs["From Max"].default_value = 0.65
-        nt.links.new(spots.outputs["Fac"], stretch.inputs["Value"])
+        stretch = stretched_spots(nt)
         if shader == "coat_map":
             bsdf.inputs["Coat Roughness"].default_value = 0.05
             nt.links.new(stretch.outputs["Result"], bsdf.inputs["Coat Weight"])
@@ -600,11 +603,7 @@ def test_principled_maps_match_cycles(addon, tmp_path, shader):
             wet.inputs["Roughness"].default_value = 0.5
             wet.inputs["Coat Weight"].default_value = 1.0
             wet.inputs["Coat Roughness"].default_value = 0.05
-            mix = nt.nodes.new("ShaderNodeMixShader")
-            nt.links.new(stretch.outputs["Result"], mix.inputs["Fac"])
-            nt.links.new(bsdf.outputs[0], mix.inputs[1])
-            nt.links.new(wet.outputs[0], mix.inputs[2])
-            nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+            bs.mix_shaders(nt, stretch.outputs["Result"], bsdf, wet)
         add_emitter("area_square")
     cycles, ours = cycles_and_ours(build, tmp_path)
     # Coat map 0.992 / 0.993 / 0.994, pixel correlation 0.982; specular map 0.993 / 0.994 / 0.997,
@@ -612,9 +611,8 @@ def test_principled_maps_match_cycles(addon, tmp_path, shader):
     # means): 1.041 / 1.034 / 1.015, 1.113 / 1.093 / 1.037 and 1.044 / 1.036 / 1.015.  The smooth
     # coat's highlight is noisy at these 8 passes: a constant coat of 0.5 correlates at 0.951 (0.998
     # without a coat), so the coated cases get a lower bound.
-    c, o = assert_channels_match(f"principled maps, {shader}", cycles, ours)
     least = 0.99 if shader == "specular_map" else 0.97
-    assert pixel_correlation(f"principled maps, {shader}", c, o) > least
+    assert_pixels_match(f"principled maps, {shader}", cycles, ours, least)
 
 
 @pytest.mark.parametrize("shader", ["emission_checker",
