@@ -1591,7 +1591,8 @@ class NodeWalker:
         scales the layer's F0, not a mix of two shaders: between two neighbouring levels the pick
         takes their mix, and above the largest value the largest level."""
         f = _math("MAXIMUM", f, 0.0)
-        values = procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images)
+        values = np.nan_to_num(procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images),
+                               nan=0.0, posinf=0.0)
         top = max(1.0, float(values.max()))
         c = self._principled_opaque(node, stack, {SPECULAR_LEVEL: float(values.mean())})
         levels = [self._principled_opaque(node, stack, {SPECULAR_LEVEL: float(v)})

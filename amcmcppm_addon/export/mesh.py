@@ -241,7 +241,7 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, a
 
     With ``tangents``, a mesh with n-gons (for which Blender computes no tangents) is read from a
     triangulated copy (``triangulated``: this is that copy); with ``colors`` its render colour
-    attribute is read too, and the named ``attributes`` it has (:func:`_corner_attribute`).
+    attribute is read too, and the named ``attributes`` it has (:func:`_named_attributes`).
     """
     n_vert = len(me.vertices)
     if len(me.polygons) == 0:
@@ -417,7 +417,7 @@ def pointiness(me):
     normals = np.empty(n * 3, np.float32)
     me.vertices.foreach_get("normal", normals)
     normals = normals.reshape(n, 3).astype(np.float64)
-    # Duplicates: vertices at the same position (Cycles: within sqrt(FLT_EPSILON)) share the first.
+    # Duplicates: vertices at the same place (to 1e-4; Cycles: within sqrt(FLT_EPSILON)) share one.
     _, first, orig = np.unique(np.round(co / 1e-4), axis=0, return_index=True, return_inverse=True)
     orig = first.take(orig.ravel())
     welded = np.zeros((n, 3))

@@ -8,19 +8,19 @@ Coordinate (Generated, Object, UV, Normal, Camera, Window), UV Map (the active r
 named one), Color Attribute (the render one or a named one), Attribute (a mesh attribute by name),
 Object Info (per object: Location, Color, Alpha, Object Index and Random as Cycles sets them;
 Material Index the material's pass index), Geometry (Position, Normal and True Normal, in world
-space, on the front of the triangle), Mapping (all four types), Image Texture (flat and box
-projections, every extension, linear, closest, cubic or smart), Environment Texture
-(equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise Textures,
-Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; 19 blend
-modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector Transform, Normal, Vector
-Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and
-Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma, Hue/Saturation/Value,
-Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and
-Value; Fresnel and Layer Weight as their means over view directions (noted: programs do not know
-the view direction). Anything else is named in the material's warning and replaced by the input
-socket's own value. Settings that Cycles lets vary over the surface but the core takes as constants
-(a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of what drives
-them, with a note.
+space, on the front of the triangle; Random Per Island; Pointiness), Mapping (all four types),
+Image Texture (flat and box projections, every extension, linear, closest, cubic or smart),
+Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and
+White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float,
+vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector
+Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB
+Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma,
+Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB,
+HSV, HSL), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted:
+programs do not know the view direction). Anything else is named in the material's warning and
+replaced by the input socket's own value. Settings that Cycles lets vary over the surface but the
+core takes as constants (a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use
+the mean of what drives them, with a note.
 """
 from __future__ import annotations
 
@@ -141,8 +141,7 @@ def _tex_coord(b, node, stack):
 def _geometry(b, node, stack):
     """Geometry: Position, Normal and True Normal in world space (on the triangle's front: Cycles
     turns them towards the ray on a back face), Random Per Island and Pointiness
-    (``mesh.random_per_island``, ``mesh.pointiness``);
-    the other outputs are noted where used."""
+    (``mesh.random_per_island``, ``mesh.pointiness``); the other outputs are noted where used."""
     return {"Position": {"op": "attribute", "name": "position"},
             "Normal": {"op": "attribute", "name": "world_normal"},
             "True Normal": {"op": "attribute", "name": "true_normal"},
