@@ -19,8 +19,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
   texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs``
   as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's Position, Normal and
   True Normal in world space (``GEOMETRY``); the Texture Coordinate's Camera and Window
-  (``VIEW``); ``named:`` + a name, ``Scene.attributes[name]``
-  interpolated (``NAMED``).
+  (``VIEW``); ``named:`` + a name, ``Scene.attributes[name]`` interpolated (``NAMED``);
+  ``object:`` or ``instancer:`` + an RNA path, ``Scene.object_attributes`` (``OBJECT_PROPERTY``).
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
@@ -96,6 +96,16 @@ VIEW = ("camera", "window")
 # (Blender's Attribute node, a Color Attribute or UV Map node naming a layer); 0 where the scene
 # has no such attribute (Cycles: a missing attribute reads 0).
 NAMED = "named:"
+# An attribute named OBJECT_PROPERTY[k] + an RNA path reads ``Scene.object_attributes`` of the hit's
+# object (Blender's Attribute node of the Object type: the object's property or custom property,
+# else its data's; Instancer: the instancer's first), 0 where the scene has none.
+OBJECT_PROPERTY = ("object:", "instancer:")
+
+
+def reads_objects(names) -> bool:
+    """Whether attributes ``names`` (``attributes_used``) need the scene's objects."""
+    return any(n in ("object", "generated", "normal", *OBJECT_INFO) or n.startswith(OBJECT_PROPERTY)
+               for n in names)
 # Blender's Object Info per object (``Scene.object_info``): "object_location" the object's origin
 # in world space, "object_color" its colour, "object_info" (Alpha, Object Index, Random).
 OBJECT_INFO = ("object_location", "object_color", "object_info")
@@ -140,6 +150,8 @@ class HitAttributes:
                 value = self._object_info(name)
             elif name.startswith(NAMED):
                 value = self._named(name[len(NAMED):])
+            elif name.startswith(OBJECT_PROPERTY):
+                value = self._object_property(name)
             else:
                 value = self._corners(name)
             self._cache[name] = value
@@ -211,6 +223,14 @@ class HitAttributes:
             out[:, 0] = (xy[:, 0] - x0) / (x1 - x0)
             out[:, 1] = (xy[:, 1] - y0) / (y1 - y0)
         return out
+
+    def _object_property(self, name):
+        """(k, 3) the hits' objects' values of ``name`` (``Scene.object_attributes``); 0 without."""
+        s = self.scene
+        values = (s.object_attributes or {}).get(name)
+        if values is None or s.object_ids is None:
+            return np.zeros((self.count, 3))
+        return np.asarray(values, np.float64).take(s.object_ids.take(self.prim_ids), axis=0)
 
     def _named(self, name):
         """(k, 3) mesh attribute ``name`` (``Scene.attributes``) interpolated at the hits; 0 without it."""
@@ -303,8 +323,8 @@ class SampledAttributes:
         return len(self._values["generated"])
 
     def get(self, name):
-        if name.startswith(NAMED):
-            return self._values["color"]            # (a mesh attribute: uniform in the unit cube)
+        if name.startswith((NAMED, *OBJECT_PROPERTY)):
+            return self._values["color"]            # (an attribute: uniform in the unit cube)
         return self._values[name]
 
 
@@ -391,9 +411,9 @@ def _check_value(op, key, value):
     if key in ("op", "output") or isinstance(value, dict):
         return
     choices = CHOICES.get((op, key))
-    if (op, key) == ("attribute", "name") and isinstance(value, str) and value.startswith(NAMED) \
-            and len(value) > len(NAMED):
-        return                                      # a mesh attribute's name
+    if (op, key) == ("attribute", "name") and isinstance(value, str) and any(
+            value.startswith(p) and len(value) > len(p) for p in (NAMED, *OBJECT_PROPERTY)):
+        return                                      # a mesh attribute's or an object's property's name
     if choices is not None:
         if value not in choices:
             raise ProgramError(f"op '{op}': {key} {value!r} is not one of {tuple(choices)}")

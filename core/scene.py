@@ -786,6 +786,9 @@ class Scene:
     # (O, 6) float32 Blender's Object Info of each object: Alpha, Object Index (the pass index),
     # Random (Cycles' random number in [0, 1]) and Color (rgb); None: zeros (``validate``).
     object_info: np.ndarray = None
+    # Properties of the objects that programs read (``procedural.OBJECT_PROPERTY``): {name: (O, 3)
+    # float32}, a number repeated; None: none (they read 0).
+    object_attributes: dict = None
     vertex_colors: np.ndarray = None    # (T, 3, 3) float32 linear RGB per corner (Color Attribute), or None
     # Named mesh attributes that programs read (``procedural.NAMED``): {name: (T, 3, 3) float32 per
     # corner}, a float attribute repeated in x, y and z, a 2D one (x, y, 0), a colour linear RGB;
@@ -1102,6 +1105,12 @@ class Scene:
         self.object_info = arr("object_info", info, np.float32, (6,), n)
         if t and (self.object_ids.min() < 0 or self.object_ids.max() >= n):
             fail(f"object_ids outside [0, {n})")
+        if self.object_attributes is not None:
+            names = self.object_attributes
+            if not all(isinstance(k, str) and k.startswith(procedural.OBJECT_PROPERTY) for k in names):
+                fail("object_attributes must be named 'object:' or 'instancer:' and a property")
+            self.object_attributes = {k: arr(f"object_attributes['{k}']", v, np.float32, (3,), n)
+                                      for k, v in self.object_attributes.items()}
 
     def _validate_levels(self, fail):
         mats = self.materials
@@ -1147,7 +1156,7 @@ class Scene:
             except procedural.ProgramError as e:
                 fail(f"materials.programs[{i}]: {e}")
             for name in procedural.attributes_used(program):
-                if name.startswith(procedural.NAMED):
+                if name.startswith((procedural.NAMED, *procedural.OBJECT_PROPERTY)):
                     continue                        # (0 where the scene lacks it, as in Cycles)
                 if coords[name] is None and (used == i).any():
                     fail(f"materials.programs[{i}] reads '{name}' coordinates but the scene has none")
@@ -1239,6 +1248,8 @@ class Scene:
                 d[name] = getattr(self, name)
         for name, values in (self.attributes or {}).items():
             d[f"attributes.{name}"] = values
+        for name, values in (self.object_attributes or {}).items():
+            d[f"object_attributes.{name}"] = values
         for i, tex in enumerate(self.textures):
             d[f"textures.{i}"] = tex
         return d
@@ -1285,7 +1296,9 @@ class Scene:
                       blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),
                       textures=[get(f"textures.{i}") for i in range(ntex)],
                       attributes={k[len("attributes."):]: z[k] for k in sorted(keys)
-                                  if k.startswith("attributes.")} or None)
+                                  if k.startswith("attributes.")} or None,
+                      object_attributes={k[len("object_attributes."):]: z[k] for k in sorted(keys)
+                                         if k.startswith("object_attributes.")} or None)
         return scene.validate()
 
     def save(self, path) -> None:

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...core.procedural import NAMED, OBJECT_INFO
+from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
 from ...core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 from ...core.texture_hash import hash_uint2, hash_uint_to_float
 from .lights import ray_visibility
@@ -78,6 +78,7 @@ class Geometry:
     object_from_world: np.ndarray | None = None   # (O, 3, 4) float64
     texture_spaces: np.ndarray | None = None      # (O, 2, 3) float64 location and size
     object_info: np.ndarray | None = None         # (O, 6) float32 Object Info (core.Scene.object_info)
+    object_attributes: dict | None = None         # {name: (O, 3) float32} (core.Scene.object_attributes)
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
     # HOLDOUT_OBJECT for a holdout object's, or None: all rays, no holdout
     triangle_visibility: np.ndarray | None = None
@@ -116,6 +117,7 @@ class GeometryCollector:
         # or None) -> list of (4, 4) world_from_object, and the same keys -> list of (6,) Object Info
         self.groups = {}
         self.infos = {}
+        self.properties = {}  # the same keys -> list of {name: (3,) object property} (object_property)
 
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
@@ -167,9 +169,12 @@ class GeometryCollector:
         # scenes have millions of instances)
         self.infos.setdefault((key, mat_ids, flags, link), []).append(
             object_info(inst) if used & set(OBJECT_INFO) else None)
+        properties = sorted(n for n in used if n.startswith(OBJECT_PROPERTY))
+        self.properties.setdefault((key, mat_ids, flags, link), []).append(
+            {n: object_property(inst, n) for n in properties})
 
     def finish(self) -> Geometry:
-        geometry = assemble(self.meshes, self.groups, self.materials, self.infos)
+        geometry = assemble(self.meshes, self.groups, self.materials, self.infos, self.properties)
         geometry.meshes = sum(1 for m in self.meshes.values() if m is not None)
         return geometry
 
@@ -199,6 +204,34 @@ def object_info(inst):
     colored = inst.parent if inst.is_instance and inst.parent is not None else ob
     r, g, b, alpha = (float(x) for x in colored.color)
     return np.array([alpha, float(ob.pass_index), random, r, g, b], np.float32)
+
+
+def object_property(inst, name):
+    """(3,) float32 what Cycles' Attribute node of the Object (``object:`` + an RNA path) or
+    Instancer type (``instancer:``) reads for a depsgraph instance (``lookup_instance_property``):
+    the property at that path of the instancer (Instancer only), else of the object, else of its
+    data; a number repeated, a float array's first three; 0 without one."""
+    kind, path = name.split(":", 1)
+    # (Blender's iterator gives an instance's object its instancer's colour, which Cycles reads:
+    # the colour, as Object Info's, comes from the instancer)
+    colored = inst.parent if inst.is_instance and inst.parent is not None and path == "color" else inst.object
+    owners = [colored, getattr(inst.object, "data", None)]
+    if kind == "instancer" and inst.is_instance and inst.parent is not None:
+        owners.insert(0, inst.parent)
+    for owner in owners:
+        try:
+            value = owner.path_resolve(path) if owner is not None else None
+        except (ValueError, TypeError, AttributeError):
+            continue
+        if isinstance(value, (bool, int, float)):
+            return np.full(3, float(value), np.float32)
+        try:
+            items = list(value)
+        except TypeError:
+            continue
+        if 0 < len(items) <= 4 and all(isinstance(x, float) for x in items):
+            return np.array((items + [0.0, 0.0])[:3], np.float32)
+    return np.zeros(3, np.float32)
 
 
 def cycles_name_hash(name):
@@ -544,15 +577,17 @@ def _triangulated_copy(me):
     return copy
 
 
-def assemble(meshes, groups, materials, infos=None) -> Geometry:
+def assemble(meshes, groups, materials, infos=None, properties=None) -> Geometry:
     """Transform every instance group to world space and concatenate; ``infos``: the groups'
-    Object Info rows (:func:`object_info`), kept when some material reads them."""
+    Object Info rows (:func:`object_info`), kept when some material reads them, ``properties``
+    their objects' properties (:func:`object_property`)."""
     parts = []
     offset = 0
     instances = 0
     # Data of procedural textures, when some material reads it (for every triangle).
     coordinates = materials.coordinates_used({i for _, ids, _, _ in groups for i in ids})
-    objects = bool(coordinates & {"object", "generated", "normal", *OBJECT_INFO})
+    objects = reads_objects(coordinates)
+    names = sorted(n for n in coordinates if n.startswith(OBJECT_PROPERTY))
     for (key, mat_ids, visibility, link), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
@@ -563,6 +598,10 @@ def assemble(meshes, groups, materials, infos=None) -> Geometry:
             if coordinates & set(OBJECT_INFO) and infos is not None:
                 rows = infos[key, mat_ids, visibility, link]
                 part["object_info"] = np.stack([np.zeros(6, np.float32) if r is None else r for r in rows])
+            for n in names:
+                values = [p.get(n) for p in (properties or {}).get((key, mat_ids, visibility, link), [])]
+                part[n] = np.stack([np.zeros(3, np.float32) if v is None else v for v in values]) \
+                    if len(values) == len(matrices) else np.zeros((len(matrices), 3), np.float32)
         parts.append(part)
         offset += len(part["vertices"])
         instances += len(matrices)
@@ -583,6 +622,8 @@ def assemble(meshes, groups, materials, infos=None) -> Geometry:
     objects = {name: np.concatenate([p[name] for p in parts])
                for name in ("object_ids", "object_from_world", "texture_spaces", "object_info")
                if name in parts[0]}
+    if objects and names:
+        objects["object_attributes"] = {n: np.concatenate([p[n] for p in parts]) for n in names}
     if materials.tangent_uv(used) is not None:
         # Zero tangents (meshes without UVs or a tangent frame) keep the unbent normal, as in Cycles.
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
@@ -672,7 +713,7 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
            "normals": normals, "uvs": uvs, "tangents": tangents}
     # Texture coordinates of procedural textures: each instance's own object space.
-    if coordinates & {"object", "generated", "normal", *OBJECT_INFO}:
+    if reads_objects(coordinates):
         out["object_ids"] = np.repeat(np.arange(k, dtype=np.int32), n_t)
         out["object_from_world"] = np.linalg.inv(world_from_object)[:, :3, :4]
         out["texture_spaces"] = np.repeat(np.asarray(local.texspace, np.float64)[None], k, axis=0)

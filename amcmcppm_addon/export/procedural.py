@@ -5,22 +5,22 @@ float, or three floats for colour and vector sockets) or a program node dict, in
 type conversions Cycles makes where a link joins sockets of different types (colour to float
 by luminance, vector to float by the average, float to colour as grey). Supported nodes: Texture
 Coordinate (Generated, Object, UV, Normal, Camera, Window), UV Map (the active render one or a
-named one), Color Attribute (the render one or a named one), Attribute (a mesh attribute by name),
-Object Info (per object: Location, Color, Alpha, Object Index and Random as Cycles sets them;
-Material Index the material's pass index), Geometry (Position, Normal and True Normal, in world
-space, on the front of the triangle; Random Per Island; Pointiness), Mapping (all four types),
-Image Texture (flat and box projections, every extension, linear, closest, cubic or smart),
-Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and
-White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float,
-vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector
-Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB
-Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma,
-Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB,
-HSV, HSL), RGB and Value; Fresnel and Layer Weight as their means over view directions (noted:
-programs do not know the view direction). Anything else is named in the material's warning and
-replaced by the input socket's own value. Settings that Cycles lets vary over the surface but the
-core takes as constants (a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use
-the mean of what drives them, with a note.
+named one), Color Attribute (the render one or a named one), Attribute (a mesh attribute by name;
+an object's or instancer's property), Object Info (per object: Location, Color, Alpha, Object Index
+and Random as Cycles sets them; Material Index the material's pass index), Geometry (Position,
+Normal and True Normal, in world space, on the front of the triangle; Random Per Island;
+Pointiness), Mapping (all four types), Image Texture (flat and box projections, every extension,
+linear, closest, cubic or smart), Environment Texture (equirectangular), Checker, Gradient, Noise,
+Voronoi, Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as
+Cycles bakes it), Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every
+operation), Vector Math, Vector Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map
+Range (float and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles
+bakes them), Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength,
+Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and Value; Fresnel and Layer Weight as their
+means over view directions (noted: programs do not know the view direction). Anything else is named
+in the material's warning and replaced by the input socket's own value. Settings that Cycles lets
+vary over the surface but the core takes as constants (a texture's Scale, Detail, ...; Mapping's
+Location, Rotation, Scale) use the mean of what drives them, with a note.
 """
 from __future__ import annotations
 
@@ -193,8 +193,12 @@ OTHER_STANDARD_ATTRIBUTES = ("N", "Ng", "tangent", "tangent_sign", "vertex_color
 def _attribute(b, node, stack):
     """Attribute of the Geometry type: the mesh attribute of that name (a float, vector, colour or
     2D one; 0 on meshes without it) as Color and Vector, its average as Fac (Cycles); Cycles'
-    standard names first (``VOLUME_ATTRIBUTES``: 0; Generated and UV); Alpha, the other standard
-    names and the Object, Instancer and View Layer types are noted."""
+    standard names first (``VOLUME_ATTRIBUTES``: 0; Generated and UV).  Of the Object and Instancer
+    types: the object's property at that RNA path (``mesh.object_property``).  Alpha, the other
+    standard names and the View Layer type are noted."""
+    if node.attribute_type in ("OBJECT", "INSTANCER") and node.attribute_name:
+        value = {"op": "attribute", "name": f"{node.attribute_type.lower()}:{node.attribute_name}"}
+        return {"Color": value, "Vector": value, "Fac": {"op": "average", "vector": value}}
     name = node.attribute_name
     if node.attribute_type != "GEOMETRY" or not name or name in OTHER_STANDARD_ATTRIBUTES:
         kind = node.attribute_type.lower().replace("_", " ")

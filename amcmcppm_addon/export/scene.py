@@ -109,7 +109,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                   tangents=geometry.tangents, vertex_colors=geometry.colors, attributes=geometry.attributes,
                   object_ids=geometry.object_ids,
                   object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
-                  object_info=geometry.object_info,
+                  object_info=geometry.object_info, object_attributes=geometry.object_attributes,
                   triangle_visibility=geometry.triangle_visibility, textures=materials.textures.images,
                   **sets)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),

@@ -1044,6 +1044,49 @@ def test_pointiness_matches_cycles(addon, tmp_path):
     assert err.max() < 1e-3
 
 
+@pytest.mark.parametrize("kind, path", [("OBJECT", '["tint"]'), ("OBJECT", '["level"]'), ("OBJECT", "color"),
+                                        ("OBJECT", '["wear"]'), ("INSTANCER", '["tint"]'),
+                                        ("OBJECT", "missing")])
+def test_object_and_instancer_attributes_match_cycles(addon, tmp_path, kind, path):
+    """The Attribute node of the Object and Instancer types (stop 39; before, unsupported): four
+    quarter planes, one a collection instance, with custom properties (a colour array, a number,
+    an integer on some), their RNA colour, and a property of their mesh data; the Instancer type
+    reads the instancer's first (the collection instance's empty).  Cycles resolves the name as an
+    RNA path on the object, then its data; 0 where none resolves."""
+    import bpy
+
+    def build(nt):
+        attr = node(nt, "ShaderNodeAttribute", attribute_type=kind, attribute_name=path)
+        return attr.outputs["Color"]
+
+    mat, positions = bs.texture_plane(build, size=2.0)
+    first = bpy.data.objects["Plane"]
+    first.scale, first.location = (0.5, 0.5, 1.0), (-0.5, 0.5, 0.0)
+    quarters = [first, bs.plane("Q2", size=1.0, material=mat, location=(0.5, 0.5, 0.0)),
+                bs.plane("Q3", size=1.0, material=mat, location=(-0.5, -0.5, 0.0))]
+    coll = bpy.data.collections.new("Tile")
+    tile = bpy.data.objects.new("Tile plane", bs.plane("Tile source", size=1.0, material=mat).data)
+    bpy.data.objects.remove(bpy.data.objects["Tile source"])
+    coll.objects.link(tile)
+    holder = bpy.data.objects.new("Tile holder", None)
+    holder.instance_type, holder.instance_collection = "COLLECTION", coll
+    holder.location = (0.5, -0.5, 0.0)
+    bpy.context.scene.collection.objects.link(holder)
+    for k, ob in enumerate(quarters + [tile]):
+        ob.color = (0.2 * k, 0.9 - 0.2 * k, 0.5, 1.0)
+        ob["tint"] = [0.9 - 0.2 * k, 0.1 + 0.2 * k, 0.3]
+        if k != 2:
+            ob["level"] = 0.25 * k if k != 1 else 1                       # (an integer on one)
+        ob.data["wear"] = 0.1 + 0.2 * k
+    holder["tint"] = [0.2, 0.4, 0.6]
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    assert np.isfinite(ours).all()
+    if path != "missing":
+        assert np.ptp(cycles, axis=(0, 1)).max() > 0.1
+    compare(ours, cycles, f"{kind.lower()} attribute {path}")
+
+
 def test_object_info_matches_cycles(addon, tmp_path):
     """Object Info, per object as Cycles sets it: four quarter planes sharing one material, named
     in ASCII and not (Cycles hashes the name of an object that is not an instance: its Random),

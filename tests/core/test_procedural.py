@@ -226,6 +226,29 @@ def test_a_named_attribute_is_interpolated_and_reads_zero_where_the_scene_lacks_
         procedural.validate({"op": "attribute", "name": procedural.NAMED}, 0)
 
 
+def test_an_object_property_reads_each_objects_row(tmp_path):
+    """``object:`` + a path reads ``Scene.object_attributes`` of the hit's object, 0 where the scene
+    has none; its shape and names are checked, and it survives a scene file."""
+    program = {"op": "attribute", "name": "object:[\"tint\"]"}
+    scene = sun_over_procedural_floor(program)
+    tint = np.array([[0.9, 0.2, 0.1], [0.1, 0.5, 0.8]], np.float32)
+    two = np.stack([np.eye(3, 4)] * 2)
+    scene = scene.replace(object_ids=np.array([0, 1], np.int32), object_from_world=two,
+                          texture_spaces=np.zeros((2, 2, 3)), object_info=None,
+                          object_attributes={program["name"]: tint}).validate()
+    bary = tuple(np.full((2, 1), w) for w in (0.2, 0.3, 0.5))
+    attrs = procedural.HitAttributes(scene, np.array([1, 0]), bary, np.zeros((2, 3)))
+    np.testing.assert_allclose(attrs.get(program["name"]), tint[[1, 0]])
+    assert not procedural.HitAttributes(scene, np.array([0]), tuple(b[:1] for b in bary), np.zeros((1, 3))) \
+        .get("instancer:color").any()
+    scene.save(tmp_path / "s.npz")
+    np.testing.assert_array_equal(Scene.load(tmp_path / "s.npz").object_attributes[program["name"]], tint)
+    with pytest.raises(SceneError, match="object_attributes"):
+        scene.replace(object_attributes={program["name"]: tint[:1]}).validate()
+    with pytest.raises(SceneError, match="named 'object:'"):
+        scene.replace(object_attributes={"tint": tint}).validate()
+
+
 def test_object_info_reads_each_objects_row(tmp_path):
     """Object Info (``Scene.object_info``): the floor's two triangles as two objects, one turned a
     quarter about z and moved; each hit reads its object's origin in world space, its colour and
