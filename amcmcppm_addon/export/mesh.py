@@ -170,8 +170,9 @@ class GeometryCollector:
         self.infos.setdefault((key, mat_ids, flags, link), []).append(
             object_info(inst) if used & set(OBJECT_INFO) else None)
         properties = sorted(n for n in used if n.startswith(OBJECT_PROPERTY))
-        self.properties.setdefault((key, mat_ids, flags, link), []).append(
-            {n: object_property(inst, n) for n in properties})
+        if properties:                  # (the same names for every instance of a group)
+            self.properties.setdefault((key, mat_ids, flags, link), []).append(
+                {n: object_property(inst, n) for n in properties})
 
     def finish(self) -> Geometry:
         geometry = assemble(self.meshes, self.groups, self.materials, self.infos, self.properties)
