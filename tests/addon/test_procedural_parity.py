@@ -1044,6 +1044,26 @@ def test_pointiness_matches_cycles(addon, tmp_path):
     assert err.max() < 1e-3
 
 
+def quarter_objects(mat, second):
+    """The texture plane (``bs.texture_plane``, 2 m) made its top-left quarter, two more quarter
+    planes of material ``mat`` (the top-right one named ``second``), and the fourth a collection
+    instance of a plane kept out of the scene: ([three planes], the instanced plane, its empty)."""
+    import bpy
+    first = bpy.data.objects["Plane"]
+    first.scale, first.location = (0.5, 0.5, 1.0), (-0.5, 0.5, 0.0)
+    quarters = [first, bs.plane(second, size=1.0, material=mat, location=(0.5, 0.5, 0.0)),
+                bs.plane("Q3", size=1.0, material=mat, location=(-0.5, -0.5, 0.0))]
+    coll = bpy.data.collections.new("Tile")
+    tile = bpy.data.objects.new("Tile plane", bs.plane("Tile source", size=1.0, material=mat).data)
+    bpy.data.objects.remove(bpy.data.objects["Tile source"])
+    coll.objects.link(tile)
+    holder = bpy.data.objects.new("Tile holder", None)
+    holder.instance_type, holder.instance_collection = "COLLECTION", coll
+    holder.location = (0.5, -0.5, 0.0)
+    bpy.context.scene.collection.objects.link(holder)
+    return quarters, tile, holder
+
+
 @pytest.mark.parametrize("kind, path", [("OBJECT", '["tint"]'), ("OBJECT", '["level"]'), ("OBJECT", "color"),
                                         ("OBJECT", '["wear"]'), ("INSTANCER", '["tint"]'),
                                         ("OBJECT", "missing")])
@@ -1060,18 +1080,7 @@ def test_object_and_instancer_attributes_match_cycles(addon, tmp_path, kind, pat
         return attr.outputs["Color"]
 
     mat, positions = bs.texture_plane(build, size=2.0)
-    first = bpy.data.objects["Plane"]
-    first.scale, first.location = (0.5, 0.5, 1.0), (-0.5, 0.5, 0.0)
-    quarters = [first, bs.plane("Q2", size=1.0, material=mat, location=(0.5, 0.5, 0.0)),
-                bs.plane("Q3", size=1.0, material=mat, location=(-0.5, -0.5, 0.0))]
-    coll = bpy.data.collections.new("Tile")
-    tile = bpy.data.objects.new("Tile plane", bs.plane("Tile source", size=1.0, material=mat).data)
-    bpy.data.objects.remove(bpy.data.objects["Tile source"])
-    coll.objects.link(tile)
-    holder = bpy.data.objects.new("Tile holder", None)
-    holder.instance_type, holder.instance_collection = "COLLECTION", coll
-    holder.location = (0.5, -0.5, 0.0)
-    bpy.context.scene.collection.objects.link(holder)
+    quarters, tile, holder = quarter_objects(mat, "Q2")
     for k, ob in enumerate(quarters + [tile]):
         ob.color = (0.2 * k, 0.9 - 0.2 * k, 0.5, 1.0)
         ob["tint"] = [0.9 - 0.2 * k, 0.1 + 0.2 * k, 0.3]
@@ -1126,19 +1135,7 @@ def test_object_info_matches_cycles(addon, tmp_path):
 
     mat, positions = bs.texture_plane(build, size=2.0)
     mat.pass_index = 3
-    first = bpy.data.objects["Plane"]
-    first.scale, first.location = (0.5, 0.5, 1.0), (-0.5, 0.5, 0.0)
-    quarters = [first, bs.plane("Quarter ünï", size=1.0, material=mat, location=(0.5, 0.5, 0.0)),
-                bs.plane("Q3", size=1.0, material=mat, location=(-0.5, -0.5, 0.0))]
-    # The fourth quarter: a collection instance of a plane kept out of the scene.
-    coll = bpy.data.collections.new("Tile")
-    tile = bpy.data.objects.new("Tile plane", bs.plane("Tile source", size=1.0, material=mat).data)
-    bpy.data.objects.remove(bpy.data.objects["Tile source"])
-    coll.objects.link(tile)
-    holder = bpy.data.objects.new("Tile holder", None)
-    holder.instance_type, holder.instance_collection = "COLLECTION", coll
-    holder.location = (0.5, -0.5, 0.0)
-    bpy.context.scene.collection.objects.link(holder)
+    quarters, tile, holder = quarter_objects(mat, "Quarter ünï")
     colors = ((0.9, 0.2, 0.1, 0.3), (0.1, 0.7, 0.3, 0.6), (0.2, 0.3, 0.8, 0.9), (0.5, 0.5, 0.1, 0.4))
     for ob, color, index in zip(quarters + [tile], colors, (1, 2, 5, 7)):
         ob.color, ob.pass_index = color, index

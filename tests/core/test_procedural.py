@@ -127,7 +127,8 @@ def test_colours_are_finite_and_non_negative():
 
 @pytest.mark.parametrize("program, message", [
     ({"op": "gabor"}, "unknown program op"),
-    ({"op": "checker", "vector": {"op": "attribute", "name": "reflection"}}, "name .reflection. is not one of"),
+    ({"op": "checker", "vector": {"op": "attribute", "name": "reflection"}},
+     "name .reflection. is not one of"),
     ({"op": "checker", "output": "Alpha"}, "has no output"),
     ({"op": "image", "texture": 3, "vector": OBJECT}, "not an index below"),
     ({"op": "ramp", "fac": 0.5, "table": [[0, 0, 0]]}, "table must be a finite array of shape"),
