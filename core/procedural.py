@@ -164,12 +164,7 @@ class HitAttributes:
         s = self.scene
         if s.object_ids is None:
             raise ProgramError("the program needs 'normal' coordinates, which the scene lacks")
-        if s.shading_normals is not None:
-            corners = s.shading_normals.take(self.prim_ids, axis=0).astype(np.float64)
-            n = interpolate_corners(corners, self.bary)
-        else:
-            c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
-            n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        n = self.get("world_normal")
         objects, which = np.unique(s.object_ids.take(self.prim_ids), return_inverse=True)
         world_from_object = np.linalg.inv(s.object_from_world.take(objects, axis=0)[:, :, :3])
         n = np.einsum("kji,kj->ki", world_from_object.take(which, axis=0), n)      # W^T n
@@ -209,16 +204,16 @@ class HitAttributes:
     def _view(self, name):
         """(k, 3) Camera or Window coordinates of the hits (``VIEW``)."""
         cam = self.scene.camera
-        p = np.concatenate([np.asarray(self.positions, np.float64), np.ones((self.count, 1))], axis=1)
-        c = (p @ np.linalg.inv(np.asarray(cam.world_from_camera, np.float64)).T)[:, :3]
+        m = self.camera_from_world()
+        c = np.asarray(self.positions, np.float64) @ m[:3, :3].T + m[:3, 3]
         if name == "camera":
-            return c * [1.0, 1.0, -1.0]
+            return c
         out = np.zeros((self.count, 3))
         if cam.projection in ("perspective", "orthographic"):
             x0, x1, y0, y1 = cam.frame
             xy = c[:, :2]
             if cam.projection == "perspective":
-                depth = -c[:, 2:3]
+                depth = c[:, 2:3]
                 xy = np.divide(xy, depth, out=np.zeros_like(xy), where=depth != 0.0)
             out[:, 0] = (xy[:, 0] - x0) / (x1 - x0)
             out[:, 1] = (xy[:, 1] - y0) / (y1 - y0)
@@ -255,10 +250,9 @@ class HitAttributes:
             raise ProgramError(f"the program needs '{name}' of objects, which the scene lacks")
         objects, which = np.unique(s.object_ids.take(self.prim_ids), return_inverse=True)
         if name == "object_location":
-            # The origin: -A^-1 b of the object-from-world map (A, b) (pseudo-inverse: a flattened
+            # The origin: where the object-from-world map takes 0 (pseudo-inverse: a flattened
             # object has no inverse).
-            m = s.object_from_world.take(objects, axis=0)
-            values = -np.matmul(np.linalg.pinv(m[:, :, :3]), m[:, :, 3:])[:, :, 0]
+            values = _affine_inverse(s.object_from_world.take(objects, axis=0))[:, :, 3]
         else:
             info = s.object_info.take(objects, axis=0).astype(np.float64)
             values = info[:, 3:6] if name == "object_color" else info[:, :3]

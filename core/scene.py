@@ -1147,15 +1147,15 @@ class Scene:
                   "object_location": self.object_ids, "object_color": self.object_ids,
                   "object_info": self.object_ids,
                   "uv": self.uvs,
-                  "color": self.vertex_colors,
-                  "position": self.vertices, "world_normal": self.vertices, "true_normal": self.vertices,
-                  "camera": self.vertices, "window": self.vertices}
+                  "color": self.vertex_colors}
         for i, program in enumerate(mats.programs):
             try:
                 procedural.validate(program, len(self.textures))
             except procedural.ProgramError as e:
                 fail(f"materials.programs[{i}]: {e}")
             for name in procedural.attributes_used(program):
+                if name in procedural.GEOMETRY + procedural.VIEW:
+                    continue                        # (the hit's position, normals and the camera)
                 if name.startswith((procedural.NAMED, *procedural.OBJECT_PROPERTY)):
                     continue                        # (0 where the scene lacks it, as in Cycles)
                 if coords[name] is None and (used == i).any():

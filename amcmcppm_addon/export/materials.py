@@ -196,20 +196,16 @@ class Closure:
             out.stretch_texture = {"op": "math", "operation": "EXPONENT", "a": _float_average(terms)}
         out.diffuse_roughness = _weighted(self.diffuse_roughness, other.diffuse_roughness, wa[DIFFUSE],
                                           wb[DIFFUSE])
-        if self.roughness_texture is not None or other.roughness_texture is not None:
-            # Averaged as the constants, by the glossy weights (a map with a constant, or two maps).
-            terms = [(c.roughness_term(), w[GLOSSY]) for c, w in ((self, wa), (other, wb)) if w[GLOSSY] > 0]
-            out.roughness_texture = _float_average(terms) if terms else None
+        sides = ((self, wa), (other, wb))
+        out.roughness_texture = _mixed_map(sides, GLOSSY, "roughness_texture", Closure.roughness_term)
         rising = (wa[GLOSSY] * (self.fresnel_ior > 0), wb[GLOSSY] * (other.fresnel_ior > 0))
         # (no rising glossy part left, e.g. one side at factor 0: none)
         out.fresnel_ior = _weighted(self.fresnel_ior, other.fresnel_ior, *rising) if sum(rising) > 0 else 0.0
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
-        if self.dielectric_roughness_texture is not None or other.dielectric_roughness_texture is not None:
-            terms = [(c.dielectric_roughness_term(), w[DIELECTRIC]) for c, w in ((self, wa), (other, wb))
-                     if w[DIELECTRIC] > 0]
-            out.dielectric_roughness_texture = _float_average(terms) if terms else None
+        out.dielectric_roughness_texture = _mixed_map(sides, DIELECTRIC, "dielectric_roughness_texture",
+                                                      Closure.dielectric_roughness_term)
         # A coat lies over the whole material (one coat per material, NodeWalker._note_mixed):
         # its weight mixes as the lobes', its parameters by the coats' weights.
         ca, cb = fa * self.coat, fb * other.coat
@@ -653,6 +649,16 @@ def _scaled(e) -> bool:
     """Whether program ``e`` is a program times three constants (what ``_times`` makes)."""
     return (e.get("op") == "mix_color" and e.get("blend") == "MULTIPLY" and e.get("fac") == 1.0
             and isinstance(e.get("b"), list) and len(e) == 5)
+
+
+def _mixed_map(sides, lobe, texture, term):
+    """The float program of a parameter of lobe ``lobe`` of a mix ((closure, weights) ``sides``)
+    where some side's ``texture`` varies: averaged as the constants, by the lobe's weights (a map
+    with a constant, or two maps; ``term`` gives a side's number or program); else None."""
+    if all(getattr(c, texture) is None for c, _ in sides):
+        return None
+    terms = [(term(c), w[lobe]) for c, w in sides if w[lobe] > 0]
+    return _float_average(terms) if terms else None
 
 
 def _float_average(terms):

@@ -437,6 +437,13 @@ RANDOM_PER_ISLAND = ".random_per_island"
 POINTINESS = ".pointiness"                      # (and Geometry's Pointiness)
 
 
+def _edges(me):
+    """(E, 2) int32 the vertices of the mesh's edges, in Blender's order."""
+    pairs = np.empty(len(me.edges) * 2, np.int32)
+    me.edges.foreach_get("vertices", pairs)
+    return pairs.reshape(-1, 2)
+
+
 def pointiness(me):
     """(V,) float64 Cycles' Pointiness (``attr_create_pointiness``) of each vertex: vertices at the
     same place welded, the angle between the welded vertex normal and the mean of the unit edges
@@ -458,9 +465,7 @@ def pointiness(me):
     np.add.at(welded, orig, normals)
     length = np.linalg.norm(welded, axis=1, keepdims=True)
     welded = np.divide(welded, length, out=np.zeros_like(welded), where=length > 0).take(orig, axis=0)
-    pairs = np.empty(len(me.edges) * 2, np.int32)
-    me.edges.foreach_get("vertices", pairs)
-    e = orig.take(pairs.reshape(-1, 2))
+    e = orig.take(_edges(me))
     e = np.unique(np.sort(e[e[:, 0] != e[:, 1]], axis=1), axis=0)          # each welded edge once
     d = co.take(e[:, 1], axis=0) - co.take(e[:, 0], axis=0)
     d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
@@ -482,9 +487,6 @@ def random_per_island(me, tri_vert):
     of its first vertex's island, the islands joined edge by edge in Blender's order by Cycles'
     union by rank (``DisjointSet``), whose roots the hash sees; a Python loop over the edges (at
     export, only for materials that read it)."""
-    n_edges = len(me.edges)
-    pairs = np.empty(n_edges * 2, np.int32)
-    me.edges.foreach_get("vertices", pairs)
     parent = list(range(len(me.vertices)))
     rank = [0] * len(parent)
 
@@ -496,7 +498,7 @@ def random_per_island(me, tri_vert):
             parent[x], x = root, parent[x]
         return root
 
-    for a, b in pairs.reshape(-1, 2).tolist():
+    for a, b in _edges(me).tolist():
         ra, rb = find(a), find(b)
         if ra == rb:
             continue
