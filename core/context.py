@@ -317,7 +317,8 @@ class RenderContext:
             if clear.any():
                 c = np.flatnonzero(clear)
                 rc = rows.take(c)
-                opacity = self._opacity(prim.take(rc), b1.take(rc), b2.take(rc), p.take(c, axis=0))
+                opacity = self._opacity(prim.take(rc), b1.take(rc), b2.take(rc), p.take(c, axis=0),
+                                        -dirs.take(rc, axis=0))
                 crossed = (u.take(c) >= opacity) & (opacity < 1.0)
                 stopped[rc[~crossed]] = opacity[~crossed]
                 through[c] = crossed
@@ -548,18 +549,22 @@ class RenderContext:
         leave = (into > 0) & (came < 0) & (medium == mat)
         return np.where(enter, mat, np.where(leave, self.outside, medium)).astype(np.int32)
 
-    def _opacity(self, prim_ids, b1, b2, positions):
-        """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's."""
+    def _opacity(self, prim_ids, b1, b2, positions, incoming=None):
+        """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's (seen
+        from ``incoming``, ``HitAttributes``)."""
         mat = self.material_ids.take(prim_ids)
         out = self.opacity.take(mat)
         bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
-        for sel, value in self._program_values(self.opacity_program, prim_ids, bary, positions, mat):
+        for sel, value in self._program_values(self.opacity_program, prim_ids, bary, positions, mat,
+                                               incoming):
             out[sel] = np.clip(np.nan_to_num(value, nan=1.0), 0.0, 1.0)
         return out
 
-    def surface(self, prim_ids, b1, b2, pick=None) -> Surface:
+    def surface(self, prim_ids, b1, b2, pick=None, incoming=None) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics; ``pick`` (n,) uniform
-        numbers choose the materials' levels (``Materials.level_program``; None: the nearest)."""
+        numbers choose the materials' levels (``Materials.level_program``; None: the nearest);
+        ``incoming`` (n, 3) the unit directions back along the rays that meet them, which programs
+        may read (``procedural.RAY``; None: each seen head-on from its front)."""
         a = self.accel
         pos = a.hit_positions(prim_ids, b1, b2)
         ng = a.geometric_normals.take(prim_ids, axis=0)
@@ -567,11 +572,11 @@ class RenderContext:
         mat = self.material_ids.take(prim_ids)
         bary = (b0[:, None], b1[:, None], b2[:, None])
         if self.has_level_programs:
-            self._pick_level(mat, prim_ids, bary, pos, pick)
+            self._pick_level(mat, prim_ids, bary, pos, pick, incoming)
         if self.has_roughness_programs:
-            self._pick_roughness(mat, prim_ids, bary, pos)
+            self._pick_roughness(mat, prim_ids, bary, pos, incoming)
         if self.has_stretch_programs:
-            self._pick_stretch(mat, prim_ids, bary, pos)
+            self._pick_stretch(mat, prim_ids, bary, pos, incoming)
         if self.shading_normals is not None:
             ns = normalize(interpolate_corners(self.shading_normals.take(prim_ids, axis=0), bary))
             _replace_bad(ns, ng)
@@ -585,7 +590,7 @@ class RenderContext:
         if self.has_normal_maps:
             nn = ns.copy()
             self._apply_normal_maps(ns, prim_ids, bary, uv, mat)
-            self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat)
+            self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat, incoming)
         albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]
@@ -593,12 +598,14 @@ class RenderContext:
                 albedo = np.where((tex >= 0)[:, None],
                                   albedo * self.textures.lookup(tex, uv), albedo)
         if self.has_programs:
-            for sel, color in self._program_colors(self.table.program, prim_ids, bary, pos, mat):
+            for sel, color in self._program_colors(self.table.program, prim_ids, bary, pos, mat,
+                                                   incoming=incoming):
                 albedo[sel] *= color           # a fresh array (take or where above)
         colors = lobe_colors(self.table, mat, albedo)
         if self.has_glossy_programs:
             lobe = self.table.glossy_program_lobe
-            for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat):
+            for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat,
+                                                   incoming=incoming):
                 colors[sel, lobe.take(mat.take(sel))] *= color
         if self.table.has_partial_metal:
             # A metal that is part k of its lobe: the colour so far is its F0, the lobe's k F0 + rest.
@@ -610,17 +617,19 @@ class RenderContext:
                 colors[part, lobe] = (t.hit_metal_share.take(m)[:, None] * colors[part, lobe]
                                       + t.hit_metal_rest.take(m, axis=0))
         if self.has_dielectric_programs:
-            for sel, color in self._program_colors(self.table.dielectric_program, prim_ids, bary, pos, mat):
+            for sel, color in self._program_colors(self.table.dielectric_program, prim_ids, bary, pos, mat,
+                                                   incoming=incoming):
                 colors[sel, DIELECTRIC] *= color
         if self.has_translucent_programs:
-            for sel, color in self._program_colors(self.table.translucent_program, prim_ids, bary, pos, mat):
+            for sel, color in self._program_colors(self.table.translucent_program, prim_ids, bary, pos, mat,
+                                                   incoming=incoming):
                 colors[sel, TRANSLUCENT] *= color
         tangent = None
         if self.table.has_anisotropy:
-            tangent = self.tangents(prim_ids, bary, pos, mat, ns if nn is None else nn, ns)
+            tangent = self.tangents(prim_ids, bary, pos, mat, ns if nn is None else nn, ns, incoming)
         return Surface(pos, ng, ns, mat, colors, nn, tangent)
 
-    def tangents(self, prim_ids, bary, pos, mat, smooth, ns):
+    def tangents(self, prim_ids, bary, pos, mat, smooth, ns, incoming=None):
         """(n, 3) the tangents of anisotropic glossy lobes at hits (0 where the material ``mat`` has
         none), as Cycles' Tangent node and closure: the radial direction about an object axis
         through the centre of the texture space (from the Generated coordinates; without
@@ -668,7 +677,8 @@ class RenderContext:
         turn = self.table.rotation.take(m).astype(np.float64)
         if self.has_rotation_programs:
             for s, value in self._program_values(self.table.rotation_program, prim_ids.take(sel), w,
-                                                 pos.take(sel, axis=0), m):
+                                                 pos.take(sel, axis=0), m,
+                                                 None if incoming is None else incoming.take(sel, axis=0)):
                 turn[s] = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
         if (turn != 0).any():
             # Rodrigues' rotation about the shading normal (Cycles' rotate_around_axis).
@@ -679,13 +689,13 @@ class RenderContext:
         out[sel] = t
         return out
 
-    def _pick_level(self, mat, prim_ids, bary, pos, pick=None):
+    def _pick_level(self, mat, prim_ids, bary, pos, pick=None, incoming=None):
         """Replace, in place, the materials ``mat`` (n,) that pick one of their levels at each hit
         (``Materials.level_program``) by a level: with ``pick`` ((n,) uniform numbers) one of the
         two around the program's value there, the upper with the probability of the value's
         fraction between them (``Materials``); without, the nearest."""
         mats = self.materials
-        for sel, value in self._program_values(mats.level_program, prim_ids, bary, pos, mat):
+        for sel, value in self._program_values(mats.level_program, prim_ids, bary, pos, mat, incoming):
             m = mat.take(sel)
             top = mats.level_count.take(m) - 1
             x = np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * top
@@ -697,23 +707,26 @@ class RenderContext:
                 np.minimum(level, top, out=level)
             mat[sel] = mats.level_first.take(m) + level.astype(np.int32)
 
-    def _pick_roughness(self, mat, prim_ids, bary, pos):
+    def _pick_roughness(self, mat, prim_ids, bary, pos, incoming=None):
         """Replace, in place, the materials ``mat`` (n,) that have a roughness map by their copy of
         the nearest roughness level (``bsdf.roughness_variants``) at these hits."""
-        for sel, value in self._program_values(self.materials.roughness_program, prim_ids, bary, pos, mat):
+        for sel, value in self._program_values(self.materials.roughness_program, prim_ids, bary, pos, mat,
+                                               incoming):
             level = np.rint(np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * (ROUGHNESS_LEVELS - 1))
             mat[sel] = self.roughness_first.take(mat.take(sel)) + level.astype(np.int32)
 
-    def _pick_stretch(self, mat, prim_ids, bary, pos):
+    def _pick_stretch(self, mat, prim_ids, bary, pos, incoming=None):
         """Replace, in place, the materials ``mat`` (n,) that have an anisotropy map by their copy of
         the nearest stretch level (``bsdf.stretch_variants``) at these hits."""
-        for sel, value in self._program_values(self.materials.stretch_program, prim_ids, bary, pos, mat):
+        for sel, value in self._program_values(self.materials.stretch_program, prim_ids, bary, pos, mat,
+                                               incoming):
             mat[sel] = self.stretch_first.take(mat.take(sel)) + stretch_level(value)
 
-    def emitted(self, prim_ids, b1, b2, mat=None, positions=None):
+    def emitted(self, prim_ids, b1, b2, mat=None, positions=None, incoming=None):
         """(n, 3) float64 radiance emitted at the points of triangles ``prim_ids`` with barycentrics
         ``b1``, ``b2``: the material's emission times its emission program there (``mat`` (n,) and
-        ``positions`` (n, 3) when the caller has them)."""
+        ``positions`` (n, 3) when the caller has them; ``incoming`` (n, 3) the directions it
+        leaves in, which programs may read, ``HitAttributes``)."""
         if mat is None:
             mat = self.material_ids.take(prim_ids)
         out = self.table.emission.take(mat, axis=0)
@@ -722,39 +735,43 @@ class RenderContext:
                 positions = self.accel.hit_positions(prim_ids, b1, b2)
             bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
             programs = self.table.emission_program
-            for sel, factor in self._program_colors(programs, prim_ids, bary, positions, mat, EMISSION_MAX):
+            for sel, factor in self._program_colors(programs, prim_ids, bary, positions, mat, EMISSION_MAX,
+                                                    incoming):
                 out[sel] *= factor
         return out
 
-    def emitted_out(self, prim_ids, b1, b2, mat=None, positions=None):
+    def emitted_out(self, prim_ids, b1, b2, mat=None, positions=None, incoming=None):
         """(n, 3) radiance that leaves the points of emissive triangles: :meth:`emitted` times the
         opacity there (a half-transparent emitter emits half: Cycles' Alpha scales emission)."""
-        out = self.emitted(prim_ids, b1, b2, mat, positions)
+        out = self.emitted(prim_ids, b1, b2, mat, positions, incoming)
         if self.has_transparency:
             if positions is None:
                 positions = self.accel.hit_positions(prim_ids, b1, b2)
-            out *= self._opacity(prim_ids, b1, b2, positions)[:, None]
+            out *= self._opacity(prim_ids, b1, b2, positions, incoming)[:, None]
         return out
 
-    def _program_values(self, programs, prim_ids, bary, pos, mat):
+    def _program_values(self, programs, prim_ids, bary, pos, mat, incoming=None):
         """(hit indices, (k,) numbers) for each float program in ``programs`` (per material, -1:
         none) that some of the hits' materials have; a colour counts by its luminance (Cycles)."""
         program = programs.take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
-            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
-                                  pos.take(sel, axis=0))
-            value = evaluate(self.programs[p], attrs, self.textures.images)
+            value = evaluate(self.programs[p], self._hit_attributes(sel, prim_ids, bary, pos, incoming),
+                             self.textures.images)
             yield sel, (value @ LUMINANCE if value.ndim == 2 else value)
 
-    def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX):
+    def _hit_attributes(self, sel, prim_ids, bary, pos, incoming):
+        """``HitAttributes`` of the hits ``sel`` of these."""
+        return HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
+                             pos.take(sel, axis=0), None if incoming is None else incoming.take(sel, axis=0))
+
+    def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX, incoming=None):
         """(hit indices, (k, 3) colours in [0, ``limit``]) for each program in ``programs`` (per
         material, -1: none) that some of the hits' materials have."""
         program = programs.take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
-            attrs = HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
-                                  pos.take(sel, axis=0))
+            attrs = self._hit_attributes(sel, prim_ids, bary, pos, incoming)
             yield sel, evaluate_color(self.programs[p], attrs, self.textures.images, limit)
 
     def _apply_normal_maps(self, ns, prim_ids, bary, uv, mat):
@@ -783,7 +800,7 @@ class RenderContext:
         _replace_bad(n, n0)
         ns[sel] = n
 
-    def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat):
+    def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat, incoming=None):
         """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).
 
         As Cycles' Bump node, with the height's gradient along a parametrisation (u, v) of the
@@ -825,7 +842,8 @@ class RenderContext:
                                     (0.0, s2, x + s2[:, None] * e2)):
                 shifted = (b[0] - np.reshape(db1 + db2, (-1, 1)), b[1] + np.reshape(db1, (-1, 1)),
                            b[2] + np.reshape(db2, (-1, 1)))
-                attrs = HitAttributes(self.scene, p, shifted, moved)
+                attrs = HitAttributes(self.scene, p, shifted, moved,
+                                      None if incoming is None else incoming.take(sel, axis=0))
                 h = evaluate(self.programs[k], attrs, self.textures.images)
                 heights.append(h @ LUMINANCE if h.ndim == 2 else h)
             hu, hv = (heights[1] - heights[0]) / s1, (heights[2] - heights[0]) / s2

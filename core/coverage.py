@@ -96,7 +96,8 @@ def _probe(ctx, position, n, dirs, radius, ring):
             if len(t):
                 ht = h.take(t)
                 at = ctx.accel.hit_positions(prim.take(t), below.b1.take(ht), below.b2.take(ht))
-                land[t] = ctx._opacity(prim.take(t), below.b1.take(ht), below.b2.take(ht), at) > 0.0
+                land[t] = ctx._opacity(prim.take(t), below.b1.take(ht), below.b2.take(ht), at,
+                                       -d.take(ht, axis=0)) > 0.0
         covered[rows.take(h[land])] = True
         # On through the surfaces it did not land on, with what is left of the ray.
         on = h[~land]

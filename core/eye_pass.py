@@ -252,14 +252,14 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         path_len = path_len.take(h) + hits.t.take(h)
         footprint = footprint.take(h)
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
-        surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None)
         wo = -dirs
+        surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, wo)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():
             e = np.flatnonzero(emissive)
             seen = ctx.emitted(prim.take(e), b1.take(e), b2.take(e), surf.mat_ids.take(e),
-                               surf.position.take(e, axis=0))
+                               surf.position.take(e, axis=0), wo.take(e, axis=0))
             if table.has_coat:
                 seen = seen * coat_attenuation(table, surf, wo, e)
             if sets is not None:

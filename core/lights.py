@@ -489,7 +489,8 @@ class LightSampler:
         d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
         emitted = power
         if self.textured_emitters:
-            emitted = (2.0 * np.pi * a.area.take(ids))[:, None] * self.emitted(ids, b1, b2, positions=p)
+            radiance = self.emitted(ids, b1, b2, positions=p, incoming=d)
+            emitted = (2.0 * np.pi * a.area.take(ids))[:, None] * radiance
         if self.coated_emitters:
             mats = self.material_ids.take(ids)
             coated = np.flatnonzero(self.table.coat_row.take(mats) >= 0)
@@ -503,7 +504,8 @@ class LightSampler:
     def _textured_power(self, tris, tri_mat):
         """(k, 3) estimated power 2 pi A mean(L) of emissive triangles ``tris`` whose radiance
         varies (an emission or opacity program): L at TEXTURED_POWER_SIDE^2 stratified points
-        each (fewer on big meshes), kept above TEXTURED_POWER_FLOOR times their material's mean so
+        each (fewer on big meshes), each towards a cosine-distributed direction on either side (for
+        programs of the view), kept above TEXTURED_POWER_FLOOR times their material's mean so
         that no triangle that emits somewhere goes unchosen (photon fluxes stay exact: ``sample``)."""
         area = self.accel.area.take(tris)
         side = int(np.clip(np.sqrt(TEXTURED_POWER_BUDGET / max(len(tris), 1)), 1, TEXTURED_POWER_SIDE))
@@ -511,12 +513,17 @@ class LightSampler:
         u1, u2 = (x.ravel() for x in np.meshgrid(g, g, indexing="ij"))
         b1, b2 = smp.uniform_triangle(u1, u2)
         k = len(b1)
+        # The directions (seeded: the same estimate every run), every other on the back.
+        facing = np.where(np.arange(k) % 2 == 0, 1.0, -1.0)
+        local = smp.cosine_hemisphere(*np.random.default_rng(0).random((2, k)))
         mean = np.zeros((len(tris), 3))
         chunk = max(1, TEXTURED_POWER_BUDGET // k)
         for start in range(0, len(tris), chunk):
             part = tris[start:start + chunk]
             ids = np.repeat(part, k)
-            radiance = self.emitted(ids, np.tile(b1, len(part)), np.tile(b2, len(part)))
+            n = np.repeat(self.accel.geometric_normals.take(part, axis=0), k, axis=0)
+            d = smp.to_world(np.tile(local, (len(part), 1)), n * np.tile(facing, len(part))[:, None])
+            radiance = self.emitted(ids, np.tile(b1, len(part)), np.tile(b2, len(part)), incoming=d)
             mean[start:start + chunk] = radiance.reshape(len(part), k, 3).mean(axis=1)
         mats = tri_mat.take(tris)
         for m in np.unique(mats):

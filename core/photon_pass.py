@@ -655,7 +655,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             pick = None
             if ctx.has_level_programs:
                 pick = _crossing_uniforms(u, idx, bounce, LEVEL_KEYS)(np.arange(len(idx)), 0)
-            surf = ctx.surface(prim, hits.b1.take(h), hits.b2.take(h), pick)
+            surf = ctx.surface(prim, hits.b1.take(h), hits.b2.take(h), pick, -dirs)
             if bounce == 0 and soft:
                 flux = flux * ctx.lights.soft_falloff(u[idx, :1], surf.position)[:, None]
             # A photon stops on a transparent surface with the probability of its opacity there,

@@ -14,13 +14,14 @@ as Cycles does.
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
 * ``attribute`` name = generated | object | uv | color | normal | position | world_normal |
-  true_normal (and Object Info's, ``OBJECT_INFO``): -> Vector.  Blender's Generated and Object
-  coordinates (the hit in its object's space, ``Scene.object_from_world``, and that object's
-  texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs``
-  as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's Position, Normal and
-  True Normal in world space (``GEOMETRY``); the Texture Coordinate's Camera and Window
-  (``VIEW``); ``named:`` + a name, ``Scene.attributes[name]`` interpolated (``NAMED``);
-  ``object:`` or ``instancer:`` + an RNA path, ``Scene.object_attributes`` (``OBJECT_PROPERTY``).
+  true_normal | incoming | backfacing (and Object Info's, ``OBJECT_INFO``): -> Vector. Blender's
+  Generated and Object coordinates (the hit in its object's space, ``Scene.object_from_world``, and
+  that object's texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner
+  ``Scene.uvs`` as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's
+  Position, Normal and True Normal in world space (``GEOMETRY``), Incoming and Backfacing
+  (``RAY``); the Texture Coordinate's Camera and Window (``VIEW``); ``named:`` + a name,
+  ``Scene.attributes[name]`` interpolated (``NAMED``); ``object:`` or ``instancer:`` + an RNA path,
+  ``Scene.object_attributes`` (``OBJECT_PROPERTY``).
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
@@ -53,6 +54,9 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
 * ``wavelength`` wavelength (nm): -> Color (Cycles' Wavelength node).
+* ``fresnel`` ior, normal: -> Fac; ``layer_weight`` blend, normal: -> Fresnel, Facing (Cycles'
+  Fresnel and Layer Weight nodes at the ray's Incoming, ``RAY``; normal: the shading normal on the
+  ray's side unless given).
 * ``vector_transform`` vector, type, convert_from, convert_to (Vector Transform): -> Vector.
 * ``color_space`` color, conversion (RGB_TO_HSV, HSV_TO_RGB, RGB_TO_HSL, HSL_TO_RGB; Separate and
   Combine Color in HSV and HSL mode): -> Color.
@@ -78,16 +82,21 @@ from . import voronoi as _voronoi_module
 from .accel import interpolate_corners
 from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
-from .sampling import dot, length, normalize
+from .sampling import dot, length, normalize, to_world
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
-              "object_info", "position", "world_normal", "true_normal", "camera", "window")
+              "object_info", "position", "world_normal", "true_normal", "camera", "window", "incoming",
+              "backfacing")
 # Blender's Geometry node: "position" the hit's world position, "world_normal" the world-space
 # shading normal (interpolated where the mesh is smooth), "true_normal" the facet's; both normals
-# on the triangle's front (Cycles turns them towards the ray on a back face; a program does not
-# know the ray).
+# turned towards the ray on a back face, as Cycles turns them (``RAY``).
 GEOMETRY = ("position", "world_normal", "true_normal")
+# The ray that meets the hit (``HitAttributes.incoming``): "incoming" the unit direction back along
+# it (Cycles' I: towards the eye, or towards the light a photon left), "backfacing" (b, b, b) with
+# b = 1 where it meets the triangle's back.  Where no ray is known (a point of an emitter when its
+# light is measured as a whole), the front's normal: seen head-on from the front.
+RAY = ("incoming", "backfacing")
 # Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
 # depth in front) and Window (where the hit lands in the frame, (0, 0) at its bottom left, z = 0;
 # perspective and orthographic cameras, 0 for panoramic ones).
@@ -126,10 +135,12 @@ class HitAttributes:
     """Texture coordinates of k hits, computed when a program first asks for them.
 
     scene : the ``Scene`` (its uvs, vertex colours and objects); prim_ids : (k,) triangle ids;
-    bary : (b0, b1, b2), (k, 1) each; positions : (k, 3) float64 world positions of the hits."""
+    bary : (b0, b1, b2), (k, 1) each; positions : (k, 3) float64 world positions of the hits;
+    incoming : (k, 3) unit directions back along the rays that meet them (``RAY``), or None."""
 
-    def __init__(self, scene, prim_ids, bary, positions):
+    def __init__(self, scene, prim_ids, bary, positions, incoming=None):
         self.scene, self.prim_ids, self.bary, self.positions = scene, prim_ids, bary, positions
+        self.incoming = incoming
         self._cache = {}
 
     @property
@@ -142,6 +153,8 @@ class HitAttributes:
                 value = self._normal()
             elif name in GEOMETRY:
                 value = self._geometry(name)
+            elif name in RAY:
+                value = self._ray(name)
             elif name in VIEW:
                 value = self._view(name)
             elif name in ("object", "generated"):
@@ -160,7 +173,7 @@ class HitAttributes:
     def _normal(self):
         """The object-space normal (Cycles' Texture Coordinate Normal, and a box projection's): the
         interpolated shading normal (the facet's without one) through the inverse transpose of
-        the object's transform; its side is the triangle's front."""
+        the object's transform; on the ray's side, as the Geometry node's (``GEOMETRY``)."""
         s = self.scene
         if s.object_ids is None:
             raise ProgramError("the program needs 'normal' coordinates, which the scene lacks")
@@ -172,10 +185,39 @@ class HitAttributes:
         return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
     def _geometry(self, name):
-        """(k, 3) world position, shading normal or facet normal of the hits (``GEOMETRY``)."""
-        s = self.scene
+        """(k, 3) world position, shading normal or facet normal of the hits (``GEOMETRY``), the
+        normals on the ray's side."""
         if name == "position":
             return np.asarray(self.positions, np.float64)
+        n = self._front(name)
+        if self.incoming is None:
+            return n
+        return n * self._side()[:, None]
+
+    def _side(self):
+        """(k,) -1 where the ray meets the back of the triangle, else 1 (1 without rays)."""
+        if "side" not in self._cache:
+            side = np.ones(self.count)
+            if self.incoming is not None:
+                side[dot(np.asarray(self.incoming, np.float64), self._front("true_normal")) < 0.0] = -1.0
+            self._cache["side"] = side
+        return self._cache["side"]
+
+    def _ray(self, name):
+        """(k, 3) Incoming or Backfacing of the hits (``RAY``)."""
+        if name == "incoming":
+            if self.incoming is None:
+                return self._front("world_normal")
+            return np.asarray(self.incoming, np.float64)
+        return np.repeat((self._side() < 0.0).astype(np.float64)[:, None], 3, axis=1)
+
+    def _front(self, name):
+        """(k, 3) the shading ("world_normal") or facet ("true_normal") unit normal on the
+        triangle's front."""
+        key = "front:" + name
+        if key in self._cache:
+            return self._cache[key]
+        s = self.scene
         if name == "world_normal" and s.shading_normals is not None:
             corners = s.shading_normals.take(self.prim_ids, axis=0).astype(np.float64)
             n = interpolate_corners(corners, self.bary)
@@ -183,7 +225,8 @@ class HitAttributes:
             c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
             n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
         length = np.linalg.norm(n, axis=1, keepdims=True)
-        return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+        self._cache[key] = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+        return self._cache[key]
 
     def object_transforms(self, inverse=False):
         """(k, 3, 4) the affine maps of world positions into the hits' objects' spaces (``inverse``:
@@ -275,8 +318,8 @@ class HitAttributes:
 
 class DirectionAttributes:
     """The coordinates of a world shader: Generated, Object and the Geometry's Position are the
-    direction (Cycles), its normals the opposite, the uvs and colours zero.  directions : (k, 3)
-    unit float64."""
+    direction (Cycles), its normals and Incoming the opposite, the uvs, colours and Backfacing zero.
+    directions : (k, 3) unit float64."""
 
     def __init__(self, directions):
         self.directions = np.asarray(directions, np.float64)
@@ -288,8 +331,8 @@ class DirectionAttributes:
     def get(self, name):
         if name in ("generated", "object", "normal", "position"):
             return self.directions
-        if name in ("world_normal", "true_normal"):
-            return -self.directions                 # (Cycles' background: N = Ng = -D)
+        if name in ("world_normal", "true_normal", "incoming"):
+            return -self.directions                 # (Cycles' background: N = Ng = I = -D)
         return np.zeros_like(self.directions)
 
 
@@ -297,7 +340,7 @@ class SampledAttributes:
     """Stand-in coordinates for an average of a program over a surface: generated (and vertex
     colours) uniform in the unit cube, object in [-1, 1]^3, uv in the unit square; for Object
     Info, locations in [-1, 1]^3, colours in the unit cube, alpha 1, index 0 and Random uniform
-    in [0, 1] (seeded, reproducible)."""
+    in [0, 1]; Incoming cosine-distributed about the normal, never the back (seeded, reproducible)."""
 
     def __init__(self, n=4096, seed=0):
         rng = np.random.default_rng(seed)
@@ -310,7 +353,12 @@ class SampledAttributes:
                         "object_info": np.concatenate([np.ones((n, 1)), np.zeros((n, 1)), g[:, :1]], axis=1),
                         "position": 2.0 * g - 1.0, "camera": 2.0 * g - 1.0,
                         "window": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1)}
-        self._values["world_normal"] = self._values["true_normal"] = self._values["normal"]
+        self._values["world_normal"] = self._values["true_normal"] = normals = self._values["normal"]
+        # Cosine-distributed, stratified in the squared sine: accurate means of the view's factors.
+        s2, phi = (rng.permutation(n) + rng.random(n)) / n, 2.0 * np.pi * rng.random(n)
+        local = np.stack([np.sqrt(s2) * np.cos(phi), np.sqrt(s2) * np.sin(phi), np.sqrt(1.0 - s2)], axis=1)
+        self._values["incoming"] = to_world(local, normals)
+        self._values["backfacing"] = np.zeros((n, 3))
 
     @property
     def count(self) -> int:
@@ -362,6 +410,8 @@ def attributes_used(program) -> set:
             used.add(node["name"])
         elif node["op"] == "image" and node.get("projection", "FLAT") == "BOX":
             used.add("normal")
+        elif node["op"] in ("fresnel", "layer_weight"):
+            used |= {"incoming", "backfacing"} | (set() if "normal" in node else {"world_normal"})
         elif node["op"] == "vector_transform":
             spaces = {node.get("convert_from", "WORLD"), node.get("convert_to", "OBJECT")}
             used |= {"object"} & {s.lower() for s in spaces} | ({"camera"} if "CAMERA" in spaces else set())
@@ -1152,6 +1202,47 @@ def _metal(ev, node):
     return {"Color": metal_fresnel(ev.vec(node, "color"), ev.vec(node, "tint", (1.0, 1.0, 1.0)))}
 
 
+def fresnel_dielectric_cos(cos, eta):
+    """Cycles' ``fresnel_dielectric_cos``: the unpolarised reflectance at the cosine ``cos`` (its
+    absolute value) for the relative IOR ``eta``; 1 under total internal reflection."""
+    c = np.abs(cos)
+    g = eta * eta - 1.0 + c * c
+    refracts = g > 0.0
+    g = np.sqrt(np.where(refracts, g, 1.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (g - c) / (g + c)
+        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+        return np.where(refracts, 0.5 * a * a * (1.0 + b * b), 1.0)
+
+
+def _view_cosine(ev, node):
+    """(k,) the cosine of Incoming with the node's normal (the shading normal on the ray's side
+    without one) and (k,) whether the ray meets the back (``RAY``)."""
+    n = ev.vec(node, "normal") if "normal" in node else ev.attrs.get("world_normal")
+    back = ev.attrs.get("backfacing")[:, 0] > 0.5
+    return dot(ev.attrs.get("incoming"), n), back
+
+
+def _fresnel(ev, node):
+    """Cycles' Fresnel node: the IOR's reflectance at the view cosine (its inverse on a back face)."""
+    cos, back = _view_cosine(ev, node)
+    eta = np.maximum(ev.float(node, "ior", 1.5), 1e-5)
+    return {"Fac": fresnel_dielectric_cos(cos, np.where(back, 1.0 / eta, eta))}
+
+
+def _layer_weight(ev, node):
+    """Cycles' ``svm_node_layer_weight``: Fresnel of the IOR 1 / (1 - Blend) (its inverse on a back
+    face) and Facing 1 - |cos|^e, e = 2 Blend below 0.5, else 0.5 / (1 - Blend)."""
+    cos, back = _view_cosine(ev, node)
+    blend = ev.float(node, "blend", 0.5)
+    eta = np.maximum(1.0 - blend, 1e-5)
+    facing = np.abs(cos)
+    edge = np.clip(blend, 0.0, 1.0 - 1e-5)
+    power = np.where(blend == 0.5, 1.0, np.where(edge < 0.5, 2.0 * edge, 0.5 / (1.0 - edge)))
+    return {"Fresnel": fresnel_dielectric_cos(cos, np.where(back, eta, 1.0 / eta)),
+            "Facing": 1.0 - facing ** power}
+
+
 def _invert(ev, node):
     t = ev.float(node, "fac", 1.0)[:, None]
     c = ev.vec(node, "color")
@@ -1306,7 +1397,8 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
        "color_space": _color_space, "vector_transform": _vector_transform, "wavelength": _wavelength,
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
-       "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve}
+       "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve,
+       "fresnel": _fresnel, "layer_weight": _layer_weight}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -1320,7 +1412,8 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "separate": ("X", "Y", "Z", "Red", "Green", "Blue"), "combine": ("Vector",),
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
-           "curves": ("Color",), "float_curve": ("Value",)}
+           "curves": ("Color",), "float_curve": ("Value",), "fresnel": ("Fac",),
+           "layer_weight": ("Fresnel", "Facing")}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "color_space": ("conversion",),
             "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}

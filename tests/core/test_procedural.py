@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from core import procedural
+from core.sampling import fresnel_dielectric
 from core.scene import Materials, Scene, SceneError
 from core.testing.scenes import sun_over_procedural_floor
 
@@ -204,6 +205,79 @@ def test_geometry_attributes_are_the_hits_world_position_and_normals():
     world = procedural.DirectionAttributes(d)
     np.testing.assert_array_equal(world.get("position"), d)
     np.testing.assert_array_equal(world.get("world_normal"), -d)
+
+
+def test_the_ray_turns_the_normals_and_sets_incoming_and_backfacing():
+    """With the rays that meet the hits: Incoming is the direction back along each, Backfacing 1
+    where it meets the back, and there Normal, True Normal and the object-space Normal turn
+    towards it (Cycles); without rays each hit is seen head-on from its front.  In a world shader
+    Incoming is the opposite of the direction and Backfacing 0."""
+    scene = sun_over_procedural_floor({"op": "attribute", "name": "position"})
+    bary = tuple(np.full((2, 1), w) for w in (0.2, 0.3, 0.5))
+    positions = np.array([[0.1, 0.2, 0.0], [-0.3, 0.1, 0.0]])
+    tilted = np.zeros((2, 3, 3), np.float32)
+    tilted[:, :, 2] = 1.0
+    tilted[:, 0] = [0.6, 0.0, 0.8]
+    smooth = scene.replace(shading_normals=tilted).validate()
+    incoming = np.array([[0.0, 0.6, 0.8], [0.0, 0.6, -0.8]])        # from above, from below
+    seen = procedural.HitAttributes(smooth, np.array([1, 0]), bary, positions, incoming)
+    front = procedural.HitAttributes(smooth, np.array([1, 0]), bary, positions)
+    np.testing.assert_array_equal(seen.get("incoming"), incoming)
+    np.testing.assert_array_equal(seen.get("backfacing"), [[0, 0, 0], [1, 1, 1]])
+    side = np.array([[1.0], [-1.0]])
+    for name in ("world_normal", "true_normal", "normal"):
+        np.testing.assert_allclose(seen.get(name), side * front.get(name), atol=1e-12)
+    assert front.get("world_normal")[0, 0] > 0.1
+    np.testing.assert_allclose(front.get("incoming"), front.get("world_normal"))
+    np.testing.assert_array_equal(front.get("backfacing"), np.zeros((2, 3)))
+    d = np.array([[0.0, 0.6, 0.8]])
+    world = procedural.DirectionAttributes(d)
+    np.testing.assert_array_equal(world.get("incoming"), -d)
+    np.testing.assert_array_equal(world.get("backfacing"), np.zeros((1, 3)))
+
+
+class Seen:
+    """Attributes of hits on the plane z = 0 seen along ``incoming`` (its normal +z on the ray's
+    side, Backfacing where the ray comes from below)."""
+
+    def __init__(self, incoming):
+        self.incoming = np.asarray(incoming, np.float64)
+
+    @property
+    def count(self):
+        return len(self.incoming)
+
+    def get(self, name):
+        back = self.incoming[:, 2:3] < 0
+        return {"incoming": self.incoming, "backfacing": np.repeat(back * 1.0, 3, axis=1),
+                "world_normal": np.where(back, [[0.0, 0.0, -1.0]], [[0.0, 0.0, 1.0]])}[name]
+
+
+def test_fresnel_and_layer_weight_follow_the_view_as_cycles():
+    """Fresnel: the dielectric reflectance of the IOR at the view cosine (of 1 / IOR on a back
+    face: total internal reflection past the critical angle); Layer Weight's Fresnel that of
+    1 / (1 - Blend), its Facing 1 - cos^(2 Blend) (Blend < 0.5) or cos^(0.5 / (1 - Blend))."""
+    mu = np.array([1.0, 0.8, 0.5, 0.2, 0.05])
+    sin = np.sqrt(1.0 - mu * mu)
+    above = Seen(np.stack([sin, np.zeros(5), mu], axis=1))
+    below = Seen(np.stack([sin, np.zeros(5), -mu], axis=1))
+    eta = 1.45
+    fac = procedural.evaluate({"op": "fresnel", "ior": eta}, above, [])
+    assert fac[0] == pytest.approx(((eta - 1) / (eta + 1)) ** 2, rel=1e-12)
+    np.testing.assert_allclose(fac, fresnel_dielectric(mu, np.full(5, eta))[0], rtol=1e-12)
+    inside = procedural.evaluate({"op": "fresnel", "ior": eta}, below, [])
+    np.testing.assert_allclose(inside, fresnel_dielectric(mu, np.full(5, 1 / eta))[0], rtol=1e-12)
+    assert inside[0] == pytest.approx(fac[0]) and inside[-1] == 1.0      # (sin > 1 / 1.45: total)
+    for blend, power in ((0.3, 0.6), (0.5, 1.0), (0.8, 2.5)):
+        lw = {"op": "layer_weight", "blend": blend}
+        np.testing.assert_allclose(procedural.evaluate(lw, above, [], "Facing"), 1 - mu ** power, rtol=1e-12)
+        np.testing.assert_allclose(procedural.evaluate(lw, above, [], "Fresnel"),
+                                   fresnel_dielectric(mu, np.full(5, 1 / (1 - blend)))[0], rtol=1e-12)
+    normal = {"op": "fresnel", "ior": eta, "normal": [1.0, 0.0, 0.0]}     # a given normal
+    np.testing.assert_allclose(procedural.evaluate(normal, above, []),
+                               fresnel_dielectric(sin, np.full(5, eta))[0], rtol=1e-12)
+    assert procedural.attributes_used(normal) == {"incoming", "backfacing"}
+    assert procedural.varies({"op": "layer_weight", "blend": 0.5})
 
 
 def test_a_named_attribute_is_interpolated_and_reads_zero_where_the_scene_lacks_it(tmp_path):

@@ -72,6 +72,21 @@ def test_a_fine_texture_the_power_estimate_misses_keeps_the_exact_power():
     np.testing.assert_allclose(flux.mean(axis=0), exact, rtol=0.02)
 
 
+def test_photons_leave_an_emitter_of_the_view_with_the_power_of_their_direction():
+    """Emission times Layer Weight's Facing (Blend 0.5: 1 - |cos|): a photon leaving along d
+    carries 2 pi A L(d) over its triangle's probability (the program seen from d, as Cycles'
+    light samples are), so the photons add up to 2 sides x 3 x 2 pi int (1 - mu) mu dmu = 2 pi
+    (seen head-on, as before, the floor gave no photons at all)."""
+    facing = grey({"op": "layer_weight", "blend": 0.5, "output": "Facing"})
+    (origins, dirs, flux, normals), prob = photons(emitting_floor(facing))
+    np.testing.assert_allclose(flux.mean(axis=0), 2 * np.pi, rtol=0.01)
+    mu = np.abs(dirs[:, 2])
+    triangle = (origins[:, 1] > origins[:, 0]).astype(int)
+    np.testing.assert_allclose(flux[:, 0] * prob[triangle], 2 * np.pi * 0.5 * 3.0 * (1 - mu),
+                               rtol=1e-5, atol=1e-9)
+    assert (prob > 0.3).all() and (dirs[:, 2] < 0).mean() == pytest.approx(0.5, abs=0.01)
+
+
 def test_the_camera_sees_the_emission_program():
     n = 16
     result = render(emitting_floor(RAMP), RenderSettings(workers=1, passes=4, photons_per_pass=2000))
