@@ -1,25 +1,25 @@
 """Blender texture and colour nodes -> the core's procedural programs (``core/procedural.py``).
 
-:class:`ExpressionBuilder` follows the links into a socket and returns either a constant (a
-float, or three floats for colour and vector sockets) or a program node dict, inserting the
-type conversions Cycles makes where a link joins sockets of different types (colour to float
-by luminance, vector to float by the average, float to colour as grey). Supported nodes: Texture
+:class:`ExpressionBuilder` follows the links into a socket and returns either a constant (a float,
+or three floats for colour and vector sockets) or a program node dict, inserting the type
+conversions Cycles makes where a link joins sockets of different types (colour to float by
+luminance, vector to float by the average, float to colour as grey). Supported nodes: Texture
 Coordinate (Generated, Object, UV, Normal, Camera, Window), UV Map (the active render one or a
 named one), Color Attribute (the render one or a named one), Attribute (a mesh attribute by name;
 an object's or instancer's property), Object Info (per object: Location, Color, Alpha, Object Index
 and Random as Cycles sets them; Material Index the material's pass index), Geometry (Position,
-Normal and True Normal, in world space, on the front of the triangle; Random Per Island;
-Pointiness), Mapping (all four types), Image Texture (flat and box projections, every extension,
-linear, closest, cubic or smart), Environment Texture (equirectangular), Checker, Gradient, Noise,
-Voronoi, Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as
-Cycles bakes it), Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every
-operation), Vector Math, Vector Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map
-Range (float and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles
-bakes them), Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength,
-Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and Value; Fresnel and Layer Weight as their
-means over view directions (noted: programs do not know the view direction). Anything else is named
-in the material's warning and replaced by the input socket's own value. Settings that Cycles lets
-vary over the surface but the core takes as constants (a texture's Scale, Detail, ...; Mapping's
+Normal and True Normal in world space, Incoming, Backfacing; Random Per Island; Pointiness),
+Mapping (all four types), Image Texture (flat and box projections, every extension, linear,
+closest, cubic or smart), Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi,
+Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes
+it), Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation),
+Vector Math, Vector Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float
+and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
+Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ
+and Color (RGB, HSV, HSL), RGB and Value, Fresnel and Layer Weight (at the direction of the ray
+that meets the hit: the eye's, or where a photon came from). Anything else is named in the
+material's warning and replaced by the input socket's own value. Settings that Cycles lets vary
+over the surface but the core takes as constants (a texture's Scale, Detail, ...; Mapping's
 Location, Rotation, Scale) use the mean of what drives them, with a note.
 """
 from __future__ import annotations
@@ -27,7 +27,6 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
-from ...core.sampling import fresnel_dielectric
 from .mesh import POINTINESS, RANDOM_PER_ISLAND
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
@@ -139,12 +138,16 @@ def _tex_coord(b, node, stack):
 
 
 def _geometry(b, node, stack):
-    """Geometry: Position, Normal and True Normal in world space (on the triangle's front: Cycles
-    turns them towards the ray on a back face), Random Per Island and Pointiness
-    (``mesh.random_per_island``, ``mesh.pointiness``); the other outputs are noted where used."""
+    """Geometry: Position, Normal and True Normal in world space (turned towards the ray on a back
+    face, as Cycles), Incoming and Backfacing (``procedural.RAY``), Random Per Island and
+    Pointiness (``mesh.random_per_island``, ``mesh.pointiness``); the other outputs are noted where
+    used."""
     return {"Position": {"op": "attribute", "name": "position"},
             "Normal": {"op": "attribute", "name": "world_normal"},
             "True Normal": {"op": "attribute", "name": "true_normal"},
+            "Incoming": {"op": "attribute", "name": "incoming"},
+            "Backfacing": {"op": "separate", "vector": {"op": "attribute", "name": "backfacing"},
+                           "output": "X"},
             "Random Per Island": {"op": "separate", "vector": _named(RANDOM_PER_ISLAND), "output": "X"},
             "Pointiness": {"op": "separate", "vector": _named(POINTINESS), "output": "X"}}
 
@@ -621,26 +624,25 @@ def _combine_color(b, node, stack):
     return {"Color": color}
 
 
-def _view_mean(b, node, what, values):
-    """The cosine-weighted mean over view directions 2 int f(mu) mu dmu of a factor ``values``
-    (a function of the view cosines mu) that Cycles takes from the view direction at each
-    point, which the core's programs do not know: a constant, noted."""
-    mu = (np.arange(512) + 0.5) / 512
-    mean = float(np.mean(2.0 * mu * values(mu)))
-    b.walker.note(f"'{node.name}': {what} depends on the view direction, which is not supported "
-                  f"here; using its mean over view directions {mean:.3f}")
-    return mean
-
-
-def _dielectric(mu, eta):
-    return fresnel_dielectric(mu, np.full_like(mu, eta))[0]
+def _view_normal(b, node, stack):
+    """The Normal input of a Fresnel or Layer Weight node as the program's ``normal`` ({} when
+    unlinked: the shading normal); a Bump or Normal Map node's normal is no program: the shading
+    normal, noted."""
+    sock = node.inputs["Normal"]
+    src, _, _ = b.walker.source(sock, stack)
+    if src is None:
+        return {}
+    if src.node.bl_idname in ("ShaderNodeBump", "ShaderNodeNormalMap") and not src.node.mute:
+        b.walker.note(f"'{node.name}': the normal of '{src.node.name}' is not supported here; using the "
+                      "surface's own normal")
+        return {}
+    return {"normal": b.expression(sock, stack, VEC)}
 
 
 def _fresnel(b, node, stack):
-    """Fresnel: Cycles' dielectric Fresnel of the IOR at the view cosine with the normal, taken
-    as its mean (``_view_mean``; the Normal input is not read)."""
-    eta = max(float(b.constant_of(node.inputs["IOR"], stack)), 1e-5)
-    return {"Fac": _view_mean(b, node, "its factor", lambda mu: _dielectric(mu, eta))}
+    """Fresnel: Cycles' dielectric Fresnel of the IOR at the view cosine (``procedural.RAY``)."""
+    return {"Fac": {"op": "fresnel", "ior": b.input(node, "IOR", stack, FLOAT),
+                    **_view_normal(b, node, stack)}}
 
 
 def layer_weight_ior(blend):
@@ -649,15 +651,10 @@ def layer_weight_ior(blend):
 
 
 def _layer_weight(b, node, stack):
-    """Layer Weight: Fresnel (of IOR 1 / (1 - Blend)) and Facing (1 - mu^e, e = 2 Blend below
-    0.5, else 0.5 / (1 - Blend)), as in Cycles' ``svm_node_layer_weight``, each taken as its
-    mean over view directions (``_view_mean``)."""
-    blend = float(b.constant_of(node.inputs["Blend"], stack))
-    eta = layer_weight_ior(blend)
-    edge = float(np.clip(blend, 0.0, 1.0 - 1e-5))
-    power = 1.0 if blend == 0.5 else (2.0 * edge if edge < 0.5 else 0.5 / (1.0 - edge))
-    return {"Fresnel": _view_mean(b, node, "its Fresnel output", lambda mu: _dielectric(mu, eta)),
-            "Facing": _view_mean(b, node, "its Facing output", lambda mu: 1.0 - mu ** power)}
+    """Layer Weight: Fresnel (of IOR 1 / (1 - Blend)) and Facing, as Cycles'
+    ``svm_node_layer_weight`` at the view direction (``procedural.RAY``)."""
+    op = {"op": "layer_weight", "blend": b.input(node, "Blend", stack, FLOAT), **_view_normal(b, node, stack)}
+    return _out(op, Fresnel="Fresnel", Facing="Facing")
 
 
 NODES = {

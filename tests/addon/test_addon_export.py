@@ -1527,10 +1527,13 @@ def fresnel_mix(name, factor_node, output, **inputs):
     return mat
 
 
-def test_a_mix_by_a_fresnel_curve_is_a_layer_and_other_view_factors_their_mean(scene):
+def test_a_mix_by_a_fresnel_curve_is_a_layer_and_other_view_factors_pick_levels(scene):
     """Mix(Diffuse, Glossy) by a Fresnel node: the glossy rises along the Fresnel curve of its IOR
-    from C F0, over a diffuse whose layer reflects F0 (both at weight 1); by Layer Weight's Facing:
-    the factor's mean over view directions, 1 - 2 / (e + 2) (e = 2 Blend), noted."""
+    from C F0, over a diffuse whose layer reflects F0 (both at weight 1); by Layer Weight's Facing
+    f = 1 - |I . N|^e (e = 2 Blend) at the ray's Incoming I: the glossy's colour f C_g and the
+    diffuse's (1 - f) C_d at each hit, as programs over the lobes' weights, the factor's mean over
+    view directions (f: 1 - 2 / (e + 2)); no note."""
+    from amcmcppm.core import procedural
     row, ex = export_material(fresnel_mix("Fresnel", "ShaderNodeFresnel", "Fac", IOR=1.45))
     f0 = (0.45 / 2.45) ** 2
     assert row["glossy_fresnel_ior"] == pytest.approx(1.45) and not ex.warnings
@@ -1541,7 +1544,16 @@ def test_a_mix_by_a_fresnel_curve_is_a_layer_and_other_view_factors_their_mean(s
     assert row["glossy_multiscatter"] == pytest.approx(np.ones(3), rel=1e-5)        # the Glossy's own
     row, ex = export_material(fresnel_mix("Facing", "ShaderNodeLayerWeight", "Facing", Blend=0.3))
     assert row["glossy_weight"] == pytest.approx(1 - 2 / 2.6, rel=1e-3) and row["glossy_fresnel_ior"] == 0
-    assert any("depends on the view direction" in w for w in ex.warnings), ex.warnings
+    assert not ex.warnings, ex.warnings
+    pts = procedural.SampledAttributes(256)
+    mu = np.abs(np.einsum("ki,ki->k", pts.get("incoming"), pts.get("world_normal")))
+    assert mu.min() < 0.1 and mu.max() > 0.9
+    facing = (1.0 - mu ** 0.6)[:, None]
+    programs = ex.scene.materials.programs
+    glossy = row["glossy_weight"] * procedural.evaluate(programs[row["glossy_program"]], pts, [])
+    diffuse = row["diffuse_weight"] * procedural.evaluate(programs[row["diffuse_program"]], pts, [])
+    np.testing.assert_allclose(glossy, facing * np.ones(3), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(diffuse, (1.0 - facing) * [0.8, 0.1, 0.1], rtol=1e-5, atol=1e-6)
 
 
 @pytest.mark.parametrize("ray, bit", [("Is Camera Ray", 1), ("Is Glossy Ray", 2), ("Is Transmission Ray", 4)])

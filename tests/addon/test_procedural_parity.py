@@ -930,10 +930,6 @@ def test_camera_and_window_coordinates_match_cycles(addon, tmp_path, output, cam
     an unsupported output, replaced by the socket's value)."""
     import bpy
 
-    from amcmcppm.core.bsdf import DIFFUSE
-    from amcmcppm.core.camera import generate_camera_rays
-    from amcmcppm.core.context import RenderContext
-
     def build(nt):
         out = nt.nodes.new("ShaderNodeTexCoord").outputs[output]
         if output == "Window":
@@ -947,23 +943,110 @@ def test_camera_and_window_coordinates_match_cycles(addon, tmp_path, output, cam
     cam = bs.camera(location=(1.0, -5.0, 4.0), target=(0.3, 0.2, 0.0), lens=35.0,
                     ortho_scale=4.5 if camera_kind == "orthographic" else None)
     cam.data.sensor_fit, cam.data.shift_x = "VERTICAL", 0.1
-    ours_scene = bs.export().scene
-    ctx = RenderContext(ours_scene)
-    w, h = ours_scene.camera.resolution
-    ids = np.arange(w * h)
-    origins, dirs, _, _ = generate_camera_rays(ours_scene.camera, ids,
-                                               np.tile([0.5, 0.5, 0.0, 0.0], (len(ids), 1)))
-    hits = ctx.accel.intersect(origins, dirs)
-    hit = np.flatnonzero(hits.prim_ids >= 0)
-    ours = np.full((w * h, 3), np.nan)
-    ours[hit] = ctx.surface(hits.prim_ids[hit], hits.b1[hit], hits.b2[hit]).colors[:, DIFFUSE]
-    ours = ours.reshape(h, w, 3)
+    ours = our_values_through_the_camera()
     cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
     on = np.isfinite(ours).all(axis=2)
     assert 0.3 < on.mean() and np.ptp(cycles[on], axis=0).max() > 0.1
     err = np.abs(ours[on] - np.maximum(cycles[on], 0.0)).max(axis=1)
     print(f"texture coordinate {output}, {camera_kind}: max {err.max():.2e}, "
           f"99th percentile {np.percentile(err, 99):.2e}")
+    assert np.percentile(err, 99) < 1e-4
+
+
+def our_values_through_the_camera():
+    """Our diffuse colour of the current scene's surfaces where each pixel centre's camera ray
+    meets them, seen along that ray (what Cycles' one-sample render of the colour shows):
+    (H, W, 3), NaN where the ray misses."""
+    from amcmcppm.core.bsdf import DIFFUSE
+    from amcmcppm.core.camera import generate_camera_rays
+    from amcmcppm.core.context import RenderContext
+    scene = bs.export().scene
+    ctx = RenderContext(scene)
+    w, h = scene.camera.resolution
+    ids = np.arange(w * h)
+    centres = np.tile([0.5, 0.5, 0.0, 0.0], (len(ids), 1))
+    origins, dirs, _, _ = generate_camera_rays(scene.camera, ids, centres)
+    hits = ctx.accel.intersect(origins, dirs)
+    hit = np.flatnonzero(hits.prim_ids >= 0)
+    ours = np.full((w * h, 3), np.nan)
+    ours[hit] = ctx.surface(hits.prim_ids[hit], hits.b1[hit], hits.b2[hit],
+                            incoming=-dirs[hit]).colors[:, DIFFUSE]
+    return ours.reshape(h, w, 3)
+
+
+def half_unit(nt, vector):
+    """A vector output as a colour: v / 2 + 1/2."""
+    m = node(nt, "ShaderNodeVectorMath", operation="MULTIPLY_ADD")
+    nt.links.new(vector, m.inputs[0])
+    m.inputs[1].default_value, m.inputs[2].default_value = (0.5, 0.5, 0.5), (0.5, 0.5, 0.5)
+    return m.outputs["Vector"]
+
+
+def fresnel(ior_map=False, normal=None):
+    def build(nt):
+        f = node(nt, "ShaderNodeFresnel", IOR=1.45)
+        if ior_map:
+            ior = node(nt, "ShaderNodeMapRange")
+            ior.inputs["To Min"].default_value, ior.inputs["To Max"].default_value = 1.1, 2.5
+            nt.links.new(node(nt, "ShaderNodeTexNoise", Scale=3.0).outputs["Fac"], ior.inputs["Value"])
+            nt.links.new(ior.outputs["Result"], f.inputs["IOR"])
+        if normal is not None:
+            nt.links.new(nt.nodes.new("ShaderNodeNewGeometry").outputs[normal], f.inputs["Normal"])
+        return f.outputs["Fac"]
+    return build
+
+
+def layer_weight(blend):
+    """Layer Weight's Fresnel, Facing and Geometry's Backfacing as red, green and blue."""
+    def build(nt):
+        lw = node(nt, "ShaderNodeLayerWeight", Blend=blend)
+        comb = nt.nodes.new("ShaderNodeCombineColor")
+        nt.links.new(lw.outputs["Fresnel"], comb.inputs["Red"])
+        nt.links.new(lw.outputs["Facing"], comb.inputs["Green"])
+        nt.links.new(nt.nodes.new("ShaderNodeNewGeometry").outputs["Backfacing"], comb.inputs["Blue"])
+        return comb.outputs["Color"]
+    return build
+
+
+def view_vector(kind, output):
+    return lambda nt: half_unit(nt, nt.nodes.new(kind).outputs[output])
+
+
+VIEW_CASES = {
+    "fresnel": fresnel(), "fresnel_ior_map": fresnel(ior_map=True),
+    "fresnel_true_normal": fresnel(normal="True Normal"),
+    "layer_weight": layer_weight(0.3), "layer_weight_steep": layer_weight(0.8),
+    "incoming": view_vector("ShaderNodeNewGeometry", "Incoming"),
+    "normal": view_vector("ShaderNodeNewGeometry", "Normal"),
+    "true_normal": view_vector("ShaderNodeNewGeometry", "True Normal"),
+    "object_normal": view_vector("ShaderNodeTexCoord", "Normal"),
+}
+
+
+@pytest.mark.parametrize("case", list(VIEW_CASES))
+def test_nodes_of_the_view_match_cycles(addon, tmp_path, case):
+    """Fresnel, Layer Weight, Geometry's Incoming, Backfacing, Normal and True Normal and Texture
+    Coordinate's Normal on a floor and a smooth open bowl (its inside: back faces) seen at a slant
+    by a perspective camera, ours along each pixel centre's camera ray against Cycles' (stop 40;
+    before, Fresnel and Layer Weight took their means over view directions, Incoming and
+    Backfacing were unsupported, and the normals stayed on the front of a back face)."""
+    import bmesh
+    import bpy
+
+    mat, _ = bs.texture_plane(VIEW_CASES[case], resolution=(48, 36), size=6.0)
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=1.0)
+    bmesh.ops.delete(bm, geom=[v for v in bm.verts if v.co.z > 0.3], context="VERTS")
+    bowl = bs.mesh_object("Bowl", bm, mat, location=(0.3, 0.2, 1.0), rotation=(0.3, 0.0, 0.0))
+    bowl.data.shade_smooth()
+    bpy.data.objects.remove(bpy.data.objects["Camera"])
+    bs.camera(location=(1.0, -5.0, 4.0), target=(0.2, 0.3, 0.5), lens=35.0)
+    ours = our_values_through_the_camera()
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    on = np.isfinite(ours).all(axis=2)
+    assert 0.5 < on.mean() and np.ptp(cycles[on], axis=0).max() > 0.3
+    err = np.abs(ours[on] - np.maximum(cycles[on], 0.0)).max(axis=1)
+    print(f"view {case}: max {err.max():.2e}, 99th percentile {np.percentile(err, 99):.2e}")
     assert np.percentile(err, 99) < 1e-4
 
 
