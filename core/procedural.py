@@ -94,8 +94,8 @@ ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location",
 GEOMETRY = ("position", "world_normal", "true_normal")
 # The ray that meets the hit (``HitAttributes.incoming``): "incoming" the unit direction back along
 # it (Cycles' I: towards the eye, or towards the light a photon left), "backfacing" (b, b, b) with
-# b = 1 where it meets the triangle's back.  Where no ray is known (a point of an emitter when its
-# light is measured as a whole), the front's normal: seen head-on from the front.
+# b = 1 where it meets the triangle's back.  Where the caller gives no rays, each hit is seen
+# head-on from its front (Incoming the front's normal).
 RAY = ("incoming", "backfacing")
 # Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
 # depth in front) and Window (where the hit lands in the frame, (0, 0) at its bottom left, z = 0;
