@@ -889,8 +889,9 @@ class Textures:
 class MaterialExporter:
     """Assigns core material ids to Blender materials and builds ``core.Materials``."""
 
-    def __init__(self, log):
+    def __init__(self, log, layer_owners=()):
         self.log = log
+        self.layer_owners = layer_owners    # (``procedural.view_layer_owners``)
         self.textures = Textures(log)
         self._specs = []            # Materials.build entries
         self._ids = {}              # material pointer (or None for the default) -> id
@@ -911,7 +912,7 @@ class MaterialExporter:
             return self.default_id()
         key = material.as_pointer()
         if key not in self._ids:
-            walker = NodeWalker(material.name, self.textures, material.pass_index)
+            walker = NodeWalker(material.name, self.textures, material.pass_index, self.layer_owners)
             closure = walker.material_closure(material)
             cycles = getattr(material, "cycles", None)
             bent = closure.normal_map is not None or closure.bump is not None
@@ -991,10 +992,11 @@ class MaterialExporter:
 class NodeWalker:
     """Evaluates one material's node tree into a :class:`Closure`; collects notes for a warning."""
 
-    def __init__(self, material_name, textures, pass_index=0):
+    def __init__(self, material_name, textures, pass_index=0, layer_owners=()):
         self.name = material_name
         self.textures = textures
         self.pass_index = pass_index    # the material's pass index (Object Info's Material Index)
+        self.layer_owners = layer_owners  # view layer, scene, world (``procedural.view_layer_owners``)
         self.notes = []
         self.programs = ExpressionBuilder(self)
         self.world_texture = None       # texture index of the world's environment image, if any
@@ -1085,7 +1087,7 @@ class NodeWalker:
         camera_mix = node.bl_idname == "ShaderNodeMixShader" and not node.mute
         if camera_mix and self._is_camera_ray(node.inputs[0], stack):
             # Light Path's Is Camera Ray: the second shader for camera rays, the first for the rest.
-            self.camera_walker = NodeWalker(self.name, self.textures)
+            self.camera_walker = NodeWalker(self.name, self.textures, layer_owners=self.layer_owners)
             self.camera_color = self.camera_walker._background(
                 *self.source(_by_identifier(node.inputs, "Shader_001"), stack)[::2], world)
             self.notes += [n for n in self.camera_walker.notes if n not in self.notes]

@@ -211,7 +211,7 @@ def object_property(inst, name):
     """(3,) float32 what Cycles' Attribute node of the Object (``object:`` + an RNA path) or
     Instancer type (``instancer:``) reads for a depsgraph instance (``lookup_instance_property``):
     the property at that path of the instancer (Instancer only), else of the object, else of its
-    data; a number repeated, a float array's first three; 0 without one."""
+    data (``rna_property``); 0 without one."""
     kind, path = name.split(":", 1)
     # (Blender's iterator gives an instance's object its instancer's colour, which Cycles reads:
     # the colour, as Object Info's, comes from the instancer)
@@ -219,19 +219,27 @@ def object_property(inst, name):
     owners = [colored, getattr(inst.object, "data", None)]
     if kind == "instancer" and inst.is_instance and inst.parent is not None:
         owners.insert(0, inst.parent)
+    return rna_property(owners, path)
+
+
+def rna_property(owners, path):
+    """(3,) float32 the first of ``owners`` (RNA structs or None) that has a custom property named
+    ``path`` or, failing that, a property at the RNA path ``path`` (Cycles' ``lookup_property``,
+    custom properties first): a number repeated, a float array's first three; 0 without one."""
     for owner in owners:
-        try:
-            value = owner.path_resolve(path) if owner is not None else None
-        except (ValueError, TypeError, AttributeError):
-            continue
-        if isinstance(value, (bool, int, float)):
-            return np.full(3, float(value), np.float32)
-        try:
-            items = list(value)
-        except TypeError:
-            continue
-        if 0 < len(items) <= 4 and all(isinstance(x, float) for x in items):
-            return np.array((items + [0.0, 0.0])[:3], np.float32)
+        for where in (f'["{path}"]', path):
+            try:
+                value = owner.path_resolve(where) if owner is not None else None
+            except (ValueError, TypeError, AttributeError):
+                continue
+            if isinstance(value, (bool, int, float)):
+                return np.full(3, float(value), np.float32)
+            try:
+                items = list(value)
+            except TypeError:
+                continue
+            if 0 < len(items) <= 4 and all(isinstance(x, float) for x in items):
+                return np.array((items + [0.0, 0.0])[:3], np.float32)
     return np.zeros(3, np.float32)
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
-from .mesh import POINTINESS, RANDOM_PER_ISLAND
+from .mesh import POINTINESS, RANDOM_PER_ISLAND, rna_property
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
 FLOAT, VEC = "float", "vec"
@@ -197,11 +197,15 @@ def _attribute(b, node, stack):
     """Attribute of the Geometry type: the mesh attribute of that name (a float, vector, colour or
     2D one; 0 on meshes without it) as Color and Vector, its average as Fac (Cycles); Cycles'
     standard names first (``VOLUME_ATTRIBUTES``: 0; Generated and UV).  Of the Object and Instancer
-    types: the object's property at that RNA path (``mesh.object_property``).  Alpha, the other
-    standard names and the View Layer type are noted."""
+    types: the object's property at that RNA path (``mesh.object_property``); of the View Layer
+    type, one value for the render: the view layer's, the scene's or the world's
+    (``view_layer_owners``).  Alpha and the other standard names are noted."""
     if node.attribute_type in ("OBJECT", "INSTANCER") and node.attribute_name:
         value = {"op": "attribute", "name": f"{node.attribute_type.lower()}:{node.attribute_name}"}
         return {"Color": value, "Vector": value, "Fac": {"op": "average", "vector": value}}
+    if node.attribute_type == "VIEW_LAYER" and node.attribute_name and b.walker.layer_owners:
+        value = rna_property(b.walker.layer_owners, node.attribute_name).astype(np.float64)
+        return {"Color": value.tolist(), "Vector": value.tolist(), "Fac": float(value.mean())}
     name = node.attribute_name
     if node.attribute_type != "GEOMETRY" or not name or name in OTHER_STANDARD_ATTRIBUTES:
         kind = node.attribute_type.lower().replace("_", " ")
@@ -214,6 +218,14 @@ def _attribute(b, node, stack):
     value = ({"op": "attribute", "name": STANDARD_COORDINATES[name]} if name in STANDARD_COORDINATES
              else _named(STANDARD_NAMED.get(name, name)))
     return {"Color": value, "Vector": value, "Fac": {"op": "average", "vector": value}}
+
+
+def view_layer_owners(depsgraph):
+    """Where an Attribute node of the View Layer type looks its name up, in Cycles' order: the
+    view layer, the scene, the world (``mesh.rna_property``)."""
+    scene = depsgraph.scene_eval
+    world = depsgraph.view_layer_eval.world_override or scene.world
+    return tuple(x for x in (depsgraph.view_layer_eval, scene, world) if x is not None)
 
 
 def _blackbody(b, node, stack):

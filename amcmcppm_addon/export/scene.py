@@ -18,6 +18,7 @@ from .lights import build_lights, export_light, ray_visibility
 from .linking import LightLinking
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
+from .procedural import view_layer_owners
 from .world import export_world
 
 
@@ -62,7 +63,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     """
     t0 = time.perf_counter()
     log = ExportLog()
-    materials = MaterialExporter(log)
+    materials = MaterialExporter(log, view_layer_owners(depsgraph))
     view_layer = depsgraph.view_layer_eval
     # Light and shadow linking (receiver and blocker collections), each None when unused.
     linking = (LightLinking.from_depsgraph(depsgraph, log, "receiver"),

@@ -29,6 +29,7 @@ from ...core.environment import equirectangular_directions
 from ...core.scene import SUN, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, World
 from .lights import light_record
 from .materials import NodeWalker
+from .procedural import view_layer_owners
 
 BAKE_WIDTH = 1024          # equirectangular image of a procedural world (height: half)
 BAKE_MAX_WIDTH = 4096
@@ -41,7 +42,7 @@ def export_world(depsgraph, textures, log):
     transparent = bool(scene.render.film_transparent)
     if world is None:
         return World(color=np.zeros(3, np.float32), film_transparent=transparent), []
-    walker = NodeWalker(world.name, textures)
+    walker = NodeWalker(world.name, textures, layer_owners=view_layer_owners(depsgraph))
     color = walker.world_color(world)
     if walker.notes:
         log.warning(f"world '{world.name}': " + "; ".join(walker.notes))

@@ -1149,7 +1149,7 @@ def quarter_objects(mat, second):
 
 @pytest.mark.parametrize("kind, path", [("OBJECT", '["tint"]'), ("OBJECT", '["level"]'), ("OBJECT", "color"),
                                         ("OBJECT", '["wear"]'), ("INSTANCER", '["tint"]'),
-                                        ("OBJECT", "missing")])
+                                        ("OBJECT", "tint"), ("INSTANCER", "wear"), ("OBJECT", "missing")])
 def test_object_and_instancer_attributes_match_cycles(addon, tmp_path, kind, path):
     """The Attribute node of the Object and Instancer types (stop 39; before, unsupported): four
     quarter planes, one a collection instance, with custom properties (a colour array, a number,
@@ -1177,6 +1177,34 @@ def test_object_and_instancer_attributes_match_cycles(addon, tmp_path, kind, pat
     if path != "missing":
         assert np.ptp(cycles, axis=(0, 1)).max() > 0.1
     compare(ours, cycles, f"{kind.lower()} attribute {path}")
+
+
+@pytest.mark.parametrize("name", ["tint", '["tint"]', "glow", "haze", "frame_current", "missing"])
+def test_view_layer_attributes_match_cycles(addon, tmp_path, name):
+    """The Attribute node of the View Layer type (stop 40; before, unsupported and noted): one
+    value for the render, the view layer's custom property or RNA path of that name, else the
+    scene's, else the world's, as Cycles looks it up ('tint' on the view layer and the scene, 'glow'
+    on the scene, 'haze' on the world, the scene's frame_current, and a missing name: 0), on a
+    plane whose colour adds a gradient (so that it varies)."""
+    import bpy
+
+    def build(nt):
+        attr = node(nt, "ShaderNodeAttribute", attribute_type="VIEW_LAYER", attribute_name=name)
+        return with_gradient(nt, attr.outputs["Color"], blend="ADD")
+
+    mat, positions = bs.texture_plane(build, size=2.0)
+    scene = bpy.context.scene
+    bpy.context.view_layer["tint"] = [0.2, 0.7, 0.4]
+    scene["tint"], scene["glow"] = [0.9, 0.1, 0.1], 0.6
+    scene.frame_current = 3
+    scene.world = bpy.data.worlds.new("World")
+    scene.world.color = (0.0, 0.0, 0.0)
+    scene.world["haze"] = 0.35
+    export = bs.export()
+    assert not [w for w in export.warnings if "Attribute" in w], export.warnings
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    compare(ours, cycles, f"view layer attribute {name}")
 
 
 def test_object_info_matches_cycles(addon, tmp_path):
