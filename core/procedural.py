@@ -87,7 +87,7 @@ from .sampling import dot, length, normalize, to_world
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
               "object_info", "position", "world_normal", "true_normal", "camera", "window", "incoming",
-              "backfacing")
+              "backfacing", "parametric", "edge_distance")
 # Blender's Geometry node: "position" the hit's world position, "world_normal" the world-space
 # shading normal (interpolated where the mesh is smooth), "true_normal" the facet's; both normals
 # turned towards the ray on a back face, as Cycles turns them (``RAY``).
@@ -97,6 +97,11 @@ GEOMETRY = ("position", "world_normal", "true_normal")
 # b = 1 where it meets the triangle's back.  Where the caller gives no rays, each hit is seen
 # head-on from its front (Incoming the front's normal).
 RAY = ("incoming", "backfacing")
+# The hit within its triangle: "parametric" (b0, b1, 0), the weights of its first two corners
+# (Geometry's Parametric: Cycles' (1 - u - v, u, 0)), "edge_distance" the distances in world
+# units to the lines through its three edges (of corners 2 and 0, 0 and 1, 1 and 2: Cycles'
+# Wireframe compares them with half its Size).
+TRIANGLE = ("parametric", "edge_distance")
 # Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
 # depth in front) and Window (where the hit lands in the frame, (0, 0) at its bottom left, z = 0;
 # perspective and orthographic cameras, 0 for panoramic ones).
@@ -155,6 +160,8 @@ class HitAttributes:
                 value = self._geometry(name)
             elif name in RAY:
                 value = self._ray(name)
+            elif name in TRIANGLE:
+                value = self._triangle(name)
             elif name in VIEW:
                 value = self._view(name)
             elif name in ("object", "generated"):
@@ -210,6 +217,22 @@ class HitAttributes:
                 return self._front("world_normal")
             return np.asarray(self.incoming, np.float64)
         return np.repeat((self._side() < 0.0).astype(np.float64)[:, None], 3, axis=1)
+
+    def _triangle(self, name):
+        """(k, 3) Parametric or the edge distances of the hits (``TRIANGLE``)."""
+        if name == "parametric":
+            b0, b1 = (np.asarray(w, np.float64).reshape(-1) for w in self.bary[:2])
+            return np.stack([b0, b1, np.zeros_like(b0)], axis=1)
+        s = self.scene
+        c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
+        p = np.asarray(self.positions, np.float64)
+        out = np.zeros((self.count, 3))
+        for i in range(3):
+            edge = c[:, i] - c[:, i - 1]
+            across = np.cross(edge, p - c[:, i])
+            span = np.maximum(dot(edge, edge), 1e-300)
+            out[:, i] = np.sqrt(dot(across, across) / span)
+        return out
 
     def _front(self, name):
         """(k, 3) the shading ("world_normal") or facet ("true_normal") unit normal on the
@@ -352,7 +375,9 @@ class SampledAttributes:
                         "object_location": 2.0 * g - 1.0, "object_color": g,
                         "object_info": np.concatenate([np.ones((n, 1)), np.zeros((n, 1)), g[:, :1]], axis=1),
                         "position": 2.0 * g - 1.0, "camera": 2.0 * g - 1.0,
-                        "window": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1)}
+                        "window": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1),
+                        "parametric": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1),
+                        "edge_distance": g}
         self._values["world_normal"] = self._values["true_normal"] = normals = self._values["normal"]
         # Cosine-distributed, stratified in the squared sine: accurate means of the view's factors.
         s2, phi = (rng.permutation(n) + rng.random(n)) / n, 2.0 * np.pi * rng.random(n)

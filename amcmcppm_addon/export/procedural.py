@@ -8,19 +8,20 @@ Coordinate (Generated, Object, UV, Normal, Camera, Window), UV Map (the active r
 named one), Color Attribute (the render one or a named one), Attribute (a mesh attribute by name;
 an object's or instancer's property), Object Info (per object: Location, Color, Alpha, Object Index
 and Random as Cycles sets them; Material Index the material's pass index), Geometry (Position,
-Normal and True Normal in world space, Incoming, Backfacing; Random Per Island; Pointiness),
-Mapping (all four types), Image Texture (flat and box projections, every extension, linear,
-closest, cubic or smart), Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi,
-Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes
-it), Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation),
-Vector Math, Vector Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float
-and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
-Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ
-and Color (RGB, HSV, HSL), RGB and Value, Fresnel and Layer Weight (at the direction of the ray
-that meets the hit: the eye's, or where a photon came from). Anything else is named in the
-material's warning and replaced by the input socket's own value. Settings that Cycles lets vary
-over the surface but the core takes as constants (a texture's Scale, Detail, ...; Mapping's
-Location, Rotation, Scale) use the mean of what drives them, with a note.
+Normal and True Normal in world space, Incoming, Backfacing, Parametric; Random Per Island;
+Pointiness), Camera Data, Wireframe (in world units), Mapping (all four types), Image Texture (flat
+and box projections, every extension, linear, closest, cubic or smart), Environment Texture
+(equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise Textures,
+Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; 19 blend
+modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector Transform, Normal, Vector
+Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and
+Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma, Hue/Saturation/Value,
+Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and
+Value, Fresnel and Layer Weight (at the direction of the ray that meets the hit: the eye's, or
+where a photon came from). Anything else is named in the material's warning and replaced by the
+input socket's own value. Settings that Cycles lets vary over the surface but the core takes as
+constants (a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of
+what drives them, with a note.
 """
 from __future__ import annotations
 
@@ -139,17 +140,44 @@ def _tex_coord(b, node, stack):
 
 def _geometry(b, node, stack):
     """Geometry: Position, Normal and True Normal in world space (turned towards the ray on a back
-    face, as Cycles), Incoming and Backfacing (``procedural.RAY``), Random Per Island and
-    Pointiness (``mesh.random_per_island``, ``mesh.pointiness``); the other outputs are noted where
-    used."""
+    face, as Cycles), Incoming and Backfacing (``procedural.RAY``), Parametric
+    (``procedural.TRIANGLE``), Random Per Island and Pointiness (``mesh.random_per_island``,
+    ``mesh.pointiness``); Tangent is noted where used."""
     return {"Position": {"op": "attribute", "name": "position"},
             "Normal": {"op": "attribute", "name": "world_normal"},
             "True Normal": {"op": "attribute", "name": "true_normal"},
             "Incoming": {"op": "attribute", "name": "incoming"},
+            "Parametric": {"op": "attribute", "name": "parametric"},
             "Backfacing": {"op": "separate", "vector": {"op": "attribute", "name": "backfacing"},
                            "output": "X"},
             "Random Per Island": {"op": "separate", "vector": _named(RANDOM_PER_ISLAND), "output": "X"},
             "Pointiness": {"op": "separate", "vector": _named(POINTINESS), "output": "X"}}
+
+
+def _camera_data(b, node, stack):
+    """Camera Data: the hit in camera space (Texture Coordinate's Camera) normalised, its depth and
+    its length, as Cycles' ``svm_node_camera``."""
+    cam = {"op": "attribute", "name": "camera"}
+    return {"View Vector": {"op": "vector_math", "operation": "NORMALIZE", "a": cam},
+            "View Z Depth": {"op": "separate", "vector": cam, "output": "Z"},
+            "View Distance": {"op": "vector_math", "operation": "LENGTH", "a": cam, "output": "Value"}}
+
+
+def _wireframe(b, node, stack):
+    """Wireframe in world units: 1 where the hit lies within half the Size of a line through one
+    of its triangle's edges (Cycles' ``wireframe``: a quad's diagonal shows too), else 0; Pixel
+    Size (the width in pixels) is noted."""
+    if node.use_pixel_size:
+        b.walker.note(f"'{node.name}': Pixel Size is not supported")
+        return None
+    edges = {"op": "attribute", "name": "edge_distance"}
+    nearest = {"op": "math", "operation": "MINIMUM", "a": {"op": "separate", "vector": edges, "output": "X"},
+               "b": {"op": "math", "operation": "MINIMUM",
+                     "a": {"op": "separate", "vector": edges, "output": "Y"},
+                     "b": {"op": "separate", "vector": edges, "output": "Z"}}}
+    half = {"op": "math", "operation": "ABSOLUTE",
+            "a": {"op": "math", "operation": "MULTIPLY", "a": b.input(node, "Size", stack, FLOAT), "b": 0.5}}
+    return {"Fac": {"op": "math", "operation": "LESS_THAN", "a": nearest, "b": half}}
 
 
 def _object_info(b, node, stack):
@@ -691,4 +719,5 @@ NODES = {
     "ShaderNodeVectorMath": _vector_math, "ShaderNodeClamp": _clamp, "ShaderNodeRGBCurve": _rgb_curves,
     "ShaderNodeVectorCurve": _vector_curves, "ShaderNodeFloatCurve": _float_curve,
     "ShaderNodeFresnel": _fresnel, "ShaderNodeLayerWeight": _layer_weight,
+    "ShaderNodeCameraData": _camera_data, "ShaderNodeWireframe": _wireframe,
 }

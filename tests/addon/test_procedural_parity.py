@@ -1012,6 +1012,25 @@ def view_vector(kind, output):
     return lambda nt: half_unit(nt, nt.nodes.new(kind).outputs[output])
 
 
+def camera_data(nt):
+    """Camera Data's View Z Depth and View Distance (a tenth of each) and the View Vector's x."""
+    cam = nt.nodes.new("ShaderNodeCameraData")
+    comb = nt.nodes.new("ShaderNodeCombineXYZ")
+    for output, axis in (("View Z Depth", "X"), ("View Distance", "Y")):
+        tenth = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        tenth.inputs[1].default_value = 0.1
+        nt.links.new(cam.outputs[output], tenth.inputs[0])
+        nt.links.new(tenth.outputs[0], comb.inputs[axis])
+    x = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(cam.outputs["View Vector"], x.inputs[0])
+    nt.links.new(x.outputs["X"], comb.inputs["Z"])
+    return half_unit(nt, comb.outputs[0])
+
+
+def wireframe(size):
+    return lambda nt: node(nt, "ShaderNodeWireframe", Size=size).outputs["Fac"]
+
+
 VIEW_CASES = {
     "fresnel": fresnel(), "fresnel_ior_map": fresnel(ior_map=True),
     "fresnel_true_normal": fresnel(normal="True Normal"),
@@ -1020,16 +1039,22 @@ VIEW_CASES = {
     "normal": view_vector("ShaderNodeNewGeometry", "Normal"),
     "true_normal": view_vector("ShaderNodeNewGeometry", "True Normal"),
     "object_normal": view_vector("ShaderNodeTexCoord", "Normal"),
+    "camera_data": camera_data,
+    "view_vector": view_vector("ShaderNodeCameraData", "View Vector"),
+    "parametric": view_vector("ShaderNodeNewGeometry", "Parametric"),
+    "wireframe": wireframe(0.04),
+    "wireframe_wide": wireframe(0.3),
 }
 
 
 @pytest.mark.parametrize("case", list(VIEW_CASES))
 def test_nodes_of_the_view_match_cycles(addon, tmp_path, case):
-    """Fresnel, Layer Weight, Geometry's Incoming, Backfacing, Normal and True Normal and Texture
-    Coordinate's Normal on a floor and a smooth open bowl (its inside: back faces) seen at a slant
-    by a perspective camera, ours along each pixel centre's camera ray against Cycles' (stop 40;
-    before, Fresnel and Layer Weight took their means over view directions, Incoming and
-    Backfacing were unsupported, and the normals stayed on the front of a back face)."""
+    """Fresnel, Layer Weight, Geometry's Incoming, Backfacing, Normal, True Normal and Parametric,
+    Texture Coordinate's Normal, Camera Data and Wireframe on a floor and a smooth open bowl (its
+    inside: back faces) seen at a slant by a perspective camera, ours along each pixel centre's
+    camera ray against Cycles' (stop 40; before, Fresnel and Layer Weight took their means over
+    view directions, Incoming, Backfacing, Parametric, Camera Data and Wireframe were unsupported,
+    and the normals stayed on the front of a back face)."""
     import bmesh
     import bpy
 

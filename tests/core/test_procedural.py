@@ -236,6 +236,23 @@ def test_the_ray_turns_the_normals_and_sets_incoming_and_backfacing():
     np.testing.assert_array_equal(world.get("backfacing"), np.zeros((1, 3)))
 
 
+def test_parametric_and_edge_distances_place_the_hit_in_its_triangle():
+    """Parametric is (b0, b1, 0); the edge distances are those to the lines through corners 2-0,
+    0-1 and 1-2 (Cycles' Wireframe), in world units."""
+    scene = sun_over_procedural_floor({"op": "attribute", "name": "position"})
+    tri = scene.vertices[scene.triangles[0]].astype(np.float64)
+    b = np.array([[0.2, 0.3, 0.5], [0.6, 0.1, 0.3]])
+    positions = b @ tri
+    attrs = procedural.HitAttributes(scene, np.array([0, 0]), tuple(b[:, k:k + 1] for k in range(3)),
+                                     positions)
+    np.testing.assert_allclose(attrs.get("parametric"), [[0.2, 0.3, 0.0], [0.6, 0.1, 0.0]])
+    for i in range(3):
+        a, c = tri[i - 1], tri[i]
+        height = 2.0 * b[:, i - 2] * np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])) / 2.0
+        np.testing.assert_allclose(attrs.get("edge_distance")[:, i], height / np.linalg.norm(c - a),
+                                   rtol=1e-6)
+
+
 class Seen:
     """Attributes of hits on the plane z = 0 seen along ``incoming`` (its normal +z on the ray's
     side, Backfacing where the ray comes from below)."""
