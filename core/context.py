@@ -761,9 +761,10 @@ class RenderContext:
             yield sel, (value @ LUMINANCE if value.ndim == 2 else value)
 
     def _hit_attributes(self, sel, prim_ids, bary, pos, incoming):
-        """``HitAttributes`` of the hits ``sel`` of these."""
+        """``HitAttributes`` of the hits ``sel`` of these (which may cast Ambient Occlusion's rays)."""
         return HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
-                             pos.take(sel, axis=0), None if incoming is None else incoming.take(sel, axis=0))
+                             pos.take(sel, axis=0), None if incoming is None else incoming.take(sel, axis=0),
+                             self.accel)
 
     def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX, incoming=None):
         """(hit indices, (k, 3) colours in [0, ``limit``]) for each program in ``programs`` (per

@@ -54,6 +54,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``invert`` fac, color; ``gamma`` color, gamma; ``bright_contrast`` color, bright, contrast;
   ``hsv`` color, hue, saturation, value, fac (``hsv.h``): -> Color.
 * ``wavelength`` wavelength (nm): -> Color (Cycles' Wavelength node).
+* ``ao`` color, distance, normal, samples, inside, only_local: -> Color, AO (Cycles' Ambient
+  Occlusion, ``HitAttributes.occlusion``).
 * ``fresnel`` ior, normal: -> Fac; ``layer_weight`` blend, normal: -> Fresnel, Facing (Cycles'
   Fresnel and Layer Weight nodes at the ray's Incoming, ``RAY``; normal: the shading normal on the
   ray's side unless given).
@@ -82,7 +84,8 @@ from . import voronoi as _voronoi_module
 from .accel import interpolate_corners
 from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
-from .sampling import dot, length, normalize, to_world
+from .sampling import cosine_hemisphere, dot, length, normalize, to_world
+from .texture_hash import hash_uint3, hash_uint3_to_float
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
@@ -141,11 +144,12 @@ class HitAttributes:
 
     scene : the ``Scene`` (its uvs, vertex colours and objects); prim_ids : (k,) triangle ids;
     bary : (b0, b1, b2), (k, 1) each; positions : (k, 3) float64 world positions of the hits;
-    incoming : (k, 3) unit directions back along the rays that meet them (``RAY``), or None."""
+    incoming : (k, 3) unit directions back along the rays that meet them (``RAY``), or None;
+    accel : the scene's ``Accel``, for Ambient Occlusion's rays (:meth:`occlusion`), or None."""
 
-    def __init__(self, scene, prim_ids, bary, positions, incoming=None):
+    def __init__(self, scene, prim_ids, bary, positions, incoming=None, accel=None):
         self.scene, self.prim_ids, self.bary, self.positions = scene, prim_ids, bary, positions
-        self.incoming = incoming
+        self.incoming, self.accel = incoming, accel
         self._cache = {}
 
     @property
@@ -217,6 +221,62 @@ class HitAttributes:
                 return self._front("world_normal")
             return np.asarray(self.incoming, np.float64)
         return np.repeat((self._side() < 0.0).astype(np.float64)[:, None], 3, axis=1)
+
+    def occlusion(self, normals, distance, samples, only_local=False):
+        """(k,) Cycles' Ambient Occlusion (``svm_ao``) at the hits: the share of ``samples`` rays
+        about the unit ``normals`` (k, 3), cosine-distributed, that meet nothing (with
+        ``only_local``: nothing of the hit's own object) within ``distance`` ((k,)); 1 where the
+        distance is not positive, and everywhere without an ``accel`` (Cycles without a BVH).
+        The rays' numbers hash the hit's position and the ray's index, so that the same hit gives
+        the same value (a photon path stays a function of its primary sample) and hits apart
+        draw anew."""
+        k = self.count
+        distance = np.broadcast_to(np.asarray(distance, np.float64), (k,))
+        rows = np.flatnonzero(distance > 0.0)
+        out = np.ones(k)
+        if self.accel is None or samples < 1 or len(rows) == 0:
+            return out
+        p = np.asarray(self.positions, np.float64).take(rows, axis=0)
+        bits = np.ascontiguousarray(p).view(np.uint64)
+        folded = ((bits ^ (bits >> np.uint64(32))) & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+        key = hash_uint3(folded[:, 0], folded[:, 1], folded[:, 2])
+        n = np.asarray(normals, np.float64).take(rows, axis=0)
+        ng = self._front("true_normal").take(rows, axis=0)
+        objects = None
+        if only_local and self.scene.object_ids is not None:
+            objects = self.scene.object_ids.take(self.prim_ids.take(rows))
+        free = np.zeros(len(rows))
+        for j in range(samples):
+            u1, u2 = (hash_uint3_to_float(key, np.uint32(j), np.uint32(axis)) for axis in (0, 1))
+            d = to_world(cosine_hemisphere(u1, u2), n)
+            free += ~self._blocked(self.accel.spawn(p, ng, d), d, distance.take(rows), objects)
+        out[rows] = free / samples
+        return out
+
+    def _blocked(self, origins, dirs, tmax, objects, crossings=8):
+        """(n,) whether rays meet a triangle within ``tmax`` (of the ``objects`` (n,) only, going on
+        past others, up to ``crossings`` of them: Cycles' local intersection)."""
+        accel = self.accel
+        hits = accel.intersect(origins, dirs, tmax)
+        if objects is None:
+            return hits.is_hit
+        blocked = np.zeros(len(origins), bool)
+        rows, left = np.arange(len(origins)), np.asarray(tmax, np.float64)
+        for _ in range(crossings):
+            h = np.flatnonzero(hits.is_hit)
+            prim = hits.prim_ids.take(h)
+            own = self.scene.object_ids.take(prim) == objects.take(rows.take(h))
+            blocked[rows.take(h[own])] = True
+            on = h[~own]
+            if len(on) == 0:
+                break
+            t = hits.t.take(on).astype(np.float64)
+            d = dirs.take(rows.take(on), axis=0)
+            at = accel.hit_positions(prim[~own], hits.b1.take(on), hits.b2.take(on))
+            starts = accel.spawn(at, accel.geometric_normals.take(prim[~own], axis=0), d)
+            rows, left = rows.take(on), left.take(on) - t
+            hits = accel.intersect(starts, d, np.maximum(left, 0.0))
+        return blocked
 
     def _triangle(self, name):
         """(k, 3) Parametric or the edge distances of the hits (``TRIANGLE``)."""
@@ -437,6 +497,10 @@ def attributes_used(program) -> set:
             used.add("normal")
         elif node["op"] in ("fresnel", "layer_weight"):
             used |= {"incoming", "backfacing"} | (set() if "normal" in node else {"world_normal"})
+        elif node["op"] == "ao":
+            used |= {"position"} | (set() if "normal" in node else {"world_normal"})
+            if node.get("only_local", False):
+                used.add("object")                  # (which object a triangle is of)
         elif node["op"] == "vector_transform":
             spaces = {node.get("convert_from", "WORLD"), node.get("convert_to", "OBJECT")}
             used |= {"object"} & {s.lower() for s in spaces} | ({"camera"} if "CAMERA" in spaces else set())
@@ -1268,6 +1332,21 @@ def _layer_weight(ev, node):
             "Facing": 1.0 - facing ** power}
 
 
+def _ao(ev, node):
+    """Cycles' Ambient Occlusion node (``svm_node_ao``): AO the unoccluded share of ``samples`` rays
+    within ``distance`` about the normal (the shading normal on the ray's side unless given; its
+    opposite ``inside``), Color the colour times it (``HitAttributes.occlusion``; 1 for attributes
+    that cannot cast rays: a world, stand-in points)."""
+    n = ev.vec(node, "normal") if "normal" in node else ev.attrs.get("world_normal")
+    n = normalize(-n if node.get("inside", False) else n)
+    occlusion = getattr(ev.attrs, "occlusion", None)
+    ao = np.ones(ev.k)
+    if occlusion is not None:
+        ao = occlusion(n, ev.float(node, "distance", 1.0), int(node.get("samples", 16)),
+                       bool(node.get("only_local", False)))
+    return {"Color": ev.vec(node, "color", (1.0, 1.0, 1.0)) * ao[:, None], "AO": ao}
+
+
 def _invert(ev, node):
     t = ev.float(node, "fac", 1.0)[:, None]
     c = ev.vec(node, "color")
@@ -1423,7 +1502,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "color_space": _color_space, "vector_transform": _vector_transform, "wavelength": _wavelength,
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve,
-       "fresnel": _fresnel, "layer_weight": _layer_weight}
+       "fresnel": _fresnel, "layer_weight": _layer_weight, "ao": _ao}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -1438,7 +1517,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
            "curves": ("Color",), "float_curve": ("Value",), "fresnel": ("Fac",),
-           "layer_weight": ("Fresnel", "Facing")}
+           "layer_weight": ("Fresnel", "Facing"), "ao": ("Color", "AO")}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "color_space": ("conversion",),
             "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}

@@ -9,19 +9,19 @@ named one), Color Attribute (the render one or a named one), Attribute (a mesh a
 an object's or instancer's property), Object Info (per object: Location, Color, Alpha, Object Index
 and Random as Cycles sets them; Material Index the material's pass index), Geometry (Position,
 Normal and True Normal in world space, Incoming, Backfacing, Parametric; Random Per Island;
-Pointiness), Camera Data, Wireframe (in world units), Mapping (all four types), Image Texture (flat
-and box projections, every extension, linear, closest, cubic or smart), Environment Texture
-(equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and White Noise Textures,
-Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float, vector, colour; 19 blend
-modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector Transform, Normal, Vector
-Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB Curves, Vector Curves and
-Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma, Hue/Saturation/Value,
-Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB, HSV, HSL), RGB and
-Value, Fresnel and Layer Weight (at the direction of the ray that meets the hit: the eye's, or
-where a photon came from). Anything else is named in the material's warning and replaced by the
-input socket's own value. Settings that Cycles lets vary over the surface but the core takes as
-constants (a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use the mean of
-what drives them, with a note.
+Pointiness), Camera Data, Wireframe (in world units), Ambient Occlusion, Mapping (all four types),
+Image Texture (flat and box projections, every extension, linear, closest, cubic or smart),
+Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and
+White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float,
+vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector
+Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB
+Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma,
+Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB,
+HSV, HSL), RGB and Value, Fresnel and Layer Weight (at the direction of the ray that meets the hit:
+the eye's, or where a photon came from). Anything else is named in the material's warning and
+replaced by the input socket's own value. Settings that Cycles lets vary over the surface but the
+core takes as constants (a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use
+the mean of what drives them, with a note.
 """
 from __future__ import annotations
 
@@ -178,6 +178,14 @@ def _wireframe(b, node, stack):
     half = {"op": "math", "operation": "ABSOLUTE",
             "a": {"op": "math", "operation": "MULTIPLY", "a": b.input(node, "Size", stack, FLOAT), "b": 0.5}}
     return {"Fac": {"op": "math", "operation": "LESS_THAN", "a": nearest, "b": half}}
+
+
+def _ambient_occlusion(b, node, stack):
+    """Ambient Occlusion: Cycles' rays about the normal at each hit (``procedural`` op ``ao``)."""
+    op = {"op": "ao", "color": b.input(node, "Color", stack, VEC),
+          "distance": b.input(node, "Distance", stack, FLOAT), "samples": int(node.samples),
+          "inside": bool(node.inside), "only_local": bool(node.only_local), **_view_normal(b, node, stack)}
+    return _out(op, Color="Color", AO="AO")
 
 
 def _object_info(b, node, stack):
@@ -665,7 +673,7 @@ def _combine_color(b, node, stack):
 
 
 def _view_normal(b, node, stack):
-    """The Normal input of a Fresnel or Layer Weight node as the program's ``normal`` ({} when
+    """The Normal input of a Fresnel, Layer Weight or Ambient Occlusion node as ``normal`` ({} when
     unlinked: the shading normal); a Bump or Normal Map node's normal is no program: the shading
     normal, noted."""
     sock = node.inputs["Normal"]
@@ -720,4 +728,5 @@ NODES = {
     "ShaderNodeVectorCurve": _vector_curves, "ShaderNodeFloatCurve": _float_curve,
     "ShaderNodeFresnel": _fresnel, "ShaderNodeLayerWeight": _layer_weight,
     "ShaderNodeCameraData": _camera_data, "ShaderNodeWireframe": _wireframe,
+    "ShaderNodeAmbientOcclusion": _ambient_occlusion,
 }

@@ -333,11 +333,12 @@ def texture_plane(connect, resolution=(48, 48), size=2.0, location=(0, 0, 0), ro
     return mat, np.concatenate([xy, np.zeros((h, w, 1))], axis=-1)
 
 
-def cycles_texture_values(mat, path):
+def cycles_texture_values(mat, path, samples=1):
     """What Cycles evaluates the texture of :func:`texture_plane`'s material to at each pixel
     centre: (H, W, 3).  The socket feeding the Diffuse BSDF is moved to an Emission shader of
     strength 1 (seen directly, 'Standard' view: the pixel is the colour), one sample per pixel
-    and a pixel filter of 0.01 pixel, so each pixel is the texture at its centre."""
+    and a pixel filter of 0.01 pixel, so each pixel is the texture at its centre (with ``samples``:
+    the mean of that many evaluations there, for a texture that draws random numbers)."""
     nt = mat.node_tree
     socket = nt.nodes["Diffuse BSDF"].inputs["Color"].links[0].from_socket
     emit = nt.nodes.new("ShaderNodeEmission")
@@ -346,7 +347,7 @@ def cycles_texture_values(mat, path):
     nt.links.new(emit.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     scene = bpy.context.scene
     try:
-        return cycles_pixel_centres(path)
+        return cycles_pixel_centres(path, samples)
     finally:
         # Back to the Diffuse BSDF and our engine: the scene can then be exported as built.
         nt.links.new(nt.nodes["Diffuse BSDF"].outputs[0], nt.nodes["Material Output"].inputs["Surface"])
@@ -354,13 +355,13 @@ def cycles_texture_values(mat, path):
         scene.render.engine = ENGINE
 
 
-def cycles_pixel_centres(path):
+def cycles_pixel_centres(path, samples=1):
     """The current scene rendered by Cycles at one sample with a 0.01-pixel filter (each pixel is
     what the camera sees through its centre): (H, W, 3) float64.  Leaves Cycles selected."""
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
     c = scene.cycles
-    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", 1, False, False
+    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", samples, False, False
     c.filter_width = 0.01
     c.seed = 1
     return render_exr(path)[..., :3].astype(np.float64)

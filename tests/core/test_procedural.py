@@ -253,6 +253,75 @@ def test_parametric_and_edge_distances_place_the_hit_in_its_triangle():
                                    rtol=1e-6)
 
 
+def floor_under_ceiling(height):
+    """The 1 m floor of ``sun_over_procedural_floor`` (object 0) under a 200 m ceiling facing down
+    at ``height`` (object 1), and the floor's hits from above at 4000 points of its middle."""
+    from core.accel import Accel
+    floor = sun_over_procedural_floor({"op": "attribute", "name": "position"})
+    ceiling = np.array([[-100, -100, height], [100, 100, height], [100, -100, height],
+                        [-100, -100, height], [-100, 100, height], [100, 100, height]], np.float32)
+    scene = floor.replace(
+        vertices=np.concatenate([floor.vertices, ceiling]),
+        triangles=np.concatenate([floor.triangles, [[6, 7, 8], [9, 10, 11]]]).astype(np.int32),
+        material_ids=np.zeros(4, np.int32), uvs=np.zeros((4, 3, 2), np.float32),
+        object_ids=np.array([0, 0, 1, 1], np.int32),
+        object_from_world=np.repeat(floor.object_from_world, 2, 0),
+        texture_spaces=np.repeat(floor.texture_spaces, 2, 0), object_info=np.repeat(floor.object_info, 2, 0),
+    ).validate()
+    accel = Accel(scene)
+    xy = np.random.default_rng(3).uniform(-0.3, 0.3, (4000, 2))
+    origins = np.concatenate([xy, np.full((4000, 1), 0.25)], axis=1)
+    hits = accel.intersect(origins, np.tile([0.0, 0.0, -1.0], (4000, 1)))
+    assert (hits.prim_ids <= 1).all() and hits.is_hit.all()
+    bary = (1.0 - hits.b1 - hits.b2)[:, None], hits.b1[:, None], hits.b2[:, None]
+    positions = accel.hit_positions(hits.prim_ids, hits.b1, hits.b2)
+    return procedural.HitAttributes(scene, hits.prim_ids, bary, positions, None, accel)
+
+
+def test_ambient_occlusion_under_a_ceiling_is_the_closed_form():
+    """Under a ceiling at height h a cosine-distributed ray of reach D escapes when cos < h / D:
+    Cycles' AO is (h / D)^2 (here 0.25), 1 for D < h, 1 with Only Local (the ceiling is another
+    object), 1 inside (the rays go down), the Color that times the colour; a hit gives the same
+    value each time (its rays' numbers hash its position), hits apart draw anew; attributes that
+    cannot cast rays read 1 (Cycles without a BVH)."""
+    attrs = floor_under_ceiling(0.5)
+    ao = {"op": "ao", "distance": 1.0, "samples": 16, "color": [0.2, 0.4, 0.8], "output": "AO"}
+    value = procedural.evaluate(ao, attrs, [])
+    assert value.mean() == pytest.approx(0.25, abs=0.01)
+    assert set(np.unique(value * 16)) <= set(range(17)) and value.std() > 0.05
+    np.testing.assert_array_equal(procedural.evaluate(ao, attrs, []), value)
+    np.testing.assert_allclose(procedural.evaluate({**ao, "output": "Color"}, attrs, []),
+                               value[:, None] * [0.2, 0.4, 0.8])
+    for changed in ({"distance": 0.4}, {"only_local": True}, {"inside": True}):
+        assert (procedural.evaluate({**ao, **changed}, attrs, []) == 1.0).all(), changed
+    assert procedural.evaluate({**ao, "distance": 2.0}, attrs, []).mean() == pytest.approx(1 / 16, abs=0.01)
+    assert (procedural.evaluate(ao, procedural.SampledAttributes(64), []) == 1.0).all()
+
+
+@pytest.mark.parametrize("method", [dict(method="ppm"), dict(method="amcmcppm", chains=4096)],
+                         ids=lambda m: m["method"])
+def test_ambient_occlusion_in_a_lit_sphere_renders_the_closed_form(method):
+    """A point light in a closed sphere of radius R whose diffuse colour is AO of reach R: a
+    cosine-distributed ray from the wall meets the other side at 2 R cos, so AO = 1 - 1/4
+    everywhere, and the sphere renders as one of albedo a AO (``point_in_sphere``'s closed form)
+    with the photons' hits casting AO's rays too; both methods, finite."""
+    from core import render
+    from core.settings import RenderSettings
+    from core.testing.scenes import point_in_sphere, with_one_object
+    albedo, bounces = 0.6, 20
+    ao = {"op": "ao", "distance": 1.0, "samples": 16, "color": [1.0, 1.0, 1.0], "output": "AO"}
+    scene = point_in_sphere(albedo=albedo)
+    mats = Materials.build([{"name": "shell", "diffuse": albedo, "diffuse_program": ao}])
+    scene = with_one_object(scene).replace(materials=mats).validate()
+    settings = RenderSettings(workers=1, passes=6, photons_per_pass=20_000, max_bounces=bounces, seed=2,
+                              **method)
+    image = render(scene, settings).image[..., :3]
+    a = albedo * 0.75
+    expected = a / np.pi * (1 - a ** (bounces + 1)) / (1 - a)
+    assert np.isfinite(image).all()
+    assert image.mean() == pytest.approx(expected, rel=0.03)
+
+
 class Seen:
     """Attributes of hits on the plane z = 0 seen along ``incoming`` (its normal +z on the ray's
     side, Backfacing where the ray comes from below)."""
