@@ -58,6 +58,8 @@ class Accel:
         self._embree = None
         self._contact = None            # embree scene of the non-glass triangles (see with_contacts())
         self._ids = None                # the scene's triangles this one holds (subset()), None: all
+        self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
+        self._objects = {}              # object id -> subset() of its triangles (local())
         if self.triangle_count:
             from embreex import rtcore_scene
             from embreex.mesh_construction import TriangleMesh
@@ -103,6 +105,7 @@ class Accel:
         out = Accel.__new__(Accel)
         out.__dict__.update(self.__dict__)
         out._contact = None
+        out._objects = {}
         out._ids = np.asarray(tri_ids, np.int64)
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
@@ -111,6 +114,13 @@ class Accel:
         corners = np.stack([v0, v0 + e1, v0 + e2], axis=1) - self.center
         TriangleMesh(out._embree, np.ascontiguousarray(corners, np.float32))
         return out
+
+    def local(self, obj) -> "Accel":
+        """A query over the triangles of object ``obj`` alone (:meth:`subset`, built once): Cycles'
+        local intersection, which a Bevel and Ambient Occlusion's Only Local use."""
+        if obj not in self._objects:
+            self._objects[obj] = self.subset(np.flatnonzero(self.object_ids == obj))
+        return self._objects[obj]
 
     def hit_positions(self, prim_ids, b1, b2):
         """(n, 3) float64 surface points from triangle ids and barycentrics."""

@@ -339,7 +339,8 @@ class MaterialTable:
                              rise=rise, edge=edge, dip=dip, layer=layer, score_extra=score_extra,
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
                              | (np.asarray(mats.bump_texture) >= 0)
-                             | (np.asarray(_or_none(mats.bump_program, m)) >= 0), program=program,
+                             | (np.asarray(_or_none(mats.bump_program, m)) >= 0)
+                             | (np.asarray(_or_none(mats.normal_program, m)) >= 0), program=program,
                              glossy_program=glossy_program,
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),
                              emission_program=emission_program, dielectric_program=dielectric_program,

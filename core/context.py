@@ -156,6 +156,7 @@ class RenderContext:
         # Materials that look an image up with the UVs (colour, normal or bump map).
         self.uses_uvs = (self.table.texture >= 0) | (self.normal_texture >= 0) | (self.bump_texture >= 0)
         self.bump_program = np.asarray(mats.bump_program, np.int32)
+        self.normal_program = np.asarray(mats.normal_program, np.int32)
 
     @property
     def effects(self) -> tuple:
@@ -560,11 +561,13 @@ class RenderContext:
             out[sel] = np.clip(np.nan_to_num(value, nan=1.0), 0.0, 1.0)
         return out
 
-    def surface(self, prim_ids, b1, b2, pick=None, incoming=None) -> Surface:
+    def surface(self, prim_ids, b1, b2, pick=None, incoming=None, sharp=False) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics; ``pick`` (n,) uniform
         numbers choose the materials' levels (``Materials.level_program``; None: the nearest);
         ``incoming`` (n, 3) the unit directions back along the rays that meet them, which programs
-        may read (``procedural.RAY``; None: each seen head-on from its front)."""
+        may read (``procedural.RAY``; None: each seen head-on from its front); ``sharp``: the rays
+        are the camera's or followed a mirror or glass from it, which a Bevel needs (Cycles bevels
+        no blurry indirect ray)."""
         a = self.accel
         pos = a.hit_positions(prim_ids, b1, b2)
         ng = a.geometric_normals.take(prim_ids, axis=0)
@@ -589,6 +592,7 @@ class RenderContext:
         nn = None
         if self.has_normal_maps:
             nn = ns.copy()
+            self._apply_normal_programs(ns, prim_ids, bary, pos, mat, incoming, sharp)
             self._apply_normal_maps(ns, prim_ids, bary, uv, mat)
             self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat, incoming)
         albedo = self.table.color[:, 0].take(mat, axis=0)
@@ -599,13 +603,13 @@ class RenderContext:
                                   albedo * self.textures.lookup(tex, uv), albedo)
         if self.has_programs:
             for sel, color in self._program_colors(self.table.program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming):
+                                                   incoming=incoming, sharp=sharp):
                 albedo[sel] *= color           # a fresh array (take or where above)
         colors = lobe_colors(self.table, mat, albedo)
         if self.has_glossy_programs:
             lobe = self.table.glossy_program_lobe
             for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming):
+                                                   incoming=incoming, sharp=sharp):
                 colors[sel, lobe.take(mat.take(sel))] *= color
         if self.table.has_partial_metal:
             # A metal that is part k of its lobe: the colour so far is its F0, the lobe's k F0 + rest.
@@ -618,11 +622,11 @@ class RenderContext:
                                       + t.hit_metal_rest.take(m, axis=0))
         if self.has_dielectric_programs:
             for sel, color in self._program_colors(self.table.dielectric_program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming):
+                                                   incoming=incoming, sharp=sharp):
                 colors[sel, DIELECTRIC] *= color
         if self.has_translucent_programs:
             for sel, color in self._program_colors(self.table.translucent_program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming):
+                                                   incoming=incoming, sharp=sharp):
                 colors[sel, TRANSLUCENT] *= color
         tangent = None
         if self.table.has_anisotropy:
@@ -760,20 +764,39 @@ class RenderContext:
                              self.textures.images)
             yield sel, (value @ LUMINANCE if value.ndim == 2 else value)
 
-    def _hit_attributes(self, sel, prim_ids, bary, pos, incoming):
-        """``HitAttributes`` of the hits ``sel`` of these (which may cast Ambient Occlusion's rays)."""
+    def _hit_attributes(self, sel, prim_ids, bary, pos, incoming, sharp=False):
+        """``HitAttributes`` of the hits ``sel`` of these (which may cast Ambient Occlusion's and, if
+        ``sharp``, Bevel's rays)."""
         return HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
                              pos.take(sel, axis=0), None if incoming is None else incoming.take(sel, axis=0),
-                             self.accel)
+                             self.accel, sharp)
 
-    def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX, incoming=None):
+    def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX, incoming=None,
+                        sharp=False):
         """(hit indices, (k, 3) colours in [0, ``limit``]) for each program in ``programs`` (per
-        material, -1: none) that some of the hits' materials have."""
+        material, -1: none) that some of the hits' materials have (:meth:`surface`'s ``incoming``
+        and ``sharp``)."""
         program = programs.take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
-            attrs = self._hit_attributes(sel, prim_ids, bary, pos, incoming)
+            attrs = self._hit_attributes(sel, prim_ids, bary, pos, incoming, sharp)
             yield sel, evaluate_color(self.programs[p], attrs, self.textures.images, limit)
+
+    def _apply_normal_programs(self, ns, prim_ids, bary, pos, mat, incoming, sharp):
+        """Replace ``ns`` (n, 3) in place by the normalised value of the material's normal program
+        (``Materials.normal_program``) where it has one, keeping ``ns`` where that is zero or not
+        finite (Cycles' ``safe_normalize_fallback``)."""
+        program = self.normal_program.take(mat)
+        for p in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == p)
+            attrs = self._hit_attributes(sel, prim_ids, bary, pos, incoming, sharp)
+            value = evaluate(self.programs[p], attrs, self.textures.images)
+            if value.ndim == 1:
+                continue                            # (a float is no direction: the exporter sends none)
+            n0 = ns.take(sel, axis=0)
+            n = normalize(np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0))
+            _replace_bad(n, n0)
+            ns[sel] = n
 
     def _apply_normal_maps(self, ns, prim_ids, bary, uv, mat):
         """Bend ``ns`` (n, 3) in place where the material has a tangent-space normal map.

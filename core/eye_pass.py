@@ -253,7 +253,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         footprint = footprint.take(h)
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
         wo = -dirs
-        surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, wo)
+        surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, wo,
+                           sharp=True)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():

@@ -56,6 +56,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``wavelength`` wavelength (nm): -> Color (Cycles' Wavelength node).
 * ``ao`` color, distance, normal, samples, inside, only_local: -> Color, AO (Cycles' Ambient
   Occlusion, ``HitAttributes.occlusion``).
+* ``bevel`` radius, samples, normal: -> Normal (Cycles' Bevel, ``HitAttributes.bevel``).
 * ``fresnel`` ior, normal: -> Fac; ``layer_weight`` blend, normal: -> Fresnel, Facing (Cycles'
   Fresnel and Layer Weight nodes at the ray's Incoming, ``RAY``; normal: the shading normal on the
   ray's side unless given).
@@ -84,7 +85,7 @@ from . import voronoi as _voronoi_module
 from .accel import interpolate_corners
 from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
-from .sampling import cosine_hemisphere, dot, length, normalize, to_world
+from .sampling import cosine_hemisphere, dot, length, normalize, orthonormal_frames, to_world
 from .texture_hash import hash_uint3, hash_uint3_to_float
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
@@ -105,6 +106,8 @@ RAY = ("incoming", "backfacing")
 # units to the lines through its three edges (of corners 2 and 0, 0 and 1, 1 and 2: Cycles'
 # Wireframe compares them with half its Size).
 TRIANGLE = ("parametric", "edge_distance")
+# Most hits on its own object a Bevel ray counts (Cycles' LOCAL_MAX_HITS).
+LOCAL_HITS = 4
 # Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
 # depth in front) and Window (where the hit lands in the frame, (0, 0) at its bottom left, z = 0;
 # perspective and orthographic cameras, 0 for panoramic ones).
@@ -145,11 +148,13 @@ class HitAttributes:
     scene : the ``Scene`` (its uvs, vertex colours and objects); prim_ids : (k,) triangle ids;
     bary : (b0, b1, b2), (k, 1) each; positions : (k, 3) float64 world positions of the hits;
     incoming : (k, 3) unit directions back along the rays that meet them (``RAY``), or None;
-    accel : the scene's ``Accel``, for Ambient Occlusion's rays (:meth:`occlusion`), or None."""
+    accel : the scene's ``Accel``, for Ambient Occlusion's and Bevel's rays (:meth:`occlusion`,
+    :meth:`bevel`), or None; sharp : whether the rays are the camera's or followed a mirror or
+    glass from it (a Bevel bends only those, :meth:`bevel`)."""
 
-    def __init__(self, scene, prim_ids, bary, positions, incoming=None, accel=None):
+    def __init__(self, scene, prim_ids, bary, positions, incoming=None, accel=None, sharp=False):
         self.scene, self.prim_ids, self.bary, self.positions = scene, prim_ids, bary, positions
-        self.incoming, self.accel = incoming, accel
+        self.incoming, self.accel, self.sharp = incoming, accel, sharp
         self._cache = {}
 
     @property
@@ -229,7 +234,7 @@ class HitAttributes:
         distance is not positive, and everywhere without an ``accel`` (Cycles without a BVH).
         The rays' numbers hash the hit's position and the ray's index, so that the same hit gives
         the same value (a photon path stays a function of its primary sample) and hits apart
-        draw anew."""
+        draw anew; the first of each pair is stratified over the rays."""
         k = self.count
         distance = np.broadcast_to(np.asarray(distance, np.float64), (k,))
         rows = np.flatnonzero(distance > 0.0)
@@ -237,9 +242,7 @@ class HitAttributes:
         if self.accel is None or samples < 1 or len(rows) == 0:
             return out
         p = np.asarray(self.positions, np.float64).take(rows, axis=0)
-        bits = np.ascontiguousarray(p).view(np.uint64)
-        folded = ((bits ^ (bits >> np.uint64(32))) & np.uint64(0xFFFFFFFF)).astype(np.uint32)
-        key = hash_uint3(folded[:, 0], folded[:, 1], folded[:, 2])
+        key = _position_keys(p)
         n = np.asarray(normals, np.float64).take(rows, axis=0)
         ng = self._front("true_normal").take(rows, axis=0)
         objects = None
@@ -248,34 +251,100 @@ class HitAttributes:
         free = np.zeros(len(rows))
         for j in range(samples):
             u1, u2 = (hash_uint3_to_float(key, np.uint32(j), np.uint32(axis)) for axis in (0, 1))
+            u1 = np.minimum((j + u1) / samples, 1.0)  # (stratified, as Cycles' numbers are)
             d = to_world(cosine_hemisphere(u1, u2), n)
             free += ~self._blocked(self.accel.spawn(p, ng, d), d, distance.take(rows), objects)
         out[rows] = free / samples
         return out
 
-    def _blocked(self, origins, dirs, tmax, objects, crossings=8):
-        """(n,) whether rays meet a triangle within ``tmax`` (of the ``objects`` (n,) only, going on
-        past others, up to ``crossings`` of them: Cycles' local intersection)."""
-        accel = self.accel
-        hits = accel.intersect(origins, dirs, tmax)
+    def bevel(self, radius, samples):
+        """(k, 3) Cycles' Bevel normal (``svm_bevel``): ``samples`` rays, each along one of the
+        facet's three axes (the normal's with probability 1/2) through a point of the disk about
+        the hit drawn by the cubic falloff of ``radius`` ((k,)), meet the hit's own object at up to
+        LOCAL_HITS points, whose smooth normals add up weighted by the three axes' power heuristic
+        and the falloff at their true distance over the drawn one; on the ray's side.  The shading
+        normal where the radius is not positive, nothing was met, the rays are not ``sharp`` (Cycles
+        bevels no blurry indirect ray) or there is no ``accel`` or no objects.  The numbers hash the
+        hit's position, as :meth:`occlusion`'s."""
+        s = self.scene
+        out = self.get("world_normal").copy()
+        radius = np.broadcast_to(np.asarray(radius, np.float64), (self.count,))
+        rows = np.flatnonzero(radius > 0.0)
+        if self.accel is None or not self.sharp or samples < 1 or len(rows) == 0 or s.object_ids is None:
+            return out
+        p = np.asarray(self.positions, np.float64).take(rows, axis=0)
+        r_max = radius.take(rows)[:, None]
+        key = _position_keys(p)
+        ng = self._front("true_normal").take(rows, axis=0)
+        tangent, bitangent = orthonormal_frames(ng)
+        objects = s.object_ids.take(self.prim_ids.take(rows))
+        total = np.zeros((len(rows), 3))
+        for j in range(samples):
+            u, v = (hash_uint3_to_float(key, np.uint32(j), np.uint32(axis)) for axis in (2, 3))
+            u = np.minimum((j + u) / samples, 1.0)  # (stratified, as Cycles' numbers are)
+            # The axis: the normal (pdf 1/2, u < 1/2), else the tangent or the bitangent (1/4 each).
+            which = np.where(u < 0.5, 0, np.where(u < 0.75, 1, 2))[:, None]
+            axes = (ng, tangent, bitangent)
+            disk_n = np.where(which == 0, ng, np.where(which == 1, tangent, bitangent))
+            disk_t = np.where(which == 1, ng, tangent)
+            disk_b = np.where(which == 2, ng, bitangent)
+            pdfs = (0.5, 0.25, 0.25)                # the chances of picking ng, tangent, bitangent
+            u = np.where(u < 0.5, 2.0 * u, np.where(u < 0.75, (u - 0.5) * 4.0, (u - 0.75) * 4.0))[:, None]
+            disk_r = r_max * _cubic_falloff_root(v)[:, None]
+            height = np.sqrt(np.maximum(r_max * r_max - disk_r * disk_r, 0.0))
+            phi = 2.0 * np.pi * u
+            start = p + disk_n * height + disk_r * (np.cos(phi) * disk_t + np.sin(phi) * disk_b)
+            for row, prim, at, b1, b2 in self._local_hits(start, -disk_n, 2.0 * height[:, 0], objects):
+                hit_ng = self.accel.geometric_normals.take(prim, axis=0)
+                pdf = [pk * np.abs(dot(a.take(row, axis=0), hit_ng))[:, None] for pk, a in zip(pdfs, axes)]
+                chosen = np.choose(which.take(row, axis=0), pdf)
+                w = chosen / (pdf[0] ** 2 + pdf[1] ** 2 + pdf[2] ** 2)
+                r = length(at - p.take(row, axis=0))[:, None]
+                falloff = np.maximum(r_max.take(row, axis=0) - r, 0.0) / np.maximum(
+                    r_max.take(row, axis=0) - disk_r.take(row, axis=0), 1e-300)
+                normal = hit_ng
+                if s.shading_normals is not None:
+                    corners = s.shading_normals.take(prim, axis=0).astype(np.float64)
+                    smooth = normalize(interpolate_corners(corners, ((1.0 - b1 - b2)[:, None], b1[:, None],
+                                                                     b2[:, None])))
+                    normal = np.where((length(smooth) > 0.0)[:, None], smooth, hit_ng)
+                np.add.at(total, row, w * falloff ** 3 * normal)
+        n = normalize(total)
+        found = length(n) > 0.0
+        out[rows[found]] = n[found] * self._side().take(rows[found])[:, None]
+        return out
+
+    def _local_hits(self, origins, dirs, tmax, objects):
+        """For the hits along rays ``origins + t dirs`` (0 < t < ``tmax``) on each ray's object
+        (``objects`` (n,); ``Accel.local``), up to LOCAL_HITS per ray, nearest first: (ray rows,
+        triangle ids, world points, b1, b2), one such per object and round."""
+        for obj in np.unique(objects):
+            accel = self.accel.local(int(obj))
+            rows = np.flatnonzero(objects == obj)
+            o, d, left = origins.take(rows, axis=0), dirs.take(rows, axis=0), np.asarray(tmax).take(rows)
+            for _ in range(LOCAL_HITS):
+                hits = accel.intersect(o, d, np.maximum(left, 0.0))
+                h = np.flatnonzero(hits.is_hit)
+                if len(h) == 0:
+                    break
+                prim = hits.prim_ids.take(h)
+                b1, b2 = hits.b1.take(h), hits.b2.take(h)
+                at = accel.hit_positions(prim, b1, b2)
+                yield rows.take(h), prim, at, b1, b2
+                d = d.take(h, axis=0)
+                o = accel.spawn(at, accel.geometric_normals.take(prim, axis=0), d)
+                rows, left = rows.take(h), left.take(h) - hits.t.take(h).astype(np.float64)
+
+    def _blocked(self, origins, dirs, tmax, objects):
+        """(n,) whether rays ``origins + t dirs`` meet a triangle within ``tmax`` (of each ray's
+        object alone with ``objects`` (n,): ``Accel.local``)."""
         if objects is None:
-            return hits.is_hit
+            return self.accel.intersect(origins, dirs, tmax).is_hit
         blocked = np.zeros(len(origins), bool)
-        rows, left = np.arange(len(origins)), np.asarray(tmax, np.float64)
-        for _ in range(crossings):
-            h = np.flatnonzero(hits.is_hit)
-            prim = hits.prim_ids.take(h)
-            own = self.scene.object_ids.take(prim) == objects.take(rows.take(h))
-            blocked[rows.take(h[own])] = True
-            on = h[~own]
-            if len(on) == 0:
-                break
-            t = hits.t.take(on).astype(np.float64)
-            d = dirs.take(rows.take(on), axis=0)
-            at = accel.hit_positions(prim[~own], hits.b1.take(on), hits.b2.take(on))
-            starts = accel.spawn(at, accel.geometric_normals.take(prim[~own], axis=0), d)
-            rows, left = rows.take(on), left.take(on) - t
-            hits = accel.intersect(starts, d, np.maximum(left, 0.0))
+        for obj in np.unique(objects):
+            rows = np.flatnonzero(objects == obj)
+            blocked[rows] = self.accel.local(int(obj)).intersect(
+                origins.take(rows, axis=0), dirs.take(rows, axis=0), np.asarray(tmax).take(rows)).is_hit
         return blocked
 
     def _triangle(self, name):
@@ -455,6 +524,27 @@ class SampledAttributes:
         return self._values[name]
 
 
+def _position_keys(points):
+    """(k,) uint32 hash keys of float64 ``points`` (k, 3): all their bits, folded."""
+    bits = np.ascontiguousarray(points, np.float64).view(np.uint64)
+    folded = ((bits ^ (bits >> np.uint64(32))) & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+    return hash_uint3(folded[:, 0], folded[:, 1], folded[:, 2])
+
+
+def _cubic_falloff_root(xi):
+    """(k,) x in [0, 1] with 10 x^2 - 20 x^3 + 15 x^4 - 4 x^5 = ``xi``: the radius, over the
+    falloff's reach, of Cycles' cubic falloff (Bevel's ``svm_bevel_cubic_quintic_root_find``, by
+    Newton's method from 1/4)."""
+    x = np.full(len(xi), 0.25)
+    for _ in range(10):
+        nx = 1.0 - x
+        f = 10.0 * x ** 2 - 20.0 * x ** 3 + 15.0 * x ** 4 - 4.0 * x ** 5 - xi
+        slope = 20.0 * (x * nx) * (nx * nx)
+        step = np.where((np.abs(f) < 1e-6) | (slope == 0.0), 0.0, f / np.where(slope == 0.0, 1.0, slope))
+        x = np.clip(x - step, 0.0, 1.0)
+    return x
+
+
 def evaluate(program, attrs, images, output=None):
     """Value of ``program`` (a node dict) at the hits of ``attrs``: (k,) or (k, 3) float64.
 
@@ -501,6 +591,8 @@ def attributes_used(program) -> set:
             used |= {"position"} | (set() if "normal" in node else {"world_normal"})
             if node.get("only_local", False):
                 used.add("object")                  # (which object a triangle is of)
+        elif node["op"] == "bevel":
+            used |= {"position", "world_normal", "object"}
         elif node["op"] == "vector_transform":
             spaces = {node.get("convert_from", "WORLD"), node.get("convert_to", "OBJECT")}
             used |= {"object"} & {s.lower() for s in spaces} | ({"camera"} if "CAMERA" in spaces else set())
@@ -1347,6 +1439,18 @@ def _ao(ev, node):
     return {"Color": ev.vec(node, "color", (1.0, 1.0, 1.0)) * ao[:, None], "AO": ao}
 
 
+def _bevel(ev, node):
+    """Cycles' Bevel node (``svm_node_bevel``): the bevelled normal (``HitAttributes.bevel``; the
+    shading normal for attributes that cannot cast rays), with a given normal that normal bent
+    as much: normalize(normal + bevel - N)."""
+    n = ev.attrs.get("world_normal")
+    bevel = getattr(ev.attrs, "bevel", None)
+    out = n if bevel is None else bevel(ev.float(node, "radius", 0.05), int(node.get("samples", 4)))
+    if "normal" in node:
+        out = normalize(ev.vec(node, "normal") + (out - n))
+    return {"Normal": out}
+
+
 def _invert(ev, node):
     t = ev.float(node, "fac", 1.0)[:, None]
     c = ev.vec(node, "color")
@@ -1502,7 +1606,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "color_space": _color_space, "vector_transform": _vector_transform, "wavelength": _wavelength,
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve,
-       "fresnel": _fresnel, "layer_weight": _layer_weight, "ao": _ao}
+       "fresnel": _fresnel, "layer_weight": _layer_weight, "ao": _ao, "bevel": _bevel}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -1517,7 +1621,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
            "curves": ("Color",), "float_curve": ("Value",), "fresnel": ("Fac",),
-           "layer_weight": ("Fresnel", "Facing"), "ao": ("Color", "AO")}
+           "layer_weight": ("Fresnel", "Facing"), "ao": ("Color", "AO"), "bevel": ("Normal",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "color_space": ("conversion",),
             "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}

@@ -198,7 +198,9 @@ class Materials:
     ``bump_distance`` its scale (negative: inverted) and ``bump_strength`` the blend towards
     the bumped normal, as Cycles' Bump node with the height's exact surface gradient; or
     ``bump_program`` >= 0, a float program of the height (a procedural bump), whose gradient is
-    taken by finite differences along the triangle's edges.
+    taken by finite differences along the triangle's edges.  Before both, ``normal_program`` >= 0
+    is a vector program whose value, normalised, is the shading normal (a BSDF's Normal input fed
+    by a Bevel node or any vector: Cycles' ``safe_normalize_fallback`` to the surface's own).
     """
 
     names: list = field(default_factory=list)          # M material names (for messages)
@@ -242,6 +244,7 @@ class Materials:
     roughness_program: np.ndarray = None                # (M,) int32, index into programs or -1; None: -1
     dielectric_program: np.ndarray = None               # (M,) int32, index into programs or -1; None: -1
     bump_program: np.ndarray = None                     # (M,) int32, index into programs or -1; None: -1
+    normal_program: np.ndarray = None                   # (M,) int32, index into programs or -1; None: -1
     opacity: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 1
     opacity_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
     transparent_color: np.ndarray = None                # (M, 3) float32; None: 1
@@ -277,11 +280,11 @@ class Materials:
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
                     "rotation_program", "stretch_program", "glossy_metal_tint", "glossy_metal_share",
-                    "glossy_metal_rest", "level_program", "level_first", "level_count")
+                    "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
-                      "rotation_program", "stretch_program", "level_program")
+                      "rotation_program", "stretch_program", "level_program", "normal_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count")   # stored as int32
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
@@ -313,8 +316,9 @@ class Materials:
         glossy roughness, ``dielectric_program`` one for the glass's transmitted colour, which
         then defaults to 1, ``translucent_program`` one for the translucent colour (likewise),
         ``bump_program`` one for a bump's height (with ``bump_strength`` and
-        ``bump_distance``) and ``opacity_program`` one for the opacity (equal programs are stored
-        once).  ``opacity`` (default 1) and ``transparent_color`` (default 1) make it transparent.
+        ``bump_distance``), ``normal_program`` one for the shading normal and ``opacity_program``
+        one for the opacity (equal programs are stored once).  ``opacity`` (default 1) and
+        ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
         ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume, which
         ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter and
@@ -369,6 +373,7 @@ class Materials:
         out.roughness_program = np.full(m, -1, np.int32)
         out.dielectric_program = np.full(m, -1, np.int32)
         out.bump_program = np.full(m, -1, np.int32)
+        out.normal_program = np.full(m, -1, np.int32)
         out.opacity = np.ones(m, np.float32)
         out.opacity_program = np.full(m, -1, np.int32)
         out.transparent_color = np.ones((m, 3), np.float32)
@@ -908,6 +913,7 @@ class Scene:
                                        ("glossy_rotation", (n,), 0.0), ("rotation_program", (n,), -1),
                                        ("stretch_program", (n,), -1), ("level_program", (n,), -1),
                                        ("level_first", (n,), -1), ("level_count", (n,), 0),
+                                       ("normal_program", (n,), -1),
                                        ("glossy_tangent", (n,), TANGENT_RADIAL_Z)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INTEGER_FIELDS

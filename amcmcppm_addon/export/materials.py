@@ -92,6 +92,7 @@ from ...core.imageio import linear_to_srgb
 from ...core.sampling import dielectric_f0, mean_fresnel
 from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials
 from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
+from .procedural import NODES as PROGRAM_NODES
 
 LOBES = ("diffuse", "glossy", "mirror", "dielectric", "translucent")
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
@@ -590,7 +591,9 @@ class Closure:
         if self.coat > 0:
             s.update(coat=min(self.coat, 1.0), coat_roughness=self.coat_roughness, coat_ior=self.coat_ior,
                      coat_tint=self.coat_tint)
-        if self.normal_map is not None:
+        if isinstance(self.normal_map, dict):
+            s["normal_program"] = self.normal_map
+        elif self.normal_map is not None:
             s["normal_texture"], s["normal_strength"], s["normal_uv_map"] = self.normal_map
         if self.bump is not None:
             source, s["bump_strength"], s["bump_distance"] = self.bump
@@ -1285,13 +1288,26 @@ class NodeWalker:
     def bent_normal(self, sock, stack):
         """(normal map or None, bump or None) feeding a ``Normal`` input: a Normal Map node
         (:meth:`normal_map`), a Bump node whose Height is an image's colour, whose own Normal
-        may take a Normal Map; anything else is noted and leaves the normal alone."""
+        may take a Normal Map; any other node the programs know (a Bevel, a Geometry normal
+        turned by Vector Math, ...) gives a program of the normal in the normal map's place
+        (``Materials.normal_program``); anything else is noted and leaves the normal alone."""
         src, _, stack = self.source(sock, stack)
         if src is None:
             return None, None
         node = src.node
         if node.bl_idname == "ShaderNodeNormalMap" and not node.mute:
             return self.normal_map(node, stack), None
+        if node.bl_idname != "ShaderNodeBump" and not node.mute and node.bl_idname in PROGRAM_NODES:
+            program = self.programs.expression(sock, stack, VEC)
+            if not procedural.varies(program):
+                # A constant direction (Cycles' falls back to the surface's own normal where it is 0).
+                c = (procedural.mean_value(program, self.textures.images) if isinstance(program, dict)
+                     else program)
+                c = np.asarray(c, np.float64).reshape(-1)
+                if not np.any(c != 0.0) or not np.isfinite(c).all():
+                    return None, None
+                program = {"op": "combine", "x": float(c[0]), "y": float(c[1]), "z": float(c[2])}
+            return program, None
         if node.bl_idname != "ShaderNodeBump" or node.mute:
             self.unsupported(node, f"drives '{sock.name}'; using the surface's own normal")
             return None, None

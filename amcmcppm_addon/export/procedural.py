@@ -9,19 +9,19 @@ named one), Color Attribute (the render one or a named one), Attribute (a mesh a
 an object's or instancer's property), Object Info (per object: Location, Color, Alpha, Object Index
 and Random as Cycles sets them; Material Index the material's pass index), Geometry (Position,
 Normal and True Normal in world space, Incoming, Backfacing, Parametric; Random Per Island;
-Pointiness), Camera Data, Wireframe (in world units), Ambient Occlusion, Mapping (all four types),
-Image Texture (flat and box projections, every extension, linear, closest, cubic or smart),
-Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi, Wave, Brick, Magic and
-White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes it), Mix (float,
-vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation), Vector Math, Vector
-Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float and vector), RGB
-Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them), Invert, Gamma,
-Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ and Color (RGB,
-HSV, HSL), RGB and Value, Fresnel and Layer Weight (at the direction of the ray that meets the hit:
-the eye's, or where a photon came from). Anything else is named in the material's warning and
-replaced by the input socket's own value. Settings that Cycles lets vary over the surface but the
-core takes as constants (a texture's Scale, Detail, ...; Mapping's Location, Rotation, Scale) use
-the mean of what drives them, with a note.
+Pointiness), Camera Data, Wireframe (in world units), Ambient Occlusion, Bevel (its normal),
+Mapping (all four types), Image Texture (flat and box projections, every extension, linear,
+closest, cubic or smart), Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi,
+Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes
+it), Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation),
+Vector Math, Vector Transform, Normal, Vector Rotate (a constant rotation), Clamp, Map Range (float
+and vector), RGB Curves, Vector Curves and Float Curve (sampled by Blender as Cycles bakes them),
+Invert, Gamma, Hue/Saturation/Value, Bright/Contrast, RGB to BW, Wavelength, Separate/Combine XYZ
+and Color (RGB, HSV, HSL), RGB and Value, Fresnel and Layer Weight (at the direction of the ray
+that meets the hit: the eye's, or where a photon came from). Anything else is named in the
+material's warning and replaced by the input socket's own value. Settings that Cycles lets vary
+over the surface but the core takes as constants (a texture's Scale, Detail, ...; Mapping's
+Location, Rotation, Scale) use the mean of what drives them, with a note.
 """
 from __future__ import annotations
 
@@ -186,6 +186,12 @@ def _ambient_occlusion(b, node, stack):
           "distance": b.input(node, "Distance", stack, FLOAT), "samples": int(node.samples),
           "inside": bool(node.inside), "only_local": bool(node.only_local), **_view_normal(b, node, stack)}
     return _out(op, Color="Color", AO="AO")
+
+
+def _bevel(b, node, stack):
+    """Bevel: Cycles' bevelled normal at each hit seen by the camera (``procedural`` op ``bevel``)."""
+    return {"Normal": {"op": "bevel", "radius": b.input(node, "Radius", stack, FLOAT),
+                       "samples": int(node.samples), **_view_normal(b, node, stack)}}
 
 
 def _object_info(b, node, stack):
@@ -728,5 +734,5 @@ NODES = {
     "ShaderNodeVectorCurve": _vector_curves, "ShaderNodeFloatCurve": _float_curve,
     "ShaderNodeFresnel": _fresnel, "ShaderNodeLayerWeight": _layer_weight,
     "ShaderNodeCameraData": _camera_data, "ShaderNodeWireframe": _wireframe,
-    "ShaderNodeAmbientOcclusion": _ambient_occlusion,
+    "ShaderNodeAmbientOcclusion": _ambient_occlusion, "ShaderNodeBevel": _bevel,
 }

@@ -1159,7 +1159,6 @@ def test_normal_map_on_a_mesh_without_uvs_keeps_the_normal_and_an_unmapped_mesh_
 
 @pytest.mark.parametrize("case, message", [
     ("object_space", "object space is not supported"),
-    ("vector_math", "Vector Math"),
     ("constant", "constant colour"),
 ])
 def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message):
@@ -1179,6 +1178,57 @@ def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message
     assert material_row(ex.scene, "Odd")["normal_texture"] == -1
     assert ex.scene.tangents is None
     assert any("Odd" in w and message in w for w in ex.warnings), ex.warnings
+
+
+def test_a_normal_from_a_program_is_the_normal_program(scene):
+    """A BSDF's Normal fed by nodes the programs know is ``Materials.normal_program`` (stop 40;
+    before, unsupported and noted): a Bevel its op; a Vector Math of a direction that direction
+    (Cycles takes a constant normal as given); one of zero nothing (Cycles falls back to the
+    surface's own normal), all without a note; a Bump on a Bevel both, the bevel first."""
+    from amcmcppm.core import procedural
+
+    def material(name, build):
+        mat = principled(name)
+        nt = mat.node_tree
+        nt.links.new(build(nt), nt.nodes["Principled BSDF"].inputs["Normal"])
+        return mat
+
+    def bevel(nt):
+        node = nt.nodes.new("ShaderNodeBevel")
+        node.inputs["Radius"].default_value, node.samples = 0.07, 6
+        return node.outputs["Normal"]
+
+    def direction(value):
+        def build(nt):
+            node = nt.nodes.new("ShaderNodeVectorMath")
+            node.inputs[0].default_value = value
+            return node.outputs[0]
+        return build
+
+    def bumped(nt):
+        bump = nt.nodes.new("ShaderNodeBump")
+        nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], bump.inputs["Height"])
+        nt.links.new(bevel(nt), bump.inputs["Normal"])
+        return bump.outputs["Normal"]
+
+    mats = [material("Bevelled", bevel), material("Tilted", direction((0.0, 0.6, 0.8))),
+            material("Zero", direction((0.0, 0.0, 0.0))), material("Bumped", bumped)]
+    for k, mat in enumerate(mats):
+        bs.plane(mat.name, material=mat, location=(3 * k, 0, 0))
+    bs.camera()
+    ex = bs.export()
+    m = ex.scene.materials
+    assert not [w for w in ex.warnings if any(x.name in w for x in mats)], ex.warnings
+    rows = {x.name: material_row(ex.scene, x.name) for x in mats}
+    bevelled = m.programs[rows["Bevelled"]["normal_program"]]
+    assert bevelled["op"] == "bevel" and bevelled["samples"] == 6
+    assert bevelled["radius"] == pytest.approx(0.07)
+    tilted = procedural.evaluate(m.programs[rows["Tilted"]["normal_program"]], procedural.SampledAttributes(4),
+                                 [])
+    np.testing.assert_allclose(tilted, np.tile([0.0, 0.6, 0.8], (4, 1)), atol=1e-6)
+    assert rows["Zero"]["normal_program"] == -1 and rows["Zero"]["bump_program"] == -1
+    assert m.programs[rows["Bumped"]["normal_program"]]["op"] == "bevel"
+    assert rows["Bumped"]["bump_program"] >= 0
 
 
 def test_bump_of_a_noise_becomes_a_height_program(scene):

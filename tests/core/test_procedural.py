@@ -253,29 +253,44 @@ def test_parametric_and_edge_distances_place_the_hit_in_its_triangle():
                                    rtol=1e-6)
 
 
-def floor_under_ceiling(height):
-    """The 1 m floor of ``sun_over_procedural_floor`` (object 0) under a 200 m ceiling facing down
-    at ``height`` (object 1), and the floor's hits from above at 4000 points of its middle."""
-    from core.accel import Accel
-    floor = sun_over_procedural_floor({"op": "attribute", "name": "position"})
-    ceiling = np.array([[-100, -100, height], [100, 100, height], [100, -100, height],
-                        [-100, -100, height], [-100, 100, height], [100, 100, height]], np.float32)
-    scene = floor.replace(
-        vertices=np.concatenate([floor.vertices, ceiling]),
+def floor_with_quad(quad, own_object, resolution=(32, 32)):
+    """The 1 m floor of ``sun_over_procedural_floor`` (triangles 0, 1 of object 0) and a quad of
+    ``quad``'s four corners (counter-clockwise from its front), of the floor's object or (not
+    ``own_object``) of object 1, all of the floor's material."""
+    floor = sun_over_procedural_floor({"op": "attribute", "name": "position"}, resolution=resolution)
+    a, b, c, d = np.asarray(quad, np.float32)
+    quad_object = 0 if own_object else 1
+    return floor.replace(
+        vertices=np.concatenate([floor.vertices, [a, b, c, a, c, d]]),
         triangles=np.concatenate([floor.triangles, [[6, 7, 8], [9, 10, 11]]]).astype(np.int32),
         material_ids=np.zeros(4, np.int32), uvs=np.zeros((4, 3, 2), np.float32),
-        object_ids=np.array([0, 0, 1, 1], np.int32),
-        object_from_world=np.repeat(floor.object_from_world, 2, 0),
-        texture_spaces=np.repeat(floor.texture_spaces, 2, 0), object_info=np.repeat(floor.object_info, 2, 0),
-    ).validate()
+        object_ids=np.array([0, 0, quad_object, quad_object], np.int32),
+        object_from_world=np.repeat(floor.object_from_world, quad_object + 1, 0),
+        texture_spaces=np.repeat(floor.texture_spaces, quad_object + 1, 0),
+        object_info=np.repeat(floor.object_info, quad_object + 1, 0)).validate()
+
+
+def floor_hits(scene, xy, sharp=False, with_accel=True):
+    """``HitAttributes`` of the floor of :func:`floor_with_quad`'s ``scene`` hit from straight above
+    at points ``xy`` (n, 2), seen from above."""
+    from core.accel import Accel
     accel = Accel(scene)
-    xy = np.random.default_rng(3).uniform(-0.3, 0.3, (4000, 2))
-    origins = np.concatenate([xy, np.full((4000, 1), 0.25)], axis=1)
-    hits = accel.intersect(origins, np.tile([0.0, 0.0, -1.0], (4000, 1)))
+    n = len(xy)
+    origins = np.concatenate([xy, np.full((n, 1), 0.25)], axis=1)
+    hits = accel.intersect(origins, np.tile([0.0, 0.0, -1.0], (n, 1)))
     assert (hits.prim_ids <= 1).all() and hits.is_hit.all()
     bary = (1.0 - hits.b1 - hits.b2)[:, None], hits.b1[:, None], hits.b2[:, None]
     positions = accel.hit_positions(hits.prim_ids, hits.b1, hits.b2)
-    return procedural.HitAttributes(scene, hits.prim_ids, bary, positions, None, accel)
+    return procedural.HitAttributes(scene, hits.prim_ids, bary, positions, np.tile([0.0, 0.0, 1.0], (n, 1)),
+                                    accel if with_accel else None, sharp)
+
+
+def floor_under_ceiling(height):
+    """The floor (object 0) under a 200 m ceiling facing down at ``height`` (object 1), hit at 4000
+    points of its middle."""
+    ceiling = [[-100, -100, height], [-100, 100, height], [100, 100, height], [100, -100, height]]
+    xy = np.random.default_rng(3).uniform(-0.3, 0.3, (4000, 2))
+    return floor_hits(floor_with_quad(ceiling, own_object=False), xy)
 
 
 def test_ambient_occlusion_under_a_ceiling_is_the_closed_form():
@@ -320,6 +335,63 @@ def test_ambient_occlusion_in_a_lit_sphere_renders_the_closed_form(method):
     expected = a / np.pi * (1 - a ** (bounces + 1)) / (1 - a)
     assert np.isfinite(image).all()
     assert image.mean() == pytest.approx(expected, rel=0.03)
+
+
+WALL = [[-0.5, -0.5, 0.0], [-0.5, 0.5, 0.0], [-0.5, 0.5, 1.0], [-0.5, -0.5, 1.0]]
+
+
+def test_bevel_turns_the_normal_halfway_at_a_right_angle_edge():
+    """A floor and a wall of one object meeting at a right angle: on the edge the Bevel normal is
+    the bisector (the two faces alike: a ray along the wall's normal, a quarter of them, finds the
+    wall half as often as one along the floor's finds the floor, at twice the weight), a radius
+    away from it the floor's normal; rays that are
+    not sharp (photons', Cycles' blurry indirect ones) and attributes without an accel keep the
+    normal; a given normal is bent as much."""
+    # The floor [-0.5, 0.5]^2 and a wall x = -0.5 facing +x, z in [0, 1].
+    scene = floor_with_quad(WALL, own_object=True)
+    y = np.linspace(-0.2, 0.2, 2000)
+    x = np.where(np.arange(2000) % 2 == 0, -0.5 + 1e-6, 0.0)         # on the edge, or 0.5 from it
+    up = np.tile([0.0, 0.0, 1.0], (2000, 1))
+
+    def bevel(sharp=True, with_accel=True, **extra):
+        attrs = floor_hits(scene, np.stack([x, y], axis=1), sharp, with_accel)
+        return procedural.evaluate({"op": "bevel", "radius": 0.2, "samples": 16, **extra}, attrs, [])
+
+    n = bevel()
+    np.testing.assert_allclose(n[1::2], up[1::2], atol=1e-12)
+    # (Many rays: the sum they normalise is then near its mean, whose direction is the bisector.)
+    edge = bevel(samples=256)[0::2].mean(axis=0)
+    np.testing.assert_allclose(edge / np.linalg.norm(edge), np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0),
+                               atol=0.01)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, rtol=1e-9)
+    np.testing.assert_array_equal(bevel(sharp=False), up)
+    np.testing.assert_array_equal(bevel(with_accel=False), up)
+    bent = bevel(normal=[0.0, 1.0, 0.0])
+    np.testing.assert_allclose(bent, procedural.normalize(n - up + [0.0, 1.0, 0.0]), atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
+def test_a_bevelled_normal_renders(method):
+    """The floor and wall of ``test_bevel_turns_the_normal_halfway_at_a_right_angle_edge`` moved
+    into the camera's view under the sun, the Bevel as the material's normal program
+    (``Materials.normal_program``): the render is finite, the same for the same seed, and the
+    band along the edge is shaded otherwise than without the bevel (the eye pass bends it)."""
+    from core import render
+    from core.settings import RenderSettings
+    base = floor_with_quad(np.array(WALL) + [0.48, 0.0, 0.0], own_object=True, resolution=(16, 16))
+    settings = RenderSettings(workers=1, passes=3, photons_per_pass=20_000, seed=4, method=method)
+    images = []
+    for normal in (None, {"op": "bevel", "radius": 0.05, "samples": 8}):
+        spec = {"name": "floor", "diffuse": 0.8, **({} if normal is None else {"normal_program": normal})}
+        scene = base.replace(materials=Materials.build([spec])).validate()
+        images.append(render(scene, settings).image[..., :3])
+        assert np.isfinite(images[-1]).all()
+    again = render(scene, settings).image[..., :3]
+    np.testing.assert_array_equal(again, images[-1])
+    band = slice(7, 9)                                   # the columns beside the wall (x in [0, 0.025])
+    ratio = images[1][:, band].mean() / images[0][:, band].mean()
+    print(f"bevel band {ratio:.3f} of the plain render")
+    assert abs(ratio - 1.0) > 0.01
 
 
 class Seen:
