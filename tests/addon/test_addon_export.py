@@ -1223,8 +1223,8 @@ def test_a_normal_from_a_program_is_the_normal_program(scene):
     bevelled = m.programs[rows["Bevelled"]["normal_program"]]
     assert bevelled["op"] == "bevel" and bevelled["samples"] == 6
     assert bevelled["radius"] == pytest.approx(0.07)
-    tilted = procedural.evaluate(m.programs[rows["Tilted"]["normal_program"]], procedural.SampledAttributes(4),
-                                 [])
+    points = procedural.SampledAttributes(4)
+    tilted = procedural.evaluate(m.programs[rows["Tilted"]["normal_program"]], points, [])
     np.testing.assert_allclose(tilted, np.tile([0.0, 0.6, 0.8], (4, 1)), atol=1e-6)
     assert rows["Zero"]["normal_program"] == -1 and rows["Zero"]["bump_program"] == -1
     assert m.programs[rows["Bumped"]["normal_program"]]["op"] == "bevel"
