@@ -2,7 +2,8 @@
 
 The Cornell box's white material (floor, ceiling, back wall and both boxes: most of what the
 photons hit) gets, in turn, a plain colour, a checker, a Noise Texture's Fac through a Color
-Ramp, a Noise Texture's Color, and a Voronoi's Color, all on Object coordinates; photon paths
+Ramp, a Noise Texture's Color, and a Voronoi's Color, all on Object coordinates, and an Ambient
+Occlusion's Color (16 and 4 rays within 0.5 m, cast at each photon hit); photon paths
 are traced into the same eye pass as ``ab_photon_pass.py`` does, the variants alternating
 round by round, and the photon vertices per second of each are printed relative to the plain
 colour (median and range over rounds, one run).
@@ -34,6 +35,9 @@ VARIANTS = {
                        "table": [[0.1, 0.1, 0.1, 1.0], [0.8, 0.7, 0.6, 1.0]]},
     "noise_color": {**NOISE, "output": "Color"},
     "voronoi_color": {"op": "voronoi", "vector": OBJECT, "scale": 5.0, "output": "Color"},
+    # Ambient Occlusion (stop 40): Cycles' default 16 rays within 0.5 m at every photon hit, then 4.
+    "ao_16_rays": {"op": "ao", "color": [0.8] * 3, "distance": 0.5, "samples": 16, "output": "Color"},
+    "ao_4_rays": {"op": "ao", "color": [0.8] * 3, "distance": 0.5, "samples": 4, "output": "Color"},
 }
 
 
