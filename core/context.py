@@ -10,7 +10,8 @@ from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT
                    coat_variants, lobe_colors, roughness_variants, stretch_level, stretch_variants)
 from .environment import Environment
 from .lights import VOLUME, LightSampler
-from .procedural import COLOR_MAX, EMISSION_MAX, HitAttributes, evaluate, evaluate_color
+from .procedural import (COLOR_MAX, EMISSION_MAX, HitAttributes, Rays, attributes_used, camera_path,
+                         evaluate, evaluate_color, photon_path)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
@@ -157,6 +158,8 @@ class RenderContext:
         self.uses_uvs = (self.table.texture >= 0) | (self.normal_texture >= 0) | (self.bump_texture >= 0)
         self.bump_program = np.asarray(mats.bump_program, np.int32)
         self.normal_program = np.asarray(mats.normal_program, np.int32)
+        # Whether some program reads the Light Path (then the passes give their rays' paths).
+        self.reads_light_path = any("light_path" in attributes_used(p) for p in self.programs)
 
     @property
     def effects(self) -> tuple:
@@ -319,7 +322,7 @@ class RenderContext:
                 c = np.flatnonzero(clear)
                 rc = rows.take(c)
                 opacity = self._opacity(prim.take(rc), b1.take(rc), b2.take(rc), p.take(c, axis=0),
-                                        -dirs.take(rc, axis=0))
+                                        self._crossing_rays(dirs, rc, t, ray_kind))
                 crossed = (u.take(c) >= opacity) & (opacity < 1.0)
                 stopped[rc[~crossed]] = opacity[~crossed]
                 through[c] = crossed
@@ -358,6 +361,22 @@ class RenderContext:
         if forced and stops:
             out.forced = _forced_points(stops)
         return out, factor, stopped, medium
+
+    def _crossing_rays(self, dirs, rows, t, ray_kind):
+        """The ``Rays`` of :meth:`trace`'s rays ``rows`` at a transparent surface they cross, of the
+        length ``t`` travelled: camera paths' by their ``ray_kind`` (past a mirror or glass, as
+        after one bounce: ``procedural.camera_path``), photons' as their hits
+        (``procedural.photon_path``)."""
+        incoming = -dirs.take(rows, axis=0)
+        if not self.reads_light_path:
+            return Rays(incoming)
+        lengths = t.take(rows)
+        if ray_kind is None:
+            return Rays(incoming, path=photon_path(lengths))
+        kind = ray_kind.take(rows)
+        glossy, transmission = kind == VISIBLE_GLOSSY, kind == VISIBLE_TRANSMISSION
+        return Rays(incoming, path=camera_path(kind == VISIBLE_CAMERA, glossy, lengths, glossy | transmission,
+                                               glossy, transmission))
 
     def _absorb(self, factor, medium, rows, raw, dirs, distances=None, segment=0, stops_out=None,
                 throughput=None, entry_normals=None, limit=None, forced=1, glow=None):
@@ -550,24 +569,21 @@ class RenderContext:
         leave = (into > 0) & (came < 0) & (medium == mat)
         return np.where(enter, mat, np.where(leave, self.outside, medium)).astype(np.int32)
 
-    def _opacity(self, prim_ids, b1, b2, positions, incoming=None):
-        """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's (seen
-        from ``incoming``, ``HitAttributes``)."""
+    def _opacity(self, prim_ids, b1, b2, positions, rays=None):
+        """(k,) opacity at points of triangles ``prim_ids``: the material's, or its program's (met by
+        ``rays``, ``procedural.Rays``)."""
         mat = self.material_ids.take(prim_ids)
         out = self.opacity.take(mat)
         bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
-        for sel, value in self._program_values(self.opacity_program, prim_ids, bary, positions, mat,
-                                               incoming):
+        for sel, value in self._program_values(self.opacity_program, prim_ids, bary, positions, mat, rays):
             out[sel] = np.clip(np.nan_to_num(value, nan=1.0), 0.0, 1.0)
         return out
 
-    def surface(self, prim_ids, b1, b2, pick=None, incoming=None, sharp=False) -> Surface:
+    def surface(self, prim_ids, b1, b2, pick=None, rays=None) -> Surface:
         """Surface data at hits given by triangle ids and barycentrics; ``pick`` (n,) uniform
         numbers choose the materials' levels (``Materials.level_program``; None: the nearest);
-        ``incoming`` (n, 3) the unit directions back along the rays that meet them, which programs
-        may read (``procedural.RAY``; None: each seen head-on from its front); ``sharp``: the rays
-        are the camera's or followed a mirror or glass from it, which a Bevel needs (Cycles bevels
-        no blurry indirect ray)."""
+        ``rays`` (``procedural.Rays``, or None) the rays that meet them, which programs may read:
+        their directions, whether they are sharp (a Bevel), their light path."""
         a = self.accel
         pos = a.hit_positions(prim_ids, b1, b2)
         ng = a.geometric_normals.take(prim_ids, axis=0)
@@ -575,11 +591,11 @@ class RenderContext:
         mat = self.material_ids.take(prim_ids)
         bary = (b0[:, None], b1[:, None], b2[:, None])
         if self.has_level_programs:
-            self._pick_level(mat, prim_ids, bary, pos, pick, incoming)
+            self._pick_level(mat, prim_ids, bary, pos, pick, rays)
         if self.has_roughness_programs:
-            self._pick_roughness(mat, prim_ids, bary, pos, incoming)
+            self._pick_roughness(mat, prim_ids, bary, pos, rays)
         if self.has_stretch_programs:
-            self._pick_stretch(mat, prim_ids, bary, pos, incoming)
+            self._pick_stretch(mat, prim_ids, bary, pos, rays)
         if self.shading_normals is not None:
             ns = normalize(interpolate_corners(self.shading_normals.take(prim_ids, axis=0), bary))
             _replace_bad(ns, ng)
@@ -592,9 +608,9 @@ class RenderContext:
         nn = None
         if self.has_normal_maps:
             nn = ns.copy()
-            self._apply_normal_programs(ns, prim_ids, bary, pos, mat, incoming, sharp)
+            self._apply_normal_programs(ns, prim_ids, bary, pos, mat, rays)
             self._apply_normal_maps(ns, prim_ids, bary, uv, mat)
-            self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat, incoming)
+            self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat, rays)
         albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]
@@ -603,13 +619,13 @@ class RenderContext:
                                   albedo * self.textures.lookup(tex, uv), albedo)
         if self.has_programs:
             for sel, color in self._program_colors(self.table.program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming, sharp=sharp):
+                                                   rays=rays):
                 albedo[sel] *= color           # a fresh array (take or where above)
         colors = lobe_colors(self.table, mat, albedo)
         if self.has_glossy_programs:
             lobe = self.table.glossy_program_lobe
             for sel, color in self._program_colors(self.table.glossy_program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming, sharp=sharp):
+                                                   rays=rays):
                 colors[sel, lobe.take(mat.take(sel))] *= color
         if self.table.has_partial_metal:
             # A metal that is part k of its lobe: the colour so far is its F0, the lobe's k F0 + rest.
@@ -622,18 +638,18 @@ class RenderContext:
                                       + t.hit_metal_rest.take(m, axis=0))
         if self.has_dielectric_programs:
             for sel, color in self._program_colors(self.table.dielectric_program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming, sharp=sharp):
+                                                   rays=rays):
                 colors[sel, DIELECTRIC] *= color
         if self.has_translucent_programs:
             for sel, color in self._program_colors(self.table.translucent_program, prim_ids, bary, pos, mat,
-                                                   incoming=incoming, sharp=sharp):
+                                                   rays=rays):
                 colors[sel, TRANSLUCENT] *= color
         tangent = None
         if self.table.has_anisotropy:
-            tangent = self.tangents(prim_ids, bary, pos, mat, ns if nn is None else nn, ns, incoming)
+            tangent = self.tangents(prim_ids, bary, pos, mat, ns if nn is None else nn, ns, rays)
         return Surface(pos, ng, ns, mat, colors, nn, tangent)
 
-    def tangents(self, prim_ids, bary, pos, mat, smooth, ns, incoming=None):
+    def tangents(self, prim_ids, bary, pos, mat, smooth, ns, rays=None):
         """(n, 3) the tangents of anisotropic glossy lobes at hits (0 where the material ``mat`` has
         none), as Cycles' Tangent node and closure: the radial direction about an object axis
         through the centre of the texture space (from the Generated coordinates; without
@@ -682,7 +698,7 @@ class RenderContext:
         if self.has_rotation_programs:
             for s, value in self._program_values(self.table.rotation_program, prim_ids.take(sel), w,
                                                  pos.take(sel, axis=0), m,
-                                                 None if incoming is None else incoming.take(sel, axis=0)):
+                                                 None if rays is None else rays.take(sel)):
                 turn[s] = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
         if (turn != 0).any():
             # Rodrigues' rotation about the shading normal (Cycles' rotate_around_axis).
@@ -693,13 +709,13 @@ class RenderContext:
         out[sel] = t
         return out
 
-    def _pick_level(self, mat, prim_ids, bary, pos, pick=None, incoming=None):
+    def _pick_level(self, mat, prim_ids, bary, pos, pick=None, rays=None):
         """Replace, in place, the materials ``mat`` (n,) that pick one of their levels at each hit
         (``Materials.level_program``) by a level: with ``pick`` ((n,) uniform numbers) one of the
         two around the program's value there, the upper with the probability of the value's
         fraction between them (``Materials``); without, the nearest."""
         mats = self.materials
-        for sel, value in self._program_values(mats.level_program, prim_ids, bary, pos, mat, incoming):
+        for sel, value in self._program_values(mats.level_program, prim_ids, bary, pos, mat, rays):
             m = mat.take(sel)
             top = mats.level_count.take(m) - 1
             x = np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * top
@@ -711,26 +727,26 @@ class RenderContext:
                 np.minimum(level, top, out=level)
             mat[sel] = mats.level_first.take(m) + level.astype(np.int32)
 
-    def _pick_roughness(self, mat, prim_ids, bary, pos, incoming=None):
+    def _pick_roughness(self, mat, prim_ids, bary, pos, rays=None):
         """Replace, in place, the materials ``mat`` (n,) that have a roughness map by their copy of
         the nearest roughness level (``bsdf.roughness_variants``) at these hits."""
         for sel, value in self._program_values(self.materials.roughness_program, prim_ids, bary, pos, mat,
-                                               incoming):
+                                               rays):
             level = np.rint(np.clip(np.nan_to_num(value, nan=0.0), 0.0, 1.0) * (ROUGHNESS_LEVELS - 1))
             mat[sel] = self.roughness_first.take(mat.take(sel)) + level.astype(np.int32)
 
-    def _pick_stretch(self, mat, prim_ids, bary, pos, incoming=None):
+    def _pick_stretch(self, mat, prim_ids, bary, pos, rays=None):
         """Replace, in place, the materials ``mat`` (n,) that have an anisotropy map by their copy of
         the nearest stretch level (``bsdf.stretch_variants``) at these hits."""
         for sel, value in self._program_values(self.materials.stretch_program, prim_ids, bary, pos, mat,
-                                               incoming):
+                                               rays):
             mat[sel] = self.stretch_first.take(mat.take(sel)) + stretch_level(value)
 
-    def emitted(self, prim_ids, b1, b2, mat=None, positions=None, incoming=None):
+    def emitted(self, prim_ids, b1, b2, mat=None, positions=None, rays=None):
         """(n, 3) float64 radiance emitted at the points of triangles ``prim_ids`` with barycentrics
         ``b1``, ``b2``: the material's emission times its emission program there (``mat`` (n,) and
-        ``positions`` (n, 3) when the caller has them; ``incoming`` (n, 3) the directions it
-        leaves in, which programs may read, ``HitAttributes``)."""
+        ``positions`` (n, 3) when the caller has them; ``rays`` the rays it is seen by, which
+        programs may read, ``procedural.Rays``)."""
         if mat is None:
             mat = self.material_ids.take(prim_ids)
         out = self.table.emission.take(mat, axis=0)
@@ -740,56 +756,53 @@ class RenderContext:
             bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
             programs = self.table.emission_program
             for sel, factor in self._program_colors(programs, prim_ids, bary, positions, mat, EMISSION_MAX,
-                                                    incoming):
+                                                    rays):
                 out[sel] *= factor
         return out
 
-    def emitted_out(self, prim_ids, b1, b2, mat=None, positions=None, incoming=None):
+    def emitted_out(self, prim_ids, b1, b2, mat=None, positions=None, rays=None):
         """(n, 3) radiance that leaves the points of emissive triangles: :meth:`emitted` times the
         opacity there (a half-transparent emitter emits half: Cycles' Alpha scales emission)."""
-        out = self.emitted(prim_ids, b1, b2, mat, positions, incoming)
+        out = self.emitted(prim_ids, b1, b2, mat, positions, rays)
         if self.has_transparency:
             if positions is None:
                 positions = self.accel.hit_positions(prim_ids, b1, b2)
-            out *= self._opacity(prim_ids, b1, b2, positions, incoming)[:, None]
+            out *= self._opacity(prim_ids, b1, b2, positions, rays)[:, None]
         return out
 
-    def _program_values(self, programs, prim_ids, bary, pos, mat, incoming=None):
+    def _program_values(self, programs, prim_ids, bary, pos, mat, rays=None):
         """(hit indices, (k,) numbers) for each float program in ``programs`` (per material, -1:
         none) that some of the hits' materials have; a colour counts by its luminance (Cycles)."""
         program = programs.take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
-            value = evaluate(self.programs[p], self._hit_attributes(sel, prim_ids, bary, pos, incoming),
+            value = evaluate(self.programs[p], self._hit_attributes(sel, prim_ids, bary, pos, rays),
                              self.textures.images)
             yield sel, (value @ LUMINANCE if value.ndim == 2 else value)
 
-    def _hit_attributes(self, sel, prim_ids, bary, pos, incoming, sharp=False):
-        """``HitAttributes`` of the hits ``sel`` of these (which may cast Ambient Occlusion's and, if
-        ``sharp``, Bevel's rays)."""
+    def _hit_attributes(self, sel, prim_ids, bary, pos, rays):
+        """``HitAttributes`` of the hits ``sel`` of these (which may cast Ambient Occlusion's and, for
+        sharp ``rays``, Bevel's rays)."""
         return HitAttributes(self.scene, prim_ids.take(sel), tuple(w.take(sel, axis=0) for w in bary),
-                             pos.take(sel, axis=0), None if incoming is None else incoming.take(sel, axis=0),
-                             self.accel, sharp)
+                             pos.take(sel, axis=0), None if rays is None else rays.take(sel), self.accel)
 
-    def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX, incoming=None,
-                        sharp=False):
+    def _program_colors(self, programs, prim_ids, bary, pos, mat, limit=COLOR_MAX, rays=None):
         """(hit indices, (k, 3) colours in [0, ``limit``]) for each program in ``programs`` (per
-        material, -1: none) that some of the hits' materials have (:meth:`surface`'s ``incoming``
-        and ``sharp``)."""
+        material, -1: none) that some of the hits' materials have (met by ``rays``)."""
         program = programs.take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
-            attrs = self._hit_attributes(sel, prim_ids, bary, pos, incoming, sharp)
+            attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)
             yield sel, evaluate_color(self.programs[p], attrs, self.textures.images, limit)
 
-    def _apply_normal_programs(self, ns, prim_ids, bary, pos, mat, incoming, sharp):
+    def _apply_normal_programs(self, ns, prim_ids, bary, pos, mat, rays):
         """Replace ``ns`` (n, 3) in place by the normalised value of the material's normal program
         (``Materials.normal_program``) where it has one, keeping ``ns`` where that is zero or not
         finite (Cycles' ``safe_normalize_fallback``)."""
         program = self.normal_program.take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
-            attrs = self._hit_attributes(sel, prim_ids, bary, pos, incoming, sharp)
+            attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)
             value = evaluate(self.programs[p], attrs, self.textures.images)
             if value.ndim == 1:
                 continue                            # (a float is no direction: the exporter sends none)
@@ -824,7 +837,7 @@ class RenderContext:
         _replace_bad(n, n0)
         ns[sel] = n
 
-    def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat, incoming=None):
+    def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat, rays=None):
         """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).
 
         As Cycles' Bump node, with the height's gradient along a parametrisation (u, v) of the
@@ -866,8 +879,7 @@ class RenderContext:
                                     (0.0, s2, x + s2[:, None] * e2)):
                 shifted = (b[0] - np.reshape(db1 + db2, (-1, 1)), b[1] + np.reshape(db1, (-1, 1)),
                            b[2] + np.reshape(db2, (-1, 1)))
-                attrs = HitAttributes(self.scene, p, shifted, moved,
-                                      None if incoming is None else incoming.take(sel, axis=0))
+                attrs = HitAttributes(self.scene, p, shifted, moved, None if rays is None else rays.take(sel))
                 h = evaluate(self.programs[k], attrs, self.textures.images)
                 heights.append(h @ LUMINANCE if h.ndim == 2 else h)
             hu, hv = (heights[1] - heights[0]) / s1, (heights[2] - heights[0]) / s2

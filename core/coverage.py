@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from .hash_grid import NORMAL_COS
+from .procedural import Rays
 from .sampling import dot
 
 DIRECTIONS = 8
@@ -97,7 +98,7 @@ def _probe(ctx, position, n, dirs, radius, ring):
                 ht = h.take(t)
                 at = ctx.accel.hit_positions(prim.take(t), below.b1.take(ht), below.b2.take(ht))
                 land[t] = ctx._opacity(prim.take(t), below.b1.take(ht), below.b2.take(ht), at,
-                                       -d.take(ht, axis=0)) > 0.0
+                                       Rays(-d.take(ht, axis=0))) > 0.0
         covered[rows.take(h[land])] = True
         # On through the surfaces it did not land on, with what is left of the ray.
         on = h[~land]

@@ -20,6 +20,7 @@ import numpy as np
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, TRANSLUCENT, choose_lobe, face_forward,
                    lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
+from .procedural import Rays, camera_path
 from .sampling import dot
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
 
@@ -170,6 +171,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     # the paths are camera rays, which see every emitter).
     sets = None
     origin_normals = None       # geometric normals where the paths left their last surface
+    # The mirror (glossy) and glass (transmission) bounces each path took, for the Light Path node.
+    bounces = np.zeros((len(pix), 2), np.int32)
     parts = []
     rays = 0
     for depth in range(max_bounces + 1):
@@ -253,14 +256,20 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         footprint = footprint.take(h)
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
         wo = -dirs
-        surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, wo,
-                           sharp=True)
+        if ctx.reads_light_path:
+            bounces = bounces.take(h, axis=0)
+            path = camera_path(ray_kind == VISIBLE_CAMERA, ray_kind == VISIBLE_GLOSSY, hits.t.take(h), depth,
+                               bounces[:, 0], bounces[:, 1])
+            rays_in = Rays(wo, True, path)
+        else:
+            rays_in = Rays(wo, True)
+        surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, rays_in)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():
             e = np.flatnonzero(emissive)
             seen = ctx.emitted(prim.take(e), b1.take(e), b2.take(e), surf.mat_ids.take(e),
-                               surf.position.take(e, axis=0), wo.take(e, axis=0))
+                               surf.position.take(e, axis=0), rays_in.take(e))
             if table.has_coat:
                 seen = seen * coat_attenuation(table, surf, wo, e)
             if sets is not None:
@@ -336,6 +345,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         g = go[keep]
         reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0
         ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
+        if ctx.reads_light_path:
+            bounces = bounces[g] + np.stack([reflected, ~reflected], axis=1)
         if medium is not None:
             medium = ctx.next_medium(medium[g], prim[g], wi[keep], wo[g])
         if ctx.receiver_sets is not None:

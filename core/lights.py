@@ -16,6 +16,7 @@ import numpy as np
 
 from . import sampling as smp
 from .environment import Environment
+from .procedural import Rays, photon_path
 from .scene import ALL_LINKS, AREA_DISK, AREA_RECT, POINT, SPOT, SUN, linked
 
 LIGHT_DIMS = 6
@@ -489,7 +490,7 @@ class LightSampler:
         d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
         emitted = power
         if self.textured_emitters:
-            radiance = self.emitted(ids, b1, b2, positions=p, incoming=d)
+            radiance = self.emitted(ids, b1, b2, positions=p, rays=_emitter_rays(d))
             emitted = (2.0 * np.pi * a.area.take(ids))[:, None] * radiance
         if self.coated_emitters:
             mats = self.material_ids.take(ids)
@@ -523,7 +524,8 @@ class LightSampler:
             ids = np.repeat(part, k)
             n = np.repeat(self.accel.geometric_normals.take(part, axis=0), k, axis=0)
             d = smp.to_world(np.tile(local, (len(part), 1)), n * np.tile(facing, len(part))[:, None])
-            radiance = self.emitted(ids, np.tile(b1, len(part)), np.tile(b2, len(part)), incoming=d)
+            radiance = self.emitted(ids, np.tile(b1, len(part)), np.tile(b2, len(part)),
+                                    rays=_emitter_rays(d))
             mean[start:start + chunk] = radiance.reshape(len(part), k, 3).mean(axis=1)
         mats = tri_mat.take(tris)
         for m in np.unique(mats):
@@ -531,6 +533,12 @@ class LightSampler:
             material_mean = (area[rows, None] * mean[rows]).sum(axis=0) / max(area[rows].sum(), 1e-300)
             mean[rows] = np.maximum(mean[rows], TEXTURED_POWER_FLOOR * material_mean)
         return (2.0 * np.pi * area)[:, None] * mean
+
+
+def _emitter_rays(directions):
+    """The ``procedural.Rays`` an emitting triangle's photons see it by: along ``directions`` (n, 3),
+    the light path of a photon's hit of length 0 (``procedural.photon_path``)."""
+    return Rays(directions, path=photon_path(np.zeros(len(directions))))
 
 
 class GlowingVolume:

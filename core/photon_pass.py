@@ -36,6 +36,7 @@ from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
+from .procedural import Rays, photon_path
 from .sampling import dot, hg_phase, luminance, sample_hg, tangent_axes
 from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
@@ -655,7 +656,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             pick = None
             if ctx.has_level_programs:
                 pick = _crossing_uniforms(u, idx, bounce, LEVEL_KEYS)(np.arange(len(idx)), 0)
-            surf = ctx.surface(prim, hits.b1.take(h), hits.b2.take(h), pick, -dirs)
+            path = photon_path(hits.t.take(h).astype(np.float64)) if ctx.reads_light_path else None
+            surf = ctx.surface(prim, hits.b1.take(h), hits.b2.take(h), pick, Rays(-dirs, path=path))
             if bounce == 0 and soft:
                 flux = flux * ctx.lights.soft_falloff(u[idx, :1], surf.position)[:, None]
             # A photon stops on a transparent surface with the probability of its opacity there,

@@ -57,6 +57,7 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``ao`` color, distance, normal, samples, inside, only_local: -> Color, AO (Cycles' Ambient
   Occlusion, ``HitAttributes.occlusion``).
 * ``bevel`` radius, samples, normal: -> Normal (Cycles' Bevel, ``HitAttributes.bevel``).
+* ``light_path``: -> the Light Path node's outputs (``LIGHT_PATH``) of the rays that meet the hits.
 * ``fresnel`` ior, normal: -> Fac; ``layer_weight`` blend, normal: -> Fresnel, Facing (Cycles'
   Fresnel and Layer Weight nodes at the ray's Incoming, ``RAY``; normal: the shading normal on the
   ray's side unless given).
@@ -75,6 +76,7 @@ Everything runs in float64 where Cycles uses float32.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -91,16 +93,69 @@ from .texture_hash import hash_uint3, hash_uint3_to_float
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
               "object_info", "position", "world_normal", "true_normal", "camera", "window", "incoming",
-              "backfacing", "parametric", "edge_distance")
+              "backfacing", "light_path", "parametric", "edge_distance")
 # Blender's Geometry node: "position" the hit's world position, "world_normal" the world-space
 # shading normal (interpolated where the mesh is smooth), "true_normal" the facet's; both normals
 # turned towards the ray on a back face, as Cycles turns them (``RAY``).
 GEOMETRY = ("position", "world_normal", "true_normal")
-# The ray that meets the hit (``HitAttributes.incoming``): "incoming" the unit direction back along
-# it (Cycles' I: towards the eye, or towards the light a photon left), "backfacing" (b, b, b) with
-# b = 1 where it meets the triangle's back.  Where the caller gives no rays, each hit is seen
-# head-on from its front (Incoming the front's normal).
-RAY = ("incoming", "backfacing")
+# The ray that meets the hit (``Rays.incoming``): "incoming" the unit direction back along it
+# (Cycles' I: towards the eye, or towards the light a photon left), "backfacing" (b, b, b) with
+# b = 1 where it meets the triangle's back, "light_path" its Light Path node's outputs
+# (``LIGHT_PATH``).  Where the caller gives no rays, each hit is seen head-on from its front
+# (Incoming the front's normal) by a camera ray.
+RAY = ("incoming", "backfacing", "light_path")
+# The Light Path node's outputs, in the order of ``Rays.path``'s columns.
+LIGHT_PATH = ("Is Camera Ray", "Is Shadow Ray", "Is Diffuse Ray", "Is Glossy Ray", "Is Singular Ray",
+              "Is Reflection Ray", "Is Transmission Ray", "Is Volume Scatter Ray", "Ray Length", "Ray Depth",
+              "Diffuse Depth", "Glossy Depth", "Transparent Depth", "Transmission Depth", "Portal Depth")
+CAMERA_PATH = np.array([1.0] + [0.0] * (len(LIGHT_PATH) - 1))      # a camera ray (of length 0)
+
+
+def camera_path(camera, reflected, lengths, depth, glossy_depth, transmission_depth):
+    """(k, len(LIGHT_PATH)) the light path of camera paths' rays (``Rays.path``), as Cycles flags
+    them: where ``camera`` (k,) a camera ray, else one after mirror or glass bounces, a singular
+    glossy ray, a reflection where ``reflected`` (k,), else a transmission; ``lengths`` (k,) this
+    segment's, ``depth`` the bounces so far, ``glossy_depth`` and ``transmission_depth`` (k,) the
+    mirror and glass ones among them."""
+    path = np.zeros((len(lengths), len(LIGHT_PATH)))
+    column = LIGHT_PATH.index
+    camera = np.asarray(camera, bool)
+    path[:, column("Is Camera Ray")] = camera
+    path[:, column("Is Glossy Ray")] = path[:, column("Is Singular Ray")] = ~camera
+    path[:, column("Is Reflection Ray")] = ~camera & reflected
+    path[:, column("Is Transmission Ray")] = ~camera & ~np.asarray(reflected, bool)
+    path[:, column("Ray Length")] = lengths
+    path[:, column("Ray Depth")] = depth
+    path[:, column("Glossy Depth")] = glossy_depth
+    path[:, column("Transmission Depth")] = transmission_depth
+    return path
+
+
+def photon_path(lengths):
+    """(k, len(LIGHT_PATH)) the light path of photons' hits (``Rays.path``) of segments ``lengths``
+    (k,): Cycles sees such a hit from the camera path's side, which a photon does not know; here as
+    from a first diffuse bounce off a measurement point (Is Diffuse Ray and Is Reflection Ray, Ray
+    Depth and Diffuse Depth 1), its Ray Length the photon's own segment."""
+    path = np.zeros((len(lengths), len(LIGHT_PATH)))
+    for name in ("Is Diffuse Ray", "Is Reflection Ray", "Ray Depth", "Diffuse Depth"):
+        path[:, LIGHT_PATH.index(name)] = 1.0
+    path[:, LIGHT_PATH.index("Ray Length")] = lengths
+    return path
+
+
+@dataclass(frozen=True)
+class Rays:
+    """The rays that meet k hits, as programs see them: ``incoming`` (k, 3) unit directions back
+    along them; ``sharp`` whether they are the camera's or followed a mirror or glass from it (a
+    Bevel bends only those, ``HitAttributes.bevel``); ``path`` (k, len(LIGHT_PATH)) their Light
+    Path outputs, or None for camera rays (``CAMERA_PATH``)."""
+    incoming: np.ndarray
+    sharp: bool = False
+    path: np.ndarray = None
+
+    def take(self, rows) -> "Rays":
+        return Rays(self.incoming.take(rows, axis=0), self.sharp,
+                    None if self.path is None else self.path.take(rows, axis=0))
 # The hit within its triangle: "parametric" (b0, b1, 0), the weights of its first two corners
 # (Geometry's Parametric: Cycles' (1 - u - v, u, 0)), "edge_distance" the distances in world
 # units to the lines through its three edges (of corners 2 and 0, 0 and 1, 1 and 2: Cycles'
@@ -147,14 +202,14 @@ class HitAttributes:
 
     scene : the ``Scene`` (its uvs, vertex colours and objects); prim_ids : (k,) triangle ids;
     bary : (b0, b1, b2), (k, 1) each; positions : (k, 3) float64 world positions of the hits;
-    incoming : (k, 3) unit directions back along the rays that meet them (``RAY``), or None;
-    accel : the scene's ``Accel``, for Ambient Occlusion's and Bevel's rays (:meth:`occlusion`,
-    :meth:`bevel`), or None; sharp : whether the rays are the camera's or followed a mirror or
-    glass from it (a Bevel bends only those, :meth:`bevel`)."""
+    rays : the ``Rays`` that meet them (``RAY``), or None; accel : the scene's ``Accel``, for
+    Ambient Occlusion's and Bevel's rays (:meth:`occlusion`, :meth:`bevel`), or None."""
 
-    def __init__(self, scene, prim_ids, bary, positions, incoming=None, accel=None, sharp=False):
+    def __init__(self, scene, prim_ids, bary, positions, rays=None, accel=None):
         self.scene, self.prim_ids, self.bary, self.positions = scene, prim_ids, bary, positions
-        self.incoming, self.accel, self.sharp = incoming, accel, sharp
+        self.rays, self.accel = rays, accel
+        self.incoming = None if rays is None else rays.incoming
+        self.sharp = rays is not None and rays.sharp
         self._cache = {}
 
     @property
@@ -220,7 +275,11 @@ class HitAttributes:
         return self._cache["side"]
 
     def _ray(self, name):
-        """(k, 3) Incoming or Backfacing of the hits (``RAY``)."""
+        """(k, 3) Incoming or Backfacing, or (k, len(LIGHT_PATH)) the light path of the hits (``RAY``)."""
+        if name == "light_path":
+            if self.rays is None or self.rays.path is None:
+                return np.tile(CAMERA_PATH, (self.count, 1))
+            return np.asarray(self.rays.path, np.float64)
         if name == "incoming":
             if self.incoming is None:
                 return self._front("world_normal")
@@ -470,8 +529,8 @@ class HitAttributes:
 
 class DirectionAttributes:
     """The coordinates of a world shader: Generated, Object and the Geometry's Position are the
-    direction (Cycles), its normals and Incoming the opposite, the uvs, colours and Backfacing zero.
-    directions : (k, 3) unit float64."""
+    direction (Cycles), its normals and Incoming the opposite, the uvs, colours, Backfacing and the
+    light path zero.  directions : (k, 3) unit float64."""
 
     def __init__(self, directions):
         self.directions = np.asarray(directions, np.float64)
@@ -485,6 +544,8 @@ class DirectionAttributes:
             return self.directions
         if name in ("world_normal", "true_normal", "incoming"):
             return -self.directions                 # (Cycles' background: N = Ng = I = -D)
+        if name == "light_path":
+            return np.zeros((self.count, len(LIGHT_PATH)))   # (the light it sheds: no camera ray)
         return np.zeros_like(self.directions)
 
 
@@ -492,7 +553,9 @@ class SampledAttributes:
     """Stand-in coordinates for an average of a program over a surface: generated (and vertex
     colours) uniform in the unit cube, object in [-1, 1]^3, uv in the unit square; for Object
     Info, locations in [-1, 1]^3, colours in the unit cube, alpha 1, index 0 and Random uniform
-    in [0, 1]; Incoming cosine-distributed about the normal, never the back (seeded, reproducible)."""
+    in [0, 1]; Incoming cosine-distributed about the normal, never the back; the hits met by camera
+    rays, rays off a mirror, through a glass and photons' in turn, of lengths in [0, 2] (seeded,
+    reproducible)."""
 
     def __init__(self, n=4096, seed=0):
         rng = np.random.default_rng(seed)
@@ -513,6 +576,13 @@ class SampledAttributes:
         local = np.stack([np.sqrt(s2) * np.cos(phi), np.sqrt(s2) * np.sin(phi), np.sqrt(1.0 - s2)], axis=1)
         self._values["incoming"] = to_world(local, normals)
         self._values["backfacing"] = np.zeros((n, 3))
+        # Camera rays, rays off a mirror, through a glass and photons' in turn (each output then
+        # varies as it may: a mask's mean is no 0 or 1).
+        kind, lengths = np.arange(n) % 4, 2.0 * g[:, 0]
+        bounced = (kind == 1) | (kind == 2)
+        path = camera_path(kind == 0, kind == 1, lengths, bounced, kind == 1, kind == 2)
+        path[kind == 3] = photon_path(lengths[kind == 3])
+        self._values["light_path"] = path
 
     @property
     def count(self) -> int:
@@ -593,6 +663,8 @@ def attributes_used(program) -> set:
                 used.add("object")                  # (which object a triangle is of)
         elif node["op"] == "bevel":
             used |= {"position", "world_normal", "object"}
+        elif node["op"] == "light_path":
+            used.add("light_path")
         elif node["op"] == "vector_transform":
             spaces = {node.get("convert_from", "WORLD"), node.get("convert_to", "OBJECT")}
             used |= {"object"} & {s.lower() for s in spaces} | ({"camera"} if "CAMERA" in spaces else set())
@@ -1451,6 +1523,12 @@ def _bevel(ev, node):
     return {"Normal": out}
 
 
+def _light_path(ev, node):
+    """The Light Path node's outputs (``LIGHT_PATH``) of the rays that meet the hits (``Rays.path``)."""
+    path = ev.attrs.get("light_path")
+    return {name: path[:, i] for i, name in enumerate(LIGHT_PATH)}
+
+
 def _invert(ev, node):
     t = ev.float(node, "fac", 1.0)[:, None]
     c = ev.vec(node, "color")
@@ -1606,7 +1684,8 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "color_space": _color_space, "vector_transform": _vector_transform, "wavelength": _wavelength,
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve,
-       "fresnel": _fresnel, "layer_weight": _layer_weight, "ao": _ao, "bevel": _bevel}
+       "fresnel": _fresnel, "layer_weight": _layer_weight, "ao": _ao, "bevel": _bevel,
+       "light_path": _light_path}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -1621,7 +1700,8 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gray": ("Value",), "average": ("Value",), "splat": ("Vector",), "blackbody": ("Color",),
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
            "curves": ("Color",), "float_curve": ("Value",), "fresnel": ("Fac",),
-           "layer_weight": ("Fresnel", "Facing"), "ao": ("Color", "AO"), "bevel": ("Normal",)}
+           "layer_weight": ("Fresnel", "Facing"), "ao": ("Color", "AO"), "bevel": ("Normal",),
+           "light_path": LIGHT_PATH}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "color_space": ("conversion",),
             "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}

@@ -9,8 +9,8 @@ named one), Color Attribute (the render one or a named one), Attribute (a mesh a
 an object's or instancer's property), Object Info (per object: Location, Color, Alpha, Object Index
 and Random as Cycles sets them; Material Index the material's pass index), Geometry (Position,
 Normal and True Normal in world space, Incoming, Backfacing, Parametric; Random Per Island;
-Pointiness), Camera Data, Wireframe (in world units), Ambient Occlusion, Bevel (its normal),
-Mapping (all four types), Image Texture (flat and box projections, every extension, linear,
+Pointiness), Camera Data, Wireframe (in world units), Ambient Occlusion, Bevel (its normal), Light
+Path, Mapping (all four types), Image Texture (flat and box projections, every extension, linear,
 closest, cubic or smart), Environment Texture (equirectangular), Checker, Gradient, Noise, Voronoi,
 Wave, Brick, Magic and White Noise Textures, Color Ramp (sampled by Blender itself, as Cycles bakes
 it), Mix (float, vector, colour; 19 blend modes) and the legacy MixRGB, Math (every operation),
@@ -192,6 +192,12 @@ def _bevel(b, node, stack):
     """Bevel: Cycles' bevelled normal at each hit seen by the camera (``procedural`` op ``bevel``)."""
     return {"Normal": {"op": "bevel", "radius": b.input(node, "Radius", stack, FLOAT),
                        "samples": int(node.samples), **_view_normal(b, node, stack)}}
+
+
+def _light_path(b, node, stack):
+    """Light Path: the outputs of the rays that meet each hit (``procedural.LIGHT_PATH``,
+    ``procedural.Rays``): exact for camera paths, as from a first diffuse bounce at photons' hits."""
+    return _out({"op": "light_path"}, **{name: name for name in procedural.LIGHT_PATH})
 
 
 def _object_info(b, node, stack):
@@ -735,4 +741,5 @@ NODES = {
     "ShaderNodeFresnel": _fresnel, "ShaderNodeLayerWeight": _layer_weight,
     "ShaderNodeCameraData": _camera_data, "ShaderNodeWireframe": _wireframe,
     "ShaderNodeAmbientOcclusion": _ambient_occlusion, "ShaderNodeBevel": _bevel,
+    "ShaderNodeLightPath": _light_path,
 }

@@ -962,6 +962,7 @@ def our_values_through_the_camera(offsets=((0.0, 0.0),), normals=False, sharp=Tr
     from amcmcppm.core.bsdf import DIFFUSE
     from amcmcppm.core.camera import generate_camera_rays
     from amcmcppm.core.context import RenderContext
+    from amcmcppm.core.procedural import CAMERA_PATH, LIGHT_PATH, Rays
     scene = bs.export().scene
     ctx = RenderContext(scene)
     w, h = scene.camera.resolution
@@ -973,7 +974,9 @@ def our_values_through_the_camera(offsets=((0.0, 0.0),), normals=False, sharp=Tr
         hits = ctx.accel.intersect(origins, dirs)
         hit = np.flatnonzero(hits.prim_ids >= 0)
         ours = np.full((w * h, 3), np.nan)
-        surf = ctx.surface(hits.prim_ids[hit], hits.b1[hit], hits.b2[hit], incoming=-dirs[hit], sharp=sharp)
+        path = np.tile(CAMERA_PATH, (len(hit), 1))                      # (camera rays: their length)
+        path[:, LIGHT_PATH.index("Ray Length")] = hits.t[hit]
+        surf = ctx.surface(hits.prim_ids[hit], hits.b1[hit], hits.b2[hit], rays=Rays(-dirs[hit], sharp, path))
         ours[hit] = 0.5 * surf.ns + 0.5 if normals else surf.colors[:, DIFFUSE]
         runs.append(ours.reshape(h, w, 3))
     return np.mean(runs, axis=0)
@@ -1017,6 +1020,19 @@ def view_vector(kind, output):
     return lambda nt: half_unit(nt, nt.nodes.new(kind).outputs[output])
 
 
+def light_path(nt):
+    """Light Path's Is Camera Ray, a tenth of its Ray Length and Is Glossy Ray (camera rays)."""
+    lp = nt.nodes.new("ShaderNodeLightPath")
+    comb = nt.nodes.new("ShaderNodeCombineXYZ")
+    tenth = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+    tenth.inputs[1].default_value = 0.1
+    nt.links.new(lp.outputs["Ray Length"], tenth.inputs[0])
+    for output, axis in ((lp.outputs["Is Camera Ray"], "X"), (tenth.outputs[0], "Y"),
+                         (lp.outputs["Is Glossy Ray"], "Z")):
+        nt.links.new(output, comb.inputs[axis])
+    return comb.outputs[0]
+
+
 def camera_data(nt):
     """Camera Data's View Z Depth and View Distance (a tenth of each) and the View Vector's x."""
     cam = nt.nodes.new("ShaderNodeCameraData")
@@ -1045,6 +1061,7 @@ VIEW_CASES = {
     "true_normal": view_vector("ShaderNodeNewGeometry", "True Normal"),
     "object_normal": view_vector("ShaderNodeTexCoord", "Normal"),
     "camera_data": camera_data,
+    "light_path": light_path,
     "view_vector": view_vector("ShaderNodeCameraData", "View Vector"),
     "parametric": view_vector("ShaderNodeNewGeometry", "Parametric"),
     "wireframe": wireframe(0.04),
@@ -1157,6 +1174,43 @@ def test_bevel_matches_cycles(addon, tmp_path, samples):
               f"{np.abs(plain[bevelled] - cycles[bevelled]).max(axis=1).mean():.3f})")
         assert np.abs(diff.mean(axis=0)).max() < 0.002 and np.percentile(err, 99) < 0.03
         assert bias < 0.006 and edge < 0.03
+
+
+def test_light_path_through_a_mirror_matches_cycles(addon, tmp_path):
+    """An emitting panel seen directly and in a mirror floor (a Glossy BSDF of roughness 0), its
+    colour the Light Path's Is Camera Ray, Is Glossy Ray and Is Reflection Ray and its strength 1 +
+    Ray Depth: red directly, cyan twice as bright in the mirror, as Cycles flags its rays (stop 40;
+    before, Light Path outside a Mix with a clear Transparent was an unsupported node).  Each
+    half of the frame against Cycles' render, channel by channel."""
+    import bpy
+
+    scene = bs.empty_scene((40, 30))
+    panel = bs.emission("Panel")
+    nt = panel.node_tree
+    lp = nt.nodes.new("ShaderNodeLightPath")
+    comb = nt.nodes.new("ShaderNodeCombineColor")
+    for output, channel in (("Is Camera Ray", "Red"), ("Is Glossy Ray", "Green"),
+                            ("Is Reflection Ray", "Blue")):
+        nt.links.new(lp.outputs[output], comb.inputs[channel])
+    strength = node(nt, "ShaderNodeMath", operation="ADD")
+    nt.links.new(lp.outputs["Ray Depth"], strength.inputs[0])
+    strength.inputs[1].default_value = 1.0
+    nt.links.new(comb.outputs[0], nt.nodes["Emission"].inputs["Color"])
+    nt.links.new(strength.outputs[0], nt.nodes["Emission"].inputs["Strength"])
+    bs.plane("Panel", size=3.0, material=panel, location=(0.0, 2.0, 1.6), rotation=(math.pi / 2, 0.0, 0.0))
+    bs.plane("Mirror", size=8.0, material=bs._material("Mirror", "ShaderNodeBsdfGlossy", Roughness=0.0))
+    bs.camera(location=(0.0, -4.0, 1.5), target=(0.0, 1.0, 0.6), lens=30.0)
+    scene.amcmcppm.passes = 8
+    ours = bs.render_exr(tmp_path / "ours.exr")[..., :3]
+    scene.render.engine = "CYCLES"
+    scene.cycles.device, scene.cycles.samples, scene.cycles.use_denoising = "CPU", 64, False
+    cycles = bs.render_exr(tmp_path / "cycles.exr")[..., :3]
+    assert np.isfinite(ours).all()
+    for half, rows in (("direct", slice(0, 15)), ("mirror", slice(15, 30))):
+        c, o = cycles[rows].reshape(-1, 3).mean(axis=0), ours[rows].reshape(-1, 3).mean(axis=0)
+        print(f"light path {half}: cycles {np.round(c, 4)}, ours {np.round(o, 4)}")
+        np.testing.assert_allclose(o, c, atol=0.01, rtol=0.02)
+    assert cycles[:15, :, 0].max() > 0.5 and cycles[15:, :, 1].max() > 1.5        # (both halves show it)
 
 
 def surface_errors(mat, positions, tmp_path, least_coverage):

@@ -220,7 +220,7 @@ def test_the_ray_turns_the_normals_and_sets_incoming_and_backfacing():
     tilted[:, 0] = [0.6, 0.0, 0.8]
     smooth = scene.replace(shading_normals=tilted).validate()
     incoming = np.array([[0.0, 0.6, 0.8], [0.0, 0.6, -0.8]])        # from above, from below
-    seen = procedural.HitAttributes(smooth, np.array([1, 0]), bary, positions, incoming)
+    seen = procedural.HitAttributes(smooth, np.array([1, 0]), bary, positions, procedural.Rays(incoming))
     front = procedural.HitAttributes(smooth, np.array([1, 0]), bary, positions)
     np.testing.assert_array_equal(seen.get("incoming"), incoming)
     np.testing.assert_array_equal(seen.get("backfacing"), [[0, 0, 0], [1, 1, 1]])
@@ -281,8 +281,9 @@ def floor_hits(scene, xy, sharp=False, with_accel=True):
     assert (hits.prim_ids <= 1).all() and hits.is_hit.all()
     bary = (1.0 - hits.b1 - hits.b2)[:, None], hits.b1[:, None], hits.b2[:, None]
     positions = accel.hit_positions(hits.prim_ids, hits.b1, hits.b2)
-    return procedural.HitAttributes(scene, hits.prim_ids, bary, positions, np.tile([0.0, 0.0, 1.0], (n, 1)),
-                                    accel if with_accel else None, sharp)
+    rays = procedural.Rays(np.tile([0.0, 0.0, 1.0], (n, 1)), sharp)
+    return procedural.HitAttributes(scene, hits.prim_ids, bary, positions, rays,
+                                    accel if with_accel else None)
 
 
 def floor_under_ceiling(height):

@@ -87,6 +87,22 @@ def test_photons_leave_an_emitter_of_the_view_with_the_power_of_their_direction(
     assert (prob > 0.3).all() and (dirs[:, 2] < 0).mean() == pytest.approx(0.5, abs=0.01)
 
 
+@pytest.mark.parametrize("seen", [True, False], ids=["camera_only", "light_only"])
+def test_an_emission_of_the_light_path_shows_to_the_camera_or_lights(seen):
+    """Emission times Light Path's Is Camera Ray: the camera sees it and its photons carry
+    nothing (they see it as from a diffuse bounce, ``procedural.photon_path``); times one minus
+    it, the photons carry it all (2 pi A L, the floor's power) and the camera sees black.  The
+    renders stay finite with an emitter of no power."""
+    camera = {"op": "light_path", "output": "Is Camera Ray"}
+    program = grey(camera if seen else {"op": "math", "operation": "SUBTRACT", "a": 1.0, "b": camera})
+    scene = emitting_floor(program)
+    (_, _, flux, _), _ = photons(scene, n=20_000)
+    np.testing.assert_allclose(flux.mean(axis=0), 0.0 if seen else 2 * np.pi * 3.0, rtol=1e-6)
+    image = render(scene, RenderSettings(workers=1, passes=2, photons_per_pass=2000)).image[..., :3]
+    assert np.isfinite(image).all()
+    np.testing.assert_allclose(image, 3.0 if seen else 0.0, rtol=1e-5)
+
+
 def test_the_camera_sees_the_emission_program():
     n = 16
     result = render(emitting_floor(RAMP), RenderSettings(workers=1, passes=4, photons_per_pass=2000))
