@@ -14,12 +14,14 @@ as Cycles does.
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
 * ``attribute`` name = generated | object | uv | color | normal | position | world_normal |
-  true_normal | incoming | backfacing (and Object Info's, ``OBJECT_INFO``): -> Vector. Blender's
+  true_normal | incoming | backfacing | light_path | parametric | edge_distance (and Object Info's,
+  ``OBJECT_INFO``): -> Vector (light_path: the Light Path's outputs, ``LIGHT_PATH``). Blender's
   Generated and Object coordinates (the hit in its object's space, ``Scene.object_from_world``, and
   that object's texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner
   ``Scene.uvs`` as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's
   Position, Normal and True Normal in world space (``GEOMETRY``), Incoming and Backfacing
-  (``RAY``); the Texture Coordinate's Camera and Window (``VIEW``); ``named:`` + a name,
+  (``RAY``), Parametric and the edges' distances (``TRIANGLE``); the Texture Coordinate's Camera
+  and Window (``VIEW``); ``named:`` + a name,
   ``Scene.attributes[name]`` interpolated (``NAMED``); ``object:`` or ``instancer:`` + an RNA path,
   ``Scene.object_attributes`` (``OBJECT_PROPERTY``).
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
@@ -109,6 +111,45 @@ LIGHT_PATH = ("Is Camera Ray", "Is Shadow Ray", "Is Diffuse Ray", "Is Glossy Ray
               "Is Reflection Ray", "Is Transmission Ray", "Is Volume Scatter Ray", "Ray Length", "Ray Depth",
               "Diffuse Depth", "Glossy Depth", "Transparent Depth", "Transmission Depth", "Portal Depth")
 CAMERA_PATH = np.array([1.0] + [0.0] * (len(LIGHT_PATH) - 1))      # a camera ray (of length 0)
+# The hit within its triangle: "parametric" (b0, b1, 0), the weights of its first two corners
+# (Geometry's Parametric: Cycles' (1 - u - v, u, 0)), "edge_distance" the distances in world
+# units to the lines through its three edges (of corners 2 and 0, 0 and 1, 1 and 2: Cycles'
+# Wireframe compares them with half its Size).
+TRIANGLE = ("parametric", "edge_distance")
+# Most hits on its own object a Bevel ray counts (Cycles' LOCAL_MAX_HITS).
+LOCAL_HITS = 4
+# Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
+# depth in front) and Window (where the hit lands in the frame, (0, 0) at its bottom left, z = 0;
+# perspective and orthographic cameras, 0 for panoramic ones).
+VIEW = ("camera", "window")
+# An attribute named NAMED + a mesh attribute's name reads ``Scene.attributes[name]`` per corner
+# (Blender's Attribute node, a Color Attribute or UV Map node naming a layer); 0 where the scene
+# has no such attribute (Cycles: a missing attribute reads 0).
+NAMED = "named:"
+# An attribute named OBJECT_PROPERTY[k] + an RNA path reads ``Scene.object_attributes`` of the hit's
+# object (Blender's Attribute node of the Object type: the object's property or custom property,
+# else its data's; Instancer: the instancer's first), 0 where the scene has none.
+OBJECT_PROPERTY = ("object:", "instancer:")
+
+
+def reads_objects(names) -> bool:
+    """Whether attributes ``names`` (``attributes_used``) need the scene's objects."""
+    return any(n in ("object", "generated", "normal", *OBJECT_INFO) or n.startswith(OBJECT_PROPERTY)
+               for n in names)
+# Blender's Object Info per object (``Scene.object_info``): "object_location" the object's origin
+# in world space, "object_color" its colour, "object_info" (Alpha, Object Index, Random).
+OBJECT_INFO = ("object_location", "object_color", "object_info")
+# Largest albedo a program may give: above 1 a surface adds light (Cycles allows it, and a Mix
+# Shader mask divided by its mean weight may exceed 1), but a program gone wild (a power, a
+# division by ~0) must not overflow the photons' flux over many bounces.
+COLOR_MAX = 100.0
+# Largest factor an emission program may give (emission is not multiplied along a path, and a
+# sky or a lamp in an HDR image may be thousands of times its mean; inf stays finite).
+EMISSION_MAX = 1e30
+
+
+class ProgramError(ValueError):
+    """A malformed program (unknown op, missing input, bad texture index)."""
 
 
 def camera_path(camera, reflected, lengths, depth, glossy_depth, transmission_depth):
@@ -156,45 +197,6 @@ class Rays:
     def take(self, rows) -> "Rays":
         return Rays(self.incoming.take(rows, axis=0), self.sharp,
                     None if self.path is None else self.path.take(rows, axis=0))
-# The hit within its triangle: "parametric" (b0, b1, 0), the weights of its first two corners
-# (Geometry's Parametric: Cycles' (1 - u - v, u, 0)), "edge_distance" the distances in world
-# units to the lines through its three edges (of corners 2 and 0, 0 and 1, 1 and 2: Cycles'
-# Wireframe compares them with half its Size).
-TRIANGLE = ("parametric", "edge_distance")
-# Most hits on its own object a Bevel ray counts (Cycles' LOCAL_MAX_HITS).
-LOCAL_HITS = 4
-# Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
-# depth in front) and Window (where the hit lands in the frame, (0, 0) at its bottom left, z = 0;
-# perspective and orthographic cameras, 0 for panoramic ones).
-VIEW = ("camera", "window")
-# An attribute named NAMED + a mesh attribute's name reads ``Scene.attributes[name]`` per corner
-# (Blender's Attribute node, a Color Attribute or UV Map node naming a layer); 0 where the scene
-# has no such attribute (Cycles: a missing attribute reads 0).
-NAMED = "named:"
-# An attribute named OBJECT_PROPERTY[k] + an RNA path reads ``Scene.object_attributes`` of the hit's
-# object (Blender's Attribute node of the Object type: the object's property or custom property,
-# else its data's; Instancer: the instancer's first), 0 where the scene has none.
-OBJECT_PROPERTY = ("object:", "instancer:")
-
-
-def reads_objects(names) -> bool:
-    """Whether attributes ``names`` (``attributes_used``) need the scene's objects."""
-    return any(n in ("object", "generated", "normal", *OBJECT_INFO) or n.startswith(OBJECT_PROPERTY)
-               for n in names)
-# Blender's Object Info per object (``Scene.object_info``): "object_location" the object's origin
-# in world space, "object_color" its colour, "object_info" (Alpha, Object Index, Random).
-OBJECT_INFO = ("object_location", "object_color", "object_info")
-# Largest albedo a program may give: above 1 a surface adds light (Cycles allows it, and a Mix
-# Shader mask divided by its mean weight may exceed 1), but a program gone wild (a power, a
-# division by ~0) must not overflow the photons' flux over many bounces.
-COLOR_MAX = 100.0
-# Largest factor an emission program may give (emission is not multiplied along a path, and a
-# sky or a lamp in an HDR image may be thousands of times its mean; inf stays finite).
-EMISSION_MAX = 1e30
-
-
-class ProgramError(ValueError):
-    """A malformed program (unknown op, missing input, bad texture index)."""
 
 
 class HitAttributes:
