@@ -121,9 +121,12 @@ class RenderContext:
         # Light from afar (the sun, the world) comes through the world's unbounded volume only in
         # the channels it does not attenuate.
         through = (self.extinction[self.outside] == 0).astype(np.float64) if self.outside >= 0 else None
+        # Whether some program reads the Light Path (then the passes give their rays' paths).
+        self.reads_light_path = any("light_path" in attributes_used(p) for p in self.programs)
         self.lights = LightSampler(scene, self.accel, self.table, self.emitted_out, self.opacity,
                                    (self.table.emission_program >= 0) | (self.opacity_program >= 0),
-                                   distant_transmittance=through, volume_emission=self.volume_emission)
+                                   distant_transmittance=through, volume_emission=self.volume_emission,
+                                   light_path=self.reads_light_path)
         # Light linking (Scene.receiver_sets): each triangle's receiver set and each emissive one's
         # links, when some emitter leaves a set out (else None: every emitter lights everything).
         self.receiver_sets = self.emitter_links = None
@@ -158,8 +161,6 @@ class RenderContext:
         self.uses_uvs = (self.table.texture >= 0) | (self.normal_texture >= 0) | (self.bump_texture >= 0)
         self.bump_program = np.asarray(mats.bump_program, np.int32)
         self.normal_program = np.asarray(mats.normal_program, np.int32)
-        # Whether some program reads the Light Path (then the passes give their rays' paths).
-        self.reads_light_path = any("light_path" in attributes_used(p) for p in self.programs)
 
     @property
     def effects(self) -> tuple:

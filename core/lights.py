@@ -37,15 +37,17 @@ class LightSampler:
     """Power-proportional choice over all emitters and their photon sampling."""
 
     def __init__(self, scene, accel, table, emitted=None, opacity=None, varies=None,
-                 distant_transmittance=None, volume_emission=None):
+                 distant_transmittance=None, volume_emission=None, light_path=False):
         """``distant_transmittance`` (3,): the share of the light from afar (the sun, the world)
         that reaches the scene (the world's volume, RenderContext.outside), or None: all.
-        ``volume_emission`` (>= M, 3): each material's ``Materials.volume_emission``, or None."""
+        ``volume_emission`` (>= M, 3): each material's ``Materials.volume_emission``, or None.
+        ``light_path``: whether some program reads the Light Path (``RenderContext.reads_light_path``)."""
         lights = scene.lights
         # Radiance leaving points of emissive triangles, emission times opacity
         # (RenderContext.emitted_out), for emitters where it varies (``varies`` per material);
         # ``opacity`` (per material, constant) scales the others.
         self.emitted = emitted
+        self.light_path = light_path
         m = table.emission.shape[0]
         self.opacity = np.ones(m) if opacity is None else np.asarray(opacity, np.float64)
         self.varies = np.zeros(m, bool) if varies is None else np.asarray(varies, bool)
@@ -490,7 +492,7 @@ class LightSampler:
         d = smp.to_world(smp.cosine_hemisphere(u[:, 4], u[:, 5]), n)
         emitted = power
         if self.textured_emitters:
-            radiance = self.emitted(ids, b1, b2, positions=p, rays=_emitter_rays(d))
+            radiance = self.emitted(ids, b1, b2, positions=p, rays=self._emitter_rays(d))
             emitted = (2.0 * np.pi * a.area.take(ids))[:, None] * radiance
         if self.coated_emitters:
             mats = self.material_ids.take(ids)
@@ -501,6 +503,12 @@ class LightSampler:
                 mu = np.abs(smp.dot(d, n).take(coated))
                 emitted[coated] *= self.table.coat_attenuation(mats.take(coated), mu)
         return a.spawn(p, n, d), d, emitted, n
+
+    def _emitter_rays(self, directions):
+        """The ``procedural.Rays`` an emitting triangle's photons see it by: along ``directions``
+        (n, 3), with the light path of a photon's hit of length 0 (``procedural.photon_path``) where
+        some program reads it."""
+        return Rays(directions, path=photon_path(np.zeros(len(directions))) if self.light_path else None)
 
     def _textured_power(self, tris, tri_mat):
         """(k, 3) estimated power 2 pi A mean(L) of emissive triangles ``tris`` whose radiance
@@ -525,7 +533,7 @@ class LightSampler:
             n = np.repeat(self.accel.geometric_normals.take(part, axis=0), k, axis=0)
             d = smp.to_world(np.tile(local, (len(part), 1)), n * np.tile(facing, len(part))[:, None])
             radiance = self.emitted(ids, np.tile(b1, len(part)), np.tile(b2, len(part)),
-                                    rays=_emitter_rays(d))
+                                    rays=self._emitter_rays(d))
             mean[start:start + chunk] = radiance.reshape(len(part), k, 3).mean(axis=1)
         mats = tri_mat.take(tris)
         for m in np.unique(mats):
@@ -533,12 +541,6 @@ class LightSampler:
             material_mean = (area[rows, None] * mean[rows]).sum(axis=0) / max(area[rows].sum(), 1e-300)
             mean[rows] = np.maximum(mean[rows], TEXTURED_POWER_FLOOR * material_mean)
         return (2.0 * np.pi * area)[:, None] * mean
-
-
-def _emitter_rays(directions):
-    """The ``procedural.Rays`` an emitting triangle's photons see it by: along ``directions`` (n, 3),
-    the light path of a photon's hit of length 0 (``procedural.photon_path``)."""
-    return Rays(directions, path=photon_path(np.zeros(len(directions))))
 
 
 class GlowingVolume:

@@ -89,7 +89,8 @@ from . import voronoi as _voronoi_module
 from .accel import interpolate_corners
 from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
-from .sampling import cosine_hemisphere, dot, length, normalize, orthonormal_frames, to_world
+from .sampling import (cosine_hemisphere, dot, fresnel_dielectric, length, normalize, orthonormal_frames,
+                       to_world)
 from .texture_hash import hash_uint3, hash_uint3_to_float
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
@@ -210,9 +211,17 @@ class HitAttributes:
     def __init__(self, scene, prim_ids, bary, positions, rays=None, accel=None):
         self.scene, self.prim_ids, self.bary, self.positions = scene, prim_ids, bary, positions
         self.rays, self.accel = rays, accel
-        self.incoming = None if rays is None else rays.incoming
-        self.sharp = rays is not None and rays.sharp
         self._cache = {}
+
+    @property
+    def incoming(self):
+        """(k, 3) the rays' directions back (``Rays.incoming``), or None without rays."""
+        return None if self.rays is None else self.rays.incoming
+
+    @property
+    def sharp(self) -> bool:
+        """Whether the rays are sharp (``Rays.sharp``): a Bevel bends only those."""
+        return self.rays is not None and self.rays.sharp
 
     @property
     def count(self) -> int:
@@ -340,16 +349,15 @@ class HitAttributes:
         tangent, bitangent = orthonormal_frames(ng)
         objects = s.object_ids.take(self.prim_ids.take(rows))
         total = np.zeros((len(rows), 3))
+        axes, chances = (ng, tangent, bitangent), (0.5, 0.25, 0.25)
         for j in range(samples):
             u, v = (hash_uint3_to_float(key, np.uint32(j), np.uint32(axis)) for axis in (2, 3))
             u = np.minimum((j + u) / samples, 1.0)  # (stratified, as Cycles' numbers are)
-            # The axis: the normal (pdf 1/2, u < 1/2), else the tangent or the bitangent (1/4 each).
+            # The axis: the normal (chance 1/2, u < 1/2), else the tangent or the bitangent (1/4 each).
             which = np.where(u < 0.5, 0, np.where(u < 0.75, 1, 2))[:, None]
-            axes = (ng, tangent, bitangent)
             disk_n = np.where(which == 0, ng, np.where(which == 1, tangent, bitangent))
             disk_t = np.where(which == 1, ng, tangent)
             disk_b = np.where(which == 2, ng, bitangent)
-            pdfs = (0.5, 0.25, 0.25)                # the chances of picking ng, tangent, bitangent
             u = np.where(u < 0.5, 2.0 * u, np.where(u < 0.75, (u - 0.5) * 4.0, (u - 0.75) * 4.0))[:, None]
             disk_r = r_max * _cubic_falloff_root(v)[:, None]
             height = np.sqrt(np.maximum(r_max * r_max - disk_r * disk_r, 0.0))
@@ -357,18 +365,16 @@ class HitAttributes:
             start = p + disk_n * height + disk_r * (np.cos(phi) * disk_t + np.sin(phi) * disk_b)
             for row, prim, at, b1, b2 in self._local_hits(start, -disk_n, 2.0 * height[:, 0], objects):
                 hit_ng = self.accel.geometric_normals.take(prim, axis=0)
-                pdf = [pk * np.abs(dot(a.take(row, axis=0), hit_ng))[:, None] for pk, a in zip(pdfs, axes)]
+                pdf = [pk * np.abs(dot(a.take(row, axis=0), hit_ng))[:, None] for pk, a in zip(chances, axes)]
                 chosen = np.choose(which.take(row, axis=0), pdf)
                 w = chosen / (pdf[0] ** 2 + pdf[1] ** 2 + pdf[2] ** 2)
                 r = length(at - p.take(row, axis=0))[:, None]
                 falloff = np.maximum(r_max.take(row, axis=0) - r, 0.0) / np.maximum(
                     r_max.take(row, axis=0) - disk_r.take(row, axis=0), 1e-300)
-                normal = hit_ng
-                if s.shading_normals is not None:
-                    corners = s.shading_normals.take(prim, axis=0).astype(np.float64)
-                    smooth = normalize(interpolate_corners(corners, ((1.0 - b1 - b2)[:, None], b1[:, None],
-                                                                     b2[:, None])))
-                    normal = np.where((length(smooth) > 0.0)[:, None], smooth, hit_ng)
+                # The smooth normal there (the facet's where it is 0, as Cycles').
+                smooth = HitAttributes(s, prim, ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None]),
+                                       at)._front("world_normal")
+                normal = np.where((length(smooth) > 0.0)[:, None], smooth, hit_ng)
                 np.add.at(total, row, w * falloff ** 3 * normal)
         n = normalize(total)
         found = length(n) > 0.0
@@ -379,9 +385,7 @@ class HitAttributes:
         """For the hits along rays ``origins + t dirs`` (0 < t < ``tmax``) on each ray's object
         (``objects`` (n,); ``Accel.local``), up to LOCAL_HITS per ray, nearest first: (ray rows,
         triangle ids, world points, b1, b2), one such per object and round."""
-        for obj in np.unique(objects):
-            accel = self.accel.local(int(obj))
-            rows = np.flatnonzero(objects == obj)
+        for accel, rows in self._per_object(objects):
             o, d, left = origins.take(rows, axis=0), dirs.take(rows, axis=0), np.asarray(tmax).take(rows)
             for _ in range(LOCAL_HITS):
                 hits = accel.intersect(o, d, np.maximum(left, 0.0))
@@ -402,11 +406,16 @@ class HitAttributes:
         if objects is None:
             return self.accel.intersect(origins, dirs, tmax).is_hit
         blocked = np.zeros(len(origins), bool)
-        for obj in np.unique(objects):
-            rows = np.flatnonzero(objects == obj)
-            blocked[rows] = self.accel.local(int(obj)).intersect(
-                origins.take(rows, axis=0), dirs.take(rows, axis=0), np.asarray(tmax).take(rows)).is_hit
+        for accel, rows in self._per_object(objects):
+            blocked[rows] = accel.intersect(origins.take(rows, axis=0), dirs.take(rows, axis=0),
+                                            np.asarray(tmax).take(rows)).is_hit
         return blocked
+
+    def _per_object(self, objects):
+        """(the query over one object's triangles alone, ``Accel.local``; the rows of ``objects``
+        (n,) on it) for each object there."""
+        for obj in np.unique(objects):
+            yield self.accel.local(int(obj)), np.flatnonzero(objects == obj)
 
     def _triangle(self, name):
         """(k, 3) Parametric or the edge distances of the hits (``TRIANGLE``)."""
@@ -1457,32 +1466,25 @@ def _metal(ev, node):
     return {"Color": metal_fresnel(ev.vec(node, "color"), ev.vec(node, "tint", (1.0, 1.0, 1.0)))}
 
 
-def fresnel_dielectric_cos(cos, eta):
-    """Cycles' ``fresnel_dielectric_cos``: the unpolarised reflectance at the cosine ``cos`` (its
-    absolute value) for the relative IOR ``eta``; 1 under total internal reflection."""
-    c = np.abs(cos)
-    g = eta * eta - 1.0 + c * c
-    refracts = g > 0.0
-    g = np.sqrt(np.where(refracts, g, 1.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = (g - c) / (g + c)
-        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
-        return np.where(refracts, 0.5 * a * a * (1.0 + b * b), 1.0)
+def _node_normal(ev, node):
+    """(k, 3) a Fresnel, Layer Weight or Ambient Occlusion node's normal: its own, else the shading
+    normal on the ray's side (Cycles' N)."""
+    return ev.vec(node, "normal") if "normal" in node else ev.attrs.get("world_normal")
 
 
 def _view_cosine(ev, node):
-    """(k,) the cosine of Incoming with the node's normal (the shading normal on the ray's side
-    without one) and (k,) whether the ray meets the back (``RAY``)."""
-    n = ev.vec(node, "normal") if "normal" in node else ev.attrs.get("world_normal")
+    """(k,) the cosine of Incoming with the node's normal (:func:`_node_normal`), at most 1, and
+    (k,) whether the ray meets the back (``RAY``)."""
     back = ev.attrs.get("backfacing")[:, 0] > 0.5
-    return dot(ev.attrs.get("incoming"), n), back
+    return np.minimum(np.abs(dot(ev.attrs.get("incoming"), _node_normal(ev, node))), 1.0), back
 
 
 def _fresnel(ev, node):
-    """Cycles' Fresnel node: the IOR's reflectance at the view cosine (its inverse on a back face)."""
+    """Cycles' Fresnel node: the IOR's reflectance at the view cosine (its inverse on a back face;
+    Cycles' ``fresnel_dielectric_cos`` is ``sampling.fresnel_dielectric``)."""
     cos, back = _view_cosine(ev, node)
     eta = np.maximum(ev.float(node, "ior", 1.5), 1e-5)
-    return {"Fac": fresnel_dielectric_cos(cos, np.where(back, 1.0 / eta, eta))}
+    return {"Fac": fresnel_dielectric(cos, np.where(back, 1.0 / eta, eta))[0]}
 
 
 def _layer_weight(ev, node):
@@ -1491,11 +1493,10 @@ def _layer_weight(ev, node):
     cos, back = _view_cosine(ev, node)
     blend = ev.float(node, "blend", 0.5)
     eta = np.maximum(1.0 - blend, 1e-5)
-    facing = np.abs(cos)
     edge = np.clip(blend, 0.0, 1.0 - 1e-5)
     power = np.where(blend == 0.5, 1.0, np.where(edge < 0.5, 2.0 * edge, 0.5 / (1.0 - edge)))
-    return {"Fresnel": fresnel_dielectric_cos(cos, np.where(back, eta, 1.0 / eta)),
-            "Facing": 1.0 - facing ** power}
+    return {"Fresnel": fresnel_dielectric(cos, np.where(back, eta, 1.0 / eta))[0],
+            "Facing": 1.0 - cos ** power}
 
 
 def _ao(ev, node):
@@ -1503,7 +1504,7 @@ def _ao(ev, node):
     within ``distance`` about the normal (the shading normal on the ray's side unless given; its
     opposite ``inside``), Color the colour times it (``HitAttributes.occlusion``; 1 for attributes
     that cannot cast rays: a world, stand-in points)."""
-    n = ev.vec(node, "normal") if "normal" in node else ev.attrs.get("world_normal")
+    n = _node_normal(ev, node)
     n = normalize(-n if node.get("inside", False) else n)
     occlusion = getattr(ev.attrs, "occlusion", None)
     ao = np.ones(ev.k)

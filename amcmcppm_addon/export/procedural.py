@@ -184,14 +184,15 @@ def _ambient_occlusion(b, node, stack):
     """Ambient Occlusion: Cycles' rays about the normal at each hit (``procedural`` op ``ao``)."""
     op = {"op": "ao", "color": b.input(node, "Color", stack, VEC),
           "distance": b.input(node, "Distance", stack, FLOAT), "samples": int(node.samples),
-          "inside": bool(node.inside), "only_local": bool(node.only_local), **_view_normal(b, node, stack)}
+          "inside": bool(node.inside), "only_local": bool(node.only_local),
+          **_normal_input(b, node, stack)}
     return _out(op, Color="Color", AO="AO")
 
 
 def _bevel(b, node, stack):
     """Bevel: Cycles' bevelled normal at each hit seen by the camera (``procedural`` op ``bevel``)."""
     return {"Normal": {"op": "bevel", "radius": b.input(node, "Radius", stack, FLOAT),
-                       "samples": int(node.samples), **_view_normal(b, node, stack)}}
+                       "samples": int(node.samples), **_normal_input(b, node, stack)}}
 
 
 def _light_path(b, node, stack):
@@ -684,10 +685,10 @@ def _combine_color(b, node, stack):
     return {"Color": color}
 
 
-def _view_normal(b, node, stack):
-    """The Normal input of a Fresnel, Layer Weight or Ambient Occlusion node as ``normal`` ({} when
-    unlinked: the shading normal); a Bump or Normal Map node's normal is no program: the shading
-    normal, noted."""
+def _normal_input(b, node, stack):
+    """The Normal input of a Fresnel, Layer Weight, Ambient Occlusion or Bevel node as ``normal``
+    ({} when unlinked: the shading normal); a Bump or Normal Map node's normal is no program: the
+    shading normal, noted."""
     sock = node.inputs["Normal"]
     src, _, _ = b.walker.source(sock, stack)
     if src is None:
@@ -702,7 +703,7 @@ def _view_normal(b, node, stack):
 def _fresnel(b, node, stack):
     """Fresnel: Cycles' dielectric Fresnel of the IOR at the view cosine (``procedural.RAY``)."""
     return {"Fac": {"op": "fresnel", "ior": b.input(node, "IOR", stack, FLOAT),
-                    **_view_normal(b, node, stack)}}
+                    **_normal_input(b, node, stack)}}
 
 
 def layer_weight_ior(blend):
@@ -713,7 +714,8 @@ def layer_weight_ior(blend):
 def _layer_weight(b, node, stack):
     """Layer Weight: Fresnel (of IOR 1 / (1 - Blend)) and Facing, as Cycles'
     ``svm_node_layer_weight`` at the view direction (``procedural.RAY``)."""
-    op = {"op": "layer_weight", "blend": b.input(node, "Blend", stack, FLOAT), **_view_normal(b, node, stack)}
+    op = {"op": "layer_weight", "blend": b.input(node, "Blend", stack, FLOAT),
+          **_normal_input(b, node, stack)}
     return _out(op, Fresnel="Fresnel", Facing="Facing")
 
 
