@@ -228,6 +228,10 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         # as far as what they crossed lets them through: Cycles' alpha is 1 - the mean of the
         # throughput, e.g. 0.5 behind a Transparent BSDF of mean colour 0.5, 1 in world fog).
         miss = ~hits.is_hit
+        if scene.world.exclude and depth:
+            # A world that does not light glossy or transmission rays is black to those leaving a
+            # mirror or a glass (EXCLUDE_GLOSSY and EXCLUDE_TRANSMISSION are the VISIBLE_* bits).
+            miss &= (ray_kind & scene.world.exclude) == 0
         if miss.any():
             if depth == 0 and scene.world.film_transparent:
                 alpha[pix[miss]] = np.clip(1.0 - beta[miss].mean(axis=1), 0.0, 1.0)

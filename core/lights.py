@@ -17,7 +17,7 @@ import numpy as np
 from . import sampling as smp
 from .environment import Environment
 from .procedural import Rays, photon_path
-from .scene import ALL_LINKS, AREA_DISK, AREA_RECT, POINT, SPOT, SUN, linked
+from .scene import ALL_LINKS, AREA_DISK, AREA_RECT, EXCLUDE_ALL, POINT, SPOT, SUN, linked
 
 LIGHT_DIMS = 6
 # Emitter kinds in the combined table (analytic kinds keep their Lights.kind value).
@@ -132,7 +132,16 @@ class LightSampler:
             world_power = world_power * far
         all_power = np.concatenate([light_power, tri_power.reshape(-1, 3), world_power, glow_power])
         score = smp.luminance(all_power)
-        keep = score > 0
+        # The rays each emitter does not light (Lights.exclude, Scene.emitter_exclude, World.exclude;
+        # glowing volumes light everything): an emitter that lights none sends no photons.
+        tri_exclude = (scene.emitter_exclude.take(emissive_tris) if scene.emitter_exclude is not None
+                       else np.zeros(len(emissive_tris), np.uint8))
+        exclude = np.concatenate([lights.exclude if lights.count else np.zeros(0, np.uint8), tri_exclude,
+                                  np.full(n_world, scene.world.exclude, np.uint8),
+                                  np.zeros(n_volumes, np.uint8)]).astype(np.uint8)
+        keep = (score > 0) & (exclude != EXCLUDE_ALL)
+        self.exclude = exclude[keep]
+        self.has_exclusion = bool(self.exclude.any())
         self.kinds, self.ids, self.power = all_kinds[keep], all_ids[keep], all_power[keep]
         # Light and shadow linking: the receiver sets each emitter lights (Scene.receiver_sets) and
         # the blocker sets that shadow it (Scene.blocker_sets), the world's all of them, and
@@ -376,6 +385,11 @@ class LightSampler:
         """(n,) bool: whether the emitters of photons with first light dimensions ``u0`` (n,)
         light receiver sets ``sets`` (n,) (Scene.receiver_sets)."""
         return linked(self.links.take(self.entries(u0)), sets)
+
+    def excluded(self, u0):
+        """(n,) uint8: the rays (bits EXCLUDE_*) that the emitters of photons with first light
+        dimensions ``u0`` (n,) do not light."""
+        return self.exclude.take(self.entries(u0))
 
     def entries(self, u0):
         """(n,) emitter of each photon from its first light dimension (power-proportional)."""

@@ -29,7 +29,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .bsdf import (DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
+from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
                    face_forward, glossy_anisotropic_value, lobe_remainder, lobe_scores, pick_coat,
                    rough_diffuse_factor, rough_diffuse_terms, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
@@ -37,6 +37,7 @@ from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_no
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from .procedural import Rays, photon_path
+from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
 from .sampling import dot, hg_phase, luminance, sample_hg, tangent_axes
 from .texture_hash import float_as_uint, hash_uint3_to_float
 from .visible_cells import VisibleCells
@@ -277,7 +278,7 @@ class DepositTarget:
         cos_v = dot(pts.wo, pts.ns).astype(np.float64)
         return (*rough_diffuse_terms(self.table, pts.mat_ids, pts.colors[:, 0], cos_v), cos_v)
 
-    def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None):
+    def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None, exclude=None):
         """What pairs with points ``j`` are worth per unit of photon flux (the points' throughput
         and kernel aside, :meth:`to_pixels`).
 
@@ -294,6 +295,9 @@ class DepositTarget:
         point's surface (their ``wi`` and ``cos_g`` mirrored through it, so on the point's side):
         they weigh only in the diffuse part, by the translucent lobe.  Pairs with points of a rough
         diffuse lobe weigh by :func:`~core.bsdf.rough_diffuse_factor` of their directions besides.
+        ``exclude`` (k,) uint8, or None: the rays the pairs' emitters do not light (bits EXCLUDE_*,
+        for photons at their first vertex): EXCLUDE_DIFFUSE drops the diffuse part (the translucent
+        lobe's too), EXCLUDE_GLOSSY the glossy part.
 
         A pair's diffuse weight wd is that geometry (times its colour at the ``coloured``
         points, :attr:`_sides`), its glossy weight wg the lobe's f (times its colour at the
@@ -342,6 +346,10 @@ class DepositTarget:
                 b = np.flatnonzero(back)
                 color[b] = behind.take(j.take(b), axis=0)
             wd = color.T * wd
+        keep_g = None
+        if exclude is not None:
+            wd = wd * ((exclude & EXCLUDE_DIFFUSE) == 0)
+            keep_g = (exclude & EXCLUDE_GLOSSY) == 0
         if not self.any_glossy:
             return wd
         s = np.flatnonzero(self.is_glossy.take(j))
@@ -373,6 +381,8 @@ class DepositTarget:
                                   / np.maximum(cos_photon.take(g), 1e-4), 0.0)
                 else:
                     f *= ratio.take(g)
+            if keep_g is not None:
+                f = f * keep_g.take(g)
             wg = g_fac.take(jg, axis=1) * f
             if self.rising is not None:
                 mats = pts.mat_ids.take(jg)
@@ -613,6 +623,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     rays = vertices = 0
     soft = ctx.lights.has_soft_falloff
     volumes = ctx.has_volumes
+    # Emitters that do not light some rays (Lights.exclude): what each photon's first vertex gets.
+    excluding = ctx.lights.has_exclusion
     # The volume each path is in (RenderContext.trace).
     medium = ctx.light_medium(u[idx, 0]) if volumes else np.full(len(idx), -1, np.int32)
     prim = np.zeros(0, np.int32)
@@ -635,6 +647,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             if hits.scatter_t is not None:
                 # Photons that stopped in a scattering volume: a vertex there.
                 v = np.flatnonzero(np.isfinite(hits.scatter_t))
+                if bounce == 0 and excluding and len(v):
+                    # (its emitter may not light volumes: nothing there to deposit or scatter)
+                    v = v[(ctx.lights.excluded(u[idx.take(v), 0]) & EXCLUDE_SCATTER) == 0]
                 if len(v):
                     x_v = origins.take(v, axis=0) + hits.scatter_t.take(v)[:, None] * dirs.take(v, axis=0)
                     f_v = flux.take(v, axis=0)
@@ -663,7 +678,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             # A photon stops on a transparent surface with the probability of its opacity there,
             # and deposits the flux of all that arrive: its own over that probability.
             deposited = flux if opacity is None else flux / np.maximum(opacity.take(h), 1e-12)[:, None]
+            excluded = ctx.lights.excluded(u[idx, 0]) if bounce == 0 and excluding else None
         else:
+            excluded = None
             surf = ctx.surface(np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
             prim, medium = np.zeros(0, np.int32), np.zeros(0, np.int32)
             deposited = flux
@@ -704,7 +721,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     wi_pairs = wo.take(lane, axis=0)
                     if back is not None:
                         wi_pairs[back] *= -1.0           # mirrored through the surface, as cos_g
-                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back)
+                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back,
+                                        None if excluded is None else excluded.take(lane))
                 # The pairs within half the radius once more, on the inner slots.
                 again = None if near is None else np.flatnonzero(near)
                 slots = pj if again is None else np.concatenate([pj, pj.take(again) + target.n_points])
@@ -791,6 +809,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             u3 = lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric else None
             wi, weight, alive = scatter(table, mats, colors, lobe, prob, wo, surf.ng, ns,
                                         block[:, 1], block[:, 2], "importance", u3, surf.nn, surf.tangent)
+            if bounce == 0 and excluding:
+                alive &= (ctx.lights.excluded(u[idx, 0]) & scatter_kind(lobe, wi, wo, surf.ng)) == 0
             if table.has_coat:
                 # Under a coat: its factor at the view (camera-side) direction, for photons the new one.
                 weight *= layer_scale[:, None]
@@ -843,6 +863,16 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         sums.flush()
         total = sums.total
     return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices)
+
+
+def scatter_kind(lobe, wi, wo, ng):
+    """(n,) uint8: the EXCLUDE_* bit of the rays that scatterings by ``lobe`` (n,) from ``wo`` to ``wi``
+    stand for: diffuse for the diffuse and translucent lobes, transmission for a glass's refraction
+    (``wi`` and ``wo`` on opposite sides of the geometric normal ``ng``), glossy for the others
+    (Cycles' closure classes for its excluded lights)."""
+    refracted = (lobe == DIELECTRIC) & (dot(wi, ng) * dot(wo, ng) < 0)
+    return np.where((lobe == DIFFUSE) | (lobe == TRANSLUCENT), EXCLUDE_DIFFUSE,
+                    np.where(refracted, EXCLUDE_TRANSMISSION, EXCLUDE_GLOSSY)).astype(np.uint8)
 
 
 def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, collect_pairs,

@@ -42,6 +42,14 @@ VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION = 1, 2, 4
 # Mask > Holdout): camera rays that meet it directly cut its pixel out (Materials.holdout).
 HOLDOUT_OBJECT = 8
 DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
+# The rays an emitter does not light (``Lights.exclude``, ``World.exclude``, ``Scene.emitter_exclude``;
+# Blender's Ray Visibility boxes Glossy, Transmission, Diffuse and Volume Scatter off, Cycles'
+# SHADER_EXCLUDE_*): the light that first meets a surface or volume reaches no lobe of that kind
+# there.  Diffuse: the diffuse and translucent lobes; glossy: glossy, mirror, a coat and a glass's
+# reflection; transmission: a glass's refraction; scatter: a volume's scattering.  The glossy and
+# transmission bits are those of the rays (VISIBLE_*) that then see nothing of a world past the scene.
+EXCLUDE_GLOSSY, EXCLUDE_TRANSMISSION, EXCLUDE_DIFFUSE, EXCLUDE_SCATTER = VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, 8, 16
+EXCLUDE_ALL = EXCLUDE_GLOSSY | EXCLUDE_TRANSMISSION | EXCLUDE_DIFFUSE | EXCLUDE_SCATTER
 # Light and shadow linking (Scene.receiver_sets, Scene.blocker_sets and the emitters' links): an
 # emitter whose mask has every bit set lights every receiver set, or is shadowed by every blocker set.
 ALL_LINKS = np.uint64(0xFFFFFFFFFFFFFFFF)
@@ -503,6 +511,7 @@ class Lights:
     its Z): v = acos(-z) in [0, pi] down the rows, h = atan2(x, y) + pi in [0, 2 pi] along the
     columns, both sampled at equal steps with their ends included (Cycles' IES lookup,
     tabulated; bilinear in between).
+    ``exclude`` (L,) the rays each light does not light (bits EXCLUDE_*; 0, the default: all).
     ``links`` (L,) says which receiver sets each light lights (light linking, bit s for
     ``Scene.receiver_sets`` value s; ``ALL_LINKS``, the default, lights everything), and
     ``shadow_links`` (L,) which blocker sets shadow it (shadow linking, ``Scene.blocker_sets``).
@@ -530,10 +539,11 @@ class Lights:
     profiles: np.ndarray = None         # (P, V, H) float32 >= 0 angular profiles, or None
     links: np.ndarray = None            # (L,) uint64 receiver sets lit (Scene.receiver_sets); None: all
     shadow_links: np.ndarray = None     # (L,) uint64 blocker sets that shadow (Scene.blocker_sets); None: all
+    exclude: np.ndarray = None          # (L,) uint8 bit mask of EXCLUDE_*, rays not lit; None: 0
 
     ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
                     "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff", "spread",
-                    "profile", "links", "shadow_links")
+                    "profile", "links", "shadow_links", "exclude")
 
     @property
     def count(self) -> int:
@@ -564,7 +574,7 @@ class Lights:
                      visibility=np.full(n, DEFAULT_LIGHT_VISIBILITY, np.uint8),
                      soft_falloff=np.ones(n, bool), spread=np.full(n, np.pi, np.float32),
                      profile=np.full(n, -1, np.int16), links=np.full(n, ALL_LINKS, np.uint64),
-                     shadow_links=np.full(n, ALL_LINKS, np.uint64))
+                     shadow_links=np.full(n, ALL_LINKS, np.uint64), exclude=np.zeros(n, np.uint8))
         for i, s in enumerate(specs):
             out.kind[i] = kinds[s["kind"]]
             out.position[i] = s.get("position", (0, 0, 0))
@@ -582,6 +592,7 @@ class Lights:
             out.profile[i] = s.get("profile", -1)
             out.links[i] = np.uint64(s.get("links", ALL_LINKS))
             out.shadow_links[i] = np.uint64(s.get("shadow_links", ALL_LINKS))
+            out.exclude[i] = s.get("exclude", 0)
             if "axis_u" in s:
                 out.axis_u[i] = s["axis_u"]
                 out.axis_v[i] = s["axis_v"]
@@ -721,6 +732,10 @@ class World:
     volume_absorption: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) >= 0
     volume_scattering: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) >= 0
     volume_anisotropy: float = 0.0      # Henyey-Greenstein g in [-0.99, 0.99]
+    # The rays the world does not light (bits EXCLUDE_*, Blender's World > Ray Visibility): its
+    # photons and its sun lights' as ``Lights.exclude``, and camera paths that leave a mirror
+    # (EXCLUDE_GLOSSY) or a glass (EXCLUDE_TRANSMISSION) see black past the scene.
+    exclude: int = 0
 
     VOLUME_FIELDS = ("volume_absorption", "volume_scattering", "volume_anisotropy")
 
@@ -821,6 +836,10 @@ class Scene:
     # (Cycles' shadow rays skip it for every surface behind).
     blocker_sets: np.ndarray = None
     emitter_shadow_links: np.ndarray = None
+    # (T,) uint8 for emissive triangles the rays their light does not reach (bits EXCLUDE_*, as
+    # Lights.exclude: the object's Ray Visibility boxes), or None: 0.  The triangles themselves still
+    # meet every photon (triangle_visibility says which camera-path rays see them).
+    emitter_exclude: np.ndarray = None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -999,6 +1018,10 @@ class Scene:
             if t and self.triangle_visibility.max() > 15:
                 fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY, "
                      "VISIBLE_TRANSMISSION and HOLDOUT_OBJECT (0 to 15)")
+        if self.emitter_exclude is not None:
+            self.emitter_exclude = arr("emitter_exclude", self.emitter_exclude, np.uint8, (), t)
+            if t and (self.emitter_exclude & ~np.uint8(EXCLUDE_ALL)).any():
+                fail(f"emitter_exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL})")
         for sets, links in (("receiver_sets", "emitter_links"), ("blocker_sets", "emitter_shadow_links")):
             if getattr(self, sets) is not None:
                 v = arr(sets, getattr(self, sets), np.uint8, (), t)
@@ -1020,11 +1043,13 @@ class Scene:
         for name in ("links", "shadow_links"):
             if getattr(lights, name) is None and lights.kind is not None:
                 setattr(lights, name, np.full(len(lights.kind), ALL_LINKS, np.uint64))
+        if lights.exclude is None and lights.kind is not None:
+            lights.exclude = np.zeros(len(lights.kind), np.uint8)
         for name in Lights.ARRAY_FIELDS:
             tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
             dtype = {"kind": np.int8, "position": np.float64, "visibility": np.uint8,
                      "soft_falloff": bool, "profile": np.int16, "links": np.uint64,
-                     "shadow_links": np.uint64}.get(name, np.float32)
+                     "shadow_links": np.uint64, "exclude": np.uint8}.get(name, np.float32)
             v = arr(f"lights.{name}", getattr(lights, name), dtype, tail, nl)
             setattr(lights, name, v)
         if nl:
@@ -1040,6 +1065,8 @@ class Scene:
             if (lights.visibility > 7).any():
                 fail("lights.visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY and "
                      "VISIBLE_TRANSMISSION (0 to 7)")
+            if (lights.exclude & ~np.uint8(EXCLUDE_ALL)).any():
+                fail(f"lights.exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL})")
             if (lights.spot_blend > 1).any():
                 fail("lights.spot_blend must lie in [0, 1]")
             if any((getattr(lights, k) > np.pi).any() for k in ("spot_angle", "sun_angle", "spread")):
@@ -1093,6 +1120,10 @@ class Scene:
             fail("camera clip range must satisfy 0 <= clip_start < clip_end")
         _validate_background(self.world, "world", fail)
         _validate_world_volume(self.world, fail)
+        exclude = self.world.exclude
+        if not isinstance(exclude, (int, np.integer)) or int(exclude) & ~EXCLUDE_ALL or int(exclude) < 0:
+            fail(f"world.exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL}), not {exclude!r}")
+        self.world.exclude = int(exclude)
         if self.world.camera is not None:
             _validate_background(self.world.camera, "world.camera", fail)
         return self
@@ -1228,6 +1259,8 @@ class Scene:
             d[f"camera.{name}"] = np.asarray(getattr(cam, name), np.float64)
         d["world.color"] = np.asarray(self.world.color, np.float32)
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
+        if self.world.exclude:
+            d["world.exclude"] = np.uint8(self.world.exclude)
         if self.world.texture is not None:
             d["world.texture"] = self.world.texture
         if self.world.texture_rotation is not None:
@@ -1249,7 +1282,7 @@ class Scene:
             d["tangents"] = self.tangents
         for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces", "object_info",
                      "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
-                     "emitter_shadow_links"):
+                     "emitter_shadow_links", "emitter_exclude"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for name, values in (self.attributes or {}).items():
@@ -1288,6 +1321,7 @@ class Scene:
         world = World(color=get("world.color"), texture=get("world.texture"),
                       texture_rotation=get("world.texture_rotation"),
                       film_transparent=bool(get("world.film_transparent", False)), camera=camera_world,
+                      exclude=int(get("world.exclude", 0)),
                       **{name: get(f"world.{name}") for name in World.VOLUME_FIELDS
                          if f"world.{name}" in keys})
         ntex = sum(1 for k in keys if k.startswith("textures."))
@@ -1300,6 +1334,7 @@ class Scene:
                       triangle_visibility=get("triangle_visibility"),
                       receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
                       blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),
+                      emitter_exclude=get("emitter_exclude"),
                       textures=[get(f"textures.{i}") for i in range(ntex)],
                       attributes={k[len("attributes."):]: z[k] for k in sorted(keys)
                                   if k.startswith("attributes.")} or None,
