@@ -17,7 +17,9 @@ conversion to emitted quantities (``intern/cycles/scene/light.cpp``), see
 
 Ray visibility comes from the object (``visible_camera``, ``visible_glossy``,
 ``visible_transmission``): by default Cycles shows lights in mirrors and through glass but
-not to camera rays, and so does the core.  A point or spot light with Soft Falloff (the
+not to camera rays, and so does the core.  Its Diffuse, Glossy, Transmission and Volume Scatter
+boxes off also keep the light from those rays (:func:`light_exclude`, ``Lights.exclude``): a light
+without Glossy makes no highlights, one without Diffuse lights only glossy surfaces.  A point or spot light with Soft Falloff (the
 default) is seen as a disk facing the viewer, as Cycles shows it; without, as a sphere.
 
 An area light marked as a Cycles portal (``cycles.is_portal``) is left out: in Cycles it only
@@ -40,8 +42,9 @@ import math
 
 import numpy as np
 
-from ...core.scene import (ALL_LINKS, AREA_DISK, AREA_RECT, POINT, SPOT, SUN, VISIBLE_CAMERA,
-                           VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Lights)
+from ...core.scene import (ALL_LINKS, AREA_DISK, AREA_RECT, EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER,
+                           EXCLUDE_TRANSMISSION, POINT, SPOT, SUN, VISIBLE_CAMERA, VISIBLE_GLOSSY,
+                           VISIBLE_TRANSMISSION, Lights)
 
 
 def light_strength(light) -> np.ndarray:
@@ -56,9 +59,26 @@ def ray_visibility(obj) -> int:
     """The camera-path rays that see an object (Object > Visibility > Ray Visibility: Camera,
     Glossy, Transmission) as ``Lights.visibility`` bits, which ``Scene.triangle_visibility``
     shares.  A mesh's Diffuse, Shadow and Volume Scatter boxes concern rays that photons stand in
-    for, which always meet it."""
+    for, which always meet it (an emissive mesh's boxes keep its light from those rays,
+    :func:`light_exclude`)."""
     return ((VISIBLE_CAMERA if obj.visible_camera else 0) | (VISIBLE_GLOSSY if obj.visible_glossy else 0)
             | (VISIBLE_TRANSMISSION if obj.visible_transmission else 0))
+
+
+def light_exclude(visibility) -> int:
+    """The rays an emitter does not light (``Lights.exclude`` bits) from Blender's Ray Visibility:
+    an object's (``visible_diffuse``, ``visible_glossy``, ``visible_transmission``,
+    ``visible_volume_scatter``) or a world's ``cycles_visibility`` (``diffuse``, ``glossy``,
+    ``transmission``, ``scatter``), as Cycles' SHADER_EXCLUDE_* flags."""
+    bits = 0
+    for names, bit in ((("visible_diffuse", "diffuse"), EXCLUDE_DIFFUSE),
+                       (("visible_glossy", "glossy"), EXCLUDE_GLOSSY),
+                       (("visible_transmission", "transmission"), EXCLUDE_TRANSMISSION),
+                       (("visible_volume_scatter", "scatter"), EXCLUDE_SCATTER)):
+        on = next((getattr(visibility, n) for n in names if hasattr(visibility, n)), True)
+        if not on:
+            bits |= bit
+    return bits
 
 
 def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY | VISIBLE_TRANSMISSION):
@@ -205,7 +225,7 @@ def light_record(position, direction, visibility, soft_falloff=True, **fields) -
     return {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
             "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
             "visibility": visibility, "soft_falloff": soft_falloff, "spread": math.pi, "profile": None,
-            "links": ALL_LINKS, "shadow_links": ALL_LINKS, **fields}
+            "links": ALL_LINKS, "shadow_links": ALL_LINKS, "exclude": 0, **fields}
 
 
 def build_lights(records) -> Lights:
@@ -218,7 +238,8 @@ def build_lights(records) -> Lights:
                     spot_blend=np.zeros(n, np.float32), sun_angle=np.zeros(n, np.float32),
                     visibility=np.zeros(n, np.uint8), soft_falloff=np.ones(n, bool),
                     spread=np.full(n, math.pi, np.float32), profile=np.full(n, -1, np.int16),
-                    links=np.full(n, ALL_LINKS, np.uint64), shadow_links=np.full(n, ALL_LINKS, np.uint64))
+                    links=np.full(n, ALL_LINKS, np.uint64), shadow_links=np.full(n, ALL_LINKS, np.uint64),
+                    exclude=np.zeros(n, np.uint8))
     tables = []
     for i, rec in enumerate(records):
         for name in Lights.ARRAY_FIELDS:

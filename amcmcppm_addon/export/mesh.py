@@ -26,7 +26,7 @@ import numpy as np
 from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
 from ...core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 from ...core.texture_hash import hash_uint2, hash_uint_to_float
-from .lights import ray_visibility
+from .lights import light_exclude, ray_visibility
 
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
 # evaluated mesh as a separate MESH instance (as Cycles' ``object_is_geometry`` notes), so reading
@@ -82,6 +82,9 @@ class Geometry:
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
     # HOLDOUT_OBJECT for a holdout object's, or None: all rays, no holdout
     triangle_visibility: np.ndarray | None = None
+    # (T,) uint8 the rays each triangle's light does not reach (its object's Ray Visibility,
+    # core.Scene.emitter_exclude), or None: none excluded
+    emitter_exclude: np.ndarray | None = None
     # Light and shadow linking (export/linking.py), or None without: (T,) uint8 each triangle's
     # receiver (blocker) set and (T,) int16 its object's receiver (blocker) collection as an
     # emitter (-1: none)
@@ -161,7 +164,8 @@ class GeometryCollector:
             self.log.warning(f"object '{ob.name}' is a shadow catcher, which is not supported: it renders "
                              "as an ordinary surface")
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
-        flags = ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
+        flags = (ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
+                 | light_exclude(ob) << EXCLUDE_SHIFT)
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))
@@ -182,6 +186,9 @@ class GeometryCollector:
 
 # Every camera-path ray: a triangle seen by all of them needs no visibility array.
 ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+# An object group's flags: its Scene.triangle_visibility bits, and above them its light_exclude bits.
+VISIBILITY_MASK = 0xFF
+EXCLUDE_SHIFT = 8
 
 
 def _renders_hair(modifier) -> bool:
@@ -602,7 +609,8 @@ def assemble(meshes, groups, materials, infos=None, properties=None) -> Geometry
     for (key, mat_ids, visibility, link), matrices in groups.items():
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
-        part["visibility"] = np.full(len(part["triangles"]), visibility, np.uint8)
+        part["visibility"] = np.full(len(part["triangles"]), visibility & VISIBILITY_MASK, np.uint8)
+        part["exclude"] = np.full(len(part["triangles"]), visibility >> EXCLUDE_SHIFT, np.uint8)
         part["link"] = link
         if objects:
             part["object_ids"] += instances
@@ -640,6 +648,7 @@ def assemble(meshes, groups, materials, infos=None, properties=None) -> Geometry
         tangents = np.concatenate([p["tangents"] if p["tangents"] is not None
                                    else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])
     visibility = np.concatenate([p["visibility"] for p in parts])
+    exclude = np.concatenate([p["exclude"] for p in parts])
     links = {}
     sizes = [len(p["triangles"]) for p in parts]
     for k, (sets, collections) in enumerate((("receiver_sets", "emitter_collections"),
@@ -660,6 +669,7 @@ def assemble(meshes, groups, materials, infos=None, properties=None) -> Geometry
                                 for key in sorted(coordinates) if key.startswith(NAMED)} or None,
                     **objects,
                     triangle_visibility=visibility if (visibility != ALL_RAYS).any() else None,
+                    emitter_exclude=exclude if exclude.any() else None,
                     instances=instances, **links)
 
 

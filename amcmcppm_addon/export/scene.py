@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.scene import SUN, Scene
 from .camera import export_camera
-from .lights import build_lights, export_light, ray_visibility
+from .lights import build_lights, export_light, light_exclude, ray_visibility
 from .linking import LightLinking
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
@@ -76,6 +76,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
                                inst.object.name, log, ray_visibility(inst.object))
             if rec is not None:
+                rec["exclude"] = light_exclude(inst.object)
                 light_records.append(rec)
                 # (read here: the iterator reuses its instance objects)
                 light_collections.append([-1 if k is None else k.collection(inst.object) for k in linking])
@@ -111,7 +112,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                   object_ids=geometry.object_ids,
                   object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
                   object_info=geometry.object_info, object_attributes=geometry.object_attributes,
-                  triangle_visibility=geometry.triangle_visibility, textures=materials.textures.images,
+                  triangle_visibility=geometry.triangle_visibility, emitter_exclude=geometry.emitter_exclude,
+                  textures=materials.textures.images,
                   **sets)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,

@@ -14,7 +14,9 @@ disc's direction, size and irradiance (times the Background's strength) when the
 Background's colour itself; a disc that other nodes change is left out with a warning.
 
 World > Ray Visibility > Camera off makes what camera rays see past the scene black (``World.camera``);
-the other ray types' boxes are named in a warning when off.
+Diffuse, Glossy, Transmission and Volume Scatter off keep the world's light (its photons, and its
+sun disc's) from those rays as Cycles' excluded lights (``World.exclude``), and camera paths that
+leave a mirror or a glass then see black past the scene.
 
 The world's Volume (Volume Absorption, Volume Scatter, Principled Volume, as a material's)
 fills all space outside the meshes' volumes, unbounded as in Cycles: the sun and the world's
@@ -27,7 +29,7 @@ import numpy as np
 from ...core import procedural, sky
 from ...core.environment import equirectangular_directions
 from ...core.scene import SUN, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, World
-from .lights import light_record
+from .lights import light_exclude, light_record
 from .materials import NodeWalker
 from .procedural import view_layer_owners
 
@@ -55,26 +57,26 @@ def export_world(depsgraph, textures, log):
         out.volume_anisotropy = float(g)
     if walker.camera_walker is not None:
         out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log)
-    _ray_visibility(world, out, lights, log)
+    _ray_visibility(world, out, lights)
     return out, lights
 
 
-def _ray_visibility(world, out, lights, log):
-    """World > Ray Visibility: Camera off makes camera rays see black past the scene (``out.camera``)
-    and hides the sun disc's light ``lights`` from them; the other boxes off are named in a warning."""
+def _ray_visibility(world, out, lights):
+    """World > Ray Visibility: Camera off makes camera rays see black past the scene (``out.camera``);
+    the other boxes keep the world's light from their rays (``out.exclude``).  The sun disc's lights
+    ``lights`` follow both."""
     visibility = getattr(world, "cycles_visibility", None)
     if visibility is None:
         return
-    if not visibility.camera:
+    hidden = 0 if visibility.camera else VISIBLE_CAMERA
+    if hidden:
         out.camera = World(color=np.zeros(3, np.float32))
-        for rec in lights:
-            rec["visibility"] &= ~VISIBLE_CAMERA
-    off = [label for label, attr in (("Diffuse", "diffuse"), ("Glossy", "glossy"),
-                                     ("Transmission", "transmission"), ("Volume Scatter", "scatter"))
-           if not getattr(visibility, attr)]
-    if off:
-        log.warning(f"world '{world.name}': Ray Visibility off for {', '.join(off)} is not supported (the "
-                    "world reaches those rays)")
+    out.exclude = light_exclude(visibility)
+    # (EXCLUDE_GLOSSY and EXCLUDE_TRANSMISSION are the bits of the rays that then see nothing)
+    hidden |= out.exclude & (VISIBLE_GLOSSY | VISIBLE_TRANSMISSION)
+    for rec in lights:
+        rec["visibility"] &= ~hidden
+        rec["exclude"] |= out.exclude
 
 
 def _background(walker, color, textures, world_name, log):

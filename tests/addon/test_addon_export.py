@@ -2370,18 +2370,49 @@ def test_world_background_and_override(scene):
 
 def test_world_ray_visibility_camera_off_shows_black_past_the_scene(scene):
     """World > Ray Visibility > Camera off: camera rays see black past the scene while the world
-    still lights it (``World.camera``); other ray types off are named in a warning."""
+    still lights it (``World.camera``); the other ray types off keep its light from them
+    (``World.exclude``), without a warning."""
+    from amcmcppm.core.scene import EXCLUDE_ALL, EXCLUDE_GLOSSY, EXCLUDE_SCATTER
     w = bs.world((0.2, 0.4, 0.8), strength=2.5)
     bs.camera()
-    assert bs.export().scene.world.camera is None
+    ex = bs.export()
+    assert ex.scene.world.camera is None and ex.scene.world.exclude == 0
     w.cycles_visibility.camera = False
     ex = bs.export()
     assert ex.scene.world.color == pytest.approx([0.5, 1.0, 2.0])
     assert ex.scene.world.camera is not None and not ex.scene.world.camera.color.any()
-    assert not [m for m in ex.warnings if "Ray Visibility" in m]
+    assert ex.scene.world.exclude == 0
     w.cycles_visibility.glossy = False
+    w.cycles_visibility.scatter = False
     ex = bs.export()
-    assert any("Ray Visibility off for Glossy is not supported" in m for m in ex.warnings), ex.warnings
+    assert ex.scene.world.exclude == EXCLUDE_GLOSSY | EXCLUDE_SCATTER
+    w.cycles_visibility.diffuse = False
+    w.cycles_visibility.transmission = False
+    ex = bs.export()
+    assert ex.scene.world.exclude == EXCLUDE_ALL
+    assert not [m for m in ex.warnings if "Ray Visibility" in m], ex.warnings
+
+
+def test_light_and_emitter_ray_visibility_becomes_what_they_do_not_light(scene):
+    """A light's (and an emissive mesh's) Ray Visibility boxes Diffuse, Glossy, Transmission and
+    Volume Scatter off: ``Lights.exclude`` (``Scene.emitter_exclude`` for the mesh's triangles)."""
+    from amcmcppm.core.scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, VISIBLE_GLOSSY
+    bs.camera()
+    lamp = bs.light("POINT", (0, 0, 3), energy=100.0)
+    panel = bs.plane("Panel", size=1.0, location=(0, 0, 2), material=bs.emission(strength=2.0))
+    bs.plane("Floor", size=4.0, material=bs.diffuse(color=(0.5, 0.5, 0.5)))
+    ex = bs.export()
+    assert ex.scene.lights.exclude.tolist() == [0] and ex.scene.emitter_exclude is None
+    lamp.visible_glossy = False
+    lamp.visible_volume_scatter = False
+    panel.visible_diffuse = False
+    ex = bs.export()
+    assert ex.scene.lights.exclude.tolist() == [EXCLUDE_GLOSSY | EXCLUDE_SCATTER]
+    # (its Glossy box also hides the light from mirrors, as before)
+    assert not ex.scene.lights.visibility[0] & VISIBLE_GLOSSY
+    bits = ex.scene.emitter_exclude
+    emissive = ex.scene.materials.emission[ex.scene.material_ids].any(axis=1)
+    assert emissive.any() and (bits[emissive] == EXCLUDE_DIFFUSE).all() and not bits[~emissive].any()
 
 
 def test_world_texture_warns_and_keeps_the_colour(scene):

@@ -1473,3 +1473,32 @@ def test_transparent_film_alpha_matches_cycles(addon, tmp_path, case):
     print(f"alpha {case}: cycles {cycles[..., 3].mean():.4f} ours {ours[..., 3].mean():.4f}")
     assert cycles[..., 3].mean() > 0.3
     np.testing.assert_allclose(ours[..., 3], cycles[..., 3], atol=0.01)
+
+
+@pytest.mark.parametrize("emitters", ["lights", "world_and_panel"])
+def test_emitters_that_do_not_light_some_rays_match_cycles(addon, tmp_path, emitters):
+    """Ray Visibility boxes off on emitters (``Lights.exclude``): a floor of Diffuse and Glossy
+    (roughness 0.3) mixed half and half.  ``lights``: a warm area light without Glossy (no
+    highlight) and a cool one without Diffuse (a highlight alone, and what the floor's glossy lobe
+    throws on the wall); ``world_and_panel``: a sky that lights the glossy lobe alone and an emissive
+    panel that lights it without Glossy.  Measured: 0.995-0.997 and 0.999 of Cycles' mean by channel,
+    bands 0.969-1.011; before (every emitter lit every lobe) 1.72-1.81 and 1.55-1.91."""
+    def build():
+        corner_scene()
+        floor = bpy.data.materials["Floor"]
+        bs.mix_in(floor, "Diffuse BSDF", "ShaderNodeBsdfGlossy", 0.5).inputs["Roughness"].default_value = 0.3
+        if emitters == "lights":
+            warm = bs.light("AREA", location=(-0.8, -0.6, 2.2), target=(0, 0, 0), energy=150.0, size=0.8,
+                            name="Warm", color=(1.0, 0.8, 0.6))
+            warm.visible_glossy = False
+            cool = bs.light("AREA", location=(0.6, 0.4, 2.0), target=(0, -1.0, 0), energy=150.0, size=0.8,
+                            name="Cool", color=(0.6, 0.8, 1.0))
+            cool.visible_diffuse = False
+        else:
+            sky = bs.world((0.3, 0.4, 0.6), strength=1.0)
+            sky.cycles_visibility.diffuse = False
+            panel = bs.plane("Panel", size=1.0, material=bs.emission("Panel", (1.0, 0.9, 0.8), 6.0),
+                             location=(-0.6, -0.6, 1.6), rotation=(math.radians(200), 0, 0))
+            panel.visible_glossy = False
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_image_matches(f"emitters without some rays ({emitters})", cycles, ours)
