@@ -131,7 +131,9 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
     """The object's ray visibility under Blender's Visibility panel (which draws it for Cycles and
     EEVEE only), for the rays our engine follows: camera rays, and camera paths a mirror or glass
     reflected (Glossy) or refracted (Transmission).  Diffuse and shadow rays are photons here,
-    which always meet the object.  Blender's panel draws the Holdout mask."""
+    which always meet the object.  An emitter's boxes (a light's, or an emissive mesh's) also say
+    which rays its light reaches, Diffuse and Volume Scatter too (``Lights.exclude``), so those two
+    are drawn for lights.  Blender's panel draws the Holdout mask."""
     bl_label = "Ray Visibility"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
@@ -154,6 +156,38 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
         col.prop(ob, "visible_camera", text="Camera", toggle=False)
         col.prop(ob, "visible_glossy", text="Glossy", toggle=False)
         col.prop(ob, "visible_transmission", text="Transmission", toggle=False)
+        if ob.type == 'LIGHT':
+            col.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
+            col.prop(ob, "visible_volume_scatter", text="Volume Scatter", toggle=False)
+
+
+class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
+    """The world's Ray Visibility (Cycles' ``cycles_visibility``, drawn by Cycles' panel for Cycles
+    only): Camera off shows black past the scene, the others keep the world's light from those rays
+    (``World.exclude``).  Drawn only where Cycles, which registers those properties, is enabled."""
+    bl_label = "Ray Visibility"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "world"
+    bl_options = {'DEFAULT_CLOSED'}
+    COMPAT_ENGINES = {ENGINE_ID}
+    props = (("camera", "Camera"), ("diffuse", "Diffuse"), ("glossy", "Glossy"),
+             ("transmission", "Transmission"), ("scatter", "Volume Scatter"))
+
+    @classmethod
+    def poll(cls, context):
+        world = context.world
+        return (context.engine in cls.COMPAT_ENGINES and world is not None
+                and getattr(world, "cycles_visibility", None) is not None)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        visibility = context.world.cycles_visibility
+        col = layout.column(heading="Rays")
+        for name, text in self.props:
+            col.prop(visibility, name, text=text, toggle=False)
 
 
 classes = (
@@ -205,7 +239,7 @@ def get_panels():
 
 
 # Panels outside the Render Properties.
-other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility)
+other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility, AMCMCPPM_WORLD_PT_ray_visibility)
 
 
 def register():

@@ -182,6 +182,21 @@ def test_ray_visibility_panel_shows_the_rays_the_engine_follows(scene):
         assert not panel.poll(bpy.context)
 
 
+def test_world_ray_visibility_panel_draws_the_boxes_the_exporter_reads(scene):
+    """The world's Ray Visibility (Cycles' properties, drawn by Cycles' panel for Cycles only)."""
+    from amcmcppm.amcmcppm_addon import ui
+    panel = ui.AMCMCPPM_WORLD_PT_ray_visibility
+    assert getattr(bpy.types, panel.__name__) is panel
+    world = bs.world((0.1, 0.1, 0.1))
+    known = set(type(world.cycles_visibility).bl_rna.properties.keys())
+    assert {name for name, _ in panel.props} <= known
+    with bpy.context.temp_override(world=world):
+        assert panel.poll(bpy.context)
+        scene.render.engine = "CYCLES"
+        assert not panel.poll(bpy.context)
+        scene.render.engine = ENGINE
+
+
 def test_light_linking_panels_show_for_engine(scene):
     """Object > Shading > Light Linking and Shadow Linking (Blender's panels, whose parent lists
     the engines that show them) show for lights and meshes: the exporter reads both."""
