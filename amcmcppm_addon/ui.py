@@ -239,7 +239,8 @@ def get_panels():
 
 
 # Panels outside the Render Properties.
-other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility, AMCMCPPM_WORLD_PT_ray_visibility)
+other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
+                 AMCMCPPM_WORLD_PT_ray_visibility)
 
 
 def register():

@@ -48,7 +48,8 @@ DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's
 # there.  Diffuse: the diffuse and translucent lobes; glossy: glossy, mirror, a coat and a glass's
 # reflection; transmission: a glass's refraction; scatter: a volume's scattering.  The glossy and
 # transmission bits are those of the rays (VISIBLE_*) that then see nothing of a world past the scene.
-EXCLUDE_GLOSSY, EXCLUDE_TRANSMISSION, EXCLUDE_DIFFUSE, EXCLUDE_SCATTER = VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, 8, 16
+EXCLUDE_GLOSSY, EXCLUDE_TRANSMISSION = VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+EXCLUDE_DIFFUSE, EXCLUDE_SCATTER = 8, 16
 EXCLUDE_ALL = EXCLUDE_GLOSSY | EXCLUDE_TRANSMISSION | EXCLUDE_DIFFUSE | EXCLUDE_SCATTER
 # Light and shadow linking (Scene.receiver_sets, Scene.blocker_sets and the emitters' links): an
 # emitter whose mask has every bit set lights every receiver set, or is shadowed by every blocker set.
@@ -1122,7 +1123,8 @@ class Scene:
         _validate_world_volume(self.world, fail)
         exclude = self.world.exclude
         if not isinstance(exclude, (int, np.integer)) or int(exclude) & ~EXCLUDE_ALL or int(exclude) < 0:
-            fail(f"world.exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL}), not {exclude!r}")
+            fail(f"world.exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL}), "
+                 f"not {exclude!r}")
         self.world.exclude = int(exclude)
         if self.world.camera is not None:
             _validate_background(self.world.camera, "world.camera", fail)

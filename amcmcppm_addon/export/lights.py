@@ -19,8 +19,9 @@ Ray visibility comes from the object (``visible_camera``, ``visible_glossy``,
 ``visible_transmission``): by default Cycles shows lights in mirrors and through glass but
 not to camera rays, and so does the core.  Its Diffuse, Glossy, Transmission and Volume Scatter
 boxes off also keep the light from those rays (:func:`light_exclude`, ``Lights.exclude``): a light
-without Glossy makes no highlights, one without Diffuse lights only glossy surfaces.  A point or spot light with Soft Falloff (the
-default) is seen as a disk facing the viewer, as Cycles shows it; without, as a sphere.
+without Glossy makes no highlights, one without Diffuse lights only glossy surfaces.  A point or
+spot light with Soft Falloff (the default) is seen as a disk facing the viewer, as Cycles shows it;
+without, as a sphere.
 
 An area light marked as a Cycles portal (``cycles.is_portal``) is left out: in Cycles it only
 guides the sampling of the world through a window, emits nothing and is invisible.

@@ -77,9 +77,8 @@ def test_a_diffuse_and_a_glossy_lobe_lit_apart_add_up_to_the_whole(settings):
     images = {}
     for bits in (0, EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY):
         scene = sky_over_floor(resolution=(16, 16), material=floor)
-        scene = scene.replace(world=World(color=np.zeros(3, np.float32)),
-                              lights=Lights.build([{"kind": "sun", "direction": (0.3, 0.2, -1.0), "power": 5.0,
-                                                    "exclude": bits}]))
+        sun = {"kind": "sun", "direction": (0.3, 0.2, -1.0), "power": 5.0, "exclude": bits}
+        scene = scene.replace(world=World(color=np.zeros(3, np.float32)), lights=Lights.build([sun]))
         images[bits] = render(scene.validate(), run).image[..., :3].astype(np.float64)
     whole, glossy_only, diffuse_only = images[0], images[EXCLUDE_DIFFUSE], images[EXCLUDE_GLOSSY]
     assert glossy_only.mean() > 0.05 * whole.mean() and diffuse_only.mean() > 0.05 * whole.mean()
@@ -110,7 +109,8 @@ def test_a_mirror_shows_the_world_only_where_it_lights_glossy_rays(bits, expecte
 def sunlit_fog(bits):
     """A volume-only slab z in [1, 1.5] scattering 0.2 and absorbing 0.1 per metre, under a sun
     straight down that does not light the rays ``bits``; an orthographic camera looks down at it."""
-    mats = Materials.build([{"name": "slab", "opacity": 0.0, "volume_scattering": 0.2, "volume_absorption": 0.1}])
+    mats = Materials.build([{"name": "slab", "opacity": 0.0, "volume_scattering": 0.2,
+                             "volume_absorption": 0.1}])
     m = MeshBuilder()
     m.add_box((-2, -2, 1.0), (2, 2, 1.5), 0)
     pose = np.eye(4)
@@ -124,8 +124,8 @@ def test_a_sun_that_does_not_light_volumes_leaves_fog_dark():
     """Lit, the slab shows its single scattering straight back (``test_scattering_volumes.py`` checks
     its closed form); without volume scatter nothing scatters (the sun reaches no surface)."""
     run = RenderSettings(passes=3, photons_per_pass=60_000, max_bounces=1, initial_radius_px=2.0, **PPM)
-    lit, dark, same = (render(sunlit_fog(bits), run).image[..., :3]
-                       for bits in (0, EXCLUDE_SCATTER, EXCLUDE_DIFFUSE | EXCLUDE_GLOSSY | EXCLUDE_TRANSMISSION))
+    others = EXCLUDE_DIFFUSE | EXCLUDE_GLOSSY | EXCLUDE_TRANSMISSION
+    lit, dark, same = (render(sunlit_fog(bits), run).image[..., :3] for bits in (0, EXCLUDE_SCATTER, others))
     assert lit.mean() > 0.05
     assert not dark.any()
     np.testing.assert_array_equal(same, lit)
