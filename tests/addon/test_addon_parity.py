@@ -1502,3 +1502,23 @@ def test_emitters_that_do_not_light_some_rays_match_cycles(addon, tmp_path, emit
             panel.visible_glossy = False
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert_image_matches(f"emitters without some rays ({emitters})", cycles, ours)
+
+
+def test_a_panel_hidden_from_glossy_rays_throws_no_light_off_a_mirror_as_in_cycles(addon, tmp_path):
+    """An emissive panel with Object > Visibility > Ray Visibility > Glossy off, facing a mirror
+    wall (Glossy BSDF, roughness 0) over the diffuse floor: Cycles' glossy rays do not see it, so
+    the mirror throws none of its light onto the floor; its photons that first meet the mirror end
+    there (``Scene.emitter_exclude``).  Measured: 1.014 of Cycles' mean, bands 0.998-1.015; before
+    (its photons left the mirror) 1.065, which the mean's 3 % tolerance catches."""
+    def build():
+        corner_scene()
+        nt = bpy.data.materials["Wall"].node_tree
+        nt.nodes.remove(nt.nodes["Diffuse BSDF"])
+        mirror = nt.nodes.new("ShaderNodeBsdfGlossy")
+        mirror.inputs["Roughness"].default_value = 0.0
+        nt.links.new(mirror.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        panel = bs.plane("Panel", size=0.8, material=bs.emission("Panel", (1.0, 0.9, 0.8), 6.0),
+                         location=(0.0, -0.3, 1.2), rotation=(math.radians(-120), 0, 0))
+        panel.visible_glossy = False
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_channels_match("panel hidden from glossy rays over a mirror", cycles, ours)
