@@ -23,6 +23,10 @@ without Glossy makes no highlights, one without Diffuse lights only glossy surfa
 spot light with Soft Falloff (the default) is seen as a disk facing the viewer, as Cycles shows it;
 without, as a sphere.
 
+A light with Cast Shadow off (``use_shadow``) is shadowed by nothing: its shadow links hold no
+blocker set (``Lights.shadow_links`` = 0, the core's shadow linking), so its photons light every
+surface along their first flight, as Cycles' unshadowed light samples do.
+
 An area light marked as a Cycles portal (``cycles.is_portal``) is left out: in Cycles it only
 guides the sampling of the world through a window, emits nothing and is invisible.
 
@@ -101,8 +105,6 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         return None
     if not strength.any():
         return None
-    if not getattr(light, "use_shadow", True):
-        log.warning(f"light '{name}': Cast Shadow off is not supported (its light is shadowed here)")
     profile = None
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
         factor, profile = node_factor(light.node_tree, name, log, light.type != "SUN")
@@ -112,6 +114,9 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     position = m[:3, 3]
     direction = _unit(-m[:3, 2], fallback=(0.0, 0.0, -1.0))
     rec = light_record(position, direction, visibility, bool(getattr(light, "use_soft_falloff", True)))
+    # Cast Shadow off: nothing shadows it (shadow links to no blocker set; scene.py keeps that over
+    # shadow linking's links).
+    rec["casts_shadow"] = bool(getattr(light, "use_shadow", True))
     if profile is not None and light.type != "AREA":
         # The light's frame for the profile: its X and Y axes, made orthonormal with -direction
         # (an area light's axes are its half extents, set below).

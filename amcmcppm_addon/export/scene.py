@@ -97,6 +97,9 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
         if getattr(geometry, set_key) is not None:
             sets[set_key] = getattr(geometry, set_key)
             sets[links_key] = kind.links(getattr(geometry, collections_key))
+    for rec in light_records:
+        if not rec.pop("casts_shadow", True):
+            rec["shadow_links"] = np.uint64(0)           # Cast Shadow off: no blocker set shadows it
     lights = build_lights(light_records + world_lights)
     if world.has_volume and (np.any(world.color) or world.texture is not None or (lights.kind == SUN).any()):
         log.warning("the world's volume fills all space, so (as in Cycles) the sun and the world's light "

@@ -2195,14 +2195,38 @@ def test_hair_point_clouds_and_volume_objects_are_named_in_warnings(scene):
     assert not any("'Bald'" in w for w in ex.warnings), ex.warnings
 
 
-def test_motion_blur_and_shadowless_lights_are_named_in_warnings(scene):
-    bs.light("POINT", energy=10.0, name="Shadowless").data.use_shadow = False
+def test_motion_blur_is_named_in_a_warning(scene):
     bs.camera()
     assert not [w for w in bs.export().warnings if "motion blur" in w]
     scene.render.use_motion_blur = True
     ex = bs.export()
     assert any("motion blur is not supported" in w for w in ex.warnings), ex.warnings
-    assert any("'Shadowless': Cast Shadow off" in w for w in ex.warnings), ex.warnings
+
+
+@pytest.mark.parametrize("linking", [False, True], ids=["alone", "with_shadow_linking"])
+def test_a_light_without_cast_shadow_is_shadowed_by_no_blocker_set(scene, linking):
+    """Light > Cast Shadow off: ``Lights.shadow_links`` 0 (no blocker set shadows it), also where
+    shadow linking gives the other lights theirs; the others keep every set.  Before: a warning,
+    and the light was shadowed."""
+    from amcmcppm.core.scene import ALL_LINKS
+    shadowless = bs.light("POINT", energy=10.0, name="Shadowless")
+    shadowless.data.use_shadow = False
+    other = bs.light("POINT", location=(1, 0, 3), energy=10.0, name="Other")
+    ball = bs.cube("Ball", size=0.5, location=(0, 0, 0.5))
+    bs.plane("Floor", size=4.0)
+    if linking:
+        only_ball = bpy.data.collections.new("OnlyBall")
+        only_ball.objects.link(ball)
+        other.light_linking.blocker_collection = only_ball
+        shadowless.light_linking.blocker_collection = only_ball
+    bs.camera()
+    ex = bs.export()
+    # (told apart by their x: 0 and 1)
+    links = dict(zip(np.where(ex.scene.lights.position[:, 0] > 0.5, "Other", "Shadowless"),
+                     ex.scene.lights.shadow_links.tolist()))
+    assert links["Shadowless"] == 0 and links["Other"] != 0
+    assert (links["Other"] == int(ALL_LINKS)) == (not linking)
+    assert not [w for w in ex.warnings if "Cast Shadow" in w], ex.warnings
 
 
 def test_a_portal_area_light_is_left_out(scene):
