@@ -133,7 +133,8 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
     reflected (Glossy) or refracted (Transmission).  Diffuse and shadow rays are photons here,
     which always meet the object.  An emitter's boxes (a light's, or an emissive mesh's) also say
     which rays its light reaches, Diffuse and Volume Scatter too (``Lights.exclude``), so those two
-    are drawn for lights.  Blender's panel draws the Holdout mask."""
+    are drawn for lights.  A mesh's Shadow box lets the direct light through it
+    (``CASTS_NO_SHADOW``).  Blender's panel draws the Holdout mask."""
     bl_label = "Ray Visibility"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
@@ -159,6 +160,8 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
         if ob.type == 'LIGHT':
             col.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
             col.prop(ob, "visible_volume_scatter", text="Volume Scatter", toggle=False)
+        else:
+            col.prop(ob, "visible_shadow", text="Shadow", toggle=False)
 
 
 class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):

@@ -13,7 +13,7 @@ from .lights import VOLUME, LightSampler
 from .procedural import (COLOR_MAX, EMISSION_MAX, HitAttributes, Rays, attributes_used, camera_path,
                          evaluate, evaluate_color, photon_path)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
-from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
+from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
@@ -136,9 +136,15 @@ class RenderContext:
                                   else np.zeros(t, np.uint8))
             self.emitter_links = (scene.emitter_links if scene.emitter_links is not None
                                   else np.full(t, ALL_LINKS, np.uint64))
-        # Shadow linking (Scene.blocker_sets): each triangle's blocker set, or None.
+        # Shadow linking (Scene.blocker_sets): each triangle's blocker set, or None; and the
+        # triangles that shadow no emitter (CASTS_NO_SHADOW), or None.  Either makes photons
+        # leaving their emitter pass such triangles (trace's ``shadow``).
+        self.shadowless = None
+        if self.triangle_visibility is not None:
+            shadowless = (self.triangle_visibility & CASTS_NO_SHADOW) != 0
+            self.shadowless = shadowless if shadowless.any() else None
         self.blocker_sets = None
-        if self.lights.has_shadow_links:
+        if self.lights.has_shadow_links or self.shadowless is not None:
             self.blocker_sets = (scene.blocker_sets if scene.blocker_sets is not None
                                  else np.zeros(scene.triangle_count, np.uint8))
         # What camera rays that leave the scene see, when it differs from the world (World.camera):
@@ -198,6 +204,7 @@ class RenderContext:
                  ("light profiles", self.lights.has_profiles),
                  ("light linking", self.lights.has_links),
                  ("shadow linking", self.lights.has_shadow_links),
+                 ("objects that cast no shadow", self.shadowless is not None),
                  ("transparency", self.has_transparency),
                  ("objects hidden from camera rays", self.has_hidden),
                  ("holdout", self.has_holdout),
@@ -300,6 +307,8 @@ class RenderContext:
                 # Triangles that do not shadow the photon's emitter (shadow linking).
                 sets = self.blocker_sets.take(pr)
                 passing = ~linked(shadow.take(rows), sets)
+                if self.shadowless is not None:
+                    passing |= self.shadowless.take(pr)
             sel = unseen | clear | passing
             rows, unseen, clear, passing = rows[sel], unseen[sel], clear[sel], passing[sel]
             if len(rows) == 0:

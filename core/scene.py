@@ -41,6 +41,10 @@ VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION = 1, 2, 4
 # Scene.triangle_visibility: the triangle's object is a holdout (Blender's Object > Visibility >
 # Mask > Holdout): camera rays that meet it directly cut its pixel out (Materials.holdout).
 HOLDOUT_OBJECT = 8
+# Scene.triangle_visibility: the triangle's object casts no shadow (Blender's Ray Visibility >
+# Shadow off): photons on their way from their emitter pass it or stop there, each with probability
+# 1/2 and twice the flux (as a triangle that shadow linking says does not shadow their emitter).
+CASTS_NO_SHADOW = 16
 DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
 # The rays an emitter does not light (``Lights.exclude``, ``World.exclude``, ``Scene.emitter_exclude``;
 # Blender's Ray Visibility boxes Glossy, Transmission, Diffuse and Volume Scatter off, Cycles'
@@ -818,7 +822,8 @@ class Scene:
     # (T,) uint8 the camera-path rays that see each triangle (Blender's object ray visibility, bits
     # as Lights.visibility: VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION), or None: all of
     # them.  The others go through it (RenderContext.trace); photons always meet it.  The bit
-    # HOLDOUT_OBJECT makes it a holdout for camera rays (as Materials.holdout = 1).
+    # HOLDOUT_OBJECT makes it a holdout for camera rays (as Materials.holdout = 1), the bit
+    # CASTS_NO_SHADOW lets the direct light through it.
     triangle_visibility: np.ndarray = None
     # Light linking (Blender's Object > Shading > Light Linking, receivers; Cycles' light sets), or
     # None: every emitter lights every triangle.  receiver_sets (T,) uint8 the set (0 to 63) each
@@ -1016,9 +1021,9 @@ class Scene:
             self._validate_objects(fail, arr, t)
         if self.triangle_visibility is not None:
             self.triangle_visibility = arr("triangle_visibility", self.triangle_visibility, np.uint8, (), t)
-            if t and self.triangle_visibility.max() > 15:
+            if t and self.triangle_visibility.max() > 31:
                 fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY, "
-                     "VISIBLE_TRANSMISSION and HOLDOUT_OBJECT (0 to 15)")
+                     "VISIBLE_TRANSMISSION, HOLDOUT_OBJECT and CASTS_NO_SHADOW (0 to 31)")
         if self.emitter_exclude is not None:
             self.emitter_exclude = arr("emitter_exclude", self.emitter_exclude, np.uint8, (), t)
             if t and (self.emitter_exclude & ~np.uint8(EXCLUDE_ALL)).any():

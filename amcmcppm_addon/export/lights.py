@@ -63,9 +63,9 @@ def light_strength(light) -> np.ndarray:
 def ray_visibility(obj) -> int:
     """The camera-path rays that see an object (Object > Visibility > Ray Visibility: Camera,
     Glossy, Transmission) as ``Lights.visibility`` bits, which ``Scene.triangle_visibility``
-    shares.  A mesh's Diffuse, Shadow and Volume Scatter boxes concern rays that photons stand in
-    for, which always meet it (an emissive mesh's boxes keep its light from those rays,
-    :func:`light_exclude`)."""
+    shares.  A mesh's Diffuse and Volume Scatter boxes concern rays that photons stand in for,
+    which always meet it (an emissive mesh's boxes keep its light from those rays,
+    :func:`light_exclude`); its Shadow box is ``CASTS_NO_SHADOW`` (``mesh.py``)."""
     return ((VISIBLE_CAMERA if obj.visible_camera else 0) | (VISIBLE_GLOSSY if obj.visible_glossy else 0)
             | (VISIBLE_TRANSMISSION if obj.visible_transmission else 0))
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
-from ...core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+from ...core.scene import CASTS_NO_SHADOW, HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
 from ...core.texture_hash import hash_uint2, hash_uint_to_float
 from .lights import light_exclude, ray_visibility
 
@@ -80,7 +80,8 @@ class Geometry:
     object_info: np.ndarray | None = None         # (O, 6) float32 Object Info (core.Scene.object_info)
     object_attributes: dict | None = None         # {name: (O, 3) float32} (core.Scene.object_attributes)
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
-    # HOLDOUT_OBJECT for a holdout object's, or None: all rays, no holdout
+    # HOLDOUT_OBJECT for a holdout object's, CASTS_NO_SHADOW for one with Shadow off, or None: all
+    # rays, no holdout, every object shadows
     triangle_visibility: np.ndarray | None = None
     # (T,) uint8 the rays each triangle's light does not reach (its object's Ray Visibility,
     # core.Scene.emitter_exclude), or None: none excluded
@@ -165,7 +166,7 @@ class GeometryCollector:
                              "as an ordinary surface")
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         flags = (ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
-                 | light_exclude(ob) << EXCLUDE_SHIFT)
+                 | (0 if ob.visible_shadow else CASTS_NO_SHADOW) | light_exclude(ob) << EXCLUDE_SHIFT)
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))

@@ -1561,6 +1561,20 @@ def test_object_ray_visibility_reaches_the_triangles(scene):
     assert shown.visible_camera
 
 
+def test_an_object_with_shadow_off_casts_no_shadow(scene):
+    """Ray Visibility > Shadow off: its triangles' CASTS_NO_SHADOW bit (before: ignored, it shadowed)."""
+    from amcmcppm.core.scene import CASTS_NO_SHADOW, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+    bs.camera()
+    bs.plane("Floor", material=bs.diffuse("Grey"))
+    board = bs.plane("Board", material=bs.diffuse("Grey"), location=(0, 0, 1))
+    board.visible_shadow = False
+    ex = bs.export()
+    z = ex.scene.vertices[ex.scene.triangles].mean(axis=1)[:, 2]
+    every = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+    assert set(ex.scene.triangle_visibility[z > 0.5]) == {every | CASTS_NO_SHADOW}
+    assert set(ex.scene.triangle_visibility[z < 0.5]) == {every}
+
+
 def fresnel_mix(name, factor_node, output, **inputs):
     """A Mix of a red Diffuse and a white Glossy by ``factor_node``'s ``output``."""
     mat = bs.diffuse(name, (0.8, 0.1, 0.1))

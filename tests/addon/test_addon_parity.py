@@ -1524,21 +1524,26 @@ def test_a_panel_hidden_from_glossy_rays_throws_no_light_off_a_mirror_as_in_cycl
     assert_channels_match("panel hidden from glossy rays over a mirror", cycles, ours)
 
 
-def test_a_light_without_cast_shadow_matches_cycles(addon, tmp_path):
-    """Light > Cast Shadow off: a point light over a ball on the floor lights the floor under the
-    ball as if the ball were not there (its shadow links hold no blocker set, so its photons pass
-    each surface on their first flight or stop there, each with probability 1/2); a second light
-    casts its shadow as usual.  Measured: 0.999-1.001 of Cycles' mean by channel, bands 0.989-1.017,
-    4 x 4 blocks correlated 0.9985; before (a warning, and the ball's shadow) 0.952-0.962."""
+@pytest.mark.parametrize("off", ["light", "object"])
+def test_a_light_without_cast_shadow_matches_cycles(addon, tmp_path, off):
+    """``light``: Light > Cast Shadow off: a point light over a ball on the floor lights the floor
+    under the ball as if the ball were not there (its shadow links hold no blocker set, so its
+    photons pass each surface on their first flight or stop there, each with probability 1/2); a
+    second light casts its shadow as usual.  Measured: 0.999-1.001 of Cycles' mean by channel,
+    bands 0.989-1.017, 4 x 4 blocks correlated 0.9985; before (a warning, and the ball's shadow)
+    0.952-0.962.  ``object``: the ball's Ray Visibility > Shadow off instead (CASTS_NO_SHADOW), so
+    it shadows neither light: 0.997-0.998, bands 0.981-1.018, blocks 0.9975; before (ignored: the
+    ball shadowed both) 0.945-0.952."""
     def build():
         corner_scene()
         bm = bmesh.new()
         bmesh.ops.create_uvsphere(bm, u_segments=48, v_segments=24, radius=0.45)
         ball = bs.mesh_object("Ball", bm, bs.diffuse("Ball", (0.7, 0.6, 0.5)), location=(0.2, -0.2, 0.45))
         ball.data.shade_smooth()
+        ball.visible_shadow = off != "object"
         bs.light("POINT", location=(0.2, 0.6, 1.4), energy=150.0, shadow_soft_size=0.1,
-                 name="Shadowless").data.use_shadow = False
+                 name="Shadowless").data.use_shadow = off != "light"
         bs.light("AREA", location=(-1.2, -1.0, 2.5), target=(0, 0, 0), energy=80.0, size=0.5, name="Key",
                  color=(0.6, 0.8, 1.0))
     cycles, ours = cycles_and_ours(build, tmp_path)
-    assert_image_matches("light without Cast Shadow", cycles, ours)
+    assert_image_matches(f"{off} without shadow", cycles, ours)
