@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
-from ...core.scene import CASTS_NO_SHADOW, HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION
+from ...core.scene import (CASTS_NO_SHADOW, HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY,
+                           VISIBLE_TRANSMISSION)
 from ...core.texture_hash import hash_uint2, hash_uint_to_float
 from .lights import light_exclude, ray_visibility
 

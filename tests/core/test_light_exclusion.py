@@ -187,7 +187,8 @@ def test_a_sheet_that_casts_no_shadow_lets_the_sun_onto_the_floor(settings):
     expected = 0.5 * 10.0 / (1 - 0.5 * 0.5) / np.pi
     scene = sun_through_sheet({"diffuse": 0.5}, floor_albedo=0.5, resolution=(32, 32))
     scene = scene.replace(camera=dataclasses.replace(scene.camera, frame=(-5.0, 5.0, -5.0, 5.0))).validate()
-    shadowless = scene.replace(triangle_visibility=np.uint8([ALL_RAYS | CASTS_NO_SHADOW] * 2 + [ALL_RAYS] * 2))
+    bits = np.uint8([ALL_RAYS | CASTS_NO_SHADOW] * 2 + [ALL_RAYS] * 2)          # the sheet, the floor
+    shadowless = scene.replace(triangle_visibility=bits)
     result = render(shadowless.validate(), run)
     np.testing.assert_allclose(result.image[..., :3].mean(), expected, rtol=0.05)
     assert "objects that cast no shadow" in result.effects
