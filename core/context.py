@@ -11,7 +11,7 @@ from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT
 from .environment import Environment
 from .lights import VOLUME, LightSampler
 from .procedural import (COLOR_MAX, EMISSION_MAX, HitAttributes, Rays, attributes_used, camera_path,
-                         evaluate, evaluate_color, photon_path)
+                         evaluate, evaluate_color, perpendicular_tangents, photon_path, radial_tangents)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
@@ -685,25 +685,13 @@ class RenderContext:
             r = sel.take(radial)
             scene = self.scene
             if scene.object_ids is None:
-                c = pos.take(r, axis=0) - 0.5                       # Cycles without Generated
+                raw[radial] = radial_tangents(pos.take(r, axis=0) - 0.5, axis.take(radial))  # (no Generated)
             else:
                 attrs = HitAttributes(scene, prim_ids.take(r), tuple(b.take(radial, axis=0) for b in w),
                                       pos.take(r, axis=0))
-                c = attrs.get("generated") - 0.5
-            x, y, z = c[:, 0], c[:, 1], c[:, 2]
-            zero = np.zeros(len(r))
-            a = axis.take(radial)[:, None]
-            t = np.where(a == 0, np.stack([zero, -z, y], axis=1),
-                         np.where(a == 1, np.stack([-z, zero, x], axis=1), np.stack([-y, x, zero], axis=1)))
-            if scene.object_ids is not None:
-                # A normal's transform: A^T t with A the object-from-world matrix.
                 objects = scene.object_from_world.take(scene.object_ids.take(prim_ids.take(r)), axis=0)
-                t = np.einsum("kji,kj->ki", objects[:, :, :3], t)
-            raw[radial] = t
-        n = smooth.take(sel, axis=0)
-        across = np.cross(raw, n)
-        length = np.sqrt(dot(across, across))
-        t = np.cross(n, across / np.where(length > 0, length, 1.0)[:, None])
+                raw[radial] = radial_tangents(attrs.get("generated") - 0.5, axis.take(radial), objects)
+        t = perpendicular_tangents(raw, smooth.take(sel, axis=0))
         turn = self.table.rotation.take(m).astype(np.float64)
         if self.has_rotation_programs:
             for s, value in self._program_values(self.table.rotation_program, prim_ids.take(sel), w,

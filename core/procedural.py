@@ -96,7 +96,8 @@ from .texture_hash import hash_uint3, hash_uint3_to_float
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
               "object_info", "position", "world_normal", "true_normal", "camera", "window", "incoming",
-              "backfacing", "light_path", "parametric", "edge_distance")
+              "backfacing", "light_path", "parametric", "edge_distance", "tangent_x", "tangent_y",
+              "tangent_z", "tangent_uv")
 # Blender's Geometry node: "position" the hit's world position, "world_normal" the world-space
 # shading normal (interpolated where the mesh is smooth), "true_normal" the facet's; both normals
 # turned towards the ray on a back face, as Cycles turns them (``RAY``).
@@ -117,6 +118,12 @@ CAMERA_PATH = np.array([1.0] + [0.0] * (len(LIGHT_PATH) - 1))      # a camera ra
 # units to the lines through its three edges (of corners 2 and 0, 0 and 1, 1 and 2: Cycles'
 # Wireframe compares them with half its Size).
 TRIANGLE = ("parametric", "edge_distance")
+# Tangents at the hits, perpendicular to the shading normal (Blender's Tangent node, Cycles'
+# ``svm_node_tangent``): "tangent_x", "tangent_y", "tangent_z" the radial direction about the
+# object's X, Y or Z axis through the centre of its texture space (from the Generated coordinates;
+# "tangent_z" is also Geometry's Tangent, Cycles' ``primitive_tangent``), "tangent_uv" the active
+# render UV map's (``Scene.tangents``; 0 without them, as Cycles without the map).
+TANGENTS = ("tangent_x", "tangent_y", "tangent_z", "tangent_uv")
 # Most hits on its own object a Bevel ray counts (Cycles' LOCAL_MAX_HITS).
 LOCAL_HITS = 4
 # Texture Coordinate's Camera (the hit in the camera's space, Cycles' axes: x right, y up, z the
@@ -135,7 +142,8 @@ OBJECT_PROPERTY = ("object:", "instancer:")
 
 def reads_objects(names) -> bool:
     """Whether attributes ``names`` (``attributes_used``) need the scene's objects."""
-    return any(n in ("object", "generated", "normal", *OBJECT_INFO) or n.startswith(OBJECT_PROPERTY)
+    radial = TANGENTS[:3]                           # (from the Generated coordinates)
+    return any(n in ("object", "generated", "normal", *OBJECT_INFO, *radial) or n.startswith(OBJECT_PROPERTY)
                for n in names)
 # Blender's Object Info per object (``Scene.object_info``): "object_location" the object's origin
 # in world space, "object_color" its colour, "object_info" (Alpha, Object Index, Random).
@@ -151,6 +159,29 @@ EMISSION_MAX = 1e30
 
 class ProgramError(ValueError):
     """A malformed program (unknown op, missing input, bad texture index)."""
+
+
+def radial_tangents(centred, axis, object_from_world=None):
+    """(k, 3) Cycles' radial tangent directions (``svm_node_tangent``) about the object's X, Y or Z
+    axis (``axis`` (k,) 0, 1 or 2) of points ``centred`` (k, 3) (Generated coordinates minus 0.5),
+    taken to world space as a normal is (A^T t, A the (k, 3, >= 3) ``object_from_world`` matrices;
+    None: left as they are)."""
+    x, y, z = centred[:, 0], centred[:, 1], centred[:, 2]
+    zero = np.zeros(len(centred))
+    a = np.asarray(axis)[:, None]
+    t = np.where(a == 0, np.stack([zero, -z, y], axis=1),
+                 np.where(a == 1, np.stack([-z, zero, x], axis=1), np.stack([-y, x, zero], axis=1)))
+    if object_from_world is not None:
+        t = np.einsum("kji,kj->ki", np.asarray(object_from_world)[:, :, :3], t)
+    return t
+
+
+def perpendicular_tangents(raw, normals):
+    """(k, 3) unit tangents ``raw`` (k, 3) made perpendicular to the unit ``normals`` (k, 3), as
+    Cycles' cross(N, normalize(cross(T, N))); 0 where ``raw`` is 0 or along the normal."""
+    across = np.cross(raw, normals)
+    length = np.sqrt(dot(across, across))
+    return np.cross(normals, across / np.where(length > 0, length, 1.0)[:, None])
 
 
 def camera_path(camera, reflected, lengths, depth, glossy_depth, transmission_depth):
@@ -237,6 +268,8 @@ class HitAttributes:
                 value = self._ray(name)
             elif name in TRIANGLE:
                 value = self._triangle(name)
+            elif name in TANGENTS:
+                value = self._tangent(name)
             elif name in VIEW:
                 value = self._view(name)
             elif name in ("object", "generated"):
@@ -417,6 +450,24 @@ class HitAttributes:
         for obj in np.unique(objects):
             yield self.accel.local(int(obj)), np.flatnonzero(objects == obj)
 
+    def _tangent(self, name):
+        """(k, 3) a tangent of the hits (``TANGENTS``), made perpendicular to the shading normal."""
+        s = self.scene
+        if name == "tangent_uv":
+            if s.tangents is None:
+                return np.zeros((self.count, 3))
+            corners = s.tangents.take(self.prim_ids, axis=0).astype(np.float64)
+            raw = interpolate_corners(corners, self.bary)[:, :3]
+        else:
+            axis = np.full(self.count, TANGENTS.index(name))
+            if s.object_ids is None:
+                # (Cycles without Generated coordinates: the position)
+                raw = radial_tangents(np.asarray(self.positions, np.float64) - 0.5, axis)
+            else:
+                raw = radial_tangents(self.get("generated") - 0.5, axis,
+                                      s.object_from_world.take(s.object_ids.take(self.prim_ids), axis=0))
+        return perpendicular_tangents(raw, self._front("world_normal"))
+
     def _triangle(self, name):
         """(k, 3) Parametric or the edge distances of the hits (``TRIANGLE``)."""
         if name == "parametric":
@@ -582,6 +633,10 @@ class SampledAttributes:
                         "parametric": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1),
                         "edge_distance": g}
         self._values["world_normal"] = self._values["true_normal"] = normals = self._values["normal"]
+        # Unit tangents in random directions about the normals.
+        across = np.cross(normals, rng.normal(size=(n, 3)))
+        for name in TANGENTS:
+            self._values[name] = across / np.linalg.norm(across, axis=1, keepdims=True)
         # Cosine-distributed, stratified in the squared sine: accurate means of the view's factors.
         s2, phi = (rng.permutation(n) + rng.random(n)) / n, 2.0 * np.pi * rng.random(n)
         local = np.stack([np.sqrt(s2) * np.cos(phi), np.sqrt(s2) * np.sin(phi), np.sqrt(1.0 - s2)], axis=1)

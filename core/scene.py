@@ -1198,8 +1198,9 @@ class Scene:
             except procedural.ProgramError as e:
                 fail(f"materials.programs[{i}]: {e}")
             for name in procedural.attributes_used(program):
-                if name in procedural.GEOMETRY + procedural.VIEW + procedural.RAY + procedural.TRIANGLE:
-                    continue                        # (the hit's position, normals, ray and the camera)
+                if name in (procedural.GEOMETRY + procedural.VIEW + procedural.RAY + procedural.TRIANGLE
+                            + procedural.TANGENTS):
+                    continue                        # (the hit's position, normals, ray, camera, tangents)
                 if name.startswith((procedural.NAMED, *procedural.OBJECT_PROPERTY)):
                     continue                        # (0 where the scene lacks it, as in Cycles)
                 if coords[name] is None and (used == i).any():

@@ -960,13 +960,14 @@ class MaterialExporter:
 
     def tangent_uv(self, ids):
         """The UV map name ('' = the active render map) of the first of ``ids`` that needs the UV
-        map's tangents (a normal map, an anisotropic glossy lobe oriented by them), or None."""
+        map's tangents (a normal map, an anisotropic glossy lobe oriented by them, a program's
+        Tangent node), or None."""
         for s in (self._specs[i] for i in self._with_levels(ids)):
             if "normal_texture" in s:
                 return s["normal_uv_map"]
             if "tangent_uv_map" in s:
                 return s["tangent_uv_map"]
-        return None
+        return "" if "tangent_uv" in self.coordinates_used(ids) else None
 
     def build(self) -> Materials:
         return Materials.build(self._specs)
@@ -1494,12 +1495,14 @@ class NodeWalker:
 
     def tangent(self, sock, stack):
         """(core.bsdf.TANGENT_*, UV map name or None) of a BSDF's Tangent input: Blender's Tangent
-        node (radial about an axis, or a UV map's tangents) or, unlinked, Cycles' default (radial
-        about Z); anything else is noted and takes the default."""
+        node (radial about an axis, or a UV map's tangents) or, unlinked or Geometry's Tangent,
+        Cycles' default (radial about Z); anything else is noted and takes the default."""
         src, _, stack = self.source(sock, stack)
         if src is None:
             return TANGENT_DEFAULT
         node = src.node
+        if node.bl_idname == "ShaderNodeNewGeometry" and src.name == "Tangent" and not node.mute:
+            return TANGENT_DEFAULT                      # (Geometry's Tangent: radial about Z)
         if node.bl_idname != "ShaderNodeTangent" or node.mute:
             self.note(f"'{node.name}' on a Tangent input is not supported (the radial tangent about "
                       "the object's Z axis is used, Cycles' default)")

@@ -141,17 +141,30 @@ def _tex_coord(b, node, stack):
 def _geometry(b, node, stack):
     """Geometry: Position, Normal and True Normal in world space (turned towards the ray on a back
     face, as Cycles), Incoming and Backfacing (``procedural.RAY``), Parametric
-    (``procedural.TRIANGLE``), Random Per Island and Pointiness (``mesh.random_per_island``,
-    ``mesh.pointiness``); Tangent is noted where used."""
+    (``procedural.TRIANGLE``), Tangent (radial about the object's Z axis, Cycles'
+    ``primitive_tangent``: ``procedural.TANGENTS``), Random Per Island and Pointiness
+    (``mesh.random_per_island``, ``mesh.pointiness``)."""
     return {"Position": {"op": "attribute", "name": "position"},
             "Normal": {"op": "attribute", "name": "world_normal"},
             "True Normal": {"op": "attribute", "name": "true_normal"},
             "Incoming": {"op": "attribute", "name": "incoming"},
             "Parametric": {"op": "attribute", "name": "parametric"},
+            "Tangent": {"op": "attribute", "name": "tangent_z"},
             "Backfacing": {"op": "separate", "vector": {"op": "attribute", "name": "backfacing"},
                            "output": "X"},
             "Random Per Island": {"op": "separate", "vector": _named(RANDOM_PER_ISLAND), "output": "X"},
             "Pointiness": {"op": "separate", "vector": _named(POINTINESS), "output": "X"}}
+
+
+def _tangent(b, node, stack):
+    """Tangent: radial about the object's X, Y or Z axis, or the UV map's tangents (the active render
+    map's; another map named is noted), perpendicular to the normal (``procedural.TANGENTS``)."""
+    if node.direction_type == "UV_MAP":
+        if node.uv_map:
+            b.walker.note(f"'{node.name}': the active render UV map's tangents are used (UV map "
+                          f"'{node.uv_map}' is not looked up apart)")
+        return {"Tangent": {"op": "attribute", "name": "tangent_uv"}}
+    return {"Tangent": {"op": "attribute", "name": "tangent_" + {"X": "x", "Y": "y"}.get(node.axis, "z")}}
 
 
 def _camera_data(b, node, stack):
@@ -721,7 +734,7 @@ def _layer_weight(b, node, stack):
 
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
-    "ShaderNodeObjectInfo": _object_info, "ShaderNodeNewGeometry": _geometry,
+    "ShaderNodeObjectInfo": _object_info, "ShaderNodeNewGeometry": _geometry, "ShaderNodeTangent": _tangent,
     "ShaderNodeAttribute": _attribute,
     "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,

@@ -2630,6 +2630,19 @@ def test_anisotropy_reaches_the_core_with_cycles_alphas_and_tangents(scene):
     assert np.abs(ex.scene.tangents[..., :3]).sum() > 0
 
 
+def test_geometry_tangent_on_a_tangent_input_is_the_default_radial_tangent(scene):
+    """Geometry's Tangent (radial about Z, Cycles' ``primitive_tangent``) on a BSDF's Tangent input
+    is the default tangent, without a note (before: an unsupported source, noted)."""
+    from core.bsdf import TANGENT_RADIAL_Z
+    mat = _glossy_with_tangent("ByGeometry", None, Anisotropy=0.4)
+    nt = mat.node_tree
+    bsdf_node = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfAnisotropic")
+    nt.links.new(nt.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"], bsdf_node.inputs["Tangent"])
+    row, ex = export_material(mat)
+    assert row["glossy_tangent"] == TANGENT_RADIAL_Z
+    assert not [w for w in ex.warnings if "Tangent" in w], ex.warnings
+
+
 def test_an_anisotropy_map_becomes_a_program_of_the_stretch(scene):
     """A texture on Anisotropy (a gradient times a factor) stays a float program of the stretch s
     the core evaluates at each hit, Cycles' alphas: 1 - a for the Glossy BSDF's a >= 0, 1 / (1 + a)

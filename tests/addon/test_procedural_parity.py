@@ -1052,6 +1052,12 @@ def wireframe(size):
     return lambda nt: node(nt, "ShaderNodeWireframe", Size=size).outputs["Fac"]
 
 
+def tangent(direction, axis="Z"):
+    """The Tangent node, radial about an object axis or along the UV map's tangents."""
+    return lambda nt: half_unit(nt, node(nt, "ShaderNodeTangent", direction_type=direction,
+                                         axis=axis).outputs["Tangent"])
+
+
 VIEW_CASES = {
     "fresnel": fresnel(), "fresnel_ior_map": fresnel(ior_map=True),
     "fresnel_true_normal": fresnel(normal="True Normal"),
@@ -1069,15 +1075,18 @@ VIEW_CASES = {
 }
 
 
-def floor_and_bowl(build, resolution=(48, 36)):
-    """A 6 m floor and a smooth open bowl (its inside: back faces) above it, both of the material
-    whose colour ``build`` makes, seen at a slant by a perspective camera; the material."""
+def floor_and_bowl(build, resolution=(48, 36), uvs=False):
+    """A 6 m floor and a smooth open bowl (its inside: back faces; with ``uvs`` a UV map) above it,
+    both of the material whose colour ``build`` makes, seen at a slant by a perspective camera; the
+    material."""
     import bmesh
     import bpy
 
     mat, _ = bs.texture_plane(build, resolution=resolution, size=6.0)
     bm = bmesh.new()
-    bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=1.0)
+    if uvs:
+        bm.loops.layers.uv.new("UVMap")                 # (calc_uvs fills an existing layer)
+    bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=1.0, calc_uvs=uvs)
     bmesh.ops.delete(bm, geom=[v for v in bm.verts if v.co.z > 0.3], context="VERTS")
     bowl = bs.mesh_object("Bowl", bm, mat, location=(0.3, 0.2, 1.0), rotation=(0.3, 0.0, 0.0))
     bowl.data.shade_smooth()
@@ -1101,6 +1110,32 @@ def test_nodes_of_the_view_match_cycles(addon, tmp_path, case):
     assert 0.5 < on.mean() and np.ptp(cycles[on], axis=0).max() > 0.3
     err = np.abs(ours[on] - np.maximum(cycles[on], 0.0)).max(axis=1)
     print(f"view {case}: max {err.max():.2e}, 99th percentile {np.percentile(err, 99):.2e}")
+    assert np.percentile(err, 99) < 1e-4
+
+
+TANGENT_CASES = {"geometry": view_vector("ShaderNodeNewGeometry", "Tangent"),
+                 "radial_x": tangent("RADIAL", "X"), "radial_y": tangent("RADIAL", "Y"),
+                 "uv_map": tangent("UV_MAP")}
+
+
+@pytest.mark.parametrize("case", list(TANGENT_CASES))
+def test_tangents_match_cycles(addon, tmp_path, case):
+    """Geometry's Tangent (radial about the object's Z axis) and the Tangent node (radial about X
+    or Y, or the UV map's) on the floor and the turned bowl, with UVs (stop 41; before, the Tangent
+    node and Geometry's Tangent were unsupported, their socket's value).  Where the tangent lies
+    along the normal (the radial X and Y ones on the flat floor) ours is 0 (a colour of 0.5) and
+    Cycles' what its float32 rounding leaves (a unit vector of the error's direction, or NaN from
+    normalize, which its film drops): those pixels are left out of the comparison."""
+    mat = floor_and_bowl(TANGENT_CASES[case], uvs=True)
+    ours = our_values_through_the_camera()
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    on = np.isfinite(ours).all(axis=2)
+    degenerate = on & (np.abs(ours - 0.5).max(axis=2) < 1e-6)
+    on &= ~degenerate
+    assert on.mean() > 0.05 and np.ptp(cycles[on], axis=0).max() > 0.3          # (the bowl at least)
+    err = np.abs(ours[on] - cycles[on]).max(axis=1)
+    print(f"tangent {case}: {on.sum()} pixels ({degenerate.sum()} degenerate left out), max {err.max():.2e}, "
+          f"99th percentile {np.percentile(err, 99):.2e}")
     assert np.percentile(err, 99) < 1e-4
 
 

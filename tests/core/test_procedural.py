@@ -574,3 +574,37 @@ def test_unpremultiply_divides_only_partial_alpha():
     program = {"op": "unpremultiply", "color": [0.2, 0.4, 0.6], "alpha": x}
     out = run(program, [(0.5, 0, 0), (0.0, 0, 0), (1.0, 0, 0), (2.0, 0, 0)])
     np.testing.assert_allclose(out, [[0.4, 0.8, 1.2], [0.2, 0.4, 0.6], [0.2, 0.4, 0.6], [0.2, 0.4, 0.6]])
+
+
+def test_tangents_are_radial_about_the_object_axes_or_the_uv_maps():
+    """Cycles' Tangent node (``svm_node_tangent``) and Geometry's Tangent (radial about Z): on the
+    floor of ``sun_over_procedural_floor`` (Generated = xy + 0.5) the tangent about Z at (x, y) is
+    (-y, x, 0) normalised, those about X and Y lie along the normal and vanish; turned with the
+    object (a normal's transform); the UV map's tangent made perpendicular to a tilted normal."""
+    scene = sun_over_procedural_floor({"op": "attribute", "name": "position"})
+    xy = np.array([[0.3, 0.1], [-0.2, 0.25], [0.1, -0.4]])
+    attrs = floor_hits(floor_with_quad([[2, 2, 0], [3, 2, 0], [3, 3, 0], [2, 3, 0]], True), xy)
+    radial = np.stack([-xy[:, 1], xy[:, 0], np.zeros(3)], axis=1)
+    np.testing.assert_allclose(attrs.get("tangent_z"), radial / np.linalg.norm(radial, axis=1, keepdims=True),
+                               atol=1e-6)
+    for name in ("tangent_x", "tangent_y"):
+        np.testing.assert_allclose(attrs.get(name), 0.0, atol=1e-6)
+    # The object turned a quarter about world Z (object x = world y): the tangent turns with it.
+    turned = np.array([[[0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]]])
+    scene_t = scene.replace(object_from_world=turned).validate()
+    b = tuple(np.full((1, 1), w) for w in (0.2, 0.3, 0.5))
+    p = np.array([[0.3, 0.1, 0.0]])
+    t = procedural.HitAttributes(scene_t, np.array([0]), b, p).get("tangent_z")
+    g = turned[0, :, :3] @ p[0] + 0.5 - 0.5               # Generated minus 0.5 in the object's space
+    expected = turned[0, :, :3].T @ np.array([-g[1], g[0], 0.0])
+    np.testing.assert_allclose(t[0], expected / np.linalg.norm(expected), atol=1e-6)
+    # UV tangents along x under a normal tilted towards x: the part across the normal, unit length.
+    tilted = np.zeros((2, 3, 3), np.float32)
+    tilted[..., :] = [0.6, 0.0, 0.8]
+    frames = np.zeros((2, 3, 4), np.float32)
+    frames[..., 0] = frames[..., 3] = 1.0
+    with_uv = scene.replace(shading_normals=tilted, tangents=frames).validate()
+    t = procedural.HitAttributes(with_uv, np.array([0]), b, p).get("tangent_uv")
+    np.testing.assert_allclose(t[0], [0.8, 0.0, -0.6], atol=1e-6)
+    assert not procedural.HitAttributes(scene, np.array([0]), b, p).get("tangent_uv").any()
+    assert procedural.reads_objects({"tangent_z"}) and not procedural.reads_objects({"tangent_uv"})
