@@ -10,8 +10,9 @@ from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT
                    coat_variants, lobe_colors, roughness_variants, stretch_level, stretch_variants)
 from .environment import Environment
 from .lights import VOLUME, LightSampler
-from .procedural import (COLOR_MAX, EMISSION_MAX, HitAttributes, Rays, attributes_used, camera_path,
-                         evaluate, evaluate_color, perpendicular_tangents, photon_path, radial_tangents)
+from .procedural import (COLOR_MAX, EMISSION_MAX, DirectionAttributes, HitAttributes, Rays, attributes_used,
+                         camera_path, evaluate, evaluate_color, perpendicular_tangents, photon_path,
+                         radial_tangents)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
@@ -147,9 +148,13 @@ class RenderContext:
         if self.lights.has_shadow_links or self.shadowless is not None:
             self.blocker_sets = (scene.blocker_sets if scene.blocker_sets is not None
                                  else np.zeros(scene.triangle_count, np.uint8))
-        # What camera rays that leave the scene see, when it differs from the world (World.camera):
-        # a function of the directions (n, 3) -> radiance (n, 3), or None.
-        self.camera_background = _background(scene.world.camera)
+        # What camera rays that leave the scene see, when it differs from the world's bake
+        # (World.camera, or a World.program of the view): a function of the directions (n, 3) and
+        # the rays' origins -> radiance (n, 3), or None.
+        seen = scene.world.camera
+        if seen is None and scene.world.program is not None:
+            seen = scene.world
+        self.camera_background = _background(seen, scene.camera, self.textures.images)
         # Normal and bump maps: per-material image index (-1: none) and parameters.
         self.normal_texture = np.ascontiguousarray(mats.normal_texture, np.int32)
         self.normal_strength = np.asarray(mats.normal_strength, np.float64)
@@ -915,14 +920,24 @@ def _stop_in_volumes(hits, scatter_t):
                 np.where(stop, scatter_t, hits.t).astype(np.float32), hits.b1, hits.b2, scatter_t)
 
 
-def _background(world):
-    """Radiance by direction of ``world`` (a ``World``: colour, times its image), or None."""
+def _background(world, camera, images):
+    """Radiance of ``world`` (a ``World``: colour, times its program of the view seen by ``camera``
+    with the scene's ``images``, or times its image) as a function of camera rays' directions and
+    origins (n, 3), or None."""
     if world is None:
         return None
     color = np.asarray(world.color, np.float64)
+    if world.program is not None:
+        program = world.program
+
+        def seen(dirs, origins=None):
+            attrs = DirectionAttributes(dirs, camera, origins)
+            return color * evaluate_color(program, attrs, images, EMISSION_MAX)
+        return seen
     if world.texture is None:
-        return lambda dirs: np.broadcast_to(color, (len(dirs), 3))
-    return Environment(color, world.texture, world.texture_rotation).radiance
+        return lambda dirs, origins=None: np.broadcast_to(color, (len(dirs), 3))
+    radiance = Environment(color, world.texture, world.texture_rotation).radiance
+    return lambda dirs, origins=None: radiance(dirs)
 
 
 def _replace_bad(n, fallback):

@@ -237,7 +237,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 alpha[pix[miss]] = np.clip(1.0 - beta[miss].mean(axis=1), 0.0, 1.0)
             elif depth == 0 and ctx.camera_background is not None:
                 m_ = np.flatnonzero(miss)                   # the world camera rays see (Light Path)
-                emission[pix[m_]] += beta[m_] * ctx.camera_background(dirs[m_])
+                emission[pix[m_]] += beta[m_] * ctx.camera_background(dirs[m_], origins[m_])
             elif ctx.lights.environment is not None:
                 m_ = np.flatnonzero(miss)
                 emission[pix[m_]] += beta[m_] * ctx.lights.environment.radiance(dirs[m_])

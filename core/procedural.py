@@ -514,26 +514,13 @@ class HitAttributes:
 
     def camera_from_world(self):
         """(4, 4) world to Cycles' camera space (x right, y up, z the depth in front)."""
-        flip = np.diag([1.0, 1.0, -1.0, 1.0])
-        return flip @ np.linalg.inv(np.asarray(self.scene.camera.world_from_camera, np.float64))
+        return camera_from_world(self.scene.camera)
 
     def _view(self, name):
         """(k, 3) Camera or Window coordinates of the hits (``VIEW``)."""
-        cam = self.scene.camera
         m = self.camera_from_world()
         c = np.asarray(self.positions, np.float64) @ m[:3, :3].T + m[:3, 3]
-        if name == "camera":
-            return c
-        out = np.zeros((self.count, 3))
-        if cam.projection in ("perspective", "orthographic"):
-            x0, x1, y0, y1 = cam.frame
-            xy = c[:, :2]
-            if cam.projection == "perspective":
-                depth = c[:, 2:3]
-                xy = np.divide(xy, depth, out=np.zeros_like(xy), where=depth != 0.0)
-            out[:, 0] = (xy[:, 0] - x0) / (x1 - x0)
-            out[:, 1] = (xy[:, 1] - y0) / (y1 - y0)
-        return out
+        return c if name == "camera" else window_coordinates(self.scene.camera, c)
 
     def _object_property(self, name):
         """(k, 3) the hits' objects' values of ``name`` (``Scene.object_attributes``); 0 without."""
@@ -589,13 +576,41 @@ class HitAttributes:
         return (p - space[:, 0]) * half + 0.5
 
 
+def camera_from_world(camera):
+    """(4, 4) world to Cycles' camera space (x right, y up, z the depth in front) of ``camera``."""
+    flip = np.diag([1.0, 1.0, -1.0, 1.0])
+    return flip @ np.linalg.inv(np.asarray(camera.world_from_camera, np.float64))
+
+
+def window_coordinates(camera, c):
+    """(k, 3) Texture Coordinate's Window of points ``c`` (k, 3) in Cycles' camera space: where they
+    land in the frame, (0, 0) at its bottom left, z = 0 (0 for panoramic cameras)."""
+    out = np.zeros((len(c), 3))
+    if camera.projection in ("perspective", "orthographic"):
+        x0, x1, y0, y1 = camera.frame
+        xy = c[:, :2]
+        if camera.projection == "perspective":
+            depth = c[:, 2:3]
+            xy = np.divide(xy, depth, out=np.zeros_like(xy), where=depth != 0.0)
+        out[:, 0] = (xy[:, 0] - x0) / (x1 - x0)
+        out[:, 1] = (xy[:, 1] - y0) / (y1 - y0)
+    return out
+
+
 class DirectionAttributes:
     """The coordinates of a world shader: Generated, Object and the Geometry's Position are the
     direction (Cycles), its normals and Incoming the opposite, the uvs, colours, Backfacing and the
-    light path zero.  directions : (k, 3) unit float64."""
+    light path zero.  directions : (k, 3) unit float64.
 
-    def __init__(self, directions):
+    With the scene's ``camera`` the view's coordinates are Cycles' for the background: Camera the
+    direction in the camera's space, Window where the point at the camera plus the direction lands
+    in its frame (a backplate); for an orthographic camera, where the ray's ``origins`` (k, 3) land
+    when given (camera rays, Cycles' ray_P), else the direction taken as a point (Cycles' other
+    rays).  Without a camera both are 0."""
+
+    def __init__(self, directions, camera=None, origins=None):
         self.directions = np.asarray(directions, np.float64)
+        self.camera, self.origins = camera, origins
 
     @property
     def count(self) -> int:
@@ -608,6 +623,16 @@ class DirectionAttributes:
             return -self.directions                 # (Cycles' background: N = Ng = I = -D)
         if name == "light_path":
             return np.zeros((self.count, len(LIGHT_PATH)))   # (the light it sheds: no camera ray)
+        if name in VIEW and self.camera is not None:
+            m = camera_from_world(self.camera)
+            d = self.directions @ m[:3, :3].T               # (the camera's position plus d, in its space)
+            if name == "camera":
+                return d
+            if self.camera.projection == "orthographic":
+                points = (np.asarray(self.origins, np.float64) @ m[:3, :3].T + m[:3, 3]
+                          if self.origins is not None else d + m[:3, 3])
+                return window_coordinates(self.camera, points)
+            return window_coordinates(self.camera, d)
         return np.zeros_like(self.directions)
 
 

@@ -725,6 +725,10 @@ class World:
     film_transparent: bool = False      # escaped camera rays give alpha 0 instead of the background
     texture: np.ndarray = None          # (H, W, 3) float32 linear, row 0 = bottom (nadir), or None
     texture_rotation: np.ndarray = None  # (3, 3) float64: the image is looked up at R d; None: identity
+    # A program of the view (``procedural``: it reads Texture Coordinate's Window or Camera, e.g. a
+    # backplate image), or None: camera rays that leave the scene see ``color`` times its value
+    # there (``procedural.DirectionAttributes`` with the camera), the others ``texture``, its bake.
+    program: dict = None
     # What rays leaving the camera straight into the sky see instead (Blender's Light Path "Is
     # Camera Ray" between two Backgrounds): a World of its own (color, texture, texture_rotation),
     # or None: the same as every other ray.
@@ -750,8 +754,16 @@ class World:
         return bool(np.any(self.volume_absorption) or np.any(self.volume_scattering))
 
 
-def _validate_background(w, name, fail):
-    """Check and normalise the colour, image and rotation of World ``w`` (``name`` in messages)."""
+def _validate_background(w, name, fail, n_textures):
+    """Check and normalise the colour, image, rotation and program of World ``w`` (``name`` in
+    messages; ``n_textures`` images for the program)."""
+    if w.program is not None:
+        if isinstance(w.program, str):
+            w.program = procedural.from_json(w.program)
+        try:
+            procedural.validate(w.program, n_textures)
+        except procedural.ProgramError as e:
+            fail(f"{name}.program: {e}")
     col = np.asarray(w.color, np.float32).reshape(-1)
     if col.shape != (3,) or not np.isfinite(col).all() or (col < 0).any():
         fail(f"{name}.color must be three finite non-negative numbers")
@@ -1124,7 +1136,7 @@ class Scene:
             fail("camera.focus_distance must be positive when depth of field is on")
         if not (0 <= cam.clip_start < cam.clip_end):
             fail("camera clip range must satisfy 0 <= clip_start < clip_end")
-        _validate_background(self.world, "world", fail)
+        _validate_background(self.world, "world", fail, len(self.textures))
         _validate_world_volume(self.world, fail)
         exclude = self.world.exclude
         if not isinstance(exclude, (int, np.integer)) or int(exclude) & ~EXCLUDE_ALL or int(exclude) < 0:
@@ -1132,7 +1144,7 @@ class Scene:
                  f"not {exclude!r}")
         self.world.exclude = int(exclude)
         if self.world.camera is not None:
-            _validate_background(self.world.camera, "world.camera", fail)
+            _validate_background(self.world.camera, "world.camera", fail, len(self.textures))
         return self
 
     def _validate_objects(self, fail, arr, t):
@@ -1273,6 +1285,8 @@ class Scene:
             d["world.texture"] = self.world.texture
         if self.world.texture_rotation is not None:
             d["world.texture_rotation"] = self.world.texture_rotation
+        if self.world.program is not None:
+            d["world.program"] = np.array(procedural.to_json(self.world.program))
         if self.world.has_volume:
             for name in World.VOLUME_FIELDS:
                 d[f"world.{name}"] = np.asarray(getattr(self.world, name), np.float32)
@@ -1282,6 +1296,8 @@ class Scene:
             for key in ("texture", "texture_rotation"):
                 if getattr(camera_world, key) is not None:
                     d[f"world.camera.{key}"] = getattr(camera_world, key)
+            if camera_world.program is not None:
+                d["world.camera.program"] = np.array(procedural.to_json(camera_world.program))
         if self.shading_normals is not None:
             d["shading_normals"] = self.shading_normals
         if self.uvs is not None:
@@ -1323,13 +1339,17 @@ class Scene:
                      **{name: float(get(f"camera.{name}")) for name in
                         ("aperture_radius", "focus_distance", "clip_start", "clip_end")},
                      **_panorama_fields(get))
+        def program(key):
+            return str(z[key]) if key in keys else None
+
         camera_world = (World(color=get("world.camera.color"), texture=get("world.camera.texture"),
-                              texture_rotation=get("world.camera.texture_rotation"))
+                              texture_rotation=get("world.camera.texture_rotation"),
+                              program=program("world.camera.program"))
                         if "world.camera.color" in keys else None)
         world = World(color=get("world.color"), texture=get("world.texture"),
                       texture_rotation=get("world.texture_rotation"),
                       film_transparent=bool(get("world.film_transparent", False)), camera=camera_world,
-                      exclude=int(get("world.exclude", 0)),
+                      exclude=int(get("world.exclude", 0)), program=program("world.program"),
                       **{name: get(f"world.{name}") for name in World.VOLUME_FIELDS
                          if f"world.{name}" in keys})
         ntex = sum(1 for k in keys if k.startswith("textures."))

@@ -83,7 +83,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
         else:
             collector.add(inst)
     geometry = collector.finish()
-    world, world_lights = export_world(depsgraph, materials.textures, log)
+    camera = export_camera(depsgraph, camera_object, resolution, border, log)
+    world, world_lights = export_world(depsgraph, materials.textures, log, camera)
     if depsgraph.scene_eval.render.use_motion_blur:
         log.warning("motion blur is not supported: the frame renders at its own instant")
     sets = {}         # the scene's per-triangle sets and emitter links
@@ -105,7 +106,6 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
         log.warning("the world's volume fills all space, so (as in Cycles) the sun and the world's light "
                     "do not get through it in the colours it attenuates; light the fog with point, spot or "
                     "area lights or emitters")
-    camera = export_camera(depsgraph, camera_object, resolution, border, log)
     if materials.count == 0:
         materials.default_id()
     scene = Scene(vertices=geometry.vertices, triangles=geometry.triangles,

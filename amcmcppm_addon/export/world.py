@@ -37,8 +37,9 @@ BAKE_WIDTH = 1024          # equirectangular image of a procedural world (height
 BAKE_MAX_WIDTH = 4096
 
 
-def export_world(depsgraph, textures, log):
-    """(``core.World``, list of light records of ``lights.export_light``'s form: a sky's sun disc)."""
+def export_world(depsgraph, textures, log, camera=None):
+    """(``core.World``, list of light records of ``lights.export_light``'s form: a sky's sun disc).
+    ``camera``: the scene's ``core.Camera``, for programs of the view (Window, Camera coordinates)."""
     scene = depsgraph.scene_eval
     world = depsgraph.view_layer_eval.world_override or scene.world
     transparent = bool(scene.render.film_transparent)
@@ -48,7 +49,7 @@ def export_world(depsgraph, textures, log):
     color = walker.world_color(world)
     if walker.notes:
         log.warning(f"world '{world.name}': " + "; ".join(walker.notes))
-    out, lights = _background(walker, color, textures, world.name, log)
+    out, lights = _background(walker, color, textures, world.name, log, camera)
     out.film_transparent = transparent
     if walker.medium is not None:
         absorption, scattering, g, _ = walker.medium          # (its emission is noted, left out)
@@ -56,7 +57,8 @@ def export_world(depsgraph, textures, log):
         out.volume_scattering = scattering.astype(np.float32)
         out.volume_anisotropy = float(g)
     if walker.camera_walker is not None:
-        out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log)
+        out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log,
+                                    camera)
     _ray_visibility(world, out, lights)
     return out, lights
 
@@ -79,18 +81,22 @@ def _ray_visibility(world, out, lights):
         rec["exclude"] |= out.exclude
 
 
-def _background(walker, color, textures, world_name, log):
+def _background(walker, color, textures, world_name, log, camera=None):
     """(``core.World`` of what a world walker found, sun-disc light records): its colour times its
-    environment image, or the bake of its program of the direction."""
+    environment image, or the bake of its program of the direction; a program that reads the view
+    (Window or Camera coordinates: a backplate) is also kept as it is, for camera rays
+    (``World.program``)."""
     color = np.nan_to_num(np.maximum(np.asarray(color, np.float64), 0.0))
-    texture = None
+    texture = program = None
     if walker.world_texture is not None:
         texture = np.maximum(textures.images[walker.world_texture], 0.0)
     lights = []
     if walker.world_texture is None and walker.world_program is not None:
-        texture = bake_world(walker.world_program, textures.images)
+        texture = bake_world(walker.world_program, textures.images, camera)
         lights = sun_disc_lights(walker.world_program, color, world_name, log)
-    return World(color=color.astype(np.float32), texture=texture,
+        if camera is not None and procedural.attributes_used(walker.world_program) & set(procedural.VIEW):
+            program = walker.world_program
+    return World(color=color.astype(np.float32), texture=texture, program=program,
                  texture_rotation=walker.world_rotation if texture is not None else None), lights
 
 
@@ -119,14 +125,15 @@ def sun_disc_lights(program, strength, world_name, log):
     return []
 
 
-def bake_world(program, images):
-    """(H, W, 3) float32 equirectangular image of ``program`` (a function of the direction) in the
-    core's layout, evaluated at the pixel centres."""
+def bake_world(program, images, camera=None):
+    """(H, W, 3) float32 equirectangular image of ``program`` (a function of the direction, and of
+    ``camera``'s view where it reads Window or Camera coordinates) in the core's layout, evaluated at
+    the pixel centres."""
     widths = [images[n["texture"]].shape[1] for n in procedural.nodes(program) if n["op"] == "environment"]
     width = int(min(max([BAKE_WIDTH, *widths]), BAKE_MAX_WIDTH))
     height = width // 2
     dirs = equirectangular_directions(width, height).reshape(-1, 3)
-    rgb = procedural.evaluate(program, procedural.DirectionAttributes(dirs), images)
+    rgb = procedural.evaluate(program, procedural.DirectionAttributes(dirs, camera), images)
     if rgb.ndim == 1:
         rgb = np.repeat(rgb[:, None], 3, axis=1)
     # Radiance, not an albedo: no upper bound (an HDR sun), but finite and non-negative.

@@ -2431,6 +2431,25 @@ def test_world_ray_visibility_camera_off_shows_black_past_the_scene(scene):
     assert not [m for m in ex.warnings if "Ray Visibility" in m], ex.warnings
 
 
+def test_a_world_of_the_view_keeps_its_program_for_camera_rays(scene):
+    """A world colour that reads Texture Coordinate's Window (a backplate) is baked with the
+    camera's view (before: Window read 0 in a world) and kept as ``World.program`` for camera rays;
+    one of the direction alone is only baked."""
+    w = bs.world((1.0, 1.0, 1.0))
+    nt = w.node_tree
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(coords.outputs["Generated"], nt.nodes["Background"].inputs["Color"])
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.world.program is None and ex.scene.world.texture is not None
+    nt.links.new(coords.outputs["Window"], nt.nodes["Background"].inputs["Color"])
+    ex = bs.export()
+    world = ex.scene.world
+    assert world.program is not None and world.texture is not None
+    assert np.ptp(world.texture[..., 0]) > 0.5          # (Window varies with the direction)
+    assert not [m for m in ex.warnings if "Window" in m], ex.warnings
+
+
 def test_light_and_emitter_ray_visibility_becomes_what_they_do_not_light(scene):
     """A light's (and an emissive mesh's) Ray Visibility boxes Diffuse, Glossy, Transmission and
     Volume Scatter off: ``Lights.exclude`` (``Scene.emitter_exclude`` for the mesh's triangles)."""

@@ -1547,3 +1547,45 @@ def test_a_light_without_cast_shadow_matches_cycles(addon, tmp_path, off):
                  color=(0.6, 0.8, 1.0))
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert_image_matches(f"{off} without shadow", cycles, ours)
+
+
+def test_a_backplate_of_window_coordinates_matches_cycles(addon, tmp_path):
+    """A world that shows the camera a backplate (a Mix Shader by Light Path's Is Camera Ray: a
+    Background whose colour is Texture Coordinate's Window, (x, y, 5), over a blue one that lights
+    the corner): camera rays evaluate it where they leave the scene (``World.program``), so each sky
+    pixel shows its own place in the frame as in Cycles (before, Window read 0 in a world: a black
+    backplate in red and green)."""
+    def build():
+        corner_scene()
+        bs.camera(location=(0, -5, 2.5), target=(0, 1.5, 2.5), lens=30.0)      # over the wall's top
+        world = bs.world((0.3, 0.4, 0.6), strength=1.0)
+        nt = world.node_tree
+        plate = nt.nodes.new("ShaderNodeBackground")
+        coords = nt.nodes.new("ShaderNodeTexCoord")
+        split, join = nt.nodes.new("ShaderNodeSeparateXYZ"), nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(coords.outputs["Window"], split.inputs[0])
+        nt.links.new(split.outputs["X"], join.inputs["X"])
+        nt.links.new(split.outputs["Y"], join.inputs["Y"])
+        join.inputs["Z"].default_value = 5.0
+        nt.links.new(join.outputs[0], plate.inputs["Color"])
+        mix = nt.nodes.new("ShaderNodeMixShader")
+        nt.links.new(nt.nodes.new("ShaderNodeLightPath").outputs["Is Camera Ray"], mix.inputs[0])
+        nt.links.new(nt.nodes["Background"].outputs[0], mix.inputs[1])
+        nt.links.new(plate.outputs[0], mix.inputs[2])
+        nt.links.new(mix.outputs[0], nt.nodes["World Output"].inputs["Surface"])
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    sky = cycles[..., 2] > 4.99
+    inner = sky.copy()                                     # (away from the wall's edge: the filters)
+    for axis in (0, 1):
+        for shift in (-1, 1):
+            inner &= np.roll(sky, shift, axis=axis)
+    print(f"backplate: {sky.mean():.3f} of the pixels see it, {inner.mean():.3f} inside")
+    assert 0.1 < inner.mean() < 0.9
+    # Ours jitters within each pixel for each of its 8 passes, Cycles filters 512 samples about its
+    # centre: both average to the centre, ours within half a pixel (1 / 128 of the frame's width).
+    diff = np.abs(ours[inner, :3] - cycles[inner, :3])
+    print(f"backplate: difference mean {diff.mean():.1e}, largest {diff.max():.1e}; red from "
+          f"{cycles[inner, 0].min():.3f} to {cycles[inner, 0].max():.3f}")
+    assert diff.max() < 0.5 / RESOLUTION[0] and diff.mean() < 2e-3 and np.ptp(cycles[inner, 0]) > 0.5
+    c, o = assert_channels_match("backplate, lit part", cycles[~sky][None], ours[~sky][None])
+    assert pixel_correlation("backplate", c, o) > 0.95

@@ -608,3 +608,38 @@ def test_tangents_are_radial_about_the_object_axes_or_the_uv_maps():
     np.testing.assert_allclose(t[0], [0.8, 0.0, -0.6], atol=1e-6)
     assert not procedural.HitAttributes(scene, np.array([0]), b, p).get("tangent_uv").any()
     assert procedural.reads_objects({"tangent_z"}) and not procedural.reads_objects({"tangent_uv"})
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_camera_rays_see_a_world_program_of_the_window_at_each_pixel(projection):
+    """A world whose colour is Texture Coordinate's Window (``World.program``, a backplate's
+    coordinates): camera rays that leave the scene see where they land in the frame, (0, 0) at its
+    bottom left (one pass: within half a pixel of the pixel's centre, the jitter), also in the file;
+    Camera coordinates are the direction in the camera's space; the world's light (``texture``, its
+    bake) is unchanged."""
+    from core import RenderSettings, render
+    from core.scene import Camera, World
+    from core.testing.scenes import MeshBuilder
+    look = np.eye(4)
+    look[:3, 3] = (0.0, 0.0, 5.0)
+    w, h = 16, 12
+    frame = (-0.4, 0.4, -0.3, 0.3)
+    cam = Camera(world_from_camera=look, projection=projection, frame=frame, resolution=(w, h))
+    world = World(color=np.full(3, 2.0, np.float32), program={"op": "attribute", "name": "window"})
+    m = MeshBuilder()
+    m.add_quad((50, 50, -10), (51, 50, -10), (51, 51, -10), (50, 51, -10), 0)      # out of view
+    scene = m.build(Materials.build([{"name": "grey", "diffuse": 0.5}]), camera=cam, world=world)
+    scene = Scene.from_arrays(scene.to_arrays())
+    image = render(scene, RenderSettings(passes=1, photons_per_pass=1000, workers=1, method="ppm")).image
+    cx = (np.arange(w) + 0.5) / w
+    cy = 1.0 - (np.arange(h) + 0.5) / h                    # (top row first)
+    np.testing.assert_allclose(image[..., 0], 2.0 * np.broadcast_to(cx, (h, w)), atol=2.0 * 0.5 / w + 1e-6)
+    np.testing.assert_allclose(image[..., 1], 2.0 * np.broadcast_to(cy[:, None], (h, w)),
+                               atol=2.0 * 0.5 / h + 1e-6)
+    assert not image[..., 2].any()
+    dirs = np.array([[0.0, 0.0, -1.0], [0.6, 0.0, -0.8]])
+    attrs = procedural.DirectionAttributes(dirs, cam)
+    np.testing.assert_allclose(attrs.get("camera"), [[0, 0, 1], [0.6, 0, 0.8]], atol=1e-12)
+    if projection == "perspective":
+        np.testing.assert_allclose(attrs.get("window")[0], [0.5, 0.5, 0.0])
+    assert not procedural.DirectionAttributes(dirs).get("window").any()
