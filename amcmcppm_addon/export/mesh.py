@@ -31,11 +31,16 @@ from .lights import light_exclude, ray_visibility
 
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
 # evaluated mesh as a separate MESH instance (as Cycles' ``object_is_geometry`` notes), so reading
-# them too would count their triangles twice.  Surfaces and metaballs are converted with to_mesh.
-GEOMETRY_TYPES = {"MESH", "SURFACE", "META"}
+# them too would count their triangles twice.  Surfaces and metaballs are converted with to_mesh;
+# a point cloud's points become spheres of triangles (:func:`read_point_cloud`).
+GEOMETRY_TYPES = {"MESH", "SURFACE", "META", "POINTCLOUD"}
 # Object types Cycles renders that the core has no primitive for (named in a warning).
-UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud",
-                     "VOLUME": "a volume object (OpenVDB grids)"}
+UNSUPPORTED_TYPES = {"CURVES": "hair curves", "VOLUME": "a volume object (OpenVDB grids)"}
+# A point cloud's spheres: icospheres subdivided this often, fewer for clouds of more points
+# (``SPHERE_BUDGET`` triangles in all at most, down to the icosahedron's 20 a point).
+SPHERE_LEVELS = 3
+SPHERE_BUDGET = 4_000_000
+POINT_RADIUS = 0.01                 # Cycles' radius of points without a radius attribute
 
 
 @dataclass
@@ -274,6 +279,8 @@ def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset
     """:class:`LocalMesh` of an evaluated object (modifiers applied), or None without faces;
     with ``tangents`` also its tangent frames (for normal maps), with ``colors`` its render colour
     attribute (for Color Attribute nodes), and the named ``attributes`` it has."""
+    if ob.type == "POINTCLOUD":
+        return read_point_cloud(ob.data, ob.name, log)
     try:
         me = ob.to_mesh()
     except RuntimeError as e:
@@ -347,6 +354,62 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, a
                      colors=_corner_colors(me, tri_vert, tri_loops) if colors else None, colors_read=colors,
                      attributes=_named_attributes(me, attributes, tri_vert, tri_loops, tri_poly, name, log),
                      attributes_read=frozenset(attributes))
+
+
+def icosphere(level):
+    """(unit vertices (V, 3) float64, triangles (T, 3) int32 counter-clockwise from outside) of the
+    icosahedron with its faces cut in four ``level`` times, the new vertices pushed onto the sphere."""
+    g = (1.0 + 5.0 ** 0.5) / 2.0
+    v = np.array([(-1, g, 0), (1, g, 0), (-1, -g, 0), (1, -g, 0), (0, -1, g), (0, 1, g), (0, -1, -g),
+                  (0, 1, -g), (g, 0, -1), (g, 0, 1), (-g, 0, -1), (-g, 0, 1)], np.float64)
+    t = np.array([(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
+                  (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
+                  (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)], np.int64)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    for _ in range(level):
+        # Each edge's midpoint once: edges keyed by their sorted corners.
+        edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+        keys, inverse = np.unique(edges[:, 0] * len(v) + edges[:, 1], return_inverse=True)
+        a, b = keys // len(v), keys % len(v)
+        mid = v[a] + v[b]
+        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+        m = len(v) + inverse.reshape(3, -1).T             # (T, 3) midpoints of edges 01, 12, 20
+        v = np.concatenate([v, mid])
+        t = np.concatenate([np.stack([t[:, 0], m[:, 0], m[:, 2]], 1),
+                            np.stack([t[:, 1], m[:, 1], m[:, 0]], 1),
+                            np.stack([t[:, 2], m[:, 2], m[:, 1]], 1), m])
+    return v, t.astype(np.int32)
+
+
+def read_point_cloud(pc, name, log):
+    """:class:`LocalMesh` of a ``bpy.types.PointCloud``: each point a sphere of its ``radius``
+    (Cycles' point primitive; 0.01 without the attribute) made of an icosphere's triangles with the
+    sphere's own normals at its corners, of the first material slot (as Cycles); None without
+    points.  Its texture space is the unit cube around the origin (Generated not compared)."""
+    n = len(pc.points)
+    if n == 0:
+        return None
+    attrs = pc.attributes
+    centres = np.empty(n * 3, np.float32)
+    attrs["position"].data.foreach_get("vector", centres)
+    centres = centres.reshape(n, 3).astype(np.float64)
+    radius = np.full(n, POINT_RADIUS)
+    r_attr = attrs.get("radius")
+    if r_attr is not None and r_attr.domain == "POINT" and r_attr.data_type == "FLOAT":
+        values = np.empty(n, np.float32)
+        r_attr.data.foreach_get("value", values)
+        radius = np.maximum(values.astype(np.float64), 0.0)
+    level = SPHERE_LEVELS
+    while level > 0 and n * 20 * 4 ** level > SPHERE_BUDGET:
+        level -= 1
+    unit, tris = icosphere(level)
+    log.info(f"object '{name}': {n} points as spheres of {len(tris)} triangles each")
+    positions = (centres[:, None, :] + radius[:, None, None] * unit[None]).reshape(-1, 3)
+    triangles = (tris[None] + (np.arange(n) * len(unit))[:, None, None]).reshape(-1, 3).astype(np.int32)
+    normals = np.tile(unit.astype(np.float32), (n, 1))
+    return LocalMesh(name=name, positions=positions, triangles=triangles,
+                     slots=np.zeros(len(triangles), np.int32), normals=normals, normal_index=triangles.copy(),
+                     uvs=None, mesh_materials=tuple(pc.materials))
 
 
 def _triangulate(me, positions, corner_vert):

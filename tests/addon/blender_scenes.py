@@ -178,6 +178,32 @@ def disk_ngon(name="Disk", radius=1.0, segments=32, material=None, **kw):
     return mesh_object(name, bm, material, **kw)
 
 
+def point_cloud(name, points, radius=0.05, material=None):
+    """A mesh object of vertices ``points`` whose Geometry Nodes modifier makes them a point cloud
+    of ``radius`` (Mesh to Points), with ``material`` (Set Material): the depsgraph then holds a
+    POINTCLOUD instance."""
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([tuple(p) for p in points], [], [])
+    ob = bpy.data.objects.new(name, me)
+    bpy.context.scene.collection.objects.link(ob)
+    tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    given, out = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    to_points = tree.nodes.new("GeometryNodeMeshToPoints")
+    to_points.inputs["Radius"].default_value = radius
+    tree.links.new(given.outputs[0], to_points.inputs["Mesh"])
+    last = to_points.outputs[0]
+    if material is not None:
+        setter = tree.nodes.new("GeometryNodeSetMaterial")
+        setter.inputs["Material"].default_value = material
+        tree.links.new(last, setter.inputs["Geometry"])
+        last = setter.outputs[0]
+    tree.links.new(last, out.inputs[0])
+    ob.modifiers.new("Points", "NODES").node_group = tree
+    return ob
+
+
 def camera(location=(0, -4, 3), target=(0, 0, 0), lens=50.0, sensor=36.0, ortho_scale=None):
     cam = bpy.data.cameras.new("Camera")
     cam.lens, cam.sensor_width = lens, sensor

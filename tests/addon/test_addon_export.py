@@ -2186,10 +2186,10 @@ def test_a_shadow_catcher_is_named_in_a_warning(scene):
     assert any("'Catcher' is a shadow catcher" in w for w in ex.warnings), ex.warnings
 
 
-def test_hair_point_clouds_and_volume_objects_are_named_in_warnings(scene):
-    """Object types Cycles renders without a mesh (hair curves, point clouds, OpenVDB volumes) and
-    a mesh's hair particles are named, not silently left out; the mesh itself still renders, and
-    a particle system switched off for renders is not named."""
+def test_hair_and_volume_objects_are_named_in_warnings(scene):
+    """Object types Cycles renders without a mesh (hair curves, OpenVDB volumes) and a mesh's hair
+    particles are named, not silently left out; the mesh itself still renders, and a particle
+    system switched off for renders is not named.  An empty point cloud adds nothing, unnamed."""
     for name, data in (("Fur", bpy.data.hair_curves.new("Fur")),
                        ("Dots", bpy.data.pointclouds.new("Dots")), ("Smoke", bpy.data.volumes.new("Smoke"))):
         bpy.context.scene.collection.objects.link(bpy.data.objects.new(name, data))
@@ -2203,10 +2203,28 @@ def test_hair_point_clouds_and_volume_objects_are_named_in_warnings(scene):
     bs.camera()
     ex = bs.export()
     assert ex.scene.triangle_count == 4
-    for expected in ("'Fur' is hair curves", "'Dots' is a point cloud", "'Smoke' is a volume object",
-                     "'Hairy': its hair particles"):
+    for expected in ("'Fur' is hair curves", "'Smoke' is a volume object", "'Hairy': its hair particles"):
         assert any(expected in w for w in ex.warnings), (expected, ex.warnings)
-    assert not any("'Bald'" in w for w in ex.warnings), ex.warnings
+    assert not any("'Bald'" in w or "'Dots'" in w for w in ex.warnings), ex.warnings
+
+
+def test_a_point_cloud_becomes_spheres(scene):
+    """Geometry Nodes' Mesh to Points: each point a sphere of its radius (Cycles' point primitive),
+    an icosphere of 1280 triangles (fewer for big clouds) whose corner normals are the sphere's;
+    the first material slot.  Before: named in a warning and left out."""
+    cloud = bs.point_cloud("Dots", [(0, 0, 0.5), (1, 0, 0.5), (0, 1, 0.8)], radius=0.2,
+                           material=bs.diffuse("Red", (0.8, 0.1, 0.1)))
+    bs.camera()
+    ex = bs.export()
+    sc = ex.scene
+    assert sc.triangle_count == 3 * 1280 and not [w for w in ex.warnings if "'Dots'" in w], ex.warnings
+    centres = np.array([(0, 0, 0.5), (1, 0, 0.5), (0, 1, 0.8)])
+    corners = sc.vertices[sc.triangles].reshape(3, -1, 3).astype(np.float64)
+    np.testing.assert_allclose(np.linalg.norm(corners - centres[:, None], axis=2), 0.2, rtol=1e-5)
+    normals = sc.shading_normals.reshape(3, -1, 3)
+    np.testing.assert_allclose(normals, (corners - centres[:, None]) / 0.2, atol=1e-5)
+    assert sc.materials.names[sc.material_ids[0]] == "Red" and len(set(sc.material_ids)) == 1
+    assert cloud.type == "MESH"                          # (the points come from its modifier)
 
 
 def test_motion_blur_is_named_in_a_warning(scene):
