@@ -1,8 +1,8 @@
 """What Ambient Occlusion's Only Local costs as the objects multiply.
 
-Only Local (and Bevel) query each hit's own object (``Accel.local``: an Embree scene per object,
-built on first use), one query per object a batch of hits touches: a loop in Python over objects.
-This measures that loop where it could hurt: the town of ``small_view`` with 100, 1,000 and 4,000
+Only Local (and Bevel) query each hit's own object: until stop 41 one Embree scene per object and
+a loop in Python over the objects a batch of hits touched, now one scene of every object shifted
+apart (``core.accel.LocalScene``).  This measures it where the objects are many: the town of ``small_view`` with 100, 1,000 and 4,000
 buildings, each its own object, whose colour is Ambient Occlusion (4 rays within 2 m) cast at every
 photon hit, against the same AO over the whole scene and against a plain colour; photon paths are
 traced into one eye pass as ``ab_photon_pass.py`` does, the variants alternating round by round.

@@ -59,7 +59,7 @@ class Accel:
         self._contact = None            # embree scene of the non-glass triangles (see with_contacts())
         self._ids = None                # the scene's triangles this one holds (subset()), None: all
         self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
-        self._objects = {}              # object id -> subset() of its triangles (local())
+        self._locals = None             # LocalScene of every object apart (local_scene())
         if self.triangle_count:
             from embreex import rtcore_scene
             from embreex.mesh_construction import TriangleMesh
@@ -105,7 +105,7 @@ class Accel:
         out = Accel.__new__(Accel)
         out.__dict__.update(self.__dict__)
         out._contact = None
-        out._objects = {}
+        out._locals = None
         out._ids = np.asarray(tri_ids, np.int64)
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
@@ -115,12 +115,12 @@ class Accel:
         TriangleMesh(out._embree, np.ascontiguousarray(corners, np.float32))
         return out
 
-    def local(self, obj) -> "Accel":
-        """A query over the triangles of object ``obj`` alone (:meth:`subset`, built once): Cycles'
-        local intersection, which a Bevel and Ambient Occlusion's Only Local use."""
-        if obj not in self._objects:
-            self._objects[obj] = self.subset(np.flatnonzero(self.object_ids == obj))
-        return self._objects[obj]
+    def local_scene(self) -> "LocalScene":
+        """Queries of each ray over its own object's triangles alone (:class:`LocalScene`, built on
+        first use): Cycles' local intersection, which a Bevel and Ambient Occlusion's Only Local use."""
+        if self._locals is None:
+            self._locals = LocalScene(self)
+        return self._locals
 
     def hit_positions(self, prim_ids, b1, b2):
         """(n, 3) float64 surface points from triangle ids and barycentrics."""
@@ -184,6 +184,73 @@ class Accel:
         rel = np.abs(positions - self.center)
         # Column by column: NumPy reduces a short inner axis (max over axis 1) ~10x slower.
         return _OFFSET_ULPS * np.maximum(np.maximum(rel[:, 0], rel[:, 1]), rel[:, 2]) + self.offset_floor
+
+
+class LocalScene:
+    """Every object's triangles in one embree scene, each object moved apart by its own shift (a
+    grid of steps of twice the scene's extent), so that one batched query answers each ray over its
+    own object alone (Cycles' local intersection): a ray is moved with its object and clipped to the
+    object's bounding box, which no other object's shifted box overlaps.  Triangles keep their
+    indices; before, one embree scene per object, queried in a Python loop over the objects a batch
+    touched (``benchmarks/local_queries_cost.py``).  Embree's float32 sees coordinates up to the grid's
+    size: for 4,096 objects 16 extents from its centre, 16 times the whole scene's rounding."""
+
+    def __init__(self, accel):
+        self.accel = accel
+        ids = np.asarray(accel.object_ids, np.int64)
+        self.objects, rank = np.unique(ids, return_inverse=True)
+        n = len(self.objects)
+        side = max(int(np.ceil(n ** (1.0 / 3.0) - 1e-9)), 1)
+        while side ** 3 < n:
+            side += 1
+        grid = np.stack(np.unravel_index(np.arange(n), (side, side, side)), axis=1).astype(np.float64)
+        self.shift = (grid - 0.5 * (side - 1)) * (2.0 * accel.extent)             # (n, 3)
+        corners = np.stack([accel.v0, accel.v0 + accel.e1, accel.v0 + accel.e2], axis=1)    # (T, 3, 3)
+        lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
+        np.minimum.at(lo, rank, corners.min(axis=1))
+        np.maximum.at(hi, rank, corners.max(axis=1))
+        pad = 1e-5 * accel.extent
+        self.lo, self.hi = lo - pad, hi + pad                                     # (n, 3) world boxes
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+        self._embree = rtcore_scene.EmbreeScene(robust=True)
+        moved = corners - accel.center + self.shift.take(rank, axis=0)[:, None, :]
+        TriangleMesh(self._embree, np.ascontiguousarray(moved, np.float32))
+
+    def intersect(self, origins, directions, tmax, objects) -> Hits:
+        """Closest hits of rays ``origins + t directions`` (0 < t < ``tmax``, a scalar or (n,)) on the
+        triangles of each ray's object ``objects`` (n,) alone, as :meth:`Accel.intersect` gives them."""
+        n = len(origins)
+        d = np.asarray(directions, np.float64)
+        rank = np.searchsorted(self.objects, np.asarray(objects, np.int64))
+        lo, hi = self.lo.take(rank, axis=0), self.hi.take(rank, axis=0)
+        # The part of each ray inside its object's box (slabs; a zero component: a tiny one).
+        tiny = np.where(d < 0.0, -1e-300, 1e-300)
+        inv = 1.0 / np.where(np.abs(d) < 1e-300, tiny, d)
+        a, b = (lo - origins) * inv, (hi - origins) * inv
+        near, far = np.minimum(a, b), np.maximum(a, b)
+        start = np.maximum(np.maximum(np.maximum(near[:, 0], near[:, 1]), near[:, 2]), 0.0)
+        end = np.minimum(np.minimum(np.minimum(far[:, 0], far[:, 1]), far[:, 2]),
+                         np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
+        rows = np.flatnonzero(end > start)
+        is_hit = np.zeros(n, bool)
+        prim, t = np.full(n, -1, np.int32), np.full(n, np.inf, np.float32)
+        b1, b2 = np.zeros(n), np.zeros(n)
+        if len(rows):
+            s = start.take(rows)
+            o = (origins.take(rows, axis=0) + s[:, None] * d.take(rows, axis=0) - self.accel.center
+                 + self.shift.take(rank.take(rows), axis=0))
+            r = self._embree.run(np.ascontiguousarray(o, np.float32),
+                                 np.ascontiguousarray(d.take(rows, axis=0), np.float32),
+                                 dists=np.ascontiguousarray(np.minimum(end.take(rows) - s, 1e37), np.float32),
+                                 output=1)
+            found = r["primID"] >= 0
+            h = rows[found]
+            is_hit[h] = True
+            prim[h] = r["primID"][found]
+            t[h] = (r["tfar"][found] + s[found]).astype(np.float32)
+            b1[h], b2[h] = r["u"][found], r["v"][found]
+        return Hits(is_hit, prim, t, b1, b2)
 
 
 def interpolate_corners(corners, bary):

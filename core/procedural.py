@@ -416,39 +416,30 @@ class HitAttributes:
 
     def _local_hits(self, origins, dirs, tmax, objects):
         """For the hits along rays ``origins + t dirs`` (0 < t < ``tmax``) on each ray's object
-        (``objects`` (n,); ``Accel.local``), up to LOCAL_HITS per ray, nearest first: (ray rows,
-        triangle ids, world points, b1, b2), one such per object and round."""
-        for accel, rows in self._per_object(objects):
-            o, d, left = origins.take(rows, axis=0), dirs.take(rows, axis=0), np.asarray(tmax).take(rows)
-            for _ in range(LOCAL_HITS):
-                hits = accel.intersect(o, d, np.maximum(left, 0.0))
-                h = np.flatnonzero(hits.is_hit)
-                if len(h) == 0:
-                    break
-                prim = hits.prim_ids.take(h)
-                b1, b2 = hits.b1.take(h), hits.b2.take(h)
-                at = accel.hit_positions(prim, b1, b2)
-                yield rows.take(h), prim, at, b1, b2
-                d = d.take(h, axis=0)
-                o = accel.spawn(at, accel.geometric_normals.take(prim, axis=0), d)
-                rows, left = rows.take(h), left.take(h) - hits.t.take(h).astype(np.float64)
+        (``objects`` (n,); ``Accel.local_scene``), up to LOCAL_HITS per ray, nearest first: (ray
+        rows, triangle ids, world points, b1, b2), one such per round."""
+        accel, local = self.accel, self.accel.local_scene()
+        rows = np.arange(len(origins))
+        o, d, left = origins, dirs, np.broadcast_to(np.asarray(tmax, np.float64), (len(origins),))
+        for _ in range(LOCAL_HITS):
+            hits = local.intersect(o, d, np.maximum(left, 0.0), objects.take(rows))
+            h = np.flatnonzero(hits.is_hit)
+            if len(h) == 0:
+                break
+            prim = hits.prim_ids.take(h)
+            b1, b2 = hits.b1.take(h), hits.b2.take(h)
+            at = accel.hit_positions(prim, b1, b2)
+            yield rows.take(h), prim, at, b1, b2
+            d = d.take(h, axis=0)
+            o = accel.spawn(at, accel.geometric_normals.take(prim, axis=0), d)
+            rows, left = rows.take(h), left.take(h) - hits.t.take(h).astype(np.float64)
 
     def _blocked(self, origins, dirs, tmax, objects):
         """(n,) whether rays ``origins + t dirs`` meet a triangle within ``tmax`` (of each ray's
-        object alone with ``objects`` (n,): ``Accel.local``)."""
+        object alone with ``objects`` (n,): ``Accel.local_scene``)."""
         if objects is None:
             return self.accel.intersect(origins, dirs, tmax).is_hit
-        blocked = np.zeros(len(origins), bool)
-        for accel, rows in self._per_object(objects):
-            blocked[rows] = accel.intersect(origins.take(rows, axis=0), dirs.take(rows, axis=0),
-                                            np.asarray(tmax).take(rows)).is_hit
-        return blocked
-
-    def _per_object(self, objects):
-        """(the query over one object's triangles alone, ``Accel.local``; the rows of ``objects``
-        (n,) on it) for each object there."""
-        for obj in np.unique(objects):
-            yield self.accel.local(int(obj)), np.flatnonzero(objects == obj)
+        return self.accel.local_scene().intersect(origins, dirs, tmax, objects).is_hit
 
     def _tangent(self, name):
         """(k, 3) a tangent of the hits (``TANGENTS``), made perpendicular to the shading normal."""

@@ -643,3 +643,33 @@ def test_camera_rays_see_a_world_program_of_the_window_at_each_pixel(projection)
     if projection == "perspective":
         np.testing.assert_allclose(attrs.get("window")[0], [0.5, 0.5, 0.0])
     assert not procedural.DirectionAttributes(dirs).get("window").any()
+
+
+def test_the_local_scene_answers_each_ray_over_its_own_object_as_a_scene_of_that_object_alone():
+    """``Accel.local_scene`` (every object shifted apart in one embree scene) against a query over
+    each object's triangles alone (``Accel.subset``), ray by ray: the same triangles, distances and
+    barycentrics, also where a box rests on the floor (its bottom face in the floor's plane) and
+    for rays that start outside their object's box or would reach other objects first."""
+    from core.accel import Accel
+    scene = floor_with_quad([[-0.2, -0.2, 0.0], [0.2, -0.2, 0.0], [0.2, 0.2, 0.0], [-0.2, 0.2, 0.0]],
+                            own_object=False)          # a second object lying in the floor's plane
+    accel = Accel(scene)
+    rng = np.random.default_rng(5)
+    n = 4000
+    origins = rng.uniform(-0.8, 0.8, (n, 3))
+    targets = np.concatenate([rng.uniform(-0.5, 0.5, (n, 2)), np.zeros((n, 1))], axis=1)
+    dirs = targets - origins                               # (towards the floor's square and the quad)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    objects = rng.integers(0, 2, n)
+    tmax = rng.uniform(0.1, 3.0, n)
+    got = accel.local_scene().intersect(origins, dirs, tmax, objects)
+    for obj in (0, 1):
+        rows = np.flatnonzero(objects == obj)
+        alone = accel.subset(np.flatnonzero(scene.object_ids == obj)).intersect(origins[rows], dirs[rows],
+                                                                                tmax[rows])
+        np.testing.assert_array_equal(got.is_hit[rows], alone.is_hit)
+        np.testing.assert_array_equal(got.prim_ids[rows], alone.prim_ids)
+        hit = alone.is_hit
+        np.testing.assert_allclose(got.t[rows][hit], alone.t[hit], rtol=1e-4)        # (float32; grazing rays)
+        np.testing.assert_allclose(got.b1[rows][hit], alone.b1[hit], atol=1e-4)
+    assert 0.3 < got.is_hit.mean() < 0.9 and got.is_hit[objects == 1].any()
