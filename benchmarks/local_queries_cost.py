@@ -2,14 +2,14 @@
 
 Only Local (and Bevel) query each hit's own object: until stop 41 one Embree scene per object and
 a loop in Python over the objects a batch of hits touched, now one scene of every object shifted
-apart (``core.accel.LocalScene``).  This measures it where the objects are many: the town of ``small_view`` with 100, 1,000 and 4,000
-buildings, each its own object, whose colour is Ambient Occlusion (4 rays within 2 m) cast at every
-photon hit, against the same AO over the whole scene and against a plain colour; photon paths are
-traced into one eye pass as ``ab_photon_pass.py`` does, the variants alternating round by round.
-Printed: photon vertices per second, and Only Local's rate over the whole scene's (median and
-range over rounds, one run).
+apart (``core.accel.LocalScene``).  This measures it where the objects are many: the town of
+``small_view`` with 100, 1,000 and 4,000 buildings, each its own object, whose colour is Ambient
+Occlusion (4 rays within 2 m) cast at every photon hit, against the same AO over the whole scene
+and against a plain colour; photon paths are traced into one eye pass as ``ab_photon_pass.py``
+does, the variants alternating round by round.  Printed: photon vertices per second, and Only
+Local's rate over the whole scene's (median and range over rounds, one run).
 
-    python benchmarks/local_queries_cost.py [--boxes 100 1000 4000] [--rounds 3] [--paths 32768]
+    python benchmarks/local_queries_cost.py [--boxes 100 1000 4000] [--rounds 3] [--paths 16384]
 """
 from __future__ import annotations
 
@@ -58,7 +58,7 @@ def main():
     ap.add_argument("--boxes", type=int, nargs="+", default=(100, 1000, 4000))
     ap.add_argument("--resolution", type=int, nargs=2, default=(160, 120))
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--paths", type=int, default=32768)
+    ap.add_argument("--paths", type=int, default=16384)
     a = ap.parse_args()
     resolution = tuple(a.resolution)
     for boxes in a.boxes:
