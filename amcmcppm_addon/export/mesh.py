@@ -26,7 +26,7 @@ import numpy as np
 from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
 from ...core.scene import (CASTS_NO_SHADOW, HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY,
                            VISIBLE_TRANSMISSION)
-from ...core.texture_hash import hash_uint2, hash_uint_to_float
+from ...core.texture_hash import hash_uint2, hash_uint2_to_float, hash_uint_to_float
 from .lights import light_exclude, ray_visibility
 
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
@@ -280,7 +280,7 @@ def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset
     with ``tangents`` also its tangent frames (for normal maps), with ``colors`` its render colour
     attribute (for Color Attribute nodes), and the named ``attributes`` it has."""
     if ob.type == "POINTCLOUD":
-        return read_point_cloud(ob.data, ob.name, log)
+        return read_point_cloud(ob.data, ob.name, log, attributes)
     try:
         me = ob.to_mesh()
     except RuntimeError as e:
@@ -381,11 +381,12 @@ def icosphere(level):
     return v, t.astype(np.int32)
 
 
-def read_point_cloud(pc, name, log):
+def read_point_cloud(pc, name, log, attributes=frozenset()):
     """:class:`LocalMesh` of a ``bpy.types.PointCloud``: each point a sphere of its ``radius``
     (Cycles' point primitive; 0.01 without the attribute) made of an icosphere's triangles with the
     sphere's own normals at its corners, of the first material slot (as Cycles); None without
-    points.  Its texture space is the unit cube around the origin (Generated not compared)."""
+    points.  Its texture space is the unit cube around the origin (Generated not compared).  The
+    named ``attributes`` it has on its points are read, and Point Info's (``POINT_INFO``)."""
     n = len(pc.points)
     if n == 0:
         return None
@@ -407,9 +408,41 @@ def read_point_cloud(pc, name, log):
     positions = (centres[:, None, :] + radius[:, None, None] * unit[None]).reshape(-1, 3)
     triangles = (tris[None] + (np.arange(n) * len(unit))[:, None, None]).reshape(-1, 3).astype(np.int32)
     normals = np.tile(unit.astype(np.float32), (n, 1))
+    point = np.repeat(np.arange(n), len(tris))                 # each triangle's point
+    named = {}
+    for key in sorted(attributes):
+        if key in POINT_INFO:
+            values = {POINT_POSITION: centres, POINT_RADIUS: np.repeat(radius[:, None], 3, axis=1),
+                      POINT_RANDOM: np.repeat(hash_uint2_to_float(np.arange(n, dtype=np.uint32),
+                                                                  np.uint32(0))[:, None], 3, axis=1)}[key]
+        else:
+            values = _point_attribute(attrs, key, name, log)
+            if values is None:
+                continue
+        named[key] = np.repeat(values.take(point, axis=0)[:, None, :], 3, axis=1).astype(np.float32)
     return LocalMesh(name=name, positions=positions, triangles=triangles,
                      slots=np.zeros(len(triangles), np.int32), normals=normals, normal_index=triangles.copy(),
-                     uvs=None, mesh_materials=tuple(pc.materials))
+                     uvs=None, mesh_materials=tuple(pc.materials), attributes=named,
+                     attributes_read=frozenset(attributes))
+
+
+def _point_attribute(attrs, key, name, log):
+    """(n, 3) float values of a point cloud's attribute ``key`` on its points (as
+    :func:`_named_attributes` reads a mesh's), or None without it (0, as in Cycles)."""
+    attr = attrs.get(key)
+    if attr is None:
+        return None
+    kind = ATTRIBUTE_TYPES.get(attr.data_type)
+    if kind is None or attr.domain != "POINT":
+        log.warning(f"object '{name}': attribute '{key}' ({attr.data_type.lower()} on the "
+                    f"{attr.domain.lower()} domain) cannot be read; it reads 0")
+        return None
+    prop, k, dtype = kind
+    flat = np.empty(len(attr.data) * k, dtype)
+    attr.data.foreach_get(prop, flat)
+    values = flat.reshape(-1, k).astype(np.float64)
+    return {1: np.repeat(values, 3, axis=1), 2: np.pad(values, ((0, 0), (0, 1))), 3: values,
+            4: values[:, :3]}[k]
 
 
 def _triangulate(me, positions, corner_vert):
@@ -515,6 +548,10 @@ ATTRIBUTE_TYPES = {"FLOAT": ("value", 1, np.float32), "INT": ("value", 1, np.int
 # internal names start with a dot: no attribute of the mesh has it).
 RANDOM_PER_ISLAND = ".random_per_island"
 POINTINESS = ".pointiness"                      # (and Geometry's Pointiness)
+# Point Info's outputs (a point cloud's spheres: their point's centre, radius and Cycles' random
+# number hash_uint2_to_float(index, 0)), read as named attributes; 0 on meshes, as in Cycles.
+POINT_POSITION, POINT_RADIUS, POINT_RANDOM = ".point_position", ".point_radius", ".point_random"
+POINT_INFO = (POINT_POSITION, POINT_RADIUS, POINT_RANDOM)
 
 
 def _edges(me):
@@ -808,6 +845,10 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
             # Meshes without such a colour attribute (or named one) read 0, as in Cycles.
             c = local.colors if key == "color" else local.attributes.get(key[len(NAMED):])
             c = np.repeat((c if c is not None else np.zeros((n_t, 3, 3), np.float32))[None], k, axis=0)
+            if key == NAMED + POINT_POSITION and local.attributes.get(POINT_POSITION) is not None:
+                # Point Info's Position is in world space: each instance's point centres moved with it.
+                c = (np.matmul(c.astype(np.float64), rot[:, None].transpose(0, 1, 3, 2))
+                     + world_from_object[:, None, None, :3, 3]).astype(np.float32)
             _swap_corners(c, mirrored)
             out[key] = c.reshape(k * n_t, 3, 3)
     return out

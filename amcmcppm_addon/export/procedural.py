@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
-from .mesh import POINTINESS, RANDOM_PER_ISLAND, rna_property
+from .mesh import POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS, RANDOM_PER_ISLAND, rna_property
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
 FLOAT, VEC = "float", "vec"
@@ -165,6 +165,14 @@ def _tangent(b, node, stack):
                           f"'{node.uv_map}' is not looked up apart)")
         return {"Tangent": {"op": "attribute", "name": "tangent_uv"}}
     return {"Tangent": {"op": "attribute", "name": "tangent_" + {"X": "x", "Y": "y"}.get(node.axis, "z")}}
+
+
+def _point_info(b, node, stack):
+    """Point Info: a point cloud's point (its centre, radius and Cycles' random number; 0 on meshes,
+    as in Cycles), read as named attributes of its spheres (``mesh.POINT_INFO``)."""
+    return {"Position": _named(POINT_POSITION),
+            "Radius": {"op": "separate", "vector": _named(POINT_RADIUS), "output": "X"},
+            "Random": {"op": "separate", "vector": _named(POINT_RANDOM), "output": "X"}}
 
 
 def _camera_data(b, node, stack):
@@ -735,6 +743,7 @@ def _layer_weight(b, node, stack):
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
     "ShaderNodeObjectInfo": _object_info, "ShaderNodeNewGeometry": _geometry, "ShaderNodeTangent": _tangent,
+    "ShaderNodePointInfo": _point_info,
     "ShaderNodeAttribute": _attribute,
     "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,

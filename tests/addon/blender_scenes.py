@@ -178,10 +178,10 @@ def disk_ngon(name="Disk", radius=1.0, segments=32, material=None, **kw):
     return mesh_object(name, bm, material, **kw)
 
 
-def point_cloud(name, points, radius=0.05, material=None):
+def point_cloud(name, points, radius=0.05, material=None, random_radius=None):
     """A mesh object of vertices ``points`` whose Geometry Nodes modifier makes them a point cloud
-    of ``radius`` (Mesh to Points), with ``material`` (Set Material): the depsgraph then holds a
-    POINTCLOUD instance."""
+    of ``radius`` (Mesh to Points; with ``random_radius`` (low, high) a Random Value per point
+    instead), with ``material`` (Set Material): the depsgraph then holds a POINTCLOUD instance."""
     me = bpy.data.meshes.new(name)
     me.from_pydata([tuple(p) for p in points], [], [])
     ob = bpy.data.objects.new(name, me)
@@ -192,6 +192,11 @@ def point_cloud(name, points, radius=0.05, material=None):
     given, out = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
     to_points = tree.nodes.new("GeometryNodeMeshToPoints")
     to_points.inputs["Radius"].default_value = radius
+    if random_radius is not None:
+        value = tree.nodes.new("FunctionNodeRandomValue")
+        value.data_type = "FLOAT"
+        value.inputs["Min"].default_value, value.inputs["Max"].default_value = random_radius
+        tree.links.new(value.outputs["Value"], to_points.inputs["Radius"])
     tree.links.new(given.outputs[0], to_points.inputs["Mesh"])
     last = to_points.outputs[0]
     if material is not None:

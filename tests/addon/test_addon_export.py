@@ -2227,6 +2227,35 @@ def test_a_point_cloud_becomes_spheres(scene):
     assert cloud.type == "MESH"                          # (the points come from its modifier)
 
 
+def test_a_point_clouds_attributes_reach_its_spheres(scene):
+    """An Attribute node naming a point cloud's attribute (here its ``radius``) reads each point's
+    value on the whole of its sphere; Point Info's Position is the point's centre in world space
+    (the object moved), 0 on a mesh."""
+    mat = bs.diffuse("ByRadius")
+    nt = mat.node_tree
+    attr, info, add = (nt.nodes.new(k) for k in ("ShaderNodeAttribute", "ShaderNodePointInfo",
+                                                "ShaderNodeVectorMath"))
+    attr.attribute_name = "radius"
+    nt.links.new(attr.outputs["Vector"], add.inputs[0])
+    nt.links.new(info.outputs["Position"], add.inputs[1])
+    nt.links.new(add.outputs["Vector"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    cloud = bs.point_cloud("Dots", [(0, 0, 0), (1, 0, 0)], material=mat, random_radius=(0.1, 0.3))
+    cloud.location = (0.0, 2.0, 0.0)
+    bs.plane("Floor", material=mat)
+    bs.camera()
+    sc = bs.export().scene
+    radius = sc.attributes["radius"][..., 0]
+    position = sc.attributes[".point_position"]
+    spheres = np.flatnonzero(np.abs(position).sum(axis=(1, 2)) > 0)
+    assert len(spheres) == 2 * 1280 and len(radius) == len(sc.triangles)
+    corners = sc.vertices[sc.triangles[spheres]].astype(np.float64)
+    centre = position[spheres, 0]
+    np.testing.assert_allclose(np.linalg.norm(corners - centre[:, None], axis=2), radius[spheres], rtol=1e-4)
+    assert {tuple(np.round(c, 4)) for c in centre} == {(0.0, 2.0, 0.0), (1.0, 2.0, 0.0)}
+    assert 0.1 <= radius[spheres].min() and radius[spheres].max() <= 0.3
+    assert not radius[np.setdiff1d(np.arange(len(radius)), spheres)].any()     # (the floor: 0)
+
+
 def test_motion_blur_is_named_in_a_warning(scene):
     bs.camera()
     assert not [w for w in bs.export().warnings if "motion blur" in w]

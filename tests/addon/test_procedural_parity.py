@@ -1139,6 +1139,46 @@ def test_tangents_match_cycles(addon, tmp_path, case):
     assert np.percentile(err, 99) < 1e-4
 
 
+def test_point_info_matches_cycles(addon, tmp_path):
+    """Point Info on a point cloud (stop 41; before, point clouds were left out and the node
+    unsupported): a 4 x 4 grid of spheres of random radii seen from above, coloured (Random,
+    4 Radius, Position x / 2 + 1/2), each sphere its point's values; ours along each pixel
+    centre's camera ray (inside our icospheres, so inside Cycles' spheres) against Cycles'."""
+    import bpy
+
+    def build(nt):
+        info = nt.nodes.new("ShaderNodePointInfo")
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        radius = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        radius.inputs[1].default_value = 4.0
+        nt.links.new(info.outputs["Radius"], radius.inputs[0])
+        x = nt.nodes.new("ShaderNodeSeparateXYZ")
+        nt.links.new(info.outputs["Position"], x.inputs[0])
+        half = node(nt, "ShaderNodeMath", operation="MULTIPLY_ADD")
+        half.inputs[1].default_value, half.inputs[2].default_value = 0.5, 0.5
+        nt.links.new(x.outputs["X"], half.inputs[0])
+        for output, axis in ((info.outputs["Random"], "X"), (radius.outputs[0], "Y"), (half.outputs[0], "Z")):
+            nt.links.new(output, comb.inputs[axis])
+        return comb.outputs[0]
+
+    mat, _ = bs.texture_plane(build, resolution=(64, 64))
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    grid = [(x, y, 0.0) for x in (-0.66, -0.22, 0.22, 0.66) for y in (-0.66, -0.22, 0.22, 0.66)]
+    bs.point_cloud("Beads", grid, material=mat, random_radius=(0.1, 0.2))
+    ours = our_values_through_the_camera()
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    on = np.isfinite(ours).all(axis=2)
+    inner = on.copy()                                      # (away from the silhouettes)
+    for axis in (0, 1):
+        for shift in (-1, 1):
+            inner &= np.roll(on, shift, axis=axis)
+    assert inner.mean() > 0.1 and np.ptp(cycles[inner], axis=0).min() > 0.1
+    err = np.abs(ours[inner] - cycles[inner]).max(axis=1)
+    print(f"point info: {inner.sum()} pixels, max {err.max():.2e}, "
+          f"99th percentile {np.percentile(err, 99):.2e}")
+    assert np.percentile(err, 99) < 1e-4
+
+
 @pytest.mark.parametrize("case", ["ao", "ao_color_inside", "ao_only_local"])
 def test_ambient_occlusion_matches_cycles(addon, tmp_path, case):
     """Ambient Occlusion (stop 40; before, unsupported) on the floor and the open bowl: the AO
