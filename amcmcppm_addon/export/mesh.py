@@ -423,7 +423,7 @@ def read_point_cloud(pc, name, log, attributes=frozenset()):
     return LocalMesh(name=name, positions=positions, triangles=triangles,
                      slots=np.zeros(len(triangles), np.int32), normals=normals, normal_index=triangles.copy(),
                      uvs=None, mesh_materials=tuple(pc.materials), attributes=named,
-                     attributes_read=frozenset(attributes))
+                     attributes_read=frozenset(attributes), colors_read=True)    # (no colour attribute read)
 
 
 def _point_attribute(attrs, key, name, log):
