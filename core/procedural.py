@@ -14,16 +14,16 @@ as Cycles does.
 Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/kernel/svm``):
 
 * ``attribute`` name = generated | object | uv | color | normal | position | world_normal |
-  true_normal | incoming | backfacing | light_path | parametric | edge_distance (and Object Info's,
-  ``OBJECT_INFO``): -> Vector (light_path: the Light Path's outputs, ``LIGHT_PATH``). Blender's
-  Generated and Object coordinates (the hit in its object's space, ``Scene.object_from_world``, and
-  that object's texture space mapped to [0, 1]^3, ``Scene.texture_spaces``), and the per-corner
-  ``Scene.uvs`` as (u, v, 0) and ``Scene.vertex_colors``, interpolated; the Geometry node's
-  Position, Normal and True Normal in world space (``GEOMETRY``), Incoming and Backfacing
-  (``RAY``), Parametric and the edges' distances (``TRIANGLE``); the Texture Coordinate's Camera
-  and Window (``VIEW``); ``named:`` + a name,
-  ``Scene.attributes[name]`` interpolated (``NAMED``); ``object:`` or ``instancer:`` + an RNA path,
-  ``Scene.object_attributes`` (``OBJECT_PROPERTY``).
+  true_normal | incoming | backfacing | light_path | parametric | edge_distance | tangent_x |
+  tangent_y | tangent_z | tangent_uv (and Object Info's, ``OBJECT_INFO``): -> Vector (light_path:
+  the Light Path's outputs, ``LIGHT_PATH``). Blender's Generated and Object coordinates (the hit in
+  its object's space, ``Scene.object_from_world``, and that object's texture space mapped to
+  [0, 1]^3, ``Scene.texture_spaces``), and the per-corner ``Scene.uvs`` as (u, v, 0) and
+  ``Scene.vertex_colors``, interpolated; the Geometry node's Position, Normal and True Normal in
+  world space (``GEOMETRY``), Incoming and Backfacing (``RAY``), Parametric and the edges' distances
+  (``TRIANGLE``), tangents (``TANGENTS``); the Texture Coordinate's Camera and Window (``VIEW``);
+  ``named:`` + a name, ``Scene.attributes[name]`` interpolated (``NAMED``); ``object:`` or
+  ``instancer:`` + an RNA path, ``Scene.object_attributes`` (``OBJECT_PROPERTY``).
 * ``affine`` vector, matrix (3 x 3), pre, post (3), normalize: -> Vector = M (v - pre) + post
   (the Mapping node, its four types folded into M by the exporter).
 * ``checker`` vector, color1, color2, scale: -> Color, Fac (``checker.h``).
@@ -34,7 +34,8 @@ Ops, their inputs and outputs (what Cycles' SVM nodes compute, ``intern/cycles/k
 * ``wave``, ``brick``, ``magic`` vector and the node's settings: -> Color, Fac; ``white_noise``
   vector, dimensions, w: -> Value, Color (``core/pattern_textures.py``).
 * ``image`` texture (index into the scene's images), vector, extension (REPEAT, EXTEND, CLIP,
-  MIRROR), interpolation (Linear, Closest), projection (FLAT, BOX: three flat lookups weighted
+  MIRROR), interpolation (Linear, Closest), projection (FLAT; SPHERE, TUBE: Cycles' maps of the
+  vector (2 vector - 1) about the origin; BOX: three flat lookups weighted
   by the object-space normal, :func:`box_weights`), blend: -> Color, Alpha = 1
   (:func:`image_lookup`).
 * ``environment`` texture, vector (a direction): -> Color (equirectangular), Alpha = 1.
@@ -1011,8 +1012,12 @@ def _image(ev, node):
             return bilinear(image, u, v)
         return image_lookup(image, u, v, extension, interpolation)
 
-    if node.get("projection", "FLAT") == "FLAT":
+    projection = node.get("projection", "FLAT")
+    if projection == "FLAT":
         return {"Color": lookup(p[:, 0], p[:, 1]), "Alpha": np.ones(ev.k)}
+    if projection in ("SPHERE", "TUBE"):
+        u, v = (map_to_sphere if projection == "SPHERE" else map_to_tube)(2.0 * p - 1.0)
+        return {"Color": lookup(u, v), "Alpha": np.ones(ev.k)}
     # Box: three flat projections along the object-space axes, weighted by the normal.
     n = ev.attrs.get("normal")
     weights = box_weights(n, float(node.get("blend", 0.0)))
@@ -1025,6 +1030,25 @@ def _image(ev, node):
             uu = np.where(flip, 1.0 - u, u).take(rows)
             color[rows] += weights[rows, axis, None] * lookup(uu, v.take(rows))
     return {"Color": color, "Alpha": np.ones(ev.k)}
+
+
+def map_to_sphere(co):
+    """(u, v) of points ``co`` (k, 3) around the origin on Cycles' sphere projection (``map_to_sphere``:
+    the longitude from +y, turning towards -x, and the latitude; 0 at the origin)."""
+    x, y, z = co[:, 0], co[:, 1], co[:, 2]
+    r = np.sqrt(x * x + y * y + z * z)
+    u = np.where((x == 0.0) & (y == 0.0), 0.0, 0.5 - np.arctan2(x, y) / (2.0 * np.pi))
+    v = 1.0 - np.arccos(np.clip(np.divide(z, r, out=np.zeros_like(z), where=r > 0.0), -1.0, 1.0)) / np.pi
+    return np.where(r > 0.0, u, 0.0), np.where(r > 0.0, v, 0.0)
+
+
+def map_to_tube(co):
+    """(u, v) of points ``co`` (k, 3) around the z axis on Cycles' tube projection (``map_to_tube``:
+    the angle about z as the sphere's, the height from -1 to 1; 0 on the axis)."""
+    x, y, z = co[:, 0], co[:, 1], co[:, 2]
+    on_axis = (x == 0.0) & (y == 0.0)
+    u = 0.5 - np.arctan2(x, y) / (2.0 * np.pi)
+    return np.where(on_axis, 0.0, u), np.where(on_axis, 0.0, 0.5 * (z + 1.0))
 
 
 def box_weights(normals, blend):
@@ -1793,7 +1817,8 @@ CHOICES = {
     ("white_noise", "dimensions"): _patterns.DIMENSIONS,
     ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"),
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
-    ("image", "interpolation"): ("Linear", "Closest", "Cubic"), ("image", "projection"): ("FLAT", "BOX"),
+    ("image", "interpolation"): ("Linear", "Closest", "Cubic"),
+    ("image", "projection"): ("FLAT", "BOX", "SPHERE", "TUBE"),
     ("vector_math", "operation"): tuple(VECTOR_MATH) + tuple(VECTOR_VALUES),
     ("clamp", "clamp_type"): ("MINMAX", "RANGE"), ("color_space", "conversion"): tuple(COLOR_SPACES),
     ("vector_transform", "type"): ("POINT", "VECTOR", "NORMAL"),

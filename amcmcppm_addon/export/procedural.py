@@ -128,13 +128,23 @@ def _out(op, **outputs):
 
 # ---------------------------------------------------------------------- nodes
 def _tex_coord(b, node, stack):
+    """Texture Coordinate: the attributes of ``procedural``; Reflection the view reflected about the
+    shading normal in world space, 2 (N . I) N - I (Cycles; in a world, I); Object in the space of the
+    node's object when it names one (its inverse world matrix on the hit's world position)."""
+    normal, incoming = {"op": "attribute", "name": "world_normal"}, {"op": "attribute", "name": "incoming"}
+    cosine = {"op": "vector_math", "operation": "DOT_PRODUCT", "a": normal, "b": incoming, "output": "Value"}
+    twice = {"op": "math", "operation": "MULTIPLY", "a": 2.0, "b": cosine}
     out = {"Generated": {"op": "attribute", "name": "generated"},
            "UV": {"op": "attribute", "name": "uv"}, "Normal": {"op": "attribute", "name": "normal"},
-           "Camera": {"op": "attribute", "name": "camera"}, "Window": {"op": "attribute", "name": "window"}}
+           "Camera": {"op": "attribute", "name": "camera"}, "Window": {"op": "attribute", "name": "window"},
+           "Reflection": {"op": "vector_math", "operation": "SUBTRACT", "b": incoming,
+                          "a": {"op": "vector_math", "operation": "SCALE", "a": normal, "scale": twice}}}
     if node.object is None:
         out["Object"] = {"op": "attribute", "name": "object"}
     else:
-        b.walker.note(f"'{node.name}': Object coordinates of another object are not supported")
+        m = np.linalg.inv(np.array(node.object.matrix_world, np.float64))
+        out["Object"] = {"op": "affine", "vector": {"op": "attribute", "name": "position"},
+                         "matrix": m[:3, :3].tolist(), "post": m[:3, 3].tolist()}
     return out
 
 
@@ -343,15 +353,14 @@ def _image(b, node, stack):
     index, _ = w.textures.lookup(node.image, f"material '{w.name}'")
     if index < 0:
         return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
-    if node.projection not in ("FLAT", "BOX"):
-        w.note(f"image texture '{node.name}': {node.projection.lower()} projection is not supported "
-               "(flat is used)")
     # Cycles' CPU takes Smart as Cubic.
     interpolation = "Cubic" if node.interpolation == "Smart" else node.interpolation
     settings = {} if (node.extension, interpolation) == ("REPEAT", "Linear") else {
         "extension": node.extension, "interpolation": interpolation}
     if node.projection == "BOX":
         settings.update(projection="BOX", blend=float(node.projection_blend))
+    elif node.projection in ("SPHERE", "TUBE"):
+        settings.update(projection=node.projection)
     vector = b.vector_or(node, stack, "uv")
     # Cycles filters an image with alpha premultiplied.  Its Color is that, or when the Alpha output
     # is used, that divided by the filtered alpha: for float images (stored premultiplied) after

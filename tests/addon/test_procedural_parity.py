@@ -864,14 +864,17 @@ TRANSFORMS = {"transform_object_point_to_world": ("Object", "POINT", "OBJECT", "
               "transform_camera_point_to_object": ("Position", "POINT", "CAMERA", "OBJECT")}
 
 
-@pytest.mark.parametrize("graph", ["normal", "box_sharp", "box_blended", "geometry_normal",
-                                   "geometry_true_normal", "geometry_position", *TRANSFORMS])
+@pytest.mark.parametrize("graph", ["normal", "box_sharp", "box_blended", "sphere_projection",
+                                   "tube_projection", "geometry_normal", "geometry_true_normal",
+                                   "geometry_position", *TRANSFORMS])
 def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, graph):
     """A smooth, turned and unevenly scaled sphere seen from above: the Texture Coordinate's
     Normal (the object-space shading normal), an image box-projected on Object coordinates
-    (blend 0 and 0.3), whose three projections the normal weighs (``procedural.box_weights``), and
-    the Geometry node's Normal, True Normal (the facet's) and Position, in world space, and Vector
-    Transform between world, object and camera space (stop 39; before, unsupported nodes)."""
+    (blend 0 and 0.3), whose three projections the normal weighs (``procedural.box_weights``), an
+    image sphere- and tube-projected on Generated coordinates (stop 41, ``procedural.map_to_sphere``,
+    ``map_to_tube``; before, noted and flat), and the Geometry node's Normal, True Normal (the
+    facet's) and Position, in world space, and Vector Transform between world, object and camera
+    space (stop 39; before, unsupported nodes)."""
     import bmesh
     import bpy
 
@@ -895,6 +898,10 @@ def test_normal_coordinates_and_box_projection_match_cycles(addon, tmp_path, gra
             return nt.nodes.new("ShaderNodeNewGeometry").outputs[output]
         out = image_on_mapped_uv(nt)
         t = out.node
+        if graph.endswith("_projection"):
+            t.projection = graph.removesuffix("_projection").upper()
+            nt.links.new(coords(nt, "Generated"), t.inputs["Vector"])
+            return out
         t.projection = "BOX"
         t.projection_blend = 0.0 if graph == "box_sharp" else 0.3
         nt.links.new(coords(nt, "Object"), t.inputs["Vector"])
@@ -1052,6 +1059,21 @@ def wireframe(size):
     return lambda nt: node(nt, "ShaderNodeWireframe", Size=size).outputs["Fac"]
 
 
+def object_of_an_empty(nt):
+    """Texture Coordinate's Object in the space of an Empty (moved, turned and scaled), a quarter
+    of it plus 1/2."""
+    import bpy
+    empty = bpy.data.objects.new("Projector", None)
+    empty.location, empty.rotation_euler, empty.scale = (0.5, -0.3, 1.2), (0.3, 0.5, 0.8), (1.5, 0.7, 1.0)
+    bpy.context.scene.collection.objects.link(empty)
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    coords.object = empty
+    scaled = node(nt, "ShaderNodeVectorMath", operation="MULTIPLY_ADD")
+    nt.links.new(coords.outputs["Object"], scaled.inputs[0])
+    scaled.inputs[1].default_value, scaled.inputs[2].default_value = (0.25,) * 3, (0.5,) * 3
+    return scaled.outputs["Vector"]
+
+
 def tangent(direction, axis="Z"):
     """The Tangent node, radial about an object axis or along the UV map's tangents."""
     return lambda nt: half_unit(nt, node(nt, "ShaderNodeTangent", direction_type=direction,
@@ -1072,6 +1094,8 @@ VIEW_CASES = {
     "parametric": view_vector("ShaderNodeNewGeometry", "Parametric"),
     "wireframe": wireframe(0.04),
     "wireframe_wide": wireframe(0.3),
+    "reflection": view_vector("ShaderNodeTexCoord", "Reflection"),
+    "object_of_an_empty": object_of_an_empty,
 }
 
 
@@ -1102,7 +1126,8 @@ def test_nodes_of_the_view_match_cycles(addon, tmp_path, case):
     inside: back faces) seen at a slant by a perspective camera, ours along each pixel centre's
     camera ray against Cycles' (stop 40; before, Fresnel and Layer Weight took their means over
     view directions, Incoming, Backfacing, Parametric, Camera Data and Wireframe were unsupported,
-    and the normals stayed on the front of a back face)."""
+    and the normals stayed on the front of a back face); Texture Coordinate's Reflection and Object
+    of another object (an Empty) since stop 41 (before, unsupported outputs)."""
     mat = floor_and_bowl(VIEW_CASES[case])
     ours = our_values_through_the_camera()
     cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
