@@ -14,7 +14,8 @@ from .procedural import (COLOR_MAX, EMISSION_MAX, DirectionAttributes, HitAttrib
                          camera_path, evaluate, evaluate_color, perpendicular_tangents, photon_path,
                          radial_tangents)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
-from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, PANORAMAS, POINT, SPOT,
+from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, NORMAL_BLENDER_OBJECT,
+                    NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 
@@ -815,22 +816,36 @@ class RenderContext:
             ns[sel] = n
 
     def _apply_normal_maps(self, ns, prim_ids, bary, uv, mat):
-        """Bend ``ns`` (n, 3) in place where the material has a tangent-space normal map.
+        """Bend ``ns`` (n, 3) in place where the material has a normal map.
 
-        As Cycles' Normal Map node: c = 2 rgb - 1, (c_x, c_y) times the strength s and c_z
-        blended from 1 by min(s, 1); N = normalize(c_x T + c_y B + c_z N0) with T the
+        As Cycles' Normal Map node: c = 2 rgb - 1; in tangent space (c_x, c_y) times the strength
+        s and c_z blended from 1 by min(s, 1), N = normalize(c_x T + c_y B + c_z N0) with T the
         interpolated tangent, B = w (N0 x T) and N0 the interpolated shading normal (here unit
-        length).  No tangent frame (zero tangent) or a degenerate result keeps N0.
+        length); in object or world space (``Materials.normal_space``) N = normalize(c) (y and z
+        flipped for Blender's variants, through the object's normal matrix for the object's),
+        then normalize(N0 + (N - N0) s) where s is not 1.  No tangent frame (zero tangent) or a
+        degenerate result keeps N0.
         """
         tex = self.normal_texture.take(mat)
         sel = np.flatnonzero(tex >= 0)
         if len(sel) == 0:
             return
-        tg = interpolate_corners(self.scene.tangents.take(prim_ids.take(sel), axis=0),
-                          tuple(w.take(sel, axis=0) for w in bary))           # (k, 4): xyz and sign
         c = 2.0 * self.textures.lookup(tex.take(sel), uv.take(sel, axis=0)) - 1.0
         s = self.normal_strength.take(mat.take(sel))
         n0 = ns.take(sel, axis=0)
+        space = self.materials.normal_space.take(mat.take(sel))
+        other = np.flatnonzero(space != NORMAL_TANGENT)
+        if len(other):
+            rows = sel.take(other)
+            ns[rows] = self._spatial_normals(c.take(other, axis=0), space.take(other), prim_ids.take(rows),
+                                             n0.take(other, axis=0), s.take(other))
+            tangent_space = np.flatnonzero(space == NORMAL_TANGENT)
+            if len(tangent_space) == 0:
+                return
+            sel, c, s = sel.take(tangent_space), c.take(tangent_space, axis=0), s.take(tangent_space)
+            n0 = n0.take(tangent_space, axis=0)
+        tg = interpolate_corners(self.scene.tangents.take(prim_ids.take(sel), axis=0),
+                                 tuple(w.take(sel, axis=0) for w in bary))    # (k, 4): xyz and sign
         t = tg[:, :3]
         b = tg[:, 3:4] * np.cross(n0, t)
         cz = 1.0 + (c[:, 2] - 1.0) * np.minimum(s, 1.0)
@@ -839,6 +854,27 @@ class RenderContext:
         n[no_frame] = n0[no_frame]
         _replace_bad(n, n0)
         ns[sel] = n
+
+    def _spatial_normals(self, c, space, prim_ids, n0, strength):
+        """(k, 3) the normals of object- or world-space normal maps of colours ``c`` (2 rgb - 1) at
+        hits on triangles ``prim_ids`` with shading normals ``n0`` (Cycles' ``svm_node_normal_map``)."""
+        c = np.array(c, np.float64)
+        flip = np.isin(space, (NORMAL_BLENDER_OBJECT, NORMAL_BLENDER_WORLD))
+        c[flip, 1:] *= -1.0                                  # ("strange blender convention")
+        in_object = np.flatnonzero(np.isin(space, (NORMAL_OBJECT, NORMAL_BLENDER_OBJECT)))
+        if len(in_object):
+            # A normal's transform out of the object: A^T c with A the object-from-world matrix.
+            objects = self.scene.object_from_world.take(self.scene.object_ids.take(prim_ids.take(in_object)),
+                                                        axis=0)
+            c[in_object] = np.einsum("kji,kj->ki", objects[:, :, :3], c.take(in_object, axis=0))
+        n = normalize(c)
+        blend = np.flatnonzero(strength != 1.0)
+        if len(blend):
+            s = np.maximum(strength.take(blend), 0.0)[:, None]
+            n0b = n0.take(blend, axis=0)
+            n[blend] = normalize(n0b + (n.take(blend, axis=0) - n0b) * s)
+        _replace_bad(n, n0)
+        return n
 
     def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat, rays=None):
         """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).

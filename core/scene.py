@@ -46,6 +46,9 @@ HOLDOUT_OBJECT = 8
 # 1/2 and twice the flux (as a triangle that shadow linking says does not shadow their emitter).
 CASTS_NO_SHADOW = 16
 DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
+# Materials.normal_space: the Normal Map node's Space (its colour 2 c - 1 is a direction along the
+# UV map's tangent frame, or in object or world space; the Blender variants flip its y and z).
+NORMAL_TANGENT, NORMAL_OBJECT, NORMAL_WORLD, NORMAL_BLENDER_OBJECT, NORMAL_BLENDER_WORLD = range(5)
 # The rays an emitter does not light (``Lights.exclude``, ``World.exclude``, ``Scene.emitter_exclude``;
 # Blender's Ray Visibility boxes Glossy, Transmission, Diffuse and Volume Scatter off, Cycles'
 # SHADER_EXCLUDE_*): the light that first meets a surface or volume reaches no lobe of that kind
@@ -206,7 +209,10 @@ class Materials:
     lobe: ``normal_texture`` >= 0 is the image (non-colour data, RGB in [0, 1] meaning
     2 c - 1 along tangent, bitangent and normal), looked up with the triangle UVs in the frame of
     ``Scene.tangents``, with ``normal_strength`` as in Cycles (tangent-plane components times
-    the strength, the normal component blended from 1).  A bump map (Blender's Bump node) then
+    the strength, the normal component blended from 1).  With ``normal_space`` another than
+    NORMAL_TANGENT, 2 c - 1 is the normal itself in the object's space (through its normal matrix)
+    or in world space (Blender's variants: y and z flipped), blended from the surface's normal by
+    the strength where it is not 1 (Cycles' ``svm_node_normal_map``).  A bump map (Blender's Bump node) then
     bends it further: ``bump_texture`` >= 0 is the image whose luminance is the height,
     ``bump_distance`` its scale (negative: inverted) and ``bump_strength`` the blend towards
     the bumped normal, as Cycles' Bump node with the height's exact surface gradient; or
@@ -248,6 +254,7 @@ class Materials:
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
     normal_strength: np.ndarray = None                  # (M,) float32 >= 0; None: 1
+    normal_space: np.ndarray = None                     # (M,) int32 NORMAL_*; None: NORMAL_TANGENT
     bump_texture: np.ndarray = None                     # (M,) int32, index into Scene.textures or -1
     bump_strength: np.ndarray = None                    # (M,) float32 >= 0; None: 1
     bump_distance: np.ndarray = None                    # (M,) float32, any sign; None: 1
@@ -293,13 +300,15 @@ class Materials:
                     "translucent_program", "diffuse_roughness", "volume_scattering", "volume_anisotropy",
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
                     "rotation_program", "stretch_program", "glossy_metal_tint", "glossy_metal_share",
-                    "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program")
+                    "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program",
+                    "normal_space")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
                       "rotation_program", "stretch_program", "level_program", "normal_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
-    INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count")   # stored as int32
+    INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
+                                     "normal_space")
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
                                     "glossy_rotation", "glossy_metal_tint", "level_first",
                                     "dielectric_roughness")
@@ -321,7 +330,8 @@ class Materials:
         ``glossy_fresnel_ior``, ``glossy_fresnel_rise``, ``glossy_metal_rise``, ``glossy_metal_dip``
         and ``diffuse_layer`` default to 0,
         ``diffuse_layer_weight`` to 1, ``diffuse_roughness`` to 0.  ``normal_texture`` (default -1: none) and
-        ``normal_strength`` (default 1) give a tangent-space normal map, ``bump_texture``
+        ``normal_strength`` (default 1) give a normal map, tangent-space unless ``normal_space``
+        (``NORMAL_*``) says otherwise, ``bump_texture``
         (default -1), ``bump_strength`` and ``bump_distance`` (default 1) a bump map.
         ``diffuse_program`` is a program (node dict, ``core/procedural.py``) for the diffuse
         colour, which then defaults to 1, ``glossy_program`` one for the glossy colour and
@@ -377,6 +387,7 @@ class Materials:
         out.emission = np.zeros((m, 3), np.float32)
         out.normal_texture = np.full(m, -1, np.int32)
         out.normal_strength = np.ones(m, np.float32)
+        out.normal_space = np.zeros(m, np.int32)
         out.bump_texture = np.full(m, -1, np.int32)
         out.bump_strength = np.ones(m, np.float32)
         out.bump_distance = np.ones(m, np.float32)
@@ -478,6 +489,7 @@ class Materials:
             out.holdout[i] = s.get("holdout", 0.0)
             out.normal_texture[i] = s.get("normal_texture", -1)
             out.normal_strength[i] = s.get("normal_strength", 1.0)
+            out.normal_space[i] = s.get("normal_space", NORMAL_TANGENT)
             out.bump_texture[i] = s.get("bump_texture", -1)
             out.bump_strength[i] = s.get("bump_strength", 1.0)
             out.bump_distance[i] = s.get("bump_distance", 1.0)
@@ -950,7 +962,7 @@ class Scene:
                                        ("glossy_rotation", (n,), 0.0), ("rotation_program", (n,), -1),
                                        ("stretch_program", (n,), -1), ("level_program", (n,), -1),
                                        ("level_first", (n,), -1), ("level_count", (n,), 0),
-                                       ("normal_program", (n,), -1),
+                                       ("normal_program", (n,), -1), ("normal_space", (n,), NORMAL_TANGENT),
                                        ("glossy_tangent", (n,), TANGENT_RADIAL_Z)):
                 if getattr(mats, name) is None:
                     setattr(mats, name, np.full(shape, value, np.int32 if name in Materials.INTEGER_FIELDS
@@ -985,7 +997,8 @@ class Scene:
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
-                                ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV)):
+                                ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),
+                                ("normal_space", NORMAL_TANGENT, NORMAL_BLENDER_WORLD)):
             v = getattr(mats, name)
             if ((v < low) | (v > high)).any():
                 bad = mats.names[int(np.argmax((v < low) | (v > high)))]
@@ -1003,8 +1016,12 @@ class Scene:
                 fail(f"materials.{name} must be -1 or an index below {len(self.textures)}")
         if any((getattr(mats, name) >= 0).any() for name in Materials.INT_FIELDS) and self.uvs is None:
             fail("materials use image textures but the scene has no uvs")
-        if (mats.normal_texture >= 0).any() and self.tangents is None:
+        mapped = mats.normal_texture >= 0
+        if (mapped & (mats.normal_space == NORMAL_TANGENT)).any() and self.tangents is None:
             fail("materials use normal maps but the scene has no tangents")
+        in_objects = np.isin(mats.normal_space, (NORMAL_OBJECT, NORMAL_BLENDER_OBJECT))
+        if (mapped & in_objects).any() and self.object_ids is None:
+            fail("materials use object-space normal maps but the scene has no objects")
         uv_tangents = (mats.glossy_tangent == TANGENT_UV) & ((mats.glossy_stretch != 1.0)
                                                              | (mats.stretch_program >= 0))
         if uv_tangents.any() and self.tangents is None:

@@ -90,7 +90,8 @@ from ...core.bsdf import (TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, 
                           metal_fresnel)
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import dielectric_f0, mean_fresnel
-from ...core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials
+from ...core.scene import (NORMAL_BLENDER_OBJECT, NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT,
+                           NORMAL_WORLD, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials)
 from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
 from .procedural import NODES as PROGRAM_NODES
 
@@ -98,6 +99,9 @@ LOBES = ("diffuse", "glossy", "mirror", "dielectric", "translucent")
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = range(5)
 GREY = np.full(3, 0.8)                         # Cycles' default surface colour
 TANGENT_DEFAULT = (TANGENT_RADIAL_Z, None)     # an unlinked Tangent input (Cycles' default Tangent node)
+# The Normal Map node's spaces (core.scene.NORMAL_*).
+NORMAL_SPACES = {"TANGENT": NORMAL_TANGENT, "OBJECT": NORMAL_OBJECT, "WORLD": NORMAL_WORLD,
+                 "BLENDER_OBJECT": NORMAL_BLENDER_OBJECT, "BLENDER_WORLD": NORMAL_BLENDER_WORLD}
 MISSING_TEXTURE = np.array([1.0, 0.0, 1.0])    # what Cycles shows for a missing image
 MAX_ANISOTROPY = 0.99                           # |g| of volumes' phase functions (volume_anisotropy)
 # Principled Volume's blackbody emission per T^4 (Cycles: the Stefan-Boltzmann constant 5.670373e-8
@@ -147,7 +151,7 @@ class Closure:
     transparent: np.ndarray = field(default_factory=lambda: np.zeros(3))   # (3,) weight * colour let through
     transparent_weight: float = 0.0  # weight of the Transparent part (1 - the mean opacity)
     opacity_texture: dict = None    # float program of the opacity where it varies (an alpha map)
-    normal_map: tuple = None        # (texture index, strength, uv map name) of a tangent-space normal map
+    normal_map: tuple = None        # (texture index, strength, uv map name, NORMAL_* space) of a normal map
     bump: tuple = None              # (texture index or height program, strength, distance) of a bump map
     coat: float = 0.0               # weight of a coat over everything (Principled's Coat), 0: none
     coat_roughness: float = 0.03    # the coat's roughness, IOR and tint
@@ -594,7 +598,7 @@ class Closure:
         if isinstance(self.normal_map, dict):
             s["normal_program"] = self.normal_map
         elif self.normal_map is not None:
-            s["normal_texture"], s["normal_strength"], s["normal_uv_map"] = self.normal_map
+            s["normal_texture"], s["normal_strength"], s["normal_uv_map"], s["normal_space"] = self.normal_map
         if self.bump is not None:
             source, s["bump_strength"], s["bump_distance"] = self.bump
             s["bump_program" if isinstance(source, dict) else "bump_texture"] = source
@@ -948,7 +952,8 @@ class MaterialExporter:
 
     def coordinates_used(self, ids) -> set:
         """Names of the data (``procedural.ATTRIBUTES``) the procedural colours of ``ids`` read
-        (and "generated" for an anisotropic glossy lobe's radial tangent)."""
+        (and "generated" for an anisotropic glossy lobe's radial tangent, "object" for an
+        object-space normal map: the objects' transforms)."""
         used = set()
         for i in self._with_levels(ids):
             for key in Materials.PROGRAM_FIELDS:
@@ -956,6 +961,8 @@ class MaterialExporter:
                     used |= procedural.attributes_used(self._specs[i][key])
             if self._specs[i].get("glossy_tangent", TANGENT_UV) != TANGENT_UV:
                 used.add("generated")
+            if self._specs[i].get("normal_space") in (NORMAL_OBJECT, NORMAL_BLENDER_OBJECT):
+                used.add("object")
         return used
 
     def tangent_uv(self, ids):
@@ -963,7 +970,7 @@ class MaterialExporter:
         map's tangents (a normal map, an anisotropic glossy lobe oriented by them, a program's
         Tangent node), or None."""
         for s in (self._specs[i] for i in self._with_levels(ids)):
-            if "normal_texture" in s:
+            if "normal_texture" in s and s["normal_space"] == NORMAL_TANGENT:
                 return s["normal_uv_map"]
             if "tangent_uv_map" in s:
                 return s["tangent_uv_map"]
@@ -1334,11 +1341,13 @@ class NodeWalker:
         return image["texture"] if _plain_image(image) else height
 
     def normal_map(self, node, stack):
-        """(texture index, strength, uv map name) of a tangent-space Normal Map ``node`` fed by an
-        image, or None (unsupported: noted)."""
-        if node.space != "TANGENT":
-            self.note(f"normal map '{node.name}': {node.space.lower()} space is not supported "
-                      "(only tangent space); using the surface's own normal")
+        """(texture index, strength, uv map name, core ``NORMAL_*`` space) of a Normal Map ``node``
+        fed by an image (tangent, object or world space, or Blender's object or world space), or
+        None (unsupported: noted)."""
+        space = NORMAL_SPACES.get(node.space)
+        if space is None:
+            self.note(f"normal map '{node.name}': {node.space.lower()} space is not supported; using the "
+                      "surface's own normal")
             return None
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         color, tex = self.color(node.inputs["Color"], stack)
@@ -1351,7 +1360,7 @@ class NodeWalker:
                 self.note(f"normal map '{node.name}': a constant colour is not supported (only an "
                           "image texture); using the surface's own normal")
             return None
-        return tex, strength, node.uv_map
+        return tex, strength, node.uv_map, space
 
     def _mix(self, node, stack):
         a = self.shader(_by_identifier(node.inputs, "Shader"), stack) or Closure()

@@ -1157,17 +1157,31 @@ def test_normal_map_on_a_mesh_without_uvs_keeps_the_normal_and_an_unmapped_mesh_
     assert s.tangents is not None and (s.tangents == 0).all()     # no frame anywhere: unbent, as Cycles
 
 
+@pytest.mark.parametrize("space", ["OBJECT", "WORLD", "BLENDER_WORLD"])
+def test_object_and_world_space_normal_maps_reach_the_core(scene, space):
+    """A Normal Map in object or world space: its image with ``Materials.normal_space`` (stop 41;
+    before, noted and left out); it needs no tangents, the object's space the objects' transforms."""
+    from amcmcppm.core.scene import NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_WORLD
+    mat = normal_mapped("Spatial")
+    mat.node_tree.nodes["Normal Map"].space = space
+    uv_plane("Plane", mat)
+    bs.camera()
+    ex = bs.export()
+    row = material_row(ex.scene, "Spatial")
+    assert row["normal_texture"] >= 0 and not [w for w in ex.warnings if "Spatial" in w], ex.warnings
+    assert row["normal_space"] == {"OBJECT": NORMAL_OBJECT, "WORLD": NORMAL_WORLD,
+                                   "BLENDER_WORLD": NORMAL_BLENDER_WORLD}[space]
+    assert ex.scene.tangents is None and (ex.scene.object_ids is not None) == (space == "OBJECT")
+
+
 @pytest.mark.parametrize("case, message", [
-    ("object_space", "object space is not supported"),
     ("constant", "constant colour"),
 ])
 def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message):
     mat = normal_mapped("Odd")
     nt = mat.node_tree
     bsdf = nt.nodes["Principled BSDF"]
-    if case == "object_space":
-        nt.nodes["Normal Map"].space = "OBJECT"
-    elif case == "vector_math":
+    if case == "vector_math":
         nt.links.new(nt.nodes.new("ShaderNodeVectorMath").outputs[0], bsdf.inputs["Normal"])
     else:
         nt.links.remove(nt.nodes["Normal Map"].inputs["Color"].links[0])

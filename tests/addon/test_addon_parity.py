@@ -284,6 +284,45 @@ def test_normal_map_matches_cycles(addon, tmp_path, scale):
     assert o[~bright].mean() == pytest.approx(c[~bright].mean(), rel=BAND_TOLERANCE)
 
 
+@pytest.mark.parametrize("space, strength", [("OBJECT", 1.0), ("WORLD", 1.0),
+                                             pytest.param("BLENDER_OBJECT", 1.0, marks=pytest.mark.slow),
+                                             pytest.param("OBJECT", 0.6, marks=pytest.mark.slow)])
+def test_object_and_world_space_normal_maps_match_cycles(addon, tmp_path, space, strength):
+    """A Normal Map in object or world space (stop 41; before, noted and the normal left alone) on
+    the floor of ``test_normal_map_matches_cycles`` (turned 30 degrees) under the same sun: normals
+    tilted 35 degrees towards x on one half and towards y on the other, in the object's space (they
+    turn with it) or in world space, stored with y and z flipped for Blender's object space;
+    Strength 0.6 blends them from the surface's normal.  The pixels brighter and darker than
+    Cycles' median must match: measured 0.9993-1.0010 of Cycles in every case (before, the floor
+    kept its own normal, evenly lit)."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        normals = np.zeros((4, 16, 3))
+        normals[:, :8], normals[:, 8:] = bs.tilted(35.0, 0), bs.tilted(35.0, 1)
+        if space.startswith("BLENDER"):
+            normals[..., 1:] *= -1.0
+        mat = bs.diffuse("Floor", (0.8, 0.8, 0.8))
+        bs.add_normal_map(mat, normals, strength=strength).space = space
+        bm = bmesh.new()
+        bm.loops.layers.uv.new("UVMap")
+        bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=2.0, calc_uvs=True)
+        bs.mesh_object("Floor", bm, mat, rotation=(0, 0, math.radians(30.0)))
+        bs.camera(location=(0, 0, 5), target=(0, 0, 0), ortho_scale=2.5)
+        bs.light("SUN", location=(3, 0, 3), target=(0, 0, 0), energy=3.0, angle=0.0)
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert not [w for w in bs.export().warnings if "normal map" in w]
+    c, o = cycles[..., :3].mean(axis=2), ours[..., :3].mean(axis=2)
+    bright = c > np.median(c)
+    ratio = c[bright].mean() / c[~bright].mean()
+    print(f"normal map, {space} space, strength {strength}: cycles bright {c[bright].mean():.4f} dark "
+          f"{c[~bright].mean():.4f}; ours / cycles {o[bright].mean() / c[bright].mean():.4f} "
+          f"{o[~bright].mean() / c[~bright].mean():.4f}")
+    assert ratio > 1.15, "the map must make a contrast in Cycles, or the test cannot fail"
+    assert o.mean() == pytest.approx(c.mean(), rel=TOLERANCE)
+    assert o[bright].mean() == pytest.approx(c[bright].mean(), rel=BAND_TOLERANCE)
+    assert o[~bright].mean() == pytest.approx(c[~bright].mean(), rel=BAND_TOLERANCE)
+
+
 @pytest.mark.parametrize("with_map, bsdf", [
     (True, "ShaderNodeBsdfDiffuse"), (False, "ShaderNodeBsdfDiffuse"),
     (False, "ShaderNodeBsdfPrincipled"), (True, "ShaderNodeBsdfPrincipled"),
