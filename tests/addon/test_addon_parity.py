@@ -87,6 +87,16 @@ def add_emitter(kind):
         raise ValueError(kind)
 
 
+def corner_with_a_mirror_wall():
+    """:func:`corner_scene` whose wall is a mirror (a Glossy BSDF of roughness 0)."""
+    corner_scene()
+    nt = bpy.data.materials["Wall"].node_tree
+    nt.nodes.remove(nt.nodes["Diffuse BSDF"])
+    mirror = nt.nodes.new("ShaderNodeBsdfGlossy")
+    mirror.inputs["Roughness"].default_value = 0.0
+    nt.links.new(mirror.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+
+
 def use_cycles(scene):
     scene.render.engine = "CYCLES"
     c = scene.cycles
@@ -1076,23 +1086,30 @@ def test_procedural_bump_matches_cycles(addon, tmp_path):
     assert pixel_correlation("procedural bump", c, o) > 0.99
 
 
+def corner_with_a_camera_world(camera_background):
+    """:func:`corner_scene` seen over the wall's top under a world that is a Mix Shader by Light Path's
+    Is Camera Ray: a blue Background lights the corner, the node ``camera_background(tree)`` makes
+    is what the camera sees past it."""
+    corner_scene()
+    bs.camera(location=(0, -5, 2.5), target=(0, 1.5, 2.5), lens=30.0)
+    nt = bs.world((0.3, 0.4, 0.6), strength=1.0).node_tree
+    seen = camera_background(nt)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(nt.nodes.new("ShaderNodeLightPath").outputs["Is Camera Ray"], mix.inputs[0])
+    nt.links.new(nt.nodes["Background"].outputs[0], mix.inputs[1])
+    nt.links.new(seen.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["World Output"].inputs["Surface"])
+
+
 def test_camera_sees_its_own_world_through_light_path(addon, tmp_path):
     """A world that is a Mix Shader by Light Path's Is Camera Ray: a blue Background lights the
     corner, a bright white one is what the camera sees past it (``World.camera``)."""
-    def build():
-        corner_scene()
-        bs.camera(location=(0, -5, 2.5), target=(0, 1.5, 2.5), lens=30.0)      # over the wall's top
-        world = bs.world((0.3, 0.4, 0.6), strength=1.0)
-        nt = world.node_tree
-        white = nt.nodes.new("ShaderNodeBackground")
-        white.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-        white.inputs["Strength"].default_value = 3.0
-        mix = nt.nodes.new("ShaderNodeMixShader")
-        nt.links.new(nt.nodes.new("ShaderNodeLightPath").outputs["Is Camera Ray"], mix.inputs[0])
-        nt.links.new(nt.nodes["Background"].outputs[0], mix.inputs[1])
-        nt.links.new(white.outputs[0], mix.inputs[2])
-        nt.links.new(mix.outputs[0], nt.nodes["World Output"].inputs["Surface"])
-    cycles, ours = cycles_and_ours(build, tmp_path)
+    def white(nt):
+        background = nt.nodes.new("ShaderNodeBackground")
+        background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        background.inputs["Strength"].default_value = 3.0
+        return background
+    cycles, ours = cycles_and_ours(lambda: corner_with_a_camera_world(white), tmp_path)
     sky = (cycles[..., :3] > 2.9).all(axis=2)              # the camera's own white sky
     print(f"camera world: {sky.mean():.3f} of the pixels see the sky")
     assert 0.02 < sky.mean() < 0.9
@@ -1350,12 +1367,7 @@ def test_a_mirror_shows_only_the_emitters_linked_to_it_as_in_cycles(addon, tmp_p
     rays leave the mirror, whose object is then the receiver); neither do we.  The whole image
     1.001 of Cycles, its brightest mirror pixel 2.10 against Cycles' 2.11 (unlinked: about 102)."""
     def build():
-        corner_scene()
-        nt = bpy.data.materials["Wall"].node_tree
-        nt.nodes.remove(nt.nodes["Diffuse BSDF"])
-        mirror = nt.nodes.new("ShaderNodeBsdfGlossy")
-        mirror.inputs["Roughness"].default_value = 0.0
-        nt.links.new(mirror.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        corner_with_a_mirror_wall()
         panel = bs.plane("Panel", size=0.8, material=bs.emission("Panel", (1.0, 1.0, 1.0), 6.0),
                          location=(0.0, -0.5, 1.2), rotation=(math.radians(-100), 0, 0))
         lamp = bs.light("AREA", location=(0.8, -0.8, 1.0), target=(0.8, 1.5, 1.0), energy=100.0, size=0.5)
@@ -1536,12 +1548,7 @@ def test_a_panel_hidden_from_glossy_rays_throws_no_light_off_a_mirror_as_in_cycl
     there (``Scene.emitter_exclude``).  Measured: 1.014 of Cycles' mean, bands 0.998-1.015; before
     (its photons left the mirror) 1.065, which the mean's 3 % tolerance catches."""
     def build():
-        corner_scene()
-        nt = bpy.data.materials["Wall"].node_tree
-        nt.nodes.remove(nt.nodes["Diffuse BSDF"])
-        mirror = nt.nodes.new("ShaderNodeBsdfGlossy")
-        mirror.inputs["Roughness"].default_value = 0.0
-        nt.links.new(mirror.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        corner_with_a_mirror_wall()
         panel = bs.plane("Panel", size=0.8, material=bs.emission("Panel", (1.0, 0.9, 0.8), 6.0),
                          location=(0.0, -0.3, 1.2), rotation=(math.radians(-120), 0, 0))
         panel.visible_glossy = False
@@ -1580,25 +1587,16 @@ def test_a_backplate_of_window_coordinates_matches_cycles(addon, tmp_path):
     the corner): camera rays evaluate it where they leave the scene (``World.program``), so each sky
     pixel shows its own place in the frame as in Cycles (before, Window read 0 in a world: a black
     backplate in red and green)."""
-    def build():
-        corner_scene()
-        bs.camera(location=(0, -5, 2.5), target=(0, 1.5, 2.5), lens=30.0)      # over the wall's top
-        world = bs.world((0.3, 0.4, 0.6), strength=1.0)
-        nt = world.node_tree
-        plate = nt.nodes.new("ShaderNodeBackground")
-        coords = nt.nodes.new("ShaderNodeTexCoord")
+    def plate(nt):
+        background = nt.nodes.new("ShaderNodeBackground")
         split, join = nt.nodes.new("ShaderNodeSeparateXYZ"), nt.nodes.new("ShaderNodeCombineXYZ")
-        nt.links.new(coords.outputs["Window"], split.inputs[0])
+        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Window"], split.inputs[0])
         nt.links.new(split.outputs["X"], join.inputs["X"])
         nt.links.new(split.outputs["Y"], join.inputs["Y"])
         join.inputs["Z"].default_value = 5.0
-        nt.links.new(join.outputs[0], plate.inputs["Color"])
-        mix = nt.nodes.new("ShaderNodeMixShader")
-        nt.links.new(nt.nodes.new("ShaderNodeLightPath").outputs["Is Camera Ray"], mix.inputs[0])
-        nt.links.new(nt.nodes["Background"].outputs[0], mix.inputs[1])
-        nt.links.new(plate.outputs[0], mix.inputs[2])
-        nt.links.new(mix.outputs[0], nt.nodes["World Output"].inputs["Surface"])
-    cycles, ours = cycles_and_ours(build, tmp_path)
+        nt.links.new(join.outputs[0], background.inputs["Color"])
+        return background
+    cycles, ours = cycles_and_ours(lambda: corner_with_a_camera_world(plate), tmp_path)
     sky = cycles[..., 2] > 4.99
     inner = sky.copy()                                     # (away from the wall's edge: the filters)
     for axis in (0, 1):
