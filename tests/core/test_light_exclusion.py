@@ -13,7 +13,13 @@ as a deposit nor as a scattering, and what it lights further on is unaffected.  
   images without each add up to the whole, pixel by pixel;
 * a mirror under an orthographic camera, under a sky of 1: a world that does not light glossy rays
   is black in the mirror;
-* a sunlit volume-only slab: without volume scatter its single scattering is gone.
+* a sunlit volume-only slab: without volume scatter its single scattering is gone;
+* an emissive panel without diffuse leaves a diffuse floor black, and one that lights nothing
+  sends no photons.
+
+An object that casts no shadow (``CASTS_NO_SHADOW``, Ray Visibility > Shadow off) lets the direct
+light through: a sunlit diffuse sheet over a diffuse floor, the floor's radiance
+rho E / (pi (1 - rho D)) as if the sheet were not in the sun's way.
 """
 from __future__ import annotations
 
