@@ -175,8 +175,8 @@ def coat_variants(mats):
     changes["glossy_fresnel_ior"][new] = ior
     changes["glossy_fresnel_rise"][new] = 1.0 - f0[:, None]
     changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
-    for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "diffuse_layer_weight",
-                 "glossy_stretch", "glossy_metal_share"):
+    for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "outer_bump_strength",
+                 "outer_bump_distance", "diffuse_layer_weight", "glossy_stretch", "glossy_metal_share"):
         changes[name][new] = 1.0
     names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique]
     return (dataclasses.replace(mats, names=names, **changes),
@@ -340,6 +340,7 @@ class MaterialTable:
                              normal_mapped=(np.asarray(mats.normal_texture) >= 0)
                              | (np.asarray(mats.bump_texture) >= 0)
                              | (np.asarray(_or_none(mats.bump_program, m)) >= 0)
+                             | (np.asarray(_or_none(mats.outer_bump_program, m)) >= 0)
                              | (np.asarray(_or_none(mats.normal_program, m)) >= 0), program=program,
                              glossy_program=glossy_program,
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),

@@ -172,6 +172,9 @@ class RenderContext:
         # Materials that look an image up with the UVs (colour, normal or bump map).
         self.uses_uvs = (self.table.texture >= 0) | (self.normal_texture >= 0) | (self.bump_texture >= 0)
         self.bump_program = np.asarray(mats.bump_program, np.int32)
+        self.outer_bump_program = np.asarray(mats.outer_bump_program, np.int32)
+        self.outer_bump_strength = np.asarray(mats.outer_bump_strength, np.float64)
+        self.outer_bump_distance = np.asarray(mats.outer_bump_distance, np.float64)
         self.normal_program = np.asarray(mats.normal_program, np.int32)
 
     @property
@@ -887,7 +890,8 @@ class RenderContext:
         parametrisation).  An image's height (its luminance) takes the UVs and the bilinear
         image's exact gradient (triangles without a UV parametrisation keep N); a program's
         (``Materials.bump_program``) the barycentrics b1, b2 (dP/db = the edges) and forward
-        differences of ``BUMP_STEP`` times the scene's size along each edge.
+        differences of ``BUMP_STEP`` times the scene's size along each edge.  A second bump
+        (``Materials.outer_bump_program``, a Bump on a Bump) then bends the normal the first made.
         """
         tex = self.bump_texture.take(mat)
         sel = np.flatnonzero(tex >= 0)
@@ -902,8 +906,18 @@ class RenderContext:
             dpdu = (d2[:, 1:2] * e1 - d1[:, 1:2] * e2) * inv
             dpdv = (d1[:, 0:1] * e2 - d2[:, 0:1] * e1) * inv
             gu, gv = self.textures.gradient(tex.take(sel), uv.take(sel, axis=0))
-            self._bend(ns, sel, mat.take(sel), dpdu, dpdv, gu @ LUMINANCE, gv @ LUMINANCE, ok)
-        program = self.bump_program.take(mat)
+            m = mat.take(sel)
+            self._bend(ns, sel, dpdu, dpdv, gu @ LUMINANCE, gv @ LUMINANCE, ok, self.bump_strength.take(m),
+                       self.bump_distance.take(m))
+        for programs, strength, distance in ((self.bump_program, self.bump_strength, self.bump_distance),
+                                             (self.outer_bump_program, self.outer_bump_strength,
+                                              self.outer_bump_distance)):
+            self._bump_by_programs(ns, prim_ids, bary, pos, mat, rays, programs, strength, distance)
+
+    def _bump_by_programs(self, ns, prim_ids, bary, pos, mat, rays, programs, strength, distance):
+        """Bend ``ns`` in place where the materials ``mat`` have a bump's height program among
+        ``programs`` (per material), of ``strength`` and ``distance`` (:meth:`_apply_bump_maps`)."""
+        program = programs.take(mat)
         for k in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == k)
             p = prim_ids.take(sel)
@@ -922,18 +936,20 @@ class RenderContext:
                 h = evaluate(self.programs[k], attrs, self.textures.images)
                 heights.append(h @ LUMINANCE if h.ndim == 2 else h)
             hu, hv = (heights[1] - heights[0]) / s1, (heights[2] - heights[0]) / s2
-            self._bend(ns, sel, mat.take(sel), e1, e2, np.nan_to_num(hu), np.nan_to_num(hv),
-                       np.ones(len(sel), bool))
+            m = mat.take(sel)
+            self._bend(ns, sel, e1, e2, np.nan_to_num(hu), np.nan_to_num(hv), np.ones(len(sel), bool),
+                       strength.take(m), distance.take(m))
 
-    def _bend(self, ns, sel, m, dpdu, dpdv, hu, hv, ok):
-        """Cycles' Bump formula (:meth:`_apply_bump_maps`) at rows ``sel`` of ``ns``, in place."""
+    @staticmethod
+    def _bend(ns, sel, dpdu, dpdv, hu, hv, ok, strength, distance):
+        """Cycles' Bump formula (:meth:`_apply_bump_maps`) of ``strength`` and ``distance`` (k,) at
+        rows ``sel`` of ``ns``, in place."""
         n0 = ns.take(sel, axis=0)
         ru, rv = np.cross(dpdv, n0), np.cross(n0, dpdu)
         det = np.einsum("ki,ki->k", dpdu, ru)
-        d = self.bump_distance.take(m)
         n = normalize(np.abs(det)[:, None] * n0
-                      - (d * np.sign(det))[:, None] * (hu[:, None] * ru + hv[:, None] * rv))
-        s = np.maximum(self.bump_strength.take(m), 0.0)[:, None]
+                      - (distance * np.sign(det))[:, None] * (hu[:, None] * ru + hv[:, None] * rv))
+        s = np.maximum(strength, 0.0)[:, None]
         n = normalize(s * n + (1.0 - s) * n0)
         n[~ok] = n0[~ok]
         _replace_bad(n, n0)

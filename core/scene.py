@@ -264,6 +264,11 @@ class Materials:
     roughness_program: np.ndarray = None                # (M,) int32, index into programs or -1; None: -1
     dielectric_program: np.ndarray = None               # (M,) int32, index into programs or -1; None: -1
     bump_program: np.ndarray = None                     # (M,) int32, index into programs or -1; None: -1
+    # A second Bump over the first (Blender's Bump whose Normal is another Bump): its height program,
+    # strength and distance, applied to the normal the first one made.
+    outer_bump_program: np.ndarray = None               # (M,) int32, index into programs or -1; None: -1
+    outer_bump_strength: np.ndarray = None              # (M,) float32 >= 0; None: 1
+    outer_bump_distance: np.ndarray = None              # (M,) float32, any sign; None: 1
     normal_program: np.ndarray = None                   # (M,) int32, index into programs or -1; None: -1
     opacity: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 1
     opacity_program: np.ndarray = None                  # (M,) int32, index into programs or -1; None: -1
@@ -301,17 +306,18 @@ class Materials:
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
                     "rotation_program", "stretch_program", "glossy_metal_tint", "glossy_metal_share",
                     "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program",
-                    "normal_space")
+                    "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
-                      "rotation_program", "stretch_program", "level_program", "normal_program")
+                      "rotation_program", "stretch_program", "level_program", "normal_program",
+                      "outer_bump_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
                                      "normal_space")
-    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "glossy_metal_dip", "volume_anisotropy",
-                                    "glossy_rotation", "glossy_metal_tint", "level_first",
-                                    "dielectric_roughness")
+    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "glossy_metal_dip",
+                                    "volume_anisotropy", "glossy_rotation", "glossy_metal_tint",
+                                    "level_first", "dielectric_roughness")
 
     @property
     def count(self) -> int:
@@ -339,7 +345,9 @@ class Materials:
         glossy roughness, ``dielectric_program`` one for the glass's transmitted colour, which
         then defaults to 1, ``translucent_program`` one for the translucent colour (likewise),
         ``bump_program`` one for a bump's height (with ``bump_strength`` and
-        ``bump_distance``), ``normal_program`` one for the shading normal and ``opacity_program``
+        ``bump_distance``; ``outer_bump_program``, with ``outer_bump_strength`` and
+        ``outer_bump_distance``, a second bump over the first), ``normal_program`` one for the
+        shading normal and ``opacity_program``
         one for the opacity (equal programs are stored once).  ``opacity`` (default 1) and
         ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
@@ -391,12 +399,15 @@ class Materials:
         out.bump_texture = np.full(m, -1, np.int32)
         out.bump_strength = np.ones(m, np.float32)
         out.bump_distance = np.ones(m, np.float32)
+        out.outer_bump_strength = np.ones(m, np.float32)
+        out.outer_bump_distance = np.ones(m, np.float32)
         out.diffuse_program = np.full(m, -1, np.int32)
         out.glossy_program = np.full(m, -1, np.int32)
         out.emission_program = np.full(m, -1, np.int32)
         out.roughness_program = np.full(m, -1, np.int32)
         out.dielectric_program = np.full(m, -1, np.int32)
         out.bump_program = np.full(m, -1, np.int32)
+        out.outer_bump_program = np.full(m, -1, np.int32)
         out.normal_program = np.full(m, -1, np.int32)
         out.opacity = np.ones(m, np.float32)
         out.opacity_program = np.full(m, -1, np.int32)
@@ -493,6 +504,8 @@ class Materials:
             out.bump_texture[i] = s.get("bump_texture", -1)
             out.bump_strength[i] = s.get("bump_strength", 1.0)
             out.bump_distance[i] = s.get("bump_distance", 1.0)
+            out.outer_bump_strength[i] = s.get("outer_bump_strength", 1.0)
+            out.outer_bump_distance[i] = s.get("outer_bump_distance", 1.0)
         return out
 
 
@@ -950,6 +963,8 @@ class Scene:
                                        ("glossy_program", (n,), -1), ("emission_program", (n,), -1),
                                        ("roughness_program", (n,), -1), ("dielectric_program", (n,), -1),
                                        ("bump_program", (n,), -1), ("opacity", (n,), 1.0),
+                                       ("outer_bump_program", (n,), -1), ("outer_bump_strength", (n,), 1.0),
+                                       ("outer_bump_distance", (n,), 1.0),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),

@@ -152,7 +152,9 @@ class Closure:
     transparent_weight: float = 0.0  # weight of the Transparent part (1 - the mean opacity)
     opacity_texture: dict = None    # float program of the opacity where it varies (an alpha map)
     normal_map: tuple = None        # (texture index, strength, uv map name, NORMAL_* space) of a normal map
-    bump: tuple = None              # (texture index or height program, strength, distance) of a bump map
+    # (texture index or height program, strength, distance[, (height program, strength, distance) of a
+    # second Bump over it]) of a bump map
+    bump: tuple = None
     coat: float = 0.0               # weight of a coat over everything (Principled's Coat), 0: none
     coat_roughness: float = 0.03    # the coat's roughness, IOR and tint
     coat_ior: float = 1.5
@@ -600,7 +602,9 @@ class Closure:
         elif self.normal_map is not None:
             s["normal_texture"], s["normal_strength"], s["normal_uv_map"], s["normal_space"] = self.normal_map
         if self.bump is not None:
-            source, s["bump_strength"], s["bump_distance"] = self.bump
+            source, s["bump_strength"], s["bump_distance"], *outer = self.bump
+            if outer:
+                s["outer_bump_program"], s["outer_bump_strength"], s["outer_bump_distance"] = outer[0]
             s["bump_program" if isinstance(source, dict) else "bump_texture"] = source
         if self.levels is not None:
             # MaterialSet adds the levels' rows after this one (level_first, level_count).
@@ -1296,7 +1300,8 @@ class NodeWalker:
     def bent_normal(self, sock, stack):
         """(normal map or None, bump or None) feeding a ``Normal`` input: a Normal Map node
         (:meth:`normal_map`), a Bump node whose Height is an image's colour, whose own Normal
-        may take a Normal Map; any other node the programs know (a Bevel, a Geometry normal
+        may take a Normal Map or another Bump (the bump's fourth item: Materials.outer_bump_*); any
+        other node the programs know (a Bevel, a Geometry normal
         turned by Vector Math, ...) gives a program of the normal in the normal map's place
         (``Materials.normal_program``); anything else is noted and leaves the normal alone."""
         src, _, stack = self.source(sock, stack)
@@ -1320,15 +1325,19 @@ class NodeWalker:
             self.unsupported(node, f"drives '{sock.name}'; using the surface's own normal")
             return None, None
         inner, inner_bump = self.bent_normal(node.inputs["Normal"], stack)
-        if inner_bump is not None:
-            self.note(f"bump '{node.name}': a Bump on a Bump is not supported; using the inner one")
-            return inner, inner_bump
         tex = self._bump_height(node.inputs["Height"], stack)
         if tex is None:
-            return inner, None
+            return inner, inner_bump
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         distance = self.value(node.inputs["Distance"], stack) * (-1.0 if node.invert else 1.0)
-        return inner, (tex, strength, distance)
+        if inner_bump is None:
+            return inner, (tex, strength, distance)
+        if len(inner_bump) > 3:
+            self.note(f"bump '{node.name}': a third Bump in a row is not supported; using the inner two")
+            return inner, inner_bump
+        # A Bump on a Bump: this one bends the normal the inner one made (its height as a program).
+        height = self.programs.expression(node.inputs["Height"], stack, FLOAT)
+        return inner, (*inner_bump, (height, strength, distance))
 
     def _bump_height(self, sock, stack):
         """A bump's height source from input ``sock``: an image's index (the core takes its colour's

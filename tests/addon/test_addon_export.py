@@ -1265,6 +1265,39 @@ def test_bump_of_a_noise_becomes_a_height_program(scene):
     assert ex.scene.uvs is None and ex.scene.tangents is None and not ex.warnings
 
 
+def test_a_bump_on_a_bump_is_the_outer_bump(scene):
+    """A Bump whose Normal is another Bump (stop 41; before, noted and the outer one dropped): the
+    inner one is the material's bump, the outer one ``outer_bump_program`` with its strength and
+    distance; a third in a row is noted and left out."""
+    mat = principled("Layered")
+    nt = mat.node_tree
+
+    def bump(height_node, distance, below=None):
+        node = nt.nodes.new("ShaderNodeBump")
+        node.inputs["Distance"].default_value = distance
+        node.inputs["Strength"].default_value = 0.8
+        nt.links.new(nt.nodes.new(height_node).outputs["Fac"], node.inputs["Height"])
+        if below is not None:
+            nt.links.new(below.outputs["Normal"], node.inputs["Normal"])
+        return node
+
+    inner = bump("ShaderNodeTexNoise", 0.05)
+    outer = bump("ShaderNodeTexWave", 0.02, inner)
+    nt.links.new(outer.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Normal"])
+    row, ex = export_material(mat)
+    programs = ex.scene.materials.programs
+    assert programs[row["bump_program"]]["op"] == "noise" and row["bump_distance"] == pytest.approx(0.05)
+    assert programs[row["outer_bump_program"]]["op"] == "wave"
+    assert row["outer_bump_distance"] == pytest.approx(0.02)
+    assert row["outer_bump_strength"] == pytest.approx(0.8)
+    assert not ex.warnings
+    third = bump("ShaderNodeTexChecker", 0.01, outer)
+    nt.links.new(third.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Normal"])
+    row, ex = export_material(mat)
+    assert ex.scene.materials.programs[row["outer_bump_program"]]["op"] == "wave"
+    assert any("third Bump" in w for w in ex.warnings), ex.warnings
+
+
 @pytest.mark.parametrize("invert", [False, True])
 def test_bump_node_exports_its_height_image_strength_and_distance_over_a_normal_map(scene, invert):
     mat = normal_mapped("Bumpy")

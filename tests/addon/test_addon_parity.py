@@ -365,13 +365,15 @@ def assert_quarters_match(name, cycles, ours):
     assert abs(ratios[0] - 1.0) < 0.12
 
 
-@pytest.mark.parametrize("invert", [False, True, "displacement"])
+@pytest.mark.parametrize("invert", [False, True, "displacement", "bump_on_bump"])
 def test_bump_map_matches_cycles(addon, tmp_path, invert):
     """A diffuse floor whose Bump node takes its height from an image of two sine waves along u
     (the normal swings up to 32 degrees either way), under a sun at 45 degrees; inverted, the
     bright and dark slopes swap.  ``displacement``: the same height through a Displacement node
     (Scale 0.2) on the material output, which Cycles' default Displacement Method (Bump Only)
-    turns into the same bump."""
+    turns into the same bump.  ``bump_on_bump`` (stop 41; before, the outer Bump was noted and
+    dropped): a second Bump over the first, of three sine waves along v (distance 0.15), bends the
+    normal the first made (``Materials.outer_bump_program``)."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
         u = (np.arange(32) + 0.5) / 32
@@ -391,10 +393,25 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
             nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
         else:
             bump = nt.nodes.new("ShaderNodeBump")
-            bump.invert = invert
+            bump.invert = invert is True
             bump.inputs["Distance"].default_value = 0.2
             nt.links.new(tex.outputs["Color"], bump.inputs["Height"])
             nt.links.new(bump.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+            if invert == "bump_on_bump":
+                outer = nt.nodes.new("ShaderNodeBump")
+                outer.inputs["Distance"].default_value = 0.15
+                v = nt.nodes.new("ShaderNodeSeparateXYZ")
+                nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["UV"], v.inputs[0])
+                wave = nt.nodes.new("ShaderNodeMath")
+                wave.operation = "SINE"
+                times = nt.nodes.new("ShaderNodeMath")
+                times.operation = "MULTIPLY"
+                times.inputs[1].default_value = 6.0 * math.pi
+                nt.links.new(v.outputs["Y"], times.inputs[0])
+                nt.links.new(times.outputs[0], wave.inputs[0])
+                nt.links.new(wave.outputs[0], outer.inputs["Height"])
+                nt.links.new(bump.outputs["Normal"], outer.inputs["Normal"])
+                nt.links.new(outer.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
         bm = bmesh.new()
         bm.loops.layers.uv.new("UVMap")
         bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=1.0, calc_uvs=True)
