@@ -61,18 +61,13 @@ class Accel:
         self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
         self._locals = None             # LocalScene of every object apart (local_scene())
         if self.triangle_count:
-            from embreex import rtcore_scene
-            from embreex.mesh_construction import TriangleMesh
-            self._embree = rtcore_scene.EmbreeScene(robust=True)
-            TriangleMesh(self._embree, np.ascontiguousarray(corners - self.center, np.float32))
+            self._embree = _embree_scene(corners - self.center)
             mats = scene.materials
             glass = (mats.dielectric_weight > 0).take(scene.material_ids)
             self.glass = glass                                          # (T,) bool
             if glass.any() and not glass.all():
                 self.contact_ids = np.flatnonzero(~glass)
-                self._contact = rtcore_scene.EmbreeScene(robust=True)
-                TriangleMesh(self._contact, np.ascontiguousarray(corners[self.contact_ids] - self.center,
-                                                                 np.float32))
+                self._contact = _embree_scene(corners[self.contact_ids] - self.center)
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -107,12 +102,8 @@ class Accel:
         out._contact = None
         out._locals = None
         out._ids = np.asarray(tri_ids, np.int64)
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
-        out._embree = rtcore_scene.EmbreeScene(robust=True)
         v0, e1, e2 = (a.take(out._ids, axis=0) for a in (self.v0, self.e1, self.e2))
-        corners = np.stack([v0, v0 + e1, v0 + e2], axis=1) - self.center
-        TriangleMesh(out._embree, np.ascontiguousarray(corners, np.float32))
+        out._embree = _embree_scene(np.stack([v0, v0 + e1, v0 + e2], axis=1) - self.center)
         return out
 
     def local_scene(self) -> "LocalScene":
@@ -211,11 +202,7 @@ class LocalScene:
         np.maximum.at(hi, rank, corners.max(axis=1))
         pad = 1e-5 * accel.extent
         self.lo, self.hi = lo - pad, hi + pad                                     # (n, 3) world boxes
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
-        self._embree = rtcore_scene.EmbreeScene(robust=True)
-        moved = corners - accel.center + self.shift.take(rank, axis=0)[:, None, :]
-        TriangleMesh(self._embree, np.ascontiguousarray(moved, np.float32))
+        self._embree = _embree_scene(corners - accel.center + self.shift.take(rank, axis=0)[:, None, :])
 
     def intersect(self, origins, directions, tmax, objects) -> Hits:
         """Closest hits of rays ``origins + t directions`` (0 < t < ``tmax``, a scalar or (n,)) on the
@@ -251,6 +238,15 @@ class LocalScene:
             t[h] = (r["tfar"][found] + s[found]).astype(np.float32)
             b1[h], b2[h] = r["u"][found], r["v"][found]
         return Hits(is_hit, prim, t, b1, b2)
+
+
+def _embree_scene(corners):
+    """A robust embree scene of triangles ``corners`` (T, 3, 3), in the frame embree sees (float32)."""
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh
+    scene = rtcore_scene.EmbreeScene(robust=True)
+    TriangleMesh(scene, np.ascontiguousarray(corners, np.float32))
+    return scene
 
 
 def interpolate_corners(corners, bary):

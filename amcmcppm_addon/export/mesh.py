@@ -437,12 +437,7 @@ def _point_attribute(attrs, key, name, log):
         log.warning(f"object '{name}': attribute '{key}' ({attr.data_type.lower()} on the "
                     f"{attr.domain.lower()} domain) cannot be read; it reads 0")
         return None
-    prop, k, dtype = kind
-    flat = np.empty(len(attr.data) * k, dtype)
-    attr.data.foreach_get(prop, flat)
-    values = flat.reshape(-1, k).astype(np.float64)
-    return {1: np.repeat(values, 3, axis=1), 2: np.pad(values, ((0, 0), (0, 1))), 3: values,
-            4: values[:, :3]}[k]
+    return _attribute_values(attr, kind)
 
 
 def _triangulate(me, positions, corner_vert):
@@ -653,14 +648,19 @@ def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
             log.warning(f"object '{mesh_name}': attribute '{name}' ({attr.data_type.lower()} on the "
                         f"{attr.domain.lower()} domain) cannot be read; it reads 0")
             continue
-        prop, k, dtype = kind
-        flat = np.empty(len(attr.data) * k, dtype)
-        attr.data.foreach_get(prop, flat)
-        values = flat.reshape(-1, k).astype(np.float32)
-        values = {1: np.repeat(values, 3, axis=1), 2: np.pad(values, ((0, 0), (0, 1))), 3: values,
-                  4: values[:, :3]}[k]
-        out[name] = np.take(values, rows, axis=0)
+        out[name] = np.take(_attribute_values(attr, kind), rows, axis=0)
     return out
+
+
+def _attribute_values(attr, kind):
+    """(n, 3) float32 values of a Blender attribute of ``ATTRIBUTE_TYPES`` entry ``kind``, as Cycles
+    reads them by name: a float repeated in x, y, z; a 2D value (x, y, 0); a colour's RGB."""
+    prop, k, dtype = kind
+    flat = np.empty(len(attr.data) * k, dtype)
+    attr.data.foreach_get(prop, flat)
+    values = flat.reshape(-1, k).astype(np.float32)
+    return {1: np.repeat(values, 3, axis=1), 2: np.pad(values, ((0, 0), (0, 1))), 3: values,
+            4: values[:, :3]}[k]
 
 
 def _corner_tangents(me, layer, tri_loops):
