@@ -752,6 +752,11 @@ def _plain_image(e) -> bool:
             and not set(e) - {"op", "texture", "vector", "output"})
 
 
+def _image_height(texture: int) -> dict:
+    """The height program of a bump by an image's index (its colour's luminance, on the UV map)."""
+    return {"op": "gray", "color": {"op": "image", "texture": texture, "vector": {"op": "attribute", "name": "uv"}}}
+
+
 def textured(source) -> bool:
     """Whether a colour source (:meth:`NodeWalker.color`) varies over the surface."""
     return isinstance(source, dict) or source >= 0
@@ -1050,12 +1055,25 @@ class NodeWalker:
                           f"mean {c.dielectric_roughness:.3f} (one roughness map per material)")
         bump = self.displacement(out.inputs["Displacement"], material)
         if bump is not None and closure is not None:
-            if closure.normal_map is not None or closure.bump is not None:
-                self.note("the Displacement output is ignored beside the shader's own normal or bump map")
-            else:
-                for c in [closure] + (closure.levels[1] if closure.levels is not None else []):
-                    c.bump = bump
+            self._displace(closure, bump)
         return closure or Closure()
+
+    def _displace(self, closure, bump):
+        """Lay the Displacement output's ``bump`` under ``closure`` and its levels.  Cycles' Bump
+        Only method bends the normal every unlinked Normal input starts from, so a shader's own
+        Bump (whose Normal is unlinked) bends the displaced normal: the displacement becomes the
+        inner bump and the shader's the outer one (``Materials.outer_bump_*``).  Beside a normal
+        map, or under a Bump on a Bump (a third bump), the displacement is noted and dropped."""
+        for c in [closure] + (closure.levels[1] if closure.levels is not None else []):
+            if c.normal_map is not None or (c.bump is not None and len(c.bump) > 3):
+                self.note("the Displacement output is ignored beside the shader's own normal map or "
+                          "Bump on a Bump")
+            elif c.bump is None:
+                c.bump = bump
+            else:
+                source, strength, distance = c.bump
+                height = source if isinstance(source, dict) else _image_height(source)
+                c.bump = (*bump, (height, strength, distance))
 
     def displacement(self, sock, material):
         """The bump (as :meth:`bent_normal`'s) of a Displacement node on the material output's

@@ -1387,7 +1387,9 @@ def test_principled_mapping(scene):
 def test_a_displacement_node_becomes_a_bump(scene):
     """Material Output > Displacement from a Displacement node: Cycles' default method (Bump Only)
     bends the normal as a Bump of Distance = Scale; true displacement and a Vector Displacement
-    are noted, and a shader with its own bump keeps it."""
+    are noted.  A shader's own Bump (stop 42; before, the displacement was noted and dropped)
+    bends the displaced normal: the displacement is the bump, the shader's the outer bump (an
+    image's height as a program of its luminance); beside a Bump on a Bump it is noted."""
     mat = bs.diffuse("Bumpy")
     nt = mat.node_tree
     disp = nt.nodes.new("ShaderNodeDisplacement")
@@ -1403,6 +1405,27 @@ def test_a_displacement_node_becomes_a_bump(scene):
     row, ex = export_material(mat)
     assert row["bump_program"] >= 0
     assert any("displacement method Both is not supported" in w for w in ex.warnings), ex.warnings
+    mat.displacement_method = "BUMP"
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.05
+    image = nt.nodes.new("ShaderNodeTexImage")
+    image.image = bpy.data.images.new("Height", 4, 4)
+    nt.links.new(image.outputs["Color"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+    row, ex = export_material(mat)
+    programs = ex.scene.materials.programs
+    assert programs[row["bump_program"]]["op"] == "noise" and row["bump_distance"] == pytest.approx(0.3)
+    outer = programs[row["outer_bump_program"]]
+    assert outer["op"] == "gray" and outer["color"]["op"] == "image"
+    assert outer["color"]["texture"] >= 0 and row["outer_bump_distance"] == pytest.approx(0.05)
+    assert not ex.warnings
+    on_top = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(bump.outputs["Normal"], on_top.inputs["Normal"])
+    nt.links.new(nt.nodes.new("ShaderNodeTexWave").outputs["Fac"], on_top.inputs["Height"])
+    nt.links.new(on_top.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+    row, ex = export_material(mat)
+    assert row["bump_texture"] >= 0 and ex.scene.materials.programs[row["outer_bump_program"]]["op"] == "wave"
+    assert any("Displacement output is ignored" in w for w in ex.warnings), ex.warnings
     flat = bs.diffuse("Flat")
     nt = flat.node_tree
     vector = nt.nodes.new("ShaderNodeVectorDisplacement")

@@ -365,7 +365,30 @@ def assert_quarters_match(name, cycles, ours):
     assert abs(ratios[0] - 1.0) < 0.12
 
 
-@pytest.mark.parametrize("invert", [False, True, "displacement", "bump_on_bump"])
+def sine_along_v_bump(nt, distance):
+    """A Bump node in ``nt`` of Distance ``distance`` whose height is sin(6 pi v) over the UVs."""
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = distance
+    nt.links.new(sine_along_v(nt), bump.inputs["Height"])
+    return bump
+
+
+def sine_along_v(nt):
+    """The output socket of nodes in ``nt`` that make sin(6 pi v) over the UVs."""
+    v = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["UV"], v.inputs[0])
+    wave = nt.nodes.new("ShaderNodeMath")
+    wave.operation = "SINE"
+    times = nt.nodes.new("ShaderNodeMath")
+    times.operation = "MULTIPLY"
+    times.inputs[1].default_value = 6.0 * math.pi
+    nt.links.new(v.outputs["Y"], times.inputs[0])
+    nt.links.new(times.outputs[0], wave.inputs[0])
+    return wave.outputs[0]
+
+
+@pytest.mark.parametrize("invert", [False, True, "displacement", "bump_on_bump", "displacement_and_bump",
+                                    "bump_on_displacement"])
 def test_bump_map_matches_cycles(addon, tmp_path, invert):
     """A diffuse floor whose Bump node takes its height from an image of two sine waves along u
     (the normal swings up to 32 degrees either way), under a sun at 45 degrees; inverted, the
@@ -373,7 +396,10 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
     (Scale 0.2) on the material output, which Cycles' default Displacement Method (Bump Only)
     turns into the same bump.  ``bump_on_bump`` (stop 41; before, the outer Bump was noted and
     dropped): a second Bump over the first, of three sine waves along v (distance 0.15), bends the
-    normal the first made (``Materials.outer_bump_program``)."""
+    normal the first made (``Materials.outer_bump_program``).  ``displacement_and_bump`` (stop 42;
+    before, the displacement was noted and dropped): the displacement of the first, and the
+    shader's own Bump of the second, which bends the displaced normal; ``bump_on_displacement``:
+    the other way round, the second's displacement (Scale 0.15) under the first's Bump."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
         u = (np.arange(32) + 0.5) / 32
@@ -386,30 +412,27 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
         nt = mat.node_tree
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
-        if invert == "displacement":
+        if invert in ("displacement", "displacement_and_bump"):
             disp = nt.nodes.new("ShaderNodeDisplacement")
             disp.inputs["Scale"].default_value = 0.2
             nt.links.new(tex.outputs["Color"], disp.inputs["Height"])
             nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+            if invert == "displacement_and_bump":
+                bump = sine_along_v_bump(nt, 0.15)
+                nt.links.new(bump.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
         else:
             bump = nt.nodes.new("ShaderNodeBump")
             bump.invert = invert is True
             bump.inputs["Distance"].default_value = 0.2
             nt.links.new(tex.outputs["Color"], bump.inputs["Height"])
             nt.links.new(bump.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+            if invert == "bump_on_displacement":
+                disp = nt.nodes.new("ShaderNodeDisplacement")
+                disp.inputs["Scale"].default_value = 0.15
+                nt.links.new(sine_along_v(nt), disp.inputs["Height"])
+                nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
             if invert == "bump_on_bump":
-                outer = nt.nodes.new("ShaderNodeBump")
-                outer.inputs["Distance"].default_value = 0.15
-                v = nt.nodes.new("ShaderNodeSeparateXYZ")
-                nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["UV"], v.inputs[0])
-                wave = nt.nodes.new("ShaderNodeMath")
-                wave.operation = "SINE"
-                times = nt.nodes.new("ShaderNodeMath")
-                times.operation = "MULTIPLY"
-                times.inputs[1].default_value = 6.0 * math.pi
-                nt.links.new(v.outputs["Y"], times.inputs[0])
-                nt.links.new(times.outputs[0], wave.inputs[0])
-                nt.links.new(wave.outputs[0], outer.inputs["Height"])
+                outer = sine_along_v_bump(nt, 0.15)
                 nt.links.new(bump.outputs["Normal"], outer.inputs["Normal"])
                 nt.links.new(outer.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
         bm = bmesh.new()
