@@ -754,7 +754,8 @@ def _plain_image(e) -> bool:
 
 def _image_height(texture: int) -> dict:
     """The height program of a bump by an image's index (its colour's luminance, on the UV map)."""
-    return {"op": "gray", "color": {"op": "image", "texture": texture, "vector": {"op": "attribute", "name": "uv"}}}
+    image = {"op": "image", "texture": texture, "vector": {"op": "attribute", "name": "uv"}}
+    return {"op": "gray", "color": image}
 
 
 def textured(source) -> bool:
