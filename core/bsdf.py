@@ -176,7 +176,8 @@ def coat_variants(mats):
     changes["glossy_fresnel_rise"][new] = 1.0 - f0[:, None]
     changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
     for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "outer_bump_strength",
-                 "outer_bump_distance", "diffuse_layer_weight", "glossy_stretch", "glossy_metal_share"):
+                 "outer_bump_distance", "coat_bump_strength", "coat_bump_distance", "diffuse_layer_weight",
+                 "glossy_stretch", "glossy_metal_share"):
         changes[name][new] = 1.0
     names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique]
     return (dataclasses.replace(mats, names=names, **changes),
@@ -208,6 +209,7 @@ class MaterialTable:
     layer: np.ndarray           # (M, MS_NODES + 1) float64 diffuse weight factor at the view cosine
     score_extra: np.ndarray     # (M, L) float64 lobe-score terms of the rise and the layer (mean)
     normal_mapped: np.ndarray = None  # (M,) bool: a normal or bump map (image or program) bends the normal
+    #                                   (or the coat's: Materials.coat_normal_program, coat_bump_program)
     program: np.ndarray = None        # (M,) int32 procedural diffuse colour (Materials.programs) or -1
     glossy_program: np.ndarray = None  # (M,) int32 procedural glossy colour or -1 ...
     glossy_program_lobe: np.ndarray = None  # (M,) int64 ... of this lobe (MIRROR where a sharp glossy merged)
@@ -341,6 +343,8 @@ class MaterialTable:
                              | (np.asarray(mats.bump_texture) >= 0)
                              | (np.asarray(_or_none(mats.bump_program, m)) >= 0)
                              | (np.asarray(_or_none(mats.outer_bump_program, m)) >= 0)
+                             | (np.asarray(_or_none(mats.coat_normal_program, m)) >= 0)
+                             | (np.asarray(_or_none(mats.coat_bump_program, m)) >= 0)
                              | (np.asarray(_or_none(mats.normal_program, m)) >= 0), program=program,
                              glossy_program=glossy_program,
                              glossy_program_lobe=np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR),

@@ -47,6 +47,8 @@ class Surface:
     nn: np.ndarray = None   # (n, 3) float64 shading normal before normal maps; None without normal maps
     tangent: np.ndarray = None  # (n, 3) float64 unit tangent of anisotropic glossy lobes (0 at other
     #                             points; :meth:`RenderContext.tangents`); None in scenes without them
+    nc: np.ndarray = None   # (n, 3) float64 the coats' normal (Materials.coat_normal_program and
+    #                         coat_bump_*; nn elsewhere); None in scenes without them: nn is the coats'
 
 
 class RenderContext:
@@ -176,6 +178,12 @@ class RenderContext:
         self.outer_bump_strength = np.asarray(mats.outer_bump_strength, np.float64)
         self.outer_bump_distance = np.asarray(mats.outer_bump_distance, np.float64)
         self.normal_program = np.asarray(mats.normal_program, np.int32)
+        # A coat's own normal (Principled's Coat Normal), or None: the one before the maps.
+        self.coat_normal_program = np.asarray(mats.coat_normal_program, np.int32)
+        self.coat_bump_program = np.asarray(mats.coat_bump_program, np.int32)
+        self.coat_bump_strength = np.asarray(mats.coat_bump_strength, np.float64)
+        self.coat_bump_distance = np.asarray(mats.coat_bump_distance, np.float64)
+        self.has_coat_normals = bool(((self.coat_normal_program >= 0) | (self.coat_bump_program >= 0)).any())
 
     @property
     def effects(self) -> tuple:
@@ -624,9 +632,14 @@ class RenderContext:
         uv = None
         if self.uses_uvs.take(mat).any():
             uv = interpolate_corners(self.scene.uvs.take(prim_ids, axis=0), bary)
-        nn = None
+        nn = nc = None
         if self.has_normal_maps:
             nn = ns.copy()
+            if self.has_coat_normals:
+                nc = ns.copy()
+                self._apply_normal_programs(nc, prim_ids, bary, pos, mat, rays, self.coat_normal_program)
+                self._bump_by_programs(nc, prim_ids, bary, pos, mat, rays, self.coat_bump_program,
+                                       self.coat_bump_strength, self.coat_bump_distance)
             self._apply_normal_programs(ns, prim_ids, bary, pos, mat, rays)
             self._apply_normal_maps(ns, prim_ids, bary, uv, mat)
             self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat, rays)
@@ -666,7 +679,7 @@ class RenderContext:
         tangent = None
         if self.table.has_anisotropy:
             tangent = self.tangents(prim_ids, bary, pos, mat, ns if nn is None else nn, ns, rays)
-        return Surface(pos, ng, ns, mat, colors, nn, tangent)
+        return Surface(pos, ng, ns, mat, colors, nn, tangent, nc)
 
     def tangents(self, prim_ids, bary, pos, mat, smooth, ns, rays=None):
         """(n, 3) the tangents of anisotropic glossy lobes at hits (0 where the material ``mat`` has
@@ -802,11 +815,11 @@ class RenderContext:
             attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)
             yield sel, evaluate_color(self.programs[p], attrs, self.textures.images, limit)
 
-    def _apply_normal_programs(self, ns, prim_ids, bary, pos, mat, rays):
+    def _apply_normal_programs(self, ns, prim_ids, bary, pos, mat, rays, programs=None):
         """Replace ``ns`` (n, 3) in place by the normalised value of the material's normal program
-        (``Materials.normal_program``) where it has one, keeping ``ns`` where that is zero or not
-        finite (Cycles' ``safe_normalize_fallback``)."""
-        program = self.normal_program.take(mat)
+        (``programs`` per material, None: ``Materials.normal_program``) where it has one, keeping
+        ``ns`` where that is zero or not finite (Cycles' ``safe_normalize_fallback``)."""
+        program = (self.normal_program if programs is None else programs).take(mat)
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
             attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)

@@ -364,22 +364,30 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
 
 def coat_normals(surf, mats):
     """Shading normals at hits whose materials ``mats`` (after :func:`~core.bsdf.pick_coat`) may be
-    coats: the normal before normal and bump maps there, which do not bend a coat."""
+    coats: the coat's own there (:func:`coat_normal`)."""
     if surf.nn is None:
         return surf.ns
-    return np.where((mats != surf.mat_ids)[:, None], surf.nn, surf.ns)
+    return np.where((mats != surf.mat_ids)[:, None], coat_normal(surf), surf.ns)
+
+
+def coat_normal(surf):
+    """(n, 3) the coats' normals at ``surf``: the normal before normal and bump maps, which do not
+    bend a coat, unless the coat has its own (``Surface.nc``)."""
+    if surf.nc is not None:
+        return surf.nc
+    return surf.ns if surf.nn is None else surf.nn
 
 
 def coat_attenuation(table, surf, wo, rows):
     """(k, 3) factors under the coats at hits ``rows`` of ``surf`` seen from ``wo`` (rows whose
     materials have no coat get 1): :meth:`~core.bsdf.MaterialTable.coat_attenuation` at the view
-    cosine with the normal before normal and bump maps."""
+    cosine with the coat's normal (:func:`coat_normal`)."""
     mats = surf.mat_ids.take(rows)
     out = np.ones((len(rows), 3))
     coated = np.flatnonzero(table.coat_row.take(mats) >= 0)
     if len(coated):
         r = rows.take(coated)
-        n_c = (surf.ns if surf.nn is None else surf.nn).take(r, axis=0)
+        n_c = coat_normal(surf).take(r, axis=0)
         out[coated] = table.coat_attenuation(mats.take(coated), np.abs(dot(wo.take(r, axis=0), n_c)))
     return out
 

@@ -570,17 +570,20 @@ class PhotonBatch:
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
 VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium",
-                 "volume", "tangent")
+                 "volume", "tangent", "nc")
 
 
-def _vertex_arrays(n, lobes, tangents=False):
-    """Per-path vertex records (``VERTEX_FIELDS``; ``tangent`` only with ``tangents``)."""
+def _vertex_arrays(n, lobes, tangents=False, coat_normals=False):
+    """Per-path vertex records (``VERTEX_FIELDS``; ``tangent`` only with ``tangents``, ``nc`` only
+    with ``coat_normals``)."""
     out = {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
             "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
             "prim": np.zeros(n, np.int32), "medium": np.full(n, -1, np.int32), "volume": np.zeros(n, bool)}
     if tangents:
         out["tangent"] = np.zeros((n, 3))
+    if coat_normals:
+        out["nc"] = np.zeros((n, 3))
     return out
 
 
@@ -616,7 +619,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         last_join = int(resume["bounce"].max())
     m = target.points.count
     pairs = {"path": [], "point": [], "value": [], "bounce": []}
-    first = _vertex_arrays(n, table.lobes, table.has_anisotropy) if collect_pairs else None
+    first = (_vertex_arrays(n, table.lobes, table.has_anisotropy, ctx.has_coat_normals) if collect_pairs
+             else None)
     own_sums = not collect_pairs and sums is None
     if own_sums:
         sums = PointSums(target.n_slots)
@@ -770,6 +774,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                         first[key][new] = val
                     if surf.tangent is not None:
                         first["tangent"][new] = surf.tangent[rows]
+                    if surf.nc is not None:
+                        first["nc"][new] = surf.nc[rows]
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
@@ -793,7 +799,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 prim = np.concatenate([prim, resume["prim"][join]])
                 medium = np.concatenate([medium, resume["medium"][join]])
                 surf = _join_surfaces(surf, resume, join, ctx.has_shading_normals, ctx.has_normal_maps,
-                                      table.has_anisotropy)
+                                      table.has_anisotropy, ctx.has_coat_normals)
         if bounce == max_bounces or (len(idx) == 0 and vert is None):
             continue
         if len(idx):
@@ -920,7 +926,8 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
         u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
 
 
-def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps, has_anisotropy):
+def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps, has_anisotropy,
+                   has_coat_normals):
     """``surf`` followed by the recorded vertices ``join`` of ``resume``."""
     def cat(a, key):
         return np.concatenate([a, resume[key][join]])
@@ -928,5 +935,6 @@ def _join_surfaces(surf, resume, join, has_shading_normals, has_normal_maps, has
     ns = cat(surf.ns, "ns") if has_shading_normals else ng
     nn = cat(surf.nn, "nn") if has_normal_maps else None
     tangent = cat(surf.tangent, "tangent") if has_anisotropy else None
+    nc = cat(surf.nc, "nc") if has_coat_normals else None
     return Surface(cat(surf.position, "position"), ng, ns, cat(surf.mat_ids, "mat_ids"),
-                   cat(surf.colors, "colors"), nn, tangent)
+                   cat(surf.colors, "colors"), nn, tangent, nc)

@@ -220,6 +220,11 @@ class Materials:
     taken by finite differences along the triangle's edges.  Before both, ``normal_program`` >= 0
     is a vector program whose value, normalised, is the shading normal (a BSDF's Normal input fed
     by a Bevel node or any vector: Cycles' ``safe_normalize_fallback`` to the surface's own).
+
+    A coat (``coat_weight``) takes the surface's normal before all of those, unless it has its own
+    (Principled's Coat Normal): ``coat_normal_program`` >= 0 gives it as ``normal_program`` does,
+    and ``coat_bump_program`` >= 0, with ``coat_bump_strength`` and ``coat_bump_distance``, then
+    bends it as ``bump_program`` does.
     """
 
     names: list = field(default_factory=list)          # M material names (for messages)
@@ -277,6 +282,10 @@ class Materials:
     coat_roughness: np.ndarray = None                   # (M,) float32 in [0, 1]; None: 0.03
     coat_ior: np.ndarray = None                         # (M,) float32 >= 1; None: 1.5
     coat_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
+    coat_normal_program: np.ndarray = None              # (M,) int32, index into programs or -1; None: -1
+    coat_bump_program: np.ndarray = None                # (M,) int32, index into programs or -1; None: -1
+    coat_bump_strength: np.ndarray = None               # (M,) float32 >= 0; None: 1
+    coat_bump_distance: np.ndarray = None               # (M,) float32, any sign; None: 1
     volume_absorption: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     volume_scattering: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     volume_anisotropy: np.ndarray = None                # (M,) float32 in (-1, 1); None: 0
@@ -306,16 +315,18 @@ class Materials:
                     "volume_emission", "glossy_stretch", "glossy_rotation", "glossy_tangent",
                     "rotation_program", "stretch_program", "glossy_metal_tint", "glossy_metal_share",
                     "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program",
-                    "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance")
+                    "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
+                    "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
                       "rotation_program", "stretch_program", "level_program", "normal_program",
-                      "outer_bump_program")
+                      "outer_bump_program", "coat_normal_program", "coat_bump_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
                                      "normal_space")
-    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "glossy_metal_dip",
+    SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "coat_bump_distance",
+                                    "glossy_metal_dip",
                                     "volume_anisotropy", "glossy_rotation", "glossy_metal_tint",
                                     "level_first", "dielectric_roughness")
 
@@ -408,6 +419,10 @@ class Materials:
         out.dielectric_program = np.full(m, -1, np.int32)
         out.bump_program = np.full(m, -1, np.int32)
         out.outer_bump_program = np.full(m, -1, np.int32)
+        out.coat_normal_program = np.full(m, -1, np.int32)
+        out.coat_bump_program = np.full(m, -1, np.int32)
+        out.coat_bump_strength = np.ones(m, np.float32)
+        out.coat_bump_distance = np.ones(m, np.float32)
         out.normal_program = np.full(m, -1, np.int32)
         out.opacity = np.ones(m, np.float32)
         out.opacity_program = np.full(m, -1, np.int32)
@@ -506,6 +521,8 @@ class Materials:
             out.bump_distance[i] = s.get("bump_distance", 1.0)
             out.outer_bump_strength[i] = s.get("outer_bump_strength", 1.0)
             out.outer_bump_distance[i] = s.get("outer_bump_distance", 1.0)
+            out.coat_bump_strength[i] = s.get("coat_bump_strength", 1.0)
+            out.coat_bump_distance[i] = s.get("coat_bump_distance", 1.0)
         return out
 
 
@@ -965,6 +982,8 @@ class Scene:
                                        ("bump_program", (n,), -1), ("opacity", (n,), 1.0),
                                        ("outer_bump_program", (n,), -1), ("outer_bump_strength", (n,), 1.0),
                                        ("outer_bump_distance", (n,), 1.0),
+                                       ("coat_normal_program", (n,), -1), ("coat_bump_program", (n,), -1),
+                                       ("coat_bump_strength", (n,), 1.0), ("coat_bump_distance", (n,), 1.0),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),

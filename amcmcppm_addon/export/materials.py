@@ -159,6 +159,9 @@ class Closure:
     coat_roughness: float = 0.03    # the coat's roughness, IOR and tint
     coat_ior: float = 1.5
     coat_tint: np.ndarray = field(default_factory=lambda: np.ones(3))
+    # The coat's own normal (Principled's Coat Normal): (normal program or None, (height program,
+    # strength, distance) of a bump over it or None); None: the surface's before its maps.
+    coat_normal: tuple = None
     holdout: float = 0.0            # weight of a Holdout shader (what camera rays cut out)
     hidden_rays: int = 0            # VISIBLE_* bits of the camera-path rays that pass through it
 
@@ -221,6 +224,8 @@ class Closure:
         out.coat_ior = _weighted(self.coat_ior, other.coat_ior, ca, cb)
         out.coat_tint = ((ca * self.coat_tint + cb * other.coat_tint) / out.coat if out.coat > 0
                          else np.ones(3))
+        coated = [c for c, w in ((self, ca), (other, cb)) if w > 0]
+        out.coat_normal = coated[0].coat_normal if coated else None
         # One bent normal per material: the first side's that has weight.
         bent = [c for c, f in ((self, fa), (other, fb)) if f > 0 and (c.normal_map or c.bump)]
         out.normal_map, out.bump = (bent[0].normal_map, bent[0].bump) if bent else (None, None)
@@ -410,7 +415,8 @@ class Closure:
         return bool(np.isclose(self.coat, other.coat)
                     and np.isclose(self.coat_roughness, other.coat_roughness)
                     and np.isclose(self.coat_ior, other.coat_ior)
-                    and np.allclose(self.coat_tint, other.coat_tint))
+                    and np.allclose(self.coat_tint, other.coat_tint)
+                and procedural.to_json(self.coat_normal) == procedural.to_json(other.coat_normal))
 
     def beside_plain(self, other) -> bool:
         """Whether this closure's glossy lobe is a whole textured metal and ``other``'s a plain
@@ -597,6 +603,11 @@ class Closure:
         if self.coat > 0:
             s.update(coat=min(self.coat, 1.0), coat_roughness=self.coat_roughness, coat_ior=self.coat_ior,
                      coat_tint=self.coat_tint)
+            normal, bump = self.coat_normal or (None, None)
+            if normal is not None:
+                s["coat_normal_program"] = normal
+            if bump is not None:
+                s["coat_bump_program"], s["coat_bump_strength"], s["coat_bump_distance"] = bump
         if isinstance(self.normal_map, dict):
             s["normal_program"] = self.normal_map
         elif self.normal_map is not None:
@@ -1064,8 +1075,16 @@ class NodeWalker:
         Only method bends the normal every unlinked Normal input starts from, so a shader's own
         Bump (whose Normal is unlinked) bends the displaced normal: the displacement becomes the
         inner bump and the shader's the outer one (``Materials.outer_bump_*``).  Beside a normal
-        map, or under a Bump on a Bump (a third bump), the displacement is noted and dropped."""
+        map, or under a Bump on a Bump (a third bump), the displacement is noted and dropped.  A
+        coat whose Coat Normal is unlinked takes the displaced normal too (a bump of the coat);
+        under the coat's own Bump it is noted and dropped there."""
+        source = bump[0] if isinstance(bump[0], dict) else _image_height(bump[0])
         for c in [closure] + (closure.levels[1] if closure.levels is not None else []):
+            if c.coat > 0 and c.coat_normal is None:
+                c.coat_normal = (None, (source, *bump[1:3]))
+            elif c.coat > 0 and c.coat_normal[1] is not None:
+                self.note("the Displacement output does not bend a coat under its own Bump (one bump "
+                          "per coat)")
             if c.normal_map is not None or (c.bump is not None and len(c.bump) > 3):
                 self.note("the Displacement output is ignored beside the shader's own normal map or "
                           "Bump on a Bump")
@@ -1357,6 +1376,26 @@ class NodeWalker:
         # A Bump on a Bump: this one bends the normal the inner one made (its height as a program).
         height = self.programs.expression(node.inputs["Height"], stack, FLOAT)
         return inner, (*inner_bump, (height, strength, distance))
+
+    def coat_normal(self, node, stack):
+        """The coat's own normal (``Closure.coat_normal``) from Principled ``node``'s Coat Normal: a
+        program of the normal and at most one Bump over it (its height a program); a Normal Map
+        of an image or a Bump on a Bump there is noted (the map left out, the outer Bump kept
+        alone).  None where the input is unlinked or bends nothing."""
+        sock = node.inputs["Coat Normal"]
+        if not sock.is_linked:
+            return None
+        normal, bump = self.bent_normal(sock, stack)
+        if normal is not None and not isinstance(normal, dict):
+            self.note(f"'{node.name}': a Normal Map image on the Coat Normal is not supported (left out)")
+            normal = None
+        if bump is not None:
+            if len(bump) > 3:
+                self.note(f"'{node.name}': a Bump on a Bump on the Coat Normal: the outer one alone")
+                bump = bump[3]
+            height, strength, distance = bump[:3]
+            bump = (height if isinstance(height, dict) else _image_height(height), strength, distance)
+        return None if normal is None and bump is None else (normal, bump)
 
     def _bump_height(self, sock, stack):
         """A bump's height source from input ``sock``: an image's index (the core takes its colour's
@@ -1716,9 +1755,6 @@ class NodeWalker:
         emitted = self.emitted(inp["Emission Color"], inp["Emission Strength"], stack)
         coat = fixed.get("Coat Weight")
         coat = float(np.clip(self.value(inp["Coat Weight"], stack), 0.0, 1.0)) if coat is None else coat
-        if coat > 0 and inp["Coat Normal"].is_linked:
-            self.note(f"'{node.name}': Coat Normal not supported (the coat takes the surface's normal "
-                      "before normal and bump maps, Cycles' default)")
         # Cycles: alpha / aspect along the tangent and alpha aspect across it, aspect =
         # sqrt(1 - 0.9 a), for the metal and the specular layer (its glass stays isotropic).
         stretch, stretch_map = self.anisotropy(inp["Anisotropic"], stack, rough_map, 0.0, 1.0,
@@ -1747,6 +1783,7 @@ class NodeWalker:
             c.coat_ior = max(self.value(inp["Coat IOR"], stack), 1.0)
             coat_tint, _ = self.color(inp["Coat Tint"], stack)
             c.coat_tint = np.clip(coat_tint, 0.0, 1.0)
+            c.coat_normal = self.coat_normal(node, stack)
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
         eta, f0 = specular_ior(ior, level)

@@ -1479,7 +1479,10 @@ def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
 
 def test_principled_coat_is_exported_with_cycles_clamps(scene):
     """Coat Weight, Roughness, IOR and Tint reach the core (weight and tint saturated, the IOR at
-    least 1, as Cycles); no coat without weight; a linked Coat Normal is noted."""
+    least 1, as Cycles); no coat without weight.  A Bump on the Coat Normal (stop 42; before,
+    noted and left out) bends the coat alone (``coat_bump_program``); a Normal Map image there is
+    noted, and so is a Bump on a Bump (the outer one kept).  A Displacement output bends an
+    unlinked Coat Normal too (Cycles' Bump Only)."""
     row, ex = export_material(principled("Varnish", **{"Coat Weight": 0.7, "Coat Roughness": 0.2,
                                                        "Coat IOR": 1.8, "Coat Tint": (1.2, 0.5, 0.25, 1)}))
     assert row["coat_weight"] == pytest.approx(0.7) and row["coat_roughness"] == pytest.approx(0.2)
@@ -1504,9 +1507,39 @@ def test_principled_coat_is_exported_with_cycles_clamps(scene):
     mat = principled("Bumped", **{"Coat Weight": 1.0})
     nt = mat.node_tree
     bump = nt.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.04
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], bump.inputs["Height"])
     nt.links.new(bump.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Coat Normal"])
-    _, ex = export_material(mat)
-    assert any("Coat Normal not supported" in w for w in ex.warnings), ex.warnings
+    row, ex = export_material(mat)
+    programs = ex.scene.materials.programs
+    assert programs[row["coat_bump_program"]]["op"] == "noise"
+    assert row["coat_bump_distance"] == pytest.approx(0.04) and row["coat_normal_program"] < 0
+    assert row["bump_program"] < 0 and row["bump_texture"] < 0 and not ex.warnings
+    normal_map = nt.nodes.new("ShaderNodeNormalMap")
+    image = nt.nodes.new("ShaderNodeTexImage")
+    image.image = bpy.data.images.new("Normals", 4, 4)
+    nt.links.new(image.outputs["Color"], normal_map.inputs["Color"])
+    nt.links.new(normal_map.outputs["Normal"], bump.inputs["Normal"])
+    row, ex = export_material(mat)
+    assert row["coat_bump_program"] >= 0 and row["normal_texture"] < 0
+    assert any("Normal Map image on the Coat Normal" in w for w in ex.warnings), ex.warnings
+    outer = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(nt.nodes.new("ShaderNodeTexWave").outputs["Fac"], outer.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], outer.inputs["Normal"])
+    nt.links.new(outer.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Coat Normal"])
+    nt.links.remove(normal_map.outputs["Normal"].links[0])
+    row, ex = export_material(mat)
+    assert ex.scene.materials.programs[row["coat_bump_program"]]["op"] == "wave"
+    assert any("Bump on a Bump on the Coat Normal" in w for w in ex.warnings), ex.warnings
+    displaced = principled("Displaced", **{"Coat Weight": 1.0})
+    nt = displaced.node_tree
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    disp.inputs["Scale"].default_value = 0.3
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], disp.inputs["Height"])
+    nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+    row, ex = export_material(displaced)
+    assert row["coat_bump_program"] == row["bump_program"] >= 0
+    assert row["coat_bump_distance"] == row["bump_distance"] == pytest.approx(0.3)
 
 
 def test_volumes_are_exported_as_cycles_coefficients(scene):

@@ -1185,6 +1185,38 @@ def test_principled_coat_matches_cycles(addon, tmp_path, shader):
     assert min(block_correlation(f"coat, {shader}", cycles, ours)) > 0.99
 
 
+@pytest.mark.parametrize("bent", ["coat", "base", "displaced"])
+def test_coat_normal_matches_cycles(addon, tmp_path, bent):
+    """The corner's floor a dark red Principled BSDF (roughness 0.5) under a coat of roughness 0.1,
+    under the area light, bent by a Bump of wave bands (distance 0.05): on the Coat Normal alone
+    (stop 42, ``Materials.coat_bump_program``; before, noted and the coat left flat), on the
+    Normal alone (the coat stays flat: Cycles' unlinked Coat Normal), or as the Displacement
+    output (Bump Only), which bends both."""
+    def build():
+        corner_scene()
+        nt, bsdf = floor_shader("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Base Color"].default_value = (0.3, 0.03, 0.03, 1.0)
+        bsdf.inputs["Roughness"].default_value = 0.5
+        bsdf.inputs["Coat Weight"].default_value = 1.0
+        bsdf.inputs["Coat Roughness"].default_value = 0.1
+        wave = nt.nodes.new("ShaderNodeTexWave")
+        wave.inputs["Scale"].default_value = 1.5
+        if bent == "displaced":
+            disp = nt.nodes.new("ShaderNodeDisplacement")
+            disp.inputs["Scale"].default_value = 0.05
+            nt.links.new(wave.outputs["Fac"], disp.inputs["Height"])
+            nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+        else:
+            bump = nt.nodes.new("ShaderNodeBump")
+            bump.inputs["Distance"].default_value = 0.05
+            nt.links.new(wave.outputs["Fac"], bump.inputs["Height"])
+            nt.links.new(bump.outputs["Normal"], bsdf.inputs["Coat Normal" if bent == "coat" else "Normal"])
+        add_emitter("area_square")
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_quarters_match(f"coat normal, {bent}", cycles, ours)
+    assert min(block_correlation(f"coat normal, {bent}", cycles, ours)) > 0.99
+
+
 # (node, inputs, relative tolerance): the physical conductor (gold) is the F82 curve through its
 # reflectance face on and at cos 1/7, whose blue lies up to 0.023 off the conductor's own curve.
 METALS = {

@@ -171,3 +171,40 @@ def test_coats_survive_a_file_round_trip_and_bad_values_are_refused(tmp_path):
     for key, value in (("coat", 1.5), ("coat_ior", 0.5), ("coat_roughness", -0.1)):
         with pytest.raises(SceneError, match=f"materials.{key if key != 'coat' else 'coat_weight'}"):
             sky_over_floor(resolution=(4, 4), material={**spec, key: value})
+
+
+TILT = np.radians(20.0)
+TILTED = np.array([0.0, -np.sin(TILT), np.cos(TILT)])          # towards the camera (at -y)
+Y = {"op": "separate", "vector": {"op": "attribute", "name": "position"}, "output": "Y"}
+COAT_NORMALS = {
+    "normal": {"coat_normal_program": {"op": "combine", "x": 0.0, "y": float(TILTED[1]), "z": float(TILTED[2])}},
+    # Cycles' Bump: N' = normalize(N - d grad h), so a height of tan(20 deg) y tilts it alike.
+    "bump": {"coat_bump_program": {"op": "math", "operation": "MULTIPLY", "a": Y, "b": float(np.tan(TILT))},
+             "coat_bump_distance": 1.0},
+}
+
+
+@pytest.mark.parametrize("how", sorted(COAT_NORMALS))
+def test_a_coat_normal_tilts_the_coat_alone(how):
+    """A coat with its own normal (Principled's Coat Normal: ``Materials.coat_normal_program``, or
+    ``coat_bump_program`` rising along y), tilted 20 degrees towards the camera, over a diffuse
+    base of 0.5 under a constant sky: the closed form with the view cosine mu' = wo . n_coat, for
+    the coat's albedo and the dimming under it (every reflection stays above the floor).  The
+    base's own normal is untouched.  Within 3 % per half (4 seeds x 8 passes); the flat coat's
+    closed form is off by more than 10 % in the far half, where the tilt turns the coat's mirror
+    from grazing to 28 degrees."""
+    spec = {"diffuse": 0.5, "coat": 1.0, "coat_roughness": 0.1}
+    scene = sky_over_floor(resolution=RESOLUTION, material={**spec, **COAT_NORMALS[how]})
+    cam = scene.camera
+    w, h = cam.resolution
+    _, dirs, _, _ = generate_camera_rays(cam, np.arange(w * h), np.full((w * h, 4), 0.5))
+    mu = -dirs @ TILTED
+    assert (2 * mu[:, None] * TILTED + dirs)[:, 2].min() > 0.1        # (the reflections' elevation)
+    a = coat_albedo(mu, 0.1, 1.5)
+    want = halves(np.repeat((a + 0.5 * (1.0 - a)).reshape(h, w, 1), 3, axis=2))
+    got = rendered_halves(scene, METHODS[0], 4, 8)
+    flat = halves(expected_floor(scene, spec))
+    print(f"coat normal by {how}, ours / closed form:", np.round(got / want, 3).tolist(),
+          "flat coat's / closed form:", np.round(flat / want, 3).tolist())
+    np.testing.assert_allclose(got, want, rtol=0.03)
+    assert (flat[0] / want[0] > 1.1).all()
