@@ -177,7 +177,8 @@ TILT = np.radians(20.0)
 TILTED = np.array([0.0, -np.sin(TILT), np.cos(TILT)])          # towards the camera (at -y)
 Y = {"op": "separate", "vector": {"op": "attribute", "name": "position"}, "output": "Y"}
 COAT_NORMALS = {
-    "normal": {"coat_normal_program": {"op": "combine", "x": 0.0, "y": float(TILTED[1]), "z": float(TILTED[2])}},
+    "normal": {"coat_normal_program": {"op": "combine", "x": 0.0, "y": float(TILTED[1]),
+                                       "z": float(TILTED[2])}},
     # Cycles' Bump: N' = normalize(N - d grad h), so a height of tan(20 deg) y tilts it alike.
     "bump": {"coat_bump_program": {"op": "math", "operation": "MULTIPLY", "a": Y, "b": float(np.tan(TILT))},
              "coat_bump_distance": 1.0},
