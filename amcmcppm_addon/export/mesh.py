@@ -543,6 +543,9 @@ ATTRIBUTE_TYPES = {"FLOAT": ("value", 1, np.float32), "INT": ("value", 1, np.int
 # internal names start with a dot: no attribute of the mesh has it).
 RANDOM_PER_ISLAND = ".random_per_island"
 POINTINESS = ".pointiness"                      # (and Geometry's Pointiness)
+# ALPHA + a name: the Alpha of that attribute (an Attribute or Color Attribute node's): a colour's
+# alpha, 1 for the other types and where the mesh has none; ALPHA alone: the render colour attribute's.
+ALPHA = ".alpha:"
 # Point Info's outputs (a point cloud's spheres: their point's centre, radius and Cycles' random
 # number hash_uint2_to_float(index, 0)), read as named attributes; 0 on meshes, as in Cycles.
 POINT_POSITION, POINT_RADIUS, POINT_RANDOM = ".point_position", ".point_radius", ".point_random"
@@ -627,8 +630,8 @@ def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
     """{name: (T, 3, 3) float32} of the ``names`` the mesh has as attributes Cycles reads by name (a
     float repeated in x, y, z; a 2D value (x, y, 0); a colour's linear RGB), per triangle corner
     from its point, corner or face domain (``tri_loops``, ``tri_poly``: None where only the two
-    computed ones, ``RANDOM_PER_ISLAND`` and ``POINTINESS``, are asked for); the others are left
-    out (0, as in Cycles), an unusable one with a warning."""
+    computed ones, ``RANDOM_PER_ISLAND`` and ``POINTINESS``, are asked for); an ``ALPHA`` name its
+    attribute's alpha; the others are left out (0, as in Cycles), an unusable one with a warning."""
     out = {}
     for name in sorted(names):
         if name in (RANDOM_PER_ISLAND, POINTINESS):
@@ -638,7 +641,8 @@ def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
                 values = pointiness(me).take(tri_vert)
             out[name] = np.repeat(values[:, :, None], 3, axis=2).astype(np.float32)
             continue
-        attr = me.attributes.get(name)
+        alpha = name.startswith(ALPHA)
+        attr = _attribute(me, name[len(ALPHA):] if alpha else name)
         if attr is None:
             continue
         kind = ATTRIBUTE_TYPES.get(attr.data_type)
@@ -648,17 +652,31 @@ def _named_attributes(me, names, tri_vert, tri_loops, tri_poly, mesh_name, log):
             log.warning(f"object '{mesh_name}': attribute '{name}' ({attr.data_type.lower()} on the "
                         f"{attr.domain.lower()} domain) cannot be read; it reads 0")
             continue
-        out[name] = np.take(_attribute_values(attr, kind), rows, axis=0)
+        out[name] = np.take(_attribute_values(attr, kind, alpha), rows, axis=0)
     return out
 
 
-def _attribute_values(attr, kind):
+def _attribute(me, name):
+    """Mesh ``me``'s attribute ``name`` ('': the render colour attribute), or None."""
+    if name:
+        return me.attributes.get(name)
+    attrs = me.color_attributes
+    index = attrs.render_color_index
+    return me.attributes.get(attrs[index].name) if len(attrs) and 0 <= index < len(attrs) else None
+
+
+def _attribute_values(attr, kind, alpha=False):
     """(n, 3) float32 values of a Blender attribute of ``ATTRIBUTE_TYPES`` entry ``kind``, as Cycles
-    reads them by name: a float repeated in x, y, z; a 2D value (x, y, 0); a colour's RGB."""
+    reads them by name: a float repeated in x, y, z; a 2D value (x, y, 0); a colour's RGB.  With
+    ``alpha``: its Alpha (Cycles' attribute node), repeated in x, y, z: a colour's, 1 for the others."""
     prop, k, dtype = kind
+    if alpha and k != 4:
+        return np.ones((len(attr.data), 3), np.float32)
     flat = np.empty(len(attr.data) * k, dtype)
     attr.data.foreach_get(prop, flat)
     values = flat.reshape(-1, k).astype(np.float32)
+    if alpha:
+        return np.repeat(values[:, 3:], 3, axis=1)
     return {1: np.repeat(values, 3, axis=1), 2: np.pad(values, ((0, 0), (0, 1))), 3: values,
             4: values[:, :3]}[k]
 
@@ -842,9 +860,12 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
         out["texture_spaces"] = np.repeat(np.asarray(local.texspace, np.float64)[None], k, axis=0)
     for key in coordinates:
         if key == "color" or key.startswith(NAMED):
-            # Meshes without such a colour attribute (or named one) read 0, as in Cycles.
+            # Meshes without such a colour attribute (or named one) read 0, as in Cycles, and its
+            # Alpha 1.
             c = local.colors if key == "color" else local.attributes.get(key[len(NAMED):])
-            c = np.repeat((c if c is not None else np.zeros((n_t, 3, 3), np.float32))[None], k, axis=0)
+            if c is None:
+                c = np.full((n_t, 3, 3), 1.0 if key.startswith(NAMED + ALPHA) else 0.0, np.float32)
+            c = np.repeat(c[None], k, axis=0)
             if key == NAMED + POINT_POSITION and local.attributes.get(POINT_POSITION) is not None:
                 # Point Info's Position is in world space: each instance's point centres moved with it.
                 c = (np.matmul(c.astype(np.float64), rot[:, None].transpose(0, 1, 3, 2))

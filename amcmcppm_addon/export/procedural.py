@@ -28,7 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
-from .mesh import POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS, RANDOM_PER_ISLAND, rna_property
+from .mesh import (ALPHA, POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS, RANDOM_PER_ISLAND,
+                   rna_property)
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
 FLOAT, VEC = "float", "vec"
@@ -254,10 +255,15 @@ def _uv_map(b, node, stack):
 
 
 def _color_attribute(b, node, stack):
-    """Color Attribute: the render colour attribute, or the one it names (its Alpha then noted)."""
+    """Color Attribute: the render colour attribute, or the one it names, and its Alpha."""
     if node.layer_name:
-        return {"Color": _named(node.layer_name)}
-    return {"Color": {"op": "attribute", "name": "color"}, "Alpha": 1.0}
+        return {"Color": _named(node.layer_name), "Alpha": _alpha(_named(ALPHA + node.layer_name))}
+    return {"Color": {"op": "attribute", "name": "color"}, "Alpha": _alpha(_named(ALPHA))}
+
+
+def _alpha(value):
+    """The float of a program ``value`` whose x, y and z are one number (an attribute's Alpha)."""
+    return {"op": "separate", "vector": value, "output": "X"}
 
 
 # Cycles' standard attribute names (``Attribute::standard_name``), which an Attribute node reads
@@ -279,7 +285,8 @@ def _attribute(b, node, stack):
     standard names first (``VOLUME_ATTRIBUTES``: 0; Generated and UV).  Of the Object and Instancer
     types: the object's property at that RNA path (``mesh.object_property``); of the View Layer
     type, one value for the render: the view layer's, the scene's or the world's
-    (``view_layer_owners``).  Alpha and the other standard names are noted."""
+    (``view_layer_owners``).  Alpha (of the Geometry type): a colour attribute's alpha, 1 for the
+    others and where there is none (``mesh.ALPHA``).  The other standard names are noted."""
     if node.attribute_type in ("OBJECT", "INSTANCER") and node.attribute_name:
         value = {"op": "attribute", "name": f"{node.attribute_type.lower()}:{node.attribute_name}"}
         return {"Color": value, "Vector": value, "Fac": {"op": "average", "vector": value}}
@@ -294,10 +301,14 @@ def _attribute(b, node, stack):
         b.walker.note(f"'{node.name}': {what} not supported")
         return None
     if name in VOLUME_ATTRIBUTES:
-        return {"Color": [0.0, 0.0, 0.0], "Vector": [0.0, 0.0, 0.0], "Fac": 0.0}
-    value = ({"op": "attribute", "name": STANDARD_COORDINATES[name]} if name in STANDARD_COORDINATES
-             else _named(STANDARD_NAMED.get(name, name)))
-    return {"Color": value, "Vector": value, "Fac": {"op": "average", "vector": value}}
+        return {"Color": [0.0, 0.0, 0.0], "Vector": [0.0, 0.0, 0.0], "Fac": 0.0, "Alpha": 1.0}
+    if name in STANDARD_COORDINATES or name in STANDARD_NAMED:
+        value = ({"op": "attribute", "name": STANDARD_COORDINATES[name]} if name in STANDARD_COORDINATES
+                 else _named(STANDARD_NAMED[name]))
+        alpha = 1.0
+    else:
+        value, alpha = _named(name), _alpha(_named(ALPHA + name))
+    return {"Color": value, "Vector": value, "Fac": {"op": "average", "vector": value}, "Alpha": alpha}
 
 
 def view_layer_owners(depsgraph):

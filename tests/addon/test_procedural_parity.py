@@ -663,6 +663,43 @@ def test_named_attributes_match_cycles(addon, tmp_path, graph):
     compare(ours, cycles, f"named attribute, {graph}")
 
 
+@pytest.mark.parametrize("graph", ["attribute_color", "attribute_float", "attribute_missing",
+                                   "attribute_heat", "color_attribute_named", "color_attribute_render"])
+def test_attribute_alpha_matches_cycles(addon, tmp_path, graph):
+    """The Alpha of an Attribute or Color Attribute node (stop 42; before, not an output of ours:
+    the node's Alpha was noted and read as a constant): a colour attribute's alpha interpolated
+    across the plane's two triangles (a corner byte colour 'Paint', the render one a point float
+    colour 'Render'), 1 for a float attribute; an attribute the mesh lacks and a volume grid's
+    name (each plus the gradient)."""
+    import bpy
+
+    def build(nt):
+        if graph.startswith("attribute_"):
+            name = {"attribute_color": "Paint", "attribute_float": "warmth", "attribute_missing": "nothing",
+                    "attribute_heat": "heat"}[graph]
+            source = node(nt, "ShaderNodeAttribute", attribute_name=name).outputs["Alpha"]
+        else:
+            layer = "Paint" if graph == "color_attribute_named" else ""
+            source = node(nt, "ShaderNodeVertexColor", layer_name=layer).outputs["Alpha"]
+        added = graph in ("attribute_missing", "attribute_heat")
+        return with_gradient(nt, source, "ADD" if added else "MULTIPLY")
+
+    mat, positions = bs.texture_plane(build)
+    me = bpy.data.objects["Plane"].data
+    me.attributes.new("warmth", "FLOAT", "POINT").data.foreach_set("value", [0.1, 0.9, 0.4, 0.7])
+    render = me.color_attributes.new("Render", "FLOAT_COLOR", "POINT")
+    render.data.foreach_set("color", [0.5, 0.5, 0.5, 0.9, 0.5, 0.5, 0.5, 0.2,
+                                      0.5, 0.5, 0.5, 0.6, 0.5, 0.5, 0.5, 0.0])
+    me.color_attributes.render_color_index = 0
+    paint = me.color_attributes.new("Paint", "BYTE_COLOR", "CORNER")
+    paint.data.foreach_set("color", [0.9, 0.1, 0.1, 0.1, 0.1, 0.8, 0.2, 0.8,
+                                     0.2, 0.3, 0.9, 0.5, 0.7, 0.7, 0.1, 1.0])
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
+    compare(ours, cycles, f"attribute alpha, {graph}")
+
+
 def test_textures_inside_node_groups_match_cycles(addon, tmp_path):
     """A node group (a checker of the group's Scale and Tint inputs, behind a reroute) used twice
     with other inputs, mixed by a noise: groups, group inputs and reroutes are followed."""
