@@ -97,8 +97,8 @@ from .texture_hash import hash_uint3, hash_uint3_to_float
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
               "object_info", "position", "world_normal", "true_normal", "camera", "window", "incoming",
-              "backfacing", "light_path", "parametric", "edge_distance", "tangent_x", "tangent_y",
-              "tangent_z", "tangent_uv")
+              "backfacing", "light_path", "parametric", "edge_distance", "pixel_width", "tangent_x",
+              "tangent_y", "tangent_z", "tangent_uv")
 # Blender's Geometry node: "position" the hit's world position, "world_normal" the world-space
 # shading normal (interpolated where the mesh is smooth), "true_normal" the facet's; both normals
 # turned towards the ray on a back face, as Cycles turns them (``RAY``).
@@ -117,8 +117,9 @@ CAMERA_PATH = np.array([1.0] + [0.0] * (len(LIGHT_PATH) - 1))      # a camera ra
 # The hit within its triangle: "parametric" (b0, b1, 0), the weights of its first two corners
 # (Geometry's Parametric: Cycles' (1 - u - v, u, 0)), "edge_distance" the distances in world
 # units to the lines through its three edges (of corners 2 and 0, 0 and 1, 1 and 2: Cycles'
-# Wireframe compares them with half its Size).
-TRIANGLE = ("parametric", "edge_distance")
+# Wireframe compares them with half its Size), "pixel_width" (w, w, w) with w the width of the
+# camera's pixel there (Wireframe's Pixel Size, ``HitAttributes._pixel_width``).
+TRIANGLE = ("parametric", "edge_distance", "pixel_width")
 # Tangents at the hits, perpendicular to the shading normal (Blender's Tangent node, Cycles'
 # ``svm_node_tangent``): "tangent_x", "tangent_y", "tangent_z" the radial direction about the
 # object's X, Y or Z axis through the centre of its texture space (from the Generated coordinates;
@@ -465,6 +466,8 @@ class HitAttributes:
         if name == "parametric":
             b0, b1 = (np.asarray(w, np.float64).reshape(-1) for w in self.bary[:2])
             return np.stack([b0, b1, np.zeros_like(b0)], axis=1)
+        if name == "pixel_width":
+            return np.repeat(self._pixel_width()[:, None], 3, axis=1)
         s = self.scene
         c = s.vertices.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
         p = np.asarray(self.positions, np.float64)
@@ -475,6 +478,36 @@ class HitAttributes:
             span = np.maximum(dot(edge, edge), 1e-300)
             out[:, i] = np.sqrt(dot(across, across) / span)
         return out
+
+    def _pixel_width(self):
+        """(k,) the width of the camera's pixel at the hits, as Cycles' Wireframe with Pixel Size
+        measures it for a camera ray: the ray differential's compact size d (a perspective camera:
+        the distance t times the spread of the normalised direction over a pixel, pw n_z
+        (sqrt(1 - n_x^2) + sqrt(1 - n_y^2)) / 2 for the unit direction n in the camera's space and
+        the frame's pixel width pw; orthographic: pw) laid along Cycles' two tangents of the facet
+        (``make_orthonormals``) and projected across the view, d (|a_perp| + |b_perp|) / 2.  Every
+        hit takes the camera's view of it: exact for camera rays, what the camera's pixel covers
+        for photons and for paths past a mirror or glass.  Panoramic cameras: the spread 2 pi / the
+        width in pixels."""
+        cam = self.scene.camera
+        w = cam.resolution[0]
+        pw = (cam.frame[1] - cam.frame[0]) / w
+        c = self.get("camera")
+        t = np.linalg.norm(c, axis=1)
+        n = c / np.maximum(t, 1e-300)[:, None]
+        m = np.asarray(cam.world_from_camera, np.float64)
+        if cam.projection == "orthographic":
+            d = np.full(self.count, pw * np.linalg.norm(m[:3, 0]))
+            view = np.broadcast_to(m[:3, 2] / np.linalg.norm(m[:3, 2]), (self.count, 3))
+        else:
+            spread = (pw * n[:, 2] * (np.sqrt(np.maximum(1.0 - n[:, 0] ** 2, 0.0))
+                                      + np.sqrt(np.maximum(1.0 - n[:, 1] ** 2, 0.0))) / 2
+                      if cam.projection == "perspective" else np.full(self.count, 2.0 * np.pi / w))
+            d = t * spread
+            view = normalize(m[:3, 3] - np.asarray(self.positions, np.float64))
+        a, b = _cycles_orthonormals(self._front("true_normal"))
+        across = [np.sqrt(np.maximum(1.0 - dot(x, view) ** 2, 0.0)) for x in (a, b)]
+        return d * (across[0] + across[1]) / 2
 
     def _front(self, name):
         """(k, 3) the shading ("world_normal") or facet ("true_normal") unit normal on the
@@ -568,6 +601,16 @@ class HitAttributes:
         return (p - space[:, 0]) * half + 0.5
 
 
+def _cycles_orthonormals(n):
+    """Cycles' ``make_orthonormals`` of unit normals ``n`` (k, 3): a = (1, 1, 1) x n normalised (or
+    (-1, 1, 1) x n where n's components are all equal), b = n x a."""
+    x, y, z = n[:, 0], n[:, 1], n[:, 2]
+    equal = (x == y) & (x == z)
+    a = np.stack([z - y, np.where(equal, x + z, x - z), np.where(equal, -y - x, y - x)], axis=1)
+    a = normalize(a)
+    return a, np.cross(n, a)
+
+
 def camera_from_world(camera):
     """(4, 4) world to Cycles' camera space (x right, y up, z the depth in front) of ``camera``."""
     flip = np.diag([1.0, 1.0, -1.0, 1.0])
@@ -648,7 +691,7 @@ class SampledAttributes:
                         "position": 2.0 * g - 1.0, "camera": 2.0 * g - 1.0,
                         "window": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1),
                         "parametric": np.concatenate([g[:, :2], np.zeros((n, 1))], axis=1),
-                        "edge_distance": g}
+                        "edge_distance": g, "pixel_width": 0.01 * g}
         self._values["world_normal"] = self._values["true_normal"] = normals = self._values["normal"]
         # Unit tangents in random directions about the normals.
         across = np.cross(normals, rng.normal(size=(n, 3)))

@@ -196,12 +196,10 @@ def _camera_data(b, node, stack):
 
 
 def _wireframe(b, node, stack):
-    """Wireframe in world units: 1 where the hit lies within half the Size of a line through one
-    of its triangle's edges (Cycles' ``wireframe``: a quad's diagonal shows too), else 0; Pixel
-    Size (the width in pixels) is noted."""
-    if node.use_pixel_size:
-        b.walker.note(f"'{node.name}': Pixel Size is not supported")
-        return None
+    """Wireframe: 1 where the hit lies within half the Size of a line through one of its
+    triangle's edges (Cycles' ``wireframe``: a quad's diagonal shows too), else 0; the Size in
+    world units, or with Pixel Size in the camera's pixels there (``procedural.TRIANGLE``'s
+    "pixel_width")."""
     edges = {"op": "attribute", "name": "edge_distance"}
     nearest = {"op": "math", "operation": "MINIMUM", "a": {"op": "separate", "vector": edges, "output": "X"},
                "b": {"op": "math", "operation": "MINIMUM",
@@ -209,6 +207,9 @@ def _wireframe(b, node, stack):
                      "b": {"op": "separate", "vector": edges, "output": "Z"}}}
     half = {"op": "math", "operation": "ABSOLUTE",
             "a": {"op": "math", "operation": "MULTIPLY", "a": b.input(node, "Size", stack, FLOAT), "b": 0.5}}
+    if node.use_pixel_size:
+        pixel = {"op": "separate", "vector": {"op": "attribute", "name": "pixel_width"}, "output": "X"}
+        half = {"op": "math", "operation": "MULTIPLY", "a": half, "b": pixel}
     return {"Fac": {"op": "math", "operation": "LESS_THAN", "a": nearest, "b": half}}
 
 

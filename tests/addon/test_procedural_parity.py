@@ -1092,8 +1092,8 @@ def camera_data(nt):
     return half_unit(nt, comb.outputs[0])
 
 
-def wireframe(size):
-    return lambda nt: node(nt, "ShaderNodeWireframe", Size=size).outputs["Fac"]
+def wireframe(size, pixels=False):
+    return lambda nt: node(nt, "ShaderNodeWireframe", Size=size, use_pixel_size=pixels).outputs["Fac"]
 
 
 def object_of_an_empty(nt):
@@ -1131,6 +1131,7 @@ VIEW_CASES = {
     "parametric": view_vector("ShaderNodeNewGeometry", "Parametric"),
     "wireframe": wireframe(0.04),
     "wireframe_wide": wireframe(0.3),
+    "wireframe_pixels": wireframe(3.0, pixels=True),
     "reflection": view_vector("ShaderNodeTexCoord", "Reflection"),
     "object_of_an_empty": object_of_an_empty,
 }
@@ -1173,6 +1174,19 @@ def test_nodes_of_the_view_match_cycles(addon, tmp_path, case):
     err = np.abs(ours[on] - np.maximum(cycles[on], 0.0)).max(axis=1)
     print(f"view {case}: max {err.max():.2e}, 99th percentile {np.percentile(err, 99):.2e}")
     assert np.percentile(err, 99) < 1e-4
+
+
+def test_wireframe_in_pixels_matches_cycles_orthographic(addon, tmp_path):
+    """Wireframe with Pixel Size (stop 42; before, noted and left out) under an orthographic
+    camera, whose pixel is as wide everywhere: 4.5 pixels of the plane's diagonal and edges (a
+    width that puts no pixel centre on a line's border: at 3 the centres 1.5 pixels from the
+    plane's edges fall either way, in Cycles as in ours)."""
+    mat, positions = bs.texture_plane(wireframe(4.5, pixels=True), resolution=(40, 40))
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    lines = cycles[..., 0] > 0.5
+    assert 0.05 < lines.mean() < 0.5
+    compare(ours, cycles, "wireframe in pixels, orthographic")
 
 
 TANGENT_CASES = {"geometry": view_vector("ShaderNodeNewGeometry", "Tangent"),
