@@ -218,6 +218,8 @@ class MaterialTable:
     translucent_program: np.ndarray = None  # (M,) int32 procedural translucent colour or -1
     rotation_program: np.ndarray = None     # (M,) int32 float program of an anisotropic lobe's turn or -1
     coat_row: np.ndarray = None             # (M,) int32 the coat's material (coat_variants) or -1
+    dielectric_fresnel: np.ndarray = None   # (M,) float64 share of the glass that reflects by Fresnel (the
+    #                                         rest refracts whatever it: Refraction BSDF); None: 1
     coat_factor: np.ndarray = None          # (M, MS_NODES + 1, 3) float64 factor under the coat at mu
     coat_score: np.ndarray = None           # (M, 2) float64 mean lobe-score totals: coat, factor under it
     glossy_through: np.ndarray = None       # (M,) bool: camera paths go on through the glossy lobe
@@ -353,6 +355,9 @@ class MaterialTable:
                              rotation_program=np.where(anisotropic, _or_none(mats.rotation_program, m),
                                                        -1).astype(np.int32),
                              coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
+                             dielectric_fresnel=(None if mats.dielectric_fresnel is None
+                                                 or (mats.dielectric_fresnel >= 1).all()
+                                                 else np.asarray(mats.dielectric_fresnel, np.float64)),
                              glossy_through=glossy_on & ~diffuse_on
                              & (mats.glossy_roughness < through_roughness),
                              rough_diffuse=_rough_diffuse_table(_or_zeros(mats.diffuse_roughness, m)),
@@ -1164,10 +1169,16 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 branch = np.where(rough, u3[sel], branch)
             cos_i = np.clip(dot(w_o, h), 0.0, 1.0)
             fr, cos_t = smp.fresnel_dielectric(cos_i, eta)
+            refracts = True
+            if table.dielectric_fresnel is not None:
+                # Only a share s reflects by Fresnel (s F); the rest refracts but for total internal
+                # reflection, where it ends (Cycles' Refraction BSDF).
+                refracts = cos_t > 0.0
+                fr = table.dielectric_fresnel.take(m_sel) * fr
             is_refl = branch < fr
             d = np.where(is_refl[:, None], smp.reflect(w_o, h), smp.refract(w_o, h, eta, cos_t))
             side = dot(d, n_g)
-            ok = np.where(is_refl, side > 0, side < 0)
+            ok = np.where(is_refl, side > 0, (side < 0) & refracts)
             w = lw
             if table.reflection_differs:
                 # Reflections take the material's reflection colour, refractions the hit's colour.

@@ -150,7 +150,10 @@ class Materials:
       smooth, or rough with GGX microfacets of Blender
       roughness ``dielectric_roughness`` (single scattering); -1 there takes the roughness
       map's value at each hit (``roughness_program``, which then varies both lobes' roughness:
-      Principled's one Roughness, a Glass BSDF's roughness map);
+      Principled's one Roughness, a Glass BSDF's roughness map); ``dielectric_fresnel`` s is the
+      share of the lobe that reflects by Fresnel: the rest refracts whatever the Fresnel
+      reflectance (Blender's Refraction BSDF, nothing under total internal reflection), so it
+      reflects s F and refracts 1 - s F;
     * emission: radiance ``emission`` in W/(m^2 sr), emitted from both sides, times the
       program ``emission_program`` (when >= 0) at each point (a textured emitter).
 
@@ -255,6 +258,7 @@ class Materials:
     dielectric_roughness: np.ndarray = None             # (M,) float32 in [0, 1] or -1 (the roughness
     #                                                     program's); None: 0 (smooth)
     dielectric_reflection_color: np.ndarray = None      # (M, 3) float32; None: dielectric_color
+    dielectric_fresnel: np.ndarray = None               # (M,) float32 in [0, 1]; None: 1
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
@@ -316,7 +320,8 @@ class Materials:
                     "rotation_program", "stretch_program", "glossy_metal_tint", "glossy_metal_share",
                     "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program",
                     "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
-                    "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance")
+                    "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
+                    "dielectric_fresnel")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -420,6 +425,7 @@ class Materials:
         out.bump_program = np.full(m, -1, np.int32)
         out.outer_bump_program = np.full(m, -1, np.int32)
         out.coat_normal_program = np.full(m, -1, np.int32)
+        out.dielectric_fresnel = np.ones(m, np.float32)
         out.coat_bump_program = np.full(m, -1, np.int32)
         out.coat_bump_strength = np.ones(m, np.float32)
         out.coat_bump_distance = np.ones(m, np.float32)
@@ -523,6 +529,7 @@ class Materials:
             out.outer_bump_distance[i] = s.get("outer_bump_distance", 1.0)
             out.coat_bump_strength[i] = s.get("coat_bump_strength", 1.0)
             out.coat_bump_distance[i] = s.get("coat_bump_distance", 1.0)
+            out.dielectric_fresnel[i] = s.get("dielectric_fresnel", 1.0)
         return out
 
 
@@ -984,6 +991,7 @@ class Scene:
                                        ("outer_bump_distance", (n,), 1.0),
                                        ("coat_normal_program", (n,), -1), ("coat_bump_program", (n,), -1),
                                        ("coat_bump_strength", (n,), 1.0), ("coat_bump_distance", (n,), 1.0),
+                                       ("dielectric_fresnel", (n,), 1.0),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
@@ -1029,6 +1037,7 @@ class Scene:
             fail(f"material '{mats.names[int(np.argmax(odd))]}': glossy_metal_share must be in (0, 1] and "
                  "glossy_metal_rest in [0, 1]")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
+                                ("dielectric_fresnel", 0.0, 1.0),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),

@@ -142,6 +142,8 @@ class Closure:
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
+    refraction_only: float = 0.0    # the part of the dielectric weight that only refracts (Refraction
+    #                                 BSDF: no Fresnel reflection, nothing under total internal reflection)
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
     rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
     metal_rise: np.ndarray = field(default_factory=lambda: np.zeros(3))    # (3,) weight * a metal's rise
@@ -190,6 +192,7 @@ class Closure:
                       transparent=fa * self.transparent + fb * other.transparent,
                       transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight,
                       holdout=fa * self.holdout + fb * other.holdout,
+                      refraction_only=fa * self.refraction_only + fb * other.refraction_only,
                       hidden_rays=self.hidden_rays & other.hidden_rays)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
         # Anisotropy: the stretch's geometric mean by the glossy weights, the tangent and its
@@ -510,7 +513,7 @@ class Closure:
             return Closure(roughness=self.roughness, ior=self.ior)
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
                                                              "rise", "metal_rise", "metal_dip", "layer",
-                                                             "layered", "coat", "holdout")}
+                                                             "layered", "coat", "holdout", "refraction_only")}
         out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
                                   opacity_texture=None,
                                   reflection=None if self.reflection is None else self.reflection / o)
@@ -539,7 +542,10 @@ class Closure:
             s[lobe] = self.color[i] / w if w > 0 else np.zeros(3)
             s[f"{lobe}_weight"] = w
         w = self.weight[DIELECTRIC]
-        s["dielectric_reflection"] = self.glass_reflection() / w if w > 0 else np.zeros(3)
+        fresnel = w - self.refraction_only              # the share that reflects by Fresnel
+        s["dielectric_reflection"] = self.glass_reflection() / fresnel if fresnel > 1e-12 else np.zeros(3)
+        if w > 0 and self.refraction_only > 0:
+            s["dielectric_fresnel"] = float(np.clip(fresnel / w, 0.0, 1.0))
         g = self.color[GLOSSY]
         s["glossy_multiscatter"] = np.divide(self.multiscatter, g, out=np.zeros(3), where=g > 0)
         if self.fresnel_ior > 0 and self.weight[GLOSSY] > 0:
@@ -1624,7 +1630,9 @@ class NodeWalker:
 
     def _glass(self, node, stack):
         """Glass and Refraction: a textured colour (stained glass) tints the light the glass lets
-        through point by point, its reflections by the texture's mean (a few per cent of the light)."""
+        through point by point, its reflections by the texture's mean (a few per cent of the light).
+        Refraction has no Fresnel reflection: it refracts everything but under total internal
+        reflection, where it gives nothing (Cycles; ``Materials.dielectric_fresnel``)."""
         color, tex = self.color(node.inputs["Color"], stack)
         ior = self.value(node.inputs["IOR"], stack)
         rough, rough_map = self.roughness(node.inputs["Roughness"], stack) if "Roughness" in node.inputs \
@@ -1633,6 +1641,8 @@ class NodeWalker:
                          dielectric_roughness_texture=rough_map)
         if textured(tex):
             c.dielectric_texture = _program_of(tex, color)
+        if node.bl_idname == "ShaderNodeBsdfRefraction":
+            c.refraction_only, c.reflection = 1.0, np.zeros(3)
         return c
 
     def _translucent(self, node, stack):

@@ -226,14 +226,15 @@ def sky_over_floor(albedo=0.5, sky=1.0, resolution=(32, 32), size=40.0, height=2
     return m.build(mats, camera=cam, world=World(color=np.full(3, sky, np.float32)))
 
 
-def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
+def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8), fresnel=1.0):
     """A sun at normal incidence through a glass slab onto a diffuse floor, camera under the slab.
 
     With ``max_bounces=2`` (photons cross the two faces and land, no internal reflection):
-    E_floor = E (1 - F0)^2, F0 = ((ior - 1)/(ior + 1))^2, and L = albedo E_floor / pi.
+    E_floor = E (1 - s F0)^2, F0 = ((ior - 1)/(ior + 1))^2, and L = albedo E_floor / pi, for the
+    glass's share ``fresnel`` s that reflects by Fresnel (``Materials.dielectric_fresnel``).
     """
     mats = Materials.build([{"name": "floor", "diffuse": albedo},
-                            {"name": "glass", "dielectric": 1.0, "ior": ior}])
+                            {"name": "glass", "dielectric": 1.0, "ior": ior, "dielectric_fresnel": fresnel}])
     m = MeshBuilder()
     m.add_quad((-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0), 0)
     m.add_box((-0.3, -0.3, 1.0), (0.3, 0.3, 1.1), 1)

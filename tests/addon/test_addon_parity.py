@@ -1185,6 +1185,32 @@ def test_principled_coat_matches_cycles(addon, tmp_path, shader):
     assert min(block_correlation(f"coat, {shader}", cycles, ours)) > 0.99
 
 
+@pytest.mark.parametrize("shader", ["refraction", "fake_glass"])
+def test_refraction_bsdf_matches_cycles(addon, tmp_path, shader):
+    """A block of Blender's Refraction BSDF (IOR 1.45, 5 cm over the floor) under the area light:
+    it refracts everything, with no Fresnel reflection and nothing under total internal reflection
+    (stop 42, ``Materials.dielectric_fresnel``; before, it was a Glass BSDF).  ``fake_glass``: the
+    old recipe of a Mix by a Fresnel node of it and a sharp Glossy BSDF, whose reflection the
+    Fresnel node alone makes."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.5, 0.5, 0.5)))
+        mat = bs._material("Block", "ShaderNodeBsdfRefraction", Color=(0.9, 0.9, 0.9, 1.0), IOR=1.45)
+        if shader == "fake_glass":
+            bs.mix_in(mat, "Refraction BSDF", "ShaderNodeBsdfGlossy", 0.5)
+            nt = mat.node_tree
+            nt.nodes["Glossy BSDF"].inputs["Roughness"].default_value = 0.0
+            fresnel = nt.nodes.new("ShaderNodeFresnel")
+            fresnel.inputs["IOR"].default_value = 1.45
+            nt.links.new(fresnel.outputs["Fac"], nt.nodes["Mix Shader"].inputs["Fac"])
+        bs.cube("Block", size=1.5, material=mat, location=(0, 0, 0.8), rotation=(0, 0, 0.6))
+        bs.camera(location=(0, -5, 4), target=(0, 0, 0.5), lens=50.0)
+        bs.light("AREA", location=(-1.5, -2.0, 3.0), target=(0, 0, 0), energy=300.0, shape="SQUARE", size=1.5)
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_channels_match(f"refraction, {shader}", cycles, ours)
+    assert min(block_correlation(f"refraction, {shader}", cycles, ours)) > 0.98
+
+
 @pytest.mark.parametrize("bent", ["coat", "base", "displaced"])
 def test_coat_normal_matches_cycles(addon, tmp_path, bent):
     """The corner's floor a dark red Principled BSDF (roughness 0.5) under a coat of roughness 0.1,

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from core import RenderSettings, render
+from core.bsdf import DIELECTRIC, MaterialTable, scatter
 from core.integrator import kz_radius_scales
+from core.scene import Materials
 from core.testing.scenes import (camera_in_glass, disk_irradiance, furnace_sphere, kernel_radius_px,
                                  point_in_sphere, sky_over_floor, spot_over_plane,
                                  sun_over_bumped_floor, sun_over_normal_mapped_floor,
@@ -113,13 +115,42 @@ def test_mirror_caustic_from_a_spot_pointing_up():
 
 
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
-def test_sun_through_glass_slab_single_pass_transmittance(method):
+@pytest.mark.parametrize("fresnel", [1.0, 0.5, 0.0], ids=["glass", "half_refraction", "refraction"])
+def test_sun_through_glass_slab_single_pass_transmittance(method, fresnel):
+    """(1 - s F0)^2 of the direct light for the share s of the glass that reflects by Fresnel:
+    0.9216 for a Glass BSDF, all of it for a Refraction BSDF (s = 0, stop 42; before, the
+    Refraction BSDF was a glass: 0.9216) and 0.9604 for a Mix of both."""
     ior, irradiance, albedo = 1.5, 10.0, 0.5
     f0 = ((ior - 1) / (ior + 1)) ** 2
-    expected = albedo / np.pi * irradiance * (1 - f0) ** 2    # 0.9216 of the direct light
-    per_pass, _ = render_passes(sun_through_slab(ior, irradiance, albedo), passes=8,
+    expected = albedo / np.pi * irradiance * (1 - fresnel * f0) ** 2
+    per_pass, _ = render_passes(sun_through_slab(ior, irradiance, albedo, fresnel=fresnel), passes=8,
                                 photons_per_pass=100_000, max_bounces=2, **method)
     check_mean(per_pass, expected, 0.005)
+
+
+def test_a_refraction_only_glass_never_reflects_and_ends_at_total_internal_reflection():
+    """``scatter`` on a smooth glass of ``dielectric_fresnel`` 0 (Blender's Refraction BSDF): from
+    outside every path refracts with the glass's colour as its weight (radiance: over eta^2);
+    from inside beyond the critical angle every path ends (Cycles: no transmission, no
+    reflection), below it every path refracts."""
+    mats = Materials.build([{"name": "refraction", "dielectric": (0.9, 0.8, 0.7), "ior": 1.5,
+                             "dielectric_fresnel": 0.0, "dielectric_reflection": 0.0}])
+    table = MaterialTable.from_materials(mats)
+    n = 10_000
+    rng = np.random.default_rng(3)
+    up = np.tile([0.0, 0.0, 1.0], (n, 1))
+    ids = np.zeros(n, np.int32)
+    colors = table.color.take(ids, axis=0)
+    lobe = np.full(n, DIELECTRIC)
+    for cos, inside, alive in ((0.3, False, True), (0.9, True, True), (0.5, True, False)):
+        wo = np.tile([np.sqrt(1 - cos * cos), 0.0, cos], (n, 1))
+        ng = -up if inside else up                     # (wo on the back: inside the glass)
+        wi, weight, ok = scatter(table, ids, colors, lobe, np.ones(n), wo, ng, ng, rng.random(n),
+                                 rng.random(n), "importance")
+        assert ok.all() if alive else not ok.any()
+        if alive:
+            assert (wi[:, 2] < 0).all()                # through the surface, never reflected
+            np.testing.assert_allclose(weight, np.broadcast_to([0.9, 0.8, 0.7], (n, 3)), rtol=1e-6)
 
 
 def bump_shadowing_g(n, cos_i):
