@@ -428,8 +428,10 @@ def read_point_cloud(pc, name, log, attributes=frozenset()):
 
 def _point_attribute(attrs, key, name, log):
     """(n, 3) float values of a point cloud's attribute ``key`` on its points (as
-    :func:`_named_attributes` reads a mesh's), or None without it (0, as in Cycles)."""
-    attr = attrs.get(key)
+    :func:`_named_attributes` reads a mesh's, an ``ALPHA`` name its alpha), or None without it (0,
+    as in Cycles)."""
+    alpha = key.startswith(ALPHA)
+    attr = attrs.get(key[len(ALPHA):] if alpha else key)
     if attr is None:
         return None
     kind = ATTRIBUTE_TYPES.get(attr.data_type)
@@ -437,7 +439,7 @@ def _point_attribute(attrs, key, name, log):
         log.warning(f"object '{name}': attribute '{key}' ({attr.data_type.lower()} on the "
                     f"{attr.domain.lower()} domain) cannot be read; it reads 0")
         return None
-    return _attribute_values(attr, kind)
+    return _attribute_values(attr, kind, alpha)
 
 
 def _triangulate(me, positions, corner_vert):

@@ -2333,17 +2333,32 @@ def test_a_point_cloud_becomes_spheres(scene):
 def test_a_point_clouds_attributes_reach_its_spheres(scene):
     """An Attribute node naming a point cloud's attribute (here its ``radius``) reads each point's
     value on the whole of its sphere; Point Info's Position is the point's centre in world space
-    (the object moved), 0 on a mesh."""
+    (the object moved), 0 on a mesh.  A colour attribute's Alpha is its alpha (the floor lacks it:
+    1)."""
     mat = bs.diffuse("ByRadius")
     nt = mat.node_tree
     attr, info, add = (nt.nodes.new(k) for k in ("ShaderNodeAttribute", "ShaderNodePointInfo",
                                                 "ShaderNodeVectorMath"))
     attr.attribute_name = "radius"
+    tint = nt.nodes.new("ShaderNodeAttribute")
+    tint.attribute_name = "tint"
     nt.links.new(attr.outputs["Vector"], add.inputs[0])
     nt.links.new(info.outputs["Position"], add.inputs[1])
-    nt.links.new(add.outputs["Vector"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    scale = nt.nodes.new("ShaderNodeVectorMath")
+    scale.operation = "SCALE"
+    nt.links.new(add.outputs["Vector"], scale.inputs[0])
+    nt.links.new(tint.outputs["Alpha"], scale.inputs["Scale"])
+    nt.links.new(scale.outputs["Vector"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     cloud = bs.point_cloud("Dots", [(0, 0, 0), (1, 0, 0)], material=mat, random_radius=(0.1, 0.3))
     cloud.location = (0.0, 2.0, 0.0)
+    tree = cloud.modifiers["Points"].node_group
+    store = tree.nodes.new("GeometryNodeStoreNamedAttribute")
+    store.data_type, store.domain = "FLOAT_COLOR", "POINT"
+    store.inputs["Name"].default_value = "tint"
+    store.inputs["Value"].default_value = (0.2, 0.4, 0.6, 0.25)
+    output = tree.nodes["Group Output"]
+    tree.links.new(output.inputs[0].links[0].from_socket, store.inputs["Geometry"])
+    tree.links.new(store.outputs["Geometry"], output.inputs[0])
     bs.plane("Floor", material=mat)
     bs.camera()
     sc = bs.export().scene
@@ -2357,6 +2372,9 @@ def test_a_point_clouds_attributes_reach_its_spheres(scene):
     assert {tuple(np.round(c, 4)) for c in centre} == {(0.0, 2.0, 0.0), (1.0, 2.0, 0.0)}
     assert 0.1 <= radius[spheres].min() and radius[spheres].max() <= 0.3
     assert not radius[np.setdiff1d(np.arange(len(radius)), spheres)].any()     # (the floor: 0)
+    alpha = sc.attributes[".alpha:tint"]
+    np.testing.assert_allclose(alpha[spheres], 0.25)
+    assert (np.delete(alpha, spheres, axis=0) == 1.0).all()
 
 
 def test_motion_blur_is_named_in_a_warning(scene):
