@@ -1020,6 +1020,14 @@ def _white_noise(ev, node):
                                          w=ev.float(node, "w", 0.0))
 
 
+def _gabor(ev, node):
+    return _patterns.gabor_texture(
+        ev.vec(node, "vector"), gabor_type=node.get("gabor_type", "2D"), scale=ev.float(node, "scale", 5.0),
+        frequency=ev.float(node, "frequency", 2.0), anisotropy=ev.float(node, "anisotropy", 1.0),
+        orientation_2d=ev.float(node, "orientation_2d", np.pi / 4),
+        orientation_3d=ev.vec(node, "orientation_3d", (np.sqrt(2.0), np.sqrt(2.0), 0.0)))
+
+
 def _environment(ev, node):
     """An equirectangular image looked up by direction (Cycles' ``direction_to_equirectangular``:
     u = 1/2 - atan2(y, x) / 2 pi, v = 1 - acos(z) / pi; bilinear, wrapping in u, clamped in v)."""
@@ -1817,7 +1825,7 @@ def _splat(ev, node):
 
 OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
        "noise": _noise, "voronoi": _voronoi, "wave": _wave, "brick": _brick, "magic": _magic,
-       "white_noise": _white_noise, "image": _image, "environment": _environment, "sky": _sky,
+       "white_noise": _white_noise, "gabor": _gabor, "image": _image, "environment": _environment, "sky": _sky,
        "ramp": _ramp,
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
@@ -1831,6 +1839,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
            "brick": ("Color", "Fac"), "magic": ("Color", "Fac"), "white_noise": ("Value", "Color"),
+           "gabor": ("Value", "Phase", "Intensity"),
            "image": ("Color", "Alpha"), "environment": ("Color", "Alpha"), "sky": ("Color",),
            "ramp": ("Color", "Alpha"), "mix_color": ("Result",), "mix_float": ("Result",),
            "mix_vector": ("Result",), "math": ("Value",), "map_range": ("Result",), "metal": ("Color",),
@@ -1857,7 +1866,7 @@ CHOICES = {
     ("wave", "wave_type"): _patterns.WAVE_TYPES, ("wave", "bands_direction"): _patterns.BANDS_DIRECTIONS,
     ("wave", "rings_direction"): _patterns.RINGS_DIRECTIONS,
     ("wave", "wave_profile"): _patterns.WAVE_PROFILES,
-    ("white_noise", "dimensions"): _patterns.DIMENSIONS,
+    ("white_noise", "dimensions"): _patterns.DIMENSIONS, ("gabor", "gabor_type"): _patterns.GABOR_TYPES,
     ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"),
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
     ("image", "interpolation"): ("Linear", "Closest", "Cubic"),

@@ -490,6 +490,16 @@ def _white_noise(b, node, stack):
     return _out(op, Value="Value", Color="Color")
 
 
+def _gabor(b, node, stack):
+    op = {"op": "gabor", "vector": b.vector_or(node, stack, "generated"),
+          "gabor_type": node.gabor_type, "scale": b.input(node, "Scale", stack, FLOAT),
+          "frequency": b.input(node, "Frequency", stack, FLOAT),
+          "anisotropy": b.input(node, "Anisotropy", stack, FLOAT),
+          "orientation_2d": b.input(node, "Orientation 2D", stack, FLOAT),
+          "orientation_3d": b.input(node, "Orientation 3D", stack, VEC)}
+    return _out(op, Value="Value", Phase="Phase", Intensity="Intensity")
+
+
 def _ramp(b, node, stack):
     ramp = node.color_ramp
     table = [list(ramp.evaluate(i / (RAMP_TABLE_SIZE - 1))) for i in range(RAMP_TABLE_SIZE)]
@@ -771,7 +781,8 @@ NODES = {
     "ShaderNodeTexEnvironment": _environment, "ShaderNodeTexSky": _sky,
     "ShaderNodeTexChecker": _checker, "ShaderNodeTexGradient": _gradient, "ShaderNodeTexNoise": _noise,
     "ShaderNodeTexVoronoi": _voronoi, "ShaderNodeTexWave": _wave, "ShaderNodeTexBrick": _brick,
-    "ShaderNodeTexMagic": _magic, "ShaderNodeTexWhiteNoise": _white_noise, "ShaderNodeValToRGB": _ramp,
+    "ShaderNodeTexMagic": _magic, "ShaderNodeTexWhiteNoise": _white_noise, "ShaderNodeTexGabor": _gabor,
+    "ShaderNodeValToRGB": _ramp,
     "ShaderNodeMix": _mix,
     "ShaderNodeMixRGB": _mix_rgb, "ShaderNodeMath": _math, "ShaderNodeMapRange": _map_range,
     "ShaderNodeInvert": _invert, "ShaderNodeGamma": _gamma, "ShaderNodeHueSaturation": _hsv,

@@ -1,4 +1,4 @@
-"""core.pattern_textures (Wave, Brick, Magic, White Noise) against Cycles' own nodes (Blender 5.0).
+"""core.pattern_textures (Wave, Brick, Magic, White Noise, Gabor) against Cycles' own nodes (Blender 5.0).
 
 Each case renders, with Cycles, a plane seen from above whose colour is one output of the node under
 test, fed by Texture Coordinate (Object) -> optional axis permutation (Separate / Combine XYZ, so that
@@ -28,7 +28,8 @@ import numpy as np
 import pytest
 
 import blender_scenes as bs
-from core.pattern_textures import brick_texture, magic_texture, wave_texture, white_noise_texture
+from core.pattern_textures import (brick_texture, gabor_texture, magic_texture, wave_texture,
+                                   white_noise_texture)
 
 RES = (64, 64)
 SHIFT = (0.31, -0.17, 0.43)
@@ -223,3 +224,42 @@ def test_white_noise_matches_cycles_exactly(addon, tmp_path, dimensions, output)
     diff = np.abs(expected - cycles).max(axis=1)
     print(f"white {dimensions} {output}: max {diff.max():.2e}")
     assert diff.max() < 1e-6
+
+
+# ---------------------------------------------------------------------------------- gabor
+GABOR = {   # case: (gabor_type, socket inputs)
+    "2d_anisotropic": ("2D", {"Scale": 3.0, "Frequency": 2.5}),
+    "2d_isotropic_turned": ("2D", {"Scale": 4.0, "Frequency": 1.5, "Anisotropy": 0.3, "Orientation 2D": 1.1}),
+    "3d_default": ("3D", {}),
+    "3d_turned": ("3D", {"Scale": 3.0, "Frequency": 3.0, "Anisotropy": 0.6,
+                         "Orientation 3D": (0.2, -0.5, 0.8)}),
+}
+
+
+@pytest.mark.parametrize("output", ["Value", "Phase", "Intensity"])
+@pytest.mark.parametrize("case", list(GABOR))
+def test_gabor_matches_cycles(addon, tmp_path, case, output):
+    """The Gabor Texture (stop 42; before, unsupported: the socket's value), 2D and 3D, anisotropic
+    and turned towards isotropic, each output.  The Phase wraps from 1 to 0 where the phasor
+    crosses the negative real axis: pixels a rounding from there may differ by a whole turn."""
+    gabor_type, inputs = GABOR[case]
+
+    def connect(nt):
+        node = nt.nodes.new("ShaderNodeTexGabor")
+        node.gabor_type = gabor_type
+        for key, value in inputs.items():
+            sock = next(s for s in node.inputs if s.identifier == key or s.name == key)
+            sock.default_value = value
+        nt.links.new(_coordinates(nt, (0, 1, 2), SHIFT), node.inputs["Vector"])
+        return node.outputs[output]
+
+    cycles, positions = _render(connect, tmp_path, f"gabor_{case}_{output}")
+    keywords = {"Scale": "scale", "Frequency": "frequency", "Anisotropy": "anisotropy",
+                "Orientation 2D": "orientation_2d", "Orientation 3D": "orientation_3d"}
+    ours = gabor_texture(_our_coordinates(positions, (0, 1, 2), SHIFT), gabor_type=gabor_type,
+                         **{keywords[k]: v for k, v in inputs.items()})[output]
+    assert np.ptp(cycles[:, 0]) > 0.05
+    diff = np.abs(ours - cycles[:, 0])
+    if output == "Phase":
+        diff = np.minimum(diff, 1.0 - diff)          # (a whole turn apart is the same phase)
+    _check(f"gabor {case} {output}", diff)

@@ -418,6 +418,22 @@ def curves(kind, extend):
     return build
 
 
+def gabor(gabor_type, textured=False, **inputs):
+    """A Gabor Texture on its default (Generated) coordinates, its Value, Phase and Intensity as
+    the colour's channels; with ``textured`` its Frequency a linear gradient from 1 to 4."""
+    def build(nt):
+        g = node(nt, "ShaderNodeTexGabor", gabor_type=gabor_type, **inputs)
+        if textured:
+            ramp = node(nt, "ShaderNodeMapRange", **{"To Min": 1.0, "To Max": 4.0})
+            nt.links.new(node(nt, "ShaderNodeTexGradient").outputs["Fac"], ramp.inputs["Value"])
+            nt.links.new(ramp.outputs["Result"], g.inputs["Frequency"])
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        for output, axis in (("Value", "X"), ("Phase", "Y"), ("Intensity", "Z")):
+            nt.links.new(g.outputs[output], comb.inputs[axis])
+        return comb.outputs[0]
+    return build
+
+
 CASES = {
     "checker_generated": checker_default,
     "blackbody_gradient": blackbody_over_gradient,
@@ -453,6 +469,8 @@ CASES = {
     "brick_over_checker": brick_over_checker,
     "magic": lambda nt: node(nt, "ShaderNodeTexMagic", turbulence_depth=3, Scale=2.0).outputs["Color"],
     "white_noise_snapped": white_noise_snapped,
+    "gabor_2d_generated": gabor("2D", Scale=6.0, Anisotropy=0.4),
+    "gabor_3d_textured_frequency": gabor("3D", textured=True, Scale=4.0),
     "noise_fac_ramp": noise("Fac", Scale=4.0, Detail=3.5, Roughness=0.6),
     "noise_color_distorted": noise("Color", Scale=2.5, Distortion=0.8, noise_type="RIDGED_MULTIFRACTAL"),
     "math_inverse_trig": math_chain(("ARCTAN2", "x", "y"), ("ARCCOSINE", "y"), ("ARCSINE", "x")),
