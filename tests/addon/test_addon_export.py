@@ -875,7 +875,7 @@ def test_a_masks_levels_share_the_paints_texture(scene):
 def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_noted(scene):
     """The render colour attribute of a mesh without one reads black; a Color Attribute node that
     names a layer reads that layer (``Scene.attributes``, stop 39; before, the render one, noted),
-    black on a mesh without it, and its Alpha output is noted."""
+    black on a mesh without it, and its Alpha 1 there (stop 42; before, the Alpha was noted)."""
     mat = bs.diffuse("Painted")
     nt = mat.node_tree
     attr = nt.nodes.new("ShaderNodeVertexColor")
@@ -887,10 +887,15 @@ def test_color_attribute_of_a_mesh_without_one_is_black_and_a_named_layer_is_not
     assert (ex.scene.attributes["Dirt"] == 0).all() and ex.scene.attributes["Dirt"].shape == (2, 3, 3)
     assert ex.scene.object_ids is None and ex.scene.uvs is None
     assert not any("'Painted'" in w for w in ex.warnings), ex.warnings
-    nt.links.new(attr.outputs["Alpha"], nt.nodes["Diffuse BSDF"].inputs["Roughness"])
+    scale = nt.nodes.new("ShaderNodeVectorMath")
+    scale.operation = "SCALE"
+    nt.links.new(attr.outputs["Color"], scale.inputs[0])
+    nt.links.new(attr.outputs["Alpha"], scale.inputs["Scale"])
+    nt.links.new(scale.outputs["Vector"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     bpy.data.objects.remove(bpy.data.objects["Plane"])
     row, ex = export_material(mat)
-    assert any("'Painted'" in w and "'Alpha'" in w for w in ex.warnings), ex.warnings
+    assert (ex.scene.attributes[".alpha:Dirt"] == 1.0).all()
+    assert not any("'Painted'" in w for w in ex.warnings), ex.warnings
 
 
 def test_named_attributes_follow_each_mesh_and_instance(scene, tmp_path):
