@@ -1022,13 +1022,14 @@ def test_a_transmission_map_picks_levels_and_beside_a_metallic_map_takes_its_mea
 
 
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
+    """(The Gabor Texture was the example until stop 42, which models it; now Particle Info.)"""
     mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
     nt = mat.node_tree
-    gabor = nt.nodes.new("ShaderNodeTexGabor")
-    nt.links.new(gabor.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    info = nt.nodes.new("ShaderNodeParticleInfo")
+    nt.links.new(info.outputs["Velocity"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     row, ex = export_material(mat)
     assert row["diffuse_color"] == pytest.approx([0.3, 0.4, 0.5]) and row["diffuse_program"] == -1
-    assert any("'Odd'" in w and "Gabor" in w for w in ex.warnings), ex.warnings
+    assert any("'Odd'" in w and "ParticleInfo" in w for w in ex.warnings), ex.warnings
 
 
 def test_instances_get_their_own_object_coordinates(scene):
