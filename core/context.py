@@ -8,6 +8,7 @@ import numpy as np
 from .accel import Accel, Hits, interpolate_corners
 from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT, MaterialTable, Textures,
                    coat_variants, lobe_colors, roughness_variants, stretch_level, stretch_variants)
+from .displacement import displace
 from .environment import Environment
 from .lights import VOLUME, LightSampler
 from .procedural import (COLOR_MAX, EMISSION_MAX, DirectionAttributes, HitAttributes, Rays, attributes_used,
@@ -56,6 +57,7 @@ class RenderContext:
 
     def __init__(self, scene, glossy_through_roughness=GLOSSY_THROUGH_ROUGHNESS):
         """``glossy_through_roughness``: ``RenderSettings.glossy_through_roughness``."""
+        scene = displace(scene)                     # (true displacement; the scene itself without)
         self.scene = scene
         self.accel = Accel(scene)
         # The materials, a copy per roughness level of those with a roughness map, per stretch
@@ -178,12 +180,20 @@ class RenderContext:
         self.outer_bump_strength = np.asarray(mats.outer_bump_strength, np.float64)
         self.outer_bump_distance = np.asarray(mats.outer_bump_distance, np.float64)
         self.normal_program = np.asarray(mats.normal_program, np.int32)
+        self.displacement_bump = np.asarray(mats.displacement_bump, bool)
+        self.has_displacement_bumps = bool(self.displacement_bump.any())
         # A coat's own normal (Principled's Coat Normal), or None: the one before the maps.
         self.coat_normal_program = np.asarray(mats.coat_normal_program, np.int32)
         self.coat_bump_program = np.asarray(mats.coat_bump_program, np.int32)
         self.coat_bump_strength = np.asarray(mats.coat_bump_strength, np.float64)
         self.coat_bump_distance = np.asarray(mats.coat_bump_distance, np.float64)
         self.has_coat_normals = bool(((self.coat_normal_program >= 0) | (self.coat_bump_program >= 0)).any())
+        # Bumps on a truly displaced surface are taken on the undisplaced one (Cycles' bump
+        # evaluation at ATTR_STD_POSITION_UNDISPLACED): its triangles' edges, or None.
+        self.undisplaced_edges = None
+        if scene.undisplaced is not None:
+            c = scene.undisplaced.take(scene.triangles, axis=0).astype(np.float64)
+            self.undisplaced_edges = (c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
 
     @property
     def effects(self) -> tuple:
@@ -642,7 +652,7 @@ class RenderContext:
                                        self.coat_bump_strength, self.coat_bump_distance)
             self._apply_normal_programs(ns, prim_ids, bary, pos, mat, rays)
             self._apply_normal_maps(ns, prim_ids, bary, uv, mat)
-            self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat, rays)
+            self._apply_bump_maps(ns, prim_ids, bary, pos, uv, mat, rays, nn)
         albedo = self.table.color[:, 0].take(mat, axis=0)
         if self.has_textures:
             tex = self.table.texture[mat]
@@ -892,7 +902,7 @@ class RenderContext:
         _replace_bad(n, n0)
         return n
 
-    def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat, rays=None):
+    def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat, rays=None, nn=None):
         """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).
 
         As Cycles' Bump node, with the height's gradient along a parametrisation (u, v) of the
@@ -905,13 +915,16 @@ class RenderContext:
         (``Materials.bump_program``) the barycentrics b1, b2 (dP/db = the edges) and forward
         differences of ``BUMP_STEP`` times the scene's size along each edge.  A second bump
         (``Materials.outer_bump_program``, a Bump on a Bump) then bends the normal the first made.
+        Where the first is the Displacement output's (``Materials.displacement_bump``) it replaces
+        the surface's own normal ``nn`` too (Cycles' Set Normal), which the bump-map terms compare
+        the shading normal with.
         """
         tex = self.bump_texture.take(mat)
         sel = np.flatnonzero(tex >= 0)
         if len(sel):
             p = prim_ids.take(sel)
             uvs = self.scene.uvs.take(p, axis=0).astype(np.float64)                    # (k, 3, 2)
-            e1, e2 = self.accel.e1.take(p, axis=0), self.accel.e2.take(p, axis=0)
+            e1, e2 = self._bump_edges(p)
             d1, d2 = uvs[:, 1] - uvs[:, 0], uvs[:, 2] - uvs[:, 0]
             det_uv = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
             ok = np.abs(det_uv) > 1e-20
@@ -922,10 +935,13 @@ class RenderContext:
             m = mat.take(sel)
             self._bend(ns, sel, dpdu, dpdv, gu @ LUMINANCE, gv @ LUMINANCE, ok, self.bump_strength.take(m),
                        self.bump_distance.take(m))
-        for programs, strength, distance in ((self.bump_program, self.bump_strength, self.bump_distance),
-                                             (self.outer_bump_program, self.outer_bump_strength,
-                                              self.outer_bump_distance)):
-            self._bump_by_programs(ns, prim_ids, bary, pos, mat, rays, programs, strength, distance)
+        self._bump_by_programs(ns, prim_ids, bary, pos, mat, rays, self.bump_program, self.bump_strength,
+                               self.bump_distance)
+        if nn is not None and self.has_displacement_bumps:
+            replaced = np.flatnonzero(self.displacement_bump.take(mat))
+            nn[replaced] = ns[replaced]
+        self._bump_by_programs(ns, prim_ids, bary, pos, mat, rays, self.outer_bump_program,
+                               self.outer_bump_strength, self.outer_bump_distance)
 
     def _bump_by_programs(self, ns, prim_ids, bary, pos, mat, rays, programs, strength, distance):
         """Bend ``ns`` in place where the materials ``mat`` have a bump's height program among
@@ -934,9 +950,12 @@ class RenderContext:
         for k in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == k)
             p = prim_ids.take(sel)
-            e1, e2 = self.accel.e1.take(p, axis=0), self.accel.e2.take(p, axis=0)
+            e1, e2 = self._bump_edges(p)
             b = [w.take(sel, axis=0) for w in bary]
             x = pos.take(sel, axis=0)
+            if self.undisplaced_edges is not None:
+                corners = self.scene.undisplaced.take(self.scene.triangles.take(p, axis=0), axis=0)
+                x = interpolate_corners(corners.astype(np.float64), b)
             step = BUMP_STEP * self.accel.extent
             s1 = step / np.maximum(np.linalg.norm(e1, axis=1), 1e-300)
             s2 = step / np.maximum(np.linalg.norm(e2, axis=1), 1e-300)
@@ -952,6 +971,13 @@ class RenderContext:
             m = mat.take(sel)
             self._bend(ns, sel, e1, e2, np.nan_to_num(hu), np.nan_to_num(hv), np.ones(len(sel), bool),
                        strength.take(m), distance.take(m))
+
+    def _bump_edges(self, prims):
+        """(e1, e2) (k, 3) float64 the edges from corner 0 of triangles ``prims`` a bump is taken
+        along: the undisplaced ones on a truly displaced scene (``Scene.undisplaced``)."""
+        if self.undisplaced_edges is not None:
+            return tuple(e.take(prims, axis=0) for e in self.undisplaced_edges)
+        return self.accel.e1.take(prims, axis=0), self.accel.e2.take(prims, axis=0)
 
     @staticmethod
     def _bend(ns, sel, dpdu, dpdv, hu, hv, ok, strength, distance):

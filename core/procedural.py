@@ -592,7 +592,12 @@ class HitAttributes:
             raise ProgramError(f"the program needs '{name}' coordinates, which the scene lacks")
         obj = s.object_ids.take(self.prim_ids)
         m = s.object_from_world.take(obj, axis=0)                               # (k, 3, 4)
-        p = np.einsum("kij,kj->ki", m[:, :, :3], self.positions) + m[:, :, 3]
+        positions = self.positions
+        if name == "generated" and s.undisplaced is not None:
+            # Cycles' Generated coordinates are the undisplaced surface's (true displacement).
+            corners = s.undisplaced.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
+            positions = interpolate_corners(corners, self.bary)
+        p = np.einsum("kij,kj->ki", m[:, :, :3], positions) + m[:, :, 3]
         if name == "object":
             return p
         space = s.texture_spaces.take(obj, axis=0)                               # (k, 2, 3)

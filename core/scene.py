@@ -49,6 +49,9 @@ DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's
 # Materials.normal_space: the Normal Map node's Space (its colour 2 c - 1 is a direction along the
 # UV map's tangent frame, or in object or world space; the Blender variants flip its y and z).
 NORMAL_TANGENT, NORMAL_OBJECT, NORMAL_WORLD, NORMAL_BLENDER_OBJECT, NORMAL_BLENDER_WORLD = range(5)
+# Materials.displacement_flags: the offset is in world units (the Displacement node's World space,
+# else the object's), and the shading normals stay (Displacement and Bump) rather than follow it.
+DISPLACE_WORLD, DISPLACE_KEEPS_NORMALS = 1, 2
 # The rays an emitter does not light (``Lights.exclude``, ``World.exclude``, ``Scene.emitter_exclude``;
 # Blender's Ray Visibility boxes Glossy, Transmission, Diffuse and Volume Scatter off, Cycles'
 # SHADER_EXCLUDE_*): the light that first meets a surface or volume reaches no lobe of that kind
@@ -224,6 +227,13 @@ class Materials:
     is a vector program whose value, normalised, is the shading normal (a BSDF's Normal input fed
     by a Bevel node or any vector: Cycles' ``safe_normalize_fallback`` to the surface's own).
 
+    True displacement (Blender's Displacement Method Displacement Only, or Displacement and Bump):
+    ``displacement_program`` >= 0 is a float program of the offset of the material's vertices
+    along their normal ((Height - Midlevel) Scale), in the object's space or, with bit
+    DISPLACE_WORLD of ``displacement_flags``, in world units; bit DISPLACE_KEEPS_NORMALS keeps the
+    shading normals (Displacement and Bump, whose bump bends them), else they follow the displaced
+    surface (``displacement.displace``, before each render).
+
     A coat (``coat_weight``) takes the surface's normal before all of those, unless it has its own
     (Principled's Coat Normal): ``coat_normal_program`` >= 0 gives it as ``normal_program`` does,
     and ``coat_bump_program`` >= 0, with ``coat_bump_strength`` and ``coat_bump_distance``, then
@@ -259,6 +269,11 @@ class Materials:
     #                                                     program's); None: 0 (smooth)
     dielectric_reflection_color: np.ndarray = None      # (M, 3) float32; None: dielectric_color
     dielectric_fresnel: np.ndarray = None               # (M,) float32 in [0, 1]; None: 1
+    displacement_program: np.ndarray = None             # (M,) int32, index into programs or -1; None: -1
+    displacement_flags: np.ndarray = None               # (M,) int32 DISPLACE_* bits; None: 0
+    # 1 where the bump is the Displacement output's (Bump Only, Displacement and Bump): it replaces
+    # the surface's own normal (Cycles' Set Normal), so the bump-map terms leave it alone.
+    displacement_bump: np.ndarray = None                # (M,) int32 0 or 1; None: 0
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
@@ -321,15 +336,16 @@ class Materials:
                     "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program",
                     "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
                     "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
-                    "dielectric_fresnel")
+                    "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
                       "rotation_program", "stretch_program", "level_program", "normal_program",
-                      "outer_bump_program", "coat_normal_program", "coat_bump_program")
+                      "outer_bump_program", "coat_normal_program", "coat_bump_program",
+                      "displacement_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
-                                     "normal_space")
+                                     "normal_space", "displacement_flags", "displacement_bump")
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "coat_bump_distance",
                                     "glossy_metal_dip",
                                     "volume_anisotropy", "glossy_rotation", "glossy_metal_tint",
@@ -426,6 +442,9 @@ class Materials:
         out.outer_bump_program = np.full(m, -1, np.int32)
         out.coat_normal_program = np.full(m, -1, np.int32)
         out.dielectric_fresnel = np.ones(m, np.float32)
+        out.displacement_program = np.full(m, -1, np.int32)
+        out.displacement_flags = np.zeros(m, np.int32)
+        out.displacement_bump = np.zeros(m, np.int32)
         out.coat_bump_program = np.full(m, -1, np.int32)
         out.coat_bump_strength = np.ones(m, np.float32)
         out.coat_bump_distance = np.ones(m, np.float32)
@@ -530,6 +549,8 @@ class Materials:
             out.coat_bump_strength[i] = s.get("coat_bump_strength", 1.0)
             out.coat_bump_distance[i] = s.get("coat_bump_distance", 1.0)
             out.dielectric_fresnel[i] = s.get("dielectric_fresnel", 1.0)
+            out.displacement_flags[i] = s.get("displacement_flags", 0)
+            out.displacement_bump[i] = s.get("displacement_bump", 0)
         return out
 
 
@@ -907,6 +928,10 @@ class Scene:
     # Lights.exclude: the object's Ray Visibility boxes), or None: 0.  The triangles themselves still
     # meet every photon (triangle_visibility says which camera-path rays see them).
     emitter_exclude: np.ndarray = None
+    # (V, 3) float32 the vertices before true displacement (Materials.displacement_program), which
+    # Generated coordinates read as Cycles' undisplaced ones; set by ``displacement.displace`` for a
+    # render (never stored), else None.
+    undisplaced: np.ndarray = None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -991,7 +1016,8 @@ class Scene:
                                        ("outer_bump_distance", (n,), 1.0),
                                        ("coat_normal_program", (n,), -1), ("coat_bump_program", (n,), -1),
                                        ("coat_bump_strength", (n,), 1.0), ("coat_bump_distance", (n,), 1.0),
-                                       ("dielectric_fresnel", (n,), 1.0),
+                                       ("dielectric_fresnel", (n,), 1.0), ("displacement_program", (n,), -1),
+                                       ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
@@ -1038,6 +1064,8 @@ class Scene:
                  "glossy_metal_rest in [0, 1]")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
                                 ("dielectric_fresnel", 0.0, 1.0),
+                                ("displacement_flags", 0, DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS),
+                                ("displacement_bump", 0, 1),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),

@@ -90,8 +90,9 @@ from ...core.bsdf import (TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, 
                           metal_fresnel)
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import dielectric_f0, mean_fresnel
-from ...core.scene import (NORMAL_BLENDER_OBJECT, NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT,
-                           NORMAL_WORLD, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials)
+from ...core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD, NORMAL_BLENDER_OBJECT,
+                           NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, NORMAL_WORLD, VISIBLE_CAMERA,
+                           VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials)
 from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
 from .procedural import NODES as PROGRAM_NODES
 
@@ -157,6 +158,7 @@ class Closure:
     # (texture index or height program, strength, distance[, (height program, strength, distance) of a
     # second Bump over it]) of a bump map
     bump: tuple = None
+    displacement_bump: bool = False  # the bump (its first) is the Displacement output's
     coat: float = 0.0               # weight of a coat over everything (Principled's Coat), 0: none
     coat_roughness: float = 0.03    # the coat's roughness, IOR and tint
     coat_ior: float = 1.5
@@ -623,6 +625,8 @@ class Closure:
             if outer:
                 s["outer_bump_program"], s["outer_bump_strength"], s["outer_bump_distance"] = outer[0]
             s["bump_program" if isinstance(source, dict) else "bump_texture"] = source
+            if self.displacement_bump:
+                s["displacement_bump"] = 1
         if self.levels is not None:
             # MaterialSet adds the levels' rows after this one (level_first, level_count).
             program, closures = self.levels
@@ -958,6 +962,8 @@ class MaterialExporter:
             if walker.medium is not None and any(np.any(walker.medium[i]) for i in (0, 1, 3)):
                 spec.update(volume_absorption=walker.medium[0], volume_scattering=walker.medium[1],
                             volume_anisotropy=walker.medium[2], volume_emission=walker.medium[3])
+            if walker.true_displacement is not None:
+                spec.update(walker.true_displacement)
             self._ids[key] = self._add(spec)
             if closure.hidden_rays:
                 self._hidden[self._ids[key]] = closure.hidden_rays
@@ -990,6 +996,9 @@ class MaterialExporter:
                 used.add("generated")
             if self._specs[i].get("normal_space") in (NORMAL_OBJECT, NORMAL_BLENDER_OBJECT):
                 used.add("object")
+            if ("displacement_program" in self._specs[i]
+                    and not self._specs[i].get("displacement_flags", 0) & DISPLACE_WORLD):
+                used.add("object")                  # (an offset in the object's space)
         return used
 
     def tangent_uv(self, ids):
@@ -1043,6 +1052,7 @@ class NodeWalker:
         self.camera_walker = None       # what camera rays see (Light Path's Is Camera Ray), its own
         self.camera_color = None        # world_* and colour, or None: the same as the other rays
         self.medium = None              # the material's volume (volume(): absorption, scattering, g, glow)
+        self.true_displacement = None   # {"displacement_program": offset program, "displacement_flags": ..}
 
     def note(self, msg):
         if msg not in self.notes:
@@ -1095,18 +1105,21 @@ class NodeWalker:
                 self.note("the Displacement output is ignored beside the shader's own normal map or "
                           "Bump on a Bump")
             elif c.bump is None:
-                c.bump = bump
+                c.bump, c.displacement_bump = bump, True
             else:
                 source, strength, distance = c.bump
                 height = source if isinstance(source, dict) else _image_height(source)
-                c.bump = (*bump, (height, strength, distance))
+                c.bump, c.displacement_bump = (*bump, (height, strength, distance)), True
 
     def displacement(self, sock, material):
         """The bump (as :meth:`bent_normal`'s) of a Displacement node on the material output's
         Displacement: Cycles' default Displacement Method, Bump Only, bends the normal as a Bump
         node of Distance ``Scale`` and Strength 1 on the same Height (the Midlevel, a constant,
-        bends nothing).  True displacement (the other methods) is not supported: bump, noted; so
-        is anything but a Displacement node (a Vector Displacement: ignored, noted)."""
+        bends nothing).  Displacement Only moves the vertices instead (``true_displacement``: the
+        offset (Height - Midlevel) Scale along the normal, in the node's Space; no bump), and
+        Displacement and Bump does both, keeping the shading normals for the bump to bend
+        (``Materials.displacement_program``, ``core.displacement``).  Anything but a Displacement
+        node (a Vector Displacement) is ignored, noted."""
         src, _, stack = self.source(sock, ())
         if src is None:
             return None
@@ -1115,10 +1128,19 @@ class NodeWalker:
             self.unsupported(node, "drives the Displacement output; ignored")
             return None
         method = getattr(material, "displacement_method", "BUMP")
-        if method != "BUMP":
-            self.note(f"displacement method {method.title()} is not supported: rendered as bump only")
         if node.inputs["Normal"].is_linked:
             self.note(f"displacement '{node.name}': a linked Normal is ignored (the surface's own is used)")
+        if method != "BUMP":
+            offset = {"op": "math", "operation": "MULTIPLY",
+                      "a": {"op": "math", "operation": "SUBTRACT",
+                            "a": self.programs.expression(node.inputs["Height"], stack, FLOAT),
+                            "b": self.programs.expression(node.inputs["Midlevel"], stack, FLOAT)},
+                      "b": self.programs.expression(node.inputs["Scale"], stack, FLOAT)}
+            flags = ((DISPLACE_WORLD if node.space == "WORLD" else 0)
+                     | (DISPLACE_KEEPS_NORMALS if method == "BOTH" else 0))
+            self.true_displacement = {"displacement_program": offset, "displacement_flags": flags}
+            if method == "DISPLACEMENT":
+                return None
         tex = self._bump_height(node.inputs["Height"], stack)
         return None if tex is None else (tex, 1.0, self.value(node.inputs["Scale"], stack))
 

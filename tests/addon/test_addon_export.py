@@ -14,6 +14,7 @@ import pytest
 from mathutils import Matrix, Vector
 
 import blender_scenes as bs
+from core.scene import DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD
 
 
 def mesh_of(triangles_scene):
@@ -1392,10 +1393,12 @@ def test_principled_mapping(scene):
 
 def test_a_displacement_node_becomes_a_bump(scene):
     """Material Output > Displacement from a Displacement node: Cycles' default method (Bump Only)
-    bends the normal as a Bump of Distance = Scale; true displacement and a Vector Displacement
-    are noted.  A shader's own Bump (stop 42; before, the displacement was noted and dropped)
-    bends the displaced normal: the displacement is the bump, the shader's the outer bump (an
-    image's height as a program of its luminance); beside a Bump on a Bump it is noted."""
+    bends the normal as a Bump of Distance = Scale; a Vector Displacement is noted.  The other
+    methods (stop 42; before, noted and rendered as the bump) move the vertices by
+    ``displacement_program``, Displacement and Bump with the bump too.  A shader's own Bump (stop
+    42; before, the displacement was noted and dropped) bends the displaced normal: the
+    displacement is the bump, the shader's the outer bump (an image's height as a program of its
+    luminance); beside a Bump on a Bump it is noted."""
     mat = bs.diffuse("Bumpy")
     nt = mat.node_tree
     disp = nt.nodes.new("ShaderNodeDisplacement")
@@ -1407,10 +1410,19 @@ def test_a_displacement_node_becomes_a_bump(scene):
     assert row["bump_program"] >= 0 and row["bump_strength"] == pytest.approx(1.0)
     assert row["bump_distance"] == pytest.approx(0.3)
     assert not [w for w in ex.warnings if "'Bumpy'" in w], ex.warnings
-    mat.displacement_method = "BOTH"
-    row, ex = export_material(mat)
-    assert row["bump_program"] >= 0
-    assert any("displacement method Both is not supported" in w for w in ex.warnings), ex.warnings
+    assert row["displacement_program"] < 0
+    # True displacement (stop 42; before, noted and rendered as the bump): (Height - Midlevel) Scale.
+    disp.space = "WORLD"
+    for method, bumped, flags in (("BOTH", True, DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS),
+                                  ("DISPLACEMENT", False, DISPLACE_WORLD)):
+        mat.displacement_method = method
+        row, ex = export_material(mat)
+        assert (row["bump_program"] >= 0) == bumped and row["displacement_flags"] == flags
+        offset = ex.scene.materials.programs[row["displacement_program"]]
+        assert offset["operation"] == "MULTIPLY" and offset["b"] == pytest.approx(0.3)
+        assert offset["a"]["a"]["op"] == "noise" and offset["a"]["b"] == pytest.approx(0.5)
+        assert not [w for w in ex.warnings if "'Bumpy'" in w], ex.warnings
+    disp.space = "OBJECT"
     mat.displacement_method = "BUMP"
     bump = nt.nodes.new("ShaderNodeBump")
     bump.inputs["Distance"].default_value = 0.05

@@ -447,6 +447,45 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
     assert_quarters_match(f"bump, invert {invert}", cycles, ours)
 
 
+@pytest.mark.parametrize("method", ["DISPLACEMENT", "BOTH", "object_scaled"])
+def test_true_displacement_matches_cycles(addon, tmp_path, method):
+    """A smooth 2 m grid of 64 x 64 quads whose Displacement node (Height: wave bands along x and a
+    noise, Midlevel 0.5, Scale 0.25) moves its vertices (stop 42, ``core.displacement``; before,
+    noted and rendered as a bump), under a low sun that the ridges shade and shadow.
+    Displacement Only turns the normals with the surface; Displacement and Bump keeps them and
+    adds the bump; ``object_scaled``: Displacement Only on the object scaled (1.5, 1, 0.5), whose
+    offsets Cycles makes in the object's space."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        mat = bs.diffuse("Ground", (0.8, 0.8, 0.8))
+        mat.displacement_method = "BOTH" if method == "BOTH" else "DISPLACEMENT"
+        nt = mat.node_tree
+        wave = nt.nodes.new("ShaderNodeTexWave")
+        wave.inputs["Scale"].default_value = 1.2
+        noise = nt.nodes.new("ShaderNodeTexNoise")
+        noise.inputs["Scale"].default_value = 3.0
+        mix = nt.nodes.new("ShaderNodeMath")
+        mix.operation = "MULTIPLY_ADD"
+        mix.inputs[1].default_value = 0.3
+        nt.links.new(noise.outputs["Fac"], mix.inputs[0])
+        nt.links.new(wave.outputs["Fac"], mix.inputs[2])
+        disp = nt.nodes.new("ShaderNodeDisplacement")
+        disp.inputs["Scale"].default_value = 0.25
+        nt.links.new(mix.outputs[0], disp.inputs["Height"])
+        nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+        bm = bmesh.new()
+        bm.loops.layers.uv.new("UVMap")
+        bmesh.ops.create_grid(bm, x_segments=64, y_segments=64, size=1.0, calc_uvs=True)
+        scale = (1.5, 1.0, 0.5) if method == "object_scaled" else (1.0, 1.0, 1.0)
+        ob = bs.mesh_object("Ground", bm, mat, scale=scale)
+        ob.data.shade_smooth()
+        bs.camera(location=(0, -1.5, 1.3), target=(0, 0.1, 0), lens=35.0)
+        bs.light("SUN", location=(3, 0, 1.5), target=(0, 0, 0), energy=3.0, angle=0.05)
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_quarters_match(f"true displacement, {method}", cycles, ours)
+    assert min(block_correlation(f"true displacement, {method}", cycles, ours)) > 0.98
+
+
 def assert_channels_match(name, cycles, ours, rtol=TOLERANCE, band_rtol=BAND_TOLERANCE):
     """Image means per channel within ``rtol`` and each channel's bands (coloured scenes: a grey
     mean can hide a wrong colour); returns the (n, 3) pixels of both, Cycles' first."""

@@ -1,0 +1,70 @@
+"""True displacement (``core.displacement.displace``, Materials.displacement_program): vertices
+move along their normals before a render, as Cycles' ``GeometryManager::displace`` moves them."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.context import RenderContext
+from core.displacement import displace
+from core.scene import DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD, Materials, Scene
+
+X = {"op": "separate", "vector": {"op": "attribute", "name": "position"}, "output": "X"}
+GENERATED_Z = {"op": "separate", "vector": {"op": "attribute", "name": "generated"}, "output": "Z"}
+
+
+def grid(spec, n=8, scale=1.0):
+    """An n x n grid of quads over [-1, 1]^2 at z = 0 with shared vertices and smooth normals (0, 0, 1),
+    of one material ``spec``; its object scaled by ``scale`` along z (object_from_world)."""
+    u = np.linspace(-1.0, 1.0, n + 1)
+    x, y = np.meshgrid(u, u, indexing="ij")
+    vertices = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1).astype(np.float32)
+    i = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]
+    a, b, c, d = i, i + n + 1, i + n + 2, i + 1
+    triangles = np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]).reshape(-1, 3)
+    t = len(triangles)
+    return Scene(vertices=vertices, triangles=triangles.astype(np.int32), material_ids=np.zeros(t, np.int32),
+                 materials=Materials.build([{"name": "ground", "diffuse": 0.5, **spec}]),
+                 shading_normals=np.tile(np.float32([0, 0, 1]), (t, 3, 1)),
+                 object_ids=np.zeros(t, np.int32),
+                 object_from_world=np.array([np.diag([1.0, 1.0, 1.0 / scale, 0.0])[:3]]),
+                 texture_spaces=np.array([[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]])).validate()
+
+
+def test_a_constant_offset_lifts_every_vertex_along_its_normal():
+    """0.1 along (0, 0, 1): in world units, or in the object's space scaled 2 along z, where the
+    offset is scaled back (Cycles: the normal into the object's space, normalised, the offset back
+    out: 0.2).  Without a displacement program the scene is returned as it is."""
+    for flags, scale, lift in ((DISPLACE_WORLD, 2.0, 0.1), (0, 2.0, 0.2), (0, 1.0, 0.1)):
+        lift_program = {"op": "math", "operation": "ADD", "a": 0.1, "b": 0.0}
+        scene = grid({"displacement_program": lift_program, "displacement_flags": flags}, scale=scale)
+        out = displace(scene)
+        np.testing.assert_allclose(out.vertices[:, 2], lift, rtol=1e-6)
+        np.testing.assert_array_equal(out.vertices[:, :2], scene.vertices[:, :2])
+        np.testing.assert_array_equal(out.undisplaced, scene.vertices)
+        np.testing.assert_allclose(out.shading_normals, scene.shading_normals, atol=1e-6)
+    plain = grid({})
+    assert displace(plain) is plain
+
+
+@pytest.mark.parametrize("keeps", [False, True], ids=["displacement_only", "displacement_and_bump"])
+def test_a_ramp_tilts_the_surface_and_its_normals(keeps):
+    """An offset of 0.5 x makes the plane z = 0.5 x: its normals (-0.5, 0, 1) / |.| everywhere
+    (Displacement Only: each corner's normal plus its vertex normal's change), or (0, 0, 1) kept
+    (Displacement and Bump).  Generated coordinates still read the undisplaced surface."""
+    flags = DISPLACE_WORLD | (DISPLACE_KEEPS_NORMALS if keeps else 0)
+    scene = grid({"displacement_program": {"op": "math", "operation": "MULTIPLY", "a": X, "b": 0.5},
+                  "displacement_flags": flags, "diffuse_program": GENERATED_Z})
+    out = displace(scene)
+    np.testing.assert_allclose(out.vertices[:, 2], 0.5 * scene.vertices[:, 0], atol=1e-6)
+    want = np.array([0.0, 0.0, 1.0]) if keeps else np.array([-0.5, 0.0, 1.0]) / np.sqrt(1.25)
+    np.testing.assert_allclose(out.shading_normals.reshape(-1, 3),
+                               np.broadcast_to(want, (out.triangle_count * 3, 3)), atol=1e-6)
+    ctx = RenderContext(scene)
+    assert ctx.scene.undisplaced is not None
+    prims = np.arange(scene.triangle_count)
+    third = np.full(len(prims), 1.0 / 3.0)
+    surf = ctx.surface(prims, third, third)
+    # Generated z of the undisplaced surface (z = 0 in the texture space [-1, 1]: 1/2), where the
+    # displaced one would read (0.5 x + 1) / 2.
+    np.testing.assert_allclose(surf.colors[:, 0, 0] / 0.5, 0.5, atol=1e-6)
