@@ -127,7 +127,7 @@ def test_colours_are_finite_and_non_negative():
 
 
 @pytest.mark.parametrize("program, message", [
-    ({"op": "gabor"}, "unknown program op"),
+    ({"op": "particle_info"}, "unknown program op"),
     ({"op": "checker", "vector": {"op": "attribute", "name": "reflection"}},
      "name .reflection. is not one of"),
     ({"op": "checker", "output": "Alpha"}, "has no output"),
