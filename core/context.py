@@ -11,9 +11,9 @@ from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT
 from .displacement import displace
 from .environment import Environment
 from .lights import VOLUME, LightSampler
-from .procedural import (COLOR_MAX, EMISSION_MAX, DirectionAttributes, HitAttributes, Rays, attributes_used,
-                         camera_path, evaluate, evaluate_color, perpendicular_tangents, photon_path,
-                         radial_tangents)
+from .procedural import (BUMP_STEP, COLOR_MAX, EMISSION_MAX, DirectionAttributes, HitAttributes, Rays,
+                         attributes_used, camera_path, evaluate, evaluate_color, perpendicular_tangents,
+                         photon_path, radial_tangents)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, NORMAL_BLENDER_OBJECT,
                     NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, PANORAMAS, POINT, SPOT,
@@ -32,8 +32,6 @@ MAX_PROBE_CROSSINGS = 64
 # this many times the scene's size (Accel.extent); light that would scatter further out is lost
 # (a photon 1000 scene sizes away comes back into the scene's solid angle once in a million).
 FAR_EXTENTS = 1e3
-# Step of a procedural bump's finite differences, relative to the scene's size (Accel.extent).
-BUMP_STEP = 1e-5
 
 
 @dataclass

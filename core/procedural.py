@@ -95,6 +95,8 @@ from .sampling import (cosine_hemisphere, dot, fresnel_dielectric, length, norma
 from .texture_hash import hash_uint3, hash_uint3_to_float
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
+# A bump's finite-difference step, times the scene's size (``RenderContext._apply_bump_maps``, ``_bump``).
+BUMP_STEP = 1e-5
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
               "object_info", "position", "world_normal", "true_normal", "camera", "window", "incoming",
               "backfacing", "light_path", "parametric", "edge_distance", "pixel_width", "tangent_x",
@@ -1623,6 +1625,52 @@ def _node_normal(ev, node):
     return ev.vec(node, "normal") if "normal" in node else ev.attrs.get("world_normal")
 
 
+def _bump(ev, node):
+    """Blender's Bump node as a program (its Normal; ``RenderContext._apply_bump_maps`` has the
+    formula): the height's gradient from forward differences along the triangle's edges (on the
+    undisplaced surface of a truly displaced scene) of ``BUMP_STEP`` times the scene's size (a
+    thousandth of an edge without the scene's acceleration structure), about the node's normal or
+    the shading normal; a negative distance is an inverted bump.  Where there is no triangle to
+    step along (a world's directions) the normal is returned as it is."""
+    attrs = ev.attrs
+    n0 = normalize(_node_normal(ev, node))
+    if not isinstance(attrs, HitAttributes):
+        return {"Normal": n0}
+    s = attrs.scene
+    prims = attrs.prim_ids
+    surface = s.vertices if s.undisplaced is None else s.undisplaced
+    corners = surface.take(s.triangles.take(prims, axis=0), axis=0).astype(np.float64)
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    l1, l2 = np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1)
+    if attrs.accel is not None:
+        step = BUMP_STEP * attrs.accel.extent
+        s1, s2 = step / np.maximum(l1, 1e-300), step / np.maximum(l2, 1e-300)
+    else:
+        s1 = s2 = np.full(ev.k, 1e-3)
+    b = [np.asarray(w, np.float64).reshape(-1) for w in attrs.bary]
+    x = interpolate_corners(corners, attrs.bary)
+    heights = []
+    for d1, d2 in ((0.0, 0.0), (s1, 0.0), (0.0, s2)):
+        d1, d2 = np.broadcast_to(d1, (ev.k,)), np.broadcast_to(d2, (ev.k,))
+        shifted = ((b[0] - d1 - d2)[:, None], (b[1] + d1)[:, None], (b[2] + d2)[:, None])
+        moved = x + d1[:, None] * e1 + d2[:, None] * e2
+        at = HitAttributes(s, prims, shifted, moved, attrs.rays, attrs.accel)
+        h = evaluate(node["height"], at, ev.images)
+        heights.append(h @ LUMINANCE if h.ndim == 2 else h)
+    hu = np.nan_to_num((heights[1] - heights[0]) / s1)
+    hv = np.nan_to_num((heights[2] - heights[0]) / s2)
+    ru, rv = np.cross(e2, n0), np.cross(n0, e1)
+    det = dot(e1, ru)
+    distance = ev.float(node, "distance", 1.0)
+    along = hu[:, None] * ru + hv[:, None] * rv
+    n = normalize(np.abs(det)[:, None] * n0 - (distance * np.sign(det))[:, None] * along)
+    strength = np.clip(ev.float(node, "strength", 1.0), 0.0, None)[:, None]
+    n = normalize(strength * n + (1.0 - strength) * n0)
+    bad = ~np.isfinite(n).all(axis=1) | (np.abs(n).sum(axis=1) == 0.0)
+    n[bad] = n0[bad]
+    return {"Normal": n}
+
+
 def _view_cosine(ev, node):
     """(k,) the cosine of Incoming with the node's normal (:func:`_node_normal`), at most 1, and
     (k,) whether the ray meets the back (``RAY``)."""
@@ -1830,8 +1878,8 @@ def _splat(ev, node):
 
 OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradient": _gradient,
        "noise": _noise, "voronoi": _voronoi, "wave": _wave, "brick": _brick, "magic": _magic,
-       "white_noise": _white_noise, "gabor": _gabor, "image": _image, "environment": _environment, "sky": _sky,
-       "ramp": _ramp,
+       "white_noise": _white_noise, "gabor": _gabor, "image": _image, "environment": _environment,
+       "sky": _sky, "ramp": _ramp,
        "mix_color": _mix_color, "mix_float": _mix_float, "mix_vector": _mix_vector, "math": _math,
        "map_range": _map_range, "metal": _metal, "invert": _invert, "gamma": _gamma, "hsv": _hsv,
        "bright_contrast": _bright_contrast, "separate": _separate, "combine": _combine, "gray": _gray,
@@ -1839,7 +1887,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve,
        "fresnel": _fresnel, "layer_weight": _layer_weight, "ao": _ao, "bevel": _bevel,
-       "light_path": _light_path}
+       "light_path": _light_path, "bump": _bump}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -1856,10 +1904,11 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
            "curves": ("Color",), "float_curve": ("Value",), "fresnel": ("Fac",),
            "layer_weight": ("Fresnel", "Facing"), "ao": ("Color", "AO"), "bevel": ("Normal",),
-           "light_path": LIGHT_PATH}
+           "light_path": LIGHT_PATH, "bump": ("Normal",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "color_space": ("conversion",),
-            "environment": ("texture",), "ramp": ("table",), "curves": ("table",), "float_curve": ("table",)}
+            "environment": ("texture",), "bump": ("height",), "ramp": ("table",), "curves": ("table",),
+            "float_curve": ("table",)}
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
 # Settings chosen from a list (the others are numbers, colours or nodes).
 CHOICES = {

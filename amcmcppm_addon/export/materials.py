@@ -1399,17 +1399,21 @@ class NodeWalker:
         if inner_bump is None:
             return inner, (tex, strength, distance)
         if len(inner_bump) > 3:
-            self.note(f"bump '{node.name}': a third Bump in a row is not supported; using the inner two")
-            return inner, inner_bump
+            if inner is not None:
+                self.note(f"bump '{node.name}': a third Bump in a row over a normal map is not supported; "
+                          "using the inner two")
+                return inner, inner_bump
+            # A third Bump in a row: the whole chain as one program of the normal (procedural's bump).
+            return self.programs.expression(sock, stack, VEC), None
         # A Bump on a Bump: this one bends the normal the inner one made (its height as a program).
         height = self.programs.expression(node.inputs["Height"], stack, FLOAT)
         return inner, (*inner_bump, (height, strength, distance))
 
     def coat_normal(self, node, stack):
         """The coat's own normal (``Closure.coat_normal``) from Principled ``node``'s Coat Normal: a
-        program of the normal and at most one Bump over it (its height a program); a Normal Map
-        of an image or a Bump on a Bump there is noted (the map left out, the outer Bump kept
-        alone).  None where the input is unlinked or bends nothing."""
+        program of the normal and at most one Bump over it (its height a program), or a chain of
+        Bumps as one program; a Normal Map of an image there is noted and left out.  None where
+        the input is unlinked or bends nothing."""
         sock = node.inputs["Coat Normal"]
         if not sock.is_linked:
             return None
@@ -1417,10 +1421,10 @@ class NodeWalker:
         if normal is not None and not isinstance(normal, dict):
             self.note(f"'{node.name}': a Normal Map image on the Coat Normal is not supported (left out)")
             normal = None
+        if bump is not None and len(bump) > 3:
+            # A Bump on a Bump: the chain as one program of the normal (procedural's bump).
+            normal, bump = self.programs.expression(sock, stack, VEC), None
         if bump is not None:
-            if len(bump) > 3:
-                self.note(f"'{node.name}': a Bump on a Bump on the Coat Normal: the outer one alone")
-                bump = bump[3]
             height, strength, distance = bump[:3]
             bump = (height if isinstance(height, dict) else _image_height(height), strength, distance)
         return None if normal is None and bump is None else (normal, bump)

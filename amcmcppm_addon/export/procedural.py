@@ -738,18 +738,29 @@ def _combine_color(b, node, stack):
 
 
 def _normal_input(b, node, stack):
-    """The Normal input of a Fresnel, Layer Weight, Ambient Occlusion or Bevel node as ``normal``
-    ({} when unlinked: the shading normal); a Bump or Normal Map node's normal is no program: the
-    shading normal, noted."""
+    """The Normal input of a Fresnel, Layer Weight, Ambient Occlusion, Bevel or Bump node as
+    ``normal`` ({} when unlinked: the shading normal); a Bump node's is a program (``_bump``), a
+    Normal Map node's is none: the shading normal, noted."""
     sock = node.inputs["Normal"]
     src, _, _ = b.walker.source(sock, stack)
     if src is None:
         return {}
-    if src.node.bl_idname in ("ShaderNodeBump", "ShaderNodeNormalMap") and not src.node.mute:
+    if src.node.bl_idname == "ShaderNodeNormalMap" and not src.node.mute:
         b.walker.note(f"'{node.name}': the normal of '{src.node.name}' is not supported here; using the "
                       "surface's own normal")
         return {}
     return {"normal": b.expression(sock, stack, VEC)}
+
+
+def _bump(b, node, stack):
+    """Bump: the bent normal as a program (``procedural._bump``); Invert negates the Distance, and
+    the Filter Width (Cycles' footprint of its differences) has no equivalent here."""
+    distance = b.input(node, "Distance", stack, FLOAT)
+    if node.invert:
+        distance = {"op": "math", "operation": "MULTIPLY", "a": distance, "b": -1.0}
+    return {"Normal": {"op": "bump", "height": b.input(node, "Height", stack, FLOAT),
+                       "strength": b.input(node, "Strength", stack, FLOAT), "distance": distance,
+                       **_normal_input(b, node, stack)}}
 
 
 def _fresnel(b, node, stack):
@@ -797,5 +808,5 @@ NODES = {
     "ShaderNodeFresnel": _fresnel, "ShaderNodeLayerWeight": _layer_weight,
     "ShaderNodeCameraData": _camera_data, "ShaderNodeWireframe": _wireframe,
     "ShaderNodeAmbientOcclusion": _ambient_occlusion, "ShaderNodeBevel": _bevel,
-    "ShaderNodeLightPath": _light_path,
+    "ShaderNodeLightPath": _light_path, "ShaderNodeBump": _bump,
 }

@@ -296,7 +296,8 @@ def sun_over_bumped_floor(slope, distance=1.0, strength=1.0, sun_toward=(0.0, 0.
                           albedo=0.5, resolution=(8, 8), procedural=False):
     """A flat diffuse floor (z = 0, uv = xy + 0.5) with a bump map whose height rises by
     ``slope`` per unit of u (a grey ramp image; with ``procedural``, the program slope x of the
-    Object coordinates), under a sun.  Cycles' Bump node then bends the normal to
+    Object coordinates, or with ``procedural="op"`` that height in a ``bump`` program of the
+    normal, ``normal_program``), under a sun.  Cycles' Bump node then bends the normal to
     normalize(z - distance slope x) before the strength blend."""
     w = 64
     ramp = slope * (np.arange(w) + 0.5) / w
@@ -309,6 +310,9 @@ def sun_over_bumped_floor(slope, distance=1.0, strength=1.0, sun_toward=(0.0, 0.
     height = {"op": "math", "operation": "MULTIPLY", "a": x, "b": slope}
     spec = {"name": "floor", "diffuse": albedo, "bump_program": height, "bump_strength": strength,
             "bump_distance": distance}
+    if procedural == "op":
+        spec = {"name": "floor", "diffuse": albedo,
+                "normal_program": {"op": "bump", "height": height, "strength": strength, "distance": distance}}
     return with_one_object(scene.replace(materials=Materials.build([spec]), textures=[])).validate()
 
 

@@ -1275,7 +1275,8 @@ def test_bump_of_a_noise_becomes_a_height_program(scene):
 def test_a_bump_on_a_bump_is_the_outer_bump(scene):
     """A Bump whose Normal is another Bump (stop 41; before, noted and the outer one dropped): the
     inner one is the material's bump, the outer one ``outer_bump_program`` with its strength and
-    distance; a third in a row is noted and left out."""
+    distance; with a third in a row (stop 42; before, noted and left out) the chain is one program
+    of the normal (``normal_program``, nested ``bump`` ops)."""
     mat = principled("Layered")
     nt = mat.node_tree
 
@@ -1301,8 +1302,11 @@ def test_a_bump_on_a_bump_is_the_outer_bump(scene):
     third = bump("ShaderNodeTexChecker", 0.01, outer)
     nt.links.new(third.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Normal"])
     row, ex = export_material(mat)
-    assert ex.scene.materials.programs[row["outer_bump_program"]]["op"] == "wave"
-    assert any("third Bump" in w for w in ex.warnings), ex.warnings
+    chain = ex.scene.materials.programs[row["normal_program"]]
+    assert chain["op"] == "bump" and chain["height"]["op"] == "checker"
+    assert chain["normal"]["op"] == "bump" and chain["normal"]["height"]["op"] == "wave"
+    assert chain["normal"]["normal"]["height"]["op"] == "noise" and "normal" not in chain["normal"]["normal"]
+    assert row["bump_program"] < 0 and row["outer_bump_program"] < 0 and not ex.warnings
 
 
 @pytest.mark.parametrize("invert", [False, True])
@@ -1498,8 +1502,8 @@ def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
 def test_principled_coat_is_exported_with_cycles_clamps(scene):
     """Coat Weight, Roughness, IOR and Tint reach the core (weight and tint saturated, the IOR at
     least 1, as Cycles); no coat without weight.  A Bump on the Coat Normal (stop 42; before,
-    noted and left out) bends the coat alone (``coat_bump_program``); a Normal Map image there is
-    noted, and so is a Bump on a Bump (the outer one kept).  A Displacement output bends an
+    noted and left out) bends the coat alone (``coat_bump_program``), a Bump on a Bump as one
+    program of the normal; a Normal Map image there is noted.  A Displacement output bends an
     unlinked Coat Normal too (Cycles' Bump Only)."""
     row, ex = export_material(principled("Varnish", **{"Coat Weight": 0.7, "Coat Roughness": 0.2,
                                                        "Coat IOR": 1.8, "Coat Tint": (1.2, 0.5, 0.25, 1)}))
@@ -1547,8 +1551,9 @@ def test_principled_coat_is_exported_with_cycles_clamps(scene):
     nt.links.new(outer.outputs["Normal"], nt.nodes["Principled BSDF"].inputs["Coat Normal"])
     nt.links.remove(normal_map.outputs["Normal"].links[0])
     row, ex = export_material(mat)
-    assert ex.scene.materials.programs[row["coat_bump_program"]]["op"] == "wave"
-    assert any("Bump on a Bump on the Coat Normal" in w for w in ex.warnings), ex.warnings
+    chain = ex.scene.materials.programs[row["coat_normal_program"]]
+    assert chain["op"] == "bump" and chain["height"]["op"] == "wave" and chain["normal"]["op"] == "bump"
+    assert row["coat_bump_program"] < 0 and not ex.warnings
     displaced = principled("Displaced", **{"Coat Weight": 1.0})
     nt = displaced.node_tree
     disp = nt.nodes.new("ShaderNodeDisplacement")

@@ -388,7 +388,7 @@ def sine_along_v(nt):
 
 
 @pytest.mark.parametrize("invert", [False, True, "displacement", "bump_on_bump", "displacement_and_bump",
-                                    "bump_on_displacement"])
+                                    "bump_on_displacement", "three_bumps"])
 def test_bump_map_matches_cycles(addon, tmp_path, invert):
     """A diffuse floor whose Bump node takes its height from an image of two sine waves along u
     (the normal swings up to 32 degrees either way), under a sun at 45 degrees; inverted, the
@@ -399,7 +399,10 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
     normal the first made (``Materials.outer_bump_program``).  ``displacement_and_bump`` (stop 42;
     before, the displacement was noted and dropped): the displacement of the first, and the
     shader's own Bump of the second, which bends the displaced normal; ``bump_on_displacement``:
-    the other way round, the second's displacement (Scale 0.15) under the first's Bump."""
+    the other way round, the second's displacement (Scale 0.15) under the first's Bump.
+    ``three_bumps`` (stop 42; before, the third was noted and dropped): a third Bump (distance 0.1,
+    inverted) of the same sine along v over the Bump on a Bump, the chain one program of the
+    normal (``procedural``'s bump op)."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
         u = (np.arange(32) + 0.5) / 32
@@ -431,10 +434,15 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
                 disp.inputs["Scale"].default_value = 0.15
                 nt.links.new(sine_along_v(nt), disp.inputs["Height"])
                 nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
-            if invert == "bump_on_bump":
+            if invert in ("bump_on_bump", "three_bumps"):
                 outer = sine_along_v_bump(nt, 0.15)
                 nt.links.new(bump.outputs["Normal"], outer.inputs["Normal"])
                 nt.links.new(outer.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+            if invert == "three_bumps":
+                third = sine_along_v_bump(nt, 0.1)
+                third.invert = True
+                nt.links.new(outer.outputs["Normal"], third.inputs["Normal"])
+                nt.links.new(third.outputs["Normal"], nt.nodes["Diffuse BSDF"].inputs["Normal"])
         bm = bmesh.new()
         bm.loops.layers.uv.new("UVMap")
         bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=1.0, calc_uvs=True)

@@ -201,11 +201,12 @@ def test_normal_map_bends_the_shading_normal_as_cycles(method, case):
     (-0.8, 1.0, 1.0),         # a negative distance (Invert) bends the other way: 1 again
     (0.8, 0.5, -1.0),         # strength 0.5: halfway between z and the bumped normal
 ], ids=["facing", "away", "inverted", "half_strength"])
-@pytest.mark.parametrize("procedural", [False, True], ids=["image", "program"])
+@pytest.mark.parametrize("procedural", [False, True, "op"], ids=["image", "program", "normal_program"])
 def test_bump_map_bends_the_shading_normal_as_cycles(method, distance, strength, towards, procedural):
     """A sun over a floor whose height rises along u (an image, or a program of the Object
-    coordinates): Cycles' Bump node gives the normal normalize(z - d h_u x), blended with z by
-    the strength; radiance albedo E (N . l) G / pi."""
+    coordinates, as the material's bump or, since stop 42, as a ``bump`` op in its normal
+    program): Cycles' Bump node gives the normal normalize(z - d h_u x), blended with z by the
+    strength; radiance albedo E (N . l) G / pi."""
     slope = 1.0
     bent = np.array([-distance * slope, 0.0, 1.0])
     bent /= np.linalg.norm(bent)

@@ -143,6 +143,7 @@ def test_colours_are_finite_and_non_negative():
     ({"op": "vector_math", "operation": "SLERP", "a": OBJECT}, "operation 'SLERP' is not one of"),
     ({"op": "curves", "color": OBJECT, "table": [[0, 0], [1, 1]]}, "table must be a finite array of shape"),
     ({"op": "float_curve", "value": 0.5}, "lacks its input 'table'"),
+    ({"op": "bump", "distance": 0.1}, "lacks its input 'height'"),
 ])
 def test_scene_validation_names_a_bad_program(program, message):
     checker = {"op": "checker", "vector": OBJECT, "color1": [1, 1, 1], "color2": [0, 0, 0]}
