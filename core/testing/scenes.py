@@ -311,8 +311,8 @@ def sun_over_bumped_floor(slope, distance=1.0, strength=1.0, sun_toward=(0.0, 0.
     spec = {"name": "floor", "diffuse": albedo, "bump_program": height, "bump_strength": strength,
             "bump_distance": distance}
     if procedural == "op":
-        spec = {"name": "floor", "diffuse": albedo,
-                "normal_program": {"op": "bump", "height": height, "strength": strength, "distance": distance}}
+        bent = {"op": "bump", "height": height, "strength": strength, "distance": distance}
+        spec = {"name": "floor", "diffuse": albedo, "normal_program": bent}
     return with_one_object(scene.replace(materials=Materials.build([spec]), textures=[])).validate()
 
 
