@@ -201,7 +201,8 @@ class RenderContext:
         thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes (anisotropic ones need
         tangents at every hit) and their layers (Fresnel
         layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
-        normal and bump maps, textured emitters), lights' angular (IES) profiles, light and shadow
+        normal and bump maps, textured emitters), true displacement, glass that refracts without
+        reflecting (Refraction BSDF), lights' angular (IES) profiles, light and shadow
         linking, transparency, objects hidden from some camera rays, holdouts, volumes (the world's
         too; glowing ones), an environment image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
@@ -225,6 +226,8 @@ class RenderContext:
                  ("rotation maps", self.has_rotation_programs),
                  ("anisotropy maps", self.has_stretch_programs),
                  ("normal and bump maps", self.has_normal_maps),
+                 ("true displacement", self.scene.undisplaced is not None),
+                 ("refraction without reflection", self.table.dielectric_fresnel is not None),
                  ("textured emitters", self.lights.textured_emitters),
                  ("light profiles", self.lights.has_profiles),
                  ("light linking", self.lights.has_links),

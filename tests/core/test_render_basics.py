@@ -16,7 +16,7 @@ from core.eye_pass import trace_eye_pass
 from core.integrator import Accumulator, kz_radius_scales
 from core.parallel import InProcessPool, ProcessPool
 from core.photon_pass import DepositTarget
-from core.scene import DEFAULT_LIGHT_VISIBILITY
+from core.scene import DEFAULT_LIGHT_VISIBILITY, DISPLACE_WORLD
 from core.settings import AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_RAMP
 from core.testing.scenes import (MeshBuilder, cornell_box, furnace_sphere, glass_ceiling_room, sky_over_floor,
                                  sun_over_bumped_floor, sun_over_normal_mapped_floor)
@@ -463,12 +463,15 @@ def test_effects_name_what_the_scene_calls_for():
     mats = plain.materials
     specs = [{"name": n, "diffuse": mats.diffuse_color[i], "emission": mats.emission[i]}
              for i, n in enumerate(mats.names)]
-    specs[0].update(dielectric=1.0, volume_absorption=0.5, coat=0.5, opacity=0.9, holdout=0.5)
+    specs[0].update(dielectric=1.0, volume_absorption=0.5, coat=0.5, opacity=0.9, holdout=0.5,
+                    dielectric_fresnel=0.5, displacement_flags=DISPLACE_WORLD,
+                    displacement_program={"op": "math", "operation": "ADD", "a": 0.01, "b": 0.0})
     specs[1].update(glossy=0.5, glossy_metal_rise=0.5, glossy_stretch=2.0)
     specs[2].update(translucent=0.3)
     scene = plain.replace(materials=Materials.build(specs)).validate()
     effects = RenderContext(scene).effects
     assert {"glass", "coats", "transparency", "volumes", "glossy", "holdout",
-            "metal Fresnel curves", "translucency", "anisotropic glossy"} <= set(effects), effects
+            "metal Fresnel curves", "translucency", "anisotropic glossy", "true displacement",
+            "refraction without reflection"} <= set(effects), effects
     result = render(scene, RenderSettings(passes=1, photons_per_pass=1000, workers=1))
     assert result.effects == effects and np.isfinite(result.image).all()
