@@ -11,6 +11,7 @@ corner's normal plus the change of its vertex's normal (the normalised sum of th
 the triangles around it) from before to after, normalised (Cycles' corner-normal delta, which for a
 smooth mesh is the new vertex normal).  Displacement and Bump keeps them (``DISPLACE_KEEPS_NORMALS``:
 its bump bends them).  ``Scene.undisplaced`` keeps the old vertices for Generated coordinates.
+Offsets that are not finite are 0 and larger ones than ``OFFSET_LIMIT`` scene sizes are clamped.
 """
 from __future__ import annotations
 
@@ -20,6 +21,9 @@ from .bsdf import Textures
 from .procedural import LUMINANCE, HitAttributes, evaluate
 from .sampling import normalize
 from .scene import DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD
+
+# The largest offset, in sizes of the undisplaced scene (its bounds' largest side).
+OFFSET_LIMIT = 10.0
 
 
 def displace(scene):
@@ -49,7 +53,11 @@ def displace(scene):
         sel = np.flatnonzero(vertex_program == p)
         value = evaluate(mats.programs[p], _subset(attrs, sel), images)
         offset[sel] = value @ LUMINANCE if value.ndim == 2 else value
-    offset = np.nan_to_num(offset, nan=0.0, posinf=0.0, neginf=0.0)
+    # Not finite: 0 (Cycles' ensure_finite); beyond OFFSET_LIMIT scene sizes: clamped, so that a
+    # runaway height leaves the rest of the scene its scale (ray offsets, gather radii).
+    lo, hi = scene.bounds()
+    limit = OFFSET_LIMIT * float(max(np.max(hi - lo), 1e-6))
+    offset = np.clip(np.nan_to_num(offset, nan=0.0, posinf=0.0, neginf=0.0), -limit, limit)
     flags = mats.displacement_flags.take(scene.material_ids.take(prims))
     step = normal * offset[:, None]
     in_object = (flags & DISPLACE_WORLD) == 0

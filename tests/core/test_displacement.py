@@ -68,3 +68,25 @@ def test_a_ramp_tilts_the_surface_and_its_normals(keeps):
     # Generated z of the undisplaced surface (z = 0 in the texture space [-1, 1]: 1/2), where the
     # displaced one would read (0.5 x + 1) / 2.
     np.testing.assert_allclose(surf.colors[:, 0, 0] / 0.5, 0.5, atol=1e-6)
+
+
+def test_a_runaway_height_is_clamped_and_the_render_stays_finite():
+    """An offset of 3e38 (float32's edge) on the Cornell box's red wall: clamped to OFFSET_LIMIT
+    scene sizes, so the rest of the box keeps its scale and light (finite, lit, both methods)."""
+    from core import RenderSettings, render
+    from core.displacement import OFFSET_LIMIT
+    from core.testing.scenes import cornell_box
+    plain = cornell_box(resolution=(16, 16))
+    mats = plain.materials
+    specs = [{"name": n, "diffuse": mats.diffuse_color[i], "emission": mats.emission[i]}
+             for i, n in enumerate(mats.names)]
+    specs[1].update(displacement_flags=DISPLACE_WORLD,
+                    displacement_program={"op": "math", "operation": "ADD", "a": 3e38, "b": 0.0})
+    scene = plain.replace(materials=Materials.build(specs)).validate()
+    moved = displace(scene)
+    lo, hi = scene.bounds()
+    assert np.isfinite(moved.vertices).all()
+    assert np.abs(moved.vertices).max() <= (OFFSET_LIMIT + 1.0) * np.max(hi - lo)
+    for method in ("ppm", "amcmcppm"):
+        image = render(scene, RenderSettings(passes=2, photons_per_pass=2000, workers=1, method=method)).image
+        assert np.isfinite(image).all() and image[..., :3].mean() > 0.05
