@@ -1671,6 +1671,49 @@ def _bump(ev, node):
     return {"Normal": n}
 
 
+NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")
+
+
+def _normal_map(ev, node):
+    """Blender's Normal Map node as a program (its Normal; ``RenderContext._apply_normal_maps``
+    has the formula): c = 2 Color - 1 in the UV map's tangent frame (``Scene.tangents``; without
+    one, the surface's normal), or in the object's or world space (Blender's variants flip y and
+    z), about the shading normal of the triangle's front, turned to the ray's side on a back face
+    as Cycles turns it; a world's directions keep their normal."""
+    attrs = ev.attrs
+    c = 2.0 * ev.vec(node, "color", (0.5, 0.5, 1.0)) - 1.0
+    strength = np.maximum(ev.float(node, "strength", 1.0), 0.0)
+    if not isinstance(attrs, HitAttributes):
+        return {"Normal": normalize(attrs.get("world_normal"))}
+    s = attrs.scene
+    n0 = attrs._front("world_normal")
+    space = node.get("space", "TANGENT")
+    if space == "TANGENT":
+        n = n0.copy()
+        if s.tangents is not None:
+            corners = s.tangents.take(attrs.prim_ids, axis=0).astype(np.float64)
+            frame = interpolate_corners(corners, attrs.bary)
+            t = frame[:, :3]
+            b = frame[:, 3:4] * np.cross(n0, t)
+            cz = 1.0 + (c[:, 2] - 1.0) * np.minimum(strength, 1.0)
+            n = normalize((c[:, 0] * strength)[:, None] * t + (c[:, 1] * strength)[:, None] * b
+                          + cz[:, None] * n0)
+            no_frame = ~(np.abs(t).sum(axis=1) > 0)
+            n[no_frame] = n0[no_frame]
+    else:
+        if space.startswith("BLENDER_"):
+            c[:, 1:] *= -1.0                                  # ("strange blender convention")
+        if space.endswith("OBJECT") and s.object_ids is not None:
+            objects = s.object_from_world.take(s.object_ids.take(attrs.prim_ids), axis=0)
+            c = np.einsum("kji,kj->ki", objects[:, :, :3], c)
+        n = normalize(c)
+        n = np.where((strength != 1.0)[:, None], normalize(n0 + (n - n0) * strength[:, None]), n)
+    bad = ~np.isfinite(n).all(axis=1) | (np.abs(n).sum(axis=1) == 0.0)
+    n[bad] = n0[bad]
+    back = attrs.get("backfacing")[:, :1] > 0.5
+    return {"Normal": np.where(back, -n, n)}
+
+
 def _view_cosine(ev, node):
     """(k,) the cosine of Incoming with the node's normal (:func:`_node_normal`), at most 1, and
     (k,) whether the ray meets the back (``RAY``)."""
@@ -1887,7 +1930,7 @@ OPS = {"attribute": _attribute, "affine": _affine, "checker": _checker, "gradien
        "average": _average, "splat": _splat, "blackbody": _blackbody, "unpremultiply": _unpremultiply,
        "vector_math": _vector_math, "clamp": _clamp, "curves": _curves, "float_curve": _float_curve,
        "fresnel": _fresnel, "layer_weight": _layer_weight, "ao": _ao, "bevel": _bevel,
-       "light_path": _light_path, "bump": _bump}
+       "light_path": _light_path, "bump": _bump, "normal_map": _normal_map}
 OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color", "Fac"),
            "gradient": ("Color", "Fac"), "noise": ("Fac", "Color"),
            "voronoi": ("Distance", "Color", "Position", "W", "Radius"), "wave": ("Color", "Fac"),
@@ -1904,7 +1947,7 @@ OUTPUTS = {"attribute": ("Vector",), "affine": ("Vector",), "checker": ("Color",
            "unpremultiply": ("Color",), "vector_math": ("Vector", "Value"), "clamp": ("Result",),
            "curves": ("Color",), "float_curve": ("Value",), "fresnel": ("Fac",),
            "layer_weight": ("Fresnel", "Facing"), "ao": ("Color", "AO"), "bevel": ("Normal",),
-           "light_path": LIGHT_PATH, "bump": ("Normal",)}
+           "light_path": LIGHT_PATH, "bump": ("Normal",), "normal_map": ("Normal",)}
 REQUIRED = {"attribute": ("name",), "affine": ("matrix",), "image": ("texture",),
             "color_space": ("conversion",),
             "environment": ("texture",), "bump": ("height",), "ramp": ("table",), "curves": ("table",),
@@ -1921,6 +1964,7 @@ CHOICES = {
     ("wave", "rings_direction"): _patterns.RINGS_DIRECTIONS,
     ("wave", "wave_profile"): _patterns.WAVE_PROFILES,
     ("white_noise", "dimensions"): _patterns.DIMENSIONS, ("gabor", "gabor_type"): _patterns.GABOR_TYPES,
+    ("normal_map", "space"): NORMAL_MAP_SPACES,
     ("sky", "sky_type"): ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"),
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
     ("image", "interpolation"): ("Linear", "Closest", "Cubic"),

@@ -1375,7 +1375,13 @@ class NodeWalker:
             return None, None
         node = src.node
         if node.bl_idname == "ShaderNodeNormalMap" and not node.mute:
-            return self.normal_map(node, stack), None
+            image = self.normal_map(node, stack)
+            if image is not None:
+                return image, None                  # an image's map exactly (Materials.normal_texture)
+            color, tex = self.color(node.inputs["Color"], stack)
+            if not textured(tex) and np.abs(color - (0.5, 0.5, 1.0)).max() <= 1e-6:
+                return None, None                   # (the flat colour bends nothing)
+            return self.programs.expression(sock, stack, VEC), None     # any other colour: a program
         if node.bl_idname != "ShaderNodeBump" and not node.mute and node.bl_idname in PROGRAM_NODES:
             program = self.programs.expression(sock, stack, VEC)
             if not procedural.varies(program):
@@ -1411,18 +1417,15 @@ class NodeWalker:
 
     def coat_normal(self, node, stack):
         """The coat's own normal (``Closure.coat_normal``) from Principled ``node``'s Coat Normal: a
-        program of the normal and at most one Bump over it (its height a program), or a chain of
-        Bumps as one program; a Normal Map of an image there is noted and left out.  None where
-        the input is unlinked or bends nothing."""
+        program of the normal and at most one Bump over it (its height a program), or the chain
+        (a Normal Map's image, Bumps on Bumps) as one program.  None where the input is unlinked
+        or bends nothing."""
         sock = node.inputs["Coat Normal"]
         if not sock.is_linked:
             return None
         normal, bump = self.bent_normal(sock, stack)
-        if normal is not None and not isinstance(normal, dict):
-            self.note(f"'{node.name}': a Normal Map image on the Coat Normal is not supported (left out)")
-            normal = None
-        if bump is not None and len(bump) > 3:
-            # A Bump on a Bump: the chain as one program of the normal (procedural's bump).
+        if (normal is not None and not isinstance(normal, dict)) or (bump is not None and len(bump) > 3):
+            # A Normal Map's image, or a Bump on a Bump: the chain as one program of the normal.
             normal, bump = self.programs.expression(sock, stack, VEC), None
         if bump is not None:
             height, strength, distance = bump[:3]
@@ -1442,22 +1445,11 @@ class NodeWalker:
     def normal_map(self, node, stack):
         """(texture index, strength, uv map name, core ``NORMAL_*`` space) of a Normal Map ``node``
         fed by an image (tangent, object or world space, or Blender's object or world space), or
-        None (unsupported: noted)."""
+        None where its colour is another (:meth:`bent_normal` then takes the node as a program)."""
         space = NORMAL_SPACES.get(node.space)
-        if space is None:
-            self.note(f"normal map '{node.name}': {node.space.lower()} space is not supported; using the "
-                      "surface's own normal")
-            return None
         strength = max(self.value(node.inputs["Strength"], stack), 0.0)
         color, tex = self.color(node.inputs["Color"], stack)
-        if isinstance(tex, dict):
-            self.note(f"normal map '{node.name}': a procedural colour is not supported (only an image "
-                      "texture); using the surface's own normal")
-            return None
-        if tex < 0:
-            if np.abs(color - (0.5, 0.5, 1.0)).max() > 1e-6:
-                self.note(f"normal map '{node.name}': a constant colour is not supported (only an "
-                          "image texture); using the surface's own normal")
+        if space is None or isinstance(tex, dict) or tex < 0:
             return None
         return tex, strength, node.uv_map, space
 

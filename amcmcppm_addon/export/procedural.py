@@ -739,17 +739,25 @@ def _combine_color(b, node, stack):
 
 def _normal_input(b, node, stack):
     """The Normal input of a Fresnel, Layer Weight, Ambient Occlusion, Bevel or Bump node as
-    ``normal`` ({} when unlinked: the shading normal); a Bump node's is a program (``_bump``), a
-    Normal Map node's is none: the shading normal, noted."""
+    ``normal`` ({} when unlinked: the shading normal), a Bump's or Normal Map's a program."""
     sock = node.inputs["Normal"]
     src, _, _ = b.walker.source(sock, stack)
     if src is None:
         return {}
-    if src.node.bl_idname == "ShaderNodeNormalMap" and not src.node.mute:
-        b.walker.note(f"'{node.name}': the normal of '{src.node.name}' is not supported here; using the "
-                      "surface's own normal")
-        return {}
     return {"normal": b.expression(sock, stack, VEC)}
+
+
+def _normal_map(b, node, stack):
+    """Normal Map: the bent normal as a program (``procedural._normal_map``) of any colour; in
+    tangent space the tangents of the active render UV map (another map named here is noted)."""
+    op = {"op": "normal_map", "color": b.input(node, "Color", stack, VEC),
+          "strength": b.input(node, "Strength", stack, FLOAT), "space": node.space}
+    if node.space == "TANGENT":
+        op["tangent"] = {"op": "attribute", "name": "tangent_uv"}     # (the exporter sends tangents)
+        if node.uv_map:
+            b.walker.note(f"'{node.name}': takes the active render UV map's tangents, not "
+                          f"'{node.uv_map}''s, as a program")
+    return {"Normal": op}
 
 
 def _bump(b, node, stack):
@@ -808,5 +816,5 @@ NODES = {
     "ShaderNodeFresnel": _fresnel, "ShaderNodeLayerWeight": _layer_weight,
     "ShaderNodeCameraData": _camera_data, "ShaderNodeWireframe": _wireframe,
     "ShaderNodeAmbientOcclusion": _ambient_occlusion, "ShaderNodeBevel": _bevel,
-    "ShaderNodeLightPath": _light_path, "ShaderNodeBump": _bump,
+    "ShaderNodeLightPath": _light_path, "ShaderNodeBump": _bump, "ShaderNodeNormalMap": _normal_map,
 }

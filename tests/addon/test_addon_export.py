@@ -1181,24 +1181,30 @@ def test_object_and_world_space_normal_maps_reach_the_core(scene, space):
     assert ex.scene.tangents is None and (ex.scene.object_ids is not None) == (space == "OBJECT")
 
 
-@pytest.mark.parametrize("case, message", [
-    ("constant", "constant colour"),
-])
-def test_unsupported_normal_inputs_warn_and_keep_the_normal(scene, case, message):
+def test_a_normal_map_of_another_colour_is_a_program(scene):
+    """A Normal Map whose colour is a constant or a procedural texture (stop 42; before, noted and
+    the surface's own normal kept) is a program of the normal (``normal_program``, a ``normal_map``
+    op), which needs the render UV map's tangents; the neutral colour bends nothing."""
     mat = normal_mapped("Odd")
     nt = mat.node_tree
-    bsdf = nt.nodes["Principled BSDF"]
-    if case == "vector_math":
-        nt.links.new(nt.nodes.new("ShaderNodeVectorMath").outputs[0], bsdf.inputs["Normal"])
-    else:
-        nt.links.remove(nt.nodes["Normal Map"].inputs["Color"].links[0])
-        nt.nodes["Normal Map"].inputs["Color"].default_value = (0.7, 0.5, 0.9, 1.0)
+    normal_map = nt.nodes["Normal Map"]
+    nt.links.remove(normal_map.inputs["Color"].links[0])
+    normal_map.inputs["Color"].default_value = (0.7, 0.5, 0.9, 1.0)
     uv_plane("Plane", mat)
     bs.camera()
     ex = bs.export()
-    assert material_row(ex.scene, "Odd")["normal_texture"] == -1
-    assert ex.scene.tangents is None
-    assert any("Odd" in w and message in w for w in ex.warnings), ex.warnings
+    row = material_row(ex.scene, "Odd")
+    program = ex.scene.materials.programs[row["normal_program"]]
+    assert row["normal_texture"] == -1 and program["op"] == "normal_map" and program["space"] == "TANGENT"
+    assert ex.scene.tangents is not None and not ex.warnings
+    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Color"], normal_map.inputs["Color"])
+    ex = bs.export()
+    program = ex.scene.materials.programs[material_row(ex.scene, "Odd")["normal_program"]]
+    assert program["color"]["op"] == "checker" and not ex.warnings
+    nt.links.remove(normal_map.inputs["Color"].links[0])
+    normal_map.inputs["Color"].default_value = (0.5, 0.5, 1.0, 1.0)
+    row = material_row(bs.export().scene, "Odd")
+    assert row["normal_program"] == -1 and row["normal_texture"] == -1
 
 
 def test_a_normal_from_a_program_is_the_normal_program(scene):
@@ -1502,9 +1508,9 @@ def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
 def test_principled_coat_is_exported_with_cycles_clamps(scene):
     """Coat Weight, Roughness, IOR and Tint reach the core (weight and tint saturated, the IOR at
     least 1, as Cycles); no coat without weight.  A Bump on the Coat Normal (stop 42; before,
-    noted and left out) bends the coat alone (``coat_bump_program``), a Bump on a Bump as one
-    program of the normal; a Normal Map image there is noted.  A Displacement output bends an
-    unlinked Coat Normal too (Cycles' Bump Only)."""
+    noted and left out) bends the coat alone (``coat_bump_program``); a Bump over a Normal Map's
+    image or on a Bump, as one program of the normal.  A Displacement output bends an unlinked
+    Coat Normal too (Cycles' Bump Only)."""
     row, ex = export_material(principled("Varnish", **{"Coat Weight": 0.7, "Coat Roughness": 0.2,
                                                        "Coat IOR": 1.8, "Coat Tint": (1.2, 0.5, 0.25, 1)}))
     assert row["coat_weight"] == pytest.approx(0.7) and row["coat_roughness"] == pytest.approx(0.2)
@@ -1543,8 +1549,10 @@ def test_principled_coat_is_exported_with_cycles_clamps(scene):
     nt.links.new(image.outputs["Color"], normal_map.inputs["Color"])
     nt.links.new(normal_map.outputs["Normal"], bump.inputs["Normal"])
     row, ex = export_material(mat)
-    assert row["coat_bump_program"] >= 0 and row["normal_texture"] < 0
-    assert any("Normal Map image on the Coat Normal" in w for w in ex.warnings), ex.warnings
+    chain = ex.scene.materials.programs[row["coat_normal_program"]]
+    assert chain["op"] == "bump" and chain["normal"]["op"] == "normal_map"
+    assert chain["normal"]["color"]["op"] == "image" and row["normal_texture"] < 0
+    assert row["coat_bump_program"] < 0 and not ex.warnings
     outer = nt.nodes.new("ShaderNodeBump")
     nt.links.new(nt.nodes.new("ShaderNodeTexWave").outputs["Fac"], outer.inputs["Height"])
     nt.links.new(bump.outputs["Normal"], outer.inputs["Normal"])

@@ -575,6 +575,28 @@ def test_a_bump_feeds_a_layer_weight_as_cycles(addon, tmp_path):
     assert cycles.mean() > 0.2 and err.max() < 0.01 and err.mean() < 0.003
 
 
+@pytest.mark.parametrize("space", ["TANGENT", "OBJECT"])
+def test_a_normal_map_of_a_texture_feeds_a_layer_weight_as_cycles(addon, tmp_path, space):
+    """Layer Weight's Facing (Blend 0.5) whose Normal is a Normal Map (strength 0.7) of a magic
+    texture's colour, in the UV map's tangent space or the object's (stop 42, ``procedural``'s
+    ``normal_map`` op; before, the Normal Map's normal was noted and the surface's own taken, and
+    a procedural colour on a BSDF's Normal Map was noted): value for value as Cycles."""
+    def build(nt):
+        magic = node(nt, "ShaderNodeTexMagic", turbulence_depth=2, Scale=3.0)
+        normal_map = node(nt, "ShaderNodeNormalMap", space=space, Strength=0.7)
+        nt.links.new(magic.outputs["Color"], normal_map.inputs["Color"])
+        weight = node(nt, "ShaderNodeLayerWeight", Blend=0.5)
+        nt.links.new(normal_map.outputs["Normal"], weight.inputs["Normal"])
+        return weight.outputs["Facing"]
+
+    mat, positions = bs.texture_plane(build)
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    assert not [w for w in bs.export().warnings if "Normal Map" in w]
+    assert np.ptp(cycles, axis=(0, 1)).max() > 0.05
+    compare(ours, cycles, f"facing of a normal map, {space.lower()}")
+
+
 def test_generated_and_object_coordinates_follow_the_object(addon, tmp_path):
     """A moved, turned, unevenly scaled and mirrored plane: Object coordinates are its own
     (Cycles' inverse object transform) and Generated its texture space, for each instance."""
