@@ -6,7 +6,8 @@ Each vertex is evaluated once, at the corner of the first triangle (in triangle 
 material that uses it, with that corner's shading normal (a flat face's normal) as Cycles sets up
 its displacement shader there; the program gives the offset along it, in the object's space
 (``Scene.object_from_world``: the object-space normal scaled back into the world) or in world units
-(``DISPLACE_WORLD``).  Displacement Only then turns the shading normals with the surface: each
+(``DISPLACE_WORLD``); with ``DISPLACE_VECTOR`` it gives the world offset itself (a Vector
+Displacement).  Displacement Only then turns the shading normals with the surface: each
 corner's normal plus the change of its vertex's normal (the normalised sum of the unit normals of
 the triangles around it) from before to after, normalised (Cycles' corner-normal delta, which for a
 smooth mesh is the new vertex normal).  Displacement and Bump keeps them (``DISPLACE_KEEPS_NORMALS``:
@@ -20,7 +21,7 @@ import numpy as np
 from .bsdf import Textures
 from .procedural import LUMINANCE, HitAttributes, evaluate
 from .sampling import normalize
-from .scene import DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD
+from .scene import DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD
 
 # The largest offset, in sizes of the undisplaced scene (its bounds' largest side).
 OFFSET_LIMIT = 10.0
@@ -46,21 +47,25 @@ def displace(scene):
     normal = (facets.take(prims, axis=0) if scene.shading_normals is None
               else normalize(scene.shading_normals[prims, corner].astype(np.float64)))
     attrs = HitAttributes(scene, prims, bary, old.take(vertices, axis=0))
-    offset = np.zeros(len(vertices))
+    offset, vector = np.zeros(len(vertices)), np.zeros((len(vertices), 3))
     images = Textures(scene.textures).images
     vertex_program = tri_program.take(prims)
     for p in np.unique(vertex_program):
         sel = np.flatnonzero(vertex_program == p)
         value = evaluate(mats.programs[p], _subset(attrs, sel), images)
         offset[sel] = value @ LUMINANCE if value.ndim == 2 else value
+        vector[sel] = value if value.ndim == 2 else value[:, None] * normal.take(sel, axis=0)
     # Not finite: 0 (Cycles' ensure_finite); beyond OFFSET_LIMIT scene sizes: clamped, so that a
     # runaway height leaves the rest of the scene its scale (ray offsets, gather radii).
     lo, hi = scene.bounds()
     limit = OFFSET_LIMIT * float(max(np.max(hi - lo), 1e-6))
     offset = np.clip(np.nan_to_num(offset, nan=0.0, posinf=0.0, neginf=0.0), -limit, limit)
+    vector = np.nan_to_num(vector, nan=0.0, posinf=0.0, neginf=0.0)
+    length = np.linalg.norm(vector, axis=1, keepdims=True)
+    vector *= np.minimum(1.0, limit / np.maximum(length, 1e-300))
     flags = mats.displacement_flags.take(scene.material_ids.take(prims))
     step = normal * offset[:, None]
-    in_object = (flags & DISPLACE_WORLD) == 0
+    in_object = (flags & (DISPLACE_WORLD | DISPLACE_VECTOR)) == 0
     if in_object.any() and scene.object_ids is not None:
         rows = np.flatnonzero(in_object)
         objects = scene.object_ids.take(prims.take(rows))
@@ -68,6 +73,8 @@ def displace(scene):
         # The object-space normal (the world normal through the inverse transpose), scaled back.
         n_object = normalize(np.einsum("kji,kj->ki", to_world, normal.take(rows, axis=0)))
         step[rows] = np.einsum("kij,kj->ki", to_world, n_object * offset.take(rows)[:, None])
+    as_vector = np.flatnonzero(flags & DISPLACE_VECTOR)
+    step[as_vector] = vector[as_vector]
     new = old.copy()
     new[vertices] += step
     out = scene.replace(vertices=new.astype(np.float32), undisplaced=np.asarray(scene.vertices, np.float32))

@@ -50,8 +50,9 @@ DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's
 # UV map's tangent frame, or in object or world space; the Blender variants flip its y and z).
 NORMAL_TANGENT, NORMAL_OBJECT, NORMAL_WORLD, NORMAL_BLENDER_OBJECT, NORMAL_BLENDER_WORLD = range(5)
 # Materials.displacement_flags: the offset is in world units (the Displacement node's World space,
-# else the object's), and the shading normals stay (Displacement and Bump) rather than follow it.
-DISPLACE_WORLD, DISPLACE_KEEPS_NORMALS = 1, 2
+# else the object's), the shading normals stay (Displacement and Bump) rather than follow it, and
+# the program gives the offset as a world vector (a Vector Displacement) rather than along the normal.
+DISPLACE_WORLD, DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR = 1, 2, 4
 # The rays an emitter does not light (``Lights.exclude``, ``World.exclude``, ``Scene.emitter_exclude``;
 # Blender's Ray Visibility boxes Glossy, Transmission, Diffuse and Volume Scatter off, Cycles'
 # SHADER_EXCLUDE_*): the light that first meets a surface or volume reaches no lobe of that kind
@@ -230,7 +231,8 @@ class Materials:
     True displacement (Blender's Displacement Method Displacement Only, or Displacement and Bump):
     ``displacement_program`` >= 0 is a float program of the offset of the material's vertices
     along their normal ((Height - Midlevel) Scale), in the object's space or, with bit
-    DISPLACE_WORLD of ``displacement_flags``, in world units; bit DISPLACE_KEEPS_NORMALS keeps the
+    DISPLACE_WORLD of ``displacement_flags``, in world units (with DISPLACE_VECTOR a vector
+    program of the world offset itself); bit DISPLACE_KEEPS_NORMALS keeps the
     shading normals (Displacement and Bump, whose bump bends them), else they follow the displaced
     surface (``displacement.displace``, before each render).
 
@@ -1064,7 +1066,8 @@ class Scene:
                  "glossy_metal_rest in [0, 1]")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
                                 ("dielectric_fresnel", 0.0, 1.0),
-                                ("displacement_flags", 0, DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS),
+                                ("displacement_flags", 0, DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS
+                                 | DISPLACE_VECTOR),
                                 ("displacement_bump", 0, 1),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),

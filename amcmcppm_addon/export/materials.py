@@ -90,7 +90,7 @@ from ...core.bsdf import (TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, 
                           metal_fresnel)
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import dielectric_f0, mean_fresnel
-from ...core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD, NORMAL_BLENDER_OBJECT,
+from ...core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD, NORMAL_BLENDER_OBJECT,
                            NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, NORMAL_WORLD, VISIBLE_CAMERA,
                            VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials)
 from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
@@ -1124,10 +1124,12 @@ class NodeWalker:
         if src is None:
             return None
         node = src.node
+        method = getattr(material, "displacement_method", "BUMP")
+        if node.bl_idname == "ShaderNodeVectorDisplacement" and not node.mute:
+            return self._vector_displacement(node, stack, method)
         if node.bl_idname != "ShaderNodeDisplacement":
             self.unsupported(node, "drives the Displacement output; ignored")
             return None
-        method = getattr(material, "displacement_method", "BUMP")
         if node.inputs["Normal"].is_linked:
             self.note(f"displacement '{node.name}': a linked Normal is ignored (the surface's own is used)")
         if method != "BUMP":
@@ -1143,6 +1145,41 @@ class NodeWalker:
                 return None
         tex = self._bump_height(node.inputs["Height"], stack)
         return None if tex is None else (tex, 1.0, self.value(node.inputs["Scale"], stack))
+
+    def _vector_displacement(self, node, stack, method):
+        """A Vector Displacement node on the Displacement output: the offset (Vector - Midlevel)
+        Scale in its Space (tangent: along the UV map's tangent, the normal and their bitangent,
+        x, y, z, the bitangent's sign taken as +1; or the object's, or world units) as a program of
+        a world vector (``DISPLACE_VECTOR``) for Displacement Only and Displacement and Bump, and
+        for Bump Only (and that method's bump) a bump of distance 1 of the offset's component along
+        the normal, as Cycles' bump from a displacement dots the two."""
+        vector = self.programs.expression(node.inputs["Vector"], stack, VEC)
+        level = {"op": "splat", "value": self.programs.expression(node.inputs["Midlevel"], stack, FLOAT)}
+        local = {"op": "vector_math", "operation": "SCALE",
+                 "a": {"op": "vector_math", "operation": "SUBTRACT", "a": vector, "b": level},
+                 "scale": self.programs.expression(node.inputs["Scale"], stack, FLOAT)}
+        normal = {"op": "attribute", "name": "world_normal"}
+        if node.space == "WORLD":
+            offset = local
+        elif node.space == "OBJECT":
+            offset = {"op": "vector_transform", "type": "VECTOR", "convert_from": "OBJECT",
+                      "convert_to": "WORLD", "vector": local}
+        else:
+            tangent = {"op": "attribute", "name": "tangent_uv"}
+            bitangent = {"op": "vector_math", "operation": "CROSS_PRODUCT", "a": normal, "b": tangent}
+            axes = [{"op": "vector_math", "operation": "SCALE", "a": axis,
+                     "scale": {"op": "separate", "vector": local, "output": xyz}}
+                    for axis, xyz in ((tangent, "X"), (normal, "Y"), (bitangent, "Z"))]
+            offset = {"op": "vector_math", "operation": "ADD", "a": axes[0],
+                      "b": {"op": "vector_math", "operation": "ADD", "a": axes[1], "b": axes[2]}}
+        if method != "BUMP":
+            flags = DISPLACE_WORLD | DISPLACE_VECTOR | (DISPLACE_KEEPS_NORMALS if method == "BOTH" else 0)
+            self.true_displacement = {"displacement_program": offset, "displacement_flags": flags}
+            if method == "DISPLACEMENT":
+                return None
+        height = {"op": "vector_math", "operation": "DOT_PRODUCT", "a": offset, "b": normal,
+                  "output": "Value"}
+        return height, 1.0, 1.0
 
     def world_color(self, world):
         """Background radiance (3,) of a world: Background/Emission colour times strength (its

@@ -14,7 +14,7 @@ import pytest
 from mathutils import Matrix, Vector
 
 import blender_scenes as bs
-from core.scene import DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD
+from core.scene import DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD
 
 
 def mesh_of(triangles_scene):
@@ -1403,7 +1403,8 @@ def test_principled_mapping(scene):
 
 def test_a_displacement_node_becomes_a_bump(scene):
     """Material Output > Displacement from a Displacement node: Cycles' default method (Bump Only)
-    bends the normal as a Bump of Distance = Scale; a Vector Displacement is noted.  The other
+    bends the normal as a Bump of Distance = Scale (a Vector Displacement by its offset along the
+    normal).  The other
     methods (stop 42; before, noted and rendered as the bump) move the vertices by
     ``displacement_program``, Displacement and Bump with the bump too.  A shader's own Bump (stop
     42; before, the displacement was noted and dropped) bends the displaced normal: the
@@ -1454,12 +1455,25 @@ def test_a_displacement_node_becomes_a_bump(scene):
     row, ex = export_material(mat)
     assert row["bump_texture"] >= 0 and ex.scene.materials.programs[row["outer_bump_program"]]["op"] == "wave"
     assert any("Displacement output is ignored" in w for w in ex.warnings), ex.warnings
+    # A Vector Displacement (stop 42; before, noted and ignored): its offset along the normal as a
+    # bump of distance 1, or the world offset itself (DISPLACE_VECTOR) for the other methods.
     flat = bs.diffuse("Flat")
     nt = flat.node_tree
     vector = nt.nodes.new("ShaderNodeVectorDisplacement")
+    vector.space = "WORLD"
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Color"], vector.inputs["Vector"])
     nt.links.new(vector.outputs[0], nt.nodes["Material Output"].inputs["Displacement"])
     row, ex = export_material(flat)
-    assert row["bump_program"] < 0 and any("ShaderNodeVectorDisplacement" in w for w in ex.warnings)
+    height = ex.scene.materials.programs[row["bump_program"]]
+    assert height["operation"] == "DOT_PRODUCT" and height["b"] == {"op": "attribute", "name": "world_normal"}
+    assert row["bump_distance"] == 1.0 and row["displacement_program"] < 0
+    assert not [w for w in ex.warnings if "'Flat'" in w], ex.warnings
+    flat.displacement_method = "DISPLACEMENT"
+    row, ex = export_material(flat)
+    offset = ex.scene.materials.programs[row["displacement_program"]]
+    assert row["displacement_flags"] == DISPLACE_WORLD | DISPLACE_VECTOR and row["bump_program"] < 0
+    assert offset["operation"] == "SCALE" and offset["a"]["a"]["op"] == "noise"
+    assert not [w for w in ex.warnings if "'Flat'" in w], ex.warnings
 
 
 def test_muted_nodes_pass_their_internal_links_through(scene):

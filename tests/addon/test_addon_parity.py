@@ -494,6 +494,47 @@ def test_true_displacement_matches_cycles(addon, tmp_path, method):
     assert min(block_correlation(f"true displacement, {method}", cycles, ours)) > 0.98
 
 
+@pytest.mark.parametrize("space, method", [("WORLD", "DISPLACEMENT"), ("TANGENT", "DISPLACEMENT"),
+                                           ("OBJECT", "BOTH"), ("TANGENT", "BUMP")])
+def test_vector_displacement_matches_cycles(addon, tmp_path, space, method):
+    """The grid of :func:`test_true_displacement_matches_cycles` moved by a Vector Displacement
+    (stop 42; before, noted and ignored): wave bands along x lift it along the normal (z in world
+    and object space, y in tangent space) and push it sideways along x by a third as much
+    (Midlevel 0.5, Scale 0.25), in the node's Space; Bump Only bends the normal by the offset's
+    component along it, as Cycles' bump from a displacement dots the two."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        mat = bs.diffuse("Ground", (0.8, 0.8, 0.8))
+        mat.displacement_method = method
+        nt = mat.node_tree
+        wave = nt.nodes.new("ShaderNodeTexWave")
+        wave.inputs["Scale"].default_value = 1.2
+        third = nt.nodes.new("ShaderNodeMath")
+        third.operation = "MULTIPLY_ADD"
+        third.inputs[1].default_value, third.inputs[2].default_value = 1.0 / 3.0, 1.0 / 3.0
+        nt.links.new(wave.outputs["Fac"], third.inputs[0])
+        vector = nt.nodes.new("ShaderNodeCombineXYZ")
+        vector.inputs["Y" if space != "TANGENT" else "Z"].default_value = 0.5
+        nt.links.new(third.outputs[0], vector.inputs["X"])
+        nt.links.new(wave.outputs["Fac"], vector.inputs["Y" if space == "TANGENT" else "Z"])
+        disp = nt.nodes.new("ShaderNodeVectorDisplacement")
+        disp.space = space
+        disp.inputs["Midlevel"].default_value = 0.5
+        disp.inputs["Scale"].default_value = 0.25
+        nt.links.new(vector.outputs[0], disp.inputs["Vector"])
+        nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+        bm = bmesh.new()
+        bm.loops.layers.uv.new("UVMap")
+        bmesh.ops.create_grid(bm, x_segments=64, y_segments=64, size=1.0, calc_uvs=True)
+        ob = bs.mesh_object("Ground", bm, mat)
+        ob.data.shade_smooth()
+        bs.camera(location=(0, -1.5, 1.3), target=(0, 0.1, 0), lens=35.0)
+        bs.light("SUN", location=(3, 0, 1.5), target=(0, 0, 0), energy=3.0, angle=0.05)
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_quarters_match(f"vector displacement, {space}, {method}", cycles, ours)
+    assert min(block_correlation(f"vector displacement, {space}, {method}", cycles, ours)) > 0.98
+
+
 def assert_channels_match(name, cycles, ours, rtol=TOLERANCE, band_rtol=BAND_TOLERANCE):
     """Image means per channel within ``rtol`` and each channel's bands (coloured scenes: a grey
     mean can hide a wrong colour); returns the (n, 3) pixels of both, Cycles' first."""

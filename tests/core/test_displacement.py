@@ -7,7 +7,7 @@ import pytest
 
 from core.context import RenderContext
 from core.displacement import displace
-from core.scene import DISPLACE_KEEPS_NORMALS, DISPLACE_WORLD, Materials, Scene
+from core.scene import DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD, Materials, Scene
 
 X = {"op": "separate", "vector": {"op": "attribute", "name": "position"}, "output": "X"}
 GENERATED_Z = {"op": "separate", "vector": {"op": "attribute", "name": "generated"}, "output": "Z"}
@@ -111,7 +111,18 @@ def test_the_new_material_fields_survive_a_file_round_trip_and_bad_values_are_re
                  "coat_normal_program", "coat_bump_program", "coat_bump_distance", "coat_bump_strength"):
         np.testing.assert_array_equal(getattr(back, name), getattr(m, name), err_msg=name)
     assert back.programs[back.coat_normal_program[0]] == tilt
-    for bad, message in (({"displacement_flags": 4}, "displacement_flags"),
+    for bad, message in (({"displacement_flags": 8}, "displacement_flags"),
                          ({"dielectric_fresnel": 1.5}, "dielectric_fresnel")):
         with pytest.raises(SceneError, match=message):
             grid(bad)
+
+
+def test_a_vector_offset_moves_every_vertex_by_itself():
+    """DISPLACE_VECTOR (a Vector Displacement): the program's world vector (0.1, -0.05, 0.2) is
+    each vertex's offset, whatever its normal or its object's scale."""
+    shift = {"op": "combine", "x": 0.1, "y": -0.05, "z": 0.2}
+    scene = grid({"displacement_program": shift, "displacement_flags": DISPLACE_WORLD | DISPLACE_VECTOR},
+                 scale=2.0)
+    out = displace(scene)
+    moved = out.vertices - scene.vertices
+    np.testing.assert_allclose(moved, np.broadcast_to([0.1, -0.05, 0.2], moved.shape), atol=1e-6)
