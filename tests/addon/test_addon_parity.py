@@ -455,6 +455,17 @@ def test_bump_map_matches_cycles(addon, tmp_path, invert):
     assert_quarters_match(f"bump, invert {invert}", cycles, ours)
 
 
+def displaced_grid(mat, scale=(1.0, 1.0, 1.0)):
+    """A smooth 2 m grid of 64 x 64 quads with UVs, of ``mat`` and ``scale``, seen at a slant under
+    a low sun (the displacement tests' stage)."""
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")
+    bmesh.ops.create_grid(bm, x_segments=64, y_segments=64, size=1.0, calc_uvs=True)
+    bs.mesh_object("Ground", bm, mat, scale=scale).data.shade_smooth()
+    bs.camera(location=(0, -1.5, 1.3), target=(0, 0.1, 0), lens=35.0)
+    bs.light("SUN", location=(3, 0, 1.5), target=(0, 0, 0), energy=3.0, angle=0.05)
+
+
 @pytest.mark.parametrize("method", ["DISPLACEMENT", "BOTH", "object_scaled"])
 def test_true_displacement_matches_cycles(addon, tmp_path, method):
     """A smooth 2 m grid of 64 x 64 quads whose Displacement node (Height: wave bands along x and a
@@ -481,14 +492,7 @@ def test_true_displacement_matches_cycles(addon, tmp_path, method):
         disp.inputs["Scale"].default_value = 0.25
         nt.links.new(mix.outputs[0], disp.inputs["Height"])
         nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
-        bm = bmesh.new()
-        bm.loops.layers.uv.new("UVMap")
-        bmesh.ops.create_grid(bm, x_segments=64, y_segments=64, size=1.0, calc_uvs=True)
-        scale = (1.5, 1.0, 0.5) if method == "object_scaled" else (1.0, 1.0, 1.0)
-        ob = bs.mesh_object("Ground", bm, mat, scale=scale)
-        ob.data.shade_smooth()
-        bs.camera(location=(0, -1.5, 1.3), target=(0, 0.1, 0), lens=35.0)
-        bs.light("SUN", location=(3, 0, 1.5), target=(0, 0, 0), energy=3.0, angle=0.05)
+        displaced_grid(mat, scale=(1.5, 1.0, 0.5) if method == "object_scaled" else (1.0, 1.0, 1.0))
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert_quarters_match(f"true displacement, {method}", cycles, ours)
     assert min(block_correlation(f"true displacement, {method}", cycles, ours)) > 0.98
@@ -523,13 +527,7 @@ def test_vector_displacement_matches_cycles(addon, tmp_path, space, method):
         disp.inputs["Scale"].default_value = 0.25
         nt.links.new(vector.outputs[0], disp.inputs["Vector"])
         nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
-        bm = bmesh.new()
-        bm.loops.layers.uv.new("UVMap")
-        bmesh.ops.create_grid(bm, x_segments=64, y_segments=64, size=1.0, calc_uvs=True)
-        ob = bs.mesh_object("Ground", bm, mat)
-        ob.data.shade_smooth()
-        bs.camera(location=(0, -1.5, 1.3), target=(0, 0.1, 0), lens=35.0)
-        bs.light("SUN", location=(3, 0, 1.5), target=(0, 0, 0), energy=3.0, angle=0.05)
+        displaced_grid(mat)
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert_quarters_match(f"vector displacement, {space}, {method}", cycles, ours)
     assert min(block_correlation(f"vector displacement, {space}, {method}", cycles, ours)) > 0.98
