@@ -177,7 +177,7 @@ def coat_variants(mats):
     changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
     for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "outer_bump_strength",
                  "outer_bump_distance", "coat_bump_strength", "coat_bump_distance", "diffuse_layer_weight",
-                 "glossy_stretch", "glossy_metal_share"):
+                 "glossy_stretch", "glossy_metal_share", "bump_correction"):
         changes[name][new] = 1.0
     names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique]
     return (dataclasses.replace(mats, names=names, **changes),
@@ -218,6 +218,7 @@ class MaterialTable:
     translucent_program: np.ndarray = None  # (M,) int32 procedural translucent colour or -1
     rotation_program: np.ndarray = None     # (M,) int32 float program of an anisotropic lobe's turn or -1
     coat_row: np.ndarray = None             # (M,) int32 the coat's material (coat_variants) or -1
+    bump_correction: np.ndarray = None      # (M,) bool: Bump Map Correction on (Materials.bump_correction)
     dielectric_fresnel: np.ndarray = None   # (M,) float64 share of the glass that reflects by Fresnel (the
     #                                         rest refracts whatever it: Refraction BSDF); None: 1
     coat_factor: np.ndarray = None          # (M, MS_NODES + 1, 3) float64 factor under the coat at mu
@@ -355,6 +356,8 @@ class MaterialTable:
                              rotation_program=np.where(anisotropic, _or_none(mats.rotation_program, m),
                                                        -1).astype(np.int32),
                              coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
+                             bump_correction=(np.ones(m, bool) if mats.bump_correction is None
+                                              else np.asarray(mats.bump_correction) != 0),
                              dielectric_fresnel=(None if mats.dielectric_fresnel is None
                                                  or (mats.dielectric_fresnel >= 1).all()
                                                  else np.asarray(mats.dielectric_fresnel, np.float64)),
@@ -1199,6 +1202,9 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
         if nnf is not None and k in REFLECTING:
             diffuse, valid = bump_shadowing(nnf.take(sel, axis=0), n_s, w_o)
+            if k == DIFFUSE:
+                # (Bump Map Correction off: the side test alone)
+                diffuse = np.where(table.bump_correction.take(m_sel), diffuse, valid)
             w = w * (diffuse if k == DIFFUSE else valid)[:, None]
         wi[sel] = d
         weight[sel] = np.where(ok[:, None], w, 0.0)

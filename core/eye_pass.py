@@ -314,7 +314,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             ns_glossy = None
             if surf.nn is not None:
                 # Cycles keeps a bent normal's reflection of the view valid for glossy lobes.
-                bent = table.normal_mapped.take(rows(surf.mat_ids))
+                point_mats = rows(surf.mat_ids)
+                bent = table.normal_mapped.take(point_mats) & table.bump_correction.take(point_mats)
                 ns_glossy = ns.copy()
                 ns_glossy[bent] = valid_reflection_normal(ng[bent], rows(wo)[bent], ns[bent])
                 ns_glossy = ns_glossy.astype(f32)

@@ -325,6 +325,8 @@ class DepositTarget:
                         # scatter through it takes no shadowing term either; Cycles applies it
                         # to its light samples, not to its BSDF samples).
                         diffuse = np.where(back.take(b), valid, diffuse)
+                    # Bump Map Correction off: the side test alone.
+                    diffuse = np.where(self.table.bump_correction.take(pts.mat_ids.take(jb)), diffuse, valid)
                     wd[b] *= diffuse
                     ratio[b[~valid]] = 0.0          # glossy pairs too (below)
         else:

@@ -276,6 +276,9 @@ class Materials:
     # 1 where the bump is the Displacement output's (Bump Only, Displacement and Bump): it replaces
     # the surface's own normal (Cycles' Set Normal), so the bump-map terms leave it alone.
     displacement_bump: np.ndarray = None                # (M,) int32 0 or 1; None: 0
+    # 0 where Blender's Bump Map Correction is off: the bump-map terms keep only their side test
+    # (no softening of the diffuse terminator, no valid reflection for glossy lobes).
+    bump_correction: np.ndarray = None                  # (M,) int32 0 or 1; None: 1
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
@@ -338,7 +341,8 @@ class Materials:
                     "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program",
                     "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
                     "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
-                    "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump")
+                    "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump",
+                    "bump_correction")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -347,7 +351,8 @@ class Materials:
                       "displacement_program")
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
-                                     "normal_space", "displacement_flags", "displacement_bump")
+                                     "normal_space", "displacement_flags", "displacement_bump",
+                                     "bump_correction")
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "coat_bump_distance",
                                     "glossy_metal_dip",
                                     "volume_anisotropy", "glossy_rotation", "glossy_metal_tint",
@@ -447,6 +452,7 @@ class Materials:
         out.displacement_program = np.full(m, -1, np.int32)
         out.displacement_flags = np.zeros(m, np.int32)
         out.displacement_bump = np.zeros(m, np.int32)
+        out.bump_correction = np.ones(m, np.int32)
         out.coat_bump_program = np.full(m, -1, np.int32)
         out.coat_bump_strength = np.ones(m, np.float32)
         out.coat_bump_distance = np.ones(m, np.float32)
@@ -553,6 +559,7 @@ class Materials:
             out.dielectric_fresnel[i] = s.get("dielectric_fresnel", 1.0)
             out.displacement_flags[i] = s.get("displacement_flags", 0)
             out.displacement_bump[i] = s.get("displacement_bump", 0)
+            out.bump_correction[i] = s.get("bump_correction", 1)
         return out
 
 
@@ -1020,6 +1027,7 @@ class Scene:
                                        ("coat_bump_strength", (n,), 1.0), ("coat_bump_distance", (n,), 1.0),
                                        ("dielectric_fresnel", (n,), 1.0), ("displacement_program", (n,), -1),
                                        ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
+                                       ("bump_correction", (n,), 1),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
@@ -1068,7 +1076,7 @@ class Scene:
                                 ("dielectric_fresnel", 0.0, 1.0),
                                 ("displacement_flags", 0, DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS
                                  | DISPLACE_VECTOR),
-                                ("displacement_bump", 0, 1),
+                                ("displacement_bump", 0, 1), ("bump_correction", 0, 1),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),

@@ -952,13 +952,11 @@ class MaterialExporter:
         if key not in self._ids:
             walker = NodeWalker(material.name, self.textures, material.pass_index, self.layer_owners)
             closure = walker.material_closure(material)
-            cycles = getattr(material, "cycles", None)
-            bent = closure.normal_map is not None or closure.bump is not None
-            if bent and not getattr(cycles, "use_bump_map_correction", True):
-                walker.note("Bump Map Correction off is not supported (rendered with it on)")
             if walker.notes:
                 self.log.warning(f"material '{material.name}': " + "; ".join(walker.notes))
             spec = closure.spec(material.name)
+            if not getattr(getattr(material, "cycles", None), "use_bump_map_correction", True):
+                spec["bump_correction"] = 0         # (Materials.bump_correction)
             if walker.medium is not None and any(np.any(walker.medium[i]) for i in (0, 1, 3)):
                 spec.update(volume_absorption=walker.medium[0], volume_scattering=walker.medium[1],
                             volume_anisotropy=walker.medium[2], volume_emission=walker.medium[3])

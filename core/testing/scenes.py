@@ -276,18 +276,21 @@ def sun_through_sheet(material, irradiance=10.0, floor_albedo=None, resolution=(
 
 
 def sun_over_normal_mapped_floor(tangent_space_normal, sun_toward=(0.0, 0.0, 1.0), tangent=(1.0, 0.0, 0.0),
-                                 sign=1.0, strength=1.0, irradiance=10.0, albedo=0.5, resolution=(8, 8)):
+                                 sign=1.0, strength=1.0, irradiance=10.0, albedo=0.5, resolution=(8, 8),
+                                 correction=True):
     """A flat diffuse floor (z = 0, uv = xy + 0.5) with a constant tangent-space normal map under a sun.
 
     ``tangent_space_normal`` (3,) is the map's normal (stored as (n + 1) / 2), ``tangent`` and
     ``sign`` the floor's tangent frame.  With shading normal N the floor's radiance is
     albedo E max(0, N . l) G / pi for the unit direction ``sun_toward`` l (the sun's irradiance E
-    is on a plane facing it; G Cycles' bump shadowing), whatever the camera sees from above.
+    is on a plane facing it; G Cycles' bump shadowing, 1 without Bump Map ``correction``),
+    whatever the camera sees from above.
     """
     n = np.asarray(tangent_space_normal, np.float64)
     tex = np.broadcast_to(((n / np.linalg.norm(n) + 1.0) / 2.0).astype(np.float32), (2, 2, 3))
     frame = np.concatenate([np.asarray(tangent, np.float32), [sign]]).astype(np.float32)
-    return _sunlit_textured_floor({"normal_texture": 0, "normal_strength": strength}, np.array(tex),
+    return _sunlit_textured_floor({"normal_texture": 0, "normal_strength": strength,
+                                   "bump_correction": int(correction)}, np.array(tex),
                                   sun_toward, irradiance, albedo, resolution,
                                   tangents=np.broadcast_to(frame, (2, 3, 4)))
 

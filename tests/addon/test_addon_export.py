@@ -1339,14 +1339,18 @@ def test_bump_node_exports_its_height_image_strength_and_distance_over_a_normal_
     assert ex.scene.tangents is not None and not [w for w in ex.warnings if "Bumpy" in w]
 
 
-def test_normal_map_with_bump_map_correction_off_warns(scene):
+def test_bump_map_correction_off_reaches_the_core(scene):
+    """Material > Settings > Bump Map Correction off (stop 42; before, noted and rendered on):
+    ``Materials.bump_correction`` 0, no note; on (Blender's default), 1."""
     mat = normal_mapped("Sharp")
     mat.cycles.use_bump_map_correction = False
     uv_plane("Plane", mat)
     bs.camera()
     ex = bs.export()
-    assert material_row(ex.scene, "Sharp")["normal_texture"] == 0
-    assert any("Sharp" in w and "Bump Map Correction" in w for w in ex.warnings), ex.warnings
+    row = material_row(ex.scene, "Sharp")
+    assert row["normal_texture"] == 0 and row["bump_correction"] == 0 and not ex.warnings
+    uv_plane("Other", normal_mapped("Plain"))
+    assert material_row(bs.export().scene, "Plain")["bump_correction"] == 1
 
 
 def test_principled_mapping(scene):

@@ -322,7 +322,8 @@ def test_object_and_world_space_normal_maps_match_cycles(addon, tmp_path, space,
 @pytest.mark.parametrize("with_map, bsdf", [
     (True, "ShaderNodeBsdfDiffuse"), (False, "ShaderNodeBsdfDiffuse"),
     (False, "ShaderNodeBsdfPrincipled"), (True, "ShaderNodeBsdfPrincipled"),
-], ids=["normal_map", "smooth_only", "principled", "principled_normal_map"])
+    ("no_correction", "ShaderNodeBsdfPrincipled"),
+], ids=["normal_map", "smooth_only", "principled", "principled_normal_map", "principled_no_correction"])
 def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_path, with_map, bsdf):
     """A smooth UV sphere lit from the side by a sun.  With a map that tilts the normal 40 degrees
     towards the tangent (MikkTSpace tangents that turn around the sphere) the light reaches past
@@ -331,11 +332,13 @@ def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_p
     weighted by the deposit point's facet cosine instead of their own came out 5 % brighter).
     Quarters of the lit pixels by brightness in Cycles.  A Principled BSDF (specular 0.5) under the
     map was 0.92 of Cycles until its glossy layer took Cycles' normal kept valid for reflection
-    (``valid_reflection_normal``)."""
+    (``valid_reflection_normal``).  With Bump Map Correction off (stop 42; before, noted and
+    rendered on) neither the terminator's softening nor the valid reflection applies."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
         colour = "Color" if bsdf == "ShaderNodeBsdfDiffuse" else "Base Color"
         mat = bs._material("Ball", bsdf, **{colour: (0.8, 0.8, 0.8, 1.0)})
+        mat.cycles.use_bump_map_correction = with_map != "no_correction"
         if with_map:
             bs.add_normal_map(mat, np.broadcast_to(bs.tilted(40.0), (4, 4, 3)),
                               next(n.name for n in mat.node_tree.nodes if n.bl_idname == bsdf))

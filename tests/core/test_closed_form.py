@@ -194,6 +194,20 @@ def test_normal_map_bends_the_shading_normal_as_cycles(method, case):
     check_mean(per_pass, albedo / np.pi * irradiance * cos_nl * g, 0.01)
 
 
+@pytest.mark.parametrize("correction", [True, False], ids=["correction", "no_correction"])
+def test_bump_map_correction_off_keeps_the_side_test_alone(correction):
+    """A map normal 80 degrees off the floor's, facing a sun 80 degrees from the zenith: N . l = 1,
+    so albedo E / pi, times Cycles' bump shadowing G (0.30 here) with Bump Map Correction, and
+    without it (stop 42, ``Materials.bump_correction``; before, always G) the light in full."""
+    n = np.asarray(TILT_X80)
+    g = bump_shadowing_g(n, n[2]) if correction else 1.0
+    irradiance, albedo = 10.0, 0.5
+    scene = sun_over_normal_mapped_floor(TILT_X80, TILT_X80, (1, 0, 0), 1.0, 1.0, irradiance, albedo,
+                                         correction=correction)
+    per_pass, _ = render_passes(scene, passes=6, photons_per_pass=50_000, max_bounces=1, method="ppm")
+    check_mean(per_pass, albedo / np.pi * irradiance * g, 0.01)
+
+
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m["method"])
 @pytest.mark.parametrize("distance, strength, towards", [
     (0.8, 1.0, -1.0),         # the sun where the bumped normal points: N . l = 1

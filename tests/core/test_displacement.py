@@ -94,7 +94,7 @@ def test_a_runaway_height_is_clamped_and_the_render_stays_finite():
 
 def test_the_new_material_fields_survive_a_file_round_trip_and_bad_values_are_refused(tmp_path):
     """Stop 42's fields (displacement, a displacement's bump, Refraction's Fresnel share, a coat's
-    own normal) keep their values through ``Scene.save`` / ``load``; flags outside their bits and
+    own normal, Bump Map Correction) keep their values through ``Scene.save`` / ``load``; flags outside their bits and
     a share outside [0, 1] are refused by name."""
     from core.scene import SceneError
     tilt = {"op": "combine", "x": 0.0, "y": -0.3, "z": 1.0}
@@ -102,17 +102,19 @@ def test_the_new_material_fields_survive_a_file_round_trip_and_bad_values_are_re
             "displacement_flags": DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS, "displacement_bump": 1,
             "bump_program": X, "dielectric": 0.5, "dielectric_fresnel": 0.25, "coat": 1.0,
             "coat_normal_program": tilt, "coat_bump_program": X, "coat_bump_distance": -0.2,
-            "coat_bump_strength": 0.5}
+            "coat_bump_strength": 0.5, "bump_correction": 0}
     scene = grid(spec)
     scene.save(tmp_path / "s.npz")
     back = Scene.load(tmp_path / "s.npz").materials
     m = scene.materials
     for name in ("displacement_program", "displacement_flags", "displacement_bump", "dielectric_fresnel",
-                 "coat_normal_program", "coat_bump_program", "coat_bump_distance", "coat_bump_strength"):
+                 "coat_normal_program", "coat_bump_program", "coat_bump_distance", "coat_bump_strength",
+                 "bump_correction"):
         np.testing.assert_array_equal(getattr(back, name), getattr(m, name), err_msg=name)
     assert back.programs[back.coat_normal_program[0]] == tilt
     for bad, message in (({"displacement_flags": 8}, "displacement_flags"),
-                         ({"dielectric_fresnel": 1.5}, "dielectric_fresnel")):
+                         ({"dielectric_fresnel": 1.5}, "dielectric_fresnel"),
+                         ({"bump_correction": 2}, "bump_correction")):
         with pytest.raises(SceneError, match=message):
             grid(bad)
 
