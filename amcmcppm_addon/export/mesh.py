@@ -117,8 +117,10 @@ class GeometryCollector:
     both None.
     """
 
-    def __init__(self, materials, log, material_override=None, linking=(None, None)):
+    def __init__(self, materials, log, material_override=None, linking=(None, None), frame=0.0):
+        """``frame``: the scene's current frame (with subframe), for Particle Info's Age."""
         self.materials = materials
+        self.frame = frame
         self.log = log
         self.material_override = material_override
         self.linking = linking
@@ -183,7 +185,7 @@ class GeometryCollector:
         properties = sorted(n for n in used if n.startswith(OBJECT_PROPERTY))
         if properties:                  # (the same names for every instance of a group)
             self.properties.setdefault((key, mat_ids, flags, link), []).append(
-                {n: object_property(inst, n) for n in properties})
+                {n: object_property(inst, n, self.frame) for n in properties})
 
     def finish(self) -> Geometry:
         geometry = assemble(self.meshes, self.groups, self.materials, self.infos, self.properties)
@@ -221,12 +223,15 @@ def object_info(inst):
     return np.array([alpha, float(ob.pass_index), random, r, g, b], np.float32)
 
 
-def object_property(inst, name):
+def object_property(inst, name, frame=0.0):
     """(3,) float32 what Cycles' Attribute node of the Object (``object:`` + an RNA path) or
     Instancer type (``instancer:``) reads for a depsgraph instance (``lookup_instance_property``):
     the property at that path of the instancer (Instancer only), else of the object, else of its
-    data (``rna_property``); 0 without one."""
+    data (``rna_property``); 0 without one.  ``object:`` + ``PARTICLE`` + a Particle Info output
+    is :func:`particle_info`'s (at the scene's ``frame``)."""
     kind, path = name.split(":", 1)
+    if path.startswith(PARTICLE):
+        return particle_info(inst, path[len(PARTICLE):], frame)
     # (Blender's iterator gives an instance's object its instancer's colour, which Cycles reads:
     # the colour, as Object Info's, comes from the instancer)
     colored = inst.parent if inst.is_instance and inst.parent is not None and path == "color" else inst.object
@@ -234,6 +239,36 @@ def object_property(inst, name):
     if kind == "instancer" and inst.is_instance and inst.parent is not None:
         owners.insert(0, inst.parent)
     return rna_property(owners, path)
+
+
+# Object property paths (``object:`` + PARTICLE + an output) of Particle Info's outputs: Blender's
+# RNA paths never start with a dot.
+PARTICLE = ".particle:"
+
+
+def particle_info(inst, output, frame):
+    """(3,) float32 Particle Info's ``output`` for a depsgraph instance, as Cycles' sync sets its
+    particle (``sync_dupli_particle``): an instance made by a particle system reads particle
+    ``persistent_id[0]`` of it (Index that number, Age the frame less its birth time, Lifetime,
+    Location, Size, Velocity, Angular Velocity its own), any other object Cycles' dummy particle 0
+    (all 0); Random is ``hash_uint2_to_float(Index, 0)`` for both.  A float is repeated in x, y, z."""
+    psys = inst.particle_system if inst.is_instance else None
+    index = int(inst.persistent_id[0]) if psys is not None else 0
+    particle = psys.particles[index] if psys is not None and 0 <= index < len(psys.particles) else None
+    if particle is None:
+        index = 0
+    if output == "random":
+        value = float(hash_uint2_to_float(np.uint32(index), np.uint32(0)))
+    elif output == "index":
+        value = float(index)
+    elif particle is None:
+        value = 0.0
+    elif output in ("location", "velocity", "angular_velocity"):
+        return np.array(getattr(particle, output)[:3], np.float32)
+    else:
+        value = {"age": frame - particle.birth_time, "lifetime": particle.lifetime,
+                 "size": particle.size}[output]
+    return np.full(3, value, np.float32)
 
 
 def rna_property(owners, path):

@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
-from .mesh import (ALPHA, POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS, RANDOM_PER_ISLAND,
-                   rna_property)
+from .mesh import (ALPHA, PARTICLE, POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS,
+                   RANDOM_PER_ISLAND, rna_property)
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
 FLOAT, VEC = "float", "vec"
@@ -760,6 +760,16 @@ def _normal_map(b, node, stack):
     return {"Normal": op}
 
 
+def _particle_info(b, node, stack):
+    """Particle Info: each object's particle (``mesh.particle_info``), read as an object property."""
+    def value(output, vector=False):
+        attr = {"op": "attribute", "name": f"object:{PARTICLE}{output}"}
+        return attr if vector else {"op": "separate", "vector": attr, "output": "X"}
+    return {"Index": value("index"), "Random": value("random"), "Age": value("age"),
+            "Lifetime": value("lifetime"), "Location": value("location", True), "Size": value("size"),
+            "Velocity": value("velocity", True), "Angular Velocity": value("angular_velocity", True)}
+
+
 def _bump(b, node, stack):
     """Bump: the bent normal as a program (``procedural._bump``); Invert negates the Distance, and
     the Filter Width (Cycles' footprint of its differences) has no equivalent here."""
@@ -817,4 +827,5 @@ NODES = {
     "ShaderNodeCameraData": _camera_data, "ShaderNodeWireframe": _wireframe,
     "ShaderNodeAmbientOcclusion": _ambient_occlusion, "ShaderNodeBevel": _bevel,
     "ShaderNodeLightPath": _light_path, "ShaderNodeBump": _bump, "ShaderNodeNormalMap": _normal_map,
+    "ShaderNodeParticleInfo": _particle_info,
 }

@@ -69,7 +69,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     linking = (LightLinking.from_depsgraph(depsgraph, log, "receiver"),
                LightLinking.from_depsgraph(depsgraph, log, "blocker"))
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
-                                  linking=linking)
+                                  linking=linking, frame=depsgraph.scene_eval.frame_current_final)
     light_records, light_collections = [], []
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":

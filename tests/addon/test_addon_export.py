@@ -1023,14 +1023,15 @@ def test_a_transmission_map_picks_levels_and_beside_a_metallic_map_takes_its_mea
 
 
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
-    """(The Gabor Texture was the example until stop 42, which models it; now Particle Info.)"""
+    """(The Gabor Texture was the example until stop 42, which models it and Particle Info; now
+    Curves Info, of hair, which is not rendered.)"""
     mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
     nt = mat.node_tree
-    info = nt.nodes.new("ShaderNodeParticleInfo")
-    nt.links.new(info.outputs["Velocity"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    info = nt.nodes.new("ShaderNodeHairInfo")
+    nt.links.new(info.outputs["Tangent Normal"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     row, ex = export_material(mat)
     assert row["diffuse_color"] == pytest.approx([0.3, 0.4, 0.5]) and row["diffuse_program"] == -1
-    assert any("'Odd'" in w and "ParticleInfo" in w for w in ex.warnings), ex.warnings
+    assert any("'Odd'" in w and "HairInfo" in w for w in ex.warnings), ex.warnings
 
 
 def test_instances_get_their_own_object_coordinates(scene):
@@ -2979,3 +2980,20 @@ def test_a_rotation_map_becomes_a_program_of_the_tangents_turn(scene):
     nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     row, ex = export_material(mat)
     assert row["rotation_program"] >= 0 and row["diffuse_weight"] == pytest.approx(0.5)
+
+
+def test_particle_info_of_an_object_without_particles_is_cycles_dummy_particle(scene):
+    """Particle Info on an object no particle system made: Cycles' dummy particle 0 (Index, Age,
+    Location ... 0; Random its hash, ``hash_uint2_to_float(0, 0)``), read as object properties."""
+    from core.texture_hash import hash_uint2_to_float
+    mat = bs.diffuse("Dust")
+    nt = mat.node_tree
+    info = nt.nodes.new("ShaderNodeParticleInfo")
+    mix = nt.nodes.new("ShaderNodeCombineXYZ")
+    nt.links.new(info.outputs["Random"], mix.inputs["X"])
+    nt.links.new(info.outputs["Age"], mix.inputs["Y"])
+    nt.links.new(mix.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    row, ex = export_material(mat)
+    values = ex.scene.object_attributes
+    assert float(values["object:.particle:random"][0, 0]) == pytest.approx(float(hash_uint2_to_float(0, 0)))
+    assert (values["object:.particle:age"] == 0).all() and not ex.warnings

@@ -1597,6 +1597,65 @@ def test_view_layer_attributes_match_cycles(addon, tmp_path, name):
     compare(ours, cycles, f"view layer attribute {name}")
 
 
+def test_particle_info_matches_cycles(addon, tmp_path):
+    """Particle Info (stop 42; before, unsupported: the socket's value) on tiles instanced by a
+    particle system over the plane (a 3 x 3 grid) at frame 10: each tile its particle's Random,
+    Index, Age, Lifetime, Size, Velocity and Location, as Cycles syncs them; the colour is (Random,
+    Index / 8 + Age / 40, Lifetime / 100 + Size / 4 + Velocity z / 10) + Location / 10 (the
+    emitter itself is not rendered)."""
+    import bmesh
+    import bpy
+
+    def build(nt):
+        info = nt.nodes.new("ShaderNodeParticleInfo")
+        def scaled(output, factor):
+            m = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+            nt.links.new(info.outputs[output], m.inputs[0])
+            m.inputs[1].default_value = factor
+            return m.outputs[0]
+        def plus(a, b):
+            m = node(nt, "ShaderNodeMath", operation="ADD")
+            nt.links.new(a, m.inputs[0])
+            nt.links.new(b, m.inputs[1])
+            return m.outputs[0]
+        velocity_z = nt.nodes.new("ShaderNodeSeparateXYZ")
+        nt.links.new(info.outputs["Velocity"], velocity_z.inputs[0])
+        vz = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        nt.links.new(velocity_z.outputs["Z"], vz.inputs[0])
+        vz.inputs[1].default_value = 0.1
+        xyz = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(info.outputs["Random"], xyz.inputs["X"])
+        nt.links.new(plus(scaled("Index", 1 / 8), scaled("Age", 1 / 40)), xyz.inputs["Y"])
+        lifetime_and_size = plus(scaled("Lifetime", 0.01), scaled("Size", 0.25))
+        nt.links.new(plus(lifetime_and_size, vz.outputs[0]), xyz.inputs["Z"])
+        where = node(nt, "ShaderNodeVectorMath", operation="MULTIPLY_ADD")
+        nt.links.new(info.outputs["Location"], where.inputs[0])
+        where.inputs[1].default_value = (0.1, 0.1, 0.1)
+        nt.links.new(xyz.outputs[0], where.inputs[2])
+        return where.outputs[0]
+
+    mat, positions = bs.texture_plane(build, size=2.0)
+    emitter = bpy.data.objects["Plane"]
+    bm = bmesh.new()
+    bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=0.25)
+    tile = bs.mesh_object("Tile", bm, mat, location=(50.0, 0.0, 0.0))          # (out of view)
+    settings = emitter.modifiers.new("Particles", "PARTICLE_SYSTEM").particle_system.settings
+    settings.count, settings.frame_start, settings.frame_end, settings.lifetime = 6, 1, 1, 50
+    settings.render_type, settings.instance_object, settings.particle_size = "OBJECT", tile, 1.0
+    settings.physics_type = "NO"
+    settings.use_rotations, settings.rotation_mode = True, "NONE"           # (tiles lying flat)
+    settings.distribution, settings.grid_resolution = "GRID", 3             # (apart: no overlaps)
+    # (the emitter unseen: the exporter here reads the viewport's depsgraph, renders the render's)
+    emitter.show_instancer_for_render = emitter.show_instancer_for_viewport = False
+    bpy.context.scene.frame_set(10)
+    ours = bs.our_texture_values(positions)
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    seen = np.isfinite(ours).all(axis=2)
+    assert 0.05 < seen.mean() < 0.9 and (cycles[~seen] == 0).all()
+    assert np.ptp(cycles[seen][:, 0]) > 0.05                  # the particles' Random differ
+    compare(ours[seen][None], cycles[seen][None], "particle info")
+
+
 def test_object_info_matches_cycles(addon, tmp_path):
     """Object Info, per object as Cycles sets it: four quarter planes sharing one material, named
     in ASCII and not (Cycles hashes the name of an object that is not an instance: its Random),
