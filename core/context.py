@@ -12,8 +12,9 @@ from .displacement import displace
 from .environment import Environment
 from .lights import VOLUME, LightSampler
 from .procedural import (BUMP_STEP, COLOR_MAX, EMISSION_MAX, DirectionAttributes, HitAttributes, Rays,
-                         attributes_used, camera_path, evaluate, evaluate_color, perpendicular_tangents,
-                         photon_path, radial_tangents)
+                         attributes_used, bend_normals, bump_edges, bumped_normals, camera_path, evaluate,
+                         evaluate_color, perpendicular_tangents, photon_path, radial_tangents,
+                         spatial_normals, tangent_space_normals)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, NORMAL_BLENDER_OBJECT,
                     NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, PANORAMAS, POINT, SPOT,
@@ -186,12 +187,6 @@ class RenderContext:
         self.coat_bump_strength = np.asarray(mats.coat_bump_strength, np.float64)
         self.coat_bump_distance = np.asarray(mats.coat_bump_distance, np.float64)
         self.has_coat_normals = bool(((self.coat_normal_program >= 0) | (self.coat_bump_program >= 0)).any())
-        # Bumps on a truly displaced surface are taken on the undisplaced one (Cycles' bump
-        # evaluation at ATTR_STD_POSITION_UNDISPLACED): its triangles' edges, or None.
-        self.undisplaced_edges = None
-        if scene.undisplaced is not None:
-            c = scene.undisplaced.take(scene.triangles, axis=0).astype(np.float64)
-            self.undisplaced_edges = (c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
 
     @property
     def effects(self) -> tuple:
@@ -873,14 +868,7 @@ class RenderContext:
             n0 = n0.take(tangent_space, axis=0)
         tg = interpolate_corners(self.scene.tangents.take(prim_ids.take(sel), axis=0),
                                  tuple(w.take(sel, axis=0) for w in bary))    # (k, 4): xyz and sign
-        t = tg[:, :3]
-        b = tg[:, 3:4] * np.cross(n0, t)
-        cz = 1.0 + (c[:, 2] - 1.0) * np.minimum(s, 1.0)
-        n = normalize((c[:, 0] * s)[:, None] * t + (c[:, 1] * s)[:, None] * b + cz[:, None] * n0)
-        no_frame = ~(np.abs(t).sum(axis=1) > 0)
-        n[no_frame] = n0[no_frame]
-        _replace_bad(n, n0)
-        ns[sel] = n
+        ns[sel] = tangent_space_normals(c, s, n0, tg)
 
     def _spatial_normals(self, c, space, prim_ids, n0, strength):
         """(k, 3) the normals of object- or world-space normal maps of colours ``c`` (2 rgb - 1) at
@@ -894,14 +882,7 @@ class RenderContext:
             objects = self.scene.object_from_world.take(self.scene.object_ids.take(prim_ids.take(in_object)),
                                                         axis=0)
             c[in_object] = np.einsum("kji,kj->ki", objects[:, :, :3], c.take(in_object, axis=0))
-        n = normalize(c)
-        blend = np.flatnonzero(strength != 1.0)
-        if len(blend):
-            s = np.maximum(strength.take(blend), 0.0)[:, None]
-            n0b = n0.take(blend, axis=0)
-            n[blend] = normalize(n0b + (n.take(blend, axis=0) - n0b) * s)
-        _replace_bad(n, n0)
-        return n
+        return spatial_normals(c, strength, n0)
 
     def _apply_bump_maps(self, ns, prim_ids, bary, pos, uv, mat, rays=None, nn=None):
         """Bend ``ns`` (n, 3) in place where the material has a bump map (after a normal map).
@@ -925,7 +906,7 @@ class RenderContext:
         if len(sel):
             p = prim_ids.take(sel)
             uvs = self.scene.uvs.take(p, axis=0).astype(np.float64)                    # (k, 3, 2)
-            e1, e2 = self._bump_edges(p)
+            e1, e2 = bump_edges(self.scene, p)
             d1, d2 = uvs[:, 1] - uvs[:, 0], uvs[:, 2] - uvs[:, 0]
             det_uv = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
             ok = np.abs(det_uv) > 1e-20
@@ -934,8 +915,10 @@ class RenderContext:
             dpdv = (d1[:, 0:1] * e2 - d2[:, 0:1] * e1) * inv
             gu, gv = self.textures.gradient(tex.take(sel), uv.take(sel, axis=0))
             m = mat.take(sel)
-            self._bend(ns, sel, dpdu, dpdv, gu @ LUMINANCE, gv @ LUMINANCE, ok, self.bump_strength.take(m),
-                       self.bump_distance.take(m))
+            n0 = ns.take(sel, axis=0)
+            n = bend_normals(n0, dpdu, dpdv, gu @ LUMINANCE, gv @ LUMINANCE, self.bump_strength.take(m),
+                             self.bump_distance.take(m))
+            ns[sel] = np.where(ok[:, None], n, n0)
         self._bump_by_programs(ns, prim_ids, bary, pos, mat, rays, self.bump_program, self.bump_strength,
                                self.bump_distance)
         if nn is not None and self.has_displacement_bumps:
@@ -946,54 +929,15 @@ class RenderContext:
 
     def _bump_by_programs(self, ns, prim_ids, bary, pos, mat, rays, programs, strength, distance):
         """Bend ``ns`` in place where the materials ``mat`` have a bump's height program among
-        ``programs`` (per material), of ``strength`` and ``distance`` (:meth:`_apply_bump_maps`)."""
+        ``programs`` (per material), of ``strength`` and ``distance`` (``procedural.bumped_normals``,
+        with differences of ``BUMP_STEP`` times the scene's size)."""
         program = programs.take(mat)
         for k in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == k)
-            p = prim_ids.take(sel)
-            e1, e2 = self._bump_edges(p)
-            b = [w.take(sel, axis=0) for w in bary]
-            x = pos.take(sel, axis=0)
-            if self.undisplaced_edges is not None:
-                corners = self.scene.undisplaced.take(self.scene.triangles.take(p, axis=0), axis=0)
-                x = interpolate_corners(corners.astype(np.float64), b)
-            step = BUMP_STEP * self.accel.extent
-            s1 = step / np.maximum(np.linalg.norm(e1, axis=1), 1e-300)
-            s2 = step / np.maximum(np.linalg.norm(e2, axis=1), 1e-300)
-            heights = []
-            for db1, db2, moved in ((0.0, 0.0, x), (s1, 0.0, x + s1[:, None] * e1),
-                                    (0.0, s2, x + s2[:, None] * e2)):
-                shifted = (b[0] - np.reshape(db1 + db2, (-1, 1)), b[1] + np.reshape(db1, (-1, 1)),
-                           b[2] + np.reshape(db2, (-1, 1)))
-                attrs = HitAttributes(self.scene, p, shifted, moved, None if rays is None else rays.take(sel))
-                h = evaluate(self.programs[k], attrs, self.textures.images)
-                heights.append(h @ LUMINANCE if h.ndim == 2 else h)
-            hu, hv = (heights[1] - heights[0]) / s1, (heights[2] - heights[0]) / s2
             m = mat.take(sel)
-            self._bend(ns, sel, e1, e2, np.nan_to_num(hu), np.nan_to_num(hv), np.ones(len(sel), bool),
-                       strength.take(m), distance.take(m))
-
-    def _bump_edges(self, prims):
-        """(e1, e2) (k, 3) float64 the edges from corner 0 of triangles ``prims`` a bump is taken
-        along: the undisplaced ones on a truly displaced scene (``Scene.undisplaced``)."""
-        if self.undisplaced_edges is not None:
-            return tuple(e.take(prims, axis=0) for e in self.undisplaced_edges)
-        return self.accel.e1.take(prims, axis=0), self.accel.e2.take(prims, axis=0)
-
-    @staticmethod
-    def _bend(ns, sel, dpdu, dpdv, hu, hv, ok, strength, distance):
-        """Cycles' Bump formula (:meth:`_apply_bump_maps`) of ``strength`` and ``distance`` (k,) at
-        rows ``sel`` of ``ns``, in place."""
-        n0 = ns.take(sel, axis=0)
-        ru, rv = np.cross(dpdv, n0), np.cross(n0, dpdu)
-        det = np.einsum("ki,ki->k", dpdu, ru)
-        n = normalize(np.abs(det)[:, None] * n0
-                      - (distance * np.sign(det))[:, None] * (hu[:, None] * ru + hv[:, None] * rv))
-        s = np.maximum(strength, 0.0)[:, None]
-        n = normalize(s * n + (1.0 - s) * n0)
-        n[~ok] = n0[~ok]
-        _replace_bad(n, n0)
-        ns[sel] = n
+            ns[sel] = bumped_normals(self._hit_attributes(sel, prim_ids, bary, pos, rays), self.programs[k],
+                                     self.textures.images, ns.take(sel, axis=0), strength.take(m),
+                                     distance.take(m), BUMP_STEP * self.accel.extent)
 
 
 def _forced_points(parts):

@@ -1625,61 +1625,116 @@ def _node_normal(ev, node):
     return ev.vec(node, "normal") if "normal" in node else ev.attrs.get("world_normal")
 
 
+def bump_edges(scene, prims):
+    """(e1, e2) (k, 3) float64 the edges from corner 0 of triangles ``prims``, along which a bump is
+    taken: on the undisplaced surface of a truly displaced scene (``Scene.undisplaced``)."""
+    surface = scene.vertices if scene.undisplaced is None else scene.undisplaced
+    corners = surface.take(scene.triangles.take(prims, axis=0), axis=0).astype(np.float64)
+    return corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+
+
+def bend_normals(n0, dpdu, dpdv, hu, hv, strength, distance):
+    """(k, 3) Cycles' Bump formula: unit normals ``n0`` bent by a height's derivatives ``hu``, ``hv``
+    along a parametrisation (u, v) of the surface (dP/du ``dpdu``, dP/dv ``dpdv``): with
+    R_u = dP/dv x N, R_v = N x dP/du and det = dP/du . R_u, N' = normalize(|det| N - d sign(det)
+    (h_u R_u + h_v R_v)) for the ``distance`` d, then normalize(s N' + (1 - s) N) for the
+    ``strength`` s (the result does not depend on the parametrisation); zero or NaN rows keep N."""
+    ru, rv = np.cross(dpdv, n0), np.cross(n0, dpdu)
+    det = dot(dpdu, ru)
+    along = hu[:, None] * ru + hv[:, None] * rv
+    n = normalize(np.abs(det)[:, None] * n0 - (distance * np.sign(det))[:, None] * along)
+    s = np.maximum(strength, 0.0)[:, None]
+    n = normalize(s * n + (1.0 - s) * n0)
+    return _keep_where_bad(n, n0)
+
+
+def bumped_normals(attrs, height, images, n0, strength, distance, step=None):
+    """(k, 3) unit normals ``n0`` at the hits ``attrs`` bent by the height program ``height``
+    (:func:`bend_normals`): its derivatives from forward differences of ``step`` world units (None:
+    a thousandth of each edge) along the triangles' edges (:func:`bump_edges`), evaluated at the
+    undisplaced surface of a truly displaced scene, as Cycles evaluates a bump there."""
+    scene, prims = attrs.scene, attrs.prim_ids
+    e1, e2 = bump_edges(scene, prims)
+    if step is None:
+        s1 = s2 = np.full(len(prims), 1e-3)
+    else:
+        s1 = step / np.maximum(np.linalg.norm(e1, axis=1), 1e-300)
+        s2 = step / np.maximum(np.linalg.norm(e2, axis=1), 1e-300)
+    b = [np.asarray(w, np.float64).reshape(-1) for w in attrs.bary]
+    x = np.asarray(attrs.positions, np.float64)
+    if scene.undisplaced is not None:
+        x = interpolate_corners(scene.undisplaced.take(scene.triangles.take(prims, axis=0), axis=0)
+                                .astype(np.float64), attrs.bary)
+    heights = []
+    for d1, d2 in ((0.0, 0.0), (s1, 0.0), (0.0, s2)):
+        d1, d2 = np.broadcast_to(d1, (len(prims),)), np.broadcast_to(d2, (len(prims),))
+        shifted = ((b[0] - d1 - d2)[:, None], (b[1] + d1)[:, None], (b[2] + d2)[:, None])
+        moved = x + d1[:, None] * e1 + d2[:, None] * e2
+        h = evaluate(height, HitAttributes(scene, prims, shifted, moved, attrs.rays, attrs.accel), images)
+        heights.append(h @ LUMINANCE if h.ndim == 2 else h)
+    hu = np.nan_to_num((heights[1] - heights[0]) / s1)
+    hv = np.nan_to_num((heights[2] - heights[0]) / s2)
+    return bend_normals(n0, e1, e2, hu, hv, strength, distance)
+
+
+def tangent_space_normals(c, strength, n0, frame):
+    """(k, 3) Cycles' Normal Map in tangent space (``svm_node_normal_map``): colours ``c`` = 2 rgb
+    - 1, (c_x, c_y) times the ``strength`` s and c_z blended from 1 by min(s, 1), give
+    normalize(c_x T + c_y B + c_z N0) with T the tangent of ``frame`` (k, 4), B = w (N0 x T) with
+    its sign w, and N0 the unit shading normals ``n0``; no frame (zero tangent) or a degenerate
+    result keeps N0."""
+    t = frame[:, :3]
+    b = frame[:, 3:4] * np.cross(n0, t)
+    cz = 1.0 + (c[:, 2] - 1.0) * np.minimum(strength, 1.0)
+    n = normalize((c[:, 0] * strength)[:, None] * t + (c[:, 1] * strength)[:, None] * b + cz[:, None] * n0)
+    no_frame = ~(np.abs(t).sum(axis=1) > 0)
+    n[no_frame] = n0[no_frame]
+    return _keep_where_bad(n, n0)
+
+
+def spatial_normals(c, strength, n0):
+    """(k, 3) Cycles' Normal Map in object or world space: N = normalize(c) for the map's normal
+    ``c`` already in world space, then normalize(N0 + (N - N0) s) where the ``strength`` s is not
+    1; a degenerate result keeps N0."""
+    n = normalize(c)
+    blend = strength != 1.0
+    if blend.any():
+        s = np.maximum(strength, 0.0)[:, None]
+        n = np.where(blend[:, None], normalize(n0 + (n - n0) * s), n)
+    return _keep_where_bad(n, n0)
+
+
+def _keep_where_bad(n, fallback):
+    """``n`` with its zero or non-finite rows replaced by ``fallback``'s."""
+    bad = ~np.isfinite(n).all(axis=1) | (np.abs(n).sum(axis=1) == 0.0)
+    n[bad] = fallback[bad]
+    return n
+
+
 def _bump(ev, node):
-    """Blender's Bump node as a program (its Normal; ``RenderContext._apply_bump_maps`` has the
-    formula): the height's gradient from forward differences along the triangle's edges (on the
-    undisplaced surface of a truly displaced scene) of ``BUMP_STEP`` times the scene's size (a
-    thousandth of an edge without the scene's acceleration structure), about the node's normal or
-    the shading normal; a negative distance is an inverted bump.  Where there is no triangle to
-    step along (a world's directions) the normal is returned as it is."""
+    """Blender's Bump node as a program (its Normal, :func:`bumped_normals`) about the node's
+    normal or the shading normal, with differences of ``BUMP_STEP`` times the scene's size (a
+    thousandth of an edge without the scene's acceleration structure); a negative distance is an
+    inverted bump.  Where there is no triangle to step along (a world's directions) the normal is
+    returned as it is."""
     attrs = ev.attrs
     n0 = normalize(_node_normal(ev, node))
     if not isinstance(attrs, HitAttributes):
         return {"Normal": n0}
-    s = attrs.scene
-    prims = attrs.prim_ids
-    surface = s.vertices if s.undisplaced is None else s.undisplaced
-    corners = surface.take(s.triangles.take(prims, axis=0), axis=0).astype(np.float64)
-    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    l1, l2 = np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1)
-    if attrs.accel is not None:
-        step = BUMP_STEP * attrs.accel.extent
-        s1, s2 = step / np.maximum(l1, 1e-300), step / np.maximum(l2, 1e-300)
-    else:
-        s1 = s2 = np.full(ev.k, 1e-3)
-    b = [np.asarray(w, np.float64).reshape(-1) for w in attrs.bary]
-    x = interpolate_corners(corners, attrs.bary)
-    heights = []
-    for d1, d2 in ((0.0, 0.0), (s1, 0.0), (0.0, s2)):
-        d1, d2 = np.broadcast_to(d1, (ev.k,)), np.broadcast_to(d2, (ev.k,))
-        shifted = ((b[0] - d1 - d2)[:, None], (b[1] + d1)[:, None], (b[2] + d2)[:, None])
-        moved = x + d1[:, None] * e1 + d2[:, None] * e2
-        at = HitAttributes(s, prims, shifted, moved, attrs.rays, attrs.accel)
-        h = evaluate(node["height"], at, ev.images)
-        heights.append(h @ LUMINANCE if h.ndim == 2 else h)
-    hu = np.nan_to_num((heights[1] - heights[0]) / s1)
-    hv = np.nan_to_num((heights[2] - heights[0]) / s2)
-    ru, rv = np.cross(e2, n0), np.cross(n0, e1)
-    det = dot(e1, ru)
-    distance = ev.float(node, "distance", 1.0)
-    along = hu[:, None] * ru + hv[:, None] * rv
-    n = normalize(np.abs(det)[:, None] * n0 - (distance * np.sign(det))[:, None] * along)
-    strength = np.clip(ev.float(node, "strength", 1.0), 0.0, None)[:, None]
-    n = normalize(strength * n + (1.0 - strength) * n0)
-    bad = ~np.isfinite(n).all(axis=1) | (np.abs(n).sum(axis=1) == 0.0)
-    n[bad] = n0[bad]
-    return {"Normal": n}
+    step = None if attrs.accel is None else BUMP_STEP * attrs.accel.extent
+    return {"Normal": bumped_normals(attrs, node["height"], ev.images, n0, ev.float(node, "strength", 1.0),
+                                     ev.float(node, "distance", 1.0), step)}
 
 
 NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")
 
 
 def _normal_map(ev, node):
-    """Blender's Normal Map node as a program (its Normal; ``RenderContext._apply_normal_maps``
-    has the formula): c = 2 Color - 1 in the UV map's tangent frame (``Scene.tangents``; without
-    one, the surface's normal), or in the object's or world space (Blender's variants flip y and
-    z), about the shading normal of the triangle's front, turned to the ray's side on a back face
-    as Cycles turns it; a world's directions keep their normal."""
+    """Blender's Normal Map node as a program (its Normal): :func:`tangent_space_normals` in the UV
+    map's tangent frame (``Scene.tangents``; without one, the surface's normal), or
+    :func:`spatial_normals` in the object's or world space (Blender's variants flip y and z),
+    about the shading normal of the triangle's front, turned to the ray's side on a back face as
+    Cycles turns it; a world's directions keep their normal."""
     attrs = ev.attrs
     c = 2.0 * ev.vec(node, "color", (0.5, 0.5, 1.0)) - 1.0
     strength = np.maximum(ev.float(node, "strength", 1.0), 0.0)
@@ -1692,24 +1747,14 @@ def _normal_map(ev, node):
         n = n0.copy()
         if s.tangents is not None:
             corners = s.tangents.take(attrs.prim_ids, axis=0).astype(np.float64)
-            frame = interpolate_corners(corners, attrs.bary)
-            t = frame[:, :3]
-            b = frame[:, 3:4] * np.cross(n0, t)
-            cz = 1.0 + (c[:, 2] - 1.0) * np.minimum(strength, 1.0)
-            n = normalize((c[:, 0] * strength)[:, None] * t + (c[:, 1] * strength)[:, None] * b
-                          + cz[:, None] * n0)
-            no_frame = ~(np.abs(t).sum(axis=1) > 0)
-            n[no_frame] = n0[no_frame]
+            n = tangent_space_normals(c, strength, n0, interpolate_corners(corners, attrs.bary))
     else:
         if space.startswith("BLENDER_"):
             c[:, 1:] *= -1.0                                  # ("strange blender convention")
         if space.endswith("OBJECT") and s.object_ids is not None:
             objects = s.object_from_world.take(s.object_ids.take(attrs.prim_ids), axis=0)
             c = np.einsum("kji,kj->ki", objects[:, :, :3], c)
-        n = normalize(c)
-        n = np.where((strength != 1.0)[:, None], normalize(n0 + (n - n0) * strength[:, None]), n)
-    bad = ~np.isfinite(n).all(axis=1) | (np.abs(n).sum(axis=1) == 0.0)
-    n[bad] = n0[bad]
+        n = spatial_normals(c, strength, n0)
     back = attrs.get("backfacing")[:, :1] > 0.5
     return {"Normal": np.where(back, -n, n)}
 
