@@ -35,6 +35,7 @@ from functools import cached_property
 import numpy as np
 
 from . import sampling as smp
+from . import thin_film
 from .sampling import dot
 
 DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = 0, 1, 2, 3, 4
@@ -64,6 +65,8 @@ STRETCH_RANGE = 100.0
 EXACT_STRATA, COARSE_STRATA = 64, 32
 # Diffuse roughness below this is Lambert, as in Cycles (``diffuse_roughness_is_almost_zero``).
 ROUGH_DIFFUSE_MIN = 1e-5
+# A thin film's curve (MaterialTable.film_curve) is tabulated at microfacet cosines c = (k / FILM_NODES)^2.
+FILM_NODES = 256
 
 
 def roughness_variants(mats):
@@ -237,6 +240,8 @@ class MaterialTable:
     hit_metal_dip: np.ndarray = None        # (M, 3) float64 the dip per unit Schlick value at 1/7 (below)
     hit_metal_share: np.ndarray = None      # (M,) float64 the metal's share k of such a lobe (1: all of it)
     hit_metal_rest: np.ndarray = None       # (M, 3) float64 the rest's colour (the lobe's: k F0 + rest)
+    film_index: np.ndarray = None           # (M,) int64 the row of a filmed layer's curve (film_curve) or -1
+    film_curve: np.ndarray = None           # (F, FILM_NODES + 1, 3) float64 its rise (Materials.film_*)
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -319,9 +324,10 @@ class MaterialTable:
         rough = mats.dielectric_roughness.astype(np.float64)
         dielectric_alpha = np.where(rough < MIRROR_ROUGHNESS, 0.0, rough * rough)
         layered = (fresnel_ior > 0) & diffuse_on
+        film = _film_tables(mats, fresnel_ior, rise)
         layer, score_extra = _layer_tables(alpha, fresnel_ior, rise, layered, mats.diffuse_layer,
                                            np.clip(mats.diffuse_layer_weight, 0.0, 1.0),
-                                           ms_albedo, ms_fresnel, weight, rise_means)
+                                           ms_albedo, ms_fresnel, weight, rise_means, film)
         for lobe in (GLOSSY, MIRROR):
             mean = _metal_mean_rise(color[:, lobe], edge[:, lobe], dip[:, lobe])
             score_extra[:, lobe] += weight[:, lobe] * smp.luminance(mean)
@@ -376,7 +382,8 @@ class MaterialTable:
                              hit_metal_share=np.where(hit_metal, np.clip(_or_ones(mats.glossy_metal_share, m),
                                                                          1e-6, 1.0), 1.0),
                              hit_metal_rest=np.where(hit_metal[:, None],
-                                                     _or_zeros(mats.glossy_metal_rest, (m, 3)), 0.0))
+                                                     _or_zeros(mats.glossy_metal_rest, (m, 3)), 0.0),
+                             film_index=film.index, film_curve=film.curve)
 
     @property
     def lobes(self) -> int:
@@ -588,6 +595,13 @@ class MaterialTable:
         if self.has_dielectric_rise:
             s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
             out = self.rise[:, lobe].take(mat_ids, axis=0) * s[:, None]
+            if self.has_film:
+                # A filmed layer: its curve's rise per channel (Materials.film_thickness).
+                row = self.film_index.take(mat_ids)
+                f = np.flatnonzero(row >= 0)
+                if len(f):
+                    out[f] = self.rise[:, lobe].take(mat_ids.take(f), axis=0) * _film_rise(
+                        self.film_curve, row.take(f), cos_m.take(f))
         if not self.has_row_metal_curve:
             return out if out is not None else np.zeros((len(mat_ids), 3))
         edge, dip, low, high, metal = self._metal_rows[lobe]
@@ -606,6 +620,10 @@ class MaterialTable:
     @cached_property
     def has_dielectric_rise(self) -> bool:
         return bool((self.rise != 0).any())
+
+    @cached_property
+    def has_film(self) -> bool:
+        return self.film_index is not None and bool((self.film_index >= 0).any())
 
     @cached_property
     def _metal_rows(self):
@@ -745,7 +763,7 @@ def _rise_means(alpha, fresnel_ior, rise, coarse, albedo):
 
 
 def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_albedo, ms_fresnel, weight,
-                  rise_means):
+                  rise_means, film=None):
     """The diffuse factor L(mu) under a Fresnel layer, per material at the ``MS_NODES`` + 1 nodes,
     and mean lobe-score terms for the Fresnel rise and the layer.
 
@@ -755,7 +773,9 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
     and K = E + F_ms (1 - E) the layer's energy with multiscatter GGX, 1 without (Cycles does not
     count the single-scattering loss there), and share the part of the diffuse lobe under the
     layer (1 for a Principled BSDF alone).  Scores use the cosine-weighted means over mu.
-    ``rise_means`` is :func:`_rise_means`'s.
+    ``rise_means`` is :func:`_rise_means`'s.  A filmed layer (``film``, :func:`_film_tables`) takes
+    its film's reflectance at mu for f0 + (1 - f0) S(mu), as Cycles (no lobe mean for a film),
+    and its curve's mean for the rise's score.
     """
     m = len(alpha)
     layer = np.ones((m, MS_NODES + 1))
@@ -770,17 +790,80 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
         rows = np.flatnonzero(on & (alpha == a) & (fresnel_ior == eta))
         s = rise_means[(a, eta)]
         s_mean = 2.0 * np.trapz(s * mu, mu)
+        filmed = film.index[rows] if film is not None else np.full(len(rows), -1)
         for lobe in (GLOSSY, MIRROR):
             extra[rows, lobe] = weight[rows, lobe] * smp.luminance(rise[rows, lobe]) * s_mean
+            f = filmed >= 0
+            extra[rows[f], lobe] = weight[rows[f], lobe] * smp.luminance(rise[rows[f], lobe]
+                                                                         * film.mean_rise[filmed[f]])
         lay = rows[layered[rows]]
         if len(lay):
             e = ms_albedo[lay][:, :, None]                     # (k, nodes, 1); 1 without multiscatter
             k = e + ms_fresnel[lay, None, :] * (1.0 - e)
-            a_layer = k * (f0[lay, None, :] + (1.0 - f0[lay, None, :]) * s[None, :, None])
+            reflected = f0[lay, None, :] + (1.0 - f0[lay, None, :]) * s[None, :, None]
+            if film is not None:
+                row = film.index[lay]
+                reflected[row >= 0] = film.albedo[row[row >= 0]]
+            a_layer = k * reflected
             layer[lay] = np.clip(1.0 - layer_share[lay, None] * a_layer.max(axis=2), 0.0, 1.0)
     l_mean = 2.0 * np.trapz(layer * mu, mu, axis=1)
     extra[:, DIFFUSE] = np.where(layered, l_mean, 1.0)     # a factor, see lobe_scores
     return layer, extra
+
+
+@dataclass
+class _Film:
+    """The filmed layers' tables (:func:`_film_tables`)."""
+
+    index: np.ndarray       # (M,) int64 row in the tables below or -1
+    curve: np.ndarray       # (F, FILM_NODES + 1, 3) (G(c) - f0 t) / (1 - f0 t) at c = (k / FILM_NODES)^2
+    albedo: np.ndarray      # (F, MS_NODES + 1, 3) G at mu = (k / MS_NODES)^2: the layer's albedo
+    mean_rise: np.ndarray   # (F, 3) the cosine-weighted mean of the rise over mu
+
+
+def _film_tables(mats, fresnel_ior, rise):
+    """The rise of each layer coated by a thin film (``Materials.film_thickness``) at the film's
+    nodes: (G(c) - f0 t) / (1 - f0 t) per channel, G = :func:`thin_film.principled_reflectance` of the
+    layer (IOR ``fresnel_ior``, f0 its F0, t = ``film_tint``), so that ``rise`` times it is what the
+    layer adds to its normal-incidence colour; and G at the layer tables' nodes."""
+    m = len(fresnel_ior)
+    thickness = _or_zeros(mats.film_thickness, m)
+    on = np.flatnonzero((thickness > np.float32(thin_film.THICKNESS_CUTOFF)) & (fresnel_ior > 0)
+                        & (rise != 0).any(axis=(1, 2)))
+    index = np.full(m, -1, np.int64)
+    index[on] = np.arange(len(on))
+    if len(on) == 0:
+        return _Film(index, np.zeros((0, FILM_NODES + 1, 3)), np.zeros((0, MS_NODES + 1, 3)),
+                     np.zeros((0, 3)))
+    table = thin_film.sensitivity_table()
+    eta = np.maximum(fresnel_ior[on], 1.0)
+    f0t = np.clip(smp.dielectric_f0(eta)[:, None] * _or_ones(mats.film_tint, (m, 3))[on], 0.0, 1.0)
+    ior = np.asarray(mats.film_ior, np.float64)[on]
+
+    def reflected(nodes):
+        c = (np.arange(nodes + 1) / nodes) ** 2
+        k = len(c)
+        g = thin_film.principled_reflectance(table, np.tile(c, len(on)), np.repeat(thickness[on], k),
+                                             np.repeat(ior, k), np.repeat(eta, k), np.repeat(f0t, k, axis=0))
+        return c, g.reshape(len(on), k, 3)
+
+    _, g = reflected(FILM_NODES)
+    curve = (g - f0t[:, None, :]) / np.maximum(1.0 - f0t, 1e-6)[:, None, :]
+    mu, albedo = reflected(MS_NODES)
+    lifted = (albedo - f0t[:, None, :]) / np.maximum(1.0 - f0t, 1e-6)[:, None, :]
+    mean_rise = 2.0 * np.trapz(lifted * mu[None, :, None], mu, axis=1)
+    return _Film(index, curve, albedo, mean_rise)
+
+
+def _film_rise(curve, row, cos_m):
+    """(n, 3) rows ``row`` of a film's ``curve`` (:func:`_film_tables`) at cosines ``cos_m``, linearly
+    in sqrt(c)."""
+    t = np.sqrt(np.clip(cos_m, 0.0, 1.0)) * FILM_NODES
+    k = np.minimum(t.astype(np.int64), FILM_NODES - 1)
+    f = (t - k)[:, None]
+    flat = row * (FILM_NODES + 1) + k
+    c = curve.reshape(-1, 3)
+    return (1.0 - f) * c.take(flat, axis=0) + f * c.take(flat + 1, axis=0)
 
 
 def _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo, ms_fresnel):

@@ -195,7 +195,8 @@ class RenderContext:
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
         thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes (anisotropic ones need
         tangents at every hit) and their layers (Fresnel
-        layers, metals' Fresnel curves, coats), textures (images, procedural, roughness maps,
+        layers, thin films on them, metals' Fresnel curves, coats), textures (images, procedural,
+        roughness maps,
         normal and bump maps, textured emitters), true displacement, glass that refracts without
         reflecting (Refraction BSDF), lights' angular (IES) profiles, light and shadow
         linking, transparency, objects hidden from some camera rays, holdouts, volumes (the world's
@@ -211,6 +212,7 @@ class RenderContext:
                  ("rough diffuse", table.has_rough_diffuse),
                  ("camera paths through glossy", table.has_glossy_through),
                  ("Fresnel layers", table.has_layer),
+                 ("thin films", table.has_film),
                  ("metal Fresnel curves", table.has_metal_curve),
                  ("coats", table.has_coat),
                  ("image textures", self.has_textures),

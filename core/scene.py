@@ -113,6 +113,13 @@ class Materials:
       f0 * specular tint) + (1 - ``diffuse_layer``) s averaged over the lobe (Cycles'
       ``closure_layering_weight``); ``diffuse_layer_weight`` is the share of the diffuse lobe
       under the layer (a Principled mixed with a plain Diffuse: the rest keeps its weight).
+      ``film_thickness`` > 0.1 (nm; Cycles' cut-off) coats that layer with a thin film of index
+      ``film_ior`` (Principled's Thin Film; ignored without ``glossy_fresnel_ior``): the layer, of
+      share k = ``glossy_fresnel_rise`` / (1 - f0 t) of the lobe (f0 = F0 of ``glossy_fresnel_ior``,
+      t = ``film_tint``, the specular tint), then reflects k G(c) in place of k (f0 t + (1 - f0 t)
+      s(c)), G the film's interference colour scaled towards f0 t
+      (:func:`core.thin_film.principled_reflectance`), and the diffuse lobe under it takes G at the
+      view cosine for the layer's albedo (Cycles has no lobe mean for a film).
       ``glossy_metal_rise`` and ``glossy_metal_dip`` give a metal's Fresnel curve (Cycles'
       F82-tint model): at microfacet cosine c the lobe reflects ``glossy_color`` +
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]
@@ -279,6 +286,9 @@ class Materials:
     # 0 where Blender's Bump Map Correction is off: the bump-map terms keep only their side test
     # (no softening of the diffuse terminator, no valid reflection for glossy lobes).
     bump_correction: np.ndarray = None                  # (M,) int32 0 or 1; None: 1
+    film_thickness: np.ndarray = None                   # (M,) float32 in [0, 1e6] nm; None: 0 (none)
+    film_ior: np.ndarray = None                         # (M,) float32 in [1e-5, 100]; None: 1.33
+    film_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
@@ -342,7 +352,7 @@ class Materials:
                     "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
                     "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
                     "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump",
-                    "bump_correction")
+                    "bump_correction", "film_thickness", "film_ior", "film_tint")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -399,7 +409,9 @@ class Materials:
         program, gives the stretch at each hit instead of ``glossy_stretch``.  ``glossy_metal_tint``
         (default -1: none) makes a textured glossy lobe a metal of that edge tint whose F0 is its
         colour at each hit; ``glossy_metal_share`` (1) and ``glossy_metal_rest`` (0) make it part
-        of the lobe beside a dielectric layer.  ``level_program`` (a float program), ``level_first``
+        of the lobe beside a dielectric layer.  ``film_thickness`` (0: none), ``film_ior`` (1.33)
+        and ``film_tint`` (1) coat the Fresnel layer with a thin film.  ``level_program`` (a float
+        program), ``level_first``
         and ``level_count`` make it pick one of that many materials, its levels, at each hit.
         """
         m = len(specs)
@@ -453,6 +465,9 @@ class Materials:
         out.displacement_flags = np.zeros(m, np.int32)
         out.displacement_bump = np.zeros(m, np.int32)
         out.bump_correction = np.ones(m, np.int32)
+        out.film_thickness = np.zeros(m, np.float32)
+        out.film_ior = np.full(m, 1.33, np.float32)
+        out.film_tint = np.ones((m, 3), np.float32)
         out.coat_bump_program = np.full(m, -1, np.int32)
         out.coat_bump_strength = np.ones(m, np.float32)
         out.coat_bump_distance = np.ones(m, np.float32)
@@ -560,6 +575,9 @@ class Materials:
             out.displacement_flags[i] = s.get("displacement_flags", 0)
             out.displacement_bump[i] = s.get("displacement_bump", 0)
             out.bump_correction[i] = s.get("bump_correction", 1)
+            out.film_thickness[i] = s.get("film_thickness", 0.0)
+            out.film_ior[i] = s.get("film_ior", 1.33)
+            out.film_tint[i] = np.broadcast_to(np.asarray(s.get("film_tint", 1.0), np.float32), (3,))
         return out
 
 
@@ -1027,7 +1045,8 @@ class Scene:
                                        ("coat_bump_strength", (n,), 1.0), ("coat_bump_distance", (n,), 1.0),
                                        ("dielectric_fresnel", (n,), 1.0), ("displacement_program", (n,), -1),
                                        ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
-                                       ("bump_correction", (n,), 1),
+                                       ("bump_correction", (n,), 1), ("film_thickness", (n,), 0.0),
+                                       ("film_ior", (n,), 1.33), ("film_tint", (n, 3), 1.0),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
@@ -1077,14 +1096,18 @@ class Scene:
                                 ("displacement_flags", 0, DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS
                                  | DISPLACE_VECTOR),
                                 ("displacement_bump", 0, 1), ("bump_correction", 0, 1),
+                                ("film_thickness", 0.0, 1e6), ("film_ior", 1e-5, 100.0),
+                                ("film_tint", 0.0, 1.0),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),
                                 ("normal_space", NORMAL_TANGENT, NORMAL_BLENDER_WORLD)):
-            v = getattr(mats, name)
-            if ((v < low) | (v > high)).any():
-                bad = mats.names[int(np.argmax((v < low) | (v > high)))]
-                fail(f"materials.{name} is outside [{low}, {high}] for material '{bad}'")
+            outside = (getattr(mats, name) < low) | (getattr(mats, name) > high)
+            if outside.ndim > 1:
+                outside = outside.any(axis=1)
+            if outside.any():
+                fail(f"materials.{name} is outside [{low}, {high}] for material "
+                     f"'{mats.names[int(np.argmax(outside))]}'")
         rough = mats.dielectric_roughness
         odd = ~(((rough >= 0) & (rough <= 1)) | ((rough == -1) & (mats.roughness_program >= 0)))
         if odd.any():

@@ -85,7 +85,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...core import procedural
+from ...core import procedural, thin_film
 from ...core.bsdf import (TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, TANGENT_UV, metal_curve,
                           metal_fresnel)
 from ...core.imageio import linear_to_srgb
@@ -146,6 +146,7 @@ class Closure:
     refraction_only: float = 0.0    # the part of the dielectric weight that only refracts (Refraction
     #                                 BSDF: no Fresnel reflection, nothing under total internal reflection)
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
+    film: tuple = None              # (thickness nm, IOR, specular tint (3,)) of a thin film on that layer
     rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
     metal_rise: np.ndarray = field(default_factory=lambda: np.zeros(3))    # (3,) weight * a metal's rise
     metal_dip: np.ndarray = field(default_factory=lambda: np.zeros(3))     # (3,) weight * its dip (F82 tint)
@@ -216,6 +217,9 @@ class Closure:
         rising = (wa[GLOSSY] * (self.fresnel_ior > 0), wb[GLOSSY] * (other.fresnel_ior > 0))
         # (no rising glossy part left, e.g. one side at factor 0: none)
         out.fresnel_ior = _weighted(self.fresnel_ior, other.fresnel_ior, *rising) if sum(rising) > 0 else 0.0
+        # One film per layer: the first rising side's (mixes_exactly tells where the two differ).
+        filmed = [c.film for c, r in zip((self, other), rising) if r > 0 and c.film is not None]
+        out.film = filmed[0] if filmed else None
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
@@ -446,7 +450,8 @@ class Closure:
                     and all(getattr(self, k) is None and getattr(other, k) is None
                             for k in ("roughness_texture", "stretch_texture", "rotation_texture")))
             if not same or (self.fresnel_ior > 0 and other.fresnel_ior > 0
-                            and not np.isclose(self.fresnel_ior, other.fresnel_ior)):
+                            and not (np.isclose(self.fresnel_ior, other.fresnel_ior)
+                                     and _same_film(self.film, other.film))):
                 return False
             varies = [c for c in (self, other) if c.glossy_texture is not None or c.metal_texture is not None]
             if len(varies) == 2:
@@ -553,6 +558,8 @@ class Closure:
         if self.fresnel_ior > 0 and self.weight[GLOSSY] > 0:
             s["glossy_fresnel_ior"] = self.fresnel_ior
             s["glossy_fresnel_rise"] = self.rise / self.weight[GLOSSY]
+            if self.film is not None:
+                s["film_thickness"], s["film_ior"], s["film_tint"] = self.film
             if self.layered > 0 and self.weight[DIFFUSE] > 0:
                 s["diffuse_layer"] = self.layer / self.layered
                 s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
@@ -782,6 +789,13 @@ def _image_height(texture: int) -> dict:
 def textured(source) -> bool:
     """Whether a colour source (:meth:`NodeWalker.color`) varies over the surface."""
     return isinstance(source, dict) or source >= 0
+
+
+def _same_film(a, b) -> bool:
+    """Whether two layers' films (``Closure.film``) are the same (or both absent)."""
+    if a is None or b is None:
+        return a is None and b is None
+    return bool(np.isclose(a[0], b[0]) and np.isclose(a[1], b[1]) and np.allclose(a[2], b[2]))
 
 
 def _weighted(a, b, wa, wb):
@@ -1605,6 +1619,7 @@ class NodeWalker:
         and at cos = 1/7 (``conductor_f82``), F_ss the mean of the conductor's own curve.  A
         texture on the base colour makes the F0 a program (``Closure.metal_texture``), one on the
         edge tint the lobe's colour a program of the curve's mean instead."""
+        self._note_film(node, stack)
         if node.fresnel_type == "PHYSICAL_CONDUCTOR":
             ior, _ = self.color(node.inputs["IOR"], stack)
             extinction, _ = self.color(node.inputs["Extinction"], stack)
@@ -1686,6 +1701,7 @@ class NodeWalker:
         through point by point, its reflections by the texture's mean (a few per cent of the light).
         Refraction has no Fresnel reflection: it refracts everything but under total internal
         reflection, where it gives nothing (Cycles; ``Materials.dielectric_fresnel``)."""
+        self._note_film(node, stack)
         color, tex = self.color(node.inputs["Color"], stack)
         ior = self.value(node.inputs["IOR"], stack)
         rough, rough_map = self.roughness(node.inputs["Roughness"], stack) if "Roughness" in node.inputs \
@@ -1766,6 +1782,20 @@ class NodeWalker:
         c.levels = (_clamp01(_math("MULTIPLY", f, 1.0 / top)), levels)
         return c
 
+    def thin_film(self, node, stack):
+        """(thickness nm, IOR) of a node's Thin Film, or None where it is at most Cycles' cut-off of
+        0.1 nm (the IOR at least 1e-5, as Cycles); a texture on either takes its mean (noted)."""
+        thickness = self.value(node.inputs["Thin Film Thickness"], stack)
+        if not np.float32(thickness) > np.float32(thin_film.THICKNESS_CUTOFF):    # (Cycles' floats)
+            return None
+        return float(min(thickness, 1e6)), float(np.clip(self.value(node.inputs["Thin Film IOR"], stack),
+                                                         1e-5, 100.0))
+
+    def _note_film(self, node, stack):
+        """Note a Thin Film on a node that has one but whose film the core does not model."""
+        if "Thin Film Thickness" in node.inputs and self.thin_film(node, stack) is not None:
+            self.note(f"'{node.name}': Thin Film is not supported on a {node.bl_label} (ignored)")
+
     def _principled(self, node, stack):
         """Principled BSDF (:meth:`_principled_opaque`) with its Alpha: a Mix with a white
         Transparent BSDF by it (point by point for an alpha map, as a Mix Shader's mask)."""
@@ -1827,6 +1857,10 @@ class NodeWalker:
         if ignored:
             self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored; subsurface "
                       "renders as diffuse)")
+        film = self.thin_film(node, stack)
+        if film is not None and (m > 0 or t > 0):
+            self.note(f"'{node.name}': Thin Film on the metallic or transmission part is not supported "
+                      "(only the specular layer over the diffuse base takes it)")
 
         base_color = np.ones(3) if textured(tex) else base
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
@@ -1850,7 +1884,8 @@ class NodeWalker:
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
         eta, f0 = specular_ior(ior, level)
-        spec = dielectric if eta > 1.0 + 1e-6 else 0.0     # Cycles drops a layer of IOR 1
+        # Cycles drops a layer of IOR 1, unless a film coats it (a soap film's reflection).
+        spec = dielectric if eta > 1.0 + 1e-6 or film is not None else 0.0
         f0_tint = np.clip(f0 * np.asarray(tint, np.float64), 0.0, 1.0)
         # Cycles' metallic layer: F82 with the specular tint, its curve by angle; a textured base
         # colour makes its F0 a program (below).
@@ -1866,6 +1901,8 @@ class NodeWalker:
         if spec > 0:
             c.fresnel_ior = eta
             c.rise = spec * (1.0 - f0_tint)
+            if film is not None:
+                c.film = (*film, np.clip(np.asarray(tint, np.float64), 0.0, 1.0))
             c.layer = spec * f0_tint
             c.layered = spec
         layer_fss = np.zeros(3)
@@ -1920,8 +1957,7 @@ SPECULAR_LEVEL = "Specular IOR Level"
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")
 
 # Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
-PRINCIPLED_IGNORED = (("Subsurface", "Subsurface Weight"),
-                      ("Sheen", "Sheen Weight"), ("Thin Film", "Thin Film Thickness"))
+PRINCIPLED_IGNORED = (("Subsurface", "Subsurface Weight"), ("Sheen", "Sheen Weight"))
 
 SHADERS = {
     "ShaderNodeBsdfPrincipled": NodeWalker._principled,

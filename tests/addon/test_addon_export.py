@@ -1516,12 +1516,36 @@ def test_a_subsurface_scattering_bsdf_renders_as_diffuse_of_its_colour(scene):
 
 
 def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
-    _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Thin Film Thickness": 100.0,
+    _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Subsurface Weight": 0.1,
                                                    "Anisotropic": 0.5}))
     warnings = [w for w in ex.warnings if "'Paint'" in w]
-    assert len(warnings) == 1 and "Sheen, Thin Film not supported" in warnings[0], ex.warnings
+    assert len(warnings) == 1 and "Subsurface, Sheen not supported" in warnings[0], ex.warnings
     _, ex = export_material(principled("Plain"))
     assert not [w for w in ex.warnings if "'Plain'" in w]
+
+
+def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
+    """Thin Film Thickness over Cycles' cut-off of 0.1 nm gives the layer its film (thickness,
+    IOR, the specular tint) without a note (stop 43; before, noted and left out); on a layer of
+    IOR 1, which Cycles drops without a film, the film keeps it.  A film on the metallic or
+    transmission part, or on a Glass or Metallic BSDF, is noted."""
+    row, ex = export_material(principled("Oil", **{"Thin Film Thickness": 480.0, "Thin Film IOR": 1.4,
+                                                   "Specular Tint": (1.0, 0.5, 0.25, 1.0)}))
+    assert row["film_thickness"] == pytest.approx(480.0) and row["film_ior"] == pytest.approx(1.4)
+    assert row["film_tint"] == pytest.approx([1.0, 0.5, 0.25])
+    assert row["glossy_fresnel_ior"] == pytest.approx(1.5)
+    assert not [w for w in ex.warnings if "'Oil'" in w]
+    row, _ = export_material(principled("Soap", **{"IOR": 1.0, "Thin Film Thickness": 300.0}))
+    assert row["glossy_fresnel_ior"] == pytest.approx(1.0) and row["glossy_weight"] > 0
+    assert row["film_thickness"] == pytest.approx(300.0)
+    row, _ = export_material(principled("Bare", **{"IOR": 1.0, "Thin Film Thickness": 0.1}))
+    assert row["glossy_weight"] == 0 and row["film_thickness"] == 0
+    _, ex = export_material(principled("Foil", **{"Metallic": 1.0, "Thin Film Thickness": 300.0}))
+    assert any("'Principled BSDF'" in w and "metallic or transmission part" in w
+               for w in ex.warnings), ex.warnings
+    for kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfMetallic"):
+        _, ex = export_material(bs._material(kind, kind, **{"Thin Film Thickness": 300.0}))
+        assert any("Thin Film is not supported" in w for w in ex.warnings), (kind, ex.warnings)
 
 
 def test_principled_coat_is_exported_with_cycles_clamps(scene):

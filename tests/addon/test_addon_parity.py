@@ -1816,3 +1816,37 @@ def test_a_point_cloud_matches_cycles(addon, tmp_path):
         bs.light("AREA", location=(-0.5, -0.8, 2.5), target=(0, 0, 0), energy=200.0, size=1.0)
     cycles, ours = cycles_and_ours(build, tmp_path)
     assert_image_matches("point cloud", cycles, ours)
+
+
+@pytest.mark.parametrize("shader", ["oil_on_dark", "soap_film", "tinted_over_grey"])
+def test_principled_thin_film_matches_cycles(addon, tmp_path, shader):
+    """A floor of a Principled BSDF with a Thin Film (stop 43; before, noted and left out) under a
+    white world and an area light, seen from 60 degrees down to 20, so that the floor shows the
+    film's interference colour by angle: an oil film 500 nm thick (IOR 1.33, Cycles' default) on a
+    dark base of IOR 1.5, a soap film of 320 nm and IOR 1.4 on a layer of IOR 1 (no specular layer
+    but for the film), and a film of 250 nm under a specular tint over a grey base (the tint scales
+    the film's colour per channel; the base lies under the film's albedo).  The channels' means
+    and bands, and where each colour falls (4 x 4 blocks)."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        mat = bs._material("Film", "ShaderNodeBsdfPrincipled", Roughness=0.4)
+        inputs = mat.node_tree.nodes["Principled BSDF"].inputs
+        if shader == "oil_on_dark":
+            inputs["Base Color"].default_value = (0.02, 0.02, 0.02, 1.0)
+            inputs["Thin Film Thickness"].default_value = 500.0
+        elif shader == "soap_film":
+            inputs["Base Color"].default_value = (0.02, 0.02, 0.02, 1.0)
+            inputs["IOR"].default_value = 1.0
+            inputs["Thin Film Thickness"].default_value = 320.0
+            inputs["Thin Film IOR"].default_value = 1.4
+        else:
+            inputs["Base Color"].default_value = (0.3, 0.3, 0.3, 1.0)
+            inputs["Specular Tint"].default_value = (0.4, 0.8, 1.0, 1.0)
+            inputs["Thin Film Thickness"].default_value = 250.0
+        bs.plane("Floor", size=8.0, material=mat)
+        bs.camera(location=(0, -3, 2.5), target=(0, 0, 0), lens=35.0)
+        bs.light("AREA", location=(0, 3.0, 2.0), target=(0, 0, 0), energy=1500.0, shape="SQUARE", size=3.0)
+        bs.world((0.2, 0.2, 0.2), strength=1.0)
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_channels_match(f"thin film, {shader}", cycles, ours)
+    assert min(block_correlation(f"thin film, {shader}", cycles, ours)) > 0.99

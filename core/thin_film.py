@@ -1,0 +1,143 @@
+"""Thin-film iridescence: the reflectance of a dielectric layer coated with a thin film, in RGB.
+
+As Cycles (Blender 4.2 and later) computes it for the Principled BSDF's Thin Film, after Belcour
+and Barla 2017 ("A Practical Extension to Microfacet Theory for the Modeling of Varying
+Iridescence"): the Airy series of the waves reflected inside the film, for s and p polarised
+light apart, each term's spectrum integrated against the colour matching functions in Fourier
+space, so that a term of optical path difference OPD and phase phi costs one look-up of the
+sensitivity S(OPD), the Fourier transform of the RGB colour matching functions taken over
+frequency (:func:`sensitivity_table`), and the series stops after its third term as Cycles'.
+
+The sensitivity table is rebuilt here the way Cycles' ``doc/precompute/thin_film_table.py`` builds
+``table_thin_film_cmf`` (1022 samples of the CMFs over frequency up to 60 um^-1 times pi ... over
+pi, one real FFT, 512 complex values, OPD 0 to 60 um / 2 pi), from the CIE 1931 functions at 5 nm
+(``procedural.CIE_XYZ``, 380 to 780 nm) interpolated by a cubic spline, where Cycles interpolates
+them at 1 nm from 360 to 830 nm; then, as Cycles' ``compute_thin_film_table``, converted to
+linear Rec. 709 and normalised so that each channel's term at OPD 0 is 1.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import procedural          # (its CIE tables; procedural imports bsdf, which imports this)
+
+TABLE_SIZE = 512          # Cycles' THIN_FILM_TABLE_SIZE: complex values of the sensitivity
+_SAMPLES = 1022           # real samples over frequency (one real FFT of them gives TABLE_SIZE values)
+_END = 60.0               # the table covers OPD from 0 to _END / (2 pi) um
+THICKNESS_CUTOFF = 0.1    # Cycles' THINFILM_THICKNESS_CUTOFF (nm): no film at or below it (as float32)
+
+
+def _natural_spline(x, y, at):
+    """Natural cubic spline through (x, y) (x uniform, ascending) at ``at``; NaN outside [x0, xn]."""
+    n = len(x)
+    h = x[1] - x[0]
+    a = np.zeros((n, n))
+    r = np.zeros(n)
+    a[0, 0] = a[-1, -1] = 1.0
+    i = np.arange(1, n - 1)
+    a[i, i - 1] = a[i, i + 1] = h / 6.0
+    a[i, i] = 2.0 * h / 3.0
+    r[i] = (y[i + 1] - 2.0 * y[i] + y[i - 1]) / h
+    m = np.linalg.solve(a, r)                           # second derivatives
+    k = np.clip((np.clip(at, x[0], x[-1]) - x[0]) // h, 0, n - 2).astype(np.int64)
+    t1 = x[k + 1] - at
+    t0 = at - x[k]
+    out = (m[k] * t1 ** 3 + m[k + 1] * t0 ** 3) / (6.0 * h) \
+        + (y[k] / h - m[k] * h / 6.0) * t1 + (y[k + 1] / h - m[k + 1] * h / 6.0) * t0
+    return np.where((at >= x[0]) & (at <= x[-1]), out, np.nan)
+
+
+def sensitivity_table():
+    """(TABLE_SIZE, 3) complex: the RGB sensitivity S(OPD) at OPD = k / TABLE_SIZE-1 of the range,
+    S = sum over frequency nu of cmf(1 / nu) / nu^2 exp(-2 pi i OPD nu) normalised to S(0) = 1
+    per channel.  A few milliseconds; callers keep it (``MaterialTable``)."""
+    # The CIE functions padded with a zero 5 nm beyond each end (Cycles pads its 1 nm table so).
+    lam = np.arange(375.0, 790.0, 5.0)
+    cmf = np.vstack([np.zeros(3), procedural.CIE_XYZ, np.zeros(3)])
+    freqs = np.maximum(np.linspace(0.0, np.pi * (_SAMPLES - 1) / _END, _SAMPLES), 1e-40)
+    wavelength = 1000.0 / freqs                          # nm
+    samples = np.stack([np.nan_to_num(_natural_spline(lam, cmf[:, c], wavelength)) for c in range(3)], axis=1)
+    samples /= (freqs * freqs)[:, None]
+    spectrum = np.fft.rfft(samples, axis=0)              # (TABLE_SIZE, 3) XYZ
+    rgb = spectrum @ procedural.XYZ_TO_RGB.T
+    return rgb / rgb[0].real
+
+
+def sensitivity(table, opd):
+    """(n, 3) complex S at optical path differences ``opd`` (nm), linear in the table as Cycles'
+    ``lookup_table_read`` (beyond the table's end: its last value)."""
+    x = np.clip(2.0 * np.pi * np.asarray(opd, np.float64) / (_END * 1000.0), 0.0, 1.0) * (TABLE_SIZE - 1)
+    i = np.minimum(x.astype(np.int64), TABLE_SIZE - 1)
+    j = np.minimum(i + 1, TABLE_SIZE - 1)
+    t = (x - i)[:, None]
+    return (1.0 - t) * table[i] + t * table[j]
+
+
+def _polarized(cos_i, eta):
+    """Cycles' ``fresnel_dielectric_polarized``: (R_s, R_p, cos_t, phase_s, phase_p, tir) for cosines
+    ``cos_i`` and relative indices ``eta`` (arrays); cos_t < 0 (relative to the normal), the phases
+    +-1 (the sign of each amplitude), R = 1 and phases 1 under total internal reflection."""
+    e2 = eta * eta - (1.0 - cos_i * cos_i)
+    tir = e2 <= 0.0
+    c = np.abs(cos_i)
+    cos_t = -np.sqrt(np.maximum(e2, 0.0)) / eta
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_s = (c + eta * cos_t) / (c - eta * cos_t)
+        r_p = (cos_t + eta * c) / (eta * c - cos_t)
+    r_s = np.where(tir, 1.0, np.nan_to_num(r_s, nan=1.0))
+    r_p = np.where(tir, 1.0, np.nan_to_num(r_p, nan=1.0))
+    return (r_s * r_s, r_p * r_p, cos_t, np.where(r_s >= 0.0, 1.0, -1.0), np.where(r_p >= 0.0, 1.0, -1.0),
+            tir)
+
+
+def _airy(table, r12, r23, opd, phase):
+    """(n, 3) Cycles' ``iridescence_airy_summation`` for one polarisation: reflectances ``r12``,
+    ``r23`` (n,), ``opd`` (n,) nm and the reflections' joint phase ``phase`` (n,) +-1."""
+    t121 = 1.0 - r12
+    r123 = r12 * r23
+    root = np.sqrt(r123)
+    rs = t121 * t121 * r23 / np.maximum(1.0 - r123, 1e-30)
+    out = np.repeat((rs + r12)[:, None], 3, axis=1)
+    cm = rs - t121
+    acc = phase.copy()
+    for m in range(1, 4):
+        cm = cm * root
+        s = sensitivity(table, m * opd)
+        out += (2.0 * cm * acc)[:, None] * s.real
+        acc = acc * phase
+    return out
+
+
+def reflectance(table, cos_i, thickness, film_ior, eta):
+    """(n, 3) reflectance of a dielectric of relative index ``eta`` coated by a film ``thickness``
+    nm thick of index ``film_ior``, seen from outside (index 1) at cosines ``cos_i``: Cycles'
+    ``fresnel_iridescence`` for a dielectric substrate (all arguments broadcast to (n,)).  Films
+    below 1 nm blend their index towards 1 (Cycles: the Airy series no longer applies); total
+    internal reflection at either interface reflects everything."""
+    cos_i, thickness, film_ior, eta = np.broadcast_arrays(
+        np.asarray(cos_i, np.float64), np.asarray(thickness, np.float64),
+        np.asarray(film_ior, np.float64), np.asarray(eta, np.float64))
+    t = np.clip(thickness, 0.0, 1.0)
+    n_film = np.where(thickness < 1.0, 1.0 + (film_ior - 1.0) * t * t * (3.0 - 2.0 * t), film_ior)
+    r12_s, r12_p, cos_2, ph12_s, ph12_p, tir12 = _polarized(cos_i, n_film)
+    r23_s, r23_p, _, ph23_s, ph23_p, tir23 = _polarized(-cos_2, eta / n_film)
+    opd = -2.0 * n_film * thickness * cos_2
+    out = 0.5 * (_airy(table, r12_s, r23_s, opd, -ph12_s * ph23_s)
+                 + _airy(table, r12_p, r23_p, opd, -ph12_p * ph23_p))
+    return np.where((tir12 | tir23)[:, None], 1.0, np.clip(out, 0.0, 1.0))
+
+
+def principled_reflectance(table, cos_i, thickness, film_ior, eta, f0_tint):
+    """(n, 3) the Principled BSDF's specular layer with a film: :func:`reflectance` scaled per channel
+    towards ``f0_tint`` / F0 (Cycles' ``microfacet_fresnel`` for a generalized Schlick Fresnel with a
+    film: F times mix(1, f0 / F0, saturate((F - 1) / (F0 - 1))), F0 the layer's own reflectance
+    face on); ``f0_tint`` (n, 3) or (3,) its tinted normal-incidence colour."""
+    f = reflectance(table, cos_i, thickness, film_ior, eta)
+    f0_real = ((np.asarray(eta, np.float64) - 1.0) / (np.asarray(eta, np.float64) + 1.0)) ** 2
+    f0_real = np.broadcast_to(f0_real, f.shape[:1])[:, None]
+    scale = f0_real > 1e-5
+    safe = np.where(scale, f0_real, 0.5)
+    s = np.clip((f - 1.0) / (safe - 1.0), 0.0, 1.0)
+    factor = np.clip(np.asarray(f0_tint, np.float64), 0.0, 1.0) / safe
+    scaled = f * (1.0 + (factor - 1.0) * s)
+    return np.where(scale & (f < 1.0), scaled, f)
