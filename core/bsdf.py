@@ -242,6 +242,11 @@ class MaterialTable:
     hit_metal_rest: np.ndarray = None       # (M, 3) float64 the rest's colour (the lobe's: k F0 + rest)
     film_index: np.ndarray = None           # (M,) int64 the row of a filmed layer's curve (film_curve) or -1
     film_curve: np.ndarray = None           # (F, FILM_NODES + 1, 3) float64 its rise (Materials.film_*)
+    glass_film: np.ndarray = None           # (M,) bool: the glass has a film (glass_film_reflectance)
+    film_thickness: np.ndarray = None       # (M,) float64 Materials.film_thickness, film_ior, film_tint
+    film_ior: np.ndarray = None
+    film_tint: np.ndarray = None
+    film_sensitivity: np.ndarray = None     # (thin_film.TABLE_SIZE, 3) complex where some glass has a film
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -383,7 +388,8 @@ class MaterialTable:
                                                                          1e-6, 1.0), 1.0),
                              hit_metal_rest=np.where(hit_metal[:, None],
                                                      _or_zeros(mats.glossy_metal_rest, (m, 3)), 0.0),
-                             film_index=film.index, film_curve=film.curve)
+                             film_index=film.index, film_curve=film.curve,
+                             **_glass_film(mats, weight, film))
 
     @property
     def lobes(self) -> int:
@@ -623,7 +629,25 @@ class MaterialTable:
 
     @cached_property
     def has_film(self) -> bool:
-        return self.film_index is not None and bool((self.film_index >= 0).any())
+        return (self.film_index is not None and bool((self.film_index >= 0).any())) or self.has_glass_film
+
+    @cached_property
+    def has_glass_film(self) -> bool:
+        return self.glass_film is not None and bool(self.glass_film.any())
+
+    def glass_film_reflectance(self, mat_ids, cos_i, entering):
+        """(n, 3) reflectance of the filmed glasses ``mat_ids`` at cosines ``cos_i`` (with the
+        normal or microfacet normal), from outside where ``entering``: Cycles' Principled glass with
+        a film, whose film and glass indices are relative to the side the light comes from (the
+        film's over the glass's from inside), the film's colour scaled towards F0 t as the
+        layer's (:func:`thin_film.principled_reflectance`, t = ``film_tint``)."""
+        ior = self.ior.take(mat_ids)
+        film_ior = self.film_ior.take(mat_ids)
+        eta = np.where(entering, ior, 1.0 / ior)
+        f0t = smp.dielectric_f0(ior)[:, None] * self.film_tint.take(mat_ids, axis=0)
+        return thin_film.principled_reflectance(self.film_sensitivity, cos_i,
+                                                self.film_thickness.take(mat_ids),
+                                                np.where(entering, film_ior, film_ior / ior), eta, f0t)
 
     @cached_property
     def _metal_rows(self):
@@ -819,6 +843,7 @@ class _Film:
     curve: np.ndarray       # (F, FILM_NODES + 1, 3) (G(c) - f0 t) / (1 - f0 t) at c = (k / FILM_NODES)^2
     albedo: np.ndarray      # (F, MS_NODES + 1, 3) G at mu = (k / MS_NODES)^2: the layer's albedo
     mean_rise: np.ndarray   # (F, 3) the cosine-weighted mean of the rise over mu
+    sensitivity: np.ndarray = None  # thin_film.sensitivity_table() where some layer has a film
 
 
 def _film_tables(mats, fresnel_ior, rise):
@@ -852,7 +877,19 @@ def _film_tables(mats, fresnel_ior, rise):
     mu, albedo = reflected(MS_NODES)
     lifted = (albedo - f0t[:, None, :]) / np.maximum(1.0 - f0t, 1e-6)[:, None, :]
     mean_rise = 2.0 * np.trapz(lifted * mu[None, :, None], mu, axis=1)
-    return _Film(index, curve, albedo, mean_rise)
+    return _Film(index, curve, albedo, mean_rise, table)
+
+
+def _glass_film(mats, weight, film):
+    """MaterialTable fields of the glasses with a film (``Materials.film_thickness``)."""
+    m = len(weight)
+    thickness = _or_zeros(mats.film_thickness, m)
+    on = (thickness > np.float32(thin_film.THICKNESS_CUTOFF)) & (weight[:, DIELECTRIC] > 0)
+    if not on.any():
+        return {}
+    table = film.sensitivity if film.sensitivity is not None else thin_film.sensitivity_table()
+    return {"glass_film": on, "film_thickness": thickness, "film_ior": np.asarray(mats.film_ior, np.float64),
+            "film_tint": _or_ones(mats.film_tint, (m, 3)), "film_sensitivity": table}
 
 
 def _film_rise(curve, row, cos_m):
@@ -1261,6 +1298,17 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 # reflection, where it ends (Cycles' Refraction BSDF).
                 refracts = cos_t > 0.0
                 fr = table.dielectric_fresnel.take(m_sel) * fr
+            f, film = None, None
+            if table.has_glass_film:
+                # A filmed glass reflects F (n, 3) by channel: reflect with its mean p (times s), the
+                # weights F / p and (1 - s F) / (1 - s p) (Cycles' pdf_reflect is alike).
+                f = np.flatnonzero(table.glass_film.take(m_sel))
+                if len(f):
+                    film = table.glass_film_reflectance(m_sel.take(f), cos_i.take(f), entering.take(f))
+                    share = (1.0 if table.dielectric_fresnel is None
+                             else table.dielectric_fresnel.take(m_sel.take(f))[:, None])
+                    film = share * film                 # (s F: what reflects by Fresnel)
+                    fr[f] = film.mean(axis=1)
             is_refl = branch < fr
             d = np.where(is_refl[:, None], smp.reflect(w_o, h), smp.refract(w_o, h, eta, cos_t))
             side = dot(d, n_g)
@@ -1271,6 +1319,11 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 reflected = (table.weight[:, k].take(m_sel)[:, None] * table.reflection.take(m_sel, axis=0)
                              / prob.take(sel)[:, None])
                 w = np.where(is_refl[:, None], reflected, w)
+            if film is not None and len(f):
+                p = fr[f][:, None]
+                w[f] = w[f] * np.where(is_refl[f][:, None],
+                                       np.divide(film, p, out=np.ones_like(film), where=p > 0),
+                                       np.divide(1.0 - film, 1.0 - p, out=np.ones_like(film), where=p < 1))
             if rough.any():
                 cos_o_s = np.abs(dot(w_o, n_s))
                 cos_i_s = dot(d, n_s)

@@ -114,12 +114,15 @@ class Materials:
       ``closure_layering_weight``); ``diffuse_layer_weight`` is the share of the diffuse lobe
       under the layer (a Principled mixed with a plain Diffuse: the rest keeps its weight).
       ``film_thickness`` > 0.1 (nm; Cycles' cut-off) coats that layer with a thin film of index
-      ``film_ior`` (Principled's Thin Film; ignored without ``glossy_fresnel_ior``): the layer, of
+      ``film_ior`` (Principled's Thin Film; no layer without ``glossy_fresnel_ior``): the layer, of
       share k = ``glossy_fresnel_rise`` / (1 - f0 t) of the lobe (f0 = F0 of ``glossy_fresnel_ior``,
       t = ``film_tint``, the specular tint), then reflects k G(c) in place of k (f0 t + (1 - f0 t)
       s(c)), G the film's interference colour scaled towards f0 t
       (:func:`core.thin_film.principled_reflectance`), and the diffuse lobe under it takes G at the
-      view cosine for the layer's albedo (Cycles has no lobe mean for a film).
+      view cosine for the layer's albedo (Cycles has no lobe mean for a film).  The glass lobe
+      of such a material takes the film too (Principled glass): it reflects G by channel (the
+      film's and the glass's indices relative to the side the light comes from, as Cycles, with
+      F0 of ``ior``) in place of its reflection colour times F, and refracts 1 - G.
       ``glossy_metal_rise`` and ``glossy_metal_dip`` give a metal's Fresnel curve (Cycles'
       F82-tint model): at microfacet cosine c the lobe reflects ``glossy_color`` +
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]

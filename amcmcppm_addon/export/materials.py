@@ -217,8 +217,10 @@ class Closure:
         rising = (wa[GLOSSY] * (self.fresnel_ior > 0), wb[GLOSSY] * (other.fresnel_ior > 0))
         # (no rising glossy part left, e.g. one side at factor 0: none)
         out.fresnel_ior = _weighted(self.fresnel_ior, other.fresnel_ior, *rising) if sum(rising) > 0 else 0.0
-        # One film per layer: the first rising side's (mixes_exactly tells where the two differ).
-        filmed = [c.film for c, r in zip((self, other), rising) if r > 0 and c.film is not None]
+        # One film per material (its layer and glass): the first side's that has one where the
+        # film counts (mixes_exactly tells where the two differ).
+        filmed = [c.film for c, w in ((self, wa), (other, wb)) if c.film is not None
+                  and ((w[GLOSSY] > 0 and c.fresnel_ior > 0) or w[DIELECTRIC] > 0)]
         out.film = filmed[0] if filmed else None
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
@@ -463,6 +465,8 @@ class Closure:
                         return False
                 elif self.rises or other.rises:
                     return False            # (a glossy program cannot sit beside a Fresnel rise)
+        if both(DIELECTRIC) and not _same_film(self.film, other.film):
+            return False
         if both(DIELECTRIC) and not (np.isclose(self.ior, other.ior)
                                      and np.isclose(self.dielectric_roughness, other.dielectric_roughness)
                                      and self.dielectric_roughness_texture is None
@@ -558,8 +562,6 @@ class Closure:
         if self.fresnel_ior > 0 and self.weight[GLOSSY] > 0:
             s["glossy_fresnel_ior"] = self.fresnel_ior
             s["glossy_fresnel_rise"] = self.rise / self.weight[GLOSSY]
-            if self.film is not None:
-                s["film_thickness"], s["film_ior"], s["film_tint"] = self.film
             if self.layered > 0 and self.weight[DIFFUSE] > 0:
                 s["diffuse_layer"] = self.layer / self.layered
                 s["diffuse_layer_weight"] = min(1.0, self.layered / self.weight[DIFFUSE])
@@ -567,6 +569,9 @@ class Closure:
         if curve and self.weight[GLOSSY] > 0 and self.metal_texture is None:
             s["glossy_metal_rise"] = self.metal_rise / self.weight[GLOSSY]
             s["glossy_metal_dip"] = self.metal_dip / self.weight[GLOSSY]
+        if self.film is not None and ((self.fresnel_ior > 0 and self.weight[GLOSSY] > 0)
+                                      or self.weight[DIELECTRIC] > 0):
+            s["film_thickness"], s["film_ior"], s["film_tint"] = self.film
         if self.dielectric_texture is not None and self.weight[DIELECTRIC] > 0:
             s["dielectric_program"] = self.dielectric_texture
             s["dielectric"] = np.ones(3)
@@ -1858,9 +1863,9 @@ class NodeWalker:
             self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored; subsurface "
                       "renders as diffuse)")
         film = self.thin_film(node, stack)
-        if film is not None and (m > 0 or t > 0):
-            self.note(f"'{node.name}': Thin Film on the metallic or transmission part is not supported "
-                      "(only the specular layer over the diffuse base takes it)")
+        if film is not None and m > 0:
+            self.note(f"'{node.name}': Thin Film on the metallic part is not supported (only the specular "
+                      "layer and the glass take it)")
 
         base_color = np.ones(3) if textured(tex) else base
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
@@ -1901,8 +1906,6 @@ class NodeWalker:
         if spec > 0:
             c.fresnel_ior = eta
             c.rise = spec * (1.0 - f0_tint)
-            if film is not None:
-                c.film = (*film, np.clip(np.asarray(tint, np.float64), 0.0, 1.0))
             c.layer = spec * f0_tint
             c.layered = spec
         layer_fss = np.zeros(3)
@@ -1918,6 +1921,11 @@ class NodeWalker:
         # so that light crossing it (in and out) takes the base colour once.
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))
         c.reflection = c.weight[DIELECTRIC] * np.asarray(tint, np.float64)     # Cycles: the specular tint
+        if film is not None and (spec > 0 or c.weight[DIELECTRIC] > 0):
+            # The layer and the glass share the film; the tint then scales the film's colour
+            # (core.thin_film.principled_reflectance), the glass reflecting white by it.
+            c.film = (*film, np.clip(np.asarray(tint, np.float64), 0.0, 1.0))
+            c.reflection = c.weight[DIELECTRIC] * np.ones(3)
         if textured(tex) and c.weight[DIELECTRIC] > 0:
             c.dielectric_texture = {"op": "gamma", "color": _program_of(tex, base), "gamma": 0.5}
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1

@@ -1527,8 +1527,9 @@ def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
 def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
     """Thin Film Thickness over Cycles' cut-off of 0.1 nm gives the layer its film (thickness,
     IOR, the specular tint) without a note (stop 43; before, noted and left out); on a layer of
-    IOR 1, which Cycles drops without a film, the film keeps it.  A film on the metallic or
-    transmission part, or on a Glass or Metallic BSDF, is noted."""
+    IOR 1, which Cycles drops without a film, the film keeps it.  A transmissive one's glass takes
+    the same film and reflects white (the tint scales the film's colour instead).  A film on the
+    metallic part, or on a Glass or Metallic BSDF, is noted."""
     row, ex = export_material(principled("Oil", **{"Thin Film Thickness": 480.0, "Thin Film IOR": 1.4,
                                                    "Specular Tint": (1.0, 0.5, 0.25, 1.0)}))
     assert row["film_thickness"] == pytest.approx(480.0) and row["film_ior"] == pytest.approx(1.4)
@@ -1540,9 +1541,15 @@ def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
     assert row["film_thickness"] == pytest.approx(300.0)
     row, _ = export_material(principled("Bare", **{"IOR": 1.0, "Thin Film Thickness": 0.1}))
     assert row["glossy_weight"] == 0 and row["film_thickness"] == 0
+    row, ex = export_material(principled("Bubble", **{"Transmission Weight": 1.0,
+                                                      "Thin Film Thickness": 500.0,
+                                                      "Specular Tint": (1.0, 0.5, 0.25, 1.0)}))
+    assert row["dielectric_weight"] == 1 and row["film_thickness"] == pytest.approx(500.0)
+    assert row["dielectric_reflection_color"] == pytest.approx([1.0, 1.0, 1.0])
+    assert row["film_tint"] == pytest.approx([1.0, 0.5, 0.25])
+    assert not [w for w in ex.warnings if "'Bubble'" in w]
     _, ex = export_material(principled("Foil", **{"Metallic": 1.0, "Thin Film Thickness": 300.0}))
-    assert any("'Principled BSDF'" in w and "metallic or transmission part" in w
-               for w in ex.warnings), ex.warnings
+    assert any("'Principled BSDF'" in w and "metallic part" in w for w in ex.warnings), ex.warnings
     for kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfMetallic"):
         _, ex = export_material(bs._material(kind, kind, **{"Thin Film Thickness": 300.0}))
         assert any("Thin Film is not supported" in w for w in ex.warnings), (kind, ex.warnings)

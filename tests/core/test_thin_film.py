@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from core import thin_film
-from core.bsdf import GLOSSY, MIRROR, MaterialTable, lobe_scores
+from core.bsdf import DIELECTRIC, GLOSSY, MIRROR, MaterialTable, lobe_scores, scatter
 from core.procedural import CIE_XYZ, XYZ_TO_RGB
 from core.sampling import fresnel_dielectric
 from core.scene import Materials, Scene, SceneError
@@ -141,3 +141,42 @@ def test_film_fields_survive_a_file_round_trip_and_bad_values_are_refused(tmp_pa
                       ({"film_thickness": np.nan}, "film_thickness")):
         with pytest.raises(SceneError, match=name):
             floor_scene(filmed(**bad), 0.3)
+
+
+def glass_scatter(spec, cos_theta, entering, n=400_000, seed=5):
+    """Mean weights (reflected, refracted) (3,) each of ``bsdf.scatter`` at a smooth glass of
+    material ``spec`` for light arriving at ``cos_theta`` from outside (``entering``) or inside."""
+    table = MaterialTable.from_materials(Materials.build([spec]))
+    rng = np.random.default_rng(seed)
+    up = np.array([0.0, 0.0, 1.0])
+    side = 1.0 if entering else -1.0
+    wo = np.tile([np.sqrt(1.0 - cos_theta ** 2), 0.0, side * cos_theta], (n, 1))
+    normals = np.tile(up, (n, 1))
+    colors = np.repeat(table.color[:1], n, axis=0)
+    wi, weight, alive = scatter(table, np.zeros(n, np.int64), colors, np.full(n, DIELECTRIC), np.ones(n), wo,
+                                normals, normals, rng.random(n), rng.random(n), "importance")
+    reflected = (wi[:, 2] * side > 0) & alive
+    return weight[reflected].sum(axis=0) / n, weight[~reflected & alive].sum(axis=0) / n
+
+
+@pytest.mark.parametrize("cos_theta", [0.9, 0.4])
+def test_a_filmed_glass_reflects_its_films_colour_and_lets_the_rest_through(cos_theta):
+    """A smooth Principled glass with a film (stop 43): from outside it reflects the film's
+    spectral reflectance by channel and lets 1 - that through (before, a grey F); from inside
+    Cycles takes the film's and the outside's indices relative to the glass (the film's optical
+    path then shrinks by the glass's index, as Cycles'); a tint scales the reflection towards F0 t."""
+    spec = {"name": "bubble", "dielectric": 1.0, "ior": 1.5, "film_thickness": 400.0, "film_ior": 1.33}
+    reflected, through = glass_scatter(spec, cos_theta, True)
+    want = spectral_reflectance(cos_theta, 400.0, 1.33, 1.5)
+    np.testing.assert_allclose(reflected, want, rtol=0.04)
+    np.testing.assert_allclose(through, 1.0 - want, rtol=0.01)
+    assert np.ptp(want) > 0.01
+    reflected, through = glass_scatter(spec, 0.95, False)
+    inside = thin_film.reflectance(TABLE, np.array([0.95]), 400.0, 1.33 / 1.5, 1.0 / 1.5)[0]
+    np.testing.assert_allclose(reflected, inside, rtol=0.04)
+    np.testing.assert_allclose(through, 1.0 - inside, rtol=0.01)
+    tint = np.array([0.3, 0.7, 1.0])
+    reflected, _ = glass_scatter({**spec, "film_tint": tint}, cos_theta, True)
+    f0 = 0.04
+    want = thin_film.principled_reflectance(TABLE, np.array([cos_theta]), 400.0, 1.33, 1.5, f0 * tint)[0]
+    np.testing.assert_allclose(reflected, want, rtol=0.04)
