@@ -535,12 +535,14 @@ class PointSums:
         self.min_pairs = max(n_points, min_pairs)
         self._points, self._values, self._waiting = [], [], 0
 
-    def add(self, point_ids, values):
+    def add(self, point_ids, values, counted=None):
         """Pairs with points ``point_ids`` (k,) and ``values`` (3, k) (three channel rows, each
-        contiguous)."""
+        contiguous).  ``counted``: how many of them count towards a splat (default all): the pairs
+        on the inner slots (``DepositTarget`` with ``inner``) do not, so that the main slots are
+        splatted in the same groups, and so summed to the same bits, with or without them."""
         self._points.append(point_ids)
         self._values.append(values)
-        self._waiting += len(point_ids)
+        self._waiting += len(point_ids) if counted is None else counted
         if self._waiting >= self.min_pairs:
             self.flush()
 
@@ -747,7 +749,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     v = [fc * (w if w.ndim == 1 else w[c]) for c, fc in enumerate(f)]
                     if again is not None:
                         v = [_twice(vc, again) for vc in v]
-                    sums.add(slots, v)
+                    sums.add(slots, v, len(pj))
                 if target.cells is None:
                     seen[lane] = True
             if target.cells is not None:
