@@ -19,8 +19,10 @@ BSDF non-reciprocal, as in Cycles.  The view is ``wo`` for camera paths and meas
 points, and the sampled ``wi`` for photons (the direction towards the camera side).
 
 ``mode="importance"`` (photons) applies the adjoint shading-normal correction
-(Veach 1997, 5.3) and no eta^2 factor at refraction; ``mode="radiance"``
-(camera paths) scales refracted radiance by 1/eta^2.  With shading normals, photons leave the
+(Veach 1997, 5.3).  Neither mode scales refracted light by 1/eta^2, as Cycles: the radiance
+of what lies inside a glass or water is seen from outside as it is inside (physically 1/eta^2 of
+it; Cycles leaves it out, and so a single-sided pane shows what is behind it unscaled from either
+side).  With shading normals, photons leave the
 Lambertian lobes (diffuse, translucent) cosine-distributed about the *geometric* normal with
 weight |wo.N_s| / |wo.N_g|: Cycles' lobe, max(N_s.wo, 0) / pi for any view on the surface's
 side, has that exact adjoint (sampling about N_s left the views between the two hemispheres
@@ -1332,8 +1334,6 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 ratio = np.where(rough, smp.ggx_g2(cos_o_s, np.abs(cos_i_s), np.maximum(alpha, MIN_ALPHA))
                                  / smp.ggx_g1(cos_o_s, np.maximum(alpha, MIN_ALPHA)), 1.0)
                 w = w * ratio[:, None]
-            if mode == "radiance":
-                w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
         if mode == "importance" and ns is not ng and k not in (DIFFUSE, TRANSLUCENT):
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
         if nnf is not None and k in REFLECTING:

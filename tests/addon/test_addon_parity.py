@@ -1883,3 +1883,37 @@ def test_a_filmed_principled_glass_matches_cycles(addon, tmp_path, shader, degre
           f"formula {film.round(4)}")
     np.testing.assert_allclose(c, film, rtol=0.02, atol=5e-4)           # (Cycles' own noise: 512 samples)
     np.testing.assert_allclose(o, c, rtol=0.04, atol=5e-4)
+
+
+@pytest.mark.parametrize("case", ["pane_front", "pane_back", "emitter_in_water", "card_in_water"])
+def test_what_lies_behind_or_inside_glass_matches_cycles(addon, tmp_path, case):
+    """Camera paths do not scale refracted light by 1 / eta^2, as Cycles (stop 43; before, they did:
+    physically right, but 0.44 of Cycles through the front of a single-sided glass pane, 2.25 through
+    its back, and 0.56 for anything inside a closed block of water seen from outside).  An emitting
+    panel behind a pane of Glass BSDF (a plane, as windows often are) seen from either side; an
+    emitting panel, and a grey card lit by a point light, inside a cube of water (IOR 1.33), whose
+    light the water's faces trap by total internal reflection: Cycles then counts reflections against
+    its Glossy bounces (4 by default; the core has one limit for all bounces), so they are 8 here."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        bpy.context.scene.cycles.glossy_bounces = OURS["max_bounces"]
+        if case.startswith("pane"):
+            turn = math.pi / 2 if case == "pane_front" else -math.pi / 2
+            bs.plane("Pane", size=4.0, material=bs.glass("Pane", ior=1.5), rotation=(turn, 0, 0))
+            bs.plane("Panel", size=40.0, material=bs.emission("Panel", strength=1.0), location=(0, 3, 0),
+                     rotation=(math.pi / 2, 0, 0))
+        else:
+            bs.cube("Water", size=3.0, material=bs.glass("Water", ior=1.33))
+            if case == "emitter_in_water":
+                bs.plane("Panel", size=2.0, material=bs.emission("Panel", strength=1.0), location=(0, 0.5, 0),
+                         rotation=(math.pi / 2, 0, 0))
+            else:
+                bs.plane("Card", size=2.0, material=bs.diffuse("Card", (0.8, 0.8, 0.8)), location=(0, 0.5, 0),
+                         rotation=(math.pi / 2, 0, 0))
+                bs.light("POINT", location=(0, -0.8, 0.6), energy=30.0, shadow_soft_size=0.05)
+        bs.camera(location=(0, -6, 0), target=(0, 0, 0), ortho_scale=0.5 if case.endswith("water") else 1.0)
+        bs.world((0.0, 0.0, 0.0))
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    c, o = (x[..., :3].reshape(-1, 3).mean(axis=0) for x in (cycles, ours))
+    print(f"behind glass, {case}: cycles {c.round(4)}, ours / cycles {np.round(o / c, 4)}")
+    np.testing.assert_allclose(o, c, rtol=TOLERANCE if case == "card_in_water" else 0.01)
