@@ -19,10 +19,14 @@ BSDF non-reciprocal, as in Cycles.  The view is ``wo`` for camera paths and meas
 points, and the sampled ``wi`` for photons (the direction towards the camera side).
 
 ``mode="importance"`` (photons) applies the adjoint shading-normal correction
-(Veach 1997, 5.3).  Neither mode scales refracted light by 1/eta^2, as Cycles: the radiance
-of what lies inside a glass or water is seen from outside as it is inside (physically 1/eta^2 of
-it; Cycles leaves it out, and so a single-sided pane shows what is behind it unscaled from either
-side).  With shading normals, photons leave the
+(Veach 1997, 5.3).  Refraction follows Cycles' convention, which does not scale radiance by
+1/eta^2 where it crosses into a medium (physically, radiance inside a medium of index n is n^2
+that outside): camera paths (``mode="radiance"``) carry it unscaled, so what lies behind a
+single-sided pane or inside water is seen as it is there, and photons, the adjoint, take the
+scaling instead: 1/eta^2 of their flux going into the denser medium, eta^2 coming out (eta =
+n_transmitted / n_incident).  Through closed glass the two cancel; where light and eye meet on
+different sides of an interface (a pool's floor under the sun, seen from above) the product is
+Cycles', which is there also the physical value.  With shading normals, photons leave the
 Lambertian lobes (diffuse, translucent) cosine-distributed about the *geometric* normal with
 weight |wo.N_s| / |wo.N_g|: Cycles' lobe, max(N_s.wo, 0) / pi for any view on the surface's
 side, has that exact adjoint (sampling about N_s left the views between the two hemispheres
@@ -1334,6 +1338,10 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 ratio = np.where(rough, smp.ggx_g2(cos_o_s, np.abs(cos_i_s), np.maximum(alpha, MIN_ALPHA))
                                  / smp.ggx_g1(cos_o_s, np.maximum(alpha, MIN_ALPHA)), 1.0)
                 w = w * ratio[:, None]
+            if mode == "importance":
+                # Cycles' convention (see the module docstring): photons going into a denser medium
+                # lose 1 / eta^2 of their flux, and gain it back coming out (refraction_scale).
+                w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
         if mode == "importance" and ns is not ng and k not in (DIFFUSE, TRANSLUCENT):
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
         if nnf is not None and k in REFLECTING:
@@ -1346,6 +1354,20 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
         weight[sel] = np.where(ok[:, None], w, 0.0)
         alive[sel] = ok
     return smp.normalize(wi), weight, alive
+
+
+def refraction_scale(table, mat_ids, lobe, wo, wi, ng):
+    """(n,) the factor by which :func:`scatter` in ``mode="importance"`` scaled each photon for
+    Cycles' convention at a refraction, 1 / eta^2 (eta = n_transmitted / n_incident), 1 for
+    anything else: a scale of the flux, not a loss, which Russian roulette leaves out (surviving
+    photons inside glass would otherwise come out 2.25 times as bright and as rare)."""
+    out = np.ones(len(lobe))
+    through = np.flatnonzero((lobe == DIELECTRIC) & (dot(wo, ng) * dot(wi, ng) < 0))
+    if len(through):
+        ior = table.ior.take(mat_ids.take(through))
+        entering = dot(wo.take(through, axis=0), ng.take(through, axis=0)) > 0
+        out[through] = np.where(entering, 1.0 / (ior * ior), ior * ior)
+    return out
 
 
 def _sample_glossy(table, mat_ids, wo, ns, u1, u2, tangent):

@@ -31,7 +31,7 @@ import numpy as np
 
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
                    face_forward, glossy_anisotropic_value, lobe_remainder, lobe_scores, pick_coat,
-                   rough_diffuse_factor, rough_diffuse_terms, scatter)
+                   refraction_scale, rough_diffuse_factor, rough_diffuse_terms, scatter)
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
@@ -827,8 +827,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 if len(under):
                     weight[under] *= coat_attenuation(table, surf, wi, under)
             new_flux = flux * weight
-            # Russian roulette on the luminance ratio (the path stays a function of u).
+            # Russian roulette on the luminance ratio (the path stays a function of u), without the
+            # scale of refracted flux (bsdf.refraction_scale).
             ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)
+            if (table.weight[:, DIELECTRIC] > 0).any():
+                ratio /= refraction_scale(table, mats, lobe, wo, wi, surf.ng)
             q = np.minimum(1.0, ratio)
             alive &= (block[:, 3] < q) & (q > 0)
             keep = np.flatnonzero(alive)

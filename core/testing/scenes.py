@@ -338,8 +338,9 @@ def _sunlit_textured_floor(spec, texture, sun_toward, irradiance, albedo, resolu
 def camera_in_glass(ior=1.5, emission=1.0, resolution=(16, 16)):
     """An orthographic camera inside a glass cube looks at an emitter outside a face.
 
-    Radiance leaving glass gains eta^2: L = eta^2 (1 - F0) Le sum_k F0^(2k) (internal round
-    trips, each two more delta bounces; the back face shows a black world).
+    Radiance leaving the glass is not scaled by eta^2 (Cycles' convention, stop 43): L = (1 - F0)
+    Le sum_k F0^(2k) (internal round trips, each two more delta bounces; the back face shows a
+    black world).
     """
     mats = Materials.build([{"name": "glass", "dielectric": 1.0, "ior": ior},
                             {"name": "emitter", "emission": emission}])

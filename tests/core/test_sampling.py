@@ -991,7 +991,7 @@ def test_rough_dielectric_samples_walter_microfacet_glass_with_weight_g2_over_g1
     assert 0.02 < refracted.mean() < 0.999
     g2_over_g1 = (1.0 + ref_ggx_lambda(wo_local[2], alpha)) / (
         1.0 + ref_ggx_lambda(wo_local[2], alpha) + ref_ggx_lambda(wi_l[:, 2], alpha))
-    expected = colour * g2_over_g1[:, None]              # (no 1 / eta^2 on refraction, as Cycles)
+    expected = colour * g2_over_g1[:, None]              # (camera paths: no 1 / eta^2, as Cycles)
     assert np.allclose(w[alive], expected, rtol=1e-6, atol=1e-6)
 
 
@@ -1002,7 +1002,7 @@ def test_dielectric_reflections_take_the_reflection_colour_and_refractions_the_l
     wo = local_direction(60.0)
     rng = np.random.default_rng(2050)
     wi, w, alive = scatter_lobe(table, bsdf.DIELECTRIC, wo, n_, n_, rng.random(20000), rng.random(20000),
-                                "importance")
+                                "radiance")
     refl = wi @ n_ > 0
     assert alive.all() and 0 < refl.sum() < len(refl)
     assert np.allclose(w[refl], reflection, rtol=1e-6) and np.allclose(w[~refl], colour, rtol=1e-6)
@@ -1043,10 +1043,13 @@ def test_dielectric_reflects_with_fresnel_frequency_and_scales_refraction_by_eta
     assert np.allclose(wi[refl], mirror, atol=1e-9)
     assert np.allclose(wi[~refl], refracted, atol=1e-9)
     assert np.allclose(-(wi[~refl] @ nf), cos_t, atol=1e-9)
-    # Neither mode weighs refraction by 1/eta^2 (Cycles; before stop 43 radiance mode did).
+    # Refraction: radiance mode unscaled, importance (photons) 1/eta^2 (1/1.5^2 entering, 1.5^2
+    # leaving): Cycles' convention (before stop 43, the other way round).
+    refl_i = refl[:m]
     assert np.allclose(w[refl], colour, rtol=1e-9)
     assert np.allclose(w[~refl], colour, rtol=1e-6)
-    assert np.allclose(w_i, colour, rtol=1e-6)
+    assert np.allclose(w_i[refl_i], colour, rtol=1e-6)
+    assert np.allclose(w_i[~refl_i], colour / eta ** 2, rtol=1e-6)
 
 
 def test_dielectric_known_values_normal_incidence_and_80_degrees():

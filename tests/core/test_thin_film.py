@@ -154,7 +154,7 @@ def glass_scatter(spec, cos_theta, entering, n=400_000, seed=5):
     normals = np.tile(up, (n, 1))
     colors = np.repeat(table.color[:1], n, axis=0)
     wi, weight, alive = scatter(table, np.zeros(n, np.int64), colors, np.full(n, DIELECTRIC), np.ones(n), wo,
-                                normals, normals, rng.random(n), rng.random(n), "importance")
+                                normals, normals, rng.random(n), rng.random(n), "radiance")
     reflected = (wi[:, 2] * side > 0) & alive
     return weight[reflected].sum(axis=0) / n, weight[~reflected & alive].sum(axis=0) / n
 
