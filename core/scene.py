@@ -120,9 +120,9 @@ class Materials:
       s(c)), G the film's interference colour scaled towards f0 t
       (:func:`core.thin_film.principled_reflectance`), and the diffuse lobe under it takes G at the
       view cosine for the layer's albedo (Cycles has no lobe mean for a film).  The glass lobe
-      of such a material takes the film too (Principled glass): it reflects G by channel (the
-      film's and the glass's indices relative to the side the light comes from, as Cycles, with
-      F0 of ``ior``) in place of its reflection colour times F, and refracts 1 - G.
+      of such a material takes the film too (Principled glass): it reflects its reflection colour
+      times G by channel in place of times F (the film's and the glass's indices relative to the
+      side the light comes from, as Cycles, with F0 of ``ior``), and refracts 1 - G.
       ``glossy_metal_rise`` and ``glossy_metal_dip`` give a metal's Fresnel curve (Cycles'
       F82-tint model): at microfacet cosine c the lobe reflects ``glossy_color`` +
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]

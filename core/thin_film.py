@@ -9,11 +9,13 @@ sensitivity S(OPD), the Fourier transform of the RGB colour matching functions t
 frequency (:func:`sensitivity_table`), and the series stops after its third term as Cycles'.
 
 The sensitivity table is rebuilt here the way Cycles' ``doc/precompute/thin_film_table.py`` builds
-``table_thin_film_cmf`` (1022 samples of the CMFs over frequency up to 60 um^-1 times pi ... over
-pi, one real FFT, 512 complex values, OPD 0 to 60 um / 2 pi), from the CIE 1931 functions at 5 nm
-(``procedural.CIE_XYZ``, 380 to 780 nm) interpolated by a cubic spline, where Cycles interpolates
-them at 1 nm from 360 to 830 nm; then, as Cycles' ``compute_thin_film_table``, converted to
-linear Rec. 709 and normalised so that each channel's term at OPD 0 is 1.
+``table_thin_film_cmf``: the CMFs at 1022 frequencies nu from 0 to 1021 pi / 60 um^-1 (at the
+wavelength 1 / nu), divided by nu^2, one real FFT of them, 512 complex values for OPDs from 0 to
+60 / (2 pi) um.  Ours starts from the CIE 1931 functions at 5 nm (``procedural.CIE_XYZ``, 380 to
+780 nm) through a natural cubic spline, where Cycles starts from them at 1 nm from 360 to 830 nm;
+then, as Cycles' ``compute_thin_film_table``, the table is taken to linear Rec. 709 and normalised
+so that each channel's term at OPD 0 is 1.  Rendered against Cycles, the film's colours agree to
+four digits (``test_a_filmed_principled_glass_matches_cycles``).
 """
 from __future__ import annotations
 
@@ -48,7 +50,7 @@ def _natural_spline(x, y, at):
 
 
 def sensitivity_table():
-    """(TABLE_SIZE, 3) complex: the RGB sensitivity S(OPD) at OPD = k / TABLE_SIZE-1 of the range,
+    """(TABLE_SIZE, 3) complex: the RGB sensitivity S(OPD) at OPD = k / (TABLE_SIZE - 1) of the range,
     S = sum over frequency nu of cmf(1 / nu) / nu^2 exp(-2 pi i OPD nu) normalised to S(0) = 1
     per channel.  A few milliseconds; callers keep it (``MaterialTable``)."""
     # The CIE functions padded with a zero 5 nm beyond each end (Cycles pads its 1 nm table so).
