@@ -1705,8 +1705,8 @@ class NodeWalker:
         """Glass and Refraction: a textured colour (stained glass) tints the light the glass lets
         through point by point, its reflections by the texture's mean (a few per cent of the light).
         Refraction has no Fresnel reflection: it refracts everything but under total internal
-        reflection, where it gives nothing (Cycles; ``Materials.dielectric_fresnel``)."""
-        self._note_film(node, stack)
+        reflection, where it gives nothing (Cycles; ``Materials.dielectric_fresnel``).  A Glass
+        BSDF's Thin Film makes its reflection the film's colour (times its own), as Cycles."""
         color, tex = self.color(node.inputs["Color"], stack)
         ior = self.value(node.inputs["IOR"], stack)
         rough, rough_map = self.roughness(node.inputs["Roughness"], stack) if "Roughness" in node.inputs \
@@ -1717,6 +1717,9 @@ class NodeWalker:
             c.dielectric_texture = _program_of(tex, color)
         if node.bl_idname == "ShaderNodeBsdfRefraction":
             c.refraction_only, c.reflection = 1.0, np.zeros(3)
+        elif "Thin Film Thickness" in node.inputs:
+            film = self.thin_film(node, stack)
+            c.film = None if film is None else (*film, np.ones(3))
         return c
 
     def _translucent(self, node, stack):

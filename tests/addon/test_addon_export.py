@@ -1529,7 +1529,7 @@ def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
     IOR, the specular tint) without a note (stop 43; before, noted and left out); on a layer of
     IOR 1, which Cycles drops without a film, the film keeps it.  A transmissive one's glass takes
     the same film and reflects white (the tint scales the film's colour instead).  A film on the
-    metallic part, or on a Glass or Metallic BSDF, is noted."""
+    metallic part, or on a Metallic BSDF, is noted; a Glass BSDF takes its film (untinted)."""
     row, ex = export_material(principled("Oil", **{"Thin Film Thickness": 480.0, "Thin Film IOR": 1.4,
                                                    "Specular Tint": (1.0, 0.5, 0.25, 1.0)}))
     assert row["film_thickness"] == pytest.approx(480.0) and row["film_ior"] == pytest.approx(1.4)
@@ -1550,9 +1550,14 @@ def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
     assert not [w for w in ex.warnings if "'Bubble'" in w]
     _, ex = export_material(principled("Foil", **{"Metallic": 1.0, "Thin Film Thickness": 300.0}))
     assert any("'Principled BSDF'" in w and "metallic part" in w for w in ex.warnings), ex.warnings
-    for kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfMetallic"):
-        _, ex = export_material(bs._material(kind, kind, **{"Thin Film Thickness": 300.0}))
-        assert any("Thin Film is not supported" in w for w in ex.warnings), (kind, ex.warnings)
+    _, ex = export_material(bs._material("Foil BSDF", "ShaderNodeBsdfMetallic",
+                                         **{"Thin Film Thickness": 300.0}))
+    assert any("Thin Film is not supported" in w for w in ex.warnings), ex.warnings
+    row, ex = export_material(bs._material("Pane", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 300.0,
+                                                                             "Thin Film IOR": 1.4}))
+    assert row["film_thickness"] == pytest.approx(300.0) and row["film_ior"] == pytest.approx(1.4)
+    assert row["film_tint"] == pytest.approx([1.0, 1.0, 1.0])
+    assert not [w for w in ex.warnings if "Pane" in w]
 
 
 def test_principled_coat_is_exported_with_cycles_clamps(scene):
