@@ -253,6 +253,9 @@ class MaterialTable:
     film_ior: np.ndarray = None
     film_tint: np.ndarray = None
     film_sensitivity: np.ndarray = None     # (thin_film.TABLE_SIZE, 3) complex where some glass has a film
+    metal_film_index: np.ndarray = None     # (M,) int64 the row of a filmed metal's curve or -1
+    metal_film_lobe: np.ndarray = None      # (M,) int64 its lobe (GLOSSY, or MIRROR where merged)
+    metal_film_curve: np.ndarray = None     # (F, FILM_NODES + 1, 3) k (G_m(c) - F0): what the metal adds
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -395,7 +398,8 @@ class MaterialTable:
                              hit_metal_rest=np.where(hit_metal[:, None],
                                                      _or_zeros(mats.glossy_metal_rest, (m, 3)), 0.0),
                              film_index=film.index, film_curve=film.curve,
-                             **_glass_film(mats, weight, film))
+                             **_glass_film(mats, weight, film),
+                             **_metal_film(mats, weight, edge, dip, sharp, film))
 
     @property
     def lobes(self) -> int:
@@ -602,7 +606,20 @@ class MaterialTable:
         return curve
 
     def _row_fresnel_color(self, mat_ids, lobe, cos_m):
-        """:meth:`fresnel_color` of the materials' own (per-row) curves."""
+        """:meth:`fresnel_color` of the materials' own (per-row) curves; a metal under a film takes
+        the film's curve (``metal_film_curve``) in place of its own."""
+        out = self._row_curves(mat_ids, lobe, cos_m)
+        if self.has_metal_film:
+            row = self.metal_film_index.take(mat_ids)
+            f = np.flatnonzero((row >= 0) & (self.metal_film_lobe.take(mat_ids) == lobe))
+            if len(f):
+                m, c = mat_ids.take(f), cos_m.take(f)
+                rise = self._dielectric_part(m, lobe, c)
+                out[f] = _film_rise(self.metal_film_curve, row.take(f), c) + (0.0 if rise is None else rise)
+        return out
+
+    def _dielectric_part(self, mat_ids, lobe, cos_m):
+        """(n, 3) what the lobe's dielectric rise adds (a film's where it has one), or None."""
         out = None
         if self.has_dielectric_rise:
             s = smp.fresnel_rise(cos_m, self.fresnel_ior.take(mat_ids))
@@ -614,6 +631,11 @@ class MaterialTable:
                 if len(f):
                     out[f] = self.rise[:, lobe].take(mat_ids.take(f), axis=0) * _film_rise(
                         self.film_curve, row.take(f), cos_m.take(f))
+        return out
+
+    def _row_curves(self, mat_ids, lobe, cos_m):
+        """The dielectric rise and the metal curve of :meth:`_row_fresnel_color`."""
+        out = self._dielectric_part(mat_ids, lobe, cos_m)
         if not self.has_row_metal_curve:
             return out if out is not None else np.zeros((len(mat_ids), 3))
         edge, dip, low, high, metal = self._metal_rows[lobe]
@@ -635,7 +657,12 @@ class MaterialTable:
 
     @cached_property
     def has_film(self) -> bool:
-        return (self.film_index is not None and bool((self.film_index >= 0).any())) or self.has_glass_film
+        return ((self.film_index is not None and bool((self.film_index >= 0).any())) or self.has_glass_film
+                or self.has_metal_film)
+
+    @cached_property
+    def has_metal_film(self) -> bool:
+        return self.metal_film_index is not None and bool((self.metal_film_index >= 0).any())
 
     @cached_property
     def has_glass_film(self) -> bool:
@@ -896,6 +923,39 @@ def _glass_film(mats, weight, film):
     table = film.sensitivity if film.sensitivity is not None else thin_film.sensitivity_table()
     return {"glass_film": on, "film_thickness": thickness, "film_ior": np.asarray(mats.film_ior, np.float64),
             "film_tint": _or_ones(mats.film_tint, (m, 3)), "film_sensitivity": table}
+
+
+def _metal_film(mats, weight, edge, dip, sharp, film):
+    """MaterialTable fields of the metals under a film (``Materials.film_metal``): per filmed metal,
+    what it adds to its lobe's colour at the film's nodes, k (G_m(c) - F0) (k its share of the lobe,
+    after a sharp glossy lobe's merge into the mirror's; F0 and b from its rise and dip)."""
+    m = len(weight)
+    thickness = _or_zeros(mats.film_thickness, m)
+    share = _or_zeros(mats.film_metal, m)
+    lobe = np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR)
+    rows = np.arange(m)
+    e, d = edge[rows, lobe], dip[rows, lobe]
+    on = np.flatnonzero((thickness > np.float32(thin_film.THICKNESS_CUTOFF)) & (share > 0)
+                        & ((e != 0) | (d != 0)).any(axis=1))
+    if len(on) == 0:
+        return {}
+    merged = np.ones(m)
+    merged[sharp] = np.divide(np.asarray(mats.glossy_weight, np.float64)[sharp], weight[sharp, MIRROR],
+                              out=np.zeros(int(sharp.sum())), where=weight[sharp, MIRROR] > 0)
+    k = (share * merged)[on][:, None]
+    f0 = np.clip(1.0 - e[on] / k, 0.0, 1.0)
+    b = d[on] / k
+    table = film.sensitivity if film.sensitivity is not None else thin_film.sensitivity_table()
+    c = (np.arange(FILM_NODES + 1) / FILM_NODES) ** 2
+    n = len(c)
+    g = thin_film.conductor_reflectance(table, np.tile(c, len(on)), np.repeat(thickness[on], n),
+                                        np.repeat(np.asarray(mats.film_ior, np.float64)[on], n),
+                                        np.repeat(f0, n, axis=0), np.repeat(b, n, axis=0))
+    g = g.reshape(len(on), n, 3)
+    index = np.full(m, -1, np.int64)
+    index[on] = np.arange(len(on))
+    return {"metal_film_index": index, "metal_film_lobe": lobe,
+            "metal_film_curve": k[:, None, :] * (g - f0[:, None])}
 
 
 def _film_rise(curve, row, cos_m):

@@ -123,6 +123,9 @@ class Materials:
       of such a material takes the film too (Principled glass): it reflects its reflection colour
       times G by channel in place of times F (the film's and the glass's indices relative to the
       side the light comes from, as Cycles, with F0 of ``ior``), and refracts 1 - G.
+      ``film_metal`` k > 0 puts the film over the lobe's metal as well (its metal curve, of share
+      k: F0 = 1 - ``glossy_metal_rise`` / k, b = ``glossy_metal_dip`` / k), which then reflects k
+      G_m(c) in place of its curve (:func:`core.thin_film.conductor_reflectance`).
       ``glossy_metal_rise`` and ``glossy_metal_dip`` give a metal's Fresnel curve (Cycles'
       F82-tint model): at microfacet cosine c the lobe reflects ``glossy_color`` +
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]
@@ -292,6 +295,7 @@ class Materials:
     film_thickness: np.ndarray = None                   # (M,) float32 in [0, 1e6] nm; None: 0 (none)
     film_ior: np.ndarray = None                         # (M,) float32 in [1e-5, 100]; None: 1.33
     film_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
+    film_metal: np.ndarray = None                       # (M,) float32 in [0, 1]; None: 0
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
@@ -355,7 +359,7 @@ class Materials:
                     "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
                     "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
                     "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump",
-                    "bump_correction", "film_thickness", "film_ior", "film_tint")
+                    "bump_correction", "film_thickness", "film_ior", "film_tint", "film_metal")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -413,9 +417,9 @@ class Materials:
         (default -1: none) makes a textured glossy lobe a metal of that edge tint whose F0 is its
         colour at each hit; ``glossy_metal_share`` (1) and ``glossy_metal_rest`` (0) make it part
         of the lobe beside a dielectric layer.  ``film_thickness`` (0: none), ``film_ior`` (1.33)
-        and ``film_tint`` (1) coat the Fresnel layer with a thin film.  ``level_program`` (a float
-        program), ``level_first``
-        and ``level_count`` make it pick one of that many materials, its levels, at each hit.
+        and ``film_tint`` (1) coat the Fresnel layer with a thin film, ``film_metal`` (0) the metal.
+        ``level_program`` (a float program), ``level_first`` and ``level_count`` make it pick one of
+        that many materials, its levels, at each hit.
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -471,6 +475,7 @@ class Materials:
         out.film_thickness = np.zeros(m, np.float32)
         out.film_ior = np.full(m, 1.33, np.float32)
         out.film_tint = np.ones((m, 3), np.float32)
+        out.film_metal = np.zeros(m, np.float32)
         out.coat_bump_program = np.full(m, -1, np.int32)
         out.coat_bump_strength = np.ones(m, np.float32)
         out.coat_bump_distance = np.ones(m, np.float32)
@@ -581,6 +586,7 @@ class Materials:
             out.film_thickness[i] = s.get("film_thickness", 0.0)
             out.film_ior[i] = s.get("film_ior", 1.33)
             out.film_tint[i] = np.broadcast_to(np.asarray(s.get("film_tint", 1.0), np.float32), (3,))
+            out.film_metal[i] = s.get("film_metal", 0.0)
         return out
 
 
@@ -1050,6 +1056,7 @@ class Scene:
                                        ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
                                        ("bump_correction", (n,), 1), ("film_thickness", (n,), 0.0),
                                        ("film_ior", (n,), 1.33), ("film_tint", (n, 3), 1.0),
+                                       ("film_metal", (n,), 0.0),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
@@ -1100,7 +1107,7 @@ class Scene:
                                  | DISPLACE_VECTOR),
                                 ("displacement_bump", 0, 1), ("bump_correction", 0, 1),
                                 ("film_thickness", 0.0, 1e6), ("film_ior", 1e-5, 100.0),
-                                ("film_tint", 0.0, 1.0),
+                                ("film_tint", 0.0, 1.0), ("film_metal", 0.0, 1.0),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),

@@ -93,19 +93,23 @@ def _polarized(cos_i, eta):
 
 
 def _airy(table, r12, r23, opd, phase):
-    """(n, 3) Cycles' ``iridescence_airy_summation`` for one polarisation: reflectances ``r12``,
-    ``r23`` (n,), ``opd`` (n,) nm and the reflections' joint phase ``phase`` (n,) +-1."""
+    """(n, 3) Cycles' ``iridescence_airy_summation`` for one polarisation: reflectances ``r12`` (n,)
+    and ``r23`` (n,) or (n, 3), ``opd`` (n,) nm and the reflections' joint phase ``phase`` as
+    exp(i phi) ((n,) +-1 for a dielectric, (n, 3) complex for a conductor)."""
+    r12 = r12[:, None]
+    r23 = r23[:, None] if np.ndim(r23) == 1 else r23
+    phase = phase[:, None] if np.ndim(phase) == 1 else phase
     t121 = 1.0 - r12
     r123 = r12 * r23
     root = np.sqrt(r123)
     rs = t121 * t121 * r23 / np.maximum(1.0 - r123, 1e-30)
-    out = np.repeat((rs + r12)[:, None], 3, axis=1)
+    out = np.broadcast_to(rs + r12, (len(opd), 3)).copy()
     cm = rs - t121
-    acc = phase.copy()
+    acc = phase
     for m in range(1, 4):
         cm = cm * root
         s = sensitivity(table, m * opd)
-        out += (2.0 * cm * acc)[:, None] * s.real
+        out += 2.0 * cm * (acc.real * s.real + acc.imag * s.imag)
         acc = acc * phase
     return out
 
@@ -127,6 +131,64 @@ def reflectance(table, cos_i, thickness, film_ior, eta):
     out = 0.5 * (_airy(table, r12_s, r23_s, opd, -ph12_s * ph23_s)
                  + _airy(table, r12_p, r23_p, opd, -ph12_p * ph23_p))
     return np.where((tir12 | tir23)[:, None], 1.0, np.clip(out, 0.0, 1.0))
+
+
+def f82(cos_i, f0, b):
+    """Cycles' F82-tint curve ``fresnel_f82``: saturate(F0 + (1 - F0) s^5 - b cos s^6), s = 1 - cos."""
+    s = np.clip(1.0 - cos_i, 0.0, 1.0)
+    s5 = s ** 5
+    return np.clip(f0 + (1.0 - f0) * s5 - b * cos_i * s5 * s, 0.0, 1.0)
+
+
+def f82_b(f0, f82_value):
+    """Cycles' ``fresnel_f82_B``: the b that puts the curve of ``f0`` at ``f82_value`` at cos = 1/7."""
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    return (7.0 / (f5 * f)) * (f0 + (1.0 - f0) * f5 - f82_value)
+
+
+def conductor_reflectance(table, cos_i, thickness, film_ior, f0, b):
+    """(n, 3) reflectance of an F82-tint metal (normal-incidence colour ``f0``, tint term ``b``,
+    each (n, 3)) coated by a film ``thickness`` nm thick of index ``film_ior``, at cosines
+    ``cos_i``: Cycles' ``microfacet_fresnel`` for an F82 tint with a film, which reads the metal as
+    the complex index n + ik of Gulbrandsen's artist-friendly mapping of F0 and the curve's value
+    at cos = 1/7, and ``fresnel_iridescence`` for a conductor: the film-to-metal reflectance by the
+    F82 curve of the metal's F0 relative to the film, the phases of the complex index."""
+    cos_i, thickness, film_ior = (np.asarray(x, np.float64) for x in (cos_i, thickness, film_ior))
+    n_rows = len(cos_i)
+    f0 = np.broadcast_to(np.asarray(f0, np.float64), (n_rows, 3))
+    b = np.broadcast_to(np.asarray(b, np.float64), (n_rows, 3))
+    thickness = np.broadcast_to(thickness, (n_rows,))
+    g = f82(1.0 / 7.0, f0, b)
+    r = np.minimum(f0, 0.999)
+    root = np.sqrt(r)
+    n = (1.0 - g) * (1.0 + root) / (1.0 - root) + g * (1.0 - r) / (1.0 + r)
+    k = np.sqrt(np.maximum((r * (n + 1.0) ** 2 - (n - 1.0) ** 2) / (1.0 - r), 0.0))
+    t = np.clip(thickness, 0.0, 1.0)
+    ior = np.broadcast_to(film_ior, (n_rows,))
+    n_film = np.where(thickness < 1.0, 1.0 + (ior - 1.0) * t * t * (3.0 - 2.0 * t), ior)
+    r12_s, r12_p, cos_2, ph12_s, ph12_p, tir12 = _polarized(cos_i, n_film)
+    c = (-cos_2)[:, None]                                   # the film-to-metal cosine
+    e1 = n_film[:, None]
+    t1 = n * n - k * k - e1 * e1 * (1.0 - c * c)
+    t2 = np.sqrt(t1 * t1 + (2.0 * n * k) ** 2)
+    u2, v2 = np.maximum(0.5 * (t2 + t1), 0.0), np.maximum(0.5 * (t2 - t1), 0.0)
+    u, v = np.sqrt(u2), np.sqrt(v2)
+    rel_f0 = ((n / e1 - 1.0) ** 2 + (k / e1) ** 2) / ((n / e1 + 1.0) ** 2 + (k / e1) ** 2)
+    r23 = f82(c, rel_f0, f82_b(rel_f0, g))                  # (both polarisations: Cycles' F82 model)
+
+    def phasor(re, im):
+        mag = np.sqrt(re * re + im * im)
+        safe = np.where(mag == 0.0, 1.0, mag)
+        return np.where(mag == 0.0, 1.0 + 0j, (re + 1j * im) / safe)
+
+    phase_s = phasor(-u2 - v2 + (e1 * c) ** 2, -2.0 * e1 * c * v)
+    phase_p = phasor(((n * n + k * k) * c) ** 2 - e1 * e1 * (u2 + v2),
+                     2.0 * e1 * c * (2.0 * n * k * u - (n * n - k * k) * v))
+    opd = -2.0 * n_film * thickness * cos_2
+    out = 0.5 * (_airy(table, r12_s, r23, opd, phase_s * -ph12_s[:, None])
+                 + _airy(table, r12_p, r23, opd, phase_p * -ph12_p[:, None]))
+    return np.where(tir12[:, None], 1.0, np.clip(out, 0.0, 1.0))
 
 
 def principled_reflectance(table, cos_i, thickness, film_ior, eta, f0_tint):

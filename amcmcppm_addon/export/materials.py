@@ -146,7 +146,9 @@ class Closure:
     refraction_only: float = 0.0    # the part of the dielectric weight that only refracts (Refraction
     #                                 BSDF: no Fresnel reflection, nothing under total internal reflection)
     fresnel_ior: float = 0.0        # IOR of the glossy lobe's Fresnel rise (Principled), 0: none
-    film: tuple = None              # (thickness nm, IOR, specular tint (3,)) of a thin film on that layer
+    film: tuple = None              # (thickness nm, IOR, specular tint (3,)) of a thin film on that layer,
+    #                                 the glass and the metal
+    film_metal: float = 0.0         # glossy weight of the metal (curve) under that film
     rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
     metal_rise: np.ndarray = field(default_factory=lambda: np.zeros(3))    # (3,) weight * a metal's rise
     metal_dip: np.ndarray = field(default_factory=lambda: np.zeros(3))     # (3,) weight * its dip (F82 tint)
@@ -191,6 +193,7 @@ class Closure:
                       rise=fa * self.rise + fb * other.rise, layer=fa * self.layer + fb * other.layer,
                       metal_rise=fa * self.metal_rise + fb * other.metal_rise,
                       metal_dip=fa * self.metal_dip + fb * other.metal_dip,
+                      film_metal=fa * self.film_metal + fb * other.film_metal,
                       layered=fa * self.layered + fb * other.layered,
                       transparent=fa * self.transparent + fb * other.transparent,
                       transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight,
@@ -220,7 +223,7 @@ class Closure:
         # One film per material (its layer and glass): the first side's that has one where the
         # film counts (mixes_exactly tells where the two differ).
         filmed = [c.film for c, w in ((self, wa), (other, wb)) if c.film is not None
-                  and ((w[GLOSSY] > 0 and c.fresnel_ior > 0) or w[DIELECTRIC] > 0)]
+                  and ((w[GLOSSY] > 0 and (c.fresnel_ior > 0 or c.film_metal > 0)) or w[DIELECTRIC] > 0)]
         out.film = filmed[0] if filmed else None
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
@@ -452,9 +455,10 @@ class Closure:
                     and all(getattr(self, k) is None and getattr(other, k) is None
                             for k in ("roughness_texture", "stretch_texture", "rotation_texture")))
             if not same or (self.fresnel_ior > 0 and other.fresnel_ior > 0
-                            and not (np.isclose(self.fresnel_ior, other.fresnel_ior)
-                                     and _same_film(self.film, other.film))):
+                            and not np.isclose(self.fresnel_ior, other.fresnel_ior)):
                 return False
+            if (self.rises or other.rises) and not _same_film(self.film, other.film):
+                return False                # (one film per material)
             varies = [c for c in (self, other) if c.glossy_texture is not None or c.metal_texture is not None]
             if len(varies) == 2:
                 return False
@@ -524,7 +528,8 @@ class Closure:
             return Closure(roughness=self.roughness, ior=self.ior)
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
                                                              "rise", "metal_rise", "metal_dip", "layer",
-                                                             "layered", "coat", "holdout", "refraction_only")}
+                                                             "layered", "coat", "holdout", "refraction_only",
+                                                             "film_metal")}
         out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
                                   opacity_texture=None,
                                   reflection=None if self.reflection is None else self.reflection / o)
@@ -569,9 +574,12 @@ class Closure:
         if curve and self.weight[GLOSSY] > 0 and self.metal_texture is None:
             s["glossy_metal_rise"] = self.metal_rise / self.weight[GLOSSY]
             s["glossy_metal_dip"] = self.metal_dip / self.weight[GLOSSY]
-        if self.film is not None and ((self.fresnel_ior > 0 and self.weight[GLOSSY] > 0)
+        metal_film = self.film_metal > 0 and curve and self.weight[GLOSSY] > 0 and self.metal_texture is None
+        if self.film is not None and ((self.fresnel_ior > 0 and self.weight[GLOSSY] > 0) or metal_film
                                       or self.weight[DIELECTRIC] > 0):
             s["film_thickness"], s["film_ior"], s["film_tint"] = self.film
+            if metal_film:
+                s["film_metal"] = float(np.clip(self.film_metal / self.weight[GLOSSY], 0.0, 1.0))
         if self.dielectric_texture is not None and self.weight[DIELECTRIC] > 0:
             s["dielectric_program"] = self.dielectric_texture
             s["dielectric"] = np.ones(3)
@@ -1624,7 +1632,10 @@ class NodeWalker:
         and at cos = 1/7 (``conductor_f82``), F_ss the mean of the conductor's own curve.  A
         texture on the base colour makes the F0 a program (``Closure.metal_texture``), one on the
         edge tint the lobe's colour a program of the curve's mean instead."""
-        self._note_film(node, stack)
+        film = self.thin_film(node, stack)
+        if film is not None and node.fresnel_type == "PHYSICAL_CONDUCTOR":
+            film = None
+            self.note(f"'{node.name}': Thin Film on a Physical Conductor is not supported (ignored)")
         if node.fresnel_type == "PHYSICAL_CONDUCTOR":
             ior, _ = self.color(node.inputs["IOR"], stack)
             extinction, _ = self.color(node.inputs["Extinction"], stack)
@@ -1640,12 +1651,16 @@ class NodeWalker:
                 c = self._glossy(node, stack, mean, program)
                 if not textured(tint_tex):
                     c.metal_texture, c.metal_tint = _clamped_color(_program_of(base_tex, base)), tint
+                if film is not None:
+                    self.note(f"'{node.name}': Thin Film on a textured metal is not supported (ignored)")
                 return c
         f0, rise, dip = metal_curve(base, tint)
         c = self._glossy(node, stack, f0)
         c.metal_rise, c.metal_dip = rise.copy(), dip.copy()          # weight 1
         if node.distribution == "MULTI_GGX":
             c.multiscatter = f0 * mean
+        if film is not None:
+            c.film, c.film_metal = (*film, np.ones(3)), 1.0
         return c
 
     def tangent(self, sock, stack):
@@ -1799,11 +1814,6 @@ class NodeWalker:
         return float(min(thickness, 1e6)), float(np.clip(self.value(node.inputs["Thin Film IOR"], stack),
                                                          1e-5, 100.0))
 
-    def _note_film(self, node, stack):
-        """Note a Thin Film on a node that has one but whose film the core does not model."""
-        if "Thin Film Thickness" in node.inputs and self.thin_film(node, stack) is not None:
-            self.note(f"'{node.name}': Thin Film is not supported on a {node.bl_label} (ignored)")
-
     def _principled(self, node, stack):
         """Principled BSDF (:meth:`_principled_opaque`) with its Alpha: a Mix with a white
         Transparent BSDF by it (point by point for an alpha map, as a Mix Shader's mask)."""
@@ -1866,9 +1876,6 @@ class NodeWalker:
             self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored; subsurface "
                       "renders as diffuse)")
         film = self.thin_film(node, stack)
-        if film is not None and m > 0:
-            self.note(f"'{node.name}': Thin Film on the metallic part is not supported (only the specular "
-                      "layer and the glass take it)")
 
         base_color = np.ones(3) if textured(tex) else base
         flat_base = base                  # the texture's mean where a lobe cannot use a texture
@@ -1924,11 +1931,17 @@ class NodeWalker:
         # so that light crossing it (in and out) takes the base colour once.
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))
         c.reflection = c.weight[DIELECTRIC] * np.asarray(tint, np.float64)     # Cycles: the specular tint
-        if film is not None and (spec > 0 or c.weight[DIELECTRIC] > 0):
-            # The layer and the glass share the film; the tint then scales the film's colour
-            # (core.thin_film.principled_reflectance), the glass reflecting white by it.
+        if film is not None and (spec > 0 or c.weight[DIELECTRIC] > 0 or m > 0):
+            # The layer, the glass and the metal share the film; the tint then scales the film's
+            # colour (core.thin_film.principled_reflectance), the glass reflecting white by it, and
+            # is the metal's F82 tint as without a film.
             c.film = (*film, np.clip(np.asarray(tint, np.float64), 0.0, 1.0))
             c.reflection = c.weight[DIELECTRIC] * np.ones(3)
+            if m > 0 and metal_program:
+                self.note(f"'{node.name}': Thin Film on a textured metal is not supported (the metal "
+                          "renders without it)")
+            elif m > 0:
+                c.film_metal = m
         if textured(tex) and c.weight[DIELECTRIC] > 0:
             c.dielectric_texture = {"op": "gamma", "color": _program_of(tex, base), "gamma": 0.5}
         c.texture = tex if c.weight[DIFFUSE] > 0 else -1

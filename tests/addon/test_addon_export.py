@@ -1529,7 +1529,8 @@ def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
     IOR, the specular tint) without a note (stop 43; before, noted and left out); on a layer of
     IOR 1, which Cycles drops without a film, the film keeps it.  A transmissive one's glass takes
     the same film and reflects white (the tint scales the film's colour instead).  A film on the
-    metallic part, or on a Metallic BSDF, is noted; a Glass BSDF takes its film (untinted)."""
+    metallic part takes it too (``film_metal``, its share of the glossy lobe), as a Metallic BSDF's
+    (F82) and a Glass BSDF's (untinted); on a Physical Conductor it is noted."""
     row, ex = export_material(principled("Oil", **{"Thin Film Thickness": 480.0, "Thin Film IOR": 1.4,
                                                    "Specular Tint": (1.0, 0.5, 0.25, 1.0)}))
     assert row["film_thickness"] == pytest.approx(480.0) and row["film_ior"] == pytest.approx(1.4)
@@ -1548,11 +1549,17 @@ def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
     assert row["dielectric_reflection_color"] == pytest.approx([1.0, 1.0, 1.0])
     assert row["film_tint"] == pytest.approx([1.0, 0.5, 0.25])
     assert not [w for w in ex.warnings if "'Bubble'" in w]
-    _, ex = export_material(principled("Foil", **{"Metallic": 1.0, "Thin Film Thickness": 300.0}))
-    assert any("'Principled BSDF'" in w and "metallic part" in w for w in ex.warnings), ex.warnings
-    _, ex = export_material(bs._material("Foil BSDF", "ShaderNodeBsdfMetallic",
-                                         **{"Thin Film Thickness": 300.0}))
-    assert any("Thin Film is not supported" in w for w in ex.warnings), ex.warnings
+    row, ex = export_material(principled("Foil", **{"Metallic": 0.5, "Thin Film Thickness": 300.0}))
+    assert row["film_metal"] == pytest.approx(0.5 / (0.5 + 0.5))
+    assert row["film_thickness"] == pytest.approx(300.0)
+    assert not [w for w in ex.warnings if "'Foil'" in w]
+    row, _ = export_material(bs._material("Foil BSDF", "ShaderNodeBsdfMetallic",
+                                          **{"Thin Film Thickness": 300.0}))
+    assert row["film_metal"] == 1.0 and row["film_thickness"] == pytest.approx(300.0)
+    mat = bs._material("Conductor", "ShaderNodeBsdfMetallic", **{"Thin Film Thickness": 300.0})
+    mat.node_tree.nodes["Metallic BSDF"].fresnel_type = "PHYSICAL_CONDUCTOR"
+    row, ex = export_material(mat)
+    assert row["film_metal"] == 0 and any("Physical Conductor" in w for w in ex.warnings), ex.warnings
     row, ex = export_material(bs._material("Pane", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 300.0,
                                                                              "Thin Film IOR": 1.4}))
     assert row["film_thickness"] == pytest.approx(300.0) and row["film_ior"] == pytest.approx(1.4)

@@ -1853,41 +1853,66 @@ def test_principled_thin_film_matches_cycles(addon, tmp_path, shader):
     assert min(block_correlation(f"thin film, {shader}", cycles, ours)) > 0.99
 
 
-@pytest.mark.parametrize("shader", ["soap_film", "filmed_glass", "glass_bsdf"])
-@pytest.mark.parametrize("degrees", [40.0, 65.0])
-def test_a_filmed_principled_glass_matches_cycles(addon, tmp_path, shader, degrees):
-    """A pane of smooth Principled glass with a Thin Film (stop 43; before, the film ignored), seen
-    ``degrees`` off its normal under a white emitting ceiling, in the dark: it shows the film's
-    reflectance of the ceiling (the light it lets through goes into the dark).  A soap film (IOR
-    1: a film of 500 nm and IOR 1.33, nothing but the film reflects) and a glass pane (IOR 1.5, a
-    film of 300 nm).  Means by channel, against Cycles and against the film's formula (each camera
-    path reflects or refracts by the film's mean reflectance: 32 passes keep that choice's noise
-    near 1 %).  ``glass_bsdf``: a Glass BSDF (IOR 1.5) with the film of 300 nm, which Cycles applies
-    to it as well (before, noted and left out)."""
+def filmed_pane(tmp_path, material, degrees):
+    """(Cycles', ours) mean colours of a smooth pane of ``material`` seen ``degrees`` off its normal
+    under a white emitting ceiling, in the dark (32 passes: a camera path reflects or refracts at a
+    filmed glass by the film's mean reflectance, and that choice's noise stays near 1 %)."""
     theta = math.radians(degrees)
-    ior, thickness = (1.0, 500.0) if shader == "soap_film" else (1.5, 300.0)
 
     def build():
         bs.empty_scene(RESOLUTION, **{**OURS, "passes": 32, "photons_per_pass": 10_000})
-        if shader == "glass_bsdf":
-            mat = bs._material("Pane", "ShaderNodeBsdfGlass", Roughness=0.0, IOR=ior,
-                               **{"Thin Film Thickness": thickness})
-        else:
-            mat = bs._material("Pane", "ShaderNodeBsdfPrincipled", Roughness=0.0, IOR=ior,
-                               **{"Transmission Weight": 1.0, "Thin Film Thickness": thickness})
-        bs.plane("Pane", size=20.0, material=mat, rotation=(math.pi / 2 - theta, 0, 0))
+        bs.plane("Pane", size=20.0, material=material(), rotation=(math.pi / 2 - theta, 0, 0))
         bs.camera(location=(0, -5, 0), target=(0, 0, 0), ortho_scale=1.0)
         bs.plane("Ceiling", size=400.0, material=bs.emission("Ceiling", strength=1.0), location=(0, 0, 30),
                  rotation=(math.pi, 0, 0))
         bs.world((0.0, 0.0, 0.0))
     cycles, ours = cycles_and_ours(build, tmp_path)
-    c, o = (x[..., :3].reshape(-1, 3).mean(axis=0) for x in (cycles, ours))
-    film = thin_film.reflectance(thin_film.sensitivity_table(), np.array([np.cos(theta)]), thickness, 1.33,
-                                 ior)[0]
+    return tuple(x[..., :3].reshape(-1, 3).mean(axis=0) for x in (cycles, ours))
+
+
+@pytest.mark.parametrize("shader", ["soap_film", "filmed_glass", "glass_bsdf"])
+@pytest.mark.parametrize("degrees", [40.0, 65.0])
+def test_a_filmed_principled_glass_matches_cycles(addon, tmp_path, shader, degrees):
+    """A pane of smooth Principled glass with a Thin Film (stop 43; before, the film ignored) under an
+    emitting ceiling (:func:`filmed_pane`): it shows the film's reflectance of the ceiling (the light
+    it lets through goes into the dark).  A soap film (IOR 1: a film of 500 nm and IOR 1.33,
+    nothing but the film reflects) and a glass pane (IOR 1.5, a film of 300 nm).  Means by channel,
+    against Cycles and against the film's formula.  ``glass_bsdf``: a Glass BSDF (IOR 1.5) with the
+    film of 300 nm, which Cycles applies to it as well (before, noted and left out)."""
+    ior, thickness = (1.0, 500.0) if shader == "soap_film" else (1.5, 300.0)
+
+    def material():
+        if shader == "glass_bsdf":
+            return bs._material("Pane", "ShaderNodeBsdfGlass", Roughness=0.0, IOR=ior,
+                                **{"Thin Film Thickness": thickness})
+        return bs._material("Pane", "ShaderNodeBsdfPrincipled", Roughness=0.0, IOR=ior,
+                            **{"Transmission Weight": 1.0, "Thin Film Thickness": thickness})
+    c, o = filmed_pane(tmp_path, material, degrees)
+    film = thin_film.reflectance(thin_film.sensitivity_table(), np.array([np.cos(math.radians(degrees))]),
+                                 thickness, 1.33, ior)[0]
     print(f"filmed pane, {shader}, {degrees:.0f} degrees: cycles {c.round(4)}, ours {o.round(4)}, "
           f"formula {film.round(4)}")
     np.testing.assert_allclose(c, film, rtol=0.02, atol=5e-4)           # (Cycles' own noise: 512 samples)
     np.testing.assert_allclose(o, c, rtol=0.04, atol=5e-4)
+
+
+@pytest.mark.parametrize("shader", ["metallic_bsdf", "metallic_principled"])
+def test_a_filmed_metal_matches_cycles(addon, tmp_path, shader):
+    """A smooth metal pane with a Thin Film of 500 nm (stop 43; before, the film ignored) under the
+    emitting ceiling at 40 degrees (:func:`filmed_pane`): a Metallic BSDF (F82, Blender's default
+    colours: Cycles reads them as a complex index for the film) and a metallic Principled BSDF
+    (base colour (0.9, 0.6, 0.3), its Specular Tint (0.9, 0.8, 1.0) the F82 tint).  A half metallic
+    one, its dielectric half filmed too, is a closed form in tests/core/test_thin_film.py."""
+    def material():
+        if shader == "metallic_bsdf":
+            return bs._material("Pane", "ShaderNodeBsdfMetallic", Roughness=0.0,
+                                **{"Thin Film Thickness": 500.0})
+        return bs._material("Pane", "ShaderNodeBsdfPrincipled", Roughness=0.0, Metallic=1.0,
+                            **{"Base Color": (0.9, 0.6, 0.3, 1.0), "Specular Tint": (0.9, 0.8, 1.0, 1.0),
+                               "Thin Film Thickness": 500.0})
+    c, o = filmed_pane(tmp_path, material, 40.0)
+    print(f"filmed metal, {shader}: cycles {c.round(4)}, ours / cycles {np.round(o / c, 4)}")
+    np.testing.assert_allclose(o, c, rtol=0.02)
 
 
 @pytest.mark.parametrize("case", ["pane_front", "pane_back", "emitter_in_water", "card_in_water",
