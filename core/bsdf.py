@@ -1422,11 +1422,13 @@ def refraction_scale(table, mat_ids, lobe, wo, wi, ng):
     anything else: a scale of the flux, not a loss, which Russian roulette leaves out (surviving
     photons inside glass would otherwise come out 2.25 times as bright and as rare)."""
     out = np.ones(len(lobe))
-    through = np.flatnonzero((lobe == DIELECTRIC) & (dot(wo, ng) * dot(wi, ng) < 0))
-    if len(through):
-        ior = table.ior.take(mat_ids.take(through))
-        entering = dot(wo.take(through, axis=0), ng.take(through, axis=0)) > 0
-        out[through] = np.where(entering, 1.0 / (ior * ior), ior * ior)
+    glass = np.flatnonzero(lobe == DIELECTRIC)
+    if len(glass):
+        n = ng.take(glass, axis=0)
+        cos_o = dot(wo.take(glass, axis=0), n)
+        through = cos_o * dot(wi.take(glass, axis=0), n) < 0
+        ior = table.ior.take(mat_ids.take(glass))
+        out[glass] = np.where(through, np.where(cos_o > 0, 1.0 / (ior * ior), ior * ior), 1.0)
     return out
 
 
