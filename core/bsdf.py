@@ -536,12 +536,7 @@ class MaterialTable:
     def coat_attenuation(self, mat_ids, mu):
         """(n, 3) factors of everything under the coats of materials ``mat_ids`` (all coated) at
         view cosines ``mu`` (:class:`~core.scene.Materials`: the coat's albedo and its tint)."""
-        t = np.sqrt(np.clip(mu, 0.0, 1.0)) * MS_NODES
-        k = np.minimum(t.astype(np.int64), MS_NODES - 1)
-        f = (t - k)[:, None]
-        flat = mat_ids.astype(np.int64) * (MS_NODES + 1) + k
-        e = self.coat_factor.reshape(-1, 3)
-        return (1.0 - f) * e.take(flat, axis=0) + f * e.take(flat + 1, axis=0)
+        return _interpolate(self.coat_factor, mat_ids, mu)
 
     def fresnel_color(self, mat_ids, lobe, cos_m, base=None):
         """(n, 3) the colour lobe ``lobe`` (GLOSSY or MIRROR) adds at microfacet cosines ``cos_m``
@@ -615,7 +610,8 @@ class MaterialTable:
             if len(f):
                 m, c = mat_ids.take(f), cos_m.take(f)
                 rise = self._dielectric_part(m, lobe, c)
-                out[f] = _film_rise(self.metal_film_curve, row.take(f), c) + (0.0 if rise is None else rise)
+                out[f] = _interpolate(self.metal_film_curve, row.take(f), c, FILM_NODES) + (
+                    0.0 if rise is None else rise)
         return out
 
     def _dielectric_part(self, mat_ids, lobe, cos_m):
@@ -629,8 +625,8 @@ class MaterialTable:
                 row = self.film_index.take(mat_ids)
                 f = np.flatnonzero(row >= 0)
                 if len(f):
-                    out[f] = self.rise[:, lobe].take(mat_ids.take(f), axis=0) * _film_rise(
-                        self.film_curve, row.take(f), cos_m.take(f))
+                    out[f] = self.rise[:, lobe].take(mat_ids.take(f), axis=0) * _interpolate(
+                        self.film_curve, row.take(f), cos_m.take(f), FILM_NODES)
         return out
 
     def _row_curves(self, mat_ids, lobe, cos_m):
@@ -663,6 +659,11 @@ class MaterialTable:
     @cached_property
     def has_metal_film(self) -> bool:
         return self.metal_film_index is not None and bool((self.metal_film_index >= 0).any())
+
+    @cached_property
+    def has_dielectric(self) -> bool:
+        """Whether some material has a glass lobe."""
+        return bool((self.weight[:, DIELECTRIC] > 0).any())
 
     @cached_property
     def has_glass_film(self) -> bool:
@@ -778,14 +779,19 @@ def _or_zeros(values, shape):
     return np.zeros(shape) if values is None else np.asarray(values, np.float64)
 
 
-def _interpolate(table, mat_ids, mu):
-    """Rows ``mat_ids`` of a (M, MS_NODES + 1) table at mu = (k / MS_NODES)^2, linearly in sqrt(mu)."""
-    t = np.sqrt(np.clip(mu, 0.0, 1.0)) * MS_NODES
-    k = np.minimum(t.astype(np.int64), MS_NODES - 1)
+def _interpolate(table, rows, x, nodes=MS_NODES):
+    """Rows ``rows`` of a (R, nodes + 1) or (R, nodes + 1, 3) table at x = (k / nodes)^2, linearly in
+    sqrt(x): (n,) or (n, 3)."""
+    t = np.sqrt(np.clip(x, 0.0, 1.0)) * nodes
+    k = np.minimum(t.astype(np.int64), nodes - 1)
     f = t - k
-    flat = mat_ids.astype(np.int64) * (MS_NODES + 1) + k
-    e = table.ravel()
-    return (1.0 - f) * e.take(flat) + f * e.take(flat + 1)
+    flat = rows.astype(np.int64) * (nodes + 1) + k
+    if table.ndim == 2:
+        e = table.ravel()
+        return (1.0 - f) * e.take(flat) + f * e.take(flat + 1)
+    e = table.reshape(-1, table.shape[-1])
+    f = f[:, None]
+    return (1.0 - f) * e.take(flat, axis=0) + f * e.take(flat + 1, axis=0)
 
 
 def _metal_mean_rise(base, edge, dip, nodes=64):
@@ -870,13 +876,15 @@ def _layer_tables(alpha, fresnel_ior, rise, layered, layer_f0, layer_share, ms_a
 
 @dataclass
 class _Film:
-    """The filmed layers' tables (:func:`_film_tables`)."""
+    """The films' shared inputs and the filmed layers' tables (:func:`_film_tables`)."""
 
-    index: np.ndarray       # (M,) int64 row in the tables below or -1
+    thickness: np.ndarray   # (M,) Materials.film_thickness (0 without)
+    filmed: np.ndarray      # (M,) bool: above Cycles' cut-off
+    sensitivity: np.ndarray  # thin_film.sensitivity_table() where some row has a film, else None
+    index: np.ndarray       # (M,) int64 row of a filmed layer in the tables below or -1
     curve: np.ndarray       # (F, FILM_NODES + 1, 3) (G(c) - f0 t) / (1 - f0 t) at c = (k / FILM_NODES)^2
     albedo: np.ndarray      # (F, MS_NODES + 1, 3) G at mu = (k / MS_NODES)^2: the layer's albedo
     mean_rise: np.ndarray   # (F, 3) the cosine-weighted mean of the rise over mu
-    sensitivity: np.ndarray = None  # thin_film.sensitivity_table() where some layer has a film
 
 
 def _film_tables(mats, fresnel_ior, rise):
@@ -886,43 +894,42 @@ def _film_tables(mats, fresnel_ior, rise):
     layer adds to its normal-incidence colour; and G at the layer tables' nodes."""
     m = len(fresnel_ior)
     thickness = _or_zeros(mats.film_thickness, m)
-    on = np.flatnonzero((thickness > np.float32(thin_film.THICKNESS_CUTOFF)) & (fresnel_ior > 0)
-                        & (rise != 0).any(axis=(1, 2)))
+    filmed = thickness > np.float32(thin_film.THICKNESS_CUTOFF)
+    sensitivity = thin_film.sensitivity_table() if filmed.any() else None
+    on = np.flatnonzero(filmed & (fresnel_ior > 0) & (rise != 0).any(axis=(1, 2)))
     index = np.full(m, -1, np.int64)
     index[on] = np.arange(len(on))
     if len(on) == 0:
-        return _Film(index, np.zeros((0, FILM_NODES + 1, 3)), np.zeros((0, MS_NODES + 1, 3)),
-                     np.zeros((0, 3)))
-    table = thin_film.sensitivity_table()
+        return _Film(thickness, filmed, sensitivity, index, np.zeros((0, FILM_NODES + 1, 3)),
+                     np.zeros((0, MS_NODES + 1, 3)), np.zeros((0, 3)))
     eta = np.maximum(fresnel_ior[on], 1.0)
     f0t = np.clip(smp.dielectric_f0(eta)[:, None] * _or_ones(mats.film_tint, (m, 3))[on], 0.0, 1.0)
-    ior = np.asarray(mats.film_ior, np.float64)[on]
-
-    def reflected(nodes):
-        c = (np.arange(nodes + 1) / nodes) ** 2
-        k = len(c)
-        g = thin_film.principled_reflectance(table, np.tile(c, len(on)), np.repeat(thickness[on], k),
-                                             np.repeat(ior, k), np.repeat(eta, k), np.repeat(f0t, k, axis=0))
-        return c, g.reshape(len(on), k, 3)
-
-    _, g = reflected(FILM_NODES)
+    args = (thickness[on], np.asarray(mats.film_ior, np.float64)[on], eta, f0t)
+    _, g = _at_film_nodes(FILM_NODES, thin_film.principled_reflectance, sensitivity, *args)
     curve = (g - f0t[:, None, :]) / np.maximum(1.0 - f0t, 1e-6)[:, None, :]
-    mu, albedo = reflected(MS_NODES)
+    mu, albedo = _at_film_nodes(MS_NODES, thin_film.principled_reflectance, sensitivity, *args)
     lifted = (albedo - f0t[:, None, :]) / np.maximum(1.0 - f0t, 1e-6)[:, None, :]
     mean_rise = 2.0 * np.trapz(lifted * mu[None, :, None], mu, axis=1)
-    return _Film(index, curve, albedo, mean_rise, table)
+    return _Film(thickness, filmed, sensitivity, index, curve, albedo, mean_rise)
+
+
+def _at_film_nodes(nodes, reflectance, sensitivity, *per_row):
+    """(x (nodes + 1,), (rows, nodes + 1, 3)): ``reflectance(sensitivity, x, ...)`` at x = (k /
+    nodes)^2 for each row of the per-row arguments ``per_row`` (first axis: the rows)."""
+    x = (np.arange(nodes + 1) / nodes) ** 2
+    rows = len(per_row[0])
+    g = reflectance(sensitivity, np.tile(x, rows), *(np.repeat(a, len(x), axis=0) for a in per_row))
+    return x, g.reshape(rows, len(x), 3)
 
 
 def _glass_film(mats, weight, film):
     """MaterialTable fields of the glasses with a film (``Materials.film_thickness``)."""
-    m = len(weight)
-    thickness = _or_zeros(mats.film_thickness, m)
-    on = (thickness > np.float32(thin_film.THICKNESS_CUTOFF)) & (weight[:, DIELECTRIC] > 0)
+    on = film.filmed & (weight[:, DIELECTRIC] > 0)
     if not on.any():
         return {}
-    table = film.sensitivity if film.sensitivity is not None else thin_film.sensitivity_table()
-    return {"glass_film": on, "film_thickness": thickness, "film_ior": np.asarray(mats.film_ior, np.float64),
-            "film_tint": _or_ones(mats.film_tint, (m, 3)), "film_sensitivity": table}
+    return {"glass_film": on, "film_thickness": film.thickness,
+            "film_ior": np.asarray(mats.film_ior, np.float64),
+            "film_tint": _or_ones(mats.film_tint, (len(weight), 3)), "film_sensitivity": film.sensitivity}
 
 
 def _metal_film(mats, weight, edge, dip, sharp, film):
@@ -930,13 +937,11 @@ def _metal_film(mats, weight, edge, dip, sharp, film):
     what it adds to its lobe's colour at the film's nodes, k (G_m(c) - F0) (k its share of the lobe,
     after a sharp glossy lobe's merge into the mirror's; F0 and b from its rise and dip)."""
     m = len(weight)
-    thickness = _or_zeros(mats.film_thickness, m)
     share = _or_zeros(mats.film_metal, m)
     lobe = np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR)
     rows = np.arange(m)
     e, d = edge[rows, lobe], dip[rows, lobe]
-    on = np.flatnonzero((thickness > np.float32(thin_film.THICKNESS_CUTOFF)) & (share > 0)
-                        & ((e != 0) | (d != 0)).any(axis=1))
+    on = np.flatnonzero(film.filmed & (share > 0) & ((e != 0) | (d != 0)).any(axis=1))
     if len(on) == 0:
         return {}
     merged = np.ones(m)
@@ -944,29 +949,12 @@ def _metal_film(mats, weight, edge, dip, sharp, film):
                               out=np.zeros(int(sharp.sum())), where=weight[sharp, MIRROR] > 0)
     k = (share * merged)[on][:, None]
     f0 = np.clip(1.0 - e[on] / k, 0.0, 1.0)
-    b = d[on] / k
-    table = film.sensitivity if film.sensitivity is not None else thin_film.sensitivity_table()
-    c = (np.arange(FILM_NODES + 1) / FILM_NODES) ** 2
-    n = len(c)
-    g = thin_film.conductor_reflectance(table, np.tile(c, len(on)), np.repeat(thickness[on], n),
-                                        np.repeat(np.asarray(mats.film_ior, np.float64)[on], n),
-                                        np.repeat(f0, n, axis=0), np.repeat(b, n, axis=0))
-    g = g.reshape(len(on), n, 3)
+    _, g = _at_film_nodes(FILM_NODES, thin_film.conductor_reflectance, film.sensitivity, film.thickness[on],
+                          np.asarray(mats.film_ior, np.float64)[on], f0, d[on] / k)
     index = np.full(m, -1, np.int64)
     index[on] = np.arange(len(on))
     return {"metal_film_index": index, "metal_film_lobe": lobe,
             "metal_film_curve": k[:, None, :] * (g - f0[:, None])}
-
-
-def _film_rise(curve, row, cos_m):
-    """(n, 3) rows ``row`` of a film's ``curve`` (:func:`_film_tables`) at cosines ``cos_m``, linearly
-    in sqrt(c)."""
-    t = np.sqrt(np.clip(cos_m, 0.0, 1.0)) * FILM_NODES
-    k = np.minimum(t.astype(np.int64), FILM_NODES - 1)
-    f = (t - k)[:, None]
-    flat = row * (FILM_NODES + 1) + k
-    c = curve.reshape(-1, 3)
-    return (1.0 - f) * c.take(flat, axis=0) + f * c.take(flat + 1, axis=0)
 
 
 def _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo, ms_fresnel):
@@ -1364,7 +1352,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 # reflection, where it ends (Cycles' Refraction BSDF).
                 refracts = cos_t > 0.0
                 fr = table.dielectric_fresnel.take(m_sel) * fr
-            f, film = None, None
+            film = None
             if table.has_glass_film:
                 # A filmed glass reflects F (n, 3) by channel: reflect with its mean p (times s), the
                 # weights F / p and (1 - s F) / (1 - s p) (Cycles' pdf_reflect is alike).
@@ -1385,7 +1373,7 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 reflected = (table.weight[:, k].take(m_sel)[:, None] * table.reflection.take(m_sel, axis=0)
                              / prob.take(sel)[:, None])
                 w = np.where(is_refl[:, None], reflected, w)
-            if film is not None and len(f):
+            if film is not None:
                 p = fr[f][:, None]
                 w[f] = w[f] * np.where(is_refl[f][:, None],
                                        np.divide(film, p, out=np.ones_like(film), where=p > 0),

@@ -204,7 +204,7 @@ class RenderContext:
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
-                 ("glass", (w[:, DIELECTRIC] > 0).any()),
+                 ("glass", table.has_dielectric),
                  ("rough glass", table.has_rough_dielectric),
                  ("glossy", table.has_glossy.any()),
                  ("anisotropic glossy", table.has_anisotropy),

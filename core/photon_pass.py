@@ -830,7 +830,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             # Russian roulette on the luminance ratio (the path stays a function of u), without the
             # scale of refracted flux (bsdf.refraction_scale).
             ratio = luminance(new_flux) / np.maximum(luminance(flux), 1e-300)
-            if (table.weight[:, DIELECTRIC] > 0).any():
+            if table.has_dielectric:
                 ratio /= refraction_scale(table, mats, lobe, wo, wi, surf.ng)
             q = np.minimum(1.0, ratio)
             alive &= (block[:, 3] < q) & (q > 0)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import procedural          # (its CIE tables; procedural imports bsdf, which imports this)
+from .sampling import dielectric_f0
 
 TABLE_SIZE = 512          # Cycles' THIN_FILM_TABLE_SIZE: complex values of the sensitivity
 _SAMPLES = 1022           # real samples over frequency (one real FFT of them gives TABLE_SIZE values)
@@ -75,6 +76,13 @@ def sensitivity(table, opd):
     return (1.0 - t) * table[i] + t * table[j]
 
 
+def _film_index(thickness, film_ior):
+    """The film's index, blended towards 1 below 1 nm by smoothstep(thickness) (Cycles: the Airy
+    series no longer applies there)."""
+    t = np.clip(thickness, 0.0, 1.0)
+    return np.where(thickness < 1.0, 1.0 + (film_ior - 1.0) * t * t * (3.0 - 2.0 * t), film_ior)
+
+
 def _polarized(cos_i, eta):
     """Cycles' ``fresnel_dielectric_polarized``: (R_s, R_p, cos_t, phase_s, phase_p, tir) for cosines
     ``cos_i`` and relative indices ``eta`` (arrays); cos_t < 0 (relative to the normal), the phases
@@ -123,8 +131,7 @@ def reflectance(table, cos_i, thickness, film_ior, eta):
     cos_i, thickness, film_ior, eta = np.broadcast_arrays(
         np.asarray(cos_i, np.float64), np.asarray(thickness, np.float64),
         np.asarray(film_ior, np.float64), np.asarray(eta, np.float64))
-    t = np.clip(thickness, 0.0, 1.0)
-    n_film = np.where(thickness < 1.0, 1.0 + (film_ior - 1.0) * t * t * (3.0 - 2.0 * t), film_ior)
+    n_film = _film_index(thickness, film_ior)
     r12_s, r12_p, cos_2, ph12_s, ph12_p, tir12 = _polarized(cos_i, n_film)
     r23_s, r23_p, _, ph23_s, ph23_p, tir23 = _polarized(-cos_2, eta / n_film)
     opd = -2.0 * n_film * thickness * cos_2
@@ -164,9 +171,7 @@ def conductor_reflectance(table, cos_i, thickness, film_ior, f0, b):
     root = np.sqrt(r)
     n = (1.0 - g) * (1.0 + root) / (1.0 - root) + g * (1.0 - r) / (1.0 + r)
     k = np.sqrt(np.maximum((r * (n + 1.0) ** 2 - (n - 1.0) ** 2) / (1.0 - r), 0.0))
-    t = np.clip(thickness, 0.0, 1.0)
-    ior = np.broadcast_to(film_ior, (n_rows,))
-    n_film = np.where(thickness < 1.0, 1.0 + (ior - 1.0) * t * t * (3.0 - 2.0 * t), ior)
+    n_film = _film_index(thickness, np.broadcast_to(film_ior, (n_rows,)))
     r12_s, r12_p, cos_2, ph12_s, ph12_p, tir12 = _polarized(cos_i, n_film)
     c = (-cos_2)[:, None]                                   # the film-to-metal cosine
     e1 = n_film[:, None]
@@ -197,8 +202,7 @@ def principled_reflectance(table, cos_i, thickness, film_ior, eta, f0_tint):
     film: F times mix(1, f0 / F0, saturate((F - 1) / (F0 - 1))), F0 the layer's own reflectance
     face on); ``f0_tint`` (n, 3) or (3,) its tinted normal-incidence colour."""
     f = reflectance(table, cos_i, thickness, film_ior, eta)
-    f0_real = ((np.asarray(eta, np.float64) - 1.0) / (np.asarray(eta, np.float64) + 1.0)) ** 2
-    f0_real = np.broadcast_to(f0_real, f.shape[:1])[:, None]
+    f0_real = np.broadcast_to(dielectric_f0(np.asarray(eta, np.float64)), f.shape[:1])[:, None]
     scale = f0_real > 1e-5
     safe = np.where(scale, f0_real, 0.5)
     s = np.clip((f - 1.0) / (safe - 1.0), 0.0, 1.0)
