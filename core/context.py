@@ -20,6 +20,7 @@ from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OB
                     NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, PANORAMAS, POINT, SPOT,
                     VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
+from .subsurface import exit_variant
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -65,6 +66,9 @@ class RenderContext:
         self.materials, self.stretch_first = stretch_variants(self.materials)
         copies = np.arange(self.materials.count) >= scene.materials.count
         self.materials, coat_row = coat_variants(self.materials)
+        # The surface at the exits of subsurface walks (subsurface.exit_variant; -1: none).
+        self.materials, self.subsurface_exit = exit_variant(self.materials)
+        coat_row = np.concatenate([coat_row, np.full(self.materials.count - len(coat_row), -1, np.int32)])
         copies = np.concatenate([copies, np.zeros(self.materials.count - len(copies), bool)])
         self.table = MaterialTable.from_materials(self.materials, coarse=copies, coat_row=coat_row,
                                                   through_roughness=glossy_through_roughness)
@@ -195,8 +199,8 @@ class RenderContext:
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
         thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes (anisotropic ones need
         tangents at every hit) and their layers (Fresnel
-        layers, thin films on them, metals' Fresnel curves, coats), textures (images, procedural,
-        roughness maps,
+        layers, thin films on them, metals' Fresnel curves, coats), subsurface scattering, textures
+        (images, procedural, roughness maps,
         normal and bump maps, textured emitters), true displacement, glass that refracts without
         reflecting (Refraction BSDF), lights' angular (IES) profiles, light and shadow
         linking, transparency, objects hidden from some camera rays, holdouts, volumes (the world's
@@ -215,6 +219,7 @@ class RenderContext:
                  ("thin films", table.has_film),
                  ("metal Fresnel curves", table.has_metal_curve),
                  ("coats", table.has_coat),
+                 ("subsurface scattering", self.subsurface_exit >= 0),
                  ("image textures", self.has_textures),
                  ("procedural textures", self.has_programs or self.has_glossy_programs
                   or self.has_emission_programs or self.has_dielectric_programs

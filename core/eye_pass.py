@@ -20,9 +20,10 @@ import numpy as np
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, TRANSLUCENT, choose_lobe, face_forward,
                    lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
+from . import subsurface
 from .procedural import Rays, camera_path
 from .sampling import dot
-from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
+from .scene import PANORAMAS, SUBSURFACE_SKIN, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
 
 
 @dataclass
@@ -319,7 +320,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 ns_glossy = ns.copy()
                 ns_glossy[bent] = valid_reflection_normal(ng[bent], rows(wo)[bent], ns[bent])
                 ns_glossy = ns_glossy.astype(f32)
-            parts.append(MeasurementPoints(
+            points = MeasurementPoints(
                 pixel_ids=rows(pix), position=rows(surf.position), ng=ng.astype(f32),
                 ns=ns.astype(f32), wo=rows(wo).astype(f32),
                 weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
@@ -327,7 +328,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
                 ns_glossy=ns_glossy,
-                tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32)))
+                tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32))
+            if ctx.subsurface_exit >= 0:
+                # Some points go beneath their surface, to the exit of a random walk.
+                points, exits, r = _beneath(ctx, rng, points, rows(prim), rows(scores[:, DIFFUSE]),
+                                            rows(non_delta))
+                rays += r
+                if exits is not None:
+                    parts.append(exits)
+            parts.append(points)
         go = np.flatnonzero(~stop & (total > 0))
         if depth == max_bounces or len(go) == 0:
             break
@@ -361,6 +370,95 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
         origin_normals = surf.ng[g]
     return parts, rays
+
+
+def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
+    """(points, exits, rays): ``points`` (k, at hits of triangles ``prim``) of which those of
+    materials that scatter beneath their surface (``Materials.subsurface_weight``) go there with
+    the probability of that part's share of their non-delta choice (their lobes' scores
+    ``diffuse_score`` and ``non_delta``, both (k,)): they are replaced by a point at the exit of a
+    random walk (``core/subsurface.py``) that gathers as a white Lambertian surface (the material
+    ``RenderContext.subsurface_exit``), of weight the subsurface part's at the entry, which Cycles
+    gives as its share of the diffuse lobe, under the Fresnel layer at the view; the others keep
+    their diffuse lobe without that part.  Walks that do not leave within ``subsurface.MAX_STEPS``
+    (or that start away from the surface) are lost, as in Cycles."""
+    mats, table, accel = ctx.materials, ctx.table, ctx.accel
+    m = points.mat_ids
+    share = np.asarray(mats.subsurface_weight, np.float64).take(m)
+    rows = np.flatnonzero(share > 0)
+    if len(rows) == 0:
+        return points, None, 0
+    mr = m.take(rows)
+    radius = np.asarray(mats.subsurface_radius, np.float64).take(mr, axis=0)
+    part = share.take(rows)[:, None] * (radius >= subsurface.MIN_RADIUS)          # (r, 3)
+    q = np.clip(part.mean(axis=1) * diffuse_score.take(rows) / np.maximum(non_delta.take(rows), 1e-300),
+                0.0, 1.0)
+    u = rng.random((len(rows), 4))
+    into = u[:, 0] < q
+    stay = np.flatnonzero(~into)
+    colors, weight = points.colors.copy(), points.weight.copy()
+    colors[rows[stay], 0] *= (1.0 - part[stay]).astype(np.float32)
+    weight[rows[stay]] /= (1.0 - q[stay, None]).astype(np.float32)
+    go = np.flatnonzero(into)
+    w_rows, mg = rows.take(go), mr.take(go)
+    keep = np.ones(points.count, bool)
+    keep[w_rows] = False
+    kept = dataclasses.replace(points, colors=colors, weight=weight).take(np.flatnonzero(keep))
+    if len(go) == 0:
+        return kept, None, 0
+    # The part's weight: the diffuse lobe's share (under a Fresnel layer, its factor at the view)
+    # without the colour, which the walk makes.
+    w_d = table.weight[mg, DIFFUSE]
+    if table.has_layer:
+        mu = dot(points.wo[w_rows], points.glossy_normals[w_rows]).astype(np.float64)
+        w_d = w_d * table.layer_factor(mg, mu)
+    method = np.asarray(mats.subsurface_method).take(mg)
+    skin = method == SUBSURFACE_SKIN
+    sigma_t, alpha, scale = subsurface.medium(
+        points.colors[w_rows, 0], radius.take(go, axis=0), np.asarray(mats.subsurface_anisotropy).take(mg),
+        method, np.asarray(mats.subsurface_ior, np.float64).take(mg))
+    beta = (points.weight[w_rows] / q.take(go)[:, None] * part.take(go, axis=0) * w_d[:, None] * scale)
+    n, ng = points.ns[w_rows].astype(np.float64), points.ng[w_rows].astype(np.float64)
+    entry_alpha = np.where(skin, 1.0, np.asarray(mats.subsurface_alpha, np.float64).take(mg))
+    dirs, valid = subsurface.entry_directions(
+        n, ng, points.wo[w_rows].astype(np.float64), entry_alpha,
+        np.asarray(mats.subsurface_ior, np.float64).take(mg),
+        np.where(skin, subsurface.SKIN_DIFFUSE_ENTRY, 0.0), u[go, 1:])
+    ok = np.flatnonzero(valid)
+    objects = None if accel.object_ids is None else accel.object_ids.take(prim.take(w_rows.take(ok)))
+    rays = 0
+
+    def intersect(r, origins, d, tmax):
+        nonlocal rays
+        rays += len(r)
+        if objects is None:
+            return accel.intersect(origins, d, tmax)
+        return accel.local_scene().intersect(origins, d, tmax, objects.take(r))
+    starts = accel.spawn(points.position[w_rows[ok]], ng.take(ok, axis=0), dirs.take(ok, axis=0))
+    left, hits, d_out, beta_out = subsurface.random_walk(
+        intersect, starts, dirs.take(ok, axis=0), n.take(ok, axis=0), sigma_t.take(ok, axis=0),
+        alpha.take(ok, axis=0),
+        np.asarray(mats.subsurface_anisotropy, np.float64).take(mg.take(ok)), beta.take(ok, axis=0),
+        lambda r, step: rng.random((len(r), subsurface.WALK_NUMBERS)))
+    if len(left) == 0:
+        return kept, None, rays
+    src = w_rows.take(ok.take(left))
+    pick = rng.random(len(left)) if ctx.has_level_programs else None
+    surf = ctx.surface(hits.prim_ids, hits.b1, hits.b2, pick, Rays(d_out))
+    # Seen from outside, as Cycles turns the walk's last ray round.
+    ng_out = face_forward(surf.ng, d_out)
+    ns_out = face_forward(surf.ns, ng_out).astype(np.float32)
+    f32 = np.float32
+    colors = np.zeros((len(left),) + points.colors.shape[1:], f32)
+    colors[:, 0] = 1.0
+    exits = MeasurementPoints(
+        pixel_ids=points.pixel_ids.take(src), position=surf.position, ng=ng_out.astype(f32), ns=ns_out,
+        wo=ng_out.astype(f32), weight=beta_out.astype(f32),
+        mat_ids=np.full(len(left), ctx.subsurface_exit, points.mat_ids.dtype), colors=colors,
+        base_radius=points.base_radius.take(src),
+        nn=None if points.nn is None else ns_out, ns_glossy=None if points.ns_glossy is None else ns_out,
+        tangent=None if points.tangent is None else np.zeros((len(left), 3), f32))
+    return kept, exits, rays
 
 
 def coat_normals(surf, mats):

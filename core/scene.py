@@ -53,6 +53,10 @@ NORMAL_TANGENT, NORMAL_OBJECT, NORMAL_WORLD, NORMAL_BLENDER_OBJECT, NORMAL_BLEND
 # else the object's), the shading normals stay (Displacement and Bump) rather than follow it, and
 # the program gives the offset as a world vector (a Vector Displacement) rather than along the normal.
 DISPLACE_WORLD, DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR = 1, 2, 4
+# Materials.subsurface_method: Cycles' Random Walk (mean free paths of the radius over 4 pi, a
+# refractive entry of the material's roughness) or Random Walk (Skin) (mean free paths scaled by
+# the albedo through the dipole, half the entries diffuse, the other half refracted at alpha 1).
+SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN = 0, 1
 # The rays an emitter does not light (``Lights.exclude``, ``World.exclude``, ``Scene.emitter_exclude``;
 # Blender's Ray Visibility boxes Glossy, Transmission, Diffuse and Volume Scatter off, Cycles'
 # SHADER_EXCLUDE_*): the light that first meets a surface or volume reaches no lobe of that kind
@@ -296,6 +300,16 @@ class Materials:
     film_ior: np.ndarray = None                         # (M,) float32 in [1e-5, 100]; None: 1.33
     film_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
     film_metal: np.ndarray = None                       # (M,) float32 in [0, 1]; None: 0
+    # Subsurface scattering (Cycles' random walk, ``core/subsurface.py``): the share of the diffuse
+    # lobe that enters the surface (Principled's Subsurface Weight; 1 for the Subsurface Scattering
+    # BSDF), walks inside the object with the lobe's colour as its albedo and mean free paths of
+    # ``subsurface_radius`` (scene units, Radius times Scale) and leaves it as diffuse light.
+    subsurface_weight: np.ndarray = None                # (M,) float32 in [0, 1]; None: 0
+    subsurface_radius: np.ndarray = None                # (M, 3) float32 >= 0; None: 1
+    subsurface_anisotropy: np.ndarray = None            # (M,) float32 in [0, 0.9]; None: 0
+    subsurface_ior: np.ndarray = None                   # (M,) float32 in [1.01, 3.8]; None: 1.4
+    subsurface_alpha: np.ndarray = None                 # (M,) float32 GGX alpha of the entry; None: 1
+    subsurface_method: np.ndarray = None                # (M,) int32 SUBSURFACE_*; None: random walk
     ior: np.ndarray = None                              # (M,) float32, > 0
     emission: np.ndarray = None                         # (M, 3) float32 radiance
     normal_texture: np.ndarray = None                   # (M,) int32, index into Scene.textures or -1
@@ -359,7 +373,9 @@ class Materials:
                     "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
                     "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
                     "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump",
-                    "bump_correction", "film_thickness", "film_ior", "film_tint", "film_metal")
+                    "bump_correction", "film_thickness", "film_ior", "film_tint", "film_metal",
+                    "subsurface_weight", "subsurface_radius", "subsurface_anisotropy", "subsurface_ior",
+                    "subsurface_alpha", "subsurface_method")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -369,7 +385,7 @@ class Materials:
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
                                      "normal_space", "displacement_flags", "displacement_bump",
-                                     "bump_correction")
+                                     "bump_correction", "subsurface_method")
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "coat_bump_distance",
                                     "glossy_metal_dip",
                                     "volume_anisotropy", "glossy_rotation", "glossy_metal_tint",
@@ -418,6 +434,9 @@ class Materials:
         colour at each hit; ``glossy_metal_share`` (1) and ``glossy_metal_rest`` (0) make it part
         of the lobe beside a dielectric layer.  ``film_thickness`` (0: none), ``film_ior`` (1.33)
         and ``film_tint`` (1) coat the Fresnel layer with a thin film, ``film_metal`` (0) the metal.
+        ``subsurface_weight`` (0), ``subsurface_radius`` (1), ``subsurface_anisotropy`` (0),
+        ``subsurface_ior`` (1.4), ``subsurface_alpha`` (1) and ``subsurface_method`` (0) make part
+        of the diffuse lobe scatter beneath the surface.
         ``level_program`` (a float program), ``level_first`` and ``level_count`` make it pick one of
         that many materials, its levels, at each hit.
         """
@@ -476,6 +495,12 @@ class Materials:
         out.film_ior = np.full(m, 1.33, np.float32)
         out.film_tint = np.ones((m, 3), np.float32)
         out.film_metal = np.zeros(m, np.float32)
+        out.subsurface_weight = np.zeros(m, np.float32)
+        out.subsurface_radius = np.ones((m, 3), np.float32)
+        out.subsurface_anisotropy = np.zeros(m, np.float32)
+        out.subsurface_ior = np.full(m, 1.4, np.float32)
+        out.subsurface_alpha = np.ones(m, np.float32)
+        out.subsurface_method = np.zeros(m, np.int32)
         out.coat_bump_program = np.full(m, -1, np.int32)
         out.coat_bump_strength = np.ones(m, np.float32)
         out.coat_bump_distance = np.ones(m, np.float32)
@@ -587,6 +612,13 @@ class Materials:
             out.film_ior[i] = s.get("film_ior", 1.33)
             out.film_tint[i] = np.broadcast_to(np.asarray(s.get("film_tint", 1.0), np.float32), (3,))
             out.film_metal[i] = s.get("film_metal", 0.0)
+            out.subsurface_weight[i] = s.get("subsurface_weight", 0.0)
+            radius = np.asarray(s.get("subsurface_radius", 1.0), np.float32)
+            out.subsurface_radius[i] = np.broadcast_to(radius, (3,))
+            out.subsurface_anisotropy[i] = s.get("subsurface_anisotropy", 0.0)
+            out.subsurface_ior[i] = s.get("subsurface_ior", 1.4)
+            out.subsurface_alpha[i] = s.get("subsurface_alpha", 1.0)
+            out.subsurface_method[i] = s.get("subsurface_method", SUBSURFACE_RANDOM_WALK)
         return out
 
 
@@ -1056,7 +1088,11 @@ class Scene:
                                        ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
                                        ("bump_correction", (n,), 1), ("film_thickness", (n,), 0.0),
                                        ("film_ior", (n,), 1.33), ("film_tint", (n, 3), 1.0),
-                                       ("film_metal", (n,), 0.0),
+                                       ("film_metal", (n,), 0.0), ("subsurface_weight", (n,), 0.0),
+                                       ("subsurface_radius", (n, 3), 1.0),
+                                       ("subsurface_anisotropy", (n,), 0.0),
+                                       ("subsurface_ior", (n,), 1.4), ("subsurface_alpha", (n,), 1.0),
+                                       ("subsurface_method", (n,), SUBSURFACE_RANDOM_WALK),
                                        ("opacity_program", (n,), -1),
                                        ("transparent_color", (n, 3), 1.0), ("coat_weight", (n,), 0.0),
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
@@ -1076,7 +1112,7 @@ class Scene:
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
             colour = name.endswith(("color", "emission", "multiscatter", "rise", "dip", "layer", "tint",
-                                    "absorption", "scattering", "rest"))
+                                    "absorption", "scattering", "rest", "radius"))
             tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INTEGER_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
@@ -1108,6 +1144,10 @@ class Scene:
                                 ("displacement_bump", 0, 1), ("bump_correction", 0, 1),
                                 ("film_thickness", 0.0, 1e6), ("film_ior", 1e-5, 100.0),
                                 ("film_tint", 0.0, 1.0), ("film_metal", 0.0, 1.0),
+                                ("subsurface_weight", 0.0, 1.0), ("subsurface_radius", 0.0, np.inf),
+                                ("subsurface_anisotropy", 0.0, 0.9), ("subsurface_ior", 1.01, 3.8),
+                                ("subsurface_alpha", 0.0, 1.0),
+                                ("subsurface_method", SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),

@@ -91,8 +91,9 @@ from ...core.bsdf import (TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, 
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import dielectric_f0, mean_fresnel
 from ...core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD, NORMAL_BLENDER_OBJECT,
-                           NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, NORMAL_WORLD, VISIBLE_CAMERA,
-                           VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Materials)
+                           NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, NORMAL_WORLD,
+                           SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN, VISIBLE_CAMERA, VISIBLE_GLOSSY,
+                           VISIBLE_TRANSMISSION, Materials)
 from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
 from .procedural import NODES as PROGRAM_NODES
 
@@ -170,6 +171,9 @@ class Closure:
     # strength, distance) of a bump over it or None); None: the surface's before its maps.
     coat_normal: tuple = None
     holdout: float = 0.0            # weight of a Holdout shader (what camera rays cut out)
+    subsurface: float = 0.0         # the part of the diffuse weight that scatters beneath the surface
+    # (radius (3,) scene units, anisotropy, IOR, entry alpha, core.scene.SUBSURFACE_*) of that part
+    subsurface_params: tuple = None
     hidden_rays: int = 0            # VISIBLE_* bits of the camera-path rays that pass through it
 
     @staticmethod
@@ -198,6 +202,7 @@ class Closure:
                       transparent=fa * self.transparent + fb * other.transparent,
                       transparent_weight=fa * self.transparent_weight + fb * other.transparent_weight,
                       holdout=fa * self.holdout + fb * other.holdout,
+                      subsurface=fa * self.subsurface + fb * other.subsurface,
                       refraction_only=fa * self.refraction_only + fb * other.refraction_only,
                       hidden_rays=self.hidden_rays & other.hidden_rays)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
@@ -215,6 +220,9 @@ class Closure:
             out.stretch_texture = {"op": "math", "operation": "EXPONENT", "a": _float_average(terms)}
         out.diffuse_roughness = _weighted(self.diffuse_roughness, other.diffuse_roughness, wa[DIFFUSE],
                                           wb[DIFFUSE])
+        # One medium per material: the first side's that scatters beneath (mixes_exactly).
+        beneath = [c.subsurface_params for c, f in ((self, fa), (other, fb)) if f * c.subsurface > 0]
+        out.subsurface_params = beneath[0] if beneath else None
         sides = ((self, wa), (other, wb))
         out.roughness_texture = _mixed_map(sides, GLOSSY, "roughness_texture", Closure.roughness_term)
         rising = (wa[GLOSSY] * (self.fresnel_ior > 0), wb[GLOSSY] * (other.fresnel_ior > 0))
@@ -478,6 +486,9 @@ class Closure:
             return False
         if both(DIFFUSE) and not np.isclose(self.diffuse_roughness, other.diffuse_roughness):
             return False
+        if self.subsurface > 0 and other.subsurface > 0 and not _same_medium(self.subsurface_params,
+                                                                             other.subsurface_params):
+            return False
         return self.same_coat(other) or self.coat == 0 or other.coat == 0
 
     def same_diffuse_base(self, other) -> bool:
@@ -529,7 +540,7 @@ class Closure:
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
                                                              "rise", "metal_rise", "metal_dip", "layer",
                                                              "layered", "coat", "holdout", "refraction_only",
-                                                             "film_metal")}
+                                                             "film_metal", "subsurface")}
         out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
                                   opacity_texture=None,
                                   reflection=None if self.reflection is None else self.reflection / o)
@@ -628,6 +639,11 @@ class Closure:
             s["holdout"] = min(self.holdout, 1.0)
         if self.diffuse_roughness > 0 and self.weight[DIFFUSE] > 0:
             s["diffuse_roughness"] = float(np.clip(self.diffuse_roughness, 0.0, 1.0))
+        if self.subsurface > 0 and self.weight[DIFFUSE] > 0 and self.subsurface_params is not None:
+            radius, anisotropy, ior, alpha, method = self.subsurface_params
+            s.update(subsurface_weight=float(np.clip(self.subsurface / self.weight[DIFFUSE], 0.0, 1.0)),
+                     subsurface_radius=radius, subsurface_anisotropy=anisotropy, subsurface_ior=ior,
+                     subsurface_alpha=alpha, subsurface_method=method)
         if self.coat > 0:
             s.update(coat=min(self.coat, 1.0), coat_roughness=self.coat_roughness, coat_ior=self.coat_ior,
                      coat_tint=self.coat_tint)
@@ -802,6 +818,11 @@ def _image_height(texture: int) -> dict:
 def textured(source) -> bool:
     """Whether a colour source (:meth:`NodeWalker.color`) varies over the surface."""
     return isinstance(source, dict) or source >= 0
+
+
+def _same_medium(a, b) -> bool:
+    """Whether two ``Closure.subsurface_params`` are the same medium."""
+    return a is None or b is None or (a[4] == b[4] and all(np.allclose(x, y) for x, y in zip(a[:4], b[:4])))
 
 
 def _same_film(a, b) -> bool:
@@ -1011,7 +1032,8 @@ class MaterialExporter:
     def coordinates_used(self, ids) -> set:
         """Names of the data (``procedural.ATTRIBUTES``) the procedural colours of ``ids`` read
         (and "generated" for an anisotropic glossy lobe's radial tangent, "object" for an
-        object-space normal map: the objects' transforms)."""
+        object-space normal map: the objects' transforms, and for subsurface scattering, whose
+        walks stay inside their object)."""
         used = set()
         for i in self._with_levels(ids):
             for key in Materials.PROGRAM_FIELDS:
@@ -1024,6 +1046,8 @@ class MaterialExporter:
             if ("displacement_program" in self._specs[i]
                     and not self._specs[i].get("displacement_flags", 0) & DISPLACE_WORLD):
                 used.add("object")                  # (an offset in the object's space)
+            if self._specs[i].get("subsurface_weight", 0.0) > 0:
+                used.add("object")                  # (random walks stay inside their object)
         return used
 
     def tangent_uv(self, ids):
@@ -1596,14 +1620,30 @@ class NodeWalker:
         return c
 
     def _subsurface(self, node, stack):
-        """Subsurface Scattering BSDF: a diffuse lobe of its colour (the core has no subsurface
-        model; Principled's Subsurface Weight renders so too), noted."""
-        self.note(f"'{node.name}': subsurface scattering is not supported (rendered as diffuse of its "
-                  "colour)")
-        color, tex = self.color(node.inputs["Color"], stack)
+        """Subsurface Scattering BSDF: a diffuse lobe of its colour that scatters beneath the
+        surface (Cycles' Random Walk; Christensen-Burley renders so too, noted)."""
+        inp = node.inputs
+        color, tex = self.color(inp["Color"], stack)
         c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if textured(tex) else color)
         c.texture = tex
+        # Cycles: the Roughness input is the entry's alpha itself (saturated).
+        alpha = float(np.clip(self.value(inp["Roughness"], stack), 0.0, 1.0)) if "Roughness" in inp else 1.0
+        c.subsurface = 1.0
+        c.subsurface_params = self.subsurface_medium(node, node.falloff, inp["Radius"], inp["Scale"],
+                                                     inp["IOR"], inp["Anisotropy"], alpha, stack)
         return c
+
+    def subsurface_medium(self, node, method, radius, scale, ior, anisotropy, alpha, stack):
+        """``Closure.subsurface_params`` of a subsurface part: Blender's ``method`` (its Random Walk
+        methods; Christensen-Burley as Random Walk, noted) and its inputs ``radius``, ``scale``,
+        ``ior``, ``anisotropy`` (sockets) and the entry's GGX ``alpha``, clamped as Cycles does."""
+        if method == "BURLEY":
+            self.note(f"'{node.name}': Christensen-Burley subsurface scattering renders as Random Walk")
+        r = np.maximum(np.asarray(self.programs.constant_of(radius, stack, VEC), np.float64), 0.0)
+        r = r * max(self.value(scale, stack), 0.0)
+        return (r, float(np.clip(self.value(anisotropy, stack), 0.0, 0.9)),
+                float(np.clip(self.value(ior, stack), 1.01, 3.8)), alpha,
+                SUBSURFACE_SKIN if method == "RANDOM_WALK_SKIN" else SUBSURFACE_RANDOM_WALK)
 
     def _glossy(self, node, stack, color=None, program=None):
         """A glossy lobe of (mean) ``color``, varying as ``program`` if given."""
@@ -1873,8 +1913,8 @@ class NodeWalker:
         ignored = [label for label, socket in PRINCIPLED_IGNORED
                    if socket in inp and self.value(inp[socket], stack) > 0.0]
         if ignored:
-            self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored; subsurface "
-                      "renders as diffuse)")
+            self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored)")
+        beneath = float(np.clip(self.value(inp["Subsurface Weight"], stack), 0.0, 1.0))
         film = self.thin_film(node, stack)
 
         base_color = np.ones(3) if textured(tex) else base
@@ -1898,6 +1938,15 @@ class NodeWalker:
             c.coat_normal = self.coat_normal(node, stack)
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
+        if beneath > 0 and dielectric > 0:
+            # Cycles: the IOR is the Principled's (Random Walk: the entry's alpha its roughness
+            # squared) or, for Skin, the Subsurface IOR (alpha 1).
+            skin = node.subsurface_method == "RANDOM_WALK_SKIN"
+            c.subsurface = dielectric * beneath
+            c.subsurface_params = self.subsurface_medium(
+                node, node.subsurface_method, inp["Subsurface Radius"], inp["Subsurface Scale"],
+                inp["Subsurface IOR"] if skin else inp["IOR"], inp["Subsurface Anisotropy"],
+                1.0 if skin else rough ** 2, stack)
         eta, f0 = specular_ior(ior, level)
         # Cycles drops a layer of IOR 1, unless a film coats it (a soap film's reflection).
         spec = dielectric if eta > 1.0 + 1e-6 or film is not None else 0.0
@@ -1981,7 +2030,7 @@ SPECULAR_LEVEL = "Specular IOR Level"
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")
 
 # Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
-PRINCIPLED_IGNORED = (("Subsurface", "Subsurface Weight"), ("Sheen", "Sheen Weight"))
+PRINCIPLED_IGNORED = (("Sheen", "Sheen Weight"),)
 
 SHADERS = {
     "ShaderNodeBsdfPrincipled": NodeWalker._principled,

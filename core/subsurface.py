@@ -1,0 +1,296 @@
+"""Subsurface scattering: Cycles' random walk beneath a surface, taken on the camera side.
+
+Cycles' BSSRDF (the Random Walk methods of Blender's Principled BSDF and Subsurface Scattering
+BSDF) sends a camera path that picks it into the surface, walks it through a homogeneous medium
+inside the object until it meets the object's surface again, and lights the exit as a white
+diffuse surface.  Here the eye pass does the same (:func:`random_walk`): a measurement point on
+such a surface becomes, with the subsurface part's share, a point at the exit of a walk, which
+gathers photons by a Lambertian lobe (``eye_pass``).  The walk depends on the camera ray alone, so
+the photon paths and their primary samples are unchanged.
+
+Photons scatter off a subsurface material as off a diffuse surface of its colour: Cycles does that
+for every path after a diffuse bounce (its diffuse-ancestor fallback), and light that leaves such
+a material to reach the camera through other diffuse surfaces is so in Cycles too.
+
+The medium (Chiang, Kutz and Burley 2016, "Practical and Controllable Subsurface Scattering for
+Production Path Tracing"; anisotropy from Wrenninge, Villemin and Hery 2017, "Path Traced
+Subsurface Scattering using Anisotropic Phase Functions and Non-Exponential Free Flights"): per
+channel, the single-scattering albedo whose multiple scattering gives the surface's colour,
+an extinction of 1 / (d (1 - g)) for a mean free path d, and Henyey-Greenstein scattering of
+anisotropy g.  Distances are sampled by a channel picked in proportion to albedo times
+throughput, with the balance heuristic over the channels, so each channel's estimate is that of
+its own medium.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .accel import Hits
+from .sampling import (cosine_hemisphere, dot, ggx_sample_visible_normal, hg_phase, normalize, sample_hg,
+                       to_local, to_world)
+from .scene import SUBSURFACE_SKIN
+
+MAX_STEPS = 256                   # Cycles' BSSRDF_MAX_BOUNCES: a walk that has not left is lost
+SIMILARITY_STEP = 9               # after this many steps, isotropic with the similar coefficients
+MIN_ALPHA = 0.2                   # single-scattering albedos are kept above, the throughput scaled
+THROUGHPUT_EPSILON = 1e-6         # a walk whose throughput falls below stops (Cycles' volumes')
+MIN_RADIUS = 1e-8                 # channels of a smaller radius stay diffuse (Cycles)
+SKIN_DIFFUSE_ENTRY = 0.5          # Random Walk (Skin): the share of entries that are diffuse
+WALK_NUMBERS = 6                  # uniform numbers a step takes
+
+
+def single_scattering_albedo(albedo, g):
+    """(..., 3) the single-scattering albedo whose medium's multiple scattering reflects
+    ``albedo`` (the fit of Wrenninge et al. to anisotropy ``g`` (...,), which Cycles uses), in
+    [0, 0.999999]."""
+    g = np.asarray(g, np.float64)[..., None]
+    powers = [g ** k for k in range(8)]
+
+    def poly(c):
+        return sum(ck * pk for ck, pk in zip(c, powers))
+    a = poly((1.8260523782, -1.28451056436, -1.79904629312, 9.19393289202, -22.8215585862, 32.0234874259,
+              -23.6264803333, 7.21067002658))
+    b = 4.98511194385 + 0.127355959438 * np.exp(poly((0.0, 31.1491581433, -201.847017512, 841.576016723,
+                                                      -2018.09288505, 2731.71560286, -1935.41424244,
+                                                      559.009054474)))
+    c = poly((1.09686102424, -0.394704063468, 1.05258115941, -8.83963712726, 28.8643230661, -46.8802913581,
+              38.5402837518, -12.7181042538))
+    d = poly((0.496310210422, 0.360146581622, -2.15139309747, 17.8896899217, -55.2984010333, 82.065982243,
+              -58.5106008578, 15.8478295021))
+    e = 4.23190299701 + 0.00310603949088 * np.exp(poly((0.0, 76.7316253952, -594.356773233, 2448.8834203,
+                                                        -5576.68528998, 7116.60171912, -4763.54467887,
+                                                        1303.5318055)))
+    f = poly((2.40602999408, -2.51814844609, 9.18494908356, -79.2191708682, 259.082868209, -403.613804597,
+              302.85712436, -87.4370473567))
+    albedo = np.asarray(albedo, np.float64)
+    blend = albedo ** 0.25
+    alpha = (1.0 - blend) * a * np.arctan(b * albedo) ** c + blend * d * np.arctan(e * albedo) ** f
+    return np.clip(alpha, 0.0, 0.999999)
+
+
+def skin_radius(radius, albedo, ior):
+    """(k, 3) Random Walk (Skin)'s mean free paths: ``radius`` times sqrt(3 (1 - a')), a' the
+    reduced albedo whose dipole (Jensen et al. 2001, with the boundary of ``ior`` (k,)) reflects
+    ``albedo`` (bisection, as Cycles)."""
+    inv = 1.0 / np.asarray(ior, np.float64)
+    f_dr = inv * (-1.440 * inv + 0.710) + 0.668 + 0.0636 * np.asarray(ior, np.float64)
+    four_thirds_a = ((4.0 / 3.0) * (1.0 + f_dr) / (1.0 - f_dr))[:, None]
+
+    def reflectance(a):
+        s = np.sqrt(3.0 * (1.0 - a))
+        return 0.5 * a * (1.0 + np.exp(-four_thirds_a * s)) * np.exp(-s)
+    albedo = np.asarray(albedo, np.float64)
+    lo, hi = np.zeros_like(albedo), np.ones_like(albedo)
+    for _ in range(12):
+        mid = 0.5 * (lo + hi)
+        below = reflectance(mid) < albedo
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    a = np.where(albedo < 1e-4, 0.0, np.where(albedo >= 0.995, 0.999999, 0.5 * (lo + hi)))
+    return np.asarray(radius, np.float64) * np.sqrt(3.0 * (1.0 - a))
+
+
+def medium(albedo, radius, g, method, ior):
+    """(sigma_t, alpha, scale) (k, 3) of walks of surfaces of colour ``albedo`` (clamped to [0, 1])
+    and radii ``radius`` (k, 3), anisotropy ``g``, ``method`` (SUBSURFACE_*) and ``ior`` (k,): the
+    extinction, the single-scattering albedo (at least MIN_ALPHA) and the throughput's factor for
+    that floor."""
+    albedo = np.clip(np.asarray(albedo, np.float64), 0.0, 1.0)
+    radius = np.asarray(radius, np.float64)
+    skin = np.asarray(method) == SUBSURFACE_SKIN
+    d = np.where(skin[:, None], skin_radius(radius, albedo, ior), radius * (0.25 / np.pi))
+    g = np.asarray(g, np.float64)
+    sigma_t = 1.0 / (np.maximum(d, 1e-16) * (1.0 - g)[:, None])
+    alpha = single_scattering_albedo(albedo, g)
+    scale = np.where(alpha < MIN_ALPHA, alpha / MIN_ALPHA, 1.0)
+    return sigma_t, np.maximum(alpha, MIN_ALPHA), scale
+
+
+def entry_directions(n, ng, wo, alpha, ior, diffuse_share, u):
+    """(k, 3) directions into the surface at points of (shading) normal ``n`` and geometric normal
+    ``ng`` (both on the side of ``wo``, the direction back along the camera ray) and (k,) whether
+    each is valid (it goes below ``ng``): with probability ``diffuse_share`` cosine-distributed
+    about -n, else the view refracted at a GGX microfacet of ``alpha`` (a visible normal, without
+    a weight: Cycles keeps only the direction) and the relative index ``ior``.  ``u`` (k, 3)."""
+    out = np.empty((len(n), 3))
+    diffuse = u[:, 0] < diffuse_share
+    rows = np.flatnonzero(diffuse)
+    if len(rows):
+        # (one number picks and samples: rescaled)
+        local = cosine_hemisphere(u[rows, 0] / diffuse_share.take(rows), u[rows, 1])
+        out[rows] = to_world(local, -n.take(rows, axis=0))
+    rows = np.flatnonzero(~diffuse)
+    valid = np.ones(len(n), bool)
+    if len(rows):
+        share = diffuse_share.take(rows)
+        u0 = np.clip((u[rows, 0] - share) / np.maximum(1.0 - share, 1e-12), 0.0, 1.0 - 1e-12)
+        nf, w = n.take(rows, axis=0), wo.take(rows, axis=0)
+        w_local = to_local(w, nf)
+        valid[rows] = w_local[:, 2] > 0.0
+        w_local[:, 2] = np.maximum(w_local[:, 2], 1e-7)
+        h = ggx_sample_visible_normal(w_local, np.maximum(alpha.take(rows), 1e-7), u0, u[rows, 1])
+        h = to_world(h, nf)
+        cos_hi = dot(h, w)
+        neta = 1.0 / ior.take(rows)
+        root = np.sqrt(np.maximum(1.0 - neta ** 2 * (1.0 - cos_hi ** 2), 0.0))
+        out[rows] = normalize(-neta[:, None] * w + (neta * cos_hi - np.maximum(root, 1e-7))[:, None] * h)
+    return out, valid & (dot(out, ng) < 0.0)
+
+
+def diffusion_length(alpha):
+    """(k,) the Dwivedi guiding's diffusion length at single-scattering albedos ``alpha`` (k,) (their
+    channels' largest, as Cycles: d'Eon and Krivanek 2020, eq. 67), above 1."""
+    a = np.asarray(alpha, np.float64)
+    return 1.0 / np.sqrt(np.maximum(1.0 - a ** (2.44294 - 0.0215813 * a + 0.578637 / a), 1e-300))
+
+
+def random_walk(intersect, origins, dirs, normals, sigma_t, alpha, g, throughput, uniforms, guide=True):
+    """Walk k paths from ``origins`` (k, 3) on the surface, of (outward) normals ``normals``, along
+    ``dirs`` (k, 3) through media of extinction ``sigma_t`` (k, 3), single-scattering albedo
+    ``alpha`` (k, 3) and anisotropy ``g`` (k,), each until it meets the surface again;
+    ``intersect(rows, origins, dirs, tmax)`` gives the :class:`~core.accel.Hits` of walks ``rows``
+    (their own object's surface alone); ``uniforms(rows, step)`` the (len(rows), WALK_NUMBERS)
+    numbers of walks ``rows`` at that step.
+
+    Each step after the first samples its direction by the phase function or, with Cycles' share,
+    by Dwivedi's guiding towards the surface (Meng, Hanika and Dachsbacher 2016), or towards the
+    opposite one that the first step's ray found, and its distance with the guide's stretched
+    extinction; the balance heuristic over the strategies and channels keeps each channel's
+    estimate that of its medium, while the walks leave in far fewer steps (those still inside
+    after MAX_STEPS are lost, as in Cycles).  ``guide`` False: the phase function alone.
+
+    Returns (rows, hits, dirs, throughput): the walks that left (indices into the k), where
+    (their Hits), along which directions, and with what throughput (``throughput`` (k, 3) times
+    each channel's estimate)."""
+    k = len(origins)
+    sigma_s = sigma_t * alpha
+    g = np.asarray(g, np.float64)
+    # Similarity after SIMILARITY_STEP steps: isotropic, with the scattering reduced by 1 - g.
+    sigma_s_star = sigma_s * (1.0 - g)[:, None]
+    sigma_t_star = sigma_t - sigma_s + sigma_s_star
+    v = diffusion_length(alpha.max(axis=1))
+    phase_log = np.log((v + 1.0) / (v - 1.0))
+    share = 1.0 - np.maximum(0.5, np.abs(g) ** 0.125)          # Cycles' share of guided steps
+    start, n = np.asarray(origins, np.float64), np.asarray(normals, np.float64)
+    opposite = np.full(k, np.nan)                               # depth of the opposite surface, if any
+    rows = np.arange(k)
+    pos, d = start.copy(), np.asarray(dirs, np.float64).copy()
+    beta = np.asarray(throughput, np.float64).copy()
+    out_rows, out_hits, out_dirs, out_beta = [], [], [], []
+    for step in range(MAX_STEPS):
+        if len(rows) == 0:
+            break
+        similar = step > SIMILARITY_STEP
+        st = (sigma_t_star if similar else sigma_t).take(rows, axis=0)
+        ss = (sigma_s_star if similar else sigma_s).take(rows, axis=0)
+        m = len(rows)
+        u = uniforms(rows, step)
+        # The channel by albedo times throughput (uniform where those are all 0).
+        w = alpha.take(rows, axis=0) * np.abs(beta)
+        total = w.sum(axis=1)
+        w = np.where((total > 0)[:, None], w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
+        channel = (u[:, :1] >= np.cumsum(w, axis=1)[:, :2]).sum(axis=1)
+        sample_st = st[np.arange(m), channel]
+        vr, logr, nr = v.take(rows), phase_log.take(rows), n.take(rows, axis=0)
+        if step:
+            gf = np.full(m, 0.75) if similar else share.take(rows)
+            gf = gf if guide else np.zeros(m)
+            gg = np.zeros(m) if similar else g.take(rows)
+            opp = opposite.take(rows)
+            has_opp = np.isfinite(opp)
+            depth = np.clip(dot(pos - start.take(rows, axis=0), -nr), 0.0, np.where(has_opp, opp, 0.0))
+            # (Cycles' chance of guiding towards the opposite side, by the depth reached)
+            x = np.minimum((np.where(has_opp, opp, 0.0) - 2.0 * depth) / vr, 700.0)
+            back_share = np.where(has_opp, 1.0 / (1.0 + np.exp(x)), 0.0)
+            guided = u[:, 2] < gf
+            backward = guided & (u[:, 3] < back_share)
+            new_d = sample_hg(d, gg, u[:, 4], u[:, 5])
+            gr = np.flatnonzero(guided)
+            if len(gr):
+                cos = vr[gr] - (vr[gr] + 1.0) * np.exp(-u[gr, 4] * logr[gr])
+                cos = np.clip(np.where(backward[gr], -cos, cos), -1.0, 1.0)
+                sin = np.sqrt(np.maximum(1.0 - cos * cos, 0.0))
+                phi = 2.0 * np.pi * u[gr, 5]
+                local = np.stack([sin * np.cos(phi), sin * np.sin(phi), cos], axis=1)
+                new_d[gr] = to_world(local, nr[gr])
+            hg = hg_phase(dot(d, new_d), gg)
+            cos = dot(new_d, nr)
+            forward_factor = 1.0 / (2.0 * np.pi * (vr - cos) * logr * hg)
+            backward_factor = 1.0 / (2.0 * np.pi * (vr + cos) * logr * hg)
+            forward_stretch, backward_stretch = 1.0 - cos / vr, 1.0 + cos / vr
+            stretch = np.where(backward, backward_stretch, forward_stretch)
+            sample_st = sample_st * np.where(guided, stretch, 1.0)
+            d = new_d
+        t = -np.log1p(-u[:, 1]) / sample_st
+        reach = t if step else np.maximum(t, 10.0 / st.min(axis=1))    # (looks for the opposite side)
+        hits = intersect(rows, pos, d, reach)
+        found = hits.is_hit
+        if not step:
+            f = np.flatnonzero(found)
+            hit_pos = pos[f] + hits.t.take(f).astype(np.float64)[:, None] * d[f]
+            opposite[rows[f]] = dot(hit_pos - start.take(rows[f], axis=0), -nr[f])
+            found = found & (hits.t.astype(np.float64) < t)
+        t = np.where(found, hits.t.astype(np.float64), t)
+
+        def pdf(sigma):
+            tr_ = np.exp(-sigma * t[:, None])
+            return np.where(found[:, None], tr_, sigma * tr_)
+        tr = np.exp(-st * t[:, None])
+        p = pdf(st)
+        if step:
+            guided_p = pdf(forward_stretch[:, None] * st) * forward_factor[:, None]
+            if has_opp.any():
+                back_p = pdf(backward_stretch[:, None] * st) * backward_factor[:, None]
+                guided_p = np.where(has_opp[:, None], (1.0 - back_share[:, None]) * guided_p
+                                    + back_share[:, None] * back_p, guided_p)
+            p = (1.0 - gf[:, None]) * p + gf[:, None] * guided_p
+        beta = beta * np.where(found[:, None], tr, ss * tr) / np.maximum((w * p).sum(axis=1), 1e-300)[:, None]
+        left = np.flatnonzero(found)
+        if len(left):
+            out_rows.append(rows.take(left))
+            out_hits.append(_take_hits(hits, left))
+            out_dirs.append(d.take(left, axis=0))
+            out_beta.append(beta.take(left, axis=0))
+        stay = np.flatnonzero(~found & (beta.max(axis=1) >= THROUGHPUT_EPSILON))
+        pos = pos.take(stay, axis=0) + t.take(stay)[:, None] * d.take(stay, axis=0)
+        rows, beta, d = rows.take(stay), beta.take(stay, axis=0), d.take(stay, axis=0)
+    if not out_rows:
+        z = np.zeros(0)
+        none = Hits(np.zeros(0, bool), np.zeros(0, np.int32), np.zeros(0, np.float32), z, z)
+        return np.zeros(0, np.int64), none, np.zeros((0, 3)), np.zeros((0, 3))
+    return (np.concatenate(out_rows), _concat_hits(out_hits), np.concatenate(out_dirs),
+            np.concatenate(out_beta))
+
+
+def _take_hits(hits, rows):
+    return Hits(hits.is_hit.take(rows), hits.prim_ids.take(rows), hits.t.take(rows), hits.b1.take(rows),
+                hits.b2.take(rows))
+
+
+def _concat_hits(parts):
+    return Hits(*(np.concatenate([getattr(p, f) for p in parts])
+                  for f in ("is_hit", "prim_ids", "t", "b1", "b2")))
+
+
+def exit_variant(mats):
+    """(materials, row): ``mats`` (``scene.Materials``) followed by the surface at the exits of
+    walks (a white Lambertian lobe alone, Cycles' diffuse BSDF there) and its row, when some of
+    them scatter beneath their surface; else (``mats``, -1)."""
+    if not (np.asarray(mats.subsurface_weight) > 0).any():
+        return mats, -1
+    rows = np.concatenate([np.arange(mats.count), [0]])
+    changes = {name: np.ascontiguousarray(getattr(mats, name)[rows]) for name in mats.ARRAY_FIELDS}
+    for name in mats.ARRAY_FIELDS:
+        if name in mats.INDEX_FIELDS or name in ("glossy_metal_tint", "level_first"):
+            changes[name][-1] = -1
+        elif name not in ("ior", "glossy_roughness", "glossy_tangent", "normal_space", "film_ior",
+                          "subsurface_ior"):
+            changes[name][-1] = 0
+    for name in ("diffuse_weight", "diffuse_color", "opacity", "normal_strength", "bump_strength",
+                 "bump_distance", "outer_bump_strength", "outer_bump_distance", "coat_bump_strength",
+                 "coat_bump_distance", "diffuse_layer_weight", "glossy_stretch", "glossy_metal_share",
+                 "bump_correction", "dielectric_fresnel", "transparent_color", "film_tint",
+                 "subsurface_radius", "subsurface_alpha"):
+        changes[name][-1] = 1
+    return dataclasses.replace(mats, names=list(mats.names) + ["subsurface exit"], **changes), mats.count
