@@ -32,14 +32,15 @@ import numpy as np
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
                    face_forward, glossy_anisotropic_value, lobe_remainder, lobe_scores, pick_coat,
                    refraction_scale, rough_diffuse_factor, rough_diffuse_terms, scatter)
+from . import subsurface
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from .procedural import Rays, photon_path
 from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
-from .sampling import dot, hg_phase, luminance, sample_hg, tangent_axes
-from .texture_hash import float_as_uint, hash_uint3_to_float
+from .sampling import cosine_hemisphere, dot, hg_phase, luminance, sample_hg, tangent_axes, to_world
+from .texture_hash import float_as_uint, hash_uint3, hash_uint3_to_float
 from .visible_cells import VisibleCells
 
 ISOTROPIC_PHASE = 1.0 / (4.0 * np.pi)      # hg_phase at g = 0, to the bit
@@ -51,6 +52,8 @@ BOUNCE_DIMS = 4
 # for the pick of a material's level at a surface vertex (Materials.level_program).
 DISTANCE_KEYS = 1 << 24
 LEVEL_KEYS = 1 << 25
+# ... and for the random walks beneath surfaces (_walk_uniforms).
+WALK_KEYS = 1 << 26
 
 
 def _crossing_uniforms(u, idx, bounce, base=0):
@@ -816,9 +819,15 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 mats, colors, scores, layer_scale, under, u0 = pick_coat(table, mats, colors, scores, u0)
                 ns = coat_normals(surf, mats)
             lobe, prob = choose_lobe(scores, u0)
-            u3 = lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric else None
+            u3 = (lobe_remainder(scores, u0, lobe) if table.has_rough_dielectric or ctx.subsurface_exit >= 0
+                  else None)
             wi, weight, alive = scatter(table, mats, colors, lobe, prob, wo, surf.ng, ns,
                                         block[:, 1], block[:, 2], "importance", u3, surf.nn, surf.tangent)
+            leave = None
+            if ctx.subsurface_exit >= 0:
+                # Some go beneath the surface and leave it elsewhere (their new origins: leave).
+                leave = _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, u3, wo, wi, weight,
+                                 alive)
             if bounce == 0 and excluding:
                 alive &= (ctx.lights.excluded(u[idx, 0]) & scatter_kind(lobe, wi, wo, surf.ng)) == 0
             if table.has_coat:
@@ -838,9 +847,14 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             idx = idx.take(keep)
             flux = new_flux.take(keep, axis=0) / q.take(keep)[:, None]
             dirs = wi.take(keep, axis=0)
+            position, ng = surf.position, surf.ng
+            if leave is not None:
+                rows, position, ng = leave
             if volumes:
-                medium = ctx.next_medium(medium.take(keep), prim.take(keep), dirs, wo.take(keep, axis=0))
-            origins = accel.spawn(surf.position.take(keep, axis=0), surf.ng.take(keep, axis=0), dirs)
+                left = None if leave is None else np.isin(keep, rows)
+                medium = np.where(left, medium.take(keep), ctx.next_medium(medium.take(keep), prim.take(keep), dirs,
+                                                                          wo.take(keep, axis=0)))
+            origins = accel.spawn(position.take(keep, axis=0), ng.take(keep, axis=0), dirs)
         else:
             flux, dirs, origins = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
             medium = np.zeros(0, np.int32)
@@ -876,6 +890,87 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         sums.flush()
         total = sums.total
     return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices)
+
+
+def _walk_uniforms(u, idx, bounce):
+    """The numbers of the random walks beneath surfaces of photons of paths ``idx`` at vertex
+    ``bounce`` (``subsurface.random_walk``'s ``uniforms``; step MAX_STEPS: the direction they leave
+    in): from a seed per walk hashed as :func:`_crossing_uniforms`' numbers from the light position
+    dimensions and the vertex (``subsurface.hashed_uniforms``)."""
+    key = np.full(len(idx), WALK_KEYS + bounce, np.uint32)
+    high = hash_uint3(float_as_uint(u[idx, 1]), float_as_uint(u[idx, 2]), key)
+    low = hash_uint3(float_as_uint(u[idx, 3]), high, key)
+    seeds = (high.astype(np.uint64) << np.uint64(32)) | low.astype(np.uint64)
+
+    def uniforms(rows, step):
+        return subsurface.hashed_uniforms(seeds.take(rows), step)
+    return uniforms
+
+
+def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo, wi, weight, alive):
+    """Photons of paths ``idx`` (at ``surf``, triangles ``prim``) that picked the diffuse lobe (``lobe``,
+    with probability ``prob``)
+    of a material that scatters beneath its surface (``Materials.subsurface_weight``) go beneath
+    with that part's share (by ``pick``, the lobe number's remainder), as the light that Cycles'
+    walks from a camera path reach: in a cosine-distributed direction (the exit's diffuse BSDF,
+    weight 1), through a random walk (``core/subsurface.py``, its medium by the colour where
+    they entered), and out of the surface where it ends, in a cosine-distributed direction with the
+    part's weight at that direction (under a Fresnel layer, its factor there): the light the
+    walk's entry lets into the surface from there, its refractive entry taken as diffuse.  The
+    others keep their diffuse lobe without the part.  Updates ``wi``, ``weight`` and ``alive`` (walks
+    that do not leave are lost) in place; returns None or (rows, positions, normals): the photons
+    that left and where they leave from (the others' own positions and normals)."""
+    materials, table, accel = ctx.materials, ctx.table, ctx.accel
+    share = np.asarray(materials.subsurface_weight, np.float64).take(mats)
+    rows = np.flatnonzero((lobe == DIFFUSE) & (share > 0) & alive)
+    if len(rows) == 0:
+        return None
+    m = mats.take(rows)
+    radius = np.asarray(materials.subsurface_radius, np.float64).take(m, axis=0)
+    part = share.take(rows)[:, None] * (radius >= subsurface.MIN_RADIUS)
+    q = part.mean(axis=1)
+    into = pick.take(rows) < q
+    stay = rows[~into]
+    weight[stay] *= (1.0 - part[~into]) / (1.0 - q[~into, None])
+    go, m, part, q = rows[into], m[into], part[into], q[into]
+    if len(go) == 0:
+        return None
+    block = u[idx.take(go), bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
+    ng_in = face_forward(surf.ng.take(go, axis=0), wo.take(go, axis=0))
+    n_in = face_forward(surf.ns.take(go, axis=0), ng_in)
+    d = to_world(cosine_hemisphere(block[:, 1], block[:, 2]), -n_in)
+    method = np.asarray(materials.subsurface_method).take(m)
+    g = np.asarray(materials.subsurface_anisotropy, np.float64).take(m)
+    sigma_t, albedo, scale = subsurface.medium(colors[go, DIFFUSE], radius[into], g, method,
+                                               np.asarray(materials.subsurface_ior, np.float64).take(m))
+    objects = None if accel.object_ids is None else accel.object_ids.take(prim.take(go))
+
+    def intersect(r, origins, dirs, tmax):
+        if objects is None:
+            return accel.intersect(origins, dirs, tmax)
+        return accel.local_scene().intersect(origins, dirs, tmax, objects.take(r))
+    numbers = _walk_uniforms(u, idx.take(go), bounce)
+    left, hits, d_out, beta = subsurface.random_walk(
+        intersect, accel.spawn(surf.position.take(go, axis=0), ng_in, d), d, n_in, sigma_t, albedo, g,
+        scale / (prob.take(go) * q)[:, None], numbers)
+    alive[go] = False
+    if len(left) == 0:
+        return None
+    out = go.take(left)
+    v = numbers(left, subsurface.MAX_STEPS)
+    exit_ = ctx.surface(hits.prim_ids, hits.b1, hits.b2, v[:, 0] if ctx.has_level_programs else None, Rays(d_out))
+    ng_out = face_forward(exit_.ng, d_out)
+    n_out = face_forward(exit_.ns, ng_out)
+    leave = to_world(cosine_hemisphere(v[:, 1], v[:, 2]), n_out)
+    w = part.take(left, axis=0) * table.weight[m.take(left), DIFFUSE, None]
+    if table.has_layer:
+        w *= table.layer_factor(m.take(left), np.abs(dot(leave, n_out)))[:, None]
+    wi[out] = leave
+    weight[out] = beta * w
+    alive[out] = dot(leave, ng_out) > 0
+    position, ng = surf.position.copy(), surf.ng.copy()
+    position[out], ng[out] = exit_.position, ng_out
+    return out, position, ng
 
 
 def scatter_kind(lobe, wi, wo, ng):

@@ -145,6 +145,18 @@ def diffusion_length(alpha):
     return 1.0 / np.sqrt(np.maximum(1.0 - a ** (2.44294 - 0.0215813 * a + 0.578637 / a), 1e-300))
 
 
+def hashed_uniforms(seeds, step):
+    """(k, WALK_NUMBERS) uniform numbers in [0, 1) of walks of uint64 ``seeds`` (k,) at ``step``:
+    SplitMix64's finaliser of the seed and the number's counter (a function of the seed alone, so a
+    photon's walk stays a function of its primary sample; one array pass for all six numbers)."""
+    counter = np.uint64(step * WALK_NUMBERS) + np.arange(WALK_NUMBERS, dtype=np.uint64)
+    z = seeds[:, None] * np.uint64(0x9E3779B97F4A7C15) + counter * np.uint64(0xD1B54A32D192ED03)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    z ^= z >> np.uint64(31)
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0 ** -53
+
+
 def random_walk(intersect, origins, dirs, normals, sigma_t, alpha, g, throughput, uniforms, guide=True):
     """Walk k paths from ``origins`` (k, 3) on the surface, of (outward) normals ``normals``, along
     ``dirs`` (k, 3) through media of extinction ``sigma_t`` (k, 3), single-scattering albedo
