@@ -826,8 +826,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             leave = None
             if ctx.subsurface_exit >= 0:
                 # Some go beneath the surface and leave it elsewhere (their new origins: leave).
-                leave = _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, u3, wo, wi, weight,
-                                 alive)
+                leave = _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, u3, wo, wi,
+                                 weight, alive)
             if bounce == 0 and excluding:
                 alive &= (ctx.lights.excluded(u[idx, 0]) & scatter_kind(lobe, wi, wo, surf.ng)) == 0
             if table.has_coat:
@@ -851,9 +851,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             if leave is not None:
                 rows, position, ng = leave
             if volumes:
-                left = None if leave is None else np.isin(keep, rows)
-                medium = np.where(left, medium.take(keep), ctx.next_medium(medium.take(keep), prim.take(keep), dirs,
-                                                                          wo.take(keep, axis=0)))
+                medium = medium.take(keep)
+                crossed = ctx.next_medium(medium, prim.take(keep), dirs, wo.take(keep, axis=0))
+                # (photons that left an object where a walk took them stay in the volume they were in)
+                medium = crossed if leave is None else np.where(np.isin(keep, rows), medium, crossed)
             origins = accel.spawn(position.take(keep, axis=0), ng.take(keep, axis=0), dirs)
         else:
             flux, dirs, origins = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
@@ -958,7 +959,8 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
         return None
     out = go.take(left)
     v = numbers(left, subsurface.MAX_STEPS)
-    exit_ = ctx.surface(hits.prim_ids, hits.b1, hits.b2, v[:, 0] if ctx.has_level_programs else None, Rays(d_out))
+    pick = v[:, 0] if ctx.has_level_programs else None
+    exit_ = ctx.surface(hits.prim_ids, hits.b1, hits.b2, pick, Rays(d_out))
     ng_out = face_forward(exit_.ng, d_out)
     n_out = face_forward(exit_.ns, ng_out)
     leave = to_world(cosine_hemisphere(v[:, 1], v[:, 2]), n_out)

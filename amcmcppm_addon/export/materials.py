@@ -1626,11 +1626,13 @@ class NodeWalker:
         color, tex = self.color(inp["Color"], stack)
         c = Closure.lobe(DIFFUSE, 1.0, np.ones(3) if textured(tex) else color)
         c.texture = tex
-        # Cycles: the Roughness input is the entry's alpha itself (saturated).
-        alpha = float(np.clip(self.value(inp["Roughness"], stack), 0.0, 1.0)) if "Roughness" in inp else 1.0
+        # Cycles: the Roughness input is the entry's alpha itself (saturated).  (Blender 5.0 finds
+        # the inputs a method hides by their identifier alone; Cycles reads them all the same.)
+        hidden = {name: _by_identifier(inp, name) for name in ("IOR", "Roughness", "Anisotropy")}
+        alpha = float(np.clip(self.value(hidden["Roughness"], stack), 0.0, 1.0))
         c.subsurface = 1.0
         c.subsurface_params = self.subsurface_medium(node, node.falloff, inp["Radius"], inp["Scale"],
-                                                     inp["IOR"], inp["Anisotropy"], alpha, stack)
+                                                     hidden["IOR"], hidden["Anisotropy"], alpha, stack)
         return c
 
     def subsurface_medium(self, node, method, radius, scale, ior, anisotropy, alpha, stack):
@@ -1945,8 +1947,8 @@ class NodeWalker:
             c.subsurface = dielectric * beneath
             c.subsurface_params = self.subsurface_medium(
                 node, node.subsurface_method, inp["Subsurface Radius"], inp["Subsurface Scale"],
-                inp["Subsurface IOR"] if skin else inp["IOR"], inp["Subsurface Anisotropy"],
-                1.0 if skin else rough ** 2, stack)
+                _by_identifier(inp, "Subsurface IOR") if skin else inp["IOR"],
+                _by_identifier(inp, "Subsurface Anisotropy"), 1.0 if skin else rough ** 2, stack)
         eta, f0 = specular_ior(ior, level)
         # Cycles drops a layer of IOR 1, unless a film coats it (a soap film's reflection).
         spec = dielectric if eta > 1.0 + 1e-6 or film is not None else 0.0

@@ -14,7 +14,8 @@ import pytest
 from mathutils import Matrix, Vector
 
 import blender_scenes as bs
-from core.scene import DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD
+from core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD, SUBSURFACE_RANDOM_WALK,
+                        SUBSURFACE_SKIN)
 
 
 def mesh_of(triangles_scene):
@@ -1507,19 +1508,61 @@ def test_muted_nodes_pass_their_internal_links_through(scene):
     assert row["diffuse_weight"] == 0 and row["glossy_weight"] == 0 and not row["emission"].any()
 
 
-def test_a_subsurface_scattering_bsdf_renders_as_diffuse_of_its_colour(scene):
-    mat = bs._material("Skin", "ShaderNodeSubsurfaceScattering", **{"Color": (0.8, 0.5, 0.4, 1.0)})
+def test_a_subsurface_scattering_bsdf_scatters_beneath_its_surface(scene):
+    """The Subsurface Scattering BSDF (stop 44; before, a diffuse of its colour, noted): a diffuse
+    lobe of its colour that scatters beneath the surface whole, the radius times Scale, Cycles'
+    clamps on the IOR and anisotropy, its Roughness the entry's alpha itself; Skin by the falloff;
+    Christensen-Burley noted (rendered as Random Walk).  The scene then carries its objects (the
+    walks stay inside theirs)."""
+    mat = bs._material("Skin", "ShaderNodeSubsurfaceScattering", **{"Color": (0.8, 0.5, 0.4, 1.0),
+                                                                     "Scale": 0.2, "IOR": 5.0,
+                                                                     "Anisotropy": 0.95, "Roughness": 0.3})
     row, ex = export_material(mat)
     assert row["diffuse_color"] == pytest.approx([0.8, 0.5, 0.4]) and row["diffuse_weight"] == 1
-    assert any("'Skin'" in w and "subsurface scattering is not supported" in w for w in ex.warnings)
-    assert not any("unsupported node" in w for w in ex.warnings if "'Skin'" in w), ex.warnings
+    assert row["subsurface_weight"] == 1 and row["subsurface_method"] == SUBSURFACE_RANDOM_WALK
+    assert row["subsurface_radius"] == pytest.approx([0.2, 0.04, 0.02])
+    assert row["subsurface_ior"] == pytest.approx(3.8) and row["subsurface_anisotropy"] == pytest.approx(0.9)
+    assert row["subsurface_alpha"] == pytest.approx(0.3)
+    assert not [w for w in ex.warnings if "'Skin'" in w], ex.warnings
+    assert ex.scene.object_ids is not None
+    mat = bs._material("Skin 2", "ShaderNodeSubsurfaceScattering")
+    mat.node_tree.nodes["Subsurface Scattering"].falloff = "RANDOM_WALK_SKIN"
+    row, _ = export_material(mat)
+    assert row["subsurface_method"] == SUBSURFACE_SKIN
+    mat = bs._material("Skin 3", "ShaderNodeSubsurfaceScattering")
+    mat.node_tree.nodes["Subsurface Scattering"].falloff = "BURLEY"
+    row, ex = export_material(mat)
+    assert row["subsurface_weight"] == 1
+    assert any("'Subsurface Scattering'" in w and "Christensen-Burley" in w for w in ex.warnings), ex.warnings
+
+
+def test_principled_subsurface_reaches_the_core(scene):
+    """Principled's Subsurface (stop 44; before, noted and rendered as diffuse): its Weight is the
+    share of the diffuse lobe that scatters beneath, Radius times Scale the radii; Random Walk takes
+    the Principled's IOR and its roughness squared for the entry, Skin the Subsurface IOR; a metallic
+    part keeps its own lobe (the share is of the diffuse lobe alone)."""
+    row, ex = export_material(principled("Wax", **{"Subsurface Weight": 0.5, "Subsurface Scale": 0.1,
+                                                   "Subsurface Radius": (1.0, 0.5, 0.25), "Roughness": 0.4,
+                                                   "IOR": 1.45, "Metallic": 0.5}))
+    assert row["subsurface_weight"] == pytest.approx(0.5) and row["diffuse_weight"] == pytest.approx(0.5)
+    assert row["subsurface_radius"] == pytest.approx([0.1, 0.05, 0.025])
+    assert row["subsurface_ior"] == pytest.approx(1.45) and row["subsurface_alpha"] == pytest.approx(0.16)
+    assert not [w for w in ex.warnings if "'Wax'" in w], ex.warnings
+    mat = principled("Skin", **{"Subsurface Weight": 1.0})
+    mat.node_tree.nodes["Principled BSDF"].subsurface_method = "RANDOM_WALK_SKIN"
+    mat.node_tree.nodes["Principled BSDF"].inputs["Subsurface IOR"].default_value = 1.33    # (shown for Skin)
+    row, _ = export_material(mat)
+    assert row["subsurface_method"] == SUBSURFACE_SKIN and row["subsurface_ior"] == pytest.approx(1.33)
+    row, _ = export_material(principled("Plastic"))
+    assert row["subsurface_weight"] == 0
 
 
 def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
     _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Subsurface Weight": 0.1,
                                                    "Anisotropic": 0.5}))
     warnings = [w for w in ex.warnings if "'Paint'" in w]
-    assert len(warnings) == 1 and "Subsurface, Sheen not supported" in warnings[0], ex.warnings
+    assert len(warnings) == 1 and "Sheen not supported" in warnings[0], ex.warnings
+    assert "Subsurface" not in warnings[0]
     _, ex = export_material(principled("Plain"))
     assert not [w for w in ex.warnings if "'Plain'" in w]
 

@@ -1921,7 +1921,8 @@ def wax(node, method, weight=1.0):
     a Diffuse BSDF of its colour (what both rendered as before stop 44)."""
     color = (0.8, 0.5, 0.3, 1.0)
     if node == "principled":
-        mat = bs._material("Wax", "ShaderNodeBsdfPrincipled", **{"Base Color": color, "Subsurface Weight": weight,
+        mat = bs._material("Wax", "ShaderNodeBsdfPrincipled", **{"Base Color": color,
+                                                                  "Subsurface Weight": weight,
                                                                   "Subsurface Scale": 0.5})
         mat.node_tree.nodes["Principled BSDF"].subsurface_method = method
     elif node == "subsurface_bsdf":
@@ -1943,12 +1944,13 @@ def wax_and_diffuse(tmp_path, node, method, shape):
         bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.8, 0.8, 0.8)))
         if shape == "cube":
             bs.cube("Wax", size=1.0, material=material, location=(0, 0, 0.5))
-            lamp = bs.light("AREA", location=(0.0, 2.0, 2.0), target=(0, 0, 0.5), energy=300.0, shape="SQUARE",
-                            size=1.0)
+            lamp = bs.light("AREA", location=(0.0, 2.0, 2.0), target=(0, 0, 0.5), energy=300.0,
+                            shape="SQUARE", size=1.0)
             lamp.visible_camera = False
         else:
             bs.cube("Wax", size=1.0, material=material, location=(0, 0, 0.6), scale=(1.2, 0.08, 1.2))
-            bs.light("AREA", location=(0.0, 1.5, 0.8), target=(0, 0, 0.6), energy=200.0, shape="SQUARE", size=0.8)
+            bs.light("AREA", location=(0.0, 1.5, 0.8), target=(0, 0, 0.6), energy=200.0, shape="SQUARE",
+                     size=0.8)
         bs.camera(location=(0, -3.5, 1.5), target=(0, 0, 0.5), lens=35.0)
         bs.world((0.02, 0.02, 0.02))
     cycles, ours = cycles_and_ours(lambda: build(node), tmp_path)
@@ -1976,8 +1978,8 @@ def test_subsurface_scattering_matches_cycles(addon, tmp_path, node, method):
     assert before < 0.97
 
 
-@pytest.mark.parametrize("node, method", [("principled", "RANDOM_WALK"),
-                                          pytest.param("subsurface_bsdf", "RANDOM_WALK_SKIN", marks=SLOW_WAX)])
+@pytest.mark.parametrize("node, method", [
+    ("principled", "RANDOM_WALK"), pytest.param("subsurface_bsdf", "RANDOM_WALK_SKIN", marks=SLOW_WAX)])
 def test_a_backlit_subsurface_slab_matches_cycles(addon, tmp_path, node, method):
     """A wax slab 8 cm thick between the camera and an area light (stop 44): the face the camera sees
     is lit by the light through the wax (a diffuse slab shows 3 % of Cycles' red there) and by the

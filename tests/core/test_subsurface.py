@@ -14,7 +14,7 @@ import pytest
 from core import render, subsurface
 from core.accel import Accel
 from core.context import RenderContext
-from core.scene import SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN, Camera, Lights, Materials, SceneError, World
+from core.scene import SUBSURFACE_RANDOM_WALK, Camera, Lights, Materials, SceneError, World
 from core.settings import RenderSettings
 from core.testing.scenes import MeshBuilder
 
@@ -185,8 +185,8 @@ def gap_scene(look_up, floor_albedo=0.2):
         pose[:3, :3] = np.diag([1.0, -1.0, -1.0])           # camera -Z along world +Z
     cam = Camera(world_from_camera=pose, projection="orthographic", frame=(-0.2, 0.2, -0.2, 0.2),
                  resolution=(8, 8))
-    mats = Materials.build([{"name": "wax", "diffuse": 0.8, "subsurface_weight": 1.0, "subsurface_radius": 0.3,
-                             "subsurface_alpha": 1.0},
+    mats = Materials.build([{"name": "wax", "diffuse": 0.8, "subsurface_weight": 1.0,
+                             "subsurface_radius": 0.3, "subsurface_alpha": 1.0},
                             {"name": "floor", "diffuse": floor_albedo}])
     sun = Lights.build([{"kind": "sun", "direction": (0.0, 0.0, -1.0), "power": 10.0}])
     return m.build(mats, sun, cam)
