@@ -940,9 +940,14 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     ng_in = face_forward(surf.ng.take(go, axis=0), wo.take(go, axis=0))
     n_in = face_forward(surf.ns.take(go, axis=0), ng_in)
     d = to_world(cosine_hemisphere(block[:, 1], block[:, 2]), -n_in)
+    alive[go] = False
+    # (a direction about the shading normal that stays above the surface does not enter: lost)
+    enter = np.flatnonzero(dot(d, ng_in) < 0.0)
+    go, m, part, q, d, ng_in, n_in = (a.take(enter, axis=0) for a in (go, m, part, q, d, ng_in, n_in))
+    radius = radius[into].take(enter, axis=0)
     method = np.asarray(materials.subsurface_method).take(m)
     g = np.asarray(materials.subsurface_anisotropy, np.float64).take(m)
-    sigma_t, albedo, scale = subsurface.medium(colors[go, DIFFUSE], radius[into], g, method,
+    sigma_t, albedo, scale = subsurface.medium(colors[go, DIFFUSE], radius, g, method,
                                                np.asarray(materials.subsurface_ior, np.float64).take(m))
     objects = None if accel.object_ids is None else accel.object_ids.take(prim.take(go))
 
@@ -954,7 +959,6 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     left, hits, d_out, beta = subsurface.random_walk(
         intersect, accel.spawn(surf.position.take(go, axis=0), ng_in, d), d, n_in, sigma_t, albedo, g,
         scale / (prob.take(go) * q)[:, None], numbers)
-    alive[go] = False
     if len(left) == 0:
         return None
     out = go.take(left)
