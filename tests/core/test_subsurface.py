@@ -1,10 +1,12 @@
 """Subsurface scattering (stop 44, ``core/subsurface.py``, ``Materials.subsurface_weight``).
 
 The walk is Cycles' Random Walk (a homogeneous medium inside the object, per channel, its distances
-sampled by one channel with the balance heuristic over the three); the camera path takes it, and
-its exit gathers photons as a white Lambertian surface.  References here: a walk per channel
-alone against the three at once, a white sphere in a white furnace (no light is lost but by walks
-that stay inside), and a slab lit from behind, which only light through it reaches.
+sampled by one channel with the balance heuristic over the three); camera paths take it, their
+exits gathering photons as a white Lambertian surface, and so do photons.  References here: a walk
+per channel alone against the three at once, guided walks against unguided ones, a white sphere
+in a white furnace (no light is lost but by walks that stay inside), a slab lit from behind, which
+only light through it reaches, and the floor under a slab against the slab's underside as the
+camera's walks see it (the photons' walks against the camera's).
 """
 from __future__ import annotations
 
