@@ -1970,7 +1970,7 @@ def test_subsurface_scattering_matches_cycles(addon, tmp_path, node, method):
     light walked through the wax brightens its faces the lamp does not see and the floor around it
     (Cycles walks on paths from any surface, so do our photons).  The image's means by channel and
     bands and where the light falls (4 x 4 blocks); the diffuse wax of before misses the red mean
-    by more than the 3 % allowed (0.93 to 0.96 of Cycles)."""
+    by more than the 3 % allowed (0.84 of Cycles for the Principled, 0.93-0.94 for the BSDF)."""
     cycles, ours, diffuse = wax_and_diffuse(tmp_path, node, method, "cube")
     assert_image_matches(f"subsurface {node} {method}", cycles, ours)
     before = diffuse[..., 0].mean() / cycles[..., 0].mean()
