@@ -38,7 +38,7 @@ from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_no
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from .procedural import Rays, photon_path
-from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
+from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION, SUBSURFACE_SKIN
 from .sampling import cosine_hemisphere, dot, hg_phase, luminance, sample_hg, tangent_axes, to_world
 from .texture_hash import float_as_uint, hash_uint3, hash_uint3_to_float
 from .visible_cells import VisibleCells
@@ -915,12 +915,13 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     with that part's share (by ``pick``, the lobe number's remainder), as the light that Cycles'
     walks from a camera path reach: in a cosine-distributed direction (the exit's diffuse BSDF,
     weight 1), through a random walk (``core/subsurface.py``, its medium by the colour where
-    they entered), and out of the surface where it ends, in a cosine-distributed direction with the
-    part's weight at that direction (under a Fresnel layer, its factor there): the light the
-    walk's entry lets into the surface from there, its refractive entry taken as diffuse.  The
-    others keep their diffuse lobe without the part.  Updates ``wi``, ``weight`` and ``alive`` (walks
-    that do not leave are lost) in place; returns None or (rows, positions, normals): the photons
-    that left and where they leave from (the others' own positions and normals)."""
+    they entered), and out of the surface where it ends as the camera's walks enter there
+    (``subsurface.exit_directions``, the adjoint of their entry), with the part's weight at that
+    direction (under a Fresnel layer, its factor there).  The others keep their diffuse lobe
+    without the part.  Updates ``wi``, ``weight`` and ``alive`` (walks that do not leave, and
+    photons that do not get out of the surface, are lost) in place; returns None or (rows,
+    positions, normals): the photons that left and where they leave from (the others' own
+    positions and normals)."""
     materials, table, accel = ctx.materials, ctx.table, ctx.accel
     share = np.asarray(materials.subsurface_weight, np.float64).take(mats)
     rows = np.flatnonzero((lobe == DIFFUSE) & (share > 0) & alive)
@@ -967,13 +968,19 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     exit_ = ctx.surface(hits.prim_ids, hits.b1, hits.b2, pick, Rays(d_out))
     ng_out = face_forward(exit_.ng, d_out)
     n_out = face_forward(exit_.ns, ng_out)
-    leave = to_world(cosine_hemisphere(v[:, 1], v[:, 2]), n_out)
-    w = part.take(left, axis=0) * table.weight[m.take(left), DIFFUSE, None]
+    # Out as the camera's walks come in (Cycles' entry: Skin half diffuse, half at alpha 1).
+    ml = m.take(left)
+    skin = method.take(left) == SUBSURFACE_SKIN
+    entry_alpha = np.where(skin, 1.0, np.asarray(materials.subsurface_alpha, np.float64).take(ml))
+    leave, through = subsurface.exit_directions(
+        n_out, ng_out, d_out, entry_alpha, np.asarray(materials.subsurface_ior, np.float64).take(ml),
+        np.where(skin, subsurface.SKIN_DIFFUSE_ENTRY, 0.0), v[:, 3:6])
+    w = part.take(left, axis=0) * (table.weight[ml, DIFFUSE] * through)[:, None]
     if table.has_layer:
-        w *= table.layer_factor(m.take(left), np.abs(dot(leave, n_out)))[:, None]
+        w *= table.layer_factor(ml, np.abs(dot(leave, n_out)))[:, None]
     wi[out] = leave
     weight[out] = beta * w
-    alive[out] = dot(leave, ng_out) > 0
+    alive[out] = (dot(leave, ng_out) > 0) & (through > 0)
     position, ng = surf.position.copy(), surf.ng.copy()
     position[out], ng[out] = exit_.position, ng_out
     return out, position, ng

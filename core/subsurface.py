@@ -26,8 +26,8 @@ import dataclasses
 import numpy as np
 
 from .accel import Hits
-from .sampling import (cosine_hemisphere, dot, ggx_sample_visible_normal, hg_phase, normalize, sample_hg,
-                       to_local, to_world)
+from .sampling import (cosine_hemisphere, dot, ggx_d, ggx_g1, ggx_sample_visible_normal, hg_phase, normalize,
+                       sample_hg, to_local, to_world)
 from .scene import SUBSURFACE_SKIN
 
 MAX_STEPS = 256                   # Cycles' BSSRDF_MAX_BOUNCES: a walk that has not left is lost
@@ -134,6 +134,62 @@ def entry_directions(n, ng, wo, alpha, ior, diffuse_share, u):
         root = np.sqrt(np.maximum(1.0 - neta ** 2 * (1.0 - cos_hi ** 2), 0.0))
         out[rows] = normalize(-neta[:, None] * w + (neta * cos_hi - np.maximum(root, 1e-7))[:, None] * h)
     return out, valid & (dot(out, ng) < 0.0)
+
+
+def exit_directions(n, ng, d, alpha, ior, diffuse_share, u):
+    """(k, 3) directions in which photons whose walks reached the surface along ``d`` (k, 3, going
+    out) leave it, and (k,) their weights, 0 where they do not leave: the adjoint of
+    :func:`entry_directions` (``n``, ``ng`` outward; ``alpha``, ``ior``, ``diffuse_share`` as
+    there; ``u`` (k, 3)).
+
+    A camera path seen from w enters along d_in with the density p(d_in | w) and weight 1, so a
+    photon that reaches the surface along d = -d_in leaves towards w with the weight
+    p(-d | w) cos(w) / (|cos(d)| q(w)) for w drawn with the density q: by cosine with
+    ``diffuse_share`` (the diffuse entries'), else refracted out at a GGX microfacet visible from
+    inside (lost where that reflects totally), both weighted by the balance heuristic.  Without
+    diffuse entries the weight is eta^2 G1(w) / G1(d) (Cycles' entry does not scale the light by
+    1 / eta^2, as its camera paths through glass do not).  Light that reaches the surface evenly
+    (deep in a large object) leaves with its flux on average, as it would by cosine; light that
+    comes through a thin slab mostly straight leaves more of it, towards the directions the
+    entry's refraction reaches from (``tests/core/test_subsurface.py``)."""
+    k = len(n)
+    share = np.asarray(diffuse_share, np.float64)
+    eta = np.asarray(ior, np.float64)
+    alpha = np.maximum(np.asarray(alpha, np.float64), 1e-7)
+    inner = -n
+    v = -np.asarray(d, np.float64)                              # d_in: into the surface
+    out = np.empty((k, 3))
+    diffuse = u[:, 0] < share
+    rows = np.flatnonzero(diffuse)
+    if len(rows):
+        out[rows] = to_world(cosine_hemisphere(u[rows, 1], u[rows, 2]), n.take(rows, axis=0))
+    rows = np.flatnonzero(~diffuse)
+    if len(rows):
+        inner_r, v_r, eta_r = inner.take(rows, axis=0), v.take(rows, axis=0), eta.take(rows)
+        v_local = to_local(v_r, inner_r)
+        v_local[:, 2] = np.maximum(v_local[:, 2], 1e-7)
+        h = to_world(ggx_sample_visible_normal(v_local, alpha.take(rows), u[rows, 1], u[rows, 2]), inner_r)
+        cos_vh = dot(v_r, h)
+        root = 1.0 - eta_r ** 2 * (1.0 - cos_vh ** 2)
+        # (total internal reflection at the microfacet: a direction into the surface, lost below)
+        refracted = -eta_r[:, None] * v_r + (eta_r * cos_vh - np.sqrt(np.maximum(root, 0.0)))[:, None] * h
+        out[rows] = np.where((root > 0.0)[:, None], refracted, inner_r)
+    out = normalize(out)
+    cos_w, cos_v = dot(out, n), -dot(v, n)
+    # The refraction's half vector (on the outer side), by which both densities go.
+    h = -(out + eta[:, None] * v)
+    h = normalize(h * np.where(dot(h, n) < 0.0, -1.0, 1.0)[:, None])
+    w_h, v_h = dot(out, h), dot(v, h)
+    ok = (cos_w > 0.0) & (cos_v > 0.0) & (w_h > 0.0) & (v_h < 0.0)
+    cw, cv = np.maximum(cos_w, 1e-12), np.maximum(cos_v, 1e-12)
+    # Both densities (visible normals, then Walter et al. 2007's refraction Jacobian) share
+    # D(h) |w.h d.h| / (w.h + eta d.h)^2.
+    shared = np.where(ok, ggx_d(dot(h, n), alpha) * np.abs(w_h * v_h)
+                      / np.maximum((w_h + eta * v_h) ** 2, 1e-300), 0.0)
+    p = share * cv / np.pi + (1.0 - share) * eta ** 2 * ggx_g1(cw, alpha) / cw * shared
+    q = share * cw / np.pi + (1.0 - share) * ggx_g1(cv, alpha) / cv * shared
+    weight = np.where((cos_w > 0.0) & (q > 0.0), p * cw / (cv * np.maximum(q, 1e-300)), 0.0)
+    return out, weight
 
 
 def diffusion_length(alpha):

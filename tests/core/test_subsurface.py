@@ -5,8 +5,8 @@ sampled by one channel with the balance heuristic over the three); camera paths 
 exits gathering photons as a white Lambertian surface, and so do photons.  References here: a walk
 per channel alone against the three at once, guided walks against unguided ones, a white sphere
 in a white furnace (no light is lost but by walks that stay inside), a slab lit from behind, which
-only light through it reaches, and the floor under a slab against the slab's underside as the
-camera's walks see it (the photons' walks against the camera's).
+only light through it reaches, and the photons' exit against the camera's entry (stop 45: the
+radiance light inside leaves with by direction, and its flux).
 """
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ import pytest
 from core import render, subsurface
 from core.accel import Accel
 from core.context import RenderContext
+from core.sampling import cosine_hemisphere
 from core.scene import SUBSURFACE_RANDOM_WALK, Camera, Lights, Materials, SceneError, World
 from core.settings import RenderSettings
 from core.testing.scenes import MeshBuilder
@@ -174,33 +175,74 @@ def test_a_subsurface_render_is_the_same_for_the_same_seed_and_finite():
     assert np.isfinite(a).all() and np.array_equal(a, b) and a[..., :3].mean() > 0
 
 
-def gap_scene(look_up, floor_albedo=0.2):
-    """A subsurface slab 2 cm thick (20 m wide, mean free path radius / (4 pi) of 2.4 cm) in a sun
-    from above, a floor 5 cm under it, and an orthographic camera in the gap looking down at the
-    floor or up at the slab."""
-    m = MeshBuilder()
-    m.add_box((-10.0, -10.0, -0.02), (10.0, 10.0, 0.0), 0)
-    m.add_quad((-10.0, -10.0, -0.07), (10.0, -10.0, -0.07), (10.0, 10.0, -0.07), (-10.0, 10.0, -0.07), 1)
-    pose = np.eye(4)
-    pose[2, 3] = -0.045
-    if look_up:
-        pose[:3, :3] = np.diag([1.0, -1.0, -1.0])           # camera -Z along world +Z
-    cam = Camera(world_from_camera=pose, projection="orthographic", frame=(-0.2, 0.2, -0.2, 0.2),
-                 resolution=(8, 8))
-    mats = Materials.build([{"name": "wax", "diffuse": 0.8, "subsurface_weight": 1.0,
-                             "subsurface_radius": 0.3, "subsurface_alpha": 1.0},
-                            {"name": "floor", "diffuse": floor_albedo}])
-    sun = Lights.build([{"kind": "sun", "direction": (0.0, 0.0, -1.0), "power": 10.0}])
-    return m.build(mats, sun, cam)
+def internal_radiance(d):
+    """A walk's light reaching the surface from inside, by the direction it travels in (z out):
+    peaked outwards and brighter on one side, as through a thin slab lit from one side."""
+    return 1.0 + 3.0 * np.clip(d[:, 2], 0.0, 1.0) ** 4 + 2.0 * (d[:, 0] > 0.3)
 
 
-def test_light_through_a_slab_lights_the_floor_as_its_underside_shows():
-    """Photons walk through the slab too (Cycles' walks on paths from any surface): the floor under
-    it gets the irradiance pi L of the underside's radiance L as the camera's walks see it (a wide
-    slab close over the floor; its light leaves it nearly evenly, alpha 1 at the entry)."""
-    settings = RenderSettings(passes=8, photons_per_pass=40000, workers=1, seed=2)
-    floor = render(gap_scene(False), settings).image[..., :3].mean() / 0.2
-    underside = render(gap_scene(True), settings).image[..., :3].mean()
-    print(f"floor irradiance / pi {floor:.4f}, underside radiance {underside:.4f}")
-    assert underside > 0.05
-    np.testing.assert_allclose(floor, underside, rtol=0.08)
+def radiance_out(exit_, alpha, ior, share, rng, n_photons=400_000, n_views=40_000):
+    """(photons', cameras', their standard errors) radiance leaving a surface (normal z) lit from
+    inside by :func:`internal_radiance`, in 5 bands of cos(view) on each side of x = 0: photons
+    crossing outwards by cosine and leaving by ``exit_`` against camera walks entering by
+    :func:`subsurface.entry_directions` from views in the band."""
+    up = np.array([0.0, 0.0, 1.0])
+    d = cosine_hemisphere(rng.random(n_photons), rng.random(n_photons))
+    n = np.tile(up, (n_photons, 1))
+    per_photon = [np.full(n_photons, x) for x in (alpha, ior, share)]
+    out, weight = exit_(n, n, d, *per_photon, rng.random((n_photons, 3)))
+    flux = internal_radiance(d) * np.pi / n_photons * weight
+    edges = np.linspace(0.0, 1.0, 6)
+    photons, cameras, errors = [], [], []
+    for side in (-1.0, 1.0):
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            band = (out[:, 2] > lo) & (out[:, 2] <= hi) & (np.sign(out[:, 0]) == side)
+            projected = np.pi * (hi * hi - lo * lo) / 2.0
+            photons.append(flux[band].sum() / projected)
+            photon_error = np.sqrt((flux[band] ** 2).sum()) / projected
+            # Views in the band by cosine, entering as Cycles' camera paths do.
+            cos = np.sqrt(rng.uniform(lo * lo, hi * hi, n_views))
+            phi = rng.uniform(-np.pi / 2, np.pi / 2, n_views) + (0.0 if side > 0 else np.pi)
+            sin = np.sqrt(1.0 - cos * cos)
+            views = np.stack([sin * np.cos(phi), sin * np.sin(phi), cos], axis=1)
+            m = np.tile(up, (n_views, 1))
+            per_view = [np.full(n_views, x) for x in (alpha, ior, share)]
+            d_in, valid = subsurface.entry_directions(m, m, views, *per_view, rng.random((n_views, 3)))
+            values = np.where(valid, internal_radiance(-d_in), 0.0)
+            cameras.append(values.mean())
+            errors.append(np.hypot(photon_error, values.std() / np.sqrt(n_views)))
+    return np.array(photons), np.array(cameras), np.array(errors)
+
+
+@pytest.mark.parametrize("alpha, ior, share", [(0.25, 1.5, 0.0), (0.02, 1.33, 0.0), (1.0, 1.4, 0.5)])
+def test_photons_leave_a_surface_as_camera_walks_enter_it(alpha, ior, share):
+    """The photons' exit is the adjoint of Cycles' entry (Random Walk: refraction at a GGX
+    microfacet of alpha and IOR; Skin: half diffuse, half alpha 1): light inside reaching the surface
+    leaves with the radiance in each band of directions that camera walks entering from there
+    see, within 4 standard errors (1 to 3 % a band here).  Before (stop 44), the photons left by
+    cosine with weight 1, which here misses the bands by up to 85 % (too bright at grazing views,
+    too dark straight out); through a thin slab, the floor under it was 0.94 / 0.87 / 0.95 of
+    Cycles (``test_the_floor_under_a_thin_subsurface_canopy_matches_cycles``)."""
+    photons, cameras, errors = radiance_out(subsurface.exit_directions, alpha, ior, share,
+                                            np.random.default_rng(3))
+    assert (np.abs(photons - cameras) < 4.0 * errors).all(), np.round(photons / cameras, 4)
+
+    def cosine_exit(n, ng, d, alpha, ior, share, u):
+        return cosine_hemisphere(u[:, 1], u[:, 2]), np.ones(len(n))
+    photons, cameras, _ = radiance_out(cosine_exit, alpha, ior, share, np.random.default_rng(4))
+    assert np.abs(photons / cameras - 1.0).max() > 0.1
+
+
+def test_light_spread_evenly_inside_leaves_with_its_own_energy():
+    """Where the walks' light reaches the surface evenly (deep in a large object), the photons leave
+    with their flux on average (weight 1, as a cosine exit), the share that total internal
+    reflection keeps is balanced by those leaving with eta^2 more."""
+    rng = np.random.default_rng(5)
+    n_photons = 400_000
+    up = np.tile([0.0, 0.0, 1.0], (n_photons, 1))
+    d = cosine_hemisphere(rng.random(n_photons), rng.random(n_photons))
+    for alpha, ior, share in ((0.25, 1.5, 0.0), (1.0, 1.4, 0.5)):
+        _, weight = subsurface.exit_directions(up, up, d, np.full(n_photons, alpha), np.full(n_photons, ior),
+                                               np.full(n_photons, share), rng.random((n_photons, 3)))
+        assert abs(weight.mean() - 1.0) < 4.0 * weight.std() / np.sqrt(n_photons)
+        assert (weight == 0).mean() > 0.2                 # (lost inside)
