@@ -6,7 +6,8 @@ The eye pass takes one walk per pixel that lands on the wax; every photon that p
 subsurface part walks too.  A walk is a loop of ray casts over the walks still inside (up to
 Cycles' 256 steps), so its cost is the steps of the longest walks in each batch: the chains trace
 many small batches (one per iteration), PPM a few big ones.  Printed: seconds per pass (median and
-range) and subsurface over diffuse per method.
+range) and subsurface over diffuse per method, then the cost of a step of the walks' loop (best of
+the rounds) for 8 and for 1000 walks into a deep box (albedo 0.9999).
 
     python benchmarks/subsurface_cost.py [--rounds 3] [--passes 2] [--photons 100000]
 """
@@ -22,7 +23,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from core import render  # noqa: E402
+from core import render, subsurface  # noqa: E402
+from core.accel import Accel  # noqa: E402
 from core.scene import Camera, Lights, Materials  # noqa: E402
 from core.settings import RenderSettings  # noqa: E402
 from core.testing.scenes import MeshBuilder  # noqa: E402
@@ -42,6 +44,29 @@ def wax_cube(subsurface, resolution=(96, 96)):
                             "size": (1.0, 1.0), "power": 300.0}])
     cam = Camera.look_at((0.0, -3.5, 1.5), (0.0, 0.0, 0.5), lens_mm=35.0, resolution=resolution)
     return m.build(Materials.build([{"name": "floor", "diffuse": 0.8}, wax]), lights, cam)
+
+
+def step_cost(walks, rounds):
+    """Seconds per step of ``subsurface.random_walk`` for ``walks`` walks into a box 100 m deep."""
+    m = MeshBuilder()
+    m.add_box((-100.0, -100.0, -100.0), (100.0, 100.0, 0.0), 0)
+    accel = Accel(m.build(Materials.build([{"name": "medium", "diffuse": 0.5}])))
+    steps, best = 0, np.inf
+    for r in range(rounds):
+        rng = np.random.default_rng(r)
+        counted = []
+
+        def intersect(rows, origins, dirs, tmax):
+            counted.append(len(rows))
+            return accel.intersect(origins, dirs, tmax)
+        t = time.perf_counter()
+        down = np.tile([0.0, 0.0, -1.0], (walks, 1))
+        subsurface.random_walk(intersect, 1e-3 * down, down, -down, np.full((walks, 3), 10.0),
+                               np.full((walks, 3), 0.9999), np.full(walks, 0.3), np.ones((walks, 3)),
+                               lambda rows, step: rng.random((len(rows), subsurface.WALK_NUMBERS)))
+        best = min(best, (time.perf_counter() - t) / len(counted))
+        steps = len(counted)
+    return best, steps
 
 
 def main():
@@ -68,6 +93,9 @@ def main():
         ratio = np.array(times[method, True]) / np.array(times[method, False])
         print(f"{method:9s} subsurface / diffuse: median {np.median(ratio):.2f} "
               f"range {ratio.min():.2f}-{ratio.max():.2f}")
+    for walks in (8, 1000):
+        seconds, steps = step_cost(walks, a.rounds)
+        print(f"walk loop, {walks:4d} walks: {seconds * 1e6:.0f} microseconds a step ({steps} steps)")
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ import numpy as np
 
 from .accel import Hits
 from .sampling import (cosine_hemisphere, dot, ggx_d, ggx_g1, ggx_sample_visible_normal, hg_phase, normalize,
-                       sample_hg, to_local, to_world)
+                       orthonormal_frames, sample_hg, to_local, to_world)
 from .scene import SUBSURFACE_SKIN
 
 MAX_STEPS = 256                   # Cycles' BSSRDF_MAX_BOUNCES: a walk that has not left is lost
@@ -227,92 +227,109 @@ def random_walk(intersect, origins, dirs, normals, sigma_t, alpha, g, throughput
     (guided, more walks leave within them, 94 % against 90 % in a deep box at albedo 0.999, with
     the same light: the long walks weigh little).  ``guide`` False: the phase function alone.
 
+    The loop's cost is its steps, nearly all of them over the few long walks (up to MAX_STEPS
+    ray casts one after another), so a step is few array operations: the walks' state and
+    constants are the columns of one array (one gather keeps those still inside), and the
+    isotropic steps (after SIMILARITY_STEP) sample both strategies in the normal's frame, made
+    once per walk.
+
     Returns (rows, hits, dirs, throughput): the walks that left (indices into the k), where
     (their Hits), along which directions, and with what throughput (``throughput`` (k, 3) times
     each channel's estimate)."""
     k = len(origins)
+    sigma_t = np.asarray(sigma_t, np.float64)
+    alpha = np.asarray(alpha, np.float64)
     sigma_s = sigma_t * alpha
-    g = np.asarray(g, np.float64)
+    g = np.broadcast_to(np.asarray(g, np.float64), (k,))
+    n = np.asarray(normals, np.float64)
+    tangent, bitangent = orthonormal_frames(n)
     # Similarity after SIMILARITY_STEP steps: isotropic, with the scattering reduced by 1 - g.
     sigma_s_star = sigma_s * (1.0 - g)[:, None]
-    sigma_t_star = sigma_t - sigma_s + sigma_s_star
     v = diffusion_length(alpha.max(axis=1))
-    phase_log = np.log((v + 1.0) / (v - 1.0))
     share = 1.0 - np.maximum(0.5, np.abs(g) ** 0.125)          # Cycles' share of guided steps
-    start, n = np.asarray(origins, np.float64), np.asarray(normals, np.float64)
-    opposite = np.full(k, np.nan)                               # depth of the opposite surface, if any
+    s = np.empty((k, _COLUMNS))
+    for name, value in (("pos", origins), ("d", dirs), ("beta", throughput), ("st", sigma_t), ("ss", sigma_s),
+                        ("st_star", sigma_t - sigma_s + sigma_s_star), ("ss_star", sigma_s_star),
+                        ("alpha", alpha), ("tangent", tangent), ("bitangent", bitangent), ("n", n),
+                        ("start_n", dot(np.asarray(origins, np.float64), n)), ("v", v),
+                        ("log", np.log((v + 1.0) / (v - 1.0))), ("share", share if guide else 0.0), ("g", g),
+                        ("has_opp", 0.0), ("opp", 0.0)):
+        s[:, _COL[name]] = value
     rows = np.arange(k)
-    pos, d = start.copy(), np.asarray(dirs, np.float64).copy()
-    beta = np.asarray(throughput, np.float64).copy()
+    # Distance densities by the phase function's extinction and the guide's two stretched ones.
+    strategies = np.array([0.0, -1.0, 1.0])
     out_rows, out_hits, out_dirs, out_beta = [], [], [], []
     for step in range(MAX_STEPS):
         if len(rows) == 0:
             break
         similar = step > SIMILARITY_STEP
-        st = (sigma_t_star if similar else sigma_t).take(rows, axis=0)
-        ss = (sigma_s_star if similar else sigma_s).take(rows, axis=0)
+        pos, d, beta = s[:, _COL["pos"]], s[:, _COL["d"]], s[:, _COL["beta"]]
+        st = s[:, _COL["st_star"] if similar else _COL["st"]]
+        ss = s[:, _COL["ss_star"] if similar else _COL["ss"]]
         m = len(rows)
         u = uniforms(rows, step)
-        # The channel by albedo times throughput (uniform where those are all 0).
-        w = alpha.take(rows, axis=0) * np.abs(beta)
-        total = w.sum(axis=1)
-        w = np.where((total > 0)[:, None], w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
-        channel = (u[:, :1] >= np.cumsum(w, axis=1)[:, :2]).sum(axis=1)
+        # The channel by albedo times throughput (the last where those are all 0: such a walk
+        # carries nothing and stops after this step).
+        w = s[:, _COL["alpha"]] * np.abs(beta)
+        c = np.cumsum(w, axis=1)
+        total = c[:, 2:]
+        channel = (u[:, :1] * total >= c[:, :2]).sum(axis=1)
         sample_st = st[np.arange(m), channel]
-        vr, logr, nr = v.take(rows), phase_log.take(rows), n.take(rows, axis=0)
         if step:
-            gf = np.full(m, 0.75) if similar else share.take(rows)
-            gf = gf if guide else np.zeros(m)
-            gg = np.zeros(m) if similar else g.take(rows)
-            opp = opposite.take(rows)
-            has_opp = np.isfinite(opp)
-            depth = np.clip(dot(pos - start.take(rows, axis=0), -nr), 0.0, np.where(has_opp, opp, 0.0))
+            vr, logr, nr = s[:, _COL["v"]], s[:, _COL["log"]], s[:, _COL["n"]]
+            gf = (0.75 if guide else 0.0) if similar else s[:, _COL["share"]]
+            opp = s[:, _COL["opp"]]
+            depth = np.clip(s[:, _COL["start_n"]] - dot(pos, nr), 0.0, opp)
             # (Cycles' chance of guiding towards the opposite side, by the depth reached)
-            x = np.minimum((np.where(has_opp, opp, 0.0) - 2.0 * depth) / vr, 700.0)
-            back_share = np.where(has_opp, 1.0 / (1.0 + np.exp(x)), 0.0)
+            back_share = s[:, _COL["has_opp"]] / (1.0 + np.exp(np.minimum((opp - 2.0 * depth) / vr, 700.0)))
             guided = u[:, 2] < gf
             backward = guided & (u[:, 3] < back_share)
-            new_d = sample_hg(d, gg, u[:, 4], u[:, 5])
-            gr = np.flatnonzero(guided)
-            if len(gr):
-                cos = vr[gr] - (vr[gr] + 1.0) * np.exp(-u[gr, 4] * logr[gr])
-                cos = np.clip(np.where(backward[gr], -cos, cos), -1.0, 1.0)
-                sin = np.sqrt(np.maximum(1.0 - cos * cos, 0.0))
-                phi = 2.0 * np.pi * u[gr, 5]
-                local = np.stack([sin * np.cos(phi), sin * np.sin(phi), cos], axis=1)
-                new_d[gr] = to_world(local, nr[gr])
-            hg = hg_phase(dot(d, new_d), gg)
-            cos = dot(new_d, nr)
-            forward_factor = 1.0 / (2.0 * np.pi * (vr - cos) * logr * hg)
-            backward_factor = 1.0 / (2.0 * np.pi * (vr + cos) * logr * hg)
-            forward_stretch, backward_stretch = 1.0 - cos / vr, 1.0 + cos / vr
-            stretch = np.where(backward, backward_stretch, forward_stretch)
-            sample_st = sample_st * np.where(guided, stretch, 1.0)
+            cos = vr - (vr + 1.0) * np.exp(-u[:, 4] * logr)
+            cos = np.clip(np.where(backward, -cos, cos), -1.0, 1.0)
+            if similar:
+                # Isotropic: the phase function's directions too in the normal's frame.
+                cos = np.where(guided, cos, 1.0 - 2.0 * u[:, 4])
+                hg = 1.0 / (4.0 * np.pi)
+            sin = np.sqrt(np.maximum(1.0 - cos * cos, 0.0))
+            phi = 2.0 * np.pi * u[:, 5]
+            local = np.stack([sin * np.cos(phi), sin * np.sin(phi), cos], axis=1)
+            new_d = np.einsum("ij,ijk->ik", local, s[:, _COL["frame"]].reshape(m, 3, 3))
+            if not similar:
+                gg = s[:, _COL["g"]]
+                new_d = np.where(guided[:, None], new_d, sample_hg(d, gg, u[:, 4], u[:, 5]))
+                hg = hg_phase(dot(d, new_d), gg)
+                cos = dot(new_d, nr)
+            # (stretches: 1, forwards and backwards)
+            stretches = 1.0 + np.multiply.outer(cos / vr, strategies)
+            stretch = np.where(backward, stretches[:, 2], np.where(guided, stretches[:, 1], 1.0))
+            sample_st = sample_st * stretch
             d = new_d
         t = -np.log1p(-u[:, 1]) / sample_st
         reach = t if step else np.maximum(t, 10.0 / st.min(axis=1))    # (looks for the opposite side)
         hits = intersect(rows, pos, d, reach)
         found = hits.is_hit
+        hit_t = hits.t.astype(np.float64)
         if not step:
             f = np.flatnonzero(found)
-            hit_pos = pos[f] + hits.t.take(f).astype(np.float64)[:, None] * d[f]
-            opposite[rows[f]] = dot(hit_pos - start.take(rows[f], axis=0), -nr[f])
-            found = found & (hits.t.astype(np.float64) < t)
-        t = np.where(found, hits.t.astype(np.float64), t)
-
-        def pdf(sigma):
-            tr_ = np.exp(-sigma * t[:, None])
-            return np.where(found[:, None], tr_, sigma * tr_)
-        tr = np.exp(-st * t[:, None])
-        p = pdf(st)
+            s[f, _COL["opp"]] = s[f, _COL["start_n"]] - dot(pos[f] + hit_t[f, None] * d[f], s[f, _COL["n"]])
+            s[f, _COL["has_opp"]] = 1.0
+            found = found & (hit_t < t)
+        t = np.where(found, hit_t, t)
         if step:
-            guided_p = pdf(forward_stretch[:, None] * st) * forward_factor[:, None]
-            if has_opp.any():
-                back_p = pdf(backward_stretch[:, None] * st) * backward_factor[:, None]
-                guided_p = np.where(has_opp[:, None], (1.0 - back_share[:, None]) * guided_p
-                                    + back_share[:, None] * back_p, guided_p)
-            p = (1.0 - gf[:, None]) * p + gf[:, None] * guided_p
-        beta = beta * np.where(found[:, None], tr, ss * tr) / np.maximum((w * p).sum(axis=1), 1e-300)[:, None]
+            sigma = stretches[:, :, None] * st[:, None, :]
+            tr = np.exp(-sigma * t[:, None, None])
+            pdf = np.where(found[:, None, None], tr, sigma * tr)
+            scale = 1.0 / (2.0 * np.pi * logr * hg)
+            guided_p = (pdf[:, 1] * ((1.0 - back_share) * scale / (vr - cos))[:, None]
+                        + pdf[:, 2] * (back_share * scale / (vr + cos))[:, None])
+            p = pdf[:, 0] + (guided_p - pdf[:, 0]) * (gf[:, None] if np.ndim(gf) else gf)
+            tr = tr[:, 0]
+        else:
+            tr = np.exp(-st * t[:, None])
+            p = np.where(found[:, None], tr, st * tr)
+        # (the balance heuristic's sum over the channels, with their probabilities w / total)
+        beta = beta * tr * np.where(found[:, None], 1.0, ss) * (
+            total / np.maximum((w * p).sum(axis=1, keepdims=True), 1e-300))
         left = np.flatnonzero(found)
         if len(left):
             out_rows.append(rows.take(left))
@@ -320,14 +337,32 @@ def random_walk(intersect, origins, dirs, normals, sigma_t, alpha, g, throughput
             out_dirs.append(d.take(left, axis=0))
             out_beta.append(beta.take(left, axis=0))
         stay = np.flatnonzero(~found & (beta.max(axis=1) >= THROUGHPUT_EPSILON))
-        pos = pos.take(stay, axis=0) + t.take(stay)[:, None] * d.take(stay, axis=0)
-        rows, beta, d = rows.take(stay), beta.take(stay, axis=0), d.take(stay, axis=0)
+        s[:, _COL["pos"]] = pos + t[:, None] * d
+        s[:, _COL["d"]], s[:, _COL["beta"]] = d, beta
+        s, rows = s.take(stay, axis=0), rows.take(stay)
     if not out_rows:
         z = np.zeros(0)
         none = Hits(np.zeros(0, bool), np.zeros(0, np.int32), np.zeros(0, np.float32), z, z)
         return np.zeros(0, np.int64), none, np.zeros((0, 3)), np.zeros((0, 3))
     return (np.concatenate(out_rows), _concat_hits(out_hits), np.concatenate(out_dirs),
             np.concatenate(out_beta))
+
+
+def _column_slices(widths):
+    """{name: slice} of consecutive columns of the given widths (1: a single column)."""
+    cols, at = {}, 0
+    for name, width in widths:
+        cols[name] = at if width == 1 else slice(at, at + width)
+        at += width
+    return cols, at
+
+
+# A walk's state and constants, the columns of one (k, _COLUMNS) array.
+_COL, _COLUMNS = _column_slices([("pos", 3), ("d", 3), ("beta", 3), ("st", 3), ("ss", 3), ("st_star", 3),
+                                 ("ss_star", 3), ("alpha", 3), ("frame", 9), ("start_n", 1), ("v", 1),
+                                 ("log", 1), ("share", 1), ("g", 1), ("has_opp", 1), ("opp", 1)])
+_COL.update({name: slice(_COL["frame"].start + 3 * i, _COL["frame"].start + 3 * i + 3)
+             for i, name in enumerate(("tangent", "bitangent", "n"))})
 
 
 def _take_hits(hits, rows):
