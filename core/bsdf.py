@@ -935,7 +935,8 @@ def _glass_film(mats, weight, film):
 def _metal_film(mats, weight, edge, dip, sharp, film):
     """MaterialTable fields of the metals under a film (``Materials.film_metal``): per filmed metal,
     what it adds to its lobe's colour at the film's nodes, k (G_m(c) - F0) (k its share of the lobe,
-    after a sharp glossy lobe's merge into the mirror's; F0 and b from its rise and dip)."""
+    after a sharp glossy lobe's merge into the mirror's; F0 and b from its rise and dip, G_m of a
+    physical conductor by its complex index, ``Materials.film_metal_ior``)."""
     m = len(weight)
     share = _or_zeros(mats.film_metal, m)
     lobe = np.where(weight[:, GLOSSY] > 0, GLOSSY, MIRROR)
@@ -949,8 +950,16 @@ def _metal_film(mats, weight, edge, dip, sharp, film):
                               out=np.zeros(int(sharp.sum())), where=weight[sharp, MIRROR] > 0)
     k = (share * merged)[on][:, None]
     f0 = np.clip(1.0 - e[on] / k, 0.0, 1.0)
+    film_ior = np.asarray(mats.film_ior, np.float64)[on]
     _, g = _at_film_nodes(FILM_NODES, thin_film.conductor_reflectance, film.sensitivity, film.thickness[on],
-                          np.asarray(mats.film_ior, np.float64)[on], f0, d[on] / k)
+                          film_ior, f0, d[on] / k)
+    # (physical conductors: their own complex index under the film)
+    n, k_ext = (_or_zeros(x, (m, 3))[on] for x in (mats.film_metal_ior, mats.film_metal_extinction))
+    physical = np.flatnonzero((n > 0).any(axis=1))
+    if len(physical):
+        _, g[physical] = _at_film_nodes(FILM_NODES, thin_film.physical_conductor_reflectance,
+                                        film.sensitivity, film.thickness[on][physical], film_ior[physical],
+                                        n[physical], k_ext[physical])
     index = np.full(m, -1, np.int64)
     index[on] = np.arange(len(on))
     return {"metal_film_index": index, "metal_film_lobe": lobe,

@@ -129,7 +129,10 @@ class Materials:
       side the light comes from, as Cycles, with F0 of ``ior``), and refracts 1 - G.
       ``film_metal`` k > 0 puts the film over the lobe's metal as well (its metal curve, of share
       k: F0 = 1 - ``glossy_metal_rise`` / k, b = ``glossy_metal_dip`` / k), which then reflects k
-      G_m(c) in place of its curve (:func:`core.thin_film.conductor_reflectance`).
+      G_m(c) in place of its curve (:func:`core.thin_film.conductor_reflectance`), or, where
+      ``film_metal_ior`` n > 0, the film over a physical conductor of complex index n + i
+      ``film_metal_extinction`` (Cycles' Metallic BSDF: its own polarised Fresnel under the film,
+      :func:`core.thin_film.physical_conductor_reflectance`; the curve stays its F82 fit).
       ``glossy_metal_rise`` and ``glossy_metal_dip`` give a metal's Fresnel curve (Cycles'
       F82-tint model): at microfacet cosine c the lobe reflects ``glossy_color`` +
       ``glossy_metal_rise`` (1 - c)^5 - ``glossy_metal_dip`` c (1 - c)^6, kept within [0, 1]
@@ -300,6 +303,8 @@ class Materials:
     film_ior: np.ndarray = None                         # (M,) float32 in [1e-5, 100]; None: 1.33
     film_tint: np.ndarray = None                        # (M, 3) float32 in [0, 1]; None: 1
     film_metal: np.ndarray = None                       # (M,) float32 in [0, 1]; None: 0
+    film_metal_ior: np.ndarray = None                   # (M, 3) float32 in [0, 100]; None: 0 (F82)
+    film_metal_extinction: np.ndarray = None            # (M, 3) float32 in [0, 100]; None: 0
     # Subsurface scattering (Cycles' random walk, ``core/subsurface.py``): the share of the diffuse
     # lobe that enters the surface (Principled's Subsurface Weight; 1 for the Subsurface Scattering
     # BSDF), walks inside the object with the lobe's colour as its albedo and mean free paths of
@@ -374,6 +379,7 @@ class Materials:
                     "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
                     "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump",
                     "bump_correction", "film_thickness", "film_ior", "film_tint", "film_metal",
+                    "film_metal_ior", "film_metal_extinction",
                     "subsurface_weight", "subsurface_radius", "subsurface_anisotropy", "subsurface_ior",
                     "subsurface_alpha", "subsurface_method")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
@@ -495,6 +501,8 @@ class Materials:
         out.film_ior = np.full(m, 1.33, np.float32)
         out.film_tint = np.ones((m, 3), np.float32)
         out.film_metal = np.zeros(m, np.float32)
+        out.film_metal_ior = np.zeros((m, 3), np.float32)
+        out.film_metal_extinction = np.zeros((m, 3), np.float32)
         out.subsurface_weight = np.zeros(m, np.float32)
         out.subsurface_radius = np.ones((m, 3), np.float32)
         out.subsurface_anisotropy = np.zeros(m, np.float32)
@@ -612,6 +620,8 @@ class Materials:
             out.film_ior[i] = s.get("film_ior", 1.33)
             out.film_tint[i] = np.broadcast_to(np.asarray(s.get("film_tint", 1.0), np.float32), (3,))
             out.film_metal[i] = s.get("film_metal", 0.0)
+            for name in ("film_metal_ior", "film_metal_extinction"):
+                getattr(out, name)[i] = np.broadcast_to(np.asarray(s.get(name, 0.0), np.float32), (3,))
             out.subsurface_weight[i] = s.get("subsurface_weight", 0.0)
             radius = np.asarray(s.get("subsurface_radius", 1.0), np.float32)
             out.subsurface_radius[i] = np.broadcast_to(radius, (3,))
@@ -1088,7 +1098,9 @@ class Scene:
                                        ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
                                        ("bump_correction", (n,), 1), ("film_thickness", (n,), 0.0),
                                        ("film_ior", (n,), 1.33), ("film_tint", (n, 3), 1.0),
-                                       ("film_metal", (n,), 0.0), ("subsurface_weight", (n,), 0.0),
+                                       ("film_metal", (n,), 0.0), ("film_metal_ior", (n, 3), 0.0),
+                                       ("film_metal_extinction", (n, 3), 0.0),
+                                       ("subsurface_weight", (n,), 0.0),
                                        ("subsurface_radius", (n, 3), 1.0),
                                        ("subsurface_anisotropy", (n,), 0.0),
                                        ("subsurface_ior", (n,), 1.4), ("subsurface_alpha", (n,), 1.0),
@@ -1112,7 +1124,8 @@ class Scene:
                                                 else np.float32))
         for name in Materials.ARRAY_FIELDS:
             colour = name.endswith(("color", "emission", "multiscatter", "rise", "dip", "layer", "tint",
-                                    "absorption", "scattering", "rest", "radius"))
+                                    "absorption", "scattering", "rest", "radius", "film_metal_ior",
+                                    "film_metal_extinction"))
             tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INTEGER_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
@@ -1144,6 +1157,7 @@ class Scene:
                                 ("displacement_bump", 0, 1), ("bump_correction", 0, 1),
                                 ("film_thickness", 0.0, 1e6), ("film_ior", 1e-5, 100.0),
                                 ("film_tint", 0.0, 1.0), ("film_metal", 0.0, 1.0),
+                                ("film_metal_ior", 0.0, 100.0), ("film_metal_extinction", 0.0, 100.0),
                                 ("subsurface_weight", 0.0, 1.0), ("subsurface_radius", 0.0, np.inf),
                                 ("subsurface_anisotropy", 0.0, 0.9), ("subsurface_ior", 1.01, 3.8),
                                 ("subsurface_alpha", 0.0, 1.0),

@@ -161,16 +161,35 @@ def conductor_reflectance(table, cos_i, thickness, film_ior, f0, b):
     the complex index n + ik of Gulbrandsen's artist-friendly mapping of F0 and the curve's value
     at cos = 1/7, and ``fresnel_iridescence`` for a conductor: the film-to-metal reflectance by the
     F82 curve of the metal's F0 relative to the film, the phases of the complex index."""
-    cos_i, thickness, film_ior = (np.asarray(x, np.float64) for x in (cos_i, thickness, film_ior))
-    n_rows = len(cos_i)
+    n_rows = len(np.asarray(cos_i))
     f0 = np.broadcast_to(np.asarray(f0, np.float64), (n_rows, 3))
     b = np.broadcast_to(np.asarray(b, np.float64), (n_rows, 3))
-    thickness = np.broadcast_to(thickness, (n_rows,))
     g = f82(1.0 / 7.0, f0, b)
     r = np.minimum(f0, 0.999)
     root = np.sqrt(r)
     n = (1.0 - g) * (1.0 + root) / (1.0 - root) + g * (1.0 - r) / (1.0 + r)
     k = np.sqrt(np.maximum((r * (n + 1.0) ** 2 - (n - 1.0) ** 2) / (1.0 - r), 0.0))
+    return _filmed_conductor(table, cos_i, thickness, film_ior, n, k, g)
+
+
+def physical_conductor_reflectance(table, cos_i, thickness, film_ior, n, k):
+    """(n, 3) reflectance of a metal of complex index ``n`` + i ``k`` (each (n, 3)) coated by a
+    film ``thickness`` nm thick of index ``film_ior``, at cosines ``cos_i``: Cycles'
+    ``fresnel_iridescence`` for a physical conductor (the Metallic BSDF's), whose film-to-metal
+    reflectance is the conductor's own Fresnel for each polarisation."""
+    n_rows = len(np.asarray(cos_i))
+    n, k = (np.broadcast_to(np.asarray(x, np.float64), (n_rows, 3)) for x in (n, k))
+    return _filmed_conductor(table, cos_i, thickness, film_ior, n, k, None)
+
+
+def _filmed_conductor(table, cos_i, thickness, film_ior, n, k, g):
+    """Cycles' ``fresnel_iridescence`` over a conductor of index ``n`` + i ``k`` (n, 3): the
+    film-to-metal reflectance by the F82 curve of the metal's F0 relative to the film through
+    ``g`` (its value at cos = 1/7) or, ``g`` None, by the conductor's polarised Fresnel
+    (``fresnel_conductor_polarized``); the phases those of the complex index."""
+    cos_i, thickness, film_ior = (np.asarray(x, np.float64) for x in (cos_i, thickness, film_ior))
+    n_rows = len(cos_i)
+    thickness = np.broadcast_to(thickness, (n_rows,))
     n_film = _film_index(thickness, np.broadcast_to(film_ior, (n_rows,)))
     r12_s, r12_p, cos_2, ph12_s, ph12_p, tir12 = _polarized(cos_i, n_film)
     c = (-cos_2)[:, None]                                   # the film-to-metal cosine
@@ -179,8 +198,13 @@ def conductor_reflectance(table, cos_i, thickness, film_ior, f0, b):
     t2 = np.sqrt(t1 * t1 + (2.0 * n * k) ** 2)
     u2, v2 = np.maximum(0.5 * (t2 + t1), 0.0), np.maximum(0.5 * (t2 - t1), 0.0)
     u, v = np.sqrt(u2), np.sqrt(v2)
-    rel_f0 = ((n / e1 - 1.0) ** 2 + (k / e1) ** 2) / ((n / e1 + 1.0) ** 2 + (k / e1) ** 2)
-    r23 = f82(c, rel_f0, f82_b(rel_f0, g))                  # (both polarisations: Cycles' F82 model)
+    if g is not None:
+        rel_f0 = ((n / e1 - 1.0) ** 2 + (k / e1) ** 2) / ((n / e1 + 1.0) ** 2 + (k / e1) ** 2)
+        r23_s = r23_p = f82(c, rel_f0, f82_b(rel_f0, g))     # (both polarisations: Cycles' F82 model)
+    else:
+        r23_s = _safe_ratio((e1 * c - u) ** 2 + v2, (e1 * c + u) ** 2 + v2)
+        t3, t4 = (n * n - k * k) * c, 2.0 * n * k * c
+        r23_p = _safe_ratio((t3 - e1 * u) ** 2 + (t4 - e1 * v) ** 2, (t3 + e1 * u) ** 2 + (t4 + e1 * v) ** 2)
 
     def phasor(re, im):
         mag = np.sqrt(re * re + im * im)
@@ -191,9 +215,14 @@ def conductor_reflectance(table, cos_i, thickness, film_ior, f0, b):
     phase_p = phasor(((n * n + k * k) * c) ** 2 - e1 * e1 * (u2 + v2),
                      2.0 * e1 * c * (2.0 * n * k * u - (n * n - k * k) * v))
     opd = -2.0 * n_film * thickness * cos_2
-    out = 0.5 * (_airy(table, r12_s, r23, opd, phase_s * -ph12_s[:, None])
-                 + _airy(table, r12_p, r23, opd, phase_p * -ph12_p[:, None]))
+    out = 0.5 * (_airy(table, r12_s, r23_s, opd, phase_s * -ph12_s[:, None])
+                 + _airy(table, r12_p, r23_p, opd, phase_p * -ph12_p[:, None]))
     return np.where(tir12[:, None], 1.0, np.clip(out, 0.0, 1.0))
+
+
+def _safe_ratio(a, b):
+    """a / b, 0 where b is 0 (Cycles' ``safe_divide``)."""
+    return np.divide(a, b, out=np.zeros(np.broadcast(a, b).shape), where=b != 0)
 
 
 def principled_reflectance(table, cos_i, thickness, film_ior, eta, f0_tint):

@@ -150,6 +150,7 @@ class Closure:
     film: tuple = None              # (thickness nm, IOR, specular tint (3,)) of a thin film on that layer,
     #                                 the glass and the metal
     film_metal: float = 0.0         # glossy weight of the metal (curve) under that film
+    film_conductor: tuple = None    # (IOR (3,), extinction (3,)) of that metal if a physical conductor
     rise: np.ndarray = field(default_factory=lambda: np.zeros(3))          # (3,) glossy weight * rise
     metal_rise: np.ndarray = field(default_factory=lambda: np.zeros(3))    # (3,) weight * a metal's rise
     metal_dip: np.ndarray = field(default_factory=lambda: np.zeros(3))     # (3,) weight * its dip (F82 tint)
@@ -233,6 +234,10 @@ class Closure:
         filmed = [c.film for c, w in ((self, wa), (other, wb)) if c.film is not None
                   and ((w[GLOSSY] > 0 and (c.fresnel_ior > 0 or c.film_metal > 0)) or w[DIELECTRIC] > 0)]
         out.film = filmed[0] if filmed else None
+        # (and the first filmed metal's complex index, if a physical conductor)
+        metals = [c.film_conductor for c, w in ((self, wa), (other, wb))
+                  if c.film_metal > 0 and w[GLOSSY] > 0]
+        out.film_conductor = metals[0] if metals else None
         out.ior = _weighted(self.ior, other.ior, wa[DIELECTRIC], wb[DIELECTRIC])
         out.dielectric_roughness = _weighted(self.dielectric_roughness, other.dielectric_roughness,
                                              wa[DIELECTRIC], wb[DIELECTRIC])
@@ -591,6 +596,8 @@ class Closure:
             s["film_thickness"], s["film_ior"], s["film_tint"] = self.film
             if metal_film:
                 s["film_metal"] = float(np.clip(self.film_metal / self.weight[GLOSSY], 0.0, 1.0))
+                if self.film_conductor is not None:
+                    s["film_metal_ior"], s["film_metal_extinction"] = self.film_conductor
         if self.dielectric_texture is not None and self.weight[DIELECTRIC] > 0:
             s["dielectric_program"] = self.dielectric_texture
             s["dielectric"] = np.ones(3)
@@ -1673,16 +1680,16 @@ class NodeWalker:
         colour and edge tint, or that curve through the physical conductor's reflectance face on
         and at cos = 1/7 (``conductor_f82``), F_ss the mean of the conductor's own curve.  A
         texture on the base colour makes the F0 a program (``Closure.metal_texture``), one on the
-        edge tint the lobe's colour a program of the curve's mean instead."""
+        edge tint the lobe's colour a program of the curve's mean instead.  A thin film goes over
+        either (a physical conductor's by its complex index, ``Closure.film_conductor``)."""
         film = self.thin_film(node, stack)
-        if film is not None and node.fresnel_type == "PHYSICAL_CONDUCTOR":
-            film = None
-            self.note(f"'{node.name}': Thin Film on a Physical Conductor is not supported (ignored)")
+        conductor = None
         if node.fresnel_type == "PHYSICAL_CONDUCTOR":
             ior, _ = self.color(node.inputs["IOR"], stack)
             extinction, _ = self.color(node.inputs["Extinction"], stack)
             base, tint = conductor_f82(ior, extinction)
             mean = conductor_fresnel(ior, extinction)
+            conductor = (np.clip(ior, 0.0, 100.0), np.clip(extinction, 0.0, 100.0))
         else:
             base, base_tex = self.color(node.inputs["Base Color"], stack)
             tint, tint_tex = self.color(node.inputs["Edge Tint"], stack)
@@ -1702,7 +1709,7 @@ class NodeWalker:
         if node.distribution == "MULTI_GGX":
             c.multiscatter = f0 * mean
         if film is not None:
-            c.film, c.film_metal = (*film, np.ones(3)), 1.0
+            c.film, c.film_metal, c.film_conductor = (*film, np.ones(3)), 1.0, conductor
         return c
 
     def tangent(self, sock, stack):

@@ -1573,7 +1573,8 @@ def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
     IOR 1, which Cycles drops without a film, the film keeps it.  A transmissive one's glass takes
     the same film and reflects white (the tint scales the film's colour instead).  A film on the
     metallic part takes it too (``film_metal``, its share of the glossy lobe), as a Metallic BSDF's
-    (F82) and a Glass BSDF's (untinted); on a Physical Conductor it is noted."""
+    (F82, or a Physical Conductor's by its complex index since stop 45: before, noted and left
+    out) and a Glass BSDF's (untinted)."""
     row, ex = export_material(principled("Oil", **{"Thin Film Thickness": 480.0, "Thin Film IOR": 1.4,
                                                    "Specular Tint": (1.0, 0.5, 0.25, 1.0)}))
     assert row["film_thickness"] == pytest.approx(480.0) and row["film_ior"] == pytest.approx(1.4)
@@ -1600,9 +1601,15 @@ def test_a_principled_thin_film_reaches_the_core_on_its_specular_layer(scene):
                                           **{"Thin Film Thickness": 300.0}))
     assert row["film_metal"] == 1.0 and row["film_thickness"] == pytest.approx(300.0)
     mat = bs._material("Conductor", "ShaderNodeBsdfMetallic", **{"Thin Film Thickness": 300.0})
-    mat.node_tree.nodes["Metallic BSDF"].fresnel_type = "PHYSICAL_CONDUCTOR"
+    node = mat.node_tree.nodes["Metallic BSDF"]
+    node.fresnel_type = "PHYSICAL_CONDUCTOR"
     row, ex = export_material(mat)
-    assert row["film_metal"] == 0 and any("Physical Conductor" in w for w in ex.warnings), ex.warnings
+    assert row["film_metal"] == 1.0 and row["film_thickness"] == pytest.approx(300.0)
+    assert row["film_metal_ior"] == pytest.approx(node.inputs["IOR"].default_value[:3])
+    assert row["film_metal_extinction"] == pytest.approx(node.inputs["Extinction"].default_value[:3])
+    assert not [w for w in ex.warnings if "'Conductor'" in w], ex.warnings
+    row, _ = export_material(bs._material("Bare conductor", "ShaderNodeBsdfMetallic"))
+    assert row["film_metal"] == 0 and not row["film_metal_ior"].any()
     row, ex = export_material(bs._material("Pane", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 300.0,
                                                                              "Thin Film IOR": 1.4}))
     assert row["film_thickness"] == pytest.approx(300.0) and row["film_ior"] == pytest.approx(1.4)

@@ -1896,14 +1896,23 @@ def test_a_filmed_principled_glass_matches_cycles(addon, tmp_path, shader, degre
     np.testing.assert_allclose(o, c, rtol=0.04, atol=5e-4)
 
 
-@pytest.mark.parametrize("shader", ["metallic_bsdf", "metallic_principled"])
+@pytest.mark.parametrize("shader", ["metallic_bsdf", "metallic_principled", "physical_conductor"])
 def test_a_filmed_metal_matches_cycles(addon, tmp_path, shader):
     """A smooth metal pane with a Thin Film of 500 nm (stop 43; before, the film ignored) under the
     emitting ceiling at 40 degrees (:func:`filmed_pane`): a Metallic BSDF (F82, Blender's default
     colours: Cycles reads them as a complex index for the film) and a metallic Principled BSDF
     (base colour (0.9, 0.6, 0.3), its Specular Tint (0.9, 0.8, 1.0) the F82 tint).  A half metallic
-    one, its dielectric half filmed too, is a closed form in tests/core/test_thin_film.py."""
+    one, its dielectric half filmed too, is a closed form in tests/core/test_thin_film.py.
+    ``physical_conductor``: a Metallic BSDF's Physical Conductor (Blender's default gold) under a
+    film of 300 nm (stop 45: 1.000 / 1.000 / 0.9999 of Cycles; before, noted and left out, the bare
+    gold's reflectance there is 1.57 / 1.80 / 0.95 of Cycles' filmed one, and its F82 fit under the
+    film, what a metallic Principled of its colour gets, would give 1.57 / 1.58 / 0.66)."""
     def material():
+        if shader == "physical_conductor":
+            mat = bs._material("Pane", "ShaderNodeBsdfMetallic", Roughness=0.0,
+                               **{"Thin Film Thickness": 300.0})
+            mat.node_tree.nodes["Metallic BSDF"].fresnel_type = "PHYSICAL_CONDUCTOR"
+            return mat
         if shader == "metallic_bsdf":
             return bs._material("Pane", "ShaderNodeBsdfMetallic", Roughness=0.0,
                                 **{"Thin Film Thickness": 500.0})
