@@ -154,7 +154,8 @@ def transparent_stack():
     m.normals = [np.zeros((room.triangle_count, 3, 3))]
     for z in np.linspace(0.1, 1.9, 100):
         m.add_quad((-1, -1, z), (1, -1, z), (1, 1, z), (-1, 1, z), 2)
-    scene = m.build(Materials.build(specs), camera=room.camera)
+    plain = [{k: v for k, v in s.items() if k != "diffuse_program"} for s in specs]
+    scene = m.build(Materials.build(plain), camera=room.camera)
     specs[2] = {**specs[2], "opacity_program": wild, "transparent_color": (1.0, 0.9, 0.8), "holdout": 0.5}
     flags = np.where(scene.material_ids == 1, 7 | HOLDOUT_OBJECT, 7).astype(np.uint8)
     return with_one_object(scene).replace(materials=Materials.build(specs),
@@ -178,7 +179,8 @@ def extreme_coats():
     m.normals = [np.zeros((room.triangle_count, 3, 3))]
     m.add_box((-0.7, -0.3, 0), (-0.1, 0.3, 0.8), 2)
     m.add_box((0.2, -0.2, 0), (0.7, 0.3, 1.2), 3)
-    scene = m.build(Materials.build(specs), camera=room.camera)
+    plain = [{k: v for k, v in s.items() if k != "diffuse_program"} for s in specs]
+    scene = m.build(Materials.build(plain), camera=room.camera)
     specs[0] = {**specs[0], "roughness_program": wild}
     return with_one_object(scene).replace(materials=Materials.build(specs)).validate()
 
@@ -261,9 +263,57 @@ def extreme_world_volume():
     return m.build(scene.materials, lights, scene.camera, world)
 
 
+def extreme_subsurface():
+    """Boxes in the room scattering beneath their surfaces at the inputs' edges (stop 45): a white
+    medium (albedo 1: walks that only end at the surface or after the 256 steps), radii of 1e-30,
+    1 and 1e6 in one material, a black one, anisotropy 0.9 with an IOR of 3.8 and a smooth entry
+    (alpha 0), Skin at IOR 1.01, a medium nested in a glass box, an open quad (walks under it
+    never meet a surface again), a box of 1e-6 and a texture on the colour gone wild (1 / x); each
+    box its own object (a walk meets its own object's faces alone), the room another."""
+    room = cornell_like()
+    wild = {"op": "splat", "value": {"op": "math", "operation": "DIVIDE", "a": 0.01,
+                                     "b": {"op": "separate", "vector": {"op": "attribute", "name": "object"},
+                                           "output": "X"}}}
+    specs = [{"name": "wall", "diffuse": 0.7}, {"name": "lamp", "emission": 5.0},
+             {"name": "mixed radii", "diffuse": 0.8, "subsurface_weight": 1.0,
+              "subsurface_radius": (1e-30, 1.0, 1e6), "glossy": 0.5, "roughness": 0.3},
+             {"name": "black", "diffuse": 0.0, "subsurface_weight": 1.0, "subsurface_radius": 0.1},
+             {"name": "forward", "diffuse": 0.9, "subsurface_weight": 1.0, "subsurface_radius": 0.2,
+              "subsurface_anisotropy": 0.9, "subsurface_ior": 3.8, "subsurface_alpha": 0.0},
+             {"name": "skin", "diffuse": (0.9, 0.5, 0.3), "subsurface_weight": 0.5, "subsurface_radius": 0.05,
+              "subsurface_ior": 1.01, "subsurface_method": 1},
+             {"name": "glass", "dielectric": 1.0},
+             {"name": "wild", "diffuse": 0.5, "diffuse_program": wild, "subsurface_weight": 1.0,
+              "subsurface_radius": 0.2},
+             {"name": "white", "diffuse": 1.0, "subsurface_weight": 1.0, "subsurface_radius": 0.3}]
+    m = MeshBuilder()
+    m.tris, m.mats = [room.triangle_corners()], [room.material_ids]
+    m.normals = [np.zeros((room.triangle_count, 3, 3))]
+    m.add_box((-0.7, -0.3, 0), (-0.1, 0.3, 0.8), 2)
+    m.add_box((0.2, -0.2, 0.0), (0.7, 0.3, 0.4), 8)
+    m.add_box((0.75, 0.5, 0.0), (0.95, 0.7, 0.2), 3)
+    m.add_box((0.2, -0.2, 0.5), (0.7, 0.3, 1.2), 6)
+    m.add_box((0.3, -0.1, 0.6), (0.6, 0.2, 1.1), 4)
+    m.add_quad((-0.9, -0.6, 1.3), (-0.3, -0.6, 1.3), (-0.3, 0.0, 1.3), (-0.9, 0.0, 1.3), 5)
+    m.add_box((0.0, 0.0, 1.0), (1e-6, 1e-6, 1.000001), 4)
+    m.add_box((-0.9, 0.4, 0.0), (-0.5, 0.8, 0.4), 7)
+    plain = [{k: v for k, v in s.items() if k != "diffuse_program"} for s in specs]
+    scene = m.build(Materials.build(plain), camera=room.camera)
+    # (an object per box of 12 triangles, the quad's 2 with the room's)
+    objects = np.zeros(scene.triangle_count, np.int32)
+    first = room.triangle_count
+    sizes = [12, 12, 12, 12, 12, 2, 12, 12]
+    for i, (start, size) in enumerate(zip(np.cumsum([first] + sizes[:-1]), sizes)):
+        objects[start:start + size] = 0 if size == 2 else i + 1
+    count = len(sizes) + 1
+    return scene.replace(materials=Materials.build(specs), object_ids=objects,
+                         object_from_world=np.tile(np.eye(3, 4), (count, 1, 1)),
+                         texture_spaces=np.tile([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]], (count, 1, 1))).validate()
+
+
 SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
           "extreme_volumes": extreme_volumes, "extreme_scattering": extreme_scattering,
-          "extreme_world_volume": extreme_world_volume,
+          "extreme_world_volume": extreme_world_volume, "extreme_subsurface": extreme_subsurface,
           "wild_procedural_colour": wild_procedural_colour,
           "transparent_stack": transparent_stack,
           "light_trapped_in_glass": light_trapped_in_glass,
