@@ -472,6 +472,9 @@ class Closure:
                 return False
             if (self.rises or other.rises) and not _same_film(self.film, other.film):
                 return False                # (one film per material)
+            if self.film_metal > 0 and other.film_metal > 0 and not _same_conductor(self.film_conductor,
+                                                                                      other.film_conductor):
+                return False                # (and one metal under it)
             varies = [c for c in (self, other) if c.glossy_texture is not None or c.metal_texture is not None]
             if len(varies) == 2:
                 return False
@@ -837,6 +840,14 @@ def _same_film(a, b) -> bool:
     if a is None or b is None:
         return a is None and b is None
     return bool(np.isclose(a[0], b[0]) and np.isclose(a[1], b[1]) and np.allclose(a[2], b[2]))
+
+
+def _same_conductor(a, b) -> bool:
+    """Whether two filmed metals' complex indices (``Closure.film_conductor``) are the same (or both
+    F82 metals)."""
+    if a is None or b is None:
+        return a is None and b is None
+    return bool(np.allclose(a[0], b[0]) and np.allclose(a[1], b[1]))
 
 
 def _weighted(a, b, wa, wb):
