@@ -238,6 +238,10 @@ class MaterialTable:
     anisotropic: np.ndarray = None          # (M,) bool: the glossy lobe's alphas differ along a tangent
     alpha_x: np.ndarray = None              # (M,) float64 its alpha along the tangent (``alpha`` where
     alpha_y: np.ndarray = None              # isotropic) and across it; ``alpha`` is then sqrt(ax ay)
+    glass_ms_albedo: np.ndarray = None      # (M, 2, MS_NODES + 1) float64 rough glass albedo E seen from
+    #                                         outside and inside (1: none; Materials.dielectric_multiscatter)
+    glass_ms_fresnel: np.ndarray = None     # (M, 2, 3) float64 its F_ms from either side (0: single
+    #                                         scattering)
     rotation: np.ndarray = None             # (M,) float64 the tangent's turn about the normal (turns)
     tangent_axis: np.ndarray = None         # (M,) int32 Materials.glossy_tangent
     hit_metal: np.ndarray = None            # (M,) bool: the metal's curve follows the lobe's colour at each
@@ -399,7 +403,23 @@ class MaterialTable:
                                                      _or_zeros(mats.glossy_metal_rest, (m, 3)), 0.0),
                              film_index=film.index, film_curve=film.curve,
                              **_glass_film(mats, weight, film),
-                             **_metal_film(mats, weight, edge, dip, sharp, film))
+                             **_metal_film(mats, weight, edge, dip, sharp, film),
+                             **_glass_multiscatter_tables(mats, weight, dielectric_alpha, coarse))
+
+    @property
+    def has_glass_multiscatter(self) -> bool:
+        return self.glass_ms_albedo is not None
+
+    def glass_multiscatter(self, mat_ids, mu, inside):
+        """(n, 3) factors 1 + F_ms (1 - E(mu)) / E(mu) of rough glasses seen at camera-side cosines
+        ``mu`` (n,) from ``inside`` (n,) bool or outside: Cycles' energy compensation of its
+        Multiscatter GGX glass (``microfacet_ggx_preserve_energy``: the albedo E of the glass's
+        single scattering from that side, its relative IOR inverted inside, and F_ms of F_ss its
+        transmission tint), 1 for materials without it."""
+        rows = np.asarray(mat_ids, np.int64) * 2 + np.asarray(inside, np.int64)
+        e = _interpolate(self.glass_ms_albedo.reshape(-1, MS_NODES + 1), rows, mu)
+        fms = self.glass_ms_fresnel.reshape(-1, 3).take(rows, axis=0)
+        return 1.0 + fms * ((1.0 - e) / np.maximum(e, 1e-6))[:, None]
 
     @property
     def lobes(self) -> int:
@@ -1004,6 +1024,32 @@ def _strata(coarse):
     return COARSE_STRATA if coarse.all() else EXACT_STRATA
 
 
+def _glass_multiscatter_tables(mats, weight, dielectric_alpha, coarse):
+    """MaterialTable fields of the rough glasses with Multiscatter GGX
+    (``Materials.dielectric_multiscatter``, their F_ss): E(mu) at the ``MS_NODES`` + 1 nodes
+    from outside (relative IOR ``ior``) and inside (1 / ``ior``), and F_ms = F_ss E_avg / (1 - F_ss
+    (1 - E_avg)) with each side's E_avg.  One quadrature per distinct (alpha, IOR)."""
+    fss = _or_zeros(mats.dielectric_multiscatter, (len(weight), 3))
+    on = (weight[:, DIELECTRIC] > 0) & (dielectric_alpha > 0) & (fss > 0).any(axis=1)
+    if not on.any():
+        return {}
+    m = len(weight)
+    table = np.ones((m, 2, MS_NODES + 1))
+    fms = np.zeros((m, 2, 3))
+    mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
+    ior = np.asarray(mats.ior, np.float64)
+    f = np.clip(fss, 0.0, 1.0)
+    for a, eta in set(zip(dielectric_alpha[on], ior[on])):
+        rows = np.flatnonzero(on & (dielectric_alpha == a) & (ior == eta))
+        strata = _strata(coarse[rows])
+        for side, relative in enumerate((eta, 1.0 / eta)):
+            e = smp.ggx_glass_albedo(a, mu, relative, strata)
+            e_avg = 2.0 * np.trapz(e * mu, mu)
+            table[rows, side] = e
+            fms[rows, side] = f[rows] * e_avg / (1.0 - f[rows] * (1.0 - e_avg))
+    return {"glass_ms_albedo": table, "glass_ms_fresnel": fms}
+
+
 def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse, albedo):
     """Per-material E(mu) at the ``MS_NODES`` + 1 nodes, F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg))
     and E_avg (0 where a material has no compensation).
@@ -1395,6 +1441,12 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 ratio = np.where(rough, smp.ggx_g2(cos_o_s, np.abs(cos_i_s), np.maximum(alpha, MIN_ALPHA))
                                  / smp.ggx_g1(cos_o_s, np.maximum(alpha, MIN_ALPHA)), 1.0)
                 w = w * ratio[:, None]
+                if table.has_glass_multiscatter:
+                    # Energy compensation, a factor of the camera-side direction (wi for photons)
+                    # from its side of the surface (inside: behind the front of ``ng``).
+                    view = d if mode == "importance" else w_o
+                    inside = dot(view, ng.take(sel, axis=0)) < 0
+                    w = w * table.glass_multiscatter(m_sel, np.abs(dot(view, n_s)), inside)
             if mode == "importance":
                 # Cycles' convention (see the module docstring): photons going into a denser medium
                 # lose 1 / eta^2 of their flux, and gain it back coming out (refraction_scale).

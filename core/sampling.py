@@ -299,6 +299,32 @@ def mean_fresnel(ior) -> float:
     return float(np.mean(2.0 * mu * f))
 
 
+def ggx_glass_albedo(alpha, mu, eta, strata=64):
+    """Directional albedo E(mu) of single-scattering GGX glass of relative index ``eta`` (n on the
+    far side over n on the view's; below 1 seen from inside): Fresnel reflection above the
+    surface plus refraction below it, each weighing G2 / G1 about visible-normal samples as
+    :func:`ggx_albedo` (the midpoint rule on its grid), refraction without a 1 / eta^2 (camera
+    paths' convention, Cycles').  ``alpha``, ``eta`` scalars, ``mu`` (k,); (k,) in (0, 1]."""
+    mu = np.clip(np.asarray(mu, np.float64), 1e-4, 1.0)
+    t = (np.arange(strata) + 0.5) / strata
+    u1 = np.tile(np.repeat(1.0 - (1.0 - t) ** 3, strata), len(mu))
+    jac = np.tile(np.repeat(3.0 * (1.0 - t) ** 2, strata), len(mu))
+    u2 = np.tile(np.tile(t, strata), len(mu))
+    cos_o = np.repeat(mu, strata * strata)
+    wo = np.stack([np.sqrt(1.0 - cos_o * cos_o), np.zeros_like(cos_o), cos_o], axis=1)
+    m = ggx_sample_visible_normal(wo, alpha, u1, u2)
+    cos_h = np.clip(dot(wo, m), 0.0, 1.0)
+    f, cos_t = fresnel_dielectric(cos_h, eta)
+    up = reflect(wo, m)[:, 2]
+    down = refract(wo, m, np.full(len(wo), float(eta)), cos_t)[:, 2]
+    g1 = ggx_g1(cos_o, alpha)
+    reflected = np.where(up > 0, f * ggx_g2(cos_o, np.maximum(up, 1e-12), alpha), 0.0)
+    below = np.maximum(-down, 1e-12)
+    refracted = np.where((down < 0) & (f < 1.0), (1.0 - f) * ggx_g2(cos_o, below, alpha), 0.0)
+    w = (reflected + refracted) / g1
+    return (w * jac).reshape(len(mu), -1).mean(axis=1)
+
+
 def _ggx_reflection_nodes(alpha, mu, strata):
     """Quadrature of ``ggx_albedo``: weights (k, strata^2) whose row means are E(mu), and the
     cosines wo.m of their microfacet normals."""

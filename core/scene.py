@@ -172,7 +172,9 @@ class Materials:
       over its tinted transmission); the transmitted colour is multiplied by the program
       ``dielectric_program`` (when >= 0) at each hit (stained glass), the reflected one is not;
       smooth, or rough with GGX microfacets of Blender
-      roughness ``dielectric_roughness`` (single scattering); -1 there takes the roughness
+      roughness ``dielectric_roughness`` (single scattering, or with ``dielectric_multiscatter``
+      F_ss > 0 Cycles' Multiscatter GGX glass: the energy compensation 1 + F_ms (1 - E) / E of
+      the glass's albedo E at the camera-side cosine, from that side); -1 there takes the roughness
       map's value at each hit (``roughness_program``, which then varies both lobes' roughness:
       Principled's one Roughness, a Glass BSDF's roughness map); ``dielectric_fresnel`` s is the
       share of the lobe that reflects by Fresnel: the rest refracts whatever the Fresnel
@@ -291,6 +293,7 @@ class Materials:
     #                                                     program's); None: 0 (smooth)
     dielectric_reflection_color: np.ndarray = None      # (M, 3) float32; None: dielectric_color
     dielectric_fresnel: np.ndarray = None               # (M,) float32 in [0, 1]; None: 1
+    dielectric_multiscatter: np.ndarray = None          # (M, 3) float32 in [0, 1]; None: 0 (single)
     displacement_program: np.ndarray = None             # (M,) int32, index into programs or -1; None: -1
     displacement_flags: np.ndarray = None               # (M,) int32 DISPLACE_* bits; None: 0
     # 1 where the bump is the Displacement output's (Bump Only, Displacement and Bump): it replaces
@@ -377,7 +380,8 @@ class Materials:
                     "glossy_metal_rest", "level_program", "level_first", "level_count", "normal_program",
                     "normal_space", "outer_bump_program", "outer_bump_strength", "outer_bump_distance",
                     "coat_normal_program", "coat_bump_program", "coat_bump_strength", "coat_bump_distance",
-                    "dielectric_fresnel", "displacement_program", "displacement_flags", "displacement_bump",
+                    "dielectric_fresnel", "dielectric_multiscatter", "displacement_program",
+                    "displacement_flags", "displacement_bump",
                     "bump_correction", "film_thickness", "film_ior", "film_tint", "film_metal",
                     "film_metal_ior", "film_metal_extinction",
                     "subsurface_weight", "subsurface_radius", "subsurface_anisotropy", "subsurface_ior",
@@ -493,6 +497,7 @@ class Materials:
         out.outer_bump_program = np.full(m, -1, np.int32)
         out.coat_normal_program = np.full(m, -1, np.int32)
         out.dielectric_fresnel = np.ones(m, np.float32)
+        out.dielectric_multiscatter = np.zeros((m, 3), np.float32)
         out.displacement_program = np.full(m, -1, np.int32)
         out.displacement_flags = np.zeros(m, np.int32)
         out.displacement_bump = np.zeros(m, np.int32)
@@ -613,6 +618,8 @@ class Materials:
             out.coat_bump_strength[i] = s.get("coat_bump_strength", 1.0)
             out.coat_bump_distance[i] = s.get("coat_bump_distance", 1.0)
             out.dielectric_fresnel[i] = s.get("dielectric_fresnel", 1.0)
+            out.dielectric_multiscatter[i] = np.broadcast_to(
+                np.asarray(s.get("dielectric_multiscatter", 0.0), np.float32), (3,))
             out.displacement_flags[i] = s.get("displacement_flags", 0)
             out.displacement_bump[i] = s.get("displacement_bump", 0)
             out.bump_correction[i] = s.get("bump_correction", 1)
@@ -1094,7 +1101,9 @@ class Scene:
                                        ("outer_bump_distance", (n,), 1.0),
                                        ("coat_normal_program", (n,), -1), ("coat_bump_program", (n,), -1),
                                        ("coat_bump_strength", (n,), 1.0), ("coat_bump_distance", (n,), 1.0),
-                                       ("dielectric_fresnel", (n,), 1.0), ("displacement_program", (n,), -1),
+                                       ("dielectric_fresnel", (n,), 1.0),
+                                       ("dielectric_multiscatter", (n, 3), 0.0),
+                                       ("displacement_program", (n,), -1),
                                        ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
                                        ("bump_correction", (n,), 1), ("film_thickness", (n,), 0.0),
                                        ("film_ior", (n,), 1.33), ("film_tint", (n, 3), 1.0),
@@ -1151,7 +1160,7 @@ class Scene:
             fail(f"material '{mats.names[int(np.argmax(odd))]}': glossy_metal_share must be in (0, 1] and "
                  "glossy_metal_rest in [0, 1]")
         for name, low, high in (("opacity", 0.0, 1.0), ("coat_weight", 0.0, 1.0), ("holdout", 0.0, 1.0),
-                                ("dielectric_fresnel", 0.0, 1.0),
+                                ("dielectric_fresnel", 0.0, 1.0), ("dielectric_multiscatter", 0.0, 1.0),
                                 ("displacement_flags", 0, DISPLACE_WORLD | DISPLACE_KEEPS_NORMALS
                                  | DISPLACE_VECTOR),
                                 ("displacement_bump", 0, 1), ("bump_correction", 0, 1),

@@ -143,6 +143,8 @@ class Closure:
     dielectric_texture: dict = None  # program of the glass's transmitted colour (color[DIELECTRIC]: its mean)
     translucent_texture: dict = None  # program of the translucent colour (color[TRANSLUCENT]: its mean)
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
+    # (3,) dielectric weight * F_ss (its transmission tint) of a Multiscatter GGX glass
+    glass_multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
     refraction_only: float = 0.0    # the part of the dielectric weight that only refracts (Refraction
     #                                 BSDF: no Fresnel reflection, nothing under total internal reflection)
@@ -194,6 +196,7 @@ class Closure:
         out = Closure(weight=wa + wb, color=fa * self.color + fb * other.color,
                       emission=fa * self.emission + fb * other.emission,
                       multiscatter=fa * self.multiscatter + fb * other.multiscatter,
+                      glass_multiscatter=fa * self.glass_multiscatter + fb * other.glass_multiscatter,
                       reflection=fa * self.glass_reflection() + fb * other.glass_reflection(),
                       rise=fa * self.rise + fb * other.rise, layer=fa * self.layer + fb * other.layer,
                       metal_rise=fa * self.metal_rise + fb * other.metal_rise,
@@ -546,6 +549,7 @@ class Closure:
         if o <= 0.0:
             return Closure(roughness=self.roughness, ior=self.ior)
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
+                                                             "glass_multiscatter",
                                                              "rise", "metal_rise", "metal_dip", "layer",
                                                              "layered", "coat", "holdout", "refraction_only",
                                                              "film_metal", "subsurface")}
@@ -581,6 +585,8 @@ class Closure:
         s["dielectric_reflection"] = self.glass_reflection() / fresnel if fresnel > 1e-12 else np.zeros(3)
         if w > 0 and self.refraction_only > 0:
             s["dielectric_fresnel"] = float(np.clip(fresnel / w, 0.0, 1.0))
+        if w > 0 and self.glass_multiscatter.any():
+            s["dielectric_multiscatter"] = np.clip(self.glass_multiscatter / w, 0.0, 1.0)
         g = self.color[GLOSSY]
         s["glossy_multiscatter"] = np.divide(self.multiscatter, g, out=np.zeros(3), where=g > 0)
         if self.fresnel_ior > 0 and self.weight[GLOSSY] > 0:
@@ -1781,7 +1787,9 @@ class NodeWalker:
         through point by point, its reflections by the texture's mean (a few per cent of the light).
         Refraction has no Fresnel reflection: it refracts everything but under total internal
         reflection, where it gives nothing (Cycles; ``Materials.dielectric_fresnel``).  A Glass
-        BSDF's Thin Film makes its reflection the film's colour (times its own), as Cycles."""
+        BSDF's Thin Film makes its reflection the film's colour (times its own), as Cycles; its
+        Multiscatter GGX (the default) keeps Cycles' energy compensation of rough glass
+        (``Materials.dielectric_multiscatter``: F_ss its colour)."""
         color, tex = self.color(node.inputs["Color"], stack)
         ior = self.value(node.inputs["IOR"], stack)
         rough, rough_map = self.roughness(node.inputs["Roughness"], stack) if "Roughness" in node.inputs \
@@ -1792,7 +1800,10 @@ class NodeWalker:
             c.dielectric_texture = _program_of(tex, color)
         if node.bl_idname == "ShaderNodeBsdfRefraction":
             c.refraction_only, c.reflection = 1.0, np.zeros(3)
-        elif "Thin Film Thickness" in node.inputs:
+        elif node.distribution == "MULTI_GGX":
+            # (Cycles' energy compensation, F_ss its transmission tint: the colour)
+            c.glass_multiscatter = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
+        if node.bl_idname != "ShaderNodeBsdfRefraction" and "Thin Film Thickness" in node.inputs:
             film = self.thin_film(node, stack)
             c.film = None if film is None else (*film, np.ones(3))
         return c
@@ -1999,6 +2010,9 @@ class NodeWalker:
         # Cycles tints Principled glass by the square root of the base colour at each interface,
         # so that light crossing it (in and out) takes the base colour once.
         c.color[DIELECTRIC] = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, None))
+        if node.distribution == "MULTI_GGX":
+            # (Cycles' energy compensation of the glass, F_ss its transmission tint)
+            c.glass_multiscatter = c.weight[DIELECTRIC] * np.sqrt(np.clip(flat_base, 0.0, 1.0))
         c.reflection = c.weight[DIELECTRIC] * np.asarray(tint, np.float64)     # Cycles: the specular tint
         if film is not None and (spec > 0 or c.weight[DIELECTRIC] > 0 or m > 0):
             # The layer, the glass and the metal share the film; the tint then scales the film's

@@ -552,6 +552,24 @@ def test_textured_emission_becomes_one_program_scaled_to_its_mean(scene):
     assert row["diffuse_program"] >= 0                   # the metallic map mixes the base colours
 
 
+def test_multiscatter_glass_reaches_the_core_with_its_transmission_tint(scene):
+    """Multiscatter GGX (Blender's default) on a Glass BSDF gives ``dielectric_multiscatter`` its
+    colour, on a Principled glass the square root of its base colour (Cycles' F_ss, the
+    transmission tint; stop 45); GGX and the Refraction BSDF give 0 (single scattering)."""
+    row, _ = export_material(bs._material("Frosted", "ShaderNodeBsdfGlass", Roughness=0.5,
+                                          Color=(0.9, 0.6, 0.3, 1.0)))
+    assert row["dielectric_multiscatter"] == pytest.approx([0.9, 0.6, 0.3])
+    mat = bs._material("Single", "ShaderNodeBsdfGlass", Roughness=0.5)
+    mat.node_tree.nodes["Glass BSDF"].distribution = "GGX"
+    row, _ = export_material(mat)
+    assert not row["dielectric_multiscatter"].any()
+    row, _ = export_material(bs._material("Refractive", "ShaderNodeBsdfRefraction", Roughness=0.5))
+    assert not row["dielectric_multiscatter"].any()
+    row, _ = export_material(principled("Principled glass", **{"Transmission Weight": 1.0, "Roughness": 0.4,
+                                                               "Base Color": (0.81, 0.49, 0.25, 1.0)}))
+    assert row["dielectric_multiscatter"] == pytest.approx([0.9, 0.7, 0.5], rel=1e-5)
+
+
 def test_stained_glass_becomes_a_program_of_the_transmitted_colour(scene):
     """A Glass BSDF coloured by a checker: the transmitted colour is the checker (colour 1 times
     the program), the reflection its mean; a Principled glass: the square root of its base colour
