@@ -306,13 +306,8 @@ def ggx_glass_albedo(alpha, mu, eta, strata=64):
     :func:`ggx_albedo` (the midpoint rule on its grid), refraction without a 1 / eta^2 (camera
     paths' convention, Cycles').  ``alpha``, ``eta`` scalars, ``mu`` (k,); (k,) in (0, 1]."""
     mu = np.clip(np.asarray(mu, np.float64), 1e-4, 1.0)
-    t = (np.arange(strata) + 0.5) / strata
-    u1 = np.tile(np.repeat(1.0 - (1.0 - t) ** 3, strata), len(mu))
-    jac = np.tile(np.repeat(3.0 * (1.0 - t) ** 2, strata), len(mu))
-    u2 = np.tile(np.tile(t, strata), len(mu))
-    cos_o = np.repeat(mu, strata * strata)
-    wo = np.stack([np.sqrt(1.0 - cos_o * cos_o), np.zeros_like(cos_o), cos_o], axis=1)
-    m = ggx_sample_visible_normal(wo, alpha, u1, u2)
+    wo, m, jac = _visible_normal_grid(alpha, mu, strata)
+    cos_o = wo[:, 2]
     cos_h = np.clip(dot(wo, m), 0.0, 1.0)
     f, cos_t = fresnel_dielectric(cos_h, eta)
     up = reflect(wo, m)[:, 2]
@@ -325,17 +320,25 @@ def ggx_glass_albedo(alpha, mu, eta, strata=64):
     return (w * jac).reshape(len(mu), -1).mean(axis=1)
 
 
-def _ggx_reflection_nodes(alpha, mu, strata):
-    """Quadrature of ``ggx_albedo``: weights (k, strata^2) whose row means are E(mu), and the
-    cosines wo.m of their microfacet normals."""
-    mu = np.clip(np.asarray(mu, np.float64), 1e-4, 1.0)
+def _visible_normal_grid(alpha, mu, strata):
+    """The albedo quadratures' nodes: views ``wo`` (k strata^2, 3) at cosines ``mu`` (k,), their
+    visible normals ``m`` on a ``strata`` x ``strata`` grid (radial u1 = 1 - (1 - t)^3 at midpoints
+    in t, see :func:`ggx_albedo`) and the grid's Jacobian (k strata^2,)."""
     t = (np.arange(strata) + 0.5) / strata
     u1 = np.tile(np.repeat(1.0 - (1.0 - t) ** 3, strata), len(mu))
     jac = np.tile(np.repeat(3.0 * (1.0 - t) ** 2, strata), len(mu))
     u2 = np.tile(np.tile(t, strata), len(mu))
     cos_o = np.repeat(mu, strata * strata)
     wo = np.stack([np.sqrt(1.0 - cos_o * cos_o), np.zeros_like(cos_o), cos_o], axis=1)
-    m = ggx_sample_visible_normal(wo, alpha, u1, u2)
+    return wo, ggx_sample_visible_normal(wo, alpha, u1, u2), jac
+
+
+def _ggx_reflection_nodes(alpha, mu, strata):
+    """Quadrature of ``ggx_albedo``: weights (k, strata^2) whose row means are E(mu), and the
+    cosines wo.m of their microfacet normals."""
+    mu = np.clip(np.asarray(mu, np.float64), 1e-4, 1.0)
+    wo, m, jac = _visible_normal_grid(alpha, mu, strata)
+    cos_o = wo[:, 2]
     wi = reflect(wo, m)
     w = np.where(wi[:, 2] > 0, ggx_g2(cos_o, np.maximum(wi[:, 2], 1e-12), alpha) / ggx_g1(cos_o, alpha), 0.0)
     return (w * jac).reshape(len(mu), -1), dot(wo, m).reshape(len(mu), -1)
