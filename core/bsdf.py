@@ -492,7 +492,7 @@ class MaterialTable:
                     fss = np.divide(k * fss * fss + rest * f_rest, total, out=np.zeros_like(total),
                                     where=total > 0)
                 e_avg = self.ms_e_avg.take(m)[:, None]
-                fms[h] = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
+                fms[h] = _multiple_scattering_fresnel(fss, e_avg)
         return 1.0 + fms * ((1.0 - e) / e)[:, None]
 
     @cached_property
@@ -1024,6 +1024,12 @@ def _strata(coarse):
     return COARSE_STRATA if coarse.all() else EXACT_STRATA
 
 
+def _multiple_scattering_fresnel(fss, e_avg):
+    """F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)): the colour of the light that leaves after more
+    than one microfacet bounce (Kulla and Conty's appendix, one F_ss cancelled as in Cycles)."""
+    return fss * e_avg / (1.0 - fss * (1.0 - e_avg))
+
+
 def _glass_multiscatter_tables(mats, weight, dielectric_alpha, coarse):
     """MaterialTable fields of the rough glasses with Multiscatter GGX
     (``Materials.dielectric_multiscatter``, their F_ss): E(mu) at the ``MS_NODES`` + 1 nodes
@@ -1046,7 +1052,7 @@ def _glass_multiscatter_tables(mats, weight, dielectric_alpha, coarse):
             e = smp.ggx_glass_albedo(a, mu, relative, strata)
             e_avg = 2.0 * np.trapz(e * mu, mu)
             table[rows, side] = e
-            fms[rows, side] = f[rows] * e_avg / (1.0 - f[rows] * (1.0 - e_avg))
+            fms[rows, side] = _multiple_scattering_fresnel(f[rows], e_avg)
     return {"glass_ms_albedo": table, "glass_ms_fresnel": fms}
 
 
@@ -1077,7 +1083,7 @@ def _multiscatter_tables(alpha, glossy_on, fresnel_ss, coarse, albedo):
         e_avg = 2.0 * np.trapz(e * mu, mu)
         table[rows] = e
         f = fss[rows]
-        fms[rows] = f * e_avg / (1.0 - f * (1.0 - e_avg))
+        fms[rows] = _multiple_scattering_fresnel(f, e_avg)
         e_avgs[rows] = e_avg
     return table, fms, e_avgs
 

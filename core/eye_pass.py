@@ -23,7 +23,7 @@ from .camera import generate_camera_rays
 from . import subsurface
 from .procedural import Rays, camera_path
 from .sampling import dot
-from .scene import PANORAMAS, SUBSURFACE_SKIN, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
+from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
 
 
 @dataclass
@@ -413,17 +413,13 @@ def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
         mu = dot(points.wo[w_rows], points.glossy_normals[w_rows]).astype(np.float64)
         w_d = w_d * table.layer_factor(mg, mu)
     method = np.asarray(mats.subsurface_method).take(mg)
-    skin = method == SUBSURFACE_SKIN
     sigma_t, alpha, scale = subsurface.medium(
         points.colors[w_rows, 0], radius.take(go, axis=0), np.asarray(mats.subsurface_anisotropy).take(mg),
         method, np.asarray(mats.subsurface_ior, np.float64).take(mg))
     beta = (points.weight[w_rows] / q.take(go)[:, None] * part.take(go, axis=0) * w_d[:, None] * scale)
     n, ng = points.ns[w_rows].astype(np.float64), points.ng[w_rows].astype(np.float64)
-    entry_alpha = np.where(skin, 1.0, np.asarray(mats.subsurface_alpha, np.float64).take(mg))
-    dirs, valid = subsurface.entry_directions(
-        n, ng, points.wo[w_rows].astype(np.float64), entry_alpha,
-        np.asarray(mats.subsurface_ior, np.float64).take(mg),
-        np.where(skin, subsurface.SKIN_DIFFUSE_ENTRY, 0.0), u[go, 1:])
+    dirs, valid = subsurface.entry_directions(n, ng, points.wo[w_rows].astype(np.float64),
+                                              *subsurface.entry(mats, mg), u[go, 1:])
     ok = np.flatnonzero(valid)
     objects = None if accel.object_ids is None else accel.object_ids.take(prim.take(w_rows.take(ok)))
     rays = 0

@@ -38,7 +38,7 @@ from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_no
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from .procedural import Rays, photon_path
-from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION, SUBSURFACE_SKIN
+from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
 from .sampling import cosine_hemisphere, dot, hg_phase, luminance, sample_hg, tangent_axes, to_world
 from .texture_hash import float_as_uint, hash_uint3, hash_uint3_to_float
 from .visible_cells import VisibleCells
@@ -968,13 +968,10 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     exit_ = ctx.surface(hits.prim_ids, hits.b1, hits.b2, pick, Rays(d_out))
     ng_out = face_forward(exit_.ng, d_out)
     n_out = face_forward(exit_.ns, ng_out)
-    # Out as the camera's walks come in (Cycles' entry: Skin half diffuse, half at alpha 1).
+    # Out as the camera's walks come in.
     ml = m.take(left)
-    skin = method.take(left) == SUBSURFACE_SKIN
-    entry_alpha = np.where(skin, 1.0, np.asarray(materials.subsurface_alpha, np.float64).take(ml))
-    leave, through = subsurface.exit_directions(
-        n_out, ng_out, d_out, entry_alpha, np.asarray(materials.subsurface_ior, np.float64).take(ml),
-        np.where(skin, subsurface.SKIN_DIFFUSE_ENTRY, 0.0), v[:, 3:6])
+    leave, through = subsurface.exit_directions(n_out, ng_out, d_out, *subsurface.entry(materials, ml),
+                                                v[:, 3:6])
     w = part.take(left, axis=0) * (table.weight[ml, DIFFUSE] * through)[:, None]
     if table.has_layer:
         w *= table.layer_factor(ml, np.abs(dot(leave, n_out)))[:, None]

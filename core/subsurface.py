@@ -105,6 +105,16 @@ def medium(albedo, radius, g, method, ior):
     return sigma_t, np.maximum(alpha, MIN_ALPHA), scale
 
 
+def entry(mats, rows):
+    """(alpha, ior, diffuse_share), each (k,), of the entry of materials ``rows`` (``scene.Materials``)
+    into their surface, as Cycles': Random Walk refracts at a GGX microfacet of ``subsurface_alpha``
+    and ``subsurface_ior``; Skin enters diffusely with SKIN_DIFFUSE_ENTRY, else at alpha 1 (the
+    arguments of :func:`entry_directions` and :func:`exit_directions`)."""
+    skin = np.asarray(mats.subsurface_method).take(rows) == SUBSURFACE_SKIN
+    return (np.where(skin, 1.0, np.asarray(mats.subsurface_alpha, np.float64).take(rows)),
+            np.asarray(mats.subsurface_ior, np.float64).take(rows), np.where(skin, SKIN_DIFFUSE_ENTRY, 0.0))
+
+
 def entry_directions(n, ng, wo, alpha, ior, diffuse_share, u):
     """(k, 3) directions into the surface at points of (shading) normal ``n`` and geometric normal
     ``ng`` (both on the side of ``wo``, the direction back along the camera ray) and (k,) whether
