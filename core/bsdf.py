@@ -54,6 +54,9 @@ MIN_ALPHA = 1e-4
 # Tangent node): around the object's X, Y or Z axis through the centre of its texture space
 # (radial, from the Generated coordinates; Z is Cycles' default), or the UV map's tangents.
 TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, TANGENT_UV = 0, 1, 2, 3
+# Microfacet distributions of a glossy or glass lobe (Materials.glossy_distribution,
+# dielectric_distribution): Blender's GGX and Multiscatter GGX, or Beckmann.
+DISTRIBUTION_GGX, DISTRIBUTION_BECKMANN = 0, 1
 # Single-scattering GGX albedo E(mu) is tabulated per material at mu = (k / MS_NODES)^2: finer
 # towards grazing, where E changes fastest.
 MS_NODES = 32
@@ -260,6 +263,9 @@ class MaterialTable:
     metal_film_index: np.ndarray = None     # (M,) int64 the row of a filmed metal's curve or -1
     metal_film_lobe: np.ndarray = None      # (M,) int64 its lobe (GLOSSY, or MIRROR where merged)
     metal_film_curve: np.ndarray = None     # (F, FILM_NODES + 1, 3) k (G_m(c) - F0): what the metal adds
+    glossy_beckmann: np.ndarray = None      # (M,) bool: the glossy lobe's microfacets are Beckmann's (no
+    #                                         multiscatter); None: all GGX
+    dielectric_beckmann: np.ndarray = None  # (M,) bool: so are the rough glass's; None: all GGX
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -330,8 +336,11 @@ class MaterialTable:
         # the multiscatter tables then reuse.
         albedo = {}
         rise_means = _rise_means(alpha, fresnel_ior, rise, coarse, albedo)
-        ms_albedo, ms_fresnel, ms_e_avg = _multiscatter_tables(alpha, glossy_on, mats.glossy_multiscatter,
-                                                               coarse, albedo)
+        # Beckmann lobes (Materials.glossy_distribution) scatter once: Cycles has no compensation.
+        glossy_beckmann = _beckmann(mats.glossy_distribution, m) & (weight[:, GLOSSY] > 0)
+        dielectric_beckmann = _beckmann(mats.dielectric_distribution, m) & (weight[:, DIELECTRIC] > 0)
+        ms_albedo, ms_fresnel, ms_e_avg = _multiscatter_tables(alpha, glossy_on & ~glossy_beckmann,
+                                                               mats.glossy_multiscatter, coarse, albedo)
         dielectric_program = (np.asarray(mats.dielectric_program, np.int32)
                               if mats.dielectric_program is not None else np.full(m, -1, np.int32))
         # A glass reflects its reflection colour where it transmits at all, or with a program (which
@@ -404,7 +413,12 @@ class MaterialTable:
                              film_index=film.index, film_curve=film.curve,
                              **_glass_film(mats, weight, film),
                              **_metal_film(mats, weight, edge, dip, sharp, film),
-                             **_glass_multiscatter_tables(mats, weight, dielectric_alpha, coarse))
+                             glossy_beckmann=glossy_beckmann if glossy_beckmann.any() else None,
+                             dielectric_beckmann=(dielectric_beckmann if (dielectric_beckmann
+                                                                          & (dielectric_alpha > 0)).any()
+                                                  else None),
+                             **_glass_multiscatter_tables(
+                                 mats, weight, np.where(dielectric_beckmann, 0.0, dielectric_alpha), coarse))
 
     @property
     def has_glass_multiscatter(self) -> bool:
@@ -792,6 +806,13 @@ def rough_diffuse_factor(table, mat_ids, albedo, cos_l, cos_v, cos_lv, terms=Non
     out = ms * (1.0 - oren_nayar_albedo(a, b, nl))[:, None]
     out += (np.pi * (a + b * t))[:, None]
     return out
+
+
+def _beckmann(distribution, m):
+    """(M,) bool: a Materials distribution field (None: all GGX) says Beckmann."""
+    if distribution is None:
+        return np.zeros(m, bool)
+    return np.asarray(distribution) == DISTRIBUTION_BECKMANN
 
 
 def _or_zeros(values, shape):
@@ -1401,7 +1422,9 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 r = np.flatnonzero(rough)
                 wo_l = smp.to_local(w_o[r], n_s[r])
                 wo_l[:, 2] = np.maximum(wo_l[:, 2], 1e-9)
-                m_l = smp.ggx_sample_visible_normal(wo_l, alpha[r], u1[sel][r], u2[sel][r])
+                beckmann = (None if table.dielectric_beckmann is None
+                            else table.dielectric_beckmann.take(m_sel.take(r)))
+                m_l = smp.sample_visible_normal(wo_l, alpha[r], u1[sel][r], u2[sel][r], beckmann=beckmann)
                 h = n_s.copy()
                 h[r] = smp.to_world(m_l, n_s[r])
                 branch = np.where(rough, u3[sel], branch)
@@ -1444,8 +1467,10 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 cos_i_s = dot(d, n_s)
                 # The reflected or refracted direction must leave on its side of the macro surface.
                 ok &= ~rough | np.where(is_refl, cos_i_s > 0, cos_i_s < 0)
-                ratio = np.where(rough, smp.ggx_g2(cos_o_s, np.abs(cos_i_s), np.maximum(alpha, MIN_ALPHA))
-                                 / smp.ggx_g1(cos_o_s, np.maximum(alpha, MIN_ALPHA)), 1.0)
+                beckmann = (None if table.dielectric_beckmann is None
+                            else table.dielectric_beckmann.take(m_sel))
+                ratio = np.where(rough, smp.microfacet_ratio(cos_o_s, np.abs(cos_i_s),
+                                                             np.maximum(alpha, MIN_ALPHA), beckmann), 1.0)
                 w = w * ratio[:, None]
                 if table.has_glass_multiscatter:
                     # Energy compensation, a factor of the camera-side direction (wi for photons)
@@ -1493,8 +1518,9 @@ def _sample_glossy(table, mat_ids, wo, ns, u1, u2, tangent):
     are sampled in the frames of ``tangent`` (k, 3), the others in :func:`~core.sampling.to_local`'s
     (rows of the local arrays in different frames: callers read only z and wo.m)."""
     aniso = table.anisotropic.take(mat_ids) if table.has_anisotropy else None
+    beckmann = None if table.glossy_beckmann is None else table.glossy_beckmann.take(mat_ids)
     if aniso is None or not aniso.any():
-        return _scatter_isotropic(table.alpha.take(mat_ids), wo, ns, u1, u2)
+        return _scatter_isotropic(table.alpha.take(mat_ids), wo, ns, u1, u2, beckmann)
     if tangent is None:
         raise ValueError("scatter: anisotropic glossy lobes need tangents")
     k = len(mat_ids)
@@ -1502,37 +1528,41 @@ def _sample_glossy(table, mat_ids, wo, ns, u1, u2, tangent):
     a, i = np.flatnonzero(aniso), np.flatnonzero(~aniso)
     rows = lambda x, r: x.take(r, axis=0)                                   # noqa: E731
     ma = mat_ids.take(a)
+    part = (lambda r: None) if beckmann is None else beckmann.take          # noqa: E731
     parts = [(a, _scatter_anisotropic(table.alpha_x.take(ma), table.alpha_y.take(ma), rows(wo, a),
-                                      rows(ns, a), rows(tangent, a), u1.take(a), u2.take(a)))]
+                                      rows(ns, a), rows(tangent, a), u1.take(a), u2.take(a), part(a)))]
     if len(i):
         parts.append((i, _scatter_isotropic(table.alpha.take(mat_ids.take(i)), rows(wo, i), rows(ns, i),
-                                            u1.take(i), u2.take(i))))
+                                            u1.take(i), u2.take(i), part(i))))
     for r, part in parts:
         for o, p in zip(out, part):
             o[r] = p
     return out
 
 
-def _scatter_isotropic(alpha, wo, ns, u1, u2):
-    """:func:`_sample_glossy` of isotropic lobes, in the frames of :func:`~core.sampling.to_local`."""
+def _scatter_isotropic(alpha, wo, ns, u1, u2, beckmann=None):
+    """:func:`_sample_glossy` of isotropic lobes, in the frames of :func:`~core.sampling.to_local`;
+    Beckmann microfacets where the (k,) bool ``beckmann`` is set."""
     wo_l = smp.to_local(wo, ns)
     wo_l[:, 2] = np.maximum(wo_l[:, 2], 1e-9)
-    m = smp.ggx_sample_visible_normal(wo_l, alpha, u1, u2)
+    m = smp.sample_visible_normal(wo_l, alpha, u1, u2, beckmann=beckmann)
     wi_l = smp.reflect(wo_l, m)
-    ratio = smp.ggx_g2(wo_l[:, 2], wi_l[:, 2], alpha) / smp.ggx_g1(wo_l[:, 2], alpha)
+    ratio = smp.microfacet_ratio(wo_l[:, 2], wi_l[:, 2], alpha, beckmann)
     return wo_l, m, wi_l, smp.to_world(wi_l, ns), ratio
 
 
-def _scatter_anisotropic(alpha_x, alpha_y, wo, ns, tangent, u1, u2):
-    """Anisotropic GGX reflection about ``ns`` (k, 3) in the frames of ``tangent`` (k, 3):
-    ``(wo, m, wi)`` local (k, 3) each, ``wi`` in world (k, 3) and the weight G2 / G1."""
+def _scatter_anisotropic(alpha_x, alpha_y, wo, ns, tangent, u1, u2, beckmann=None):
+    """Anisotropic GGX (or Beckmann, where ``beckmann`` is set) reflection about ``ns`` (k, 3) in
+    the frames of ``tangent`` (k, 3): ``(wo, m, wi)`` local (k, 3) each, ``wi`` in world (k, 3)
+    and the weight G2 / G1."""
     x, y = smp.tangent_frames(ns, tangent)
     wo_l = np.stack([dot(wo, x), dot(wo, y), np.maximum(dot(wo, ns), 1e-9)], axis=1)
-    m = smp.ggx_sample_visible_normal(wo_l, alpha_x, u1, u2, alpha_y)
+    m = smp.sample_visible_normal(wo_l, alpha_x, u1, u2, alpha_y, beckmann)
     wi_l = smp.reflect(wo_l, m)
     d = wi_l[:, :1] * x + wi_l[:, 1:2] * y + wi_l[:, 2:] * ns
-    lambda_o = smp.ggx_lambda_aniso(wo_l, alpha_x, alpha_y)
-    ratio = (1.0 + lambda_o) / (1.0 + lambda_o + smp.ggx_lambda_aniso(wi_l, alpha_x, alpha_y))
+    lambda_o = smp.microfacet_lambda_aniso(wo_l, alpha_x, alpha_y, beckmann)
+    lambda_i = smp.microfacet_lambda_aniso(wi_l, alpha_x, alpha_y, beckmann)
+    ratio = (1.0 + lambda_o) / (1.0 + lambda_o + lambda_i)
     return wo_l, m, wi_l, d, ratio
 
 
@@ -1591,23 +1621,30 @@ def _adjoint_factor(wo, wi, ng, ns):
     return np.where(den > 1e-12, num / np.maximum(den, 1e-12), 0.0)
 
 
-def eval_glossy(alpha, wo, wi, ns, with_cos_h=False):
-    """Scalar GGX reflection value f(wo, wi) around the shading normals ``ns`` (side of wo).
+def eval_glossy(alpha, wo, wi, ns, with_cos_h=False, beckmann=None):
+    """Scalar GGX reflection value f(wo, wi) around the shading normals ``ns`` (side of wo),
+    Beckmann's where the (k,) bool ``beckmann`` is set.
 
     Frame-free: the half vector h = (wo + wi) / |wo + wi| enters through cosines only, with
     |wo + wi| = sqrt(2 + 2 wo.wi), h.n = (wo.n + wi.n) / |wo + wi| and wo.h = |wo + wi| / 2.
     With ``with_cos_h`` also returns wo.h (the microfacet cosine of the Fresnel factor)."""
     cos_o, cos_i = dot(wo, ns), dot(wi, ns)
     len_h = np.sqrt(np.maximum(2.0 + 2.0 * dot(wo, wi), 1e-24))
-    f = smp.ggx_d((cos_o + cos_i) / len_h, alpha) * smp.ggx_g2(cos_o, cos_i, alpha) \
+    if beckmann is None or not beckmann.any():
+        g2 = smp.ggx_g2(cos_o, cos_i, alpha)
+    else:
+        g2 = 1.0 / (1.0 + smp.microfacet_lambda(cos_o, alpha, beckmann)
+                    + smp.microfacet_lambda(cos_i, alpha, beckmann))
+    f = smp.microfacet_d((cos_o + cos_i) / len_h, alpha, beckmann) * g2 \
         / np.maximum(4.0 * cos_o * cos_i, 1e-12)
     f = np.where((cos_o > 0) & (cos_i > 0), f, 0.0)
     return (f, 0.5 * len_h) if with_cos_h else f
 
 
-def glossy_anisotropic_value(alpha_x, alpha_y, cos_o, cos_i, cos_oi, wo_x, wi_x):
+def glossy_anisotropic_value(alpha_x, alpha_y, cos_o, cos_i, cos_oi, wo_x, wi_x, beckmann=None):
     """(f, wo.h): :func:`eval_glossy` of anisotropic GGX (Cycles' ``bsdf_aniso_D`` and
-    ``bsdf_aniso_lambda``) from cosines of unit directions: wo and wi with the normal
+    ``bsdf_aniso_lambda``; Beckmann's where ``beckmann`` is set) from cosines of unit
+    directions: wo and wi with the normal
     (``cos_o``, ``cos_i``), with each other and with the unit tangent x in the normal's plane
     (:func:`~core.sampling.tangent_axes`; alpha_x lies along it).
     Frame-free as :func:`eval_glossy`: a direction's component along y = n x x squared is
@@ -1617,11 +1654,18 @@ def glossy_anisotropic_value(alpha_x, alpha_y, cos_o, cos_i, cos_oi, wo_x, wi_x)
     h_y2 = np.maximum(1.0 - h_n * h_n - h_x * h_x, 0.0)
     t = h_x * h_x / (alpha_x * alpha_x) + h_y2 / (alpha_y * alpha_y) + h_n * h_n
     d = np.where(h_n > 0, 1.0 / (np.pi * alpha_x * alpha_y * t * t), 0.0)
+    some = beckmann is not None and beckmann.any()
+    if some:
+        # Beckmann: exp(-(hx^2 / ax^2 + hy^2 / ay^2) / hn^2) / (pi ax ay hn^4)
+        n2 = np.maximum(h_n * h_n, 1e-300)
+        d = np.where(beckmann, np.where(h_n > 0, np.exp(-np.minimum((t - n2) / n2, 700.0))
+                                        / (np.pi * alpha_x * alpha_y * n2 * n2), 0.0), d)
 
     def lam(c, v_x):
         c2 = np.maximum(c * c, 1e-300)
         v_y2 = np.maximum(1.0 - c * c - v_x * v_x, 0.0)
         s = (alpha_x * alpha_x * v_x * v_x + alpha_y * alpha_y * v_y2) / c2
-        return 0.5 * (np.sqrt(1.0 + s) - 1.0)
+        ggx = 0.5 * (np.sqrt(1.0 + s) - 1.0)
+        return np.where(beckmann, smp.beckmann_lambda_of(s), ggx) if some else ggx
     f = d / (1.0 + lam(cos_o, wo_x) + lam(cos_i, wi_x)) / np.maximum(4.0 * cos_o * cos_i, 1e-12)
     return np.where((cos_o > 0) & (cos_i > 0), f, 0.0), 0.5 * len_h

@@ -128,6 +128,9 @@ class DepositTarget:
         self.any_glossy = bool(glossy.any())
         self.is_glossy = glossy
         self.alpha = table.alpha.take(points.mat_ids)
+        # Points whose glossy lobe has Beckmann microfacets (None: all GGX).
+        self.beckmann = _some(None if table.glossy_beckmann is None
+                              else table.glossy_beckmann.take(points.mat_ids))
         # Points of anisotropic glossy lobes (None: none), evaluated in their tangents' frames.
         self.anisotropic = _some(glossy & table.anisotropic.take(points.mat_ids) if table.has_anisotropy
                                  else None)
@@ -183,10 +186,16 @@ class DepositTarget:
             if is_aniso:
                 f[sel], cos_h[sel] = glossy_anisotropic_value(
                     self._alpha_x.take(js), self._alpha_y.take(js), dot(wo_s, n_s), dot(wi_s, n_s),
-                    dot(wo_s, wi_s), self._wo_x.take(js), dot(wi_s, self._x.take(js, axis=0)))
+                    dot(wo_s, wi_s), self._wo_x.take(js), dot(wi_s, self._x.take(js, axis=0)),
+                    self._beckmann(js))
             else:
-                f[sel], cos_h[sel] = eval_glossy(self.alpha.take(js), wo_s, wi_s, n_s, with_cos_h=True)
+                f[sel], cos_h[sel] = eval_glossy(self.alpha.take(js), wo_s, wi_s, n_s, with_cos_h=True,
+                                                 beckmann=self._beckmann(js))
         return f, cos_h
+
+    def _beckmann(self, j):
+        """(k,) bool: points ``j`` have Beckmann glossy lobes; None where no point has."""
+        return None if self.beckmann is None else self.beckmann.take(j)
 
     def to_arrays(self) -> dict:
         """Plain arrays for a worker process (see :meth:`from_arrays`)."""
@@ -375,7 +384,7 @@ class DepositTarget:
             nsg = pts.glossy_normals.take(jg, axis=0)
             if self.anisotropic is None:
                 f, cos_h = eval_glossy(self.alpha.take(jg), pts.wo.take(jg, axis=0), wi.take(g, axis=0),
-                                       nsg, with_cos_h=True)
+                                       nsg, with_cos_h=True, beckmann=self._beckmann(jg))
             else:
                 f, cos_h = self._glossy_mixed(jg, g, wi, nsg)
             if ratio is not None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import procedural
-from .bsdf import TANGENT_RADIAL_Z, TANGENT_UV
+from .bsdf import DISTRIBUTION_BECKMANN, DISTRIBUTION_GGX, TANGENT_RADIAL_Z, TANGENT_UV
 
 
 class SceneError(ValueError):
@@ -97,8 +97,9 @@ class Materials:
       ``diffuse_roughness`` > 0 makes it Cycles' rough diffuse (Blender's Diffuse BSDF Roughness,
       Principled's Diffuse Roughness): Fujii's improved Oren-Nayar with the OpenPBR energy
       compensation (``bsdf.rough_diffuse_factor``);
-    * glossy: GGX microfacet reflection, ``glossy_roughness`` is Blender's
-      roughness (GGX alpha = roughness^2); roughness below 0.02 acts as a mirror.  A
+    * glossy: GGX microfacet reflection (Beckmann's where ``glossy_distribution`` is
+      ``bsdf.DISTRIBUTION_BECKMANN``, single scattering), ``glossy_roughness`` is Blender's
+      roughness (alpha = roughness^2); roughness below 0.02 acts as a mirror.  A
       ``roughness_program`` (when >= 0; a float program) gives the roughness at each hit instead
       (a roughness map), rounded to one of ``bsdf.ROUGHNESS_LEVELS`` levels in [0, 1].  Its colour
       ``glossy_color`` is multiplied by the program ``glossy_program`` (when >= 0) at each hit;
@@ -171,7 +172,8 @@ class Materials:
       ``dielectric_reflection_color`` where that differs, as Principled's white specular
       over its tinted transmission); the transmitted colour is multiplied by the program
       ``dielectric_program`` (when >= 0) at each hit (stained glass), the reflected one is not;
-      smooth, or rough with GGX microfacets of Blender
+      smooth, or rough with GGX microfacets (Beckmann's where ``dielectric_distribution`` is
+      ``bsdf.DISTRIBUTION_BECKMANN``, single scattering; the Refraction BSDF's default) of Blender
       roughness ``dielectric_roughness`` (single scattering, or with ``dielectric_multiscatter``
       F_ss > 0 Cycles' Multiscatter GGX glass: the energy compensation 1 + F_ms (1 - E) / E of
       the glass's albedo E at the camera-side cosine, from that side); -1 there takes the roughness
@@ -294,6 +296,8 @@ class Materials:
     dielectric_reflection_color: np.ndarray = None      # (M, 3) float32; None: dielectric_color
     dielectric_fresnel: np.ndarray = None               # (M,) float32 in [0, 1]; None: 1
     dielectric_multiscatter: np.ndarray = None          # (M, 3) float32 in [0, 1]; None: 0 (single)
+    glossy_distribution: np.ndarray = None              # (M,) int32 bsdf.DISTRIBUTION_*; None: 0 (GGX)
+    dielectric_distribution: np.ndarray = None          # (M,) int32 bsdf.DISTRIBUTION_*; None: 0 (GGX)
     displacement_program: np.ndarray = None             # (M,) int32, index into programs or -1; None: -1
     displacement_flags: np.ndarray = None               # (M,) int32 DISPLACE_* bits; None: 0
     # 1 where the bump is the Displacement output's (Bump Only, Displacement and Bump): it replaces
@@ -385,7 +389,8 @@ class Materials:
                     "bump_correction", "film_thickness", "film_ior", "film_tint", "film_metal",
                     "film_metal_ior", "film_metal_extinction",
                     "subsurface_weight", "subsurface_radius", "subsurface_anisotropy", "subsurface_ior",
-                    "subsurface_alpha", "subsurface_method")
+                    "subsurface_alpha", "subsurface_method", "glossy_distribution",
+                    "dielectric_distribution")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -395,7 +400,8 @@ class Materials:
     INDEX_FIELDS = INT_FIELDS + PROGRAM_FIELDS
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
                                      "normal_space", "displacement_flags", "displacement_bump",
-                                     "bump_correction", "subsurface_method")
+                                     "bump_correction", "subsurface_method", "glossy_distribution",
+                                     "dielectric_distribution")
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "coat_bump_distance",
                                     "glossy_metal_dip",
                                     "volume_anisotropy", "glossy_rotation", "glossy_metal_tint",
@@ -498,6 +504,8 @@ class Materials:
         out.coat_normal_program = np.full(m, -1, np.int32)
         out.dielectric_fresnel = np.ones(m, np.float32)
         out.dielectric_multiscatter = np.zeros((m, 3), np.float32)
+        out.glossy_distribution = np.zeros(m, np.int32)
+        out.dielectric_distribution = np.zeros(m, np.int32)
         out.displacement_program = np.full(m, -1, np.int32)
         out.displacement_flags = np.zeros(m, np.int32)
         out.displacement_bump = np.zeros(m, np.int32)
@@ -620,6 +628,8 @@ class Materials:
             out.dielectric_fresnel[i] = s.get("dielectric_fresnel", 1.0)
             out.dielectric_multiscatter[i] = np.broadcast_to(
                 np.asarray(s.get("dielectric_multiscatter", 0.0), np.float32), (3,))
+            out.glossy_distribution[i] = s.get("glossy_distribution", DISTRIBUTION_GGX)
+            out.dielectric_distribution[i] = s.get("dielectric_distribution", DISTRIBUTION_GGX)
             out.displacement_flags[i] = s.get("displacement_flags", 0)
             out.displacement_bump[i] = s.get("displacement_bump", 0)
             out.bump_correction[i] = s.get("bump_correction", 1)
@@ -1103,6 +1113,8 @@ class Scene:
                                        ("coat_bump_strength", (n,), 1.0), ("coat_bump_distance", (n,), 1.0),
                                        ("dielectric_fresnel", (n,), 1.0),
                                        ("dielectric_multiscatter", (n, 3), 0.0),
+                                       ("glossy_distribution", (n,), DISTRIBUTION_GGX),
+                                       ("dielectric_distribution", (n,), DISTRIBUTION_GGX),
                                        ("displacement_program", (n,), -1),
                                        ("displacement_flags", (n,), 0), ("displacement_bump", (n,), 0),
                                        ("bump_correction", (n,), 1), ("film_thickness", (n,), 0.0),
@@ -1174,7 +1186,9 @@ class Scene:
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),
-                                ("normal_space", NORMAL_TANGENT, NORMAL_BLENDER_WORLD)):
+                                ("normal_space", NORMAL_TANGENT, NORMAL_BLENDER_WORLD),
+                                ("glossy_distribution", DISTRIBUTION_GGX, DISTRIBUTION_BECKMANN),
+                                ("dielectric_distribution", DISTRIBUTION_GGX, DISTRIBUTION_BECKMANN)):
             outside = (getattr(mats, name) < low) | (getattr(mats, name) > high)
             if outside.ndim > 1:
                 outside = outside.any(axis=1)
