@@ -86,8 +86,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import procedural, thin_film
-from ...core.bsdf import (TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z, TANGENT_UV, metal_curve,
-                          metal_fresnel)
+from ...core.bsdf import (DISTRIBUTION_BECKMANN, TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z,
+                          TANGENT_UV, metal_curve, metal_fresnel)
 from ...core.imageio import linear_to_srgb
 from ...core.sampling import dielectric_f0, mean_fresnel
 from ...core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD, NORMAL_BLENDER_OBJECT,
@@ -145,6 +145,8 @@ class Closure:
     multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) glossy weight*colour*F_ss
     # (3,) dielectric weight * F_ss (its transmission tint) of a Multiscatter GGX glass
     glass_multiscatter: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    beckmann: float = 0.0           # the glossy weight with Beckmann microfacets (the rest GGX)
+    glass_beckmann: float = 0.0     # the dielectric weight with Beckmann microfacets
     reflection: np.ndarray = None   # (3,) dielectric weight * reflection colour; None: its colour
     refraction_only: float = 0.0    # the part of the dielectric weight that only refracts (Refraction
     #                                 BSDF: no Fresnel reflection, nothing under total internal reflection)
@@ -197,6 +199,8 @@ class Closure:
                       emission=fa * self.emission + fb * other.emission,
                       multiscatter=fa * self.multiscatter + fb * other.multiscatter,
                       glass_multiscatter=fa * self.glass_multiscatter + fb * other.glass_multiscatter,
+                      beckmann=fa * self.beckmann + fb * other.beckmann,
+                      glass_beckmann=fa * self.glass_beckmann + fb * other.glass_beckmann,
                       reflection=fa * self.glass_reflection() + fb * other.glass_reflection(),
                       rise=fa * self.rise + fb * other.rise, layer=fa * self.layer + fb * other.layer,
                       metal_rise=fa * self.metal_rise + fb * other.metal_rise,
@@ -465,6 +469,10 @@ class Closure:
         def both(lobe):
             return self.weight[lobe] > 0 and other.weight[lobe] > 0
 
+        if both(GLOSSY) and self.glossy_beckmann != other.glossy_beckmann:
+            return False                    # (one microfacet distribution per lobe)
+        if both(DIELECTRIC) and self.dielectric_beckmann != other.dielectric_beckmann:
+            return False
         if both(GLOSSY):
             same = (np.isclose(self.roughness, other.roughness) and np.isclose(self.stretch, other.stretch)
                     and np.isclose(self.rotation, other.rotation) and self.tangent == other.tangent
@@ -549,7 +557,8 @@ class Closure:
         if o <= 0.0:
             return Closure(roughness=self.roughness, ior=self.ior)
         scaled = {name: getattr(self, name) / o for name in ("weight", "color", "emission", "multiscatter",
-                                                             "glass_multiscatter",
+                                                             "glass_multiscatter", "beckmann",
+                                                             "glass_beckmann",
                                                              "rise", "metal_rise", "metal_dip", "layer",
                                                              "layered", "coat", "holdout", "refraction_only",
                                                              "film_metal", "subsurface")}
@@ -566,6 +575,15 @@ class Closure:
             out.emission_texture = (None if self.emission_texture is None
                                     else _times(self.emission_texture, per_point))
         return out
+
+    @property
+    def glossy_beckmann(self) -> bool:
+        """The glossy lobe takes Beckmann microfacets: most of its weight has them."""
+        return self.beckmann > 0.5 * self.weight[GLOSSY]
+
+    @property
+    def dielectric_beckmann(self) -> bool:
+        return self.glass_beckmann > 0.5 * self.weight[DIELECTRIC]
 
     def glass_reflection(self) -> np.ndarray:
         return self.color[DIELECTRIC] if self.reflection is None else self.reflection
@@ -587,6 +605,10 @@ class Closure:
             s["dielectric_fresnel"] = float(np.clip(fresnel / w, 0.0, 1.0))
         if w > 0 and self.glass_multiscatter.any():
             s["dielectric_multiscatter"] = np.clip(self.glass_multiscatter / w, 0.0, 1.0)
+        if w > 0 and self.dielectric_beckmann:
+            s["dielectric_distribution"] = DISTRIBUTION_BECKMANN
+        if self.weight[GLOSSY] > 0 and self.glossy_beckmann:
+            s["glossy_distribution"] = DISTRIBUTION_BECKMANN
         g = self.color[GLOSSY]
         s["glossy_multiscatter"] = np.divide(self.multiscatter, g, out=np.zeros(3), where=g > 0)
         if self.fresnel_ior > 0 and self.weight[GLOSSY] > 0:
@@ -1625,15 +1647,21 @@ class NodeWalker:
 
     def _note_mixed(self, node, a, b):
         """Note a mix of shaders with different coats: the core has one coat per material, which
-        then lies over both (weighted), where Cycles coats only its own Principled BSDF; and one of
+        then lies over both (weighted), where Cycles coats only its own Principled BSDF; one of
         two shaders that both have levels (``Closure.levels``: metallic or transmission maps, masks),
-        which do not mix."""
+        which do not mix; and one of glossy or glass lobes of different microfacet distributions
+        (one per lobe)."""
         if not (a.same_coat(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': mixes shaders with different coats; one coat (weighted) "
                       "covers both")
         if a.levels is not None and b.levels is not None:
             self.note(f"'{node.name}': mixes two shaders that both vary by a map (metallic, transmission or "
                       "a mask); their parts other than the diffuse take the maps' means")
+        for lobe, what, attr in ((GLOSSY, "glossy", "glossy_beckmann"),
+                                 (DIELECTRIC, "glass", "dielectric_beckmann")):
+            if a.weight[lobe] > 0 and b.weight[lobe] > 0 and getattr(a, attr) != getattr(b, attr):
+                self.note(f"'{node.name}': mixes {what} shaders of GGX and Beckmann microfacets; the "
+                          "mix takes the distribution of most of its weight")
 
     def _diffuse(self, node, stack):
         """Diffuse BSDF: Lambert, or with a Roughness Cycles' rough diffuse (Oren-Nayar)."""
@@ -1690,6 +1718,10 @@ class NodeWalker:
             c.tangent = self.tangent(node.inputs["Tangent"], stack)
         if node.distribution == "MULTI_GGX":
             c.multiscatter = c.color[GLOSSY] * color
+        elif node.distribution == "BECKMANN":
+            c.beckmann = c.weight[GLOSSY]
+        elif node.distribution == "ASHIKHMIN_SHIRLEY":
+            self.note(f"'{node.name}': the Ashikhmin-Shirley distribution is rendered as GGX")
         return c
 
     def _metallic(self, node, stack):
@@ -1798,6 +1830,8 @@ class NodeWalker:
                          dielectric_roughness_texture=rough_map)
         if textured(tex):
             c.dielectric_texture = _program_of(tex, color)
+        if node.distribution == "BECKMANN":
+            c.glass_beckmann = 1.0                  # (the Refraction BSDF's default)
         if node.bl_idname == "ShaderNodeBsdfRefraction":
             c.refraction_only, c.reflection = 1.0, np.zeros(3)
         elif node.distribution == "MULTI_GGX":

@@ -570,6 +570,34 @@ def test_multiscatter_glass_reaches_the_core_with_its_transmission_tint(scene):
     assert row["dielectric_multiscatter"] == pytest.approx([0.9, 0.7, 0.5], rel=1e-5)
 
 
+def test_beckmann_microfacets_reach_the_core(scene):
+    """Beckmann (the Refraction BSDF's default, a choice of the Glossy, Glass and Metallic BSDFs)
+    reaches ``Materials.glossy_distribution`` / ``dielectric_distribution`` (stop 46; before, it
+    rendered as GGX), without multiscatter; GGX and Multiscatter GGX give 0.  A Mix of glossy
+    shaders of both takes the distribution of most of its weight and is noted."""
+    from amcmcppm.core.bsdf import DISTRIBUTION_BECKMANN, DISTRIBUTION_GGX
+    row, _ = export_material(bs._material("Refractive", "ShaderNodeBsdfRefraction", Roughness=0.5))
+    assert row["dielectric_distribution"] == DISTRIBUTION_BECKMANN
+    for node_type, name in (("ShaderNodeBsdfGlass", "Glass BSDF"), ("ShaderNodeBsdfGlossy", "Glossy BSDF"),
+                            ("ShaderNodeBsdfMetallic", "Metallic BSDF")):
+        for distribution in ("BECKMANN", "GGX", "MULTI_GGX"):
+            mat = bs._material(f"{node_type} {distribution}", node_type, Roughness=0.5)
+            mat.node_tree.nodes[name].distribution = distribution
+            row, _ = export_material(mat)
+            key = "dielectric" if node_type == "ShaderNodeBsdfGlass" else "glossy"
+            expected = DISTRIBUTION_BECKMANN if distribution == "BECKMANN" else DISTRIBUTION_GGX
+            assert row[f"{key}_distribution"] == expected, (node_type, distribution)
+            if distribution == "BECKMANN":
+                assert not row[f"{key}_multiscatter"].any()
+    mat = bs._material("Mixed", "ShaderNodeBsdfGlossy", Roughness=0.4)
+    mat.node_tree.nodes["Glossy BSDF"].distribution = "BECKMANN"
+    other = bs.mix_in(mat, "Glossy BSDF", "ShaderNodeBsdfGlossy", 0.3)
+    other.distribution = "GGX"
+    row, ex = export_material(mat)
+    assert row["glossy_distribution"] == DISTRIBUTION_BECKMANN
+    assert any("'Mix Shader'" in w and "Beckmann" in w for w in ex.warnings), ex.warnings
+
+
 def test_stained_glass_becomes_a_program_of_the_transmitted_colour(scene):
     """A Glass BSDF coloured by a checker: the transmitted colour is the checker (colour 1 times
     the program), the reflection its mean; a Principled glass: the square root of its base colour
