@@ -1657,9 +1657,8 @@ def glossy_anisotropic_value(alpha_x, alpha_y, cos_o, cos_i, cos_oi, wo_x, wi_x,
     some = beckmann is not None and beckmann.any()
     if some:
         # Beckmann: exp(-(hx^2 / ax^2 + hy^2 / ay^2) / hn^2) / (pi ax ay hn^4)
-        n2 = np.maximum(h_n * h_n, 1e-300)
-        d = np.where(beckmann, np.where(h_n > 0, np.exp(-np.minimum((t - n2) / n2, 700.0))
-                                        / (np.pi * alpha_x * alpha_y * n2 * n2), 0.0), d)
+        d_b = smp.beckmann_exp(h_n * h_n, t - h_n * h_n) / (np.pi * alpha_x * alpha_y)
+        d = np.where(beckmann, np.where(h_n > 0, d_b, 0.0), d)
 
     def lam(c, v_x):
         c2 = np.maximum(c * c, 1e-300)

@@ -273,10 +273,17 @@ def erfinv(y):
 
 def beckmann_d(cos_m, alpha):
     """Beckmann normal distribution D(m) for the cosine of the half vector to the normal."""
-    c2 = np.minimum(cos_m * cos_m, 1.0)
     a2 = alpha * alpha
-    safe = np.maximum(c2, 1e-300)
-    return np.where(cos_m > 0, np.exp(-(1.0 - c2) / (safe * a2)) / (np.pi * a2 * safe * safe), 0.0)
+    c2 = np.minimum(cos_m * cos_m, 1.0)
+    return np.where(cos_m > 0, beckmann_exp(c2, (1.0 - c2) / a2) / (np.pi * a2), 0.0)
+
+
+def beckmann_exp(c2, s):
+    """exp(-s / c2) / c2^2 (the Beckmann D times pi ax ay, ``s`` the stretched squared sine of the
+    half vector: (1 - c2) / alpha^2 isotropic, hx^2 / ax^2 + hy^2 / ay^2 anisotropic) without
+    overflow or 0 / 0 at the horizon (c2 -> 0: 0)."""
+    c2 = np.clip(c2, 1e-150, 1.0)
+    return np.exp(np.minimum(-np.maximum(s, 0.0) / c2 - 2.0 * np.log(c2), 700.0))
 
 
 def beckmann_lambda(cos_v, alpha):

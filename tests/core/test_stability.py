@@ -9,7 +9,7 @@ modes other than the default in the slow tier).
 import numpy as np
 import pytest
 
-from core import Camera, Lights, Materials, RenderSettings, render
+from core import Camera, Lights, Materials, RenderSettings, bsdf, render
 from core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, World
 from core.testing.scenes import MeshBuilder, with_one_object
 
@@ -113,6 +113,33 @@ def extreme_values():
     lights.axis_u[[0, 5]], lights.axis_v[[0, 5]] = (1, 0, 0), (0, 1, 0)
     cam = _cam((0, -5, 3), (0, 0, 0.5), aperture_radius=0.5, focus_distance=1e-3)
     return m.build(mats, lights, cam)
+
+
+def extreme_microfacets():
+    """Beckmann microfacets (stop 46) at their edges: glossy and glass of roughness 1 and just
+    above the mirror's 0.02, stretched 100 and 0.01, glass of IOR 1.0001 and 3.8, a Refraction
+    BSDF's (no Fresnel reflection), a grazing sun and a camera just above the floor."""
+    beck = bsdf.DISTRIBUTION_BECKMANN
+    mats = Materials.build([
+        {"name": "floor", "glossy": 0.9, "roughness": 1.0, "glossy_distribution": beck,
+         "glossy_stretch": 100.0},
+        {"name": "sharp", "glossy": 0.9, "roughness": 0.021, "glossy_distribution": beck,
+         "glossy_stretch": 0.01},
+        {"name": "frosted", "dielectric": 1.0, "ior": 3.8, "dielectric_roughness": 1.0,
+         "dielectric_distribution": beck},
+        {"name": "thin", "dielectric": 1.0, "ior": 1.0001, "dielectric_roughness": 0.021,
+         "dielectric_distribution": beck, "dielectric_fresnel": 0.0},
+        {"name": "wall", "diffuse": 0.5, "glossy": 0.5, "roughness": 0.5, "glossy_distribution": beck,
+         "glossy_metal_rise": 1e30, "glossy_metal_dip": -1e30}])
+    m = MeshBuilder()
+    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
+    m.add_box((-1.5, -0.5, 0), (-0.5, 0.5, 1), 1)
+    m.add_box((0.5, -0.5, 0), (1.5, 0.5, 1), 2)
+    m.add_box((-0.5, 1, 0), (0.5, 2, 1), 3)
+    m.add_quad((-20, 3, 0), (20, 3, 0), (20, 3, 5), (-20, 3, 5), 4)
+    lights = Lights.build([{"kind": "sun", "direction": (0.0, 0.999, -0.045), "power": 10},
+                           {"kind": "point", "position": (0, 0, 3), "power": 1e4}])
+    return m.build(mats, lights, _cam((0, -5, 0.01), (0, 1, 0.3)))
 
 
 def wild_procedural_colour():
@@ -321,7 +348,7 @@ SCENES = {"parallel_mirrors": parallel_mirrors, "extreme_coats": extreme_coats,
           "tiny_scale": lambda: cornell_like(scale=1e-4),
           "far_from_origin": lambda: cornell_like(scale=1.0, offset=(1e5, -2e5, 3e4)),
           "grazing_view": grazing_view, "degenerate_emitters": degenerate_emitters,
-          "extreme_values": extreme_values}
+          "extreme_values": extreme_values, "extreme_microfacets": extreme_microfacets}
 
 
 # The chains' other mutation modes share all but their mutation with the default (exact): they run in
