@@ -1928,8 +1928,9 @@ def test_rough_glass_matches_cycles_without_its_light_sampling(addon, tmp_path, 
     0.9: 1.10; Beckmann 0.9: 1.13): its evaluation of rough refraction for light samples
     (``bsdf_microfacet_eval``) counts pairs of directions no microfacet refracts into each other
     (its TODO "check if the refraction configuration is valid"), which adds light that its BSDF
-    samples never carry, 0.026 of the wall's radiance at roughness 0.6 and 0.075 at 0.9 for a
-    camera ray into glass at normal incidence (quadrature of its formula).  Ours follows the
+    samples never carry (a quadrature of its formula for a camera ray into glass at normal
+    incidence: 0.026 of the radiance at roughness 0.6, 0.075 at 0.9; Cycles adds 0.025 and 0.066
+    there).  Ours follows the
     microfacet model: single-scattering GGX through a slab, sampled apart, gives 0.7616 at 0.6
     where Cycles without light sampling gives 0.7623 and ours 0.7657."""
     material, distribution, roughness = ROUGH_BLOCKS[case]
