@@ -100,6 +100,7 @@ class EyePassResult:
     alpha: np.ndarray        # (n_pixels,) float64 coverage (1 unless the film is transparent)
     rays: int                # rays traced
     volume: VolumePoints = None  # the camera paths' points in scattering volumes
+    data: dict = None        # RenderSettings.data_passes: "depth" (n_pixels,), "normal" (n_pixels, 3)
 
 
 # Camera paths traced at once (bounds the memory of big images).
@@ -114,23 +115,52 @@ VOLUME_POINT_BUDGET = 1 << 21
 MAX_SEGMENT_POINTS = 16
 
 
-def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces) -> EyePassResult:
-    """Trace one camera path per window pixel with fresh jitter from ``rng``."""
+def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=()) -> EyePassResult:
+    """Trace one camera path per window pixel with fresh jitter from ``rng``; with
+    ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
+    rays stop on (:func:`first_hit_data`)."""
     x0, x1, y0, y1 = ctx.scene.camera.window
     n_pix = (x1 - x0) * (y1 - y0)
     emission = np.zeros((n_pix, 3))
     alpha = np.ones(n_pix)
+    data = {}
+    if "depth" in data_passes:
+        data["depth"] = np.full(n_pix, NO_DEPTH)
+    if "normal" in data_passes:
+        data["normal"] = np.zeros((n_pix, 3))
     parts, volume = [], []
     rays = 0
     per_segment = int(np.clip(VOLUME_POINT_BUDGET // max(n_pix, 1), 1, MAX_SEGMENT_POINTS))
     for start in range(0, n_pix, EYE_CHUNK):
         pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
-                                        max_bounces, volume, per_segment)
+                                        max_bounces, volume, per_segment, data)
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
-    return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume))
+    return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume), data or None)
+
+
+# The depth pass where a camera ray meets nothing (Cycles' Z pass there).
+NO_DEPTH = 1e10
+
+
+def first_hit_data(camera, data, pix, position, ng, ns, wo):
+    """Write the data passes ``data`` (``trace_eye_pass``) of pixels ``pix`` whose camera rays
+    stop at ``position`` (k, 3), of geometric and shading normals ``ng``, ``ns`` (k, 3), seen
+    from ``wo`` (k, 3): the depth along the camera's view axis (its distance from the camera
+    for panoramas: Cycles' ``camera_z_depth``) and the shading normal on the camera's side."""
+    m = np.asarray(camera.world_from_camera, np.float64)
+    origin = m[:3, 3]
+    if "depth" in data:
+        offset = position - origin
+        if camera.projection in PANORAMAS:
+            data["depth"][pix] = np.sqrt(dot(offset, offset))
+        else:
+            forward = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+            data["depth"][pix] = offset @ forward
+    if "normal" in data:
+        data["normal"][pix] = face_forward(ns, face_forward(ng, wo))
 
 
 def _box_exit(origins, dirs, lo, hi):
@@ -144,7 +174,7 @@ def _box_exit(origins, dirs, lo, hi):
 
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_bounces, volume,
-                        per_segment=1):
+                        per_segment=1, data=None):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
     ``per_segment`` in each segment through one)."""
@@ -269,6 +299,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         else:
             rays_in = Rays(wo, True)
         surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, rays_in)
+        if depth == 0 and data:
+            first_hit_data(scene.camera, data, pix, surf.position, surf.ng, surf.ns, wo)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():

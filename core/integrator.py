@@ -57,6 +57,8 @@ class RenderResult:
     interrupted: bool = False                   # stopped by ``should_stop``
     effects: tuple = ()                         # the optional effects simulated (RenderContext.effects)
     method: str = ""                            # "amcmcppm" or "ppm": what made the image's photons
+    data: dict = field(default_factory=dict)    # RenderSettings.data_passes: "depth" (H, W), "normal"
+    #                                             (H, W, 3), float32, top row first
 
 
 class Accumulator:
@@ -85,6 +87,8 @@ class Accumulator:
         self.n_visible = 0                          # n_UV, all passes
         self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
+        self.depth = None                           # the first pass's depth pass (as Cycles' Z)
+        self.normal = None                          # sum over passes of the normal pass
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
         # spread, the sum of Vc_p T_p (per-pass normalisation) and, for the chains, the sum of
@@ -121,6 +125,12 @@ class Accumulator:
         self.passes += 1
         self.emission += eye.emission
         self.alpha += eye.alpha
+        if eye.data:
+            if "depth" in eye.data and self.depth is None:
+                self.depth = eye.data["depth"].copy()
+            if "normal" in eye.data:
+                normal = eye.data["normal"]
+                self.normal = normal.copy() if self.normal is None else self.normal + normal
         self.n_uniform += n_uniform
         self.n_visible += n_visible
         self.last_pass_mean = float(eye.emission.mean())
@@ -177,6 +187,15 @@ class Accumulator:
         # Sums beyond float32 (a scene whose albedos above 1 feed on themselves) stay finite.
         out[:, :3] = np.minimum(rgb, FLOAT32_MAX)
         out[:, 3] = self.alpha / self.passes
+        return out
+
+    def data(self, height, width):
+        """The data passes (``RenderResult.data``) as (H, W[, 3]) float32 images."""
+        out = {}
+        if self.depth is not None:
+            out["depth"] = self.depth.astype(np.float32).reshape(height, width)
+        if self.normal is not None and self.passes:
+            out["normal"] = (self.normal / self.passes).astype(np.float32).reshape(height, width, 3)
         return out
 
     def _corrected(self, rgb, is_chain, scale):
@@ -332,7 +351,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
 
     def eye_pass(i):
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
-        return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces)
+        return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
+                              settings.data_passes)
 
     # The Markov chains' visible set also holds the cells around the measurement points of the
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
@@ -424,6 +444,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
             result.image = acc.image(is_chain).reshape(height, width, 4)
+            result.data = acc.data(height, width)
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
                                 photons, cut and not interrupted, is_chain)
             result.stats.append(stats)
@@ -456,6 +477,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     result.elapsed_s = time.perf_counter() - t0
     if acc.passes:      # (after the switch of "auto", the first image stands until a pass lands)
         result.image = acc.image(is_chain).reshape(height, width, 4)
+        result.data = acc.data(height, width)
     return result
 
 

@@ -20,6 +20,8 @@ GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins 
 AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
 MUTATIONS = ("off", "paper", "exact")
 NORMALISATIONS = ("cumulative", "per_pass")
+# Data passes of the first surface each camera ray meets (RenderSettings.data_passes).
+DATA_PASSES = ("depth", "normal")
 
 
 @dataclass(frozen=True)
@@ -115,6 +117,14 @@ class RenderSettings:
     through a glossy lobe with a diffuse one beside it (Principled's specular layer), where the
     point weighs both (measured with ``benchmarks/glossy_through.py``)."""
 
+    data_passes: tuple = ()
+    """Data passes to make besides the image (``RenderResult.data``), of the surface each camera
+    ray stops on (past what is transparent to it): "depth", its distance along the camera's view
+    axis (from the camera for panoramas; 1e10 where the ray meets nothing), from the first pass
+    as Cycles' Z pass (from its first sample); "normal", its shading normal in world space
+    facing the camera (0 where the ray meets nothing), averaged over the passes as Cycles'
+    Normal pass."""
+
     def __post_init__(self):
         def bad(name, why):
             raise ValueError(f"RenderSettings.{name} {why} (got {getattr(self, name)!r})")
@@ -125,6 +135,8 @@ class RenderSettings:
             bad("mutation", f"must be one of {MUTATIONS}")
         if self.normalisation not in NORMALISATIONS:
             bad("normalisation", f"must be one of {NORMALISATIONS}")
+        if not set(self.data_passes) <= set(DATA_PASSES):
+            bad("data_passes", f"must name some of {DATA_PASSES}")
         if self.passes < 0:
             bad("passes", "must be >= 0")
         if not self.time_limit >= 0:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, Scene, SceneError, World, render
+from core.camera import generate_camera_rays
 from core.imageio import read_exr
 from core.context import RenderContext
 from core.eye_pass import trace_eye_pass
@@ -475,3 +476,77 @@ def test_effects_name_what_the_scene_calls_for():
             "refraction without reflection"} <= set(effects), effects
     result = render(scene, RenderSettings(passes=1, photons_per_pass=1000, workers=1))
     assert result.effects == effects and np.isfinite(result.image).all()
+
+
+def wall_and_card(camera, sheet=True):
+    """A wall of 20 x 20 at y = 4 facing -y (its front towards the camera at the origin), a card
+    at y = 2 of 1 x 1 with its back to the camera and (``sheet``) a fully transparent sheet at
+    y = 1 in front of both, under a sun."""
+    mats = Materials.build([{"name": "wall", "diffuse": 0.5}, {"name": "card", "diffuse": 0.8},
+                            {"name": "sheet", "diffuse": 0.5, "opacity": 0.0}])
+    m = MeshBuilder()
+    m.add_quad((-10, 4, -10), (10, 4, -10), (10, 4, 10), (-10, 4, 10), 0)        # front towards -y
+    m.add_quad((-0.5, 2, -0.5), (-0.5, 2, 0.5), (0.5, 2, 0.5), (0.5, 2, -0.5), 1)   # front towards +y
+    if sheet:
+        m.add_quad((-5, 1, -5), (5, 1, -5), (5, 1, 5), (-5, 1, 5), 2)
+    return m.build(mats, Lights.build([{"kind": "sun", "direction": (0.2, 1.0, -0.3), "power": 3.0}]), camera)
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic", "equirectangular"])
+def test_depth_and_normal_passes_of_the_surfaces_the_camera_sees(projection):
+    """RenderSettings.data_passes: the depth of a wall square to the view is its distance along the
+    view axis in every pixel (whatever the jitter), a panorama's the distance from the camera;
+    the normals face the camera (the card shows its back); a fully transparent sheet in front
+    is seen through; rays that meet nothing get depth 1e10 and normal 0.  Without data passes,
+    none are made."""
+    if projection == "perspective":
+        camera = Camera.look_at((0, 0, 0), (0, 1, 0), resolution=(32, 24), lens_mm=20.0)
+    elif projection == "orthographic":
+        pose = Camera.look_at((0, 0, 0), (0, 1, 0)).world_from_camera
+        camera = Camera(world_from_camera=pose, projection="orthographic", frame=(-2.0, 2.0, -1.5, 1.5),
+                        resolution=(32, 24))
+    else:
+        pose = Camera.look_at((0, 0, 0), (0, 1, 0)).world_from_camera
+        camera = Camera(world_from_camera=pose, projection="equirectangular", resolution=(64, 32))
+    scene = wall_and_card(camera)
+    result = render(scene, RenderSettings(passes=3, photons_per_pass=2000, workers=1,
+                                          data_passes=("depth", "normal")))
+    depth, normal = result.data["depth"], result.data["normal"]
+    h, w = depth.shape
+    assert normal.shape == (h, w, 3) and np.isfinite(depth).all() and np.isfinite(normal).all()
+    bare = wall_and_card(camera, sheet=False)
+    ctx = RenderContext(bare)
+    # Where each pixel's centre ray goes (no jitter) tells wall, card and sky apart.
+    pix = np.arange(h * w)
+    origins, dirs, _, _ = generate_camera_rays(camera, pix, np.full((len(pix), 4), 0.5))
+    hits = ctx.accel.intersect(origins, dirs)
+    prims = np.where(hits.is_hit, hits.prim_ids, -1).reshape(h, w)
+    # Pixels whose neighbours all see the same thing (a jittered ray may cross an edge).
+    same = np.ones((h, w), bool)
+    kind = np.where(prims < 0, -1, np.asarray(bare.material_ids)[np.maximum(prims, 0)])
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            same &= np.roll(kind, (dy, dx), axis=(0, 1)) == kind
+    same[[0, -1], :] = same[:, [0, -1]] = False
+    wall, card, sky = same & (kind == 0), same & (kind == 1), same & (kind < 0)
+    assert wall.sum() > 20 and (card.sum() > 4 or projection == "equirectangular")
+    if projection == "equirectangular":
+        # The distance from the camera, between those of the pixel's corners.
+        corners = []
+        for jitter in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            u = np.tile([*jitter, 0.5, 0.5], (len(pix), 1)).astype(np.float64)
+            u[:, :2] = np.clip(u[:, :2], 1e-9, 1.0 - 1e-9)
+            o, d, _, _ = generate_camera_rays(camera, pix, u)
+            corners.append(ctx.accel.intersect(o, d).t.reshape(h, w))
+        low, high = np.min(corners, axis=0), np.max(corners, axis=0)
+        assert ((depth[wall] >= low[wall] * 0.999) & (depth[wall] <= high[wall] * 1.001)).all()
+        assert sky.sum() > 20 and (depth[sky] == 1e10).all() and (normal[sky] == 0).all()
+    else:
+        np.testing.assert_allclose(depth[wall], 4.0, rtol=1e-5)
+        np.testing.assert_allclose(depth[card], 2.0, rtol=1e-5)
+    np.testing.assert_allclose(normal[wall], np.tile([0.0, -1.0, 0.0], (wall.sum(), 1)), atol=1e-6)
+    np.testing.assert_allclose(normal[card], np.tile([0.0, -1.0, 0.0], (card.sum(), 1)), atol=1e-6)
+    plain = render(scene, RenderSettings(passes=1, photons_per_pass=2000, workers=1))
+    assert plain.data == {}
+    with pytest.raises(ValueError, match="data_passes"):
+        RenderSettings(data_passes=("mist",))
