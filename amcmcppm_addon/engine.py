@@ -37,6 +37,24 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
     def render(self, depsgraph):
         report_errors(self, render_final, self, depsgraph)
 
+    def update_render_passes(self, scene=None, renderlayer=None):
+        """The passes this engine writes: Combined, and the view layer's Z and Normal data passes
+        (``DATA_PASSES``)."""
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", 'COLOR')
+        for prop, (name, channels, chan_id, kind), _ in DATA_PASSES:
+            if getattr(renderlayer, prop):
+                self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+
+
+# View layer property -> (Blender's pass, channels, channel ids, type) and the core's data pass.
+DATA_PASSES = (("use_pass_z", ("Depth", 1, "Z", 'VALUE'), "depth"),
+               ("use_pass_normal", ("Normal", 3, "XYZ", 'VECTOR'), "normal"))
+
+
+def data_passes_of(view_layer):
+    """The core's ``RenderSettings.data_passes`` for the passes ``view_layer`` asks for."""
+    return tuple(core for prop, _, core in DATA_PASSES if getattr(view_layer, prop))
+
 
 def report_errors(engine, function, *args):
     """Call ``function(*args)``; any exception becomes ``engine.report({'ERROR'}, ...)``."""
@@ -58,7 +76,7 @@ def render_final(engine, depsgraph):
     """
     scene = depsgraph.scene_eval
     props = scene.amcmcppm
-    settings = render_settings_from(props)
+    settings = render_settings_from(props, data_passes=data_passes_of(depsgraph.view_layer))
     engine.update_stats("", "Exporting scene")
     exported = export_scene(depsgraph, camera_object=engine.camera_override,
                             resolution=(engine.resolution_x, engine.resolution_y))
@@ -84,6 +102,8 @@ def render_final(engine, depsgraph):
             result = core_render(exported.scene, settings, on_iteration=progress.on_iteration,
                                  should_stop=engine.test_break)
             writer.push(result.image)
+            writer.write_data({name: result.data[core] for _, (name, *_), core in DATA_PASSES
+                               if core in result.data})
             outputs.finish(result, settings.time_limit or 0.0)
             effects = ", ".join(result.effects) or "none (diffuse surfaces and lights only)"
             engine.report({'INFO'}, f"AMCMCPPM: optional effects this scene calls for: {effects}")

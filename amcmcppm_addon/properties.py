@@ -134,6 +134,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Folder for the snapshot EXR files and their index snapshots.jsonl")
 
 
+# Core settings that Blender's own data gives, not a property of ours: the data passes are the
+# view layer's (View Layer > Passes, engine.data_passes_of).
+FROM_BLENDER = ("data_passes",)
+
 # Names of the properties that map one-to-one onto core.RenderSettings fields.
 CORE_SETTING_NAMES = tuple(name for name in AMCMCPPMRenderSettings.__annotations__
                            if name in RenderSettings.__dataclass_fields__)

@@ -13,19 +13,22 @@ import time
 import numpy as np
 
 
-def to_rect(image, width, height):
-    """Flat float32 buffer of ``image`` (top row first) for a ``width`` x ``height`` pass.
+def to_rect(image, width, height, channels=4):
+    """Flat float32 buffer of ``image`` (top row first; (H, W, channels), or (H, W) for one
+    channel) for a ``width`` x ``height`` pass.
 
     Returns ``(buffer, problems)``: ``problems`` lists what had to be repaired (a size
     mismatch is cropped or padded with black, non-finite values become 0), so a
     broken image never reaches Blender as NaN.
     """
     img = np.asarray(image, np.float32)
+    if img.ndim == 2 and channels == 1:
+        img = img[:, :, None]
     problems = []
-    if img.shape[:2] != (height, width) or img.ndim != 3 or img.shape[2] != 4:
+    if img.shape[:2] != (height, width) or img.ndim != 3 or img.shape[2] != channels:
         problems.append(f"image of shape {img.shape} did not match the {width}x{height} render result")
-        fitted = np.zeros((height, width, 4), np.float32)
-        if img.ndim == 3 and img.shape[2] == 4:
+        fitted = np.zeros((height, width, channels), np.float32)
+        if img.ndim == 3 and img.shape[2] == channels:
             h, w = min(height, img.shape[0]), min(width, img.shape[1])
             fitted[:h, :w] = img[:h, :w]
         img = fitted
@@ -68,6 +71,22 @@ class ResultWriter:
                 self.problems.append(p)
         self.result.layers[0].passes["Combined"].rect.foreach_set(rect)
         self.engine.update_result(self.result)
+
+    def write_data(self, images):
+        """Write the data passes ``images`` (Blender's pass name -> (H, W[, C]) top row first)
+        into the passes of those names the result has (``update_render_passes`` registered)."""
+        passes = self.result.layers[0].passes
+        for name, image in images.items():
+            target = passes.get(name)
+            if target is None:
+                continue
+            rect, problems = to_rect(image, self.width, self.height, target.channels)
+            for p in problems:
+                if p not in self.problems:
+                    self.problems.append(f"{name} pass: {p}")
+            target.rect.foreach_set(rect)
+        if images:
+            self.engine.update_result(self.result)
 
     def push_black(self):
         image = np.zeros((self.height, self.width, 4), np.float32)

@@ -193,6 +193,29 @@ class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
             col.prop(visibility, name, text=text, toggle=False)
 
 
+class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
+    """View Layer Properties > Passes: the data passes the engine writes beside Combined (Z and
+    Normal of the surfaces camera rays stop on; ``engine.DATA_PASSES``)."""
+    bl_label = "Passes"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "view_layer"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column(heading="Data", align=True)
+        col.prop(context.view_layer, "use_pass_combined")
+        col.prop(context.view_layer, "use_pass_z")
+        col.prop(context.view_layer, "use_pass_normal")
+
+
 classes = (
     AMCMCPPM_RENDER_PT_sampling,
     AMCMCPPM_RENDER_PT_markov_chains,
@@ -243,7 +266,7 @@ def get_panels():
 
 # Panels outside the Render Properties.
 other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
-                 AMCMCPPM_WORLD_PT_ray_visibility)
+                 AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes)
 
 
 def register():

@@ -64,12 +64,18 @@ def test_engine_flags(addon):
 
 
 def test_defaults_follow_core(scene):
-    """Every core setting has a property of the same name whose default is the core's default."""
+    """Every core setting has a property of the same name whose default is the core's default,
+    but those Blender's own data gives (``properties.FROM_BLENDER``: the view layer's passes)."""
     from amcmcppm.amcmcppm_addon.export import render_settings_from
+    from amcmcppm.amcmcppm_addon.properties import FROM_BLENDER
     from amcmcppm.core.settings import RenderSettings
     core = RenderSettings()
     props = scene.amcmcppm
+    assert set(FROM_BLENDER) <= set(RenderSettings.__dataclass_fields__)
     for name in RenderSettings.__dataclass_fields__:
+        if name in FROM_BLENDER:
+            assert not hasattr(props, name)
+            continue
         assert hasattr(props, name), f"no property for core setting {name}"
         prop = props.bl_rna.properties[name]
         assert same(prop.default, getattr(core, name)), name
@@ -191,6 +197,22 @@ def test_world_ray_visibility_panel_draws_the_boxes_the_exporter_reads(scene):
     known = set(type(world.cycles_visibility).bl_rna.properties.keys())
     assert {name for name, _ in panel.props} <= known
     with bpy.context.temp_override(world=world):
+        assert panel.poll(bpy.context)
+        scene.render.engine = "CYCLES"
+        assert not panel.poll(bpy.context)
+        scene.render.engine = ENGINE
+
+
+def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
+    """View Layer > Passes (Blender's panels list EEVEE and Workbench only): our panel draws the
+    boxes of the passes ``engine.DATA_PASSES`` registers, for our engine alone."""
+    from amcmcppm.amcmcppm_addon import ui
+    from amcmcppm.amcmcppm_addon.engine import DATA_PASSES
+    panel = ui.AMCMCPPM_VIEWLAYER_PT_passes
+    assert getattr(bpy.types, panel.__name__) is panel
+    known = set(bpy.types.ViewLayer.bl_rna.properties.keys())
+    assert {prop for prop, _, _ in DATA_PASSES} <= known
+    with bpy.context.temp_override(view_layer=scene.view_layers[0]):
         assert panel.poll(bpy.context)
         scene.render.engine = "CYCLES"
         assert not panel.poll(bpy.context)
