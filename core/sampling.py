@@ -247,6 +247,7 @@ def erfc(x):
 
 
 def erf(x):
+    """Vectorised error function, 1 - :func:`erfc` (absolute error below 1.2e-7)."""
     return 1.0 - erfc(x)
 
 
@@ -300,6 +301,8 @@ def beckmann_lambda_aniso(v_local, alpha_x, alpha_y):
 
 
 def beckmann_lambda_of(sqr_alpha_tan):
+    """:func:`beckmann_lambda` of alpha^2 tan^2 theta (stretched by the azimuth's alpha where
+    anisotropic)."""
     a = 1.0 / np.sqrt(np.maximum(sqr_alpha_tan, 1e-300))
     lam = ((0.396 * a - 1.259) * a + 1.0) / ((2.181 * a + 3.535) * a)
     return np.where(sqr_alpha_tan < 0.39, 0.0, lam)
