@@ -14,6 +14,7 @@ from __future__ import annotations
 import traceback
 
 import bpy
+import numpy as np
 
 from ..core import SceneError
 from ..core.integrator import render as core_render
@@ -38,22 +39,50 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
         report_errors(self, render_final, self, depsgraph)
 
     def update_render_passes(self, scene=None, renderlayer=None):
-        """The passes this engine writes: Combined, and the view layer's Z and Normal data passes
+        """The passes this engine writes: Combined, and the data passes the view layer asks for
         (``DATA_PASSES``)."""
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", 'COLOR')
-        for prop, (name, channels, chan_id, kind), _ in DATA_PASSES:
-            if getattr(renderlayer, prop):
+        for (name, channels, chan_id, kind), owner, prop, _ in DATA_PASSES:
+            if asks_for(renderlayer, owner, prop):
                 self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
 
 
-# View layer property -> (Blender's pass, channels, channel ids, type) and the core's data pass.
-DATA_PASSES = (("use_pass_z", ("Depth", 1, "Z", 'VALUE'), "depth"),
-               ("use_pass_normal", ("Normal", 3, "XYZ", 'VECTOR'), "normal"))
+# Blender's passes beside Combined: (name, channels, channel ids, type), the box of the view layer
+# that asks for it ("" the view layer's own, "cycles" its Cycles settings: Denoising Data) and the
+# core's data pass it shows (RenderSettings.data_passes).
+DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
+               (("Normal", 3, "XYZ", 'VECTOR'), "", "use_pass_normal", "normal"),
+               (("Denoising Normal", 3, "XYZ", 'VECTOR'), "cycles", "denoising_store_passes", "normal"),
+               (("Denoising Albedo", 3, "RGB", 'COLOR'), "cycles", "denoising_store_passes", "albedo"))
+
+
+def asks_for(view_layer, owner, prop):
+    holder = getattr(view_layer, owner, None) if owner else view_layer
+    return bool(getattr(holder, prop, False))
 
 
 def data_passes_of(view_layer):
     """The core's ``RenderSettings.data_passes`` for the passes ``view_layer`` asks for."""
-    return tuple(core for prop, _, core in DATA_PASSES if getattr(view_layer, prop))
+    wanted = {core for _, owner, prop, core in DATA_PASSES if asks_for(view_layer, owner, prop)}
+    return tuple(name for name in ("depth", "normal", "albedo") if name in wanted)
+
+
+def pass_images(data, camera):
+    """Blender's pass name -> image of the core's data passes ``data`` (``RenderResult.data``):
+    the Denoising Normal in the camera's frame as Cycles' (x right, y up, z into the view) where
+    the Normal pass is in world space.  ``camera`` the exported ``core.Camera``."""
+    out = {}
+    for (name, *_), _, _, core in DATA_PASSES:
+        if core not in data:
+            continue
+        image = data[core]
+        if name == "Denoising Normal":
+            m = np.asarray(camera.world_from_camera, np.float64)[:3, :3]
+            axes = m / np.linalg.norm(m, axis=0)
+            axes[:, 2] *= -1.0
+            image = (image @ axes).astype(np.float32)
+        out[name] = image
+    return out
 
 
 def report_errors(engine, function, *args):
@@ -102,8 +131,7 @@ def render_final(engine, depsgraph):
             result = core_render(exported.scene, settings, on_iteration=progress.on_iteration,
                                  should_stop=engine.test_break)
             writer.push(result.image)
-            writer.write_data({name: result.data[core] for _, (name, *_), core in DATA_PASSES
-                               if core in result.data})
+            writer.write_data(pass_images(result.data, exported.scene.camera))
             outputs.finish(result, settings.time_limit or 0.0)
             effects = ", ".join(result.effects) or "none (diffuse surfaces and lights only)"
             engine.report({'INFO'}, f"AMCMCPPM: optional effects this scene calls for: {effects}")

@@ -214,6 +214,10 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
         col.prop(context.view_layer, "use_pass_combined")
         col.prop(context.view_layer, "use_pass_z")
         col.prop(context.view_layer, "use_pass_normal")
+        cycles = getattr(context.view_layer, "cycles", None)
+        if cycles is not None:
+            # (Cycles' Denoising Data box: the Denoising Normal and Albedo passes)
+            col.prop(cycles, "denoising_store_passes", text="Denoising Data")
 
 
 classes = (

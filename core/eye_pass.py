@@ -100,7 +100,8 @@ class EyePassResult:
     alpha: np.ndarray        # (n_pixels,) float64 coverage (1 unless the film is transparent)
     rays: int                # rays traced
     volume: VolumePoints = None  # the camera paths' points in scattering volumes
-    data: dict = None        # RenderSettings.data_passes: "depth" (n_pixels,), "normal" (n_pixels, 3)
+    data: dict = None        # RenderSettings.data_passes: "depth" (n_pixels,), "normal" and "albedo"
+    #                          (n_pixels, 3)
 
 
 # Camera paths traced at once (bounds the memory of big images).
@@ -138,7 +139,27 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=()) -> 
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
+    if "albedo" in data_passes:
+        data["albedo"] = point_albedo(ctx.table, points, n_pix)
     return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume), data or None)
+
+
+def point_albedo(table, points, n_pixels):
+    """(n_pixels, 3) the albedo pass (``RenderSettings.data_passes``) of one eye pass: the sum
+    over each pixel's measurement points of their weights (the camera path's throughput over the
+    chance of stopping there) times their lobes' weights times colours.  Its mean over passes is
+    the colour of the surface a camera path ends on times what lies before it lets through,
+    summed over where the path may end (through a Principled's smooth specular layer, its diffuse
+    colour and, by the layer's share, the reflected surface's)."""
+    out = np.zeros((n_pixels, 3))
+    if points.count == 0:
+        return out
+    lobes = [DIFFUSE, GLOSSY, TRANSLUCENT][:points.colors.shape[1]]
+    weight = table.weight[:, lobes].take(points.mat_ids, axis=0)
+    albedo = (weight[:, :, None] * points.colors).sum(axis=1) * points.weight
+    for c in range(3):
+        out[:, c] = np.bincount(points.pixel_ids, albedo[:, c], minlength=n_pixels)
+    return out
 
 
 # The depth pass where a camera ray meets nothing (Cycles' Z pass there).

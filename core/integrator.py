@@ -89,6 +89,7 @@ class Accumulator:
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
         self.depth = None                           # the first pass's depth pass (as Cycles' Z)
         self.normal = None                          # sum over passes of the normal pass
+        self.albedo = None                          # sum over passes of the albedo pass
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
         # spread, the sum of Vc_p T_p (per-pass normalisation) and, for the chains, the sum of
@@ -128,9 +129,11 @@ class Accumulator:
         if eye.data:
             if "depth" in eye.data and self.depth is None:
                 self.depth = eye.data["depth"].copy()
-            if "normal" in eye.data:
-                normal = eye.data["normal"]
-                self.normal = normal.copy() if self.normal is None else self.normal + normal
+            for name in ("normal", "albedo"):
+                if name in eye.data:
+                    value = eye.data[name]
+                    setattr(self, name, value.copy() if getattr(self, name) is None
+                            else getattr(self, name) + value)
         self.n_uniform += n_uniform
         self.n_visible += n_visible
         self.last_pass_mean = float(eye.emission.mean())
@@ -194,8 +197,10 @@ class Accumulator:
         out = {}
         if self.depth is not None:
             out["depth"] = self.depth.astype(np.float32).reshape(height, width)
-        if self.normal is not None and self.passes:
-            out["normal"] = (self.normal / self.passes).astype(np.float32).reshape(height, width, 3)
+        for name in ("normal", "albedo"):
+            value = getattr(self, name)
+            if value is not None and self.passes:
+                out[name] = (value / self.passes).astype(np.float32).reshape(height, width, 3)
         return out
 
     def _corrected(self, rgb, is_chain, scale):

@@ -21,7 +21,7 @@ AUTO_RAMP = 4                       # the automatic count starts at the minimum 
 MUTATIONS = ("off", "paper", "exact")
 NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes).
-DATA_PASSES = ("depth", "normal")
+DATA_PASSES = ("depth", "normal", "albedo")
 
 
 @dataclass(frozen=True)
@@ -123,7 +123,10 @@ class RenderSettings:
     axis (from the camera for panoramas; 1e10 where the ray meets nothing), from the first pass
     as Cycles' Z pass (from its first sample); "normal", its shading normal in world space
     facing the camera (0 where the ray meets nothing), averaged over the passes as Cycles'
-    Normal pass."""
+    Normal pass; "albedo", the colour of the surface each camera path ends on (the weights
+    times colours of its diffuse, glossy and translucent lobes), times what the mirrors and glass
+    before it let through, averaged over the passes (0 where paths end in the world), for a
+    denoiser as Cycles' Denoising Albedo."""
 
     def __post_init__(self):
         def bad(name, why):

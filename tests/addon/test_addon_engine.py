@@ -408,8 +408,9 @@ def test_depth_and_normal_passes_match_cycles(scene, tmp_path):
     back and the sky, seen from a perspective camera: against Cycles' passes in the 818 pixels away
     from edges, the depth within 0.73 % (each from its first sample's jitter: one depth on the wall
     square to the view, up to 0.7 % apart on the tilted card) and 1e10 where rays meet nothing, the
-    normal (world space, facing the camera) within 2e-7; without the boxes ticked, no such
-    passes."""
+    normal (world space, facing the camera) within 2e-7; with Denoising Data (Cycles' box), its
+    Denoising Normal (in the camera's frame) and Denoising Albedo within 2e-7 in those pixels;
+    without the boxes ticked, no such passes."""
     import test_addon_parity as parity
 
     def build():
@@ -421,7 +422,7 @@ def test_depth_and_normal_passes_match_cycles(scene, tmp_path):
         bs.camera(location=(0, -2, 0), target=(0, 4, 0), lens=30.0)
         bs.light("SUN", location=(0, 0, 5), target=(0.2, 1.0, -0.3), energy=3.0)
         layer = bpy.context.scene.view_layers[0]
-        layer.use_pass_z = layer.use_pass_normal = True
+        layer.use_pass_z = layer.use_pass_normal = layer.cycles.denoising_store_passes = True
 
     build()
     ours = render_passes(tmp_path / "ours.exr")
@@ -449,8 +450,19 @@ def test_depth_and_normal_passes_match_cycles(scene, tmp_path):
     np.testing.assert_allclose(depth[seen], c_depth[seen], rtol=0.02)
     np.testing.assert_allclose(normal[seen], c_normal[seen], atol=1e-3)
     assert (normal[sky] == 0).all()
+    # Denoising Data: the normal in the camera's frame (Cycles': z into the view), the albedo of
+    # the diffuse wall and card.
+    for name in ("Denoising Normal", "Denoising Albedo"):
+        channels = "XYZ" if name == "Denoising Normal" else None
+        mine = (np.stack([ours[f"ViewLayer.{name}.{c}"] for c in channels], -1) if channels
+                else ours[f"ViewLayer.{name}"][..., :3])
+        theirs = (np.stack([cycles[f"ViewLayer.{name}.{c}"] for c in channels], -1) if channels
+                  else cycles[f"ViewLayer.{name}"][..., :3])
+        print(f"{name}: largest difference {np.abs(mine[even] - theirs[even]).max():.2e}")
+        np.testing.assert_allclose(mine[even], theirs[even], atol=1e-3)
+    assert np.isclose(ours["ViewLayer.Denoising Albedo"][..., :3][seen], 0.5, atol=1e-3).any()
     layer = bpy.context.scene.view_layers[0]
-    layer.use_pass_z = layer.use_pass_normal = False
+    layer.use_pass_z = layer.use_pass_normal = layer.cycles.denoising_store_passes = False
     bpy.context.scene.render.engine = "AMCMCPPM"
     plain = render_passes(tmp_path / "plain.exr")
-    assert not any("Depth" in k or "Normal" in k for k in plain)
+    assert not any("Depth" in k or "Normal" in k or "Albedo" in k for k in plain)

@@ -210,8 +210,10 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
     from amcmcppm.amcmcppm_addon.engine import DATA_PASSES
     panel = ui.AMCMCPPM_VIEWLAYER_PT_passes
     assert getattr(bpy.types, panel.__name__) is panel
-    known = set(bpy.types.ViewLayer.bl_rna.properties.keys())
-    assert {prop for prop, _, _ in DATA_PASSES} <= known
+    layer = scene.view_layers[0]
+    for _, owner, prop, _ in DATA_PASSES:
+        holder = getattr(layer, owner) if owner else layer
+        assert prop in holder.bl_rna.properties.keys(), (owner, prop)
     with bpy.context.temp_override(view_layer=scene.view_layers[0]):
         assert panel.poll(bpy.context)
         scene.render.engine = "CYCLES"

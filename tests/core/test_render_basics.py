@@ -496,9 +496,9 @@ def wall_and_card(camera, sheet=True):
 def test_depth_and_normal_passes_of_the_surfaces_the_camera_sees(projection):
     """RenderSettings.data_passes: the depth of a wall square to the view is its distance along the
     view axis in every pixel (whatever the jitter), a panorama's the distance from the camera;
-    the normals face the camera (the card shows its back); a fully transparent sheet in front
-    is seen through; rays that meet nothing get depth 1e10 and normal 0.  Without data passes,
-    none are made."""
+    the normals face the camera (the card shows its back); the albedo is the surfaces' colour;
+    a fully transparent sheet in front is seen through; rays that meet nothing get depth 1e10,
+    normal 0 and albedo 0.  Without data passes, none are made."""
     if projection == "perspective":
         camera = Camera.look_at((0, 0, 0), (0, 1, 0), resolution=(32, 24), lens_mm=20.0)
     elif projection == "orthographic":
@@ -510,8 +510,8 @@ def test_depth_and_normal_passes_of_the_surfaces_the_camera_sees(projection):
         camera = Camera(world_from_camera=pose, projection="equirectangular", resolution=(64, 32))
     scene = wall_and_card(camera)
     result = render(scene, RenderSettings(passes=3, photons_per_pass=2000, workers=1,
-                                          data_passes=("depth", "normal")))
-    depth, normal = result.data["depth"], result.data["normal"]
+                                          data_passes=("depth", "normal", "albedo")))
+    depth, normal, albedo = result.data["depth"], result.data["normal"], result.data["albedo"]
     h, w = depth.shape
     assert normal.shape == (h, w, 3) and np.isfinite(depth).all() and np.isfinite(normal).all()
     bare = wall_and_card(camera, sheet=False)
@@ -546,7 +546,43 @@ def test_depth_and_normal_passes_of_the_surfaces_the_camera_sees(projection):
         np.testing.assert_allclose(depth[card], 2.0, rtol=1e-5)
     np.testing.assert_allclose(normal[wall], np.tile([0.0, -1.0, 0.0], (wall.sum(), 1)), atol=1e-6)
     np.testing.assert_allclose(normal[card], np.tile([0.0, -1.0, 0.0], (card.sum(), 1)), atol=1e-6)
+    np.testing.assert_allclose(albedo[wall], 0.5, rtol=1e-6)
+    np.testing.assert_allclose(albedo[card], 0.8, rtol=1e-6)
+    assert (albedo[sky] == 0).all()
     plain = render(scene, RenderSettings(passes=1, photons_per_pass=2000, workers=1))
     assert plain.data == {}
     with pytest.raises(ValueError, match="data_passes"):
         RenderSettings(data_passes=("mist",))
+
+
+def test_the_albedo_pass_looks_through_mirrors_and_glass():
+    """The albedo pass of a camera path that goes on through a mirror (colour 0.9) or a glass pane
+    (colour 0.8, at each face as Cycles' Glass BSDF) to a diffuse wall of colour (0.5, 0.4, 0.3):
+    the wall's colour times what the mirror or glass lets through (for the glass, its reflection
+    of the black sky adds nothing: the path then ends in the world)."""
+    mats = Materials.build([{"name": "wall", "diffuse": [0.5, 0.4, 0.3]}, {"name": "mirror", "mirror": 0.9},
+                            {"name": "pane", "dielectric": 0.8, "ior": 1.5}])
+    for kind in ("mirror", "glass"):
+        m = MeshBuilder()
+        if kind == "mirror":
+            # A mirror at 45 degrees under the camera looking down sends its rays along -y to the wall.
+            m.add_quad((-5, -5, -5), (5, -5, -5), (5, 5, 5), (-5, 5, 5), 1)
+            m.add_quad((-50, -20, -50), (50, -20, -50), (50, -20, 50), (-50, -20, 50), 0)
+            camera = Camera.look_at((0, 0, 8), (0, 0, 0), resolution=(12, 12), lens_mm=120.0)
+        else:
+            m.add_box((-5, 1, -5), (5, 1.2, 5), 2)
+            m.add_quad((-50, 20, -50), (50, 20, -50), (50, 20, 50), (-50, 20, 50), 0)
+            camera = Camera.look_at((0, 0, 0), (0, 1, 0), resolution=(12, 12), lens_mm=120.0)
+        scene = m.build(mats, Lights.build([{"kind": "sun", "direction": (0.0, 1.0, 0.0), "power": 1.0}]),
+                        camera)
+        result = render(scene, RenderSettings(passes=64, photons_per_pass=500, workers=1,
+                                              data_passes=("albedo",)))
+        mean = result.data["albedo"].reshape(-1, 3).mean(axis=0)
+        if kind == "mirror":
+            np.testing.assert_allclose(mean, 0.9 * np.array([0.5, 0.4, 0.3]), rtol=1e-5)
+        else:
+            # Through two faces at normal incidence: 0.8^2 (1 - F)^2, over 1 - (0.8 F)^2 for the
+            # light reflected back and forth inside; Fresnel picked by chance per path.
+            f = 0.04
+            through = 0.8 ** 2 * (1 - f) ** 2 / (1 - (0.8 * f) ** 2)
+            np.testing.assert_allclose(mean, through * np.array([0.5, 0.4, 0.3]), rtol=0.05)
