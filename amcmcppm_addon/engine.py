@@ -57,6 +57,7 @@ DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
 
 
 def asks_for(view_layer, owner, prop):
+    """Whether the box ``prop`` of ``view_layer`` (or of its ``owner`` settings) is ticked."""
     holder = getattr(view_layer, owner, None) if owner else view_layer
     return bool(getattr(holder, prop, False))
 

@@ -195,7 +195,8 @@ class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
 
 class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
     """View Layer Properties > Passes: the data passes the engine writes beside Combined (Z and
-    Normal of the surfaces camera rays stop on; ``engine.DATA_PASSES``)."""
+    Normal of the surfaces camera rays stop on, and Cycles' Denoising Data box for the Denoising
+    Normal and Albedo; ``engine.DATA_PASSES``)."""
     bl_label = "Passes"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
@@ -211,7 +212,6 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         col = layout.column(heading="Data", align=True)
-        col.prop(context.view_layer, "use_pass_combined")
         col.prop(context.view_layer, "use_pass_z")
         col.prop(context.view_layer, "use_pass_normal")
         cycles = getattr(context.view_layer, "cycles", None)
