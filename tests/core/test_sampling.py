@@ -484,9 +484,18 @@ def test_reflect_and_refract_obey_mirror_law_and_snell():
 
 
 # ================================================================ 2. GGX
+# (sampler, density of the reflected direction, first seed) of each microfacet distribution
+VISIBLE_NORMALS = {"ggx": (smp.ggx_sample_visible_normal, smp.ggx_reflection_pdf, 1000),
+                   "beckmann": (smp.beckmann_sample_visible_normal, smp.beckmann_reflection_pdf, 3000)}
+
+
 @pytest.mark.parametrize("theta_deg", GGX_THETAS_DEG)
 @pytest.mark.parametrize("alpha", GGX_ALPHAS)
-def test_ggx_visible_normal_reflection_matches_ggx_reflection_pdf(alpha, theta_deg):
+@pytest.mark.parametrize("distribution", VISIBLE_NORMALS)
+def test_visible_normal_reflection_matches_its_pdf(distribution, alpha, theta_deg):
+    """Visible normals of GGX (Heitz 2018) and Beckmann (Heitz and d'Eon 2014; the exact Smith G1
+    in its density), reflected: chi-square against the density of the reflected direction."""
+    sampler, density, seed = VISIBLE_NORMALS[distribution]
     phi_o = 0.7
     wo = local_direction(theta_deg, phi_o)
     mirror = np.array([-wo[0], -wo[1], wo[2]])
@@ -494,11 +503,11 @@ def test_ggx_visible_normal_reflection_matches_ggx_reflection_pdf(alpha, theta_d
     # Bins crowd around the mirror direction, or along the horizon for grazing incidence (where the
     # horizon cuts the lobe and must be a bin edge).
     grazing = theta_deg >= 60.0
-    rng = np.random.default_rng(1000 + 10 * GGX_ALPHAS.index(alpha) + GGX_THETAS_DEG.index(theta_deg))
+    rng = np.random.default_rng(seed + 10 * GGX_ALPHAS.index(alpha) + GGX_THETAS_DEG.index(theta_deg))
 
     def sample(n):
         wo_n = np.tile(wo, (n, 1))
-        m = smp.ggx_sample_visible_normal(wo_n, np.full(n, alpha), rng.random(n), rng.random(n))
+        m = sampler(wo_n, np.full(n, alpha), rng.random(n), rng.random(n))
         assert np.allclose(np.linalg.norm(m, axis=1), 1.0, atol=1e-9)
         assert (m[:, 2] > 0).all() and (np.sum(m * wo_n, axis=1) >= -1e-9).all()
         wi = smp.reflect(wo_n, m)
@@ -507,7 +516,7 @@ def test_ggx_visible_normal_reflection_matches_ggx_reflection_pdf(alpha, theta_d
 
     def pdf(xy):
         d, jac = horizon_to_dir(xy, phi_o + np.pi) if grazing else warped_to_dir(xy, mirror, p)
-        return smp.ggx_reflection_pdf(np.tile(wo, (len(d), 1)), d, alpha) * jac
+        return density(np.tile(wo, (len(d), 1)), d, alpha) * jac
 
     test = check_chi2(sample, pdf, ((0.0, 1.0), (-1.0, 1.0)) if grazing else WARPED, ires=8)
     assert test.integral.sum() <= 1.0 + 1e-3
@@ -598,35 +607,6 @@ def test_beckmann_d_is_normalised_and_the_lambda_fit_follows_the_exact_one():
         fit, exact = smp.beckmann_lambda(cos_v, alpha), smp.beckmann_lambda_exact(cos_v, alpha)
         assert np.allclose(1.0 + fit, 1.0 + exact, rtol=5e-3)
         assert (exact >= 0).all() and (fit > -1e-3).all()     # (the fit dips to -6e-4 near a = 1.6)
-
-
-@pytest.mark.parametrize("theta_deg", GGX_THETAS_DEG)
-@pytest.mark.parametrize("alpha", GGX_ALPHAS)
-def test_beckmann_visible_normal_reflection_matches_its_pdf(alpha, theta_deg):
-    """:func:`~core.sampling.beckmann_sample_visible_normal` + reflection: chi-square against the
-    density G1(wo) max(0, wo.m) D(m) / wo.z of the exact Smith G1 (Heitz and d'Eon 2014)."""
-    phi_o = 0.7
-    wo = local_direction(theta_deg, phi_o)
-    mirror = np.array([-wo[0], -wo[1], wo[2]])
-    p = ggx_warp_power(alpha)
-    grazing = theta_deg >= 60.0
-    rng = np.random.default_rng(3000 + 10 * GGX_ALPHAS.index(alpha) + GGX_THETAS_DEG.index(theta_deg))
-
-    def sample(n):
-        wo_n = np.tile(wo, (n, 1))
-        m = smp.beckmann_sample_visible_normal(wo_n, np.full(n, alpha), rng.random(n), rng.random(n))
-        assert np.allclose(np.linalg.norm(m, axis=1), 1.0, atol=1e-9)
-        assert (m[:, 2] > 0).all() and (np.sum(m * wo_n, axis=1) >= -1e-6).all()
-        wi = smp.reflect(wo_n, m)
-        xy = dir_to_horizon(wi, phi_o + np.pi) if grazing else dir_to_warped(wi, mirror, p)
-        return xy, (wi[:, 2] > 0).astype(np.float64)
-
-    def pdf(xy):
-        d, jac = horizon_to_dir(xy, phi_o + np.pi) if grazing else warped_to_dir(xy, mirror, p)
-        return smp.beckmann_reflection_pdf(np.tile(wo, (len(d), 1)), d, alpha) * jac
-
-    test = check_chi2(sample, pdf, ((0.0, 1.0), (-1.0, 1.0)) if grazing else WARPED, ires=8)
-    assert test.integral.sum() <= 1.0 + 1e-3
 
 
 def test_anisotropic_beckmann_visible_normals_have_the_stretched_density():
