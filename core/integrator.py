@@ -126,12 +126,13 @@ class Accumulator:
         self.passes += 1
         self.emission += eye.emission
         self.alpha += eye.alpha
-        if eye.data:
-            if "depth" in eye.data and self.depth is None:
-                self.depth = eye.data["depth"].copy()
+        data = getattr(eye, "data", None)            # (RenderSettings.data_passes)
+        if data:
+            if "depth" in data and self.depth is None:
+                self.depth = data["depth"].copy()
             for name in ("normal", "albedo"):
-                if name in eye.data:
-                    value = eye.data[name]
+                if name in data:
+                    value = data[name]
                     setattr(self, name, value.copy() if getattr(self, name) is None
                             else getattr(self, name) + value)
         self.n_uniform += n_uniform
