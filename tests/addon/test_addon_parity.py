@@ -1918,7 +1918,8 @@ ROUGH_BLOCKS = {"refraction_beckmann_0.6": ("refraction", "BECKMANN", 0.6),   # 
                 "glass_ggx_0.6": ("glass", "GGX", 0.6)}
 
 
-@pytest.mark.parametrize("case", ROUGH_BLOCKS)
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c == "glass_beckmann_0.9" else c
+                                  for c in ROUGH_BLOCKS])
 def test_rough_glass_matches_cycles_without_its_light_sampling(addon, tmp_path, case):
     """:func:`rough_block` against Cycles with the wall's Emission Sampling None (stop 46): Cycles
     then reaches the wall by its BSDF samples alone, and ours matches it (refraction_beckmann_0.6
