@@ -2126,10 +2126,12 @@ def test_what_lies_behind_or_inside_glass_matches_cycles(addon, tmp_path, case):
     finds by its BSDF samples alone (through the water's faces, or after total internal
     reflections), and at 512 samples Cycles' own mean moves by 1.5 % (point light) and 3.5 % (sun)
     from seed to seed: they passed within 3 % by luck of the draw and failed when our photons were
-    drawn differently.  They take Cycles at 8192 samples with every bounce limit at 64 (its light
-    converged in bounces: 8 gave 0.3208 and 0.5196, 64 0.3347 and 0.5245; ours gives the same at
-    8 and 32 bounces). Ours over it, seeds 0 / 1 / 2: 0.987 / 0.977 / 0.988 and 0.984 / 0.966 /
-    0.975: within 4 %, not 3 % (why ours is darker there is not known)."""
+    drawn differently.  They take Cycles at 8192 samples with every bounce limit at ours + 1 (the
+    camera ray's refraction into the water is one of Cycles' bounces, not one of our photons'):
+    an independent photon tracer of the point-light scene (analytic box and card) agrees with
+    Cycles within 0.2 %, and ours with both within 1 %, at every limit from 1 to 32; the light
+    that needs more than 8 bounces is 1.6 % of the card's (with Cycles' limits at 64 ours read
+    0.98 of it)."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
         bpy.context.scene.cycles.glossy_bounces = OURS["max_bounces"]
@@ -2168,7 +2170,8 @@ def test_what_lies_behind_or_inside_glass_matches_cycles(addon, tmp_path, case):
         use_cycles(bpy.context.scene)
         c = bpy.context.scene.cycles
         c.samples = 8192
-        c.max_bounces = c.glossy_bounces = c.transmission_bounces = c.diffuse_bounces = 64
+        limit = OURS["max_bounces"] + 1
+        c.max_bounces = c.glossy_bounces = c.transmission_bounces = c.diffuse_bounces = limit
         cycles = bs.render_exr(tmp_path / "cycles.exr")
         build()
         ours = bs.render_exr(tmp_path / "ours.exr")
@@ -2178,4 +2181,4 @@ def test_what_lies_behind_or_inside_glass_matches_cycles(addon, tmp_path, case):
     c, o = (x[..., :3].reshape(-1, 3).mean(axis=0) for x in (cycles, ours))
     print(f"behind glass, {case}: cycles {c.round(4)}, ours / cycles {np.round(o / c, 4)}")
     np.testing.assert_allclose(o, c, rtol=0.01 if case in ("pane_front", "pane_back", "emitter_in_water")
-                               else 0.04 if cards else TOLERANCE)
+                               else TOLERANCE)
