@@ -32,8 +32,9 @@ SLOW_CASES = {
     PARITY + "test_bump_map_matches_cycles[bump_on_bump]",                   # 8 s
     PARITY + "test_coat_normal_matches_cycles[coat]",                        # 15 s ([base] stays)
     PARITY + "test_coat_normal_matches_cycles[displaced]",                   # 13 s
-    PARITY + "test_smooth_sphere_with_and_without_a_normal_map_matches_cycles[principled_no_correction]",  # 8 s
-    PARITY + "test_smooth_sphere_with_and_without_a_normal_map_matches_cycles[principled_normal_map]",     # 7 s
+    # 8 s and 7 s ([smooth_only], [principled] and [normal_map] stay)
+    PARITY + "test_smooth_sphere_with_and_without_a_normal_map_matches_cycles[principled_no_correction]",
+    PARITY + "test_smooth_sphere_with_and_without_a_normal_map_matches_cycles[principled_normal_map]",
     PARITY + "test_normal_map_matches_cycles[turned_mirrored]",              # 10 s ([turned] stays)
     PARITY + "test_object_and_world_space_normal_maps_match_cycles[WORLD-1.0]",  # 8 s ([OBJECT-1.0] stays)
     PARITY + "test_principled_thin_film_matches_cycles[oil_on_dark]",        # 10 s ([soap_film] stays)
@@ -41,7 +42,8 @@ SLOW_CASES = {
     PARITY + "test_refraction_bsdf_matches_cycles[fake_glass]",              # 13 s ([refraction] stays)
     PARITY + "test_absorbing_volumes_match_cycles[absorbing_glass]",         # 12 s ([volume_only] stays)
     PARITY + "test_a_light_without_cast_shadow_matches_cycles[object]",      # 12 s ([light] stays)
-    PARITY + "test_emitters_that_do_not_light_some_rays_match_cycles[world_and_panel]",  # 10 s ([lights] stays)
+    # 10 s ([lights] stays)
+    PARITY + "test_emitters_that_do_not_light_some_rays_match_cycles[world_and_panel]",
     "tests/addon/test_procedural_parity.py::test_bevel_matches_cycles[16]",  # 41 s ([4] stays)
     # The Sky Texture's bake: both models, the wrap past 90 degrees, the sun below the horizon,
     # altitude and densities stay (ms_120_wraps, ms_2_alt0, ms_-1_alt2000, ss_2_dense, ss_-3, Preetham).
@@ -60,7 +62,8 @@ SLOW_CASES = {
     CLOSED_FORM + "test_sun_through_glass_slab_single_pass_transmittance[half_refraction-amcmcppm]",  # 7 s
     CLOSED_FORM + "test_sun_through_glass_slab_single_pass_transmittance[refraction-amcmcppm]",       # 6 s
     "tests/core/test_coat.py::test_a_coat_normal_tilts_the_coat_alone[bump]",  # 15 s ([normal] stays)
-    "tests/core/test_bias_correction.py::test_the_plain_estimate_is_unchanged_and_every_image_finite[auto]",  # 7 s
+    # 7 s ([ppm] and [amcmcppm] stay)
+    "tests/core/test_bias_correction.py::test_the_plain_estimate_is_unchanged_and_every_image_finite[auto]",
 }
 
 
