@@ -372,10 +372,15 @@ class DepositLog(Recorder):
     (``half_sums``): two independent halves of the chains, whose difference
     estimates the spread of the sums (``core.integrator.Accumulator``; the chains keep their
     states from pass to pass, so the spread of the passes underestimates it).
+
+    ``main_slots``: the pairs on slots from it on (``DepositTarget``'s inner slots) do not count
+    towards a flush or a splat (:meth:`PointSums.add`'s ``counted``), so that the other slots
+    are summed in the same groups, to the same bits, with or without them (None: all count).
     """
 
-    def __init__(self, n_points, n_chains, flush_pairs=1 << 21, halves=False):
+    def __init__(self, n_points, n_chains, flush_pairs=1 << 21, halves=False, main_slots=None):
         self.n_points = n_points
+        self.main_slots = main_slots
         self.flush_pairs = flush_pairs
         self._sums = PointSums(n_points)
         self.sums = self._sums.total                    # (m, 3), complete after flush()
@@ -422,7 +427,8 @@ class DepositLog(Recorder):
         if len(sel) == 0:
             return 0
         value = batch.pair_value.take(sel, axis=0)
-        self._outside.add(batch.pair_point.take(sel), [value[:, c] for c in range(3)])
+        point = batch.pair_point.take(sel)
+        self._outside.add(point, [value[:, c] for c in range(3)], self._counted(point))
         self.outside_pairs += len(sel)
         return len(np.unique(batch.pair_path.take(sel)))
 
@@ -457,9 +463,13 @@ class DepositLog(Recorder):
             self.chunks.append((state, batch.pair_point, batch.pair_value))
         else:
             self.chunks.append((state.take(sel), batch.pair_point.take(sel), batch.pair_value.take(sel, axis=0)))
-        self.logged += len(sel)
+        self.logged += self._counted(self.chunks[-1][1])
         if self.logged > self.flush_pairs:
             self.flush()
+
+    def _counted(self, point):
+        """How many of the pairs with points ``point`` count (``main_slots``)."""
+        return len(point) if self.main_slots is None else int(np.count_nonzero(point < self.main_slots))
 
     def flush(self):
         """Splat the recordings so far; keep the pairs of the current states only.
@@ -479,10 +489,11 @@ class DepositLog(Recorder):
             state, point = chunk[0], chunk[1]
             w = self.count.take(state).astype(np.float64)
             value = chunk[2]
-            self._sums.add(point, [value[:, c] * w for c in range(3)])
+            counted = self._counted(point)
+            self._sums.add(point, [value[:, c] * w for c in range(3)], counted)
             if self._halves is not None:
                 w = w * self.sign.take(state)
-                self._halves.add(point, [value[:, c] * w for c in range(3)])
+                self._halves.add(point, [value[:, c] * w for c in range(3)], counted)
             keep = np.flatnonzero(alive.take(state))
             if len(keep) == len(state):
                 kept.append(chunk)
@@ -494,4 +505,4 @@ class DepositLog(Recorder):
         self.count[current] = 0
         # The kept pairs, as one chunk (later flushes then see few chunks).
         self.chunks = [tuple(np.concatenate(part) for part in zip(*kept))] if kept else []
-        self.logged = len(self.chunks[0][0]) if kept else 0
+        self.logged = self._counted(self.chunks[0][1]) if kept else 0
