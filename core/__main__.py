@@ -37,7 +37,11 @@ def build_parser():
     r.add_argument("--alpha", type=float, default=d.alpha)
     r.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=d.bias_correction,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
-    r.add_argument("--max-bounces", type=int, default=d.max_bounces)
+    r.add_argument("--max-bounces", type=int, default=d.max_bounces,
+                   help="most bounces of a light path (Cycles' Total)")
+    r.add_argument("--diffuse-bounces", type=int, default=d.diffuse_bounces)
+    r.add_argument("--glossy-bounces", type=int, default=d.glossy_bounces)
+    r.add_argument("--transmission-bounces", type=int, default=d.transmission_bounces)
     r.add_argument("--glossy-through", type=float, default=d.glossy_through_roughness,
                    help="camera paths go on through glossy lobes smoother than this roughness")
     r.add_argument("--workers", type=int, default=d.workers, help="0 = one per CPU core")
@@ -50,6 +54,8 @@ def settings_from_args(a) -> RenderSettings:
     return RenderSettings(method=a.method, passes=a.passes, time_limit=a.time_limit,
                           photons_per_pass=a.photons_per_pass, seed=a.seed, alpha=a.alpha,
                           initial_radius_px=a.initial_radius, max_bounces=a.max_bounces,
+                          diffuse_bounces=a.diffuse_bounces, glossy_bounces=a.glossy_bounces,
+                          transmission_bounces=a.transmission_bounces,
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
                           mutation=a.mutation, normalisation=a.normalisation,
                           glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction)

@@ -24,6 +24,7 @@ from . import subsurface
 from .procedural import Rays, camera_path
 from .sampling import dot
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
+from .settings import BounceLimits
 
 
 @dataclass
@@ -43,6 +44,8 @@ class MeasurementPoints:
     nn: np.ndarray = None   # (m, 3) float32 shading normal before normal maps, side of ng; None without
     ns_glossy: np.ndarray = None  # (m, 3) float32 glossy lobes' normal (valid_reflection_normal); None: ns
     tangent: np.ndarray = None    # (m, 3) float32 anisotropic glossy lobes' tangent (Surface.tangent); None
+    bounces: np.ndarray = None    # (m, 4) uint8 the camera path's bounces before the point, in all and of
+    #                               each kind (BounceLimits.array's order); None: none
 
     @property
     def count(self) -> int:
@@ -78,6 +81,7 @@ class VolumePoints:
     base_radius: np.ndarray  # (k,) float64 r_1, as MeasurementPoints.base_radius
     planes: np.ndarray      # (k, 2) float64 distances to the planes of the faces its camera ray
     #                         entered and would have left the volume by (inf: none)
+    bounces: np.ndarray = None  # (k, 4) uint8 as MeasurementPoints.bounces
 
     @property
     def count(self) -> int:
@@ -89,7 +93,8 @@ class VolumePoints:
             z3 = np.zeros((0, 3), np.float32)
             return VolumePoints(np.zeros(0, np.int64), np.zeros((0, 3)), z3, z3, np.zeros(0, np.int32),
                                 np.zeros(0), np.zeros((0, 2)))
-        return VolumePoints(*(np.concatenate([getattr(p, f) for p in parts])
+        return VolumePoints(*(None if getattr(parts[0], f) is None
+                              else np.concatenate([getattr(p, f) for p in parts])
                               for f in VolumePoints.__dataclass_fields__))
 
 
@@ -116,10 +121,15 @@ VOLUME_POINT_BUDGET = 1 << 21
 MAX_SEGMENT_POINTS = 16
 
 
-def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=()) -> EyePassResult:
+def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng``; with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
-    rays stop on (:func:`first_hit_data`)."""
+    rays stop on (:func:`first_hit_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
+    default ``max_bounces`` in all and none per kind): a point may follow as many mirror and
+    glass bounces as leave room for its photons' (at least none), emission may be seen after
+    one more (that last bounce does not count, as in Cycles)."""
+    if limits is None:
+        limits = BounceLimits(max_bounces)
     x0, x1, y0, y1 = ctx.scene.camera.window
     n_pix = (x1 - x0) * (y1 - y0)
     emission = np.zeros((n_pix, 3))
@@ -135,7 +145,7 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=()) -> 
     for start in range(0, n_pix, EYE_CHUNK):
         pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
-                                        max_bounces, volume, per_segment, data)
+                                        limits, volume, per_segment, data)
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
@@ -194,7 +204,7 @@ def _box_exit(origins, dirs, lo, hi):
     return np.where(np.isfinite(far), np.maximum(far, 0.0), 0.0)
 
 
-def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_bounces, volume,
+def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
                         per_segment=1, data=None):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
@@ -223,11 +233,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
     # the paths are camera rays, which see every emitter).
     sets = None
     origin_normals = None       # geometric normals where the paths left their last surface
-    # The mirror (glossy) and glass (transmission) bounces each path took, for the Light Path node.
-    bounces = np.zeros((len(pix), 2), np.int32)
+    # The bounces each path took (BounceLimits.array's order: all, diffuse, mirror and glossy
+    # reflections, glass transmissions), for the limits and the Light Path node; paths past a
+    # limit (``last``) see emission at their next hit and end there.
+    bounces = np.zeros((len(pix), 4), np.uint8)
+    last = np.zeros(len(pix), bool)
+    room = limits.array
     parts = []
     rays = 0
-    for depth in range(max_bounces + 1):
+    for depth in range(limits.total + 2):
         if len(pix) == 0:
             break
         # A camera path stops on a transparent surface as often as it is opaque, with its weight.
@@ -240,6 +254,10 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         if hits.forced is not None:
             # A point in every segment through a scattering volume (the path goes on through it).
             rows, t_v, w_v, ends, planes, media = hits.forced
+            if last.any():
+                keep = np.flatnonzero(~last.take(rows))
+                rows, t_v, w_v, ends, planes, media = (a.take(keep, axis=0)
+                                                       for a in (rows, t_v, w_v, ends, planes, media))
             # The gather sphere is as wide as a surface point's where the segment ends (the
             # volume's far side): a point near the camera, with a footprint-sized sphere, would
             # almost never find a photon, and then one at a huge weight.
@@ -257,7 +275,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 position=origins.take(rows, axis=0) + t_v[:, None] * dirs.take(rows, axis=0),
                 wo=(-dirs.take(rows, axis=0)).astype(np.float32),
                 weight=(beta.take(rows, axis=0) * w_v).astype(np.float32), mat_ids=media.astype(np.int32),
-                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes))
+                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes,
+                bounces=bounces.take(rows, axis=0)))
         beta_in = beta
         if glow is not None:
             lit = np.flatnonzero(glow.any(axis=1))             # glowing volumes on the way
@@ -306,6 +325,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             h = h.take(np.flatnonzero(share < 1.0))
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
         ray_kind = ray_kind.take(h)
+        bounces, last = bounces.take(h, axis=0), last.take(h)
         medium = None if medium is None else medium.take(h)
         sets = None if sets is None else sets.take(h)
         path_len = path_len.take(h) + hits.t.take(h)
@@ -313,9 +333,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
         wo = -dirs
         if ctx.reads_light_path:
-            bounces = bounces.take(h, axis=0)
             path = camera_path(ray_kind == VISIBLE_CAMERA, ray_kind == VISIBLE_GLOSSY, hits.t.take(h), depth,
-                               bounces[:, 0], bounces[:, 1])
+                               bounces[:, 2].astype(np.int32), bounces[:, 3].astype(np.int32))
             rays_in = Rays(wo, True, path)
         else:
             rays_in = Rays(wo, True)
@@ -357,7 +376,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
             through = table.glossy_through.take(surf.mat_ids)
             non_delta = np.where(through, 0.0, non_delta)
         p_nd = np.where(total > 0, non_delta / np.where(total > 0, total, 1), 0)
-        stop = u[:, 0] < p_nd
+        stop = (u[:, 0] < p_nd) & ~last
         if stop.any():
             s = np.flatnonzero(stop)
             rows = lambda a: a.take(s, axis=0)                      # noqa: E731
@@ -381,7 +400,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
                 ns_glossy=ns_glossy,
-                tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32))
+                tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32),
+                bounces=rows(bounces))
             if ctx.subsurface_exit >= 0:
                 # Some points go beneath their surface, to the exit of a random walk.
                 points, exits, r = _beneath(ctx, rng, points, rows(prim), rows(scores[:, DIFFUSE]),
@@ -390,8 +410,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
                 if exits is not None:
                     parts.append(exits)
             parts.append(points)
-        go = np.flatnonzero(~stop & (total > 0))
-        if depth == max_bounces or len(go) == 0:
+        go = np.flatnonzero(~stop & (total > 0) & ~last)
+        if len(go) == 0:
             break
         # Continue through the delta lobes only (rescale the lobe number into the delta range).
         delta_scores = scores[go].copy()
@@ -412,8 +432,11 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, max_b
         g = go[keep]
         reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0
         ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
-        if ctx.reads_light_path:
-            bounces = bounces[g] + np.stack([reflected, ~reflected], axis=1)
+        bounces = bounces[g]
+        bounces[:, 0] += 1
+        bounces[:, 2] += reflected
+        bounces[:, 3] += ~reflected
+        last = (bounces > room).any(axis=1)
         if medium is not None:
             medium = ctx.next_medium(medium[g], prim[g], wi[keep], wo[g])
         if ctx.receiver_sets is not None:
@@ -506,7 +529,8 @@ def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
         mat_ids=np.full(len(left), ctx.subsurface_exit, points.mat_ids.dtype), colors=colors,
         base_radius=points.base_radius.take(src),
         nn=None if points.nn is None else ns_out, ns_glossy=None if points.ns_glossy is None else ns_out,
-        tangent=None if points.tangent is None else np.zeros((len(left), 3), f32))
+        tangent=None if points.tangent is None else np.zeros((len(left), 3), f32),
+        bounces=None if points.bounces is None else points.bounces.take(src, axis=0))
     return kept, exits, rays
 
 

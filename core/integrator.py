@@ -358,7 +358,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     def eye_pass(i):
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
-                              settings.data_passes)
+                              settings.data_passes, settings.bounce_limits)
 
     # The Markov chains' visible set also holds the cells around the measurement points of the
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
@@ -387,7 +387,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                                                       inner=settings.bias_correction)
         return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
                              volume=vol, volume_radius=vol_radius, media=ctx.anisotropy,
-                             inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage)
+                             inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage,
+                             limits=settings.bounce_limits)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.

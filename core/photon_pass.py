@@ -39,6 +39,7 @@ from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
 from .procedural import Rays, photon_path
 from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
+from .settings import BounceLimits
 from .sampling import cosine_hemisphere, dot, hg_phase, luminance, sample_hg, tangent_axes, to_world
 from .texture_hash import float_as_uint, hash_uint3, hash_uint3_to_float
 from .visible_cells import VisibleCells
@@ -93,7 +94,7 @@ class DepositTarget:
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
-                 coverage=None, inner_coverage=None):
+                 coverage=None, inner_coverage=None, limits=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
@@ -102,7 +103,8 @@ class DepositTarget:
         inner : also sum the pairs within half the radius (see the class docstring);
         coverage, inner_coverage : None, or (m,) the share of each point's disc (of the radius,
         of half of it) that lies on a surface (``core/coverage.py``): the kernel's area is
-        that share of pi r^2."""
+        that share of pi r^2; limits : None (no limits), or the render's
+        :class:`~core.settings.BounceLimits`, which pairs must keep to (:meth:`bounce_filter`)."""
         self.points = points
         self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
@@ -121,6 +123,18 @@ class DepositTarget:
         self.pixel_ids = points.pixel_ids
         self.has_shading_normals = has_shading_normals
         self.table = table
+        self.limits = limits
+        # Per point (surface, then volume): the bounces its photons may take in all and of each
+        # kind (limits less the camera path's); None where no pair can go past a limit (no
+        # limit of a kind binds and no camera path bounced).
+        self.room = None
+        self.counts_kinds = limits is not None and limits.by_kind
+        if limits is not None:
+            taken = [p.bounces for p in (points, self.volume) if p is not None]
+            if self.counts_kinds or any(b is not None and b[:, 0].any() for b in taken):
+                taken = [np.zeros((p.count, 4), np.uint8) if p.bounces is None else p.bounces
+                         for p in (points, self.volume) if p is not None]
+                self.room = limits.array - np.concatenate(taken).astype(np.int16)
         # Points with a normal map (Cycles' bump-map terms in pair_weights), or None.
         bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
         self.bumped = bumped if bumped is not None and bumped.any() else None
@@ -209,8 +223,11 @@ class DepositTarget:
                 d[name] = getattr(self, name)
         if self.cells is not None:
             d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
+        if self.limits is not None:
+            d["limits"] = self.limits.array
         if self.volume is not None:
-            d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__})
+            d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__
+                      if getattr(self.volume, f) is not None})
             d.update({f"vgrid.{k}": v for k, v in self.volume_grid.to_arrays().items()})
             d.update(volume_radius=self.volume_radius, media=self.media)
         return d
@@ -223,13 +240,35 @@ class DepositTarget:
         cells = {k[6:]: v for k, v in d.items() if k.startswith("cells.")}
         volume = vgrid = None
         if "volume.pixel_ids" in d:
-            volume = VolumePoints(**{f: d[f"volume.{f}"] for f in VolumePoints.__dataclass_fields__})
+            volume = VolumePoints(**{f: d[f"volume.{f}"] for f in VolumePoints.__dataclass_fields__
+                                     if f"volume.{f}" in d})
             vgrid = HashGrid.from_arrays({k[6:]: v for k, v in d.items() if k.startswith("vgrid.")})
         return DepositTarget(points, d["radius"], table, int(d["n_pixels"]), bool(d["has_shading_normals"]),
                              grid=grid, cells=VisibleCells.from_arrays(cells) if cells else None,
                              volume=volume, volume_radius=d.get("volume_radius"), volume_grid=vgrid,
                              media=d.get("media"), inner=bool(d.get("inner", False)),
-                             coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"))
+                             coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"),
+                             limits=None if "limits" not in d else BounceLimits(*map(int, d["limits"])))
+
+    def bounce_filter(self, j, bounce, kinds):
+        """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
+        ``bounce`` that took ``kinds`` (k, 3) int16 bounces of each kind after their first vertex
+        (None: not counted) keep to the limits, as Cycles counts a light path's bounces: (keep
+        (k,) bool, exclude (k,) uint8 or None).  The photons' first vertex is the path's vertex
+        nearest the light and does not count; for photons past it the point's own scattering
+        does, so a pair must leave room for it: ``exclude`` has EXCLUDE_DIFFUSE (its diffuse and
+        translucent part) or EXCLUDE_GLOSSY where that kind has no room left (for
+        :meth:`pair_weights`; volume points do not read it)."""
+        room = self.room.take(j, axis=0)
+        keep = bounce <= room[:, 0]
+        if kinds is None:
+            return keep, None
+        keep &= (kinds <= room[:, 1:]).all(axis=1)
+        if bounce == 0:
+            return keep, None
+        exclude = (np.where(kinds[:, 0] >= room[:, 1], EXCLUDE_DIFFUSE, 0)
+                   | np.where(kinds[:, 1] >= room[:, 2], EXCLUDE_GLOSSY, 0)).astype(np.uint8)
+        return keep, exclude
 
     def volume_pairs(self, x, d):
         """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the
@@ -586,12 +625,13 @@ class PhotonBatch:
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
 VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium",
-                 "volume", "tangent", "nc")
+                 "volume", "tangent", "nc", "kinds")
 
 
-def _vertex_arrays(n, lobes, tangents=False, coat_normals=False):
+def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False):
     """Per-path vertex records (``VERTEX_FIELDS``; ``tangent`` only with ``tangents``, ``nc`` only
-    with ``coat_normals``)."""
+    with ``coat_normals``, ``kinds`` (the bounces of each kind after the first vertex,
+    ``trace_photons``) only with ``kinds``)."""
     out = {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
             "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
@@ -600,6 +640,8 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False):
         out["tangent"] = np.zeros((n, 3))
     if coat_normals:
         out["nc"] = np.zeros((n, 3))
+    if kinds:
+        out["kinds"] = np.zeros((n, 3), np.int16)
     return out
 
 
@@ -635,8 +677,13 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         last_join = int(resume["bounce"].max())
     m = target.points.count
     pairs = {"path": [], "point": [], "value": [], "bounce": []}
-    first = (_vertex_arrays(n, table.lobes, table.has_anisotropy, ctx.has_coat_normals) if collect_pairs
-             else None)
+    # Bounce limits: the bounces of each kind every path took after its first vertex, where some
+    # kind's limit binds (DepositTarget.bounce_filter; None where not counted).
+    kinds = np.zeros((n, 3), np.int16) if target.counts_kinds else None
+    if kinds is not None and n_resumed:
+        kinds[fresh:] = resume["kinds"]
+    first = (_vertex_arrays(n, table.lobes, table.has_anisotropy, ctx.has_coat_normals, kinds is not None)
+             if collect_pairs else None)
     own_sums = not collect_pairs and sums is None
     if own_sums:
         sums = PointSums(target.n_slots)
@@ -733,6 +780,16 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     if near is not None:
                         near = np.concatenate([near, found[3]])
             seen = np.zeros(len(idx), bool)
+            limited = None
+            if len(pi) and target.room is not None:
+                keep, limited = target.bounce_filter(
+                    pj, bounce, None if kinds is None else kinds.take(idx.take(dep.take(pi)), axis=0))
+                if not keep.all():
+                    k = np.flatnonzero(keep)
+                    pi, pj, cos_g = pi.take(k), pj.take(k), cos_g.take(k)
+                    back = None if back is None else back.take(k)
+                    near = None if near is None else near.take(k)
+                    limited = None if limited is None else limited.take(k)
             if len(pi):
                 lane = dep.take(pi)
                 cos_photon = dot(nrm, wo_dep).take(pi) if target.has_shading_normals else None
@@ -741,8 +798,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     wi_pairs = wo.take(lane, axis=0)
                     if back is not None:
                         wi_pairs[back] *= -1.0           # mirrored through the surface, as cos_g
-                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back,
-                                        None if excluded is None else excluded.take(lane))
+                exclude = None if excluded is None else excluded.take(lane)
+                if limited is not None:
+                    exclude = limited if exclude is None else exclude | limited
+                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude)
                 # The pairs within half the radius once more, on the inner slots.
                 again = None if near is None else np.flatnonzero(near)
                 slots = pj if again is None else np.concatenate([pj, pj.take(again) + target.n_points])
@@ -792,12 +851,14 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                         first["tangent"][new] = surf.tangent[rows]
                     if surf.nc is not None:
                         first["nc"][new] = surf.nc[rows]
+                    if kinds is not None:
+                        first["kinds"][new] = kinds[new]
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
         if vert is not None:
             _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums,
-                                collect_pairs, refresh_rng, max_bounces)
+                                collect_pairs, refresh_rng, max_bounces, kinds)
         if resume is not None and bounce <= last_join:
             # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
             join = np.flatnonzero(resume["bounce"] == bounce)
@@ -839,6 +900,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                                  weight, alive)
             if bounce == 0 and excluding:
                 alive &= (ctx.lights.excluded(u[idx, 0]) & scatter_kind(lobe, wi, wo, surf.ng)) == 0
+            if kinds is not None and bounce:
+                # (the first vertex's kind does not count: it is the one nearest the light)
+                kind = scatter_kind(lobe, wi, wo, surf.ng)
+                kinds[idx, np.where(kind == EXCLUDE_DIFFUSE, 0, np.where(kind == EXCLUDE_GLOSSY, 1, 2))] += 1
+                alive &= (kinds.take(idx, axis=0) <= target.limits.array[1:]).all(axis=1)
             if table.has_coat:
                 # Under a coat: its factor at the view (camera-side) direction, for photons the new one.
                 weight *= layer_scale[:, None]
@@ -1003,17 +1069,24 @@ def scatter_kind(lobe, wi, wo, ng):
 
 
 def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, collect_pairs,
-                        refresh_rng, max_bounces):
+                        refresh_rng, max_bounces, kinds=None):
     """Deposits of the photons that stopped in scattering volumes at vertex ``bounce`` (``vert``:
     their paths, positions, travel directions, arrival flux and volumes) on the target's volume
     points: flux times the scattering coefficient times the phase function towards each point's
     camera path.  As on surfaces, a pair found (or, with visible cells, a vertex in one of the
     volume cells) makes the path visible, and the paths that become so are recorded in
-    ``first`` (``volume`` set) and have their later dimensions redrawn with ``refresh_rng``."""
+    ``first`` (``volume`` set) and have their later dimensions redrawn with ``refresh_rng``.
+    ``kinds`` as in :func:`trace_photons` (pairs keep to the limits: DepositTarget.bounce_filter)."""
     idx, x, d, vmed = vert["idx"], vert["position"], vert["d"], vert["medium"]
     seen = np.zeros(len(idx), bool)
     if target.volume is not None:
         pi, pj, phase = target.volume_pairs(x, d)
+        if len(pi) and target.room is not None:
+            keep = np.flatnonzero(target.bounce_filter(
+                pj, bounce, None if kinds is None else kinds.take(idx.take(pi), axis=0))[0])
+            pi, pj = pi.take(keep), pj.take(keep)
+            if np.ndim(phase):
+                phase = phase.take(keep)
         if len(pi):
             f = vert["flux"] * ctx.scattering.take(vmed, axis=0)
             # One phase value for all pairs (even scattering) multiplies the photons, not the pairs.
@@ -1042,6 +1115,8 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
                          ("flux", vert["flux"][rows]), ("prim", -1), ("medium", vmed[rows]),
                          ("volume", True)):
             first[key][new] = val
+        if kinds is not None:
+            first["kinds"][new] = kinds[new]
     if refresh_rng is not None and bounce < max_bounces:
         start = bounce_offset(bounce)
         u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))

@@ -10,6 +10,8 @@ import math
 import os
 from dataclasses import dataclass
 
+import numpy as np
+
 METHODS = ("amcmcppm", "ppm", "auto")
 # "auto": uniform photons from the second pass on when at least this share of the first pass's
 # uniform samples were visible (benchmarks/error_vs_time.py; RenderSettings.method).
@@ -22,6 +24,31 @@ MUTATIONS = ("off", "paper", "exact")
 NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes).
 DATA_PASSES = ("depth", "normal", "albedo")
+MAX_BOUNCES = 64                    # the most any bounce limit may be
+
+
+@dataclass(frozen=True)
+class BounceLimits:
+    """Cycles' bounce limits of a light path (``RenderSettings.max_bounces`` and the three after
+    it): ``total`` bounces in all, and of each kind.  A light path camera - x_1 ... x_n - light
+    has n - 1 bounces (x_n, the vertex nearest the light, does not count: 0 is direct light),
+    each of the kind of its scattering: diffuse (diffuse, translucent, subsurface), glossy
+    (reflections off mirrors, glossy lobes and glass) or transmission (refraction)."""
+
+    total: int = 8
+    diffuse: int = MAX_BOUNCES
+    glossy: int = MAX_BOUNCES
+    transmission: int = MAX_BOUNCES
+
+    @property
+    def array(self):
+        """(4,) int16 [total, diffuse, glossy, transmission] (the order of ``bounces`` rows)."""
+        return np.array([self.total, self.diffuse, self.glossy, self.transmission], np.int16)
+
+    @property
+    def by_kind(self) -> bool:
+        """Whether some kind's limit binds (is below ``total``): photons then count their kinds."""
+        return min(self.diffuse, self.glossy, self.transmission) < self.total
 
 
 @dataclass(frozen=True)
@@ -82,7 +109,25 @@ class RenderSettings:
     share is exactly 1."""
 
     max_bounces: int = 8
-    """Most scattering events of a photon path, and most specular bounces of a camera path."""
+    """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):
+    the camera path's mirror and glass bounces plus the photon's, counted as Cycles counts them
+    (every scattering event but the one nearest the light; 0 would be direct light alone).  A
+    photon path has at most this many scattering events; a camera path sees emitters through
+    up to one more mirror or glass bounce."""
+
+    diffuse_bounces: int = MAX_BOUNCES
+    """Most diffuse bounces of a light path (Cycles' Diffuse bounces, counted as ``max_bounces``;
+    diffuse, translucent and subsurface scattering); at ``max_bounces`` or more, no limit of its
+    own."""
+
+    glossy_bounces: int = MAX_BOUNCES
+    """Most glossy bounces of a light path (Cycles' Glossy bounces, counted as ``max_bounces``:
+    reflections off mirrors, glossy lobes and glass); at ``max_bounces`` or more, no limit of its
+    own."""
+
+    transmission_bounces: int = MAX_BOUNCES
+    """Most transmission bounces of a light path (Cycles' Transmission bounces, counted as
+    ``max_bounces``: refractions through glass); at ``max_bounces`` or more, no limit of its own."""
 
     workers: int = 0
     """Processes tracing photons in parallel; 0 = one per CPU core, 1 = in this process."""
@@ -152,8 +197,11 @@ class RenderSettings:
             bad("alpha", "must lie in (0, 1)")
         if not 0 < self.initial_radius_px <= 1000:
             bad("initial_radius_px", "must lie in (0, 1000]")
-        if not 1 <= self.max_bounces <= 64:
-            bad("max_bounces", "must lie in [1, 64]")
+        if not 1 <= self.max_bounces <= MAX_BOUNCES:
+            bad("max_bounces", f"must lie in [1, {MAX_BOUNCES}]")
+        for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces"):
+            if not 0 <= getattr(self, name) <= MAX_BOUNCES:
+                bad(name, f"must lie in [0, {MAX_BOUNCES}]")
         if self.workers < 0:
             bad("workers", "must be >= 0")
         if self.chains < 1:
@@ -168,6 +216,12 @@ class RenderSettings:
             bad("initial_mutation_size", "must lie in [1e-4, 1e3]")
         if not 0 <= self.glossy_through_roughness <= 1:
             bad("glossy_through_roughness", "must lie in [0, 1]")
+
+    @property
+    def bounce_limits(self) -> "BounceLimits":
+        """The four bounce limits (:class:`BounceLimits`)."""
+        return BounceLimits(self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
+                            self.transmission_bounces)
 
     @property
     def worker_count(self) -> int:
