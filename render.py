@@ -40,6 +40,8 @@ SETTING_FLAGS = {
     "initial_radius": "initial_radius_px", "alpha": "alpha", "max_bounces": "max_bounces",
     "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
     "bias_correction": "bias_correction", "edge_coverage": "edge_coverage",
+    "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
+    "transmission_bounces": "transmission_bounces",
 }
 
 
@@ -80,7 +82,11 @@ def build_parser():
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     g.add_argument("--edge-coverage", action=argparse.BooleanOptionalAction, default=None,
                    help="keep gathers near surface edges from darkening (--no-edge-coverage: off)")
-    g.add_argument("--max-bounces", type=int)
+    g.add_argument("--max-bounces", type=int, help="most bounces of a light path (Cycles' Total)")
+    g.add_argument("--diffuse-bounces", type=int, help="most diffuse bounces (Cycles' Diffuse)")
+    g.add_argument("--glossy-bounces", type=int, help="most glossy bounces (Cycles' Glossy)")
+    g.add_argument("--transmission-bounces", type=int,
+                   help="most transmission bounces (Cycles' Transmission)")
     g.add_argument("--initial-mutation-size", type=float)
     g.add_argument("--glossy-through", type=float,
                    help="camera paths go on through glossy lobes smoother than this roughness")

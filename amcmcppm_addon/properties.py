@@ -9,8 +9,8 @@ properties configure optional file outputs of the engine (statistics, snapshots)
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, METHODS,
-                             MUTATIONS, NORMALISATIONS, RenderSettings)
+from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, MAX_BOUNCES,
+                             METHODS, MUTATIONS, NORMALISATIONS, RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -92,8 +92,21 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
                     "at a wall, a leaf cut by an alpha map) by the share of its disc on the surface, so "
                     "that edges do not darken while the radius is large")
     max_bounces: IntProperty(
-        name="Max Bounces", default=_DEFAULTS.max_bounces, min=1, max=64,
-        description="Most scattering events of a photon path, and most specular bounces of a camera path")
+        name="Max Bounces", default=_DEFAULTS.max_bounces, min=1, max=MAX_BOUNCES,
+        description="Most bounces of a light path from the camera to a light, counted as Cycles' Total: "
+                    "the camera path's mirror and glass bounces plus the photon's")
+    diffuse_bounces: IntProperty(
+        name="Diffuse", default=_DEFAULTS.diffuse_bounces, min=0, max=MAX_BOUNCES,
+        description="Most diffuse bounces of a light path, as Cycles' Diffuse bounces (at Max Bounces "
+                    "or more, no limit of its own)")
+    glossy_bounces: IntProperty(
+        name="Glossy", default=_DEFAULTS.glossy_bounces, min=0, max=MAX_BOUNCES,
+        description="Most glossy bounces (reflections off mirrors, glossy surfaces and glass) of a light "
+                    "path, as Cycles' Glossy bounces (at Max Bounces or more, no limit of its own)")
+    transmission_bounces: IntProperty(
+        name="Transmission", default=_DEFAULTS.transmission_bounces, min=0, max=MAX_BOUNCES,
+        description="Most transmission bounces (refractions through glass) of a light path, as Cycles' "
+                    "Transmission bounces (at Max Bounces or more, no limit of its own)")
     workers: IntProperty(
         name="Workers", default=_DEFAULTS.workers, min=0, max=1024, soft_max=64,
         description="Processes tracing photons in parallel (0 = one per CPU core, 1 = in Blender's "

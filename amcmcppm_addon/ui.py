@@ -74,8 +74,13 @@ class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
 class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Photon Gathering"
-    props = ("initial_radius_px", "alpha", "bias_correction", "edge_coverage", "max_bounces",
-             "glossy_through_roughness")
+    props = ("initial_radius_px", "alpha", "bias_correction", "edge_coverage", "glossy_through_roughness")
+
+
+class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    """Bounce limits as Cycles' Light Paths > Max Bounces."""
+    bl_label = "Light Paths"
+    props = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces")
 
 
 class AMCMCPPM_RENDER_PT_performance(AMCMCPPMButtonsPanel, bpy.types.Panel):
@@ -224,6 +229,7 @@ classes = (
     AMCMCPPM_RENDER_PT_sampling,
     AMCMCPPM_RENDER_PT_markov_chains,
     AMCMCPPM_RENDER_PT_photons,
+    AMCMCPPM_RENDER_PT_light_paths,
     AMCMCPPM_RENDER_PT_performance,
     AMCMCPPM_RENDER_PT_statistics_output,
 )
