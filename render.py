@@ -41,7 +41,7 @@ SETTING_FLAGS = {
     "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
     "bias_correction": "bias_correction", "edge_coverage": "edge_coverage",
     "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
-    "transmission_bounces": "transmission_bounces",
+    "transmission_bounces": "transmission_bounces", "volume_bounces": "volume_bounces",
 }
 
 
@@ -87,6 +87,7 @@ def build_parser():
     g.add_argument("--glossy-bounces", type=int, help="most glossy bounces (Cycles' Glossy)")
     g.add_argument("--transmission-bounces", type=int,
                    help="most transmission bounces (Cycles' Transmission)")
+    g.add_argument("--volume-bounces", type=int, help="most scatterings in volumes (Cycles' Volume)")
     g.add_argument("--initial-mutation-size", type=float)
     g.add_argument("--glossy-through", type=float,
                    help="camera paths go on through glossy lobes smoother than this roughness")

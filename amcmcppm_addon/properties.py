@@ -107,6 +107,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         name="Transmission", default=_DEFAULTS.transmission_bounces, min=0, max=MAX_BOUNCES,
         description="Most transmission bounces (refractions through glass) of a light path, as Cycles' "
                     "Transmission bounces (at Max Bounces or more, no limit of its own)")
+    volume_bounces: IntProperty(
+        name="Volume", default=_DEFAULTS.volume_bounces, min=0, max=MAX_BOUNCES,
+        description="Most scatterings in volumes of a light path, as Cycles' Volume bounces (0: single "
+                    "scattering; at Max Bounces or more, no limit of its own)")
     workers: IntProperty(
         name="Workers", default=_DEFAULTS.workers, min=0, max=1024, soft_max=64,
         description="Processes tracing photons in parallel (0 = one per CPU core, 1 = in Blender's "

@@ -80,7 +80,7 @@ class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
 class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
     """Bounce limits as Cycles' Light Paths > Max Bounces."""
     bl_label = "Light Paths"
-    props = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces")
+    props = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces")
 
 
 class AMCMCPPM_RENDER_PT_performance(AMCMCPPMButtonsPanel, bpy.types.Panel):

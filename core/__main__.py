@@ -42,6 +42,7 @@ def build_parser():
     r.add_argument("--diffuse-bounces", type=int, default=d.diffuse_bounces)
     r.add_argument("--glossy-bounces", type=int, default=d.glossy_bounces)
     r.add_argument("--transmission-bounces", type=int, default=d.transmission_bounces)
+    r.add_argument("--volume-bounces", type=int, default=d.volume_bounces)
     r.add_argument("--glossy-through", type=float, default=d.glossy_through_roughness,
                    help="camera paths go on through glossy lobes smoother than this roughness")
     r.add_argument("--workers", type=int, default=d.workers, help="0 = one per CPU core")
@@ -55,7 +56,7 @@ def settings_from_args(a) -> RenderSettings:
                           photons_per_pass=a.photons_per_pass, seed=a.seed, alpha=a.alpha,
                           initial_radius_px=a.initial_radius, max_bounces=a.max_bounces,
                           diffuse_bounces=a.diffuse_bounces, glossy_bounces=a.glossy_bounces,
-                          transmission_bounces=a.transmission_bounces,
+                          transmission_bounces=a.transmission_bounces, volume_bounces=a.volume_bounces,
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
                           mutation=a.mutation, normalisation=a.normalisation,
                           glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction)

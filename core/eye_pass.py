@@ -44,7 +44,7 @@ class MeasurementPoints:
     nn: np.ndarray = None   # (m, 3) float32 shading normal before normal maps, side of ng; None without
     ns_glossy: np.ndarray = None  # (m, 3) float32 glossy lobes' normal (valid_reflection_normal); None: ns
     tangent: np.ndarray = None    # (m, 3) float32 anisotropic glossy lobes' tangent (Surface.tangent); None
-    bounces: np.ndarray = None    # (m, 4) uint8 the camera path's bounces before the point, in all and of
+    bounces: np.ndarray = None    # (m, 5) uint8 the camera path's bounces before the point, in all and of
     #                               each kind (BounceLimits.array's order); None: none
 
     @property
@@ -81,7 +81,7 @@ class VolumePoints:
     base_radius: np.ndarray  # (k,) float64 r_1, as MeasurementPoints.base_radius
     planes: np.ndarray      # (k, 2) float64 distances to the planes of the faces its camera ray
     #                         entered and would have left the volume by (inf: none)
-    bounces: np.ndarray = None  # (k, 4) uint8 as MeasurementPoints.bounces
+    bounces: np.ndarray = None  # (k, 5) uint8 as MeasurementPoints.bounces
 
     @property
     def count(self) -> int:
@@ -234,9 +234,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     sets = None
     origin_normals = None       # geometric normals where the paths left their last surface
     # The bounces each path took (BounceLimits.array's order: all, diffuse, mirror and glossy
-    # reflections, glass transmissions), for the limits and the Light Path node; paths past a
-    # limit (``last``) see emission at their next hit and end there.
-    bounces = np.zeros((len(pix), 4), np.uint8)
+    # reflections, glass transmissions, volume), for the limits and the Light Path node; paths
+    # past a limit (``last``) see emission at their next hit and end there.
+    bounces = np.zeros((len(pix), 5), np.uint8)
     last = np.zeros(len(pix), bool)
     room = limits.array
     parts = []

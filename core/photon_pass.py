@@ -132,7 +132,7 @@ class DepositTarget:
         if limits is not None:
             taken = [p.bounces for p in (points, self.volume) if p is not None]
             if self.counts_kinds or any(b is not None and b[:, 0].any() for b in taken):
-                taken = [np.zeros((p.count, 4), np.uint8) if p.bounces is None else p.bounces
+                taken = [np.zeros((p.count, 5), np.uint8) if p.bounces is None else p.bounces
                          for p in (points, self.volume) if p is not None]
                 self.room = limits.array - np.concatenate(taken).astype(np.int16)
         # Points with a normal map (Cycles' bump-map terms in pair_weights), or None.
@@ -250,15 +250,16 @@ class DepositTarget:
                              coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"),
                              limits=None if "limits" not in d else BounceLimits(*map(int, d["limits"])))
 
-    def bounce_filter(self, j, bounce, kinds):
+    def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
-        ``bounce`` that took ``kinds`` (k, 3) int16 bounces of each kind after their first vertex
-        (None: not counted) keep to the limits, as Cycles counts a light path's bounces: (keep
-        (k,) bool, exclude (k,) uint8 or None).  The photons' first vertex is the path's vertex
-        nearest the light and does not count; for photons past it the point's own scattering
-        does, so a pair must leave room for it: ``exclude`` has EXCLUDE_DIFFUSE (its diffuse and
-        translucent part) or EXCLUDE_GLOSSY where that kind has no room left (for
-        :meth:`pair_weights`; volume points do not read it)."""
+        ``bounce`` that took ``kinds`` (k, 4) int16 bounces of each kind (diffuse, glossy,
+        transmission, volume) after their first vertex (None: not counted) keep to the limits,
+        as Cycles counts a light path's bounces: (keep (k,) bool, exclude (k,) uint8 or None).
+        The photons' first vertex is the path's vertex nearest the light and does not count; for
+        photons past it the point's own scattering does, so a pair must leave room for it: a
+        volume point (``volume``) room for a volume bounce, else ``exclude`` has EXCLUDE_DIFFUSE
+        (the pair's diffuse and translucent part) or EXCLUDE_GLOSSY where that kind has none left
+        (for :meth:`pair_weights`)."""
         room = self.room.take(j, axis=0)
         keep = bounce <= room[:, 0]
         if kinds is None:
@@ -266,6 +267,8 @@ class DepositTarget:
         keep &= (kinds <= room[:, 1:]).all(axis=1)
         if bounce == 0:
             return keep, None
+        if volume:
+            return keep & (kinds[:, 3] < room[:, 4]), None
         exclude = (np.where(kinds[:, 0] >= room[:, 1], EXCLUDE_DIFFUSE, 0)
                    | np.where(kinds[:, 1] >= room[:, 2], EXCLUDE_GLOSSY, 0)).astype(np.uint8)
         return keep, exclude
@@ -641,7 +644,7 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False):
     if coat_normals:
         out["nc"] = np.zeros((n, 3))
     if kinds:
-        out["kinds"] = np.zeros((n, 3), np.int16)
+        out["kinds"] = np.zeros((n, 4), np.int16)
     return out
 
 
@@ -679,7 +682,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     pairs = {"path": [], "point": [], "value": [], "bounce": []}
     # Bounce limits: the bounces of each kind every path took after its first vertex, where some
     # kind's limit binds (DepositTarget.bounce_filter; None where not counted).
-    kinds = np.zeros((n, 3), np.int16) if target.counts_kinds else None
+    kinds = np.zeros((n, 4), np.int16) if target.counts_kinds else None
     if kinds is not None and n_resumed:
         kinds[fresh:] = resume["kinds"]
     first = (_vertex_arrays(n, table.lobes, table.has_anisotropy, ctx.has_coat_normals, kinds is not None)
@@ -948,7 +951,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             f_v = vert["flux"] * ctx.scattering.take(vmed, axis=0)
             f_t = vert["flux"] * ctx.extinction.take(vmed, axis=0)
             q = np.minimum(1.0, luminance(f_v) / np.maximum(luminance(f_t), 1e-300))
-            keep = np.flatnonzero((block[:, 3] < q) & (q > 0))
+            go = (block[:, 3] < q) & (q > 0)
+            if kinds is not None and bounce:
+                kinds[vidx, 3] += 1                     # (as at surfaces: not at the first vertex)
+                go &= kinds[vidx, 3] <= target.limits.volume
+            keep = np.flatnonzero(go)
             idx = np.concatenate([idx, vidx.take(keep)])
             flux = np.concatenate([flux, f_v.take(keep, axis=0) / q.take(keep)[:, None]])
             dirs = np.concatenate([dirs, d_v.take(keep, axis=0)])
@@ -1083,7 +1090,7 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
         pi, pj, phase = target.volume_pairs(x, d)
         if len(pi) and target.room is not None:
             keep = np.flatnonzero(target.bounce_filter(
-                pj, bounce, None if kinds is None else kinds.take(idx.take(pi), axis=0))[0])
+                pj, bounce, None if kinds is None else kinds.take(idx.take(pi), axis=0), volume=True)[0])
             pi, pj = pi.take(keep), pj.take(keep)
             if np.ndim(phase):
                 phase = phase.take(keep)

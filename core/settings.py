@@ -29,26 +29,29 @@ MAX_BOUNCES = 64                    # the most any bounce limit may be
 
 @dataclass(frozen=True)
 class BounceLimits:
-    """Cycles' bounce limits of a light path (``RenderSettings.max_bounces`` and the three after
+    """Cycles' bounce limits of a light path (``RenderSettings.max_bounces`` and the four after
     it): ``total`` bounces in all, and of each kind.  A light path camera - x_1 ... x_n - light
     has n - 1 bounces (x_n, the vertex nearest the light, does not count: 0 is direct light),
     each of the kind of its scattering: diffuse (diffuse, translucent, subsurface), glossy
-    (reflections off mirrors, glossy lobes and glass) or transmission (refraction)."""
+    (reflections off mirrors, glossy lobes and glass), transmission (refraction) or volume
+    (scattering in a volume)."""
 
     total: int = 8
     diffuse: int = MAX_BOUNCES
     glossy: int = MAX_BOUNCES
     transmission: int = MAX_BOUNCES
+    volume: int = MAX_BOUNCES
 
     @property
     def array(self):
-        """(4,) int16 [total, diffuse, glossy, transmission] (the order of ``bounces`` rows)."""
-        return np.array([self.total, self.diffuse, self.glossy, self.transmission], np.int16)
+        """(5,) int16 [total, diffuse, glossy, transmission, volume] (the order of ``bounces``
+        rows)."""
+        return np.array([self.total, self.diffuse, self.glossy, self.transmission, self.volume], np.int16)
 
     @property
     def by_kind(self) -> bool:
         """Whether some kind's limit binds (is below ``total``): photons then count their kinds."""
-        return min(self.diffuse, self.glossy, self.transmission) < self.total
+        return min(self.diffuse, self.glossy, self.transmission, self.volume) < self.total
 
 
 @dataclass(frozen=True)
@@ -129,6 +132,11 @@ class RenderSettings:
     """Most transmission bounces of a light path (Cycles' Transmission bounces, counted as
     ``max_bounces``: refractions through glass); at ``max_bounces`` or more, no limit of its own."""
 
+    volume_bounces: int = MAX_BOUNCES
+    """Most scatterings in volumes of a light path (Cycles' Volume bounces, counted as
+    ``max_bounces``; Cycles' default 0 is single scattering); at ``max_bounces`` or more, no limit
+    of its own."""
+
     workers: int = 0
     """Processes tracing photons in parallel; 0 = one per CPU core, 1 = in this process."""
 
@@ -199,7 +207,7 @@ class RenderSettings:
             bad("initial_radius_px", "must lie in (0, 1000]")
         if not 1 <= self.max_bounces <= MAX_BOUNCES:
             bad("max_bounces", f"must lie in [1, {MAX_BOUNCES}]")
-        for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces"):
+        for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
             if not 0 <= getattr(self, name) <= MAX_BOUNCES:
                 bad(name, f"must lie in [0, {MAX_BOUNCES}]")
         if self.workers < 0:
@@ -221,7 +229,7 @@ class RenderSettings:
     def bounce_limits(self) -> "BounceLimits":
         """The four bounce limits (:class:`BounceLimits`)."""
         return BounceLimits(self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
-                            self.transmission_bounces)
+                            self.transmission_bounces, self.volume_bounces)
 
     @property
     def worker_count(self) -> int:
