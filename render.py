@@ -43,6 +43,8 @@ SETTING_FLAGS = {
     "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
     "transmission_bounces": "transmission_bounces", "volume_bounces": "volume_bounces",
 }
+LIGHT_PATH_FLAGS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                    "volume_bounces")
 
 
 class Failure(Exception):
@@ -132,8 +134,12 @@ def ensure_addon(bpy):
 
 
 def configure(bpy, scene, args):
-    """Apply the flags to ``scene``; raise Failure(..., 2) for values Blender rejects."""
+    """Apply the flags to ``scene``; raise Failure(..., 2) for values Blender rejects.  A bounce flag
+    switches a file that takes Cycles' Light Paths to the engine's own limits, set to Cycles' first
+    (so the limits not given stay as they were)."""
     props = scene.amcmcppm
+    if props.light_paths_from_cycles and any(getattr(args, flag) is not None for flag in LIGHT_PATH_FLAGS):
+        props.own_light_paths()
     for flag, prop in SETTING_FLAGS.items():
         value = getattr(args, flag)
         if value is not None:

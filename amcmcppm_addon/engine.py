@@ -107,6 +107,8 @@ def render_final(engine, depsgraph):
     scene = depsgraph.scene_eval
     props = scene.amcmcppm
     settings = render_settings_from(props, data_passes=data_passes_of(depsgraph.view_layer))
+    for msg in props.light_path_limits()[1]:
+        engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
     engine.update_stats("", "Exporting scene")
     exported = export_scene(depsgraph, camera_object=engine.camera_override,
                             resolution=(engine.resolution_x, engine.resolution_y))

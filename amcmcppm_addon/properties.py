@@ -91,10 +91,15 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Divide each gather near an edge of its surface (a table's rim, a floor that ends "
                     "at a wall, a leaf cut by an alpha map) by the share of its disc on the surface, so "
                     "that edges do not darken while the radius is large")
+    light_paths_from_cycles: BoolProperty(
+        name="Use Cycles' Light Paths", default=True,
+        description="Take the bounce limits from Cycles' Light Paths settings of the scene (Total, "
+                    "Diffuse, Glossy, Transmission, Volume; the panel edits them), so that a scene "
+                    "keeps them between the two engines; off: the engine's own limits below")
     max_bounces: IntProperty(
-        name="Max Bounces", default=_DEFAULTS.max_bounces, min=1, max=MAX_BOUNCES,
+        name="Max Bounces", default=_DEFAULTS.max_bounces, min=0, max=MAX_BOUNCES,
         description="Most bounces of a light path from the camera to a light, counted as Cycles' Total: "
-                    "the camera path's mirror and glass bounces plus the photon's")
+                    "the camera path's mirror and glass bounces plus the photon's (0: direct light)")
     diffuse_bounces: IntProperty(
         name="Diffuse", default=_DEFAULTS.diffuse_bounces, min=0, max=MAX_BOUNCES,
         description="Most diffuse bounces of a light path, as Cycles' Diffuse bounces (at Max Bounces "
@@ -139,6 +144,32 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         soft_max=10.0, precision=4,
         description="Mutation size every chain starts with, before adaptation")
 
+    def light_path_limits(self):
+        """({name: limit} of the five bounce limits (``LIGHT_PATHS``) a render takes, notes): Cycles'
+        settings of the scene (``scene.cycles``, the same names) with ``light_paths_from_cycles``
+        and Cycles there, more than ``MAX_BOUNCES`` taken as that (noted); else the engine's own."""
+        cycles = getattr(self.id_data, "cycles", None) if self.light_paths_from_cycles else None
+        if cycles is None:
+            notes = ["Cycles' Light Paths are not available (the Cycles add-on is off); the engine's own "
+                     "bounce limits apply"] if self.light_paths_from_cycles else []
+            return {name: getattr(self, name) for name in LIGHT_PATHS}, notes
+        limits, notes = {}, []
+        for name in LIGHT_PATHS:
+            value = int(getattr(cycles, name))
+            if value > MAX_BOUNCES:
+                notes.append(f"Cycles' {cycles.bl_rna.properties[name].name} of {value} is more than this "
+                             f"engine traces; rendering with {MAX_BOUNCES}")
+                value = MAX_BOUNCES
+            limits[name] = value
+        return limits, notes
+
+    def own_light_paths(self):
+        """Switch to the engine's own bounce limits, set to those a render takes now (Cycles')."""
+        limits, _ = self.light_path_limits()
+        for name, value in limits.items():
+            setattr(self, name, value)
+        self.light_paths_from_cycles = False
+
     stats_path: StringProperty(
         name="Statistics File", default="", subtype='FILE_PATH',
         description="Append per-pass statistics to this file as JSON lines (empty = off)")
@@ -154,6 +185,9 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
 # Core settings that Blender's own data gives, not a property of ours: the data passes are the
 # view layer's (View Layer > Passes, engine.data_passes_of).
 FROM_BLENDER = ("data_passes",)
+
+# The bounce limits, as named by Cycles' settings and ours (AMCMCPPMRenderSettings.light_path_limits).
+LIGHT_PATHS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces")
 
 # Names of the properties that map one-to-one onto core.RenderSettings fields.
 CORE_SETTING_NAMES = tuple(name for name in AMCMCPPMRenderSettings.__annotations__

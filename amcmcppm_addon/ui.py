@@ -78,9 +78,25 @@ class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
 
 class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
-    """Bounce limits as Cycles' Light Paths > Max Bounces."""
+    """Bounce limits as Cycles' Light Paths > Max Bounces: Cycles' own settings of the scene (the
+    same names), or with Use Cycles' Light Paths off the engine's."""
     bl_label = "Light Paths"
-    props = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces")
+    props = ("light_paths_from_cycles", "max_bounces", "diffuse_bounces", "glossy_bounces",
+             "transmission_bounces", "volume_bounces")
+    labels = {"max_bounces": "Total", "diffuse_bounces": "Diffuse", "glossy_bounces": "Glossy",
+              "transmission_bounces": "Transmission", "volume_bounces": "Volume"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.amcmcppm
+        layout.prop(settings, "light_paths_from_cycles")
+        cycles = getattr(context.scene, "cycles", None)
+        source = cycles if settings.light_paths_from_cycles and cycles is not None else settings
+        col = layout.column(align=True)
+        for name in self.props[1:]:
+            col.prop(source, name, text=self.labels[name])
 
 
 class AMCMCPPM_RENDER_PT_performance(AMCMCPPMButtonsPanel, bpy.types.Panel):

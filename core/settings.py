@@ -205,8 +205,8 @@ class RenderSettings:
             bad("alpha", "must lie in (0, 1)")
         if not 0 < self.initial_radius_px <= 1000:
             bad("initial_radius_px", "must lie in (0, 1000]")
-        if not 1 <= self.max_bounces <= MAX_BOUNCES:
-            bad("max_bounces", f"must lie in [1, {MAX_BOUNCES}]")
+        if not 0 <= self.max_bounces <= MAX_BOUNCES:
+            bad("max_bounces", f"must lie in [0, {MAX_BOUNCES}]")
         for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
             if not 0 <= getattr(self, name) <= MAX_BOUNCES:
                 bad(name, f"must lie in [0, {MAX_BOUNCES}]")

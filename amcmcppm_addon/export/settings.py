@@ -9,8 +9,10 @@ from ..properties import CORE_SETTING_NAMES
 
 
 def render_settings_from(props, **overrides) -> RenderSettings:
-    """The core settings for the PropertyGroup ``props``, with optional field overrides."""
+    """The core settings for the PropertyGroup ``props``, with optional field overrides; the
+    bounce limits are Cycles' when ``props.light_paths_from_cycles`` (``light_path_limits``)."""
     values = {name: getattr(props, name) for name in CORE_SETTING_NAMES}
+    values.update(props.light_path_limits()[0])
     values.update(overrides)
     return RenderSettings(**values)
 

@@ -11,7 +11,9 @@ from mathutils import Vector
 
 ENGINE = "AMCMCPPM"
 # Fast settings for tests: tiny images and few photons in this process.
-FAST = {"passes": 2, "time_limit": 0.0, "photons_per_pass": 4000, "workers": 1, "chains": 256}
+# (the engine's own bounce limits: tests set them through ours, Cycles' through scene.cycles)
+FAST = {"passes": 2, "time_limit": 0.0, "photons_per_pass": 4000, "workers": 1, "chains": 256,
+        "light_paths_from_cycles": False}
 
 
 def package():

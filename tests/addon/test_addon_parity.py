@@ -2213,8 +2213,10 @@ def test_bounce_limits_match_cycles(addon, tmp_path, case):
                                         Density=0.6, Anisotropy=0.4)
             bs.cube("FogBox", size=1.0, material=mat, location=(0.0, -0.5, 1.0), scale=(3.0, 3.0, 1.9))
         add_emitter("area_square")
+        # Ours takes them from Cycles' settings, as by default.
+        bpy.context.scene.amcmcppm.light_paths_from_cycles = True
         for name, value in limits.items():
-            setattr(bpy.context.scene.amcmcppm, name, value)
+            setattr(bpy.context.scene.cycles, name, value)
     cycles, ours = cycles_and_ours(build, tmp_path, **limits)
     mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
     print(f"bounce limits {case}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} "

@@ -82,9 +82,35 @@ def test_defaults_follow_core(scene):
         assert prop.description, f"{name} has no description"
     assert props.bl_rna.properties["target_acceptance"].default == pytest.approx(0.60)
     fresh = bpy.data.scenes.new("Fresh").amcmcppm
+    fresh.light_paths_from_cycles = False           # (by default the bounce limits are Cycles', below)
     settings = render_settings_from(fresh)
     for name in RenderSettings.__dataclass_fields__:
         assert same(getattr(settings, name), getattr(core, name)), name
+
+
+def test_bounce_limits_are_cycles_light_paths_by_default(scene):
+    """A new scene renders with Cycles' Light Paths (Total 12, Diffuse 4, Glossy 4, Transmission 12,
+    Volume 0 by default), as they change; more than the engine traces is taken as its most, with a
+    note; switching to the engine's own limits starts from Cycles' values; without the option the
+    engine's own apply."""
+    from amcmcppm.amcmcppm_addon.export import render_settings_from
+    from amcmcppm.amcmcppm_addon.properties import LIGHT_PATHS
+    from amcmcppm.core.settings import MAX_BOUNCES
+    fresh = bpy.data.scenes.new("Fresh")
+    props = fresh.amcmcppm
+    assert props.light_paths_from_cycles
+    limits = lambda s: tuple(getattr(s, name) for name in LIGHT_PATHS)        # noqa: E731
+    assert limits(render_settings_from(props)) == (12, 4, 4, 12, 0) == limits(fresh.cycles)
+    fresh.cycles.max_bounces, fresh.cycles.volume_bounces = 128, 3
+    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 4, 4, 12, 3)
+    notes = props.light_path_limits()[1]
+    assert len(notes) == 1 and "128" in notes[0] and str(MAX_BOUNCES) in notes[0]
+    props.own_light_paths()
+    assert not props.light_paths_from_cycles
+    assert limits(props) == (MAX_BOUNCES, 4, 4, 12, 3)
+    props.diffuse_bounces = 2
+    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 2, 4, 12, 3)
+    assert props.light_path_limits()[1] == []
 
 
 def test_enums_have_indices_and_limits(scene):
@@ -102,7 +128,7 @@ def test_enums_have_indices_and_limits(scene):
     assert props["target_acceptance"].hard_min > 0 and props["target_acceptance"].hard_max < 1
     assert props["alpha"].hard_min > 0 and props["alpha"].hard_max < 1
     assert props["workers"].hard_min == 0
-    assert props["max_bounces"].hard_min >= 1
+    assert props["max_bounces"].hard_min == 0          # (0: direct light, as Cycles)
 
 
 def test_settings_reach_core(scene):

@@ -75,6 +75,7 @@ def test_cornell_box_edges_match_cycles(addon, repo_root, tmp_path):
         r.resolution_x, r.resolution_y, r.resolution_percentage = 128, 96, 100
         p = scene.amcmcppm
         p.passes, p.time_limit, p.workers, p.photons_per_pass, p.seed = 40, 0.0, 2, 100000, 3
+        p.light_paths_from_cycles = False       # (ours 8 in all, as measured; Cycles' use_cycles)
         if which == "cycles":
             use_cycles(scene)
             scene.cycles.samples = 4096

@@ -11,7 +11,7 @@ from test_closed_form import LIGHTS_SEEN, check_mean, light_over_mirror, render_
 
 
 @pytest.mark.parametrize("field,value", [("diffuse_bounces", -1), ("glossy_bounces", 65),
-                                         ("transmission_bounces", 1.5 * 64), ("max_bounces", 0)])
+                                         ("transmission_bounces", 1.5 * 64), ("max_bounces", -1)])
 def test_bounce_limits_out_of_range_are_refused_by_name(field, value):
     with pytest.raises(ValueError, match=field):
         RenderSettings(**{field: value})
