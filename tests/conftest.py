@@ -47,11 +47,11 @@ SLOW_CASES = {
     PARITY + "test_a_light_without_cast_shadow_matches_cycles[object]",      # 12 s ([light] stays)
     # 10 s ([lights] stays)
     PARITY + "test_emitters_that_do_not_light_some_rays_match_cycles[world_and_panel]",
-    # Bounce limits (stop 48, 12-19 s each serially): [mirror_total_1], [mirror_glossy_0],
-    # [glass_transmission_1] and [fog_volume_0] stay.
+    # Bounce limits (stop 48; 9-18 s each): [mirror_total_1] and [mirror_glossy_0] stay (the
+    # closed forms of tests/core/test_bounce_limits.py cover transmission and volume limits).
     *(PARITY + f"test_bounce_limits_match_cycles[{case}]"
       for case in ("mirror_diffuse_1", "mirror_2_glossy_1_diffuse_1", "glass_transmission_0",
-                   "glass_total_2", "glass_total_3", "fog_volume_1")),
+                   "glass_transmission_1", "glass_total_2", "glass_total_3", "fog_volume_0", "fog_volume_1")),
     "tests/addon/test_procedural_parity.py::test_bevel_matches_cycles[16]",  # 41 s ([4] stays)
     # The Sky Texture's bake: both models, the wrap past 90 degrees, the sun below the horizon,
     # altitude and densities stay (ms_120_wraps, ms_2_alt0, ms_-1_alt2000, ss_2_dense, ss_-3, Preetham).
