@@ -51,6 +51,14 @@ _DEFAULTS = RenderSettings()
 INT_MAX = 2 ** 31 - 1
 
 
+def bounce_limit(kind, what):
+    """The property of one of Cycles' bounce limits of a kind (its name ``kind``)."""
+    return IntProperty(
+        name=kind, default=getattr(_DEFAULTS, f"{kind.lower()}_bounces"), min=0, max=MAX_BOUNCES,
+        description=f"Most {what} of a light path, as Cycles' {kind} bounces (at Max Bounces or more, "
+                    "no limit of its own)")
+
+
 class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     """Scene-level settings of the AMCMCPPM engine (``scene.amcmcppm``)."""
 
@@ -100,22 +108,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         name="Max Bounces", default=_DEFAULTS.max_bounces, min=0, max=MAX_BOUNCES,
         description="Most bounces of a light path from the camera to a light, counted as Cycles' Total: "
                     "the camera path's mirror and glass bounces plus the photon's (0: direct light)")
-    diffuse_bounces: IntProperty(
-        name="Diffuse", default=_DEFAULTS.diffuse_bounces, min=0, max=MAX_BOUNCES,
-        description="Most diffuse bounces of a light path, as Cycles' Diffuse bounces (at Max Bounces "
-                    "or more, no limit of its own)")
-    glossy_bounces: IntProperty(
-        name="Glossy", default=_DEFAULTS.glossy_bounces, min=0, max=MAX_BOUNCES,
-        description="Most glossy bounces (reflections off mirrors, glossy surfaces and glass) of a light "
-                    "path, as Cycles' Glossy bounces (at Max Bounces or more, no limit of its own)")
-    transmission_bounces: IntProperty(
-        name="Transmission", default=_DEFAULTS.transmission_bounces, min=0, max=MAX_BOUNCES,
-        description="Most transmission bounces (refractions through glass) of a light path, as Cycles' "
-                    "Transmission bounces (at Max Bounces or more, no limit of its own)")
-    volume_bounces: IntProperty(
-        name="Volume", default=_DEFAULTS.volume_bounces, min=0, max=MAX_BOUNCES,
-        description="Most scatterings in volumes of a light path, as Cycles' Volume bounces (0: single "
-                    "scattering; at Max Bounces or more, no limit of its own)")
+    diffuse_bounces: bounce_limit("Diffuse", "diffuse bounces")
+    glossy_bounces: bounce_limit("Glossy", "glossy bounces (reflections off mirrors, glossy lobes and glass)")
+    transmission_bounces: bounce_limit("Transmission", "transmission bounces (refractions through glass)")
+    volume_bounces: bounce_limit("Volume", "scatterings in volumes (0: single scattering)")
     workers: IntProperty(
         name="Workers", default=_DEFAULTS.workers, min=0, max=1024, soft_max=64,
         description="Processes tracing photons in parallel (0 = one per CPU core, 1 = in Blender's "

@@ -114,7 +114,7 @@ class RenderSettings:
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):
     the camera path's mirror and glass bounces plus the photon's, counted as Cycles counts them
-    (every scattering event but the one nearest the light; 0 would be direct light alone).  A
+    (every scattering event but the one nearest the light; 0 is direct light alone).  A
     photon path has at most this many scattering events; a camera path sees emitters through
     up to one more mirror or glass bounce."""
 
@@ -227,7 +227,7 @@ class RenderSettings:
 
     @property
     def bounce_limits(self) -> "BounceLimits":
-        """The four bounce limits (:class:`BounceLimits`)."""
+        """The five bounce limits (:class:`BounceLimits`)."""
         return BounceLimits(self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
                             self.transmission_bounces, self.volume_bounces)
 
