@@ -1,5 +1,5 @@
 """Cycles' bounce limits (``RenderSettings.max_bounces``, ``diffuse_bounces``, ``glossy_bounces``,
-``transmission_bounces``; ``core.settings.BounceLimits``) in closed-form scenes.  A light path
+``transmission_bounces``, ``volume_bounces``; ``core.settings.BounceLimits``) in closed-form scenes.  A light path
 camera - x_1 ... x_n - light has n - 1 bounces: the vertex nearest the light does not count.
 Against Cycles itself: ``tests/addon/test_addon_parity.py::test_bounce_limits_match_cycles``."""
 import numpy as np
