@@ -43,8 +43,6 @@ SETTING_FLAGS = {
     "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
     "transmission_bounces": "transmission_bounces", "volume_bounces": "volume_bounces",
 }
-LIGHT_PATH_FLAGS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
-                    "volume_bounces")
 
 
 class Failure(Exception):
@@ -138,7 +136,8 @@ def configure(bpy, scene, args):
     switches a file that takes Cycles' Light Paths to the engine's own limits, set to Cycles' first
     (so the limits not given stay as they were)."""
     props = scene.amcmcppm
-    if props.light_paths_from_cycles and any(getattr(args, flag) is not None for flag in LIGHT_PATH_FLAGS):
+    bounce_flags = [flag for flag, prop in SETTING_FLAGS.items() if prop.endswith("_bounces")]
+    if props.light_paths_from_cycles and any(getattr(args, flag) is not None for flag in bounce_flags):
         props.own_light_paths()
     for flag, prop in SETTING_FLAGS.items():
         value = getattr(args, flag)

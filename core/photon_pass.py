@@ -130,11 +130,10 @@ class DepositTarget:
         self.room = None
         self.counts_kinds = limits is not None and limits.by_kind
         if limits is not None:
-            taken = [p.bounces for p in (points, self.volume) if p is not None]
-            if self.counts_kinds or any(b is not None and b[:, 0].any() for b in taken):
-                taken = [np.zeros((p.count, 5), np.uint8) if p.bounces is None else p.bounces
-                         for p in (points, self.volume) if p is not None]
-                self.room = limits.array - np.concatenate(taken).astype(np.int16)
+            taken = np.concatenate([np.zeros((p.count, 5), np.uint8) if p.bounces is None else p.bounces
+                                    for p in (points, self.volume) if p is not None])
+            if self.counts_kinds or taken[:, 0].any():
+                self.room = limits.array - taken.astype(np.int16)
         # Points with a normal map (Cycles' bump-map terms in pair_weights), or None.
         bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
         self.bumped = bumped if bumped is not None and bumped.any() else None
