@@ -42,6 +42,7 @@ SETTING_FLAGS = {
     "bias_correction": "bias_correction", "edge_coverage": "edge_coverage",
     "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
     "transmission_bounces": "transmission_bounces", "volume_bounces": "volume_bounces",
+    "caustics_reflective": "caustics_reflective", "caustics_refractive": "caustics_refractive",
 }
 
 
@@ -88,6 +89,12 @@ def build_parser():
     g.add_argument("--transmission-bounces", type=int,
                    help="most transmission bounces (Cycles' Transmission)")
     g.add_argument("--volume-bounces", type=int, help="most scatterings in volumes (Cycles' Volume)")
+    g.add_argument("--caustics-reflective", action=argparse.BooleanOptionalAction, default=None,
+                   help="light off mirrors, glossy surfaces and glass lights diffuse ones (Cycles' "
+                        "Reflective Caustics; --no-caustics-reflective: off)")
+    g.add_argument("--caustics-refractive", action=argparse.BooleanOptionalAction, default=None,
+                   help="light through glass lights diffuse surfaces (Cycles' Refractive Caustics; "
+                        "--no-caustics-refractive: off)")
     g.add_argument("--initial-mutation-size", type=float)
     g.add_argument("--glossy-through", type=float,
                    help="camera paths go on through glossy lobes smoother than this roughness")
@@ -132,12 +139,13 @@ def ensure_addon(bpy):
 
 
 def configure(bpy, scene, args):
-    """Apply the flags to ``scene``; raise Failure(..., 2) for values Blender rejects.  A bounce flag
-    switches a file that takes Cycles' Light Paths to the engine's own limits, set to Cycles' first
-    (so the limits not given stay as they were)."""
+    """Apply the flags to ``scene``; raise Failure(..., 2) for values Blender rejects.  A bounce or
+    caustics flag switches a file that takes Cycles' Light Paths to the engine's own, set to Cycles'
+    first (so the settings not given stay as they were)."""
     props = scene.amcmcppm
-    bounce_flags = [flag for flag, prop in SETTING_FLAGS.items() if prop.endswith("_bounces")]
-    if props.light_paths_from_cycles and any(getattr(args, flag) is not None for flag in bounce_flags):
+    light_paths = [flag for flag, prop in SETTING_FLAGS.items()
+                   if prop.endswith("_bounces") or prop.startswith("caustics_")]
+    if props.light_paths_from_cycles and any(getattr(args, flag) is not None for flag in light_paths):
         props.own_light_paths()
     for flag, prop in SETTING_FLAGS.items():
         value = getattr(args, flag)

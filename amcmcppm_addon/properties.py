@@ -101,9 +101,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
                     "that edges do not darken while the radius is large")
     light_paths_from_cycles: BoolProperty(
         name="Use Cycles' Light Paths", default=True,
-        description="Take the bounce limits from Cycles' Light Paths settings of the scene (Total, "
-                    "Diffuse, Glossy, Transmission, Volume; the panel edits them), so that a scene "
-                    "keeps them between the two engines; off: the engine's own limits below")
+        description="Take the bounce limits and caustics toggles from Cycles' Light Paths settings of "
+                    "the scene (Total, Diffuse, Glossy, Transmission, Volume; Reflective and Refractive "
+                    "Caustics; the panel edits them), so that a scene keeps them between the two "
+                    "engines; off: the engine's own settings below")
     max_bounces: IntProperty(
         name="Max Bounces", default=_DEFAULTS.max_bounces, min=0, max=MAX_BOUNCES,
         description="Most bounces of a light path from the camera to a light, counted as Cycles' Total: "
@@ -112,6 +113,16 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     glossy_bounces: bounce_limit("Glossy", "glossy bounces (reflections off mirrors, glossy lobes and glass)")
     transmission_bounces: bounce_limit("Transmission", "transmission bounces (refractions through glass)")
     volume_bounces: bounce_limit("Volume", "scatterings in volumes (0: single scattering)")
+    caustics_reflective: BoolProperty(
+        name="Reflective Caustics", default=_DEFAULTS.caustics_reflective,
+        description="Light reflected off mirrors, glossy surfaces and glass lights diffuse surfaces, "
+                    "as Cycles' Reflective Caustics (off: it does not, and a Principled BSDF's diffuse "
+                    "part lit by diffuse surfaces is not dimmed by its specular and coat layers, as in "
+                    "Cycles)")
+    caustics_refractive: BoolProperty(
+        name="Refractive Caustics", default=_DEFAULTS.caustics_refractive,
+        description="Light refracted through glass lights diffuse surfaces, as Cycles' Refractive Caustics "
+                    "(off: it does not, as in Cycles, so that a room lit only through glass is dark)")
     workers: IntProperty(
         name="Workers", default=_DEFAULTS.workers, min=0, max=1024, soft_max=64,
         description="Processes tracing photons in parallel (0 = one per CPU core, 1 = in Blender's "
@@ -141,9 +152,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Mutation size every chain starts with, before adaptation")
 
     def light_path_limits(self):
-        """({name: limit} of the five bounce limits (``LIGHT_PATHS``) a render takes, notes): Cycles'
-        settings of the scene (``scene.cycles``, the same names) with ``light_paths_from_cycles``
-        and Cycles there, more than ``MAX_BOUNCES`` taken as that (noted); else the engine's own."""
+        """({name: value} of the five bounce limits and two caustics toggles (``LIGHT_PATHS``) a render
+        takes, notes): Cycles' settings of the scene (``scene.cycles``, the same names) with
+        ``light_paths_from_cycles`` and Cycles there, a limit above ``MAX_BOUNCES`` taken as that
+        (noted); else the engine's own."""
         cycles = getattr(self.id_data, "cycles", None) if self.light_paths_from_cycles else None
         if cycles is None:
             notes = ["Cycles' Light Paths are not available (the Cycles add-on is off); the engine's own "
@@ -151,6 +163,9 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
             return {name: getattr(self, name) for name in LIGHT_PATHS}, notes
         limits, notes = {}, []
         for name in LIGHT_PATHS:
+            if name.startswith("caustics_"):
+                limits[name] = bool(getattr(cycles, name))
+                continue
             value = int(getattr(cycles, name))
             if value > MAX_BOUNCES:
                 notes.append(f"Cycles' {cycles.bl_rna.properties[name].name} of {value} is more than this "
@@ -160,7 +175,7 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         return limits, notes
 
     def own_light_paths(self):
-        """Switch to the engine's own bounce limits, set to those a render takes now (Cycles')."""
+        """Switch to the engine's own Light Paths, set to those a render takes now (Cycles')."""
         limits, _ = self.light_path_limits()
         for name, value in limits.items():
             setattr(self, name, value)
@@ -182,8 +197,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
 # view layer's (View Layer > Passes, engine.data_passes_of).
 FROM_BLENDER = ("data_passes",)
 
-# The bounce limits, as named by Cycles' settings and ours (AMCMCPPMRenderSettings.light_path_limits).
-LIGHT_PATHS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces")
+# Cycles' Light Paths that the engine follows: the bounce limits and caustics toggles, as named by Cycles'
+# settings and ours (AMCMCPPMRenderSettings.light_path_limits).
+LIGHT_PATHS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
+               "caustics_reflective", "caustics_refractive")
 
 # Names of the properties that map one-to-one onto core.RenderSettings fields.
 CORE_SETTING_NAMES = tuple(name for name in AMCMCPPMRenderSettings.__annotations__

@@ -78,13 +78,14 @@ class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
 
 class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
-    """Bounce limits as Cycles' Light Paths > Max Bounces: Cycles' own settings of the scene (the
-    same names), or with Use Cycles' Light Paths off the engine's."""
+    """Bounce limits and caustics toggles as Cycles' Light Paths > Max Bounces and Caustics: Cycles'
+    own settings of the scene (the same names), or with Use Cycles' Light Paths off the engine's."""
     bl_label = "Light Paths"
     props = ("light_paths_from_cycles", "max_bounces", "diffuse_bounces", "glossy_bounces",
-             "transmission_bounces", "volume_bounces")
+             "transmission_bounces", "volume_bounces", "caustics_reflective", "caustics_refractive")
     labels = {"max_bounces": "Total", "diffuse_bounces": "Diffuse", "glossy_bounces": "Glossy",
-              "transmission_bounces": "Transmission", "volume_bounces": "Volume"}
+              "transmission_bounces": "Transmission", "volume_bounces": "Volume",
+              "caustics_reflective": "Reflective", "caustics_refractive": "Refractive"}
 
     def draw(self, context):
         layout = self.layout
@@ -95,7 +96,10 @@ class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
         cycles = getattr(context.scene, "cycles", None)
         source = cycles if settings.light_paths_from_cycles and cycles is not None else settings
         col = layout.column(align=True)
-        for name in self.props[1:]:
+        for name in self.props[1:6]:
+            col.prop(source, name, text=self.labels[name])
+        col = layout.column(heading="Caustics", align=True)
+        for name in self.props[6:]:
             col.prop(source, name, text=self.labels[name])
 
 

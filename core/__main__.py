@@ -43,6 +43,11 @@ def build_parser():
     r.add_argument("--glossy-bounces", type=int, default=d.glossy_bounces)
     r.add_argument("--transmission-bounces", type=int, default=d.transmission_bounces)
     r.add_argument("--volume-bounces", type=int, default=d.volume_bounces)
+    for name, what in (("reflective", "off mirrors, glossy lobes and glass"),
+                       ("refractive", "through glass")):
+        r.add_argument(f"--caustics-{name}", action=argparse.BooleanOptionalAction,
+                       default=getattr(d, f"caustics_{name}"),
+                       help=f"light {what} lights diffuse surfaces (Cycles' {name.title()} Caustics)")
     r.add_argument("--glossy-through", type=float, default=d.glossy_through_roughness,
                    help="camera paths go on through glossy lobes smoother than this roughness")
     r.add_argument("--workers", type=int, default=d.workers, help="0 = one per CPU core")
@@ -57,6 +62,8 @@ def settings_from_args(a) -> RenderSettings:
                           initial_radius_px=a.initial_radius, max_bounces=a.max_bounces,
                           diffuse_bounces=a.diffuse_bounces, glossy_bounces=a.glossy_bounces,
                           transmission_bounces=a.transmission_bounces, volume_bounces=a.volume_bounces,
+                          caustics_reflective=a.caustics_reflective,
+                          caustics_refractive=a.caustics_refractive,
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
                           mutation=a.mutation, normalisation=a.normalisation,
                           glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction)

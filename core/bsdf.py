@@ -234,6 +234,7 @@ class MaterialTable:
     dielectric_fresnel: np.ndarray = None   # (M,) float64 share of the glass that reflects by Fresnel (the
     #                                         rest refracts whatever it: Refraction BSDF); None: 1
     coat_factor: np.ndarray = None          # (M, MS_NODES + 1, 3) float64 factor under the coat at mu
+    coat_layer: np.ndarray = None           # (M, MS_NODES + 1) float64 the coat's albedo's part of it
     coat_score: np.ndarray = None           # (M, 2) float64 mean lobe-score totals: coat, factor under it
     glossy_through: np.ndarray = None       # (M,) bool: camera paths go on through the glossy lobe
     rough_diffuse: np.ndarray = None        # (M, 4) float64 a, b, Eavg / (1 - Eavg), 1 - Eavg of a rough
@@ -362,8 +363,8 @@ class MaterialTable:
         has_nondelta = diffuse_on | glossy_on | translucent_on
         tint = _or_none(mats.glossy_metal_tint, (m, 3)).astype(np.float64)
         hit_metal = (tint >= 0).all(axis=1) & ((weight[:, GLOSSY] > 0) | (weight[:, MIRROR] > 0))
-        coat_factor, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo,
-                                               ms_fresnel)
+        coat_factor, coat_layer, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means,
+                                                           ms_albedo, ms_fresnel)
         coated = np.flatnonzero(coat_row >= 0)
         has_nondelta[coated] |= has_nondelta[coat_row[coated]]
         return MaterialTable(weight=weight, color=color, alpha=alpha, dielectric_alpha=dielectric_alpha,
@@ -388,7 +389,8 @@ class MaterialTable:
                              translucent_program=np.asarray(_or_none(mats.translucent_program, m), np.int32),
                              rotation_program=np.where(anisotropic, _or_none(mats.rotation_program, m),
                                                        -1).astype(np.int32),
-                             coat_row=coat_row, coat_factor=coat_factor, coat_score=coat_score,
+                             coat_row=coat_row, coat_factor=coat_factor, coat_layer=coat_layer,
+                             coat_score=coat_score,
                              bump_correction=(np.ones(m, bool) if mats.bump_correction is None
                                               else np.asarray(mats.bump_correction) != 0),
                              dielectric_fresnel=(None if mats.dielectric_fresnel is None
@@ -571,6 +573,10 @@ class MaterialTable:
         """(n, 3) factors of everything under the coats of materials ``mat_ids`` (all coated) at
         view cosines ``mu`` (:class:`~core.scene.Materials`: the coat's albedo and its tint)."""
         return _interpolate(self.coat_factor, mat_ids, mu)
+
+    def coat_layer_factor(self, mat_ids, mu):
+        """(n,) the part of :meth:`coat_attenuation` that the coat's albedo takes (without its tint)."""
+        return _interpolate(self.coat_layer, mat_ids, mu)
 
     def fresnel_color(self, mat_ids, lobe, cos_m, base=None):
         """(n, 3) the colour lobe ``lobe`` (GLOSSY or MIRROR) adds at microfacet cosines ``cos_m``
@@ -1008,19 +1014,20 @@ def _metal_film(mats, weight, edge, dip, sharp, film):
 
 
 def _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo, ms_fresnel):
-    """(factor (M, MS_NODES + 1, 3), score (M, 2)): the factor under each material's coat at
-    the nodes mu = (k / MS_NODES)^2, and, for the choice between the coat and what lies under
-    it (:func:`pick_coat`), the coat's cosine-weighted mean albedo and the mean luminance of
-    the factor.  As Cycles' Principled BSDF: 1 - w K(mu) (F0 + (1 - F0) S(mu)) (the coat's
-    albedo as ``bsdf_microfacet_estimate_albedo`` of a dielectric GGX lobe, K its multiscatter
-    energy) times 1 - w + w tint^(1 / cos_t), the tint of the path through the coat refracted
-    to cos_t."""
+    """(factor (M, MS_NODES + 1, 3), layer (M, MS_NODES + 1), score (M, 2)): the factor under each
+    material's coat at the nodes mu = (k / MS_NODES)^2, the coat's albedo's part of it, and, for
+    the choice between the coat and what lies under it (:func:`pick_coat`), the coat's
+    cosine-weighted mean albedo and the mean luminance of the factor.  As Cycles' Principled BSDF:
+    1 - w K(mu) (F0 + (1 - F0) S(mu)) (the coat's albedo as ``bsdf_microfacet_estimate_albedo`` of
+    a dielectric GGX lobe, K its multiscatter energy) times 1 - w + w tint^(1 / cos_t), the tint
+    of the path through the coat refracted to cos_t."""
     m = len(coat_row)
     factor = np.ones((m, MS_NODES + 1, 3))
+    layer = np.ones((m, MS_NODES + 1))
     score = np.zeros((m, 2))
     coated = np.flatnonzero(coat_row >= 0)
     if len(coated) == 0:
-        return factor, score
+        return factor, layer, score
     mu = (np.arange(MS_NODES + 1) / MS_NODES) ** 2
     for i in coated:
         c = coat_row[i]
@@ -1034,10 +1041,11 @@ def _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means, ms_albedo, ms_f
         cos_t = np.sqrt(np.maximum(1.0 - (1.0 - mu * mu) / (eta * eta), 1e-12))
         tint = np.clip(np.asarray(mats.coat_tint[i], np.float64), 0.0, 1.0)
         through = 1.0 - w + w * tint[None, :] ** (1.0 / cos_t[:, None])
-        factor[i] = np.clip(1.0 - w * albedo, 0.0, 1.0)[:, None] * through
+        layer[i] = np.clip(1.0 - w * albedo, 0.0, 1.0)
+        factor[i] = layer[i][:, None] * through
         score[i, 0] = w * 2.0 * np.trapz(albedo * mu, mu)
         score[i, 1] = 2.0 * np.trapz(smp.luminance(factor[i]) * mu, mu)
-    return factor, score
+    return factor, layer, score
 
 
 def _strata(coarse):

@@ -550,17 +550,20 @@ def coat_normal(surf):
     return surf.ns if surf.nn is None else surf.nn
 
 
-def coat_attenuation(table, surf, wo, rows):
+def coat_attenuation(table, surf, wo, rows, albedo_only=False):
     """(k, 3) factors under the coats at hits ``rows`` of ``surf`` seen from ``wo`` (rows whose
     materials have no coat get 1): :meth:`~core.bsdf.MaterialTable.coat_attenuation` at the view
-    cosine with the coat's normal (:func:`coat_normal`)."""
+    cosine with the coat's normal (:func:`coat_normal`); with ``albedo_only`` (k,) the coat's
+    albedo's part of them (:meth:`~core.bsdf.MaterialTable.coat_layer_factor`)."""
     mats = surf.mat_ids.take(rows)
-    out = np.ones((len(rows), 3))
+    out = np.ones(len(rows)) if albedo_only else np.ones((len(rows), 3))
     coated = np.flatnonzero(table.coat_row.take(mats) >= 0)
     if len(coated):
         r = rows.take(coated)
         n_c = coat_normal(surf).take(r, axis=0)
-        out[coated] = table.coat_attenuation(mats.take(coated), np.abs(dot(wo.take(r, axis=0), n_c)))
+        mu = np.abs(dot(wo.take(r, axis=0), n_c))
+        factor = table.coat_layer_factor if albedo_only else table.coat_attenuation
+        out[coated] = factor(mats.take(coated), mu)
     return out
 
 

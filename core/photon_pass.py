@@ -129,6 +129,8 @@ class DepositTarget:
         # limit of a kind binds and no camera path bounced).
         self.room = None
         self.counts_kinds = limits is not None and limits.by_kind
+        # A Caustics toggle off: photons keep what a diffuse event next is worth (trace_photons).
+        self.blocks_caustics = limits is not None and limits.blocks_caustics
         if limits is not None:
             taken = np.concatenate([np.zeros((p.count, 5), np.uint8) if p.bounces is None else p.bounces
                                     for p in (points, self.volume) if p is not None])
@@ -224,6 +226,7 @@ class DepositTarget:
             d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
         if self.limits is not None:
             d["limits"] = self.limits.array
+            d["caustics"] = np.array([self.limits.caustics_reflective, self.limits.caustics_refractive])
         if self.volume is not None:
             d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__
                       if getattr(self.volume, f) is not None})
@@ -247,7 +250,8 @@ class DepositTarget:
                              volume=volume, volume_radius=d.get("volume_radius"), volume_grid=vgrid,
                              media=d.get("media"), inner=bool(d.get("inner", False)),
                              coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"),
-                             limits=None if "limits" not in d else BounceLimits(*map(int, d["limits"])))
+                             limits=None if "limits" not in d else BounceLimits(*map(int, d["limits"]),
+                                                                                *map(bool, d["caustics"])))
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -331,7 +335,7 @@ class DepositTarget:
         cos_v = dot(pts.wo, pts.ns).astype(np.float64)
         return (*rough_diffuse_terms(self.table, pts.mat_ids, pts.colors[:, 0], cos_v), cos_v)
 
-    def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None, exclude=None):
+    def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None, exclude=None, diffuse_scale=None):
         """What pairs with points ``j`` are worth per unit of photon flux (the points' throughput
         and kernel aside, :meth:`to_pixels`).
 
@@ -350,7 +354,8 @@ class DepositTarget:
         diffuse lobe weigh by :func:`~core.bsdf.rough_diffuse_factor` of their directions besides.
         ``exclude`` (k,) uint8, or None: the rays the pairs' emitters do not light (bits EXCLUDE_*,
         for photons at their first vertex): EXCLUDE_DIFFUSE drops the diffuse part (the translucent
-        lobe's too), EXCLUDE_GLOSSY the glossy part.
+        lobe's too), EXCLUDE_GLOSSY the glossy part.  ``diffuse_scale`` (k,) float, or None: factors
+        of the diffuse part (the photons' ``diffuse_next``, :func:`trace_photons`).
 
         A pair's diffuse weight wd is that geometry (times its colour at the ``coloured``
         points, :attr:`_sides`), its glossy weight wg the lobe's f (times its colour at the
@@ -405,6 +410,8 @@ class DepositTarget:
         if exclude is not None:
             wd = wd * ((exclude & EXCLUDE_DIFFUSE) == 0)
             keep_g = (exclude & EXCLUDE_GLOSSY) == 0
+        if diffuse_scale is not None:
+            wd = wd * diffuse_scale
         if not self.any_glossy:
             return wd
         s = np.flatnonzero(self.is_glossy.take(j))
@@ -627,13 +634,14 @@ class PhotonBatch:
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
 VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium",
-                 "volume", "tangent", "nc", "kinds")
+                 "volume", "tangent", "nc", "kinds", "diffuse_next")
 
 
-def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False):
+def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, caustics=False):
     """Per-path vertex records (``VERTEX_FIELDS``; ``tangent`` only with ``tangents``, ``nc`` only
     with ``coat_normals``, ``kinds`` (the bounces of each kind after the first vertex,
-    ``trace_photons``) only with ``kinds``)."""
+    ``trace_photons``) only with ``kinds``, ``diffuse_next`` (``trace_photons``) only with
+    ``caustics``)."""
     out = {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
             "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
@@ -644,6 +652,8 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False):
         out["nc"] = np.zeros((n, 3))
     if kinds:
         out["kinds"] = np.zeros((n, 4), np.int16)
+    if caustics:
+        out["diffuse_next"] = np.ones(n)
     return out
 
 
@@ -684,8 +694,14 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     kinds = np.zeros((n, 4), np.int16) if target.counts_kinds else None
     if kinds is not None and n_resumed:
         kinds[fresh:] = resume["kinds"]
-    first = (_vertex_arrays(n, table.lobes, table.has_anisotropy, ctx.has_coat_normals, kinds is not None)
-             if collect_pairs else None)
+    # A Caustics toggle off (Cycles drops a closure whose caustics are off at a path's vertex after a
+    # diffuse bounce): what a diffuse event next (a deposit's diffuse part, a diffuse scatter) is worth
+    # to each path after its last scattering (_diffuse_next); None with both toggles on.
+    diffuse_next = np.ones(n) if target.blocks_caustics else None
+    if diffuse_next is not None and n_resumed:
+        diffuse_next[fresh:] = resume["diffuse_next"]
+    first = (_vertex_arrays(n, table.lobes, table.has_anisotropy, ctx.has_coat_normals, kinds is not None,
+                            diffuse_next is not None) if collect_pairs else None)
     own_sums = not collect_pairs and sums is None
     if own_sums:
         sums = PointSums(target.n_slots)
@@ -782,16 +798,20 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     if near is not None:
                         near = np.concatenate([near, found[3]])
             seen = np.zeros(len(idx), bool)
-            limited = None
+            keep = limited = scale = None
             if len(pi) and target.room is not None:
                 keep, limited = target.bounce_filter(
                     pj, bounce, None if kinds is None else kinds.take(idx.take(dep.take(pi)), axis=0))
-                if not keep.all():
-                    k = np.flatnonzero(keep)
-                    pi, pj, cos_g = pi.take(k), pj.take(k), cos_g.take(k)
-                    back = None if back is None else back.take(k)
-                    near = None if near is None else near.take(k)
-                    limited = None if limited is None else limited.take(k)
+            if len(pi) and diffuse_next is not None:
+                # (pairs worth nothing, with no glossy part, make no path visible)
+                scale = diffuse_next.take(idx.take(dep.take(pi)))
+                glossy = target.is_glossy.take(pj) if back is None else target.is_glossy.take(pj) & ~back
+                keep = (scale > 0) | glossy if keep is None else keep & ((scale > 0) | glossy)
+            if keep is not None and not keep.all():
+                k = np.flatnonzero(keep)
+                pi, pj, cos_g = pi.take(k), pj.take(k), cos_g.take(k)
+                back, near, limited, scale = (None if a is None else a.take(k)
+                                              for a in (back, near, limited, scale))
             if len(pi):
                 lane = dep.take(pi)
                 cos_photon = dot(nrm, wo_dep).take(pi) if target.has_shading_normals else None
@@ -803,7 +823,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 exclude = None if excluded is None else excluded.take(lane)
                 if limited is not None:
                     exclude = limited if exclude is None else exclude | limited
-                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude)
+                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude, scale)
                 # The pairs within half the radius once more, on the inner slots.
                 again = None if near is None else np.flatnonzero(near)
                 slots = pj if again is None else np.concatenate([pj, pj.take(again) + target.n_points])
@@ -855,12 +875,14 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                         first["nc"][new] = surf.nc[rows]
                     if kinds is not None:
                         first["kinds"][new] = kinds[new]
+                    if diffuse_next is not None:
+                        first["diffuse_next"][new] = diffuse_next[new]
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
         if vert is not None:
             _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums,
-                                collect_pairs, refresh_rng, max_bounces, kinds)
+                                collect_pairs, refresh_rng, max_bounces, kinds, diffuse_next)
         if resume is not None and bounce <= last_join:
             # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
             join = np.flatnonzero(resume["bounce"] == bounce)
@@ -900,11 +922,18 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 # Some go beneath the surface and leave it elsewhere (their new origins: leave).
                 leave = _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, u3, wo, wi,
                                  weight, alive)
+            kind = None
+            if (bounce == 0 and excluding) or (kinds is not None and bounce) or diffuse_next is not None:
+                kind = scatter_kind(lobe, wi, wo, surf.ng)
             if bounce == 0 and excluding:
-                alive &= (ctx.lights.excluded(u[idx, 0]) & scatter_kind(lobe, wi, wo, surf.ng)) == 0
+                alive &= (ctx.lights.excluded(u[idx, 0]) & kind) == 0
+            if diffuse_next is not None:
+                into = np.flatnonzero(kind == EXCLUDE_DIFFUSE)
+                weight[into] *= diffuse_next.take(idx.take(into))[:, None]
+                diffuse_next[idx] = _diffuse_next(table, target.limits, surf, mats, ns, lobe, kind, wi,
+                                                  under if table.has_coat else None, leave)
             if kinds is not None and bounce:
                 # (the first vertex's kind does not count: it is the one nearest the light)
-                kind = scatter_kind(lobe, wi, wo, surf.ng)
                 kinds[idx, np.where(kind == EXCLUDE_DIFFUSE, 0, np.where(kind == EXCLUDE_GLOSSY, 1, 2))] += 1
                 alive &= (kinds.take(idx, axis=0) <= target.limits.array[1:]).all(axis=1)
             if table.has_coat:
@@ -926,7 +955,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             dirs = wi.take(keep, axis=0)
             position, ng = surf.position, surf.ng
             if leave is not None:
-                rows, position, ng = leave
+                rows, position, ng, _ = leave
             if volumes:
                 medium = medium.take(keep)
                 crossed = ctx.next_medium(medium, prim.take(keep), dirs, wo.take(keep, axis=0))
@@ -954,6 +983,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             if kinds is not None and bounce:
                 kinds[vidx, 3] += 1                     # (as at surfaces: not at the first vertex)
                 go &= kinds[vidx, 3] <= target.limits.volume
+            if diffuse_next is not None:
+                diffuse_next[vidx] = 1.0                # (Cycles drops no closure after a volume's)
             keep = np.flatnonzero(go)
             idx = np.concatenate([idx, vidx.take(keep)])
             flux = np.concatenate([flux, f_v.take(keep, axis=0) / q.take(keep)[:, None]])
@@ -1001,8 +1032,8 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     direction (under a Fresnel layer, its factor there).  The others keep their diffuse lobe
     without the part.  Updates ``wi``, ``weight`` and ``alive`` (walks that do not leave, and
     photons that do not get out of the surface, are lost) in place; returns None or (rows,
-    positions, normals): the photons that left and where they leave from (the others' own
-    positions and normals)."""
+    positions, normals, exit shading normals): the photons that left and where they leave from (the
+    others' own positions and normals; the shading normals of the rows alone)."""
     materials, table, accel = ctx.materials, ctx.table, ctx.accel
     share = np.asarray(materials.subsurface_weight, np.float64).take(mats)
     rows = np.flatnonzero((lobe == DIFFUSE) & (share > 0) & alive)
@@ -1061,7 +1092,7 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     alive[out] = (dot(leave, ng_out) > 0) & (through > 0)
     position, ng = surf.position.copy(), surf.ng.copy()
     position[out], ng[out] = exit_.position, ng_out
-    return out, position, ng
+    return out, position, ng, n_out
 
 
 def scatter_kind(lobe, wi, wo, ng):
@@ -1074,15 +1105,43 @@ def scatter_kind(lobe, wi, wo, ng):
                     np.where(refracted, EXCLUDE_TRANSMISSION, EXCLUDE_GLOSSY)).astype(np.uint8)
 
 
+def _diffuse_next(table, limits, surf, mats, ns, lobe, kind, wi, under, leave):
+    """(n,) what a diffuse event next is worth to photons that scattered at ``surf`` by ``lobe`` of
+    materials ``mats`` (after :func:`~core.bsdf.pick_coat`; ``under``: the rows that chose what lies
+    under a coat, or None) with ``kind`` (:func:`scatter_kind`) into ``wi``, with the Caustics toggles
+    of ``limits``.  Cycles evaluates a path's vertex after a diffuse bounce without the closures whose
+    caustics are off: 0 after a reflection (Reflective off) or a refraction (Refractive off).  Without
+    the Principled BSDF's specular and coat layers (Reflective off) what lies under them is not
+    attenuated by their albedo either: 1 / those factors (at ``wi``, the photon's view direction;
+    at the exit of a walk beneath the surface for the rows of ``leave``) after its diffuse part, and
+    1 / the coat's after its transmission."""
+    out = np.ones(len(lobe))
+    if not limits.caustics_refractive:
+        out[kind == EXCLUDE_TRANSMISSION] = 0.0
+    if limits.caustics_reflective:
+        return out
+    out[kind == EXCLUDE_GLOSSY] = 0.0
+    d = np.flatnonzero(lobe == DIFFUSE)
+    if table.has_layer and len(d):
+        n = ns.take(d, axis=0)
+        if leave is not None:
+            n[np.searchsorted(d, leave[0])] = leave[3]          # (walks leave from diffuse rows only)
+        out[d] /= np.maximum(table.layer_factor(mats.take(d), np.abs(dot(wi.take(d, axis=0), n))), 1e-12)
+    if under is not None and len(under):
+        out[under] /= np.maximum(coat_attenuation(table, surf, wi, under, albedo_only=True), 1e-12)
+    return out
+
+
 def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, collect_pairs,
-                        refresh_rng, max_bounces, kinds=None):
+                        refresh_rng, max_bounces, kinds=None, diffuse_next=None):
     """Deposits of the photons that stopped in scattering volumes at vertex ``bounce`` (``vert``:
     their paths, positions, travel directions, arrival flux and volumes) on the target's volume
     points: flux times the scattering coefficient times the phase function towards each point's
     camera path.  As on surfaces, a pair found (or, with visible cells, a vertex in one of the
     volume cells) makes the path visible, and the paths that become so are recorded in
     ``first`` (``volume`` set) and have their later dimensions redrawn with ``refresh_rng``.
-    ``kinds`` as in :func:`trace_photons` (pairs keep to the limits: DepositTarget.bounce_filter)."""
+    ``kinds`` and ``diffuse_next`` as in :func:`trace_photons` (pairs keep to the limits:
+    DepositTarget.bounce_filter; a volume point's scattering is not a diffuse bounce)."""
     idx, x, d, vmed = vert["idx"], vert["position"], vert["d"], vert["medium"]
     seen = np.zeros(len(idx), bool)
     if target.volume is not None:
@@ -1123,6 +1182,8 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
             first[key][new] = val
         if kinds is not None:
             first["kinds"][new] = kinds[new]
+        if diffuse_next is not None:
+            first["diffuse_next"][new] = diffuse_next[new]
     if refresh_rng is not None and bounce < max_bounces:
         start = bounce_offset(bounce)
         u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))

@@ -34,13 +34,18 @@ class BounceLimits:
     has n - 1 bounces (x_n, the vertex nearest the light, does not count: 0 is direct light),
     each of the kind of its scattering: diffuse (diffuse, translucent, subsurface), glossy
     (reflections off mirrors, glossy lobes and glass), transmission (refraction) or volume
-    (scattering in a volume)."""
+    (scattering in a volume).  With Cycles' Caustics toggles, ``caustics_reflective`` and
+    ``caustics_refractive``: off, a light path that reaches a mirror, glossy lobe or a glass's
+    reflection (a glass's refraction) right after a diffuse bounce, on the way from the camera,
+    carries nothing (:class:`RenderSettings`)."""
 
     total: int = 8
     diffuse: int = MAX_BOUNCES
     glossy: int = MAX_BOUNCES
     transmission: int = MAX_BOUNCES
     volume: int = MAX_BOUNCES
+    caustics_reflective: bool = True
+    caustics_refractive: bool = True
 
     @property
     def array(self):
@@ -52,6 +57,11 @@ class BounceLimits:
     def by_kind(self) -> bool:
         """Whether some kind's limit binds (is below ``total``): photons then count their kinds."""
         return min(self.diffuse, self.glossy, self.transmission, self.volume) < self.total
+
+    @property
+    def blocks_caustics(self) -> bool:
+        """Whether a Caustics toggle is off: photons then keep what a diffuse bounce next is worth."""
+        return not (self.caustics_reflective and self.caustics_refractive)
 
 
 @dataclass(frozen=True)
@@ -137,6 +147,18 @@ class RenderSettings:
     ``max_bounces``; Cycles' default 0 is single scattering); at ``max_bounces`` or more, no limit
     of its own."""
 
+    caustics_reflective: bool = True
+    """Cycles' Reflective Caustics: off, light that reflects off a mirror, a glossy lobe (a
+    Principled BSDF's specular, metal or coat) or a glass and then meets a diffuse surface
+    (diffuse, translucent or subsurface scattering) carries nothing on from there, as Cycles drops
+    those closures at a path's vertex after a diffuse bounce; so does a Principled's diffuse part
+    lose its specular and coat layers' attenuation there, as in Cycles."""
+
+    caustics_refractive: bool = True
+    """Cycles' Refractive Caustics: off, light that refracts through glass (a Glass, Refraction or
+    Principled BSDF's transmission) and then meets a diffuse surface carries nothing on from there
+    (``caustics_reflective``)."""
+
     workers: int = 0
     """Processes tracing photons in parallel; 0 = one per CPU core, 1 = in this process."""
 
@@ -216,10 +238,9 @@ class RenderSettings:
             bad("chains", "must be >= 1")
         if not 0 < self.target_acceptance < 1:
             bad("target_acceptance", "must lie in (0, 1)")
-        if not isinstance(self.bias_correction, bool):
-            bad("bias_correction", "must be True or False")
-        if not isinstance(self.edge_coverage, bool):
-            bad("edge_coverage", "must be True or False")
+        for name in ("bias_correction", "edge_coverage", "caustics_reflective", "caustics_refractive"):
+            if not isinstance(getattr(self, name), bool):
+                bad(name, "must be True or False")
         if not 1e-4 <= self.initial_mutation_size <= 1e3:
             bad("initial_mutation_size", "must lie in [1e-4, 1e3]")
         if not 0 <= self.glossy_through_roughness <= 1:
@@ -227,9 +248,10 @@ class RenderSettings:
 
     @property
     def bounce_limits(self) -> "BounceLimits":
-        """The five bounce limits (:class:`BounceLimits`)."""
+        """The five bounce limits and the Caustics toggles (:class:`BounceLimits`)."""
         return BounceLimits(self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
-                            self.transmission_bounces, self.volume_bounces)
+                            self.transmission_bounces, self.volume_bounces, self.caustics_reflective,
+                            self.caustics_refractive)
 
     @property
     def worker_count(self) -> int:

@@ -275,6 +275,25 @@ def sun_through_sheet(material, irradiance=10.0, floor_albedo=None, resolution=(
     return m.build(Materials.build(specs), lights, cam, smooth=smooth)
 
 
+def sheet_over_glowing_floor(material, emission=1.0, floor_albedo=0.8, resolution=(16, 16), half=2.0,
+                             height=0.1):
+    """A sheet of ``material`` (a ``Materials.build`` entry; half-size ``half``) ``height`` over a diffuse
+    floor of albedo rho that also emits ``emission`` Le; an orthographic camera half-way up looks
+    down at the floor, which its light reaches from the sheet after the floor's diffuse bounce (and its
+    own).  For infinite planes and a sheet of diffuse albedo a, L = Le / (1 - a rho); with Cycles'
+    Reflective Caustics off a Principled BSDF's sheet is one of albedo a (its diffuse part, not dimmed
+    by the specular or coat layer above it, after a diffuse bounce)."""
+    specs = [{"name": "sheet", **material}, {"name": "floor", "diffuse": floor_albedo, "emission": emission}]
+    m = MeshBuilder()
+    h = half
+    m.add_quad((-h, -h, height), (h, -h, height), (h, h, height), (-h, h, height), 0)
+    m.add_quad((-h, -h, 0.0), (h, -h, 0.0), (h, h, 0.0), (-h, h, 0.0), 1)
+    f = 0.5 * h
+    cam = Camera(world_from_camera=_look_down(0.5 * height), projection="orthographic", frame=(-f, f, -f, f),
+                 resolution=resolution)
+    return m.build(Materials.build(specs), None, cam)
+
+
 def sun_over_normal_mapped_floor(tangent_space_normal, sun_toward=(0.0, 0.0, 1.0), tangent=(1.0, 0.0, 0.0),
                                  sign=1.0, strength=1.0, irradiance=10.0, albedo=0.5, resolution=(8, 8),
                                  correction=True):

@@ -2226,3 +2226,47 @@ def test_bounce_limits_match_cycles(addon, tmp_path, case):
     # (with no glossy bounce the mirror shows Cycles no floor, and ours neither)
     dark = cycles[..., :3].reshape(4, -1).max(axis=1) == 0.0
     assert ours[..., :3].reshape(4, -1)[dark].max(initial=0.0) == 0.0
+
+
+# Cycles' Caustics toggles (Reflective, Refractive) of each case, set alike in Cycles and ours.
+CAUSTICS = {
+    "mirror_reflective_off": (False, True), "glass_refractive_off": (True, False),
+    "glass_reflective_off": (False, True), "glass_both_off": (False, False),
+    "principled_reflective_off": (False, True),
+}
+
+
+@pytest.mark.parametrize("case", list(CAUSTICS))
+def test_caustics_toggles_match_cycles(addon, tmp_path, case):
+    """Cycles' Light Paths > Caustics (stop 49): off, Cycles drops a mirror's, glossy lobe's or
+    glass's reflection (Reflective) or a glass's refraction (Refractive) at a light path's vertex
+    right after a diffuse bounce, and ours too (read from Cycles' settings, as by default).  The
+    corner with a mirror wall; the corner with a glass cube over the floor; the corner whose floor
+    and wall are Principled BSDFs (the wall coated), which after a diffuse bounce are then their
+    diffuse parts alone, no longer dimmed by the specular and coat layers above them."""
+    reflective, refractive = CAUSTICS[case]
+
+    def build():
+        if case.startswith("mirror"):
+            corner_with_a_mirror_wall()
+        elif case.startswith("glass"):
+            corner_scene()
+            bs.cube("Glass", size=1.0, material=bs.glass("Glass"), location=(0, 0, 1.2))
+        else:
+            corner_scene()
+            for name, color, coat in (("Floor", (0.8, 0.8, 0.8), 0.0), ("Wall", (0.7, 0.6, 0.5), 1.0)):
+                mat = bs._material(name + "Principled", "ShaderNodeBsdfPrincipled", Roughness=0.4,
+                                   **{"Base Color": (*color, 1.0), "Coat Weight": coat})
+                bpy.data.objects[name].data.materials[0] = mat
+        add_emitter("area_square")
+        # Ours takes them from Cycles' settings, as by default.
+        bpy.context.scene.amcmcppm.light_paths_from_cycles = True
+        bpy.context.scene.cycles.caustics_reflective = reflective
+        bpy.context.scene.cycles.caustics_refractive = refractive
+    cycles, ours = cycles_and_ours(build, tmp_path, caustics_reflective=reflective,
+                                   caustics_refractive=refractive)
+    mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
+    print(f"caustics {case}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} "
+          f"ratio {mean_ours / mean_cycles:.4f}")
+    assert mean_ours == pytest.approx(mean_cycles, rel=TOLERANCE)
+    assert_bands_match(case, ours, cycles)

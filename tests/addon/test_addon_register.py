@@ -90,9 +90,9 @@ def test_defaults_follow_core(scene):
 
 def test_bounce_limits_are_cycles_light_paths_by_default(scene):
     """A new scene renders with Cycles' Light Paths (Total 12, Diffuse 4, Glossy 4, Transmission 12,
-    Volume 0 by default), as they change; more than the engine traces is taken as its most, with a
-    note; switching to the engine's own limits starts from Cycles' values; without the option the
-    engine's own apply."""
+    Volume 0, both Caustics on by default), as they change; more than the engine traces is taken as
+    its most, with a note; switching to the engine's own limits starts from Cycles' values; without
+    the option the engine's own apply."""
     from amcmcppm.amcmcppm_addon.export import render_settings_from
     from amcmcppm.amcmcppm_addon.properties import LIGHT_PATHS
     from amcmcppm.core.settings import MAX_BOUNCES
@@ -100,16 +100,18 @@ def test_bounce_limits_are_cycles_light_paths_by_default(scene):
     props = fresh.amcmcppm
     assert props.light_paths_from_cycles
     limits = lambda s: tuple(getattr(s, name) for name in LIGHT_PATHS)        # noqa: E731
-    assert limits(render_settings_from(props)) == (12, 4, 4, 12, 0) == limits(fresh.cycles)
+    assert limits(render_settings_from(props)) == (12, 4, 4, 12, 0, True, True) == limits(fresh.cycles)
     fresh.cycles.max_bounces, fresh.cycles.volume_bounces = 128, 3
-    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 4, 4, 12, 3)
+    fresh.cycles.caustics_refractive = False
+    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 4, 4, 12, 3, True, False)
     notes = props.light_path_limits()[1]
     assert len(notes) == 1 and "128" in notes[0] and str(MAX_BOUNCES) in notes[0]
     props.own_light_paths()
     assert not props.light_paths_from_cycles
-    assert limits(props) == (MAX_BOUNCES, 4, 4, 12, 3)
+    assert limits(props) == (MAX_BOUNCES, 4, 4, 12, 3, True, False)
     props.diffuse_bounces = 2
-    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 2, 4, 12, 3)
+    props.caustics_reflective = False
+    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 2, 4, 12, 3, False, False)
     assert props.light_path_limits()[1] == []
 
 

@@ -141,3 +141,17 @@ def test_a_bounce_flag_overrides_cycles_light_paths(repo_root, cornell, tmp_path
     ratio = means[("--diffuse-bounces", "0")] / means[()]
     print(f"diffuse 0 / Cycles' limits: {ratio:.3f}")
     assert ratio < 0.85
+
+
+def test_a_caustics_flag_overrides_cycles_light_paths(repo_root, tmp_path):
+    """glass_ceiling.blend, a room lit only through a glass roof, takes Cycles' Light Paths (both
+    Caustics on); --no-caustics-refractive switches it to the engine's own, with the light through
+    the glass gone from every diffuse surface: the room is black (the camera sees no light)."""
+    blend = repo_root / "sample_blends" / "glass_ceiling.blend"
+    means = {}
+    for flags in ((), ("--no-caustics-refractive",)):
+        out = run(repo_root, blend, "--output", tmp_path / "g.exr", "--method", "ppm", *FAST, *flags)
+        assert out.returncode == 0, out.stderr
+        means[flags] = bs.read_exr(tmp_path / "g.exr")[..., :3].mean()
+    print(f"glass_ceiling.blend means, Refractive Caustics on and off: {means}")
+    assert means[()] > 0.1 and means[("--no-caustics-refractive",)] == 0.0
