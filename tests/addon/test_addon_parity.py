@@ -2241,9 +2241,13 @@ def test_caustics_toggles_match_cycles(addon, tmp_path, case):
     """Cycles' Light Paths > Caustics (stop 49): off, Cycles drops a mirror's, glossy lobe's or
     glass's reflection (Reflective) or a glass's refraction (Refractive) at a light path's vertex
     right after a diffuse bounce, and ours too (read from Cycles' settings, as by default).  The
-    corner with a mirror wall; the corner with a glass cube over the floor; the corner whose floor
-    and wall are Principled BSDFs (the wall coated), which after a diffuse bounce are then their
-    diffuse parts alone, no longer dimmed by the specular and coat layers above them."""
+    corner with a mirror wall (Cycles 0.769 with both on, 0.657 Reflective off); the corner with a
+    glass cube over the floor (0.779 on; 0.766 Reflective off, 0.681 Refractive off, 0.668 both);
+    the corner whose floor and wall are Principled BSDFs (the wall coated), which after a diffuse
+    bounce are their diffuse parts alone, no longer dimmed by the specular and coat layers above them
+    (0.813 on, 0.814 Reflective off: the two nearly cancel).  Ours / Cycles 0.993-0.995 in every
+    case; 0.975 (bands down to 0.936) for the Principled corner with the layers' dimming kept, hence
+    its tolerance of 1.5 %."""
     reflective, refractive = CAUSTICS[case]
 
     def build():
@@ -2268,5 +2272,5 @@ def test_caustics_toggles_match_cycles(addon, tmp_path, case):
     mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
     print(f"caustics {case}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} "
           f"ratio {mean_ours / mean_cycles:.4f}")
-    assert mean_ours == pytest.approx(mean_cycles, rel=TOLERANCE)
+    assert mean_ours == pytest.approx(mean_cycles, rel=0.015 if case.startswith("principled") else TOLERANCE)
     assert_bands_match(case, ours, cycles)
