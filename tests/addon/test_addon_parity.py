@@ -101,6 +101,12 @@ def corner_with_a_mirror_wall():
     nt.links.new(mirror.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
 
 
+def corner_with_a_glass_cube():
+    """:func:`corner_scene` with a glass cube (a Glass BSDF, IOR 1.5) over the floor."""
+    corner_scene()
+    bs.cube("Glass", size=1.0, material=bs.glass("Glass"), location=(0, 0, 1.2))
+
+
 def use_cycles(scene):
     scene.render.engine = "CYCLES"
     c = scene.cycles
@@ -2177,6 +2183,31 @@ def test_what_lies_behind_or_inside_glass_matches_cycles(addon, tmp_path, case):
                                else TOLERANCE)
 
 
+def light_paths_match_cycles(tmp_path, case, other, settings, rtol=TOLERANCE):
+    """The corner with a mirror wall (a ``case`` mirror_...), with a glass cube (glass_...) or as
+    ``other()`` builds it, under an area light, rendered by Cycles and by ours with Cycles' Light
+    Paths ``settings`` (which ours reads from Cycles' settings, as by default): the means within
+    ``rtol``, the bands alike.  Returns the images (Cycles, ours)."""
+    def build():
+        if case.startswith("mirror"):
+            corner_with_a_mirror_wall()
+        elif case.startswith("glass"):
+            corner_with_a_glass_cube()
+        else:
+            other()
+        add_emitter("area_square")
+        bpy.context.scene.amcmcppm.light_paths_from_cycles = True
+        for name, value in settings.items():
+            setattr(bpy.context.scene.cycles, name, value)
+    cycles, ours = cycles_and_ours(build, tmp_path, **settings)
+    mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
+    print(f"light paths {case}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} "
+          f"ratio {mean_ours / mean_cycles:.4f}")
+    assert mean_ours == pytest.approx(mean_cycles, rel=rtol)
+    assert_bands_match(case, ours, cycles)
+    return cycles, ours
+
+
 # Bounce limits (max_bounces in all, then diffuse, glossy, transmission, volume), set alike in Cycles and
 # ours.
 BOUNCE_LIMITS = {
@@ -2201,28 +2232,12 @@ def test_bounce_limits_match_cycles(addon, tmp_path, case):
     limits = dict(zip(("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
                        "volume_bounces"), BOUNCE_LIMITS[case]))
 
-    def build():
-        if case.startswith("mirror"):
-            corner_with_a_mirror_wall()
-        elif case.startswith("glass"):
-            corner_scene()
-            bs.cube("Glass", size=1.0, material=bs.glass("Glass"), location=(0, 0, 1.2))
-        else:
-            corner_scene()
-            mat, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Color=(0.9, 0.8, 0.6, 1.0),
-                                        Density=0.6, Anisotropy=0.4)
-            bs.cube("FogBox", size=1.0, material=mat, location=(0.0, -0.5, 1.0), scale=(3.0, 3.0, 1.9))
-        add_emitter("area_square")
-        # Ours takes them from Cycles' settings, as by default.
-        bpy.context.scene.amcmcppm.light_paths_from_cycles = True
-        for name, value in limits.items():
-            setattr(bpy.context.scene.cycles, name, value)
-    cycles, ours = cycles_and_ours(build, tmp_path, **limits)
-    mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
-    print(f"bounce limits {case}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} "
-          f"ratio {mean_ours / mean_cycles:.4f}")
-    assert mean_ours == pytest.approx(mean_cycles, rel=TOLERANCE)
-    assert_bands_match(case, ours, cycles)
+    def fog():
+        corner_scene()
+        mat, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Color=(0.9, 0.8, 0.6, 1.0),
+                                    Density=0.6, Anisotropy=0.4)
+        bs.cube("FogBox", size=1.0, material=mat, location=(0.0, -0.5, 1.0), scale=(3.0, 3.0, 1.9))
+    cycles, ours = light_paths_match_cycles(tmp_path, case, fog, limits)
     # (with no glossy bounce the mirror shows Cycles no floor, and ours neither)
     dark = cycles[..., :3].reshape(4, -1).max(axis=1) == 0.0
     assert ours[..., :3].reshape(4, -1)[dark].max(initial=0.0) == 0.0
@@ -2250,27 +2265,12 @@ def test_caustics_toggles_match_cycles(addon, tmp_path, case):
     its tolerance of 1.5 %."""
     reflective, refractive = CAUSTICS[case]
 
-    def build():
-        if case.startswith("mirror"):
-            corner_with_a_mirror_wall()
-        elif case.startswith("glass"):
-            corner_scene()
-            bs.cube("Glass", size=1.0, material=bs.glass("Glass"), location=(0, 0, 1.2))
-        else:
-            corner_scene()
-            for name, color, coat in (("Floor", (0.8, 0.8, 0.8), 0.0), ("Wall", (0.7, 0.6, 0.5), 1.0)):
-                mat = bs._material(name + "Principled", "ShaderNodeBsdfPrincipled", Roughness=0.4,
-                                   **{"Base Color": (*color, 1.0), "Coat Weight": coat})
-                bpy.data.objects[name].data.materials[0] = mat
-        add_emitter("area_square")
-        # Ours takes them from Cycles' settings, as by default.
-        bpy.context.scene.amcmcppm.light_paths_from_cycles = True
-        bpy.context.scene.cycles.caustics_reflective = reflective
-        bpy.context.scene.cycles.caustics_refractive = refractive
-    cycles, ours = cycles_and_ours(build, tmp_path, caustics_reflective=reflective,
-                                   caustics_refractive=refractive)
-    mean_cycles, mean_ours = cycles[..., :3].mean(), ours[..., :3].mean()
-    print(f"caustics {case}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} "
-          f"ratio {mean_ours / mean_cycles:.4f}")
-    assert mean_ours == pytest.approx(mean_cycles, rel=0.015 if case.startswith("principled") else TOLERANCE)
-    assert_bands_match(case, ours, cycles)
+    def principled():
+        corner_scene()
+        for name, color, coat in (("Floor", (0.8, 0.8, 0.8), 0.0), ("Wall", (0.7, 0.6, 0.5), 1.0)):
+            mat = bs._material(name + "Principled", "ShaderNodeBsdfPrincipled", Roughness=0.4,
+                               **{"Base Color": (*color, 1.0), "Coat Weight": coat})
+            bpy.data.objects[name].data.materials[0] = mat
+    light_paths_match_cycles(tmp_path, case, principled,
+                             dict(caustics_reflective=reflective, caustics_refractive=refractive),
+                             rtol=0.015 if case.startswith("principled") else TOLERANCE)
