@@ -143,8 +143,8 @@ def configure(bpy, scene, args):
     caustics flag switches a file that takes Cycles' Light Paths to the engine's own, set to Cycles'
     first (so the settings not given stay as they were)."""
     props = scene.amcmcppm
-    light_paths = [flag for flag, prop in SETTING_FLAGS.items()
-                   if prop.endswith("_bounces") or prop.startswith("caustics_")]
+    names = props.light_path_limits()[0]
+    light_paths = [flag for flag, prop in SETTING_FLAGS.items() if prop in names]
     if props.light_paths_from_cycles and any(getattr(args, flag) is not None for flag in light_paths):
         props.own_light_paths()
     for flag, prop in SETTING_FLAGS.items():

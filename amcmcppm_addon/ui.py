@@ -95,11 +95,10 @@ class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
         layout.prop(settings, "light_paths_from_cycles")
         cycles = getattr(context.scene, "cycles", None)
         source = cycles if settings.light_paths_from_cycles and cycles is not None else settings
-        col = layout.column(align=True)
-        for name in self.props[1:6]:
-            col.prop(source, name, text=self.labels[name])
-        col = layout.column(heading="Caustics", align=True)
-        for name in self.props[6:]:
+        bounces = layout.column(align=True)
+        caustics = layout.column(heading="Caustics", align=True)
+        for name in self.props[1:]:
+            col = caustics if name.startswith("caustics_") else bounces
             col.prop(source, name, text=self.labels[name])
 
 

@@ -24,7 +24,7 @@ scattering block onwards redrawn uniformly, in place in ``u``, before it is used
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from functools import cached_property
 
 import numpy as np
@@ -225,8 +225,7 @@ class DepositTarget:
         if self.cells is not None:
             d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
         if self.limits is not None:
-            d["limits"] = self.limits.array
-            d["caustics"] = np.array([self.limits.caustics_reflective, self.limits.caustics_refractive])
+            d.update({f"limits.{k}": np.asarray(v) for k, v in asdict(self.limits).items()})
         if self.volume is not None:
             d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__
                       if getattr(self.volume, f) is not None})
@@ -240,6 +239,7 @@ class DepositTarget:
                                       if f"points.{f}" in d})
         grid = HashGrid.from_arrays({k[5:]: v for k, v in d.items() if k.startswith("grid.")})
         cells = {k[6:]: v for k, v in d.items() if k.startswith("cells.")}
+        limits = {k[7:]: v.item() for k, v in d.items() if k.startswith("limits.")}
         volume = vgrid = None
         if "volume.pixel_ids" in d:
             volume = VolumePoints(**{f: d[f"volume.{f}"] for f in VolumePoints.__dataclass_fields__
@@ -250,8 +250,7 @@ class DepositTarget:
                              volume=volume, volume_radius=d.get("volume_radius"), volume_grid=vgrid,
                              media=d.get("media"), inner=bool(d.get("inner", False)),
                              coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"),
-                             limits=None if "limits" not in d else BounceLimits(*map(int, d["limits"]),
-                                                                                *map(bool, d["caustics"])))
+                             limits=BounceLimits(**limits) if limits else None)
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -805,8 +804,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             if len(pi) and diffuse_next is not None:
                 # (pairs worth nothing, with no glossy part, make no path visible)
                 scale = diffuse_next.take(idx.take(dep.take(pi)))
-                glossy = target.is_glossy.take(pj) if back is None else target.is_glossy.take(pj) & ~back
-                keep = (scale > 0) | glossy if keep is None else keep & ((scale > 0) | glossy)
+                glossy = target.is_glossy.take(pj)
+                worth = (scale > 0) | (glossy if back is None else glossy & ~back)
+                keep = worth if keep is None else keep & worth
             if keep is not None and not keep.all():
                 k = np.flatnonzero(keep)
                 pi, pj, cos_g = pi.take(k), pj.take(k), cos_g.take(k)
