@@ -1,10 +1,13 @@
 """Materials as weighted lobes: lobe choice, sampling and evaluation on batches.
 
 Lobes (index order used everywhere): 0 diffuse, 1 glossy (GGX), 2 mirror,
-3 dielectric, and 4 translucent (Lambertian transmission) in tables of scenes that have
-it (``MaterialTable.lobes``: 4 or 5 columns).  Diffuse, glossy and translucent are
+3 dielectric, 4 translucent (Lambertian transmission) in tables of scenes that have
+it, and 5 sheen (Cycles' microfiber sheen, :func:`sheen_albedo`) in tables of scenes that have
+that (``MaterialTable.lobes``: 4, 5 or 6 columns).  Diffuse, glossy, translucent and sheen are
 *non-delta* (photons are deposited on them and camera paths store measurement points
-there); mirror and dielectric are *delta* (camera paths continue through them).
+there); mirror and dielectric are *delta* (camera paths continue through them).  A sheen lies
+over the rest of its material: every other lobe takes :meth:`MaterialTable.sheen_dim` at the
+view direction.
 Emission is not a lobe: it is added where a camera path hits an emitter.
 
 Conventions: ``wo`` points away from the surface towards the previous vertex,
@@ -44,7 +47,7 @@ from . import sampling as smp
 from . import thin_film
 from .sampling import dot
 
-DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT = 0, 1, 2, 3, 4
+DIFFUSE, GLOSSY, MIRROR, DIELECTRIC, TRANSLUCENT, SHEEN = 0, 1, 2, 3, 4, 5
 REFLECTING = (DIFFUSE, GLOSSY)          # the non-delta lobes that reflect
 DELTA = (MIRROR, DIELECTRIC)
 # Glossy lobes with a smaller Blender roughness act as a perfect mirror.
@@ -161,13 +164,21 @@ def coat_variants(mats):
     A coat material is the coat alone: a glossy lobe of weight ``coat_weight`` that reflects
     F0 + (1 - F0) s(c) = F(c) (``glossy_fresnel_ior`` the coat's IOR) with multiscatter F_ss the
     mean Fresnel (Cycles' ``bsdf_microfacet_setup_fresnel_dielectric``), without normal or bump
-    maps.  Without coats: ``mats`` itself."""
+    maps.  A sheen lies over the coat (Cycles' Principled): a coated material's sheen moves to its
+    coat material, which the sheen's factor (``sheen_cover``) dims as the material keeps dimming
+    what lies under the coat.  Without coats: ``mats`` itself."""
     weight = np.asarray(mats.coat_weight, np.float64)
     coat_row = np.full(mats.count, -1, np.int32)
     coated = np.flatnonzero(weight > 0)
     if len(coated) == 0:
         return mats, coat_row
-    keys = np.stack([weight[coated], mats.coat_roughness[coated], mats.coat_ior[coated]], axis=1)
+    m = mats.count
+    sheen = [np.zeros((m, 3)), np.full(m, 0.5), np.zeros(m)]
+    for i, name in enumerate(("sheen_color", "sheen_roughness", "sheen_cover")):
+        if getattr(mats, name) is not None:
+            sheen[i] = np.asarray(getattr(mats, name), np.float64)
+    keys = np.column_stack([weight[coated], mats.coat_roughness[coated], mats.coat_ior[coated],
+                            sheen[0][coated], sheen[1][coated], sheen[2][coated]])
     unique, which = np.unique(keys, axis=0, return_inverse=True)
     coat_row[coated] = mats.count + which.ravel()
     k = len(unique)
@@ -187,11 +198,16 @@ def coat_variants(mats):
     changes["glossy_fresnel_ior"][new] = ior
     changes["glossy_fresnel_rise"][new] = 1.0 - f0[:, None]
     changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
+    if (unique[:, 3:6] > 0).any() or (unique[:, 7] > 0).any():
+        changes["sheen_color"] = np.concatenate([sheen[0], unique[:, 3:6]]).astype(np.float32)
+        changes["sheen_color"][coated] = 0.0
+        changes["sheen_roughness"] = np.concatenate([sheen[1], unique[:, 6]]).astype(np.float32)
+        changes["sheen_cover"] = np.concatenate([sheen[2], unique[:, 7]]).astype(np.float32)
     for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "outer_bump_strength",
                  "outer_bump_distance", "coat_bump_strength", "coat_bump_distance", "diffuse_layer_weight",
                  "glossy_stretch", "glossy_metal_share", "bump_correction"):
         changes[name][new] = 1.0
-    names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique]
+    names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique[:, :3]]
     return (dataclasses.replace(mats, names=names, **changes),
             np.concatenate([coat_row, np.full(k, -1, np.int32)]))
 
@@ -267,6 +283,8 @@ class MaterialTable:
     glossy_beckmann: np.ndarray = None      # (M,) bool: the glossy lobe's microfacets are Beckmann's (no
     #                                         multiscatter); None: all GGX
     dielectric_beckmann: np.ndarray = None  # (M,) bool: so are the rough glass's; None: all GGX
+    sheen_roughness: np.ndarray = None      # (M,) float64 the sheen's roughness (None: no sheen in the scene)
+    sheen_cover: np.ndarray = None          # (M,) float64 k of the rest's factor 1 - k E(mu) (sheen_dim)
 
     @staticmethod
     def from_materials(mats, coarse=None, coat_row=None, through_roughness=0.0) -> "MaterialTable":
@@ -281,12 +299,18 @@ class MaterialTable:
         translucent = _or_zeros(mats.translucent_weight, m)
         translucent_color = _or_zeros(mats.translucent_color, (m, 3))
         translucent_on = (translucent > 0) & (smp.luminance(translucent_color) > 0)
-        lobes = 5 if translucent_on.any() else 4
+        sheen_color = np.maximum(_or_zeros(mats.sheen_color, (m, 3)), 0.0)
+        sheen_cover = np.maximum(_or_zeros(mats.sheen_cover, m), 0.0)
+        sheen_on = smp.luminance(sheen_color) > 0
+        lobes = 6 if (sheen_on | (sheen_cover > 0)).any() else 5 if translucent_on.any() else 4
         weight = np.zeros((m, lobes))
         color = np.zeros((m, lobes, 3))
-        if lobes == 5:
+        if lobes >= 5:
             weight[:, TRANSLUCENT] = np.where(translucent_on, translucent, 0.0)
             color[:, TRANSLUCENT] = translucent_color
+        if lobes == 6:
+            weight[:, SHEEN] = sheen_on
+            color[:, SHEEN] = sheen_color
         weight[:, DIFFUSE] = mats.diffuse_weight
         color[:, DIFFUSE] = mats.diffuse_color
         program = (np.asarray(mats.diffuse_program, np.int32) if mats.diffuse_program is not None
@@ -360,7 +384,7 @@ class MaterialTable:
             mean = _metal_mean_rise(color[:, lobe], edge[:, lobe], dip[:, lobe])
             score_extra[:, lobe] += weight[:, lobe] * smp.luminance(mean)
         coat_row = np.full(m, -1, np.int32) if coat_row is None else np.asarray(coat_row, np.int32)
-        has_nondelta = diffuse_on | glossy_on | translucent_on
+        has_nondelta = diffuse_on | glossy_on | translucent_on | sheen_on
         tint = _or_none(mats.glossy_metal_tint, (m, 3)).astype(np.float64)
         hit_metal = (tint >= 0).all(axis=1) & ((weight[:, GLOSSY] > 0) | (weight[:, MIRROR] > 0))
         coat_factor, coat_layer, coat_score = _coat_tables(mats, coat_row, alpha, fresnel_ior, rise_means,
@@ -396,7 +420,7 @@ class MaterialTable:
                              dielectric_fresnel=(None if mats.dielectric_fresnel is None
                                                  or (mats.dielectric_fresnel >= 1).all()
                                                  else np.asarray(mats.dielectric_fresnel, np.float64)),
-                             glossy_through=glossy_on & ~diffuse_on
+                             glossy_through=glossy_on & ~diffuse_on & ~sheen_on
                              & (mats.glossy_roughness < through_roughness),
                              rough_diffuse=_rough_diffuse_table(_or_zeros(mats.diffuse_roughness, m)),
                              anisotropic=anisotropic, alpha_x=alpha_x, alpha_y=alpha_y,
@@ -420,7 +444,8 @@ class MaterialTable:
                                                                           & (dielectric_alpha > 0)).any()
                                                   else None),
                              **_glass_multiscatter_tables(
-                                 mats, weight, np.where(dielectric_beckmann, 0.0, dielectric_alpha), coarse))
+                                 mats, weight, np.where(dielectric_beckmann, 0.0, dielectric_alpha), coarse),
+                             **_sheen_tables(mats, lobes, sheen_on, sheen_cover, score_extra))
 
     @property
     def has_glass_multiscatter(self) -> bool:
@@ -439,8 +464,32 @@ class MaterialTable:
 
     @property
     def lobes(self) -> int:
-        """Columns of the lobe arrays: 5 with a translucent lobe in the scene, else 4."""
+        """Columns of the lobe arrays: 6 with a sheen in the scene, else 5 with a translucent lobe
+        in the scene, else 4."""
         return self.weight.shape[1]
+
+    @property
+    def has_sheen(self) -> bool:
+        return self.lobes > SHEEN
+
+    @property
+    def point_lobes(self) -> list:
+        """The lobes whose colours a measurement point keeps (``MeasurementPoints.colors``)."""
+        return [DIFFUSE, GLOSSY, TRANSLUCENT, SHEEN][:self.lobes - 2]
+
+    def sheen_lobe(self, mat_ids, mu):
+        """(E, a, b), each (n,): the sheens of materials ``mat_ids`` seen at view cosines ``mu``:
+        their directional albedo and the LTC's coefficients (:func:`sheen_albedo`)."""
+        return sheen_albedo(mu, self.sheen_roughness.take(mat_ids))
+
+    def sheen_dim(self, mat_ids, mu):
+        """(n,) the factor of everything under the sheens of materials ``mat_ids`` (all lobes but the
+        sheen, the coat, the emission) at view cosines ``mu`` (their absolute values: Cycles' normal
+        faces the view): 1 - k E(mu), clamped to [0, 1] (Cycles' ``closure_layering_weight`` of the
+        Principled's sheen, k the largest channel of its weight times tint); 1 without a sheen."""
+        k = self.sheen_cover.take(mat_ids)
+        e, _, _ = sheen_albedo(np.abs(mu), self.sheen_roughness.take(mat_ids))
+        return np.clip(1.0 - k * e, 0.0, 1.0)
 
     @cached_property
     def has_translucent(self) -> bool:
@@ -738,6 +787,65 @@ class MaterialTable:
     def layer_factor(self, mat_ids, mu):
         """(n,) factors of the diffuse lobe under a Fresnel layer at view cosines ``mu`` (1: none)."""
         return _interpolate(self.layer, mat_ids, mu)
+
+
+def sheen_albedo(mu, roughness):
+    """(E, a, b), each (n,), of Cycles' microfiber sheen (Zeltner, Burley and Chiang 2022, "Practical
+    multiple-scattering sheen using linearly transformed cosines") at view cosines ``mu`` and
+    roughness (both (n,)): its directional albedo E and the coefficients of its lobe, the cosine
+    transformed by the inverse matrix [[a, 0, b], [0, a, 0], [0, 0, 1]] in the frame whose x axis is
+    the view's direction along the surface (:func:`sheen_value`).  Cycles reads the three from a
+    32 x 32 table of the paper's fit; these are the paper's analytic fits of that table (a Gaussian
+    in mu for E, rational functions for a and b), within about 1 % of Cycles' furnace albedo at
+    roughness 0.3 to 1 (2 to 5 % by band of mu, more where E is below 0.01).  As in Cycles the
+    roughness is clamped to [1e-3, 1] and a sheen whose a or E falls below 1e-5 is left out (E 0)."""
+    x = np.clip(mu, 0.0, 1.0)
+    y = np.clip(roughness, 1e-3, 1.0)
+    s = y * (0.0206607 + 1.58491 * y) / (0.0379424 + y * (1.32227 + y))
+    m = y * (-0.193854 + y * (-1.14885 + y * (1.7932 - 0.95943 * y * y))) / (0.046391 + y)
+    o = y * (0.000654023 + (-0.0207818 + 0.119681 * y) * y) / (1.26264 + y * (-1.92021 + y))
+    e = np.exp(-0.5 * ((x - m) / s) ** 2) / (s * np.sqrt(2.0 * np.pi)) + o
+    a = (2.58126 * x + 0.813703 * y) * y / (1.0 + 0.310327 * x * x + 2.60994 * x * y)
+    b = (np.sqrt(1.0 - x) * (y - 1.0) * y * y * y
+         / (0.0000254053 + 1.71228 * x - 1.71506 * x * y + 1.34174 * y * y))
+    e = np.where((np.abs(a) < 1e-5) | (e < 1e-5), 0.0, np.clip(e, 0.0, 1.0))
+    return e, a, b
+
+
+def sheen_frame(view, n):
+    """(x, y) (n, 3) of the sheen's frame with normal ``n``: x the view's direction along the surface
+    (any tangent where the view is the normal), y = n x x (Cycles' ``make_orthonormals_safe_tangent``)."""
+    x = view - dot(view, n)[:, None] * n
+    length = np.sqrt(dot(x, x))
+    flat = length < 1e-7
+    x = x / np.where(flat, 1.0, length)[:, None]
+    if flat.any():
+        x[flat] = smp.orthonormal_frames(n[flat])[0]
+    return x, np.cross(n, x)
+
+
+def sheen_value(a, b, lx, ly, lz):
+    """(n,) the sheen's f (per unit of its colour times E; without the cosine) towards a light of
+    local coordinates ``lx``, ``ly``, ``lz`` (:func:`sheen_frame` and the normal): the transformed
+    cosine a^2 max(lz, 0) / (pi |M^-1 l|^4) over lz (Cycles' ``bsdf_sheen_eval`` divided by the
+    cosine); 0 below the surface."""
+    len_sq = (a * lx + b * lz) ** 2 + (a * ly) ** 2 + lz * lz
+    return np.where(lz > 0, a * a / (np.pi * np.maximum(len_sq, 1e-300) ** 2), 0.0)
+
+
+def _sheen_tables(mats, lobes, sheen_on, cover, score_extra):
+    """The table's sheen fields (``sheen_roughness``, ``sheen_cover``; None without a sheen column),
+    and each sheen's lobe-choice score term: its cosine-weighted mean albedo over views, into
+    ``score_extra`` (which :func:`lobe_scores` multiplies by)."""
+    if lobes <= SHEEN:
+        return dict(sheen_roughness=None, sheen_cover=None)
+    m = len(cover)
+    rough = np.clip(np.full(m, 0.5) if mats.sheen_roughness is None
+                    else np.asarray(mats.sheen_roughness, np.float64), 0.0, 1.0)
+    mu = (np.arange(64) + 0.5) / 64
+    e, _, _ = sheen_albedo(np.tile(mu, m), np.repeat(rough, 64))
+    score_extra[:, SHEEN] = np.where(sheen_on, 2.0 * (e.reshape(m, 64) * mu).mean(axis=1), 0.0)
+    return dict(sheen_roughness=rough, sheen_cover=np.where(sheen_on | (cover > 0), cover, 0.0))
 
 
 def _or_ones(values, m):
@@ -1248,6 +1356,9 @@ def lobe_scores(table, mat_ids, colors):
                 # whole metal).
                 mean = table.hit_metal_share.take(m)[:, None] * mean + table.hit_metal_rest.take(m, axis=0)
             scores[h, lobe] = table.weight[m, lobe] * smp.luminance(mean) + table.score_extra[m, lobe]
+    if table.has_sheen:
+        # (a factor: the sheen's mean albedo over views)
+        scores[:, SHEEN] *= table.score_extra[:, SHEEN].take(mat_ids)
     return scores
 
 
@@ -1490,6 +1601,12 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
                 # Cycles' convention (see the module docstring): photons going into a denser medium
                 # lose 1 / eta^2 of their flux, and gain it back coming out (refraction_scale).
                 w = w * np.where(is_refl, 1.0, 1.0 / (eta * eta))[:, None]
+        elif k == SHEEN:
+            d, w, ok = _scatter_sheen(table, m_sel, lw, w_o, n_s, n_g, u1[sel], u2[sel], mode)
+        if table.has_sheen and k != SHEEN:
+            # Under a sheen: its factor at the view (camera-side) direction, for photons the new one.
+            view = d if mode == "importance" else w_o
+            w = w * table.sheen_dim(m_sel, dot(view, n_s))[:, None]
         if mode == "importance" and ns is not ng and k not in (DIFFUSE, TRANSLUCENT):
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
         if nnf is not None and k in REFLECTING:
@@ -1502,6 +1619,31 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
         weight[sel] = np.where(ok[:, None], w, 0.0)
         alive[sel] = ok
     return smp.normalize(wi), weight, alive
+
+
+def _scatter_sheen(table, mats, lw, wo, ns, ng, u1, u2, mode):
+    """(wi, weight, ok) of the sheen lobe (:func:`sheen_albedo`) of materials ``mats`` at hits of
+    normals ``ns``, ``ng`` (on the side of ``wo``), lobe weights ``lw`` (n, 3) (weight times colour
+    over the choice's probability).  Camera paths (``wo`` the view) sample the transformed cosine
+    itself: weight E(wo).  Photons (``wo`` towards the light) leave cosine-distributed about the
+    normal, the new direction being the view: f(wi, wo) |cos| / pdf = E(wi) a^2 / |M^-1 wo|^4 in
+    the frame of wi."""
+    if mode == "importance":
+        wi = smp.to_world(smp.cosine_hemisphere(u1, u2), ns)
+        e, a, b = table.sheen_lobe(mats, dot(wi, ns))
+        x, y = sheen_frame(wi, ns)
+        lz = dot(wo, ns)
+        value = sheen_value(a, b, dot(wo, x), dot(wo, y), lz) * np.pi
+        ok = (lz > 0) & (dot(wi, ng) > 0) & (e > 0)
+        return wi, lw * (e * value)[:, None], ok
+    e, a, b = table.sheen_lobe(mats, dot(wo, ns))
+    x, y = sheen_frame(wo, ns)
+    # A cosine-distributed direction, transformed by M (Cycles' ``bsdf_sheen_sample``).
+    c = smp.cosine_hemisphere(u1, u2)
+    local = smp.normalize(np.stack([c[:, 0] - c[:, 2] * b, c[:, 1], c[:, 2] * a], axis=1))
+    wi = local[:, :1] * x + local[:, 1:2] * y + local[:, 2:] * ns
+    ok = (dot(wi, ng) > 0) & (e > 0)
+    return wi, lw * e[:, None], ok
 
 
 def refraction_scale(table, mat_ids, lobe, wo, wi, ng):

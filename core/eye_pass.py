@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, TRANSLUCENT, choose_lobe, face_forward,
+from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choose_lobe, face_forward,
                    lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from . import subsurface
@@ -164,8 +164,7 @@ def point_albedo(table, points, n_pixels):
     out = np.zeros((n_pixels, 3))
     if points.count == 0:
         return out
-    lobes = [DIFFUSE, GLOSSY, TRANSLUCENT][:points.colors.shape[1]]
-    weight = table.weight[:, lobes].take(points.mat_ids, axis=0)
+    weight = table.weight[:, table.point_lobes].take(points.mat_ids, axis=0)
     albedo = (weight[:, :, None] * points.colors).sum(axis=1) * points.weight
     for c in range(3):
         out[:, c] = np.bincount(points.pixel_ids, albedo[:, c], minlength=n_pixels)
@@ -220,7 +219,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     world = np.asarray(scene.world.color, np.float64)
     extent = accel.extent
     # The lobe colours a measurement point keeps (MeasurementPoints.colors).
-    point_lobes = [DIFFUSE, GLOSSY, TRANSLUCENT] if table.has_translucent else slice(DIFFUSE, GLOSSY + 1)
+    point_lobes = table.point_lobes
     grows = cam.projection != "orthographic"         # footprints grow with the distance
     beta = np.ones((len(pix), 3))
     path_len = np.zeros(len(pix))
@@ -349,6 +348,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                                surf.position.take(e, axis=0), rays_in.take(e))
             if table.has_coat:
                 seen = seen * coat_attenuation(table, surf, wo, e)
+            if table.has_sheen:
+                seen = seen * sheen_dim(table, surf, wo, e)[:, None]
             if sets is not None:
                 seen = seen * linked(ctx.emitter_links.take(prim.take(e)), sets.take(e))[:, None]
             emission[pix[e]] += beta[e] * seen
@@ -366,6 +367,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
         if table.has_translucent:
             non_delta = non_delta + scores[:, TRANSLUCENT]
+        if table.has_sheen:
+            non_delta = non_delta + scores[:, SHEEN]
         total = non_delta + scores[:, MIRROR] + scores[:, DIELECTRIC]     # columns: sum(axis=1) is slow
         through = None
         if table.has_glossy_through:
@@ -418,6 +421,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         delta_scores[:, [DIFFUSE, GLOSSY]] = 0.0
         if table.has_translucent:
             delta_scores[:, TRANSLUCENT] = 0.0
+        if table.has_sheen:
+            delta_scores[:, SHEEN] = 0.0
         if through is not None:
             delta_scores[:, GLOSSY] = np.where(through[go], scores[go, GLOSSY], 0.0)
         u_delta = (u[go, 0] - p_nd[go]) / np.maximum(1.0 - p_nd[go], 1e-300)
@@ -548,6 +553,12 @@ def coat_normal(surf):
     if surf.nc is not None:
         return surf.nc
     return surf.ns if surf.nn is None else surf.nn
+
+
+def sheen_dim(table, surf, wo, rows):
+    """(k,) the sheens' factor (:meth:`~core.bsdf.MaterialTable.sheen_dim`) at hits ``rows`` of
+    ``surf`` seen from ``wo`` (n, 3), with the shading normal."""
+    return table.sheen_dim(surf.mat_ids.take(rows), dot(wo.take(rows, axis=0), surf.ns.take(rows, axis=0)))
 
 
 def coat_attenuation(table, surf, wo, rows, albedo_only=False):

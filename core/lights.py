@@ -56,6 +56,9 @@ class LightSampler:
         # Emitters under a coat (Materials.coat_weight) emit through it: its factor at the direction.
         self.coated_emitters = bool(table.has_coat and scene.triangle_count
                                     and (table.coat_row[scene.material_ids] >= 0).any())
+        # Emitters under a sheen (Materials.sheen_cover), dimmed by it likewise.
+        self.sheened_emitters = bool(table.has_sheen and scene.triangle_count
+                                     and (table.sheen_cover[scene.material_ids] > 0).any())
         self.table, self.material_ids = table, scene.material_ids
         self.lights = lights
         # Emission axes renormalised in float64 (the scene stores them in float32).
@@ -516,6 +519,9 @@ class LightSampler:
                 emitted = np.array(emitted, np.float64)
                 mu = np.abs(smp.dot(d, n).take(coated))
                 emitted[coated] *= self.table.coat_attenuation(mats.take(coated), mu)
+        if self.sheened_emitters:
+            emitted = np.array(emitted, np.float64)
+            emitted *= self.table.sheen_dim(self.material_ids.take(ids), smp.dot(d, n))[:, None]
         return a.spawn(p, n, d), d, emitted, n
 
     def _emitter_rays(self, directions):

@@ -29,9 +29,10 @@ from functools import cached_property
 
 import numpy as np
 
-from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
+from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, SHEEN, TRANSLUCENT, bump_shadowing, choose_lobe, eval_glossy,
                    face_forward, glossy_anisotropic_value, lobe_remainder, lobe_scores, pick_coat,
-                   refraction_scale, rough_diffuse_factor, rough_diffuse_terms, scatter)
+                   refraction_scale, rough_diffuse_factor, rough_diffuse_terms, scatter, sheen_frame,
+                   sheen_value)
 from . import subsurface
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
@@ -140,8 +141,13 @@ class DepositTarget:
         bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
         self.bumped = bumped if bumped is not None and bumped.any() else None
         glossy = table.has_glossy.take(points.mat_ids)
-        self.any_glossy = bool(glossy.any())
-        self.is_glossy = glossy
+        # Points with a glossy lobe; with a sheen, or None; and those whose pairs carry their
+        # whole weight (is_glossy: either).
+        self.glossy_lobe = glossy
+        sheened = table.weight[:, SHEEN].take(points.mat_ids) > 0 if table.has_sheen else None
+        self.sheened = sheened if sheened is not None and sheened.any() else None
+        self.is_glossy = glossy if self.sheened is None else glossy | self.sheened
+        self.any_glossy = bool(self.is_glossy.any())
         self.alpha = table.alpha.take(points.mat_ids)
         # Points whose glossy lobe has Beckmann microfacets (None: all GGX).
         self.beckmann = _some(None if table.glossy_beckmann is None
@@ -388,6 +394,7 @@ class DepositTarget:
                     ratio[b[~valid]] = 0.0          # glossy pairs too (below)
         else:
             wd = (cos_g > 0).astype(np.float64)
+        geometry = wd
         if self.coloured is not None:
             front, behind = self._sides
             color = front.take(j, axis=0)
@@ -426,6 +433,15 @@ class DepositTarget:
             g, jg, in_s = s, js, None
         else:
             in_s = np.flatnonzero(~back.take(s))
+            g, jg = s.take(in_s), js.take(in_s)
+        if self.sheened is not None:
+            # The sheen's part (not dimmed, a diffuse event: ``exclude``'s diffuse bit and the
+            # diffuse scale apply), then the glossy part of the points that have a glossy lobe.
+            front_s = np.arange(len(s)) if in_s is None else in_s
+            h = front_s.take(np.flatnonzero(self.sheened.take(js.take(front_s))))
+            if len(h):
+                w_s[:, h] += self._sheen_part(js.take(h), s.take(h), wi, geometry, exclude, diffuse_scale)
+            in_s = front_s.take(np.flatnonzero(self.glossy_lobe.take(js.take(front_s))))
             g, jg = s.take(in_s), js.take(in_s)
         if len(g):
             nsg = pts.glossy_normals.take(jg, axis=0)
@@ -466,6 +482,44 @@ class DepositTarget:
         w[:, s] = w_s
         return w
 
+    def _sheen_part(self, jh, h, wi, geometry, exclude, diffuse_scale):
+        """(3, k) the sheen's part of pairs ``h`` with sheened points ``jh`` (:meth:`pair_weights`'s
+        ``geometry`` the pairs' geometric factor): the point's sheen colour times E at its view,
+        times the lobe's f towards the photon (:func:`~core.bsdf.sheen_value`)."""
+        pts = self.points
+        color, a, b = self._sheen
+        n = pts.ns.take(jh, axis=0).astype(np.float64)
+        x, y = sheen_frame(pts.wo.take(jh, axis=0).astype(np.float64), n)
+        w = wi.take(h, axis=0)
+        f = sheen_value(a.take(jh), b.take(jh), dot(w, x), dot(w, y), dot(w, n)) * geometry.take(h)
+        if exclude is not None:
+            f = f * ((exclude.take(h) & EXCLUDE_DIFFUSE) == 0)
+        if diffuse_scale is not None:
+            f = f * diffuse_scale.take(h)
+        return color.take(jh, axis=1) * f
+
+    @cached_property
+    def _sheen(self):
+        """(color (3, m) float32, a, b (m,)): per sheened point its sheen's colour times E at the
+        view, and the LTC's coefficients there (:meth:`~core.bsdf.MaterialTable.sheen_lobe`)."""
+        pts, m = self.points, self.points.count
+        color = np.zeros((3, m), np.float32)
+        a, b = np.zeros(m), np.zeros(m)
+        j = np.flatnonzero(self.sheened)
+        mu = dot(pts.wo.take(j, axis=0), pts.ns.take(j, axis=0)).astype(np.float64)
+        e, a[j], b[j] = self.table.sheen_lobe(pts.mat_ids.take(j), mu)
+        color[:, j] = (pts.colors[j, 3] * e[:, None]).T
+        return color, a, b
+
+    @cached_property
+    def _dim(self):
+        """(m,) float32 the factor of each point's lobes under a sheen at its view
+        (:meth:`~core.bsdf.MaterialTable.sheen_dim`), or None in scenes without sheens."""
+        if not self.table.has_sheen:
+            return None
+        pts = self.points
+        return self.table.sheen_dim(pts.mat_ids, dot(pts.wo, pts.ns).astype(np.float64)).astype(np.float32)
+
     @cached_property
     def _factors(self):
         """(d, g) (3, m) float32 (channel rows): per point, what a pair's diffuse and glossy weights
@@ -495,6 +549,8 @@ class DepositTarget:
             if self.coloured is not None:
                 layer[self.coloured] = 1.0
             d *= layer[:, None]
+        if self._dim is not None:
+            d *= self._dim[:, None]
         if not self.any_glossy:
             return np.ascontiguousarray(d.T), None
         base = pts.colors[:, 1]
@@ -506,6 +562,8 @@ class DepositTarget:
             if mu is None:
                 mu = dot(pts.wo, pts.glossy_normals).astype(np.float64)
             g *= table.multiscatter(mats, mu, base)
+        if self._dim is not None:
+            g *= self._dim[:, None]
         return np.ascontiguousarray(d.T), np.ascontiguousarray(g.T)
 
     @property
@@ -804,7 +862,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             if len(pi) and diffuse_next is not None:
                 # (pairs worth nothing, with no glossy part, make no path visible)
                 scale = diffuse_next.take(idx.take(dep.take(pi)))
-                glossy = target.is_glossy.take(pj)
+                glossy = target.glossy_lobe.take(pj)
                 worth = (scale > 0) | (glossy if back is None else glossy & ~back)
                 keep = worth if keep is None else keep & worth
             if keep is not None and not keep.all():
@@ -1097,11 +1155,11 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
 
 def scatter_kind(lobe, wi, wo, ng):
     """(n,) uint8: the EXCLUDE_* bit of the rays that scatterings by ``lobe`` (n,) from ``wo`` to ``wi``
-    stand for: diffuse for the diffuse and translucent lobes, transmission for a glass's refraction
+    stand for: diffuse for the diffuse, translucent and sheen lobes, transmission for a glass's refraction
     (``wi`` and ``wo`` on opposite sides of the geometric normal ``ng``), glossy for the others
     (Cycles' closure classes for its excluded lights)."""
     refracted = (lobe == DIELECTRIC) & (dot(wi, ng) * dot(wo, ng) < 0)
-    return np.where((lobe == DIFFUSE) | (lobe == TRANSLUCENT), EXCLUDE_DIFFUSE,
+    return np.where((lobe == DIFFUSE) | (lobe == TRANSLUCENT) | (lobe == SHEEN), EXCLUDE_DIFFUSE,
                     np.where(refracted, EXCLUDE_TRANSMISSION, EXCLUDE_GLOSSY)).astype(np.uint8)
 
 

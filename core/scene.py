@@ -201,6 +201,14 @@ class Materials:
     ``coat_tint`` ^ (1 / cos_t(mu))), as Cycles: the coat's albedo at mu (K and S as for the
     Fresnel layer above) and the tint of a path through the coat refracted to cos_t.
 
+    A sheen (Principled's Sheen, Blender's Sheen BSDF; Cycles' microfiber sheen of Zeltner et
+    al. 2022, ``bsdf.sheen_albedo``) of colour ``sheen_color`` (0: none) and roughness
+    ``sheen_roughness`` reflects ``sheen_color`` E(mu) of the light, E its directional albedo at
+    the view cosine mu, in a lobe towards grazing views; ``sheen_cover`` k lays it over the rest
+    of the material: every other lobe, the coat and the emission are scaled by (1 - k E(mu)),
+    clamped to [0, 1] (Cycles' layering of the Principled's sheen: k the largest channel of its
+    weight times tint; 0 for the Sheen BSDF, which is no layer).
+
     A volume (Blender's Volume Absorption, Principled Volume's absorption) fills the mesh:
     ``volume_absorption`` (per channel, per scene unit of length; 0: none) scales light along a
     path segment inside it by exp(-``volume_absorption`` length), Beer-Lambert without
@@ -358,6 +366,9 @@ class Materials:
     volume_anisotropy: np.ndarray = None                # (M,) float32 in (-1, 1); None: 0
     volume_emission: np.ndarray = None                  # (M, 3) float32 >= 0, radiance / length; None: 0
     holdout: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 0
+    sheen_color: np.ndarray = None                      # (M, 3) float32 >= 0; None: 0 (no sheen)
+    sheen_roughness: np.ndarray = None                  # (M,) float32 in [0, 1]; None: 0.5
+    sheen_cover: np.ndarray = None                      # (M,) float32 >= 0; None: 0
     translucent_weight: np.ndarray = None               # (M,) float32; None: 0
     translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
     translucent_program: np.ndarray = None              # (M,) int32, index into programs or -1; None: -1
@@ -390,7 +401,7 @@ class Materials:
                     "film_metal_ior", "film_metal_extinction",
                     "subsurface_weight", "subsurface_radius", "subsurface_anisotropy", "subsurface_ior",
                     "subsurface_alpha", "subsurface_method", "glossy_distribution",
-                    "dielectric_distribution")
+                    "dielectric_distribution", "sheen_color", "sheen_roughness", "sheen_cover")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -439,7 +450,8 @@ class Materials:
         one for the opacity (equal programs are stored once).  ``opacity`` (default 1) and
         ``transparent_color`` (default 1) make it transparent.
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
-        ``coat_tint`` (1) give it a coat, ``volume_absorption`` (0) a volume, which
+        ``coat_tint`` (1) give it a coat, ``sheen`` (colour, 0), ``sheen_roughness`` (0.5) and
+        ``sheen_cover`` (0) a sheen, ``volume_absorption`` (0) a volume, which
         ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter and
         ``volume_emission`` (0) glow (or that alone), ``holdout`` (0) a holdout share.
         ``glossy_stretch`` (1), ``glossy_rotation`` (0) and ``glossy_tangent`` (2) make the
@@ -540,6 +552,9 @@ class Materials:
         out.holdout = np.zeros(m, np.float32)
         out.translucent_weight = np.zeros(m, np.float32)
         out.translucent_color = np.zeros((m, 3), np.float32)
+        out.sheen_color = np.zeros((m, 3), np.float32)
+        out.sheen_roughness = np.full(m, 0.5, np.float32)
+        out.sheen_cover = np.zeros(m, np.float32)
         out.translucent_program = np.full(m, -1, np.int32)
         out.rotation_program = np.full(m, -1, np.int32)
         out.stretch_program = np.full(m, -1, np.int32)
@@ -607,6 +622,9 @@ class Materials:
             out.coat_roughness[i] = s.get("coat_roughness", 0.03)
             out.coat_ior[i] = s.get("coat_ior", 1.5)
             out.coat_tint[i] = np.broadcast_to(np.asarray(s.get("coat_tint", 1.0), np.float32), (3,))
+            out.sheen_color[i] = np.broadcast_to(np.asarray(s.get("sheen", 0.0), np.float32), (3,))
+            out.sheen_roughness[i] = s.get("sheen_roughness", 0.5)
+            out.sheen_cover[i] = s.get("sheen_cover", 0.0)
             out.volume_absorption[i] = np.broadcast_to(
                 np.asarray(s.get("volume_absorption", 0.0), np.float32), (3,))
             out.volume_scattering[i] = np.broadcast_to(
@@ -1134,6 +1152,8 @@ class Scene:
                                        ("volume_emission", (n, 3), 0.0),
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
+                                       ("sheen_color", (n, 3), 0.0), ("sheen_roughness", (n,), 0.5),
+                                       ("sheen_cover", (n,), 0.0),
                                        ("diffuse_roughness", (n,), 0.0), ("glossy_stretch", (n,), 1.0),
                                        ("glossy_rotation", (n,), 0.0), ("rotation_program", (n,), -1),
                                        ("stretch_program", (n,), -1), ("level_program", (n,), -1),
@@ -1184,6 +1204,7 @@ class Scene:
                                 ("subsurface_alpha", 0.0, 1.0),
                                 ("subsurface_method", SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
+                                ("sheen_roughness", 0.0, 1.0),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),
                                 ("normal_space", NORMAL_TANGENT, NORMAL_BLENDER_WORLD),
