@@ -3,12 +3,12 @@
 A node walker follows the material's Cycles output (``Surface``) through
 reroutes, node groups, Mix and Add Shader nodes and reduces the shader to a
 :class:`Closure`: weights and colours of the core's lobes (diffuse, glossy,
-mirror, dielectric, translucent) plus emitted radiance.  Mix/Add combine closures linearly,
+mirror, dielectric, translucent), a sheen and emitted radiance.  Mix/Add combine closures linearly,
 which is exact for emission and for lobes of one kind with different colours,
 and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF (with its Alpha), Diffuse, Glossy, Metallic, Glass, Refraction,
-Translucent, Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups; on colour
+Translucent, Sheen, Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups; on colour
 and number inputs the texture and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a
 program the core evaluates at each hit, an Image Texture on the active UV map stays a plain image
 texture; other inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
@@ -34,6 +34,11 @@ level s, base colour B):
     scales by 1 - the layer's albedo at the view direction (``diffuse_layer``; Cycles'
     ``closure_layering_weight``).  A Mix with other shaders keeps the share of the diffuse
     under the layer (``diffuse_layer_weight``).
+  * sheen (Sheen Weight w, Sheen Tint T): the core's sheen (Cycles' microfiber sheen) of colour
+    w T and the Sheen Roughness, a layer over all of the node's other parts (and its coat and
+    emission), which the core dims by 1 - k E(mu), k = max(w T) and E the sheen's albedo
+    (Cycles' ``closure_layering_weight``).  The Sheen BSDF is the same sheen of its Color, a
+    shader of its own (k = 0).
   A texture on m (a metallic map) or else on t gives the node at ``MAP_LEVELS`` values of it as
   levels, of which the core picks one of the two around the map's value at each point, by the
   fraction between them (``Closure.levels``, ``Materials.level_program``): their mix, exactly.
@@ -68,7 +73,7 @@ Roughness below 0.02 is turned into a mirror (smooth glass) by the core.  Textur
 kept only where the core supports them (the diffuse colour, a glossy colour without a Fresnel
 rise, the glossy roughness, anisotropy and rotation, the emission's colour and strength, the colour
 a glass transmits, the translucent colour);
-elsewhere their mean is used.
+elsewhere their mean is used (e.g. the sheen's weight, tint, colour and roughness, noted).
 A missing image file gives a warning and Cycles' magenta.
 
 The Volume output: Volume Absorption, Volume Scatter and Principled Volume (their Add and Mix)
@@ -175,6 +180,11 @@ class Closure:
     # The coat's own normal (Principled's Coat Normal): (normal program or None, (height program,
     # strength, distance) of a bump over it or None); None: the surface's before its maps.
     coat_normal: tuple = None
+    sheen: np.ndarray = field(default_factory=lambda: np.zeros(3))        # (3,) weight * colour of a sheen
+    sheen_roughness: float = 0.5    # the sheen's roughness (its mean by the sheens' colours where it varies)
+    # k of a sheen layer (Principled's Sheen, times its share): the core dims the rest of the material
+    # (its other lobes, coat and emission) by 1 - k E(mu), E the sheen's albedo; 0: no layer.
+    sheen_cover: float = 0.0
     holdout: float = 0.0            # weight of a Holdout shader (what camera rays cut out)
     subsurface: float = 0.0         # the part of the diffuse weight that scatters beneath the surface
     # (radius (3,) scene units, anisotropy, IOR, entry alpha, core.scene.SUBSURFACE_*) of that part
@@ -212,6 +222,8 @@ class Closure:
                       holdout=fa * self.holdout + fb * other.holdout,
                       subsurface=fa * self.subsurface + fb * other.subsurface,
                       refraction_only=fa * self.refraction_only + fb * other.refraction_only,
+                      sheen=fa * self.sheen + fb * other.sheen,
+                      sheen_cover=fa * self.sheen_cover + fb * other.sheen_cover,
                       hidden_rays=self.hidden_rays & other.hidden_rays)
         out.roughness = _weighted(self.roughness, other.roughness, wa[GLOSSY], wb[GLOSSY])
         # Anisotropy: the stretch's geometric mean by the glossy weights, the tangent and its
@@ -260,6 +272,12 @@ class Closure:
                          else np.ones(3))
         coated = [c for c, w in ((self, ca), (other, cb)) if w > 0]
         out.coat_normal = coated[0].coat_normal if coated else None
+        # One sheen per material: its roughness the mean by the sheens' (mean) colours.  A Principled's
+        # sheen layer dims only that node's other parts in Cycles; the core dims the whole material
+        # by the layers' k mixed as the weights (exact where the mixed shaders are alike: the same k
+        # on both sides; beside another shader that one is dimmed too, and the node a little less).
+        out.sheen_roughness = _weighted(self.sheen_roughness, other.sheen_roughness, fa * self.sheen.mean(),
+                                        fb * other.sheen.mean())
         # One bent normal per material: the first side's that has weight.
         bent = [c for c, f in ((self, fa), (other, fb)) if f > 0 and (c.normal_map or c.bump)]
         out.normal_map, out.bump = (bent[0].normal_map, bent[0].bump) if bent else (None, None)
@@ -339,7 +357,8 @@ class Closure:
     @property
     def only_transparent(self) -> bool:
         """Whether this is a Transparent BSDF alone (nothing that scatters or emits)."""
-        return self.transparent_weight > 0 and not self.weight.any() and not self.emission.any()
+        return (self.transparent_weight > 0 and not self.weight.any() and not self.emission.any()
+                and not self.sheen.any())
 
     def _mixed_lobe_program(self, other, wa, wb, lobe, name):
         """The program ``name`` of the mix's colour of lobe ``lobe`` (the glass's transmitted
@@ -407,7 +426,7 @@ class Closure:
         others = np.delete(self.weight, lobe)
         return bool(self.weight[lobe] > 0 and not others.any() and not self.emission.any()
                     and self.transparent_weight == 0 and self.coat == 0 and self.holdout == 0
-                    and not self.layered)
+                    and not self.layered and not self.sheen.any())
 
     @property
     def rises(self) -> bool:
@@ -452,6 +471,11 @@ class Closure:
                     and np.allclose(self.coat_tint, other.coat_tint)
                 and procedural.to_json(self.coat_normal) == procedural.to_json(other.coat_normal))
 
+    def same_sheen(self, other) -> bool:
+        """Whether both closures have the same sheen (colour, roughness and layer) or none."""
+        return bool(np.allclose(self.sheen, other.sheen) and np.isclose(self.sheen_cover, other.sheen_cover)
+                    and (not self.sheen.any() or np.isclose(self.sheen_roughness, other.sheen_roughness)))
+
     def beside_plain(self, other) -> bool:
         """Whether this closure's glossy lobe is a whole textured metal and ``other``'s a plain
         colour (no texture, no metal curve): the two share a lobe exactly (``_metal_beside``)."""
@@ -463,7 +487,8 @@ class Closure:
         """Whether this closure and ``other`` mixed at any constant factor (``combine``) are their
         mix exactly in the core, which has one lobe of each kind per material: lobes that both
         have agree in what the core keeps one of (the glossy roughness, anisotropy and its maps,
-        the layer's IOR, the glass's IOR and roughness, the diffuse roughness, the coat), and at
+        the layer's IOR, the glass's IOR and roughness, the diffuse roughness, the coat, the
+        sheen's roughness; and the sheen layer's k, which dims the whole material), and at
         most one side's glossy colour varies over the surface (a textured metal only beside a
         plain colour: ``_metal_beside``)."""
         def both(lobe):
@@ -505,6 +530,11 @@ class Closure:
             return False
         if both(DIFFUSE) and not np.isclose(self.diffuse_roughness, other.diffuse_roughness):
             return False
+        if self.sheen.any() and other.sheen.any() and not np.isclose(self.sheen_roughness,
+                                                                     other.sheen_roughness):
+            return False                    # (one sheen roughness per material)
+        if not np.isclose(self.sheen_cover, other.sheen_cover):
+            return False                    # (the core dims the whole material by the mixed layer)
         if self.subsurface > 0 and other.subsurface > 0 and not _same_medium(self.subsurface_params,
                                                                              other.subsurface_params):
             return False
@@ -525,8 +555,8 @@ class Closure:
     def same_except_diffuse(self, other) -> bool:
         """Whether the two closures differ in their diffuse colours and weights only, or also in a
         glossy colour and weight without a Fresnel rise or a textured metal's curve (a varying Mix
-        factor is then exact); their coats and diffuse roughness agree (the core has one of each
-        per material)."""
+        factor is then exact); their coats, sheens and diffuse roughness agree (the core has one
+        of each per material)."""
         rise = self.rises or other.rises
         other_lobes = [k for k in range(len(LOBES)) if k != DIFFUSE and (rise or k != GLOSSY)]
         rough = self.weight[DIFFUSE] > 0 and other.weight[DIFFUSE] > 0 and not np.isclose(
@@ -537,7 +567,8 @@ class Closure:
         return (np.allclose(self.color[other_lobes], other.color[other_lobes])
                 and np.allclose(self.weight[other_lobes], other.weight[other_lobes])
                 and np.isclose(self.roughness, other.roughness) and np.isclose(self.stretch, other.stretch)
-                and np.isclose(self.ior, other.ior) and self.same_coat(other) and not rough and not glass
+                and np.isclose(self.ior, other.ior) and self.same_coat(other) and self.same_sheen(other)
+                and not rough and not glass
                 and self.metal_texture is None and other.metal_texture is None)
 
     def _transparency(self) -> dict:
@@ -561,7 +592,8 @@ class Closure:
                                                              "glass_beckmann",
                                                              "rise", "metal_rise", "metal_dip", "layer",
                                                              "layered", "coat", "holdout", "refraction_only",
-                                                             "film_metal", "subsurface")}
+                                                             "film_metal", "subsurface", "sheen",
+                                                             "sheen_cover")}
         out = dataclasses.replace(self, **scaled, transparent=np.zeros(3), transparent_weight=0.0,
                                   opacity_texture=None,
                                   reflection=None if self.reflection is None else self.reflection / o)
@@ -690,6 +722,10 @@ class Closure:
                 s["coat_normal_program"] = normal
             if bump is not None:
                 s["coat_bump_program"], s["coat_bump_strength"], s["coat_bump_distance"] = bump
+        if self.sheen.any():
+            s.update(sheen=np.maximum(self.sheen, 0.0),
+                     sheen_roughness=float(np.clip(self.sheen_roughness, 0.0, 1.0)),
+                     sheen_cover=max(float(self.sheen_cover), 0.0))
         if isinstance(self.normal_map, dict):
             s["normal_program"] = self.normal_map
         elif self.normal_map is not None:
@@ -1406,6 +1442,11 @@ class NodeWalker:
             return mean, -1                     # constant nodes only: the same everywhere
         return mean, e
 
+    def mean_color(self, sock, stack) -> np.ndarray:
+        """A colour input the core takes as a constant: its value, or the mean of the texture
+        driving it (noted), (3,) float64."""
+        return np.array(self.programs.constant_of(sock, stack, VEC), np.float64)
+
     # ----------------------------------------------------------------- shaders
     def shader(self, sock, stack):
         """The closure feeding shader input ``sock``, or None for no closure (black)."""
@@ -1851,6 +1892,16 @@ class NodeWalker:
             c.translucent_texture = _program_of(tex, color)
         return c
 
+    def _sheen(self, node, stack):
+        """Sheen BSDF: the core's sheen (Cycles' microfiber sheen) of its Color (at least 0) and
+        Roughness (saturated), not a layer: it dims nothing beside it.  Ashikhmin (Cycles' older
+        velvet) renders as Microfiber, noted.  Textures on either input take their means (noted)."""
+        if node.distribution != "MICROFIBER":
+            self.note(f"'{node.name}': the Ashikhmin sheen is rendered as Microfiber")
+        color = np.maximum(self.mean_color(node.inputs["Color"], stack), 0.0)
+        rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
+        return Closure(sheen=color, sheen_roughness=rough)
+
     def _holdout(self, node, stack):
         """Holdout: black for every ray, and what camera rays that meet it cut out of the image."""
         return Closure(holdout=1.0)
@@ -1975,10 +2026,6 @@ class NodeWalker:
         # sqrt(1 - 0.9 a), for the metal and the specular layer (its glass stays isotropic).
         stretch, stretch_map = self.anisotropy(inp["Anisotropic"], stack, rough_map, 0.0, 1.0,
                                                _principled_stretch)
-        ignored = [label for label, socket in PRINCIPLED_IGNORED
-                   if socket in inp and self.value(inp[socket], stack) > 0.0]
-        if ignored:
-            self.note(f"'{node.name}': {', '.join(ignored)} not supported (ignored)")
         beneath = float(np.clip(self.value(inp["Subsurface Weight"], stack), 0.0, 1.0))
         film = self.thin_film(node, stack)
 
@@ -2001,6 +2048,13 @@ class NodeWalker:
             coat_tint, _ = self.color(inp["Coat Tint"], stack)
             c.coat_tint = np.clip(coat_tint, 0.0, 1.0)
             c.coat_normal = self.coat_normal(node, stack)
+        sheen_weight = max(self.value(inp["Sheen Weight"], stack), 0.0)
+        if sheen_weight > SHEEN_CUTOFF:
+            # Cycles: the tint at least 0 and the roughness saturated; the sheen's albedo dims
+            # everything beneath it (closure_layering_weight) by 1 - max(weight * tint) E(mu).
+            c.sheen = sheen_weight * np.maximum(self.mean_color(inp["Sheen Tint"], stack), 0.0)
+            c.sheen_roughness = float(np.clip(self.value(inp["Sheen Roughness"], stack), 0.0, 1.0))
+            c.sheen_cover = float(c.sheen.max())
         c.weight[DIFFUSE] = dielectric
         c.color[DIFFUSE] = dielectric * base_color
         if beneath > 0 and dielectric > 0:
@@ -2097,8 +2151,8 @@ SPECULAR_LEVEL = "Specular IOR Level"
 # Nodes whose output may be a Fresnel curve of the view direction (NodeWalker._fresnel_factor).
 FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")
 
-# Principled inputs the core has no model for: (label, socket whose value > 0 turns it on).
-PRINCIPLED_IGNORED = (("Sheen", "Sheen Weight"),)
+# Cycles leaves out a Principled's sheen of weight at most this (CLOSURE_WEIGHT_CUTOFF).
+SHEEN_CUTOFF = 1e-5
 
 SHADERS = {
     "ShaderNodeBsdfPrincipled": NodeWalker._principled,
@@ -2112,6 +2166,7 @@ SHADERS = {
     "ShaderNodeEmission": NodeWalker._emission,
     "ShaderNodeBsdfTransparent": NodeWalker._transparent,
     "ShaderNodeBsdfTranslucent": NodeWalker._translucent,
+    "ShaderNodeBsdfSheen": NodeWalker._sheen,
     "ShaderNodeHoldout": NodeWalker._holdout,
     "ShaderNodeMixShader": NodeWalker._mix,
     "ShaderNodeAddShader": NodeWalker._add,

@@ -323,14 +323,14 @@ def test_several_unsupported_nodes_give_one_warning_naming_each(scene):
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     mix = nt.nodes.new("ShaderNodeMixShader")
     toon = nt.nodes.new("ShaderNodeBsdfToon")
-    sheen = nt.nodes.new("ShaderNodeBsdfSheen")
+    hair = nt.nodes.new("ShaderNodeBsdfHair")
     nt.links.new(toon.outputs[0], mix.inputs[1])
-    nt.links.new(sheen.outputs[0], mix.inputs[2])
+    nt.links.new(hair.outputs[0], mix.inputs[2])
     nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     row, ex = export_material(mat)
     warnings = [w for w in ex.warnings if "'Odd'" in w]
     assert len(warnings) == 1
-    assert "Toon BSDF" in warnings[0] and "Sheen BSDF" in warnings[0]
+    assert "Toon BSDF" in warnings[0] and "Hair BSDF" in warnings[0]
     assert row["diffuse_color"] == pytest.approx([0.8, 0.8, 0.8])
 
 
@@ -1603,12 +1603,11 @@ def test_principled_subsurface_reaches_the_core(scene):
     assert row["subsurface_weight"] == 0
 
 
-def test_principled_inputs_without_a_model_are_named_in_one_warning(scene):
+def test_principled_sheen_subsurface_and_anisotropy_export_without_a_warning(scene):
+    """Every Principled input has a model (the Sheen was noted as not supported before)."""
     _, ex = export_material(principled("Paint", **{"Sheen Weight": 0.2, "Subsurface Weight": 0.1,
                                                    "Anisotropic": 0.5}))
-    warnings = [w for w in ex.warnings if "'Paint'" in w]
-    assert len(warnings) == 1 and "Sheen not supported" in warnings[0], ex.warnings
-    assert "Subsurface" not in warnings[0]
+    assert not [w for w in ex.warnings if "'Paint'" in w], ex.warnings
     _, ex = export_material(principled("Plain"))
     assert not [w for w in ex.warnings if "'Plain'" in w]
 
@@ -1729,6 +1728,143 @@ def test_principled_coat_is_exported_with_cycles_clamps(scene):
     row, ex = export_material(displaced)
     assert row["coat_bump_program"] == row["bump_program"] >= 0
     assert row["coat_bump_distance"] == row["bump_distance"] == pytest.approx(0.3)
+
+
+def test_principled_sheen_is_a_layer_of_weight_times_tint(scene):
+    """Principled's Sheen: the core's sheen of colour Sheen Weight times Sheen Tint and the Sheen
+    Roughness, which dims the rest of the node by 1 - k E(mu), k the largest channel of that
+    colour (Cycles' closure_layering_weight); no warning.  Cycles' clamps: the weight and tint at
+    least 0, the roughness saturated, no sheen of weight at most 1e-5.  The Alpha's Transparent
+    part leaves the sheen of the opaque part as it is."""
+    row, ex = export_material(principled("Velvet", **{"Sheen Weight": 0.8, "Sheen Tint": (1.0, 0.5, 0.25, 1),
+                                                      "Sheen Roughness": 0.3}))
+    assert row["sheen_color"] == pytest.approx([0.8, 0.4, 0.2])
+    assert row["sheen_roughness"] == pytest.approx(0.3) and row["sheen_cover"] == pytest.approx(0.8)
+    assert row["diffuse_weight"] == pytest.approx(1.0)             # (the rest stays, the core dims it)
+    assert not [w for w in ex.warnings if "'Velvet'" in w], ex.warnings
+    row, ex = export_material(principled("Bare", **{"Sheen Weight": 0.0, "Sheen Tint": (1.0, 0.5, 0.25, 1)}))
+    assert not row["sheen_color"].any() and row["sheen_cover"] == 0
+    assert row["sheen_roughness"] == pytest.approx(0.5)
+    assert not [w for w in ex.warnings if "'Bare'" in w], ex.warnings
+    row, _ = export_material(principled("Faint", **{"Sheen Weight": 1e-6}))
+    assert not row["sheen_color"].any() and row["sheen_cover"] == 0
+    row, _ = export_material(principled("Clamped", **{"Sheen Weight": 2.0, "Sheen Tint": (0.5, -1.0, 0.25, 1),
+                                                      "Sheen Roughness": 1.5}))
+    assert row["sheen_color"] == pytest.approx([1.0, 0.0, 0.5]) and row["sheen_cover"] == pytest.approx(1.0)
+    assert row["sheen_roughness"] == pytest.approx(1.0)
+    row, _ = export_material(principled("Sheer", **{"Sheen Weight": 0.8, "Alpha": 0.5}))
+    assert row["opacity"] == pytest.approx(0.5)
+    assert row["sheen_color"] == pytest.approx([0.8, 0.8, 0.8]) and row["sheen_cover"] == pytest.approx(0.8)
+
+
+def test_a_sheen_bsdf_is_a_sheen_without_a_layer(scene):
+    """The Sheen BSDF: a sheen of its Color and Roughness alone (no other lobe), which dims nothing
+    (k = 0: not a layer).  Its Ashikhmin distribution (Cycles' older velvet) renders as Microfiber,
+    named in the material's warning."""
+    row, ex = export_material(bs._material("Fuzz", "ShaderNodeBsdfSheen", Color=(0.2, 0.4, 0.6, 1),
+                                           Roughness=0.7))
+    assert row["sheen_color"] == pytest.approx([0.2, 0.4, 0.6])
+    assert row["sheen_roughness"] == pytest.approx(0.7) and row["sheen_cover"] == 0
+    assert row["diffuse_weight"] == 0 and row["glossy_weight"] == 0 and row["opacity"] == pytest.approx(1.0)
+    assert not [w for w in ex.warnings if "'Fuzz'" in w], ex.warnings
+    mat = bs._material("Old velvet", "ShaderNodeBsdfSheen", Color=(0.2, 0.4, 0.6, 1), Roughness=0.7)
+    mat.node_tree.nodes["Sheen BSDF"].distribution = "ASHIKHMIN"
+    row, ex = export_material(mat)
+    assert row["sheen_color"] == pytest.approx([0.2, 0.4, 0.6])
+    assert row["sheen_roughness"] == pytest.approx(0.7)
+    warnings = [w for w in ex.warnings if "'Old velvet'" in w]
+    assert len(warnings) == 1 and "'Sheen BSDF'" in warnings[0] and "Ashikhmin" in warnings[0]
+    assert "Microfiber" in warnings[0]
+
+
+def _two_shaders(name, kind, first, second, fac=0.5):
+    """A material whose surface is a Mix (``fac``) or Add Shader (``kind``) of nodes ``first`` and
+    ``second`` ((bl_idname, {input: value}) each); the material and the two nodes."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    join = nt.nodes.new(kind)
+    if kind == "ShaderNodeMixShader":
+        join.inputs["Fac"].default_value = fac
+    nodes = []
+    for slot, (node_type, inputs) in zip(("Shader", "Shader_001"), (first, second)):
+        node = nt.nodes.new(node_type)
+        for key, value in inputs.items():
+            node.inputs[key].default_value = value
+        nt.links.new(node.outputs[0], next(s for s in join.inputs if s.identifier == slot))
+        nodes.append(node)
+    nt.links.new(join.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat, nodes
+
+
+def test_mixed_sheens_take_their_shares(scene):
+    """A Mix or Add scales a sheen's colour and its layer's k by the shader's share (the core dims the
+    whole material by that k: exact for alike shaders); sheens of different roughness take their
+    mean weighted by their colours' means; a Sheen BSDF adds no layer."""
+    sheen = {"Sheen Weight": 0.8, "Sheen Tint": (1.0, 0.5, 0.25, 1), "Sheen Roughness": 0.3}
+    mat, _ = _two_shaders("Half velvet", "ShaderNodeMixShader", ("ShaderNodeBsdfPrincipled", sheen),
+                          ("ShaderNodeBsdfDiffuse", {}), fac=0.25)
+    row, _ = export_material(mat)
+    assert row["sheen_color"] == pytest.approx(0.75 * np.array([0.8, 0.4, 0.2]))
+    assert row["sheen_cover"] == pytest.approx(0.75 * 0.8) and row["sheen_roughness"] == pytest.approx(0.3)
+    mat, _ = _two_shaders("Velvet and fuzz", "ShaderNodeAddShader", ("ShaderNodeBsdfPrincipled", sheen),
+                          ("ShaderNodeBsdfSheen", {"Color": (0.2, 0.2, 0.2, 1), "Roughness": 0.9}))
+    row, _ = export_material(mat)
+    assert row["sheen_color"] == pytest.approx([1.0, 0.6, 0.4]) and row["sheen_cover"] == pytest.approx(0.8)
+    w = np.mean([0.8, 0.4, 0.2]), 0.2
+    assert row["sheen_roughness"] == pytest.approx((w[0] * 0.3 + w[1] * 0.9) / sum(w))
+    mat, _ = _two_shaders("Two velvets", "ShaderNodeAddShader", ("ShaderNodeBsdfPrincipled", sheen),
+                          ("ShaderNodeBsdfPrincipled", {**sheen, "Sheen Weight": 0.4}))
+    row, _ = export_material(mat)
+    assert row["sheen_color"] == pytest.approx(1.5 * np.array([0.8, 0.4, 0.2]))
+    assert row["sheen_cover"] == pytest.approx(0.8 + 0.4)
+
+
+def test_a_mask_between_a_sheen_and_none_picks_the_two_shaders(scene):
+    """Mix Shader by a checker of a bare and a velvet Principled BSDF: the core dims the whole
+    material by its one sheen layer, so mixes at the mask's levels would dim the bare one too; the
+    two shaders themselves are the levels (each exact), the mask picking one at each point."""
+    mat = principled("Worn velvet")
+    nt = mat.node_tree
+    velvet = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    velvet.inputs["Sheen Weight"].default_value = 0.8
+    bs.mix_shaders(nt, nt.nodes.new("ShaderNodeTexChecker").outputs["Fac"], nt.nodes["Principled BSDF"],
+                   velvet)
+    row, ex = export_material(mat)
+    assert row["level_count"] == 2
+    levels = [material_row(ex.scene, f"Worn velvet (level {k}/1)") for k in (0, 1)]
+    assert [r["sheen_cover"] for r in levels] == pytest.approx([0.0, 0.8])
+    assert levels[1]["sheen_color"] == pytest.approx([0.8, 0.8, 0.8]) and not levels[0]["sheen_color"].any()
+
+
+def test_a_textured_sheen_takes_its_means(scene):
+    """Textures on the Sheen Weight, Tint and Roughness (and the Sheen BSDF's Color and Roughness)
+    give the sheen their means, each named in the material's warning."""
+    mat = principled("Patchy", **{"Sheen Weight": 1.0, "Sheen Roughness": 0.3})
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")         # (0.8 and 0.2: a mean near 0.5)
+    nt.links.new(checker.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Sheen Tint"])
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Sheen Roughness"])
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Sheen Weight"])
+    row, ex = export_material(mat)
+    assert row["sheen_color"] == pytest.approx([0.25, 0.25, 0.25], abs=0.05)     # (mean weight x mean tint)
+    assert row["sheen_cover"] == pytest.approx(row["sheen_color"].max())
+    assert row["sheen_roughness"] == pytest.approx(0.5, abs=0.05)
+    warnings = [w for w in ex.warnings if "'Patchy'" in w]
+    assert len(warnings) == 1 and "Sheen Tint varies over the surface" in warnings[0]
+    assert "Sheen Weight varies over the surface" in warnings[0]
+    assert "Sheen Roughness varies over the surface" in warnings[0] and "using its mean" in warnings[0]
+    mat = bs._material("Patchy fuzz", "ShaderNodeBsdfSheen")
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Color"], nt.nodes["Sheen BSDF"].inputs["Color"])
+    nt.links.new(checker.outputs["Fac"], nt.nodes["Sheen BSDF"].inputs["Roughness"])
+    row, ex = export_material(mat)
+    assert row["sheen_color"] == pytest.approx([0.5, 0.5, 0.5], abs=0.05)
+    assert row["sheen_roughness"] == pytest.approx(0.5, abs=0.05) and row["sheen_cover"] == 0
+    warnings = [w for w in ex.warnings if "'Patchy fuzz'" in w]
+    assert len(warnings) == 1 and "'Sheen BSDF': Color varies over the surface" in warnings[0]
+    assert "Roughness varies over the surface" in warnings[0]
 
 
 def test_volumes_are_exported_as_cycles_coefficients(scene):
