@@ -493,7 +493,8 @@ class MaterialTable:
 
     @cached_property
     def has_translucent(self) -> bool:
-        return self.lobes > TRANSLUCENT
+        """Whether some material has a translucent lobe (its column exists in scenes with a sheen)."""
+        return self.lobes > TRANSLUCENT and bool((self.weight[:, TRANSLUCENT] > 0).any())
 
     @cached_property
     def is_rough_diffuse(self) -> np.ndarray:
@@ -845,7 +846,7 @@ def _sheen_tables(mats, lobes, sheen_on, cover, score_extra):
     mu = (np.arange(64) + 0.5) / 64
     e, _, _ = sheen_albedo(np.tile(mu, m), np.repeat(rough, 64))
     score_extra[:, SHEEN] = np.where(sheen_on, 2.0 * (e.reshape(m, 64) * mu).mean(axis=1), 0.0)
-    return dict(sheen_roughness=rough, sheen_cover=np.where(sheen_on | (cover > 0), cover, 0.0))
+    return dict(sheen_roughness=rough, sheen_cover=cover)
 
 
 def _or_ones(values, m):

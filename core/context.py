@@ -197,7 +197,7 @@ class RenderContext:
         """Names of the optional effects this scene calls for, each simulated only when named
         here (its code runs behind the flag that makes it appear): specular transport (mirrors,
         glass, rough glass, camera paths through smooth glossy lobes), translucency (light through
-        thin diffuse surfaces), rough diffuse (Oren-Nayar), glossy lobes (anisotropic ones need
+        thin diffuse surfaces), sheen, rough diffuse (Oren-Nayar), glossy lobes (anisotropic ones need
         tangents at every hit) and their layers (Fresnel
         layers, thin films on them, metals' Fresnel curves, coats), subsurface scattering, textures
         (images, procedural, roughness maps,
@@ -213,6 +213,7 @@ class RenderContext:
                  ("glossy", table.has_glossy.any()),
                  ("anisotropic glossy", table.has_anisotropy),
                  ("translucency", table.has_translucent),
+                 ("sheen", table.has_sheen),
                  ("rough diffuse", table.has_rough_diffuse),
                  ("camera paths through glossy", table.has_glossy_through),
                  ("Fresnel layers", table.has_layer),

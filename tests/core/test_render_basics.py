@@ -468,12 +468,12 @@ def test_effects_name_what_the_scene_calls_for():
                     dielectric_fresnel=0.5, displacement_flags=DISPLACE_WORLD,
                     displacement_program={"op": "math", "operation": "ADD", "a": 0.01, "b": 0.0})
     specs[1].update(glossy=0.5, glossy_metal_rise=0.5, glossy_stretch=2.0)
-    specs[2].update(translucent=0.3)
+    specs[2].update(translucent=0.3, sheen=0.5, sheen_cover=0.5)
     scene = plain.replace(materials=Materials.build(specs)).validate()
     effects = RenderContext(scene).effects
     assert {"glass", "coats", "transparency", "volumes", "glossy", "holdout",
             "metal Fresnel curves", "translucency", "anisotropic glossy", "true displacement",
-            "refraction without reflection"} <= set(effects), effects
+            "refraction without reflection", "sheen"} <= set(effects), effects
     result = render(scene, RenderSettings(passes=1, photons_per_pass=1000, workers=1))
     assert result.effects == effects and np.isfinite(result.image).all()
 

@@ -167,3 +167,12 @@ def test_a_sheen_lies_over_a_coat():
                             for s in range(2)], axis=0))
     np.testing.assert_allclose(out[0], 1.0, atol=0.06)
     np.testing.assert_allclose(out[1], out[0], atol=0.04)
+
+
+def test_a_sheen_is_an_effect_of_its_own():
+    """A scene with a sheen names it among its effects (``RenderContext.effects``), and its sixth
+    lobe column does not make the translucent column's empty lobe an effect."""
+    from core.context import RenderContext
+    effects = RenderContext(sheen_floor({"diffuse": 0.5, "sheen": 1.0, "sheen_cover": 1.0})).effects
+    assert "sheen" in effects and "translucency" not in effects, effects
+    assert "sheen" not in RenderContext(sheen_floor({"diffuse": 0.5})).effects
