@@ -249,7 +249,8 @@ class RenderContext:
         return tuple(name for name, on in flags if on)
 
     def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None,
-              distances=None, throughput=None, origin_normals=None, forced=0, cut=False, glow=None):
+              distances=None, throughput=None, origin_normals=None, forced=0, cut=False, glow=None,
+              crossings=None, max_crossings=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -277,6 +278,10 @@ class RenderContext:
         distances to the planes of the faces their segment entered and left the volume by (the
         first segment's entry face is ``origin_normals`` (n, 3) at the origins, if given; inf:
         none), for the gather spheres that reach out of the volume.
+        ``crossings`` (n,) int16, if given, counts the transparent surfaces each ray crosses (in
+        place; not the triangles hidden from it, nor those shadow linking lets through), and a ray
+        that would cross one more than ``max_crossings`` in all ends there instead, black (``is_hit``
+        False, factor 0): Cycles' Transparent bounces.
         ``glow`` (n, 3), for camera paths, gets the radiance that glowing volumes
         (``Materials.volume_emission``) send along the rays to their origins, through what
         lies between (the factor at each segment's start).
@@ -366,6 +371,14 @@ class RenderContext:
                                         self._crossing_rays(dirs, rc, t, ray_kind))
                 crossed = (u.take(c) >= opacity) & (opacity < 1.0)
                 stopped[rc[~crossed]] = opacity[~crossed]
+                if crossings is not None:
+                    # (past the limit the ray ends here, black)
+                    over = crossed & (crossings.take(rc) >= max_crossings)
+                    if over.any():
+                        is_hit[rc[over]] = False
+                        factor[rc[over]] = 0.0
+                        crossed &= ~over
+                    crossings[rc[crossed]] += 1
                 through[c] = crossed
             rows, p, clear = rows[through], p[through], clear[through]
             if len(rows) == 0:

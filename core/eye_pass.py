@@ -46,6 +46,8 @@ class MeasurementPoints:
     tangent: np.ndarray = None    # (m, 3) float32 anisotropic glossy lobes' tangent (Surface.tangent); None
     bounces: np.ndarray = None    # (m, 5) uint8 the camera path's bounces before the point, in all and of
     #                               each kind (BounceLimits.array's order); None: none
+    crossings: np.ndarray = None  # (m,) int16 the transparent surfaces the camera path crossed before the
+    #                               point (RenderContext.trace); None: not counted
 
     @property
     def count(self) -> int:
@@ -82,6 +84,7 @@ class VolumePoints:
     planes: np.ndarray      # (k, 2) float64 distances to the planes of the faces its camera ray
     #                         entered and would have left the volume by (inf: none)
     bounces: np.ndarray = None  # (k, 5) uint8 as MeasurementPoints.bounces
+    crossings: np.ndarray = None  # (k,) int16 as MeasurementPoints.crossings (those before its segment)
 
     @property
     def count(self) -> int:
@@ -237,6 +240,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     # past a limit (``last``) see emission at their next hit and end there.
     bounces = np.zeros((len(pix), 5), np.uint8)
     last = np.zeros(len(pix), bool)
+    # The transparent surfaces each path crossed, where that limit binds (else None).
+    crossed = np.zeros(len(pix), np.int16) if limits.counts_crossings else None
     room = limits.array
     parts = []
     rays = 0
@@ -247,9 +252,11 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         numbers = lambda rows, crossing: rng.random(len(rows))          # noqa: E731
         medium_in = medium
         glow = np.zeros((len(pix), 3)) if ctx.has_volume_emission else None
+        crossed_before = None if crossed is None else crossed.copy()
         hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None, numbers, medium,
                                              ray_kind, distances=numbers, throughput=beta,
-                                             origin_normals=origin_normals, forced=per_segment, glow=glow)
+                                             origin_normals=origin_normals, forced=per_segment, glow=glow,
+                                             crossings=crossed, max_crossings=limits.transparent)
         if hits.forced is not None:
             # A point in every segment through a scattering volume (the path goes on through it).
             rows, t_v, w_v, ends, planes, media = hits.forced
@@ -275,7 +282,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 wo=(-dirs.take(rows, axis=0)).astype(np.float32),
                 weight=(beta.take(rows, axis=0) * w_v).astype(np.float32), mat_ids=media.astype(np.int32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes,
-                bounces=bounces.take(rows, axis=0)))
+                bounces=bounces.take(rows, axis=0),
+                crossings=None if crossed_before is None else crossed_before.take(rows)))
         beta_in = beta
         if glow is not None:
             lit = np.flatnonzero(glow.any(axis=1))             # glowing volumes on the way
@@ -325,6 +333,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
         ray_kind = ray_kind.take(h)
         bounces, last = bounces.take(h, axis=0), last.take(h)
+        crossed = None if crossed is None else crossed.take(h)
         medium = None if medium is None else medium.take(h)
         sets = None if sets is None else sets.take(h)
         path_len = path_len.take(h) + hits.t.take(h)
@@ -404,7 +413,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
                 ns_glossy=ns_glossy,
                 tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32),
-                bounces=rows(bounces))
+                bounces=rows(bounces), crossings=None if crossed is None else rows(crossed))
             if ctx.subsurface_exit >= 0:
                 # Some points go beneath their surface, to the exit of a random walk.
                 points, exits, r = _beneath(ctx, rng, points, rows(prim), rows(scores[:, DIFFUSE]),
@@ -438,6 +447,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         reflected = dot(wi[keep], surf.ng[g]) * dot(wo[g], surf.ng[g]) > 0
         ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
         bounces = bounces[g]
+        crossed = None if crossed is None else crossed[g]
         bounces[:, 0] += 1
         bounces[:, 2] += reflected
         bounces[:, 3] += ~reflected
@@ -535,7 +545,8 @@ def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
         base_radius=points.base_radius.take(src),
         nn=None if points.nn is None else ns_out, ns_glossy=None if points.ns_glossy is None else ns_out,
         tangent=None if points.tangent is None else np.zeros((len(left), 3), f32),
-        bounces=None if points.bounces is None else points.bounces.take(src, axis=0))
+        bounces=None if points.bounces is None else points.bounces.take(src, axis=0),
+        crossings=None if points.crossings is None else points.crossings.take(src))
     return kept, exits, rays
 
 

@@ -137,6 +137,13 @@ class DepositTarget:
                                     for p in (points, self.volume) if p is not None])
             if self.counts_kinds or taken[:, 0].any():
                 self.room = limits.array - taken.astype(np.int16)
+        # Per point (surface, then volume): the transparent surfaces its photons may cross (Cycles'
+        # Transparent bounces less the camera path's crossings), where that limit binds; else None.
+        self.crossing_room = None
+        if limits is not None and limits.counts_crossings:
+            crossed = np.concatenate([np.zeros(p.count, np.int16) if p.crossings is None else p.crossings
+                                      for p in (points, self.volume) if p is not None])
+            self.crossing_room = (limits.transparent - crossed.astype(np.int32)).astype(np.int32)
         # Points with a normal map (Cycles' bump-map terms in pair_weights), or None.
         bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
         self.bumped = bumped if bumped is not None and bumped.any() else None
@@ -280,6 +287,15 @@ class DepositTarget:
         exclude = (np.where(kinds[:, 0] >= room[:, 1], EXCLUDE_DIFFUSE, 0)
                    | np.where(kinds[:, 1] >= room[:, 2], EXCLUDE_GLOSSY, 0)).astype(np.uint8)
         return keep, exclude
+
+    def crossing_filter(self, j, crossings, first):
+        """Which pairs of points ``j`` (surface, then volume numbering) with photons that crossed
+        ``crossings`` (k,) transparent surfaces in all, ``first`` (k,) of them before their first
+        vertex, keep to Cycles' Transparent bounces: at most the limit in all with the camera
+        path's, and at most one fewer before the photon's first vertex (the light path's vertex
+        nearest the light, which Cycles shades only below the limit)."""
+        room = self.crossing_room.take(j)
+        return (crossings <= room) & (crossings - first < room)
 
     def volume_pairs(self, x, d):
         """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the
@@ -691,14 +707,15 @@ class PhotonBatch:
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
 VERTEX_FIELDS = ("bounce", "position", "ng", "ns", "nn", "mat_ids", "colors", "wo", "flux", "prim", "medium",
-                 "volume", "tangent", "nc", "kinds", "diffuse_next")
+                 "volume", "tangent", "nc", "kinds", "diffuse_next", "crossings", "first_crossings")
 
 
-def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, caustics=False):
+def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, caustics=False,
+                   crossings=False):
     """Per-path vertex records (``VERTEX_FIELDS``; ``tangent`` only with ``tangents``, ``nc`` only
     with ``coat_normals``, ``kinds`` (the bounces of each kind after the first vertex,
     ``trace_photons``) only with ``kinds``, ``diffuse_next`` (``trace_photons``) only with
-    ``caustics``)."""
+    ``caustics``; ``crossings`` and ``first_crossings`` (``trace_photons``) only with ``crossings``)."""
     out = {"bounce": np.full(n, -1, np.int32), "position": np.zeros((n, 3)), "ng": np.zeros((n, 3)),
             "ns": np.zeros((n, 3)), "nn": np.zeros((n, 3)), "mat_ids": np.zeros(n, np.int32),
             "colors": np.zeros((n, lobes, 3)), "wo": np.zeros((n, 3)), "flux": np.zeros((n, 3)),
@@ -711,6 +728,9 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, ca
         out["kinds"] = np.zeros((n, 4), np.int16)
     if caustics:
         out["diffuse_next"] = np.ones(n)
+    if crossings:
+        out["crossings"] = np.zeros(n, np.int16)
+        out["first_crossings"] = np.zeros(n, np.int16)
     return out
 
 
@@ -757,8 +777,15 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     diffuse_next = np.ones(n) if target.blocks_caustics else None
     if diffuse_next is not None and n_resumed:
         diffuse_next[fresh:] = resume["diffuse_next"]
+    # Cycles' Transparent bounces: the transparent surfaces each path crossed in all and before its
+    # first vertex (DepositTarget.crossing_filter); None where that limit does not bind.
+    crossings = first_crossings = None
+    if target.crossing_room is not None:
+        crossings, first_crossings = np.zeros(n, np.int16), np.zeros(n, np.int16)
+        if n_resumed:
+            crossings[fresh:], first_crossings[fresh:] = resume["crossings"], resume["first_crossings"]
     first = (_vertex_arrays(n, table.lobes, table.has_anisotropy, ctx.has_coat_normals, kinds is not None,
-                            diffuse_next is not None) if collect_pairs else None)
+                            diffuse_next is not None, crossings is not None) if collect_pairs else None)
     own_sums = not collect_pairs and sums is None
     if own_sums:
         sums = PointSums(target.n_slots)
@@ -780,8 +807,14 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 # Shadow linking: what shadows each photon's emitter on its way from it.
                 shadow = ctx.lights.shadow_links.take(ctx.lights.entries(u[idx, 0]))
             distances = _crossing_uniforms(u, idx, bounce, DISTANCE_KEYS) if ctx.has_scattering else None
-            hits, through, opacity, medium = ctx.trace(origins, dirs, None, crossing, medium, shadow=shadow,
-                                                       distances=distances, throughput=flux)
+            crossed = None if crossings is None else crossings.take(idx)
+            hits, through, opacity, medium = ctx.trace(
+                origins, dirs, None, crossing, medium, shadow=shadow, distances=distances, throughput=flux,
+                crossings=crossed, max_crossings=None if crossed is None else target.limits.transparent)
+            if crossed is not None:
+                crossings[idx] = crossed
+                if bounce == 0:
+                    first_crossings[idx] = crossed
             if through is not None:
                 flux = flux * through                        # transparent surfaces and volumes crossed
             rays += len(idx)
@@ -865,6 +898,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 glossy = target.glossy_lobe.take(pj)
                 worth = (scale > 0) | (glossy if back is None else glossy & ~back)
                 keep = worth if keep is None else keep & worth
+            if len(pi) and crossings is not None:
+                lanes = idx.take(dep.take(pi))
+                ok = target.crossing_filter(pj, crossings.take(lanes), first_crossings.take(lanes))
+                keep = ok if keep is None else keep & ok
             if keep is not None and not keep.all():
                 k = np.flatnonzero(keep)
                 pi, pj, cos_g = pi.take(k), pj.take(k), cos_g.take(k)
@@ -935,12 +972,16 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                         first["kinds"][new] = kinds[new]
                     if diffuse_next is not None:
                         first["diffuse_next"][new] = diffuse_next[new]
+                    if crossings is not None:
+                        first["crossings"][new] = crossings[new]
+                        first["first_crossings"][new] = first_crossings[new]
                 if refresh_rng is not None and len(new) and bounce < max_bounces:
                     start = bounce_offset(bounce)
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
         if vert is not None:
             _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums,
-                                collect_pairs, refresh_rng, max_bounces, kinds, diffuse_next)
+                                collect_pairs, refresh_rng, max_bounces, kinds, diffuse_next,
+                                None if crossings is None else (crossings, first_crossings))
         if resume is not None and bounce <= last_join:
             # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
             join = np.flatnonzero(resume["bounce"] == bounce)
@@ -1191,7 +1232,7 @@ def _diffuse_next(table, limits, surf, mats, ns, lobe, kind, wi, under, leave):
 
 
 def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, collect_pairs,
-                        refresh_rng, max_bounces, kinds=None, diffuse_next=None):
+                        refresh_rng, max_bounces, kinds=None, diffuse_next=None, crossings=None):
     """Deposits of the photons that stopped in scattering volumes at vertex ``bounce`` (``vert``:
     their paths, positions, travel directions, arrival flux and volumes) on the target's volume
     points: flux times the scattering coefficient times the phase function towards each point's
@@ -1199,7 +1240,8 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
     volume cells) makes the path visible, and the paths that become so are recorded in
     ``first`` (``volume`` set) and have their later dimensions redrawn with ``refresh_rng``.
     ``kinds`` and ``diffuse_next`` as in :func:`trace_photons` (pairs keep to the limits:
-    DepositTarget.bounce_filter; a volume point's scattering is not a diffuse bounce)."""
+    DepositTarget.bounce_filter; a volume point's scattering is not a diffuse bounce), and
+    ``crossings`` its (crossings, first_crossings) (DepositTarget.crossing_filter) or None."""
     idx, x, d, vmed = vert["idx"], vert["position"], vert["d"], vert["medium"]
     seen = np.zeros(len(idx), bool)
     if target.volume is not None:
@@ -1207,6 +1249,13 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
         if len(pi) and target.room is not None:
             keep = np.flatnonzero(target.bounce_filter(
                 pj, bounce, None if kinds is None else kinds.take(idx.take(pi), axis=0), volume=True)[0])
+            pi, pj = pi.take(keep), pj.take(keep)
+            if np.ndim(phase):
+                phase = phase.take(keep)
+        if len(pi) and crossings is not None:
+            lanes = idx.take(pi)
+            total, before = crossings[0].take(lanes), crossings[1].take(lanes)
+            keep = np.flatnonzero(target.crossing_filter(pj, total, before))
             pi, pj = pi.take(keep), pj.take(keep)
             if np.ndim(phase):
                 phase = phase.take(keep)
@@ -1242,6 +1291,9 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
             first["kinds"][new] = kinds[new]
         if diffuse_next is not None:
             first["diffuse_next"][new] = diffuse_next[new]
+        if crossings is not None:
+            first["crossings"][new] = crossings[0][new]
+            first["first_crossings"][new] = crossings[1][new]
     if refresh_rng is not None and bounce < max_bounces:
         start = bounce_offset(bounce)
         u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))

@@ -25,6 +25,9 @@ NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes).
 DATA_PASSES = ("depth", "normal", "albedo")
 MAX_BOUNCES = 64                    # the most any bounce limit may be
+# The most transparent bounces (Cycles' Transparent, at most 1024 there too): at it, crossings are
+# not counted (each segment of a path crosses at most context.MAX_TRANSPARENT_CROSSINGS surfaces).
+MAX_TRANSPARENT_BOUNCES = 1024
 
 
 @dataclass(frozen=True)
@@ -37,7 +40,8 @@ class BounceLimits:
     (scattering in a volume).  With Cycles' Caustics toggles, ``caustics_reflective`` and
     ``caustics_refractive``: off, a light path that reaches a mirror, glossy lobe or a glass's
     reflection (a glass's refraction) right after a diffuse bounce, on the way from the camera,
-    carries nothing (:class:`RenderSettings`)."""
+    carries nothing (:class:`RenderSettings`).  ``transparent``: Cycles' Transparent bounces
+    (``RenderSettings.transparent_max_bounces``)."""
 
     total: int = 8
     diffuse: int = MAX_BOUNCES
@@ -46,6 +50,13 @@ class BounceLimits:
     volume: int = MAX_BOUNCES
     caustics_reflective: bool = True
     caustics_refractive: bool = True
+    transparent: int = MAX_TRANSPARENT_BOUNCES
+
+    @property
+    def counts_crossings(self) -> bool:
+        """Whether the transparent limit binds (below ``MAX_TRANSPARENT_BOUNCES``): paths then count
+        the transparent surfaces they cross (``RenderSettings.transparent_max_bounces``)."""
+        return self.transparent < MAX_TRANSPARENT_BOUNCES
 
     @property
     def array(self):
@@ -159,6 +170,15 @@ class RenderSettings:
     Principled BSDF's transmission) and then meets a diffuse surface carries nothing on from there
     (``caustics_reflective``)."""
 
+    transparent_max_bounces: int = MAX_TRANSPARENT_BOUNCES
+    """Most transparent surfaces a light path crosses in all (Cycles' Transparent bounces: alpha,
+    Transparent BSDF and volume-only meshes, not counted as bounces): a light path camera - x_1 ...
+    x_n - light carries light only if it crosses at most this many, and at most one fewer before
+    x_n, the vertex nearest the light (Cycles ends a camera path at the surface after its last
+    allowed crossing, where it sees emission alone, and its light samples may cross the rest).  At
+    ``MAX_TRANSPARENT_BOUNCES`` (1024, the default) crossings are not counted; a path's segment
+    crosses at most ``context.MAX_TRANSPARENT_CROSSINGS`` surfaces either way."""
+
     workers: int = 0
     """Processes tracing photons in parallel; 0 = one per CPU core, 1 = in this process."""
 
@@ -232,6 +252,8 @@ class RenderSettings:
         for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
             if not 0 <= getattr(self, name) <= MAX_BOUNCES:
                 bad(name, f"must lie in [0, {MAX_BOUNCES}]")
+        if not 0 <= self.transparent_max_bounces <= MAX_TRANSPARENT_BOUNCES:
+            bad("transparent_max_bounces", f"must lie in [0, {MAX_TRANSPARENT_BOUNCES}]")
         if self.workers < 0:
             bad("workers", "must be >= 0")
         if self.chains < 1:
@@ -248,10 +270,10 @@ class RenderSettings:
 
     @property
     def bounce_limits(self) -> "BounceLimits":
-        """The five bounce limits and the Caustics toggles (:class:`BounceLimits`)."""
+        """The five bounce limits, the Caustics toggles and the transparent limit (:class:`BounceLimits`)."""
         return BounceLimits(self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
                             self.transmission_bounces, self.volume_bounces, self.caustics_reflective,
-                            self.caustics_refractive)
+                            self.caustics_refractive, self.transparent_max_bounces)
 
     @property
     def worker_count(self) -> int:
