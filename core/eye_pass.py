@@ -240,8 +240,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     # past a limit (``last``) see emission at their next hit and end there.
     bounces = np.zeros((len(pix), 5), np.uint8)
     last = np.zeros(len(pix), bool)
-    # The transparent surfaces each path crossed, where that limit binds (else None).
-    crossed = np.zeros(len(pix), np.int16) if limits.counts_crossings else None
+    # The transparent surfaces each path crossed, where that limit binds and there are some (else None).
+    crossed = np.zeros(len(pix), np.int16) if limits.counts_crossings and ctx.has_transparency else None
     room = limits.array
     parts = []
     rays = 0

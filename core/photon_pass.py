@@ -138,11 +138,13 @@ class DepositTarget:
             if self.counts_kinds or taken[:, 0].any():
                 self.room = limits.array - taken.astype(np.int16)
         # Per point (surface, then volume): the transparent surfaces its photons may cross (Cycles'
-        # Transparent bounces less the camera path's crossings), where that limit binds; else None.
+        # Transparent bounces less the camera path's crossings), where that limit binds and the
+        # camera paths counted them (in scenes with transparent surfaces); else None.
         self.crossing_room = None
-        if limits is not None and limits.counts_crossings:
+        parts = [p for p in (points, self.volume) if p is not None]
+        if limits is not None and limits.counts_crossings and any(p.crossings is not None for p in parts):
             crossed = np.concatenate([np.zeros(p.count, np.int16) if p.crossings is None else p.crossings
-                                      for p in (points, self.volume) if p is not None])
+                                      for p in parts])
             self.crossing_room = (limits.transparent - crossed.astype(np.int32)).astype(np.int32)
         # Points with a normal map (Cycles' bump-map terms in pair_weights), or None.
         bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
