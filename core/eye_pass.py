@@ -240,7 +240,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     # past a limit (``last``) see emission at their next hit and end there.
     bounces = np.zeros((len(pix), 5), np.uint8)
     last = np.zeros(len(pix), bool)
-    # The transparent surfaces each path crossed, where that limit binds and there are some (else None).
+    # The transparent surfaces each path crossed, where that limit binds and there are some (else None):
+    # Cycles ends a path at the surface after the crossing that reached the limit (after the first
+    # at 0), where it sees emission alone.
     crossed = np.zeros(len(pix), np.int16) if limits.counts_crossings and ctx.has_transparency else None
     room = limits.array
     parts = []
@@ -256,7 +258,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None, numbers, medium,
                                              ray_kind, distances=numbers, throughput=beta,
                                              origin_normals=origin_normals, forced=per_segment, glow=glow,
-                                             crossings=crossed, max_crossings=limits.transparent)
+                                             crossings=crossed, max_crossings=max(limits.transparent, 1))
         if hits.forced is not None:
             # A point in every segment through a scattering volume (the path goes on through it).
             rows, t_v, w_v, ends, planes, media = hits.forced

@@ -146,6 +146,9 @@ class DepositTarget:
             crossed = np.concatenate([np.zeros(p.count, np.int16) if p.crossings is None else p.crossings
                                       for p in parts])
             self.crossing_room = (limits.transparent - crossed.astype(np.int32)).astype(np.int32)
+            # (Cycles at 0 still shades a vertex no crossing came before: its limit before the
+            # vertex nearest the light is max(N - 1, 0))
+            self._shading_room = self.crossing_room - (1 if limits.transparent > 0 else 0)
         # Points with a normal map (Cycles' bump-map terms in pair_weights), or None.
         bumped = table.normal_mapped.take(points.mat_ids) if table.has_normal_maps else None
         self.bumped = bumped if bumped is not None and bumped.any() else None
@@ -293,11 +296,10 @@ class DepositTarget:
     def crossing_filter(self, j, crossings, first):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons that crossed
         ``crossings`` (k,) transparent surfaces in all, ``first`` (k,) of them before their first
-        vertex, keep to Cycles' Transparent bounces: at most the limit in all with the camera
-        path's, and at most one fewer before the photon's first vertex (the light path's vertex
-        nearest the light, which Cycles shades only below the limit)."""
-        room = self.crossing_room.take(j)
-        return (crossings <= room) & (crossings - first < room)
+        vertex, keep to Cycles' Transparent bounces: at most the limit N in all with the camera
+        path's, and at most max(N - 1, 0) before the photon's first vertex (the light path's vertex
+        nearest the light, which Cycles shades only before a crossing has reached the limit)."""
+        return (crossings <= self.crossing_room.take(j)) & (crossings - first <= self._shading_room.take(j))
 
     def volume_pairs(self, x, d):
         """Pairs of photons that scattered at ``x`` (n, 3) travelling along ``d`` (n, 3) with the

@@ -28,6 +28,8 @@ def sheets_over_floor(camera_sheets, light_sheets, emissive=False):
     mats = Materials.build([floor, {"name": "sheet", "diffuse": 0.5, "opacity": 0.0}])
     m = MeshBuilder()
     m.add_quad((-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0), 0)
+    # (a sheet off to the side, on no path to the middle: the scene has transparency at every count)
+    m.add_quad((3, -1, 0.1), (4, -1, 0.1), (4, 1, 0.1), (3, 1, 0.1), 1)
     for i in range(camera_sheets):
         z = 0.5 + 0.3 * i / max(camera_sheets - 1, 1)
         m.add_quad((-0.2, -0.2, z), (0.2, -0.2, z), (0.2, 0.2, z), (-0.2, 0.2, z), 1)
@@ -66,9 +68,19 @@ def test_a_floor_is_lit_through_at_most_n_transparent_surfaces(camera_sheets, li
 
 def test_an_emitter_is_seen_through_at_most_n_transparent_surfaces():
     """A glowing floor seen through 3 clear sheets with N = 3 (Cycles sees emission at the surface
-    after its N-th crossing), and black through 4."""
+    after its N-th crossing), and black through 4; at N = 0 through one (Cycles ends the path only
+    after its first crossing) and not through two."""
     assert mean(sheets_over_floor(3, 0, emissive=True), 3) == pytest.approx(1.0, rel=1e-6)
     assert mean(sheets_over_floor(4, 0, emissive=True), 3) == 0.0
+    assert mean(sheets_over_floor(1, 0, emissive=True), 0) == pytest.approx(1.0, rel=1e-6)
+    assert mean(sheets_over_floor(2, 0, emissive=True), 0) == 0.0
+
+
+@pytest.mark.parametrize("camera_sheets, light_sheets, lit", [(0, 0, True), (1, 0, False), (0, 1, False)])
+def test_at_zero_a_floor_is_lit_through_no_transparent_surface(camera_sheets, light_sheets, lit):
+    """N = 0 (measured in Cycles: lit with no sheet on either side, black with one)."""
+    got = mean(sheets_over_floor(camera_sheets, light_sheets), 0)
+    assert got == pytest.approx(LIT, rel=0.08) if lit else got == 0.0
 
 
 @pytest.mark.parametrize("mutation", ["paper", "exact"])
