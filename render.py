@@ -43,6 +43,7 @@ SETTING_FLAGS = {
     "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
     "transmission_bounces": "transmission_bounces", "volume_bounces": "volume_bounces",
     "caustics_reflective": "caustics_reflective", "caustics_refractive": "caustics_refractive",
+    "transparent_bounces": "transparent_max_bounces",
 }
 
 
@@ -89,6 +90,9 @@ def build_parser():
     g.add_argument("--transmission-bounces", type=int,
                    help="most transmission bounces (Cycles' Transmission)")
     g.add_argument("--volume-bounces", type=int, help="most scatterings in volumes (Cycles' Volume)")
+    g.add_argument("--transparent-bounces", type=int,
+                   help="most transparent surfaces a light path crosses (Cycles' Transparent; 1024: "
+                        "not counted)")
     g.add_argument("--caustics-reflective", action=argparse.BooleanOptionalAction, default=None,
                    help="light off mirrors, glossy surfaces and glass lights diffuse ones (Cycles' "
                         "Reflective Caustics; --no-caustics-reflective: off)")

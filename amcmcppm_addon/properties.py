@@ -10,7 +10,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, MAX_BOUNCES,
-                             METHODS, MUTATIONS, NORMALISATIONS, RenderSettings)
+                             MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS, RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -102,8 +102,8 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     light_paths_from_cycles: BoolProperty(
         name="Use Cycles' Light Paths", default=True,
         description="Take the bounce limits and caustics toggles from Cycles' Light Paths settings of "
-                    "the scene (Total, Diffuse, Glossy, Transmission, Volume; Reflective and Refractive "
-                    "Caustics; the panel edits them), so that a scene keeps them between the two "
+                    "the scene (Total, Diffuse, Glossy, Transmission, Volume, Transparent; Reflective and "
+                    "Refractive Caustics; the panel edits them), so that a scene keeps them between the two "
                     "engines; off: the engine's own settings below")
     max_bounces: IntProperty(
         name="Max Bounces", default=_DEFAULTS.max_bounces, min=0, max=MAX_BOUNCES,
@@ -113,6 +113,11 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     glossy_bounces: bounce_limit("Glossy", "glossy bounces (reflections off mirrors, glossy lobes and glass)")
     transmission_bounces: bounce_limit("Transmission", "transmission bounces (refractions through glass)")
     volume_bounces: bounce_limit("Volume", "scatterings in volumes (0: single scattering)")
+    transparent_max_bounces: IntProperty(
+        name="Transparent", default=_DEFAULTS.transparent_max_bounces, min=0, max=MAX_TRANSPARENT_BOUNCES,
+        description="Most transparent surfaces (Transparent BSDFs, alpha) a light path crosses, as Cycles' "
+                    "Transparent bounces; they count apart from the other bounces (at "
+                    f"{MAX_TRANSPARENT_BOUNCES}: not counted)")
     caustics_reflective: BoolProperty(
         name="Reflective Caustics", default=_DEFAULTS.caustics_reflective,
         description="Light reflected off mirrors, glossy surfaces and glass lights diffuse surfaces, "
@@ -152,10 +157,11 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Mutation size every chain starts with, before adaptation")
 
     def light_path_limits(self):
-        """({name: value} of the five bounce limits and two caustics toggles (``LIGHT_PATHS``) a render
-        takes, notes): Cycles' settings of the scene (``scene.cycles``, the same names) with
-        ``light_paths_from_cycles`` and Cycles there, a limit above ``MAX_BOUNCES`` taken as that
-        (noted); else the engine's own."""
+        """({name: value} of the five bounce limits, two caustics toggles and the transparent limit
+        (``LIGHT_PATHS``) a render takes, notes): Cycles' settings of the scene (``scene.cycles``, the
+        same names) with ``light_paths_from_cycles`` and Cycles there, a limit above the engine's most
+        (``MAX_BOUNCES``; ``MAX_TRANSPARENT_BOUNCES``, Cycles' own most, for the transparent limit)
+        taken as that (noted); else the engine's own."""
         cycles = getattr(self.id_data, "cycles", None) if self.light_paths_from_cycles else None
         if cycles is None:
             notes = ["Cycles' Light Paths are not available (the Cycles add-on is off); the engine's own "
@@ -167,10 +173,11 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
                 limits[name] = bool(getattr(cycles, name))
                 continue
             value = int(getattr(cycles, name))
-            if value > MAX_BOUNCES:
+            most = MAX_TRANSPARENT_BOUNCES if name == "transparent_max_bounces" else MAX_BOUNCES
+            if value > most:
                 notes.append(f"Cycles' {cycles.bl_rna.properties[name].name} of {value} is more than this "
-                             f"engine traces; rendering with {MAX_BOUNCES}")
-                value = MAX_BOUNCES
+                             f"engine traces; rendering with {most}")
+                value = most
             limits[name] = value
         return limits, notes
 
@@ -197,10 +204,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
 # view layer's (View Layer > Passes, engine.data_passes_of).
 FROM_BLENDER = ("data_passes",)
 
-# Cycles' Light Paths that the engine follows: the bounce limits and caustics toggles, as named by Cycles'
-# settings and ours (AMCMCPPMRenderSettings.light_path_limits).
+# Cycles' Light Paths that the engine follows: the bounce limits, caustics toggles and transparent limit, as
+# named by Cycles' settings and ours (AMCMCPPMRenderSettings.light_path_limits).
 LIGHT_PATHS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
-               "caustics_reflective", "caustics_refractive")
+               "caustics_reflective", "caustics_refractive", "transparent_max_bounces")
 
 # Names of the properties that map one-to-one onto core.RenderSettings fields.
 CORE_SETTING_NAMES = tuple(name for name in AMCMCPPMRenderSettings.__annotations__

@@ -78,14 +78,17 @@ class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
 
 class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
-    """Bounce limits and caustics toggles as Cycles' Light Paths > Max Bounces and Caustics: Cycles'
-    own settings of the scene (the same names), or with Use Cycles' Light Paths off the engine's."""
+    """Bounce limits (the transparent one too) and caustics toggles as Cycles' Light Paths > Max Bounces
+    and Caustics: Cycles' own settings of the scene (the same names), or with Use Cycles' Light Paths
+    off the engine's."""
     bl_label = "Light Paths"
     props = ("light_paths_from_cycles", "max_bounces", "diffuse_bounces", "glossy_bounces",
-             "transmission_bounces", "volume_bounces", "caustics_reflective", "caustics_refractive")
+             "transmission_bounces", "volume_bounces", "transparent_max_bounces", "caustics_reflective",
+             "caustics_refractive")
     labels = {"max_bounces": "Total", "diffuse_bounces": "Diffuse", "glossy_bounces": "Glossy",
               "transmission_bounces": "Transmission", "volume_bounces": "Volume",
-              "caustics_reflective": "Reflective", "caustics_refractive": "Refractive"}
+              "transparent_max_bounces": "Transparent", "caustics_reflective": "Reflective",
+              "caustics_refractive": "Refractive"}
 
     def draw(self, context):
         layout = self.layout
@@ -95,10 +98,13 @@ class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
         layout.prop(settings, "light_paths_from_cycles")
         cycles = getattr(context.scene, "cycles", None)
         source = cycles if settings.light_paths_from_cycles and cycles is not None else settings
+        # As Cycles' Max Bounces: the bounce limits, then Transparent in a column of its own.
         bounces = layout.column(align=True)
+        transparent = layout.column(align=True)
         caustics = layout.column(heading="Caustics", align=True)
         for name in self.props[1:]:
-            col = caustics if name.startswith("caustics_") else bounces
+            col = (caustics if name.startswith("caustics_") else
+                   transparent if name == "transparent_max_bounces" else bounces)
             col.prop(source, name, text=self.labels[name])
 
 

@@ -7,7 +7,7 @@ import sys
 import time
 
 from .scene import Scene, SceneError
-from .settings import METHODS, MUTATIONS, NORMALISATIONS, RenderSettings
+from .settings import MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS, RenderSettings
 
 
 def build_parser():
@@ -43,6 +43,9 @@ def build_parser():
     r.add_argument("--glossy-bounces", type=int, default=d.glossy_bounces)
     r.add_argument("--transmission-bounces", type=int, default=d.transmission_bounces)
     r.add_argument("--volume-bounces", type=int, default=d.volume_bounces)
+    r.add_argument("--transparent-bounces", type=int, default=d.transparent_max_bounces,
+                   help="most transparent surfaces a light path crosses (Cycles' Transparent; "
+                        f"{MAX_TRANSPARENT_BOUNCES}: not counted)")
     for name, what in (("reflective", "off mirrors, glossy lobes and glass"),
                        ("refractive", "through glass")):
         r.add_argument(f"--caustics-{name}", action=argparse.BooleanOptionalAction,
@@ -64,6 +67,7 @@ def settings_from_args(a) -> RenderSettings:
                           transmission_bounces=a.transmission_bounces, volume_bounces=a.volume_bounces,
                           caustics_reflective=a.caustics_reflective,
                           caustics_refractive=a.caustics_refractive,
+                          transparent_max_bounces=a.transparent_bounces,
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
                           mutation=a.mutation, normalisation=a.normalisation,
                           glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction)

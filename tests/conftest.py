@@ -56,6 +56,11 @@ SLOW_CASES = {
     # [principled_reflective_off] stay (tests/core/test_caustics.py has the closed forms).
     *(PARITY + f"test_caustics_toggles_match_cycles[{case}]"
       for case in ("glass_reflective_off", "glass_both_off")),
+    # Transparent bounces (stop 50): [veils_transparent_3], where the limit binds, stays (11-15 s); the
+    # control case, where it does not, takes longer, its paths crossing all six veils (tests/core/
+    # test_transparent_bounces.py has the closed forms).
+    PARITY + "test_transparent_bounces_match_cycles[veils_transparent_16]",   # 18 s
+    PARITY + "test_transparent_bounces_match_cycles[veils_transparent_0]",    # (Cycles' corner case at 0)
     # Budget (stop 49, the fast tier at 13:36 twice): 12-16 s each, their features kept fast by
     # siblings ([refraction_beckmann_0.6]; [pane_front], [pane_back], [emitter_in_water]; [point]) or
     # by tests/core/test_coat.py (coat normals).

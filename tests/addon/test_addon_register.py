@@ -90,28 +90,36 @@ def test_defaults_follow_core(scene):
 
 def test_bounce_limits_are_cycles_light_paths_by_default(scene):
     """A new scene renders with Cycles' Light Paths (Total 12, Diffuse 4, Glossy 4, Transmission 12,
-    Volume 0, both Caustics on by default), as they change; more than the engine traces is taken as
-    its most, with a note; switching to the engine's own limits starts from Cycles' values; without
-    the option the engine's own apply."""
+    Volume 0, both Caustics on, Transparent 8 by default), as they change; more than the engine
+    traces is taken as its most, with a note (Transparent goes up to 1024 in both: no note);
+    switching to the engine's own limits starts from Cycles' values; without the option the
+    engine's own apply."""
     from amcmcppm.amcmcppm_addon.export import render_settings_from
     from amcmcppm.amcmcppm_addon.properties import LIGHT_PATHS
-    from amcmcppm.core.settings import MAX_BOUNCES
+    from amcmcppm.core.settings import MAX_BOUNCES, MAX_TRANSPARENT_BOUNCES
     fresh = bpy.data.scenes.new("Fresh")
     props = fresh.amcmcppm
     assert props.light_paths_from_cycles
     limits = lambda s: tuple(getattr(s, name) for name in LIGHT_PATHS)        # noqa: E731
-    assert limits(render_settings_from(props)) == (12, 4, 4, 12, 0, True, True) == limits(fresh.cycles)
+    assert limits(render_settings_from(props)) == (12, 4, 4, 12, 0, True, True, 8) == limits(fresh.cycles)
     fresh.cycles.max_bounces, fresh.cycles.volume_bounces = 128, 3
     fresh.cycles.caustics_refractive = False
-    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 4, 4, 12, 3, True, False)
+    fresh.cycles.transparent_max_bounces = MAX_TRANSPARENT_BOUNCES
+    most = (MAX_BOUNCES, 4, 4, 12, 3, True, False, MAX_TRANSPARENT_BOUNCES)
+    assert limits(render_settings_from(props)) == most
     notes = props.light_path_limits()[1]
     assert len(notes) == 1 and "128" in notes[0] and str(MAX_BOUNCES) in notes[0]
+    fresh.cycles.transparent_max_bounces = 100          # (more than MAX_BOUNCES: kept)
+    assert render_settings_from(props).transparent_max_bounces == 100
+    assert len(props.light_path_limits()[1]) == 1
     props.own_light_paths()
     assert not props.light_paths_from_cycles
-    assert limits(props) == (MAX_BOUNCES, 4, 4, 12, 3, True, False)
+    assert limits(props) == (MAX_BOUNCES, 4, 4, 12, 3, True, False, 100)
     props.diffuse_bounces = 2
     props.caustics_reflective = False
-    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 2, 4, 12, 3, False, False)
+    props.transparent_max_bounces = 3
+    assert limits(render_settings_from(props)) == (MAX_BOUNCES, 2, 4, 12, 3, False, False, 3)
+    assert render_settings_from(props).bounce_limits.transparent == 3
     assert props.light_path_limits()[1] == []
 
 
@@ -131,6 +139,11 @@ def test_enums_have_indices_and_limits(scene):
     assert props["alpha"].hard_min > 0 and props["alpha"].hard_max < 1
     assert props["workers"].hard_min == 0
     assert props["max_bounces"].hard_min == 0          # (0: direct light, as Cycles)
+    # Cycles' range of Transparent bounces, whose most (the engine's default) counts no crossing.
+    ours, cycles = (s.bl_rna.properties["transparent_max_bounces"] for s in (scene.amcmcppm, scene.cycles))
+    assert (ours.hard_min, ours.hard_max) == (0, core.MAX_TRANSPARENT_BOUNCES)
+    assert (cycles.hard_min, cycles.hard_max) == (0, core.MAX_TRANSPARENT_BOUNCES)
+    assert ours.default == core.MAX_TRANSPARENT_BOUNCES
 
 
 def test_settings_reach_core(scene):

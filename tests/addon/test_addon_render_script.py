@@ -70,6 +70,7 @@ def test_border_and_resolution_flags(repo_root, cornell, tmp_path):
     (["--bogus"], r"unrecognized arguments: --bogus"),
     (["--method", "bpt"], r"argument --method: invalid choice"),
     (["--target-acceptance", "1.5"], r"--target-acceptance 1.5 is outside the allowed range"),
+    (["--transparent-bounces", "2000"], r"--transparent-bounces 2000 is outside the allowed range"),
     (["--output", "x.bmpx"], r"unknown image type '.bmpx'"),
     (["--snapshot-times", "1,soon"], r"--snapshot-times '1,soon': expected numbers"),
 ])
