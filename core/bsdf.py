@@ -1610,12 +1610,13 @@ def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=Non
             w = w * table.sheen_dim(m_sel, dot(view, n_s))[:, None]
         if mode == "importance" and ns is not ng and k not in (DIFFUSE, TRANSLUCENT):
             w = w * _adjoint_factor(w_o, d, n_g, n_s)[:, None]
-        if nnf is not None and k in REFLECTING:
+        if nnf is not None and (k in REFLECTING or k == SHEEN):
+            # (a sheen is one of Cycles' diffuse closures, which take the softening too)
             diffuse, valid = bump_shadowing(nnf.take(sel, axis=0), n_s, w_o)
-            if k == DIFFUSE:
+            if k != GLOSSY:
                 # (Bump Map Correction off: the side test alone)
                 diffuse = np.where(table.bump_correction.take(m_sel), diffuse, valid)
-            w = w * (diffuse if k == DIFFUSE else valid)[:, None]
+            w = w * (valid if k == GLOSSY else diffuse)[:, None]
         wi[sel] = d
         weight[sel] = np.where(ok[:, None], w, 0.0)
         alive[sel] = ok
