@@ -55,6 +55,19 @@ def expected_albedo(rho, sigma, mu, n=256):
     return rho * total * (1.0 / n) * (2 * math.pi / (n // 4))
 
 
+def scatter_at_view(table, lobe, mu, mode="importance", n=200_000, seed=7):
+    """(wi, weight, alive, wo) of ``n`` scatterings by ``lobe`` of a flat surface (normal +z) of
+    ``table``'s first material, from ``wo`` at cosine ``mu`` in the xz plane."""
+    rng = np.random.default_rng(seed)
+    wo = np.tile([math.sqrt(1 - mu * mu), 0.0, mu], (n, 1))
+    nrm = np.tile([0.0, 0.0, 1.0], (n, 1))
+    mat = np.zeros(n, np.int32)
+    colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
+    wi, w, alive = bsdf.scatter(table, mat, colors, np.full(n, lobe, np.int64), np.ones(n), wo, nrm, nrm,
+                                rng.random(n), rng.random(n), mode)
+    return wi, w, alive, wo
+
+
 @pytest.mark.parametrize("sigma, rho", [(1.0, 1.0), (1.0, 0.5), (0.4, 0.8), (0.0, 0.5)])
 @pytest.mark.parametrize("mu", [0.05, 0.5, 0.95])
 def test_scatter_weights_the_rough_diffuse_lobe_as_cycles_evaluates_it(sigma, rho, mu):
@@ -64,16 +77,9 @@ def test_scatter_weights_the_rough_diffuse_lobe_as_cycles_evaluates_it(sigma, rh
     table = bsdf.MaterialTable.from_materials(Materials.build([{"name": "clay", "diffuse": rho,
                                                                 "diffuse_roughness": sigma}]))
     assert table.has_rough_diffuse == (sigma > 0)
-    n = 200_000
-    rng = np.random.default_rng(7)
-    wo = np.tile([math.sqrt(1 - mu * mu), 0.0, mu], (n, 1))
-    nrm = np.tile([0.0, 0.0, 1.0], (n, 1))
-    mat = np.zeros(n, np.int32)
-    colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
-    wi, w, alive = bsdf.scatter(table, mat, colors, np.zeros(n, np.int64), np.ones(n), wo, nrm, nrm,
-                                rng.random(n), rng.random(n), "importance")
+    wi, w, alive, wo = scatter_at_view(table, bsdf.DIFFUSE, mu)
     assert alive.all() and np.isfinite(w).all()
-    for k in rng.integers(0, n, 20):
+    for k in np.random.default_rng(8).integers(0, len(w), 20):
         ref = reference_intensity(rho, sigma, wi[k, 2], mu, wi[k] @ wo[k]) * rho * math.pi / wi[k, 2]
         assert w[k, 0] == pytest.approx(ref, rel=1e-6)         # (the colour is float32)
     want = expected_albedo(rho, sigma, mu)

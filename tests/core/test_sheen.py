@@ -12,7 +12,7 @@ from chi2 import ChiSquareTest
 from core import RenderSettings, bsdf, render
 from core.scene import Materials
 from core.testing.scenes import sky_over_floor
-from test_rough_diffuse import view_cosines
+from test_rough_diffuse import scatter_at_view, view_cosines
 
 METHODS = [dict(method="ppm"), dict(method="amcmcppm", chains=4096)]
 
@@ -65,16 +65,9 @@ def test_photons_scatter_off_the_sheen_as_cycles_evaluates_it(r, mu):
     its mean the integral of f(v, wo) cos(v) over views (midpoint rule)."""
     table = sheen_table(r, 0.8)
     assert table.has_sheen and table.lobes == 6
-    n = 200_000
-    rng = np.random.default_rng(3)
-    wo = np.tile([math.sqrt(1 - mu * mu), 0.0, mu], (n, 1))
-    nrm = np.tile([0.0, 0.0, 1.0], (n, 1))
-    mat = np.zeros(n, np.int32)
-    colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
-    wi, w, alive = bsdf.scatter(table, mat, colors, np.full(n, bsdf.SHEEN), np.ones(n), wo, nrm, nrm,
-                                rng.random(n), rng.random(n), "importance")
+    wi, w, alive, wo = scatter_at_view(table, bsdf.SHEEN, mu, seed=3)
     assert np.isfinite(w).all() and (w >= 0).all()
-    for k in rng.integers(0, n, 20):
+    for k in np.random.default_rng(4).integers(0, len(w), 20):
         ref = 0.8 * reference(wi[k], wo[k], r) / mu * math.pi       # f(wi, wo) cos(wi) / (cos(wi) / pi)
         assert w[k, 0] == pytest.approx(ref, rel=1e-5, abs=1e-12)
     m = 128
@@ -100,12 +93,7 @@ def test_camera_paths_sample_the_sheen_as_its_density(r, mu):
     view = np.array([math.sqrt(1 - mu * mu), 0.0, mu])
 
     def sample(n):
-        rng = np.random.default_rng(11)
-        mat = np.zeros(n, np.int32)
-        nrm = np.tile([0.0, 0.0, 1.0], (n, 1))
-        colors = bsdf.lobe_colors(table, mat, table.color[mat, bsdf.DIFFUSE])
-        wi, w, alive = bsdf.scatter(table, mat, colors, np.full(n, bsdf.SHEEN), np.ones(n),
-                                    np.tile(view, (n, 1)), nrm, nrm, rng.random(n), rng.random(n), "radiance")
+        wi, w, alive, _ = scatter_at_view(table, bsdf.SHEEN, mu, "radiance", n, seed=11)
         assert np.allclose(w[alive, 0], e, rtol=1e-6)
         return np.stack([wi[:, 2], np.arctan2(wi[:, 1], wi[:, 0]) % (2 * math.pi)], axis=1), alive * 1.0
 
