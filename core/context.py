@@ -527,13 +527,16 @@ class RenderContext:
         if len(a):
             factor[r.take(a)] *= transmittance(self.absorption.take(vol, axis=0), length)
 
-    def factor_to(self, origins, dirs, t, medium, ray_kind):
+    def factor_to(self, origins, dirs, t, medium, ray_kind, crossings=None, max_crossings=None):
         """(n, 3) what reaches distances ``t`` (n,) (inf: infinity) along camera-path rays that
         get there (they crossed every transparent surface before): the tints of those surfaces
-        and the transmittance of the volumes on the way, from ``medium`` (n,) at the origins."""
+        and the transmittance of the volumes on the way, from ``medium`` (n,) at the origins; 0
+        past ``max_crossings`` transparent surfaces with the ``crossings`` (n,) made before
+        (Cycles' Transparent bounces; None: not counted)."""
         crossing = lambda rows, k: np.full(len(rows), 1.0 - 2.0 ** -53)     # noqa: E731
+        counts = None if crossings is None else np.array(crossings, np.int16)
         _, factor, _, _ = self.trace(origins, dirs, t, crossing, medium, ray_kind, distances=crossing,
-                                     forced=1, cut=True)
+                                     forced=1, cut=True, crossings=counts, max_crossings=max_crossings)
         return np.ones((len(dirs), 3)) if factor is None else factor
 
     def enclosing_medium(self, points):

@@ -299,8 +299,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 t_max = np.minimum(t_max, tmax)
             # Lights crossed get what reaches them (not what reaches the segment's end).
             attenuation = None if through is None else (
-                lambda r, t, o=origins, d=dirs, m=medium_in, k=ray_kind: ctx.factor_to(
-                    o.take(r, axis=0), d.take(r, axis=0), t, None if m is None else m.take(r), k.take(r)))
+                lambda r, t, o=origins, d=dirs, m=medium_in, k=ray_kind, c=crossed_before: ctx.factor_to(
+                    o.take(r, axis=0), d.take(r, axis=0), t, None if m is None else m.take(r), k.take(r),
+                    None if c is None else c.take(r), max(limits.transparent, 1)))
             seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind, sets, attenuation)
             lit = np.flatnonzero(seen.any(axis=1))
             emission[pix[lit]] += beta_in[lit] * seen[lit]

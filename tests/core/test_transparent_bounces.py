@@ -10,21 +10,24 @@ import numpy as np
 import pytest
 
 from core import RenderSettings, render
-from core.scene import Camera, Lights, Materials
+from core.scene import VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Camera, Lights, Materials
 from core.testing.scenes import MeshBuilder, _look_down
 
 IRRADIANCE, ALBEDO = 10.0, 0.5
 LIT = ALBEDO * IRRADIANCE * math.cos(math.pi / 4) / math.pi        # the floor's radiance under the sun
+ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
 
 
-def sheets_over_floor(camera_sheets, light_sheets, emissive=False):
+def sheets_over_floor(camera_sheets, light_sheets, emissive=False, lamp=False):
     """A floor of 2 x 2 at z = 0 under a sun at 45 degrees, an orthographic camera at z = 1 looking
     down at its middle (0.2 x 0.2); ``camera_sheets`` clear sheets of 0.4 x 0.4 between the camera
     and the floor (z 0.5 to 0.8: the sun's light to the middle passes beside them) and
     ``light_sheets`` clear sheets of 4 x 2 above the camera (z 2 to 3), across the sun's light to the
     middle.  ``emissive``: the floor
-    glows (radiance 1) instead and no sun shines."""
-    floor = {"name": "floor", "emission": 1.0} if emissive else {"name": "floor", "diffuse": ALBEDO}
+    glows (radiance 1) instead and no sun shines; ``lamp``: an area light of 0.5 x 0.5 at z = 0.2
+    faces the camera instead, over a black floor."""
+    floor = ({"name": "floor", "emission": 1.0} if emissive else
+             {"name": "floor", "diffuse": 0.0 if lamp else ALBEDO})
     mats = Materials.build([floor, {"name": "sheet", "diffuse": 0.5, "opacity": 0.0}])
     m = MeshBuilder()
     m.add_quad((-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0), 0)
@@ -38,6 +41,9 @@ def sheets_over_floor(camera_sheets, light_sheets, emissive=False):
         m.add_quad((-3.5, -1, z), (0.5, -1, z), (0.5, 1, z), (-3.5, 1, z), 1)
     lights = None if emissive else Lights.build([{"kind": "sun", "direction": (1.0, 0.0, -1.0),
                                                   "power": IRRADIANCE}])
+    if lamp:
+        lights = Lights.build([{"kind": "area", "position": (0, 0, 0.2), "direction": (0, 0, 1),
+                                "size": (0.5, 0.5), "power": 10.0, "visibility": ALL_RAYS}])
     cam = Camera(world_from_camera=_look_down(1.0), projection="orthographic", frame=(-0.1, 0.1, -0.1, 0.1),
                  resolution=(8, 8))
     return m.build(mats, lights, cam)
@@ -74,6 +80,30 @@ def test_an_emitter_is_seen_through_at_most_n_transparent_surfaces():
     assert mean(sheets_over_floor(4, 0, emissive=True), 3) == 0.0
     assert mean(sheets_over_floor(1, 0, emissive=True), 0) == pytest.approx(1.0, rel=1e-6)
     assert mean(sheets_over_floor(2, 0, emissive=True), 0) == 0.0
+
+
+@pytest.mark.parametrize("kind", ["area", "sun"])
+def test_a_lamp_is_seen_through_at_most_n_transparent_surfaces(kind):
+    """An area light (or a sun's disc, with no floor) seen straight through 3 clear sheets with
+    N = 3 shows as through none, and is black through 4 (camera rays meet lamps as Cycles' do,
+    as surfaces; a sun's disc past a ray that the limit ended: ``factor_to``)."""
+    def image(sheets):
+        scene = sheets_over_floor(sheets, 0, lamp=True)
+        if kind == "sun":
+            mats = Materials.build([{"name": "sheet", "diffuse": 0.5, "opacity": 0.0}])
+            m = MeshBuilder()
+            for i in range(sheets):
+                z = 0.5 + 0.1 * i
+                m.add_quad((-0.2, -0.2, z), (0.2, -0.2, z), (0.2, 0.2, z), (-0.2, 0.2, z), 0)
+            m.add_quad((3, -1, 0.1), (4, -1, 0.1), (4, 1, 0.1), (3, 1, 0.1), 0)     # (as above)
+            sun = Lights.build([{"kind": "sun", "direction": (0, 0, 1), "power": 10.0,
+                                 "sun_angle": math.radians(10.0), "visibility": ALL_RAYS}])
+            scene = m.build(mats, sun, scene.camera)
+        return mean(scene, 3)
+    bare = image(0)
+    assert bare > 0.1
+    assert image(3) == pytest.approx(bare, rel=1e-6)
+    assert image(4) == 0.0
 
 
 @pytest.mark.parametrize("camera_sheets, light_sheets, lit", [(0, 0, True), (1, 0, False), (0, 1, False)])
