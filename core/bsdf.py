@@ -172,13 +172,8 @@ def coat_variants(mats):
     coated = np.flatnonzero(weight > 0)
     if len(coated) == 0:
         return mats, coat_row
-    m = mats.count
-    sheen = [np.zeros((m, 3)), np.full(m, 0.5), np.zeros(m)]
-    for i, name in enumerate(("sheen_color", "sheen_roughness", "sheen_cover")):
-        if getattr(mats, name) is not None:
-            sheen[i] = np.asarray(getattr(mats, name), np.float64)
     keys = np.column_stack([weight[coated], mats.coat_roughness[coated], mats.coat_ior[coated],
-                            sheen[0][coated], sheen[1][coated], sheen[2][coated]])
+                            mats.sheen_color[coated], mats.sheen_roughness[coated], mats.sheen_cover[coated]])
     unique, which = np.unique(keys, axis=0, return_inverse=True)
     coat_row[coated] = mats.count + which.ravel()
     k = len(unique)
@@ -198,11 +193,11 @@ def coat_variants(mats):
     changes["glossy_fresnel_ior"][new] = ior
     changes["glossy_fresnel_rise"][new] = 1.0 - f0[:, None]
     changes["glossy_multiscatter"][new] = np.array([smp.mean_fresnel(x) for x in ior])[:, None]
-    if (unique[:, 3:6] > 0).any() or (unique[:, 7] > 0).any():
-        changes["sheen_color"] = np.concatenate([sheen[0], unique[:, 3:6]]).astype(np.float32)
-        changes["sheen_color"][coated] = 0.0
-        changes["sheen_roughness"] = np.concatenate([sheen[1], unique[:, 6]]).astype(np.float32)
-        changes["sheen_cover"] = np.concatenate([sheen[2], unique[:, 7]]).astype(np.float32)
+    # (the sheen moves to the coat; the material keeps its cover, which dims what lies under the coat)
+    changes["sheen_color"][new] = unique[:, 3:6]
+    changes["sheen_color"][coated] = 0.0
+    changes["sheen_roughness"][new] = unique[:, 6]
+    changes["sheen_cover"][new] = unique[:, 7]
     for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "outer_bump_strength",
                  "outer_bump_distance", "coat_bump_strength", "coat_bump_distance", "diffuse_layer_weight",
                  "glossy_stretch", "glossy_metal_share", "bump_correction"):
