@@ -142,6 +142,8 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         data["depth"] = np.full(n_pix, NO_DEPTH)
     if "normal" in data_passes:
         data["normal"] = np.zeros((n_pix, 3))
+    if "albedo" in data_passes:
+        data["albedo"] = np.zeros((n_pix, 3))
     parts, volume = [], []
     rays = 0
     per_segment = int(np.clip(VOLUME_POINT_BUDGET // max(n_pix, 1), 1, MAX_SEGMENT_POINTS))
@@ -152,26 +154,148 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
-    if "albedo" in data_passes:
-        data["albedo"] = point_albedo(ctx.table, points, n_pix)
     return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume), data or None)
 
 
-def point_albedo(table, points, n_pixels):
-    """(n_pixels, 3) the albedo pass (``RenderSettings.data_passes``) of one eye pass: the sum
-    over each pixel's measurement points of their weights (the camera path's throughput over the
-    chance of stopping there) times their lobes' weights times colours.  Its mean over passes is
-    the colour of the surface a camera path ends on times what lies before it lets through,
-    summed over where the path may end (through a Principled's smooth specular layer, its diffuse
-    colour and, by the layer's share, the reflected surface's)."""
-    out = np.zeros((n_pixels, 3))
-    if points.count == 0:
-        return out
-    weight = table.weight[:, table.point_lobes].take(points.mat_ids, axis=0)
-    albedo = (weight[:, :, None] * points.colors).sum(axis=1) * points.weight
-    for c in range(3):
-        out[:, c] = np.bincount(points.pixel_ids, albedo[:, c], minlength=n_pixels)
-    return out
+# Cycles' line between specular-like and diffuse-like closures for its denoising features: a
+# microfacet lobe whose alpha_x alpha_y exceeds 0.075^2 is diffuse-like (film/denoising_passes.h).
+FEATURE_ALPHA = 0.075
+
+
+class AlbedoPaths:
+    """Cycles' Denoising Albedo along one chunk of camera paths (``film/denoising_passes.h``).
+
+    A path is *open* from the camera on.  At each surface it meets while open, the albedos of the
+    material's lobes are split into diffuse-like (diffuse, translucent, sheen, and glossy or glass
+    lobes rougher than ``FEATURE_ALPHA``) and specular-like ones (:func:`surface_albedo`); if the
+    diffuse-like part is more than a quarter of the total (or there is none at all), the path
+    writes its feature throughput ``feat`` times the diffuse-like part and closes, else ``feat``
+    takes the specular-like part and the path goes on.  Emission, lights and the world that an
+    open path sees add ``feat`` times what they add to the image.  Where an open path stops at a
+    measurement point of such a specular surface (its glossy lobe is not followed, as Cycles
+    follows any closure), it writes ``feat`` times both parts: what the lobe reflects is taken as
+    white.  ``out`` (n_pixels, 3) is the pass's sum over this eye pass."""
+
+    def __init__(self, n, out, rng):
+        self.open = np.ones(n, bool)
+        self.feat = np.ones((n, 3))
+        self.out = out
+        self.rng = rng
+        self.pending = None              # (rows, feat x both parts, specular part) at this vertex
+
+    def light(self, pix, rows, value):
+        """Paths ``rows`` (of the chunk's current ``pix``) see ``value`` (k, 3), as the image does."""
+        o = np.flatnonzero(self.open.take(rows))
+        if len(o):
+            r = rows.take(o)
+            self.out[pix.take(r)] += self.feat.take(r, axis=0) * value.take(o, axis=0)
+
+    def surface(self, table, surf, wo, pix):
+        """The open paths meet ``surf`` (all current paths' hits), seen from ``wo``."""
+        o = np.flatnonzero(self.open)
+        if len(o) == 0:
+            return
+        diffuse_like, specular = surface_albedo(table, surf, wo, o, self.rng)
+        d = diffuse_like[:, 0] + diffuse_like[:, 1] + diffuse_like[:, 2]
+        t = d + specular[:, 0] + specular[:, 1] + specular[:, 2]
+        done = (t <= 0) | (4.0 * d > t)
+        go = np.flatnonzero(~done)
+        if len(go) == 0:
+            self.out[pix.take(o)] += self.feat.take(o, axis=0) * diffuse_like
+            self.open[o] = False
+            return
+        c = np.flatnonzero(done)
+        self.out[pix.take(o.take(c))] += self.feat.take(o.take(c), axis=0) * diffuse_like.take(c, axis=0)
+        self.open[o.take(c)] = False
+        rows = o.take(go)
+        feat = self.feat.take(rows, axis=0)
+        self.pending = (rows, feat * (diffuse_like.take(go, axis=0) + specular.take(go, axis=0)),
+                        specular.take(go, axis=0))
+
+    def settle(self, pix, onward):
+        """After a vertex: paths ``onward`` go on (the others ended there or became points)."""
+        if self.pending is None:
+            return
+        rows, both, specular = self.pending
+        self.pending = None
+        on = np.zeros(len(self.open), bool)
+        on[onward] = True
+        goes = on.take(rows)
+        self.feat[rows[goes]] *= specular[goes]
+        stop = rows[~goes]
+        self.out[pix.take(stop)] += both[~goes]
+        self.open[stop] = False
+
+    def take(self, rows):
+        self.open, self.feat = self.open.take(rows), self.feat.take(rows, axis=0)
+
+
+def surface_albedo(table, surf, wo, rows, rng):
+    """(diffuse-like, specular-like) (k, 3) each: the albedos of the lobes of the materials at
+    hits ``rows`` of ``surf`` seen from ``wo`` (all hits), as Cycles' ``bsdf_albedo`` estimates
+    them for its denoising features (what a closure reflects and transmits under a white sky), split
+    by :data:`FEATURE_ALPHA` (:class:`AlbedoPaths`).  Diffuse and translucent lobes give their
+    weight times colour (under a specular layer, its factor at the view), a sheen its E at the view;
+    glossy, mirror and glass lobes one sample each: the lobe's :func:`~core.bsdf.scatter` weight
+    towards the camera, whose mean is its directional albedo at the view with what the lobe's weight
+    takes there (Fresnel, a metal's curve, multiscatter).  A coat is its own lobes and attenuates
+    those under it; a sheen dims the others."""
+    k = len(rows)
+    diffuse_like, specular = np.zeros((k, 3)), np.zeros((k, 3))
+    every = k == len(surf.mat_ids)                   # (all hits: no copies)
+    pick = (lambda a: a) if every else (lambda a: a.take(rows, axis=0))      # noqa: E731
+    mats = pick(surf.mat_ids)
+    layers = [(np.arange(k), mats, pick(surf.colors), pick(surf.ns), None)]
+    if table.has_coat:
+        coated = np.flatnonzero(table.coat_row.take(mats) >= 0)
+        if len(coated):
+            under = np.ones((k, 3))
+            under[coated] = coat_attenuation(table, surf, wo, rows.take(coated))
+            layers[0] = layers[0][:4] + (under,)
+            coat = table.coat_row.take(mats.take(coated))
+            layers.append((coated, coat, table.color.take(coat, axis=0),
+                           coat_normal(surf).take(rows.take(coated), axis=0), None))
+    for at, m, colors, ns, factor in layers:
+        whole = every and len(at) == k
+        wo_r = wo if whole else wo.take(rows.take(at), axis=0)
+        ng = surf.ng if whole else surf.ng.take(rows.take(at), axis=0)
+        tangent = surf.tangent if whole or surf.tangent is None else surf.tangent.take(rows.take(at), axis=0)
+        mu_all = None
+        for lobe in range(table.lobes):
+            sel = np.flatnonzero(table.weight[:, lobe].take(m) > 0)
+            if len(sel) == 0:
+                continue
+            m_s = m.take(sel)
+            if lobe in (DIFFUSE, TRANSLUCENT, SHEEN):
+                # (known without a sample: Cycles' estimate is the weight, a sheen's E at the view)
+                if mu_all is None:
+                    mu_all = np.abs(dot(wo_r, ns))
+                mu = mu_all.take(sel)
+                w = table.weight[:, lobe].take(m_s)[:, None] * colors[:, lobe].take(sel, axis=0)
+                if lobe == DIFFUSE and table.has_layer:
+                    w = w * table.layer_factor(m_s, mu)[:, None]
+                if lobe == SHEEN:
+                    w = w * table.sheen_lobe(m_s, mu)[0][:, None]
+                elif table.has_sheen:
+                    w = w * table.sheen_dim(m_s, mu)[:, None]
+            else:
+                u = rng.random((len(sel), 3))
+                _, w, _ = scatter(table, m_s, colors.take(sel, axis=0), np.full(len(sel), lobe),
+                                  np.ones(len(sel)), wo_r.take(sel, axis=0), ng.take(sel, axis=0),
+                                  ns.take(sel, axis=0), u[:, 0], u[:, 1], "radiance", u[:, 2],
+                                  tangent=None if tangent is None else tangent.take(sel, axis=0))
+            if factor is not None:
+                w = w * factor.take(sel, axis=0)
+            if lobe == GLOSSY:
+                rough = table.alpha.take(m_s) > FEATURE_ALPHA
+            elif lobe == DIELECTRIC:
+                rough = table.dielectric_alpha.take(m_s) > FEATURE_ALPHA
+            else:
+                rough = np.full(len(sel), lobe != MIRROR)
+            dest = at.take(sel)
+            diffuse_like[dest[rough]] += w[rough]
+            specular[dest[~rough]] += w[~rough]
+    return diffuse_like, specular
 
 
 # The depth pass where a camera ray meets nothing (Cycles' Z pass there).
@@ -247,6 +371,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     room = limits.array
     parts = []
     rays = 0
+    # Cycles' Denoising Albedo, made along the paths (its own random numbers: the image stays the same).
+    feature = AlbedoPaths(len(pix), data["albedo"], rng.spawn(1)[0]) if data and "albedo" in data else None
     for depth in range(limits.total + 2):
         if len(pix) == 0:
             break
@@ -290,6 +416,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         if glow is not None:
             lit = np.flatnonzero(glow.any(axis=1))             # glowing volumes on the way
             emission[pix[lit]] += beta.take(lit, axis=0) * glow.take(lit, axis=0)
+            if feature is not None:
+                feature.light(pix, lit, beta.take(lit, axis=0) * glow.take(lit, axis=0))
         if through is not None:
             beta = beta * through                            # transparent surfaces and volumes crossed
         rays += len(pix)
@@ -305,6 +433,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind, sets, attenuation)
             lit = np.flatnonzero(seen.any(axis=1))
             emission[pix[lit]] += beta_in[lit] * seen[lit]
+            if feature is not None:
+                feature.light(pix, lit, beta_in[lit] * seen[lit])
         # Rays that leave the scene see the world (primary ones are cut out on a transparent film,
         # as far as what they crossed lets them through: Cycles' alpha is 1 - the mean of the
         # throughput, e.g. 0.5 behind a Transparent BSDF of mean colour 0.5, 1 in world fog).
@@ -316,14 +446,18 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         if miss.any():
             if depth == 0 and scene.world.film_transparent:
                 alpha[pix[miss]] = np.clip(1.0 - beta[miss].mean(axis=1), 0.0, 1.0)
-            elif depth == 0 and ctx.camera_background is not None:
-                m_ = np.flatnonzero(miss)                   # the world camera rays see (Light Path)
-                emission[pix[m_]] += beta[m_] * ctx.camera_background(dirs[m_], origins[m_])
-            elif ctx.lights.environment is not None:
+            else:
                 m_ = np.flatnonzero(miss)
-                emission[pix[m_]] += beta[m_] * ctx.lights.environment.radiance(dirs[m_])
-            elif world.any():
-                emission[pix[miss]] += beta[miss] * world   # one path per pixel: no repeats
+                if depth == 0 and ctx.camera_background is not None:
+                    sky = beta[m_] * ctx.camera_background(dirs[m_], origins[m_])  # (Light Path's)
+                elif ctx.lights.environment is not None:
+                    sky = beta[m_] * ctx.lights.environment.radiance(dirs[m_])
+                else:
+                    sky = beta[m_] * world if world.any() else None
+                if sky is not None:
+                    emission[pix[m_]] += sky                # one path per pixel: no repeats
+                    if feature is not None:
+                        feature.light(pix, m_, sky)
         h = np.flatnonzero(hits.is_hit)
         if depth == 0 and ctx.has_holdout and len(h):
             # Holdouts cut camera rays that meet them directly out of the pixel (Cycles, with or
@@ -334,6 +468,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             np.maximum(alpha, 0.0, out=alpha)
             h = h.take(np.flatnonzero(share < 1.0))
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
+        if feature is not None:
+            feature.take(h)
         ray_kind = ray_kind.take(h)
         bounces, last = bounces.take(h, axis=0), last.take(h)
         crossed = None if crossed is None else crossed.take(h)
@@ -365,6 +501,10 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             if sets is not None:
                 seen = seen * linked(ctx.emitter_links.take(prim.take(e)), sets.take(e))[:, None]
             emission[pix[e]] += beta[e] * seen
+            if feature is not None:
+                feature.light(pix, e, beta[e] * seen)
+        if feature is not None:
+            feature.surface(table, surf, wo, pix)
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
         if table.has_coat:
@@ -427,6 +567,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             parts.append(points)
         go = np.flatnonzero(~stop & (total > 0) & ~last)
         if len(go) == 0:
+            if feature is not None:
+                feature.settle(pix, go)
             break
         # Continue through the delta lobes only (rescale the lobe number into the delta range).
         delta_scores = scores[go].copy()
@@ -459,6 +601,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             medium = ctx.next_medium(medium[g], prim[g], wi[keep], wo[g])
         if ctx.receiver_sets is not None:
             sets = ctx.receiver_sets.take(prim[g])
+        if feature is not None:
+            feature.settle(pix, g)
+            feature.take(g)
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
         origins = accel.spawn(surf.position[g], surf.ng[g], dirs)

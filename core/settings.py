@@ -218,10 +218,11 @@ class RenderSettings:
     axis (from the camera for panoramas; 1e10 where the ray meets nothing), from the first pass
     as Cycles' Z pass (from its first sample); "normal", its shading normal in world space
     facing the camera (0 where the ray meets nothing), averaged over the passes as Cycles'
-    Normal pass; "albedo", the colour of the surface each camera path ends on (the weights
-    times colours of its diffuse, glossy and translucent lobes), times what the mirrors and glass
-    before it let through, averaged over the passes (0 where paths end in the world), for a
-    denoiser as Cycles' Denoising Albedo."""
+    Normal pass; "albedo", Cycles' Denoising Albedo for a denoiser (:class:`core.eye_pass.AlbedoPaths`):
+    the albedo of the diffuse-like lobes (diffuse, translucent, sheen, glossy and glass rougher
+    than Cycles' 0.075 alpha) of the first surface where they make more than a quarter of the
+    total, times the albedos of the specular-like lobes before it, plus the emission and the
+    world seen on the way, averaged over the passes."""
 
     def __post_init__(self):
         def bad(name, why):
