@@ -18,6 +18,7 @@ import numpy as np
 
 from ..core import SceneError
 from ..core.integrator import render as core_render
+from ..core.settings import DATA_PASSES as DATA_PASS_NAMES
 from .export import export_scene, parse_snapshot_times, render_settings_from
 from .outputs import RenderOutputs
 from .result import PushSchedule, ResultWriter, progress_fraction, stats_line
@@ -50,10 +51,12 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
 # Blender's passes beside Combined: (name, channels, channel ids, type), the box of the view layer
 # that asks for it ("" the view layer's own, "cycles" its Cycles settings: Denoising Data) and the
 # core's data pass it shows (RenderSettings.data_passes).
+DENOISING = ("cycles", "denoising_store_passes")
 DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
                (("Normal", 3, "XYZ", 'VECTOR'), "", "use_pass_normal", "normal"),
-               (("Denoising Normal", 3, "XYZ", 'VECTOR'), "cycles", "denoising_store_passes", "normal"),
-               (("Denoising Albedo", 3, "RGB", 'COLOR'), "cycles", "denoising_store_passes", "albedo"))
+               (("Denoising Normal", 3, "XYZ", 'VECTOR'), *DENOISING, "denoising_normal"),
+               (("Denoising Albedo", 3, "RGB", 'COLOR'), *DENOISING, "albedo"),
+               (("Denoising Depth", 1, "Z", 'VALUE'), *DENOISING, "denoising_depth"))
 
 
 def asks_for(view_layer, owner, prop):
@@ -65,7 +68,7 @@ def asks_for(view_layer, owner, prop):
 def data_passes_of(view_layer):
     """The core's ``RenderSettings.data_passes`` for the passes ``view_layer`` asks for."""
     wanted = {core for _, owner, prop, core in DATA_PASSES if asks_for(view_layer, owner, prop)}
-    return tuple(name for name in ("depth", "normal", "albedo") if name in wanted)
+    return tuple(name for name in DATA_PASS_NAMES if name in wanted)
 
 
 def pass_images(data, camera):

@@ -226,7 +226,7 @@ class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
 class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
     """View Layer Properties > Passes: the data passes the engine writes beside Combined (Z and
     Normal of the surfaces camera rays stop on, and Cycles' Denoising Data box for the Denoising
-    Normal and Albedo; ``engine.DATA_PASSES``)."""
+    Normal, Albedo and Depth; ``engine.DATA_PASSES``)."""
     bl_label = "Passes"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
@@ -246,7 +246,7 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
         col.prop(context.view_layer, "use_pass_normal")
         cycles = getattr(context.view_layer, "cycles", None)
         if cycles is not None:
-            # (Cycles' Denoising Data box: the Denoising Normal and Albedo passes)
+            # (Cycles' Denoising Data box: the Denoising Normal, Albedo and Depth passes)
             col.prop(cycles, "denoising_store_passes", text="Denoising Data")
 
 

@@ -108,8 +108,8 @@ class EyePassResult:
     alpha: np.ndarray        # (n_pixels,) float64 coverage (1 unless the film is transparent)
     rays: int                # rays traced
     volume: VolumePoints = None  # the camera paths' points in scattering volumes
-    data: dict = None        # RenderSettings.data_passes: "depth" (n_pixels,), "normal" and "albedo"
-    #                          (n_pixels, 3)
+    data: dict = None        # RenderSettings.data_passes: "depth", "denoising_depth" (n_pixels,), "normal",
+    #                          "albedo", "denoising_normal" (n_pixels, 3)
 
 
 # Camera paths traced at once (bounds the memory of big images).
@@ -142,8 +142,11 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         data["depth"] = np.full(n_pix, NO_DEPTH)
     if "normal" in data_passes:
         data["normal"] = np.zeros((n_pix, 3))
-    if "albedo" in data_passes:
-        data["albedo"] = np.zeros((n_pix, 3))
+    for name in ("denoising_normal", "denoising_depth"):
+        if name in data_passes:
+            data[name] = np.zeros((n_pix, 3) if name == "denoising_normal" else n_pix)
+    if {"albedo", "denoising_normal", "denoising_depth"} & set(data_passes):
+        data["albedo"] = np.zeros((n_pix, 3))         # (the other denoising features follow it)
     parts, volume = [], []
     rays = 0
     per_segment = int(np.clip(VOLUME_POINT_BUDGET // max(n_pix, 1), 1, MAX_SEGMENT_POINTS))
@@ -154,6 +157,8 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
+    if "albedo" not in data_passes:
+        data.pop("albedo", None)
     return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume), data or None)
 
 
@@ -162,8 +167,9 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
 FEATURE_ALPHA = 0.075
 
 
-class AlbedoPaths:
-    """Cycles' Denoising Albedo along one chunk of camera paths (``film/denoising_passes.h``).
+class DenoisingPaths:
+    """Cycles' denoising features (Denoising Albedo, Normal and Depth) along one chunk of camera
+    paths (``film/denoising_passes.h``).
 
     A path is *open* from the camera on.  At each surface it meets while open, the albedos of the
     material's lobes are split into diffuse-like (diffuse, translucent, sheen, and glossy or glass
@@ -174,14 +180,21 @@ class AlbedoPaths:
     open path sees add ``feat`` times what they add to the image.  Where an open path stops at a
     measurement point of such a specular surface (its glossy lobe is not followed, as Cycles
     follows any closure), it writes ``feat`` times both parts: what the lobe reflects is taken as
-    white.  ``out`` (n_pixels, 3) is the pass's sum over this eye pass."""
+    white.  Where it writes the albedo of a surface it also writes that surface's shading normal
+    facing the camera side (``normal``; Cycles' mean of its closures' normals: none without
+    any), and every surface
+    an open path meets adds the mean of ``feat`` times the segment's length (``depth``, Cycles'
+    Denoising Depth).  ``albedo`` (n_pixels, 3), ``normal`` (n_pixels, 3) and ``depth`` (n_pixels,)
+    (either None: not asked for) are this eye pass's sums."""
 
-    def __init__(self, n, out, rng):
+    def __init__(self, n, rng, albedo, normal=None, depth=None):
         self.open = np.ones(n, bool)
         self.feat = np.ones((n, 3))
-        self.out = out
+        self.out = albedo
+        self.normal = normal
+        self.depth = depth
         self.rng = rng
-        self.pending = None              # (rows, feat x both parts, specular part) at this vertex
+        self.pending = None              # (rows, feat x both parts, specular part, normals) at a vertex
 
     def light(self, pix, rows, value):
         """Paths ``rows`` (of the chunk's current ``pix``) see ``value`` (k, 3), as the image does."""
@@ -190,41 +203,50 @@ class AlbedoPaths:
             r = rows.take(o)
             self.out[pix.take(r)] += self.feat.take(r, axis=0) * value.take(o, axis=0)
 
-    def surface(self, table, surf, wo, pix):
-        """The open paths meet ``surf`` (all current paths' hits), seen from ``wo``."""
+    def surface(self, table, surf, wo, pix, segment):
+        """The open paths meet ``surf`` (all current paths' hits), seen from ``wo``, at the end of
+        segments of length ``segment`` (all paths')."""
         o = np.flatnonzero(self.open)
         if len(o) == 0:
             return
-        diffuse_like, specular = surface_albedo(table, surf, wo, o, self.rng)
-        d = diffuse_like[:, 0] + diffuse_like[:, 1] + diffuse_like[:, 2]
-        t = d + specular[:, 0] + specular[:, 1] + specular[:, 2]
+        feat = self.feat.take(o, axis=0)
+        if self.depth is not None:
+            self.depth[pix.take(o)] += (feat[:, 0] + feat[:, 1] + feat[:, 2]) / 3.0 * segment.take(o)
+        diffuse_like, specular, d, t = surface_albedo(table, surf, wo, o, self.rng)
+        normals = None
+        if self.normal is not None:
+            # (none where no lobe reflects anything: an emitter's, as Cycles' mean over no closures)
+            w = wo.take(o, axis=0)
+            normals = face_forward(surf.ns.take(o, axis=0), face_forward(surf.ng.take(o, axis=0), w))
+            normals *= (t > 0)[:, None]
         done = (t <= 0) | (4.0 * d > t)
-        go = np.flatnonzero(~done)
-        if len(go) == 0:
-            self.out[pix.take(o)] += self.feat.take(o, axis=0) * diffuse_like
-            self.open[o] = False
-            return
         c = np.flatnonzero(done)
-        self.out[pix.take(o.take(c))] += self.feat.take(o.take(c), axis=0) * diffuse_like.take(c, axis=0)
-        self.open[o.take(c)] = False
-        rows = o.take(go)
-        feat = self.feat.take(rows, axis=0)
-        self.pending = (rows, feat * (diffuse_like.take(go, axis=0) + specular.take(go, axis=0)),
-                        specular.take(go, axis=0))
+        self._write(pix, o.take(c), feat.take(c, axis=0) * diffuse_like.take(c, axis=0),
+                    None if normals is None else normals.take(c, axis=0))
+        go = np.flatnonzero(~done)
+        if len(go):
+            self.pending = (o.take(go), feat.take(go, axis=0) * (diffuse_like.take(go, axis=0)
+                                                                 + specular.take(go, axis=0)),
+                            specular.take(go, axis=0), None if normals is None else normals.take(go, axis=0))
+
+    def _write(self, pix, rows, albedo, normals):
+        """Paths ``rows`` write ``albedo`` (and ``normals``) and close."""
+        self.out[pix.take(rows)] += albedo
+        if normals is not None:
+            self.normal[pix.take(rows)] += normals
+        self.open[rows] = False
 
     def settle(self, pix, onward):
         """After a vertex: paths ``onward`` go on (the others ended there or became points)."""
         if self.pending is None:
             return
-        rows, both, specular = self.pending
+        rows, both, specular, normals = self.pending
         self.pending = None
         on = np.zeros(len(self.open), bool)
         on[onward] = True
         goes = on.take(rows)
         self.feat[rows[goes]] *= specular[goes]
-        stop = rows[~goes]
-        self.out[pix.take(stop)] += both[~goes]
-        self.open[stop] = False
+        self._write(pix, rows[~goes], both[~goes], None if normals is None else normals[~goes])
 
     def take(self, rows):
         self.open, self.feat = self.open.take(rows), self.feat.take(rows, axis=0)
@@ -234,7 +256,9 @@ def surface_albedo(table, surf, wo, rows, rng):
     """(diffuse-like, specular-like) (k, 3) each: the albedos of the lobes of the materials at
     hits ``rows`` of ``surf`` seen from ``wo`` (all hits), as Cycles' ``bsdf_albedo`` estimates
     them for its denoising features (what a closure reflects and transmits under a white sky), split
-    by :data:`FEATURE_ALPHA` (:class:`AlbedoPaths`).  Diffuse and translucent lobes give their
+    by :data:`FEATURE_ALPHA` (:class:`DenoisingPaths`); then the diffuse-like lobes' and all lobes'
+    sample weights (k,) (their :func:`~core.bsdf.lobe_scores`, Cycles' ``sample_weight``: these
+    decide, not the samples, one of which may come out 0).  Diffuse and translucent lobes give their
     weight times colour (under a specular layer, its factor at the view), a sheen its E at the view;
     glossy, mirror and glass lobes one sample each: the lobe's :func:`~core.bsdf.scatter` weight
     towards the camera, whose mean is its directional albedo at the view with what the lobe's weight
@@ -242,6 +266,7 @@ def surface_albedo(table, surf, wo, rows, rng):
     those under it; a sheen dims the others."""
     k = len(rows)
     diffuse_like, specular = np.zeros((k, 3)), np.zeros((k, 3))
+    d_weight, weight = np.zeros(k), np.zeros(k)
     every = k == len(surf.mat_ids)                   # (all hits: no copies)
     pick = (lambda a: a) if every else (lambda a: a.take(rows, axis=0))      # noqa: E731
     mats = pick(surf.mat_ids)
@@ -261,6 +286,9 @@ def surface_albedo(table, surf, wo, rows, rng):
         ng = surf.ng if whole else surf.ng.take(rows.take(at), axis=0)
         tangent = surf.tangent if whole or surf.tangent is None else surf.tangent.take(rows.take(at), axis=0)
         mu_all = None
+        scores = lobe_scores(table, m, colors)
+        if factor is not None:
+            scores *= ((factor[:, 0] + factor[:, 1] + factor[:, 2]) / 3.0)[:, None]
         for lobe in range(table.lobes):
             sel = np.flatnonzero(table.weight[:, lobe].take(m) > 0)
             if len(sel) == 0:
@@ -295,7 +323,10 @@ def surface_albedo(table, surf, wo, rows, rng):
             dest = at.take(sel)
             diffuse_like[dest[rough]] += w[rough]
             specular[dest[~rough]] += w[~rough]
-    return diffuse_like, specular
+            score = scores[:, lobe].take(sel)
+            d_weight[dest[rough]] += score[rough]
+            weight[dest] += score
+    return diffuse_like, specular, d_weight, weight
 
 
 # The depth pass where a camera ray meets nothing (Cycles' Z pass there).
@@ -371,8 +402,12 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     room = limits.array
     parts = []
     rays = 0
-    # Cycles' Denoising Albedo, made along the paths (its own random numbers: the image stays the same).
-    feature = AlbedoPaths(len(pix), data["albedo"], rng.spawn(1)[0]) if data and "albedo" in data else None
+    # Cycles' denoising features, made along the paths (their own random numbers: the image stays
+    # the same; the albedo decides where the normal is taken and how far the depth goes).
+    feature = None
+    if data and "albedo" in data:
+        feature = DenoisingPaths(len(pix), rng.spawn(1)[0], data["albedo"], data.get("denoising_normal"),
+                                 data.get("denoising_depth"))
     for depth in range(limits.total + 2):
         if len(pix) == 0:
             break
@@ -504,7 +539,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             if feature is not None:
                 feature.light(pix, e, beta[e] * seen)
         if feature is not None:
-            feature.surface(table, surf, wo, pix)
+            feature.surface(table, surf, wo, pix, hits.t.take(h))
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
         scores = lobe_scores(table, surf.mat_ids, surf.colors)
         if table.has_coat:

@@ -57,8 +57,8 @@ class RenderResult:
     interrupted: bool = False                   # stopped by ``should_stop``
     effects: tuple = ()                         # the optional effects simulated (RenderContext.effects)
     method: str = ""                            # "amcmcppm" or "ppm": what made the image's photons
-    data: dict = field(default_factory=dict)    # RenderSettings.data_passes: "depth" (H, W), "normal"
-    #                                             (H, W, 3), float32, top row first
+    data: dict = field(default_factory=dict)    # RenderSettings.data_passes: "depth", "denoising_depth"
+    #                                             (H, W), the others (H, W, 3), float32, top row first
 
 
 class Accumulator:
@@ -88,8 +88,7 @@ class Accumulator:
         self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
         self.depth = None                           # the first pass's depth pass (as Cycles' Z)
-        self.normal = None                          # sum over passes of the normal pass
-        self.albedo = None                          # sum over passes of the albedo pass
+        self.data_sums = {}                         # sums over passes of the other data passes
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
         # spread, the sum of Vc_p T_p (per-pass normalisation) and, for the chains, the sum of
@@ -130,11 +129,10 @@ class Accumulator:
         if data:
             if "depth" in data and self.depth is None:
                 self.depth = data["depth"].copy()
-            for name in ("normal", "albedo"):
-                if name in data:
-                    value = data[name]
-                    setattr(self, name, value.copy() if getattr(self, name) is None
-                            else getattr(self, name) + value)
+            for name, value in data.items():
+                if name != "depth":
+                    total = self.data_sums.get(name)
+                    self.data_sums[name] = value.copy() if total is None else total + value
         self.n_uniform += n_uniform
         self.n_visible += n_visible
         self.last_pass_mean = float(eye.emission.mean())
@@ -198,10 +196,10 @@ class Accumulator:
         out = {}
         if self.depth is not None:
             out["depth"] = self.depth.astype(np.float32).reshape(height, width)
-        for name in ("normal", "albedo"):
-            value = getattr(self, name)
-            if value is not None and self.passes:
-                out[name] = (value / self.passes).astype(np.float32).reshape(height, width, 3)
+        for name, value in self.data_sums.items():
+            if self.passes:
+                shape = (height, width) + value.shape[1:]
+                out[name] = (value / self.passes).astype(np.float32).reshape(shape)
         return out
 
     def _corrected(self, rgb, is_chain, scale):

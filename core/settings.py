@@ -23,7 +23,7 @@ AUTO_RAMP = 4                       # the automatic count starts at the minimum 
 MUTATIONS = ("off", "paper", "exact")
 NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes).
-DATA_PASSES = ("depth", "normal", "albedo")
+DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth")
 MAX_BOUNCES = 64                    # the most any bounce limit may be
 # The most transparent bounces (Cycles' Transparent, at most 1024 there too): at it, crossings are
 # not counted (each segment of a path crosses at most context.MAX_TRANSPARENT_CROSSINGS surfaces).
@@ -218,11 +218,14 @@ class RenderSettings:
     axis (from the camera for panoramas; 1e10 where the ray meets nothing), from the first pass
     as Cycles' Z pass (from its first sample); "normal", its shading normal in world space
     facing the camera (0 where the ray meets nothing), averaged over the passes as Cycles'
-    Normal pass; "albedo", Cycles' Denoising Albedo for a denoiser (:class:`core.eye_pass.AlbedoPaths`):
+    Normal pass; "albedo", Cycles' Denoising Albedo for a denoiser (:class:`core.eye_pass.DenoisingPaths`):
     the albedo of the diffuse-like lobes (diffuse, translucent, sheen, glossy and glass rougher
     than Cycles' 0.075 alpha) of the first surface where they make more than a quarter of the
     total, times the albedos of the specular-like lobes before it, plus the emission and the
-    world seen on the way, averaged over the passes."""
+    world seen on the way, averaged over the passes; "denoising_normal", Cycles' Denoising Normal:
+    the shading normal (world space, facing the camera side) of that surface (0 where the path
+    leaves the scene first); "denoising_depth", Cycles' Denoising Depth: the lengths of the
+    path's segments up to that surface, each times the mean of the specular albedos before it."""
 
     def __post_init__(self):
         def bad(name, why):

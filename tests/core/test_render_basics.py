@@ -559,7 +559,8 @@ def test_the_albedo_pass_looks_through_mirrors_and_glass():
     """The albedo pass of a camera path that goes on through a mirror (colour 0.9) or a glass pane
     (colour 0.8, at each face as Cycles' Glass BSDF) to a diffuse wall of colour (0.5, 0.4, 0.3):
     the wall's colour times what the mirror or glass lets through (for the glass, its reflection
-    of the black sky adds nothing: the path then ends in the world)."""
+    of the black sky adds nothing: the path then ends in the world); through the mirror, the
+    denoising normal is the wall's and the denoising depth goes on to it."""
     mats = Materials.build([{"name": "wall", "diffuse": [0.5, 0.4, 0.3]}, {"name": "mirror", "mirror": 0.9},
                             {"name": "pane", "dielectric": 0.8, "ior": 1.5}])
     for kind in ("mirror", "glass"):
@@ -576,10 +577,16 @@ def test_the_albedo_pass_looks_through_mirrors_and_glass():
         scene = m.build(mats, Lights.build([{"kind": "sun", "direction": (0.0, 1.0, 0.0), "power": 1.0}]),
                         camera)
         result = render(scene, RenderSettings(passes=64, photons_per_pass=500, workers=1,
-                                              data_passes=("albedo",)))
+                                              data_passes=("albedo", "denoising_normal", "denoising_depth")))
         mean = result.data["albedo"].reshape(-1, 3).mean(axis=0)
         if kind == "mirror":
             np.testing.assert_allclose(mean, 0.9 * np.array([0.5, 0.4, 0.3]), rtol=1e-5)
+            # Cycles' Denoising Normal and Depth: the wall's normal, 8 m to the mirror and 20 m on
+            # to the wall at the mirror's albedo along the axis (within a few percent off it, 8.5 degrees).
+            np.testing.assert_allclose(result.data["denoising_normal"].reshape(-1, 3),
+                                       [[0.0, 1.0, 0.0]] * 144, atol=1e-6)
+            depth = result.data["denoising_depth"]
+            assert depth.min() > (8.0 + 0.9 * 20.0) * 0.99 and depth.max() < (8.0 + 0.9 * 20.0) * 1.03
         else:
             # Through two faces at normal incidence: 0.8^2 (1 - F)^2, over 1 - (0.8 F)^2 for the
             # light reflected back and forth inside; Fresnel picked by chance per path.
