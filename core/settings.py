@@ -75,6 +75,14 @@ class BounceLimits:
         return not (self.caustics_reflective and self.caustics_refractive)
 
 
+def usable_cpus() -> int:
+    """CPUs this process may run on (at least 1): its affinity where the system reports one."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):          # (macOS and Windows have no sched_getaffinity)
+        return max(1, os.cpu_count() or 1)
+
+
 @dataclass(frozen=True)
 class RenderSettings:
     """How to render.  Invalid values raise ``ValueError`` naming the field."""
@@ -180,7 +188,8 @@ class RenderSettings:
     crosses at most ``context.MAX_TRANSPARENT_CROSSINGS`` surfaces either way."""
 
     workers: int = 0
-    """Processes tracing photons in parallel; 0 = one per CPU core, 1 = in this process."""
+    """Processes tracing photons in parallel; 0 = one per CPU core this process may use
+    (:func:`usable_cpus`), 1 = in this process."""
 
     chains: int = 4096
     """Markov chains advanced in lockstep by every worker (AMCMCPPM only); many chains make
@@ -281,8 +290,10 @@ class RenderSettings:
 
     @property
     def worker_count(self) -> int:
-        """Workers actually used: ``workers``, or the CPU count when it is 0."""
-        return self.workers or max(1, os.cpu_count() or 1)
+        """Workers actually used: ``workers``, or when it is 0 the CPUs this process may run on
+        (its affinity where the system tells it, e.g. under ``taskset`` or a container's CPU set,
+        else the machine's count)."""
+        return self.workers or usable_cpus()
 
     def photons_for(self, n_pixels: int) -> int:
         """Photon paths per pass and worker for an image of ``n_pixels`` (rendered) pixels.

@@ -593,3 +593,15 @@ def test_the_albedo_pass_looks_through_mirrors_and_glass():
             f = 0.04
             through = 0.8 ** 2 * (1 - f) ** 2 / (1 - (0.8 * f) ** 2)
             np.testing.assert_allclose(mean, through * np.array([0.5, 0.4, 0.3]), rtol=0.05)
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this system")
+def test_the_automatic_worker_count_keeps_to_the_cpus_the_process_may_use():
+    """workers = 0 starts one worker per CPU this process may run on: under an affinity of one CPU
+    (taskset, a container's CPU set) one, not the machine's count (os.cpu_count)."""
+    assert RenderSettings(workers=3).worker_count == 3
+    assert RenderSettings().worker_count == len(os.sched_getaffinity(0))
+    code = ("import os; os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}); "
+            "from core.settings import RenderSettings; print(RenderSettings().worker_count)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "1"
