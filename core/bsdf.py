@@ -200,7 +200,7 @@ def coat_variants(mats):
     changes["sheen_cover"][new] = unique[:, 7]
     for name in ("opacity", "normal_strength", "bump_strength", "bump_distance", "outer_bump_strength",
                  "outer_bump_distance", "coat_bump_strength", "coat_bump_distance", "diffuse_layer_weight",
-                 "glossy_stretch", "glossy_metal_share", "bump_correction"):
+                 "glossy_stretch", "glossy_metal_share", "bump_correction", "dielectric_fresnel"):
         changes[name][new] = 1.0
     names = list(mats.names) + [f"coat {w:.3f}, roughness {r:.3f}, IOR {x:.3f}" for w, r, x in unique[:, :3]]
     return (dataclasses.replace(mats, names=names, **changes),

@@ -120,7 +120,11 @@ def test_coat_rows_are_shared_and_the_choice_is_unbiased():
     out, coat_row = coat_variants(mats)
     assert out.count == 4 and list(coat_row) == [3, 3, -1, -1]
     assert out.glossy_fresnel_ior[3] == pytest.approx(1.5) and out.coat_weight[3] == 0
+    # (a coat refracts nothing: until stop 51 its row's Refraction-BSDF share was 0, which named
+    # "refraction without reflection" among the effects of every coated scene)
+    assert out.dielectric_fresnel[3] == 1
     table = MaterialTable.from_materials(out, coat_row=coat_row)
+    assert table.dielectric_fresnel is None
     n = 200_000
     ids = np.zeros(n, np.int32)
     colors = table.color.take(ids, axis=0)
