@@ -177,19 +177,20 @@ class DenoisingPaths:
     diffuse-like part is more than a quarter of the total (or there is none at all), the path
     writes its feature throughput ``feat`` times the diffuse-like part and closes, else ``feat``
     takes the specular-like part and the path goes on.  Emission, lights and the world that an
-    open path sees add ``feat`` times what they add to the image.  Where an open path stops at a
-    measurement point of such a specular surface (its glossy lobe is not followed, as Cycles
-    follows any closure), it writes ``feat`` times both parts: what the lobe reflects is taken as
-    white.  Where it writes the albedo of a surface it also writes that surface's shading normal
-    facing the camera side (``normal``; Cycles' mean of its closures' normals: none without
-    any), and every surface
-    an open path meets adds the mean of ``feat`` times the segment's length (``depth``, Cycles'
+    open path sees add ``feat`` times what they add to the image, a scattering volume on the way
+    its part (:meth:`volume`).  Where an open path stops at a measurement point of such a
+    specular surface (its glossy lobe is not followed, as Cycles follows any closure), it writes
+    ``feat`` times both parts: what the lobe reflects is taken as white.  Where it writes the
+    albedo of a surface it also writes that surface's shading normal facing the camera side
+    (``normal``; Cycles' mean of its closures' normals: none without any), and every surface an
+    open path meets adds the mean of ``feat`` times the segment's length (``depth``, Cycles'
     Denoising Depth).  ``albedo`` (n_pixels, 3), ``normal`` (n_pixels, 3) and ``depth`` (n_pixels,)
     (either None: not asked for) are this eye pass's sums."""
 
     def __init__(self, n, rng, albedo, normal=None, depth=None):
         self.open = np.ones(n, bool)
         self.feat = np.ones((n, 3))
+        self.alive = np.ones(n)          # the chance the features are still open (volumes)
         self.out = albedo
         self.normal = normal
         self.depth = depth
@@ -233,8 +234,31 @@ class DenoisingPaths:
         """Paths ``rows`` write ``albedo`` (and ``normals``) and close."""
         self.out[pix.take(rows)] += albedo
         if normals is not None:
-            self.normal[pix.take(rows)] += normals
+            self.normal[pix.take(rows)] += normals * self.alive.take(rows)[:, None]
         self.open[rows] = False
+
+    def volume(self, pix, rows, scattered, extinct, back):
+        """Paths ``rows`` (repeated for several points) cross scattering volumes: ``scattered`` and
+        ``extinct`` (k, 3) are their points' weights times the scattering and extinction coefficients
+        (sums over a path's points estimate the integrals of sigma_s T and sigma_t T over its
+        segments: the volume's albedo times 1 - T, and 1 - T).  As Cycles (``film_write_denoising_
+        features_volume``): the albedo gets the first; with the chance that the path scatters
+        there, the mean of the second, the normal gets the camera's backward axis ``back`` (3,) (Cycles'
+        (0, 0, -1) in the camera's frame) and the features close, and the rest goes on to what lies
+        behind."""
+        n = len(self.open)
+        a = np.stack([np.bincount(rows, scattered[:, c], minlength=n) for c in range(3)], axis=1)
+        p = np.clip(np.bincount(rows, extinct[:, 0] + extinct[:, 1] + extinct[:, 2], minlength=n) / 3.0,
+                    0.0, 1.0)
+        r = np.flatnonzero(self.open & (p > 0))
+        if len(r) == 0:
+            return
+        self.out[pix.take(r)] += self.feat.take(r, axis=0) * a.take(r, axis=0)
+        if self.normal is not None:
+            self.normal[pix.take(r)] += back * (self.alive.take(r) * p.take(r))[:, None]
+        keep = 1.0 - p.take(r)
+        self.feat[r] *= keep[:, None]
+        self.alive[r] *= keep
 
     def settle(self, pix, onward):
         """After a vertex: paths ``onward`` go on (the others ended there or became points)."""
@@ -249,7 +273,8 @@ class DenoisingPaths:
         self._write(pix, rows[~goes], both[~goes], None if normals is None else normals[~goes])
 
     def take(self, rows):
-        self.open, self.feat = self.open.take(rows), self.feat.take(rows, axis=0)
+        self.open, self.alive = self.open.take(rows), self.alive.take(rows)
+        self.feat = self.feat.take(rows, axis=0)
 
 
 def surface_albedo(table, surf, wo, rows, rng):
@@ -447,6 +472,10 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes,
                 bounces=bounces.take(rows, axis=0),
                 crossings=None if crossed_before is None else crossed_before.take(rows)))
+            if feature is not None:
+                back = np.asarray(cam.world_from_camera, np.float64)[:3, 2]
+                feature.volume(pix, rows, w_v * ctx.scattering.take(media, axis=0),
+                               w_v * ctx.extinction.take(media, axis=0), back / np.linalg.norm(back))
         beta_in = beta
         if glow is not None:
             lit = np.flatnonzero(glow.any(axis=1))             # glowing volumes on the way
