@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .accel import interpolate_corners
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choose_lobe, face_forward,
                    lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
@@ -140,8 +141,14 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     data = {}
     if "depth" in data_passes:
         data["depth"] = np.full(n_pix, NO_DEPTH)
-    if "normal" in data_passes:
-        data["normal"] = np.zeros((n_pix, 3))
+    for name in ("normal", "position", "uv"):
+        if name in data_passes:
+            data[name] = np.zeros((n_pix, 3))
+    for name in ("object_index", "material_index"):
+        if name in data_passes:
+            data[name] = np.zeros(n_pix)
+    if "mist" in data_passes:
+        data["mist"] = np.ones(n_pix)                 # (rays that meet nothing: all mist)
     for name in ("denoising_normal", "denoising_depth"):
         if name in data_passes:
             data[name] = np.zeros((n_pix, 3) if name == "denoising_normal" else n_pix)
@@ -358,22 +365,40 @@ def surface_albedo(table, surf, wo, rows, rng):
 NO_DEPTH = 1e10
 
 
-def first_hit_data(camera, data, pix, position, ng, ns, wo):
+def first_hit_data(ctx, data, pix, surf, wo, prim, b1, b2):
     """Write the data passes ``data`` (``trace_eye_pass``) of pixels ``pix`` whose camera rays
-    stop at ``position`` (k, 3), of geometric and shading normals ``ng``, ``ns`` (k, 3), seen
-    from ``wo`` (k, 3): the depth along the camera's view axis (its distance from the camera
-    for panoramas: Cycles' ``camera_z_depth``) and the shading normal on the camera's side."""
+    stop at ``surf`` (triangles ``prim``, barycentrics ``b1``, ``b2``), seen from ``wo`` (k, 3):
+    as Cycles' (``film/data_passes.h``) the depth along the camera's view axis (its distance
+    from the camera for panoramas: ``camera_z_depth``), the shading normal on the camera's side,
+    the position, the UV map's (u, v, 1) (0 without UVs), the object's and the material's pass
+    indices and the mist of the distance from the camera (``World.mist_*``)."""
+    scene = ctx.scene
+    camera = scene.camera
     m = np.asarray(camera.world_from_camera, np.float64)
     origin = m[:3, 3]
+    offset = surf.position - origin
     if "depth" in data:
-        offset = position - origin
         if camera.projection in PANORAMAS:
             data["depth"][pix] = np.sqrt(dot(offset, offset))
         else:
             forward = -m[:3, 2] / np.linalg.norm(m[:3, 2])
             data["depth"][pix] = offset @ forward
     if "normal" in data:
-        data["normal"][pix] = face_forward(ns, face_forward(ng, wo))
+        data["normal"][pix] = face_forward(surf.ns, face_forward(surf.ng, wo))
+    if "position" in data:
+        data["position"][pix] = surf.position
+    if "uv" in data and scene.uvs is not None:
+        bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
+        uv = interpolate_corners(scene.uvs.take(prim, axis=0), bary)
+        data["uv"][pix] = np.column_stack([uv, np.ones(len(pix))])
+    if "object_index" in data and scene.object_ids is not None and scene.object_info is not None:
+        data["object_index"][pix] = scene.object_info[:, 1].take(scene.object_ids.take(prim))
+    if "material_index" in data and scene.materials.pass_index is not None:
+        data["material_index"][pix] = scene.materials.pass_index.take(scene.material_ids.take(prim))
+    if "mist" in data:
+        w = scene.world
+        fraction = np.clip((np.sqrt(dot(offset, offset)) - w.mist_start) / max(w.mist_depth, 1e-30), 0.0, 1.0)
+        data["mist"][pix] = fraction ** w.mist_falloff
 
 
 def _box_exit(origins, dirs, lo, hi):
@@ -551,7 +576,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             rays_in = Rays(wo, True)
         surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, rays_in)
         if depth == 0 and data:
-            first_hit_data(scene.camera, data, pix, surf.position, surf.ng, surf.ns, wo)
+            first_hit_data(ctx, data, pix, surf, wo, prim, b1, b2)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():

@@ -30,7 +30,7 @@ from .coverage import point_coverage
 from .eye_pass import trace_eye_pass
 from .parallel import make_pool
 from .photon_pass import DepositTarget
-from .settings import AUTO_UNIFORM_VISIBLE, RenderSettings
+from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
 from .visible_cells import VisibleCells
 from .worker import STREAM_COVERAGE, STREAM_EYE
 
@@ -57,8 +57,8 @@ class RenderResult:
     interrupted: bool = False                   # stopped by ``should_stop``
     effects: tuple = ()                         # the optional effects simulated (RenderContext.effects)
     method: str = ""                            # "amcmcppm" or "ppm": what made the image's photons
-    data: dict = field(default_factory=dict)    # RenderSettings.data_passes: "depth", "denoising_depth"
-    #                                             (H, W), the others (H, W, 3), float32, top row first
+    data: dict = field(default_factory=dict)    # RenderSettings.data_passes: (H, W) or (H, W, 3) float32
+    #                                             each, top row first
 
 
 class Accumulator:
@@ -87,7 +87,7 @@ class Accumulator:
         self.n_visible = 0                          # n_UV, all passes
         self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
-        self.depth = None                           # the first pass's depth pass (as Cycles' Z)
+        self.first_data = {}                        # the first pass's FIRST_PASS_DATA (as Cycles')
         self.data_sums = {}                         # sums over passes of the other data passes
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
@@ -127,10 +127,10 @@ class Accumulator:
         self.alpha += eye.alpha
         data = getattr(eye, "data", None)            # (RenderSettings.data_passes)
         if data:
-            if "depth" in data and self.depth is None:
-                self.depth = data["depth"].copy()
             for name, value in data.items():
-                if name != "depth":
+                if name in FIRST_PASS_DATA:
+                    self.first_data.setdefault(name, value.copy())
+                else:
                     total = self.data_sums.get(name)
                     self.data_sums[name] = value.copy() if total is None else total + value
         self.n_uniform += n_uniform
@@ -193,9 +193,8 @@ class Accumulator:
 
     def data(self, height, width):
         """The data passes (``RenderResult.data``) as (H, W[, 3]) float32 images."""
-        out = {}
-        if self.depth is not None:
-            out["depth"] = self.depth.astype(np.float32).reshape(height, width)
+        out = {name: value.astype(np.float32).reshape((height, width) + value.shape[1:])
+               for name, value in self.first_data.items()}
         for name, value in self.data_sums.items():
             if self.passes:
                 shape = (height, width) + value.shape[1:]

@@ -369,6 +369,7 @@ class Materials:
     sheen_color: np.ndarray = None                      # (M, 3) float32 >= 0; None: 0 (no sheen)
     sheen_roughness: np.ndarray = None                  # (M,) float32 in [0, 1]; None: 0.5
     sheen_cover: np.ndarray = None                      # (M,) float32 >= 0; None: 0
+    pass_index: np.ndarray = None                       # (M,) float32 >= 0 (Material Index pass); None: 0
     translucent_weight: np.ndarray = None               # (M,) float32; None: 0
     translucent_color: np.ndarray = None                # (M, 3) float32; None: 0
     translucent_program: np.ndarray = None              # (M,) int32, index into programs or -1; None: -1
@@ -401,7 +402,8 @@ class Materials:
                     "film_metal_ior", "film_metal_extinction",
                     "subsurface_weight", "subsurface_radius", "subsurface_anisotropy", "subsurface_ior",
                     "subsurface_alpha", "subsurface_method", "glossy_distribution",
-                    "dielectric_distribution", "sheen_color", "sheen_roughness", "sheen_cover")
+                    "dielectric_distribution", "sheen_color", "sheen_roughness", "sheen_cover",
+                    "pass_index")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -466,7 +468,8 @@ class Materials:
         ``subsurface_ior`` (1.4), ``subsurface_alpha`` (1) and ``subsurface_method`` (0) make part
         of the diffuse lobe scatter beneath the surface.
         ``level_program`` (a float program), ``level_first`` and ``level_count`` make it pick one of
-        that many materials, its levels, at each hit.
+        that many materials, its levels, at each hit.  ``pass_index`` (0) is Blender's pass index
+        of the material (the Material Index pass).
         """
         m = len(specs)
         out = Materials(names=[s.get("name", f"material_{i}") for i, s in enumerate(specs)])
@@ -555,6 +558,7 @@ class Materials:
         out.sheen_color = np.zeros((m, 3), np.float32)
         out.sheen_roughness = np.full(m, 0.5, np.float32)
         out.sheen_cover = np.zeros(m, np.float32)
+        out.pass_index = np.zeros(m, np.float32)
         out.translucent_program = np.full(m, -1, np.int32)
         out.rotation_program = np.full(m, -1, np.int32)
         out.stretch_program = np.full(m, -1, np.int32)
@@ -625,6 +629,7 @@ class Materials:
             out.sheen_color[i] = np.broadcast_to(np.asarray(s.get("sheen", 0.0), np.float32), (3,))
             out.sheen_roughness[i] = s.get("sheen_roughness", 0.5)
             out.sheen_cover[i] = s.get("sheen_cover", 0.0)
+            out.pass_index[i] = s.get("pass_index", 0)
             out.volume_absorption[i] = np.broadcast_to(
                 np.asarray(s.get("volume_absorption", 0.0), np.float32), (3,))
             out.volume_scattering[i] = np.broadcast_to(
@@ -928,8 +933,15 @@ class World:
     # photons and its sun lights' as ``Lights.exclude``, and camera paths that leave a mirror
     # (EXCLUDE_GLOSSY) or a glass (EXCLUDE_TRANSMISSION) see black past the scene.
     exclude: int = 0
+    # Blender's World > Mist Pass (the Mist pass, ``RenderSettings.data_passes``): the mist is 0 up to
+    # ``mist_start`` metres from the camera and rises to 1 over ``mist_depth``, as the fraction of
+    # that depth to the power ``mist_falloff`` (2 quadratic, 1 linear, 0.5 inverse quadratic).
+    mist_start: float = 5.0
+    mist_depth: float = 25.0
+    mist_falloff: float = 2.0
 
     VOLUME_FIELDS = ("volume_absorption", "volume_scattering", "volume_anisotropy")
+    MIST_FIELDS = ("mist_start", "mist_depth", "mist_falloff")
 
     @property
     def has_volume(self) -> bool:
@@ -1153,7 +1165,7 @@ class Scene:
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
                                        ("sheen_color", (n, 3), 0.0), ("sheen_roughness", (n,), 0.5),
-                                       ("sheen_cover", (n,), 0.0),
+                                       ("sheen_cover", (n,), 0.0), ("pass_index", (n,), 0.0),
                                        ("diffuse_roughness", (n,), 0.0), ("glossy_stretch", (n,), 1.0),
                                        ("glossy_rotation", (n,), 0.0), ("rotation_program", (n,), -1),
                                        ("stretch_program", (n,), -1), ("level_program", (n,), -1),
@@ -1373,6 +1385,12 @@ class Scene:
             fail(f"world.exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL}), "
                  f"not {exclude!r}")
         self.world.exclude = int(exclude)
+        for name in World.MIST_FIELDS:
+            value = getattr(self.world, name)
+            if not (isinstance(value, (int, float, np.integer, np.floating)) and np.isfinite(value)
+                    and (value >= 0 if name != "mist_falloff" else value > 0)):
+                fail(f"world.{name} must be a finite number >= 0 (> 0 for the falloff), not {value!r}")
+            setattr(self.world, name, float(value))
         if self.world.camera is not None:
             _validate_background(self.world.camera, "world.camera", fail, len(self.textures))
         return self
@@ -1511,6 +1529,8 @@ class Scene:
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
         if self.world.exclude:
             d["world.exclude"] = np.uint8(self.world.exclude)
+        for name in World.MIST_FIELDS:
+            d[f"world.{name}"] = np.float64(getattr(self.world, name))
         if self.world.texture is not None:
             d["world.texture"] = self.world.texture
         if self.world.texture_rotation is not None:
@@ -1581,6 +1601,8 @@ class Scene:
                       film_transparent=bool(get("world.film_transparent", False)), camera=camera_world,
                       exclude=int(get("world.exclude", 0)), program=program("world.program"),
                       **{name: get(f"world.{name}") for name in World.VOLUME_FIELDS
+                         if f"world.{name}" in keys},
+                      **{name: float(get(f"world.{name}")) for name in World.MIST_FIELDS
                          if f"world.{name}" in keys})
         ntex = sum(1 for k in keys if k.startswith("textures."))
         scene = Scene(vertices=get("vertices"), triangles=get("triangles"),

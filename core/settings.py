@@ -22,8 +22,11 @@ GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins 
 AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
 MUTATIONS = ("off", "paper", "exact")
 NORMALISATIONS = ("cumulative", "per_pass")
-# Data passes of the first surface each camera ray meets (RenderSettings.data_passes).
-DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth")
+# Data passes of the first surface each camera ray meets (RenderSettings.data_passes), and those
+# taken from the first pass alone (as Cycles takes them from its first sample; the others are means).
+DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth", "position", "uv",
+               "object_index", "material_index", "mist")
+FIRST_PASS_DATA = ("depth", "position", "object_index", "material_index")
 MAX_BOUNCES = 64                    # the most any bounce limit may be
 # The most transparent bounces (Cycles' Transparent, at most 1024 there too): at it, crossings are
 # not counted (each segment of a path crosses at most context.MAX_TRANSPARENT_CROSSINGS surfaces).
@@ -234,7 +237,13 @@ class RenderSettings:
     world seen on the way, averaged over the passes; "denoising_normal", Cycles' Denoising Normal:
     the shading normal (world space, facing the camera side) of that surface (0 where the path
     leaves the scene first); "denoising_depth", Cycles' Denoising Depth: the lengths of the
-    path's segments up to that surface, each times the mean of the specular albedos before it."""
+    path's segments up to that surface, each times the mean of the specular albedos before it;
+    and of the surface each camera ray stops on, as Cycles' passes of those names: "position"
+    (world space, from the first pass; 0 where rays meet nothing), "uv" ((u, v, 1) of
+    ``Scene.uvs``, 0 without), "object_index" and "material_index" (the pass indices,
+    ``Scene.object_info`` and ``Materials.pass_index``, from the first pass; 0 where rays meet
+    nothing), "mist" (``World.mist_*`` of its distance from the camera; 1 where rays meet
+    nothing)."""
 
     def __post_init__(self):
         def bad(name, why):

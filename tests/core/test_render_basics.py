@@ -552,7 +552,63 @@ def test_depth_and_normal_passes_of_the_surfaces_the_camera_sees(projection):
     plain = render(scene, RenderSettings(passes=1, photons_per_pass=2000, workers=1))
     assert plain.data == {}
     with pytest.raises(ValueError, match="data_passes"):
-        RenderSettings(data_passes=("mist",))
+        RenderSettings(data_passes=("cryptomatte",))
+
+
+def test_position_uv_index_and_mist_passes_of_the_surfaces_the_camera_sees():
+    """Cycles' Position, UV, Object Index, Material Index and Mist passes (film/data_passes.h) of the
+    wall and the card behind the transparent sheet: the positions lie on their planes, (u, v, 1) of
+    the triangles' UVs (u = x + 0.5 on the card, here made the x coordinate over each quad), the
+    objects' and materials' pass indices, the mist clamp((d - start) / depth, 0, 1) ^ falloff of
+    the distance d from the camera; where rays meet nothing 0, and mist 1."""
+    camera = Camera.look_at((0, 0, 0), (0, 1, 0), resolution=(32, 24), lens_mm=20.0)
+    scene = wall_and_card(camera)
+    mats = scene.materials
+    mats.pass_index[:] = [2, 5, 7]
+    corners = scene.vertices[scene.triangles]                              # (T, 3, 3)
+    scene = scene.replace(uvs=np.stack([corners[..., 0], corners[..., 2]], -1) * 0.1,
+                          object_ids=np.array([0, 0, 1, 1, 2, 2], np.int32),
+                          object_from_world=np.tile(np.eye(3, 4), (3, 1, 1)),
+                          texture_spaces=np.tile([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]], (3, 1, 1)),
+                          object_info=np.array([[1, 11, 0, 0, 0, 0], [1, 13, 0, 0, 0, 0], [1, 17, 0, 0, 0, 0]],
+                                               np.float32))
+    scene.world.mist_start, scene.world.mist_depth, scene.world.mist_falloff = 2.5, 5.0, 0.5
+    result = render(scene, RenderSettings(passes=3, photons_per_pass=2000, workers=1,
+                                          data_passes=("position", "uv", "object_index", "material_index",
+                                                       "mist")))
+    position, uv, mist = result.data["position"], result.data["uv"], result.data["mist"]
+    obj, mat = result.data["object_index"], result.data["material_index"]
+    on_wall = np.isclose(position[..., 1], 4.0, atol=1e-5)
+    on_card = np.isclose(position[..., 1], 2.0, atol=1e-5)
+    sky = ~(on_wall | on_card)
+    assert on_wall.sum() > 100 and on_card.sum() > 4 and not sky.any()
+    assert (obj[on_wall] == 11).all() and (obj[on_card] == 13).all()
+    assert (mat[on_wall] == 2).all() and (mat[on_card] == 5).all()
+    # (the first pass's position against the mean uv of three passes' jitter: within 1.5 pixels, 0.034)
+    inner = on_wall.copy()               # (wall pixels away from the card's edge and the border)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            inner &= np.roll(on_wall, (dy, dx), axis=(0, 1))
+    inner[[0, -1], :] = inner[:, [0, -1]] = False
+    np.testing.assert_allclose(uv[on_wall][:, 2], 1.0)
+    np.testing.assert_allclose(uv[inner][:, 0], position[inner][:, 0] * 0.1, atol=0.035)
+    np.testing.assert_allclose(uv[inner][:, 1], position[inner][:, 2] * 0.1, atol=0.035)
+    d = np.linalg.norm(position, axis=-1)
+    expected = np.clip((d - 2.5) / 5.0, 0.0, 1.0) ** 0.5
+    # (the mist is a mean over three passes' jitter, the position the first pass's: away from edges)
+    card_inner = on_card.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            card_inner &= np.roll(on_card, (dy, dx), axis=(0, 1))
+    np.testing.assert_allclose(mist[inner | card_inner], expected[inner | card_inner], atol=0.02)
+    assert mist[card_inner].max() < mist[inner].min()
+    # Looking away from everything: nothing met.
+    away = scene.replace(camera=Camera.look_at((0, 0, 0), (0, -1, 0), resolution=(8, 6), lens_mm=20.0))
+    data = render(away, RenderSettings(passes=1, photons_per_pass=500, workers=1,
+                                       data_passes=("position", "uv", "object_index", "material_index",
+                                                    "mist"))).data
+    assert all((data[k] == 0).all() for k in ("position", "uv", "object_index", "material_index"))
+    assert (data["mist"] == 1).all()
 
 
 def test_the_albedo_pass_looks_through_mirrors_and_glass():
