@@ -570,8 +570,8 @@ def test_position_uv_index_and_mist_passes_of_the_surfaces_the_camera_sees():
                           object_ids=np.array([0, 0, 1, 1, 2, 2], np.int32),
                           object_from_world=np.tile(np.eye(3, 4), (3, 1, 1)),
                           texture_spaces=np.tile([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]], (3, 1, 1)),
-                          object_info=np.array([[1, 11, 0, 0, 0, 0], [1, 13, 0, 0, 0, 0], [1, 17, 0, 0, 0, 0]],
-                                               np.float32))
+                          object_info=np.array([[1, 11, 0, 0, 0, 0], [1, 13, 0, 0, 0, 0],
+                                                [1, 17, 0, 0, 0, 0]], np.float32))
     scene.world.mist_start, scene.world.mist_depth, scene.world.mist_falloff = 2.5, 5.0, 0.5
     result = render(scene, RenderSettings(passes=3, photons_per_pass=2000, workers=1,
                                           data_passes=("position", "uv", "object_index", "material_index",
