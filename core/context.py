@@ -5,6 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import phase
 from .accel import Accel, Hits, interpolate_corners
 from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT, MaterialTable, Textures,
                    coat_variants, lobe_colors, roughness_variants, stretch_level, stretch_variants)
@@ -108,6 +109,8 @@ class RenderContext:
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
         self.scattering = np.asarray(mats.volume_scattering, np.float64)
         self.anisotropy = np.asarray(mats.volume_anisotropy, np.float64)
+        kinds = np.asarray(mats.volume_phase, np.int64)
+        params = np.asarray(mats.volume_phase_params, np.float64)
         self.volume_emission = np.asarray(mats.volume_emission, np.float64)
         # The world's volume (World.volume_*): one more row after the materials', the medium
         # ``outside`` every mesh volume (-1: none, empty space).
@@ -118,8 +121,12 @@ class RenderContext:
             self.absorption = np.vstack([self.absorption, np.asarray(world.volume_absorption, np.float64)])
             self.scattering = np.vstack([self.scattering, np.asarray(world.volume_scattering, np.float64)])
             self.anisotropy = np.append(self.anisotropy, float(world.volume_anisotropy))
+            kinds = np.append(kinds, int(world.volume_phase))
+            params = np.vstack([params, np.asarray(world.volume_phase_params, np.float64)])
             self.volume_emission = np.vstack([self.volume_emission, np.zeros(3)])
         self.extinction = self.absorption + self.scattering
+        # The media's phase functions, resolved (core/phase.py): (M [+ 1], phase.ROW).
+        self.phase = phase.resolve(kinds, self.anisotropy, params)
         self.scatters = (self.scattering > 0).any(axis=1)
         self.glows = (self.volume_emission > 0).any(axis=1)
         self.volumetric = (self.absorption > 0).any(axis=1) | self.scatters | self.glows

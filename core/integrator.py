@@ -383,7 +383,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                                                       settings.initial_radius_px * scales[i] + 1.0, rng,
                                                       inner=settings.bias_correction)
         return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
-                             volume=vol, volume_radius=vol_radius, media=ctx.anisotropy,
+                             volume=vol, volume_radius=vol_radius, media=ctx.phase,
                              inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage,
                              limits=settings.bounce_limits)
 

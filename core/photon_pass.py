@@ -38,10 +38,11 @@ from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .lights import LIGHT_DIMS
+from .phase import isotropic as isotropic_phase, sample as sample_phase, value as phase_value
 from .procedural import Rays, photon_path
 from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
 from .settings import BounceLimits
-from .sampling import cosine_hemisphere, dot, hg_phase, luminance, sample_hg, tangent_axes, to_world
+from .sampling import cosine_hemisphere, dot, luminance, tangent_axes, to_world
 from .texture_hash import float_as_uint, hash_uint3, hash_uint3_to_float
 from .visible_cells import VisibleCells
 
@@ -100,7 +101,8 @@ class DepositTarget:
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
         volume : VolumePoints with at least one point, or None; volume_radius : (k,) their
-        radii; media : (M,) float64 the materials' phase anisotropy g (for the volume points);
+        radii; media : (M, phase.ROW) float64 the materials' phase functions (``core/phase.py``, for
+        the volume points);
         inner : also sum the pairs within half the radius (see the class docstring);
         coverage, inner_coverage : None, or (m,) the share of each point's disc (of the radius,
         of half of it) that lies on a surface (``core/coverage.py``): the kernel's area is
@@ -312,13 +314,12 @@ class DepositTarget:
             return pi, pj + self.points.count, ISOTROPIC_PHASE
         vol = self.volume
         cos = dot(d.take(pi, axis=0), vol.wo.take(pj, axis=0))
-        phase = hg_phase(cos, self.media.take(vol.mat_ids.take(pj)))
-        return pi, pj + self.points.count, phase
+        return pi, pj + self.points.count, phase_value(self.media.take(vol.mat_ids.take(pj), axis=0), cos)
 
     @cached_property
     def _isotropic(self) -> bool:
-        """Whether every volume point's medium has anisotropy 0 (Cycles' default)."""
-        return not self.media.take(np.unique(self.volume.mat_ids)).any()
+        """Whether every volume point's medium scatters evenly (Cycles' default)."""
+        return bool(isotropic_phase(self.media.take(np.unique(self.volume.mat_ids), axis=0)).all())
 
     @cached_property
     def back_grid(self):
@@ -1078,7 +1079,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             vidx = vert["idx"]
             block = u[vidx, bounce_offset(bounce):bounce_offset(bounce) + BOUNCE_DIMS]
             vmed = vert["medium"]
-            d_v = sample_hg(vert["d"], ctx.anisotropy.take(vmed), block[:, 1], block[:, 2])
+            d_v = sample_phase(ctx.phase.take(vmed, axis=0), vert["d"], block[:, 1], block[:, 2])
             f_v = vert["flux"] * ctx.scattering.take(vmed, axis=0)
             f_t = vert["flux"] * ctx.extinction.take(vmed, axis=0)
             q = np.minimum(1.0, luminance(f_v) / np.maximum(luminance(f_t), 1e-300))

@@ -364,6 +364,8 @@ class Materials:
     volume_absorption: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     volume_scattering: np.ndarray = None                # (M, 3) float32 >= 0, 1 / length; None: 0
     volume_anisotropy: np.ndarray = None                # (M,) float32 in (-1, 1); None: 0
+    volume_phase: np.ndarray = None                     # (M,) int32 phase.PHASE_NAMES index; None: 0 (HG)
+    volume_phase_params: np.ndarray = None              # (M, 3) float32 >= 0 (phase.resolve); None: 0
     volume_emission: np.ndarray = None                  # (M, 3) float32 >= 0, radiance / length; None: 0
     holdout: np.ndarray = None                          # (M,) float32 in [0, 1]; None: 0
     sheen_color: np.ndarray = None                      # (M, 3) float32 >= 0; None: 0 (no sheen)
@@ -403,7 +405,7 @@ class Materials:
                     "subsurface_weight", "subsurface_radius", "subsurface_anisotropy", "subsurface_ior",
                     "subsurface_alpha", "subsurface_method", "glossy_distribution",
                     "dielectric_distribution", "sheen_color", "sheen_roughness", "sheen_cover",
-                    "pass_index")
+                    "pass_index", "volume_phase", "volume_phase_params")
     INT_FIELDS = ("diffuse_texture", "normal_texture", "bump_texture")     # image indices
     PROGRAM_FIELDS = ("diffuse_program", "glossy_program", "emission_program", "roughness_program",
                       "dielectric_program", "bump_program", "opacity_program", "translucent_program",
@@ -414,7 +416,7 @@ class Materials:
     INTEGER_FIELDS = INDEX_FIELDS + ("glossy_tangent", "level_first", "level_count",   # stored as int32
                                      "normal_space", "displacement_flags", "displacement_bump",
                                      "bump_correction", "subsurface_method", "glossy_distribution",
-                                     "dielectric_distribution")
+                                     "dielectric_distribution", "volume_phase")
     SIGNED_FIELDS = INDEX_FIELDS + ("bump_distance", "outer_bump_distance", "coat_bump_distance",
                                     "glossy_metal_dip",
                                     "volume_anisotropy", "glossy_rotation", "glossy_metal_tint",
@@ -454,7 +456,8 @@ class Materials:
         ``coat`` (the coat's weight, default 0), ``coat_roughness`` (0.03), ``coat_ior`` (1.5) and
         ``coat_tint`` (1) give it a coat, ``sheen`` (colour, 0), ``sheen_roughness`` (0.5) and
         ``sheen_cover`` (0) a sheen, ``volume_absorption`` (0) a volume, which
-        ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter and
+        ``volume_scattering`` (0) and ``volume_anisotropy`` (0) make scatter (by Henyey-Greenstein's
+        phase function, or by ``volume_phase`` (0) with ``volume_phase_params`` (0): ``core/phase.py``) and
         ``volume_emission`` (0) glow (or that alone), ``holdout`` (0) a holdout share.
         ``glossy_stretch`` (1), ``glossy_rotation`` (0) and ``glossy_tangent`` (2) make the
         glossy lobe anisotropic; ``rotation_program``, a float program, turns its tangent by the
@@ -551,6 +554,8 @@ class Materials:
         out.volume_absorption = np.zeros((m, 3), np.float32)
         out.volume_scattering = np.zeros((m, 3), np.float32)
         out.volume_anisotropy = np.zeros(m, np.float32)
+        out.volume_phase = np.zeros(m, np.int32)
+        out.volume_phase_params = np.zeros((m, 3), np.float32)
         out.volume_emission = np.zeros((m, 3), np.float32)
         out.holdout = np.zeros(m, np.float32)
         out.translucent_weight = np.zeros(m, np.float32)
@@ -635,6 +640,8 @@ class Materials:
             out.volume_scattering[i] = np.broadcast_to(
                 np.asarray(s.get("volume_scattering", 0.0), np.float32), (3,))
             out.volume_anisotropy[i] = s.get("volume_anisotropy", 0.0)
+            out.volume_phase[i] = s.get("volume_phase", 0)
+            out.volume_phase_params[i] = s.get("volume_phase_params", (0.0, 0.0, 0.0))
             out.volume_emission[i] = np.broadcast_to(
                 np.asarray(s.get("volume_emission", 0.0), np.float32), (3,))
             out.holdout[i] = s.get("holdout", 0.0)
@@ -929,6 +936,8 @@ class World:
     volume_absorption: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) >= 0
     volume_scattering: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) >= 0
     volume_anisotropy: float = 0.0      # Henyey-Greenstein g in [-0.99, 0.99]
+    volume_phase: int = 0               # the phase function (Materials.volume_phase), and its
+    volume_phase_params: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # parameters
     # The rays the world does not light (bits EXCLUDE_*, Blender's World > Ray Visibility): its
     # photons and its sun lights' as ``Lights.exclude``, and camera paths that leave a mirror
     # (EXCLUDE_GLOSSY) or a glass (EXCLUDE_TRANSMISSION) see black past the scene.
@@ -940,7 +949,8 @@ class World:
     mist_depth: float = 25.0
     mist_falloff: float = 2.0
 
-    VOLUME_FIELDS = ("volume_absorption", "volume_scattering", "volume_anisotropy")
+    VOLUME_FIELDS = ("volume_absorption", "volume_scattering", "volume_anisotropy", "volume_phase",
+                     "volume_phase_params")
     MIST_FIELDS = ("mist_start", "mist_depth", "mist_falloff")
 
     @property
@@ -988,6 +998,14 @@ def _validate_world_volume(w, fail):
     if g.shape != (1,) or not -0.99 <= g[0] <= 0.99:
         fail("world.volume_anisotropy must be a number in [-0.99, 0.99]")
     w.volume_anisotropy = float(g[0])
+    kind = np.asarray(w.volume_phase).reshape(-1)
+    if kind.shape != (1,) or not float(kind[0]).is_integer() or not 0 <= kind[0] <= 4:
+        fail("world.volume_phase must be an index of core.phase.PHASE_NAMES (0-4)")
+    w.volume_phase = int(kind[0])
+    params = np.asarray(w.volume_phase_params, np.float32).reshape(-1)
+    if params.shape != (3,) or not np.isfinite(params).all() or (params < 0).any():
+        fail("world.volume_phase_params must be three finite non-negative numbers")
+    w.volume_phase_params = params
 
 
 @dataclass
@@ -1161,6 +1179,7 @@ class Scene:
                                        ("coat_roughness", (n,), 0.03), ("coat_ior", (n,), 1.5),
                                        ("coat_tint", (n, 3), 1.0), ("volume_absorption", (n, 3), 0.0),
                                        ("volume_scattering", (n, 3), 0.0), ("volume_anisotropy", (n,), 0.0),
+                                       ("volume_phase", (n,), 0), ("volume_phase_params", (n, 3), 0.0),
                                        ("volume_emission", (n, 3), 0.0),
                                        ("holdout", (n,), 0.0), ("translucent_weight", (n,), 0.0),
                                        ("translucent_color", (n, 3), 0.0), ("translucent_program", (n,), -1),
@@ -1178,7 +1197,7 @@ class Scene:
         for name in Materials.ARRAY_FIELDS:
             colour = name.endswith(("color", "emission", "multiscatter", "rise", "dip", "layer", "tint",
                                     "absorption", "scattering", "rest", "radius", "film_metal_ior",
-                                    "film_metal_extinction"))
+                                    "film_metal_extinction", "phase_params"))
             tail = (3,) if colour else ()
             dtype = np.int32 if name in Materials.INTEGER_FIELDS else np.float32
             v = arr(f"materials.{name}", getattr(mats, name), dtype, tail, nm)
@@ -1216,6 +1235,7 @@ class Scene:
                                 ("subsurface_alpha", 0.0, 1.0),
                                 ("subsurface_method", SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN),
                                 ("diffuse_roughness", 0.0, 1.0), ("volume_anisotropy", -0.99, 0.99),
+                                ("volume_phase", 0, 4), ("volume_phase_params", 0.0, 1e6),
                                 ("sheen_roughness", 0.0, 1.0),
                                 ("coat_roughness", 0.0, 1.0), ("coat_ior", 1.0, np.inf),
                                 ("glossy_stretch", 0.01, 100.0), ("glossy_tangent", 0, TANGENT_UV),
