@@ -53,7 +53,12 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
 # core's data pass it shows (RenderSettings.data_passes).
 DENOISING = ("cycles", "denoising_store_passes")
 DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
+               (("Mist", 1, "Z", 'VALUE'), "", "use_pass_mist", "mist"),
+               (("Position", 3, "XYZ", 'VECTOR'), "", "use_pass_position", "position"),
                (("Normal", 3, "XYZ", 'VECTOR'), "", "use_pass_normal", "normal"),
+               (("UV", 3, "UVA", 'VECTOR'), "", "use_pass_uv", "uv"),
+               (("Object Index", 1, "X", 'VALUE'), "", "use_pass_object_index", "object_index"),
+               (("Material Index", 1, "X", 'VALUE'), "", "use_pass_material_index", "material_index"),
                (("Denoising Normal", 3, "XYZ", 'VECTOR'), *DENOISING, "denoising_normal"),
                (("Denoising Albedo", 3, "RGB", 'COLOR'), *DENOISING, "albedo"),
                (("Denoising Depth", 1, "Z", 'VALUE'), *DENOISING, "denoising_depth"))

@@ -223,15 +223,45 @@ class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
             col.prop(visibility, name, text=text, toggle=False)
 
 
+class AMCMCPPM_WORLD_PT_mist(bpy.types.Panel):
+    """World > Mist Pass (Blender's mist settings, drawn by Cycles' panel for Cycles only): where the
+    Mist pass starts, its depth and falloff; shown, as Cycles', when some view layer asks for Mist."""
+    bl_label = "Mist Pass"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "world"
+    bl_options = {'DEFAULT_CLOSED'}
+    COMPAT_ENGINES = {ENGINE_ID}
+    props = ("start", "depth", "falloff")
+
+    @classmethod
+    def poll(cls, context):
+        return (context.engine in cls.COMPAT_ENGINES and context.world is not None
+                and any(layer.use_pass_mist for layer in context.scene.view_layers))
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        mist = context.world.mist_settings
+        col = layout.column(align=True)
+        col.prop(mist, "start")
+        col.prop(mist, "depth")
+        layout.column().prop(mist, "falloff")
+
+
 class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
-    """View Layer Properties > Passes: the data passes the engine writes beside Combined (Z and
-    Normal of the surfaces camera rays stop on, and Cycles' Denoising Data box for the Denoising
-    Normal, Albedo and Depth; ``engine.DATA_PASSES``)."""
+    """View Layer Properties > Passes: the data passes the engine writes beside Combined, as Cycles'
+    Data panel (Z, Mist, Position, Normal and UV of the surfaces camera rays stop on, Cycles'
+    Denoising Data box for the Denoising Normal, Albedo and Depth, and the Object and Material
+    Index; ``engine.DATA_PASSES``)."""
     bl_label = "Passes"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
     bl_context = "view_layer"
     COMPAT_ENGINES = {ENGINE_ID}
+    # The view layer's boxes, in Cycles' order (its Data panel's Include and Indexes columns).
+    data = ("use_pass_z", "use_pass_mist", "use_pass_position", "use_pass_normal", "use_pass_uv")
+    indexes = ("use_pass_object_index", "use_pass_material_index")
 
     @classmethod
     def poll(cls, context):
@@ -241,13 +271,17 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
+        layer = context.view_layer
         col = layout.column(heading="Data", align=True)
-        col.prop(context.view_layer, "use_pass_z")
-        col.prop(context.view_layer, "use_pass_normal")
-        cycles = getattr(context.view_layer, "cycles", None)
+        for name in self.data:
+            col.prop(layer, name)
+        cycles = getattr(layer, "cycles", None)
         if cycles is not None:
             # (Cycles' Denoising Data box: the Denoising Normal, Albedo and Depth passes)
             col.prop(cycles, "denoising_store_passes", text="Denoising Data")
+        col = layout.column(heading="Indexes", align=True)
+        for name in self.indexes:
+            col.prop(layer, name)
 
 
 classes = (
@@ -301,7 +335,7 @@ def get_panels():
 
 # Panels outside the Render Properties.
 other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
-                 AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes)
+                 AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes)
 
 
 def register():

@@ -388,9 +388,13 @@ def first_hit_data(ctx, data, pix, surf, wo, prim, b1, b2):
     if "position" in data:
         data["position"][pix] = surf.position
     if "uv" in data and scene.uvs is not None:
+        # (a triangle whose corners are all (0, 0) is of a mesh without a UV map, which the
+        # exporter fills with zeros: Cycles' (0, 0, 0) there)
+        corners = scene.uvs.take(prim, axis=0)
         bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
-        uv = interpolate_corners(scene.uvs.take(prim, axis=0), bary)
-        data["uv"][pix] = np.column_stack([uv, np.ones(len(pix))])
+        uv = interpolate_corners(corners, bary)
+        mapped = corners.reshape(len(prim), 6).any(axis=1)
+        data["uv"][pix] = np.column_stack([uv, np.ones(len(pix))]) * mapped[:, None]
     if "object_index" in data and scene.object_ids is not None and scene.object_info is not None:
         data["object_index"][pix] = scene.object_info[:, 1].take(scene.object_ids.take(prim))
     if "material_index" in data and scene.materials.pass_index is not None:
@@ -399,6 +403,35 @@ def first_hit_data(ctx, data, pix, surf, wo, prim, b1, b2):
         w = scene.world
         fraction = np.clip((np.sqrt(dot(offset, offset)) - w.mist_start) / max(w.mist_depth, 1e-30), 0.0, 1.0)
         data["mist"][pix] = fraction ** w.mist_falloff
+
+
+def centre_data(ctx, rng, names):
+    """The data passes ``names`` of ``settings.FIRST_PASS_DATA`` ("depth", "position",
+    "object_index", "material_index") as Cycles takes them from its first sample, whose ray goes
+    through the pixel's centre (and the lens's): {name: (n_pixels,) or (n_pixels, 3)}, of the
+    surface each such ray stops on past what is transparent to it (crossed with the chance of its
+    transparency, by ``rng``); 1e10 (depth) or 0 where rays meet nothing."""
+    cam = ctx.scene.camera
+    x0, x1, y0, y1 = cam.window
+    n_pix = (x1 - x0) * (y1 - y0)
+    data = {name: (np.full(n_pix, NO_DEPTH) if name == "depth" else
+                   np.zeros((n_pix, 3)) if name == "position" else np.zeros(n_pix)) for name in names}
+    pix = np.arange(n_pix)
+    origins, dirs, tmax, _ = generate_camera_rays(cam, pix, np.full((n_pix, 4), 0.5))
+    if cam.projection in PANORAMAS:
+        sees = np.flatnonzero(dirs.any(axis=1))
+        pix, origins, dirs = pix.take(sees), origins.take(sees, axis=0), dirs.take(sees, axis=0)
+        tmax = tmax.take(sees)
+    hits, _, _, _ = ctx.trace(origins, dirs, tmax, lambda rows, crossing: rng.random(len(rows)),
+                              ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8))
+    h = np.flatnonzero(hits.is_hit & (hits.t < tmax))
+    if len(h):
+        prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
+        wo = -dirs.take(h, axis=0)
+        pick = rng.random(len(h)) if ctx.has_level_programs else None
+        surf = ctx.surface(prim, b1, b2, pick, Rays(wo, True))
+        first_hit_data(ctx, data, pix.take(h), surf, wo, prim, b1, b2)
+    return data
 
 
 def _box_exit(origins, dirs, lo, hi):

@@ -27,12 +27,12 @@ import numpy as np
 
 from .context import RenderContext
 from .coverage import point_coverage
-from .eye_pass import trace_eye_pass
+from .eye_pass import centre_data, trace_eye_pass
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
 from .visible_cells import VisibleCells
-from .worker import STREAM_COVERAGE, STREAM_EYE
+from .worker import STREAM_CENTRE, STREAM_COVERAGE, STREAM_EYE
 
 # A pass is not started when the time left would trace less than this share of its photons.
 MIN_CUT_PASS = 0.05
@@ -87,8 +87,7 @@ class Accumulator:
         self.n_visible = 0                          # n_UV, all passes
         self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
-        self.first_data = {}                        # the first pass's FIRST_PASS_DATA (as Cycles')
-        self.data_sums = {}                         # sums over passes of the other data passes
+        self.data_sums = {}                         # sums over passes of the data passes
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
         # spread, the sum of Vc_p T_p (per-pass normalisation) and, for the chains, the sum of
@@ -128,11 +127,8 @@ class Accumulator:
         data = getattr(eye, "data", None)            # (RenderSettings.data_passes)
         if data:
             for name, value in data.items():
-                if name in FIRST_PASS_DATA:
-                    self.first_data.setdefault(name, value.copy())
-                else:
-                    total = self.data_sums.get(name)
-                    self.data_sums[name] = value.copy() if total is None else total + value
+                total = self.data_sums.get(name)
+                self.data_sums[name] = value.copy() if total is None else total + value
         self.n_uniform += n_uniform
         self.n_visible += n_visible
         self.last_pass_mean = float(eye.emission.mean())
@@ -193,8 +189,7 @@ class Accumulator:
 
     def data(self, height, width):
         """The data passes (``RenderResult.data``) as (H, W[, 3]) float32 images."""
-        out = {name: value.astype(np.float32).reshape((height, width) + value.shape[1:])
-               for name, value in self.first_data.items()}
+        out = {}
         for name, value in self.data_sums.items():
             if self.passes:
                 shape = (height, width) + value.shape[1:]
@@ -352,10 +347,20 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     deadline = t0 + settings.time_limit if settings.time_limit else None
     scales = kz_radius_scales(1, settings.alpha)
 
+    # The data passes Cycles takes from its first sample (through the pixels' centres), once;
+    # the eye passes make the others.
+    first = [name for name in settings.data_passes if name in FIRST_PASS_DATA]
+    centre = centre_data(ctx, np.random.default_rng([settings.seed, STREAM_CENTRE]), first) if first else {}
+    averaged = tuple(name for name in settings.data_passes if name not in FIRST_PASS_DATA)
+
+    def centre_images():
+        return {name: value.astype(np.float32).reshape((height, width) + value.shape[1:])
+                for name, value in centre.items()}
+
     def eye_pass(i):
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
-                              settings.data_passes, settings.bounce_limits)
+                              averaged, settings.bounce_limits)
 
     # The Markov chains' visible set also holds the cells around the measurement points of the
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
@@ -448,7 +453,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
             result.image = acc.image(is_chain).reshape(height, width, 4)
-            result.data = acc.data(height, width)
+            result.data = {**centre_images(), **acc.data(height, width)}
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
                                 photons, cut and not interrupted, is_chain)
             result.stats.append(stats)
@@ -481,7 +486,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     result.elapsed_s = time.perf_counter() - t0
     if acc.passes:      # (after the switch of "auto", the first image stands until a pass lands)
         result.image = acc.image(is_chain).reshape(height, width, 4)
-        result.data = acc.data(height, width)
+        result.data = {**centre_images(), **acc.data(height, width)}
     return result
 
 

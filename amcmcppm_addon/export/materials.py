@@ -91,6 +91,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import procedural, thin_film
+from ...core.phase import FOURNIER_FORAND, HENYEY_GREENSTEIN, PHASE_NAMES
 from ...core.bsdf import (DISTRIBUTION_BECKMANN, TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z,
                           TANGENT_UV, metal_curve, metal_fresnel)
 from ...core.imageio import linear_to_srgb
@@ -1089,9 +1090,13 @@ class MaterialExporter:
                 spec["bump_correction"] = 0         # (Materials.bump_correction)
             if walker.medium is not None and any(np.any(walker.medium[i]) for i in (0, 1, 3)):
                 spec.update(volume_absorption=walker.medium[0], volume_scattering=walker.medium[1],
-                            volume_anisotropy=walker.medium[2], volume_emission=walker.medium[3])
+                            volume_anisotropy=walker.medium[2], volume_emission=walker.medium[3],
+                            volume_phase=walker.medium[4][0], volume_phase_params=walker.medium[4][1])
             if walker.true_displacement is not None:
                 spec.update(walker.true_displacement)
+            # The Material Index pass: the material's pass index, on the rows of its levels too.
+            for row in (spec, *spec.get("levels", ())):
+                row["pass_index"] = float(material.pass_index)
             self._ids[key] = self._add(spec)
             if closure.hidden_rays:
                 self._hidden[self._ids[key]] = closure.hidden_rays
@@ -1465,14 +1470,17 @@ class NodeWalker:
         return closure
 
     def volume(self, sock, stack):
-        """(absorption (3,), scattering (3,), anisotropy g, emission (3,)) of the volume shader
-        feeding ``sock`` (coefficients and emission per unit of length, as Cycles), or None when
-        nothing does.  Volume Absorption absorbs (1 - Color) Density; Volume Scatter scatters
-        Color Density with the Henyey-Greenstein phase function of its Anisotropy (other phase
-        functions are noted and taken as that); Principled Volume scatters Color Density and
+        """(absorption (3,), scattering (3,), anisotropy g, emission (3,), phase) of the volume
+        shader feeding ``sock`` (coefficients and emission per unit of length, as Cycles), or None
+        when nothing does; ``phase`` is (``core.phase`` kind, its three parameters: Draine's Alpha,
+        Fournier-Forand's Backscatter and IOR, Mie's Diameter).  Volume Absorption absorbs
+        (1 - Color) Density; Volume Scatter scatters Color Density by its phase function (Blender
+        5.0's Henyey-Greenstein of its Anisotropy, Rayleigh, Draine, Fournier-Forand or Mie), Volume
+        Coefficients by its coefficients and phase; Principled Volume scatters Color Density and
         absorbs (1 - Color)(1 - sqrt(Absorption Color)) Density.  Add and Mix add the
         coefficients; scatterers of different anisotropy get their mean weighted by the
-        scattering (noted).  Principled Volume emits Emission Strength Emission Color plus, with
+        scattering, of different phase functions the one that scatters most (noted).  Principled
+        Volume emits Emission Strength Emission Color plus, with
         Blackbody Intensity b > 0, Blackbody Tint (1 - b + b T^4) 5.670373e-14 / pi times the
         Blackbody colour of its Temperature T (Cycles' Stefan-Boltzmann law), neither scaled by
         the Density; an Emission shader emits Color Strength.  Textures on the inputs take their
@@ -1483,10 +1491,25 @@ class NodeWalker:
         node = src.node
         kind = "muted" if node.mute else node.bl_idname
         zero = np.zeros(3)
+        even = (HENYEY_GREENSTEIN, (0.0, 0.0, 0.0))
 
         def color(name):
             value = self.programs.constant_of(node.inputs[name], stack, VEC)
             return np.maximum(np.array(value, np.float64), 0.0)
+
+        def phase():
+            """(kind, parameters) of a Volume Scatter's or Volume Coefficients' phase function."""
+            name = getattr(node, "phase", "HENYEY_GREENSTEIN")
+            if name not in PHASE_NAMES:
+                self.note(f"'{node.name}': the {name.replace('_', ' ').title()} phase function is not "
+                          "supported (Henyey-Greenstein used)")
+                return even
+            k = PHASE_NAMES.index(name)
+            first = {"DRAINE": "Alpha", "FOURNIER_FORAND": "Backscatter", "MIE": "Diameter"}.get(name)
+            params = [max(self.value(node.inputs[first], stack), 0.0) if first else 0.0, 0.0, 0.0]
+            if k == FOURNIER_FORAND:
+                params[1] = max(self.value(node.inputs["IOR"], stack), 0.0)
+            return k, tuple(params)
 
         def density():
             return max(self.value(node.inputs["Density"], stack), 0.0)
@@ -1498,12 +1521,13 @@ class NodeWalker:
             return float(np.clip(self.value(sock, stack), -MAX_ANISOTROPY, MAX_ANISOTROPY))
 
         if kind == "ShaderNodeVolumeAbsorption":
-            return np.maximum(1.0 - color("Color"), 0.0) * density(), zero, 0.0, zero
+            return np.maximum(1.0 - color("Color"), 0.0) * density(), zero, 0.0, zero, even
         if kind == "ShaderNodeVolumeScatter":
-            if getattr(node, "phase", "HENYEY_GREENSTEIN") != "HENYEY_GREENSTEIN":
-                self.note(f"'{node.name}': the {node.phase.replace('_', ' ').title()} phase function is "
-                          "not supported (Henyey-Greenstein used, of its Anisotropy where it has one)")
-            return zero, color("Color") * density(), anisotropy(), zero
+            return zero, color("Color") * density(), anisotropy(), zero, phase()
+        if kind == "ShaderNodeVolumeCoefficients":
+            # (Blender 5.0: the coefficients themselves, per metre)
+            return (color("Absorption Coefficients"), color("Scatter Coefficients"), anisotropy(),
+                    color("Emission Coefficients"), phase())
         if kind == "ShaderNodeVolumePrincipled":
             scatter, d = color("Color"), density()
             emission = max(self.value(node.inputs["Emission Strength"], stack), 0.0) * color("Emission Color")
@@ -1514,7 +1538,7 @@ class NodeWalker:
                 glow = color("Blackbody Tint") * intensity * np.maximum(procedural.blackbody([t])[0], 0.0)
                 emission = emission + np.maximum(glow, 0.0)
             kept = np.maximum(1.0 - np.sqrt(color("Absorption Color")), 0.0)
-            return np.maximum(1.0 - scatter, 0.0) * kept * d, scatter * d, anisotropy(), emission
+            return np.maximum(1.0 - scatter, 0.0) * kept * d, scatter * d, anisotropy(), emission, even
         if kind in ("ShaderNodeAddShader", "ShaderNodeMixShader"):
             a = self.volume(_by_identifier(node.inputs, "Shader"), stack)
             b = self.volume(_by_identifier(node.inputs, "Shader_001"), stack)
@@ -1524,17 +1548,22 @@ class NodeWalker:
             if kind == "ShaderNodeMixShader":
                 fb = float(np.clip(self.programs.constant_of(node.inputs[0], stack), 0.0, 1.0))
                 fa = 1.0 - fb
-            a, b = a or (zero, zero, 0.0, zero), b or (zero, zero, 0.0, zero)
+            a, b = a or (zero, zero, 0.0, zero, even), b or (zero, zero, 0.0, zero, even)
             wa, wb = fa * a[1].mean(), fb * b[1].mean()
             if wa > 0 and wb > 0 and a[2] != b[2]:
                 self.note(f"'{node.name}': volumes of different anisotropy scatter with their mean")
+            if wa > 0 and wb > 0 and a[4] != b[4]:
+                self.note(f"'{node.name}': volumes of different phase functions scatter by the one "
+                          "that scatters most")
             g = (wa * a[2] + wb * b[2]) / (wa + wb) if wa + wb > 0 else 0.0
-            return fa * a[0] + fb * b[0], fa * a[1] + fb * b[1], g, fa * a[3] + fb * b[3]
+            return (fa * a[0] + fb * b[0], fa * a[1] + fb * b[1], g, fa * a[3] + fb * b[3],
+                    a[4] if wa >= wb else b[4])
         if kind == "ShaderNodeEmission":
-            return zero, zero, 0.0, color("Color") * max(self.value(node.inputs["Strength"], stack), 0.0)
+            glow = color("Color") * max(self.value(node.inputs["Strength"], stack), 0.0)
+            return zero, zero, 0.0, glow, even
         if kind != "muted":
             self.unsupported(node, "as a volume; left out")
-        return zero, zero, 0.0, zero
+        return zero, zero, 0.0, zero, even
 
     def bent_normal(self, sock, stack):
         """(normal map or None, bump or None) feeding a ``Normal`` input: a Normal Map node

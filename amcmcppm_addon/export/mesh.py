@@ -115,12 +115,16 @@ class GeometryCollector:
     material_override : a Material used for every object (the view layer's override).
     linking : the depsgraph's light and shadow ``LightLinking`` (receivers, blockers), each or
     both None.
+    passes : the core data passes the view layer asks for that need geometry beside what the
+    materials read: "object_index" the objects and their Object Info (the pass index), "uv" the UVs.
     """
 
-    def __init__(self, materials, log, material_override=None, linking=(None, None), frame=0.0):
+    def __init__(self, materials, log, material_override=None, linking=(None, None), frame=0.0,
+                 passes=frozenset()):
         """``frame``: the scene's current frame (with subframe), for Particle Info's Age."""
         self.materials = materials
         self.frame = frame
+        self.passes = frozenset(passes)
         self.log = log
         self.material_override = material_override
         self.linking = linking
@@ -178,17 +182,18 @@ class GeometryCollector:
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))
-        # (only for materials that read it: a name's hash costs microseconds, and scattered
-        # scenes have millions of instances)
+        # (only for materials that read it, or the Object Index pass: a name's hash costs
+        # microseconds, and scattered scenes have millions of instances)
         self.infos.setdefault((key, mat_ids, flags, link), []).append(
-            object_info(inst) if used & set(OBJECT_INFO) else None)
+            object_info(inst) if used & set(OBJECT_INFO) or "object_index" in self.passes else None)
         properties = sorted(n for n in used if n.startswith(OBJECT_PROPERTY))
         if properties:                  # (the same names for every instance of a group)
             self.properties.setdefault((key, mat_ids, flags, link), []).append(
                 {n: object_property(inst, n, self.frame) for n in properties})
 
     def finish(self) -> Geometry:
-        geometry = assemble(self.meshes, self.groups, self.materials, self.infos, self.properties)
+        geometry = assemble(self.meshes, self.groups, self.materials, self.infos, self.properties,
+                            self.passes)
         geometry.meshes = sum(1 for m in self.meshes.values() if m is not None)
         return geometry
 
@@ -752,15 +757,18 @@ def _triangulated_copy(me):
     return copy
 
 
-def assemble(meshes, groups, materials, infos=None, properties=None) -> Geometry:
+def assemble(meshes, groups, materials, infos=None, properties=None, passes=frozenset()) -> Geometry:
     """Transform every instance group to world space and concatenate; ``infos``: the groups'
-    Object Info rows (:func:`object_info`), kept when some material reads them, ``properties``
-    their objects' properties (:func:`object_property`)."""
+    Object Info rows (:func:`object_info`), kept when some material reads them or ``passes`` has
+    "object_index" (the Object Index pass), ``properties`` their objects' properties
+    (:func:`object_property`); the UVs are kept when some material reads them or ``passes`` has "uv"."""
     parts = []
     offset = 0
     instances = 0
     # Data of procedural textures, when some material reads it (for every triangle).
     coordinates = materials.coordinates_used({i for _, ids, _, _ in groups for i in ids})
+    if "object_index" in passes:
+        coordinates.add("object_info")              # (the pass index is the Object Info's)
     objects = reads_objects(coordinates)
     names = sorted(n for n in coordinates if n.startswith(OBJECT_PROPERTY))
     for (key, mat_ids, visibility, link), matrices in groups.items():
@@ -792,7 +800,7 @@ def assemble(meshes, groups, materials, infos=None, properties=None) -> Geometry
                                   else _flat_normals(vertices, p["triangles"]) for p in parts])
     uvs = tangents = None
     used = np.flatnonzero(np.bincount(material_ids))
-    if materials.uses_textures(used):
+    if "uv" in passes or materials.uses_textures(used):
         uvs = np.concatenate([p["uvs"] if p["uvs"] is not None
                               else np.zeros((len(p["triangles"]), 3, 2), np.float32) for p in parts])
     objects = {name: np.concatenate([p[name] for p in parts])

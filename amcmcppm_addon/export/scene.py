@@ -54,6 +54,16 @@ class ExportedScene:
         return s.triangle_count == 0 and s.lights.count == 0 and not np.any(s.world.color)
 
 
+# The view layer's pass boxes whose core data passes read geometry that only some materials need
+# otherwise (``engine.DATA_PASSES``): the box -> the core's name (``GeometryCollector``'s ``passes``).
+GEOMETRY_PASSES = {"use_pass_object_index": "object_index", "use_pass_uv": "uv"}
+
+
+def geometry_passes(view_layer) -> frozenset:
+    """The core data passes of ``GEOMETRY_PASSES`` that ``view_layer`` asks for."""
+    return frozenset(core for box, core in GEOMETRY_PASSES.items() if getattr(view_layer, box, False))
+
+
 def export_scene(depsgraph, camera_object=None, resolution=None, border=None) -> ExportedScene:
     """Export everything ``depsgraph`` shows for its view layer.
 
@@ -69,7 +79,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     linking = (LightLinking.from_depsgraph(depsgraph, log, "receiver"),
                LightLinking.from_depsgraph(depsgraph, log, "blocker"))
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
-                                  linking=linking, frame=depsgraph.scene_eval.frame_current_final)
+                                  linking=linking, frame=depsgraph.scene_eval.frame_current_final,
+                                  passes=geometry_passes(view_layer))
     light_records, light_collections = [], []
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":

@@ -21,6 +21,10 @@ leave a mirror or a glass then see black past the scene.
 The world's Volume (Volume Absorption, Volume Scatter, Principled Volume, as a material's)
 fills all space outside the meshes' volumes, unbounded as in Cycles: the sun and the world's
 own light then reach nothing in the channels it attenuates (``export_scene`` warns).
+
+World > Mist Pass (start, depth, falloff: ``world.mist_settings``) shapes the Mist pass
+(``World.mist_start``, ``mist_depth``, ``mist_falloff``); without a world, Cycles' film's own
+(``NO_WORLD_MIST``: from the camera over 100 m, linear; not a new world's 5 m, 25 m, quadratic).
 """
 from __future__ import annotations
 
@@ -35,6 +39,11 @@ from .procedural import view_layer_owners
 
 BAKE_WIDTH = 1024          # equirectangular image of a procedural world (height: half)
 BAKE_MAX_WIDTH = 4096
+# Blender's mist falloff -> the power of the mist's rise (``World.mist_falloff``), as Cycles' film.
+MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}
+# The mist of a scene without a world, as Cycles' (its film's defaults: the Mist pass is the distance
+# over 100 m; measured against Cycles 5.0).
+NO_WORLD_MIST = {"mist_start": 0.0, "mist_depth": 100.0, "mist_falloff": 1.0}
 
 
 def export_world(depsgraph, textures, log, camera=None):
@@ -44,7 +53,7 @@ def export_world(depsgraph, textures, log, camera=None):
     world = depsgraph.view_layer_eval.world_override or scene.world
     transparent = bool(scene.render.film_transparent)
     if world is None:
-        return World(color=np.zeros(3, np.float32), film_transparent=transparent), []
+        return World(color=np.zeros(3, np.float32), film_transparent=transparent, **NO_WORLD_MIST), []
     walker = NodeWalker(world.name, textures, layer_owners=view_layer_owners(depsgraph))
     color = walker.world_color(world)
     if walker.notes:
@@ -52,15 +61,27 @@ def export_world(depsgraph, textures, log, camera=None):
     out, lights = _background(walker, color, textures, world.name, log, camera)
     out.film_transparent = transparent
     if walker.medium is not None:
-        absorption, scattering, g, _ = walker.medium          # (its emission is noted, left out)
+        absorption, scattering, g, _, (phase, params) = walker.medium    # (emission noted, left out)
         out.volume_absorption = absorption.astype(np.float32)
         out.volume_scattering = scattering.astype(np.float32)
         out.volume_anisotropy = float(g)
+        out.volume_phase, out.volume_phase_params = int(phase), np.asarray(params, np.float32)
     if walker.camera_walker is not None:
         out.camera, _ = _background(walker.camera_walker, walker.camera_color, textures, world.name, log,
                                     camera)
     _ray_visibility(world, out, lights)
+    _mist(world, out)
     return out, lights
+
+
+def _mist(world, out):
+    """World > Mist Pass into ``out`` (``World.mist_start``, ``mist_depth``, ``mist_falloff``)."""
+    mist = getattr(world, "mist_settings", None)
+    if mist is None:
+        return
+    out.mist_start = float(mist.start)
+    out.mist_depth = float(mist.depth)
+    out.mist_falloff = MIST_FALLOFF.get(mist.falloff, out.mist_falloff)
 
 
 def _ray_visibility(world, out, lights):

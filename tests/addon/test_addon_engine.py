@@ -406,8 +406,9 @@ def test_depth_and_normal_passes_match_cycles(scene, tmp_path):
     """View Layer > Passes > Z and Normal (stop 46): the engine registers Blender's Depth and
     Normal passes and fills them from the core's data passes.  A wall, a tilted card showing its
     back and the sky, seen from a perspective camera: against Cycles' passes in the 818 pixels away
-    from edges, the depth within 0.73 % (each from its first sample's jitter: one depth on the wall
-    square to the view, up to 0.7 % apart on the tilted card) and 1e10 where rays meet nothing, the
+    from edges, the depth within 1e-4 (8.3e-6: both from a ray through the pixel's centre, Cycles'
+    first sample, since stop 51; before, ours from its first pass's jitter, 0.73 %) and 1e10 where
+    rays meet nothing, the
     normal (world space, facing the camera) within 2e-7; with Denoising Data (Cycles' box), its
     Denoising Normal (in the camera's frame) and Denoising Albedo within 2e-7 in those pixels;
     without the boxes ticked, no such passes."""
@@ -447,7 +448,7 @@ def test_depth_and_normal_passes_match_cycles(scene, tmp_path):
           f"{np.abs(normal[seen] - c_normal[seen]).max():.2e}")
     assert sky.sum() > 20 and seen.sum() > 200
     assert (depth[sky] == c_depth[sky]).all()
-    np.testing.assert_allclose(depth[seen], c_depth[seen], rtol=0.02)
+    np.testing.assert_allclose(depth[seen], c_depth[seen], rtol=1e-4)
     np.testing.assert_allclose(normal[seen], c_normal[seen], atol=1e-3)
     assert (normal[sky] == 0).all()
     # Denoising Data: the normal in the camera's frame (Cycles': z into the view), the albedo of
@@ -585,3 +586,108 @@ def test_the_denoising_features_match_cycles(scene, tmp_path):
         # (Cycles' depth behind a volume's boundary starts there: not compared through the fog)
         n = 6 if what == "through fog" else 7
         np.testing.assert_allclose(o[:n], c[:n], rtol=0.03, atol=5e-3, err_msg=what)
+
+
+def test_mist_position_uv_and_index_passes_match_cycles(scene, tmp_path):
+    """View Layer > Passes > Mist, Position, UV, Object Index and Material Index as Cycles writes
+    them (film/data_passes.h).  A wall with a UV map (object pass index 2, material 3) and a tilted
+    card without one (5, 7) before it, the sky beside them, seen from a perspective camera; World >
+    Mist Pass from 3.5 m over 10 m, linear (Cycles' mist: 0.25-0.38 on the wall, 0.045-0.068 on
+    the card).  In the 570 pixels whose 3 x 3 neighbourhood is even in Cycles' depth: the indices
+    exactly; the mist (averaged over samples) within 0.01 of Cycles' (4.6e-3); the UV (averaged)
+    within 0.02 on the wall (1.2e-2); in the sky the mist 1 and the position, UV and indices 0, as
+    Cycles'.  The UV is 0 on the card, which has no UV map; the position is the first sample's,
+    which Cycles takes at the pixel's centre (5e-4 px from it, whatever the seed and pattern), as
+    ours: within 1 % of the distance (2.3e-5; from a jittered first pass, 2 %).  Without a world, Cycles' mist is the
+    distance over 100 m (its film's defaults; 0.060-0.073 on the wall; ours within 4.6e-4).
+    Without the boxes, no such passes."""
+    import test_addon_parity as parity
+
+    def build():
+        bs.empty_scene((40, 30), passes=2, photons_per_pass=2000)
+        wall, card = bs.diffuse("Wall", (0.5, 0.5, 0.5)), bs.diffuse("Card", (0.8, 0.8, 0.8))
+        wall.pass_index, card.pass_index = 3, 7
+        ob = bs.plane("Wall", size=8.0, material=wall, location=(-2.5, 4, -2), rotation=(math.pi / 2, 0, 0))
+        ob.data.uv_layers.new(name="UVMap")     # (the quad spans 0..1)
+        ob.pass_index = 2
+        ob = bs.plane("Card", size=1.0, material=card, location=(0.5, 2, 0.3),
+                      rotation=(-math.pi / 2 + 0.4, 0.3, 0))
+        ob.pass_index = 5
+        bs.camera(location=(0, -2, 0), target=(0, 4, 0), lens=30.0)
+        bs.light("SUN", location=(0, 0, 5), target=(0.2, 1.0, -0.3), energy=3.0)
+        mist = bs.world((0.0, 0.0, 0.0)).mist_settings
+        mist.start, mist.depth, mist.falloff = 3.5, 10.0, "LINEAR"
+        layer = bpy.context.scene.view_layers[0]
+        for name in PASS_BOXES:
+            setattr(layer, f"use_pass_{name}", True)
+
+    def passes(path):
+        p = render_passes(path)
+        return {"depth": p["ViewLayer.Depth.Z"], "mist": p["ViewLayer.Mist.Z"],
+                "position": np.stack([p[f"ViewLayer.Position.{c}"] for c in "XYZ"], -1),
+                "uv": np.stack([p[f"ViewLayer.UV.{c}"] for c in "UVA"], -1),
+                "object": p["ViewLayer.Object Index.X"], "material": p["ViewLayer.Material Index.X"]}
+
+    build()
+    ours = passes(tmp_path / "ours.exr")
+    build()
+    parity.use_cycles(bpy.context.scene)
+    bpy.context.scene.cycles.samples = 16
+    cycles = passes(tmp_path / "cycles.exr")
+    c_depth = cycles["depth"]
+    even = np.ones_like(c_depth, bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            even &= np.isclose(np.roll(c_depth, (dy, dx), axis=(0, 1)), c_depth, rtol=0.02)
+    even[[0, -1], :] = even[:, [0, -1]] = False
+    sky = even & (c_depth >= 1e9)
+    wall, card = even & (cycles["object"] == 2), even & (cycles["object"] == 5)
+    seen = wall | card
+    distance = np.linalg.norm(cycles["position"] - np.array([0.0, -2.0, 0.0]), axis=-1)
+    gap = np.linalg.norm(ours["position"] - cycles["position"], axis=-1) / distance
+    uv_gap = np.abs(ours["uv"] - cycles["uv"]).max(axis=-1)
+    mist_gap = np.abs(ours["mist"] - cycles["mist"])
+    print(f"mist, position, uv, index passes: {wall.sum()} pixels of wall, {card.sum()} of card, {sky.sum()} "
+          f"of sky; Cycles' mist {cycles['mist'][wall].min():.3f}-{cycles['mist'][wall].max():.3f} on the "
+          f"wall, {cycles['mist'][card].min():.3f}-{cycles['mist'][card].max():.3f} on the card, ours "
+          f"within {mist_gap[seen].max():.2e}; uv on the wall within {uv_gap[wall].max():.2e}, on the card "
+          f"ours {ours['uv'][card].mean(axis=0)}, Cycles' {cycles['uv'][card].mean(axis=0)}; position "
+          f"within {gap[wall].max():.2e} of the distance on the wall, {gap[card].max():.2e} on the card")
+    assert sky.sum() > 20 and wall.sum() > 200 and card.sum() > 8
+    for name, on_wall, on_card in (("object", 2, 5), ("material", 3, 7)):
+        assert (cycles[name][wall] == on_wall).all() and (cycles[name][card] == on_card).all(), name
+        assert (ours[name][even] == cycles[name][even]).all(), name
+    assert (cycles["mist"][sky] == 1).all() and (ours["mist"][sky] == 1).all()
+    for name in ("position", "uv", "object", "material"):
+        assert (cycles[name][sky] == 0).all() and (ours[name][sky] == 0).all(), name
+    assert np.ptp(cycles["mist"][wall]) > 0.1 and cycles["mist"][card].max() < cycles["mist"][wall].min()
+    np.testing.assert_allclose(ours["mist"][seen], cycles["mist"][seen], atol=0.01)
+    np.testing.assert_allclose(cycles["uv"][wall][:, 2], 1.0, atol=1e-6)
+    np.testing.assert_allclose(ours["uv"][wall], cycles["uv"][wall], atol=0.02)
+    np.testing.assert_array_equal(cycles["uv"][card], 0.0)
+    # Without a world, Cycles' film's mist: the distance over 100 m (0.06-0.07 here).
+    mists = []
+    for cycles_too in (False, True):
+        build()
+        bpy.context.scene.world = None
+        if cycles_too:
+            parity.use_cycles(bpy.context.scene)
+        mists.append(passes(tmp_path / f"no_world_{cycles_too}.exr")["mist"])
+    print(f"mist without a world: Cycles' {mists[1][wall].min():.4f}-{mists[1][wall].max():.4f} on the "
+          f"wall, ours within {np.abs(mists[0] - mists[1])[seen].max():.2e}")
+    np.testing.assert_allclose(mists[1][seen], distance[seen] / 100.0, atol=1e-3)
+    np.testing.assert_allclose(mists[0][seen], mists[1][seen], atol=0.01)
+    layer = bpy.context.scene.view_layers[0]
+    for name in PASS_BOXES:
+        setattr(layer, f"use_pass_{name}", False)
+    bpy.context.scene.render.engine = "AMCMCPPM"
+    plain = render_passes(tmp_path / "plain.exr")
+    assert not any(k.split(".")[1] in ("Mist", "Position", "UV", "Object Index", "Material Index")
+                   for k in plain)
+    np.testing.assert_array_equal(ours["uv"][card], 0.0, err_msg="the UV on the card without a UV map")
+    assert gap[seen].max() < 0.01, "the position from the first pass"
+
+
+# The view layer's boxes (use_pass_*) of the Mist, Position, UV, Object and Material Index passes,
+# and of Depth (whose neighbourhoods pick the pixels compared).
+PASS_BOXES = ("z", "mist", "position", "uv", "object_index", "material_index")

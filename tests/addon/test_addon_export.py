@@ -1872,9 +1872,9 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     (1 - Color)(1 - sqrt(Absorption Color)) Density and scatters Color Density, Volume Scatter
     scatters Color Density (Cycles' svm_node_principled_volume and svm_node_closure_volume; the
     absorption measured with Cycles 5.0: a 1 m volume-only cube against the white sky gave
-    exp(-(1 - C) D) within 0.1 %); the scatterers' Anisotropy is the phase function's g.  A volume
-    without a surface makes the surface let everything through; phase functions other than
-    Henyey-Greenstein are noted.  Emission: Principled Volume's Emission Strength times Color
+    exp(-(1 - C) D) within 0.1 %); the scatterers' Anisotropy is the phase function's g, and Blender
+    5.0's phase functions and Volume Coefficients reach the core (stop 51).  A volume without a
+    surface makes the surface let everything through.  Emission: Principled Volume's Emission Strength times Color
     plus its blackbody, an Emission shader's Color times Strength, Mixes at their shares."""
     from amcmcppm.core.procedural import blackbody
     mat, _ = bs.volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
@@ -1917,9 +1917,31 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     assert row["volume_absorption"] == pytest.approx([0, 0, 0])
     assert row["volume_anisotropy"] == pytest.approx(-0.4)
     assert not [w for w in ex.warnings if "'Haze'" in w], ex.warnings
+    assert row["volume_phase"] == 0
+    # Blender 5.0's other phase functions (stop 51; before, noted and taken as Henyey-Greenstein).
+    from amcmcppm.core.phase import PHASE_NAMES
+    for name, inputs, params in (("RAYLEIGH", {}, (0, 0, 0)), ("DRAINE", {"Alpha": 0.7}, (0.7, 0, 0)),
+                                 ("FOURNIER_FORAND", {"Backscatter": 0.05, "IOR": 1.2}, (0.05, 1.2, 0)),
+                                 ("MIE", {"Diameter": 12.0}, (12.0, 0, 0))):
+        node.phase = name
+        for key, value in inputs.items():
+            node.inputs[key].default_value = value
+        row, ex = export_material(mat)
+        assert row["volume_phase"] == PHASE_NAMES.index(name)
+        assert row["volume_phase_params"] == pytest.approx(params)
+        assert not [w for w in ex.warnings if "'Haze'" in w], ex.warnings
+    # Volume Coefficients (Blender 5.0): its coefficients per metre, its phase.
+    mat, node = bs.volume_material("Coefficients", "ShaderNodeVolumeCoefficients", None,
+                                   **{"Absorption Coefficients": (0.1, 0.2, 0.3),
+                                      "Scatter Coefficients": (0.4, 0.5, 0.6),
+                                      "Emission Coefficients": (0.0, 0.0, 0.7)})
     node.phase = "RAYLEIGH"
-    _, ex = export_material(mat)
-    assert any("Rayleigh phase function is not supported" in w for w in ex.warnings if "'Haze'" in w)
+    row, ex = export_material(mat)
+    assert row["volume_absorption"] == pytest.approx([0.1, 0.2, 0.3])
+    assert row["volume_scattering"] == pytest.approx([0.4, 0.5, 0.6])
+    assert row["volume_emission"] == pytest.approx([0.0, 0.0, 0.7])
+    assert row["volume_phase"] == PHASE_NAMES.index("RAYLEIGH")
+    assert not [w for w in ex.warnings if "'Coefficients'" in w], ex.warnings
 
     # A Mix of an absorption with a scatter: each at its share.
     mat, mix = bs.volume_material("Mixed", "ShaderNodeMixShader", None)
@@ -3272,3 +3294,55 @@ def test_particle_info_of_an_object_without_particles_is_cycles_dummy_particle(s
     values = ex.scene.object_attributes
     assert float(values["object:.particle:random"][0, 0]) == pytest.approx(float(hash_uint2_to_float(0, 0)))
     assert (values["object:.particle:age"] == 0).all() and not ex.warnings
+
+
+def test_pass_indices_mist_and_what_the_data_passes_read_reach_the_core(scene):
+    """View Layer > Passes: each material's pass index is ``Materials.pass_index`` (the rows of a
+    mask's levels too: a Mix of shaders is one Blender material), World > Mist Pass the world's
+    ``mist_start``, ``mist_depth`` and ``mist_falloff`` (Quadratic 2, Linear 1, Inverse Quadratic
+    0.5; without a world Cycles' film's: from 0 over 100 m, linear, not a new world's 5, 25,
+    quadratic).  The objects (their pass index the Object Info's) are exported for the Object Index
+    pass and the UVs for the UV pass when the view layer asks for them, and only then when no
+    material reads them."""
+    bs.camera()
+    paint = bs.diffuse("Paint")
+    paint.pass_index = 4
+    rust = bpy.data.materials.new("Rust")
+    nt = rust.node_tree
+    metal = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    metal.inputs["Metallic"].default_value = 1.0
+    mask = nt.nodes.new("ShaderNodeTexGradient")     # (of the world position: no object data read)
+    nt.links.new(nt.nodes.new("ShaderNodeNewGeometry").outputs["Position"], mask.inputs["Vector"])
+    bs.mix_shaders(nt, mask.outputs["Fac"], nt.nodes["Principled BSDF"], metal)
+    rust.pass_index = 9
+    plane = bs.plane("Plane", material=paint)
+    plane.data.uv_layers.new(name="UVMap")          # (the quad spans 0..1)
+    plane.pass_index = 3
+    bs.cube("Box", material=rust, location=(0, 0, 2)).pass_index = 6
+    ex = bs.export()
+    s = ex.scene
+    mats = s.materials
+    on_box = s.vertices[s.triangles].mean(axis=1)[:, 2] > 1.0
+    assert (mats.pass_index.take(s.material_ids) == np.where(on_box, 9, 4)).all()
+    levels = [i for i, name in enumerate(mats.names) if name.startswith("Rust (level")]
+    assert len(levels) > 2 and (mats.pass_index[levels] == 9).all()
+    assert s.object_ids is None and s.uvs is None and s.object_info is None
+    # No world: Cycles' film's mist; a world's mist settings.
+    assert (s.world.mist_start, s.world.mist_depth, s.world.mist_falloff) == (0.0, 100.0, 1.0)
+    mist = bs.world((0.1, 0.1, 0.1)).mist_settings
+    mist.start, mist.depth = 1.5, 12.0
+    for falloff, power in (("QUADRATIC", 2.0), ("LINEAR", 1.0), ("INVERSE_QUADRATIC", 0.5)):
+        mist.falloff = falloff
+        world = bs.export().scene.world
+        assert (world.mist_start, world.mist_depth, world.mist_falloff) == (1.5, 12.0, power), falloff
+    layer = bpy.context.view_layer
+    layer.use_pass_object_index = True
+    s = bs.export().scene
+    assert s.uvs is None and s.object_ids is not None
+    assert (s.object_info[:, 1].take(s.object_ids) == np.where(on_box, 6, 3)).all()
+    layer.use_pass_uv = True
+    layer.use_pass_object_index = False
+    s = bs.export().scene
+    assert s.object_ids is None and s.uvs is not None and s.uvs.shape == (len(s.triangles), 3, 2)
+    assert not s.uvs[on_box].any()
+    assert s.uvs[~on_box].min() == 0.0 and s.uvs[~on_box].max() == 1.0

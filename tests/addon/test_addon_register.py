@@ -246,7 +246,11 @@ def test_world_ray_visibility_panel_draws_the_boxes_the_exporter_reads(scene):
 
 def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
     """View Layer > Passes (Blender's panels list EEVEE and Workbench only): our panel draws the
-    boxes of the passes ``engine.DATA_PASSES`` registers, for our engine alone."""
+    boxes of the passes ``engine.DATA_PASSES`` registers (Z, Mist, Position, Normal, UV, Cycles'
+    Denoising Data, Object and Material Index), for our engine alone; those passes are Cycles'
+    (names, channels, types, in its order).  World > Mist Pass (drawn by Cycles' panel for Cycles
+    only) shows when a view layer asks for Mist."""
+    import cycles.engine
     from amcmcppm.amcmcppm_addon import ui
     from amcmcppm.amcmcppm_addon.engine import DATA_PASSES
     panel = ui.AMCMCPPM_VIEWLAYER_PT_passes
@@ -255,10 +259,29 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
     for _, owner, prop, _ in DATA_PASSES:
         holder = getattr(layer, owner) if owner else layer
         assert prop in holder.bl_rna.properties.keys(), (owner, prop)
+        setattr(holder, prop, True)
+    assert list(panel.data + panel.indexes) == [prop for _, owner, prop, _ in DATA_PASSES if not owner]
+    ours = [(name, chan_id, kind) for (name, _, chan_id, kind), *_ in DATA_PASSES]
+    assert all(channels == len(chan_id) for (_, channels, chan_id, _), *_ in DATA_PASSES)
+    theirs = [p for p in cycles.engine.list_render_passes(scene, layer)
+              if p[0] not in ("Combined", "Noisy Image")]
+    assert ours == theirs
     with bpy.context.temp_override(view_layer=scene.view_layers[0]):
         assert panel.poll(bpy.context)
         scene.render.engine = "CYCLES"
         assert not panel.poll(bpy.context)
+        scene.render.engine = ENGINE
+    mist = ui.AMCMCPPM_WORLD_PT_mist
+    assert getattr(bpy.types, mist.__name__) is mist
+    world = bs.world((0.1, 0.1, 0.1))
+    assert set(mist.props) <= set(type(world.mist_settings).bl_rna.properties.keys())
+    with bpy.context.temp_override(world=world):
+        assert mist.poll(bpy.context)
+        layer.use_pass_mist = False
+        assert not mist.poll(bpy.context)
+        layer.use_pass_mist = True
+        scene.render.engine = "CYCLES"
+        assert not mist.poll(bpy.context)
         scene.render.engine = ENGINE
 
 
