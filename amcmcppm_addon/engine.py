@@ -114,7 +114,8 @@ def render_final(engine, depsgraph):
     """
     scene = depsgraph.scene_eval
     props = scene.amcmcppm
-    settings = render_settings_from(props, data_passes=data_passes_of(depsgraph.view_layer))
+    settings = render_settings_from(props, data_passes=data_passes_of(depsgraph.view_layer),
+                                    pass_alpha_threshold=float(depsgraph.view_layer.pass_alpha_threshold))
     for msg in props.light_path_limits()[1]:
         engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
     engine.update_stats("", "Exporting scene")

@@ -257,7 +257,7 @@ class RenderContext:
 
     def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None,
               distances=None, throughput=None, origin_normals=None, forced=0, cut=False, glow=None,
-              crossings=None, max_crossings=None):
+              crossings=None, max_crossings=None, alpha_threshold=1.0):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -285,6 +285,8 @@ class RenderContext:
         distances to the planes of the faces their segment entered and left the volume by (the
         first segment's entry face is ``origin_normals`` (n, 3) at the origins, if given; inf:
         none), for the gather spheres that reach out of the volume.
+        ``alpha_threshold``: transparent surfaces at least this opaque stop the rays whatever
+        ``uniforms`` (Cycles' data passes' Alpha Threshold; 1: none but the opaque).
         ``crossings`` (n,) int16, if given, counts the transparent surfaces each ray crosses (in
         place; not the triangles hidden from it, nor those shadow linking lets through), and a ray
         that would cross one more than ``max_crossings`` in all ends there instead, black (``is_hit``
@@ -376,7 +378,7 @@ class RenderContext:
                 rc = rows.take(c)
                 opacity = self._opacity(prim.take(rc), b1.take(rc), b2.take(rc), p.take(c, axis=0),
                                         self._crossing_rays(dirs, rc, t, ray_kind))
-                crossed = (u.take(c) >= opacity) & (opacity < 1.0)
+                crossed = (u.take(c) >= opacity) & (opacity < min(alpha_threshold, 1.0))
                 stopped[rc[~crossed]] = opacity[~crossed]
                 if crossings is not None:
                     # (past the limit the ray ends here, black)

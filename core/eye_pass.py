@@ -405,12 +405,13 @@ def first_hit_data(ctx, data, pix, surf, wo, prim, b1, b2):
         data["mist"][pix] = fraction ** w.mist_falloff
 
 
-def centre_data(ctx, rng, names):
+def centre_data(ctx, rng, names, alpha_threshold=1.0):
     """The data passes ``names`` of ``settings.FIRST_PASS_DATA`` ("depth", "position",
     "object_index", "material_index") as Cycles takes them from its first sample, whose ray goes
     through the pixel's centre (and the lens's): {name: (n_pixels,) or (n_pixels, 3)}, of the
-    surface each such ray stops on past what is transparent to it (crossed with the chance of its
-    transparency, by ``rng``); 1e10 (depth) or 0 where rays meet nothing."""
+    surface each such ray stops on past what is transparent to it: a surface at least
+    ``alpha_threshold`` opaque stops it, a more transparent one with the chance of its opacity (by
+    ``rng``; Cycles' path then scatters there); 1e10 (depth) or 0 where rays meet nothing."""
     cam = ctx.scene.camera
     x0, x1, y0, y1 = cam.window
     n_pix = (x1 - x0) * (y1 - y0)
@@ -423,7 +424,8 @@ def centre_data(ctx, rng, names):
         pix, origins, dirs = pix.take(sees), origins.take(sees, axis=0), dirs.take(sees, axis=0)
         tmax = tmax.take(sees)
     hits, _, _, _ = ctx.trace(origins, dirs, tmax, lambda rows, crossing: rng.random(len(rows)),
-                              ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8))
+                              ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8),
+                              alpha_threshold=alpha_threshold)
     h = np.flatnonzero(hits.is_hit & (hits.t < tmax))
     if len(h):
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)

@@ -350,7 +350,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     # The data passes Cycles takes from its first sample (through the pixels' centres), once;
     # the eye passes make the others.
     first = [name for name in settings.data_passes if name in FIRST_PASS_DATA]
-    centre = centre_data(ctx, np.random.default_rng([settings.seed, STREAM_CENTRE]), first) if first else {}
+    centre = (centre_data(ctx, np.random.default_rng([settings.seed, STREAM_CENTRE]), first,
+                          settings.pass_alpha_threshold) if first else {})
     averaged = tuple(name for name in settings.data_passes if name not in FIRST_PASS_DATA)
 
     def centre_images():

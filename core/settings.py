@@ -245,6 +245,12 @@ class RenderSettings:
     nothing), "mist" (``World.mist_*`` of its distance from the camera; 1 where rays meet
     nothing)."""
 
+    pass_alpha_threshold: float = 0.5
+    """The Alpha Threshold of the data passes taken from rays through the pixels' centres (depth,
+    position, object and material index: ``FIRST_PASS_DATA``), as Blender's View Layer > Passes:
+    a transparent surface at least this opaque stops those rays, a more transparent one with the
+    chance of its opacity (0: every surface stops them)."""
+
     def __post_init__(self):
         def bad(name, why):
             raise ValueError(f"RenderSettings.{name} {why} (got {getattr(self, name)!r})")
@@ -276,6 +282,8 @@ class RenderSettings:
                 bad(name, f"must lie in [0, {MAX_BOUNCES}]")
         if not 0 <= self.transparent_max_bounces <= MAX_TRANSPARENT_BOUNCES:
             bad("transparent_max_bounces", f"must lie in [0, {MAX_TRANSPARENT_BOUNCES}]")
+        if not 0.0 <= self.pass_alpha_threshold <= 1.0:
+            bad("pass_alpha_threshold", "must lie in [0, 1]")
         if self.workers < 0:
             bad("workers", "must be >= 0")
         if self.chains < 1:
