@@ -22,7 +22,6 @@ PHASE_NAMES = ("HENYEY_GREENSTEIN", "RAYLEIGH", "DRAINE", "FOURNIER_FORAND", "MI
 G_HG, G_D, ALPHA, W, FF, FF_N, FF_V, FF_C = range(8)
 ROW = 8
 MAX_G = 1.0 - 1e-3                         # Cycles clamps |g| of both lobes to this
-INV_4PI = 1.0 / (4.0 * np.pi)
 
 
 def resolve(kind, g, params):

@@ -402,17 +402,37 @@ def render_passes(path):
     return out
 
 
+def ours_and_cycles(build, read, tmp_path, samples=16):
+    """``read(path)`` of the render of ``build()`` by our engine and by Cycles (``samples``)."""
+    import test_addon_parity as parity
+    build()
+    ours = read(tmp_path / "ours.exr")
+    build()
+    parity.use_cycles(bpy.context.scene)
+    bpy.context.scene.cycles.samples = samples
+    return ours, read(tmp_path / "cycles.exr")
+
+
+def even_neighbourhoods(depth, rtol=0.02):
+    """(H, W) bool: pixels away from the border whose 3 x 3 neighbourhood of ``depth`` is even
+    within ``rtol`` (away from edges, where jitter moves what a pixel sees)."""
+    even = np.ones_like(depth, bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            even &= np.isclose(np.roll(depth, (dy, dx), axis=(0, 1)), depth, rtol=rtol)
+    even[[0, -1], :] = even[:, [0, -1]] = False
+    return even
+
+
 def test_depth_and_normal_passes_match_cycles(scene, tmp_path):
     """View Layer > Passes > Z and Normal (stop 46): the engine registers Blender's Depth and
     Normal passes and fills them from the core's data passes.  A wall, a tilted card showing its
     back and the sky, seen from a perspective camera: against Cycles' passes in the 818 pixels away
     from edges, the depth within 1e-4 (8.3e-6: both from a ray through the pixel's centre, Cycles'
     first sample, since stop 51; before, ours from its first pass's jitter, 0.73 %) and 1e10 where
-    rays meet nothing, the
-    normal (world space, facing the camera) within 2e-7; with Denoising Data (Cycles' box), its
-    Denoising Normal (in the camera's frame) and Denoising Albedo within 2e-7 in those pixels;
-    without the boxes ticked, no such passes."""
-    import test_addon_parity as parity
+    rays meet nothing, the normal (world space, facing the camera) within 2e-7; with Denoising
+    Data (Cycles' box), its Denoising Normal (in the camera's frame) and Denoising Albedo within
+    2e-7 in those pixels; without the boxes ticked, no such passes."""
 
     def build():
         bs.empty_scene((40, 30), passes=2, photons_per_pass=2000)
@@ -425,22 +445,13 @@ def test_depth_and_normal_passes_match_cycles(scene, tmp_path):
         layer = bpy.context.scene.view_layers[0]
         layer.use_pass_z = layer.use_pass_normal = layer.cycles.denoising_store_passes = True
 
-    build()
-    ours = render_passes(tmp_path / "ours.exr")
-    build()
-    parity.use_cycles(bpy.context.scene)
-    bpy.context.scene.cycles.samples = 16
-    cycles = render_passes(tmp_path / "cycles.exr")
+    ours, cycles = ours_and_cycles(build, render_passes, tmp_path)
     depth, normal = ours["ViewLayer.Depth.Z"], np.stack([ours[f"ViewLayer.Normal.{c}"] for c in "XYZ"], -1)
     c_depth = cycles["ViewLayer.Depth.Z"]
     c_normal = np.stack([cycles[f"ViewLayer.Normal.{c}"] for c in "XYZ"], -1)
     assert depth.shape == (30, 40) and np.isfinite(depth).all() and np.isfinite(normal).all()
     # Away from edges: the 3 x 3 neighbourhood of Cycles' depth is even.
-    even = np.ones_like(c_depth, bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            even &= np.isclose(np.roll(c_depth, (dy, dx), axis=(0, 1)), c_depth, rtol=0.02)
-    even[[0, -1], :] = even[:, [0, -1]] = False
+    even = even_neighbourhoods(c_depth)
     sky = even & (c_depth >= 1e9)
     seen = even & (c_depth < 1e9)
     print(f"depth and normal passes: {seen.sum()} pixels seen, {sky.sum()} of sky; largest depth ratio "
@@ -535,27 +546,31 @@ def test_the_denoising_features_match_cycles(scene, tmp_path):
             print(f"albedo, normal, depth {name}: ours {np.round(o, 4)}, Cycles {np.round(c, 4)}")
             np.testing.assert_allclose(o, c, rtol=0.035, atol=2e-3, err_msg=name)
 
-    def build():
-        bs.empty_scene((40, 30), passes=8, photons_per_pass=2000)
-        bs.plane("Wall", size=6.0, material=bs.diffuse("Wall", (0.6, 0.4, 0.2)), location=(0, 4, 0),
-                 rotation=(math.pi / 2, 0, 0))
+    def wall_scene(add, size=6.0, **settings):
+        """Ours and Cycles' features and Cycles' depth of a wall of (0.6, 0.4, 0.2) under a grey
+        sky with what ``add()`` puts before it."""
+        def build():
+            bs.empty_scene((40, 30), **settings)
+            bs.plane("Wall", size=size, material=bs.diffuse("Wall", (0.6, 0.4, 0.2)), location=(0, 4, 0),
+                     rotation=(math.pi / 2, 0, 0))
+            add()
+            bs.camera(location=(0, -2, 0.4), target=(0, 4, 0.9), lens=24.0)
+            bs.world((0.5, 0.5, 0.5))
+            layer = bpy.context.scene.view_layers[0]
+            layer.cycles.denoising_store_passes = layer.use_pass_z = True
+        build()
+        ours = albedo(tmp_path / "ours.exr")[0]
+        build()
+        return (ours, *albedo(tmp_path / "cycles.exr", cycles=True))
+
+    def pane_and_card():
         bs.cube("Pane", size=1.0, material=bs.glass("Pane"), location=(-0.9, 2, 0.1), scale=(1.6, 0.05, 1.4))
         bs.plane("Card", size=1.4, material=bs.emission("Card", (1.0, 0.5, 0.25), 2.0),
                  location=(1.0, 3, 0.4), rotation=(math.pi / 2, 0, 0))
-        bs.camera(location=(0, -2, 0.4), target=(0, 4, 0.9), lens=24.0)
-        bs.world((0.5, 0.5, 0.5))
-        layer = bpy.context.scene.view_layers[0]
-        layer.cycles.denoising_store_passes = layer.use_pass_z = True
-    build()
-    ours = albedo(tmp_path / "ours.exr")[0]
-    build()
-    theirs, depth = albedo(tmp_path / "cycles.exr", cycles=True)
+
+    ours, theirs, depth = wall_scene(pane_and_card, passes=8, photons_per_pass=2000)
     # What each pixel sees, by Cycles' depth: the pane (4 m), the card (5 m), the wall (6 m), the sky.
-    even = np.ones_like(depth, bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            even &= np.isclose(np.roll(depth, (dy, dx), axis=(0, 1)), depth, rtol=0.02)
-    even[[0, -1], :] = even[:, [0, -1]] = False
+    even = even_neighbourhoods(depth)
     kinds = {"sky": depth >= 1e9, "pane": depth < 4.5, "card": (depth > 4.5) & (depth < 5.5),
              "wall": (depth > 5.5) & (depth < 1e9)}
     for what, where in kinds.items():
@@ -566,20 +581,11 @@ def test_the_denoising_features_match_cycles(scene, tmp_path):
         np.testing.assert_allclose(ours[where].mean(axis=0), theirs[where].mean(axis=0), rtol=0.03,
                                    atol=2e-3, err_msg=what)
 
-    def build():
-        bs.empty_scene((40, 30), passes=6, photons_per_pass=1000)
-        bs.plane("Wall", size=8.0, material=bs.diffuse("Wall", (0.6, 0.4, 0.2)), location=(0, 4, 0),
-                 rotation=(math.pi / 2, 0, 0))
+    def fog_box():
         fog, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Color=(0.9, 0.7, 0.5, 1.0), Density=1.6)
         bs.cube("Fog", size=1.0, material=fog, location=(-1.6, 1.5, 0.9), scale=(3.0, 1.0, 3.0))
-        bs.camera(location=(0, -2, 0.4), target=(0, 4, 0.9), lens=24.0)
-        bs.world((0.5, 0.5, 0.5))
-        layer = bpy.context.scene.view_layers[0]
-        layer.cycles.denoising_store_passes = layer.use_pass_z = True
-    build()
-    ours = albedo(tmp_path / "ours.exr")[0]
-    build()
-    theirs = albedo(tmp_path / "cycles.exr", cycles=True)[0]
+
+    ours, theirs, _ = wall_scene(fog_box, size=8.0, passes=6, photons_per_pass=1000)
     for what, block in (("through fog", np.s_[10:20, 4:16]), ("beside it", np.s_[10:20, 24:36])):
         o, c = ours[block].mean(axis=(0, 1)), theirs[block].mean(axis=(0, 1))
         print(f"albedo, normal, depth {what}: ours {np.round(o, 4)}, Cycles {np.round(c, 4)}")
@@ -628,18 +634,9 @@ def test_mist_position_uv_and_index_passes_match_cycles(scene, tmp_path):
                 "uv": np.stack([p[f"ViewLayer.UV.{c}"] for c in "UVA"], -1),
                 "object": p["ViewLayer.Object Index.X"], "material": p["ViewLayer.Material Index.X"]}
 
-    build()
-    ours = passes(tmp_path / "ours.exr")
-    build()
-    parity.use_cycles(bpy.context.scene)
-    bpy.context.scene.cycles.samples = 16
-    cycles = passes(tmp_path / "cycles.exr")
+    ours, cycles = ours_and_cycles(build, passes, tmp_path)
     c_depth = cycles["depth"]
-    even = np.ones_like(c_depth, bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            even &= np.isclose(np.roll(c_depth, (dy, dx), axis=(0, 1)), c_depth, rtol=0.02)
-    even[[0, -1], :] = even[:, [0, -1]] = False
+    even = even_neighbourhoods(c_depth)
     sky = even & (c_depth >= 1e9)
     wall, card = even & (cycles["object"] == 2), even & (cycles["object"] == 5)
     seen = wall | card
