@@ -39,7 +39,7 @@ SLOW_CASES = {
     PARITY + "test_smooth_sphere_with_and_without_a_normal_map_matches_cycles[principled_normal_map]",
     PARITY + "test_normal_map_matches_cycles[turned_mirrored]",              # 10 s ([turned] stays)
     PARITY + "test_object_and_world_space_normal_maps_match_cycles[WORLD-1.0]",  # 8 s ([OBJECT-1.0] stays)
-    PARITY + "test_principled_thin_film_matches_cycles[oil_on_dark]",        # 10 s ([soap_film] until stop 51)
+    PARITY + "test_principled_thin_film_matches_cycles[oil_on_dark]",  # 10 s ([soap_film] until stop 51)
     PARITY + "test_principled_thin_film_matches_cycles[tinted_over_grey]",   # 9 s
     # about 12 s ([refraction_beckmann_0.6] stays; moved in stop 46; [glass_ggx_0.6] below)
     PARITY + "test_rough_glass_matches_cycles_without_its_light_sampling[glass_beckmann_0.9]",
