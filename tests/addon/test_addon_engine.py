@@ -604,9 +604,9 @@ def test_mist_position_uv_and_index_passes_match_cycles(scene, tmp_path):
     within 0.02 on the wall (1.2e-2); in the sky the mist 1 and the position, UV and indices 0, as
     Cycles'.  The UV is 0 on the card, which has no UV map; the position is the first sample's,
     which Cycles takes at the pixel's centre (5e-4 px from it, whatever the seed and pattern), as
-    ours: within 1 % of the distance (2.3e-5; from a jittered first pass, 2 %).  Without a world, Cycles' mist is the
-    distance over 100 m (its film's defaults; 0.060-0.073 on the wall; ours within 4.6e-4).
-    Without the boxes, no such passes."""
+    ours: within 1 % of the distance (2.3e-5; from a jittered first pass, 2 %).  Without a world,
+    Cycles' mist is the distance over 100 m (its film's defaults; 0.060-0.073 on the wall; ours
+    within 4.6e-4).  Without the boxes, no such passes."""
     import test_addon_parity as parity
 
     def build():

@@ -1874,8 +1874,9 @@ def test_volumes_are_exported_as_cycles_coefficients(scene):
     absorption measured with Cycles 5.0: a 1 m volume-only cube against the white sky gave
     exp(-(1 - C) D) within 0.1 %); the scatterers' Anisotropy is the phase function's g, and Blender
     5.0's phase functions and Volume Coefficients reach the core (stop 51).  A volume without a
-    surface makes the surface let everything through.  Emission: Principled Volume's Emission Strength times Color
-    plus its blackbody, an Emission shader's Color times Strength, Mixes at their shares."""
+    surface makes the surface let everything through.  Emission: Principled Volume's Emission
+    Strength times Color plus its blackbody, an Emission shader's Color times Strength, Mixes at
+    their shares."""
     from amcmcppm.core.procedural import blackbody
     mat, _ = bs.volume_material("Tinted glass", "ShaderNodeVolumeAbsorption", "ShaderNodeBsdfGlass",
                              Color=(0.2, 0.5, 1.2, 1), Density=2.0)

@@ -1634,8 +1634,9 @@ def test_scattering_volumes_match_cycles(addon, tmp_path, shader):
 
 # Blender 5.0's phase functions (stop 51): (phase, its inputs).  All in the slow tier (22 s and more
 # each; tests/core/test_phase.py checks every sampler and normalisation, test_scattering_volumes.py
-# single scattering, test_addon_export.py the export).  Fournier-Forand is not compared: its top band (the beam near the spot) came out
-# 1.07-1.14 of Cycles' at 2048 samples (seeds 0-2, 8-32 passes; the mean 0.99-1.01), not resolved.
+# single scattering, test_addon_export.py the export).  Fournier-Forand is not compared: its top
+# band (the beam near the spot) came out 1.07-1.14 of Cycles' at 2048 samples (seeds 0-2, 8-32
+# passes; the mean 0.99-1.01), not resolved.
 PHASES = {"RAYLEIGH": {}, "DRAINE": {"Anisotropy": 0.5, "Alpha": 0.8}, "MIE": {"Diameter": 5.0}}
 
 

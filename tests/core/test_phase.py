@@ -79,8 +79,8 @@ def test_henyey_greenstein_keeps_the_samples_it_had():
 
 
 def test_phases_round_trip_through_a_scene_file_and_are_validated(tmp_path):
-    mats = Materials.build([{"name": "fog", "opacity": 0.0, "volume_scattering": 0.2, "volume_phase": phase.MIE,
-                             "volume_phase_params": (2.5, 0.0, 0.0)}])
+    mats = Materials.build([{"name": "fog", "opacity": 0.0, "volume_scattering": 0.2,
+                             "volume_phase": phase.MIE, "volume_phase_params": (2.5, 0.0, 0.0)}])
     m = MeshBuilder()
     m.add_box((-1, -1, -1), (1, 1, 1), 0)
     world = World(volume_scattering=np.full(3, 0.01, np.float32), volume_phase=phase.RAYLEIGH)
