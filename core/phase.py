@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sampling import hg_phase, normalize, to_world
+from .sampling import direction_at, hg_cosine, hg_phase
 
 HENYEY_GREENSTEIN, RAYLEIGH, DRAINE, FOURNIER_FORAND, MIE = range(5)
 # Blender's enum items of Volume Scatter's ``phase``, in this order.
@@ -168,28 +168,14 @@ def sample(rows, d, u1, u2):
     on_d = u1 < w
     u = np.clip(np.where(on_d, u1 / np.where(w > 0, w, 1.0), (u1 - w) / np.where(w < 1, 1.0 - w, 1.0)),
                 0.0, 1.0)
-    cos = sample_henyey_greenstein(rows[:, G_HG], u)
+    cos = hg_cosine(rows[:, G_HG], u)
     d_rows = np.flatnonzero(on_d)
     if len(d_rows):
         cos[d_rows] = sample_draine(rows[d_rows, G_D], rows[d_rows, ALPHA], u.take(d_rows))
     f = np.flatnonzero(rows[:, FF] > 0)
     if len(f):
         cos[f] = sample_fournier_forand(rows[f, FF_N], rows[f, FF_V], rows[f, FF_C], u1.take(f))
-    cos = np.clip(cos, -1.0, 1.0)
-    r = np.sqrt(np.maximum(0.0, 1.0 - cos * cos))
-    phi = 2.0 * np.pi * np.asarray(u2, np.float64)
-    local = np.stack([r * np.cos(phi), r * np.sin(phi), cos], axis=1)
-    return normalize(to_world(local, d))
-
-
-def sample_henyey_greenstein(g, u):
-    """(k,) cosines distributed by HG(g) (as :func:`~core.sampling.sample_hg`: the same numbers
-    give the same directions)."""
-    g = np.asarray(g, np.float64)
-    small = np.abs(g) < 1e-3
-    gs = np.where(small, 0.5, g)
-    k = (1.0 - gs * gs) / (1.0 + gs - 2.0 * gs * u)
-    return np.where(small, 1.0 - 2.0 * u, (1.0 + gs * gs - k * k) / (2.0 * gs))
+    return direction_at(d, cos, u2)
 
 
 def sample_rayleigh(u):
@@ -208,7 +194,7 @@ def sample_draine(g, alpha, u):
     small = ~ray & ~hg & (np.abs(g) < 1e-2)
     general = ~(ray | hg | small)
     out[ray] = sample_rayleigh(u[ray])
-    out[hg] = sample_henyey_greenstein(g[hg], u[hg])
+    out[hg] = hg_cosine(g[hg], u[hg])
     if small.any():
         a, v = alpha[small], u[small]
         inv_a = 1.0 / a

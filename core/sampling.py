@@ -548,14 +548,25 @@ def hg_phase(cos_theta, g):
 def sample_hg(d, g, u1, u2):
     """Directions (n, 3) scattered from travel directions ``d`` (n, 3) with the Henyey-Greenstein
     phase function of ``g`` (n,): its density exactly, so the weight is 1."""
+    return direction_at(d, hg_cosine(g, u1), u2)
+
+
+def hg_cosine(g, u):
+    """(n,) cosines distributed by the Henyey-Greenstein phase function of ``g`` (n,), from uniform
+    numbers ``u`` (n,)."""
     g = np.asarray(g, np.float64)
     small = np.abs(g) < 1e-3
     gs = np.where(small, 0.5, g)
-    s = (1.0 - gs * gs) / (1.0 + gs - 2.0 * gs * u1)
-    cos = np.where(small, 1.0 - 2.0 * u1, (1.0 + gs * gs - s * s) / (2.0 * gs))
+    s = (1.0 - gs * gs) / (1.0 + gs - 2.0 * gs * u)
+    return np.where(small, 1.0 - 2.0 * u, (1.0 + gs * gs - s * s) / (2.0 * gs))
+
+
+def direction_at(d, cos, u):
+    """(n, 3) unit directions at cosines ``cos`` (n,) (clipped to [-1, 1]) from the axes ``d`` (n, 3),
+    at azimuths 2 pi ``u`` (n,) about them."""
     cos = np.clip(cos, -1.0, 1.0)
     r = np.sqrt(np.maximum(0.0, 1.0 - cos * cos))
-    phi = 2.0 * np.pi * u2
+    phi = 2.0 * np.pi * np.asarray(u, np.float64)
     local = np.stack([r * np.cos(phi), r * np.sin(phi), cos], axis=1)
     return normalize(to_world(local, d))
 
