@@ -418,11 +418,7 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
     data = {name: (np.full(n_pix, NO_DEPTH) if name == "depth" else
                    np.zeros((n_pix, 3)) if name == "position" else np.zeros(n_pix)) for name in names}
     pix = np.arange(n_pix)
-    origins, dirs, tmax, _ = generate_camera_rays(cam, pix, np.full((n_pix, 4), 0.5))
-    if cam.projection in PANORAMAS:
-        sees = np.flatnonzero(dirs.any(axis=1))
-        pix, origins, dirs = pix.take(sees), origins.take(sees, axis=0), dirs.take(sees, axis=0)
-        tmax = tmax.take(sees)
+    pix, origins, dirs, tmax, _ = _camera_rays(cam, pix, np.full((n_pix, 4), 0.5))
     hits, _, _, _ = ctx.trace(origins, dirs, tmax, lambda rows, crossing: rng.random(len(rows)),
                               ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8),
                               alpha_threshold=alpha_threshold)
@@ -434,6 +430,18 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
         surf = ctx.surface(prim, b1, b2, pick, Rays(wo, True))
         first_hit_data(ctx, data, pix.take(h), surf, wo, prim, b1, b2)
     return data
+
+
+def _camera_rays(cam, pix, u):
+    """(pix, origins, dirs, tmax, footprint) of :func:`~core.camera.generate_camera_rays` for pixels
+    ``pix`` and numbers ``u`` (n, 4), without the pixels outside a fisheye's circle, which see
+    nothing (black and opaque, as in Cycles)."""
+    origins, dirs, tmax, footprint = generate_camera_rays(cam, pix, u)
+    if cam.projection in PANORAMAS:
+        sees = np.flatnonzero(dirs.any(axis=1))
+        pix, origins, dirs = pix.take(sees), origins.take(sees, axis=0), dirs.take(sees, axis=0)
+        tmax, footprint = tmax.take(sees), footprint.take(sees)
+    return pix, origins, dirs, tmax, footprint
 
 
 def _box_exit(origins, dirs, lo, hi):
@@ -453,12 +461,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     ``per_segment`` in each segment through one)."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
-    origins, dirs, tmax, footprint = generate_camera_rays(cam, pix, rng.random((len(pix), 4)))
-    if cam.projection in PANORAMAS:
-        # Pixels outside a fisheye's circle see nothing: black and opaque, as in Cycles.
-        sees = np.flatnonzero(dirs.any(axis=1))
-        pix, origins, dirs = pix.take(sees), origins.take(sees, axis=0), dirs.take(sees, axis=0)
-        tmax, footprint = tmax.take(sees), footprint.take(sees)
+    pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, rng.random((len(pix), 4)))
     world = np.asarray(scene.world.color, np.float64)
     extent = accel.extent
     # The lobe colours a measurement point keeps (MeasurementPoints.colors).
