@@ -200,25 +200,31 @@ def test_every_iteration_records_one_path_per_chain_with_a_state():
 # The paper's 23.4 % (the baseline the seed paper improves on) in the slow tier: make test's budget.
 @pytest.mark.parametrize("target", [pytest.param(0.234, marks=pytest.mark.slow), 0.60])
 def test_acceptance_settles_on_target_from_small_and_large_steps(target, start):
+    """One mutation size for 32 chains, adapted on their pooled acceptance, settles where that
+    acceptance is the target: over the last 3,000 of 30,000 iterations the pooled acceptance is
+    within 0.02 of it (measured 0.595-0.608 and 0.232-0.245 over two seeds), each chain's within
+    0.06 (3,000 proposals each: 0.009 of spread).  (Two chains over 100,000 iterations took 18 s.)"""
     # Visible set of measure 0.01: far below both targets at large steps.
     oracle = BoxOracle([((0.2, 0.3), (0.3, 0.4))])
     s = RenderSettings(target_acceptance=target, mutation="off")
     rng = np.random.default_rng(1)
-    chains = ChainSet.create(2, DIMS, start, rng)
+    n_chains, iterations = 32, 30_000
+    chains = ChainSet.create(n_chains, DIMS, start, rng)
     # Start in the visible set, exchanges off: every iteration is a mutation proposal.
     chains.u[:, :2] = (0.25, 0.35)
     chains.valid[:] = True
     chains.first_dim[:] = 2
-    rec = OccupancyRecorder(2, 1)
+    rec = OccupancyRecorder(n_chains, 1)
     rec.label[:] = 0
     counters = ChainCounters()
-    for i in range(100_000):
-        if i == 90_000:
+    for i in range(iterations):
+        if i == iterations - 3_000:
             accepted_before = chains.accepted.copy()
         iterate(chains, oracle, rec, rng, s, counters, exchange=False)
-    assert (chains.proposed == 100_000).all()
-    recent = (chains.accepted - accepted_before) / 10_000
-    assert np.all(np.abs(recent - target) < 0.02), recent
+    assert (chains.proposed == iterations).all()
+    recent = (chains.accepted - accepted_before) / 3_000
+    assert abs(recent.mean() - target) < 0.02, recent.mean()
+    assert np.all(np.abs(recent - target) < 0.06), recent
     assert np.isfinite(chains.theta).all()
     assert ((THETA_MIN <= chains.theta) & (chains.theta <= THETA_MAX)).all()
 
