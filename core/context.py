@@ -257,7 +257,7 @@ class RenderContext:
 
     def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None,
               distances=None, throughput=None, origin_normals=None, forced=0, cut=False, glow=None,
-              crossings=None, max_crossings=None, alpha_threshold=1.0):
+              crossings=None, max_crossings=None, alpha_threshold=1.0, stop_chance=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -286,7 +286,10 @@ class RenderContext:
         first segment's entry face is ``origin_normals`` (n, 3) at the origins, if given; inf:
         none), for the gather spheres that reach out of the volume.
         ``alpha_threshold``: transparent surfaces at least this opaque stop the rays whatever
-        ``uniforms`` (Cycles' data passes' Alpha Threshold; 1: none but the opaque).
+        ``uniforms`` (Cycles' data passes' Alpha Threshold; 1: none but the opaque).  ``stop_chance``,
+        if given, is the chance that a transparent surface stops a ray instead of its opacity:
+        ``stop_chance(prim, b1, b2, rays, opacity)`` (k,) (the data passes' rays: Cycles' closure
+        pick, ``eye_pass.cycles_stop_chance``); the opacity returned stays the surface's.
         ``crossings`` (n,) int16, if given, counts the transparent surfaces each ray crosses (in
         place; not the triangles hidden from it, nor those shadow linking lets through), and a ray
         that would cross one more than ``max_crossings`` in all ends there instead, black (``is_hit``
@@ -376,9 +379,11 @@ class RenderContext:
             if clear.any():
                 c = np.flatnonzero(clear)
                 rc = rows.take(c)
-                opacity = self._opacity(prim.take(rc), b1.take(rc), b2.take(rc), p.take(c, axis=0),
-                                        self._crossing_rays(dirs, rc, t, ray_kind))
-                crossed = (u.take(c) >= opacity) & (opacity < min(alpha_threshold, 1.0))
+                crossing_rays = self._crossing_rays(dirs, rc, t, ray_kind)
+                pc, b1c, b2c = prim.take(rc), b1.take(rc), b2.take(rc)
+                opacity = self._opacity(pc, b1c, b2c, p.take(c, axis=0), crossing_rays)
+                chance = opacity if stop_chance is None else stop_chance(pc, b1c, b2c, crossing_rays, opacity)
+                crossed = (u.take(c) >= chance) & (opacity < min(alpha_threshold, 1.0))
                 stopped[rc[~crossed]] = opacity[~crossed]
                 if crossings is not None:
                     # (past the limit the ray ends here, black)

@@ -125,10 +125,12 @@ VOLUME_POINT_BUDGET = 1 << 21
 MAX_SEGMENT_POINTS = 16
 
 
-def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None) -> EyePassResult:
+def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None,
+                   alpha_threshold=1.0) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng``; with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
-    rays stop on (:func:`first_hit_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
+    rays stop on (:func:`first_hit_data`; the normal and UV past transparent surfaces by
+    ``alpha_threshold``, :func:`threshold_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
     default ``max_bounces`` in all and none per kind): a point may follow as many mirror and
     glass bounces as leave room for its photons' (at least none), emission may be seen after
     one more (that last bounce does not count, as in Cycles)."""
@@ -160,7 +162,7 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     for start in range(0, n_pix, EYE_CHUNK):
         pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
-                                        limits, volume, per_segment, data)
+                                        limits, volume, per_segment, data, alpha_threshold)
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
@@ -421,7 +423,7 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
     pix, origins, dirs, tmax, _ = _camera_rays(cam, pix, np.full((n_pix, 4), 0.5))
     hits, _, _, _ = ctx.trace(origins, dirs, tmax, lambda rows, crossing: rng.random(len(rows)),
                               ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8),
-                              alpha_threshold=alpha_threshold)
+                              alpha_threshold=alpha_threshold, stop_chance=cycles_stop_chance(ctx))
     h = np.flatnonzero(hits.is_hit & (hits.t < tmax))
     if len(h):
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
@@ -430,6 +432,50 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
         surf = ctx.surface(prim, b1, b2, pick, Rays(wo, True))
         first_hit_data(ctx, data, pix.take(h), surf, wo, prim, b1, b2)
     return data
+
+
+# The data passes Cycles writes at the first surface at least as opaque as the Alpha Threshold that
+# a sample's transparent bounces reach (film/data_passes.h: at a more transparent one where the
+# sample stops, none).
+THRESHOLD_DATA = {"normal", "uv"}
+
+
+def threshold_data(ctx, rng, data, pix, origins, dirs, tmax, alpha_threshold):
+    """Write the data passes ``data`` (of ``THRESHOLD_DATA``) of pixels ``pix`` as Cycles' sample
+    along the camera rays ``origins + t dirs`` (t < ``tmax``) does: its transparent bounces cross a
+    surface less opaque than ``alpha_threshold`` with the chance of its transparency and go on; the
+    first surface at least that opaque (any, at threshold 0) gives the pass its values; a sample
+    that stops on a more transparent one, or meets nothing, gives 0 (averaged over passes: a sheet
+    of opacity 0.3 before a wall at threshold 0.5 shows 0.7 of the wall's normal, at 0.2 the
+    sheet's)."""
+    hits, _, opacity, _ = ctx.trace(origins, dirs, tmax, lambda rows, crossing: rng.random(len(rows)),
+                                    ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8),
+                                    alpha_threshold=alpha_threshold, stop_chance=cycles_stop_chance(ctx))
+    keep = hits.is_hit & (hits.t < tmax)
+    if opacity is not None and alpha_threshold > 0.0:
+        keep &= opacity >= min(alpha_threshold, 1.0)
+    h = np.flatnonzero(keep)
+    if len(h):
+        prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
+        wo = -dirs.take(h, axis=0)
+        surf = ctx.surface(prim, b1, b2, rng.random(len(h)) if ctx.has_level_programs else None, Rays(wo, True))
+        first_hit_data(ctx, data, pix.take(h), surf, wo, prim, b1, b2)
+
+
+def cycles_stop_chance(ctx):
+    """``RenderContext.trace``'s ``stop_chance`` for the data passes' rays: Cycles' sample picks one
+    closure by their sample weights (the mean of each closure's weight), so it crosses a surface of
+    opacity a with the chance t / (t + a S): t = (1 - a) times the mean of the transparent colour,
+    S the sum of the other lobes' sample weights at the hit (:func:`~core.bsdf.lobe_scores`), not
+    with the chance 1 - a (a sheet of opacity 0.3 and colour 0.8 lets 0.745 of Cycles' samples
+    through).  The image does not depend on it (Cycles weighs the pick; ours too)."""
+    def chance(prim, b1, b2, rays, opacity):
+        surf = ctx.surface(prim, b1, b2, None, rays)
+        through = (1.0 - opacity) * ctx.transparent_color.take(surf.mat_ids, axis=0).mean(axis=1)
+        kept = opacity * lobe_scores(ctx.table, surf.mat_ids, surf.colors).sum(axis=1)
+        # (nothing to cross by: a black transparent colour stops it, as a closure of weight 0)
+        return np.where(through > 0.0, kept / np.maximum(kept + through, 1e-30), 1.0)
+    return chance
 
 
 def _camera_rays(cam, pix, u):
@@ -455,7 +501,7 @@ def _box_exit(origins, dirs, lo, hi):
 
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
-                        per_segment=1, data=None):
+                        per_segment=1, data=None, alpha_threshold=1.0):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
     ``per_segment`` in each segment through one)."""
@@ -496,6 +542,12 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     if data and "albedo" in data:
         feature = DenoisingPaths(len(pix), rng.spawn(1)[0], data["albedo"], data.get("denoising_normal"),
                                  data.get("denoising_depth"))
+    # The normal and UV past transparent surfaces by the Alpha Threshold (their own rays and
+    # numbers; where no surface is transparent, those of the paths' first hits).
+    apart = (THRESHOLD_DATA & data.keys()) if data and ctx.has_transparency else set()
+    if apart:
+        threshold_data(ctx, rng.spawn(1)[0], {k: data[k] for k in apart}, pix, origins, dirs, tmax,
+                       alpha_threshold)
     for depth in range(limits.total + 2):
         if len(pix) == 0:
             break
@@ -614,7 +666,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             rays_in = Rays(wo, True)
         surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, rays_in)
         if depth == 0 and data:
-            first_hit_data(ctx, data, pix, surf, wo, prim, b1, b2)
+            first_hit_data(ctx, {k: v for k, v in data.items() if k not in apart}, pix, surf, wo, prim, b1, b2)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():

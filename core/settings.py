@@ -227,10 +227,10 @@ class RenderSettings:
     data_passes: tuple = ()
     """Data passes to make besides the image (``RenderResult.data``), of the surface each camera
     ray stops on (past what is transparent to it): "depth", its distance along the camera's view
-    axis (from the camera for panoramas; 1e10 where the ray meets nothing), from the first pass
-    as Cycles' Z pass (from its first sample); "normal", its shading normal in world space
-    facing the camera (0 where the ray meets nothing), averaged over the passes as Cycles'
-    Normal pass; "albedo", Cycles' Denoising Albedo for a denoiser (:class:`core.eye_pass.DenoisingPaths`):
+    axis (from the camera for panoramas; 1e10 where the ray meets nothing), from rays through the
+    pixels' centres as Cycles' Z pass (its first sample); "normal", its shading normal in world
+    space facing the camera (0 where the ray meets nothing; past transparent surfaces by
+    ``pass_alpha_threshold``), averaged over the passes as Cycles' Normal pass; "albedo", Cycles' Denoising Albedo for a denoiser (:class:`core.eye_pass.DenoisingPaths`):
     the albedo of the diffuse-like lobes (diffuse, translucent, sheen, glossy and glass rougher
     than Cycles' 0.075 alpha) of the first surface where they make more than a quarter of the
     total, times the albedos of the specular-like lobes before it, plus the emission and the
@@ -239,17 +239,19 @@ class RenderSettings:
     leaves the scene first); "denoising_depth", Cycles' Denoising Depth: the lengths of the
     path's segments up to that surface, each times the mean of the specular albedos before it;
     and of the surface each camera ray stops on, as Cycles' passes of those names: "position"
-    (world space, from the first pass; 0 where rays meet nothing), "uv" ((u, v, 1) of
-    ``Scene.uvs``, 0 without), "object_index" and "material_index" (the pass indices,
-    ``Scene.object_info`` and ``Materials.pass_index``, from the first pass; 0 where rays meet
+    (world space, from the centre rays; 0 where rays meet nothing), "uv" ((u, v, 1) of
+    ``Scene.uvs``, 0 without; as the normal), "object_index" and "material_index" (the pass
+    indices, ``Scene.object_info`` and ``Materials.pass_index``, from the centre rays; 0 where rays meet
     nothing), "mist" (``World.mist_*`` of its distance from the camera; 1 where rays meet
     nothing)."""
 
     pass_alpha_threshold: float = 0.5
-    """The Alpha Threshold of the data passes taken from rays through the pixels' centres (depth,
-    position, object and material index: ``FIRST_PASS_DATA``), as Blender's View Layer > Passes:
-    a transparent surface at least this opaque stops those rays, a more transparent one with the
-    chance of its opacity (0: every surface stops them)."""
+    """The Alpha Threshold of the data passes, as Blender's View Layer > Passes: a transparent
+    surface at least this opaque stops the rays through the pixels' centres (depth, position,
+    object and material index: ``FIRST_PASS_DATA``), a more transparent one with the chance of its
+    opacity (0: every surface stops them); the normal and UV are those of the first surface at least
+    this opaque, where a ray crosses the more transparent ones before it (with the chance of their
+    transparency; else 0, as Cycles' samples: ``eye_pass.threshold_data``)."""
 
     def __post_init__(self):
         def bad(name, why):
