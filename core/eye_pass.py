@@ -458,7 +458,8 @@ def threshold_data(ctx, rng, data, pix, origins, dirs, tmax, alpha_threshold):
     if len(h):
         prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
         wo = -dirs.take(h, axis=0)
-        surf = ctx.surface(prim, b1, b2, rng.random(len(h)) if ctx.has_level_programs else None, Rays(wo, True))
+        pick = rng.random(len(h)) if ctx.has_level_programs else None
+        surf = ctx.surface(prim, b1, b2, pick, Rays(wo, True))
         first_hit_data(ctx, data, pix.take(h), surf, wo, prim, b1, b2)
 
 
@@ -666,7 +667,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             rays_in = Rays(wo, True)
         surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, rays_in)
         if depth == 0 and data:
-            first_hit_data(ctx, {k: v for k, v in data.items() if k not in apart}, pix, surf, wo, prim, b1, b2)
+            first = {k: v for k, v in data.items() if k not in apart}
+            first_hit_data(ctx, first, pix, surf, wo, prim, b1, b2)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
         if emissive.any():

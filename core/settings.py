@@ -230,10 +230,10 @@ class RenderSettings:
     axis (from the camera for panoramas; 1e10 where the ray meets nothing), from rays through the
     pixels' centres as Cycles' Z pass (its first sample); "normal", its shading normal in world
     space facing the camera (0 where the ray meets nothing; past transparent surfaces by
-    ``pass_alpha_threshold``), averaged over the passes as Cycles' Normal pass; "albedo", Cycles' Denoising Albedo for a denoiser (:class:`core.eye_pass.DenoisingPaths`):
-    the albedo of the diffuse-like lobes (diffuse, translucent, sheen, glossy and glass rougher
-    than Cycles' 0.075 alpha) of the first surface where they make more than a quarter of the
-    total, times the albedos of the specular-like lobes before it, plus the emission and the
+    ``pass_alpha_threshold``), averaged over the passes as Cycles' Normal pass; "albedo", Cycles'
+    Denoising Albedo for a denoiser (:class:`core.eye_pass.DenoisingPaths`): the albedo of the
+    diffuse-like lobes (diffuse, translucent, sheen, glossy and glass rougher than Cycles' 0.075
+    alpha) of the first surface where they make more than a quarter of the total, times the albedos of the specular-like lobes before it, plus the emission and the
     world seen on the way, averaged over the passes; "denoising_normal", Cycles' Denoising Normal:
     the shading normal (world space, facing the camera side) of that surface (0 where the path
     leaves the scene first); "denoising_depth", Cycles' Denoising Depth: the lengths of the

@@ -669,8 +669,9 @@ def test_the_alpha_threshold_decides_which_surface_the_normal_and_uv_passes_show
     scene = scene.replace(uvs=uvs)
     seen = {}
     for threshold in (0.5, 0.2, 0.0):
-        data = render(scene, RenderSettings(passes=16, photons_per_pass=200, workers=1,
-                                            data_passes=("normal", "uv"), pass_alpha_threshold=threshold)).data
+        settings = RenderSettings(passes=16, photons_per_pass=200, workers=1, data_passes=("normal", "uv"),
+                                  pass_alpha_threshold=threshold)
+        data = render(scene, settings).data
         seen[threshold] = (data["normal"].reshape(-1, 3).mean(axis=0), data["uv"].reshape(-1, 3).mean(axis=0))
     # The wall faces -y (towards the camera at the origin), the card shows its back; the sheet faces
     # the camera as well.
