@@ -233,8 +233,9 @@ class RenderSettings:
     ``pass_alpha_threshold``), averaged over the passes as Cycles' Normal pass; "albedo", Cycles'
     Denoising Albedo for a denoiser (:class:`core.eye_pass.DenoisingPaths`): the albedo of the
     diffuse-like lobes (diffuse, translucent, sheen, glossy and glass rougher than Cycles' 0.075
-    alpha) of the first surface where they make more than a quarter of the total, times the albedos of the specular-like lobes before it, plus the emission and the
-    world seen on the way, averaged over the passes; "denoising_normal", Cycles' Denoising Normal:
+    alpha) of the first surface where they make more than a quarter of the total, times the
+    albedos of the specular-like lobes before it, plus the emission and the world seen on the
+    way, averaged over the passes; "denoising_normal", Cycles' Denoising Normal:
     the shading normal (world space, facing the camera side) of that surface (0 where the path
     leaves the scene first); "denoising_depth", Cycles' Denoising Depth: the lengths of the
     path's segments up to that surface, each times the mean of the specular albedos before it;
@@ -248,10 +249,11 @@ class RenderSettings:
     pass_alpha_threshold: float = 0.5
     """The Alpha Threshold of the data passes, as Blender's View Layer > Passes: a transparent
     surface at least this opaque stops the rays through the pixels' centres (depth, position,
-    object and material index: ``FIRST_PASS_DATA``), a more transparent one with the chance of its
-    opacity (0: every surface stops them); the normal and UV are those of the first surface at least
-    this opaque, where a ray crosses the more transparent ones before it (with the chance of their
-    transparency; else 0, as Cycles' samples: ``eye_pass.threshold_data``)."""
+    object and material index: ``FIRST_PASS_DATA``), a more transparent one with the chance that
+    Cycles' sample picks a closure other than its Transparent BSDF there
+    (``eye_pass.cycles_stop_chance``; 0: every surface stops them); the normal and UV are those of
+    the first surface at least this opaque, where a ray crosses the more transparent ones before
+    it (by the same chance; else 0, as Cycles' samples: ``eye_pass.threshold_data``)."""
 
     def __post_init__(self):
         def bad(name, why):
