@@ -412,8 +412,9 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
     "object_index", "material_index") as Cycles takes them from its first sample, whose ray goes
     through the pixel's centre (and the lens's): {name: (n_pixels,) or (n_pixels, 3)}, of the
     surface each such ray stops on past what is transparent to it: a surface at least
-    ``alpha_threshold`` opaque stops it, a more transparent one with the chance of its opacity (by
-    ``rng``; Cycles' path then scatters there); 1e10 (depth) or 0 where rays meet nothing."""
+    ``alpha_threshold`` opaque stops it, a more transparent one with the chance that Cycles' sample
+    picks a closure other than its Transparent BSDF there (:func:`cycles_stop_chance`, by ``rng``;
+    Cycles' path then scatters there); 1e10 (depth) or 0 where rays meet nothing."""
     cam = ctx.scene.camera
     x0, x1, y0, y1 = cam.window
     n_pix = (x1 - x0) * (y1 - y0)
