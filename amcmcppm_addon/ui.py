@@ -124,6 +124,37 @@ class AMCMCPPM_RENDER_PT_statistics_output(AMCMCPPMButtonsPanel, bpy.types.Panel
         self.layout.operator("amcmcppm.export_scene", icon='EXPORT')
 
 
+class AMCMCPPM_RENDER_PT_film(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    """Film: a transparent background (Blender's own setting, which Cycles' Film panel shows)."""
+    bl_label = "Film"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.render, "film_transparent", text="Transparent")
+
+
+class AMCMCPPM_RENDER_PT_film_pixel_filter(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    """Cycles' Pixel Filter settings of the scene (``scene.cycles``), which the engine uses too."""
+    bl_label = "Pixel Filter"
+    bl_parent_id = "AMCMCPPM_RENDER_PT_film"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        cycles = getattr(context.scene, "cycles", None)
+        if cycles is None:
+            layout.label(text="Blackman-Harris, 1.5 px (the Cycles add-on is off)", icon='INFO')
+            return
+        col = layout.column()
+        col.prop(cycles, "pixel_filter_type", text="Type")
+        if cycles.pixel_filter_type != 'BOX':
+            col.prop(cycles, "filter_width", text="Width")
+
+
 class AMCMCPPM_CAMERA_PT_panorama(bpy.types.Panel):
     """A panoramic camera's settings under Blender's Lens panel, which draws them for Cycles only."""
     bl_label = "Panorama"
@@ -291,6 +322,8 @@ classes = (
     AMCMCPPM_RENDER_PT_light_paths,
     AMCMCPPM_RENDER_PT_performance,
     AMCMCPPM_RENDER_PT_statistics_output,
+    AMCMCPPM_RENDER_PT_film,
+    AMCMCPPM_RENDER_PT_film_pixel_filter,
 )
 
 # Built-in panels for Blender's own renderer that do not fit this engine.

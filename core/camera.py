@@ -8,12 +8,46 @@ from .scene import PANORAMAS
 
 # Panoramic cameras' footprints come from the directions of points this many pixels apart.
 FOOTPRINT_STEP = 1e-3
+# Points of the pixel filters' inverted distributions (Cycles' FILTER_TABLE_SIZE is 1024).
+FILTER_TABLE_SIZE = 4096
+
+
+def filter_offsets(kind, width, u):
+    """(n,) offsets in pixels from a pixel's centre along one axis for uniform numbers ``u`` (n,),
+    distributed by the pixel filter ``kind`` (``Camera.pixel_filter``) of ``width``, as Cycles'
+    ``filter_table`` (scene/film.cpp) inverts it: a box is uniform over the width; a Gaussian
+    exp(-2 (6 x / w)^2) over +-3 w / 2 with w = 3 ``width`` (sigma = ``width`` / 4); Blackman-Harris
+    over +-``width`` (its window twice the width).  Both halves are the same distribution mirrored,
+    and ``u`` = 0.5 is the centre."""
+    u = np.asarray(u, np.float64)
+    if kind == "box":
+        return (u - 0.5) * width
+    if kind == "gaussian":
+        w = 3.0 * width
+        def f(x):
+            v = x * 6.0 / w
+            return np.exp(-2.0 * v * v)
+    elif kind == "blackman_harris":
+        w = 2.0 * width
+        def f(x):
+            v = 2.0 * np.pi * (x / w + 0.5)
+            return 0.35875 - 0.48829 * np.cos(v) + 0.14128 * np.cos(2.0 * v) - 0.01168 * np.cos(3.0 * v)
+    else:
+        raise ValueError(f"unknown pixel filter {kind!r}")
+    # The half axis [0, w / 2]: its CDF by the trapezoid rule, inverted by interpolation.
+    x = np.linspace(0.0, 0.5 * w, FILTER_TABLE_SIZE)
+    fx = np.abs(f(x))
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (fx[1:] + fx[:-1]))])
+    cdf /= cdf[-1]
+    s = 2.0 * u - 1.0
+    return np.sign(s) * np.interp(np.abs(s), cdf, x)
 
 
 def generate_camera_rays(camera, pixel_ids, u):
     """One ray per pixel ``pixel_ids`` of ``camera.window`` (row-major from its top-left pixel).
 
-    pixel_ids : (n,) int64; u : (n, 4) uniform numbers: pixel jitter x, y and lens sample x, y.
+    pixel_ids : (n,) int64; u : (n, 4) uniform numbers: pixel jitter x, y (by the camera's pixel
+    filter, :func:`filter_offsets`) and lens sample x, y.
     Returns ``origins`` (n, 3) float64, ``directions`` (n, 3) float64 unit,
     ``tmax`` (n,) far-clip distances along the rays and ``footprint`` (n,): the
     width of one pixel at unit distance along the ray (perspective; panoramic: the square
@@ -24,8 +58,13 @@ def generate_camera_rays(camera, pixel_ids, u):
     x0, x1, y0, y1 = camera.window
     w, h = camera.resolution
     row, col = np.divmod(pixel_ids, x1 - x0)
-    px = (x0 + col) + u[:, 0]
-    py = (y0 + row) + u[:, 1]
+    if camera.pixel_filter == "box" and camera.filter_width == 1.0:
+        px = (x0 + col) + u[:, 0]
+        py = (y0 + row) + u[:, 1]
+    else:
+        # (Cycles' Pixel Filter: an offset from the pixel's centre, by the filter)
+        px = (x0 + col + 0.5) + filter_offsets(camera.pixel_filter, camera.filter_width, u[:, 0])
+        py = (y0 + row + 0.5) + filter_offsets(camera.pixel_filter, camera.filter_width, u[:, 1])
     fx0, fx1, fy0, fy1 = camera.frame
     # Image-plane coordinates: x grows to the right, y upward; rows are counted from the top.
     x = fx0 + (fx1 - fx0) * px / w

@@ -384,9 +384,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         coverage = inner_coverage = None
         if settings.edge_coverage and pts.count:
             rng = np.random.default_rng([settings.seed, STREAM_COVERAGE, i])
-            # (reach: the disc's radius in pixel footprints this pass, and the jitter's pixel)
-            coverage, inner_coverage = point_coverage(ctx, pts, radius, width, height,
-                                                      settings.initial_radius_px * scales[i] + 1.0, rng,
+            # (reach: the disc's radius in pixel footprints this pass, and how far the pixel filter
+            # sends a point from its pixel's centre, plus half a pixel: 1 with a box of one pixel)
+            reach = settings.initial_radius_px * scales[i] + scene.camera.filter_reach + 0.5
+            coverage, inner_coverage = point_coverage(ctx, pts, radius, width, height, reach, rng,
                                                       inner=settings.bias_correction)
         return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
                              volume=vol, volume_radius=vol_radius, media=ctx.phase,

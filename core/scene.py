@@ -34,6 +34,8 @@ POINT, SPOT, AREA_RECT, AREA_DISK, SUN = 0, 1, 2, 3, 4
 # Camera.projection: the panoramic ones are Cycles' panorama types of the same names.
 PANORAMAS = ("equirectangular", "fisheye_equidistant", "fisheye_equisolid", "mirrorball")
 PROJECTIONS = ("perspective", "orthographic") + PANORAMAS
+# Cycles' Film > Pixel Filter types (Camera.pixel_filter).
+PIXEL_FILTERS = ("box", "gaussian", "blackman_harris")
 LIGHT_KIND_NAMES = {POINT: "point", SPOT: "spot", AREA_RECT: "area (rectangle)",
                     AREA_DISK: "area (disk/ellipse)", SUN: "sun"}
 # Bits of ``Lights.visibility``: which camera rays see a light (Blender's ray visibility).
@@ -839,6 +841,12 @@ class Camera:
     ``sensor_size`` (width, height) in mm the image covers, its circle ``fisheye_fov`` wide);
     ``mirrorball`` (the reflection in a mirror ball that fills the image).  Pixels outside a
     fisheye's circle or the ball see nothing (black, opaque), as in Cycles.
+
+    ``pixel_filter`` and ``filter_width`` are Cycles' Film > Pixel Filter: each camera ray leaves
+    its pixel's centre at an offset drawn from the filter (:func:`core.camera.filter_offsets`), so
+    a pixel is the filter's weighted mean of what lies around it.  Blender's default is
+    Blackman-Harris of width 1.5 (its window spans twice that: 3 pixels); the core's default, a box
+    of width 1, is one pixel's area.
     """
 
     world_from_camera: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64
@@ -855,6 +863,8 @@ class Camera:
     fisheye_fov: float = np.pi          # fisheyes' field of view, radians
     fisheye_lens: float = 10.5          # equisolid fisheye's focal length, mm
     sensor_size: tuple = (36.0, 24.0)   # equisolid fisheye: (width, height) of the image in mm
+    pixel_filter: str = "box"           # one of PIXEL_FILTERS
+    filter_width: float = 1.0           # pixels (Cycles' Filter Width)
 
     PANORAMA_FIELDS = ("latitude_range", "longitude_range", "fisheye_fov", "fisheye_lens", "sensor_size")
 
@@ -874,6 +884,13 @@ class Camera:
         frame = perspective_frame(lens_mm, sensor_width, sensor_height, sensor_fit, resolution, shift)
         return Camera(world_from_camera=m, frame=frame, resolution=tuple(int(r) for r in resolution),
                       **kwargs)
+
+    @property
+    def filter_reach(self) -> float:
+        """How far (pixels) the pixel filter sends a camera ray from its pixel's centre at most
+        (:func:`core.camera.filter_offsets`): a box half its width, a Gaussian 1.5 times it,
+        Blackman-Harris its width."""
+        return self.filter_width * {"box": 0.5, "gaussian": 1.5, "blackman_harris": 1.0}[self.pixel_filter]
 
     @property
     def window(self):
@@ -1398,6 +1415,11 @@ class Scene:
             fail("camera.focus_distance must be positive when depth of field is on")
         if not (0 <= cam.clip_start < cam.clip_end):
             fail("camera clip range must satisfy 0 <= clip_start < clip_end")
+        if cam.pixel_filter not in PIXEL_FILTERS:
+            fail(f"camera.pixel_filter must be one of {PIXEL_FILTERS}, not {cam.pixel_filter!r}")
+        if not 0.01 <= float(cam.filter_width) <= 10.0:
+            fail(f"camera.filter_width {cam.filter_width} must lie in [0.01, 10] pixels (Cycles' range)")
+        cam.filter_width = float(cam.filter_width)
         _validate_background(self.world, "world", fail, len(self.textures))
         _validate_world_volume(self.world, fail)
         exclude = self.world.exclude
@@ -1545,6 +1567,8 @@ class Scene:
             d[f"camera.{name}"] = np.float64(getattr(cam, name))
         for name in Camera.PANORAMA_FIELDS:
             d[f"camera.{name}"] = np.asarray(getattr(cam, name), np.float64)
+        d["camera.pixel_filter"] = np.array(cam.pixel_filter)
+        d["camera.filter_width"] = np.float64(cam.filter_width)
         d["world.color"] = np.asarray(self.world.color, np.float32)
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
         if self.world.exclude:
@@ -1608,7 +1632,7 @@ class Scene:
                      border=tuple(float(v) for v in get("camera.border")),
                      **{name: float(get(f"camera.{name}")) for name in
                         ("aperture_radius", "focus_distance", "clip_start", "clip_end")},
-                     **_panorama_fields(get))
+                     **_panorama_fields(get), **_filter_fields(get))
         def program(key):
             return str(z[key]) if key in keys else None
 
@@ -1659,6 +1683,12 @@ class Scene:
     def replace(self, **changes) -> "Scene":
         """A shallow copy with some fields replaced (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
+
+
+def _filter_fields(get):
+    """The camera's pixel filter stored in a file (files from before it have none: a box of 1)."""
+    kind, width = get("camera.pixel_filter"), get("camera.filter_width")
+    return {} if kind is None else {"pixel_filter": str(kind), "filter_width": float(width)}
 
 
 def _panorama_fields(get):

@@ -11,8 +11,13 @@ panoramas (equirectangular, the two fisheyes, mirror ball); the equisolid
 fisheye's sensor is fitted to the image as Blender fits it (``sensor_fit``).
 Cycles' other panorama types and a panoramic camera's depth of field are
 noted; those render as an equirectangular view, this one without depth of field.
+The pixel filter is Cycles' Film > Pixel Filter (``scene.cycles``: type and width), which
+the engine's Film panel edits; without the Cycles add-on, Blender's default
+(Blackman-Harris, 1.5 pixels).
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -36,6 +41,19 @@ def rendered_pixels(render) -> int:
     """Pixels the engine renders for these render settings: the border window if on."""
     x0, x1, y0, y1 = Camera(resolution=render_resolution(render), border=render_border(render)).window
     return (x1 - x0) * (y1 - y0)
+
+
+PIXEL_FILTERS = {"BOX": "box", "GAUSSIAN": "gaussian", "BLACKMAN_HARRIS": "blackman_harris"}
+
+
+def pixel_filter(scene):
+    """{"pixel_filter", "filter_width"} of ``core.Camera`` from Cycles' Pixel Filter settings of
+    ``scene`` (Blender's defaults without the Cycles add-on); a box is one pixel wide whatever the
+    width (Cycles' sync ignores it there, and its panel hides it)."""
+    cycles = getattr(scene, "cycles", None)
+    kind = PIXEL_FILTERS.get(getattr(cycles, "pixel_filter_type", "BLACKMAN_HARRIS"), "blackman_harris")
+    width = 1.0 if kind == "box" else float(getattr(cycles, "filter_width", 1.5))
+    return {"pixel_filter": kind, "filter_width": min(max(width, 0.01), 10.0)}
 
 
 def export_camera(depsgraph, camera_object=None, resolution=None, border=None, log=None) -> Camera:
@@ -62,7 +80,7 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
         raise SceneError(f"camera '{ob.name}' has zero scale")
     world_from_camera[:3, :3] /= scale
     if cam.type == "PANO":
-        return _panorama(ob, cam, world_from_camera, resolution, border, log)
+        return replace(_panorama(ob, cam, world_from_camera, resolution, border, log), **pixel_filter(scene))
     corners = np.array([tuple(v) for v in cam.view_frame(scene=scene)], np.float64)   # (4, 3)
     projection = "orthographic" if cam.type == "ORTHO" else "perspective"
     if projection == "perspective":
@@ -83,7 +101,8 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     return Camera(world_from_camera=world_from_camera, projection=projection,
                   frame=tuple(float(v) for v in frame), resolution=resolution, border=border,
                   aperture_radius=float(aperture_radius), focus_distance=float(focus_distance),
-                  clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end))
+                  clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end),
+                  **pixel_filter(scene))
 
 
 PANORAMA_TYPES = {"EQUIRECTANGULAR": "equirectangular", "FISHEYE_EQUIDISTANT": "fisheye_equidistant",

@@ -2807,6 +2807,28 @@ def test_perspective_camera_matches_view_frame(scene):
     assert np.asarray(c.world_from_camera)[:3, 3] == pytest.approx([0, -5, 1])
 
 
+def test_the_camera_takes_cycles_pixel_filter(scene):
+    """Film > Pixel Filter is Cycles' setting (``scene.cycles``), which our Film panel draws: the
+    exported camera's filter and width (Blender's default Blackman-Harris of 1.5; a box is one pixel
+    whatever the width, as Cycles renders it), for perspective and panoramic cameras."""
+    cam = bs.camera(location=(0, -5, 1), target=(0, 0, 1))
+    c = bs.export().scene.camera
+    assert (c.pixel_filter, c.filter_width) == ("blackman_harris", 1.5)
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 2.5
+    scene.update_tag()
+    c = bs.export().scene.camera
+    assert (c.pixel_filter, c.filter_width) == ("gaussian", 2.5)
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 3.0
+    scene.update_tag()
+    c = bs.export().scene.camera
+    assert (c.pixel_filter, c.filter_width) == ("box", 1.0)
+    scene.cycles.pixel_filter_type = "GAUSSIAN"
+    cam.data.type, cam.data.panorama_type = "PANO", "EQUIRECTANGULAR"
+    scene.update_tag()
+    c = bs.export().scene.camera
+    assert c.projection == "equirectangular" and (c.pixel_filter, c.filter_width) == ("gaussian", 3.0)
+
+
 def test_camera_scale_is_removed_and_percentage_applied(scene):
     cam = bs.camera(location=(0, -5, 1), target=(0, 0, 1))
     cam.scale = (2, 2, 2)
@@ -2872,7 +2894,7 @@ def test_panoramic_cameras_see_the_directions_cycles_sees(scene, tmp_path, kind,
     nt.links.new(coords.outputs["Generated"], scale.inputs[0])
     nt.links.new(scale.outputs[0], nt.nodes["Background"].inputs["Color"])
     cam = bs.camera(location=(0.3, -0.2, 0.5), target=(1.0, 2.0, 1.2))
-    cam.data.type = "PANO"
+    cam.data.type, cam.data.panorama_type = "PANO", "EQUIRECTANGULAR"
     cam.data.panorama_type = kind
     for key, value in settings.items():
         setattr(cam.data, key, value)
@@ -2894,7 +2916,7 @@ def test_panoramic_cameras_see_the_directions_cycles_sees(scene, tmp_path, kind,
 
 def test_other_panoramas_and_their_depth_of_field_are_noted(scene):
     cam = bs.camera()
-    cam.data.type = "PANO"
+    cam.data.type, cam.data.panorama_type = "PANO", "EQUIRECTANGULAR"
     cam.data.panorama_type = "CENTRAL_CYLINDRICAL"
     cam.data.dof.use_dof = True
     ex = bs.export()

@@ -347,6 +347,68 @@ def test_automatic_photon_count_grows_with_the_image_only():
     assert result.stats[0]["paths_traced"] == AUTO_PHOTONS_MIN
 
 
+@pytest.mark.parametrize("kind, width", [("box", 1.0), ("box", 2.0), ("gaussian", 2.0),
+                                         ("blackman_harris", 1.5)])
+def test_pixel_filters_draw_their_offsets_from_the_filter(kind, width):
+    """Camera.pixel_filter (Cycles' Film > Pixel Filter, filter importance sampling): the offsets
+    from the pixel's centre are distributed as the filter: a box uniform over its width, a Gaussian
+    exp(-2 (6 x / 3w)^2) (sigma w / 4) and Blackman-Harris over +-w (its window twice the width);
+    a chi-square over 40 bins at the 1e-4 level; u = 0.5 is the centre (Cycles' first sample).
+    Rays through a camera with the filter leave from those offsets."""
+    from core.camera import filter_offsets
+    from stats_utils import chi2_sf
+    u = np.random.default_rng(3).random(400_000)
+    x = filter_offsets(kind, width, u)
+    half = {"box": width / 2, "gaussian": 1.5 * width, "blackman_harris": width}[kind]
+    assert np.abs(x).max() <= half + 1e-9 and filter_offsets(kind, width, np.array([0.5]))[0] == 0.0
+    if kind == "box":
+        def f(t):
+            return np.ones_like(t)
+    elif kind == "gaussian":
+        def f(t):
+            return np.exp(-2.0 * (t * 6.0 / (3.0 * width)) ** 2)
+    else:
+        def f(t):
+            v = 2.0 * np.pi * (t / (2.0 * width) + 0.5)
+            return 0.35875 - 0.48829 * np.cos(v) + 0.14128 * np.cos(2 * v) - 0.01168 * np.cos(3 * v)
+    edges = np.linspace(-half, half, 41)
+    fine = np.linspace(-half, half, 40 * 400 + 1)
+    mass = np.add.reduceat(0.5 * (f(fine[1:]) + f(fine[:-1])), np.arange(0, 40 * 400, 400))
+    expected = mass / mass.sum() * len(u)
+    counts = np.histogram(x, edges)[0]
+    keep = expected > 5
+    stat = ((counts - expected)[keep] ** 2 / expected[keep]).sum()
+    assert chi2_sf(stat, keep.sum() - 1) > 1e-4, (kind, stat)
+    if kind == "gaussian":
+        assert abs(x.std() - width / 4) < 0.01
+    # The rays of a camera with the filter: the pixel's centre plus the offsets, one unit a pixel.
+    pose = Camera.look_at((0, 0, 0), (0, 0, -1), up=(0, 1, 0)).world_from_camera
+    camera = Camera(world_from_camera=pose, projection="orthographic", frame=(-4.0, 4.0, -4.0, 4.0),
+                    resolution=(8, 8), pixel_filter=kind, filter_width=width)
+    n = 1000
+    origins, _, _, _ = generate_camera_rays(camera, np.full(n, 27), np.column_stack([u[:n], u[n:2 * n],
+                                                                                    np.zeros((n, 2))]))
+    np.testing.assert_allclose(origins[:, 0], -4.0 + 3.5 + x[:n], atol=1e-9)
+
+
+def test_the_pixel_filter_survives_a_file_round_trip_and_bad_values_are_refused(tmp_path):
+    scene = glass_ceiling_room((16, 12))
+    scene = scene.replace(camera=dataclasses.replace(scene.camera, pixel_filter="gaussian", filter_width=2.5))
+    scene.save(tmp_path / "scene.npz")
+    camera = Scene.load(tmp_path / "scene.npz").camera
+    assert (camera.pixel_filter, camera.filter_width) == ("gaussian", 2.5)
+    # Files from before the filter load with the box of one pixel (their images unchanged).
+    old = {k: v for k, v in scene.to_arrays().items() if not k.startswith("camera.filter")
+           and k != "camera.pixel_filter"}
+    np.savez(tmp_path / "old.npz", **old)
+    camera = Scene.load(tmp_path / "old.npz").camera
+    assert (camera.pixel_filter, camera.filter_width) == ("box", 1.0)
+    for bad, message in ((dict(pixel_filter="mitchell"), "pixel_filter"),
+                         (dict(filter_width=0.0), "filter_width")):
+        with pytest.raises(SceneError, match=message):
+            scene.replace(camera=dataclasses.replace(scene.camera, **bad)).validate()
+
+
 def test_scene_save_load_round_trip(tmp_path):
     scene = glass_ceiling_room((16, 12))
     path = tmp_path / "scene.npz"
