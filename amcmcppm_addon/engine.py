@@ -11,12 +11,14 @@ when ``write_still`` is set (``shared/docs/blender.md`` 1).
 """
 from __future__ import annotations
 
+import json
 import traceback
 
 import bpy
 import numpy as np
 
 from ..core import SceneError
+from ..core.cryptomatte import name_id
 from ..core.integrator import render as core_render
 from ..core.settings import DATA_PASSES as DATA_PASS_NAMES
 from .export import export_scene, parse_snapshot_times, render_settings_from
@@ -46,6 +48,10 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
         for (name, channels, chan_id, kind), owner, prop, _ in DATA_PASSES:
             if asks_for(renderlayer, owner, prop):
                 self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        for prefix, prop, _ in CRYPTO_PASSES:
+            if asks_for(renderlayer, "", prop):
+                for i in range(crypto_pass_count(renderlayer)):
+                    self.register_pass(scene, renderlayer, f"{prefix}{i:02d}", 4, "rgba", 'COLOR')
 
 
 # Blender's passes beside Combined: (name, channels, channel ids, type), the box of the view layer
@@ -64,6 +70,18 @@ DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
                (("Denoising Depth", 1, "Z", 'VALUE'), *DENOISING, "denoising_depth"))
 
 
+# Cryptomatte (View Layer > Cryptomatte): Blender's pass names' prefix, the box, the core's pass.
+# Each pass holds two (id, coverage) levels, as Cycles writes them.
+CRYPTO_PASSES = (("CryptoObject", "use_pass_cryptomatte_object", "crypto_object"),
+                 ("CryptoMaterial", "use_pass_cryptomatte_material", "crypto_material"),
+                 ("CryptoAsset", "use_pass_cryptomatte_asset", "crypto_asset"))
+
+
+def crypto_pass_count(view_layer) -> int:
+    """Passes per kind of Cryptomatte: the view layer's Levels in twos (Cycles' count)."""
+    return (min(int(getattr(view_layer, "pass_cryptomatte_depth", 6)), 16) + 1) // 2
+
+
 def asks_for(view_layer, owner, prop):
     """Whether the box ``prop`` of ``view_layer`` (or of its ``owner`` settings) is ticked."""
     holder = getattr(view_layer, owner, None) if owner else view_layer
@@ -73,6 +91,7 @@ def asks_for(view_layer, owner, prop):
 def data_passes_of(view_layer):
     """The core's ``RenderSettings.data_passes`` for the passes ``view_layer`` asks for."""
     wanted = {core for _, owner, prop, core in DATA_PASSES if asks_for(view_layer, owner, prop)}
+    wanted |= {core for _, prop, core in CRYPTO_PASSES if asks_for(view_layer, "", prop)}
     return tuple(name for name in DATA_PASS_NAMES if name in wanted)
 
 
@@ -91,6 +110,28 @@ def pass_images(data, camera):
             axes[:, 2] *= -1.0
             image = (image @ axes).astype(np.float32)
         out[name] = image
+    for prefix, _, core in CRYPTO_PASSES:
+        if core in data:
+            pairs = data[core]               # (H, W, 2 levels): two levels a pass
+            for i in range(pairs.shape[2] // 4):
+                out[f"{prefix}{i:02d}"] = pairs[:, :, 4 * i:4 * i + 4]
+    return out
+
+
+def crypto_metadata(layer, manifests):
+    """{key: value} of the render result's metadata that name the Cryptomatte passes of view layer
+    ``layer`` and their manifests (``cryptomatte/<7 hex of the layer's hash>/name``, ``hash``,
+    ``conversion``, ``manifest``), as Blender writes them for Cycles."""
+    out = {}
+    for prefix, _, core in CRYPTO_PASSES:
+        if core not in manifests:
+            continue
+        name = f"{layer}.{prefix}"
+        key = f"cryptomatte/{name_id(name)[1][:7]}"
+        out[f"{key}/name"] = name
+        out[f"{key}/hash"] = "MurmurHash3_32"
+        out[f"{key}/conversion"] = "uint32_to_float32"
+        out[f"{key}/manifest"] = json.dumps(manifests[core], separators=(",", ":"))
     return out
 
 
@@ -115,7 +156,8 @@ def render_final(engine, depsgraph):
     scene = depsgraph.scene_eval
     props = scene.amcmcppm
     settings = render_settings_from(props, data_passes=data_passes_of(depsgraph.view_layer),
-                                    pass_alpha_threshold=float(depsgraph.view_layer.pass_alpha_threshold))
+                                    pass_alpha_threshold=float(depsgraph.view_layer.pass_alpha_threshold),
+                                    cryptomatte_levels=2 * crypto_pass_count(depsgraph.view_layer))
     for msg in props.light_path_limits()[1]:
         engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
     engine.update_stats("", "Exporting scene")
@@ -144,6 +186,7 @@ def render_final(engine, depsgraph):
                                  should_stop=engine.test_break)
             writer.push(result.image)
             writer.write_data(pass_images(result.data, exported.scene.camera))
+            writer.add_metadata(crypto_metadata(view_layer, exported.cryptomatte_manifests))
             outputs.finish(result, settings.time_limit or 0.0)
             effects = ", ".join(result.effects) or "none (diffuse surfaces and lights only)"
             engine.report({'INFO'}, f"AMCMCPPM: optional effects this scene calls for: {effects}")

@@ -200,9 +200,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Folder for the snapshot EXR files and their index snapshots.jsonl")
 
 
-# Core settings that Blender's own data gives, not a property of ours: the data passes and their
-# Alpha Threshold are the view layer's (View Layer > Passes, engine.data_passes_of).
-FROM_BLENDER = ("data_passes", "pass_alpha_threshold")
+# Core settings that Blender's own data gives, not a property of ours: the data passes, their
+# Alpha Threshold and Cryptomatte's levels are the view layer's (View Layer > Passes,
+# engine.data_passes_of, engine.crypto_pass_count).
+FROM_BLENDER = ("data_passes", "pass_alpha_threshold", "cryptomatte_levels")
 
 # Cycles' Light Paths that the engine follows: the bounce limits, caustics toggles and transparent limit, as
 # named by Cycles' settings and ours (AMCMCPPMRenderSettings.light_path_limits).

@@ -88,6 +88,16 @@ class ResultWriter:
         if images:
             self.engine.update_result(self.result)
 
+    def add_metadata(self, fields):
+        """Add ``fields`` ({key: value}) to the render's metadata (written into EXR files): to the
+        engine's whole result, as Cycles stamps its view layers' (a result from ``begin_result``
+        keeps none)."""
+        if not fields:
+            return
+        whole = self.engine.get_result()
+        for key, value in fields.items():
+            whole.stamp_data_add_field(key, value)
+
     def push_black(self):
         image = np.zeros((self.height, self.width, 4), np.float32)
         image[:, :, 3] = 1.0

@@ -315,6 +315,34 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
             col.prop(layer, name)
 
 
+class AMCMCPPM_VIEWLAYER_PT_cryptomatte(bpy.types.Panel):
+    """View Layer Properties > Cryptomatte: Object, Material and Asset passes and their Levels, as
+    Cycles' panel (``engine.CRYPTO_PASSES``, ``core.cryptomatte``)."""
+    bl_label = "Cryptomatte"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "view_layer"
+    bl_options = {'DEFAULT_CLOSED'}
+    COMPAT_ENGINES = {ENGINE_ID}
+    props = ("use_pass_cryptomatte_object", "use_pass_cryptomatte_material", "use_pass_cryptomatte_asset")
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layer = context.view_layer
+        col = layout.column(heading="Include", align=True)
+        for name, text in zip(self.props, ("Object", "Material", "Asset")):
+            col.prop(layer, name, text=text)
+        col = layout.column()
+        col.active = any(getattr(layer, name) for name in self.props)
+        col.prop(layer, "pass_cryptomatte_depth", text="Levels")
+
+
 classes = (
     AMCMCPPM_RENDER_PT_sampling,
     AMCMCPPM_RENDER_PT_markov_chains,
@@ -368,7 +396,8 @@ def get_panels():
 
 # Panels outside the Render Properties.
 other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
-                 AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes)
+                 AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes,
+                 AMCMCPPM_VIEWLAYER_PT_cryptomatte)
 
 
 def register():

@@ -21,7 +21,7 @@ from .accel import interpolate_corners
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choose_lobe, face_forward,
                    lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
-from . import subsurface
+from . import cryptomatte, subsurface
 from .procedural import Rays, camera_path
 from .sampling import dot
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
@@ -156,6 +156,9 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
             data[name] = np.zeros((n_pix, 3) if name == "denoising_normal" else n_pix)
     if {"albedo", "denoising_normal", "denoising_depth"} & set(data_passes):
         data["albedo"] = np.zeros((n_pix, 3))         # (the other denoising features follow it)
+    kinds = [k for k in cryptomatte.KINDS if k in data_passes and ctx.scene.cryptomatte_ids is not None]
+    if kinds:
+        data["cryptomatte"] = []                      # (pixels, triangles, weights) per chunk
     parts, volume = [], []
     rays = 0
     per_segment = int(np.clip(VOLUME_POINT_BUDGET // max(n_pix, 1), 1, MAX_SEGMENT_POINTS))
@@ -168,6 +171,13 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
     if "albedo" not in data_passes:
         data.pop("albedo", None)
+    if kinds:
+        # Each kind: (pixels, ids, weights) of the surfaces the rays reached (Accumulator sums them).
+        chunks = data.pop("cryptomatte")
+        pix, prim, weight = (np.concatenate(c) for c in zip(*chunks))
+        ids = ctx.scene.cryptomatte_ids.take(prim, axis=0)
+        for k in kinds:
+            data[k] = (pix, ids[:, cryptomatte.KINDS.index(k)], weight)
     return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume), data or None)
 
 
@@ -550,6 +560,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     if apart:
         threshold_data(ctx, rng.spawn(1)[0], {k: data[k] for k in apart}, pix, origins, dirs, tmax,
                        alpha_threshold)
+    if data and "cryptomatte" in data:
+        data["cryptomatte"].append(cryptomatte.coverage(ctx, pix, origins, dirs, tmax))
     for depth in range(limits.total + 2):
         if len(pix) == 0:
             break
@@ -668,7 +680,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             rays_in = Rays(wo, True)
         surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, rays_in)
         if depth == 0 and data:
-            first = {k: v for k, v in data.items() if k not in apart}
+            first = {k: v for k, v in data.items() if k not in apart and k != "cryptomatte"}
             first_hit_data(ctx, first, pix, surf, wo, prim, b1, b2)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)

@@ -27,6 +27,7 @@ import numpy as np
 
 from .context import RenderContext
 from .coverage import point_coverage
+from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
 from .eye_pass import centre_data, trace_eye_pass
 from .parallel import make_pool
 from .photon_pass import DepositTarget
@@ -74,7 +75,7 @@ class Accumulator:
     a scene seen through glass, a few hundred recorded photons out of 200,000 chain steps).
     """
 
-    def __init__(self, n_pixels, normalisation, bias_correction=False):
+    def __init__(self, n_pixels, normalisation, bias_correction=False, crypto_levels=6):
         self.normalisation = normalisation
         self.emission = np.zeros((n_pixels, 3))     # sum of eye-pass emission
         self.alpha = np.zeros(n_pixels)             # sum of coverage
@@ -88,6 +89,8 @@ class Accumulator:
         self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
         self.data_sums = {}                         # sums over passes of the data passes
+        self.crypto = {}                            # Cryptomatte's CryptoSums per kind
+        self.crypto_levels = crypto_levels          # their (id, coverage) pairs per pixel
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
         # spread, the sum of Vc_p T_p (per-pass normalisation) and, for the chains, the sum of
@@ -127,6 +130,9 @@ class Accumulator:
         data = getattr(eye, "data", None)            # (RenderSettings.data_passes)
         if data:
             for name, value in data.items():
+                if name in CRYPTO_KINDS:                # (pixels, ids, weights)
+                    self.crypto.setdefault(name, CryptoSums()).add(*value)
+                    continue
                 total = self.data_sums.get(name)
                 self.data_sums[name] = value.copy() if total is None else total + value
         self.n_uniform += n_uniform
@@ -194,6 +200,8 @@ class Accumulator:
             if self.passes:
                 shape = (height, width) + value.shape[1:]
                 out[name] = (value / self.passes).astype(np.float32).reshape(shape)
+        for name, sums in self.crypto.items():
+            out[name] = sums.image(height * width, self.crypto_levels, self.passes).reshape(height, width, -1)
         return out
 
     def _corrected(self, rgb, is_chain, scale):
@@ -334,7 +342,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     width, height = x1 - x0, y1 - y0
     n_pixels = width * height
     is_chain = settings.method != "ppm"
-    acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction)
+    acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction, settings.cryptomatte_levels)
     result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects,
                           method="amcmcppm" if is_chain else "ppm")
     warnings = result.warnings
@@ -478,7 +486,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 # their passes alone (RenderSettings.method).  The next pass is not prepared yet
                 # (none is while the first runs), so it is made without the chains' cells.
                 is_chain, cells, last_rate = False, None, None
-                acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction)
+                acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction,
+                                  settings.cryptomatte_levels)
             if next_target is None:
                 next_eye = eye_pass(pass_index)
                 next_target = make_target(pass_index, next_eye)

@@ -1088,6 +1088,10 @@ class Scene:
     # Lights.exclude: the object's Ray Visibility boxes), or None: 0.  The triangles themselves still
     # meet every photon (triangle_visibility says which camera-path rays see them).
     emitter_exclude: np.ndarray = None
+    # (T, 3) float32 Cryptomatte's ids of each triangle's object, material and asset (the object's
+    # topmost parent): MurmurHash3 of their names as floats (``core.cryptomatte``), or None: no
+    # Cryptomatte passes.
+    cryptomatte_ids: np.ndarray = None
     # (V, 3) float32 the vertices before true displacement (Materials.displacement_program), which
     # Generated coordinates read as Cycles' undisplaced ones; set by ``displacement.displace`` for a
     # render (never stored), else None.
@@ -1310,6 +1314,8 @@ class Scene:
             self.attributes = {k: per_corner(f"attributes['{k}']", v, 3) for k, v in self.attributes.items()}
         if self.object_ids is not None:
             self._validate_objects(fail, arr, t)
+        if self.cryptomatte_ids is not None:
+            self.cryptomatte_ids = arr("cryptomatte_ids", self.cryptomatte_ids, np.float32, (3,), t)
         if self.triangle_visibility is not None:
             self.triangle_visibility = arr("triangle_visibility", self.triangle_visibility, np.uint8, (), t)
             if t and self.triangle_visibility.max() > 31:
@@ -1600,7 +1606,7 @@ class Scene:
             d["tangents"] = self.tangents
         for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces", "object_info",
                      "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
-                     "emitter_shadow_links", "emitter_exclude"):
+                     "emitter_shadow_links", "emitter_exclude", "cryptomatte_ids"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for name, values in (self.attributes or {}).items():
@@ -1658,7 +1664,7 @@ class Scene:
                       triangle_visibility=get("triangle_visibility"),
                       receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
                       blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),
-                      emitter_exclude=get("emitter_exclude"),
+                      emitter_exclude=get("emitter_exclude"), cryptomatte_ids=get("cryptomatte_ids"),
                       textures=[get(f"textures.{i}") for i in range(ntex)],
                       attributes={k[len("attributes."):]: z[k] for k in sorted(keys)
                                   if k.startswith("attributes.")} or None,

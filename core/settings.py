@@ -25,7 +25,7 @@ NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes), and those
 # taken from the first pass alone (as Cycles takes them from its first sample; the others are means).
 DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth", "position", "uv",
-               "object_index", "material_index", "mist")
+               "object_index", "material_index", "mist", "crypto_object", "crypto_material", "crypto_asset")
 FIRST_PASS_DATA = ("depth", "position", "object_index", "material_index")
 MAX_BOUNCES = 64                    # the most any bounce limit may be
 # The most transparent bounces (Cycles' Transparent, at most 1024 there too): at it, crossings are
@@ -244,7 +244,13 @@ class RenderSettings:
     ``Scene.uvs``, 0 without; as the normal), "object_index" and "material_index" (the pass
     indices, ``Scene.object_info`` and ``Materials.pass_index``, from the centre rays; 0 where rays meet
     nothing), "mist" (``World.mist_*`` of its distance from the camera; 1 where rays meet
-    nothing)."""
+    nothing); "crypto_object", "crypto_material", "crypto_asset": Cycles' Cryptomatte passes
+    (:mod:`core.cryptomatte`, ``Scene.cryptomatte_ids``), (H, W, 2 ``cryptomatte_levels``) of (id,
+    coverage) pairs by decreasing coverage."""
+
+    cryptomatte_levels: int = 6
+    """The (id, coverage) pairs per pixel of the Cryptomatte passes (Blender's View Layer >
+    Cryptomatte > Levels: 6, at most 16; Cycles writes them in passes of two)."""
 
     pass_alpha_threshold: float = 0.5
     """The Alpha Threshold of the data passes, as Blender's View Layer > Passes: a transparent
@@ -288,6 +294,9 @@ class RenderSettings:
             bad("transparent_max_bounces", f"must lie in [0, {MAX_TRANSPARENT_BOUNCES}]")
         if not 0.0 <= self.pass_alpha_threshold <= 1.0:
             bad("pass_alpha_threshold", "must lie in [0, 1]")
+        levels = self.cryptomatte_levels
+        if not (isinstance(levels, (int, np.integer)) and 1 <= levels <= 16):
+            bad("cryptomatte_levels", "must be an integer in [1, 16]")
         if self.workers < 0:
             bad("workers", "must be >= 0")
         if self.chains < 1:

@@ -1151,6 +1151,14 @@ class MaterialExporter:
     def build(self) -> Materials:
         return Materials.build(self._specs)
 
+    def cryptomatte_names(self) -> list:
+        """The name of each core material row for Cryptomatte: its Blender material's (a level's
+        row its own spec's), Cycles' "default_surface" for the default."""
+        names = [spec.get("name", "") for spec in self._specs]
+        if None in self._ids:
+            names[self._ids[None]] = "default_surface"
+        return names
+
     def _add(self, spec) -> int:
         """Add ``spec`` and, after it, its levels' rows (``Closure.levels``); its index."""
         levels = spec.pop("levels", [])

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...core.cryptomatte import KINDS as CRYPTO_KINDS, name_id
 from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
 from ...core.scene import (CASTS_NO_SHADOW, HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY,
                            VISIBLE_TRANSMISSION)
@@ -99,6 +100,10 @@ class Geometry:
     emitter_collections: np.ndarray | None = None
     blocker_sets: np.ndarray | None = None
     shadow_collections: np.ndarray | None = None
+    # (T, 2) float32 Cryptomatte's object and asset ids of each triangle's instance, with
+    # {"crypto_object"/"crypto_asset": {name: hash hex}} their manifests, or None (no such pass)
+    cryptomatte: np.ndarray | None = None
+    crypto_names: dict | None = None
     instances: int = 0              # object instances exported
     meshes: int = 0                 # distinct meshes read
 
@@ -134,6 +139,8 @@ class GeometryCollector:
         self.groups = {}
         self.infos = {}
         self.properties = {}  # the same keys -> list of {name: (3,) object property} (object_property)
+        # the same keys -> list of (object name, asset name) per instance, with a Cryptomatte pass
+        self.cryptos = {} if self.passes & set(CRYPTO_KINDS) else None
 
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
@@ -186,6 +193,8 @@ class GeometryCollector:
         # microseconds, and scattered scenes have millions of instances)
         self.infos.setdefault((key, mat_ids, flags, link), []).append(
             object_info(inst) if used & set(OBJECT_INFO) or "object_index" in self.passes else None)
+        if self.cryptos is not None:
+            self.cryptos.setdefault((key, mat_ids, flags, link), []).append(crypto_names(inst))
         properties = sorted(n for n in used if n.startswith(OBJECT_PROPERTY))
         if properties:                  # (the same names for every instance of a group)
             self.properties.setdefault((key, mat_ids, flags, link), []).append(
@@ -193,7 +202,7 @@ class GeometryCollector:
 
     def finish(self) -> Geometry:
         geometry = assemble(self.meshes, self.groups, self.materials, self.infos, self.properties,
-                            self.passes)
+                            self.passes, self.cryptos)
         geometry.meshes = sum(1 for m in self.meshes.values() if m is not None)
         return geometry
 
@@ -226,6 +235,16 @@ def object_info(inst):
     colored = inst.parent if inst.is_instance and inst.parent is not None else ob
     r, g, b, alpha = (float(x) for x in colored.color)
     return np.array([alpha, float(ob.pass_index), random, r, g, b], np.float32)
+
+
+def crypto_names(inst):
+    """(object, asset) names of a depsgraph instance for Cryptomatte, as Cycles names them: the
+    object's, and its topmost parent's (an instance's: its instancer's topmost parent)."""
+    ob = inst.object
+    top = inst.parent if inst.is_instance and inst.parent is not None else ob
+    while top.parent is not None:
+        top = top.parent
+    return ob.name, top.name
 
 
 def object_property(inst, name, frame=0.0):
@@ -757,7 +776,8 @@ def _triangulated_copy(me):
     return copy
 
 
-def assemble(meshes, groups, materials, infos=None, properties=None, passes=frozenset()) -> Geometry:
+def assemble(meshes, groups, materials, infos=None, properties=None, passes=frozenset(),
+             cryptos=None) -> Geometry:
     """Transform every instance group to world space and concatenate; ``infos``: the groups'
     Object Info rows (:func:`object_info`), kept when some material reads them or ``passes`` has
     "object_index" (the Object Index pass), ``properties`` their objects' properties
@@ -786,6 +806,10 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
                 values = [p.get(n) for p in (properties or {}).get((key, mat_ids, visibility, link), [])]
                 part[n] = np.stack([np.zeros(3, np.float32) if v is None else v for v in values]) \
                     if len(values) == len(matrices) else np.zeros((len(matrices), 3), np.float32)
+        if cryptos is not None:
+            # (the instances' triangles follow each other: transform_instances)
+            per = len(part["triangles"]) // max(len(matrices), 1)
+            part["crypto"] = np.repeat(np.array(cryptos[key, mat_ids, visibility, link], object), per, axis=0)
         parts.append(part)
         offset += len(part["vertices"])
         instances += len(matrices)
@@ -824,6 +848,9 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
     hidden = materials.hidden_rays()
     if hidden.any():
         visibility &= ~hidden.take(material_ids)          # Light Path mixes (materials.py)
+    crypto = crypto_manifests = None
+    if cryptos is not None:
+        crypto, crypto_manifests = crypto_ids(np.concatenate([p["crypto"] for p in parts]))
     return Geometry(vertices=vertices, triangles=np.ascontiguousarray(triangles, np.int32),
                     material_ids=np.ascontiguousarray(material_ids, np.int32),
                     shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),
@@ -835,7 +862,21 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
                     **objects,
                     triangle_visibility=visibility if (visibility != ALL_RAYS).any() else None,
                     emitter_exclude=exclude if exclude.any() else None,
+                    cryptomatte=crypto, crypto_names=crypto_manifests,
                     instances=instances, **links)
+
+
+def crypto_ids(names):
+    """((T, 2) float32 Cryptomatte ids, {"crypto_object", "crypto_asset": {name: hex}}) of the
+    triangles' (object, asset) ``names`` (T, 2) (:func:`crypto_names`; a name hashed once)."""
+    ids = np.zeros(names.shape, np.float32)
+    manifests = {}
+    for column, kind in enumerate(("crypto_object", "crypto_asset")):
+        unique, inverse = np.unique(names[:, column].astype(str), return_inverse=True)
+        hashed = [name_id(str(n)) for n in unique]
+        ids[:, column] = np.array([h[0] for h in hashed], np.float32)[inverse.ravel()]
+        manifests[kind] = {str(n): h[1] for n, h in zip(unique, hashed)}
+    return ids, manifests
 
 
 def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordinates=frozenset()):

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...core.cryptomatte import name_id
 from ...core.scene import SUN, Scene
 from .camera import export_camera
 from .lights import build_lights, export_light, light_exclude, ray_visibility
@@ -46,6 +47,9 @@ class ExportedScene:
     seconds: float = 0.0            # wall time of the export
     instances: int = 0              # geometry instances exported
     meshes: int = 0                 # distinct meshes read
+    # Cryptomatte's manifests: {"crypto_object" / "crypto_material" / "crypto_asset": {name: hash
+    # hex}} of the kinds the view layer asks for (``core.cryptomatte``)
+    cryptomatte_manifests: dict = field(default_factory=dict)
 
     @property
     def is_empty(self) -> bool:
@@ -56,7 +60,10 @@ class ExportedScene:
 
 # The view layer's pass boxes whose core data passes read geometry that only some materials need
 # otherwise (``engine.DATA_PASSES``): the box -> the core's name (``GeometryCollector``'s ``passes``).
-GEOMETRY_PASSES = {"use_pass_object_index": "object_index", "use_pass_uv": "uv"}
+GEOMETRY_PASSES = {"use_pass_object_index": "object_index", "use_pass_uv": "uv",
+                   "use_pass_cryptomatte_object": "crypto_object",
+                   "use_pass_cryptomatte_material": "crypto_material",
+                   "use_pass_cryptomatte_asset": "crypto_asset"}
 
 
 def geometry_passes(view_layer) -> frozenset:
@@ -119,17 +126,27 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                     "area lights or emitters")
     if materials.count == 0:
         materials.default_id()
+    built = materials.build()
+    crypto, manifests = None, {}
+    if geometry.cryptomatte is not None:
+        # Cryptomatte: the material's id of each triangle between its object's and asset's.
+        names = materials.cryptomatte_names()
+        hashed = [name_id(name) for name in names]
+        material = np.array([h[0] for h in hashed], np.float32).take(geometry.material_ids)
+        crypto = np.column_stack([geometry.cryptomatte[:, 0], material, geometry.cryptomatte[:, 1]])
+        used = np.unique(geometry.material_ids)
+        manifests = {**geometry.crypto_names, "crypto_material": {names[i]: hashed[i][1] for i in used}}
     scene = Scene(vertices=geometry.vertices, triangles=geometry.triangles,
-                  material_ids=geometry.material_ids, materials=materials.build(), lights=lights,
+                  material_ids=geometry.material_ids, materials=built, lights=lights,
                   camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,
                   tangents=geometry.tangents, vertex_colors=geometry.colors, attributes=geometry.attributes,
                   object_ids=geometry.object_ids,
                   object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
                   object_info=geometry.object_info, object_attributes=geometry.object_attributes,
                   triangle_visibility=geometry.triangle_visibility, emitter_exclude=geometry.emitter_exclude,
-                  textures=materials.textures.images,
+                  textures=materials.textures.images, cryptomatte_ids=crypto,
                   **sets)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,
-                         meshes=geometry.meshes)
+                         meshes=geometry.meshes, cryptomatte_manifests=manifests)
 

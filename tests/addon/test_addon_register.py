@@ -285,6 +285,30 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
         scene.render.engine = ENGINE
 
 
+def test_cryptomatte_panel_draws_the_boxes_of_the_passes_the_engine_writes(scene):
+    """View Layer > Cryptomatte for our engine: Object, Material, Asset and Levels; the passes those
+    boxes ask for are Cycles' (names, channels r, g, b, a, two levels a pass: Levels 5 makes 3)."""
+    import cycles.engine
+    from amcmcppm.amcmcppm_addon import ui
+    from amcmcppm.amcmcppm_addon.engine import CRYPTO_PASSES, crypto_pass_count
+    panel = ui.AMCMCPPM_VIEWLAYER_PT_cryptomatte
+    assert getattr(bpy.types, panel.__name__) is panel
+    layer = scene.view_layers[0]
+    assert list(panel.props) == [prop for _, prop, _ in CRYPTO_PASSES]
+    for prop in panel.props:
+        setattr(layer, prop, True)
+    layer.pass_cryptomatte_depth = 5
+    ours = [(f"{prefix}{i:02d}", "rgba", 'COLOR') for prefix, _, _ in CRYPTO_PASSES
+            for i in range(crypto_pass_count(layer))]
+    theirs = [p for p in cycles.engine.list_render_passes(scene, layer) if p[0].startswith("Crypto")]
+    assert ours == theirs and len(ours) == 9
+    with bpy.context.temp_override(view_layer=layer):
+        assert panel.poll(bpy.context)
+        scene.render.engine = "CYCLES"
+        assert not panel.poll(bpy.context)
+        scene.render.engine = ENGINE
+
+
 def test_light_linking_panels_show_for_engine(scene):
     """Object > Shading > Light Linking and Shadow Linking (Blender's panels, whose parent lists
     the engines that show them) show for lights and meshes: the exporter reads both."""
