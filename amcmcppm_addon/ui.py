@@ -280,28 +280,37 @@ class AMCMCPPM_WORLD_PT_mist(bpy.types.Panel):
         layout.column().prop(mist, "falloff")
 
 
-class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
-    """View Layer Properties > Passes: the data passes the engine writes beside Combined, as Cycles'
-    Data panel (Z, Mist, Position, Normal and UV of the surfaces camera rays stop on, Cycles'
-    Denoising Data box for the Denoising Normal, Albedo and Depth, and the Object and Material
-    Index; ``engine.DATA_PASSES``)."""
-    bl_label = "Passes"
+class AMCMCPPMViewLayerPanel:
+    """View Layer Properties panels shown for our engine alone."""
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
     bl_context = "view_layer"
     COMPAT_ENGINES = {ENGINE_ID}
-    # The view layer's boxes, in Cycles' order (its Data panel's Include and Indexes columns).
-    data = ("use_pass_z", "use_pass_mist", "use_pass_position", "use_pass_normal", "use_pass_uv")
-    indexes = ("use_pass_object_index", "use_pass_material_index")
 
     @classmethod
     def poll(cls, context):
         return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
 
-    def draw(self, context):
+    def split_layout(self):
+        """The panel's layout with Blender's property split (labels left), no decorators."""
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
+        return layout
+
+
+class AMCMCPPM_VIEWLAYER_PT_passes(AMCMCPPMViewLayerPanel, bpy.types.Panel):
+    """View Layer Properties > Passes: the data passes the engine writes beside Combined, as Cycles'
+    Data panel (Z, Mist, Position, Normal and UV of the surfaces camera rays stop on, Cycles'
+    Denoising Data box for the Denoising Normal, Albedo and Depth, and the Object and Material
+    Index; ``engine.DATA_PASSES``)."""
+    bl_label = "Passes"
+    # The view layer's boxes, in Cycles' order (its Data panel's Include and Indexes columns).
+    data = ("use_pass_z", "use_pass_mist", "use_pass_position", "use_pass_normal", "use_pass_uv")
+    indexes = ("use_pass_object_index", "use_pass_material_index")
+
+    def draw(self, context):
+        layout = self.split_layout()
         layer = context.view_layer
         col = layout.column(heading="Data", align=True)
         for name in self.data:
@@ -315,25 +324,15 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
             col.prop(layer, name)
 
 
-class AMCMCPPM_VIEWLAYER_PT_cryptomatte(bpy.types.Panel):
+class AMCMCPPM_VIEWLAYER_PT_cryptomatte(AMCMCPPMViewLayerPanel, bpy.types.Panel):
     """View Layer Properties > Cryptomatte: Object, Material and Asset passes and their Levels, as
     Cycles' panel (``engine.CRYPTO_PASSES``, ``core.cryptomatte``)."""
     bl_label = "Cryptomatte"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "view_layer"
     bl_options = {'DEFAULT_CLOSED'}
-    COMPAT_ENGINES = {ENGINE_ID}
     props = ("use_pass_cryptomatte_object", "use_pass_cryptomatte_material", "use_pass_cryptomatte_asset")
 
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
-
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = self.split_layout()
         layer = context.view_layer
         col = layout.column(heading="Include", align=True)
         for name, text in zip(self.props, ("Object", "Material", "Asset")):

@@ -432,16 +432,7 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
                    np.zeros((n_pix, 3)) if name == "position" else np.zeros(n_pix)) for name in names}
     pix = np.arange(n_pix)
     pix, origins, dirs, tmax, _ = _camera_rays(cam, pix, np.full((n_pix, 4), 0.5))
-    hits, _, _, _ = ctx.trace(origins, dirs, tmax, lambda rows, crossing: rng.random(len(rows)),
-                              ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8),
-                              alpha_threshold=alpha_threshold, stop_chance=cycles_stop_chance(ctx))
-    h = np.flatnonzero(hits.is_hit & (hits.t < tmax))
-    if len(h):
-        prim, b1, b2 = hits.prim_ids.take(h), hits.b1.take(h), hits.b2.take(h)
-        wo = -dirs.take(h, axis=0)
-        pick = rng.random(len(h)) if ctx.has_level_programs else None
-        surf = ctx.surface(prim, b1, b2, pick, Rays(wo, True))
-        first_hit_data(ctx, data, pix.take(h), surf, wo, prim, b1, b2)
+    threshold_data(ctx, rng, data, pix, origins, dirs, tmax, alpha_threshold, past_threshold=False)
     return data
 
 
@@ -451,19 +442,21 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
 THRESHOLD_DATA = {"normal", "uv"}
 
 
-def threshold_data(ctx, rng, data, pix, origins, dirs, tmax, alpha_threshold):
-    """Write the data passes ``data`` (of ``THRESHOLD_DATA``) of pixels ``pix`` as Cycles' sample
+def threshold_data(ctx, rng, data, pix, origins, dirs, tmax, alpha_threshold, past_threshold=True):
+    """Write the data passes ``data`` (:func:`first_hit_data`) of pixels ``pix`` as Cycles' sample
     along the camera rays ``origins + t dirs`` (t < ``tmax``) does: its transparent bounces cross a
-    surface less opaque than ``alpha_threshold`` with the chance of its transparency and go on; the
-    first surface at least that opaque (any, at threshold 0) gives the pass its values; a sample
-    that stops on a more transparent one, or meets nothing, gives 0 (averaged over passes: a sheet
-    of opacity 0.3 before a wall at threshold 0.5 shows 0.7 of the wall's normal, at 0.2 the
-    sheet's)."""
+    surface less opaque than ``alpha_threshold`` by picking its Transparent BSDF
+    (:func:`cycles_stop_chance`) and go on; the first surface at least that opaque (any, at
+    threshold 0) gives the passes their values.  With ``past_threshold`` (the normal and UV,
+    ``THRESHOLD_DATA``) a ray that stops on a more transparent one, or meets nothing, gives 0
+    (averaged over passes: through a sheet of opacity 0.3 and colour 0.8, at threshold 0.5, 0.745 of
+    the wall's normal; at 0.2 the sheet's); without (the centre rays' passes, :func:`centre_data`),
+    the surface it stops on gives them."""
     hits, _, opacity, _ = ctx.trace(origins, dirs, tmax, lambda rows, crossing: rng.random(len(rows)),
                                     ray_kind=np.full(len(pix), VISIBLE_CAMERA, np.uint8),
                                     alpha_threshold=alpha_threshold, stop_chance=cycles_stop_chance(ctx))
     keep = hits.is_hit & (hits.t < tmax)
-    if opacity is not None and alpha_threshold > 0.0:
+    if past_threshold and opacity is not None and alpha_threshold > 0.0:
         keep &= opacity >= min(alpha_threshold, 1.0)
     h = np.flatnonzero(keep)
     if len(h):
