@@ -139,8 +139,10 @@ class GeometryCollector:
         self.groups = {}
         self.infos = {}
         self.properties = {}  # the same keys -> list of {name: (3,) object property} (object_property)
-        # the same keys -> list of (object name, asset name) per instance, with a Cryptomatte pass
+        # With a Cryptomatte pass: the same keys -> list of (object, asset) per instance, as
+        # indices into crypto_names (name -> index)
         self.cryptos = {} if self.passes & set(CRYPTO_KINDS) else None
+        self.crypto_names = {}
 
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
@@ -194,7 +196,9 @@ class GeometryCollector:
         self.infos.setdefault((key, mat_ids, flags, link), []).append(
             object_info(inst) if used & set(OBJECT_INFO) or "object_index" in self.passes else None)
         if self.cryptos is not None:
-            self.cryptos.setdefault((key, mat_ids, flags, link), []).append(crypto_names(inst))
+            index = self.crypto_names
+            pair = tuple(index.setdefault(name, len(index)) for name in crypto_names(inst))
+            self.cryptos.setdefault((key, mat_ids, flags, link), []).append(pair)
         properties = sorted(n for n in used if n.startswith(OBJECT_PROPERTY))
         if properties:                  # (the same names for every instance of a group)
             self.properties.setdefault((key, mat_ids, flags, link), []).append(
@@ -202,7 +206,7 @@ class GeometryCollector:
 
     def finish(self) -> Geometry:
         geometry = assemble(self.meshes, self.groups, self.materials, self.infos, self.properties,
-                            self.passes, self.cryptos)
+                            self.passes, self.cryptos, list(self.crypto_names))
         geometry.meshes = sum(1 for m in self.meshes.values() if m is not None)
         return geometry
 
@@ -777,7 +781,7 @@ def _triangulated_copy(me):
 
 
 def assemble(meshes, groups, materials, infos=None, properties=None, passes=frozenset(),
-             cryptos=None) -> Geometry:
+             cryptos=None, crypto_names=()) -> Geometry:
     """Transform every instance group to world space and concatenate; ``infos``: the groups'
     Object Info rows (:func:`object_info`), kept when some material reads them or ``passes`` has
     "object_index" (the Object Index pass), ``properties`` their objects' properties
@@ -809,7 +813,8 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
         if cryptos is not None:
             # (the instances' triangles follow each other: transform_instances)
             per = len(part["triangles"]) // max(len(matrices), 1)
-            part["crypto"] = np.repeat(np.array(cryptos[key, mat_ids, visibility, link], object), per, axis=0)
+            pairs = np.array(cryptos[key, mat_ids, visibility, link], np.int32)
+            part["crypto"] = np.repeat(pairs, per, axis=0)
         parts.append(part)
         offset += len(part["vertices"])
         instances += len(matrices)
@@ -850,7 +855,7 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
         visibility &= ~hidden.take(material_ids)          # Light Path mixes (materials.py)
     crypto = crypto_manifests = None
     if cryptos is not None:
-        crypto, crypto_manifests = crypto_ids(np.concatenate([p["crypto"] for p in parts]))
+        crypto, crypto_manifests = crypto_ids(np.concatenate([p["crypto"] for p in parts]), crypto_names)
     return Geometry(vertices=vertices, triangles=np.ascontiguousarray(triangles, np.int32),
                     material_ids=np.ascontiguousarray(material_ids, np.int32),
                     shading_normals=None if normals is None else np.ascontiguousarray(normals, np.float32),
@@ -866,17 +871,15 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
                     instances=instances, **links)
 
 
-def crypto_ids(names):
+def crypto_ids(index, names):
     """((T, 2) float32 Cryptomatte ids, {"crypto_object", "crypto_asset": {name: hex}}) of the
-    triangles' (object, asset) ``names`` (T, 2) (:func:`crypto_names`; a name hashed once)."""
-    ids = np.zeros(names.shape, np.float32)
-    manifests = {}
-    for column, kind in enumerate(("crypto_object", "crypto_asset")):
-        unique, inverse = np.unique(names[:, column].astype(str), return_inverse=True)
-        hashed = [name_id(str(n)) for n in unique]
-        ids[:, column] = np.array([h[0] for h in hashed], np.float32)[inverse.ravel()]
-        manifests[kind] = {str(n): h[1] for n, h in zip(unique, hashed)}
-    return ids, manifests
+    triangles' (object, asset) ``index`` (T, 2) int32 into ``names`` (:func:`crypto_names`; each
+    name hashed once)."""
+    hashed = [name_id(n) for n in names]
+    table = np.array([h[0] for h in hashed], np.float32)
+    manifests = {kind: {names[i]: hashed[i][1] for i in np.unique(index[:, column])}
+                 for column, kind in enumerate(("crypto_object", "crypto_asset"))}
+    return table.take(index), manifests
 
 
 def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordinates=frozenset()):
