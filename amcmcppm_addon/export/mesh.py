@@ -243,9 +243,9 @@ def object_info(inst):
 
 def crypto_names(inst):
     """(object, asset) names of a depsgraph instance for Cryptomatte, as Cycles names them: the
-    object's, and its topmost parent's (an instance's: its instancer's topmost parent)."""
-    ob = inst.object
-    top = inst.parent if inst.is_instance and inst.parent is not None else ob
+    object's and its topmost parent's (itself without one; an instance's too, not its
+    instancer's: a cube instanced by an empty's collection is its own asset in Cycles)."""
+    ob = top = inst.object
     while top.parent is not None:
         top = top.parent
     return ob.name, top.name

@@ -136,6 +136,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
         crypto = np.column_stack([geometry.cryptomatte[:, 0], material, geometry.cryptomatte[:, 1]])
         used = np.unique(geometry.material_ids)
         manifests = {**geometry.crypto_names, "crypto_material": {names[i]: hashed[i][1] for i in used}}
+        manifests = {k: v for k, v in manifests.items() if k in collector.passes}   # (those asked for)
     scene = Scene(vertices=geometry.vertices, triangles=geometry.triangles,
                   material_ids=geometry.material_ids, materials=built, lights=lights,
                   camera=camera, world=world, shading_normals=geometry.shading_normals, uvs=geometry.uvs,

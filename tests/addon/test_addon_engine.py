@@ -764,8 +764,8 @@ def test_cryptomatte_passes_match_cycles(scene, tmp_path):
     (its asset is the wall) and a sheet of opacity 0.3 before the wall: inside the sheet the wall's
     coverage is 0.7 (ours exactly: every crossing is followed; Cycles' 64 samples 0.70 +- 0.02 over
     the box), the sheet's 0.3, the card's and the bare wall's 1; the card's asset is the empty it
-    is parented to; every id in the image is in the manifest, with Cycles' hex.  Before, no
-    Cryptomatte passes."""
+    is parented to, a cube instanced by an empty's collection its own; every id in the image is in
+    the manifest, with Cycles' hex.  Before, no Cryptomatte passes."""
     def build():
         bs.empty_scene((40, 30), passes=8, photons_per_pass=500)
         bs.plane("Wall", size=8.0, material=bs.diffuse("WallMat", (0.5, 0.5, 0.5)), location=(0, 4, 0),
@@ -778,6 +778,15 @@ def test_cryptomatte_passes_match_cycles(scene, tmp_path):
         asset = bpy.data.objects.new("Asset", None)           # (an empty at the origin: the card stays)
         bpy.context.scene.collection.objects.link(asset)
         card.parent = asset
+        # A cube instanced by an empty's collection: its asset is itself (not the instancer) in Cycles.
+        cube = bs.cube("Cube", size=0.6, material=bs.diffuse("CubeMat", (0.8, 0.2, 0.2)))
+        bpy.context.scene.collection.objects.unlink(cube)
+        collection = bpy.data.collections.new("Coll")
+        collection.objects.link(cube)
+        instancer = bpy.data.objects.new("Instancer", None)
+        instancer.instance_type, instancer.instance_collection = "COLLECTION", collection
+        instancer.location = (0.9, 1.0, -0.8)
+        bpy.context.scene.collection.objects.link(instancer)
         bs.camera(location=(0, -2, 0), target=(0, 4, 0), lens=30.0)
         bs.light("SUN", location=(0, 0, 5), target=(0.2, 1.0, -0.3), energy=3.0)
         layer = bpy.context.scene.view_layers[0]
@@ -814,6 +823,10 @@ def test_cryptomatte_passes_match_cycles(scene, tmp_path):
         ids = {float(np.float32(name_id(n)[0])) for n in manifest}
         seen = {float(v) for v in np.unique(mine[..., 0]) if v != 0.0}
         assert seen <= ids, prefix
+        # The instanced cube: where Cycles' first level is all cube, ours is too.
+        cube = np.float32(name_id({"CryptoMaterial": "CubeMat"}.get(prefix, "Cube"))[0])
+        where = (theirs[..., 0, 0] == cube) & (theirs[..., 0, 1] > 0.999)
+        assert where.sum() > 10 and (mine[..., 0, 0][where] == cube).mean() > 0.9, prefix
 
 
 # The view layer's boxes (use_pass_*) of the Mist, Position, UV, Object and Material Index passes,

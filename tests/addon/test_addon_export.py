@@ -2829,6 +2829,20 @@ def test_the_camera_takes_cycles_pixel_filter(scene):
     assert c.projection == "equirectangular" and (c.pixel_filter, c.filter_width) == ("gaussian", 3.0)
 
 
+def test_cryptomatte_ids_and_manifests_are_exported_for_the_kinds_asked_for(scene):
+    """Scene.cryptomatte_ids (object, material, asset) only when a Cryptomatte box is ticked, and the
+    manifests of the ticked kinds alone (what the render's metadata names)."""
+    from amcmcppm.core.cryptomatte import name_id
+    bs.camera(location=(0, -5, 1), target=(0, 0, 1))
+    bs.plane("Floor", size=4.0, material=bs.diffuse("FloorMat", (0.5, 0.5, 0.5)))
+    assert bs.export().scene.cryptomatte_ids is None
+    scene.view_layers[0].use_pass_cryptomatte_object = True
+    exported = bs.export()
+    np.testing.assert_array_equal(exported.scene.cryptomatte_ids,
+                                  np.float32([[name_id(n)[0] for n in ("Floor", "FloorMat", "Floor")]] * 2))
+    assert exported.cryptomatte_manifests == {"crypto_object": {"Floor": name_id("Floor")[1]}}
+
+
 def test_camera_scale_is_removed_and_percentage_applied(scene):
     cam = bs.camera(location=(0, -5, 1), target=(0, 0, 1))
     cam.scale = (2, 2, 2)
