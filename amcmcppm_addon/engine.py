@@ -20,7 +20,7 @@ import numpy as np
 from ..core import SceneError
 from ..core.cryptomatte import name_id
 from ..core.integrator import render as core_render
-from ..core.settings import DATA_PASSES as DATA_PASS_NAMES
+from ..core.settings import AOV_PREFIX, DATA_PASSES as DATA_PASS_NAMES
 from .export import export_scene, parse_snapshot_times, render_settings_from
 from .outputs import RenderOutputs
 from .result import PushSchedule, ResultWriter, progress_fraction, stats_line
@@ -52,6 +52,11 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
             if asks_for(renderlayer, "", prop):
                 for i in range(crypto_pass_count(renderlayer)):
                     self.register_pass(scene, renderlayer, f"{prefix}{i:02d}", 4, "rgba", 'COLOR')
+        for aov in shader_aovs(renderlayer):
+            if aov.type == 'VALUE':
+                self.register_pass(scene, renderlayer, aov.name, 1, "X", 'VALUE')
+            else:
+                self.register_pass(scene, renderlayer, aov.name, 4, "RGBA", 'COLOR')
 
 
 # Blender's passes beside Combined: (name, channels, channel ids, type), the box of the view layer
@@ -77,6 +82,11 @@ CRYPTO_PASSES = (("CryptoObject", "use_pass_cryptomatte_object", "crypto_object"
                  ("CryptoAsset", "use_pass_cryptomatte_asset", "crypto_asset"))
 
 
+def shader_aovs(view_layer):
+    """The view layer's valid Shader AOVs (View Layer > Shader AOV), whose passes Cycles writes."""
+    return [aov for aov in getattr(view_layer, "aovs", ()) if aov.is_valid and aov.name]
+
+
 def crypto_pass_count(view_layer) -> int:
     """Passes per kind of Cryptomatte: the view layer's Levels in twos (Cycles' count)."""
     return (min(int(getattr(view_layer, "pass_cryptomatte_depth", 6)), 16) + 1) // 2
@@ -92,14 +102,18 @@ def data_passes_of(view_layer):
     """The core's ``RenderSettings.data_passes`` for the passes ``view_layer`` asks for."""
     wanted = {core for _, owner, prop, core in DATA_PASSES if asks_for(view_layer, owner, prop)}
     wanted |= {core for _, prop, core in CRYPTO_PASSES if asks_for(view_layer, "", prop)}
-    return tuple(name for name in DATA_PASS_NAMES if name in wanted)
+    return (tuple(name for name in DATA_PASS_NAMES if name in wanted)
+            + tuple(AOV_PREFIX + aov.name for aov in shader_aovs(view_layer)))
 
 
-def pass_images(data, camera):
+def pass_images(data, camera, aov_types=None):
     """Blender's pass name -> image of the core's data passes ``data`` (``RenderResult.data``):
     the Denoising Normal in the camera's frame as Cycles' (x right, y up, z into the view) where
-    the Normal pass is in world space.  ``camera`` the exported ``core.Camera``."""
+    the Normal pass is in world space.  ``camera`` the exported ``core.Camera``; ``aov_types``
+    {name: 'COLOR' or 'VALUE'} of the Shader AOVs (a colour AOV is RGBA, its alpha where written; a
+    value AOV one channel)."""
     out = {}
+    aov_types = aov_types or {}
     for (name, *_), _, _, core in DATA_PASSES:
         if core not in data:
             continue
@@ -115,6 +129,10 @@ def pass_images(data, camera):
             pairs = data[core]               # (H, W, 2 levels): two levels a pass
             for i in range(pairs.shape[2] // 4):
                 out[f"{prefix}{i:02d}"] = pairs[:, :, 4 * i:4 * i + 4]
+    for name, image in data.items():
+        if name.startswith(AOV_PREFIX):      # (H, W, 4): the colour and where written, or a value
+            aov = name[len(AOV_PREFIX):]
+            out[aov] = image if aov_types.get(aov) == 'COLOR' else image[..., 0]
     return out
 
 
@@ -185,7 +203,8 @@ def render_final(engine, depsgraph):
             result = core_render(exported.scene, settings, on_iteration=progress.on_iteration,
                                  should_stop=engine.test_break)
             writer.push(result.image)
-            writer.write_data(pass_images(result.data, exported.scene.camera))
+            aov_types = {aov.name: aov.type for aov in shader_aovs(depsgraph.view_layer)}
+            writer.write_data(pass_images(result.data, exported.scene.camera, aov_types))
             writer.add_metadata(crypto_metadata(view_layer, exported.cryptomatte_manifests))
             outputs.finish(result, settings.time_limit or 0.0)
             effects = ", ".join(result.effects) or "none (diffuse surfaces and lights only)"

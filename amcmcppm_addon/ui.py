@@ -8,6 +8,7 @@ colour management, camera, light, material, world) that should also show for
 this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``.
 """
 import bpy
+from bl_ui.properties_view_layer import ViewLayerAOVPanelHelper, ViewLayerCryptomattePanelHelper
 
 from ..core.settings import AUTO_PHOTONS_MIN, RenderSettings
 from .engine import AMCMCPPMRenderEngine
@@ -280,37 +281,28 @@ class AMCMCPPM_WORLD_PT_mist(bpy.types.Panel):
         layout.column().prop(mist, "falloff")
 
 
-class AMCMCPPMViewLayerPanel:
-    """View Layer Properties panels shown for our engine alone."""
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "view_layer"
-    COMPAT_ENGINES = {ENGINE_ID}
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
-
-    def split_layout(self):
-        """The panel's layout with Blender's property split (labels left), no decorators."""
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        return layout
-
-
-class AMCMCPPM_VIEWLAYER_PT_passes(AMCMCPPMViewLayerPanel, bpy.types.Panel):
+class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
     """View Layer Properties > Passes: the data passes the engine writes beside Combined, as Cycles'
     Data panel (Z, Mist, Position, Normal and UV of the surfaces camera rays stop on, Cycles'
     Denoising Data box for the Denoising Normal, Albedo and Depth, and the Object and Material
     Index; ``engine.DATA_PASSES``)."""
     bl_label = "Passes"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "view_layer"
+    COMPAT_ENGINES = {ENGINE_ID}
     # The view layer's boxes, in Cycles' order (its Data panel's Include and Indexes columns).
     data = ("use_pass_z", "use_pass_mist", "use_pass_position", "use_pass_normal", "use_pass_uv")
     indexes = ("use_pass_object_index", "use_pass_material_index")
 
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
+
     def draw(self, context):
-        layout = self.split_layout()
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
         layer = context.view_layer
         col = layout.column(heading="Data", align=True)
         for name in self.data:
@@ -324,22 +316,19 @@ class AMCMCPPM_VIEWLAYER_PT_passes(AMCMCPPMViewLayerPanel, bpy.types.Panel):
             col.prop(layer, name)
 
 
-class AMCMCPPM_VIEWLAYER_PT_cryptomatte(AMCMCPPMViewLayerPanel, bpy.types.Panel):
-    """View Layer Properties > Cryptomatte: Object, Material and Asset passes and their Levels, as
-    Cycles' panel (``engine.CRYPTO_PASSES``, ``core.cryptomatte``)."""
-    bl_label = "Cryptomatte"
-    bl_options = {'DEFAULT_CLOSED'}
+class AMCMCPPM_VIEWLAYER_PT_cryptomatte(ViewLayerCryptomattePanelHelper, bpy.types.Panel):
+    """View Layer Properties > Passes > Cryptomatte: Object, Material, Asset and Levels (Blender's
+    own panel body, as Cycles shows it; ``engine.CRYPTO_PASSES``, ``core.cryptomatte``)."""
+    bl_parent_id = "AMCMCPPM_VIEWLAYER_PT_passes"
+    COMPAT_ENGINES = {ENGINE_ID}
     props = ("use_pass_cryptomatte_object", "use_pass_cryptomatte_material", "use_pass_cryptomatte_asset")
 
-    def draw(self, context):
-        layout = self.split_layout()
-        layer = context.view_layer
-        col = layout.column(heading="Include", align=True)
-        for name, text in zip(self.props, ("Object", "Material", "Asset")):
-            col.prop(layer, name, text=text)
-        col = layout.column()
-        col.active = any(getattr(layer, name) for name in self.props)
-        col.prop(layer, "pass_cryptomatte_depth", text="Levels")
+
+class AMCMCPPM_VIEWLAYER_PT_aov(ViewLayerAOVPanelHelper, bpy.types.Panel):
+    """View Layer Properties > Passes > Shader AOV: the view layer's AOV list (Blender's own panel
+    body, as Cycles shows it), whose passes the materials' AOV Output nodes write."""
+    bl_parent_id = "AMCMCPPM_VIEWLAYER_PT_passes"
+    COMPAT_ENGINES = {ENGINE_ID}
 
 
 classes = (
@@ -396,7 +385,7 @@ def get_panels():
 # Panels outside the Render Properties.
 other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
                  AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes,
-                 AMCMCPPM_VIEWLAYER_PT_cryptomatte)
+                 AMCMCPPM_VIEWLAYER_PT_cryptomatte, AMCMCPPM_VIEWLAYER_PT_aov)
 
 
 def register():

@@ -844,6 +844,24 @@ class RenderContext:
                              self.textures.images)
             yield sel, (value @ LUMINANCE if value.ndim == 2 else value)
 
+    def aov_values(self, column, prim_ids, b1, b2, pos, rays=None):
+        """(writes (k,) bool, values (k, 3) float64) of the Shader AOV ``column``
+        (``Materials.aov_names``) at hits of triangles ``prim_ids`` (barycentrics ``b1``, ``b2``,
+        positions ``pos``, met by ``rays``): whether each triangle's material writes it, and its
+        value there (a number repeated), unclamped as Cycles writes it; NaN -> 0."""
+        mats = self.scene.materials
+        mat = self.material_ids.take(prim_ids)
+        writes = mats.aov_writes[:, column].take(mat)
+        values = mats.aov_value[:, column].take(mat, axis=0).astype(np.float64)
+        program = mats.aov_program[:, column].take(mat)
+        bary = ((1.0 - b1 - b2)[:, None], b1[:, None], b2[:, None])
+        for p in np.unique(program[program >= 0]):
+            sel = np.flatnonzero(program == p)
+            attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)
+            v = evaluate(self.programs[p], attrs, self.textures.images)
+            values[sel] = v if v.ndim == 2 else v[:, None]
+        return writes, np.nan_to_num(values, nan=0.0, posinf=0.0, neginf=0.0)
+
     def _hit_attributes(self, sel, prim_ids, bary, pos, rays):
         """``HitAttributes`` of the hits ``sel`` of these (which may cast Ambient Occlusion's and, for
         sharp ``rays``, Bevel's rays)."""

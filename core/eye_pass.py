@@ -25,7 +25,7 @@ from . import cryptomatte, subsurface
 from .procedural import Rays, camera_path
 from .sampling import dot
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
-from .settings import BounceLimits
+from .settings import AOV_PREFIX, BounceLimits
 
 
 @dataclass
@@ -151,6 +151,9 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
             data[name] = np.zeros(n_pix)
     if "mist" in data_passes:
         data["mist"] = np.ones(n_pix)                 # (rays that meet nothing: all mist)
+    for name in data_passes:
+        if name.startswith(AOV_PREFIX):
+            data[name] = np.zeros((n_pix, 4))         # (value or colour, and 1 where written)
     for name in ("denoising_normal", "denoising_depth"):
         if name in data_passes:
             data[name] = np.zeros((n_pix, 3) if name == "denoising_normal" else n_pix)
@@ -411,6 +414,15 @@ def first_hit_data(ctx, data, pix, surf, wo, prim, b1, b2):
         data["object_index"][pix] = scene.object_info[:, 1].take(scene.object_ids.take(prim))
     if "material_index" in data and scene.materials.pass_index is not None:
         data["material_index"][pix] = scene.materials.pass_index.take(scene.material_ids.take(prim))
+    aovs = [name for name in data if name.startswith(AOV_PREFIX)]
+    if aovs:
+        rays = Rays(wo, True)
+        names = scene.materials.aov_names
+        for name in aovs:
+            if name[len(AOV_PREFIX):] in names:
+                writes, values = ctx.aov_values(names.index(name[len(AOV_PREFIX):]), prim, b1, b2,
+                                                surf.position, rays)
+                data[name][pix] = np.column_stack([values, np.ones(len(pix))]) * writes[:, None]
     if "mist" in data:
         w = scene.world
         fraction = np.clip((np.sqrt(dot(offset, offset)) - w.mist_start) / max(w.mist_depth, 1e-30), 0.0, 1.0)
@@ -438,7 +450,8 @@ def centre_data(ctx, rng, names, alpha_threshold=1.0):
 
 # The data passes Cycles writes at the first surface at least as opaque as the Alpha Threshold that
 # a sample's transparent bounces reach (film/data_passes.h: at a more transparent one where the
-# sample stops, none).
+# sample stops, none), and the Shader AOVs ("aov:" + name, ``settings.AOV_PREFIX``), which it
+# writes there too (svm/aov.h; also at the more transparent ones crossed before it: not here).
 THRESHOLD_DATA = {"normal", "uv"}
 
 
@@ -549,7 +562,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                                  data.get("denoising_depth"))
     # The normal and UV past transparent surfaces by the Alpha Threshold (their own rays and
     # numbers; where no surface is transparent, those of the paths' first hits).
-    apart = (THRESHOLD_DATA & data.keys()) if data and ctx.has_transparency else set()
+    apart = ({k for k in data if k in THRESHOLD_DATA or k.startswith(AOV_PREFIX)}
+             if data and ctx.has_transparency else set())
     if apart:
         threshold_data(ctx, rng.spawn(1)[0], {k: data[k] for k in apart}, pix, origins, dirs, tmax,
                        alpha_threshold)

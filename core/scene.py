@@ -383,6 +383,13 @@ class Materials:
     level_first: np.ndarray = None                      # (M,) int32, a material index or -1; None: -1
     level_count: np.ndarray = None                      # (M,) int32 >= 0; None: 0
     programs: list = field(default_factory=list)        # procedural colour programs (node dicts)
+    # Shader AOVs (AOV Output nodes; Cycles writes them at the surfaces camera rays reach, as the
+    # Normal pass): A names; per material and AOV whether it writes it, its constant value (a
+    # colour, or a number repeated) and a program of it (index into programs, or -1: the constant).
+    aov_names: list = field(default_factory=list)
+    aov_writes: np.ndarray = None                       # (M, A) bool; None: none
+    aov_value: np.ndarray = None                        # (M, A, 3) float32
+    aov_program: np.ndarray = None                      # (M, A) int32
 
     ARRAY_FIELDS = ("diffuse_weight", "diffuse_color", "diffuse_texture", "glossy_weight",
                     "glossy_color", "glossy_roughness", "glossy_multiscatter", "glossy_fresnel_ior",
@@ -573,6 +580,19 @@ class Materials:
         out.level_first = np.full(m, -1, np.int32)
         out.level_count = np.zeros(m, np.int32)
         stored = {}
+        # Shader AOVs: spec "aovs" {name: a colour, a number or a program}.
+        out.aov_names = sorted({name for s in specs for name in s.get("aovs", {})})
+        out.aov_writes = np.zeros((m, len(out.aov_names)), bool)
+        out.aov_value = np.zeros((m, len(out.aov_names), 3), np.float32)
+        out.aov_program = np.full((m, len(out.aov_names)), -1, np.int32)
+        for i, s in enumerate(specs):
+            for name, value in s.get("aovs", {}).items():
+                a = out.aov_names.index(name)
+                out.aov_writes[i, a] = True
+                if isinstance(value, dict):
+                    out.aov_program[i, a] = _stored_program(out, stored, value)
+                else:
+                    out.aov_value[i, a] = np.broadcast_to(np.asarray(value, np.float32), (3,))
         for i, s in enumerate(specs):
             for lobe in ("diffuse", "glossy", "mirror", "dielectric", "translucent"):
                 if lobe in s:
@@ -583,11 +603,7 @@ class Materials:
                     getattr(out, f"{lobe}_weight")[i] = s[f"{lobe}_weight"]
             for field_name in Materials.PROGRAM_FIELDS:
                 if field_name in s:
-                    key = procedural.to_json(s[field_name])
-                    if key not in stored:
-                        stored[key] = len(out.programs)
-                        out.programs.append(procedural.from_json(key))
-                    getattr(out, field_name)[i] = stored[key]
+                    getattr(out, field_name)[i] = _stored_program(out, stored, s[field_name])
             if "diffuse_texture" in s or "diffuse_program" in s:
                 out.diffuse_texture[i] = s.get("diffuse_texture", -1)
                 if "diffuse" not in s:
@@ -1486,7 +1502,25 @@ class Scene:
             v = getattr(mats, name)
             if ((v < -1) | (v >= len(mats.programs))).any():
                 fail(f"materials.{name} must be -1 or an index below {len(mats.programs)}")
-        used = np.concatenate([getattr(mats, name) for name in Materials.PROGRAM_FIELDS])
+        n_aov = len(mats.aov_names)
+        m = len(mats.names)
+        if mats.aov_writes is None:
+            mats.aov_writes, mats.aov_program = np.zeros((m, 0), bool), np.zeros((m, 0), np.int32)
+            mats.aov_value = np.zeros((m, 0, 3), np.float32)
+        mats.aov_names = [str(n) for n in mats.aov_names]
+        for name, shape in (("aov_writes", (m, n_aov)), ("aov_program", (m, n_aov)),
+                            ("aov_value", (m, n_aov, 3))):
+            if np.shape(getattr(mats, name)) != shape:
+                fail(f"materials.{name} must have shape {shape} (materials, aov_names)")
+        mats.aov_writes = np.asarray(mats.aov_writes, bool)
+        mats.aov_program = np.asarray(mats.aov_program, np.int32)
+        mats.aov_value = np.asarray(mats.aov_value, np.float32)
+        if not np.isfinite(mats.aov_value).all():
+            fail("materials.aov_value contains NaN or infinite values")
+        if ((mats.aov_program < -1) | (mats.aov_program >= len(mats.programs))).any():
+            fail(f"materials.aov_program must be -1 or an index below {len(mats.programs)}")
+        used = np.concatenate([getattr(mats, name) for name in Materials.PROGRAM_FIELDS]
+                              + [mats.aov_program.ravel()])
         partial = (mats.glossy_metal_tint >= 0).all(axis=1) & (mats.glossy_metal_share < 1.0)
         rising = np.flatnonzero((mats.glossy_program >= 0) & (((mats.glossy_fresnel_ior > 0) & ~partial)
                                                                 | (mats.glossy_metal_rise != 0).any(axis=1)
@@ -1560,6 +1594,10 @@ class Scene:
             d[f"materials.{name}"] = getattr(self.materials, name)
         if self.materials.programs:
             d["materials.programs"] = np.array([procedural.to_json(p) for p in self.materials.programs], str)
+        if self.materials.aov_names:
+            d["materials.aov_names"] = np.array(self.materials.aov_names, str)
+            for name in ("aov_writes", "aov_value", "aov_program"):
+                d[f"materials.{name}"] = getattr(self.materials, name)
         for name in Lights.ARRAY_FIELDS:
             d[f"lights.{name}"] = getattr(self.lights, name)
         if self.lights.profiles is not None:
@@ -1629,6 +1667,10 @@ class Scene:
         for name in Materials.ARRAY_FIELDS:
             setattr(mats, name, get(f"materials.{name}"))
         mats.programs = [str(p) for p in get("materials.programs", np.array([], str))]
+        if "materials.aov_names" in keys:
+            mats.aov_names = [str(n) for n in get("materials.aov_names")]
+            for name in ("aov_writes", "aov_value", "aov_program"):
+                setattr(mats, name, get(f"materials.{name}"))
         lights = Lights(**{name: get(f"lights.{name}") for name in Lights.ARRAY_FIELDS},
                         profiles=get("lights.profiles"))
         cam = Camera(world_from_camera=get("camera.world_from_camera"),
@@ -1689,6 +1731,15 @@ class Scene:
     def replace(self, **changes) -> "Scene":
         """A shallow copy with some fields replaced (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
+
+
+def _stored_program(mats, stored, program):
+    """The index of ``program`` in ``mats.programs``, appended once (``stored``: its JSON -> index)."""
+    key = procedural.to_json(program)
+    if key not in stored:
+        stored[key] = len(mats.programs)
+        mats.programs.append(procedural.from_json(key))
+    return stored[key]
 
 
 def _filter_fields(get):

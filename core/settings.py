@@ -27,6 +27,8 @@ NORMALISATIONS = ("cumulative", "per_pass")
 DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth", "position", "uv",
                "object_index", "material_index", "mist", "crypto_object", "crypto_material", "crypto_asset")
 FIRST_PASS_DATA = ("depth", "position", "object_index", "material_index")
+# A Shader AOV's data pass: this and its name (Materials.aov_names).
+AOV_PREFIX = "aov:"
 MAX_BOUNCES = 64                    # the most any bounce limit may be
 # The most transparent bounces (Cycles' Transparent, at most 1024 there too): at it, crossings are
 # not counted (each segment of a path crosses at most context.MAX_TRANSPARENT_CROSSINGS surfaces).
@@ -246,7 +248,9 @@ class RenderSettings:
     nothing), "mist" (``World.mist_*`` of its distance from the camera; 1 where rays meet
     nothing); "crypto_object", "crypto_material", "crypto_asset": Cycles' Cryptomatte passes
     (:mod:`core.cryptomatte`, ``Scene.cryptomatte_ids``), (H, W, 2 ``cryptomatte_levels``) of (id,
-    coverage) pairs by decreasing coverage."""
+    coverage) pairs by decreasing coverage; "aov:" + a name (``Materials.aov_names``): that Shader
+    AOV (H, W, 4), its value (a colour, or a number repeated) where the camera rays' surface writes
+    it and 1 in the fourth channel, averaged over the passes (0 where none writes it)."""
 
     cryptomatte_levels: int = 6
     """The (id, coverage) pairs per pixel of the Cryptomatte passes (Blender's View Layer >
@@ -271,8 +275,9 @@ class RenderSettings:
             bad("mutation", f"must be one of {MUTATIONS}")
         if self.normalisation not in NORMALISATIONS:
             bad("normalisation", f"must be one of {NORMALISATIONS}")
-        if not set(self.data_passes) <= set(DATA_PASSES):
-            bad("data_passes", f"must name some of {DATA_PASSES}")
+        if not all(name in DATA_PASSES or (isinstance(name, str) and name.startswith(AOV_PREFIX))
+                   for name in self.data_passes):
+            bad("data_passes", f"must name some of {DATA_PASSES} or Shader AOVs ('{AOV_PREFIX}' + name)")
         if self.passes < 0:
             bad("passes", "must be >= 0")
         if not self.time_limit >= 0:

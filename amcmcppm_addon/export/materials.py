@@ -1058,9 +1058,10 @@ class Textures:
 class MaterialExporter:
     """Assigns core material ids to Blender materials and builds ``core.Materials``."""
 
-    def __init__(self, log, layer_owners=()):
+    def __init__(self, log, layer_owners=(), aovs=None):
         self.log = log
         self.layer_owners = layer_owners    # (``procedural.view_layer_owners``)
+        self.aovs = dict(aovs or {})        # the view layer's Shader AOVs: name -> 'COLOR' or 'VALUE'
         self.textures = Textures(log)
         self._specs = []            # Materials.build entries
         self._ids = {}              # material pointer (or None for the default) -> id
@@ -1097,6 +1098,10 @@ class MaterialExporter:
             # The Material Index pass: the material's pass index, on the rows of its levels too.
             for row in (spec, *spec.get("levels", ())):
                 row["pass_index"] = float(material.pass_index)
+            if self.aovs:
+                written = walker.aov_outputs(material, self.aovs)
+                if written:
+                    spec["aovs"] = written
             self._ids[key] = self._add(spec)
             if closure.hidden_rays:
                 self._hidden[self._ids[key]] = closure.hidden_rays
@@ -1126,6 +1131,9 @@ class MaterialExporter:
             for key in Materials.PROGRAM_FIELDS:
                 if key in self._specs[i]:
                     used |= procedural.attributes_used(self._specs[i][key])
+            for value in self._specs[i].get("aovs", {}).values():      # (Shader AOVs' programs)
+                if isinstance(value, dict):
+                    used |= procedural.attributes_used(value)
             if self._specs[i].get("glossy_tangent", TANGENT_UV) != TANGENT_UV:
                 used.add("generated")
             if self._specs[i].get("normal_space") in (NORMAL_OBJECT, NORMAL_BLENDER_OBJECT):
@@ -1229,6 +1237,25 @@ class NodeWalker:
         if bump is not None and closure is not None:
             self._displace(closure, bump)
         return closure or Closure()
+
+    def aov_outputs(self, material, aovs):
+        """{name: a colour, a number or a program} of the material's AOV Output nodes whose name is
+        one of the view layer's Shader ``aovs`` (name -> 'COLOR' or 'VALUE'): its Color input for a
+        colour AOV, its Value for a value AOV, as Cycles compiles them (svm/aov.h); nodes in groups
+        and muted ones are not read."""
+        out = {}
+        for node in material.node_tree.nodes if material.node_tree is not None else ():
+            if node.bl_idname != "ShaderNodeOutputAOV" or node.mute or node.aov_name not in aovs:
+                continue
+            color = aovs[node.aov_name] == 'COLOR'
+            sock, want = (node.inputs["Color"], VEC) if color else (node.inputs["Value"], FLOAT)
+            e = self.programs.expression(sock, (), want)
+            if isinstance(e, dict) and procedural.varies(e):
+                out[node.aov_name] = e
+            else:
+                value = self.programs.constant_of(sock, (), want)
+                out[node.aov_name] = [float(v) for v in np.broadcast_to(np.asarray(value, np.float64), (3,))]
+        return out
 
     def _displace(self, closure, bump):
         """Lay the Displacement output's ``bump`` under ``closure`` and its levels.  Cycles' Bump

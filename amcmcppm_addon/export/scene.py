@@ -80,8 +80,9 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     """
     t0 = time.perf_counter()
     log = ExportLog()
-    materials = MaterialExporter(log, view_layer_owners(depsgraph))
     view_layer = depsgraph.view_layer_eval
+    materials = MaterialExporter(log, view_layer_owners(depsgraph),
+                                 aovs={aov.name: aov.type for aov in view_layer.aovs if aov.name})
     # Light and shadow linking (receiver and blocker collections), each None when unused.
     linking = (LightLinking.from_depsgraph(depsgraph, log, "receiver"),
                LightLinking.from_depsgraph(depsgraph, log, "blocker"))

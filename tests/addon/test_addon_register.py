@@ -285,9 +285,10 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
         scene.render.engine = ENGINE
 
 
-def test_cryptomatte_panel_draws_the_boxes_of_the_passes_the_engine_writes(scene):
-    """View Layer > Cryptomatte for our engine: Object, Material, Asset and Levels; the passes those
-    boxes ask for are Cycles' (names, channels r, g, b, a, two levels a pass: Levels 5 makes 3)."""
+def test_cryptomatte_and_aov_panels_show_for_the_engine(scene):
+    """View Layer > Passes > Cryptomatte and Shader AOV for our engine (Blender's panel bodies):
+    the passes the Cryptomatte boxes ask for are Cycles' (names, channels r, g, b, a, two levels a
+    pass: Levels 5 makes 3)."""
     import cycles.engine
     from amcmcppm.amcmcppm_addon import ui
     from amcmcppm.amcmcppm_addon.engine import CRYPTO_PASSES, crypto_pass_count
@@ -302,10 +303,13 @@ def test_cryptomatte_panel_draws_the_boxes_of_the_passes_the_engine_writes(scene
             for i in range(crypto_pass_count(layer))]
     theirs = [p for p in cycles.engine.list_render_passes(scene, layer) if p[0].startswith("Crypto")]
     assert ours == theirs and len(ours) == 9
+    aov = ui.AMCMCPPM_VIEWLAYER_PT_aov            # (the Shader AOV list, Blender's panel body)
+    assert getattr(bpy.types, aov.__name__) is aov
+    assert aov.bl_parent_id == panel.bl_parent_id == ui.AMCMCPPM_VIEWLAYER_PT_passes.__name__
     with bpy.context.temp_override(view_layer=layer):
-        assert panel.poll(bpy.context)
+        assert panel.poll(bpy.context) and aov.poll(bpy.context)
         scene.render.engine = "CYCLES"
-        assert not panel.poll(bpy.context)
+        assert not panel.poll(bpy.context) and not aov.poll(bpy.context)
         scene.render.engine = ENGINE
 
 

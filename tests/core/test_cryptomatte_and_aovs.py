@@ -1,4 +1,5 @@
-"""Cryptomatte passes (core/cryptomatte.py): ids, coverage through transparent surfaces, slots."""
+"""Cryptomatte passes (core/cryptomatte.py): ids, coverage through transparent surfaces, slots; and
+Shader AOVs (Materials.aov_*): the other passes of ids and masks a compositor picks from."""
 import numpy as np
 import pytest
 
@@ -84,3 +85,38 @@ def test_cryptomatte_ids_survive_a_file_round_trip_and_bad_values_are_refused(tm
     plain = render(scene.replace(cryptomatte_ids=None),
                    RenderSettings(passes=1, photons_per_pass=100, workers=1, data_passes=("crypto_object",)))
     assert "crypto_object" not in plain.data
+
+
+def test_shader_aovs_are_written_where_the_camera_rays_stop(tmp_path):
+    """Materials' Shader AOVs (``Materials.aov_*``, data passes "aov:" + name): the wall writes a
+    colour "mask" and a program of its position into "height", the card another mask and no
+    height; (H, W, 4) with 1 in the fourth channel where written, 0 elsewhere; a name no material
+    writes gives zeros; the AOVs survive a file round trip; a bad program index is refused."""
+    from test_render_basics import wall_and_card
+    camera = Camera.look_at((0, 0, 0), (0, 1, 0), resolution=(16, 12), lens_mm=20.0)
+    scene = wall_and_card(camera, sheet=False)
+    specs = [{"name": "wall", "diffuse": 0.5,
+              "aovs": {"mask": [1.0, 0.5, 0.25], "height": {"op": "attribute", "name": "position"}}},
+             {"name": "card", "diffuse": 0.8, "aovs": {"mask": 2.0}}]
+    scene = scene.replace(materials=Materials.build(specs))
+    data = render(scene, RenderSettings(passes=2, photons_per_pass=200, workers=1,
+                                        data_passes=("aov:mask", "aov:height", "aov:none"))).data
+    mask, height = data["aov:mask"], data["aov:height"]
+    assert mask.shape == (12, 16, 4) and (data["aov:none"] == 0).all()
+    assert (mask[..., 3] == 1.0).all()                       # (every pixel sees the wall or the card)
+    card = (mask == [2.0, 2.0, 2.0, 1.0]).all(axis=-1)
+    wall = (mask == [1.0, 0.5, 0.25, 1.0]).all(axis=-1)
+    # Only the card's edges mix the two (a pixel's passes see either).
+    assert card.sum() > 4 and wall.sum() > 150 and (~card & ~wall).sum() < 20
+    assert (height[card] == 0).all()
+    # The wall at y = 4: the height is the point's position (x, 4, z), averaged over the passes.
+    np.testing.assert_allclose(height[wall][:, 1], 4.0, atol=1e-4)
+    assert np.ptp(height[wall][:, 0]) > 4.0 and (height[wall][:, 3] == 1.0).all()
+    scene.save(tmp_path / "s.npz")
+    loaded = Scene.load(tmp_path / "s.npz").materials
+    assert loaded.aov_names == ["height", "mask"]
+    np.testing.assert_array_equal(loaded.aov_program, scene.materials.aov_program)
+    bad = Materials.build(specs)
+    bad.aov_program[0, 0] = 5
+    with pytest.raises(SceneError, match="aov_program"):
+        scene.replace(materials=bad).validate()
