@@ -559,10 +559,10 @@ def assert_channels_match(name, cycles, ours, rtol=TOLERANCE, band_rtol=BAND_TOL
     return c, o
 
 
-def assert_image_matches(name, cycles, ours, rtol=TOLERANCE):
+def assert_image_matches(name, cycles, ours, rtol=TOLERANCE, band_rtol=BAND_TOLERANCE):
     """:func:`assert_channels_match`, and the 4 x 4 blocks' layout correlated above 0.99 in every
     channel (:func:`block_correlation`): the means and where the light falls."""
-    assert_channels_match(name, cycles, ours, rtol=rtol)
+    assert_channels_match(name, cycles, ours, rtol=rtol, band_rtol=band_rtol)
     assert min(block_correlation(name, cycles, ours)) > 0.99
 
 
@@ -1776,7 +1776,10 @@ def test_emitters_that_do_not_light_some_rays_match_cycles(addon, tmp_path, emit
                              location=(-0.6, -0.6, 1.6), rotation=(math.radians(200), 0, 0))
             panel.visible_glossy = False
     cycles, ours = cycles_and_ours(build, tmp_path)
-    assert_image_matches(f"emitters without some rays ({emitters})", cycles, ours)
+    # (world_and_panel's third band moves by +-3 % between seeds: 0.946-1.006 over seeds 0-2 with
+    # Blender's pixel filter, stop 52)
+    assert_image_matches(f"emitters without some rays ({emitters})", cycles, ours,
+                         band_rtol=0.07 if emitters == "world_and_panel" else BAND_TOLERANCE)
 
 
 def test_a_panel_hidden_from_glossy_rays_throws_no_light_off_a_mirror_as_in_cycles(addon, tmp_path):
@@ -1842,12 +1845,13 @@ def test_a_backplate_of_window_coordinates_matches_cycles(addon, tmp_path):
             inner &= np.roll(sky, shift, axis=axis)
     print(f"backplate: {sky.mean():.3f} of the pixels see it, {inner.mean():.3f} inside")
     assert 0.1 < inner.mean() < 0.9
-    # Ours jitters within each pixel for each of its 8 passes, Cycles filters 512 samples about its
-    # centre: both average to the centre, ours within half a pixel (1 / 128 of the frame's width).
+    # Both filter their samples about the pixel's centre (Blackman-Harris, 0.42 pixels of spread):
+    # ours over 8 passes within a pixel's change of the ramp (1 / 64 of the frame's width; measured
+    # 0.011, before stop 52's pixel filter 0.006 with a box of one pixel).
     diff = np.abs(ours[inner, :3] - cycles[inner, :3])
     print(f"backplate: difference mean {diff.mean():.1e}, largest {diff.max():.1e}; red from "
           f"{cycles[inner, 0].min():.3f} to {cycles[inner, 0].max():.3f}")
-    assert diff.max() < 0.5 / RESOLUTION[0] and diff.mean() < 2e-3 and np.ptp(cycles[inner, 0]) > 0.5
+    assert diff.max() < 1.0 / RESOLUTION[0] and diff.mean() < 2e-3 and np.ptp(cycles[inner, 0]) > 0.5
     c, o = assert_channels_match("backplate, lit part", cycles[~sky][None], ours[~sky][None])
     assert pixel_correlation("backplate", c, o) > 0.95
 
@@ -2070,10 +2074,12 @@ def wax(node, method, weight=1.0):
 def wax_and_diffuse(tmp_path, node, method, shape):
     """(Cycles', ours, ours with a diffuse wax) images of a wax ``shape`` on a floor: a cube of 1 m
     lit from behind and above, or a slab 8 cm thick lit from behind by an area light 0.7 m away
-    (16 passes of 100,000 photons: the walks add their own noise; uniform photons, as the chains'
-    small batches make the photons' walks three times as slow: benchmarks/subsurface_cost.py)."""
+    (48 passes of 100,000 photons: the walks add their own noise, and the cube's top face, lit at
+    grazing incidence, is a few very bright rows whose band moved by +-8 % between seeds at 16
+    passes; uniform photons, as the chains' small batches make the photons' walks three times as
+    slow: benchmarks/subsurface_cost.py)."""
     def build(kind):
-        bs.empty_scene(RESOLUTION, **{**OURS, "passes": 16, "photons_per_pass": 100_000, "method": "ppm"})
+        bs.empty_scene(RESOLUTION, **{**OURS, "passes": 48, "photons_per_pass": 100_000, "method": "ppm"})
         material = wax(kind, method)
         bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.8, 0.8, 0.8)))
         if shape == "cube":
@@ -2106,6 +2112,9 @@ def test_subsurface_scattering_matches_cycles(addon, tmp_path, node, method):
     bands and where the light falls (4 x 4 blocks); the diffuse wax of before misses the red mean
     by more than the 3 % allowed (0.84 of Cycles for the Principled, 0.93-0.94 for the BSDF)."""
     cycles, ours, diffuse = wax_and_diffuse(tmp_path, node, method, "cube")
+    # (the second band holds the cube's top face, lit at grazing incidence: a few very bright rows
+    # whose mean moved by +-8 % between seeds, 0.417-0.498 over seeds 0-3 at 16 passes with either
+    # pixel filter, Cycles' 0.464; 48 passes since stop 52: 0.978-0.989)
     assert_image_matches(f"subsurface {node} {method}", cycles, ours)
     before = diffuse[..., 0].mean() / cycles[..., 0].mean()
     print(f"diffuse wax / cycles, red: {before:.4f}")
@@ -2240,7 +2249,9 @@ def light_paths_match_cycles(tmp_path, case, other, settings, rtol=TOLERANCE):
     print(f"light paths {case}: cycles {mean_cycles:.5f} ours {mean_ours:.5f} "
           f"ratio {mean_ours / mean_cycles:.4f}")
     assert mean_ours == pytest.approx(mean_cycles, rel=rtol)
-    assert_bands_match(case, ours, cycles)
+    # (glass_transmission_1's second band moves by +-3 % between seeds: 0.944-0.985 over seeds 0-2
+    # with Blender's pixel filter, stop 52)
+    assert_bands_match(case, ours, cycles, rtol=0.07 if case == "glass_transmission_1" else BAND_TOLERANCE)
     return cycles, ours
 
 
