@@ -160,15 +160,14 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     if {"albedo", "denoising_normal", "denoising_depth"} & set(data_passes):
         data["albedo"] = np.zeros((n_pix, 3))         # (the other denoising features follow it)
     kinds = [k for k in cryptomatte.KINDS if k in data_passes and ctx.scene.cryptomatte_ids is not None]
-    if kinds:
-        data["cryptomatte"] = []                      # (pixels, triangles, weights) per chunk
+    chunks = [] if kinds else None                    # Cryptomatte's (pixels, triangles, weights) per chunk
     parts, volume = [], []
     rays = 0
     per_segment = int(np.clip(VOLUME_POINT_BUDGET // max(n_pix, 1), 1, MAX_SEGMENT_POINTS))
     for start in range(0, n_pix, EYE_CHUNK):
         pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
-                                        limits, volume, per_segment, data, alpha_threshold)
+                                        limits, volume, per_segment, data, alpha_threshold, chunks)
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
@@ -176,7 +175,6 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         data.pop("albedo", None)
     if kinds:
         # Each kind: (pixels, ids, weights) of the surfaces the rays reached (Accumulator sums them).
-        chunks = data.pop("cryptomatte")
         pix, prim, weight = (np.concatenate(c) for c in zip(*chunks))
         ids = ctx.scene.cryptomatte_ids.take(prim, axis=0)
         for k in kinds:
@@ -519,10 +517,11 @@ def _box_exit(origins, dirs, lo, hi):
 
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
-                        per_segment=1, data=None, alpha_threshold=1.0):
+                        per_segment=1, data=None, alpha_threshold=1.0, coverage=None):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
-    ``per_segment`` in each segment through one)."""
+    ``per_segment`` in each segment through one, and to the list ``coverage``, if given, the camera
+    rays' Cryptomatte coverage, :func:`~core.cryptomatte.coverage`)."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, rng.random((len(pix), 4)))
@@ -567,8 +566,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     if apart:
         threshold_data(ctx, rng.spawn(1)[0], {k: data[k] for k in apart}, pix, origins, dirs, tmax,
                        alpha_threshold)
-    if data and "cryptomatte" in data:
-        data["cryptomatte"].append(cryptomatte.coverage(ctx, pix, origins, dirs, tmax))
+    if coverage is not None:
+        coverage.append(cryptomatte.coverage(ctx, pix, origins, dirs, tmax))
     for depth in range(limits.total + 2):
         if len(pix) == 0:
             break
@@ -687,7 +686,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             rays_in = Rays(wo, True)
         surf = ctx.surface(prim, b1, b2, rng.random(len(prim)) if ctx.has_level_programs else None, rays_in)
         if depth == 0 and data:
-            first = {k: v for k, v in data.items() if k not in apart and k != "cryptomatte"}
+            first = {k: v for k, v in data.items() if k not in apart}
             first_hit_data(ctx, first, pix, surf, wo, prim, b1, b2)
         # Emission seen along the path (emitters are two-sided).
         emissive = table.is_emissive.take(surf.mat_ids)
