@@ -1438,6 +1438,36 @@ def lobe_remainder(scores, u, lobe):
     return np.clip(r, 0.0, np.nextafter(1.0, 0.0))
 
 
+def dielectric_albedos(table, mat_ids, colors, wo, ng, ns):
+    """(reflected, transmitted) (n, 3): what the glass lobes (``DIELECTRIC``) of ``mat_ids`` with
+    lobe colours ``colors`` (n, lobes, 3) reflect and transmit seen from ``wo``, as Cycles'
+    ``bsdf_microfacet_estimate_albedo`` takes a dielectric's (smooth or rough): the Fresnel
+    factor F at the shading normal, F times the reflection colour and (1 - F) times the colour,
+    times the lobe's weight (a Refraction BSDF's share of F, a film's F by channel; nothing
+    transmitted past total internal reflection), the means of :func:`scatter`'s two branches."""
+    m = mat_ids
+    entering = dot(wo, ng) > 0
+    ior = table.ior.take(m)
+    eta = np.where(entering, ior, 1.0 / ior)
+    fr, cos_t = smp.fresnel_dielectric(np.clip(np.abs(dot(wo, ns)), 0.0, 1.0), eta)
+    refracts = np.ones(len(m), bool)
+    if table.dielectric_fresnel is not None:
+        refracts = cos_t > 0.0
+        fr = table.dielectric_fresnel.take(m) * fr
+    f = np.repeat(fr[:, None], 3, axis=1)
+    if table.has_glass_film:
+        film = np.flatnonzero(table.glass_film.take(m))
+        if len(film):
+            share = (1.0 if table.dielectric_fresnel is None
+                     else table.dielectric_fresnel.take(m.take(film))[:, None])
+            cos_i = np.clip(np.abs(dot(wo.take(film, axis=0), ns.take(film, axis=0))), 0.0, 1.0)
+            f[film] = share * table.glass_film_reflectance(m.take(film), cos_i, entering.take(film))
+    weight = table.weight[:, DIELECTRIC].take(m)[:, None]
+    reflection = table.reflection.take(m, axis=0) if table.reflection_differs else colors[:, DIELECTRIC]
+    return (f * weight * reflection,
+            (1.0 - f) * weight * colors[:, DIELECTRIC] * refracts[:, None])
+
+
 def scatter(table, mat_ids, colors, lobe, prob, wo, ng, ns, u1, u2, mode, u3=None, nn=None, tangent=None):
     """Sample a new direction from the chosen ``lobe`` at n surface points.
 

@@ -18,13 +18,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import interpolate_corners
-from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choose_lobe, face_forward,
-                   lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
+from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choose_lobe, dielectric_albedos,
+                   face_forward, lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from . import cryptomatte, subsurface
 from .procedural import Rays, camera_path
 from .sampling import dot
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
+from .light_passes import (PHOTON_PASSES, VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight,
+                           wanted as light_wanted)
 from .settings import AOV_PREFIX, BounceLimits
 
 
@@ -49,6 +51,8 @@ class MeasurementPoints:
     #                               each kind (BounceLimits.array's order); None: none
     crossings: np.ndarray = None  # (m,) int16 the transparent surfaces the camera path crossed before the
     #                               point (RenderContext.trace); None: not counted
+    via: np.ndarray = None        # (m,) uint8 the kind of the camera path's first delta event
+    #                               (light_passes.VIA_*); None: no light passes
 
     @property
     def count(self) -> int:
@@ -86,6 +90,7 @@ class VolumePoints:
     #                         entered and would have left the volume by (inf: none)
     bounces: np.ndarray = None  # (k, 5) uint8 as MeasurementPoints.bounces
     crossings: np.ndarray = None  # (k,) int16 as MeasurementPoints.crossings (those before its segment)
+    via: np.ndarray = None        # (k,) uint8 as MeasurementPoints.via
 
     @property
     def count(self) -> int:
@@ -159,6 +164,13 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
             data[name] = np.zeros((n_pix, 3) if name == "denoising_normal" else n_pix)
     if {"albedo", "denoising_normal", "denoising_depth"} & set(data_passes):
         data["albedo"] = np.zeros((n_pix, 3))         # (the other denoising features follow it)
+    # Cycles' light passes: the eye pass's part (emission, the world, colours; the Accumulator adds
+    # the photons'), and every pass's points record their paths' first delta events.
+    _, eye_light, colours = light_wanted(data_passes)
+    light = None
+    if eye_light or colours or any(n in data_passes for n in PHOTON_PASSES):
+        light = EyeLight({name: np.zeros((n_pix, 3)) for name in eye_light + colours})
+        data.update(light.sums)
     kinds = [k for k in cryptomatte.KINDS if k in data_passes and ctx.scene.cryptomatte_ids is not None]
     chunks = [] if kinds else None                    # Cryptomatte's (pixels, triangles, weights) per chunk
     parts, volume = [], []
@@ -167,7 +179,7 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     for start in range(0, n_pix, EYE_CHUNK):
         pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
-                                        limits, volume, per_segment, data, alpha_threshold, chunks)
+                                        limits, volume, per_segment, data, alpha_threshold, chunks, light)
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
@@ -303,15 +315,55 @@ def surface_albedo(table, surf, wo, rows, rng):
     them for its denoising features (what a closure reflects and transmits under a white sky), split
     by :data:`FEATURE_ALPHA` (:class:`DenoisingPaths`); then the diffuse-like lobes' and all lobes'
     sample weights (k,) (their :func:`~core.bsdf.lobe_scores`, Cycles' ``sample_weight``: these
-    decide, not the samples, one of which may come out 0).  Diffuse and translucent lobes give their
+    decide, not the samples, one of which may come out 0).  The albedos are :func:`lobe_albedos`'."""
+    k = len(rows)
+    diffuse_like, specular = np.zeros((k, 3)), np.zeros((k, 3))
+    d_weight, weight = np.zeros(k), np.zeros(k)
+    for lobe, m_s, dest, w, score, _ in lobe_albedos(table, surf, wo, rows, rng):
+        if lobe == GLOSSY:
+            rough = table.alpha.take(m_s) > FEATURE_ALPHA
+        elif lobe == DIELECTRIC:
+            rough = table.dielectric_alpha.take(m_s) > FEATURE_ALPHA
+        else:
+            rough = np.full(len(m_s), lobe != MIRROR)
+        diffuse_like[dest[rough]] += w[rough]
+        specular[dest[~rough]] += w[~rough]
+        d_weight[dest[rough]] += score[rough]
+        weight[dest] += score
+    return diffuse_like, specular, d_weight, weight
+
+
+def colour_albedos(table, surf, wo, rows, rng):
+    """Cycles' Diffuse, Glossy and Transmission Color at hits ``rows`` of ``surf`` seen from ``wo``:
+    (k, 3) each, the :func:`lobe_albedos` of the diffuse-type lobes (diffuse, translucent, sheen),
+    of the glossy ones (glossy, mirror, a glass's reflection) and of the transmitting ones (a
+    glass's refraction), as ``surface_shader_diffuse``, ``_glossy`` and ``_transmission`` sum them
+    (a glass lobe's two sides by :func:`~core.bsdf.dielectric_albedos`, as Cycles estimates them)."""
+    k = len(rows)
+    out = {name: np.zeros((k, 3)) for name in ("diffuse_color", "glossy_color", "transmission_color")}
+    for lobe, _, dest, w, _, sides in lobe_albedos(table, surf, wo, rows, rng):
+        if lobe in (DIFFUSE, TRANSLUCENT, SHEEN):
+            np.add.at(out["diffuse_color"], dest, w)
+        elif lobe == DIELECTRIC:
+            np.add.at(out["glossy_color"], dest, sides[0])
+            np.add.at(out["transmission_color"], dest, sides[1])
+        else:
+            np.add.at(out["glossy_color"], dest, w)
+    return out
+
+
+def lobe_albedos(table, surf, wo, rows, rng):
+    """For the hits ``rows`` of ``surf`` seen from ``wo`` (all hits), per lobe that some of them
+    have: (lobe, materials (s,), hit numbers in ``rows`` (s,), albedos (s, 3), sample weights (s,),
+    sides), as Cycles' ``bsdf_albedo`` estimates a closure's albedo (what it reflects and transmits
+    under a white sky); ``sides``: for glass lobes (reflected, transmitted) (s, 3) each by
+    :func:`~core.bsdf.dielectric_albedos`, else None.  Diffuse and translucent lobes give their
     weight times colour (under a specular layer, its factor at the view), a sheen its E at the view;
     glossy, mirror and glass lobes one sample each: the lobe's :func:`~core.bsdf.scatter` weight
     towards the camera, whose mean is its directional albedo at the view with what the lobe's weight
     takes there (Fresnel, a metal's curve, multiscatter).  A coat is its own lobes and attenuates
     those under it; a sheen dims the others."""
     k = len(rows)
-    diffuse_like, specular = np.zeros((k, 3)), np.zeros((k, 3))
-    d_weight, weight = np.zeros(k), np.zeros(k)
     every = k == len(surf.mat_ids)                   # (all hits: no copies)
     pick = (lambda a: a) if every else (lambda a: a.take(rows, axis=0))      # noqa: E731
     mats = pick(surf.mat_ids)
@@ -339,6 +391,7 @@ def surface_albedo(table, surf, wo, rows, rng):
             if len(sel) == 0:
                 continue
             m_s = m.take(sel)
+            sides = None
             if lobe in (DIFFUSE, TRANSLUCENT, SHEEN):
                 # (known without a sample: Cycles' estimate is the weight, a sheen's E at the view)
                 if mu_all is None:
@@ -353,25 +406,18 @@ def surface_albedo(table, surf, wo, rows, rng):
                     w = w * table.sheen_dim(m_s, mu)[:, None]
             else:
                 u = rng.random((len(sel), 3))
+                wo_s, ng_s = wo_r.take(sel, axis=0), ng.take(sel, axis=0)
                 _, w, _ = scatter(table, m_s, colors.take(sel, axis=0), np.full(len(sel), lobe),
-                                  np.ones(len(sel)), wo_r.take(sel, axis=0), ng.take(sel, axis=0),
-                                  ns.take(sel, axis=0), u[:, 0], u[:, 1], "radiance", u[:, 2],
+                                  np.ones(len(sel)), wo_s, ng_s, ns.take(sel, axis=0), u[:, 0], u[:, 1],
+                                  "radiance", u[:, 2],
                                   tangent=None if tangent is None else tangent.take(sel, axis=0))
+                if lobe == DIELECTRIC:
+                    sides = dielectric_albedos(table, m_s, colors.take(sel, axis=0), wo_s, ng_s,
+                                               ns.take(sel, axis=0))
             if factor is not None:
                 w = w * factor.take(sel, axis=0)
-            if lobe == GLOSSY:
-                rough = table.alpha.take(m_s) > FEATURE_ALPHA
-            elif lobe == DIELECTRIC:
-                rough = table.dielectric_alpha.take(m_s) > FEATURE_ALPHA
-            else:
-                rough = np.full(len(sel), lobe != MIRROR)
-            dest = at.take(sel)
-            diffuse_like[dest[rough]] += w[rough]
-            specular[dest[~rough]] += w[~rough]
-            score = scores[:, lobe].take(sel)
-            d_weight[dest[rough]] += score[rough]
-            weight[dest] += score
-    return diffuse_like, specular, d_weight, weight
+                sides = None if sides is None else tuple(a * factor.take(sel, axis=0) for a in sides)
+            yield lobe, m_s, at.take(sel), w, scores[:, lobe].take(sel), sides
 
 
 # The depth pass where a camera ray meets nothing (Cycles' Z pass there).
@@ -517,11 +563,13 @@ def _box_exit(origins, dirs, lo, hi):
 
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
-                        per_segment=1, data=None, alpha_threshold=1.0, coverage=None):
+                        per_segment=1, data=None, alpha_threshold=1.0, coverage=None, light=None):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
     ``per_segment`` in each segment through one, and to the list ``coverage``, if given, the camera
-    rays' Cryptomatte coverage, :func:`~core.cryptomatte.coverage`)."""
+    rays' Cryptomatte coverage, :func:`~core.cryptomatte.coverage`).  ``light``: None, or the
+    :class:`~core.light_passes.EyeLight` that takes the emission by the paths' first scattering
+    events and the colours of their first surfaces."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, rng.random((len(pix), 4)))
@@ -551,6 +599,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     # at 0), where it sees emission alone.
     crossed = np.zeros(len(pix), np.int16) if limits.counts_crossings and ctx.has_transparency else None
     room = limits.array
+    # The kind of each path's first delta event (light passes; VIA_NONE before it).
+    via = np.zeros(len(pix), np.uint8)
     parts = []
     rays = 0
     # Cycles' denoising features, made along the paths (their own random numbers: the image stays
@@ -606,7 +656,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 weight=(beta.take(rows, axis=0) * w_v).astype(np.float32), mat_ids=media.astype(np.int32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes,
                 bounces=bounces.take(rows, axis=0),
-                crossings=None if crossed_before is None else crossed_before.take(rows)))
+                crossings=None if crossed_before is None else crossed_before.take(rows),
+                via=None if light is None else via.take(rows)))
             if feature is not None:
                 back = np.asarray(cam.world_from_camera, np.float64)[:3, 2]
                 feature.volume(pix, rows, w_v * ctx.scattering.take(media, axis=0),
@@ -617,6 +668,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             emission[pix[lit]] += beta.take(lit, axis=0) * glow.take(lit, axis=0)
             if feature is not None:
                 feature.light(pix, lit, beta.take(lit, axis=0) * glow.take(lit, axis=0))
+            if light is not None:
+                light.add(pix.take(lit), beta.take(lit, axis=0) * glow.take(lit, axis=0), depth,
+                          via.take(lit))
         if through is not None:
             beta = beta * through                            # transparent surfaces and volumes crossed
         rays += len(pix)
@@ -634,6 +688,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             emission[pix[lit]] += beta_in[lit] * seen[lit]
             if feature is not None:
                 feature.light(pix, lit, beta_in[lit] * seen[lit])
+            if light is not None:
+                # (a light seen: emission; the world through its lights' sky, if any, is the world)
+                light.add(pix.take(lit), beta_in[lit] * seen[lit], depth, via.take(lit))
         # Rays that leave the scene see the world (primary ones are cut out on a transparent film,
         # as far as what they crossed lets them through: Cycles' alpha is 1 - the mean of the
         # throughput, e.g. 0.5 behind a Transparent BSDF of mean colour 0.5, 1 in world fog).
@@ -657,6 +714,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                     emission[pix[m_]] += sky                # one path per pixel: no repeats
                     if feature is not None:
                         feature.light(pix, m_, sky)
+                    if light is not None:
+                        light.add(pix.take(m_), sky, depth, via.take(m_), background=True)
         h = np.flatnonzero(hits.is_hit)
         if depth == 0 and ctx.has_holdout and len(h):
             # Holdouts cut camera rays that meet them directly out of the pixel (Cycles, with or
@@ -669,6 +728,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
         if feature is not None:
             feature.take(h)
+        via = via.take(h)
         ray_kind = ray_kind.take(h)
         bounces, last = bounces.take(h, axis=0), last.take(h)
         crossed = None if crossed is None else crossed.take(h)
@@ -703,6 +763,12 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             emission[pix[e]] += beta[e] * seen
             if feature is not None:
                 feature.light(pix, e, beta[e] * seen)
+            if light is not None:
+                light.add(pix.take(e), beta[e] * seen, depth, via.take(e))
+        if depth == 0 and light is not None and light.colours:
+            # Cycles' colour passes at the first surface (reached through transparent ones).
+            albedos = colour_albedos(table, surf, wo, np.arange(len(pix)), rng.spawn(1)[0])
+            light.add_colours(pix, {k: beta * v for k, v in albedos.items()})
         if feature is not None:
             feature.surface(table, surf, wo, pix, hits.t.take(h))
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
@@ -756,7 +822,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
                 ns_glossy=ns_glossy,
                 tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32),
-                bounces=rows(bounces), crossings=None if crossed is None else rows(crossed))
+                bounces=rows(bounces), crossings=None if crossed is None else rows(crossed),
+                via=None if light is None else rows(via))
             if ctx.subsurface_exit >= 0:
                 # Some points go beneath their surface, to the exit of a random walk.
                 points, exits, r = _beneath(ctx, rng, points, rows(prim), rows(scores[:, DIFFUSE]),
@@ -793,6 +860,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         ray_kind = np.where(reflected, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION).astype(np.uint8)
         bounces = bounces[g]
         crossed = None if crossed is None else crossed[g]
+        via = via[g]
+        via[via == VIA_NONE] = np.where(reflected, VIA_GLOSSY, VIA_TRANSMISSION)[via == VIA_NONE]
         bounces[:, 0] += 1
         bounces[:, 2] += reflected
         bounces[:, 3] += ~reflected
@@ -894,7 +963,8 @@ def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
         nn=None if points.nn is None else ns_out, ns_glossy=None if points.ns_glossy is None else ns_out,
         tangent=None if points.tangent is None else np.zeros((len(left), 3), f32),
         bounces=None if points.bounces is None else points.bounces.take(src, axis=0),
-        crossings=None if points.crossings is None else points.crossings.take(src))
+        crossings=None if points.crossings is None else points.crossings.take(src),
+        via=None if points.via is None else points.via.take(src))
     return kept, exits, rays
 
 

@@ -28,6 +28,7 @@ import numpy as np
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
+from .light_passes import COLOR_PASSES, LIGHT_PASSES, PHOTON_PASSES, colour_of, divide_even_color
 from .eye_pass import centre_data, trace_eye_pass
 from .parallel import make_pool
 from .photon_pass import DepositTarget
@@ -75,7 +76,7 @@ class Accumulator:
     a scene seen through glass, a few hundred recorded photons out of 200,000 chain steps).
     """
 
-    def __init__(self, n_pixels, normalisation, bias_correction=False, crypto_levels=6):
+    def __init__(self, n_pixels, normalisation, bias_correction=False, crypto_levels=6, light_passes=()):
         self.normalisation = normalisation
         self.emission = np.zeros((n_pixels, 3))     # sum of eye-pass emission
         self.alpha = np.zeros(n_pixels)             # sum of coverage
@@ -91,6 +92,12 @@ class Accumulator:
         self.data_sums = {}                         # sums over passes of the data passes
         self.crypto = {}                            # Cryptomatte's CryptoSums per kind
         self.crypto_levels = crypto_levels          # their (id, coverage) pairs per pixel
+        # Cycles' light passes asked for (core/light_passes.py): the eye passes' parts are data
+        # sums (with the colours, also where only a divided pass asks for one); the photons' parts
+        # per pass: name -> [sum of S_p, sum of Vc_p S_p, sum of O_p], as the image's.
+        self.light_passes = tuple(light_passes)
+        self.light = {}
+        self.photon_factor = None                   # (n, 3) the last image's correction of its photons
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
         # spread, the sum of Vc_p T_p (per-pass normalisation) and, for the chains, the sum of
@@ -109,7 +116,7 @@ class Accumulator:
         return self.n_visible / self.n_uniform if self.n_uniform else 0.0
 
     def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain, outside_sum=None,
-            inner_sum=None, outside_inner=None, half_diff=None):
+            inner_sum=None, outside_inner=None, half_diff=None, light_sum=None, light_outside=None):
         """Add one pass; returns the number of pixels whose non-finite photon sums were dropped.
 
         ``outside_sum``: AMCMCPPM's sums over its uniform samples outside the visible set (O_p).
@@ -119,6 +126,8 @@ class Accumulator:
         chains', ``PhotonWorker.run_pass``, or the workers' difference, ``_halves_difference``).
         Also sets ``last_pass_mean``: the mean over pixels and RGB of this pass's own estimate,
         its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p, plus O_p / n_U.
+        ``light_sum``, ``light_outside``: the light passes' S_p and O_p (name -> (n_pixels, 3)), or
+        None (their non-finite values are left out as zeros; no bias correction).
         """
         if self.bias_correction and inner_sum is None:
             raise ValueError("Accumulator.add: a bias-corrected image needs the inner sums")
@@ -137,6 +146,14 @@ class Accumulator:
                 self.data_sums[name] = value.copy() if total is None else total + value
         self.n_uniform += n_uniform
         self.n_visible += n_visible
+        vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
+        for part, sums, on in ((0, light_sum, recorded), (2, light_outside, n_uniform)):
+            for name, value in (sums or {}).items() if on else ():
+                value = np.where(np.isfinite(value), value, 0.0)
+                total = self.light.setdefault(name, [0.0, 0.0, 0.0])
+                total[part] = total[part] + value
+                if part == 0:
+                    total[1] = total[1] + vc_pass * value
         self.last_pass_mean = float(eye.emission.mean())
         dropped = 0
         if outside_sum is not None and n_uniform:
@@ -153,7 +170,6 @@ class Accumulator:
             return dropped
         bad_pixels, (pixel_sum, inner_sum, half_diff) = _finite(pixel_sum, inner_sum, half_diff)
         dropped += bad_pixels
-        vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
         self.recorded += recorded
         self.visible_weighted += recorded * vc_pass
         self.photons += pixel_sum
@@ -185,21 +201,54 @@ class Accumulator:
             rgb = rgb + photons / self.recorded
         if is_chain and self.n_uniform:
             rgb = rgb + self.outside / self.n_uniform
+        self.photon_factor = None
         if self.bias_correction:
+            plain = rgb
             rgb = self._corrected(rgb, is_chain, scale)
+            if self.light and self.bias_weight:
+                # The light passes' photons take the correction in proportion (data()).
+                base = self.emission / self.passes
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    factor = (rgb - base) / (plain - base)
+                self.photon_factor = np.where(plain - base > 0, np.maximum(factor, 0.0), 1.0)
         out = np.empty((len(rgb), 4), np.float32)
         # Sums beyond float32 (a scene whose albedos above 1 feed on themselves) stay finite.
         out[:, :3] = np.minimum(rgb, FLOAT32_MAX)
         out[:, 3] = self.alpha / self.passes
         return out
 
-    def data(self, height, width):
-        """The data passes (``RenderResult.data``) as (H, W[, 3]) float32 images."""
+    def data(self, height, width, is_chain=False):
+        """The data passes (``RenderResult.data``) as (H, W[, 3]) float32 images; the light passes
+        are the eye passes' mean plus the photons' estimate as in :meth:`image`, whose bias
+        correction (of the last :meth:`image`) they take in proportion to their photons' part of
+        each pixel's, so that they still add up to the image; those of a colour are divided by it
+        (:func:`~core.light_passes.divide_even_color`)."""
+        if not self.passes:
+            return {}
+        means = {name: value / self.passes for name, value in self.data_sums.items()}
+        for name, (photons, scaled, outside) in self.light.items():
+            value = means.get(name, 0.0)
+            photon_part = 0.0
+            if self.recorded:
+                if is_chain:
+                    scale = self.visible_weighted / self.recorded
+                    photons = scale * photons if self.normalisation == "cumulative" else scaled
+                photon_part = photons / self.recorded
+            if is_chain and self.n_uniform:
+                photon_part = photon_part + outside / self.n_uniform
+            if self.photon_factor is not None:
+                photon_part = photon_part * self.photon_factor
+            means[name] = value + photon_part
+        for name in self.light_passes:
+            if name in PHOTON_PASSES:
+                value = means.get(name, np.zeros((len(self.alpha), 3)))
+                means[name] = divide_even_color(value, means[colour_of(name)]) if colour_of(name) else value
         out = {}
-        for name, value in self.data_sums.items():
-            if self.passes:
-                shape = (height, width) + value.shape[1:]
-                out[name] = (value / self.passes).astype(np.float32).reshape(shape)
+        for name, value in means.items():
+            if name in COLOR_PASSES and name not in self.light_passes:
+                continue                # (a colour that a divided pass alone asked for)
+            value = np.minimum(value, FLOAT32_MAX) if name in LIGHT_PASSES else value
+            out[name] = np.asarray(value, np.float32).reshape((height, width) + np.shape(value)[1:])
         for name, sums in self.crypto.items():
             out[name] = sums.image(height * width, self.crypto_levels, self.passes).reshape(height, width, -1)
         return out
@@ -342,7 +391,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     width, height = x1 - x0, y1 - y0
     n_pixels = width * height
     is_chain = settings.method != "ppm"
-    acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction, settings.cryptomatte_levels)
+    light_passes = tuple(name for name in settings.data_passes if name in LIGHT_PASSES)
+    acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction, settings.cryptomatte_levels,
+                      light_passes)
     result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects,
                           method="amcmcppm" if is_chain else "ppm")
     warnings = result.warnings
@@ -400,7 +451,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
                              volume=vol, volume_radius=vol_radius, media=ctx.phase,
                              inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage,
-                             limits=settings.bounce_limits)
+                             limits=settings.bounce_limits,
+                             light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES))
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.
@@ -450,7 +502,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 last_rate = photons / merged["photon_s"]
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
                               c["uniform_visible"], is_chain, merged["outside_sum"], merged["inner_sum"],
-                              merged["outside_inner"], merged["half_diff"])
+                              merged["outside_inner"], merged["half_diff"], merged["light_sum"],
+                              merged["light_outside"])
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
@@ -463,7 +516,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
             result.image = acc.image(is_chain).reshape(height, width, 4)
-            result.data = {**centre_images(), **acc.data(height, width)}
+            result.data = {**centre_images(), **acc.data(height, width, is_chain)}
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
                                 photons, cut and not interrupted, is_chain)
             result.stats.append(stats)
@@ -487,7 +540,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 # (none is while the first runs), so it is made without the chains' cells.
                 is_chain, cells, last_rate = False, None, None
                 acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction,
-                                  settings.cryptomatte_levels)
+                                  settings.cryptomatte_levels, light_passes)
             if next_target is None:
                 next_eye = eye_pass(pass_index)
                 next_target = make_target(pass_index, next_eye)
@@ -497,7 +550,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     result.elapsed_s = time.perf_counter() - t0
     if acc.passes:      # (after the switch of "auto", the first image stands until a pass lands)
         result.image = acc.image(is_chain).reshape(height, width, 4)
-        result.data = {**centre_images(), **acc.data(height, width)}
+        result.data = {**centre_images(), **acc.data(height, width, is_chain)}
     return result
 
 
@@ -549,6 +602,9 @@ def _merge(outputs, halves=False):
     for key in ("pixel_sum", "outside_sum", "inner_sum", "outside_inner", "half_diff"):
         sums = [o[key] for o in outputs if o.get(key) is not None]
         merged[key] = np.sum(sums, axis=0) if sums else None
+    for key in ("light_sum", "light_outside"):             # (light passes: name -> pixel sums)
+        parts = [o[key] for o in outputs if o.get(key) is not None]
+        merged[key] = {name: np.sum([p[name] for p in parts], axis=0) for name in parts[0]} if parts else None
     if halves and len(outputs) > 1 and merged["inner_sum"] is not None:
         merged["half_diff"] = _halves_difference(outputs)
     for o in outputs[1:]:

@@ -37,6 +37,7 @@ from . import subsurface
 from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
+from .light_passes import VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION
 from .lights import LIGHT_DIMS
 from .phase import isotropic as isotropic_phase, sample as sample_phase, value as phase_value
 from .procedural import Rays, photon_path
@@ -92,11 +93,15 @@ class DepositTarget:
     numbering of the sums: point m + k is volume point k.  With ``inner`` the pairs within half
     surface point j's radius are deposited a second time, on slot ``n_points + j`` of the sums
     (``n_slots`` = n_points + m slots in all), for the second estimate at half the radius
-    (:meth:`inner_pixels`, ``RenderSettings.bias_correction``)."""
+    (:meth:`inner_pixels`, ``RenderSettings.bias_correction``).  With ``light_passes`` three more
+    blocks follow, for the points whose camera paths met no delta event (``split``): the pairs of
+    photons at their first vertex (n_points slots), the glossy part of all pairs and that of those
+    at their first vertex (m slots each); :meth:`pass_pixels` makes Cycles' light passes of them
+    (``core/light_passes.py``)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
-                 coverage=None, inner_coverage=None, limits=None):
+                 coverage=None, inner_coverage=None, limits=None, light_passes=()):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
@@ -107,7 +112,8 @@ class DepositTarget:
         coverage, inner_coverage : None, or (m,) the share of each point's disc (of the radius,
         of half of it) that lies on a surface (``core/coverage.py``): the kernel's area is
         that share of pi r^2; limits : None (no limits), or the render's
-        :class:`~core.settings.BounceLimits`, which pairs must keep to (:meth:`bounce_filter`)."""
+        :class:`~core.settings.BounceLimits`, which pairs must keep to (:meth:`bounce_filter`);
+        light_passes : the photon passes (``light_passes.PHOTON_PASSES``) to make, or ()."""
         self.points = points
         self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
@@ -119,6 +125,16 @@ class DepositTarget:
         self.volume_grid = volume_grid if self.volume is not None else None
         self.n_points = points.count + (0 if self.volume is None else self.volume.count)
         self.n_slots = self.n_points + (points.count if self.inner else 0)   # (no inner volume slots)
+        self.light_passes = tuple(light_passes)
+        self.split = None
+        if self.light_passes:
+            # Blocks: photons at their first vertex, glossy parts, glossy parts at the first vertex.
+            self.direct_slots = self.n_slots
+            self.glossy_slots = self.direct_slots + self.n_points
+            self.direct_glossy_slots = self.glossy_slots + points.count
+            self.n_slots = self.direct_slots + self.n_points + 2 * points.count
+            self.split = np.concatenate([np.ones(p.count, bool) if p.via is None else p.via == VIA_NONE
+                                         for p in (points, self.volume) if p is not None])
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -238,7 +254,8 @@ class DepositTarget:
              if getattr(self.points, f) is not None}
         d.update({f"grid.{k}": v for k, v in self.grid.to_arrays().items()})
         d.update(radius=self.radius, n_pixels=np.int64(self.n_pixels),
-                 has_shading_normals=np.bool_(self.has_shading_normals), inner=np.bool_(self.inner))
+                 has_shading_normals=np.bool_(self.has_shading_normals), inner=np.bool_(self.inner),
+                 light_passes=np.array(self.light_passes, dtype=str))
         for name in ("coverage", "inner_coverage"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
@@ -270,7 +287,8 @@ class DepositTarget:
                              volume=volume, volume_radius=d.get("volume_radius"), volume_grid=vgrid,
                              media=d.get("media"), inner=bool(d.get("inner", False)),
                              coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"),
-                             limits=BounceLimits(**limits) if limits else None)
+                             limits=BounceLimits(**limits) if limits else None,
+                             light_passes=tuple(str(n) for n in d.get("light_passes", ())))
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -361,7 +379,8 @@ class DepositTarget:
         cos_v = dot(pts.wo, pts.ns).astype(np.float64)
         return (*rough_diffuse_terms(self.table, pts.mat_ids, pts.colors[:, 0], cos_v), cos_v)
 
-    def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None, exclude=None, diffuse_scale=None):
+    def pair_weights(self, j, wi, cos_g, cos_photon=None, back=None, exclude=None, diffuse_scale=None,
+                     split=False):
         """What pairs with points ``j`` are worth per unit of photon flux (the points' throughput
         and kernel aside, :meth:`to_pixels`).
 
@@ -389,8 +408,15 @@ class DepositTarget:
         the points' factors (:attr:`_factors`); the others carry wd, and :meth:`to_pixels`
         multiplies their sums by d_j.  So a point has one sum, not one per lobe (README, "Brushed
         metal": a rough gold Cornell box's photon pass peaked at 379 MiB instead of 585 at 1080p).
-        Returns (k,) or, when the pairs carry colours, (3, k) in channel rows.
+        Returns (k,) or, when the pairs carry colours, (3, k) in channel rows; with ``split``,
+        that and the glossy lobe's part of it, (3, k) (None where no pair has one), for the light
+        passes (a sheen's part is diffuse, as Cycles counts it).
         """
+        w, glossy = self._pair_weights(j, wi, cos_g, cos_photon, back, exclude, diffuse_scale, split)
+        return (w, glossy) if split else w
+
+    def _pair_weights(self, j, wi, cos_g, cos_photon, back, exclude, diffuse_scale, split):
+        """:meth:`pair_weights`: (weights, glossy part or None)."""
         pts = self.points
         ratio = None
         if self.has_shading_normals:
@@ -440,10 +466,10 @@ class DepositTarget:
         if diffuse_scale is not None:
             wd = wd * diffuse_scale
         if not self.any_glossy:
-            return wd
+            return wd, None
         s = np.flatnonzero(self.is_glossy.take(j))
         if len(s) == 0:
-            return wd
+            return wd, None
         # The pairs with glossy points (s), of which those that are not back pairs (g) have a
         # glossy part; built apart and put in place once (none of that when all pairs are so).
         d_fac, g_fac = self._factors
@@ -464,6 +490,7 @@ class DepositTarget:
                 w_s[:, h] += self._sheen_part(js.take(h), s.take(h), wi, geometry, exclude, diffuse_scale)
             in_s = front_s.take(np.flatnonzero(self.glossy_lobe.take(js.take(front_s))))
             g, jg = s.take(in_s), js.take(in_s)
+        glossy = None
         if len(g):
             nsg = pts.glossy_normals.take(jg, axis=0)
             if self.anisotropic is None:
@@ -496,12 +523,37 @@ class DepositTarget:
                 w_s += wg
             else:
                 w_s[:, in_s] += wg
+            if split:
+                glossy = np.zeros((3, len(j)))
+                glossy[:, g] = wg
         if whole:
-            return w_s
+            return w_s, glossy
         w = np.empty((3, len(j)))
         w[:] = wd
         w[:, s] = w_s
-        return w
+        return w, glossy
+
+    def pass_pairs(self, j, bounce, w, glossy):
+        """The light passes' pairs (``light_passes``) of pairs with surface points ``j`` of photons
+        at vertex ``bounce``, weights ``w`` and glossy parts ``glossy`` (:meth:`pair_weights` with
+        ``split``): (pair rows (r,), slots (r,), weights (3, r)) on the blocks of the points that
+        ``split``: at the first vertex (``bounce`` 0) the whole pair on the direct block, and the
+        glossy parts on the glossy block (and the direct glossy block)."""
+        rows = np.flatnonzero(self.split.take(j))
+        full = w if w.ndim == 2 else np.broadcast_to(w, (3, len(w)))
+        parts = []
+        if bounce == 0:
+            parts.append((rows, self.direct_slots, full))
+        if glossy is not None:
+            g = rows.take(np.flatnonzero(self.glossy_lobe.take(j.take(rows))))
+            parts.append((g, self.glossy_slots, glossy))
+            if bounce == 0:
+                parts.append((g, self.direct_glossy_slots, glossy))
+        if not parts:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((3, 0))
+        return (np.concatenate([r for r, _, _ in parts]),
+                np.concatenate([j.take(r) + offset for r, offset, _ in parts]),
+                np.concatenate([v.take(r, axis=1) for r, _, v in parts], axis=1))
 
     def _sheen_part(self, jh, h, wi, geometry, exclude, diffuse_scale):
         """(3, k) the sheen's part of pairs ``h`` with sheened points ``jh`` (:meth:`pair_weights`'s
@@ -607,30 +659,77 @@ class DepositTarget:
     def _pixels(self, sums, offset):
         """to_pixels of the surface slots ``offset`` .. ``offset + m`` (at half the radius if
         ``offset``), with the volume points' slots."""
-        pts = self.points
         m = self.points.count
-        radius = self.radius if not offset else 0.5 * self.radius
+        out = np.zeros((self.n_pixels, 3))
+        out[self.pixel_ids] = self._surface_values(sums[offset:offset + m], half=bool(offset))
+        if self.volume is not None:
+            np.add.at(out, self.volume.pixel_ids, self._volume_values(sums[m:self.n_points]))
+        return out
+
+    def _surface_values(self, block, half=False):
+        """(m, 3) radiance of the surface points from their slots' sums ``block`` (m, 3): w_j
+        (throughput) times the kernel (of half the radius with ``half``), and d_j where the pairs
+        do not carry it; one measurement point per pixel and pass."""
+        radius = 0.5 * self.radius if half else self.radius
         kernel = 1.0 / (np.pi * radius * radius)                                   # (m,)
-        coverage = self.coverage if not offset else self.inner_coverage
+        coverage = self.inner_coverage if half else self.coverage
         if coverage is not None:
             kernel /= coverage
-        # w_j (throughput) times the kernel, and d_j where the pairs do not carry it.
         d = self._factors[0].T
-        val = pts.weight * kernel[:, None]
+        val = self.points.weight * kernel[:, None]
         if self.any_glossy:
             val *= np.where(self.is_glossy[:, None], np.float32(1.0), d)
         else:
             val *= d
-        val *= sums[offset:offset + m]
-        out = np.zeros((self.n_pixels, 3))
-        out[self.pixel_ids] = val          # one measurement point per pixel and pass
+        return val * block
+
+    def _volume_values(self, block):
+        """(k, 3) radiance of the volume points from their slots' sums ``block``: w_j sum(flux phase)
+        / (4/3 pi r_j^3) (the flux holds the scattering coefficient, the weight the camera path's
+        transmittance over its density)."""
+        r = self.volume_radius
+        kernel = 3.0 / (4.0 * np.pi * r * r * r) / _inside_share(self.volume.planes, r)
+        return self.volume.weight * block * kernel[:, None]
+
+    def pass_pixels(self, sums):
+        """name -> (n_pixels, 3) the photons' part of the light passes ``light_passes`` from the
+        per-slot sums (``n_slots``, 3), as :meth:`to_pixels` makes the image's: a point with no
+        delta event before it (``split``) splits its sums by the blocks (direct = the pairs at the
+        photons' first vertex; glossy = the glossy lobe's part; the rest diffuse; a volume point's
+        are volume), a point behind one gives them all to the indirect pass of that event's kind."""
+        m, n = self.points.count, self.n_points
+        main = self._surface_values(sums[:m])
+        direct = self._surface_values(sums[self.direct_slots:self.direct_slots + m])
+        glossy = self._surface_values(sums[self.glossy_slots:self.glossy_slots + m])
+        both = self._surface_values(sums[self.direct_glossy_slots:self.direct_glossy_slots + m])
+        split = self.split[:m, None]
+        via = np.zeros(m, np.uint8) if self.points.via is None else self.points.via
+        zero = np.zeros(3)
+        # (differences of the same sums summed apart: rounding may leave -1e-16 of them)
+        surface = {
+            "diffuse_direct": np.where(split, np.maximum(direct - both, 0.0), zero),
+            "diffuse_indirect": np.where(split, np.maximum(main - direct - glossy + both, 0.0), zero),
+            "glossy_direct": np.where(split, both, zero),
+            "glossy_indirect": np.where(split, np.maximum(glossy - both, 0.0),
+                                        np.where((via == VIA_GLOSSY)[:, None], main, zero)),
+            "transmission_indirect": np.where((via == VIA_TRANSMISSION)[:, None], main, zero)}
+        out = {}
+        for name in self.light_passes:
+            out[name] = np.zeros((self.n_pixels, 3))
+            if name in surface:
+                out[name][self.pixel_ids] = surface[name]
         if self.volume is not None:
-            # Volume points: w_j sum(flux phase) / (4/3 pi r_j^3) (the flux holds the scattering
-            # coefficient, the weight the camera path's transmittance over its density).
-            r = self.volume_radius
-            kernel = 3.0 / (4.0 * np.pi * r * r * r) / _inside_share(self.volume.planes, r)
-            np.add.at(out, self.volume.pixel_ids,
-                      self.volume.weight * sums[m:self.n_points] * kernel[:, None])
+            v_main = self._volume_values(sums[m:n])
+            v_direct = self._volume_values(sums[self.direct_slots + m:self.direct_slots + n])
+            v_split = self.split[m:, None]
+            v_via = np.zeros(n - m, np.uint8) if self.volume.via is None else self.volume.via
+            volume = {"volume_direct": np.where(v_split, v_direct, zero),
+                      "volume_indirect": np.where(v_split, np.maximum(v_main - v_direct, 0.0), zero),
+                      "glossy_indirect": np.where((v_via == VIA_GLOSSY)[:, None], v_main, zero),
+                      "transmission_indirect": np.where((v_via == VIA_TRANSMISSION)[:, None], v_main, zero)}
+            for name, value in volume.items():
+                if name in out:
+                    np.add.at(out[name], self.volume.pixel_ids, value)
         return out
 
 
@@ -923,16 +1022,27 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 exclude = None if excluded is None else excluded.take(lane)
                 if limited is not None:
                     exclude = limited if exclude is None else exclude | limited
-                w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude, scale)
+                extra = None
+                if target.light_passes:
+                    w, glossy = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude, scale,
+                                                    split=True)
+                    extra = target.pass_pairs(pj, bounce, w, glossy)
+                else:
+                    w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude, scale)
                 # The pairs within half the radius once more, on the inner slots.
                 again = None if near is None else np.flatnonzero(near)
                 slots = pj if again is None else np.concatenate([pj, pj.take(again) + target.n_points])
+                if extra is not None:
+                    slots = np.concatenate([slots, extra[1]])
                 if collect_pairs:
                     f = deposited.take(lane, axis=0)
                     path = idx[lane]
                     v = f * (w[:, None] if w.ndim == 1 else w.T)
                     if again is not None:
                         path, v = _twice(path, again), _twice(v, again)
+                    if extra is not None:
+                        path = np.concatenate([path, path.take(extra[0])])
+                        v = np.concatenate([v, f.take(extra[0], axis=0) * extra[2].T])
                     pairs["path"].append(path)
                     pairs["point"].append(slots)
                     pairs["value"].append(v)
@@ -942,6 +1052,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     v = [fc * (w if w.ndim == 1 else w[c]) for c, fc in enumerate(f)]
                     if again is not None:
                         v = [_twice(vc, again) for vc in v]
+                    if extra is not None:
+                        v = [np.concatenate([vc, fc.take(extra[0]) * extra[2][c]]) for c, (vc, fc)
+                             in enumerate(zip(v, f))]
                     sums.add(slots, v, len(pj))
                 if target.cells is None:
                     seen[lane] = True
@@ -1268,13 +1381,20 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
             f = vert["flux"] * ctx.scattering.take(vmed, axis=0)
             # One phase value for all pairs (even scattering) multiplies the photons, not the pairs.
             f = (f * phase).take(pi, axis=0) if np.ndim(phase) == 0 else f.take(pi, axis=0) * phase[:, None]
+            counted = len(pj)
+            if target.light_passes and bounce == 0:
+                # (light passes: the photons at their first vertex once more, on the direct block)
+                first_rows = np.flatnonzero(target.split.take(pj))
+                pi = np.concatenate([pi, pi.take(first_rows)])
+                pj = np.concatenate([pj, pj.take(first_rows) + target.direct_slots])
+                f = np.concatenate([f, f.take(first_rows, axis=0)])
             if collect_pairs:
                 pairs["path"].append(idx.take(pi))
                 pairs["point"].append(pj)
                 pairs["value"].append(f)
                 pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
             else:
-                sums.add(pj, [f[:, c] for c in range(3)])
+                sums.add(pj, [f[:, c] for c in range(3)], counted)
             if target.cells is None:
                 seen[pi] = True
     if target.cells is not None:

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .light_passes import LIGHT_PASSES
+
 METHODS = ("amcmcppm", "ppm", "auto")
 # "auto": uniform photons from the second pass on when at least this share of the first pass's
 # uniform samples were visible (benchmarks/error_vs_time.py; RenderSettings.method).
@@ -25,7 +27,8 @@ NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes), and those
 # taken from the first pass alone (as Cycles takes them from its first sample; the others are means).
 DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth", "position", "uv",
-               "object_index", "material_index", "mist", "crypto_object", "crypto_material", "crypto_asset")
+               "object_index", "material_index", "mist", "crypto_object", "crypto_material", "crypto_asset",
+               *LIGHT_PASSES)
 FIRST_PASS_DATA = ("depth", "position", "object_index", "material_index")
 # A Shader AOV's data pass: this and its name (Materials.aov_names).
 AOV_PREFIX = "aov:"
@@ -250,7 +253,12 @@ class RenderSettings:
     (:mod:`core.cryptomatte`, ``Scene.cryptomatte_ids``), (H, W, 2 ``cryptomatte_levels``) of (id,
     coverage) pairs by decreasing coverage; "aov:" + a name (``Materials.aov_names``): that Shader
     AOV (H, W, 4), its value (a colour, or a number repeated) where the camera rays' surface writes
-    it and 1 in the fourth channel, averaged over the passes (0 where none writes it)."""
+    it and 1 in the fourth channel, averaged over the passes (0 where none writes it).  Cycles'
+    light passes (:mod:`core.light_passes`, (H, W, 3) each): "diffuse_direct", "diffuse_indirect",
+    "glossy_direct", "glossy_indirect", "transmission_direct", "transmission_indirect" (divided by
+    their colour, as Cycles writes them), "volume_direct", "volume_indirect", "emission",
+    "environment", and the colours "diffuse_color", "glossy_color", "transmission_color"; they add
+    up to the image (without ``bias_correction``, which they do not take)."""
 
     cryptomatte_levels: int = 6
     """The (id, coverage) pairs per pixel of the Cryptomatte passes (Blender's View Layer >

@@ -55,13 +55,15 @@ class PhotonWorker:
         outside the chains' visible set, to be divided by n_U; else None), ``inner_sum`` and
         ``outside_inner`` (the same at half the radius if the target has inner sums, else
         None), ``half_diff`` (with ``lane_halves``, AMCMCPPM and inner sums: the even chains'
-        (inner - outer) pixel sums minus the odd chains'; else None), ``counters`` (a
-        :class:`ChainCounters` as a dict) and chain figures.
+        (inner - outer) pixel sums minus the odd chains'; else None), ``light_sum`` and
+        ``light_outside`` (the target's light passes: name -> pixel sums as ``pixel_sum`` and
+        ``outside_sum``, :meth:`~core.photon_pass.DepositTarget.pass_pixels`; else None),
+        ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
         counters = ChainCounters()
-        outside_sum = outside_inner = half_diff = None
+        outside_sum = outside_inner = half_diff = light_outside = None
         chains = None if uniform else self.chains
         if chains is None:
             sums, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
@@ -70,6 +72,8 @@ class PhotonWorker:
             sums, outside, halves, interrupted = self._chain_pass(target, n_photons, counters, stop)
             if outside is not None:
                 outside_sum, outside_inner = _pixels(target, outside)
+                if target.light_passes:
+                    light_outside = target.pass_pixels(outside)
             if halves is not None:
                 outer, inner = _pixels(target, halves)
                 with np.errstate(over="ignore", invalid="ignore"):     # (dropped by the Accumulator)
@@ -80,6 +84,8 @@ class PhotonWorker:
         pixel_sum, inner_sum = _pixels(target, sums)
         return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "inner_sum": inner_sum,
                 "outside_inner": outside_inner, "half_diff": half_diff,
+                "light_sum": target.pass_pixels(sums) if target.light_passes else None,
+                "light_outside": light_outside,
                 "counters": dataclasses.asdict(counters),
                 "theta_mean": theta_mean, "valid_chains": valid,
                 "total_proposed": int(chains.proposed.sum()) if chains else 0,

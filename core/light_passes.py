@@ -1,0 +1,109 @@
+"""Cycles' light passes: the image split by the first scattering event of each camera path.
+
+Cycles (``kernel/film/light_passes.h``) writes what a camera path sees to one of these passes:
+
+* ``emission``, ``environment``: emitters (lights, emissive surfaces and volumes) and the world
+  seen directly, through transparent surfaces only;
+* ``diffuse_*``, ``glossy_*``, ``transmission_*``: light that reached the camera by a scattering
+  event at its first surface, by that event's kind (diffuse, translucent, sheen and subsurface
+  closures are diffuse; glossy closures and the reflection of glass are glossy; the refraction of
+  glass is transmission), ``direct`` where it came from an emitter or the world straight to that
+  surface, ``indirect`` otherwise;
+* ``volume_direct``, ``volume_indirect``: the same for a first scattering event in a volume;
+* ``diffuse_color``, ``glossy_color``, ``transmission_color``: the albedos of those kinds of
+  closures at the first surface (through transparent surfaces, with what they let through).
+
+The image is their sum, each direct or indirect pass times its colour.  Cycles writes the light
+passes divided by their colour (:func:`divide_even_color`), and so does this module.
+
+Here the camera paths end at a measurement point (their first non-delta vertex) after a chain of
+delta events (mirrors, glass): a point with no delta event before it splits its photons by the
+lobe that gathers them and by whether they are at their first vertex (direct: straight from the
+emitter); a point behind a mirror or glass gives all its photons to the indirect pass of the kind
+of the first delta event (``via``).  Emission seen through delta chains goes to that kind's
+direct pass after one event, to its indirect pass after more.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# The passes photons add to, those the eye passes alone make, and the colours.
+PHOTON_PASSES = ("diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_indirect",
+                 "transmission_direct", "transmission_indirect", "volume_direct", "volume_indirect")
+EYE_PASSES = ("emission", "environment")
+COLOR_PASSES = ("diffuse_color", "glossy_color", "transmission_color")
+LIGHT_PASSES = PHOTON_PASSES + EYE_PASSES + COLOR_PASSES
+# The first scattering event of a camera path (MeasurementPoints.via): none yet, or the kind of its
+# first delta event.
+VIA_NONE, VIA_GLOSSY, VIA_TRANSMISSION = 0, 1, 2
+_VIA_KIND = {VIA_GLOSSY: "glossy", VIA_TRANSMISSION: "transmission"}
+
+
+def colour_of(name):
+    """The colour pass a light pass is divided by (``diffuse_direct`` -> ``diffuse_color``), or None."""
+    kind = name.split("_")[0]
+    divided = kind in ("diffuse", "glossy", "transmission") and name in PHOTON_PASSES
+    return f"{kind}_color" if divided else None
+
+
+def wanted(names):
+    """The light passes among ``names`` and what they need: (photon passes, eye passes, colours)
+    each a tuple in this module's order; a divided pass needs its colour."""
+    names = set(names)
+    photon = tuple(n for n in PHOTON_PASSES if n in names)
+    eye = tuple(n for n in PHOTON_PASSES[:6] + EYE_PASSES if n in names)
+    colours = tuple(c for c in COLOR_PASSES if c in names or any(colour_of(n) == c for n in photon))
+    return photon, eye, colours
+
+
+def divide_even_color(a, b):
+    """``a / b`` per channel as Cycles' ``safe_divide_even_color`` (``util/color.h``): 0 where ``b``
+    is 0, except that a channel whose ``b`` is 0 takes the mean of the other two quotients (or the
+    one quotient left, where two are 0), so that a pass stays grey.  a, b: (..., 3)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    zero = b == 0
+    q = np.where(zero, 0.0, a / np.where(zero, 1.0, b))
+    x, y, z = q[..., 0], q[..., 1], q[..., 2]
+    zx, zy, zz = zero[..., 0], zero[..., 1], zero[..., 2]
+    out_x = np.select([zx & zy, zx & zz, zx], [z, y, 0.5 * (y + z)], x)
+    out_y = np.select([zx & zy, zx & zz, zx, zy & zz, zy], [z, y, y, x, 0.5 * (x + z)], y)
+    out_z = np.select([zx & zy, zx & zz, zx, zy & zz, zy, zz], [z, y, z, x, z, 0.5 * (x + y)], z)
+    return np.stack([out_x, out_y, out_z], axis=-1)
+
+
+class EyeLight:
+    """The eye pass's part of the light passes: emission and the world seen by camera paths, by
+    the paths' first scattering event, and the colour passes at their first surfaces.  ``sums``:
+    name -> (n_pixels, 3) float64 arrays this eye pass adds to (those asked for)."""
+
+    def __init__(self, sums):
+        self.sums = sums
+
+    def add(self, pix, value, depth, via=None, background=False):
+        """Camera paths of pixels ``pix`` (k,) see ``value`` (k, 3) after ``depth`` delta events,
+        the first of kinds ``via`` (k,) (none at depth 0); ``background``: the world."""
+        if depth == 0:
+            total = self.sums.get("environment" if background else "emission")
+            if total is not None:
+                np.add.at(total, pix, value)
+            return
+        part = "_direct" if depth == 1 else "_indirect"
+        for code, kind in _VIA_KIND.items():
+            total = self.sums.get(kind + part)
+            if total is None:
+                continue
+            sel = np.flatnonzero(via == code)
+            if len(sel):
+                np.add.at(total, pix.take(sel), value.take(sel, axis=0))
+
+    @property
+    def colours(self):
+        """The colour passes asked for (names)."""
+        return tuple(c for c in COLOR_PASSES if c in self.sums)
+
+    def add_colours(self, pix, albedos):
+        """Camera paths of pixels ``pix`` met their first surface: ``albedos`` name -> (k, 3),
+        what the surface's closures of each kind reflect or transmit, times the paths' weights."""
+        for name, value in albedos.items():
+            if name in self.sums:
+                np.add.at(self.sums[name], pix, value)
