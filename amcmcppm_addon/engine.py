@@ -72,7 +72,22 @@ DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
                (("Material Index", 1, "X", 'VALUE'), "", "use_pass_material_index", "material_index"),
                (("Denoising Normal", 3, "XYZ", 'VECTOR'), *DENOISING, "denoising_normal"),
                (("Denoising Albedo", 3, "RGB", 'COLOR'), *DENOISING, "albedo"),
-               (("Denoising Depth", 1, "Z", 'VALUE'), *DENOISING, "denoising_depth"))
+               (("Denoising Depth", 1, "Z", 'VALUE'), *DENOISING, "denoising_depth"),
+               # Light passes (View Layer > Passes > Light; core/light_passes.py), Cycles' order.
+               *(((label, 3, "RGB", 'COLOR'), owner, prop, core) for label, owner, prop, core in (
+                   ("Diffuse Direct", "", "use_pass_diffuse_direct", "diffuse_direct"),
+                   ("Diffuse Indirect", "", "use_pass_diffuse_indirect", "diffuse_indirect"),
+                   ("Diffuse Color", "", "use_pass_diffuse_color", "diffuse_color"),
+                   ("Glossy Direct", "", "use_pass_glossy_direct", "glossy_direct"),
+                   ("Glossy Indirect", "", "use_pass_glossy_indirect", "glossy_indirect"),
+                   ("Glossy Color", "", "use_pass_glossy_color", "glossy_color"),
+                   ("Transmission Direct", "", "use_pass_transmission_direct", "transmission_direct"),
+                   ("Transmission Indirect", "", "use_pass_transmission_indirect", "transmission_indirect"),
+                   ("Transmission Color", "", "use_pass_transmission_color", "transmission_color"),
+                   ("Volume Direct", "cycles", "use_pass_volume_direct", "volume_direct"),
+                   ("Volume Indirect", "cycles", "use_pass_volume_indirect", "volume_indirect"),
+                   ("Emission", "", "use_pass_emit", "emission"),
+                   ("Environment", "", "use_pass_environment", "environment"))))
 
 
 # Cryptomatte (View Layer > Cryptomatte): Blender's pass names' prefix, the box, the core's pass.

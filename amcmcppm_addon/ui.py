@@ -316,6 +316,42 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
             col.prop(layer, name)
 
 
+class AMCMCPPM_VIEWLAYER_PT_light(bpy.types.Panel):
+    """View Layer Properties > Passes > Light: Cycles' light passes (Diffuse, Glossy, Transmission
+    Direct, Indirect and Color; Volume Direct and Indirect; Emission and Environment), as its Light
+    panel draws them (``engine.DATA_PASSES``, ``core.light_passes``)."""
+    bl_label = "Light"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "view_layer"
+    bl_parent_id = "AMCMCPPM_VIEWLAYER_PT_passes"
+    COMPAT_ENGINES = {ENGINE_ID}
+    # (heading, the view layer's box or its Cycles settings' ("cycles"), ((property, label), ...))
+    rows = tuple((kind.capitalize(), "", tuple((f"use_pass_{kind}_{part}", part.capitalize())
+                                               for part in ("direct", "indirect", "color")))
+                 for kind in ("diffuse", "glossy", "transmission")) + (
+        ("Volume", "cycles", (("use_pass_volume_direct", "Direct"),
+                              ("use_pass_volume_indirect", "Indirect"))),
+        ("Other", "", (("use_pass_emit", "Emission"), ("use_pass_environment", "Environment"))))
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layer = context.view_layer
+        for heading, owner, props in self.rows:
+            holder = getattr(layer, owner, None) if owner else layer
+            if holder is None:
+                continue
+            col = layout.column(heading=heading, align=True)
+            for prop, text in props:
+                col.prop(holder, prop, text=text)
+
+
 class AMCMCPPM_VIEWLAYER_PT_cryptomatte(ViewLayerCryptomattePanelHelper, bpy.types.Panel):
     """View Layer Properties > Passes > Cryptomatte: Object, Material, Asset and Levels (Blender's
     own panel body, as Cycles shows it; ``engine.CRYPTO_PASSES``, ``core.cryptomatte``)."""
@@ -385,7 +421,7 @@ def get_panels():
 # Panels outside the Render Properties.
 other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
                  AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes,
-                 AMCMCPPM_VIEWLAYER_PT_cryptomatte, AMCMCPPM_VIEWLAYER_PT_aov)
+                 AMCMCPPM_VIEWLAYER_PT_light, AMCMCPPM_VIEWLAYER_PT_cryptomatte, AMCMCPPM_VIEWLAYER_PT_aov)
 
 
 def register():

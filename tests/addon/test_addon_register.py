@@ -247,12 +247,13 @@ def test_world_ray_visibility_panel_draws_the_boxes_the_exporter_reads(scene):
 def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
     """View Layer > Passes (Blender's panels list EEVEE and Workbench only): our panel draws the
     boxes of the passes ``engine.DATA_PASSES`` registers (Z, Mist, Position, Normal, UV, Cycles'
-    Denoising Data, Object and Material Index), for our engine alone; those passes are Cycles'
-    (names, channels, types, in its order).  World > Mist Pass (drawn by Cycles' panel for Cycles
-    only) shows when a view layer asks for Mist."""
+    Denoising Data, Object and Material Index), its Light subpanel those of the light passes, for
+    our engine alone; those passes are Cycles' (names, channels, types, in its order).  World > Mist
+    Pass (drawn by Cycles' panel for Cycles only) shows when a view layer asks for Mist."""
     import cycles.engine
     from amcmcppm.amcmcppm_addon import ui
     from amcmcppm.amcmcppm_addon.engine import DATA_PASSES
+    from amcmcppm.core.light_passes import LIGHT_PASSES
     panel = ui.AMCMCPPM_VIEWLAYER_PT_passes
     assert getattr(bpy.types, panel.__name__) is panel
     layer = scene.view_layers[0]
@@ -260,12 +261,19 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
         holder = getattr(layer, owner) if owner else layer
         assert prop in holder.bl_rna.properties.keys(), (owner, prop)
         setattr(holder, prop, True)
-    assert list(panel.data + panel.indexes) == [prop for _, owner, prop, _ in DATA_PASSES if not owner]
+    light = [(owner, prop) for _, owner, prop, core in DATA_PASSES if core in LIGHT_PASSES]
+    assert list(panel.data + panel.indexes) == [prop for _, owner, prop, core in DATA_PASSES
+                                                if not owner and core not in LIGHT_PASSES]
+    # (View Layer > Passes > Light draws the light passes' boxes, Cycles' Light panel's)
+    rows = ui.AMCMCPPM_VIEWLAYER_PT_light.rows
+    assert [(owner, prop) for _, owner, props in rows for prop, _ in props] == light and len(light) == 13
+    assert getattr(bpy.types, "AMCMCPPM_VIEWLAYER_PT_light").bl_parent_id == panel.__name__
     ours = [(name, chan_id, kind) for (name, _, chan_id, kind), *_ in DATA_PASSES]
     assert all(channels == len(chan_id) for (_, channels, chan_id, _), *_ in DATA_PASSES)
     theirs = [p for p in cycles.engine.list_render_passes(scene, layer)
               if p[0] not in ("Combined", "Noisy Image")]
-    assert ours == theirs
+    order = [p[0] for p in theirs]
+    assert sorted(ours, key=lambda p: order.index(p[0])) == theirs
     with bpy.context.temp_override(view_layer=scene.view_layers[0]):
         assert panel.poll(bpy.context)
         scene.render.engine = "CYCLES"
