@@ -700,9 +700,11 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             # mirror or a glass (EXCLUDE_GLOSSY and EXCLUDE_TRANSMISSION are the VISIBLE_* bits).
             miss &= (ray_kind & scene.world.exclude) == 0
         if miss.any():
-            if depth == 0 and scene.world.film_transparent:
+            cut_out = depth == 0 and scene.world.film_transparent
+            if cut_out:
                 alpha[pix[miss]] = np.clip(1.0 - beta[miss].mean(axis=1), 0.0, 1.0)
-            else:
+            # (Cycles' Environment pass shows the world on a transparent film too)
+            if not cut_out or (light is not None and "environment" in light.sums):
                 m_ = np.flatnonzero(miss)
                 if depth == 0 and ctx.camera_background is not None:
                     sky = beta[m_] * ctx.camera_background(dirs[m_], origins[m_])  # (Light Path's)
@@ -710,12 +712,12 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                     sky = beta[m_] * ctx.lights.environment.radiance(dirs[m_])
                 else:
                     sky = beta[m_] * world if world.any() else None
-                if sky is not None:
+                if sky is not None and not cut_out:
                     emission[pix[m_]] += sky                # one path per pixel: no repeats
                     if feature is not None:
                         feature.light(pix, m_, sky)
-                    if light is not None:
-                        light.add(pix.take(m_), sky, depth, via.take(m_), background=True)
+                if sky is not None and light is not None:
+                    light.add(pix.take(m_), sky, depth, via.take(m_), background=True)
         h = np.flatnonzero(hits.is_hit)
         if depth == 0 and ctx.has_holdout and len(h):
             # Holdouts cut camera rays that meet them directly out of the pixel (Cycles, with or

@@ -94,7 +94,8 @@ class Accumulator:
         self.crypto_levels = crypto_levels          # their (id, coverage) pairs per pixel
         # Cycles' light passes asked for (core/light_passes.py): the eye passes' parts are data
         # sums (with the colours, also where only a divided pass asks for one); the photons' parts
-        # per pass: name -> [sum of S_p, sum of Vc_p S_p, sum of O_p], as the image's.
+        # per pass: name -> [sum of S_p, sum of Vc_p S_p, sum of O_p], as the image's (0 where not
+        # needed: Vc_p S_p for the chains' per-pass normalisation only, O_p for the chains only).
         self.light_passes = tuple(light_passes)
         self.light = {}
         self.photon_factor = None                   # (n, 3) the last image's correction of its photons
@@ -152,7 +153,7 @@ class Accumulator:
                 value = np.where(np.isfinite(value), value, 0.0)
                 total = self.light.setdefault(name, [0.0, 0.0, 0.0])
                 total[part] = total[part] + value
-                if part == 0:
+                if part == 0 and is_chain and self.normalisation == "per_pass":
                     total[1] = total[1] + vc_pass * value
         self.last_pass_mean = float(eye.emission.mean())
         dropped = 0
@@ -604,7 +605,9 @@ def _merge(outputs, halves=False):
         merged[key] = np.sum(sums, axis=0) if sums else None
     for key in ("light_sum", "light_outside"):             # (light passes: name -> pixel sums)
         parts = [o[key] for o in outputs if o.get(key) is not None]
-        merged[key] = {name: np.sum([p[name] for p in parts], axis=0) for name in parts[0]} if parts else None
+        names = sorted({name for p in parts for name in p})
+        merged[key] = ({name: np.sum([p[name] for p in parts if name in p], axis=0) for name in names}
+                       if parts else None)
     if halves and len(outputs) > 1 and merged["inner_sum"] is not None:
         merged["half_diff"] = _halves_difference(outputs)
     for o in outputs[1:]:

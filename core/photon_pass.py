@@ -692,11 +692,12 @@ class DepositTarget:
         return self.volume.weight * block * kernel[:, None]
 
     def pass_pixels(self, sums):
-        """name -> (n_pixels, 3) the photons' part of the light passes ``light_passes`` from the
-        per-slot sums (``n_slots``, 3), as :meth:`to_pixels` makes the image's: a point with no
-        delta event before it (``split``) splits its sums by the blocks (direct = the pairs at the
-        photons' first vertex; glossy = the glossy lobe's part; the rest diffuse; a volume point's
-        are volume), a point behind one gives them all to the indirect pass of that event's kind."""
+        """name -> (n_pixels, 3) the photons' part of the light passes ``light_passes`` (those with
+        some) from the per-slot sums (``n_slots``, 3), as :meth:`to_pixels` makes the image's: a
+        point with no delta event before it (``split``) splits its sums by the blocks (direct = the
+        pairs at the photons' first vertex; glossy = the glossy lobe's part; the rest diffuse; a
+        volume point's are volume), a point behind one gives them all to the indirect pass of that
+        event's kind."""
         m, n = self.points.count, self.n_points
         main = self._surface_values(sums[:m])
         direct = self._surface_values(sums[self.direct_slots:self.direct_slots + m])
@@ -730,7 +731,8 @@ class DepositTarget:
             for name, value in volume.items():
                 if name in out:
                     np.add.at(out[name], self.volume.pixel_ids, value)
-        return out
+        # (passes this target has nothing for are left out: the workers send less)
+        return {name: value for name, value in out.items() if value.any()}
 
 
 def _twice(values, rows):

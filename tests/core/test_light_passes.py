@@ -1,5 +1,7 @@
 """Cycles' light passes (``core/light_passes.py``): they add up to the image, each light goes to the
 pass of the camera path's first scattering event, and the colours are Cycles' estimates."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -76,6 +78,18 @@ def test_a_floor_under_the_sky_is_lit_directly():
     for key in ("glossy_direct", "glossy_indirect", "transmission_direct", "transmission_indirect",
                 "emission"):
         assert data[key].max() == 0.0, key
+
+
+def test_a_transparent_film_keeps_the_world_in_the_environment_pass():
+    """On a transparent film the sky is cut out of the image (RGB and alpha 0) but the Environment
+    pass still shows it, as Cycles evaluates the world for that pass (``integrate_background``)."""
+    scene = scenes.sky_over_floor(resolution=(16, 16), pitch_deg=10.0)
+    scene = dataclasses.replace(scene, world=dataclasses.replace(scene.world, film_transparent=True))
+    result = passes_of(scene, passes=1)
+    sky = result.data["diffuse_color"][..., 0] == 0.0
+    assert sky.sum() > 40
+    assert np.allclose(result.data["environment"][sky], 1.0, atol=1e-6)
+    assert result.image[sky].max() == 0.0
 
 
 def _mirror_scene(mirror_color=0.8, world=(0.2, 0.4, 0.6)):
