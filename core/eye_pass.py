@@ -169,7 +169,7 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     _, eye_light, colours = light_wanted(data_passes)
     light = None
     if eye_light or colours or any(n in data_passes for n in PHOTON_PASSES):
-        light = EyeLight({name: np.zeros((n_pix, 3)) for name in eye_light + colours})
+        light = EyeLight({name: np.zeros((n_pix, 3), np.float32) for name in eye_light + colours})
         data.update(light.sums)
     kinds = [k for k in cryptomatte.KINDS if k in data_passes and ctx.scene.cryptomatte_ids is not None]
     chunks = [] if kinds else None                    # Cryptomatte's (pixels, triangles, weights) per chunk
@@ -342,13 +342,14 @@ def colour_albedos(table, surf, wo, rows, rng):
     k = len(rows)
     out = {name: np.zeros((k, 3)) for name in ("diffuse_color", "glossy_color", "transmission_color")}
     for lobe, _, dest, w, _, sides in lobe_albedos(table, surf, wo, rows, rng):
+        # (a lobe's hits are distinct: no repeats in ``dest``)
         if lobe in (DIFFUSE, TRANSLUCENT, SHEEN):
-            np.add.at(out["diffuse_color"], dest, w)
+            out["diffuse_color"][dest] += w
         elif lobe == DIELECTRIC:
-            np.add.at(out["glossy_color"], dest, sides[0])
-            np.add.at(out["transmission_color"], dest, sides[1])
+            out["glossy_color"][dest] += sides[0]
+            out["transmission_color"][dest] += sides[1]
         else:
-            np.add.at(out["glossy_color"], dest, w)
+            out["glossy_color"][dest] += w
     return out
 
 

@@ -144,7 +144,8 @@ class Accumulator:
                     self.crypto.setdefault(name, CryptoSums()).add(*value)
                     continue
                 total = self.data_sums.get(name)
-                self.data_sums[name] = value.copy() if total is None else total + value
+                # (float64 sums, also of the eye's float32 light passes)
+                self.data_sums[name] = value.astype(np.float64) if total is None else total + value
         self.n_uniform += n_uniform
         self.n_visible += n_visible
         vc_pass = (n_visible / n_uniform if n_uniform else 0.0) if is_chain else 1.0
@@ -226,33 +227,42 @@ class Accumulator:
         (:func:`~core.light_passes.divide_even_color`)."""
         if not self.passes:
             return {}
-        means = {name: value / self.passes for name, value in self.data_sums.items()}
-        for name, (photons, scaled, outside) in self.light.items():
-            value = means.get(name, 0.0)
-            photon_part = 0.0
-            if self.recorded:
-                if is_chain:
-                    scale = self.visible_weighted / self.recorded
-                    photons = scale * photons if self.normalisation == "cumulative" else scaled
-                photon_part = photons / self.recorded
-            if is_chain and self.n_uniform:
-                photon_part = photon_part + outside / self.n_uniform
-            if self.photon_factor is not None:
-                photon_part = photon_part * self.photon_factor
-            means[name] = value + photon_part
-        for name in self.light_passes:
-            if name in PHOTON_PASSES:
-                value = means.get(name, np.zeros((len(self.alpha), 3)))
-                means[name] = divide_even_color(value, means[colour_of(name)]) if colour_of(name) else value
-        out = {}
-        for name, value in means.items():
-            if name in COLOR_PASSES and name not in self.light_passes:
-                continue                # (a colour that a divided pass alone asked for)
-            value = np.minimum(value, FLOAT32_MAX) if name in LIGHT_PASSES else value
-            out[name] = np.asarray(value, np.float32).reshape((height, width) + np.shape(value)[1:])
+
+        def image(value):
+            return np.asarray(value, np.float32).reshape((height, width) + np.shape(value)[1:])
+
+        out = {name: image(value / self.passes) for name, value in self.data_sums.items()
+               if name not in LIGHT_PASSES}
+        colours = {name: self.data_sums[name] / self.passes for name in COLOR_PASSES
+                   if name in self.data_sums}
+        for name in self.light_passes:          # (one at a time: 13 of them at 1080p take 0.6 GB)
+            value = colours[name] if name in colours else self._light_mean(name, is_chain)
+            if colour_of(name):
+                value = divide_even_color(value, colours[colour_of(name)])
+            out[name] = image(np.minimum(value, FLOAT32_MAX))
         for name, sums in self.crypto.items():
             out[name] = sums.image(height * width, self.crypto_levels, self.passes).reshape(height, width, -1)
         return out
+
+    def _light_mean(self, name, is_chain):
+        """(n, 3) float64 light pass ``name`` before any division by a colour: the eye passes' mean
+        plus the photons' estimate as in :meth:`image` (times ``photon_factor``)."""
+        value = (self.data_sums[name] / self.passes if name in self.data_sums
+                 else np.zeros((len(self.alpha), 3)))
+        if name not in self.light:
+            return value
+        photons, scaled, outside = self.light[name]
+        photon_part = 0.0
+        if self.recorded:
+            if is_chain:
+                scale = self.visible_weighted / self.recorded
+                photons = scale * photons if self.normalisation == "cumulative" else scaled
+            photon_part = photons / self.recorded
+        if is_chain and self.n_uniform:
+            photon_part = photon_part + outside / self.n_uniform
+        if self.photon_factor is not None:
+            photon_part = photon_part * self.photon_factor
+        return value + photon_part
 
     def _corrected(self, rgb, is_chain, scale):
         """The image A + w D, clamped at 0: D = (estimate at r/2) - (estimate at r), w in

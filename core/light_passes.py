@@ -51,7 +51,8 @@ def wanted(names):
     each a tuple in this module's order; a divided pass needs its colour."""
     names = set(names)
     photon = tuple(n for n in PHOTON_PASSES if n in names)
-    eye = tuple(n for n in PHOTON_PASSES[:6] + EYE_PASSES if n in names)
+    # (emission reaches the eye through delta events, glossy or transmission, or none)
+    eye = tuple(n for n in PHOTON_PASSES[2:6] + EYE_PASSES if n in names)
     colours = tuple(c for c in COLOR_PASSES if c in names or any(colour_of(n) == c for n in photon))
     return photon, eye, colours
 
@@ -61,20 +62,30 @@ def divide_even_color(a, b):
     is 0, except that a channel whose ``b`` is 0 takes the mean of the other two quotients (or the
     one quotient left, where two are 0), so that a pass stays grey.  a, b: (..., 3)."""
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    shape = np.broadcast_shapes(a.shape, b.shape)
+    a, b = np.broadcast_to(a, shape).reshape(-1, 3), np.broadcast_to(b, shape).reshape(-1, 3)
     zero = b == 0
-    q = np.where(zero, 0.0, a / np.where(zero, 1.0, b))
-    x, y, z = q[..., 0], q[..., 1], q[..., 2]
-    zx, zy, zz = zero[..., 0], zero[..., 1], zero[..., 2]
-    out_x = np.select([zx & zy, zx & zz, zx], [z, y, 0.5 * (y + z)], x)
-    out_y = np.select([zx & zy, zx & zz, zx, zy & zz, zy], [z, y, y, x, 0.5 * (x + z)], y)
-    out_z = np.select([zx & zy, zx & zz, zx, zy & zz, zy, zz], [z, y, z, x, z, 0.5 * (x + y)], z)
-    return np.stack([out_x, out_y, out_z], axis=-1)
+    out = np.where(zero, 0.0, a / np.where(zero, 1.0, b))
+    count = zero.sum(axis=1)
+    rows = np.flatnonzero((count == 1) | (count == 2))      # (only these need more than a quotient)
+    if len(rows):
+        q = np.where(zero[rows], 0.0, out[rows])
+        x, y, z = q[:, 0], q[:, 1], q[:, 2]
+        zx, zy, zz = zero[rows, 0], zero[rows, 1], zero[rows, 2]
+        first_zero = [zx & zy, zx & zz, zx]
+        out[rows] = np.stack([np.select(first_zero, [z, y, 0.5 * (y + z)], x),
+                              np.select(first_zero + [zy & zz, zy], [z, y, y, x, 0.5 * (x + z)], y),
+                              np.select(first_zero + [zy & zz, zy, zz], [z, y, z, x, z, 0.5 * (x + y)], z)],
+                             axis=1)
+    return out.reshape(shape)
 
 
 class EyeLight:
     """The eye pass's part of the light passes: emission and the world seen by camera paths, by
     the paths' first scattering event, and the colour passes at their first surfaces.  ``sums``:
-    name -> (n_pixels, 3) float64 arrays this eye pass adds to (those asked for)."""
+    name -> (n_pixels, 3) arrays this eye pass adds to (those asked for; float32 is enough for one
+    pass's values, and at 1920 x 1080 each such array is 25 MB).  A call's pixels are those of
+    distinct camera paths, one path per pixel: no pixel twice."""
 
     def __init__(self, sums):
         self.sums = sums
@@ -85,7 +96,7 @@ class EyeLight:
         if depth == 0:
             total = self.sums.get("environment" if background else "emission")
             if total is not None:
-                np.add.at(total, pix, value)
+                total[pix] += value
             return
         part = "_direct" if depth == 1 else "_indirect"
         for code, kind in _VIA_KIND.items():
@@ -94,7 +105,7 @@ class EyeLight:
                 continue
             sel = np.flatnonzero(via == code)
             if len(sel):
-                np.add.at(total, pix.take(sel), value.take(sel, axis=0))
+                total[pix.take(sel)] += value.take(sel, axis=0)
 
     @property
     def colours(self):
@@ -106,4 +117,4 @@ class EyeLight:
         what the surface's closures of each kind reflect or transmit, times the paths' weights."""
         for name, value in albedos.items():
             if name in self.sums:
-                np.add.at(self.sums[name], pix, value)
+                self.sums[name][pix] += value

@@ -90,14 +90,18 @@ class DepositTarget:
     """The measurement points of one pass, gridded, with their per-point kernel weights.
 
     Volume points (:class:`~core.eye_pass.VolumePoints`) follow the m surface points in the
-    numbering of the sums: point m + k is volume point k.  With ``inner`` the pairs within half
-    surface point j's radius are deposited a second time, on slot ``n_points + j`` of the sums
-    (``n_slots`` = n_points + m slots in all), for the second estimate at half the radius
-    (:meth:`inner_pixels`, ``RenderSettings.bias_correction``).  With ``light_passes`` three more
-    blocks follow, for the points whose camera paths met no delta event (``split``): the pairs of
-    photons at their first vertex (n_points slots), the glossy part of all pairs and that of those
-    at their first vertex (m slots each); :meth:`pass_pixels` makes Cycles' light passes of them
-    (``core/light_passes.py``)."""
+    numbering of the sums: point m + k is volume point k.  With ``light_passes`` the pairs of the
+    points whose camera paths met no delta event (``split``) are spread over three more blocks of
+    slots after those n_points: the pairs of photons at their first vertex go to the direct block
+    (n_points slots) instead, and the glossy lobe's part of a pair to the glossy block (m slots), or
+    at the first vertex to the direct glossy block (m slots), the rest staying where it would go
+    (:meth:`route_pairs`); what a point gathered is the sum of its slots (:meth:`to_pixels`), and
+    :meth:`pass_pixels` makes Cycles' light passes of them (``core/light_passes.py``).  With
+    ``inner`` the pairs within half surface point j's radius are deposited a second time, whole, on
+    slot ``inner_slots + j`` of the sums (m slots after all those), for the second estimate at
+    half the radius (:meth:`inner_pixels`, ``RenderSettings.bias_correction``); ``n_slots`` slots
+    in all.  The pairs on the slots before ``inner_slots`` are the ones that count towards a
+    splat (:class:`PointSums`)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
@@ -124,17 +128,18 @@ class DepositTarget:
             volume_grid = HashGrid(self.volume.position, volume_radius, None)
         self.volume_grid = volume_grid if self.volume is not None else None
         self.n_points = points.count + (0 if self.volume is None else self.volume.count)
-        self.n_slots = self.n_points + (points.count if self.inner else 0)   # (no inner volume slots)
         self.light_passes = tuple(light_passes)
         self.split = None
+        self.inner_slots = self.n_points
         if self.light_passes:
             # Blocks: photons at their first vertex, glossy parts, glossy parts at the first vertex.
-            self.direct_slots = self.n_slots
+            self.direct_slots = self.n_points
             self.glossy_slots = self.direct_slots + self.n_points
             self.direct_glossy_slots = self.glossy_slots + points.count
-            self.n_slots = self.direct_slots + self.n_points + 2 * points.count
+            self.inner_slots = self.direct_glossy_slots + points.count
             self.split = np.concatenate([np.ones(p.count, bool) if p.via is None else p.via == VIA_NONE
                                          for p in (points, self.volume) if p is not None])
+        self.n_slots = self.inner_slots + (points.count if self.inner else 0)   # (no inner volume slots)
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -533,27 +538,28 @@ class DepositTarget:
         w[:, s] = w_s
         return w, glossy
 
-    def pass_pairs(self, j, bounce, w, glossy):
-        """The light passes' pairs (``light_passes``) of pairs with surface points ``j`` of photons
-        at vertex ``bounce``, weights ``w`` and glossy parts ``glossy`` (:meth:`pair_weights` with
-        ``split``): (pair rows (r,), slots (r,), weights (3, r)) on the blocks of the points that
-        ``split``: at the first vertex (``bounce`` 0) the whole pair on the direct block, and the
-        glossy parts on the glossy block (and the direct glossy block)."""
+    def route_pairs(self, j, bounce, w, glossy):
+        """Where pairs with surface points ``j`` of photons at vertex ``bounce``, of weights ``w``
+        and glossy parts ``glossy`` (:meth:`pair_weights` with ``split``) go with ``light_passes``:
+        (slots (k,), their weights (as ``w``), and the glossy parts' pairs (rows (r,), slots (r,),
+        weights (3, r)) or None).  At the points that ``split``, a pair at the photon's first vertex
+        goes to the direct block, and its glossy part apart to the glossy block (the direct glossy
+        block at the first vertex); elsewhere it stays on the point's slot."""
         rows = np.flatnonzero(self.split.take(j))
-        full = w if w.ndim == 2 else np.broadcast_to(w, (3, len(w)))
-        parts = []
-        if bounce == 0:
-            parts.append((rows, self.direct_slots, full))
-        if glossy is not None:
-            g = rows.take(np.flatnonzero(self.glossy_lobe.take(j.take(rows))))
-            parts.append((g, self.glossy_slots, glossy))
-            if bounce == 0:
-                parts.append((g, self.direct_glossy_slots, glossy))
-        if not parts:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((3, 0))
-        return (np.concatenate([r for r, _, _ in parts]),
-                np.concatenate([j.take(r) + offset for r, offset, _ in parts]),
-                np.concatenate([v.take(r, axis=1) for r, _, v in parts], axis=1))
+        slots = j
+        if bounce == 0 and len(rows):
+            slots = j.copy()
+            slots[rows] += self.direct_slots
+        if glossy is None:
+            return slots, w, None
+        g = rows.take(np.flatnonzero(self.glossy_lobe.take(j.take(rows))))
+        if len(g) == 0:
+            return slots, w, None
+        part = glossy.take(g, axis=1)
+        w = w.copy()
+        w[:, g] -= part
+        offset = self.direct_glossy_slots if bounce == 0 else self.glossy_slots
+        return slots, w, (g, j.take(g) + offset, part)
 
     def _sheen_part(self, jh, h, wi, geometry, exclude, diffuse_scale):
         """(3, k) the sheen's part of pairs ``h`` with sheened points ``jh`` (:meth:`pair_weights`'s
@@ -646,7 +652,7 @@ class DepositTarget:
     def to_pixels(self, sums):
         """(n_pixels, 3) radiance sums from the per-slot sums of flux times :meth:`pair_weights`
         (``n_slots``, 3)."""
-        return self._pixels(sums, 0)
+        return self._pixels(sums, inner=False)
 
     def inner_pixels(self, sums):
         """As :meth:`to_pixels` for the estimate at half the radius: the surface points' inner
@@ -654,17 +660,29 @@ class DepositTarget:
         :meth:`to_pixels` (their gathers have no inner estimate)."""
         if not self.inner:
             raise ValueError("DepositTarget.inner_pixels: the target was built without inner sums")
-        return self._pixels(sums, self.n_points)
+        return self._pixels(sums, inner=True)
 
-    def _pixels(self, sums, offset):
-        """to_pixels of the surface slots ``offset`` .. ``offset + m`` (at half the radius if
-        ``offset``), with the volume points' slots."""
+    def _pixels(self, sums, inner):
+        """to_pixels of what the points gathered (:meth:`gathered`), or of the surface points' inner
+        slots (at half the radius) with ``inner``."""
         m = self.points.count
+        whole = self.gathered(sums)
+        block = sums[self.inner_slots:self.inner_slots + m] if inner else whole[:m]
         out = np.zeros((self.n_pixels, 3))
-        out[self.pixel_ids] = self._surface_values(sums[offset:offset + m], half=bool(offset))
+        out[self.pixel_ids] = self._surface_values(block, half=inner)
         if self.volume is not None:
-            np.add.at(out, self.volume.pixel_ids, self._volume_values(sums[m:self.n_points]))
+            np.add.at(out, self.volume.pixel_ids, self._volume_values(whole[m:]))
         return out
+
+    def gathered(self, sums):
+        """(n_points, 3) each point's sum over its slots (with ``light_passes``, its blocks')."""
+        n, m = self.n_points, self.points.count
+        if not self.light_passes:
+            return sums[:n]
+        whole = sums[:n] + sums[self.direct_slots:self.direct_slots + n]
+        whole[:m] += sums[self.glossy_slots:self.glossy_slots + m]
+        whole[:m] += sums[self.direct_glossy_slots:self.direct_glossy_slots + m]
+        return whole
 
     def _surface_values(self, block, half=False):
         """(m, 3) radiance of the surface points from their slots' sums ``block`` (m, 3): w_j
@@ -694,52 +712,42 @@ class DepositTarget:
     def pass_pixels(self, sums):
         """name -> (n_pixels, 3) the photons' part of the light passes ``light_passes`` (those with
         some) from the per-slot sums (``n_slots``, 3), as :meth:`to_pixels` makes the image's: a
-        point with no delta event before it (``split``) splits its sums by the blocks (direct = the
-        pairs at the photons' first vertex; glossy = the glossy lobe's part; the rest diffuse; a
-        volume point's are volume), a point behind one gives them all to the indirect pass of that
-        event's kind."""
+        point with no delta event before it (``split``) gives its direct block to the direct pass
+        (diffuse; a volume point's volume), its glossy blocks to the glossy passes and its own slot
+        to the indirect one; a point behind a delta event gives its slot to the indirect pass of
+        that event's kind (its blocks are empty)."""
         m, n = self.points.count, self.n_points
-        main = self._surface_values(sums[:m])
-        direct = self._surface_values(sums[self.direct_slots:self.direct_slots + m])
-        glossy = self._surface_values(sums[self.glossy_slots:self.glossy_slots + m])
-        both = self._surface_values(sums[self.direct_glossy_slots:self.direct_glossy_slots + m])
-        split = self.split[:m, None]
-        via = np.zeros(m, np.uint8) if self.points.via is None else self.points.via
+        main, direct = sums[:n], sums[self.direct_slots:self.direct_slots + n]
         zero = np.zeros(3)
-        # (differences of the same sums summed apart: rounding may leave -1e-16 of them)
-        surface = {
-            "diffuse_direct": np.where(split, np.maximum(direct - both, 0.0), zero),
-            "diffuse_indirect": np.where(split, np.maximum(main - direct - glossy + both, 0.0), zero),
-            "glossy_direct": np.where(split, both, zero),
-            "glossy_indirect": np.where(split, np.maximum(glossy - both, 0.0),
-                                        np.where((via == VIA_GLOSSY)[:, None], main, zero)),
-            "transmission_indirect": np.where((via == VIA_TRANSMISSION)[:, None], main, zero)}
+
+        def by_event(points, main, split):
+            via = np.zeros(points.count, np.uint8) if points.via is None else points.via
+            return {"glossy_indirect": np.where((via == VIA_GLOSSY)[:, None], main, zero),
+                    "transmission_indirect": np.where((via == VIA_TRANSMISSION)[:, None], main, zero),
+                    "split": np.where(split[:, None], main, zero)}
+
+        s = by_event(self.points, main[:m], self.split[:m])
+        surface = {"diffuse_direct": direct[:m], "diffuse_indirect": s["split"],
+                   "glossy_direct": sums[self.direct_glossy_slots:self.direct_glossy_slots + m],
+                   "glossy_indirect": (sums[self.glossy_slots:self.glossy_slots + m]
+                                       + s["glossy_indirect"]),
+                   "transmission_indirect": s["transmission_indirect"]}
+        volume = {}
+        if self.volume is not None:
+            v = by_event(self.volume, main[m:], self.split[m:])
+            volume = {"volume_direct": direct[m:], "volume_indirect": v["split"],
+                      "glossy_indirect": v["glossy_indirect"],
+                      "transmission_indirect": v["transmission_indirect"]}
         out = {}
         for name in self.light_passes:
-            out[name] = np.zeros((self.n_pixels, 3))
+            total = np.zeros((self.n_pixels, 3))
             if name in surface:
-                out[name][self.pixel_ids] = surface[name]
-        if self.volume is not None:
-            v_main = self._volume_values(sums[m:n])
-            v_direct = self._volume_values(sums[self.direct_slots + m:self.direct_slots + n])
-            v_split = self.split[m:, None]
-            v_via = np.zeros(n - m, np.uint8) if self.volume.via is None else self.volume.via
-            volume = {"volume_direct": np.where(v_split, v_direct, zero),
-                      "volume_indirect": np.where(v_split, np.maximum(v_main - v_direct, 0.0), zero),
-                      "glossy_indirect": np.where((v_via == VIA_GLOSSY)[:, None], v_main, zero),
-                      "transmission_indirect": np.where((v_via == VIA_TRANSMISSION)[:, None], v_main, zero)}
-            for name, value in volume.items():
-                if name in out:
-                    np.add.at(out[name], self.volume.pixel_ids, value)
-        # (passes this target has nothing for are left out: the workers send less)
-        return {name: value for name, value in out.items() if value.any()}
-
-
-def _twice(values, rows):
-    """``values`` followed by its ``rows`` once more (None stays None)."""
-    if values is None:
-        return None
-    return np.concatenate([values, values.take(rows, axis=0)])
+                total[self.pixel_ids] = self._surface_values(surface[name])
+            if name in volume:
+                np.add.at(total, self.volume.pixel_ids, self._volume_values(volume[name]))
+            if total.any():     # (passes this target has nothing for are left out: the workers send less)
+                out[name] = total
+        return out
 
 
 def _inside_share(planes, r):
@@ -1024,26 +1032,32 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 exclude = None if excluded is None else excluded.take(lane)
                 if limited is not None:
                     exclude = limited if exclude is None else exclude | limited
-                extra = None
                 if target.light_passes:
                     w, glossy = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude, scale,
                                                     split=True)
-                    extra = target.pass_pairs(pj, bounce, w, glossy)
+                    main_slots, main_w, extra = target.route_pairs(pj, bounce, w, glossy)
                 else:
                     w = target.pair_weights(pj, wi_pairs, cos_g, cos_photon, back, exclude, scale)
-                # The pairs within half the radius once more, on the inner slots.
+                    main_slots, main_w, extra = pj, w, None
+                # The pairs within half the radius once more (whole), on the inner slots; the glossy
+                # parts routed apart last.
                 again = None if near is None else np.flatnonzero(near)
-                slots = pj if again is None else np.concatenate([pj, pj.take(again) + target.n_points])
+                slots = [main_slots]
+                if again is not None:
+                    slots.append(pj.take(again) + target.inner_slots)
                 if extra is not None:
-                    slots = np.concatenate([slots, extra[1]])
+                    slots.append(extra[1])
+                slots = np.concatenate(slots) if len(slots) > 1 else main_slots
                 if collect_pairs:
                     f = deposited.take(lane, axis=0)
                     path = idx[lane]
-                    v = f * (w[:, None] if w.ndim == 1 else w.T)
+                    v = f * (main_w[:, None] if main_w.ndim == 1 else main_w.T)
                     if again is not None:
-                        path, v = _twice(path, again), _twice(v, again)
+                        whole = v if extra is None else f * (w[:, None] if w.ndim == 1 else w.T)
+                        path = np.concatenate([path, path.take(again)])
+                        v = np.concatenate([v, whole.take(again, axis=0)])
                     if extra is not None:
-                        path = np.concatenate([path, path.take(extra[0])])
+                        path = np.concatenate([path, idx[lane].take(extra[0])])
                         v = np.concatenate([v, f.take(extra[0], axis=0) * extra[2].T])
                     pairs["path"].append(path)
                     pairs["point"].append(slots)
@@ -1051,13 +1065,15 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     pairs["bounce"].append(np.full(len(slots), bounce, np.int16))
                 else:
                     f = [deposited[:, c].take(lane) for c in range(3)]
-                    v = [fc * (w if w.ndim == 1 else w[c]) for c, fc in enumerate(f)]
+                    v = [fc * (main_w if main_w.ndim == 1 else main_w[c]) for c, fc in enumerate(f)]
                     if again is not None:
-                        v = [_twice(vc, again) for vc in v]
+                        whole = v if extra is None else [fc * (w if w.ndim == 1 else w[c])
+                                                         for c, fc in enumerate(f)]
+                        v = [np.concatenate([vc, wc.take(again)]) for vc, wc in zip(v, whole)]
                     if extra is not None:
                         v = [np.concatenate([vc, fc.take(extra[0]) * extra[2][c]]) for c, (vc, fc)
                              in enumerate(zip(v, f))]
-                    sums.add(slots, v, len(pj))
+                    sums.add(slots, v, len(pj) + (0 if extra is None else len(extra[0])))
                 if target.cells is None:
                     seen[lane] = True
             if target.cells is not None:
@@ -1383,20 +1399,16 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
             f = vert["flux"] * ctx.scattering.take(vmed, axis=0)
             # One phase value for all pairs (even scattering) multiplies the photons, not the pairs.
             f = (f * phase).take(pi, axis=0) if np.ndim(phase) == 0 else f.take(pi, axis=0) * phase[:, None]
-            counted = len(pj)
             if target.light_passes and bounce == 0:
-                # (light passes: the photons at their first vertex once more, on the direct block)
-                first_rows = np.flatnonzero(target.split.take(pj))
-                pi = np.concatenate([pi, pi.take(first_rows)])
-                pj = np.concatenate([pj, pj.take(first_rows) + target.direct_slots])
-                f = np.concatenate([f, f.take(first_rows, axis=0)])
+                # (light passes: photons at their first vertex go to the direct block)
+                pj = np.where(target.split.take(pj), pj + target.direct_slots, pj)
             if collect_pairs:
                 pairs["path"].append(idx.take(pi))
                 pairs["point"].append(pj)
                 pairs["value"].append(f)
                 pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
             else:
-                sums.add(pj, [f[:, c] for c in range(3)], counted)
+                sums.add(pj, [f[:, c] for c in range(3)])
             if target.cells is None:
                 seen[pi] = True
     if target.cells is not None:

@@ -118,7 +118,7 @@ class PhotonWorker:
         s = self.settings
         chains = self.chains
         halves = target.inner and self.lane_halves
-        recorder = DepositLog(target.n_slots, chains.count, halves=halves, main_slots=target.n_points)
+        recorder = DepositLog(target.n_slots, chains.count, halves=halves, main_slots=target.inner_slots)
 
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()

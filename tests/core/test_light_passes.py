@@ -39,12 +39,12 @@ def test_light_passes_add_up_to_the_image(name, present, method):
     """In scenes of mirrors, glass, fog and sky, by uniform photons and the chains: the passes,
     put together as Cycles' compositor does ((direct + indirect) x colour of each kind, plus
     emission, environment and volume), are the image to float rounding in every pixel; the image is
-    the same, bit for bit, with or without them; every pass is finite and not negative, and those
-    the scene makes are not empty."""
+    the same with or without them (to float rounding: the points' sums are split over more slots);
+    every pass is finite and not negative, and those the scene makes are not empty."""
     scene = getattr(scenes, name)()
     result = passes_of(scene, method=method)
     plain = render(scene, RenderSettings(passes=3, photons_per_pass=20000, workers=1, seed=3, method=method))
-    assert np.array_equal(result.image, plain.image)
+    assert np.allclose(result.image, plain.image, rtol=1e-6, atol=1e-7)
     data = result.data
     assert set(LIGHT_PASSES) <= set(data)
     for key in LIGHT_PASSES:
