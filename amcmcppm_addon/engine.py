@@ -63,6 +63,7 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
 # that asks for it ("" the view layer's own, "cycles" its Cycles settings: Denoising Data) and the
 # core's data pass it shows (RenderSettings.data_passes).
 DENOISING = ("cycles", "denoising_store_passes")
+LIGHT_PARTS = ("direct", "indirect", "color")
 DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
                (("Mist", 1, "Z", 'VALUE'), "", "use_pass_mist", "mist"),
                (("Position", 3, "XYZ", 'VECTOR'), "", "use_pass_position", "position"),
@@ -73,21 +74,14 @@ DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
                (("Denoising Normal", 3, "XYZ", 'VECTOR'), *DENOISING, "denoising_normal"),
                (("Denoising Albedo", 3, "RGB", 'COLOR'), *DENOISING, "albedo"),
                (("Denoising Depth", 1, "Z", 'VALUE'), *DENOISING, "denoising_depth"),
-               # Light passes (View Layer > Passes > Light; core/light_passes.py), Cycles' order.
-               *(((label, 3, "RGB", 'COLOR'), owner, prop, core) for label, owner, prop, core in (
-                   ("Diffuse Direct", "", "use_pass_diffuse_direct", "diffuse_direct"),
-                   ("Diffuse Indirect", "", "use_pass_diffuse_indirect", "diffuse_indirect"),
-                   ("Diffuse Color", "", "use_pass_diffuse_color", "diffuse_color"),
-                   ("Glossy Direct", "", "use_pass_glossy_direct", "glossy_direct"),
-                   ("Glossy Indirect", "", "use_pass_glossy_indirect", "glossy_indirect"),
-                   ("Glossy Color", "", "use_pass_glossy_color", "glossy_color"),
-                   ("Transmission Direct", "", "use_pass_transmission_direct", "transmission_direct"),
-                   ("Transmission Indirect", "", "use_pass_transmission_indirect", "transmission_indirect"),
-                   ("Transmission Color", "", "use_pass_transmission_color", "transmission_color"),
-                   ("Volume Direct", "cycles", "use_pass_volume_direct", "volume_direct"),
-                   ("Volume Indirect", "cycles", "use_pass_volume_indirect", "volume_indirect"),
-                   ("Emission", "", "use_pass_emit", "emission"),
-                   ("Environment", "", "use_pass_environment", "environment"))))
+               # Light passes (View Layer > Passes > Light; core/light_passes.py), Cycles' order:
+               # "Diffuse Direct" is the box use_pass_diffuse_direct and the core's diffuse_direct.
+               *(((f"{kind.title()} {part.title()}", 3, "RGB", 'COLOR'), "cycles" if kind == "volume" else "",
+                  f"use_pass_{kind}_{part}", f"{kind}_{part}")
+                 for kind in ("diffuse", "glossy", "transmission", "volume")
+                 for part in (LIGHT_PARTS[:2] if kind == "volume" else LIGHT_PARTS)),
+               (("Emission", 3, "RGB", 'COLOR'), "", "use_pass_emit", "emission"),
+               (("Environment", 3, "RGB", 'COLOR'), "", "use_pass_environment", "environment"))
 
 
 # Cryptomatte (View Layer > Cryptomatte): Blender's pass names' prefix, the box, the core's pass.

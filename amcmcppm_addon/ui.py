@@ -281,23 +281,27 @@ class AMCMCPPM_WORLD_PT_mist(bpy.types.Panel):
         layout.column().prop(mist, "falloff")
 
 
-class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
+class AMCMCPPMViewLayerPanel:
+    """A panel of the View Layer Properties shown for this engine alone."""
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "view_layer"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
+
+
+class AMCMCPPM_VIEWLAYER_PT_passes(AMCMCPPMViewLayerPanel, bpy.types.Panel):
     """View Layer Properties > Passes: the data passes the engine writes beside Combined, as Cycles'
     Data panel (Z, Mist, Position, Normal and UV of the surfaces camera rays stop on, Cycles'
     Denoising Data box for the Denoising Normal, Albedo and Depth, and the Object and Material
     Index; ``engine.DATA_PASSES``)."""
     bl_label = "Passes"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "view_layer"
-    COMPAT_ENGINES = {ENGINE_ID}
     # The view layer's boxes, in Cycles' order (its Data panel's Include and Indexes columns).
     data = ("use_pass_z", "use_pass_mist", "use_pass_position", "use_pass_normal", "use_pass_uv")
     indexes = ("use_pass_object_index", "use_pass_material_index")
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
 
     def draw(self, context):
         layout = self.layout
@@ -316,16 +320,12 @@ class AMCMCPPM_VIEWLAYER_PT_passes(bpy.types.Panel):
             col.prop(layer, name)
 
 
-class AMCMCPPM_VIEWLAYER_PT_light(bpy.types.Panel):
+class AMCMCPPM_VIEWLAYER_PT_light(AMCMCPPMViewLayerPanel, bpy.types.Panel):
     """View Layer Properties > Passes > Light: Cycles' light passes (Diffuse, Glossy, Transmission
     Direct, Indirect and Color; Volume Direct and Indirect; Emission and Environment), as its Light
     panel draws them (``engine.DATA_PASSES``, ``core.light_passes``)."""
     bl_label = "Light"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "view_layer"
     bl_parent_id = "AMCMCPPM_VIEWLAYER_PT_passes"
-    COMPAT_ENGINES = {ENGINE_ID}
     # (heading, the view layer's box or its Cycles settings' ("cycles"), ((property, label), ...))
     rows = tuple((kind.capitalize(), "", tuple((f"use_pass_{kind}_{part}", part.capitalize())
                                                for part in ("direct", "indirect", "color")))
@@ -333,10 +333,6 @@ class AMCMCPPM_VIEWLAYER_PT_light(bpy.types.Panel):
         ("Volume", "cycles", (("use_pass_volume_direct", "Direct"),
                               ("use_pass_volume_indirect", "Indirect"))),
         ("Other", "", (("use_pass_emit", "Emission"), ("use_pass_environment", "Environment"))))
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
 
     def draw(self, context):
         layout = self.layout
