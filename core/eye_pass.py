@@ -22,11 +22,11 @@ from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choo
                    face_forward, lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
 from .camera import generate_camera_rays
 from . import cryptomatte, subsurface
+from .light_passes import (PHOTON_PASSES, VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight,
+                           wanted as light_wanted)
 from .procedural import Rays, camera_path
 from .sampling import dot
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
-from .light_passes import (PHOTON_PASSES, VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight,
-                           wanted as light_wanted)
 from .settings import AOV_PREFIX, BounceLimits
 
 

@@ -28,8 +28,8 @@ import numpy as np
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
-from .light_passes import COLOR_PASSES, LIGHT_PASSES, PHOTON_PASSES, colour_of, divide_even_color
 from .eye_pass import centre_data, trace_eye_pass
+from .light_passes import COLOR_PASSES, LIGHT_PASSES, PHOTON_PASSES, colour_of, divide_even_color
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
@@ -128,7 +128,8 @@ class Accumulator:
         Also sets ``last_pass_mean``: the mean over pixels and RGB of this pass's own estimate,
         its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p, plus O_p / n_U.
         ``light_sum``, ``light_outside``: the light passes' S_p and O_p (name -> (n_pixels, 3)), or
-        None (their non-finite values are left out as zeros; no bias correction).
+        None (their non-finite values are left out as zeros; they take the image's bias correction
+        in proportion, :meth:`data`).
         """
         if self.bias_correction and inner_sum is None:
             raise ValueError("Accumulator.add: a bias-corrected image needs the inner sums")

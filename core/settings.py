@@ -258,7 +258,7 @@ class RenderSettings:
     "glossy_direct", "glossy_indirect", "transmission_direct", "transmission_indirect" (divided by
     their colour, as Cycles writes them), "volume_direct", "volume_indirect", "emission",
     "environment", and the colours "diffuse_color", "glossy_color", "transmission_color"; they add
-    up to the image (without ``bias_correction``, which they do not take)."""
+    up to the image (they take its ``bias_correction`` in proportion)."""
 
     cryptomatte_levels: int = 6
     """The (id, coverage) pairs per pixel of the Cryptomatte passes (Blender's View Layer >
