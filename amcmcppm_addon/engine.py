@@ -81,7 +81,8 @@ DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
                  for kind in ("diffuse", "glossy", "transmission", "volume")
                  for part in (LIGHT_PARTS[:2] if kind == "volume" else LIGHT_PARTS)),
                (("Emission", 3, "RGB", 'COLOR'), "", "use_pass_emit", "emission"),
-               (("Environment", 3, "RGB", 'COLOR'), "", "use_pass_environment", "environment"))
+               (("Environment", 3, "RGB", 'COLOR'), "", "use_pass_environment", "environment"),
+               (("Ambient Occlusion", 3, "RGB", 'COLOR'), "", "use_pass_ambient_occlusion", "ao"))
 
 
 # Cryptomatte (View Layer > Cryptomatte): Blender's pass names' prefix, the box, the core's pass.
@@ -182,9 +183,13 @@ def render_final(engine, depsgraph):
     """
     scene = depsgraph.scene_eval
     props = scene.amcmcppm
+    # (World > Ambient Occlusion > Distance: the Ambient Occlusion pass's, as Cycles')
+    world = scene.world
     settings = render_settings_from(props, data_passes=data_passes_of(depsgraph.view_layer),
                                     pass_alpha_threshold=float(depsgraph.view_layer.pass_alpha_threshold),
-                                    cryptomatte_levels=2 * crypto_pass_count(depsgraph.view_layer))
+                                    cryptomatte_levels=2 * crypto_pass_count(depsgraph.view_layer),
+                                    ao_distance=(max(float(world.light_settings.distance), 1e-6)
+                                                 if world is not None else 10.0))
     for msg in props.light_path_limits()[1]:
         engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
     engine.update_stats("", "Exporting scene")

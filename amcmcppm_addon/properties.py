@@ -202,8 +202,9 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
 
 # Core settings that Blender's own data gives, not a property of ours: the data passes, their
 # Alpha Threshold and Cryptomatte's levels are the view layer's (View Layer > Passes,
-# engine.data_passes_of, engine.crypto_pass_count).
-FROM_BLENDER = ("data_passes", "pass_alpha_threshold", "cryptomatte_levels")
+# engine.data_passes_of, engine.crypto_pass_count), the Ambient Occlusion pass's distance the
+# world's (World > Ambient Occlusion > Distance).
+FROM_BLENDER = ("data_passes", "pass_alpha_threshold", "cryptomatte_levels", "ao_distance")
 
 # Cycles' Light Paths that the engine follows: the bounce limits, caustics toggles and transparent limit, as
 # named by Cycles' settings and ours (AMCMCPPMRenderSettings.light_path_limits).

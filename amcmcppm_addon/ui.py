@@ -255,21 +255,27 @@ class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
             col.prop(visibility, name, text=text, toggle=False)
 
 
-class AMCMCPPM_WORLD_PT_mist(bpy.types.Panel):
-    """World > Mist Pass (Blender's mist settings, drawn by Cycles' panel for Cycles only): where the
-    Mist pass starts, its depth and falloff; shown, as Cycles', when some view layer asks for Mist."""
-    bl_label = "Mist Pass"
+class AMCMCPPMWorldPassPanel:
+    """A World panel of a pass's settings, shown when some view layer asks for the pass (``box``)."""
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
     bl_context = "world"
     bl_options = {'DEFAULT_CLOSED'}
     COMPAT_ENGINES = {ENGINE_ID}
-    props = ("start", "depth", "falloff")
+    box = ""
 
     @classmethod
     def poll(cls, context):
         return (context.engine in cls.COMPAT_ENGINES and context.world is not None
-                and any(layer.use_pass_mist for layer in context.scene.view_layers))
+                and any(getattr(layer, cls.box) for layer in context.scene.view_layers))
+
+
+class AMCMCPPM_WORLD_PT_mist(AMCMCPPMWorldPassPanel, bpy.types.Panel):
+    """World > Mist Pass (Blender's mist settings, drawn by Cycles' panel for Cycles only): where the
+    Mist pass starts, its depth and falloff; shown, as Cycles', when some view layer asks for Mist."""
+    bl_label = "Mist Pass"
+    box = "use_pass_mist"
+    props = ("start", "depth", "falloff")
 
     def draw(self, context):
         layout = self.layout
@@ -279,6 +285,21 @@ class AMCMCPPM_WORLD_PT_mist(bpy.types.Panel):
         col.prop(mist, "start")
         col.prop(mist, "depth")
         layout.column().prop(mist, "falloff")
+
+
+class AMCMCPPM_WORLD_PT_ambient_occlusion(AMCMCPPMWorldPassPanel, bpy.types.Panel):
+    """World > Ambient Occlusion: the Distance the Ambient Occlusion pass's rays look for what
+    occludes them (Blender's setting, which Cycles' panel draws for Cycles only; its Factor adds AO
+    to the image in Cycles, which this engine does not do); shown when some view layer asks for the
+    pass."""
+    bl_label = "Ambient Occlusion"
+    box = "use_pass_ambient_occlusion"
+    props = ("distance",)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(context.world.light_settings, "distance")
 
 
 class AMCMCPPMViewLayerPanel:
@@ -322,8 +343,8 @@ class AMCMCPPM_VIEWLAYER_PT_passes(AMCMCPPMViewLayerPanel, bpy.types.Panel):
 
 class AMCMCPPM_VIEWLAYER_PT_light(AMCMCPPMViewLayerPanel, bpy.types.Panel):
     """View Layer Properties > Passes > Light: Cycles' light passes (Diffuse, Glossy, Transmission
-    Direct, Indirect and Color; Volume Direct and Indirect; Emission and Environment), as its Light
-    panel draws them (``engine.DATA_PASSES``, ``core.light_passes``)."""
+    Direct, Indirect and Color; Volume Direct and Indirect; Emission, Environment and Ambient
+    Occlusion), as its Light panel draws them (``engine.DATA_PASSES``, ``core.light_passes``)."""
     bl_label = "Light"
     bl_parent_id = "AMCMCPPM_VIEWLAYER_PT_passes"
     # (heading, the view layer's box or its Cycles settings' ("cycles"), ((property, label), ...))
@@ -332,7 +353,8 @@ class AMCMCPPM_VIEWLAYER_PT_light(AMCMCPPMViewLayerPanel, bpy.types.Panel):
                  for kind in ("diffuse", "glossy", "transmission")) + (
         ("Volume", "cycles", (("use_pass_volume_direct", "Direct"),
                               ("use_pass_volume_indirect", "Indirect"))),
-        ("Other", "", (("use_pass_emit", "Emission"), ("use_pass_environment", "Environment"))))
+        ("Other", "", (("use_pass_emit", "Emission"), ("use_pass_environment", "Environment"),
+                       ("use_pass_ambient_occlusion", "Ambient Occlusion"))))
 
     def draw(self, context):
         layout = self.layout
@@ -416,7 +438,8 @@ def get_panels():
 
 # Panels outside the Render Properties.
 other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
-                 AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes,
+                 AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ambient_occlusion,
+                 AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes,
                  AMCMCPPM_VIEWLAYER_PT_light, AMCMCPPM_VIEWLAYER_PT_cryptomatte, AMCMCPPM_VIEWLAYER_PT_aov)
 
 

@@ -25,7 +25,7 @@ from . import cryptomatte, subsurface
 from .light_passes import (PHOTON_PASSES, VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight,
                            wanted as light_wanted)
 from .procedural import Rays, camera_path
-from .sampling import dot
+from .sampling import cosine_hemisphere, dot, to_world
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
 from .settings import AOV_PREFIX, BounceLimits
 
@@ -131,14 +131,15 @@ MAX_SEGMENT_POINTS = 16
 
 
 def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None,
-                   alpha_threshold=1.0) -> EyePassResult:
+                   alpha_threshold=1.0, ao_distance=10.0) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng``; with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
     rays stop on (:func:`first_hit_data`; the normal and UV past transparent surfaces by
     ``alpha_threshold``, :func:`threshold_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
     default ``max_bounces`` in all and none per kind): a point may follow as many mirror and
     glass bounces as leave room for its photons' (at least none), emission may be seen after
-    one more (that last bounce does not count, as in Cycles)."""
+    one more (that last bounce does not count, as in Cycles).  ``ao_distance``: the Ambient
+    Occlusion pass's (:func:`ambient_occlusion`)."""
     if limits is None:
         limits = BounceLimits(max_bounces)
     x0, x1, y0, y1 = ctx.scene.camera.window
@@ -156,6 +157,8 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
             data[name] = np.zeros(n_pix)
     if "mist" in data_passes:
         data["mist"] = np.ones(n_pix)                 # (rays that meet nothing: all mist)
+    if "ao" in data_passes:
+        data["ao"] = np.zeros((n_pix, 3))
     for name in data_passes:
         if name.startswith(AOV_PREFIX):
             data[name] = np.zeros((n_pix, 4))         # (value or colour, and 1 where written)
@@ -179,7 +182,8 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     for start in range(0, n_pix, EYE_CHUNK):
         pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
-                                        limits, volume, per_segment, data, alpha_threshold, chunks, light)
+                                        limits, volume, per_segment, data, alpha_threshold, chunks, light,
+                                        ao_distance)
         parts.extend(points)
         rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
@@ -421,6 +425,28 @@ def lobe_albedos(table, surf, wo, rows, rng):
             yield lobe, m_s, at.take(sel), w, scores[:, lobe].take(sel), sides
 
 
+def ambient_occlusion(ctx, surf, wo, medium, distance, rng):
+    """(k, 3) Cycles' Ambient Occlusion pass at the hits ``surf`` seen from ``wo``
+    (``integrate_surface_ao``): one ray each in a cosine direction about the shading normal facing
+    the viewer (Cycles' mean of its diffuse closures' normals, or the shading normal), from the
+    volume ``medium`` (k,) the paths are in (None: none), that carries back what reaches
+    ``distance`` (1 in the open; the tint of the transparent surfaces and volumes it crosses) and
+    0 where a surface stops it first."""
+    n = len(surf.mat_ids)
+    ng = face_forward(surf.ng, wo)
+    ns = face_forward(surf.ns, ng)
+    u = rng.random((n, 2))
+    d = to_world(cosine_hemisphere(u[:, 0], u[:, 1]), ns)
+    below = dot(d, ng)
+    d = d - 2.0 * np.minimum(below, 0.0)[:, None] * ng                # (a bent normal's: kept above)
+    origins = ctx.accel.spawn(surf.position, ng, d)
+    never = lambda rows, k: np.full(len(rows), 1.0 - 2.0 ** -53)    # noqa: E731  (cross every one)
+    hits, factor, _, _ = ctx.trace(origins, d, np.full(n, float(distance)), never, medium, cut=True)
+    out = np.ones((n, 3)) if factor is None else np.array(factor, np.float64)
+    out[hits.is_hit] = 0.0
+    return out
+
+
 # The depth pass where a camera ray meets nothing (Cycles' Z pass there).
 NO_DEPTH = 1e10
 
@@ -564,13 +590,15 @@ def _box_exit(origins, dirs, lo, hi):
 
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
-                        per_segment=1, data=None, alpha_threshold=1.0, coverage=None, light=None):
+                        per_segment=1, data=None, alpha_threshold=1.0, coverage=None, light=None,
+                        ao_distance=10.0):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
     ``per_segment`` in each segment through one, and to the list ``coverage``, if given, the camera
     rays' Cryptomatte coverage, :func:`~core.cryptomatte.coverage`).  ``light``: None, or the
     :class:`~core.light_passes.EyeLight` that takes the emission by the paths' first scattering
-    events and the colours of their first surfaces."""
+    events and the colours of their first surfaces; ``ao_distance``: the Ambient Occlusion pass's
+    (``data["ao"]``, :func:`ambient_occlusion`)."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, rng.random((len(pix), 4)))
@@ -772,6 +800,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             # Cycles' colour passes at the first surface (reached through transparent ones).
             albedos = colour_albedos(table, surf, wo, np.arange(len(pix)), rng.spawn(1)[0])
             light.add_colours(pix, {k: beta * v for k, v in albedos.items()})
+        if depth == 0 and data and "ao" in data:
+            data["ao"][pix] += beta * ambient_occlusion(ctx, surf, wo, medium, ao_distance, rng.spawn(1)[0])
         if feature is not None:
             feature.surface(table, surf, wo, pix, hits.t.take(h))
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.

@@ -432,7 +432,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     def eye_pass(i):
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
-                              averaged, settings.bounce_limits, settings.pass_alpha_threshold)
+                              averaged, settings.bounce_limits, settings.pass_alpha_threshold,
+                              settings.ao_distance)
 
     # The Markov chains' visible set also holds the cells around the measurement points of the
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it

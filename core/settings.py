@@ -28,7 +28,7 @@ NORMALISATIONS = ("cumulative", "per_pass")
 # taken from the first pass alone (as Cycles takes them from its first sample; the others are means).
 DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth", "position", "uv",
                "object_index", "material_index", "mist", "crypto_object", "crypto_material", "crypto_asset",
-               *LIGHT_PASSES)
+               *LIGHT_PASSES, "ao")
 FIRST_PASS_DATA = ("depth", "position", "object_index", "material_index")
 # A Shader AOV's data pass: this and its name (Materials.aov_names).
 AOV_PREFIX = "aov:"
@@ -258,7 +258,15 @@ class RenderSettings:
     "glossy_direct", "glossy_indirect", "transmission_direct", "transmission_indirect" (divided by
     their colour, as Cycles writes them), "volume_direct", "volume_indirect", "emission",
     "environment", and the colours "diffuse_color", "glossy_color", "transmission_color"; they add
-    up to the image (they take its ``bias_correction`` in proportion)."""
+    up to the image (they take its ``bias_correction`` in proportion).  "ao": Cycles' Ambient
+    Occlusion pass (H, W, 3): at the surfaces camera rays stop on, what a ray sent in a cosine
+    direction about the shading normal carries back unoccluded within ``ao_distance`` (1 in the
+    open, through transparent surfaces their tint; times the camera path's weight there), averaged
+    over the passes."""
+
+    ao_distance: float = 10.0
+    """How far the Ambient Occlusion pass's rays look for what occludes them (Blender's World >
+    Ambient Occlusion > Distance, in scene units)."""
 
     cryptomatte_levels: int = 6
     """The (id, coverage) pairs per pixel of the Cryptomatte passes (Blender's View Layer >
@@ -307,6 +315,8 @@ class RenderSettings:
             bad("transparent_max_bounces", f"must lie in [0, {MAX_TRANSPARENT_BOUNCES}]")
         if not 0.0 <= self.pass_alpha_threshold <= 1.0:
             bad("pass_alpha_threshold", "must lie in [0, 1]")
+        if not (math.isfinite(self.ao_distance) and self.ao_distance > 0.0):
+            bad("ao_distance", "must be a positive number of scene units")
         levels = self.cryptomatte_levels
         if not (isinstance(levels, (int, np.integer)) and 1 <= levels <= 16):
             bad("cryptomatte_levels", "must be an integer in [1, 16]")

@@ -249,7 +249,8 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
     boxes of the passes ``engine.DATA_PASSES`` registers (Z, Mist, Position, Normal, UV, Cycles'
     Denoising Data, Object and Material Index), its Light subpanel those of the light passes, for
     our engine alone; those passes are Cycles' (names, channels, types, in its order).  World > Mist
-    Pass (drawn by Cycles' panel for Cycles only) shows when a view layer asks for Mist."""
+    Pass (drawn by Cycles' panel for Cycles only) shows when a view layer asks for Mist, World >
+    Ambient Occlusion when one asks for that pass."""
     import cycles.engine
     from amcmcppm.amcmcppm_addon import ui
     from amcmcppm.amcmcppm_addon.engine import DATA_PASSES
@@ -261,12 +262,12 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
         holder = getattr(layer, owner) if owner else layer
         assert prop in holder.bl_rna.properties.keys(), (owner, prop)
         setattr(holder, prop, True)
-    light = [(owner, prop) for _, owner, prop, core in DATA_PASSES if core in LIGHT_PASSES]
+    light = [(owner, prop) for _, owner, prop, core in DATA_PASSES if core in LIGHT_PASSES + ("ao",)]
     assert list(panel.data + panel.indexes) == [prop for _, owner, prop, core in DATA_PASSES
-                                                if not owner and core not in LIGHT_PASSES]
+                                                if not owner and core not in LIGHT_PASSES + ("ao",)]
     # (View Layer > Passes > Light draws the light passes' boxes, Cycles' Light panel's)
     rows = ui.AMCMCPPM_VIEWLAYER_PT_light.rows
-    assert [(owner, prop) for _, owner, props in rows for prop, _ in props] == light and len(light) == 13
+    assert [(owner, prop) for _, owner, props in rows for prop, _ in props] == light and len(light) == 14
     assert getattr(bpy.types, "AMCMCPPM_VIEWLAYER_PT_light").bl_parent_id == panel.__name__
     ours = [(name, chan_id, kind) for (name, _, chan_id, kind), *_ in DATA_PASSES]
     assert all(channels == len(chan_id) for (_, channels, chan_id, _), *_ in DATA_PASSES)
@@ -279,18 +280,21 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
         scene.render.engine = "CYCLES"
         assert not panel.poll(bpy.context)
         scene.render.engine = ENGINE
-    mist = ui.AMCMCPPM_WORLD_PT_mist
-    assert getattr(bpy.types, mist.__name__) is mist
     world = bs.world((0.1, 0.1, 0.1))
-    assert set(mist.props) <= set(type(world.mist_settings).bl_rna.properties.keys())
-    with bpy.context.temp_override(world=world):
-        assert mist.poll(bpy.context)
-        layer.use_pass_mist = False
-        assert not mist.poll(bpy.context)
-        layer.use_pass_mist = True
-        scene.render.engine = "CYCLES"
-        assert not mist.poll(bpy.context)
-        scene.render.engine = ENGINE
+    # (World > Ambient Occlusion's Distance likewise when a view layer asks for that pass)
+    for panel, settings, box in ((ui.AMCMCPPM_WORLD_PT_mist, world.mist_settings, "use_pass_mist"),
+                                 (ui.AMCMCPPM_WORLD_PT_ambient_occlusion, world.light_settings,
+                                  "use_pass_ambient_occlusion")):
+        assert getattr(bpy.types, panel.__name__) is panel and panel.box == box
+        assert set(panel.props) <= set(type(settings).bl_rna.properties.keys())
+        with bpy.context.temp_override(world=world):
+            assert panel.poll(bpy.context)
+            setattr(layer, box, False)
+            assert not panel.poll(bpy.context)
+            setattr(layer, box, True)
+            scene.render.engine = "CYCLES"
+            assert not panel.poll(bpy.context)
+            scene.render.engine = ENGINE
 
 
 def test_cryptomatte_and_aov_panels_show_for_the_engine(scene):

@@ -148,3 +148,25 @@ def test_only_the_passes_asked_for_are_made():
                                           data_passes=("diffuse_direct",)))
     assert set(result.data) == {"diffuse_direct"}
     assert not set(COLOR_PASSES) & set(result.data) and set(PHOTON_PASSES) & set(result.data)
+
+
+@pytest.mark.parametrize("distance", [0.5, 2.0, 4.0])
+def test_ambient_occlusion_under_a_ceiling_is_the_closed_form(distance):
+    """The Ambient Occlusion pass on a floor under a ceiling at height 1: a cosine-distributed ray
+    escapes within ``distance`` D when cos(theta) < 1 / D, and cos^2 is uniform under the cosine
+    law, so the pass is min(1, 1 / D^2) (1, 0.25, 0.0625) within the noise of 256 pixels x 8
+    passes of one ray."""
+    mats = Materials.build([{"name": "floor", "diffuse": 0.5}])
+    m = MeshBuilder()
+    b = 50.0
+    m.add_quad((-b, -b, 0), (b, -b, 0), (b, b, 0), (-b, b, 0), 0)
+    m.add_quad((-b, -b, 1), (-b, b, 1), (b, b, 1), (b, -b, 1), 0)
+    cam = Camera.look_at(np.array([0.0, 0.0, 0.5]), np.array([0.0, 0.01, 0.0]), lens_mm=50.0,
+                         resolution=(16, 16))
+    scene = m.build(mats, None, cam, World(color=np.full(3, 1.0, np.float32)))
+    result = render(scene, RenderSettings(passes=8, photons_per_pass=2000, workers=1, data_passes=("ao",),
+                                          ao_distance=distance))
+    expected = min(1.0, 1.0 / distance ** 2)
+    ao = result.data["ao"]
+    assert ao.shape == (16, 16, 3) and set(result.data) == {"ao"}
+    assert abs(ao.mean() - expected) < 4.0 * np.sqrt(expected * (1.0 - expected) / 2048) + 1e-9
