@@ -1438,6 +1438,20 @@ def lobe_remainder(scores, u, lobe):
     return np.clip(r, 0.0, np.nextafter(1.0, 0.0))
 
 
+def reflector_albedo(table, lobe, mat_ids, colors, wo, ns):
+    """(n, 3) what the glossy or mirror lobe ``lobe`` of ``mat_ids`` with lobe colours ``colors``
+    (n, lobes, 3) reflects seen from ``wo``, as Cycles' ``bsdf_albedo`` estimates a microfacet
+    closure's: the lobe's weight times its colour, a Fresnel curve's colour taken at the shading
+    normal (the smooth surface's), the microfacets' own albedo taken as 1 (Cycles' closures carry
+    their energy compensation apart)."""
+    colour = colors[:, lobe]
+    w = table.weight[:, lobe].take(mat_ids)[:, None]
+    if not table.has_fresnel:
+        return w * colour
+    mu = np.clip(np.abs(dot(wo, ns)), 0.0, 1.0)
+    return w * (colour + table.fresnel_color(mat_ids, lobe, mu, colour))
+
+
 def dielectric_albedos(table, mat_ids, colors, wo, ng, ns):
     """(reflected, transmitted) (n, 3): what the glass lobes (``DIELECTRIC``) of ``mat_ids`` with
     lobe colours ``colors`` (n, lobes, 3) reflect and transmit seen from ``wo``, as Cycles'

@@ -19,7 +19,8 @@ import numpy as np
 
 from .accel import interpolate_corners
 from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choose_lobe, dielectric_albedos,
-                   face_forward, lobe_remainder, lobe_scores, pick_coat, scatter, valid_reflection_normal)
+                   face_forward, lobe_remainder, lobe_scores, pick_coat, reflector_albedo, scatter,
+                   valid_reflection_normal)
 from .camera import generate_camera_rays
 from . import cryptomatte, subsurface
 from .light_passes import (PHOTON_PASSES, VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight,
@@ -342,7 +343,8 @@ def colour_albedos(table, surf, wo, rows, rng):
     (k, 3) each, the :func:`lobe_albedos` of the diffuse-type lobes (diffuse, translucent, sheen),
     of the glossy ones (glossy, mirror, a glass's reflection) and of the transmitting ones (a
     glass's refraction), as ``surface_shader_diffuse``, ``_glossy`` and ``_transmission`` sum them
-    (a glass lobe's two sides by :func:`~core.bsdf.dielectric_albedos`, as Cycles estimates them)."""
+    (Cycles' estimates, not samples: :func:`~core.bsdf.reflector_albedo` for glossy and mirror lobes,
+    a glass lobe's two sides by :func:`~core.bsdf.dielectric_albedos`)."""
     k = len(rows)
     out = {name: np.zeros((k, 3)) for name in ("diffuse_color", "glossy_color", "transmission_color")}
     for lobe, _, dest, w, _, sides in lobe_albedos(table, surf, wo, rows, rng):
@@ -353,7 +355,7 @@ def colour_albedos(table, surf, wo, rows, rng):
             out["glossy_color"][dest] += sides[0]
             out["transmission_color"][dest] += sides[1]
         else:
-            out["glossy_color"][dest] += w
+            out["glossy_color"][dest] += sides[0]
     return out
 
 
@@ -361,8 +363,9 @@ def lobe_albedos(table, surf, wo, rows, rng):
     """For the hits ``rows`` of ``surf`` seen from ``wo`` (all hits), per lobe that some of them
     have: (lobe, materials (s,), hit numbers in ``rows`` (s,), albedos (s, 3), sample weights (s,),
     sides), as Cycles' ``bsdf_albedo`` estimates a closure's albedo (what it reflects and transmits
-    under a white sky); ``sides``: for glass lobes (reflected, transmitted) (s, 3) each by
-    :func:`~core.bsdf.dielectric_albedos`, else None.  Diffuse and translucent lobes give their
+    under a white sky); ``sides``: Cycles' estimates without a sample, for glass lobes (reflected,
+    transmitted) (s, 3) each by :func:`~core.bsdf.dielectric_albedos`, for glossy and mirror lobes
+    (reflected,) by :func:`~core.bsdf.reflector_albedo`, else None.  Diffuse and translucent lobes give their
     weight times colour (under a specular layer, its factor at the view), a sheen its E at the view;
     glossy, mirror and glass lobes one sample each: the lobe's :func:`~core.bsdf.scatter` weight
     towards the camera, whose mean is its directional albedo at the view with what the lobe's weight
@@ -419,6 +422,9 @@ def lobe_albedos(table, surf, wo, rows, rng):
                 if lobe == DIELECTRIC:
                     sides = dielectric_albedos(table, m_s, colors.take(sel, axis=0), wo_s, ng_s,
                                                ns.take(sel, axis=0))
+                else:
+                    sides = (reflector_albedo(table, lobe, m_s, colors.take(sel, axis=0), wo_s,
+                                              ns.take(sel, axis=0)),)
             if factor is not None:
                 w = w * factor.take(sel, axis=0)
                 sides = None if sides is None else tuple(a * factor.take(sel, axis=0) for a in sides)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, bsdf, render
+from core.light_passes import LIGHT_PASSES
 from core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, World
 from core.testing.scenes import MeshBuilder, with_one_object
 
@@ -384,3 +385,27 @@ def test_scaled_and_shifted_rooms_agree():
              for kw in (dict(), dict(scale=1e-4), dict(offset=(2e3, -1e3, 5e2)),
                         dict(offset=(1e5, -2e5, 3e4)))]
     assert np.ptp(means) < 0.05 * np.mean(means), means
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_hard_case_light_passes_stay_finite_and_add_up(name):
+    """The same hard cases by the chains with every light pass and the Ambient Occlusion pass: after
+    every pass each of them is finite and not negative, and the passes put together as Blender's
+    compositor does make the image where it stays within float32 (the light passes' bookkeeping
+    under mirrors facing each other, extreme values, degenerate emitters, scales of 1e-4 and 1e5; a
+    colour sampled instead of estimated once dropped a glossy pass at the first pass)."""
+    def check(result):
+        data = result.data
+        for key in LIGHT_PASSES + ("ao",):
+            assert np.isfinite(data[key]).all() and (data[key] >= 0).all(), (key, result.passes)
+        data = {key: value.astype(np.float64) for key, value in data.items()}
+        rgb = data["emission"] + data["environment"] + data["volume_direct"] + data["volume_indirect"]
+        for kind in ("diffuse", "glossy", "transmission"):
+            rgb = rgb + (data[f"{kind}_direct"] + data[f"{kind}_indirect"]) * data[f"{kind}_color"]
+        image = result.image[..., :3].astype(np.float64)
+        kept = image < 1e37            # (sums beyond float32 stay at its largest, image and passes alike)
+        scale = max(1.0, float(image[kept].max(initial=0.0)))
+        assert np.allclose(rgb[kept], image[kept], rtol=1e-4, atol=1e-6 * scale), result.passes
+
+    settings = RenderSettings(**RUN, method="amcmcppm", data_passes=LIGHT_PASSES + ("ao",))
+    assert render(SCENES[name](), settings, on_iteration=check).passes == RUN["passes"]
