@@ -954,6 +954,40 @@ def test_light_passes_match_cycles(scene, tmp_path):
         assert ours[f"ViewLayer.{name}"].max() == 0.0 and cycles[f"ViewLayer.{name}"].max() < 1e-3, name
 
 
+@pytest.mark.slow
+def test_volume_light_passes_match_cycles(scene, tmp_path):
+    """View Layer > Passes > Light > Volume Direct and Indirect: a 2 m cube of Volume Scatter
+    (density 0.6) over a floor by a wall, lit by the sun, one volume bounce in both (Cycles'
+    default is none).  Over the pixels where Cycles' Volume Direct is above 0.005: Volume Direct
+    and Indirect and Combined within 8 % of Cycles' (96 x 64, 24 passes, 256 samples: measured
+    0.955, 0.964 and 0.969; 0.90, 0.93 and 0.95 at 48 x 32, the volume gathers' kernel bias, which
+    shrinks with the resolution); the floor and wall seen beside the fog have no volume pass."""
+    def build():
+        bs.empty_scene((96, 64), passes=24, photons_per_pass=40000)
+        bs.world((0.05, 0.07, 0.1))
+        bs.plane("Floor", size=12.0, material=bs.diffuse("Floor", (0.6, 0.5, 0.4)))
+        bs.plane("Wall", size=12.0, material=bs.diffuse("Wall", (0.3, 0.6, 0.3)), location=(0, 3, 2),
+                 rotation=(math.pi / 2, 0, 0))
+        fog, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Density=0.6)
+        bs.cube("Fog", size=2.0, material=fog, location=(0, 0, 1.2))
+        bs.camera(location=(0, -6, 2.2), target=(0, 0, 1.0), lens=35.0)
+        bs.light("SUN", location=(0, 0, 5), target=(0.5, 1.0, -1.0), energy=3.0)
+        sc = bpy.context.scene
+        sc.view_layers[0].cycles.use_pass_volume_direct = True
+        sc.view_layers[0].cycles.use_pass_volume_indirect = True
+        sc.cycles.volume_bounces = sc.amcmcppm.volume_bounces = 1
+
+    ours, cycles = ours_and_cycles(build, render_passes, tmp_path, samples=256)
+    fog = cycles["ViewLayer.Volume Direct"][..., :3].mean(axis=-1) > 0.005
+    assert 500 < fog.sum() < fog.size - 500
+    for name in ("Volume Direct", "Volume Indirect", "Combined"):
+        a, b = (images[f"ViewLayer.{name}"][..., :3] for images in (ours, cycles))
+        print(f"{name:16s} ours {a[fog].mean():.4f}, Cycles {b[fog].mean():.4f}")
+        assert abs(a[fog].mean() / b[fog].mean() - 1.0) < 0.08, name
+    clear = cycles["ViewLayer.Volume Direct"][..., :3].max(axis=-1) == 0.0
+    assert clear.sum() > 500 and ours["ViewLayer.Volume Direct"][clear].max() == 0.0
+
+
 def test_ambient_occlusion_pass_matches_cycles(scene, tmp_path):
     """View Layer > Passes > Light > Ambient Occlusion: at the surfaces camera rays meet, a ray in a
     cosine direction about the normal, unoccluded within World > Ambient Occlusion > Distance
