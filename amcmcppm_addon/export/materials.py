@@ -1241,19 +1241,29 @@ class NodeWalker:
     def aov_outputs(self, material, aovs):
         """{name: a colour, a number or a program} of the material's AOV Output nodes whose name is
         one of the view layer's Shader ``aovs`` (name -> 'COLOR' or 'VALUE'): its Color input for a
-        colour AOV, its Value for a value AOV, as Cycles compiles them (svm/aov.h); nodes in groups
-        and muted ones are not read."""
+        colour AOV, its Value for a value AOV, as Cycles compiles them (svm/aov.h), those inside
+        node groups too (at any depth, each use of a group in its own context); muted nodes and
+        groups are not read."""
         out = {}
-        for node in material.node_tree.nodes if material.node_tree is not None else ():
-            if node.bl_idname != "ShaderNodeOutputAOV" or node.mute or node.aov_name not in aovs:
-                continue
+
+        def outputs(tree, stack):
+            for node in tree.nodes if tree is not None else ():
+                if node.mute:
+                    continue
+                if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
+                    if node.node_tree not in [g.node_tree for g in stack]:      # (no recursion)
+                        yield from outputs(node.node_tree, stack + (node,))
+                elif node.bl_idname == "ShaderNodeOutputAOV" and node.aov_name in aovs:
+                    yield node, stack
+
+        for node, stack in outputs(material.node_tree, ()):
             color = aovs[node.aov_name] == 'COLOR'
             sock, want = (node.inputs["Color"], VEC) if color else (node.inputs["Value"], FLOAT)
-            e = self.programs.expression(sock, (), want)
+            e = self.programs.expression(sock, stack, want)
             if isinstance(e, dict) and procedural.varies(e):
                 out[node.aov_name] = e
             else:
-                value = self.programs.constant_of(sock, (), want)
+                value = self.programs.constant_of(sock, stack, want)
                 out[node.aov_name] = [float(v) for v in np.broadcast_to(np.asarray(value, np.float64), (3,))]
         return out
 

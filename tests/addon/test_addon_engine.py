@@ -881,6 +881,41 @@ def test_shader_aovs_match_cycles(scene, tmp_path):
     assert gap.max() < 0.12 and gap.mean() < 0.02 and np.ptp(c_height[seen & ~card]) > 2.0
 
 
+def test_shader_aovs_inside_node_groups_match_cycles(scene, tmp_path):
+    """AOV Output nodes inside node groups write their AOVs, as Cycles' (which flattens the groups):
+    a colour AOV in a group whose Color comes from the group's input (fed (0.25, 0.5, 1) by the
+    material), and a value AOV (0.75) in a group inside that group; the wall's pixels equal Cycles'
+    exactly.  Before, nodes in groups were not read (0 in both passes)."""
+    def build():
+        bs.empty_scene((24, 16), passes=2, photons_per_pass=500)
+        mat = bs.diffuse("WallMat", (0.5, 0.5, 0.5))
+        group = bpy.data.node_groups.new("AOVGroup", "ShaderNodeTree")
+        group.interface.new_socket("Tint", in_out='INPUT', socket_type='NodeSocketColor')
+        aov = group.nodes.new("ShaderNodeOutputAOV")
+        aov.aov_name = "mask"
+        group.links.new(group.nodes.new("NodeGroupInput").outputs["Tint"], aov.inputs["Color"])
+        inner = bpy.data.node_groups.new("Inner", "ShaderNodeTree")
+        height = inner.nodes.new("ShaderNodeOutputAOV")
+        height.aov_name, height.inputs["Value"].default_value = "height", 0.75
+        group.nodes.new("ShaderNodeGroup").node_tree = inner
+        node = mat.node_tree.nodes.new("ShaderNodeGroup")
+        node.node_tree = group
+        node.inputs["Tint"].default_value = (0.25, 0.5, 1.0, 1.0)
+        bs.plane("Wall", size=8.0, material=mat, location=(0, 4, 0), rotation=(math.pi / 2, 0, 0))
+        bs.camera(location=(0, -2, 0), target=(0, 4, 0), lens=30.0)
+        bs.light("SUN", location=(0, 0, 5), target=(0.2, 1.0, -0.3), energy=3.0)
+        layer = bpy.context.scene.view_layers[0]
+        for name, kind in (("mask", "COLOR"), ("height", "VALUE")):
+            a = layer.aovs.add()
+            a.name, a.type = name, kind
+
+    ours, cycles = ours_and_cycles(build, render_passes, tmp_path, samples=4)
+    wall = (slice(4, 12), slice(6, 18))
+    for images in (cycles, ours):
+        assert np.allclose(images["ViewLayer.mask"][wall], [0.25, 0.5, 1.0, 1.0], atol=1e-6)
+        assert np.allclose(images["ViewLayer.height.X"][wall], 0.75, atol=1e-6)
+
+
 # Blender's light passes (View Layer > Passes > Light) by kind, as Cycles names them.
 LIGHT_KINDS = ("Diffuse", "Glossy", "Transmission")
 
