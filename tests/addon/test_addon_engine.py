@@ -920,6 +920,19 @@ def test_shader_aovs_inside_node_groups_match_cycles(scene, tmp_path):
 LIGHT_KINDS = ("Diffuse", "Glossy", "Transmission")
 
 
+def sunlit_floor_and_wall(resolution, passes, photons_per_pass):
+    """A new scene of the light passes' comparisons: a floor and a wall 3 m behind its centre under
+    a dim blue world and a sun, seen from 6 m away (things go in front of the wall)."""
+    bs.empty_scene(resolution, passes=passes, photons_per_pass=photons_per_pass)
+    bs.world((0.05, 0.07, 0.1))
+    bs.plane("Floor", size=12.0, material=bs.diffuse("Floor", (0.6, 0.5, 0.4)))
+    bs.plane("Wall", size=12.0, material=bs.diffuse("Wall", (0.3, 0.6, 0.3)), location=(0, 3, 2),
+             rotation=(math.pi / 2, 0, 0))
+    bs.camera(location=(0, -6, 2.2), target=(0, 0, 1.0), lens=35.0)
+    bs.light("SUN", location=(0, 0, 5), target=(0.5, 1.0, -1.0), energy=3.0)
+    return bpy.context.scene
+
+
 def test_light_passes_match_cycles(scene, tmp_path):
     """View Layer > Passes > Light: Diffuse, Glossy and Transmission Direct, Indirect and Color,
     Volume Direct and Indirect, Emission and Environment, as Cycles writes them (the direct and
@@ -933,18 +946,11 @@ def test_light_passes_match_cycles(scene, tmp_path):
     12 passes, +13 % at 8, +6 % at 32), Emission within 3 % (1.3 %), and the passes this scene has
     none of (Transmission Direct, Volume, Environment) 0 in both.  Before, none was written."""
     def build():
-        bs.empty_scene((60, 40), passes=12, photons_per_pass=40000)
-        bs.world((0.05, 0.07, 0.1))
-        bs.plane("Floor", size=12.0, material=bs.diffuse("Floor", (0.6, 0.5, 0.4)))
-        bs.plane("Wall", size=12.0, material=bs.diffuse("Wall", (0.3, 0.6, 0.3)), location=(0, 3, 2),
-                 rotation=(math.pi / 2, 0, 0))
+        sc = sunlit_floor_and_wall((60, 40), 12, 40000)
         metal = bs._material("Metal", "ShaderNodeBsdfGlossy", Color=(0.9, 0.8, 0.6, 1.0), Roughness=0.3)
         bs.cube("Metal", size=1.0, material=metal, location=(-1.5, 0, 0.5), rotation=(0, 0, 0.5))
         bs.cube("Glass", size=1.0, material=bs.glass("Glass"), location=(0, 0, 0.5), rotation=(0, 0, 0.3))
         bs.cube("Lamp", size=0.6, material=bs.emission("Lamp", (1.0, 0.6, 0.3), 3.0), location=(1.5, 0, 0.3))
-        bs.camera(location=(0, -6, 2.2), target=(0, 0, 1.0), lens=35.0)
-        bs.light("SUN", location=(0, 0, 5), target=(0.5, 1.0, -1.0), energy=3.0)
-        sc = bpy.context.scene
         sc.cycles.caustics_reflective = sc.cycles.caustics_refractive = False
         sc.amcmcppm.caustics_reflective = sc.amcmcppm.caustics_refractive = False
         layer = sc.view_layers[0]
@@ -998,16 +1004,9 @@ def test_volume_light_passes_match_cycles(scene, tmp_path):
     0.955, 0.964 and 0.969; 0.90, 0.93 and 0.95 at 48 x 32, the volume gathers' kernel bias, which
     shrinks with the resolution); the floor and wall seen beside the fog have no volume pass."""
     def build():
-        bs.empty_scene((96, 64), passes=24, photons_per_pass=40000)
-        bs.world((0.05, 0.07, 0.1))
-        bs.plane("Floor", size=12.0, material=bs.diffuse("Floor", (0.6, 0.5, 0.4)))
-        bs.plane("Wall", size=12.0, material=bs.diffuse("Wall", (0.3, 0.6, 0.3)), location=(0, 3, 2),
-                 rotation=(math.pi / 2, 0, 0))
+        sc = sunlit_floor_and_wall((96, 64), 24, 40000)
         fog, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Density=0.6)
         bs.cube("Fog", size=2.0, material=fog, location=(0, 0, 1.2))
-        bs.camera(location=(0, -6, 2.2), target=(0, 0, 1.0), lens=35.0)
-        bs.light("SUN", location=(0, 0, 5), target=(0.5, 1.0, -1.0), energy=3.0)
-        sc = bpy.context.scene
         sc.view_layers[0].cycles.use_pass_volume_direct = True
         sc.view_layers[0].cycles.use_pass_volume_indirect = True
         sc.cycles.volume_bounces = sc.amcmcppm.volume_bounces = 1
