@@ -23,8 +23,7 @@ from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choo
                    valid_reflection_normal)
 from .camera import generate_camera_rays
 from . import cryptomatte, subsurface
-from .light_passes import (PHOTON_PASSES, VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight,
-                           wanted as light_wanted)
+from .light_passes import VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight, wanted as light_wanted
 from .procedural import Rays, camera_path
 from .sampling import cosine_hemisphere, dot, to_world
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
@@ -170,9 +169,9 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         data["albedo"] = np.zeros((n_pix, 3))         # (the other denoising features follow it)
     # Cycles' light passes: the eye pass's part (emission, the world, colours; the Accumulator adds
     # the photons'), and every pass's points record their paths' first delta events.
-    _, eye_light, colours = light_wanted(data_passes)
+    photon_light, eye_light, colours = light_wanted(data_passes)
     light = None
-    if eye_light or colours or any(n in data_passes for n in PHOTON_PASSES):
+    if photon_light or eye_light or colours:
         light = EyeLight({name: np.zeros((n_pix, 3), np.float32) for name in eye_light + colours})
         data.update(light.sums)
     kinds = [k for k in cryptomatte.KINDS if k in data_passes and ctx.scene.cryptomatte_ids is not None]
@@ -343,11 +342,10 @@ def colour_albedos(table, surf, wo, rows, rng):
     (k, 3) each, the :func:`lobe_albedos` of the diffuse-type lobes (diffuse, translucent, sheen),
     of the glossy ones (glossy, mirror, a glass's reflection) and of the transmitting ones (a
     glass's refraction), as ``surface_shader_diffuse``, ``_glossy`` and ``_transmission`` sum them
-    (Cycles' estimates, not samples: :func:`~core.bsdf.reflector_albedo` for glossy and mirror lobes,
-    a glass lobe's two sides by :func:`~core.bsdf.dielectric_albedos`)."""
+    (Cycles' estimates, not samples: :func:`lobe_albedos` with ``estimated``)."""
     k = len(rows)
     out = {name: np.zeros((k, 3)) for name in ("diffuse_color", "glossy_color", "transmission_color")}
-    for lobe, _, dest, w, _, sides in lobe_albedos(table, surf, wo, rows, rng):
+    for lobe, _, dest, w, _, sides in lobe_albedos(table, surf, wo, rows, rng, estimated=True):
         # (a lobe's hits are distinct: no repeats in ``dest``)
         if lobe in (DIFFUSE, TRANSLUCENT, SHEEN):
             out["diffuse_color"][dest] += w
@@ -355,22 +353,22 @@ def colour_albedos(table, surf, wo, rows, rng):
             out["glossy_color"][dest] += sides[0]
             out["transmission_color"][dest] += sides[1]
         else:
-            out["glossy_color"][dest] += sides[0]
+            out["glossy_color"][dest] += w
     return out
 
 
-def lobe_albedos(table, surf, wo, rows, rng):
+def lobe_albedos(table, surf, wo, rows, rng, estimated=False):
     """For the hits ``rows`` of ``surf`` seen from ``wo`` (all hits), per lobe that some of them
     have: (lobe, materials (s,), hit numbers in ``rows`` (s,), albedos (s, 3), sample weights (s,),
     sides), as Cycles' ``bsdf_albedo`` estimates a closure's albedo (what it reflects and transmits
-    under a white sky); ``sides``: Cycles' estimates without a sample, for glass lobes (reflected,
-    transmitted) (s, 3) each by :func:`~core.bsdf.dielectric_albedos`, for glossy and mirror lobes
-    (reflected,) by :func:`~core.bsdf.reflector_albedo`, else None.  Diffuse and translucent lobes give their
-    weight times colour (under a specular layer, its factor at the view), a sheen its E at the view;
-    glossy, mirror and glass lobes one sample each: the lobe's :func:`~core.bsdf.scatter` weight
-    towards the camera, whose mean is its directional albedo at the view with what the lobe's weight
-    takes there (Fresnel, a metal's curve, multiscatter).  A coat is its own lobes and attenuates
-    those under it; a sheen dims the others."""
+    under a white sky).  Diffuse and translucent lobes give their weight times colour (under a
+    specular layer, its factor at the view), a sheen its E at the view.  Glossy, mirror and glass
+    lobes give one sample each: the lobe's :func:`~core.bsdf.scatter` weight towards the camera,
+    whose mean is its directional albedo at the view with what the lobe's weight takes there
+    (Fresnel, a metal's curve, multiscatter); with ``estimated`` Cycles' estimates instead, without
+    a sample (:func:`~core.bsdf.reflector_albedo`; a glass's by :func:`~core.bsdf.dielectric_albedos`,
+    whose (reflected, transmitted) parts are then ``sides``; else None).  A coat is its own lobes
+    and attenuates those under it; a sheen dims the others."""
     k = len(rows)
     every = k == len(surf.mat_ids)                   # (all hits: no copies)
     pick = (lambda a: a) if every else (lambda a: a.take(rows, axis=0))      # noqa: E731
@@ -412,19 +410,19 @@ def lobe_albedos(table, surf, wo, rows, rng):
                     w = w * table.sheen_lobe(m_s, mu)[0][:, None]
                 elif table.has_sheen:
                     w = w * table.sheen_dim(m_s, mu)[:, None]
+            elif estimated:
+                c_s, wo_s, ns_s = colors.take(sel, axis=0), wo_r.take(sel, axis=0), ns.take(sel, axis=0)
+                if lobe == DIELECTRIC:
+                    sides = dielectric_albedos(table, m_s, c_s, wo_s, ng.take(sel, axis=0), ns_s)
+                    w = sides[0] + sides[1]
+                else:
+                    w = reflector_albedo(table, lobe, m_s, c_s, wo_s, ns_s)
             else:
                 u = rng.random((len(sel), 3))
-                wo_s, ng_s = wo_r.take(sel, axis=0), ng.take(sel, axis=0)
                 _, w, _ = scatter(table, m_s, colors.take(sel, axis=0), np.full(len(sel), lobe),
-                                  np.ones(len(sel)), wo_s, ng_s, ns.take(sel, axis=0), u[:, 0], u[:, 1],
-                                  "radiance", u[:, 2],
+                                  np.ones(len(sel)), wo_r.take(sel, axis=0), ng.take(sel, axis=0),
+                                  ns.take(sel, axis=0), u[:, 0], u[:, 1], "radiance", u[:, 2],
                                   tangent=None if tangent is None else tangent.take(sel, axis=0))
-                if lobe == DIELECTRIC:
-                    sides = dielectric_albedos(table, m_s, colors.take(sel, axis=0), wo_s, ng_s,
-                                               ns.take(sel, axis=0))
-                else:
-                    sides = (reflector_albedo(table, lobe, m_s, colors.take(sel, axis=0), wo_s,
-                                              ns.take(sel, axis=0)),)
             if factor is not None:
                 w = w * factor.take(sel, axis=0)
                 sides = None if sides is None else tuple(a * factor.take(sel, axis=0) for a in sides)
