@@ -11,7 +11,7 @@ from .bsdf import (DIELECTRIC, MIRROR, ROUGHNESS_LEVELS, TANGENT_UV, TRANSLUCENT
                    coat_variants, lobe_colors, roughness_variants, stretch_level, stretch_variants)
 from .displacement import displace
 from .environment import Environment
-from .lights import VOLUME, LightSampler
+from .lights import VOLUME, LightSampler, material_groups
 from .procedural import (BUMP_STEP, COLOR_MAX, EMISSION_MAX, DirectionAttributes, HitAttributes, Rays,
                          attributes_used, bend_normals, bump_edges, bumped_normals, camera_path, evaluate,
                          evaluate_color, perpendicular_tangents, photon_path, radial_tangents,
@@ -143,6 +143,10 @@ class RenderContext:
                                    (self.table.emission_program >= 0) | (self.opacity_program >= 0),
                                    distant_transmittance=through, volume_emission=self.volume_emission,
                                    light_path=self.reads_light_path)
+        # The light group of each glowing volume (-1: none; the world's volume does not glow).
+        self.glow_groups = np.full(len(self.glows), -1, np.int64)
+        glowing = np.flatnonzero(self.glows[:scene.materials.count])
+        self.glow_groups[glowing] = material_groups(scene, glowing)
         # Light linking (Scene.receiver_sets): each triangle's receiver set and each emissive one's
         # links, when some emitter leaves a set out (else None: every emitter lights everything).
         self.receiver_sets = self.emitter_links = None
@@ -257,7 +261,7 @@ class RenderContext:
 
     def trace(self, origins, dirs, tmax=None, uniforms=None, medium=None, ray_kind=None, shadow=None,
               distances=None, throughput=None, origin_normals=None, forced=0, cut=False, glow=None,
-              crossings=None, max_crossings=None, alpha_threshold=1.0, stop_chance=None):
+              crossings=None, max_crossings=None, alpha_threshold=1.0, stop_chance=None, glow_split=None):
         """Closest hits of rays ``origins + t dirs`` (0 < t < ``tmax``) on surfaces that stop them.
 
         A transparent surface (``Materials.opacity``) stops a ray with probability its opacity at
@@ -329,7 +333,7 @@ class RenderContext:
             medium = np.full(n, self.outside, np.int32) if medium is None else np.array(medium, np.int32)
             factor = np.ones((n, 3))
             self._absorb(factor, medium, np.arange(n), raw, dirs, distances, 0, stops, throughput,
-                         origin_normals, limit if cut else None, forced, glow)
+                         origin_normals, limit if cut else None, forced, glow, glow_split)
         hits = accel.with_contacts(raw, origins, dirs)
         if stops is not None and not forced:
             hits = _stop_in_volumes(hits, stops)
@@ -413,7 +417,7 @@ class RenderContext:
             if self.has_volumes:
                 self._absorb(factor, medium, rows, raw, d, distances, crossing + 1, seg, throughput,
                              accel.geometric_normals.take(pr, axis=0) if forced else None,
-                             left if cut else None, forced, glow)
+                             left if cut else None, forced, glow, glow_split)
             nxt = accel.with_contacts(raw, start, d)
             if forced:
                 for rr, tt, ww, ee, pp, mm in seg or ():   # (rr are the rays' own numbers)
@@ -447,7 +451,7 @@ class RenderContext:
                                                glossy, transmission))
 
     def _absorb(self, factor, medium, rows, raw, dirs, distances=None, segment=0, stops_out=None,
-                throughput=None, entry_normals=None, limit=None, forced=1, glow=None):
+                throughput=None, entry_normals=None, limit=None, forced=1, glow=None, glow_split=None):
         """Absorb the segments of rays ``rows`` that end on the hits ``raw`` (before contacts;
         ``dirs`` their directions) in ``factor``, and set ``medium`` to the volume each one was
         in: the tracked one, or that of a surface hit from the back (the ray was inside it).
@@ -458,7 +462,9 @@ class RenderContext:
         list, gets ``forced`` points in each such segment (rays, t, weight, segment length,
         distances to the planes of the faces the segment started from (``entry_normals``, if
         given) and went to, volumes).  ``glow`` (n, 3), if given, gets the radiance glowing
-        volumes send along the segments (:func:`~core.sampling.volume_glow`, times ``factor``)."""
+        volumes send along the segments (:func:`~core.sampling.volume_glow`, times ``factor``), and
+        ``glow_split`` (G, n, 3), if given, the same at each glowing volume's light group
+        (``glow_groups``; volumes in none are left out)."""
         hit = raw.is_hit
         if self.outside >= 0 or limit is not None:
             # Misses in a volume: in the world's, or cut short by the limit.
@@ -489,9 +495,15 @@ class RenderContext:
             e = np.flatnonzero(self.glows.take(vol))
             if len(e):
                 re, ve = r.take(a.take(e)), vol.take(e)
-                glow[re] += factor.take(re, axis=0) * volume_glow(
+                value = factor.take(re, axis=0) * volume_glow(
                     self.extinction.take(ve, axis=0), self.volume_emission.take(ve, axis=0),
                     np.minimum(length.take(e), far))
+                glow[re] += value
+                if glow_split is not None:
+                    group = self.glow_groups.take(ve)
+                    for g in np.unique(group[group >= 0]):      # (the few groups of glowing volumes)
+                        sel = np.flatnonzero(group == g)
+                        glow_split[g, re.take(sel)] += value.take(sel, axis=0)
         if distances is not None and isinstance(stops_out, list):
             # Forced points: ``forced`` inside every segment in a scattering volume, their numbers
             # stratified (a whole image's points then vary less than with one per segment, for

@@ -23,7 +23,8 @@ from .bsdf import (DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, SHEEN, TRANSLUCENT, choo
                    valid_reflection_normal)
 from .camera import generate_camera_rays
 from . import cryptomatte, subsurface
-from .light_passes import VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight, wanted as light_wanted
+from .light_passes import (VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight, light_groups,
+                           wanted as light_wanted)
 from .procedural import Rays, camera_path
 from .sampling import cosine_hemisphere, dot, to_world
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
@@ -169,10 +170,13 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         data["albedo"] = np.zeros((n_pix, 3))         # (the other denoising features follow it)
     # Cycles' light passes: the eye pass's part (emission, the world, colours; the Accumulator adds
     # the photons'), and every pass's points record their paths' first delta events.
+    # Light groups likewise: what the camera paths see of each group's emitters.
     photon_light, eye_light, colours = light_wanted(data_passes)
+    groups = light_groups(data_passes, ctx.scene.light_groups)
     light = None
-    if photon_light or eye_light or colours:
-        light = EyeLight({name: np.zeros((n_pix, 3), np.float32) for name in eye_light + colours})
+    if photon_light or eye_light or colours or groups[0]:
+        light = EyeLight({name: np.zeros((n_pix, 3), np.float32) for name in eye_light + colours + groups[0]},
+                         groups)
         data.update(light.sums)
     kinds = [k for k in cryptomatte.KINDS if k in data_passes and ctx.scene.cryptomatte_ids is not None]
     chunks = [] if kinds else None                    # Cryptomatte's (pixels, triangles, weights) per chunk
@@ -634,6 +638,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     room = limits.array
     # The kind of each path's first delta event (light passes; VIA_NONE before it).
     via = np.zeros(len(pix), np.uint8)
+    grouped = light is not None and light.has_groups
+    n_groups = len(scene.light_groups)
     parts = []
     rays = 0
     # Cycles' denoising features, made along the paths (their own random numbers: the image stays
@@ -658,11 +664,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         numbers = lambda rows, crossing: rng.random(len(rows))          # noqa: E731
         medium_in = medium
         glow = np.zeros((len(pix), 3)) if ctx.has_volume_emission else None
+        # (light groups: what each group's emitters send, before the paths' weights)
+        split = (lambda: np.zeros((n_groups, len(pix), 3))) if grouped else (lambda: None)
+        glow_split = split() if glow is not None else None
         crossed_before = None if crossed is None else crossed.copy()
         hits, through, _, medium = ctx.trace(origins, dirs, tmax if depth == 0 else None, numbers, medium,
                                              ray_kind, distances=numbers, throughput=beta,
                                              origin_normals=origin_normals, forced=per_segment, glow=glow,
-                                             crossings=crossed, max_crossings=max(limits.transparent, 1))
+                                             crossings=crossed, max_crossings=max(limits.transparent, 1),
+                                             glow_split=glow_split)
         if hits.forced is not None:
             # A point in every segment through a scattering volume (the path goes on through it).
             rows, t_v, w_v, ends, planes, media = hits.forced
@@ -704,6 +714,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             if light is not None:
                 light.add(pix.take(lit), beta.take(lit, axis=0) * glow.take(lit, axis=0), depth,
                           via.take(lit))
+                if glow_split is not None:
+                    light.add_split(pix, beta, glow_split)
         if through is not None:
             beta = beta * through                            # transparent surfaces and volumes crossed
         rays += len(pix)
@@ -716,7 +728,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 lambda r, t, o=origins, d=dirs, m=medium_in, k=ray_kind, c=crossed_before: ctx.factor_to(
                     o.take(r, axis=0), d.take(r, axis=0), t, None if m is None else m.take(r), k.take(r),
                     None if c is None else c.take(r), max(limits.transparent, 1)))
-            seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind, sets, attenuation)
+            seen_split = split()
+            seen = ctx.lights.seen_radiance(origins, dirs, t_max, ~hits.is_hit, ray_kind, sets, attenuation,
+                                            seen_split)
             lit = np.flatnonzero(seen.any(axis=1))
             emission[pix[lit]] += beta_in[lit] * seen[lit]
             if feature is not None:
@@ -724,6 +738,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             if light is not None:
                 # (a light seen: emission; the world through its lights' sky, if any, is the world)
                 light.add(pix.take(lit), beta_in[lit] * seen[lit], depth, via.take(lit))
+                if seen_split is not None:
+                    light.add_split(pix, beta_in, seen_split)
         # Rays that leave the scene see the world (primary ones are cut out on a transparent film,
         # as far as what they crossed lets them through: Cycles' alpha is 1 - the mean of the
         # throughput, e.g. 0.5 behind a Transparent BSDF of mean colour 0.5, 1 in world fog).
@@ -736,8 +752,9 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             cut_out = depth == 0 and scene.world.film_transparent
             if cut_out:
                 alpha[pix[miss]] = np.clip(1.0 - beta[miss].mean(axis=1), 0.0, 1.0)
-            # (Cycles' Environment pass shows the world on a transparent film too)
-            if not cut_out or (light is not None and "environment" in light.sums):
+            # (Cycles' Environment pass and the world's light group show the world on a transparent
+            # film too)
+            if not cut_out or (light is not None and ("environment" in light.sums or light.has_groups)):
                 m_ = np.flatnonzero(miss)
                 if depth == 0 and ctx.camera_background is not None:
                     sky = beta[m_] * ctx.camera_background(dirs[m_], origins[m_])  # (Light Path's)
@@ -751,6 +768,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                         feature.light(pix, m_, sky)
                 if sky is not None and light is not None:
                     light.add(pix.take(m_), sky, depth, via.take(m_), background=True)
+                    light.add_group(pix.take(m_), sky, scene.world.group)
         h = np.flatnonzero(hits.is_hit)
         if depth == 0 and ctx.has_holdout and len(h):
             # Holdouts cut camera rays that meet them directly out of the pixel (Cycles, with or
@@ -800,6 +818,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 feature.light(pix, e, beta[e] * seen)
             if light is not None:
                 light.add(pix.take(e), beta[e] * seen, depth, via.take(e))
+                if grouped and scene.emitter_group is not None:
+                    light.add_group(pix.take(e), beta[e] * seen, scene.emitter_group.take(prim.take(e)))
         if depth == 0 and light is not None and light.colours:
             # Cycles' colour passes at the first surface (reached through transparent ones).
             albedos = colour_albedos(table, surf, wo, np.arange(len(pix)), rng.spawn(1)[0])

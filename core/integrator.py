@@ -29,7 +29,8 @@ from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
 from .eye_pass import centre_data, trace_eye_pass
-from .light_passes import COLOR_PASSES, LIGHT_PASSES, PHOTON_PASSES, colour_of, divide_even_color
+from .light_passes import (COLOR_PASSES, LIGHT_PASSES, PHOTON_PASSES, colour_of, divide_even_color,
+                           light_groups)
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
@@ -96,6 +97,7 @@ class Accumulator:
         # sums (with the colours, also where only a divided pass asks for one); the photons' parts
         # per pass: name -> [sum of S_p, sum of Vc_p S_p, sum of O_p], as the image's (0 where not
         # needed: Vc_p S_p for the chains' per-pass normalisation only, O_p for the chains only).
+        # The light group passes (LIGHTGROUP_PREFIX + a name) come in the same way.
         self.light_passes = tuple(light_passes)
         self.light = {}
         self.photon_factor = None                   # (n, 3) the last image's correction of its photons
@@ -233,7 +235,7 @@ class Accumulator:
             return np.asarray(value, np.float32).reshape((height, width) + np.shape(value)[1:])
 
         out = {name: image(value / self.passes) for name, value in self.data_sums.items()
-               if name not in LIGHT_PASSES}
+               if name not in LIGHT_PASSES and name not in self.light_passes}
         colours = {name: self.data_sums[name] / self.passes for name in COLOR_PASSES
                    if name in self.data_sums}
         for name in self.light_passes:          # (one at a time: 13 of them at 1080p take 0.6 GB)
@@ -404,6 +406,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     n_pixels = width * height
     is_chain = settings.method != "ppm"
     light_passes = tuple(name for name in settings.data_passes if name in LIGHT_PASSES)
+    # Light groups (Scene.light_groups): their passes, made as the photon light passes are.
+    groups = light_groups(settings.data_passes, scene.light_groups)
+    light_passes += groups[0]
     acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction, settings.cryptomatte_levels,
                       light_passes)
     result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects,
@@ -465,7 +470,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                              volume=vol, volume_radius=vol_radius, media=ctx.phase,
                              inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage,
                              limits=settings.bounce_limits,
-                             light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES))
+                             light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES),
+                             light_groups=groups if groups[0] else None)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.

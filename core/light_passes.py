@@ -33,6 +33,8 @@ PHOTON_PASSES = ("diffuse_direct", "diffuse_indirect", "glossy_direct", "glossy_
 EYE_PASSES = ("emission", "environment")
 COLOR_PASSES = ("diffuse_color", "glossy_color", "transmission_color")
 LIGHT_PASSES = PHOTON_PASSES + EYE_PASSES + COLOR_PASSES
+# A light group's pass (Cycles' Combined_<name>, RenderSettings.data_passes): this and its name.
+LIGHTGROUP_PREFIX = "lightgroup:"
 # The first scattering event of a camera path (MeasurementPoints.via): none yet, or the kind of its
 # first delta event.
 VIA_NONE, VIA_GLOSSY, VIA_TRANSMISSION = 0, 1, 2
@@ -55,6 +57,22 @@ def wanted(names):
     eye = tuple(n for n in PHOTON_PASSES[2:6] + EYE_PASSES if n in names)
     colours = tuple(c for c in COLOR_PASSES if c in names or any(colour_of(n) == c for n in photon))
     return photon, eye, colours
+
+
+def light_groups(names, groups):
+    """The light group passes among ``names`` (``LIGHTGROUP_PREFIX`` + a name) and, per group of
+    ``groups`` (``Scene.light_groups``), the index of its pass among them or -1: (passes (tuple),
+    blocks (len(groups),) int64).  Raises ValueError for a group the scene does not have."""
+    passes = tuple(dict.fromkeys(n for n in names if n.startswith(LIGHTGROUP_PREFIX)))
+    groups = tuple(groups)
+    blocks = np.full(len(groups), -1, np.int64)
+    for k, name in enumerate(passes):
+        group = name[len(LIGHTGROUP_PREFIX):]
+        if group not in groups:
+            raise ValueError(f"the data pass {name!r} asks for a light group the scene does not have "
+                             f"(its light groups: {', '.join(groups) or 'none'})")
+        blocks[groups.index(group)] = k
+    return passes, blocks
 
 
 def divide_even_color(a, b):
@@ -87,8 +105,44 @@ class EyeLight:
     pass's values, and at 1920 x 1080 each such array is 25 MB).  A call's pixels are those of
     distinct camera paths, one path per pixel: no pixel twice."""
 
-    def __init__(self, sums):
+    def __init__(self, sums, groups=None):
+        """``groups``: None, or the light group passes in ``sums`` and the index of each of the
+        scene's light groups among them (-1: not asked for), as :func:`light_groups` returns them."""
         self.sums = sums
+        self.group_blocks = None
+        self.group_sums = ()
+        if groups is not None and groups[0]:
+            self.group_blocks = groups[1]
+            self.group_sums = [sums[name] for name in groups[0]]
+
+    @property
+    def has_groups(self) -> bool:
+        """Whether some light group's pass is asked for."""
+        return self.group_blocks is not None
+
+    def add_group(self, pix, value, group):
+        """Camera paths of pixels ``pix`` (k,) see ``value`` (k, 3) of emitters of light groups
+        ``group`` (an int for all, or (k,); -1: none)."""
+        if self.group_blocks is None:
+            return
+        if np.ndim(group) == 0:
+            k = self.group_blocks[group] if group >= 0 else -1
+            if k >= 0:
+                self.group_sums[k][pix] += value
+            return
+        for g in np.flatnonzero(self.group_blocks >= 0):
+            sel = np.flatnonzero(group == g)
+            if len(sel):
+                self.group_sums[self.group_blocks[g]][pix.take(sel)] += value.take(sel, axis=0)
+
+    def add_split(self, pix, weight, split):
+        """As :meth:`add_group` for ``split`` (G, k, 3): per light group of the scene, what the paths
+        see of its emitters (before their weights ``weight`` (k, 3))."""
+        for g in np.flatnonzero(self.group_blocks >= 0):
+            lit = np.flatnonzero(split[g].any(axis=1))
+            if len(lit):
+                total = self.group_sums[self.group_blocks[g]]
+                total[pix.take(lit)] += weight.take(lit, axis=0) * split[g, lit]
 
     def add(self, pix, value, depth, via=None, background=False):
         """Camera paths of pixels ``pix`` (k,) see ``value`` (k, 3) after ``depth`` delta events,

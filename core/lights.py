@@ -158,6 +158,14 @@ class LightSampler:
         self.has_links = bool((self.links != ALL_LINKS).any())
         self.shadow_links = per_emitter(lights.shadow_links, scene.emitter_shadow_links)
         self.has_shadow_links = bool((self.shadow_links != ALL_LINKS).any())
+        # Light groups (Lights.group, Scene.emitter_group, World.group; a glowing volume's is that of
+        # most of its material's triangles, material_groups): each emitter's, -1 none.
+        tri_group = (scene.emitter_group.take(emissive_tris) if scene.emitter_group is not None
+                     else np.full(len(emissive_tris), -1, np.int16))
+        volume_group = material_groups(scene, glow_mats).astype(np.int16)
+        self.group = np.concatenate([lights.group if lights.count else np.zeros(0, np.int16), tri_group,
+                                     np.full(n_world, scene.world.group, np.int16),
+                                     volume_group])[keep].astype(np.int64)
         score = score[keep]
         self.count = len(score)
         if self.count:
@@ -250,7 +258,7 @@ class LightSampler:
         L = self.lights
         return bool(L.count and (L.visibility & flags).any())
 
-    def seen_radiance(self, origins, dirs, t_max, escaped, flags, sets=None, attenuation=None):
+    def seen_radiance(self, origins, dirs, t_max, escaped, flags, sets=None, attenuation=None, split=None):
         """(n, 3) radiance of the analytic lights that rays ``origins + t dirs`` cross.
 
         Rays are camera-path segments of the kinds in ``flags`` (n,) (bits ``VISIBLE_*``); a
@@ -266,7 +274,8 @@ class LightSampler:
         only for those it lights (camera rays see every light, as in Cycles).  ``attenuation``,
         a function of (rays (k,), distances (k,)) -> (k, 3), is what reaches each light crossed
         from the rays' origins (transparent surfaces and volumes on the way; inf for the sun), or
-        None: nothing in between.
+        None: nothing in between.  ``split`` (G, n, 3), or None: gets each light's radiance at the
+        rows of its light group (``Lights.group``; lights in none are left out).
         A loop over the lights, each vectorised over the rays.
         """
         n = len(dirs)
@@ -337,6 +346,8 @@ class LightSampler:
             if attenuation is not None and len(sel):
                 radiance = radiance * attenuation(rays.take(sel), t.take(sel))
             out[rays.take(sel)] += radiance
+            if split is not None and L.group[i] >= 0:
+                split[L.group[i], rays.take(sel)] += radiance
         return out
 
     # ------------------------------------------------------------------ sampling
@@ -393,6 +404,11 @@ class LightSampler:
         """(n,) uint8: the rays (bits EXCLUDE_*) that the emitters of photons with first light
         dimensions ``u0`` (n,) do not light."""
         return self.exclude.take(self.entries(u0))
+
+    def groups_of(self, u0):
+        """(n,) the light group (``Scene.light_groups``; -1 none) of the emitters of photons with
+        first light dimensions ``u0`` (n,)."""
+        return self.group.take(self.entries(u0))
 
     def entries(self, u0):
         """(n,) emitter of each photon from its first light dimension (power-proportional)."""
@@ -561,6 +577,20 @@ class LightSampler:
             material_mean = (area[rows, None] * mean[rows]).sum(axis=0) / max(area[rows].sum(), 1e-300)
             mean[rows] = np.maximum(mean[rows], TEXTURED_POWER_FLOOR * material_mean)
         return (2.0 * np.pi * area)[:, None] * mean
+
+
+def material_groups(scene, materials):
+    """(k,) int64 the light group of each of ``materials`` (k,): that of most of its triangles
+    (``Scene.emitter_group``; -1 none).  Blender gives a glowing volume its object's group; here a
+    volume is its material's triangles."""
+    out = np.full(len(materials), -1, np.int64)
+    if scene.emitter_group is None:
+        return out
+    for i, m in enumerate(materials):            # (a loop over the few glowing materials)
+        groups = scene.emitter_group[scene.material_ids == m]
+        if len(groups):
+            out[i] = np.bincount(groups.astype(np.int64) + 1).argmax() - 1
+    return out
 
 
 class GlowingVolume:

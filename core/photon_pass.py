@@ -99,13 +99,15 @@ class DepositTarget:
     :meth:`pass_pixels` makes Cycles' light passes of them (``core/light_passes.py``).  With
     ``inner`` the pairs within half surface point j's radius are deposited a second time, whole, on
     slot ``inner_slots + j`` of the sums (m slots after all those), for the second estimate at
-    half the radius (:meth:`inner_pixels`, ``RenderSettings.bias_correction``); ``n_slots`` slots
-    in all.  The pairs on the slots before ``inner_slots`` are the ones that count towards a
-    splat (:class:`PointSums`)."""
+    half the radius (:meth:`inner_pixels`, ``RenderSettings.bias_correction``).  With
+    ``light_groups`` a pair whose photon comes from an emitter of a light group asked for is also
+    copied, whole, to that group's block of n_points slots after those (``group_slots``,
+    :meth:`group_pairs`).  ``n_slots`` slots in all.  The pairs on the slots before ``inner_slots``
+    are the ones that count towards a splat (:class:`PointSums`)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
-                 coverage=None, inner_coverage=None, limits=None, light_passes=()):
+                 coverage=None, inner_coverage=None, limits=None, light_passes=(), light_groups=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
@@ -117,7 +119,9 @@ class DepositTarget:
         of half of it) that lies on a surface (``core/coverage.py``): the kernel's area is
         that share of pi r^2; limits : None (no limits), or the render's
         :class:`~core.settings.BounceLimits`, which pairs must keep to (:meth:`bounce_filter`);
-        light_passes : the photon passes (``light_passes.PHOTON_PASSES``) to make, or ()."""
+        light_passes : the photon passes (``light_passes.PHOTON_PASSES``) to make, or ();
+        light_groups : None, or (the light group passes to make, the index of each of the scene's
+        light groups among them or -1), as :func:`~core.light_passes.light_groups` returns them."""
         self.points = points
         self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
@@ -140,6 +144,13 @@ class DepositTarget:
             self.split = np.concatenate([np.ones(p.count, bool) if p.via is None else p.via == VIA_NONE
                                          for p in (points, self.volume) if p is not None])
         self.n_slots = self.inner_slots + (points.count if self.inner else 0)   # (no inner volume slots)
+        # Light groups: one block of n_points slots per group pass.
+        self.group_passes, self.group_blocks = (), None
+        if light_groups is not None and len(light_groups[0]):
+            self.group_passes = tuple(light_groups[0])
+            self.group_blocks = np.asarray(light_groups[1], np.int64)
+        self.group_slots = self.n_slots
+        self.n_slots += len(self.group_passes) * self.n_points
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -261,6 +272,8 @@ class DepositTarget:
         d.update(radius=self.radius, n_pixels=np.int64(self.n_pixels),
                  has_shading_normals=np.bool_(self.has_shading_normals), inner=np.bool_(self.inner),
                  light_passes=np.array(self.light_passes, dtype=str))
+        if self.group_passes:
+            d.update(group_passes=np.array(self.group_passes, dtype=str), group_blocks=self.group_blocks)
         for name in ("coverage", "inner_coverage"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
@@ -293,7 +306,9 @@ class DepositTarget:
                              media=d.get("media"), inner=bool(d.get("inner", False)),
                              coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"),
                              limits=BounceLimits(**limits) if limits else None,
-                             light_passes=tuple(str(n) for n in d.get("light_passes", ())))
+                             light_passes=tuple(str(n) for n in d.get("light_passes", ())),
+                             light_groups=((tuple(str(n) for n in d["group_passes"]), d["group_blocks"])
+                                           if "group_passes" in d else None))
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -561,6 +576,21 @@ class DepositTarget:
         offset = self.direct_glossy_slots if bounce == 0 else self.glossy_slots
         return slots, w, (g, j.take(g) + offset, part)
 
+    @property
+    def makes_passes(self) -> bool:
+        """Whether the target makes light or light group passes (:meth:`pass_pixels`)."""
+        return bool(self.light_passes or self.group_passes)
+
+    def group_pairs(self, groups, j):
+        """The copies of pairs with points ``j`` (k,) (surface, then volume numbering) of photons
+        from emitters of light groups ``groups`` (k,) on their groups' blocks: (rows (r,) of the
+        pairs whose group is asked for, their slots (r,)), or None where there are none."""
+        block = np.where(groups >= 0, self.group_blocks.take(np.maximum(groups, 0)), -1)
+        rows = np.flatnonzero(block >= 0)
+        if len(rows) == 0:
+            return None
+        return rows, self.group_slots + block.take(rows) * self.n_points + j.take(rows)
+
     def _sheen_part(self, jh, h, wi, geometry, exclude, diffuse_scale):
         """(3, k) the sheen's part of pairs ``h`` with sheened points ``jh`` (:meth:`pair_weights`'s
         ``geometry`` the pairs' geometric factor): the point's sheen colour times E at its view,
@@ -710,12 +740,34 @@ class DepositTarget:
         return self.volume.weight * block * kernel[:, None]
 
     def pass_pixels(self, sums):
-        """name -> (n_pixels, 3) the photons' part of the light passes ``light_passes`` (those with
-        some) from the per-slot sums (``n_slots``, 3), as :meth:`to_pixels` makes the image's: a
-        point with no delta event before it (``split``) gives its direct block to the direct pass
-        (diffuse; a volume point's volume), its glossy blocks to the glossy passes and its own slot
-        to the indirect one; a point behind a delta event gives its slot to the indirect pass of
-        that event's kind (its blocks are empty)."""
+        """name -> (n_pixels, 3) the photons' part of the light passes ``light_passes`` and of the
+        light group passes ``group_passes`` (those with some) from the per-slot sums (``n_slots``,
+        3), as :meth:`to_pixels` makes the image's: a point with no delta event before it
+        (``split``) gives its direct block to the direct pass (diffuse; a volume point's volume),
+        its glossy blocks to the glossy passes and its own slot to the indirect one; a point behind
+        a delta event gives its slot to the indirect pass of that event's kind (its blocks are
+        empty); a group's pass takes the group's block."""
+        m, n = self.points.count, self.n_points
+        surface, volume = self._light_blocks(sums) if self.light_passes else ({}, {})
+        for k, name in enumerate(self.group_passes):
+            start = self.group_slots + k * n
+            surface[name] = sums[start:start + m]
+            if self.volume is not None:
+                volume[name] = sums[start + m:start + n]
+        out = {}
+        for name in self.light_passes + self.group_passes:
+            total = np.zeros((self.n_pixels, 3))
+            if name in surface:
+                total[self.pixel_ids] = self._surface_values(surface[name])
+            if name in volume:
+                np.add.at(total, self.volume.pixel_ids, self._volume_values(volume[name]))
+            if total.any():     # (passes this target has nothing for are left out: the workers send less)
+                out[name] = total
+        return out
+
+    def _light_blocks(self, sums):
+        """The light passes' sums of the surface points and of the volume points (name -> (m, 3),
+        name -> (k, 3)) from the per-slot sums (:meth:`pass_pixels`)."""
         m, n = self.points.count, self.n_points
         main, direct = sums[:n], sums[self.direct_slots:self.direct_slots + n]
         zero = np.zeros(3)
@@ -738,16 +790,7 @@ class DepositTarget:
             volume = {"volume_direct": direct[m:], "volume_indirect": v["split"],
                       "glossy_indirect": v["glossy_indirect"],
                       "transmission_indirect": v["transmission_indirect"]}
-        out = {}
-        for name in self.light_passes:
-            total = np.zeros((self.n_pixels, 3))
-            if name in surface:
-                total[self.pixel_ids] = self._surface_values(surface[name])
-            if name in volume:
-                np.add.at(total, self.volume.pixel_ids, self._volume_values(volume[name]))
-            if total.any():     # (passes this target has nothing for are left out: the workers send less)
-                out[name] = total
-        return out
+        return surface, volume
 
 
 def _inside_share(planes, r):
@@ -1047,6 +1090,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     slots.append(pj.take(again) + target.inner_slots)
                 if extra is not None:
                     slots.append(extra[1])
+                # Light groups: copies of the pairs of photons from a group's emitters, whole.
+                copies = (None if target.group_blocks is None
+                          else target.group_pairs(ctx.lights.groups_of(u[idx.take(lane), 0]), pj))
+                if copies is not None:
+                    slots.append(copies[1])
                 slots = np.concatenate(slots) if len(slots) > 1 else main_slots
                 if collect_pairs:
                     f = deposited.take(lane, axis=0)
@@ -1059,6 +1107,11 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     if extra is not None:
                         path = np.concatenate([path, idx[lane].take(extra[0])])
                         v = np.concatenate([v, f.take(extra[0], axis=0) * extra[2].T])
+                    if copies is not None:
+                        rows = copies[0]
+                        path = np.concatenate([path, idx[lane].take(rows)])
+                        v = np.concatenate([v, f.take(rows, axis=0) * (w.take(rows)[:, None] if w.ndim == 1
+                                                                       else w.take(rows, axis=1).T)])
                     pairs["path"].append(path)
                     pairs["point"].append(slots)
                     pairs["value"].append(v)
@@ -1073,6 +1126,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     if extra is not None:
                         v = [np.concatenate([vc, fc.take(extra[0]) * extra[2][c]]) for c, (vc, fc)
                              in enumerate(zip(v, f))]
+                    if copies is not None:
+                        rows = copies[0]
+                        v = [np.concatenate([vc, fc.take(rows) * (w if w.ndim == 1 else w[c]).take(rows)])
+                             for c, (vc, fc) in enumerate(zip(v, f))]
                     sums.add(slots, v, len(pj) + (0 if extra is None else len(extra[0])))
                 if target.cells is None:
                     seen[lane] = True
@@ -1399,16 +1456,25 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
             f = vert["flux"] * ctx.scattering.take(vmed, axis=0)
             # One phase value for all pairs (even scattering) multiplies the photons, not the pairs.
             f = (f * phase).take(pi, axis=0) if np.ndim(phase) == 0 else f.take(pi, axis=0) * phase[:, None]
+            path, slots = idx.take(pi), pj
             if target.light_passes and bounce == 0:
                 # (light passes: photons at their first vertex go to the direct block)
-                pj = np.where(target.split.take(pj), pj + target.direct_slots, pj)
+                slots = np.where(target.split.take(pj), pj + target.direct_slots, pj)
+            counted = len(slots)
+            copies = (None if target.group_blocks is None
+                      else target.group_pairs(ctx.lights.groups_of(u[path, 0]), pj))
+            if copies is not None:
+                # (light groups: copies of the pairs on the groups' blocks)
+                path = np.concatenate([path, path.take(copies[0])])
+                slots = np.concatenate([slots, copies[1]])
+                f = np.concatenate([f, f.take(copies[0], axis=0)])
             if collect_pairs:
-                pairs["path"].append(idx.take(pi))
-                pairs["point"].append(pj)
+                pairs["path"].append(path)
+                pairs["point"].append(slots)
                 pairs["value"].append(f)
-                pairs["bounce"].append(np.full(len(pj), bounce, np.int16))
+                pairs["bounce"].append(np.full(len(slots), bounce, np.int16))
             else:
-                sums.add(pj, [f[:, c] for c in range(3)])
+                sums.add(slots, [f[:, c] for c in range(3)], counted)
             if target.cells is None:
                 seen[pi] = True
     if target.cells is not None:

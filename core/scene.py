@@ -733,6 +733,8 @@ class Lights:
     ``links`` (L,) says which receiver sets each light lights (light linking, bit s for
     ``Scene.receiver_sets`` value s; ``ALL_LINKS``, the default, lights everything), and
     ``shadow_links`` (L,) which blocker sets shadow it (shadow linking, ``Scene.blocker_sets``).
+    ``group`` (L,) the light group of each light (an index into ``Scene.light_groups``; -1, the
+    default: none), whose pass (Cycles' ``Combined_<group>``) holds the light it sends.
     With ``soft_falloff`` (Blender's Soft Falloff, on by default) a point or spot light acts as
     Cycles then makes it: a disk of ``radius`` facing the receiver or viewer instead of a
     sphere.  It is seen as that disk, and its irradiance at distance d is P / (4 pi (d^2 + r^2))
@@ -758,10 +760,11 @@ class Lights:
     links: np.ndarray = None            # (L,) uint64 receiver sets lit (Scene.receiver_sets); None: all
     shadow_links: np.ndarray = None     # (L,) uint64 blocker sets that shadow (Scene.blocker_sets); None: all
     exclude: np.ndarray = None          # (L,) uint8 bit mask of EXCLUDE_*, rays not lit; None: 0
+    group: np.ndarray = None            # (L,) int16 light group (Scene.light_groups) or -1; None: all -1
 
     ARRAY_FIELDS = ("kind", "position", "direction", "axis_u", "axis_v", "power", "radius",
                     "spot_angle", "spot_blend", "sun_angle", "visibility", "soft_falloff", "spread",
-                    "profile", "links", "shadow_links", "exclude")
+                    "profile", "links", "shadow_links", "exclude", "group")
 
     @property
     def count(self) -> int:
@@ -792,7 +795,8 @@ class Lights:
                      visibility=np.full(n, DEFAULT_LIGHT_VISIBILITY, np.uint8),
                      soft_falloff=np.ones(n, bool), spread=np.full(n, np.pi, np.float32),
                      profile=np.full(n, -1, np.int16), links=np.full(n, ALL_LINKS, np.uint64),
-                     shadow_links=np.full(n, ALL_LINKS, np.uint64), exclude=np.zeros(n, np.uint8))
+                     shadow_links=np.full(n, ALL_LINKS, np.uint64), exclude=np.zeros(n, np.uint8),
+                     group=np.full(n, -1, np.int16))
         for i, s in enumerate(specs):
             out.kind[i] = kinds[s["kind"]]
             out.position[i] = s.get("position", (0, 0, 0))
@@ -811,6 +815,7 @@ class Lights:
             out.links[i] = np.uint64(s.get("links", ALL_LINKS))
             out.shadow_links[i] = np.uint64(s.get("shadow_links", ALL_LINKS))
             out.exclude[i] = s.get("exclude", 0)
+            out.group[i] = s.get("group", -1)
             if "axis_u" in s:
                 out.axis_u[i] = s["axis_u"]
                 out.axis_v[i] = s["axis_v"]
@@ -975,6 +980,8 @@ class World:
     # photons and its sun lights' as ``Lights.exclude``, and camera paths that leave a mirror
     # (EXCLUDE_GLOSSY) or a glass (EXCLUDE_TRANSMISSION) see black past the scene.
     exclude: int = 0
+    # The light group of the world and its sun lights (an index into Scene.light_groups; -1: none).
+    group: int = -1
     # Blender's World > Mist Pass (the Mist pass, ``RenderSettings.data_passes``): the mist is 0 up to
     # ``mist_start`` metres from the camera and rises to 1 over ``mist_depth``, as the fraction of
     # that depth to the power ``mist_falloff`` (2 quadratic, 1 linear, 0.5 inverse quadratic).
@@ -1104,6 +1111,12 @@ class Scene:
     # Lights.exclude: the object's Ray Visibility boxes), or None: 0.  The triangles themselves still
     # meet every photon (triangle_visibility says which camera-path rays see them).
     emitter_exclude: np.ndarray = None
+    # Light groups (Blender's View Layer > Light Groups; Cycles' Combined_<name> passes): their
+    # names, and emitter_group (T,) int16 for emissive triangles and glowing volumes' triangles the
+    # group each belongs to (an index into light_groups, -1 none), or None: none (Lights.group and
+    # World.group for the others).  A group's pass is the image lit only by its emitters.
+    light_groups: tuple = ()
+    emitter_group: np.ndarray = None
     # (T, 3) float32 Cryptomatte's ids of each triangle's object, material and asset (the object's
     # topmost parent): MurmurHash3 of their names as floats (``core.cryptomatte``), or None: no
     # Cryptomatte passes.
@@ -1337,6 +1350,15 @@ class Scene:
             if t and self.triangle_visibility.max() > 31:
                 fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY, "
                      "VISIBLE_TRANSMISSION, HOLDOUT_OBJECT and CASTS_NO_SHADOW (0 to 31)")
+        groups = self.light_groups
+        if isinstance(groups, str) or not all(isinstance(g, str) and g for g in groups) \
+                or len(set(groups)) != len(groups):
+            fail(f"light_groups must be distinct non-empty names, not {groups!r}")
+        self.light_groups = tuple(groups)
+        if self.emitter_group is not None:
+            self.emitter_group = arr("emitter_group", self.emitter_group, np.int16, (), t)
+            if t and ((self.emitter_group < -1) | (self.emitter_group >= len(groups))).any():
+                fail(f"emitter_group must be -1 or index light_groups ({len(groups)} of them)")
         if self.emitter_exclude is not None:
             self.emitter_exclude = arr("emitter_exclude", self.emitter_exclude, np.uint8, (), t)
             if t and (self.emitter_exclude & ~np.uint8(EXCLUDE_ALL)).any():
@@ -1364,11 +1386,13 @@ class Scene:
                 setattr(lights, name, np.full(len(lights.kind), ALL_LINKS, np.uint64))
         if lights.exclude is None and lights.kind is not None:
             lights.exclude = np.zeros(len(lights.kind), np.uint8)
+        if lights.group is None and lights.kind is not None:
+            lights.group = np.full(len(lights.kind), -1, np.int16)
         for name in Lights.ARRAY_FIELDS:
             tail = (3,) if name in ("position", "direction", "axis_u", "axis_v", "power") else ()
             dtype = {"kind": np.int8, "position": np.float64, "visibility": np.uint8,
                      "soft_falloff": bool, "profile": np.int16, "links": np.uint64,
-                     "shadow_links": np.uint64, "exclude": np.uint8}.get(name, np.float32)
+                     "shadow_links": np.uint64, "exclude": np.uint8, "group": np.int16}.get(name, np.float32)
             v = arr(f"lights.{name}", getattr(lights, name), dtype, tail, nl)
             setattr(lights, name, v)
         if nl:
@@ -1386,6 +1410,8 @@ class Scene:
                      "VISIBLE_TRANSMISSION (0 to 7)")
             if (lights.exclude & ~np.uint8(EXCLUDE_ALL)).any():
                 fail(f"lights.exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL})")
+            if ((lights.group < -1) | (lights.group >= len(self.light_groups))).any():
+                fail(f"lights.group must be -1 or index light_groups ({len(self.light_groups)} of them)")
             if (lights.spot_blend > 1).any():
                 fail("lights.spot_blend must lie in [0, 1]")
             if any((getattr(lights, k) > np.pi).any() for k in ("spot_angle", "sun_angle", "spread")):
@@ -1449,6 +1475,11 @@ class Scene:
             fail(f"world.exclude must be a bit mask of EXCLUDE_* (a subset of {EXCLUDE_ALL}), "
                  f"not {exclude!r}")
         self.world.exclude = int(exclude)
+        group = self.world.group
+        if not isinstance(group, (int, np.integer)) or not -1 <= int(group) < len(self.light_groups):
+            fail(f"world.group must be -1 or index light_groups ({len(self.light_groups)} of them), "
+                 f"not {group!r}")
+        self.world.group = int(group)
         for name in World.MIST_FIELDS:
             value = getattr(self.world, name)
             if not (isinstance(value, (int, float, np.integer, np.floating)) and np.isfinite(value)
@@ -1617,6 +1648,9 @@ class Scene:
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
         if self.world.exclude:
             d["world.exclude"] = np.uint8(self.world.exclude)
+        if self.light_groups:
+            d["light_groups"] = np.array(self.light_groups, str)
+            d["world.group"] = np.int16(self.world.group)
         for name in World.MIST_FIELDS:
             d[f"world.{name}"] = np.float64(getattr(self.world, name))
         if self.world.texture is not None:
@@ -1644,7 +1678,7 @@ class Scene:
             d["tangents"] = self.tangents
         for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces", "object_info",
                      "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
-                     "emitter_shadow_links", "emitter_exclude", "cryptomatte_ids"):
+                     "emitter_shadow_links", "emitter_exclude", "emitter_group", "cryptomatte_ids"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         for name, values in (self.attributes or {}).items():
@@ -1692,6 +1726,7 @@ class Scene:
                       texture_rotation=get("world.texture_rotation"),
                       film_transparent=bool(get("world.film_transparent", False)), camera=camera_world,
                       exclude=int(get("world.exclude", 0)), program=program("world.program"),
+                      group=int(get("world.group", -1)),
                       **{name: get(f"world.{name}") for name in World.VOLUME_FIELDS
                          if f"world.{name}" in keys},
                       **{name: float(get(f"world.{name}")) for name in World.MIST_FIELDS
@@ -1707,6 +1742,8 @@ class Scene:
                       receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
                       blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),
                       emitter_exclude=get("emitter_exclude"), cryptomatte_ids=get("cryptomatte_ids"),
+                      light_groups=tuple(str(g) for g in get("light_groups", ())),
+                      emitter_group=get("emitter_group"),
                       textures=[get(f"textures.{i}") for i in range(ntex)],
                       attributes={k[len("attributes."):]: z[k] for k in sorted(keys)
                                   if k.startswith("attributes.")} or None,

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .light_passes import LIGHT_PASSES
+from .light_passes import LIGHT_PASSES, LIGHTGROUP_PREFIX
 
 METHODS = ("amcmcppm", "ppm", "auto")
 # "auto": uniform photons from the second pass on when at least this share of the first pass's
@@ -262,7 +262,11 @@ class RenderSettings:
     Occlusion pass (H, W, 3): at the surfaces camera rays stop on, what a ray sent in a cosine
     direction about the shading normal carries back unoccluded within ``ao_distance`` (1 in the
     open, through transparent surfaces their tint; times the camera path's weight there), averaged
-    over the passes."""
+    over the passes.  "lightgroup:" + a name (``Scene.light_groups``): Cycles' light group pass
+    ``Combined_<name>`` (H, W, 3), the image as lit by that group's emitters alone (``Lights.group``,
+    ``Scene.emitter_group``, ``World.group``): their light seen directly and all that their photons
+    bring (with the image's bias correction in proportion); the groups' passes and the light of
+    emitters in none add up to the image."""
 
     ao_distance: float = 10.0
     """How far the Ambient Occlusion pass's rays look for what occludes them (Blender's World >
@@ -291,9 +295,11 @@ class RenderSettings:
             bad("mutation", f"must be one of {MUTATIONS}")
         if self.normalisation not in NORMALISATIONS:
             bad("normalisation", f"must be one of {NORMALISATIONS}")
-        if not all(name in DATA_PASSES or (isinstance(name, str) and name.startswith(AOV_PREFIX))
+        if not all(name in DATA_PASSES or (isinstance(name, str) and name.startswith((AOV_PREFIX,
+                                                                                     LIGHTGROUP_PREFIX)))
                    for name in self.data_passes):
-            bad("data_passes", f"must name some of {DATA_PASSES} or Shader AOVs ('{AOV_PREFIX}' + name)")
+            bad("data_passes", f"must name some of {DATA_PASSES}, Shader AOVs ('{AOV_PREFIX}' + name) or "
+                               f"light groups ('{LIGHTGROUP_PREFIX}' + name)")
         if self.passes < 0:
             bad("passes", "must be >= 0")
         if not self.time_limit >= 0:

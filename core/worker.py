@@ -56,7 +56,7 @@ class PhotonWorker:
         ``outside_inner`` (the same at half the radius if the target has inner sums, else
         None), ``half_diff`` (with ``lane_halves``, AMCMCPPM and inner sums: the even chains'
         (inner - outer) pixel sums minus the odd chains'; else None), ``light_sum`` and
-        ``light_outside`` (the target's light passes: name -> pixel sums as ``pixel_sum`` and
+        ``light_outside`` (the target's light and light group passes: name -> pixel sums as ``pixel_sum`` and
         ``outside_sum``, :meth:`~core.photon_pass.DepositTarget.pass_pixels`; else None),
         ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
         """
@@ -72,7 +72,7 @@ class PhotonWorker:
             sums, outside, halves, interrupted = self._chain_pass(target, n_photons, counters, stop)
             if outside is not None:
                 outside_sum, outside_inner = _pixels(target, outside)
-                if target.light_passes:
+                if target.makes_passes:
                     light_outside = target.pass_pixels(outside)
             if halves is not None:
                 outer, inner = _pixels(target, halves)
@@ -84,7 +84,7 @@ class PhotonWorker:
         pixel_sum, inner_sum = _pixels(target, sums)
         return {"pixel_sum": pixel_sum, "outside_sum": outside_sum, "inner_sum": inner_sum,
                 "outside_inner": outside_inner, "half_diff": half_diff,
-                "light_sum": target.pass_pixels(sums) if target.light_passes else None,
+                "light_sum": target.pass_pixels(sums) if target.makes_passes else None,
                 "light_outside": light_outside,
                 "counters": dataclasses.asdict(counters),
                 "theta_mean": theta_mean, "valid_chains": valid,

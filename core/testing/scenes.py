@@ -5,6 +5,8 @@ All builders return a validated :class:`~core.scene.Scene`.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..scene import Camera, Lights, Materials, Scene, World
@@ -567,6 +569,17 @@ def sun_over_procedural_floor(program, irradiance=10.0, resolution=(32, 32)):
                                    resolution)
     mats = Materials.build([{"name": "floor", "diffuse_program": program}])
     return with_one_object(scene.replace(materials=mats), ((0, 0, 0), (0.5, 0.5, 0))).validate()
+
+
+def with_light_groups(scene):
+    """``scene`` with a light group for each analytic light ("light0", ...), one for its emissive
+    triangles and glowing volumes ("meshes") and one for its world ("world"): every emitter in one,
+    so that their passes add up to the image (``Scene.light_groups``)."""
+    n = scene.lights.count
+    lights = dataclasses.replace(scene.lights, group=np.arange(n, dtype=np.int16))
+    return scene.replace(lights=lights, world=dataclasses.replace(scene.world, group=n + 1),
+                         light_groups=tuple(f"light{i}" for i in range(n)) + ("meshes", "world"),
+                         emitter_group=np.full(scene.triangle_count, n, np.int16))
 
 
 def with_one_object(scene, texture_space=((0, 0, 0), (1, 1, 1))):

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, bsdf, render
-from core.light_passes import LIGHT_PASSES
+from core.light_passes import LIGHT_PASSES, LIGHTGROUP_PREFIX
 from core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, World
-from core.testing.scenes import MeshBuilder, with_one_object
+from core.testing.scenes import MeshBuilder, with_light_groups, with_one_object
 
 RUN = dict(passes=2, photons_per_pass=6000, chains=512, workers=1, max_bounces=12)
 
@@ -409,3 +409,27 @@ def test_hard_case_light_passes_stay_finite_and_add_up(name):
 
     settings = RenderSettings(**RUN, method="amcmcppm", data_passes=LIGHT_PASSES + ("ao",))
     assert render(SCENES[name](), settings, on_iteration=check).passes == RUN["passes"]
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_hard_case_light_groups_stay_finite_and_add_up(name):
+    """The hard cases by the chains with every emitter in a light group of its own kind: after every
+    pass each group's pass is finite and not negative, and they add up to the image where it stays
+    within float32 (the groups' copies of the pairs on the chains' paths, glowing volumes, lights
+    seen through glass and fog, the world)."""
+    scene = with_light_groups(SCENES[name]())
+    names = tuple(LIGHTGROUP_PREFIX + g for g in scene.light_groups)
+
+    def check(result):
+        parts = [result.data[key].astype(np.float64) for key in names]
+        for key, part in zip(names, parts):
+            assert np.isfinite(part).all() and (part >= 0).all(), (key, result.passes)
+        image = result.image[..., :3].astype(np.float64)
+        kept = image < 1e37
+        if scene.world.film_transparent:        # (the world's group shows it on a transparent film)
+            kept &= result.image[..., 3:] == 1.0
+        scale = max(1.0, float(image[kept].max(initial=0.0)))
+        assert np.allclose(sum(parts)[kept], image[kept], rtol=1e-4, atol=1e-6 * scale), result.passes
+
+    settings = RenderSettings(**RUN, method="amcmcppm", data_passes=names)
+    assert render(scene, settings, on_iteration=check).passes == RUN["passes"]
