@@ -20,8 +20,9 @@ import numpy as np
 from ..core import SceneError
 from ..core.cryptomatte import name_id
 from ..core.integrator import render as core_render
-from ..core.settings import AOV_PREFIX, DATA_PASSES as DATA_PASS_NAMES
+from ..core.settings import AOV_PREFIX, DATA_PASSES as DATA_PASS_NAMES, LIGHTGROUP_PREFIX
 from .export import export_scene, parse_snapshot_times, render_settings_from
+from .export.lights import light_group_names
 from .outputs import RenderOutputs
 from .result import PushSchedule, ResultWriter, progress_fraction, stats_line
 
@@ -42,8 +43,9 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
         report_errors(self, render_final, self, depsgraph)
 
     def update_render_passes(self, scene=None, renderlayer=None):
-        """The passes this engine writes: Combined, and the data passes the view layer asks for
-        (``DATA_PASSES``)."""
+        """The passes this engine writes: Combined, the data passes the view layer asks for
+        (``DATA_PASSES``, Cryptomatte, Shader AOVs) and a ``Combined_<name>`` pass per light group,
+        as Cycles registers them."""
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", 'COLOR')
         for (name, channels, chan_id, kind), owner, prop, _ in DATA_PASSES:
             if asks_for(renderlayer, owner, prop):
@@ -57,6 +59,8 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
                 self.register_pass(scene, renderlayer, aov.name, 1, "X", 'VALUE')
             else:
                 self.register_pass(scene, renderlayer, aov.name, 4, "RGBA", 'COLOR')
+        for name in light_group_names(renderlayer):
+            self.register_pass(scene, renderlayer, LIGHTGROUP_PASS + name, 3, "RGB", 'COLOR')
 
 
 # Blender's passes beside Combined: (name, channels, channel ids, type), the box of the view layer
@@ -92,6 +96,11 @@ CRYPTO_PASSES = (("CryptoObject", "use_pass_cryptomatte_object", "crypto_object"
                  ("CryptoAsset", "use_pass_cryptomatte_asset", "crypto_asset"))
 
 
+# A light group's pass (View Layer > Light Groups): Blender's name is this and the group's name;
+# the core's data pass is LIGHTGROUP_PREFIX and the name.
+LIGHTGROUP_PASS = "Combined_"
+
+
 def shader_aovs(view_layer):
     """The view layer's valid Shader AOVs (View Layer > Shader AOV), whose passes Cycles writes."""
     return [aov for aov in getattr(view_layer, "aovs", ()) if aov.is_valid and aov.name]
@@ -113,7 +122,8 @@ def data_passes_of(view_layer):
     wanted = {core for _, owner, prop, core in DATA_PASSES if asks_for(view_layer, owner, prop)}
     wanted |= {core for _, prop, core in CRYPTO_PASSES if asks_for(view_layer, "", prop)}
     return (tuple(name for name in DATA_PASS_NAMES if name in wanted)
-            + tuple(AOV_PREFIX + aov.name for aov in shader_aovs(view_layer)))
+            + tuple(AOV_PREFIX + aov.name for aov in shader_aovs(view_layer))
+            + tuple(LIGHTGROUP_PREFIX + name for name in light_group_names(view_layer)))
 
 
 def pass_images(data, camera, aov_types=None):
@@ -121,7 +131,7 @@ def pass_images(data, camera, aov_types=None):
     the Denoising Normal in the camera's frame as Cycles' (x right, y up, z into the view) where
     the Normal pass is in world space.  ``camera`` the exported ``core.Camera``; ``aov_types``
     {name: 'COLOR' or 'VALUE'} of the Shader AOVs (a colour AOV is RGBA, its alpha where written; a
-    value AOV one channel)."""
+    value AOV one channel).  A light group's pass is ``Combined_<name>``."""
     out = {}
     aov_types = aov_types or {}
     for (name, *_), _, _, core in DATA_PASSES:
@@ -143,6 +153,8 @@ def pass_images(data, camera, aov_types=None):
         if name.startswith(AOV_PREFIX):      # (H, W, 4): the colour and where written, or a value
             aov = name[len(AOV_PREFIX):]
             out[aov] = image if aov_types.get(aov) == 'COLOR' else image[..., 0]
+        elif name.startswith(LIGHTGROUP_PREFIX):     # (H, W, 3)
+            out[LIGHTGROUP_PASS + name[len(LIGHTGROUP_PREFIX):]] = image
     return out
 
 

@@ -8,7 +8,8 @@ colour management, camera, light, material, world) that should also show for
 this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``.
 """
 import bpy
-from bl_ui.properties_view_layer import ViewLayerAOVPanelHelper, ViewLayerCryptomattePanelHelper
+from bl_ui.properties_view_layer import (ViewLayerAOVPanelHelper, ViewLayerCryptomattePanelHelper,
+                                         ViewLayerLightgroupsPanelHelper)
 
 from ..core.settings import AUTO_PHOTONS_MIN, RenderSettings
 from .engine import AMCMCPPMRenderEngine
@@ -255,6 +256,63 @@ class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
             col.prop(visibility, name, text=text, toggle=False)
 
 
+def draw_light_group(layout, owner, view_layer):
+    """An object's or a world's Light Group field as Cycles draws it: the name, searched among
+    ``view_layer``'s light groups (any name may be typed; one the view layer does not list is no
+    group), and a button that adds a typed name to the view layer's list."""
+    row = layout.row(align=True)
+    row.use_property_decorate = False
+    sub = row.column(align=True)
+    sub.prop_search(owner, "lightgroup", view_layer, "lightgroups", text="Light Group",
+                    results_are_suggestions=True)
+    sub = row.column(align=True)
+    sub.enabled = bool(owner.lightgroup) and owner.lightgroup not in view_layer.lightgroups
+    sub.operator("scene.view_layer_add_lightgroup", icon='ADD', text="").name = owner.lightgroup
+
+
+class AMCMCPPM_OBJECT_PT_lightgroup(bpy.types.Panel):
+    """Object > Shading > Light Group (Cycles' panel, drawn for Cycles only; Blender's Shading panel
+    shows for this engine): the light group whose pass holds the light of this light or emissive
+    object (``Lights.group``, ``Scene.emitter_group``)."""
+    bl_label = "Light Group"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "object"
+    bl_parent_id = "OBJECT_PT_shading"
+    bl_options = {'DEFAULT_CLOSED'}
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.object is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        draw_light_group(layout, context.object, context.view_layer)
+
+
+class AMCMCPPM_WORLD_PT_light_group(bpy.types.Panel):
+    """World > Light Group (Cycles draws it under its World > Settings, for Cycles only): the light
+    group whose pass holds the world's light and its sky's sun disc (``World.group``)."""
+    bl_label = "Light Group"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "world"
+    bl_options = {'DEFAULT_CLOSED'}
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.world is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        draw_light_group(layout, context.world, context.view_layer)
+
+
 class AMCMCPPMWorldPassPanel:
     """A World panel of a pass's settings, shown when some view layer asks for the pass (``box``)."""
     bl_space_type = 'PROPERTIES'
@@ -385,6 +443,14 @@ class AMCMCPPM_VIEWLAYER_PT_aov(ViewLayerAOVPanelHelper, bpy.types.Panel):
     COMPAT_ENGINES = {ENGINE_ID}
 
 
+class AMCMCPPM_VIEWLAYER_PT_lightgroups(ViewLayerLightgroupsPanelHelper, bpy.types.Panel):
+    """View Layer Properties > Passes > Light Groups: the view layer's light groups (Blender's own
+    panel body, as Cycles shows it), each of which has a ``Combined_<name>`` pass of the light its
+    lights, emissive objects or world send (``engine.LIGHTGROUP_PASS``)."""
+    bl_parent_id = "AMCMCPPM_VIEWLAYER_PT_passes"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+
 classes = (
     AMCMCPPM_RENDER_PT_sampling,
     AMCMCPPM_RENDER_PT_markov_chains,
@@ -438,9 +504,10 @@ def get_panels():
 
 # Panels outside the Render Properties.
 other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
-                 AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ambient_occlusion,
-                 AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_VIEWLAYER_PT_passes,
-                 AMCMCPPM_VIEWLAYER_PT_light, AMCMCPPM_VIEWLAYER_PT_cryptomatte, AMCMCPPM_VIEWLAYER_PT_aov)
+                 AMCMCPPM_OBJECT_PT_lightgroup, AMCMCPPM_WORLD_PT_mist, AMCMCPPM_WORLD_PT_ambient_occlusion,
+                 AMCMCPPM_WORLD_PT_ray_visibility, AMCMCPPM_WORLD_PT_light_group,
+                 AMCMCPPM_VIEWLAYER_PT_passes, AMCMCPPM_VIEWLAYER_PT_light, AMCMCPPM_VIEWLAYER_PT_cryptomatte,
+                 AMCMCPPM_VIEWLAYER_PT_aov, AMCMCPPM_VIEWLAYER_PT_lightgroups)
 
 
 def register():

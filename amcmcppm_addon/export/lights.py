@@ -30,6 +30,11 @@ surface along their first flight, as Cycles' unshadowed light samples do.
 An area light marked as a Cycles portal (``cycles.is_portal``) is left out: in Cycles it only
 guides the sampling of the world through a window, emits nothing and is invisible.
 
+Light groups (View Layer > Light Groups; Object > Shading > Light Group): a light's
+``object.lightgroup`` names its group, whose pass (Cycles' ``Combined_<name>``) holds the light it
+sends (``Lights.group``); a name the view layer does not list, or none, is no group.  An instance
+without a group of its own takes its instancer's, as Cycles' sync does (:func:`instance_group`).
+
 ``normalize = False`` makes Cycles skip the division by the emitting area (or by
 the sun's solid angle); the core always divides, so the power is multiplied back.
 
@@ -231,7 +236,39 @@ def light_record(position, direction, visibility, soft_falloff=True, **fields) -
     return {"position": position, "direction": direction, "radius": 0.0, "spot_angle": math.pi / 4,
             "spot_blend": 0.0, "sun_angle": 0.0, "axis_u": np.zeros(3), "axis_v": np.zeros(3),
             "visibility": visibility, "soft_falloff": soft_falloff, "spread": math.pi, "profile": None,
-            "links": ALL_LINKS, "shadow_links": ALL_LINKS, "exclude": 0, **fields}
+            "links": ALL_LINKS, "shadow_links": ALL_LINKS, "exclude": 0, "group": -1, **fields}
+
+
+def light_group_names(view_layer) -> tuple:
+    """The light groups of ``view_layer`` (View Layer > Light Groups), its distinct non-empty names in
+    its order: ``Scene.light_groups``, and the ``Combined_<name>`` passes the engine registers.  (An
+    evaluated view layer may miss groups added since its depsgraph was evaluated: pass the original,
+    ``depsgraph.view_layer``.)"""
+    return tuple(dict.fromkeys(lg.name for lg in getattr(view_layer, "lightgroups", ()) if lg.name))
+
+
+def light_group_index(view_layer) -> dict:
+    """{name: index into :func:`light_group_names`} of ``view_layer``'s light groups."""
+    return {name: i for i, name in enumerate(light_group_names(view_layer))}
+
+
+def light_group_of(data) -> str:
+    """The ``lightgroup`` name of an object or a world, read from the original datablock: setting it
+    does not tag the depsgraph, so an evaluated copy may still hold the name it had before."""
+    return (getattr(data, "original", None) or data).lightgroup
+
+
+def instance_group(inst, groups) -> int:
+    """The light group of depsgraph object instance ``inst`` (an index of ``groups``, the
+    :func:`light_group_index`; -1: none), as Cycles' sync finds it: its object's ``lightgroup``, or,
+    when that is empty, its instancer's (the object whose collection, particles or geometry nodes
+    make the instance).  A name the view layer does not list is no group."""
+    if not groups:
+        return -1
+    name = light_group_of(inst.object)
+    if not name and inst.is_instance and inst.parent is not None:
+        name = light_group_of(inst.parent)
+    return groups.get(name, -1)
 
 
 def build_lights(records) -> Lights:
@@ -245,7 +282,7 @@ def build_lights(records) -> Lights:
                     visibility=np.zeros(n, np.uint8), soft_falloff=np.ones(n, bool),
                     spread=np.full(n, math.pi, np.float32), profile=np.full(n, -1, np.int16),
                     links=np.full(n, ALL_LINKS, np.uint64), shadow_links=np.full(n, ALL_LINKS, np.uint64),
-                    exclude=np.zeros(n, np.uint8))
+                    exclude=np.zeros(n, np.uint8), group=np.full(n, -1, np.int16))
     tables = []
     for i, rec in enumerate(records):
         for name in Lights.ARRAY_FIELDS:

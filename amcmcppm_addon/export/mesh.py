@@ -28,7 +28,7 @@ from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_object
 from ...core.scene import (CASTS_NO_SHADOW, HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY,
                            VISIBLE_TRANSMISSION)
 from ...core.texture_hash import hash_uint2, hash_uint2_to_float, hash_uint_to_float
-from .lights import light_exclude, ray_visibility
+from .lights import instance_group, light_exclude, ray_visibility
 
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
 # evaluated mesh as a separate MESH instance (as Cycles' ``object_is_geometry`` notes), so reading
@@ -93,6 +93,9 @@ class Geometry:
     # (T,) uint8 the rays each triangle's light does not reach (its object's Ray Visibility,
     # core.Scene.emitter_exclude), or None: none excluded
     emitter_exclude: np.ndarray | None = None
+    # (T,) int16 the light group of each triangle's object (core.Scene.emitter_group; -1: none), or
+    # None: no object is in one
+    emitter_group: np.ndarray | None = None
     # Light and shadow linking (export/linking.py), or None without: (T,) uint8 each triangle's
     # receiver (blocker) set and (T,) int16 its object's receiver (blocker) collection as an
     # emitter (-1: none)
@@ -122,11 +125,13 @@ class GeometryCollector:
     both None.
     passes : the core data passes the view layer asks for that need geometry beside what the
     materials read: "object_index" the objects and their Object Info (the pass index), "uv" the UVs.
+    light_groups : {name: index} of the view layer's light groups (``lights.light_group_index``).
     """
 
     def __init__(self, materials, log, material_override=None, linking=(None, None), frame=0.0,
-                 passes=frozenset()):
+                 passes=frozenset(), light_groups=None):
         """``frame``: the scene's current frame (with subframe), for Particle Info's Age."""
+        self.light_groups = light_groups or {}
         self.materials = materials
         self.frame = frame
         self.passes = frozenset(passes)
@@ -187,7 +192,8 @@ class GeometryCollector:
                              "as an ordinary surface")
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         flags = (ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
-                 | (0 if ob.visible_shadow else CASTS_NO_SHADOW) | light_exclude(ob) << EXCLUDE_SHIFT)
+                 | (0 if ob.visible_shadow else CASTS_NO_SHADOW) | light_exclude(ob) << EXCLUDE_SHIFT
+                 | (instance_group(inst, self.light_groups) + 1) << GROUP_SHIFT)
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
             np.array(inst.matrix_world, np.float64))
@@ -213,9 +219,11 @@ class GeometryCollector:
 
 # Every camera-path ray: a triangle seen by all of them needs no visibility array.
 ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
-# An object group's flags: its Scene.triangle_visibility bits, and above them its light_exclude bits.
+# An object group's flags: its Scene.triangle_visibility bits, above them its light_exclude bits and
+# above those its light group plus one (0: none).
 VISIBILITY_MASK = 0xFF
 EXCLUDE_SHIFT = 8
+GROUP_SHIFT = 16
 
 
 def _renders_hair(modifier) -> bool:
@@ -799,7 +807,9 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
         part = transform_instances(meshes[key], np.stack(matrices), np.asarray(mat_ids, np.int32), offset,
                                    coordinates)
         part["visibility"] = np.full(len(part["triangles"]), visibility & VISIBILITY_MASK, np.uint8)
-        part["exclude"] = np.full(len(part["triangles"]), visibility >> EXCLUDE_SHIFT, np.uint8)
+        part["exclude"] = np.full(len(part["triangles"]), (visibility >> EXCLUDE_SHIFT) & 0xFF,
+                                  np.uint8)
+        part["group"] = np.full(len(part["triangles"]), (visibility >> GROUP_SHIFT) - 1, np.int16)
         part["link"] = link
         if objects:
             part["object_ids"] += instances
@@ -843,6 +853,7 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
                                    else np.zeros((len(p["triangles"]), 3, 4), np.float32) for p in parts])
     visibility = np.concatenate([p["visibility"] for p in parts])
     exclude = np.concatenate([p["exclude"] for p in parts])
+    group = np.concatenate([p["group"] for p in parts])
     links = {}
     sizes = [len(p["triangles"]) for p in parts]
     for k, (sets, collections) in enumerate((("receiver_sets", "emitter_collections"),
@@ -867,6 +878,7 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
                     **objects,
                     triangle_visibility=visibility if (visibility != ALL_RAYS).any() else None,
                     emitter_exclude=exclude if exclude.any() else None,
+                    emitter_group=group if (group >= 0).any() else None,
                     cryptomatte=crypto, crypto_names=crypto_manifests,
                     instances=instances, **links)
 

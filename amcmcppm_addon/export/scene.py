@@ -15,7 +15,8 @@ import numpy as np
 from ...core.cryptomatte import name_id
 from ...core.scene import SUN, Scene
 from .camera import export_camera
-from .lights import build_lights, export_light, light_exclude, ray_visibility
+from .lights import (build_lights, export_light, instance_group, light_exclude, light_group_index,
+                     ray_visibility)
 from .linking import LightLinking
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
@@ -86,9 +87,12 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     # Light and shadow linking (receiver and blocker collections), each None when unused.
     linking = (LightLinking.from_depsgraph(depsgraph, log, "receiver"),
                LightLinking.from_depsgraph(depsgraph, log, "blocker"))
+    # Light groups (View Layer > Light Groups): {name: index of Scene.light_groups}, from the original
+    # view layer (adding a group does not tag the depsgraph: an evaluated one may not have it yet).
+    groups = light_group_index(depsgraph.view_layer)
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
                                   linking=linking, frame=depsgraph.scene_eval.frame_current_final,
-                                  passes=geometry_passes(view_layer))
+                                  passes=geometry_passes(view_layer), light_groups=groups)
     light_records, light_collections = [], []
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":
@@ -96,6 +100,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                                inst.object.name, log, ray_visibility(inst.object))
             if rec is not None:
                 rec["exclude"] = light_exclude(inst.object)
+                rec["group"] = instance_group(inst, groups)
                 light_records.append(rec)
                 # (read here: the iterator reuses its instance objects)
                 light_collections.append([-1 if k is None else k.collection(inst.object) for k in linking])
@@ -103,7 +108,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
             collector.add(inst)
     geometry = collector.finish()
     camera = export_camera(depsgraph, camera_object, resolution, border, log)
-    world, world_lights = export_world(depsgraph, materials.textures, log, camera)
+    world, world_lights = export_world(depsgraph, materials.textures, log, camera, groups)
     if depsgraph.scene_eval.render.use_motion_blur:
         log.warning("motion blur is not supported: the frame renders at its own instant")
     sets = {}         # the scene's per-triangle sets and emitter links
@@ -147,7 +152,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                   object_info=geometry.object_info, object_attributes=geometry.object_attributes,
                   triangle_visibility=geometry.triangle_visibility, emitter_exclude=geometry.emitter_exclude,
                   textures=materials.textures.images, cryptomatte_ids=crypto,
-                  **sets)
+                  light_groups=tuple(groups), emitter_group=geometry.emitter_group, **sets)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,
                          meshes=geometry.meshes, cryptomatte_manifests=manifests)

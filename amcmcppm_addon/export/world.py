@@ -22,6 +22,11 @@ The world's Volume (Volume Absorption, Volume Scatter, Principled Volume, as a m
 fills all space outside the meshes' volumes, unbounded as in Cycles: the sun and the world's
 own light then reach nothing in the channels it attenuates (``export_scene`` warns).
 
+World > Light Group (``world.lightgroup``, a name of the view layer's Light Groups): the world's
+light and its sky's sun disc belong to that group (``World.group``, the sun's ``Lights.group``), as
+in Cycles, where the sun disc is part of the background; a name the view layer does not list is
+no group.
+
 World > Mist Pass (start, depth, falloff: ``world.mist_settings``) shapes the Mist pass
 (``World.mist_start``, ``mist_depth``, ``mist_falloff``); without a world, Cycles' film's own
 (``NO_WORLD_MIST``: from the camera over 100 m, linear; not a new world's 5 m, 25 m, quadratic).
@@ -33,7 +38,7 @@ import numpy as np
 from ...core import procedural, sky
 from ...core.environment import equirectangular_directions
 from ...core.scene import SUN, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, World
-from .lights import light_exclude, light_record
+from .lights import light_exclude, light_group_of, light_record
 from .materials import NodeWalker
 from .procedural import view_layer_owners
 
@@ -46,9 +51,10 @@ MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}
 NO_WORLD_MIST = {"mist_start": 0.0, "mist_depth": 100.0, "mist_falloff": 1.0}
 
 
-def export_world(depsgraph, textures, log, camera=None):
+def export_world(depsgraph, textures, log, camera=None, light_groups=None):
     """(``core.World``, list of light records of ``lights.export_light``'s form: a sky's sun disc).
-    ``camera``: the scene's ``core.Camera``, for programs of the view (Window, Camera coordinates)."""
+    ``camera``: the scene's ``core.Camera``, for programs of the view (Window, Camera coordinates);
+    ``light_groups``: {name: index} of the view layer's light groups (``lights.light_group_index``)."""
     scene = depsgraph.scene_eval
     world = depsgraph.view_layer_eval.world_override or scene.world
     transparent = bool(scene.render.film_transparent)
@@ -71,6 +77,9 @@ def export_world(depsgraph, textures, log, camera=None):
                                     camera)
     _ray_visibility(world, out, lights)
     _mist(world, out)
+    out.group = (light_groups or {}).get(light_group_of(world), -1)
+    for rec in lights:
+        rec["group"] = out.group
     return out, lights
 
 

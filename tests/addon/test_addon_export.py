@@ -2581,6 +2581,64 @@ def test_light_and_shadow_linking_follow_blenders_include_and_exclude_rules(scen
     assert [_lit(core, core.lights.links[0], n) for n in names] == [False, True, True, False]
 
 
+def test_light_groups_follow_the_view_layers_list(scene):
+    """View Layer > Light Groups: ``Scene.light_groups`` are the view layer's names in its order; a
+    light's group (``Lights.group``), an object's (``Scene.emitter_group``, for all its triangles)
+    and the world's (``World.group``, and its sky's sun disc's) index them, -1 for no group or a
+    name the view layer does not list.  An instance without a group takes its instancer's (a
+    collection instance's empty), as Cycles' sync does; one with its own keeps it.  Without light
+    groups: no groups and no emitter_group."""
+    from amcmcppm.core.scene import SUN
+    bs.camera()
+    key = bs.light("AREA", location=(0, 0, 3), energy=50.0, name="Key")
+    fill = bs.light("POINT", location=(2, 0, 3), energy=20.0, name="Fill")
+    stray = bs.light("POINT", location=(-2, 0, 3), energy=20.0, name="Stray")
+    glow = bs.cube("Glow", material=bs.emission("Glow", strength=2.0), location=(0, 2, 0.5))
+    bs.plane("Floor", size=10.0, material=bs.diffuse("Floor"))
+    world = bs.world((0.1, 0.1, 0.1))
+    nt = world.node_tree
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    # A collection instance: its quad has no group (it takes the empty's), its cube its own.
+    source = bpy.data.collections.new("Source")
+    bs.plane("Quad", size=0.5, material=bs.emission("Quad", strength=1.0), collection=source)
+    own = bs.cube("Own", size=0.2, material=bs.emission("Own", strength=1.0), collection=source)
+    empty = bpy.data.objects.new("Instancer", None)
+    empty.instance_type, empty.instance_collection = "COLLECTION", source
+    empty.location = (3.0, 3.0, 0.0)
+    scene.collection.objects.link(empty)
+    for ob, name in ((key, "key"), (fill, "fill"), (stray, "nowhere"), (glow, "key"), (empty, "fill"),
+                     (own, "key")):
+        ob.lightgroup = name
+    world.lightgroup = "sky"
+    core = bs.export().scene
+    assert core.light_groups == () and core.emitter_group is None
+    assert (core.lights.group == -1).all() and core.world.group == -1
+
+    layer = scene.view_layers[0]
+    for name in ("fill", "key", "sky"):
+        layer.lightgroups.add(name=name)
+    core = bs.export().scene
+    assert core.light_groups == ("fill", "key", "sky")
+    lights = core.lights
+    by_x = {round(float(p[0])): int(g) for p, g, k in zip(lights.position, lights.group, lights.kind)
+            if k != SUN}
+    assert by_x == {0: 1, 2: 0, -2: -1}                      # Key, Fill, Stray ("nowhere": none)
+    assert lights.group[lights.kind == SUN].tolist() == [2] and core.world.group == 2
+    group = core.emitter_group
+    assert group is not None and group.dtype == np.int16 and group.shape == (core.triangle_count,)
+    for name, expected in (("Glow", 1), ("Floor", -1), ("Quad", 0), ("Own", 1)):
+        mine = group[core.material_ids == core.materials.names.index(name)]
+        assert len(mine) and (mine == expected).all(), name
+    # Groups no object uses: the world in none, no triangle in one.
+    for ob in (glow, empty, own):
+        ob.lightgroup = ""
+    world.lightgroup = "nowhere"
+    core = bs.export().scene
+    assert core.emitter_group is None and core.world.group == -1
+    assert core.lights.group[core.lights.kind == SUN].tolist() == [-1]
+
+
 def test_unnormalized_point_light_matches_cycles_radiance(scene):
     # Cycles: normalize off skips the 1/(4 pi r^2) area division -> radiance P/pi.
     _, row = export_light("POINT", energy=10.0, shadow_soft_size=0.5, normalize=False)

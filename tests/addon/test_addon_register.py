@@ -325,6 +325,37 @@ def test_cryptomatte_and_aov_panels_show_for_the_engine(scene):
         scene.render.engine = ENGINE
 
 
+def test_light_group_panels_show_for_the_engine(scene):
+    """View Layer > Passes > Light Groups (Blender's list, whose own panel shows for Cycles only),
+    Object > Shading > Light Group and World > Light Group (Cycles' fields, drawn for Cycles only)
+    show for our engine alone; Blender's and Cycles' panels do not (no panel twice).  (The passes
+    they make: ``test_addon_engine.py``'s light group tests.)"""
+    import cycles.ui
+    from amcmcppm.amcmcppm_addon import ui
+    layer = scene.view_layers[0]
+    panel = ui.AMCMCPPM_VIEWLAYER_PT_lightgroups
+    assert getattr(bpy.types, panel.__name__) is panel
+    assert panel.bl_parent_id == ui.AMCMCPPM_VIEWLAYER_PT_passes.__name__
+    assert panel.bl_label == "Light Groups"
+    for theirs in (bpy.types.VIEWLAYER_PT_layer_passes_lightgroups,
+                   cycles.ui.CYCLES_RENDER_PT_passes_lightgroups, cycles.ui.CYCLES_OBJECT_PT_lightgroup,
+                   cycles.ui.CYCLES_WORLD_PT_settings_light_group):
+        assert ENGINE not in theirs.COMPAT_ENGINES, theirs.__name__
+    obj_panel, world_panel = ui.AMCMCPPM_OBJECT_PT_lightgroup, ui.AMCMCPPM_WORLD_PT_light_group
+    assert obj_panel.bl_parent_id == "OBJECT_PT_shading"
+    assert ENGINE in bpy.types.OBJECT_PT_shading.COMPAT_ENGINES
+    for p in (obj_panel, world_panel):
+        assert getattr(bpy.types, p.__name__) is p
+    card, lamp, world = bs.plane("Card"), bs.light("POINT"), bs.world((0.1, 0.1, 0.1))
+    for ob in (card, lamp):
+        with bpy.context.temp_override(object=ob, view_layer=layer, world=world):
+            assert bpy.types.OBJECT_PT_shading.poll(bpy.context)
+            assert all(p.poll(bpy.context) for p in (panel, obj_panel, world_panel))
+            scene.render.engine = "CYCLES"
+            assert not any(p.poll(bpy.context) for p in (panel, obj_panel, world_panel))
+            scene.render.engine = ENGINE
+
+
 def test_light_linking_panels_show_for_engine(scene):
     """Object > Shading > Light Linking and Shadow Linking (Blender's panels, whose parent lists
     the engines that show them) show for lights and meshes: the exporter reads both."""
