@@ -29,8 +29,8 @@ from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
 from .eye_pass import centre_data, trace_eye_pass
-from .light_passes import (COLOR_PASSES, LIGHT_PASSES, PHOTON_PASSES, colour_of, divide_even_color,
-                           light_groups)
+from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
+                           divide_even_color, light_groups)
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
@@ -100,6 +100,12 @@ class Accumulator:
         # The light group passes (LIGHTGROUP_PREFIX + a name) come in the same way.
         self.light_passes = tuple(light_passes)
         self.light = {}
+        # With the bias correction, each light group pass's own differences at half the radius:
+        # name -> [sum of T_p, sum of Vc_p T_p, sum of the outside part's T_p] (as the image's), and
+        # where the last image's correction made it negative before its clamp at 0 ((n, 3) bool).
+        self.group_passes = tuple(n for n in self.light_passes if n.startswith(LIGHTGROUP_PREFIX))
+        self.group_diff = {}
+        self.clamped = None
         self.photon_factor = None                   # (n, 3) the last image's correction of its photons
         # The estimate at half the radius (RenderSettings.bias_correction): the differences
         # T_p = S_p(r/2) - S_p(r) of the recorded photons and of the outside part, with their
@@ -119,7 +125,8 @@ class Accumulator:
         return self.n_visible / self.n_uniform if self.n_uniform else 0.0
 
     def add(self, eye, pixel_sum, recorded, n_uniform, n_visible, is_chain, outside_sum=None,
-            inner_sum=None, outside_inner=None, half_diff=None, light_sum=None, light_outside=None):
+            inner_sum=None, outside_inner=None, half_diff=None, light_sum=None, light_outside=None,
+            light_inner=None, light_outside_inner=None):
         """Add one pass; returns the number of pixels whose non-finite photon sums were dropped.
 
         ``outside_sum``: AMCMCPPM's sums over its uniform samples outside the visible set (O_p).
@@ -131,7 +138,9 @@ class Accumulator:
         its emission plus Vc_p S_p / N_p with the pass's own visible fraction Vc_p, plus O_p / n_U.
         ``light_sum``, ``light_outside``: the light passes' S_p and O_p (name -> (n_pixels, 3)), or
         None (their non-finite values are left out as zeros; they take the image's bias correction
-        in proportion, :meth:`data`).
+        in proportion, :meth:`data`).  ``light_inner``, ``light_outside_inner``: with
+        ``bias_correction``, the light group passes' sums at half the radius (as ``inner_sum``,
+        ``outside_inner``), or None: the groups' own corrections.
         """
         if self.bias_correction and inner_sum is None:
             raise ValueError("Accumulator.add: a bias-corrected image needs the inner sums")
@@ -159,6 +168,19 @@ class Accumulator:
                 total[part] = total[part] + value
                 if part == 0 and is_chain and self.normalisation == "per_pass":
                     total[1] = total[1] + vc_pass * value
+        for part, inner, sums, on in ((0, light_inner, light_sum, recorded),
+                                      (2, light_outside_inner, light_outside, n_uniform)):
+            if inner is None or not on:
+                continue
+            for name in self.group_passes:      # (T_p of each group: its inner sums less its sums)
+                if name not in inner and name not in (sums or {}):
+                    continue
+                t = inner.get(name, 0.0) - (sums or {}).get(name, 0.0)
+                t = np.where(np.isfinite(t), t, 0.0)
+                total = self.group_diff.setdefault(name, [0.0, 0.0, 0.0])
+                total[part] = total[part] + t
+                if part == 0 and is_chain and self.normalisation == "per_pass":
+                    total[1] = total[1] + vc_pass * t
         self.last_pass_mean = float(eye.emission.mean())
         dropped = 0
         if outside_sum is not None and n_uniform:
@@ -238,8 +260,10 @@ class Accumulator:
                if name not in LIGHT_PASSES and name not in self.light_passes}
         colours = {name: self.data_sums[name] / self.passes for name in COLOR_PASSES
                    if name in self.data_sums}
+        own = self._own_corrections(is_chain)
         for name in self.light_passes:          # (one at a time: 13 of them at 1080p take 0.6 GB)
-            value = colours[name] if name in colours else self._light_mean(name, is_chain)
+            value = (colours[name] if name in colours
+                     else self._light_mean(name, is_chain, own if name in self.group_passes else None))
             if colour_of(name):
                 value = divide_even_color(value, colours[colour_of(name)])
             out[name] = image(np.minimum(value, FLOAT32_MAX))
@@ -247,13 +271,55 @@ class Accumulator:
             out[name] = sums.image(height * width, self.crypto_levels, self.passes).reshape(height, width, -1)
         return out
 
-    def _light_mean(self, name, is_chain):
+    def _own_corrections(self, is_chain):
+        """(n, 3) bool: where the light group passes take their own bias corrections (the image's
+        weight times their own differences, so that a group's pass is what its emitters alone would
+        give): where the image's was not clamped at 0 and none of theirs is below 0; elsewhere they
+        take the image's in proportion, as the light passes do (either way they add up to it).
+        None: nowhere (no group passes, no correction, or no group differences)."""
+        if not self.group_passes or self.photon_factor is None or not self.group_diff:
+            return None
+        ok = ~self.clamped
+        for name in self.group_passes:
+            own = self._photon_part(name, is_chain)
+            ok &= own + self.bias_weight * self._group_difference(name, is_chain) >= 0
+        return ok
+
+    def _group_difference(self, name, is_chain):
+        """(n, 3) light group pass ``name``'s own D (:meth:`difference`'s, of its photons alone)."""
+        t, t_scaled, t_outside = self.group_diff.get(name, (0.0, 0.0, 0.0))
+        d = np.zeros((len(self.alpha), 3))
+        if self.recorded:
+            if is_chain and self.normalisation == "per_pass":
+                d = d + t_scaled / self.recorded
+            else:
+                scale = self.visible_weighted / self.recorded if is_chain else 1.0
+                d = d + scale * t / self.recorded
+        if is_chain and self.outside_diff is not None and self.n_uniform:
+            d = d + t_outside / self.n_uniform
+        return d
+
+    def _light_mean(self, name, is_chain, own=None):
         """(n, 3) float64 light pass ``name`` before any division by a colour: the eye passes' mean
-        plus the photons' estimate as in :meth:`image` (times ``photon_factor``)."""
+        plus the photons' estimate as in :meth:`image`, times ``photon_factor``, or, where ``own``
+        ((n, 3) bool, :meth:`_own_corrections`), plus the image's weight times its own D."""
         value = (self.data_sums[name] / self.passes if name in self.data_sums
                  else np.zeros((len(self.alpha), 3)))
         if name not in self.light:
             return value
+        photon_part = self._photon_part(name, is_chain)
+        if self.photon_factor is not None:
+            shared = photon_part * self.photon_factor
+            if own is not None:
+                corrected = photon_part + self.bias_weight * self._group_difference(name, is_chain)
+                shared = np.where(own, corrected, shared)
+            photon_part = shared
+        return value + photon_part
+
+    def _photon_part(self, name, is_chain):
+        """(n, 3) the photons' estimate of light pass ``name`` as in :meth:`image`, uncorrected."""
+        if name not in self.light:
+            return np.zeros((len(self.alpha), 3))
         photons, scaled, outside = self.light[name]
         photon_part = 0.0
         if self.recorded:
@@ -263,9 +329,7 @@ class Accumulator:
             photon_part = photons / self.recorded
         if is_chain and self.n_uniform:
             photon_part = photon_part + outside / self.n_uniform
-        if self.photon_factor is not None:
-            photon_part = photon_part * self.photon_factor
-        return value + photon_part
+        return photon_part + np.zeros((len(self.alpha), 3))
 
     def _corrected(self, rgb, is_chain, scale):
         """The image A + w D, clamped at 0: D = (estimate at r/2) - (estimate at r), w in
@@ -303,7 +367,9 @@ class Accumulator:
         if noise >= square:
             return rgb
         self.bias_weight = 4.0 / 3.0 * (1.0 - noise / square)
-        return np.maximum(rgb + self.bias_weight * d, 0.0)
+        corrected = rgb + self.bias_weight * d
+        self.clamped = corrected < 0
+        return np.maximum(corrected, 0.0)
 
     def difference(self, is_chain, scale=1.0):
         """(D, estimates of Var D) per pixel for :meth:`_corrected`, or None before
@@ -522,7 +588,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
                               c["uniform_visible"], is_chain, merged["outside_sum"], merged["inner_sum"],
                               merged["outside_inner"], merged["half_diff"], merged["light_sum"],
-                              merged["light_outside"])
+                              merged["light_outside"], merged["light_inner"], merged["light_outside_inner"])
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
@@ -621,7 +687,7 @@ def _merge(outputs, halves=False):
     for key in ("pixel_sum", "outside_sum", "inner_sum", "outside_inner", "half_diff"):
         sums = [o[key] for o in outputs if o.get(key) is not None]
         merged[key] = np.sum(sums, axis=0) if sums else None
-    for key in ("light_sum", "light_outside"):             # (light passes: name -> pixel sums)
+    for key in ("light_sum", "light_outside", "light_inner", "light_outside_inner"):   # (name -> pixel sums)
         parts = [o[key] for o in outputs if o.get(key) is not None]
         names = sorted({name for p in parts for name in p})
         merged[key] = ({name: np.sum([p[name] for p in parts if name in p], axis=0) for name in names}

@@ -102,8 +102,11 @@ class DepositTarget:
     half the radius (:meth:`inner_pixels`, ``RenderSettings.bias_correction``).  With
     ``light_groups`` a pair whose photon comes from an emitter of a light group asked for is also
     copied, whole, to that group's block of n_points slots after those (``group_slots``,
-    :meth:`group_pairs`).  ``n_slots`` slots in all.  The pairs on the slots before ``inner_slots``
-    are the ones that count towards a splat (:class:`PointSums`)."""
+    :meth:`group_pairs`), and with ``inner`` those within half the radius once more to the group's
+    inner block of m slots after all the groups' (``group_inner_slots``), for each group's own
+    estimate at half the radius (:meth:`group_inner_pixels`).  ``n_slots`` slots in all.  The
+    pairs on the slots before ``inner_slots`` are the ones that count towards a splat
+    (:class:`PointSums`)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
@@ -151,6 +154,9 @@ class DepositTarget:
             self.group_blocks = np.asarray(light_groups[1], np.int64)
         self.group_slots = self.n_slots
         self.n_slots += len(self.group_passes) * self.n_points
+        self.group_inner_slots = self.n_slots
+        if self.inner:
+            self.n_slots += len(self.group_passes) * points.count
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -581,15 +587,24 @@ class DepositTarget:
         """Whether the target makes light or light group passes (:meth:`pass_pixels`)."""
         return bool(self.light_passes or self.group_passes)
 
-    def group_pairs(self, groups, j):
+    def group_pairs(self, groups, j, near=None):
         """The copies of pairs with points ``j`` (k,) (surface, then volume numbering) of photons
-        from emitters of light groups ``groups`` (k,) on their groups' blocks: (rows (r,) of the
-        pairs whose group is asked for, their slots (r,)), or None where there are none."""
+        from emitters of light groups ``groups`` (k,) on their groups' blocks, and of those
+        ``near`` (k,) bool (within half the radius; None: none) on the groups' inner blocks: (rows
+        (r,) of the pairs copied, their slots (r,)), or None where there are none."""
         block = np.where(groups >= 0, self.group_blocks.take(np.maximum(groups, 0)), -1)
         rows = np.flatnonzero(block >= 0)
         if len(rows) == 0:
             return None
-        return rows, self.group_slots + block.take(rows) * self.n_points + j.take(rows)
+        block, points = block.take(rows), j.take(rows)
+        slots = self.group_slots + block * self.n_points + points
+        if near is not None and self.inner:
+            again = np.flatnonzero(near.take(rows))
+            m = self.points.count
+            rows = np.concatenate([rows, rows.take(again)])
+            inner = self.group_inner_slots + block.take(again) * m + points.take(again)
+            slots = np.concatenate([slots, inner])
+        return rows, slots
 
     def _sheen_part(self, jh, h, wi, geometry, exclude, diffuse_scale):
         """(3, k) the sheen's part of pairs ``h`` with sheened points ``jh`` (:meth:`pair_weights`'s
@@ -762,6 +777,25 @@ class DepositTarget:
             if name in volume:
                 np.add.at(total, self.volume.pixel_ids, self._volume_values(volume[name]))
             if total.any():     # (passes this target has nothing for are left out: the workers send less)
+                out[name] = total
+        return out
+
+    def group_inner_pixels(self, sums):
+        """name -> (n_pixels, 3) each light group pass's estimate at half the radius (those with
+        some; :meth:`inner_pixels` of the group's pairs: its surface points' inner block, its volume
+        points' part as in :meth:`pass_pixels`)."""
+        if not self.inner:
+            raise ValueError("DepositTarget.group_inner_pixels: the target was built without inner sums")
+        m, n = self.points.count, self.n_points
+        out = {}
+        for k, name in enumerate(self.group_passes):
+            total = np.zeros((self.n_pixels, 3))
+            start = self.group_inner_slots + k * m
+            total[self.pixel_ids] = self._surface_values(sums[start:start + m], half=True)
+            if self.volume is not None:
+                start = self.group_slots + k * n + m
+                np.add.at(total, self.volume.pixel_ids, self._volume_values(sums[start:start + n - m]))
+            if total.any():
                 out[name] = total
         return out
 
@@ -1092,7 +1126,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     slots.append(extra[1])
                 # Light groups: copies of the pairs of photons from a group's emitters, whole.
                 copies = (None if target.group_blocks is None
-                          else target.group_pairs(ctx.lights.groups_of(u[idx.take(lane), 0]), pj))
+                          else target.group_pairs(ctx.lights.groups_of(u[idx.take(lane), 0]), pj, near))
                 if copies is not None:
                     slots.append(copies[1])
                 slots = np.concatenate(slots) if len(slots) > 1 else main_slots

@@ -56,14 +56,19 @@ class PhotonWorker:
         ``outside_inner`` (the same at half the radius if the target has inner sums, else
         None), ``half_diff`` (with ``lane_halves``, AMCMCPPM and inner sums: the even chains'
         (inner - outer) pixel sums minus the odd chains'; else None), ``light_sum`` and
-        ``light_outside`` (the target's light and light group passes: name -> pixel sums as ``pixel_sum`` and
-        ``outside_sum``, :meth:`~core.photon_pass.DepositTarget.pass_pixels`; else None),
+        ``light_outside`` (the target's light and light group passes: name -> pixel sums as
+        ``pixel_sum`` and ``outside_sum``, :meth:`~core.photon_pass.DepositTarget.pass_pixels`; else
+        None),
+        ``light_inner`` and ``light_outside_inner`` (with inner sums, the light group passes' as
+        ``inner_sum`` and ``outside_inner``, :meth:`~core.photon_pass.DepositTarget.group_inner_pixels`;
+        else None),
         ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
         counters = ChainCounters()
-        outside_sum = outside_inner = half_diff = light_outside = None
+        outside_sum = outside_inner = half_diff = light_outside = light_outside_inner = None
+        group_inner = target.inner and bool(target.group_passes)
         chains = None if uniform else self.chains
         if chains is None:
             sums, interrupted = self._uniform_pass(pass_index, target, n_photons, counters, stop)
@@ -74,6 +79,8 @@ class PhotonWorker:
                 outside_sum, outside_inner = _pixels(target, outside)
                 if target.makes_passes:
                     light_outside = target.pass_pixels(outside)
+                if group_inner:
+                    light_outside_inner = target.group_inner_pixels(outside)
             if halves is not None:
                 outer, inner = _pixels(target, halves)
                 with np.errstate(over="ignore", invalid="ignore"):     # (dropped by the Accumulator)
@@ -86,6 +93,8 @@ class PhotonWorker:
                 "outside_inner": outside_inner, "half_diff": half_diff,
                 "light_sum": target.pass_pixels(sums) if target.makes_passes else None,
                 "light_outside": light_outside,
+                "light_inner": target.group_inner_pixels(sums) if group_inner else None,
+                "light_outside_inner": light_outside_inner,
                 "counters": dataclasses.asdict(counters),
                 "theta_mean": theta_mean, "valid_chains": valid,
                 "total_proposed": int(chains.proposed.sum()) if chains else 0,

@@ -70,18 +70,20 @@ def block_means(image, n=4):
     return image[:h - h % n, :w - w % n, :3].reshape(n, h // n, n, w // n, 3).mean(axis=(1, 3))
 
 
-def test_each_group_is_its_emitters_alone():
+@pytest.mark.parametrize("bias_correction", [False, True])
+def test_each_group_is_its_emitters_alone(bias_correction):
     """A group's pass is the render with only its emitters (the others taken out of the scene): the
     ceiling lamp's and the bulb's in means within 3 % and in the 4 x 4 blocks of at least a fifth of
     the brightest's within 12 % (the photon noise of two renders; dimmer blocks of the spot's light
     were up to 14 % apart; the negative control, the lamp's pass against the bulb's render, is off
     by a factor of 3); the light of the spot, in no group, is the image less the groups' passes.
-    Without the bias correction: with it, each pass takes the image's correction in proportion to
-    its share of a pixel, not its own (here the lamp's pass came out 5 % above the lamp alone,
-    whose correction was larger; 0.4 % apart without it)."""
+    With the bias correction each group takes the image's weight times its own difference at half
+    the radius (the lamp's pass 0.2 % from the lamp alone; when the groups took the image's
+    correction in proportion to their share of each pixel, as the light passes do, 5 % above it)."""
     scene = lit_box(spot_group=-1).replace(world=World())
-    settings = dict(passes=6, photons_per_pass=40000, bias_correction=False)
+    settings = dict(passes=6, photons_per_pass=40000, bias_correction=bias_correction)
     result, names = groups_of(scene, **settings)
+    assert (result.stats[-1]["bias_weight"] > 0) == bias_correction
     lamp = scene.materials.names.index("lamp")
     dark = np.where(scene.material_ids == lamp, 0, scene.material_ids)      # (the lamp's quad white)
     alone = {"lamp": scene.replace(lights=Lights.empty(), world=World()),
