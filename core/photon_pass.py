@@ -104,7 +104,10 @@ class DepositTarget:
     copied, whole, to that group's block of n_points slots after those (``group_slots``,
     :meth:`group_pairs`), and with ``inner`` those within half the radius once more to the group's
     inner block of m slots after all the groups' (``group_inner_slots``), for each group's own
-    estimate at half the radius (:meth:`group_inner_pixels`).  ``n_slots`` slots in all.  The
+    estimate at half the radius (:meth:`group_inner_pixels`); but the pairs of the ``derived``
+    group (that of most photons, if any) are not copied: its block takes those of the photons of
+    emitters in no group asked for instead, and its pass is what the points gathered less all the
+    blocks.  ``n_slots`` slots in all.  The
     pairs on the slots before ``inner_slots`` are the ones that count towards a splat
     (:class:`PointSums`)."""
 
@@ -124,7 +127,9 @@ class DepositTarget:
         :class:`~core.settings.BounceLimits`, which pairs must keep to (:meth:`bounce_filter`);
         light_passes : the photon passes (``light_passes.PHOTON_PASSES``) to make, or ();
         light_groups : None, or (the light group passes to make, the index of each of the scene's
-        light groups among them or -1), as :func:`~core.light_passes.light_groups` returns them."""
+        light groups among them or -1, the pass derived from the others or -1), the first two as
+        :func:`~core.light_passes.light_groups` returns them, the last
+        :func:`~core.light_passes.derived_group`'s."""
         self.points = points
         self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
@@ -147,11 +152,17 @@ class DepositTarget:
             self.split = np.concatenate([np.ones(p.count, bool) if p.via is None else p.via == VIA_NONE
                                          for p in (points, self.volume) if p is not None])
         self.n_slots = self.inner_slots + (points.count if self.inner else 0)   # (no inner volume slots)
-        # Light groups: one block of n_points slots per group pass.
-        self.group_passes, self.group_blocks = (), None
+        # Light groups: one block of n_points slots per group pass; per group of the scene and for
+        # emitters in none (first), the block its photons' pairs are copied to (-1: none).
+        self.group_passes, self.group_blocks, self.derived, self.copy_to = (), None, -1, None
         if light_groups is not None and len(light_groups[0]):
             self.group_passes = tuple(light_groups[0])
             self.group_blocks = np.asarray(light_groups[1], np.int64)
+            self.derived = int(light_groups[2])
+            blocks = self.group_blocks
+            rest = self.derived if self.derived >= 0 else -1
+            self.copy_to = np.concatenate([[rest], np.where(blocks < 0, rest,
+                                                            np.where(blocks == self.derived, -1, blocks))])
         self.group_slots = self.n_slots
         self.n_slots += len(self.group_passes) * self.n_points
         self.group_inner_slots = self.n_slots
@@ -279,7 +290,8 @@ class DepositTarget:
                  has_shading_normals=np.bool_(self.has_shading_normals), inner=np.bool_(self.inner),
                  light_passes=np.array(self.light_passes, dtype=str))
         if self.group_passes:
-            d.update(group_passes=np.array(self.group_passes, dtype=str), group_blocks=self.group_blocks)
+            d.update(group_passes=np.array(self.group_passes, dtype=str), group_blocks=self.group_blocks,
+                     derived_group=np.int64(self.derived))
         for name in ("coverage", "inner_coverage"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
@@ -313,8 +325,8 @@ class DepositTarget:
                              coverage=d.get("coverage"), inner_coverage=d.get("inner_coverage"),
                              limits=BounceLimits(**limits) if limits else None,
                              light_passes=tuple(str(n) for n in d.get("light_passes", ())),
-                             light_groups=((tuple(str(n) for n in d["group_passes"]), d["group_blocks"])
-                                           if "group_passes" in d else None))
+                             light_groups=((tuple(str(n) for n in d["group_passes"]), d["group_blocks"],
+                                            int(d["derived_group"])) if "group_passes" in d else None))
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -589,10 +601,11 @@ class DepositTarget:
 
     def group_pairs(self, groups, j, near=None):
         """The copies of pairs with points ``j`` (k,) (surface, then volume numbering) of photons
-        from emitters of light groups ``groups`` (k,) on their groups' blocks, and of those
+        from emitters of light groups ``groups`` (k,; -1 none) on the blocks they are copied to
+        (their groups', or the derived group's for those of no group asked for), and of those
         ``near`` (k,) bool (within half the radius; None: none) on the groups' inner blocks: (rows
         (r,) of the pairs copied, their slots (r,)), or None where there are none."""
-        block = np.where(groups >= 0, self.group_blocks.take(np.maximum(groups, 0)), -1)
+        block = self.copy_to.take(groups + 1)
         rows = np.flatnonzero(block >= 0)
         if len(rows) == 0:
             return None
@@ -761,14 +774,14 @@ class DepositTarget:
         (``split``) gives its direct block to the direct pass (diffuse; a volume point's volume),
         its glossy blocks to the glossy passes and its own slot to the indirect one; a point behind
         a delta event gives its slot to the indirect pass of that event's kind (its blocks are
-        empty); a group's pass takes the group's block."""
-        m, n = self.points.count, self.n_points
+        empty); a group's pass takes the group's block (:meth:`_group_block`)."""
+        m = self.points.count
         surface, volume = self._light_blocks(sums) if self.light_passes else ({}, {})
         for k, name in enumerate(self.group_passes):
-            start = self.group_slots + k * n
-            surface[name] = sums[start:start + m]
+            block = self._group_block(sums, k)
+            surface[name] = block[:m]
             if self.volume is not None:
-                volume[name] = sums[start + m:start + n]
+                volume[name] = block[m:]
         out = {}
         for name in self.light_passes + self.group_passes:
             total = np.zeros((self.n_pixels, 3))
@@ -786,18 +799,29 @@ class DepositTarget:
         points' part as in :meth:`pass_pixels`)."""
         if not self.inner:
             raise ValueError("DepositTarget.group_inner_pixels: the target was built without inner sums")
-        m, n = self.points.count, self.n_points
+        m = self.points.count
         out = {}
         for k, name in enumerate(self.group_passes):
             total = np.zeros((self.n_pixels, 3))
-            start = self.group_inner_slots + k * m
-            total[self.pixel_ids] = self._surface_values(sums[start:start + m], half=True)
+            total[self.pixel_ids] = self._surface_values(self._group_block(sums, k, inner=True), half=True)
             if self.volume is not None:
-                start = self.group_slots + k * n + m
-                np.add.at(total, self.volume.pixel_ids, self._volume_values(sums[start:start + n - m]))
+                np.add.at(total, self.volume.pixel_ids, self._volume_values(self._group_block(sums, k)[m:]))
             if total.any():
                 out[name] = total
         return out
+
+    def _group_block(self, sums, k, inner=False):
+        """(n_points, 3) the sums of light group pass ``k``'s pairs per point (with ``inner``, (m, 3)
+        those within half the radius): its block, or for the ``derived`` group what the points
+        gathered less every group block (not below 0: the sums differ in their rounding)."""
+        m = self.points.count
+        size, first = (m, self.group_inner_slots) if inner else (self.n_points, self.group_slots)
+        if k != self.derived:
+            return sums[first + k * size:first + (k + 1) * size]
+        whole = sums[self.inner_slots:self.inner_slots + m] if inner else self.gathered(sums)
+        g = len(self.group_passes)
+        blocks = sums[first:first + g * size].reshape(g, size, 3).sum(axis=0)
+        return np.maximum(whole - blocks, 0.0)
 
     def _light_blocks(self, sums):
         """The light passes' sums of the surface points and of the volume points (name -> (m, 3),

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from core import render
-from core.light_passes import LIGHTGROUP_PREFIX
+from core.context import RenderContext
+from core.light_passes import LIGHTGROUP_PREFIX, derived_group, light_groups
 from core.scene import Lights, Scene, SceneError, World
 from core.settings import RenderSettings
 from core.testing import scenes
@@ -20,7 +21,7 @@ def groups_of(scene, **settings):
     return render(scene, RenderSettings(**{**BASE, **settings, "data_passes": names})), names
 
 
-def lit_box(lamp_group=0, bulb_group=1, spot_group=1, world_group=2):
+def lit_box(lamp_group=0, bulb_group=1, spot_group=1, world_group=2, spot_power=60.0):
     """The Cornell box lit by its ceiling's emissive quad, a point light the camera sees, a spot and
     a sky through its open front, each in the light group given (-1: none) of ("lamp", "bulb",
     "sky")."""
@@ -29,7 +30,7 @@ def lit_box(lamp_group=0, bulb_group=1, spot_group=1, world_group=2):
     lights = Lights.build([{"kind": "point", "position": (0.5, -0.5, 1.5), "power": 40.0, "radius": 0.1,
                             "visibility": 7, "group": bulb_group},
                            {"kind": "spot", "position": (-0.5, -0.5, 1.8), "direction": (0.2, 0.3, -1),
-                            "power": 60.0, "radius": 0.05, "group": spot_group}])
+                            "power": spot_power, "radius": 0.05, "group": spot_group}])
     return s.replace(lights=lights, light_groups=("lamp", "bulb", "sky"),
                      emitter_group=np.where(s.material_ids == lamp, lamp_group, -1).astype(np.int16),
                      world=World(color=np.float32([0.3, 0.4, 0.5]), group=world_group))
@@ -70,8 +71,8 @@ def block_means(image, n=4):
     return image[:h - h % n, :w - w % n, :3].reshape(n, h // n, n, w // n, 3).mean(axis=(1, 3))
 
 
-@pytest.mark.parametrize("bias_correction", [False, True])
-def test_each_group_is_its_emitters_alone(bias_correction):
+@pytest.mark.parametrize("bias_correction, spot_power", [(False, 60.0), (True, 60.0), (True, 2000.0)])
+def test_each_group_is_its_emitters_alone(bias_correction, spot_power):
     """A group's pass is the render with only its emitters (the others taken out of the scene): the
     ceiling lamp's and the bulb's in means within 3 % and in the 4 x 4 blocks of at least a fifth of
     the brightest's within 12 % (the photon noise of two renders; dimmer blocks of the spot's light
@@ -79,8 +80,13 @@ def test_each_group_is_its_emitters_alone(bias_correction):
     by a factor of 3); the light of the spot, in no group, is the image less the groups' passes.
     With the bias correction each group takes the image's weight times its own difference at half
     the radius (the lamp's pass 0.2 % from the lamp alone; when the groups took the image's
-    correction in proportion to their share of each pixel, as the light passes do, 5 % above it)."""
-    scene = lit_box(spot_group=-1).replace(world=World())
+    correction in proportion to their share of each pixel, as the light passes do, 5 % above it).
+    The photons of the group with most of them (the bulb's) are not copied (``derived_group``), or,
+    with a strong spot in no group, those of the spot's instead."""
+    scene = lit_box(spot_group=-1, spot_power=spot_power).replace(world=World())
+    lights = RenderContext(scene).lights
+    blocks = light_groups(tuple(LIGHTGROUP_PREFIX + g for g in scene.light_groups), scene.light_groups)[1]
+    assert derived_group(lights.group, lights.prob, blocks) == (1 if spot_power < 100 else -1)
     settings = dict(passes=6, photons_per_pass=40000, bias_correction=bias_correction)
     result, names = groups_of(scene, **settings)
     assert (result.stats[-1]["bias_weight"] > 0) == bias_correction
@@ -91,7 +97,7 @@ def test_each_group_is_its_emitters_alone(bias_correction):
                                                          "power": 40.0, "radius": 0.1, "visibility": 7}]),
                                    material_ids=dark, world=World()),
              "spot": scene.replace(lights=Lights.build([{"kind": "spot", "position": (-0.5, -0.5, 1.8),
-                                                         "direction": (0.2, 0.3, -1), "power": 60.0,
+                                                         "direction": (0.2, 0.3, -1), "power": spot_power,
                                                          "radius": 0.05}]),
                                    material_ids=dark, world=World())}
     images = {g: render(s, RenderSettings(**{**BASE, **settings})).image[..., :3] for g, s in alone.items()}
@@ -149,3 +155,26 @@ def test_light_groups_are_checked_and_saved(tmp_path):
     plain = tmp_path / "plain.npz"
     scenes.cornell_box(resolution=(8, 8)).save(plain)
     assert Scene.load(plain).light_groups == ()
+
+
+def test_derived_group_is_the_one_with_most_photons():
+    """The pass left to derive (no copies of its photons' pairs): that of the largest share of the
+    photons, unless the emitters in no pass asked for (no group, or a group not asked for) have more
+    together; none without passes."""
+    blocks = np.array([0, -1, 1])                      # scene groups 0 and 2 asked for, 1 not
+    assert derived_group(np.array([0, 2, 2]), np.array([0.2, 0.3, 0.5]), blocks) == 1
+    assert derived_group(np.array([0, 0]), np.array([0.5, 0.5]), blocks) == 0
+    assert derived_group(np.array([0, -1, 1]), np.array([0.4, 0.3, 0.3]), blocks) == -1
+    assert derived_group(np.array([0, -1, 1]), np.array([0.6, 0.3, 0.1]), blocks) == 0
+    assert derived_group(np.array([0]), np.array([1.0]), np.array([-1, -1, -1])) == -1
+    assert derived_group(np.zeros(0, np.int64), np.zeros(0), blocks) == -1
+
+
+def test_a_scene_lit_by_one_group_copies_no_pair():
+    """The Cornell box with its light in a group: the group's pass is the whole image (derived from
+    what the points gathered, with no copies of the pairs: the blocks stay empty)."""
+    scene = scenes.cornell_box(resolution=(24, 24))
+    scene = scene.replace(lights=dataclasses.replace(scene.lights, group=np.int16([0])), light_groups=("key",))
+    result, names = groups_of(scene, method="amcmcppm")
+    assert np.allclose(result.data[names[0]], result.image[..., :3], rtol=1e-6, atol=1e-7)
+    assert result.image[..., :3].mean() > 0.05
