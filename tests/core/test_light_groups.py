@@ -174,7 +174,8 @@ def test_a_scene_lit_by_one_group_copies_no_pair():
     """The Cornell box with its light in a group: the group's pass is the whole image (derived from
     what the points gathered, with no copies of the pairs: the blocks stay empty)."""
     scene = scenes.cornell_box(resolution=(24, 24))
-    scene = scene.replace(lights=dataclasses.replace(scene.lights, group=np.int16([0])), light_groups=("key",))
+    scene = scene.replace(lights=dataclasses.replace(scene.lights, group=np.int16([0])),
+                          light_groups=("key",))
     result, names = groups_of(scene, method="amcmcppm")
     assert np.allclose(result.data[names[0]], result.image[..., :3], rtol=1e-6, atol=1e-7)
     assert result.image[..., :3].mean() > 0.05
