@@ -71,7 +71,8 @@ def block_means(image, n=4):
     return image[:h - h % n, :w - w % n, :3].reshape(n, h // n, n, w // n, 3).mean(axis=(1, 3))
 
 
-@pytest.mark.parametrize("bias_correction, spot_power", [(False, 60.0), (True, 60.0), (True, 2000.0)])
+@pytest.mark.parametrize("bias_correction, spot_power", [pytest.param(False, 60.0, marks=pytest.mark.slow),
+                                                       (True, 60.0), (True, 2000.0)])
 def test_each_group_is_its_emitters_alone(bias_correction, spot_power):
     """A group's pass is the render with only its emitters (the others taken out of the scene): the
     ceiling lamp's and the bulb's in means within 3 % and in the 4 x 4 blocks of at least a fifth of

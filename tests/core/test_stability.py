@@ -389,14 +389,20 @@ def test_scaled_and_shifted_rooms_agree():
 
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_hard_case_light_passes_stay_finite_and_add_up(name):
-    """The same hard cases by the chains with every light pass and the Ambient Occlusion pass: after
-    every pass each of them is finite and not negative, and the passes put together as Blender's
-    compositor does make the image where it stays within float32 (the light passes' bookkeeping
-    under mirrors facing each other, extreme values, degenerate emitters, scales of 1e-4 and 1e5; a
-    colour sampled instead of estimated once dropped a glossy pass at the first pass)."""
+    """The same hard cases by the chains with every light pass, the Ambient Occlusion pass and every
+    emitter in a light group of its own kind (``with_light_groups``): after every pass each of them
+    is finite and not negative, and the light passes put together as Blender's compositor does make
+    the image where it stays within float32, as do the groups' passes (the light passes'
+    bookkeeping under mirrors facing each other, extreme values, degenerate emitters, scales of 1e-4
+    and 1e5, with the groups' copies of the pairs beside the moves to the light passes' blocks, on
+    the chains' paths, glowing volumes, lights seen through glass and fog, the world; a colour
+    sampled instead of estimated once dropped a glossy pass at the first pass)."""
+    scene = with_light_groups(SCENES[name]())
+    groups = tuple(LIGHTGROUP_PREFIX + g for g in scene.light_groups)
+
     def check(result):
         data = result.data
-        for key in LIGHT_PASSES + ("ao",):
+        for key in LIGHT_PASSES + ("ao",) + groups:
             assert np.isfinite(data[key]).all() and (data[key] >= 0).all(), (key, result.passes)
         data = {key: value.astype(np.float64) for key, value in data.items()}
         rgb = data["emission"] + data["environment"] + data["volume_direct"] + data["volume_indirect"]
@@ -404,32 +410,12 @@ def test_hard_case_light_passes_stay_finite_and_add_up(name):
             rgb = rgb + (data[f"{kind}_direct"] + data[f"{kind}_indirect"]) * data[f"{kind}_color"]
         image = result.image[..., :3].astype(np.float64)
         kept = image < 1e37            # (sums beyond float32 stay at its largest, image and passes alike)
-        scale = max(1.0, float(image[kept].max(initial=0.0)))
-        assert np.allclose(rgb[kept], image[kept], rtol=1e-4, atol=1e-6 * scale), result.passes
-
-    settings = RenderSettings(**RUN, method="amcmcppm", data_passes=LIGHT_PASSES + ("ao",))
-    assert render(SCENES[name](), settings, on_iteration=check).passes == RUN["passes"]
-
-
-@pytest.mark.parametrize("name", sorted(SCENES))
-def test_hard_case_light_groups_stay_finite_and_add_up(name):
-    """The hard cases by the chains with every emitter in a light group of its own kind: after every
-    pass each group's pass is finite and not negative, and they add up to the image where it stays
-    within float32 (the groups' copies of the pairs on the chains' paths, glowing volumes, lights
-    seen through glass and fog, the world)."""
-    scene = with_light_groups(SCENES[name]())
-    names = tuple(LIGHTGROUP_PREFIX + g for g in scene.light_groups)
-
-    def check(result):
-        parts = [result.data[key].astype(np.float64) for key in names]
-        for key, part in zip(names, parts):
-            assert np.isfinite(part).all() and (part >= 0).all(), (key, result.passes)
-        image = result.image[..., :3].astype(np.float64)
-        kept = image < 1e37
-        if scene.world.film_transparent:        # (the world's group shows it on a transparent film)
+        if scene.world.film_transparent:    # (Environment and the world's group show it on such a film)
             kept &= result.image[..., 3:] == 1.0
         scale = max(1.0, float(image[kept].max(initial=0.0)))
-        assert np.allclose(sum(parts)[kept], image[kept], rtol=1e-4, atol=1e-6 * scale), result.passes
+        assert np.allclose(rgb[kept], image[kept], rtol=1e-4, atol=1e-6 * scale), result.passes
+        total = sum(data[key] for key in groups)
+        assert np.allclose(total[kept], image[kept], rtol=1e-4, atol=1e-6 * scale), result.passes
 
-    settings = RenderSettings(**RUN, method="amcmcppm", data_passes=names)
+    settings = RenderSettings(**RUN, method="amcmcppm", data_passes=LIGHT_PASSES + ("ao",) + groups)
     assert render(scene, settings, on_iteration=check).passes == RUN["passes"]
