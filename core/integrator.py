@@ -281,8 +281,8 @@ class Accumulator:
             return None
         ok = ~self.clamped
         for name in self.group_passes:
-            own = self._photon_part(name, is_chain)
-            ok &= own + self.bias_weight * self._group_difference(name, is_chain) >= 0
+            part = self._photon_part(name, is_chain)
+            ok &= part + self.bias_weight * self._group_difference(name, is_chain) >= 0
         return ok
 
     def _group_difference(self, name, is_chain):

@@ -107,9 +107,8 @@ class DepositTarget:
     estimate at half the radius (:meth:`group_inner_pixels`); but the pairs of the ``derived``
     group (that of most photons, if any) are not copied: its block takes those of the photons of
     emitters in no group asked for instead, and its pass is what the points gathered less all the
-    blocks.  ``n_slots`` slots in all.  The
-    pairs on the slots before ``inner_slots`` are the ones that count towards a splat
-    (:class:`PointSums`)."""
+    blocks.  ``n_slots`` slots in all.  The pairs on the slots before ``inner_slots`` are the ones
+    that count towards a splat (:class:`PointSums`)."""
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,

@@ -58,11 +58,10 @@ class PhotonWorker:
         (inner - outer) pixel sums minus the odd chains'; else None), ``light_sum`` and
         ``light_outside`` (the target's light and light group passes: name -> pixel sums as
         ``pixel_sum`` and ``outside_sum``, :meth:`~core.photon_pass.DepositTarget.pass_pixels`; else
-        None),
-        ``light_inner`` and ``light_outside_inner`` (with inner sums, the light group passes' as
-        ``inner_sum`` and ``outside_inner``, :meth:`~core.photon_pass.DepositTarget.group_inner_pixels`;
-        else None),
-        ``counters`` (a :class:`ChainCounters` as a dict) and chain figures.
+        None), ``light_inner`` and ``light_outside_inner`` (with inner sums, the light group passes'
+        as ``inner_sum`` and ``outside_inner``,
+        :meth:`~core.photon_pass.DepositTarget.group_inner_pixels`; else None), ``counters`` (a
+        :class:`ChainCounters` as a dict) and chain figures.
         """
         stop = should_stop or (lambda: False)
         t0 = time.perf_counter()
