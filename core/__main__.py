@@ -7,7 +7,8 @@ import sys
 import time
 
 from .scene import Scene, SceneError
-from .settings import MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS, RenderSettings
+from .settings import (AOV_PREFIX, DATA_PASSES, LIGHTGROUP_PREFIX, MAX_TRANSPARENT_BOUNCES, METHODS,
+                       MUTATIONS, NORMALISATIONS, RenderSettings)
 
 
 def build_parser():
@@ -54,6 +55,11 @@ def build_parser():
     r.add_argument("--glossy-through", type=float, default=d.glossy_through_roughness,
                    help="camera paths go on through glossy lobes smoother than this roughness")
     r.add_argument("--workers", type=int, default=d.workers, help="0 = one per CPU core")
+    r.add_argument("--data-passes", nargs="+", default=(), metavar="PASS",
+                   help="data passes written into the EXR beside the image, as channels PASS.R, PASS.G, "
+                        "PASS.B (PASS.V of one-channel passes): any of "
+                        f"{', '.join(DATA_PASSES)}, '{AOV_PREFIX}' + a Shader AOV's name, "
+                        f"'{LIGHTGROUP_PREFIX}' + a light group's name")
     r.add_argument("--stats", help="write per-pass statistics as JSON lines to this file")
     r.add_argument("--quiet", "-q", action="store_true")
     return p
@@ -70,7 +76,8 @@ def settings_from_args(a) -> RenderSettings:
                           transparent_max_bounces=a.transparent_bounces,
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
                           mutation=a.mutation, normalisation=a.normalisation,
-                          glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction)
+                          glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction,
+                          data_passes=tuple(a.data_passes))
 
 
 def main(argv=None) -> int:
@@ -105,12 +112,15 @@ def main(argv=None) -> int:
 
     try:
         result = render(scene, settings, on_iteration=report)
+    except ValueError as e:                 # (e.g. a light group the scene does not have)
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     finally:
         if stats_file:
             stats_file.close()
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    write_exr(args.output, result.image)
+    write_exr(args.output, result.image, result.data)
     if args.png:
         write_png(args.png, result.image)
     if not args.quiet:

@@ -7,12 +7,23 @@ from __future__ import annotations
 import numpy as np
 
 
-def write_exr(path, rgba):
-    """Write (H, W, 4) linear RGBA, top row first, as a 32-bit float ZIP-compressed EXR."""
+def write_exr(path, rgba, layers=None):
+    """Write (H, W, 4) linear RGBA, top row first, as a 32-bit float ZIP-compressed EXR; ``layers``
+    (name -> (H, W) or (H, W, C) images, e.g. ``RenderResult.data``) beside it as channels
+    ``name.R``, ``name.G``, ``name.B`` (and ``name.A``) of three- and four-channel images, ``name.V``
+    of one-channel ones and ``name.0``, ``name.1``, ... of others."""
     import OpenEXR
-    img = np.ascontiguousarray(rgba, np.float32)
+    channels = {"RGBA": np.ascontiguousarray(rgba, np.float32)}
+    for name, image in (layers or {}).items():
+        image = np.asarray(image, np.float32)
+        if image.ndim == 2:
+            image = image[:, :, None]
+        suffixes = "RGBA"[:image.shape[2]] if image.shape[2] in (3, 4) else (
+            "V" if image.shape[2] == 1 else [str(i) for i in range(image.shape[2])])
+        for i, suffix in enumerate(suffixes):
+            channels[f"{name}.{suffix}"] = np.ascontiguousarray(image[:, :, i])
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, {"RGBA": img}) as f:
+    with OpenEXR.File(header, channels) as f:
         f.write(str(path))
 
 

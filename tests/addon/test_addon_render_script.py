@@ -106,7 +106,9 @@ def test_flags_mirror_the_core_cli(repo_root):
     ours = {opt for a in render_script.build_parser()._actions for opt in a.option_strings}
     core_render = next(a for a in core_parser()._actions if a.dest == "command").choices["render"]
     theirs = {opt for a in core_render._actions for opt in a.option_strings}
-    not_settings = {"--builtin", "--resolution", "--png", "--quiet", "-q", "-h", "--help", "-o", "--output"}
+    # (and the data passes: in Blender the view layer's boxes ask for them)
+    not_settings = {"--builtin", "--resolution", "--png", "--quiet", "-q", "-h", "--help", "-o", "--output",
+                    "--data-passes"}
     missing = (theirs - not_settings) - ours
     assert not missing, f"render.py lacks core flags {sorted(missing)}"
     # And every panel setting has a flag.

@@ -485,6 +485,32 @@ def test_command_line_renders_an_exr_and_writes_stats(tmp_path):
     assert bad.returncode == 2 and "cannot read scene file" in bad.stderr
 
 
+def test_command_line_writes_data_passes_beside_the_image(tmp_path):
+    """``--data-passes`` writes the passes into the EXR as channels of layers named as the core's
+    passes (three channels R, G, B; one V): the Cornell box's light in a light group gives that
+    group's pass as the image; a group the scene does not have is an error, not a traceback."""
+    import OpenEXR
+    scene = cornell_box((12, 10))
+    scene = scene.replace(lights=dataclasses.replace(scene.lights, group=np.int16([0])),
+                          light_groups=("key",))
+    scene_path, out = tmp_path / "box.npz", tmp_path / "out.exr"
+    scene.save(scene_path)
+    args = [sys.executable, "-m", "core", "render", str(scene_path), "--output", str(out), "--passes", "2",
+            "--photons-per-pass", "5000", "--workers", "1", "--quiet", "--data-passes"]
+    proc = subprocess.run(args + ["depth", "diffuse_color", "lightgroup:key"], cwd=ROOT, capture_output=True,
+                          text=True)
+    assert proc.returncode == 0, proc.stderr
+    with OpenEXR.File(str(out), separate_channels=True) as f:
+        channels = {name: np.asarray(c.pixels) for name, c in f.channels().items()}
+    assert {"R", "G", "B", "A", "depth.V", "diffuse_color.R", "lightgroup:key.B"} <= set(channels)
+    assert channels["depth.V"].shape == (10, 12) and (channels["depth.V"] > 0).all()
+    assert np.allclose(channels["diffuse_color.R"].max(), 0.73, atol=1e-6)
+    for c in "RGB":
+        np.testing.assert_allclose(channels[f"lightgroup:key.{c}"], channels[c], rtol=1e-5, atol=1e-7)
+    bad = subprocess.run(args + ["lightgroup:fill"], cwd=ROOT, capture_output=True, text=True)
+    assert bad.returncode == 2 and "light group the scene does not have" in bad.stderr
+
+
 def test_radius_sequence_is_stable_for_long_runs():
     s64 = kz_radius_scales(100_000, 2 / 3)
     assert np.all(np.diff(s64) < 0) and np.all(s64 > 0) and np.isfinite(s64).all()
