@@ -271,6 +271,21 @@ def instance_group(inst, groups) -> int:
     return groups.get(name, -1)
 
 
+def unlisted_groups(depsgraph, groups) -> dict:
+    """{name: [owners]} of the light groups that objects of ``depsgraph`` or its world name but the
+    view layer does not list (``groups``, :func:`light_group_index`, not empty): their light goes to
+    no group's pass, as in Cycles, whose field then offers to add the name."""
+    out = {}
+    world = depsgraph.view_layer_eval.world_override or depsgraph.scene_eval.world
+    owners = [(ob.name, light_group_of(ob)) for ob in depsgraph.objects]
+    if world is not None:
+        owners.append((f"world {world.name}", light_group_of(world)))
+    for owner, name in owners:
+        if name and name not in groups:
+            out.setdefault(name, []).append(owner)
+    return out
+
+
 def build_lights(records) -> Lights:
     """``core.Lights`` from the dicts of :func:`export_light`."""
     n = len(records)

@@ -16,7 +16,7 @@ from ...core.cryptomatte import name_id
 from ...core.scene import SUN, Scene
 from .camera import export_camera
 from .lights import (build_lights, export_light, instance_group, light_exclude, light_group_index,
-                     ray_visibility)
+                     ray_visibility, unlisted_groups)
 from .linking import LightLinking
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
@@ -90,6 +90,10 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     # Light groups (View Layer > Light Groups): {name: index of Scene.light_groups}, from the original
     # view layer (adding a group does not tag the depsgraph: an evaluated one may not have it yet).
     groups = light_group_index(depsgraph.view_layer)
+    for name, owners in (unlisted_groups(depsgraph, groups) if groups else {}).items():
+        named = ", ".join(sorted(owners)[:3]) + (" ..." if len(owners) > 3 else "")
+        log.info(f"light group '{name}' of {named} is not in the view layer's Light Groups: its light is "
+                 "in no Combined_ pass")
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
                                   linking=linking, frame=depsgraph.scene_eval.frame_current_final,
                                   passes=geometry_passes(view_layer), light_groups=groups)

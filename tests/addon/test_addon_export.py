@@ -2587,7 +2587,8 @@ def test_light_groups_follow_the_view_layers_list(scene):
     and the world's (``World.group``, and its sky's sun disc's) index them, -1 for no group or a
     name the view layer does not list.  An instance without a group takes its instancer's (a
     collection instance's empty), as Cycles' sync does; one with its own keeps it.  Without light
-    groups: no groups and no emitter_group."""
+    groups: no groups and no emitter_group.  A name the view layer does not list is named in an info
+    message."""
     from amcmcppm.core.scene import SUN
     bs.camera()
     key = bs.light("AREA", location=(0, 0, 3), energy=50.0, name="Key")
@@ -2618,8 +2619,13 @@ def test_light_groups_follow_the_view_layers_list(scene):
     layer = scene.view_layers[0]
     for name in ("fill", "key", "sky"):
         layer.lightgroups.add(name=name)
-    core = bs.export().scene
+    exported = bs.export()
+    core = exported.scene
     assert core.light_groups == ("fill", "key", "sky")
+    # (a name the view layer does not list is named in an info message)
+    assert [m for m in exported.infos if "light group" in m] == [
+        "light group 'nowhere' of Stray is not in the view layer's Light Groups: its light is in no "
+        "Combined_ pass"]
     lights = core.lights
     by_x = {round(float(p[0])): int(g) for p, g, k in zip(lights.position, lights.group, lights.kind)
             if k != SUN}
