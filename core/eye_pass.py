@@ -26,7 +26,7 @@ from . import cryptomatte, subsurface
 from .light_passes import (VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight, light_groups,
                            wanted as light_wanted)
 from .procedural import Rays, camera_path
-from .sampling import cosine_hemisphere, dot, to_world
+from .sampling import cosine_hemisphere, dot, orthonormal_frames, to_world
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
 from .settings import AOV_PREFIX, BounceLimits
 
@@ -87,8 +87,9 @@ class VolumePoints:
     weight: np.ndarray      # (k, 3) float32 camera-path throughput to it, times T(t) / p(t) in its segment
     mat_ids: np.ndarray     # (k,) int32 the material whose volume it lies in
     base_radius: np.ndarray  # (k,) float64 r_1, as MeasurementPoints.base_radius
-    planes: np.ndarray      # (k, 2) float64 distances to the planes of the faces its camera ray
-    #                         entered and would have left the volume by (inf: none)
+    planes: np.ndarray      # (k, 2 + SIDE_PROBES) float64 distances to the planes of the faces its
+    #                         camera ray entered and would have left the volume by, and of those of
+    #                         its volume beside the ray (side_planes) (inf: none)
     bounces: np.ndarray = None  # (k, 5) uint8 as MeasurementPoints.bounces
     crossings: np.ndarray = None  # (k,) int16 as MeasurementPoints.crossings (those before its segment)
     via: np.ndarray = None        # (k,) uint8 as MeasurementPoints.via
@@ -587,6 +588,61 @@ def _camera_rays(cam, pix, u):
     return pix, origins, dirs, tmax, footprint
 
 
+# Probes perpendicular to a camera ray from the middle of its segment in a volume (side_planes).
+SIDE_PROBES = 4
+
+
+def side_planes(ctx, origins, dirs, rows, t_v, ends, radius, media, position, planes):
+    """(k, 2 + SIDE_PROBES) ``planes`` (the distances of the volume points ``position`` (k, 3) to the
+    planes of the faces their camera rays entered and would leave their volumes by) and the
+    distances to the planes of the faces of their volumes beside the rays: a gather sphere that
+    reaches out of its volume through a face the ray did not cross (the top of a fog box seen
+    from the side) finds no photons beyond it either, and ``photon_pass._inside_share`` takes
+    every plane's cap out of the sphere.  Per segment of a ray in a volume (points of ray ``rows``
+    with the same ``ends``), ``SIDE_PROBES`` probes perpendicular to the ray from the middle of
+    its points look up to its points' ``radius`` for a face of its volume (``media``: a triangle
+    of that material; the world's volume has none); inf where none is found, or where the face is
+    one of ``planes`` already (the same distance) or another probe's (the same plane)."""
+    k = len(rows)
+    extra = np.full((k, SIDE_PROBES), np.inf)
+    inside = media != ctx.outside
+    if k == 0 or not inside.any():
+        return np.concatenate([planes, extra], axis=1)
+    order = np.lexsort((ends, rows))
+    first = np.ones(k, bool)
+    r_sorted, e_sorted = rows.take(order), ends.take(order)
+    first[1:] = (r_sorted[1:] != r_sorted[:-1]) | (e_sorted[1:] != e_sorted[:-1])
+    seg = np.empty(k, np.int64)
+    seg[order] = np.cumsum(first) - 1
+    lead = order[first]                                   # (S,) a point of each segment
+    count = np.bincount(seg)
+    mid = np.bincount(seg, weights=t_v) / count
+    d = dirs.take(rows.take(lead), axis=0)
+    centre = origins.take(rows.take(lead), axis=0) + mid[:, None] * d
+    u, v = orthonormal_frames(d)
+    probes = np.stack([u, -u, v, -v], axis=1).reshape(-1, 3)
+    starts = np.repeat(centre, SIDE_PROBES, axis=0)
+    hits = ctx.accel.intersect(starts, probes, np.repeat(radius.take(lead), SIDE_PROBES))
+    prim = np.maximum(hits.prim_ids, 0)
+    own = hits.is_hit & (ctx.scene.material_ids.take(prim) == np.repeat(media.take(lead), SIDE_PROBES))
+    own &= np.repeat(inside.take(lead), SIDE_PROBES)
+    at = starts + np.where(own, hits.t, 0.0)[:, None] * probes
+    normal = ctx.accel.geometric_normals.take(prim, axis=0)
+    tol = 1e-3 * radius
+    for j in range(SIDE_PROBES):
+        r = seg * SIDE_PROBES + j
+        dist = np.abs(dot(position - at.take(r, axis=0), normal.take(r, axis=0)))
+        keep = own.take(r)
+        for c in range(planes.shape[1]):                 # (a face the ray crossed is there already)
+            keep &= np.abs(dist - planes[:, c]) > tol
+        for i in range(j):                               # (and one another probe found)
+            q = seg * SIDE_PROBES + i
+            parallel = dot(normal.take(r, axis=0), normal.take(q, axis=0)) > 0.999
+            keep &= ~(parallel & (np.abs(dist - extra[:, i]) <= tol))
+        extra[:, j] = np.where(keep, dist, np.inf)
+    return np.concatenate([planes, extra], axis=1)
+
+
 def _box_exit(origins, dirs, lo, hi):
     """(n,) the distance at which rays ``origins + t dirs`` leave the box [``lo``, ``hi``] (0 for
     those that do not cross it ahead)."""
@@ -692,9 +748,12 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 ends[far] = np.maximum(exit_t, t_v[far])
             reach = path_len.take(rows) + ends
             r1 = initial_radius_px * footprint.take(rows) * (reach if grows else 1.0)
+            position = origins.take(rows, axis=0) + t_v[:, None] * dirs.take(rows, axis=0)
+            planes = side_planes(ctx, origins, dirs, rows, t_v, ends, np.clip(r1, 1e-7 * extent, 0.5 * extent),
+                                 media, position, planes)
             volume.append(VolumePoints(
                 pixel_ids=pix.take(rows),
-                position=origins.take(rows, axis=0) + t_v[:, None] * dirs.take(rows, axis=0),
+                position=position,
                 wo=(-dirs.take(rows, axis=0)).astype(np.float32),
                 weight=(beta.take(rows, axis=0) * w_v).astype(np.float32), mat_ids=media.astype(np.int32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes,

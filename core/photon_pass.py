@@ -852,9 +852,9 @@ class DepositTarget:
 
 def _inside_share(planes, r):
     """(k,) the share of spheres of radii ``r`` on the volume's side of the faces at distances
-    ``planes`` (k, 2) (the entry and exit faces of their camera rays, taken as planes): photons
-    only lie inside the volume, and a sphere that reaches out of it would otherwise find too few
-    (at a face, half).  Kept at least 1/4."""
+    ``planes`` (k, P) (the entry and exit faces of their camera rays and the faces beside them,
+    ``eye_pass.side_planes``, taken as planes): photons only lie inside the volume, and a sphere
+    that reaches out of it would otherwise find too few (at a face, half).  Kept at least 1/4."""
     share = np.ones(len(r))
     for k in range(planes.shape[1]):
         h = np.clip(r - planes[:, k], 0.0, 2.0 * r)            # height of the cap beyond the plane

@@ -1000,10 +1000,11 @@ def test_volume_light_passes_match_cycles(scene, tmp_path):
     """View Layer > Passes > Light > Volume Direct and Indirect: a 2 m cube of Volume Scatter
     (density 0.6) over a floor by a wall, lit by the sun, one volume bounce in both (Cycles'
     default is none).  Over the pixels where Cycles' Volume Direct is above 0.005: Volume Direct
-    and Indirect and Combined within 8 % of Cycles' (96 x 64, 24 passes, 256 samples: measured
-    0.955, 0.964 and 0.969; 0.90, 0.93 and 0.95 at 48 x 32: the pixels along the fog's outline are
-    darker, 0.72 of Cycles' Volume Direct 1-2 pixels from it, 1.003 more than 8 pixels in, README
-    "Light passes"); the floor and wall seen beside the fog have no volume pass."""
+    and Indirect and Combined within 4 % of Cycles' (96 x 64, 24 passes, 256 samples: measured
+    1.001, 0.999 and 0.991; before the gathers took the faces beside the camera rays into account,
+    ``eye_pass.side_planes``, 0.955, 0.964 and 0.969, the pixels along the top of the fog's outline
+    darker: Volume Direct 0.72 of Cycles' 1-2 pixels from it); the floor and wall seen beside the
+    fog have no volume pass."""
     def build():
         sc = sunlit_floor_and_wall((96, 64), 24, 40000)
         fog, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Density=0.6)
@@ -1018,7 +1019,7 @@ def test_volume_light_passes_match_cycles(scene, tmp_path):
     for name in ("Volume Direct", "Volume Indirect", "Combined"):
         a, b = (images[f"ViewLayer.{name}"][..., :3] for images in (ours, cycles))
         print(f"{name:16s} ours {a[fog].mean():.4f}, Cycles {b[fog].mean():.4f}")
-        assert abs(a[fog].mean() / b[fog].mean() - 1.0) < 0.08, name
+        assert abs(a[fog].mean() / b[fog].mean() - 1.0) < 0.04, name
     clear = cycles["ViewLayer.Volume Direct"][..., :3].max(axis=-1) == 0.0
     assert clear.sum() > 500 and ours["ViewLayer.Volume Direct"][clear].max() == 0.0
 
