@@ -608,9 +608,9 @@ def side_planes(ctx, origins, dirs, rows, t_v, ends, radius, media, position, pl
     inside = media != ctx.outside
     if k == 0 or not inside.any():
         return np.concatenate([planes, extra], axis=1)
-    order = np.lexsort((ends, rows))
-    first = np.ones(k, bool)
+    order = np.lexsort((ends, rows))                     # (a segment's points by ray and end)
     r_sorted, e_sorted = rows.take(order), ends.take(order)
+    first = np.ones(k, bool)
     first[1:] = (r_sorted[1:] != r_sorted[:-1]) | (e_sorted[1:] != e_sorted[:-1])
     seg = np.empty(k, np.int64)
     seg[order] = np.cumsum(first) - 1
@@ -626,20 +626,27 @@ def side_planes(ctx, origins, dirs, rows, t_v, ends, radius, media, position, pl
     prim = np.maximum(hits.prim_ids, 0)
     own = hits.is_hit & (ctx.scene.material_ids.take(prim) == np.repeat(media.take(lead), SIDE_PROBES))
     own &= np.repeat(inside.take(lead), SIDE_PROBES)
+    found = own.reshape(-1, SIDE_PROBES).any(axis=1).take(seg)
+    pts = np.flatnonzero(found)                          # (points of segments with a face beside them)
+    if len(pts) == 0:
+        return np.concatenate([planes, extra], axis=1)
     at = starts + np.where(own, hits.t, 0.0)[:, None] * probes
     normal = ctx.accel.geometric_normals.take(prim, axis=0)
-    tol = 1e-3 * radius
+    p, s, crossed = position.take(pts, axis=0), seg.take(pts), planes.take(pts, axis=0)
+    tol = 1e-3 * radius.take(pts)
+    side = np.full((len(pts), SIDE_PROBES), np.inf)
     for j in range(SIDE_PROBES):
-        r = seg * SIDE_PROBES + j
-        dist = np.abs(dot(position - at.take(r, axis=0), normal.take(r, axis=0)))
+        r = s * SIDE_PROBES + j
+        dist = np.abs(dot(p - at.take(r, axis=0), normal.take(r, axis=0)))
         keep = own.take(r)
-        for c in range(planes.shape[1]):                 # (a face the ray crossed is there already)
-            keep &= np.abs(dist - planes[:, c]) > tol
+        for c in range(crossed.shape[1]):                # (a face the ray crossed is there already)
+            keep &= np.abs(dist - crossed[:, c]) > tol
         for i in range(j):                               # (and one another probe found)
-            q = seg * SIDE_PROBES + i
+            q = s * SIDE_PROBES + i
             parallel = dot(normal.take(r, axis=0), normal.take(q, axis=0)) > 0.999
-            keep &= ~(parallel & (np.abs(dist - extra[:, i]) <= tol))
-        extra[:, j] = np.where(keep, dist, np.inf)
+            keep &= ~(parallel & (np.abs(dist - side[:, i]) <= tol))
+        side[:, j] = np.where(keep, dist, np.inf)
+    extra[pts] = side
     return np.concatenate([planes, extra], axis=1)
 
 
@@ -749,14 +756,14 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             reach = path_len.take(rows) + ends
             r1 = initial_radius_px * footprint.take(rows) * (reach if grows else 1.0)
             position = origins.take(rows, axis=0) + t_v[:, None] * dirs.take(rows, axis=0)
-            planes = side_planes(ctx, origins, dirs, rows, t_v, ends, np.clip(r1, 1e-7 * extent, 0.5 * extent),
-                                 media, position, planes)
+            r1 = np.clip(r1, 1e-7 * extent, 0.5 * extent)
+            planes = side_planes(ctx, origins, dirs, rows, t_v, ends, r1, media, position, planes)
             volume.append(VolumePoints(
                 pixel_ids=pix.take(rows),
                 position=position,
                 wo=(-dirs.take(rows, axis=0)).astype(np.float32),
                 weight=(beta.take(rows, axis=0) * w_v).astype(np.float32), mat_ids=media.astype(np.int32),
-                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent), planes=planes,
+                base_radius=r1, planes=planes,
                 bounces=bounces.take(rows, axis=0),
                 crossings=None if crossed_before is None else crossed_before.take(rows),
                 via=None if light is None else via.take(rows)))
