@@ -270,47 +270,40 @@ def draw_light_group(layout, owner, view_layer):
     sub.operator("scene.view_layer_add_lightgroup", icon='ADD', text="").name = owner.lightgroup
 
 
-class AMCMCPPM_OBJECT_PT_lightgroup(bpy.types.Panel):
-    """Object > Shading > Light Group (Cycles' panel, drawn for Cycles only; Blender's Shading panel
-    shows for this engine): the light group whose pass holds the light of this light or emissive
-    object (``Lights.group``, ``Scene.emitter_group``)."""
+class AMCMCPPMLightGroupPanel:
+    """A Light Group field of the ``owner`` in context (``"object"`` or ``"world"``), as Cycles
+    draws it for Cycles only (:func:`draw_light_group`)."""
     bl_label = "Light Group"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
-    bl_context = "object"
-    bl_parent_id = "OBJECT_PT_shading"
     bl_options = {'DEFAULT_CLOSED'}
     COMPAT_ENGINES = {ENGINE_ID}
+    owner = "object"
 
     @classmethod
     def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.object is not None
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        draw_light_group(layout, context.object, context.view_layer)
-
-
-class AMCMCPPM_WORLD_PT_light_group(bpy.types.Panel):
-    """World > Light Group (Cycles draws it under its World > Settings, for Cycles only): the light
-    group whose pass holds the world's light and its sky's sun disc (``World.group``)."""
-    bl_label = "Light Group"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "world"
-    bl_options = {'DEFAULT_CLOSED'}
-    COMPAT_ENGINES = {ENGINE_ID}
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.world is not None
+        return context.engine in cls.COMPAT_ENGINES and getattr(context, cls.owner, None) is not None
 
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        draw_light_group(layout, context.world, context.view_layer)
+        draw_light_group(layout, getattr(context, self.owner), context.view_layer)
+
+
+class AMCMCPPM_OBJECT_PT_lightgroup(AMCMCPPMLightGroupPanel, bpy.types.Panel):
+    """Object > Shading > Light Group (Blender's Shading panel shows for this engine): the light
+    group whose pass holds the light of this light or emissive object (``Lights.group``,
+    ``Scene.emitter_group``)."""
+    bl_context = "object"
+    bl_parent_id = "OBJECT_PT_shading"
+
+
+class AMCMCPPM_WORLD_PT_light_group(AMCMCPPMLightGroupPanel, bpy.types.Panel):
+    """World > Light Group (Cycles draws it under its World > Settings): the light group whose pass
+    holds the world's light and its sky's sun disc (``World.group``)."""
+    bl_context = "world"
+    owner = "world"
 
 
 class AMCMCPPMWorldPassPanel:
