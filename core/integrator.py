@@ -30,7 +30,7 @@ from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
 from .eye_pass import centre_data, trace_eye_pass
 from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
-                           derived_group, divide_even_color, light_groups)
+                           divide_even_color, light_groups, photon_groups)
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
@@ -475,7 +475,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     # Light groups (Scene.light_groups): their passes, made as the photon light passes are.
     groups = light_groups(settings.data_passes, scene.light_groups)
     light_passes += groups[0]
-    derived = derived_group(ctx.lights.group, ctx.lights.prob, groups[1])
+    photons_of_groups = photon_groups(ctx.lights.group, ctx.lights.prob, groups[1])
     acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction, settings.cryptomatte_levels,
                       light_passes)
     result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects,
@@ -538,7 +538,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                              inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage,
                              limits=settings.bounce_limits,
                              light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES),
-                             light_groups=groups + (derived,) if groups[0] else None)
+                             light_groups=groups + photons_of_groups if groups[0] else None)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.

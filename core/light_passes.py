@@ -75,18 +75,21 @@ def light_groups(names, groups):
     return passes, blocks
 
 
-def derived_group(groups, prob, blocks):
-    """The light group pass whose photons' pairs need no copies (``DepositTarget``: it is what the
-    points gathered less the other passes and the photons of no group asked for), or -1: that of
-    the most photons (``prob`` (E,), each emitter's chance to send one; ``groups`` (E,) their light
-    groups, -1 none; ``blocks`` :func:`light_groups`'s), when it has more than the emitters in no
-    pass together.  A scene lit by one group's emitters then copies no pair."""
+def photon_groups(groups, prob, blocks):
+    """(derived, live): the light group pass whose photons' pairs need no copies (``DepositTarget``:
+    it is what the points gathered less the other passes and the photons of no group asked for),
+    or -1: that of the most photons (``prob`` (E,), each emitter's chance to send one; ``groups``
+    (E,) their light groups, -1 none; ``blocks`` :func:`light_groups`'s), when it has more than
+    the emitters in no pass together (a scene lit by one group's emitters then copies no pair);
+    and the passes (int64 array) whose groups have emitters that send photons (the others have
+    no pairs)."""
     if len(prob) == 0 or not (blocks >= 0).any():
-        return -1
+        return -1, np.zeros(0, np.int64)
     passes = np.where(groups >= 0, blocks.take(np.maximum(groups, 0)), -1)
     share = np.bincount(passes + 1, weights=prob, minlength=int(blocks.max()) + 2)
     k = int(np.argmax(share[1:]))
-    return k if share[k + 1] > share[0] else -1
+    live = np.flatnonzero(share[1:] > 0)
+    return (k if share[k + 1] > share[0] else -1), live
 
 
 def divide_even_color(a, b):

@@ -126,9 +126,9 @@ class DepositTarget:
         :class:`~core.settings.BounceLimits`, which pairs must keep to (:meth:`bounce_filter`);
         light_passes : the photon passes (``light_passes.PHOTON_PASSES``) to make, or ();
         light_groups : None, or (the light group passes to make, the index of each of the scene's
-        light groups among them or -1, the pass derived from the others or -1), the first two as
-        :func:`~core.light_passes.light_groups` returns them, the last
-        :func:`~core.light_passes.derived_group`'s."""
+        light groups among them or -1, the pass derived from the others or -1[, the passes whose
+        groups' emitters send photons]), the first two as :func:`~core.light_passes.light_groups`
+        returns them, the others :func:`~core.light_passes.photon_groups`'."""
         self.points = points
         self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
@@ -162,6 +162,13 @@ class DepositTarget:
             rest = self.derived if self.derived >= 0 else -1
             self.copy_to = np.concatenate([[rest], np.where(blocks < 0, rest,
                                                             np.where(blocks == self.derived, -1, blocks))])
+        # The group passes that can have pairs (those of groups whose emitters send photons, and the
+        # derived one): the others are left out of pass_pixels.
+        self.live_groups = frozenset()
+        if self.group_passes:
+            live = light_groups[3] if len(light_groups) > 3 else range(len(self.group_passes))
+            self.live_groups = frozenset(int(k) for k in live) | frozenset([self.derived] if self.derived >= 0
+                                                                          else [])
         self.group_slots = self.n_slots
         self.n_slots += len(self.group_passes) * self.n_points
         self.group_inner_slots = self.n_slots
@@ -290,7 +297,8 @@ class DepositTarget:
                  light_passes=np.array(self.light_passes, dtype=str))
         if self.group_passes:
             d.update(group_passes=np.array(self.group_passes, dtype=str), group_blocks=self.group_blocks,
-                     derived_group=np.int64(self.derived))
+                     derived_group=np.int64(self.derived),
+                     live_groups=np.array(sorted(self.live_groups - {self.derived}), np.int64))
         for name in ("coverage", "inner_coverage"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
@@ -325,7 +333,8 @@ class DepositTarget:
                              limits=BounceLimits(**limits) if limits else None,
                              light_passes=tuple(str(n) for n in d.get("light_passes", ())),
                              light_groups=((tuple(str(n) for n in d["group_passes"]), d["group_blocks"],
-                                            int(d["derived_group"])) if "group_passes" in d else None))
+                                            int(d["derived_group"]), d["live_groups"])
+                                           if "group_passes" in d else None))
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -777,6 +786,8 @@ class DepositTarget:
         m = self.points.count
         surface, volume = self._light_blocks(sums) if self.light_passes else ({}, {})
         for k, name in enumerate(self.group_passes):
+            if k not in self.live_groups:
+                continue
             block = self._group_block(sums, k)
             surface[name] = block[:m]
             if self.volume is not None:
@@ -801,6 +812,8 @@ class DepositTarget:
         m = self.points.count
         out = {}
         for k, name in enumerate(self.group_passes):
+            if k not in self.live_groups:
+                continue
             total = np.zeros((self.n_pixels, 3))
             total[self.pixel_ids] = self._surface_values(self._group_block(sums, k, inner=True), half=True)
             if self.volume is not None:

@@ -7,7 +7,7 @@ import pytest
 
 from core import render
 from core.context import RenderContext
-from core.light_passes import LIGHTGROUP_PREFIX, derived_group, light_groups
+from core.light_passes import LIGHTGROUP_PREFIX, light_groups, photon_groups
 from core.scene import Lights, Scene, SceneError, World
 from core.settings import RenderSettings
 from core.testing import scenes
@@ -82,12 +82,12 @@ def test_each_group_is_its_emitters_alone(bias_correction, spot_power):
     With the bias correction each group takes the image's weight times its own difference at half
     the radius (the lamp's pass 0.2 % from the lamp alone; when the groups took the image's
     correction in proportion to their share of each pixel, as the light passes do, 5 % above it).
-    The photons of the group with most of them (the bulb's) are not copied (``derived_group``), or,
+    The photons of the group with most of them (the bulb's) are not copied (``photon_groups``), or,
     with a strong spot in no group, those of the spot's instead."""
     scene = lit_box(spot_group=-1, spot_power=spot_power).replace(world=World())
     lights = RenderContext(scene).lights
     blocks = light_groups(tuple(LIGHTGROUP_PREFIX + g for g in scene.light_groups), scene.light_groups)[1]
-    assert derived_group(lights.group, lights.prob, blocks) == (1 if spot_power < 100 else -1)
+    assert photon_groups(lights.group, lights.prob, blocks)[0] == (1 if spot_power < 100 else -1)
     settings = dict(passes=6, photons_per_pass=40000, bias_correction=bias_correction)
     result, names = groups_of(scene, **settings)
     assert (result.stats[-1]["bias_weight"] > 0) == bias_correction
@@ -158,17 +158,24 @@ def test_light_groups_are_checked_and_saved(tmp_path):
     assert Scene.load(plain).light_groups == ()
 
 
-def test_derived_group_is_the_one_with_most_photons():
+def test_photon_groups_derives_the_one_with_most_photons():
     """The pass left to derive (no copies of its photons' pairs): that of the largest share of the
     photons, unless the emitters in no pass asked for (no group, or a group not asked for) have more
-    together; none without passes."""
+    together; none without passes.  The passes whose groups' emitters send photons are live (the
+    others are left out of the photons' passes)."""
     blocks = np.array([0, -1, 1])                      # scene groups 0 and 2 asked for, 1 not
-    assert derived_group(np.array([0, 2, 2]), np.array([0.2, 0.3, 0.5]), blocks) == 1
-    assert derived_group(np.array([0, 0]), np.array([0.5, 0.5]), blocks) == 0
-    assert derived_group(np.array([0, -1, 1]), np.array([0.4, 0.3, 0.3]), blocks) == -1
-    assert derived_group(np.array([0, -1, 1]), np.array([0.6, 0.3, 0.1]), blocks) == 0
-    assert derived_group(np.array([0]), np.array([1.0]), np.array([-1, -1, -1])) == -1
-    assert derived_group(np.zeros(0, np.int64), np.zeros(0), blocks) == -1
+
+    def derived(groups, prob, b=blocks):
+        return photon_groups(np.array(groups), np.array(prob, float), b)[0]
+
+    assert derived([0, 2, 2], [0.2, 0.3, 0.5]) == 1
+    assert derived([0, 0], [0.5, 0.5]) == 0
+    assert derived([0, -1, 1], [0.4, 0.3, 0.3]) == -1
+    assert derived([0, -1, 1], [0.6, 0.3, 0.1]) == 0
+    assert derived([0], [1.0], np.array([-1, -1, -1])) == -1
+    assert derived(np.zeros(0, np.int64), []) == -1
+    assert photon_groups(np.array([0, 1]), np.array([0.5, 0.5]), blocks)[1].tolist() == [0]
+    assert photon_groups(np.array([2, 2]), np.array([0.5, 0.5]), blocks)[1].tolist() == [1]
 
 
 def test_a_scene_lit_by_one_group_copies_no_pair():
