@@ -151,29 +151,32 @@ class DepositTarget:
             self.split = np.concatenate([np.ones(p.count, bool) if p.via is None else p.via == VIA_NONE
                                          for p in (points, self.volume) if p is not None])
         self.n_slots = self.inner_slots + (points.count if self.inner else 0)   # (no inner volume slots)
-        # Light groups: one block of n_points slots per group pass; per group of the scene and for
-        # emitters in none (first), the block its photons' pairs are copied to (-1: none).
+        # Light groups: a block of n_points slots for each group pass that can have pairs (``live``:
+        # those of groups whose emitters send photons, and the derived one; the others are left
+        # out of pass_pixels), ``block_of`` pass -> block (-1: none); per group of the scene and
+        # for emitters in none (first), the block its photons' pairs are copied to (-1: none).
         self.group_passes, self.group_blocks, self.derived, self.copy_to = (), None, -1, None
+        self.live_groups, self.n_blocks = frozenset(), 0
         if light_groups is not None and len(light_groups[0]):
             self.group_passes = tuple(light_groups[0])
             self.group_blocks = np.asarray(light_groups[1], np.int64)
             self.derived = int(light_groups[2])
-            blocks = self.group_blocks
-            rest = self.derived if self.derived >= 0 else -1
-            self.copy_to = np.concatenate([[rest], np.where(blocks < 0, rest,
-                                                            np.where(blocks == self.derived, -1, blocks))])
-        # The group passes that can have pairs (those of groups whose emitters send photons, and the
-        # derived one): the others are left out of pass_pixels.
-        self.live_groups = frozenset()
-        if self.group_passes:
             live = light_groups[3] if len(light_groups) > 3 else range(len(self.group_passes))
-            self.live_groups = frozenset(int(k) for k in live) | frozenset([self.derived] if self.derived >= 0
-                                                                          else [])
+            derived = frozenset([self.derived]) if self.derived >= 0 else frozenset()
+            self.live_groups = frozenset(int(k) for k in live) | derived
+            self.block_of = np.full(len(self.group_passes), -1, np.int64)
+            self.block_of[sorted(self.live_groups)] = np.arange(len(self.live_groups))
+            self.n_blocks = len(self.live_groups)
+            passes = self.group_blocks
+            rest = self.derived if self.derived >= 0 else -1
+            copy_to = np.concatenate([[rest], np.where(passes < 0, rest,
+                                                       np.where(passes == self.derived, -1, passes))])
+            self.copy_to = np.where(copy_to >= 0, self.block_of.take(np.maximum(copy_to, 0)), -1)
         self.group_slots = self.n_slots
-        self.n_slots += len(self.group_passes) * self.n_points
+        self.n_slots += self.n_blocks * self.n_points
         self.group_inner_slots = self.n_slots
         if self.inner:
-            self.n_slots += len(self.group_passes) * points.count
+            self.n_slots += self.n_blocks * points.count
         self.cells = cells
         self.radius = radius
         self.grid = grid if grid is not None else HashGrid(points.position, radius, points.ng)
@@ -829,9 +832,10 @@ class DepositTarget:
         m = self.points.count
         size, first = (m, self.group_inner_slots) if inner else (self.n_points, self.group_slots)
         if k != self.derived:
-            return sums[first + k * size:first + (k + 1) * size]
+            b = self.block_of[k]
+            return sums[first + b * size:first + (b + 1) * size]
         whole = sums[self.inner_slots:self.inner_slots + m] if inner else self.gathered(sums)
-        g = len(self.group_passes)
+        g = self.n_blocks
         blocks = sums[first:first + g * size].reshape(g, size, 3).sum(axis=0)
         return np.maximum(whole - blocks, 0.0)
 
