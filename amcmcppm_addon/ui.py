@@ -270,19 +270,24 @@ def draw_light_group(layout, owner, view_layer):
     sub.operator("scene.view_layer_add_lightgroup", icon='ADD', text="").name = owner.lightgroup
 
 
-class AMCMCPPMLightGroupPanel:
-    """A Light Group field of the ``owner`` in context (``"object"`` or ``"world"``), as Cycles
-    draws it for Cycles only (:func:`draw_light_group`)."""
-    bl_label = "Light Group"
+class AMCMCPPMContextPanel:
+    """A Properties panel shown for this engine alone where the context has an ``owner`` (its
+    attribute: ``"object"``, ``"world"``, ``"view_layer"``)."""
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
-    bl_options = {'DEFAULT_CLOSED'}
     COMPAT_ENGINES = {ENGINE_ID}
     owner = "object"
 
     @classmethod
     def poll(cls, context):
         return context.engine in cls.COMPAT_ENGINES and getattr(context, cls.owner, None) is not None
+
+
+class AMCMCPPMLightGroupPanel(AMCMCPPMContextPanel):
+    """A Light Group field of the ``owner`` in context (``"object"`` or ``"world"``), as Cycles
+    draws it for Cycles only (:func:`draw_light_group`)."""
+    bl_label = "Light Group"
+    bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
         layout = self.layout
@@ -306,19 +311,16 @@ class AMCMCPPM_WORLD_PT_light_group(AMCMCPPMLightGroupPanel, bpy.types.Panel):
     owner = "world"
 
 
-class AMCMCPPMWorldPassPanel:
+class AMCMCPPMWorldPassPanel(AMCMCPPMContextPanel):
     """A World panel of a pass's settings, shown when some view layer asks for the pass (``box``)."""
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
     bl_context = "world"
     bl_options = {'DEFAULT_CLOSED'}
-    COMPAT_ENGINES = {ENGINE_ID}
+    owner = "world"
     box = ""
 
     @classmethod
     def poll(cls, context):
-        return (context.engine in cls.COMPAT_ENGINES and context.world is not None
-                and any(getattr(layer, cls.box) for layer in context.scene.view_layers))
+        return super().poll(context) and any(getattr(layer, cls.box) for layer in context.scene.view_layers)
 
 
 class AMCMCPPM_WORLD_PT_mist(AMCMCPPMWorldPassPanel, bpy.types.Panel):
@@ -353,16 +355,10 @@ class AMCMCPPM_WORLD_PT_ambient_occlusion(AMCMCPPMWorldPassPanel, bpy.types.Pane
         layout.prop(context.world.light_settings, "distance")
 
 
-class AMCMCPPMViewLayerPanel:
+class AMCMCPPMViewLayerPanel(AMCMCPPMContextPanel):
     """A panel of the View Layer Properties shown for this engine alone."""
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
     bl_context = "view_layer"
-    COMPAT_ENGINES = {ENGINE_ID}
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.view_layer is not None
+    owner = "view_layer"
 
 
 class AMCMCPPM_VIEWLAYER_PT_passes(AMCMCPPMViewLayerPanel, bpy.types.Panel):

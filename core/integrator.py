@@ -354,6 +354,7 @@ class Accumulator:
         the passes holds (on the Cornell box at 64x48 X gave two thirds of V, the passes all of
         it): V is the larger of the two (``benchmarks/bias_variance_check.py``)."""
         self.bias_weight = 0.0
+        self.clamped = None
         diff = self.difference(is_chain, scale)
         if diff is None:
             return rgb

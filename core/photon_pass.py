@@ -156,19 +156,21 @@ class DepositTarget:
         # out of pass_pixels), ``block_of`` pass -> block (-1: none); per group of the scene and
         # for emitters in none (first), the block its photons' pairs are copied to (-1: none).
         self.group_passes, self.group_blocks, self.derived, self.copy_to = (), None, -1, None
-        self.live_groups, self.n_blocks = frozenset(), 0
+        self.block_of, self.n_blocks = np.zeros(0, np.int64), 0
         if light_groups is not None and len(light_groups[0]):
             self.group_passes = tuple(light_groups[0])
             self.group_blocks = np.asarray(light_groups[1], np.int64)
             self.derived = int(light_groups[2])
-            live = light_groups[3] if len(light_groups) > 3 else range(len(self.group_passes))
-            derived = frozenset([self.derived]) if self.derived >= 0 else frozenset()
-            self.live_groups = frozenset(int(k) for k in live) | derived
-            self.block_of = np.full(len(self.group_passes), -1, np.int64)
-            self.block_of[sorted(self.live_groups)] = np.arange(len(self.live_groups))
-            self.n_blocks = len(self.live_groups)
+            live = np.ones(len(self.group_passes), bool)
+            if len(light_groups) > 3:
+                live[:] = False
+                live[np.asarray(light_groups[3], np.int64)] = True
+            if self.derived >= 0:
+                live[self.derived] = True
+            self.n_blocks = int(live.sum())
+            self.block_of = np.where(live, np.cumsum(live) - 1, -1)
             passes = self.group_blocks
-            rest = self.derived if self.derived >= 0 else -1
+            rest = self.derived
             copy_to = np.concatenate([[rest], np.where(passes < 0, rest,
                                                        np.where(passes == self.derived, -1, passes))])
             self.copy_to = np.where(copy_to >= 0, self.block_of.take(np.maximum(copy_to, 0)), -1)
@@ -301,7 +303,7 @@ class DepositTarget:
         if self.group_passes:
             d.update(group_passes=np.array(self.group_passes, dtype=str), group_blocks=self.group_blocks,
                      derived_group=np.int64(self.derived),
-                     live_groups=np.array(sorted(self.live_groups - {self.derived}), np.int64))
+                     live_groups=np.flatnonzero(self.block_of >= 0))
         for name in ("coverage", "inner_coverage"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
@@ -789,7 +791,7 @@ class DepositTarget:
         m = self.points.count
         surface, volume = self._light_blocks(sums) if self.light_passes else ({}, {})
         for k, name in enumerate(self.group_passes):
-            if k not in self.live_groups:
+            if self.block_of[k] < 0:
                 continue
             block = self._group_block(sums, k)
             surface[name] = block[:m]
@@ -815,7 +817,7 @@ class DepositTarget:
         m = self.points.count
         out = {}
         for k, name in enumerate(self.group_passes):
-            if k not in self.live_groups:
+            if self.block_of[k] < 0:
                 continue
             total = np.zeros((self.n_pixels, 3))
             total[self.pixel_ids] = self._surface_values(self._group_block(sums, k, inner=True), half=True)
