@@ -64,8 +64,8 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
 
 
 # Blender's passes beside Combined: (name, channels, channel ids, type), the box of the view layer
-# that asks for it ("" the view layer's own, "cycles" its Cycles settings: Denoising Data) and the
-# core's data pass it shows (RenderSettings.data_passes).
+# that asks for it ("" the view layer's own, "cycles" its Cycles settings: Denoising Data, Volume,
+# Shadow Catcher) and the core's data pass it shows (RenderSettings.data_passes).
 DENOISING = ("cycles", "denoising_store_passes")
 LIGHT_PARTS = ("direct", "indirect", "color")
 DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
@@ -86,7 +86,9 @@ DATA_PASSES = ((("Depth", 1, "Z", 'VALUE'), "", "use_pass_z", "depth"),
                  for part in (LIGHT_PARTS[:2] if kind == "volume" else LIGHT_PARTS)),
                (("Emission", 3, "RGB", 'COLOR'), "", "use_pass_emit", "emission"),
                (("Environment", 3, "RGB", 'COLOR'), "", "use_pass_environment", "environment"),
-               (("Ambient Occlusion", 3, "RGB", 'COLOR'), "", "use_pass_ambient_occlusion", "ao"))
+               (("Ambient Occlusion", 3, "RGB", 'COLOR'), "", "use_pass_ambient_occlusion", "ao"),
+               # (Cycles' box under Light > Other: the shadows and light the shadow catchers receive)
+               (("Shadow Catcher", 3, "RGB", 'COLOR'), "cycles", "use_pass_shadow_catcher", "shadow_catcher"))
 
 
 # Cryptomatte (View Layer > Cryptomatte): Blender's pass names' prefix, the box, the core's pass.

@@ -5,7 +5,8 @@ Panels follow Cycles' pattern: a :class:`AMCMCPPMButtonsPanel` mixin with
 Each panel lists the properties it draws in ``props`` (tests check that they
 exist).  :func:`get_panels` selects Blender's built-in panels (format, output,
 colour management, camera, light, material, world) that should also show for
-this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``.
+this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``, and ``appended`` draw
+functions to some of them (Object > Visibility's Shadow Catcher box).
 """
 import bpy
 from bl_ui.properties_view_layer import (ViewLayerAOVPanelHelper, ViewLayerCryptomattePanelHelper,
@@ -197,7 +198,8 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
     which always meet the object.  An emitter's boxes (a light's, or an emissive mesh's) also say
     which rays its light reaches, Diffuse and Volume Scatter too (``Lights.exclude``), so those two
     are drawn for lights.  A mesh's Shadow box lets the direct light through it
-    (``CASTS_NO_SHADOW``).  Blender's panel draws the Holdout mask."""
+    (``CASTS_NO_SHADOW``).  Blender's panel draws the Holdout mask, and below it, for our engine,
+    Shadow Catcher (:func:`draw_shadow_catcher`)."""
     bl_label = "Ray Visibility"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
@@ -225,6 +227,26 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
             col.prop(ob, "visible_volume_scatter", text="Volume Scatter", toggle=False)
         else:
             col.prop(ob, "visible_shadow", text="Shadow", toggle=False)
+
+
+# Objects whose Shadow Catcher box the exporter reads: those it renders (``export.mesh``; a curve's
+# or a text's evaluated mesh) and the empties that instance a collection (an instancer that is a
+# catcher makes its instances catchers, as in Cycles).
+CATCHER_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'POINTCLOUD'}
+
+
+def draw_shadow_catcher(self, context):
+    """Object > Visibility > Mask > Shadow Catcher for our engine, appended to Blender's Visibility
+    panel (``OBJECT_PT_visibility``, which draws the Holdout box alone; Cycles' own panel draws
+    Shadow Catcher for Cycles only), so that it shows right below Holdout: the object shows only
+    the shadows and light the other objects cast on it (``SHADOW_CATCHER``, ``core.shadow_catcher``)."""
+    ob = context.object
+    if context.engine != ENGINE_ID or ob is None or not (
+            ob.type in CATCHER_TYPES or (ob.instance_type == 'COLLECTION' and ob.instance_collection)):
+        return
+    layout = self.layout
+    layout.use_property_split = True
+    layout.column().prop(ob, "is_shadow_catcher")
 
 
 class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
@@ -391,30 +413,41 @@ class AMCMCPPM_VIEWLAYER_PT_passes(AMCMCPPMViewLayerPanel, bpy.types.Panel):
 class AMCMCPPM_VIEWLAYER_PT_light(AMCMCPPMViewLayerPanel, bpy.types.Panel):
     """View Layer Properties > Passes > Light: Cycles' light passes (Diffuse, Glossy, Transmission
     Direct, Indirect and Color; Volume Direct and Indirect; Emission, Environment and Ambient
-    Occlusion), as its Light panel draws them (``engine.DATA_PASSES``, ``core.light_passes``)."""
+    Occlusion) and its Shadow Catcher pass, as its Light panel draws them (``engine.DATA_PASSES``,
+    ``core.light_passes``, ``core.shadow_catcher``)."""
     bl_label = "Light"
     bl_parent_id = "AMCMCPPM_VIEWLAYER_PT_passes"
-    # (heading, the view layer's box or its Cycles settings' ("cycles"), ((property, label), ...))
+    # (heading, the view layer's box or its Cycles settings' ("cycles"), ((property, label), ...));
+    # a row without a heading (None) goes on with the column above.
     rows = tuple((kind.capitalize(), "", tuple((f"use_pass_{kind}_{part}", part.capitalize())
                                                for part in ("direct", "indirect", "color")))
                  for kind in ("diffuse", "glossy", "transmission")) + (
         ("Volume", "cycles", (("use_pass_volume_direct", "Direct"),
                               ("use_pass_volume_indirect", "Indirect"))),
         ("Other", "", (("use_pass_emit", "Emission"), ("use_pass_environment", "Environment"),
-                       ("use_pass_ambient_occlusion", "Ambient Occlusion"))))
+                       ("use_pass_ambient_occlusion", "Ambient Occlusion"))),
+        (None, "cycles", (("use_pass_shadow_catcher", "Shadow Catcher"),)))
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        layer = context.view_layer
-        for heading, owner, props in self.rows:
-            holder = getattr(layer, owner, None) if owner else layer
-            if holder is None:
-                continue
+        draw_pass_boxes(self.layout, context.view_layer, self.rows)
+
+
+def draw_pass_boxes(layout, layer, rows):
+    """The boxes of view layer ``layer`` (or of its ``owner`` settings) in columns, as ``rows`` of
+    :class:`AMCMCPPM_VIEWLAYER_PT_light` give them: (heading, owner, ((property, label), ...)), a
+    heading of None going on with the column above; an owner the view layer lacks (Cycles off)
+    is left out."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    col = layout
+    for heading, owner, props in rows:
+        holder = getattr(layer, owner, None) if owner else layer
+        if holder is None:
+            continue
+        if heading is not None:
             col = layout.column(heading=heading, align=True)
-            for prop, text in props:
-                col.prop(holder, prop, text=text)
+        for prop, text in props:
+            col.prop(holder, prop, text=text)
 
 
 class AMCMCPPM_VIEWLAYER_PT_cryptomatte(ViewLayerCryptomattePanelHelper, bpy.types.Panel):
@@ -499,14 +532,22 @@ other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
                  AMCMCPPM_VIEWLAYER_PT_aov, AMCMCPPM_VIEWLAYER_PT_lightgroups)
 
 
+# Draw functions added to Blender's panels: (panel, function).
+appended = (("OBJECT_PT_visibility", draw_shadow_catcher),)
+
+
 def register():
     for cls in classes + other_classes:
         bpy.utils.register_class(cls)
     for panel in get_panels():
         panel.COMPAT_ENGINES.add(ENGINE_ID)
+    for panel, function in appended:
+        getattr(bpy.types, panel).append(function)
 
 
 def unregister():
+    for panel, function in appended:
+        getattr(bpy.types, panel).remove(function)
     for panel in get_panels():
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
     for cls in reversed(classes + other_classes):

@@ -36,7 +36,9 @@ class Hits:
 class Accel:
     """Embree BVH over a scene's triangles plus per-triangle data for shading."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, bounds=None):
+        """``bounds``: None, or (lo, hi) to take for the scene's box instead of its own (the extent,
+        and the disc the sun's and the world's photons start from: ``LightSampler``)."""
         corners = scene.triangle_corners().astype(np.float64)          # (T, 3, 3)
         self.triangle_count = len(corners)
         # Contiguous: take() on a strided view would first copy the whole array, every call.
@@ -50,7 +52,7 @@ class Accel:
         ng = cross / safe[:, None]
         ng[length == 0] = (0.0, 0.0, 1.0)
         self.geometric_normals = ng                                     # (T, 3) float64, unit
-        lo, hi = scene.bounds()
+        lo, hi = scene.bounds() if bounds is None else bounds
         self.bounds = (lo, hi)
         self.extent = float(max(np.max(hi - lo), 1e-6))
         self.center = 0.5 * (lo + hi)                                    # (3,) float64, embree's origin

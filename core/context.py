@@ -18,8 +18,8 @@ from .procedural import (BUMP_STEP, COLOR_MAX, EMISSION_MAX, DirectionAttributes
                          spatial_normals, tangent_space_normals)
 from .sampling import dot, forced_flight, free_flight, normalize, transmittance, volume_glow
 from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OBJECT, NORMAL_BLENDER_OBJECT,
-                    NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, PANORAMAS, POINT, SPOT,
-                    VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
+                    NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, PANORAMAS, POINT, SHADOW_CATCHER,
+                    SPOT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
 from .subsurface import exit_variant
 
@@ -56,11 +56,12 @@ class Surface:
 class RenderContext:
     """Scene plus acceleration structure and shading tables, built once per render/worker."""
 
-    def __init__(self, scene, glossy_through_roughness=GLOSSY_THROUGH_ROUGHNESS):
-        """``glossy_through_roughness``: ``RenderSettings.glossy_through_roughness``."""
+    def __init__(self, scene, glossy_through_roughness=GLOSSY_THROUGH_ROUGHNESS, bounds=None):
+        """``glossy_through_roughness``: ``RenderSettings.glossy_through_roughness``; ``bounds``: None,
+        or the box to take for the scene's (``Accel``)."""
         scene = displace(scene)                     # (true displacement; the scene itself without)
         self.scene = scene
-        self.accel = Accel(scene)
+        self.accel = Accel(scene, bounds)
         # The materials, a copy per roughness level of those with a roughness map, per stretch
         # level of those with an anisotropy map, and the coats.
         self.materials, self.roughness_first = roughness_variants(scene.materials)
@@ -104,6 +105,13 @@ class RenderContext:
         self.holdout = np.asarray(mats.holdout, np.float64)
         self.has_holdout = bool((self.holdout > 0).any()) or (
             self.triangle_visibility is not None and bool((self.triangle_visibility & HOLDOUT_OBJECT).any()))
+        # Shadow catchers (SHADOW_CATCHER, core/shadow_catcher.py): (T,) bool, or None without any (a
+        # holdout object is none, as in Cycles).
+        self.catcher = None
+        if self.triangle_visibility is not None:
+            vis = self.triangle_visibility
+            catcher = ((vis & SHADOW_CATCHER) != 0) & ((vis & HOLDOUT_OBJECT) == 0)
+            self.catcher = catcher if catcher.any() else None
         # Volumes (Materials.volume_absorption, volume_scattering): per-material coefficients, which
         # have a volume, and which scatter.
         self.absorption = np.asarray(mats.volume_absorption, np.float64)
@@ -214,8 +222,8 @@ class RenderContext:
         (images, procedural, roughness maps,
         normal and bump maps, textured emitters), true displacement, glass that refracts without
         reflecting (Refraction BSDF), lights' angular (IES) profiles, light and shadow
-        linking, transparency, objects hidden from some camera rays, holdouts, volumes (the world's
-        too; glowing ones), an environment image, and the camera's depth of field or panorama."""
+        linking, transparency, objects hidden from some camera rays, holdouts, shadow catchers, volumes
+        (the world's too; glowing ones), an environment image, and the camera's depth of field or panorama."""
         table, w = self.table, self.table.weight
         cam = self.scene.camera
         flags = (("mirrors", (w[:, MIRROR] > 0).any()),
@@ -250,6 +258,7 @@ class RenderContext:
                  ("transparency", self.has_transparency),
                  ("objects hidden from camera rays", self.has_hidden),
                  ("holdout", self.has_holdout),
+                 ("shadow catcher", self.catcher is not None),
                  ("volumes", self.has_volumes),
                  ("scattering volumes", self.has_scattering),
                  ("world volume", self.outside >= 0),

@@ -28,6 +28,8 @@ from .light_passes import (VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION, EyeLight, lig
 from .procedural import Rays, camera_path
 from .sampling import cosine_hemisphere, dot, orthonormal_frames, to_world
 from .scene import PANORAMAS, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked
+from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, START_BACK, START_MIN,
+                             CatcherRays)
 from .settings import AOV_PREFIX, BounceLimits
 
 
@@ -54,6 +56,8 @@ class MeasurementPoints:
     #                               point (RenderContext.trace); None: not counted
     via: np.ndarray = None        # (m,) uint8 the kind of the camera path's first delta event
     #                               (light_passes.VIA_*); None: no light passes
+    caught: np.ndarray = None     # (m,) bool the camera path's first hit was a shadow catcher
+    #                               (core/shadow_catcher.py); None: the scene has none
 
     @property
     def count(self) -> int:
@@ -93,6 +97,7 @@ class VolumePoints:
     bounces: np.ndarray = None  # (k, 5) uint8 as MeasurementPoints.bounces
     crossings: np.ndarray = None  # (k,) int16 as MeasurementPoints.crossings (those before its segment)
     via: np.ndarray = None        # (k,) uint8 as MeasurementPoints.via
+    caught: np.ndarray = None     # (k,) bool as MeasurementPoints.caught
 
     @property
     def count(self) -> int:
@@ -117,7 +122,9 @@ class EyePassResult:
     rays: int                # rays traced
     volume: VolumePoints = None  # the camera paths' points in scattering volumes
     data: dict = None        # RenderSettings.data_passes: "depth", "denoising_depth" (n_pixels,), "normal",
-    #                          "albedo", "denoising_normal" (n_pixels, 3)
+    #                          "albedo", "denoising_normal" (n_pixels, 3); with shadow catchers also
+    #                          shadow_catcher.INTERNAL's sums
+    catcher: CatcherRays = None  # the camera rays whose first hit was a shadow catcher, or None
 
 
 # Camera paths traced at once (bounds the memory of big images).
@@ -133,7 +140,7 @@ MAX_SEGMENT_POINTS = 16
 
 
 def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None,
-                   alpha_threshold=1.0, ao_distance=10.0) -> EyePassResult:
+                   alpha_threshold=1.0, ao_distance=10.0, rays=None) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng``; with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
     rays stop on (:func:`first_hit_data`; the normal and UV past transparent surfaces by
@@ -141,7 +148,10 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     default ``max_bounces`` in all and none per kind): a point may follow as many mirror and
     glass bounces as leave room for its photons' (at least none), emission may be seen after
     one more (that last bounce does not count, as in Cycles).  ``ao_distance``: the Ambient
-    Occlusion pass's (:func:`ambient_occlusion`)."""
+    Occlusion pass's (:func:`ambient_occlusion`).  In scenes with shadow catchers the paths that
+    meet one first are marked and summed apart (``core/shadow_catcher.py``).  ``rays``: None, or
+    :class:`~core.shadow_catcher.CatcherRays` to trace instead of the camera's (each from just
+    before its catcher hit, with its radius: :class:`~core.shadow_catcher.CatcherRender`)."""
     if limits is None:
         limits = BounceLimits(max_bounces)
     x0, x1, y0, y1 = ctx.scene.camera.window
@@ -179,18 +189,26 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         light = EyeLight({name: np.zeros((n_pix, 3), np.float32) for name in eye_light + colours + groups[0]},
                          groups)
         data.update(light.sums)
+    caught = None
+    if ctx.catcher is not None and rays is None:
+        caught = []                                   # (CatcherRays of each chunk)
+        data.update({CATCHER_HIT: np.zeros((n_pix, 3)), CATCHER_WEIGHT: np.zeros(n_pix),
+                     CATCHER_BACKGROUND: np.zeros((n_pix, 3))})
     kinds = [k for k in cryptomatte.KINDS if k in data_passes and ctx.scene.cryptomatte_ids is not None]
     chunks = [] if kinds else None                    # Cryptomatte's (pixels, triangles, weights) per chunk
     parts, volume = [], []
-    rays = 0
+    n_rays = 0
     per_segment = int(np.clip(VOLUME_POINT_BUDGET // max(n_pix, 1), 1, MAX_SEGMENT_POINTS))
-    for start in range(0, n_pix, EYE_CHUNK):
-        pixel_ids = np.arange(start, min(start + EYE_CHUNK, n_pix))
+    n_paths = n_pix if rays is None else rays.count
+    for start in range(0, n_paths, EYE_CHUNK):
+        chunk = np.arange(start, min(start + EYE_CHUNK, n_paths))
+        given = None if rays is None else _catcher_starts(ctx, rays, chunk)
+        pixel_ids = chunk if rays is None else given[0]
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
                                         limits, volume, per_segment, data, alpha_threshold, chunks, light,
-                                        ao_distance)
+                                        ao_distance, given, caught)
         parts.extend(points)
-        rays += r
+        n_rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
     if "albedo" not in data_passes:
         data.pop("albedo", None)
@@ -200,7 +218,37 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         ids = ctx.scene.cryptomatte_ids.take(prim, axis=0)
         for k in kinds:
             data[k] = (pix, ids[:, cryptomatte.KINDS.index(k)], weight)
-    return EyePassResult(points, emission, alpha, rays, VolumePoints.concatenate(volume), data or None)
+    return EyePassResult(points, emission, alpha, n_rays, VolumePoints.concatenate(volume), data or None,
+                         None if caught is None else CatcherRays.concatenate(caught))
+
+
+def _catch(data, catcher_rays, rows, pix, origins, dirs, t, footprint, beta, world_along):
+    """Record the camera rays ``rows`` whose first hit is a shadow catcher (their
+    :class:`~core.shadow_catcher.CatcherRays` to ``catcher_rays``, their throughput's mean there to
+    ``data``'s CATCHER_WEIGHT and the world along them to its CATCHER_BACKGROUND)."""
+    if len(rows) == 0:
+        return
+    p = pix.take(rows)
+    catcher_rays.append(CatcherRays(p, origins.take(rows, axis=0), dirs.take(rows, axis=0),
+                                    t.take(rows).astype(np.float64), footprint.take(rows)))
+    b = beta.take(rows, axis=0)
+    data[CATCHER_WEIGHT][p] += b.mean(axis=1)
+    sky = world_along(rows)
+    if sky is not None:
+        data[CATCHER_BACKGROUND][p] += b * sky
+
+
+def _catcher_starts(ctx, rays, rows):
+    """(pix, origins, dirs, tmax, footprint, path_len) of catcher rays ``rows`` of ``rays``
+    (:class:`~core.shadow_catcher.CatcherRays`), each from START_BACK of its distance before its
+    catcher (at least START_MIN of the scene's extent), as far along the path."""
+    t = rays.t.take(rows)
+    back = np.maximum(START_BACK * t, START_MIN * ctx.accel.extent)
+    start = np.maximum(t - back, 0.0)
+    dirs = rays.dirs.take(rows, axis=0)
+    origins = rays.origins.take(rows, axis=0) + start[:, None] * dirs
+    return (rays.pixel_ids.take(rows), origins, dirs, np.full(len(rows), np.inf), rays.footprint.take(rows),
+            start)
 
 
 # Cycles' line between specular-like and diffuse-like closures for its denoising features: a
@@ -662,24 +710,30 @@ def _box_exit(origins, dirs, lo, hi):
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
                         per_segment=1, data=None, alpha_threshold=1.0, coverage=None, light=None,
-                        ao_distance=10.0):
+                        ao_distance=10.0, start=None, catcher_rays=None):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
     ``per_segment`` in each segment through one, and to the list ``coverage``, if given, the camera
     rays' Cryptomatte coverage, :func:`~core.cryptomatte.coverage`).  ``light``: None, or the
     :class:`~core.light_passes.EyeLight` that takes the emission by the paths' first scattering
     events and the colours of their first surfaces; ``ao_distance``: the Ambient Occlusion pass's
-    (``data["ao"]``, :func:`ambient_occlusion`)."""
+    (``data["ao"]``, :func:`ambient_occlusion`).  ``start``: None, or the rays to trace instead of
+    the camera's (:func:`_catcher_starts`); ``catcher_rays``: None, or (in scenes with shadow
+    catchers) the list that takes the :class:`~core.shadow_catcher.CatcherRays` of the paths
+    whose first hit is a catcher, whose sums go to ``data``'s ``shadow_catcher.INTERNAL``."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
-    pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, rng.random((len(pix), 4)))
+    if start is None:
+        pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, rng.random((len(pix), 4)))
+        path_len = np.zeros(len(pix))
+    else:
+        pix, origins, dirs, tmax, footprint, path_len = start
     world = np.asarray(scene.world.color, np.float64)
     extent = accel.extent
     # The lobe colours a measurement point keeps (MeasurementPoints.colors).
     point_lobes = table.point_lobes
     grows = cam.projection != "orthographic"         # footprints grow with the distance
     beta = np.ones((len(pix), 3))
-    path_len = np.zeros(len(pix))
     # Which rays see analytic lights (Blender's ray visibility): direct camera rays, and after
     # a delta event rays reflected (glossy) or refracted (transmission).
     ray_kind = np.full(len(pix), VISIBLE_CAMERA, np.uint8)
@@ -703,6 +757,23 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     via = np.zeros(len(pix), np.uint8)
     grouped = light is not None and light.has_groups
     n_groups = len(scene.light_groups)
+    # Shadow catchers: the paths whose first hit was one (set at that hit), and what they see after it.
+    caught = None if catcher_rays is None else np.zeros(len(pix), bool)
+
+    def to_catcher(rows, value):
+        """Add ``value`` (r, 3) seen by paths ``rows`` to the catcher-hit sum where they met a catcher."""
+        if caught is not None:
+            c = np.flatnonzero(caught.take(rows))
+            if len(c):
+                data[CATCHER_HIT][pix.take(rows.take(c))] += value.take(c, axis=0)
+
+    def world_along(rows):
+        """(r, 3) the world's radiance along the paths ``rows``' rays, or None where it is black."""
+        if depth == 0 and ctx.camera_background is not None:
+            return ctx.camera_background(dirs[rows], origins[rows])     # (Light Path's)
+        if ctx.lights.environment is not None:
+            return ctx.lights.environment.radiance(dirs[rows])
+        return np.broadcast_to(world, (len(rows), 3)) if world.any() else None
     parts = []
     rays = 0
     # Cycles' denoising features, made along the paths (their own random numbers: the image stays
@@ -766,7 +837,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 base_radius=r1, planes=planes,
                 bounces=bounces.take(rows, axis=0),
                 crossings=None if crossed_before is None else crossed_before.take(rows),
-                via=None if light is None else via.take(rows)))
+                via=None if light is None else via.take(rows),
+                caught=None if caught is None else caught.take(rows)))
             if feature is not None:
                 back = np.asarray(cam.world_from_camera, np.float64)[:3, 2]
                 feature.volume(pix, rows, w_v * ctx.scattering.take(media, axis=0),
@@ -775,6 +847,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         if glow is not None:
             lit = np.flatnonzero(glow.any(axis=1))             # glowing volumes on the way
             emission[pix[lit]] += beta.take(lit, axis=0) * glow.take(lit, axis=0)
+            to_catcher(lit, beta.take(lit, axis=0) * glow.take(lit, axis=0))
             if feature is not None:
                 feature.light(pix, lit, beta.take(lit, axis=0) * glow.take(lit, axis=0))
             if light is not None:
@@ -799,6 +872,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                                             seen_split)
             lit = np.flatnonzero(seen.any(axis=1))
             emission[pix[lit]] += beta_in[lit] * seen[lit]
+            to_catcher(lit, beta_in[lit] * seen[lit])
             if feature is not None:
                 feature.light(pix, lit, beta_in[lit] * seen[lit])
             if light is not None:
@@ -822,14 +896,13 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             # film too)
             if not cut_out or (light is not None and ("environment" in light.sums or light.has_groups)):
                 m_ = np.flatnonzero(miss)
-                if depth == 0 and ctx.camera_background is not None:
-                    sky = beta[m_] * ctx.camera_background(dirs[m_], origins[m_])  # (Light Path's)
-                elif ctx.lights.environment is not None:
-                    sky = beta[m_] * ctx.lights.environment.radiance(dirs[m_])
-                else:
-                    sky = beta[m_] * world if world.any() else None
+                sky = world_along(m_)
+                sky = None if sky is None else beta[m_] * sky
                 if sky is not None and not cut_out:
                     emission[pix[m_]] += sky                # one path per pixel: no repeats
+                    to_catcher(m_, sky)
+                    if depth == 0 and caught is not None:
+                        data[CATCHER_BACKGROUND][pix[m_]] += sky
                     if feature is not None:
                         feature.light(pix, m_, sky)
                 if sky is not None and light is not None:
@@ -844,6 +917,13 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             alpha[pix.take(cut)] -= share[share > 0] * beta.take(cut, axis=0).mean(axis=1)
             np.maximum(alpha, 0.0, out=alpha)
             h = h.take(np.flatnonzero(share < 1.0))
+        if caught is not None:
+            if depth == 0:
+                caught = ctx.catcher.take(hits.prim_ids.take(h))
+                _catch(data, catcher_rays, h.take(np.flatnonzero(caught)), pix, origins, dirs, hits.t,
+                       footprint, beta, world_along)
+            else:
+                caught = caught.take(h)
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
         if feature is not None:
             feature.take(h)
@@ -880,6 +960,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             if sets is not None:
                 seen = seen * linked(ctx.emitter_links.take(prim.take(e)), sets.take(e))[:, None]
             emission[pix[e]] += beta[e] * seen
+            to_catcher(e, beta[e] * seen)
             if feature is not None:
                 feature.light(pix, e, beta[e] * seen)
             if light is not None:
@@ -946,7 +1027,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 ns_glossy=ns_glossy,
                 tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32),
                 bounces=rows(bounces), crossings=None if crossed is None else rows(crossed),
-                via=None if light is None else rows(via))
+                via=None if light is None else rows(via), caught=None if caught is None else rows(caught))
             if ctx.subsurface_exit >= 0:
                 # Some points go beneath their surface, to the exit of a random walk.
                 points, exits, r = _beneath(ctx, rng, points, rows(prim), rows(scores[:, DIFFUSE]),
@@ -984,6 +1065,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         bounces = bounces[g]
         crossed = None if crossed is None else crossed[g]
         via = via[g]
+        caught = None if caught is None else caught[g]
         via[via == VIA_NONE] = np.where(reflected, VIA_GLOSSY, VIA_TRANSMISSION)[via == VIA_NONE]
         bounces[:, 0] += 1
         bounces[:, 2] += reflected
@@ -1087,7 +1169,8 @@ def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
         tangent=None if points.tangent is None else np.zeros((len(left), 3), f32),
         bounces=None if points.bounces is None else points.bounces.take(src, axis=0),
         crossings=None if points.crossings is None else points.crossings.take(src),
-        via=None if points.via is None else points.via.take(src))
+        via=None if points.via is None else points.via.take(src),
+        caught=None if points.caught is None else points.caught.take(src))
     return kept, exits, rays
 
 

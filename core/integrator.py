@@ -20,6 +20,7 @@ visible, goes on with uniform photons in a new accumulator (``RenderSettings.met
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -34,8 +35,10 @@ from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
+from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, INTERNAL as CATCHER_INTERNAL,
+                             SHADOW_CATCHER_PASS, catcher_scene, compose)
 from .visible_cells import VisibleCells
-from .worker import STREAM_CENTRE, STREAM_COVERAGE, STREAM_EYE
+from .worker import STREAM_CATCHER, STREAM_CENTRE, STREAM_COVERAGE, STREAM_EYE, PhotonWorker
 
 # A pass is not started when the time left would trace less than this share of its photons.
 MIN_CUT_PASS = 0.05
@@ -52,7 +55,8 @@ PASS_STAT_KEYS = ("pass", "elapsed_s", "paths_traced", "photons_recorded", "prop
 class RenderResult:
     """A finished (or interrupted) render."""
 
-    image: np.ndarray                           # (H, W, 4) float32 linear RGBA, top row first
+    image: np.ndarray                           # (H, W, 4) float32 linear RGBA, top row first (with
+    #                                             shadow catchers, Cycles' Combined: core/shadow_catcher.py)
     stats: list = field(default_factory=list)   # one dict per pass
     warnings: list = field(default_factory=list)
     passes: int = 0                             # passes in the image
@@ -316,6 +320,13 @@ class Accumulator:
             photon_part = shared
         return value + photon_part
 
+    def uncorrected(self, name, is_chain):
+        """(n, 3) light pass ``name``'s eye passes' mean plus its photons' estimate, without the bias
+        correction."""
+        value = (self.data_sums[name] / self.passes if name in self.data_sums
+                 else np.zeros((len(self.alpha), 3)))
+        return value + self._photon_part(name, is_chain)
+
     def _photon_part(self, name, is_chain):
         """(n, 3) the photons' estimate of light pass ``name`` as in :meth:`image`, uncorrected."""
         if name not in self.light:
@@ -399,6 +410,98 @@ class Accumulator:
         return d, tuple(variances)
 
 
+class CatcherRender:
+    """K of Cycles' shadow catcher (``core/shadow_catcher.py``): the catcher objects' own light,
+    rendered in a scene of them and the emitters alone, at the camera rays of each pass that met a
+    catcher first (from just before it, with the main render's radii and edge coverage), by uniform
+    photons in this process.  Its photons are the main render's uniform ones, each worker's
+    numbers (``workers`` of them) and count: the same emitters in the same box (the main scene's,
+    where the sun's and the world's photons start) send them the same way, so that where nothing
+    came between, both renders gather the same photons and their ratio is 1 without noise.  The
+    Markov chains' photons are another sample: with them (``pair``) the same uniform photons are
+    traced in the main scene too, to the same points, for the shadow's numerator (:meth:`hit`)."""
+
+    def __init__(self, scene, ctx, settings, n_pixels, workers, pair=False):
+        keep = ctx.catcher | ctx.table.is_emissive.take(scene.material_ids)
+        self.scene = catcher_scene(scene, keep).validate()
+        self.ctx = RenderContext(self.scene, settings.glossy_through_roughness, bounds=ctx.accel.bounds)
+        self.settings = dataclasses.replace(settings, method="ppm", data_passes=(), bias_correction=False)
+        self.workers = [PhotonWorker(self.scene, self.settings, index=i, ctx=self.ctx)
+                        for i in range(workers)]
+        self.pair = ([PhotonWorker(scene, self.settings, index=i, ctx=ctx) for i in range(workers)]
+                     if pair else [])
+        self.n_pixels = n_pixels
+        self.reset()
+
+    def add_pass(self, pass_index, rays, scale, coverage, n_photons, should_stop=None):
+        """Trace pass ``pass_index``: ``rays`` the main eye pass's
+        :class:`~core.shadow_catcher.CatcherRays`, ``scale`` its radii's shrink s_i, ``coverage``
+        (n_pixels,) its points' edge coverage per pixel or None."""
+        s = self.settings
+        rng = np.random.default_rng([s.seed, STREAM_CATCHER, pass_index])
+        eye = trace_eye_pass(self.ctx, rng, s.initial_radius_px, s.max_bounces, (), s.bounce_limits,
+                             s.pass_alpha_threshold, rays=rays)
+        pts, vol = eye.points, eye.volume
+        vol_radius = vol.base_radius * scale ** (2.0 / 3.0) if vol is not None and vol.count else None
+        target = DepositTarget(pts, pts.base_radius * scale, self.ctx.table, self.n_pixels,
+                               self.ctx.has_shading_normals, volume=vol, volume_radius=vol_radius,
+                               media=self.ctx.phase, limits=s.bounce_limits,
+                               coverage=None if coverage is None else coverage.take(pts.pixel_ids))
+        for acc, workers in ((self.acc, self.workers), (self.hit_acc, self.pair)):
+            if workers:
+                out = _merge([w.run_pass(pass_index, target, n_photons, should_stop, uniform=True)
+                              for w in workers])
+                c = out["counters"]
+                acc.add(eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"],
+                        False)
+
+    def radiance(self):
+        """(n_pixels, 3) float64 K so far."""
+        return self.acc.image(False)[:, :3].astype(np.float64)
+
+    def hit(self):
+        """(n_pixels, 3) float64 C - M of the ``pair``'s photons so far, or None without them (the
+        eye passes' emission is the catchers' scene's: what the main scene shows in a catcher that
+        is a mirror is left out)."""
+        return self.hit_acc.image(False)[:, :3].astype(np.float64) if self.pair else None
+
+    def reset(self):
+        """Start over (and after ``method="auto"``'s switch, with the main render's)."""
+        self.acc = Accumulator(self.n_pixels, self.settings.normalisation)
+        self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation)
+
+
+def _pixel_coverage(target, n_pixels):
+    """(n_pixels,) the edge coverage of each pixel's surface point in ``target``, or None."""
+    if target.coverage is None:
+        return None
+    out = np.ones(n_pixels)
+    out[target.pixel_ids] = target.coverage
+    return out
+
+
+def _with_catchers(acc, image, data, is_chain, catcher, wanted, film_transparent):
+    """(image, data) with shadow catchers (``catcher`` a :class:`CatcherRender`, or None: as they
+    are): Cycles' Combined and, if ``wanted``, its Shadow Catcher pass
+    (:func:`~core.shadow_catcher.compose`); the catchers' sums out of the data."""
+    if catcher is None or not acc.passes:
+        return image, data
+    h, w = image.shape[:2]
+    n = h * w
+    weight, background = (data.pop(name, None) for name in (CATCHER_WEIGHT, CATCHER_BACKGROUND))
+    data.pop(CATCHER_HIT, None)
+    hit = catcher.hit() if is_chain else None
+    image, shadow = compose(image.reshape(n, 4), acc._light_mean(CATCHER_HIT, is_chain),
+                            acc.uncorrected(CATCHER_HIT, is_chain) if hit is None else hit,
+                            catcher.radiance(),
+                            np.zeros(n) if weight is None else weight.reshape(n).astype(np.float64),
+                            np.zeros((n, 3)) if background is None else background.reshape(n, 3),
+                            wanted, film_transparent)
+    if wanted:
+        data[SHADOW_CATCHER_PASS] = shadow.reshape(h, w, 3)
+    return image.reshape(h, w, 4), data
+
+
 class _Spread:
     """Sum over passes of per-pixel differences T_p (n_pixels, 3), each from N_p samples, and
     their spread about the mean, for the variance of the sum.
@@ -477,6 +580,19 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     groups = light_groups(settings.data_passes, scene.light_groups)
     light_passes += groups[0]
     photons_of_groups = photon_groups(ctx.lights.group, ctx.lights.prob, groups[1])
+    # Shadow catchers (core/shadow_catcher.py): the light of the paths that met one first is a light
+    # pass of the Accumulator's; the catchers' own light a second render's.
+    catcher = None
+    if ctx.catcher is not None:
+        light_passes += (CATCHER_HIT,)
+        catcher = CatcherRender(scene, ctx, settings, n_pixels, settings.worker_count, pair=is_chain)
+    catcher_wanted = SHADOW_CATCHER_PASS in settings.data_passes
+
+    def images():
+        """(image, data) of the passes so far (the data passes of the pixels' centres too)."""
+        return _with_catchers(acc, acc.image(is_chain).reshape(height, width, 4),
+                              {**centre_images(), **acc.data(height, width, is_chain)}, is_chain, catcher,
+                              catcher_wanted, scene.world.film_transparent)
     acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction, settings.cryptomatte_levels,
                       light_passes)
     result = RenderResult(image=np.zeros((height, width, 4), np.float32), effects=ctx.effects,
@@ -496,7 +612,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     first = [name for name in settings.data_passes if name in FIRST_PASS_DATA]
     centre = (centre_data(ctx, np.random.default_rng([settings.seed, STREAM_CENTRE]), first,
                           settings.pass_alpha_threshold) if first else {})
-    averaged = tuple(name for name in settings.data_passes if name not in FIRST_PASS_DATA)
+    averaged = tuple(name for name in settings.data_passes
+                     if name not in FIRST_PASS_DATA and name != SHADOW_CATCHER_PASS)
 
     def centre_images():
         return {name: value.astype(np.float32).reshape((height, width) + value.shape[1:])
@@ -576,6 +693,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 next_eye = eye_pass(pass_index + 1)
                 next_target = make_target(pass_index + 1, next_eye)
                 prep_s = time.perf_counter() - t_next
+            if catcher is not None and eye.catcher is not None:
+                catcher.add_pass(pass_index, eye.catcher, scales[pass_index],
+                                 _pixel_coverage(target, n_pixels), photons, stop)
             outputs = pool.collect(stop)
             if outputs is None:         # stopped before any worker returned photons
                 result.interrupted = True
@@ -602,8 +722,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                     "a surface seen by the camera; the image shows only emission so far and the "
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
-            result.image = acc.image(is_chain).reshape(height, width, 4)
-            result.data = {**centre_images(), **acc.data(height, width, is_chain)}
+            result.image, result.data = images()
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
                                 photons, cut and not interrupted, is_chain)
             result.stats.append(stats)
@@ -628,6 +747,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 is_chain, cells, last_rate = False, None, None
                 acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction,
                                   settings.cryptomatte_levels, light_passes)
+                if catcher is not None:
+                    catcher.pair = []
+                    catcher.reset()
             if next_target is None:
                 next_eye = eye_pass(pass_index)
                 next_target = make_target(pass_index, next_eye)
@@ -636,8 +758,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         pool.close()
     result.elapsed_s = time.perf_counter() - t0
     if acc.passes:      # (after the switch of "auto", the first image stands until a pass lands)
-        result.image = acc.image(is_chain).reshape(height, width, 4)
-        result.data = {**centre_images(), **acc.data(height, width, is_chain)}
+        result.image, result.data = images()
     return result
 
 

@@ -43,6 +43,7 @@ from .phase import isotropic as isotropic_phase, sample as sample_phase, value a
 from .procedural import Rays, photon_path
 from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
 from .settings import BounceLimits
+from .shadow_catcher import CATCHER_HIT
 from .sampling import cosine_hemisphere, dot, luminance, tangent_axes, to_world
 from .texture_hash import float_as_uint, hash_uint3, hash_uint3_to_float
 from .visible_cells import VisibleCells
@@ -176,6 +177,11 @@ class DepositTarget:
             self.copy_to = np.where(copy_to >= 0, self.block_of.take(np.maximum(copy_to, 0)), -1)
         self.group_slots = self.n_slots
         self.n_slots += self.n_blocks * self.n_points
+        # Shadow catchers: per point (surface, then volume) whether its camera path met one first
+        # (MeasurementPoints.caught), or None; their photons make CATCHER_HIT (pass_pixels).
+        self.caught = None
+        if points.caught is not None:
+            self.caught = np.concatenate([p.caught for p in (points, self.volume) if p is not None])
         self.group_inner_slots = self.n_slots
         if self.inner:
             self.n_slots += self.n_blocks * points.count
@@ -609,8 +615,8 @@ class DepositTarget:
 
     @property
     def makes_passes(self) -> bool:
-        """Whether the target makes light or light group passes (:meth:`pass_pixels`)."""
-        return bool(self.light_passes or self.group_passes)
+        """Whether the target makes light, light group or catcher passes (:meth:`pass_pixels`)."""
+        return bool(self.light_passes or self.group_passes) or self.caught is not None
 
     def group_pairs(self, groups, j, near=None):
         """The copies of pairs with points ``j`` (k,) (surface, then volume numbering) of photons
@@ -787,9 +793,17 @@ class DepositTarget:
         (``split``) gives its direct block to the direct pass (diffuse; a volume point's volume),
         its glossy blocks to the glossy passes and its own slot to the indirect one; a point behind
         a delta event gives its slot to the indirect pass of that event's kind (its blocks are
-        empty); a group's pass takes the group's block (:meth:`_group_block`)."""
+        empty); a group's pass takes the group's block (:meth:`_group_block`); with shadow catchers,
+        ``CATCHER_HIT`` takes what the points behind one (``caught``) gathered."""
         m = self.points.count
         surface, volume = self._light_blocks(sums) if self.light_passes else ({}, {})
+        names = self.light_passes + self.group_passes
+        if self.caught is not None:
+            names += (CATCHER_HIT,)
+            whole = self.gathered(sums)
+            surface[CATCHER_HIT] = np.where(self.caught[:m, None], whole[:m], 0.0)
+            if self.volume is not None:
+                volume[CATCHER_HIT] = np.where(self.caught[m:, None], whole[m:], 0.0)
         for k, name in enumerate(self.group_passes):
             if self.block_of[k] < 0:
                 continue
@@ -798,7 +812,7 @@ class DepositTarget:
             if self.volume is not None:
                 volume[name] = block[m:]
         out = {}
-        for name in self.light_passes + self.group_passes:
+        for name in names:
             total = np.zeros((self.n_pixels, 3))
             if name in surface:
                 total[self.pixel_ids] = self._surface_values(surface[name])

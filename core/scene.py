@@ -47,6 +47,10 @@ HOLDOUT_OBJECT = 8
 # Shadow off): photons on their way from their emitter pass it or stop there, each with probability
 # 1/2 and twice the flux (as a triangle that shadow linking says does not shadow their emitter).
 CASTS_NO_SHADOW = 16
+# Scene.triangle_visibility: the triangle's object is a shadow catcher (Blender's Object >
+# Visibility > Mask > Shadow Catcher, ``core/shadow_catcher.py``): camera rays that meet it first
+# show the image without it and the shadows and light the other objects cast on it.
+SHADOW_CATCHER = 32
 DEFAULT_LIGHT_VISIBILITY = VISIBLE_GLOSSY | VISIBLE_TRANSMISSION     # Blender's default for lights
 # Materials.normal_space: the Normal Map node's Space (its colour 2 c - 1 is a direction along the
 # UV map's tangent frame, or in object or world space; the Blender variants flip its y and z).
@@ -1347,9 +1351,9 @@ class Scene:
             self.cryptomatte_ids = arr("cryptomatte_ids", self.cryptomatte_ids, np.float32, (3,), t)
         if self.triangle_visibility is not None:
             self.triangle_visibility = arr("triangle_visibility", self.triangle_visibility, np.uint8, (), t)
-            if t and self.triangle_visibility.max() > 31:
+            if t and self.triangle_visibility.max() > 63:
                 fail("triangle_visibility must be a bit mask of VISIBLE_CAMERA, VISIBLE_GLOSSY, "
-                     "VISIBLE_TRANSMISSION, HOLDOUT_OBJECT and CASTS_NO_SHADOW (0 to 31)")
+                     "VISIBLE_TRANSMISSION, HOLDOUT_OBJECT, CASTS_NO_SHADOW and SHADOW_CATCHER (0 to 63)")
         groups = self.light_groups
         if isinstance(groups, str) or not all(isinstance(g, str) and g for g in groups) \
                 or len(set(groups)) != len(groups):
@@ -1768,6 +1772,22 @@ class Scene:
     def replace(self, **changes) -> "Scene":
         """A shallow copy with some fields replaced (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
+
+    # The fields that hold one entry per triangle (first axis T; ``attributes`` a dict of them).
+    PER_TRIANGLE = ("triangles", "material_ids", "shading_normals", "uvs", "tangents", "object_ids",
+                    "vertex_colors", "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
+                    "emitter_shadow_links", "emitter_exclude", "emitter_group", "cryptomatte_ids")
+
+    def take_triangles(self, rows) -> "Scene":
+        """A shallow copy with only the triangles ``rows`` (indices or a (T,) bool mask), and their
+        entries of every per-triangle field (``PER_TRIANGLE``); the vertices, materials, lights,
+        camera, world and objects stay."""
+        rows = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else np.asarray(rows, np.int64)
+        changes = {name: getattr(self, name).take(rows, axis=0) for name in self.PER_TRIANGLE
+                   if getattr(self, name) is not None}
+        if self.attributes is not None:
+            changes["attributes"] = {k: v.take(rows, axis=0) for k, v in self.attributes.items()}
+        return self.replace(**changes)
 
 
 def _stored_program(mats, stored, program):

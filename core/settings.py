@@ -28,7 +28,7 @@ NORMALISATIONS = ("cumulative", "per_pass")
 # taken from the first pass alone (as Cycles takes them from its first sample; the others are means).
 DATA_PASSES = ("depth", "normal", "albedo", "denoising_normal", "denoising_depth", "position", "uv",
                "object_index", "material_index", "mist", "crypto_object", "crypto_material", "crypto_asset",
-               *LIGHT_PASSES, "ao")
+               *LIGHT_PASSES, "ao", "shadow_catcher")
 FIRST_PASS_DATA = ("depth", "position", "object_index", "material_index")
 # A Shader AOV's data pass: this and its name (Materials.aov_names).
 AOV_PREFIX = "aov:"
@@ -266,7 +266,11 @@ class RenderSettings:
     ``Combined_<name>`` (H, W, 3), the image as lit by that group's emitters alone (``Lights.group``,
     ``Scene.emitter_group``, ``World.group``): their light seen directly and all that their photons
     bring (with the image's bias correction in proportion); the groups' passes and the light of
-    emitters in none add up to the image."""
+    emitters in none add up to the image.  "shadow_catcher": Cycles' Shadow Catcher pass (H, W, 3)
+    in scenes with shadow catchers (``SHADOW_CATCHER``, :mod:`core.shadow_catcher`): what the
+    other objects do to the catchers' light, the light of the camera paths that met a catcher first
+    over the catchers' own (1 where they met none); asking for it also leaves the image the
+    catchers' matte with the shadow as its alpha on an opaque film too, as in Cycles."""
 
     ao_distance: float = 10.0
     """How far the Ambient Occlusion pass's rays look for what occludes them (Blender's World >

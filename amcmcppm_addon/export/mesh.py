@@ -25,8 +25,8 @@ import numpy as np
 
 from ...core.cryptomatte import KINDS as CRYPTO_KINDS, name_id
 from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
-from ...core.scene import (CASTS_NO_SHADOW, HOLDOUT_OBJECT, VISIBLE_CAMERA, VISIBLE_GLOSSY,
-                           VISIBLE_TRANSMISSION)
+from ...core.scene import (CASTS_NO_SHADOW, HOLDOUT_OBJECT, SHADOW_CATCHER, VISIBLE_CAMERA,
+                           VISIBLE_GLOSSY, VISIBLE_TRANSMISSION)
 from ...core.texture_hash import hash_uint2, hash_uint2_to_float, hash_uint_to_float
 from .lights import instance_group, light_exclude, ray_visibility
 
@@ -87,8 +87,9 @@ class Geometry:
     object_info: np.ndarray | None = None         # (O, 6) float32 Object Info (core.Scene.object_info)
     object_attributes: dict | None = None         # {name: (O, 3) float32} (core.Scene.object_attributes)
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
-    # HOLDOUT_OBJECT for a holdout object's, CASTS_NO_SHADOW for one with Shadow off, or None: all
-    # rays, no holdout, every object shadows
+    # HOLDOUT_OBJECT for a holdout object's, CASTS_NO_SHADOW for one with Shadow off, SHADOW_CATCHER
+    # for a shadow catcher's (or an instance's whose instancer is one, :func:`is_shadow_catcher`), or
+    # None: all rays, no holdout, every object shadows, no catcher
     triangle_visibility: np.ndarray | None = None
     # (T,) uint8 the rays each triangle's light does not reach (its object's Ray Visibility,
     # core.Scene.emitter_exclude), or None: none excluded
@@ -187,12 +188,10 @@ class GeometryCollector:
                                      colors=colors or local.colors_read,
                                      attributes=named | local.attributes_read) or local
             self.meshes[key] = local
-        if getattr(ob, "is_shadow_catcher", False):
-            self.log.warning(f"object '{ob.name}' is a shadow catcher, which is not supported: it renders "
-                             "as an ordinary surface")
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         flags = (ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
-                 | (0 if ob.visible_shadow else CASTS_NO_SHADOW) | light_exclude(ob) << EXCLUDE_SHIFT
+                 | (0 if ob.visible_shadow else CASTS_NO_SHADOW)
+                 | (SHADOW_CATCHER if is_shadow_catcher(inst) else 0) | light_exclude(ob) << EXCLUDE_SHIFT
                  | (instance_group(inst, self.light_groups) + 1) << GROUP_SHIFT)
         link = tuple(None if k is None else (k.object_set(ob), k.collection(ob)) for k in self.linking)
         self.groups.setdefault((key, mat_ids, flags, link), []).append(
@@ -224,6 +223,15 @@ ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
 VISIBILITY_MASK = 0xFF
 EXCLUDE_SHIFT = 8
 GROUP_SHIFT = 16
+
+
+def is_shadow_catcher(inst) -> bool:
+    """Whether depsgraph object instance ``inst`` is a shadow catcher (Object > Visibility > Mask >
+    Shadow Catcher), as Cycles' sync finds it: its object is one, or its instancer is (the object
+    whose collection, particles or geometry nodes make the instance).  (Setting the box tags the
+    depsgraph, so the evaluated objects hold it.)"""
+    return inst.object.is_shadow_catcher or (inst.is_instance and inst.parent is not None
+                                             and inst.parent.is_shadow_catcher)
 
 
 def _renders_hair(modifier) -> bool:

@@ -2692,13 +2692,71 @@ def test_area_light_shapes_include_object_scale(scene, shape, size, size_y, area
     assert row["power"][0] / (math.pi * area) == pytest.approx(100 / math.pi, rel=1e-5)
 
 
-def test_a_shadow_catcher_is_named_in_a_warning(scene):
-    floor = bs.plane("Catcher", material=bs.diffuse("Grey", (0.5, 0.5, 0.5)))
-    floor.is_shadow_catcher = True
+def test_a_shadow_catchers_triangles_carry_the_bit(scene):
+    """Object > Visibility > Mask > Shadow Catcher: its triangles get SHADOW_CATCHER besides their
+    ray visibility (a holdout catcher both bits: the core lets the holdout win), the others do not;
+    no warning (before: named in one, rendered as an ordinary surface).  Setting the box tags the
+    depsgraph: the export after it sees it, and sees it cleared."""
+    from amcmcppm.core.scene import (HOLDOUT_OBJECT, SHADOW_CATCHER, VISIBLE_CAMERA, VISIBLE_GLOSSY,
+                                     VISIBLE_TRANSMISSION)
     bs.camera()
+    floor = bs.plane("Catcher", material=bs.diffuse("Grey", (0.5, 0.5, 0.5)))
+    bs.cube("Box", size=0.5, material=bs.diffuse("Grey"), location=(0, 0, 1))
+    held = bs.plane("Held", size=0.5, material=bs.diffuse("Grey"), location=(0, 0, 2))
+    assert bs.export().scene.triangle_visibility is None
+    floor.is_shadow_catcher = held.is_shadow_catcher = held.is_holdout = True
     ex = bs.export()
-    assert ex.scene.triangle_count == 2
-    assert any("'Catcher' is a shadow catcher" in w for w in ex.warnings), ex.warnings
+    vis = ex.scene.triangle_visibility
+    z = ex.scene.vertices[ex.scene.triangles].mean(axis=1)[:, 2]
+    every = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
+    assert ex.scene.triangle_count == 16 and not ex.warnings, ex.warnings
+    assert set(vis[z < 0.5]) == {every | SHADOW_CATCHER}
+    assert set(vis[(z > 0.5) & (z < 1.5)]) == {every}
+    assert set(vis[z > 1.5]) == {every | SHADOW_CATCHER | HOLDOUT_OBJECT}
+    floor.is_shadow_catcher = False
+    vis = bs.export().scene.triangle_visibility
+    assert set(vis[z < 0.5]) == {every}
+
+
+def test_instances_of_shadow_catchers_and_of_catcher_instancers_are_catchers(scene):
+    """As Cycles' sync: an instance is a shadow catcher when its object is one or its instancer is
+    (here a collection instance's empty, and a mesh instancing on its vertices).  Two empties
+    instance a collection of a plain quad and a catcher cube: the catcher empty's quad and cube
+    and the plain empty's cube carry SHADOW_CATCHER, the plain empty's quad does not; so do the
+    quads a catcher mesh instances on its 4 vertices (and that mesh, which the viewport shows), not
+    the instanced quad itself (shown too, at its own place), nor the floor."""
+    from amcmcppm.core.scene import SHADOW_CATCHER
+    bs.camera()
+    bs.plane("Floor", size=20.0, material=bs.diffuse("Floor"))
+    source = bpy.data.collections.new("Source")
+    bs.plane("Quad", size=0.5, material=bs.diffuse("Quad"), collection=source)
+    cube = bs.cube("Own", size=0.2, material=bs.diffuse("Own"), collection=source)
+    cube.is_shadow_catcher = True
+    for name, x, catcher in (("Catching", 3.0, True), ("Plain", -3.0, False)):
+        empty = bpy.data.objects.new(name, None)
+        empty.instance_type, empty.instance_collection = "COLLECTION", source
+        empty.location = (x, 0.0, 1.0)
+        empty.is_shadow_catcher = catcher
+        scene.collection.objects.link(empty)
+    dots = bs.plane("Dots", size=1.0, material=bs.diffuse("Dots"), location=(0.0, 5.0, 2.0))
+    bs.plane("Dot", size=0.2, material=bs.diffuse("Dot")).parent = dots
+    dots.instance_type = "VERTS"
+    dots.is_shadow_catcher = True
+    ex = bs.export()
+    sc = ex.scene
+    assert not ex.warnings, ex.warnings
+    centres = sc.vertices[sc.triangles].mean(axis=1)
+    caught = (sc.triangle_visibility & SHADOW_CATCHER) != 0
+    names = np.array(sc.materials.names)[sc.material_ids]
+    for name, where, expected in (("Floor", centres[:, 2] < 0.5, False),
+                                  ("Quad", centres[:, 0] > 2.0, True), ("Own", centres[:, 0] > 2.0, True),
+                                  ("Quad", centres[:, 0] < -2.0, False), ("Own", centres[:, 0] < -2.0, True),
+                                  ("Dot", np.abs(centres[:, 0]) > 0.25, True),
+                                  ("Dot", np.abs(centres[:, 0]) < 0.25, False),
+                                  ("Dots", centres[:, 1] > 4.0, True)):
+        mine = caught[(names == name) & where]
+        assert len(mine) and (mine == expected).all(), (name, expected)
+    assert (names == "Quad").sum() == 4 and (names == "Dot").sum() == 10
 
 
 def test_hair_and_volume_objects_are_named_in_warnings(scene):

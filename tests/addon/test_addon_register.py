@@ -247,10 +247,11 @@ def test_world_ray_visibility_panel_draws_the_boxes_the_exporter_reads(scene):
 def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
     """View Layer > Passes (Blender's panels list EEVEE and Workbench only): our panel draws the
     boxes of the passes ``engine.DATA_PASSES`` registers (Z, Mist, Position, Normal, UV, Cycles'
-    Denoising Data, Object and Material Index), its Light subpanel those of the light passes, for
-    our engine alone; those passes are Cycles' (names, channels, types, in its order).  World > Mist
-    Pass (drawn by Cycles' panel for Cycles only) shows when a view layer asks for Mist, World >
-    Ambient Occlusion when one asks for that pass."""
+    Denoising Data, Object and Material Index), its Light subpanel those of the light passes and
+    Shadow Catcher, for our engine alone; those passes are Cycles' (names, channels, types, in its
+    order; but Cycles' Noisy passes, its denoiser's input).  World > Mist Pass (drawn by Cycles'
+    panel for Cycles only) shows when a view layer asks for Mist, World > Ambient Occlusion when one
+    asks for that pass."""
     import cycles.engine
     from amcmcppm.amcmcppm_addon import ui
     from amcmcppm.amcmcppm_addon.engine import DATA_PASSES
@@ -262,17 +263,19 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
         holder = getattr(layer, owner) if owner else layer
         assert prop in holder.bl_rna.properties.keys(), (owner, prop)
         setattr(holder, prop, True)
-    light = [(owner, prop) for _, owner, prop, core in DATA_PASSES if core in LIGHT_PASSES + ("ao",)]
+    in_light = LIGHT_PASSES + ("ao", "shadow_catcher")
+    light = [(owner, prop) for _, owner, prop, core in DATA_PASSES if core in in_light]
     assert list(panel.data + panel.indexes) == [prop for _, owner, prop, core in DATA_PASSES
-                                                if not owner and core not in LIGHT_PASSES + ("ao",)]
-    # (View Layer > Passes > Light draws the light passes' boxes, Cycles' Light panel's)
+                                                if not owner and core not in in_light]
+    # (View Layer > Passes > Light draws the light passes' boxes and Shadow Catcher, Cycles' Light
+    # panel's)
     rows = ui.AMCMCPPM_VIEWLAYER_PT_light.rows
-    assert [(owner, prop) for _, owner, props in rows for prop, _ in props] == light and len(light) == 14
+    assert [(owner, prop) for _, owner, props in rows for prop, _ in props] == light and len(light) == 15
     assert getattr(bpy.types, "AMCMCPPM_VIEWLAYER_PT_light").bl_parent_id == panel.__name__
     ours = [(name, chan_id, kind) for (name, _, chan_id, kind), *_ in DATA_PASSES]
     assert all(channels == len(chan_id) for (_, channels, chan_id, _), *_ in DATA_PASSES)
     theirs = [p for p in cycles.engine.list_render_passes(scene, layer)
-              if p[0] not in ("Combined", "Noisy Image")]
+              if p[0] != "Combined" and not p[0].startswith("Noisy ")]
     order = [p[0] for p in theirs]
     assert sorted(ours, key=lambda p: order.index(p[0])) == theirs
     with bpy.context.temp_override(view_layer=scene.view_layers[0]):
@@ -295,6 +298,68 @@ def test_passes_panel_draws_the_data_passes_the_engine_writes(scene):
             scene.render.engine = "CYCLES"
             assert not panel.poll(bpy.context)
             scene.render.engine = ENGINE
+
+
+def drawn_boxes(draw):
+    """The properties (``"Struct.property"``) ``draw(popup)`` draws, in their order, and the index
+    of the column of each: drawn into a real layout, a popup menu's, begun and never shown (showing
+    it needs a window that draws, which bpy as a module has not; the popup's few kilobytes are left
+    unfreed, which Blender names at exit), and read back by ``UILayout.introspect``."""
+    popup = bpy.context.window_manager.popmenu_begin__internal("test", icon='NONE')
+    draw(popup)
+    out = []
+
+    def walk(item, column):
+        if "rna" in item:
+            out.append((item["rna"].split("[")[0], column))
+        for i, child in enumerate(item.get("items", ())):
+            walk(child, i if column is None else column)
+
+    for root in popup.layout.introspect():
+        walk(root, None)
+    return out
+
+
+def test_shadow_catcher_boxes_show_for_the_engine(scene):
+    """Object > Visibility > Mask > Shadow Catcher, which Cycles' Visibility panel draws for Cycles
+    only, and Blender's (shown for our engine) does not, drawing Holdout alone: ours, appended to
+    Blender's panel, draws it once, right below Holdout, for the objects whose box the exporter
+    reads (meshes, text, empties instancing a collection), not for lights, cameras or other empties,
+    nor for another engine.  View Layer > Passes > Light draws Cycles' Shadow Catcher pass box in
+    the column of Emission, Environment and Ambient Occlusion ("Other"), as Cycles' Light panel.
+    (The pass and the export: ``test_addon_engine.py``, ``test_addon_export.py``.)"""
+    import cycles.ui
+    from amcmcppm.amcmcppm_addon import ui
+    visibility = bpy.types.OBJECT_PT_visibility
+    assert ENGINE in visibility.COMPAT_ENGINES
+    assert ENGINE not in cycles.ui.CYCLES_OBJECT_PT_visibility.COMPAT_ENGINES
+    assert ui.draw_shadow_catcher in visibility.draw._draw_funcs
+    card, lamp, cam = bs.plane("Card"), bs.light("POINT"), bs.camera()
+    text = bpy.data.objects.new("Text", bpy.data.curves.new("Text", "FONT"))
+    instancer, bare = bpy.data.objects.new("Instancer", None), bpy.data.objects.new("Empty", None)
+    instancer.instance_type, instancer.instance_collection = "COLLECTION", bpy.data.collections.new("Src")
+    for ob in (text, instancer, bare):
+        scene.collection.objects.link(ob)
+    holdout, catcher = "Object.is_holdout", "Object.is_shadow_catcher"
+    for ob, shown in ((card, True), (text, True), (instancer, True), (lamp, False), (cam, False),
+                      (bare, False)):
+        with bpy.context.temp_override(object=ob):
+            assert visibility.poll(bpy.context)
+            boxes = [name for name, _ in drawn_boxes(lambda popup: visibility.draw(popup, bpy.context))]
+            assert boxes.count(holdout) == 1 and boxes.count(catcher) == shown, (ob.name, boxes)
+            assert boxes[-1 - shown:] == [holdout, catcher][:1 + shown], (ob.name, boxes)
+    scene.render.engine = "CYCLES"
+    with bpy.context.temp_override(object=card):
+        assert not drawn_boxes(lambda popup: ui.draw_shadow_catcher(popup, bpy.context))
+    scene.render.engine = ENGINE
+    layer = scene.view_layers[0]
+    panel = ui.AMCMCPPM_VIEWLAYER_PT_light
+    with bpy.context.temp_override(view_layer=layer):
+        assert panel.poll(bpy.context)
+    boxes = dict(drawn_boxes(lambda popup: ui.draw_pass_boxes(popup.layout, layer, panel.rows)))
+    other = {boxes[f"ViewLayer.use_pass_{name}"] for name in ("emit", "environment", "ambient_occlusion")}
+    assert other == {boxes["CyclesRenderLayerSettings.use_pass_shadow_catcher"]}
+    assert boxes["CyclesRenderLayerSettings.use_pass_volume_direct"] not in other
 
 
 def test_cryptomatte_and_aov_panels_show_for_the_engine(scene):

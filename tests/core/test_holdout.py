@@ -91,8 +91,9 @@ def test_holdouts_are_checked_and_survive_a_file_round_trip(tmp_path):
     np.testing.assert_array_equal(back.triangle_visibility, scene.triangle_visibility)
     with pytest.raises(SceneError, match="holdout"):
         card_scene({"name": "card", "holdout": 1.5})
-    with pytest.raises(SceneError, match="0 to 31"):             # (16 is CASTS_NO_SHADOW since stop 41)
-        scene.replace(triangle_visibility=np.full(scene.triangle_count, 32, np.uint8)).validate()
+    # (16 is CASTS_NO_SHADOW since stop 41, 32 SHADOW_CATCHER since stop 55)
+    with pytest.raises(SceneError, match="0 to 63"):
+        scene.replace(triangle_visibility=np.full(scene.triangle_count, 64, np.uint8)).validate()
 
 
 def test_only_the_pixels_that_see_the_holdout_lose_their_alpha():

@@ -69,4 +69,4 @@ def test_photons_meet_hidden_triangles_and_bad_bits_are_refused():
     hits, _, _, _ = ctx.trace(up, down, ray_kind=np.array([VISIBLE_GLOSSY], np.uint8))
     assert ctx.material_ids[hits.prim_ids[0]] == 1                          # through it: the emitter
     with pytest.raises(SceneError, match="triangle_visibility must be a bit mask"):
-        scene.replace(triangle_visibility=np.full(scene.triangle_count, 32, np.uint8)).validate()
+        scene.replace(triangle_visibility=np.full(scene.triangle_count, 64, np.uint8)).validate()
