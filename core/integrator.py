@@ -35,8 +35,8 @@ from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
-from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, INTERNAL as CATCHER_INTERNAL,
-                             SHADOW_CATCHER_PASS, catcher_scene, compose)
+from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, SHADOW_CATCHER_PASS,
+                             catcher_scene, compose)
 from .visible_cells import VisibleCells
 from .worker import STREAM_CATCHER, STREAM_CENTRE, STREAM_COVERAGE, STREAM_EYE, PhotonWorker
 
@@ -441,19 +441,23 @@ class CatcherRender:
         rng = np.random.default_rng([s.seed, STREAM_CATCHER, pass_index])
         eye = trace_eye_pass(self.ctx, rng, s.initial_radius_px, s.max_bounces, (), s.bounce_limits,
                              s.pass_alpha_threshold, rays=rays)
+        runs = [(acc, w) for acc, w in ((self.acc, self.workers), (self.hit_acc, self.pair)) if w]
+        if not rays.count:              # (no camera ray met a catcher: a pass whose photons found nothing)
+            for acc, workers in runs:
+                n = n_photons * len(workers)
+                acc.add(eye, np.zeros((self.n_pixels, 3)), n, n, 0, False)
+            return
         pts, vol = eye.points, eye.volume
         vol_radius = vol.base_radius * scale ** (2.0 / 3.0) if vol is not None and vol.count else None
         target = DepositTarget(pts, pts.base_radius * scale, self.ctx.table, self.n_pixels,
                                self.ctx.has_shading_normals, volume=vol, volume_radius=vol_radius,
                                media=self.ctx.phase, limits=s.bounce_limits,
                                coverage=None if coverage is None else coverage.take(pts.pixel_ids))
-        for acc, workers in ((self.acc, self.workers), (self.hit_acc, self.pair)):
-            if workers:
-                out = _merge([w.run_pass(pass_index, target, n_photons, should_stop, uniform=True)
-                              for w in workers])
-                c = out["counters"]
-                acc.add(eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"],
-                        False)
+        for acc, workers in runs:
+            out = _merge([w.run_pass(pass_index, target, n_photons, should_stop, uniform=True)
+                          for w in workers])
+            c = out["counters"]
+            acc.add(eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"], False)
 
     def radiance(self):
         """(n_pixels, 3) float64 K so far."""

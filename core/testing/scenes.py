@@ -9,7 +9,8 @@ import dataclasses
 
 import numpy as np
 
-from ..scene import Camera, Lights, Materials, Scene, World
+from ..scene import (SHADOW_CATCHER, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, Camera, Lights,
+                     Materials, Scene, World)
 
 
 class MeshBuilder:
@@ -580,6 +581,30 @@ def with_light_groups(scene):
     return scene.replace(lights=lights, world=dataclasses.replace(scene.world, group=n + 1),
                          light_groups=tuple(f"light{i}" for i in range(n)) + ("meshes", "world"),
                          emitter_group=np.full(scene.triangle_count, n, np.int16))
+
+
+def with_shadow_catchers(scene, materials=None):
+    """``scene`` with the triangles of ``materials`` (material indices; default every other one, the
+    first included) shadow catchers (``SHADOW_CATCHER``), their ray visibility kept."""
+    chosen = np.arange(0, scene.materials.count, 2) if materials is None else np.asarray(materials)
+    vis = (np.full(scene.triangle_count, VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION, np.uint8)
+           if scene.triangle_visibility is None else scene.triangle_visibility.copy())
+    vis[np.isin(scene.material_ids, chosen)] |= SHADOW_CATCHER
+    return scene.replace(triangle_visibility=vis)
+
+
+def floor_catchers(scene):
+    """``scene`` with the triangles that face up at its lowest height shadow catchers (and their
+    count)."""
+    p = scene.vertices[scene.triangles].astype(np.float64)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    up = n[:, 2] > 0.9 * np.linalg.norm(n, axis=1)
+    z = p[:, :, 2].mean(axis=1)
+    floor = up & (z < z[up].min() + 1e-3 * max(np.ptp(p.reshape(-1, 3), axis=0).max(), 1e-9))
+    vis = (np.full(scene.triangle_count, VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION, np.uint8)
+           if scene.triangle_visibility is None else scene.triangle_visibility.copy())
+    vis[floor] |= SHADOW_CATCHER
+    return scene.replace(triangle_visibility=vis), int(floor.sum())
 
 
 def with_one_object(scene, texture_space=((0, 0, 0), (1, 1, 1))):

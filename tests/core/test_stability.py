@@ -6,13 +6,15 @@ and tiny coordinates, grazing views, degenerate emitters, extreme values and
 parameter edges.  Both methods and every low-dimension mutation mode run on each (the
 modes other than the default in the slow tier).
 """
+import dataclasses
+
 import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderSettings, bsdf, render
 from core.light_passes import LIGHT_PASSES, LIGHTGROUP_PREFIX
 from core.scene import HOLDOUT_OBJECT, VISIBLE_CAMERA, World
-from core.testing.scenes import MeshBuilder, with_light_groups, with_one_object
+from core.testing.scenes import MeshBuilder, with_light_groups, with_one_object, with_shadow_catchers
 
 RUN = dict(passes=2, photons_per_pass=6000, chains=512, workers=1, max_bounces=12)
 
@@ -419,3 +421,26 @@ def test_hard_case_light_passes_stay_finite_and_add_up(name):
 
     settings = RenderSettings(**RUN, method="amcmcppm", data_passes=LIGHT_PASSES + ("ao",) + groups)
     assert render(scene, settings, on_iteration=check).passes == RUN["passes"]
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_hard_case_shadow_catchers_stay_finite(name):
+    """The same hard cases by the chains with the objects of every other material shadow catchers
+    (``with_shadow_catchers``: mirrors, glass, emitters, volumes' boundaries and fog among them) and
+    the Shadow Catcher pass (every other case on a transparent film): after every pass the image
+    (the catchers' matte) and the pass are finite and not negative, the alpha within [0, 1] (the
+    catchers' second render and its pair in the main scene, ``CatcherRender``, under the same
+    extremes)."""
+    scene = with_shadow_catchers(SCENES[name]())
+    transparent = sorted(SCENES).index(name) % 2 == 1
+
+    def check(result):
+        image, shadow = result.image, result.data["shadow_catcher"]
+        assert np.isfinite(image).all() and (image >= 0).all(), result.passes
+        assert np.isfinite(shadow).all() and (shadow >= 0).all(), result.passes
+        assert (image[..., 3] <= 1.0).all(), result.passes
+
+    world = dataclasses.replace(scene.world, film_transparent=transparent)
+    settings = RenderSettings(**RUN, method="amcmcppm", data_passes=("shadow_catcher",))
+    assert render(scene.replace(world=world), settings, on_iteration=check).passes == RUN["passes"]
+

@@ -1,0 +1,81 @@
+"""Cost of shadow catchers (``SHADOW_CATCHER``, ``core/shadow_catcher.py``): the same scene with its
+floor a catcher against the floor as it is, with the Shadow Catcher pass asked for.
+
+A catcher costs the eye pass's marks and sums, a second eye pass (the catcher rays alone) and a
+photon pass in a scene of the catchers and emitters (``CatcherRender``), in the main process, as
+many photons as the main render's per worker, and with the Markov chains the same uniform photons
+once more in the main scene (the shadow's numerator).  The floor: the triangles facing up at the
+scene's lowest height (``core.testing.scenes.floor_catchers``).
+
+Per scene, whole renders in one process (``workers=1``) alternating without and with the catcher in
+every round, so each round's ratio shares the machine's load (median and range over rounds), for
+uniform photons and the Markov chains; then the peak of memory Python allocates (``tracemalloc``)
+in one render each way.
+
+    python benchmarks/shadow_catcher_cost.py [--scenes cornell_box glass_ceiling_room sky_over_floor]
+                                             [--resolution 320 240] [--rounds 3] [--passes 3]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+import tracemalloc
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+from core import render  # noqa: E402
+from core.settings import RenderSettings  # noqa: E402
+from core.testing.scenes import BUILTIN, floor_catchers, sky_over_floor  # noqa: E402
+
+SCENES = {**BUILTIN, "sky_over_floor": lambda resolution: sky_over_floor(resolution=resolution)}
+
+
+def timed(fn):
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+def peak_mib(fn):
+    tracemalloc.start()
+    fn()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak / 2 ** 20
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+",
+                        default=["cornell_box", "glass_ceiling_room", "sky_over_floor"])
+    parser.add_argument("--resolution", nargs=2, type=int, default=[320, 240])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--passes", type=int, default=3)
+    args = parser.parse_args()
+    size = f"{args.resolution[0]}x{args.resolution[1]}"
+    for name in args.scenes:
+        plain = SCENES[name](tuple(args.resolution))
+        caught, count = floor_catchers(plain)
+        for method in ("ppm", "amcmcppm"):
+            def run(scene, seed=0):
+                settings = RenderSettings(passes=args.passes, workers=1, seed=seed, method=method,
+                                          data_passes=("shadow_catcher",))
+                return lambda: render(scene, settings)
+            both = (plain, caught)
+            pairs = np.array([[timed(run(s, r)) for s in both] for r in range(args.rounds)])
+            ratio = pairs[:, 1] / pairs[:, 0]
+            memory = [peak_mib(run(s)) for s in both]
+            print(f"{name} {size} {method}, {args.passes} passes, floor of {count} triangles a catcher: "
+                  f"without "
+                  f"{np.median(pairs[:, 0]):.2f} s, with {np.median(pairs[:, 1]):.2f} s, ratio "
+                  f"{np.median(ratio):.3f} ({ratio.min():.3f}-{ratio.max():.3f}); peak traced memory "
+                  f"{memory[0]:.0f} -> {memory[1]:.0f} MiB ({memory[1] / memory[0]:.2f}x)", flush=True)
+
+
+if __name__ == "__main__":
+    main()
