@@ -266,6 +266,8 @@ class Accumulator:
                    if name in self.data_sums}
         own = self._own_corrections(is_chain)
         for name in self.light_passes:          # (one at a time: 13 of them at 1080p take 0.6 GB)
+            if name == CATCHER_HIT:             # (the shadow catchers', _with_catchers)
+                continue
             value = (colours[name] if name in colours
                      else self._light_mean(name, is_chain, own if name in self.group_passes else None))
             if colour_of(name):
@@ -472,7 +474,7 @@ class CatcherRender:
     def reset(self):
         """Start over (and after ``method="auto"``'s switch, with the main render's)."""
         self.acc = Accumulator(self.n_pixels, self.settings.normalisation)
-        self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation)
+        self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation) if self.pair else None
 
 
 def _pixel_coverage(target, n_pixels):
@@ -493,7 +495,6 @@ def _with_catchers(acc, image, data, is_chain, catcher, wanted, film_transparent
     h, w = image.shape[:2]
     n = h * w
     weight, background = (data.pop(name, None) for name in (CATCHER_WEIGHT, CATCHER_BACKGROUND))
-    data.pop(CATCHER_HIT, None)
     hit = catcher.hit() if is_chain else None
     image, shadow = compose(image.reshape(n, 4), acc._light_mean(CATCHER_HIT, is_chain),
                             acc.uncorrected(CATCHER_HIT, is_chain) if hit is None else hit,
@@ -685,6 +686,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 if budget <= 0 or (needed is not None and budget < MIN_CUT_PASS * needed):
                     break
             pool.submit(pass_index, target, photons, budget, uniform=not is_chain)
+            if catcher is not None and eye.catcher is not None:
+                # (before the next pass is prepared: the two passes' points are not held at once)
+                catcher.add_pass(pass_index, eye.catcher, scales[pass_index],
+                                 _pixel_coverage(target, n_pixels), photons, stop)
             # Prepare the next pass while the workers trace photons, unless it is the last, or
             # the time limit will cut this one, or this is the first pass (whose image is
             # shown as soon as it is done; the next pass is prepared after it).
@@ -697,9 +702,6 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 next_eye = eye_pass(pass_index + 1)
                 next_target = make_target(pass_index + 1, next_eye)
                 prep_s = time.perf_counter() - t_next
-            if catcher is not None and eye.catcher is not None:
-                catcher.add_pass(pass_index, eye.catcher, scales[pass_index],
-                                 _pixel_coverage(target, n_pixels), photons, stop)
             outputs = pool.collect(stop)
             if outputs is None:         # stopped before any worker returned photons
                 result.interrupted = True
