@@ -269,8 +269,10 @@ class RenderSettings:
     emitters in none add up to the image.  "shadow_catcher": Cycles' Shadow Catcher pass (H, W, 3)
     in scenes with shadow catchers (``SHADOW_CATCHER``, :mod:`core.shadow_catcher`): what the
     other objects do to the catchers' light, the light of the camera paths that met a catcher first
-    over the catchers' own (1 where they met none); asking for it also leaves the image the
-    catchers' matte with the shadow as its alpha on an opaque film too, as in Cycles."""
+    over the catchers' own (1 where they met none).  With catchers the image is Cycles' Combined of
+    them: the matte alone (its alpha without the shadow) when this pass is asked for, else Cycles'
+    approximate shadow catcher (the matte with the shadow as alpha, or over the world on an opaque
+    film)."""
 
     ao_distance: float = 10.0
     """How far the Ambient Occlusion pass's rays look for what occludes them (Blender's World >

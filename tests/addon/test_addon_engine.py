@@ -1220,8 +1220,9 @@ def test_shadow_catcher_matches_cycles(scene, tmp_path):
             lambda: catcher_scene((48, 36), transparent, shadow_pass, passes=8, photons_per_pass=40000),
             read, tmp_path, samples=128)
         a, b = blocks(combined), blocks(c_combined)
-        print(f"film transparent {transparent}: Combined blocks up to {np.abs(a - b).max(axis=(0, 1))} apart; "
-              f"alpha ours {combined[..., 3].mean():.4f} Cycles {c_combined[..., 3].mean():.4f}")
+        print(f"film transparent {transparent}, pass {shadow_pass}: Combined blocks up to "
+              f"{np.abs(a - b).max(axis=(0, 1))} apart; alpha ours {combined[..., 3].mean():.4f} "
+              f"Cycles {c_combined[..., 3].mean():.4f}")
         assert (np.abs(a - b)[..., :3] < 0.03).all() and (np.abs(a - b)[..., 3] < 0.06).all()
         assert abs(combined[..., 3].mean() - c_combined[..., 3].mean()) < 0.01
         if shadow_pass:
