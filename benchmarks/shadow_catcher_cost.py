@@ -20,8 +20,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
-import tracemalloc
 
 import numpy as np
 
@@ -31,22 +29,9 @@ sys.path.insert(0, ROOT)
 from core import render  # noqa: E402
 from core.settings import RenderSettings  # noqa: E402
 from core.testing.scenes import BUILTIN, floor_catchers, sky_over_floor  # noqa: E402
+from light_passes_cost import peak_mib, timed  # noqa: E402  (this folder is first on sys.path)
 
 SCENES = {**BUILTIN, "sky_over_floor": lambda resolution: sky_over_floor(resolution=resolution)}
-
-
-def timed(fn):
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
-
-
-def peak_mib(fn):
-    tracemalloc.start()
-    fn()
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    return peak / 2 ** 20
 
 
 def main():
