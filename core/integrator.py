@@ -86,13 +86,15 @@ class Accumulator:
         self.emission = np.zeros((n_pixels, 3))     # sum of eye-pass emission
         self.alpha = np.zeros(n_pixels)             # sum of coverage
         self.photons = np.zeros((n_pixels, 3))      # sum over passes of S_p
-        self.photons_scaled = np.zeros((n_pixels, 3))  # sum over passes of Vc_p S_p
+        self.photons_scaled = None                  # sum over passes of Vc_p S_p (the chains' per-pass
+        #                                             normalisation; made by their first pass)
         self.recorded = 0                           # sum over passes of N_p
         self.visible_weighted = 0.0                 # sum over passes of N_p Vc_p
         self.passes = 0
         self.n_uniform = 0                          # n_U, all passes
         self.n_visible = 0                          # n_UV, all passes
-        self.outside = np.zeros((n_pixels, 3))      # sum over passes of O_p (uniform samples outside V)
+        self.outside = None                         # sum over passes of O_p (uniform samples outside V;
+        #                                             made by the first; None: none yet)
         self.last_pass_mean = 0.0                   # image mean of the last pass's own estimate
         self.data_sums = {}                         # sums over passes of the data passes
         self.crypto = {}                            # Cryptomatte's CryptoSums per kind
@@ -190,12 +192,15 @@ class Accumulator:
         if outside_sum is not None and n_uniform:
             # Non-finite contributions are dropped before they reach the sums (and counted).
             dropped, (outside_sum, outside_inner) = _finite(outside_sum, outside_inner)
-            self.outside += outside_sum
+            if self.outside is None:
+                self.outside = np.array(outside_sum, np.float64)
+            else:
+                self.outside += outside_sum
             self.last_pass_mean += float(outside_sum.mean()) / n_uniform
         if self.bias_correction and is_chain and n_uniform:
             # (a pass whose uniform samples outside V deposited nothing adds a zero difference)
             if self.outside_diff is None:
-                self.outside_diff = _Spread(len(self.outside))
+                self.outside_diff = _Spread(len(self.alpha))
             self.outside_diff.add(None if outside_sum is None else outside_inner - outside_sum, n_uniform)
         if not recorded:
             return dropped
@@ -204,7 +209,12 @@ class Accumulator:
         self.recorded += recorded
         self.visible_weighted += recorded * vc_pass
         self.photons += pixel_sum
-        self.photons_scaled += vc_pass * pixel_sum
+        if is_chain and self.normalisation == "per_pass":
+            scaled = vc_pass * pixel_sum
+            if self.photons_scaled is None:
+                self.photons_scaled = scaled
+            else:
+                self.photons_scaled += scaled
         self.last_pass_mean += vc_pass * float(pixel_sum.mean()) / recorded
         if self.bias_correction:
             t = inner_sum - pixel_sum
@@ -230,7 +240,7 @@ class Accumulator:
                 scale = self.visible_weighted / self.recorded
                 photons = scale * photons if self.normalisation == "cumulative" else self.photons_scaled
             rgb = rgb + photons / self.recorded
-        if is_chain and self.n_uniform:
+        if is_chain and self.n_uniform and self.outside is not None:
             rgb = rgb + self.outside / self.n_uniform
         self.photon_factor = None
         if self.bias_correction:
@@ -489,8 +499,13 @@ def _pixel_coverage(target, n_pixels):
 def _with_catchers(acc, image, data, is_chain, catcher, wanted, film_transparent):
     """(image, data) with shadow catchers (``catcher`` a :class:`CatcherRender`, or None: as they
     are): Cycles' Combined and, if ``wanted``, its Shadow Catcher pass
-    (:func:`~core.shadow_catcher.compose`); the catchers' sums out of the data."""
-    if catcher is None or not acc.passes:
+    (:func:`~core.shadow_catcher.compose`); the catchers' sums out of the data.  Without catchers
+    the pass is 1 (as Cycles writes it then)."""
+    if not acc.passes:
+        return image, data
+    if catcher is None:
+        if wanted:
+            data[SHADOW_CATCHER_PASS] = np.ones(image.shape[:2] + (3,), np.float32)
         return image, data
     h, w = image.shape[:2]
     n = h * w

@@ -122,7 +122,8 @@ def test_a_black_card_casts_its_whole_shadow_on_the_catcher(method, workers):
 
 def test_a_catcher_no_camera_ray_meets_changes_nothing():
     """A catcher out of the camera's view: the catchers' second render runs, but the image is the
-    one without the catcher, bit for bit."""
+    one without the catcher, bit for bit, and the pass is 1 (also in a scene without catchers:
+    Cycles writes 1 there)."""
     scene = catcher_floor(card=True)
     m = MeshBuilder()
     m.add_quad((3.0, -0.5, 0.5), (3.5, -0.5, 0.5), (3.5, 0.5, 0.5), (3.0, 0.5, 0.5), 0)
@@ -138,6 +139,13 @@ def test_a_catcher_no_camera_ray_meets_changes_nothing():
     caught = render(both.replace(triangle_visibility=vis), settings)
     assert "shadow catcher" in caught.effects and "shadow catcher" not in plain.effects
     np.testing.assert_array_equal(caught.image, plain.image)
+    # The pass asked for: 1 everywhere, with the catcher out of view and without any (as Cycles').
+    with_pass = dataclasses.replace(settings, data_passes=("shadow_catcher",))
+    for scene in (both.replace(triangle_visibility=np.full(both.triangle_count, 7, np.uint8)),
+                  both.replace(triangle_visibility=vis)):
+        result = render(scene, with_pass)
+        np.testing.assert_array_equal(result.data["shadow_catcher"], 1.0)
+        np.testing.assert_array_equal(result.image, plain.image)
 
 
 def test_the_catchers_scene_keeps_every_triangle_field_in_step():
