@@ -29,7 +29,7 @@ import numpy as np
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
-from .eye_pass import centre_data, trace_eye_pass
+from .eye_pass import EyePassResult, MeasurementPoints, centre_data, trace_eye_pass
 from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
                            divide_even_color, light_groups, photon_groups)
 from .parallel import make_pool
@@ -443,33 +443,91 @@ class CatcherRender:
         self.pair = ([PhotonWorker(scene, self.settings, index=i, ctx=ctx) for i in range(workers)]
                      if pair else [])
         self.n_pixels = n_pixels
+        self._pending = None            # (a pass traced by add_pass, added by finish_pass)
         self.reset()
 
-    def add_pass(self, pass_index, rays, scale, coverage, n_photons, should_stop=None):
-        """Trace pass ``pass_index``: ``rays`` the main eye pass's
-        :class:`~core.shadow_catcher.CatcherRays`, ``scale`` its radii's shrink s_i, ``coverage``
-        (n_pixels,) its points' edge coverage per pixel or None."""
+    def add_pass(self, pass_index, eye, target, scale, n_photons, should_stop=None):
+        """Trace pass ``pass_index`` of the main render's eye pass ``eye`` and target ``target`` (its
+        radii's shrink ``scale``).  Its points on a catcher met first, with no mirror or glass
+        before them, are K's as they are (the same positions and radii: where nothing came between,
+        both renders gather the very same photons; a point traced again from just before the
+        catcher lay a rounding apart, and a photon at the edge of its disc made a pixel of a floor
+        with nothing on it 2.35 instead of 1), with the light their paths saw there; the other camera
+        rays that met a catcher first (:class:`~core.shadow_catcher.CatcherRays`: paths that went
+        on through a mirror or glass catcher) are traced in the catchers' scene from just before
+        it.  The pass is added by :meth:`finish_pass`."""
         s = self.settings
-        rng = np.random.default_rng([s.seed, STREAM_CATCHER, pass_index])
-        eye = trace_eye_pass(self.ctx, rng, s.initial_radius_px, s.max_bounces, (), s.bounce_limits,
-                             s.pass_alpha_threshold, rays=rays)
+        rays, main = eye.catcher, target.points
+        direct = main.caught if main.bounces is None else main.caught & (main.bounces[:, 0] == 0)
+        rows = np.flatnonzero(direct)
+        points = dataclasses.replace(main.take(rows), caught=None, via=None)
+        coverage = None if target.coverage is None else target.coverage.take(rows)
+        emission = np.zeros((self.n_pixels, 3))
+        emission[points.pixel_ids] = eye.data[CATCHER_HIT][points.pixel_ids]
+        vol = None
+        rest = rays.take(np.flatnonzero(~np.isin(rays.pixel_ids, points.pixel_ids)))
+        if rest.count:
+            rng = np.random.default_rng([s.seed, STREAM_CATCHER, pass_index])
+
+            def trace(some):
+                return trace_eye_pass(self.ctx, rng, s.initial_radius_px, s.max_bounces, (), s.bounce_limits,
+                                      s.pass_alpha_threshold, rays=some)
+            traced = trace(rest)
+            if not _aligned(points, traced.points):
+                # (a field of the main points the catchers' scene's lack, or the reverse: all traced)
+                traced = trace(rays)
+                points, coverage = traced.points.take(np.zeros(0, np.int64)), None
+                emission = np.zeros((self.n_pixels, 3))
+            cover = _pixel_coverage(target, self.n_pixels)
+            if traced.points.count:
+                more = traced.points
+                if points.count:
+                    coverage = (None if coverage is None and cover is None else np.concatenate(
+                        [np.ones(points.count) if coverage is None else coverage,
+                         np.ones(more.count) if cover is None else cover.take(more.pixel_ids)]))
+                    points = MeasurementPoints.concatenate([points, more])
+                else:
+                    points = traced.points
+                    coverage = None if cover is None else cover.take(points.pixel_ids)
+            emission += traced.emission
+            vol = traced.volume
+        k_eye = EyePassResult(points, emission, np.ones(self.n_pixels), 0, vol)
         runs = [(acc, w) for acc, w in ((self.acc, self.workers), (self.hit_acc, self.pair)) if w]
-        if not rays.count:              # (no camera ray met a catcher: a pass whose photons found nothing)
-            for acc, workers in runs:
-                n = n_photons * len(workers)
-                acc.add(eye, np.zeros((self.n_pixels, 3)), n, n, 0, False)
+        if not points.count and (vol is None or not vol.count):
+            # (no camera ray met a catcher: a pass whose photons found nothing)
+            self._pending = (pass_index, k_eye, None, [(acc, w, None) for acc, w in runs], n_photons)
             return
-        pts, vol = eye.points, eye.volume
         vol_radius = vol.base_radius * scale ** (2.0 / 3.0) if vol is not None and vol.count else None
-        target = DepositTarget(pts, pts.base_radius * scale, self.ctx.table, self.n_pixels,
+        target = DepositTarget(points, points.base_radius * scale, self.ctx.table, self.n_pixels,
                                self.ctx.has_shading_normals, volume=vol, volume_radius=vol_radius,
-                               media=self.ctx.phase, limits=s.bounce_limits,
-                               coverage=None if coverage is None else coverage.take(pts.pixel_ids))
-        for acc, workers in runs:
-            out = _merge([w.run_pass(pass_index, target, n_photons, should_stop, uniform=True)
-                          for w in workers])
+                               media=self.ctx.phase, limits=s.bounce_limits, coverage=coverage)
+        self._pending = (pass_index, k_eye, target,
+                         [(acc, w, [x.run_pass(pass_index, target, n_photons, should_stop, uniform=True)
+                                    for x in w]) for acc, w in runs], n_photons)
+
+    def finish_pass(self, outputs=None):
+        """Add the pass :meth:`add_pass` traced.  ``outputs``: the main render's workers' results of
+        that pass when its photons were uniform (PPM): where a worker traced fewer than the pass's
+        (cut by the time limit), K is traced again with as many, the same ones (else, at a pixel
+        whose camera rays met a catcher only in that pass, the two sums of a sample in common
+        would differ by the rest: a shadow of 0 where nothing shadowed)."""
+        if self._pending is None:
+            return
+        pass_index, k_eye, target, runs, n_photons = self._pending
+        self._pending = None
+        counts = None
+        if outputs is not None and not self.pair and len(outputs) == len(self.workers):
+            counts = [int(o["counters"]["recorded"]) for o in outputs]
+        for acc, workers, outs in runs:
+            if counts is not None and target is not None and any(c != n_photons for c in counts):
+                outs = [w.run_pass(pass_index, target, c, uniform=True) for w, c in zip(workers, counts)]
+            if outs is None:
+                n = n_photons * len(workers) if counts is None else sum(counts)
+                acc.add(k_eye, np.zeros((self.n_pixels, 3)), n, n, 0, False)
+                continue
+            out = _merge(outs)
             c = out["counters"]
-            acc.add(eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"], False)
+            acc.add(k_eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"], False)
 
     def radiance(self):
         """(n_pixels, 3) float64 K so far."""
@@ -485,6 +543,15 @@ class CatcherRender:
         """Start over (and after ``method="auto"``'s switch, with the main render's)."""
         self.acc = Accumulator(self.n_pixels, self.settings.normalisation)
         self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation) if self.pair else None
+
+
+def _aligned(a, b):
+    """Whether measurement points ``a`` and ``b`` can be concatenated (each optional field None in
+    both or in neither; ``caught`` and ``via`` aside), or one of them is empty."""
+    if not a.count or not b.count:
+        return True
+    return all((getattr(a, f) is None) == (getattr(b, f) is None)
+               for f in MeasurementPoints.__dataclass_fields__ if f not in ("caught", "via"))
 
 
 def _pixel_coverage(target, n_pixels):
@@ -703,8 +770,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             pool.submit(pass_index, target, photons, budget, uniform=not is_chain)
             if catcher is not None and eye.catcher is not None:
                 # (before the next pass is prepared: the two passes' points are not held at once)
-                catcher.add_pass(pass_index, eye.catcher, scales[pass_index],
-                                 _pixel_coverage(target, n_pixels), photons, stop)
+                catcher.add_pass(pass_index, eye, target, scales[pass_index], photons, stop)
             # Prepare the next pass while the workers trace photons, unless it is the last, or
             # the time limit will cut this one, or this is the first pass (whose image is
             # shown as soon as it is done; the next pass is prepared after it).
@@ -722,6 +788,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 result.interrupted = True
                 break
             merged = _merge(outputs, halves=is_chain and settings.bias_correction)
+            if catcher is not None:
+                catcher.finish_pass(None if is_chain or stop() else outputs)
             c = merged["counters"]
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)

@@ -91,6 +91,19 @@ def test_the_catchers_render_gathers_the_main_renders_photons(method, workers):
     np.testing.assert_array_equal(result.data["shadow_catcher"], 1.0)
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_pass_cut_by_the_time_limit_keeps_the_photons_in_common(workers):
+    """Uniform photons under a time limit that cuts the last pass: the catchers' render traces that
+    pass again with as many photons as each worker traced (``CatcherRender.finish_pass``), so the
+    shadow of the floor with nothing on it stays exactly 1 (before, 0 at pixels of the horizon of a
+    floor under a sky whose camera rays met the floor only in the cut pass, 3 % off elsewhere)."""
+    scene = catcher_floor(aside=True, sky=np.zeros(3, np.float32), resolution=(64, 64))
+    result = render(scene, RenderSettings(time_limit=1.5, photons_per_pass=40000, workers=workers,
+                                          method="ppm", data_passes=("shadow_catcher",)))
+    print("passes", result.passes, "cut", [s["cut_at_time_limit"] for s in result.stats])
+    np.testing.assert_array_equal(result.data["shadow_catcher"], 1.0)
+
+
 @pytest.mark.parametrize("method, workers", [("ppm", 1), ("amcmcppm", 2)])
 def test_a_black_card_casts_its_whole_shadow_on_the_catcher(method, workers):
     """Black card over the catcher floor, transparent film: in the umbra the pass is 0 and, without
