@@ -501,9 +501,10 @@ class CatcherRender:
         target = DepositTarget(points, points.base_radius * scale, self.ctx.table, self.n_pixels,
                                self.ctx.has_shading_normals, volume=vol, volume_radius=vol_radius,
                                media=self.ctx.phase, limits=s.bounce_limits, coverage=coverage)
-        self._pending = (pass_index, k_eye, target,
-                         [(acc, w, [x.run_pass(pass_index, target, n_photons, should_stop, uniform=True)
-                                    for x in w]) for acc, w in runs], n_photons)
+        traced = [(acc, w, [x.run_pass(pass_index, target, n_photons, should_stop, uniform=True) for x in w])
+                  for acc, w in runs]
+        # (the target kept only where finish_pass may trace the pass again: not with the pair)
+        self._pending = (pass_index, k_eye, None if self.pair else target, traced, n_photons)
 
     def finish_pass(self, outputs=None):
         """Add the pass :meth:`add_pass` traced.  ``outputs``: the main render's workers' results of
