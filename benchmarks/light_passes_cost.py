@@ -47,6 +47,18 @@ def peak_mib(fn):
     return peak / 2 ** 20
 
 
+def compare(label, run, both, rounds):
+    """Print ``label`` and the cost of ``both[1]`` against ``both[0]``: ``run(x, seed)`` makes a render
+    of each (the two alternate within every round): the medians of their times, the median and
+    range of the ratio over the rounds, and the peak traced memory of one render each way."""
+    pairs = np.array([[timed(run(x, r)) for x in both] for r in range(rounds)])
+    ratio = pairs[:, 1] / pairs[:, 0]
+    memory = [peak_mib(run(x, 0)) for x in both]
+    print(f"{label}: without {np.median(pairs[:, 0]):.2f} s, with {np.median(pairs[:, 1]):.2f} s, ratio "
+          f"{np.median(ratio):.3f} ({ratio.min():.3f}-{ratio.max():.3f}); peak traced memory "
+          f"{memory[0]:.0f} -> {memory[1]:.0f} MiB ({memory[1] / memory[0]:.2f}x)", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["cornell_box", "glass_ceiling_room", "hole_mirror_glass"])
@@ -68,14 +80,8 @@ def main():
                                           data_passes=passes)
                 return lambda: render(scene, settings)
             for variant in args.variants:
-                both = ((), variants[variant])
-                pairs = np.array([[timed(run(passes, r)) for passes in both] for r in range(args.rounds)])
-                ratio = pairs[:, 1] / pairs[:, 0]
-                memory = [peak_mib(run(passes)) for passes in both]
-                print(f"{name} {size} {method}, {args.passes} passes, {variant} ({len(both[1])}): without "
-                      f"{np.median(pairs[:, 0]):.2f} s, with {np.median(pairs[:, 1]):.2f} s, ratio "
-                      f"{np.median(ratio):.3f} ({ratio.min():.3f}-{ratio.max():.3f}); peak traced memory "
-                      f"{memory[0]:.0f} -> {memory[1]:.0f} MiB ({memory[1] / memory[0]:.2f}x)", flush=True)
+                compare(f"{name} {size} {method}, {args.passes} passes, {variant} ({len(variants[variant])})",
+                        run, ((), variants[variant]), args.rounds)
 
 
 if __name__ == "__main__":

@@ -1,16 +1,13 @@
 """Cost of shadow catchers (``SHADOW_CATCHER``, ``core/shadow_catcher.py``): the same scene with its
 floor a catcher against the floor as it is, with the Shadow Catcher pass asked for.
 
-A catcher costs the eye pass's marks and sums, a second eye pass (the catcher rays alone) and a
-photon pass in a scene of the catchers and emitters (``CatcherRender``), in the main process, as
-many photons as the main render's per worker, and with the Markov chains the same uniform photons
-once more in the main scene (the shadow's numerator).  The floor: the triangles facing up at the
-scene's lowest height (``core.testing.scenes.floor_catchers``).
-
-Per scene, whole renders in one process (``workers=1``) alternating without and with the catcher in
-every round, so each round's ratio shares the machine's load (median and range over rounds), for
-uniform photons and the Markov chains; then the peak of memory Python allocates (``tracemalloc``)
-in one render each way.
+A catcher costs the eye pass's marks and sums and a photon pass at the main render's points on
+the catchers in a scene of the catchers and emitters (``CatcherRender``), in the main process, as
+many photons as the main render's per worker (and an eye pass for paths through a mirror or glass
+catcher), and with the Markov chains the same uniform photons once more in the main scene (the
+shadow's numerator).  The floor: the triangles facing up at the scene's lowest height
+(``core.testing.scenes.floor_catchers``).  Measured as ``light_passes_cost.py`` measures, without
+the catcher and with it alternating in every round.
 
     python benchmarks/shadow_catcher_cost.py [--scenes cornell_box glass_ceiling_room sky_over_floor]
                                              [--resolution 320 240] [--rounds 3] [--passes 3]
@@ -21,15 +18,13 @@ import argparse
 import os
 import sys
 
-import numpy as np
-
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from core import render  # noqa: E402
 from core.settings import RenderSettings  # noqa: E402
 from core.testing.scenes import BUILTIN, floor_catchers, sky_over_floor  # noqa: E402
-from light_passes_cost import peak_mib, timed  # noqa: E402  (this folder is first on sys.path)
+from light_passes_cost import compare  # noqa: E402  (this folder is first on sys.path)
 
 SCENES = {**BUILTIN, "sky_over_floor": lambda resolution: sky_over_floor(resolution=resolution)}
 
@@ -51,16 +46,8 @@ def main():
                 settings = RenderSettings(passes=args.passes, workers=1, seed=seed, method=method,
                                           data_passes=("shadow_catcher",))
                 return lambda: render(scene, settings)
-            both = (plain, caught)
-            pairs = np.array([[timed(run(s, r)) for s in both] for r in range(args.rounds)])
-            ratio = pairs[:, 1] / pairs[:, 0]
-            memory = [peak_mib(run(s)) for s in both]
-            print(f"{name} {size} {method}, {args.passes} passes, floor of {count} triangles a catcher: "
-                  f"without "
-                  f"{np.median(pairs[:, 0]):.2f} s, with {np.median(pairs[:, 1]):.2f} s, ratio "
-                  f"{np.median(ratio):.3f} ({ratio.min():.3f}-{ratio.max():.3f}); peak traced memory "
-                  f"{memory[0]:.0f} -> {memory[1]:.0f} MiB ({memory[1] / memory[0]:.2f}x)", flush=True)
-
+            compare(f"{name} {size} {method}, {args.passes} passes, floor of {count} triangles a catcher",
+                    run, (plain, caught), args.rounds)
 
 if __name__ == "__main__":
     main()

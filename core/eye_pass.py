@@ -123,8 +123,9 @@ class EyePassResult:
     volume: VolumePoints = None  # the camera paths' points in scattering volumes
     data: dict = None        # RenderSettings.data_passes: "depth", "denoising_depth" (n_pixels,), "normal",
     #                          "albedo", "denoising_normal" (n_pixels, 3); with shadow catchers also
-    #                          shadow_catcher.INTERNAL's sums
-    catcher: CatcherRays = None  # the camera rays whose first hit was a shadow catcher, or None
+    #                          shadow_catcher.CATCHER_HIT, CATCHER_WEIGHT and CATCHER_BACKGROUND
+    catcher: CatcherRays = None  # the camera rays whose first hit was a shadow catcher and whose paths
+    #                              went on through its mirror or glass lobes, or None without catchers
 
 
 # Camera paths traced at once (bounds the memory of big images).
@@ -222,15 +223,12 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
                          None if caught is None else CatcherRays.concatenate(caught))
 
 
-def _catch(data, catcher_rays, rows, pix, origins, dirs, t, footprint, beta, world_along):
-    """Record the camera rays ``rows`` whose first hit is a shadow catcher (their
-    :class:`~core.shadow_catcher.CatcherRays` to ``catcher_rays``, their throughput's mean there to
-    ``data``'s CATCHER_WEIGHT and the world along them to its CATCHER_BACKGROUND)."""
+def _catch(data, rows, pix, beta, world_along):
+    """Record the camera rays ``rows`` whose first hit is a shadow catcher: their throughput's mean
+    there to ``data``'s CATCHER_WEIGHT and the world along them to its CATCHER_BACKGROUND."""
     if len(rows) == 0:
         return
     p = pix.take(rows)
-    catcher_rays.append(CatcherRays(p, origins.take(rows, axis=0), dirs.take(rows, axis=0),
-                                    t.take(rows).astype(np.float64), footprint.take(rows)))
     b = beta.take(rows, axis=0)
     data[CATCHER_WEIGHT][p] += b.mean(axis=1)
     sky = world_along(rows)
@@ -720,7 +718,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     (``data["ao"]``, :func:`ambient_occlusion`).  ``start``: None, or the rays to trace instead of
     the camera's (:func:`_catcher_starts`); ``catcher_rays``: None, or (in scenes with shadow
     catchers) the list that takes the :class:`~core.shadow_catcher.CatcherRays` of the paths
-    whose first hit is a catcher, whose sums go to ``data``'s ``shadow_catcher.INTERNAL``."""
+    whose first hit is a catcher and that go on through its mirror or glass lobes; the sums of the
+    paths whose first hit is a catcher go to ``data``'s ``shadow_catcher.CATCHER_*``."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     if start is None:
@@ -920,8 +919,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
         if caught is not None:
             if depth == 0:
                 caught = ctx.catcher.take(hits.prim_ids.take(h))
-                _catch(data, catcher_rays, h.take(np.flatnonzero(caught)), pix, origins, dirs, hits.t,
-                       footprint, beta, world_along)
+                _catch(data, h.take(np.flatnonzero(caught)), pix, beta, world_along)
             else:
                 caught = caught.take(h)
         pix, beta, dirs = pix.take(h), beta.take(h, axis=0), dirs.take(h, axis=0)
@@ -1001,6 +999,11 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             through = table.glossy_through.take(surf.mat_ids)
             non_delta = np.where(through, 0.0, non_delta)
         p_nd = np.where(total > 0, non_delta / np.where(total > 0, total, 1), 0)
+        if depth == 0 and start is not None:
+            # Rays traced again for the catchers' render went on through the catcher's mirror or
+            # glass lobes in the main render: so do they here, with the same weight (a lobe chosen
+            # afresh would add the catcher's non-delta part to K once more).
+            u[:, 0] = np.where(p_nd < 1.0, p_nd + u[:, 0] * (1.0 - p_nd), u[:, 0])
         stop = (u[:, 0] < p_nd) & ~last
         if stop.any():
             s = np.flatnonzero(stop)
@@ -1037,6 +1040,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                     parts.append(exits)
             parts.append(points)
         go = np.flatnonzero(~stop & (total > 0) & ~last)
+        if depth == 0 and caught is not None:
+            # The camera rays of the paths that go on through a catcher's mirror or glass lobe: the
+            # catchers' render traces them again (those that stopped there give it their points).
+            g = go.take(np.flatnonzero(caught.take(go)))
+            if len(g):
+                first = h.take(g)
+                catcher_rays.append(CatcherRays(pix.take(g), origins.take(first, axis=0),
+                                                dirs.take(g, axis=0), hits.t.take(first).astype(np.float64),
+                                                footprint.take(g)))
         if len(go) == 0:
             if feature is not None:
                 feature.settle(pix, go)

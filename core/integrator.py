@@ -315,29 +315,23 @@ class Accumulator:
             d = d + t_outside / self.n_uniform
         return d
 
-    def _light_mean(self, name, is_chain, own=None):
+    def _light_mean(self, name, is_chain, own=None, corrected=True):
         """(n, 3) float64 light pass ``name`` before any division by a colour: the eye passes' mean
         plus the photons' estimate as in :meth:`image`, times ``photon_factor``, or, where ``own``
-        ((n, 3) bool, :meth:`_own_corrections`), plus the image's weight times its own D."""
+        ((n, 3) bool, :meth:`_own_corrections`), plus the image's weight times its own D (neither
+        without ``corrected``)."""
         value = (self.data_sums[name] / self.passes if name in self.data_sums
                  else np.zeros((len(self.alpha), 3)))
         if name not in self.light:
             return value
         photon_part = self._photon_part(name, is_chain)
-        if self.photon_factor is not None:
+        if self.photon_factor is not None and corrected:
             shared = photon_part * self.photon_factor
             if own is not None:
-                corrected = photon_part + self.bias_weight * self._group_difference(name, is_chain)
-                shared = np.where(own, corrected, shared)
+                own_part = photon_part + self.bias_weight * self._group_difference(name, is_chain)
+                shared = np.where(own, own_part, shared)
             photon_part = shared
         return value + photon_part
-
-    def uncorrected(self, name, is_chain):
-        """(n, 3) light pass ``name``'s eye passes' mean plus its photons' estimate, without the bias
-        correction."""
-        value = (self.data_sums[name] / self.passes if name in self.data_sums
-                 else np.zeros((len(self.alpha), 3)))
-        return value + self._photon_part(name, is_chain)
 
     def _photon_part(self, name, is_chain):
         """(n, 3) the photons' estimate of light pass ``name`` as in :meth:`image`, uncorrected."""
@@ -424,14 +418,14 @@ class Accumulator:
 
 class CatcherRender:
     """K of Cycles' shadow catcher (``core/shadow_catcher.py``): the catcher objects' own light,
-    rendered in a scene of them and the emitters alone, at the camera rays of each pass that met a
-    catcher first (from just before it, with the main render's radii and edge coverage), by uniform
-    photons in this process.  Its photons are the main render's uniform ones, each worker's
-    numbers (``workers`` of them) and count: the same emitters in the same box (the main scene's,
-    where the sun's and the world's photons start) send them the same way, so that where nothing
-    came between, both renders gather the same photons and their ratio is 1 without noise.  The
-    Markov chains' photons are another sample: with them (``pair``) the same uniform photons are
-    traced in the main scene too, to the same points, for the shadow's numerator (:meth:`hit`)."""
+    rendered in a scene of them and the emitters alone, at the main render's points on catchers
+    met first (with its radii and edge coverage), by uniform photons in this process.  Its photons
+    are the main render's uniform ones, each worker's numbers (``workers`` of them) and count: the
+    same emitters in the same box (the main scene's, where the sun's and the world's photons start)
+    send them the same way, so that where nothing came between, both renders gather the same
+    photons and their ratio is 1 without noise.  The Markov chains' photons are another sample:
+    with them (``pair``) the same uniform photons are traced in the main scene too, to the same
+    points, for the shadow's numerator (:meth:`hit`)."""
 
     def __init__(self, scene, ctx, settings, n_pixels, workers, pair=False):
         keep = ctx.catcher | ctx.table.is_emissive.take(scene.material_ids)
@@ -455,9 +449,10 @@ class CatcherRender:
         with nothing on it 2.35 instead of 1), with the light their paths saw there; the other camera
         rays that met a catcher first (:class:`~core.shadow_catcher.CatcherRays`: paths that went
         on through a mirror or glass catcher) are traced in the catchers' scene from just before
-        it.  The pass is added by :meth:`finish_pass`."""
+        it, their points without edge coverage.  (Both scenes have the same materials, so their
+        points have the same optional fields.)  The pass is added by :meth:`finish_pass`."""
         s = self.settings
-        rays, main = eye.catcher, target.points
+        main = target.points
         direct = main.caught if main.bounces is None else main.caught & (main.bounces[:, 0] == 0)
         rows = np.flatnonzero(direct)
         points = dataclasses.replace(main.take(rows), caught=None, via=None)
@@ -465,30 +460,15 @@ class CatcherRender:
         emission = np.zeros((self.n_pixels, 3))
         emission[points.pixel_ids] = eye.data[CATCHER_HIT][points.pixel_ids]
         vol = None
-        rest = rays.take(np.flatnonzero(~np.isin(rays.pixel_ids, points.pixel_ids)))
+        rest = eye.catcher
         if rest.count:
             rng = np.random.default_rng([s.seed, STREAM_CATCHER, pass_index])
-
-            def trace(some):
-                return trace_eye_pass(self.ctx, rng, s.initial_radius_px, s.max_bounces, (), s.bounce_limits,
-                                      s.pass_alpha_threshold, rays=some)
-            traced = trace(rest)
-            if not _aligned(points, traced.points):
-                # (a field of the main points the catchers' scene's lack, or the reverse: all traced)
-                traced = trace(rays)
-                points, coverage = traced.points.take(np.zeros(0, np.int64)), None
-                emission = np.zeros((self.n_pixels, 3))
-            cover = _pixel_coverage(target, self.n_pixels)
+            traced = trace_eye_pass(self.ctx, rng, s.initial_radius_px, s.max_bounces, (), s.bounce_limits,
+                                    s.pass_alpha_threshold, rays=rest)
             if traced.points.count:
-                more = traced.points
-                if points.count:
-                    coverage = (None if coverage is None and cover is None else np.concatenate(
-                        [np.ones(points.count) if coverage is None else coverage,
-                         np.ones(more.count) if cover is None else cover.take(more.pixel_ids)]))
-                    points = MeasurementPoints.concatenate([points, more])
-                else:
-                    points = traced.points
-                    coverage = None if cover is None else cover.take(points.pixel_ids)
+                if coverage is not None:
+                    coverage = np.concatenate([coverage, np.ones(traced.points.count)])
+                points = MeasurementPoints.concatenate([points, traced.points])
             emission += traced.emission
             vol = traced.volume
         k_eye = EyePassResult(points, emission, np.ones(self.n_pixels), 0, vol)
@@ -531,37 +511,22 @@ class CatcherRender:
             acc.add(k_eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"], False)
 
     def radiance(self):
-        """(n_pixels, 3) float64 K so far."""
-        return self.acc.image(False)[:, :3].astype(np.float64)
+        """(n_pixels, 3) float32 K so far."""
+        return self.acc.image(False)[:, :3]
 
     def hit(self):
-        """(n_pixels, 3) float64 C - M of the ``pair``'s photons so far, or None without them (the
+        """(n_pixels, 3) float32 C - M of the ``pair``'s photons so far, or None without them (the
         eye passes' emission is the catchers' scene's: what the main scene shows in a catcher that
         is a mirror is left out)."""
-        return self.hit_acc.image(False)[:, :3].astype(np.float64) if self.pair else None
+        return self.hit_acc.image(False)[:, :3] if self.pair else None
 
-    def reset(self):
-        """Start over (and after ``method="auto"``'s switch, with the main render's)."""
+    def reset(self, pair=True):
+        """Start over (after ``method="auto"``'s switch, with the main render's, without the pair:
+        ``pair`` False)."""
+        if not pair:
+            self.pair = []
         self.acc = Accumulator(self.n_pixels, self.settings.normalisation)
         self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation) if self.pair else None
-
-
-def _aligned(a, b):
-    """Whether measurement points ``a`` and ``b`` can be concatenated (each optional field None in
-    both or in neither; ``caught`` and ``via`` aside), or one of them is empty."""
-    if not a.count or not b.count:
-        return True
-    return all((getattr(a, f) is None) == (getattr(b, f) is None)
-               for f in MeasurementPoints.__dataclass_fields__ if f not in ("caught", "via"))
-
-
-def _pixel_coverage(target, n_pixels):
-    """(n_pixels,) the edge coverage of each pixel's surface point in ``target``, or None."""
-    if target.coverage is None:
-        return None
-    out = np.ones(n_pixels)
-    out[target.pixel_ids] = target.coverage
-    return out
 
 
 def _with_catchers(acc, image, data, is_chain, catcher, wanted, film_transparent):
@@ -580,9 +545,9 @@ def _with_catchers(acc, image, data, is_chain, catcher, wanted, film_transparent
     weight, background = (data.pop(name, None) for name in (CATCHER_WEIGHT, CATCHER_BACKGROUND))
     hit = catcher.hit() if is_chain else None
     image, shadow = compose(image.reshape(n, 4), acc._light_mean(CATCHER_HIT, is_chain),
-                            acc.uncorrected(CATCHER_HIT, is_chain) if hit is None else hit,
+                            acc._light_mean(CATCHER_HIT, is_chain, corrected=False) if hit is None else hit,
                             catcher.radiance(),
-                            np.zeros(n) if weight is None else weight.reshape(n).astype(np.float64),
+                            np.zeros(n) if weight is None else weight.reshape(n),
                             np.zeros((n, 3)) if background is None else background.reshape(n, 3),
                             wanted, film_transparent)
     if wanted:
@@ -838,8 +803,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 acc = Accumulator(n_pixels, settings.normalisation, settings.bias_correction,
                                   settings.cryptomatte_levels, light_passes)
                 if catcher is not None:
-                    catcher.pair = []
-                    catcher.reset()
+                    catcher.reset(pair=False)
             if next_target is None:
                 next_eye = eye_pass(pass_index)
                 next_target = make_target(pass_index, next_eye)

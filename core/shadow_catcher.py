@@ -19,12 +19,12 @@ their points' photons and the emission they see after the split make the light p
 ``CATCHER_HIT`` (C - M, taken by the Accumulator as Cycles' light passes are), their throughput at
 the catcher ``CATCHER_WEIGHT`` and the world along their rays ``CATCHER_BACKGROUND``.  K comes
 from a second render (``integrator.CatcherRender``) of a scene of the catcher triangles and the
-emissive ones alone, lit by the same lights and world, seen by the same camera rays from just
-before their catcher hits, with the same radii and edge coverage: the kernels' bias of the two
-largely cancels in the ratio.  Its photons are the main render's uniform ones (the same numbers,
-sent from the main scene's box), so that where nothing came between the two gather the same
-photons; with the Markov chains the numerator of the ratio is those uniform photons traced in the
-main scene.
+emissive ones alone, lit by the same lights and world, at the main render's points on the catchers
+(their rays traced again, from just before the catcher, where the paths went on through a mirror
+or glass catcher), with the same radii and edge coverage: the kernels' bias of the two largely
+cancels in the ratio.  Its photons are the main render's uniform ones (the same numbers, sent from
+the main scene's box), so that where nothing came between the two gather the same photons; with
+the Markov chains the numerator of the ratio is those uniform photons traced in the main scene.
 """
 from __future__ import annotations
 
@@ -40,7 +40,6 @@ from .scene import SHADOW_CATCHER
 CATCHER_HIT = "catcher:hit"
 CATCHER_WEIGHT = "catcher:weight"
 CATCHER_BACKGROUND = "catcher:background"
-INTERNAL = (CATCHER_HIT, CATCHER_WEIGHT, CATCHER_BACKGROUND)
 SHADOW_CATCHER_PASS = "shadow_catcher"
 # K's camera rays start this share of their distance to the catcher before it (at least
 # START_MIN of the scene's extent).
@@ -49,7 +48,8 @@ START_BACK, START_MIN = 1e-4, 1e-6
 
 @dataclass
 class CatcherRays:
-    """The camera rays of one eye pass whose first hit was a catcher (for ``integrator.CatcherRender``)."""
+    """The camera rays of one eye pass whose first hit was a catcher and whose paths went on through
+    its mirror or glass lobes (``integrator.CatcherRender`` traces them again)."""
 
     pixel_ids: np.ndarray   # (c,) int64
     origins: np.ndarray     # (c, 3) float64 where the ray started

@@ -91,6 +91,19 @@ def test_the_catchers_render_gathers_the_main_renders_photons(method, workers):
     np.testing.assert_array_equal(result.data["shadow_catcher"], 1.0)
 
 
+def test_a_catcher_that_is_partly_a_mirror_catches_nothing_from_the_sky():
+    """A catcher floor that is a quarter diffuse and half a mirror, with nothing on it, under the
+    sun and the sky: the paths that went on through its mirror are traced again in the catchers'
+    scene through the mirror too, with the same weight, and the shadow is 1 (within rounding).
+    (When the catchers' render chose the lobe afresh, its diffuse part counted once more: 0.76.)"""
+    scene = catcher_floor()
+    scene = scene.replace(materials=Materials.build([{"name": "floor", "diffuse": 0.25, "mirror": 0.5},
+                                                     {"name": "card", "diffuse": 0.0}]))
+    result = render(scene, RenderSettings(passes=4, photons_per_pass=20000, workers=1, method="ppm",
+                                          data_passes=("shadow_catcher",)))
+    np.testing.assert_allclose(result.data["shadow_catcher"], 1.0, atol=1e-6)
+
+
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_pass_cut_by_the_time_limit_keeps_the_photons_in_common(workers):
     """Uniform photons under a time limit that cuts the last pass: the catchers' render traces that
