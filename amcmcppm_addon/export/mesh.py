@@ -33,15 +33,21 @@ from .lights import instance_group, light_exclude, ray_visibility
 # Object types read as geometry.  Curve and text objects are not: the depsgraph presents their
 # evaluated mesh as a separate MESH instance (as Cycles' ``object_is_geometry`` notes), so reading
 # them too would count their triangles twice.  Surfaces and metaballs are converted with to_mesh;
-# a point cloud's points become spheres of triangles (:func:`read_point_cloud`).
-GEOMETRY_TYPES = {"MESH", "SURFACE", "META", "POINTCLOUD"}
+# a point cloud's points become spheres of triangles (:func:`read_point_cloud`), hair curves tubes
+# (:func:`read_curves`).
+GEOMETRY_TYPES = {"MESH", "SURFACE", "META", "POINTCLOUD", "CURVES"}
 # Object types Cycles renders that the core has no primitive for (named in a warning).
-UNSUPPORTED_TYPES = {"CURVES": "hair curves", "VOLUME": "a volume object (OpenVDB grids)"}
+UNSUPPORTED_TYPES = {"VOLUME": "a volume object (OpenVDB grids)"}
 # A point cloud's spheres: icospheres subdivided this often, fewer for clouds of more points
 # (``SPHERE_BUDGET`` triangles in all at most, down to the icosahedron's 20 a point).
 SPHERE_LEVELS = 3
 SPHERE_BUDGET = 4_000_000
 POINT_RADIUS = 0.01                 # Cycles' radius of points without a radius attribute
+# Hair curves' tubes: (sides of the tube, pieces of each Catmull-Rom segment), the first whose
+# triangles fit ``SPHERE_BUDGET`` (poly curves: straight segments, one piece).
+CURVE_LEVELS = ((8, 4), (6, 4), (6, 2), (4, 2), (4, 1), (3, 1))
+CURVE_RADIUS = 0.005                # Cycles' radius of curve points without a radius attribute
+CURVE_TYPE_POLY = 1                 # Blender's CURVE_TYPE_POLY (CATMULL_ROM is 0, the default)
 
 
 @dataclass
@@ -127,12 +133,14 @@ class GeometryCollector:
     passes : the core data passes the view layer asks for that need geometry beside what the
     materials read: "object_index" the objects and their Object Info (the pass index), "uv" the UVs.
     light_groups : {name: index} of the view layer's light groups (``lights.light_group_index``).
+    hair : whether hair curves render (the view layer's Filter > Hair box, Cycles' ``use_hair``).
     """
 
     def __init__(self, materials, log, material_override=None, linking=(None, None), frame=0.0,
-                 passes=frozenset(), light_groups=None):
+                 passes=frozenset(), light_groups=None, hair=True):
         """``frame``: the scene's current frame (with subframe), for Particle Info's Age."""
         self.light_groups = light_groups or {}
+        self.hair = hair
         self.materials = materials
         self.frame = frame
         self.passes = frozenset(passes)
@@ -153,7 +161,7 @@ class GeometryCollector:
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
         ob = inst.object
-        if ob.type not in GEOMETRY_TYPES or not inst.show_self:
+        if ob.type not in GEOMETRY_TYPES or not inst.show_self or (ob.type == "CURVES" and not self.hair):
             if ob.type in UNSUPPORTED_TYPES and inst.show_self:
                 self.log.warning(f"object '{ob.name}' is {UNSUPPORTED_TYPES[ob.type]}, which is not "
                                  "supported: not rendered")
@@ -360,6 +368,8 @@ def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset
     attribute (for Color Attribute nodes), and the named ``attributes`` it has."""
     if ob.type == "POINTCLOUD":
         return read_point_cloud(ob.data, ob.name, log, attributes)
+    if ob.type == "CURVES":
+        return read_curves(ob.data, ob.name, log, attributes)
     try:
         me = ob.to_mesh()
     except RuntimeError as e:
@@ -505,6 +515,240 @@ def read_point_cloud(pc, name, log, attributes=frozenset()):
                      attributes_read=frozenset(attributes), colors_read=True)    # (no colour attribute read)
 
 
+def catmull_rom(p0, p1, p2, p3, t):
+    """(value, derivative in t) of the uniform Catmull-Rom segment from ``p1`` to ``p2`` at ``t``
+    (arrays broadcast together; ``t`` with a trailing axis of 1 for vectors)."""
+    t2, t3 = t * t, t * t * t
+    value = 0.5 * (2.0 * p1 + (p2 - p0) * t + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * t2
+                   + (3.0 * (p1 - p2) + p3 - p0) * t3)
+    slope = 0.5 * ((p2 - p0) + 2.0 * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * t
+                   + 3.0 * (3.0 * (p1 - p2) + p3 - p0) * t2)
+    return value, slope
+
+
+def read_curves(cv, name, log, attributes=frozenset()):
+    """:class:`LocalMesh` of a ``bpy.types.Curves`` (hair): each curve a tube of triangles around
+    the curve Cycles renders through its points (``blender/curves.cpp``: the control points as keys,
+    their ``radius`` or 0.005; a uniform Catmull-Rom spline through them with the end keys repeated,
+    or, where the first curve is a poly curve, straight segments), of the first material slot (as
+    Cycles, whatever ``material_index`` says).  A tube has ``CURVE_LEVELS``' sides and pieces, its
+    corners the circle's normals in a frame carried along the curve without twist
+    (:func:`_rotation_minimizing`), its polygon's radius widened by pi / (k sin(pi / k)) so that
+    its mean width seen from the side and its area are the circle's.  Cycles' Rounded Ribbons (its
+    default shape) face every ray with the round normals of such a tube, its 3D Curves are round
+    tubes: both are this tube.  Curves Info's outputs and the named ``attributes`` the curves have
+    (on their points or curves) are read per corner; None without a curve of two or more points.
+    (Curves that Geometry Nodes make on a mesh object reach the depsgraph as a Curve object, which
+    Cycles does not render either.)"""
+    n_points, n_curves = len(cv.points), len(cv.curves)
+    if n_points == 0 or n_curves == 0:
+        return None
+    attrs = cv.attributes
+    keys = np.empty(n_points * 3, np.float32)
+    attrs["position"].data.foreach_get("vector", keys)
+    keys = keys.reshape(n_points, 3).astype(np.float64)
+    radius = np.full(n_points, CURVE_RADIUS)
+    r_attr = attrs.get("radius")
+    if r_attr is not None and r_attr.domain == "POINT" and r_attr.data_type == "FLOAT":
+        values = np.empty(n_points, np.float32)
+        r_attr.data.foreach_get("value", values)
+        radius = values.astype(np.float64)
+    offsets = np.empty(n_curves + 1, np.int32)
+    cv.curve_offset_data.foreach_get("value", offsets)
+    poly = False
+    t_attr = attrs.get("curve_type")
+    if t_attr is not None and t_attr.domain == "CURVE":
+        types = np.empty(n_curves, np.int32)
+        t_attr.data.foreach_get("value", types)
+        poly = int(types[0]) == CURVE_TYPE_POLY        # (Cycles looks at the first curve only)
+
+    first, count = offsets[:-1].astype(np.int64), np.diff(offsets).astype(np.int64)
+    curves = np.flatnonzero(count >= 2)
+    if len(curves) == 0:
+        log.info(f"object '{name}' has no curve of two or more points; skipped")
+        return None
+    n_seg = int((count[curves] - 1).sum())
+    sides, pieces = CURVE_LEVELS[-1]
+    for k, p in CURVE_LEVELS:
+        if 2 * k * (1 if poly else p) * n_seg <= SPHERE_BUDGET:
+            sides, pieces = k, p
+            break
+    pieces = 1 if poly else pieces
+    # Each segment: its curve and its keys k1 -> k2, with k0 and k3 beside them (the ends repeated).
+    seg_curve = np.repeat(curves, count[curves] - 1)
+    j = np.arange(n_seg) - np.repeat(np.cumsum(count[curves] - 1) - (count[curves] - 1), count[curves] - 1)
+    k1 = first[seg_curve] + j
+    k2 = k1 + 1
+    k0 = np.maximum(k1 - 1, first[seg_curve])
+    k3 = np.minimum(k2 + 1, first[seg_curve] + count[seg_curve] - 1)
+    # Points along the curves: each segment's pieces from its start, then each curve's last key
+    # (t = 1 of its last segment).
+    seg = np.repeat(np.arange(n_seg), pieces)
+    t = np.tile(np.arange(pieces) / pieces, n_seg)
+    last = np.cumsum(count[curves] - 1) - 1
+    seg = np.concatenate([seg, last])
+    t = np.concatenate([t, np.ones(len(curves))])
+    order = np.argsort(seg * 2.0 + t, kind="stable")            # (a curve's points in a row)
+    seg, t = seg[order], t[order]
+    a, b, c, d = k0[seg], k1[seg], k2[seg], k3[seg]
+    tv = t[:, None]
+    miter = None
+    if poly:
+        centre = keys[b] * (1.0 - tv) + keys[c] * tv
+        r = radius[b] * (1.0 - t) + radius[c] * t
+        # At a key between two segments (the start, t = 0, of the second: a before it, b at it) the
+        # ring lies in the plane halfway between them, stretched across the bend by
+        # 1 / cos(half the angle): a mitre joint, no gap, no pinch.  (A ring square to the second
+        # segment sheared the first one's tube: 9 % darker than Cycles.)
+        slope = _unit_or(keys[c] - keys[b], keys[d] - keys[a])
+        inner = np.flatnonzero((t == 0.0) & (a < b))
+        before = _unit_or(keys[b[inner]] - keys[a[inner]], slope[inner])
+        half = np.clip(np.einsum("ij,ij->i", before, _unit_or(before + slope[inner], before)), 0.25, 1.0)
+        miter = (inner, _unit_or(slope[inner] - before, _perpendicular(before)), 1.0 / half)
+        slope[inner] += before
+    else:
+        centre, slope = catmull_rom(keys[a], keys[b], keys[c], keys[d], tv)
+        r = catmull_rom(radius[a], radius[b], radius[c], radius[d], t)[0]
+    r = np.maximum(r, 0.0)
+    tangent = _unit_or(slope, keys[c] - keys[b])
+    per_curve = (count[curves] - 1) * pieces + 1
+    starts = np.cumsum(per_curve) - per_curve
+    normal = _rotation_minimizing(centre, tangent, starts, per_curve)
+    binormal = np.cross(tangent, normal)
+    # The ring of each point, its sides counter-clockwise about the tangent.
+    theta = 2.0 * np.pi * np.arange(sides) / sides
+    radial = (np.cos(theta)[None, :, None] * normal[:, None, :]
+              + np.sin(theta)[None, :, None] * binormal[:, None, :])           # (E, k, 3)
+    widen = np.pi / (sides * np.sin(np.pi / sides))
+    offset = (widen * r)[:, None, None] * radial                                  # (E, k, 3)
+    if miter is not None:
+        rows, across, stretch = miter
+        along = np.einsum("ekj,ej->ek", offset[rows], across)
+        offset[rows] += ((stretch - 1.0)[:, None] * along)[:, :, None] * across[:, None, :]
+    positions = (centre[:, None, :] + offset).reshape(-1, 3)
+    # Quads between consecutive points of a curve, each two triangles facing out.
+    n_eval = len(seg)
+    is_last = np.zeros(n_eval, bool)
+    is_last[starts + per_curve - 1] = True
+    e = np.flatnonzero(~is_last)
+    side = np.arange(sides)
+    v00 = e[:, None] * sides + side[None, :]
+    v01 = e[:, None] * sides + (side[None, :] + 1) % sides
+    v10, v11 = v00 + sides, v01 + sides
+    triangles = np.stack([np.stack([v00, v01, v11], -1), np.stack([v00, v11, v10], -1)], 2)
+    triangles = triangles.reshape(-1, 3).astype(np.int32)
+    log.info(f"object '{name}': {len(curves)} curves as tubes of {sides} sides, {len(triangles)} triangles")
+    named = {}
+    if attributes:
+        point_values = _curve_info(keys, radius, first, count, seg, t, b, c, seg_curve, attrs, attributes,
+                                   name, log)
+        ring = triangles // sides                             # (T, 3) each corner's point
+        for key, values in point_values.items():
+            named[key] = values.astype(np.float32)[ring]
+    return LocalMesh(name=name, positions=positions, triangles=triangles,
+                     slots=np.zeros(len(triangles), np.int32),
+                     normals=radial.reshape(-1, 3).astype(np.float32), normal_index=triangles.copy(),
+                     uvs=None, mesh_materials=tuple(cv.materials), attributes=named,
+                     attributes_read=frozenset(attributes), colors_read=True)    # (no colour attribute read)
+
+
+def _unit_or(v, fallback):
+    """Rows of ``v`` normalised; where one is (nearly) 0, ``fallback``'s normalised (or x)."""
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    f = np.linalg.norm(fallback, axis=1, keepdims=True)
+    out = np.where(n > 1e-12, v / np.maximum(n, 1e-300), fallback / np.maximum(f, 1e-300))
+    bad = (n[:, 0] <= 1e-12) & (f[:, 0] <= 1e-12)
+    out[bad] = (1.0, 0.0, 0.0)
+    return out
+
+
+def _rotation_minimizing(centre, tangent, starts, lengths):
+    """(E, 3) unit normals along curves of points ``centre`` and unit ``tangent`` (E, 3), curve c the
+    ``lengths[c]`` rows from ``starts[c]``: a normal perpendicular to the first tangent, carried
+    along each curve by Wang et al.'s double reflection (a rotation-minimizing frame: the tube does
+    not twist), the curves side by side, point after point.  (Blender's own curve normals were not
+    usable: ``Curves.normals`` gave 2.8e24 at a curve's first point.)"""
+    normal = np.empty_like(tangent)
+    normal[starts] = _perpendicular(tangent[starts])
+    for i in range(1, int(lengths.max())):
+        at = starts[lengths > i] + i
+        prev = at - 1
+        v1 = centre[at] - centre[prev]
+        c1 = np.einsum("ij,ij->i", v1, v1)
+        k1 = np.where(c1 > 1e-30, 2.0 / np.maximum(c1, 1e-30), 0.0)[:, None]
+        r = normal[prev] - k1 * np.einsum("ij,ij->i", v1, normal[prev])[:, None] * v1
+        t = tangent[prev] - k1 * np.einsum("ij,ij->i", v1, tangent[prev])[:, None] * v1
+        v2 = tangent[at] - t
+        c2 = np.einsum("ij,ij->i", v2, v2)
+        k2 = np.where(c2 > 1e-30, 2.0 / np.maximum(c2, 1e-30), 0.0)[:, None]
+        r = r - k2 * np.einsum("ij,ij->i", v2, r)[:, None] * v2
+        r -= np.einsum("ij,ij->i", r, tangent[at])[:, None] * tangent[at]
+        normal[at] = _unit_or(r, _perpendicular(tangent[at]))
+    return normal
+
+
+def _perpendicular(v):
+    """A unit vector perpendicular to each unit row of ``v``."""
+    axis = np.zeros_like(v)
+    axis[np.arange(len(v)), np.argmin(np.abs(v), axis=1)] = 1.0
+    p = np.cross(v, axis)
+    return p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-300)
+
+
+def _curve_info(keys, radius, first, count, seg, t, b, c, seg_curve, attrs, attributes, name, log):
+    """{name: (E, 3) values at the tubes' points} of the named ``attributes`` asked for: Curves
+    Info's (``HAIR_INFO``, as Cycles sets them: Intercept the length along the keys' polygon over the
+    curve's, Length the curve's, Thickness twice the radius, Random ``hash_uint2_to_float(curve,
+    0)``, Is Strand 1) and the curves' own attributes on their points (between two keys as t goes)
+    or curves."""
+    curve_of_point = seg_curve[seg]
+    out = {}
+    step = np.zeros(len(keys))
+    step[1:] = np.linalg.norm(np.diff(keys, axis=0), axis=1)
+    step[first] = 0.0
+    along = np.cumsum(step)
+    along -= np.repeat(along[first], count)                 # (length from each curve's first key)
+    length = along[first + count - 1]
+    for key in sorted(attributes):
+        if key == HAIR_IS_STRAND:
+            v = np.ones(len(seg))
+        elif key == HAIR_INTERCEPT:
+            total = np.repeat(length, count)
+            fraction = np.where(total > 0, along / np.where(total > 0, total, 1.0), 0.0)
+            v = fraction[b] * (1.0 - t) + fraction[c] * t
+        elif key == HAIR_LENGTH:
+            v = length[curve_of_point]
+        elif key == HAIR_THICKNESS:
+            v = 2.0 * (radius[b] * (1.0 - t) + radius[c] * t)
+        elif key == HAIR_RANDOM:
+            v = hash_uint2_to_float(curve_of_point.astype(np.uint32), np.uint32(0)).astype(np.float64)
+        else:
+            v = _curve_attribute(attrs, key, name, log, b, c, t, curve_of_point)
+            if v is not None:
+                out[key] = v
+            continue
+        out[key] = np.repeat(np.asarray(v, np.float64)[:, None], 3, axis=1)
+    return out
+
+
+def _curve_attribute(attrs, key, name, log, b, c, t, curve_of_point):
+    """(E, 3) a curves attribute ``key`` at the tubes' points (on the points: between keys ``b``
+    and ``c`` as ``t`` goes; on the curves: each point's curve's), or None without it."""
+    alpha = key.startswith(ALPHA)
+    attr = attrs.get(key[len(ALPHA):] if alpha else key)
+    if attr is None:
+        return None
+    kind = ATTRIBUTE_TYPES.get(attr.data_type)
+    if kind is None or attr.domain not in ("POINT", "CURVE"):
+        log.warning(f"object '{name}': attribute '{key}' ({attr.data_type.lower()} on the "
+                    f"{attr.domain.lower()} domain) cannot be read; it reads 0")
+        return None
+    values = _attribute_values(attr, kind, alpha).astype(np.float64)
+    if attr.domain == "CURVE":
+        return values[curve_of_point]
+    return values[b] * (1.0 - t)[:, None] + values[c] * t[:, None]
+
+
 def _point_attribute(attrs, key, name, log):
     """(n, 3) float values of a point cloud's attribute ``key`` on its points (as
     :func:`_named_attributes` reads a mesh's, an ``ALPHA`` name its alpha), or None without it (0,
@@ -631,6 +875,11 @@ ALPHA = ".alpha:"
 # number hash_uint2_to_float(index, 0)), read as named attributes; 0 on meshes, as in Cycles.
 POINT_POSITION, POINT_RADIUS, POINT_RANDOM = ".point_position", ".point_radius", ".point_random"
 POINT_INFO = (POINT_POSITION, POINT_RADIUS, POINT_RANDOM)
+# Curves Info's outputs (Cycles' curve attributes: Is Strand, Intercept, Length, Thickness, Random),
+# read as named attributes of the tubes (:func:`read_curves`); 0 on meshes, as in Cycles.
+HAIR_IS_STRAND, HAIR_INTERCEPT, HAIR_LENGTH, HAIR_THICKNESS, HAIR_RANDOM = (
+    ".hair_is_strand", ".hair_intercept", ".hair_length", ".hair_thickness", ".hair_random")
+HAIR_INFO = (HAIR_IS_STRAND, HAIR_INTERCEPT, HAIR_LENGTH, HAIR_THICKNESS, HAIR_RANDOM)
 
 
 def _edges(me):

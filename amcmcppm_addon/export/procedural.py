@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
-from .mesh import (ALPHA, PARTICLE, POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS,
-                   RANDOM_PER_ISLAND, rna_property)
+from .mesh import (ALPHA, HAIR_INTERCEPT, HAIR_IS_STRAND, HAIR_LENGTH, HAIR_RANDOM, HAIR_THICKNESS, PARTICLE,
+                   POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS, RANDOM_PER_ISLAND, rna_property)
 
 RAMP_TABLE_SIZE = 256            # Cycles' RAMP_TABLE_SIZE: the colour band baked into a table
 FLOAT, VEC = "float", "vec"
@@ -184,6 +184,15 @@ def _point_info(b, node, stack):
     return {"Position": _named(POINT_POSITION),
             "Radius": {"op": "separate", "vector": _named(POINT_RADIUS), "output": "X"},
             "Random": {"op": "separate", "vector": _named(POINT_RANDOM), "output": "X"}}
+
+
+def _hair_info(b, node, stack):
+    """Curves Info (Hair Info): a hair curve's Is Strand, Intercept, Length, Thickness and Random,
+    read as named attributes of its tube (``mesh.HAIR_INFO``; 0 on meshes, as in Cycles).  Its
+    Tangent Normal is not modelled (named, the socket's value)."""
+    return {out: {"op": "separate", "vector": _named(key), "output": "X"}
+            for out, key in (("Is Strand", HAIR_IS_STRAND), ("Intercept", HAIR_INTERCEPT),
+                             ("Length", HAIR_LENGTH), ("Thickness", HAIR_THICKNESS), ("Random", HAIR_RANDOM))}
 
 
 def _camera_data(b, node, stack):
@@ -803,7 +812,7 @@ def _layer_weight(b, node, stack):
 NODES = {
     "ShaderNodeTexCoord": _tex_coord, "ShaderNodeUVMap": _uv_map, "ShaderNodeVertexColor": _color_attribute,
     "ShaderNodeObjectInfo": _object_info, "ShaderNodeNewGeometry": _geometry, "ShaderNodeTangent": _tangent,
-    "ShaderNodePointInfo": _point_info,
+    "ShaderNodePointInfo": _point_info, "ShaderNodeHairInfo": _hair_info,
     "ShaderNodeAttribute": _attribute,
     "ShaderNodeRGB": _rgb, "ShaderNodeBlackbody": _blackbody,
     "ShaderNodeValue": _value, "ShaderNodeMapping": _mapping, "ShaderNodeTexImage": _image,

@@ -96,7 +96,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                  "in no Combined_ pass")
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
                                   linking=linking, frame=depsgraph.scene_eval.frame_current_final,
-                                  passes=geometry_passes(view_layer), light_groups=groups)
+                                  passes=geometry_passes(view_layer), light_groups=groups,
+                                  hair=view_layer.use_strand)
     light_records, light_collections = [], []
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":

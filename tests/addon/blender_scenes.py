@@ -211,6 +211,27 @@ def point_cloud(name, points, radius=0.05, material=None, random_radius=None):
     return ob
 
 
+def hair_curves(name, curves, radius=None, material=None, kind=None, location=(0, 0, 0)):
+    """A Curves (hair) object of ``curves`` (a list of point lists), with ``radius`` (one value or a
+    value per point; None: no radius attribute, Cycles' 0.005), of curve type ``kind`` (None:
+    Catmull-Rom, Blender's default; "POLY", ...) and ``material`` in its first slot."""
+    cv = bpy.data.hair_curves.new(name)
+    cv.add_curves([len(c) for c in curves])
+    points = np.array([p for c in curves for p in c], np.float32)
+    cv.attributes["position"].data.foreach_set("vector", points.ravel())
+    if radius is not None:
+        values = np.broadcast_to(np.asarray(radius, np.float32), (len(points),))
+        cv.attributes.new("radius", "FLOAT", "POINT").data.foreach_set("value", np.ascontiguousarray(values))
+    if kind is not None:
+        cv.set_types(type=kind)
+    if material is not None:
+        cv.materials.append(material)
+    ob = bpy.data.objects.new(name, cv)
+    ob.location = location
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
 def camera(location=(0, -4, 3), target=(0, 0, 0), lens=50.0, sensor=36.0, ortho_scale=None):
     cam = bpy.data.cameras.new("Camera")
     cam.lens, cam.sensor_width = lens, sensor

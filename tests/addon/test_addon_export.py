@@ -2759,10 +2759,11 @@ def test_instances_of_shadow_catchers_and_of_catcher_instancers_are_catchers(sce
     assert (names == "Quad").sum() == 4 and (names == "Dot").sum() == 10
 
 
-def test_hair_and_volume_objects_are_named_in_warnings(scene):
-    """Object types Cycles renders without a mesh (hair curves, OpenVDB volumes) and a mesh's hair
+def test_volume_objects_and_hair_particles_are_named_in_warnings(scene):
+    """Volume objects (OpenVDB grids), which Cycles renders without a mesh, and a mesh's hair
     particles are named, not silently left out; the mesh itself still renders, and a particle
-    system switched off for renders is not named.  An empty point cloud adds nothing, unnamed."""
+    system switched off for renders is not named.  An empty point cloud adds nothing, unnamed, and
+    hair curves render (since stop 56: before, named and left out)."""
     for name, data in (("Fur", bpy.data.hair_curves.new("Fur")),
                        ("Dots", bpy.data.pointclouds.new("Dots")), ("Smoke", bpy.data.volumes.new("Smoke"))):
         bpy.context.scene.collection.objects.link(bpy.data.objects.new(name, data))
@@ -2775,10 +2776,110 @@ def test_hair_and_volume_objects_are_named_in_warnings(scene):
     bald.particle_systems[0].settings.type = "HAIR"
     bs.camera()
     ex = bs.export()
-    assert ex.scene.triangle_count == 4
-    for expected in ("'Fur' is hair curves", "'Smoke' is a volume object", "'Hairy': its hair particles"):
+    assert ex.scene.triangle_count == 4 + 2 * (3 * 4) * 8 * 2
+    for expected in ("'Smoke' is a volume object", "'Hairy': its hair particles"):
         assert any(expected in w for w in ex.warnings), (expected, ex.warnings)
-    assert not any("'Bald'" in w or "'Dots'" in w for w in ex.warnings), ex.warnings
+    assert not any("'Bald'" in w or "'Dots'" in w or "'Fur'" in w for w in ex.warnings), ex.warnings
+
+
+def test_hair_curves_become_tubes(scene):
+    """A Curves object (hair): each curve of two or more points a tube of 8 sides around the
+    Catmull-Rom spline through its points (4 pieces a segment), its triangles facing out, its
+    corner normals the circle's (perpendicular to the curve), the polygon widened so that its mean
+    width is the circle's; the first material slot; Cycles' radius 0.005 without a radius attribute;
+    a curve of one point adds nothing.  Poly curves are straight between their points (one piece a
+    segment).  The view layer's Filter > Hair box off leaves them out, as Cycles does."""
+    red, blue = bs.diffuse("Red", (0.8, 0.1, 0.1)), bs.diffuse("Blue", (0.1, 0.1, 0.8))
+    ob = bs.hair_curves("Fur", [[(0, 0, 0), (0, 0, 1), (0, 0, 2)], [(1, 0, 0)], [(2, 0, 0), (2, 0, 1)]],
+                        radius=0.1, material=red, location=(0, 0, 1))
+    ob.data.materials.append(blue)
+    bs.hair_curves("Thin", [[(5, 0, 0), (5, 0, 1)]], location=(0, 0, 1))
+    bs.hair_curves("Bent", [[(8, 0, 0), (8, 0, 1), (9, 0, 1)]], radius=0.1, kind="POLY")
+    bs.camera(location=(4, -12, 2), target=(4, 0, 1))
+    ex = bs.export()
+    s = ex.scene
+    assert not ex.warnings, ex.warnings
+    v = s.vertices[s.triangles].astype(np.float64)                    # (T, 3, 3)
+    fur, thin, bent = (v[:, :, 0].mean(axis=1) < lim for lim in (3, 6, 10))
+    thin, bent = thin & ~fur, bent & ~thin & ~fur
+    assert fur.sum() == (2 + 1) * 4 * 8 * 2 and thin.sum() == 4 * 8 * 2 and bent.sum() == 2 * 8 * 2
+    names = [s.materials.names[i] for i in np.unique(s.material_ids[fur])]
+    assert names == ["Red"], names
+    ng = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    ns = s.shading_normals.astype(np.float64)
+    assert (np.einsum("tj,tcj->tc", ng, ns) > 0).all()                 # facing out, as their normals
+    # Straight curves along z: normals horizontal, corners at the widened radius from the axis.
+    widen = np.pi / (8 * np.sin(np.pi / 8))
+    for mask, axis_x, r in ((fur, (0.0, 2.0), 0.1), (thin, (5.0,), 0.005)):
+        assert np.abs(ns[mask][..., 2]).max() < 1e-6
+        corners = v[mask].reshape(-1, 3)
+        dx = corners[:, 0, None] - np.array(axis_x)[None]
+        dist = np.sqrt(np.min(np.abs(dx), axis=1) ** 2 + corners[:, 1] ** 2)
+        np.testing.assert_allclose(dist, r * widen, rtol=1e-5, atol=1e-6)
+        assert corners[:, 2].min() == pytest.approx(1.0, abs=1e-6)
+    # The poly curve: its two straight tubes meet in a mitre at the bend (corners on its plane).
+    corners = v[bent].reshape(-1, 3)
+    assert corners[:, 2].max() == pytest.approx(1.0 + 0.1 * widen, rel=1e-5)
+    assert corners[:, 0].max() == pytest.approx(9.0, abs=1e-6)
+    bpy.context.view_layer.use_strand = False
+    assert bs.export().scene.triangle_count == 0
+
+
+def test_many_hair_curves_get_fewer_sides(scene, monkeypatch):
+    """A hair object whose tubes of 8 sides and 4 pieces a segment would pass the triangle budget
+    gets fewer, the first of ``CURVE_LEVELS`` that fits (here, under a budget lowered to 2,000
+    triangles: 40 curves of one segment, 6 sides and 4 pieces, 1,920), still facing out."""
+    from amcmcppm.amcmcppm_addon.export import mesh
+    monkeypatch.setattr(mesh, "SPHERE_BUDGET", 2000)
+    bs.hair_curves("Fur", [[(0.1 * i, 0, 0), (0.1 * i, 0, 1)] for i in range(40)], radius=0.01)
+    bs.camera()
+    ex = bs.export()
+    assert ex.scene.triangle_count == 40 * 6 * 4 * 2
+    assert any("40 curves as tubes of 6 sides" in m for m in ex.infos), ex.infos
+
+
+def test_hair_curves_read_curves_info(scene):
+    """Curves Info's outputs on the tubes' corners (the values Cycles gives its curves): Is Strand
+    1, Intercept the length along the points over the curve's at each ring (0 at the root, 1 at
+    the tip), Length the curve's, Thickness twice the radius, Random Cycles'
+    hash_uint2_to_float(curve, 0); on a mesh all 0.  (The exact match with Cycles:
+    ``test_curves_info_matches_cycles``.)"""
+    from core.texture_hash import hash_uint2_to_float
+    mat = bs.diffuse("Hair")
+    nt = mat.node_tree
+    info, comb, comb2 = (nt.nodes.new(k) for k in ("ShaderNodeHairInfo", "ShaderNodeCombineXYZ",
+                                                    "ShaderNodeCombineXYZ"))
+    for out, sock in (("Is Strand", comb.inputs["X"]), ("Intercept", comb.inputs["Y"]),
+                      ("Length", comb.inputs["Z"]), ("Thickness", comb2.inputs["X"]),
+                      ("Random", comb2.inputs["Y"])):
+        nt.links.new(info.outputs[out], sock)
+    add = nt.nodes.new("ShaderNodeVectorMath")
+    nt.links.new(comb.outputs[0], add.inputs[0])
+    nt.links.new(comb2.outputs[0], add.inputs[1])
+    nt.links.new(add.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    bs.hair_curves("Fur", [[(0, 0, 0), (0, 0, 1), (0, 0, 3)], [(2, 0, 0), (2, 0, 2)]], radius=0.1,
+                   material=mat, kind="POLY")
+    bs.plane("Floor", size=0.5, material=mat, location=(5, 0, 0))
+    bs.camera(location=(2, -10, 1), target=(2, 0, 1))
+    ex = bs.export()
+    s = ex.scene
+    assert not ex.warnings, ex.warnings
+    from amcmcppm.amcmcppm_addon.export.mesh import HAIR_INFO
+    values = {k: s.attributes[k][..., 0].astype(np.float64) for k in HAIR_INFO}
+    x = s.vertices[s.triangles][..., 0].astype(np.float64)
+    z = s.vertices[s.triangles][..., 2].astype(np.float64)
+    first, second, floor = x < 1, (x > 1) & (x < 3), x > 4
+    assert values[".hair_is_strand"][first | second].min() == 1
+    np.testing.assert_allclose(values[".hair_intercept"][first], z[first] / 3, atol=1e-6)
+    np.testing.assert_allclose(values[".hair_intercept"][second], z[second] / 2, atol=1e-6)
+    assert values[".hair_length"][first].min() == values[".hair_length"][first].max() == pytest.approx(3.0)
+    assert values[".hair_length"][second].max() == pytest.approx(2.0)
+    np.testing.assert_allclose(values[".hair_thickness"][first | second], 0.2, rtol=1e-6)
+    expected = hash_uint2_to_float(np.arange(2, dtype=np.uint32), np.uint32(0))
+    np.testing.assert_allclose(values[".hair_random"][first], expected[0], rtol=1e-6)
+    np.testing.assert_allclose(values[".hair_random"][second], expected[1], rtol=1e-6)
+    for k in HAIR_INFO:
+        assert values[k][floor].max() == 0
 
 
 def test_a_point_cloud_becomes_spheres(scene):

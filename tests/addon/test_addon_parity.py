@@ -2386,3 +2386,39 @@ def test_the_pixel_filter_spreads_an_edge_as_in_cycles(addon, tmp_path, kind, wi
           f"{np.round(profile_o[12:20], 3)}, the filter's {np.round(expected[12:20], 3)}")
     np.testing.assert_allclose(profile_c, expected, atol=0.03)
     np.testing.assert_allclose(profile_o, profile_c, atol=0.03)
+
+
+def hair_arches(material, kind=None, radius=0.06):
+    """Seven curves arching over the corner's floor, 0.4 m apart (Catmull-Rom of five points, or
+    ``kind``), each a little higher than the one before, of ``material``."""
+    curves = [[(x - 0.5, -0.4, 0.0), (x - 0.35, -0.2, 0.4 + 0.05 * i), (x, 0.0, 0.6 + 0.1 * i),
+               (x + 0.35, 0.2, 0.4 + 0.05 * i), (x + 0.5, 0.4, 0.0)]
+              for i, x in enumerate(np.linspace(-1.2, 1.2, 7))]
+    return bs.hair_curves("Arches", curves, radius=radius, material=material, kind=kind)
+
+
+@pytest.mark.parametrize("shape", ["RIBBONS", "THICK", "POLY"])
+def test_hair_curves_match_cycles(addon, tmp_path, shape):
+    """Hair curves (stop 56; before, named in a warning and left out): seven thick arches over the
+    corner's floor under an area light, whose diffuse colour goes from red at the root to blue at the
+    tip by Curves Info's Intercept.  Cycles renders its Rounded Ribbons (the default shape: flat, facing
+    each ray, with round normals), its 3D Curves (round tubes) and, for poly curves, straight tubes;
+    ours is a tube of 8 sides whose mean width is the circle's."""
+    def build():
+        bs.empty_scene(RESOLUTION, **OURS)
+        bpy.context.scene.cycles_curves.shape = "THICK" if shape == "THICK" else "RIBBONS"
+        bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.25, 0.25, 0.25)))
+        mat = bs.diffuse("Hair", (0.8, 0.8, 0.8))
+        nt = mat.node_tree
+        info, mix = nt.nodes.new("ShaderNodeHairInfo"), nt.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.inputs["A"].default_value = (0.8, 0.15, 0.1, 1.0)
+        mix.inputs["B"].default_value = (0.1, 0.3, 0.8, 1.0)
+        nt.links.new(info.outputs["Intercept"], mix.inputs["Factor"])
+        nt.links.new(mix.outputs["Result"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+        hair_arches(mat, kind="POLY" if shape == "POLY" else None)
+        bs.camera(location=(0.0, -3.2, 1.6), target=(0.0, 0.0, 0.45), lens=40.0)
+        bs.light("AREA", location=(-0.8, -1.5, 2.5), target=(0, 0, 0), energy=150.0, size=1.0)
+        bs.world((0.05, 0.05, 0.05), strength=1.0)
+    cycles, ours = cycles_and_ours(build, tmp_path)
+    assert_image_matches(f"hair {shape}", cycles, ours)

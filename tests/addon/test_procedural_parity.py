@@ -1710,3 +1710,41 @@ def test_object_info_matches_cycles(addon, tmp_path):
     print("object info: Cycles' quarters' red", np.round(red, 4))
     assert np.ptp(red) > 0.05                 # the objects' Random differ
     compare(ours, cycles, "object info")
+
+
+def test_curves_info_matches_cycles(addon, tmp_path):
+    """Curves Info on hair curves (stop 56; before, curves were left out and the node unsupported):
+    five straight poly curves of unevenly spaced points and different lengths seen from above,
+    coloured (Random, Intercept, Length / 4), each pixel its curve's values where it crosses the
+    tube; ours along each pixel centre's camera ray against Cycles' (its Rounded Ribbons: the same
+    place along the curve)."""
+    import bpy
+
+    def build(nt):
+        info = nt.nodes.new("ShaderNodeHairInfo")
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        length = node(nt, "ShaderNodeMath", operation="MULTIPLY")
+        length.inputs[1].default_value = 0.25
+        nt.links.new(info.outputs["Length"], length.inputs[0])
+        for output, axis in ((info.outputs["Random"], "X"), (info.outputs["Intercept"], "Y"),
+                             (length.outputs[0], "Z")):
+            nt.links.new(output, comb.inputs[axis])
+        return comb.outputs[0]
+
+    mat, _ = bs.texture_plane(build, resolution=(64, 64))
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    curves = [[(-0.9 + 0.1 * i, y, 0.0), (-0.5, y, 0.0), (0.1 - 0.1 * i, y, 0.0), (0.9 - 0.15 * i, y, 0.0)]
+              for i, y in enumerate(np.linspace(-0.64, 0.64, 5))]
+    bs.hair_curves("Strands", curves, radius=0.09, material=mat, kind="POLY")
+    ours = our_values_through_the_camera()
+    cycles = bs.cycles_texture_values(mat, tmp_path / "cycles.exr")
+    on = np.isfinite(ours).all(axis=2)
+    inner = on.copy()                                      # (away from the silhouettes)
+    for axis in (0, 1):
+        for shift in (-1, 1):
+            inner &= np.roll(on, shift, axis=axis)
+    assert inner.mean() > 0.1 and np.ptp(cycles[inner], axis=0).min() > 0.1
+    err = np.abs(ours[inner] - cycles[inner]).max(axis=1)
+    print(f"curves info: {inner.sum()} pixels, max {err.max():.2e}, "
+          f"99th percentile {np.percentile(err, 99):.2e}")
+    assert np.percentile(err, 99) < 1e-4
