@@ -8,7 +8,8 @@ which is exact for emission and for lobes of one kind with different colours,
 and an average for glossy roughness and IOR.
 
 Supported nodes: Principled BSDF (with its Alpha), Diffuse, Glossy, Metallic, Glass, Refraction,
-Translucent, Sheen, Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups; on colour
+Translucent, Sheen, Emission, Transparent, Holdout, Mix Shader, Add Shader, reroutes and groups, and
+approximated (noted) the Principled Hair and Hair BSDFs (``_hair_principled``); on colour
 and number inputs the texture and colour nodes of ``procedural.py`` (a varying diffuse colour becomes a
 program the core evaluates at each hit, an Image Texture on the active UV map stays a plain image
 texture; other inputs take the mean); and on a BSDF's Normal input a tangent-space Normal Map node
@@ -95,7 +96,7 @@ from ...core.phase import FOURNIER_FORAND, HENYEY_GREENSTEIN, PHASE_NAMES
 from ...core.bsdf import (DISTRIBUTION_BECKMANN, TANGENT_RADIAL_X, TANGENT_RADIAL_Y, TANGENT_RADIAL_Z,
                           TANGENT_UV, metal_curve, metal_fresnel)
 from ...core.imageio import linear_to_srgb
-from ...core.sampling import dielectric_f0, mean_fresnel
+from ...core.sampling import dielectric_f0, fresnel_dielectric, mean_fresnel
 from ...core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD, NORMAL_BLENDER_OBJECT,
                            NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, NORMAL_WORLD,
                            SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN, VISIBLE_CAMERA, VISIBLE_GLOSSY,
@@ -760,6 +761,50 @@ def _fresnel_layer(a, b, eta) -> Closure:
     w = a.weight[DIFFUSE]
     base = dataclasses.replace(a, layer=np.full(3, w * f0), layered=w)
     return base.combine(glossy, 1.0, 1.0)
+
+
+# Geometry's Backfacing (1 where a ray meets a face from behind), a float program.
+_BACKFACING = {"op": "separate", "vector": {"op": "attribute", "name": "backfacing"}, "output": "X"}
+
+
+def _through_fibre(c, through):
+    """Closure ``c`` (a hair fibre's lobes that scatter, each weighing what it takes of the light)
+    with ``through`` (3,) of the light going on through the fibre, on a curve's tube: its front
+    face Transparent with the weight w of ``through``'s largest channel and its back face wholly
+    (the fibre is one surface: its lobes act once), each tinting by sqrt(through / w); the front
+    face's lobes are then divided by 1 - w, their albedo at most 1 in that channel where the
+    fibre's lobes and ``through`` add up to at most 1.  (Strands that pass through one another
+    count each other's photons twice there: keep them apart.)"""
+    w = float(np.clip(np.max(through), 0.0, 0.999))
+    if w <= 0.0:
+        return c
+    # (Closure._opaque_part divides the lobes by the mean opacity, 1 - w: the front face's)
+    tint = np.sqrt(np.clip(np.asarray(through, np.float64) / w, 0.0, 1.0))
+    front = _math("MULTIPLY", 1.0 - w, _math("SUBTRACT", 1.0, _BACKFACING))
+    return dataclasses.replace(c, transparent=w * tint, transparent_weight=w, opacity_texture=front)
+
+
+def hair_sigma(color, radial_roughness):
+    """(3,) Chiang et al.'s absorption of a hair fibre (per fibre radius) whose many fibres look
+    ``color``, for its azimuthal roughness (Cycles' ``bsdf_principled_hair_sigma_from_reflectance``)."""
+    x = radial_roughness
+    fac = ((((0.245 * x + 5.574) * x - 10.73) * x + 2.532) * x - 0.215) * x + 5.969
+    return (np.log(np.clip(np.asarray(color, np.float64), 1e-6, 1.0)) / fac) ** 2
+
+
+def hair_lobes(sigma, eta, n=4096):
+    """(R, TT, TRT and later) the shares of the light that a smooth dielectric fibre of index
+    ``eta`` and absorption ``sigma`` (3,) per radius reflects at its surface (a float), sends through
+    (3,) and back after inner reflections (3,), for light square to the fibre, averaged over where
+    it strikes across the fibre's width (Chiang et al.'s A_p at h, theta = 0: the path
+    2 cos(gamma_t) radii inside, T = exp(-2 sigma cos(gamma_t)))."""
+    h = (np.arange(n) + 0.5) / n
+    f = fresnel_dielectric(np.sqrt(1.0 - h * h), eta)[0][:, None]
+    cos_t = np.sqrt(1.0 - (h / eta) ** 2)[:, None]
+    t = np.exp(-2.0 * np.asarray(sigma, np.float64)[None] * cos_t)
+    tt = (1.0 - f) ** 2 * t
+    trt = tt * f * t / (1.0 - f * t)
+    return float(f.mean()), tt.mean(axis=0), trt.mean(axis=0)
 
 
 def _program_of(source, constant):
@@ -1976,6 +2021,71 @@ class NodeWalker:
         rough = float(np.clip(self.value(node.inputs["Roughness"], stack), 0.0, 1.0))
         return Closure(sheen=color, sheen_roughness=rough)
 
+    def _hair_principled(self, node, stack):
+        """Principled Hair BSDF (Chiang's or Huang's model of a dielectric fibre with an absorbing
+        core, on a curve's tube): its lobes approximated by the core's, from the same fibre
+        (:func:`hair_lobes`: the absorption sigma of its Color, Melanin or Absorption Coefficient
+        as Cycles derives it, the IOR): R, the surface's reflection, a glossy lobe with the
+        Fresnel rise of the IOR (Principled's dielectric layer) and the roughness of its spread
+        along the fibre; TRT and the later odd passes a diffuse lobe under it; TT, the light
+        through the fibre, a translucent lobe; Huang's R, TT and TRT factors scale them.  The
+        lobes' azimuthal shapes, the cuticle tilt (Offset), Coat, the elliptical fibre and the
+        Random Color and Roughness are not modelled (those set are named)."""
+        inp = node.inputs
+        huang = node.model == "HUANG"
+        rough = float(np.clip(self.value(inp["Roughness"], stack), 0.0, 1.0))
+        radial = rough if huang else float(np.clip(self.value(inp["Radial Roughness"], stack), 0.0, 1.0))
+        kind = node.parametrization
+        if kind == "ABSORPTION":
+            sigma = np.maximum(self.mean_color(inp["Absorption Coefficient"], stack), 0.0)
+        elif kind == "MELANIN":
+            melanin = -np.log(max(1.0 - self.value(inp["Melanin"], stack), 1e-4))
+            red = self.value(inp["Melanin Redness"], stack)
+            sigma = (melanin * (1.0 - red) * np.array([0.506, 0.841, 1.653])
+                     + melanin * red * np.array([0.343, 0.733, 1.924])
+                     + hair_sigma(self.mean_color(inp["Tint"], stack), radial))
+        else:
+            sigma = hair_sigma(self.mean_color(inp["Color"], stack), radial)
+        eta = max(self.value(inp["IOR"], stack), 1.0 + 1e-3)
+        r, tt, trt = hair_lobes(sigma, eta)
+        if huang:
+            factors = [max(self.value(inp[name], stack), 0.0) for name in ("R lobe", "TT lobe", "TRT lobe")]
+        else:
+            factors = [1.0, 1.0, 1.0]
+        # Chiang's longitudinal variance v of the roughness; Huang's roughness is the microfacets'
+        # alpha.  The reflection's spread along the fibre is twice its normals': alpha = sqrt(v / 2).
+        v = (0.726 * rough + 0.812 * rough ** 2 + 3.7 * rough ** 20) ** 2
+        alpha = rough if huang else float(np.sqrt(v / 2.0))
+        named = [name for name in ("Random Color", "Random Roughness", "Coat")
+                 if name in inp and inp[name].enabled and self.value(inp[name], stack) != 0.0]
+        if named:
+            self.note(f"'{node.name}': its {', '.join(named)} not modelled (hair lobes approximated)")
+        self.note(f"'{node.name}': the Principled Hair BSDF is approximated by a glossy lobe and a tinted "
+                  "transparency")
+        # R and TRT both leave along the fibre's specular cone (Chiang: TRT with twice R's spread and
+        # shifted by the cuticle's tilt): one glossy lobe of their sum, its alpha their mean by share
+        # (no Fresnel rise: at a tube's silhouette the rise to 1 would outweigh the opacity left there).
+        glossy = factors[0] * r + factors[2] * trt
+        share = factors[0] * r / max(float(glossy.mean()), 1e-30)
+        alpha = alpha * (share + 2.0 * (1.0 - share))
+        c = Closure.lobe(GLOSSY, 1.0, glossy, roughness=float(np.sqrt(min(alpha, 1.0))))
+        # TT goes on through the fibre (Chiang's TT lobe lies within 20 degrees of straight on for a
+        # smooth fibre of IOR 1.55).
+        return _through_fibre(c, factors[1] * tt)
+
+    def _hair(self, node, stack):
+        """Hair BSDF (Cycles' older lobes about the fibre): Reflection a glossy lobe of its Color and
+        of RoughnessU (the spread along the fibre), Transmission the light going on through the
+        fibre tinted by its Color (:func:`_through_fibre`); Offset and RoughnessV (the spread about
+        the fibre) are not modelled (noted)."""
+        color = np.maximum(self.mean_color(node.inputs["Color"], stack), 0.0)
+        self.note(f"'{node.name}': the Hair BSDF's {node.component.lower()} is approximated by "
+                  f"{'a glossy lobe' if node.component == 'Reflection' else 'a tinted transparency'}")
+        if node.component == "Transmission":
+            return _through_fibre(Closure(), color)
+        rough = float(np.clip(self.value(node.inputs["RoughnessU"], stack), 0.0, 1.0))
+        return Closure.lobe(GLOSSY, 1.0, color, roughness=float(np.sqrt(rough)))
+
     def _holdout(self, node, stack):
         """Holdout: black for every ray, and what camera rays that meet it cut out of the image."""
         return Closure(holdout=1.0)
@@ -2241,6 +2351,8 @@ SHADERS = {
     "ShaderNodeBsdfTransparent": NodeWalker._transparent,
     "ShaderNodeBsdfTranslucent": NodeWalker._translucent,
     "ShaderNodeBsdfSheen": NodeWalker._sheen,
+    "ShaderNodeBsdfHairPrincipled": NodeWalker._hair_principled,
+    "ShaderNodeBsdfHair": NodeWalker._hair,
     "ShaderNodeHoldout": NodeWalker._holdout,
     "ShaderNodeMixShader": NodeWalker._mix,
     "ShaderNodeAddShader": NodeWalker._add,

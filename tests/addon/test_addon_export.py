@@ -323,14 +323,14 @@ def test_several_unsupported_nodes_give_one_warning_naming_each(scene):
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     mix = nt.nodes.new("ShaderNodeMixShader")
     toon = nt.nodes.new("ShaderNodeBsdfToon")
-    hair = nt.nodes.new("ShaderNodeBsdfHair")
+    portal = nt.nodes.new("ShaderNodeBsdfRayPortal")
     nt.links.new(toon.outputs[0], mix.inputs[1])
-    nt.links.new(hair.outputs[0], mix.inputs[2])
+    nt.links.new(portal.outputs[0], mix.inputs[2])
     nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     row, ex = export_material(mat)
     warnings = [w for w in ex.warnings if "'Odd'" in w]
     assert len(warnings) == 1
-    assert "Toon BSDF" in warnings[0] and "Hair BSDF" in warnings[0]
+    assert "Toon BSDF" in warnings[0] and "Ray Portal BSDF" in warnings[0]
     assert row["diffuse_color"] == pytest.approx([0.8, 0.8, 0.8])
 
 
@@ -3606,3 +3606,90 @@ def test_pass_indices_mist_and_what_the_data_passes_read_reach_the_core(scene):
     assert s.object_ids is None and s.uvs is not None and s.uvs.shape == (len(s.triangles), 3, 2)
     assert not s.uvs[on_box].any()
     assert s.uvs[~on_box].min() == 0.0 and s.uvs[~on_box].max() == 1.0
+
+
+def hair_material(name, node="ShaderNodeBsdfHairPrincipled", **settings):
+    """A material of one hair BSDF node, its properties and inputs set from ``settings``."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    hair = nt.nodes.new(node)
+    for key, value in settings.items():
+        if key in ("model", "parametrization", "component"):
+            setattr(hair, key, value)
+        else:
+            hair.inputs[key].default_value = value
+    nt.links.new(hair.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def fibre_shares(row):
+    """(what the hair's lobes scatter (3,), what goes on through the fibre (3,)) of a hair
+    material's row: the front face stops a ray with its opacity o and scatters weight x colour
+    there, the back face lets all through; each face tints by the transparent colour."""
+    o = row["opacity"]
+    scatter = o * row["glossy_weight"] * row["glossy_color"]
+    return scatter, (1.0 - o) * row["transparent_color"] ** 2
+
+
+@pytest.mark.parametrize("settings", [{"parametrization": "ABSORPTION", "Absorption Coefficient": (0, 0, 0)},
+                                      {"parametrization": "MELANIN", "Melanin": 0.0, "Tint": (1, 1, 1, 1)},
+                                      {"model": "HUANG", "parametrization": "COLOR", "Color": (1, 1, 1, 1)}])
+def test_a_clear_hair_fibre_scatters_or_lets_through_all_the_light(scene, settings):
+    """Principled Hair BSDF (stop 56; before, unsupported: grey diffuse): a fibre that absorbs
+    nothing reflects at its surface (R) or inside it (TRT and later) or lets the light through (TT),
+    and these add up to 1 in each channel (the lobes' shares of a smooth dielectric cylinder, by
+    Chiang et al.'s A_p, averaged across the fibre).  R and TRT are a glossy lobe on the front face
+    of the curve's tube, TT a transparency of both faces (the back one wholly, by Backfacing)."""
+    row, ex = export_material(hair_material("Clear", **settings))
+    assert row["diffuse_weight"] == 0 and row["translucent_weight"] == 0 and row["opacity_program"] >= 0
+    scatter, through = fibre_shares(row)
+    np.testing.assert_allclose(scatter + through, 1.0, atol=1e-4)
+    assert 0.05 < scatter.min() and 0.75 < through.min()
+    assert any("'Clear'" in w and "approximated" in w for w in ex.warnings), ex.warnings
+
+
+def test_hair_fibres_take_their_colour_from_absorption(scene):
+    """Principled Hair BSDF's parametrizations give Cycles' absorption: the default dark brown
+    Color (0.018, 0.006, 0.002: what many fibres together look) lets a single fibre pass under
+    half the red and a ninth of the blue; a blonde Color lets through more red than blue; Melanin 0.8
+    (pheomelanin) absorbs blue most; a huge Absorption Coefficient leaves only the surface's
+    reflection, the fibre's mean Fresnel reflectance at IOR 1.55 (0.0465 face on, 1 at its
+    edges), grey; Huang's TT factor 0 lets nothing through, and its R factor 2 doubles R."""
+    def shares(**settings):
+        return fibre_shares(export_material(hair_material("Hair", **settings))[0])
+    scatter, through = shares()                                        # (Chiang, Color, default)
+    assert 0.5 > through[0] > through[1] > through[2] and through[2] < 0.15 and scatter.max() < 0.2
+    blonde = shares(parametrization="COLOR", Color=(0.6, 0.45, 0.25, 1.0))[1]
+    assert blonde[0] > blonde[1] > blonde[2] > 0.5
+    melanin = shares(parametrization="MELANIN", Melanin=0.8, **{"Melanin Redness": 1.0})[1]
+    assert melanin[0] > melanin[1] > melanin[2]
+    scatter, through = shares(parametrization="ABSORPTION", **{"Absorption Coefficient": (1e3, 1e3, 1e3)})
+    h = (np.arange(100_000) + 0.5) / 100_000                            # (where light strikes across it)
+    cos_i = np.sqrt(1.0 - h * h)
+    cos_t = np.sqrt(1.0 - (h / 1.55) ** 2)
+    fresnel = 0.5 * (((cos_i - 1.55 * cos_t) / (cos_i + 1.55 * cos_t)) ** 2
+                     + ((1.55 * cos_i - cos_t) / (1.55 * cos_i + cos_t)) ** 2)
+    assert through.max() < 1e-6
+    np.testing.assert_allclose(scatter, fresnel.mean(), rtol=1e-3)
+    huang = dict(model="HUANG", parametrization="COLOR", Color=(0.6, 0.45, 0.25, 1.0))
+    assert shares(**huang, **{"TT lobe": 0.0})[1].max() == 0
+    opaque_r = shares(parametrization="ABSORPTION", model="HUANG",
+                      **{"Absorption Coefficient": (1e3, 1e3, 1e3), "R lobe": 2.0})[0]
+    np.testing.assert_allclose(opaque_r, 2 * fresnel.mean(), rtol=1e-3)
+
+
+def test_hair_bsdf_reflects_or_lets_through(scene):
+    """Hair BSDF (Cycles' older one): Reflection a glossy lobe of its Color and of RoughnessU,
+    Transmission the light going on through the fibre tinted by its Color (both faces of the tube,
+    as the Principled Hair BSDF's TT)."""
+    row, ex = export_material(hair_material("Shine", "ShaderNodeBsdfHair", component="Reflection",
+                                            Color=(0.8, 0.6, 0.4, 1.0), RoughnessU=0.25))
+    assert row["opacity"] == 1 and row["glossy_weight"] == pytest.approx(1.0)
+    np.testing.assert_allclose(row["glossy_color"], [0.8, 0.6, 0.4], rtol=1e-6)
+    assert row["glossy_roughness"] == pytest.approx(0.5)
+    row, ex = export_material(hair_material("Veil", "ShaderNodeBsdfHair", component="Transmission",
+                                            Color=(0.8, 0.6, 0.4, 1.0)))
+    scatter, through = fibre_shares(row)
+    np.testing.assert_allclose(through, [0.8, 0.6, 0.4], rtol=1e-5)
+    assert row["glossy_weight"] == 0 and row["diffuse_weight"] == 0
