@@ -15,6 +15,8 @@ Scenes:
     smooth      one grid mesh, smooth shaded (vertex normals), with a UV map, rotated and scaled
     mixed       the same with every other face flat (corner normals, Blender's slowest case)
     instances   1000 collection instances of one 1000-triangle mesh (per-instance cost)
+    hair        a Curves object of strands of 16 points (Catmull-Rom), each a tube of 960 triangles
+                (8 sides, 4 pieces a segment); its raw read is the points' positions and radii
 """
 from __future__ import annotations
 
@@ -103,6 +105,22 @@ def build(kind, triangles):
             empty.location = (2.1 * (k % side), 2.1 * (k // side), 0.0)
             scene.collection.objects.link(empty)
         meshes = [(me, count)]
+    elif kind == "hair":
+        strands = max(1, triangles // 960)
+        rng = np.random.default_rng(0)
+        roots = np.column_stack([rng.uniform(-1, 1, (strands, 2)), np.zeros(strands)])
+        t = np.linspace(0.0, 1.0, 16)
+        bend = rng.normal(0.0, 0.2, (strands, 1, 2))
+        points = roots[:, None, :] + np.concatenate([bend * t[None, :, None] ** 2, 0.3 * t[None, :, None]
+                                                     * np.ones((strands, 1, 1))], axis=2)
+        cv = bpy.data.hair_curves.new("Hair")
+        cv.add_curves([16] * strands)
+        cv.attributes["position"].data.foreach_set("vector", points.astype(np.float32).ravel())
+        cv.attributes.new("radius", "FLOAT", "POINT").data.foreach_set(
+            "value", np.full(16 * strands, 0.002, np.float32))
+        cv.materials.append(mat)
+        scene.collection.objects.link(bpy.data.objects.new("Hair", cv))
+        meshes = [(cv, 1)]
     else:
         me = grid_mesh("Grid", int(round(np.sqrt(triangles / 2))), flat_every_other=kind == "mixed")
         me.materials.append(mat)
@@ -117,8 +135,14 @@ def build(kind, triangles):
 
 
 def raw_read(meshes):
-    """Positions and corner vertices through the attribute API, once per distinct mesh."""
+    """Positions and corner vertices through the attribute API, once per distinct mesh (a hair
+    object's points' positions and radii)."""
     for me, _ in meshes:
+        if isinstance(me, bpy.types.Curves):
+            co, radius = np.empty(len(me.points) * 3, np.float32), np.empty(len(me.points), np.float32)
+            me.attributes["position"].data.foreach_get("vector", co)
+            me.attributes["radius"].data.foreach_get("value", radius)
+            continue
         co = np.empty(len(me.vertices) * 3, np.float32)
         me.attributes["position"].data.foreach_get("vector", co)
         corner = np.empty(len(me.loops), np.int32)
@@ -126,8 +150,10 @@ def raw_read(meshes):
 
 
 def loop_triangles_read(meshes):
-    """Blender's triangulation read through RNA, once per distinct mesh."""
+    """Blender's triangulation read through RNA, once per distinct mesh (none for hair)."""
     for me, _ in meshes:
+        if isinstance(me, bpy.types.Curves):
+            continue
         me.calc_loop_triangles()
         tri = np.empty(len(me.loop_triangles) * 3, np.int32)
         me.loop_triangles.foreach_get("loops", tri)
@@ -152,7 +178,7 @@ def main():
     export_scene = importlib.import_module(f"{PACKAGE}.amcmcppm_addon.export.scene").export_scene
     out = {}
     print(f"bpy {bpy.app.version_string}, {os.cpu_count()} cpus, median of {a.repeats}")
-    for kind in ("smooth", "mixed", "instances"):
+    for kind in ("smooth", "mixed", "instances", "hair"):
         depsgraph, meshes = build(kind, a.triangles)
         exported = export_scene(depsgraph)                   # warm-up, and the triangle count
         tris = exported.scene.triangle_count
@@ -163,6 +189,9 @@ def main():
         per_m = 1e3 * 1e6 / tris
         distinct = 0
         for me, _ in meshes:
+            if isinstance(me, bpy.types.Curves):
+                distinct += tris
+                continue
             me.calc_loop_triangles()
             distinct += len(me.loop_triangles)
         per_m_read = 1e3 * 1e6 / distinct          # the reads are of the distinct meshes only
