@@ -3693,3 +3693,37 @@ def test_hair_bsdf_reflects_or_lets_through(scene):
     scatter, through = fibre_shares(row)
     np.testing.assert_allclose(through, [0.8, 0.6, 0.4], rtol=1e-5)
     assert row["glossy_weight"] == 0 and row["diffuse_weight"] == 0
+
+
+@pytest.mark.parametrize("case", ["blonde", "huang_doubled"])
+def test_dense_hair_stays_finite(scene, case):
+    """Hard hair: 60 strands of a blonde Principled Hair BSDF crossing one another (each tube closed,
+    so photons that pass one strand land inside others), and Huang's model with every lobe factor
+    2 (its glossy lobe's albedo above 1, the transparency at its cap of 0.999): after every pass
+    of PPM and of the chains the image is finite, not negative, its alpha within [0, 1]."""
+    from core.integrator import render
+    from core.settings import RenderSettings
+    settings = {"parametrization": "COLOR", "Color": (0.6, 0.45, 0.25, 1.0)}
+    if case == "huang_doubled":
+        settings.update({"model": "HUANG", "R lobe": 2.0, "TT lobe": 2.0, "TRT lobe": 2.0})
+    rng = np.random.default_rng(3)
+    roots = rng.uniform(-0.3, 0.3, (60, 2))
+    bends = rng.normal(0.0, 0.3, (60, 2))
+    curves = [[(x + b * t * t, y - b2 * t * t, 0.8 * t) for t in np.linspace(0, 1, 6)]
+              for (x, y), (b, b2) in zip(roots, bends)]
+    bs.hair_curves("Tangle", curves, radius=0.03, material=hair_material("Hair", **settings))
+    bs.plane("Floor", size=4.0, material=bs.diffuse("Floor", (0.5, 0.5, 0.5)))
+    bs.light("AREA", location=(0.5, -1.0, 2.0), target=(0, 0, 0.3), energy=200.0, size=0.5)
+    bs.world((0.2, 0.2, 0.2), strength=1.0)
+    bs.camera(location=(0, -2.5, 1.2), target=(0, 0, 0.4))
+    bpy.context.scene.render.resolution_x = bpy.context.scene.render.resolution_y = 24
+    s = bs.export().scene
+
+    def check(result):
+        image = result.image
+        assert np.isfinite(image).all() and (image >= 0).all(), result.passes
+        assert (image[..., 3] <= 1.0).all(), result.passes
+
+    for method in ("ppm", "amcmcppm"):
+        run = RenderSettings(passes=3, photons_per_pass=20_000, workers=1, seed=1, method=method)
+        assert render(s, run, on_iteration=check).passes == 3
