@@ -1071,7 +1071,8 @@ def test_a_transmission_map_picks_levels_and_beside_a_metallic_map_takes_its_mea
 
 def test_unsupported_texture_nodes_are_named_and_replaced_by_the_sockets_value(scene):
     """(The Gabor Texture was the example until stop 42, which models it and Particle Info; now
-    Curves Info, of hair, which is not rendered.)"""
+    Curves Info's Tangent Normal, which stop 56 leaves out where it models the node's other
+    outputs.)"""
     mat = bs.diffuse("Odd", (0.3, 0.4, 0.5))
     nt = mat.node_tree
     info = nt.nodes.new("ShaderNodeHairInfo")
