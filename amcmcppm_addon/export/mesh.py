@@ -537,7 +537,8 @@ def read_curves(cv, name, log, attributes=frozenset()):
     its mean width seen from the side and its area are the circle's.  Cycles' Rounded Ribbons (its
     default shape) face every ray with the round normals of such a tube, its 3D Curves are round
     tubes: both are this tube.  Curves Info's outputs and the named ``attributes`` the curves have
-    (on their points or curves) are read per corner; None without a curve of two or more points.
+    (on their points or curves) are read per corner (curves have no render colour attribute: an
+    unnamed Color Attribute node reads 0, as in Cycles); None without a curve of two or more points.
     (Curves that Geometry Nodes make on a mesh object reach the depsgraph as a Curve object, which
     Cycles does not render either.)"""
     n_points, n_curves = len(cv.points), len(cv.curves)
@@ -639,17 +640,17 @@ def read_curves(cv, name, log, attributes=frozenset()):
     triangles = triangles.reshape(-1, 3).astype(np.int32)
     log.info(f"object '{name}': {len(curves)} curves as tubes of {sides} sides, {len(triangles)} triangles")
     named = {}
+    ring = triangles // sides                                 # (T, 3) each corner's point
     if attributes:
         point_values = _curve_info(keys, radius, first, count, seg, t, b, c, seg_curve, attrs, attributes,
                                    name, log)
-        ring = triangles // sides                             # (T, 3) each corner's point
         for key, values in point_values.items():
             named[key] = values.astype(np.float32)[ring]
     return LocalMesh(name=name, positions=positions, triangles=triangles,
                      slots=np.zeros(len(triangles), np.int32),
                      normals=radial.reshape(-1, 3).astype(np.float32), normal_index=triangles.copy(),
                      uvs=None, mesh_materials=tuple(cv.materials), attributes=named,
-                     attributes_read=frozenset(attributes), colors_read=True)    # (no colour attribute read)
+                     attributes_read=frozenset(attributes), colors_read=True)    # (none to read)
 
 
 def _unit_or(v, fallback):
@@ -739,9 +740,19 @@ def _curve_attribute(attrs, key, name, log, b, c, t, curve_of_point):
     if attr is None:
         return None
     kind = ATTRIBUTE_TYPES.get(attr.data_type)
-    if kind is None or attr.domain not in ("POINT", "CURVE"):
+    values = None if kind is None else _curve_values(attr, kind, alpha, b, c, t, curve_of_point)
+    if values is None:
         log.warning(f"object '{name}': attribute '{key}' ({attr.data_type.lower()} on the "
                     f"{attr.domain.lower()} domain) cannot be read; it reads 0")
+    return values
+
+
+def _curve_values(attr, kind, alpha, b, c, t, curve_of_point):
+    """(E, 3) float64 values of a curves attribute (``ATTRIBUTE_TYPES`` entry ``kind``) at the tubes'
+    points: on the curves' points between keys ``b`` and ``c`` as ``t`` goes (as Cycles
+    interpolates a key's attribute along its segment), on the curves each point's curve's; None on
+    another domain."""
+    if attr.domain not in ("POINT", "CURVE"):
         return None
     values = _attribute_values(attr, kind, alpha).astype(np.float64)
     if attr.domain == "CURVE":

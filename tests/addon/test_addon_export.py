@@ -3728,3 +3728,41 @@ def test_dense_hair_stays_finite(scene, case):
     for method in ("ppm", "amcmcppm"):
         run = RenderSettings(passes=3, photons_per_pass=20_000, workers=1, seed=1, method=method)
         assert render(s, run, on_iteration=check).passes == 3
+
+
+def test_hair_curves_read_their_colours_and_attributes(scene):
+    """A hair object's colour attribute named in a Color Attribute node (on its points: between two
+    points as Cycles interpolates along a segment) and an attribute named in an Attribute node (on
+    its curves: each curve's value) reach the tubes' corners; an unnamed Color Attribute node reads
+    0 (curves have no render colour attribute)."""
+    mat = bs.diffuse("Painted")
+    nt = mat.node_tree
+    color, attribute, add = (nt.nodes.new(k) for k in ("ShaderNodeVertexColor", "ShaderNodeAttribute",
+                                                        "ShaderNodeMix"))
+    color.layer_name = "Paint"
+    attribute.attribute_name = "shade"
+    add.data_type, add.blend_type = "RGBA", "ADD"
+    add.inputs["Factor"].default_value = 1.0
+    nt.links.new(color.outputs["Color"], add.inputs["A"])
+    nt.links.new(attribute.outputs["Fac"], add.inputs["B"])
+    nt.links.new(add.outputs["Result"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    ob = bs.hair_curves("Fur", [[(0, 0, 0), (0, 0, 1), (0, 0, 2)], [(2, 0, 0), (2, 0, 2)]], radius=0.1,
+                        material=mat, kind="POLY")
+    cv = ob.data
+    paint = cv.color_attributes.new("Paint", "FLOAT_COLOR", "POINT")
+    paint.data.foreach_set("color", np.array([(1, 0, 0, 1), (0, 1, 0, 1), (0, 0, 1, 1),
+                                              (0.2, 0.2, 0.2, 1), (0.6, 0.6, 0.6, 1)], np.float32).ravel())
+    cv.attributes.new("shade", "FLOAT", "CURVE").data.foreach_set("value", np.array([0.25, 0.75], np.float32))
+    bs.camera(location=(1, -10, 1), target=(1, 0, 1))
+    ex = bs.export()
+    s = ex.scene
+    assert not ex.warnings, ex.warnings
+    corners = s.vertices[s.triangles].astype(np.float64)                    # (T, 3, 3)
+    x, z = corners[..., 0], corners[..., 2]
+    first = x.mean(axis=1) < 1
+    colours = s.attributes["Paint"].astype(np.float64)
+    keys = np.rint(z[first]).astype(int)                         # (the corners lie at the points)
+    np.testing.assert_allclose(colours[first], np.eye(3)[keys], atol=1e-6)      # red, green, blue
+    np.testing.assert_allclose(colours[~first][..., 0], 0.2 + 0.2 * z[~first], atol=1e-5)
+    shade = s.attributes["shade"][..., 0]
+    assert (shade[first] == 0.25).all() and (shade[~first] == 0.75).all()
