@@ -72,6 +72,7 @@ class LocalMesh:
     # float32 per corner} of those the mesh has among ``attributes_read``, the names asked for
     attributes: dict = field(default_factory=dict)
     attributes_read: frozenset = frozenset()
+    curves: int = 0             # hair: the strands (:func:`curve_tubes`), for Curves Info's Random
 
 
 @dataclass
@@ -133,14 +134,18 @@ class GeometryCollector:
     passes : the core data passes the view layer asks for that need geometry beside what the
     materials read: "object_index" the objects and their Object Info (the pass index), "uv" the UVs.
     light_groups : {name: index} of the view layer's light groups (``lights.light_group_index``).
-    hair : whether hair curves render (the view layer's Filter > Hair box, Cycles' ``use_hair``).
+    hair : whether hair curves and hair particles render (the view layer's Filter > Hair box,
+    Cycles' ``use_hair``).
+    render : whether the depsgraph is a render's (particle systems switched on for renders, their
+    render steps and children) or a viewport's (those for the viewport, its display steps and amount).
     """
 
     def __init__(self, materials, log, material_override=None, linking=(None, None), frame=0.0,
-                 passes=frozenset(), light_groups=None, hair=True):
+                 passes=frozenset(), light_groups=None, hair=True, render=True):
         """``frame``: the scene's current frame (with subframe), for Particle Info's Age."""
         self.light_groups = light_groups or {}
         self.hair = hair
+        self.render = render
         self.materials = materials
         self.frame = frame
         self.passes = frozenset(passes)
@@ -161,13 +166,13 @@ class GeometryCollector:
     def add(self, inst):
         """Add one ``DepsgraphObjectInstance`` (other object types are ignored)."""
         ob = inst.object
+        if ob.type == "MESH" and self.hair and inst.show_particles:
+            self._add_particle_hair(inst)
         if ob.type not in GEOMETRY_TYPES or not inst.show_self or (ob.type == "CURVES" and not self.hair):
             if ob.type in UNSUPPORTED_TYPES and inst.show_self:
                 self.log.warning(f"object '{ob.name}' is {UNSUPPORTED_TYPES[ob.type]}, which is not "
                                  "supported: not rendered")
             return
-        if not inst.is_instance and any(_renders_hair(m) for m in ob.modifiers):
-            self.log.warning(f"object '{ob.name}': its hair particles are not supported: not rendered")
         key = _mesh_key(ob)
         if key not in self.meshes:
             self.meshes[key] = read_object_mesh(ob, self.log)
@@ -196,6 +201,44 @@ class GeometryCollector:
                                      colors=colors or local.colors_read,
                                      attributes=named | local.attributes_read) or local
             self.meshes[key] = local
+        self._place(inst, key, mat_ids, used)
+
+    def _add_particle_hair(self, inst):
+        """The hair particle systems of a mesh object's instance (Cycles' ``sync_particle_hair``:
+        those of Hair type rendered as Path, on for renders or for the viewport as the depsgraph
+        is), each a tube per strand (:func:`read_particle_hair`) of the material its settings name
+        (their Material slot)."""
+        ob = inst.object
+        systems = [m.particle_system for m in ob.modifiers if _renders_hair(m, self.render)]
+        first = 0                               # (Cycles numbers the strands across the systems)
+        for index, psys in enumerate(systems):
+            settings = psys.settings
+            slots = [slot.material for slot in ob.material_slots] or list(ob.data.materials)
+            if self.material_override is not None:
+                material_id = self.materials.material_id(self.material_override)
+            elif slots:
+                material_id = self.materials.material_id(slots[min(max(settings.material - 1, 0),
+                                                                   len(slots) - 1)])
+            else:
+                material_id = self.materials.default_id()
+            mat_ids = (material_id,)
+            used = self.materials.coordinates_used(mat_ids)
+            named = frozenset(n[len(NAMED):] for n in used if n.startswith(NAMED))
+            key = ("hair", ob.original.as_pointer(), index)
+            local = self.meshes.get(key)
+            if key not in self.meshes or (local is not None and not named <= local.attributes_read):
+                named |= local.attributes_read if local is not None else frozenset()
+                self.meshes[key] = local = read_particle_hair(ob, psys, self.render, self.log, named, first)
+            if local is None:
+                continue
+            first += local.curves
+            self._place(inst, key, mat_ids, used)
+
+    def _place(self, inst, key, mat_ids, used):
+        """One more instance of the geometry under ``key`` with materials ``mat_ids`` (whose
+        programs read the coordinates ``used``): its transform and its object's flags, links,
+        Object Info, Cryptomatte names and properties."""
+        ob = inst.object
         # Copy the matrix inside the loop: the iterator reuses its instance objects.
         flags = (ray_visibility(ob) | (HOLDOUT_OBJECT if ob.is_holdout else 0)
                  | (0 if ob.visible_shadow else CASTS_NO_SHADOW)
@@ -242,9 +285,10 @@ def is_shadow_catcher(inst) -> bool:
                                              and inst.parent.is_shadow_catcher)
 
 
-def _renders_hair(modifier) -> bool:
-    """Whether ``modifier`` is a particle system that renders as hair strands (Cycles' curves)."""
-    if modifier.type != "PARTICLE_SYSTEM" or not modifier.show_render:
+def _renders_hair(modifier, render=True) -> bool:
+    """Whether ``modifier`` is a particle system that renders as hair strands (Cycles' curves), in
+    renders (``render``) or in the viewport."""
+    if modifier.type != "PARTICLE_SYSTEM" or not (modifier.show_render if render else modifier.show_viewport):
         return False
     settings = modifier.particle_system.settings
     return settings.type == "HAIR" and settings.render_type == "PATH"
@@ -562,7 +606,61 @@ def read_curves(cv, name, log, attributes=frozenset()):
         types = np.empty(n_curves, np.int32)
         t_attr.data.foreach_get("value", types)
         poly = int(types[0]) == CURVE_TYPE_POLY        # (Cycles looks at the first curve only)
+    return curve_tubes(keys, radius, offsets, poly, name, log, attributes, attrs, tuple(cv.materials))
 
+
+def read_particle_hair(ob, psys, render, log, attributes=frozenset(), first_random=0):
+    """:class:`LocalMesh` of a hair particle system ``psys`` of evaluated mesh object ``ob``, in its
+    object space, as Cycles exports it (``ObtainCacheParticleData``): each strand (the parents, or
+    only the children where there are any) the keys of its path cache (``ParticleSystem.co_hair``,
+    2^steps + 1 of them, steps the settings' render or display steps as ``render`` says, plus a
+    spiral kink's extra steps), radius half the Radius Scale times the root-to-tip blend by Shape
+    along the strand's length (0 at the tip with Close Tip), Catmull-Rom tubes of them
+    (:func:`curve_tubes`); Curves Info's Random numbers its strands from ``first_random`` (Cycles
+    counts across the object's systems).  None without strands.  (co_hair is a call per key: about
+    0.5 us.)"""
+    settings = psys.settings
+    steps = (1 << (settings.render_step if render else settings.display_step)) + 1
+    if settings.kink == "SPIRAL":
+        steps += settings.kink_extra_steps
+    parents, children = len(psys.particles), len(psys.child_particles)
+    if not render:
+        children = int(children * settings.display_percentage / 100.0)
+    start = parents if settings.child_type != "NONE" and children else 0
+    strands = range(start, parents + children)
+    if len(strands) == 0:
+        return None
+    co_hair = psys.co_hair
+    world = np.array([tuple(co_hair(ob, particle_no=p, step=k)) for p in strands for k in range(steps)],
+                     np.float64)
+    inverse = np.linalg.inv(np.array(ob.matrix_world, np.float64))
+    keys = world @ inverse[:3, :3].T + inverse[:3, 3]
+    step = np.linalg.norm(np.diff(keys.reshape(len(strands), steps, 3), axis=1), axis=2)
+    along = np.concatenate([np.zeros((len(strands), 1)), np.cumsum(step, axis=1)], axis=1)
+    length = along[:, -1:]
+    time = np.where(length > 0.0, along / np.where(length > 0.0, length, 1.0), 0.0)
+    shape, root, tip = settings.shape, settings.root_radius, settings.tip_radius
+    blend = 1.0 - time
+    if shape < 0.0:
+        blend = blend ** (1.0 + shape)
+    elif shape > 0.0:
+        blend = blend ** (1.0 / (1.0 - shape))
+    radius = 0.5 * settings.radius_scale * (blend * (root - tip) + tip)
+    if settings.use_close_tip:
+        radius[:, -1] = 0.0
+    offsets = steps * np.arange(len(strands) + 1)
+    name = f"{ob.name}' particles '{psys.name}"
+    return curve_tubes(keys, radius.ravel(), offsets, False, name, log, attributes, None, (), first_random)
+
+
+def curve_tubes(keys, radius, offsets, poly, name, log, attributes=frozenset(), attrs=None, materials=(),
+                first_random=0):
+    """:class:`LocalMesh` of tubes around curves (:func:`read_curves`): ``keys`` (P, 3) and
+    ``radius`` (P,) of the points, curve c the points ``offsets[c]`` to ``offsets[c + 1]``, poly
+    or Catmull-Rom; ``attrs`` the curves' own attributes (or None), ``materials`` their data's,
+    ``first_random`` the number of the first curve for Curves Info's Random.  None without a
+    curve of two or more points."""
+    n_curves = len(offsets) - 1
     first, count = offsets[:-1].astype(np.int64), np.diff(offsets).astype(np.int64)
     curves = np.flatnonzero(count >= 2)
     if len(curves) == 0:
@@ -627,6 +725,7 @@ def read_curves(cv, name, log, attributes=frozenset()):
         along = np.einsum("ekj,ej->ek", offset[rows], across)
         offset[rows] += ((stretch - 1.0)[:, None] * along)[:, :, None] * across[:, None, :]
     positions = (centre[:, None, :] + offset).reshape(-1, 3)
+
     # Quads between consecutive points of a curve, each two triangles facing out.
     n_eval = len(seg)
     is_last = np.zeros(n_eval, bool)
@@ -643,14 +742,15 @@ def read_curves(cv, name, log, attributes=frozenset()):
     ring = triangles // sides                                 # (T, 3) each corner's point
     if attributes:
         point_values = _curve_info(keys, radius, first, count, seg, t, b, c, seg_curve, attrs, attributes,
-                                   name, log)
+                                   name, log, first_random)
         for key, values in point_values.items():
             named[key] = values.astype(np.float32)[ring]
     return LocalMesh(name=name, positions=positions, triangles=triangles,
                      slots=np.zeros(len(triangles), np.int32),
                      normals=radial.reshape(-1, 3).astype(np.float32), normal_index=triangles.copy(),
-                     uvs=None, mesh_materials=tuple(cv.materials), attributes=named,
-                     attributes_read=frozenset(attributes), colors_read=True)    # (none to read)
+                     uvs=None, mesh_materials=materials, attributes=named,
+                     attributes_read=frozenset(attributes), colors_read=True,    # (none to read)
+                     curves=n_curves)
 
 
 def _unit_or(v, fallback):
@@ -696,7 +796,8 @@ def _perpendicular(v):
     return p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-300)
 
 
-def _curve_info(keys, radius, first, count, seg, t, b, c, seg_curve, attrs, attributes, name, log):
+def _curve_info(keys, radius, first, count, seg, t, b, c, seg_curve, attrs, attributes, name, log,
+                first_random=0):
     """{name: (E, 3) values at the tubes' points} of the named ``attributes`` asked for: Curves
     Info's (``HAIR_INFO``, as Cycles sets them: Intercept the length along the keys' polygon over the
     curve's, Length the curve's, Thickness twice the radius, Random ``hash_uint2_to_float(curve,
@@ -722,9 +823,10 @@ def _curve_info(keys, radius, first, count, seg, t, b, c, seg_curve, attrs, attr
         elif key == HAIR_THICKNESS:
             v = 2.0 * (radius[b] * (1.0 - t) + radius[c] * t)
         elif key == HAIR_RANDOM:
-            v = hash_uint2_to_float(curve_of_point.astype(np.uint32), np.uint32(0)).astype(np.float64)
+            v = hash_uint2_to_float((curve_of_point + first_random).astype(np.uint32),
+                                    np.uint32(0)).astype(np.float64)
         else:
-            v = _curve_attribute(attrs, key, name, log, b, c, t, curve_of_point)
+            v = None if attrs is None else _curve_attribute(attrs, key, name, log, b, c, t, curve_of_point)
             if v is not None:
                 out[key] = v
             continue

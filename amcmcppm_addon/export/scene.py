@@ -97,7 +97,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     collector = GeometryCollector(materials, log, material_override=view_layer.material_override,
                                   linking=linking, frame=depsgraph.scene_eval.frame_current_final,
                                   passes=geometry_passes(view_layer), light_groups=groups,
-                                  hair=view_layer.use_strand)
+                                  hair=view_layer.use_strand, render=depsgraph.mode == "RENDER")
     light_records, light_collections = [], []
     for inst in depsgraph.object_instances:
         if inst.object.type == "LIGHT":

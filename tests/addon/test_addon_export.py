@@ -2760,11 +2760,12 @@ def test_instances_of_shadow_catchers_and_of_catcher_instancers_are_catchers(sce
     assert (names == "Quad").sum() == 4 and (names == "Dot").sum() == 10
 
 
-def test_volume_objects_and_hair_particles_are_named_in_warnings(scene):
-    """Volume objects (OpenVDB grids), which Cycles renders without a mesh, and a mesh's hair
-    particles are named, not silently left out; the mesh itself still renders, and a particle
-    system switched off for renders is not named.  An empty point cloud adds nothing, unnamed, and
-    hair curves render (since stop 56: before, named and left out)."""
+def test_volume_objects_are_named_in_warnings_and_hair_renders(scene):
+    """Volume objects (OpenVDB grids), which Cycles renders without a mesh, are named, not silently
+    left out.  Hair renders (since stop 56: before, hair curves and a mesh's hair particles were
+    named and left out): a hair object's curves, a plane's 1000 hair particles (the viewport's 5
+    keys a strand: its display steps), not those of a particle system switched off.  An empty point
+    cloud adds nothing, unnamed."""
     for name, data in (("Fur", bpy.data.hair_curves.new("Fur")),
                        ("Dots", bpy.data.pointclouds.new("Dots")), ("Smoke", bpy.data.volumes.new("Smoke"))):
         bpy.context.scene.collection.objects.link(bpy.data.objects.new(name, data))
@@ -2773,14 +2774,15 @@ def test_volume_objects_and_hair_particles_are_named_in_warnings(scene):
     hairy.modifiers.new("Hair", "PARTICLE_SYSTEM")
     hairy.particle_systems[0].settings.type = "HAIR"
     bald = bs.plane("Bald", location=(3, 0, 0))
-    bald.modifiers.new("Hair", "PARTICLE_SYSTEM").show_render = False
+    off = bald.modifiers.new("Hair", "PARTICLE_SYSTEM")
+    off.show_render = off.show_viewport = False
     bald.particle_systems[0].settings.type = "HAIR"
     bs.camera()
     ex = bs.export()
-    assert ex.scene.triangle_count == 4 + 2 * (3 * 4) * 8 * 2
-    for expected in ("'Smoke' is a volume object", "'Hairy': its hair particles"):
-        assert any(expected in w for w in ex.warnings), (expected, ex.warnings)
-    assert not any("'Bald'" in w or "'Dots'" in w or "'Fur'" in w for w in ex.warnings), ex.warnings
+    assert ex.scene.triangle_count == 4 + 2 * (3 * 4) * 8 * 2 + 1000 * (4 * 4) * 8 * 2
+    assert any("'Smoke' is a volume object" in w for w in ex.warnings), ex.warnings
+    assert not any("'Bald'" in w or "'Dots'" in w or "'Fur'" in w or "'Hairy'" in w for w in ex.warnings), \
+        ex.warnings
 
 
 def test_hair_curves_become_tubes(scene):
@@ -3766,3 +3768,47 @@ def test_hair_curves_read_their_colours_and_attributes(scene):
     np.testing.assert_allclose(colours[~first][..., 0], 0.2 + 0.2 * z[~first], atol=1e-5)
     shade = s.attributes["shade"][..., 0]
     assert (shade[first] == 0.25).all() and (shade[~first] == 0.75).all()
+
+
+def test_hair_particles_become_tubes_as_cycles_exports_them(scene):
+    """A mesh's hair particle systems (Cycles' ``ObtainCacheParticleData``): each strand a tube
+    through its path-cache keys (the viewport's 2^display steps + 1), of radius half the Radius
+    Scale times Diameter Root at the root, in the material slot its settings name; the emitter
+    hidden (Show Emitter off), the hair still renders; Curves Info's Random numbers the strands on
+    across the object's systems (Cycles' ``hash_uint2_to_float(curve, 0)``), Intercept 0 at the
+    root; the view layer's Hair box off leaves the particles out too."""
+    from core.texture_hash import hash_uint2_to_float
+    mat = bs.diffuse("Hair")
+    nt = mat.node_tree
+    info = nt.nodes.new("ShaderNodeHairInfo")
+    comb = nt.nodes.new("ShaderNodeCombineXYZ")
+    nt.links.new(info.outputs["Random"], comb.inputs["X"])
+    nt.links.new(info.outputs["Intercept"], comb.inputs["Y"])
+    nt.links.new(comb.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    skin = bs.plane("Skin", size=2.0, material=bs.diffuse("Skin"))
+    skin.data.materials.append(mat)
+    skin.show_instancer_for_viewport = skin.show_instancer_for_render = False
+    for name, count in (("Long", 10), ("Short", 5)):
+        settings = skin.modifiers.new(name, "PARTICLE_SYSTEM").particle_system.settings
+        settings.type, settings.count, settings.material = "HAIR", count, 2
+        settings.hair_length, settings.radius_scale, settings.root_radius = 1.0, 0.1, 1.0
+        settings.display_step = 2                                     # (5 keys a strand)
+    bs.camera(location=(0, -6, 2), target=(0, 0, 0.5))
+    ex = bs.export()
+    s = ex.scene
+    assert not ex.warnings, ex.warnings
+    assert s.triangle_count == 15 * (4 * 4) * 8 * 2                  # (no emitter)
+    assert [s.materials.names[i] for i in np.unique(s.material_ids)] == ["Hair"]
+    random = np.unique(s.attributes[".hair_random"][..., 0])
+    np.testing.assert_allclose(np.sort(random), np.sort(hash_uint2_to_float(np.arange(15, dtype=np.uint32),
+                                                                          np.uint32(0))), rtol=1e-6)
+    corners = s.vertices[s.triangles].astype(np.float64)
+    root = s.attributes[".hair_intercept"][..., 0] == 0
+    rings = np.unique(corners[root].reshape(-1, 3).round(6), axis=0)
+    assert len(rings) == 15 * 8 and np.abs(rings[:, 2]).max() < 1e-6   # (upright strands rooted on the skin)
+    # (the root ring: an octagon of radius 0.05 widened, its sides 2 R sin(pi / 8) long)
+    gaps = np.linalg.norm(rings[:, None] - rings[None], axis=2) + np.eye(len(rings))
+    widen = np.pi / (8 * np.sin(np.pi / 8))
+    np.testing.assert_allclose(gaps.min(axis=1), 2 * 0.05 * widen * np.sin(np.pi / 8), rtol=1e-3)
+    bpy.context.view_layer.use_strand = False
+    assert bs.export().scene.triangle_count == 0
