@@ -17,6 +17,9 @@ Scenes:
     instances   1000 collection instances of one 1000-triangle mesh (per-instance cost)
     hair        a Curves object of strands of 16 points (Catmull-Rom), each a tube of 960 triangles
                 (8 sides, 4 pieces a segment); its raw read is the points' positions and radii
+    particles   a plane's hair particles, 10 interpolated children a parent, 5 keys a strand (the
+                viewport's display steps), each a tube of 256 triangles; its raw read is every key
+                through ParticleSystem.co_hair, the only way Python reads them
 """
 from __future__ import annotations
 
@@ -121,6 +124,15 @@ def build(kind, triangles):
         cv.materials.append(mat)
         scene.collection.objects.link(bpy.data.objects.new("Hair", cv))
         meshes = [(cv, 1)]
+    elif kind == "particles":
+        me = grid_mesh("Skin", 1)
+        me.materials.append(mat)
+        ob = bpy.data.objects.new("Skin", me)
+        scene.collection.objects.link(ob)
+        settings = ob.modifiers.new("Fur", "PARTICLE_SYSTEM").particle_system.settings
+        settings.type, settings.count, settings.hair_length = "HAIR", max(1, triangles // 2560), 0.3
+        settings.child_type, settings.child_percent, settings.display_step = "INTERPOLATED", 10, 2
+        meshes = [(ob, 1)]
     else:
         me = grid_mesh("Grid", int(round(np.sqrt(triangles / 2))), flat_every_other=kind == "mixed")
         me.materials.append(mat)
@@ -138,6 +150,13 @@ def raw_read(meshes):
     """Positions and corner vertices through the attribute API, once per distinct mesh (a hair
     object's points' positions and radii)."""
     for me, _ in meshes:
+        if isinstance(me, bpy.types.Object):
+            ob = me.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            psys = ob.particle_systems[0]
+            for p in range(len(psys.particles), len(psys.particles) + len(psys.child_particles)):
+                for k in range(5):
+                    psys.co_hair(ob, particle_no=p, step=k)
+            continue
         if isinstance(me, bpy.types.Curves):
             co, radius = np.empty(len(me.points) * 3, np.float32), np.empty(len(me.points), np.float32)
             me.attributes["position"].data.foreach_get("vector", co)
@@ -152,7 +171,7 @@ def raw_read(meshes):
 def loop_triangles_read(meshes):
     """Blender's triangulation read through RNA, once per distinct mesh (none for hair)."""
     for me, _ in meshes:
-        if isinstance(me, bpy.types.Curves):
+        if isinstance(me, (bpy.types.Curves, bpy.types.Object)):
             continue
         me.calc_loop_triangles()
         tri = np.empty(len(me.loop_triangles) * 3, np.int32)
@@ -178,7 +197,7 @@ def main():
     export_scene = importlib.import_module(f"{PACKAGE}.amcmcppm_addon.export.scene").export_scene
     out = {}
     print(f"bpy {bpy.app.version_string}, {os.cpu_count()} cpus, median of {a.repeats}")
-    for kind in ("smooth", "mixed", "instances", "hair"):
+    for kind in ("smooth", "mixed", "instances", "hair", "particles"):
         depsgraph, meshes = build(kind, a.triangles)
         exported = export_scene(depsgraph)                   # warm-up, and the triangle count
         tris = exported.scene.triangle_count
@@ -189,7 +208,7 @@ def main():
         per_m = 1e3 * 1e6 / tris
         distinct = 0
         for me, _ in meshes:
-            if isinstance(me, bpy.types.Curves):
+            if isinstance(me, (bpy.types.Curves, bpy.types.Object)):
                 distinct += tris
                 continue
             me.calc_loop_triangles()
