@@ -206,7 +206,7 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
     bl_context = "object"
     bl_parent_id = "OBJECT_PT_visibility"
     COMPAT_ENGINES = {ENGINE_ID}
-    OBJECT_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'LIGHT'}
+    OBJECT_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'POINTCLOUD', 'CURVES', 'LIGHT'}
 
     @classmethod
     def poll(cls, context):
@@ -230,9 +230,9 @@ class AMCMCPPM_OBJECT_PT_ray_visibility(bpy.types.Panel):
 
 
 # Objects whose Shadow Catcher box the exporter reads: those it renders (``export.mesh``; a curve's
-# or a text's evaluated mesh) and the empties that instance a collection (an instancer that is a
-# catcher makes its instances catchers, as in Cycles).
-CATCHER_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'POINTCLOUD'}
+# or a text's evaluated mesh, hair curves) and the empties that instance a collection (an instancer
+# that is a catcher makes its instances catchers, as in Cycles).
+CATCHER_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'POINTCLOUD', 'CURVES'}
 
 
 def draw_shadow_catcher(self, context):

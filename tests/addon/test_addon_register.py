@@ -225,6 +225,8 @@ def test_ray_visibility_panel_shows_the_rays_the_engine_follows(scene):
         scene.render.engine = "CYCLES"
         assert not panel.poll(bpy.context)
         scene.render.engine = ENGINE
+    with bpy.context.temp_override(object=bs.hair_curves("Fur", [[(0, 0, 0), (0, 0, 1)]])):
+        assert panel.poll(bpy.context)                   # (hair renders since stop 56)
     with bpy.context.temp_override(object=cam):
         assert not panel.poll(bpy.context)
 
@@ -324,7 +326,7 @@ def test_shadow_catcher_boxes_show_for_the_engine(scene):
     """Object > Visibility > Mask > Shadow Catcher, which Cycles' Visibility panel draws for Cycles
     only, and Blender's (shown for our engine) does not, drawing Holdout alone: ours, appended to
     Blender's panel, draws it once, right below Holdout, for the objects whose box the exporter
-    reads (meshes, text, empties instancing a collection), not for lights, cameras or other empties,
+    reads (meshes, text, hair, empties instancing a collection), not for lights, cameras or other empties,
     nor for another engine.  View Layer > Passes > Light draws Cycles' Shadow Catcher pass box in
     the column of Emission, Environment and Ambient Occlusion ("Other"), as Cycles' Light panel.
     (The pass and the export: ``test_addon_engine.py``, ``test_addon_export.py``.)"""
@@ -335,14 +337,15 @@ def test_shadow_catcher_boxes_show_for_the_engine(scene):
     assert ENGINE not in cycles.ui.CYCLES_OBJECT_PT_visibility.COMPAT_ENGINES
     assert ui.draw_shadow_catcher in visibility.draw._draw_funcs
     card, lamp, cam = bs.plane("Card"), bs.light("POINT"), bs.camera()
+    fur = bs.hair_curves("Fur", [[(0, 0, 0), (0, 0, 1)]])
     text = bpy.data.objects.new("Text", bpy.data.curves.new("Text", "FONT"))
     instancer, bare = bpy.data.objects.new("Instancer", None), bpy.data.objects.new("Empty", None)
     instancer.instance_type, instancer.instance_collection = "COLLECTION", bpy.data.collections.new("Src")
     for ob in (text, instancer, bare):
         scene.collection.objects.link(ob)
     holdout, catcher = "Object.is_holdout", "Object.is_shadow_catcher"
-    for ob, shown in ((card, True), (text, True), (instancer, True), (lamp, False), (cam, False),
-                      (bare, False)):
+    for ob, shown in ((card, True), (text, True), (fur, True), (instancer, True), (lamp, False),
+                      (cam, False), (bare, False)):
         with bpy.context.temp_override(object=ob):
             assert visibility.poll(bpy.context)
             boxes = [name for name, _ in drawn_boxes(lambda popup: visibility.draw(popup, bpy.context))]
