@@ -416,6 +416,10 @@ class Accumulator:
         return d, tuple(variances)
 
 
+# (CatcherRender: a pass add_pass prepared for finish_pass to trace)
+DEFERRED = "deferred"
+
+
 class CatcherRender:
     """K of Cycles' shadow catcher (``core/shadow_catcher.py``): the catcher objects' own light,
     rendered in a scene of them and the emitters alone, at the main render's points on catchers
@@ -440,17 +444,19 @@ class CatcherRender:
         self._pending = None            # (a pass traced by add_pass, added by finish_pass)
         self.reset()
 
-    def add_pass(self, pass_index, eye, target, scale, n_photons, should_stop=None):
-        """Trace pass ``pass_index`` of the main render's eye pass ``eye`` and target ``target`` (its
-        radii's shrink ``scale``).  Its points on a catcher met first, with no mirror or glass
-        before them, are K's as they are (the same positions and radii: where nothing came between,
-        both renders gather the very same photons; a point traced again from just before the
-        catcher lay a rounding apart, and a photon at the edge of its disc made a pixel of a floor
-        with nothing on it 2.35 instead of 1), with the light their paths saw there; the other camera
-        rays that met a catcher first (:class:`~core.shadow_catcher.CatcherRays`: paths that went
-        on through a mirror or glass catcher) are traced in the catchers' scene from just before
-        it, their points without edge coverage.  (Both scenes have the same materials, so their
-        points have the same optional fields.)  The pass is added by :meth:`finish_pass`."""
+    def add_pass(self, pass_index, eye, target, scale, n_photons, should_stop=None, defer=False):
+        """Trace pass ``pass_index`` of the main render's eye pass ``eye`` and target ``target`` (its radii's
+        shrink ``scale``), or with ``defer`` (a render under a time limit) only prepare it:
+        :meth:`finish_pass` traces it after the main pass, with as many photons as the main render's workers
+        traced (the main pass is then cut only once, and K traced once). Its points on a catcher met first,
+        with no mirror or glass before them, are K's as they are (the same positions and radii: where nothing
+        came between, both renders gather the very same photons; a point traced again from just before the
+        catcher lay a rounding apart, and a photon at the edge of its disc made a pixel of a floor with
+        nothing on it 2.35 instead of 1), with the light their paths saw there; the other camera rays that met
+        a catcher first (:class:`~core.shadow_catcher.CatcherRays`: paths that went on through a mirror or
+        glass catcher) are traced in the catchers' scene from just before it, their points without edge
+        coverage. (Both scenes have the same materials, so their points have the same optional fields.) The
+        pass is added by :meth:`finish_pass`."""
         s = self.settings
         main = target.points
         direct = main.caught if main.bounces is None else main.caught & (main.bounces[:, 0] == 0)
@@ -475,33 +481,50 @@ class CatcherRender:
         runs = [(acc, w) for acc, w in ((self.acc, self.workers), (self.hit_acc, self.pair)) if w]
         if not points.count and (vol is None or not vol.count):
             # (no camera ray met a catcher: a pass whose photons found nothing)
-            self._pending = (pass_index, k_eye, None, [(acc, w, None) for acc, w in runs], n_photons)
+            self._pending = (pass_index, k_eye, None, [(acc, w, None) for acc, w in runs], n_photons,
+                             should_stop)
             return
         vol_radius = vol.base_radius * scale ** (2.0 / 3.0) if vol is not None and vol.count else None
         target = DepositTarget(points, points.base_radius * scale, self.ctx.table, self.n_pixels,
                                self.ctx.has_shading_normals, volume=vol, volume_radius=vol_radius,
                                media=self.ctx.phase, limits=s.bounce_limits, coverage=coverage)
+        if defer:
+            self._pending = (pass_index, k_eye, target, [(acc, w, DEFERRED) for acc, w in runs], n_photons,
+                             should_stop)
+            return
+        t0 = time.perf_counter()
         traced = [(acc, w, [x.run_pass(pass_index, target, n_photons, should_stop, uniform=True) for x in w])
                   for acc, w in runs]
+        self.seconds += time.perf_counter() - t0
+        self.photons += sum(int(o["counters"]["recorded"]) for _, _, outs in traced[:1] for o in outs)
         # (the target kept only where finish_pass may trace the pass again: not with the pair)
-        self._pending = (pass_index, k_eye, None if self.pair else target, traced, n_photons)
+        self._pending = (pass_index, k_eye, None if self.pair else target, traced, n_photons, should_stop)
 
     def finish_pass(self, outputs=None):
-        """Add the pass :meth:`add_pass` traced.  ``outputs``: the main render's workers' results of
-        that pass when its photons were uniform (PPM): where a worker traced fewer than the pass's
-        (cut by the time limit), K is traced again with as many, the same ones (else, at a pixel
-        whose camera rays met a catcher only in that pass, the two sums of a sample in common
-        would differ by the rest: a shadow of 0 where nothing shadowed)."""
+        """Add the pass :meth:`add_pass` traced, or trace it first (deferred).  ``outputs``: the main
+        render's workers' results of that pass when its photons were uniform (PPM): where a worker
+        traced fewer than the pass's (cut by the time limit), K is traced (again) with as many, the
+        same ones (else, at a pixel whose camera rays met a catcher only in that pass, the two sums
+        of a sample in common would differ by the rest: a shadow of 0 where nothing shadowed); with
+        the chains K and its pair trace the whole pass, each as many."""
         if self._pending is None:
             return
-        pass_index, k_eye, target, runs, n_photons = self._pending
+        pass_index, k_eye, target, runs, n_photons, should_stop = self._pending
         self._pending = None
         counts = None
         if outputs is not None and not self.pair and len(outputs) == len(self.workers):
             counts = [int(o["counters"]["recorded"]) for o in outputs]
-        for acc, workers, outs in runs:
-            if counts is not None and target is not None and any(c != n_photons for c in counts):
-                outs = [w.run_pass(pass_index, target, c, uniform=True) for w, c in zip(workers, counts)]
+        t0 = time.perf_counter()
+        for k, (acc, workers, outs) in enumerate(runs):
+            deferred = outs is DEFERRED
+            cut = counts is not None and target is not None and any(c != n_photons for c in counts)
+            if deferred or cut:
+                # (a deferred pass after a stop request is cut too: the stop comes first)
+                each = counts if counts is not None else [n_photons] * len(workers)
+                outs = [w.run_pass(pass_index, target, c, should_stop if deferred else None, uniform=True)
+                        for w, c in zip(workers, each)]
+                if k == 0:
+                    self.photons += sum(int(o["counters"]["recorded"]) for o in outs)
             if outs is None:
                 n = n_photons * len(workers) if counts is None else sum(counts)
                 acc.add(k_eye, np.zeros((self.n_pixels, 3)), n, n, 0, False)
@@ -509,6 +532,7 @@ class CatcherRender:
             out = _merge(outs)
             c = out["counters"]
             acc.add(k_eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"], False)
+        self.seconds += time.perf_counter() - t0
 
     def radiance(self):
         """(n_pixels, 3) float32 K so far."""
@@ -525,6 +549,8 @@ class CatcherRender:
         ``pair`` False)."""
         if not pair:
             self.pair = []
+        self.seconds = 0.0                 # (the time this pass's K and pair traces took, and K's photons:
+        self.photons = 0                   # the main render reads and resets them after each pass)
         self.acc = Accumulator(self.n_pixels, self.settings.normalisation)
         self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation) if self.pair else None
 
@@ -720,6 +746,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         eye = eye_pass(0)
         target = make_target(0, eye)
         last_rate = None                # photons per second per worker of the last whole pass
+        catcher_share = 0.0             # the catchers' render's time over the main photons' (last pass)
         while pass_index < max_passes:
             if stop() and pass_index > 0:
                 result.interrupted = True
@@ -728,15 +755,19 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             # The first pass runs whole; later ones get the time left before the limit.
             budget = needed = None
             if deadline is not None and pass_index > 0:
-                budget = deadline - time.perf_counter()
+                # (the catchers' render traces after the main photons, as many: their share of the
+                # time left is the last pass's)
+                budget = (deadline - time.perf_counter()) / (1.0 + catcher_share)
                 needed = photons / last_rate if last_rate else None
                 # No pass that the limit would cut to a sliver (its eye pass is spent already).
                 if budget <= 0 or (needed is not None and budget < MIN_CUT_PASS * needed):
                     break
             pool.submit(pass_index, target, photons, budget, uniform=not is_chain)
             if catcher is not None and eye.catcher is not None:
-                # (before the next pass is prepared: the two passes' points are not held at once)
-                catcher.add_pass(pass_index, eye, target, scales[pass_index], photons, stop)
+                # (before the next pass is prepared: the two passes' points are not held at once;
+                # under a time limit traced by finish_pass, after the main pass)
+                catcher.add_pass(pass_index, eye, target, scales[pass_index], photons, stop,
+                                 defer=deadline is not None)
             # Prepare the next pass while the workers trace photons, unless it is the last, or
             # the time limit will cut this one, or this is the first pass (whose image is
             # shown as soon as it is done; the next pass is prepared after it).
@@ -754,8 +785,13 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 result.interrupted = True
                 break
             merged = _merge(outputs, halves=is_chain and settings.bias_correction)
+            catcher_stats = {}
             if catcher is not None:
                 catcher.finish_pass(None if is_chain or stop() else outputs)
+                catcher_stats = {"catcher_photons": catcher.photons, "catcher_s": catcher.seconds}
+                if merged["photon_s"] > 0:
+                    catcher_share = catcher.seconds / merged["photon_s"]
+                catcher.seconds, catcher.photons = 0.0, 0
             c = merged["counters"]
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)
@@ -779,7 +815,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             elapsed = time.perf_counter() - t0
             result.image, result.data = images()
             stats = _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, pool.size, settings,
-                                photons, cut and not interrupted, is_chain)
+                                photons, cut and not interrupted, is_chain) | catcher_stats
             result.stats.append(stats)
             result.passes = acc.passes
             result.elapsed_s = elapsed

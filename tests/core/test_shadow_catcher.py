@@ -197,3 +197,24 @@ def fields_of_length(scene, t):
     return [name for name in scene.__dataclass_fields__
             if name not in ("vertices", "undisplaced") and isinstance(getattr(scene, name), np.ndarray)
             and len(getattr(scene, name)) == t]
+
+
+@pytest.mark.parametrize("method, workers", [("ppm", 1), ("ppm", 2), ("amcmcppm", 2)])
+def test_under_a_time_limit_the_catchers_render_traces_each_pass_once(method, workers):
+    """Under a time limit the catchers' render traces a pass after the main one, with as many
+    uniform photons as its workers traced (``CatcherRender.add_pass(defer=True)``): once, where
+    before it traced the whole pass beside the main one and, where the limit cut the main pass,
+    again with the main pass's count (with one worker its time also came out of the main pass's
+    budget); the main pass's budget leaves the catchers' render its share of the time left.  The
+    pass statistics' ``catcher_photons`` are the main pass's photons, pass by pass (with the chains,
+    whose photons are another sample, the whole pass's, in K and in its pair alike), and the
+    shadow of the floor with nothing on it is exactly 1."""
+    scene = catcher_floor(aside=True, sky=np.zeros(3, np.float32), resolution=(48, 48))
+    result = render(scene, RenderSettings(time_limit=2.0, photons_per_pass=40000, workers=workers,
+                                          method=method, data_passes=("shadow_catcher",)))
+    assert result.passes >= 2
+    for stats in result.stats:
+        main = stats["photons_recorded"] if method == "ppm" else stats["photons_per_pass"] * workers
+        assert stats["catcher_photons"] == main, stats
+        assert stats["catcher_s"] > 0
+    np.testing.assert_array_equal(result.data["shadow_catcher"], 1.0)
