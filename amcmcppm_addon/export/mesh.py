@@ -524,15 +524,8 @@ def read_point_cloud(pc, name, log, attributes=frozenset()):
     if n == 0:
         return None
     attrs = pc.attributes
-    centres = np.empty(n * 3, np.float32)
-    attrs["position"].data.foreach_get("vector", centres)
-    centres = centres.reshape(n, 3).astype(np.float64)
-    radius = np.full(n, POINT_RADIUS)
-    r_attr = attrs.get("radius")
-    if r_attr is not None and r_attr.domain == "POINT" and r_attr.data_type == "FLOAT":
-        values = np.empty(n, np.float32)
-        r_attr.data.foreach_get("value", values)
-        radius = np.maximum(values.astype(np.float64), 0.0)
+    centres, radius = _positions_and_radii(attrs, n, POINT_RADIUS)
+    radius = np.maximum(radius, 0.0)
     level = SPHERE_LEVELS
     while level > 0 and n * 20 * 4 ** level > SPHERE_BUDGET:
         level -= 1
@@ -589,15 +582,7 @@ def read_curves(cv, name, log, attributes=frozenset()):
     if n_points == 0 or n_curves == 0:
         return None
     attrs = cv.attributes
-    keys = np.empty(n_points * 3, np.float32)
-    attrs["position"].data.foreach_get("vector", keys)
-    keys = keys.reshape(n_points, 3).astype(np.float64)
-    radius = np.full(n_points, CURVE_RADIUS)
-    r_attr = attrs.get("radius")
-    if r_attr is not None and r_attr.domain == "POINT" and r_attr.data_type == "FLOAT":
-        values = np.empty(n_points, np.float32)
-        r_attr.data.foreach_get("value", values)
-        radius = values.astype(np.float64)
+    keys, radius = _positions_and_radii(attrs, n_points, CURVE_RADIUS)
     offsets = np.empty(n_curves + 1, np.int32)
     cv.curve_offset_data.foreach_get("value", offsets)
     poly = False
@@ -860,6 +845,20 @@ def _curve_values(attr, kind, alpha, b, c, t, curve_of_point):
     if attr.domain == "CURVE":
         return values[curve_of_point]
     return values[b] * (1.0 - t)[:, None] + values[c] * t[:, None]
+
+
+def _positions_and_radii(attrs, n, default):
+    """((n, 3) float64 positions, (n,) float64 radii) of a point cloud's or a hair object's points
+    (attribute collection ``attrs``): their ``radius`` attribute, or ``default`` without one."""
+    positions = np.empty(n * 3, np.float32)
+    attrs["position"].data.foreach_get("vector", positions)
+    radius = np.full(n, default)
+    r_attr = attrs.get("radius")
+    if r_attr is not None and r_attr.domain == "POINT" and r_attr.data_type == "FLOAT":
+        values = np.empty(n, np.float32)
+        r_attr.data.foreach_get("value", values)
+        radius = values.astype(np.float64)
+    return positions.reshape(n, 3).astype(np.float64), radius
 
 
 def _point_attribute(attrs, key, name, log):

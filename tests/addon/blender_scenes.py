@@ -232,6 +232,36 @@ def hair_curves(name, curves, radius=None, material=None, kind=None, location=(0
     return ob
 
 
+def hair_bsdf(name, node="ShaderNodeBsdfHairPrincipled", **settings):
+    """A material of one hair BSDF ``node`` (Principled Hair or Hair), its properties (model,
+    parametrization, component) and inputs set from ``settings``."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    hair = nt.nodes.new(node)
+    for key, value in settings.items():
+        if key in ("model", "parametrization", "component"):
+            setattr(hair, key, value)
+        else:
+            hair.inputs[key].default_value = value
+    nt.links.new(hair.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def intercept_colours(name, root=(0.8, 0.15, 0.1), tip=(0.1, 0.3, 0.8)):
+    """A Diffuse BSDF material whose colour goes from ``root`` to ``tip`` by Curves Info's
+    Intercept (0 at a hair's root, 1 at its tip)."""
+    mat = diffuse(name, (0.8, 0.8, 0.8))
+    nt = mat.node_tree
+    info, mix = nt.nodes.new("ShaderNodeHairInfo"), nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.inputs["A"].default_value = (*root, 1.0)
+    mix.inputs["B"].default_value = (*tip, 1.0)
+    nt.links.new(info.outputs["Intercept"], mix.inputs["Factor"])
+    nt.links.new(mix.outputs["Result"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    return mat
+
+
 def camera(location=(0, -4, 3), target=(0, 0, 0), lens=50.0, sensor=36.0, ortho_scale=None):
     cam = bpy.data.cameras.new("Camera")
     cam.lens, cam.sensor_width = lens, sensor

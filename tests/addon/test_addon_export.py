@@ -3611,21 +3611,6 @@ def test_pass_indices_mist_and_what_the_data_passes_read_reach_the_core(scene):
     assert s.uvs[~on_box].min() == 0.0 and s.uvs[~on_box].max() == 1.0
 
 
-def hair_material(name, node="ShaderNodeBsdfHairPrincipled", **settings):
-    """A material of one hair BSDF node, its properties and inputs set from ``settings``."""
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    hair = nt.nodes.new(node)
-    for key, value in settings.items():
-        if key in ("model", "parametrization", "component"):
-            setattr(hair, key, value)
-        else:
-            hair.inputs[key].default_value = value
-    nt.links.new(hair.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    return mat
-
-
 def fibre_shares(row):
     """(what the hair's lobes scatter (3,), what goes on through the fibre (3,)) of a hair
     material's row: the front face stops a ray with its opacity o and scatters weight x colour
@@ -3644,7 +3629,7 @@ def test_a_clear_hair_fibre_scatters_or_lets_through_all_the_light(scene, settin
     and these add up to 1 in each channel (the lobes' shares of a smooth dielectric cylinder, by
     Chiang et al.'s A_p, averaged across the fibre).  R and TRT are a glossy lobe on the front face
     of the curve's tube, TT a transparency of both faces (the back one wholly, by Backfacing)."""
-    row, ex = export_material(hair_material("Clear", **settings))
+    row, ex = export_material(bs.hair_bsdf("Clear", **settings))
     assert row["diffuse_weight"] == 0 and row["translucent_weight"] == 0 and row["opacity_program"] >= 0
     scatter, through = fibre_shares(row)
     np.testing.assert_allclose(scatter + through, 1.0, atol=1e-4)
@@ -3660,7 +3645,7 @@ def test_hair_fibres_take_their_colour_from_absorption(scene):
     reflection, the fibre's mean Fresnel reflectance at IOR 1.55 (0.0465 face on, 1 at its
     edges), grey; Huang's TT factor 0 lets nothing through, and its R factor 2 doubles R."""
     def shares(**settings):
-        return fibre_shares(export_material(hair_material("Hair", **settings))[0])
+        return fibre_shares(export_material(bs.hair_bsdf("Hair", **settings))[0])
     scatter, through = shares()                                        # (Chiang, Color, default)
     assert 0.5 > through[0] > through[1] > through[2] and through[2] < 0.15 and scatter.max() < 0.2
     blonde = shares(parametrization="COLOR", Color=(0.6, 0.45, 0.25, 1.0))[1]
@@ -3686,12 +3671,12 @@ def test_hair_bsdf_reflects_or_lets_through(scene):
     """Hair BSDF (Cycles' older one): Reflection a glossy lobe of its Color and of RoughnessU,
     Transmission the light going on through the fibre tinted by its Color (both faces of the tube,
     as the Principled Hair BSDF's TT)."""
-    row, ex = export_material(hair_material("Shine", "ShaderNodeBsdfHair", component="Reflection",
+    row, ex = export_material(bs.hair_bsdf("Shine", "ShaderNodeBsdfHair", component="Reflection",
                                             Color=(0.8, 0.6, 0.4, 1.0), RoughnessU=0.25))
     assert row["opacity"] == 1 and row["glossy_weight"] == pytest.approx(1.0)
     np.testing.assert_allclose(row["glossy_color"], [0.8, 0.6, 0.4], rtol=1e-6)
     assert row["glossy_roughness"] == pytest.approx(0.5)
-    row, ex = export_material(hair_material("Veil", "ShaderNodeBsdfHair", component="Transmission",
+    row, ex = export_material(bs.hair_bsdf("Veil", "ShaderNodeBsdfHair", component="Transmission",
                                             Color=(0.8, 0.6, 0.4, 1.0)))
     scatter, through = fibre_shares(row)
     np.testing.assert_allclose(through, [0.8, 0.6, 0.4], rtol=1e-5)
@@ -3714,7 +3699,7 @@ def test_dense_hair_stays_finite(scene, case):
     bends = rng.normal(0.0, 0.3, (60, 2))
     curves = [[(x + b * t * t, y - b2 * t * t, 0.8 * t) for t in np.linspace(0, 1, 6)]
               for (x, y), (b, b2) in zip(roots, bends)]
-    bs.hair_curves("Tangle", curves, radius=0.03, material=hair_material("Hair", **settings))
+    bs.hair_curves("Tangle", curves, radius=0.03, material=bs.hair_bsdf("Hair", **settings))
     bs.plane("Floor", size=4.0, material=bs.diffuse("Floor", (0.5, 0.5, 0.5)))
     bs.light("AREA", location=(0.5, -1.0, 2.0), target=(0, 0, 0.3), energy=200.0, size=0.5)
     bs.world((0.2, 0.2, 0.2), strength=1.0)

@@ -2408,14 +2408,7 @@ def test_hair_curves_match_cycles(addon, tmp_path, shape):
         bs.empty_scene(RESOLUTION, **OURS)
         bpy.context.scene.cycles_curves.shape = "THICK" if shape == "THICK" else "RIBBONS"
         bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.25, 0.25, 0.25)))
-        mat = bs.diffuse("Hair", (0.8, 0.8, 0.8))
-        nt = mat.node_tree
-        info, mix = nt.nodes.new("ShaderNodeHairInfo"), nt.nodes.new("ShaderNodeMix")
-        mix.data_type = "RGBA"
-        mix.inputs["A"].default_value = (0.8, 0.15, 0.1, 1.0)
-        mix.inputs["B"].default_value = (0.1, 0.3, 0.8, 1.0)
-        nt.links.new(info.outputs["Intercept"], mix.inputs["Factor"])
-        nt.links.new(mix.outputs["Result"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+        mat = bs.intercept_colours("Hair")
         hair_arches(mat, kind="POLY" if shape == "POLY" else None)
         bs.camera(location=(0.0, -3.2, 1.6), target=(0.0, 0.0, 0.45), lens=40.0)
         bs.light("AREA", location=(-0.8, -1.5, 2.5), target=(0, 0, 0), energy=150.0, size=1.0)
@@ -2456,17 +2449,7 @@ def hair_fringe(case, world=0.3, light=True):
 
 def hair_bsdf(case):
     node, settings = HAIR_BSDFS[case]
-    mat = bpy.data.materials.new(case)
-    nt = mat.node_tree
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    hair = nt.nodes.new(node)
-    for key, value in settings.items():
-        if key in ("model", "parametrization", "component"):
-            setattr(hair, key, value)
-        else:
-            hair.inputs[key].default_value = value
-    nt.links.new(hair.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    return mat
+    return bs.hair_bsdf(case, node, **settings)
 
 
 @pytest.mark.parametrize("case", list(HAIR_BSDFS))
@@ -2515,14 +2498,7 @@ def test_hair_particles_match_cycles(addon, tmp_path, children, shape):
         bs.empty_scene(RESOLUTION, **OURS)
         bpy.context.scene.cycles_curves.shape = shape
         bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.25, 0.25, 0.25)))
-        mat = bs.diffuse("Hair", (0.8, 0.8, 0.8))
-        nt = mat.node_tree
-        info, mix = nt.nodes.new("ShaderNodeHairInfo"), nt.nodes.new("ShaderNodeMix")
-        mix.data_type = "RGBA"
-        mix.inputs["A"].default_value = (0.8, 0.15, 0.1, 1.0)
-        mix.inputs["B"].default_value = (0.1, 0.3, 0.8, 1.0)
-        nt.links.new(info.outputs["Intercept"], mix.inputs["Factor"])
-        nt.links.new(mix.outputs["Result"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+        mat = bs.intercept_colours("Hair")
         skin = bs.plane("Skin", size=1.2, material=bs.diffuse("Skin", (0.5, 0.5, 0.5)), location=(0, 0, 0.05),
                         rotation=(0.4, 0, 0))
         skin.data.materials.append(mat)
