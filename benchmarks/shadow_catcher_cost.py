@@ -11,6 +11,12 @@ the catcher and with it alternating in every round.
 
     python benchmarks/shadow_catcher_cost.py [--scenes cornell_box glass_ceiling_room sky_over_floor]
                                              [--resolution 320 240] [--rounds 3] [--passes 3]
+                                             [--time-limit S]
+
+With ``--time-limit S`` it renders each scene with its floor a catcher under that time limit instead
+(PPM and the chains, one and two workers) and prints the time taken over the limit, the passes, the
+main render's photons and the catchers' render's (``catcher_photons`` of the pass statistics; stop
+56 traces a pass once there, after the main one, and leaves it its share of the time left).
 """
 from __future__ import annotations
 
@@ -36,8 +42,23 @@ def main():
     parser.add_argument("--resolution", nargs=2, type=int, default=[320, 240])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--passes", type=int, default=3)
+    parser.add_argument("--time-limit", type=float, default=None)
     args = parser.parse_args()
     size = f"{args.resolution[0]}x{args.resolution[1]}"
+    if args.time_limit is not None:
+        for name in args.scenes:
+            caught, count = floor_catchers(SCENES[name](tuple(args.resolution)))
+            for method in ("ppm", "amcmcppm"):
+                for workers in (1, 2):
+                    settings = RenderSettings(time_limit=args.time_limit, workers=workers, method=method,
+                                              data_passes=("shadow_catcher",))
+                    r = render(caught, settings)
+                    main = sum(st["photons_recorded"] for st in r.stats)
+                    k = sum(st.get("catcher_photons", 0) for st in r.stats)
+                    print(f"{name} {size} {method} workers {workers}, limit {args.time_limit:g} s: "
+                          f"took {r.elapsed_s / args.time_limit:.3f} of it, {r.passes} passes, "
+                          f"{main:,} main photons, {k:,} in the catchers' render", flush=True)
+        return
     for name in args.scenes:
         plain = SCENES[name](tuple(args.resolution))
         caught, count = floor_catchers(plain)
