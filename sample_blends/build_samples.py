@@ -567,9 +567,35 @@ def glass_lantern():
     return b.finish("glass_lantern", (320, 240), photons_per_pass=100_000)
 
 
+def fur_under_glass():
+    """The glass-ceiling room with a furry ball in the light through its pane: a sphere of radius
+    0.25 m grows 1200 hair particles 8 cm long (10 interpolated children each in a render, Radius
+    Scale 0.01 tapering to the tip) of a Principled Hair BSDF (Chiang's model, Melanin 0.55,
+    Redness 0.6), rendered as tubes of triangles (README, "Hair")."""
+    b = glass_ceiling_room()
+    skin = b.diffuse("Skin", (0.25, 0.15, 0.1))
+    hair = bpy.data.materials.new("Fur")
+    hair.diffuse_color = (0.35, 0.2, 0.1, 1.0)
+    nt = hair.node_tree
+    for node in list(nt.nodes):
+        if node.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(node)
+    fibre = nt.nodes.new("ShaderNodeBsdfHairPrincipled")
+    fibre.parametrization = "MELANIN"
+    fibre.inputs["Melanin"].default_value = 0.55
+    fibre.inputs["Melanin Redness"].default_value = 0.6
+    nt.links.new(fibre.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    ball = b.sphere("Fur ball", (-0.1, -0.05, 0.25), 0.25, skin, segments=32, rings=16)
+    ball.data.materials.append(hair)
+    settings = ball.modifiers.new("Fur", "PARTICLE_SYSTEM").particle_system.settings
+    settings.type, settings.count, settings.hair_length, settings.material = "HAIR", 1200, 0.08, 2
+    settings.child_type, settings.rendered_child_count, settings.child_percent = "INTERPOLATED", 10, 2
+    return b.finish("fur_under_glass", (320, 240), photons_per_pass=100_000)
+
+
 SCENES = {f.__name__: f for f in (cornell_box, glass_ceiling, hole_mirror_glass, small_view, caustic_sds,
                                   checker_caustic, stained_window, pool_caustics, foggy_glass_ceiling,
-                                  glass_lantern)}
+                                  glass_lantern, fur_under_glass)}
 
 
 def main(argv):

@@ -12,7 +12,7 @@ import pytest
 import blender_scenes as bs
 
 SAMPLES = ["cornell_box", "glass_ceiling", "hole_mirror_glass", "small_view", "caustic_sds", "checker_caustic",
-           "stained_window", "pool_caustics", "foggy_glass_ceiling", "glass_lantern"]
+           "stained_window", "pool_caustics", "foggy_glass_ceiling", "glass_lantern", "fur_under_glass"]
 
 
 def open_sample(repo_root, name):
