@@ -416,7 +416,23 @@ class Accumulator:
         return d, tuple(variances)
 
 
-# (CatcherRender: a pass add_pass prepared for finish_pass to trace)
+@dataclass
+class _CatcherPass:
+    """A pass :meth:`CatcherRender.add_pass` prepared (and traced unless deferred) for
+    :meth:`CatcherRender.finish_pass`: ``runs`` (accumulator, workers, their outputs: None where no
+    camera ray met a catcher, ``DEFERRED`` to trace), K's eye pass and target (None: no tracing
+    again), and the seconds and K photons its traces took so far."""
+
+    index: int
+    eye: object
+    target: object
+    runs: list
+    n_photons: int
+    should_stop: object
+    seconds: float = 0.0
+    photons: int = 0
+
+
 DEFERRED = "deferred"
 
 
@@ -441,7 +457,7 @@ class CatcherRender:
         self.pair = ([PhotonWorker(scene, self.settings, index=i, ctx=ctx) for i in range(workers)]
                      if pair else [])
         self.n_pixels = n_pixels
-        self._pending = None            # (a pass traced by add_pass, added by finish_pass)
+        self._pending = None            # (the _CatcherPass of add_pass, for finish_pass)
         self.reset()
 
     def add_pass(self, pass_index, eye, target, scale, n_photons, should_stop=None, defer=False):
@@ -481,24 +497,23 @@ class CatcherRender:
         runs = [(acc, w) for acc, w in ((self.acc, self.workers), (self.hit_acc, self.pair)) if w]
         if not points.count and (vol is None or not vol.count):
             # (no camera ray met a catcher: a pass whose photons found nothing)
-            self._pending = (pass_index, k_eye, None, [(acc, w, None) for acc, w in runs], n_photons,
-                             should_stop)
+            self._pending = _CatcherPass(pass_index, k_eye, None, [(acc, w, None) for acc, w in runs],
+                                         n_photons, should_stop)
             return
         vol_radius = vol.base_radius * scale ** (2.0 / 3.0) if vol is not None and vol.count else None
         target = DepositTarget(points, points.base_radius * scale, self.ctx.table, self.n_pixels,
                                self.ctx.has_shading_normals, volume=vol, volume_radius=vol_radius,
                                media=self.ctx.phase, limits=s.bounce_limits, coverage=coverage)
         if defer:
-            self._pending = (pass_index, k_eye, target, [(acc, w, DEFERRED) for acc, w in runs], n_photons,
-                             should_stop)
+            self._pending = _CatcherPass(pass_index, k_eye, target, [(acc, w, DEFERRED) for acc, w in runs],
+                                         n_photons, should_stop)
             return
         t0 = time.perf_counter()
         traced = [(acc, w, [x.run_pass(pass_index, target, n_photons, should_stop, uniform=True) for x in w])
                   for acc, w in runs]
-        self.seconds += time.perf_counter() - t0
-        self.photons += sum(int(o["counters"]["recorded"]) for _, _, outs in traced[:1] for o in outs)
         # (the target kept only where finish_pass may trace the pass again: not with the pair)
-        self._pending = (pass_index, k_eye, None if self.pair else target, traced, n_photons, should_stop)
+        self._pending = _CatcherPass(pass_index, k_eye, None if self.pair else target, traced, n_photons,
+                                     should_stop, time.perf_counter() - t0, _recorded(traced[0][2]))
 
     def finish_pass(self, outputs=None):
         """Add the pass :meth:`add_pass` traced, or trace it first (deferred).  ``outputs``: the main
@@ -506,33 +521,34 @@ class CatcherRender:
         traced fewer than the pass's (cut by the time limit), K is traced (again) with as many, the
         same ones (else, at a pixel whose camera rays met a catcher only in that pass, the two sums
         of a sample in common would differ by the rest: a shadow of 0 where nothing shadowed); with
-        the chains K and its pair trace the whole pass, each as many."""
-        if self._pending is None:
-            return
-        pass_index, k_eye, target, runs, n_photons, should_stop = self._pending
-        self._pending = None
+        the chains K and its pair trace the whole pass, each as many.  Returns the pass's statistics:
+        ``catcher_photons`` (K's photons traced, again ones included) and ``catcher_s`` (the seconds
+        K's and the pair's traces took), 0 without a pass."""
+        p, self._pending = self._pending, None
+        if p is None:
+            return {"catcher_photons": 0, "catcher_s": 0.0}
         counts = None
         if outputs is not None and not self.pair and len(outputs) == len(self.workers):
             counts = [int(o["counters"]["recorded"]) for o in outputs]
+        cut = counts is not None and p.target is not None and any(c != p.n_photons for c in counts)
         t0 = time.perf_counter()
-        for k, (acc, workers, outs) in enumerate(runs):
+        for k, (acc, workers, outs) in enumerate(p.runs):
             deferred = outs is DEFERRED
-            cut = counts is not None and target is not None and any(c != n_photons for c in counts)
             if deferred or cut:
                 # (a deferred pass after a stop request is cut too: the stop comes first)
-                each = counts if counts is not None else [n_photons] * len(workers)
-                outs = [w.run_pass(pass_index, target, c, should_stop if deferred else None, uniform=True)
+                each = counts if counts is not None else [p.n_photons] * len(workers)
+                outs = [w.run_pass(p.index, p.target, c, p.should_stop if deferred else None, uniform=True)
                         for w, c in zip(workers, each)]
                 if k == 0:
-                    self.photons += sum(int(o["counters"]["recorded"]) for o in outs)
+                    p.photons += _recorded(outs)
             if outs is None:
-                n = n_photons * len(workers) if counts is None else sum(counts)
-                acc.add(k_eye, np.zeros((self.n_pixels, 3)), n, n, 0, False)
+                n = p.n_photons * len(workers) if counts is None else sum(counts)
+                acc.add(p.eye, np.zeros((self.n_pixels, 3)), n, n, 0, False)
                 continue
             out = _merge(outs)
             c = out["counters"]
-            acc.add(k_eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"], False)
-        self.seconds += time.perf_counter() - t0
+            acc.add(p.eye, out["pixel_sum"], c["recorded"], c["uniform_samples"], c["uniform_visible"], False)
+        return {"catcher_photons": p.photons, "catcher_s": p.seconds + time.perf_counter() - t0}
 
     def radiance(self):
         """(n_pixels, 3) float32 K so far."""
@@ -549,10 +565,13 @@ class CatcherRender:
         ``pair`` False)."""
         if not pair:
             self.pair = []
-        self.seconds = 0.0                 # (the time this pass's K and pair traces took, and K's photons:
-        self.photons = 0                   # the main render reads and resets them after each pass)
         self.acc = Accumulator(self.n_pixels, self.settings.normalisation)
         self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation) if self.pair else None
+
+
+def _recorded(outputs):
+    """The photons the workers' ``outputs`` of a pass traced in all."""
+    return sum(int(o["counters"]["recorded"]) for o in outputs)
 
 
 def _with_catchers(acc, image, data, is_chain, catcher, wanted, film_transparent):
@@ -787,11 +806,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             merged = _merge(outputs, halves=is_chain and settings.bias_correction)
             catcher_stats = {}
             if catcher is not None:
-                catcher.finish_pass(None if is_chain or stop() else outputs)
-                catcher_stats = {"catcher_photons": catcher.photons, "catcher_s": catcher.seconds}
+                catcher_stats = catcher.finish_pass(None if is_chain or stop() else outputs)
                 if merged["photon_s"] > 0:
-                    catcher_share = catcher.seconds / merged["photon_s"]
-                catcher.seconds, catcher.photons = 0.0, 0
+                    catcher_share = catcher_stats["catcher_s"] / merged["photon_s"]
             c = merged["counters"]
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)

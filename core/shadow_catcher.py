@@ -61,9 +61,6 @@ class CatcherRays:
     def count(self) -> int:
         return int(len(self.pixel_ids))
 
-    def take(self, rows) -> "CatcherRays":
-        return CatcherRays(*(getattr(self, f).take(rows, axis=0) for f in CatcherRays.__dataclass_fields__))
-
     @staticmethod
     def concatenate(parts) -> "CatcherRays":
         if not parts:

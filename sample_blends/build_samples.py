@@ -574,17 +574,11 @@ def fur_under_glass():
     Redness 0.6), rendered as tubes of triangles (README, "Hair")."""
     b = glass_ceiling_room()
     skin = b.diffuse("Skin", (0.25, 0.15, 0.1))
-    hair = bpy.data.materials.new("Fur")
-    hair.diffuse_color = (0.35, 0.2, 0.1, 1.0)
-    nt = hair.node_tree
-    for node in list(nt.nodes):
-        if node.bl_idname != "ShaderNodeOutputMaterial":
-            nt.nodes.remove(node)
-    fibre = nt.nodes.new("ShaderNodeBsdfHairPrincipled")
-    fibre.parametrization = "MELANIN"
+    hair = b._material("Fur", "ShaderNodeBsdfHairPrincipled", (0.35, 0.2, 0.1))
+    fibre = hair.node_tree.nodes["Principled Hair BSDF"]
+    fibre.parametrization = "MELANIN"                   # (before its inputs: Blender hides the others)
     fibre.inputs["Melanin"].default_value = 0.55
     fibre.inputs["Melanin Redness"].default_value = 0.6
-    nt.links.new(fibre.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
     ball = b.sphere("Fur ball", (-0.1, -0.05, 0.25), 0.25, skin, segments=32, rings=16)
     ball.data.materials.append(hair)
     settings = ball.modifiers.new("Fur", "PARTICLE_SYSTEM").particle_system.settings

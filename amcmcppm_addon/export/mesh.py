@@ -210,10 +210,10 @@ class GeometryCollector:
         (their Material slot)."""
         ob = inst.object
         systems = [m.particle_system for m in ob.modifiers if _renders_hair(m, self.render)]
+        slots = [slot.material for slot in ob.material_slots] or list(ob.data.materials)
         first = 0                               # (Cycles numbers the strands across the systems)
         for index, psys in enumerate(systems):
             settings = psys.settings
-            slots = [slot.material for slot in ob.material_slots] or list(ob.data.materials)
             if self.material_override is not None:
                 material_id = self.materials.material_id(self.material_override)
             elif slots:
