@@ -25,7 +25,7 @@ cores (Cycles' threads fixed to ``--threads``, ours with as many workers):
     ours-ppm         ours with uniform photons (SPPM)
 
 Each run gets ``--time`` seconds (Cycles' Time Limit, which leaves out its scene synchronisation;
-ours' Time Limit, which counts everything from the export on) and ours also saves its image at
+ours' Time Limit) and ours also saves its image at
 an eighth, a quarter and half of it; Cycles is run again at a quarter of the time.  The wall time
 of every render call is recorded and reported, and the curves put each image at it (ours' snapshots
 at the core's elapsed time, which leaves out the export).
@@ -35,16 +35,19 @@ in ``benchmarks/references/versus_cycles/``: Cycles' (adaptive sampling, Filter 
 off, no denoiser: unbiased path tracing) and ours (uncorrected SPPM-style gathers at a quarter of the
 initial radius, as ``error_vs_time.py``'s references; AMCMCPPM).  Where a path tracer cannot find the
 light (a caustic of a small light seen through glass or in a mirror) Cycles' reference stays noisy
-and dark after any affordable time, and ours carries our engine's approximations; the report gives
-both, and the two references' own difference, corrected for their noise, says how far they agree.
-relMSE = mean((I - R)^2 / (R^2 + 0.01)) over linear RGB, corrected for the reference's noise by
-the halves' (A - B)^2 / 4 as in ``error_vs_time.py``.
+after any affordable time, and ours carries our engine's approximations; the report gives both,
+and the ratios of the references' 8 x 8 pixel blocks beside those of each one's two halves say how
+far they agree (:func:`block_ratios`).  relMSE = mean((I - R)^2 / (R^2 + 0.01)) over linear RGB,
+corrected for the reference's noise by the halves' (A - B)^2 / 4 as in ``error_vs_time.py``; in
+brackets, the same without the image's 0.1 % of pixels of largest error (:func:`trimmed_relmse`).
 
-    python benchmarks/versus_cycles.py --scenes cornell_box glass_ceiling caustic_sds \\
-        --resolution 160 120 --time 60 --seeds 2 --reference-time 240
+    python benchmarks/versus_cycles.py --scenes cornell_box glass_ceiling caustic_sds small_view \\
+        --resolution 160 120 --time 60 --seeds 2 --reference-time 180
 
-writes ``benchmarks/results/versus_cycles/`` (images, report.md, summary.json, curves.png).
-``--quick`` is a smoke run of a minute or two at a tiny size.
+writes ``benchmarks/results/versus_cycles/`` (images, runs.jsonl: one record a run, report.md,
+summary.json, curves.png, images.png); ``--analyse-only`` reports every run recorded there again
+(e.g. after another invocation added ``--methods``).  ``--quick`` is a smoke run of a minute or two
+at a tiny size.
 """
 from __future__ import annotations
 
@@ -475,13 +478,14 @@ def report(results, args, path):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--child", help=argparse.SUPPRESS)
-    p.add_argument("--scenes", nargs="+", default=["cornell_box", "glass_ceiling", "caustic_sds"])
+    p.add_argument("--scenes", nargs="+",
+                   default=["cornell_box", "glass_ceiling", "caustic_sds", "small_view"])
     p.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     p.add_argument("--resolution", type=int, nargs=2, default=(160, 120))
     p.add_argument("--time", type=float, default=60.0, help="seconds a run")
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--reference-time", type=float, default=240.0, help="seconds per reference half")
+    p.add_argument("--reference-time", type=float, default=180.0, help="seconds per reference half")
     p.add_argument("--make-reference", action="store_true", help="remake the references even if stored")
     p.add_argument("--cycles-fractions", type=float, nargs="*", default=list(CYCLES_FRACTIONS),
                    help="Cycles' extra runs, as fractions of --time (none: only the full time)")
