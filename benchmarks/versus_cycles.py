@@ -59,6 +59,7 @@ import platform
 import subprocess
 import sys
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -105,21 +106,18 @@ def child(spec):
         c.time_limit = spec["time"]
         c.seed = spec["seed"]
         c.use_animated_seed = False
-        c.use_denoising = kind == "cycles-denoised"
+        c.use_denoising = kind == "cycles-denoised" and not spec["reference"]
         if kind == "cycles-mnee":
             shadow_caustics(bpy, scene)
         c.use_guiding = kind == "cycles-guided"         # (its surface and volume guiding on by default)
-        if kind in ("cycles-unclamped", "cycles-guided"):
+        if kind in ("cycles-unclamped", "cycles-guided") or spec["reference"]:
             c.blur_glossy = 0.0
             c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
         # Adaptive sampling stays on, but with a threshold low enough that it does not stop before
-        # the time limit (the default 0.01 stopped a 48x36 Cornell box at 1.5 s of 4).
+        # the time limit (the default 0.01 stopped a 48x36 Cornell box at 1.5 s of 4); the
+        # reference samples every pixel alike.
         c.adaptive_threshold = CYCLES_NOISE_THRESHOLD
-        if spec["reference"]:
-            c.use_adaptive_sampling = False
-            c.use_denoising = False
-            c.blur_glossy = 0.0
-            c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+        c.use_adaptive_sampling = not spec["reference"]
     else:
         r.engine = "AMCMCPPM"
         p = scene.amcmcppm
@@ -242,16 +240,25 @@ def make_reference(scene, blend, resolution, renderer, seconds, threads, tmp, fo
     return meta
 
 
+class Reference(NamedTuple):
+    """A stored reference: the mean of its halves, its per-pixel noise variance (A - B)^2 / 4
+    (``error_vs_time.errors``' correction), its metadata and the halves themselves."""
+    image: np.ndarray
+    variance: np.ndarray
+    meta: dict
+    half_a: np.ndarray
+    half_b: np.ndarray
+
+
 def load_reference(scene, resolution, renderer, folder):
-    path = reference_path(scene, resolution, renderer, folder)
-    z = np.load(path)
+    z = np.load(reference_path(scene, resolution, renderer, folder))
     a, b = z["half_a"].astype(np.float64), z["half_b"].astype(np.float64)
-    return 0.5 * (a + b), 0.25 * (a - b) ** 2, {**json.loads(str(z["meta"])), "path": path}
+    return Reference(0.5 * (a + b), 0.25 * (a - b) ** 2, json.loads(str(z["meta"])), a, b)
 
 
 def relmse(images, ref):
-    """(raw, corrected) relMSE of ``images`` (k, H, W, 3) against ``ref`` = (image, variance, meta)."""
-    _, raw, _, corrected = errors(np.asarray(images), ref[0], ref[1])
+    """(raw, corrected) relMSE of ``images`` (k, H, W, 3) against the Reference ``ref``."""
+    _, raw, _, corrected = errors(np.asarray(images), ref.image, ref.variance)
     return raw, corrected
 
 
@@ -262,8 +269,8 @@ def trimmed_relmse(image, ref):
     """The corrected relMSE of ``image`` (H, W, 3) over all but its TRIM share of pixels with the
     largest corrected error: a figure that one pixel (a firefly, or a caustic seen through glass in
     a mirror that neither renderer has converged on) cannot decide alone."""
-    d = image - ref[0]
-    per_pixel = np.mean((d * d - ref[1]) / (ref[0] ** 2 + 0.01), axis=2).ravel()
+    d = image - ref.image
+    per_pixel = np.mean((d * d - ref.variance) / (ref.image ** 2 + 0.01), axis=2).ravel()
     keep = len(per_pixel) - int(np.ceil(TRIM * len(per_pixel)))
     return float(max(np.partition(per_pixel, keep - 1)[:keep].mean(), 1e-30))
 
@@ -271,9 +278,9 @@ def trimmed_relmse(image, ref):
 def references_apart(refs):
     """Corrected relMSE of the two references against each other, weighted by Cycles' (the same
     estimator as the runs': their difference squared less both halves' variances)."""
-    (ic, vc, _), (io, vo, _) = refs["cycles"], refs["ours"]
-    w = 1.0 / (ic ** 2 + 0.01)
-    return float(max(np.mean(((io - ic) ** 2 - vc - vo) * w), 1e-30))
+    c, o = refs["cycles"], refs["ours"]
+    w = 1.0 / (c.image ** 2 + 0.01)
+    return float(max(np.mean(((o.image - c.image) ** 2 - c.variance - o.variance) * w), 1e-30))
 
 
 BLOCK = 8       # pixels a side of the blocks the references are compared in
@@ -292,17 +299,17 @@ def block_ratios(refs):
     def spread(num, den):
         return [float(v) for v in np.percentile(blocks(num) / np.maximum(blocks(den), 1e-9), [5, 95])]
 
-    out = {"ours/cycles": spread(refs["ours"][0], refs["cycles"][0])}
+    out = {"ours/cycles": spread(refs["ours"].image, refs["cycles"].image)}
     for name in REFERENCES:
-        z = np.load(refs[name][2]["path"])
-        out[f"{name} A/B"] = spread(z["half_a"].astype(np.float64), z["half_b"].astype(np.float64))
+        out[f"{name} A/B"] = spread(refs[name].half_a, refs[name].half_b)
     return out
 
 
 # ------------------------------------------------------------------------------------------- runs
 def run_scene(scene, blend, args, out_dir):
-    """Render every method and seed, each run's record ({scene, method, seed, times, wall_s,
-    images: [paths]}) appended to ``out_dir``/runs.jsonl as it finishes (a record of the same scene,
+    """Render every method and seed, each run's record ({scene, method, seed, times, images: the
+    image paths and the seconds at which each was had: a render call's wall time, ours' snapshots
+    the core's elapsed time}) appended to ``out_dir``/runs.jsonl as it finishes (a record of the same scene,
     method and seed replaces an earlier one in :func:`load_runs`)."""
     runs = {m: [] for m in args.methods}
     for seed in range(1, args.seeds + 1):
@@ -315,8 +322,8 @@ def run_scene(scene, blend, args, out_dir):
                     out = f"{base}_{t:g}s.exr"
                     wall = render(blend, method, args.resolution, seed, t, out, args.threads)
                     points.append((wall, out))
-                walls = [p[0] for p in points]
-                runs[method].append(dict(seed=seed, times=walls, wall_s=walls, images=[p[1] for p in points]))
+                runs[method].append(dict(seed=seed, times=[p[0] for p in points],
+                                         images=[p[1] for p in points]))
             else:
                 snap_dir = base + "_snapshots"
                 # (The snapshots are the raw image: a denoised run has its final point only.)
@@ -326,12 +333,11 @@ def run_scene(scene, blend, args, out_dir):
                               snapshot_times=times, snapshot_dir=snap_dir)
                 snaps = _snapshots(snap_dir)
                 runs[method].append(dict(seed=seed, times=[s[0] for s in snaps] + [wall],
-                                         wall_s=[s[0] for s in snaps] + [wall],
                                          images=[s[1] for s in snaps] + [out]))
             with open(os.path.join(out_dir, "runs.jsonl"), "a") as f:
                 f.write(json.dumps(dict(scene=scene, method=method, resolution=list(args.resolution),
                                         **runs[method][-1])) + "\n")
-            print(f"  {scene} {method} seed {seed}: wall {runs[method][-1]['wall_s'][-1]:.1f} s", flush=True)
+            print(f"  {scene} {method} seed {seed}: wall {runs[method][-1]['times'][-1]:.1f} s", flush=True)
 
 
 def load_runs(out_dir, scene, resolution):
@@ -379,7 +385,7 @@ def analyse(scene, runs, refs):
             per_ref[name] = dict(final=finals, median=float(np.median(finals)), curves=curves,
                                  trimmed=trimmed)
         means = [float(read_rgb(run["images"][-1]).mean()) for run in seeds]
-        result[method] = dict(refs=per_ref, wall_s=[run["wall_s"][-1] for run in seeds], image_mean=means,
+        result[method] = dict(refs=per_ref, wall_s=[run["times"][-1] for run in seeds], image_mean=means,
                               passes=[_passes(run["images"][-1]) for run in seeds])
     return result
 
@@ -424,28 +430,29 @@ def image_grid(grids, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from core.imageio import linear_to_srgb
+    from core.imageio import to_display
 
     columns = max(len(REFERENCES) + len(runs) for _, runs in grids.values())
     fig, axes = plt.subplots(len(grids), columns, figsize=(2.2 * columns, 1.9 * len(grids)), squeeze=False)
     for i, (scene, (refs, runs)) in enumerate(grids.items()):
-        scale = 0.18 / max(float(refs["cycles"][0].mean()), 1e-6)
-        panels = [(f"{n} reference", refs[n][0]) for n in REFERENCES]
+        exposure = np.log2(0.18 / max(float(refs["cycles"].image.mean()), 1e-6))
+        panels = [(f"{n} reference", refs[n].image) for n in REFERENCES]
         panels += [(m, read_rgb(recs[0]["images"][-1])) for m, recs in runs.items() if recs]
         for j in range(columns):
             ax = axes[i][j]
             ax.axis("off")
             if j < len(panels):
                 title, img = panels[j]
-                ax.imshow(np.clip(linear_to_srgb(np.clip(img * scale, 0.0, None)), 0.0, 1.0))
+                ax.imshow(to_display(img, exposure))
                 ax.set_title(f"{scene}: {title}" if j == 0 else title, fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=80)
 
 
 def report(results, args, path):
+    seeds = max(len(d["wall_s"]) for r in results.values() for d in r["methods"].values())
     lines = [f"# Ours against Cycles: {args.resolution[0]}x{args.resolution[1]}, {args.time:g} s a run, "
-             f"{args.seeds} seed(s), {args.threads} threads", "",
+             f"{seeds} seed(s), {args.threads} threads", "",
              f"commit {git_commit()}, {time.strftime('%Y-%m-%d %H:%M')}, {platform.node()}, "
              f"{os.cpu_count()} cpus", "",
              "Corrected relMSE at the end of the run, median over seeds [smallest, largest] (the median "
@@ -521,7 +528,7 @@ def main():
         runs = load_runs(args.out, scene, args.resolution)
         results[scene] = dict(methods=analyse(scene, runs, refs), references_apart=references_apart(refs),
                               block_ratios=block_ratios(refs),
-                              reference_meta={n: r[2] for n, r in refs.items()})
+                              reference_meta={n: r.meta for n, r in refs.items()})
         grids[scene] = (refs, runs)
         with open(os.path.join(args.out, "summary.json"), "w") as f:
             json.dump(dict(args={k: v for k, v in vars(args).items() if k != "child"}, results=results), f,
