@@ -39,7 +39,8 @@ SETTING_FLAGS = {
     "photons_per_pass": "photons_per_pass", "workers": "workers", "chains": "chains",
     "initial_radius": "initial_radius_px", "alpha": "alpha", "max_bounces": "max_bounces",
     "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
-    "bias_correction": "bias_correction", "edge_coverage": "edge_coverage",
+    "bias_correction": "bias_correction", "edge_coverage": "edge_coverage", "direct_light": "direct_light",
+    "direct_samples": "direct_samples",
     "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
     "transmission_bounces": "transmission_bounces", "volume_bounces": "volume_bounces",
     "caustics_reflective": "caustics_reflective", "caustics_refractive": "caustics_refractive",
@@ -80,6 +81,10 @@ def build_parser():
     g.add_argument("--chains", type=int, help="Markov chains per worker (AMCMCPPM)")
     g.add_argument("--initial-radius", type=float, help="initial gather radius in pixel footprints")
     g.add_argument("--alpha", type=float)
+    g.add_argument("--direct-light", choices=("photons", "sampled"),
+                   help="light straight from emitters from the photons or from light samples")
+    g.add_argument("--direct-samples", type=int,
+                   help="light samples per pixel and pass (--direct-light sampled)")
     g.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=None,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     g.add_argument("--edge-coverage", action=argparse.BooleanOptionalAction, default=None,

@@ -9,8 +9,9 @@ properties configure optional file outputs of the engine (statistics, snapshots)
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, MAX_BOUNCES,
-                             MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS, RenderSettings)
+from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, DIRECT_LIGHT,
+                             MAX_BOUNCES, MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS,
+                             RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -36,6 +37,14 @@ NORMALISATION_ITEMS = {
     "per_pass": ("Per Pass", "Scale each pass by its own visible-fraction estimate", 1),
 }
 
+DIRECT_LIGHT_ITEMS = {
+    "photons": ("Photons", "The light that reaches a surface straight from an emitter comes from the "
+                           "photons' first hits, as the rest (the paper's method)", 0),
+    "sampled": ("Light Samples", "One light sample and shadow ray per pixel and pass for the light that "
+                                 "reaches a surface straight from a lamp, an emissive mesh or the world; "
+                                 "photons for the rest (light through glass or off mirrors too)", 1),
+}
+
 
 def enum_items(values, known):
     """EnumProperty items for the core's ``values``; a value new to the add-on still gets an item."""
@@ -46,6 +55,7 @@ def enum_items(values, known):
 enum_methods = enum_items(METHODS, METHOD_ITEMS)
 enum_mutations = enum_items(MUTATIONS, MUTATION_ITEMS)
 enum_normalisations = enum_items(NORMALISATIONS, NORMALISATION_ITEMS)
+enum_direct_light = enum_items(DIRECT_LIGHT, DIRECT_LIGHT_ITEMS)
 
 _DEFAULTS = RenderSettings()
 INT_MAX = 2 ** 31 - 1
@@ -89,6 +99,12 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     initial_radius_px: FloatProperty(
         name="Initial Radius", default=_DEFAULTS.initial_radius_px, min=0.01, max=1000.0, soft_max=32.0,
         description="Initial photon gather radius, in pixel footprints at each visible point")
+    direct_light: EnumProperty(
+        name="Direct Light", items=enum_direct_light, default=_DEFAULTS.direct_light,
+        description="Where the light that reaches a surface straight from an emitter comes from")
+    direct_samples: IntProperty(
+        name="Light Samples", default=_DEFAULTS.direct_samples, min=1, max=1024, soft_max=64,
+        description="Light samples per pixel and pass (Direct Light: Light Samples)")
     bias_correction: BoolProperty(
         name="Bias Correction", default=_DEFAULTS.bias_correction,
         description="Also gather the photons within half the radius and correct the image towards "

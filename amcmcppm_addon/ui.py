@@ -38,7 +38,14 @@ class AMCMCPPMButtonsPanel:
         col = layout.column()
         col.active = self.is_active(settings)
         for name in self.props:
-            col.prop(settings, name)
+            row = col.row()
+            row.active = self.prop_active(settings, name)
+            row.prop(settings, name)
+
+    @staticmethod
+    def prop_active(settings, name):
+        """Whether property ``name`` has an effect with the other ``settings``."""
+        return True
 
     @staticmethod
     def is_active(settings):
@@ -77,7 +84,12 @@ class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
 class AMCMCPPM_RENDER_PT_photons(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Photon Gathering"
-    props = ("initial_radius_px", "alpha", "bias_correction", "edge_coverage", "glossy_through_roughness")
+    props = ("direct_light", "direct_samples", "initial_radius_px", "alpha", "bias_correction",
+             "edge_coverage", "glossy_through_roughness")
+
+    @staticmethod
+    def prop_active(settings, name):
+        return name != "direct_samples" or settings.direct_light == "sampled"
 
 
 class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):

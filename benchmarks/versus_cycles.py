@@ -23,6 +23,8 @@ cores (Cycles' threads fixed to ``--threads``, ours with as many workers):
                      OpenImageDenoise, on our Denoising Albedo and Normal): what an artist can do
                      with our engine today
     ours-ppm         ours with uniform photons (SPPM)
+    ours-sampled     ``ours`` with Direct Light "Light Samples" (core/direct.py): the light straight
+                     from emitters from light samples and shadow rays, photons for the rest
 
 Each run gets ``--time`` seconds (Cycles' Time Limit, which leaves out its scene synchronisation;
 ours' Time Limit) and ours also saves its image at
@@ -70,7 +72,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from error_vs_time import errors, git_commit  # noqa: E402
 
 METHODS = ("cycles", "cycles-denoised", "cycles-mnee", "cycles-unclamped", "cycles-guided", "ours",
-           "ours-denoised", "ours-ppm")
+           "ours-denoised", "ours-ppm", "ours-sampled")
 REFERENCES = ("cycles", "ours")
 REFERENCE_SEEDS = (1001, 1002)
 OURS_REFERENCE_RADIUS = 0.25        # of the file's initial radius (error_vs_time.REFERENCE_RADIUS)
@@ -127,6 +129,8 @@ def child(spec):
         p.workers = spec["threads"]
         if kind == "ours-ppm":
             p.method = "ppm"
+        if kind == "ours-sampled":
+            p.direct_light = "sampled"
         if spec["reference"]:
             p.initial_radius_px *= OURS_REFERENCE_RADIUS
             p.bias_correction = False

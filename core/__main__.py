@@ -7,8 +7,8 @@ import sys
 import time
 
 from .scene import Scene, SceneError
-from .settings import (AOV_PREFIX, DATA_PASSES, LIGHTGROUP_PREFIX, MAX_TRANSPARENT_BOUNCES, METHODS,
-                       MUTATIONS, NORMALISATIONS, RenderSettings)
+from .settings import (AOV_PREFIX, DATA_PASSES, DIRECT_LIGHT, LIGHTGROUP_PREFIX, MAX_TRANSPARENT_BOUNCES,
+                       METHODS, MUTATIONS, NORMALISATIONS, RenderSettings)
 
 
 def build_parser():
@@ -36,6 +36,10 @@ def build_parser():
     r.add_argument("--initial-radius", type=float, default=d.initial_radius_px,
                    help="initial gather radius in pixel footprints")
     r.add_argument("--alpha", type=float, default=d.alpha)
+    r.add_argument("--direct-light", choices=DIRECT_LIGHT, default=d.direct_light,
+                   help="light straight from emitters from the photons or from light samples")
+    r.add_argument("--direct-samples", type=int, default=d.direct_samples,
+                   help="light samples per pixel and pass (--direct-light sampled)")
     r.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=d.bias_correction,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     r.add_argument("--max-bounces", type=int, default=d.max_bounces,
@@ -77,6 +81,7 @@ def settings_from_args(a) -> RenderSettings:
                           workers=a.workers, chains=a.chains, target_acceptance=a.target_acceptance,
                           mutation=a.mutation, normalisation=a.normalisation,
                           glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction,
+                          direct_light=a.direct_light, direct_samples=a.direct_samples,
                           data_passes=tuple(a.data_passes))
 
 

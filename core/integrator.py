@@ -29,6 +29,7 @@ import numpy as np
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
+from .direct import sample_direct, sampled_emitters
 from .eye_pass import EyePassResult, MeasurementPoints, centre_data, trace_eye_pass
 from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
                            divide_even_color, light_groups, photon_groups)
@@ -38,7 +39,7 @@ from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
 from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, SHADOW_CATCHER_PASS,
                              catcher_scene, compose)
 from .visible_cells import VisibleCells
-from .worker import STREAM_CATCHER, STREAM_CENTRE, STREAM_COVERAGE, STREAM_EYE, PhotonWorker
+from .worker import STREAM_CATCHER, STREAM_CENTRE, STREAM_COVERAGE, STREAM_DIRECT, STREAM_EYE, PhotonWorker
 
 # A pass is not started when the time left would trace less than this share of its photons.
 MIN_CUT_PASS = 0.05
@@ -701,6 +702,14 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                         "the image shows only what the camera sees of emitters")
     if scene.triangle_count == 0:
         warnings.append("the scene has no geometry")
+    # Direct light from light samples (core/direct.py): the emitters sampled, or None.
+    direct = None
+    if settings.direct_light == "sampled":
+        direct, why = sampled_emitters(ctx, light_passes, settings.bounce_limits)
+        if direct is None:
+            warnings.append(f"direct light from photons instead of light samples: {why}")
+        else:
+            result.effects += ("direct light samples",)
     max_passes = settings.passes or np.iinfo(np.int64).max
     deadline = t0 + settings.time_limit if settings.time_limit else None
     scales = kz_radius_scales(1, settings.alpha)
@@ -749,12 +758,18 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             reach = settings.initial_radius_px * scales[i] + scene.camera.filter_reach + 0.5
             coverage, inner_coverage = point_coverage(ctx, pts, radius, width, height, reach, rng,
                                                       inner=settings.bias_correction)
-        return DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
-                             volume=vol, volume_radius=vol_radius, media=ctx.phase,
-                             inner=settings.bias_correction, coverage=coverage, inner_coverage=inner_coverage,
-                             limits=settings.bounce_limits,
-                             light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES),
-                             light_groups=groups + photons_of_groups if groups[0] else None)
+        target = DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
+                               volume=vol, volume_radius=vol_radius, media=ctx.phase,
+                               inner=settings.bias_correction, coverage=coverage,
+                               inner_coverage=inner_coverage, limits=settings.bounce_limits,
+                               light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES),
+                               light_groups=groups + photons_of_groups if groups[0] else None, direct=direct)
+        if direct is not None:
+            # The points' light samples join the emission the camera sees (averaged over passes).
+            rng = np.random.default_rng([settings.seed, STREAM_DIRECT, i])
+            eye.emission += sample_direct(ctx, target, direct, rng, settings.direct_samples)
+            target.light_samples = pts.count * settings.direct_samples
+        return target
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.
@@ -825,9 +840,11 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if (c["uniform_samples"] and c["uniform_visible"] == 0 and c["uniform_outside"] == 0
                     and (not is_chain or c["recorded"] == 0) and not warned_invisible):
                 warned_invisible = True
+                sampled = "" if direct is None else " past their first vertex"
                 warnings.append(
                     f"pass {pass_index + 1}: none of {c['uniform_samples']} uniform photon paths reached "
-                    "a surface seen by the camera; the image shows only emission so far and the "
+                    f"a surface seen by the camera{sampled}; the image shows only emission "
+                    f"{'and the light samples ' if direct is not None else ''}so far and the "
                     "search goes on in the next passes")
             elapsed = time.perf_counter() - t0
             result.image, result.data = images()
@@ -897,6 +914,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "rays": c["rays"] + eye.rays,
         "photon_vertices": c["vertices"],
         "measurement_points": eye.points.count,
+        "light_samples": target.light_samples,
         "volume_points": 0 if eye.volume is None else eye.volume.count,
         "grid_entries": target.grid.entry_count,
         "photon_s": merged["photon_s"],

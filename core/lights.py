@@ -128,6 +128,10 @@ class LightSampler:
         all_ids = np.concatenate([np.arange(lights.count), emissive_tris, np.zeros(n_world, np.int64),
                                   glow_mats])
         world_power = (world * 4.0 * np.pi * np.pi * self.radius ** 2).reshape(1, 3)[:n_world]
+        self.world_radiance = world              # (3,) the constant world's radiance (unused with an image)
+        # (3,) the share of the sun's and the world's light that reaches the scene
+        self.far = (np.ones(3) if distant_transmittance is None
+                    else np.asarray(distant_transmittance, np.float64))
         if distant_transmittance is not None:
             far = np.asarray(distant_transmittance, np.float64)
             light_power = np.where((lights.kind == SUN)[:, None], light_power * far, light_power) \
@@ -394,6 +398,132 @@ class LightSampler:
             else:
                 flux[sel] = base[sel] * (w if w.ndim == 2 else w[:, None])
         return origins, dirs, flux, normals
+
+    # ------------------------------------------------------------------ light samples (direct light)
+    def direct_entries(self) -> np.ndarray:
+        """(count,) bool: the emitters whose light :meth:`sample_direct` samples exactly as their
+        photons carry it at their first vertex: point, spot and area lights without an angular
+        profile, suns, emissive triangles whose radiance is one constant (no texture, program, coat
+        or sheen) and the world.  Glowing volumes and the others are left to their photons."""
+        kinds, ids = self.kinds, self.ids
+        out = np.isin(kinds, (POINT, SPOT, AREA_RECT, AREA_DISK, SUN, WORLD))
+        if self.has_profiles:
+            lamp = np.flatnonzero(np.isin(kinds, (POINT, SPOT, AREA_RECT, AREA_DISK)))
+            out[lamp] &= self.lights.profile.take(ids.take(lamp)) < 0
+        tri = np.flatnonzero(kinds == TRIANGLE)
+        if len(tri):
+            mats = self.material_ids.take(ids.take(tri))
+            plain = ~self.varies.take(mats)
+            if self.coated_emitters:
+                plain &= self.table.coat_row.take(mats) < 0
+            if self.sheened_emitters:
+                plain &= self.table.sheen_cover.take(mats) <= 0
+            out[tri] = plain
+        return out
+
+    def sample_direct(self, entry, x, n, both, u):
+        """Light samples for points ``x`` (k, 3) from emitters ``entry`` (k,) (of
+        :meth:`direct_entries`): (directions wi (k, 3) from the points towards the light, the
+        distances ``t_max`` (k,) to it (inf for the sun and the world), and (k, 3) the radiance
+        arriving along wi over the density of wi per solid angle), with ``u`` (k, 3) numbers in
+        [0, 1).  The radiance is the photons' (:meth:`sample`): a point or spot light's sphere
+        radiates P mask(d) / (4 pi^2 r^2) along each ray d leaving it (drawn uniformly in the cone
+        it fills as seen from x; a point inside it gets nothing, as from its photons), times the
+        soft falloff's d^2 / (d^2 + r^2); an area light's P att / (pi A) (a point drawn uniformly
+        on it); a sun's irradiance over its cone; an emissive triangle's (two-sided) P / (2 pi A);
+        the world's in a cosine direction about the points' normals ``n`` (k, 3) (either side where
+        ``both`` (k,) bool, each half the time), or drawn from its image.  The choice of the
+        emitter is left to the caller."""
+        k = len(entry)
+        wi, t_max, value = np.zeros((k, 3)), np.full(k, np.inf), np.zeros((k, 3))
+        wi[:, 2] = 1.0
+        if k == 0:
+            return wi, t_max, value
+        L = self.lights
+        kinds = self.kinds.take(entry)
+        for kind in np.unique(kinds):
+            sel = np.flatnonzero(kinds == kind)
+            ids, xs, us = self.ids.take(entry.take(sel)), x.take(sel, axis=0), u.take(sel, axis=0)
+            if kind in (POINT, SPOT):
+                to = L.position.take(ids, axis=0) - xs
+                d2 = np.einsum("ij,ij->i", to, to)
+                dist = np.sqrt(d2)
+                r = L.radius.take(ids).astype(np.float64)
+                # The cone of the sphere: 1 - cos_max = (r/D)^2 / (1 + cos_max), without cancellation.
+                s2 = np.minimum(r * r / np.maximum(d2, 1e-300), 1.0)
+                cos_max = np.sqrt(1.0 - s2)
+                z = 1.0 - us[:, 0] * (s2 / (1.0 + cos_max))
+                rho = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+                phi = 2.0 * np.pi * us[:, 1]
+                d = smp.to_world(np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=1),
+                                 to / np.maximum(dist, 1e-300)[:, None])
+                t = dist * z - np.sqrt(np.maximum(r * r - d2 * (1.0 - z * z), 0.0))
+                # radiance / pdf = P mask / (4 pi^2 r^2) 2 pi (1 - cos_max)
+                #                = P mask / (2 pi D^2 (1 + cos_max))
+                w = 1.0 / (2.0 * np.pi * np.maximum(d2, 1e-300) * (1.0 + cos_max))
+                w = np.where(dist > r, w, 0.0)
+                spot = np.flatnonzero(L.kind.take(ids) == SPOT)
+                if len(spot):
+                    cos_half = np.cos(L.spot_angle.take(ids.take(spot)).astype(np.float64) / 2)
+                    cos_axis = -smp.dot(d.take(spot, axis=0), self.axes.take(ids.take(spot), axis=0))
+                    w[spot] *= _spot_mask(cos_axis, cos_half, L.spot_blend.take(ids.take(spot)))
+                soft = np.flatnonzero(L.soft_falloff.take(ids) & (r > 0))
+                if len(soft):
+                    w[soft] *= d2.take(soft) / (d2.take(soft) + r.take(soft) ** 2)
+                wi[sel], t_max[sel] = d, t
+                value[sel] = L.power.take(ids, axis=0) * w[:, None]
+            elif kind in (AREA_RECT, AREA_DISK):
+                span = np.linalg.norm(np.cross(L.axis_u.take(ids, axis=0).astype(np.float64),
+                                                L.axis_v.take(ids, axis=0).astype(np.float64)), axis=1)
+                if kind == AREA_RECT:
+                    a, b, area = 2.0 * us[:, 0] - 1.0, 2.0 * us[:, 1] - 1.0, 4.0 * span
+                else:
+                    (a, b), area = smp.concentric_disk(us[:, 0], us[:, 1]), np.pi * span
+                y = (L.position.take(ids, axis=0) + a[:, None] * L.axis_u.take(ids, axis=0)
+                     + b[:, None] * L.axis_v.take(ids, axis=0))
+                to = y - xs
+                d2 = np.einsum("ij,ij->i", to, to)
+                dist = np.sqrt(d2)
+                d = to / np.maximum(dist, 1e-300)[:, None]
+                cos_y = -smp.dot(d, self.axes.take(ids, axis=0))
+                half = 0.5 * L.spread.take(ids).astype(np.float64)
+                att = spread_attenuation(cos_y, half)
+                # (narrow spreads: photons only within the clamped cone)
+                att = np.where(cos_y >= np.cos(np.clip(half, MIN_HALF_SPREAD, np.pi / 2)), att, 0.0)
+                w = np.where(cos_y > 0, att * cos_y / (np.pi * np.maximum(d2, 1e-300)), 0.0)
+                wi[sel], t_max[sel] = d, dist
+                value[sel] = L.power.take(ids, axis=0) * w[:, None]
+            elif kind == SUN:
+                cos_half = np.cos(L.sun_angle.take(ids).astype(np.float64) / 2)
+                d = smp.to_world(smp.uniform_cone(us[:, 0], us[:, 1], cos_half), self.axes.take(ids, axis=0))
+                wi[sel] = -d
+                value[sel] = L.power.take(ids, axis=0) * self.far
+            elif kind == TRIANGLE:
+                b1, b2 = smp.uniform_triangle(us[:, 0], us[:, 1])
+                y = self.accel.hit_positions(ids, b1, b2)
+                to = y - xs
+                d2 = np.einsum("ij,ij->i", to, to)
+                dist = np.sqrt(d2)
+                d = to / np.maximum(dist, 1e-300)[:, None]
+                cos_y = np.abs(smp.dot(d, self.accel.geometric_normals.take(ids, axis=0)))
+                # radiance P / (2 pi A) times A cos_y / D^2 (a point uniform on the triangle)
+                w = cos_y / (2.0 * np.pi * np.maximum(d2, 1e-300))
+                wi[sel], t_max[sel] = d, dist * (1.0 - 1e-4)
+                value[sel] = self.power.take(entry.take(sel), axis=0) * w[:, None]
+            elif kind == WORLD:
+                if self.environment is not None:
+                    d, pdf = self.environment.sample(us[:, 0], us[:, 1])
+                    value[sel] = (self.environment.radiance(d) * self.far
+                                  / np.maximum(pdf, 1e-300)[:, None] * (pdf > 0)[:, None])
+                else:
+                    flip = both.take(sel) & (us[:, 2] < 0.5)
+                    normal = n.take(sel, axis=0) * np.where(flip, -1.0, 1.0)[:, None]
+                    local = smp.cosine_hemisphere(us[:, 0], us[:, 1])
+                    d = smp.to_world(local, normal)
+                    pdf = local[:, 2] / np.pi * np.where(both.take(sel), 0.5, 1.0)
+                    value[sel] = (self.world_radiance * self.far)[None, :] / np.maximum(pdf, 1e-300)[:, None]
+                wi[sel] = d
+        return wi, t_max, value
 
     def lights_sets(self, u0, sets):
         """(n,) bool: whether the emitters of photons with first light dimensions ``u0`` (n,)

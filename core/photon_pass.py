@@ -113,7 +113,8 @@ class DepositTarget:
 
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
-                 coverage=None, inner_coverage=None, limits=None, light_passes=(), light_groups=None):
+                 coverage=None, inner_coverage=None, limits=None, light_passes=(), light_groups=None,
+                 direct=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
@@ -129,8 +130,12 @@ class DepositTarget:
         light_groups : None, or (the light group passes to make, the index of each of the scene's
         light groups among them or -1, the pass derived from the others or -1[, the passes whose
         groups' emitters send photons]), the first two as :func:`~core.light_passes.light_groups`
-        returns them, the others :func:`~core.light_passes.photon_groups`'."""
+        returns them, the others :func:`~core.light_passes.photon_groups`'; direct : None, or (count,)
+        bool per emitter (``LightSampler`` entries): those whose light the points sample
+        (``core/direct.py``), whose photons then deposit nothing at their first vertex."""
         self.points = points
+        self.direct = None if direct is None else np.asarray(direct, bool)
+        self.light_samples = 0          # the render's light samples at these points (a statistic)
         self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
         self.volume = volume if volume is not None and volume.count else None
@@ -317,6 +322,8 @@ class DepositTarget:
             d.update({f"cells.{k}": v for k, v in self.cells.to_arrays().items()})
         if self.limits is not None:
             d.update({f"limits.{k}": np.asarray(v) for k, v in asdict(self.limits).items()})
+        if self.direct is not None:
+            d["direct"] = self.direct
         if self.volume is not None:
             d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__
                       if getattr(self.volume, f) is not None})
@@ -345,7 +352,8 @@ class DepositTarget:
                              light_passes=tuple(str(n) for n in d.get("light_passes", ())),
                              light_groups=((tuple(str(n) for n in d["group_passes"]), d["group_blocks"],
                                             int(d["derived_group"]), d["live_groups"])
-                                           if "group_passes" in d else None))
+                                           if "group_passes" in d else None),
+                             direct=d.get("direct"))
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -770,13 +778,19 @@ class DepositTarget:
         coverage = self.inner_coverage if half else self.coverage
         if coverage is not None:
             kernel /= coverage
+        return self.point_values(None, block * kernel[:, None])
+
+    def point_values(self, j, values):
+        """(k, 3) ``values`` (k, 3) of surface points ``j`` (k,; None: all, in order) times what their
+        pairs do not carry: w_j (throughput), and d_j where the pairs do not carry it."""
         d = self._factors[0].T
-        val = self.points.weight * kernel[:, None]
+        weight = self.points.weight
+        if j is not None:
+            d, weight = d.take(j, axis=0), weight.take(j, axis=0)
         if self.any_glossy:
-            val *= np.where(self.is_glossy[:, None], np.float32(1.0), d)
-        else:
-            val *= d
-        return val * block
+            glossy = self.is_glossy if j is None else self.is_glossy.take(j)
+            d = np.where(glossy[:, None], np.float32(1.0), d)
+        return weight * d * values
 
     def _volume_values(self, block):
         """(k, 3) radiance of the volume points from their slots' sums ``block``: w_j sum(flux phase)
@@ -1111,6 +1125,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         # Deposit at non-delta vertices; a pair found makes the path visible, or, if the target
         # has visible cells, a vertex in one of them (and nothing else).
         dep = np.flatnonzero(table.has_nondelta[surf.mat_ids])
+        if bounce == 0 and target.direct is not None and len(dep):
+            # (the light of emitters that the points sample, core/direct.py, from the second vertex on)
+            dep = dep[~target.direct.take(ctx.lights.entries(u[idx.take(dep), 0]))]
         if len(dep) and m:
             wo_dep = wo.take(dep, axis=0)
             x_dep = surf.position.take(dep, axis=0)

@@ -23,6 +23,7 @@ AUTO_PHOTONS_PER_PIXEL = 0.5        # ... and per pixel of the image (benchmarks
 GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins below, loses above
 AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
 MUTATIONS = ("off", "paper", "exact")
+DIRECT_LIGHT = ("photons", "sampled")
 NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes), and those
 # taken from the first pass alone (as Cycles takes them from its first sample; the others are means).
@@ -147,6 +148,17 @@ class RenderSettings:
     cut by an alpha map) the disc reaches off the surface and the plain estimate is too dark, by up
     to half at the edge.  Probed only near discontinuities of the image's points; elsewhere the
     share is exactly 1."""
+
+    direct_light: str = "photons"
+    """Where the light that reaches a surface seen by the camera straight from an emitter comes
+    from: "photons", the photons' first vertices (the paper's method), or "sampled", one light
+    sample per measurement point and pass (an emitter chosen by power, a shadow ray), the photons
+    then depositing from their second vertex on for those emitters (``core/direct.py``: which
+    emitters and scenes; the others keep their photons' direct light, with a warning where the
+    scene rules it out).  Light through glass or off mirrors comes from photons either way."""
+
+    direct_samples: int = 4
+    """Light samples per measurement point and pass with ``direct_light="sampled"``."""
 
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):
@@ -299,6 +311,10 @@ class RenderSettings:
             bad("method", f"must be one of {METHODS}")
         if self.mutation not in MUTATIONS:
             bad("mutation", f"must be one of {MUTATIONS}")
+        if self.direct_light not in DIRECT_LIGHT:
+            bad("direct_light", f"must be one of {DIRECT_LIGHT}")
+        if not 1 <= self.direct_samples <= 1024:
+            bad("direct_samples", "must lie in [1, 1024]")
         if self.normalisation not in NORMALISATIONS:
             bad("normalisation", f"must be one of {NORMALISATIONS}")
         if not all(name in DATA_PASSES or (isinstance(name, str) and name.startswith((AOV_PREFIX,

@@ -21,7 +21,8 @@ from .photon_pass import PointSums, path_dims, trace_photons
 PPM_BATCH = 1 << 14
 
 # Stream identifiers for numpy SeedSequence entropy: (seed, stream, ...).
-STREAM_EYE, STREAM_PHOTONS, STREAM_CHAINS, STREAM_COVERAGE, STREAM_CENTRE, STREAM_CATCHER = 0, 1, 2, 3, 4, 5
+(STREAM_EYE, STREAM_PHOTONS, STREAM_CHAINS, STREAM_COVERAGE, STREAM_CENTRE, STREAM_CATCHER,
+ STREAM_DIRECT) = 0, 1, 2, 3, 4, 5, 6
 
 
 class PhotonWorker:

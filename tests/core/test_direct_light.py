@@ -1,0 +1,221 @@
+"""Direct light from light samples (``RenderSettings.direct_light="sampled"``, core/direct.py).
+
+The light samples must estimate exactly what the photons' first vertices did, emitter by
+emitter: images of direct light alone (``max_bounces=0``) agree with the photons' in the mean and
+block by block, closed forms hold with photons carrying the rest, the photon pass leaves out
+exactly the first vertices of the sampled emitters, and scenes the samples do not model fall back
+to the photons with a warning.
+"""
+import numpy as np
+import pytest
+
+from core import RenderSettings, render
+from core.context import RenderContext
+from core.direct import sampled_emitters
+from core.eye_pass import trace_eye_pass
+from core.hash_grid import HashGrid
+from core.photon_pass import DepositTarget, trace_photons
+from core.scene import AREA_RECT, Camera, Lights, Materials, World
+from core.testing.scenes import (MeshBuilder, corner_in_world_fog, cornell_box, kernel_radius_px,
+                                 point_in_sphere, sky_over_floor, spot_over_plane, sun_through_sheet,
+                                 sun_through_slab)
+
+from test_closed_form import check_mean, render_passes
+
+
+def lit_floor(light=None, world=None, emitter=False, floor=None):
+    """A 6 m floor with a box on it, seen from above at a slant, lit by ``light`` (a
+    ``Lights.build`` entry), a ``world`` and/or an emissive quad above it (``emitter``)."""
+    mats = Materials.build([floor or {"name": "floor", "diffuse": 0.6},
+                            {"name": "box", "diffuse": (0.7, 0.5, 0.3)},
+                            {"name": "lamp", "emission": (6.0, 5.0, 4.0)}])
+    m = MeshBuilder()
+    m.add_quad((-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0), 0)
+    m.add_box((-0.4, -0.2, 0.0), (0.3, 0.5, 0.7), 1)
+    if emitter:
+        m.add_quad((-0.6, -0.3, 2.0), (-0.6, 0.3, 2.2), (0.6, 0.3, 2.2), (0.6, -0.3, 2.0), 2)
+    cam = Camera.look_at((0.0, -3.5, 3.0), (0.0, 0.0, 0.2), lens_mm=30.0, resolution=(24, 24))
+    return m.build(mats, Lights.build([light] if light else []), cam, world)
+
+
+def sky_image():
+    """A small equirectangular sky: a bright warm patch above a dim blue gradient."""
+    h, w = 16, 32
+    v = (np.arange(h) + 0.5) / h
+    img = np.empty((h, w, 3), np.float32)
+    img[:] = (0.2 + 0.8 * v)[:, None, None] * np.float32([0.3, 0.5, 1.0])
+    img[12:14, 5:8] = (8.0, 6.0, 4.0)
+    return img
+
+
+LIGHTS = {
+    "point": dict(light={"kind": "point", "position": (0.8, -0.6, 1.6), "power": 300.0, "radius": 0.0}),
+    "sphere soft": dict(light={"kind": "point", "position": (0.8, -0.6, 1.2), "power": (300.0, 250.0, 200.0),
+                               "radius": 0.3}),
+    "spot": dict(light={"kind": "spot", "position": (0.5, -1.0, 2.0), "direction": (-0.2, 0.4, -0.9),
+                        "power": 500.0, "spot_angle": 1.0, "spot_blend": 0.4, "radius": 0.1}),
+    "rectangle": dict(light={"kind": "area", "position": (0.5, -0.5, 1.8), "direction": (-0.3, 0.2, -0.93),
+                             "size": (0.8, 0.4), "power": 400.0}),
+    "narrow disk": dict(light={"kind": "disk", "position": (-0.5, -1.0, 1.5), "direction": (0.3, 0.5, -0.81),
+                               "size": (0.6, 0.6), "power": 300.0, "spread": 1.0}),
+    "sun": dict(light={"kind": "sun", "direction": (0.3, 0.4, -0.87), "power": 3.0, "sun_angle": 0.2}),
+    "emissive quad": dict(emitter=True),
+    "world": dict(world=World(color=np.float32([0.4, 0.5, 0.6]))),
+    "world image": dict(world=World(color=np.ones(3, np.float32), texture=sky_image())),
+}
+
+
+def assert_sampled(result):
+    """The render's direct light came from light samples (no warning that it fell back)."""
+    assert not any("direct light from photons" in w for w in result.warnings), result.warnings
+
+
+def block_means(image, blocks=4):
+    h, w = image.shape[:2]
+    return image[..., :3].reshape(blocks, h // blocks, blocks, w // blocks, 3).mean(axis=(1, 3, 4))
+
+
+@pytest.mark.parametrize("kind", list(LIGHTS))
+def test_light_samples_match_the_photons_first_vertices(kind):
+    """Direct light alone: the light samples' image against the photons' (many photons, a small
+    radius, no bias correction), in the mean (a z-test over both renders' passes, plus 2 % for
+    what the photons' kernel bias leaves on curved irradiance) and in the bright 4x4 blocks
+    (within 15 %: the photons blur light across shadow and cone edges by a few pixels)."""
+    scene = lit_floor(**LIGHTS[kind])
+    common = dict(method="ppm", max_bounces=0, initial_radius_px=1.0)
+    photons, ref = render_passes(scene, photons_per_pass=100_000, passes=10, **common)
+    sampled, res = render_passes(scene, direct_light="sampled", photons_per_pass=1_000, passes=48, **common)
+    assert_sampled(res)
+    se = np.hypot(photons.std(ddof=1) / np.sqrt(len(photons)), sampled.std(ddof=1) / np.sqrt(len(sampled)))
+    assert abs(sampled.mean() - photons.mean()) < 4 * se + 0.02 * photons.mean(), (sampled.mean(),
+                                                                                  photons.mean())
+    a, b = block_means(res.image), block_means(ref.image)
+    lit = b > 0.25 * b.max()
+    assert np.allclose(a[lit], b[lit], rtol=0.15), (a, b)
+
+
+@pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
+def test_cornell_box_is_the_same_with_light_samples(method):
+    """The Cornell box, all bounces: the same image mean and 4x4 blocks (within the noise of
+    two seeds each) whether the direct light comes from photons or light samples."""
+    scene = cornell_box(resolution=(32, 32))
+    images = {}
+    for direct in ("photons", "sampled"):
+        for seed in (1, 2):
+            r = render(scene, RenderSettings(method=method, passes=8, photons_per_pass=30_000, seed=seed,
+                                             workers=1, direct_light=direct))
+            assert np.isfinite(r.image).all()
+            assert_sampled(r)
+            images[direct, seed] = block_means(r.image, 4)
+    mean = {d: (images[d, 1] + images[d, 2]) / 2 for d in ("photons", "sampled")}
+    assert mean["sampled"].mean() == pytest.approx(mean["photons"].mean(), rel=0.015)
+    assert np.allclose(mean["sampled"], mean["photons"], rtol=0.06)
+
+
+def test_spot_over_plane_has_no_kernel_bias():
+    """Direct light at the foot of a spot: the photons' estimate is the kernel's average
+    (2 I / r^2 (1 - h / sqrt(h^2 + r^2))), the light samples' the point's own I / h^2."""
+    height, albedo, power, radius = 1.0, 0.5, 100.0, 0.3
+    scene = spot_over_plane(height, albedo, power, radius)
+    per_pass, result = render_passes(scene, method="ppm", passes=6, photons_per_pass=2_000, max_bounces=1,
+                                     direct_light="sampled",
+                                     initial_radius_px=kernel_radius_px(scene, radius))
+    assert_sampled(result)
+    expected = albedo * power / (4 * np.pi) / height ** 2 / np.pi
+    check_mean(per_pass, expected, 0.002)
+
+
+@pytest.mark.parametrize("method", [dict(method="ppm"), dict(method="amcmcppm", chains=2048)],
+                         ids=lambda m: m["method"])
+def test_point_light_in_sphere_with_light_samples(method):
+    """The first bounce from light samples, the others from photons: the same closed form."""
+    albedo, bounces, power = 0.5, 20, 4 * np.pi
+    expected = albedo / np.pi * (1 - albedo ** (bounces + 1)) / (1 - albedo)
+    per_pass, result = render_passes(point_in_sphere(1.0, albedo, power), passes=6, photons_per_pass=20_000,
+                                     max_bounces=bounces, direct_light="sampled", **method)
+    assert_sampled(result)
+    check_mean(per_pass, expected, 0.01)
+
+
+@pytest.mark.parametrize("glossy", [None, 0.3], ids=["diffuse", "glossy"])
+def test_sky_over_floor_with_light_samples(glossy):
+    """An open floor under a constant sky: L = albedo sky (with multiscatter GGX of colour 1,
+    L = sky), all of it direct light from the world's samples."""
+    albedo = 0.5 if glossy is None else 1.0
+    scene = sky_over_floor(albedo, 1.0, resolution=(16, 16), glossy_roughness=glossy)
+    per_pass, result = render_passes(scene, method="ppm", passes=6, photons_per_pass=2_000, max_bounces=1,
+                                     direct_light="sampled")
+    assert_sampled(result)
+    check_mean(per_pass, albedo, 0.01)
+
+
+def test_sun_through_glass_still_comes_from_photons():
+    """A sun through a glass slab: the light samples' shadow rays stop on the glass, and the
+    photons that cross it (second vertex on) carry the light as before."""
+    ior, irradiance, albedo = 1.5, 10.0, 0.5
+    f0 = ((ior - 1) / (ior + 1)) ** 2
+    expected = albedo * irradiance * (1 - f0) ** 2 / np.pi
+    per_pass, result = render_passes(sun_through_slab(ior, irradiance, albedo), method="ppm", passes=6,
+                                     photons_per_pass=20_000, max_bounces=2, direct_light="sampled")
+    assert_sampled(result)
+    check_mean(per_pass, expected, 0.02)
+
+
+def test_photons_of_sampled_emitters_skip_their_first_vertex():
+    """Direct light alone (no scattering): the photons of the sampled emitters deposit nothing,
+    those of an emitter left out (a glowing volume would be one; here: the mask says so) all
+    they did."""
+    scene = lit_floor(LIGHTS["rectangle"]["light"], emitter=True)
+    ctx = RenderContext(scene)
+    mask, why = sampled_emitters(ctx)
+    assert mask is not None and mask.all() and why == ""
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), 2.0, 0)
+    pts = eye.points
+    radius = pts.base_radius * 2.0
+    sums = {}
+    rectangle = mask & (ctx.lights.kinds == AREA_RECT)
+    for name, direct in (("all", None), ("sampled", mask), ("rectangle sampled", rectangle)):
+        target = DepositTarget(pts, radius, ctx.table, 24 * 24, ctx.has_shading_normals,
+                               grid=HashGrid(pts.position, radius, pts.ng), direct=direct)
+        target = DepositTarget.from_arrays(target.to_arrays(), ctx.table)     # (as a worker gets it)
+        u = np.random.default_rng(1).random((20_000, 6 + 4))
+        batch = trace_photons(ctx, target, u, 0)
+        sums[name] = target.to_pixels(batch.sums)
+    assert sums["all"].sum() > 0
+    assert sums["sampled"].sum() == 0
+    # (the quad's photons alone are left)
+    assert 0 < sums["rectangle sampled"].sum() < sums["all"].sum()
+
+
+def test_scenes_the_samples_do_not_model_fall_back_to_photons():
+    """Volumes: the warning, and the very image of the photons' direct light."""
+    scene = corner_in_world_fog(resolution=(16, 16))
+    kw = dict(method="ppm", passes=2, photons_per_pass=5_000, workers=1, seed=3)
+    plain = render(scene, RenderSettings(**kw))
+    sampled = render(scene, RenderSettings(direct_light="sampled", **kw))
+    assert any("direct light from photons" in w and "volumes" in w for w in sampled.warnings)
+    assert np.array_equal(plain.image, sampled.image)
+    # Light passes likewise.
+    scene = cornell_box(resolution=(16, 16))
+    r = render(scene, RenderSettings(direct_light="sampled", data_passes=("diffuse_direct",), **kw))
+    assert any("light or light group passes" in w for w in r.warnings)
+
+
+def test_direct_light_setting_is_validated():
+    with pytest.raises(ValueError, match="direct_light"):
+        RenderSettings(direct_light="nee")
+
+
+@pytest.mark.parametrize("normal", [None, (0.3, 0.0, 1.0)], ids=["flat", "tilted shading normal"])
+def test_translucent_sheet_gets_its_light_from_behind(normal):
+    """The underside of a translucent sheet under a sun at normal incidence, seen from below:
+    L = T E cos / pi, the light sample's direction on the far side of the surface (a back pair)."""
+    colour, irradiance = np.array([0.6, 0.4, 0.2]), 10.0
+    scene = sun_through_sheet({"diffuse": 0.3, "translucent": tuple(colour)}, irradiance, half=3.0,
+                              shading_normal=normal)
+    per_pass, result = render_passes(scene, method="ppm", passes=6, photons_per_pass=2_000, max_bounces=1,
+                                     direct_light="sampled")
+    assert_sampled(result)
+    cos = 1.0 if normal is None else 1.0 / np.linalg.norm(normal)
+    rgb = result.image[..., :3].mean(axis=(0, 1))
+    np.testing.assert_allclose(rgb, colour * irradiance * cos / np.pi, rtol=0.01)
