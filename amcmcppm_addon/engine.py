@@ -237,6 +237,8 @@ def render_final(engine, depsgraph):
             outputs.finish(result, settings.time_limit or 0.0)
             effects = ", ".join(result.effects) or "none (diffuse surfaces and lights only)"
             engine.report({'INFO'}, f"AMCMCPPM: optional effects this scene calls for: {effects}")
+            source = result.direct_light.replace("sampled", "light samples")
+            engine.report({'INFO'}, f"AMCMCPPM: direct light from {source}")
             for msg in result.warnings:
                 engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
             for msg in writer.problems:

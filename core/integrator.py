@@ -29,7 +29,7 @@ import numpy as np
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
-from .direct import sample_direct, sampled_emitters
+from .direct import sample_direct, sampled_emitters, sampled_points
 from .eye_pass import EyePassResult, MeasurementPoints, centre_data, trace_eye_pass
 from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
                            divide_even_color, light_groups, photon_groups)
@@ -64,6 +64,10 @@ class RenderResult:
     elapsed_s: float = 0.0                      # wall time of the render loop
     interrupted: bool = False                   # stopped by ``should_stop``
     effects: tuple = ()                         # the optional effects simulated (RenderContext.effects)
+    direct_light: str = ""                      # where the direct light came from: "sampled" (light
+    #                                             samples, core/direct.py), "photons", or "photons (why)"
+    #                                             where light samples were asked for but the scene rules
+    #                                             them out
     method: str = ""                            # "amcmcppm" or "ppm": what made the image's photons
     data: dict = field(default_factory=dict)    # RenderSettings.data_passes: (H, W) or (H, W, 3) float32
     #                                             each, top row first
@@ -704,12 +708,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         warnings.append("the scene has no geometry")
     # Direct light from light samples (core/direct.py): the emitters sampled, or None.
     direct = None
+    result.direct_light = "photons"
     if settings.direct_light == "sampled":
         direct, why = sampled_emitters(ctx, light_passes, settings.bounce_limits)
-        if direct is None:
-            warnings.append(f"direct light from photons instead of light samples: {why}")
-        else:
-            result.effects += ("direct light samples",)
+        result.direct_light = "sampled" if direct is not None else f"photons ({why})"
     max_passes = settings.passes or np.iinfo(np.int64).max
     deadline = t0 + settings.time_limit if settings.time_limit else None
     scales = kz_radius_scales(1, settings.alpha)
@@ -763,12 +765,16 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                                inner=settings.bias_correction, coverage=coverage,
                                inner_coverage=inner_coverage, limits=settings.bounce_limits,
                                light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES),
-                               light_groups=groups + photons_of_groups if groups[0] else None, direct=direct)
+                               light_groups=groups + photons_of_groups if groups[0] else None, direct=direct,
+                               direct_points=None if direct is None else sampled_points(ctx.table, pts))
         if direct is not None:
             # The points' light samples join the emission the camera sees (averaged over passes).
             rng = np.random.default_rng([settings.seed, STREAM_DIRECT, i])
+            t_direct = time.perf_counter()
             eye.emission += sample_direct(ctx, target, direct, rng, settings.direct_samples)
-            target.light_samples = pts.count * settings.direct_samples
+            sampling = pts.count if target.direct_points is None else int(target.direct_points.sum())
+            target.light_samples = sampling * settings.direct_samples
+            target.light_sample_s = time.perf_counter() - t_direct
         return target
 
     # The worker processes start (scene, acceleration structure) while this one traces the
@@ -915,6 +921,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "photon_vertices": c["vertices"],
         "measurement_points": eye.points.count,
         "light_samples": target.light_samples,
+        "light_sample_s": target.light_sample_s,
         "volume_points": 0 if eye.volume is None else eye.volume.count,
         "grid_entries": target.grid.entry_count,
         "photon_s": merged["photon_s"],

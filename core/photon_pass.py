@@ -114,7 +114,7 @@ class DepositTarget:
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
                  coverage=None, inner_coverage=None, limits=None, light_passes=(), light_groups=None,
-                 direct=None):
+                 direct=None, direct_points=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
@@ -132,10 +132,13 @@ class DepositTarget:
         groups' emitters send photons]), the first two as :func:`~core.light_passes.light_groups`
         returns them, the others :func:`~core.light_passes.photon_groups`'; direct : None, or (count,)
         bool per emitter (``LightSampler`` entries): those whose light the points sample
-        (``core/direct.py``), whose photons then deposit nothing at their first vertex."""
+        (``core/direct.py``), whose photons then deposit nothing at their first vertex on the points
+        ``direct_points`` ((m,) bool; None: all surface points)."""
         self.points = points
         self.direct = None if direct is None else np.asarray(direct, bool)
-        self.light_samples = 0          # the render's light samples at these points (a statistic)
+        self.direct_points = None if direct_points is None else np.asarray(direct_points, bool)
+        # The render's light samples at these points and their time (statistics; core/direct.py).
+        self.light_samples, self.light_sample_s = 0, 0.0
         self.coverage, self.inner_coverage = coverage, inner_coverage
         self.inner = bool(inner)
         self.volume = volume if volume is not None and volume.count else None
@@ -324,6 +327,8 @@ class DepositTarget:
             d.update({f"limits.{k}": np.asarray(v) for k, v in asdict(self.limits).items()})
         if self.direct is not None:
             d["direct"] = self.direct
+        if self.direct_points is not None:
+            d["direct_points"] = self.direct_points
         if self.volume is not None:
             d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__
                       if getattr(self.volume, f) is not None})
@@ -353,7 +358,7 @@ class DepositTarget:
                              light_groups=((tuple(str(n) for n in d["group_passes"]), d["group_blocks"],
                                             int(d["derived_group"]), d["live_groups"])
                                            if "group_passes" in d else None),
-                             direct=d.get("direct"))
+                             direct=d.get("direct"), direct_points=d.get("direct_points"))
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -1125,9 +1130,13 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         # Deposit at non-delta vertices; a pair found makes the path visible, or, if the target
         # has visible cells, a vertex in one of them (and nothing else).
         dep = np.flatnonzero(table.has_nondelta[surf.mat_ids])
+        first_sampled = None
         if bounce == 0 and target.direct is not None and len(dep):
-            # (the light of emitters that the points sample, core/direct.py, from the second vertex on)
-            dep = dep[~target.direct.take(ctx.lights.entries(u[idx.take(dep), 0]))]
+            # The light of emitters that the points sample (core/direct.py) from the second vertex on;
+            # where only some points sample it, the pairs of the others alone (below).
+            first_sampled = target.direct.take(ctx.lights.entries(u[idx.take(dep), 0]))
+            if target.direct_points is None:
+                dep, first_sampled = dep[~first_sampled], None
         if len(dep) and m:
             wo_dep = wo.take(dep, axis=0)
             x_dep = surf.position.take(dep, axis=0)
@@ -1162,6 +1171,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 glossy = target.glossy_lobe.take(pj)
                 worth = (scale > 0) | (glossy if back is None else glossy & ~back)
                 keep = worth if keep is None else keep & worth
+            if len(pi) and first_sampled is not None:
+                ok = ~(first_sampled.take(pi) & target.direct_points.take(pj))
+                keep = ok if keep is None else keep & ok
             if len(pi) and crossings is not None:
                 lanes = idx.take(dep.take(pi))
                 ok = target.crossing_filter(pj, crossings.take(lanes), first_crossings.take(lanes))

@@ -162,10 +162,12 @@ def test_a_caustics_flag_overrides_cycles_light_paths(repo_root, tmp_path):
 
 def test_direct_light_flags_reach_the_render(repo_root, cornell, tmp_path):
     """--direct-light sampled --direct-samples 3: three light samples per measurement point and
-    pass in the statistics (none by default), and the Cornell box's mean as with photons (the
-    light samples carry the direct light the photons' first vertices did; measured within 1 %)."""
+    pass in the statistics (none with --direct-light photons), and the Cornell box's mean as with
+    photons (the light samples carry the direct light the photons' first vertices did)."""
+    photons = ("--direct-light", "photons")
+    sampled = ("--direct-light", "sampled", "--direct-samples", "3")
     means, samples = {}, {}
-    for flags in ((), ("--direct-light", "sampled", "--direct-samples", "3")):
+    for flags in (photons, sampled):
         stats_path = tmp_path / f"{len(flags)}.jsonl"
         out = run(repo_root, cornell, "--output", tmp_path / "c.exr", "--stats", stats_path,
                   "--method", "ppm", *FAST, "--passes", "4", "--photons-per-pass", "20000", *flags)
@@ -173,8 +175,8 @@ def test_direct_light_flags_reach_the_render(repo_root, cornell, tmp_path):
         stats = [json.loads(x) for x in stats_path.read_text().splitlines()]
         samples[flags] = [s["light_samples"] / s["measurement_points"] for s in stats]
         means[flags] = bs.read_exr(tmp_path / "c.exr")[..., :3].mean()
-    assert samples[()] == [0.0] * 4
-    assert samples[("--direct-light", "sampled", "--direct-samples", "3")] == [3.0] * 4
-    ratio = means[("--direct-light", "sampled", "--direct-samples", "3")] / means[()]
+    assert samples[photons] == [0.0] * 4
+    assert samples[sampled] == [3.0] * 4
+    ratio = means[sampled] / means[photons]
     print(f"sampled / photons: {ratio:.3f}")
     assert ratio == pytest.approx(1.0, abs=0.04)

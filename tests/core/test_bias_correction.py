@@ -125,8 +125,10 @@ def test_point_light_over_a_plane_loses_its_kernel_bias(method):
     scene = spot_over_plane(kernel_radius=r, resolution=(4, 4))
     images = {}
     for correct in (False, True):
+        # (the photons' kernel bias: their direct light; light samples have none)
         result = render(scene, RenderSettings(method=method, passes=10, photons_per_pass=100_000,
                                               max_bounces=1, workers=1, bias_correction=correct,
+                                              direct_light="photons",
                                               initial_radius_px=kernel_radius_px(scene, r)))
         images[correct] = result.image[..., :3].mean()
     weight = result.stats[-1]["bias_weight"]

@@ -43,7 +43,9 @@ def floor_scene(wall=None, frame=0.6, opacity_program=None):
 
 
 def image(scene, coverage, **kw):
-    settings = dict(method="ppm", passes=16, photons_per_pass=50000, workers=1, edge_coverage=coverage)
+    # (the photons' gathers near edges: their direct light, which light samples would take instead)
+    settings = dict(method="ppm", passes=16, photons_per_pass=50000, workers=1, edge_coverage=coverage,
+                    direct_light="photons")
     settings.update(kw)
     return render(scene, RenderSettings(**settings)).image[..., 0] / EXPECTED
 

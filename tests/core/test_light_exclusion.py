@@ -34,9 +34,11 @@ from core.scene import (CASTS_NO_SHADOW, EXCLUDE_ALL, EXCLUDE_DIFFUSE, EXCLUDE_G
                         Lights, Materials, SceneError, World)
 from core.testing.scenes import MeshBuilder, sky_over_floor, sun_through_sheet, sun_through_slab
 
-PPM = dict(method="ppm", workers=1, seed=3)
+# (emitters that leave out rays keep the photons' direct light, core/direct.py: the renders they are
+# compared with take it from photons too)
+PPM = dict(method="ppm", workers=1, seed=3, direct_light="photons")
 ALL_RAYS = VISIBLE_CAMERA | VISIBLE_GLOSSY | VISIBLE_TRANSMISSION
-METHODS = [PPM, dict(method="amcmcppm", workers=1, seed=3, chains=1024)]
+METHODS = [PPM, dict(method="amcmcppm", workers=1, seed=3, chains=1024, direct_light="photons")]
 
 
 def excluding(scene, bits):

@@ -159,7 +159,9 @@ def test_a_catcher_no_camera_ray_meets_changes_nothing():
                          triangles=np.concatenate([scene.triangles, aside.triangles + len(scene.vertices)]),
                          material_ids=np.concatenate([scene.material_ids, aside.material_ids]))
     vis = np.full(both.triangle_count, 7, np.uint8)
-    settings = RenderSettings(passes=2, photons_per_pass=4000, workers=1, method="ppm")
+    # (a scene with a catcher keeps the photons' direct light, core/direct.py: so does the one without)
+    settings = RenderSettings(passes=2, photons_per_pass=4000, workers=1, method="ppm",
+                              direct_light="photons")
     plain = render(both.replace(triangle_visibility=vis), settings)
     vis[n:] |= SHADOW_CATCHER
     caught = render(both.replace(triangle_visibility=vis), settings)
