@@ -187,6 +187,21 @@ def spot_over_plane(height=1.0, albedo=0.5, power=100.0, kernel_radius=0.3, reso
     return m.build(mats, Lights.build([spot]), cam)
 
 
+def point_light_over_floor(height=1.0, radius=0.5, soft_falloff=True, albedo=0.5, power=100.0, patch=0.02):
+    """A point light of ``radius`` (with or without Soft Falloff) ``height`` over a wide diffuse
+    floor; an orthographic camera (2 x 2 pixels) sees a ``patch`` at its foot.  There E = I / h^2
+    as a sphere, I / (h^2 + r^2) with Soft Falloff (Cycles' disk facing the receiver), I = power /
+    (4 pi); a gather disc of radius R averages them over its area (``test_closed_form.py``)."""
+    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
+    m = MeshBuilder()
+    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
+    light = {"kind": "point", "position": (0, 0, height), "power": power, "radius": radius,
+             "soft_falloff": soft_falloff}
+    cam = Camera(world_from_camera=_look_down(0.5 * height), projection="orthographic",
+                 frame=(-patch / 2, patch / 2, -patch / 2, patch / 2), resolution=(2, 2))
+    return m.build(mats, Lights.build([light]), cam)
+
+
 def kernel_radius_px(scene, radius):
     """``initial_radius_px`` that gives an orthographic camera the world-space gather ``radius``."""
     fx0, fx1, _, _ = scene.camera.frame

@@ -412,18 +412,10 @@ def test_point_light_of_radius_half_its_height_lights_the_floor_as_cycles(soft_f
     foot.  As a sphere it lights the floor as a point: E = I cos / d^2.  With Soft Falloff
     Cycles makes it a disk facing the receiver: E = I cos / (d^2 + r^2), whose mean over the
     kernel is (2 I h / (r R^2)) (atan(sqrt(h^2 + R^2) / r) - atan(h / r)); 21 % less here."""
-    from core.scene import Camera, Lights, Materials
-    from core.testing.scenes import MeshBuilder, _look_down
+    from core.testing.scenes import point_light_over_floor
     albedo, power, h, r, kernel = 0.5, 100.0, 1.0, 0.5, 0.2
     intensity = power / (4 * np.pi)
-    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
-    m = MeshBuilder()
-    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
-    light = {"kind": "point", "position": (0, 0, h), "power": power, "radius": r,
-             "soft_falloff": soft_falloff}
-    cam = Camera(world_from_camera=_look_down(0.5 * h), projection="orthographic",
-                 frame=(-0.01, 0.01, -0.01, 0.01), resolution=(2, 2))
-    scene = m.build(mats, Lights.build([light]), cam)
+    scene = point_light_over_floor(h, r, soft_falloff, albedo, power)
     per_pass, _ = render_passes(scene, method="ppm", passes=8, photons_per_pass=200_000, max_bounces=1,
                                 initial_radius_px=kernel_radius_px(scene, kernel), direct_light="photons")
     radii = kernel * kz_radius_scales(len(per_pass), 2 / 3)

@@ -17,8 +17,8 @@ from core.hash_grid import HashGrid
 from core.photon_pass import DepositTarget, trace_photons
 from core.scene import AREA_RECT, Camera, Lights, Materials, World
 from core.testing.scenes import (MeshBuilder, corner_in_world_fog, cornell_box, kernel_radius_px,
-                                 point_in_sphere, sky_over_floor, spot_over_plane, sun_through_sheet,
-                                 sun_through_slab)
+                                 point_in_sphere, point_light_over_floor, sky_over_floor, spot_over_plane,
+                                 sun_through_sheet, sun_through_slab)
 
 from test_closed_form import check_mean, render_passes
 
@@ -263,16 +263,8 @@ def test_point_light_of_radius_half_its_height_at_its_foot(soft_falloff):
     samples have no kernel to average over: as a sphere E = I / h^2, with Soft Falloff (Cycles'
     disk facing the receiver) E = I / (h^2 + r^2), 20 % less (test_closed_form.py has the
     photons' kernel averages of both)."""
-    from core.testing.scenes import _look_down
     albedo, power, h, r = 0.5, 100.0, 1.0, 0.5
-    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
-    m = MeshBuilder()
-    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
-    light = {"kind": "point", "position": (0, 0, h), "power": power, "radius": r,
-             "soft_falloff": soft_falloff}
-    cam = Camera(world_from_camera=_look_down(0.5 * h), projection="orthographic",
-                 frame=(-0.002, 0.002, -0.002, 0.002), resolution=(2, 2))
-    scene = m.build(mats, Lights.build([light]), cam)
+    scene = point_light_over_floor(h, r, soft_falloff, albedo, power, patch=0.004)
     per_pass, result = render_passes(scene, method="ppm", passes=8, photons_per_pass=2_000, max_bounces=1,
                                      direct_light="sampled", direct_samples=16)
     assert_sampled(result)
