@@ -40,9 +40,10 @@ NORMALISATION_ITEMS = {
 DIRECT_LIGHT_ITEMS = {
     "photons": ("Photons", "The light that reaches a surface straight from an emitter comes from the "
                            "photons' first hits, as the rest (the paper's method)", 0),
-    "sampled": ("Light Samples", "One light sample and shadow ray per pixel and pass for the light that "
-                                 "reaches a surface straight from a lamp, an emissive mesh or the world; "
-                                 "photons for the rest (light through glass or off mirrors too)", 1),
+    "sampled": ("Light Samples", "Light samples and shadow rays (Light Samples per pixel and pass) for the "
+                                 "light that reaches a surface straight from a lamp, an emissive mesh or the "
+                                 "world; photons for the rest (light through glass or off mirrors, on sharp "
+                                 "glossy surfaces, and in scenes with volumes or light passes)", 1),
 }
 
 
