@@ -43,7 +43,7 @@ DIRECT_LIGHT_ITEMS = {
     "sampled": ("Light Samples", "Light samples and shadow rays (Light Samples per pixel and pass) for the "
                                  "light that reaches a surface straight from a lamp, an emissive mesh or the "
                                  "world; photons for the rest (light through glass or off mirrors, on sharp "
-                                 "glossy surfaces, and in scenes with volumes or light passes)", 1),
+                                 "glossy surfaces, and in scenes with volumes)", 1),
 }
 
 

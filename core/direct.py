@@ -22,8 +22,10 @@ pairs of the others alone, and a first vertex in the chains' visible cells still
 
 Scenes with what the light samples do not model keep the photons' direct light
 (:func:`sampled_emitters`; ``RenderResult.direct_light`` says why): volumes, shadow catchers,
-subsurface scattering, light and shadow linking, emitters that leave out some rays, light and
-light group passes, and a Transparent bounces limit the camera paths count against.
+subsurface scattering, light and shadow linking, emitters that leave out some rays, and a
+Transparent bounces limit the camera paths count against.  Cycles' light passes and light group
+passes take the samples' parts as they would take the photons' first vertices
+(:func:`sample_direct`).
 
 Measured (``benchmarks/versus_cycles.py --methods ours ours-sampled``, 160 x 120, 60 s, 2 seeds,
 stop 58): a long lens on a corner of a sunlit town (``small_view``) 2.6 times lower error against
@@ -37,21 +39,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from .light_passes import VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION
 from .sampling import dot
 
 
-def sampled_emitters(ctx, light_passes=False, limits=None):
+def sampled_emitters(ctx, limits=None):
     """(mask, reason): the emitters (``LightSampler`` entries, (count,) bool) whose direct light
     the measurement points sample, or (None, why not) where the scene calls for something the
-    light samples do not model (module docstring).  ``light_passes``: whether the render makes
-    light or light group passes; ``limits``: its :class:`~core.settings.BounceLimits`."""
+    light samples do not model (module docstring).  ``limits``: the render's
+    :class:`~core.settings.BounceLimits`."""
     lights = ctx.lights
     reasons = (("volumes", ctx.has_volumes), ("shadow catchers", ctx.catcher is not None),
                ("subsurface scattering", ctx.subsurface_exit >= 0),
                ("light or shadow linking", lights.has_links or lights.has_shadow_links
                 or ctx.receiver_sets is not None or ctx.blocker_sets is not None),
                ("emitters that leave out some rays", lights.has_exclusion),
-               ("light or light group passes", bool(light_passes)),
                ("a Transparent bounces limit", limits is not None and limits.counts_crossings
                 and ctx.has_transparency))
     for why, on in reasons:
@@ -85,10 +87,18 @@ def sampled_points(table, points):
     return ~sharp if sharp.any() else None
 
 
-def sample_direct(ctx, target, mask, rng, samples=1):
+def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None):
     """(n_pixels, 3) float64: the mean of ``samples`` light samples' estimates of the direct light
     at each of ``target``'s surface points (a :class:`~core.photon_pass.DepositTarget`), through
-    its throughput, from the emitters ``mask`` (:func:`sampled_emitters`) chosen by power."""
+    its throughput, from the emitters ``mask`` (:func:`sampled_emitters`) chosen by power.
+
+    ``passes``: None, or name -> (n_pixels, 3) arrays of Cycles' light passes
+    (``core/light_passes.py``) to add the samples' parts to, as the photons' first vertices would
+    go: at points with no delta event before them (``MeasurementPoints.via``) the glossy lobe's part
+    to ``glossy_direct`` and the rest to ``diffuse_direct``, at the others all to the
+    ``<kind>_indirect`` pass of their first delta event.  ``groups``: None, or (the light group
+    passes' arrays, the index among them of each of the scene's light groups or -1): each sample
+    also goes to its emitter's group's pass."""
     pts = target.points
     out = np.zeros((target.n_pixels, 3))
     q = ctx.lights.prob * mask
@@ -98,19 +108,40 @@ def sample_direct(ctx, target, mask, rng, samples=1):
         return out
     cdf = np.cumsum(q / q.sum())
     cdf[-1] = 1.0
+    split = bool(passes)
     # Sample k is of point base[k mod len(base)].
     total = len(base) * samples
     for start in range(0, total, CHUNK):
         point = base.take(np.arange(start, min(start + CHUNK, total)) % len(base))
-        j, estimate = _light_samples(ctx, target, point, q / q.sum(), cdf, rng)
-        np.add.at(out, pts.pixel_ids.take(j), target.point_values(j, estimate / samples))
+        j, estimate, glossy, entry = _light_samples(ctx, target, point, q / q.sum(), cdf, rng, split)
+        pix = pts.pixel_ids.take(j)
+        value = target.point_values(j, estimate / samples)
+        np.add.at(out, pix, value)
+        if split:
+            via = np.zeros(len(j), np.uint8) if pts.via is None else pts.via.take(j)
+            shine = np.zeros_like(value) if glossy is None else target.point_values(j, glossy / samples)
+            first = via == VIA_NONE
+            for name, sel, part in (("diffuse_direct", first, value - shine), ("glossy_direct", first, shine),
+                                    ("glossy_indirect", via == VIA_GLOSSY, value),
+                                    ("transmission_indirect", via == VIA_TRANSMISSION, value)):
+                if name in passes and sel.any():
+                    np.add.at(passes[name], pix[sel], part[sel])
+        if groups is not None:
+            arrays, index = groups
+            group = ctx.lights.group.take(entry)
+            for g in np.unique(group[group >= 0]):
+                k = index[g]
+                if k >= 0:
+                    sel = group == g
+                    np.add.at(arrays[k], pix[sel], value[sel])
     return out
 
 
-def _light_samples(ctx, target, point, prob, cdf, rng):
+def _light_samples(ctx, target, point, prob, cdf, rng, split=False):
     """One light sample at each of ``target``'s surface points ``point`` (k,), emitters chosen
     with probabilities ``prob`` (cumulated ``cdf``): (the points j whose samples reached the light,
-    (len(j), 3) their estimates before :meth:`~core.photon_pass.DepositTarget.point_values`)."""
+    (len(j), 3) their estimates before :meth:`~core.photon_pass.DepositTarget.point_values`, with
+    ``split`` the glossy lobe's part of them (None where no point has one), and their emitters)."""
     lights, pts = ctx.lights, target.points
     m = len(point)
     u = rng.random((m, 4))
@@ -126,22 +157,30 @@ def _light_samples(ctx, target, point, prob, cdf, rng):
         # (a point behind as many bounces as the limits allow in all gets no direct light)
         live &= target.bounce_filter(point, 0, np.zeros((m, 4), np.int16))[0]
     r = np.flatnonzero(live)
+    nothing = (np.zeros(0, np.int64), np.zeros((0, 3)), None, np.zeros(0, np.int64))
     if len(r) == 0:
-        return r, np.zeros((0, 3))
+        return nothing
     d = wi.take(r, axis=0)
     origins = ctx.accel.spawn(x.take(r, axis=0), ng.take(r, axis=0), d)
     hits, tint, _, _ = ctx.trace(origins, d, t_max.take(r), lambda rows, k: rng.random(len(rows)))
     open_ = np.flatnonzero(~hits.is_hit)
     r = r.take(open_)
     if len(r) == 0:
-        return r, np.zeros((0, 3))
+        return nothing
     j = point.take(r)
     behind = back.take(r)
     cos_g = np.abs(cos.take(r))
     d = wi.take(r, axis=0) * np.where(behind, -1.0, 1.0)[:, None]    # (back pairs: on the point's side)
     w = target.pair_weights(j, d, cos_g, cos_g if target.has_shading_normals else None,
-                            behind if behind.any() else None)
+                            behind if behind.any() else None, split=split)
+    w, glossy = w if split else (w, None)
     arriving = value.take(r, axis=0) * (cos_g / prob.take(entry.take(r)))[:, None]
     if tint is not None:
         arriving *= tint.take(open_, axis=0)
-    return j, arriving * (w[:, None] if w.ndim == 1 else w.T)
+
+    def times(weights):
+        with np.errstate(over="ignore", invalid="ignore"):
+            e = arriving * (weights[:, None] if weights.ndim == 1 else weights.T)
+        # (a point on top of a point light or an emitter's edge: no sample beyond float range)
+        return np.where(np.isfinite(e), e, 0.0)
+    return j, times(w), None if glossy is None else times(glossy), entry.take(r)

@@ -710,7 +710,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     direct = None
     result.direct_light = "photons"
     if settings.direct_light == "sampled":
-        direct, why = sampled_emitters(ctx, light_passes, settings.bounce_limits)
+        direct, why = sampled_emitters(ctx, settings.bounce_limits)
         result.direct_light = "sampled" if direct is not None else f"photons ({why})"
     max_passes = settings.passes or np.iinfo(np.int64).max
     deadline = t0 + settings.time_limit if settings.time_limit else None
@@ -771,7 +771,18 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             # The points' light samples join the emission the camera sees (averaged over passes).
             rng = np.random.default_rng([settings.seed, STREAM_DIRECT, i])
             t_direct = time.perf_counter()
-            eye.emission += sample_direct(ctx, target, direct, rng, settings.direct_samples)
+            passes = group_sums = None
+            if light_passes:
+                # (their parts of the light passes and light groups join the eye pass's)
+                data = eye.data
+                passes = {}
+                for name in ("diffuse_direct", "glossy_direct", "glossy_indirect", "transmission_indirect"):
+                    if name in light_passes:
+                        passes[name] = data.setdefault(name, np.zeros((n_pixels, 3)))
+                if groups[0]:
+                    group_sums = ([data[name] for name in groups[0]], groups[1])
+            eye.emission += sample_direct(ctx, target, direct, rng, settings.direct_samples, passes,
+                                          group_sums)
             sampling = pts.count if target.direct_points is None else int(target.direct_points.sum())
             target.light_samples = sampling * settings.direct_samples
             target.light_sample_s = time.perf_counter() - t_direct

@@ -15,12 +15,16 @@ from core.direct import sampled_emitters, sampled_points
 from core.eye_pass import trace_eye_pass
 from core.hash_grid import HashGrid
 from core.photon_pass import DepositTarget, trace_photons
+from core.light_passes import LIGHT_PASSES
 from core.scene import AREA_RECT, Camera, Lights, Materials, World
+from core.testing import scenes
 from core.testing.scenes import (MeshBuilder, corner_in_world_fog, cornell_box, kernel_radius_px,
                                  point_in_sphere, point_light_over_floor, sky_over_floor, spot_over_plane,
                                  sun_through_sheet, sun_through_slab)
 
 from test_closed_form import check_mean, render_passes
+from test_light_groups import BASE as GROUPS_BASE, groups_of, lit_box
+from test_light_passes import passes_of, recombined
 
 
 def lit_floor(light=None, world=None, emitter=False, floor=None):
@@ -207,10 +211,41 @@ def test_scenes_the_samples_do_not_model_fall_back_to_photons():
     sampled = render(scene, RenderSettings(direct_light="sampled", **kw))
     assert plain.direct_light == "photons" and sampled.direct_light == "photons (volumes)"
     assert np.array_equal(plain.image, sampled.image)
-    # Light passes likewise.
-    r = render(cornell_box(resolution=(16, 16)), RenderSettings(data_passes=("diffuse_direct",),
-                                                                direct_light="sampled", **kw))
-    assert r.direct_light == "photons (light or light group passes)"
+
+
+@pytest.mark.parametrize("name", ["cornell_box", "sky_over_floor", "hole_mirror_glass"])
+def test_light_passes_take_the_samples(name):
+    """Cycles' light passes with light samples: they add up to the image as Cycles composites them,
+    the image is the one without them, and the direct passes hold the samples (the Cornell box's
+    and the sky floor's direct light is all samples: with the photons' first vertices left out
+    there, diffuse_direct would be empty)."""
+    scene = getattr(scenes, name)()
+    result = passes_of(scene, method="ppm", direct_light="sampled")
+    assert_sampled(result)
+    plain = render(scene, RenderSettings(passes=3, photons_per_pass=20000, workers=1, seed=3, method="ppm",
+                                         direct_light="sampled"))
+    assert np.allclose(result.image, plain.image, rtol=1e-6, atol=1e-7)
+    data = result.data
+    for key in LIGHT_PASSES:
+        assert np.isfinite(data[key]).all() and (data[key] >= 0).all(), key
+    assert np.allclose(recombined(data), result.image[..., :3], rtol=1e-5, atol=1e-6)
+    if name != "hole_mirror_glass":
+        assert data["diffuse_direct"].mean() > 0.05 * result.image[..., :3].mean()
+
+
+def test_light_groups_take_the_samples():
+    """Light groups with light samples: each emitter's samples go to its group's pass, the passes
+    add up to the image (a lamp of emissive triangles, a point light, a spot and the sky, each in a
+    group), and the image is the one without them."""
+    scene = lit_box()
+    result, names = groups_of(scene, method="ppm", direct_light="sampled")
+    assert_sampled(result)
+    plain = render(scene, RenderSettings(**{**GROUPS_BASE, "method": "ppm", "direct_light": "sampled"}))
+    assert np.array_equal(result.image, plain.image)
+    parts = [result.data[n] for n in names]
+    assert all(np.isfinite(p).all() and (p >= 0).all() for p in parts)
+    assert sum(p.mean() > 1e-4 for p in parts) == 3
+    assert np.allclose(sum(parts), result.image[..., :3], rtol=1e-5, atol=1e-6)
 
 
 def test_direct_light_setting_is_validated():
@@ -271,3 +306,17 @@ def test_point_light_of_radius_half_its_height_at_its_foot(soft_falloff):
     intensity = power / (4 * np.pi)
     e = intensity / (h * h + r * r) if soft_falloff else intensity / (h * h)
     check_mean(per_pass, albedo / np.pi * e, 0.003)
+
+
+def test_lights_touching_the_surfaces_give_finite_images():
+    """A point light lying on the floor, a sphere light cutting through it, a sun and a spot
+    whose cone grazes it, an emitter sharing the floor's edge: every pass's image finite."""
+    for light in ({"kind": "point", "position": (0.3, 0.2, 0.0), "power": 1e6, "radius": 0.0},
+                  {"kind": "point", "position": (0.3, 0.2, 0.05), "power": 1e6, "radius": 0.3},
+                  {"kind": "spot", "position": (0.0, -1.0, 1e-7), "direction": (0.0, 1.0, 0.0), "power": 1e5,
+                   "spot_angle": 3.1, "radius": 0.0},
+                  {"kind": "sun", "direction": (0.0, 1.0, -1e-9), "power": 1e3, "sun_angle": 0.0}):
+        r = render_passes(lit_floor(light, emitter=True), method="ppm", passes=2, photons_per_pass=2_000,
+                          direct_light="sampled", max_bounces=2)[1]
+        assert_sampled(r)
+        assert np.isfinite(r.image).all() and r.image[..., :3].max() > 0
