@@ -3,8 +3,9 @@
 The light samples must estimate exactly what the photons' first vertices did, emitter by
 emitter: images of direct light alone (``max_bounces=0``) agree with the photons' in the mean and
 block by block, closed forms hold with photons carrying the rest, the photon pass leaves out
-exactly the first vertices of the sampled emitters, and scenes the samples do not model fall back
-to the photons with a warning.
+exactly the first vertices of the sampled emitters (at the points that take samples), Cycles'
+light passes and light groups take the samples' parts, and scenes the samples do not model fall
+back to the photons (``RenderResult.direct_light`` says why).
 """
 import numpy as np
 import pytest
@@ -14,8 +15,8 @@ from core.context import RenderContext
 from core.direct import sampled_emitters, sampled_points
 from core.eye_pass import trace_eye_pass
 from core.hash_grid import HashGrid
-from core.photon_pass import DepositTarget, trace_photons
 from core.light_passes import LIGHT_PASSES
+from core.photon_pass import DepositTarget, trace_photons
 from core.scene import AREA_RECT, Camera, Lights, Materials, World
 from core.testing import scenes
 from core.testing.scenes import (MeshBuilder, corner_in_world_fog, cornell_box, kernel_radius_px,
