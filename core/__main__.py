@@ -129,7 +129,8 @@ def main(argv=None) -> int:
     if args.png:
         write_png(args.png, result.image)
     if not args.quiet:
-        print(f"wrote {args.output} ({result.passes} passes, {time.perf_counter() - t0:.1f} s)")
+        print(f"wrote {args.output} ({result.passes} passes, {time.perf_counter() - t0:.1f} s; "
+              f"direct light from {result.direct_light.replace('sampled', 'light samples')})")
     return 0
 
 
