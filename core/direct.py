@@ -106,14 +106,15 @@ def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None):
             else np.flatnonzero(target.direct_points))           # (the points that take samples)
     if len(base) == 0 or not q.sum() > 0:
         return out
-    cdf = np.cumsum(q / q.sum())
+    prob = q / q.sum()
+    cdf = np.cumsum(prob)
     cdf[-1] = 1.0
     split = bool(passes)
     # Sample k is of point base[k mod len(base)].
     total = len(base) * samples
     for start in range(0, total, CHUNK):
         point = base.take(np.arange(start, min(start + CHUNK, total)) % len(base))
-        j, estimate, glossy, entry = _light_samples(ctx, target, point, q / q.sum(), cdf, rng, split)
+        j, estimate, glossy, entry = _light_samples(ctx, target, point, prob, cdf, rng, split)
         pix = pts.pixel_ids.take(j)
         value = target.point_values(j, estimate / samples)
         np.add.at(out, pix, value)
