@@ -8,7 +8,7 @@ import time
 
 from .scene import Scene, SceneError
 from .settings import (AOV_PREFIX, DATA_PASSES, DIRECT_LIGHT, LIGHTGROUP_PREFIX, MAX_TRANSPARENT_BOUNCES,
-                       METHODS, MUTATIONS, NORMALISATIONS, RenderSettings)
+                       METHODS, MUTATIONS, NORMALISATIONS, PIXEL_JITTER, RenderSettings)
 
 
 def build_parser():
@@ -40,6 +40,9 @@ def build_parser():
                    help="light straight from emitters from the photons or from light samples")
     r.add_argument("--direct-samples", type=int, default=d.direct_samples,
                    help="light samples per pixel and pass (--direct-light sampled)")
+    r.add_argument("--pixel-jitter", choices=PIXEL_JITTER, default=d.pixel_jitter,
+                   help="where in its pixel each pass's camera ray starts (stratified over the passes, "
+                        "or random)")
     r.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=d.bias_correction,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     r.add_argument("--max-bounces", type=int, default=d.max_bounces,
@@ -82,7 +85,7 @@ def settings_from_args(a) -> RenderSettings:
                           mutation=a.mutation, normalisation=a.normalisation,
                           glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction,
                           direct_light=a.direct_light, direct_samples=a.direct_samples,
-                          data_passes=tuple(a.data_passes))
+                          pixel_jitter=a.pixel_jitter, data_passes=tuple(a.data_passes))
 
 
 def main(argv=None) -> int:

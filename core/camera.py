@@ -43,6 +43,20 @@ def filter_offsets(kind, width, u):
     return np.sign(s) * np.interp(np.abs(s), cdf, x)
 
 
+def stratified_jitter(salt, pass_index, pixel_ids):
+    """(n, 2) pixel-jitter numbers in [0, 1) for ``pixel_ids`` (n,) in pass ``pass_index``
+    (``RenderSettings.pixel_jitter``): point ``pass_index`` of the (0, 2)-sequence in base 2
+    (:func:`~core.sampling.sobol_02`), its bits XORed with each pixel's own 32 random bits
+    (:func:`~core.sampling.hash_bits` of its id and ``salt``; a random digital shift).  So every
+    pass's jitter is uniform in every pixel, as independent numbers are, while a pixel's passes
+    spread over it evenly instead of clumping (its first 2^k passes one in each of 2^k strata of
+    every shape): the noise of where the passes look in their pixels (edges, textures, small bright
+    spots, the light samples' sharp shadows) falls nearly as 1 / passes, not 1 / sqrt(passes)."""
+    shift = smp.hash_bits(pixel_ids, salt, 2) >> np.uint64(32)
+    point = np.array(smp.sobol_02(int(pass_index)), np.uint64)
+    return (shift ^ point).astype(np.float64) * 2.0 ** -32
+
+
 def generate_camera_rays(camera, pixel_ids, u):
     """One ray per pixel ``pixel_ids`` of ``camera.window`` (row-major from its top-left pixel).
 

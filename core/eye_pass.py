@@ -141,8 +141,10 @@ MAX_SEGMENT_POINTS = 16
 
 
 def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None,
-                   alpha_threshold=1.0, ao_distance=10.0, rays=None) -> EyePassResult:
-    """Trace one camera path per window pixel with fresh jitter from ``rng``; with
+                   alpha_threshold=1.0, ao_distance=10.0, rays=None, jitter=None) -> EyePassResult:
+    """Trace one camera path per window pixel with fresh jitter from ``rng`` (or, for the pixel
+    jitter, from ``jitter``: None, or a function of the pixel ids (n,) that returns their (n, 2)
+    numbers, :func:`~core.camera.stratified_jitter`); with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
     rays stop on (:func:`first_hit_data`; the normal and UV past transparent surfaces by
     ``alpha_threshold``, :func:`threshold_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
@@ -207,7 +209,7 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         pixel_ids = chunk if rays is None else given[0]
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
                                         limits, volume, per_segment, data, alpha_threshold, chunks, light,
-                                        ao_distance, given, caught)
+                                        ao_distance, given, caught, jitter)
         parts.extend(points)
         n_rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
@@ -708,7 +710,7 @@ def _box_exit(origins, dirs, lo, hi):
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
                         per_segment=1, data=None, alpha_threshold=1.0, coverage=None, light=None,
-                        ao_distance=10.0, start=None, catcher_rays=None):
+                        ao_distance=10.0, start=None, catcher_rays=None, jitter=None):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
     ``per_segment`` in each segment through one, and to the list ``coverage``, if given, the camera
@@ -719,11 +721,15 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     the camera's (:func:`_catcher_starts`); ``catcher_rays``: None, or (in scenes with shadow
     catchers) the list that takes the :class:`~core.shadow_catcher.CatcherRays` of the paths
     whose first hit is a catcher and that go on through its mirror or glass lobes; the sums of the
-    paths whose first hit is a catcher go to ``data``'s ``shadow_catcher.CATCHER_*``."""
+    paths whose first hit is a catcher go to ``data``'s ``shadow_catcher.CATCHER_*``.  ``jitter``:
+    :func:`trace_eye_pass`'s."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     if start is None:
-        pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, rng.random((len(pix), 4)))
+        u = rng.random((len(pix), 4))
+        if jitter is not None:
+            u[:, :2] = jitter(pix)
+        pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, u)
         path_len = np.zeros(len(pix))
     else:
         pix, origins, dirs, tmax, footprint, path_len = start

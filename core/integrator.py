@@ -23,9 +23,11 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
+from .camera import stratified_jitter
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
@@ -39,7 +41,8 @@ from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
 from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, SHADOW_CATCHER_PASS,
                              catcher_scene, compose)
 from .visible_cells import VisibleCells
-from .worker import STREAM_CATCHER, STREAM_CENTRE, STREAM_COVERAGE, STREAM_DIRECT, STREAM_EYE, PhotonWorker
+from .worker import (STREAM_CATCHER, STREAM_CENTRE, STREAM_COVERAGE, STREAM_DIRECT, STREAM_EYE, STREAM_JITTER,
+                     PhotonWorker)
 
 # A pass is not started when the time left would trace less than this share of its photons.
 MIN_CUT_PASS = 0.05
@@ -728,11 +731,14 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         return {name: value.astype(np.float32).reshape((height, width) + value.shape[1:])
                 for name, value in centre.items()}
 
+    salt = int(np.random.SeedSequence([settings.seed, STREAM_JITTER]).generate_state(1, np.uint64)[0])
+
     def eye_pass(i):
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
+        jitter = partial(stratified_jitter, salt, i) if settings.pixel_jitter == "stratified" else None
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
                               averaged, settings.bounce_limits, settings.pass_alpha_threshold,
-                              settings.ao_distance)
+                              settings.ao_distance, jitter=jitter)
 
     # The Markov chains' visible set also holds the cells around the measurement points of the
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it

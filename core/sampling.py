@@ -79,6 +79,33 @@ def concentric_disk(u1, u2):
     return r * np.cos(phi), r * np.sin(phi)
 
 
+def hash_bits(keys, salt, dims):
+    """(n, dims) uint64 hash of the integers ``keys`` (n,) and ``salt`` (an integer below 2^64):
+    SplitMix64's finaliser of key x dims + dimension plus the salt.  Random bits for many items (a
+    render's pixels) without a stream to keep or a table to store."""
+    k = np.asarray(keys).astype(np.uint64)[:, None] * np.uint64(dims) + np.arange(dims, dtype=np.uint64)
+    z = k * np.uint64(0x9E3779B97F4A7C15) + np.uint64(salt)          # (uint64 arithmetic wraps)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+def sobol_02(index):
+    """(a, b): point ``index`` of the (0, 2)-sequence in base 2 (Sobol's first two dimensions, the
+    van der Corput sequence and the one of the polynomial x + 1) as two 32-bit integers, the
+    coordinates times 2^32.  Its first 2^k points put one in each of the 2^k boxes of area 2^-k
+    of every shape whose sides are powers of two (a (0, k, 2)-net), so any 2^k in a row put 2^(k-2)
+    in each quarter-by-quarter cell; an XOR with the same bits keeps that."""
+    a = b = 0
+    v = 1 << 31                         # the second dimension's direction number of bit k
+    for k in range(32):
+        if (index >> k) & 1:
+            a ^= 1 << (31 - k)
+            b ^= v
+        v ^= v >> 1
+    return a, b
+
+
 def cosine_hemisphere(u1, u2):
     """Cosine-weighted local directions; density cos(theta)/pi."""
     x, y = concentric_disk(u1, u2)

@@ -24,6 +24,7 @@ GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins 
 AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
 MUTATIONS = ("off", "paper", "exact")
 DIRECT_LIGHT = ("photons", "sampled")
+PIXEL_JITTER = ("stratified", "random")
 NORMALISATIONS = ("cumulative", "per_pass")
 # Data passes of the first surface each camera ray meets (RenderSettings.data_passes), and those
 # taken from the first pass alone (as Cycles takes them from its first sample; the others are means).
@@ -160,6 +161,14 @@ class RenderSettings:
 
     direct_samples: int = 4
     """Light samples per measurement point and pass with ``direct_light="sampled"``."""
+
+    pixel_jitter: str = "stratified"
+    """Where in its pixel (by the pixel filter) each pass's camera ray of a pixel starts:
+    "stratified", each pixel's passes spread over it evenly (the R2 sequence shifted per pixel,
+    :func:`core.camera.stratified_jitter`), or "random", independent numbers every pass.  Each
+    pass's jitter is uniform either way (the image's expectation is the same); stratified, the
+    noise of where the passes look in their pixels (edges, textures, small bright spots, sharp
+    shadows) falls faster."""
 
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):
@@ -316,6 +325,8 @@ class RenderSettings:
             bad("direct_light", f"must be one of {DIRECT_LIGHT}")
         if not 1 <= self.direct_samples <= 1024:
             bad("direct_samples", "must lie in [1, 1024]")
+        if self.pixel_jitter not in PIXEL_JITTER:
+            bad("pixel_jitter", f"must be one of {PIXEL_JITTER}")
         if self.normalisation not in NORMALISATIONS:
             bad("normalisation", f"must be one of {NORMALISATIONS}")
         if not all(name in DATA_PASSES or (isinstance(name, str) and name.startswith((AOV_PREFIX,

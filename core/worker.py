@@ -22,7 +22,7 @@ PPM_BATCH = 1 << 14
 
 # Stream identifiers for numpy SeedSequence entropy: (seed, stream, ...).
 (STREAM_EYE, STREAM_PHOTONS, STREAM_CHAINS, STREAM_COVERAGE, STREAM_CENTRE, STREAM_CATCHER,
- STREAM_DIRECT) = 0, 1, 2, 3, 4, 5, 6
+ STREAM_DIRECT, STREAM_JITTER) = 0, 1, 2, 3, 4, 5, 6, 7
 
 
 class PhotonWorker:

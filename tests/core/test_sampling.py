@@ -1734,3 +1734,30 @@ def test_multiscatter_glass_keeps_all_the_light_it_scatters(roughness, outside):
         f_ms = 0.5 * e_avg / (1.0 - 0.5 * (1.0 - e_avg))
         want = 0.5 * e * (1.0 + f_ms * (1.0 - e) / e)
         assert abs(grey - want) < 4.0 * g_err + 3e-3, (theta, grey, want)
+
+
+def test_stratified_jitter_is_uniform_in_every_pass_and_even_in_every_pixel():
+    """``camera.stratified_jitter`` (RenderSettings.pixel_jitter): over 40,000 pixels one pass's
+    numbers are uniform (a chi-square over 10 x 10 cells at the 1e-4 level, in passes 0, 1 and
+    999) and differ from pixel to pixel; one pixel's first 64 passes put exactly 4 in each of 16
+    cells and one in each of 64 strips across either axis (a (0, 6, 2)-net; independent numbers: a
+    binomial of mean 4 and spread 1.9 in a cell); 8 passes in a row from pass 8 one in each of 8
+    strips; the same salt, pass and pixel give the same numbers, another salt others."""
+    from core.camera import stratified_jitter
+    from stats_utils import chi2_sf
+    pixels = np.arange(40_000)
+    for k in (0, 1, 999):
+        u = stratified_jitter(12345, k, pixels)
+        assert u.shape == (40_000, 2) and (u >= 0).all() and (u < 1).all()
+        counts = np.histogram2d(u[:, 0], u[:, 1], bins=10, range=[[0, 1], [0, 1]])[0]
+        stat = ((counts - 400.0) ** 2 / 400.0).sum()
+        assert chi2_sf(stat, 99) > 1e-4, (k, stat)
+        assert len(np.unique(u[:, 0])) > 39_000
+    for pixel in (0, 7, 123_456):
+        u = np.array([stratified_jitter(12345, k, np.array([pixel]))[0] for k in range(64)])
+        np.testing.assert_array_equal(np.histogram2d(u[:, 0], u[:, 1], bins=4, range=[[0, 1], [0, 1]])[0], 4)
+        for axis in (0, 1):
+            np.testing.assert_array_equal(np.histogram(u[:, axis], bins=64, range=(0, 1))[0], 1)
+            np.testing.assert_array_equal(np.histogram(u[8:16, axis], bins=8, range=(0, 1))[0], 1)
+    np.testing.assert_array_equal(stratified_jitter(5, 3, pixels[:10]), stratified_jitter(5, 3, pixels[:10]))
+    assert not np.allclose(stratified_jitter(5, 3, pixels[:10]), stratified_jitter(6, 3, pixels[:10]))
