@@ -11,7 +11,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, Po
 
 from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, DIRECT_LIGHT,
                              MAX_BOUNCES, MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS,
-                             RenderSettings)
+                             PIXEL_JITTER, RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -45,6 +45,12 @@ DIRECT_LIGHT_ITEMS = {
                                  "world; photons for the rest (light through glass or off mirrors, on sharp "
                                  "glossy surfaces, and in scenes with volumes)", 1),
 }
+PIXEL_JITTER_ITEMS = {
+    "stratified": ("Stratified", "Each pixel's passes spread their camera rays evenly over the pixel "
+                                 "(a randomly shifted Sobol sequence): edges, textures and small bright "
+                                 "spots settle sooner", 0),
+    "random": ("Random", "Each pass's camera rays start at independent random points of their pixels", 1),
+}
 
 
 def enum_items(values, known):
@@ -57,6 +63,7 @@ enum_methods = enum_items(METHODS, METHOD_ITEMS)
 enum_mutations = enum_items(MUTATIONS, MUTATION_ITEMS)
 enum_normalisations = enum_items(NORMALISATIONS, NORMALISATION_ITEMS)
 enum_direct_light = enum_items(DIRECT_LIGHT, DIRECT_LIGHT_ITEMS)
+enum_pixel_jitter = enum_items(PIXEL_JITTER, PIXEL_JITTER_ITEMS)
 
 _DEFAULTS = RenderSettings()
 INT_MAX = 2 ** 31 - 1
@@ -93,6 +100,9 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     seed: IntProperty(
         name="Seed", default=_DEFAULTS.seed, min=0, max=INT_MAX,
         description="Random seed; the same seed, settings and worker count give the same image")
+    pixel_jitter: EnumProperty(
+        name="Pixel Jitter", items=enum_pixel_jitter, default=_DEFAULTS.pixel_jitter,
+        description="Where in its pixel each pass's camera ray starts (as Cycles' sampling pattern)")
     alpha: FloatProperty(
         name="Alpha", default=_DEFAULTS.alpha, min=0.01, max=0.99, precision=3,
         description="Radius reduction per pass: r(i+1)^2 = r(i)^2 (i + alpha) / (i + 1); "

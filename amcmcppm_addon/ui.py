@@ -54,7 +54,7 @@ class AMCMCPPMButtonsPanel:
 
 class AMCMCPPM_RENDER_PT_sampling(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Sampling"
-    props = ("method", "passes", "time_limit", "photons_per_pass", "seed")
+    props = ("method", "passes", "time_limit", "photons_per_pass", "seed", "pixel_jitter")
 
     def draw(self, context):
         super().draw(context)

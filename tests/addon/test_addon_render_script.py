@@ -132,6 +132,22 @@ def test_bias_correction_flag_reaches_the_render(repo_root, cornell, tmp_path):
     assert weights["--bias-correction"][:3] == [0.0] * 3 and weights["--bias-correction"][-1] > 0
 
 
+def test_pixel_jitter_flag_reaches_the_render(repo_root, cornell, tmp_path):
+    """--pixel-jitter: the default is stratified (the same image as with the flag), random another
+    image of the same mean (within 3 %: 2 passes of 3,000 photons), and each is the same again."""
+    images = {}
+    random = ("--pixel-jitter", "random")
+    for name, flags in (("default", ()), ("stratified", ("--pixel-jitter", "stratified")), ("random", random),
+                        ("random again", random)):
+        out = run(repo_root, cornell, "--output", tmp_path / "c.exr", "--method", "ppm", *FAST, *flags)
+        assert out.returncode == 0, out.stderr
+        images[name] = bs.read_exr(tmp_path / "c.exr")[..., :3]
+    np.testing.assert_array_equal(images["default"], images["stratified"])
+    np.testing.assert_array_equal(images["random"], images["random again"])
+    assert not np.array_equal(images["random"], images["stratified"])
+    assert images["random"].mean() == pytest.approx(images["stratified"].mean(), rel=0.03)
+
+
 def test_a_bounce_flag_overrides_cycles_light_paths(repo_root, cornell, tmp_path):
     """The sample takes Cycles' Light Paths; --diffuse-bounces 0 switches it to the engine's own
     limits (Cycles' others kept) with no diffuse bounce: the Cornell box keeps its direct light
