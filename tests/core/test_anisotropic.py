@@ -166,14 +166,16 @@ def expected_floor(along_sun, ax=0.32, ay=0.08, sun_angle=0.7):
 def test_a_sunlit_brushed_floor_gathers_the_reference_lobe(method, tangent, rotation, along):
     """The photons gathered on the floor weigh by the lobe in its tangent's frame: along the sun's
     azimuth the wide alpha_x shows the sun (7.4), across it the narrow alpha_y hardly (0.084);
-    a quarter turn swaps them and a half turn changes nothing.  Uniform over the image."""
+    a quarter turn swaps them and a half turn changes nothing.  Uniform over the image: the
+    pixels' spread within 5 % of it (over seeds 0-9, 1.5 to 2.8 %; their range, which one
+    heavy photon through the narrow lobe decides, was 6.5 to 14 %)."""
     res = render(sunlit_floor(tangent, rotation),
                  RenderSettings(method=method, passes=8, photons_per_pass=20000, workers=1, seed=3))
     img = res.image[..., :3]
     assert np.isfinite(img).all()
     expected = expected_floor(along)
     assert abs(img.mean() / expected - 1.0) < 0.04, (img.mean(), expected)
-    assert np.ptp(img.mean(axis=2)) < 0.1 * expected
+    assert np.std(img.mean(axis=2)) < 0.05 * expected
 
 
 def test_a_rotation_map_turns_the_tangent_at_each_hit():

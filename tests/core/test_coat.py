@@ -57,8 +57,8 @@ def halves(image):
     return np.array([image[:h].reshape(-1, 3).mean(axis=0), image[h:].reshape(-1, 3).mean(axis=0)])
 
 
-def rendered_halves(scene, method, seeds, passes):
-    runs = [halves(render(scene, RenderSettings(passes=passes, photons_per_pass=40_000, seed=seed, workers=1,
+def rendered_halves(scene, method, seeds, passes, photons=40_000):
+    runs = [halves(render(scene, RenderSettings(passes=passes, photons_per_pass=photons, seed=seed, workers=1,
                                                 **method)).image[..., :3]) for seed in range(seeds)]
     return np.mean(runs, axis=0)
 
@@ -80,14 +80,16 @@ CASES = [(FURNACE, METHODS[0]), pytest.param("tinted half coat of IOR 2", METHOD
 
 @pytest.mark.parametrize("name, method", CASES, ids=lambda x: x["method"] if isinstance(x, dict) else x)
 def test_coated_floor_under_a_constant_sky_matches_the_closed_form(name, method):
-    """Near and far halves per channel within 5 % of the closed form (4 seeds x 12 passes: these
-    cases measured within 1.9 %; the seeds' halves spread by +-5 %).
+    """Near and far halves per channel within 5 % of the closed form (8 seeds x 12 passes of 80,000
+    photons).  The far (grazing) half is the noisy one: with 40,000 photons one seed's far half
+    spread by about 6 % (the furnace with PPM, 32 seeds: 1.003 to 1.005 of the closed form in the
+    mean), and seeds 0-3 once averaged 0.937.
     The control, the coat's reflection added to the base without the dimming under the coat,
     is off by more than 8 % in the far half, where the coat reflects most."""
     spec = COATS[name]
     scene = sky_over_floor(resolution=RESOLUTION, material=spec)
     want = halves(expected_floor(scene, spec))
-    got = rendered_halves(scene, method, 4, 12)
+    got = rendered_halves(scene, method, 8, 12, photons=80_000)
     print(name, method["method"], "ours / closed form:", np.round(got / want, 3).tolist())
     np.testing.assert_allclose(got, want, rtol=0.05)
     control = halves(expected_floor(scene, {**spec, "coat": 0.0})) + halves(expected_floor(scene, {

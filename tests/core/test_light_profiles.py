@@ -162,7 +162,8 @@ def test_photons_leave_only_where_the_profile_shines():
 def test_a_profiled_light_seen_in_a_mirror_shows_its_radiance_times_the_profile(kind):
     """Straight down from the light to the mirror and back up to the camera: v = 0, f = 1.6 (the
     four centre pixels, symmetric about the axis: their sin h terms cancel, and 0.6 (1 - cos v)
-    over their 2.5 degrees takes off less than 4e-4)."""
+    over their 2.5 degrees takes off less than 4e-4; within 1e-3, for that and the two passes'
+    jitter)."""
     spec = {"kind": kind, "radius": 0.5, "power": 10.0, "position": (0, 0, 3),
             "direction": (0, 0, -1), "axis_u": (1, 0, 0), "axis_v": (0, 1, 0), "profile": 0}
     if kind == "area":
@@ -172,7 +173,7 @@ def test_a_profiled_light_seen_in_a_mirror_shows_its_radiance_times_the_profile(
                                                     workers=1)).image
     centre = image[7:9, 7:9, :3]
     expected = 0.9 * 1.6 * 10.0 / (4 * np.pi ** 2 * 0.25 if kind == "point" else np.pi * 1.0)
-    np.testing.assert_allclose(centre.mean(axis=(0, 1)), expected, rtol=5e-4)
+    np.testing.assert_allclose(centre.mean(axis=(0, 1)), expected, rtol=1e-3)
     assert np.ptp(centre[..., 0]) > 1e-3                   # (the pixels do differ by their h)
 
 

@@ -397,7 +397,8 @@ def test_a_map_between_two_levels_renders_their_mix(method):
     0 and 1) under a white sky: each hit takes the blue with probability 0.3, so the floor's albedo
     is 0.7 red + 0.3 blue = (0.59, 0.2, 0.31).  The green, the same for both, gives the photon
     density (whose noise every channel shares), and the red and blue over it match that albedo
-    within the noise of the picks (2 %); the nearest level (red) would give 0.8 and 0.1."""
+    within 5 %: the camera's picks alone (256 pixels x 24 passes) spread the blue by 1.3 % (and the
+    photon density under each pick weighs them); the nearest level (red) would give 0.8 and 0.1."""
     red, blue = {"name": "red", "diffuse": [0.8, 0.2, 0.1]}, {"name": "blue", "diffuse": [0.1, 0.2, 0.8]}
     level = {"name": "picks", "diffuse": 0.5, "level_first": 1, "level_count": 2,
              "level_program": {"op": "math", "operation": "ADD", "a": 0.0, "b": 0.3}}
@@ -410,4 +411,4 @@ def test_a_map_between_two_levels_renders_their_mix(method):
     mean = res.image[..., :3].reshape(-1, 3).mean(axis=0)
     albedo = 0.2 * mean / mean[1]
     print("albedo:", albedo)
-    np.testing.assert_allclose(albedo, [0.59, 0.2, 0.31], rtol=0.02)
+    np.testing.assert_allclose(albedo, [0.59, 0.2, 0.31], rtol=0.05)
