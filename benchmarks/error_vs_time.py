@@ -73,6 +73,11 @@ METHODS = {
     "ppm-no-edges": dict(method="ppm", edge_coverage=False),
     "a60-exact-no-edges": dict(method="amcmcppm", target_acceptance=0.60, mutation="exact",
                                edge_coverage=False),
+    # The same with each pass's pixel jitter drawn anew (RenderSettings.pixel_jitter), as before
+    # the stratified jitter.
+    "ppm-random-jitter": dict(method="ppm", pixel_jitter="random"),
+    "a60-exact-random-jitter": dict(method="amcmcppm", target_acceptance=0.60, mutation="exact",
+                                    pixel_jitter="random"),
 }
 # The references' method: uncorrected, as all references made before the correction.
 REFERENCE_METHOD = "a60-exact-uncorrected"

@@ -25,6 +25,8 @@ cores (Cycles' threads fixed to ``--threads``, ours with as many workers):
     ours-ppm         ours with uniform photons (SPPM)
     ours-sampled     ``ours`` with Direct Light "Light Samples" (core/direct.py): the light straight
                      from emitters from light samples and shadow rays, photons for the rest
+    ours-random-jitter  ``ours`` with Pixel Jitter "Random" (each pass's camera rays at independent
+                     points of their pixels, as before stop 59's stratified jitter)
 
 Each run gets ``--time`` seconds (Cycles' Time Limit, which leaves out its scene synchronisation;
 ours' Time Limit) and ours also saves its image at
@@ -72,7 +74,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from error_vs_time import errors, git_commit  # noqa: E402
 
 METHODS = ("cycles", "cycles-denoised", "cycles-mnee", "cycles-unclamped", "cycles-guided", "ours",
-           "ours-denoised", "ours-ppm", "ours-sampled")
+           "ours-denoised", "ours-ppm", "ours-sampled", "ours-random-jitter")
 REFERENCES = ("cycles", "ours")
 REFERENCE_SEEDS = (1001, 1002)
 OURS_REFERENCE_RADIUS = 0.25        # of the file's initial radius (error_vs_time.REFERENCE_RADIUS)
@@ -131,6 +133,8 @@ def child(spec):
             p.method = "ppm"
         if kind == "ours-sampled":
             p.direct_light = "sampled"
+        if kind == "ours-random-jitter":
+            p.pixel_jitter = "random"
         if spec["reference"]:
             p.initial_radius_px *= OURS_REFERENCE_RADIUS
             p.bias_correction = False
