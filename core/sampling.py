@@ -94,8 +94,9 @@ def sobol_02(index):
     """(a, b): point ``index`` of the (0, 2)-sequence in base 2 (Sobol's first two dimensions, the
     van der Corput sequence and the one of the polynomial x + 1) as two 32-bit integers, the
     coordinates times 2^32.  Its first 2^k points put one in each of the 2^k boxes of area 2^-k
-    of every shape whose sides are powers of two (a (0, k, 2)-net), so any 2^k in a row put 2^(k-2)
-    in each quarter-by-quarter cell; an XOR with the same bits keeps that."""
+    of every shape whose sides are powers of two (a (0, k, 2)-net), and so do the next 2^k and each
+    block of 2^k after them (2^(k-4) in each quarter-by-quarter cell); an XOR of every point with
+    the same bits keeps that."""
     a = b = 0
     v = 1 << 31                         # the second dimension's direction number of bit k
     for k in range(32):

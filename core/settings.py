@@ -164,11 +164,11 @@ class RenderSettings:
 
     pixel_jitter: str = "stratified"
     """Where in its pixel (by the pixel filter) each pass's camera ray of a pixel starts:
-    "stratified", each pixel's passes spread over it evenly (the R2 sequence shifted per pixel,
-    :func:`core.camera.stratified_jitter`), or "random", independent numbers every pass.  Each
-    pass's jitter is uniform either way (the image's expectation is the same); stratified, the
-    noise of where the passes look in their pixels (edges, textures, small bright spots, sharp
-    shadows) falls faster."""
+    "stratified", each pixel's passes spread over it evenly (a Sobol (0, 2)-sequence with a random
+    digital shift per pixel, :func:`core.camera.stratified_jitter`), or "random", independent
+    numbers every pass.  Each pass's jitter is uniform either way (the image's expectation is the
+    same); stratified, the noise of where the passes look in their pixels (edges, textures, small
+    bright spots, sharp shadows) falls faster."""
 
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):
