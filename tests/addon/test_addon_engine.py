@@ -1006,7 +1006,8 @@ def test_volume_light_passes_match_cycles(scene, tmp_path):
     1.001, 0.999 and 0.991; before the gathers took the faces beside the camera rays into account,
     ``eye_pass.side_planes``, 0.955, 0.964 and 0.969, the pixels along the top of the fog's outline
     darker: Volume Direct 0.72 of Cycles' 1-2 pixels from it); the floor and wall seen beside the
-    fog have no volume pass."""
+    fog, 2 pixels or more from any pixel where Cycles has some (the pixel filter reaches 1.5), have
+    no volume pass."""
     def build():
         sc = sunlit_floor_and_wall((96, 64), 24, 40000)
         fog, _ = bs.volume_material("Fog", "ShaderNodeVolumeScatter", Density=0.6)
@@ -1022,7 +1023,9 @@ def test_volume_light_passes_match_cycles(scene, tmp_path):
         a, b = (images[f"ViewLayer.{name}"][..., :3] for images in (ours, cycles))
         print(f"{name:16s} ours {a[fog].mean():.4f}, Cycles {b[fog].mean():.4f}")
         assert abs(a[fog].mean() / b[fog].mean() - 1.0) < 0.04, name
-    clear = cycles["ViewLayer.Volume Direct"][..., :3].max(axis=-1) == 0.0
+    none = np.pad(cycles["ViewLayer.Volume Direct"][..., :3].max(axis=-1) == 0.0, 2, constant_values=True)
+    h, w = none.shape[0] - 4, none.shape[1] - 4
+    clear = np.logical_and.reduce([none[dy:dy + h, dx:dx + w] for dy in range(5) for dx in range(5)])
     assert clear.sum() > 500 and ours["ViewLayer.Volume Direct"][clear].max() == 0.0
 
 

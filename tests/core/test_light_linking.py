@@ -93,11 +93,12 @@ def test_a_sheet_that_does_not_shadow_the_sun_leaves_the_floor_lit(method):
         lights = Lights.build([{"kind": "sun", "direction": (0, 0, -1), "power": e,
                                 "shadow_links": shadow_links}])
         scene = plain.replace(lights=lights, blocker_sets=sets).validate()
-        result = finite_render(scene, passes=6, photons_per_pass=150_000, **method)
+        result = finite_render(scene, passes=12, photons_per_pass=150_000, **method)
         assert "shadow linking" in result.effects
         image = result.image[..., :3]
         if expected:
-            # 4 seeds of PPM at 200,000 photons: 0.988-1.027 of it.
+            # 4 seeds of PPM at 200,000 photons: 0.988-1.027 of it; AMCMCPPM at 6 passes over seeds
+            # 0-21 0.95-1.04 (hence 12).
             np.testing.assert_allclose(image.mean(axis=(0, 1)), expected, rtol=0.05)
         else:
             assert image.max() == 0.0
