@@ -79,15 +79,20 @@ def concentric_disk(u1, u2):
     return r * np.cos(phi), r * np.sin(phi)
 
 
-def hash_bits(keys, salt, dims):
-    """(n, dims) uint64 hash of the integers ``keys`` (n,) and ``salt`` (an integer below 2^64):
-    SplitMix64's finaliser of key x dims + dimension plus the salt.  Random bits for many items (a
-    render's pixels) without a stream to keep or a table to store."""
-    k = np.asarray(keys).astype(np.uint64)[:, None] * np.uint64(dims) + np.arange(dims, dtype=np.uint64)
-    z = k * np.uint64(0x9E3779B97F4A7C15) + np.uint64(salt)          # (uint64 arithmetic wraps)
+def splitmix64(z):
+    """SplitMix64's finaliser of the uint64 array ``z`` (its arithmetic wraps): well-mixed bits
+    from counters and seeds, a function of ``z`` alone."""
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
     return z ^ (z >> np.uint64(31))
+
+
+def hash_bits(keys, salt, dims):
+    """(n, dims) uint64 hash of the integers ``keys`` (n,) and ``salt`` (an integer below 2^64):
+    :func:`splitmix64` of key x dims + dimension times the golden ratio plus the salt.  Random bits
+    for many items (a render's pixels) without a stream to keep or a table to store."""
+    k = np.asarray(keys).astype(np.uint64)[:, None] * np.uint64(dims) + np.arange(dims, dtype=np.uint64)
+    return splitmix64(k * np.uint64(0x9E3779B97F4A7C15) + np.uint64(salt))
 
 
 def sobol_02(index):

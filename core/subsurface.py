@@ -27,7 +27,7 @@ import numpy as np
 
 from .accel import Hits
 from .sampling import (cosine_hemisphere, dot, ggx_d, ggx_g1, ggx_sample_visible_normal, hg_phase, normalize,
-                       orthonormal_frames, sample_hg, to_local, to_world)
+                       orthonormal_frames, sample_hg, splitmix64, to_local, to_world)
 from .scene import SUBSURFACE_SKIN
 
 MAX_STEPS = 256                   # Cycles' BSSRDF_MAX_BOUNCES: a walk that has not left is lost
@@ -214,10 +214,7 @@ def hashed_uniforms(seeds, step):
     SplitMix64's finaliser of the seed and the number's counter (a function of the seed alone, so a
     photon's walk stays a function of its primary sample; one array pass for all six numbers)."""
     counter = np.uint64(step * WALK_NUMBERS) + np.arange(WALK_NUMBERS, dtype=np.uint64)
-    z = seeds[:, None] * np.uint64(0x9E3779B97F4A7C15) + counter * np.uint64(0xD1B54A32D192ED03)
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    z ^= z >> np.uint64(31)
+    z = splitmix64(seeds[:, None] * np.uint64(0x9E3779B97F4A7C15) + counter * np.uint64(0xD1B54A32D192ED03))
     return (z >> np.uint64(11)).astype(np.float64) * 2.0 ** -53
 
 
