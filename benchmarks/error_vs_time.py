@@ -78,6 +78,11 @@ METHODS = {
     "ppm-random-jitter": dict(method="ppm", pixel_jitter="random"),
     "a60-exact-random-jitter": dict(method="amcmcppm", target_acceptance=0.60, mutation="exact",
                                     pixel_jitter="random"),
+    # The same with the photons from afar starting anywhere (RenderSettings.focus_photons), as
+    # before the focus.
+    "ppm-unfocused": dict(method="ppm", focus_photons=False),
+    "a60-exact-unfocused": dict(method="amcmcppm", target_acceptance=0.60, mutation="exact",
+                                focus_photons=False),
 }
 # The references' method: uncorrected, as all references made before the correction.
 REFERENCE_METHOD = "a60-exact-uncorrected"

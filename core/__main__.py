@@ -43,6 +43,9 @@ def build_parser():
     r.add_argument("--pixel-jitter", choices=PIXEL_JITTER, default=d.pixel_jitter,
                    help="where in its pixel each pass's camera ray starts (stratified over the passes, "
                         "or random)")
+    r.add_argument("--focus-photons", action=argparse.BooleanOptionalAction, default=d.focus_photons,
+                   help="aim uniform photons from the sun and the world at what the camera sees, where "
+                        "that pays (--no-focus-photons: off)")
     r.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=d.bias_correction,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     r.add_argument("--max-bounces", type=int, default=d.max_bounces,
@@ -85,7 +88,8 @@ def settings_from_args(a) -> RenderSettings:
                           mutation=a.mutation, normalisation=a.normalisation,
                           glossy_through_roughness=a.glossy_through, bias_correction=a.bias_correction,
                           direct_light=a.direct_light, direct_samples=a.direct_samples,
-                          pixel_jitter=a.pixel_jitter, data_passes=tuple(a.data_passes))
+                          pixel_jitter=a.pixel_jitter, focus_photons=a.focus_photons,
+                          data_passes=tuple(a.data_passes))
 
 
 def main(argv=None) -> int:

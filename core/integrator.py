@@ -35,6 +35,7 @@ from .direct import sample_direct, sampled_emitters, sampled_points
 from .eye_pass import EyePassResult, MeasurementPoints, centre_data, trace_eye_pass
 from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
                            divide_even_color, light_groups, photon_groups)
+from .lights import Focus
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
@@ -744,9 +745,14 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
     # barely changes between passes.
     cells = VisibleCells() if is_chain else None
+    # Where the photons from afar of uniform passes are aimed (core.lights.Focus), from the first
+    # pass's points.  Not the chains': their target is a path's visibility, not its flux, and the
+    # focus would leave the visible paths' fluxes unequal (small_view at 64x48, 60 s: relMSE 0.046
+    # with it, 0.020 without; PPM 0.029 with it, 0.131 without).
+    focus = None
 
     def make_target(i, eye):
-        nonlocal scales, cells
+        nonlocal scales, cells, focus
         if len(scales) < i + 1:
             scales = kz_radius_scales(2 * (i + 1), settings.alpha)
         pts, vol = eye.points, eye.volume
@@ -758,6 +764,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             cells = cells.extended(pts.position, pts.ng, pts.base_radius)
             if vol_radius is not None:
                 cells = cells.extended(vol.position, None, vol.base_radius, volume=True)
+        if i == 0 and settings.focus_photons:
+            around, reach = [pts.position], [radius]
+            if vol_radius is not None:
+                around.append(vol.position)
+                reach.append(vol_radius)
+            focus = Focus.around(np.concatenate(around), np.concatenate(reach), ctx.lights)
         coverage = inner_coverage = None
         if settings.edge_coverage and pts.count:
             rng = np.random.default_rng([settings.seed, STREAM_COVERAGE, i])
@@ -772,7 +784,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                                inner_coverage=inner_coverage, limits=settings.bounce_limits,
                                light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES),
                                light_groups=groups + photons_of_groups if groups[0] else None, direct=direct,
-                               direct_points=None if direct is None else sampled_points(ctx.table, pts))
+                               direct_points=None if direct is None else sampled_points(ctx.table, pts),
+                               focus=None if is_chain else focus)
         if direct is not None:
             # The points' light samples join the emission the camera sees (averaged over passes).
             rng = np.random.default_rng([settings.seed, STREAM_DIRECT, i])

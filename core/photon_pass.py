@@ -38,7 +38,7 @@ from .context import MAX_TRANSPARENT_CROSSINGS, Surface
 from .eye_pass import MeasurementPoints, VolumePoints, coat_attenuation, coat_normals
 from .hash_grid import HashGrid
 from .light_passes import VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION
-from .lights import LIGHT_DIMS
+from .lights import LIGHT_DIMS, Focus
 from .phase import isotropic as isotropic_phase, sample as sample_phase, value as phase_value
 from .procedural import Rays, photon_path
 from .scene import EXCLUDE_DIFFUSE, EXCLUDE_GLOSSY, EXCLUDE_SCATTER, EXCLUDE_TRANSMISSION
@@ -114,7 +114,7 @@ class DepositTarget:
     def __init__(self, points, radius, table, n_pixels, has_shading_normals, grid=None, cells=None,
                  volume=None, volume_radius=None, volume_grid=None, media=None, inner=False,
                  coverage=None, inner_coverage=None, limits=None, light_passes=(), light_groups=None,
-                 direct=None, direct_points=None):
+                 direct=None, direct_points=None, focus=None):
         """points : MeasurementPoints; radius : (m,) float64 current gather radii r_j;
         table : the scene's material table; cells : None, or the :class:`VisibleCells` that
         then alone make a path visible (Markov chains; see ``core/visible_cells.py``);
@@ -133,8 +133,11 @@ class DepositTarget:
         returns them, the others :func:`~core.light_passes.photon_groups`'; direct : None, or (count,)
         bool per emitter (``LightSampler`` entries): those whose light the points sample
         (``core/direct.py``), whose photons then deposit nothing at their first vertex on the points
-        ``direct_points`` ((m,) bool; None: all surface points)."""
+        ``direct_points`` ((m,) bool; None: all surface points); focus : None, or the
+        :class:`~core.lights.Focus` the photons from afar are aimed at (the same for every pass of a
+        render)."""
         self.points = points
+        self.focus = focus
         self.direct = None if direct is None else np.asarray(direct, bool)
         self.direct_points = None if direct_points is None else np.asarray(direct_points, bool)
         # The render's light samples at these points and their time (statistics; core/direct.py).
@@ -329,6 +332,8 @@ class DepositTarget:
             d["direct"] = self.direct
         if self.direct_points is not None:
             d["direct_points"] = self.direct_points
+        if self.focus is not None:
+            d["focus"] = self.focus.to_array()
         if self.volume is not None:
             d.update({f"volume.{f}": getattr(self.volume, f) for f in VolumePoints.__dataclass_fields__
                       if getattr(self.volume, f) is not None})
@@ -358,7 +363,8 @@ class DepositTarget:
                              light_groups=((tuple(str(n) for n in d["group_passes"]), d["group_blocks"],
                                             int(d["derived_group"]), d["live_groups"])
                                            if "group_passes" in d else None),
-                             direct=d.get("direct"), direct_points=d.get("direct_points"))
+                             direct=d.get("direct"), direct_points=d.get("direct_points"),
+                             focus=Focus.from_array(d["focus"]) if "focus" in d else None)
 
     def bounce_filter(self, j, bounce, kinds, volume=False):
         """Which pairs of points ``j`` (surface, then volume numbering) with photons at vertex
@@ -1022,7 +1028,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     first_dim = np.full(n, -1, np.int32)
     n_resumed = 0 if resume is None else len(resume["bounce"])
     fresh = n - n_resumed
-    origins, dirs, flux, _ = ctx.lights.sample(u[:fresh, :LIGHT_DIMS])
+    origins, dirs, flux, _ = ctx.lights.sample(u[:fresh, :LIGHT_DIMS], target.focus)
     idx = np.flatnonzero(luminance(flux) > 0)
     origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
     last_join = -1

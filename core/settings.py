@@ -170,6 +170,15 @@ class RenderSettings:
     same); stratified, the noise of where the passes look in their pixels (edges, textures, small
     bright spots, sharp shadows) falls faster."""
 
+    focus_photons: bool = True
+    """Aim the uniform photons (PPM's, and "auto"'s after its switch) from afar (the sun's, the
+    world's) at what the camera sees: half of them start on the disc of a sphere around most of the
+    first pass's measurement points instead of anywhere on the scene's (:class:`core.lights.Focus`;
+    their fluxes keep the estimate exact), where that pays by a model of the points' photon
+    density.  A long lens on a corner of a large sunlit scene gets hundreds of times the photons
+    there.  Not the Markov chains', whose target is a path's visibility alone.  Off: every such
+    photon starts anywhere."""
+
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):
     the camera path's mirror and glass bounces plus the photon's, counted as Cycles counts them
@@ -366,7 +375,8 @@ class RenderSettings:
             bad("chains", "must be >= 1")
         if not 0 < self.target_acceptance < 1:
             bad("target_acceptance", "must lie in (0, 1)")
-        for name in ("bias_correction", "edge_coverage", "caustics_reflective", "caustics_refractive"):
+        for name in ("bias_correction", "edge_coverage", "focus_photons", "caustics_reflective",
+                     "caustics_refractive"):
             if not isinstance(getattr(self, name), bool):
                 bad(name, "must be True or False")
         if not 1e-4 <= self.initial_mutation_size <= 1e3:

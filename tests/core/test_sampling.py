@@ -22,6 +22,7 @@ from core import bsdf
 from core import mcmc
 from core import sampling as smp
 from core.context import RenderContext
+from core.lights import Focus
 from core.scene import Lights, Materials, World
 from core.testing.scenes import MeshBuilder
 from stats_utils import chi2_sf, gammaincc, normal_isf, sidak
@@ -1433,6 +1434,73 @@ def test_world_light_emits_4_pi_squared_r_squared_radiance_uniformly():
     check_chi2(lambda n: (dir_to_cos_phi(d, [0.0, 0.0, 1.0]), None),
                lambda xy: np.full(len(xy), 1 / (4 * np.pi)), SPHERE)
     check_distant_origins(o, d)
+
+
+def power_into_sphere(o, d, flux, centre, rho):
+    """(mean, standard error) per channel of the photons' flux that enters the sphere (centre,
+    rho): the rays from ``o`` along ``d`` that pass within rho of its centre, ahead of them."""
+    q = np.asarray(centre) - o
+    t = np.einsum("ij,ij->i", q, d)
+    hit = (t > 0) & (np.einsum("ij,ij->i", q, q) - t * t < rho * rho)
+    v = flux * hit[:, None]
+    return v.mean(axis=0), v.std(axis=0) / math.sqrt(len(v))
+
+
+@pytest.mark.parametrize("emitter", ("sun", "world"))
+def test_focused_photons_from_afar_carry_the_same_light_into_any_sphere(emitter):
+    """A :class:`Focus` starts half the sun's or the world's photons on its sphere's disc; their
+    fluxes (the scene disc's density over the mixture's) keep every estimate exact.  The power
+    entering spheres at the focus, across its edge and far from it (only the uniform half reaches
+    that one) matches the closed form (sun: irradiance E times pi rho^2; a constant world:
+    pi L over the sphere's 4 pi rho^2) within 5 standard errors, also for a focus that reaches past
+    the scene's disc; every origin stays on the plane 2 R before the scene's centre."""
+    power = np.array([3.0, 2.0, 1.0])
+    axis = unit_vector(-0.2, 0.4, -1.0)
+    if emitter == "sun":
+        ctx = light_context([{"kind": "sun", "direction": axis, "power": power, "sun_angle": 0.0}])
+    else:
+        ctx = light_context(world=power)
+    rho = 0.3
+    exact = power * (np.pi * rho ** 2 if emitter == "sun" else 4 * np.pi ** 2 * rho ** 2)
+    u = np.random.default_rng(4095).random((N, 6))
+    spheres = {"at the focus": BOX_CENTER + [0.5, 0.2, 0.0], "across its edge": BOX_CENTER + [0.5, 0.9, 0.0],
+               "far from it": BOX_CENTER + [-0.8, -0.9, 0.3]}
+    focuses = {"inside the scene": Focus(BOX_CENTER + [0.5, 0.2, 0.0], 0.7, 0.5),
+               "past the scene's disc": Focus(BOX_HI, 1.5, 0.3)}
+    for name, focus in focuses.items():
+        o, d, flux, _ = ctx.lights.sample(u, focus)
+        assert np.isfinite(flux).all() and (flux >= 0).all()
+        assert np.allclose(np.einsum("ij,ij->i", o - BOX_CENTER, d), -2 * BOX_RADIUS, atol=1e-9)
+        for where, centre in spheres.items():
+            mean, se = power_into_sphere(o, d, flux, centre, rho)
+            assert (np.abs(mean - exact) < 5 * se + 1e-12).all(), \
+                f"{emitter}, focus {name}, sphere {where}: {mean} against {exact} (standard error {se})"
+    # The focus pays where it aims: far more of the photons enter the sphere at it.
+    plain = power_into_sphere(*ctx.lights.sample(u)[:3], spheres["at the focus"], rho)[1]
+    aimed = power_into_sphere(*ctx.lights.sample(u, focuses["inside the scene"])[:3], spheres["at the focus"],
+                              rho)[1]
+    assert (aimed < 0.5 * plain).all(), f"{emitter}: standard error {aimed} aimed against {plain} not"
+
+
+def test_focus_covers_the_points_where_it_pays_and_stays_off_elsewhere():
+    """:meth:`Focus.around` picks the sphere around most of the points that lowers the modelled
+    variance most: a tight cluster with a few far points (a glass ball's reflections) gets a sphere
+    around the cluster and most of the rest; points all over the scene, no points, and a scene
+    without the sun or the world get none."""
+    sun = light_context([{"kind": "sun", "direction": (0, 0, -1), "power": 1.0}]).lights
+    rng = np.random.default_rng(4096)
+    cluster = BOX_CENTER + 0.05 * rng.standard_normal((2000, 3))
+    far = BOX_LO + (BOX_HI - BOX_LO) * rng.random((10, 3))
+    focus = Focus.around(np.vstack([cluster, far]), np.full(2010, 0.01), sun)
+    assert focus is not None and focus.uniform_share == 0.5
+    assert np.linalg.norm(focus.center - BOX_CENTER) < 0.02
+    inside = np.linalg.norm(np.vstack([cluster, far]) - focus.center, axis=1) <= focus.radius
+    assert inside[:2000].all() and focus.radius < 0.5 * BOX_RADIUS
+    spread = BOX_LO + (BOX_HI - BOX_LO) * rng.random((2000, 3))
+    assert Focus.around(spread, np.full(2000, 0.01), sun) is None
+    assert Focus.around(np.zeros((0, 3)), np.zeros(0), sun) is None
+    point = light_context([{"kind": "point", "position": BOX_CENTER, "power": 1.0}]).lights
+    assert Focus.around(cluster, np.full(2000, 0.01), point) is None
 
 
 def test_emissive_triangles_emit_two_pi_area_radiance_from_both_sides_by_area():
