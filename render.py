@@ -40,7 +40,7 @@ SETTING_FLAGS = {
     "initial_radius": "initial_radius_px", "alpha": "alpha", "max_bounces": "max_bounces",
     "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
     "bias_correction": "bias_correction", "edge_coverage": "edge_coverage", "direct_light": "direct_light",
-    "direct_samples": "direct_samples", "pixel_jitter": "pixel_jitter",
+    "direct_samples": "direct_samples", "pixel_jitter": "pixel_jitter", "focus_photons": "focus_photons",
     "diffuse_bounces": "diffuse_bounces", "glossy_bounces": "glossy_bounces",
     "transmission_bounces": "transmission_bounces", "volume_bounces": "volume_bounces",
     "caustics_reflective": "caustics_reflective", "caustics_refractive": "caustics_refractive",
@@ -88,6 +88,9 @@ def build_parser():
     g.add_argument("--pixel-jitter", choices=("stratified", "random"),
                    help="where in its pixel each pass's camera ray starts (stratified over the passes, "
                         "or random)")
+    g.add_argument("--focus-photons", action=argparse.BooleanOptionalAction, default=None,
+                   help="aim uniform photons from the sun and the world at what the camera sees, where "
+                        "that pays (--no-focus-photons: off)")
     g.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=None,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     g.add_argument("--edge-coverage", action=argparse.BooleanOptionalAction, default=None,

@@ -126,6 +126,11 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Divide each gather near an edge of its surface (a table's rim, a floor that ends "
                     "at a wall, a leaf cut by an alpha map) by the share of its disc on the surface, so "
                     "that edges do not darken while the radius is large")
+    focus_photons: BoolProperty(
+        name="Aim Distant Photons", default=_DEFAULTS.focus_photons,
+        description="Aim half of the sun's and the world's uniform photons at a sphere around what the "
+                    "camera sees, where that pays (a small view of a large scene); their flux keeps the "
+                    "image's expectation. Markov chains' photons are never aimed")
     light_paths_from_cycles: BoolProperty(
         name="Use Cycles' Light Paths", default=True,
         description="Take the bounce limits and caustics toggles from Cycles' Light Paths settings of "

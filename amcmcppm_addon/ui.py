@@ -54,7 +54,12 @@ class AMCMCPPMButtonsPanel:
 
 class AMCMCPPM_RENDER_PT_sampling(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Sampling"
-    props = ("method", "passes", "time_limit", "photons_per_pass", "seed", "pixel_jitter")
+    props = ("method", "passes", "time_limit", "photons_per_pass", "seed", "pixel_jitter", "focus_photons")
+
+    @staticmethod
+    def prop_active(settings, name):
+        # (the chains' photons are never aimed: RenderSettings.focus_photons)
+        return name != "focus_photons" or settings.method != "amcmcppm"
 
     def draw(self, context):
         super().draw(context)

@@ -148,6 +148,24 @@ def test_pixel_jitter_flag_reaches_the_render(repo_root, cornell, tmp_path):
     assert images["random"].mean() == pytest.approx(images["stratified"].mean(), rel=0.03)
 
 
+def test_focus_photons_flag_reaches_the_render(repo_root, tmp_path):
+    """small_view.blend (a long lens on a glass ball in a sunlit town) with PPM: by default (and with
+    --focus-photons) many times more of the uniform photons reach what the camera sees than with
+    --no-focus-photons, which renders every photon from anywhere on the scene's disc."""
+    blend = repo_root / "sample_blends" / "small_view.blend"
+    visible = {}
+    for flags in ((), ("--focus-photons",), ("--no-focus-photons",)):
+        stats_path = tmp_path / "s.jsonl"
+        out = run(repo_root, blend, "--output", tmp_path / "s.exr", "--stats", stats_path, "--method", "ppm",
+                  *FAST, "--photons-per-pass", "20000", *flags)
+        assert out.returncode == 0, out.stderr
+        lines = [json.loads(x) for x in stats_path.read_text().splitlines()]
+        visible[flags] = sum(x["uniform_visible"] for x in lines) / sum(x["uniform_samples"] for x in lines)
+    print(f"visible shares of the uniform photons: {visible}")
+    assert visible[()] == visible[("--focus-photons",)]
+    assert visible[()] > 20 * visible[("--no-focus-photons",)]
+
+
 def test_a_bounce_flag_overrides_cycles_light_paths(repo_root, cornell, tmp_path):
     """The sample takes Cycles' Light Paths; --diffuse-bounces 0 switches it to the engine's own
     limits (Cycles' others kept) with no diffuse bounce: the Cornell box keeps its direct light
