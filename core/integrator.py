@@ -35,7 +35,7 @@ from .direct import sample_direct, sampled_emitters, sampled_points
 from .eye_pass import EyePassResult, MeasurementPoints, centre_data, trace_eye_pass
 from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
                            divide_even_color, light_groups, photon_groups)
-from .lights import Focus
+from .lights import FOCUS_MIN_VISIBLE, Focus
 from .parallel import make_pool
 from .photon_pass import DepositTarget
 from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
@@ -748,8 +748,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     # Where the photons from afar of uniform passes are aimed (core.lights.Focus), from the first
     # pass's points.  Not the chains': their target is a path's visibility, not its flux, and the
     # focus would leave the visible paths' fluxes unequal (small_view at 64x48, 60 s: relMSE 0.046
-    # with it, 0.020 without; PPM 0.029 with it, 0.131 without).
+    # with it, 0.020 without; PPM 0.029 with it, 0.131 without).  The passes' own photons tell
+    # whether it pays (aim_sums, below).
     focus = None
+    aim_sums = np.zeros(3)
 
     def make_target(i, eye):
         nonlocal scales, cells, focus
@@ -861,6 +863,15 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 if merged["photon_s"] > 0:
                     catcher_share = catcher_stats["catcher_s"] / merged["photon_s"]
             c = merged["counters"]
+            if focus is not None and target.focus is not None:
+                # Does the focus pay?  Its photons' visibility V with the weights w estimates the
+                # second moment of the paths from afar with it, mean(w^2 V), and without it,
+                # mean(w V) (importance sampling's identity, the same photons): the focus goes
+                # (from the next pass not yet made) where the first is larger, as when the light
+                # comes through a window outside the sphere (then only the uniform half brings it).
+                aim_sums += (c["aimed_w"], c["aimed_w2"], c["aimed_visible"])
+                if aim_sums[2] >= FOCUS_MIN_VISIBLE and aim_sums[1] > aim_sums[0]:
+                    focus = None
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)
             interrupted = stop()
@@ -954,6 +965,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "light_sample_s": target.light_sample_s,
         "volume_points": 0 if eye.volume is None else eye.volume.count,
         "grid_entries": target.grid.entry_count,
+        "focus_radius": target.focus.radius if target.focus is not None else 0.0,
         "photon_s": merged["photon_s"],
         "bookkeeping_share": 1.0 - c["trace_s"] / merged["photon_cpu_s"] if merged["photon_cpu_s"] > 0 else 0.0,
         "prepare_next_s": prep_s,

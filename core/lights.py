@@ -28,6 +28,9 @@ LIGHT_DIMS = 6
 FOCUS_UNIFORM_SHARE = 0.5
 FOCUS_QUANTILES = (0.5, 0.75, 0.9, 0.95, 0.99, 1.0)
 FOCUS_MAX_VARIANCE = 0.5
+# The visible photons from afar a render's focused passes must have had before it judges the focus
+# by them (core/integrator.py).
+FOCUS_MIN_VISIBLE = 64
 # Emitter kinds in the combined table (analytic kinds keep their Lights.kind value).
 TRIANGLE, WORLD, VOLUME = 10, 11, 12
 # A glowing volume's photons start on lines through its mesh, each traced through at most this many
@@ -716,10 +719,27 @@ class LightSampler:
         across = np.where(aimed, focus.radius, r)[:, None] * (x[:, None] * t + y[:, None] * b)
         # (the aimed origins moved along d into the plane of the others, 2 r before the centre)
         o = centre + across - (smp.dot(centre - self.center, d) + 2.0 * r)[:, None] * d
+        return o, self._aim_weights(o, d, focus)
+
+    def _aim_weights(self, o, d, focus):
+        """(n,) the scene disc's uniform density over the :class:`Focus` mixture's at origins ``o``
+        (n, 3) of photons along ``d`` (n, 3) from afar."""
+        r, share = self.radius, focus.uniform_share
         in_scene = _off_axis2(o - self.center, d) <= (r * (1.0 + 1e-9)) ** 2
         in_focus = _off_axis2(o - focus.center, d) <= (focus.radius * (1.0 + 1e-9)) ** 2
-        density = share * in_scene + (1.0 - share) * (r / focus.radius) ** 2 * in_focus
-        return o, 1.0 / density
+        return 1.0 / (share * in_scene + (1.0 - share) * (r / focus.radius) ** 2 * in_focus)
+
+    def aim_weights(self, u0, origins, dirs, focus):
+        """(from afar (n,) bool, weights (n,)): which photons of emitter choices ``u0`` (n,) start
+        from afar (the sun, the world) and the weights ``focus`` gave them (:meth:`_aim_weights`;
+        1 for the others), from their ``origins`` and ``dirs`` (n, 3) as :meth:`sample` made them."""
+        far = (np.isin(self.kinds.take(self.entries(u0)), (SUN, WORLD)) if self.count
+               else np.zeros(len(u0), bool))
+        w = np.ones(len(u0))
+        rows = np.flatnonzero(far)
+        if len(rows):
+            w[rows] = self._aim_weights(origins.take(rows, axis=0), dirs.take(rows, axis=0), focus)
+        return far, w
 
     def _sample_triangle(self, ids, u, power):
         """Origins, directions, the power 2 pi A L(x) (n, 3) the chosen points emit (the

@@ -108,6 +108,10 @@ class ChainCounters:
     rays: int = 0                # closest-hit rays of the photon paths
     vertices: int = 0            # photon path vertices (surface hits)
     trace_s: float = 0.0         # seconds spent tracing photon paths (the rest is chain bookkeeping)
+    # Uniform paths from afar under a Focus (PhotonBatch.aim): the visible ones' sums of w, w^2, and count.
+    aimed_w: float = 0.0
+    aimed_w2: float = 0.0
+    aimed_visible: int = 0
 
     def add(self, other: "ChainCounters") -> None:
         for f in self.__dataclass_fields__:

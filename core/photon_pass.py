@@ -975,6 +975,7 @@ class PhotonBatch:
     sums: np.ndarray             # (n_slots, 3) per-slot sums of the pair values (if summed here)
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
+    aim: np.ndarray | None = None  # (3,) with a Focus: sum over the visible paths from afar of w, w^2, 1
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
@@ -1029,6 +1030,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     n_resumed = 0 if resume is None else len(resume["bounce"])
     fresh = n - n_resumed
     origins, dirs, flux, _ = ctx.lights.sample(u[:fresh, :LIGHT_DIMS], target.focus)
+    # The focus's weights w of the paths from afar (the integrator drops a focus that does not pay).
+    aimed = (ctx.lights.aim_weights(u[:fresh, 0], origins, dirs, target.focus)
+             if target.focus is not None else None)
     idx = np.flatnonzero(luminance(flux) > 0)
     origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
     last_join = -1
@@ -1419,7 +1423,12 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     if own_sums:
         sums.flush()
         total = sums.total
-    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices)
+    aim = None
+    if aimed is not None:
+        far, w = aimed
+        w = w[far & visible[:fresh]]
+        aim = np.array([w.sum(), (w * w).sum(), len(w)], np.float64)
+    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim)
 
 
 def _walk_uniforms(u, idx, bounce):

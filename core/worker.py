@@ -116,9 +116,11 @@ class PhotonWorker:
             batch = trace_photons(self.ctx, target, rng.random((b, self.dims)), s.max_bounces, sums=sums)
             counters.trace_s += time.perf_counter() - t0
             visible = int(batch.visible.sum())
+            aim = batch.aim if batch.aim is not None else np.zeros(3)
             counters.add(ChainCounters(iterations=b, paths_traced=b, recorded=b, uniform_samples=b,
                                        uniform_visible=visible, rays=batch.rays,
-                                       vertices=batch.vertices))
+                                       vertices=batch.vertices, aimed_w=float(aim[0]), aimed_w2=float(aim[1]),
+                                       aimed_visible=int(aim[2])))
             done += b
         sums.flush()
         return sums.total, interrupted

@@ -63,3 +63,38 @@ def test_chains_keep_their_photons_unaimed_and_the_image_exact():
     assert np.array_equal(images[True], images[False])
     expected = ALBEDO * IRRADIANCE * -SUN[2] / np.pi
     assert abs(images[True][..., :3].mean() / expected - 1.0) < 0.05
+
+
+def shaded_ground(resolution=(16, 16)):
+    """A camera under a 16 x 16 m canopy 5 m above a 40 m ground looks at the ground under its
+    middle, lit by a 6 x 3 m mirror 11 m away that throws the sun in under the canopy.  The focus
+    around what the camera sees aims at the canopy's top: the light comes off the mirror, outside
+    the focus sphere, which only the uniform half of the photons reach."""
+    mats = Materials.build([{"name": "ground", "diffuse": ALBEDO}, {"name": "mirror", "mirror": 0.95}])
+    m = MeshBuilder()
+    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
+    m.add_quad((-8, -8, 5), (-8, 8, 5), (8, 8, 5), (8, -8, 5), 0)
+    sun = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
+    c = np.array([0.0, -11.0, 3.0])
+    out = -c / np.linalg.norm(c)
+    n = (out - sun) / np.linalg.norm(out - sun)
+    t = np.array([1.0, 0.0, 0.0])
+    b = np.cross(n, t)
+    m.add_quad(c - 3 * t - 1.5 * b, c + 3 * t - 1.5 * b, c + 3 * t + 1.5 * b, c - 3 * t + 1.5 * b, 1)
+    lights = Lights.build([{"kind": "sun", "direction": sun, "power": IRRADIANCE, "sun_angle": 0.01}])
+    cam = Camera.look_at((0.0, -4.0, 1.5), (0.0, 0.0, 0.0), lens_mm=200.0, resolution=resolution)
+    return m.build(mats, lights, cam)
+
+
+def test_a_focus_that_does_not_pay_goes_after_the_first_pass():
+    """The ground under a canopy: the first pass aims (the points are compact in a large scene), its
+    photons show that the aimed ones do not reach what the camera sees (mean(w^2 V) > mean(w V),
+    the integrator's test), and the later passes do not aim; on the sunlit corner of a plain floor
+    every pass aims."""
+    s = RenderSettings(method="ppm", passes=4, photons_per_pass=300_000, workers=1, seed=2)
+    r = render(shaded_ground(), s)
+    assert np.isfinite(r.image).all() and r.image[..., :3].mean() > 0
+    radii = [st["focus_radius"] for st in r.stats]
+    assert radii[0] > 0 and radii[1:] == [0.0] * 3, radii
+    r = render(sunlit_corner((16, 16)), s)
+    assert all(st["focus_radius"] > 0 for st in r.stats)
