@@ -524,6 +524,45 @@ def small_view(resolution=(64, 48), boxes=400, seed=1):
     return m.build(mats, lights, cam, smooth=True)
 
 
+SUNLIT_CORNER_SUN = tuple(np.array([-0.4, 0.3, -0.85]) / np.linalg.norm([-0.4, 0.3, -0.85]))
+
+
+def sunlit_corner(resolution=(24, 24), albedo=0.6, irradiance=4.0):
+    """A long lens (600 mm, 42 m away, 16 degrees down) on a patch of some 3 by 9 m of a 200 m grey
+    floor under a sun (direction SUNLIT_CORNER_SUN): the patch is 10^-3 of the scene's disc, the
+    photons from afar's case for a focus (``core.lights.Focus``).  Radiance: albedo E cos(theta) /
+    pi everywhere."""
+    mats = Materials.build([{"name": "floor", "diffuse": albedo}])
+    m = MeshBuilder()
+    m.add_quad((-100, -100, 0), (100, -100, 0), (100, 100, 0), (-100, 100, 0), 0)
+    lights = Lights.build([{"kind": "sun", "direction": SUNLIT_CORNER_SUN, "power": irradiance,
+                            "sun_angle": 0.01}])
+    cam = Camera.look_at((30.0, -30.0, 12.0), (0.0, 0.0, 0.0), lens_mm=600.0, resolution=resolution)
+    return m.build(mats, lights, cam)
+
+
+def mirror_lit_shade(resolution=(16, 16), albedo=0.6, irradiance=4.0):
+    """A camera under a 16 x 16 m canopy 5 m above a 40 m ground looks at the ground under its
+    middle, lit by a 6 x 3 m mirror 11 m away that throws the sun in under the canopy: a focus
+    around what the camera sees aims at the canopy's top, and the light comes off the mirror,
+    outside the focus sphere, which only the uniform half of the photons reach (the focus does not
+    pay; ``core.lights.Focus``)."""
+    mats = Materials.build([{"name": "ground", "diffuse": albedo}, {"name": "mirror", "mirror": 0.95}])
+    m = MeshBuilder()
+    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
+    m.add_quad((-8, -8, 5), (-8, 8, 5), (8, 8, 5), (8, -8, 5), 0)
+    sun = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
+    c = np.array([0.0, -11.0, 3.0])
+    out = -c / np.linalg.norm(c)
+    n = (out - sun) / np.linalg.norm(out - sun)
+    t = np.array([1.0, 0.0, 0.0])
+    b = np.cross(n, t)
+    m.add_quad(c - 3 * t - 1.5 * b, c + 3 * t - 1.5 * b, c + 3 * t + 1.5 * b, c - 3 * t + 1.5 * b, 1)
+    lights = Lights.build([{"kind": "sun", "direction": sun, "power": irradiance, "sun_angle": 0.01}])
+    cam = Camera.look_at((0.0, -4.0, 1.5), (0.0, 0.0, 0.0), lens_mm=200.0, resolution=resolution)
+    return m.build(mats, lights, cam)
+
+
 def corner_in_world_fog(resolution=(64, 64)):
     """A floor and a wall in a world filled with fog (World.volume_*: scattering 0.14 / 0.16 /
     0.18 per metre, g = -0.2, absorbing a tenth of that), lit by a spot whose beam shows and a
@@ -570,7 +609,7 @@ BUILTIN = {"cornell_box": cornell_box, "furnace_sphere": furnace_sphere,
            "sun_through_slab": sun_through_slab, "camera_in_glass": camera_in_glass,
            "sky_over_floor": sky_over_floor,
            "glass_ceiling_room": glass_ceiling_room, "hole_mirror_glass": hole_mirror_glass,
-           "small_view": small_view,
+           "small_view": small_view, "sunlit_corner": sunlit_corner, "mirror_lit_shade": mirror_lit_shade,
            "foggy_glass_ceiling_room": lambda resolution=(64, 48): glass_ceiling_room(resolution, fog=0.4),
            "corner_in_world_fog": corner_in_world_fog, "glowing_glass_ball": glowing_glass_ball}
 

@@ -6,24 +6,10 @@ import numpy as np
 import pytest
 
 from core import RenderSettings, render
-from core.scene import Camera, Lights, Materials
-from core.testing.scenes import MeshBuilder
+from core.testing.scenes import SUNLIT_CORNER_SUN, mirror_lit_shade, sunlit_corner
 
-ALBEDO = 0.6
-IRRADIANCE = 4.0
-SUN = np.array([-0.4, 0.3, -0.85]) / np.linalg.norm([-0.4, 0.3, -0.85])
-
-
-def sunlit_corner(resolution=(24, 24)):
-    """A long lens (600 mm, 42 m away, 16 degrees down) on a patch of some 3 by 9 m of a 200 m grey
-    floor under a sun: the patch is 10^-3 of the scene's disc.  Radiance: albedo E cos(theta) / pi
-    everywhere."""
-    mats = Materials.build([{"name": "floor", "diffuse": ALBEDO}])
-    m = MeshBuilder()
-    m.add_quad((-100, -100, 0), (100, -100, 0), (100, 100, 0), (-100, 100, 0), 0)
-    lights = Lights.build([{"kind": "sun", "direction": SUN, "power": IRRADIANCE, "sun_angle": 0.01}])
-    cam = Camera.look_at((30.0, -30.0, 12.0), (0.0, 0.0, 0.0), lens_mm=600.0, resolution=resolution)
-    return m.build(mats, lights, cam)
+ALBEDO, IRRADIANCE = 0.6, 4.0
+SUN = np.asarray(SUNLIT_CORNER_SUN)
 
 
 @pytest.mark.parametrize("workers", (1, 2))
@@ -38,7 +24,7 @@ def test_focused_photons_light_a_far_corner_exactly_and_densely(workers):
     for focus in (True, False):
         s = RenderSettings(method="ppm", passes=4, photons_per_pass=200_000 // workers, workers=workers,
                            seed=3, focus_photons=focus)
-        r = render(sunlit_corner(), s)
+        r = render(sunlit_corner(albedo=ALBEDO, irradiance=IRRADIANCE), s)
         assert np.isfinite(r.image).all()
         visible = sum(st["uniform_visible"] for st in r.stats) / sum(st["uniform_samples"] for st in r.stats)
         runs[focus] = (r.image[..., :3].astype(np.float64) / expected, visible)
@@ -59,31 +45,10 @@ def test_chains_keep_their_photons_unaimed_and_the_image_exact():
     for focus in (True, False):
         s = RenderSettings(method="amcmcppm", passes=3, photons_per_pass=40_000, workers=1, seed=5,
                            focus_photons=focus)
-        images[focus] = render(sunlit_corner((16, 16)), s).image
+        images[focus] = render(sunlit_corner((16, 16), ALBEDO, IRRADIANCE), s).image
     assert np.array_equal(images[True], images[False])
     expected = ALBEDO * IRRADIANCE * -SUN[2] / np.pi
     assert abs(images[True][..., :3].mean() / expected - 1.0) < 0.05
-
-
-def shaded_ground(resolution=(16, 16)):
-    """A camera under a 16 x 16 m canopy 5 m above a 40 m ground looks at the ground under its
-    middle, lit by a 6 x 3 m mirror 11 m away that throws the sun in under the canopy.  The focus
-    around what the camera sees aims at the canopy's top: the light comes off the mirror, outside
-    the focus sphere, which only the uniform half of the photons reach."""
-    mats = Materials.build([{"name": "ground", "diffuse": ALBEDO}, {"name": "mirror", "mirror": 0.95}])
-    m = MeshBuilder()
-    m.add_quad((-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0), 0)
-    m.add_quad((-8, -8, 5), (-8, 8, 5), (8, 8, 5), (8, -8, 5), 0)
-    sun = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
-    c = np.array([0.0, -11.0, 3.0])
-    out = -c / np.linalg.norm(c)
-    n = (out - sun) / np.linalg.norm(out - sun)
-    t = np.array([1.0, 0.0, 0.0])
-    b = np.cross(n, t)
-    m.add_quad(c - 3 * t - 1.5 * b, c + 3 * t - 1.5 * b, c + 3 * t + 1.5 * b, c - 3 * t + 1.5 * b, 1)
-    lights = Lights.build([{"kind": "sun", "direction": sun, "power": IRRADIANCE, "sun_angle": 0.01}])
-    cam = Camera.look_at((0.0, -4.0, 1.5), (0.0, 0.0, 0.0), lens_mm=200.0, resolution=resolution)
-    return m.build(mats, lights, cam)
 
 
 def test_a_focus_that_does_not_pay_goes_after_the_first_pass():
@@ -92,9 +57,9 @@ def test_a_focus_that_does_not_pay_goes_after_the_first_pass():
     the integrator's test), and the later passes do not aim; on the sunlit corner of a plain floor
     every pass aims."""
     s = RenderSettings(method="ppm", passes=4, photons_per_pass=300_000, workers=1, seed=2)
-    r = render(shaded_ground(), s)
+    r = render(mirror_lit_shade(), s)
     assert np.isfinite(r.image).all() and r.image[..., :3].mean() > 0
     radii = [st["focus_radius"] for st in r.stats]
     assert radii[0] > 0 and radii[1:] == [0.0] * 3, radii
-    r = render(sunlit_corner((16, 16)), s)
+    r = render(sunlit_corner((16, 16), ALBEDO, IRRADIANCE), s)
     assert all(st["focus_radius"] > 0 for st in r.stats)
