@@ -427,14 +427,20 @@ class LightSampler:
         ``flux`` (n, 3) float64 and ``normals`` (n, 3): the emitter's geometric normal
         where the photon leaves a mesh (for the ray offset), else 0.
         """
+        return self.sample_aimed(u, focus)[:4]
+
+    def sample_aimed(self, u, focus=None):
+        """:meth:`sample`'s four arrays and ``aims`` (n,): the weight :meth:`_disk_origin` gave each
+        photon from afar (the sun, the world; part of its flux), 0 for the others."""
         n = len(u)
+        aims = np.zeros(n)
         origins = np.zeros((n, 3))
         dirs = np.zeros((n, 3))
         dirs[:, 2] = 1.0
         flux = np.zeros((n, 3))
         normals = np.zeros((n, 3))
         if self.count == 0 or n == 0:
-            return origins, dirs, flux, normals
+            return origins, dirs, flux, normals, aims
         entry = self.entries(u[:, 0])
         kind = self.kinds[entry]
         base = self.power[entry] / self.prob[entry][:, None]       # power / choice probability
@@ -447,14 +453,17 @@ class LightSampler:
             elif k in (AREA_RECT, AREA_DISK):
                 o, d, w = self._sample_area_light(ids, us, k)
             elif k == SUN:
-                o, d, w = self._sample_sun(ids, us, focus)
+                d, w = self._sun_directions(ids, us)
             elif k == TRIANGLE:
                 o, d, emitted, nrm = self._sample_triangle(ids, us, self.power[entry[sel]])
                 normals[sel] = nrm
             elif k == VOLUME:
                 o, d, w = self._sample_volume(ids, us)
             else:
-                o, d, w = self._sample_world(us, focus)
+                d, w = self._world_directions(us)
+            if k in (SUN, WORLD):
+                o, aims[sel] = self._disk_origin(d, us, focus)
+                w = w * (aims[sel] if w.ndim == 1 else aims[sel][:, None])
             origins[sel], dirs[sel] = o, d
             if k == TRIANGLE:
                 # The power the chosen points emit over the choice probability: exact whatever
@@ -462,7 +471,7 @@ class LightSampler:
                 flux[sel] = emitted / self.prob[entry[sel]][:, None]
             else:
                 flux[sel] = base[sel] * (w if w.ndim == 2 else w[:, None])
-        return origins, dirs, flux, normals
+        return origins, dirs, flux, normals, aims
 
     # ------------------------------------------------------------------ light samples (direct light)
     def direct_entries(self) -> np.ndarray:
@@ -673,26 +682,22 @@ class LightSampler:
             w = w * profile_factor(L, ids, d) / np.where(k >= 0, self.light_scale.take(ids), 1.0)
         return o, d, w
 
-    def _sample_sun(self, ids, u, focus=None):
+    def _sun_directions(self, ids, u):
+        """Directions (n, 3) uniform in the suns' cones and weights (n,) 1 (origins: _disk_origin)."""
         L = self.lights
         cos_half = np.cos(L.sun_angle[ids].astype(np.float64) / 2)
-        d = smp.to_world(smp.uniform_cone(u[:, 4], u[:, 5], cos_half), self.axes[ids])
-        o, w = self._disk_origin(d, u, focus)
-        return o, d, w
+        return smp.to_world(smp.uniform_cone(u[:, 4], u[:, 5], cos_half), self.axes[ids]), np.ones(len(ids))
 
-    def _sample_world(self, u, focus=None):
-        """Uniform directions for a constant world; for an image, directions drawn from it with
-        RGB weights L(d) / (pdf(d) int L) (mean 1: the power above is pi R^2 int L)."""
+    def _world_directions(self, u):
+        """Directions and weights (origins: _disk_origin): uniform directions, weight 1, for a
+        constant world; for an image, directions drawn from it with RGB weights L(d) / (pdf(d) int L)
+        (mean 1: the power above is pi R^2 int L)."""
         env = self.environment
         if env is None:
-            d = smp.uniform_sphere(u[:, 4], u[:, 5])
-            o, w = self._disk_origin(d, u, focus)
-            return o, d, w
+            return smp.uniform_sphere(u[:, 4], u[:, 5]), np.ones(len(u))
         towards_sky, pdf = env.sample(u[:, 4], u[:, 5])
         w = env.radiance(towards_sky) / (pdf[:, None] * np.where(env.integral > 0, env.integral, 1.0))
-        d = -towards_sky
-        o, aim = self._disk_origin(d, u, focus)
-        return o, d, w * aim[:, None]
+        return -towards_sky, w
 
     def _sample_volume(self, ids, u):
         """Glowing volumes ``ids`` (materials): points from :meth:`GlowingVolume.sample`, directions
@@ -719,27 +724,9 @@ class LightSampler:
         across = np.where(aimed, focus.radius, r)[:, None] * (x[:, None] * t + y[:, None] * b)
         # (the aimed origins moved along d into the plane of the others, 2 r before the centre)
         o = centre + across - (smp.dot(centre - self.center, d) + 2.0 * r)[:, None] * d
-        return o, self._aim_weights(o, d, focus)
-
-    def _aim_weights(self, o, d, focus):
-        """(n,) the scene disc's uniform density over the :class:`Focus` mixture's at origins ``o``
-        (n, 3) of photons along ``d`` (n, 3) from afar."""
-        r, share = self.radius, focus.uniform_share
         in_scene = _off_axis2(o - self.center, d) <= (r * (1.0 + 1e-9)) ** 2
         in_focus = _off_axis2(o - focus.center, d) <= (focus.radius * (1.0 + 1e-9)) ** 2
-        return 1.0 / (share * in_scene + (1.0 - share) * (r / focus.radius) ** 2 * in_focus)
-
-    def aim_weights(self, u0, origins, dirs, focus):
-        """(from afar (n,) bool, weights (n,)): which photons of emitter choices ``u0`` (n,) start
-        from afar (the sun, the world) and the weights ``focus`` gave them (:meth:`_aim_weights`;
-        1 for the others), from their ``origins`` and ``dirs`` (n, 3) as :meth:`sample` made them."""
-        far = (np.isin(self.kinds.take(self.entries(u0)), (SUN, WORLD)) if self.count
-               else np.zeros(len(u0), bool))
-        w = np.ones(len(u0))
-        rows = np.flatnonzero(far)
-        if len(rows):
-            w[rows] = self._aim_weights(origins.take(rows, axis=0), dirs.take(rows, axis=0), focus)
-        return far, w
+        return o, 1.0 / (share * in_scene + (1.0 - share) * (r / focus.radius) ** 2 * in_focus)
 
     def _sample_triangle(self, ids, u, power):
         """Origins, directions, the power 2 pi A L(x) (n, 3) the chosen points emit (the

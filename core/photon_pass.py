@@ -1029,10 +1029,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     first_dim = np.full(n, -1, np.int32)
     n_resumed = 0 if resume is None else len(resume["bounce"])
     fresh = n - n_resumed
-    origins, dirs, flux, _ = ctx.lights.sample(u[:fresh, :LIGHT_DIMS], target.focus)
-    # The focus's weights w of the paths from afar (the integrator drops a focus that does not pay).
-    aimed = (ctx.lights.aim_weights(u[:fresh, 0], origins, dirs, target.focus)
-             if target.focus is not None else None)
+    # (aims: the focus's weights w of the paths from afar, 0 for the others; the integrator drops a
+    # focus that does not pay)
+    origins, dirs, flux, _, aims = ctx.lights.sample_aimed(u[:fresh, :LIGHT_DIMS], target.focus)
     idx = np.flatnonzero(luminance(flux) > 0)
     origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
     last_join = -1
@@ -1424,9 +1423,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         sums.flush()
         total = sums.total
     aim = None
-    if aimed is not None:
-        far, w = aimed
-        w = w[far & visible[:fresh]]
+    if target.focus is not None:
+        w = aims[(aims > 0) & visible[:fresh]]
         aim = np.array([w.sum(), (w * w).sum(), len(w)], np.float64)
     return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim)
 
