@@ -11,11 +11,12 @@ instead.  This renders, for ``--time`` seconds each with one worker (``--jobs`` 
                       albedo E cos / pi)
     mirror_lit_shade  the ground under a canopy lit by a mirror that throws the sun in from outside
                       the focus sphere: the focus does not pay and goes after its first pass (32 x 32;
-                      against the mean of two ``--reference-time`` runs of unfocused PPM, itself
-                      not noise-free)
+                      against the mean of two ``--reference-time`` runs A, B of unfocused PPM)
 
 with PPM focused (the default), PPM unfocused, and AMCMCPPM (whose photons are never aimed), and
-prints relMSE = mean((I - R)^2 / (R^2 + 0.01)) per seed, the passes and the focus radius:
+prints relMSE = mean((I - R)^2 / (R^2 + 0.01)) per seed (``error_vs_time.errors``; against the
+two-run reference corrected for its noise, (A - B)^2 / 4 per pixel, as ``error_vs_time.py``), the
+passes and the focus radius:
 
     python benchmarks/focus_cost.py --time 30 --seeds 2 --jobs 2
 """
@@ -31,6 +32,9 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from error_vs_time import errors  # noqa: E402
 
 SCENES = {"sky_over_floor": (64, 48), "sunlit_corner": (64, 48), "mirror_lit_shade": (32, 32)}
 METHODS = {"ppm": dict(method="ppm"), "ppm-unfocused": dict(method="ppm", focus_photons=False),
@@ -86,19 +90,21 @@ def main(argv=None):
     for name in a.scenes:
         with ThreadPoolExecutor(a.jobs) as pool:
             ref = closed_form(name, SCENES[name])
+            ref_var = np.zeros_like(ref) if ref is not None else None
             if ref is None:
                 refs = [pool.submit(spawn, name, "ppm-unfocused", 1000 + k, a.reference_time) for k in range(2)]
-                ref = np.mean([f.result()["image"] for f in refs], axis=0)
+                halves = [f.result()["image"] for f in refs]
+                ref, ref_var = 0.5 * (halves[0] + halves[1]), 0.25 * (halves[0] - halves[1]) ** 2
             runs = {(m, s): pool.submit(spawn, name, m, s, a.time) for m in METHODS for s in range(1, a.seeds + 1)}
             results = {key: f.result() for key, f in runs.items()}
         for m in METHODS:
-            errors, passes, focus = [], [], []
+            errs, passes, focus = [], [], []
             for s in range(1, a.seeds + 1):
                 r = results[(m, s)]
-                errors.append(float(np.mean((r["image"] - ref) ** 2 / (ref ** 2 + 0.01))))
+                errs.append(float(errors(r["image"][None], ref, ref_var)[3][0]))
                 passes.append(int(r["passes"]))
                 focus.append((float(r["focus"][0]), float(r["focus"][-1])))
-            print(f"| {name} | {m} | {', '.join(f'{e:.3g}' for e in errors)} | {', '.join(map(str, passes))} | "
+            print(f"| {name} | {m} | {', '.join(f'{e:.3g}' for e in errs)} | {', '.join(map(str, passes))} | "
                   f"{', '.join(f'{f0:.3g}, {f1:.3g}' for f0, f1 in focus)} |", flush=True)
 
 
