@@ -92,10 +92,12 @@ def main(argv=None):
             ref = closed_form(name, SCENES[name])
             ref_var = np.zeros_like(ref) if ref is not None else None
             if ref is None:
-                refs = [pool.submit(spawn, name, "ppm-unfocused", 1000 + k, a.reference_time) for k in range(2)]
+                refs = [pool.submit(spawn, name, "ppm-unfocused", 1000 + k, a.reference_time)
+                        for k in range(2)]
                 halves = [f.result()["image"] for f in refs]
                 ref, ref_var = 0.5 * (halves[0] + halves[1]), 0.25 * (halves[0] - halves[1]) ** 2
-            runs = {(m, s): pool.submit(spawn, name, m, s, a.time) for m in METHODS for s in range(1, a.seeds + 1)}
+            runs = {(m, s): pool.submit(spawn, name, m, s, a.time)
+                    for m in METHODS for s in range(1, a.seeds + 1)}
             results = {key: f.result() for key, f in runs.items()}
         for m in METHODS:
             errs, passes, focus = [], [], []
