@@ -128,10 +128,10 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
                     "that edges do not darken while the radius is large")
     focus_photons: BoolProperty(
         name="Aim Distant Photons", default=_DEFAULTS.focus_photons,
-        description="Aim half of the sun's and the world's uniform photons at a sphere around what the "
-                    "camera sees, where that pays (a small view of a large scene) and as long as the "
-                    "passes' photons show it does; their flux keeps the image's expectation. Markov "
-                    "chains' photons are never aimed")
+        description="Aim half of the sun's and the world's uniform photons (and the Markov chains' "
+                    "uniform samples) at a sphere around what the camera sees, where that pays (a small "
+                    "view of a large scene) and as long as the passes' photons show it does; the image's "
+                    "expectation stays the same")
     light_paths_from_cycles: BoolProperty(
         name="Use Cycles' Light Paths", default=True,
         description="Take the bounce limits and caustics toggles from Cycles' Light Paths settings of "

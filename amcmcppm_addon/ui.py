@@ -56,11 +56,6 @@ class AMCMCPPM_RENDER_PT_sampling(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Sampling"
     props = ("method", "passes", "time_limit", "photons_per_pass", "seed", "pixel_jitter", "focus_photons")
 
-    @staticmethod
-    def prop_active(settings, name):
-        # (the chains' photons are never aimed: RenderSettings.focus_photons)
-        return name != "focus_photons" or settings.method != "amcmcppm"
-
     def draw(self, context):
         super().draw(context)
         text = automatic_photons_label(context.scene)

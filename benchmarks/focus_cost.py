@@ -38,7 +38,7 @@ from error_vs_time import errors  # noqa: E402
 
 SCENES = {"sky_over_floor": (64, 48), "sunlit_corner": (64, 48), "mirror_lit_shade": (32, 32)}
 METHODS = {"ppm": dict(method="ppm"), "ppm-unfocused": dict(method="ppm", focus_photons=False),
-           "amcmcppm": dict(method="amcmcppm")}
+           "amcmcppm": dict(method="amcmcppm"), "amcmcppm-unfocused": dict(method="amcmcppm", focus_photons=False)}
 
 
 def closed_form(name, resolution):

@@ -745,11 +745,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
     # barely changes between passes.
     cells = VisibleCells() if is_chain else None
-    # Where the photons from afar of uniform passes are aimed (core.lights.Focus), from the first
-    # pass's points.  Not the chains': their target is a path's visibility, not its flux, and the
-    # focus would leave the visible paths' fluxes unequal (small_view at 64x48, 60 s: relMSE 0.046
-    # with it, 0.020 without; PPM 0.029 with it, 0.131 without).  The passes' own photons tell
-    # whether it pays (aim_sums, below).
+    # Where the photons from afar are aimed (core.lights.Focus), from the first pass's points: the
+    # uniform photons', and the chains' uniform samples, whose target then takes the weights
+    # (core/mcmc.py, "Photons from afar").  The passes' own photons tell whether it pays (aim_sums,
+    # below).
     focus = None
     aim_sums = np.zeros(3)
 
@@ -787,7 +786,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                                light_passes=tuple(n for n in light_passes if n in PHOTON_PASSES),
                                light_groups=groups + photons_of_groups if groups[0] else None, direct=direct,
                                direct_points=None if direct is None else sampled_points(ctx.table, pts),
-                               focus=None if is_chain else focus)
+                               focus=focus)
         if direct is not None:
             # The points' light samples join the emission the camera sees (averaged over passes).
             rng = np.random.default_rng([settings.seed, STREAM_DIRECT, i])
@@ -869,6 +868,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 # mean(w V) (importance sampling's identity, the same photons): the focus goes
                 # (from the next pass not yet made) where the first is larger, as when the light
                 # comes through a window outside the sphere (then only the uniform half brings it).
+                # For the chains the same two moments are the variances of their normaliser's
+                # estimate, mean(w V), with and without it.
                 aim_sums += (c["aimed_w"], c["aimed_w2"], c["aimed_visible"])
                 if aim_sums[2] >= FOCUS_MIN_VISIBLE and aim_sums[1] > aim_sums[0]:
                     focus = None
@@ -878,7 +879,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if not cut and merged["photon_s"] > 0:
                 last_rate = photons / merged["photon_s"]
             dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
-                              c["uniform_visible"], is_chain, merged["outside_sum"], merged["inner_sum"],
+                              c["uniform_visible_w"] if is_chain else c["uniform_visible"], is_chain, merged["outside_sum"], merged["inner_sum"],
                               merged["outside_inner"], merged["half_diff"], merged["light_sum"],
                               merged["light_outside"], merged["light_inner"], merged["light_outside_inner"])
             if dropped:

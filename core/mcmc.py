@@ -49,6 +49,21 @@ seeds, 16 passes); with the pooled size the far and near halves are 1.002 +- 0.0
 1.004 +- 0.003.  A size frozen at the value the pool settles on (0.08) kept the band's
 share too (0.998 +- 0.002); README "Bias of a mutation size per chain".
 
+Photons from afar.  Under a :class:`~core.lights.Focus` a sample u maps to a path whose origin
+(sun, world) came from the mixture q(x) = p(x) / w(x) of the scene's disc and the focus's, not from
+the scene's disc p; the weight w(u) is what the photon's flux would carry (``trace_photons``'s
+``unweighted``: here it does not).  The chains then target V(u) w(u) in u, which is V in the
+paths' own measure, so the recorded states carry their fluxes as they are, Vc = E_q[V w] comes
+from the uniform samples as sum(w V) / n_U (``uniform_visible_w``), and the uniform samples
+outside V deposit w times their flux.  A uniform sample is an independence proposal from q: a
+chain with a state takes a visible one with the chance min(1, w' / w), a mutation is accepted
+with V(u') min(1, w' / w), and a chain that draws a visible sample but refuses it is not mutated
+in that iteration either (whether a chain exchanges or mutates must not depend on its state:
+the exchange's acceptance now does).  A chain without a state takes the first visible sample
+as H&J do; its state then follows q V rather than V until it mixes, which matters only where w
+varies over V (visible paths both inside and outside the focus).  A focus that comes or goes
+maps the samples to other paths, so the worker then drops every state (``ChainSet.forget``).
+
 Glossary: theta = mutation size, A* = target acceptance, n_U / n_UV = uniform
 samples / visible uniform samples (the normaliser Vc ~ n_UV / n_U).
 """
@@ -101,9 +116,11 @@ class ChainCounters:
     proposals: int = 0           # mutation proposals
     accepted: int = 0            # accepted proposals
     exchanges: int = 0           # replica exchanges (visible uniform sample replaced a state)
+    exchanges_refused: int = 0   # visible uniform samples a chain with a state did not take (Focus)
     initialised: int = 0         # chains that found their first visible state
     uniform_samples: int = 0     # n_U of this pass
     uniform_visible: int = 0     # n_UV of this pass
+    uniform_visible_w: float = 0.0  # sum of w over them (the normaliser's; = n_UV without a Focus)
     uniform_outside: int = 0     # uniform samples outside V that deposited (counted directly)
     rays: int = 0                # closest-hit rays of the photon paths
     vertices: int = 0            # photon path vertices (surface hits)
@@ -130,6 +147,7 @@ class ChainSet:
     accepted: np.ndarray            # (C,) int64 accepted proposals so far
     hold: np.ndarray                # (C,) int64 pending recordings of the current suffix
     hold_prefix: np.ndarray         # (C,) int64 pending recordings of the current prefix
+    weight: np.ndarray              # (C,) float64 the current state's w under a Focus (1 without)
     adaptations: int = 0            # iterations with proposals so far: the adaptation's step index
     vertex: dict = field(default_factory=dict)  # arrays (C, ...): state at the first visible vertex
 
@@ -139,7 +157,14 @@ class ChainSet:
                         first_dim=np.full(n_chains, -1, np.int32),
                         theta=np.full(n_chains, float(theta0)), proposed=np.zeros(n_chains, np.int64),
                         accepted=np.zeros(n_chains, np.int64), hold=np.zeros(n_chains, np.int64),
-                        hold_prefix=np.zeros(n_chains, np.int64))
+                        hold_prefix=np.zeros(n_chains, np.int64), weight=np.ones(n_chains))
+
+    def forget(self) -> None:
+        """Drop every state (the chains search again from uniform samples), e.g. when the map from
+        samples to paths changes (a Focus that comes or goes); the mutation size stays."""
+        self.valid[:] = False
+        self.first_dim[:] = -1
+        self.weight[:] = 1.0
 
     @property
     def count(self) -> int:
@@ -166,7 +191,8 @@ class Recorder:
     def uniform(self, batch, rows):
         """Uniform samples ``rows`` of ``batch`` are outside V: their deposits count as they are
         (divided by n_U, not recorded by a chain; module docstring, "Two parts").  Returns how
-        many of them deposited."""
+        many of them deposited.  Under a Focus their flux is unweighted (the chains' traces) and
+        takes its w here (``batch.aims``)."""
         return 0
 
 
@@ -184,7 +210,17 @@ def begin_pass(chains, trace, recorder, counters):
     chains.first_dim[lanes] = np.where(still, batch.first_dim, -1)
     keep = np.flatnonzero(still)
     _store_vertex(chains, lanes[keep], batch, keep)
+    chains.weight[lanes[keep]] = path_weights(batch, keep)
     recorder.replace(lanes[keep], batch, keep)
+
+
+def path_weights(batch, rows):
+    """(k,) the Focus's weights w of paths ``rows`` of ``batch`` (1 for paths not from afar, and
+    without a focus)."""
+    if batch.aims is None:
+        return np.ones(len(rows))
+    a = batch.aims[rows]
+    return np.where(a > 0, a, 1.0)
 
 
 def end_pass(chains, recorder, prefetched=None, trace=None, counters=None):
@@ -271,14 +307,31 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
         rows_u = prefetched.offset + np.arange(c)
         refreshed = prefetched.refreshed
     vis = batch_u.visible[rows_u]
+    w_u = path_weights(batch_u, rows_u)
     counters.uniform_samples += c
     counters.uniform_visible += int(vis.sum())
+    counters.uniform_visible_w += float(w_u[vis].sum())
+    aimed = batch_u.aims is not None
+    if aimed:
+        far = w_u[vis & (batch_u.aims[rows_u] > 0)]
+        counters.aimed_w += float(far.sum())
+        counters.aimed_w2 += float((far * far).sum())
+        counters.aimed_visible += len(far)
     outside = rows_u[~vis]
     if len(outside):
         counters.uniform_outside += recorder.uniform(batch_u, outside)
     if not exchange:
         vis = vis & ~was_valid
     take = np.flatnonzero(vis)
+    if aimed and len(take):
+        # Under a Focus the samples come from q = p / w, the chains' target is V w (module
+        # docstring, "Photons from afar"): a chain with a state takes a visible sample with the
+        # chance min(1, w' / w).  Those that do not are not mutated either, so that whether a
+        # chain exchanges or mutates does not depend on its state.
+        held = was_valid[take]
+        ok = ~held | (rng.random(len(take)) * chains.weight[take] < w_u[take])
+        counters.exchanges_refused += int((~ok).sum())
+        take = take[ok]
     # 3. Mutation of the other chains that have a state (with the next uniform samples and
     # the previous iteration's Gibbs refreshes, in one batch).
     lanes = np.flatnonzero(was_valid & ~vis)
@@ -301,12 +354,16 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     # mutated, so the batch is the same either way.
     if len(take):
         _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[rows_u[take]], batch_u,
-                rows_u[take])
+                rows_u[take], w_u[take])
         counters.exchanges += int(was_valid[take].sum())
         counters.initialised += int((~was_valid[take]).sum())
     if len(lanes):
         proposal = u_all[:len(lanes)]
         acc = batch_p.visible[:len(lanes)]
+        rows_p = np.arange(len(lanes))
+        w_p = path_weights(batch_p, rows_p)
+        if aimed:
+            acc = acc & (rng.random(len(lanes)) * chains.weight[lanes] < w_p)
         counters.proposals += len(lanes)
         counters.accepted += int(acc.sum())
         chains.proposed[lanes] += 1
@@ -317,7 +374,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
                                       settings.target_acceptance, chains.adaptations)
         a = np.flatnonzero(acc)
         if len(a):
-            _switch(chains, recorder, lanes[a], proposal[a], batch_p.first_dim[a], batch_p, a)
+            _switch(chains, recorder, lanes[a], proposal[a], batch_p.first_dim[a], batch_p, a, w_p[a])
         # 4. Exact low-dimension mutation: Gibbs refresh of the rejected states' suffixes.
         rejected = lanes[~acc]
         if mode == "exact" and len(rejected):
@@ -350,8 +407,9 @@ def _count_traced(counters, n, batch):
     counters.vertices += batch.vertices
 
 
-def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows):
-    """Make traced paths ``rows`` of ``batch`` the current states of chains ``lanes``."""
+def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights):
+    """Make traced paths ``rows`` of ``batch`` (weights w ``weights``) the current states of chains
+    ``lanes``."""
     old = lanes[chains.valid[lanes]]
     recorder.commit(old, chains.hold_prefix[old], chains.hold[old])
     chains.hold[lanes] = 0
@@ -359,6 +417,7 @@ def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows):
     chains.u[lanes] = new_u
     chains.first_dim[lanes] = new_first_dim
     chains.valid[lanes] = True
+    chains.weight[lanes] = weights
     _store_vertex(chains, lanes, batch, rows)
     recorder.replace(lanes, batch, rows)
 
@@ -433,6 +492,8 @@ class DepositLog(Recorder):
         if len(sel) == 0:
             return 0
         value = batch.pair_value.take(sel, axis=0)
+        if batch.aims is not None:
+            value = value * path_weights(batch, batch.pair_path.take(sel))[:, None]
         point = batch.pair_point.take(sel)
         self._outside.add(point, [value[:, c] for c in range(3)], self._counted(point))
         self.outside_pairs += len(sel)

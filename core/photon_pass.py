@@ -976,6 +976,7 @@ class PhotonBatch:
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
     aim: np.ndarray | None = None  # (3,) with a Focus: sum over the visible paths from afar of w, w^2, 1
+    aims: np.ndarray | None = None  # (n,) with a Focus: each path's w from afar, 0 for the others and resumed
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
@@ -1008,7 +1009,7 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, ca
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
-                  sums=None):
+                  sums=None, unweighted=False):
     """Trace photon paths for primary samples ``u`` (n, d) and deposit them on ``target``.
 
     With ``collect_pairs`` the deposits are returned per pair (for Markov chains) together
@@ -1022,6 +1023,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     the exact low-dimension mutation, which changes only the dimensions after the first
     visible vertex.  The first n - k paths are traced from the lights as usual, so one
     batch can hold both (a batch has a fixed cost of a few milliseconds per bounce).
+
+    ``unweighted`` (the Markov chains, whose target takes the weights instead): the paths from
+    afar under ``target.focus`` carry their flux without the focus's weight w
+    (``LightSampler.sample_aimed``); ``PhotonBatch.aims`` has the weights either way.
     """
     n = len(u)
     accel, table = ctx.accel, ctx.table
@@ -1032,6 +1037,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     # (aims: the focus's weights w of the paths from afar, 0 for the others; the integrator drops a
     # focus that does not pay)
     origins, dirs, flux, _, aims = ctx.lights.sample_aimed(u[:fresh, :LIGHT_DIMS], target.focus)
+    if unweighted and target.focus is not None:
+        flux = flux / np.where(aims > 0, aims, 1.0)[:, None]
     idx = np.flatnonzero(luminance(flux) > 0)
     origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
     last_join = -1
@@ -1426,7 +1433,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     if target.focus is not None:
         w = aims[(aims > 0) & visible[:fresh]]
         aim = np.array([w.sum(), (w * w).sum(), len(w)], np.float64)
-    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim)
+        aims = np.concatenate([aims, np.zeros(n_resumed)]) if n_resumed else aims
+    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim,
+                       aims if target.focus is not None else None)
 
 
 def _walk_uniforms(u, idx, bounce):

@@ -171,14 +171,15 @@ class RenderSettings:
     bright spots, sharp shadows) falls faster."""
 
     focus_photons: bool = True
-    """Aim the uniform photons (PPM's, and "auto"'s after its switch) from afar (the sun's, the
-    world's) at what the camera sees: half of them start on the disc of a sphere around most of the
-    first pass's measurement points instead of anywhere on the scene's (:class:`core.lights.Focus`;
-    their fluxes keep the estimate exact), where that pays by a model of the points' photon
-    density, until the passes' own photons show that it does not (light from outside the sphere,
-    such as off a mirror or through a window beyond it).  A long lens on a corner of a large sunlit
-    scene gets hundreds of times the photons there.  Not the Markov chains', whose target is a
-    path's visibility alone.  Off: every such photon starts anywhere."""
+    """Aim the uniform photons from afar (the sun's, the world's) at what the camera sees: half of
+    them start on the disc of a sphere around most of the first pass's measurement points instead of
+    anywhere on the scene's (:class:`core.lights.Focus`; their fluxes keep the estimate exact),
+    where that pays by a model of the points' photon density, until the passes' own photons show
+    that it does not (light from outside the sphere, such as off a mirror or through a window
+    beyond it).  A long lens on a corner of a large sunlit scene gets hundreds of times the photons
+    there.  The Markov chains draw their uniform samples so too, and their target and normaliser
+    take the weights (core/mcmc.py, "Photons from afar"): they find and swap in visible paths that
+    much more often.  Off: every such photon starts anywhere."""
 
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):

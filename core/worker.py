@@ -39,6 +39,7 @@ class PhotonWorker:
         self.lane_halves = lane_halves
         self.dims = path_dims(settings.max_bounces)
         self.chains = None
+        self.chain_focus = None         # the Focus of the chains' last pass (its key)
         if settings.method != "ppm":
             n_chains = settings.chains
             self.chain_rng = np.random.default_rng([settings.seed, STREAM_CHAINS, index])
@@ -130,11 +131,16 @@ class PhotonWorker:
         chains = self.chains
         halves = target.inner and self.lane_halves
         recorder = DepositLog(target.n_slots, chains.count, halves=halves, main_slots=target.inner_slots)
+        focus = None if target.focus is None else tuple(target.focus.to_array())
+        if focus != self.chain_focus:
+            # The focus maps samples to other paths: the states would no longer follow the target.
+            chains.forget()
+            self.chain_focus = focus
 
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
             batch = trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
-                                  collect_pairs=True, resume=resume)
+                                  collect_pairs=True, resume=resume, unweighted=True)
             counters.trace_s += time.perf_counter() - t0
             return batch
 

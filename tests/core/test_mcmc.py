@@ -59,7 +59,19 @@ class BoxOracle:
                 u[new, 4:] = refresh_rng.random((int(new.sum()), u.shape[1] - 4))
         assert (label[resumed] >= 0).all(), "a resumed state was not visible"
         return SimpleNamespace(visible=label >= 0, first_dim=first, rays=n, vertices=n, label=label,
-                               u5=u[:, 5].copy(), first={"label": label.copy()})
+                               u5=u[:, 5].copy(), first={"label": label.copy()}, aims=self.aims(u, resumed))
+
+    def aims(self, u, resumed):
+        """The paths' weights w under a Focus (``PhotonBatch.aims``): None, no focus."""
+        return None
+
+
+class AimedOracle(BoxOracle):
+    """As if the samples' first dimension aimed photons from afar: w = 1/4 below 1/2, 2 above (a
+    focus on the left half), 0 for resumed rows (``trace_photons``)."""
+
+    def aims(self, u, resumed):
+        return np.where(resumed, 0.0, np.where(u[:, 0] < 0.5, 0.25, 2.0))
 
 
 class OccupancyRecorder(Recorder):
@@ -303,6 +315,40 @@ def test_replica_exchange_gives_the_right_occupancy_of_two_islands():
     assert abs(occupancy.mean() - 1 / 11) < 3 * se + 1e-3, (occupancy.mean(), se)
 
 
+@pytest.mark.parametrize("mode", ["off", "exact"])
+def test_aimed_samples_leave_the_chains_on_visibility_times_weight(mode):
+    """Under a Focus the samples u come from q = p / w and the chains target V w in u (core/mcmc.py,
+    "Photons from afar"): of a box of measure 0.9 across the weights' edge, the half at w 2 holds
+    8/9 of that (1/2 unweighted), and sum(w V) / n_U estimates its integral 1.0125, the normaliser.
+    A chain on that half refuses 0.39 of the samples; had it mutated after a refusal, it would
+    mutate more often than one on the other half, and that half would hold 0.86.  Batch means over passes of the
+    same chains, after burn-in."""
+    oracle = AimedOracle([((0.0, 0.0), (0.5, 0.9)), ((0.5, 0.0), (1.0, 0.9))])
+    settings = RenderSettings(target_acceptance=0.6, mutation=mode)
+    rng = np.random.default_rng(4)
+    chains = ChainSet.create(64, DIMS, 1.0, rng)
+    counters = ChainCounters()
+    occupancy = []
+    for b in range(24):
+        rec = OccupancyRecorder(64, 2)
+        begin_pass(chains, oracle, rec, counters)
+        prefetched = None
+        for i in range(150):
+            prefetched = iterate(chains, oracle, rec, rng, settings, counters, prefetched=prefetched,
+                                 prefetch=i + 1 < 150)
+        end_pass(chains, rec)
+        occupancy.append(rec.counts[1] / rec.counts.sum())
+    occupancy = np.array(occupancy[2:])
+    se = occupancy.std(ddof=1) / np.sqrt(len(occupancy))
+    assert abs(occupancy.mean() - 8 / 9) < 3 * se + 2e-3, (occupancy.mean(), se)
+    n = counters.uniform_samples
+    vc = counters.uniform_visible_w / n
+    sigma = np.sqrt((0.45 * 0.25 ** 2 + 0.45 * 2.0 ** 2 - 1.0125 ** 2) / n)
+    assert abs(vc - 1.0125) < 4 * sigma, (vc, sigma)
+    assert counters.exchanges_refused > 0 and counters.aimed_visible == counters.uniform_visible
+    assert counters.aimed_w == pytest.approx(counters.uniform_visible_w)
+
+
 def mixing_flagged(per_chain_counts, expected):
     """Flag chains that do not mix: per-chain occupancy far from the pooled expectation."""
     occ = per_chain_counts[:, 1] / per_chain_counts.sum(axis=1)
@@ -451,3 +497,28 @@ def test_deposit_log_sums_every_recording_once_whatever_the_flush_size():
         assert np.abs(halves).sum() > 0.1 * np.abs(expected).sum()
         results.append(log.sums)
     np.testing.assert_allclose(results[0], results[2], rtol=1e-12)
+
+
+def test_uniform_samples_outside_the_visible_set_deposit_their_weighted_flux():
+    """Under a Focus the chains' traces carry unweighted fluxes (``trace_photons``'s ``unweighted``):
+    the uniform samples outside V count with their weights w (1 for paths not from afar, aims 0)."""
+    from core.mcmc import DepositLog
+    rng = np.random.default_rng(2)
+    n_points = 20
+    paths = np.array([0, 0, 1, 2, 2, 3])
+    batch = SimpleNamespace(visible=np.zeros(4, bool), pair_path=paths, pair_point=rng.integers(0, n_points, 6),
+                            pair_value=rng.random((6, 3)), aims=np.array([0.5, 0.0, 3.0, 0.25]))
+    expected = np.zeros((n_points, 3))
+    w = np.array([0.5, 1.0, 3.0, 0.25])
+    np.add.at(expected, batch.pair_point, batch.pair_value * w[paths][:, None])
+    log = DepositLog(n_points, 4)
+    assert log.uniform(batch, np.arange(4)) == 4
+    log.flush()
+    np.testing.assert_allclose(log.outside_sums, expected, rtol=1e-12)
+    batch.aims = None
+    log = DepositLog(n_points, 4)
+    log.uniform(batch, np.arange(4))
+    log.flush()
+    unweighted = np.zeros((n_points, 3))
+    np.add.at(unweighted, batch.pair_point, batch.pair_value)
+    np.testing.assert_allclose(log.outside_sums, unweighted, rtol=1e-12)
