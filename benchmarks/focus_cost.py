@@ -70,6 +70,7 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--reference-time", type=float, default=120.0)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--out", default=os.path.join(ROOT, "benchmarks", "results", "focus_cost"))
     ap.add_argument("--run-one", nargs=5, metavar=("SCENE", "METHOD", "SEED", "SECONDS", "OUT"),
                     help=argparse.SUPPRESS)
@@ -97,9 +98,9 @@ def main(argv=None):
                 halves = [f.result()["image"] for f in refs]
                 ref, ref_var = 0.5 * (halves[0] + halves[1]), 0.25 * (halves[0] - halves[1]) ** 2
             runs = {(m, s): pool.submit(spawn, name, m, s, a.time)
-                    for m in METHODS for s in range(1, a.seeds + 1)}
+                    for m in a.methods for s in range(1, a.seeds + 1)}
             results = {key: f.result() for key, f in runs.items()}
-        for m in METHODS:
+        for m in a.methods:
             errs, passes, focus = [], [], []
             for s in range(1, a.seeds + 1):
                 r = results[(m, s)]

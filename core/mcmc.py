@@ -59,9 +59,12 @@ outside V deposit w times their flux.  A uniform sample is an independence propo
 chain with a state takes a visible one with the chance min(1, w' / w), a mutation is accepted
 with V(u') min(1, w' / w), and a chain that draws a visible sample but refuses it is not mutated
 in that iteration either (whether a chain exchanges or mutates must not depend on its state:
-the exchange's acceptance now does).  A chain without a state takes the first visible sample
-as H&J do; its state then follows q V rather than V until it mixes, which matters only where w
-varies over V (visible paths both inside and outside the focus).  A focus that comes or goes
+the exchange's acceptance now does).  A chain without a state takes a visible sample with the
+chance w / M, M the largest w of the visible samples so far (rejection sampling from q V), so that
+its first state follows the target as H&J's do.  Taking every visible sample (states from q V)
+left the chains far from the target on ``small_view``, whose ball shows paths from outside the
+focus (8 % of V's measure, 0.3 % of its aimed samples, entered at 4e-5 an iteration): corrected
+relMSE 0.051 against 0.022 unaimed (64x48, 60 s, 2 seeds); with the rejection 0.028.  A focus that comes or goes
 maps the samples to other paths, so the worker then drops every state (``ChainSet.forget``).
 
 Glossary: theta = mutation size, A* = target acceptance, n_U / n_UV = uniform
@@ -117,6 +120,7 @@ class ChainCounters:
     accepted: int = 0            # accepted proposals
     exchanges: int = 0           # replica exchanges (visible uniform sample replaced a state)
     exchanges_refused: int = 0   # visible uniform samples a chain with a state did not take (Focus)
+    aiming_workers: int = 0      # workers whose chains drew their uniform samples aimed (Focus)
     initialised: int = 0         # chains that found their first visible state
     uniform_samples: int = 0     # n_U of this pass
     uniform_visible: int = 0     # n_UV of this pass
@@ -148,6 +152,7 @@ class ChainSet:
     hold: np.ndarray                # (C,) int64 pending recordings of the current suffix
     hold_prefix: np.ndarray         # (C,) int64 pending recordings of the current prefix
     weight: np.ndarray              # (C,) float64 the current state's w under a Focus (1 without)
+    weight_bound: float = 0.0       # the largest w of the visible uniform samples so far (Focus)
     adaptations: int = 0            # iterations with proposals so far: the adaptation's step index
     vertex: dict = field(default_factory=dict)  # arrays (C, ...): state at the first visible vertex
 
@@ -165,6 +170,7 @@ class ChainSet:
         self.valid[:] = False
         self.first_dim[:] = -1
         self.weight[:] = 1.0
+        self.weight_bound = 0.0
 
     @property
     def count(self) -> int:
@@ -328,9 +334,14 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
         # docstring, "Photons from afar"): a chain with a state takes a visible sample with the
         # chance min(1, w' / w).  Those that do not are not mutated either, so that whether a
         # chain exchanges or mutates does not depend on its state.
+        # A chain without a state takes one with the chance w' / M, M the largest w of the
+        # visible samples so far (rejection sampling from q V to V w): its first state then
+        # follows the target at once.
+        chains.weight_bound = max(chains.weight_bound, float(w_u[take].max()))
         held = was_valid[take]
-        ok = ~held | (rng.random(len(take)) * chains.weight[take] < w_u[take])
-        counters.exchanges_refused += int((~ok).sum())
+        bound = np.where(held, chains.weight[take], chains.weight_bound)
+        ok = rng.random(len(take)) * bound < w_u[take]
+        counters.exchanges_refused += int((~ok & held).sum())
         take = take[ok]
     # 3. Mutation of the other chains that have a state (with the next uniform samples and
     # the previous iteration's Gibbs refreshes, in one batch).

@@ -1009,7 +1009,7 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, ca
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
-                  sums=None, unweighted=False):
+                  sums=None, unweighted=False, aim=True):
     """Trace photon paths for primary samples ``u`` (n, d) and deposit them on ``target``.
 
     With ``collect_pairs`` the deposits are returned per pair (for Markov chains) together
@@ -1026,8 +1026,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
 
     ``unweighted`` (the Markov chains, whose target takes the weights instead): the paths from
     afar under ``target.focus`` carry their flux without the focus's weight w
-    (``LightSampler.sample_aimed``); ``PhotonBatch.aims`` has the weights either way.
+    (``LightSampler.sample_aimed``); ``PhotonBatch.aims`` has the weights either way.  ``aim``
+    False: as if the target had no focus.
     """
+    focus = target.focus if aim else None
     n = len(u)
     accel, table = ctx.accel, ctx.table
     visible = np.zeros(n, bool)
@@ -1036,8 +1038,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     fresh = n - n_resumed
     # (aims: the focus's weights w of the paths from afar, 0 for the others; the integrator drops a
     # focus that does not pay)
-    origins, dirs, flux, _, aims = ctx.lights.sample_aimed(u[:fresh, :LIGHT_DIMS], target.focus)
-    if unweighted and target.focus is not None:
+    origins, dirs, flux, _, aims = ctx.lights.sample_aimed(u[:fresh, :LIGHT_DIMS], focus)
+    if unweighted and focus is not None:
         flux = flux / np.where(aims > 0, aims, 1.0)[:, None]
     idx = np.flatnonzero(luminance(flux) > 0)
     origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
@@ -1429,13 +1431,13 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     if own_sums:
         sums.flush()
         total = sums.total
-    aim = None
-    if target.focus is not None:
+    aim_sums = None
+    if focus is not None:
         w = aims[(aims > 0) & visible[:fresh]]
-        aim = np.array([w.sum(), (w * w).sum(), len(w)], np.float64)
+        aim_sums = np.array([w.sum(), (w * w).sum(), len(w)], np.float64)
         aims = np.concatenate([aims, np.zeros(n_resumed)]) if n_resumed else aims
-    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim,
-                       aims if target.focus is not None else None)
+    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim_sums,
+                       aims if focus is not None else None)
 
 
 def _walk_uniforms(u, idx, bounce):

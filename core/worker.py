@@ -40,6 +40,11 @@ class PhotonWorker:
         self.dims = path_dims(settings.max_bounces)
         self.chains = None
         self.chain_focus = None         # the Focus of the chains' last pass (its key)
+        # The chains aim (core/mcmc.py, "Photons from afar") until a visible sample from afar came
+        # from outside the focus (ChainSet.weight_bound > 1): a chain without a state takes a
+        # visible sample with the chance w / M, so from then on they would find their first
+        # states at 1/M of the unaimed rate.
+        self.chain_aim = True
         if settings.method != "ppm":
             n_chains = settings.chains
             self.chain_rng = np.random.default_rng([settings.seed, STREAM_CHAINS, index])
@@ -131,7 +136,8 @@ class PhotonWorker:
         chains = self.chains
         halves = target.inner and self.lane_halves
         recorder = DepositLog(target.n_slots, chains.count, halves=halves, main_slots=target.inner_slots)
-        focus = None if target.focus is None else tuple(target.focus.to_array())
+        aim = target.focus is not None and self.chain_aim
+        focus = tuple(target.focus.to_array()) if aim else None
         if focus != self.chain_focus:
             # The focus maps samples to other paths: the states would no longer follow the target.
             chains.forget()
@@ -140,7 +146,7 @@ class PhotonWorker:
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
             batch = trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
-                                  collect_pairs=True, resume=resume, unweighted=True)
+                                  collect_pairs=True, resume=resume, unweighted=True, aim=aim)
             counters.trace_s += time.perf_counter() - t0
             return batch
 
@@ -156,6 +162,10 @@ class PhotonWorker:
                                  prefetched=prefetched, prefetch=i + 1 < iterations)
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
+        if aim:
+            counters.aiming_workers += 1
+            if chains.weight_bound > 1.0:
+                self.chain_aim = False
         outside = recorder.outside_sums if recorder.outside_pairs else None
         halves = recorder.half_sums if halves else None
         return recorder.sums, outside, halves, interrupted

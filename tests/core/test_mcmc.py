@@ -522,3 +522,22 @@ def test_uniform_samples_outside_the_visible_set_deposit_their_weighted_flux():
     unweighted = np.zeros((n_points, 3))
     np.add.at(unweighted, batch.pair_point, batch.pair_value)
     np.testing.assert_allclose(log.outside_sums, unweighted, rtol=1e-12)
+
+
+def test_chains_under_a_focus_start_on_the_target():
+    """A chain without a state takes a visible aimed sample with the chance w / M (M the largest w
+    seen): its first state follows V w, as H&J's first states follow V.  Taking every visible
+    sample would start half of them on each half of the box, the target puts 8/9 on the w = 2 half
+    (as in the test above), and on a scene whose rare visible paths have the larger weight the
+    chains would not reach them for thousands of iterations (core/mcmc.py, "Photons from afar")."""
+    oracle = AimedOracle([((0.0, 0.0), (0.5, 0.9)), ((0.5, 0.0), (1.0, 0.9))])
+    settings = RenderSettings(target_acceptance=0.6, mutation="off")
+    rng = np.random.default_rng(9)
+    chains = ChainSet.create(20000, DIMS, 1.0, rng)
+    counters = ChainCounters()
+    iterate(chains, oracle, OccupancyRecorder(20000, 2), rng, settings, counters)
+    started = chains.u[chains.valid, 0] >= 0.5
+    n = len(started)
+    assert n == counters.initialised and chains.weight_bound == 2.0
+    assert abs(n / 20000 - 0.45 * (0.25 + 2.0) / 2.0) < 4 * np.sqrt(0.5 / 20000)
+    assert abs(started.mean() - 8 / 9) < 4 * np.sqrt(8 / 81 / n), started.mean()
