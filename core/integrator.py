@@ -746,9 +746,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     # barely changes between passes.
     cells = VisibleCells() if is_chain else None
     # Where the photons from afar are aimed (core.lights.Focus), from the first pass's points: the
-    # uniform photons', and the chains' uniform samples, whose target then takes the weights
-    # (core/mcmc.py, "Photons from afar").  The passes' own photons tell whether it pays (aim_sums,
-    # below).
+    # uniform photons', and the chains' uniform samples, whose target then takes the weights, where
+    # their workers find it safe (core/mcmc.py, "Photons from afar").  The passes' own photons tell
+    # whether it pays (aim_sums, below).
     focus = None
     aim_sums = np.zeros(3)
 

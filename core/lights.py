@@ -63,6 +63,11 @@ class Focus:
     def to_array(self) -> np.ndarray:
         return np.array([*self.center, self.radius, self.uniform_share], np.float64)
 
+    def holds(self, origins, dirs) -> np.ndarray:
+        """(n,) bool: the rays from ``origins`` along ``dirs`` (n, 3) start on this sphere's disc
+        across them (pass within its radius of the centre)."""
+        return _off_axis2(origins - self.center, dirs) <= (self.radius * (1.0 + 1e-9)) ** 2
+
     @staticmethod
     def from_array(a) -> "Focus":
         a = np.asarray(a, np.float64)
@@ -725,7 +730,7 @@ class LightSampler:
         # (the aimed origins moved along d into the plane of the others, 2 r before the centre)
         o = centre + across - (smp.dot(centre - self.center, d) + 2.0 * r)[:, None] * d
         in_scene = _off_axis2(o - self.center, d) <= (r * (1.0 + 1e-9)) ** 2
-        in_focus = _off_axis2(o - focus.center, d) <= (focus.radius * (1.0 + 1e-9)) ** 2
+        in_focus = focus.holds(o, d)
         return o, 1.0 / (share * in_scene + (1.0 - share) * (r / focus.radius) ** 2 * in_focus)
 
     def _sample_triangle(self, ids, u, power):

@@ -977,6 +977,8 @@ class PhotonBatch:
     vertices: int                # surface hits (photon path vertices)
     aim: np.ndarray | None = None  # (3,) with a Focus: sum over the visible paths from afar of w, w^2, 1
     aims: np.ndarray | None = None  # (n,) with a Focus: each path's w from afar, 0 for the others and resumed
+    # (n,) bool with a target's Focus, aimed or not: the visible paths from afar that started off its disc
+    off_focus: np.ndarray | None = None
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
@@ -1027,7 +1029,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     ``unweighted`` (the Markov chains, whose target takes the weights instead): the paths from
     afar under ``target.focus`` carry their flux without the focus's weight w
     (``LightSampler.sample_aimed``); ``PhotonBatch.aims`` has the weights either way.  ``aim``
-    False: as if the target had no focus.
+    False: as if the target had no focus (``PhotonBatch.off_focus`` still tells which visible
+    paths from afar started off its disc).
     """
     focus = target.focus if aim else None
     n = len(u)
@@ -1041,6 +1044,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     origins, dirs, flux, _, aims = ctx.lights.sample_aimed(u[:fresh, :LIGHT_DIMS], focus)
     if unweighted and focus is not None:
         flux = flux / np.where(aims > 0, aims, 1.0)[:, None]
+    off_focus = None
+    if target.focus is not None:
+        off_focus = np.zeros(n, bool)
+        off_focus[:fresh] = (aims > 0) & ~target.focus.holds(origins, dirs)
     idx = np.flatnonzero(luminance(flux) > 0)
     origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
     last_join = -1
@@ -1436,8 +1443,10 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         w = aims[(aims > 0) & visible[:fresh]]
         aim_sums = np.array([w.sum(), (w * w).sum(), len(w)], np.float64)
         aims = np.concatenate([aims, np.zeros(n_resumed)]) if n_resumed else aims
+    if off_focus is not None:
+        off_focus &= visible
     return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim_sums,
-                       aims if focus is not None else None)
+                       aims if focus is not None else None, off_focus)
 
 
 def _walk_uniforms(u, idx, bounce):

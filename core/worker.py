@@ -40,11 +40,13 @@ class PhotonWorker:
         self.dims = path_dims(settings.max_bounces)
         self.chains = None
         self.chain_focus = None         # the Focus of the chains' last pass (its key)
-        # The chains aim (core/mcmc.py, "Photons from afar") until a visible sample from afar came
-        # from outside the focus (ChainSet.weight_bound > 1): a chain without a state takes a
-        # visible sample with the chance w / M, so from then on they would find their first
-        # states at 1/M of the unaimed rate.
-        self.chain_aim = True
+        # Whether the chains aim (core/mcmc.py, "Photons from afar"): "probe" in their first pass
+        # under a focus, unaimed, then "aim" unless a visible uniform sample from afar started off
+        # the focus's disc, and "off" from the pass after one that saw such a sample (its weight
+        # w = 2 > 1: a chain without a state takes a visible sample with the chance w / M, so
+        # they would find their first states at 1/M of the unaimed rate, and the chains started
+        # before it was seen miss those paths).
+        self.chain_aim = "probe"
         if settings.method != "ppm":
             n_chains = settings.chains
             self.chain_rng = np.random.default_rng([settings.seed, STREAM_CHAINS, index])
@@ -136,7 +138,7 @@ class PhotonWorker:
         chains = self.chains
         halves = target.inner and self.lane_halves
         recorder = DepositLog(target.n_slots, chains.count, halves=halves, main_slots=target.inner_slots)
-        aim = target.focus is not None and self.chain_aim
+        aim = target.focus is not None and self.chain_aim == "aim"
         focus = tuple(target.focus.to_array()) if aim else None
         if focus != self.chain_focus:
             # The focus maps samples to other paths: the states would no longer follow the target.
@@ -164,8 +166,8 @@ class PhotonWorker:
         recorder.flush()
         if aim:
             counters.aiming_workers += 1
-            if chains.weight_bound > 1.0:
-                self.chain_aim = False
+        if target.focus is not None and self.chain_aim != "off":
+            self.chain_aim = "off" if counters.off_focus_visible else "aim"
         outside = recorder.outside_sums if recorder.outside_pairs else None
         halves = recorder.half_sums if halves else None
         return recorder.sums, outside, halves, interrupted

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core import RenderSettings, render
-from core.testing.scenes import SUNLIT_CORNER_SUN, mirror_lit_shade, sunlit_corner
+from core.testing.scenes import SUNLIT_CORNER_SUN, mirror_lit_shade, sky_over_floor, sunlit_corner
 
 ALBEDO, IRRADIANCE = 0.6, 4.0
 SUN = np.asarray(SUNLIT_CORNER_SUN)
@@ -38,12 +38,13 @@ def test_focused_photons_light_a_far_corner_exactly_and_densely(workers):
 
 
 def test_chains_draw_their_uniform_samples_aimed_and_stay_exact():
-    """AMCMCPPM on the sunlit corner: the chains' uniform samples come aimed (their target takes
+    """AMCMCPPM on the sunlit corner: after a first pass unaimed (which sees no visible photon from
+    afar start off the focus's disc), the chains' uniform samples come aimed (their target takes
     the weights, core/mcmc.py "Photons from afar"), so a twentieth or more of them are visible
-    (10^-3 without) and nine in ten chains or more have a state after the first pass (a
-    few per cent without); the normaliser sum(w V) / n_U
-    still estimates the unaimed share, the image mean is the closed form's within 3 % and the
-    pixels' RMS deviation from it is at least three times below that of the chains unaimed."""
+    (10^-3 without) and nine in ten chains or more have a state after the second pass (a few per
+    cent without); the normaliser sum(w V) / n_U still estimates the unaimed share, the image mean
+    is the closed form's within 3 % and the pixels' RMS deviation from it is at least three times
+    below that of the chains unaimed."""
     expected = ALBEDO * IRRADIANCE * -SUN[2] / np.pi
     runs = {}
     for focus in (True, False):
@@ -53,12 +54,13 @@ def test_chains_draw_their_uniform_samples_aimed_and_stay_exact():
         assert np.isfinite(r.image).all()
         runs[focus] = (r.image[..., :3].astype(np.float64) / expected, r.stats)
     image, stats = runs[True]
-    seen = sum(st["uniform_visible"] for st in stats) / sum(st["uniform_samples"] for st in stats)
+    assert [st["aiming_workers"] for st in stats] == [0, 1, 1, 1]
+    seen = sum(st["uniform_visible"] for st in stats[1:]) / sum(st["uniform_samples"] for st in stats[1:])
     plain_seen = sum(st["uniform_visible"] for st in runs[False][1]) / sum(
         st["uniform_samples"] for st in runs[False][1])
     assert seen > 0.05 and plain_seen < 0.002, (seen, plain_seen)
     chains = RenderSettings().chains
-    assert stats[0]["chains_with_state"] > 0.9 * chains > 9 * runs[False][1][0]["chains_with_state"]
+    assert stats[1]["chains_with_state"] > 0.9 * chains > 9 * runs[False][1][1]["chains_with_state"]
     assert stats[-1]["visible_fraction"] == pytest.approx(plain_seen, rel=0.2)
     assert abs(image.mean() - 1.0) < 0.03, f"image mean {image.mean():.4f} of the closed form"
     rms = float(np.sqrt(np.mean((image - 1.0) ** 2)))
@@ -78,3 +80,21 @@ def test_a_focus_that_does_not_pay_goes_after_the_first_pass():
     assert radii[0] > 0 and radii[1:] == [0.0] * 3, radii
     r = render(sunlit_corner((16, 16), ALBEDO, IRRADIANCE), s)
     assert all(st["focus_radius"] > 0 for st in r.stats)
+
+
+def test_chains_stop_aiming_once_a_visible_path_comes_from_outside_the_focus():
+    """A chain without a state takes a visible aimed sample with the chance w / M (core/mcmc.py,
+    "Photons from afar"); where visible photons from afar start off the focus's disc (w = 2 > 1)
+    that is slower than the unaimed search, and the chains started before such a photon is seen
+    miss those paths.  So a worker's chains trace their first pass unaimed and aim from the next
+    only if none of its visible uniform samples from afar started off the disc, and stop once one
+    does: on the open sky-lit floor, whose far points lie beyond the sphere, they never aim (PPM's
+    photons do); on the sunlit corner, whose light reaches the view only through the sphere, from
+    the second pass on."""
+    s = RenderSettings(method="amcmcppm", passes=3, photons_per_pass=100_000, workers=1, seed=4)
+    r = render(sky_over_floor(resolution=(24, 24)), s)
+    assert [st["aiming_workers"] for st in r.stats] == [0, 0, 0]
+    assert all(st["focus_radius"] > 0 for st in r.stats)
+    assert np.isfinite(r.image).all() and abs(r.image[..., :3].mean() / 0.5 - 1.0) < 0.1
+    r = render(sunlit_corner((16, 16), ALBEDO, IRRADIANCE), s)
+    assert [st["aiming_workers"] for st in r.stats] == [0, 1, 1]

@@ -59,7 +59,8 @@ class BoxOracle:
                 u[new, 4:] = refresh_rng.random((int(new.sum()), u.shape[1] - 4))
         assert (label[resumed] >= 0).all(), "a resumed state was not visible"
         return SimpleNamespace(visible=label >= 0, first_dim=first, rays=n, vertices=n, label=label,
-                               u5=u[:, 5].copy(), first={"label": label.copy()}, aims=self.aims(u, resumed))
+                               u5=u[:, 5].copy(), first={"label": label.copy()}, aims=self.aims(u, resumed),
+                               off_focus=None)
 
     def aims(self, u, resumed):
         """The paths' weights w under a Focus (``PhotonBatch.aims``): None, no focus."""
