@@ -13,10 +13,11 @@ instead.  This renders, for ``--time`` seconds each with one worker (``--jobs`` 
                       the focus sphere: the focus does not pay and goes after its first pass (32 x 32;
                       against the mean of two ``--reference-time`` runs A, B of unfocused PPM)
 
-with PPM focused (the default), PPM unfocused, and AMCMCPPM (whose photons are never aimed), and
-prints relMSE = mean((I - R)^2 / (R^2 + 0.01)) per seed (``error_vs_time.errors``; against the
-two-run reference corrected for its noise, (A - B)^2 / 4 per pixel, as ``error_vs_time.py``), the
-passes and the focus radius:
+with PPM and AMCMCPPM focused (the default; the chains aim their uniform samples only where their
+worker finds it safe, core/mcmc.py "Photons from afar") and unfocused, and prints relMSE =
+mean((I - R)^2 / (R^2 + 0.01)) per seed (``error_vs_time.errors``; against the two-run reference
+corrected for its noise, (A - B)^2 / 4 per pixel, as ``error_vs_time.py``), the passes, the focus
+radius and the chains' passes that aimed:
 
     python benchmarks/focus_cost.py --time 30 --seeds 2 --jobs 2
 """
@@ -38,7 +39,8 @@ from error_vs_time import errors  # noqa: E402
 
 SCENES = {"sky_over_floor": (64, 48), "sunlit_corner": (64, 48), "mirror_lit_shade": (32, 32)}
 METHODS = {"ppm": dict(method="ppm"), "ppm-unfocused": dict(method="ppm", focus_photons=False),
-           "amcmcppm": dict(method="amcmcppm"), "amcmcppm-unfocused": dict(method="amcmcppm", focus_photons=False)}
+           "amcmcppm": dict(method="amcmcppm"),
+           "amcmcppm-unfocused": dict(method="amcmcppm", focus_photons=False)}
 
 
 def closed_form(name, resolution):
@@ -60,7 +62,7 @@ def run_one(name, method, seed, seconds, out):
     scene = BUILTIN[name](resolution=SCENES[name])
     r = render(scene, RenderSettings(seed=seed, passes=0, time_limit=seconds, workers=1, **METHODS[method]))
     np.savez(out, image=r.image[..., :3], passes=len(r.stats),
-             focus=[st["focus_radius"] for st in r.stats])
+             focus=[st["focus_radius"] for st in r.stats], aiming=[st["aiming_workers"] for st in r.stats])
 
 
 def main(argv=None):
@@ -86,8 +88,9 @@ def main(argv=None):
                         str(seconds), out], check=True)
         return dict(np.load(out))
 
-    print("| scene | method | relMSE per seed | passes | focus radius (first, last pass) |")
-    print("|---|---|---|---|---|")
+    print("| scene | method | relMSE per seed | passes | focus radius (first, last pass) "
+          "| chains' aimed passes |")
+    print("|---|---|---|---|---|---|")
     for name in a.scenes:
         with ThreadPoolExecutor(a.jobs) as pool:
             ref = closed_form(name, SCENES[name])
@@ -101,14 +104,16 @@ def main(argv=None):
                     for m in a.methods for s in range(1, a.seeds + 1)}
             results = {key: f.result() for key, f in runs.items()}
         for m in a.methods:
-            errs, passes, focus = [], [], []
+            errs, passes, focus, aimed = [], [], [], []
             for s in range(1, a.seeds + 1):
                 r = results[(m, s)]
                 errs.append(float(errors(r["image"][None], ref, ref_var)[3][0]))
                 passes.append(int(r["passes"]))
                 focus.append((float(r["focus"][0]), float(r["focus"][-1])))
+                aimed.append(int(np.count_nonzero(r["aiming"])))
             print(f"| {name} | {m} | {', '.join(f'{e:.3g}' for e in errs)} | {', '.join(map(str, passes))} | "
-                  f"{', '.join(f'{f0:.3g}, {f1:.3g}' for f0, f1 in focus)} |", flush=True)
+                  f"{', '.join(f'{f0:.3g}, {f1:.3g}' for f0, f1 in focus)} | "
+                  f"{', '.join(map(str, aimed)) if m.startswith('amcmcppm') else ''} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -878,10 +878,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             interrupted = stop()
             if not cut and merged["photon_s"] > 0:
                 last_rate = photons / merged["photon_s"]
-            dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"],
-                              c["uniform_visible_w"] if is_chain else c["uniform_visible"], is_chain, merged["outside_sum"], merged["inner_sum"],
-                              merged["outside_inner"], merged["half_diff"], merged["light_sum"],
-                              merged["light_outside"], merged["light_inner"], merged["light_outside_inner"])
+            # (the chains' normaliser: sum(w V) / n_U, core/mcmc.py "Photons from afar")
+            visible = c["uniform_visible_w"] if is_chain else c["uniform_visible"]
+            dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"], visible,
+                              is_chain, merged["outside_sum"], merged["inner_sum"], merged["outside_inner"],
+                              merged["half_diff"], merged["light_sum"], merged["light_outside"],
+                              merged["light_inner"], merged["light_outside_inner"])
             if dropped:
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")

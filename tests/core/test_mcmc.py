@@ -322,8 +322,8 @@ def test_aimed_samples_leave_the_chains_on_visibility_times_weight(mode):
     "Photons from afar"): of a box of measure 0.9 across the weights' edge, the half at w 2 holds
     8/9 of that (1/2 unweighted), and sum(w V) / n_U estimates its integral 1.0125, the normaliser.
     A chain on that half refuses 0.39 of the samples; had it mutated after a refusal, it would
-    mutate more often than one on the other half, and that half would hold 0.86.  Batch means over passes of the
-    same chains, after burn-in."""
+    mutate more often than one on the other half, and that half would hold 0.86.  Batch means over
+    passes of the same chains, after burn-in."""
     oracle = AimedOracle([((0.0, 0.0), (0.5, 0.9)), ((0.5, 0.0), (1.0, 0.9))])
     settings = RenderSettings(target_acceptance=0.6, mutation=mode)
     rng = np.random.default_rng(4)
@@ -507,8 +507,9 @@ def test_uniform_samples_outside_the_visible_set_deposit_their_weighted_flux():
     rng = np.random.default_rng(2)
     n_points = 20
     paths = np.array([0, 0, 1, 2, 2, 3])
-    batch = SimpleNamespace(visible=np.zeros(4, bool), pair_path=paths, pair_point=rng.integers(0, n_points, 6),
-                            pair_value=rng.random((6, 3)), aims=np.array([0.5, 0.0, 3.0, 0.25]))
+    batch = SimpleNamespace(visible=np.zeros(4, bool), pair_path=paths,
+                            pair_point=rng.integers(0, n_points, 6), pair_value=rng.random((6, 3)),
+                            aims=np.array([0.5, 0.0, 3.0, 0.25]))
     expected = np.zeros((n_points, 3))
     w = np.array([0.5, 1.0, 3.0, 0.25])
     np.add.at(expected, batch.pair_point, batch.pair_value * w[paths][:, None])
