@@ -63,8 +63,8 @@ the exchange's acceptance now does).  A chain without a state takes a visible sa
 chance w / M, M the largest w of the visible samples so far (rejection sampling from q V), so that
 its first state follows the target as H&J's do.  Taking every visible sample (states from q V)
 left the chains far from the target on ``small_view``, whose glass ball shows paths that start
-off the focus's disc (2 % of V's measure, w = 2, a few in 10,000 of the aimed visible samples, so
-that the chains come to them only after thousands of iterations): corrected relMSE 0.051 against
+off the focus's disc (w = 2; 2 % of the visible unaimed samples, about 3 in 1,000 of the aimed
+ones, so that the chains come to them only after thousands of iterations): corrected relMSE 0.051 against
 0.020 unaimed (64x48, 60 s, 2 seeds); with the rejection against M = 2 from the start, 0.027.
 Where such paths exist the rejection makes the search for first states M = 2 times slower than
 unaimed, so a worker's chains aim only while none of their visible uniform samples from afar
