@@ -2,6 +2,8 @@
 ``RenderSettings.focus_photons``), in whole renders: the image stays exact, the photons land."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -90,11 +92,13 @@ def test_chains_stop_aiming_once_a_visible_path_comes_from_outside_the_focus():
     only if none of its visible uniform samples from afar started off the disc, and stop once one
     does: on the open sky-lit floor, whose far points lie beyond the sphere, they never aim (PPM's
     photons do); on the sunlit corner, whose light reaches the view only through the sphere, from
-    the second pass on."""
+    the second pass on, in each worker process (which gets the focus with the pass's points)."""
     s = RenderSettings(method="amcmcppm", passes=3, photons_per_pass=100_000, workers=1, seed=4)
     r = render(sky_over_floor(resolution=(24, 24)), s)
     assert [st["aiming_workers"] for st in r.stats] == [0, 0, 0]
     assert all(st["focus_radius"] > 0 for st in r.stats)
     assert np.isfinite(r.image).all() and abs(r.image[..., :3].mean() / 0.5 - 1.0) < 0.1
-    r = render(sunlit_corner((16, 16), ALBEDO, IRRADIANCE), s)
-    assert [st["aiming_workers"] for st in r.stats] == [0, 1, 1]
+    r = render(sunlit_corner((16, 16), ALBEDO, IRRADIANCE), dataclasses.replace(s, workers=2))
+    assert [st["aiming_workers"] for st in r.stats] == [0, 2, 2]
+    assert np.isfinite(r.image).all()
+    assert abs(r.image[..., :3].mean() / (ALBEDO * IRRADIANCE * -SUN[2] / np.pi) - 1.0) < 0.05
