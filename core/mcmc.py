@@ -85,7 +85,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .lights import LIGHT_DIMS
-from .photon_pass import BOUNCE_DIMS, PointSums
+from .photon_pass import BOUNCE_DIMS, PointSums, aim_moments
 
 THETA_MIN, THETA_MAX = 1e-4, 1e3
 
@@ -138,7 +138,7 @@ class ChainCounters:
     rays: int = 0                # closest-hit rays of the photon paths
     vertices: int = 0            # photon path vertices (surface hits)
     trace_s: float = 0.0         # seconds spent tracing photon paths (the rest is chain bookkeeping)
-    # Uniform paths from afar under a Focus (PhotonBatch.aim): the visible ones' sums of w, w^2, and count.
+    # Visible uniform paths from afar under a Focus (photon_pass.aim_moments): sums of w, w^2, count.
     aimed_w: float = 0.0
     aimed_w2: float = 0.0
     aimed_visible: int = 0
@@ -328,10 +328,10 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     counters.uniform_visible_w += float(w_u[vis].sum())
     aimed = batch_u.aims is not None
     if aimed:
-        far = w_u[vis & (batch_u.aims[rows_u] > 0)]
-        counters.aimed_w += float(far.sum())
-        counters.aimed_w2 += float((far * far).sum())
-        counters.aimed_visible += len(far)
+        sw, sw2, k = aim_moments(batch_u, rows_u)
+        counters.aimed_w += sw
+        counters.aimed_w2 += sw2
+        counters.aimed_visible += k
     if batch_u.off_focus is not None:
         counters.off_focus_visible += int(batch_u.off_focus[rows_u].sum())
     outside = rows_u[~vis]

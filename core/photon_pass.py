@@ -975,7 +975,6 @@ class PhotonBatch:
     sums: np.ndarray             # (n_slots, 3) per-slot sums of the pair values (if summed here)
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
-    aim: np.ndarray | None = None  # (3,) with a Focus: sum over the visible paths from afar of w, w^2, 1
     aims: np.ndarray | None = None  # (n,) with a Focus: each path's w from afar, 0 for the others and resumed
     # (n,) bool with a target's Focus, aimed or not: the visible paths from afar that started off its disc
     off_focus: np.ndarray | None = None
@@ -1438,15 +1437,23 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     if own_sums:
         sums.flush()
         total = sums.total
-    aim_sums = None
-    if focus is not None:
-        w = aims[(aims > 0) & visible[:fresh]]
-        aim_sums = np.array([w.sum(), (w * w).sum(), len(w)], np.float64)
-        aims = np.concatenate([aims, np.zeros(n_resumed)]) if n_resumed else aims
+    if focus is not None and n_resumed:
+        aims = np.concatenate([aims, np.zeros(n_resumed)])
     if off_focus is not None:
         off_focus &= visible
-    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices, aim_sums,
+    return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices,
                        aims if focus is not None else None, off_focus)
+
+
+def aim_moments(batch, rows):
+    """(sum of w, sum of w^2, count) over the visible paths from afar among ``rows`` of ``batch``
+    (its Focus's weights w, ``PhotonBatch.aims``; zeros without a focus): what the integrator's test
+    of whether the focus pays sums."""
+    if batch.aims is None:
+        return 0.0, 0.0, 0
+    a = batch.aims[rows]
+    w = a[(a > 0) & batch.visible[rows]]
+    return float(w.sum()), float((w * w).sum()), len(w)
 
 
 def _walk_uniforms(u, idx, bounce):

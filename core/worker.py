@@ -15,7 +15,7 @@ import numpy as np
 
 from .context import RenderContext
 from .mcmc import ChainCounters, ChainSet, DepositLog, begin_pass, end_pass, iterate
-from .photon_pass import PointSums, path_dims, trace_photons
+from .photon_pass import PointSums, aim_moments, path_dims, trace_photons
 
 # Uniform photon paths traced per batch (bounds the memory of the deposit pairs).
 PPM_BATCH = 1 << 14
@@ -124,11 +124,10 @@ class PhotonWorker:
             batch = trace_photons(self.ctx, target, rng.random((b, self.dims)), s.max_bounces, sums=sums)
             counters.trace_s += time.perf_counter() - t0
             visible = int(batch.visible.sum())
-            aim = batch.aim if batch.aim is not None else np.zeros(3)
+            sw, sw2, k = aim_moments(batch, slice(None))
             counters.add(ChainCounters(iterations=b, paths_traced=b, recorded=b, uniform_samples=b,
-                                       uniform_visible=visible, rays=batch.rays,
-                                       vertices=batch.vertices, aimed_w=float(aim[0]), aimed_w2=float(aim[1]),
-                                       aimed_visible=int(aim[2])))
+                                       uniform_visible=visible, rays=batch.rays, vertices=batch.vertices,
+                                       aimed_w=sw, aimed_w2=sw2, aimed_visible=k))
             done += b
         sums.flush()
         return sums.total, interrupted
