@@ -746,11 +746,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
     # barely changes between passes.
     cells = VisibleCells() if is_chain else None
     # Where the photons from afar are aimed (core.lights.Focus), from the first pass's points: the
-    # uniform photons', and the chains' uniform samples, whose target then takes the weights, where
-    # their workers find it safe (core/mcmc.py, "Photons from afar").  The passes' own photons tell
-    # whether it pays (aim_sums, below).
+    # uniform photons', and the chains' uniform samples, whose target and runs then take the weights
+    # (core/mcmc.py, "Photons from afar").  The passes' own photons tell whether it pays (aim_sums
+    # and, for the chains, outside_sums, below).
     focus = None
     aim_sums = np.zeros(3)
+    outside_sums = np.zeros(3)
 
     def make_target(i, eye):
         nonlocal scales, cells, focus
@@ -873,14 +874,23 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 aim_sums += (c["aimed_w"], c["aimed_w2"], c["aimed_visible"])
                 if aim_sums[2] >= FOCUS_MIN_VISIBLE and aim_sums[1] > aim_sums[0]:
                     focus = None
+                # The chains' uniform samples outside their visible set deposit as plain photons
+                # (core/mcmc.py, "Two parts"), and the same identity over those that deposit tells
+                # whether aiming pays for that part of the image: it goes where it does not (light
+                # that reaches what the camera sees only through a glass ball from off the disc).
+                outside_sums += (c["outside_w"], c["outside_w2"], c["uniform_outside"])
+                if is_chain and outside_sums[2] >= FOCUS_MIN_VISIBLE and outside_sums[1] > outside_sums[0]:
+                    focus = None
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)
             interrupted = stop()
             if not cut and merged["photon_s"] > 0:
                 last_rate = photons / merged["photon_s"]
-            # (the chains' normaliser: sum(w V) / n_U, core/mcmc.py "Photons from afar")
-            visible = c["uniform_visible_w"] if is_chain else c["uniform_visible"]
-            dropped = acc.add(eye, merged["pixel_sum"], c["recorded"], c["uniform_samples"], visible,
+            # (the chains' normaliser: sum(w V) / n_U, their recordings weighted by their runs' W,
+            # core/mcmc.py "Photons from afar")
+            visible, recorded = ((c["uniform_visible_w"], c["recorded_w"]) if is_chain
+                                 else (c["uniform_visible"], c["recorded"]))
+            dropped = acc.add(eye, merged["pixel_sum"], recorded, c["uniform_samples"], visible,
                               is_chain, merged["outside_sum"], merged["inner_sum"], merged["outside_inner"],
                               merged["half_diff"], merged["light_sum"], merged["light_outside"],
                               merged["light_inner"], merged["light_outside_inner"])
@@ -914,8 +924,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 break
             if last:
                 break
+            # (the unaimed share: aimed, the chains' visible uniform samples estimate it by sum(w V))
             if (settings.method == "auto" and pass_index == 1 and c["uniform_samples"]
-                    and c["uniform_visible"] >= AUTO_UNIFORM_VISIBLE * c["uniform_samples"]):
+                    and visible >= AUTO_UNIFORM_VISIBLE * c["uniform_samples"]):
                 # Many uniform paths are visible: uniform photons from here on, and an image of
                 # their passes alone (RenderSettings.method).  The next pass is not prepared yet
                 # (none is while the first runs), so it is made without the chains' cells.
@@ -1012,12 +1023,13 @@ def _halves_difference(outputs):
     """The chains' X_p (``Accumulator``) of a pass traced by two or more workers, whose chains
     are independent: the sum over pairs of workers (0 and 1, 2 and 3, ...) of
     sqrt(N_b / N_a) T_a - sqrt(N_a / N_b) T_b, T = inner - outer pixel sums and N the recorded
-    photons.  With Var T_k = N_k sigma^2 a pair has mean 0 and variance (N_a + N_b) sigma^2, also
-    when a pass cut short leaves the workers unequal; X is scaled by sqrt(N / N_paired) for the
-    workers left out (an odd count, or a pair with a worker that recorded nothing), so that
-    E[X^2] = Var T.  No extra sums are traced for it."""
+    photons (weighted by their runs' W under a Focus, ``recorded_w``).  With Var T_k = N_k sigma^2
+    a pair has mean 0 and variance (N_a + N_b) sigma^2, also when a pass cut short leaves the
+    workers unequal; X is scaled by sqrt(N / N_paired) for the workers left out (an odd count, or a
+    pair with a worker that recorded nothing), so that E[X^2] = Var T.  No extra sums are traced
+    for it."""
     x = np.zeros_like(outputs[0]["pixel_sum"])
-    recorded = [o["counters"]["recorded"] for o in outputs]
+    recorded = [o["counters"]["recorded_w"] for o in outputs]
     paired = 0
     # (non-finite sums give non-finite entries, dropped by Accumulator.add with the others)
     with np.errstate(over="ignore", invalid="ignore"):

@@ -54,26 +54,26 @@ Photons from afar.  Under a :class:`~core.lights.Focus` a sample u maps to a pat
 the scene's disc p; the weight w(u) is what the photon's flux would carry (``trace_photons``'s
 ``unweighted``: here it does not).  The chains then target V(u) w(u) in u, which is V in the
 paths' own measure, so the recorded states carry their fluxes as they are, Vc = E_q[V w] comes
-from the uniform samples as sum(w V) / n_U (``uniform_visible_w``), and the uniform samples
-outside V deposit w times their flux.  A uniform sample is an independence proposal from q: a
-chain with a state takes a visible one with the chance min(1, w' / w), a mutation is accepted
-with V(u') min(1, w' / w), and a chain that draws a visible sample but refuses it is not mutated
-in that iteration either (whether a chain exchanges or mutates must not depend on its state:
-the exchange's acceptance now does).  A chain without a state takes a visible sample with the
-chance w / M, M the largest w of the visible samples so far (rejection sampling from q V), so that
-its first state follows the target as H&J's do.  Taking every visible sample (states from q V)
-left the chains far from the target on ``small_view``, whose glass ball shows paths that start
-off the focus's disc (w = 2; 2 % of the visible unaimed samples, about 3 in 1,000 of the aimed
-ones, so that the chains come to them only after thousands of iterations): corrected relMSE 0.051 against
-0.020 unaimed (64x48, 60 s, 2 seeds); with the rejection against M = 2 from the start, 0.027.
-Where such paths exist the rejection makes the search for first states M = 2 times slower than
-unaimed, so a worker's chains aim only while none of their visible uniform samples from afar
-started off the disc (``PhotonBatch.off_focus``; they trace their first pass under a focus
-unaimed to look; :class:`~core.worker.PhotonWorker`): on a far sunlit corner, lit only through
-the focus, they aim from the second pass, 6 times lower relMSE than unaimed at 30 s; on
-``small_view`` and an open sky-lit floor they do not (or for one pass), as before.  A focus that
-comes or goes maps the samples to other paths, so the worker then drops every state
-(``ChainSet.forget``).
+from the uniform samples as sum(w V) / n_U (``uniform_visible_w``), the uniform samples outside V
+deposit w times their flux, and a mutation is accepted with V(u') min(1, w' / w).  A visible
+uniform sample comes from q V, not from the target: a chain takes every one, as without a focus,
+and the run of states that starts there, up to the chain's next visible uniform sample, is
+recorded with the weight W = w of that sample (``ChainSet.start``; the recorder's counts are times
+W, and the integrator divides by their sum, ``recorded_w``, instead of the count of recordings).
+The mutations leave V w invariant, so E[W f(X_t)] = E_qV[w] E_Vw[f] at every step t of a run, and a
+run ends when a uniform sample, drawn independently of the state, is visible: sum W f / sum W
+estimates E_Vw[f] (without a focus W = 1: H&J's estimator).  Taking every visible sample without W
+starts the chains on q V, off the target wherever w varies over the visible paths.  In stop 61 a
+chain with a state took a visible sample with the chance min(1, w' / w) and one without with the
+chance w / M (M the largest w seen: rejection from q V), exact, but where visible paths also start
+off the focus's disc (w = 2 against about 0.16 on it on an open sky-lit floor) M = 2 times slower
+than unaimed to find first states, so such chains did not aim; with the runs' weights they do, and
+the sky-lit floor's relMSE is 1.3 times lower (README, "Photons from afar aimed at what the camera
+sees").  The uniform samples outside V are plain photons, and where they light what the camera
+sees from off the disc (``small_view``'s ball shows the town beyond the sphere), aiming halves
+them: the integrator then drops the focus, by the test it applies to the normaliser, on the
+samples that deposit there (``outside_w``, ``outside_w2``).  A focus that comes or goes maps the
+samples to other paths, so the worker then drops every state (``ChainSet.forget``).
 
 Glossary: theta = mutation size, A* = target acceptance, n_U / n_UV = uniform
 samples / visible uniform samples (the normaliser Vc ~ n_UV / n_U).
@@ -124,12 +124,11 @@ class ChainCounters:
     iterations: int = 0          # chain iterations (one uniform sample each)
     paths_traced: int = 0        # photon paths traced (uniform, proposals, re-traces)
     recorded: int = 0            # photon paths recorded (N_iter of the normaliser)
+    recorded_w: float = 0.0      # the chains' recordings, each weighted by its run's W (Focus)
     proposals: int = 0           # mutation proposals
     accepted: int = 0            # accepted proposals
     exchanges: int = 0           # replica exchanges (visible uniform sample replaced a state)
-    exchanges_refused: int = 0   # visible uniform samples a chain with a state did not take (Focus)
     aiming_workers: int = 0      # workers whose chains drew their uniform samples aimed (Focus)
-    off_focus_visible: int = 0   # visible uniform samples from afar that started off the focus's disc
     initialised: int = 0         # chains that found their first visible state
     uniform_samples: int = 0     # n_U of this pass
     uniform_visible: int = 0     # n_UV of this pass
@@ -142,6 +141,10 @@ class ChainCounters:
     aimed_w: float = 0.0
     aimed_w2: float = 0.0
     aimed_visible: int = 0
+    # The chains' uniform samples outside V that deposited, under a Focus: sums of w, w^2 (their count
+    # is uniform_outside).
+    outside_w: float = 0.0
+    outside_w2: float = 0.0
 
     def add(self, other: "ChainCounters") -> None:
         for f in self.__dataclass_fields__:
@@ -161,7 +164,8 @@ class ChainSet:
     hold: np.ndarray                # (C,) int64 pending recordings of the current suffix
     hold_prefix: np.ndarray         # (C,) int64 pending recordings of the current prefix
     weight: np.ndarray              # (C,) float64 the current state's w under a Focus (1 without)
-    weight_bound: float = 0.0       # the largest w of the visible uniform samples so far (Focus)
+    start: np.ndarray               # (C,) float64 the weight W of the chain's run: w of its last
+    #                                 uniform sample taken (1 without a Focus)
     adaptations: int = 0            # iterations with proposals so far: the adaptation's step index
     vertex: dict = field(default_factory=dict)  # arrays (C, ...): state at the first visible vertex
 
@@ -171,7 +175,8 @@ class ChainSet:
                         first_dim=np.full(n_chains, -1, np.int32),
                         theta=np.full(n_chains, float(theta0)), proposed=np.zeros(n_chains, np.int64),
                         accepted=np.zeros(n_chains, np.int64), hold=np.zeros(n_chains, np.int64),
-                        hold_prefix=np.zeros(n_chains, np.int64), weight=np.ones(n_chains))
+                        hold_prefix=np.zeros(n_chains, np.int64), weight=np.ones(n_chains),
+                        start=np.ones(n_chains))
 
     def forget(self) -> None:
         """Drop every state (the chains search again from uniform samples), e.g. when the map from
@@ -179,7 +184,7 @@ class ChainSet:
         self.valid[:] = False
         self.first_dim[:] = -1
         self.weight[:] = 1.0
-        self.weight_bound = 0.0
+        self.start[:] = 1.0
 
     @property
     def count(self) -> int:
@@ -205,10 +210,10 @@ class Recorder:
 
     def uniform(self, batch, rows):
         """Uniform samples ``rows`` of ``batch`` are outside V: their deposits count as they are
-        (divided by n_U, not recorded by a chain; module docstring, "Two parts").  Returns how
-        many of them deposited.  Under a Focus their flux is unweighted (the chains' traces) and
+        (divided by n_U, not recorded by a chain; module docstring, "Two parts").  Returns the rows
+        of those that deposited.  Under a Focus their flux is unweighted (the chains' traces) and
         takes its w here (``batch.aims``)."""
-        return 0
+        return rows[:0]
 
 
 def begin_pass(chains, trace, recorder, counters):
@@ -250,8 +255,7 @@ def end_pass(chains, recorder, prefetched=None, trace=None, counters=None):
         _count_traced(counters, len(lanes), batch)
         recorder.replace_suffix(lanes, batch, np.arange(len(lanes)))
         prefetched.refreshed = None
-    lanes = np.flatnonzero(chains.valid)
-    recorder.commit(lanes, chains.hold_prefix[lanes], chains.hold[lanes])
+    _commit(chains, recorder, np.flatnonzero(chains.valid))
     chains.hold[:] = 0
     chains.hold_prefix[:] = 0
 
@@ -332,28 +336,17 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
         counters.aimed_w += sw
         counters.aimed_w2 += sw2
         counters.aimed_visible += k
-    if batch_u.off_focus is not None:
-        counters.off_focus_visible += int(batch_u.off_focus[rows_u].sum())
     outside = rows_u[~vis]
     if len(outside):
-        counters.uniform_outside += recorder.uniform(batch_u, outside)
+        deposited = recorder.uniform(batch_u, outside)
+        counters.uniform_outside += len(deposited)
+        if aimed:
+            w = path_weights(batch_u, deposited)
+            counters.outside_w += float(w.sum())
+            counters.outside_w2 += float(w @ w)
     if not exchange:
         vis = vis & ~was_valid
     take = np.flatnonzero(vis)
-    if aimed and len(take):
-        # Under a Focus the samples come from q = p / w, the chains' target is V w (module
-        # docstring, "Photons from afar"): a chain with a state takes a visible sample with the
-        # chance min(1, w' / w).  Those that do not are not mutated either, so that whether a
-        # chain exchanges or mutates does not depend on its state.
-        # A chain without a state takes one with the chance w' / M, M the largest w of the
-        # visible samples so far (rejection sampling from q V to V w): its first state then
-        # follows the target at once.
-        chains.weight_bound = max(chains.weight_bound, float(w_u[take].max()))
-        held = was_valid[take]
-        bound = np.where(held, chains.weight[take], chains.weight_bound)
-        ok = rng.random(len(take)) * bound < w_u[take]
-        counters.exchanges_refused += int((~ok & held).sum())
-        take = take[ok]
     # 3. Mutation of the other chains that have a state (with the next uniform samples and
     # the previous iteration's Gibbs refreshes, in one batch).
     lanes = np.flatnonzero(was_valid & ~vis)
@@ -376,7 +369,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     # mutated, so the batch is the same either way.
     if len(take):
         _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[rows_u[take]], batch_u,
-                rows_u[take], w_u[take])
+                rows_u[take], w_u[take], start=True)
         counters.exchanges += int(was_valid[take].sum())
         counters.initialised += int((~was_valid[take]).sum())
     if len(lanes):
@@ -407,7 +400,8 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
             new_u[redraw] = rng.random(int(redraw.sum()))
             # The prefix (and so V and the first visible vertex) is unchanged: trace from there.
             resume = {k: v[rejected] for k, v in chains.vertex.items()}
-            recorder.commit(rejected, np.zeros(len(rejected), np.int64), chains.hold[rejected])
+            recorder.commit(rejected, np.zeros(len(rejected)),
+                            chains.hold[rejected] * chains.start[rejected])
             chains.hold[rejected] = 0
             chains.u[rejected] = new_u
             if upcoming is not None:
@@ -420,6 +414,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     chains.hold[chains.valid] += 1
     chains.hold_prefix[chains.valid] += 1
     counters.recorded += int(chains.valid.sum())
+    counters.recorded_w += float(chains.start[chains.valid].sum())
     return upcoming
 
 
@@ -429,19 +424,27 @@ def _count_traced(counters, n, batch):
     counters.vertices += batch.vertices
 
 
-def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights):
+def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights, start=False):
     """Make traced paths ``rows`` of ``batch`` (weights w ``weights``) the current states of chains
-    ``lanes``."""
+    ``lanes``; with ``start`` (uniform samples) they begin new runs of weight W = w."""
     old = lanes[chains.valid[lanes]]
-    recorder.commit(old, chains.hold_prefix[old], chains.hold[old])
+    _commit(chains, recorder, old)
     chains.hold[lanes] = 0
     chains.hold_prefix[lanes] = 0
     chains.u[lanes] = new_u
     chains.first_dim[lanes] = new_first_dim
     chains.valid[lanes] = True
     chains.weight[lanes] = weights
+    if start:
+        chains.start[lanes] = weights
     _store_vertex(chains, lanes, batch, rows)
     recorder.replace(lanes, batch, rows)
+
+
+def _commit(chains, recorder, lanes):
+    """Record the pending recordings of chains ``lanes``, each with its run's weight W."""
+    w = chains.start[lanes]
+    recorder.commit(lanes, chains.hold_prefix[lanes] * w, chains.hold[lanes] * w)
 
 
 class DepositLog(Recorder):
@@ -476,7 +479,7 @@ class DepositLog(Recorder):
         self.outside_pairs = 0
         self.n_chains = n_chains
         self.state_of_lane = np.full(2 * n_chains, -1, np.int64)   # current part id per slot
-        self.count = np.zeros(1024, np.int64)                   # recordings per state id
+        self.count = np.zeros(1024)             # recordings per state id (times their runs' W)
         self.next_state = 0
         self.chunks = []                                        # (state ids, points, values)
         self.logged = 0
@@ -507,19 +510,19 @@ class DepositLog(Recorder):
         np.add.at(self.count, ids[ok], counts[ok])
 
     def uniform(self, batch, rows):
-        """Sum the deposits of paths ``rows`` of ``batch`` as they are; return how many deposited."""
+        """Sum the deposits of paths ``rows`` of ``batch`` as they are; return those that deposited."""
         mask = np.zeros(len(batch.visible), bool)
         mask[rows] = True
         sel = np.flatnonzero(mask.take(batch.pair_path))
         if len(sel) == 0:
-            return 0
+            return rows[:0]
         value = batch.pair_value.take(sel, axis=0)
         if batch.aims is not None:
             value = value * path_weights(batch, batch.pair_path.take(sel))[:, None]
         point = batch.pair_point.take(sel)
         self._outside.add(point, [value[:, c] for c in range(3)], self._counted(point))
         self.outside_pairs += len(sel)
-        return len(np.unique(batch.pair_path.take(sel)))
+        return np.unique(batch.pair_path.take(sel))
 
     def _append(self, slots, batch, rows, is_suffix):
         """New part ids for ``slots``; log their pairs.  With ``is_suffix`` (per pair) the first
@@ -527,7 +530,7 @@ class DepositLog(Recorder):
         ids = np.arange(self.next_state, self.next_state + len(slots))
         self.next_state += len(slots)
         if self.next_state > len(self.count):
-            grown = np.zeros(2 * self.next_state, np.int64)
+            grown = np.zeros(2 * self.next_state)
             grown[:len(self.count)] = self.count
             self.count = grown
             if self.sign is not None:
@@ -576,7 +579,7 @@ class DepositLog(Recorder):
         kept = []
         for chunk in self.chunks:
             state, point = chunk[0], chunk[1]
-            w = self.count.take(state).astype(np.float64)
+            w = self.count.take(state)
             value = chunk[2]
             counted = self._counted(point)
             self._sums.add(point, [value[:, c] * w for c in range(3)], counted)

@@ -976,8 +976,6 @@ class PhotonBatch:
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
     aims: np.ndarray | None = None  # (n,) with a Focus: each path's w from afar, 0 for the others and resumed
-    # (n,) bool with a target's Focus, aimed or not: the visible paths from afar that started off its disc
-    off_focus: np.ndarray | None = None
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
@@ -1010,7 +1008,7 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, ca
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
-                  sums=None, unweighted=False, aim=True):
+                  sums=None, unweighted=False):
     """Trace photon paths for primary samples ``u`` (n, d) and deposit them on ``target``.
 
     With ``collect_pairs`` the deposits are returned per pair (for Markov chains) together
@@ -1027,11 +1025,9 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
 
     ``unweighted`` (the Markov chains, whose target takes the weights instead): the paths from
     afar under ``target.focus`` carry their flux without the focus's weight w
-    (``LightSampler.sample_aimed``); ``PhotonBatch.aims`` has the weights either way.  ``aim``
-    False: as if the target had no focus (``PhotonBatch.off_focus`` still tells which visible
-    paths from afar started off its disc).
+    (``LightSampler.sample_aimed``); ``PhotonBatch.aims`` has the weights either way.
     """
-    focus = target.focus if aim else None
+    focus = target.focus
     n = len(u)
     accel, table = ctx.accel, ctx.table
     visible = np.zeros(n, bool)
@@ -1043,10 +1039,6 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     origins, dirs, flux, _, aims = ctx.lights.sample_aimed(u[:fresh, :LIGHT_DIMS], focus)
     if unweighted and focus is not None:
         flux = flux / np.where(aims > 0, aims, 1.0)[:, None]
-    off_focus = None
-    if target.focus is not None:
-        off_focus = np.zeros(n, bool)
-        off_focus[:fresh] = (aims > 0) & ~target.focus.holds(origins, dirs)
     idx = np.flatnonzero(luminance(flux) > 0)
     origins, dirs, flux = origins.take(idx, axis=0), dirs.take(idx, axis=0), flux.take(idx, axis=0)
     last_join = -1
@@ -1439,10 +1431,8 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         total = sums.total
     if focus is not None and n_resumed:
         aims = np.concatenate([aims, np.zeros(n_resumed)])
-    if off_focus is not None:
-        off_focus &= visible
     return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices,
-                       aims if focus is not None else None, off_focus)
+                       aims if focus is not None else None)
 
 
 def aim_moments(batch, rows):

@@ -178,9 +178,11 @@ class RenderSettings:
     that it does not (light from outside the sphere, such as off a mirror or through a window
     beyond it).  A long lens on a corner of a large sunlit scene gets hundreds of times the photons
     there.  The Markov chains draw their uniform samples so too, their target and normaliser taking
-    the weights (core/mcmc.py, "Photons from afar"), from their second pass on and while none of
-    their visible photons from afar started off the sphere's disc: they find and swap in visible
-    paths that much more often.  Off: every such photon starts anywhere."""
+    the weights and each run of states from a visible uniform sample recorded with its weight
+    (core/mcmc.py, "Photons from afar"): they find and swap in visible paths that much more often.
+    For them the focus also goes where their uniform samples outside the visible set (which light
+    what the camera sees only through glass or in a curved mirror) show that it does not pay
+    there.  Off: every such photon starts anywhere."""
 
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):

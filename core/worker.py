@@ -40,13 +40,6 @@ class PhotonWorker:
         self.dims = path_dims(settings.max_bounces)
         self.chains = None
         self.chain_focus = None         # the Focus of the chains' last pass (its key)
-        # Whether the chains aim (core/mcmc.py, "Photons from afar"): "probe" in their first pass
-        # under a focus, unaimed, then "aim" unless a visible uniform sample from afar started off
-        # the focus's disc, and "off" from the pass after one that saw such a sample (its weight
-        # w = 2 > 1: a chain without a state takes a visible sample with the chance w / M, so
-        # they would find their first states at 1/M of the unaimed rate, and the chains started
-        # before it was seen miss those paths).
-        self.chain_aim = "probe"
         if settings.method != "ppm":
             n_chains = settings.chains
             self.chain_rng = np.random.default_rng([settings.seed, STREAM_CHAINS, index])
@@ -137,8 +130,7 @@ class PhotonWorker:
         chains = self.chains
         halves = target.inner and self.lane_halves
         recorder = DepositLog(target.n_slots, chains.count, halves=halves, main_slots=target.inner_slots)
-        aim = target.focus is not None and self.chain_aim == "aim"
-        focus = tuple(target.focus.to_array()) if aim else None
+        focus = tuple(target.focus.to_array()) if target.focus is not None else None
         if focus != self.chain_focus:
             # The focus maps samples to other paths: the states would no longer follow the target.
             chains.forget()
@@ -147,7 +139,7 @@ class PhotonWorker:
         def trace(u, refresh_rng, resume=None):
             t0 = time.perf_counter()
             batch = trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
-                                  collect_pairs=True, resume=resume, unweighted=True, aim=aim)
+                                  collect_pairs=True, resume=resume, unweighted=True)
             counters.trace_s += time.perf_counter() - t0
             return batch
 
@@ -163,10 +155,8 @@ class PhotonWorker:
                                  prefetched=prefetched, prefetch=i + 1 < iterations)
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
-        if aim:
+        if focus is not None:
             counters.aiming_workers += 1
-        if target.focus is not None and self.chain_aim != "off":
-            self.chain_aim = "off" if counters.off_focus_visible else "aim"
         outside = recorder.outside_sums if recorder.outside_pairs else None
         halves = recorder.half_sums if halves else None
         return recorder.sums, outside, halves, interrupted

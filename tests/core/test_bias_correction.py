@@ -100,7 +100,8 @@ def test_the_chains_variance_comes_from_their_halves_or_their_passes():
 
 @pytest.mark.parametrize("workers", [2, 3, 4])
 def test_the_workers_difference_has_the_variance_of_their_sum(workers):
-    """Workers of unequal photon counts (a pass cut short): X has mean 0 and E[X^2] = Var T."""
+    """Workers of unequal photon counts (a pass cut short): X has mean 0 and E[X^2] = Var T.  (The
+    chains' counts, ``recorded_w``: their recordings weighted by their runs' W, 1 without a focus.)"""
     rng = np.random.default_rng(5)
     n, mu, sigma = 20000, 0.3, 0.5
     recorded = rng.integers(500, 2000, workers)
@@ -108,7 +109,7 @@ def test_the_workers_difference_has_the_variance_of_their_sum(workers):
     for n_k in recorded:
         t = n_k * mu + sigma * np.sqrt(n_k) * rng.normal(size=(n, 3))      # Var T_k = N_k sigma^2
         outer = rng.uniform(0, 5, (n, 3))
-        outputs.append({"pixel_sum": outer, "inner_sum": outer + t, "counters": {"recorded": int(n_k)}})
+        outputs.append({"pixel_sum": outer, "inner_sum": outer + t, "counters": {"recorded_w": float(n_k)}})
     x = _halves_difference(outputs)
     var_t = sigma ** 2 * recorded.sum()
     assert abs(x.mean()) < 5 * np.sqrt(var_t / x.size)
