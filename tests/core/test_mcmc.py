@@ -322,8 +322,8 @@ def test_aimed_samples_leave_the_chains_on_visibility_times_weight(mode):
     8/9 of that (1/2 unweighted), and sum(w V) / n_U estimates its integral 1.0125, the normaliser.
     A chain takes every visible sample and starts a run of weight W = w there, which its mutations
     keep: the recordings weighted by W hold 8/9 on that half, and their mean W is the mean w of the
-    visible samples, 1.125 (a W that followed the state would give 1.81; mutations that ignored w, 1/2
-    on each half).  Batch means over passes of the same chains, after burn-in."""
+    visible samples, 1.125 (a W that followed the state would give 1.81; mutations that ignored w
+    leave 0.85 on that half).  Batch means over passes of the same chains, after burn-in."""
     oracle = AimedOracle([((0.0, 0.0), (0.5, 0.9)), ((0.5, 0.0), (1.0, 0.9))])
     settings = RenderSettings(target_acceptance=0.6, mutation=mode)
     rng = np.random.default_rng(4)
