@@ -58,8 +58,8 @@ from the uniform samples as sum(w V) / n_U (``uniform_visible_w``), the uniform 
 deposit w times their flux, and a mutation is accepted with V(u') min(1, w' / w).  A visible
 uniform sample comes from q V, not from the target: a chain takes every one, as without a focus,
 and the run of states that starts there, up to the chain's next visible uniform sample, is
-recorded with the weight W = w of that sample (``ChainSet.start``; the recorder's counts are times
-W, and the integrator divides by their sum, ``recorded_w``, instead of the count of recordings).
+recorded with the weight W = w of that sample (``ChainSet.run_weight``; the recorder's counts are
+times W, and the integrator divides by their sum, ``recorded_w``, instead of the recordings' count).
 The mutations leave V w invariant, so E[W f(X_t)] = E_qV[w] E_Vw[f] at every step t of a run, and a
 run ends when a uniform sample, drawn independently of the state, is visible: sum W f / sum W
 estimates E_Vw[f] (without a focus W = 1: H&J's estimator).  Taking every visible sample without W
@@ -164,7 +164,7 @@ class ChainSet:
     hold: np.ndarray                # (C,) int64 pending recordings of the current suffix
     hold_prefix: np.ndarray         # (C,) int64 pending recordings of the current prefix
     weight: np.ndarray              # (C,) float64 the current state's w under a Focus (1 without)
-    start: np.ndarray               # (C,) float64 the weight W of the chain's run: w of its last
+    run_weight: np.ndarray          # (C,) float64 the weight W of the chain's run: w of its last
     #                                 uniform sample taken (1 without a Focus)
     adaptations: int = 0            # iterations with proposals so far: the adaptation's step index
     vertex: dict = field(default_factory=dict)  # arrays (C, ...): state at the first visible vertex
@@ -176,7 +176,7 @@ class ChainSet:
                         theta=np.full(n_chains, float(theta0)), proposed=np.zeros(n_chains, np.int64),
                         accepted=np.zeros(n_chains, np.int64), hold=np.zeros(n_chains, np.int64),
                         hold_prefix=np.zeros(n_chains, np.int64), weight=np.ones(n_chains),
-                        start=np.ones(n_chains))
+                        run_weight=np.ones(n_chains))
 
     def forget(self) -> None:
         """Drop every state (the chains search again from uniform samples), e.g. when the map from
@@ -184,7 +184,7 @@ class ChainSet:
         self.valid[:] = False
         self.first_dim[:] = -1
         self.weight[:] = 1.0
-        self.start[:] = 1.0
+        self.run_weight[:] = 1.0
 
     @property
     def count(self) -> int:
@@ -369,7 +369,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     # mutated, so the batch is the same either way.
     if len(take):
         _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[rows_u[take]], batch_u,
-                rows_u[take], w_u[take], start=True)
+                rows_u[take], w_u[take], new_run=True)
         counters.exchanges += int(was_valid[take].sum())
         counters.initialised += int((~was_valid[take]).sum())
     if len(lanes):
@@ -401,7 +401,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
             # The prefix (and so V and the first visible vertex) is unchanged: trace from there.
             resume = {k: v[rejected] for k, v in chains.vertex.items()}
             recorder.commit(rejected, np.zeros(len(rejected)),
-                            chains.hold[rejected] * chains.start[rejected])
+                            chains.hold[rejected] * chains.run_weight[rejected])
             chains.hold[rejected] = 0
             chains.u[rejected] = new_u
             if upcoming is not None:
@@ -414,7 +414,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     chains.hold[chains.valid] += 1
     chains.hold_prefix[chains.valid] += 1
     counters.recorded += int(chains.valid.sum())
-    counters.recorded_w += float(chains.start[chains.valid].sum())
+    counters.recorded_w += float(chains.run_weight[chains.valid].sum())
     return upcoming
 
 
@@ -424,9 +424,9 @@ def _count_traced(counters, n, batch):
     counters.vertices += batch.vertices
 
 
-def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights, start=False):
+def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights, new_run=False):
     """Make traced paths ``rows`` of ``batch`` (weights w ``weights``) the current states of chains
-    ``lanes``; with ``start`` (uniform samples) they begin new runs of weight W = w."""
+    ``lanes``; with ``new_run`` (uniform samples) they begin new runs of weight W = w."""
     old = lanes[chains.valid[lanes]]
     _commit(chains, recorder, old)
     chains.hold[lanes] = 0
@@ -435,15 +435,15 @@ def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights,
     chains.first_dim[lanes] = new_first_dim
     chains.valid[lanes] = True
     chains.weight[lanes] = weights
-    if start:
-        chains.start[lanes] = weights
+    if new_run:
+        chains.run_weight[lanes] = weights
     _store_vertex(chains, lanes, batch, rows)
     recorder.replace(lanes, batch, rows)
 
 
 def _commit(chains, recorder, lanes):
     """Record the pending recordings of chains ``lanes``, each with its run's weight W."""
-    w = chains.start[lanes]
+    w = chains.run_weight[lanes]
     recorder.commit(lanes, chains.hold_prefix[lanes] * w, chains.hold[lanes] * w)
 
 

@@ -545,8 +545,8 @@ def test_chains_under_a_focus_start_weighted_runs():
     assert n == counters.initialised == counters.recorded
     assert abs(n / 20000 - 0.9) < 4 * np.sqrt(0.09 / 20000)
     assert abs(started.mean() - 0.5) < 4 * np.sqrt(0.25 / n), started.mean()
-    np.testing.assert_array_equal(chains.start[chains.valid], np.where(started, 2.0, 0.25))
-    assert counters.recorded_w == pytest.approx(chains.start[chains.valid].sum())
+    np.testing.assert_array_equal(chains.run_weight[chains.valid], np.where(started, 2.0, 0.25))
+    assert counters.recorded_w == pytest.approx(chains.run_weight[chains.valid].sum())
     assert rec.counts.sum() == pytest.approx(counters.recorded_w)
     share = rec.counts[1] / rec.counts.sum()
     # (its spread: d share / d started.mean() = 0.4 at 1/2)
