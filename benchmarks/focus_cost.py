@@ -14,8 +14,8 @@ instead.  This renders, for ``--time`` seconds each with one worker (``--jobs`` 
                       against the mean of two ``--reference-time`` runs A, B of unfocused PPM)
 
 with PPM and AMCMCPPM focused (the default; the chains' uniform samples aimed, each run of their
-states weighted by its first sample's weight, core/mcmc.py "Photons from afar") and unfocused, and prints relMSE =
-mean((I - R)^2 / (R^2 + 0.01)) per seed (``error_vs_time.errors``; against the two-run reference
+states weighted by its first sample's weight, core/mcmc.py "Photons from afar") and unfocused, and
+prints relMSE = mean((I - R)^2 / (R^2 + 0.01)) per seed (``error_vs_time.errors``; against the two-run reference
 corrected for its noise, (A - B)^2 / 4 per pixel, as ``error_vs_time.py``), the passes, the focus
 radius and the chains' passes that aimed:
 
