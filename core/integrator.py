@@ -578,6 +578,13 @@ class CatcherRender:
         self.hit_acc = Accumulator(self.n_pixels, self.settings.normalisation) if self.pair else None
 
 
+def _aiming_loses(sums):
+    """Whether photons under a focus, with sums (sum of w, sum of w^2, count) over those that count,
+    show a larger second moment aimed, mean(w^2), than unaimed, mean(w), once FOCUS_MIN_VISIBLE
+    of them have been seen."""
+    return sums[2] >= FOCUS_MIN_VISIBLE and sums[1] > sums[0]
+
+
 def _recorded(outputs):
     """The photons the workers' ``outputs`` of a pass traced in all."""
     return sum(int(o["counters"]["recorded"]) for o in outputs)
@@ -872,14 +879,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 # For the chains the same two moments are the variances of their normaliser's
                 # estimate, mean(w V), with and without it.
                 aim_sums += (c["aimed_w"], c["aimed_w2"], c["aimed_visible"])
-                if aim_sums[2] >= FOCUS_MIN_VISIBLE and aim_sums[1] > aim_sums[0]:
-                    focus = None
                 # The chains' uniform samples outside their visible set deposit as plain photons
                 # (core/mcmc.py, "Two parts"), and the same identity over those that deposit tells
                 # whether aiming pays for that part of the image: it goes where it does not (light
                 # that reaches what the camera sees only through a glass ball from off the disc).
                 outside_sums += (c["outside_w"], c["outside_w2"], c["uniform_outside"])
-                if is_chain and outside_sums[2] >= FOCUS_MIN_VISIBLE and outside_sums[1] > outside_sums[0]:
+                if _aiming_loses(aim_sums) or (is_chain and _aiming_loses(outside_sums)):
                     focus = None
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)
