@@ -778,7 +778,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
             if vol_radius is not None:
                 around.append(vol.position)
                 reach.append(vol_radius)
-            focus = Focus.around(np.concatenate(around), np.concatenate(reach), ctx.lights)
+            # (portals in the windows, where the scene has them, else a sphere around the points)
+            focus = (Focus.through(scene.world, ctx.lights)
+                     or Focus.around(np.concatenate(around), np.concatenate(reach), ctx.lights))
         coverage = inner_coverage = None
         if settings.edge_coverage and pts.count:
             rng = np.random.default_rng([settings.seed, STREAM_COVERAGE, i])
@@ -985,6 +987,7 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "volume_points": 0 if eye.volume is None else eye.volume.count,
         "grid_entries": target.grid.entry_count,
         "focus_radius": target.focus.radius if target.focus is not None else 0.0,
+        "focus_portals": target.focus.portal_count if target.focus is not None else 0,
         "aiming_workers": c["aiming_workers"],
         "photon_s": merged["photon_s"],
         "bookkeeping_share": 1.0 - c["trace_s"] / merged["photon_cpu_s"] if merged["photon_cpu_s"] > 0 else 0.0,

@@ -53,15 +53,39 @@ class Focus:
     exact (a one-sample mixture, the defensive part bounding what a useless focus costs:
     1 / ``uniform_share`` times the variance).  A long lens on a corner of a town (``small_view``)
     sees a few square metres, and the town in a glass ball's reflections: 99 % of its points lie
-    within a sphere whose disc is 4 % of the town's, and the aimed photons land there."""
+    within a sphere whose disc is 4 % of the town's, and the aimed photons land there.  Where the
+    scene has light portals (Cycles' portals in its windows, ``World.portals``) the aimed part goes
+    through them instead (:meth:`through`)."""
 
-    def __init__(self, center, radius, uniform_share=FOCUS_UNIFORM_SHARE):
+    def __init__(self, center, radius, uniform_share=FOCUS_UNIFORM_SHARE, portals=None, portal_disks=None):
         self.center = np.asarray(center, np.float64).reshape(3)
         self.radius = float(radius)
         self.uniform_share = float(uniform_share)
+        # Portals (World.portals) instead of the sphere: (K, 3, 3) centre, half extents u and v
+        # (photons cross along u x v), (K,) bool ellipses; their unit normals, areas and the dual
+        # basis of (u, v) in their planes.
+        self.portals = self.portal_disks = None
+        if portals is not None and len(portals):
+            self.portals = np.asarray(portals, np.float64).reshape(-1, 3, 3)
+            self.portal_disks = np.asarray(portal_disks, bool).reshape(len(self.portals))
+            u, v = self.portals[:, 1], self.portals[:, 2]
+            cross = np.cross(u, v)
+            size = np.sqrt(smp.dot(cross, cross))[:, None]
+            self._normal = cross / size
+            self._area = size[:, 0] * np.where(self.portal_disks, np.pi, 4.0)
+            self._dual_u = np.cross(v, self._normal) / size
+            self._dual_v = np.cross(self._normal, u) / size
+
+    @property
+    def portal_count(self) -> int:
+        """The portals aimed at (0: the sphere)."""
+        return 0 if self.portals is None else len(self.portals)
 
     def to_array(self) -> np.ndarray:
-        return np.array([*self.center, self.radius, self.uniform_share], np.float64)
+        if self.portals is None:
+            return np.array([*self.center, self.radius, self.uniform_share], np.float64)
+        return np.concatenate([self.center, [self.radius, self.uniform_share],
+                               np.column_stack([self.portals.reshape(-1, 9), self.portal_disks]).ravel()])
 
     def holds(self, origins, dirs) -> np.ndarray:
         """(n,) bool: the rays from ``origins`` along ``dirs`` (n, 3) start on this sphere's disc
@@ -71,7 +95,42 @@ class Focus:
     @staticmethod
     def from_array(a) -> "Focus":
         a = np.asarray(a, np.float64)
-        return Focus(a[:3], a[3], a[4])
+        if len(a) == 5:
+            return Focus(a[:3], a[3], a[4])
+        rows = a[5:].reshape(-1, 10)
+        return Focus(a[:3], a[3], a[4], rows[:, :9], rows[:, 9] > 0.5)
+
+    @staticmethod
+    def through(world, lights, uniform_share=FOCUS_UNIFORM_SHARE) -> "Focus | None":
+        """The focus on the world's portals (Cycles' light portals in windows, ``World.portals``), or
+        None without portals or an emitter from afar.  With the chance ``1 - uniform_share`` a photon
+        from afar whose direction d crosses some portal into the scene (d . n > 0) starts on the
+        scene's disc across d where it passes through one of them, chosen by its area projected
+        across d, A |d . n|, uniformly over it: density N(o, d) / P(d) on that plane, P the sum of
+        the projected areas and N the portals the line crosses (so weights stay exact where
+        portals overlap across d).  The sun's photons go through them too (Cycles' portals guide
+        only the world's samples: here they are a density, not a light)."""
+        portals = getattr(world, "portals", None)
+        if portals is None or not len(portals) or not np.isin(lights.kinds, (SUN, WORLD)).any():
+            return None
+        return Focus(np.zeros(3), 0.0, uniform_share, portals, world.portal_disks)
+
+    def projected(self, d) -> np.ndarray:
+        """(n, K) the portals' areas projected across directions ``d`` (n, 3), 0 where d does not
+        cross one into the scene."""
+        return self._area * np.maximum(d @ self._normal.T, 0.0)
+
+    def crossings(self, origins, d) -> np.ndarray:
+        """(n,) how many portals the lines from ``origins`` along ``d`` (n, 3) cross into the scene."""
+        count = np.zeros(len(d))
+        for k in range(len(self.portals)):
+            facing = d @ self._normal[k]
+            t = ((self.portals[k, 0] - origins) @ self._normal[k]) / np.where(facing > 0, facing, 1.0)
+            p = origins + t[:, None] * d - self.portals[k, 0]
+            x, y = p @ self._dual_u[k], p @ self._dual_v[k]
+            inside = (x * x + y * y if self.portal_disks[k] else np.maximum(x * x, y * y)) <= 1.0 + 1e-6
+            count += (facing > 0) & inside
+        return count
 
     @staticmethod
     def around(positions, reach, lights, uniform_share=FOCUS_UNIFORM_SHARE) -> "Focus | None":
@@ -723,6 +782,9 @@ class LightSampler:
         r = self.radius
         if focus is None:
             return self.center + r * (x[:, None] * t + y[:, None] * b) - 2.0 * r * d, np.ones(len(d))
+        if focus.portals is not None:
+            return self._portal_origin(d, u, focus, self.center + r * (x[:, None] * t + y[:, None] * b)
+                                       - 2.0 * r * d, x, y)
         share = focus.uniform_share
         aimed = u[:, 3] >= share
         centre = np.where(aimed[:, None], focus.center, self.center)
@@ -732,6 +794,32 @@ class LightSampler:
         in_scene = _off_axis2(o - self.center, d) <= (r * (1.0 + 1e-9)) ** 2
         in_focus = focus.holds(o, d)
         return o, 1.0 / (share * in_scene + (1.0 - share) * (r / focus.radius) ** 2 * in_focus)
+
+    def _portal_origin(self, d, u, focus, origins, x, y):
+        """:meth:`_disk_origin` under a focus on portals (:meth:`Focus.through`): ``origins`` (n, 3)
+        on the scene's disc (from the concentric ``x``, ``y``) replaced, with the chance
+        ``1 - uniform_share`` (by ``u[:, 3]``, which then also picks the portal) where d crosses a
+        portal, by a point of a portal moved back along d into the disc's plane; the weights are
+        the scene disc's density over the mixture's, 0 off the scene's disc."""
+        share, r = focus.uniform_share, self.radius
+        projected = focus.projected(d)
+        total = projected.sum(axis=1)
+        aimed = np.flatnonzero((u[:, 3] >= share) & (total > 0))
+        if len(aimed):
+            cumulative = np.cumsum(projected[aimed], axis=1)
+            pick = (u[aimed, 3] - share) / (1.0 - share) * total[aimed]
+            k = np.minimum((cumulative <= pick[:, None]).sum(axis=1), len(focus.portals) - 1)
+            disk = focus.portal_disks[k]
+            a = np.where(disk, x[aimed], 2.0 * u[aimed, 1] - 1.0)[:, None]
+            b = np.where(disk, y[aimed], 2.0 * u[aimed, 2] - 1.0)[:, None]
+            p = focus.portals[k, 0] + a * focus.portals[k, 1] + b * focus.portals[k, 2]
+            da = d[aimed]
+            origins[aimed] = p - (smp.dot(p - self.center, da) + 2.0 * r)[:, None] * da
+        in_scene = _off_axis2(origins - self.center, d) <= (r * (1.0 + 1e-9)) ** 2
+        uniform = np.where(total > 0, share, 1.0)
+        density = uniform * in_scene + (1.0 - uniform) * (np.pi * r * r) * focus.crossings(origins, d) \
+            / np.where(total > 0, total, 1.0)
+        return origins, np.where(in_scene & (density > 0), 1.0 / np.where(density > 0, density, 1.0), 0.0)
 
     def _sample_triangle(self, ids, u, power):
         """Origins, directions, the power 2 pi A L(x) (n, 3) the chosen points emit (the

@@ -992,6 +992,12 @@ class World:
     mist_start: float = 5.0
     mist_depth: float = 25.0
     mist_falloff: float = 2.0
+    # Light portals (Cycles' area lights marked Portal, in windows): (K, 3, 3) float64 rows of the
+    # centre and the half extents u and v (world; light from the world and the sun crosses them
+    # into the scene along u x v), and (K,) bool ellipses (else parallelograms); None: no portals.
+    # They emit nothing: the photons from afar are aimed through them (core.lights.Focus.through).
+    portals: np.ndarray = None
+    portal_disks: np.ndarray = None
 
     VOLUME_FIELDS = ("volume_absorption", "volume_scattering", "volume_anisotropy", "volume_phase",
                      "volume_phase_params")
@@ -1029,6 +1035,23 @@ def _validate_background(w, name, fail, n_textures):
         if rot.shape != (3, 3) or not np.isfinite(rot).all() or abs(abs(np.linalg.det(rot)) - 1) > 1e-3:
             fail(f"{name}.texture_rotation must be a 3 x 3 rotation matrix")
         w.texture_rotation = rot
+
+
+def _validate_portals(w, fail):
+    """Check and normalise World ``w``'s portals (None when there are none)."""
+    if w.portals is None or not len(w.portals):
+        w.portals = w.portal_disks = None
+        return
+    portals = np.asarray(w.portals, np.float64)
+    if portals.ndim != 3 or portals.shape[1:] != (3, 3) or not np.isfinite(portals).all():
+        fail(f"world.portals must be finite (K, 3, 3) rows of a centre and two half extents, "
+             f"not of shape {portals.shape}")
+    if (np.linalg.norm(np.cross(portals[:, 1], portals[:, 2]), axis=1) <= 0).any():
+        fail("world.portals: a portal has zero area (its half extents are parallel or zero)")
+    disks = np.zeros(len(portals), bool) if w.portal_disks is None else np.asarray(w.portal_disks)
+    if disks.shape != (len(portals),):
+        fail(f"world.portal_disks must be ({len(portals)},) bools, not of shape {disks.shape}")
+    w.portals, w.portal_disks = portals, disks.astype(bool)
 
 
 def _validate_world_volume(w, fail):
@@ -1492,6 +1515,7 @@ class Scene:
             setattr(self.world, name, float(value))
         if self.world.camera is not None:
             _validate_background(self.world.camera, "world.camera", fail, len(self.textures))
+        _validate_portals(self.world, fail)
         return self
 
     def _validate_objects(self, fail, arr, t):
@@ -1661,6 +1685,9 @@ class Scene:
             d["world.texture"] = self.world.texture
         if self.world.texture_rotation is not None:
             d["world.texture_rotation"] = self.world.texture_rotation
+        if self.world.portals is not None:
+            d["world.portals"] = np.asarray(self.world.portals, np.float64)
+            d["world.portal_disks"] = np.asarray(self.world.portal_disks, bool)
         if self.world.program is not None:
             d["world.program"] = np.array(procedural.to_json(self.world.program))
         if self.world.has_volume:
@@ -1730,7 +1757,8 @@ class Scene:
                       texture_rotation=get("world.texture_rotation"),
                       film_transparent=bool(get("world.film_transparent", False)), camera=camera_world,
                       exclude=int(get("world.exclude", 0)), program=program("world.program"),
-                      group=int(get("world.group", -1)),
+                      group=int(get("world.group", -1)), portals=get("world.portals"),
+                      portal_disks=get("world.portal_disks"),
                       **{name: get(f"world.{name}") for name in World.VOLUME_FIELDS
                          if f"world.{name}" in keys},
                       **{name: float(get(f"world.{name}")) for name in World.MIST_FIELDS

@@ -244,6 +244,46 @@ def sky_over_floor(albedo=0.5, sky=1.0, resolution=(32, 32), size=40.0, height=2
     return m.build(mats, camera=cam, world=World(color=np.full(3, sky, np.float32)))
 
 
+def skylight_room(albedo=0.5, sky=1.0, resolution=(16, 16), size=2.0, height=2.5, opening=0.25,
+                  portal=True, portal_at=None):
+    """A closed room [-size, size]^2 x [0, height] lit only by a constant sky through a square opening
+    [-opening, opening]^2 in its ceiling, black but for its diffuse floor, seen straight down by an
+    orthographic camera over the whole floor: L = albedo sky F(x, y) (:func:`skylight_radiance`).
+    With ``portal`` a light portal fills the opening (``World.portals``); ``portal_at`` (centre,
+    half extents u, v) puts one there instead (on a wall, it lets no light in)."""
+    mats = Materials.build([{"name": "floor", "diffuse": albedo}, {"name": "black"}])
+    m = MeshBuilder()
+    s, h, a = size, height, opening
+    m.add_quad((-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0), 0)
+    m.add_quad((-s, s, 0), (s, s, 0), (s, s, h), (-s, s, h), 1)
+    m.add_quad((-s, -s, 0), (-s, -s, h), (s, -s, h), (s, -s, 0), 1)
+    m.add_quad((-s, -s, 0), (-s, s, 0), (-s, s, h), (-s, -s, h), 1)
+    m.add_quad((s, -s, 0), (s, -s, h), (s, s, h), (s, s, 0), 1)
+    for x0, x1, y0, y1 in ((-s, s, -s, -a), (-s, s, a, s), (-s, -a, -a, a), (a, s, -a, a)):
+        m.add_quad((x0, y0, h), (x0, y1, h), (x1, y1, h), (x1, y0, h), 1)
+    cam = Camera(world_from_camera=_look_down(h / 2), projection="orthographic", frame=(-s, s, -s, s),
+                 resolution=resolution)
+    world = World(color=np.full(3, sky, np.float32))
+    if portal or portal_at is not None:
+        # (light crosses the opening downwards: u x v along -z)
+        frame = portal_at if portal_at is not None else ((0.0, 0.0, h), (0.0, a, 0.0), (a, 0.0, 0.0))
+        world.portals, world.portal_disks = np.array([frame], np.float64), np.zeros(1, bool)
+    return m.build(mats, camera=cam, world=world)
+
+
+def skylight_radiance(x, y, albedo=0.5, sky=1.0, height=2.5, opening=0.25):
+    """The floor's radiance at (x, y) in :func:`skylight_room`: albedo sky F, F the form factor from
+    the point to the opening (parallel rectangles' corner formula, signed over the four corners)."""
+    def corner(dx, dy):
+        p, q = np.abs(dx) / height, np.abs(dy) / height
+        f = (p / np.sqrt(1 + p * p) * np.arctan(q / np.sqrt(1 + p * p))
+             + q / np.sqrt(1 + q * q) * np.arctan(p / np.sqrt(1 + q * q))) / (2 * np.pi)
+        return np.sign(dx) * np.sign(dy) * f
+    a = opening
+    form = corner(a - x, a - y) - corner(-a - x, a - y) - corner(a - x, -a - y) + corner(-a - x, -a - y)
+    return albedo * sky * form
+
+
 def sun_through_slab(ior=1.5, irradiance=10.0, albedo=0.5, resolution=(8, 8), fresnel=1.0):
     """A sun at normal incidence through a glass slab onto a diffuse floor, camera under the slab.
 

@@ -1482,6 +1482,66 @@ def test_focused_photons_from_afar_carry_the_same_light_into_any_sphere(emitter)
     assert (aimed < 0.5 * plain).all(), f"{emitter}: standard error {aimed} aimed against {plain} not"
 
 
+def power_through_window(o, d, flux, centre, u, v):
+    """(mean, standard error) per channel of the photons' flux that crosses the parallelogram
+    centre + a u + b v (|a|, |b| <= 1) along u x v, ahead of them."""
+    n = np.cross(u, v)
+    facing = d @ n
+    t = ((np.asarray(centre) - o) @ n) / np.where(facing > 0, facing, 1.0)
+    p = o + t[:, None] * d - centre
+    a = np.linalg.lstsq(np.column_stack([u, v]), p.T, rcond=None)[0]
+    hit = (facing > 0) & (t > 0) & (np.abs(a) <= 1.0).all(axis=0)
+    f = flux * hit[:, None]
+    return f.mean(axis=0), f.std(axis=0) / math.sqrt(len(f))
+
+
+@pytest.mark.parametrize("emitter", ("sun", "world"))
+def test_photons_from_afar_through_portals_carry_the_same_light_through_any_window(emitter):
+    """A :class:`Focus` on light portals (:meth:`Focus.through`, Cycles' portals in windows) starts
+    half the sun's or the world's photons where they pass through a portal, the portal chosen by
+    its area projected across their direction; their fluxes keep every estimate exact.  The power
+    crossing windows in the portal, partly in it and away from it (sun: irradiance E times the
+    window's projected area; a constant world: pi L times its area) matches the closed form within
+    5 standard errors for a rectangle, an ellipse, a portal facing the other way (only the uniform
+    half brings that light) and two that overlap; through the portal the standard error is a third
+    of the photons' without it or less."""
+    power = np.array([3.0, 2.0, 1.0])
+    axis = unit_vector(-0.9, 0.2, -0.4)
+    if emitter == "sun":
+        ctx = light_context([{"kind": "sun", "direction": axis, "power": power, "sun_angle": 0.0}])
+    else:
+        ctx = light_context(world=power)
+    # A window in the plane x = 1.2 across the box, light crossing it along -x (u x v).
+    centre, u, v = np.array([1.2, -0.3, 0.4]), np.array([0.0, 0.0, 0.2]), np.array([0.0, 0.15, 0.0])
+    windows = {"in the portal": (centre, u, v), "partly in it": (centre + [0, 0.2, 0.1], u, v),
+               "away from it": (np.array([-0.5, 0.0, 0.9]), np.array([0.0, 0.1, 0.0]), np.array([0.2, 0, 0]))}
+    portals = {"a rectangle": ([[centre, u, v]], [False]), "an ellipse": ([[centre, u, v]], [True]),
+               "facing the other way": ([[centre, v, u]], [False]),
+               "two that overlap": ([[centre, u, v], [centre + [0, 0.1, 0], u, v]], [False, False])}
+    u01 = np.random.default_rng(4097).random((N, 6))
+    for name, (frames, disks) in portals.items():
+        focus = Focus.through(World(portals=np.array(frames), portal_disks=np.array(disks)), ctx.lights)
+        assert focus is not None and focus.portal_count == len(frames)
+        assert Focus.from_array(focus.to_array()).to_array().tolist() == focus.to_array().tolist()
+        o, d, flux, _ = ctx.lights.sample(u01, focus)
+        assert np.isfinite(flux).all() and (flux >= 0).all()
+        assert np.allclose(np.einsum("ij,ij->i", o - BOX_CENTER, d), -2 * BOX_RADIUS, atol=1e-9)
+        for where, (c, wu, wv) in windows.items():
+            area = 4.0 * np.linalg.norm(np.cross(wu, wv))
+            across = np.cross(wu, wv) / np.linalg.norm(np.cross(wu, wv))
+            exact = power * (area * max(float(axis @ across), 0.0) if emitter == "sun" else np.pi * area)
+            mean, se = power_through_window(o, d, flux, c, wu, wv)
+            assert (np.abs(mean - exact) < 5 * se + 1e-12).all(), \
+                f"{emitter}, portals {name}, window {where}: {mean} against {exact} (standard error {se})"
+    plain = power_through_window(*ctx.lights.sample(u01)[:3], centre, u, v)[1]
+    focus = Focus.through(World(portals=np.array([[centre, u, v]]), portal_disks=np.array([False])), ctx.lights)
+    aimed = power_through_window(*ctx.lights.sample(u01, focus)[:3], centre, u, v)[1]
+    assert (aimed < plain / 3).all(), f"{emitter}: standard error {aimed} through the portal against {plain}"
+    assert Focus.through(World(), ctx.lights) is None
+    point = light_context([{"kind": "point", "position": BOX_CENTER, "power": 1.0}]).lights
+    assert Focus.through(World(portals=np.array([[centre, u, v]]), portal_disks=np.array([False])), point) is None
+
+
 def test_focus_covers_the_points_where_it_pays_and_stays_off_elsewhere():
     """:meth:`Focus.around` picks the sphere around most of the points that lowers the modelled
     variance most: a tight cluster with a few far points (a glass ball's reflections) gets a sphere
