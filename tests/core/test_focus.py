@@ -9,8 +9,8 @@ import pytest
 
 from core import RenderSettings, render
 from core.scene import SceneError
-from core.testing.scenes import (SUNLIT_CORNER_SUN, mirror_lit_shade, sky_over_floor, skylight_radiance, skylight_room,
-                                 small_view, sunlit_corner)
+from core.testing.scenes import (SUNLIT_CORNER_SUN, mirror_lit_shade, sky_over_floor, skylight_radiance,
+                                 skylight_room, small_view, sunlit_corner)
 
 ALBEDO, IRRADIANCE = 0.6, 4.0
 SUN = np.asarray(SUNLIT_CORNER_SUN)
@@ -178,7 +178,8 @@ def test_portals_survive_a_file_round_trip_and_bad_ones_are_refused(tmp_path):
     back = type(scene).load(path)
     assert np.array_equal(back.world.portals, scene.world.portals)
     assert back.world.portal_disks.tolist() == [False, True]
-    assert type(scene).load(_saved(skylight_room(resolution=(8, 8), portal=False), tmp_path)).world.portals is None
+    plain = skylight_room(resolution=(8, 8), portal=False)
+    assert type(scene).load(_saved(plain, tmp_path)).world.portals is None
     for portals, disks, message in (([[[0, 0, 1], [1, 0, 0], [2, 0, 0]]], [False], "zero area"),
                                     ([[0, 0, 1], [1, 0, 0], [0, 1, 0]], [False], "shape"),
                                     ([[[0, 0, np.nan], [1, 0, 0], [0, 1, 0]]], [False], "finite"),

@@ -1534,12 +1534,13 @@ def test_photons_from_afar_through_portals_carry_the_same_light_through_any_wind
             assert (np.abs(mean - exact) < 5 * se + 1e-12).all(), \
                 f"{emitter}, portals {name}, window {where}: {mean} against {exact} (standard error {se})"
     plain = power_through_window(*ctx.lights.sample(u01)[:3], centre, u, v)[1]
-    focus = Focus.through(World(portals=np.array([[centre, u, v]]), portal_disks=np.array([False])), ctx.lights)
+    one = World(portals=np.array([[centre, u, v]]), portal_disks=np.array([False]))
+    focus = Focus.through(one, ctx.lights)
     aimed = power_through_window(*ctx.lights.sample(u01, focus)[:3], centre, u, v)[1]
     assert (aimed < plain / 3).all(), f"{emitter}: standard error {aimed} through the portal against {plain}"
     assert Focus.through(World(), ctx.lights) is None
     point = light_context([{"kind": "point", "position": BOX_CENTER, "power": 1.0}]).lights
-    assert Focus.through(World(portals=np.array([[centre, u, v]]), portal_disks=np.array([False])), point) is None
+    assert Focus.through(one, point) is None
 
 
 def test_focus_covers_the_points_where_it_pays_and_stays_off_elsewhere():
