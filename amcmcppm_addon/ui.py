@@ -6,7 +6,7 @@ Each panel lists the properties it draws in ``props`` (tests check that they
 exist).  :func:`get_panels` selects Blender's built-in panels (format, output,
 colour management, camera, light, material, world) that should also show for
 this engine; ``register`` adds our engine to their ``COMPAT_ENGINES``, and ``appended`` draw
-functions to some of them (Object > Visibility's Shadow Catcher box).
+functions to some of them (Object > Visibility's Shadow Catcher box, Light > Portal).
 """
 import bpy
 from bl_ui.properties_view_layer import (ViewLayerAOVPanelHelper, ViewLayerCryptomattePanelHelper,
@@ -259,6 +259,19 @@ def draw_shadow_catcher(self, context):
     layout = self.layout
     layout.use_property_split = True
     layout.column().prop(ob, "is_shadow_catcher")
+
+
+def draw_light_portal(self, context):
+    """Light > Portal for an area light (Cycles' ``cycles.is_portal``, drawn by Cycles' light panel
+    for Cycles only), appended to EEVEE's light panel as shown for our engine: a portal in a window
+    emits nothing, and the photons from afar (the world's, the sun's) are aimed through it
+    (``World.portals``, ``core.lights.Focus.through``)."""
+    light = context.light
+    if context.engine != ENGINE_ID or light is None or light.type != 'AREA' or not hasattr(light, "cycles"):
+        return
+    layout = self.layout
+    layout.use_property_split = True
+    layout.column().prop(light.cycles, "is_portal", text="Portal")
 
 
 class AMCMCPPM_WORLD_PT_ray_visibility(bpy.types.Panel):
@@ -545,7 +558,7 @@ other_classes = (AMCMCPPM_CAMERA_PT_panorama, AMCMCPPM_OBJECT_PT_ray_visibility,
 
 
 # Draw functions added to Blender's panels: (panel, function).
-appended = (("OBJECT_PT_visibility", draw_shadow_catcher),)
+appended = (("OBJECT_PT_visibility", draw_shadow_catcher), ("DATA_PT_EEVEE_light", draw_light_portal))
 
 
 def register():

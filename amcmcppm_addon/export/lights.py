@@ -27,8 +27,10 @@ A light with Cast Shadow off (``use_shadow``) is shadowed by nothing: its shadow
 blocker set (``Lights.shadow_links`` = 0, the core's shadow linking), so its photons light every
 surface along their first flight, as Cycles' unshadowed light samples do.
 
-An area light marked as a Cycles portal (``cycles.is_portal``) is left out: in Cycles it only
-guides the sampling of the world through a window, emits nothing and is invisible.
+An area light marked as a Cycles portal (``cycles.is_portal``) emits nothing and is invisible, as
+in Cycles, where it guides the sampling of the world through a window: here it becomes one of the
+world's portals (:func:`portal_frame`, ``World.portals``), through which the photons from afar (the
+world's and the sun's) are aimed.
 
 Light groups (View Layer > Light Groups; Object > Shading > Light Group): a light's
 ``object.lightgroup`` names its group, whose pass (Cycles' ``Combined_<name>``) holds the light it
@@ -98,11 +100,8 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     :func:`ray_visibility`.
     """
     m = np.asarray(world_from_light, np.float64)
-    if light.type == "AREA" and getattr(getattr(light, "cycles", None), "is_portal", False):
-        # Cycles' portal only guides its sampling of the world through a window: it emits
-        # nothing and nothing sees it.  Photons leave the world wherever it lights the scene.
-        log.info(f"area light '{name}' is a Cycles portal: it emits nothing here either (photons need no "
-                 "portals to find the windows)")
+    if is_portal(light):
+        # (a portal emits nothing and nothing sees it: portal_frame)
         return None
     strength = light_strength(light)
     if (strength < 0).any():
@@ -163,6 +162,26 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         log.warning(f"light '{name}' of type {light.type} is not supported; skipped")
         return None
     return rec
+
+
+def is_portal(light) -> bool:
+    """Whether the light is an area light marked as a Cycles portal."""
+    return light.type == "AREA" and bool(getattr(getattr(light, "cycles", None), "is_portal", False))
+
+
+def portal_frame(light, world_from_light):
+    """((3, 3) centre and half extents u, v with u x v along the light's -Z, into the scene; is it
+    an ellipse) of a portal (:func:`is_portal`), for ``World.portals``; None if it has no area."""
+    m = np.asarray(world_from_light, np.float64)
+    size_u = float(light.size)
+    size_v = float(light.size_y) if light.shape in ("RECTANGLE", "ELLIPSE") else size_u
+    u, v = m[:3, 0] * (size_u / 2), m[:3, 1] * (size_v / 2)
+    cross = np.cross(u, v)
+    if not np.linalg.norm(cross) > 0 or not np.isfinite(m).all():
+        return None
+    if cross @ -m[:3, 2] < 0:
+        u, v = v, u             # (a mirrored object: the light still faces its -Z)
+    return np.array([m[:3, 3], u, v]), light.shape in ("DISK", "ELLIPSE")
 
 
 def node_factor(tree, name, log, profiles=True):

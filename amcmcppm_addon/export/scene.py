@@ -15,8 +15,8 @@ import numpy as np
 from ...core.cryptomatte import name_id
 from ...core.scene import SUN, Scene
 from .camera import export_camera
-from .lights import (build_lights, export_light, instance_group, light_exclude, light_group_index,
-                     ray_visibility, unlisted_groups)
+from .lights import (build_lights, export_light, instance_group, is_portal, light_exclude, light_group_index,
+                     portal_frame, ray_visibility, unlisted_groups)
 from .linking import LightLinking
 from .materials import MaterialExporter
 from .mesh import GeometryCollector
@@ -98,9 +98,15 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
                                   linking=linking, frame=depsgraph.scene_eval.frame_current_final,
                                   passes=geometry_passes(view_layer), light_groups=groups,
                                   hair=view_layer.use_strand, render=depsgraph.mode == "RENDER")
-    light_records, light_collections = [], []
+    light_records, light_collections, portals = [], [], []
     for inst in depsgraph.object_instances:
-        if inst.object.type == "LIGHT":
+        if inst.object.type == "LIGHT" and is_portal(inst.object.data):
+            portal = portal_frame(inst.object.data, np.array(inst.matrix_world, np.float64))
+            if portal is None:
+                log.warning(f"light portal '{inst.object.name}' has no area; left out")
+            else:
+                portals.append(portal)
+        elif inst.object.type == "LIGHT":
             rec = export_light(inst.object.data, np.array(inst.matrix_world, np.float64),
                                inst.object.name, log, ray_visibility(inst.object))
             if rec is not None:
@@ -114,6 +120,10 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
     geometry = collector.finish()
     camera = export_camera(depsgraph, camera_object, resolution, border, log)
     world, world_lights = export_world(depsgraph, materials.textures, log, camera, groups)
+    if portals:
+        # (Cycles' light portals guide the photons from afar through the windows: Focus.through)
+        world.portals = np.array([frame for frame, _ in portals])
+        world.portal_disks = np.array([disk for _, disk in portals])
     if depsgraph.scene_eval.render.use_motion_blur:
         log.warning("motion blur is not supported: the frame renders at its own instant")
     sets = {}         # the scene's per-triangle sets and emitter links

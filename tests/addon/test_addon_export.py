@@ -2985,18 +2985,33 @@ def test_a_light_without_cast_shadow_is_shadowed_by_no_blocker_set(scene, linkin
     assert not [w for w in ex.warnings if "Cast Shadow" in w], ex.warnings
 
 
-def test_a_portal_area_light_is_left_out(scene):
+def test_a_portal_area_light_becomes_a_portal_of_the_world(scene):
     """Cycles' light portals (an area light in a window, ``cycles.is_portal``) guide its sampling
     of the world and emit nothing: exported as a light they would shine as a bright panel in the
-    window.  Noted; an ordinary area light beside it stays."""
+    window.  Each becomes a portal of the world (``World.portals``: its centre and half extents,
+    light crossing along its -Z; a disk or ellipse marked round), through which the photons from
+    afar are aimed; an ordinary area light beside them stays a light."""
     portal = bs.light("AREA", location=(0, 0, 3), energy=100.0, name="Window", size=2.0)
     portal.data.cycles.is_portal = True
+    side = bs.light("AREA", location=(2, 0, 1), target=(0, 0, 1), energy=100.0, name="Side", shape="ELLIPSE",
+                    size=1.0, size_y=0.5)
+    side.data.cycles.is_portal = True
+    side.scale = (-1.0, 1.0, 1.0)           # mirrored: still facing its -Z
     bs.light("AREA", location=(0, 1, 3), energy=50.0, name="Lamp")
     bs.camera()
     ex = bs.export()
     assert ex.scene.lights.count == 1
     assert light_row(ex.scene)["power"] == pytest.approx([50, 50, 50])
-    assert any("'Window' is a Cycles portal" in i for i in ex.infos), ex.infos
+    world = ex.scene.world
+    assert world.portals.shape == (2, 3, 3) and sorted(world.portal_disks.tolist()) == [False, True]
+    expected = {False: ((0, 0, 3), (0, 0, -1), (1.0, 1.0)),      # (centre, crossing, half extents)
+                True: ((2, 0, 1), (-1, 0, 0), (0.25, 0.5))}
+    for (centre, u, v), disk in zip(world.portals, world.portal_disks):
+        where, crossing, extents = expected[bool(disk)]
+        assert centre == pytest.approx(where, abs=1e-6)
+        across = np.cross(u, v)
+        assert across / np.linalg.norm(across) == pytest.approx(crossing, abs=1e-6)
+        assert sorted([np.linalg.norm(u), np.linalg.norm(v)]) == pytest.approx(sorted(extents))
 
 
 def test_sun_light(scene):

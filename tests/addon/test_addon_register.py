@@ -322,6 +322,24 @@ def drawn_boxes(draw):
     return out
 
 
+def test_an_area_lights_portal_box_shows_for_the_engine(scene):
+    """Light > Portal (Cycles' ``is_portal``, which Cycles' light panel draws for Cycles only):
+    appended to EEVEE's light panel, shown for our engine, it draws the box once for an area light,
+    not for a point light nor for another engine (the export: ``test_addon_export.py``)."""
+    from amcmcppm.amcmcppm_addon import ui
+    panel = bpy.types.DATA_PT_EEVEE_light
+    assert ENGINE in panel.COMPAT_ENGINES and ui.draw_light_portal in panel.draw._draw_funcs
+    area, point = bs.light("AREA"), bs.light("POINT")
+    for ob, shown in ((area, True), (point, False)):
+        with bpy.context.temp_override(light=ob.data):
+            boxes = [name for name, _ in drawn_boxes(lambda popup: ui.draw_light_portal(popup, bpy.context))]
+            assert boxes == ["CyclesLightSettings.is_portal"] * shown, (ob.name, boxes)
+    scene.render.engine = "CYCLES"
+    with bpy.context.temp_override(light=area.data):
+        assert not drawn_boxes(lambda popup: ui.draw_light_portal(popup, bpy.context))
+    scene.render.engine = ENGINE
+
+
 def test_shadow_catcher_boxes_show_for_the_engine(scene):
     """Object > Visibility > Mask > Shadow Catcher, which Cycles' Visibility panel draws for Cycles
     only, and Blender's (shown for our engine) does not, drawing Holdout alone: ours, appended to
