@@ -1,0 +1,107 @@
+"""Light portals: photons from afar aimed through the windows an artist marked (``World.portals``).
+
+Cycles' light portals (area lights marked Portal, in a room's windows) guide its sampling of the
+world; here they aim the photons from afar (the world's and the sun's) through the windows
+(``core.lights.Focus.through``), with the chance 1/2, every photon's flux divided by the density of
+that mixture.  This renders, for the same time each, with and without the portals, PPM and
+AMCMCPPM (one worker a run, 2 runs at a time), against a reference of PPM with the portals at a
+quarter of the initial radius (``--reference-time`` seconds, 2 workers):
+
+* ``window``: a closed room of 4 x 4 x 2.5 m lit only by a constant white sky through a square
+  window of 0.3 m in one wall (``direct_light_window.window_room``), one portal in the window;
+* ``hole``: the paper's second scene (``hole_mirror_glass``: the sun through a hole of 0.15 m onto
+  a mirror that throws it through a glass sphere), one portal in the hole.
+
+    python benchmarks/portal_cost.py --time 30 --seeds 3
+
+prints MSE / mean(R)^2 per seed (relMSE = mean((I - R)^2 / (R^2 + 0.01)) is dominated by its 0.01
+on these dark images) and the passes each run made.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+KINDS = ("ppm", "ppm-portal", "amcmcppm", "amcmcppm-portal")
+
+
+def portal_scene(name, portal, resolution=(64, 48)):
+    """The scene ``name`` ("window" or "hole"), with its portal if ``portal``."""
+    if name == "window":
+        from direct_light_window import window_room
+        scene, centre, half = window_room(0.3, resolution), (2.0, 0.0, 1.6), 0.15
+    else:
+        from core.testing.scenes import hole_mirror_glass
+        scene, centre, half = hole_mirror_glass(resolution), (2.0, 0.0, 1.9), 0.075
+    if portal:
+        # (in the wall x = 2, light crossing it along -x: u x v = (-half^2, 0, 0))
+        scene.world.portals = np.array([[centre, (0.0, 0.0, half), (0.0, half, 0.0)]])
+        scene.world.portal_disks = np.zeros(1, bool)
+    return scene.validate()
+
+
+def run_one(scene, kind, seed, seconds, out):
+    """One render in this process."""
+    from core import RenderSettings, render
+    base = RenderSettings()
+    if kind == "reference":
+        kw = dict(method="ppm", initial_radius_px=0.25 * base.initial_radius_px, workers=2)
+    else:
+        kw = dict(method=kind.split("-")[0], workers=1)
+    r = render(portal_scene(scene, kind == "reference" or kind.endswith("portal")),
+               RenderSettings(seed=seed, passes=0, time_limit=seconds, **kw))
+    np.save(out, r.image[..., :3])
+    with open(out + ".json", "w") as f:
+        json.dump({"passes": len(r.stats), "portals": r.stats[-1].get("focus_portals", 0)}, f)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", nargs="+", default=["window", "hole"], choices=["window", "hole"])
+    ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
+    ap.add_argument("--time", type=float, default=30.0, help="seconds per run")
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--reference-time", type=float, default=180.0)
+    ap.add_argument("--out", default=os.path.join(ROOT, "benchmarks", "results", "portal_cost"))
+    ap.add_argument("--run-one", nargs=4, metavar=("SCENE", "KIND", "SEED", "OUT"), help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.run_one:
+        scene, kind, seed, out = a.run_one
+        return run_one(scene, kind, int(seed), a.reference_time if kind == "reference" else a.time, out)
+    os.makedirs(a.out, exist_ok=True)
+
+    def spawn(scene, kind, seed):
+        out = os.path.join(a.out, f"{scene}_{kind}_{seed}.npy")
+        if not os.path.exists(out):
+            cmd = [sys.executable, os.path.abspath(__file__), "--time", str(a.time), "--reference-time",
+                   str(a.reference_time), "--run-one", scene, kind, str(seed), out]
+            subprocess.run(cmd, check=True)
+        return out
+
+    for scene in a.scenes:
+        ref = np.load(spawn(scene, "reference", 1000))
+        with ThreadPoolExecutor(2) as pool:
+            runs = {(k, s): pool.submit(spawn, scene, k, s) for s in range(1, a.seeds + 1) for k in a.kinds}
+            paths = {key: f.result() for key, f in runs.items()}
+        print(f"\n{scene}: {a.time:g} s a run, reference {a.reference_time:g} s (mean {ref.mean():.5f})")
+        print("| method | MSE / mean(R)^2 per seed | median | passes |\n|---|---|---|---|")
+        for kind in a.kinds:
+            seeds = range(1, a.seeds + 1)
+            err = [np.mean((np.load(paths[kind, s]) - ref) ** 2) / ref.mean() ** 2 for s in seeds]
+            passes = [json.load(open(paths[kind, s] + ".json"))["passes"] for s in seeds]
+            print(f"| {kind} | {', '.join(f'{x:.3g}' for x in err)} | {np.median(err):.3g} | "
+                  f"{', '.join(str(p) for p in passes)} |")
+
+
+if __name__ == "__main__":
+    main()
