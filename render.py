@@ -89,8 +89,8 @@ def build_parser():
                    help="where in its pixel each pass's camera ray starts (stratified over the passes, "
                         "or random)")
     g.add_argument("--focus-photons", action=argparse.BooleanOptionalAction, default=None,
-                   help="aim uniform photons from the sun and the world at what the camera sees, where "
-                        "that pays (--no-focus-photons: off)")
+                   help="aim uniform photons from the sun and the world at what the camera sees, or "
+                        "through the light portals, where that pays (--no-focus-photons: off)")
     g.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=None,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     g.add_argument("--edge-coverage", action=argparse.BooleanOptionalAction, default=None,

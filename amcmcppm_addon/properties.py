@@ -130,7 +130,8 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         name="Aim Distant Photons", default=_DEFAULTS.focus_photons,
         description="Aim half of the sun's and the world's uniform photons (and the Markov chains' "
                     "uniform samples) at a sphere around what the camera sees, where that pays (a small "
-                    "view of a large scene) and as long as the passes' photons show it does; the image's "
+                    "view of a large scene), or through the light portals of the scene's windows (area "
+                    "lights marked Portal), as long as the passes' photons show it pays; the image's "
                     "expectation stays the same")
     light_paths_from_cycles: BoolProperty(
         name="Use Cycles' Light Paths", default=True,

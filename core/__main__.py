@@ -44,8 +44,8 @@ def build_parser():
                    help="where in its pixel each pass's camera ray starts (stratified over the passes, "
                         "or random)")
     r.add_argument("--focus-photons", action=argparse.BooleanOptionalAction, default=d.focus_photons,
-                   help="aim uniform photons from the sun and the world at what the camera sees, where "
-                        "that pays (--no-focus-photons: off)")
+                   help="aim uniform photons from the sun and the world at what the camera sees, or "
+                        "through the scene's light portals, where that pays (--no-focus-photons: off)")
     r.add_argument("--bias-correction", action=argparse.BooleanOptionalAction, default=d.bias_correction,
                    help="correct the image for the gather radius's blur (--no-bias-correction: off)")
     r.add_argument("--max-bounces", type=int, default=d.max_bounces,

@@ -182,7 +182,9 @@ class RenderSettings:
     (core/mcmc.py, "Photons from afar"): they find and swap in visible paths that much more often.
     For them the focus also goes where their uniform samples outside the visible set (which light
     what the camera sees only through glass or in a curved mirror) show that it does not pay
-    there.  Off: every such photon starts anywhere."""
+    there.  Where the scene has light portals (``World.portals``, Cycles' portals in its windows)
+    the aimed half goes through them instead of the sphere (:meth:`core.lights.Focus.through`).
+    Off: every such photon starts anywhere."""
 
     max_bounces: int = 8
     """Most bounces of a light path from the camera to a light, as Cycles' Max Bounces (Total):
