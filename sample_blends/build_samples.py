@@ -25,7 +25,7 @@ Glossy with roughness 0 as a mirror), so Cycles renders the same files.
 * ``stained_window``: a room lit by the sun through leaves cut out by an alpha map
   (Principled Alpha) and a stained-glass window (a Glass BSDF coloured by Voronoi
   cells), onto a floor whose roughness a noise varies, with a lamp panel on the
-  back wall whose emission a Wave Texture bands.
+  back wall whose emission a Wave Texture bands; a light portal in the window.
 * ``pool_caustics``: the sun through a water surface (Glass of IOR 1.33 bumped by a
   Noise Texture, over a Volume Absorption that tints the deep water) throws caustics
   onto a pool's tiles (a Brick Texture), which the camera sees through the water
@@ -484,6 +484,10 @@ def stained_window():
     b.polygons("Lamp", [[(-0.4, 1.99, 1.5), (0.4, 1.99, 1.5), (0.4, 1.99, 2.0), (-0.4, 1.99, 2.0)]], lamp)
     b.light("Sun", "SUN", (-6.0, 0.0, 5.0), target=(0.0, 0.3, 0.0), energy=6.0, angle=math.radians(1.0),
             color=(1.0, 0.95, 0.85))
+    # A light portal just outside the window (Cycles' Portal box): the sun's and the sky's photons
+    # are aimed through it (it emits nothing).
+    b.light("Window portal", "AREA", (-2.52, 0.0, 1.5), target=(0.0, 0.0, 1.5), shape="RECTANGLE", size=1.6,
+            size_y=1.4).data.cycles.is_portal = True
     b.camera((2.3, -1.8, 1.5), (-1.0, 0.2, 0.5), lens=20.0)
     b.world((0.04, 0.05, 0.07))
     return b.finish("stained_window", (320, 240), exposure=1.0, photons_per_pass=100_000)
