@@ -10,9 +10,12 @@ quarter of the initial radius (``--reference-time`` seconds, 2 workers):
 * ``window``: a closed room of 4 x 4 x 2.5 m lit only by a constant white sky through a square
   window of 0.3 m in one wall (``direct_light_window.window_room``), one portal in the window;
 * ``hole``: the paper's second scene (``hole_mirror_glass``: the sun through a hole of 0.15 m onto
-  a mirror that throws it through a glass sphere), one portal in the hole.
+  a mirror that throws it through a glass sphere), one portal in the hole;
+* ``stained_window``: the sample .blend (the sun and a dim sky through leaves and a stained-glass
+  window of 1.6 x 1.4 m, a lamp panel in the room), exported once by the add-on with its portal
+  (``--out``/stained_window_WxH.npz), rendered with and without it.
 
-    python benchmarks/portal_cost.py --time 30 --seeds 3
+    python benchmarks/portal_cost.py --time 30 --seeds 3 [--scenes window hole stained_window]
 
 prints MSE / mean(R)^2 per seed (relMSE = mean((I - R)^2 / (R^2 + 0.01)) is dominated by its 0.01
 on these dark images) and the passes each run made.
@@ -35,8 +38,29 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 KINDS = ("ppm", "ppm-portal", "amcmcppm", "amcmcppm-portal")
 
 
-def portal_scene(name, portal, resolution=(64, 48)):
-    """The scene ``name`` ("window" or "hole"), with its portal if ``portal``."""
+def export_sample(name, resolution, path):
+    """Export sample_blends/``name``.blend at ``resolution`` to ``path`` (.npz) with the add-on."""
+    import bpy
+
+    from render import ensure_addon
+    ensure_addon(bpy)
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(ROOT, "sample_blends", f"{name}.blend"))
+    r = bpy.context.scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage = *resolution, 100
+    export = sys.modules["amcmcppm"].amcmcppm_addon.export
+    exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    exported.scene.save(path)
+
+
+def portal_scene(name, portal, resolution=(64, 48), out="."):
+    """The scene ``name`` ("window", "hole" or "stained_window", exported into ``out``), with its
+    portal if ``portal``."""
+    if name == "stained_window":
+        from core import Scene
+        scene = Scene.load(os.path.join(out, f"{name}_{resolution[0]}x{resolution[1]}.npz"))
+        if not portal:
+            scene.world.portals = scene.world.portal_disks = None
+        return scene.validate()
     if name == "window":
         from direct_light_window import window_room
         scene, centre, half = window_room(0.3, resolution), (2.0, 0.0, 1.6), 0.15
@@ -50,7 +74,7 @@ def portal_scene(name, portal, resolution=(64, 48)):
     return scene.validate()
 
 
-def run_one(scene, kind, seed, seconds, out):
+def run_one(scene, kind, seed, seconds, out, resolution):
     """One render in this process."""
     from core import RenderSettings, render
     base = RenderSettings()
@@ -58,7 +82,8 @@ def run_one(scene, kind, seed, seconds, out):
         kw = dict(method="ppm", initial_radius_px=0.25 * base.initial_radius_px, workers=2)
     else:
         kw = dict(method=kind.split("-")[0], workers=1)
-    r = render(portal_scene(scene, kind == "reference" or kind.endswith("portal")),
+    r = render(portal_scene(scene, kind == "reference" or kind.endswith("portal"), resolution,
+                            os.path.dirname(out)),
                RenderSettings(seed=seed, passes=0, time_limit=seconds, **kw))
     np.save(out, r.image[..., :3])
     with open(out + ".json", "w") as f:
@@ -67,7 +92,9 @@ def run_one(scene, kind, seed, seconds, out):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--scenes", nargs="+", default=["window", "hole"], choices=["window", "hole"])
+    ap.add_argument("--scenes", nargs="+", default=["window", "hole"],
+                    choices=["window", "hole", "stained_window"])
+    ap.add_argument("--resolution", nargs=2, type=int, default=[64, 48])
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
     ap.add_argument("--time", type=float, default=30.0, help="seconds per run")
     ap.add_argument("--seeds", type=int, default=3)
@@ -77,23 +104,32 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.run_one:
         scene, kind, seed, out = a.run_one
-        return run_one(scene, kind, int(seed), a.reference_time if kind == "reference" else a.time, out)
+        if kind == "export":
+            return export_sample(scene, a.resolution, out)
+        return run_one(scene, kind, int(seed), a.reference_time if kind == "reference" else a.time, out,
+                       a.resolution)
     os.makedirs(a.out, exist_ok=True)
+    size = f"{a.resolution[0]}x{a.resolution[1]}"
 
     def spawn(scene, kind, seed):
-        out = os.path.join(a.out, f"{scene}_{kind}_{seed}.npy")
+        name = f"{scene}_{size}.npz" if kind == "export" else f"{scene}_{size}_{kind}_{seed}.npy"
+        out = os.path.join(a.out, name)
         if not os.path.exists(out):
             cmd = [sys.executable, os.path.abspath(__file__), "--time", str(a.time), "--reference-time",
-                   str(a.reference_time), "--run-one", scene, kind, str(seed), out]
+                   str(a.reference_time), "--resolution", *map(str, a.resolution), "--run-one", scene, kind,
+                   str(seed), out]
             subprocess.run(cmd, check=True)
         return out
 
     for scene in a.scenes:
+        if scene == "stained_window":
+            spawn(scene, "export", 0)
         ref = np.load(spawn(scene, "reference", 1000))
         with ThreadPoolExecutor(2) as pool:
             runs = {(k, s): pool.submit(spawn, scene, k, s) for s in range(1, a.seeds + 1) for k in a.kinds}
             paths = {key: f.result() for key, f in runs.items()}
-        print(f"\n{scene}: {a.time:g} s a run, reference {a.reference_time:g} s (mean {ref.mean():.5f})")
+        print(f"\n{scene}, {size}: {a.time:g} s a run, reference {a.reference_time:g} s "
+              f"(mean {ref.mean():.5f})")
         print("| method | MSE / mean(R)^2 per seed | median | passes |\n|---|---|---|---|")
         for kind in a.kinds:
             seeds = range(1, a.seeds + 1)
