@@ -1436,6 +1436,14 @@ def test_world_light_emits_4_pi_squared_r_squared_radiance_uniformly():
     check_distant_origins(o, d)
 
 
+def afar_context(emitter, axis, power):
+    """:func:`light_context` with a sun along ``axis`` of irradiance ``power`` ("sun"), or a constant
+    world of radiance ``power`` (else)."""
+    if emitter == "sun":
+        return light_context([{"kind": "sun", "direction": axis, "power": power, "sun_angle": 0.0}])
+    return light_context(world=power)
+
+
 def power_into_sphere(o, d, flux, centre, rho):
     """(mean, standard error) per channel of the photons' flux that enters the sphere (centre,
     rho): the rays from ``o`` along ``d`` that pass within rho of its centre, ahead of them."""
@@ -1456,10 +1464,7 @@ def test_focused_photons_from_afar_carry_the_same_light_into_any_sphere(emitter)
     the scene's disc; every origin stays on the plane 2 R before the scene's centre."""
     power = np.array([3.0, 2.0, 1.0])
     axis = unit_vector(-0.2, 0.4, -1.0)
-    if emitter == "sun":
-        ctx = light_context([{"kind": "sun", "direction": axis, "power": power, "sun_angle": 0.0}])
-    else:
-        ctx = light_context(world=power)
+    ctx = afar_context(emitter, axis, power)
     rho = 0.3
     exact = power * (np.pi * rho ** 2 if emitter == "sun" else 4 * np.pi ** 2 * rho ** 2)
     u = np.random.default_rng(4095).random((N, 6))
@@ -1507,10 +1512,7 @@ def test_photons_from_afar_through_portals_carry_the_same_light_through_any_wind
     of the photons' without it or less."""
     power = np.array([3.0, 2.0, 1.0])
     axis = unit_vector(-0.9, 0.2, -0.4)
-    if emitter == "sun":
-        ctx = light_context([{"kind": "sun", "direction": axis, "power": power, "sun_angle": 0.0}])
-    else:
-        ctx = light_context(world=power)
+    ctx = afar_context(emitter, axis, power)
     # A window in the plane x = 1.2 across the box, light crossing it along -x (u x v).
     centre, u, v = np.array([1.2, -0.3, 0.4]), np.array([0.0, 0.0, 0.2]), np.array([0.0, 0.15, 0.0])
     windows = {"in the portal": (centre, u, v), "partly in it": (centre + [0, 0.2, 0.1], u, v),
