@@ -87,7 +87,8 @@ def run_one(scene, kind, seed, seconds, out, resolution):
     if kind == "reference":
         kw = dict(method="ppm", initial_radius_px=0.25 * base.initial_radius_px, workers=2)
     else:
-        kw = dict(method=kind.split("-")[0], workers=1, photons_per_pass=SMALL if kind.endswith("small") else 0)
+        kw = dict(method=kind.split("-")[0], workers=1,
+                  photons_per_pass=SMALL if kind.endswith("small") else 0)
     r = render(portal_scene(scene, kind == "reference" or "portal" in kind, resolution,
                             os.path.dirname(out)),
                RenderSettings(seed=seed, passes=0, time_limit=seconds, **kw))
