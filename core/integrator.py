@@ -827,12 +827,15 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         eye = eye_pass(0)
         target = make_target(0, eye)
         last_rate = None                # photons per second per worker of the last whole pass
+        portal_visible = None           # under light portals: the last pass's visible share
         catcher_share = 0.0             # the catchers' render's time over the main photons' (last pass)
         while pass_index < max_passes:
             if stop() and pass_index > 0:
                 result.interrupted = True
                 break
             photons = settings.pass_photons(n_pixels, pass_index)
+            if portal_visible:
+                photons = settings.portal_photons(photons, n_pixels, settings.worker_count, portal_visible)
             # The first pass runs whole; later ones get the time left before the limit.
             budget = needed = None
             if deadline is not None and pass_index > 0:
@@ -888,6 +891,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 outside_sums += (c["outside_w"], c["outside_w2"], c["uniform_outside"])
                 if _aiming_loses(aim_sums) or (is_chain and _aiming_loses(outside_sums)):
                     focus = None
+            # (the automatic photon count under portals goes by it: RenderSettings.portal_photons)
+            portal_visible = (c["uniform_visible"] / c["uniform_samples"] if focus is not None
+                              and focus.portal_count and c["uniform_samples"] else None)
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)
             interrupted = stop()

@@ -22,6 +22,11 @@ AUTO_PHOTONS_MIN = 100_000          # photons per pass and worker at least (auto
 AUTO_PHOTONS_PER_PIXEL = 0.5        # ... and per pixel of the image (benchmarks/photons_per_pass.py)
 GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins below, loses above
 AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
+# Under light portals (core.lights.Focus.through) the automatic count aims at this many visible
+# photons per pixel and pass over all workers, by the last pass's visible share, and at least
+# AUTO_PORTAL_MIN per worker (benchmarks/portal_cost.py; RenderSettings.portal_photons).
+AUTO_PORTAL_VISIBLE_PER_PIXEL = 1.0
+AUTO_PORTAL_MIN = 10_000
 MUTATIONS = ("off", "paper", "exact")
 DIRECT_LIGHT = ("photons", "sampled")
 PIXEL_JITTER = ("stratified", "random")
@@ -436,6 +441,21 @@ class RenderSettings:
         if self.photons_per_pass:
             return full
         return int(min(full, AUTO_PHOTONS_MIN * AUTO_RAMP ** min(pass_index, 64)))
+
+    def portal_photons(self, photons: int, n_pixels: int, workers: int, visible: float) -> int:
+        """Photon paths per worker in a pass under light portals: the automatic count ``photons``
+        (:meth:`pass_photons`) lowered so that, with the share ``visible`` of the last pass's
+        uniform photons (or the chains' uniform samples) that reached what the camera sees, the
+        ``workers`` trace about AUTO_PORTAL_VISIBLE_PER_PIXEL visible ones per pixel, and at least
+        AUTO_PORTAL_MIN.  Portals send the photons from afar into the room the camera sees, where
+        they bounce on: a pass of the automatic count then cost 2 to 5 times as long, and the
+        passes, not the photons, bounded the error (the sky through the window, whose edges
+        converge by camera rays, and the radius, which shrinks by passes).  An explicit
+        ``photons_per_pass`` holds."""
+        if self.photons_per_pass or not visible > 0:
+            return photons
+        wanted = math.ceil(AUTO_PORTAL_VISIBLE_PER_PIXEL * n_pixels / (max(workers, 1) * visible))
+        return int(min(photons, max(AUTO_PORTAL_MIN, wanted)))
 
     def replace(self, **changes) -> "RenderSettings":
         return dataclasses.replace(self, **changes)

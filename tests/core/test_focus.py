@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 
 from core import RenderSettings, render
 from core.scene import SceneError
+from core.settings import AUTO_PHOTONS_MIN, AUTO_PORTAL_MIN
 from core.testing.scenes import (SUNLIT_CORNER_SUN, mirror_lit_shade, sky_over_floor, skylight_radiance,
                                  skylight_room, small_view, sunlit_corner)
 
@@ -194,3 +196,28 @@ def _saved(scene, tmp_path):
     path = tmp_path / "plain.npz"
     scene.save(path)
     return path
+
+
+def test_under_portals_the_automatic_photon_count_aims_at_a_visible_photon_per_pixel():
+    """Portals send the photons into the room, where they bounce on, so a pass of the automatic
+    count costs several times as long (``RenderSettings.portal_photons``): from the second pass on
+    the count is what gives about one visible photon per pixel by the last pass's visible share
+    (about 6.5 % in the skylit room: some 16,000 for its 1024 pixels), at least AUTO_PORTAL_MIN
+    and at most the automatic count; an explicit count holds, and without portals the automatic
+    count stays."""
+    s = RenderSettings(method="ppm", passes=3, workers=1, seed=3)
+    r = render(skylight_room(resolution=(32, 32)), s)
+    traced = [st["paths_traced"] for st in r.stats]
+    shares = [st["visible_fraction_pass"] for st in r.stats]
+    assert traced[0] == AUTO_PHOTONS_MIN
+    for share, count in zip(shares[:-1], traced[1:]):
+        assert count == max(AUTO_PORTAL_MIN, math.ceil(1024 / share)) and count < AUTO_PHOTONS_MIN / 4
+    r = render(skylight_room(resolution=(32, 32)), dataclasses.replace(s, photons_per_pass=50_000))
+    assert [st["paths_traced"] for st in r.stats] == [50_000] * 3
+    r = render(skylight_room(resolution=(32, 32), portal=False), s)
+    assert [st["paths_traced"] for st in r.stats] == [AUTO_PHOTONS_MIN] * 3
+    assert s.portal_photons(100_000, 4096, 2, 0.065) == math.ceil(4096 / (2 * 0.065))
+    assert s.portal_photons(100_000, 1024, 1, 1e-4) == 100_000
+    assert s.portal_photons(100_000, 1024, 1, 0.9) == AUTO_PORTAL_MIN
+    assert s.portal_photons(100_000, 1024, 1, 0.0) == 100_000
+    assert dataclasses.replace(s, photons_per_pass=7).portal_photons(7, 1024, 1, 0.065) == 7
