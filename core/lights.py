@@ -780,11 +780,11 @@ class LightSampler:
         x, y = smp.concentric_disk(u[:, 1], u[:, 2])
         t, b = smp.orthonormal_frames(d)
         r = self.radius
-        if focus is None:
-            return self.center + r * (x[:, None] * t + y[:, None] * b) - 2.0 * r * d, np.ones(len(d))
-        if focus.portals is not None:
-            return self._portal_origin(d, u, focus, self.center + r * (x[:, None] * t + y[:, None] * b)
-                                       - 2.0 * r * d, x, y)
+        if focus is None or focus.portals is not None:
+            plain = self.center + r * (x[:, None] * t + y[:, None] * b) - 2.0 * r * d
+            if focus is None:
+                return plain, np.ones(len(d))
+            return self._portal_origin(d, u, focus, plain, x, y)
         share = focus.uniform_share
         aimed = u[:, 3] >= share
         centre = np.where(aimed[:, None], focus.center, self.center)
