@@ -6,7 +6,8 @@ and the blotchy look of a photon map where most of the light is direct (the Corn
 ``benchmarks/versus_cycles.py``).  With ``direct_light="sampled"`` each pass's measurement points
 get that light from ``direct_samples`` light samples each instead: an emitter chosen by power among those
 :meth:`~core.lights.LightSampler.direct_entries` names, a point on it or a direction
-(:meth:`~core.lights.LightSampler.sample_direct`), a shadow ray, and the point's BSDF through the
+(:meth:`~core.lights.LightSampler.sample_direct`; the world's mostly through its light portals where
+the scene has them), a shadow ray, and the point's BSDF through the
 pair weights a photon arriving along the same direction would get
 (:meth:`~core.photon_pass.DepositTarget.pair_weights`, with the landing facet the point's own).
 The photon pass then leaves out the deposits at the first vertex of the photons of those emitters

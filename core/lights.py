@@ -28,6 +28,12 @@ LIGHT_DIMS = 6
 FOCUS_UNIFORM_SHARE = 0.5
 FOCUS_QUANTILES = (0.5, 0.75, 0.9, 0.95, 0.99, 1.0)
 FOCUS_MAX_VARIANCE = 0.5
+# Under light portals, the share of the world's light samples (LightSampler._world_samples) that keep
+# the cosine's or the image's directions where a portal faces the point (the rest aim through
+# the portals): the defensive part, bounding the variance where the portals do not pay at 1 / it
+# times the cosine's.  A sky through an opening with a portal (test_direct_light): pixels' RMS
+# 26 % at 1/2, 14 % at 1/4, 8.5 % at 1/10 (16 samples a pixel); benchmarks/portal_cost.py.
+PORTAL_SAMPLE_SHARE = 0.25
 # The visible photons from afar a render's focused passes must have had before it judges the focus
 # by them (core/integrator.py).
 FOCUS_MIN_VISIBLE = 64
@@ -120,17 +126,57 @@ class Focus:
         cross one into the scene."""
         return self._area * np.maximum(d @ self._normal.T, 0.0)
 
+    def _lines(self, origins, d):
+        """The lines from ``origins`` along ``d`` (n, 3) against every portal's plane: (d . n (n, K),
+        the distances t (n, K) along d to the planes (0 where parallel), (n, K) bool whether the
+        line meets the plane within the portal)."""
+        facing = d @ self._normal.T
+        height = smp.dot(self.portals[:, 0], self._normal)[None, :] - origins @ self._normal.T
+        t = height / np.where(facing != 0, facing, 1.0) * (facing != 0)
+        p = origins[:, None, :] + t[:, :, None] * d[:, None, :] - self.portals[None, :, 0]
+        x = np.einsum("nkj,kj->nk", p, self._dual_u)
+        y = np.einsum("nkj,kj->nk", p, self._dual_v)
+        inside = np.where(self.portal_disks, x * x + y * y, np.maximum(x * x, y * y)) <= 1.0 + 1e-6
+        return facing, t, inside & (facing != 0)
+
     def crossings(self, origins, d) -> np.ndarray:
         """(n,) how many portals the lines from ``origins`` along ``d`` (n, 3) cross into the scene."""
-        count = np.zeros(len(d))
-        for k in range(len(self.portals)):
-            facing = d @ self._normal[k]
-            t = ((self.portals[k, 0] - origins) @ self._normal[k]) / np.where(facing > 0, facing, 1.0)
-            p = origins + t[:, None] * d - self.portals[k, 0]
-            x, y = p @ self._dual_u[k], p @ self._dual_v[k]
-            inside = (x * x + y * y if self.portal_disks[k] else np.maximum(x * x, y * y)) <= 1.0 + 1e-6
-            count += (facing > 0) & inside
-        return count
+        facing, _, inside = self._lines(origins, d)
+        return ((facing > 0) & inside).sum(axis=1).astype(np.float64)
+
+    def seen_from(self, x) -> np.ndarray:
+        """(n, K) how much each portal is worth aiming at from points ``x`` (n, 3) inside, A h /
+        (D^2 + A)^(3/2) (its solid angle A h / D^3 as seen from afar, bounded near it; D the
+        distance to its centre, h the height over its plane on the scene's side, 0 on the
+        other side)."""
+        to = x[:, None, :] - self.portals[None, :, 0]
+        h = np.maximum(np.einsum("nkj,kj->nk", to, self._normal), 0.0)
+        return self._area * h / (np.einsum("nkj,nkj->nk", to, to) + self._area) ** 1.5
+
+    def sample_towards(self, x, weights, u1, u2, u3):
+        """(n, 3) unit directions from points ``x`` (n, 3) towards a point uniform on a portal
+        picked with chances ``weights`` (n, K) (rows with a positive sum) by ``u3``, placed on it
+        by ``u1``, ``u2``."""
+        cumulative = np.cumsum(weights, axis=1)
+        pick = u3 * cumulative[:, -1]
+        k = np.minimum((cumulative <= pick[:, None]).sum(axis=1), len(self.portals) - 1)
+        disk = self.portal_disks[k]
+        cx, cy = smp.concentric_disk(u1, u2)
+        a = np.where(disk, cx, 2.0 * u1 - 1.0)[:, None]
+        b = np.where(disk, cy, 2.0 * u2 - 1.0)[:, None]
+        return smp.normalize(self.portals[k, 0] + a * self.portals[k, 1] + b * self.portals[k, 2] - x)
+
+    def towards_pdf(self, x, weights, d) -> np.ndarray:
+        """(n,) the density per solid angle of :meth:`sample_towards` with ``weights`` at the unit
+        directions ``d`` (n, 3): over the portals the ray from x along d leaves the scene through,
+        their chance times t^2 / (A |d . n|) (exact where portals overlap along d)."""
+        facing, t, inside = self._lines(x, d)
+        # (a portal of positive weight has x on its scene side: a ray leaving through it meets it ahead)
+        through = inside & (facing < 0)
+        total = weights.sum(axis=1, keepdims=True)
+        chance = weights / np.where(total > 0, total, 1.0)
+        per = np.where(through, chance * t * t / (self._area * np.where(through, -facing, 1.0)), 0.0)
+        return per.sum(axis=1)
 
     @staticmethod
     def around(positions, reach, lights, uniform_share=FOCUS_UNIFORM_SHARE) -> "Focus | None":
@@ -235,6 +281,11 @@ class LightSampler:
                             if texture is not None else None)
         if self.environment is not None:
             world = self.environment.integral / (4.0 * np.pi)     # the mean radiance, for the power
+        # Light portals (World.portals) guide the world's light samples (sample_direct) as Cycles'
+        # guide its world samples; the photons' focus on them is the integrator's (Focus.through).
+        portals = getattr(scene.world, "portals", None)
+        self.portals = (Focus(np.zeros(3), 0.0, PORTAL_SAMPLE_SHARE, portals, scene.world.portal_disks)
+                        if portals is not None and len(portals) else None)
         n_world = 1 if world.any() else 0
         # Glowing volumes: 4 pi E V each, V the volume their material's triangles enclose.
         self.volumes = {}
@@ -570,8 +621,9 @@ class LightSampler:
         soft falloff's d^2 / (d^2 + r^2); an area light's P att / (pi A) (a point drawn uniformly
         on it); a sun's irradiance over its cone; an emissive triangle's (two-sided) P / (2 pi A);
         the world's in a cosine direction about the points' normals ``n`` (k, 3) (either side where
-        ``both`` (k,) bool, each half the time), or drawn from its image.  The choice of the
-        emitter is left to the caller."""
+        ``both`` (k,) bool, each half the time), or drawn from its image, and under light portals
+        mostly towards them (:meth:`_world_samples`).  The choice of the emitter is left to the
+        caller."""
         k = len(entry)
         wi, t_max, value = np.zeros((k, 3)), np.full(k, np.inf), np.zeros((k, 3))
         wi[:, 2] = 1.0
@@ -649,19 +701,42 @@ class LightSampler:
                 wi[sel], t_max[sel] = d, dist * (1.0 - 1e-4)
                 value[sel] = self.power.take(entry.take(sel), axis=0) * w[:, None]
             elif kind == WORLD:
-                if self.environment is not None:
-                    d, pdf = self.environment.sample(us[:, 0], us[:, 1])
-                    value[sel] = (self.environment.radiance(d) * self.far
-                                  / np.maximum(pdf, 1e-300)[:, None] * (pdf > 0)[:, None])
-                else:
-                    flip = both.take(sel) & (us[:, 2] < 0.5)
-                    normal = n.take(sel, axis=0) * np.where(flip, -1.0, 1.0)[:, None]
-                    local = smp.cosine_hemisphere(us[:, 0], us[:, 1])
-                    d = smp.to_world(local, normal)
-                    pdf = local[:, 2] / np.pi * np.where(both.take(sel), 0.5, 1.0)
-                    value[sel] = (self.world_radiance * self.far)[None, :] / np.maximum(pdf, 1e-300)[:, None]
-                wi[sel] = d
+                wi[sel], value[sel] = self._world_samples(xs, n.take(sel, axis=0), both.take(sel), us)
         return wi, t_max, value
+
+    def _world_samples(self, x, n, both, u):
+        """:meth:`sample_direct` for the world at points ``x`` (k, 3) with normals ``n``: (directions
+        (k, 3), radiance over density (k, 3)).  Directions come from the world's image, or else
+        by the cosine about n (either side where ``both``, each half the time, by ``u[:, 2]``);
+        under light portals, with the chance 1 - PORTAL_SAMPLE_SHARE (by ``u[:, 0]``) where some
+        portal faces the point, towards a point on a portal instead (:meth:`Focus.seen_from`,
+        ``u[:, 2]`` picking it), the density that of the mixture (a sky seen through a window:
+        most of the cosine's directions meet a wall)."""
+        env, portals = self.environment, self.portals
+        aim = portals.seen_from(x) if portals is not None else None
+        share = (np.where(aim.sum(axis=1) > 0, portals.uniform_share, 1.0) if aim is not None
+                 else np.ones(len(x)))
+        aimed = u[:, 0] >= share
+        # (the first number rescaled within its part)
+        u0 = np.where(aimed, (u[:, 0] - share) / np.where(share < 1.0, 1.0 - share, 1.0), u[:, 0] / share)
+        if env is not None:
+            d, pdf = env.sample(u0, u[:, 1])
+        else:
+            flip = both & (u[:, 2] < 0.5)
+            d = smp.to_world(smp.cosine_hemisphere(u0, u[:, 1]), n * np.where(flip, -1.0, 1.0)[:, None])
+        if aimed.any():
+            a = np.flatnonzero(aimed)
+            d[a] = portals.sample_towards(x[a], aim[a], u0[a], u[a, 1], u[a, 2])
+        if env is None:
+            cos = smp.dot(d, n)
+            pdf = np.where(both, 0.5 * np.abs(cos), np.maximum(cos, 0.0)) / np.pi
+        elif aim is not None:
+            pdf = env.pdf(d)
+        if aim is not None:
+            pdf = share * pdf + (1.0 - share) * portals.towards_pdf(x, aim, d)
+        radiance = env.radiance(d) if env is not None else self.world_radiance[None, :]
+        value = radiance * self.far / np.maximum(pdf, 1e-300)[:, None] * (pdf > 0)[:, None]
+        return d, value
 
     def lights_sets(self, u0, sets):
         """(n,) bool: whether the emitters of photons with first light dimensions ``u0`` (n,)
