@@ -5,9 +5,11 @@ world; here they aim the photons from afar (the world's and the sun's) through t
 (``core.lights.Focus.through``), with the chance 1/2, every photon's flux divided by the density of
 that mixture.  This renders, for the same time each, with and without the portals, PPM and
 AMCMCPPM (one worker a run, 2 runs at a time; with the portals also with an eighth of the automatic
-photon count, ``-small``: the aimed photons enter and bounce, so a pass costs more), against a
+photon count, ``-small``: the aimed photons enter and bounce, so a pass costs more; ``-sampled``:
+with ``direct_light="sampled"``, whose world light samples the portals guide too), against a
 reference of PPM with the portals at a quarter of the initial radius (``--reference-time`` seconds,
-2 workers):
+2 workers; its direct light from photons, so its kernel bias, a sixteenth of a run's, counts
+against the light samples alone):
 
 * ``window``: a closed room of 4 x 4 x 2.5 m lit only by a constant white sky through a square
   window of 0.3 m in one wall (``direct_light_window.window_room``), one portal in the window;
@@ -40,7 +42,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-KINDS = ("ppm", "ppm-portal", "ppm-portal-small", "amcmcppm", "amcmcppm-portal", "amcmcppm-portal-small")
+KINDS = ("ppm", "ppm-portal", "ppm-portal-small", "amcmcppm", "amcmcppm-portal", "amcmcppm-portal-small",
+         "ppm-sampled", "ppm-portal-sampled", "amcmcppm-sampled", "amcmcppm-portal-sampled")
 SMALL = 12_500          # photons per pass and worker of the "-small" kinds (the automatic count: 100,000)
 
 
@@ -88,7 +91,8 @@ def run_one(scene, kind, seed, seconds, out, resolution):
         kw = dict(method="ppm", initial_radius_px=0.25 * base.initial_radius_px, workers=2)
     else:
         kw = dict(method=kind.split("-")[0], workers=1,
-                  photons_per_pass=SMALL if kind.endswith("small") else 0)
+                  photons_per_pass=SMALL if kind.endswith("small") else 0,
+                  direct_light="sampled" if kind.endswith("sampled") else "photons")
     r = render(portal_scene(scene, kind == "reference" or "portal" in kind, resolution,
                             os.path.dirname(out)),
                RenderSettings(seed=seed, passes=0, time_limit=seconds, **kw))
