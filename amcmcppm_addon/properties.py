@@ -42,7 +42,7 @@ DIRECT_LIGHT_ITEMS = {
                            "photons' first hits, as the rest (the paper's method)", 0),
     "sampled": ("Light Samples", "Light samples and shadow rays (Light Samples per pixel and pass) for the "
                                  "light that reaches a surface straight from a lamp, an emissive mesh or the "
-                                 "world; photons for the rest (light through glass or off mirrors, on sharp "
+                                 "world (aimed through its light portals, if any); photons for the rest (light through glass or off mirrors, on sharp "
                                  "glossy surfaces, and in scenes with volumes)", 1),
 }
 PIXEL_JITTER_ITEMS = {

@@ -265,7 +265,8 @@ def draw_light_portal(self, context):
     """Light > Portal for an area light (Cycles' ``cycles.is_portal``, drawn by Cycles' light panel
     for Cycles only), appended to EEVEE's light panel as shown for our engine: a portal in a window
     emits nothing, and the photons from afar (the world's, the sun's) are aimed through it
-    (``World.portals``, ``core.lights.Focus.through``)."""
+    (``World.portals``, ``core.lights.Focus.through``), as are the world's light samples with
+    Direct Light "Light Samples"."""
     light = context.light
     if context.engine != ENGINE_ID or light is None or light.type != 'AREA' or not hasattr(light, "cycles"):
         return

@@ -30,7 +30,7 @@ surface along their first flight, as Cycles' unshadowed light samples do.
 An area light marked as a Cycles portal (``cycles.is_portal``) emits nothing and is invisible, as
 in Cycles, where it guides the sampling of the world through a window: here it becomes one of the
 world's portals (:func:`portal_frame`, ``World.portals``), through which the photons from afar (the
-world's and the sun's) are aimed.
+world's and the sun's) are aimed, and the world's light samples (``direct_light = "sampled"``).
 
 Light groups (View Layer > Light Groups; Object > Shading > Light Group): a light's
 ``object.lightgroup`` names its group, whose pass (Cycles' ``Combined_<name>``) holds the light it
