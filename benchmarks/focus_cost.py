@@ -15,6 +15,7 @@ instead.  This renders, for ``--time`` seconds each with one worker (``--jobs`` 
 
 with PPM and AMCMCPPM focused (the default; the chains' uniform samples aimed, each run of their
 states weighted by its first sample's weight, core/mcmc.py "Photons from afar") and unfocused, and
+``auto`` (``RenderSettings.method``), and
 prints relMSE = mean((I - R)^2 / (R^2 + 0.01)) per seed (``error_vs_time.errors``; against the two-run reference
 corrected for its noise, (A - B)^2 / 4 per pixel, as ``error_vs_time.py``), the passes, the focus
 radius and the chains' passes that aimed:
@@ -40,7 +41,7 @@ from error_vs_time import errors  # noqa: E402
 SCENES = {"sky_over_floor": (64, 48), "sunlit_corner": (64, 48), "mirror_lit_shade": (32, 32)}
 METHODS = {"ppm": dict(method="ppm"), "ppm-unfocused": dict(method="ppm", focus_photons=False),
            "amcmcppm": dict(method="amcmcppm"),
-           "amcmcppm-unfocused": dict(method="amcmcppm", focus_photons=False)}
+           "amcmcppm-unfocused": dict(method="amcmcppm", focus_photons=False), "auto": dict(method="auto")}
 
 
 def closed_form(name, resolution):

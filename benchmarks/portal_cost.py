@@ -6,7 +6,8 @@ world; here they aim the photons from afar (the world's and the sun's) through t
 that mixture.  This renders, for the same time each, with and without the portals, PPM and
 AMCMCPPM (one worker a run, 2 runs at a time; with the portals also with an eighth of the automatic
 photon count, ``-small``: the aimed photons enter and bounce, so a pass costs more; ``-sampled``:
-with ``direct_light="sampled"``, whose world light samples the portals guide too), against a
+with ``direct_light="sampled"``, whose world light samples the portals guide too; ``auto``:
+``RenderSettings.method``), against a
 reference of PPM with the portals at a quarter of the initial radius (``--reference-time`` seconds,
 2 workers; its direct light from photons, so its kernel bias, a sixteenth of a run's, counts
 against the light samples alone):
@@ -43,7 +44,7 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 KINDS = ("ppm", "ppm-portal", "ppm-portal-small", "amcmcppm", "amcmcppm-portal", "amcmcppm-portal-small",
-         "ppm-sampled", "ppm-portal-sampled", "amcmcppm-sampled", "amcmcppm-portal-sampled")
+         "ppm-sampled", "ppm-portal-sampled", "amcmcppm-sampled", "amcmcppm-portal-sampled", "auto", "auto-portal")
 SMALL = 12_500          # photons per pass and worker of the "-small" kinds (the automatic count: 100,000)
 
 

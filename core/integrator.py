@@ -38,7 +38,7 @@ from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON
 from .lights import FOCUS_MIN_VISIBLE, Focus
 from .parallel import make_pool
 from .photon_pass import DepositTarget
-from .settings import AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
+from .settings import AUTO_AIMED_VISIBLE, AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
 from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, SHADOW_CATCHER_PASS,
                              catcher_scene, compose)
 from .visible_cells import VisibleCells
@@ -937,9 +937,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 break
             if last:
                 break
-            # (the unaimed share: aimed, the chains' visible uniform samples estimate it by sum(w V))
+            # (the unaimed share: aimed, the chains' visible uniform samples estimate it by sum(w V);
+            # where the aim holds, PPM goes on aimed and its share is the aimed samples')
             if (settings.method == "auto" and pass_index == 1 and c["uniform_samples"]
-                    and visible >= AUTO_UNIFORM_VISIBLE * c["uniform_samples"]):
+                    and (visible >= AUTO_UNIFORM_VISIBLE * c["uniform_samples"]
+                         or (focus is not None and target.focus is not None
+                             and c["uniform_visible"] >= AUTO_AIMED_VISIBLE * c["uniform_samples"]))):
                 # Many uniform paths are visible: uniform photons from here on, and an image of
                 # their passes alone (RenderSettings.method).  The next pass is not prepared yet
                 # (none is while the first runs), so it is made without the chains' cells.

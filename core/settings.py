@@ -18,6 +18,10 @@ METHODS = ("amcmcppm", "ppm", "auto")
 # "auto": uniform photons from the second pass on when at least this share of the first pass's
 # uniform samples were visible (benchmarks/error_vs_time.py; RenderSettings.method).
 AUTO_UNIFORM_VISIBLE = 0.3
+# ... or, where the photons from afar are aimed (a focus sphere or light portals that the first pass
+# kept), when at least this share of its aimed uniform samples were visible: the photons PPM would
+# go on with (benchmarks/portal_cost.py, focus_cost.py: aimed PPM ahead from 0.16 up).
+AUTO_AIMED_VISIBLE = 0.1
 AUTO_PHOTONS_MIN = 100_000          # photons per pass and worker at least (automatic count)
 AUTO_PHOTONS_PER_PIXEL = 0.5        # ... and per pixel of the image (benchmarks/photons_per_pass.py)
 GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins below, loses above
@@ -106,12 +110,16 @@ class RenderSettings:
     """"amcmcppm": photons from Markov chains that seek paths seen by the camera
     (Hachisuka & Jensen 2011); "ppm": independent uniform photons (stochastic
     progressive photon mapping, the baseline); "auto": the chains' first pass, then uniform
-    photons when at least ``AUTO_UNIFORM_VISIBLE`` of that pass's uniform samples were visible,
-    else the chains on.  The chains sample the visible paths uniformly, so where a share f of
-    uniform paths is visible they record at most 1/f times as many useful photons per path
-    as uniform photons do, while an iteration traces up to two paths and keeps its books
-    (two to three uniform paths' time); at f >= 0.3 that bound, 3.3, is about what they cost.
-    The image then starts again from the second pass."""
+    photons when at least ``AUTO_UNIFORM_VISIBLE`` of that pass's uniform samples were visible
+    (unaimed: with a focus, estimated from its aimed ones by their weights), or where the photons
+    from afar are aimed (``focus_photons``, kept after that pass) at least ``AUTO_AIMED_VISIBLE``
+    of the aimed ones, else the chains on.  The chains sample the visible paths uniformly, so
+    where a share f of uniform paths is visible they record at most 1/f times as many useful
+    photons per path as uniform photons do, while an iteration traces up to two paths and keeps
+    its books (two to three uniform paths' time); at f >= 0.3 that bound, 3.3, is about what they
+    cost.  Aimed, the uniform photons PPM goes on with are the aimed ones, and it measured ahead
+    from f = 0.16 up (a far sunlit corner, rooms lit through light portals).  The image then
+    starts again from the second pass."""
 
     passes: int = 16
     """Passes to render (eye pass + photon pass each); 0 = until ``time_limit``."""
