@@ -1,10 +1,11 @@
-"""method="auto": the chains' first pass, then uniform photons where many uniform paths are visible."""
+"""method="auto": the chains' first pass, then uniform photons where many uniform paths are visible
+(aimed ones where the photons from afar are aimed)."""
 import numpy as np
 import pytest
 
 from core import RenderSettings, render
-from core.settings import AUTO_UNIFORM_VISIBLE
-from core.testing.scenes import cornell_box, glass_ceiling_room
+from core.settings import AUTO_AIMED_VISIBLE, AUTO_UNIFORM_VISIBLE
+from core.testing.scenes import SUNLIT_CORNER_SUN, cornell_box, glass_ceiling_room, sunlit_corner
 
 # (plain estimates: the first test rebuilds PPM's passes 2..6 from its images after 1 and 6)
 FAST = dict(photons_per_pass=20_000, chains=2048, bias_correction=False)
@@ -47,3 +48,22 @@ def test_a_render_stopped_at_the_switch_keeps_the_first_image():
     assert result.interrupted and result.passes == 1 and result.method == "amcmcppm"
     assert result.image[..., :3].mean() > 0
     np.testing.assert_array_equal(result.image, seen[0])
+
+
+def test_aimed_photons_often_visible_go_on_uniform():
+    """A 600 mm lens on a corner of a 200 m sunlit floor: aimed at what the camera sees
+    (``focus_photons``), some 16 % of the first pass's uniform samples are visible (about 0.1 %
+    unaimed), so "auto" goes on with aimed uniform photons (``AUTO_AIMED_VISIBLE``; measured ahead
+    of the chains there, benchmarks/focus_cost.py) and the image is the closed form's; unaimed,
+    it keeps the chains."""
+    scene = sunlit_corner()
+    auto = render(scene, RenderSettings(method="auto", passes=3, seed=1, workers=1, **FAST))
+    assert [s["method"] for s in auto.stats] == ["amcmcppm", "ppm", "ppm"]
+    assert AUTO_AIMED_VISIBLE <= auto.stats[0]["visible_fraction_pass"] < AUTO_UNIFORM_VISIBLE
+    assert all(s["focus_radius"] > 0 for s in auto.stats)
+    expected = 0.6 * 4.0 * -SUNLIT_CORNER_SUN[2] / np.pi       # albedo E cos / pi (the defaults)
+    assert abs(auto.image[..., :3].mean() / expected - 1.0) < 0.05
+    unaimed = render(scene, RenderSettings(method="auto", passes=2, seed=1, workers=1, focus_photons=False,
+                                           **FAST))
+    assert unaimed.stats[0]["visible_fraction_pass"] < AUTO_AIMED_VISIBLE
+    assert unaimed.method == "amcmcppm" and all(s["method"] == "amcmcppm" for s in unaimed.stats)
