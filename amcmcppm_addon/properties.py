@@ -9,9 +9,9 @@ properties configure optional file outputs of the engine (statistics, snapshots)
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..core.settings import (AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_UNIFORM_VISIBLE, DIRECT_LIGHT,
-                             MAX_BOUNCES, MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS,
-                             PIXEL_JITTER, RenderSettings)
+from ..core.settings import (AUTO_AIMED_VISIBLE, AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL,
+                             AUTO_UNIFORM_VISIBLE, DIRECT_LIGHT, MAX_BOUNCES, MAX_TRANSPARENT_BOUNCES,
+                             METHODS, MUTATIONS, NORMALISATIONS, PIXEL_JITTER, RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -22,7 +22,9 @@ METHOD_ITEMS = {
                    "(the baseline)", 1),
     "auto": ("Automatic", "AMCMCPPM, or uniform photons from the second pass on when many of the "
                           f"first pass's uniform photon paths are visible (at least "
-                          f"{AUTO_UNIFORM_VISIBLE:.0%}), where the chains gain little for what they cost", 2),
+                          f"{AUTO_UNIFORM_VISIBLE:.0%}; {AUTO_AIMED_VISIBLE:.0%} of those aimed where "
+                          "distant photons are aimed at the view or through light portals), where the "
+                          "chains gain little for what they cost", 2),
 }
 MUTATION_ITEMS = {
     "off": ("Off", "Mutate every dimension of the photon path", 0),
@@ -42,8 +44,9 @@ DIRECT_LIGHT_ITEMS = {
                            "photons' first hits, as the rest (the paper's method)", 0),
     "sampled": ("Light Samples", "Light samples and shadow rays (Light Samples per pixel and pass) for the "
                                  "light that reaches a surface straight from a lamp, an emissive mesh or the "
-                                 "world (aimed through its light portals, if any); photons for the rest (light through glass or off mirrors, on sharp "
-                                 "glossy surfaces, and in scenes with volumes)", 1),
+                                 "world (aimed through its light portals, if any); photons for the rest "
+                                 "(light through glass or off mirrors, on sharp glossy surfaces, and in "
+                                 "scenes with volumes)", 1),
 }
 PIXEL_JITTER_ITEMS = {
     "stratified": ("Stratified", "Each pixel's passes spread their camera rays evenly over the pixel "

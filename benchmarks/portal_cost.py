@@ -44,7 +44,8 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 KINDS = ("ppm", "ppm-portal", "ppm-portal-small", "amcmcppm", "amcmcppm-portal", "amcmcppm-portal-small",
-         "ppm-sampled", "ppm-portal-sampled", "amcmcppm-sampled", "amcmcppm-portal-sampled", "auto", "auto-portal")
+         "ppm-sampled", "ppm-portal-sampled", "amcmcppm-sampled", "amcmcppm-portal-sampled",
+         "auto", "auto-portal")
 SMALL = 12_500          # photons per pass and worker of the "-small" kinds (the automatic count: 100,000)
 
 

@@ -370,15 +370,16 @@ def test_world_light_samples_through_portals_are_exact_in_every_direction():
         assert len(entry) == 1 and (lights.portals is None) == (frames is None)
         for where, (x, n, both) in points.items():
             x, n = np.asarray(x, np.float64), np.asarray(n, np.float64) / np.linalg.norm(n)
-            wi, t_max, value = lights.sample_direct(np.repeat(entry, k), np.tile(x, (k, 1)), np.tile(n, (k, 1)),
-                                                    np.full(k, both), rng.random((k, 3)))
+            wi, t_max, value = lights.sample_direct(np.repeat(entry, k), np.tile(x, (k, 1)),
+                                                    np.tile(n, (k, 1)), np.full(k, both), rng.random((k, 3)))
             assert np.isfinite(value).all() and (value >= 0).all() and np.isinf(t_max).all()
             assert np.allclose(np.linalg.norm(wi, axis=1), 1.0)
             cos = np.abs(wi @ n) if both else np.maximum(wi @ n, 0.0)
             e = value * cos[:, None]
             mean, se = e.mean(axis=0), e.std(axis=0) / np.sqrt(k)
             exact = sky * np.pi * (2.0 if both else 1.0)
-            assert (np.abs(mean - exact) < 5 * se + 1e-9).all(), f"{name}, {where}: {mean} against {exact} ({se})"
+            assert (np.abs(mean - exact) < 5 * se + 1e-9).all(), \
+                f"{name}, {where}: {mean} against {exact} ({se})"
             # (through the window: the rays from x cross the rectangle centre + a u + b v)
             facing = wi[:, 2]
             t = (centre[2] - x[2]) / np.where(facing != 0, facing, 1.0)
@@ -388,7 +389,8 @@ def test_world_light_samples_through_portals_are_exact_in_every_direction():
             e = e * through[:, None]
             mean, se = e.mean(axis=0), e.std(axis=0) / np.sqrt(k)
             if both:
-                exact = (window_irradiance(x, n, centre, u, v, sky) + window_irradiance(x, -n, centre, u, v, sky))
+                exact = (window_irradiance(x, n, centre, u, v, sky)
+                         + window_irradiance(x, -n, centre, u, v, sky))
             else:
                 exact = window_irradiance(x, n, centre, u, v, sky)
             assert (np.abs(mean - exact) < 5 * se + 1e-9).all(), \
