@@ -16,6 +16,7 @@ from core.direct import sampled_emitters, sampled_points
 from core.eye_pass import trace_eye_pass
 from core.hash_grid import HashGrid
 from core.light_passes import LIGHT_PASSES
+from core.lights import WORLD
 from core.photon_pass import DepositTarget, trace_photons
 from core.scene import AREA_RECT, Camera, Lights, Materials, World
 from core.testing import scenes
@@ -24,6 +25,7 @@ from core.testing.scenes import (MeshBuilder, corner_in_world_fog, cornell_box, 
                                  sun_through_sheet, sun_through_slab)
 
 from test_closed_form import check_mean, render_passes
+from test_focus import _skylight_exact
 from test_light_groups import BASE as GROUPS_BASE, groups_of, lit_box
 from test_light_passes import passes_of, recombined
 
@@ -348,7 +350,6 @@ def test_world_light_samples_through_portals_are_exact_in_every_direction():
     portal facing the other way (its points keep the cosine alone), two that overlap and a world
     image (against its own samples without portals); through the window the standard error is a
     third of the cosine's alone or less."""
-    from core.lights import WORLD
     sky = np.float32([0.4, 0.5, 0.6]).astype(np.float64)
     centre, u, v = np.array([0.3, 0.2, 2.0]), np.array([0.0, 0.3, 0.0]), np.array([0.2, 0.0, 0.0])
     portals = {"a rectangle": ([[centre, u, v]], [False]), "an ellipse": ([[centre, u, v]], [True]),
@@ -422,7 +423,6 @@ def test_portals_let_the_skys_light_samples_into_a_room():
     matches the closed form's mean within 2 % and the pixels' RMS deviation from it is below 20 %,
     at least five times below the cosine's samples alone (measured 14 % against 2.7 to 2.9
     times the closed form)."""
-    from test_focus import _skylight_exact
     n = 32
     exact = _skylight_exact(n)[4:-4, 4:-4]
     runs = {}
