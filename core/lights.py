@@ -153,10 +153,9 @@ class Focus:
         h = np.maximum(np.einsum("nkj,kj->nk", to, self._normal), 0.0)
         return self._area * h / (np.einsum("nkj,nkj->nk", to, to) + self._area) ** 1.5
 
-    def sample_towards(self, x, weights, u1, u2, u3):
-        """(n, 3) unit directions from points ``x`` (n, 3) towards a point uniform on a portal
-        picked with chances ``weights`` (n, K) (rows with a positive sum) by ``u3``, placed on it
-        by ``u1``, ``u2``."""
+    def points_on(self, weights, u1, u2, u3):
+        """(n, 3) points uniform on a portal picked with chances ``weights`` (n, K) (rows with a
+        positive sum) by ``u3``, placed on it by ``u1``, ``u2`` (concentric on an ellipse)."""
         cumulative = np.cumsum(weights, axis=1)
         pick = u3 * cumulative[:, -1]
         k = np.minimum((cumulative <= pick[:, None]).sum(axis=1), len(self.portals) - 1)
@@ -164,7 +163,11 @@ class Focus:
         cx, cy = smp.concentric_disk(u1, u2)
         a = np.where(disk, cx, 2.0 * u1 - 1.0)[:, None]
         b = np.where(disk, cy, 2.0 * u2 - 1.0)[:, None]
-        return smp.normalize(self.portals[k, 0] + a * self.portals[k, 1] + b * self.portals[k, 2] - x)
+        return self.portals[k, 0] + a * self.portals[k, 1] + b * self.portals[k, 2]
+
+    def sample_towards(self, x, weights, u1, u2, u3):
+        """(n, 3) unit directions from points ``x`` (n, 3) towards :meth:`points_on`."""
+        return smp.normalize(self.points_on(weights, u1, u2, u3) - x)
 
     def towards_pdf(self, x, weights, d) -> np.ndarray:
         """(n,) the density per solid angle of :meth:`sample_towards` with ``weights`` at the unit
@@ -859,7 +862,7 @@ class LightSampler:
             plain = self.center + r * (x[:, None] * t + y[:, None] * b) - 2.0 * r * d
             if focus is None:
                 return plain, np.ones(len(d))
-            return self._portal_origin(d, u, focus, plain, x, y)
+            return self._portal_origin(d, u, focus, plain)
         share = focus.uniform_share
         aimed = u[:, 3] >= share
         centre = np.where(aimed[:, None], focus.center, self.center)
@@ -870,24 +873,19 @@ class LightSampler:
         in_focus = focus.holds(o, d)
         return o, 1.0 / (share * in_scene + (1.0 - share) * (r / focus.radius) ** 2 * in_focus)
 
-    def _portal_origin(self, d, u, focus, origins, x, y):
+    def _portal_origin(self, d, u, focus, origins):
         """:meth:`_disk_origin` under a focus on portals (:meth:`Focus.through`): ``origins`` (n, 3)
-        on the scene's disc (from the concentric ``x``, ``y``) replaced, with the chance
-        ``1 - uniform_share`` (by ``u[:, 3]``, which then also picks the portal) where d crosses a
-        portal, by a point of a portal moved back along d into the disc's plane; the weights are
-        the scene disc's density over the mixture's, 0 off the scene's disc."""
+        on the scene's disc replaced, with the chance ``1 - uniform_share`` (by ``u[:, 3]``, which
+        then also picks the portal, :meth:`Focus.points_on`) where d crosses a portal, by a point of
+        a portal moved back along d into the disc's plane; the weights are the scene disc's density
+        over the mixture's, 0 off the scene's disc."""
         share, r = focus.uniform_share, self.radius
         projected = focus.projected(d)
         total = projected.sum(axis=1)
         aimed = np.flatnonzero((u[:, 3] >= share) & (total > 0))
         if len(aimed):
-            cumulative = np.cumsum(projected[aimed], axis=1)
-            pick = (u[aimed, 3] - share) / (1.0 - share) * total[aimed]
-            k = np.minimum((cumulative <= pick[:, None]).sum(axis=1), len(focus.portals) - 1)
-            disk = focus.portal_disks[k]
-            a = np.where(disk, x[aimed], 2.0 * u[aimed, 1] - 1.0)[:, None]
-            b = np.where(disk, y[aimed], 2.0 * u[aimed, 2] - 1.0)[:, None]
-            p = focus.portals[k, 0] + a * focus.portals[k, 1] + b * focus.portals[k, 2]
+            pick = (u[aimed, 3] - share) / (1.0 - share)
+            p = focus.points_on(projected[aimed], u[aimed, 1], u[aimed, 2], pick)
             da = d[aimed]
             origins[aimed] = p - (smp.dot(p - self.center, da) + 2.0 * r)[:, None] * da
         in_scene = _off_axis2(origins - self.center, d) <= (r * (1.0 + 1e-9)) ** 2
