@@ -40,9 +40,9 @@ def recorded_queries(scene, n_paths, settings):
     calls = []
     query = grid.query
 
-    def recording(x, normals, directions=None):
+    def recording(x, normals, directions=None, inner=False):
         calls.append((x.copy(), normals.copy(), None if directions is None else directions.copy()))
-        return query(x, normals, directions)
+        return query(x, normals, directions, inner=inner)
 
     grid.query = recording                     # this grid object only
     trace_photons(ctx, target, np.random.default_rng(1).random((n_paths, path_dims(settings.max_bounces))),
