@@ -57,6 +57,23 @@ def stratified_jitter(salt, pass_index, pixel_ids):
     return (shift ^ point).astype(np.float64) * 2.0 ** -32
 
 
+def stratified_lens(salt, pass_index, pixel_ids):
+    """(n, 2) lens-sample numbers in [0, 1) for ``pixel_ids`` (n,) in pass ``pass_index``, the lens's
+    counterpart of :func:`stratified_jitter` (``RenderSettings.pixel_jitter``, a camera with depth
+    of field): point ``pass_index`` of Sobol's dimensions 3 and 4 (:func:`~core.sampling.sobol_34`),
+    its bits XORed with 64 random bits of the pixel's own.  With the jitter's dimensions 1 and 2 a
+    pixel's passes follow the 4-dimensional Sobol sequence: its first 64 passes put one lens sample
+    in each of 64 strips across either axis and, paired with their pixel points, one in each of the
+    8 x 8 cells of every (pixel axis, lens axis) pair, so that the blur of what lies out of focus
+    (a pixel's point and its lens sample both move where its ray lands) settles faster too.  Before
+    stop 65 the lens samples were independent numbers; the jitter's own (0, 2)-sequence with its
+    index Owen-scrambled per pixel stratifies the lens alone, pairs it with the pixel point at random
+    and converges more slowly (README, "Pixel jitter stratified over passes")."""
+    shift = smp.hash_bits(pixel_ids, salt, 2) >> np.uint64(32)
+    point = np.array(smp.sobol_34(int(pass_index)), np.uint64)
+    return (shift ^ point).astype(np.float64) * 2.0 ** -32
+
+
 def generate_camera_rays(camera, pixel_ids, u):
     """One ray per pixel ``pixel_ids`` of ``camera.window`` (row-major from its top-left pixel).
 

@@ -144,7 +144,8 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
                    alpha_threshold=1.0, ao_distance=10.0, rays=None, jitter=None) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng`` (or, for the pixel
     jitter, from ``jitter``: None, or a function of the pixel ids (n,) that returns their (n, 2)
-    numbers, :func:`~core.camera.stratified_jitter`); with
+    numbers, :func:`~core.camera.stratified_jitter`, or (n, 4) with the lens samples,
+    :func:`~core.camera.stratified_lens`); with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
     rays stop on (:func:`first_hit_data`; the normal and UV past transparent surfaces by
     ``alpha_threshold``, :func:`threshold_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
@@ -728,7 +729,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     if start is None:
         u = rng.random((len(pix), 4))
         if jitter is not None:
-            u[:, :2] = jitter(pix)
+            given = jitter(pix)
+            u[:, :given.shape[1]] = given
         pix, origins, dirs, tmax, footprint = _camera_rays(cam, pix, u)
         path_len = np.zeros(len(pix))
     else:

@@ -27,7 +27,7 @@ from functools import partial
 
 import numpy as np
 
-from .camera import stratified_jitter
+from .camera import stratified_jitter, stratified_lens
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
@@ -38,6 +38,7 @@ from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON
 from .lights import FOCUS_MIN_VISIBLE, Focus
 from .parallel import make_pool
 from .photon_pass import DepositTarget
+from .scene import PANORAMAS
 from .settings import AUTO_AIMED_VISIBLE, AUTO_UNIFORM_VISIBLE, FIRST_PASS_DATA, RenderSettings
 from .shadow_catcher import (CATCHER_BACKGROUND, CATCHER_HIT, CATCHER_WEIGHT, SHADOW_CATCHER_PASS,
                              catcher_scene, compose)
@@ -740,10 +741,20 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                 for name, value in centre.items()}
 
     salt = int(np.random.SeedSequence([settings.seed, STREAM_JITTER]).generate_state(1, np.uint64)[0])
+    # With depth of field the lens samples are stratified over the passes too (camera.stratified_lens).
+    lens_salt = None
+    if scene.camera.aperture_radius > 0 and scene.camera.projection not in PANORAMAS:
+        lens_seed = np.random.SeedSequence([settings.seed, STREAM_JITTER, 1])
+        lens_salt = int(lens_seed.generate_state(1, np.uint64)[0])
+
+    def camera_numbers(i, pix):
+        """Pass i's stratified pixel jitter (n, 2), with the lens samples (n, 4) under depth of field."""
+        u = stratified_jitter(salt, i, pix)
+        return u if lens_salt is None else np.concatenate([u, stratified_lens(lens_salt, i, pix)], axis=1)
 
     def eye_pass(i):
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
-        jitter = partial(stratified_jitter, salt, i) if settings.pixel_jitter == "stratified" else None
+        jitter = partial(camera_numbers, i) if settings.pixel_jitter == "stratified" else None
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
                               averaged, settings.bounce_limits, settings.pass_alpha_threshold,
                               settings.ao_distance, jitter=jitter)

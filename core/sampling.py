@@ -112,6 +112,34 @@ def sobol_02(index):
     return a, b
 
 
+# Sobol's dimensions 3 and 4 (Joe and Kuo's direction numbers, new-joe-kuo-6.21201): the degree s,
+# the coefficients a and the initial m of the primitive polynomials x^2 + x + 1 and x^3 + x + 1.
+SOBOL_34 = ((2, 1, (1, 3)), (3, 1, (1, 3, 1)))
+
+
+def sobol_34(index):
+    """(c, d): point ``index`` of Sobol's dimensions 3 and 4 as two 32-bit integers, the coordinates
+    times 2^32 (Bratley and Fox's recurrence for the direction numbers).  With :func:`sobol_02`'s
+    two they make the 4-dimensional Sobol sequence: its first 64 points put one in each of the
+    8 x 8 cells of every pair of its dimensions (each pair's first 2^k points a (t, k, 2)-net,
+    t at most 1), and an XOR of every point with the same bits keeps that."""
+    out = []
+    for s, a, m in SOBOL_34:
+        v = [m[i] << (31 - i) for i in range(s)]
+        for i in range(s, 32):
+            x = v[i - s] ^ (v[i - s] >> s)
+            for k in range(1, s):
+                if (a >> (s - 1 - k)) & 1:
+                    x ^= v[i - k]
+            v.append(x)
+        c = 0
+        for k in range(32):
+            if (index >> k) & 1:
+                c ^= v[k]
+        out.append(c)
+    return out[0], out[1]
+
+
 def cosine_hemisphere(u1, u2):
     """Cosine-weighted local directions; density cos(theta)/pi."""
     x, y = concentric_disk(u1, u2)

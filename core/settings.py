@@ -176,12 +176,14 @@ class RenderSettings:
     """Light samples per measurement point and pass with ``direct_light="sampled"``."""
 
     pixel_jitter: str = "stratified"
-    """Where in its pixel (by the pixel filter) each pass's camera ray of a pixel starts:
-    "stratified", each pixel's passes spread over it evenly (a Sobol (0, 2)-sequence with a random
-    digital shift per pixel, :func:`core.camera.stratified_jitter`), or "random", independent
-    numbers every pass.  Each pass's jitter is uniform either way (the image's expectation is the
-    same); stratified, the noise of where the passes look in their pixels (edges, textures, small
-    bright spots, sharp shadows) falls faster."""
+    """Where in its pixel (by the pixel filter) each pass's camera ray of a pixel starts, and with
+    depth of field where on the lens: "stratified", each pixel's passes spread over it evenly (a
+    Sobol (0, 2)-sequence with a random digital shift per pixel, :func:`core.camera.stratified_jitter`)
+    and over the lens (the same sequence, its index Owen-scrambled per pixel,
+    :func:`core.camera.stratified_lens`), or "random", independent numbers every pass.  Each pass's
+    numbers are uniform either way (the image's expectation is the same); stratified, the noise of
+    where the passes look in their pixels (edges, textures, small bright spots, sharp shadows) and
+    of the blur of what lies out of focus falls faster."""
 
     focus_photons: bool = True
     """Aim the uniform photons from afar (the sun's, the world's) at what the camera sees: half of

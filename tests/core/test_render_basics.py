@@ -435,6 +435,37 @@ def test_stratified_pixel_jitter_converges_faster_at_edges():
         RenderSettings(pixel_jitter="sobol")
 
 
+def test_stratified_lens_samples_converge_faster_out_of_focus():
+    """RenderSettings.pixel_jitter with depth of field: the glowing half-plane's edge seen through
+    a lens of radius 1 focused at a quarter of the plane's distance, so every point of the plane is a
+    disc of radius 3 pixels.  A pixel's exact value is the share of that disc on the lit side of
+    the edge (a circular segment, in closed form) averaged over the pixel (64 x 64 points).  Right on
+    average either way (within 0.02); after 64 passes the blurred pixels' RMS error is below 0.4
+    times that of independent numbers (measured 0.016 against 0.051; with the lens samples
+    independent and the pixel jitter alone stratified, as before stop 65, 0.050; with the lens
+    taking the jitter's (0, 2)-sequence, its index Owen-scrambled per pixel, 0.024)."""
+    slope, offset, radius = 0.37, 0.6, 3.0
+    scene, _ = glowing_half_plane(slope, offset)
+    scene = scene.replace(camera=dataclasses.replace(scene.camera, aperture_radius=1.0, focus_distance=0.25))
+    half = scene.camera.resolution[0] / 2
+    t = (np.arange(64) + 0.5) / 64
+    x = -half + np.arange(16)[None, :, None, None] + t[None, None, None, :]
+    y = half - np.arange(16)[:, None, None, None] - t[None, None, :, None]
+    s = np.clip((y - slope * x - offset) / np.hypot(1.0, slope) / radius, -1.0, 1.0)
+    exact = (1.0 - (np.arccos(s) - s * np.sqrt(1.0 - s * s)) / np.pi).mean(axis=(2, 3))
+    blurred = (exact > 0.02) & (exact < 0.98)
+    assert blurred.sum() >= 60
+    rms = {}
+    for jitter in ("random", "stratified"):
+        r = render(scene, RenderSettings(method="ppm", passes=64, photons_per_pass=1000, workers=1,
+                                         pixel_jitter=jitter))
+        error = r.image[..., 0] - exact
+        assert abs(error[blurred].mean()) < 0.02, (jitter, error[blurred].mean())
+        rms[jitter] = float(np.sqrt(np.mean(error[blurred] ** 2)))
+    print(f"out-of-focus pixels' RMS error after 64 passes: {rms}")
+    assert rms["stratified"] < 0.4 * rms["random"], rms
+
+
 def test_the_pixel_filter_survives_a_file_round_trip_and_bad_values_are_refused(tmp_path):
     scene = glass_ceiling_room((16, 12))
     scene = scene.replace(camera=dataclasses.replace(scene.camera, pixel_filter="gaussian", filter_width=2.5))

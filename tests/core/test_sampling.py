@@ -1892,3 +1892,38 @@ def test_stratified_jitter_is_uniform_in_every_pass_and_even_in_every_pixel():
             np.testing.assert_array_equal(np.histogram(u[8:16, axis], bins=8, range=(0, 1))[0], 1)
     np.testing.assert_array_equal(stratified_jitter(5, 3, pixels[:10]), stratified_jitter(5, 3, pixels[:10]))
     assert not np.allclose(stratified_jitter(5, 3, pixels[:10]), stratified_jitter(6, 3, pixels[:10]))
+
+
+def test_stratified_lens_samples_are_uniform_in_every_pass_and_even_with_the_jitter():
+    """``camera.stratified_lens`` (depth of field): over 40,000 pixels one pass's lens numbers are
+    uniform (a chi-square over 10 x 10 cells at the 1e-4 level, passes 0, 1 and 999); one pixel's
+    first 64 passes put one in each of 64 strips across either axis and 4 in each of 16 cells and,
+    paired with the same passes' pixel jitter (``stratified_jitter``, another salt), one in each of
+    the 8 x 8 cells of every (pixel axis, lens axis) pair: the 4-dimensional Sobol sequence (random
+    numbers fill about 41 of those 64 cells; the jitter's own (0, 2)-sequence taken for the lens as
+    well would tie the lens to the pixel point and fill 8).  ``sampling.sobol_34`` is Sobol's
+    dimensions 3 and 4: its points at the Gray codes of 0 to 7 are those of SciPy's unscrambled
+    ``qmc.Sobol(4)`` (which runs in Gray-code order; all 4,096 first points checked when written)."""
+    from core.camera import stratified_jitter, stratified_lens
+    from stats_utils import chi2_sf
+    scipy_first = [(0, 0), (4, 4), (2, 2), (6, 6), (5, 7), (1, 3), (7, 5), (3, 1)]       # eighths
+    assert [smp.sobol_34(i ^ (i >> 1)) for i in range(8)] == [(a << 29, b << 29) for a, b in scipy_first]
+    pixels = np.arange(40_000)
+    for k in (0, 1, 999):
+        u = stratified_lens(777, k, pixels)
+        assert u.shape == (40_000, 2) and (u >= 0).all() and (u < 1).all()
+        counts = np.histogram2d(u[:, 0], u[:, 1], bins=10, range=[[0, 1], [0, 1]])[0]
+        stat = ((counts - 400.0) ** 2 / 400.0).sum()
+        assert chi2_sf(stat, 99) > 1e-4, (k, stat)
+    for pixel in (0, 7, 123_456):
+        lens = np.array([stratified_lens(777, k, np.array([pixel]))[0] for k in range(64)])
+        jitter = np.array([stratified_jitter(12345, k, np.array([pixel]))[0] for k in range(64)])
+        cells = np.histogram2d(lens[:, 0], lens[:, 1], bins=4, range=[[0, 1], [0, 1]])[0]
+        np.testing.assert_array_equal(cells, 4)
+        for a in (0, 1):
+            np.testing.assert_array_equal(np.histogram(lens[:, a], bins=64, range=(0, 1))[0], 1)
+            for b in (0, 1):
+                cells = np.histogram2d(jitter[:, a], lens[:, b], bins=8, range=[[0, 1], [0, 1]])[0]
+                np.testing.assert_array_equal(cells, 1, err_msg=f"pixel {pixel}, axes {a} and {b}")
+    np.testing.assert_array_equal(stratified_lens(5, 3, pixels[:10]), stratified_lens(5, 3, pixels[:10]))
+    assert not np.allclose(stratified_lens(5, 3, pixels[:10]), stratified_lens(6, 3, pixels[:10]))
