@@ -74,6 +74,29 @@ def stratified_lens(salt, pass_index, pixel_ids):
     return (shift ^ point).astype(np.float64) * 2.0 ** -32
 
 
+def aperture_points(camera, u1, u2):
+    """(x, y) (n,) points on ``camera``'s aperture in camera units, uniform over it, from uniform
+    numbers ``u1``, ``u2`` (n,), as Cycles' ``camera_sample_aperture``: the disc of
+    ``aperture_radius`` (Shirley and Chiu's concentric map), or with ``aperture_blades`` of 3 or
+    more the regular polygon of that circumradius, a corner picked by ``u1`` and a point of its
+    triangle (centre and two neighbouring corners, at +-pi / blades from the polygon's first
+    axis, turned by ``aperture_rotation``); x then divided by ``aperture_ratio``."""
+    blades = int(camera.aperture_blades)
+    if blades < 3:
+        x, y = smp.concentric_disk(u1, u2)
+    else:
+        corner = np.minimum(np.floor(u1 * blades), blades - 1)
+        a = np.sqrt(u1 * blades - corner)       # (the corner's share of u1, reused)
+        b = u2 * a
+        a = 1.0 - a
+        half = np.pi / blades
+        px, py = (a + b) * np.cos(half), (a - b) * np.sin(half)
+        turn = camera.aperture_rotation + corner * 2.0 * half
+        c, s = np.cos(turn), np.sin(turn)
+        x, y = c * px - s * py, s * px + c * py
+    return camera.aperture_radius * x / camera.aperture_ratio, camera.aperture_radius * y
+
+
 def generate_camera_rays(camera, pixel_ids, u):
     """One ray per pixel ``pixel_ids`` of ``camera.window`` (row-major from its top-left pixel).
 
@@ -110,8 +133,8 @@ def generate_camera_rays(camera, pixel_ids, u):
         d_cam = np.stack([x, y, -np.ones(n)], axis=1)
         o_cam = np.zeros((n, 3))
         if camera.aperture_radius > 0:
-            lx, ly = smp.concentric_disk(u[:, 2], u[:, 3])
-            lens = camera.aperture_radius * np.stack([lx, ly, np.zeros(n)], axis=1)
+            lx, ly = aperture_points(camera, u[:, 2], u[:, 3])
+            lens = np.stack([lx, ly, np.zeros(n)], axis=1)
             focus = d_cam * camera.focus_distance
             o_cam = lens
             d_cam = focus - lens
@@ -123,8 +146,8 @@ def generate_camera_rays(camera, pixel_ids, u):
         o_cam = np.stack([x, y, np.zeros(n)], axis=1)
         d_cam = np.tile([0.0, 0.0, -1.0], (n, 1))
         if camera.aperture_radius > 0:
-            lx, ly = smp.concentric_disk(u[:, 2], u[:, 3])
-            lens = camera.aperture_radius * np.stack([lx, ly, np.zeros(n)], axis=1)
+            lx, ly = aperture_points(camera, u[:, 2], u[:, 3])
+            lens = np.stack([lx, ly, np.zeros(n)], axis=1)
             focus = o_cam + d_cam * camera.focus_distance
             o_cam = o_cam + lens
             d_cam = focus - o_cam

@@ -867,6 +867,10 @@ class Camera:
     ``mirrorball`` (the reflection in a mirror ball that fills the image).  Pixels outside a
     fisheye's circle or the ball see nothing (black, opaque), as in Cycles.
 
+    The thin lens's aperture is Cycles': a disc of ``aperture_radius``, or with ``aperture_blades``
+    of 3 or more a regular polygon of that circumradius turned by ``aperture_rotation``, its width
+    divided by ``aperture_ratio`` (anamorphic bokeh); ``core.camera.aperture_points``.
+
     ``pixel_filter`` and ``filter_width`` are Cycles' Film > Pixel Filter: each camera ray leaves
     its pixel's centre at an offset drawn from the filter (:func:`core.camera.filter_offsets`), so
     a pixel is the filter's weighted mean of what lies around it.  Blender's default is
@@ -881,6 +885,9 @@ class Camera:
     border: tuple = (0.0, 1.0, 0.0, 1.0)  # (x_min, x_max, y_min, y_max), fractions, y from bottom
     aperture_radius: float = 0.0        # thin-lens aperture radius in world units (0 = pinhole)
     focus_distance: float = 10.0        # distance of the plane in focus along -Z
+    aperture_blades: int = 0            # polygonal aperture's corners (below 3: a disc)
+    aperture_rotation: float = 0.0      # the polygon's rotation, radians
+    aperture_ratio: float = 1.0         # anamorphic: the aperture's height over its width
     clip_start: float = 0.0             # near clip along -Z
     clip_end: float = 1e30              # far clip along -Z
     latitude_range: tuple = (-np.pi / 2, np.pi / 2)    # equirectangular (min, max), radians
@@ -1488,6 +1495,11 @@ class Scene:
             fail("camera.aperture_radius must be finite and not negative")
         if cam.aperture_radius > 0 and not cam.focus_distance > 0:
             fail("camera.focus_distance must be positive when depth of field is on")
+        blades = float(cam.aperture_blades)
+        if not (float(cam.aperture_ratio) > 0 and np.isfinite(cam.aperture_ratio)
+                and np.isfinite(cam.aperture_rotation) and 0 <= blades <= 1000 and blades == int(blades)):
+            fail("camera.aperture_ratio must be finite and positive, aperture_rotation finite and "
+                 "aperture_blades between 0 and 1000")
         if not (0 <= cam.clip_start < cam.clip_end):
             fail("camera clip range must satisfy 0 <= clip_start < clip_end")
         if cam.pixel_filter not in PIXEL_FILTERS:
@@ -1672,6 +1684,9 @@ class Scene:
             d[f"camera.{name}"] = np.asarray(getattr(cam, name), np.float64)
         d["camera.pixel_filter"] = np.array(cam.pixel_filter)
         d["camera.filter_width"] = np.float64(cam.filter_width)
+        if cam.aperture_blades or cam.aperture_ratio != 1.0:
+            d["camera.aperture_shape"] = np.array(
+                [cam.aperture_blades, cam.aperture_rotation, cam.aperture_ratio], np.float64)
         d["world.color"] = np.asarray(self.world.color, np.float32)
         d["world.film_transparent"] = np.bool_(self.world.film_transparent)
         if self.world.exclude:
@@ -1745,7 +1760,7 @@ class Scene:
                      border=tuple(float(v) for v in get("camera.border")),
                      **{name: float(get(f"camera.{name}")) for name in
                         ("aperture_radius", "focus_distance", "clip_start", "clip_end")},
-                     **_panorama_fields(get), **_filter_fields(get))
+                     **_panorama_fields(get), **_filter_fields(get), **_aperture_fields(get))
         def program(key):
             return str(z[key]) if key in keys else None
 
@@ -1825,6 +1840,15 @@ def _stored_program(mats, stored, program):
         stored[key] = len(mats.programs)
         mats.programs.append(procedural.from_json(key))
     return stored[key]
+
+
+def _aperture_fields(get):
+    """The aperture's shape stored in a file (a disc where none is: files from before it, discs)."""
+    shape = get("camera.aperture_shape")
+    if shape is None:
+        return {}
+    return {"aperture_blades": int(shape[0]), "aperture_rotation": float(shape[1]),
+            "aperture_ratio": float(shape[2])}
 
 
 def _filter_fields(get):

@@ -6,7 +6,8 @@ perspective cameras.  Object scale is removed from the camera matrix, as Cycles
 does.  Depth of field follows Cycles (``intern/cycles/blender/camera.cpp``):
 aperture radius = lens / (2 f-stop) (1 / (2 f-stop) for orthographic), focus
 distance = ``dof.focus_distance`` or the distance of the focus object along
-the view axis.  Panoramic cameras map their type and settings to the core's
+the view axis, and the aperture's Blades, Rotation and Ratio (polygonal and
+anamorphic bokeh).  Panoramic cameras map their type and settings to the core's
 panoramas (equirectangular, the two fisheyes, mirror ball); the equisolid
 fisheye's sensor is fitted to the image as Blender fits it (``sensor_fit``).
 Cycles' other panorama types and a panoramic camera's depth of field are
@@ -89,7 +90,7 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
         xy = corners[:, :2]
     frame = (xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max())
 
-    aperture_radius, focus_distance = 0.0, 10.0
+    aperture_radius, focus_distance, shape = 0.0, 10.0, {}
     dof = cam.dof
     if dof.use_dof:
         fstop = max(float(dof.aperture_fstop), 1e-5)
@@ -98,9 +99,12 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
         focus_distance = _focus_distance(depsgraph, dof, world_from_camera)
         if focus_distance <= 0:
             focus_distance = 1e-3
+        shape = {"aperture_blades": int(dof.aperture_blades),
+                 "aperture_rotation": float(dof.aperture_rotation),
+                 "aperture_ratio": max(float(dof.aperture_ratio), 1e-3)}
     return Camera(world_from_camera=world_from_camera, projection=projection,
                   frame=tuple(float(v) for v in frame), resolution=resolution, border=border,
-                  aperture_radius=float(aperture_radius), focus_distance=float(focus_distance),
+                  aperture_radius=float(aperture_radius), focus_distance=float(focus_distance), **shape,
                   clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end),
                   **pixel_filter(scene))
 

@@ -3110,6 +3110,11 @@ def test_depth_of_field(scene):
     c = bs.export().scene.camera
     assert c.aperture_radius == pytest.approx(0.05 / 4)
     assert c.focus_distance == pytest.approx(3.0)
+    assert (c.aperture_blades, c.aperture_rotation, c.aperture_ratio) == (0, 0.0, 1.0)
+    cam.data.dof.aperture_blades, cam.data.dof.aperture_rotation, cam.data.dof.aperture_ratio = 6, 0.5, 1.25
+    c = bs.export().scene.camera
+    assert (c.aperture_blades, c.aperture_rotation, c.aperture_ratio) == (6, pytest.approx(0.5),
+                                                                          pytest.approx(1.25))
     target = bpy.data.objects.new("Focus", None)
     target.location = (1.0, -1.0, 0.5)     # 4 m in front of the camera along its view axis
     scene.collection.objects.link(target)
