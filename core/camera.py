@@ -60,7 +60,7 @@ def stratified_jitter(salt, pass_index, pixel_ids):
 def stratified_lens(salt, pass_index, pixel_ids):
     """(n, 2) lens-sample numbers in [0, 1) for ``pixel_ids`` (n,) in pass ``pass_index``, the lens's
     counterpart of :func:`stratified_jitter` (``RenderSettings.pixel_jitter``, a camera with depth
-    of field): point ``pass_index`` of Sobol's dimensions 3 and 4 (:func:`~core.sampling.sobol_34`),
+    of field): point ``pass_index`` of Sobol's dimensions 3 and 4 (:func:`~core.sampling.sobol`),
     its bits XORed with 64 random bits of the pixel's own.  With the jitter's dimensions 1 and 2 a
     pixel's passes follow the 4-dimensional Sobol sequence: its first 64 passes put one lens sample
     in each of 64 strips across either axis and, paired with their pixel points, one in each of the
@@ -70,7 +70,21 @@ def stratified_lens(salt, pass_index, pixel_ids):
     index Owen-scrambled per pixel stratifies the lens alone, pairs it with the pixel point at random
     and converges more slowly (README, "Pixel jitter stratified over passes")."""
     shift = smp.hash_bits(pixel_ids, salt, 2) >> np.uint64(32)
-    point = np.array(smp.sobol_34(int(pass_index)), np.uint64)
+    point = np.array(smp.sobol(int(pass_index), (3, 4)), np.uint64)
+    return (shift ^ point).astype(np.float64) * 2.0 ** -32
+
+
+def stratified_choices(salt, pass_index, pixel_ids):
+    """(n, 3) numbers in [0, 1) for the lobe choice at the first surface of ``pixel_ids``' (n,)
+    camera paths in pass ``pass_index`` (``RenderSettings.pixel_jitter``; the eye pass's ``u`` at
+    depth 0: a non-delta lobe or which delta lobe, then the delta lobe's own two numbers, as
+    reflection or refraction by a glass's Fresnel factor): point ``pass_index`` of Sobol's
+    dimensions 5 to 7 (:func:`~core.sampling.sobol`), its bits XORed with 96 random bits of the
+    pixel's own.  So a pixel whose ray meets glass, a mirror or a coat splits its passes between
+    the lobes in their proportions instead of at random, jointly stratified with where in the
+    pixel and on the lens each pass looks."""
+    shift = smp.hash_bits(pixel_ids, salt, 3) >> np.uint64(32)
+    point = np.array(smp.sobol(int(pass_index), (5, 6, 7)), np.uint64)
     return (shift ^ point).astype(np.float64) * 2.0 ** -32
 
 

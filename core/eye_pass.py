@@ -141,11 +141,13 @@ MAX_SEGMENT_POINTS = 16
 
 
 def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None,
-                   alpha_threshold=1.0, ao_distance=10.0, rays=None, jitter=None) -> EyePassResult:
+                   alpha_threshold=1.0, ao_distance=10.0, rays=None, jitter=None,
+                   choices=None) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng`` (or, for the pixel
     jitter, from ``jitter``: None, or a function of the pixel ids (n,) that returns their (n, 2)
     numbers, :func:`~core.camera.stratified_jitter`, or (n, 4) with the lens samples,
-    :func:`~core.camera.stratified_lens`); with
+    :func:`~core.camera.stratified_lens`; and for the lobe choice at the first surface, from
+    ``choices``: None, or such a function returning (n, 3), :func:`~core.camera.stratified_choices`); with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
     rays stop on (:func:`first_hit_data`; the normal and UV past transparent surfaces by
     ``alpha_threshold``, :func:`threshold_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
@@ -210,7 +212,7 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
         pixel_ids = chunk if rays is None else given[0]
         points, r = _trace_camera_paths(ctx, rng, pixel_ids, emission, alpha, initial_radius_px,
                                         limits, volume, per_segment, data, alpha_threshold, chunks, light,
-                                        ao_distance, given, caught, jitter)
+                                        ao_distance, given, caught, jitter, choices)
         parts.extend(points)
         n_rays += r
     points = MeasurementPoints.concatenate(parts) if parts else _empty_points()
@@ -711,7 +713,7 @@ def _box_exit(origins, dirs, lo, hi):
 
 def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limits, volume,
                         per_segment=1, data=None, alpha_threshold=1.0, coverage=None, light=None,
-                        ao_distance=10.0, start=None, catcher_rays=None, jitter=None):
+                        ao_distance=10.0, start=None, catcher_rays=None, jitter=None, choices=None):
     """Camera paths of pixels ``pix``: adds to ``emission``/``alpha``, returns measurement points
     (and appends the paths' :class:`VolumePoints` in scattering volumes to ``volume``,
     ``per_segment`` in each segment through one, and to the list ``coverage``, if given, the camera
@@ -722,8 +724,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
     the camera's (:func:`_catcher_starts`); ``catcher_rays``: None, or (in scenes with shadow
     catchers) the list that takes the :class:`~core.shadow_catcher.CatcherRays` of the paths
     whose first hit is a catcher and that go on through its mirror or glass lobes; the sums of the
-    paths whose first hit is a catcher go to ``data``'s ``shadow_catcher.CATCHER_*``.  ``jitter``:
-    :func:`trace_eye_pass`'s."""
+    paths whose first hit is a catcher go to ``data``'s ``shadow_catcher.CATCHER_*``.  ``jitter``,
+    ``choices``: :func:`trace_eye_pass`'s."""
     scene, accel, table = ctx.scene, ctx.accel, ctx.table
     cam = scene.camera
     if start is None:
@@ -992,6 +994,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 beta[under] *= coat_attenuation(table, surf, wo, under)
             surf = dataclasses.replace(surf, ns=coat_normals(surf, mats), mat_ids=mats, colors=colors)
         u = rng.random((len(pix), 3))
+        if depth == 0 and choices is not None:
+            u = choices(pix)            # (the stream's numbers drawn all the same: the rest keep theirs)
         non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
         if table.has_translucent:
             non_delta = non_delta + scores[:, TRANSLUCENT]

@@ -27,7 +27,7 @@ from functools import partial
 
 import numpy as np
 
-from .camera import stratified_jitter, stratified_lens
+from .camera import stratified_choices, stratified_jitter, stratified_lens
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
@@ -747,6 +747,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
         lens_seed = np.random.SeedSequence([settings.seed, STREAM_JITTER, 1])
         lens_salt = int(lens_seed.generate_state(1, np.uint64)[0])
 
+    choice_seed = np.random.SeedSequence([settings.seed, STREAM_JITTER, 2])
+    choice_salt = int(choice_seed.generate_state(1, np.uint64)[0])
+
     def camera_numbers(i, pix):
         """Pass i's stratified pixel jitter (n, 2), with the lens samples (n, 4) under depth of field."""
         u = stratified_jitter(salt, i, pix)
@@ -754,10 +757,11 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
 
     def eye_pass(i):
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
-        jitter = partial(camera_numbers, i) if settings.pixel_jitter == "stratified" else None
+        stratified = settings.pixel_jitter == "stratified"
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
                               averaged, settings.bounce_limits, settings.pass_alpha_threshold,
-                              settings.ao_distance, jitter=jitter)
+                              settings.ao_distance, jitter=partial(camera_numbers, i) if stratified else None,
+                              choices=partial(stratified_choices, choice_salt, i) if stratified else None)
 
     # The Markov chains' visible set also holds the cells around the measurement points of the
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it

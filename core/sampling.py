@@ -112,19 +112,22 @@ def sobol_02(index):
     return a, b
 
 
-# Sobol's dimensions 3 and 4 (Joe and Kuo's direction numbers, new-joe-kuo-6.21201): the degree s,
-# the coefficients a and the initial m of the primitive polynomials x^2 + x + 1 and x^3 + x + 1.
-SOBOL_34 = ((2, 1, (1, 3)), (3, 1, (1, 3, 1)))
+# Sobol's dimensions 3 to 7 (Joe and Kuo's direction numbers, new-joe-kuo-6.21201): the degree s,
+# the coefficients a and the initial m of the primitive polynomials x^2 + x + 1, x^3 + x + 1,
+# x^3 + x^2 + 1, x^4 + x + 1 and x^4 + x^3 + 1.
+SOBOL_POLYNOMIALS = {3: (2, 1, (1, 3)), 4: (3, 1, (1, 3, 1)), 5: (3, 2, (1, 1, 1)), 6: (4, 1, (1, 1, 3, 3)),
+                     7: (4, 4, (1, 3, 5, 13))}
 
 
-def sobol_34(index):
-    """(c, d): point ``index`` of Sobol's dimensions 3 and 4 as two 32-bit integers, the coordinates
-    times 2^32 (Bratley and Fox's recurrence for the direction numbers).  With :func:`sobol_02`'s
-    two they make the 4-dimensional Sobol sequence: its first 64 points put one in each of the
-    8 x 8 cells of every pair of its dimensions (each pair's first 2^k points a (t, k, 2)-net,
-    t at most 1), and an XOR of every point with the same bits keeps that."""
+def sobol(index, dims):
+    """Point ``index`` of Sobol's dimensions ``dims`` (each 3 to 7; 1 and 2 are :func:`sobol_02`'s)
+    as 32-bit integers, the coordinates times 2^32 (Bratley and Fox's recurrence for the direction
+    numbers).  With :func:`sobol_02`'s two they make the Sobol sequence: its first 2^k points put
+    2^(k - i - j) in each box of 2^-i by 2^-j in any pair of dimensions up to 4 (up to 7: with a
+    t of at most 2 or 3), and an XOR of every point with the same bits keeps that."""
     out = []
-    for s, a, m in SOBOL_34:
+    for dim in dims:
+        s, a, m = SOBOL_POLYNOMIALS[dim]
         v = [m[i] << (31 - i) for i in range(s)]
         for i in range(s, 32):
             x = v[i - s] ^ (v[i - s] >> s)
@@ -137,7 +140,7 @@ def sobol_34(index):
             if (index >> k) & 1:
                 c ^= v[k]
         out.append(c)
-    return out[0], out[1]
+    return tuple(out)
 
 
 def cosine_hemisphere(u1, u2):

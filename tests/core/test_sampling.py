@@ -1901,13 +1901,15 @@ def test_stratified_lens_samples_are_uniform_in_every_pass_and_even_with_the_jit
     paired with the same passes' pixel jitter (``stratified_jitter``, another salt), one in each of
     the 8 x 8 cells of every (pixel axis, lens axis) pair: the 4-dimensional Sobol sequence (random
     numbers fill about 41 of those 64 cells; the jitter's own (0, 2)-sequence taken for the lens as
-    well would tie the lens to the pixel point and fill 8).  ``sampling.sobol_34`` is Sobol's
-    dimensions 3 and 4: its points at the Gray codes of 0 to 7 are those of SciPy's unscrambled
-    ``qmc.Sobol(4)`` (which runs in Gray-code order; all 4,096 first points checked when written)."""
+    well would tie the lens to the pixel point and fill 8).  ``sampling.sobol`` of dimensions 3 to
+    7: its points at the Gray codes of 0 to 7 are those of SciPy's unscrambled ``qmc.Sobol(7)``
+    (which runs in Gray-code order; all 4,096 first points checked when written)."""
     from core.camera import stratified_jitter, stratified_lens
     from stats_utils import chi2_sf
-    scipy_first = [(0, 0), (4, 4), (2, 2), (6, 6), (5, 7), (1, 3), (7, 5), (3, 1)]       # eighths
-    assert [smp.sobol_34(i ^ (i >> 1)) for i in range(8)] == [(a << 29, b << 29) for a, b in scipy_first]
+    scipy_first = [(0, 0, 0, 0, 0), (4, 4, 4, 4, 4), (2, 2, 6, 6, 2), (6, 6, 2, 2, 6), (5, 7, 3, 1, 3),
+                   (1, 3, 7, 5, 7), (7, 5, 5, 7, 1), (3, 1, 1, 3, 5)]                    # eighths
+    assert [smp.sobol(i ^ (i >> 1), (3, 4, 5, 6, 7)) for i in range(8)] == [tuple(a << 29 for a in p)
+                                                                          for p in scipy_first]
     pixels = np.arange(40_000)
     for k in (0, 1, 999):
         u = stratified_lens(777, k, pixels)
