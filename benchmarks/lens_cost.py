@@ -1,16 +1,17 @@
-"""What stratified lens samples buy under depth of field: this checkout's ``core`` against another revision's.
+"""What stratified camera numbers buy (a thin lens's samples, the first surface's lobe choice).
 
-Both versions are imported into one process (the other one as ``core_base``, extracted with
-``git archive``, as ``ab_photon_pass.py`` does) and render the same built-in scenes with a thin
-lens, PPM, the same passes and photons, one worker, over the same seeds, one render of each
-version after the other.  Each pass's camera numbers are uniform in either version, so the two
-images have the same expectation and the difference of their mean squared errors is that of
-their variances: the script reports each pixel's variance over the seeds (averaged over the
-image, and over the pixels whose mean differs most from their neighbours': edges in and out of
-focus), relative to the image mean squared, and the time per pass.
+This checkout's ``core`` against another revision's.  Both versions are imported into one process
+(the other one as ``core_base``, extracted with ``git archive``, as ``ab_photon_pass.py`` does)
+and render the same built-in scenes with a thin lens (``--pinhole``: as they are), PPM, the same
+passes and photons, one worker, over the same seeds, one render of each version after the other.
+Each pass's camera numbers are uniform in either version, so the two images have the same
+expectation and the difference of their mean squared errors is that of their variances: the
+script reports each pixel's variance over the seeds (averaged over the image, and over the pixels
+whose mean differs most from their neighbours': edges in and out of focus), relative to the image
+mean squared, and the time per pass.
 
     python benchmarks/lens_cost.py --base 9428c42 [--scenes cornell_box hole_mirror_glass]
-                                   [--resolution 160 120] [--passes 32] [--seeds 6]
+                                   [--resolution 160 120] [--passes 32] [--seeds 6] [--pinhole]
 """
 from __future__ import annotations
 
@@ -35,13 +36,14 @@ from ab_photon_pass import extract  # noqa: E402
 LENSES = {"cornell_box": (0.15, 4.9), "hole_mirror_glass": (0.08, 2.0), "glass_ceiling_room": (0.1, 3.0)}
 
 
-def renders(package, scene_name, resolution, passes, photons, seeds):
+def renders(package, scene_name, resolution, passes, photons, seeds, lens=True):
     """(seeds, h, w, 3) images and the seconds per pass of ``package``'s renders."""
     core = importlib.import_module(package)
     scene = importlib.import_module(f"{package}.testing.scenes").BUILTIN[scene_name](resolution=resolution)
-    aperture, focus = LENSES[scene_name]
-    scene = scene.replace(camera=dataclasses.replace(scene.camera, aperture_radius=aperture,
-                                                     focus_distance=focus))
+    if lens:
+        aperture, focus = LENSES[scene_name]
+        scene = scene.replace(camera=dataclasses.replace(scene.camera, aperture_radius=aperture,
+                                                         focus_distance=focus))
     images, t0 = [], time.perf_counter()
     for seed in seeds:
         settings = core.RenderSettings(method="ppm", passes=passes, photons_per_pass=photons, workers=1,
@@ -61,25 +63,28 @@ def edges(mean, share=0.1):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", required=True, help="git revision to compare with (before the change)")
-    ap.add_argument("--scenes", nargs="+", default=["cornell_box", "hole_mirror_glass"], choices=sorted(LENSES))
+    ap.add_argument("--scenes", nargs="+", default=["cornell_box", "hole_mirror_glass"],
+                    help=f"built-in scenes (with a lens: {', '.join(sorted(LENSES))})")
     ap.add_argument("--resolution", type=int, nargs=2, default=(160, 120))
     ap.add_argument("--passes", type=int, default=32)
     ap.add_argument("--photons-per-pass", type=int, default=50_000)
     ap.add_argument("--seeds", type=int, default=6)
+    ap.add_argument("--pinhole", action="store_true", help="the scenes' own cameras, without a lens")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="lens_cost_")
     extract(a.base, tmp)
     sys.path.insert(0, tmp)
     seeds = list(range(1, a.seeds + 1))
-    print(f"{a.resolution[0]}x{a.resolution[1]}, PPM, {a.passes} passes of {a.photons_per_pass:,} photons, "
+    print(f"{a.resolution[0]}x{a.resolution[1]}, {'pinhole' if a.pinhole else 'thin lens'}, PPM, "
+          f"{a.passes} passes of {a.photons_per_pass:,} photons, "
           f"one worker, seeds {seeds[0]}-{seeds[-1]}; variance over the seeds / mean(image)^2")
     print("| scene | this checkout: all pixels | edges (10 %) | base: all pixels | edges | base / this, "
           "all | edges | s per pass, this / base |")
     print("|---|---|---|---|---|---|---|---|")
     for name in a.scenes:
         res = tuple(a.resolution)
-        ours, t_ours = renders("core", name, res, a.passes, a.photons_per_pass, seeds)
-        base, t_base = renders("core_base", name, res, a.passes, a.photons_per_pass, seeds)
+        ours, t_ours = renders("core", name, res, a.passes, a.photons_per_pass, seeds, not a.pinhole)
+        base, t_base = renders("core_base", name, res, a.passes, a.photons_per_pass, seeds, not a.pinhole)
         mean = np.concatenate([ours, base]).mean(axis=0)
         norm = float(mean.mean()) ** 2
         sel = edges(mean)
