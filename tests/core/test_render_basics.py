@@ -405,11 +405,34 @@ def glowing_half_plane(slope=0.37, offset=0.6, resolution=16):
                     resolution=(resolution, resolution))
     glow = Materials.build([{"name": "glow", "emission": (1.0, 1.0, 1.0)}])
     scene = m.build(glow, Lights.build([]), camera)
-    t = (np.arange(64) + 0.5) / 64
-    x = -half + np.arange(resolution)[None, :, None, None] + t[None, None, None, :]
-    y = half - np.arange(resolution)[:, None, None, None] - t[None, None, :, None]
+    x, y = pixel_points(resolution)
     cover = (y > slope * x + offset).mean(axis=(2, 3))
     return scene, cover
+
+
+def pixel_points(resolution, n=64):
+    """(x, y), each (rows, columns, n, n): n x n points in each pixel of :func:`glowing_half_plane`'s
+    camera, in its scene units (one a pixel)."""
+    half = resolution / 2
+    t = (np.arange(n) + 0.5) / n
+    x = -half + np.arange(resolution)[None, :, None, None] + t[None, None, None, :]
+    y = half - np.arange(resolution)[:, None, None, None] - t[None, None, :, None]
+    return x, y
+
+
+def rms_by_jitter(scene, exact, pixels, passes):
+    """{pixel_jitter: RMS error against ``exact`` over the ``pixels`` (a mask)} of PPM renders of
+    ``scene`` with independent and stratified numbers, each right there on average (within 0.02),
+    and the renders' first channels."""
+    rms, images = {}, {}
+    for jitter in ("random", "stratified"):
+        r = render(scene, RenderSettings(method="ppm", passes=passes, photons_per_pass=1000, workers=1,
+                                         pixel_jitter=jitter))
+        images[jitter] = r.image[..., 0]
+        error = images[jitter] - exact
+        assert abs(error[pixels].mean()) < 0.02, (jitter, error[pixels].mean())
+        rms[jitter] = float(np.sqrt(np.mean(error[pixels] ** 2)))
+    return rms, images
 
 
 def test_stratified_pixel_jitter_converges_faster_at_edges():
@@ -421,14 +444,9 @@ def test_stratified_pixel_jitter_converges_faster_at_edges():
     scene, cover = glowing_half_plane()
     edge = (cover > 0) & (cover < 1)
     assert edge.sum() >= 20
-    rms = {}
-    for jitter in ("random", "stratified"):
-        r = render(scene, RenderSettings(method="ppm", passes=32, photons_per_pass=1000, workers=1,
-                                         pixel_jitter=jitter))
-        error = r.image[..., 0] - cover
-        np.testing.assert_allclose(r.image[~edge, 0], cover[~edge], atol=1e-6)
-        assert abs(error[edge].mean()) < 0.02, (jitter, error[edge].mean())
-        rms[jitter] = float(np.sqrt(np.mean(error[edge] ** 2)))
+    rms, images = rms_by_jitter(scene, cover, edge, 32)
+    for image in images.values():
+        np.testing.assert_allclose(image[~edge], cover[~edge], atol=1e-6)
     print(f"edge pixels' RMS error after 32 passes: {rms}")
     assert rms["stratified"] < 0.5 * rms["random"] and rms["stratified"] < 0.035, rms
     with pytest.raises(ValueError, match="pixel_jitter"):
@@ -447,21 +465,12 @@ def test_stratified_lens_samples_converge_faster_out_of_focus():
     slope, offset, radius = 0.37, 0.6, 3.0
     scene, _ = glowing_half_plane(slope, offset)
     scene = scene.replace(camera=dataclasses.replace(scene.camera, aperture_radius=1.0, focus_distance=0.25))
-    half = scene.camera.resolution[0] / 2
-    t = (np.arange(64) + 0.5) / 64
-    x = -half + np.arange(16)[None, :, None, None] + t[None, None, None, :]
-    y = half - np.arange(16)[:, None, None, None] - t[None, None, :, None]
+    x, y = pixel_points(scene.camera.resolution[0])
     s = np.clip((y - slope * x - offset) / np.hypot(1.0, slope) / radius, -1.0, 1.0)
     exact = (1.0 - (np.arccos(s) - s * np.sqrt(1.0 - s * s)) / np.pi).mean(axis=(2, 3))
     blurred = (exact > 0.02) & (exact < 0.98)
     assert blurred.sum() >= 60
-    rms = {}
-    for jitter in ("random", "stratified"):
-        r = render(scene, RenderSettings(method="ppm", passes=64, photons_per_pass=1000, workers=1,
-                                         pixel_jitter=jitter))
-        error = r.image[..., 0] - exact
-        assert abs(error[blurred].mean()) < 0.02, (jitter, error[blurred].mean())
-        rms[jitter] = float(np.sqrt(np.mean(error[blurred] ** 2)))
+    rms, _ = rms_by_jitter(scene, exact, blurred, 64)
     print(f"out-of-focus pixels' RMS error after 64 passes: {rms}")
     assert rms["stratified"] < 0.4 * rms["random"], rms
 

@@ -1867,6 +1867,21 @@ def test_multiscatter_glass_keeps_all_the_light_it_scatters(roughness, outside):
         assert abs(grey - want) < 4.0 * g_err + 3e-3, (theta, grey, want)
 
 
+def assert_uniform_in_every_pass(numbers, dims):
+    """``numbers(pass, pixel ids)``, (n, dims) in [0, 1), are uniform over 40,000 pixels in passes
+    0, 1 and 999: a chi-square over 10 x 10 cells of each pair of neighbouring columns at the
+    1e-4 level."""
+    from stats_utils import chi2_sf
+    pixels = np.arange(40_000)
+    for k in (0, 1, 999):
+        u = numbers(k, pixels)
+        assert u.shape == (40_000, dims) and (u >= 0).all() and (u < 1).all()
+        for a in range(dims - 1):
+            counts = np.histogram2d(u[:, a], u[:, a + 1], bins=10, range=[[0, 1], [0, 1]])[0]
+            stat = ((counts - 400.0) ** 2 / 400.0).sum()
+            assert chi2_sf(stat, 99) > 1e-4, (k, a, stat)
+
+
 def test_stratified_jitter_is_uniform_in_every_pass_and_even_in_every_pixel():
     """``camera.stratified_jitter`` (RenderSettings.pixel_jitter): over 40,000 pixels one pass's
     numbers are uniform (a chi-square over 10 x 10 cells at the 1e-4 level, in passes 0, 1 and
@@ -1875,15 +1890,9 @@ def test_stratified_jitter_is_uniform_in_every_pass_and_even_in_every_pixel():
     binomial of mean 4 and spread 1.9 in a cell); 8 passes in a row from pass 8 one in each of 8
     strips; the same salt, pass and pixel give the same numbers, another salt others."""
     from core.camera import stratified_jitter
-    from stats_utils import chi2_sf
     pixels = np.arange(40_000)
-    for k in (0, 1, 999):
-        u = stratified_jitter(12345, k, pixels)
-        assert u.shape == (40_000, 2) and (u >= 0).all() and (u < 1).all()
-        counts = np.histogram2d(u[:, 0], u[:, 1], bins=10, range=[[0, 1], [0, 1]])[0]
-        stat = ((counts - 400.0) ** 2 / 400.0).sum()
-        assert chi2_sf(stat, 99) > 1e-4, (k, stat)
-        assert len(np.unique(u[:, 0])) > 39_000
+    assert_uniform_in_every_pass(lambda k, pix: stratified_jitter(12345, k, pix), 2)
+    assert len(np.unique(stratified_jitter(12345, 3, pixels)[:, 0])) > 39_000
     for pixel in (0, 7, 123_456):
         u = np.array([stratified_jitter(12345, k, np.array([pixel]))[0] for k in range(64)])
         np.testing.assert_array_equal(np.histogram2d(u[:, 0], u[:, 1], bins=4, range=[[0, 1], [0, 1]])[0], 4)
@@ -1894,7 +1903,7 @@ def test_stratified_jitter_is_uniform_in_every_pass_and_even_in_every_pixel():
     assert not np.allclose(stratified_jitter(5, 3, pixels[:10]), stratified_jitter(6, 3, pixels[:10]))
 
 
-def test_stratified_lens_samples_are_uniform_in_every_pass_and_even_with_the_jitter():
+def test_stratified_lens_and_lobe_numbers_are_uniform_in_every_pass_and_even_with_the_jitter():
     """``camera.stratified_lens`` (depth of field): over 40,000 pixels one pass's lens numbers are
     uniform (a chi-square over 10 x 10 cells at the 1e-4 level, passes 0, 1 and 999); one pixel's
     first 64 passes put one in each of 64 strips across either axis and 4 in each of 16 cells and,
@@ -1903,20 +1912,18 @@ def test_stratified_lens_samples_are_uniform_in_every_pass_and_even_with_the_jit
     numbers fill about 41 of those 64 cells; the jitter's own (0, 2)-sequence taken for the lens as
     well would tie the lens to the pixel point and fill 8).  ``sampling.sobol`` of dimensions 3 to
     7: its points at the Gray codes of 0 to 7 are those of SciPy's unscrambled ``qmc.Sobol(7)``
-    (which runs in Gray-code order; all 4,096 first points checked when written)."""
-    from core.camera import stratified_jitter, stratified_lens
-    from stats_utils import chi2_sf
+    (which runs in Gray-code order; all 4,096 first points checked when written).  The first
+    surface's lobe numbers (``camera.stratified_choices``, dimensions 5 to 7) are uniform in every
+    pass, one in each of 64 strips over a pixel's 64 passes, and the first of them (non-delta or
+    delta) paired with either pixel axis one in each 8 x 8 cell."""
+    from core.camera import stratified_choices, stratified_jitter, stratified_lens
     scipy_first = [(0, 0, 0, 0, 0), (4, 4, 4, 4, 4), (2, 2, 6, 6, 2), (6, 6, 2, 2, 6), (5, 7, 3, 1, 3),
                    (1, 3, 7, 5, 7), (7, 5, 5, 7, 1), (3, 1, 1, 3, 5)]                    # eighths
     assert [smp.sobol(i ^ (i >> 1), (3, 4, 5, 6, 7)) for i in range(8)] == [tuple(a << 29 for a in p)
                                                                           for p in scipy_first]
     pixels = np.arange(40_000)
-    for k in (0, 1, 999):
-        u = stratified_lens(777, k, pixels)
-        assert u.shape == (40_000, 2) and (u >= 0).all() and (u < 1).all()
-        counts = np.histogram2d(u[:, 0], u[:, 1], bins=10, range=[[0, 1], [0, 1]])[0]
-        stat = ((counts - 400.0) ** 2 / 400.0).sum()
-        assert chi2_sf(stat, 99) > 1e-4, (k, stat)
+    assert_uniform_in_every_pass(lambda k, pix: stratified_lens(777, k, pix), 2)
+    assert_uniform_in_every_pass(lambda k, pix: stratified_choices(555, k, pix), 3)
     for pixel in (0, 7, 123_456):
         lens = np.array([stratified_lens(777, k, np.array([pixel]))[0] for k in range(64)])
         jitter = np.array([stratified_jitter(12345, k, np.array([pixel]))[0] for k in range(64)])
@@ -1927,5 +1934,11 @@ def test_stratified_lens_samples_are_uniform_in_every_pass_and_even_with_the_jit
             for b in (0, 1):
                 cells = np.histogram2d(jitter[:, a], lens[:, b], bins=8, range=[[0, 1], [0, 1]])[0]
                 np.testing.assert_array_equal(cells, 1, err_msg=f"pixel {pixel}, axes {a} and {b}")
+        choice = np.array([stratified_choices(555, k, np.array([pixel]))[0] for k in range(64)])
+        for c in range(3):
+            np.testing.assert_array_equal(np.histogram(choice[:, c], bins=64, range=(0, 1))[0], 1)
+        for a in (0, 1):
+            cells = np.histogram2d(jitter[:, a], choice[:, 0], bins=8, range=[[0, 1], [0, 1]])[0]
+            np.testing.assert_array_equal(cells, 1)
     np.testing.assert_array_equal(stratified_lens(5, 3, pixels[:10]), stratified_lens(5, 3, pixels[:10]))
     assert not np.allclose(stratified_lens(5, 3, pixels[:10]), stratified_lens(6, 3, pixels[:10]))
