@@ -141,6 +141,18 @@ SLOW_CASES = {
     PARITY + "test_a_screen_lit_from_behind_through_its_translucent_bsdf_matches_cycles[plain]",  # 13 s
     PARITY + "test_principled_thin_film_matches_cycles[soap_film]",          # 12 s
     PARITY + "test_vector_displacement_matches_cycles[TANGENT-DISPLACEMENT]",  # 12 s
+    # Budget (stop 65, the fast tier at 15:26 and 15:24, user 28:48 and 28:37 against 23:55 for
+    # nearly the same tests at stop 64: the machine's load, but no margin left).  Seconds from
+    # stop 65's --durations.  Hair: Chiang's model ([chiang_default]) and Huang's ([huang_blonde])
+    # and the Hair BSDF's Reflection stay (the Color and Melanin parametrisations' absorption and
+    # the Transmission's mapping: test_addon_export.py; the blonde fibre's energy: the furnace test);
+    # the others keep siblings ([ppm]; the other hard-case scenes' catchers; [True-60.0]).
+    PARITY + "test_hair_bsdfs_match_cycles[chiang_blonde]",                  # 33 s
+    PARITY + "test_hair_bsdfs_match_cycles[chiang_melanin]",                 # 23 s
+    PARITY + "test_hair_bsdfs_match_cycles[hair_transmission]",              # 21 s
+    "tests/core/test_stability.py::test_hard_case_shadow_catchers_stay_finite[extreme_subsurface]",  # 23 s
+    "tests/core/test_direct_light.py::test_cornell_box_is_the_same_with_light_samples[amcmcppm]",    # 17 s
+    "tests/core/test_light_groups.py::test_each_group_is_its_emitters_alone[True-2000.0]",           # 11 s
 }
 
 

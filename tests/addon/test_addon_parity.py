@@ -2457,14 +2457,7 @@ def hair_bsdf(case):
     return bs.hair_bsdf(case, node, **settings)
 
 
-# One case of each model and component in the fast tier (20-33 s each); Chiang's Color and Melanin
-# parametrisations in the slow tier (their absorption: test_addon_export.py; the blonde fibre's
-# energy: the furnace test below).
-SLOW_HAIR_BSDFS = ("chiang_blonde", "chiang_melanin")
-
-
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_HAIR_BSDFS else c
-                                  for c in HAIR_BSDFS])
+@pytest.mark.parametrize("case", list(HAIR_BSDFS))
 def test_hair_bsdfs_match_cycles(addon, tmp_path, case):
     """Hair BSDFs on curves (stop 56; before, unsupported: a grey diffuse with a warning), lit by an
     area light over a floor: the Principled Hair BSDF (Chiang's and Huang's models) as a glossy
