@@ -52,9 +52,14 @@ def stratified_jitter(salt, pass_index, pixel_ids):
     spread over it evenly instead of clumping (its first 2^k passes one in each of 2^k strata of
     every shape): the noise of where the passes look in their pixels (edges, textures, small bright
     spots, the light samples' sharp shadows) falls nearly as 1 / passes, not 1 / sqrt(passes)."""
-    shift = smp.hash_bits(pixel_ids, salt, 2) >> np.uint64(32)
-    point = np.array(smp.sobol_02(int(pass_index)), np.uint64)
-    return (shift ^ point).astype(np.float64) * 2.0 ** -32
+    return _shifted(salt, pixel_ids, smp.sobol_02(int(pass_index)))
+
+
+def _shifted(salt, pixel_ids, point):
+    """(n, len(point)) numbers in [0, 1): the 32-bit coordinates ``point`` XORed with random bits
+    of each pixel's own (:func:`~core.sampling.hash_bits` of ``pixel_ids`` and ``salt``)."""
+    shift = smp.hash_bits(pixel_ids, salt, len(point)) >> np.uint64(32)
+    return (shift ^ np.array(point, np.uint64)).astype(np.float64) * 2.0 ** -32
 
 
 def stratified_lens(salt, pass_index, pixel_ids):
@@ -69,9 +74,7 @@ def stratified_lens(salt, pass_index, pixel_ids):
     stop 65 the lens samples were independent numbers; the jitter's own (0, 2)-sequence with its
     index Owen-scrambled per pixel stratifies the lens alone, pairs it with the pixel point at random
     and converges more slowly (README, "Pixel jitter stratified over passes")."""
-    shift = smp.hash_bits(pixel_ids, salt, 2) >> np.uint64(32)
-    point = np.array(smp.sobol(int(pass_index), (3, 4)), np.uint64)
-    return (shift ^ point).astype(np.float64) * 2.0 ** -32
+    return _shifted(salt, pixel_ids, smp.sobol(int(pass_index), (3, 4)))
 
 
 def stratified_choices(salt, pass_index, pixel_ids):
@@ -83,9 +86,7 @@ def stratified_choices(salt, pass_index, pixel_ids):
     pixel's own.  So a pixel whose ray meets glass, a mirror or a coat splits its passes between
     the lobes in their proportions instead of at random, jointly stratified with where in the
     pixel and on the lens each pass looks."""
-    shift = smp.hash_bits(pixel_ids, salt, 3) >> np.uint64(32)
-    point = np.array(smp.sobol(int(pass_index), (5, 6, 7)), np.uint64)
-    return (shift ^ point).astype(np.float64) * 2.0 ** -32
+    return _shifted(salt, pixel_ids, smp.sobol(int(pass_index), (5, 6, 7)))
 
 
 def aperture_points(camera, u1, u2):
