@@ -51,11 +51,11 @@ DIRECT_LIGHT_ITEMS = {
 PIXEL_JITTER_ITEMS = {
     "stratified": ("Stratified", "Each pixel's passes spread their camera rays evenly over the pixel, "
                                  "the lens (depth of field) and the lobes of the first surface (glass's "
-                                 "reflection and refraction), by a randomly shifted Sobol sequence: edges, "
-                                 "textures, small bright spots, out-of-focus blur and what glass shows "
-                                 "settle sooner", 0),
+                                 "reflection and refraction), and its light samples over the lights, by "
+                                 "randomly shifted Sobol sequences: edges, textures, small bright spots, "
+                                 "out-of-focus blur, what glass shows and soft shadows settle sooner", 0),
     "random": ("Random", "Each pass's camera rays take independent random numbers for the pixel, the "
-                         "lens and the first surface's lobe", 1),
+                         "lens and the first surface's lobe, and so do the light samples", 1),
 }
 
 
@@ -108,8 +108,9 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         description="Random seed; the same seed, settings and worker count give the same image")
     pixel_jitter: EnumProperty(
         name="Pixel Jitter", items=enum_pixel_jitter, default=_DEFAULTS.pixel_jitter,
-        description="Where in its pixel and on the lens each pass's camera ray starts, and which "
-                    "lobe it takes at its first surface (as Cycles' sampling pattern)")
+        description="Where in its pixel and on the lens each pass's camera ray starts, which "
+                    "lobe it takes at its first surface and where its light samples fall (as "
+                    "Cycles' sampling pattern)")
     alpha: FloatProperty(
         name="Alpha", default=_DEFAULTS.alpha, min=0.01, max=0.99, precision=3,
         description="Radius reduction per pass: r(i+1)^2 = r(i)^2 (i + alpha) / (i + 1); "

@@ -4,22 +4,23 @@ A photon deposits at every non-delta vertex, the first included, so by default t
 reaches a surface straight from an emitter comes from photons too: the plain method of the paper,
 and the blotchy look of a photon map where most of the light is direct (the Cornell box:
 ``benchmarks/versus_cycles.py``).  With ``direct_light="sampled"`` each pass's measurement points
-get that light from ``direct_samples`` light samples each instead: an emitter chosen by power among those
-:meth:`~core.lights.LightSampler.direct_entries` names, a point on it or a direction
-(:meth:`~core.lights.LightSampler.sample_direct`; the world's mostly through its light portals where
-the scene has them), a shadow ray, and the point's BSDF through the
-pair weights a photon arriving along the same direction would get
-(:meth:`~core.photon_pass.DepositTarget.pair_weights`, with the landing facet the point's own).
-The photon pass then leaves out the deposits at the first vertex of the photons of those emitters
-(``DepositTarget.direct``), and nothing else: light through glass or off a mirror (a caustic, a
-room lit through a glass roof) still comes from photons, as does the light of emitters left out.
-So the two estimate disjoint parts of the light and their sum is the same image, without the
-photons' kernel bias in the direct part; the light samples are averaged over passes with the
-emission the camera sees (``EyePassResult.emission``).  The Markov chains then seek paths that
-matter beyond their first vertex, as a path visible only there is no longer visible.  Points
-whose glossy lobe is sharper than ``MIN_GLOSSY_ALPHA`` take no samples and keep their photons'
-direct light (``DepositTarget.direct_points``: the photon pass then leaves out the first-vertex
-pairs of the others alone, and a first vertex in the chains' visible cells still counts).
+get that light from ``direct_samples`` light samples each instead: an emitter chosen by power among
+those :meth:`~core.lights.LightSampler.direct_entries` names, a point on it or a direction
+(:meth:`~core.lights.LightSampler.sample_direct`; the world's mostly through its light portals
+where the scene has them), a shadow ray, and the point's BSDF through the pair weights a photon
+arriving along the same direction would get (:meth:`~core.photon_pass.DepositTarget.pair_weights`,
+with the landing facet the point's own). The photon pass then leaves out the deposits at the first
+vertex of the photons of those emitters (``DepositTarget.direct``), and nothing else: light through
+glass or off a mirror (a caustic, a room lit through a glass roof) still comes from photons, as
+does the light of emitters left out. So the two estimate disjoint parts of the light and their sum
+is the same image, without the photons' kernel bias in the direct part; the light samples are
+averaged over passes with the emission the camera sees (``EyePassResult.emission``), and with
+``pixel_jitter="stratified"`` a pixel's samples, pass after pass, fill the light's strata evenly
+(:func:`stratified_light`).  The Markov chains then seek paths that matter beyond their first
+vertex, as a path visible only there is no longer visible.  Points whose glossy lobe is sharper
+than ``MIN_GLOSSY_ALPHA`` take no samples and keep their photons' direct light
+(``DepositTarget.direct_points``: the photon pass then leaves out the first-vertex pairs of the
+others alone, and a first vertex in the chains' visible cells still counts).
 
 Scenes with what the light samples do not model keep the photons' direct light
 (:func:`sampled_emitters`; ``RenderResult.direct_light`` says why): volumes, shadow catchers,
@@ -40,6 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import sampling as smp
 from .light_passes import VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION
 from .sampling import dot
 
@@ -88,7 +90,50 @@ def sampled_points(table, points):
     return ~sharp if sharp.any() else None
 
 
-def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None):
+def stratified_light(salt, pass_index, samples, keys):
+    """The light samples' numbers in pass ``pass_index`` of the points whose pixels are ``keys`` (n,)
+    (:func:`point_keys`; ``RenderSettings.pixel_jitter``): a function of (rows (m,), sample (m,))
+    giving (m, 4) numbers in [0, 1) for sample ``sample`` of ``samples`` a pass of points ``rows``:
+    the emitter's choice, the point on it (or the direction) and the one more some emitters take.  A
+    pixel's samples, pass after pass, are the points of the 4-dimensional Sobol sequence (the
+    point on the light the (0, 2)-sequence's first two dimensions, the choice the third) at the
+    indices ``pass_index * samples + sample``, index and coordinates Owen-scrambled with seeds of
+    the pixel's own (:func:`~core.sampling.owen_scramble`; Cycles' Sobol-Burley pattern).  So each
+    pass's samples are uniform, and a pixel's first 2^k samples fill the light's strata evenly (its
+    samples of a pass each a different stratum): soft shadows, the light of many emitters, what
+    part of an area light a point sees settle faster.  The scrambles pair them with the pixel's own
+    jitter (:func:`~core.camera.stratified_jitter`) at random.  A digital shift of the coordinates
+    instead of their scramble, or Sobol's dimensions 8 to 11 at the same index, after the camera's 1
+    to 7, did worse in places than independent numbers (``benchmarks/light_numbers.py``; README,
+    "Pixel jitter stratified over passes")."""
+    # (five 32-bit seeds a point: the index's and each coordinate's, from one hash of 3 x 64 bits)
+    seeds = smp.hash_bits(keys, salt, 3).view(np.uint32)
+    first = np.uint64(pass_index * samples)
+
+    def numbers(rows, sample):
+        seed = seeds.take(rows, axis=0)
+        index = smp.owen_scramble(np.asarray(sample, np.uint64) + first, seed[:, 4])
+        point = smp.owen_scramble(smp.sobol_points(index, (3, 1, 2, 4)), seed[:, :4])
+        return point.astype(np.float64) * 2.0 ** -32
+    return numbers
+
+
+def point_keys(pixel_ids):
+    """(m,) int64: a key of each point's own for :func:`stratified_light`, the same pass after pass:
+    its pixel and its rank among the pixel's points (0 where it is the only one)."""
+    pixel_ids = np.asarray(pixel_ids, np.int64)
+    if len(pixel_ids) < 2 or (np.diff(pixel_ids) > 0).all():
+        return pixel_ids * 64
+    order = np.argsort(pixel_ids, kind="stable")
+    sorted_ids = pixel_ids.take(order)
+    start = np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]])
+    rank = np.arange(len(order)) - np.repeat(start, np.diff(np.r_[start, len(order)]))
+    keys = np.empty_like(pixel_ids)
+    keys[order] = sorted_ids * 64 + np.minimum(rank, 63)
+    return keys
+
+
+def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None, numbers=None):
     """(n_pixels, 3) float64: the mean of ``samples`` light samples' estimates of the direct light
     at each of ``target``'s surface points (a :class:`~core.photon_pass.DepositTarget`), through
     its throughput, from the emitters ``mask`` (:func:`sampled_emitters`) chosen by power.
@@ -99,7 +144,8 @@ def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None):
     to ``glossy_direct`` and the rest to ``diffuse_direct``, at the others all to the
     ``<kind>_indirect`` pass of their first delta event.  ``groups``: None, or (the light group
     passes' arrays, the index among them of each of the scene's light groups or -1): each sample
-    also goes to its emitter's group's pass."""
+    also goes to its emitter's group's pass.  ``numbers``: None (independent numbers of ``rng``),
+    or the stratified ones' function of the points' keys (:func:`stratified_light`)."""
     pts = target.points
     out = np.zeros((target.n_pixels, 3))
     q = ctx.lights.prob * mask
@@ -111,11 +157,14 @@ def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None):
     cdf = np.cumsum(prob)
     cdf[-1] = 1.0
     split = bool(passes)
-    # Sample k is of point base[k mod len(base)].
+    draw = None if numbers is None else numbers(point_keys(pts.pixel_ids).take(base))
+    # Sample k is number k // len(base) of point base[k mod len(base)].
     total = len(base) * samples
     for start in range(0, total, CHUNK):
-        point = base.take(np.arange(start, min(start + CHUNK, total)) % len(base))
-        j, estimate, glossy, entry = _light_samples(ctx, target, point, prob, cdf, rng, split)
+        k = np.arange(start, min(start + CHUNK, total))
+        point = base.take(k % len(base))
+        u = rng.random((len(k), 4)) if draw is None else draw(k % len(base), k // len(base))
+        j, estimate, glossy, entry = _light_samples(ctx, target, point, prob, cdf, u, rng, split)
         pix = pts.pixel_ids.take(j)
         value = target.point_values(j, estimate / samples)
         np.add.at(out, pix, value)
@@ -139,14 +188,14 @@ def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None):
     return out
 
 
-def _light_samples(ctx, target, point, prob, cdf, rng, split=False):
-    """One light sample at each of ``target``'s surface points ``point`` (k,), emitters chosen
-    with probabilities ``prob`` (cumulated ``cdf``): (the points j whose samples reached the light,
-    (len(j), 3) their estimates before :meth:`~core.photon_pass.DepositTarget.point_values`, with
-    ``split`` the glossy lobe's part of them (None where no point has one), and their emitters)."""
+def _light_samples(ctx, target, point, prob, cdf, u, rng, split=False):
+    """One light sample at each of ``target``'s surface points ``point`` (k,) of the numbers ``u``
+    (k, 4), emitters chosen with probabilities ``prob`` (cumulated ``cdf``): (the points j whose
+    samples reached the light, (len(j), 3) their estimates before
+    :meth:`~core.photon_pass.DepositTarget.point_values`, with ``split`` the glossy lobe's part of
+    them (None where no point has one), and their emitters)."""
     lights, pts = ctx.lights, target.points
     m = len(point)
-    u = rng.random((m, 4))
     entry = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), lights.count - 1)
     x = pts.position.take(point, axis=0).astype(np.float64)
     ng = pts.ng.take(point, axis=0).astype(np.float64)

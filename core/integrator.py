@@ -31,7 +31,7 @@ from .camera import stratified_choices, stratified_jitter, stratified_lens
 from .context import RenderContext
 from .coverage import point_coverage
 from .cryptomatte import KINDS as CRYPTO_KINDS, CryptoSums
-from .direct import sample_direct, sampled_emitters, sampled_points
+from .direct import sample_direct, sampled_emitters, sampled_points, stratified_light
 from .eye_pass import EyePassResult, MeasurementPoints, centre_data, trace_eye_pass
 from .light_passes import (COLOR_PASSES, LIGHT_PASSES, LIGHTGROUP_PREFIX, PHOTON_PASSES, colour_of,
                            divide_even_color, light_groups, photon_groups)
@@ -749,6 +749,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
 
     choice_seed = np.random.SeedSequence([settings.seed, STREAM_JITTER, 2])
     choice_salt = int(choice_seed.generate_state(1, np.uint64)[0])
+    light_seed = np.random.SeedSequence([settings.seed, STREAM_JITTER, 3])
+    light_salt = int(light_seed.generate_state(1, np.uint64)[0])
 
     def camera_numbers(i, pix):
         """Pass i's stratified pixel jitter (n, 2), with the lens samples (n, 4) under depth of field."""
@@ -826,8 +828,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderR
                         passes[name] = data.setdefault(name, np.zeros((n_pixels, 3)))
                 if groups[0]:
                     group_sums = ([data[name] for name in groups[0]], groups[1])
+            numbers = (partial(stratified_light, light_salt, i, settings.direct_samples)
+                       if settings.pixel_jitter == "stratified" else None)
             eye.emission += sample_direct(ctx, target, direct, rng, settings.direct_samples, passes,
-                                          group_sums)
+                                          group_sums, numbers)
             sampling = pts.count if target.direct_points is None else int(target.direct_points.sum())
             target.light_samples = sampling * settings.direct_samples
             target.light_sample_s = time.perf_counter() - t_direct

@@ -112,35 +112,90 @@ def sobol_02(index):
     return a, b
 
 
-# Sobol's dimensions 3 to 7 (Joe and Kuo's direction numbers, new-joe-kuo-6.21201): the degree s,
+# Sobol's dimensions 3 to 11 (Joe and Kuo's direction numbers, new-joe-kuo-6.21201): the degree s,
 # the coefficients a and the initial m of the primitive polynomials x^2 + x + 1, x^3 + x + 1,
-# x^3 + x^2 + 1, x^4 + x + 1 and x^4 + x^3 + 1.
+# x^3 + x^2 + 1, x^4 + x + 1, x^4 + x^3 + 1 and four of degree 5 (8 to 11: the camera does not
+# take them; benchmarks/light_numbers.py compares them with the light samples' own sequence).
 SOBOL_POLYNOMIALS = {3: (2, 1, (1, 3)), 4: (3, 1, (1, 3, 1)), 5: (3, 2, (1, 1, 1)), 6: (4, 1, (1, 1, 3, 3)),
-                     7: (4, 4, (1, 3, 5, 13))}
+                     7: (4, 4, (1, 3, 5, 13)), 8: (5, 2, (1, 1, 5, 5, 17)), 9: (5, 4, (1, 1, 5, 5, 5)),
+                     10: (5, 7, (1, 1, 7, 11, 19)), 11: (5, 11, (1, 1, 5, 1, 1))}
+
+
+def sobol_directions(dim):
+    """The 32 direction numbers of Sobol's dimension ``dim`` (1 to 11) as 32-bit integers: point
+    ``index`` is the XOR of those of its set bits (Bratley and Fox's recurrence; 1 and 2 are
+    :func:`sobol_02`'s)."""
+    if dim <= 2:
+        return [sobol_02(1 << k)[dim - 1] for k in range(32)]
+    s, a, m = SOBOL_POLYNOMIALS[dim]
+    v = [m[i] << (31 - i) for i in range(s)]
+    for i in range(s, 32):
+        x = v[i - s] ^ (v[i - s] >> s)
+        for k in range(1, s):
+            if (a >> (s - 1 - k)) & 1:
+                x ^= v[i - k]
+        v.append(x)
+    return v
 
 
 def sobol(index, dims):
-    """Point ``index`` of Sobol's dimensions ``dims`` (each 3 to 7; 1 and 2 are :func:`sobol_02`'s)
-    as 32-bit integers, the coordinates times 2^32 (Bratley and Fox's recurrence for the direction
-    numbers).  With :func:`sobol_02`'s two they make the Sobol sequence: its first 2^k points put
-    2^(k - i - j) in each box of 2^-i by 2^-j in any pair of dimensions up to 4 (up to 7: with a
-    t of at most 2 or 3), and an XOR of every point with the same bits keeps that."""
+    """Point ``index`` of Sobol's dimensions ``dims`` (each 3 to 11; 1 and 2 are :func:`sobol_02`'s)
+    as 32-bit integers, the coordinates times 2^32 (:func:`sobol_directions`).  With
+    :func:`sobol_02`'s two they make the Sobol sequence: its first 2^k points put 2^(k - i - j) in
+    each box of 2^-i by 2^-j in any pair of dimensions up to 4 (up to 7: with a t of at most 2 or
+    3), and an XOR of every point with the same bits keeps that."""
     out = []
     for dim in dims:
-        s, a, m = SOBOL_POLYNOMIALS[dim]
-        v = [m[i] << (31 - i) for i in range(s)]
-        for i in range(s, 32):
-            x = v[i - s] ^ (v[i - s] >> s)
-            for k in range(1, s):
-                if (a >> (s - 1 - k)) & 1:
-                    x ^= v[i - k]
-            v.append(x)
         c = 0
-        for k in range(32):
+        for k, v in enumerate(sobol_directions(dim)):
             if (index >> k) & 1:
-                c ^= v[k]
+                c ^= v
         out.append(c)
     return tuple(out)
+
+
+def sobol_points(index, dims):
+    """(n, len(dims)) uint64: points ``index`` ((n,) integers below 2^32, each its own) of Sobol's
+    dimensions ``dims`` (1 to 11) as 32-bit integers, the vectorised :func:`sobol`: per byte of
+    the index a table of its 256 XORs of direction numbers."""
+    index = np.asarray(index).astype(np.uint64)
+    v = np.array([sobol_directions(d) for d in dims], np.uint64).T          # (32, len(dims))
+    out = np.zeros((len(index), len(dims)), np.uint64)
+    for byte in range(4):
+        table = np.zeros((1, len(dims)), np.uint64)
+        for k in range(8):
+            table = np.concatenate([table, table ^ v[8 * byte + k]])
+        out ^= table.take(((index >> np.uint64(8 * byte)) & np.uint64(255)).astype(np.intp), axis=0)
+    return out
+
+
+def reverse_bits32(x):
+    """The uint32 array ``x`` with each value's 32 bits in reverse order."""
+    x = np.asarray(x).astype(np.uint32)
+    for shift, mask in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF)):
+        s, m = np.uint32(shift), np.uint32(mask)
+        x = ((x >> s) & m) | ((x & m) << s)
+    return (x >> np.uint32(16)) | (x << np.uint32(16))
+
+
+def owen_scramble(x, seed):
+    """Burley's (2020) nested uniform (Owen) scramble of the 32-bit integers ``x`` with each its own
+    32-bit ``seed`` (same shape): bit k of the result is bit k of ``x`` XORed with a hash of the
+    seed and the bits of ``x`` above k, so that the map takes every aligned block of 2^k integers
+    onto another (a random permutation of the blocks at every level).  On an index it keeps the
+    points of a (t, s)-sequence in each block of 2^k scrambled indices a net (those of an aligned
+    block) while their order, and so their pairing with another sequence's, is random; on a
+    coordinate (times 2^32) it permutes the strata of every size at random, keeping a net a net
+    (Owen's scramble, uniform in every point).  The hash is Laine and Karras's on the reversed bits
+    (each step changes a bit by those below it), with Burley's constants."""
+    x = reverse_bits32(x)
+    seed = np.asarray(seed).astype(np.uint32)
+    x ^= x * np.uint32(0x3D20ADEA)
+    x += seed
+    x *= (seed >> np.uint32(16)) | np.uint32(1)
+    x ^= x * np.uint32(0x05526C56)
+    x ^= x * np.uint32(0x53A22864)
+    return reverse_bits32(x)
 
 
 def cosine_hemisphere(u1, u2):

@@ -177,15 +177,18 @@ class RenderSettings:
 
     pixel_jitter: str = "stratified"
     """Where in its pixel (by the pixel filter) each pass's camera ray of a pixel starts, with depth
-    of field where on the lens, and which lobe it takes at its first surface: "stratified", each
-    pixel's passes spread evenly over its area (Sobol's dimensions 1 and 2 with a random digital
-    shift per pixel, :func:`core.camera.stratified_jitter`), over the lens (dimensions 3 and 4,
+    of field where on the lens, which lobe it takes at its first surface, and where its light
+    samples fall (``direct_light="sampled"``): "stratified", each pixel's passes spread evenly over
+    its area (Sobol's dimensions 1 and 2 with a random digital shift per pixel,
+    :func:`core.camera.stratified_jitter`), over the lens (dimensions 3 and 4,
     :func:`core.camera.stratified_lens`) and over the lobes (dimensions 5 to 7: a glass's
-    reflection and refraction in their Fresnel shares, :func:`core.camera.stratified_choices`), or
-    "random", independent numbers every pass.  Each pass's numbers are uniform either way (the
-    image's expectation is the same); stratified, the noise of where the passes look (edges,
-    textures, small bright spots, sharp shadows, the blur out of focus, what glass and mirrors
-    show) falls faster."""
+    reflection and refraction in their Fresnel shares, :func:`core.camera.stratified_choices`), and
+    its light samples over the emitters and the points on them (a 4-dimensional Sobol sequence of
+    its own, its index scrambled per pixel: :func:`core.direct.stratified_light`), or "random",
+    independent numbers every pass.  Each pass's numbers are uniform either way (the image's
+    expectation is the same); stratified, the noise of where the passes look (edges, textures,
+    small bright spots, sharp shadows, the blur out of focus, what glass and mirrors show) and of
+    soft shadows falls faster."""
 
     focus_photons: bool = True
     """Aim the uniform photons from afar (the sun's, the world's) at what the camera sees: half of

@@ -502,6 +502,62 @@ def test_stratified_lobe_choice_at_the_first_surface_converges_faster():
     assert spread["stratified"] < 0.5 * spread["random"], spread
 
 
+def penumbra_scene(resolution=16, size=1.0):
+    """A grey floor (albedo 0.5) at z = 0 under a square area light of side ``size`` at z = 2 facing
+    down (radiance 1), half of it (x < 0) shaded by a black sheet at z = 1, seen straight down by an
+    orthographic camera below the sheet (z = 0.5) over x, y in [-1, 1]: the penumbra spans x in
+    [-size / 2, size / 2].  With it each pixel's exact value (from 8 x 8 points a pixel): albedo /
+    pi times the irradiance, the light's part x' > -x unshaded (Gauss-Legendre over it)."""
+    a = size / 2
+    mats = Materials.build([{"name": "floor", "diffuse": (0.5, 0.5, 0.5)},
+                            {"name": "sheet", "diffuse": (0.0, 0.0, 0.0)}])
+    m = MeshBuilder()
+    m.add_quad((-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0), 0)
+    m.add_quad((-4, -4, 1), (0, -4, 1), (0, 4, 1), (-4, 4, 1), 1)
+    power = np.pi * size * size
+    lights = Lights.build([{"kind": "area", "position": (0, 0, 2), "direction": (0, 0, -1),
+                            "size": (size, size), "power": (power, power, power)}])
+    pose = Camera.look_at((0, 0, 0.5), (0, 0, 0), up=(0, 1, 0)).world_from_camera
+    camera = Camera(world_from_camera=pose, projection="orthographic", frame=(-1.0, 1.0, -1.0, 1.0),
+                    resolution=(resolution, resolution))
+    scene = m.build(mats, lights, camera)
+    x, y = pixel_points(resolution, 8)
+    x, y = x * (2.0 / resolution), y * (2.0 / resolution)
+    t, w = np.polynomial.legendre.leggauss(24)
+    lo = np.clip(-x, -a, a)[..., None, None]                      # (the light's unshaded part: x' in [lo, a])
+    lx = lo + (a - lo) * (t[:, None] + 1) / 2
+    ly = a * t[None, :]
+    r2 = (lx - x[..., None, None]) ** 2 + (ly - y[..., None, None]) ** 2 + 4.0
+    irradiance = (4.0 / r2 ** 2 * w[:, None] * w[None, :]).sum(axis=(-2, -1)) * (a - lo[..., 0, 0]) / 2 * a
+    return scene, (0.5 / np.pi * irradiance).mean(axis=(2, 3))
+
+
+def test_stratified_light_samples_converge_faster_in_a_penumbra():
+    """RenderSettings.pixel_jitter with light samples (direct_light="sampled", 4 a pass): the floor
+    of :func:`penumbra_scene` has no light but the area light's, so every pixel is the light
+    samples' mean.  Right on average either way (within 2 % of the mean); after 16 passes the
+    pixels' RMS error is below half that of independent numbers in the penumbra and below a fifth
+    in the open (seeds 0-3: 0.00045-0.00055 and 0.00003 against 0.0014-0.0018 and 0.00044-0.00053;
+    with the pixel jitter alone stratified, as before stop 66, 0.0015-0.0018 and 0.00043-0.00052;
+    the light's points shifted per pixel instead of Owen-scrambled, 0.00045-0.00053 and
+    0.00005-0.00007)."""
+    scene, exact = penumbra_scene()
+    x = (np.arange(16) + 0.5) / 8 - 1.0
+    half = np.broadcast_to(np.abs(x) < 0.5, exact.shape)
+    assert exact[:, 0].max() < 0.05 * exact[:, -1].min() and half.sum() == 128
+    rms = {}
+    for jitter in ("random", "stratified"):
+        r = render(scene, RenderSettings(method="ppm", passes=16, photons_per_pass=1000, workers=1,
+                                         pixel_jitter=jitter, direct_light="sampled"))
+        assert r.direct_light == "sampled"
+        error = r.image[..., 0] - exact
+        assert abs(error.mean()) < 0.02 * exact.mean(), (jitter, error.mean(), exact.mean())
+        rms[jitter] = [float(np.sqrt(np.mean(error[sel] ** 2))) for sel in (half, ~half)]
+    print(f"pixels' RMS error after 16 passes (penumbra, open): {rms}, exact mean {exact.mean():.4f}")
+    (penumbra, open_), (penumbra_random, open_random) = rms["stratified"], rms["random"]
+    assert penumbra < 0.5 * penumbra_random and open_ < 0.2 * open_random, rms
+
+
 @pytest.mark.parametrize("blades, rotation, ratio",
                          [(0, 0.0, 1.0), (0, 0.0, 0.5), (3, 0.0, 1.0), (6, 0.7, 1.3)])
 def test_aperture_points_are_uniform_over_the_disc_or_the_polygon(tmp_path, blades, rotation, ratio):

@@ -1942,3 +1942,54 @@ def test_stratified_lens_and_lobe_numbers_are_uniform_in_every_pass_and_even_wit
             np.testing.assert_array_equal(cells, 1)
     np.testing.assert_array_equal(stratified_lens(5, 3, pixels[:10]), stratified_lens(5, 3, pixels[:10]))
     assert not np.allclose(stratified_lens(5, 3, pixels[:10]), stratified_lens(6, 3, pixels[:10]))
+
+
+def test_stratified_light_numbers_are_uniform_in_every_pass_and_fill_a_pixels_strata():
+    """``direct.stratified_light`` (light samples, RenderSettings.pixel_jitter): over 40,000 pixels
+    one pass's numbers of any sample are uniform (a chi-square over 10 x 10 cells of neighbouring
+    columns at the 1e-4 level, passes 0, 1 and 999).  One pixel's 64 samples of its first 16
+    passes (4 a pass) put one point on the light in each of 64 strips across either axis and 4 in
+    each of 16 cells (a (0, 6, 2)-net; independent numbers: a binomial of mean 4 and spread 1.9),
+    and one emitter choice in each of 64 strips; each pass's 4 samples lie in the 4 quarters of
+    either axis.  ``sampling.owen_scramble`` maps each aligned block of 2^k integers onto another, a
+    different one and in another order for another seed; ``sampling.sobol_points`` is
+    ``sobol_02`` and ``sobol`` for any index.  ``direct.point_keys``: a pixel's, times 64, or
+    with the rank among the pixel's points where it has several."""
+    from core.camera import stratified_jitter
+    from core.direct import point_keys, stratified_light
+
+    def third_sample(k, pix):
+        return stratified_light(99, k, 4, pix * 64)(pix, np.full(len(pix), 3))
+    assert_uniform_in_every_pass(third_sample, 4)
+    for pixel in (0, 7, 123_456):
+        u = np.concatenate([stratified_light(99, k, 4, np.array([pixel * 64]))(np.zeros(4, int), np.arange(4))
+                            for k in range(16)])
+        np.testing.assert_array_equal(np.histogram2d(u[:, 1], u[:, 2], bins=4, range=[[0, 1], [0, 1]])[0], 4)
+        for axis in (0, 1, 2):
+            np.testing.assert_array_equal(np.histogram(u[:, axis], bins=64, range=(0, 1))[0], 1)
+        for axis in (1, 2):
+            quarters = np.floor(u[:, axis].reshape(16, 4) * 4)
+            np.testing.assert_array_equal(np.sort(quarters, axis=1), np.tile(np.arange(4.0), (16, 1)))
+    # Paired with the pixel jitter at random: a penumbra across the pixel and the light, 1[x + y < 1]
+    # (x the jitter's first number, y the light's), one sample a pass, 4,000 pixels' RMS error after
+    # 64 passes below independent numbers' (measured 0.042 against 0.051; the light's points shifted
+    # per pixel instead of scrambled, 0.062: tied to the jitter).
+    pixels = np.arange(4000)
+    x = np.stack([stratified_jitter(5, k, pixels)[:, 0] for k in range(64)], axis=1)
+    y = np.stack([stratified_light(6, k, 1, pixels * 64)(pixels, np.zeros(4000, int))[:, 1] for k in range(64)],
+                 axis=1)
+    independent = np.random.default_rng(3).random((4000, 64))
+    rms = [np.sqrt(np.mean(((x + v < 1).mean(axis=1) - 0.5) ** 2)) for v in (y, independent)]
+    assert rms[0] < 0.9 * rms[1], rms
+    index = np.arange(1 << 12)
+    a, b = smp.owen_scramble(index, np.full(len(index), 7)), smp.owen_scramble(index, np.full(len(index), 8))
+    for k in (1, 3, 8):
+        for o in (a, b):
+            blocks = o.reshape(-1, 1 << k) >> np.uint32(k)
+            assert (blocks == blocks[:, :1]).all() and len(np.unique(blocks[:, 0])) == len(blocks)
+    assert not (a == b).all() and not (a == index).all() and len(np.unique(a)) == len(index)
+    some = np.array([0, 1, 5, 1000, 123_456_789, (1 << 32) - 1])
+    assert smp.sobol_points(some, (1, 2, 3, 7)).tolist() == [
+        list(smp.sobol_02(int(i)) + smp.sobol(int(i), (3, 7))) for i in some]
+    np.testing.assert_array_equal(point_keys(np.array([2, 5, 9])), [128, 320, 576])
+    np.testing.assert_array_equal(point_keys(np.array([5, 2, 5, 9, 5])), [320, 128, 321, 576, 322])
