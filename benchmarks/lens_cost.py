@@ -1,10 +1,11 @@
-"""What stratified camera numbers buy (a thin lens's samples, the first surface's lobe choice).
+"""What stratified numbers buy (a thin lens's samples, the first surface's lobe choice, light samples).
 
 This checkout's ``core`` against another revision's.  Both versions are imported into one process
 (the other one as ``core_base``, extracted with ``git archive``, as ``ab_photon_pass.py`` does)
 and render the same built-in scenes with a thin lens (``--pinhole``: as they are), PPM, the same
-passes and photons, one worker, over the same seeds, one render of each version after the other.
-Each pass's camera numbers are uniform in either version, so the two images have the same
+passes and photons, one worker, over the same seeds, one render of each version after the other;
+``--direct-light sampled``: with light samples (``RenderSettings.direct_light``).
+Each pass's numbers are uniform in either version, so the two images have the same
 expectation and the difference of their mean squared errors is that of their variances: the
 script reports each pixel's variance over the seeds (averaged over the image, and over the pixels
 whose mean differs most from their neighbours': edges in and out of focus), relative to the image
@@ -12,6 +13,7 @@ mean squared, and the time per pass.
 
     python benchmarks/lens_cost.py --base 9428c42 [--scenes cornell_box hole_mirror_glass]
                                    [--resolution 160 120] [--passes 32] [--seeds 6] [--pinhole]
+                                   [--direct-light sampled]
 """
 from __future__ import annotations
 
@@ -36,7 +38,7 @@ from ab_photon_pass import extract  # noqa: E402
 LENSES = {"cornell_box": (0.15, 4.9), "hole_mirror_glass": (0.08, 2.0), "glass_ceiling_room": (0.1, 3.0)}
 
 
-def renders(package, scene_name, resolution, passes, photons, seeds, lens=True):
+def renders(package, scene_name, resolution, passes, photons, seeds, lens=True, direct_light="photons"):
     """(seeds, h, w, 3) images and the seconds per pass of ``package``'s renders."""
     core = importlib.import_module(package)
     scene = importlib.import_module(f"{package}.testing.scenes").BUILTIN[scene_name](resolution=resolution)
@@ -47,7 +49,7 @@ def renders(package, scene_name, resolution, passes, photons, seeds, lens=True):
     images, t0 = [], time.perf_counter()
     for seed in seeds:
         settings = core.RenderSettings(method="ppm", passes=passes, photons_per_pass=photons, workers=1,
-                                       seed=seed)
+                                       seed=seed, direct_light=direct_light)
         images.append(core.render(scene, settings).image[..., :3].astype(np.float64))
     return np.array(images), (time.perf_counter() - t0) / (passes * len(seeds))
 
@@ -70,12 +72,14 @@ def main():
     ap.add_argument("--photons-per-pass", type=int, default=50_000)
     ap.add_argument("--seeds", type=int, default=6)
     ap.add_argument("--pinhole", action="store_true", help="the scenes' own cameras, without a lens")
+    ap.add_argument("--direct-light", choices=("photons", "sampled"), default="photons")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="lens_cost_")
     extract(a.base, tmp)
     sys.path.insert(0, tmp)
     seeds = list(range(1, a.seeds + 1))
     print(f"{a.resolution[0]}x{a.resolution[1]}, {'pinhole' if a.pinhole else 'thin lens'}, PPM, "
+          f"direct light from {a.direct_light}, "
           f"{a.passes} passes of {a.photons_per_pass:,} photons, "
           f"one worker, seeds {seeds[0]}-{seeds[-1]}; variance over the seeds / mean(image)^2")
     print("| scene | this checkout: all pixels | edges (10 %) | base: all pixels | edges | base / this, "
@@ -83,8 +87,10 @@ def main():
     print("|---|---|---|---|---|---|---|---|")
     for name in a.scenes:
         res = tuple(a.resolution)
-        ours, t_ours = renders("core", name, res, a.passes, a.photons_per_pass, seeds, not a.pinhole)
-        base, t_base = renders("core_base", name, res, a.passes, a.photons_per_pass, seeds, not a.pinhole)
+        ours, t_ours = renders("core", name, res, a.passes, a.photons_per_pass, seeds, not a.pinhole,
+                               a.direct_light)
+        base, t_base = renders("core_base", name, res, a.passes, a.photons_per_pass, seeds, not a.pinhole,
+                               a.direct_light)
         mean = np.concatenate([ours, base]).mean(axis=0)
         norm = float(mean.mean()) ** 2
         sel = edges(mean)
