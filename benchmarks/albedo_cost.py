@@ -44,7 +44,7 @@ def main():
     parser.add_argument("--passes", type=int, default=4)
     args = parser.parse_args()
     for name in args.scenes:
-        scene = BUILTIN[name](tuple(args.resolution))
+        scene = BUILTIN[name](resolution=tuple(args.resolution))
         ctx = RenderContext(scene)
         eye, whole = [], []
         for r in range(args.rounds):

@@ -34,7 +34,7 @@ from core import RenderSettings, render
 from core.testing.scenes import BUILTIN
 scene_name, w, h, method, limit, workers = sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5], \
     float(sys.argv[6]), int(sys.argv[7])
-scene = BUILTIN[scene_name]((w, h))
+scene = BUILTIN[scene_name](resolution=(w, h))
 times = []
 t0 = time.perf_counter()
 result = render(scene, RenderSettings(method=method, passes=0, time_limit=limit, workers=workers),

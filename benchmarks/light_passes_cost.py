@@ -71,7 +71,7 @@ def main():
     size = f"{args.resolution[0]}x{args.resolution[1]}"
     for name in args.scenes:
         # (the same scene for both: its groups cost nothing unless their passes are asked for)
-        scene = with_light_groups(BUILTIN[name](tuple(args.resolution)))
+        scene = with_light_groups(BUILTIN[name](resolution=tuple(args.resolution)))
         variants = {"light_passes": LIGHT_PASSES,
                     "light_groups": tuple(LIGHTGROUP_PREFIX + g for g in scene.light_groups)}
         for method in ("ppm", "amcmcppm"):

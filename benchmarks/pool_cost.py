@@ -59,7 +59,7 @@ def main(argv=None):
     for name in args.scenes:
         for size in args.sizes:
             w, h = (int(v) for v in size.split("x"))
-            scene = BUILTIN[name]((w, h))
+            scene = BUILTIN[name](resolution=(w, h))
             for method in args.methods:
                 base = RenderSettings(method=method, passes=args.passes, seed=1)
                 runs = {1: [], 2: []}

@@ -31,7 +31,7 @@ import numpy as np
 from core import RenderSettings, render
 from core.testing.scenes import BUILTIN
 a = json.loads(sys.argv[1])
-scene = BUILTIN[a["scene"]](tuple(a["size"]))
+scene = BUILTIN[a["scene"]](resolution=tuple(a["size"]))
 settings = RenderSettings(method=a["method"], passes=a["passes"], photons_per_pass=a["photons"],
                           workers=1, seed=1)
 t0 = time.perf_counter()
