@@ -86,9 +86,8 @@ def build_parser():
     g.add_argument("--direct-samples", type=int,
                    help="light samples per pixel and pass (--direct-light sampled)")
     g.add_argument("--pixel-jitter", choices=("stratified", "random"),
-                   help="where in its pixel (and on the lens) each pass's camera ray starts, which lobe it "
-                        "takes first and where its light samples fall (stratified over the passes, or "
-                        "random)")
+                   help="where in its pixel (and on the lens) each pass's camera ray starts, which lobes it "
+                        "takes and where its light samples fall (stratified over the passes, or random)")
     g.add_argument("--focus-photons", action=argparse.BooleanOptionalAction, default=None,
                    help="aim uniform photons from the sun and the world at what the camera sees, or "
                         "through the light portals, where that pays (--no-focus-photons: off)")

@@ -50,12 +50,13 @@ DIRECT_LIGHT_ITEMS = {
 }
 PIXEL_JITTER_ITEMS = {
     "stratified": ("Stratified", "Each pixel's passes spread their camera rays evenly over the pixel, "
-                                 "the lens (depth of field) and the lobes of the first surface (glass's "
-                                 "reflection and refraction), and its light samples over the lights, by "
-                                 "randomly shifted Sobol sequences: edges, textures, small bright spots, "
-                                 "out-of-focus blur, what glass shows and soft shadows settle sooner", 0),
+                                 "the lens (depth of field) and the lobes of the surfaces they meet "
+                                 "(glass's reflection and refraction), and its light samples over the "
+                                 "lights, by randomised Sobol sequences: edges, textures, small bright "
+                                 "spots, out-of-focus blur, what glass shows and soft shadows settle "
+                                 "sooner", 0),
     "random": ("Random", "Each pass's camera rays take independent random numbers for the pixel, the "
-                         "lens and the first surface's lobe, and so do the light samples", 1),
+                         "lens and the surfaces' lobes, and so do the light samples", 1),
 }
 
 
@@ -109,7 +110,7 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
     pixel_jitter: EnumProperty(
         name="Pixel Jitter", items=enum_pixel_jitter, default=_DEFAULTS.pixel_jitter,
         description="Where in its pixel and on the lens each pass's camera ray starts, which "
-                    "lobe it takes at its first surface and where its light samples fall (as "
+                    "lobe it takes at each surface and where its light samples fall (as "
                     "Cycles' sampling pattern)")
     alpha: FloatProperty(
         name="Alpha", default=_DEFAULTS.alpha, min=0.01, max=0.99, precision=3,

@@ -41,9 +41,8 @@ def build_parser():
     r.add_argument("--direct-samples", type=int, default=d.direct_samples,
                    help="light samples per pixel and pass (--direct-light sampled)")
     r.add_argument("--pixel-jitter", choices=PIXEL_JITTER, default=d.pixel_jitter,
-                   help="where in its pixel (and on the lens) each pass's camera ray starts, which lobe it "
-                        "takes first and where its light samples fall (stratified over the passes, or "
-                        "random)")
+                   help="where in its pixel (and on the lens) each pass's camera ray starts, which lobes it "
+                        "takes and where its light samples fall (stratified over the passes, or random)")
     r.add_argument("--focus-photons", action=argparse.BooleanOptionalAction, default=d.focus_photons,
                    help="aim uniform photons from the sun and the world at what the camera sees, or "
                         "through the scene's light portals, where that pays (--no-focus-photons: off)")

@@ -77,16 +77,26 @@ def stratified_lens(salt, pass_index, pixel_ids):
     return _shifted(salt, pixel_ids, smp.sobol(int(pass_index), (3, 4)))
 
 
-def stratified_choices(salt, pass_index, pixel_ids):
-    """(n, 3) numbers in [0, 1) for the lobe choice at the first surface of ``pixel_ids``' (n,)
-    camera paths in pass ``pass_index`` (``RenderSettings.pixel_jitter``; the eye pass's ``u`` at
-    depth 0: a non-delta lobe or which delta lobe, then the delta lobe's own two numbers, as
-    reflection or refraction by a glass's Fresnel factor): point ``pass_index`` of Sobol's
-    dimensions 5 to 7 (:func:`~core.sampling.sobol`), its bits XORed with 96 random bits of the
-    pixel's own.  So a pixel whose ray meets glass, a mirror or a coat splits its passes between
-    the lobes in their proportions instead of at random, jointly stratified with where in the
-    pixel and on the lens each pass looks."""
-    return _shifted(salt, pixel_ids, smp.sobol(int(pass_index), (5, 6, 7)))
+def stratified_choices(salt, pass_index, pixel_ids, depth=0):
+    """(n, 3) numbers in [0, 1) for the lobe choice at surface ``depth`` (0 the first) of
+    ``pixel_ids``' (n,) camera paths in pass ``pass_index`` (``RenderSettings.pixel_jitter``; the
+    eye pass's ``u``: a non-delta lobe or which delta lobe, then the delta lobe's own two numbers,
+    as reflection or refraction by a glass's Fresnel factor).  At the first surface point
+    ``pass_index`` of Sobol's dimensions 5 to 7 (:func:`~core.sampling.sobol`), its bits XORed with
+    96 random bits of the pixel's own, jointly stratified with where in the pixel and on the lens
+    each pass looks.  At each surface after it (stop 66) the first three dimensions at the pass
+    index, index and coordinates Owen-scrambled with seeds of the pixel's and the depth's own
+    (:func:`~core.sampling.owen_scramble`, as :func:`~core.direct.stratified_light`): stratified over
+    the passes, paired at random with the numbers before.  So a pixel whose ray meets glass, a
+    mirror or a coat, at any depth, splits its passes between the lobes in their proportions
+    instead of at random."""
+    if depth == 0:
+        return _shifted(salt, pixel_ids, smp.sobol(int(pass_index), (5, 6, 7)))
+    salt = (salt + depth * 0x632BE59BD9B4E019) % (1 << 64)
+    seed = smp.hash_bits(pixel_ids, salt, 2).view(np.uint32)
+    index = smp.owen_scramble(np.full(len(pixel_ids), pass_index, np.uint64), seed[:, 3])
+    point = smp.owen_scramble(smp.sobol_points(index, (1, 2, 3)), seed[:, :3])
+    return point.astype(np.float64) * 2.0 ** -32
 
 
 def aperture_points(camera, u1, u2):

@@ -146,8 +146,9 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     """Trace one camera path per window pixel with fresh jitter from ``rng`` (or, for the pixel
     jitter, from ``jitter``: None, or a function of the pixel ids (n,) that returns their (n, 2)
     numbers, :func:`~core.camera.stratified_jitter`, or (n, 4) with the lens samples,
-    :func:`~core.camera.stratified_lens`; and for the lobe choice at the first surface, from
-    ``choices``: None, or such a function returning (n, 3), :func:`~core.camera.stratified_choices`); with
+    :func:`~core.camera.stratified_lens`; and for the lobe choice at each surface, from
+    ``choices``: None, or a function of the pixel ids and the depth returning (n, 3),
+    :func:`~core.camera.stratified_choices`); with
     ``data_passes`` (``RenderSettings.data_passes``) also the data of the surfaces the camera
     rays stop on (:func:`first_hit_data`; the normal and UV past transparent surfaces by
     ``alpha_threshold``, :func:`threshold_data`).  ``limits`` (:class:`~core.settings.BounceLimits`, by
@@ -994,8 +995,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 beta[under] *= coat_attenuation(table, surf, wo, under)
             surf = dataclasses.replace(surf, ns=coat_normals(surf, mats), mat_ids=mats, colors=colors)
         u = rng.random((len(pix), 3))
-        if depth == 0 and choices is not None:
-            u = choices(pix)            # (the stream's numbers drawn all the same: the rest keep theirs)
+        if choices is not None:
+            u = choices(pix, depth)     # (the stream's numbers drawn all the same: the rest keep theirs)
         non_delta = scores[:, DIFFUSE] + scores[:, GLOSSY]
         if table.has_translucent:
             non_delta = non_delta + scores[:, TRANSLUCENT]

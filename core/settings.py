@@ -177,14 +177,15 @@ class RenderSettings:
 
     pixel_jitter: str = "stratified"
     """Where in its pixel (by the pixel filter) each pass's camera ray of a pixel starts, with depth
-    of field where on the lens, which lobe it takes at its first surface, and where its light
-    samples fall (``direct_light="sampled"``): "stratified", each pixel's passes spread evenly over
-    its area (Sobol's dimensions 1 and 2 with a random digital shift per pixel,
+    of field where on the lens, which lobe it takes at each surface, and where its light samples
+    fall (``direct_light="sampled"``): "stratified", each pixel's passes spread evenly over its
+    area (Sobol's dimensions 1 and 2 with a random digital shift per pixel,
     :func:`core.camera.stratified_jitter`), over the lens (dimensions 3 and 4,
-    :func:`core.camera.stratified_lens`) and over the lobes (dimensions 5 to 7: a glass's
-    reflection and refraction in their Fresnel shares, :func:`core.camera.stratified_choices`), and
-    its light samples over the emitters and the points on them (a 4-dimensional Sobol sequence of
-    its own, its index scrambled per pixel: :func:`core.direct.stratified_light`), or "random",
+    :func:`core.camera.stratified_lens`) and over the lobes (at the first surface dimensions 5 to
+    7, behind it a scrambled Sobol sequence of each depth's own: a glass's reflection and
+    refraction in their Fresnel shares, :func:`core.camera.stratified_choices`), and its light
+    samples over the emitters and the points on them (a 4-dimensional Sobol sequence of its own,
+    index and coordinates scrambled per pixel: :func:`core.direct.stratified_light`), or "random",
     independent numbers every pass.  Each pass's numbers are uniform either way (the image's
     expectation is the same); stratified, the noise of where the passes look (edges, textures,
     small bright spots, sharp shadows, the blur out of focus, what glass and mirrors show) and of
