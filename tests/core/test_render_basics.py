@@ -475,6 +475,35 @@ def test_stratified_lens_samples_converge_faster_out_of_focus():
     assert rms["stratified"] < 0.4 * rms["random"], rms
 
 
+def glow_and_glass(glow_z):
+    """A glass block (IOR 1.5) over x, y in [-50, 50] and z in [-3, 0] and a glowing plane (emission
+    1) at height ``glow_z``, inside or under it, seen straight down by an orthographic camera of 16
+    x 16 pixels under a black world."""
+    m = MeshBuilder()
+    m.add_box((-50, -50, -3), (50, 50, 0), 0)
+    m.add_quad((-40, -40, glow_z), (40, -40, glow_z), (40, 40, glow_z), (-40, 40, glow_z), 1)
+    pose = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)).world_from_camera
+    camera = Camera(world_from_camera=pose, projection="orthographic", frame=(-8.0, 8.0, -8.0, 8.0),
+                    resolution=(16, 16))
+    mats = Materials.build([{"name": "glass", "dielectric": 1.0, "ior": 1.5},
+                            {"name": "glow", "emission": (1.0, 1.0, 1.0)}])
+    return m.build(mats, Lights.build([]), camera)
+
+
+def spread_by_jitter(scene, mean, passes=64):
+    """{pixel_jitter: the pixels' spread after ``passes`` PPM passes of ``scene``} for independent and
+    stratified numbers, each image's mean within 0.01 of ``mean``."""
+    spread = {}
+    for jitter in ("random", "stratified"):
+        r = render(scene, RenderSettings(method="ppm", passes=passes, photons_per_pass=1000, workers=1,
+                                         pixel_jitter=jitter))
+        value = r.image[..., 0]
+        assert abs(value.mean() - mean) < 0.01, (jitter, value.mean())
+        spread[jitter] = float(value.std())
+    print(f"pixels' spread after {passes} passes: {spread}")
+    return spread
+
+
 def test_stratified_lobe_choice_at_the_first_surface_converges_faster():
     """RenderSettings.pixel_jitter: an orthographic camera looks straight down into a glass block
     (IOR 1.5) with a glowing plane inside it, under a black world.  Each pass a pixel's path either
@@ -482,23 +511,7 @@ def test_stratified_lobe_choice_at_the_first_surface_converges_faster():
     1 - F = 0.96 either way on average (within 0.01); over 64 passes the pixels' spread is below
     half that of independent numbers (sqrt(F (1 - F) / 64) = 0.024; measured 0.026 against 0.008
     with the choice stratified, 0.026 too with the pixel jitter alone stratified, before stop 65)."""
-    m = MeshBuilder()
-    m.add_box((-50, -50, -3), (50, 50, 0), 0)
-    m.add_quad((-40, -40, -1), (40, -40, -1), (40, 40, -1), (-40, 40, -1), 1)
-    pose = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)).world_from_camera
-    camera = Camera(world_from_camera=pose, projection="orthographic", frame=(-8.0, 8.0, -8.0, 8.0),
-                    resolution=(16, 16))
-    mats = Materials.build([{"name": "glass", "dielectric": 1.0, "ior": 1.5},
-                            {"name": "glow", "emission": (1.0, 1.0, 1.0)}])
-    scene = m.build(mats, Lights.build([]), camera)
-    spread = {}
-    for jitter in ("random", "stratified"):
-        r = render(scene, RenderSettings(method="ppm", passes=64, photons_per_pass=1000, workers=1,
-                                         pixel_jitter=jitter))
-        value = r.image[..., 0]
-        assert abs(value.mean() - 0.96) < 0.01, (jitter, value.mean())
-        spread[jitter] = float(value.std())
-    print(f"pixels' spread after 64 passes: {spread}")
+    spread = spread_by_jitter(glow_and_glass(-1.0), 0.96)
     assert spread["stratified"] < 0.5 * spread["random"], spread
 
 
@@ -511,23 +524,7 @@ def test_stratified_lobe_choices_behind_the_first_surface_converge_faster():
     independent numbers (seeds 0-3: 0.0119-0.0127 against 0.031-0.035; with the first surface's
     choice alone stratified, as before stop 66, 0.0235-0.025: the choice at the slab's underside is
     much of it)."""
-    m = MeshBuilder()
-    m.add_box((-50, -50, -3), (50, 50, 0), 0)
-    m.add_quad((-40, -40, -5), (40, -40, -5), (40, 40, -5), (-40, 40, -5), 1)
-    pose = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)).world_from_camera
-    camera = Camera(world_from_camera=pose, projection="orthographic", frame=(-8.0, 8.0, -8.0, 8.0),
-                    resolution=(16, 16))
-    mats = Materials.build([{"name": "glass", "dielectric": 1.0, "ior": 1.5},
-                            {"name": "glow", "emission": (1.0, 1.0, 1.0)}])
-    scene = m.build(mats, Lights.build([]), camera)
-    spread = {}
-    for jitter in ("random", "stratified"):
-        r = render(scene, RenderSettings(method="ppm", passes=64, photons_per_pass=1000, workers=1,
-                                         pixel_jitter=jitter))
-        value = r.image[..., 0]
-        assert abs(value.mean() - 0.96 / 1.04) < 0.01, (jitter, value.mean())
-        spread[jitter] = float(value.std())
-    print(f"pixels' spread after 64 passes: {spread}")
+    spread = spread_by_jitter(glow_and_glass(-5.0), 0.96 / 1.04)
     assert spread["stratified"] < 0.5 * spread["random"], spread
 
 
