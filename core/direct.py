@@ -5,7 +5,9 @@ reaches a surface straight from an emitter comes from photons too: the plain met
 and the blotchy look of a photon map where most of the light is direct (the Cornell box:
 ``benchmarks/versus_cycles.py``).  With ``direct_light="sampled"`` each pass's measurement points
 get that light from ``direct_samples`` light samples each instead: an emitter chosen by power among
-those :meth:`~core.lights.LightSampler.direct_entries` names, a point on it or a direction
+those :meth:`~core.lights.LightSampler.direct_entries` names (where the scene has several lamps,
+these by their power over the squared distance in part: :func:`lamp_choice`), a point on it or a
+direction
 (:meth:`~core.lights.LightSampler.sample_direct`; the world's mostly through its light portals
 where the scene has them), a shadow ray, and the point's BSDF through the pair weights a photon
 arriving along the same direction would get (:meth:`~core.photon_pass.DepositTarget.pair_weights`,
@@ -43,7 +45,9 @@ import numpy as np
 
 from . import sampling as smp
 from .light_passes import VIA_GLOSSY, VIA_NONE, VIA_TRANSMISSION
+from .lights import _spot_mask
 from .sampling import dot
+from .scene import AREA_DISK, AREA_RECT, POINT, SPOT
 
 
 def sampled_emitters(ctx, limits=None):
@@ -77,6 +81,93 @@ CHUNK = 1 << 18
 # over seeds 1.6 / 0.52 / 0.18 / 0.079 / 0.021 with light samples against 0.55 / 0.30 / 0.13 /
 # 0.066 / 0.029 with photons at roughness 0.2 / 0.3 / 0.4 / 0.5 / 0.7.
 MIN_GLOSSY_ALPHA = 0.25
+
+
+# The emitter's choice at a point (lamp_choice): with several lamps (point, spot and area lights)
+# the lamps' share of the samples goes to each by its power over its squared distance (times its
+# spot cone, the side an area light faces) in this share, by its power alone in the rest (which
+# keeps every lamp's chance above zero where the estimate misjudges: a lamp behind a wall).  Up to
+# MAX_LAMPS lamps (sample_direct takes the samples of at most LAMP_TABLE / lamps points at once, for
+# the table of their chances); more keep the choice by power.
+NEAR_SHARE = 0.75
+MAX_LAMPS = 64
+LAMP_TABLE = 1 << 21
+
+
+def lamp_choice(lights, prob, cdf):
+    """(choose, the most points it takes at once or None): ``choose`` a function of (u (k,) in [0,
+    1), points x (m, 3), the point of each sample rows (k,)) -> (the emitters (k,) of ``lights``'
+    entries, their chances (k,) at those points): by ``prob`` (cumulated ``cdf``), or, where two to
+    ``MAX_LAMPS`` lamps have a chance, the lamps' share of ``u`` split among them by how much of
+    their light could reach each point (``NEAR_SHARE``; the others keep ``prob``).  Either way
+    the chances of a point sum to 1 and every emitter of ``prob`` keeps one above zero, so the
+    light samples' mean stays the direct light; with lamps near some points and far from others
+    (a street of lamps, a room of bulbs) each point samples the ones that light it."""
+    lamps = np.flatnonzero(np.isin(lights.kinds, (POINT, SPOT, AREA_RECT, AREA_DISK)) & (prob > 0))
+
+    def by_power(u, x, rows):
+        entry = np.minimum(np.searchsorted(cdf, u, side="right"), len(prob) - 1)
+        return entry, prob.take(entry)
+    if not 2 <= len(lamps) <= MAX_LAMPS:
+        return by_power, None
+    share = prob.take(lamps)
+    others = np.setdiff1d(np.flatnonzero(prob > 0), lamps)
+    rest_total = float(prob.take(others).sum())
+    lamp_total = 1.0 - rest_total
+    rest_cdf = np.cumsum(prob.take(others)) / rest_total if len(others) else None
+    if rest_cdf is not None:
+        rest_cdf[-1] = 1.0
+    L = lights.lights
+    ids = lights.ids.take(lamps)
+    kinds = L.kind.take(ids)
+    centre = L.position.take(ids, axis=0).astype(np.float64)
+    axis = lights.axes.take(ids, axis=0)
+    area = np.isin(kinds, (AREA_RECT, AREA_DISK))
+    # (no closer than the lamp's size: a point on a lamp's sphere or by its panel)
+    span = np.linalg.norm(np.cross(L.axis_u.take(ids, axis=0), L.axis_v.take(ids, axis=0)), axis=1)
+    near2 = np.maximum(np.where(area, 4.0 * span / np.pi, L.radius.take(ids).astype(np.float64) ** 2), 1e-12)
+    spot = kinds == SPOT
+    cos_half = np.cos(0.5 * L.spot_angle.take(ids).astype(np.float64))
+    blend = L.spot_blend.take(ids).astype(np.float64)
+    by_share = share / lamp_total
+
+    def near(x):
+        """(k, lamps) chances within the lamps at points x (k, 3), each row summing to 1."""
+        to = [x[:, c:c + 1] - centre[:, c] for c in range(3)]              # (k, lamps) each: lamp to point
+        d2 = to[0] * to[0] + to[1] * to[1] + to[2] * to[2]
+        w = share / np.maximum(d2, near2)
+        if area.any() or spot.any():
+            along = to[0] * axis[:, 0] + to[1] * axis[:, 1] + to[2] * axis[:, 2]
+            cos = along / np.sqrt(np.maximum(d2, 1e-300))
+            w = np.where(area & (cos <= 0), 0.0, w)
+            if spot.any():
+                w = np.where(spot, w * _spot_mask(cos, cos_half, blend), w)
+        total = w.sum(axis=1, keepdims=True)
+        w = np.where(total > 0, w / np.where(total > 0, total, 1.0), by_share)
+        return (1.0 - NEAR_SHARE) * by_share + NEAR_SHARE * w
+
+    def choose(u, x, rows):
+        entry = np.zeros(len(u), np.int64)
+        p = np.zeros(len(u))
+        # (the first lamp_total of the unit interval chooses a lamp, the rest another emitter)
+        on_lamp = (u < lamp_total) | (rest_cdf is None)
+        other = np.flatnonzero(~on_lamp)
+        if len(other):
+            v = (u.take(other) - lamp_total) / rest_total
+            k = np.minimum(np.searchsorted(rest_cdf, v, side="right"), len(others) - 1)
+            entry[other] = others.take(k)
+            p[other] = prob.take(entry[other])
+        r = np.flatnonzero(on_lamp)
+        if len(r):
+            chance = near(x)                                     # (the points' own, each sample's by rows)
+            at = rows.take(r)
+            v = np.minimum(u.take(r) / lamp_total, 1.0)
+            below = np.cumsum(chance, axis=1).take(at, axis=0) <= v[:, None]
+            j = np.minimum(below.sum(axis=1), len(lamps) - 1)
+            entry[r] = lamps.take(j)
+            p[r] = lamp_total * chance[at, j]
+        return entry, p
+    return choose, max(LAMP_TABLE // len(lamps), 1)
 
 
 def sampled_points(table, points):
@@ -136,7 +227,8 @@ def point_keys(pixel_ids):
 def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None, numbers=None):
     """(n_pixels, 3) float64: the mean of ``samples`` light samples' estimates of the direct light
     at each of ``target``'s surface points (a :class:`~core.photon_pass.DepositTarget`), through
-    its throughput, from the emitters ``mask`` (:func:`sampled_emitters`) chosen by power.
+    its throughput, from the emitters ``mask`` (:func:`sampled_emitters`) chosen by power
+    (:func:`lamp_choice`).
 
     ``passes``: None, or name -> (n_pixels, 3) arrays of Cycles' light passes
     (``core/light_passes.py``) to add the samples' parts to, as the photons' first vertices would
@@ -156,15 +248,25 @@ def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None, n
     prob = q / q.sum()
     cdf = np.cumsum(prob)
     cdf[-1] = 1.0
+    choose, most = lamp_choice(ctx.lights, prob, cdf)
     split = bool(passes)
     draw = None if numbers is None else numbers(point_keys(pts.pixel_ids).take(base))
-    # Sample k is number k // len(base) of point base[k mod len(base)].
+    # Sample k is number k // len(base) of point base[k mod len(base)]; a chunk's samples are of
+    # consecutive points (mod len(base)), at most ``most`` of them with the lamps' choice.
     total = len(base) * samples
-    for start in range(0, total, CHUNK):
-        k = np.arange(start, min(start + CHUNK, total))
-        point = base.take(k % len(base))
-        u = rng.random((len(k), 4)) if draw is None else draw(k % len(base), k // len(base))
-        j, estimate, glossy, entry = _light_samples(ctx, target, point, prob, cdf, u, rng, split)
+    chunk = CHUNK if most is None else min(CHUNK, most * samples)
+    for start in range(0, total, chunk):
+        k = np.arange(start, min(start + chunk, total))
+        slot = k % len(base)
+        u = rng.random((len(k), 4)) if draw is None else draw(slot, k // len(base))
+        x = rows = None
+        if most is not None:
+            lo = int(slot[0])
+            near = base.take((lo + np.arange(min(len(k), len(base)))) % len(base))
+            x, rows = pts.position.take(near, axis=0).astype(np.float64), (slot - lo) % len(base)
+        entry, chance = choose(u[:, 0], x, rows)
+        j, estimate, glossy, entry = _light_samples(ctx, target, base.take(slot), entry, chance, u, rng,
+                                                    split)
         pix = pts.pixel_ids.take(j)
         value = target.point_values(j, estimate / samples)
         np.add.at(out, pix, value)
@@ -188,15 +290,14 @@ def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None, n
     return out
 
 
-def _light_samples(ctx, target, point, prob, cdf, u, rng, split=False):
-    """One light sample at each of ``target``'s surface points ``point`` (k,) of the numbers ``u``
-    (k, 4), emitters chosen with probabilities ``prob`` (cumulated ``cdf``): (the points j whose
-    samples reached the light, (len(j), 3) their estimates before
+def _light_samples(ctx, target, point, entry, chance, u, rng, split=False):
+    """One light sample at each of ``target``'s surface points ``point`` (k,) of the emitters
+    ``entry`` (k,) chosen with the chances ``chance`` (k,) (:func:`lamp_choice`) and the numbers
+    ``u`` (k, 4): (the points j whose samples reached the light, (len(j), 3) their estimates before
     :meth:`~core.photon_pass.DepositTarget.point_values`, with ``split`` the glossy lobe's part of
     them (None where no point has one), and their emitters)."""
     lights, pts = ctx.lights, target.points
     m = len(point)
-    entry = np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), lights.count - 1)
     x = pts.position.take(point, axis=0).astype(np.float64)
     ng = pts.ng.take(point, axis=0).astype(np.float64)
     translucent = np.zeros(m, bool) if target.translucent is None else target.translucent.take(point)
@@ -225,7 +326,7 @@ def _light_samples(ctx, target, point, prob, cdf, u, rng, split=False):
     w = target.pair_weights(j, d, cos_g, cos_g if target.has_shading_normals else None,
                             behind if behind.any() else None, split=split)
     w, glossy = w if split else (w, None)
-    arriving = value.take(r, axis=0) * (cos_g / prob.take(entry.take(r)))[:, None]
+    arriving = value.take(r, axis=0) * (cos_g / chance.take(r))[:, None]
     if tint is not None:
         arriving *= tint.take(open_, axis=0)
 
