@@ -7,22 +7,22 @@ and the blotchy look of a photon map where most of the light is direct (the Corn
 get that light from ``direct_samples`` light samples each instead: an emitter chosen by power among
 those :meth:`~core.lights.LightSampler.direct_entries` names (where the scene has several lamps,
 these by their power over the squared distance in part: :func:`lamp_choice`), a point on it or a
-direction
-(:meth:`~core.lights.LightSampler.sample_direct`; the world's mostly through its light portals
-where the scene has them), a shadow ray, and the point's BSDF through the pair weights a photon
-arriving along the same direction would get (:meth:`~core.photon_pass.DepositTarget.pair_weights`,
-with the landing facet the point's own). The photon pass then leaves out the deposits at the first
-vertex of the photons of those emitters (``DepositTarget.direct``), and nothing else: light through
-glass or off a mirror (a caustic, a room lit through a glass roof) still comes from photons, as
-does the light of emitters left out. So the two estimate disjoint parts of the light and their sum
-is the same image, without the photons' kernel bias in the direct part; the light samples are
-averaged over passes with the emission the camera sees (``EyePassResult.emission``), and with
-``pixel_jitter="stratified"`` a pixel's samples, pass after pass, fill the light's strata evenly
-(:func:`stratified_light`).  The Markov chains then seek paths that matter beyond their first
-vertex, as a path visible only there is no longer visible.  Points whose glossy lobe is sharper
-than ``MIN_GLOSSY_ALPHA`` take no samples and keep their photons' direct light
-(``DepositTarget.direct_points``: the photon pass then leaves out the first-vertex pairs of the
-others alone, and a first vertex in the chains' visible cells still counts).
+direction (:meth:`~core.lights.LightSampler.sample_direct`; the world's mostly through its light
+portals where the scene has them), a shadow ray, and the point's BSDF through the pair weights a
+photon arriving along the same direction would get
+(:meth:`~core.photon_pass.DepositTarget.pair_weights`, with the landing facet the point's own). The
+photon pass then leaves out the deposits at the first vertex of the photons of those emitters
+(``DepositTarget.direct``), and nothing else: light through glass or off a mirror (a caustic, a
+room lit through a glass roof) still comes from photons, as does the light of emitters left out. So
+the two estimate disjoint parts of the light and their sum is the same image, without the photons'
+kernel bias in the direct part; the light samples are averaged over passes with the emission the
+camera sees (``EyePassResult.emission``), and with ``pixel_jitter="stratified"`` a pixel's samples,
+pass after pass, fill the light's strata evenly (:func:`stratified_light`).  The Markov chains then
+seek paths that matter beyond their first vertex, as a path visible only there is no longer
+visible.  Points whose glossy lobe is sharper than ``MIN_GLOSSY_ALPHA`` take no samples and keep
+their photons' direct light (``DepositTarget.direct_points``: the photon pass then leaves out the
+first-vertex pairs of the others alone, and a first vertex in the chains' visible cells still
+counts).
 
 Scenes with what the light samples do not model keep the photons' direct light
 (:func:`sampled_emitters`; ``RenderResult.direct_light`` says why): volumes, shadow catchers,
