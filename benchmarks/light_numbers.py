@@ -81,7 +81,8 @@ def main():
                                       for k, f in INTEGRANDS.items()])
                       for name, y in schemes(rng, a.seed + 7, a.pixels, passes, samples).items()}
             for name, e in errors.items():
-                print(f"| {samples} | {passes} | {name} | " + " | ".join(f"{v:.4f}" for v in e) + " |", flush=True)
+                cells = " | ".join(f"{v:.4f}" for v in e)
+                print(f"| {samples} | {passes} | {name} | {cells} |", flush=True)
                 ratios.setdefault(name, {}).setdefault(samples, []).append(e / errors["random"])
     print("\nRMS error / random's: geometric mean over integrands and passes (1 sample a pass; 4), the worst")
     for name, by in list(ratios.items())[1:]:

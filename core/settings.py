@@ -167,10 +167,11 @@ class RenderSettings:
     """Where the light that reaches a surface seen by the camera straight from an emitter comes
     from: "photons", the photons' first vertices (the paper's method), or "sampled",
     ``direct_samples`` light samples per measurement point and pass (an emitter chosen by power,
-    several lamps by their power over the squared distance in part; a shadow ray), the photons then depositing from their second vertex on for those emitters at
-    those points (``core/direct.py``: which emitters, points and scenes; the others keep their
-    photons' direct light, and ``RenderResult.direct_light`` says why where the scene rules the
-    samples out).  Light through glass or off mirrors comes from photons either way."""
+    several lamps by their power over the squared distance in part; a shadow ray), the photons then
+    depositing from their second vertex on for those emitters at those points (``core/direct.py``:
+    which emitters, points and scenes; the others keep their photons' direct light, and
+    ``RenderResult.direct_light`` says why where the scene rules the samples out).  Light through
+    glass or off mirrors comes from photons either way."""
 
     direct_samples: int = 4
     """Light samples per measurement point and pass with ``direct_light="sampled"``."""

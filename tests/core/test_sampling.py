@@ -1976,8 +1976,8 @@ def test_stratified_light_numbers_are_uniform_in_every_pass_and_fill_a_pixels_st
     # per pixel instead of scrambled, 0.062: tied to the jitter).
     pixels = np.arange(4000)
     x = np.stack([stratified_jitter(5, k, pixels)[:, 0] for k in range(64)], axis=1)
-    y = np.stack([stratified_light(6, k, 1, pixels * 64)(pixels, np.zeros(4000, int))[:, 1] for k in range(64)],
-                 axis=1)
+    one = np.zeros(4000, int)
+    y = np.stack([stratified_light(6, k, 1, pixels * 64)(pixels, one)[:, 1] for k in range(64)], axis=1)
     independent = np.random.default_rng(3).random((4000, 64))
     rms = [np.sqrt(np.mean(((x + v < 1).mean(axis=1) - 0.5) ** 2)) for v in (y, independent)]
     assert rms[0] < 0.9 * rms[1], rms
