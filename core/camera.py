@@ -86,17 +86,15 @@ def stratified_choices(salt, pass_index, pixel_ids, depth=0):
     96 random bits of the pixel's own, jointly stratified with where in the pixel and on the lens
     each pass looks.  At each surface after it (stop 66) the first three dimensions at the pass
     index, index and coordinates Owen-scrambled with seeds of the pixel's and the depth's own
-    (:func:`~core.sampling.owen_scramble`, as :func:`~core.direct.stratified_light`): stratified over
+    (:func:`~core.sampling.scrambled_sobol`, as :func:`~core.direct.stratified_light`): stratified over
     the passes, paired at random with the numbers before.  So a pixel whose ray meets glass, a
     mirror or a coat, at any depth, splits its passes between the lobes in their proportions
     instead of at random."""
     if depth == 0:
         return _shifted(salt, pixel_ids, smp.sobol(int(pass_index), (5, 6, 7)))
     salt = (salt + depth * 0x632BE59BD9B4E019) % (1 << 64)
-    seed = smp.hash_bits(pixel_ids, salt, 2).view(np.uint32)
-    index = smp.owen_scramble(np.full(len(pixel_ids), pass_index, np.uint64), seed[:, 3])
-    point = smp.owen_scramble(smp.sobol_points(index, (1, 2, 3)), seed[:, :3])
-    return point.astype(np.float64) * 2.0 ** -32
+    seeds = smp.hash_bits(pixel_ids, salt, 2).view(np.uint32)
+    return smp.scrambled_sobol(np.full(len(pixel_ids), pass_index, np.uint64), (1, 2, 3), seeds)
 
 
 def aperture_points(camera, u1, u2):

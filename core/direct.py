@@ -189,7 +189,7 @@ def stratified_light(salt, pass_index, samples, keys):
     pixel's samples, pass after pass, are the points of the 4-dimensional Sobol sequence (the
     point on the light the (0, 2)-sequence's first two dimensions, the choice the third) at the
     indices ``pass_index * samples + sample``, index and coordinates Owen-scrambled with seeds of
-    the pixel's own (:func:`~core.sampling.owen_scramble`; Cycles' Sobol-Burley pattern).  So each
+    the pixel's own (:func:`~core.sampling.scrambled_sobol`; Cycles' Sobol-Burley pattern).  So each
     pass's samples are uniform, and a pixel's first 2^k samples fill the light's strata evenly (its
     samples of a pass each a different stratum): soft shadows, the light of many emitters, what
     part of an area light a point sees settle faster.  The scrambles pair them with the pixel's own
@@ -202,10 +202,8 @@ def stratified_light(salt, pass_index, samples, keys):
     first = np.uint64(pass_index * samples)
 
     def numbers(rows, sample):
-        seed = seeds.take(rows, axis=0)
-        index = smp.owen_scramble(np.asarray(sample, np.uint64) + first, seed[:, 4])
-        point = smp.owen_scramble(smp.sobol_points(index, (3, 1, 2, 4)), seed[:, :4])
-        return point.astype(np.float64) * 2.0 ** -32
+        index = np.asarray(sample, np.uint64) + first
+        return smp.scrambled_sobol(index, (3, 1, 2, 4), seeds.take(rows, axis=0))
     return numbers
 
 
@@ -256,14 +254,14 @@ def sample_direct(ctx, target, mask, rng, samples=1, passes=None, groups=None, n
     total = len(base) * samples
     chunk = CHUNK if most is None else min(CHUNK, most * samples)
     for start in range(0, total, chunk):
-        k = np.arange(start, min(start + chunk, total))
-        slot = k % len(base)
-        u = rng.random((len(k), 4)) if draw is None else draw(slot, k // len(base))
+        sample_ids = np.arange(start, min(start + chunk, total))
+        slot = sample_ids % len(base)
+        u = rng.random((len(slot), 4)) if draw is None else draw(slot, sample_ids // len(base))
         x = rows = None
         if most is not None:
             lo = int(slot[0])
-            near = base.take((lo + np.arange(min(len(k), len(base)))) % len(base))
-            x, rows = pts.position.take(near, axis=0).astype(np.float64), (slot - lo) % len(base)
+            chunk_points = base.take((lo + np.arange(min(len(slot), len(base)))) % len(base))
+            x, rows = pts.position.take(chunk_points, axis=0).astype(np.float64), (slot - lo) % len(base)
         entry, chance = choose(u[:, 0], x, rows)
         j, estimate, glossy, entry = _light_samples(ctx, target, base.take(slot), entry, chance, u, rng,
                                                     split)

@@ -198,6 +198,15 @@ def owen_scramble(x, seed):
     return reverse_bits32(x)
 
 
+def scrambled_sobol(index, dims, seeds):
+    """(n, len(dims)) numbers in [0, 1): points ``index`` (n,) of Sobol's dimensions ``dims``, the
+    index and each coordinate Owen-scrambled (:func:`owen_scramble`) with the 32-bit ``seeds`` (n,
+    len(dims) + 1; the last the index's): Cycles' Sobol-Burley pattern, each point uniform and the
+    points of one seed, index after index, a net."""
+    index = owen_scramble(index, seeds[:, len(dims)])
+    return owen_scramble(sobol_points(index, dims), seeds[:, :len(dims)]).astype(np.float64) * 2.0 ** -32
+
+
 def cosine_hemisphere(u1, u2):
     """Cosine-weighted local directions; density cos(theta)/pi."""
     x, y = concentric_disk(u1, u2)
