@@ -154,7 +154,7 @@ def generate_camera_rays(camera, pixel_ids, u):
         return _panorama_rays(camera, px / w, 1.0 - py / h)
     if camera.projection == "perspective":
         d_cam = np.stack([x, y, -np.ones(n)], axis=1)
-        o_cam = np.zeros((n, 3))
+        o_cam = None                            # the camera's centre (a pinhole)
         if camera.aperture_radius > 0:
             lx, ly = aperture_points(camera, u[:, 2], u[:, 3])
             lens = np.stack([lx, ly, np.zeros(n)], axis=1)
@@ -176,7 +176,7 @@ def generate_camera_rays(camera, pixel_ids, u):
             d_cam = focus - o_cam
         scale = smp.length(d_cam) / np.abs(d_cam[:, 2])
         footprint = np.full(n, pixel_width)
-    origins = o_cam @ rot.T + m[:3, 3]
+    origins = m[:3, 3] if o_cam is None else o_cam @ rot.T + m[:3, 3]
     dirs = smp.normalize(d_cam @ rot.T)
     # Camera matrices may carry a scale: clip distances are measured in world units along -Z.
     axis_scale = np.linalg.norm(rot[:, 2])

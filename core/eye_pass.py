@@ -1037,7 +1037,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 pixel_ids=rows(pix), position=rows(surf.position), ng=ng.astype(f32),
                 ns=ns.astype(f32), wo=rows(wo).astype(f32),
                 weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
-                colors=surf.colors[:, point_lobes].take(s, axis=0).astype(f32),
+                colors=rows(surf.colors)[:, point_lobes].astype(f32),
                 base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
                 ns_glossy=ns_glossy,
