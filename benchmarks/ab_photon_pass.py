@@ -6,10 +6,13 @@ each round's ratio is taken under the same machine load; the median and range ov
 are printed.  Use it before claiming that a change to the photon pass is faster.
 
     python benchmarks/ab_photon_pass.py [--base HEAD] [--scene cornell_box] [--resolution 640 480]
-                                        [--rounds 10] [--paths 65536] [--pairs | --render METHOD]
+                                        [--rounds 10] [--paths 65536]
+                                        [--pairs | --render METHOD | --stage eye|grid]
                                         [--workers N] [--photons-per-pass N] [--isotropic]
                                         [--materials VARIANT]
 
+``--stage eye|grid`` times one stage of what the main process prepares for each pass instead:
+the eye pass, or the grid of the measurement points (of one eye pass's points).
 ``--pairs`` traces as the Markov chains do (deposit pairs collected per path) instead of
 splatting uniform photons into per-point sums.  ``--render ppm|amcmcppm`` times whole
 renders instead (eye passes, grids, chains and their deposit logs included; one worker
@@ -73,6 +76,29 @@ def photon_pass(package, scene_name, resolution, n_paths, pairs, edit=None):
     return run
 
 
+def main_stage(package, scene_name, resolution, stage, edit=None):
+    """A function timing one stage of what the main process prepares for a pass with ``package``:
+    the eye pass (``"eye"``) or the measurement points' grid (``"grid"``, of the first eye pass's
+    points); returns stages per second."""
+    mod = lambda name: importlib.import_module(f"{package}.{name}")  # noqa: E731
+    settings = importlib.import_module(package).RenderSettings()
+    scene = mod("testing.scenes").BUILTIN[scene_name](resolution=resolution)
+    if edit is not None:
+        scene = edit(scene)
+    ctx = mod("context").RenderContext(scene)
+    trace = lambda: mod("eye_pass").trace_eye_pass(ctx, np.random.default_rng(0),  # noqa: E731
+                                                    settings.initial_radius_px, settings.max_bounces)
+    points = trace().points
+    grid = lambda: mod("hash_grid").HashGrid(points.position, points.base_radius, points.ng)  # noqa: E731
+    work = trace if stage == "eye" else grid
+
+    def run():
+        t0 = time.perf_counter()
+        work()
+        return 1.0 / (time.perf_counter() - t0)
+    return run
+
+
 def whole_render(package, scene_name, resolution, method, passes, workers, photons=None, edit=None):
     """A function rendering with ``package`` on ``workers``; returns traced paths per second."""
     core = importlib.import_module(package)
@@ -119,6 +145,8 @@ def main():
     how = ap.add_mutually_exclusive_group()
     how.add_argument("--pairs", action="store_true", help="collect deposit pairs (as the chains do)")
     how.add_argument("--render", choices=("ppm", "amcmcppm"), help="time whole renders")
+    how.add_argument("--stage", choices=("eye", "grid"),
+                     help="time one stage of the main process's preparation: the eye pass or the grid")
     ap.add_argument("--passes", type=int, default=4, help="passes per render (with --render)")
     ap.add_argument("--workers", type=int, default=1, help="worker count of the renders (with --render)")
     ap.add_argument("--photons-per-pass", type=int, default=None,
@@ -139,6 +167,7 @@ def main():
         res = tuple(a.resolution)
         versions = {name: (whole_render(pkg, a.scene, res, a.render, a.passes, a.workers, a.photons_per_pass, edit)
                            if a.render else
+                           main_stage(pkg, a.scene, res, a.stage, edit) if a.stage else
                            photon_pass(pkg, a.scene, res, a.paths, a.pairs, edit))
                     for name, pkg in (("base", "core_base"), ("this", "core"))}
         rates = interleaved_rates(versions, a.rounds)
@@ -147,6 +176,8 @@ def main():
         what, unit = f"{a.render} renders of {a.passes} passes on {a.workers} worker(s)", "paths/s"
         if a.photons_per_pass:
             what += f", {a.photons_per_pass:,} photons per pass and worker"
+    elif a.stage:
+        what, unit = f"the {'eye pass' if a.stage == 'eye' else 'grid build'}", f"{a.stage}s/s"
     else:
         what, unit = f"{'pairs' if a.pairs else 'splat'}, {a.paths} paths", "vertices/s"
     print(f"{a.scene} {a.resolution[0]}x{a.resolution[1]}, {a.rounds} rounds of {what}: "
