@@ -46,17 +46,25 @@ def extract(rev, into, package="core_base"):
     subprocess.run(["tar", "-x", "-C", into], input=archive, check=True)
 
 
-def photon_pass(package, scene_name, resolution, n_paths, pairs, edit=None):
-    """A function tracing ``n_paths`` photons with ``package``; returns vertices per second.
-    ``edit(scene)``, if given, changes the built-in scene first and returns it."""
+def first_eye_pass(package, scene_name, resolution, edit=None):
+    """(module getter, default settings, render context, eye-pass function) of the built-in scene
+    with ``package``; ``edit(scene)``, if given, changes the scene first and returns it."""
     mod = lambda name: importlib.import_module(f"{package}.{name}")  # noqa: E731
     settings = importlib.import_module(package).RenderSettings()
     scene = mod("testing.scenes").BUILTIN[scene_name](resolution=resolution)
     if edit is not None:
         scene = edit(scene)
     ctx = mod("context").RenderContext(scene)
-    eye = mod("eye_pass").trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px,
-                                         settings.max_bounces)
+    trace = lambda: mod("eye_pass").trace_eye_pass(ctx, np.random.default_rng(0),  # noqa: E731
+                                                    settings.initial_radius_px, settings.max_bounces)
+    return mod, settings, ctx, trace
+
+
+def photon_pass(package, scene_name, resolution, n_paths, pairs, edit=None):
+    """A function tracing ``n_paths`` photons with ``package``; returns vertices per second.
+    ``edit(scene)``, if given, changes the built-in scene first and returns it."""
+    mod, settings, ctx, trace = first_eye_pass(package, scene_name, resolution, edit)
+    eye = trace()
     pp = mod("photon_pass")
     vol = getattr(eye, "volume", None)            # (revisions with scattering volumes)
     extra = ({"volume": vol, "volume_radius": vol.base_radius, "media": ctx.anisotropy}
@@ -80,14 +88,7 @@ def main_stage(package, scene_name, resolution, stage, edit=None):
     """A function timing one stage of what the main process prepares for a pass with ``package``:
     the eye pass (``"eye"``) or the measurement points' grid (``"grid"``, of the first eye pass's
     points); returns stages per second."""
-    mod = lambda name: importlib.import_module(f"{package}.{name}")  # noqa: E731
-    settings = importlib.import_module(package).RenderSettings()
-    scene = mod("testing.scenes").BUILTIN[scene_name](resolution=resolution)
-    if edit is not None:
-        scene = edit(scene)
-    ctx = mod("context").RenderContext(scene)
-    trace = lambda: mod("eye_pass").trace_eye_pass(ctx, np.random.default_rng(0),  # noqa: E731
-                                                    settings.initial_radius_px, settings.max_bounces)
+    mod, _, _, trace = first_eye_pass(package, scene_name, resolution, edit)
     points = trace().points
     grid = lambda: mod("hash_grid").HashGrid(points.position, points.base_radius, points.ng)  # noqa: E731
     work = trace if stage == "eye" else grid
