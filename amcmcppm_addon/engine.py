@@ -7,7 +7,8 @@ pushed after passes 1, 3, 7, ... and then about once per second; ``test_break``
 is the core's ``should_stop``, so cancelling returns promptly with the image so
 far.  Any exception reaches Blender as ``report({'ERROR'})``: it is the only
 report that makes ``bpy.ops.render.render`` fail cleanly instead of crashing
-when ``write_still`` is set (``shared/docs/blender.md`` 1).
+when ``write_still`` is set (``shared/docs/blender.md`` 1).  The 3D viewport's Rendered
+shading runs through ``view_update`` and ``view_draw`` (``viewport.py``).
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from .export import export_scene, parse_snapshot_times, render_settings_from
 from .export.lights import light_group_names
 from .outputs import RenderOutputs
 from .result import PushSchedule, ResultWriter, progress_fraction, stats_line
+from .viewport import ViewportRender
 
 
 class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
@@ -38,9 +40,30 @@ class AMCMCPPMRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs):
         # Blender 5.0 passes arguments to __init__; keep it cheap (it also runs for pass queries).
         super().__init__(*args, **kwargs)
+        self.viewport = None        # the 3D viewport's live render (Rendered shading), when drawn
+
+    def __del__(self):
+        # (the viewport's engine is freed when the viewport leaves Rendered shading)
+        try:
+            if self.viewport is not None:
+                self.viewport.close()
+        except Exception:
+            pass
 
     def render(self, depsgraph):
         report_errors(self, render_final, self, depsgraph)
+
+    def view_update(self, context, depsgraph):
+        if self.viewport is not None:
+            self.viewport.scene_changed()
+
+    def view_draw(self, context, depsgraph):
+        if self.viewport is None:
+            self.viewport = ViewportRender()
+        try:
+            self.viewport.draw(self, context, depsgraph)
+        except Exception as exc:        # (never an exception out of a redraw)
+            self.viewport.fail(exc)
 
     def update_render_passes(self, scene=None, renderlayer=None):
         """The passes this engine writes: Combined, the data passes the view layer asks for

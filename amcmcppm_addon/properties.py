@@ -97,6 +97,15 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         name="Time Limit", default=_DEFAULTS.time_limit, min=0.0, soft_max=3600.0, unit='TIME_ABSOLUTE',
         description="Stop after this many seconds of rendering (0 = no limit). The first pass runs whole; "
                     "a later pass still running at the limit is cut short there")
+    viewport_passes: IntProperty(
+        name="Viewport Passes", default=64, min=1, max=INT_MAX, soft_max=4096,
+        description="Passes the 3D viewport renders in Rendered shading before it stops (it starts over "
+                    "whenever the view or the scene changes)")
+    viewport_pixel_size: EnumProperty(
+        name="Viewport Pixel Size", default="2",
+        items=[(str(k), f"{k} px", f"Render the 3D viewport at 1/{k} of its size") for k in (1, 2, 4, 8)],
+        description="Pixel size of the 3D viewport's render in Rendered shading (larger: a coarser image "
+                    "sooner)")
     photons_per_pass: IntProperty(
         name="Photons per Pass", default=_DEFAULTS.photons_per_pass, min=0, max=INT_MAX,
         soft_max=10_000_000,

@@ -72,6 +72,13 @@ def automatic_photons_label(scene):
         f" (from {AUTO_PHOTONS_MIN:,})" if n > AUTO_PHOTONS_MIN else "")
 
 
+class AMCMCPPM_RENDER_PT_viewport(AMCMCPPMButtonsPanel, bpy.types.Panel):
+    bl_label = "Viewport"
+    bl_parent_id = "AMCMCPPM_RENDER_PT_sampling"
+    bl_options = {'DEFAULT_CLOSED'}
+    props = ("viewport_passes", "viewport_pixel_size")
+
+
 class AMCMCPPM_RENDER_PT_markov_chains(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Markov Chains"
     bl_parent_id = "AMCMCPPM_RENDER_PT_sampling"
@@ -501,6 +508,7 @@ class AMCMCPPM_VIEWLAYER_PT_lightgroups(ViewLayerLightgroupsPanelHelper, bpy.typ
 
 classes = (
     AMCMCPPM_RENDER_PT_sampling,
+    AMCMCPPM_RENDER_PT_viewport,
     AMCMCPPM_RENDER_PT_markov_chains,
     AMCMCPPM_RENDER_PT_photons,
     AMCMCPPM_RENDER_PT_light_paths,

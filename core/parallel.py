@@ -44,8 +44,9 @@ spec = importlib.util.spec_from_file_location("_amcmcppm_worker_core", core_dir 
 mod = importlib.util.module_from_spec(spec)
 sys.modules["_amcmcppm_worker_core"] = mod
 spec.loader.exec_module(mod)
-from _amcmcppm_worker_core.parallel import worker_main
-worker_main()
+# The entry point, "module.function" of the core (default: a photon worker).
+module, function = (sys.argv[2] if len(sys.argv) > 2 else "parallel.worker_main").rsplit(".", 1)
+getattr(importlib.import_module("_amcmcppm_worker_core." + module), function)()
 """
 
 
@@ -86,12 +87,6 @@ class ProcessPool:
     """``n`` worker processes, each with its own share of every pass and its own chains."""
 
     def __init__(self, scene, settings, n):
-        core_dir = os.path.dirname(os.path.abspath(__file__))
-        env = dict(os.environ)
-        # One thread per worker process: the workers are the parallelism.
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            env[var] = "1"
-        env["AMCMCPPM_SYS_PATH"] = json.dumps([p for p in sys.path if p])
         self.procs = []
         self.settings = settings
         shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
@@ -101,9 +96,7 @@ class ProcessPool:
         self._pass_dir = None
         try:
             for i in range(n):
-                p = subprocess.Popen([_python_executable(), "-c", _BOOTSTRAP, core_dir],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
-                self.procs.append(p)
+                self.procs.append(start_process("parallel.worker_main"))
             arrays = scene.to_arrays()
             settings_dict = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
             for i, p in enumerate(self.procs):
@@ -208,6 +201,19 @@ def make_pool(scene, settings, ctx=None):
     if n <= 1:
         return InProcessPool(scene, settings, ctx)
     return ProcessPool(scene, settings, n)
+
+
+def start_process(entry):
+    """A process of this Python (Blender's inside Blender) running ``entry``, "module.function" of
+    the core, with pipes on its stdin and stdout and one thread for NumPy's libraries (the
+    processes are the parallelism)."""
+    env = dict(os.environ)
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[var] = "1"
+    env["AMCMCPPM_SYS_PATH"] = json.dumps([p for p in sys.path if p])
+    core_dir = os.path.dirname(os.path.abspath(__file__))
+    return subprocess.Popen([_python_executable(), "-c", _BOOTSTRAP, core_dir, entry],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
 
 
 def _python_executable():

@@ -917,6 +917,38 @@ class Camera:
         return Camera(world_from_camera=m, frame=frame, resolution=tuple(int(r) for r in resolution),
                       **kwargs)
 
+    @staticmethod
+    def from_view(view_matrix, projection_matrix, perspective, resolution, **kwargs) -> "Camera":
+        """The camera of a view given as OpenGL matrices, as Blender's 3D viewport keeps them
+        (``RegionView3D.view_matrix``, world to view, and ``window_matrix``, view to clip space;
+        or a camera object's inverse world matrix and ``calc_matrix_camera``): a perspective
+        camera when ``perspective``, else orthographic, whose frame, near and far clip are the
+        projection's, rendered at ``resolution``.  An orthographic view whose near plane lies
+        behind the view's origin (the viewport's, for things behind its centre) starts its rays
+        there instead."""
+        view = np.asarray(view_matrix, np.float64)
+        p = np.asarray(projection_matrix, np.float64)
+        if not (np.isfinite(view).all() and np.isfinite(p).all()) or p[0, 0] == 0 or p[1, 1] == 0:
+            raise SceneError("Camera.from_view: the view or projection matrix is degenerate")
+        world_from_camera = np.linalg.inv(view)
+        if perspective:
+            # clip = P (x, y, z, 1) with w = -z: on the plane z = -1, x = (ndc_x + P02) / P00.
+            frame = ((-1 + p[0, 2]) / p[0, 0], (1 + p[0, 2]) / p[0, 0],
+                     (-1 + p[1, 2]) / p[1, 1], (1 + p[1, 2]) / p[1, 1])
+            near, far = p[2, 3] / (p[2, 2] - 1.0), p[2, 3] / (p[2, 2] + 1.0)
+        else:
+            # clip = P (x, y, z, 1) with w = 1: x = (ndc_x - P03) / P00.
+            frame = ((-1 - p[0, 3]) / p[0, 0], (1 - p[0, 3]) / p[0, 0],
+                     (-1 - p[1, 3]) / p[1, 1], (1 - p[1, 3]) / p[1, 1])
+            near, far = (p[2, 3] + 1.0) / p[2, 2], (p[2, 3] - 1.0) / p[2, 2]
+            if near < 0:
+                world_from_camera = world_from_camera @ _translation(0.0, 0.0, -near)
+                near, far = 0.0, far - near
+        return Camera(world_from_camera=world_from_camera,
+                      projection="perspective" if perspective else "orthographic",
+                      frame=tuple(float(v) for v in frame), resolution=tuple(int(r) for r in resolution),
+                      clip_start=float(max(near, 0.0)), clip_end=float(far), **kwargs)
+
     @property
     def filter_reach(self) -> float:
         """How far (pixels) the pixel filter sends a camera ray from its pixel's centre at most
@@ -933,6 +965,12 @@ class Camera:
         # Blender's border y is measured from the bottom; our rows from the top.
         y0, y1 = h - int(np.floor(by1 * h + 1e-9)), h - int(np.floor(by0 * h + 1e-9))
         return x0, max(x1, x0), y0, max(y1, y0)
+
+
+def _translation(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
 
 
 def perspective_frame(lens_mm, sensor_width, sensor_height, sensor_fit, resolution, shift=(0.0, 0.0)):

@@ -72,12 +72,14 @@ def geometry_passes(view_layer) -> frozenset:
     return frozenset(core for box, core in GEOMETRY_PASSES.items() if getattr(view_layer, box, False))
 
 
-def export_scene(depsgraph, camera_object=None, resolution=None, border=None) -> ExportedScene:
+def export_scene(depsgraph, camera_object=None, resolution=None, border=None, camera=None) -> ExportedScene:
     """Export everything ``depsgraph`` shows for its view layer.
 
     camera_object : the camera to render through (default: the scene camera).
     resolution : (width, height) after the resolution percentage (default: the scene's).
     border : (x_min, x_max, y_min, y_max) render border, y from the bottom (default: the scene's).
+    camera : a ``core.Camera`` to render through instead of a camera object (the 3D viewport's
+        view, ``Camera.from_view``).
     """
     t0 = time.perf_counter()
     log = ExportLog()
@@ -118,7 +120,8 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None) ->
         else:
             collector.add(inst)
     geometry = collector.finish()
-    camera = export_camera(depsgraph, camera_object, resolution, border, log)
+    if camera is None:
+        camera = export_camera(depsgraph, camera_object, resolution, border, log)
     world, world_lights = export_world(depsgraph, materials.textures, log, camera, groups)
     if portals:
         # (Cycles' light portals guide the photons from afar through the windows: Focus.through)

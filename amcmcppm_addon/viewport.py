@@ -1,0 +1,135 @@
+"""The 3D viewport's Rendered shading: a live render of the view, started over on every change.
+
+``AMCMCPPMRenderEngine.view_update`` (the depsgraph changed) and ``view_draw`` (a redraw) hand
+their calls to one :class:`ViewportRender` per engine.  It exports the scene when the depsgraph
+changed, takes the camera from the view's matrices (``core.Camera.from_view``: the viewport's
+own view, or the camera's with its zoom and offset when looking through it), and runs the
+render in a process of its own (``core.live.LiveRender``: one worker, the scene's settings but
+``viewport_passes`` passes at ``viewport_pixel_size``), so that Blender's interface never waits
+for it.  Each redraw shows the newest pass, scaled to the region, through Blender's display
+transform, and asks for another redraw while the render goes on.
+
+Only ``draw`` touches the GPU (``gpu`` exists only with a window: ``shared/docs/blender.md`` 4);
+:meth:`ViewportRender.refresh` holds the rest and runs headless (``tests/addon/test_viewport.py``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import traceback
+
+import numpy as np
+
+from ..core import SceneError
+from ..core.live import LiveRender
+from ..core.scene import Camera
+from .export import export_scene, render_settings_from
+from .export.camera import pixel_filter
+
+
+class ViewportRender:
+    """One viewport's live render (see the module docstring)."""
+
+    def __init__(self):
+        self.live = None
+        self.exported = None        # the exported scene, None when the depsgraph changed since
+        self.key = None             # what the running render shows: view, projection, size
+        self.image = None           # the newest image (h, w, 4), top row first
+        self.stats = None           # ... and its statistics (pass, elapsed_s)
+        self.message = ""           # an error to show instead of statistics
+        self._texture = None
+
+    def scene_changed(self):
+        """The depsgraph changed: export again at the next refresh."""
+        self.exported = None
+
+    def refresh(self, depsgraph, view_matrix, window_matrix, perspective, region_size) -> bool:
+        """Start the render over if the scene or the view changed since, then take its newest
+        image; True when there is a new one (``self.image``)."""
+        props = depsgraph.scene_eval.amcmcppm
+        pixel = int(props.viewport_pixel_size)
+        size = (max(1, int(region_size[0]) // pixel), max(1, int(region_size[1]) // pixel))
+        view, window = np.array(view_matrix, np.float64), np.array(window_matrix, np.float64)
+        key = (view.tobytes(), window.tobytes(), bool(perspective), size,
+               int(props.viewport_passes))
+        if self.exported is None or key != self.key:
+            self.key = key
+            self.message = ""
+            self.stats = None           # (the last image stays on screen until the new one comes)
+            camera = Camera.from_view(view, window, perspective, size, **pixel_filter(depsgraph.scene_eval))
+            if self.exported is None:
+                self.exported = export_scene(depsgraph, camera=camera)
+                scene = self.exported.scene
+            else:
+                # (only the view moved: the export stands; a world made with the camera's view,
+                # a backplate, keeps the view it was exported with)
+                scene = dataclasses.replace(self.exported.scene, camera=camera)
+            if self.exported.is_empty:
+                self.close()
+                self.image, self.stats = np.zeros((size[1], size[0], 4), np.float32), None
+                self.message = "nothing to render (no geometry, no lights and a black world)"
+                return True
+            settings = render_settings_from(props, passes=int(props.viewport_passes), time_limit=0.0,
+                                            workers=1)
+            if self.live is None:
+                self.live = LiveRender()
+            self.live.start(scene, settings)
+        if self.live is None:
+            return False
+        got = self.live.latest()
+        if got is None:
+            return False
+        self.image, self.stats = got
+        return True
+
+    @property
+    def running(self) -> bool:
+        return self.live is not None and self.live.running
+
+    def status(self) -> str:
+        """The line the viewport shows in its corner."""
+        if self.message:
+            return f"AMCMCPPM: {self.message}"
+        if self.stats is None:
+            return "Rendering the first pass"
+        passes = self.stats["pass"]
+        done = "" if self.running else ", done"
+        return f"Pass {passes} / {self.key[-1]}, {self.stats['elapsed_s']:.1f} s{done}"
+
+    def draw(self, engine, context, depsgraph):
+        """``view_draw``: refresh, then draw the newest image over the region."""
+        import gpu
+        from gpu_extras.presets import draw_texture_2d
+
+        region, view = context.region, context.region_data
+        try:
+            if self.refresh(depsgraph, view.view_matrix, view.window_matrix, view.is_perspective,
+                            (region.width, region.height)) or self._texture is None:
+                self._texture = None
+                if self.image is not None:
+                    h, w = self.image.shape[:2]
+                    pixels = np.ascontiguousarray(self.image[::-1], np.float32).ravel()   # bottom row first
+                    self._texture = gpu.types.GPUTexture(
+                        (w, h), format='RGBA16F', data=gpu.types.Buffer('FLOAT', pixels.size, pixels))
+        except (SceneError, RuntimeError, ValueError) as exc:
+            self.fail(exc)
+        if self._texture is not None:
+            gpu.state.blend_set('ALPHA_PREMULT')
+            engine.bind_display_space_shader(depsgraph.scene_eval)
+            draw_texture_2d(self._texture, (0, 0), region.width, region.height)
+            engine.unbind_display_space_shader()
+            gpu.state.blend_set('NONE')
+        engine.update_stats("", self.status())
+        if self.running:
+            engine.tag_redraw()
+
+    def fail(self, exc):
+        """Show ``exc`` in the viewport and stop rendering (until the next change)."""
+        self.close()
+        first = str(exc).strip().splitlines()
+        self.message = f"viewport render failed: {first[-1] if first else type(exc).__name__}"
+        traceback.print_exception(exc)
+
+    def close(self):
+        if self.live is not None:
+            self.live.close()
+            self.live = None

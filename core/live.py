@@ -1,0 +1,173 @@
+"""A render that runs in a process of its own and starts over when its scene or view changes.
+
+This is what Blender's 3D viewport shows in Rendered shading (``amcmcppm_addon/viewport.py``):
+the viewport asks for a new render whenever the user moves the view or edits the scene, and
+must never wait for one.  :class:`LiveRender` keeps one server process (:func:`serve`, started
+with :func:`core.parallel.start_process`) and sends it jobs: a scene file and settings.  The
+server renders the newest job with :func:`core.render` in that process (one worker, no pool to
+start), writes the image after every pass into the job's folder (a file replaced atomically),
+and leaves a job as soon as a newer one supersedes it (a stop file, polled between photon
+batches, as the photon workers poll theirs) or the process that sent it is gone.  Nothing here
+runs in the caller's process but file reads: the viewport's Python thread never holds a
+render, and the GIL is not shared with one.
+"""
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import traceback
+
+import numpy as np
+
+from .parallel import _send, start_process
+
+# Seconds the server gets to leave after it is told to stop, before it is killed.
+STOP_GRACE_S = 2.0
+
+
+class LiveRender:
+    """The client: ``start`` a job, read its ``latest`` image, ``close``."""
+
+    def __init__(self):
+        shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+        self.folder = tempfile.mkdtemp(prefix="amcmcppm-live-", dir=shm)
+        self.proc = None
+        self.job = 0
+        self._shown = None          # (job, pass) of the last image returned by latest()
+
+    def start(self, scene, settings):
+        """Render ``scene`` (``core.Scene``) with ``settings`` (``RenderSettings``; one worker is
+        used whatever they say) from now on, leaving the job before it."""
+        if self.job:
+            open(self._path("stop", self.job), "w").close()
+        self.job += 1
+        path = self._path("scene", self.job, ".npz")
+        scene.save(path)
+        for name in os.listdir(self.folder):
+            # The files of earlier jobs, but their stop files: the server skips a job still
+            # queued in its pipe by its stop file.
+            m = re.fullmatch(r"(scene|image|stats|error|done)(\d+)\.\w+", name)
+            if m and int(m.group(2)) < self.job:
+                try:
+                    os.remove(os.path.join(self.folder, name))
+                except OSError:
+                    pass
+        if self.proc is None or self.proc.poll() is not None:
+            self.proc = start_process("live.serve")
+        fields = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
+        fields["workers"] = 1
+        _send(self.proc, ("render", self.job, path, fields, self.folder))
+
+    def latest(self):
+        """(image (h, w, 4) float32 linear RGBA, top row first; the job's statistics) of the
+        current job's newest pass, or None when there is none newer than the last returned.
+        Raises RuntimeError with the server's traceback if the job failed."""
+        failed = self._path("error", self.job, ".txt")
+        if os.path.exists(failed):
+            with open(failed) as f:
+                raise RuntimeError(f.read())
+        try:
+            with open(self._path("stats", self.job, ".json")) as f:
+                stats = json.load(f)
+            if self._shown == (self.job, stats["pass"]):
+                return None
+            image = np.load(self._path("image", self.job, ".npy"))
+        except (OSError, ValueError, KeyError):
+            return None                 # nothing yet, or a file being replaced just now
+        if image.shape[:2] != tuple(stats["shape"]):
+            return None                 # (the image of a later pass than its statistics)
+        self._shown = (self.job, stats["pass"])
+        return image, stats
+
+    @property
+    def running(self) -> bool:
+        """Whether the current job may still bring a new image."""
+        if self.proc is None or self.proc.poll() is not None or not self.job:
+            return False
+        done = (self._path("done", self.job), self._path("error", self.job, ".txt"))
+        return not any(os.path.exists(p) for p in done)
+
+    def close(self):
+        """Stop the server and remove the files."""
+        if self.proc is not None:
+            if self.job:
+                open(self._path("stop", self.job), "w").close()
+            try:
+                if self.proc.poll() is None:
+                    _send(self.proc, ("stop",))
+                self.proc.wait(timeout=STOP_GRACE_S)
+            except (OSError, subprocess.TimeoutExpired):
+                self.proc.kill()
+                self.proc.wait()
+            for f in (self.proc.stdin, self.proc.stdout):
+                try:
+                    f.close()
+                except OSError:
+                    pass
+            self.proc = None
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def _path(self, kind, job, ext=".stop"):
+        return os.path.join(self.folder, f"{kind}{job}{ext}" if kind != "stop" else f"job{job}.stop")
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:           # (interpreter shutdown)
+            pass
+
+
+def serve():
+    """The server process's loop: render each job read from stdin that no newer one superseded."""
+    from .integrator import render
+    from .scene import Scene
+    from .settings import RenderSettings
+
+    inp = sys.stdin.buffer
+    sys.stdout = sys.stderr
+    parent = os.getppid()
+    while True:
+        try:
+            msg = pickle.load(inp)
+        except EOFError:
+            return
+        if msg[0] == "stop":
+            return
+        _, job, scene_path, fields, folder = msg
+        stop_path = os.path.join(folder, f"job{job}.stop")
+        if os.path.exists(stop_path):
+            continue
+
+        def should_stop(stop_path=stop_path):
+            return os.path.exists(stop_path) or os.getppid() != parent
+
+        def publish(result, job=job, folder=folder):
+            image = np.ascontiguousarray(result.image, np.float32)
+            _replace(os.path.join(folder, f"image{job}.npy"), lambda f: np.save(f, image))
+            stats = {"pass": len(result.stats), "elapsed_s": result.stats[-1]["elapsed_s"],
+                     "shape": list(image.shape[:2])}
+            _replace(os.path.join(folder, f"stats{job}.json"), lambda f: f.write(json.dumps(stats).encode()))
+        try:
+            render(Scene.load(scene_path), RenderSettings(**fields), on_iteration=publish,
+                   should_stop=should_stop)
+            open(os.path.join(folder, f"done{job}.stop"), "w").close()
+        except Exception:
+            with open(os.path.join(folder, f"error{job}.txt"), "w") as f:
+                f.write(traceback.format_exc())
+        if os.getppid() != parent:
+            return
+
+
+def _replace(path, write):
+    """Write a file through ``write(binary file)`` under a temporary name, then move it to ``path``
+    (a reader sees the old file or the new one, never half of one)."""
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        write(f)
+    os.replace(tmp, path)

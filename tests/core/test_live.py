@@ -1,0 +1,125 @@
+"""The live render of the 3D viewport (``core/live.py``): a server process that renders the newest
+job, publishes every pass and leaves a job when a newer one comes."""
+import dataclasses
+import os
+import time
+
+import numpy as np
+import pytest
+
+from core import RenderSettings, render
+from core.camera import generate_camera_rays
+from core.live import LiveRender
+from core.scene import Camera
+from core.testing.scenes import BUILTIN
+
+FAST = dict(method="ppm", photons_per_pass=20_000, workers=1)
+
+
+def wait(live, until, timeout=120.0):
+    """Poll ``live.latest()`` until ``until(images)``; returns the (image, stats) seen."""
+    seen, t0 = [], time.monotonic()
+    while not until(seen):
+        got = live.latest()
+        if got is not None:
+            seen.append(got)
+        elif not live.running and live.latest() is None:
+            break
+        assert time.monotonic() - t0 < timeout, f"no end after {timeout} s: {[s for _, s in seen]}"
+        time.sleep(0.02)
+    return seen
+
+
+@pytest.fixture
+def live():
+    live = LiveRender()
+    yield live
+    live.close()
+
+
+def test_a_live_render_publishes_every_pass_of_the_image_a_render_makes(live):
+    """One job: each pass's image in turn (none missed with a quick reader), the last one the
+    very image ``core.render`` makes of the scene with the same settings, then nothing new."""
+    scene = BUILTIN["cornell_box"](resolution=(24, 18))
+    settings = RenderSettings(passes=3, **FAST)
+    live.start(scene, settings)
+    seen = wait(live, lambda s: bool(s) and s[-1][1]["pass"] == 3)
+    assert [s["pass"] for _, s in seen][-1] == 3 and len(seen) >= 2
+    final = seen[-1][0]
+    assert final.shape == (18, 24, 4) and np.isfinite(final).all() and final[..., :3].mean() > 0.05
+    assert np.array_equal(final, render(scene, settings).image)
+    deadline = time.monotonic() + 30
+    while live.running:
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    assert live.latest() is None                    # the last pass was returned already
+
+
+def test_a_new_job_supersedes_the_running_one(live):
+    """A long job is left as soon as the next one starts: from then on only the new job's images
+    come, of its own size, and the old one's stop file ends it between photon batches."""
+    scene = BUILTIN["cornell_box"](resolution=(24, 18))
+    live.start(scene, RenderSettings(passes=10_000, **FAST))
+    wait(live, lambda s: len(s) >= 1)
+    camera = dataclasses.replace(scene.camera, resolution=(16, 12))
+    live.start(dataclasses.replace(scene, camera=camera), RenderSettings(passes=2, **FAST))
+    seen = wait(live, lambda s: bool(s) and s[-1][1]["pass"] == 2)
+    assert live.job == 2 and all(image.shape == (12, 16, 4) for image, _ in seen)
+    assert not os.path.exists(os.path.join(live.folder, "scene1.npz"))      # the old job's files go
+
+
+def test_a_failed_job_raises_its_error_and_close_ends_the_server(live):
+    """A scene the server cannot render: ``latest`` raises with the server's message (not a hang),
+    and ``close`` ends the process and removes the files."""
+    scene = BUILTIN["cornell_box"](resolution=(8, 6))
+    clipped = dataclasses.replace(scene.camera, clip_start=5.0, clip_end=1.0)
+    broken = dataclasses.replace(scene, camera=clipped)
+    live.start(broken, RenderSettings(passes=2, **FAST))
+    t0 = time.monotonic()
+    with pytest.raises(RuntimeError, match="clip"):
+        while time.monotonic() - t0 < 60:
+            live.latest()
+            time.sleep(0.02)
+    assert not live.running
+    proc, folder = live.proc, live.folder
+    live.close()
+    assert proc.poll() is not None and not os.path.exists(folder) and live.proc is None
+
+
+@pytest.mark.parametrize("perspective", [True, False], ids=["perspective", "orthographic"])
+def test_a_camera_from_opengl_matrices_sees_what_they_project(perspective):
+    """``Camera.from_view``: the frame and clip range of an OpenGL projection, the camera's pose
+    from the inverse view matrix; an orthographic near plane behind the view's origin moves the
+    ray origins back to it (clip_start 0)."""
+    rng = np.random.default_rng(3)
+    pose = Camera.look_at((1.0, -4.0, 2.0), (0.2, 0.3, 0.5)).world_from_camera
+    view = np.linalg.inv(pose)
+    left, right, bottom, top = -0.5, 0.7, -0.3, 0.4
+    if perspective:
+        n, f = 0.1, 80.0
+        p = np.array([[2 * n / (right - left) / n, 0, (right + left) / (right - left), 0],
+                      [0, 2 * n / (top - bottom) / n, (top + bottom) / (top - bottom), 0],
+                      [0, 0, -(f + n) / (f - n), -2 * f * n / (f - n)], [0, 0, -1, 0]])
+    else:
+        n, f = -20.0, 20.0
+        p = np.array([[2 / (right - left), 0, 0, -(right + left) / (right - left)],
+                      [0, 2 / (top - bottom), 0, -(top + bottom) / (top - bottom)],
+                      [0, 0, -2 / (f - n), -(f + n) / (f - n)], [0, 0, 0, 1]])
+    cam = Camera.from_view(view, p, perspective, (40, 30))
+    np.testing.assert_allclose(cam.frame, (left, right, bottom, top), atol=1e-12)
+    if perspective:
+        np.testing.assert_allclose((cam.clip_start, cam.clip_end), (n, f), rtol=1e-9)
+        np.testing.assert_allclose(cam.world_from_camera, pose, atol=1e-12)
+    else:
+        assert cam.clip_start == 0.0 and cam.clip_end == pytest.approx(f - n)
+        np.testing.assert_allclose(cam.world_from_camera[:3, 3], pose[:3, 3] - n * pose[:3, 2], atol=1e-12)
+    # The camera's rays through pixel centres: their points project to those pixels' centres.
+    w, h = cam.resolution
+    pix = rng.integers(0, w * h, 25)
+    origins, dirs, _, _ = generate_camera_rays(cam, pix, np.full((25, 4), 0.5))
+    points = origins + dirs * rng.uniform(0.5, 10.0, 25)[:, None]
+    clip = np.column_stack([points, np.ones(25)]) @ view.T @ p.T
+    want = np.column_stack([(pix % w + 0.5) / w * 2 - 1, 1 - (pix // w + 0.5) / h * 2])
+    np.testing.assert_allclose(clip[:, :2] / clip[:, 3:], want, atol=1e-9)
+    with pytest.raises(ValueError, match="degenerate"):
+        Camera.from_view(view, np.zeros((4, 4)), True, (40, 30))
