@@ -48,7 +48,8 @@ class LiveRender:
             open(self._path("stop", self.job), "w").close()
         self.job += 1
         path = self._path("scene", self.job, ".npz")
-        scene.save(path)
+        # (uncompressed, unlike Scene.save: the caller, the viewport's redraw, waits for it)
+        np.savez(path, **scene.to_arrays())
         for name in os.listdir(self.folder):
             # The files of earlier jobs, but their stop files: the server skips a job still
             # queued in its pipe by its stop file.
@@ -158,8 +159,8 @@ def serve():
                    should_stop=should_stop)
             open(os.path.join(folder, f"done{job}.stop"), "w").close()
         except Exception:
-            with open(os.path.join(folder, f"error{job}.txt"), "w") as f:
-                f.write(traceback.format_exc())
+            text = traceback.format_exc().encode()
+            _replace(os.path.join(folder, f"error{job}.txt"), lambda f: f.write(text))
         if os.getppid() != parent:
             return
 
