@@ -32,7 +32,8 @@ class ViewportRender:
     def __init__(self):
         self.live = None
         self.exported = None        # the exported scene, None when the depsgraph changed since
-        self.key = None             # what the running render shows: view, projection, size
+        self.key = None             # what the running render shows: view, projection, size, passes
+        self.passes = 0             # ... of which its passes
         self.image = None           # the newest image (h, w, 4), top row first
         self.stats = None           # ... and its statistics (pass, elapsed_s)
         self.message = ""           # an error to show instead of statistics
@@ -49,10 +50,10 @@ class ViewportRender:
         pixel = int(props.viewport_pixel_size)
         size = (max(1, int(region_size[0]) // pixel), max(1, int(region_size[1]) // pixel))
         view, window = np.array(view_matrix, np.float64), np.array(window_matrix, np.float64)
-        key = (view.tobytes(), window.tobytes(), bool(perspective), size,
-               int(props.viewport_passes))
+        passes = int(props.viewport_passes)
+        key = (view.tobytes(), window.tobytes(), bool(perspective), size, passes)
         if self.exported is None or key != self.key:
-            self.key = key
+            self.key, self.passes = key, passes
             self.message = ""
             self.stats = None           # (the last image stays on screen until the new one comes)
             camera = Camera.from_view(view, window, perspective, size, **pixel_filter(depsgraph.scene_eval))
@@ -68,8 +69,7 @@ class ViewportRender:
                 self.image, self.stats = np.zeros((size[1], size[0], 4), np.float32), None
                 self.message = "nothing to render (no geometry, no lights and a black world)"
                 return True
-            settings = render_settings_from(props, passes=int(props.viewport_passes), time_limit=0.0,
-                                            workers=1)
+            settings = render_settings_from(props, passes=passes, time_limit=0.0, workers=1)
             if self.live is None:
                 self.live = LiveRender()
             self.live.start(scene, settings)
@@ -93,7 +93,7 @@ class ViewportRender:
             return "Rendering the first pass"
         passes = self.stats["pass"]
         done = "" if self.running else ", done"
-        return f"Pass {passes} / {self.key[-1]}, {self.stats['elapsed_s']:.1f} s{done}"
+        return f"Pass {passes} / {self.passes}, {self.stats['elapsed_s']:.1f} s{done}"
 
     def draw(self, engine, context, depsgraph):
         """``view_draw``: refresh, then draw the newest image over the region."""

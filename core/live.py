@@ -29,6 +29,15 @@ from .parallel import _send, start_process
 
 # Seconds the server gets to leave after it is told to stop, before it is killed.
 STOP_GRACE_S = 2.0
+# The files of a job in the folder (job_file): its scene, newest image and statistics, its error,
+# and the flags that it is done or superseded.
+JOB_FILES = {"scene": ".npz", "image": ".npy", "stats": ".json", "error": ".txt", "done": ".flag",
+             "stop": ".flag"}
+
+
+def job_file(folder, kind, job):
+    """The path of job ``job``'s file of ``kind`` (``JOB_FILES``), for the client and the server."""
+    return os.path.join(folder, f"{kind}{job}{JOB_FILES[kind]}")
 
 
 class LiveRender:
@@ -45,9 +54,9 @@ class LiveRender:
         """Render ``scene`` (``core.Scene``) with ``settings`` (``RenderSettings``; one worker is
         used whatever they say) from now on, leaving the job before it."""
         if self.job:
-            open(self._path("stop", self.job), "w").close()
+            open(job_file(self.folder, "stop", self.job), "w").close()
         self.job += 1
-        path = self._path("scene", self.job, ".npz")
+        path = job_file(self.folder, "scene", self.job)
         # (uncompressed, unlike Scene.save: the caller, the viewport's redraw, waits for it)
         np.savez(path, **scene.to_arrays())
         for name in os.listdir(self.folder):
@@ -69,20 +78,19 @@ class LiveRender:
         """(image (h, w, 4) float32 linear RGBA, top row first; the job's statistics) of the
         current job's newest pass, or None when there is none newer than the last returned.
         Raises RuntimeError with the server's traceback if the job failed."""
-        failed = self._path("error", self.job, ".txt")
+        failed = job_file(self.folder, "error", self.job)
         if os.path.exists(failed):
             with open(failed) as f:
                 raise RuntimeError(f.read())
         try:
-            with open(self._path("stats", self.job, ".json")) as f:
+            with open(job_file(self.folder, "stats", self.job)) as f:
                 stats = json.load(f)
             if self._shown == (self.job, stats["pass"]):
                 return None
-            image = np.load(self._path("image", self.job, ".npy"))
+            # (written before its statistics: the image of their pass or of a later one)
+            image = np.load(job_file(self.folder, "image", self.job))
         except (OSError, ValueError, KeyError):
             return None                 # nothing yet, or a file being replaced just now
-        if image.shape[:2] != tuple(stats["shape"]):
-            return None                 # (the image of a later pass than its statistics)
         self._shown = (self.job, stats["pass"])
         return image, stats
 
@@ -91,14 +99,13 @@ class LiveRender:
         """Whether the current job may still bring a new image."""
         if self.proc is None or self.proc.poll() is not None or not self.job:
             return False
-        done = (self._path("done", self.job), self._path("error", self.job, ".txt"))
-        return not any(os.path.exists(p) for p in done)
+        return not any(os.path.exists(job_file(self.folder, kind, self.job)) for kind in ("done", "error"))
 
     def close(self):
         """Stop the server and remove the files."""
         if self.proc is not None:
             if self.job:
-                open(self._path("stop", self.job), "w").close()
+                open(job_file(self.folder, "stop", self.job), "w").close()
             try:
                 if self.proc.poll() is None:
                     _send(self.proc, ("stop",))
@@ -113,9 +120,6 @@ class LiveRender:
                     pass
             self.proc = None
         shutil.rmtree(self.folder, ignore_errors=True)
-
-    def _path(self, kind, job, ext=".stop"):
-        return os.path.join(self.folder, f"{kind}{job}{ext}" if kind != "stop" else f"job{job}.stop")
 
     def __del__(self):
         try:
@@ -141,7 +145,7 @@ def serve():
         if msg[0] == "stop":
             return
         _, job, scene_path, fields, folder = msg
-        stop_path = os.path.join(folder, f"job{job}.stop")
+        stop_path = job_file(folder, "stop", job)
         if os.path.exists(stop_path):
             continue
 
@@ -150,17 +154,16 @@ def serve():
 
         def publish(result, job=job, folder=folder):
             image = np.ascontiguousarray(result.image, np.float32)
-            _replace(os.path.join(folder, f"image{job}.npy"), lambda f: np.save(f, image))
-            stats = {"pass": len(result.stats), "elapsed_s": result.stats[-1]["elapsed_s"],
-                     "shape": list(image.shape[:2])}
-            _replace(os.path.join(folder, f"stats{job}.json"), lambda f: f.write(json.dumps(stats).encode()))
+            _replace(job_file(folder, "image", job), lambda f: np.save(f, image))
+            stats = {"pass": len(result.stats), "elapsed_s": result.stats[-1]["elapsed_s"]}
+            _replace(job_file(folder, "stats", job), lambda f: f.write(json.dumps(stats).encode()))
         try:
             render(Scene.load(scene_path), RenderSettings(**fields), on_iteration=publish,
                    should_stop=should_stop)
-            open(os.path.join(folder, f"done{job}.stop"), "w").close()
+            open(job_file(folder, "done", job), "w").close()
         except Exception:
             text = traceback.format_exc().encode()
-            _replace(os.path.join(folder, f"error{job}.txt"), lambda f: f.write(text))
+            _replace(job_file(folder, "error", job), lambda f: f.write(text))
         if os.getppid() != parent:
             return
 

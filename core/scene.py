@@ -942,7 +942,7 @@ class Camera:
                      (-1 - p[1, 3]) / p[1, 1], (1 - p[1, 3]) / p[1, 1])
             near, far = (p[2, 3] + 1.0) / p[2, 2], (p[2, 3] - 1.0) / p[2, 2]
             if near < 0:
-                world_from_camera = world_from_camera @ _translation(0.0, 0.0, -near)
+                world_from_camera[:3, 3] -= near * world_from_camera[:3, 2]     # back along +Z to it
                 near, far = 0.0, far - near
         return Camera(world_from_camera=world_from_camera,
                       projection="perspective" if perspective else "orthographic",
@@ -965,12 +965,6 @@ class Camera:
         # Blender's border y is measured from the bottom; our rows from the top.
         y0, y1 = h - int(np.floor(by1 * h + 1e-9)), h - int(np.floor(by0 * h + 1e-9))
         return x0, max(x1, x0), y0, max(y1, y0)
-
-
-def _translation(x, y, z):
-    m = np.eye(4)
-    m[:3, 3] = (x, y, z)
-    return m
 
 
 def perspective_frame(lens_mm, sensor_width, sensor_height, sensor_fit, resolution, shift=(0.0, 0.0)):

@@ -9,7 +9,7 @@ import pytest
 
 from core import RenderSettings, render
 from core.camera import generate_camera_rays
-from core.live import LiveRender
+from core.live import LiveRender, job_file
 from core.scene import Camera
 from core.testing.scenes import BUILTIN
 
@@ -20,10 +20,11 @@ def wait(live, until, timeout=120.0):
     """Poll ``live.latest()`` until ``until(images)``; returns the (image, stats) seen."""
     seen, t0 = [], time.monotonic()
     while not until(seen):
+        ended = not live.running        # (before the read: an image written just before the end counts)
         got = live.latest()
         if got is not None:
             seen.append(got)
-        elif not live.running and live.latest() is None:
+        elif ended:
             break
         assert time.monotonic() - t0 < timeout, f"no end after {timeout} s: {[s for _, s in seen]}"
         time.sleep(0.02)
@@ -65,7 +66,7 @@ def test_a_new_job_supersedes_the_running_one(live):
     live.start(dataclasses.replace(scene, camera=camera), RenderSettings(passes=2, **FAST))
     seen = wait(live, lambda s: bool(s) and s[-1][1]["pass"] == 2)
     assert live.job == 2 and all(image.shape == (12, 16, 4) for image, _ in seen)
-    assert not os.path.exists(os.path.join(live.folder, "scene1.npz"))      # the old job's files go
+    assert not os.path.exists(job_file(live.folder, "scene", 1))            # the old job's files go
 
 
 def test_a_failed_job_raises_its_error_and_close_ends_the_server(live):
