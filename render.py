@@ -36,7 +36,8 @@ FORMATS = {".exr": "OPEN_EXR", ".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", "
 SETTING_FLAGS = {
     "method": "method", "passes": "passes", "time_limit": "time_limit", "seed": "seed",
     "target_acceptance": "target_acceptance", "mutation": "mutation", "normalisation": "normalisation",
-    "photons_per_pass": "photons_per_pass", "workers": "workers", "chains": "chains",
+    "photons_per_pass": "photons_per_pass",
+    "first_pass_photons": "first_pass_photons", "workers": "workers", "chains": "chains",
     "initial_radius": "initial_radius_px", "alpha": "alpha", "max_bounces": "max_bounces",
     "initial_mutation_size": "initial_mutation_size", "glossy_through": "glossy_through_roughness",
     "bias_correction": "bias_correction", "edge_coverage": "edge_coverage", "direct_light": "direct_light",
@@ -77,6 +78,9 @@ def build_parser():
     g.add_argument("--normalisation", choices=("cumulative", "per_pass"))
     g.add_argument("--photons-per-pass", type=int,
                    help="photon paths per pass and worker (0 = automatic: grows with the image)")
+    g.add_argument("--first-pass-photons", type=int,
+                   help="photon paths per worker in the first pass, growing 4 times a pass up to "
+                        "--photons-per-pass (0 = automatic)")
     g.add_argument("--workers", type=int, help="0 = one per CPU core")
     g.add_argument("--chains", type=int, help="Markov chains per worker (AMCMCPPM)")
     g.add_argument("--initial-radius", type=float, help="initial gather radius in pixel footprints")

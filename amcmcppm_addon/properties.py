@@ -9,9 +9,10 @@ properties configure optional file outputs of the engine (statistics, snapshots)
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..core.settings import (AUTO_AIMED_VISIBLE, AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL,
+from ..core.settings import (AUTO_AIMED_VISIBLE, AUTO_PHOTONS_MIN, AUTO_PHOTONS_PER_PIXEL, AUTO_RAMP,
                              AUTO_UNIFORM_VISIBLE, DIRECT_LIGHT, MAX_BOUNCES, MAX_TRANSPARENT_BOUNCES,
-                             METHODS, MUTATIONS, NORMALISATIONS, PIXEL_JITTER, RenderSettings)
+                             METHODS, MUTATIONS, NORMALISATIONS, PIXEL_JITTER, VIEWPORT_FIRST_PHOTONS,
+                             RenderSettings)
 
 # Enum items: identifier (the core's value) -> (name, description, index).  The index is what
 # the .blend stores, so each identifier keeps its own index whatever order the core lists them in.
@@ -113,6 +114,13 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
                     f"many); 0 = automatic: {AUTO_PHOTONS_MIN:,}, or {AUTO_PHOTONS_PER_PIXEL:g} per pixel "
                     f"of the image when that is more, reached after a few smaller first passes "
                     f"(from {AUTO_PHOTONS_MIN:,}) that show the first image soon")
+    first_pass_photons: IntProperty(
+        name="First Pass Photons", default=_DEFAULTS.first_pass_photons, min=0, max=INT_MAX,
+        soft_max=10_000_000,
+        description="Photon paths per worker in the first pass, from which the count grows "
+                    f"{AUTO_RAMP} times a pass up to Photons per Pass: a first, noisy image sooner; "
+                    f"0 = automatic (from {AUTO_PHOTONS_MIN:,} with automatic Photons per Pass, else "
+                    f"no ramp; the viewport from {VIEWPORT_FIRST_PHOTONS:,})")
     seed: IntProperty(
         name="Seed", default=_DEFAULTS.seed, min=0, max=INT_MAX,
         description="Random seed; the same seed, settings and worker count give the same image")

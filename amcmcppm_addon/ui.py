@@ -65,11 +65,12 @@ class AMCMCPPM_RENDER_PT_sampling(AMCMCPPMButtonsPanel, bpy.types.Panel):
 
 def automatic_photons_label(scene):
     """What "Photons per Pass" = 0 (automatic) means at the scene's output size, or None."""
-    if scene.amcmcppm.photons_per_pass:
+    props = scene.amcmcppm
+    if props.photons_per_pass:
         return None
     n = RenderSettings().photons_for(rendered_pixels(scene.render))
-    return f"Automatic: {n:,} photons per pass and worker" + (
-        f" (from {AUTO_PHOTONS_MIN:,})" if n > AUTO_PHOTONS_MIN else "")
+    start = props.first_pass_photons or AUTO_PHOTONS_MIN
+    return f"Automatic: {n:,} photons per pass and worker" + (f" (from {start:,})" if n > start else "")
 
 
 class AMCMCPPM_RENDER_PT_viewport(AMCMCPPMButtonsPanel, bpy.types.Panel):
@@ -133,7 +134,7 @@ class AMCMCPPM_RENDER_PT_light_paths(AMCMCPPMButtonsPanel, bpy.types.Panel):
 class AMCMCPPM_RENDER_PT_performance(AMCMCPPMButtonsPanel, bpy.types.Panel):
     bl_label = "Performance"
     bl_options = {'DEFAULT_CLOSED'}
-    props = ("workers",)
+    props = ("workers", "first_pass_photons")
 
 
 class AMCMCPPM_RENDER_PT_statistics_output(AMCMCPPMButtonsPanel, bpy.types.Panel):

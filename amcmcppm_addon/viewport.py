@@ -5,9 +5,10 @@ their calls to one :class:`ViewportRender` per engine.  It exports the scene whe
 changed, takes the camera from the view's matrices (``core.Camera.from_view``: the viewport's
 own view, or the camera's with its zoom and offset when looking through it), and runs the
 render in a process of its own (``core.live.LiveRender``: one worker, the scene's settings but
-``viewport_passes`` passes at ``viewport_pixel_size``), so that Blender's interface never waits
-for it.  Each redraw shows the newest pass, scaled to the region, through Blender's display
-transform, and asks for another redraw while the render goes on.
+``viewport_passes`` passes at ``viewport_pixel_size``, the first of ``VIEWPORT_FIRST_PHOTONS``
+photons unless First Pass Photons says otherwise), so that Blender's interface never waits for it.
+Each redraw shows the newest pass, scaled to the region, through Blender's display transform, and
+asks for another redraw while the render goes on.
 
 Only ``draw`` touches the GPU (``gpu`` exists only with a window: ``shared/docs/blender.md`` 4);
 :meth:`ViewportRender.refresh` holds the rest and runs headless (``tests/addon/test_viewport.py``).
@@ -22,6 +23,7 @@ import numpy as np
 from ..core import SceneError
 from ..core.live import LiveRender
 from ..core.scene import Camera
+from ..core.settings import VIEWPORT_FIRST_PHOTONS
 from .export import export_scene, render_settings_from
 from .export.camera import pixel_filter
 
@@ -69,7 +71,9 @@ class ViewportRender:
                 self.image, self.stats = np.zeros((size[1], size[0], 4), np.float32), None
                 self.message = "nothing to render (no geometry, no lights and a black world)"
                 return True
-            settings = render_settings_from(props, passes=passes, time_limit=0.0, workers=1)
+            first = props.first_pass_photons or VIEWPORT_FIRST_PHOTONS
+            settings = render_settings_from(props, passes=passes, time_limit=0.0, workers=1,
+                                            first_pass_photons=first)
             if self.live is None:
                 self.live = LiveRender()
             self.live.start(scene, settings)

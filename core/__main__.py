@@ -7,8 +7,9 @@ import sys
 import time
 
 from .scene import Scene, SceneError
-from .settings import (AOV_PREFIX, DATA_PASSES, DIRECT_LIGHT, LIGHTGROUP_PREFIX, MAX_TRANSPARENT_BOUNCES,
-                       METHODS, MUTATIONS, NORMALISATIONS, PIXEL_JITTER, RenderSettings)
+from .settings import (AOV_PREFIX, AUTO_RAMP, DATA_PASSES, DIRECT_LIGHT, LIGHTGROUP_PREFIX,
+                       MAX_TRANSPARENT_BOUNCES, METHODS, MUTATIONS, NORMALISATIONS, PIXEL_JITTER,
+                       RenderSettings)
 
 
 def build_parser():
@@ -32,6 +33,9 @@ def build_parser():
     r.add_argument("--normalisation", choices=NORMALISATIONS, default=d.normalisation)
     r.add_argument("--photons-per-pass", type=int, default=d.photons_per_pass,
                    help="photon paths per pass and worker (0 = automatic: grows with the image)")
+    r.add_argument("--first-pass-photons", type=int, default=d.first_pass_photons,
+                   help=f"photon paths per worker in the first pass, growing {AUTO_RAMP} times a pass up to "
+                        "--photons-per-pass (0 = automatic)")
     r.add_argument("--chains", type=int, default=d.chains)
     r.add_argument("--initial-radius", type=float, default=d.initial_radius_px,
                    help="initial gather radius in pixel footprints")
@@ -77,7 +81,8 @@ def build_parser():
 
 def settings_from_args(a) -> RenderSettings:
     return RenderSettings(method=a.method, passes=a.passes, time_limit=a.time_limit,
-                          photons_per_pass=a.photons_per_pass, seed=a.seed, alpha=a.alpha,
+                          photons_per_pass=a.photons_per_pass,
+                          first_pass_photons=a.first_pass_photons, seed=a.seed, alpha=a.alpha,
                           initial_radius_px=a.initial_radius, max_bounces=a.max_bounces,
                           diffuse_bounces=a.diffuse_bounces, glossy_bounces=a.glossy_bounces,
                           transmission_bounces=a.transmission_bounces, volume_bounces=a.volume_bounces,

@@ -75,7 +75,8 @@ class LiveRender:
         _send(self.proc, ("render", self.job, path, fields, self.folder))
 
     def latest(self):
-        """(image (h, w, 4) float32 linear RGBA, top row first; the job's statistics) of the
+        """(image (h, w, 4) float32 linear RGBA, top row first; the job's statistics: ``pass``,
+        ``elapsed_s``, ``photons`` per worker of each pass) of the
         current job's newest pass, or None when there is none newer than the last returned.
         Raises RuntimeError with the server's traceback if the job failed."""
         failed = job_file(self.folder, "error", self.job)
@@ -155,7 +156,8 @@ def serve():
         def publish(result, job=job, folder=folder):
             image = np.ascontiguousarray(result.image, np.float32)
             _replace(job_file(folder, "image", job), lambda f: np.save(f, image))
-            stats = {"pass": len(result.stats), "elapsed_s": result.stats[-1]["elapsed_s"]}
+            stats = {"pass": len(result.stats), "elapsed_s": result.stats[-1]["elapsed_s"],
+                     "photons": [int(s["photons_per_pass"]) for s in result.stats]}
             _replace(job_file(folder, "stats", job), lambda f: f.write(json.dumps(stats).encode()))
         try:
             render(Scene.load(scene_path), RenderSettings(**fields), on_iteration=publish,

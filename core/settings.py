@@ -26,6 +26,10 @@ AUTO_PHOTONS_MIN = 100_000          # photons per pass and worker at least (auto
 AUTO_PHOTONS_PER_PIXEL = 0.5        # ... and per pixel of the image (benchmarks/photons_per_pass.py)
 GLOSSY_THROUGH_ROUGHNESS = 0.2     # benchmarks/glossy_through.py: through wins below, loses above
 AUTO_RAMP = 4                       # the automatic count starts at the minimum and grows this much a pass
+# The 3D viewport's first pass, photons per worker (with RenderSettings.first_pass_photons 0): a moved
+# view's first image after 0.26 of the time on the Cornell box at 320x180, 0.54 on glass_ceiling_room
+# (benchmarks/viewport_first_image.py).
+VIEWPORT_FIRST_PHOTONS = 10_000
 # Under light portals (core.lights.Focus.through) the automatic count aims at this many visible
 # photons per pixel and pass over all workers, by the last pass's visible share, and at least
 # AUTO_PORTAL_MIN per worker (benchmarks/portal_cost.py; RenderSettings.portal_photons).
@@ -137,6 +141,13 @@ class RenderSettings:
     this many uniform paths; AMCMCPPM runs this many chain iterations (each traces a uniform
     path, plus a mutated one unless the uniform path is visible, and records one path once
     the chain has a visible state).  With W workers a pass has W times as many photons."""
+
+    first_pass_photons: int = 0
+    """Photon paths per worker in the first pass, from which the count grows ``AUTO_RAMP`` times a
+    pass up to ``photons_per_pass`` (explicit or automatic); 0 = the automatic count's own ramp
+    (from ``AUTO_PHOTONS_MIN``), and none for an explicit count.  A small first pass shows a first,
+    noisy image sooner; passes are averaged by their photons, so it weighs little later.  The 3D
+    viewport starts from ``VIEWPORT_FIRST_PHOTONS`` when this is 0 (see :meth:`pass_photons`)."""
 
     seed: int = 0
     """Random seed; the same seed, settings and worker count give the same image."""
@@ -380,6 +391,8 @@ class RenderSettings:
             bad("passes", "and time_limit are both 0, so the render would never stop")
         if self.photons_per_pass < 0:
             bad("photons_per_pass", "must be >= 0 (0 = automatic)")
+        if self.first_pass_photons < 0:
+            bad("first_pass_photons", "must be >= 0 (0 = automatic)")
         if not 0 < self.alpha < 1:
             bad("alpha", "must lie in (0, 1)")
         if not 0 < self.initial_radius_px <= 1000:
@@ -446,7 +459,8 @@ class RenderSettings:
     def pass_photons(self, n_pixels: int, pass_index: int) -> int:
         """Photon paths per worker in pass ``pass_index`` (0 = the first pass).
 
-        An explicit ``photons_per_pass`` holds in every pass.  The automatic count starts at
+        An explicit ``photons_per_pass`` holds in every pass, unless ``first_pass_photons`` starts
+        a ramp to it.  The automatic count starts at ``first_pass_photons`` or else
         ``AUTO_PHOTONS_MIN`` and grows ``AUTO_RAMP`` times a pass up to :meth:`photons_for`:
         at 1920x1080, 100,000, 400,000, then 1,036,800 per worker; the first image came after
         4.2 s instead of 14.9 s on the Cornell box (``benchmarks/first_image.py``).  Passes are
@@ -455,9 +469,10 @@ class RenderSettings:
         relMSE of a fixed full count, and 0.99 on glass at 240 s (``benchmarks/photons_per_pass.py``).
         """
         full = self.photons_for(n_pixels)
-        if self.photons_per_pass:
+        start = self.first_pass_photons or (0 if self.photons_per_pass else AUTO_PHOTONS_MIN)
+        if not start:
             return full
-        return int(min(full, AUTO_PHOTONS_MIN * AUTO_RAMP ** min(pass_index, 64)))
+        return int(min(full, start * AUTO_RAMP ** min(pass_index, 64)))
 
     def portal_photons(self, photons: int, n_pixels: int, workers: int, visible: float) -> int:
         """Photon paths per worker in a pass under light portals: the automatic count ``photons``

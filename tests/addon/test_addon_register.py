@@ -188,6 +188,8 @@ def test_automatic_photon_count_label_follows_the_output_size(scene):
     r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.0, 0.5, 0.0, 1.0
     half = int(np.ceil(AUTO_PHOTONS_PER_PIXEL * 960 * 1080))
     assert f"{half:,}" in ui.automatic_photons_label(scene)
+    scene.amcmcppm.first_pass_photons = 20_000     # (the first pass's count, when set)
+    assert ui.automatic_photons_label(scene).endswith("(from 20,000)")
     scene.amcmcppm.photons_per_pass = 5000
     assert ui.automatic_photons_label(scene) is None
 

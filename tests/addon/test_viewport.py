@@ -67,6 +67,7 @@ def test_the_viewport_renders_its_view_and_starts_over_on_changes(scene):
     from amcmcppm.amcmcppm_addon.export import export_scene, render_settings_from
     from amcmcppm.amcmcppm_addon.viewport import ViewportRender
     from amcmcppm.core import render
+    from amcmcppm.core.settings import VIEWPORT_FIRST_PHOTONS
 
     for key, value in FAST.items():
         setattr(scene.amcmcppm, key, value)
@@ -82,10 +83,13 @@ def test_the_viewport_renders_its_view_and_starts_over_on_changes(scene):
         passes = refresh_until(vp, depsgraph, view, proj, region, lambda v: v.stats and not v.running
                                and v.stats["pass"] == 3)
         assert passes[-1] == 3 and vp.live.job == 1 and vp.status().endswith("done")
+        # (a small first pass, for a first image soon, then the scene's photons per pass)
+        assert vp.stats["photons"] == [VIEWPORT_FIRST_PHOTONS, 20_000, 20_000]
         image = vp.image
         assert image.shape == (20, 32, 4) and np.isfinite(image).all()
         # The same view through the scene's camera, rendered whole at the same size.
-        settings = render_settings_from(scene.amcmcppm, passes=3, time_limit=0.0, workers=1)
+        settings = render_settings_from(scene.amcmcppm, passes=3, time_limit=0.0, workers=1,
+                                        first_pass_photons=VIEWPORT_FIRST_PHOTONS)
         final = render(export_scene(depsgraph).scene, settings).image
         assert image[..., :3].mean() > 0.02
         np.testing.assert_allclose(image[..., :3].mean(), final[..., :3].mean(), rtol=1e-3)

@@ -340,11 +340,21 @@ def test_automatic_photon_count_grows_with_the_image_only():
     assert ramp == sorted(ramp) and ramp[-1] == auto.photons_for(big) and ramp.count(ramp[-1]) >= 3
     assert [auto.pass_photons(64 * 48, i) for i in (0, 1, 50)] == [AUTO_PHOTONS_MIN] * 3
     assert [RenderSettings(photons_per_pass=5000).pass_photons(big, i) for i in (0, 1, 9)] == [5000] * 3
+    # A first pass of its own (the 3D viewport's) starts a ramp to the explicit or automatic count.
+    first = RenderSettings(photons_per_pass=5000, first_pass_photons=1000)
+    assert [first.pass_photons(big, i) for i in (0, 1, 2, 9)] == [1000, 1000 * AUTO_RAMP, 5000, 5000]
+    small = [auto.replace(first_pass_photons=1000).pass_photons(64 * 48, i) for i in (0, 1, 50)]
+    assert small == [1000, 1000 * AUTO_RAMP, AUTO_PHOTONS_MIN]
+    with pytest.raises(ValueError, match="first_pass_photons"):
+        RenderSettings(first_pass_photons=-1)
     scene = cornell_box((2000, 1000))
     scene.camera.border = (0.0, 0.1, 0.0, 0.1)
     result = render(scene, RenderSettings(method="ppm", passes=1, workers=1))
     assert result.stats[0]["photons_per_pass"] == AUTO_PHOTONS_MIN
     assert result.stats[0]["paths_traced"] == AUTO_PHOTONS_MIN
+    ramped = RenderSettings(method="ppm", passes=3, workers=1, photons_per_pass=5000, first_pass_photons=2000)
+    stats = render(cornell_box((16, 16)), ramped).stats
+    assert [(s["photons_per_pass"], s["paths_traced"]) for s in stats] == [(2000, 2000)] + [(5000, 5000)] * 2
 
 
 @pytest.mark.parametrize("kind, width", [("box", 1.0), ("box", 2.0), ("gaussian", 2.0),
