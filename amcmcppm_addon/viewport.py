@@ -7,6 +7,8 @@ own view, or the camera's with its zoom and offset when looking through it), and
 render in a process of its own (``core.live.LiveRender``: one worker, the scene's settings but
 ``viewport_passes`` passes at ``viewport_pixel_size``, the first of ``VIEWPORT_FIRST_PHOTONS``
 photons unless First Pass Photons says otherwise), so that Blender's interface never waits for it.
+A moved view sends only its camera: the server renders the scene it holds through it, with the
+acceleration structure it built (``LiveRender.start``).
 Each redraw shows the newest pass, scaled to the region, through Blender's display transform, and
 asks for another redraw while the render goes on.
 
@@ -63,8 +65,9 @@ class ViewportRender:
                 self.exported = export_scene(depsgraph, camera=camera)
                 scene = self.exported.scene
             else:
-                # (only the view moved: the export stands; a world made with the camera's view,
-                # a backplate, keeps the view it was exported with)
+                # (only the view moved: the export stands, and the live render keeps its scene
+                # and BVH; a world made with the camera's view, a backplate, keeps the view it
+                # was exported with)
                 scene = dataclasses.replace(self.exported.scene, camera=camera)
             if self.exported.is_empty:
                 self.close()

@@ -2,13 +2,16 @@
 
 Each scene and size starts a fresh server process (as the first Rendered-shading redraw does)
 and records when the first passes' images can be read, and then, with the server warm, when a
-second job (the view moved) shows its first image.  One worker, the scene's default settings
+second job (the view moved) shows its first image, and a third (moved again, the scene sent
+anew as an edited scene is: loaded and its BVH built again).  ``--subdivide K`` splits every
+triangle into 4**K (``throughput.subdivide``) for a scene whose BVH costs.  One worker, the scene's default settings
 but the first pass's photons: each of ``--first-pass-photons`` in turn (0: the automatic count's
 own ramp, from ``AUTO_PHOTONS_MIN``; the viewport's ``VIEWPORT_FIRST_PHOTONS``), alternating over
 ``--rounds``, and the ratio of each one's times to the first one's (medians).
 
     python benchmarks/viewport_first_image.py [--scenes cornell_box glass_ceiling_room]
         [--sizes 320x180 640x360] [--images 3] [--first-pass-photons 0 10000] [--rounds 3]
+        [--subdivide K]
 """
 from __future__ import annotations
 
@@ -27,6 +30,7 @@ from core import RenderSettings  # noqa: E402
 from core.live import LiveRender  # noqa: E402
 from core.settings import VIEWPORT_FIRST_PHOTONS  # noqa: E402
 from core.testing.scenes import BUILTIN  # noqa: E402
+from throughput import subdivide  # noqa: E402
 
 
 def image_times(live, count, t0, timeout=600.0):
@@ -42,21 +46,25 @@ def image_times(live, count, t0, timeout=600.0):
 
 
 def job_times(scene, settings, images):
-    """(times of the first ``images`` images from a fresh server, time of a moved view's first image)."""
+    """Times of the first ``images`` images from a fresh server, then of the first image of a moved
+    view (the scene kept) and of another one with the scene sent again."""
     live = LiveRender()
     try:
         t0 = time.monotonic()
         live.start(scene, settings)
-        fresh = image_times(live, images, t0)
-        pose = scene.camera.world_from_camera.copy()
-        pose[0, 3] += 0.01
-        moved = dataclasses.replace(scene.camera, world_from_camera=pose)
-        t1 = time.monotonic()
-        live.start(dataclasses.replace(scene, camera=moved), settings)
-        warm = image_times(live, 1, t1)
+        times = image_times(live, images, t0)
+        for step, resend in ((1, False), (2, True)):
+            pose = scene.camera.world_from_camera.copy()
+            pose[0, 3] += 0.01 * step
+            moved = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, world_from_camera=pose))
+            if resend:
+                moved = dataclasses.replace(moved, vertices=scene.vertices.copy())
+            t1 = time.monotonic()
+            live.start(moved, settings)
+            times += image_times(live, 1, t1)
     finally:
         live.close()
-    return fresh + warm
+    return times
 
 
 def main():
@@ -67,12 +75,13 @@ def main():
     ap.add_argument("--images", type=int, default=3, help="images timed from a fresh server")
     ap.add_argument("--first-pass-photons", nargs="+", type=int, default=[0, VIEWPORT_FIRST_PHOTONS])
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--subdivide", type=int, default=0, help="split every triangle into 4**K")
     a = ap.parse_args()
     counts = a.first_pass_photons
     for name in a.scenes:
         for size in a.sizes:
             resolution = tuple(int(v) for v in size.split("x"))
-            scene = BUILTIN[name](resolution=resolution)
+            scene = subdivide(BUILTIN[name](resolution=resolution), a.subdivide)
             times = {n: [] for n in counts}
             for _ in range(a.rounds):
                 for n in counts:
@@ -81,10 +90,10 @@ def main():
             base = np.median(times[counts[0]], axis=0)
             for n in counts:
                 t = np.median(times[n], axis=0)
-                print(f"{name} {size}, first pass {n or 'automatic'}: fresh server, images at "
-                      f"{', '.join(f'{v:.2f}' for v in t[:-1])} s; warm server, a moved view's first "
-                      f"image at {t[-1]:.2f} s (median of {a.rounds}; / first count: "
-                      f"{', '.join(f'{v:.2f}' for v in t / base)})", flush=True)
+                print(f"{name} ({scene.triangle_count:,} triangles) {size}, first pass {n or 'automatic'}: "
+                      f"fresh server, images at {', '.join(f'{v:.2f}' for v in t[:-2])} s; a moved view's "
+                      f"first image at {t[-2]:.2f} s, {t[-1]:.2f} s with the scene sent again (median of "
+                      f"{a.rounds}; / first count: {', '.join(f'{v:.2f}' for v in t / base)})", flush=True)
 
 
 if __name__ == "__main__":

@@ -674,18 +674,25 @@ def kz_radius_scales(n, alpha):
     return np.sqrt(np.concatenate([[1.0], np.cumprod((i + alpha) / (i + 1.0))]))
 
 
-def render(scene, settings=None, on_iteration=None, should_stop=None) -> RenderResult:
+def render(scene, settings=None, on_iteration=None, should_stop=None, context=None) -> RenderResult:
     """Render ``scene`` progressively.
 
     on_iteration : called after every pass with the :class:`RenderResult` so far.
     should_stop : polled between passes and photon batches; when it returns True
         the render ends promptly with the passes finished so far.
+    context : a :class:`RenderContext` of ``scene`` to use rather than build one (e.g. an earlier
+        render's ``with_camera``: the 3D viewport's moved views, ``core/live.py``).
     """
     settings = settings or RenderSettings()
     scene = scene.validate()
     t0 = time.perf_counter()
     stop = should_stop or (lambda: False)
-    ctx = RenderContext(scene, settings.glossy_through_roughness)
+    if context is None:
+        ctx = RenderContext(scene, settings.glossy_through_roughness)
+    elif context.source is not scene or context.glossy_through_roughness != settings.glossy_through_roughness:
+        raise ValueError("render: the context was built for another scene or glossy_through_roughness")
+    else:
+        ctx = context
     x0, x1, y0, y1 = scene.camera.window
     width, height = x1 - x0, y1 - y0
     n_pixels = width * height

@@ -3,7 +3,10 @@
 This is what Blender's 3D viewport shows in Rendered shading (``amcmcppm_addon/viewport.py``):
 the viewport asks for a new render whenever the user moves the view or edits the scene, and
 must never wait for one.  :class:`LiveRender` keeps one server process (:func:`serve`, started
-with :func:`core.parallel.start_process`) and sends it jobs: a scene file and settings.  The
+with :func:`core.parallel.start_process`) and sends it jobs: a scene file, a camera and settings.
+A job whose scene differs from the last one's only by its camera (the view moved) names the last
+one's file, and the server, which keeps that scene and its ``RenderContext``, renders it through
+the new camera (``RenderContext.with_camera``) without loading it or building its BVH again.  The
 server renders the newest job with :func:`core.render` in that process (one worker, no pool to
 start), writes the image after every pass into the job's folder (a file replaced atomically),
 and leaves a job as soon as a newer one supersedes it (a stop file, polled between photon
@@ -13,6 +16,7 @@ render, and the GIL is not shared with one.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import pickle
@@ -49,21 +53,27 @@ class LiveRender:
         self.proc = None
         self.job = 0
         self._shown = None          # (job, pass) of the last image returned by latest()
+        self._scene = None          # the scene last written, and its file
+        self._scene_path = None
 
     def start(self, scene, settings):
         """Render ``scene`` (``core.Scene``) with ``settings`` (``RenderSettings``; one worker is
-        used whatever they say) from now on, leaving the job before it."""
+        used whatever they say) from now on, leaving the job before it.  A scene that shares every
+        field but its camera with the last one (``dataclasses.replace(scene, camera=...)``) is not
+        written again: the server keeps that one (arrays changed in place are not seen)."""
         if self.job:
             open(job_file(self.folder, "stop", self.job), "w").close()
         self.job += 1
-        path = job_file(self.folder, "scene", self.job)
-        # (uncompressed, unlike Scene.save: the caller, the viewport's redraw, waits for it)
-        np.savez(path, **scene.to_arrays())
+        if not _same_but_camera(scene, self._scene):
+            self._scene_path = job_file(self.folder, "scene", self.job)
+            # (uncompressed, unlike Scene.save: the caller, the viewport's redraw, waits for it)
+            np.savez(self._scene_path, **scene.to_arrays())
+            self._scene = scene
         for name in os.listdir(self.folder):
-            # The files of earlier jobs, but their stop files: the server skips a job still
-            # queued in its pipe by its stop file.
+            # The files of earlier jobs, but their stop files (the server skips a job still
+            # queued in its pipe by its stop file) and the scene file in use.
             m = re.fullmatch(r"(scene|image|stats|error|done)(\d+)\.\w+", name)
-            if m and int(m.group(2)) < self.job:
+            if m and int(m.group(2)) < self.job and os.path.join(self.folder, name) != self._scene_path:
                 try:
                     os.remove(os.path.join(self.folder, name))
                 except OSError:
@@ -72,7 +82,10 @@ class LiveRender:
             self.proc = start_process("live.serve")
         fields = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
         fields["workers"] = 1
-        _send(self.proc, ("render", self.job, path, fields, self.folder))
+        # (the camera's fields, not the object: Blender's add-on and the server name its class's
+        # module differently)
+        camera = {f.name: getattr(scene.camera, f.name) for f in dataclasses.fields(scene.camera)}
+        _send(self.proc, ("render", self.job, self._scene_path, camera, fields, self.folder))
 
     def latest(self):
         """(image (h, w, 4) float32 linear RGBA, top row first; the job's statistics: ``pass``,
@@ -131,13 +144,15 @@ class LiveRender:
 
 def serve():
     """The server process's loop: render each job read from stdin that no newer one superseded."""
+    from .context import RenderContext
     from .integrator import render
-    from .scene import Scene
+    from .scene import Camera, Scene
     from .settings import RenderSettings
 
     inp = sys.stdin.buffer
     sys.stdout = sys.stderr
     parent = os.getppid()
+    loaded = ctx = None             # the path of the scene last loaded; its context, once built
     while True:
         try:
             msg = pickle.load(inp)
@@ -145,7 +160,7 @@ def serve():
             return
         if msg[0] == "stop":
             return
-        _, job, scene_path, fields, folder = msg
+        _, job, scene_path, camera, fields, folder = msg
         stop_path = job_file(folder, "stop", job)
         if os.path.exists(stop_path):
             continue
@@ -160,14 +175,30 @@ def serve():
                      "photons": [int(s["photons_per_pass"]) for s in result.stats]}
             _replace(job_file(folder, "stats", job), lambda f: f.write(json.dumps(stats).encode()))
         try:
-            render(Scene.load(scene_path), RenderSettings(**fields), on_iteration=publish,
-                   should_stop=should_stop)
+            settings = RenderSettings(**fields)
+            camera = Camera(**camera)
+            if scene_path != loaded:
+                loaded, ctx = None, None
+                base = Scene.load(scene_path)
+                loaded = scene_path
+            if ctx is None or ctx.glossy_through_roughness != settings.glossy_through_roughness:
+                ctx = RenderContext(dataclasses.replace(base, camera=camera).validate(),
+                                    settings.glossy_through_roughness)
+            else:
+                ctx = ctx.with_camera(camera)
+            render(ctx.source, settings, on_iteration=publish, should_stop=should_stop, context=ctx)
             open(job_file(folder, "done", job), "w").close()
         except Exception:
             text = traceback.format_exc().encode()
             _replace(job_file(folder, "error", job), lambda f: f.write(text))
         if os.getppid() != parent:
             return
+
+
+def _same_but_camera(scene, other):
+    """Whether ``scene`` holds the very objects of ``other`` (a Scene or None) but its camera."""
+    return other is not None and all(getattr(scene, f.name) is getattr(other, f.name)
+                                     for f in dataclasses.fields(scene) if f.name != "camera")
 
 
 def _replace(path, write):

@@ -2,6 +2,7 @@
 matrices make the camera Blender projects with, and the live render shows that view, starts
 over when the view or the scene changes and stops after its passes.  (Drawing needs ``gpu``,
 which exists only with a window: ``ViewportRender.draw`` is not run here.)"""
+import os
 import time
 
 import bpy
@@ -100,16 +101,19 @@ def test_the_viewport_renders_its_view_and_starts_over_on_changes(scene):
         moved[0, 3] += 0.3
         refresh_until(vp, depsgraph, moved, proj, region, lambda v: v.live.job == 2 and v.stats
                       and v.stats["pass"] >= 1)
+        # (a moved view sends no scene: the server renders the one it holds through the new camera)
+        assert "scene2.npz" not in os.listdir(vp.live.folder)
         bpy.data.lights[0].energy = 0.0
         vp.scene_changed()
         depsgraph = bpy.context.evaluated_depsgraph_get()
         refresh_until(vp, depsgraph, moved, proj, region, lambda v: v.live.job == 3 and v.stats
                       and v.stats["pass"] >= 1)
         assert vp.image[..., :3].max() == 0.0                 # the light is off now
+        assert "scene3.npz" in os.listdir(vp.live.folder)
     finally:
         folder = vp.live.folder
         vp.close()
-    assert vp.live is None and not __import__("os").path.exists(folder)
+    assert vp.live is None and not os.path.exists(folder)
 
 
 def test_an_empty_scene_shows_black_with_a_message(scene):

@@ -9,6 +9,7 @@ import pytest
 
 from core import RenderSettings, render
 from core.camera import generate_camera_rays
+from core.context import RenderContext
 from core.live import LiveRender, job_file
 from core.scene import Camera
 from core.testing.scenes import BUILTIN
@@ -58,15 +59,50 @@ def test_a_live_render_publishes_every_pass_of_the_image_a_render_makes(live):
 
 def test_a_new_job_supersedes_the_running_one(live):
     """A long job is left as soon as the next one starts: from then on only the new job's images
-    come, of its own size, and the old one's stop file ends it between photon batches."""
+    come, of its own size, and the old one's stop file ends it between photon batches.  A job that
+    changes only the camera sends no scene (the server renders the one it holds through the new
+    camera: the image ``core.render`` makes of the moved scene, bit for bit); a changed scene is
+    sent again, and the files of the jobs before go."""
     scene = BUILTIN["cornell_box"](resolution=(24, 18))
     live.start(scene, RenderSettings(passes=10_000, **FAST))
     wait(live, lambda s: len(s) >= 1)
-    camera = dataclasses.replace(scene.camera, resolution=(16, 12))
-    live.start(dataclasses.replace(scene, camera=camera), RenderSettings(passes=2, **FAST))
+    pose = scene.camera.world_from_camera.copy()
+    pose[0, 3] += 0.2
+    moved = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, resolution=(16, 12),
+                                                                  world_from_camera=pose))
+    settings = RenderSettings(passes=2, **FAST)
+    live.start(moved, settings)
     seen = wait(live, lambda s: bool(s) and s[-1][1]["pass"] == 2)
     assert live.job == 2 and all(image.shape == (12, 16, 4) for image, _ in seen)
-    assert not os.path.exists(job_file(live.folder, "scene", 1))            # the old job's files go
+    assert np.array_equal(seen[-1][0], render(moved, settings).image)
+    names = set(os.listdir(live.folder))
+    assert "scene1.npz" in names and "scene2.npz" not in names
+    changed = BUILTIN["cornell_box"](resolution=(16, 12))       # (the same, but new objects)
+    live.start(changed, settings)
+    seen = wait(live, lambda s: bool(s) and s[-1][1]["pass"] == 2)
+    assert live.job == 3 and np.array_equal(seen[-1][0], render(changed, settings).image)
+    names = set(os.listdir(live.folder))
+    # (a job the next one stopped may still write its last image: gone at the start after)
+    assert "scene3.npz" in names and not names & {"scene1.npz", "image1.npy", "image2.npy"}
+
+
+def test_a_context_seen_through_another_camera_renders_as_a_new_one():
+    """``RenderContext.with_camera``: rendering through it is rendering the moved scene from scratch,
+    bit for bit, also when the camera leaves the glowing gas it was in (the eye's medium, cached by
+    the first render, is found again); a context of another scene is refused."""
+    scene = BUILTIN["glowing_glass_ball"](resolution=(16, 12))
+    inside = Camera.look_at((0.0, 0.2, 0.351), (1.0, 0.2, 0.351), lens_mm=24.0, resolution=(16, 12))
+    in_gas = dataclasses.replace(scene, camera=inside)
+    settings = RenderSettings(passes=2, **FAST)
+    ctx = RenderContext(in_gas)
+    first = render(in_gas, settings, context=ctx).image
+    assert ctx.camera_medium(np.zeros((1, 3)))[0] >= 0                      # (in the gas)
+    assert np.array_equal(first, render(in_gas, settings).image)
+    moved = ctx.with_camera(scene.camera)
+    assert moved.accel is ctx.accel and moved.camera_medium(np.zeros((1, 3)))[0] < 0
+    assert np.array_equal(render(moved.source, settings, context=moved).image, render(scene, settings).image)
+    with pytest.raises(ValueError, match="another scene"):
+        render(scene, settings, context=ctx)
 
 
 def test_a_failed_job_raises_its_error_and_close_ends_the_server(live):
