@@ -1205,15 +1205,19 @@ class Scene:
         """(lo, hi) float64 (3,) of the geometry and light positions; a unit box if empty."""
         used = np.zeros(len(self.vertices), bool)
         used[self.triangles] = True                  # O(T), where np.unique sorts
-        pts = [self.vertices[used]]
+        # (all of them, as a rule: a boolean gather and a float64 copy of millions of vertices
+        # took a second)
+        pts = [self.vertices if used.all() else self.vertices[used]]
         if self.lights.count:
             finite = self.lights.kind != SUN
             pts.append(self.lights.position[finite])
-        p = np.concatenate([np.asarray(a, np.float64).reshape(-1, 3) for a in pts])
-        if len(p) == 0:
+        pts = [np.asarray(a).reshape(-1, 3) for a in pts if len(a)]
+        if not pts:
             return np.full(3, -1.0), np.full(3, 1.0)
         # Column by column: NumPy reduces over axis 0 of an (n, 3) array ~10x slower.
-        return (np.array([p[:, k].min() for k in range(3)]), np.array([p[:, k].max() for k in range(3)]))
+        lo = np.array([min(float(a[:, k].min()) for a in pts) for k in range(3)])
+        hi = np.array([max(float(a[:, k].max()) for a in pts) for k in range(3)])
+        return lo, hi
 
     # --------------------------------------------------------------- validation
     def validate(self) -> "Scene":
