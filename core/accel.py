@@ -18,6 +18,9 @@ from .sampling import dot
 
 # Spawned rays start this many float32 ulps (relative to the coordinate magnitude) off the surface.
 _OFFSET_ULPS = 64.0 * np.finfo(np.float32).eps
+# Embree's meshes are built from vertices and indices when there are fewer vertices than this many
+# per triangle, else from the triangles' corners (Accel, _embree_scene; benchmarks/context_cost.py).
+SHARED_VERTICES = 1.5
 
 
 @dataclass
@@ -63,13 +66,23 @@ class Accel:
         self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
         self._locals = None             # LocalScene of every object apart (local_scene())
         if self.triangle_count:
-            self._embree = _embree_scene(corners - self.center)
+            # Embree's meshes from the vertices and their indices where the triangles share them
+            # (as Blender's do), else from the corners: the same float32 corners either way
+            # (_embree_scene).
+            shared = len(scene.vertices) < SHARED_VERTICES * self.triangle_count
+            relative = np.asarray(scene.vertices, np.float64) - self.center if shared else None
+
+            def mesh(ids=None):
+                if shared:
+                    return _embree_scene(relative, scene.triangles if ids is None else scene.triangles[ids])
+                return _embree_scene((corners if ids is None else corners[ids]) - self.center)
+            self._embree = mesh()
             mats = scene.materials
             glass = (mats.dielectric_weight > 0).take(scene.material_ids)
             self.glass = glass                                          # (T,) bool
             if glass.any() and not glass.all():
                 self.contact_ids = np.flatnonzero(~glass)
-                self._contact = _embree_scene(corners[self.contact_ids] - self.center)
+                self._contact = mesh(self.contact_ids)
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -242,12 +255,24 @@ class LocalScene:
         return Hits(is_hit, prim, t, b1, b2)
 
 
-def _embree_scene(corners):
-    """A robust embree scene of triangles ``corners`` (T, 3, 3), in the frame embree sees (float32)."""
+def _embree_scene(points, triangles=None):
+    """A robust embree scene of triangles: ``points`` (T, 3, 3) their corners, or (V, 3) vertices
+    that ``triangles`` (T, 3) index, in the frame embree sees (float32).
+
+    embreex copies them into embree's buffers one element at a time through Python indexing, 3 s
+    for 2 million triangles' corners, 5 times embree's own build; an index costs it about 3.5 times
+    a coordinate.  So ``Accel`` hands over vertices shared by their triangles, as Blender's are,
+    with their indices (1.95-1.97 times faster on a grid of 2 million triangles and 1 million
+    vertices; the whole context 1.8 times), and unshared ones as corners (the indices 0.72-0.80
+    times as fast there; ``benchmarks/context_cost.py``)."""
     from embreex import rtcore_scene
     from embreex.mesh_construction import TriangleMesh
     scene = rtcore_scene.EmbreeScene(robust=True)
-    TriangleMesh(scene, np.ascontiguousarray(corners, np.float32))
+    if triangles is None:
+        TriangleMesh(scene, np.ascontiguousarray(points, np.float32))
+    else:
+        TriangleMesh(scene, np.ascontiguousarray(points, np.float32),
+                     np.ascontiguousarray(triangles, np.int32))
     return scene
 
 
