@@ -4,10 +4,11 @@ Each scene and size starts a fresh server process (as the first Rendered-shading
 and records when the first passes' images can be read, and then, with the server warm, when a
 second job (the view moved) shows its first image, and a third (moved again, the scene sent
 anew as an edited scene is: loaded and its BVH built again).  ``--subdivide K`` splits every
-triangle into 4**K (``throughput.subdivide``) for a scene whose BVH costs.  One worker, the scene's default settings
-but the first pass's photons: each of ``--first-pass-photons`` in turn (0: the automatic count's
-own ramp, from ``AUTO_PHOTONS_MIN``; the viewport's ``VIEWPORT_FIRST_PHOTONS``), alternating over
-``--rounds``, and the ratio of each one's times to the first one's (medians).
+triangle into 4**K (``throughput.subdivide``) for a scene whose BVH costs.  One worker, the
+scene's default settings but the first pass's photons: each of ``--first-pass-photons`` in turn
+(0: the automatic count's own ramp, from ``AUTO_PHOTONS_MIN``; the viewport's
+``VIEWPORT_FIRST_PHOTONS``), alternating over ``--rounds``, and the ratio of each one's times to
+the first one's (medians).
 
     python benchmarks/viewport_first_image.py [--scenes cornell_box glass_ceiling_room]
         [--sizes 320x180 640x360] [--images 3] [--first-pass-photons 0 10000] [--rounds 3]
@@ -56,7 +57,8 @@ def job_times(scene, settings, images):
         for step, resend in ((1, False), (2, True)):
             pose = scene.camera.world_from_camera.copy()
             pose[0, 3] += 0.01 * step
-            moved = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, world_from_camera=pose))
+            camera = dataclasses.replace(scene.camera, world_from_camera=pose)
+            moved = dataclasses.replace(scene, camera=camera)
             if resend:
                 moved = dataclasses.replace(moved, vertices=scene.vertices.copy())
             t1 = time.monotonic()
