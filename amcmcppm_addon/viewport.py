@@ -35,8 +35,9 @@ class ViewportRender:
 
     def __init__(self):
         self.live = None
-        self.exported = None        # the exported scene, None when the depsgraph changed since
-        self.key = None             # what the running render shows: view, projection, size, passes
+        self.exported = None        # the exported scene
+        self.stale = True           # whether the depsgraph changed since
+        self.key = None             # what the running render shows: view, projection, size, settings
         self.passes = 0             # ... of which its passes
         self.image = None           # the newest image (h, w, 4), top row first
         self.stats = None           # ... and its statistics (pass, elapsed_s)
@@ -44,42 +45,58 @@ class ViewportRender:
         self._texture = None
 
     def scene_changed(self):
-        """The depsgraph changed: export again at the next refresh."""
-        self.exported = None
+        """The depsgraph changed: export again at the next refresh (and start over if the scene
+        differs: selecting an object changes the depsgraph, not the scene)."""
+        self.stale = True
 
     def refresh(self, depsgraph, view_matrix, window_matrix, perspective, region_size) -> bool:
-        """Start the render over if the scene or the view changed since, then take its newest
-        image; True when there is a new one (``self.image``)."""
+        """Start the render over if the scene, its settings or the view changed since, then take
+        its newest image; True when there is a new one (``self.image``)."""
         props = depsgraph.scene_eval.amcmcppm
         pixel = int(props.viewport_pixel_size)
         size = (max(1, int(region_size[0]) // pixel), max(1, int(region_size[1]) // pixel))
         view, window = np.array(view_matrix, np.float64), np.array(window_matrix, np.float64)
         passes = int(props.viewport_passes)
-        key = (view.tobytes(), window.tobytes(), bool(perspective), size, passes)
-        if self.exported is None or key != self.key:
+        first = props.first_pass_photons or VIEWPORT_FIRST_PHOTONS
+        settings = render_settings_from(props, passes=passes, time_limit=0.0, workers=1,
+                                        first_pass_photons=first)
+        key = (view.tobytes(), window.tobytes(), bool(perspective), size, settings)
+        if self.stale or key != self.key:
+            camera = Camera.from_view(view, window, perspective, size, **pixel_filter(depsgraph.scene_eval))
+            new_scene = self.stale and self._export(depsgraph, camera)
+            if not new_scene and key == self.key:
+                return self._take()
             self.key, self.passes = key, passes
             self.message = ""
             self.stats = None           # (the last image stays on screen until the new one comes)
-            camera = Camera.from_view(view, window, perspective, size, **pixel_filter(depsgraph.scene_eval))
-            if self.exported is None:
-                self.exported = export_scene(depsgraph, camera=camera)
-                scene = self.exported.scene
-            else:
-                # (only the view moved: the export stands, and the live render keeps its scene
-                # and BVH; a world made with the camera's view, a backplate, keeps the view it
-                # was exported with)
-                scene = dataclasses.replace(self.exported.scene, camera=camera)
+            # (only the view moved: the export stands, and the live render keeps its scene and
+            # BVH; a world made with the camera's view, a backplate, keeps the view it was
+            # exported with)
+            scene = self.exported.scene
+            if not new_scene:
+                scene = dataclasses.replace(scene, camera=camera)
             if self.exported.is_empty:
                 self.close()
                 self.image, self.stats = np.zeros((size[1], size[0], 4), np.float32), None
                 self.message = "nothing to render (no geometry, no lights and a black world)"
                 return True
-            first = props.first_pass_photons or VIEWPORT_FIRST_PHOTONS
-            settings = render_settings_from(props, passes=passes, time_limit=0.0, workers=1,
-                                            first_pass_photons=first)
             if self.live is None:
                 self.live = LiveRender()
             self.live.start(scene, settings)
+        return self._take()
+
+    def _export(self, depsgraph, camera) -> bool:
+        """Export the scene through ``camera``; whether it differs from the last export (its camera
+        aside), which it then replaces."""
+        exported = export_scene(depsgraph, camera=camera)
+        self.stale = False
+        if self.exported is not None and same_scene(exported.scene, self.exported.scene):
+            return False
+        self.exported = exported
+        return True
+
+    def _take(self) -> bool:
+        """Take the live render's newest image, if there is a new one."""
         if self.live is None:
             return False
         got = self.live.latest()
@@ -140,3 +157,17 @@ class ViewportRender:
         if self.live is not None:
             self.live.close()
             self.live = None
+
+
+def same_scene(a, b) -> bool:
+    """Whether core scenes ``a`` and ``b`` hold the same data (``Scene.to_arrays``), their cameras
+    aside."""
+    x, y = a.to_arrays(), b.to_arrays()
+    keys = {k for k in x if not k.startswith("camera.")}
+    if keys != {k for k in y if not k.startswith("camera.")}:
+        return False
+    for k in keys:
+        u, v = np.asarray(x[k]), np.asarray(y[k])
+        if u.shape != v.shape or u.dtype != v.dtype or not np.array_equal(u, v):
+            return False
+    return True

@@ -95,8 +95,15 @@ def test_the_viewport_renders_its_view_and_starts_over_on_changes(scene):
         assert image[..., :3].mean() > 0.02
         np.testing.assert_allclose(image[..., :3].mean(), final[..., :3].mean(), rtol=1e-3)
         assert np.corrcoef(image[..., :3].ravel(), final[..., :3].ravel())[0, 1] > 0.999
-        # Nothing changed: the render stands.  The view moves: job 2; the scene changes: job 3.
+        # Nothing changed: the render stands; a selection changes the depsgraph, not the scene: it
+        # stands too.  The view moves: job 2; the scene changes: job 3; a setting: job 4.
         assert not vp.refresh(depsgraph, view, proj, True, region) and vp.live.job == 1
+        exported = vp.exported
+        ob.select_set(True)
+        vp.scene_changed()
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        assert not vp.refresh(depsgraph, view, proj, True, region) and vp.live.job == 1
+        assert vp.exported is exported and not vp.stale
         moved = view.copy()
         moved[0, 3] += 0.3
         refresh_until(vp, depsgraph, moved, proj, region, lambda v: v.live.job == 2 and v.stats
@@ -110,6 +117,12 @@ def test_the_viewport_renders_its_view_and_starts_over_on_changes(scene):
                       and v.stats["pass"] >= 1)
         assert vp.image[..., :3].max() == 0.0                 # the light is off now
         assert "scene3.npz" in os.listdir(vp.live.folder)
+        scene.amcmcppm.seed = 5
+        scene.update_tag()                      # (as the panel's change does; a script's does not)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        refresh_until(vp, depsgraph, moved, proj, region, lambda v: v.live.job == 4 and v.stats
+                      and v.stats["pass"] >= 1)
+        assert "scene4.npz" not in os.listdir(vp.live.folder)   # (the same scene, other settings)
     finally:
         folder = vp.live.folder
         vp.close()
