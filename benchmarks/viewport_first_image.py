@@ -2,8 +2,9 @@
 
 Each scene and size starts a fresh server process (as the first Rendered-shading redraw does)
 and records when the first passes' images can be read, and then, with the server warm, when a
-second job (the view moved) shows its first image, and a third (moved again, the scene sent
-anew as an edited scene is: loaded and its BVH built again).  ``--subdivide K`` splits every
+second job (the view moved: the server keeps its scene) shows its first image, a third (a
+material edited: the scene sent again, its BVH kept) and a fourth (a vertex moved: the scene sent
+again and its BVH built again).  ``--subdivide K`` splits every
 triangle into 4**K (``throughput.subdivide``) for a scene whose BVH costs.  One worker, the
 scene's default settings but the first pass's photons: each of ``--first-pass-photons`` in turn
 (0: the automatic count's own ramp, from ``AUTO_PHOTONS_MIN``; the viewport's
@@ -46,23 +47,31 @@ def image_times(live, count, t0, timeout=600.0):
     return times
 
 
+def edits(scene):
+    """The scene with its view moved, then a material edited, then a vertex moved."""
+    pose = scene.camera.world_from_camera.copy()
+    pose[0, 3] += 0.01
+    moved = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, world_from_camera=pose))
+    colours = scene.materials.diffuse_color.copy()
+    colours[0] *= 0.9
+    materials = dataclasses.replace(moved.materials, diffuse_color=colours)
+    recoloured = dataclasses.replace(moved, materials=materials)
+    vertices = scene.vertices.copy()
+    vertices[0] += 1e-4
+    return moved, recoloured, dataclasses.replace(recoloured, vertices=vertices)
+
+
 def job_times(scene, settings, images):
-    """Times of the first ``images`` images from a fresh server, then of the first image of a moved
-    view (the scene kept) and of another one with the scene sent again."""
+    """Times of the first ``images`` images from a fresh server, then of the first image of each of
+    ``edits``."""
     live = LiveRender()
     try:
         t0 = time.monotonic()
         live.start(scene, settings)
         times = image_times(live, images, t0)
-        for step, resend in ((1, False), (2, True)):
-            pose = scene.camera.world_from_camera.copy()
-            pose[0, 3] += 0.01 * step
-            camera = dataclasses.replace(scene.camera, world_from_camera=pose)
-            moved = dataclasses.replace(scene, camera=camera)
-            if resend:
-                moved = dataclasses.replace(moved, vertices=scene.vertices.copy())
+        for edited in edits(scene):
             t1 = time.monotonic()
-            live.start(moved, settings)
+            live.start(edited, settings)
             times += image_times(live, 1, t1)
     finally:
         live.close()
@@ -93,9 +102,10 @@ def main():
             for n in counts:
                 t = np.median(times[n], axis=0)
                 print(f"{name} ({scene.triangle_count:,} triangles) {size}, first pass {n or 'automatic'}: "
-                      f"fresh server, images at {', '.join(f'{v:.2f}' for v in t[:-2])} s; a moved view's "
-                      f"first image at {t[-2]:.2f} s, {t[-1]:.2f} s with the scene sent again (median of "
-                      f"{a.rounds}; / first count: {', '.join(f'{v:.2f}' for v in t / base)})", flush=True)
+                      f"fresh server, images at {', '.join(f'{v:.2f}' for v in t[:-3])} s; first image of "
+                      f"a moved view at {t[-3]:.2f} s, of an edited material {t[-2]:.2f} s, of a moved "
+                      f"vertex {t[-1]:.2f} s (median of {a.rounds}; / first count: "
+                      f"{', '.join(f'{v:.2f}' for v in t / base)})", flush=True)
 
 
 if __name__ == "__main__":

@@ -39,22 +39,34 @@ class Hits:
 class Accel:
     """Embree BVH over a scene's triangles plus per-triangle data for shading."""
 
-    def __init__(self, scene, bounds=None):
+    def __init__(self, scene, bounds=None, reuse=None):
         """``bounds``: None, or (lo, hi) to take for the scene's box instead of its own (the extent,
-        and the disc the sun's and the world's photons start from: ``LightSampler``)."""
-        corners = scene.triangle_corners().astype(np.float64)          # (T, 3, 3)
-        self.triangle_count = len(corners)
-        # Contiguous: take() on a strided view would first copy the whole array, every call.
-        self.v0 = np.ascontiguousarray(corners[:, 0])                   # (T, 3) float64
-        self.e1 = corners[:, 1] - corners[:, 0]                         # (T, 3) float64
-        self.e2 = corners[:, 2] - corners[:, 0]                         # (T, 3) float64
-        cross = np.cross(self.e1, self.e2)
-        length = np.linalg.norm(cross, axis=1)
-        self.area = 0.5 * length                                        # (T,) float64
-        safe = np.where(length > 0, length, 1.0)
-        ng = cross / safe[:, None]
-        ng[length == 0] = (0.0, 0.0, 1.0)
-        self.geometric_normals = ng                                     # (T, 3) float64, unit
+        and the disc the sun's and the world's photons start from: ``LightSampler``).  ``reuse``:
+        None, or an ``Accel`` of an earlier version of the scene whose triangles' data this one takes
+        if it holds the same triangles, and its embree scenes if they also see them in the same frame
+        (the 3D viewport's edits of materials and lights: ``core/live.py``)."""
+        # (what the triangles are made of, compared with a later version's; None: a subset())
+        self._mesh_key = (scene.vertices, scene.triangles)
+        same = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
+        corners = None
+        if same:
+            self.triangle_count = reuse.triangle_count
+            for name in ("v0", "e1", "e2", "area", "geometric_normals"):
+                setattr(self, name, getattr(reuse, name))
+        else:
+            corners = scene.triangle_corners().astype(np.float64)      # (T, 3, 3)
+            self.triangle_count = len(corners)
+            # Contiguous: take() on a strided view would first copy the whole array, every call.
+            self.v0 = np.ascontiguousarray(corners[:, 0])               # (T, 3) float64
+            self.e1 = corners[:, 1] - corners[:, 0]                     # (T, 3) float64
+            self.e2 = corners[:, 2] - corners[:, 0]                     # (T, 3) float64
+            cross = np.cross(self.e1, self.e2)
+            length = np.linalg.norm(cross, axis=1)
+            self.area = 0.5 * length                                    # (T,) float64
+            safe = np.where(length > 0, length, 1.0)
+            ng = cross / safe[:, None]
+            ng[length == 0] = (0.0, 0.0, 1.0)
+            self.geometric_normals = ng                                 # (T, 3) float64, unit
         lo, hi = scene.bounds() if bounds is None else bounds
         self.bounds = (lo, hi)
         self.extent = float(max(np.max(hi - lo), 1e-6))
@@ -73,16 +85,23 @@ class Accel:
             relative = np.asarray(scene.vertices, np.float64) - self.center if shared else None
 
             def mesh(ids=None):
+                nonlocal corners
                 if shared:
                     return _embree_scene(relative, scene.triangles if ids is None else scene.triangles[ids])
+                if corners is None:
+                    corners = scene.triangle_corners().astype(np.float64)
                 return _embree_scene((corners if ids is None else corners[ids]) - self.center)
-            self._embree = mesh()
+            # (embree's scenes hold the triangles as seen from the centre)
+            same = same and np.array_equal(self.center, reuse.center)
+            self._embree = reuse._embree if same else mesh()
             mats = scene.materials
             glass = (mats.dielectric_weight > 0).take(scene.material_ids)
             self.glass = glass                                          # (T,) bool
             if glass.any() and not glass.all():
                 self.contact_ids = np.flatnonzero(~glass)
-                self._contact = mesh(self.contact_ids)
+                kept = (same and reuse._contact is not None
+                        and np.array_equal(reuse.contact_ids, self.contact_ids))
+                self._contact = reuse._contact if kept else mesh(self.contact_ids)
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -116,6 +135,7 @@ class Accel:
         out.__dict__.update(self.__dict__)
         out._contact = None
         out._locals = None
+        out._mesh_key = None
         out._ids = np.asarray(tri_ids, np.int64)
         v0, e1, e2 = (a.take(out._ids, axis=0) for a in (self.v0, self.e1, self.e2))
         out._embree = _embree_scene(np.stack([v0, v0 + e1, v0 + e2], axis=1) - self.center)
@@ -253,6 +273,12 @@ class LocalScene:
             t[h] = (r["tfar"][found] + s[found]).astype(np.float32)
             b1[h], b2[h] = r["u"][found], r["v"][found]
         return Hits(is_hit, prim, t, b1, b2)
+
+
+def _same_mesh(a, b):
+    """Whether two (vertices, triangles) hold the same triangles."""
+    return a is not None and b is not None and all(np.shape(u) == np.shape(v) and np.array_equal(u, v)
+                                                   for u, v in zip(a, b))
 
 
 def _embree_scene(points, triangles=None):

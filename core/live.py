@@ -6,7 +6,9 @@ must never wait for one.  :class:`LiveRender` keeps one server process (:func:`s
 with :func:`core.parallel.start_process`) and sends it jobs: a scene file, a camera and settings.
 A job whose scene differs from the last one's only by its camera (the view moved) names the last
 one's file, and the server, which keeps that scene and its ``RenderContext``, renders it through
-the new camera (``RenderContext.with_camera``) without loading it or building its BVH again.  The
+the new camera (``RenderContext.with_camera``) without loading it or building its BVH again.  An
+edited scene is sent again, and its BVH kept if the edit left the triangles as they were (a
+material's or a light's, unless the light moves the scene's bounds: ``Accel``'s ``reuse``).  The
 server renders the newest job with :func:`core.render` in that process (one worker, no pool to
 start), writes the image after every pass into the job's folder (a file replaced atomically),
 and leaves a job as soon as a newer one supersedes it (a stop file, polled between photon
@@ -152,7 +154,8 @@ def serve():
     inp = sys.stdin.buffer
     sys.stdout = sys.stderr
     parent = os.getppid()
-    loaded = ctx = None             # the path of the scene last loaded; its context, once built
+    loaded = ctx = previous = None  # the path of the scene last loaded; its context, once built;
+    #                                 the context of the scene before it, until that is built
     while True:
         try:
             msg = pickle.load(inp)
@@ -178,12 +181,14 @@ def serve():
             settings = RenderSettings(**fields)
             camera = Camera(**camera)
             if scene_path != loaded:
-                loaded, ctx = None, None
+                # (an edited scene: its BVH stays if the edit left the triangles as they were)
+                loaded, previous, ctx = None, ctx, None
                 base = Scene.load(scene_path)
                 loaded = scene_path
             if ctx is None or ctx.glossy_through_roughness != settings.glossy_through_roughness:
                 ctx = RenderContext(dataclasses.replace(base, camera=camera).validate(),
-                                    settings.glossy_through_roughness)
+                                    settings.glossy_through_roughness, reuse=previous if ctx is None else ctx)
+                previous = None
             else:
                 ctx = ctx.with_camera(camera)
             render(ctx.source, settings, on_iteration=publish, should_stop=should_stop, context=ctx)

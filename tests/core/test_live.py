@@ -123,6 +123,44 @@ def test_a_failed_job_raises_its_error_and_close_ends_the_server(live):
     assert proc.poll() is not None and not os.path.exists(folder) and live.proc is None
 
 
+def test_an_edit_that_keeps_the_triangles_keeps_the_bvh():
+    """``RenderContext(reuse=...)``, the live server's edited scenes: an edited material or light
+    keeps the earlier context's embree scenes (the whole scene's and the contact scene without the
+    glass) and triangle data, and renders as a fresh context does, bit for bit; a light that moves
+    the scene's bounds (embree's frame) keeps the triangle data only, a moved vertex nothing; glass
+    made diffuse keeps the whole scene's but has no contact scene."""
+    scene = BUILTIN["glass_ceiling_room"](resolution=(16, 12))
+    settings = RenderSettings(passes=2, **FAST)
+    ctx = RenderContext(scene)
+    assert ctx.accel._contact is not None
+    colours = scene.materials.diffuse_color.copy()
+    colours[0] *= 0.5
+    recoloured = dataclasses.replace(scene, materials=dataclasses.replace(scene.materials,
+                                                                          diffuse_color=colours))
+    brighter = dataclasses.replace(scene, lights=dataclasses.replace(scene.lights,
+                                                                     power=scene.lights.power * 2))
+    for edited in (recoloured, brighter):
+        kept = RenderContext(edited, reuse=ctx)
+        assert kept.accel._embree is ctx.accel._embree and kept.accel._contact is ctx.accel._contact
+        assert kept.accel.v0 is ctx.accel.v0
+        assert np.array_equal(render(edited, settings, context=kept).image, render(edited, settings).image)
+    vertices = scene.vertices.copy()
+    vertices[0] += 1e-3
+    position = scene.lights.position.copy()
+    position[0, 2] += 5.0                                   # (above the room's top: new bounds)
+    glassless = scene.materials.dielectric_weight.copy()
+    glassless[:] = 0.0
+    moved_light = dataclasses.replace(scene, lights=dataclasses.replace(scene.lights, position=position))
+    for edited, kept in ((dataclasses.replace(scene, vertices=vertices), False), (moved_light, True)):
+        fresh = RenderContext(edited.validate(), reuse=ctx)
+        assert fresh.accel._embree is not ctx.accel._embree and fresh.accel._contact is not ctx.accel._contact
+        assert (fresh.accel.geometric_normals is ctx.accel.geometric_normals) == kept
+        assert np.array_equal(render(edited, settings, context=fresh).image, render(edited, settings).image)
+    diffuse = RenderContext(dataclasses.replace(scene, materials=dataclasses.replace(
+        scene.materials, dielectric_weight=glassless)).validate(), reuse=ctx)
+    assert diffuse.accel._embree is ctx.accel._embree and diffuse.accel._contact is None
+
+
 @pytest.mark.parametrize("perspective", [True, False], ids=["perspective", "orthographic"])
 def test_a_camera_from_opengl_matrices_sees_what_they_project(perspective):
     """``Camera.from_view``: the frame and clip range of an OpenGL projection, the camera's pose
