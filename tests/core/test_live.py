@@ -10,7 +10,7 @@ import pytest
 from core import RenderSettings, render
 from core.camera import generate_camera_rays
 from core.context import RenderContext
-from core.live import LiveRender, job_file
+from core.live import LiveRender
 from core.scene import Camera
 from core.testing.scenes import BUILTIN
 
