@@ -8,9 +8,11 @@ render in a process of its own (``core.live.LiveRender``: one worker, the scene'
 ``viewport_passes`` passes at ``viewport_pixel_size``, the first of ``VIEWPORT_FIRST_PHOTONS``
 photons unless First Pass Photons says otherwise), so that Blender's interface never waits for it.
 A moved view sends only its camera: the server renders the scene it holds through it, with the
-acceleration structure it built (``LiveRender.start``).
-Each redraw shows the newest pass, scaled to the region, through Blender's display transform, and
-asks for another redraw while the render goes on.
+acceleration structure it built (``LiveRender.start``); a change of the depsgraph is exported again
+and starts the render over only if the export differs (a selection does not), and the server keeps
+its BVH through edits that leave the triangles as they were (``core/live.py``).  Each redraw
+shows the newest pass, scaled to the region, through Blender's display transform, and asks for
+another redraw while the render goes on.
 
 Only ``draw`` touches the GPU (``gpu`` exists only with a window: ``shared/docs/blender.md`` 4);
 :meth:`ViewportRender.refresh` holds the rest and runs headless (``tests/addon/test_viewport.py``).
@@ -40,7 +42,7 @@ class ViewportRender:
         self.key = None             # what the running render shows: view, projection, size, settings
         self.passes = 0             # ... of which its passes
         self.image = None           # the newest image (h, w, 4), top row first
-        self.stats = None           # ... and its statistics (pass, elapsed_s)
+        self.stats = None           # ... and its statistics (pass, elapsed_s, photons)
         self.message = ""           # an error to show instead of statistics
         self._texture = None
 
