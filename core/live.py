@@ -182,12 +182,13 @@ def serve():
             camera = Camera(**camera)
             if scene_path != loaded:
                 # (an edited scene: its BVH stays if the edit left the triangles as they were)
-                loaded, previous, ctx = None, ctx, None
+                loaded, previous, ctx = None, (previous if ctx is None else ctx), None
                 base = Scene.load(scene_path)
                 loaded = scene_path
             if ctx is None or ctx.glossy_through_roughness != settings.glossy_through_roughness:
+                reuse = previous if ctx is None else ctx
                 ctx = RenderContext(dataclasses.replace(base, camera=camera).validate(),
-                                    settings.glossy_through_roughness, reuse=previous if ctx is None else ctx)
+                                    settings.glossy_through_roughness, reuse=reuse)
                 previous = None
             else:
                 ctx = ctx.with_camera(camera)
