@@ -15,6 +15,7 @@ indices (V, 3) + (T, 3), with their ratio (the context takes the indices below
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -33,7 +34,6 @@ from throughput import subdivide  # noqa: E402
 
 def grid_scene(n, like):
     """``like`` (a Scene) with its geometry replaced by an n x n grid of shared vertices, 4 m wide."""
-    import dataclasses
     u = np.linspace(-2.0, 2.0, n + 1)
     x, y = np.meshgrid(u, u, indexing="ij")
     vertices = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)]).astype(np.float32)
