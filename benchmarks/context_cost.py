@@ -25,7 +25,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from core.accel import SHARED_VERTICES  # noqa: E402
+from core.accel import SHARED_VERTICES, _embree_scene  # noqa: E402
 from core.context import RenderContext  # noqa: E402
 from core.scene import Materials  # noqa: E402
 from core.testing.scenes import BUILTIN  # noqa: E402
@@ -44,17 +44,6 @@ def grid_scene(n, like):
     return dataclasses.replace(like, vertices=vertices, triangles=triangles, materials=mats,
                                material_ids=np.zeros(len(triangles), np.int32), shading_normals=None,
                                uvs=None).validate()
-
-
-def embree_mesh(points, triangles=None):
-    """An embree scene as ``core.accel._embree_scene`` makes it, from the corners (T, 3, 3) or from
-    the vertices and their indices, whichever is given (not chosen by the vertices per triangle)."""
-    from embreex import rtcore_scene
-    from embreex.mesh_construction import TriangleMesh
-    scene = rtcore_scene.EmbreeScene(robust=True)
-    TriangleMesh(scene, *([np.ascontiguousarray(points, np.float32)] +
-                          ([] if triangles is None else [np.ascontiguousarray(triangles, np.int32)])))
-    return scene
 
 
 def timed(f):
@@ -76,8 +65,8 @@ def main():
         corners = scene.triangle_corners().astype(np.float64)
         times = {"context": [], "bounds": [], "corners": [], "indexed": []}
         for _ in range(a.rounds):
-            times["corners"].append(timed(lambda: embree_mesh(corners)))
-            times["indexed"].append(timed(lambda: embree_mesh(rel, scene.triangles)))
+            times["corners"].append(timed(lambda: _embree_scene(corners)))
+            times["indexed"].append(timed(lambda: _embree_scene(rel, scene.triangles)))
             times["bounds"].append(timed(scene.bounds))
             times["context"].append(timed(lambda: RenderContext(scene)))
         m = {k: float(np.median(v)) for k, v in times.items()}

@@ -47,9 +47,9 @@ class Accel:
         (the 3D viewport's edits of materials and lights: ``core/live.py``)."""
         # (what the triangles are made of, compared with a later version's; None: a subset())
         self._mesh_key = (scene.vertices, scene.triangles)
-        same = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
+        same_triangles = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
         corners = None
-        if same:
+        if same_triangles:
             self.triangle_count = reuse.triangle_count
             for name in ("v0", "e1", "e2", "area", "geometric_normals"):
                 setattr(self, name, getattr(reuse, name))
@@ -92,14 +92,14 @@ class Accel:
                     corners = scene.triangle_corners().astype(np.float64)
                 return _embree_scene((corners if ids is None else corners[ids]) - self.center)
             # (embree's scenes hold the triangles as seen from the centre)
-            same = same and np.array_equal(self.center, reuse.center)
-            self._embree = reuse._embree if same else mesh()
+            same_frame = same_triangles and np.array_equal(self.center, reuse.center)
+            self._embree = reuse._embree if same_frame else mesh()
             mats = scene.materials
             glass = (mats.dielectric_weight > 0).take(scene.material_ids)
             self.glass = glass                                          # (T,) bool
             if glass.any() and not glass.all():
                 self.contact_ids = np.flatnonzero(~glass)
-                kept = (same and reuse._contact is not None
+                kept = (same_frame and reuse._contact is not None
                         and np.array_equal(reuse.contact_ids, self.contact_ids))
                 self._contact = reuse._contact if kept else mesh(self.contact_ids)
 

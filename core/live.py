@@ -154,8 +154,9 @@ def serve():
     inp = sys.stdin.buffer
     sys.stdout = sys.stderr
     parent = os.getppid()
-    loaded = ctx = previous = None  # the path of the scene last loaded; its context, once built;
-    #                                 the context of the scene before it, until that is built
+    # The path of the scene last loaded, whether its context is still to be built, and the last
+    # context built (of that scene, or of the one before, whose BVH the new one may keep).
+    loaded, stale, ctx = None, True, None
     while True:
         try:
             msg = pickle.load(inp)
@@ -181,15 +182,14 @@ def serve():
             settings = RenderSettings(**fields)
             camera = Camera(**camera)
             if scene_path != loaded:
-                # (an edited scene: its BVH stays if the edit left the triangles as they were)
-                loaded, previous, ctx = None, (previous if ctx is None else ctx), None
+                loaded, stale = None, True
                 base = Scene.load(scene_path)
                 loaded = scene_path
-            if ctx is None or ctx.glossy_through_roughness != settings.glossy_through_roughness:
-                reuse = previous if ctx is None else ctx
+            if stale or ctx.glossy_through_roughness != settings.glossy_through_roughness:
+                # (an edited scene keeps the last context's BVH if the edit left the triangles)
                 ctx = RenderContext(dataclasses.replace(base, camera=camera).validate(),
-                                    settings.glossy_through_roughness, reuse=reuse)
-                previous = None
+                                    settings.glossy_through_roughness, reuse=ctx)
+                stale = False
             else:
                 ctx = ctx.with_camera(camera)
             render(ctx.source, settings, on_iteration=publish, should_stop=should_stop, context=ctx)
