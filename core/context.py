@@ -23,6 +23,7 @@ from .scene import (ALL_LINKS, AREA_DISK, AREA_RECT, CASTS_NO_SHADOW, HOLDOUT_OB
                     NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, PANORAMAS, POINT, SHADOW_CATCHER,
                     SPOT, VISIBLE_CAMERA, VISIBLE_GLOSSY, VISIBLE_TRANSMISSION, linked)
 from .settings import GLOSSY_THROUGH_ROUGHNESS
+from .sky import SkyTextureCache
 from .subsurface import exit_variant
 
 # Rec. 709 luminance: Cycles' colour-to-float conversion of a height image.
@@ -64,7 +65,10 @@ class RenderContext:
         version of the scene, whose BVH this one takes if its triangles are the same (``Accel``)."""
         self.source = scene                         # the scene as given (``with_camera``, ``render``)
         self.glossy_through_roughness = glossy_through_roughness
-        scene = displace(scene)                     # (true displacement; the scene itself without)
+        # Sky Textures in programs, baked once per render (``procedural.evaluate``'s sky_cache; keyed
+        # by the sky's settings, so an earlier version's bakes hold).
+        self.sky_cache = SkyTextureCache() if reuse is None else reuse.sky_cache
+        scene = displace(scene, self.sky_cache)     # (true displacement; the scene itself without)
         self.scene = scene
         self.accel = Accel(scene, bounds, reuse=None if reuse is None else reuse.accel)
         # The materials, a copy per roughness level of those with a roughness map, per stretch
@@ -219,7 +223,7 @@ class RenderContext:
         seen = world.camera
         if seen is None and world.program is not None:
             seen = world
-        return _background(seen, self.scene.camera, self.textures.images)
+        return _background(seen, self.scene.camera, self.textures.images, self.sky_cache)
 
     def with_camera(self, camera) -> "RenderContext":
         """This context for the same scene seen through ``camera`` (a ``Camera``): the acceleration
@@ -884,7 +888,7 @@ class RenderContext:
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
             value = evaluate(self.programs[p], self._hit_attributes(sel, prim_ids, bary, pos, rays),
-                             self.textures.images)
+                             self.textures.images, sky_cache=self.sky_cache)
             yield sel, (value @ LUMINANCE if value.ndim == 2 else value)
 
     def aov_values(self, column, prim_ids, b1, b2, pos, rays=None):
@@ -901,7 +905,7 @@ class RenderContext:
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
             attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)
-            v = evaluate(self.programs[p], attrs, self.textures.images)
+            v = evaluate(self.programs[p], attrs, self.textures.images, sky_cache=self.sky_cache)
             values[sel] = v if v.ndim == 2 else v[:, None]
         return writes, np.nan_to_num(values, nan=0.0, posinf=0.0, neginf=0.0)
 
@@ -918,7 +922,7 @@ class RenderContext:
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
             attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)
-            yield sel, evaluate_color(self.programs[p], attrs, self.textures.images, limit)
+            yield sel, evaluate_color(self.programs[p], attrs, self.textures.images, limit, self.sky_cache)
 
     def _apply_normal_programs(self, ns, prim_ids, bary, pos, mat, rays, programs=None):
         """Replace ``ns`` (n, 3) in place by the normalised value of the material's normal program
@@ -928,7 +932,7 @@ class RenderContext:
         for p in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == p)
             attrs = self._hit_attributes(sel, prim_ids, bary, pos, rays)
-            value = evaluate(self.programs[p], attrs, self.textures.images)
+            value = evaluate(self.programs[p], attrs, self.textures.images, sky_cache=self.sky_cache)
             if value.ndim == 1:
                 continue                            # (a float is no direction: the exporter sends none)
             n0 = ns.take(sel, axis=0)
@@ -1036,7 +1040,7 @@ class RenderContext:
             m = mat.take(sel)
             ns[sel] = bumped_normals(self._hit_attributes(sel, prim_ids, bary, pos, rays), self.programs[k],
                                      self.textures.images, ns.take(sel, axis=0), strength.take(m),
-                                     distance.take(m), BUMP_STEP * self.accel.extent)
+                                     distance.take(m), BUMP_STEP * self.accel.extent, self.sky_cache)
 
 
 def _forced_points(parts):
@@ -1055,10 +1059,10 @@ def _stop_in_volumes(hits, scatter_t):
                 np.where(stop, scatter_t, hits.t).astype(np.float32), hits.b1, hits.b2, scatter_t)
 
 
-def _background(world, camera, images):
+def _background(world, camera, images, sky_cache=None):
     """Radiance of ``world`` (a ``World``: colour, times its program of the view seen by ``camera``
-    with the scene's ``images``, or times its image) as a function of camera rays' directions and
-    origins (n, 3), or None."""
+    with the scene's ``images`` and Sky Textures' bakes ``sky_cache``, or times its image) as a
+    function of camera rays' directions and origins (n, 3), or None."""
     if world is None:
         return None
     color = np.asarray(world.color, np.float64)
@@ -1067,7 +1071,7 @@ def _background(world, camera, images):
 
         def seen(dirs, origins=None):
             attrs = DirectionAttributes(dirs, camera, origins)
-            return color * evaluate_color(program, attrs, images, EMISSION_MAX)
+            return color * evaluate_color(program, attrs, images, EMISSION_MAX, sky_cache)
         return seen
     if world.texture is None:
         return lambda dirs, origins=None: np.broadcast_to(color, (len(dirs), 3))

@@ -27,9 +27,9 @@ from .scene import DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD
 OFFSET_LIMIT = 10.0
 
 
-def displace(scene):
+def displace(scene, sky_cache=None):
     """``scene`` with its truly displaced materials' vertices moved (and shading normals turned),
-    or ``scene`` itself when no material displaces."""
+    or ``scene`` itself when no material displaces (``sky_cache``: ``procedural.evaluate``'s)."""
     mats = scene.materials
     programs = mats.displacement_program
     if programs is None or not (programs >= 0).any() or scene.triangle_count == 0:
@@ -52,7 +52,7 @@ def displace(scene):
     vertex_program = tri_program.take(prims)
     for p in np.unique(vertex_program):
         sel = np.flatnonzero(vertex_program == p)
-        value = evaluate(mats.programs[p], _subset(attrs, sel), images)
+        value = evaluate(mats.programs[p], _subset(attrs, sel), images, sky_cache=sky_cache)
         offset[sel] = value @ LUMINANCE if value.ndim == 2 else value
         vector[sel] = value if value.ndim == 2 else value[:, None] * normal.take(sel, axis=0)
     # Not finite: 0 (Cycles' ensure_finite); beyond OFFSET_LIMIT scene sizes: clamped, so that a

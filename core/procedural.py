@@ -748,25 +748,29 @@ def _cubic_falloff_root(xi):
     return x
 
 
-def evaluate(program, attrs, images, output=None):
+def evaluate(program, attrs, images, output=None, sky_cache=None):
     """Value of ``program`` (a node dict) at the hits of ``attrs``: (k,) or (k, 3) float64.
 
-    images : the scene's images (H, W, 3), for ``image`` nodes."""
-    return _Evaluator(attrs, images).output(program if output is None else {**program, "output": output})
+    images : the scene's images (H, W, 3), for ``image`` nodes.
+    sky_cache : a ``sky.SkyTextureCache`` kept by the caller across evaluations (a render's
+        ``RenderContext``), so that a Sky Texture is baked once (about 1.5 s) rather than at every
+        evaluation; None: one for this evaluation alone."""
+    evaluator = _Evaluator(attrs, images, sky_cache)
+    return evaluator.output(program if output is None else {**program, "output": output})
 
 
-def evaluate_color(program, attrs, images, limit=COLOR_MAX):
+def evaluate_color(program, attrs, images, limit=COLOR_MAX, sky_cache=None):
     """(k, 3) float64 colour of ``program`` (a float result is grey) in [0, ``limit``]; NaN -> 0."""
-    v = evaluate(program, attrs, images)
+    v = evaluate(program, attrs, images, sky_cache=sky_cache)
     if v.ndim == 1:
         v = np.repeat(v[:, None], 3, axis=1)
     return np.clip(np.nan_to_num(v, nan=0.0), 0.0, limit)
 
 
-def mean_color(program, images, n=4096):
+def mean_color(program, images, n=4096, sky_cache=None):
     """(3,) mean colour of ``program`` over :class:`SampledAttributes`: what a lobe that cannot
     vary over the surface uses."""
-    return evaluate_color(program, SampledAttributes(n), images).mean(axis=0)
+    return evaluate_color(program, SampledAttributes(n), images, sky_cache=sky_cache).mean(axis=0)
 
 
 def varies(program) -> bool:
@@ -774,9 +778,9 @@ def varies(program) -> bool:
     return isinstance(program, dict) and bool(attributes_used(program))
 
 
-def mean_value(program, images):
+def mean_value(program, images, sky_cache=None):
     """Mean of ``program`` over :class:`SampledAttributes`: a float, or (3,) for a colour or vector."""
-    v = evaluate(program, SampledAttributes(), images)
+    v = evaluate(program, SampledAttributes(), images, sky_cache=sky_cache)
     return float(v.mean()) if v.ndim == 1 else v.mean(axis=0)
 
 
@@ -891,10 +895,11 @@ def _jsonable(x):
 class _Evaluator:
     """One evaluation: inputs resolved recursively, each node evaluated once (by identity)."""
 
-    def __init__(self, attrs, images):
+    def __init__(self, attrs, images, sky_cache=None):
         self.attrs, self.images, self.k = attrs, images, attrs.count
         self._done = {}
-        self.sky_cache = _sky_module.SkyTextureCache()      # a Sky Texture's bake, once per evaluation
+        # a Sky Texture's bakes (``evaluate``'s sky_cache)
+        self.sky_cache = _sky_module.SkyTextureCache() if sky_cache is None else sky_cache
 
     def output(self, node):
         key = id(node)
@@ -1648,7 +1653,7 @@ def bend_normals(n0, dpdu, dpdv, hu, hv, strength, distance):
     return _keep_where_bad(n, n0)
 
 
-def bumped_normals(attrs, height, images, n0, strength, distance, step=None):
+def bumped_normals(attrs, height, images, n0, strength, distance, step=None, sky_cache=None):
     """(k, 3) unit normals ``n0`` at the hits ``attrs`` bent by the height program ``height``
     (:func:`bend_normals`): its derivatives from forward differences of ``step`` world units (None:
     a thousandth of each edge) along the triangles' edges (:func:`bump_edges`), evaluated at the
@@ -1670,7 +1675,8 @@ def bumped_normals(attrs, height, images, n0, strength, distance, step=None):
         d1, d2 = np.broadcast_to(d1, (len(prims),)), np.broadcast_to(d2, (len(prims),))
         shifted = ((b[0] - d1 - d2)[:, None], (b[1] + d1)[:, None], (b[2] + d2)[:, None])
         moved = x + d1[:, None] * e1 + d2[:, None] * e2
-        h = evaluate(height, HitAttributes(scene, prims, shifted, moved, attrs.rays, attrs.accel), images)
+        h = evaluate(height, HitAttributes(scene, prims, shifted, moved, attrs.rays, attrs.accel), images,
+                     sky_cache=sky_cache)
         heights.append(h @ LUMINANCE if h.ndim == 2 else h)
     hu = np.nan_to_num((heights[1] - heights[0]) / s1)
     hv = np.nan_to_num((heights[2] - heights[0]) / s2)
@@ -1723,7 +1729,7 @@ def _bump(ev, node):
         return {"Normal": n0}
     step = None if attrs.accel is None else BUMP_STEP * attrs.accel.extent
     return {"Normal": bumped_normals(attrs, node["height"], ev.images, n0, ev.float(node, "strength", 1.0),
-                                     ev.float(node, "distance", 1.0), step)}
+                                     ev.float(node, "distance", 1.0), step, ev.sky_cache)}
 
 
 NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")

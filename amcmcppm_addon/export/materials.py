@@ -101,6 +101,7 @@ from ...core.scene import (DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WOR
                            NORMAL_BLENDER_WORLD, NORMAL_OBJECT, NORMAL_TANGENT, NORMAL_WORLD,
                            SUBSURFACE_RANDOM_WALK, SUBSURFACE_SKIN, VISIBLE_CAMERA, VISIBLE_GLOSSY,
                            VISIBLE_TRANSMISSION, Materials)
+from ...core.sky import SkyTextureCache
 from .procedural import FLOAT, VEC, ExpressionBuilder, layer_weight_ior
 from .procedural import NODES as PROGRAM_NODES
 
@@ -1021,6 +1022,16 @@ class Textures:
         # whether it was 8-bit sRGB, made linear here; whether it is non-colour data)
         self._alpha = {}
         self._derived = {}          # (kind, index) -> texture index of an image made from image index
+        # Sky Textures' bakes for the means of programs (``procedural.evaluate``'s sky_cache)
+        self.sky_cache = SkyTextureCache()
+
+    def mean_value(self, program):
+        """``procedural.mean_value`` of ``program`` over these images (a Sky Texture baked once)."""
+        return procedural.mean_value(program, self.images, sky_cache=self.sky_cache)
+
+    def mean_color(self, program):
+        """``procedural.mean_color`` of ``program`` over these images (a Sky Texture baked once)."""
+        return procedural.mean_color(program, self.images, sky_cache=self.sky_cache)
 
     def lookup(self, image, where):
         """(texture index or -1, mean colour) of ``image``; ``where`` names the user in messages."""
@@ -1532,7 +1543,7 @@ class NodeWalker:
             return np.array(e, np.float64), -1
         if _plain_image(e):
             return self.textures.mean(e["texture"]), e["texture"]
-        mean = procedural.mean_color(e, self.textures.images)
+        mean = self.textures.mean_color(e)
         if not procedural.varies(e):
             return mean, -1                     # constant nodes only: the same everywhere
         return mean, e
@@ -1678,7 +1689,7 @@ class NodeWalker:
             program = self.programs.expression(sock, stack, VEC)
             if not procedural.varies(program):
                 # A constant direction (Cycles' falls back to the surface's own normal where it is 0).
-                c = (procedural.mean_value(program, self.textures.images) if isinstance(program, dict)
+                c = (self.textures.mean_value(program) if isinstance(program, dict)
                      else program)
                 c = np.asarray(c, np.float64).reshape(-1)
                 if not np.any(c != 0.0) or not np.isfinite(c).all():
@@ -1950,7 +1961,7 @@ class NodeWalker:
             a = float(np.clip(self.value(sock, stack), low, high))
             return (1.0, None) if abs(a) <= 1e-4 else (float(stretch(a)), None)
         program = stretch(_math("MINIMUM", _math("MAXIMUM", f, low), high))
-        mean = float(procedural.mean_value(program, self.textures.images))
+        mean = float(self.textures.mean_value(program))
         if rough_map is not None:
             self.note(f"'{sock.node.name}': a texture on Anisotropy beside a roughness map takes its mean")
             return mean, None
@@ -1963,7 +1974,7 @@ class NodeWalker:
         f = self.programs.expression(sock, stack, FLOAT)
         if not procedural.varies(f):
             return self.value(sock, stack), None
-        return float(procedural.mean_value(f, self.textures.images)), f
+        return float(self.textures.mean_value(f)), f
 
     def roughness(self, sock, stack):
         """(mean roughness in [0, 1], float program or None) of a glossy Roughness input: a texture
@@ -1972,7 +1983,7 @@ class NodeWalker:
         if not procedural.varies(f):
             return float(np.clip(self.value(sock, stack), 0.0, 1.0)), None
         clamped = _clamp01(f)
-        return float(procedural.mean_value(clamped, self.textures.images)), clamped
+        return float(self.textures.mean_value(clamped)), clamped
 
     def _glass(self, node, stack):
         """Glass and Refraction: a textured colour (stained glass) tints the light the glass lets
@@ -2123,7 +2134,7 @@ class NodeWalker:
         f = _clamp01(f)
         if not one_node:
             self._note_mixed(node, a, b)
-        mean = procedural.mean_value(f, self.textures.images)
+        mean = self.textures.mean_value(f)
         if noted and not (a.same_except_diffuse(b) or a.only_transparent or b.only_transparent):
             self.note(f"'{node.name}': a varying {what} mixes the diffuse colours point by point and the "
                       f"other parts by its mean {mean:.3f}")

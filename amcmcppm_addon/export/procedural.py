@@ -75,7 +75,7 @@ class ExpressionBuilder:
         e = self.expression(sock, stack, want)
         if not isinstance(e, dict):
             return e
-        mean = procedural.mean_value(e, self.walker.textures.images)
+        mean = self.walker.textures.mean_value(e)
         mean = mean if want == FLOAT else mean.tolist()
         if not procedural.varies(e):
             return mean                                 # constant nodes only (Math of numbers...)

@@ -339,6 +339,32 @@ def test_ambient_occlusion_in_a_lit_sphere_renders_the_closed_form(method):
     assert image.mean() == pytest.approx(expected, rel=0.03)
 
 
+@pytest.mark.parametrize("method", [dict(method="ppm"), dict(method="amcmcppm", chains=256)],
+                         ids=lambda m: m["method"])
+def test_a_sky_texture_in_a_material_is_baked_once_per_render(method):
+    """A Sky Texture on a surface (the sphere's colour by its normal): the render's
+    ``RenderContext`` bakes the sky once (about 1.5 s) and every evaluation (eye pass, each photon
+    batch and bounce) reads that bake, where each used to bake its own (a 10 x 10 render of one
+    pass took 55 s); the cache holds one entry, keyed by the sky's settings; the image is finite
+    and lit."""
+    from core import render
+    from core.context import RenderContext
+    from core.settings import RenderSettings
+    from core.testing.scenes import point_in_sphere, with_one_object
+    sky = {"op": "sky", "vector": {"op": "attribute", "name": "normal"}, "sky_type": "MULTIPLE_SCATTERING",
+           "sun_elevation": 0.3, "sun_rotation": 0.0, "altitude": 100.0, "air_density": 1.0,
+           "aerosol_density": 1.0, "ozone_density": 1.0, "turbidity": 2.2, "sun_size": 0.0095,
+           "sun_intensity": 1.0, "sun_disc": False, "sun_direction": [0.0, 0.0, 1.0]}
+    colour = {"op": "mix_color", "blend": "MULTIPLY", "fac": 1.0, "a": sky, "b": [0.05] * 3}
+    mats = Materials.build([{"name": "sky shell", "diffuse": 0.5, "diffuse_program": colour}])
+    scene = with_one_object(point_in_sphere(resolution=(8, 8))).replace(materials=mats).validate()
+    ctx = RenderContext(scene)
+    settings = RenderSettings(workers=1, passes=2, photons_per_pass=4000, seed=3, **method)
+    image = render(scene, settings, context=ctx).image[..., :3]
+    assert np.isfinite(image).all() and image.mean() > 0
+    assert [key[:2] for key in ctx.sky_cache.textures] == [("MULTIPLE_SCATTERING", 0.3)]
+
+
 WALL = [[-0.5, -0.5, 0.0], [-0.5, 0.5, 0.0], [-0.5, 0.5, 1.0], [-0.5, -0.5, 1.0]]
 
 
