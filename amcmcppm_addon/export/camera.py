@@ -57,6 +57,20 @@ def pixel_filter(scene):
     return {"pixel_filter": kind, "filter_width": min(max(width, 0.01), 10.0)}
 
 
+def clip_range(ob, cam, log=None) -> dict:
+    """{"clip_start", "clip_end"} of ``core.Camera`` for camera object ``ob`` (data ``cam``). Where
+    Clip End is not beyond Clip Start (Blender lets both be 1e-6, or the end be the nearer) camera
+    rays meet nothing and Cycles shows the world alone: so does the end a millionth beyond the
+    start, named in a warning."""
+    start, end = max(float(cam.clip_start), 0.0), float(cam.clip_end)
+    if not end > start:
+        if log is not None:
+            log.warning(f"camera '{ob.name}': Clip End ({end:g} m) is not beyond Clip Start ({start:g} "
+                        "m), so the camera sees nothing but the world")
+        end = start * (1.0 + 1e-6) + 1e-9
+    return {"clip_start": start, "clip_end": end}
+
+
 def export_camera(depsgraph, camera_object=None, resolution=None, border=None, log=None) -> Camera:
     """``core.Camera`` for ``camera_object`` (default: the scene camera) seen from ``depsgraph``.
 
@@ -105,8 +119,7 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     return Camera(world_from_camera=world_from_camera, projection=projection,
                   frame=tuple(float(v) for v in frame), resolution=resolution, border=border,
                   aperture_radius=float(aperture_radius), focus_distance=float(focus_distance), **shape,
-                  clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end),
-                  **pixel_filter(scene))
+                  **clip_range(ob, cam, log), **pixel_filter(scene))
 
 
 PANORAMA_TYPES = {"EQUIRECTANGULAR": "equirectangular", "FISHEYE_EQUIDISTANT": "fisheye_equidistant",
@@ -134,7 +147,7 @@ def _panorama(ob, cam, world_from_camera, resolution, border, log):
     sensor = {"HORIZONTAL": (sw, sw * h / w), "AUTO_VERTICAL": (sw * w / h, sw),
               "VERTICAL": (sh * w / h, sh)}[fit]
     return Camera(world_from_camera=world_from_camera, projection=projection, resolution=resolution,
-                  border=border, clip_start=max(float(cam.clip_start), 0.0), clip_end=float(cam.clip_end),
+                  border=border, **clip_range(ob, cam, log),
                   latitude_range=(float(cam.latitude_min), float(cam.latitude_max)),
                   longitude_range=(float(cam.longitude_min), float(cam.longitude_max)),
                   fisheye_fov=float(cam.fisheye_fov), fisheye_lens=float(cam.fisheye_lens),

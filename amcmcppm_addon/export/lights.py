@@ -104,6 +104,10 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
         # (a portal emits nothing and nothing sees it: portal_frame)
         return None
     strength = light_strength(light)
+    if not (np.isfinite(strength).all() and np.isfinite(m).all()):
+        log.warning(f"light '{name}': its strength or placement is not a finite number (NaN or "
+                    "infinite); skipped")
+        return None
     if (strength < 0).any():
         log.warning(f"light '{name}' has negative strength, which photon tracing cannot emit; skipped")
         return None
@@ -113,6 +117,9 @@ def export_light(light, world_from_light, name, log, visibility=VISIBLE_GLOSSY |
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
         factor, profile = node_factor(light.node_tree, name, log, light.type != "SUN")
         strength = strength * factor
+        if not np.isfinite(strength).all():
+            log.warning(f"light '{name}': its nodes make its strength not a finite number; skipped")
+            return None
         if not strength.any():
             return None
     position = m[:3, 3]

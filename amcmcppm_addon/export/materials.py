@@ -1213,7 +1213,24 @@ class MaterialExporter:
         return "" if "tangent_uv" in self.coordinates_used(ids) else None
 
     def build(self) -> Materials:
-        return Materials.build(self._specs)
+        """``core.Materials`` of the materials met so far; a value that is not a finite number (a
+        driver's or script's NaN or infinity, which ``Scene.validate`` refuses) takes the value of
+        a material that sets nothing, named in a warning."""
+        mats = Materials.build(self._specs)
+        default = Materials.build([{"name": ""}])
+        for name in Materials.ARRAY_FIELDS:
+            v = getattr(mats, name)
+            if not np.issubdtype(v.dtype, np.floating):
+                continue
+            bad = ~np.isfinite(v.reshape(len(v), -1)).all(axis=1)
+            if bad.any():
+                v = v.copy()
+                v[bad] = getattr(default, name)[0]
+                setattr(mats, name, v)
+                for owner in dict.fromkeys(mats.names[i] for i in np.flatnonzero(bad)):
+                    self.log.warning(f"material '{owner}': {name} is not a finite number (NaN or "
+                                     "infinite); the default value is taken")
+        return mats
 
     def cryptomatte_names(self) -> list:
         """The name of each core material row for Cryptomatte: its Blender material's (a level's

@@ -19,7 +19,7 @@ Glossary: ``T`` triangles, ``V`` vertices, ``L`` corners (loops), ``k`` instance
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -228,7 +228,8 @@ class GeometryCollector:
             local = self.meshes.get(key)
             if key not in self.meshes or (local is not None and not named <= local.attributes_read):
                 named |= local.attributes_read if local is not None else frozenset()
-                self.meshes[key] = local = read_particle_hair(ob, psys, self.render, self.log, named, first)
+                self.meshes[key] = local = without_undefined(
+                    read_particle_hair(ob, psys, self.render, self.log, named, first), self.log)
             if local is None:
                 continue
             first += local.curves
@@ -411,9 +412,9 @@ def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset
     with ``tangents`` also its tangent frames (for normal maps), with ``colors`` its render colour
     attribute (for Color Attribute nodes), and the named ``attributes`` it has."""
     if ob.type == "POINTCLOUD":
-        return read_point_cloud(ob.data, ob.name, log, attributes)
+        return without_undefined(read_point_cloud(ob.data, ob.name, log, attributes), log)
     if ob.type == "CURVES":
-        return read_curves(ob.data, ob.name, log, attributes)
+        return without_undefined(read_curves(ob.data, ob.name, log, attributes), log)
     try:
         me = ob.to_mesh()
     except RuntimeError as e:
@@ -425,6 +426,31 @@ def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset
         return read_mesh(me, ob.name, log, tangents, colors=colors, attributes=attributes)
     finally:
         ob.to_mesh_clear()
+
+
+def without_undefined(local, log):
+    """``local`` (a :class:`LocalMesh` or None) without its triangles that have a corner at NaN or
+    infinity (a point's position or radius that a driver or script made so), named in a warning;
+    None when none is left.  (``read_mesh`` leaves such faces out as it reads them.)"""
+    if local is None:
+        return None
+    unusable = ~np.isfinite(local.positions).all(axis=1)
+    if not unusable.any():
+        return local
+    keep = np.flatnonzero(~unusable.take(local.triangles).any(axis=1))
+    log.warning(f"object '{local.name}': {len(local.triangles) - len(keep)} of its "
+                f"{len(local.triangles)} triangles have corners whose position or radius is not finite "
+                "(NaN or infinite); they are left out")
+    if len(keep) == 0:
+        return None
+    positions = local.positions.copy()
+    positions[unusable] = 0.0                       # (no triangle uses them now)
+
+    def rows(a):
+        return None if a is None else a.take(keep, axis=0)
+    return replace(local, positions=positions, triangles=rows(local.triangles), slots=rows(local.slots),
+                   normal_index=rows(local.normal_index), uvs=rows(local.uvs), tangents=rows(local.tangents),
+                   colors=rows(local.colors), attributes={k: rows(v) for k, v in local.attributes.items()})
 
 
 def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, attributes=frozenset()):
@@ -448,8 +474,23 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, a
     corner_vert = np.empty(n_corner, np.int32)
     attrs[".corner_vert"].data.foreach_get("value", corner_vert)
 
+    unusable = ~np.isfinite(positions).all(axis=1)
+    if unusable.any():
+        positions[unusable] = 0.0                   # (finite for the split of quads)
     tri_loops, tri_poly = _triangulate(me, positions, corner_vert)
     tri_vert = corner_vert.take(tri_loops)
+    if unusable.any():
+        # Vertices at NaN or infinity (a driver's or script's coordinates): the faces using them are
+        # left out (Cycles' BVH skips primitives whose bounds are not finite); everything per
+        # triangle below is read through tri_loops and tri_poly.
+        keep = np.flatnonzero(~unusable.take(tri_vert).any(axis=1))
+        log.warning(f"object '{name}': {int(unusable.sum())} vertices have coordinates that are not "
+                    f"finite (NaN or infinite); the {len(tri_vert) - len(keep)} triangles using them "
+                    "are left out")
+        if len(keep) == 0:
+            return None
+        tri_loops, tri_vert = tri_loops.take(keep, axis=0), tri_vert.take(keep, axis=0)
+        tri_poly = tri_poly.take(keep)
 
     slots = np.zeros(len(tri_poly), np.int32)
     mat_attr = attrs.get("material_index")
