@@ -65,9 +65,10 @@ class RenderContext:
         version of the scene, whose BVH this one takes if its triangles are the same (``Accel``)."""
         self.source = scene                         # the scene as given (``with_camera``, ``render``)
         self.glossy_through_roughness = glossy_through_roughness
-        # Sky Textures in programs, baked once per render (``procedural.evaluate``'s sky_cache; keyed
-        # by the sky's settings, so an earlier version's bakes hold).
-        self.sky_cache = SkyTextureCache() if reuse is None else reuse.sky_cache
+        # Sky Textures in programs, baked once per context (``procedural.evaluate``'s sky_cache;
+        # shared by ``with_camera``; not taken over by ``reuse``, whose sky may have been edited: a
+        # kept cache would grow by 3 MB with each sun a dragged slider passes through).
+        self.sky_cache = SkyTextureCache()
         scene = displace(scene, self.sky_cache)     # (true displacement; the scene itself without)
         self.scene = scene
         self.accel = Accel(scene, bounds, reuse=None if reuse is None else reuse.accel)
