@@ -65,7 +65,8 @@ def test_points_and_curves_at_undefined_positions_are_left_out(scene, tmp_path):
     before = bs.export().scene.triangle_count
     bs.point_cloud("Dots", [(0, 0, 0.5), (NAN, 0, 0.5), (0.3, 0.2, 0.4)], material=bs.diffuse("Dot"))
     bs.hair_curves("Strands", [[(0, 0, 0.1), (0, NAN, 0.3), (0, 0, 0.5)],
-                               [(0.2, 0, 0.1), (0.2, 0, 0.3), (0.2, 0, 0.5)]], radius=0.02, material=bs.diffuse("H"))
+                               [(0.2, 0, 0.1), (0.2, 0, 0.3), (0.2, 0, 0.5)]],
+                   radius=0.02, material=bs.diffuse("H"))
     bs.hair_curves("Thread", [[(0, 0.4, 0.1), (0, 0.4, 0.3), (0, 0.4, 0.5)]], radius=[0.02, NAN, 0.02],
                    material=bs.diffuse("H"), kind="POLY")
     exported = bs.export()
