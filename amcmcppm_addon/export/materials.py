@@ -1217,13 +1217,15 @@ class MaterialExporter:
         driver's or script's NaN or infinity, which ``Scene.validate`` refuses) takes the value of
         a material that sets nothing, named in a warning."""
         mats = Materials.build(self._specs)
-        default = Materials.build([{"name": ""}])
+        default = None
         for name in Materials.ARRAY_FIELDS:
             v = getattr(mats, name)
             if not np.issubdtype(v.dtype, np.floating):
                 continue
             bad = ~np.isfinite(v.reshape(len(v), -1)).all(axis=1)
             if bad.any():
+                if default is None:
+                    default = Materials.build([{"name": ""}])
                 v = v.copy()
                 v[bad] = getattr(default, name)[0]
                 setattr(mats, name, v)

@@ -410,7 +410,8 @@ def _mesh_key(ob):
 def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset()):
     """:class:`LocalMesh` of an evaluated object (modifiers applied), or None without faces;
     with ``tangents`` also its tangent frames (for normal maps), with ``colors`` its render colour
-    attribute (for Color Attribute nodes), and the named ``attributes`` it has."""
+    attribute (for Color Attribute nodes), and the named ``attributes`` it has; triangles with a
+    corner at NaN or infinity left out (:func:`without_undefined`)."""
     if ob.type == "POINTCLOUD":
         return without_undefined(read_point_cloud(ob.data, ob.name, log, attributes), log)
     if ob.type == "CURVES":
@@ -423,24 +424,26 @@ def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset
     try:
         if me is None:
             return None
-        return read_mesh(me, ob.name, log, tangents, colors=colors, attributes=attributes)
+        local = read_mesh(me, ob.name, log, tangents, colors=colors, attributes=attributes)
     finally:
         ob.to_mesh_clear()
+    return without_undefined(local, log)
 
 
 def without_undefined(local, log):
     """``local`` (a :class:`LocalMesh` or None) without its triangles that have a corner at NaN or
-    infinity (a point's position or radius that a driver or script made so), named in a warning;
-    None when none is left.  (``read_mesh`` leaves such faces out as it reads them.)"""
+    infinity (a vertex, a point's position or radius, a curve's key that a driver or script made
+    so: Cycles' BVH skips primitives whose bounds are not finite), named in a warning; None when
+    none is left."""
     if local is None:
         return None
     unusable = ~np.isfinite(local.positions).all(axis=1)
     if not unusable.any():
         return local
     keep = np.flatnonzero(~unusable.take(local.triangles).any(axis=1))
-    log.warning(f"object '{local.name}': {len(local.triangles) - len(keep)} of its "
-                f"{len(local.triangles)} triangles have corners whose position or radius is not finite "
-                "(NaN or infinite); they are left out")
+    log.warning(f"object '{local.name}': {len(local.triangles) - len(keep)} of its {len(local.triangles)} "
+                "triangles have a corner at NaN or infinity (a vertex, or a point's position or radius); "
+                "they are left out")
     if len(keep) == 0:
         return None
     positions = local.positions.copy()
@@ -474,23 +477,12 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, a
     corner_vert = np.empty(n_corner, np.int32)
     attrs[".corner_vert"].data.foreach_get("value", corner_vert)
 
+    # (Vertices at NaN or infinity split their quads as if at the origin: ``without_undefined``
+    # leaves out the triangles that use them.)
     unusable = ~np.isfinite(positions).all(axis=1)
-    if unusable.any():
-        positions[unusable] = 0.0                   # (finite for the split of quads)
-    tri_loops, tri_poly = _triangulate(me, positions, corner_vert)
+    split_at = np.where(unusable[:, None], np.float32(0.0), positions) if unusable.any() else positions
+    tri_loops, tri_poly = _triangulate(me, split_at, corner_vert)
     tri_vert = corner_vert.take(tri_loops)
-    if unusable.any():
-        # Vertices at NaN or infinity (a driver's or script's coordinates): the faces using them are
-        # left out (Cycles' BVH skips primitives whose bounds are not finite); everything per
-        # triangle below is read through tri_loops and tri_poly.
-        keep = np.flatnonzero(~unusable.take(tri_vert).any(axis=1))
-        log.warning(f"object '{name}': {int(unusable.sum())} vertices have coordinates that are not "
-                    f"finite (NaN or infinite); the {len(tri_vert) - len(keep)} triangles using them "
-                    "are left out")
-        if len(keep) == 0:
-            return None
-        tri_loops, tri_vert = tri_loops.take(keep, axis=0), tri_vert.take(keep, axis=0)
-        tri_poly = tri_poly.take(keep)
 
     slots = np.zeros(len(tri_poly), np.int32)
     mat_attr = attrs.get("material_index")

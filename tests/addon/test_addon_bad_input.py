@@ -49,8 +49,8 @@ def test_values_that_are_not_numbers_render_with_warnings(scene, tmp_path, capfd
     img = bs.render_exr(tmp_path / "nan.exr")
     assert np.isfinite(img).all() and img[..., :3].mean() > 0
     out = capfd.readouterr().out
-    assert ("object 'Broken': 2 vertices have coordinates that are not finite (NaN or infinite); the 2 "
-            "triangles using them are left out") in out
+    assert ("object 'Broken': 2 of its 3 triangles have a corner at NaN or infinity (a vertex, or a "
+            "point's position or radius); they are left out") in out
     assert "material 'Undefined': diffuse_color is not a finite number" in out
     for light in ("Driven", "Runaway"):
         assert f"light '{light}': its strength or placement is not a finite number" in out
@@ -73,8 +73,8 @@ def test_points_and_curves_at_undefined_positions_are_left_out(scene, tmp_path):
     count, out = exported.scene.triangle_count, "\n".join(exported.warnings)
     lost = {}
     for name in ("Dots", "Strands", "Thread"):
-        match = re.search(rf"object '{name}': (\d+) of its (\d+) triangles have corners whose position or "
-                          r"radius is not finite", out)
+        match = re.search(rf"object '{name}': (\d+) of its (\d+) triangles have a corner at NaN or infinity",
+                          out)
         assert match, name
         lost[name] = (int(match[1]), int(match[2]))
     assert 3 * lost["Dots"][0] == lost["Dots"][1] and 2 * lost["Strands"][0] == lost["Strands"][1]
@@ -91,7 +91,7 @@ def test_a_mesh_whose_vertices_are_all_undefined_is_left_out(scene, tmp_path, ca
     _mesh("Lost", [(NAN, 0, 0), (0, NAN, 0), (0, 0, NAN)], [(0, 1, 2)], bs.diffuse())
     assert bs.export().scene.triangle_count == before
     assert np.isfinite(bs.render_exr(tmp_path / "lost.exr")).all()
-    assert "object 'Lost': 3 vertices" in capfd.readouterr().out
+    assert "object 'Lost': 1 of its 1 triangles have a corner at NaN or infinity" in capfd.readouterr().out
 
 
 @pytest.mark.parametrize("clip", [(10.0, 1.0), (1e-6, 1e-6)], ids=["inverted", "equal"])
