@@ -89,13 +89,18 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     resolution = tuple(int(v) for v in (resolution or render_resolution(render)))
     border = tuple(float(v) for v in (border or render_border(render)))
 
-    world_from_camera = np.array(ob.matrix_world, np.float64)
-    scale = np.linalg.norm(world_from_camera[:3, :3], axis=0)
-    if (scale < 1e-12).any():
-        raise SceneError(f"camera '{ob.name}' has zero scale")
-    world_from_camera[:3, :3] /= scale
+    world_from_camera, zero_axes = _without_scale(np.array(ob.matrix_world, np.float64))
+    if zero_axes:
+        # Cycles normalises the columns too (to NaN there): its camera rays meet nothing.
+        if log is not None:
+            log.warning(f"camera '{ob.name}' has zero scale along its local {zero_axes}, so it sees nothing "
+                        "but the world (as in Cycles)")
+        clip = {"clip_start": 1.0, "clip_end": 1.0 + 1e-6}
+    else:
+        clip = clip_range(ob, cam, log)
     if cam.type == "PANO":
-        return replace(_panorama(ob, cam, world_from_camera, resolution, border, log), **pixel_filter(scene))
+        return replace(_panorama(ob, cam, world_from_camera, resolution, border, clip, log),
+                       **pixel_filter(scene))
     corners = np.array([tuple(v) for v in cam.view_frame(scene=scene)], np.float64)   # (4, 3)
     projection = "orthographic" if cam.type == "ORTHO" else "perspective"
     if projection == "perspective":
@@ -119,14 +124,33 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     return Camera(world_from_camera=world_from_camera, projection=projection,
                   frame=tuple(float(v) for v in frame), resolution=resolution, border=border,
                   aperture_radius=float(aperture_radius), focus_distance=float(focus_distance), **shape,
-                  **clip_range(ob, cam, log), **pixel_filter(scene))
+                  **clip, **pixel_filter(scene))
+
+
+def _without_scale(matrix):
+    """(matrix with its 3 x 3 part's columns made unit, its columns of zero length named: "" or e.g.
+    "X axis", "X and Z axes").  With such columns the 3 x 3 part becomes the rotation nearest to it (the
+    orthogonal factor of its polar decomposition, any where it is all zero): finite whatever."""
+    norms = np.linalg.norm(matrix[:3, :3], axis=0)
+    zero = norms < 1e-12
+    if not zero.any():
+        matrix[:3, :3] /= norms
+        return matrix, ""
+    u, _, vt = np.linalg.svd(matrix[:3, :3])
+    if np.linalg.det(u @ vt) < 0:
+        u[:, -1] = -u[:, -1]
+    matrix[:3, :3] = u @ vt
+    names = ["XYZ"[k] for k in np.flatnonzero(zero)]
+    if len(names) == 1:
+        return matrix, f"{names[0]} axis"
+    return matrix, f"{', '.join(names[:-1])} and {names[-1]} axes"
 
 
 PANORAMA_TYPES = {"EQUIRECTANGULAR": "equirectangular", "FISHEYE_EQUIDISTANT": "fisheye_equidistant",
                   "FISHEYE_EQUISOLID": "fisheye_equisolid", "MIRRORBALL": "mirrorball"}
 
 
-def _panorama(ob, cam, world_from_camera, resolution, border, log):
+def _panorama(ob, cam, world_from_camera, resolution, border, clip, log):
     """``core.Camera`` of a panoramic camera (Cycles' projections, ``core.camera``)."""
     notes = []
     projection = PANORAMA_TYPES.get(cam.panorama_type)
@@ -147,7 +171,7 @@ def _panorama(ob, cam, world_from_camera, resolution, border, log):
     sensor = {"HORIZONTAL": (sw, sw * h / w), "AUTO_VERTICAL": (sw * w / h, sw),
               "VERTICAL": (sh * w / h, sh)}[fit]
     return Camera(world_from_camera=world_from_camera, projection=projection, resolution=resolution,
-                  border=border, **clip_range(ob, cam, log),
+                  border=border, **clip,
                   latitude_range=(float(cam.latitude_min), float(cam.latitude_max)),
                   longitude_range=(float(cam.longitude_min), float(cam.longitude_max)),
                   fisheye_fov=float(cam.fisheye_fov), fisheye_lens=float(cam.fisheye_lens),

@@ -109,6 +109,23 @@ def test_a_clip_range_that_holds_nothing_shows_the_world(scene, tmp_path, capfd,
     assert "is not beyond Clip Start" in capfd.readouterr().out
 
 
+@pytest.mark.parametrize("scale, kind", [((0, 1, 1), "PERSP"), ((1, 1, 0), "ORTHO"), ((0, 0, 1), "PANO"),
+                                         ((0, 0, 0), "PERSP")], ids=["x", "z-ortho", "xy-pano", "all"])
+def test_a_camera_of_zero_scale_shows_the_world(scene, tmp_path, capfd, scale, kind):
+    """A camera scaled to zero along any axis (an animated scale passing 0): Cycles shows the world
+    alone (checked for each axis, two and all three: 0.300 / 0.200 / 0.100 everywhere); so do we, with
+    a warning naming the axes (before: "camera 'Camera' has zero scale" and no image)."""
+    bs.lit_floor_scene()
+    bs.world((0.3, 0.2, 0.1))
+    cam = bpy.context.scene.camera
+    cam.scale, cam.data.type = scale, kind
+    cam.data.panorama_type = "EQUIRECTANGULAR"     # (a fisheye is black outside its circle)
+    img = bs.render_exr(tmp_path / "flat.exr")
+    np.testing.assert_allclose(img[..., :3], np.broadcast_to([0.3, 0.2, 0.1], img[..., :3].shape), rtol=1e-5)
+    axes = {(0, 1, 1): "X axis", (1, 1, 0): "Z axis", (0, 0, 1): "X and Y axes", (0, 0, 0): "X, Y and Z axes"}
+    assert f"camera 'Camera' has zero scale along its local {axes[scale]}, so" in capfd.readouterr().out
+
+
 # ---------------------------------------------------------------------- every shader node
 # Nodes that are not material nodes, or need data this sweep cannot make up (a script, a group).
 NOT_SWEPT = {"ShaderNodeTree", "ShaderNode", "ShaderNodeGroup", "ShaderNodeCustomGroup", "ShaderNodeScript",
