@@ -90,7 +90,8 @@ def main():
     settings = RenderSettings()
     w, h = args.resolution
     ctx = RenderContext(BUILTIN[args.scene](resolution=(w, h)))
-    points = trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px, settings.max_bounces).points
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), settings.initial_radius_px, settings.max_bounces)
+    points = eye.points
     radius = points.base_radius
 
     def target(grid=None):
@@ -116,15 +117,15 @@ def main():
                                 queries, seconds, vertices))
     print(f"{args.scene} {w}x{h}: {points.count} points, {args.paths} paths, {len(calls)} queries; "
           f"medians of {args.rounds} rounds")
-    print("| cell (median radii) | entries / point | candidates / vertex | build s | queries s | photon pass s "
-          "| us / vertex | pass of --pass-paths s |")
+    print("| cell (median radii) | entries / point | candidates / vertex | build s | queries s "
+          "| photon pass s | us / vertex | pass of --pass-paths s |")
     print("|---|---|---|---|---|---|---|---|")
     for k, runs in rows.items():
         a = np.median(np.array(runs), axis=0)
         per_vertex = a[4] / a[5]
         estimate = a[2] + per_vertex * a[5] * args.pass_paths / args.paths
-        print(f"| {k:g} | {a[0]:.2f} | {a[1]:.1f} | {a[2]:.3f} | {a[3]:.3f} | {a[4]:.3f} | {1e6 * per_vertex:.2f} "
-              f"| {estimate:.3f} |")
+        print(f"| {k:g} | {a[0]:.2f} | {a[1]:.1f} | {a[2]:.3f} | {a[3]:.3f} | {a[4]:.3f} "
+              f"| {1e6 * per_vertex:.2f} | {estimate:.3f} |")
 
 
 if __name__ == "__main__":
