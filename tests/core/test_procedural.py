@@ -7,7 +7,7 @@ import pytest
 
 from core import procedural
 from core.sampling import fresnel_dielectric
-from core.scene import Materials, Scene, SceneError
+from core.scene import Camera, Materials, Scene, SceneError
 from core.testing.scenes import sun_over_procedural_floor
 
 
@@ -700,3 +700,36 @@ def test_the_local_scene_answers_each_ray_over_its_own_object_as_a_scene_of_that
         np.testing.assert_allclose(got.t[rows][hit], alone.t[hit], rtol=1e-4)        # (float32; grazing rays)
         np.testing.assert_allclose(got.b1[rows][hit], alone.b1[hit], atol=1e-4)
     assert 0.3 < got.is_hit.mean() < 0.9 and got.is_hit[objects == 1].any()
+
+
+def test_programs_over_more_hits_than_a_chunk_give_each_hit_its_own_value(monkeypatch):
+    """``evaluate`` takes ``EVAL_CHUNK`` hits at a time (a world's bake, an eye pass's points: 1.2
+    to 2.4 times faster, ``benchmarks/eval_chunk.py``): every hit's value is what one evaluation of
+    all of them gives, bit for bit, for programs of the hit (noise, Voronoi, the incoming ray's
+    Fresnel, Ambient Occlusion's rays, object info) and of the direction with the camera's view."""
+    scene = floor_with_quad([[-1, -1, 0.3], [-1, 1, 0.3], [1, 1, 0.3], [1, -1, 0.3]], own_object=True)
+    xy = np.random.default_rng(5).uniform(-0.45, 0.45, (3000, 2))
+    hits = floor_hits(scene, xy)
+    up = np.random.default_rng(7).normal(size=(3000, 3))
+    up[:, 2] = np.abs(up[:, 2]) + 0.1
+    rays = procedural.Rays(up / np.linalg.norm(up, axis=1, keepdims=True))
+    seen = procedural.HitAttributes(scene, hits.prim_ids, hits.bary, hits.positions, rays, hits.accel)
+    object_coords = {"op": "attribute", "name": "object"}
+    hit_program = {"op": "mix_color", "blend": "ADD", "fac": 0.5,
+                   "a": {"op": "noise", "vector": object_coords, "scale": 4.0, "detail": 3.0,
+                         "roughness": 0.5, "lacunarity": 2.0, "output": "Color"},
+                   "b": {"op": "voronoi", "vector": object_coords, "scale": 6.0, "output": "Color"}}
+    cases = [(hits, hit_program), (seen, {"op": "fresnel", "ior": 1.45}),
+             (hits, {"op": "ao", "color": [0.8] * 3, "distance": 0.5, "samples": 4, "output": "Color"}),
+             (hits, {"op": "attribute", "name": "object_info"})]
+    d = np.random.default_rng(6).normal(size=(3000, 3))
+    cam = Camera(world_from_camera=np.eye(4), resolution=(8, 6))
+    cases.append((procedural.DirectionAttributes(d / np.linalg.norm(d, axis=1, keepdims=True), cam),
+                  {"op": "attribute", "name": "window"}))
+    for attrs, program in cases:
+        whole = procedural.evaluate(program, attrs, [])
+        monkeypatch.setattr(procedural, "EVAL_CHUNK", 700)
+        chunked = procedural.evaluate(program, attrs, [])
+        monkeypatch.setattr(procedural, "EVAL_CHUNK", 1 << 40)
+        assert chunked.shape == whole.shape and len(whole) == 3000, program["op"]
+        np.testing.assert_array_equal(chunked, whole, err_msg=program["op"])
