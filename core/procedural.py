@@ -770,8 +770,11 @@ def evaluate(program, attrs, images, output=None, sky_cache=None):
     sky_cache : a ``sky.SkyTextureCache`` kept by the caller across evaluations (a render's
         ``RenderContext``), so that a Sky Texture is baked once (about 1.5 s) rather than at every
         evaluation; None: one for this evaluation alone.
-    More than ``EVAL_CHUNK`` hits are evaluated ``EVAL_CHUNK`` at a time (each hit's value is its
-    own: the same values), so that a program's temporaries stay in the processor's cache."""
+    More than ``EVAL_CHUNK`` hits are evaluated ``EVAL_CHUNK`` at a time, so that a program's
+    temporaries stay in the processor's cache: each hit's value is its own, so the values are the
+    same, but where a setting that must be constant (``_Evaluator.scalar``: a texture's Scale,
+    Detail, ...) is fed by a varying program, whose mean over the chunk it then takes instead of
+    the mean over all hits (an approximation either way: Cycles varies it hit by hit)."""
     program = program if output is None else {**program, "output": output}
     k = attrs.count
     if k <= EVAL_CHUNK or not hasattr(attrs, "rows"):
