@@ -703,10 +703,10 @@ def test_the_local_scene_answers_each_ray_over_its_own_object_as_a_scene_of_that
 
 
 def test_programs_over_more_hits_than_a_chunk_give_each_hit_its_own_value(monkeypatch):
-    """``evaluate`` takes ``EVAL_CHUNK`` hits at a time (a world's bake, an eye pass's points: 1.2
-    to 2.4 times faster, ``benchmarks/eval_chunk.py``): every hit's value is what one evaluation of
-    all of them gives, bit for bit, for programs of the hit (noise, Voronoi, the incoming ray's
-    Fresnel, Ambient Occlusion's rays, object info) and of the direction with the camera's view."""
+    """``evaluate`` takes ``EVAL_CHUNK`` hits at a time (a world's bake 1.2 to 2.4 times faster,
+    ``benchmarks/eval_chunk.py``): every hit's value is what one evaluation of all of them gives,
+    bit for bit, for programs of the hit (noise, Voronoi, the incoming ray's Fresnel, Ambient
+    Occlusion's rays, object info) and of the direction with the camera's view."""
     scene = floor_with_quad([[-1, -1, 0.3], [-1, 1, 0.3], [1, 1, 0.3], [1, -1, 0.3]], own_object=True)
     xy = np.random.default_rng(5).uniform(-0.45, 0.45, (3000, 2))
     hits = floor_hits(scene, xy)
