@@ -98,8 +98,8 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-t
 # A bump's finite-difference step, times the scene's size (``RenderContext._apply_bump_maps``, ``_bump``).
 BUMP_STEP = 1e-5
 # Hits a program is evaluated on at once (``evaluate``): a world's bake of a Noise Texture's Color
-# of detail 15 (524,288 directions) took 11.9 s in chunks of 65,536 against 25.7 s all at once, of
-# detail 2 0.88 against 2.11 s (benchmarks/eval_chunk.py; chunks of 16,384: 0.95 s).
+# of detail 15 (524,288 directions) took 8.26 s in chunks of 65,536 against 15.41 s all at once, of
+# detail 2 0.53 against 0.90 s (benchmarks/eval_chunk.py; chunks of 16,384 about the same).
 EVAL_CHUNK = 1 << 16
 ATTRIBUTES = ("generated", "object", "uv", "color", "normal", "object_location", "object_color",
               "object_info", "position", "world_normal", "true_normal", "camera", "window", "incoming",
