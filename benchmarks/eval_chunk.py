@@ -1,10 +1,10 @@
 """What evaluating procedural programs in chunks saves (``core.procedural.EVAL_CHUNK``).
 
-Programs of the kind artists put in a world or a material (a Noise Texture of detail 15, its
-colour; a Voronoi's colour; a checker; a wave; a noise-bumped normal is not a world's) are
-evaluated over the directions of a world's bake (1024 x 512: what the exporter does for a
-procedural world) with ``EVAL_CHUNK`` set to each size asked for (``0``: all at once, as before
-chunks), sizes alternating round by round; medians of the seconds and their ratio to all at once.
+Programs of the kind artists put in a world or a material (a Noise Texture's Color at detail 15,
+its Fac at detail 2, a Voronoi's Color, a checker) are evaluated over the directions of a world's
+bake (1024 x 512: what the exporter does for a procedural world) with ``EVAL_CHUNK`` set to each
+size asked for (``0``: all at once, as before chunks), sizes alternating round by round; medians of
+the seconds and their ratio to all at once (and a check that every size gives the same values).
 With ``--eye W H`` the same for eye passes of the Cornell box at W x H whose white material (most
 of what the camera sees) takes the program as its diffuse colour:
 
