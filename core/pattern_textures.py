@@ -46,6 +46,7 @@ from .noise import noise_fbm
 from .texture_hash import (hash_float2_to_float, hash_float2_to_float3, hash_float3_to_float,
                            hash_float3_to_float3, hash_float4_to_float, hash_float4_to_float3,
                            hash_float_to_float, hash_float_to_float3)
+from .voronoi import unique_columns
 
 WAVE_TYPES = ("BANDS", "RINGS")
 BANDS_DIRECTIONS = ("X", "Y", "Z", "DIAGONAL")
@@ -308,11 +309,10 @@ def gabor_texture(vector, *, gabor_type="2D", scale=5.0, frequency=2.0, anisotro
     offsets = np.stack(np.meshgrid(*[np.arange(-1.0, 2.0)] * dims, indexing="ij"), axis=-1).reshape(-1, dims)
     for offset in offsets:
         # Each neighbouring cell's impulses depend on the cell alone: hash the distinct cells.
-        cells, which = np.unique(cell + offset, axis=0, return_inverse=True)
-        which = which.ravel()
-        keys = tuple(cells.T)
+        cells, which = unique_columns((cell + offset).T)
+        keys = tuple(cells)
         for i in range(GABOR_IMPULSES):
-            seeds = [np.full(len(cells), 3.0 * i + j) for j in range(3)]
+            seeds = [np.full(cells.shape[1], 3.0 * i + j) for j in range(3)]
             if flat:
                 center = np.stack([hash_float3_to_float(*keys, seeds[1]),
                                    hash_float3_to_float(seeds[1], *keys)], axis=1)

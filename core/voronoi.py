@@ -232,27 +232,36 @@ def _color_hash(keys):
     return {2: hash_int2_to_float3, 3: hash_int3_to_float3, 4: hash_int4_to_float3}[len(keys)](*keys).T
 
 
-def _unique_cells(cells):
-    """Distinct columns of (dim, n) integer-valued cells and the (n,) index of each column among
-    them, or (cells, None) when most are distinct.  Columns are packed into one int64 key when their
-    bounding box allows (a fast 1D sort)."""
-    n = cells.shape[1]
-    if n == 0:
-        return cells, None
+def unique_columns(cells):
+    """Distinct columns of (dim, n) integer-valued float cells, in ``np.unique(axis=1)``'s order
+    (lexicographic), and the (n,) index of each column among them.  Columns are packed into one
+    int64 key when their bounding box allows: a 1D sort, where ``np.unique(axis=1)`` sorts the
+    columns as records (half of a 3D Gabor Texture's time went to that)."""
+    if cells.shape[1] == 0 or not np.isfinite(cells).all():
+        unique, inverse = np.unique(cells, axis=1, return_inverse=True)
+        return unique, inverse.reshape(-1)
     lo = cells.min(axis=1, keepdims=True)
     span = cells.max(axis=1) - lo[:, 0] + 1
     if np.prod(span) >= 2.0 ** 62:
         unique, inverse = np.unique(cells, axis=1, return_inverse=True)
-    else:
-        shifted = (cells - lo).astype(np.int64)
-        key = shifted[0]
-        for axis in range(1, len(cells)):
-            key = key * np.int64(span[axis]) + shifted[axis]
-        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-        unique = cells[:, first]
+        return unique, inverse.reshape(-1)
+    shifted = (cells - lo).astype(np.int64)
+    key = shifted[0]
+    for axis in range(1, len(cells)):
+        key = key * np.int64(span[axis]) + shifted[axis]
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    return cells[:, first], inverse.reshape(-1)
+
+
+def _unique_cells(cells):
+    """:func:`unique_columns` of (dim, n) cells, or (cells, None) when most are distinct."""
+    n = cells.shape[1]
+    if n == 0:
+        return cells, None
+    unique, inverse = unique_columns(cells)
     if 2 * unique.shape[1] > n:
         return cells, None
-    return unique, inverse.reshape(-1)
+    return unique, inverse
 
 
 class _Cells:
