@@ -237,12 +237,12 @@ def unique_columns(cells):
     (lexicographic), and the (n,) index of each column among them.  Columns are packed into one
     int64 key when their bounding box allows: a 1D sort, where ``np.unique(axis=1)`` sorts the
     columns as records (half of a 3D Gabor Texture's time went to that)."""
-    if cells.shape[1] == 0 or not np.isfinite(cells).all():
-        unique, inverse = np.unique(cells, axis=1, return_inverse=True)
-        return unique, inverse.reshape(-1)
-    lo = cells.min(axis=1, keepdims=True)
-    span = cells.max(axis=1) - lo[:, 0] + 1
-    if np.prod(span) >= 2.0 ** 62:
+    packable = cells.shape[1] > 0 and np.isfinite(cells).all()
+    if packable:
+        lo = cells.min(axis=1, keepdims=True)
+        span = cells.max(axis=1) - lo[:, 0] + 1
+        packable = np.prod(span) < 2.0 ** 62
+    if not packable:
         unique, inverse = np.unique(cells, axis=1, return_inverse=True)
         return unique, inverse.reshape(-1)
     shifted = (cells - lo).astype(np.int64)

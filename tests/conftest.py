@@ -164,7 +164,7 @@ SLOW_CASES = {
     # Budget (stop 70, the fast tier at 14:35 and 15:54 at stop 69's end, 15:35 at its start, user
     # 28:37): with siblings or core tests kept fast (tests/core/test_shadow_catcher.py and the
     # hard-case catchers; test_light_groups.py, test_addon_export.py's view-layer list and
-    # test_light_passes_match_cycles; [NONE-THICK], [INTERPOLATED-THICK]; [THICK], [POLY];
+    # test_light_passes_match_cycles, which went too below; [NONE-THICK]; [THICK], [POLY];
     # [chiang_default] and test_addon_export.py's Huang lobes).  Seconds from stop 70's --durations.
     "tests/addon/test_addon_engine.py::test_shadow_catcher_matches_cycles",            # 27 s
     "tests/addon/test_addon_engine.py::test_light_groups_match_cycles",                # 18 s
