@@ -28,8 +28,7 @@ sys.path.insert(0, ROOT)
 from core.accel import SHARED_VERTICES, _embree_scene  # noqa: E402
 from core.context import RenderContext  # noqa: E402
 from core.scene import Materials  # noqa: E402
-from core.testing.scenes import BUILTIN  # noqa: E402
-from throughput import subdivide  # noqa: E402
+from core.testing.scenes import BUILTIN, subdivide  # noqa: E402
 
 
 def grid_scene(n, like):

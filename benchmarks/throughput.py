@@ -37,7 +37,7 @@ from core.accel import Accel  # noqa: E402
 from core.context import RenderContext  # noqa: E402
 from core.eye_pass import trace_eye_pass  # noqa: E402
 from core.photon_pass import DepositTarget, path_dims, trace_photons  # noqa: E402
-from core.testing.scenes import BUILTIN  # noqa: E402
+from core.testing.scenes import BUILTIN, subdivide  # noqa: E402
 from core.worker import PPM_BATCH  # noqa: E402
 
 
@@ -84,30 +84,6 @@ def photon_pass_rate(scene, n_paths, with_points, settings):
         embree.run(o, dirs, output=1)
     t_rays = time.perf_counter() - t0
     return vertices / t_photons, rays / t_rays, len(batches), rays, vertices, target.grid.entry_count
-
-
-def subdivide(scene, levels):
-    """The same surfaces with every triangle split into 4**levels (midpoint subdivision).
-
-    Light transport is unchanged (flat triangles stay in their plane; per-corner shading
-    normals and UVs are interpolated linearly, as the renderer does), only rays cost more.
-    """
-    corners = scene.triangle_corners().astype(np.float64)                    # (T, 3, 3)
-    extra = [a.astype(np.float64) for a in (scene.shading_normals, scene.uvs) if a is not None]
-    mats = scene.material_ids
-    for _ in range(levels):
-        def split(c):
-            m01, m12, m20 = 0.5 * (c[:, 0] + c[:, 1]), 0.5 * (c[:, 1] + c[:, 2]), 0.5 * (c[:, 2] + c[:, 0])
-            return np.concatenate([np.stack(t, axis=1) for t in
-                                   ((c[:, 0], m01, m20), (m01, c[:, 1], m12), (m20, m12, c[:, 2]),
-                                    (m01, m12, m20))])
-        corners, extra, mats = split(corners), [split(a) for a in extra], np.tile(mats, 4)
-    it = iter(extra)
-    return dataclasses.replace(
-        scene, vertices=corners.reshape(-1, 3).astype(np.float32),
-        triangles=np.arange(corners.shape[0] * 3, dtype=np.int32).reshape(-1, 3), material_ids=mats,
-        shading_normals=next(it).astype(np.float32) if scene.shading_normals is not None else None,
-        uvs=next(it).astype(np.float32) if scene.uvs is not None else None).validate()
 
 
 def render_rate(scene, **kw):

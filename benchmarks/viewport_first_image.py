@@ -5,7 +5,7 @@ and records when the first passes' images can be read, and then, with the server
 second job (the view moved: the server keeps its scene) shows its first image, a third (a
 material edited: the scene sent again, its BVH kept) and a fourth (a vertex moved: the scene sent
 again and its BVH built again).  ``--subdivide K`` splits every
-triangle into 4**K (``throughput.subdivide``) for a scene whose BVH costs.  One worker, the
+triangle into 4**K (``core.testing.scenes.subdivide``) for a scene whose BVH costs.  One worker, the
 scene's default settings but the first pass's photons: each of ``--first-pass-photons`` in turn
 (0: the automatic count's own ramp, from ``AUTO_PHOTONS_MIN``; the viewport's
 ``VIEWPORT_FIRST_PHOTONS``), alternating over ``--rounds``, and the ratio of each one's times to
@@ -31,8 +31,7 @@ import numpy as np  # noqa: E402
 from core import RenderSettings  # noqa: E402
 from core.live import LiveRender  # noqa: E402
 from core.settings import VIEWPORT_FIRST_PHOTONS  # noqa: E402
-from core.testing.scenes import BUILTIN  # noqa: E402
-from throughput import subdivide  # noqa: E402
+from core.testing.scenes import BUILTIN, subdivide  # noqa: E402
 
 
 def image_times(live, count, t0, timeout=600.0):

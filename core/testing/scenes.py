@@ -707,3 +707,27 @@ def with_one_object(scene, texture_space=((0, 0, 0), (1, 1, 1))):
     return scene.replace(object_ids=np.zeros(scene.triangle_count, np.int32),
                          object_from_world=np.eye(3, 4)[None],
                          texture_spaces=np.array([texture_space], float))
+
+
+def subdivide(scene, levels):
+    """The same surfaces with every triangle split into 4**levels (midpoint subdivision).
+
+    Light transport is unchanged (flat triangles stay in their plane; per-corner shading
+    normals and UVs are interpolated linearly, as the renderer does), only rays cost more.
+    """
+    corners = scene.triangle_corners().astype(np.float64)                    # (T, 3, 3)
+    extra = [a.astype(np.float64) for a in (scene.shading_normals, scene.uvs) if a is not None]
+    mats = scene.material_ids
+    for _ in range(levels):
+        def split(c):
+            m01, m12, m20 = 0.5 * (c[:, 0] + c[:, 1]), 0.5 * (c[:, 1] + c[:, 2]), 0.5 * (c[:, 2] + c[:, 0])
+            return np.concatenate([np.stack(t, axis=1) for t in
+                                   ((c[:, 0], m01, m20), (m01, c[:, 1], m12), (m20, m12, c[:, 2]),
+                                    (m01, m12, m20))])
+        corners, extra, mats = split(corners), [split(a) for a in extra], np.tile(mats, 4)
+    it = iter(extra)
+    return dataclasses.replace(
+        scene, vertices=corners.reshape(-1, 3).astype(np.float32),
+        triangles=np.arange(corners.shape[0] * 3, dtype=np.int32).reshape(-1, 3), material_ids=mats,
+        shading_normals=next(it).astype(np.float32) if scene.shading_normals is not None else None,
+        uvs=next(it).astype(np.float32) if scene.uvs is not None else None).validate()
