@@ -20,7 +20,6 @@ cost changes, which shows how the ratio of 1. depends on the scene's geometry.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import subprocess
