@@ -3,8 +3,9 @@
 Each scene and size starts a fresh server process (as the first Rendered-shading redraw does)
 and records when the first passes' images can be read, and then, with the server warm, when a
 second job (the view moved: the server keeps its scene) shows its first image, a third (a
-material edited: the scene sent again, its BVH kept) and a fourth (a vertex moved: the scene sent
-again and its BVH built again).  ``--subdivide K`` splits every
+material edited: the scene sent again, its BVH kept), a fourth (a vertex moved: the scene sent
+again, its BVH built again, in two parts where the scene is big enough: ``core.accel.SplitScene``)
+and a fifth (the vertex moved again: the part of the others kept).  ``--subdivide K`` splits every
 triangle into 4**K (``core.testing.scenes.subdivide``) for a scene whose BVH costs.  One worker, the
 scene's default settings but the first pass's photons: each of ``--first-pass-photons`` in turn
 (0: the automatic count's own ramp, from ``AUTO_PHOTONS_MIN``; the viewport's
@@ -47,7 +48,7 @@ def image_times(live, count, t0, timeout=600.0):
 
 
 def edits(scene):
-    """The scene with its view moved, then a material edited, then a vertex moved."""
+    """The scene with its view moved, then a material edited, then a vertex moved, twice."""
     pose = scene.camera.world_from_camera.copy()
     pose[0, 3] += 0.01
     moved = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, world_from_camera=pose))
@@ -57,7 +58,10 @@ def edits(scene):
     recoloured = dataclasses.replace(moved, materials=materials)
     vertices = scene.vertices.copy()
     vertices[0] += 1e-4
-    return moved, recoloured, dataclasses.replace(recoloured, vertices=vertices)
+    again = vertices.copy()
+    again[0] += 1e-4
+    return (moved, recoloured, dataclasses.replace(recoloured, vertices=vertices),
+            dataclasses.replace(recoloured, vertices=again))
 
 
 def job_times(scene, settings, images):
@@ -101,9 +105,10 @@ def main():
             for n in counts:
                 t = np.median(times[n], axis=0)
                 print(f"{name} ({scene.triangle_count:,} triangles) {size}, first pass {n or 'automatic'}: "
-                      f"fresh server, images at {', '.join(f'{v:.2f}' for v in t[:-3])} s; first image of "
-                      f"a moved view at {t[-3]:.2f} s, of an edited material {t[-2]:.2f} s, of a moved "
-                      f"vertex {t[-1]:.2f} s (median of {a.rounds}; / first count: "
+                      f"fresh server, images at {', '.join(f'{v:.2f}' for v in t[:-4])} s; first image of "
+                      f"a moved view at {t[-4]:.2f} s, of an edited material {t[-3]:.2f} s, of a moved "
+                      f"vertex {t[-2]:.2f} s, moved again {t[-1]:.2f} s (median of {a.rounds}; "
+                      f"/ first count: "
                       f"{', '.join(f'{v:.2f}' for v in t / base)})", flush=True)
 
 

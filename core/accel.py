@@ -1,7 +1,8 @@
 """Ray queries: the only module that talks to embreex.
 
 :class:`Accel` wraps one static embree scene holding every triangle of a
-:class:`~core.scene.Scene` and answers batched closest-hit queries.  Embree
+:class:`~core.scene.Scene` (or, after an edit in the viewport moved a few of them, two:
+:class:`SplitScene`) and answers batched closest-hit queries.  Embree
 works in float32, so it sees the scene shifted to the centre of its bounds (a
 scene far from the origin keeps its precision).  Surface positions are rebuilt
 from the barycentrics in float64 on the hit triangle's plane, and new rays are
@@ -21,6 +22,12 @@ _OFFSET_ULPS = 64.0 * np.finfo(np.float32).eps
 # Embree's meshes are built from vertices and indices when there are fewer vertices than this many
 # per triangle, else from the triangles' corners (Accel, _embree_scene; benchmarks/context_cost.py).
 SHARED_VERTICES = 1.5
+# An edit of the viewport (``Accel(reuse=...)``) that moves at most this share of a scene's triangles
+# (an object moved, a vertex dragged), of a scene of at least SPLIT_MIN_TRIANGLES, builds embree's
+# scene of the moved ones alone and keeps the rest's (SplitScene); below that count a whole build
+# takes a few tens of milliseconds.
+SPLIT_SHARE = 0.25
+SPLIT_MIN_TRIANGLES = 1 << 14
 
 
 @dataclass
@@ -44,29 +51,35 @@ class Accel:
         and the disc the sun's and the world's photons start from: ``LightSampler``).  ``reuse``:
         None, or an ``Accel`` of an earlier version of the scene whose triangles' data this one takes
         if it holds the same triangles, and its embree scenes if they also see them in the same frame
-        (the 3D viewport's edits of materials and lights: ``core/live.py``)."""
+        (the 3D viewport's edits of materials and lights: ``core/live.py``).  Where the edit moved a
+        few triangles of the same mesh (``SPLIT_SHARE``), the data is taken and changed in their rows,
+        and embree's scenes are built of them alone beside one of the others (:class:`SplitScene`),
+        which later edits moving none but them keep (an object dragged about)."""
         # (what the triangles are made of, compared with a later version's; None: a subset())
         self._mesh_key = (scene.vertices, scene.triangles)
         same_triangles = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
+        moved = None if same_triangles or reuse is None else _moved_triangles(self._mesh_key, reuse._mesh_key)
+        if moved is not None and len(moved) == 0:
+            same_triangles, moved = True, None          # (only vertices no triangle uses)
+        if moved is not None and len(moved) > SPLIT_SHARE * len(scene.triangles):
+            moved = None
         corners = None
         if same_triangles:
             self.triangle_count = reuse.triangle_count
             for name in ("v0", "e1", "e2", "area", "geometric_normals"):
                 setattr(self, name, getattr(reuse, name))
+        elif moved is not None:
+            self.triangle_count = reuse.triangle_count
+            rows = _triangle_data(scene.vertices[scene.triangles[moved]].astype(np.float64))
+            for name, new in zip(("v0", "e1", "e2", "area", "geometric_normals"), rows):
+                table = getattr(reuse, name).copy()
+                table[moved] = new
+                setattr(self, name, table)
         else:
             corners = scene.triangle_corners().astype(np.float64)      # (T, 3, 3)
             self.triangle_count = len(corners)
-            # Contiguous: take() on a strided view would first copy the whole array, every call.
-            self.v0 = np.ascontiguousarray(corners[:, 0])               # (T, 3) float64
-            self.e1 = corners[:, 1] - corners[:, 0]                     # (T, 3) float64
-            self.e2 = corners[:, 2] - corners[:, 0]                     # (T, 3) float64
-            cross = np.cross(self.e1, self.e2)
-            length = np.linalg.norm(cross, axis=1)
-            self.area = 0.5 * length                                    # (T,) float64
-            safe = np.where(length > 0, length, 1.0)
-            ng = cross / safe[:, None]
-            ng[length == 0] = (0.0, 0.0, 1.0)
-            self.geometric_normals = ng                                 # (T, 3) float64, unit
+            # (v0, e1, e2: (T, 3) float64, v0 contiguous; area (T,) float64; unit normals (T, 3))
+            self.v0, self.e1, self.e2, self.area, self.geometric_normals = _triangle_data(corners)
         lo, hi = scene.bounds() if bounds is None else bounds
         self.bounds = (lo, hi)
         self.extent = float(max(np.max(hi - lo), 1e-6))
@@ -75,6 +88,7 @@ class Accel:
         self._embree = None
         self._contact = None            # embree scene of the non-glass triangles (see with_contacts())
         self._ids = None                # the scene's triangles this one holds (subset()), None: all
+        self._moved = None              # the triangles embree's scenes hold apart (SplitScene), or None
         self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
         self._locals = None             # LocalScene of every object apart (local_scene())
         if self.triangle_count:
@@ -82,18 +96,34 @@ class Accel:
             # (as Blender's do), else from the corners: the same float32 corners either way
             # (_embree_scene).
             shared = len(scene.vertices) < SHARED_VERTICES * self.triangle_count
-            relative = np.asarray(scene.vertices, np.float64) - self.center if shared else None
 
             def mesh(ids=None):
-                nonlocal corners
-                if shared:
+                """Embree's scene of the triangles ``ids`` (None: all), None where there are none."""
+                if ids is not None and len(ids) == 0:
+                    return None
+                if shared and (ids is None or len(ids) > len(scene.vertices) // 8):
+                    relative = np.asarray(scene.vertices, np.float64) - self.center
                     return _embree_scene(relative, scene.triangles if ids is None else scene.triangles[ids])
-                if corners is None:
-                    corners = scene.triangle_corners().astype(np.float64)
-                return _embree_scene((corners if ids is None else corners[ids]) - self.center)
+                if corners is not None:
+                    return _embree_scene((corners if ids is None else corners[ids]) - self.center)
+                # (a few of the triangles, an edit's: their corners alone)
+                picked = scene.triangles if ids is None else scene.triangles[ids]
+                return _embree_scene(scene.vertices[picked].astype(np.float64) - self.center)
             # (embree's scenes hold the triangles as seen from the centre)
-            same_frame = same_triangles and np.array_equal(self.center, reuse.center)
-            self._embree = reuse._embree if same_frame else mesh()
+            same_frame = reuse is not None and np.array_equal(self.center, reuse.center)
+            if moved is not None and not (same_frame and self.triangle_count >= SPLIT_MIN_TRIANGLES):
+                moved = None
+            if moved is not None and reuse._moved is not None and _within(moved, reuse._moved):
+                moved = reuse._moved                    # (the same triangles moved again: keep the rest)
+            self._moved = moved if moved is not None else (reuse._moved if same_triangles and same_frame
+                                                           else None)
+            if same_triangles and same_frame:
+                self._embree = reuse._embree
+            elif moved is not None:
+                self._embree = SplitScene.build(mesh, None, moved, self.triangle_count,
+                                                reuse._embree if moved is reuse._moved else None)
+            else:
+                self._embree = mesh()
             mats = scene.materials
             glass = (mats.dielectric_weight > 0).take(scene.material_ids)
             self.glass = glass                                          # (T,) bool
@@ -101,7 +131,14 @@ class Accel:
                 self.contact_ids = np.flatnonzero(~glass)
                 kept = (same_frame and reuse._contact is not None
                         and np.array_equal(reuse.contact_ids, self.contact_ids))
-                self._contact = reuse._contact if kept else mesh(self.contact_ids)
+                if kept and same_triangles:
+                    self._contact = reuse._contact
+                elif self._moved is not None:
+                    self._contact = SplitScene.build(
+                        mesh, self.contact_ids, self._moved, self.triangle_count,
+                        reuse._contact if kept and self._moved is reuse._moved else None)
+                else:
+                    self._contact = mesh(self.contact_ids)
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -136,6 +173,7 @@ class Accel:
         out._contact = None
         out._locals = None
         out._mesh_key = None
+        out._moved = None
         out._ids = np.asarray(tri_ids, np.int64)
         v0, e1, e2 = (a.take(out._ids, axis=0) for a in (self.v0, self.e1, self.e2))
         out._embree = _embree_scene(np.stack([v0, v0 + e1, v0 + e2], axis=1) - self.center)
@@ -273,6 +311,84 @@ class LocalScene:
             t[h] = (r["tfar"][found] + s[found]).astype(np.float32)
             b1[h], b2[h] = r["u"][found], r["v"][found]
         return Hits(is_hit, prim, t, b1, b2)
+
+
+class SplitScene:
+    """Two embree scenes queried as one (``run``, as an embree scene's): a scene's triangles that
+    an edit moved and the others (either may be None: none), so that the next edit moving the same
+    ones builds theirs alone.  Of a set of the scene's triangles (all, or the contact scene's):
+    ``run`` gives the hit's index within that set, as an embree scene of the whole set would."""
+
+    def __init__(self, static, static_ids, moving, moving_ids):
+        self.static, self.static_ids = static, static_ids
+        self.moving, self.moving_ids = moving, moving_ids
+
+    @classmethod
+    def build(cls, mesh, members, moved, count, keep=None):
+        """The scenes of the triangles ``members`` (sorted ids, or None: all ``count`` of them) apart
+        from those in ``moved`` (sorted ids), and of those; ``mesh(ids)``: an embree scene of the
+        scene's triangles ``ids`` (None where there are none); ``keep``: None, or a SplitScene of
+        the same members apart from the same ``moved`` whose other triangles have not changed."""
+        if members is None:
+            apart = np.zeros(count, bool)
+            apart[moved] = True
+        else:
+            apart = np.isin(members, moved)
+        static_ids, moving_ids = np.flatnonzero(~apart), np.flatnonzero(apart)
+        at = (lambda ids: ids) if members is None else members.take
+        static = keep.static if keep is not None else mesh(at(static_ids))
+        return cls(static, static_ids, mesh(at(moving_ids)), moving_ids)
+
+    def run(self, origins, directions, dists=None, output=1):
+        """The closest hits of both scenes (embree's ``run`` with ``output=1``: primID, tfar, u, v)."""
+        n = len(origins)
+        prim, tfar = np.full(n, -1, np.int64), np.broadcast_to(
+            np.float32(1e37) if dists is None else dists, (n,)).astype(np.float32)
+        u, v = np.zeros(n, np.float32), np.zeros(n, np.float32)
+        for scene, ids in ((self.static, self.static_ids), (self.moving, self.moving_ids)):
+            if scene is None:
+                continue
+            # (the second scene's hits only nearer than the first's)
+            r = scene.run(origins, directions, dists=np.ascontiguousarray(tfar), output=1)
+            hit = np.flatnonzero(r["primID"] >= 0)
+            prim[hit] = ids.take(r["primID"].take(hit))
+            tfar, u[hit], v[hit] = r["tfar"], r["u"].take(hit), r["v"].take(hit)
+        return {"primID": prim, "tfar": tfar, "u": u, "v": v}
+
+
+def _triangle_data(corners):
+    """(v0, e1, e2, area, unit geometric normals) of triangles of ``corners`` (T, 3, 3) float64."""
+    # Contiguous: take() on a strided view would first copy the whole array, every call.
+    v0 = np.ascontiguousarray(corners[:, 0])
+    e1 = corners[:, 1] - corners[:, 0]
+    e2 = corners[:, 2] - corners[:, 0]
+    cross = np.cross(e1, e2)
+    length = np.linalg.norm(cross, axis=1)
+    safe = np.where(length > 0, length, 1.0)
+    ng = cross / safe[:, None]
+    ng[length == 0] = (0.0, 0.0, 1.0)
+    return v0, e1, e2, 0.5 * length, ng
+
+
+def _moved_triangles(a, b):
+    """Sorted ids (int64) of the triangles whose corners differ between two (vertices, triangles)
+    of the same mesh (the same triangles of as many vertices), or None where the meshes differ."""
+    if a is None or b is None:
+        return None
+    (va, ta), (vb, tb) = a, b
+    if np.shape(va) != np.shape(vb) or np.shape(ta) != np.shape(tb) or not np.array_equal(ta, tb):
+        return None
+    moved = va[:, 0] != vb[:, 0]            # (column by column: faster than any(axis=1))
+    moved |= va[:, 1] != vb[:, 1]
+    moved |= va[:, 2] != vb[:, 2]
+    corner = moved.take(ta)
+    return np.flatnonzero(corner[:, 0] | corner[:, 1] | corner[:, 2])
+
+
+def _within(ids, others):
+    """Whether the sorted ids ``ids`` are all among the sorted ``others``."""
+    at = np.searchsorted(others, ids)
+    return bool(len(others)) and bool((at < len(others)).all()) and np.array_equal(others.take(at), ids)
 
 
 def _same_mesh(a, b):

@@ -12,7 +12,8 @@ from core.camera import generate_camera_rays
 from core.context import RenderContext
 from core.live import LiveRender
 from core.scene import Camera
-from core.testing.scenes import BUILTIN
+from core.accel import SPLIT_MIN_TRIANGLES, SplitScene
+from core.testing.scenes import BUILTIN, subdivide
 
 FAST = dict(method="ppm", photons_per_pass=20_000, workers=1)
 
@@ -159,6 +160,102 @@ def test_an_edit_that_keeps_the_triangles_keeps_the_bvh():
     diffuse = RenderContext(dataclasses.replace(scene, materials=dataclasses.replace(
         scene.materials, dielectric_weight=glassless)).validate(), reuse=ctx)
     assert diffuse.accel._embree is ctx.accel._embree and diffuse.accel._contact is None
+
+
+def _moved(scene, triangles, by):
+    """``scene`` with the corners of ``triangles`` moved by ``by`` (3,)."""
+    vertices = scene.vertices.copy()
+    vertices[np.unique(scene.triangles[triangles])] += np.asarray(by, np.float32)
+    return dataclasses.replace(scene, vertices=vertices).validate()
+
+
+def _assert_hits_as_a_fresh_context(ctx, scene):
+    """``ctx``'s tables, hits and contact hits (random rays, some with a limit) are those of a fresh
+    context of ``scene``; where two triangles meet a ray at the same distance (the edges of the
+    subdivided triangles) either may be reported, at the same point."""
+    fresh = RenderContext(scene)
+    for name in ("v0", "e1", "e2", "area", "geometric_normals"):
+        assert np.array_equal(getattr(ctx.accel, name), getattr(fresh.accel, name)), name
+    rng = np.random.default_rng(5)
+    lo, hi = fresh.accel.bounds
+    o = rng.uniform(lo, hi, size=(100_000, 3))
+    d = rng.normal(size=(100_000, 3))
+    if ctx.accel._moved is not None:                # (a quarter of them aimed at the moved ones)
+        aim = rng.choice(ctx.accel._moved, 25_000)
+        d[:25_000] = ctx.accel.v0[aim] + 0.3 * (ctx.accel.e1[aim] + ctx.accel.e2[aim]) - o[:25_000]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    tmax = np.where(rng.random(100_000) < 0.5, rng.uniform(0.1, 2.0, 100_000), np.inf)
+    a, b = ctx.accel.intersect(o, d, tmax), fresh.accel.intersect(o, d, tmax)
+    assert np.array_equal(a.is_hit, b.is_hit) and np.array_equal(a.t, b.t)
+    assert a.is_hit.sum() > 30_000
+    h = np.flatnonzero(a.is_hit)
+    if ctx.accel._moved is not None:
+        assert np.isin(a.prim_ids[h], ctx.accel._moved).sum() > 2_000
+    same = a.prim_ids[h] == b.prim_ids[h]
+    assert same.mean() > 0.95     # (the others: ties, as where a partly moved face overlaps its rest)
+    pa, pb = (x.accel.hit_positions(y.prim_ids[h], y.b1[h], y.b2[h]) for x, y in ((ctx, a), (fresh, b)))
+    assert np.abs(pa - pb).max() < 1e-5 * fresh.accel.extent
+    assert np.array_equal(pa[same], pb[same])
+    # Rays leaving the glass downwards (the contact scene's queries).
+    glass = np.flatnonzero(fresh.accel.glass)
+    if len(glass):
+        ca, cb = (x.accel.with_contacts(y, o, d) for x, y in ((ctx, a), (fresh, b)))
+        pa, pb = (x.accel.hit_positions(y.prim_ids[h], y.b1[h], y.b2[h]) for x, y in ((ctx, ca), (fresh, cb)))
+        assert np.abs(pa - pb).max() < 1e-5 * fresh.accel.extent
+
+
+def test_an_edit_that_moves_a_few_triangles_builds_theirs_alone():
+    """``RenderContext(reuse=...)`` after an edit that moved a few triangles of the same mesh (an
+    object dragged in the viewport): the moved triangles get embree scenes of their own beside one
+    of the others (``SplitScene``, the whole scene's and the contact scene's), the triangle tables
+    change in their rows, and the context answers as a fresh one; moving them again keeps the
+    others' scenes, an edited material keeps everything, moving others builds the rest again, and
+    moving over a quarter of the triangles builds one scene as before.  The render matches a
+    fresh context's (the same but where a ray meets an edge of two triangles)."""
+    scene = subdivide(BUILTIN["glass_ceiling_room"](resolution=(16, 12)), 5)
+    assert scene.triangle_count >= SPLIT_MIN_TRIANGLES
+    lo, hi = scene.bounds()
+    corners = scene.triangle_corners()
+    inner = ((corners > lo + 0.05) & (corners < hi - 0.05)).all(axis=(1, 2))      # (the bounds stay)
+    block = np.flatnonzero(inner & (scene.material_ids == 3))[:2048]
+    other = np.flatnonzero(inner & (scene.material_ids == 2))[:3000]
+    assert 0 < len(block) < 0.1 * scene.triangle_count and len(other)
+    ctx = RenderContext(scene)
+    first = _moved(scene, block, (0.0, 0.0, 0.01))
+    split = RenderContext(first, reuse=ctx)
+    for accel in (split.accel._embree, split.accel._contact):
+        assert isinstance(accel, SplitScene) and accel.static is not None and accel.moving is not None
+    assert np.array_equal(split.accel._moved, block)
+    _assert_hits_as_a_fresh_context(split, first)
+    # (the same block again, part of it: the others' scenes kept)
+    again = _moved(first, block[: len(block) // 2], (0.0, 0.0, -0.02))
+    kept = RenderContext(again, reuse=split)
+    assert kept.accel._embree.static is split.accel._embree.static
+    assert kept.accel._contact.static is split.accel._contact.static
+    assert kept.accel._embree.moving is not split.accel._embree.moving
+    assert np.array_equal(kept.accel._moved, block)
+    _assert_hits_as_a_fresh_context(kept, again)
+    colours = again.materials.diffuse_color.copy()
+    colours[0] *= 0.5
+    recoloured = dataclasses.replace(again, materials=dataclasses.replace(again.materials,
+                                                                          diffuse_color=colours))
+    same = RenderContext(recoloured, reuse=kept)
+    assert same.accel._embree is kept.accel._embree and same.accel._contact is kept.accel._contact
+    elsewhere = _moved(again, other, (0.01, 0.0, 0.0))
+    rebuilt = RenderContext(elsewhere, reuse=same)
+    assert rebuilt.accel._embree.static is not kept.accel._embree.static
+    assert np.array_equal(rebuilt.accel._moved, other)
+    _assert_hits_as_a_fresh_context(rebuilt, elsewhere)
+    most = _moved(elsewhere, np.flatnonzero(inner), (0.0, 0.0, 0.01))
+    whole = RenderContext(most, reuse=rebuilt)
+    assert whole.accel._moved is None and not isinstance(whole.accel._embree, SplitScene)
+    _assert_hits_as_a_fresh_context(whole, most)
+    settings = RenderSettings(passes=3, **FAST)
+    image = render(elsewhere, settings, context=rebuilt).image
+    reference = render(elsewhere, settings).image
+    assert np.isfinite(image).all()
+    assert abs(image[..., :3].mean() / reference[..., :3].mean() - 1.0) < 0.01
+    assert np.mean(np.abs(image - reference) < 1e-6) > 0.9
 
 
 @pytest.mark.parametrize("perspective", [True, False], ids=["perspective", "orthographic"])
