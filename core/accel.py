@@ -28,6 +28,10 @@ SHARED_VERTICES = 1.5
 # takes a few tens of milliseconds.
 SPLIT_SHARE = 0.25
 SPLIT_MIN_TRIANGLES = 1 << 14
+# An edited scene whose box's centre moved by at most this share of its extent (a light dragged
+# above a floor, an object past the others) keeps the earlier version's centre for embree's frame,
+# and so its embree scenes: the coordinates embree sees grow by at most as much (a bit of float32).
+FRAME_SHIFT = 0.5
 
 
 @dataclass
@@ -51,10 +55,10 @@ class Accel:
         and the disc the sun's and the world's photons start from: ``LightSampler``).  ``reuse``:
         None, or an ``Accel`` of an earlier version of the scene whose triangles' data this one takes
         if it holds the same triangles, and its embree scenes if they also see them in the same frame
-        (the 3D viewport's edits of materials and lights: ``core/live.py``).  Where the edit moved a
-        few triangles of the same mesh (``SPLIT_SHARE``), the data is taken and changed in their rows,
-        and embree's scenes are built of them alone beside one of the others (:class:`SplitScene`),
-        which later edits moving none but them keep (an object dragged about)."""
+        (``FRAME_SHIFT``; the 3D viewport's edits of materials and lights: ``core/live.py``).  Where
+        the edit moved a few triangles of the same mesh (``SPLIT_SHARE``), the data is taken and
+        changed in their rows, and embree's scenes are built of them alone beside one of the others
+        (:class:`SplitScene`), which later edits moving none but them keep (an object dragged)."""
         # (what the triangles are made of, compared with a later version's; None: a subset())
         self._mesh_key = (scene.vertices, scene.triangles)
         same_triangles = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
@@ -84,6 +88,8 @@ class Accel:
         self.bounds = (lo, hi)
         self.extent = float(max(np.max(hi - lo), 1e-6))
         self.center = 0.5 * (lo + hi)                                    # (3,) float64, embree's origin
+        if reuse is not None and np.abs(self.center - reuse.center).max() <= FRAME_SHIFT * self.extent:
+            self.center = reuse.center          # (embree's frame kept: a light or an object moved a little)
         self.offset_floor = 1e-7 * self.extent
         self._embree = None
         self._contact = None            # embree scene of the non-glass triangles (see with_contacts())

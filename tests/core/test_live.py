@@ -127,9 +127,11 @@ def test_a_failed_job_raises_its_error_and_close_ends_the_server(live):
 def test_an_edit_that_keeps_the_triangles_keeps_the_bvh():
     """``RenderContext(reuse=...)``, the live server's edited scenes: an edited material or light
     keeps the earlier context's embree scenes (the whole scene's and the contact scene without the
-    glass) and triangle data, and renders as a fresh context does, bit for bit; a light that moves
-    the scene's bounds (embree's frame) keeps the triangle data only, a moved vertex nothing; glass
-    made diffuse keeps the whole scene's but has no contact scene."""
+    glass) and triangle data, and renders as a fresh context does, bit for bit; a moved vertex
+    (of a scene too small for ``SplitScene``) and a scene moved far away keep nothing; a light that
+    moves the scene's bounds by less than ``FRAME_SHIFT`` keeps embree's frame and so everything,
+    and renders as a fresh context does but for paths its spawn offsets set apart; glass made
+    diffuse keeps the whole scene's but has no contact scene."""
     scene = BUILTIN["glass_ceiling_room"](resolution=(16, 12))
     settings = RenderSettings(passes=2, **FAST)
     ctx = RenderContext(scene)
@@ -152,11 +154,24 @@ def test_an_edit_that_keeps_the_triangles_keeps_the_bvh():
     glassless = scene.materials.dielectric_weight.copy()
     glassless[:] = 0.0
     moved_light = dataclasses.replace(scene, lights=dataclasses.replace(scene.lights, position=position))
-    for edited, kept in ((dataclasses.replace(scene, vertices=vertices), False), (moved_light, True)):
+    far = scene.vertices + np.float32(20.0)                 # (everything moved 3 extents away)
+    moved_all = dataclasses.replace(scene, vertices=far, lights=dataclasses.replace(
+        scene.lights, position=scene.lights.position + 20.0))
+    for edited in (dataclasses.replace(scene, vertices=vertices), moved_all):
         fresh = RenderContext(edited.validate(), reuse=ctx)
         assert fresh.accel._embree is not ctx.accel._embree and fresh.accel._contact is not ctx.accel._contact
-        assert (fresh.accel.geometric_normals is ctx.accel.geometric_normals) == kept
+        assert fresh.accel.geometric_normals is not ctx.accel.geometric_normals
         assert np.array_equal(render(edited, settings, context=fresh).image, render(edited, settings).image)
+    # A light that moves the bounds by less than FRAME_SHIFT of their extent keeps embree's frame.
+    kept = RenderContext(moved_light.validate(), reuse=ctx)
+    assert not np.array_equal(kept.accel.bounds[1], ctx.accel.bounds[1])
+    assert np.array_equal(kept.accel.center, ctx.accel.center)
+    assert kept.accel._embree is ctx.accel._embree and kept.accel._contact is ctx.accel._contact
+    assert kept.accel.geometric_normals is ctx.accel.geometric_normals
+    image, reference = render(moved_light, settings, context=kept).image, render(moved_light, settings).image
+    # (the same but where a path's spawn offsets, relative to the frame's centre, set it apart)
+    assert np.mean(image == reference) > 0.5
+    assert abs(image[..., :3].mean() / reference[..., :3].mean() - 1.0) < 0.01
     diffuse = RenderContext(dataclasses.replace(scene, materials=dataclasses.replace(
         scene.materials, dielectric_weight=glassless)).validate(), reuse=ctx)
     assert diffuse.accel._embree is ctx.accel._embree and diffuse.accel._contact is None
