@@ -30,8 +30,9 @@ SPLIT_SHARE = 0.25
 SPLIT_MIN_TRIANGLES = 1 << 14
 # An edited scene whose box's centre moved by at most this share of its extent (a light dragged
 # above a floor, an object past the others) keeps the earlier version's centre for embree's frame,
-# and so its embree scenes: the coordinates embree sees grow by at most as much (a bit of float32).
-FRAME_SHIFT = 0.5
+# and so its embree scenes: the coordinates embree sees grow by at most as much (under a bit of
+# float32), and LocalScene's objects, 2 extents apart, still do not overlap.
+FRAME_SHIFT = 0.4
 
 
 @dataclass
@@ -274,6 +275,8 @@ class LocalScene:
         while side ** 3 < n:
             side += 1
         grid = np.stack(np.unravel_index(np.arange(n), (side, side, side)), axis=1).astype(np.float64)
+        # (in a frame kept by FRAME_SHIFT the triangles lie within 0.9 extents of its centre: the
+        # shifted boxes still stay apart)
         self.shift = (grid - 0.5 * (side - 1)) * (2.0 * accel.extent)             # (n, 3)
         corners = np.stack([accel.v0, accel.v0 + accel.e1, accel.v0 + accel.e2], axis=1)    # (T, 3, 3)
         lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)

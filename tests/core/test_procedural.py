@@ -2,6 +2,8 @@
 files.  Their agreement with Cycles is ``tests/addon/test_procedural_parity.py``'s."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -672,19 +674,33 @@ def test_camera_rays_see_a_world_program_of_the_window_at_each_pixel(projection)
     assert not procedural.DirectionAttributes(dirs).get("window").any()
 
 
-def test_the_local_scene_answers_each_ray_over_its_own_object_as_a_scene_of_that_object_alone():
+@pytest.mark.parametrize("frame", ["own", "kept"])
+def test_the_local_scene_answers_each_ray_over_its_own_object_as_a_scene_of_that_object_alone(frame):
     """``Accel.local_scene`` (every object shifted apart in one embree scene) against a query over
     each object's triangles alone (``Accel.subset``), ray by ray: the same triangles, distances and
     barycentrics, also where a box rests on the floor (its bottom face in the floor's plane) and
-    for rays that start outside their object's box or would reach other objects first."""
+    for rays that start outside their object's box or would reach other objects first; also in
+    embree's frame of an earlier version of the scene (``FRAME_SHIFT``: the scene moved by 0.35 of
+    its extent, its triangles up to 0.85 of it from the frame's centre)."""
     from core.accel import Accel
     scene = floor_with_quad([[-0.2, -0.2, 0.0], [0.2, -0.2, 0.0], [0.2, 0.2, 0.0], [-0.2, 0.2, 0.0]],
                             own_object=False)          # a second object lying in the floor's plane
-    accel = Accel(scene)
+    offset = np.zeros(3)
+    if frame == "kept":
+        before = Accel(scene)
+        offset[0] = 0.35 * before.extent
+        scene = scene.replace(vertices=scene.vertices + offset.astype(np.float32), lights=dataclasses.replace(
+            scene.lights, position=scene.lights.position + offset.astype(np.float32)))
+        accel = Accel(scene, reuse=before)
+        assert np.array_equal(accel.center, before.center)
+        corners = np.concatenate([accel.v0, accel.v0 + accel.e1, accel.v0 + accel.e2])
+        assert np.abs(corners - accel.center).max() > 0.8 * accel.extent
+    else:
+        accel = Accel(scene)
     rng = np.random.default_rng(5)
     n = 4000
-    origins = rng.uniform(-0.8, 0.8, (n, 3))
-    targets = np.concatenate([rng.uniform(-0.5, 0.5, (n, 2)), np.zeros((n, 1))], axis=1)
+    origins = rng.uniform(-0.8, 0.8, (n, 3)) + offset
+    targets = np.concatenate([rng.uniform(-0.5, 0.5, (n, 2)), np.zeros((n, 1))], axis=1) + offset
     dirs = targets - origins                               # (towards the floor's square and the quad)
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     objects = rng.integers(0, 2, n)
