@@ -96,9 +96,15 @@ def compiled_query(numba):
         return out_p[:k], out_j[:k], out_c[:k]
 
     def query(grid, x, normals, directions):
+        # (the grid keeps one normal a point since stop 71; the kernel reads a copy per entry,
+        # made once per grid)
+        entry_normal = getattr(grid, "_entry_normal", None)
+        if entry_normal is None:
+            entry_normal = grid._entry_normal = np.ascontiguousarray(
+                grid.point_normal.take(grid.entry_point, axis=1))
         return kernel(x, normals, normals if directions is None else directions, grid.origin,
                       float(grid.cell_size), grid.dims, grid.cell_keys, grid.cell_start, grid.entry_point,
-                      grid.entry_pos, grid.entry_r2, grid.entry_normal, np.float32(hash_grid.NORMAL_COS))
+                      grid.entry_pos, grid.entry_r2, entry_normal, np.float32(hash_grid.NORMAL_COS))
     return query
 
 

@@ -7,9 +7,10 @@ id) into one int64 per entry and sorts that (NumPy's vectorised sort of 64-bit
 integers is several times faster than an argsort), then finds the cell
 boundaries: SmallVCM's counting sort, in NumPy.
 
-Each entry keeps a copy of its point's data next to it (contiguous per cell,
-so a photon's candidates are read sequentially): the point position relative
-to the entry's *cell origin*, r_j^2 and the oriented normal, in float32.  The
+Each entry keeps a copy of its point's position and radius next to it (contiguous
+per cell, so a photon's candidates are read sequentially): the point position
+relative to the entry's *cell origin* and r_j^2, in float32; the oriented normals,
+which only the distance test's survivors need, stay one per point (float32).  The
 photon's position is taken relative to the same cell origin, so the distance
 test runs on small numbers where float32 is accurate to ~1e-7 of the cell size
 whatever the scene's coordinates (algorithm.md 6.4 asks for float64 because of
@@ -54,7 +55,7 @@ class HashGrid:
             self.entry_point = np.zeros(0, np.int32)
             self.entry_pos = np.zeros((3, 0), np.float32)
             self.entry_r2 = np.zeros(0, np.float32)
-            self.entry_normal = np.zeros((3, 0), np.float32)
+            self.point_normal = np.zeros((3, 0), np.float32)
             return
         # Column by column: NumPy reduces over axis 0 of an (m, 3) array ~10x slower (and reads
         # and gathers from contiguous columns faster).
@@ -141,14 +142,12 @@ class HashGrid:
         for k in range(3):
             self.entry_pos[k] = columns[k].take(point_of_entry) - np.repeat(lo[k] + cell_xyz[k] * c, per_cell)
         self.entry_r2 = (radii ** 2).astype(np.float32).take(point_of_entry)
-        self.entry_normal = np.empty((3, len(point_of_entry) if normals is not None else 0), np.float32)
-        if normals is not None:
-            normal_columns = np.ascontiguousarray(np.asarray(normals).T, np.float32)
-            for k in range(3):
-                self.entry_normal[k] = normal_columns[k].take(point_of_entry)
+        # (3, m) float32, or (3, 0): a grid without normals
+        self.point_normal = (np.ascontiguousarray(np.asarray(normals).T, np.float32) if normals is not None
+                             else np.zeros((3, 0), np.float32))
 
     FIELDS = ("cell_size", "origin", "dims", "cell_keys", "cell_start", "entry_point", "entry_pos",
-              "entry_r2", "entry_normal", "point_count")
+              "entry_r2", "point_normal", "point_count")
 
     def to_arrays(self) -> dict:
         """Plain arrays (for a worker process); :meth:`from_arrays` restores the grid."""
@@ -169,8 +168,8 @@ class HashGrid:
 
     @property
     def has_normals(self) -> bool:
-        """Whether the entries hold normals (and the query tests them)."""
-        return self.entry_normal.shape[1] == len(self.entry_point)
+        """Whether the grid holds its points' normals (and the query tests them)."""
+        return self.point_normal.shape[1] == self.point_count > 0
 
     def _cells(self, x):
         """Cell keys (n,) of positions x (n, 3), -1 outside the grid, and integer cell coordinates."""
@@ -234,27 +233,29 @@ class HashGrid:
                 d2 += d
             r2 = self.entry_r2.take(eidx)
             near = np.flatnonzero(d2 < r2)
-            e = eidx[near]
+            j = self.entry_point.take(eidx.take(near))
             ph = np.repeat(np.arange(lo, hi), cnt)[near]
             if inner:
                 half = 4.0 * d2.take(near) < r2.take(near)
             if nrm is not None:
                 # Normal test on the survivors.
-                cos_n = self.entry_normal[0].take(e) * nrm[0].take(ph)
-                cos_n += self.entry_normal[1].take(e) * nrm[1].take(ph)
-                cos_n += self.entry_normal[2].take(e) * nrm[2].take(ph)
+                pn = self.point_normal
+                cos_n = pn[0].take(j) * nrm[0].take(ph)
+                cos_n += pn[1].take(j) * nrm[1].take(ph)
+                cos_n += pn[2].take(j) * nrm[2].take(ph)
                 ok = np.flatnonzero(cos_n >= NORMAL_COS)
-                e, ph = e[ok], ph[ok]
+                j, ph = j[ok], ph[ok]
                 if inner:
                     half = half.take(ok)
             if inner:
                 out_i.append(half)
             out_p.append(photons[ph])
-            out_j.append(self.entry_point.take(e).astype(np.int64))
+            out_j.append(j.astype(np.int64))
             if dirs is not None:
-                cos_d = self.entry_normal[0].take(e) * dirs[0].take(ph)
-                cos_d += self.entry_normal[1].take(e) * dirs[1].take(ph)
-                cos_d += self.entry_normal[2].take(e) * dirs[2].take(ph)
+                pn = self.point_normal
+                cos_d = pn[0].take(j) * dirs[0].take(ph)
+                cos_d += pn[1].take(j) * dirs[1].take(ph)
+                cos_d += pn[2].take(j) * dirs[2].take(ph)
                 out_c.append(cos_d)
             lo = hi
         cat = (lambda a: np.concatenate(a)) if out_p else (lambda a: np.zeros(0, np.int64))
