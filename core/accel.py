@@ -120,7 +120,7 @@ class Accel:
             same_frame = reuse is not None and np.array_equal(self.center, reuse.center)
             if moved is not None and not (same_frame and self.triangle_count >= SPLIT_MIN_TRIANGLES):
                 moved = None
-            if moved is not None and reuse._moved is not None and _within(moved, reuse._moved):
+            if moved is not None and reuse._moved is not None and np.isin(moved, reuse._moved).all():
                 moved = reuse._moved                    # (the same triangles moved again: keep the rest)
             self._moved = moved if moved is not None else (reuse._moved if same_triangles and same_frame
                                                            else None)
@@ -392,12 +392,6 @@ def _moved_triangles(a, b):
     moved |= va[:, 2] != vb[:, 2]
     corner = moved.take(ta)
     return np.flatnonzero(corner[:, 0] | corner[:, 1] | corner[:, 2])
-
-
-def _within(ids, others):
-    """Whether the sorted ids ``ids`` are all among the sorted ``others``."""
-    at = np.searchsorted(others, ids)
-    return bool(len(others)) and bool((at < len(others)).all()) and np.array_equal(others.take(at), ids)
 
 
 def _same_mesh(a, b):

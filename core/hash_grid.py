@@ -169,7 +169,7 @@ class HashGrid:
     @property
     def has_normals(self) -> bool:
         """Whether the grid holds its points' normals (and the query tests them)."""
-        return self.point_normal.shape[1] == self.point_count > 0
+        return self.point_count > 0 and self.point_normal.shape[1] == self.point_count
 
     def _cells(self, x):
         """Cell keys (n,) of positions x (n, 3), -1 outside the grid, and integer cell coordinates."""
@@ -215,6 +215,7 @@ class HashGrid:
         nrm = None if normals is None else normals.take(photons, axis=0).T.astype(np.float32)
         dirs = None if directions is None else directions.take(photons, axis=0).T.astype(np.float32)
         out_p, out_j, out_c, out_i = [], [], [], []
+        pn = self.point_normal                 # (3, m): read by the pairs that pass the distance test
         bounds = np.cumsum(count)
         lo = 0
         while lo < len(photons):
@@ -239,7 +240,6 @@ class HashGrid:
                 half = 4.0 * d2.take(near) < r2.take(near)
             if nrm is not None:
                 # Normal test on the survivors.
-                pn = self.point_normal
                 cos_n = pn[0].take(j) * nrm[0].take(ph)
                 cos_n += pn[1].take(j) * nrm[1].take(ph)
                 cos_n += pn[2].take(j) * nrm[2].take(ph)
@@ -252,7 +252,6 @@ class HashGrid:
             out_p.append(photons[ph])
             out_j.append(j.astype(np.int64))
             if dirs is not None:
-                pn = self.point_normal
                 cos_d = pn[0].take(j) * dirs[0].take(ph)
                 cos_d += pn[1].take(j) * dirs[1].take(ph)
                 cos_d += pn[2].take(j) * dirs[2].take(ph)
