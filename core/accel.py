@@ -1,8 +1,9 @@
 """Ray queries: the only module that talks to embreex.
 
 :class:`Accel` wraps one static embree scene holding every triangle of a
-:class:`~core.scene.Scene` (or, after an edit in the viewport moved a few of them, two:
-:class:`SplitScene`) and answers batched closest-hit queries.  Embree
+:class:`~core.scene.Scene` (or, after an edit in the viewport moved a few of them, an earlier
+version's with the moved ones and those about their old places apart: :class:`SplitScene`) and
+answers batched closest-hit queries.  Embree
 works in float32, so it sees the scene shifted to the centre of its bounds (a
 scene far from the origin keeps its precision).  Surface positions are rebuilt
 from the barycentrics in float64 on the hit triangle's plane, and new rays are
@@ -23,11 +24,18 @@ _OFFSET_ULPS = 64.0 * np.finfo(np.float32).eps
 # per triangle, else from the triangles' corners (Accel, _embree_scene; benchmarks/context_cost.py).
 SHARED_VERTICES = 1.5
 # An edit of the viewport (``Accel(reuse=...)``) that moves at most this share of a scene's triangles
-# (an object moved, a vertex dragged), of a scene of at least SPLIT_MIN_TRIANGLES, builds embree's
-# scene of the moved ones alone and keeps the rest's (SplitScene); below that count a whole build
+# (an object moved, a vertex dragged), of a scene of at least SPLIT_MIN_TRIANGLES, keeps the earlier
+# version's embree scenes and builds those of the moved ones and of the triangles about their old
+# places (SplitScene), while those add up to at most this share; below that count a whole build
 # takes a few tens of milliseconds.
 SPLIT_SHARE = 0.25
 SPLIT_MIN_TRIANGLES = 1 << 14
+# The box of the moved triangles' old copies (SplitScene) is this share of the scene's extent wider
+# on every side than they are: many float32 ulps of embree's coordinates.
+SPLIT_MARGIN = 1e-4
+# At most this many groups of moved triangles in boxes apart (objects dragged one after another)
+# before a whole build.
+SPLIT_GROUPS = 8
 # An edited scene whose box's centre moved by at most this share of its extent (a light dragged
 # above a floor, an object past the others) keeps the earlier version's centre for embree's frame,
 # and so its embree scenes: the coordinates embree sees grow by at most as much (under a bit of
@@ -58,8 +66,9 @@ class Accel:
         if it holds the same triangles, and its embree scenes if they also see them in the same frame
         (``FRAME_SHIFT``; the 3D viewport's edits of materials and lights: ``core/live.py``).  Where
         the edit moved a few triangles of the same mesh (``SPLIT_SHARE``), the data is taken and
-        changed in their rows, and embree's scenes are built of them alone beside one of the others
-        (:class:`SplitScene`), which later edits moving none but them keep (an object dragged)."""
+        changed in their rows, and the earlier version's embree scenes are kept beside scenes of
+        the moved triangles and of those about their old places (:class:`SplitScene`; an object
+        dragged builds its own triangles' scene at each step)."""
         # (what the triangles are made of, compared with a later version's; None: a subset())
         self._mesh_key = (scene.vertices, scene.triangles)
         same_triangles = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
@@ -96,6 +105,8 @@ class Accel:
         self._contact = None            # embree scene of the non-glass triangles (see with_contacts())
         self._ids = None                # the scene's triangles this one holds (subset()), None: all
         self._moved = None              # the triangles embree's scenes hold apart (SplitScene), or None
+        self._groups = None             # their groups (ids, box, patch: _split), or None
+        self._margin = None             # the boxes' margin (_split)
         self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
         self._locals = None             # LocalScene of every object apart (local_scene())
         if self.triangle_count:
@@ -118,17 +129,15 @@ class Accel:
                 return _embree_scene(scene.vertices[picked].astype(np.float64) - self.center)
             # (embree's scenes hold the triangles as seen from the centre)
             same_frame = reuse is not None and np.array_equal(self.center, reuse.center)
-            if moved is not None and not (same_frame and self.triangle_count >= SPLIT_MIN_TRIANGLES):
-                moved = None
-            if moved is not None and reuse._moved is not None and np.isin(moved, reuse._moved).all():
-                moved = reuse._moved                    # (the same triangles moved again: keep the rest)
-            self._moved = moved if moved is not None else (reuse._moved if same_triangles and same_frame
-                                                           else None)
+            split = False
+            if moved is not None and same_frame and self.triangle_count >= SPLIT_MIN_TRIANGLES:
+                split = self._split(reuse, moved)
             if same_triangles and same_frame:
                 self._embree = reuse._embree
-            elif moved is not None:
-                self._embree = SplitScene.build(mesh, None, moved, self.triangle_count,
-                                                reuse._embree if moved is reuse._moved else None)
+                self._moved, self._groups, self._margin = reuse._moved, reuse._groups, reuse._margin
+            elif split:
+                self._embree = SplitScene.build(mesh, _base(reuse._embree), None, self._groups, self._margin,
+                                                self.triangle_count, _split_scene(reuse._embree))
             else:
                 self._embree = mesh()
             mats = scene.materials
@@ -140,12 +149,57 @@ class Accel:
                         and np.array_equal(reuse.contact_ids, self.contact_ids))
                 if kept and same_triangles:
                     self._contact = reuse._contact
-                elif self._moved is not None:
-                    self._contact = SplitScene.build(
-                        mesh, self.contact_ids, self._moved, self.triangle_count,
-                        reuse._contact if kept and self._moved is reuse._moved else None)
+                elif kept and split and (isinstance(reuse._contact, SplitScene)
+                                         == isinstance(reuse._embree, SplitScene)):
+                    # (its earlier version that of the whole scene's base)
+                    self._contact = SplitScene.build(mesh, _base(reuse._contact), self.contact_ids,
+                                                     self._groups, self._margin, self.triangle_count,
+                                                     _split_scene(reuse._contact))
                 else:
                     self._contact = mesh(self.contact_ids)
+
+    def _split(self, reuse, moved):
+        """Whether embree's scenes of ``reuse`` (an earlier version of the same mesh in the same
+        frame) can serve with the triangles ``moved`` since (sorted ids) apart (:class:`SplitScene`);
+        if so sets ``_moved`` (those and the ones ``reuse`` kept apart: every triangle whose copy in
+        the kept scenes is out of date) and ``_groups``: (ids, lo, hi, patch ids) of each set of
+        them whose copies lie in a box (``lo``, ``hi`` in embree's frame, ``_margin`` wider than
+        they are) apart from the others' boxes, and of the other triangles that reach into it.
+        False where the groups would be over ``SPLIT_GROUPS`` or hold over ``SPLIT_SHARE`` of the
+        triangles (copies and patches)."""
+        count = self.triangle_count
+        if reuse._moved is None:
+            known, groups, margin = moved[:0], [], SPLIT_MARGIN * self.extent
+        else:
+            known, groups, margin = reuse._moved, list(reuse._groups), reuse._margin
+        new = np.setdiff1d(moved, known, assume_unique=True)
+        stale = np.union1d(known, new)
+        if len(stale) > SPLIT_SHARE * count:
+            return False
+        if len(new):
+            # (their copies in the kept scenes are where the earlier version had them)
+            lo, hi = _corner_box(reuse.v0.take(new, axis=0), reuse.e1.take(new, axis=0),
+                                 reuse.e2.take(new, axis=0))
+            ids, lo, hi = new, lo - self.center - margin, hi - self.center + margin
+            merged = True                   # (a box that meets the new one: one group, boxes grow)
+            while merged:
+                merged = False
+                for group in groups:
+                    if (group[1] <= hi).all() and (group[2] >= lo).all():
+                        ids = np.union1d(ids, group[0])
+                        lo, hi = np.minimum(lo, group[1]), np.maximum(hi, group[2])
+                        groups.remove(group)
+                        merged = True
+                        break
+            if len(groups) >= SPLIT_GROUPS:
+                return False
+            near = _overlapping(self.v0, self.e1, self.e2, lo + self.center, hi + self.center)
+            near[stale] = False
+            groups.append((ids, lo, hi, np.flatnonzero(near)))
+        if len(stale) + sum(len(group[3]) for group in groups) > SPLIT_SHARE * count:
+            return False
+        self._moved, self._groups, self._margin = stale, groups, margin
+        return True
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -323,46 +377,141 @@ class LocalScene:
 
 
 class SplitScene:
-    """Two embree scenes queried as one (``run``, as an embree scene's): a scene's triangles that
-    an edit moved and the others (either may be None: none), so that the next edit moving the same
-    ones builds theirs alone.  Of a set of the scene's triangles (all, or the contact scene's):
-    ``run`` gives the hit's index within that set, as an embree scene of the whole set would."""
+    """An embree scene of an earlier version of a scene's triangles (``base``: all of them, or a set
+    of them, the contact scene's), queried (``run``, as an embree scene's) as if the triangles edits
+    moved since were where they are now.  Their new places are a scene of their own (``moving``);
+    their old copies lie in boxes apart (a group each, ``group_of``), and a ray whose nearest hit
+    in the base is such a copy is answered inside that box by a scene of the other triangles that
+    reach into it (the group's ``patches``) and past the box by the base again.  So an object
+    dragged in the viewport builds the scenes of its own triangles and of what lies around where it
+    was, not of the rest.  ``run`` gives the hit's index within the set, as an embree scene of the
+    whole set would."""
 
-    def __init__(self, static, static_ids, moving, moving_ids):
-        self.static, self.static_ids = static, static_ids
+    def __init__(self, base, group_of, lo, hi, margin, patches, patch_ids, moving, moving_ids):
+        self.base, self.group_of = base, group_of       # (k,) int32 over the set: a group, or -1
+        self.lo, self.hi, self.margin = lo, hi, margin  # (g, 3) boxes in embree's frame, their margin
+        self.patches, self.patch_ids = patches, patch_ids
         self.moving, self.moving_ids = moving, moving_ids
 
     @classmethod
-    def build(cls, mesh, members, moved, count, keep=None):
-        """The scenes of the triangles ``members`` (sorted ids, or None: all ``count`` of them) apart
-        from those in ``moved`` (sorted ids), and of those; ``mesh(ids)``: an embree scene of the
-        scene's triangles ``ids`` (None where there are none); ``keep``: None, or a SplitScene of
-        the same members apart from the same ``moved`` whose other triangles have not changed."""
-        if members is None:
-            apart = np.zeros(count, bool)
-            apart[moved] = True
-        else:
-            apart = np.isin(members, moved)
-        static_ids, moving_ids = np.flatnonzero(~apart), np.flatnonzero(apart)
+    def build(cls, mesh, base, members, groups, margin, count, keep=None):
+        """``base``: embree's scene of the triangles ``members`` (sorted ids, or None: all ``count``
+        of them) where an earlier version had them; ``groups``: ``Accel._groups`` (those whose
+        copies there are out of date, their boxes with their ``margin``, the triangles that reach
+        into them).  ``mesh(ids)``: an embree scene of the scene's triangles ``ids`` (None where
+        there are none); ``keep``: None, or a SplitScene of the same base and members whose patches
+        of the same triangles are kept."""
+        local = (lambda ids: ids) if members is None else (lambda ids: np.flatnonzero(np.isin(members, ids)))
         at = (lambda ids: ids) if members is None else members.take
-        static = keep.static if keep is not None else mesh(at(static_ids))
-        return cls(static, static_ids, mesh(at(moving_ids)), moving_ids)
+        group_of = np.full(count if members is None else len(members), -1, np.int32)
+        patches, patch_ids = [], []
+        for g, (ids, _, _, patch) in enumerate(groups):
+            group_of[local(ids)] = g
+            ids = local(patch)
+            kept = [] if keep is None else [scene for scene, known in zip(keep.patches, keep.patch_ids)
+                                            if np.array_equal(known, ids)]
+            patches.append(kept[0] if kept else mesh(at(ids)))
+            patch_ids.append(ids)
+        lo = np.array([group[1] for group in groups])
+        hi = np.array([group[2] for group in groups])
+        moving_ids = np.flatnonzero(group_of >= 0)
+        return cls(base, group_of, lo, hi, margin, patches, patch_ids, mesh(at(moving_ids)), moving_ids)
 
     def run(self, origins, directions, dists=None, output=1):
-        """The closest hits of both scenes (embree's ``run`` with ``output=1``: primID, tfar, u, v)."""
+        """The closest hits (embree's ``run`` with ``output=1``: primID, tfar, u, v)."""
         n = len(origins)
-        prim, tfar = np.full(n, -1, np.int64), np.broadcast_to(
-            np.float32(1e37) if dists is None else dists, (n,)).astype(np.float32)
-        u, v = np.zeros(n, np.float32), np.zeros(n, np.float32)
-        for scene, ids in ((self.static, self.static_ids), (self.moving, self.moving_ids)):
-            if scene is None:
-                continue
-            # (the second scene's hits only nearer than the first's)
-            r = scene.run(origins, directions, dists=np.ascontiguousarray(tfar), output=1)
-            hit = np.flatnonzero(r["primID"] >= 0)
-            prim[hit] = ids.take(r["primID"].take(hit))
-            tfar, u[hit], v[hit] = r["tfar"], r["u"].take(hit), r["v"].take(hit)
+        tmax = np.broadcast_to(np.float32(1e37) if dists is None else dists, (n,)).astype(np.float32)
+        # (embree writes its distances into the array it is given: a copy)
+        r = self.base.run(origins, directions, dists=tmax.copy(), output=1)
+        out = prim, tfar, u, v = r["primID"].astype(np.int64), r["tfar"], r["u"], r["v"]
+        rows = np.flatnonzero(prim >= 0)
+        group = self.group_of.take(prim.take(rows))
+        rows, group = rows[group >= 0], group[group >= 0]
+        o = origins.take(rows, axis=0).astype(np.float64)
+        d = directions.take(rows, axis=0).astype(np.float64)
+        limit = tmax.take(rows).astype(np.float64)
+        start = np.zeros(len(rows))
+        prim[rows], tfar[rows] = -1, tmax.take(rows)
+        pending = np.arange(len(rows))
+        # A ray met an out-of-date copy in a group's box: the nearest of the other triangles there
+        # (its patch), else the base from the box's far side, which may meet another group's copy
+        # (a box left is not met again: at most a round a group).
+        for _ in range(len(self.patches)):
+            if len(pending) == 0:
+                break
+            g = group.take(pending)
+            dp = d.take(pending, axis=0)
+            tiny = np.where(dp < 0.0, -1e-300, 1e-300)
+            inv = 1.0 / np.where(np.abs(dp) < 1e-300, tiny, dp)
+            op = o.take(pending, axis=0)
+            far = np.maximum((self.lo.take(g, axis=0) - op) * inv, (self.hi.take(g, axis=0) - op) * inv)
+            leave = np.minimum(np.minimum(far[:, 0], far[:, 1]), far[:, 2])
+            s = start.take(pending)
+            for k in np.unique(g):
+                at = np.flatnonzero(g == k)
+                _nearest(self.patches[k], self.patch_ids[k], op[at] + s[at, None] * dp[at], dp[at],
+                         np.minimum(leave[at], limit.take(pending[at])) - s[at], rows.take(pending[at]),
+                         s[at], out)
+            # (past the box no copy of its group: the base from half its margin inside)
+            on = np.flatnonzero((prim.take(rows.take(pending)) < 0) & (leave < limit.take(pending)))
+            s = np.maximum(leave - 0.5 * self.margin, s)
+            pending, s = pending.take(on), s.take(on)
+            _nearest(self.base, None, o.take(pending, axis=0) + s[:, None] * d.take(pending, axis=0),
+                     d.take(pending, axis=0), limit.take(pending) - s, rows.take(pending), s, out)
+            found = prim.take(rows.take(pending))
+            again = self.group_of.take(np.maximum(found, 0))
+            more = (found >= 0) & (again >= 0)
+            pending = pending[more]
+            start[pending], group[pending] = s[more], again[more]
+            prim[rows.take(pending)], tfar[rows.take(pending)] = -1, tmax.take(rows.take(pending))
+        # (a ray still on a copy after a round a group: none, a safeguard; left as missing it)
+        # (the moved triangles' hits only nearer than the others')
+        _nearest(self.moving, self.moving_ids, origins, directions, tfar, None, 0.0, out)
         return {"primID": prim, "tfar": tfar, "u": u, "v": v}
+
+
+def _nearest(scene, ids, origins, directions, limit, rows, start, out):
+    """Writes into ``out`` (primID, tfar, u, v arrays), at ``rows`` (None: all), the hits of embree's
+    ``scene`` (None: none) nearer than ``limit`` along rays that begin ``start`` (0, or one a ray)
+    along theirs; ``ids`` maps its triangles to the set's (None: the same)."""
+    if scene is None:
+        return
+    r = scene.run(np.ascontiguousarray(origins, np.float32), np.ascontiguousarray(directions, np.float32),
+                  dists=np.ascontiguousarray(np.minimum(limit, 1e37), np.float32), output=1)
+    hit = np.flatnonzero(r["primID"] >= 0)
+    at = hit if rows is None else rows.take(hit)
+    prim, tfar, u, v = out
+    found = r["primID"].take(hit)
+    prim[at] = found if ids is None else ids.take(found)
+    tfar[at] = r["tfar"].take(hit) + (start if np.ndim(start) == 0 else start.take(hit))
+    u[at], v[at] = r["u"].take(hit), r["v"].take(hit)
+
+
+def _base(scene):
+    """The embree scene of the version an earlier ``Accel``'s scene (plain or split) was built of."""
+    return scene.base if isinstance(scene, SplitScene) else scene
+
+
+def _split_scene(scene):
+    """``scene`` if it is a :class:`SplitScene`, else None."""
+    return scene if isinstance(scene, SplitScene) else None
+
+
+def _corner_box(v0, e1, e2):
+    """(lo, hi) (3,) of triangles' corners from their (k, 3) v0, e1, e2 (k > 0)."""
+    corners = np.concatenate([v0, v0 + e1, v0 + e2])
+    return corners.min(axis=0), corners.max(axis=0)
+
+
+def _overlapping(v0, e1, e2, lo, hi):
+    """(T,) bool: the triangles (v0, e1, e2 (T, 3)) whose boxes meet the box ``lo``, ``hi`` (3,)."""
+    near = np.ones(len(v0), bool)
+    for k in range(3):              # (column by column: no (T, 3) temporaries)
+        a = v0[:, k]
+        b, c = a + e1[:, k], a + e2[:, k]
+        near &= np.minimum(np.minimum(a, b), c) <= hi[k]
+        near &= np.maximum(np.maximum(a, b), c) >= lo[k]
+    return near
 
 
 def _triangle_data(corners):

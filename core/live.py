@@ -9,8 +9,8 @@ one's file, and the server, which keeps that scene and its ``RenderContext``, re
 the new camera (``RenderContext.with_camera``) without loading it or building its BVH again.  An
 edited scene is sent again, and its BVH kept if the edit left the triangles as they were (a
 material's or a light's, unless the light moves the scene's bounds far: ``Accel``'s ``reuse``);
-an edit that moved a few of them (an object dragged) has embree's scenes of those built apart from
-the rest, whose scenes the next edits moving the same ones keep (``core.accel.SplitScene``).  The
+an edit that moved a few of them (an object dragged) keeps it too, with embree's scenes of those
+and of what lies about their old places built apart (``core.accel.SplitScene``).  The
 server renders the newest job with :func:`core.render` in that process (one worker, no pool to
 start), writes the image after every pass into the job's folder (a file replaced atomically),
 and leaves a job as soon as a newer one supersedes it (a stop file, polled between photon
