@@ -4,9 +4,11 @@ Each scene and size starts a fresh server process (as the first Rendered-shading
 and records when the first passes' images can be read, and then, with the server warm, when a
 second job (the view moved: the server keeps its scene) shows its first image, a third (a
 material edited: the scene sent again, its BVH kept), a fourth (a vertex moved: the scene sent
-again, its BVH built again, in two parts where the scene is big enough: ``core.accel.SplitScene``)
-and a fifth (the vertex moved again: the part of the others kept).  ``--subdivide K`` splits every
-triangle into 4**K (``core.testing.scenes.subdivide``) for a scene whose BVH costs.  One worker, the
+again, where the scene is big enough with the earlier BVH kept and the moved triangles' and those
+around their old place built apart: ``core.accel.SplitScene``) and a fifth (the vertex moved again);
+with ``--lift-material M`` also a sixth and a seventh (the triangles of material M, an object,
+lifted by a thousandth of the scene's extent, twice).  ``--subdivide K`` splits every triangle into
+4**K (``core.testing.scenes.subdivide``) for a scene whose BVH costs.  One worker, the
 scene's default settings but the first pass's photons: each of ``--first-pass-photons`` in turn
 (0: the automatic count's own ramp, from ``AUTO_PHOTONS_MIN``; the viewport's
 ``VIEWPORT_FIRST_PHOTONS``), alternating over ``--rounds``, and the ratio of each one's times to
@@ -14,7 +16,7 @@ the first one's (medians).
 
     python benchmarks/viewport_first_image.py [--scenes cornell_box glass_ceiling_room]
         [--sizes 320x180 640x360] [--images 3] [--first-pass-photons 0 10000] [--rounds 3]
-        [--subdivide K]
+        [--subdivide K] [--lift-material M]
 """
 from __future__ import annotations
 
@@ -47,8 +49,9 @@ def image_times(live, count, t0, timeout=600.0):
     return times
 
 
-def edits(scene):
-    """The scene with its view moved, then a material edited, then a vertex moved, twice."""
+def edits(scene, lift=None):
+    """The scene with its view moved, then a material edited, then a vertex moved, twice, then
+    (``lift``: a material id) that material's triangles lifted, twice."""
     pose = scene.camera.world_from_camera.copy()
     pose[0, 3] += 0.01
     moved = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, world_from_camera=pose))
@@ -60,11 +63,20 @@ def edits(scene):
     vertices[0] += 1e-4
     again = vertices.copy()
     again[0] += 1e-4
-    return (moved, recoloured, dataclasses.replace(recoloured, vertices=vertices),
-            dataclasses.replace(recoloured, vertices=again))
+    out = [moved, recoloured, dataclasses.replace(recoloured, vertices=vertices),
+           dataclasses.replace(recoloured, vertices=again)]
+    if lift is not None:
+        corners = np.unique(scene.triangles[scene.material_ids == lift])
+        step = 1e-3 * float(np.max(np.subtract(*scene.bounds()[::-1])))
+        lifted = again
+        for _ in range(2):
+            lifted = lifted.copy()
+            lifted[corners, 2] += step
+            out.append(dataclasses.replace(recoloured, vertices=lifted))
+    return out
 
 
-def job_times(scene, settings, images):
+def job_times(scene, settings, images, lift=None):
     """Times of the first ``images`` images from a fresh server, then of the first image of each of
     ``edits``."""
     live = LiveRender()
@@ -72,7 +84,7 @@ def job_times(scene, settings, images):
         t0 = time.monotonic()
         live.start(scene, settings)
         times = image_times(live, images, t0)
-        for edited in edits(scene):
+        for edited in edits(scene, lift):
             t1 = time.monotonic()
             live.start(edited, settings)
             times += image_times(live, 1, t1)
@@ -90,6 +102,8 @@ def main():
     ap.add_argument("--first-pass-photons", nargs="+", type=int, default=[0, VIEWPORT_FIRST_PHOTONS])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--subdivide", type=int, default=0, help="split every triangle into 4**K")
+    ap.add_argument("--lift-material", type=int, default=None,
+                    help="also time an object lifted, twice: this material's triangles")
     a = ap.parse_args()
     counts = a.first_pass_photons
     for name in a.scenes:
@@ -100,14 +114,18 @@ def main():
             for _ in range(a.rounds):
                 for n in counts:
                     settings = RenderSettings(passes=10_000, workers=1, first_pass_photons=n)
-                    times[n].append(job_times(scene, settings, a.images))
+                    times[n].append(job_times(scene, settings, a.images, a.lift_material))
             base = np.median(times[counts[0]], axis=0)
+            edited = 4 if a.lift_material is None else 6
             for n in counts:
                 t = np.median(times[n], axis=0)
+                lifted = "" if a.lift_material is None else (
+                    f", of an object lifted {t[-2]:.2f} s, lifted again {t[-1]:.2f} s")
+                e = t[-edited:]
                 print(f"{name} ({scene.triangle_count:,} triangles) {size}, first pass {n or 'automatic'}: "
-                      f"fresh server, images at {', '.join(f'{v:.2f}' for v in t[:-4])} s; first image of "
-                      f"a moved view at {t[-4]:.2f} s, of an edited material {t[-3]:.2f} s, of a moved "
-                      f"vertex {t[-2]:.2f} s, moved again {t[-1]:.2f} s (median of {a.rounds}; "
+                      f"fresh server, images at {', '.join(f'{v:.2f}' for v in t[:-edited])} s; first image "
+                      f"of a moved view at {e[0]:.2f} s, of an edited material {e[1]:.2f} s, of a moved "
+                      f"vertex {e[2]:.2f} s, moved again {e[3]:.2f} s{lifted} (median of {a.rounds}; "
                       f"/ first count: "
                       f"{', '.join(f'{v:.2f}' for v in t / base)})", flush=True)
 
