@@ -12,8 +12,8 @@ from core.accel import SPLIT_MIN_TRIANGLES, SplitScene
 from core.camera import generate_camera_rays
 from core.context import RenderContext
 from core.live import LiveRender
-from core.scene import Camera
-from core.testing.scenes import BUILTIN, subdivide
+from core.scene import Camera, Materials
+from core.testing.scenes import BUILTIN, MeshBuilder, subdivide
 
 FAST = dict(method="ppm", photons_per_pass=20_000, workers=1)
 
@@ -291,6 +291,48 @@ def test_an_edit_that_moves_a_few_triangles_builds_theirs_alone():
     assert np.isfinite(image).all()
     assert abs(image[..., :3].mean() / reference[..., :3].mean() - 1.0) < 0.01
     assert np.mean(np.abs(image - reference) < 1e-6) > 0.9
+
+
+def test_rays_past_the_old_places_of_two_moved_objects_meet_what_lies_behind():
+    """Two blocks in a row before a wall, moved aside one edit after the other: their old copies lie
+    in two boxes apart (two groups of ``SplitScene``), and rays along the row, from in front of the
+    blocks and from inside the first one's old place, pass both (a round a box) to the wall, or stop
+    at their limit; rays from the side meet the blocks where they are now."""
+    m = MeshBuilder()
+    m.add_quad((-2, 6, -1), (2, 6, -1), (2, 6, 2), (-2, 6, 2), 0)                  # (the wall, facing -y)
+    m.add_box((-0.3, 0.7, 0.2), (0.3, 1.3, 0.8), 0)
+    m.add_box((-0.3, 2.7, 0.2), (0.3, 3.3, 0.8), 0)
+    for x0 in np.arange(-2.0, 2.0, 0.5):                                    # (a floor well below)
+        for y0 in np.arange(-2.0, 6.0, 1.0):
+            m.add_quad((x0, y0, -1), (x0 + 0.5, y0, -1), (x0 + 0.5, y0 + 1, -1), (x0, y0 + 1, -1), 0)
+    scene = subdivide(m.build(Materials.build([{"name": "grey", "diffuse": (0.5, 0.5, 0.5)}])), 4)
+    assert scene.triangle_count >= SPLIT_MIN_TRIANGLES
+    corners = scene.triangle_corners()
+    blocks = [np.flatnonzero(((np.abs(corners[..., 1] - y) < 0.31) & (corners[..., 2] > 0.0)).all(axis=1))
+              for y in (1.0, 3.0)]
+    ctx = RenderContext(scene)
+    first = _moved(scene, blocks[0], (1.0, 0.0, 0.0))
+    second = _moved(first, blocks[1], (-1.0, 0.0, 0.0))
+    split = RenderContext(second, reuse=RenderContext(first, reuse=ctx))
+    assert split.accel._embree.base is ctx.accel._embree and len(split.accel._groups) == 2
+    fresh = RenderContext(second)
+    rng = np.random.default_rng(2)
+    n = 4000
+    o = np.column_stack([rng.uniform(-0.25, 0.25, n), np.where(np.arange(n) % 2, -1.0, 1.0),
+                         rng.uniform(0.25, 0.75, n)])
+    d = np.tile([0.0, 1.0, 0.0], (n, 1))
+    d[:, 0] = rng.uniform(-0.01, 0.01, n)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    tmax = np.where(np.arange(n) % 4 < 2, np.inf, rng.uniform(1.5, 8.0, n))
+    a, b = split.accel.intersect(o, d, tmax), fresh.accel.intersect(o, d, tmax)
+    assert np.array_equal(a.is_hit, b.is_hit) and np.array_equal(a.prim_ids, b.prim_ids)
+    assert np.allclose(a.t[a.is_hit], b.t[b.is_hit], rtol=0, atol=1e-5)
+    wall = a.is_hit & (scene.triangle_corners()[np.maximum(a.prim_ids, 0), 0, 1] == 6.0)
+    assert wall.sum() > n // 2 and (a.is_hit == (tmax > 6.0 - o[:, 1])).all()
+    side = np.column_stack([np.full(n, -3.0), rng.uniform(0.8, 3.2, n), rng.uniform(0.25, 0.75, n)])
+    toward = np.tile([1.0, 0.0, 0.0], (n, 1))
+    a, b = split.accel.intersect(side, toward), fresh.accel.intersect(side, toward)
+    assert np.array_equal(a.prim_ids, b.prim_ids) and np.isin(a.prim_ids, blocks[0]).sum() > n // 10
 
 
 @pytest.mark.parametrize("perspective", [True, False], ids=["perspective", "orthographic"])
