@@ -49,9 +49,11 @@ def job_file(folder, kind, job):
 
 
 class LiveRender:
-    """The client: ``start`` a job, read its ``latest`` image, ``close``."""
+    """The client: ``start`` a job, read its ``latest`` image, ``close``.  ``huge_pages``: whether
+    the server's NumPy advises huge pages (``core.parallel.start_process``)."""
 
-    def __init__(self):
+    def __init__(self, huge_pages=False):
+        self.huge_pages = huge_pages
         shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
         self.folder = tempfile.mkdtemp(prefix="amcmcppm-live-", dir=shm)
         self.proc = None
@@ -83,7 +85,9 @@ class LiveRender:
                 except OSError:
                     pass
         if self.proc is None or self.proc.poll() is not None:
-            self.proc = start_process("live.serve")
+            # (an edit's context copies the triangle tables, hundreds of MB for millions of
+            # triangles, into fresh memory: benchmarks/viewport_first_image.py --huge-pages)
+            self.proc = start_process("live.serve", huge_pages=self.huge_pages)
         fields = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
         fields["workers"] = 1
         # (the camera's fields, not the object: Blender's add-on and the server name its class's
