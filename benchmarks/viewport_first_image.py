@@ -16,10 +16,10 @@ the first one's (medians).
 
     python benchmarks/viewport_first_image.py [--scenes cornell_box glass_ceiling_room]
         [--sizes 320x180 640x360] [--images 3] [--first-pass-photons 0 10000] [--rounds 3]
-        [--subdivide K] [--lift-material M] [--huge-pages]
+        [--subdivide K] [--lift-material M] [--no-huge-pages]
 
-``--huge-pages`` lets the server's NumPy advise huge pages, as it does by default (the live server
-does not since stop 72: ``core.live.LiveRender``).
+``--no-huge-pages`` runs the server without NumPy's advice for huge pages (``NUMPY_MADVISE_HUGEPAGE=0``,
+``core.live.LiveRender(huge_pages=False)``).
 """
 from __future__ import annotations
 
@@ -79,7 +79,7 @@ def edits(scene, lift=None):
     return out
 
 
-def job_times(scene, settings, images, lift=None, huge_pages=False):
+def job_times(scene, settings, images, lift=None, huge_pages=True):
     """Times of the first ``images`` images from a fresh server, then of the first image of each of
     ``edits``."""
     live = LiveRender(huge_pages=huge_pages)
@@ -107,8 +107,8 @@ def main():
     ap.add_argument("--subdivide", type=int, default=0, help="split every triangle into 4**K")
     ap.add_argument("--lift-material", type=int, default=None,
                     help="also time an object lifted, twice: this material's triangles")
-    ap.add_argument("--huge-pages", action="store_true",
-                    help="the server's NumPy advises huge pages (LiveRender(huge_pages=True))")
+    ap.add_argument("--no-huge-pages", action="store_true",
+                    help="the server's NumPy does not advise huge pages (LiveRender(huge_pages=False))")
     a = ap.parse_args()
     counts = a.first_pass_photons
     for name in a.scenes:
@@ -119,7 +119,8 @@ def main():
             for _ in range(a.rounds):
                 for n in counts:
                     settings = RenderSettings(passes=10_000, workers=1, first_pass_photons=n)
-                    times[n].append(job_times(scene, settings, a.images, a.lift_material, a.huge_pages))
+                    times[n].append(job_times(scene, settings, a.images, a.lift_material,
+                                              not a.no_huge_pages))
             base = np.median(times[counts[0]], axis=0)
             edited = 4 if a.lift_material is None else 6
             for n in counts:

@@ -52,7 +52,7 @@ class LiveRender:
     """The client: ``start`` a job, read its ``latest`` image, ``close``.  ``huge_pages``: whether
     the server's NumPy advises huge pages (``core.parallel.start_process``)."""
 
-    def __init__(self, huge_pages=False):
+    def __init__(self, huge_pages=True):
         self.huge_pages = huge_pages
         shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
         self.folder = tempfile.mkdtemp(prefix="amcmcppm-live-", dir=shm)
@@ -86,7 +86,7 @@ class LiveRender:
                     pass
         if self.proc is None or self.proc.poll() is not None:
             # (an edit's context copies the triangle tables, hundreds of MB for millions of
-            # triangles, into fresh memory: benchmarks/viewport_first_image.py --huge-pages)
+            # triangles, into fresh memory: benchmarks/viewport_first_image.py --no-huge-pages)
             self.proc = start_process("live.serve", huge_pages=self.huge_pages)
         fields = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
         fields["workers"] = 1

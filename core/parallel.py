@@ -207,8 +207,7 @@ def start_process(entry, huge_pages=True):
     """A process of this Python (Blender's inside Blender) running ``entry``, "module.function" of
     the core, with pipes on its stdin and stdout and one thread for NumPy's libraries (the
     processes are the parallelism).  ``huge_pages`` False: NumPy does not advise Linux to back its
-    large arrays with huge pages (``NUMPY_MADVISE_HUGEPAGE=0``; where the kernel defragments on that
-    advice, the usual setting, a fresh array's first touch may wait for it to compact memory)."""
+    large arrays with huge pages (``NUMPY_MADVISE_HUGEPAGE=0``)."""
     env = dict(os.environ)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         env[var] = "1"
