@@ -59,7 +59,7 @@ class Hits:
 class Accel:
     """Embree BVH over a scene's triangles plus per-triangle data for shading."""
 
-    def __init__(self, scene, bounds=None, reuse=None):
+    def __init__(self, scene, bounds=None, reuse=None, take=False):
         """``bounds``: None, or (lo, hi) to take for the scene's box instead of its own (the extent,
         and the disc the sun's and the world's photons start from: ``LightSampler``).  ``reuse``:
         None, or an ``Accel`` of an earlier version of the scene whose triangles' data this one takes
@@ -68,7 +68,9 @@ class Accel:
         the edit moved a few triangles of the same mesh (``SPLIT_SHARE``), the data is taken and
         changed in their rows, and the earlier version's embree scenes are kept beside scenes of
         the moved triangles and of those about their old places (:class:`SplitScene`; an object
-        dragged builds its own triangles' scene at each step)."""
+        dragged builds its own triangles' scene at each step).  ``take``: ``reuse`` is not used
+        again (the live server drops it), so its tables are changed in those rows instead of
+        copied (hundreds of MB for millions of triangles), and it is left unable to be reused."""
         # (what the triangles are made of, compared with a later version's; None: a subset())
         self._mesh_key = (scene.vertices, scene.triangles)
         same_triangles = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
@@ -78,6 +80,7 @@ class Accel:
         if moved is not None and len(moved) > SPLIT_SHARE * len(scene.triangles):
             moved = None
         corners = None
+        old = None                      # (the moved triangles' v0, e1, e2 in the earlier version)
         if same_triangles:
             self.triangle_count = reuse.triangle_count
             for name in ("v0", "e1", "e2", "area", "geometric_normals"):
@@ -85,10 +88,13 @@ class Accel:
         elif moved is not None:
             self.triangle_count = reuse.triangle_count
             rows = _triangle_data(scene.vertices[scene.triangles[moved]].astype(np.float64))
+            old = tuple(getattr(reuse, name).take(moved, axis=0) for name in ("v0", "e1", "e2"))
             for name, new in zip(("v0", "e1", "e2", "area", "geometric_normals"), rows):
-                table = getattr(reuse, name).copy()
+                table = getattr(reuse, name) if take else getattr(reuse, name).copy()
                 table[moved] = new
                 setattr(self, name, table)
+            if take:
+                reuse._mesh_key = None          # (its tables are this version's now)
         else:
             corners = scene.triangle_corners().astype(np.float64)      # (T, 3, 3)
             self.triangle_count = len(corners)
@@ -131,7 +137,7 @@ class Accel:
             same_frame = reuse is not None and np.array_equal(self.center, reuse.center)
             split = False
             if moved is not None and same_frame and self.triangle_count >= SPLIT_MIN_TRIANGLES:
-                split = self._split(reuse, moved)
+                split = self._split(reuse, moved, old)
             if same_triangles and same_frame:
                 self._embree = reuse._embree
                 self._moved, self._groups, self._margin = reuse._moved, reuse._groups, reuse._margin
@@ -158,9 +164,10 @@ class Accel:
                 else:
                     self._contact = mesh(self.contact_ids)
 
-    def _split(self, reuse, moved):
+    def _split(self, reuse, moved, old):
         """Whether embree's scenes of ``reuse`` (an earlier version of the same mesh in the same
-        frame) can serve with the triangles ``moved`` since (sorted ids) apart (:class:`SplitScene`);
+        frame) can serve with the triangles ``moved`` since (sorted ids; ``old``: their v0, e1, e2
+        there) apart (:class:`SplitScene`);
         if so sets ``_moved`` (those and the ones ``reuse`` kept apart: every triangle whose copy in
         the kept scenes is out of date) and ``_groups``: (ids, lo, hi, patch ids) of each set of
         them whose copies lie in a box (``lo``, ``hi`` in embree's frame, ``_margin`` wider than
@@ -178,8 +185,8 @@ class Accel:
             return False
         if len(new):
             # (their copies in the kept scenes are where the earlier version had them)
-            lo, hi = _corner_box(reuse.v0.take(new, axis=0), reuse.e1.take(new, axis=0),
-                                 reuse.e2.take(new, axis=0))
+            at = np.searchsorted(moved, new)
+            lo, hi = _corner_box(*(rows.take(at, axis=0) for rows in old))
             ids, lo, hi = new, lo - self.center - margin, hi - self.center + margin
             merged = True                   # (a box that meets the new one: one group, boxes grow)
             while merged:

@@ -59,10 +59,13 @@ class Surface:
 class RenderContext:
     """Scene plus acceleration structure and shading tables, built once per render/worker."""
 
-    def __init__(self, scene, glossy_through_roughness=GLOSSY_THROUGH_ROUGHNESS, bounds=None, reuse=None):
+    def __init__(self, scene, glossy_through_roughness=GLOSSY_THROUGH_ROUGHNESS, bounds=None, reuse=None,
+                 take=False):
         """``glossy_through_roughness``: ``RenderSettings.glossy_through_roughness``; ``bounds``: None,
         or the box to take for the scene's (``Accel``); ``reuse``: None, or the context of an earlier
-        version of the scene, whose BVH this one takes if its triangles are the same (``Accel``)."""
+        version of the scene, whose BVH this one takes if its triangles are the same (``Accel``);
+        ``take``: ``reuse`` is not used again, and its triangle tables may be changed for this one
+        instead of copied (``Accel``; the live server)."""
         self.source = scene                         # the scene as given (``with_camera``, ``render``)
         self.glossy_through_roughness = glossy_through_roughness
         # Sky Textures in programs, baked once per context (``procedural.evaluate``'s sky_cache;
@@ -71,7 +74,7 @@ class RenderContext:
         self.sky_cache = SkyTextureCache()
         scene = displace(scene, self.sky_cache)     # (true displacement; the scene itself without)
         self.scene = scene
-        self.accel = Accel(scene, bounds, reuse=None if reuse is None else reuse.accel)
+        self.accel = Accel(scene, bounds, reuse=None if reuse is None else reuse.accel, take=take)
         # The materials, a copy per roughness level of those with a roughness map, per stretch
         # level of those with an anisotropy map, and the coats.
         self.materials, self.roughness_first = roughness_variants(scene.materials)

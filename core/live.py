@@ -192,15 +192,17 @@ def serve():
                 base = Scene.load(scene_path)
                 loaded = scene_path
             if stale or ctx.glossy_through_roughness != settings.glossy_through_roughness:
-                # (an edited scene keeps the last context's BVH if the edit left the triangles)
+                # (an edited scene keeps the last context's BVH if the edit left the triangles;
+                # the last context is dropped, so its tables may become the new one's)
                 ctx = RenderContext(dataclasses.replace(base, camera=camera).validate(),
-                                    settings.glossy_through_roughness, reuse=ctx)
+                                    settings.glossy_through_roughness, reuse=ctx, take=True)
                 stale = False
             else:
                 ctx = ctx.with_camera(camera)
             render(ctx.source, settings, on_iteration=publish, should_stop=should_stop, context=ctx)
             open(job_file(folder, "done", job), "w").close()
         except Exception:
+            ctx, stale = None, True             # (a context left half changed is not reused)
             text = traceback.format_exc().encode()
             _replace(job_file(folder, "error", job), lambda f: f.write(text))
         if os.getppid() != parent:

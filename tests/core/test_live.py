@@ -293,6 +293,48 @@ def test_an_edit_that_moves_a_few_triangles_builds_theirs_alone():
     assert np.mean(np.abs(image - reference) < 1e-6) > 0.9
 
 
+def test_a_context_that_takes_the_earlier_ones_tables_answers_as_a_fresh_one():
+    """``RenderContext(reuse=..., take=True)`` (the live server, which drops the earlier context):
+    an edit that moves a few triangles changes the earlier context's tables in their rows instead
+    of copying them, still finds their old copies' box, and answers as a fresh context; the earlier
+    context, spent, is not reused (a later edit from it builds its scenes whole)."""
+    scene = subdivide(BUILTIN["glass_ceiling_room"](resolution=(16, 12)), 5)
+    box = np.flatnonzero(scene.material_ids == 3)
+    ctx = RenderContext(scene)
+    before = RenderContext(scene).accel
+    lifted = _moved(scene, box, (0.0, 0.0, 0.3))
+    taken = RenderContext(lifted, reuse=ctx, take=True)
+    assert taken.accel.v0 is ctx.accel.v0 and taken.accel.geometric_normals is ctx.accel.geometric_normals
+    assert isinstance(taken.accel._embree, SplitScene) and taken.accel._embree.base is ctx.accel._embree
+    _assert_hits_as_a_fresh_context(taken, lifted, before)
+    again = _moved(lifted, box, (0.1, 0.0, 0.0))
+    rebuilt = RenderContext(again, reuse=ctx)
+    assert rebuilt.accel._moved is None and not isinstance(rebuilt.accel._embree, SplitScene)
+    _assert_hits_as_a_fresh_context(rebuilt, again)
+
+
+def test_a_live_render_of_an_object_moved_twice_renders_as_a_fresh_context(live):
+    """The live server through edits of a scene big enough to split (it takes each earlier
+    context's tables): a box lifted, moved again, then a material edited; the last pass of each
+    is the render of a fresh context but for rays at ties or past the box's old place."""
+    scene = subdivide(BUILTIN["glass_ceiling_room"](resolution=(16, 12)), 5)
+    box = np.flatnonzero(scene.material_ids == 3)
+    lifted = _moved(scene, box, (0.0, 0.0, 0.3))
+    again = _moved(lifted, box, (0.1, 0.0, 0.0))
+    colours = again.materials.diffuse_color.copy()
+    colours[3] = (0.8, 0.2, 0.1)
+    recoloured = dataclasses.replace(again, materials=dataclasses.replace(again.materials,
+                                                                          diffuse_color=colours))
+    settings = RenderSettings(passes=2, **FAST)
+    for edited in (scene, lifted, again, recoloured):
+        live.start(edited, settings)
+        seen = wait(live, lambda s: bool(s) and s[-1][1]["pass"] == 2)
+        image, reference = seen[-1][0], render(edited, settings).image
+        assert np.isfinite(image).all()
+        assert abs(image[..., :3].mean() / reference[..., :3].mean() - 1.0) < 0.01
+        assert np.mean(np.abs(image - reference) < 1e-6) > 0.9
+
+
 def test_rays_past_the_old_places_of_two_moved_objects_meet_what_lies_behind():
     """Two blocks in a row before a wall, moved aside one edit after the other: their old copies lie
     in two boxes apart (two groups of ``SplitScene``), and rays along the row, from in front of the
