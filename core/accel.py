@@ -167,13 +167,12 @@ class Accel:
     def _split(self, reuse, moved, old):
         """Whether embree's scenes of ``reuse`` (an earlier version of the same mesh in the same
         frame) can serve with the triangles ``moved`` since (sorted ids; ``old``: their v0, e1, e2
-        there) apart (:class:`SplitScene`);
-        if so sets ``_moved`` (those and the ones ``reuse`` kept apart: every triangle whose copy in
-        the kept scenes is out of date) and ``_groups``: (ids, lo, hi, patch ids) of each set of
-        them whose copies lie in a box (``lo``, ``hi`` in embree's frame, ``_margin`` wider than
-        they are) apart from the others' boxes, and of the other triangles that reach into it.
-        False where the groups would be over ``SPLIT_GROUPS`` or hold over ``SPLIT_SHARE`` of the
-        triangles (copies and patches)."""
+        there) apart (:class:`SplitScene`); if so sets ``_moved`` (those and the ones ``reuse`` kept
+        apart: every triangle whose copy in the kept scenes is out of date) and ``_groups``: (ids,
+        lo, hi, patch ids) of each set of them whose copies lie in a box (``lo``, ``hi`` in embree's
+        frame, ``_margin`` wider than they are) apart from the others' boxes, and of the other
+        triangles that reach into it.  False where the groups would be over ``SPLIT_GROUPS`` or
+        hold over ``SPLIT_SHARE`` of the triangles (copies and patches)."""
         count = self.triangle_count
         if reuse._moved is None:
             known, groups, margin = moved[:0], [], SPLIT_MARGIN * self.extent

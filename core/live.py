@@ -85,8 +85,8 @@ class LiveRender:
                 except OSError:
                     pass
         if self.proc is None or self.proc.poll() is not None:
-            # (an edit's context copies the triangle tables, hundreds of MB for millions of
-            # triangles, into fresh memory: benchmarks/viewport_first_image.py --no-huge-pages)
+            # (NumPy's huge pages on, as in the workers: benchmarks/viewport_first_image.py
+            # --no-huge-pages measures the server without them)
             self.proc = start_process("live.serve", huge_pages=self.huge_pages)
         fields = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
         fields["workers"] = 1
