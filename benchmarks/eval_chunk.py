@@ -37,6 +37,8 @@ PROGRAMS = {
                            "roughness": 0.5, "lacunarity": 2.0, "output": "Fac"},
     "voronoi_color": {"op": "voronoi", "vector": GENERATED, "scale": 5.0, "output": "Color"},
     "checker": {"op": "checker", "vector": GENERATED, "color1": [0.8] * 3, "color2": [0.2] * 3, "scale": 5.0},
+    "gabor_3d": {"op": "gabor", "vector": GENERATED, "gabor_type": "3D", "scale": 5.0, "frequency": 2.0,
+                 "anisotropy": 1.0, "output": "Value"},
 }
 
 
