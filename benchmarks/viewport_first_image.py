@@ -18,8 +18,8 @@ the first one's (medians).
         [--sizes 320x180 640x360] [--images 3] [--first-pass-photons 0 10000] [--rounds 3]
         [--subdivide K] [--lift-material M] [--no-huge-pages]
 
-``--no-huge-pages`` runs the server without NumPy's advice for huge pages (``NUMPY_MADVISE_HUGEPAGE=0``,
-``core.live.LiveRender(huge_pages=False)``).
+``--no-huge-pages`` runs the server without NumPy's advice for huge pages (``NUMPY_MADVISE_HUGEPAGE=0``
+in the environment the server inherits).
 """
 from __future__ import annotations
 
@@ -79,10 +79,10 @@ def edits(scene, lift=None):
     return out
 
 
-def job_times(scene, settings, images, lift=None, huge_pages=True):
+def job_times(scene, settings, images, lift=None):
     """Times of the first ``images`` images from a fresh server, then of the first image of each of
     ``edits``."""
-    live = LiveRender(huge_pages=huge_pages)
+    live = LiveRender()
     try:
         t0 = time.monotonic()
         live.start(scene, settings)
@@ -108,8 +108,10 @@ def main():
     ap.add_argument("--lift-material", type=int, default=None,
                     help="also time an object lifted, twice: this material's triangles")
     ap.add_argument("--no-huge-pages", action="store_true",
-                    help="the server's NumPy does not advise huge pages (LiveRender(huge_pages=False))")
+                    help="the server's NumPy does not advise huge pages (NUMPY_MADVISE_HUGEPAGE=0)")
     a = ap.parse_args()
+    if a.no_huge_pages:
+        os.environ["NUMPY_MADVISE_HUGEPAGE"] = "0"      # (read by the server's NumPy at its import)
     counts = a.first_pass_photons
     for name in a.scenes:
         for size in a.sizes:
@@ -119,8 +121,7 @@ def main():
             for _ in range(a.rounds):
                 for n in counts:
                     settings = RenderSettings(passes=10_000, workers=1, first_pass_photons=n)
-                    times[n].append(job_times(scene, settings, a.images, a.lift_material,
-                                              not a.no_huge_pages))
+                    times[n].append(job_times(scene, settings, a.images, a.lift_material))
             base = np.median(times[counts[0]], axis=0)
             edited = 4 if a.lift_material is None else 6
             for n in counts:

@@ -49,11 +49,9 @@ def job_file(folder, kind, job):
 
 
 class LiveRender:
-    """The client: ``start`` a job, read its ``latest`` image, ``close``.  ``huge_pages``: whether
-    the server's NumPy advises huge pages (``core.parallel.start_process``)."""
+    """The client: ``start`` a job, read its ``latest`` image, ``close``."""
 
-    def __init__(self, huge_pages=True):
-        self.huge_pages = huge_pages
+    def __init__(self):
         shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
         self.folder = tempfile.mkdtemp(prefix="amcmcppm-live-", dir=shm)
         self.proc = None
@@ -85,9 +83,7 @@ class LiveRender:
                 except OSError:
                     pass
         if self.proc is None or self.proc.poll() is not None:
-            # (NumPy's huge pages on, as in the workers: benchmarks/viewport_first_image.py
-            # --no-huge-pages measures the server without them)
-            self.proc = start_process("live.serve", huge_pages=self.huge_pages)
+            self.proc = start_process("live.serve")
         fields = {f: getattr(settings, f) for f in settings.__dataclass_fields__}
         fields["workers"] = 1
         # (the camera's fields, not the object: Blender's add-on and the server name its class's

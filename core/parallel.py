@@ -203,16 +203,13 @@ def make_pool(scene, settings, ctx=None):
     return ProcessPool(scene, settings, n)
 
 
-def start_process(entry, huge_pages=True):
+def start_process(entry):
     """A process of this Python (Blender's inside Blender) running ``entry``, "module.function" of
     the core, with pipes on its stdin and stdout and one thread for NumPy's libraries (the
-    processes are the parallelism).  ``huge_pages`` False: NumPy does not advise Linux to back its
-    large arrays with huge pages (``NUMPY_MADVISE_HUGEPAGE=0``)."""
+    processes are the parallelism)."""
     env = dict(os.environ)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         env[var] = "1"
-    if not huge_pages:
-        env["NUMPY_MADVISE_HUGEPAGE"] = "0"
     env["AMCMCPPM_SYS_PATH"] = json.dumps([p for p in sys.path if p])
     core_dir = os.path.dirname(os.path.abspath(__file__))
     return subprocess.Popen([_python_executable(), "-c", _BOOTSTRAP, core_dir, entry],
