@@ -353,9 +353,8 @@ class LocalScene:
         d = np.asarray(directions, np.float64)
         rank = np.searchsorted(self.objects, np.asarray(objects, np.int64))
         lo, hi = self.lo.take(rank, axis=0), self.hi.take(rank, axis=0)
-        # The part of each ray inside its object's box (slabs; a zero component: a tiny one).
-        tiny = np.where(d < 0.0, -1e-300, 1e-300)
-        inv = 1.0 / np.where(np.abs(d) < 1e-300, tiny, d)
+        # The part of each ray inside its object's box (slabs).
+        inv = _slab_inverse(d)
         a, b = (lo - origins) * inv, (hi - origins) * inv
         near, far = np.minimum(a, b), np.maximum(a, b)
         start = np.maximum(np.maximum(np.maximum(near[:, 0], near[:, 1]), near[:, 2]), 0.0)
@@ -447,8 +446,7 @@ class SplitScene:
                 break
             g = group.take(pending)
             dp = d.take(pending, axis=0)
-            tiny = np.where(dp < 0.0, -1e-300, 1e-300)
-            inv = 1.0 / np.where(np.abs(dp) < 1e-300, tiny, dp)
+            inv = _slab_inverse(dp)
             op = o.take(pending, axis=0)
             far = np.maximum((self.lo.take(g, axis=0) - op) * inv, (self.hi.take(g, axis=0) - op) * inv)
             leave = np.minimum(np.minimum(far[:, 0], far[:, 1]), far[:, 2])
@@ -469,7 +467,8 @@ class SplitScene:
             more = (found >= 0) & (again >= 0)
             pending = pending[more]
             start[pending], group[pending] = s[more], again[more]
-            prim[rows.take(pending)], tfar[rows.take(pending)] = -1, tmax.take(rows.take(pending))
+            at = rows.take(pending)
+            prim[at], tfar[at] = -1, tmax.take(at)
         # (a ray still on a copy after a round a group: none, a safeguard; left as missing it)
         # (the moved triangles' hits only nearer than the others')
         _nearest(self.moving, self.moving_ids, origins, directions, tfar, None, 0.0, out)
@@ -491,6 +490,12 @@ def _nearest(scene, ids, origins, directions, limit, rows, start, out):
     prim[at] = found if ids is None else ids.take(found)
     tfar[at] = r["tfar"].take(hit) + (start if np.ndim(start) == 0 else start.take(hit))
     u[at], v[at] = r["u"].take(hit), r["v"].take(hit)
+
+
+def _slab_inverse(d):
+    """1 / ``d`` (n, 3) for slab tests, a zero component taken as a tiny one of its sign."""
+    tiny = np.where(d < 0.0, -1e-300, 1e-300)
+    return 1.0 / np.where(np.abs(d) < 1e-300, tiny, d)
 
 
 def _base(scene):
