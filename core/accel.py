@@ -36,6 +36,12 @@ SPLIT_MARGIN = 1e-4
 # At most this many groups of moved triangles in boxes apart (objects dragged one after another)
 # before a whole build.
 SPLIT_GROUPS = 8
+# A group of moved triangles keeps its embree scene where an affine map takes them from where it has
+# them to where they are now (Mover.follow): fitted on this many of their corners, of a condition
+# number at most this, and every corner within a quarter of the spawn offset there.
+MOVER_SAMPLE = 4096
+MOVER_CONDITION = 1e4
+MOVER_TOLERANCE = 0.25
 # An edited scene whose box's centre moved by at most this share of its extent (a light dragged
 # above a floor, an object past the others) keeps the earlier version's centre for embree's frame,
 # and so its embree scenes: the coordinates embree sees grow by at most as much (under a bit of
@@ -143,7 +149,8 @@ class Accel:
                 self._moved, self._groups, self._margin = reuse._moved, reuse._groups, reuse._margin
             elif split:
                 self._embree = SplitScene.build(mesh, _base(reuse._embree), None, self._groups, self._margin,
-                                                self.triangle_count, _split_scene(reuse._embree))
+                                                self.triangle_count, self._corners_now, _split_scene(reuse._embree),
+                                                moved)
             else:
                 self._embree = mesh()
             mats = scene.materials
@@ -160,7 +167,7 @@ class Accel:
                     # (its earlier version that of the whole scene's base)
                     self._contact = SplitScene.build(mesh, _base(reuse._contact), self.contact_ids,
                                                      self._groups, self._margin, self.triangle_count,
-                                                     _split_scene(reuse._contact))
+                                                     self._corners_now, _split_scene(reuse._contact), moved)
                 else:
                     self._contact = mesh(self.contact_ids)
 
@@ -206,6 +213,20 @@ class Accel:
             return False
         self._moved, self._groups, self._margin = stale, groups, margin
         return True
+
+    def _corners_now(self, ids):
+        """The corners (k, 3, 3) float64 of triangles ``ids`` in embree's frame, and how far (k, 3)
+        a scene of them may have each (a quarter of the spawn offset there: ``Mover``)."""
+        corners = np.empty((len(ids), 3, 3))
+        corners[:, 0] = self.v0.take(ids, axis=0) - self.center
+        corners[:, 1] = corners[:, 0] + self.e1.take(ids, axis=0)
+        corners[:, 2] = corners[:, 0] + self.e2.take(ids, axis=0)
+        rel = np.abs(corners)
+        # (_offsets, column by column)
+        tolerance = np.maximum(np.maximum(rel[..., 0], rel[..., 1]), rel[..., 2])
+        tolerance *= MOVER_TOLERANCE * _OFFSET_ULPS
+        tolerance += MOVER_TOLERANCE * self.offset_floor
+        return corners, tolerance
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -392,26 +413,38 @@ class SplitScene:
     was, not of the rest.  ``run`` gives the hit's index within the set, as an embree scene of the
     whole set would."""
 
-    def __init__(self, base, group_of, lo, hi, margin, patches, patch_ids, moving, moving_ids):
+    def __init__(self, base, group_of, lo, hi, margin, patches, patch_ids, movers):
         self.base, self.group_of = base, group_of       # (k,) int32 over the set: a group, or -1
         self.lo, self.hi, self.margin = lo, hi, margin  # (g, 3) boxes in embree's frame, their margin
         self.patches, self.patch_ids = patches, patch_ids
-        self.moving, self.moving_ids = moving, moving_ids
+        self.movers = movers                            # (g,) Mover: each group's triangles now
 
     @classmethod
-    def build(cls, mesh, base, members, groups, margin, count, keep=None):
+    def build(cls, mesh, base, members, groups, margin, count, now, keep=None, moved=None):
         """``base``: embree's scene of the triangles ``members`` (sorted ids, or None: all ``count``
         of them) where an earlier version had them; ``groups``: ``Accel._groups`` (those whose
         copies there are out of date, their boxes with their ``margin``, the triangles that reach
         into them).  ``mesh(ids)``: an embree scene of the scene's triangles ``ids`` (None where
-        there are none); ``keep``: None, or a SplitScene of the same base and members whose patches
-        of the same triangles are kept."""
+        there are none); ``now(ids)``: their corners (k, 3, 3) float64 in embree's frame and how far
+        (k, 3) each may be from where a scene of them has it (``Mover.follow``); ``keep``: None, or a
+        SplitScene of the same base and members whose patches of the same triangles are kept, and
+        its scenes of a group's triangles where none of them is among ``moved`` (sorted ids: those
+        the edit since moved) or they moved by one affine map (an object dragged)."""
         local = (lambda ids: ids) if members is None else (lambda ids: np.flatnonzero(np.isin(members, ids)))
         at = (lambda ids: ids) if members is None else members.take
         group_of = np.full(count if members is None else len(members), -1, np.int32)
-        patches, patch_ids = [], []
+        patches, patch_ids, movers = [], [], []
         for g, (ids, _, _, patch) in enumerate(groups):
-            group_of[local(ids)] = g
+            still = moved is not None and not _meet(ids, moved)
+            ids = local(ids)
+            group_of[ids] = g
+            known = [] if keep is None else [m for m in keep.movers if np.array_equal(m.ids, ids)]
+            if known and still:
+                movers.append(known[0])
+            else:
+                corners, tolerance = now(at(ids))
+                mover = known[0].follow(corners, tolerance) if known else None
+                movers.append(mover or Mover(mesh(at(ids)), ids, corners))
             ids = local(patch)
             kept = [] if keep is None else [scene for scene, known in zip(keep.patches, keep.patch_ids)
                                             if np.array_equal(known, ids)]
@@ -419,8 +452,7 @@ class SplitScene:
             patch_ids.append(ids)
         lo = np.array([group[1] for group in groups])
         hi = np.array([group[2] for group in groups])
-        moving_ids = np.flatnonzero(group_of >= 0)
-        return cls(base, group_of, lo, hi, margin, patches, patch_ids, mesh(at(moving_ids)), moving_ids)
+        return cls(base, group_of, lo, hi, margin, patches, patch_ids, movers)
 
     def run(self, origins, directions, dists=None, output=1):
         """The closest hits (embree's ``run`` with ``output=1``: primID, tfar, u, v)."""
@@ -471,8 +503,54 @@ class SplitScene:
             prim[at], tfar[at] = -1, tmax.take(at)
         # (a ray still on a copy after a round a group: none, a safeguard; left as missing it)
         # (the moved triangles' hits only nearer than the others')
-        _nearest(self.moving, self.moving_ids, origins, directions, tfar, None, 0.0, out)
+        for mover in self.movers:
+            if mover.back is None:
+                _nearest(mover.scene, mover.ids, origins, directions, tfar, None, 0.0, out)
+            else:
+                # (the rays where the scene has the triangles: the same distances, the same corners)
+                rt, shift = mover.back
+                _nearest(mover.scene, mover.ids, origins.astype(np.float64) @ rt + shift,
+                         directions.astype(np.float64) @ rt, tfar, None, 0.0, out)
         return {"primID": prim, "tfar": tfar, "u": u, "v": v}
+
+
+class Mover:
+    """An embree scene (``scene``, or None) of a group of a :class:`SplitScene`'s triangles (``ids``
+    within its set), built where they were (``corners`` (k, 3, 3) float64, embree's frame), and the
+    affine map ``back`` from where they are now to there (None: they are where it has them): a ray
+    mapped so meets them at the same distance (an affine map keeps a ray's parameter along its
+    direction) and barycentrics.  An object dragged (moved, turned or scaled: an affine map of
+    its triangles) keeps its scene from step to step instead of building it again."""
+
+    def __init__(self, scene, ids, corners, back=None):
+        self.scene, self.ids, self.corners, self.back = scene, ids, corners, back
+
+    def follow(self, corners, tolerance):
+        """This mover for its triangles now at ``corners`` (k, 3, 3; embree's frame), or None where
+        no affine map (invertible, well conditioned) takes its scene's corners to within
+        ``tolerance`` (k, 3) of them: the triangles moved otherwise (a vertex dragged)."""
+        if self.scene is None or corners.shape != self.corners.shape:
+            return None
+        if np.array_equal(corners, self.corners):
+            return Mover(self.scene, self.ids, self.corners)
+        built, now = self.corners.reshape(-1, 3), corners.reshape(-1, 3)
+        # Least squares on a sample of the corners (now - built = (built - m) D + c, the mean m
+        # apart: a pure translation gives D = 0 exactly, also for a flat object), then every corner.
+        sample = np.linspace(0, len(built) - 1, min(len(built), MOVER_SAMPLE)).astype(np.int64)
+        xs, zs = built.take(sample, axis=0), now.take(sample, axis=0) - built.take(sample, axis=0)
+        m, c = xs.mean(axis=0), zs.mean(axis=0)
+        d = np.linalg.lstsq(xs - m, zs - c, rcond=None)[0]                  # (3, 3), on row vectors
+        a, b = np.eye(3) + d, c - m @ d                                     # now = built @ a + b
+        if not np.isfinite(a).all() or np.linalg.cond(a) > MOVER_CONDITION:
+            return None
+        off = built @ a             # (in place: arrays of millions of corners)
+        off += b
+        off -= now
+        np.abs(off, out=off)
+        if not (np.maximum(np.maximum(off[:, 0], off[:, 1]), off[:, 2]) <= tolerance.reshape(-1)).all():
+            return None
+        rt = np.linalg.inv(a)
+        return Mover(self.scene, self.ids, self.corners, (rt, -b @ rt))
 
 
 def _nearest(scene, ids, origins, directions, limit, rows, start, out):
@@ -490,6 +568,12 @@ def _nearest(scene, ids, origins, directions, limit, rows, start, out):
     prim[at] = found if ids is None else ids.take(found)
     tfar[at] = r["tfar"].take(hit) + (start if np.ndim(start) == 0 else start.take(hit))
     u[at], v[at] = r["u"].take(hit), r["v"].take(hit)
+
+
+def _meet(a, b):
+    """Whether sorted id arrays ``a`` and ``b`` share an id."""
+    at = np.searchsorted(b, a)
+    return bool(np.any(b.take(np.minimum(at, len(b) - 1)) == a)) if len(b) else False
 
 
 def _slab_inverse(d):
