@@ -784,7 +784,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
     aim_sums = np.zeros(3)
     outside_sums = np.zeros(3)
 
-    def make_target(i, eye):
+    def make_target(i, eye, stop=None):
+        """Pass ``i``'s deposit target of ``eye``'s points, or None where ``stop`` (polled before
+        the edge coverage and the light samples) asks to stop first."""
         nonlocal scales, cells, focus
         if len(scales) < i + 1:
             scales = kz_radius_scales(2 * (i + 1), settings.alpha)
@@ -805,6 +807,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
             # (portals in the windows, where the scene has them, else a sphere around the points)
             focus = (Focus.through(scene.world, ctx.lights)
                      or Focus.around(np.concatenate(around), np.concatenate(reach), ctx.lights))
+        if stop is not None and stop():
+            return None
         coverage = inner_coverage = None
         if settings.edge_coverage and pts.count:
             rng = np.random.default_rng([settings.seed, STREAM_COVERAGE, i])
@@ -822,6 +826,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
                                direct_points=None if direct is None else sampled_points(ctx.table, pts),
                                focus=focus)
         if direct is not None:
+            if stop is not None and stop():
+                return None
             # The points' light samples join the emission the camera sees (averaged over passes).
             rng = np.random.default_rng([settings.seed, STREAM_DIRECT, i])
             t_direct = time.perf_counter()
@@ -843,6 +849,13 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
             target.light_samples = sampling * settings.direct_samples
             target.light_sample_s = time.perf_counter() - t_direct
         return target
+
+    def prepare(i):
+        """Pass ``i``'s eye pass and deposit target, or None where a stop request comes first (polled
+        between their steps: the 3D viewport's next job waits for this one to stop)."""
+        eye = eye_pass(i)
+        target = None if stop() else make_target(i, eye, stop)
+        return None if target is None else (eye, target)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
     # first eye pass.
@@ -885,10 +898,13 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
             cut_expected = needed is not None and needed > budget
             next_target = None
             prep_s = 0.0
+            stopped = False             # (a stop request while the next pass was prepared)
             if not last and pass_index > 0 and not cut_expected:
                 t_next = time.perf_counter()
-                next_eye = eye_pass(pass_index + 1)
-                next_target = make_target(pass_index + 1, next_eye)
+                prepared = prepare(pass_index + 1)
+                stopped = prepared is None
+                if prepared is not None:
+                    next_eye, next_target = prepared
                 prep_s = time.perf_counter() - t_next
             outputs = pool.collect(stop)
             if outputs is None:         # stopped before any worker returned photons
@@ -922,7 +938,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
                               and focus.portal_count and c["uniform_samples"] else None)
             # A stop request or the time limit mid-pass returns the photons traced so far.
             cut = any(o["interrupted"] for o in outputs)
-            interrupted = stop()
+            interrupted = stopped or stop()
             if not cut and merged["photon_s"] > 0:
                 last_rate = photons / merged["photon_s"]
             # (the chains' normaliser: sum(w V) / n_U, their recordings weighted by their runs' W,
@@ -978,8 +994,11 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
                 if catcher is not None:
                     catcher.reset(pair=False)
             if next_target is None:
-                next_eye = eye_pass(pass_index)
-                next_target = make_target(pass_index, next_eye)
+                prepared = prepare(pass_index)
+                if prepared is None:
+                    result.interrupted = True
+                    break
+                next_eye, next_target = prepared
             eye, target = next_eye, next_target
     finally:
         pool.close()

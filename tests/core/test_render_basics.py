@@ -230,6 +230,40 @@ def test_should_stop_with_worker_processes_returns_the_partial_pass_promptly():
     assert np.isfinite(result.image).all()
 
 
+@pytest.mark.parametrize("during", ["after_a_pass", "beside_the_photons"])
+def test_a_stop_while_the_next_pass_is_prepared_skips_the_rest_of_it(monkeypatch, during):
+    """A stop request that comes while the next pass's eye pass is traced (the 3D viewport's next job
+    waits for it) is answered before that pass's edge coverage and grid are made: after the first
+    pass (prepared after its image) and beside a later pass's photons (whose photons so far are
+    kept).  The real eye pass and edge coverage run, counted."""
+    import core.integrator as integrator
+    eye_passes, coverages, stop = [], [], []
+    trace, cover = integrator.trace_eye_pass, integrator.point_coverage
+
+    def counted_eye_pass(*args, **kwargs):
+        out = trace(*args, **kwargs)
+        eye_passes.append(1)
+        if during == "beside_the_photons" and len(eye_passes) == 3:
+            stop.append(1)                  # (while pass 3 is prepared beside pass 2's photons)
+        return out
+
+    def counted_coverage(*args, **kwargs):
+        coverages.append(1)
+        return cover(*args, **kwargs)
+
+    monkeypatch.setattr(integrator, "trace_eye_pass", counted_eye_pass)
+    monkeypatch.setattr(integrator, "point_coverage", counted_coverage)
+    first = (lambda result: stop.append(1)) if during == "after_a_pass" else None
+    result = render(cornell_box((32, 32)), RenderSettings(method="ppm", passes=10, photons_per_pass=20_000,
+                                                         workers=1), on_iteration=first,
+                    should_stop=lambda: bool(stop))
+    assert result.interrupted and np.isfinite(result.image).all() and result.image[..., :3].mean() > 0
+    if during == "after_a_pass":
+        assert result.passes == 1 and len(eye_passes) == 2 and len(coverages) == 1
+    else:
+        assert result.passes == 2 and len(eye_passes) == 3 and len(coverages) == 2
+
+
 def test_time_limit_stops_the_render():
     result = render(cornell_box((16, 16)), RenderSettings(method="ppm", passes=0, time_limit=1.5,
                                                          photons_per_pass=20_000, workers=1))
