@@ -509,8 +509,9 @@ class SplitScene:
             else:
                 # (the rays where the scene has the triangles: the same distances, the same corners)
                 rt, shift = mover.back
-                _nearest(mover.scene, mover.ids, origins.astype(np.float64) @ rt + shift,
-                         directions.astype(np.float64) @ rt, tfar, None, 0.0, out)
+                o = origins @ rt            # (float32: a few ulps, within the spawn offsets' 64)
+                o += shift
+                _nearest(mover.scene, mover.ids, o, directions @ rt, tfar, None, 0.0, out)
         return {"primID": prim, "tfar": tfar, "u": u, "v": v}
 
 
@@ -550,7 +551,7 @@ class Mover:
         if not (np.maximum(np.maximum(off[:, 0], off[:, 1]), off[:, 2]) <= tolerance.reshape(-1)).all():
             return None
         rt = np.linalg.inv(a)
-        return Mover(self.scene, self.ids, self.corners, (rt, -b @ rt))
+        return Mover(self.scene, self.ids, self.corners, (rt.astype(np.float32), (-b @ rt).astype(np.float32)))
 
 
 def _nearest(scene, ids, origins, directions, limit, rows, start, out):
