@@ -142,7 +142,7 @@ MAX_SEGMENT_POINTS = 16
 
 def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), limits=None,
                    alpha_threshold=1.0, ao_distance=10.0, rays=None, jitter=None,
-                   choices=None) -> EyePassResult:
+                   choices=None, should_stop=None) -> EyePassResult:
     """Trace one camera path per window pixel with fresh jitter from ``rng`` (or, for the pixel
     jitter, from ``jitter``: None, or a function of the pixel ids (n,) that returns their (n, 2)
     numbers, :func:`~core.camera.stratified_jitter`, or (n, 4) with the lens samples,
@@ -158,7 +158,9 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     Occlusion pass's (:func:`ambient_occlusion`).  In scenes with shadow catchers the paths that
     meet one first are marked and summed apart (``core/shadow_catcher.py``).  ``rays``: None, or
     :class:`~core.shadow_catcher.CatcherRays` to trace instead of the camera's (each from just
-    before its catcher hit, with its radius: :class:`~core.shadow_catcher.CatcherRender`)."""
+    before its catcher hit, with its radius: :class:`~core.shadow_catcher.CatcherRender`).
+    ``should_stop``: None, or polled between chunks of ``EYE_CHUNK`` paths: the pass returns None
+    as soon as it returns True (the 3D viewport's next job waits for it)."""
     if limits is None:
         limits = BounceLimits(max_bounces)
     x0, x1, y0, y1 = ctx.scene.camera.window
@@ -208,6 +210,8 @@ def trace_eye_pass(ctx, rng, initial_radius_px, max_bounces, data_passes=(), lim
     per_segment = int(np.clip(VOLUME_POINT_BUDGET // max(n_pix, 1), 1, MAX_SEGMENT_POINTS))
     n_paths = n_pix if rays is None else rays.count
     for start in range(0, n_paths, EYE_CHUNK):
+        if start and should_stop is not None and should_stop():
+            return None
         chunk = np.arange(start, min(start + EYE_CHUNK, n_paths))
         given = None if rays is None else _catcher_starts(ctx, rays, chunk)
         pixel_ids = chunk if rays is None else given[0]

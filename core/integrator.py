@@ -674,14 +674,19 @@ def kz_radius_scales(n, alpha):
     return np.sqrt(np.concatenate([[1.0], np.cumprod((i + alpha) / (i + 1.0))]))
 
 
-def render(scene, settings=None, on_iteration=None, should_stop=None, context=None) -> RenderResult:
+def render(scene, settings=None, on_iteration=None, should_stop=None, context=None,
+           stop_first_pass=False) -> RenderResult:
     """Render ``scene`` progressively.
 
     on_iteration : called after every pass with the :class:`RenderResult` so far.
-    should_stop : polled between passes and photon batches; when it returns True
-        the render ends promptly with the passes finished so far.
+    should_stop : polled between passes and photon batches (and between the steps of preparing
+        a pass); when it returns True the render ends promptly with the passes finished so far,
+        at least the first (with the photons it traced by then).
     context : a :class:`RenderContext` of ``scene`` to use rather than build one (e.g. an earlier
         render's ``with_camera``: the 3D viewport's moved views, ``core/live.py``).
+    stop_first_pass : ``should_stop`` may also end the render before its first pass's photons,
+        which then returns a black image and no pass (the 3D viewport's server, which has shown a
+        preview of the job: ``core/live.py``).
     """
     settings = settings or RenderSettings()
     scene = scene.validate()
@@ -764,13 +769,15 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
         u = stratified_jitter(salt, i, pix)
         return u if lens_salt is None else np.concatenate([u, stratified_lens(lens_salt, i, pix)], axis=1)
 
-    def eye_pass(i):
+    def eye_pass(i, stop=None):
+        """Pass ``i``'s eye pass, or None where ``stop`` (polled between its chunks) asks first."""
         rng = np.random.default_rng([settings.seed, STREAM_EYE, i])
         stratified = settings.pixel_jitter == "stratified"
         return trace_eye_pass(ctx, rng, settings.initial_radius_px, settings.max_bounces,
                               averaged, settings.bounce_limits, settings.pass_alpha_threshold,
                               settings.ao_distance, jitter=partial(camera_numbers, i) if stratified else None,
-                              choices=partial(stratified_choices, choice_salt, i) if stratified else None)
+                              choices=partial(stratified_choices, choice_salt, i) if stratified else None,
+                              should_stop=stop)
 
     # The Markov chains' visible set also holds the cells around the measurement points of the
     # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
@@ -786,7 +793,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
 
     def make_target(i, eye, stop=None):
         """Pass ``i``'s deposit target of ``eye``'s points, or None where ``stop`` (polled before
-        the edge coverage and the light samples) asks to stop first."""
+        and after the edge coverage and before the light samples) asks to stop first."""
         nonlocal scales, cells, focus
         if len(scales) < i + 1:
             scales = kz_radius_scales(2 * (i + 1), settings.alpha)
@@ -817,6 +824,8 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
             reach = settings.initial_radius_px * scales[i] + scene.camera.filter_reach + 0.5
             coverage, inner_coverage = point_coverage(ctx, pts, radius, width, height, reach, rng,
                                                       inner=settings.bias_correction)
+            if stop is not None and stop():
+                return None
         target = DepositTarget(pts, radius, ctx.table, n_pixels, ctx.has_shading_normals, cells=cells,
                                volume=vol, volume_radius=vol_radius, media=ctx.phase,
                                inner=settings.bias_correction, coverage=coverage,
@@ -852,9 +861,10 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
 
     def prepare(i):
         """Pass ``i``'s eye pass and deposit target, or None where a stop request comes first (polled
-        between their steps: the 3D viewport's next job waits for this one to stop)."""
-        eye = eye_pass(i)
-        target = None if stop() else make_target(i, eye, stop)
+        between their steps and the eye pass's chunks: the 3D viewport's next job waits for this
+        one to stop)."""
+        eye = eye_pass(i, stop)
+        target = None if eye is None or stop() else make_target(i, eye, stop)
         return None if target is None else (eye, target)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
@@ -863,13 +873,20 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
     warned_invisible = False
     try:
         pass_index = 0
-        eye = eye_pass(0)
-        target = make_target(0, eye)
+        if stop_first_pass:
+            prepared = prepare(0)
+        else:
+            eye = eye_pass(0)
+            prepared = eye, make_target(0, eye)
+        if prepared is None:
+            result.interrupted = True
+            return result
+        eye, target = prepared
         last_rate = None                # photons per second per worker of the last whole pass
         portal_visible = None           # under light portals: the last pass's visible share
         catcher_share = 0.0             # the catchers' render's time over the main photons' (last pass)
         while pass_index < max_passes:
-            if stop() and pass_index > 0:
+            if stop() and (pass_index > 0 or stop_first_pass):
                 result.interrupted = True
                 break
             photons = settings.pass_photons(n_pixels, pass_index)

@@ -230,12 +230,14 @@ def test_should_stop_with_worker_processes_returns_the_partial_pass_promptly():
     assert np.isfinite(result.image).all()
 
 
-@pytest.mark.parametrize("during", ["after_a_pass", "beside_the_photons"])
+@pytest.mark.parametrize("during", ["after_a_pass", "beside_the_photons", "the_first_pass"])
 def test_a_stop_while_the_next_pass_is_prepared_skips_the_rest_of_it(monkeypatch, during):
     """A stop request that comes while the next pass's eye pass is traced (the 3D viewport's next job
     waits for it) is answered before that pass's edge coverage and grid are made: after the first
     pass (prepared after its image) and beside a later pass's photons (whose photons so far are
-    kept).  The real eye pass and edge coverage run, counted."""
+    kept); and with ``stop_first_pass`` (the viewport's server after a preview) also in the first
+    pass, which then leaves a black image and no pass.  The real eye pass and edge coverage run,
+    counted."""
     import core.integrator as integrator
     eye_passes, coverages, stop = [], [], []
     trace, cover = integrator.trace_eye_pass, integrator.point_coverage
@@ -245,6 +247,8 @@ def test_a_stop_while_the_next_pass_is_prepared_skips_the_rest_of_it(monkeypatch
         eye_passes.append(1)
         if during == "beside_the_photons" and len(eye_passes) == 3:
             stop.append(1)                  # (while pass 3 is prepared beside pass 2's photons)
+        if during == "the_first_pass":
+            stop.append(1)
         return out
 
     def counted_coverage(*args, **kwargs):
@@ -256,12 +260,32 @@ def test_a_stop_while_the_next_pass_is_prepared_skips_the_rest_of_it(monkeypatch
     first = (lambda result: stop.append(1)) if during == "after_a_pass" else None
     result = render(cornell_box((32, 32)), RenderSettings(method="ppm", passes=10, photons_per_pass=20_000,
                                                          workers=1), on_iteration=first,
-                    should_stop=lambda: bool(stop))
-    assert result.interrupted and np.isfinite(result.image).all() and result.image[..., :3].mean() > 0
+                    should_stop=lambda: bool(stop), stop_first_pass=during == "the_first_pass")
+    assert result.interrupted and np.isfinite(result.image).all()
+    if during == "the_first_pass":
+        assert result.passes == 0 and len(eye_passes) == 1 and not coverages and not result.image.any()
+        return
+    assert result.image[..., :3].mean() > 0
     if during == "after_a_pass":
         assert result.passes == 1 and len(eye_passes) == 2 and len(coverages) == 1
     else:
         assert result.passes == 2 and len(eye_passes) == 3 and len(coverages) == 2
+
+
+def test_an_eye_pass_asked_to_stop_ends_between_its_chunks():
+    """``trace_eye_pass(should_stop=...)`` polls between chunks of ``EYE_CHUNK`` camera paths: an
+    image of more (640 x 480, two chunks) returns None once it says stop, after the first chunk;
+    one that never says so gives the eye pass of none."""
+    from core.eye_pass import EYE_CHUNK
+    ctx = RenderContext(cornell_box((640, 480)))
+    assert EYE_CHUNK < 640 * 480 <= 2 * EYE_CHUNK
+    polls = []
+    stopped = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8, should_stop=lambda: polls.append(1) or True)
+    assert stopped is None and len(polls) == 1
+    whole = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8, should_stop=lambda: False)
+    plain = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
+    assert whole.points.count == plain.points.count > EYE_CHUNK // 2
+    assert np.array_equal(whole.points.position, plain.points.position)
 
 
 def test_time_limit_stops_the_render():
