@@ -6,7 +6,8 @@ changed, takes the camera from the view's matrices (``core.Camera.from_view``: t
 own view, or the camera's with its zoom and offset when looking through it), and runs the
 render in a process of its own (``core.live.LiveRender``: one worker, the scene's settings but
 ``viewport_passes`` passes at ``viewport_pixel_size``, the first of ``VIEWPORT_FIRST_PHOTONS``
-photons unless First Pass Photons says otherwise), so that Blender's interface never waits for it.
+photons unless First Pass Photons says otherwise; a large view first shows a coarse preview,
+``core.live.PREVIEW_PIXELS``), so that Blender's interface never waits for it.
 A moved view sends only its camera: the server renders the scene it holds through it, with the
 acceleration structure it built (``LiveRender.start``); a change of the depsgraph is exported again
 and starts the render over only if the export differs (a selection does not), and the server keeps
@@ -117,6 +118,8 @@ class ViewportRender:
             return f"AMCMCPPM: {self.message}"
         if self.stats is None:
             return "Rendering the first pass"
+        if self.stats.get("preview"):
+            return f"Preview, rendering the first pass, {self.stats['elapsed_s']:.1f} s"
         passes = self.stats["pass"]
         done = "" if self.running else ", done"
         return f"Pass {passes} / {self.passes}, {self.stats['elapsed_s']:.1f} s{done}"

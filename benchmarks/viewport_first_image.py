@@ -19,7 +19,9 @@ the first one's (medians).
         [--subdivide K] [--lift-material M] [--no-huge-pages]
 
 ``--no-huge-pages`` runs the server without NumPy's advice for huge pages (``NUMPY_MADVISE_HUGEPAGE=0``
-in the environment the server inherits).
+in the environment the server inherits).  An image of over ``core.live.PREVIEW_PIXELS`` pixels
+first gets a coarse preview: the times above are of the job's passes, the previews' are printed
+apart.
 """
 from __future__ import annotations
 
@@ -41,15 +43,19 @@ from core.testing.scenes import BUILTIN, subdivide  # noqa: E402
 
 
 def image_times(live, count, t0, timeout=600.0):
-    """Seconds after ``t0`` at which the current job's first ``count`` images could be read."""
-    times = []
+    """Seconds after ``t0`` at which the current job's first ``count`` images (of its passes) could
+    be read, and at which its preview could (``core.live.PREVIEW_PIXELS``; None: none seen)."""
+    times, preview = [], None
     while len(times) < count:
-        if live.latest() is not None:
+        got = live.latest()
+        if got is not None and got[1].get("preview"):
+            preview = time.monotonic() - t0
+        elif got is not None:
             times.append(time.monotonic() - t0)
         if time.monotonic() - t0 > timeout:
             raise RuntimeError(f"no {count} images within {timeout} s")
         time.sleep(0.005)
-    return times
+    return times, preview
 
 
 def edits(scene, lift=None):
@@ -81,19 +87,23 @@ def edits(scene, lift=None):
 
 def job_times(scene, settings, images, lift=None):
     """Times of the first ``images`` images from a fresh server, then of the first image of each of
-    ``edits``."""
+    ``edits``; and the times of their previews (NaN: none)."""
     live = LiveRender()
+    previews = []
     try:
         t0 = time.monotonic()
         live.start(scene, settings)
-        times = image_times(live, images, t0)
+        times, preview = image_times(live, images, t0)
+        previews.append(preview)
         for edited in edits(scene, lift):
             t1 = time.monotonic()
             live.start(edited, settings)
-            times += image_times(live, 1, t1)
+            got, preview = image_times(live, 1, t1)
+            times += got
+            previews.append(preview)
     finally:
         live.close()
-    return times
+    return times, [np.nan if p is None else p for p in previews]
 
 
 def main():
@@ -118,10 +128,13 @@ def main():
             resolution = tuple(int(v) for v in size.split("x"))
             scene = subdivide(BUILTIN[name](resolution=resolution), a.subdivide)
             times = {n: [] for n in counts}
+            previews = {n: [] for n in counts}
             for _ in range(a.rounds):
                 for n in counts:
                     settings = RenderSettings(passes=10_000, workers=1, first_pass_photons=n)
-                    times[n].append(job_times(scene, settings, a.images, a.lift_material))
+                    got, preview = job_times(scene, settings, a.images, a.lift_material)
+                    times[n].append(got)
+                    previews[n].append(preview)
             base = np.median(times[counts[0]], axis=0)
             edited = 4 if a.lift_material is None else 6
             for n in counts:
@@ -135,6 +148,10 @@ def main():
                       f"vertex {e[2]:.2f} s, moved again {e[3]:.2f} s{lifted} (median of {a.rounds}; "
                       f"/ first count: "
                       f"{', '.join(f'{v:.2f}' for v in t / base)})", flush=True)
+                p = np.median(previews[n], axis=0)
+                if np.isfinite(p).any():
+                    print(f"  previews (PREVIEW_PIXELS) at {', '.join(f'{v:.2f}' for v in p)} s: the fresh "
+                          "server's, then each edit's in the order above", flush=True)
 
 
 if __name__ == "__main__":

@@ -12,8 +12,9 @@ material's or a light's, unless the light moves the scene's bounds far: ``Accel`
 an edit that moved a few of them (an object dragged) keeps it too, with embree's scenes of those
 and of what lies about their old places built apart (``core.accel.SplitScene``).  The
 server renders the newest job with :func:`core.render` in that process (one worker, no pool to
-start), writes the image after every pass into the job's folder (a file replaced atomically),
-and leaves a job as soon as a newer one supersedes it (a stop file, polled between photon
+start), writes the image after every pass into the job's folder (a file replaced atomically;
+a large image's job first a coarse preview, ``PREVIEW_PIXELS``), and leaves a job as soon as a
+newer one supersedes it (a stop file, polled between photon
 batches, as the photon workers poll theirs) or the process that sent it is gone.  Nothing here
 runs in the caller's process but file reads: the viewport's Python thread never holds a
 render, and the GIL is not shared with one.
@@ -37,6 +38,11 @@ from .parallel import _send, start_process
 
 # Seconds the server gets to leave after it is told to stop, before it is killed.
 STOP_GRACE_S = 2.0
+# A job whose image has more pixels than this first renders a preview, published as pass 0: one
+# pass of uniform photons with the image's sides halved until it has at most this many (a first
+# pass of 1280 x 720 costs 2 s on the Cornell box, one of 320 x 180 a fifth of that), so that a
+# large viewport shows something soon, as Cycles' viewport starts coarse (Start Pixels).
+PREVIEW_PIXELS = 256 * 256
 # The files of a job in the folder (job_file): its scene, newest image and statistics, its error,
 # and the flags that it is done or superseded.
 JOB_FILES = {"scene": ".npz", "image": ".npy", "stats": ".json", "error": ".txt", "done": ".flag",
@@ -93,7 +99,8 @@ class LiveRender:
 
     def latest(self):
         """(image (h, w, 4) float32 linear RGBA, top row first; the job's statistics: ``pass``,
-        ``elapsed_s``, ``photons`` per worker of each pass) of the
+        ``elapsed_s``, ``photons`` per worker of each pass, ``preview``: the coarse preview, pass 0,
+        of a large image, ``PREVIEW_PIXELS``) of the
         current job's newest pass, or None when there is none newer than the last returned.
         Raises RuntimeError with the server's traceback if the job failed."""
         failed = job_file(self.folder, "error", self.job)
@@ -105,8 +112,12 @@ class LiveRender:
                 stats = json.load(f)
             if self._shown == (self.job, stats["pass"]):
                 return None
-            # (written before its statistics: the image of their pass or of a later one)
+            # (written before its statistics: the image of their pass or of a later one, whose
+            # statistics are then read again: a preview's are not a pass's)
             image = np.load(job_file(self.folder, "image", self.job))
+            with open(job_file(self.folder, "stats", self.job)) as f:
+                if json.load(f)["pass"] != stats["pass"]:
+                    return None
         except (OSError, ValueError, KeyError):
             return None                 # nothing yet, or a file being replaced just now
         self._shown = (self.job, stats["pass"])
@@ -174,11 +185,11 @@ def serve():
         def should_stop(stop_path=stop_path):
             return os.path.exists(stop_path) or os.getppid() != parent
 
-        def publish(result, job=job, folder=folder):
+        def publish(result, job=job, folder=folder, preview=False):
             image = np.ascontiguousarray(result.image, np.float32)
             _replace(job_file(folder, "image", job), lambda f: np.save(f, image))
-            stats = {"pass": len(result.stats), "elapsed_s": result.stats[-1]["elapsed_s"],
-                     "photons": [int(s["photons_per_pass"]) for s in result.stats]}
+            stats = {"pass": 0 if preview else len(result.stats), "elapsed_s": result.stats[-1]["elapsed_s"],
+                     "photons": [int(s["photons_per_pass"]) for s in result.stats], "preview": preview}
             _replace(job_file(folder, "stats", job), lambda f: f.write(json.dumps(stats).encode()))
         try:
             settings = RenderSettings(**fields)
@@ -195,7 +206,16 @@ def serve():
                 stale = False
             else:
                 ctx = ctx.with_camera(camera)
-            render(ctx.source, settings, on_iteration=publish, should_stop=should_stop, context=ctx)
+            small = preview_camera(camera)
+            if small is not None:
+                look = ctx.with_camera(small)
+                render(look.source, dataclasses.replace(settings, passes=1, method="ppm"),
+                       on_iteration=lambda result: publish(result, preview=True), should_stop=should_stop,
+                       context=look)
+            if not should_stop():
+                # (after a preview, a newer job may end this one before its first pass)
+                render(ctx.source, settings, on_iteration=publish, should_stop=should_stop, context=ctx,
+                       stop_first_pass=small is not None)
             open(job_file(folder, "done", job), "w").close()
         except Exception:
             ctx, stale = None, True             # (a context left half changed is not reused)
@@ -203,6 +223,17 @@ def serve():
             _replace(job_file(folder, "error", job), lambda f: f.write(text))
         if os.getppid() != parent:
             return
+
+
+def preview_camera(camera):
+    """``camera`` at the size of a job's preview (``PREVIEW_PIXELS``), or None where its image is
+    small enough to need none."""
+    w, h = camera.resolution
+    x0, x1, y0, y1 = camera.border
+    k = 1
+    while (w // k) * (h // k) * (x1 - x0) * (y1 - y0) > PREVIEW_PIXELS:
+        k *= 2
+    return None if k == 1 else dataclasses.replace(camera, resolution=(max(1, w // k), max(1, h // k)))
 
 
 def _same_but_camera(scene, other):

@@ -11,7 +11,7 @@ from core import RenderSettings, render
 from core.accel import SPLIT_MIN_TRIANGLES, SplitScene
 from core.camera import generate_camera_rays
 from core.context import RenderContext
-from core.live import LiveRender
+from core.live import LiveRender, preview_camera
 from core.scene import Camera, Materials
 from core.testing.scenes import BUILTIN, MeshBuilder, subdivide
 
@@ -56,6 +56,27 @@ def test_a_live_render_publishes_every_pass_of_the_image_a_render_makes(live):
         assert time.monotonic() < deadline
         time.sleep(0.02)
     assert live.latest() is None                    # the last pass was returned already
+
+
+def test_a_large_image_shows_a_coarse_preview_first(live):
+    """A job whose image has over ``PREVIEW_PIXELS`` pixels publishes a preview first (pass 0): one
+    pass of uniform photons with the image's sides halved until it is small enough (320 x 240:
+    once), the very image of such a render; then its own passes, the last a render's bit for bit.
+    A smaller image gets none."""
+    scene = BUILTIN["cornell_box"](resolution=(320, 240))
+    settings = RenderSettings(passes=2, **dict(FAST, method="amcmcppm", chains=256))
+    small = preview_camera(scene.camera)
+    assert small.resolution == (160, 120) and preview_camera(small) is None
+    live.start(scene, settings)
+    seen = wait(live, lambda s: bool(s) and s[-1][1]["pass"] == 2)
+    previews = [(image, stats) for image, stats in seen if stats["preview"]]
+    assert len(previews) == 1 and previews[0][1]["pass"] == 0 and seen[0][1]["preview"]
+    reference = render(dataclasses.replace(scene, camera=small),
+                       dataclasses.replace(settings, passes=1, method="ppm")).image
+    assert previews[0][0].shape == (120, 160, 4) and np.array_equal(previews[0][0], reference)
+    assert [stats["pass"] for _, stats in seen[1:]] == sorted({stats["pass"] for _, stats in seen[1:]})
+    assert seen[-1][0].shape == (240, 320, 4)
+    assert np.array_equal(seen[-1][0], render(scene, settings).image)
 
 
 def test_a_new_job_supersedes_the_running_one(live):
