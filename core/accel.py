@@ -149,8 +149,8 @@ class Accel:
                 self._moved, self._groups, self._margin = reuse._moved, reuse._groups, reuse._margin
             elif split:
                 self._embree = SplitScene.build(mesh, _base(reuse._embree), None, self._groups, self._margin,
-                                                self.triangle_count, self._corners_now, _split_scene(reuse._embree),
-                                                moved)
+                                                self.triangle_count, self._corners_now,
+                                                _split_scene(reuse._embree), moved)
             else:
                 self._embree = mesh()
             mats = scene.materials
@@ -536,7 +536,8 @@ class Mover:
             return Mover(self.scene, self.ids, self.corners)
         built, now = self.corners.reshape(-1, 3), corners.reshape(-1, 3)
         # Least squares on a sample of the corners (now - built = (built - m) D + c, the mean m
-        # apart: a pure translation gives D = 0 exactly, also for a flat object), then every corner.
+        # apart: a translation gives D = 0 but for rounding, also for a flat object, whose corners
+        # leave D's part along its normal free, the least-norm answer 0), then every corner.
         sample = np.linspace(0, len(built) - 1, min(len(built), MOVER_SAMPLE)).astype(np.int64)
         xs, zs = built.take(sample, axis=0), now.take(sample, axis=0) - built.take(sample, axis=0)
         m, c = xs.mean(axis=0), zs.mean(axis=0)
@@ -550,8 +551,9 @@ class Mover:
         np.abs(off, out=off)
         if not (np.maximum(np.maximum(off[:, 0], off[:, 1]), off[:, 2]) <= tolerance.reshape(-1)).all():
             return None
-        rt = np.linalg.inv(a)
-        return Mover(self.scene, self.ids, self.corners, (rt.astype(np.float32), (-b @ rt).astype(np.float32)))
+        rt = np.linalg.inv(a)           # (built = now @ rt - b @ rt)
+        back = rt.astype(np.float32), (-b @ rt).astype(np.float32)
+        return Mover(self.scene, self.ids, self.corners, back)
 
 
 def _nearest(scene, ids, origins, directions, limit, rows, start, out):

@@ -12,11 +12,11 @@ material's or a light's, unless the light moves the scene's bounds far: ``Accel`
 an edit that moved a few of them (an object dragged) keeps it too, with embree's scenes of those
 and of what lies about their old places built apart (``core.accel.SplitScene``).  The
 server renders the newest job with :func:`core.render` in that process (one worker, no pool to
-start), writes the image after every pass into the job's folder (a file replaced atomically;
-a large image's job first a coarse preview, ``PREVIEW_PIXELS``), and leaves a job as soon as a
-newer one supersedes it (a stop file, polled between photon
-batches, as the photon workers poll theirs) or the process that sent it is gone.  Nothing here
-runs in the caller's process but file reads: the viewport's Python thread never holds a
+start), writes the image after every pass into the job's folder (a file replaced atomically; a
+large image's job first a coarse preview, ``PREVIEW_PIXELS``), and leaves a job as soon as a
+newer one supersedes it (a stop file, polled between photon batches, as the photon workers poll
+theirs, and between the steps of preparing a pass) or the process that sent it is gone.  Nothing
+here runs in the caller's process but file reads: the viewport's Python thread never holds a
 render, and the GIL is not shared with one.
 """
 from __future__ import annotations

@@ -351,7 +351,8 @@ def test_an_object_dragged_again_keeps_the_scenes_of_its_triangles():
     ctx = first
     for step in (moved, turned):
         ctx = RenderContext(step, reuse=ctx)
-        for accel, built in ((ctx.accel._embree, first.accel._embree), (ctx.accel._contact, first.accel._contact)):
+        for accel, built in ((ctx.accel._embree, first.accel._embree),
+                             (ctx.accel._contact, first.accel._contact)):
             assert accel.movers[0].scene is built.movers[0].scene and accel.movers[0].back is not None
         _assert_hits_as_a_fresh_context(ctx, step, mapped=True)
     vertices = turned.vertices.copy()

@@ -280,7 +280,8 @@ def test_an_eye_pass_asked_to_stop_ends_between_its_chunks():
     ctx = RenderContext(cornell_box((640, 480)))
     assert EYE_CHUNK < 640 * 480 <= 2 * EYE_CHUNK
     polls = []
-    stopped = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8, should_stop=lambda: polls.append(1) or True)
+    stopped = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8,
+                             should_stop=lambda: polls.append(1) or True)
     assert stopped is None and len(polls) == 1
     whole = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8, should_stop=lambda: False)
     plain = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
