@@ -129,6 +129,44 @@ def test_the_viewport_renders_its_view_and_starts_over_on_changes(scene):
     assert vp.live is None and not os.path.exists(folder)
 
 
+def test_a_large_view_shows_a_coarse_preview_first(scene):
+    """A view of over ``PREVIEW_PIXELS`` pixels (a region of 640 x 480 at Pixel Size 2: 320 x 240)
+    shows the live render's preview first, at half the size, and says so in the corner; then its
+    passes at the full size, the last the image of a final render through the same camera."""
+    from amcmcppm.amcmcppm_addon.export import export_scene, render_settings_from
+    from amcmcppm.amcmcppm_addon.viewport import ViewportRender
+    from amcmcppm.core import render
+    from amcmcppm.core.settings import VIEWPORT_FIRST_PHOTONS
+
+    for key, value in FAST.items():
+        setattr(scene.amcmcppm, key, value)
+    scene.amcmcppm.viewport_passes = 2
+    scene.amcmcppm.viewport_pixel_size = "2"
+    scene.render.resolution_x, scene.render.resolution_y = 320, 240     # (the final render's)
+    ob = lit_floor(scene)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    region = (640, 480)
+    view, proj = view_of(ob, depsgraph, region)
+    vp = ViewportRender()
+    taken, t0 = [], time.monotonic()        # (pass, image shape, status) of each image taken
+    try:
+        while not (vp.stats and not vp.running and vp.stats["pass"] == 2):
+            if vp.refresh(depsgraph, view, proj, True, region):
+                taken.append((vp.stats["pass"], vp.image.shape, vp.status()))
+            assert time.monotonic() - t0 < 120, taken
+            time.sleep(0.02)
+        assert taken[0][:2] == (0, (120, 160, 4)) and taken[0][2].startswith("Preview")
+        assert [t[0] for t in taken[1:]] in ([1, 2], [2]) and taken[-1][1] == (240, 320, 4)
+        assert vp.status().endswith("done")
+        settings = render_settings_from(scene.amcmcppm, passes=2, time_limit=0.0, workers=1,
+                                        first_pass_photons=VIEWPORT_FIRST_PHOTONS)
+        final = render(export_scene(depsgraph).scene, settings).image
+        assert vp.image[..., :3].mean() > 0.02
+        np.testing.assert_allclose(vp.image[..., :3].mean(), final[..., :3].mean(), rtol=1e-3)
+    finally:
+        vp.close()
+
+
 def test_an_empty_scene_shows_black_with_a_message(scene):
     """Nothing to render, and no camera either (the viewport needs none): a black image and a
     message, no render started."""
