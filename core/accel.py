@@ -74,9 +74,10 @@ class Accel:
         the edit moved a few triangles of the same mesh (``SPLIT_SHARE``), the data is taken and
         changed in their rows, and the earlier version's embree scenes are kept beside scenes of
         the moved triangles and of those about their old places (:class:`SplitScene`; an object
-        dragged builds its own triangles' scene at each step).  ``take``: ``reuse`` is not used
-        again (the live server drops it), so its tables are changed in those rows instead of
-        copied (hundreds of MB for millions of triangles), and it is left unable to be reused."""
+        dragged keeps its own triangles' scene from step to step, :class:`Mover`).  ``take``:
+        ``reuse`` is not used again (the live server drops it), so its tables are changed in those
+        rows instead of copied (hundreds of MB for millions of triangles), and it is left unable to
+        be reused."""
         # (what the triangles are made of, compared with a later version's; None: a subset())
         self._mesh_key = (scene.vertices, scene.triangles)
         same_triangles = reuse is not None and _same_mesh(self._mesh_key, reuse._mesh_key)
@@ -405,13 +406,14 @@ class LocalScene:
 class SplitScene:
     """An embree scene of an earlier version of a scene's triangles (``base``: all of them, or a set
     of them, the contact scene's), queried (``run``, as an embree scene's) as if the triangles edits
-    moved since were where they are now.  Their new places are a scene of their own (``moving``);
-    their old copies lie in boxes apart (a group each, ``group_of``), and a ray whose nearest hit
-    in the base is such a copy is answered inside that box by a scene of the other triangles that
-    reach into it (the group's ``patches``) and past the box by the base again.  So an object
-    dragged in the viewport builds the scenes of its own triangles and of what lies around where it
-    was, not of the rest.  ``run`` gives the hit's index within the set, as an embree scene of the
-    whole set would."""
+    moved since were where they are now.  Their new places are a scene a group (``movers``, kept
+    while the group moves by one affine map: :class:`Mover`); their old copies lie in boxes apart
+    (a group each, ``group_of``), and a ray whose nearest hit in the base is such a copy is answered
+    inside that box by a scene of the other triangles that reach into it (the group's ``patches``)
+    and past the box by the base again.  So an object dragged in the viewport builds the scenes of
+    its own triangles and of what lies around where it was, not of the rest, and only at its first
+    step.  ``run`` gives the hit's index within the set, as an embree scene of the whole set
+    would."""
 
     def __init__(self, base, group_of, lo, hi, margin, patches, patch_ids, movers):
         self.base, self.group_of = base, group_of       # (k,) int32 over the set: a group, or -1
