@@ -50,6 +50,21 @@ def test_the_view_matrices_give_the_camera_the_exporter_makes(scene, kind):
     np.testing.assert_allclose(got.world_from_camera, want.world_from_camera, atol=1e-5)
 
 
+def lit_floor_view(scene, passes, region):
+    """The lit floor seen through its camera by a viewport region of ``region`` pixels at Pixel Size
+    2 rendering ``passes`` passes with ``FAST`` settings (the final render at half the region's
+    size): (its camera object, depsgraph, view matrix, projection matrix)."""
+    for key, value in FAST.items():
+        setattr(scene.amcmcppm, key, value)
+    scene.amcmcppm.viewport_passes = passes
+    scene.amcmcppm.viewport_pixel_size = "2"
+    scene.render.resolution_x, scene.render.resolution_y = region[0] // 2, region[1] // 2
+    ob = lit_floor(scene)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    view, proj = view_of(ob, depsgraph, region)
+    return ob, depsgraph, view, proj
+
+
 def refresh_until(vp, depsgraph, view, proj, size, done, timeout=120.0):
     """Refresh ``vp`` until ``done(vp)``; returns the passes of the images it took."""
     passes, t0 = [], time.monotonic()
@@ -70,15 +85,8 @@ def test_the_viewport_renders_its_view_and_starts_over_on_changes(scene):
     from amcmcppm.core import render
     from amcmcppm.core.settings import VIEWPORT_FIRST_PHOTONS
 
-    for key, value in FAST.items():
-        setattr(scene.amcmcppm, key, value)
-    scene.amcmcppm.viewport_passes = 3
-    scene.amcmcppm.viewport_pixel_size = "2"
-    scene.render.resolution_x, scene.render.resolution_y = 32, 20     # (the final render's)
-    ob = lit_floor(scene)
-    depsgraph = bpy.context.evaluated_depsgraph_get()
     region = (64, 40)
-    view, proj = view_of(ob, depsgraph, region)
+    ob, depsgraph, view, proj = lit_floor_view(scene, 3, region)
     vp = ViewportRender()
     try:
         passes = refresh_until(vp, depsgraph, view, proj, region, lambda v: v.stats and not v.running
@@ -138,15 +146,8 @@ def test_a_large_view_shows_a_coarse_preview_first(scene):
     from amcmcppm.core import render
     from amcmcppm.core.settings import VIEWPORT_FIRST_PHOTONS
 
-    for key, value in FAST.items():
-        setattr(scene.amcmcppm, key, value)
-    scene.amcmcppm.viewport_passes = 2
-    scene.amcmcppm.viewport_pixel_size = "2"
-    scene.render.resolution_x, scene.render.resolution_y = 320, 240     # (the final render's)
-    ob = lit_floor(scene)
-    depsgraph = bpy.context.evaluated_depsgraph_get()
     region = (640, 480)
-    view, proj = view_of(ob, depsgraph, region)
+    _, depsgraph, view, proj = lit_floor_view(scene, 2, region)
     vp = ViewportRender()
     taken, t0 = [], time.monotonic()        # (pass, image shape, status) of each image taken
     try:
