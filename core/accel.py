@@ -222,12 +222,7 @@ class Accel:
         corners[:, 0] = self.v0.take(ids, axis=0) - self.center
         corners[:, 1] = corners[:, 0] + self.e1.take(ids, axis=0)
         corners[:, 2] = corners[:, 0] + self.e2.take(ids, axis=0)
-        rel = np.abs(corners)
-        # (_offsets, column by column)
-        tolerance = np.maximum(np.maximum(rel[..., 0], rel[..., 1]), rel[..., 2])
-        tolerance *= MOVER_TOLERANCE * _OFFSET_ULPS
-        tolerance += MOVER_TOLERANCE * self.offset_floor
-        return corners, tolerance
+        return corners, MOVER_TOLERANCE * self._offsets_at(np.abs(corners))
 
     def intersect(self, origins, directions, tmax=None) -> Hits:
         """Closest hits of rays ``origins + t directions`` for 0 < t < tmax.
@@ -334,9 +329,14 @@ class Accel:
 
     def _offsets(self, positions):
         """(n,) spawn offsets at ``positions``: ulps of the coordinate magnitude, and a floor."""
-        rel = np.abs(positions - self.center)
+        return self._offsets_at(np.abs(positions - self.center))
+
+    def _offsets_at(self, rel):
+        """(...) spawn offsets at points whose coordinates in embree's frame have magnitudes ``rel``
+        (..., 3)."""
         # Column by column: NumPy reduces a short inner axis (max over axis 1) ~10x slower.
-        return _OFFSET_ULPS * np.maximum(np.maximum(rel[:, 0], rel[:, 1]), rel[:, 2]) + self.offset_floor
+        largest = np.maximum(np.maximum(rel[..., 0], rel[..., 1]), rel[..., 2])
+        return _OFFSET_ULPS * largest + self.offset_floor
 
 
 class LocalScene:
@@ -511,9 +511,9 @@ class SplitScene:
             else:
                 # (the rays where the scene has the triangles: the same distances, the same corners)
                 rt, shift = mover.back
-                o = origins @ rt            # (float32: a few ulps, within the spawn offsets' 64)
-                o += shift
-                _nearest(mover.scene, mover.ids, o, directions @ rt, tfar, None, 0.0, out)
+                mapped = origins @ rt       # (float32: a few ulps, within the spawn offsets' 64)
+                mapped += shift
+                _nearest(mover.scene, mover.ids, mapped, directions @ rt, tfar, None, 0.0, out)
         return {"primID": prim, "tfar": tfar, "u": u, "v": v}
 
 
@@ -532,7 +532,7 @@ class Mover:
         """This mover for its triangles now at ``corners`` (k, 3, 3; embree's frame), or None where
         no affine map (invertible, well conditioned) takes its scene's corners to within
         ``tolerance`` (k, 3) of them: the triangles moved otherwise (a vertex dragged)."""
-        if self.scene is None or corners.shape != self.corners.shape:
+        if self.scene is None:
             return None
         if np.array_equal(corners, self.corners):
             return Mover(self.scene, self.ids, self.corners)

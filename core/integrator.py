@@ -859,12 +859,12 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
             target.light_sample_s = time.perf_counter() - t_direct
         return target
 
-    def prepare(i):
-        """Pass ``i``'s eye pass and deposit target, or None where a stop request comes first (polled
-        between their steps and the eye pass's chunks: the 3D viewport's next job waits for this
-        one to stop)."""
+    def prepare(i, stop=stop):
+        """Pass ``i``'s eye pass and deposit target, or None where ``stop`` (None: never) asks to stop
+        first (polled between their steps and the eye pass's chunks: the 3D viewport's next job
+        waits for this one to stop)."""
         eye = eye_pass(i, stop)
-        target = None if eye is None or stop() else make_target(i, eye, stop)
+        target = None if eye is None or (stop is not None and stop()) else make_target(i, eye, stop)
         return None if target is None else (eye, target)
 
     # The worker processes start (scene, acceleration structure) while this one traces the
@@ -873,11 +873,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
     warned_invisible = False
     try:
         pass_index = 0
-        if stop_first_pass:
-            prepared = prepare(0)
-        else:
-            eye = eye_pass(0)
-            prepared = eye, make_target(0, eye)
+        prepared = prepare(0, stop if stop_first_pass else None)
         if prepared is None:
             result.interrupted = True
             return result

@@ -228,11 +228,11 @@ def serve():
 def preview_camera(camera):
     """``camera`` at the size of a job's preview (``PREVIEW_PIXELS``), or None where its image is
     small enough to need none."""
-    w, h = camera.resolution
-    x0, x1, y0, y1 = camera.border
+    x0, x1, y0, y1 = camera.window
     k = 1
-    while (w // k) * (h // k) * (x1 - x0) * (y1 - y0) > PREVIEW_PIXELS:
+    while (x1 - x0) * (y1 - y0) > PREVIEW_PIXELS * k * k:
         k *= 2
+    w, h = camera.resolution
     return None if k == 1 else dataclasses.replace(camera, resolution=(max(1, w // k), max(1, h // k)))
 
 
