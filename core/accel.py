@@ -519,14 +519,16 @@ class SplitScene:
 
 class Mover:
     """An embree scene (``scene``, or None) of a group of a :class:`SplitScene`'s triangles (``ids``
-    within its set), built where they were (``corners`` (k, 3, 3) float64, embree's frame), and the
+    within its set), built where they were (``corners`` (k, 3, 3) float32 in embree's frame: what
+    embree was given, half the memory of float64's), and the
     affine map ``back`` from where they are now to there (None: they are where it has them): a ray
     mapped so meets them at the same distance (an affine map keeps a ray's parameter along its
     direction) and barycentrics.  An object dragged (moved, turned or scaled: an affine map of
     its triangles) keeps its scene from step to step instead of building it again."""
 
     def __init__(self, scene, ids, corners, back=None):
-        self.scene, self.ids, self.corners, self.back = scene, ids, corners, back
+        self.scene, self.ids, self.back = scene, ids, back
+        self.corners = np.asarray(corners, np.float32)
 
     def follow(self, corners, tolerance):
         """This mover for its triangles now at ``corners`` (k, 3, 3; embree's frame), or None where
@@ -534,14 +536,16 @@ class Mover:
         ``tolerance`` (k, 3) of them: the triangles moved otherwise (a vertex dragged)."""
         if self.scene is None:
             return None
-        if np.array_equal(corners, self.corners):
+        if np.array_equal(corners.astype(np.float32), self.corners):
             return Mover(self.scene, self.ids, self.corners)
+        # (float32 corners off float64's by half an ulp, within the tolerance's 16 spawn-offset ulps)
         built, now = self.corners.reshape(-1, 3), corners.reshape(-1, 3)
         # Least squares on a sample of the corners (now - built = (built - m) D + c, the mean m
         # apart: a translation gives D = 0 but for rounding, also for a flat object, whose corners
         # leave D's part along its normal free, the least-norm answer 0), then every corner.
         sample = np.linspace(0, len(built) - 1, min(len(built), MOVER_SAMPLE)).astype(np.int64)
-        xs, zs = built.take(sample, axis=0), now.take(sample, axis=0) - built.take(sample, axis=0)
+        xs = built.take(sample, axis=0).astype(np.float64)
+        zs = now.take(sample, axis=0) - xs
         m, c = xs.mean(axis=0), zs.mean(axis=0)
         d = np.linalg.lstsq(xs - m, zs - c, rcond=None)[0]                  # (3, 3), on row vectors
         a, b = np.eye(3) + d, c - m @ d                                     # now = built @ a + b
