@@ -20,7 +20,7 @@ import numpy as np
 
 from .bsdf import Textures
 from .procedural import LUMINANCE, HitAttributes, evaluate
-from .sampling import normalize
+from .sampling import inverse, normalize
 from .scene import DISPLACE_KEEPS_NORMALS, DISPLACE_VECTOR, DISPLACE_WORLD
 
 # The largest offset, in sizes of the undisplaced scene (its bounds' largest side).
@@ -69,7 +69,7 @@ def displace(scene, sky_cache=None):
     if in_object.any() and scene.object_ids is not None:
         rows = np.flatnonzero(in_object)
         objects = scene.object_ids.take(prims.take(rows))
-        to_world = np.linalg.inv(np.asarray(scene.object_from_world, np.float64)[objects, :, :3])
+        to_world = inverse(np.asarray(scene.object_from_world, np.float64)[objects, :, :3])
         # The object-space normal (the world normal through the inverse transpose), scaled back.
         n_object = normalize(np.einsum("kji,kj->ki", to_world, normal.take(rows, axis=0)))
         step[rows] = np.einsum("kij,kj->ki", to_world, n_object * offset.take(rows)[:, None])

@@ -90,8 +90,8 @@ from . import voronoi as _voronoi_module
 from .accel import interpolate_corners
 from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
-from .sampling import (cosine_hemisphere, dot, fresnel_dielectric, length, normalize, orthonormal_frames,
-                       to_world)
+from .sampling import (affine_inverse, cosine_hemisphere, dot, fresnel_dielectric, inverse, length, normalize,
+                       orthonormal_frames, to_world)
 from .texture_hash import hash_uint3, hash_uint3_to_float
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
@@ -308,7 +308,7 @@ class HitAttributes:
             raise ProgramError("the program needs 'normal' coordinates, which the scene lacks")
         n = self.get("world_normal")
         objects, which = np.unique(s.object_ids.take(self.prim_ids), return_inverse=True)
-        world_from_object = np.linalg.inv(s.object_from_world.take(objects, axis=0)[:, :, :3])
+        world_from_object = inverse(s.object_from_world.take(objects, axis=0)[:, :, :3])
         n = np.einsum("kji,kj->ki", world_from_object.take(which, axis=0), n)      # W^T n
         length = np.linalg.norm(n, axis=1, keepdims=True)
         return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
@@ -538,15 +538,15 @@ class HitAttributes:
         self._cache[key] = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
         return self._cache[key]
 
-    def object_transforms(self, inverse=False):
-        """(k, 3, 4) the affine maps of world positions into the hits' objects' spaces (``inverse``:
+    def object_transforms(self, back=False):
+        """(k, 3, 4) the affine maps of world positions into the hits' objects' spaces (``back``:
         out of them into the world; a pseudo-inverse for a flattened object)."""
         s = self.scene
         if s.object_ids is None:
             raise ProgramError("the program needs the objects' transforms, which the scene lacks")
         m = np.asarray(s.object_from_world, np.float64)
-        if inverse:
-            m = _affine_inverse(m)
+        if back:
+            m = affine_inverse(m)
         return m.take(s.object_ids.take(self.prim_ids), axis=0)
 
     def camera_from_world(self):
@@ -592,7 +592,7 @@ class HitAttributes:
         if name == "object_location":
             # The origin: where the object-from-world map takes 0 (pseudo-inverse: a flattened
             # object has no inverse).
-            values = _affine_inverse(s.object_from_world.take(objects, axis=0))[:, :, 3]
+            values = affine_inverse(s.object_from_world.take(objects, axis=0))[:, :, 3]
         else:
             info = s.object_info.take(objects, axis=0).astype(np.float64)
             values = info[:, 3:6] if name == "object_color" else info[:, :3]
@@ -1394,26 +1394,20 @@ def _vector_transform(ev, node):
 
     if src == "WORLD" or src == "CAMERA":
         if src == "CAMERA" and dst != "CAMERA" and camera is not None:
-            v = affine(_affine_inverse(camera[:3]), v)
+            v = affine(affine_inverse(camera[:3]), v)
         if dst == "CAMERA" and src == "WORLD" and camera is not None:
             v = affine(camera[:3], v)
         elif dst == "OBJECT" and has_objects:
             v = affine(ev.attrs.object_transforms(), v)
     elif src == "OBJECT":
         if dst != "OBJECT" and has_objects:
-            v = affine(ev.attrs.object_transforms(inverse=True), v)
+            v = affine(ev.attrs.object_transforms(back=True), v)
         if dst == "CAMERA" and camera is not None:
             v = affine(camera[:3], v)
     if normal:
         n = np.sqrt((v * v).sum(axis=1, keepdims=True))
         v = np.divide(v, n, out=np.zeros_like(v), where=n > 0.0)
     return {"Vector": v}
-
-
-def _affine_inverse(m):
-    """The inverses of affine maps ``m`` (..., 3, 4) (pseudo-inverses where flattened)."""
-    a = np.linalg.pinv(m[..., :3])
-    return np.concatenate([a, -(a @ m[..., 3:])], axis=-1)
 
 
 def _hsv(ev, node):

@@ -33,6 +33,32 @@ def normalize(v):
     return v / np.where(n > 0, n, 1.0)[:, None]
 
 
+def inverse(m):
+    """Inverses of square matrices ``m`` (..., k, k), the pseudo-inverse of singular ones (an object
+    flattened to scale 0 on an axis: its points keep their coordinates along the others, 0 along
+    that one), never ``LinAlgError``."""
+    m = np.asarray(m, np.float64)
+    flat = m.reshape(-1, m.shape[-2], m.shape[-1])
+    scale = np.abs(flat).max(axis=(1, 2)) if len(flat) else np.zeros(0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        det = np.linalg.det(flat)
+    singular = ~(np.abs(det) > 1e-12 * np.maximum(scale, 1e-300) ** m.shape[-1])
+    out = np.empty_like(flat)
+    if (~singular).any():
+        out[~singular] = np.linalg.inv(flat[~singular])
+    if singular.any():
+        out[singular] = np.linalg.pinv(np.where(np.isfinite(flat[singular]), flat[singular], 0.0))
+    return out.reshape(m.shape)
+
+
+def affine_inverse(m):
+    """The inverses (..., 3, 4) of affine maps ``m`` (..., 3 or 4, 4: rows of a linear part and a
+    translation), by :func:`inverse` of their linear parts (pseudo-inverses where flattened)."""
+    m = np.asarray(m, np.float64)
+    linear = inverse(m[..., :3, :3])
+    return np.concatenate([linear, -(linear @ m[..., :3, 3:])], axis=-1)
+
+
 def orthonormal_frames(n):
     """Tangent and bitangent (n, 3) completing unit normals ``n`` (Duff et al. 2017)."""
     sign = np.where(n[:, 2] >= 0, 1.0, -1.0)

@@ -1219,6 +1219,13 @@ class Scene:
         hi = np.array([max(float(a[:, k].max()) for a in pts) for k in range(3)])
         return lo, hi
 
+    def live_materials(self):
+        """(materials,) bool: the materials some triangle has (a material in a slot no face uses is
+        never evaluated)."""
+        live = np.zeros(self.materials.count, bool)
+        live[np.asarray(self.material_ids, np.int64)] = True
+        return live
+
     # --------------------------------------------------------------- validation
     def validate(self) -> "Scene":
         """Check shapes, dtypes, ranges and finiteness; raise :class:`SceneError` naming the field.
@@ -1379,16 +1386,19 @@ class Scene:
             v = getattr(mats, name)
             if ((v < -1) | (v >= len(self.textures))).any():
                 fail(f"materials.{name} must be -1 or an index below {len(self.textures)}")
-        if any((getattr(mats, name) >= 0).any() for name in Materials.INT_FIELDS) and self.uvs is None:
+        # (what the scene lacks matters only to the materials its triangles have: a slot no face uses
+        # may read UVs the exporter left out)
+        live = self.live_materials()
+        if any((live & (getattr(mats, name) >= 0)).any() for name in Materials.INT_FIELDS) and self.uvs is None:
             fail("materials use image textures but the scene has no uvs")
-        mapped = mats.normal_texture >= 0
+        mapped = live & (mats.normal_texture >= 0)
         if (mapped & (mats.normal_space == NORMAL_TANGENT)).any() and self.tangents is None:
             fail("materials use normal maps but the scene has no tangents")
         in_objects = np.isin(mats.normal_space, (NORMAL_OBJECT, NORMAL_BLENDER_OBJECT))
         if (mapped & in_objects).any() and self.object_ids is None:
             fail("materials use object-space normal maps but the scene has no objects")
-        uv_tangents = (mats.glossy_tangent == TANGENT_UV) & ((mats.glossy_stretch != 1.0)
-                                                             | (mats.stretch_program >= 0))
+        uv_tangents = live & (mats.glossy_tangent == TANGENT_UV) & ((mats.glossy_stretch != 1.0)
+                                                                    | (mats.stretch_program >= 0))
         if uv_tangents.any() and self.tangents is None:
             fail("materials take an anisotropic glossy lobe's tangent from the UV map but the scene has "
                  "no tangents")
@@ -1626,8 +1636,9 @@ class Scene:
             fail("materials.aov_value contains NaN or infinite values")
         if ((mats.aov_program < -1) | (mats.aov_program >= len(mats.programs))).any():
             fail(f"materials.aov_program must be -1 or an index below {len(mats.programs)}")
-        used = np.concatenate([getattr(mats, name) for name in Materials.PROGRAM_FIELDS]
-                              + [mats.aov_program.ravel()])
+        live = self.live_materials()
+        used = np.concatenate([getattr(mats, name)[live] for name in Materials.PROGRAM_FIELDS]
+                              + [mats.aov_program[live].ravel()])
         partial = (mats.glossy_metal_tint >= 0).all(axis=1) & (mats.glossy_metal_share < 1.0)
         rising = np.flatnonzero((mats.glossy_program >= 0) & (((mats.glossy_fresnel_ior > 0) & ~partial)
                                                                 | (mats.glossy_metal_rise != 0).any(axis=1)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ...core.cryptomatte import KINDS as CRYPTO_KINDS, name_id
 from ...core.procedural import NAMED, OBJECT_INFO, OBJECT_PROPERTY, reads_objects
+from ...core.sampling import affine_inverse, inverse
 from ...core.scene import (CASTS_NO_SHADOW, HOLDOUT_OBJECT, SHADOW_CATCHER, VISIBLE_CAMERA,
                            VISIBLE_GLOSSY, VISIBLE_TRANSMISSION)
 from ...core.texture_hash import hash_uint2, hash_uint2_to_float, hash_uint_to_float
@@ -516,10 +517,27 @@ def read_mesh(me, name, log, tangents=False, triangulated=False, colors=False, a
                      normals=normals, normal_index=normal_index, uvs=uvs, mesh_materials=tuple(me.materials),
                      tangents=frames, uv_map=layer.name if layer is not None else "",
                      tangents_read=tangents,
-                     texspace=(tuple(me.texspace_location), tuple(me.texspace_size)),
+                     texspace=_texture_space(me, positions),
                      colors=_corner_colors(me, tri_vert, tri_loops) if colors else None, colors_read=colors,
                      attributes=_named_attributes(me, attributes, tri_vert, tri_loops, tri_poly, name, log),
                      attributes_read=frozenset(attributes))
+
+
+def _texture_space(me, positions):
+    """(location, size) of mesh ``me``'s texture space (Generated coordinates).  Blender's own, but
+    where it is not finite (a vertex at NaN, or vertices so far apart that the size overflows
+    float32) the box of the finite vertices ``positions`` (V, 3), as Blender's automatic texture
+    space makes it (``BKE_mesh_texspace_calc``: half the box a side, 1 where the box is flat)."""
+    location, size = np.array(me.texspace_location, np.float64), np.array(me.texspace_size, np.float64)
+    if np.isfinite(location).all() and np.isfinite(size).all():
+        return tuple(location), tuple(size)
+    p = np.asarray(positions, np.float64)
+    p = p[np.isfinite(p).all(axis=1)]
+    lo, hi = (p.min(axis=0), p.max(axis=0)) if len(p) else (-np.ones(3), np.ones(3))
+    size = np.where(hi > lo, 0.5 * (hi - lo), 1.0)
+    location = 0.5 * lo + 0.5 * hi
+    ok = np.isfinite(size).all() and np.isfinite(location).all()
+    return (tuple(location), tuple(size)) if ok else ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
 
 
 def icosphere(level):
@@ -651,8 +669,8 @@ def read_particle_hair(ob, psys, render, log, attributes=frozenset(), first_rand
     co_hair = psys.co_hair
     world = np.array([tuple(co_hair(ob, particle_no=p, step=k)) for p in strands for k in range(steps)],
                      np.float64)
-    inverse = np.linalg.inv(np.array(ob.matrix_world, np.float64))
-    keys = world @ inverse[:3, :3].T + inverse[:3, 3]
+    back = affine_inverse(np.array(ob.matrix_world, np.float64))       # (an object of scale 0: pinv)
+    keys = world @ back[:3, :3].T + back[:3, 3]
     step = np.linalg.norm(np.diff(keys.reshape(len(strands), steps, 3), axis=1), axis=2)
     along = np.concatenate([np.zeros((len(strands), 1)), np.cumsum(step, axis=1)], axis=1)
     length = along[:, -1:]
@@ -1359,7 +1377,7 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
     # Texture coordinates of procedural textures: each instance's own object space.
     if reads_objects(coordinates):
         out["object_ids"] = np.repeat(np.arange(k, dtype=np.int32), n_t)
-        out["object_from_world"] = np.linalg.inv(world_from_object)[:, :3, :4]
+        out["object_from_world"] = affine_inverse(world_from_object)[:, :3, :4]
         out["texture_spaces"] = np.repeat(np.asarray(local.texspace, np.float64)[None], k, axis=0)
     for key in coordinates:
         if key == "color" or key.startswith(NAMED):
@@ -1386,14 +1404,7 @@ def _swap_corners(a, instances):
 
 def _inverse_transpose(rot):
     """(k, 3, 3) inverse transposes; pseudo-inverse for flattened (singular) instances."""
-    det = np.linalg.det(rot)
-    singular = np.abs(det) < 1e-12 * np.maximum(np.abs(rot).max(axis=(1, 2)) ** 3, 1e-300)
-    out = np.empty_like(rot)
-    if (~singular).any():
-        out[~singular] = np.linalg.inv(rot[~singular]).transpose(0, 2, 1)
-    if singular.any():
-        out[singular] = np.linalg.pinv(rot[singular]).transpose(0, 2, 1)
-    return out
+    return inverse(rot).transpose(0, 2, 1)
 
 
 def _flat_normals(vertices, triangles):

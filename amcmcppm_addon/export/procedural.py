@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core import procedural
+from ...core.sampling import affine_inverse
 from .mesh import (ALPHA, HAIR_INTERCEPT, HAIR_IS_STRAND, HAIR_LENGTH, HAIR_RANDOM, HAIR_THICKNESS, PARTICLE,
                    POINT_POSITION, POINT_RADIUS, POINT_RANDOM, POINTINESS, RANDOM_PER_ISLAND, rna_property)
 
@@ -143,7 +144,7 @@ def _tex_coord(b, node, stack):
     if node.object is None:
         out["Object"] = {"op": "attribute", "name": "object"}
     else:
-        m = np.linalg.inv(np.array(node.object.matrix_world, np.float64))
+        m = affine_inverse(np.array(node.object.matrix_world, np.float64))
         out["Object"] = {"op": "affine", "vector": {"op": "attribute", "name": "position"},
                          "matrix": m[:3, :3].tolist(), "post": m[:3, 3].tolist()}
     return out

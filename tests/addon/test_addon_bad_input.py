@@ -126,6 +126,97 @@ def test_a_camera_of_zero_scale_shows_the_world(scene, tmp_path, capfd, scale, k
     assert f"camera 'Camera' has zero scale along its local {axes[scale]}, so" in capfd.readouterr().out
 
 
+def _noise_material(name):
+    """A diffuse material coloured by a Noise Texture on its default coordinates (Generated)."""
+    mat = bs.diffuse(name)
+    noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
+    mat.node_tree.links.new(noise.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    return mat
+
+
+def test_a_mesh_with_an_undefined_vertex_keeps_its_texture_space(scene, tmp_path):
+    """Blender's texture space of a mesh with a vertex at NaN is NaN itself: Generated coordinates
+    now take the box of the finite vertices (as Blender's automatic texture space does), so the
+    triangle left keeps the texture space of the mesh without that vertex (before: the whole render
+    stopped with "texture_spaces contains NaN or infinite values", naming no object)."""
+    bs.lit_floor_scene()
+    mat = _noise_material("Noisy")
+    good = [(0, 0, 0.5), (1, 0, 0.5), (0, 1, 0.5)]
+    _mesh("Clean", good, [(0, 1, 2)], mat)
+    _mesh("Broken", good + [(NAN, 0, 0.5)], [(0, 1, 2), (1, 2, 3)], mat)
+    spaces = bs.export().scene.texture_spaces
+    assert np.isfinite(spaces).all()
+    assert len(np.unique(spaces[-2:], axis=0)) == 1        # (the floor's, then one a mesh)
+    assert bpy.data.meshes["Broken"].texspace_location[0] != bpy.data.meshes["Broken"].texspace_location[0]
+    img = bs.render_exr(tmp_path / "texspace.exr")
+    assert np.isfinite(img).all() and img[..., :3].mean() > 0
+
+
+def test_a_flattened_object_reads_object_coordinates(scene, tmp_path):
+    """An object scaled to 0 along an axis (an animated scale passing 0) has no inverse transform:
+    its Object coordinates take the pseudo-inverse, so the face seen keeps its x and y (Cycles
+    inverts such a matrix with 1e-8 added to its diagonal: the same coordinates on the flat face).
+    The image equals that of the same box scaled to 1e-6 there, and a box flattened along x whose
+    noise reads Object coordinates through a Vector Transform out of object space renders too
+    (before: "LinAlgError: Singular matrix" and no image)."""
+    images = []
+    for flat in (1e-6, 0.0):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        bs.empty_scene((24, 24))
+        bs.camera(location=(0, 0, 5), target=(0, 0, 0), lens=50.0)
+        mat = bpy.data.materials.new("Coordinates")
+        nt = mat.node_tree
+        nt.nodes.remove(nt.nodes["Principled BSDF"])
+        coords, split = nt.nodes.new("ShaderNodeTexCoord"), nt.nodes.new("ShaderNodeSeparateXYZ")
+        join, glow = nt.nodes.new("ShaderNodeCombineXYZ"), nt.nodes.new("ShaderNodeEmission")
+        nt.links.new(coords.outputs["Object"], split.inputs[0])
+        for axis in "XY":
+            nt.links.new(split.outputs[axis], join.inputs[axis])
+        nt.links.new(join.outputs[0], glow.inputs["Color"])
+        nt.links.new(glow.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        bs.cube("Flat", size=2.0, material=mat, location=(0.3, 0.2, 0.5), scale=(0.5, 0.5, flat))
+        other = _noise_material("Generated")
+        swap = other.node_tree.nodes.new("ShaderNodeVectorTransform")
+        swap.convert_from, swap.convert_to = "OBJECT", "WORLD"
+        noise = other.node_tree.nodes["Noise Texture"]
+        other.node_tree.links.new(other.node_tree.nodes.new("ShaderNodeTexCoord").outputs["Object"],
+                                  swap.inputs[0])
+        other.node_tree.links.new(swap.outputs[0], noise.inputs["Vector"])
+        bs.cube("Generated", size=0.5, material=other, location=(-1.0, -1.0, 0.5), scale=(0.0, 1.0, 1.0))
+        images.append(bs.render_exr(tmp_path / f"flat{flat}.exr"))
+    assert all(np.isfinite(img).all() for img in images)
+    assert images[1][..., :2].max() > 0.5                   # (x and y reach 1 at the face's corners)
+    np.testing.assert_allclose(images[1], images[0], atol=2e-3)
+
+
+def test_a_material_in_a_slot_no_face_uses_may_read_uvs_the_mesh_lacks(scene, tmp_path):
+    """A leftover slot whose material reads a UV map (a UV Map node, an Image Texture) on a mesh
+    whose faces all use another slot: the exporter leaves the UVs out, and the scene's check now
+    asks for them only for the materials some triangle has (before: "materials.programs[0] reads
+    'uv' coordinates but the scene has none", and "materials use image textures but the scene has
+    no uvs", and no image)."""
+    bs.lit_floor_scene()
+    reads = bs.diffuse("ReadsUV")
+    uv = reads.node_tree.nodes.new("ShaderNodeUVMap")
+    reads.node_tree.links.new(uv.outputs[0], reads.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    image = bpy.data.images.new("Checker", 8, 8)
+    image.generated_type = "COLOR_GRID"
+    textured = bs.diffuse("Textured")
+    texture = textured.node_tree.nodes.new("ShaderNodeTexImage")
+    texture.image = image
+    textured.node_tree.links.new(texture.outputs["Color"], textured.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    ob = bs.plane("Leftovers", size=1.0, location=(0, 0, 0.5))
+    ob.data.uv_layers.new(name="UVMap")
+    for mat in (reads, textured, bs.diffuse("Plain", (0.2, 0.6, 0.2))):
+        ob.data.materials.append(mat)
+    ob.data.polygons[0].material_index = 2
+    # (the floor has no UV map either: lit_floor_scene's plane is made without one)
+    exported = bs.export()
+    assert exported.scene.uvs is None
+    img = bs.render_exr(tmp_path / "slots.exr")
+    assert np.isfinite(img).all() and img[..., :3].mean() > 0
+
+
 # ---------------------------------------------------------------------- every shader node
 # Nodes that are not material nodes, or need data this sweep cannot make up (a script, a group).
 NOT_SWEPT = {"ShaderNodeTree", "ShaderNode", "ShaderNodeGroup", "ShaderNodeCustomGroup", "ShaderNodeScript",
