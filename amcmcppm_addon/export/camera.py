@@ -83,8 +83,6 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     if ob is None:
         raise SceneError("the scene has no camera")
     ob = ob.evaluated_get(depsgraph)
-    if ob.type != "CAMERA":
-        raise SceneError(f"the active camera '{ob.name}' is not a camera object")
     cam = ob.data
     resolution = tuple(int(v) for v in (resolution or render_resolution(render)))
     border = tuple(float(v) for v in (border or render_border(render)))
@@ -96,8 +94,12 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
             log.warning(f"camera '{ob.name}' has zero scale along its local {zero_axes}, so it sees nothing "
                         "but the world (as in Cycles)")
         clip = {"clip_start": 1.0, "clip_end": 1.0 + 1e-6}
+    elif ob.type != "CAMERA":
+        clip = {"clip_start": 1e-5, "clip_end": 1e5}
     else:
         clip = clip_range(ob, cam, log)
+    if ob.type != "CAMERA":
+        return _through_object(ob, render, world_from_camera, resolution, border, clip, log, pixel_filter(scene))
     if cam.type == "PANO":
         return replace(_panorama(ob, cam, world_from_camera, resolution, border, clip, log),
                        **pixel_filter(scene))
@@ -125,6 +127,35 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
                   frame=tuple(float(v) for v in frame), resolution=resolution, border=border,
                   aperture_radius=float(aperture_radius), focus_distance=float(focus_distance), **shape,
                   **clip, **pixel_filter(scene))
+
+
+# What Cycles makes of an active camera that is not a camera object (``blender_camera_init``, its
+# ``blender_camera_from_object``; checked against Cycles in bpy 5.0.1): a perspective view through
+# a 50 mm lens on a 36 mm sensor fitted to the image's longer side, clipped at 1e-5 and 1e5 m; a
+# light's lens is 16 mm / tan(spot size / 2) (a light that is not a spot keeps Blender's default
+# spot size, 45 degrees, which its data do not show).
+DEFAULT_LENS = 50.0
+DEFAULT_SENSOR = 36.0
+DEFAULT_SPOT_SIZE = np.radians(45.0)
+
+
+def _through_object(ob, render, world_from_camera, resolution, border, clip, log, film):
+    """``core.Camera`` of an active camera ``ob`` that is not a camera object (an empty, a mesh, a
+    light: Blender lets any object be the scene's camera), as Cycles renders it."""
+    lens = DEFAULT_LENS
+    if ob.type == "LIGHT":
+        size = float(getattr(ob.data, "spot_size", DEFAULT_SPOT_SIZE))
+        if 0.0 < size < np.pi:
+            lens = 16.0 / np.tan(0.5 * size)
+    if log is not None:
+        log.warning(f"the active camera '{ob.name}' is not a camera object: rendering its view as Cycles "
+                    f"does, through a {lens:.3g} mm lens on a 36 mm sensor")
+    x = float(render.resolution_x) * float(render.pixel_aspect_x)
+    y = float(render.resolution_y) * float(render.pixel_aspect_y)
+    half = 0.5 * DEFAULT_SENSOR / lens
+    hx, hy = (half, half * y / x) if x >= y else (half * x / y, half)
+    return Camera(world_from_camera=world_from_camera, projection="perspective", frame=(-hx, hx, -hy, hy),
+                  resolution=resolution, border=border, **clip, **film)
 
 
 def _without_scale(matrix):
