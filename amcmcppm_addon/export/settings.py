@@ -11,10 +11,16 @@ from ..properties import CORE_SETTING_NAMES
 def render_settings_from(props, **overrides) -> RenderSettings:
     """The core settings for the PropertyGroup ``props``, with optional field overrides; the
     bounce limits are Cycles' when ``props.light_paths_from_cycles`` (``light_path_limits``)."""
-    values = {name: getattr(props, name) for name in CORE_SETTING_NAMES}
+    values = {name: _decimal(getattr(props, name)) for name in CORE_SETTING_NAMES}
     values.update(props.light_path_limits()[0])
     values.update(overrides)
     return RenderSettings(**values)
+
+
+def _decimal(value):
+    """A FloatProperty's float32 value as the decimal the panel shows (7 significant digits): its
+    limits, stored in float32, fall just outside the core's (1e-4 is 9.99999975e-05)."""
+    return float(f"{value:.7g}") if isinstance(value, float) else value
 
 
 def parse_snapshot_times(text):

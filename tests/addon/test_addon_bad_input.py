@@ -255,6 +255,33 @@ def test_an_active_camera_that_is_not_a_camera_renders_its_view_as_cycles(scene,
         capfd.readouterr().out
 
 
+def test_every_setting_at_the_ends_of_its_range_is_a_valid_core_setting(scene):
+    """Each number in the panel set to its lowest and its highest value (its hard limits) gives
+    settings the core accepts, one at a time: a FloatProperty keeps float32, whose 1e-4 is
+    9.99999975e-05, below Initial Mutation Size's bound of 1e-4 (before: "RenderSettings.
+    initial_mutation_size must lie in [1e-4, 1e3]" and no image, found by a fuzz sweep)."""
+    from amcmcppm.amcmcppm_addon.export import render_settings_from
+    from amcmcppm.amcmcppm_addon.properties import CORE_SETTING_NAMES
+
+    props = bpy.context.scene.amcmcppm
+    props.time_limit = 60.0             # (Passes 0 with no time limit would never stop: an error)
+    checked = 0
+    for name in CORE_SETTING_NAMES:
+        rna = props.bl_rna.properties[name]
+        if rna.type not in ("FLOAT", "INT") or rna.is_readonly:
+            continue
+        default = getattr(props, name)
+        for end in (rna.hard_min, rna.hard_max):
+            setattr(props, name, end)
+            try:
+                render_settings_from(props)
+            except ValueError as e:
+                raise AssertionError(f"{name} = {getattr(props, name)!r}: {e}") from None
+            checked += 1
+        setattr(props, name, default)
+    assert checked >= 20
+
+
 # ---------------------------------------------------------------------- every shader node
 # Nodes that are not material nodes, or need data this sweep cannot make up (a script, a group).
 NOT_SWEPT = {"ShaderNodeTree", "ShaderNode", "ShaderNodeGroup", "ShaderNodeCustomGroup", "ShaderNodeScript",
