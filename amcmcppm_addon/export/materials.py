@@ -292,8 +292,11 @@ class Closure:
             terms = [_times(c.diffuse_term(), f) for c, f, w in zip((self, other), shares, (wa, wb))
                      if w[DIFFUSE] > 0]
             mixed = terms[0] if len(terms) == 1 else _plus(*terms)
-            out.texture = _times(mixed, 1.0 / total)
-            out.color[DIFFUSE] = total
+            if isinstance(mixed, dict):
+                out.texture = _times(mixed, 1.0 / total)
+                out.color[DIFFUSE] = total
+            # (else the textured side has no weight, a Mix's factor exactly 0 or 1: the other
+            # side's constant colour, fa * self.color + fb * other.color, stands)
         out.glossy_texture = self._mixed_glossy(other, wa, wb, fa, fb, fac)
         # A textured metal keeps its curve per point where it is the whole glossy lobe at one
         # weight; mixed with other glossy lobes or by a varying factor, its curve's mean per point.

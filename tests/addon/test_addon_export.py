@@ -721,6 +721,30 @@ def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact(scene):
     assert not [w for w in ex.warnings if "'Masked'" in w], ex.warnings
 
 
+@pytest.mark.parametrize("fac, textured_first", [(1.0, True), (0.0, False)], ids=["fac_1", "fac_0"])
+def test_a_mix_that_shows_one_side_alone_drops_the_textured_other(scene, fac, textured_first):
+    """Mix Shader(textured Diffuse, plain Diffuse) by a factor of exactly 1 (or 0, the sides
+    swapped), an artist's switch: the material is the plain side's, a constant colour (before:
+    "TypeError: '>=' not supported between instances of 'list' and 'int'", no image; found by a
+    fuzz sweep)."""
+    mat = bpy.data.materials.new("Switch")
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    textured, plain = nt.nodes.new("ShaderNodeBsdfDiffuse"), nt.nodes.new("ShaderNodeBsdfDiffuse")
+    plain.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Color"], textured.inputs["Color"])
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = fac
+    first, second = (textured, plain) if textured_first else (plain, textured)
+    nt.links.new(first.outputs[0], mix.inputs[1])
+    nt.links.new(second.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    row, _ = export_material(mat)
+    assert row["diffuse_program"] == -1 and row["diffuse_texture"] == -1
+    assert row["diffuse_weight"] == pytest.approx(1.0)
+    assert row["diffuse_color"] == pytest.approx([0.2, 0.4, 0.6])
+
+
 def test_a_mask_between_a_metal_and_a_paint_picks_levels_of_the_mask(scene):
     """Mix Shader(Principled paint, Principled metal) by a gradient: they differ beyond their diffuse
     colours, so the mix gets levels of the factor (``Closure.levels``), each a constant mix: level 0
