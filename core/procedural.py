@@ -825,6 +825,8 @@ def attributes_used(program) -> set:
                 used.add("object")                  # (which object a triangle is of)
         elif node["op"] == "bevel":
             used |= {"position", "world_normal", "object"}
+        elif node["op"] == "bump":
+            used |= {"position"} | (set() if "normal" in node else {"world_normal"})
         elif node["op"] == "light_path":
             used.add("light_path")
         elif node["op"] == "vector_transform":
@@ -1741,10 +1743,10 @@ def _bump(ev, node):
     normal or the shading normal, with differences of ``BUMP_STEP`` times the scene's size (a
     thousandth of an edge without the scene's acceleration structure); a negative distance is an
     inverted bump.  Where there is no triangle to step along (a world's directions) the normal is
-    returned as it is."""
+    returned as it is, as it is for a constant height (an unlinked Height: no slope)."""
     attrs = ev.attrs
     n0 = normalize(_node_normal(ev, node))
-    if not isinstance(attrs, HitAttributes):
+    if not isinstance(attrs, HitAttributes) or not isinstance(node.get("height"), dict):
         return {"Normal": n0}
     step = None if attrs.accel is None else BUMP_STEP * attrs.accel.extent
     return {"Normal": bumped_normals(attrs, node["height"], ev.images, n0, ev.float(node, "strength", 1.0),

@@ -783,12 +783,16 @@ def _particle_info(b, node, stack):
 def _bump(b, node, stack):
     """Bump: the bent normal as a program (``procedural._bump``); Invert negates the Distance, and
     the Filter Width (Cycles' footprint of its differences) has no equivalent here."""
+    normal = _normal_input(b, node, stack)
+    height, _, _ = b.walker.source(node.inputs["Height"], stack)
+    if height is None:
+        # (no slope: Cycles folds the node into its Normal input, the shading normal unlinked)
+        return {"Normal": normal.get("normal", {"op": "attribute", "name": "world_normal"})}
     distance = b.input(node, "Distance", stack, FLOAT)
     if node.invert:
         distance = {"op": "math", "operation": "MULTIPLY", "a": distance, "b": -1.0}
     return {"Normal": {"op": "bump", "height": b.input(node, "Height", stack, FLOAT),
-                       "strength": b.input(node, "Strength", stack, FLOAT), "distance": distance,
-                       **_normal_input(b, node, stack)}}
+                       "strength": b.input(node, "Strength", stack, FLOAT), "distance": distance, **normal}}
 
 
 def _fresnel(b, node, stack):

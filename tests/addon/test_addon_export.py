@@ -721,6 +721,37 @@ def test_a_varying_mix_factor_between_diffuse_and_glossy_is_exact(scene):
     assert not [w for w in ex.warnings if "'Masked'" in w], ex.warnings
 
 
+def test_a_bump_of_constant_height_is_the_normal_wherever_it_goes(scene, tmp_path):
+    """A Bump whose Height is unlinked (a constant: no slope) gives its Normal input unchanged, as
+    Cycles' does, wherever a program reads it: as a colour it renders the very image of the
+    Geometry node's Normal, and into a Vector Displacement it renders (before: "TypeError: 'float'
+    object is not subscriptable", no image; found by a fuzz sweep)."""
+    images = []
+    for source in ("bump", "geometry", "displaced"):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        bs.lit_floor_scene((16, 16))
+        mat = bs.diffuse("Bumped")
+        nt = mat.node_tree
+        if source == "geometry":
+            normal = nt.nodes.new("ShaderNodeNewGeometry").outputs["Normal"]
+        else:
+            normal = nt.nodes.new("ShaderNodeBump").outputs["Normal"]
+        absolute = nt.nodes.new("ShaderNodeVectorMath")
+        absolute.operation = "ABSOLUTE"
+        nt.links.new(normal, absolute.inputs[0])
+        nt.links.new(absolute.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Color"])
+        if source == "displaced":
+            shift = nt.nodes.new("ShaderNodeVectorDisplacement")
+            shift.inputs["Scale"].default_value = 0.01
+            nt.links.new(normal, shift.inputs["Vector"])
+            nt.links.new(shift.outputs[0], nt.nodes["Material Output"].inputs["Displacement"])
+            mat.displacement_method = "BOTH"
+        bs.cube("Box", size=0.6, material=mat, location=(0, 0, 0.3), rotation=(0.3, 0.2, 0.5))
+        images.append(bs.render_exr(tmp_path / f"{source}.exr"))
+    assert all(np.isfinite(img).all() for img in images)
+    np.testing.assert_allclose(images[0], images[1], rtol=1e-5, atol=1e-6)
+
+
 @pytest.mark.parametrize("fac, textured_first", [(1.0, True), (0.0, False)], ids=["fac_1", "fac_0"])
 def test_a_mix_that_shows_one_side_alone_drops_the_textured_other(scene, fac, textured_first):
     """Mix Shader(textured Diffuse, plain Diffuse) by a factor of exactly 1 (or 0, the sides
