@@ -54,6 +54,11 @@ RINGS_DIRECTIONS = ("X", "Y", "Z", "SPHERICAL")
 WAVE_PROFILES = ("SIN", "SAW", "TRI")
 DIMENSIONS = ("1D", "2D", "3D", "4D")
 MAGIC_MAX_DEPTH = 10
+# The Wave texture's distortion noise takes at most this many octaves (one Python step each):
+# Cycles takes any Detail a driver gives it, but 1e6 octaves would stall the export (found by a
+# fuzz sweep), and past about 24 octaves float32 coordinates (doubled each octave) have no bits
+# left below the noise's lattice, where it is 0.  (Blender's socket stops at 15.)
+MAX_WAVE_DETAIL = 64.0
 
 _PI_2 = float(np.float32(np.pi / 2.0))        # M_PI_2_F
 _TWO_PI = float(np.float32(2.0 * np.pi))      # M_2PI_F
@@ -93,7 +98,8 @@ def wave_texture(vector, *, wave_type="BANDS", bands_direction="X", rings_direct
     rings_direction : "X", "Y", "Z" or "SPHERICAL" (rings only, the axis the rings go around);
     wave_profile : "SIN", "SAW" or "TRI".
     scale, distortion, detail, detail_scale, detail_roughness, phase_offset : the node's inputs
-    (scalars).  ``detail`` is used as given, as Cycles does (Blender's socket limits it to 0..15).
+    (scalars).  ``detail`` is used as given, as Cycles does (Blender's socket limits it to 0..15),
+    up to ``MAX_WAVE_DETAIL`` octaves.
     Returns {"Color": (n, 3) float64 grey, "Fac": (n,) float64 in [0, 1]}.
     """
     _check("wave type", wave_type, WAVE_TYPES)
@@ -102,6 +108,7 @@ def wave_texture(vector, *, wave_type="BANDS", bands_direction="X", rings_direct
     _check("wave profile", wave_profile, WAVE_PROFILES)
     scale, distortion, detail, detail_scale, detail_roughness, phase_offset = (
         _f32(x) for x in (scale, distortion, detail, detail_scale, detail_roughness, phase_offset))
+    detail = min(max(detail, 0.0), MAX_WAVE_DETAIL)
     p = (_points(vector) * scale + _f32(1e-6)) * _f32(0.999999)
     if wave_type == "BANDS":
         if bands_direction == "DIAGONAL":

@@ -357,3 +357,16 @@ def test_white_noise_keys_are_float32():
     base = white_noise_texture(p)["Color"]
     np.testing.assert_array_equal(white_noise_texture(same)["Color"], base)
     assert np.all(white_noise_texture(nxt)["Color"] != base)
+
+
+def test_a_wave_of_a_million_octaves_takes_the_most_it_can_use():
+    """A driver's Detail of 1e6 (Blender's socket stops at 15) takes ``MAX_WAVE_DETAIL`` octaves,
+    finite, where each octave was a Python step: the export stalled for minutes (found by a fuzz
+    sweep)."""
+    from core.pattern_textures import MAX_WAVE_DETAIL
+    p = random_points()
+    huge = wave_texture(p, distortion=1.0, detail=1e6, detail_roughness=1.0)
+    most = wave_texture(p, distortion=1.0, detail=MAX_WAVE_DETAIL, detail_roughness=1.0)
+    assert np.isfinite(huge["Fac"]).all()
+    np.testing.assert_array_equal(huge["Fac"], most["Fac"])
+    assert not np.array_equal(most["Fac"], wave_texture(p, distortion=1.0, detail=2.0, detail_roughness=1.0)["Fac"])
