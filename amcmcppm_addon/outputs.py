@@ -27,12 +27,19 @@ class RenderOutputs:
         self.written = []               # (time, path) of the snapshots written
         if self.pending and not snapshot_dir:
             raise ValueError("snapshot times are set but the snapshot folder is empty")
-        if self.pending:
-            os.makedirs(snapshot_dir, exist_ok=True)
-        if stats_path:
-            parent = os.path.dirname(os.path.abspath(stats_path))
-            os.makedirs(parent, exist_ok=True)
-            self.stats_file = open(stats_path, "a", encoding="utf-8")
+        try:
+            if self.pending:
+                what = f"the Snapshot Folder '{snapshot_dir}'"
+                os.makedirs(snapshot_dir, exist_ok=True)
+                if not os.access(snapshot_dir, os.W_OK):
+                    raise PermissionError(13, "not writable")
+            if stats_path:
+                what = f"the Statistics File '{stats_path}'"
+                os.makedirs(os.path.dirname(os.path.abspath(stats_path)), exist_ok=True)
+                self.stats_file = open(stats_path, "a", encoding="utf-8")
+        except OSError as e:
+            raise ValueError(f"cannot write {what} ({e.strerror or e}); change it in Render Properties > "
+                             "Statistics Output, or clear it") from None
 
     def on_pass(self, result):
         """Record the last pass of a core ``RenderResult``."""

@@ -249,14 +249,14 @@ class AMCMCPPMRenderSettings(bpy.types.PropertyGroup):
         self.light_paths_from_cycles = False
 
     stats_path: StringProperty(
-        name="Statistics File", default="", subtype='FILE_PATH',
+        name="Statistics File", default="", subtype='FILE_PATH', options={'PATH_SUPPORTS_BLEND_RELATIVE'},
         description="Append per-pass statistics to this file as JSON lines (empty = off)")
     snapshot_times: StringProperty(
         name="Snapshot Times", default="",
         description="Comma-separated elapsed times in seconds at which to save the image so far, "
                     "for example 1,2,4,8 (empty = off)")
     snapshot_dir: StringProperty(
-        name="Snapshot Folder", default="", subtype='DIR_PATH',
+        name="Snapshot Folder", default="", subtype='DIR_PATH', options={'PATH_SUPPORTS_BLEND_RELATIVE'},
         description="Folder for the snapshot EXR files and their index snapshots.jsonl")
 
 

@@ -966,7 +966,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
                 warnings.append(f"pass {pass_index + 1}: dropped non-finite photon contributions "
                                 f"in {dropped} pixels")
             if (c["uniform_samples"] and c["uniform_visible"] == 0 and c["uniform_outside"] == 0
-                    and (not is_chain or c["recorded"] == 0) and not warned_invisible):
+                    and (not is_chain or c["recorded"] == 0) and not warned_invisible and ctx.lights.count):
                 warned_invisible = True
                 sampled = "" if direct is None else " past their first vertex"
                 warnings.append(

@@ -4,6 +4,8 @@ Property names equal the dataclass field names (see ``properties.py``), so the
 mapping is one loop; ``RenderSettings`` validates the values and raises a
 ``ValueError`` naming the field when they cannot be rendered.
 """
+import re
+
 from ...core.settings import RenderSettings
 from ..properties import CORE_SETTING_NAMES
 
@@ -14,7 +16,16 @@ def render_settings_from(props, **overrides) -> RenderSettings:
     values = {name: _decimal(getattr(props, name)) for name in CORE_SETTING_NAMES}
     values.update(props.light_path_limits()[0])
     values.update(overrides)
-    return RenderSettings(**values)
+    try:
+        return RenderSettings(**values)
+    except ValueError as e:
+        # (the panel's names for the fields the message names: "RenderSettings.time_limit" and
+        # "time_limit" -> 'Time Limit')
+        labels = {name: props.bl_rna.properties[name].name for name in CORE_SETTING_NAMES
+                  if name in props.bl_rna.properties}
+        text = re.sub(r"\b(?:RenderSettings\.)?([a-z]+(?:_[a-z0-9]+)+|[a-z]+(?=\s(?:must|and)\b))",
+                      lambda m: f"'{labels[m[1]]}'" if m[1] in labels else m[0], str(e))
+        raise ValueError(text) from None
 
 
 def _decimal(value):

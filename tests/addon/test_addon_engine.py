@@ -133,6 +133,36 @@ def test_scene_without_light_warns(scene, tmp_path, capfd):
     assert "Warning: AMCMCPPM: the scene emits no light" in out
 
 
+@pytest.mark.parametrize("setting", ["stats_path", "snapshot_dir"])
+def test_an_output_path_that_cannot_be_written_is_named(scene, tmp_path, capfd, setting):
+    """A Statistics File that is a folder, or a Snapshot Folder under a file: the render stops
+    before it starts with a message naming the setting and the path (before: "IsADirectoryError:
+    [Errno 21] Is a directory: ..." and "FileNotFoundError", found by a fuzz sweep)."""
+    bs.lit_floor_scene()
+    props = bpy.context.scene.amcmcppm
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    if setting == "stats_path":
+        props.stats_path = str(tmp_path)
+    else:
+        props.snapshot_times, props.snapshot_dir = "1", str(blocker / "snaps")
+    with pytest.raises(RuntimeError):
+        bs.render_exr(tmp_path / "out.exr")
+    label = {"stats_path": "Statistics File", "snapshot_dir": "Snapshot Folder"}[setting]
+    assert f"Error: AMCMCPPM: cannot write the {label} '" in capfd.readouterr().out
+
+
+def test_settings_errors_use_the_panels_names(scene, tmp_path, capfd):
+    """(Not the core's field names: "RenderSettings.passes and time_limit are both 0".)"""
+    bs.lit_floor_scene()
+    props = bpy.context.scene.amcmcppm
+    props.passes, props.time_limit = 0, 0.0
+    with pytest.raises(RuntimeError):
+        bs.render_exr(tmp_path / "out.exr")
+    out = capfd.readouterr().out
+    assert "AMCMCPPM: 'Passes' and 'Time Limit' are both 0, so the render would never stop" in out
+
+
 def test_unsupported_and_missing_render_finite_with_warnings(scene, tmp_path, capfd):
     bs.lit_floor_scene()
     img_missing = bpy.data.images.new("Gone", 4, 4)
