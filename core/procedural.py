@@ -1069,9 +1069,25 @@ def _gabor(ev, node):
 
 def _environment(ev, node):
     """An equirectangular image looked up by direction (Cycles' ``direction_to_equirectangular``:
-    u = 1/2 - atan2(y, x) / 2 pi, v = 1 - acos(z) / pi; bilinear, wrapping in u, clamped in v)."""
-    u, v = equirectangular_uv(ev.vec(node, "vector"))
+    u = 1/2 - atan2(y, x) / 2 pi, v = 1 - acos(z) / pi; bilinear, wrapping in u, clamped in v), or
+    with ``projection`` "MIRROR_BALL" a photo of a mirror ball (:func:`mirror_ball_uv`)."""
+    d = ev.vec(node, "vector")
+    if node.get("projection", "EQUIRECTANGULAR") == "MIRROR_BALL":
+        u, v = mirror_ball_uv(d)
+    else:
+        u, v = equirectangular_uv(d)
     return {"Color": bilinear(ev.images[int(node["texture"])], u, v, clamp_v=True), "Alpha": np.ones(ev.k)}
+
+
+def mirror_ball_uv(dirs):
+    """Image coordinates (u, v), (n,) each, of directions ``dirs`` (n, 3) (any length) in a photo of a
+    mirror ball taken along +y (Cycles' ``direction_to_mirrorball``: the unit direction d less
+    (0, 1, 0), over 2 sqrt(-(d_y - 1) / 2), gives u = (x + 1) / 2, v = (z + 1) / 2)."""
+    d = normalize(np.asarray(dirs, np.float64))
+    d[:, 1] -= 1.0
+    div = 2.0 * np.sqrt(np.maximum(-0.5 * d[:, 1], 0.0))
+    d = d / np.where(div > 0.0, div, 1.0)[:, None]
+    return 0.5 * (d[:, 0] + 1.0), 0.5 * (d[:, 2] + 1.0)
 
 
 def _sky(ev, node):

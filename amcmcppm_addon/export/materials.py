@@ -909,7 +909,8 @@ def _plain_environment(e):
     """(texture index, rotation (3, 3) or None) when program ``e`` is an Environment Texture of the
     direction, at most turned (a Mapping whose matrix is a positive multiple of a rotation and
     which moves nothing: the lookup normalises the direction); else None."""
-    if e.get("op") != "environment" or e.get("output", "Color") != "Color":
+    if (e.get("op") != "environment" or e.get("output", "Color") != "Color"
+            or e.get("projection", "EQUIRECTANGULAR") != "EQUIRECTANGULAR"):
         return None
     direction = {"op": "attribute", "name": "generated"}
     v = e["vector"]

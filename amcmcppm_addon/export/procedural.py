@@ -405,14 +405,13 @@ def _environment(b, node, stack):
     if node.image is None:
         w.note(f"environment texture '{node.name}' has no image; using magenta")
         return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
-    if node.projection != "EQUIRECTANGULAR":
-        w.note(f"'{node.name}': {node.projection.lower()} projection is not supported")
-        return None
     index, _ = w.textures.lookup(node.image, f"'{w.name}'")
     if index < 0:
         return {"Color": [1.0, 0.0, 1.0], "Alpha": 1.0}
-    return {"Color": {"op": "environment", "texture": index, "vector": b.vector_or(node, stack, "generated")},
-            "Alpha": 1.0}
+    # (Equirectangular or Mirror Ball, the two projections Blender's node has)
+    projection = {} if node.projection == "EQUIRECTANGULAR" else {"projection": node.projection}
+    return {"Color": {"op": "environment", "texture": index, "vector": b.vector_or(node, stack, "generated"),
+                      **projection}, "Alpha": 1.0}
 
 
 def _sky(b, node, stack):
