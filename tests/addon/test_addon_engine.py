@@ -152,17 +152,6 @@ def test_an_output_path_that_cannot_be_written_is_named(scene, tmp_path, capfd, 
     assert f"Error: AMCMCPPM: cannot write the {label} '" in capfd.readouterr().out
 
 
-def test_settings_errors_use_the_panels_names(scene, tmp_path, capfd):
-    """(Not the core's field names: "RenderSettings.passes and time_limit are both 0".)"""
-    bs.lit_floor_scene()
-    props = bpy.context.scene.amcmcppm
-    props.passes, props.time_limit = 0, 0.0
-    with pytest.raises(RuntimeError):
-        bs.render_exr(tmp_path / "out.exr")
-    out = capfd.readouterr().out
-    assert "AMCMCPPM: 'Passes' and 'Time Limit' are both 0, so the render would never stop" in out
-
-
 def test_unsupported_and_missing_render_finite_with_warnings(scene, tmp_path, capfd):
     bs.lit_floor_scene()
     img_missing = bpy.data.images.new("Gone", 4, 4)
@@ -200,10 +189,13 @@ def test_render_reports_the_effects_the_scene_calls_for(scene, tmp_path, capfd):
 
 
 def test_invalid_settings_fail_cleanly(scene, tmp_path):
+    """The message names the panel's settings (since stop 74; before, the core's field names:
+    "RenderSettings.passes and time_limit are both 0")."""
     bs.lit_floor_scene()
     props = bpy.context.scene.amcmcppm
     props.passes, props.time_limit = 0, 0.0
-    with pytest.raises(RuntimeError, match="passes and time_limit are both 0"):
+    with pytest.raises(RuntimeError, match="AMCMCPPM: 'Passes' and 'Time Limit' are both 0, so the render would "
+                                           "never stop"):
         bs.render_exr(tmp_path / "never.exr")
     # The process is still usable afterwards.
     props.passes = 1

@@ -92,7 +92,7 @@ def test_render_failure_exits_1_with_reason(repo_root, cornell, tmp_path):
     out = run(repo_root, cornell, "--output", tmp_path / "x.exr", "--passes", "0", "--time-limit", "0")
     assert out.returncode == 1
     last = out.stderr.strip().splitlines()[-1]
-    assert last.startswith("render.py: error:") and "passes and time_limit are both 0" in last
+    assert last.startswith("render.py: error:") and "'Passes' and 'Time Limit' are both 0" in last
 
 
 def test_flags_mirror_the_core_cli(repo_root):
