@@ -1389,7 +1389,8 @@ class Scene:
         # (what the scene lacks matters only to the materials its triangles have: a slot no face uses
         # may read UVs the exporter left out)
         live = self.live_materials()
-        if any((live & (getattr(mats, name) >= 0)).any() for name in Materials.INT_FIELDS) and self.uvs is None:
+        imaged = any((live & (getattr(mats, name) >= 0)).any() for name in Materials.INT_FIELDS)
+        if imaged and self.uvs is None:
             fail("materials use image textures but the scene has no uvs")
         mapped = live & (mats.normal_texture >= 0)
         if (mapped & (mats.normal_space == NORMAL_TANGENT)).any() and self.tangents is None:

@@ -99,7 +99,8 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     else:
         clip = clip_range(ob, cam, log)
     if ob.type != "CAMERA":
-        return _through_object(ob, render, world_from_camera, resolution, border, clip, log, pixel_filter(scene))
+        return _through_object(ob, render, world_from_camera, resolution, border, clip, log,
+                               pixel_filter(scene))
     if cam.type == "PANO":
         return replace(_panorama(ob, cam, world_from_camera, resolution, border, clip, log),
                        **pixel_filter(scene))

@@ -416,8 +416,8 @@ def _environment(b, node, stack):
 
 def _sky(b, node, stack):
     if node.sky_type not in ("MULTIPLE_SCATTERING", "SINGLE_SCATTERING", "PREETHAM"):
-        b.walker.note(f"'{node.name}': the {node.sky_type.replace('_', '-').title()} sky is not supported; the input "
-                      "it feeds takes its own value")
+        b.walker.note(f"'{node.name}': the {node.sky_type.replace('_', '-').title()} sky is not supported; "
+                      "the input it feeds takes its own value")
         return None
     op = {"op": "sky", "vector": b.vector_or(node, stack, "generated"), "sky_type": node.sky_type,
           **{k: float(getattr(node, k)) for k in ("sun_elevation", "sun_rotation", "altitude", "air_density",

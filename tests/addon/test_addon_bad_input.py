@@ -204,7 +204,8 @@ def test_a_material_in_a_slot_no_face_uses_may_read_uvs_the_mesh_lacks(scene, tm
     textured = bs.diffuse("Textured")
     texture = textured.node_tree.nodes.new("ShaderNodeTexImage")
     texture.image = image
-    textured.node_tree.links.new(texture.outputs["Color"], textured.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    textured.node_tree.links.new(texture.outputs["Color"],
+                                 textured.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
     ob = bs.plane("Leftovers", size=1.0, location=(0, 0, 0.5))
     ob.data.uv_layers.new(name="UVMap")
     for mat in (reads, textured, bs.diffuse("Plain", (0.2, 0.6, 0.2))):
@@ -217,7 +218,8 @@ def test_a_material_in_a_slot_no_face_uses_may_read_uvs_the_mesh_lacks(scene, tm
     assert np.isfinite(img).all() and img[..., :3].mean() > 0
 
 
-@pytest.mark.parametrize("kind, lens", [("EMPTY", 50.0), ("MESH", 50.0), ("SPOT", 16.0 / np.tan(np.radians(30.0))),
+@pytest.mark.parametrize("kind, lens", [("EMPTY", 50.0), ("MESH", 50.0),
+                                        ("SPOT", 16.0 / np.tan(np.radians(30.0))),
                                         ("AREA", 16.0 / np.tan(np.radians(22.5)))],
                          ids=["empty", "mesh", "spot", "area_light"])
 def test_an_active_camera_that_is_not_a_camera_renders_its_view_as_cycles(scene, tmp_path, capfd, kind, lens):

@@ -194,8 +194,8 @@ def test_invalid_settings_fail_cleanly(scene, tmp_path):
     bs.lit_floor_scene()
     props = bpy.context.scene.amcmcppm
     props.passes, props.time_limit = 0, 0.0
-    with pytest.raises(RuntimeError, match="AMCMCPPM: 'Passes' and 'Time Limit' are both 0, so the render would "
-                                           "never stop"):
+    never = "AMCMCPPM: 'Passes' and 'Time Limit' are both 0, so the render would never stop"
+    with pytest.raises(RuntimeError, match=never):
         bs.render_exr(tmp_path / "never.exr")
     # The process is still usable afterwards.
     props.passes = 1

@@ -369,4 +369,5 @@ def test_a_wave_of_a_million_octaves_takes_the_most_it_can_use():
     most = wave_texture(p, distortion=1.0, detail=MAX_WAVE_DETAIL, detail_roughness=1.0)
     assert np.isfinite(huge["Fac"]).all()
     np.testing.assert_array_equal(huge["Fac"], most["Fac"])
-    assert not np.array_equal(most["Fac"], wave_texture(p, distortion=1.0, detail=2.0, detail_roughness=1.0)["Fac"])
+    fewer = wave_texture(p, distortion=1.0, detail=2.0, detail_roughness=1.0)
+    assert not np.array_equal(most["Fac"], fewer["Fac"])
