@@ -2057,6 +2057,7 @@ CHOICES = {
     ("image", "extension"): ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
     ("image", "interpolation"): ("Linear", "Closest", "Cubic"),
     ("image", "projection"): ("FLAT", "BOX", "SPHERE", "TUBE"),
+    ("environment", "projection"): ("EQUIRECTANGULAR", "MIRROR_BALL"),
     ("vector_math", "operation"): tuple(VECTOR_MATH) + tuple(VECTOR_VALUES),
     ("clamp", "clamp_type"): ("MINMAX", "RANGE"), ("color_space", "conversion"): tuple(COLOR_SPACES),
     ("vector_transform", "type"): ("POINT", "VECTOR", "NORMAL"),
