@@ -1380,15 +1380,15 @@ class Scene:
         if odd.any():
             fail(f"material '{mats.names[int(np.argmax(odd))]}': dielectric_roughness must be in [0, 1], "
                  "or -1 (the roughness program's) where roughness_program is set")
-        self._validate_programs(fail)
+        # (what the scene lacks matters only to the materials its triangles have: a slot no face uses
+        # may read UVs the exporter left out)
+        live = self.live_materials()
+        self._validate_programs(fail, live)
         self._validate_levels(fail)
         for name in Materials.INT_FIELDS:
             v = getattr(mats, name)
             if ((v < -1) | (v >= len(self.textures))).any():
                 fail(f"materials.{name} must be -1 or an index below {len(self.textures)}")
-        # (what the scene lacks matters only to the materials its triangles have: a slot no face uses
-        # may read UVs the exporter left out)
-        live = self.live_materials()
         imaged = any((live & (getattr(mats, name) >= 0)).any() for name in Materials.INT_FIELDS)
         if imaged and self.uvs is None:
             fail("materials use image textures but the scene has no uvs")
@@ -1613,7 +1613,7 @@ class Scene:
             fail(f"material '{name}': level_first and level_count must name at least 2 materials of the "
                  "scene, none of them with a level_program")
 
-    def _validate_programs(self, fail):
+    def _validate_programs(self, fail, live):
         mats = self.materials
         mats.programs = [procedural.from_json(p) if isinstance(p, str) else p for p in mats.programs]
         for name in Materials.PROGRAM_FIELDS:
@@ -1637,7 +1637,6 @@ class Scene:
             fail("materials.aov_value contains NaN or infinite values")
         if ((mats.aov_program < -1) | (mats.aov_program >= len(mats.programs))).any():
             fail(f"materials.aov_program must be -1 or an index below {len(mats.programs)}")
-        live = self.live_materials()
         used = np.concatenate([getattr(mats, name)[live] for name in Materials.PROGRAM_FIELDS]
                               + [mats.aov_program[live].ravel()])
         partial = (mats.glossy_metal_tint >= 0).all(axis=1) & (mats.glossy_metal_share < 1.0)

@@ -19,13 +19,16 @@ def render_settings_from(props, **overrides) -> RenderSettings:
     try:
         return RenderSettings(**values)
     except ValueError as e:
-        # (the panel's names for the fields the message names: "RenderSettings.time_limit" and
-        # "time_limit" -> 'Time Limit')
+        # (the panel's names for the fields the message names: "RenderSettings.passes" and
+        # "time_limit" -> 'Passes' and 'Time Limit')
         labels = {name: props.bl_rna.properties[name].name for name in CORE_SETTING_NAMES
                   if name in props.bl_rna.properties}
-        text = re.sub(r"\b(?:RenderSettings\.)?([a-z]+(?:_[a-z0-9]+)+|[a-z]+(?=\s(?:must|and)\b))",
-                      lambda m: f"'{labels[m[1]]}'" if m[1] in labels else m[0], str(e))
-        raise ValueError(text) from None
+
+        def label(m):
+            name = m[1] or m[2]
+            return f"'{labels[name]}'" if name in labels else m[0]
+        named = r"RenderSettings\.(\w+)|\b([a-z]+(?:_[a-z0-9]+)+)\b"
+        raise ValueError(re.sub(named, label, str(e))) from None
 
 
 def _decimal(value):
