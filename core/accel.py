@@ -3,12 +3,14 @@
 :class:`Accel` wraps one static embree scene holding every triangle of a
 :class:`~core.scene.Scene` (or, after an edit in the viewport moved a few of them, an earlier
 version's with the moved ones and those about their old places apart: :class:`SplitScene`) and
-answers batched closest-hit queries.  Embree
-works in float32, so it sees the scene shifted to the centre of its bounds (a
-scene far from the origin keeps its precision).  Surface positions are rebuilt
-from the barycentrics in float64 on the hit triangle's plane, and new rays are
-spawned with an offset along the geometric normal that scales with the
-coordinate magnitude in that centred frame (algorithm.md 6.4).
+answers batched closest-hit queries.  Embree works in float32, so it sees the scene shifted to a
+centre inside its bounds, the point of them nearest the world's origin: a scene far from the
+origin keeps its precision, and one about the origin keeps Cycles' (an object far away does not
+take it from the others).  Surface positions are rebuilt from the barycentrics in float64 on the
+hit triangle's plane, and new rays are spawned with an offset along the geometric normal that
+scales with the coordinate magnitude in that frame and, a little, with the largest of the
+triangle's corners (algorithm.md 6.4): embree sees each plane to an ulp or two of that, so a small
+object beside a huge ground plane keeps offsets of its own size.
 """
 from __future__ import annotations
 
@@ -18,8 +20,14 @@ import numpy as np
 
 from .sampling import dot
 
-# Spawned rays start this many float32 ulps (relative to the coordinate magnitude) off the surface.
+# Embree leaves out triangles with a coordinate beyond this (its FLT_LARGE) or not finite: the exporter
+# leaves them out first, with a warning (``export.scene.within_reach``), as Cycles' BVH leaves them.
+EMBREE_REACH = 1.844e18
+# Spawned rays start this many float32 ulps (relative to the coordinate magnitude) off the surface,
+# and this share of the largest coordinate of their triangle's corners further (about two ulps:
+# embree's plane of a triangle is as far off ours where its corners are far from embree's origin).
 _OFFSET_ULPS = 64.0 * np.finfo(np.float32).eps
+_CORNER_SHARE = 2e-7
 # Embree's meshes are built from vertices and indices when there are fewer vertices than this many
 # per triangle, else from the triangles' corners (Accel, _embree_scene; benchmarks/context_cost.py).
 SHARED_VERTICES = 1.5
@@ -42,11 +50,16 @@ SPLIT_GROUPS = 8
 MOVER_SAMPLE = 4096
 MOVER_CONDITION = 1e4
 MOVER_TOLERANCE = 0.25
-# An edited scene whose box's centre moved by at most this share of its extent (a light dragged
-# above a floor, an object past the others) keeps the earlier version's centre for embree's frame,
-# and so its embree scenes: the coordinates embree sees grow by at most as much (under a bit of
-# float32), and LocalScene's objects, 2 extents apart, still do not overlap.
+# An edited scene whose box, this share of its extent wider on every side, still holds the earlier
+# version's centre (a light dragged above a floor, an object past the others) keeps that centre for
+# embree's frame, and so its embree scenes: the coordinates embree sees grow by at most as much.
 FRAME_SHIFT = 0.4
+# LocalScene's classes of objects within this factor of size, its grids' steps this many times a
+# class's largest size, and the float32 ulps of the largest coordinate of an object's box there
+# that its spawn offsets for its queries are at least.
+LOCAL_CLASS = 8.0
+LOCAL_STEP = 1.25
+_LOCAL_ULPS = 4.0 * np.finfo(np.float32).eps
 
 
 @dataclass
@@ -110,10 +123,21 @@ class Accel:
         lo, hi = scene.bounds() if bounds is None else bounds
         self.bounds = (lo, hi)
         self.extent = float(max(np.max(hi - lo), 1e-6))
-        self.center = 0.5 * (lo + hi)                                    # (3,) float64, embree's origin
-        if reuse is not None and np.abs(self.center - reuse.center).max() <= FRAME_SHIFT * self.extent:
-            self.center = reuse.center          # (embree's frame kept: a light or an object moved a little)
-        self.offset_floor = 1e-7 * self.extent
+        # Embree's origin: the point of the box nearest the world's origin; the earlier version's
+        # where still inside the box widened by FRAME_SHIFT (a light or an object moved: its scenes
+        # kept).
+        self.center = np.clip(np.zeros(3), lo, hi)
+        if reuse is not None and (np.abs(reuse.center - np.clip(reuse.center, lo, hi))
+                                  <= FRAME_SHIFT * self.extent).all():
+            self.center = reuse.center
+        if same_triangles and np.array_equal(self.center, reuse.center):
+            self.corner_offset = reuse.corner_offset
+        elif moved is not None and np.array_equal(self.center, reuse.center):
+            self.corner_offset = reuse.corner_offset if take else reuse.corner_offset.copy()
+            rows = (a.take(moved, axis=0) for a in (self.v0, self.e1, self.e2))
+            self.corner_offset[moved] = _corner_offsets(*rows, self.center)
+        else:
+            self.corner_offset = _corner_offsets(self.v0, self.e1, self.e2, self.center)   # (T,) float64
         self._embree = None
         self._contact = None            # embree scene of the non-glass triangles (see with_contacts())
         self._ids = None                # the scene's triangles this one holds (subset()), None: all
@@ -122,6 +146,7 @@ class Accel:
         self._margin = None             # the boxes' margin (_split)
         self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
         self._locals = None             # LocalScene of every object apart (local_scene())
+        self._sizes = None              # (objects,) each object's size (object_sizes())
         if self.triangle_count:
             # Embree's meshes from the vertices and their indices where the triangles share them
             # (as Blender's do), else from the corners: the same float32 corners either way
@@ -263,6 +288,21 @@ class Accel:
         out._embree = _embree_scene(np.stack([v0, v0 + e1, v0 + e2], axis=1) - self.center)
         return out
 
+    def object_sizes(self, prims):
+        """(n,) the size of the objects of triangles ``prims`` (their boxes' longest side; the scene's
+        extent in a scene without objects): a bump's differences are a share of it
+        (``procedural.BUMP_STEP``), so a small object keeps its detail beside a huge one."""
+        if self.object_ids is None:
+            return np.full(len(prims), self.extent)
+        if self._sizes is None:
+            ids = np.asarray(self.object_ids, np.int64)
+            lo, hi = np.full((ids.max() + 1, 3), np.inf), np.full((ids.max() + 1, 3), -np.inf)
+            for corner in (self.v0, self.v0 + self.e1, self.v0 + self.e2):
+                np.minimum.at(lo, ids, corner)
+                np.maximum.at(hi, ids, corner)
+            self._sizes = np.nan_to_num((hi - lo).max(axis=1), posinf=0.0, neginf=0.0)
+        return self._sizes.take(np.asarray(self.object_ids).take(prims))
+
     def local_scene(self) -> "LocalScene":
         """Queries of each ray over its own object's triangles alone (:class:`LocalScene`, built on
         first use): Cycles' local intersection, which a Bevel and Ambient Occlusion's Only Local use."""
@@ -299,7 +339,7 @@ class Accel:
             return hits
         d = directions.take(rows, axis=0)
         p = self.hit_positions(hits.prim_ids.take(rows), hits.b1.take(rows), hits.b2.take(rows))
-        eps = self._offsets(p)
+        eps = self._offsets(p, hits.prim_ids.take(rows))
         o = np.ascontiguousarray(p - 2.0 * eps[:, None] * d - self.center, np.float32)
         r = self._contact.run(o, np.ascontiguousarray(d, np.float32),
                               dists=np.ascontiguousarray(4.0 * eps, np.float32), output=1)
@@ -318,55 +358,97 @@ class Accel:
         b1[at], b2[at] = r["u"].take(found).astype(np.float64), r["v"].take(found).astype(np.float64)
         return Hits(hits.is_hit, prim_ids, hits.t, b1, b2)
 
-    def spawn(self, positions, normals, directions):
-        """Origins for rays leaving ``positions`` along ``directions``.
-
-        Offset along the geometric ``normals`` to the side the direction points
-        to, by an amount that grows with the coordinate magnitude.
-        """
+    def spawn(self, positions, normals, directions, prims):
+        """Origins for rays leaving ``positions`` on triangles ``prims`` (n,) along ``directions``:
+        offset along the geometric ``normals`` to the side the direction points to, by an amount
+        that grows with the coordinate magnitude and the triangle's ``corner_offset``."""
         side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
-        return positions + (side * self._offsets(positions))[:, None] * normals
+        return positions + (side * self._offsets(positions, prims))[:, None] * normals
 
-    def _offsets(self, positions):
-        """(n,) spawn offsets at ``positions``: ulps of the coordinate magnitude, and a floor."""
-        return self._offsets_at(np.abs(positions - self.center))
+    def spawn_local(self, positions, normals, directions, prims):
+        """:meth:`spawn` for rays of :meth:`local_scene`'s queries: offsets at least its floor for the
+        triangles' objects (what its own frame tells apart); :meth:`spawn` in a scene of one object."""
+        if self.object_ids is None:
+            return self.spawn(positions, normals, directions, prims)
+        side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
+        offsets = np.maximum(self._offsets(positions, prims), self.local_scene().floor_at(prims))
+        return positions + (side * offsets)[:, None] * normals
+
+    def offsets_near(self, points):
+        """(n,) the spawn offset at ``points`` (n, 3) on a triangle with a corner there and none
+        further from embree's origin."""
+        rel = self._offsets_at(np.abs(points - self.center))
+        return rel * (1.0 + _CORNER_SHARE / _OFFSET_ULPS)
+
+    def _offsets(self, positions, prims):
+        """(n,) spawn offsets at ``positions`` on triangles ``prims``."""
+        return self._offsets_at(np.abs(positions - self.center)) + self.corner_offset.take(prims)
 
     def _offsets_at(self, rel):
-        """(...) spawn offsets at points whose coordinates in embree's frame have magnitudes ``rel``
-        (..., 3)."""
+        """(...) the coordinate magnitude's part of the spawn offsets at points whose coordinates in
+        embree's frame have magnitudes ``rel`` (..., 3)."""
         # Column by column: NumPy reduces a short inner axis (max over axis 1) ~10x slower.
         largest = np.maximum(np.maximum(rel[..., 0], rel[..., 1]), rel[..., 2])
-        return _OFFSET_ULPS * largest + self.offset_floor
+        return _OFFSET_ULPS * largest
 
 
 class LocalScene:
-    """Every object's triangles in one embree scene, each object moved apart by its own shift (a
-    grid of steps of twice the scene's extent), so that one batched query answers each ray over its
-    own object alone (Cycles' local intersection): a ray is moved with its object and clipped to the
-    object's bounding box, which no other object's shifted box overlaps.  Triangles keep their
-    indices; before, one embree scene per object, queried in a Python loop over the objects a batch
-    touched (``benchmarks/local_queries_cost.py``).  Embree's float32 sees coordinates up to the grid's
-    size: for 4,096 objects 16 extents from its centre, 16 times the whole scene's rounding."""
+    """Every object's triangles in a few embree scenes, one a class of objects of about one size
+    (within a factor LOCAL_CLASS), each object's box centre moved to a point of its own (a grid of
+    steps of LOCAL_STEP times its class's largest size), so that one batched query a class answers
+    each ray over its own object alone (Cycles' local intersection): a ray is moved with its object
+    and clipped to the object's bounding box, which no other object's moved box overlaps.
+    Triangles keep their indices; before, one embree scene per object, queried in a Python loop
+    over the objects a batch touched (``benchmarks/local_queries_cost.py``).  Embree's float32 sees
+    an object's coordinates up to its class's grid's size: for 4,096 objects of a class 20 of their
+    largest sizes from its centre, wherever the objects are in the scene and whatever else is in
+    it (a huge ground plane has a class of its own)."""
 
     def __init__(self, accel):
         self.accel = accel
         ids = np.asarray(accel.object_ids, np.int64)
         self.objects, rank = np.unique(ids, return_inverse=True)
         n = len(self.objects)
-        side = max(int(np.ceil(n ** (1.0 / 3.0) - 1e-9)), 1)
-        while side ** 3 < n:
-            side += 1
-        grid = np.stack(np.unravel_index(np.arange(n), (side, side, side)), axis=1).astype(np.float64)
-        # (in a frame kept by FRAME_SHIFT the triangles lie within 0.9 extents of its centre: the
-        # shifted boxes still stay apart)
-        self.shift = (grid - 0.5 * (side - 1)) * (2.0 * accel.extent)             # (n, 3)
         corners = np.stack([accel.v0, accel.v0 + accel.e1, accel.v0 + accel.e2], axis=1)    # (T, 3, 3)
         lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
         np.minimum.at(lo, rank, corners.min(axis=1))
         np.maximum.at(hi, rank, corners.max(axis=1))
-        pad = 1e-5 * accel.extent
-        self.lo, self.hi = lo - pad, hi + pad                                     # (n, 3) world boxes
-        self._embree = _embree_scene(corners - accel.center + self.shift.take(rank, axis=0)[:, None, :])
+        size = (hi - lo).max(axis=1)
+        reach = np.maximum(np.abs(lo - accel.center), np.abs(hi - accel.center))
+        spawned = 1e-5 * size + 4.0 * accel.offsets_near(accel.center + reach)
+        room = size + 2.0 * spawned
+        room = np.maximum(room, 1e-12 * room.max() + 1e-30)
+        self._class = np.floor(np.log(room.max() / room) / np.log(LOCAL_CLASS)).astype(np.int64)     # (n,)
+        # Each box's centre goes to its class's grid point (the pads below are far under the
+        # step's room).
+        at = np.zeros((n, 3))
+        for c in np.unique(self._class):
+            members = np.flatnonzero(self._class == c)
+            side = max(int(np.ceil(len(members) ** (1.0 / 3.0) - 1e-9)), 1)
+            while side ** 3 < len(members):
+                side += 1
+            grid = np.stack(np.unravel_index(np.arange(len(members)), (side, side, side)), axis=1)
+            at[members] = (grid - 0.5 * (side - 1)) * (LOCAL_STEP * float(room.take(members).max()))
+        # The offsets a frame tells apart: a few float32 ulps of the largest coordinate an object's
+        # box has in it (rays spawned off an object for its queries start that far at least:
+        # Accel.spawn_local).
+        self.floor = _LOCAL_ULPS * (np.abs(at).max(axis=1) + 0.5 * size + spawned) + 1e-30      # (n,)
+        self._rank = rank                                           # (T,) each triangle's object
+        # (boxes wider than the spawn offsets there: rays spawned off an object start in its box)
+        pad = spawned + 4.0 * self.floor
+        self.lo, self.hi = lo - pad[:, None], hi + pad[:, None]                   # (n, 3) world boxes
+        self.shift = at - 0.5 * (lo + hi)                                         # (n, 3)
+        # (each class's embree scene and its triangles' indices in the scene)
+        tri_class = self._class.take(rank)
+        self._scenes = {}
+        for c in np.unique(self._class):
+            tri = np.flatnonzero(tri_class == c)
+            self._scenes[int(c)] = (_embree_scene(corners.take(tri, axis=0)
+                                                  + self.shift.take(rank.take(tri), axis=0)[:, None, :]), tri)
+
+    def floor_at(self, prims):
+        """(n,) the least spawn offset of rays off triangles ``prims`` for this scene's queries."""
+        return self.floor.take(self._rank.take(prims))
 
     def intersect(self, origins, directions, tmax, objects) -> Hits:
         """Closest hits of rays ``origins + t directions`` (0 < t < ``tmax``, a scalar or (n,)) on the
@@ -382,22 +464,24 @@ class LocalScene:
         start = np.maximum(np.maximum(np.maximum(near[:, 0], near[:, 1]), near[:, 2]), 0.0)
         end = np.minimum(np.minimum(np.minimum(far[:, 0], far[:, 1]), far[:, 2]),
                          np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
-        rows = np.flatnonzero(end > start)
+        inside = np.flatnonzero(end > start)
         is_hit = np.zeros(n, bool)
         prim, t = np.full(n, -1, np.int32), np.full(n, np.inf, np.float32)
         b1, b2 = np.zeros(n), np.zeros(n)
-        if len(rows):
+        classes = self._class.take(rank.take(inside))
+        for c in np.unique(classes):
+            rows = inside if len(self._scenes) == 1 else inside[classes == c]
+            scene, tri = self._scenes[int(c)]
             s = start.take(rows)
-            o = (origins.take(rows, axis=0) + s[:, None] * d.take(rows, axis=0) - self.accel.center
-                 + self.shift.take(rank.take(rows), axis=0))
-            r = self._embree.run(np.ascontiguousarray(o, np.float32),
-                                 np.ascontiguousarray(d.take(rows, axis=0), np.float32),
-                                 dists=np.ascontiguousarray(np.minimum(end.take(rows) - s, 1e37), np.float32),
-                                 output=1)
+            dr = d.take(rows, axis=0)
+            o = origins.take(rows, axis=0) + s[:, None] * dr + self.shift.take(rank.take(rows), axis=0)
+            dists = np.ascontiguousarray(np.minimum(end.take(rows) - s, 1e37), np.float32)
+            r = scene.run(np.ascontiguousarray(o, np.float32), np.ascontiguousarray(dr, np.float32),
+                          dists=dists, output=1)
             found = r["primID"] >= 0
             h = rows[found]
             is_hit[h] = True
-            prim[h] = r["primID"][found]
+            prim[h] = tri.take(r["primID"][found])
             t[h] = (r["tfar"][found] + s[found]).astype(np.float32)
             b1[h], b2[h] = r["u"][found], r["v"][found]
         return Hits(is_hit, prim, t, b1, b2)
@@ -616,6 +700,19 @@ def _overlapping(v0, e1, e2, lo, hi):
         near &= np.minimum(np.minimum(a, b), c) <= hi[k]
         near &= np.maximum(np.maximum(a, b), c) >= lo[k]
     return near
+
+
+def _corner_offsets(v0, e1, e2, center):
+    """(T,) each triangle's part of its spawn offsets (corners ``v0``, ``v0 + e1``, ``v0 + e2``):
+    _CORNER_SHARE of the largest coordinate of its corners in embree's frame (about ``center``), and
+    a floor (a triangle at the very origin)."""
+    a = v0 - center
+    largest = np.zeros(len(v0))
+    for corner in (a, a + e1, a + e2):
+        # (column by column: NumPy reduces a short inner axis ~10x slower)
+        for k in range(3):
+            np.maximum(largest, np.abs(corner[:, k]), out=largest)
+    return _CORNER_SHARE * largest + 1e-30
 
 
 def _triangle_data(corners):

@@ -446,7 +446,7 @@ class RenderContext:
             d = dirs.take(rows, axis=0)
             if self.has_volumes:
                 medium[rows] = self.next_medium(medium.take(rows), pr, d, -d)
-            start = accel.spawn(p, accel.geometric_normals.take(pr, axis=0), d)
+            start = accel.spawn(p, accel.geometric_normals.take(pr, axis=0), d, pr)
             travelled = t.take(rows) + dot(start - p, d)
             left = None if limit is None else np.maximum(limit.take(rows) - travelled, 0.0)
             raw = accel.intersect(start, d, left)
@@ -641,7 +641,7 @@ class RenderContext:
             hit = h.take(go)
             p = self.accel.hit_positions(prim.take(go), hits.b1.take(hit), hits.b2.take(hit))
             rows, d = rows.take(go), d.take(go, axis=0)
-            origins = self.accel.spawn(p, ng.take(go, axis=0), d)
+            origins = self.accel.spawn(p, ng.take(go, axis=0), d, prim.take(go))
         return found
 
     def holdout_at(self, prim):
@@ -1002,7 +1002,7 @@ class RenderContext:
         parametrisation).  An image's height (its luminance) takes the UVs and the bilinear
         image's exact gradient (triangles without a UV parametrisation keep N); a program's
         (``Materials.bump_program``) the barycentrics b1, b2 (dP/db = the edges) and forward
-        differences of ``BUMP_STEP`` times the scene's size along each edge.  A second bump
+        differences of ``BUMP_STEP`` times the object's size along each edge.  A second bump
         (``Materials.outer_bump_program``, a Bump on a Bump) then bends the normal the first made.
         Where the first is the Displacement output's (``Materials.displacement_bump``) it replaces
         the surface's own normal ``nn`` too (Cycles' Set Normal), which the bump-map terms compare
@@ -1037,14 +1037,15 @@ class RenderContext:
     def _bump_by_programs(self, ns, prim_ids, bary, pos, mat, rays, programs, strength, distance):
         """Bend ``ns`` in place where the materials ``mat`` have a bump's height program among
         ``programs`` (per material), of ``strength`` and ``distance`` (``procedural.bumped_normals``,
-        with differences of ``BUMP_STEP`` times the scene's size)."""
+        with differences of ``BUMP_STEP`` times the object's size)."""
         program = programs.take(mat)
         for k in np.unique(program[program >= 0]):
             sel = np.flatnonzero(program == k)
             m = mat.take(sel)
+            step = BUMP_STEP * self.accel.object_sizes(prim_ids.take(sel))
             ns[sel] = bumped_normals(self._hit_attributes(sel, prim_ids, bary, pos, rays), self.programs[k],
                                      self.textures.images, ns.take(sel, axis=0), strength.take(m),
-                                     distance.take(m), BUMP_STEP * self.accel.extent, self.sky_cache)
+                                     distance.take(m), step, self.sky_cache)
 
 
 def _forced_points(parts):

@@ -110,8 +110,9 @@ def _probe(ctx, position, n, dirs, radius, ring):
         left[rows_on] -= t_hit
         keep = np.flatnonzero(left.take(rows_on) > 0)
         rows = rows_on.take(keep)
-        through = ctx.accel.geometric_normals.take(below.prim_ids.take(on.take(keep)), axis=0)
-        origins = ctx.accel.spawn(hit_at.take(keep, axis=0), through, down.take(rows, axis=0))
+        crossed = below.prim_ids.take(on.take(keep))
+        through = ctx.accel.geometric_normals.take(crossed, axis=0)
+        origins = ctx.accel.spawn(hit_at.take(keep, axis=0), through, down.take(rows, axis=0), crossed)
     return covered.reshape(m, k)
 
 

@@ -100,7 +100,7 @@ def coverage(ctx, pix, origins, dirs, tmax):
         pg = prim.take(go)
         p = accel.hit_positions(pg, hits.b1.take(hg), hits.b2.take(hg))
         dg = d.take(hg, axis=0)
-        start = accel.spawn(p, accel.geometric_normals.take(pg, axis=0), dg)
+        start = accel.spawn(p, accel.geometric_normals.take(pg, axis=0), dg, pg)
         left = np.maximum(left.take(hg) - hits.t.take(hg) - np.einsum("ij,ij->i", start - p, dg), 0.0)
         rows, weight, o, d = rows.take(hg), (w * through).take(go), start, dg
     if not out_pix:

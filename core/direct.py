@@ -311,7 +311,7 @@ def _light_samples(ctx, target, point, entry, chance, u, rng, split=False):
     if len(r) == 0:
         return nothing
     d = wi.take(r, axis=0)
-    origins = ctx.accel.spawn(x.take(r, axis=0), ng.take(r, axis=0), d)
+    origins = ctx.accel.spawn(x.take(r, axis=0), ng.take(r, axis=0), d, pts.prim.take(point.take(r)))
     hits, tint, _, _ = ctx.trace(origins, d, t_max.take(r), lambda rows, k: rng.random(len(rows)))
     open_ = np.flatnonzero(~hits.is_hit)
     r = r.take(open_)

@@ -58,6 +58,8 @@ class MeasurementPoints:
     #                               (light_passes.VIA_*); None: no light passes
     caught: np.ndarray = None     # (m,) bool the camera path's first hit was a shadow catcher
     #                               (core/shadow_catcher.py); None: the scene has none
+    prim: np.ndarray = None       # (m,) int32 the triangle the point lies on (rays leave it by its
+    #                               Accel.spawn offset)
 
     @property
     def count(self) -> int:
@@ -490,8 +492,8 @@ def lobe_albedos(table, surf, wo, rows, rng, estimated=False):
             yield lobe, m_s, at.take(sel), w, scores[:, lobe].take(sel), sides
 
 
-def ambient_occlusion(ctx, surf, wo, medium, distance, rng):
-    """(k, 3) Cycles' Ambient Occlusion pass at the hits ``surf`` seen from ``wo``
+def ambient_occlusion(ctx, surf, prim, wo, medium, distance, rng):
+    """(k, 3) Cycles' Ambient Occlusion pass at the hits ``surf`` (on triangles ``prim``) seen from ``wo``
     (``integrate_surface_ao``): one ray each in a cosine direction about the shading normal facing
     the viewer (Cycles' mean of its diffuse closures' normals, or the shading normal), from the
     volume ``medium`` (k,) the paths are in (None: none), that carries back what reaches
@@ -504,7 +506,7 @@ def ambient_occlusion(ctx, surf, wo, medium, distance, rng):
     d = to_world(cosine_hemisphere(u[:, 0], u[:, 1]), ns)
     below = dot(d, ng)
     d = d - 2.0 * np.minimum(below, 0.0)[:, None] * ng                # (a bent normal's: kept above)
-    origins = ctx.accel.spawn(surf.position, ng, d)
+    origins = ctx.accel.spawn(surf.position, ng, d, prim)
     never = lambda rows, k: np.full(len(rows), 1.0 - 2.0 ** -53)    # noqa: E731  (cross every one)
     hits, factor, _, _ = ctx.trace(origins, d, np.full(n, float(distance)), never, medium, cut=True)
     out = np.ones((n, 3)) if factor is None else np.array(factor, np.float64)
@@ -841,7 +843,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             reach = path_len.take(rows) + ends
             r1 = initial_radius_px * footprint.take(rows) * (reach if grows else 1.0)
             position = origins.take(rows, axis=0) + t_v[:, None] * dirs.take(rows, axis=0)
-            r1 = np.clip(r1, 1e-7 * extent, 0.5 * extent)
+            r1 = np.minimum(np.maximum(r1, accel.offsets_near(position)), 0.5 * extent)
             planes = side_planes(ctx, origins, dirs, rows, t_v, ends, r1, media, position, planes)
             volume.append(VolumePoints(
                 pixel_ids=pix.take(rows),
@@ -985,7 +987,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             albedos = colour_albedos(table, surf, wo, np.arange(len(pix)), rng.spawn(1)[0])
             light.add_colours(pix, {k: beta * v for k, v in albedos.items()})
         if depth == 0 and data and "ao" in data:
-            data["ao"][pix] += beta * ambient_occlusion(ctx, surf, wo, medium, ao_distance, rng.spawn(1)[0])
+            data["ao"][pix] += beta * ambient_occlusion(ctx, surf, prim, wo, medium, ao_distance,
+                                                                 rng.spawn(1)[0])
         if feature is not None:
             feature.surface(table, surf, wo, pix, hits.t.take(h))
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
@@ -1042,12 +1045,13 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
                 ns=ns.astype(f32), wo=rows(wo).astype(f32),
                 weight=(rows(beta) / rows(p_nd)[:, None]).astype(f32), mat_ids=rows(surf.mat_ids),
                 colors=rows(surf.colors)[:, point_lobes].astype(f32),
-                base_radius=np.clip(r1, 1e-7 * extent, 0.5 * extent),
+                base_radius=np.minimum(np.maximum(r1, accel.offsets_near(rows(surf.position))), 0.5 * extent),
                 nn=None if surf.nn is None else face_forward(rows(surf.nn), ng).astype(f32),
                 ns_glossy=ns_glossy,
                 tangent=None if surf.tangent is None else rows(surf.tangent).astype(f32),
                 bounces=rows(bounces), crossings=None if crossed is None else rows(crossed),
-                via=None if light is None else rows(via), caught=None if caught is None else rows(caught))
+                via=None if light is None else rows(via), caught=None if caught is None else rows(caught),
+                prim=rows(prim))
             if ctx.subsurface_exit >= 0:
                 # Some points go beneath their surface, to the exit of a random walk.
                 points, exits, r = _beneath(ctx, rng, points, rows(prim), rows(scores[:, DIFFUSE]),
@@ -1109,7 +1113,7 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             feature.take(g)
         pix, beta, dirs = pix[g], beta[g] * weight[keep], wi[keep]
         path_len, footprint = path_len[g], footprint[g]
-        origins = accel.spawn(surf.position[g], surf.ng[g], dirs)
+        origins = accel.spawn(surf.position[g], surf.ng[g], dirs, prim[g])
         origin_normals = surf.ng[g]
     return parts, rays
 
@@ -1172,7 +1176,8 @@ def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
         if objects is None:
             return accel.intersect(origins, d, tmax)
         return accel.local_scene().intersect(origins, d, tmax, objects.take(r))
-    starts = accel.spawn(points.position[w_rows[ok]], ng.take(ok, axis=0), dirs.take(ok, axis=0))
+    starts = accel.spawn_local(points.position[w_rows[ok]], ng.take(ok, axis=0), dirs.take(ok, axis=0),
+                               prim.take(w_rows.take(ok)))
     left, hits, d_out, beta_out = subsurface.random_walk(
         intersect, starts, dirs.take(ok, axis=0), n.take(ok, axis=0), sigma_t.take(ok, axis=0),
         alpha.take(ok, axis=0),
@@ -1199,7 +1204,7 @@ def _beneath(ctx, rng, points, prim, diffuse_score, non_delta):
         bounces=None if points.bounces is None else points.bounces.take(src, axis=0),
         crossings=None if points.crossings is None else points.crossings.take(src),
         via=None if points.via is None else points.via.take(src),
-        caught=None if points.caught is None else points.caught.take(src))
+        caught=None if points.caught is None else points.caught.take(src), prim=hits.prim_ids)
     return kept, exits, rays
 
 
@@ -1245,5 +1250,6 @@ def coat_attenuation(table, surf, wo, rows, albedo_only=False):
 def _empty_points():
     z3 = np.zeros((0, 3), np.float32)
     return MeasurementPoints(np.zeros(0, np.int64), np.zeros((0, 3)), z3, z3, z3, z3,
-                             np.zeros(0, np.int32), np.zeros((0, 2, 3), np.float32), np.zeros(0))
+                             np.zeros(0, np.int32), np.zeros((0, 2, 3), np.float32), np.zeros(0),
+                             prim=np.zeros(0, np.int32))
 

@@ -919,7 +919,7 @@ class LightSampler:
         if self.sheened_emitters:
             emitted = np.array(emitted, np.float64)
             emitted *= self.table.sheen_dim(self.material_ids.take(ids), smp.dot(d, n))[:, None]
-        return a.spawn(p, n, d), d, emitted, n
+        return a.spawn(p, n, d, ids), d, emitted, n
 
     def _emitter_rays(self, directions):
         """The ``procedural.Rays`` an emitting triangle's photons see it by: along ``directions``
@@ -1009,7 +1009,8 @@ class GlowingVolume:
         """(points (n, 3), weights A L / V (n,))."""
         n, k = len(u1), self.axis
         i, j = self.across
-        start = self.lo[k] - 0.01 * (self.hi[k] - self.lo[k]) - self.accel.offset_floor
+        offset = self.accel.offsets_near(np.stack([self.lo, self.hi])).max()
+        start = self.lo[k] - 0.01 * (self.hi[k] - self.lo[k]) - offset
         o = np.empty((n, 3))
         o[:, i] = self.lo[i] + u1 * (self.hi[i] - self.lo[i])
         o[:, j] = self.lo[j] + u2 * (self.hi[j] - self.lo[j])
@@ -1035,7 +1036,7 @@ class GlowingVolume:
             t[rows], after[rows] = p[:, k] - start, depth.take(rows)
             ts.append(t)
             depths.append(after)
-            origins = self.accel.spawn(p, ng, d.take(rows, axis=0))
+            origins = self.accel.spawn(p, ng, d.take(rows, axis=0), prim)
         ts, depths = np.stack(ts, axis=1), np.stack(depths, axis=1)
         # The inside lengths between crossings (a crossing's column 0: it had none).
         inside = np.where((depths[:, :-1] > 0) & (ts[:, 1:] > 0), np.maximum(np.diff(ts, axis=1), 0.0), 0.0)

@@ -1380,15 +1380,15 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
             idx = idx.take(keep)
             flux = new_flux.take(keep, axis=0) / q.take(keep)[:, None]
             dirs = wi.take(keep, axis=0)
-            position, ng = surf.position, surf.ng
+            position, ng, at = surf.position, surf.ng, prim
             if leave is not None:
-                rows, position, ng, _ = leave
+                rows, position, ng, _, at = leave
             if volumes:
                 medium = medium.take(keep)
                 crossed = ctx.next_medium(medium, prim.take(keep), dirs, wo.take(keep, axis=0))
                 # (photons that left an object where a walk took them stay in the volume they were in)
                 medium = crossed if leave is None else np.where(np.isin(keep, rows), medium, crossed)
-            origins = accel.spawn(position.take(keep, axis=0), ng.take(keep, axis=0), dirs)
+            origins = accel.spawn(position.take(keep, axis=0), ng.take(keep, axis=0), dirs, at.take(keep))
         else:
             flux, dirs, origins = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
             medium = np.zeros(0, np.int32)
@@ -1473,8 +1473,9 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     direction (under a Fresnel layer, its factor there).  The others keep their diffuse lobe
     without the part.  Updates ``wi``, ``weight`` and ``alive`` (walks that do not leave, and
     photons that do not get out of the surface, are lost) in place; returns None or (rows,
-    positions, normals, exit shading normals): the photons that left and where they leave from (the
-    others' own positions and normals; the shading normals of the rows alone)."""
+    positions, normals, exit shading normals, triangles): the photons that left and where they leave
+    from (the others' own positions, normals and triangles; the shading normals of the rows
+    alone)."""
     materials, table, accel = ctx.materials, ctx.table, ctx.accel
     share = np.asarray(materials.subsurface_weight, np.float64).take(mats)
     rows = np.flatnonzero((lobe == DIFFUSE) & (share > 0) & alive)
@@ -1510,9 +1511,9 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
             return accel.intersect(origins, dirs, tmax)
         return accel.local_scene().intersect(origins, dirs, tmax, objects.take(r))
     numbers = _walk_uniforms(u, idx.take(go), bounce)
+    starts = accel.spawn_local(surf.position.take(go, axis=0), ng_in, d, prim.take(go))
     left, hits, d_out, beta = subsurface.random_walk(
-        intersect, accel.spawn(surf.position.take(go, axis=0), ng_in, d), d, n_in, sigma_t, albedo, g,
-        scale / (prob.take(go) * q)[:, None], numbers)
+        intersect, starts, d, n_in, sigma_t, albedo, g, scale / (prob.take(go) * q)[:, None], numbers)
     if len(left) == 0:
         return None
     out = go.take(left)
@@ -1531,9 +1532,9 @@ def _beneath(ctx, u, idx, bounce, surf, prim, mats, colors, lobe, prob, pick, wo
     wi[out] = leave
     weight[out] = beta * w
     alive[out] = (dot(leave, ng_out) > 0) & (through > 0)
-    position, ng = surf.position.copy(), surf.ng.copy()
-    position[out], ng[out] = exit_.position, ng_out
-    return out, position, ng, n_out
+    position, ng, at = surf.position.copy(), surf.ng.copy(), prim.copy()
+    position[out], ng[out], at[out] = exit_.position, ng_out, hits.prim_ids
+    return out, position, ng, n_out, at
 
 
 def scatter_kind(lobe, wi, wo, ng):

@@ -95,7 +95,8 @@ from .sampling import (affine_inverse, cosine_hemisphere, dot, fresnel_dielectri
 from .texture_hash import hash_uint3, hash_uint3_to_float
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
-# A bump's finite-difference step, times the scene's size (``RenderContext._apply_bump_maps``, ``_bump``).
+# A bump's finite-difference step, times the object's size (``RenderContext._apply_bump_maps``, ``_bump``;
+# ``Accel.object_sizes``).
 BUMP_STEP = 1e-5
 # Hits a program is evaluated on at once (``evaluate``): a world's bake of a Noise Texture's Color
 # of detail 15 (524,288 directions) took 8.26 s in chunks of 65,536 against 15.41 s all at once, of
@@ -363,14 +364,16 @@ class HitAttributes:
         n = np.asarray(normals, np.float64).take(rows, axis=0)
         ng = self._front("true_normal").take(rows, axis=0)
         objects = None
+        prims = self.prim_ids.take(rows)
         if only_local and self.scene.object_ids is not None:
-            objects = self.scene.object_ids.take(self.prim_ids.take(rows))
+            objects = self.scene.object_ids.take(prims)
         free = np.zeros(len(rows))
         for j in range(samples):
             u1, u2 = (hash_uint3_to_float(key, np.uint32(j), np.uint32(axis)) for axis in (0, 1))
             u1 = np.minimum((j + u1) / samples, 1.0)  # (stratified, as Cycles' numbers are)
             d = to_world(cosine_hemisphere(u1, u2), n)
-            free += ~self._blocked(self.accel.spawn(p, ng, d), d, distance.take(rows), objects)
+            spawn = self.accel.spawn if objects is None else self.accel.spawn_local
+            free += ~self._blocked(spawn(p, ng, d, prims), d, distance.take(rows), objects)
         out[rows] = free / samples
         return out
 
@@ -445,7 +448,7 @@ class HitAttributes:
             at = accel.hit_positions(prim, b1, b2)
             yield rows.take(h), prim, at, b1, b2
             d = d.take(h, axis=0)
-            o = accel.spawn(at, accel.geometric_normals.take(prim, axis=0), d)
+            o = accel.spawn_local(at, accel.geometric_normals.take(prim, axis=0), d, prim)
             rows, left = rows.take(h), left.take(h) - hits.t.take(h).astype(np.float64)
 
     def _blocked(self, origins, dirs, tmax, objects):
@@ -1756,7 +1759,7 @@ def _keep_where_bad(n, fallback):
 
 def _bump(ev, node):
     """Blender's Bump node as a program (its Normal, :func:`bumped_normals`) about the node's
-    normal or the shading normal, with differences of ``BUMP_STEP`` times the scene's size (a
+    normal or the shading normal, with differences of ``BUMP_STEP`` times the object's size (a
     thousandth of an edge without the scene's acceleration structure); a negative distance is an
     inverted bump.  Where there is no triangle to step along (a world's directions) the normal is
     returned as it is, as it is for a constant height (an unlinked Height: no slope)."""
@@ -1764,7 +1767,7 @@ def _bump(ev, node):
     n0 = normalize(_node_normal(ev, node))
     if not isinstance(attrs, HitAttributes) or not isinstance(node.get("height"), dict):
         return {"Normal": n0}
-    step = None if attrs.accel is None else BUMP_STEP * attrs.accel.extent
+    step = None if attrs.accel is None else BUMP_STEP * attrs.accel.object_sizes(attrs.prim_ids)
     return {"Normal": bumped_normals(attrs, node["height"], ev.images, n0, ev.float(node, "strength", 1.0),
                                      ev.float(node, "distance", 1.0), step, ev.sky_cache)}
 

@@ -128,3 +128,31 @@ def test_a_vector_offset_moves_every_vertex_by_itself():
     out = displace(scene)
     moved = out.vertices - scene.vertices
     np.testing.assert_allclose(moved, np.broadcast_to([0.1, -0.05, 0.2], moved.shape), atol=1e-6)
+
+
+def test_a_bump_on_a_small_object_keeps_its_detail_beside_a_huge_one():
+    """A bump of ripples 1 cm apart on a 2 m grid bends its normals alike with a black ground plane
+    2 km wide in the scene or not: the differences step by a share of the object's own size (once of
+    the scene's, 2 cm there, which took the ripples' slopes for noise)."""
+    ripples = {"op": "math", "operation": "MULTIPLY", "a": X, "b": 600.0}
+    height = {"op": "math", "operation": "MULTIPLY", "b": 1e-3,
+              "a": {"op": "math", "operation": "SINE", "a": ripples}}
+    alone = grid({"bump_program": height})
+    t = alone.triangle_count
+    ground = np.float32([[-1e3, -1e3, -1.0], [1e3, -1e3, -1.0], [1e3, 1e3, -1.0], [-1e3, 1e3, -1.0]])
+    beside = alone.replace(
+        vertices=np.concatenate([alone.vertices, ground]),
+        triangles=np.concatenate([alone.triangles, len(alone.vertices) + np.int32([[0, 1, 2], [0, 2, 3]])]),
+        material_ids=np.zeros(t + 2, np.int32),
+        shading_normals=np.concatenate([alone.shading_normals, np.tile(np.float32([0, 0, 1]), (2, 3, 1))]),
+        object_ids=np.concatenate([alone.object_ids, np.int32([1, 1])]),
+        object_from_world=np.repeat(alone.object_from_world, 2, axis=0),
+        texture_spaces=np.repeat(alone.texture_spaces, 2, axis=0), object_info=None).validate()
+    rng = np.random.default_rng(5)
+    prims = rng.integers(0, t, 2000)
+    b1 = rng.uniform(0.0, 0.5, 2000)
+    b2 = rng.uniform(0.0, 0.5, 2000)
+    normals = [RenderContext(scene).surface(prims, b1, b2).ns for scene in (alone, beside)]
+    # (the ripples tilt the normals by up to atan(0.6) along x)
+    assert np.abs(normals[0][:, 0]).max() > 0.3
+    np.testing.assert_allclose(normals[1], normals[0], atol=1e-6)

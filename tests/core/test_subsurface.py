@@ -10,6 +10,8 @@ radiance light inside leaves with by direction, and its flux).
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -246,3 +248,35 @@ def test_light_spread_evenly_inside_leaves_with_its_own_energy():
                                                np.full(n_photons, share), rng.random((n_photons, 3)))
         assert abs(weight.mean() - 1.0) < 4.0 * weight.std() / np.sqrt(n_photons)
         assert (weight == 0).mean() > 0.2                 # (lost inside)
+
+
+def test_walks_in_a_small_object_beside_a_huge_one_are_those_of_the_object_alone():
+    """Walks through a slab 20 mm wide, 5 mm deep (mean free paths 0.03 to 0.25 mm) each on its own
+    object's triangles (``Accel.local_scene``, as in Blender's scenes) leave with the same mean
+    beside a ground plane 2 km wide as alone, within 4 standard errors: the plane's size is not
+    the slab's frame (once every object's was, so the slab's walks saw it rounded to 0.1 mm)."""
+    sigma_t, alpha, n = np.array([4e3, 1e4, 3e4]), np.array([0.99, 0.9, 0.6]), 20000
+    means = []
+    for ground in (False, True):
+        m = MeshBuilder()
+        m.add_box((-0.01, -0.01, -0.005), (0.01, 0.01, 0.0), 0)
+        if ground:
+            m.add_quad((-1e3, -1e3, -1.0), (1e3, -1e3, -1.0), (1e3, 1e3, -1.0), (-1e3, 1e3, -1.0), 0)
+        scene = m.build(Materials.build([{"name": "medium", "diffuse": 0.5}]))
+        count = 1 + ground
+        scene = dataclasses.replace(
+            scene, object_ids=np.repeat(np.arange(count, dtype=np.int32), [12, 2][:count]),
+            object_from_world=np.tile(np.eye(3, 4), (count, 1, 1)),
+            texture_spaces=np.tile([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]], (count, 1, 1))).validate()
+        local = Accel(scene).local_scene()
+        left, _, _, beta = subsurface.random_walk(
+            lambda rows, o, d, t: local.intersect(o, d, t, np.zeros(len(rows), np.int64)),
+            np.tile([0.0, 0.0, -1e-7], (n, 1)), np.tile([0.0, 0.0, -1.0], (n, 1)),
+            np.tile([0.0, 0.0, 1.0], (n, 1)), np.tile(sigma_t, (n, 1)), np.tile(alpha, (n, 1)), np.zeros(n),
+            np.ones((n, 3)), numbers(7))
+        values = np.zeros((n, 3))
+        values[left] = beta
+        means.append((values.mean(axis=0), values.std(axis=0) / np.sqrt(n)))
+    (alone, err_alone), (beside, err_beside) = means
+    assert (alone > 0.05).all()
+    assert (np.abs(beside - alone) < 4.0 * np.hypot(err_alone, err_beside)).all(), (alone, beside)
