@@ -19,8 +19,9 @@ A Mix Shader of a Diffuse and a Glossy BSDF by a Fresnel curve (Fresnel node, La
 Fresnel) is a Fresnel layer (``_fresnel_layer``); a Mix of any shader and a clear Transparent
 BSDF by Light Path's Is Camera, Glossy or Transmission Ray is that shader hidden from those rays
 (``Closure.hidden_rays``, the object's ray visibility of its triangles).
-Anything else becomes a grey diffuse closure (for shaders) or the socket's own value (for
-colours and numbers), and the material gets *one* warning naming every such node.
+Anything else becomes a grey diffuse closure (for shaders; EEVEE's Specular BSDF no closure, black,
+as in Cycles) or the socket's own value (for colours and numbers), and the material gets *one*
+warning naming every such node.
 
 Principled BSDF mapping (``metallic`` m, ``Transmission Weight`` t, specular
 level s, base colour B):
@@ -1585,6 +1586,9 @@ class NodeWalker:
         node = src.node
         kind = node.bl_idname
         handler = None if node.mute else SHADERS.get(kind)
+        if handler is None and kind in EEVEE_ONLY_SHADERS:
+            self.unsupported(node, "rendered black, as Cycles renders it (a shader of EEVEE's alone)")
+            return None
         if handler is None:
             self.unsupported(node, "rendered as grey diffuse")
             return Closure.lobe(DIFFUSE, 1.0, GREY)
@@ -2144,7 +2148,8 @@ class NodeWalker:
                 c.emission_texture = _times(_program_of(tex, color), strength)
             return c
         program = _times(_program_of(tex, color), f)
-        values = procedural.evaluate(program, procedural.SampledAttributes(), self.textures.images)
+        values = procedural.evaluate(program, procedural.SampledAttributes(), self.textures.images,
+                                     sky_cache=self.textures.sky_cache)
         mean = np.maximum(values, 0.0).mean(axis=0)
         return Closure(emission=mean, emission_texture=program)
 
@@ -2171,8 +2176,8 @@ class NodeWalker:
         scales the layer's F0, not a mix of two shaders: between two neighbouring levels the pick
         takes their mix, and above the largest value the largest level."""
         f = _math("MAXIMUM", f, 0.0)
-        values = np.nan_to_num(procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images),
-                               nan=0.0, posinf=0.0)
+        values = np.nan_to_num(procedural.evaluate(f, procedural.SampledAttributes(), self.textures.images,
+                                                   sky_cache=self.textures.sky_cache), nan=0.0, posinf=0.0)
         top = max(1.0, float(values.max()))
         c = self._principled_opaque(node, stack, {SPECULAR_LEVEL: float(values.mean())})
         levels = [self._principled_opaque(node, stack, {SPECULAR_LEVEL: float(v)})
@@ -2373,6 +2378,8 @@ FRESNEL_FACTORS = ("ShaderNodeFresnel", "ShaderNodeLayerWeight")
 # Cycles leaves out a Principled's sheen of weight at most this (CLOSURE_WEIGHT_CUTOFF).
 SHEEN_CUTOFF = 1e-5
 
+# Shader nodes of EEVEE's alone: Cycles makes no closure of them (black).
+EEVEE_ONLY_SHADERS = frozenset({"ShaderNodeEeveeSpecular"})
 SHADERS = {
     "ShaderNodeBsdfPrincipled": NodeWalker._principled,
     "ShaderNodeBsdfDiffuse": NodeWalker._diffuse,

@@ -955,8 +955,11 @@ def _triangulate(me, positions, corner_vert):
     q = start.take(quads)
     # (np.take: fancy indexing of rows is several times slower.)
     p0, p1, p2, p3 = (np.take(positions, corner_vert.take(q + k), axis=0) for k in range(4))
-    d13 = p2 - p0
-    flip = np.einsum("qi,qi->q", _cross(p1 - p0, d13), _cross(p3 - p0, d13)) > 0
+    # (float32 as Blender's: coordinates near its limit overflow to infinity there too, and a NaN
+    # product does not flip the quad)
+    with np.errstate(over="ignore", invalid="ignore"):
+        d13 = p2 - p0
+        flip = np.einsum("qi,qi->q", _cross(p1 - p0, d13), _cross(p3 - p0, d13)) > 0
     split = np.array([[[0, 1, 2], [0, 2, 3]], [[0, 1, 3], [1, 2, 3]]], np.int32)
     quad_loops = q[:, None, None] + np.take(split, flip.astype(np.intp), axis=0)    # (Q, 2, 3)
     if len(quads) == n_poly:
@@ -1371,7 +1374,9 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
         tangents = np.concatenate([t, sign[..., None]], axis=3)                       # (k, T, 3, 4)
         _swap_corners(tangents, mirrored)
         tangents = tangents.reshape(k * n_t, 3, 4)
-    out = {"vertices": vertices.reshape(k * n_v, 3).astype(np.float32),
+    with np.errstate(over="ignore"):                # (past float32: infinity, left out by within_reach)
+        world = vertices.reshape(k * n_v, 3).astype(np.float32)
+    out = {"vertices": world,
            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
            "normals": normals, "uvs": uvs, "tangents": tangents}
     # Texture coordinates of procedural textures: each instance's own object space.

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...core.accel import EMBREE_REACH
 from ...core.cryptomatte import name_id
 from ...core.scene import SUN, Scene
 from .camera import export_camera
@@ -70,6 +71,24 @@ GEOMETRY_PASSES = {"use_pass_object_index": "object_index", "use_pass_uv": "uv",
 def geometry_passes(view_layer) -> frozenset:
     """The core data passes of ``GEOMETRY_PASSES`` that ``view_layer`` asks for."""
     return frozenset(core for box, core in GEOMETRY_PASSES.items() if getattr(view_layer, box, False))
+
+
+def within_reach(scene, log):
+    """``scene`` without its triangles that have a corner at NaN, infinity or a coordinate beyond
+    EMBREE_REACH in world space (vertices finite in their object that its transform takes so far:
+    float32 holds them no more, and embree leaves such triangles out, as Cycles does), named in a
+    warning."""
+    far = ~(np.abs(scene.vertices) <= EMBREE_REACH).all(axis=1)         # (NaN fails the test too)
+    if not far.any():
+        return scene
+    out = far.take(scene.triangles).any(axis=1)
+    if out.any():
+        log.warning(f"{int(out.sum())} of the scene's {len(out)} triangles have a corner beyond "
+                    f"{EMBREE_REACH:.3g} or at infinity in world space (an object moved, turned or scaled "
+                    "that far): they are left out, as Cycles leaves them")
+    vertices = scene.vertices.copy()
+    vertices[far] = 0.0                             # (no triangle uses them now)
+    return scene.replace(vertices=vertices).take_triangles(~out)
 
 
 def export_scene(depsgraph, camera_object=None, resolution=None, border=None, camera=None) -> ExportedScene:
@@ -171,6 +190,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None, ca
                   triangle_visibility=geometry.triangle_visibility, emitter_exclude=geometry.emitter_exclude,
                   textures=materials.textures.images, cryptomatte_ids=crypto,
                   light_groups=tuple(groups), emitter_group=geometry.emitter_group, **sets)
+    scene = within_reach(scene, log)
     return ExportedScene(scene=scene.validate(), warnings=list(log.warnings), infos=list(log.infos),
                          seconds=time.perf_counter() - t0, instances=geometry.instances,
                          meshes=geometry.meshes, cryptomatte_manifests=manifests)

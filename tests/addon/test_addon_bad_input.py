@@ -218,6 +218,64 @@ def test_a_material_in_a_slot_no_face_uses_may_read_uvs_the_mesh_lacks(scene, tm
     assert np.isfinite(img).all() and img[..., :3].mean() > 0
 
 
+def test_an_object_its_transform_takes_past_float32_is_left_out(scene, tmp_path, capfd):
+    """A quad with corners at +-3e38 (finite in its object) turned 45 degrees reaches 4.2e38 in the
+    world, past float32: its triangles are left out with a warning, as Cycles leaves them (embree
+    skips coordinates past 1.844e18), and the floor renders as it does without it (before: "vertices
+    contains NaN or infinite values", no image); so is an object moved 1e20 away."""
+    bs.lit_floor_scene((16, 12))
+    alone = bs.render_exr(tmp_path / "alone.exr")
+    s = 3e38
+    huge = _mesh("Huge", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [(0, 1, 2, 3)])
+    huge.rotation_euler = (0.0, 0.0, np.radians(45.0))
+    huge.location = (0.0, 0.0, -100.0)
+    bs.cube("Away", size=1.0, location=(1e20, 0.0, 0.0))
+    capfd.readouterr()
+    img = bs.render_exr(tmp_path / "huge.exr")
+    np.testing.assert_array_equal(img, alone)
+    assert ("14 of the scene's 16 triangles have a corner beyond 1.84e+18 or at infinity in world space"
+            in capfd.readouterr().out)
+
+
+def test_a_sky_texture_in_a_material_is_baked_once(scene):
+    """A Principled BSDF whose Emission Strength reads a Sky Texture and whose Metallic is textured
+    (the exporter evaluates the emission at each of the metallic map's levels): the sky is baked
+    once into the export's cache (before: once an evaluation, 18 bakes of 1.5 s each here, and the
+    fuzz's renders timed out)."""
+    from amcmcppm.amcmcppm_addon.export.materials import MaterialExporter
+    from amcmcppm.amcmcppm_addon.export.scene import ExportLog
+    mat = bs._material("SkyGlow", "ShaderNodeBsdfPrincipled")
+    nt = mat.node_tree
+    principled = nt.nodes["Principled BSDF"]
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = "MULTIPLE_SCATTERING"
+    grey = nt.nodes.new("ShaderNodeRGBToBW")
+    nt.links.new(sky.outputs["Color"], grey.inputs[0])
+    nt.links.new(grey.outputs[0], principled.inputs["Emission Strength"])
+    principled.inputs["Emission Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], principled.inputs["Metallic"])
+    exporter = MaterialExporter(ExportLog())
+    exporter.material_id(mat)
+    assert len(exporter.textures.sky_cache.textures) == 1
+
+
+def test_eevees_specular_bsdf_renders_black_as_in_cycles(scene, tmp_path, capfd):
+    """EEVEE's Specular BSDF (a shader Cycles has no closure for) on the lit floor: black in Cycles,
+    black here, with the warning that names it (before: a grey diffuse floor)."""
+    scene = bs.lit_floor_scene((8, 8))
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials[0] = bs._material("Specular", "ShaderNodeEeveeSpecular")
+    images = {}
+    for engine in ("CYCLES", "AMCMCPPM"):
+        scene.render.engine = engine
+        scene.cycles.samples = 4
+        images[engine] = bs.render_exr(tmp_path / f"{engine}.exr")[..., :3]
+    # (Cycles' floor has a pixel or two at 4e-5: its mean 5e-7)
+    assert images["CYCLES"].mean() < 1e-5 and images["AMCMCPPM"].max() == 0.0
+    assert ("'Specular BSDF' (ShaderNodeEeveeSpecular) rendered black, as Cycles renders it"
+            in capfd.readouterr().out)
+
+
 @pytest.mark.parametrize("kind, lens", [("EMPTY", 50.0), ("MESH", 50.0),
                                         ("SPOT", 16.0 / np.tan(np.radians(30.0))),
                                         ("AREA", 16.0 / np.tan(np.radians(22.5)))],
