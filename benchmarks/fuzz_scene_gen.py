@@ -1042,6 +1042,807 @@ def f_render_opts(r, case):
     case.log(f"render option {k}")
 
 
+# ---------------------------------------------------------------------------- features (stop 75)
+# Appended: drawn only for combo cases from NEW_FEATURES_FROM on (fuzz_scenes.make_spec), and in
+# the single phase from id 21 on, so that the earlier cases stay as they were.
+def new_mesh_object(r, case, name, kind=None, material=True, collection=None):
+    """A primitive mesh object (random kind unless ``kind``) linked to the scene (or ``collection``)."""
+    bm = bmesh.new()
+    if kind == "sphere":
+        bmesh.ops.create_uvsphere(bm, u_segments=16, v_segments=8, radius=0.5)
+    elif kind == "cube":
+        bmesh.ops.create_cube(bm, size=1.0)
+    else:
+        bm.free()
+        bm, kind = bm_primitive(r)
+    me = bpy.data.meshes.new(name)
+    bm.to_mesh(me)
+    bm.free()
+    ob = bpy.data.objects.new(name, me)
+    if collection is None:
+        link(case, ob)
+    else:
+        collection.objects.link(ob)
+    if material:
+        me.materials.append(random_material(r, case))
+    return ob
+
+
+def f_animated(r, case):
+    """Shape keys and keyframed object, material, light and world values; then another frame."""
+    scene = bpy.context.scene
+    ob = new_mesh_object(r, case, "Anim", r.choice(["sphere", "cube", None]))
+    me = ob.data
+    kinds = []
+    if r.random() < 0.7 and len(me.vertices):
+        ob.shape_key_add(name="Basis")
+        for i in range(r.randint(1, 3)):
+            key = ob.shape_key_add(name=f"Key{i}")
+            off = rvec(r, 3, 0.5, 0.15)
+            for v in key.data:
+                v.co = v.co + Vector(off) * r.random()
+            key.value = rfloat(r, 0, 1, 0.3) if r.random() < 0.8 else r.choice([-10.0, 10.0])
+            if r.random() < 0.3:
+                key.slider_min, key.slider_max = -10.0, 10.0
+            if r.random() < 0.5:
+                key.value = 0.0
+                key.keyframe_insert("value", frame=1)
+                key.value = 1.0
+                key.keyframe_insert("value", frame=r.choice([2, 10, 50]))
+            if r.random() < 0.1:
+                key.mute = True
+        if r.random() < 0.2:
+            me.shape_keys.use_relative = False
+            me.shape_keys.eval_time = r.choice([0.0, 10.0, 1e6])
+        kinds.append(f"shape keys {len(me.shape_keys.key_blocks)}")
+    if r.random() < 0.7:
+        for frame in sorted(r.sample([1, 2, 5, 10, 50, 100], r.randint(1, 3))):
+            ob.location = rvec(r, 3, 1.5, 0.1)
+            ob.rotation_euler = rvec(r, 3, math.pi, 0.0)
+            ob.keyframe_insert("location", frame=frame)
+            ob.keyframe_insert("rotation_euler", frame=frame)
+            if r.random() < 0.3:
+                ob.scale = r.choice([(1, 1, 1), (0, 0, 0), (-1, 1, 1), (2, 2, 2)])
+                ob.keyframe_insert("scale", frame=frame)
+        if r.random() < 0.3 and ob.animation_data and ob.animation_data.action:
+            for fc in getattr(ob.animation_data.action, "fcurves", []):
+                fc.extrapolation = "LINEAR"
+                for kp in fc.keyframe_points:
+                    kp.interpolation = r.choice(["CONSTANT", "LINEAR", "BEZIER", "ELASTIC", "BOUNCE"])
+        kinds.append("object keys")
+    mat = me.materials[0] if len(me.materials) else None
+    if mat is not None and mat.node_tree is not None and r.random() < 0.5:
+        socks = [s for n in mat.node_tree.nodes for s in n.inputs
+                 if not s.is_linked and s.type in ("VALUE", "RGBA") and hasattr(s, "default_value")]
+        if socks:
+            s = r.choice(socks)
+            for frame in (1, r.choice([3, 20])):
+                set_socket(r, case, s, 0.3)
+                s.keyframe_insert("default_value", frame=frame)
+            kinds.append(f"material socket {s.node.name}.{s.name}")
+    if r.random() < 0.5:
+        ld = bpy.data.lights.new("AnimLight", r.choice(["POINT", "SPOT", "AREA", "SUN"]))
+        lo = bpy.data.objects.new("AnimLight", ld)
+        lo.location = (0, -1, 3)
+        scene.collection.objects.link(lo)
+        for frame, e in ((1, 0.0), (r.choice([5, 20]), r.choice([100.0, 1000.0, 1e6]))):
+            ld.energy = e if ld.type != "SUN" else min(e, 10.0)
+            ld.keyframe_insert("energy", frame=frame)
+            ld.color = rcolor(r, 0.2)[:3]
+            ld.keyframe_insert("color", frame=frame)
+        kinds.append("light keys")
+    if r.random() < 0.3 and scene.world is not None and scene.world.node_tree is not None:
+        bg = scene.world.node_tree.nodes.get("Background")
+        if bg is not None:
+            for frame, v in ((1, 0.0), (10, r.choice([1.0, 5.0]))):
+                bg.inputs["Strength"].default_value = v
+                bg.inputs["Strength"].keyframe_insert("default_value", frame=frame)
+            kinds.append("world keys")
+    random_transform(r, case, ob) if r.random() < 0.2 else None
+    frame = r.choice([0, 1, 3, 7, 25, 200, -5])
+    sub = r.choice([0.0, 0.0, 0.5, 0.999])
+    scene.frame_set(frame, subframe=sub)
+    case.log(f"animated {kinds} frame {frame}+{sub}")
+
+
+def f_drivers(r, case):
+    """Drivers on object, shape key, material and light properties (some invalid)."""
+    ob = new_mesh_object(r, case, "Driven", r.choice(["sphere", "cube", None]))
+    other = r.choice([o for o in case.objects if o is not ob] or [ob])
+    made = []
+    for _ in range(r.randint(1, 4)):
+        target = r.choice(["loc", "scale", "rot", "material", "light", "hide"])
+        try:
+            if target == "loc":
+                fc = ob.driver_add("location", r.randint(0, 2))
+            elif target == "scale":
+                fc = ob.driver_add("scale", r.randint(0, 2))
+            elif target == "rot":
+                fc = ob.driver_add("rotation_euler", r.randint(0, 2))
+            elif target == "hide":
+                fc = ob.driver_add("hide_render")
+            elif target == "material":
+                mat = ob.data.materials[0]
+                if mat is None or mat.node_tree is None:
+                    continue
+                socks = [(n, i) for n in mat.node_tree.nodes for i, s in enumerate(n.inputs)
+                         if not s.is_linked and s.type == "VALUE" and hasattr(s, "default_value")]
+                if not socks:
+                    continue
+                n, i = r.choice(socks)
+                fc = mat.node_tree.driver_add(f'nodes["{n.name}"].inputs[{i}].default_value')
+            else:
+                ld = bpy.data.lights.new("DrivenLight", "POINT")
+                lo = bpy.data.objects.new("DrivenLight", ld)
+                lo.location = (1, -2, 2)
+                bpy.context.scene.collection.objects.link(lo)
+                fc = ld.driver_add("energy")
+            d = fc.driver
+            k = r.choice(["expr", "expr", "var", "avg", "bad", "python"])
+            if k == "expr":
+                d.type = "SCRIPTED"
+                d.expression = r.choice(["frame / 10", "1 / 0", "sin(frame) * 2", "1e30", "-1",
+                                         "0", "nan", "max(0, frame)"])
+            elif k in ("var", "avg"):
+                v = d.variables.new()
+                v.name = "var"
+                v.type = "TRANSFORMS"
+                v.targets[0].id = other
+                v.targets[0].transform_type = r.choice(["LOC_X", "LOC_Z", "SCALE_X", "ROT_Y"])
+                if k == "var":
+                    d.type = "SCRIPTED"
+                    d.expression = r.choice(["var * 2", "var + 1", "1 / var"])
+                else:
+                    d.type = r.choice(["AVERAGE", "SUM", "MIN", "MAX"])
+            elif k == "bad":
+                d.type = "SCRIPTED"
+                d.expression = r.choice(["undefined_name", "(", "var", ""])
+            else:
+                d.type = "SCRIPTED"
+                d.expression = "bpy.context.scene.frame_current * 0.1"     # needs Python (auto-run off)
+            made.append(f"{target}:{k}:{d.expression if d.type == 'SCRIPTED' else d.type}")
+        except Exception as e:
+            case.log(f"driver {target}: {e}")
+    bpy.context.scene.frame_set(bpy.context.scene.frame_current)
+    case.log(f"drivers {made}")
+
+
+def f_stereo(r, case):
+    """Multiview: stereo 3D or custom views, with the camera's stereo settings."""
+    scene = bpy.context.scene
+    rd = scene.render
+    rd.use_multiview = True
+    rd.views_format = r.choice(["STEREO_3D", "STEREO_3D", "MULTIVIEW"])
+    if rd.views_format == "MULTIVIEW":
+        v = rd.views.new("extra")
+        v.camera_suffix = "_X"
+        if r.random() < 0.5:
+            rd.views["left"].use = False
+    elif r.random() < 0.2:
+        rd.views["right"].use = False
+    cam = scene.camera
+    if cam is not None and cam.type == "CAMERA":
+        st = cam.data.stereo
+        st.convergence_mode = r.choice(["OFFAXIS", "PARALLEL", "TOE"])
+        st.interocular_distance = r.choice([0.065, 0.0, 1.0, 100.0])
+        st.convergence_distance = r.choice([1.95, 1e-5, 1e4])
+        if r.random() < 0.3:
+            st.use_spherical_stereo = True
+    scene.render.image_settings.views_format = r.choice(["INDIVIDUAL", "STEREO_3D"])
+    case.log(f"multiview {rd.views_format} views={[v.name for v in rd.views if v.use]}")
+
+
+def f_camera_enclosed(r, case):
+    """The camera inside a closed object: glass, an opaque box, a volume, nested glass."""
+    scene = bpy.context.scene
+    if scene.camera is None or scene.camera.type != "CAMERA":
+        bs.camera(location=(0, -4, 2.5), target=(0, 0, 0))
+    cam = scene.camera
+    k = r.choice(["glass", "opaque", "volume", "nested", "inside_out", "emissive"])
+    size = r.choice([0.5, 2.0, 20.0])
+    if k in ("glass", "nested"):
+        mats = [bs.glass("EncGlass", r.choice([1.0, 1.33, 1.5, 2.4]))]
+        if k == "nested":
+            mats.append(bs.glass("EncGlass2", r.choice([1.1, 1.5])))
+    elif k == "opaque":
+        mats = [bs.diffuse("EncBox", (0.7, 0.7, 0.7))]
+    elif k == "volume":
+        mats = [bs.volume_material("EncFog", r.choice(VOLUME_SHADERS[:3]),
+                                   surface=r.choice([None, "ShaderNodeBsdfTransparent"]))[0]]
+    elif k == "emissive":
+        mats = [bs.emission("EncGlow", (1, 1, 1), r.choice([1.0, 1e6]))]
+    else:
+        mats = [random_material(r, case)]
+    for i, mat in enumerate(mats):
+        bm = bmesh.new()
+        if r.random() < 0.5:
+            bmesh.ops.create_uvsphere(bm, u_segments=24, v_segments=12, radius=size / (i + 1))
+        else:
+            bmesh.ops.create_cube(bm, size=size / (i + 1))
+        if k == "inside_out":
+            bmesh.ops.reverse_faces(bm, faces=bm.faces)
+        ob = bs.mesh_object(f"Enclosure{i}", bm, mat, location=tuple(cam.location))
+        case.objects.append(ob)
+    case.log(f"camera enclosed {k} size {size}")
+
+
+def f_nested_glass(r, case):
+    """Glass in glass, volumes in glass, overlapping glass, optionally a world volume."""
+    made = []
+    n = r.randint(2, 4)
+    for i in range(n):
+        k = r.choice(["glass", "glass", "refraction", "principled_glass", "volume", "glass_volume"])
+        if k == "glass":
+            mat = bs.glass(f"NG{i}", r.choice([1.0, 1.33, 1.5, 2.4, 0.5]))
+        elif k == "refraction":
+            mat = _material_of(f"NG{i}", "ShaderNodeBsdfRefraction")
+            mat.node_tree.nodes["Refraction BSDF"].inputs["IOR"].default_value = r.choice([1.2, 1.5])
+        elif k == "principled_glass":
+            mat = _material_of(f"NG{i}", "ShaderNodeBsdfPrincipled")
+            p = mat.node_tree.nodes["Principled BSDF"]
+            p.inputs["Transmission Weight"].default_value = 1.0
+            p.inputs["Roughness"].default_value = r.choice([0.0, 0.2])
+            p.inputs["IOR"].default_value = r.choice([1.0, 1.45, 3.0])
+        elif k == "volume":
+            mat = bs.volume_material(f"NG{i}", r.choice(VOLUME_SHADERS))[0]
+        else:
+            mat = bs.volume_material(f"NG{i}", r.choice(VOLUME_SHADERS[:3]), surface="ShaderNodeBsdfGlass")[0]
+        bm = bmesh.new()
+        radius = 1.0 * (0.7 ** i) if r.random() < 0.8 else r.uniform(0.3, 1.0)
+        if r.random() < 0.6:
+            bmesh.ops.create_icosphere(bm, subdivisions=2, radius=radius)
+        else:
+            bmesh.ops.create_cube(bm, size=2 * radius)
+        off = (0, 0, 0) if r.random() < 0.7 else rvec(r, 3, 0.4, 0.0)
+        ob = bs.mesh_object(f"Nest{i}", bm, mat, location=off)
+        case.objects.append(ob)
+        made.append(k)
+    if r.random() < 0.3:
+        w = bs.world_volume(r.choice(VOLUME_SHADERS[:3]), (0.05, 0.05, 0.05))
+        vn = [nd for nd in w.node_tree.nodes if nd.bl_idname in VOLUME_SHADERS][0]
+        if "Density" in vn.inputs:
+            vn.inputs["Density"].default_value = r.choice([0.01, 0.1, 1.0])
+        made.append("world volume")
+    case.log(f"nested glass {made}")
+
+
+def _material_of(name, node_type):
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    for node in list(nt.nodes):
+        if node.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(node)
+    node = nt.nodes.new(node_type)
+    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def f_linked_duplicates(r, case):
+    """Objects sharing one mesh, each with its own modifiers, object-linked materials, parents of
+    negative or zero scale."""
+    src = new_mesh_object(r, case, "Shared", r.choice(["sphere", "cube", None]))
+    me = src.data
+    dups = [src]
+    for i in range(r.randint(1, 4)):
+        d = bpy.data.objects.new(f"Dup{i}", me)
+        link(case, d)
+        d.location = rvec(r, 3, 1.5, 0.0)
+        dups.append(d)
+    notes = []
+    for d in dups:
+        if r.random() < 0.5:
+            add_modifiers(r, case, d)
+        if r.random() < 0.3 and len(d.material_slots):
+            d.material_slots[0].link = "OBJECT"
+            d.material_slots[0].material = random_material(r, case) if r.random() < 0.8 else None
+            notes.append(f"{d.name} object material")
+    if r.random() < 0.6:
+        parent = bpy.data.objects.new("Parent", None)
+        bpy.context.scene.collection.objects.link(parent)
+        parent.scale = r.choice([(-1, 1, 1), (-1, -1, -1), (1, 1, -1), (-2, 0.5, 1), (0, 1, 1)])
+        parent.rotation_euler = rvec(r, 3, math.pi, 0.0)
+        for d in r.sample(dups, r.randint(1, len(dups))):
+            d.parent = parent
+        if r.random() < 0.4:          # a chain: parent of a parent
+            grand = bpy.data.objects.new("Grand", None)
+            bpy.context.scene.collection.objects.link(grand)
+            grand.scale = (-1, 1, 1)
+            parent.parent = grand
+            notes.append("grandparent")
+        notes.append(f"parent scale {tuple(parent.scale)}")
+    if r.random() < 0.2:
+        me.materials.clear()
+        notes.append("mesh materials cleared")
+    case.log(f"linked duplicates x{len(dups)} {notes}")
+
+
+def f_dupli_verts_faces(r, case):
+    """Instancing by vertices or faces of a parent mesh (meshes, lights, collection instances)."""
+    bm, kind = bm_primitive(r)
+    me = bpy.data.meshes.new("Dupli")
+    bm.to_mesh(me)
+    bm.free()
+    parent = link(case, bpy.data.objects.new("DupliParent", me))
+    parent.instance_type = r.choice(["VERTS", "FACES"])
+    if parent.instance_type == "FACES":
+        parent.use_instance_faces_scale = r.random() < 0.5
+        parent.instance_faces_scale = r.choice([1.0, 0.0, 0.3, 10.0])
+    else:
+        parent.use_instance_vertices_rotation = r.random() < 0.5
+    parent.show_instancer_for_render = r.random() < 0.5
+    if r.random() < 0.3:
+        parent.scale = r.choice([(-1, 1, 1), (0.5, 0.5, 0.5), (1, 1, 0)])
+    children = []
+    for i in range(r.randint(1, 2)):
+        k = r.choice(["mesh", "mesh", "light", "empty_inst"])
+        if k == "mesh":
+            c = new_mesh_object(r, case, f"DupliChild{i}", r.choice(["sphere", "cube"]))
+            c.scale = (0.15, 0.15, 0.15)
+        elif k == "light":
+            ld = bpy.data.lights.new("DupliLight", r.choice(["POINT", "SPOT", "AREA"]))
+            ld.energy = 20.0
+            c = bpy.data.objects.new("DupliLight", ld)
+            bpy.context.scene.collection.objects.link(c)
+        else:
+            coll = bpy.data.collections.new("DupliColl")
+            new_mesh_object(r, case, "DupliCollMesh", "cube", collection=coll).scale = (0.1, 0.1, 0.1)
+            c = bpy.data.objects.new("DupliEmpty", None)
+            c.instance_type = "COLLECTION"
+            c.instance_collection = coll
+            bpy.context.scene.collection.objects.link(c)
+        c.parent = parent
+        children.append(k)
+    case.log(f"instancing by {parent.instance_type} of {kind}: {children}")
+
+
+def f_scene_scale(r, case):
+    """Everything made so far scaled by 1e-4 or 1e4 (camera clip, light sizes and powers with it),
+    by moving and scaling the objects, or by parenting them to a scaled empty."""
+    scene = bpy.context.scene
+    s = r.choice([1e-4, 1e-4, 1e4, 1e4, 1e-3, 1e3])
+    how = r.choice(["objects", "objects", "parent"])
+    roots = [o for o in scene.objects if o.parent is None]
+    if how == "parent":
+        top = bpy.data.objects.new("ScaleRoot", None)
+        scene.collection.objects.link(top)
+        top.scale = (s, s, s)
+        for o in roots:
+            o.parent = top
+    else:
+        for o in roots:
+            o.location = o.location * s
+            if o.type != "CAMERA":
+                o.scale = o.scale * s
+    for o in scene.objects:
+        if o.type == "CAMERA":
+            c = o.data
+            c.clip_start, c.clip_end = c.clip_start * s, c.clip_end * s
+            c.ortho_scale *= s
+            c.dof.focus_distance *= s
+        elif o.type == "LIGHT" and how == "objects":
+            ld = o.data
+            ld.shadow_soft_size *= s
+            if ld.type == "AREA":
+                ld.size *= s
+                ld.size_y *= s
+            if ld.type != "SUN" and r.random() < 0.7:
+                ld.energy *= s * s
+    case.log(f"scene scaled by {s} ({how}), {len(roots)} roots")
+
+
+def f_light_linking(r, case):
+    """Light and shadow linking between random emitters and objects (include, exclude, empty)."""
+    scene = bpy.context.scene
+    obs = [o for o in scene.objects if o.type in ("MESH", "CURVE", "POINTCLOUD", "CURVES", "VOLUME", "EMPTY")]
+    emitters = [o for o in scene.objects if o.type == "LIGHT"] + [o for o in obs if o.type == "MESH"]
+    if not emitters:
+        ld = bpy.data.lights.new("LinkLight", "POINT")
+        ld.energy = 300.0
+        lo = bpy.data.objects.new("LinkLight", ld)
+        lo.location = (-1, -1, 3)
+        scene.collection.objects.link(lo)
+        emitters = [lo]
+    made = []
+    for em in r.sample(emitters, min(len(emitters), r.randint(1, 3))):
+        for kind in ("receiver", "blocker"):
+            if r.random() < 0.4:
+                continue
+            coll = bpy.data.collections.new(f"{kind}_{em.name}")
+            members = r.sample(obs, min(len(obs), r.randint(0, 3)))
+            if r.random() < 0.15:
+                members.append(em)                       # the emitter in its own collection
+            for o in members:
+                if o.name not in coll.objects:
+                    coll.objects.link(o)
+            if r.random() < 0.2:
+                child = bpy.data.collections.new("child")
+                coll.children.link(child)
+                for o in r.sample(obs, min(len(obs), 1)):
+                    child.objects.link(o)
+                if len(coll.collection_children):
+                    coll.collection_children[0].light_linking.link_state = r.choice(["INCLUDE", "EXCLUDE"])
+            for link_ in coll.collection_objects:
+                link_.light_linking.link_state = r.choice(["INCLUDE", "EXCLUDE"])
+            setattr(em.light_linking, f"{kind}_collection", coll)
+            made.append(f"{em.name}.{kind}: {[o.name for o in coll.objects]}")
+    case.log(f"light linking {made}")
+
+
+def f_curve_bevel(r, case):
+    """Curves beveled by an object or a profile, with caps, a taper, start/end factors."""
+    cu = bpy.data.curves.new("BevCurve", "CURVE")
+    cu.dimensions = r.choice(["3D", "2D"])
+    sp = cu.splines.new(r.choice(["BEZIER", "POLY"]))
+    pts = sp.bezier_points if sp.type == "BEZIER" else sp.points
+    pts.add(r.randint(1, 4))
+    for i, p in enumerate(pts):
+        co = (i * 0.6 - 1, r.uniform(-0.5, 0.5), r.uniform(0, 0.8) if cu.dimensions == "3D" else 0)
+        if sp.type == "BEZIER":
+            p.co = co
+            p.handle_left_type = p.handle_right_type = "AUTO"
+            p.radius = r.choice([1.0, 0.0, 3.0])
+        else:
+            p.co = (*co, 1.0)
+    sp.use_cyclic_u = r.random() < 0.3
+    mode = r.choice(["ROUND", "OBJECT", "PROFILE"])
+    cu.bevel_mode = mode
+    if mode == "OBJECT":
+        pc = bpy.data.curves.new("Profile", "CURVE")
+        ps = pc.splines.new("BEZIER")
+        ps.bezier_points.add(3)
+        for i, p in enumerate(ps.bezier_points):
+            a = i * math.pi / 2
+            p.co = (0.1 * math.cos(a), 0.1 * math.sin(a), 0)
+            p.handle_left_type = p.handle_right_type = "AUTO"
+        ps.use_cyclic_u = r.random() < 0.7
+        prof = bpy.data.objects.new("Profile", pc)
+        bpy.context.scene.collection.objects.link(prof)
+        prof.location = (0, 0, -40)
+        cu.bevel_object = prof
+    else:
+        cu.bevel_depth = rfloat(r, 0.01, 0.2, 0.2)
+        cu.bevel_resolution = r.randint(0, 6)
+    cu.use_fill_caps = r.random() < 0.7
+    if r.random() < 0.3:
+        tc = bpy.data.curves.new("Taper", "CURVE")
+        ts = tc.splines.new("POLY")
+        ts.points.add(2)
+        for i, p in enumerate(ts.points):
+            p.co = (i * 0.5, r.choice([0.0, 0.5, 1.0]), 0, 1)
+        tob = bpy.data.objects.new("Taper", tc)
+        bpy.context.scene.collection.objects.link(tob)
+        cu.taper_object = tob
+    cu.bevel_factor_start = r.choice([0.0, 0.0, 0.3])
+    cu.bevel_factor_end = r.choice([1.0, 1.0, 0.3, 0.7])
+    cu.offset = r.choice([0.0, 0.0, -0.1, 0.5])
+    cu.extrude = r.choice([0.0, 0.0, 0.2])
+    if cu.dimensions == "2D":
+        cu.fill_mode = r.choice(["NONE", "BACK", "FRONT", "BOTH"])
+    ob = link(case, bpy.data.objects.new("BevCurve", cu))
+    assign_material(r, case, ob)
+    case.log(f"curve bevel {mode} caps={cu.use_fill_caps} taper={cu.taper_object is not None} "
+             f"factors=({cu.bevel_factor_start},{cu.bevel_factor_end})")
+
+
+def f_grease_pencil(r, case):
+    """A Grease Pencil object with a stroke or none (to be left out cleanly)."""
+    gp = bpy.data.grease_pencils.new("GP")
+    ob = bpy.data.objects.new("GP", gp)
+    bpy.context.scene.collection.objects.link(ob)
+    n = 0
+    if r.random() < 0.8:
+        layer = gp.layers.new("Lines")
+        frame = layer.frames.new(bpy.context.scene.frame_current)
+        d = frame.drawing
+        n = r.choice([1, 3])
+        d.add_strokes([r.choice([2, 5, 20])] * n)
+        for s in d.strokes:
+            for i, p in enumerate(s.points):
+                p.position = (i * 0.1 - 0.5, r.uniform(-0.5, 0.5), r.uniform(0, 1))
+                p.radius = r.choice([0.01, 0.1, 0.0])
+        if r.random() < 0.7:
+            mat = bpy.data.materials.new("GPMat")
+            bpy.data.materials.create_gpencil_data(mat)
+            mat.grease_pencil.show_fill = r.random() < 0.5
+            gp.materials.append(mat)
+    if r.random() < 0.3:
+        ob.modifiers.new("Thick", r.choice(["GREASE_PENCIL_THICKNESS", "GREASE_PENCIL_ARRAY"]))
+    case.log(f"grease pencil strokes={n}")
+
+
+def f_material_odd(r, case):
+    """Odd material structures: no output node, a disconnected or inactive output, muted nodes and
+    links, a group node without a tree, only empty slots."""
+    ob = new_mesh_object(r, case, "OddMat", r.choice(["sphere", "cube", None]), material=False)
+    me = ob.data
+    k = r.choice(["no_output", "disconnected", "inactive_output", "muted_node", "muted_link",
+                  "empty_group", "empty_slots", "reroute_dangling", "invalid_link", "frame_parent"])
+    mat = bpy.data.materials.new("Odd")
+    nt = mat.node_tree
+    nt.nodes.clear()
+    shader = new_node(r, case, nt, r.choice(SURFACE_SHADERS[:8]))
+    out = None
+    if k != "no_output":
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
+    if k in ("muted_node", "muted_link", "empty_group", "reroute_dangling", "invalid_link", "frame_parent",
+             "inactive_output"):
+        nt.links.new(shader.outputs[0], out.inputs["Surface"])
+    if k == "inactive_output":
+        out2 = nt.nodes.new("ShaderNodeOutputMaterial")
+        nt.links.new(new_node(r, case, nt, "ShaderNodeEmission").outputs[0], out2.inputs["Surface"])
+        out2.is_active_output = r.random() < 0.5
+        out.is_active_output = not out2.is_active_output
+        if r.random() < 0.3:
+            out.target = "EEVEE"
+    elif k == "muted_node":
+        t = texture_chain(r, case, nt)
+        ins = [s for s in shader.inputs if s.type in ("RGBA", "VALUE") and s.enabled]
+        if ins:
+            nt.links.new(t.outputs[0], ins[0])
+        r.choice([t, shader]).mute = True
+    elif k == "muted_link":
+        t = texture_chain(r, case, nt)
+        ins = [s for s in shader.inputs if s.type in ("RGBA", "VALUE") and s.enabled]
+        if ins:
+            nt.links.new(t.outputs[0], ins[0]).is_muted = True
+        nt.links[0].is_muted = r.random() < 0.5
+    elif k == "empty_group":
+        g = nt.nodes.new("ShaderNodeGroup")
+        ins = [s for s in shader.inputs if s.type in ("RGBA", "VALUE") and s.enabled]
+        if ins and len(g.outputs):
+            nt.links.new(g.outputs[0], ins[0])
+    elif k == "reroute_dangling":
+        rr = nt.nodes.new("NodeReroute")
+        rr2 = nt.nodes.new("NodeReroute")
+        nt.links.new(rr.outputs[0], rr2.inputs[0])
+        ins = [s for s in shader.inputs if s.type in ("RGBA", "VALUE") and s.enabled]
+        if ins:
+            nt.links.new(rr2.outputs[0], ins[0])
+    elif k == "invalid_link":
+        t = texture_chain(r, case, nt)
+        outs = [o for o in t.outputs] or []
+        if outs:
+            nt.links.new(outs[0], out.inputs["Surface"])       # a colour into the Surface input
+    elif k == "frame_parent":
+        fr = nt.nodes.new("NodeFrame")
+        fr2 = nt.nodes.new("NodeFrame")
+        fr2.parent = fr
+        shader.parent = fr2
+        out.parent = fr
+    me.materials.append(None if k == "empty_slots" else mat)
+    if k == "empty_slots" or r.random() < 0.3:
+        for _ in range(r.randint(1, 3)):
+            me.materials.append(None)
+        for p in me.polygons:
+            p.material_index = r.randint(0, len(me.materials) - 1)
+    case.log(f"odd material {k}")
+
+
+def _group_tree(r, case, depth, name):
+    """A shader node group of custom inputs and outputs (some unlinked), reroutes and frames; it
+    holds a group ``depth`` - 1 deep."""
+    g = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    items = [("Color", "NodeSocketColor"), ("Fac", "NodeSocketFloat"), ("Vec", "NodeSocketVector"),
+             ("Unused", "NodeSocketFloat")]
+    for nm, st in items:
+        s = g.interface.new_socket(nm, in_out="INPUT", socket_type=st)
+        if hasattr(s, "default_value") and r.random() < 0.5:
+            try:
+                s.default_value = (r.random(), r.random(), r.random(), 1.0) if st == "NodeSocketColor" else \
+                    ((0.5, 0.5, 0.5) if st == "NodeSocketVector" else rfloat(r, 0, 1, 0.3))
+            except Exception as e:
+                case.log(f"group default: {e}")
+    g.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    g.interface.new_socket("Col", in_out="OUTPUT", socket_type="NodeSocketColor")
+    g.interface.new_socket("Dangling", in_out="OUTPUT", socket_type="NodeSocketFloat")
+    gi = g.nodes.new("NodeGroupInput")
+    go = g.nodes.new("NodeGroupOutput")
+    frame = g.nodes.new("NodeFrame")
+    if depth > 1 and r.random() < 0.8:
+        inner = g.nodes.new("ShaderNodeGroup")
+        inner.node_tree = _group_tree(r, case, depth - 1, f"{name}_in")
+        src = inner
+        if r.random() < 0.7:
+            g.links.new(gi.outputs["Color"], inner.inputs["Color"])
+        if r.random() < 0.5:
+            g.links.new(gi.outputs["Fac"], inner.inputs["Fac"])
+        inner.parent = frame
+    else:
+        src = None
+    glossy = "ShaderNodeBsdfGlossy" if "ShaderNodeBsdfGlossy" in dir(bpy.types) else "ShaderNodeBsdfDiffuse"
+    shader = new_node(r, case, g, r.choice(["ShaderNodeBsdfPrincipled", "ShaderNodeBsdfDiffuse",
+                                            "ShaderNodeEmission", glossy]))
+    shader.parent = frame
+    rr = g.nodes.new("NodeReroute")
+    rr2 = g.nodes.new("NodeReroute")
+    g.links.new(gi.outputs["Color"] if src is None or r.random() < 0.3 else src.outputs["Col"], rr.inputs[0])
+    g.links.new(rr.outputs[0], rr2.inputs[0])
+    if "Color" in shader.inputs or "Base Color" in shader.inputs:
+        g.links.new(rr2.outputs[0], shader.inputs["Base Color" if "Base Color" in shader.inputs else "Color"])
+    if src is not None and r.random() < 0.5:
+        mix = g.nodes.new("ShaderNodeMixShader")
+        g.links.new(gi.outputs["Fac"], mix.inputs[0])
+        g.links.new(shader.outputs[0], mix.inputs[1])
+        g.links.new(src.outputs["Shader"], mix.inputs[2])
+        shader = mix
+    if r.random() < 0.9:
+        g.links.new(shader.outputs[0], go.inputs["Shader"])
+    if r.random() < 0.6:
+        g.links.new(rr2.outputs[0], go.inputs["Col"])
+    return g
+
+
+def f_node_groups(r, case):
+    """A material of shader node groups nested several deep, with reroutes, frames and custom
+    inputs and outputs, some unlinked; the same group used twice."""
+    ob = new_mesh_object(r, case, "Grouped", r.choice(["sphere", "cube", None]), material=False)
+    depth = r.randint(1, 5)
+    g = _group_tree(r, case, depth, "G")
+    mat = bpy.data.materials.new("GroupMat")
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    node = nt.nodes.new("ShaderNodeGroup")
+    node.node_tree = g
+    for s in node.inputs:
+        if r.random() < 0.5:
+            set_socket(r, case, s)
+    if r.random() < 0.4:
+        t = texture_chain(r, case, nt)
+        nt.links.new(t.outputs[0], node.inputs[r.choice(["Color", "Fac", "Vec"])])
+    k = r.choice(["shader", "color", "dangling", "twice"])
+    if k == "shader":
+        nt.links.new(node.outputs["Shader"], out.inputs["Surface"])
+    elif k == "color":          # a group's colour as the Surface (emission in Cycles)
+        nt.links.new(node.outputs["Col"], out.inputs["Surface"])
+    elif k == "dangling":
+        em = nt.nodes.new("ShaderNodeEmission")
+        nt.links.new(node.outputs["Dangling"], em.inputs["Strength"])
+        nt.links.new(em.outputs[0], out.inputs["Surface"])
+    else:
+        node2 = nt.nodes.new("ShaderNodeGroup")
+        node2.node_tree = g
+        node2.inputs["Fac"].default_value = 1.0 - node.inputs["Fac"].default_value
+        add = nt.nodes.new("ShaderNodeAddShader")
+        nt.links.new(node.outputs["Shader"], add.inputs[0])
+        nt.links.new(node2.outputs["Shader"], add.inputs[1])
+        nt.links.new(add.outputs[0], out.inputs["Surface"])
+    ob.data.materials.append(mat)
+    if r.random() < 0.2 and bpy.context.scene.world is not None:      # the group in the world too
+        wnt = bpy.context.scene.world.node_tree
+        wn = wnt.nodes.new("ShaderNodeGroup")
+        wn.node_tree = g
+        bg = wnt.nodes.get("Background")
+        if bg is not None:
+            wnt.links.new(wn.outputs["Col"], bg.inputs["Color"])
+            k += "+world"
+    random_transform(r, case, ob) if r.random() < 0.2 else None
+    case.log(f"node groups depth {depth} used as {k}")
+
+
+def f_principled_all(r, case):
+    """A Principled BSDF with every input fed by a texture, and Color Ramps of many stops."""
+    ob = new_mesh_object(r, case, "AllIn", r.choice(["sphere", "cube", None]), material=False)
+    if r.random() < 0.7:
+        ob.data.uv_layers.new(name="UVMap")
+    mat = bpy.data.materials.new("AllInputs")
+    nt = mat.node_tree
+    p = nt.nodes["Principled BSDF"]
+    randomise_enums(r, case, p)
+    n = 0
+    for s in p.inputs:
+        if s.type in ("SHADER", "STRING") or not s.enabled or r.random() < 0.1:
+            continue
+        if r.random() < 0.3:
+            ramp = nt.nodes.new("ShaderNodeValToRGB")
+            cr = ramp.color_ramp
+            cr.interpolation = r.choice(["LINEAR", "CONSTANT", "EASE", "B_SPLINE", "CARDINAL"])
+            cr.color_mode = r.choice(["RGB", "HSV", "HSL"])
+            for _ in range(r.choice([2, 10, 30])):
+                e = cr.elements.new(r.choice([r.random(), 0.5, 0.0, 1.0]))
+                e.color = rcolor(r, 0.2)
+            nt.links.new(texture_chain(r, case, nt).outputs[0], ramp.inputs[0])
+            nt.links.new(ramp.outputs[r.choice([0, 1])], s)
+        else:
+            t = texture_chain(r, case, nt)
+            outs = [o for o in t.outputs if o.enabled] or list(t.outputs)
+            nt.links.new(r.choice(outs), s)
+        n += 1
+    ob.data.materials.append(mat)
+    case.log(f"principled with {n} inputs textured")
+
+
+def f_light_path(r, case):
+    """Light Path tricks: camera-only emission, shadow-ray transparency, ray-depth cut-offs, a
+    world seen differently by the camera."""
+    ob = new_mesh_object(r, case, "LPath", r.choice(["sphere", "cube", None]), material=False)
+    mat = bpy.data.materials.new("LightPath")
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    lp = nt.nodes.new("ShaderNodeLightPath")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    a = new_node(r, case, nt, r.choice(["ShaderNodeEmission", "ShaderNodeBsdfDiffuse",
+                                        "ShaderNodeBsdfGlass"]))
+    b = new_node(r, case, nt, r.choice(["ShaderNodeBsdfTransparent", "ShaderNodeBsdfDiffuse",
+                                        "ShaderNodeHoldout", "ShaderNodeEmission"]))
+    outname = r.choice([o.name for o in lp.outputs])
+    src = lp.outputs[outname]
+    if outname in ("Ray Length", "Ray Depth", "Diffuse Depth", "Glossy Depth", "Transparent Depth",
+                   "Transmission Depth", "Portal Depth") and r.random() < 0.7:
+        m = nt.nodes.new("ShaderNodeMath")
+        m.operation = r.choice(["GREATER_THAN", "LESS_THAN", "DIVIDE", "MODULO"])
+        m.inputs[1].default_value = r.choice([0.0, 0.5, 1.0, 2.0])
+        nt.links.new(src, m.inputs[0])
+        src = m.outputs[0]
+    nt.links.new(src, mix.inputs[0])
+    nt.links.new(a.outputs[0], mix.inputs[1])
+    nt.links.new(b.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    if r.random() < 0.3:        # a light path value as a colour
+        ins = [s for s in a.inputs if s.type in ("RGBA", "VALUE") and s.enabled]
+        if ins:
+            nt.links.new(lp.outputs[r.choice([o.name for o in lp.outputs])], r.choice(ins))
+    ob.data.materials.append(mat)
+    k = f"material {outname}"
+    if r.random() < 0.4:
+        w = bs.world((0.02, 0.02, 0.02), 1.0)
+        wnt = w.node_tree
+        wlp = wnt.nodes.new("ShaderNodeLightPath")
+        wmix = wnt.nodes.new("ShaderNodeMixShader")
+        bg1 = wnt.nodes["Background"]
+        bg2 = wnt.nodes.new("ShaderNodeBackground")
+        bg2.inputs["Color"].default_value = rcolor(r, 0.3)
+        bg2.inputs["Strength"].default_value = r.choice([1.0, 5.0, 0.0])
+        wnt.links.new(wlp.outputs[r.choice(["Is Camera Ray", "Is Glossy Ray", "Is Diffuse Ray",
+                                            "Ray Depth"])], wmix.inputs[0])
+        wnt.links.new(bg1.outputs[0], wmix.inputs[1])
+        wnt.links.new(bg2.outputs[0], wmix.inputs[2])
+        wnt.links.new(wmix.outputs[0], wnt.nodes["World Output"].inputs["Surface"])
+        k += " + world"
+    case.log(f"light path {k}")
+
+
+def f_aov_outputs(r, case):
+    """AOV Output nodes in materials (and in a group), names matching the view layer's AOVs or not."""
+    vl = bpy.context.view_layer
+    names = []
+    for _ in range(r.randint(0, 3)):
+        aov = vl.aovs.add()
+        aov.name = r.choice(["col", "val", "aov", "dup", "dup", ""])
+        aov.type = r.choice(["COLOR", "VALUE"])
+        names.append(f"{aov.name}:{aov.type}")
+    made = []
+    for i in range(r.randint(1, 2)):
+        ob = new_mesh_object(r, case, f"AOVObj{i}", r.choice(["sphere", "cube", None]))
+        mat = ob.data.materials[0]
+        nt = mat.node_tree
+        for _ in range(r.randint(1, 3)):
+            node = nt.nodes.new("ShaderNodeOutputAOV")
+            node.aov_name = r.choice(["col", "val", "aov", "dup", "missing", ""])
+            if r.random() < 0.7:
+                t = texture_chain(r, case, nt)
+                outs = [o for o in t.outputs if o.enabled] or list(t.outputs)
+                nt.links.new(r.choice(outs), node.inputs[r.choice(["Color", "Value"])])
+            else:
+                node.inputs["Color"].default_value = rcolor(r, 0.3)
+                node.inputs["Value"].default_value = rfloat(r, 0, 1, 0.3)
+            made.append(node.aov_name)
+        if r.random() < 0.3:
+            g = bpy.data.node_groups.new("AOVGroup", "ShaderNodeTree")
+            g.interface.new_socket("In", in_out="INPUT", socket_type="NodeSocketColor")
+            gi = g.nodes.new("NodeGroupInput")
+            a = g.nodes.new("ShaderNodeOutputAOV")
+            a.aov_name = "col"
+            g.links.new(gi.outputs[0], a.inputs["Color"])
+            gn = nt.nodes.new("ShaderNodeGroup")
+            gn.node_tree = g
+            gn.inputs[0].default_value = rcolor(r, 0.2)
+            made.append("group:col")
+    case.passes = True
+    case.log(f"AOVs {names} outputs {made}")
+
+
 # Feature name -> builder(r, case).  The first three make the base scene (fuzz_scenes.BASE_FEATURES);
 # fuzz_scenes.WEIGHTS says how often each of the others is drawn.
 FEATURES = {
@@ -1054,6 +1855,13 @@ FEATURES = {
     "random_light": f_random_light, "world": f_world, "camera_random": f_camera_random,
     "view_layer": f_view_layer, "material_ball": f_shading_test_object, "emissive_mesh": f_emissive_mesh,
     "render_opts": f_render_opts,
+    # (stop 75)
+    "animated": f_animated, "drivers": f_drivers, "stereo": f_stereo, "camera_enclosed": f_camera_enclosed,
+    "nested_glass": f_nested_glass, "linked_duplicates": f_linked_duplicates,
+    "dupli_verts_faces": f_dupli_verts_faces, "scene_scale": f_scene_scale, "light_linking": f_light_linking,
+    "curve_bevel": f_curve_bevel, "grease_pencil": f_grease_pencil, "material_odd": f_material_odd,
+    "node_groups": f_node_groups, "principled_all": f_principled_all, "light_path": f_light_path,
+    "aov_outputs": f_aov_outputs,
 }
 
 

@@ -3,7 +3,12 @@
 Every case builds a random scene with ``bpy`` (``fuzz_scene_gen.py``: meshes good and degenerate,
 curves, text, metaballs, collection instances, geometry nodes, point clouds, hair, particles,
 volumes, random node trees of the shader, texture and utility nodes, lights and worlds of every
-kind, cameras, view-layer passes, object flags; ordinary values with a share of extreme ones) and
+kind, cameras, view-layer passes, object flags; and, from case 3000 on, shape keys and keyframes
+at another frame, drivers, stereo views, cameras inside closed objects, nested glass and volumes,
+linked duplicates, instancing by vertices and faces, scenes scaled by 1e-4 to 1e4, light and shadow
+linking, beveled curves, Grease Pencil, odd material structures, nested node groups, a Principled
+BSDF of every input textured, Light Path tricks and AOV outputs; ordinary values with a share of
+extreme ones) and
 random engine settings and image size (1 x 1 to 48 x 36 pixels, 1 to 3 passes, one worker), renders
 it with our engine in a subprocess with a time limit (``bpy.ops.render.render``; one case in ten of
 the ``combo`` phase saves the .blend and renders it with ``python render.py`` instead) and
@@ -12,7 +17,8 @@ records what happened:
     ok                an image, every value finite
     render_error      the render failed with an error (a scene the engine refuses, or a bug)
     nonfinite         an image with NaN or infinite values
-    no_image          the render returned without writing the image
+    no_image          the render returned without writing the image (or, with multiview, a
+                      view's image is all 0: never rendered)
     timeout           killed after ``--timeout`` seconds
     crash             the process ended without a result (a signal, a hard exit)
     driver_exception  this script failed inside the case process
@@ -21,11 +27,12 @@ with a signature to group the failures by: the first traceback the process print
 exception and the last repository frame), else the outcome and error.  A case's id is its seed:
 ``run --start S --count N`` makes cases S .. S + N - 1, the same ones on every machine.  Phases:
 ``combo`` (the base scene, floor, camera and point light, each kept with chance 0.9, plus one to
-seven features drawn by ``WEIGHTS``; random settings) and ``single`` (the base scene plus one
-feature, each in turn by id; few random settings).
+seven features drawn by ``WEIGHTS``, and from case ``NEW_FEATURES_FROM`` on none to three drawn by
+``NEW_WEIGHTS``; random settings) and ``single`` (the base scene plus one feature, each in turn by
+id: 0 .. 20 those of ``WEIGHTS``, 21 .. 36 those of ``NEW_WEIGHTS``; few random settings).
 
     python benchmarks/fuzz_scenes.py run --start 1000 --count 300
-    python benchmarks/fuzz_scenes.py run --phase single --start 0 --count 21
+    python benchmarks/fuzz_scenes.py run --phase single --start 0 --count 37
     python benchmarks/fuzz_scenes.py replay 1234          # rerun a case, print what it built and did
     python benchmarks/fuzz_scenes.py reduce 1234          # drop features while the failure stays
     python benchmarks/fuzz_scenes.py run --count 2 --resolution 8 6     # smoke run (seconds)
@@ -64,8 +71,17 @@ WEIGHTS = {"mesh": 6, "degenerate": 3, "ops_primitive": 2, "text": 1, "curve": 1
            "volume_object": 0.5, "volume_cube": 1.5, "flags": 2, "random_light": 4, "world": 3,
            "camera_random": 2.5, "view_layer": 1.5, "material_ball": 5, "emissive_mesh": 1,
            "render_opts": 1.5}
-# Features acting on what the others made: drawn features put these last.
-LATE_FEATURES = ("flags", "camera_random", "view_layer", "render_opts")
+# Features added in stop 75: the single phase takes them by id after those above (ids 21 on); a
+# combo case from NEW_FEATURES_FROM on also draws none to three of them from a generator of its
+# own, so that every case before it (and each of its draws above) stays as it was.
+NEW_WEIGHTS = {"animated": 1.5, "drivers": 1, "stereo": 0.7, "camera_enclosed": 1, "nested_glass": 1.5,
+               "linked_duplicates": 1.5, "dupli_verts_faces": 1, "scene_scale": 1, "light_linking": 1.5,
+               "curve_bevel": 1, "grease_pencil": 0.5, "material_odd": 1.5, "node_groups": 1.5,
+               "principled_all": 1.5, "light_path": 1.5, "aov_outputs": 1}
+NEW_FEATURES_FROM = 3000
+# Features acting on what the others made: drawn features put these last (scene_scale after the
+# others, light_linking before it).
+LATE_FEATURES = ("flags", "camera_random", "view_layer", "render_opts", "light_linking", "scene_scale")
 TRACEBACK_FRAME = re.compile(r'File "([^"]+)", line (\d+), in (\S+)')
 
 
@@ -113,6 +129,34 @@ def image_stats(path):
         info["mean"] = float(c[finite].mean()) if finite.any() else None
         info["max"] = float(c[finite].max()) if finite.any() else None
     return info
+
+
+def view_images(scene, exr):
+    """[(view suffix, path)] of the images the render wrote: ``exr`` itself, or with multiview
+    (Individual views) one file a view, Blender's suffix (``_L``) before the extension."""
+    if os.path.exists(exr):
+        return [("", exr)]
+    if not scene.render.use_multiview:
+        return []
+    root, ext = os.path.splitext(exr)
+    views = [v for v in scene.render.views if v.use] if scene.render.views_format == "MULTIVIEW" else \
+        [v for v in scene.render.views if v.name in ("left", "right") and v.use]
+    return [(v.file_suffix, root + v.file_suffix + ext) for v in views
+            if os.path.exists(root + v.file_suffix + ext)]
+
+
+def exr_readable(path):
+    """Whether the EXR at ``path`` opens."""
+    try:
+        read_exr_channels(path)
+    except Exception:
+        return False
+    return True
+
+
+def image_is_zero(path):
+    """Whether every value of every channel of the EXR at ``path`` is 0 (a view never rendered)."""
+    return all(not np.any(a) for a in read_exr_channels(path).values())
 
 
 def render(spec, scene, out, timeout):
@@ -166,8 +210,21 @@ def run_case(payload):
         res["render_s"] = round(time.time() - t1, 2)
         if error is not None:
             res["status"], res["error"] = "render_error", error
-        if os.path.exists(exr):
-            res["image"] = image_stats(exr)
+        views = view_images(scene, exr)
+        unreadable = [path for _, path in views if not exr_readable(path)]
+        if unreadable:          # (Blender's EXR writer can fail and leave an empty file)
+            views = []
+            if res["status"] is None:
+                res["status"], res["error"] = "no_image", f"unreadable image {unreadable[0]}"
+        if views:
+            res["image"] = image_stats(views[0][1])
+            if len(views) > 1 or views[0][0]:
+                res["views"] = {suffix: image_stats(path) for suffix, path in views}
+                for info in res["views"].values():
+                    res["image"]["nonfinite"].update(info["nonfinite"])
+            empty = [suffix for suffix, path in views if image_is_zero(path)] if len(views) > 1 else []
+            if res["status"] is None and empty:
+                res["status"], res["error"] = "no_image", f"view {', '.join(empty)} empty (every value 0)"
             if res["status"] is None:
                 res["status"] = "nonfinite" if res["image"]["nonfinite"] else "ok"
         elif res["status"] is None:
@@ -188,7 +245,7 @@ def make_spec(case_id, phase, resolution=None):
     """The case ``case_id`` of ``phase``, drawn from random.Random(case_id)."""
     r = random.Random(case_id)
     if phase == "single":
-        names = list(WEIGHTS)
+        names = list(WEIGHTS) + list(NEW_WEIGHTS)
         features = [[n, r.randint(0, 10 ** 9)] for n in (*BASE_FEATURES, names[case_id % len(names)])]
         spec = {"id": case_id, "features": features, "settings_seed": r.randint(0, 10 ** 9),
                 "light_settings": True, "mode": "ops"}
@@ -199,6 +256,12 @@ def make_spec(case_id, phase, resolution=None):
         features = [[n, r.randint(0, 10 ** 9)] for n in base + extra]
         spec = {"id": case_id, "features": features, "settings_seed": r.randint(0, 10 ** 9),
                 "mode": "renderpy" if r.random() < 0.1 else "ops"}
+        if case_id >= NEW_FEATURES_FROM:
+            r2 = random.Random(f"new features {case_id}")
+            new = r2.choices(list(NEW_WEIGHTS), weights=list(NEW_WEIGHTS.values()),
+                             k=r2.choice([0, 1, 1, 2, 3]))
+            features += [[n, r2.randint(0, 10 ** 9)] for n in new]
+            features.sort(key=lambda f: (f[0] in LATE_FEATURES) + (f[0] == "scene_scale"))
     if resolution:
         spec["resolution"] = list(resolution)
     return spec

@@ -21,7 +21,16 @@ A case is flagged when the ratio is off 1 by more than 0.03 + 3 noise (or a chan
 + 3 times its own noise.  The summary ends with the median and the 5th-95th percentiles of the
 cases' ratios.
 
+The glass family (``--family glass``, cases named glass<seed>; ``random_glass_spec``) has one to
+three transmissive objects (Glass, Principled transmission, Refraction, a Mix of glass and
+diffuse; spheres, cubes, cylinders, thin panes; sometimes an absorbing liquid inside, sometimes a
+volume-only cube of Volume Scatter or Principled Volume) and lights Cycles reaches through smooth
+glass (area lights of size 0.4 or more, emissive panels, suns of 5 degrees or more, a world
+colour); Cycles' limits are the spec's ``light_paths`` (Total, Glossy and Transmission 16, Diffuse
+8, Volume 8 with a volume, Transparent 16; ours takes Cycles') and it renders 2048 samples.
+
     python benchmarks/random_parity.py --start 100 --count 40
+    python benchmarks/random_parity.py --family glass --start 500 --count 30
     python benchmarks/random_parity.py --spec benchmarks/results/random_parity/runs/case115/spec.json
     python benchmarks/random_parity.py --quick                 # smoke run: one case, 16 x 12, seconds
 
@@ -44,7 +53,7 @@ import time
 import numpy as np
 
 from fuzz_scenes import load_addon
-from random_parity_scenes import build, describe, random_spec
+from random_parity_scenes import FAMILIES, build, describe
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BLOCKS = 4                  # the image is compared in BLOCKS x BLOCKS blocks
@@ -69,6 +78,8 @@ def render_child(job):
     c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
     c.transparent_max_bounces = 8
     c.volume_bounces = 0
+    for key, value in job["spec"].get("light_paths", {}).items():     # (the glass family's limits)
+        setattr(c, key, value)
     c.light_sampling_threshold = 0.0
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
     c.blur_glossy = 0.0
@@ -162,7 +173,8 @@ def run_case(spec, tag, args):
     for engine in ("cycles", "ours"):
         for seed in args.seeds:
             job = {"spec": spec, "engine": engine, "seed": seed, "resolution": args.resolution,
-                   "spp": args.spp, "passes": args.passes, "photons": args.photons, "chains": args.chains,
+                   "spp": args.spp or (2048 if spec.get("family") == "glass" else 1024),
+                   "passes": args.passes, "photons": args.photons, "chains": args.chains,
                    "initial_radius": args.initial_radius, "exr": os.path.join(d, f"{engine}_{seed}.exr")}
             images[engine, seed], t, w = render(job, args.timeout)
             seconds[engine] += t
@@ -207,7 +219,10 @@ def main():
     ap.add_argument("--resolution", type=int, nargs=2, default=(64, 48), metavar=("W", "H"))
     ap.add_argument("--seeds", type=int, nargs=2, default=(1, 2), metavar=("A", "B"),
                     help="the two seeds of each engine")
-    ap.add_argument("--spp", type=int, default=1024, help="Cycles' samples a pixel")
+    ap.add_argument("--family", choices=sorted(FAMILIES), default="rooms",
+                    help="the random specs: rooms (random_spec) or glass (random_glass_spec)")
+    ap.add_argument("--spp", type=int, default=0,
+                    help="Cycles' samples a pixel (default: 1024; 2048 for a glass spec)")
     ap.add_argument("--passes", type=int, default=16, help="our passes")
     ap.add_argument("--photons", type=int, default=100_000, help="our photons a pass")
     ap.add_argument("--chains", type=int, default=4096, help="our Markov chains")
@@ -234,7 +249,8 @@ def main():
                 cases.append((os.path.splitext(os.path.basename(path))[0], json.load(f)))
     else:
         seeds = range(args.start, args.start + args.count)
-        cases = [(f"case{seed:03d}", random_spec(seed)) for seed in seeds]
+        prefix = "case" if args.family == "rooms" else args.family
+        cases = [(f"{prefix}{seed:03d}", FAMILIES[args.family](seed)) for seed in seeds]
     t0 = time.time()
     results = []
     for tag, spec in cases:
