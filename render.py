@@ -205,6 +205,10 @@ def configure(bpy, scene, args):
         r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = args.border
     if args.frame is not None:
         scene.frame_set(args.frame)
+    if r.use_multiview:
+        # (the engine renders one view; Blender would write --output's name with each view's suffix)
+        r.use_multiview = False
+        print("render.py: Stereoscopy turned off: the engine renders the camera's own view alone")
     set_output(scene, args.output)
 
 

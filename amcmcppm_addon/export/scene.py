@@ -73,6 +73,16 @@ def geometry_passes(view_layer) -> frozenset:
     return frozenset(core for box, core in GEOMETRY_PASSES.items() if getattr(view_layer, box, False))
 
 
+def _views(render):
+    """The names of the views Blender renders with ``render`` (RenderSettings): with Stereoscopy on,
+    its views in use (left and right alone in Stereo 3D), else the one view."""
+    if not render.use_multiview:
+        return ["default"]
+    if render.views_format == "STEREO_3D":
+        return [v.name for v in render.views if v.use and v.name in ("left", "right")]
+    return [v.name for v in render.views if v.use]
+
+
 def within_reach(scene, log):
     """``scene`` without its triangles that have a corner at NaN, infinity or a coordinate beyond
     EMBREE_REACH in world space (vertices finite in their object that its transform takes so far:
@@ -148,6 +158,10 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None, ca
         world.portal_disks = np.array([disk for _, disk in portals])
     if depsgraph.scene_eval.render.use_motion_blur:
         log.warning("motion blur is not supported: the frame renders at its own instant")
+    views = _views(depsgraph.scene_eval.render)
+    if len(views) > 1:
+        log.warning(f"stereoscopy and multiview are not supported: view '{views[0]}' shows the camera's own "
+                    f"view and {', '.join(repr(v) for v in views[1:])} stay black")
     sets = {}         # the scene's per-triangle sets and emitter links
     names = (("links", "receiver_sets", "emitter_links", "emitter_collections"),
              ("shadow_links", "blocker_sets", "emitter_shadow_links", "shadow_collections"))

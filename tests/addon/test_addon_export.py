@@ -3006,6 +3006,16 @@ def test_a_point_clouds_attributes_reach_its_spheres(scene):
     assert (np.delete(alpha, spheres, axis=0) == 1.0).all()
 
 
+def test_stereoscopy_is_named_in_a_warning(scene):
+    """Stereoscopy's views but the first are not rendered (they stay black): a warning says so
+    (before: none, and the right eye's image was black)."""
+    bs.camera()
+    assert not [w for w in bs.export().warnings if "multiview" in w]
+    scene.render.use_multiview = True
+    assert ("stereoscopy and multiview are not supported: view 'left' shows the camera's own view and "
+            "'right' stay black") in bs.export().warnings
+
+
 def test_motion_blur_is_named_in_a_warning(scene):
     bs.camera()
     assert not [w for w in bs.export().warnings if "motion blur" in w]

@@ -66,6 +66,20 @@ def test_border_and_resolution_flags(repo_root, cornell, tmp_path):
     assert bs.read_exr(tmp_path / "b.exr").shape == (30, 40, 4)   # Blender keeps the full frame
 
 
+def test_a_stereo_file_renders_the_cameras_own_view(addon, repo_root, cornell, tmp_path):
+    """A file with Stereoscopy on: render.py turns it off, says so and writes --output (before: Blender
+    wrote b_L.exr and b_R.exr, and render.py exited 1, "was not written")."""
+    import bpy
+    bpy.ops.wm.open_mainfile(filepath=str(cornell))
+    bpy.context.scene.render.use_multiview = True
+    stereo = tmp_path / "stereo.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(stereo), copy=True)
+    out = run(repo_root, stereo, "--output", tmp_path / "s.exr", *FAST)
+    assert out.returncode == 0, out.stderr
+    assert "Stereoscopy turned off" in out.stdout
+    assert np.isfinite(bs.read_exr(tmp_path / "s.exr")).all()
+
+
 @pytest.mark.parametrize("args,pattern", [
     (["--bogus"], r"unrecognized arguments: --bogus"),
     (["--method", "bpt"], r"argument --method: invalid choice"),
