@@ -1275,10 +1275,10 @@ def f_nested_glass(r, case):
         if k == "glass":
             mat = bs.glass(f"NG{i}", r.choice([1.0, 1.33, 1.5, 2.4, 0.5]))
         elif k == "refraction":
-            mat = _material_of(f"NG{i}", "ShaderNodeBsdfRefraction")
+            mat = bs._material(f"NG{i}", "ShaderNodeBsdfRefraction")
             mat.node_tree.nodes["Refraction BSDF"].inputs["IOR"].default_value = r.choice([1.2, 1.5])
         elif k == "principled_glass":
-            mat = _material_of(f"NG{i}", "ShaderNodeBsdfPrincipled")
+            mat = bs._material(f"NG{i}", "ShaderNodeBsdfPrincipled")
             p = mat.node_tree.nodes["Principled BSDF"]
             p.inputs["Transmission Weight"].default_value = 1.0
             p.inputs["Roughness"].default_value = r.choice([0.0, 0.2])
@@ -1304,17 +1304,6 @@ def f_nested_glass(r, case):
             vn.inputs["Density"].default_value = r.choice([0.01, 0.1, 1.0])
         made.append("world volume")
     case.log(f"nested glass {made}")
-
-
-def _material_of(name, node_type):
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    for node in list(nt.nodes):
-        if node.bl_idname != "ShaderNodeOutputMaterial":
-            nt.nodes.remove(node)
-    node = nt.nodes.new(node_type)
-    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    return mat
 
 
 def f_linked_duplicates(r, case):
