@@ -329,20 +329,10 @@ def make_bsdf(nt, m):
         col.default_value = (*m["base"], 1)
         n.inputs["Roughness"].default_value = m["roughness"]
         n.inputs["Metallic"].default_value = m["metallic"]
-        if "transmission" in m:
-            n.inputs["Transmission Weight"].default_value = m["transmission"]
-            n.inputs["IOR"].default_value = m["ior"]
-        if "coat" in m:
-            n.inputs["Coat Weight"].default_value = m["coat"]
-            n.inputs["Coat Roughness"].default_value = m["coat_roughness"]
-        if "sheen" in m:
-            n.inputs["Sheen Weight"].default_value = m["sheen"]
-            n.inputs["Sheen Roughness"].default_value = m["sheen_roughness"]
-        if "specular_level" in m:
-            n.inputs["Specular IOR Level"].default_value = m["specular_level"]
-        if "subsurface" in m:
-            n.inputs["Subsurface Weight"].default_value = m["subsurface"]
-            n.inputs["Subsurface Scale"].default_value = 0.05
+        for key, inputs in PRINCIPLED_OPTIONS.items():
+            if key in m:
+                for name, field in inputs:
+                    n.inputs[name].default_value = m[field] if isinstance(field, str) else field
     else:
         node_type = {"diffuse": "ShaderNodeBsdfDiffuse", "glossy": "ShaderNodeBsdfGlossy",
                      "translucent": "ShaderNodeBsdfTranslucent", "emission": "ShaderNodeEmission"}[k]
@@ -371,6 +361,17 @@ def make_bsdf(nt, m):
         nt.links.new(t.outputs["Fac"], ramp.inputs["Factor"])
         nt.links.new(ramp.outputs["Result"], col)
     return n
+
+
+# A Principled spec's optional keys: the inputs each sets, from the spec's field of that name (or
+# a constant).
+PRINCIPLED_OPTIONS = {
+    "transmission": (("Transmission Weight", "transmission"), ("IOR", "ior")),
+    "coat": (("Coat Weight", "coat"), ("Coat Roughness", "coat_roughness")),
+    "sheen": (("Sheen Weight", "sheen"), ("Sheen Roughness", "sheen_roughness")),
+    "specular_level": (("Specular IOR Level", "specular_level"),),
+    "subsurface": (("Subsurface Weight", "subsurface"), ("Subsurface Scale", 0.05)),
+}
 
 
 def material(name, m):

@@ -146,7 +146,7 @@ class Accel:
         self._margin = None             # the boxes' margin (_split)
         self.object_ids = scene.object_ids  # (T,) each triangle's object, or None
         self._locals = None             # LocalScene of every object apart (local_scene())
-        self._sizes = None              # (objects,) each object's size (object_sizes())
+        self._boxes = None              # the objects' boxes (object_boxes())
         if self.triangle_count:
             # Embree's meshes from the vertices and their indices where the triangles share them
             # (as Blender's do), else from the corners: the same float32 corners either way
@@ -294,14 +294,21 @@ class Accel:
         (``procedural.BUMP_STEP``), so a small object keeps its detail beside a huge one."""
         if self.object_ids is None:
             return np.full(len(prims), self.extent)
-        if self._sizes is None:
-            ids = np.asarray(self.object_ids, np.int64)
-            lo, hi = np.full((ids.max() + 1, 3), np.inf), np.full((ids.max() + 1, 3), -np.inf)
+        _, rank, lo, hi = self.object_boxes()
+        return (hi - lo).max(axis=1).take(rank.take(prims))
+
+    def object_boxes(self):
+        """(objects (n,) the object ids the triangles have, sorted; rank (T,) each triangle's row
+        among them; lo, hi (n, 3) float64 their boxes in the world), made on first use (the bump's
+        steps, :class:`LocalScene`); None without object ids."""
+        if self._boxes is None and self.object_ids is not None:
+            objects, rank = np.unique(np.asarray(self.object_ids, np.int64), return_inverse=True)
+            lo, hi = np.full((len(objects), 3), np.inf), np.full((len(objects), 3), -np.inf)
             for corner in (self.v0, self.v0 + self.e1, self.v0 + self.e2):
-                np.minimum.at(lo, ids, corner)
-                np.maximum.at(hi, ids, corner)
-            self._sizes = np.nan_to_num((hi - lo).max(axis=1), posinf=0.0, neginf=0.0)
-        return self._sizes.take(np.asarray(self.object_ids).take(prims))
+                np.minimum.at(lo, rank, corner)
+                np.maximum.at(hi, rank, corner)
+            self._boxes = (objects, rank, lo, hi)
+        return self._boxes
 
     def local_scene(self) -> "LocalScene":
         """Queries of each ray over its own object's triangles alone (:class:`LocalScene`, built on
@@ -362,17 +369,15 @@ class Accel:
         """Origins for rays leaving ``positions`` on triangles ``prims`` (n,) along ``directions``:
         offset along the geometric ``normals`` to the side the direction points to, by an amount
         that grows with the coordinate magnitude and the triangle's ``corner_offset``."""
-        side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
-        return positions + (side * self._offsets(positions, prims))[:, None] * normals
+        return _pushed(positions, normals, directions, self._offsets(positions, prims))
 
     def spawn_local(self, positions, normals, directions, prims):
         """:meth:`spawn` for rays of :meth:`local_scene`'s queries: offsets at least its floor for the
         triangles' objects (what its own frame tells apart); :meth:`spawn` in a scene of one object."""
         if self.object_ids is None:
             return self.spawn(positions, normals, directions, prims)
-        side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
         offsets = np.maximum(self._offsets(positions, prims), self.local_scene().floor_at(prims))
-        return positions + (side * offsets)[:, None] * normals
+        return _pushed(positions, normals, directions, offsets)
 
     def offsets_near(self, points):
         """(n,) the spawn offset at ``points`` (n, 3) on a triangle with a corner there and none
@@ -406,13 +411,9 @@ class LocalScene:
 
     def __init__(self, accel):
         self.accel = accel
-        ids = np.asarray(accel.object_ids, np.int64)
-        self.objects, rank = np.unique(ids, return_inverse=True)
+        self.objects, rank, lo, hi = accel.object_boxes()
         n = len(self.objects)
         corners = np.stack([accel.v0, accel.v0 + accel.e1, accel.v0 + accel.e2], axis=1)    # (T, 3, 3)
-        lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
-        np.minimum.at(lo, rank, corners.min(axis=1))
-        np.maximum.at(hi, rank, corners.max(axis=1))
         size = (hi - lo).max(axis=1)
         reach = np.maximum(np.abs(lo - accel.center), np.abs(hi - accel.center))
         spawned = 1e-5 * size + 4.0 * accel.offsets_near(accel.center + reach)
@@ -700,6 +701,12 @@ def _overlapping(v0, e1, e2, lo, hi):
         near &= np.minimum(np.minimum(a, b), c) <= hi[k]
         near &= np.maximum(np.maximum(a, b), c) >= lo[k]
     return near
+
+
+def _pushed(positions, normals, directions, offsets):
+    """``positions`` moved by ``offsets`` (n,) along the ``normals``, to the side ``directions`` go."""
+    side = np.where(dot(normals, directions) >= 0, 1.0, -1.0)
+    return positions + (side * offsets)[:, None] * normals
 
 
 def _corner_offsets(v0, e1, e2, center):

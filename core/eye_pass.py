@@ -987,8 +987,8 @@ def _trace_camera_paths(ctx, rng, pix, emission, alpha, initial_radius_px, limit
             albedos = colour_albedos(table, surf, wo, np.arange(len(pix)), rng.spawn(1)[0])
             light.add_colours(pix, {k: beta * v for k, v in albedos.items()})
         if depth == 0 and data and "ao" in data:
-            data["ao"][pix] += beta * ambient_occlusion(ctx, surf, prim, wo, medium, ao_distance,
-                                                                 rng.spawn(1)[0])
+            ao = ambient_occlusion(ctx, surf, prim, wo, medium, ao_distance, rng.spawn(1)[0])
+            data["ao"][pix] += beta * ao
         if feature is not None:
             feature.surface(table, surf, wo, pix, hits.t.take(h))
         # Choose a lobe: non-delta ends the path at a measurement point, delta continues it.
