@@ -241,7 +241,7 @@ def _ies_profile(walker, node, stack):
     import bpy
     from . import ies
     strength = walker.value(node.inputs["Strength"], stack)
-    if node.inputs["Vector"].is_linked:
+    if walker.linked(node.inputs["Vector"], stack):
         walker.note(f"IES Texture '{node.name}': a linked Vector is ignored (the light's own frame)")
     try:
         if node.mode == "INTERNAL":

@@ -1391,7 +1391,7 @@ class NodeWalker:
         if node.bl_idname != "ShaderNodeDisplacement":
             self.unsupported(node, "drives the Displacement output; ignored")
             return None
-        if node.inputs["Normal"].is_linked:
+        if self.linked(node.inputs["Normal"], stack):
             self.note(f"displacement '{node.name}': a linked Normal is ignored (the surface's own is used)")
         if method != "BUMP":
             offset = {"op": "math", "operation": "MULTIPLY",
@@ -1511,34 +1511,40 @@ class NodeWalker:
 
         Returns ``(output_socket, None, stack)`` for the node output that feeds it,
         or ``(None, input_socket, stack)`` when nothing does, the input socket then
-        being the one whose ``default_value`` applies (possibly a group node's input or a muted
-        node's), or ``(None, None, stack)`` when a muted node passes nothing to the output.
-        Reroutes, group boundaries and muted nodes are followed through.
+        being the one whose ``default_value`` applies (possibly a group node's input), or
+        ``(None, None, stack)`` when a muted node passes nothing to the output.
+        Reroutes, group boundaries and muted nodes are followed through. As in Cycles, a run of
+        reroutes and muted nodes that ends in an input with no link passes nothing: the socket
+        it started from keeps its own value (Blender's UI would show the muted node's input's).
         ``stack`` is the tuple of group nodes entered so far.
         """
+        start = None                    # the socket where the current run of reroutes/mutes began
         for _ in range(10_000):         # guard against cycles in malformed trees
             links = [ln for ln in sock.links if ln.is_valid and not ln.is_muted]
             if not links:
-                return None, sock, stack
+                return None, start if start is not None else sock, stack
             out = links[0].from_socket
             node = out.node
             if node.bl_idname == "NodeReroute":
+                start = sock if start is None else start
                 sock = node.inputs[0]
             elif node.bl_idname == "NodeGroupInput":
                 if not stack:
-                    return None, sock, stack
+                    return None, start if start is not None else sock, stack
                 group = stack[-1]
                 sock = _by_identifier(group.inputs, out.identifier)
                 stack = stack[:-1]
+                start = None
                 if sock is None:
                     return None, None, stack
             elif node.mute:
-                # Blender's muting: the node passes the input of its internal link to this output
-                # (a Mix Shader its first shader, an Invert its colour); without one (a BSDF)
+                # The node passes what feeds the input of its internal link to this output (a Mix
+                # Shader its first shader, an Invert its colour's link); without one (a BSDF)
                 # nothing comes out.
                 through = [ln for ln in node.internal_links if ln.to_socket.identifier == out.identifier]
                 if not through:
                     return None, None, stack
+                start = sock if start is None else start
                 sock = through[0].from_socket
             elif node.bl_idname == "ShaderNodeGroup":
                 tree = node.node_tree
@@ -1549,9 +1555,15 @@ class NodeWalker:
                     return None, None, stack
                 sock = inner
                 stack = stack + (node,)
+                start = None
             else:
                 return out, None, stack
         return None, None, stack
+
+    def linked(self, sock, stack) -> bool:
+        """Whether a node feeds ``sock`` once reroutes, muted nodes and group boundaries are
+        followed (a dangling reroute or a muted node with an unlinked input feeds nothing)."""
+        return self.source(sock, stack)[0] is not None
 
     # ----------------------------------------------------------------- values
     def value(self, sock, stack) -> float:
@@ -1751,7 +1763,7 @@ class NodeWalker:
         (a Normal Map's image, Bumps on Bumps) as one program.  None where the input is unlinked
         or bends nothing."""
         sock = node.inputs["Coat Normal"]
-        if not sock.is_linked:
+        if not self.linked(sock, stack):
             return None
         normal, bump = self.bent_normal(sock, stack)
         if (normal is not None and not isinstance(normal, dict)) or (bump is not None and len(bump) > 3):
@@ -1827,7 +1839,7 @@ class NodeWalker:
         if src is None or src.node.mute or src.node.bl_idname not in FRESNEL_FACTORS:
             return None
         node, constant = src.node, self.programs.constant_of
-        if node.inputs["Normal"].is_linked:
+        if self.linked(node.inputs["Normal"], stack):
             return None
         if node.bl_idname == "ShaderNodeFresnel" and src.identifier == "Fac":
             eta = float(constant(node.inputs["IOR"], stack))

@@ -92,7 +92,10 @@ class ExpressionBuilder:
     def vector_or(self, node, stack, default_attribute):
         """The node's Vector input, or the coordinates Cycles uses when it is not linked."""
         sock = node.inputs.get("Vector")
-        if sock is None or not any(ln.is_valid and not ln.is_muted for ln in sock.links):
+        src, default, _ = self.walker.source(sock, stack) if sock is not None else (None, None, ())
+        if src is None and (default is None or default.as_pointer() == sock.as_pointer()):
+            # Unlinked, or fed by a dangling reroute or a muted node with an unlinked input (a
+            # group node's unlinked Vector passes its value, as in Cycles).
             return {"op": "attribute", "name": default_attribute}
         return self.expression(sock, stack, VEC)
 

@@ -1585,25 +1585,54 @@ def test_a_displacement_node_becomes_a_bump(scene):
 
 
 def test_muted_nodes_pass_their_internal_links_through(scene):
-    """Blender's muting: a muted Mix Shader passes its first shader, a muted Invert its colour, a
-    muted BSDF nothing (black); before, each was an unsupported node rendered grey."""
+    """Cycles' muting: a muted Mix Shader passes its first shader, a muted Invert what feeds its
+    colour, a muted BSDF nothing (black); before stop 37 each was an unsupported node rendered
+    grey. A run of muted nodes and reroutes that ends in an unlinked input passes nothing, and the
+    socket it feeds keeps its own value (Cycles drops the link: a ball under a muted Checker, a
+    muted Invert or a dangling reroute renders in its Base Color, stop 76; before, the Checker's
+    Color1 and the Invert's colour came through, as Blender's UI shows them)."""
     mixed = bs.diffuse("Mixed", (0.2, 0.4, 0.6))
     bs.mix_in(mixed, "Diffuse BSDF", "ShaderNodeBsdfGlossy", 0.7)
     mixed.node_tree.nodes["Mix Shader"].mute = True
     row, ex = export_material(mixed)
     assert row["diffuse_color"] == pytest.approx([0.2, 0.4, 0.6]) and row["diffuse_weight"] == 1
     assert row["glossy_weight"] == 0 and not [w for w in ex.warnings if "'Mixed'" in w], ex.warnings
-    inverted = bs.diffuse("Inverted")
+    inverted = bs.diffuse("Inverted", (0.3, 0.6, 0.2))
     nt = inverted.node_tree
+    diffuse = nt.nodes["Diffuse BSDF"]
     invert = nt.nodes.new("ShaderNodeInvert")
     invert.inputs["Color"].default_value = (0.9, 0.5, 0.1, 1)
     invert.mute = True
-    nt.links.new(invert.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    nt.links.new(invert.outputs["Color"], diffuse.inputs["Color"])
     row, _ = export_material(inverted)
-    assert row["diffuse_color"] == pytest.approx([0.9, 0.5, 0.1])
+    assert row["diffuse_color"] == pytest.approx([0.3, 0.6, 0.2])
     invert.mute = False
     row, _ = export_material(inverted)
     assert row["diffuse_color"] == pytest.approx([0.1, 0.5, 0.9])
+    rgb = nt.nodes.new("ShaderNodeRGB")
+    rgb.outputs[0].default_value = (0.7, 0.1, 0.4, 1)
+    nt.links.new(rgb.outputs[0], invert.inputs["Color"])
+    invert.mute = True
+    row, _ = export_material(inverted)
+    assert row["diffuse_color"] == pytest.approx([0.7, 0.1, 0.4])
+    checker = nt.nodes.new("ShaderNodeTexChecker")       # muted Invert <- muted Checker, unlinked
+    nt.links.new(checker.outputs["Color"], invert.inputs["Color"])
+    checker.mute = True
+    row, _ = export_material(inverted)
+    assert row["diffuse_color"] == pytest.approx([0.3, 0.6, 0.2])
+    reroute = nt.nodes.new("NodeReroute")                # a dangling reroute
+    nt.links.new(reroute.outputs[0], diffuse.inputs["Color"])
+    row, _ = export_material(inverted)
+    assert row["diffuse_color"] == pytest.approx([0.3, 0.6, 0.2])
+    textured = bs.diffuse("Textured")                    # a Vector by a muted Mapping, unlinked
+    nt = textured.node_tree
+    checker, mapping = nt.nodes.new("ShaderNodeTexChecker"), nt.nodes.new("ShaderNodeMapping")
+    nt.links.new(checker.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    nt.links.new(mapping.outputs[0], checker.inputs["Vector"])
+    mapping.mute = True
+    row, ex = export_material(textured)
+    program = ex.scene.materials.programs[row["diffuse_program"]]
+    assert program["vector"] == {"op": "attribute", "name": "generated"}
     black = bs.diffuse("Muted")
     black.node_tree.nodes["Diffuse BSDF"].mute = True
     row, ex = export_material(black)
