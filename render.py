@@ -206,9 +206,10 @@ def configure(bpy, scene, args):
     if args.frame is not None:
         scene.frame_set(args.frame)
     if r.use_multiview:
-        # (the engine renders one view; Blender would write --output's name with each view's suffix)
+        # (--output is one image: Blender would write its name with each view's suffix instead)
         r.use_multiview = False
-        print("render.py: Stereoscopy turned off: the engine renders the camera's own view alone")
+        print("render.py: Stereoscopy turned off: --output is one image, the camera's own view (in "
+              "Blender, or with blender -b FILE -f N, each eye renders into its own image)")
     set_output(scene, args.output)
 
 

@@ -23,6 +23,7 @@ from ..core.cryptomatte import name_id
 from ..core.integrator import render as core_render
 from ..core.settings import AOV_PREFIX, DATA_PASSES as DATA_PASS_NAMES, LIGHTGROUP_PREFIX
 from .export import export_scene, parse_snapshot_times, render_settings_from
+from .export.camera import CameraView
 from .export.lights import light_group_names
 from .outputs import RenderOutputs
 from .result import PushSchedule, ResultWriter, progress_fraction, stats_line
@@ -213,7 +214,9 @@ def report_errors(engine, function, *args):
 
 
 def render_final(engine, depsgraph):
-    """Render the view layer of ``depsgraph`` into ``engine``'s result.
+    """Render the view layer of ``depsgraph`` into ``engine``'s result: each view of Stereoscopy
+    in turn (through its eye, into its own image, with the whole settings each, as Cycles), or
+    the camera's one view.
 
     ``engine`` is the RenderEngine (or an object forwarding to it): everything this
     function does to Blender goes through its methods.
@@ -229,28 +232,86 @@ def render_final(engine, depsgraph):
                                                  if world is not None else 10.0))
     for msg in props.light_path_limits()[1]:
         engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
-    engine.update_stats("", "Exporting scene")
-    exported = export_scene(depsgraph, camera_object=engine.camera_override,
-                            resolution=(engine.resolution_x, engine.resolution_y))
-    for msg in exported.infos:
-        engine.report({'INFO'}, msg)
-    for msg in exported.warnings:
-        engine.report({'WARNING'}, msg)
     view_layer = depsgraph.view_layer.name
+    views = render_views(engine, scene, view_layer)
+    reported = set()
+    for index, view in enumerate(views):
+        render_view(engine, depsgraph, settings, camera_view(engine, depsgraph, view), (index, len(views)),
+                    reported)
+        if engine.test_break():
+            break
+
+
+def render_views(engine, scene, layer):
+    """The names of the views Blender renders: the render result's views with Stereoscopy on
+    (Stereo 3D's left and right, or Multi-View's in use), else ``[None]`` (the camera's one view)."""
+    if not scene.render.use_multiview:
+        return [None]
+    probe = engine.begin_result(0, 0, 1, 1, layer=layer)
+    if probe is None:
+        return [None]
+    names = [v.name for v in probe.views]
+    engine.end_result(probe, cancel=True)
+    return names or [None]
+
+
+def camera_view(engine, depsgraph, name):
+    """The ``CameraView`` of view ``name`` (its eye's camera matrix and shift, from Blender), made
+    the engine's active view; None for the camera's one view (``name`` None)."""
+    if name is None:
+        return None
+    engine.active_view_set(name)
+    ob = engine.camera_override or depsgraph.scene_eval.camera
+    if ob is None or ob.type != "CAMERA":
+        # (the export names a missing camera; an object that is not a camera has no eyes)
+        return CameraView(name, np.eye(4), 0.0)
+    ob = ob.evaluated_get(depsgraph)
+    # (A panoramic camera's Spherical Stereo turns its eyes with each ray's direction in Cycles;
+    # here each eye stays where it is for the view straight ahead: named in a warning.)
+    return CameraView(name, np.array(engine.camera_model_matrix(ob, use_spherical_stereo=False), np.float64),
+                      float(engine.camera_shift_x(ob, use_spherical_stereo=False)))
+
+
+def render_view(engine, depsgraph, settings, view, of, reported):
+    """Export and render one view into its image of ``engine``'s result.  ``view`` a
+    ``CameraView`` or None; ``of`` (its index, the number of views); ``reported`` the messages
+    already reported (by an earlier view)."""
+    scene = depsgraph.scene_eval
+    props = scene.amcmcppm
+    label = f"view '{view.name}': " if view is not None else ""
+
+    def report(kind, msg):
+        if msg not in reported:
+            reported.add(msg)
+            engine.report({kind}, msg)
+
+    engine.update_stats("", f"{label}Exporting scene")
+    exported = export_scene(depsgraph, camera_object=engine.camera_override,
+                            resolution=(engine.resolution_x, engine.resolution_y), view=view)
+    if view is not None and exported.scene.camera.projection not in ("perspective", "orthographic"):
+        report('WARNING', "AMCMCPPM: Stereoscopy with a panoramic camera: each eye sees from where it "
+                          "stands for the view ahead (Cycles' Spherical Stereo turns the eyes with the "
+                          "view's direction)")
+    for msg in exported.infos:
+        report('INFO', msg)
+    for msg in exported.warnings:
+        report('WARNING', msg)
+    view_layer = depsgraph.view_layer.name
+    tags = {"view_layer": view_layer, "frame": scene.frame_current}
     outputs = RenderOutputs(stats_path=bpy.path.abspath(props.stats_path) if props.stats_path else "",
                             snapshot_times=parse_snapshot_times(props.snapshot_times),
                             snapshot_dir=bpy.path.abspath(props.snapshot_dir) if props.snapshot_dir else "",
-                            tags={"view_layer": view_layer, "frame": scene.frame_current})
+                            tags=tags if view is None else {**tags, "view": view.name})
     try:
-        with ResultWriter(engine, view_layer) as writer:
+        with ResultWriter(engine, view_layer, view.name if view is not None else "") as writer:
             if exported.is_empty:
                 writer.push_black()
-                engine.report({'WARNING'}, "AMCMCPPM: nothing to render (no geometry, no lights and a "
-                                           "black world); the image is black")
+                report('WARNING', "AMCMCPPM: nothing to render (no geometry, no lights and a black "
+                                  "world); the image is black")
                 return
-            progress = Progress(engine, settings, writer, outputs)
-            engine.update_stats("", f"Building acceleration structure ({exported.scene.triangle_count:,} "
-                                    "triangles) and starting workers")
+            progress = Progress(engine, settings, writer, outputs, of, label)
+            engine.update_stats("", f"{label}Building acceleration structure "
+                                    f"({exported.scene.triangle_count:,} triangles) and starting workers")
             result = core_render(exported.scene, settings, on_iteration=progress.on_iteration,
                                  should_stop=engine.test_break)
             writer.push(result.image)
@@ -259,20 +320,20 @@ def render_final(engine, depsgraph):
             writer.add_metadata(crypto_metadata(view_layer, exported.cryptomatte_manifests))
             outputs.finish(result, settings.time_limit or 0.0)
             effects = ", ".join(result.effects) or "none (diffuse surfaces and lights only)"
-            engine.report({'INFO'}, f"AMCMCPPM: optional effects this scene calls for: {effects}")
+            report('INFO', f"AMCMCPPM: optional effects this scene calls for: {effects}")
             source = result.direct_light.replace("sampled", "light samples")
-            engine.report({'INFO'}, f"AMCMCPPM: direct light from {source}")
+            report('INFO', f"AMCMCPPM: direct light from {source}")
             for msg in result.warnings:
-                engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
+                report('WARNING', f"AMCMCPPM: {msg}")
             for msg in writer.problems:
-                engine.report({'WARNING'}, f"AMCMCPPM: {msg}")
+                report('WARNING', f"AMCMCPPM: {label}{msg}")
             pending = outputs.pending
             if pending:
-                engine.report({'INFO'}, f"AMCMCPPM: the render ended at {result.elapsed_s:.1f} s, before "
-                                        f"snapshot times {', '.join(f'{t:g}' for t in pending)} s")
+                report('INFO', f"AMCMCPPM: {label}the render ended at {result.elapsed_s:.1f} s, before "
+                               f"snapshot times {', '.join(f'{t:g}' for t in pending)} s")
             done = "cancelled after" if result.interrupted else "finished in"
-            engine.update_stats("", f"{done} {result.passes} passes, {result.elapsed_s:.1f} s")
-            engine.update_progress(1.0)
+            engine.update_stats("", f"{label}{done} {result.passes} passes, {result.elapsed_s:.1f} s")
+            engine.update_progress((of[0] + 1) / of[1])
     finally:
         outputs.close()
 
@@ -280,19 +341,22 @@ def render_final(engine, depsgraph):
 class Progress:
     """The core's ``on_iteration``: statistics, progress, files and progressive pushes."""
 
-    def __init__(self, engine, settings, writer, outputs):
+    def __init__(self, engine, settings, writer, outputs, of=(0, 1), label=""):
         self.engine = engine
         self.settings = settings
         self.writer = writer
         self.outputs = outputs
         self.schedule = PushSchedule(interval=1.0)
         self.paths_total = 0
+        self.of = of                    # (this view's index, the number of views)
+        self.label = label
 
     def on_iteration(self, result):
         stats = result.stats[-1]
         self.paths_total += int(stats.get("paths_traced", 0))
-        self.engine.update_stats("", stats_line(self.settings, stats, self.paths_total))
-        self.engine.update_progress(progress_fraction(self.settings, stats["pass"], stats["elapsed_s"]))
+        self.engine.update_stats("", self.label + stats_line(self.settings, stats, self.paths_total))
+        done = progress_fraction(self.settings, stats["pass"], stats["elapsed_s"])
+        self.engine.update_progress((self.of[0] + done) / self.of[1])
         self.outputs.on_pass(result)
         if self.schedule.due():
             self.writer.push(result.image)

@@ -61,7 +61,8 @@ class RenderOutputs:
             self._snapshot(self.pending.pop(0), result.stats[-1], result.image)
 
     def _snapshot(self, t, stats, image):
-        name = f"snapshot_{t:011.3f}s.exr"
+        view = self.tags.get("view")
+        name = f"snapshot_{t:011.3f}s{'_' + view if view else ''}.exr"
         path = os.path.join(self.snapshot_dir, name)
         write_exr(path, image)
         entry = {"time": t, "elapsed_s": stats["elapsed_s"], "pass": stats["pass"], "file": name, **self.tags}

@@ -47,9 +47,10 @@ class ResultWriter:
     interrupted render keeps the image pushed last.
     """
 
-    def __init__(self, engine, layer_name):
+    def __init__(self, engine, layer_name, view=""):
         self.engine = engine
         self.layer_name = layer_name
+        self.view = view                # Stereoscopy's view this result is of ("" with none)
         self.result = None
         self.width = self.height = 0
         self.problems = []
@@ -57,7 +58,8 @@ class ResultWriter:
     def __enter__(self):
         e = self.engine
         # Blender clamps the rectangle to the border box and makes it the result's origin.
-        self.result = e.begin_result(0, 0, e.resolution_x, e.resolution_y, layer=self.layer_name)
+        self.result = e.begin_result(0, 0, e.resolution_x, e.resolution_y, layer=self.layer_name,
+                                     view=self.view)
         if self.result is None:
             raise RuntimeError("Blender returned no render result to write into")
         self.width, self.height = self.result.resolution_x, self.result.resolution_y

@@ -12,13 +12,15 @@ panoramas (equirectangular, the two fisheyes, mirror ball); the equisolid
 fisheye's sensor is fitted to the image as Blender fits it (``sensor_fit``).
 Cycles' other panorama types and a panoramic camera's depth of field are
 noted; those render as an equirectangular view, this one without depth of field.
+A view of Stereoscopy (``CameraView``) moves the camera to its eye and shifts the window
+by the eye's shift, both as Blender's RenderEngine gives them to Cycles.
 The pixel filter is Cycles' Film > Pixel Filter (``scene.cycles``: type and width), which
 the engine's Film panel edits; without the Cycles add-on, Blender's default
 (Blackman-Harris, 1.5 pixels).
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -71,11 +73,24 @@ def clip_range(ob, cam, log=None) -> dict:
     return {"clip_start": start, "clip_end": end}
 
 
-def export_camera(depsgraph, camera_object=None, resolution=None, border=None, log=None) -> Camera:
+@dataclass(frozen=True)
+class CameraView:
+    """One view of Stereoscopy as Blender's RenderEngine gives it (``camera_model_matrix`` and
+    ``camera_shift_x`` after ``active_view_set``): the eye's camera matrix (world from camera,
+    4 x 4) and its Shift X (the camera's own plus the eye's off-axis shift, in units of the
+    sensor's fitted side, as ``Camera.shift_x``)."""
+    name: str
+    world_from_camera: np.ndarray
+    shift_x: float
+
+
+def export_camera(depsgraph, camera_object=None, resolution=None, border=None, log=None,
+                  view=None) -> Camera:
     """``core.Camera`` for ``camera_object`` (default: the scene camera) seen from ``depsgraph``.
 
     resolution : (width, height) in pixels, percentage applied; default from the scene.
     border : (x_min, x_max, y_min, y_max), y from the bottom; default from the scene.
+    view : a ``CameraView`` of Stereoscopy (a camera object's eye), or None for the camera itself.
     """
     scene = depsgraph.scene_eval
     render = scene.render
@@ -87,7 +102,9 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     resolution = tuple(int(v) for v in (resolution or render_resolution(render)))
     border = tuple(float(v) for v in (border or render_border(render)))
 
-    world_from_camera, zero_axes = _without_scale(np.array(ob.matrix_world, np.float64))
+    view = view if ob.type == "CAMERA" else None       # (Blender's eyes are a camera object's)
+    matrix = ob.matrix_world if view is None else view.world_from_camera
+    world_from_camera, zero_axes = _without_scale(np.array(matrix, np.float64))
     if zero_axes:
         # Cycles normalises the columns too (to NaN there): its camera rays meet nothing.
         if log is not None:
@@ -111,6 +128,8 @@ def export_camera(depsgraph, camera_object=None, resolution=None, border=None, l
     else:
         xy = corners[:, :2]
     frame = (xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max())
+    if view is not None and view.shift_x != cam.shift_x:
+        frame = _shifted(frame, view.shift_x - float(cam.shift_x), cam.sensor_fit)
 
     aperture_radius, focus_distance, shape = 0.0, 10.0, {}
     dof = cam.dof
@@ -208,6 +227,15 @@ def _panorama(ob, cam, world_from_camera, resolution, border, clip, log):
                   longitude_range=(float(cam.longitude_min), float(cam.longitude_max)),
                   fisheye_fov=float(cam.fisheye_fov), fisheye_lens=float(cam.fisheye_lens),
                   sensor_size=sensor)
+
+
+def _shifted(frame, shift, sensor_fit):
+    """``frame`` (x_min, x_max, y_min, y_max) moved by ``shift`` more Shift X: Blender's shift is in
+    units of the side the sensor fits (AUTO: the longer one), a shift of 1 a whole frame width
+    with a horizontal fit."""
+    width, height = frame[1] - frame[0], frame[3] - frame[2]
+    side = {"HORIZONTAL": width, "VERTICAL": height}.get(sensor_fit, max(width, height))
+    return (frame[0] + shift * side, frame[1] + shift * side, frame[2], frame[3])
 
 
 def _focus_distance(depsgraph, dof, world_from_camera):

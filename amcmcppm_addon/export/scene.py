@@ -73,16 +73,6 @@ def geometry_passes(view_layer) -> frozenset:
     return frozenset(core for box, core in GEOMETRY_PASSES.items() if getattr(view_layer, box, False))
 
 
-def _views(render):
-    """The names of the views Blender renders with ``render`` (RenderSettings): with Stereoscopy on,
-    its views in use (left and right alone in Stereo 3D), else the one view."""
-    if not render.use_multiview:
-        return ["default"]
-    if render.views_format == "STEREO_3D":
-        return [v.name for v in render.views if v.use and v.name in ("left", "right")]
-    return [v.name for v in render.views if v.use]
-
-
 def within_reach(scene, log):
     """``scene`` without its triangles that have a corner at NaN, infinity or a coordinate beyond
     EMBREE_REACH in world space (vertices finite in their object that its transform takes so far:
@@ -101,10 +91,12 @@ def within_reach(scene, log):
     return scene.replace(vertices=vertices).take_triangles(~out)
 
 
-def export_scene(depsgraph, camera_object=None, resolution=None, border=None, camera=None) -> ExportedScene:
+def export_scene(depsgraph, camera_object=None, resolution=None, border=None, camera=None,
+                 view=None) -> ExportedScene:
     """Export everything ``depsgraph`` shows for its view layer.
 
     camera_object : the camera to render through (default: the scene camera).
+    view : a ``camera.CameraView`` of Stereoscopy to render through that camera (its eye), or None.
     resolution : (width, height) after the resolution percentage (default: the scene's).
     border : (x_min, x_max, y_min, y_max) render border, y from the bottom (default: the scene's).
     camera : a ``core.Camera`` to render through instead of a camera object (the 3D viewport's
@@ -150,7 +142,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None, ca
             collector.add(inst)
     geometry = collector.finish()
     if camera is None:
-        camera = export_camera(depsgraph, camera_object, resolution, border, log)
+        camera = export_camera(depsgraph, camera_object, resolution, border, log, view)
     world, world_lights = export_world(depsgraph, materials.textures, log, camera, groups)
     if portals:
         # (Cycles' light portals guide the photons from afar through the windows: Focus.through)
@@ -158,10 +150,6 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None, ca
         world.portal_disks = np.array([disk for _, disk in portals])
     if depsgraph.scene_eval.render.use_motion_blur:
         log.warning("motion blur is not supported: the frame renders at its own instant")
-    views = _views(depsgraph.scene_eval.render)
-    if len(views) > 1:
-        log.warning(f"stereoscopy and multiview are not supported: view '{views[0]}' shows the camera's own "
-                    f"view and {', '.join(repr(v) for v in views[1:])} stay black")
     sets = {}         # the scene's per-triangle sets and emitter links
     names = (("links", "receiver_sets", "emitter_links", "emitter_collections"),
              ("shadow_links", "blocker_sets", "emitter_shadow_links", "shadow_collections"))

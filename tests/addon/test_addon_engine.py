@@ -337,6 +337,33 @@ def test_stats_file_and_snapshots(scene, tmp_path):
     assert snap.shape == final.shape and np.isfinite(snap).all() and snap[..., :3].mean() > 0
 
 
+def test_stereo_views_each_render_with_their_own_statistics_and_snapshots(scene, tmp_path):
+    """Stereoscopy: each eye renders into its own image, whole (its passes each), its statistics
+    lines and snapshots tagged with its view (the snapshot's file named so); before stop 76 the
+    right eye's image was black."""
+    scene = bs.lit_floor_scene(passes=2)
+    scene.render.use_multiview = True
+    scene.camera.data.stereo.interocular_distance = 0.5
+    props = scene.amcmcppm
+    props.stats_path = str(tmp_path / "stats.jsonl")
+    props.snapshot_times, props.snapshot_dir = "0.000001", str(tmp_path / "snaps")
+    s = scene.render.image_settings
+    s.media_type, s.file_format, s.color_mode, s.color_depth = "IMAGE", "OPEN_EXR", "RGBA", "32"
+    s.views_format = "INDIVIDUAL"
+    scene.render.filepath, scene.render.use_file_extension = str(tmp_path / "eye.exr"), False
+    bpy.ops.render.render(write_still=True)
+    left, right = (bs.read_exr(tmp_path / f"eye_{v}.exr") for v in "LR")
+    assert np.isfinite(left).all() and np.isfinite(right).all()
+    assert left[..., :3].mean() > 0.1 and right[..., :3].mean() > 0.1
+    assert np.abs(left - right).max() > 0.1            # (the floor's light seen from two places)
+    lines = [json.loads(x) for x in (tmp_path / "stats.jsonl").read_text().splitlines()]
+    assert [(d["view"], d["pass"]) for d in lines] == [("left", 1), ("left", 2), ("right", 1), ("right", 2)]
+    index = [json.loads(x) for x in (tmp_path / "snaps" / "snapshots.jsonl").read_text().splitlines()]
+    assert [(d["view"], d["file"].endswith(f"_{d['view']}.exr")) for d in index] == [("left", True),
+                                                                                       ("right", True)]
+    assert all((tmp_path / "snaps" / d["file"]).is_file() for d in index)
+
+
 def test_exr_writer_round_trip(tmp_path):
     import OpenEXR
     from amcmcppm.amcmcppm_addon.exr import write_exr

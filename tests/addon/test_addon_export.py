@@ -3035,14 +3035,34 @@ def test_a_point_clouds_attributes_reach_its_spheres(scene):
     assert (np.delete(alpha, spheres, axis=0) == 1.0).all()
 
 
-def test_stereoscopy_is_named_in_a_warning(scene):
-    """Stereoscopy's views but the first are not rendered (they stay black): a warning says so
-    (before: none, and the right eye's image was black)."""
-    bs.camera()
-    assert not [w for w in bs.export().warnings if "multiview" in w]
-    scene.render.use_multiview = True
-    assert ("stereoscopy and multiview are not supported: view 'left' shows the camera's own view and "
-            "'right' stay black") in bs.export().warnings
+@pytest.mark.parametrize("fit", ["AUTO", "HORIZONTAL", "VERTICAL"])
+def test_a_stereo_eye_is_the_camera_moved_and_shifted(scene, fit):
+    """A view of Stereoscopy (``CameraView``: the eye's matrix and Shift X, as Blender gives them)
+    renders from the eye with the window moved by the eye's extra shift in units of the side the
+    sensor fits (stop 76; before, every view was the camera's own, the right eye black); an
+    active object that is not a camera has no eyes."""
+    from amcmcppm.amcmcppm_addon.export.camera import CameraView
+    scene.render.resolution_x, scene.render.resolution_y = (40, 60) if fit == "AUTO" else (60, 40)
+    ob = bs.camera(location=(0, -5, 1), target=(0, 0, 1), lens=40.0)
+    ob.data.sensor_fit = fit
+    ob.data.shift_x = 0.05
+    plain = bs.export().scene.camera
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    eye = np.array(depsgraph.scene_eval.camera.matrix_world, np.float64)
+    eye[:3, 3] += 0.3 * eye[:3, 0]                      # 30 cm along the camera's x
+    view = CameraView("right", eye * np.array([2.0, 2.0, 2.0, 1.0]), 0.05 - 0.02)     # (scaled: removed)
+    export = bs.package().amcmcppm_addon.export.export_scene
+    cam = export(depsgraph, view=view).scene.camera
+    np.testing.assert_allclose(cam.world_from_camera, eye, atol=1e-12)
+    x0, x1, y0, y1 = plain.frame
+    side = {"HORIZONTAL": x1 - x0, "VERTICAL": y1 - y0}.get(fit, y1 - y0)      # (AUTO: the longer)
+    np.testing.assert_allclose(cam.frame, (x0 - 0.02 * side, x1 - 0.02 * side, y0, y1), atol=1e-12)
+    empty = bpy.data.objects.new("Empty", None)
+    scene.collection.objects.link(empty)
+    scene.camera = empty
+    alone = bs.export().scene.camera.world_from_camera
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    np.testing.assert_array_equal(export(depsgraph, view=view).scene.camera.world_from_camera, alone)
 
 
 def test_motion_blur_is_named_in_a_warning(scene):

@@ -2617,3 +2617,54 @@ def test_polygonal_anamorphic_bokeh_matches_cycles(addon, tmp_path, blades, rota
     np.testing.assert_allclose(o[2], c[2], rtol=0.05, atol=0.05 * c[2].trace())
     assert abs(o[3][5]) == pytest.approx(abs(c[3][5]), rel=0.15) and abs(c[3][5]) > 0.05
     assert abs(np.angle(o[3][5] / c[3][5])) < 0.15
+
+
+def ball_silhouette(image):
+    """(centroid x, centroid y, pixels) of the red ball's silhouette: pixels whose red is over
+    2.5 times their green (the grey floor's, lit by grey light, is about 1)."""
+    r, g = image[..., 0], image[..., 1]
+    ys, xs = np.nonzero(r > 2.5 * g + 1e-3)
+    return xs.mean(), ys.mean(), len(xs)
+
+
+@pytest.mark.parametrize("mode", ["OFFAXIS", pytest.param("TOE", marks=pytest.mark.slow),
+                                  pytest.param("PARALLEL", marks=pytest.mark.slow)])
+def test_stereo_views_match_cycles_eye_by_eye(addon, tmp_path, mode):
+    """Stereoscopy (stop 76; before, the left eye showed the camera's own view and the right one
+    was black): each eye renders from where Blender puts it and through its window (off-axis:
+    shifted by interocular / sensor x lens / convergence, 34 pixels here; toe-in: turned).  A red
+    ball between eyes 60 cm apart about the camera (Pivot Center): its silhouette's centroid in
+    each eye's image, and their disparity, within 0.5 pixels of Cycles', each image's mean
+    within 5 %."""
+    images = {}
+    for engine in ("CYCLES", "AMCMCPPM"):
+        scene = bs.empty_scene((128, 96), **OURS)
+        bs.world((0.05, 0.05, 0.05), 1.0)
+        bs.plane("Floor", size=10.0, material=bs.diffuse("Floor", (0.8, 0.8, 0.8)), location=(0, 0, -0.5))
+        bm = bmesh.new()
+        bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=0.4)
+        bs.mesh_object("Ball", bm, bs.diffuse("Ball", (0.9, 0.2, 0.1)))
+        bs.light("POINT", location=(1, -2, 2), energy=300.0)
+        cam = bs.camera(location=(0.3, -3, 0.4), target=(0, 0, 0), lens=40.0).data
+        cam.shift_x = 0.05
+        cam.stereo.convergence_mode, cam.stereo.pivot = mode, "CENTER"
+        cam.stereo.interocular_distance, cam.stereo.convergence_distance = 0.6, 2.5
+        scene.render.use_multiview, scene.render.views_format = True, "STEREO_3D"
+        if engine == "CYCLES":
+            use_cycles(scene)
+            scene.cycles.samples = 128
+        s = scene.render.image_settings
+        s.media_type, s.file_format, s.color_mode, s.color_depth = "IMAGE", "OPEN_EXR", "RGBA", "32"
+        s.views_format = "INDIVIDUAL"             # (one file an eye: NAME_L.exr, NAME_R.exr)
+        scene.render.filepath, scene.render.use_file_extension = str(tmp_path / f"{engine}.exr"), False
+        bpy.ops.render.render(write_still=True)
+        images[engine] = [bs.read_exr(tmp_path / f"{engine}_{eye}.exr") for eye in "LR"]
+    for eye, cycles, ours in zip("LR", *images.values()):
+        assert np.isfinite(ours).all()
+        c, o = ball_silhouette(cycles), ball_silhouette(ours)
+        print(f"{mode} {eye}: centroid {np.round(c[:2], 2)} / {np.round(o[:2], 2)}, pixels {c[2]} / {o[2]}, "
+              f"mean {cycles[..., :3].mean():.4f} / {ours[..., :3].mean():.4f}")
+        np.testing.assert_allclose(o[:2], c[:2], atol=0.5)
+        assert ours[..., :3].mean() == pytest.approx(cycles[..., :3].mean(), rel=0.05)
+    disparity = [ball_silhouette(right)[0] - ball_silhouette(left)[0] for left, right in images.values()]
+    assert disparity[1] == pytest.approx(disparity[0], abs=0.5) and abs(disparity[0]) > 1.0
