@@ -608,9 +608,10 @@ class HitAttributes:
         obj = s.object_ids.take(self.prim_ids)
         m = s.object_from_world.take(obj, axis=0)                               # (k, 3, 4)
         positions = self.positions
-        if name == "generated" and s.undisplaced is not None:
-            # Cycles' Generated coordinates are the undisplaced surface's (true displacement).
-            corners = s.undisplaced.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
+        base = s.generated_vertices if s.generated_vertices is not None else s.undisplaced
+        if name == "generated" and base is not None:
+            # Cycles' Generated coordinates are the undeformed (orco) and undisplaced surface's.
+            corners = base.take(s.triangles.take(self.prim_ids, axis=0), axis=0).astype(np.float64)
             positions = interpolate_corners(corners, self.bary)
         p = np.einsum("kij,kj->ki", m[:, :, :3], positions) + m[:, :, 3]
         if name == "object":

@@ -1187,6 +1187,10 @@ class Scene:
     # topmost parent): MurmurHash3 of their names as floats (``core.cryptomatte``), or None: no
     # Cryptomatte passes.
     cryptomatte_ids: np.ndarray = None
+    # (V, 3) float32 world the vertices Generated coordinates read where they are not ``vertices``:
+    # a mesh's before its shape keys and deform modifiers (Blender's orco, which Cycles reads), or
+    # None: ``vertices`` (or ``undisplaced``).
+    generated_vertices: np.ndarray = None
     # (V, 3) float32 the vertices before true displacement (Materials.displacement_program), which
     # Generated coordinates read as Cycles' undisplaced ones; set by ``displacement.displace`` for a
     # render (never stored), else None.
@@ -1250,6 +1254,9 @@ class Scene:
             return np.ascontiguousarray(a.astype(dtype, copy=False))
 
         self.vertices = arr("vertices", self.vertices, np.float32, (3,))
+        if self.generated_vertices is not None:
+            self.generated_vertices = arr("generated_vertices", self.generated_vertices, np.float32, (3,),
+                                          len(self.vertices))
         self.triangles = arr("triangles", self.triangles, np.int32, (3,))
         t = len(self.triangles)
         if t and (self.triangles.min() < 0 or self.triangles.max() >= len(self.vertices)):
@@ -1770,7 +1777,7 @@ class Scene:
         if self.tangents is not None:
             d["tangents"] = self.tangents
         for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces", "object_info",
-                     "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
+                     "generated_vertices", "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
                      "emitter_shadow_links", "emitter_exclude", "emitter_group", "cryptomatte_ids"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
@@ -1832,6 +1839,7 @@ class Scene:
                       uvs=get("uvs"), tangents=get("tangents"), vertex_colors=get("vertex_colors"),
                       object_ids=get("object_ids"), object_from_world=get("object_from_world"),
                       texture_spaces=get("texture_spaces"), object_info=get("object_info"),
+                      generated_vertices=get("generated_vertices"),
                       triangle_visibility=get("triangle_visibility"),
                       receiver_sets=get("receiver_sets"), emitter_links=get("emitter_links"),
                       blocker_sets=get("blocker_sets"), emitter_shadow_links=get("emitter_shadow_links"),

@@ -74,6 +74,9 @@ class LocalMesh:
     attributes: dict = field(default_factory=dict)
     attributes_read: frozenset = frozenset()
     curves: int = 0             # hair: the strands (:func:`curve_tubes`), for Curves Info's Random
+    # (V, 3) float64 the undeformed vertices that Generated coordinates read (Blender's orco: the
+    # mesh before its shape keys and deform modifiers), or None: ``positions`` themselves
+    orco: np.ndarray | None = None
 
 
 @dataclass
@@ -92,6 +95,9 @@ class Geometry:
     object_ids: np.ndarray | None = None          # (T,) int32 each triangle's instance
     object_from_world: np.ndarray | None = None   # (O, 3, 4) float64
     texture_spaces: np.ndarray | None = None      # (O, 2, 3) float64 location and size
+    # (V, 3) float32 world the vertices Generated coordinates read where some mesh is deformed
+    # (``LocalMesh.orco``), or None: the vertices (core.Scene.generated_vertices)
+    generated_vertices: np.ndarray | None = None
     object_info: np.ndarray | None = None         # (O, 6) float32 Object Info (core.Scene.object_info)
     object_attributes: dict | None = None         # {name: (O, 3) float32} (core.Scene.object_attributes)
     # (T,) uint8 the camera-path rays that see each triangle (its object's ray visibility) and
@@ -426,9 +432,34 @@ def read_object_mesh(ob, log, tangents=False, colors=False, attributes=frozenset
         if me is None:
             return None
         local = read_mesh(me, ob.name, log, tangents, colors=colors, attributes=attributes)
+        if local is not None and ob.type == "MESH":
+            local = replace(local, orco=undeformed_positions(ob, me, local.positions))
     finally:
         ob.to_mesh_clear()
     return without_undefined(local, log)
+
+
+def undeformed_positions(ob, me, positions):
+    """(V, 3) float64 the vertices of evaluated mesh object ``ob``'s original mesh, where shape keys
+    or deform modifiers moved the vertices of evaluated mesh ``me`` (``positions``) and left its
+    topology (vertices, corners and faces) as it was: Blender's orco, which Cycles' Generated
+    coordinates read.  None where nothing moved them, or where modifiers made new geometry (a
+    Subdivision Surface: Blender's orco is the stack run on the undeformed mesh, not done here)."""
+    original = getattr(ob.original, "data", None)
+    if original is None or (original.shape_keys is None and not len(ob.original.modifiers)):
+        return None
+    if (len(original.vertices), len(original.loops), len(original.polygons)) != \
+            (len(me.vertices), len(me.loops), len(me.polygons)):
+        return None
+    corners = [np.empty(len(me.loops), np.int32) for _ in range(2)]
+    for mesh, out in zip((original, me), corners):
+        mesh.attributes[".corner_vert"].data.foreach_get("value", out)
+    if not np.array_equal(*corners):
+        return None
+    orco = np.empty(len(original.vertices) * 3, np.float32)
+    original.attributes["position"].data.foreach_get("vector", orco)
+    orco = orco.reshape(-1, 3).astype(np.float64)
+    return None if np.array_equal(orco, positions) else orco
 
 
 def without_undefined(local, log):
@@ -1254,6 +1285,9 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
     if not parts:
         return Geometry.empty()
     vertices = np.concatenate([p["vertices"] for p in parts])
+    generated = None
+    if any("generated_vertices" in p for p in parts):
+        generated = np.concatenate([p.get("generated_vertices", p["vertices"]) for p in parts])
     triangles = np.concatenate([p["triangles"] for p in parts])
     material_ids = np.concatenate([p["material_ids"] for p in parts])
     normals = None
@@ -1298,7 +1332,7 @@ def assemble(meshes, groups, materials, infos=None, properties=None, passes=froz
                     colors=np.concatenate([p["color"] for p in parts]) if "color" in coordinates else None,
                     attributes={key[len(NAMED):]: np.concatenate([p[key] for p in parts])
                                 for key in sorted(coordinates) if key.startswith(NAMED)} or None,
-                    **objects,
+                    **objects, generated_vertices=generated,
                     triangle_visibility=visibility if (visibility != ALL_RAYS).any() else None,
                     emitter_exclude=exclude if exclude.any() else None,
                     emitter_group=group if (group >= 0).any() else None,
@@ -1380,6 +1414,11 @@ def transform_instances(local, world_from_object, mat_ids, vertex_offset, coordi
            "triangles": tri.reshape(k * n_t, 3).astype(np.int32), "material_ids": material_ids,
            "normals": normals, "uvs": uvs, "tangents": tangents}
     # Texture coordinates of procedural textures: each instance's own object space.
+    if "generated" in coordinates and local.orco is not None:
+        undeformed = np.matmul(local.orco[None], rot.transpose(0, 2, 1)) + world_from_object[:, None, :3, 3]
+        with np.errstate(over="ignore", invalid="ignore"):
+            out["generated_vertices"] = np.nan_to_num(undeformed.reshape(k * n_v, 3).astype(np.float32),
+                                                      nan=0.0, posinf=0.0, neginf=0.0)
     if reads_objects(coordinates):
         out["object_ids"] = np.repeat(np.arange(k, dtype=np.int32), n_t)
         out["object_from_world"] = affine_inverse(world_from_object)[:, :3, :4]

@@ -88,7 +88,11 @@ def within_reach(scene, log):
                     "that far): they are left out, as Cycles leaves them")
     vertices = scene.vertices.copy()
     vertices[far] = 0.0                             # (no triangle uses them now)
-    return scene.replace(vertices=vertices).take_triangles(~out)
+    generated = scene.generated_vertices
+    if generated is not None:
+        generated = generated.copy()
+        generated[far] = 0.0
+    return scene.replace(vertices=vertices, generated_vertices=generated).take_triangles(~out)
 
 
 def export_scene(depsgraph, camera_object=None, resolution=None, border=None, camera=None,
@@ -188,6 +192,7 @@ def export_scene(depsgraph, camera_object=None, resolution=None, border=None, ca
                   tangents=geometry.tangents, vertex_colors=geometry.colors, attributes=geometry.attributes,
                   object_ids=geometry.object_ids,
                   object_from_world=geometry.object_from_world, texture_spaces=geometry.texture_spaces,
+                  generated_vertices=geometry.generated_vertices,
                   object_info=geometry.object_info, object_attributes=geometry.object_attributes,
                   triangle_visibility=geometry.triangle_visibility, emitter_exclude=geometry.emitter_exclude,
                   textures=materials.textures.images, cryptomatte_ids=crypto,

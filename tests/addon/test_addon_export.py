@@ -3065,6 +3065,34 @@ def test_a_stereo_eye_is_the_camera_moved_and_shifted(scene, fit):
     np.testing.assert_array_equal(export(depsgraph, view=view).scene.camera.world_from_camera, alone)
 
 
+def test_a_deformed_mesh_exports_its_undeformed_vertices_for_generated_coordinates(scene, tmp_path):
+    """``Scene.generated_vertices``: a shape-keyed box's undeformed vertices in world space where a
+    material reads Generated coordinates (stop 76), through the scene's file too; none for a box
+    that nothing deforms, nor where a Subdivision Surface made new vertices (Blender's orco is the
+    stack run on the undeformed mesh there: not followed), nor where no material reads them."""
+    from amcmcppm.core.scene import Scene
+    mat = bs.diffuse("Checked")
+    nt = mat.node_tree
+    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    box = bs.cube("Box", 1.0, mat, location=(2.0, 0.0, 0.0))
+    bs.camera()
+    assert bs.export().scene.generated_vertices is None
+    box.shape_key_add(name="Basis")
+    key = box.shape_key_add(name="Up")
+    for v in key.data:
+        v.co.z += 1.0
+    key.value = 1.0
+    s = bs.export().scene
+    np.testing.assert_allclose(s.generated_vertices, s.vertices - np.float32([0, 0, 1]), atol=1e-6)
+    s.save(tmp_path / "s.npz")
+    np.testing.assert_array_equal(Scene.load(tmp_path / "s.npz").generated_vertices, s.generated_vertices)
+    box.modifiers.new("Subdivision", "SUBSURF")
+    assert bs.export().scene.generated_vertices is None
+    box.modifiers.clear()
+    box.data.materials[0] = bs.diffuse("Plain")
+    assert bs.export().scene.generated_vertices is None
+
+
 def test_motion_blur_is_named_in_a_warning(scene):
     bs.camera()
     assert not [w for w in bs.export().warnings if "motion blur" in w]
