@@ -1777,7 +1777,8 @@ class Scene:
         if self.tangents is not None:
             d["tangents"] = self.tangents
         for name in ("vertex_colors", "object_ids", "object_from_world", "texture_spaces", "object_info",
-                     "generated_vertices", "triangle_visibility", "receiver_sets", "emitter_links", "blocker_sets",
+                     "generated_vertices", "triangle_visibility", "receiver_sets", "emitter_links",
+                     "blocker_sets",
                      "emitter_shadow_links", "emitter_exclude", "emitter_group", "cryptomatte_ids"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)

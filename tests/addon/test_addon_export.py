@@ -3073,7 +3073,8 @@ def test_a_deformed_mesh_exports_its_undeformed_vertices_for_generated_coordinat
     from amcmcppm.core.scene import Scene
     mat = bs.diffuse("Checked")
     nt = mat.node_tree
-    nt.links.new(nt.nodes.new("ShaderNodeTexChecker").outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
     box = bs.cube("Box", 1.0, mat, location=(2.0, 0.0, 0.0))
     bs.camera()
     assert bs.export().scene.generated_vertices is None
