@@ -141,7 +141,9 @@ class HashGrid:
         self.entry_pos = np.empty((3, len(point_of_entry)), np.float32)
         for k in range(3):
             self.entry_pos[k] = columns[k].take(point_of_entry) - np.repeat(lo[k] + cell_xyz[k] * c, per_cell)
-        self.entry_r2 = (radii ** 2).astype(np.float32).take(point_of_entry)
+        # (radii past 1.8e19, in scenes scaled to 1e30, square to float32's largest, not infinity)
+        squared = np.minimum(np.asarray(radii, np.float64) ** 2, np.finfo(np.float32).max)
+        self.entry_r2 = squared.astype(np.float32).take(point_of_entry)
         # (3, m) float32, or (3, 0): a grid without normals
         self.point_normal = (np.ascontiguousarray(np.asarray(normals).T, np.float32) if normals is not None
                              else np.zeros((3, 0), np.float32))

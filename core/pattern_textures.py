@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from .noise import noise_fbm
-from .texture_hash import (hash_float2_to_float, hash_float2_to_float3, hash_float3_to_float,
+from .texture_hash import (float_to_int, hash_float2_to_float, hash_float2_to_float3, hash_float3_to_float,
                            hash_float3_to_float3, hash_float4_to_float, hash_float4_to_float3,
                            hash_float_to_float, hash_float_to_float3)
 from .voronoi import unique_columns
@@ -177,14 +177,16 @@ def brick_texture(vector, *, color1, color2, mortar, scale=5.0, mortar_size=0.02
     p = _points(vector) * scale
     count = len(p)
     px, py = p[:, 0], p[:, 1]
-    row = np.floor(py / row_height).astype(np.int64)
+    with np.errstate(divide="ignore", invalid="ignore"):     # (a Row Height of 0: INT_MIN, as Cycles)
+        row = float_to_int(np.floor(py / row_height))
     width = np.full(count, brick_width)
     shift = np.zeros(count)
     if offset_frequency and squash_frequency:
         # C's % and Python's differ in sign for negative rows, but not in which are 0.
         width = np.where(row % squash_frequency != 0, brick_width, brick_width * squash)
         shift = np.where(row % offset_frequency != 0, 0.0, width * offset)
-    brick = np.floor((px + shift) / width).astype(np.int64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        brick = float_to_int(np.floor((px + shift) / width))
     x = (px + shift) - width * brick
     y = py - row_height * row
     tint = np.clip(brick_noise((row << 16) + (brick & 0xFFFF)) + bias, 0.0, 1.0)

@@ -92,7 +92,7 @@ from .bsdf import bilinear, metal_fresnel
 from .environment import equirectangular_uv
 from .sampling import (affine_inverse, cosine_hemisphere, dot, fresnel_dielectric, inverse, length, normalize,
                        orthonormal_frames, to_world)
-from .texture_hash import hash_uint3, hash_uint3_to_float
+from .texture_hash import float_to_int, hash_uint3, hash_uint3_to_float
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])      # Rec. 709: Cycles' colour-to-float conversion
 # A bump's finite-difference step, times the object's size (``RenderContext._apply_bump_maps``, ``_bump``;
@@ -979,7 +979,7 @@ def _affine(ev, node):
 def _checker(ev, node):
     p = ev.vec(node, "vector") * ev.float(node, "scale", 5.0)[:, None]
     # Cycles nudges the coordinates off exact integers ("precision issues on unit coordinates").
-    cell = np.abs(np.floor((p + 1e-6) * 0.999999)).astype(np.int64) % 2
+    cell = np.abs(float_to_int(np.floor((p + 1e-6) * 0.999999))) % 2
     fac = ((cell[:, 0] == cell[:, 1]) == (cell[:, 2] == 1)).astype(np.float64)
     color = np.where(fac[:, None] == 1.0, ev.vec(node, "color1"), ev.vec(node, "color2"))
     return {"Color": color, "Fac": fac}

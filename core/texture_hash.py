@@ -35,6 +35,16 @@ def _u32(x):
     return (x.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
 
 
+def float_to_int(x):
+    """Cycles' ``float_to_int`` of float ``x`` (already an integer, e.g. a ``floorf``'s) as an int64
+    array of int32 values: x86's conversion, which gives INT_MIN for NaN and for values beyond
+    int32 (a texture Scale of 1e30, a Row Height of 0), without NumPy's cast warning."""
+    x = np.asarray(x, np.float64)
+    with np.errstate(invalid="ignore"):
+        inside = np.abs(x) < 2.0 ** 31
+    return np.where(inside, x, -2.0 ** 31).astype(np.int64)
+
+
 def _rot(x, k):
     """Rotate uint32 ``x`` left by ``k`` bits."""
     return (x << _U32(k)) | (x >> _U32(32 - k))

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .texture_hash import (hash_float_to_float, hash_float_to_float3, hash_int2_to_float2,
+from .texture_hash import (float_to_int, hash_float_to_float, hash_float_to_float3, hash_int2_to_float2,
                            hash_int2_to_float3, hash_int3_to_float3, hash_int4_to_float3,
                            hash_int4_to_float4)
 
@@ -215,7 +215,7 @@ def _keys(cells):
     int32 cell."""
     if len(cells) == 1:
         return [(cells[0] + 0.0).astype(np.float32)]
-    return list(cells.astype(np.int64).astype(np.int32))
+    return list(float_to_int(cells).astype(np.int32))
 
 
 def _point_hash(keys):

@@ -371,3 +371,21 @@ def test_a_wave_of_a_million_octaves_takes_the_most_it_can_use():
     np.testing.assert_array_equal(huge["Fac"], most["Fac"])
     fewer = wave_texture(p, distortion=1.0, detail=2.0, detail_roughness=1.0)
     assert not np.array_equal(most["Fac"], fewer["Fac"])
+
+
+def test_extreme_inputs_give_cycles_int_min_cells_without_warnings():
+    """A Scale of 1e30 and a Row Height or Brick Width of 0 make cells beyond int32 (or NaN): they
+    become INT_MIN as Cycles' float_to_int on x86 makes them, finite and without NumPy's cast
+    warning (pytest makes it an error; before stop 76, "invalid value encountered in cast"), as
+    the Checker's and Voronoi's cells."""
+    from core.texture_hash import float_to_int
+    from core.voronoi import voronoi_texture
+    assert float_to_int(np.array([3.0, -2.0 ** 31, 2.0 ** 31, np.inf, -np.inf, np.nan])).tolist() == \
+        [3, -2 ** 31, -2 ** 31, -2 ** 31, -2 ** 31, -2 ** 31]
+    v = np.array([[0.3, 0.4, 0.0], [1.0, 2.0, 0.0], [-1e30, 1e30, 0.0]])
+    for kw in ({"scale": 1e30}, {"row_height": 0.0}, {"brick_width": 0.0}, {"row_height": 1e-30}):
+        out = brick_texture(v, color1=(1, 0, 0), color2=(0, 1, 0), mortar=(0, 0, 0), **kw)
+        assert np.isfinite(out["Color"]).all() and np.isfinite(out["Fac"]).all(), kw
+    cells = voronoi_texture(v, 1e30)
+    assert all(np.isfinite(x).all() for x in cells.values() if isinstance(x, np.ndarray))
+

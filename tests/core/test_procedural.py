@@ -43,6 +43,15 @@ def test_checker_alternates_by_the_parity_of_the_cells():
     np.testing.assert_array_equal(run(program, pts)[:, 0], fac)
 
 
+def test_a_checker_of_cells_beyond_int32_is_one_colour_without_warnings():
+    """A Scale of 1e30: every cell beyond int32 is INT_MIN (even), as Cycles' float_to_int makes
+    it, so every point has the origin's colour (Fac 0: x and y alike, z even); before stop 76
+    NumPy warned "invalid value encountered in cast" (an error here)."""
+    program = {"op": "checker", "vector": OBJECT, "color1": [1, 0, 0], "color2": [0, 0, 1], "scale": 1e30}
+    fac = run(program, [(0.1, 0.1, 0.1), (-0.6, 0.3, 0.1), (0.0, 0.0, 0.0)], "Fac")
+    np.testing.assert_array_equal(fac, [0, 0, 0])
+
+
 def test_ramp_interpolates_its_table_and_holds_it_when_constant():
     table = [[0, 0, 0, 1], [1, 0.5, 0, 1], [1, 1, 1, 0]]
     fac = {"op": "separate", "vector": OBJECT, "output": "X"}
