@@ -847,11 +847,13 @@ def _scaled(e) -> bool:
 def _mixed_map(sides, lobe, texture, term):
     """The float program of a parameter of lobe ``lobe`` of a mix ((closure, weights) ``sides``)
     where some side's ``texture`` varies: averaged as the constants, by the lobe's weights (a map
-    with a constant, or two maps; ``term`` gives a side's number or program); else None."""
-    if all(getattr(c, texture) is None for c, _ in sides):
+    with a constant, or two maps; ``term`` gives a side's number or program); else None (also
+    where the sides with a map have none of the lobe: a Mix of factor 1 whose unused side alone
+    is mapped, the constants then averaged by the caller)."""
+    if all(getattr(c, texture) is None for c, w in sides if w[lobe] > 0):
         return None
     terms = [(term(c), w[lobe]) for c, w in sides if w[lobe] > 0]
-    return _float_average(terms) if terms else None
+    return _float_average(terms)
 
 
 def _float_average(terms):

@@ -445,7 +445,9 @@ def undeformed_positions(ob, me, positions):
     topology (vertices, corners and faces) as it was: Blender's orco, which Cycles' Generated
     coordinates read.  None where nothing moved them, or where modifiers made new geometry (a
     Subdivision Surface: Blender's orco is the stack run on the undeformed mesh, not done here)."""
-    original = getattr(ob.original, "data", None)
+    if ob.original.type != "MESH":          # (a metaball, a curve or text made a mesh by its nodes)
+        return None
+    original = ob.original.data
     if original is None or (original.shape_keys is None and not len(ob.original.modifiers)):
         return None
     if (len(original.vertices), len(original.loops), len(original.polygons)) != \

@@ -3094,6 +3094,45 @@ def test_a_deformed_mesh_exports_its_undeformed_vertices_for_generated_coordinat
     assert bs.export().scene.generated_vertices is None
 
 
+def test_a_metaball_exports_with_generated_coordinates(scene):
+    """An evaluated mesh whose original object is not a mesh (a metaball here; a curve or text
+    that nodes make a mesh) has no undeformed mesh to read: it exports as before (stop 76's
+    first version of ``undeformed_positions`` stopped the render: "'MetaBall' object has no
+    attribute 'shape_keys'", fuzz case 3433)."""
+    mat = bs.diffuse("Checked")
+    nt = mat.node_tree
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(checker.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    meta = bpy.data.metaballs.new("Meta")
+    meta.elements.new().radius = 1.0
+    meta.materials.append(mat)
+    scene.collection.objects.link(bpy.data.objects.new("Meta", meta))
+    bs.camera()
+    s = bs.export().scene
+    assert s.triangle_count > 0 and s.generated_vertices is None
+
+
+def test_a_mix_of_factor_one_whose_unused_side_alone_has_a_roughness_map(scene):
+    """A Mix Shader at Factor 1 between a Glossy whose Roughness a Noise drives and a Principled:
+    the map has no weight, so the material's roughness is the Principled's constant (before stop
+    76 the mix kept a bare number as the roughness program and the export stopped: "a program
+    must be a node dict, not float", fuzz case 3766)."""
+    mat = bs.diffuse("Mixed")
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out, mix = nt.nodes.new("ShaderNodeOutputMaterial"), nt.nodes.new("ShaderNodeMixShader")
+    glossy, noise = nt.nodes.new("ShaderNodeBsdfAnisotropic"), nt.nodes.new("ShaderNodeTexNoise")
+    principled = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    principled.inputs["Roughness"].default_value = 0.3
+    nt.links.new(noise.outputs["Fac"], glossy.inputs["Roughness"])
+    nt.links.new(glossy.outputs[0], mix.inputs[1])
+    nt.links.new(principled.outputs[0], mix.inputs[2])
+    mix.inputs["Fac"].default_value = 1.0
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    row, ex = export_material(mat)
+    assert row["roughness_program"] < 0 and row["glossy_roughness"] == pytest.approx(0.3)
+
+
 def test_motion_blur_is_named_in_a_warning(scene):
     bs.camera()
     assert not [w for w in bs.export().warnings if "motion blur" in w]
