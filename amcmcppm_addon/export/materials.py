@@ -1302,8 +1302,9 @@ class NodeWalker:
             return Closure.lobe(DIFFUSE, 1.0, material.diffuse_color[:3])
         out = nt.get_output_node('CYCLES')
         if out is None:
-            self.note("no material output node; rendered as its viewport colour")
-            return Closure.lobe(DIFFUSE, 1.0, material.diffuse_color[:3])
+            # (Cycles: no shader, black; the viewport colour is for a material without nodes)
+            self.note("no material output node; rendered black, as in Cycles")
+            return Closure()
         closure = self.shader(out.inputs["Surface"], ())
         self.medium = self.volume(out.inputs["Volume"], ())
         if closure is None and self.medium is not None:

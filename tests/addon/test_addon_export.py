@@ -3133,6 +3133,18 @@ def test_a_mix_of_factor_one_whose_unused_side_alone_has_a_roughness_map(scene):
     assert row["roughness_program"] < 0 and row["glossy_roughness"] == pytest.approx(0.3)
 
 
+def test_a_material_without_an_output_node_is_black(scene):
+    """A node tree without a Material Output renders black, as Cycles renders it (before stop 76:
+    the viewport colour, grey; fuzz 76: a cube 0.394 against Cycles' 0.349 of a scene whose
+    plain diffuse cube both give 0.39), with a note; a material without nodes keeps its viewport
+    colour."""
+    mat = bs.diffuse("Empty", (0.8, 0.8, 0.8))
+    mat.node_tree.nodes.clear()
+    row, ex = export_material(mat)
+    assert row["diffuse_weight"] == 0 and row["glossy_weight"] == 0 and not row["emission"].any()
+    assert any("no material output node; rendered black" in w for w in ex.warnings), ex.warnings
+
+
 def test_motion_blur_is_named_in_a_warning(scene):
     bs.camera()
     assert not [w for w in bs.export().warnings if "motion blur" in w]
