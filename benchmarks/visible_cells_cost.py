@@ -3,8 +3,8 @@ testing photon vertices, against the pass's other work, at a large image size.
 
 For a scene at 1920x1080 this traces a few eye passes and prints, per pass, the time to trace
 the eye pass, to build its hash grid (``HashGrid`` inside ``DepositTarget``) and to add its
-points to the cells (``VisibleCells.extended``, which the integrator does in the first pass
-only, ``integrator.CELL_PASSES``), the cells' key count, and the time per vertex of
+points to the cells (``VisibleCells.extended``, which the integrator does in the first four
+passes and every eighth), the cells' key count, and the time per vertex of
 ``VisibleCells.contains`` on the measurement points themselves.  It also prints how many of
 a pass's points the lone-point rule (``MIN_POINTS``) leaves out.
 

@@ -48,15 +48,9 @@ from .worker import (STREAM_CATCHER, STREAM_CENTRE, STREAM_COVERAGE, STREAM_DIRE
 
 # A pass is not started when the time left would trace less than this share of its photons.
 MIN_CUT_PASS = 0.05
-# Passes whose measurement points add to the chains' visible cells: the first CELL_PASSES.  Only
-# the first: the chains carry their states from pass to pass, so a set that grows later holds
-# them uniformly over its old part only (the part added is reached by exchanges alone, a few
-# per cent of the chains a pass), while the normaliser counts all of it: where the added cells'
-# paths contribute less than the rest, the image comes out too bright (glass505 of the glass
-# parity family, an open room under the world with a glass cube: the cells of the points seen in
-# and through the glass grew the visible fraction by a third over 16 passes, and the chains' image
-# was 1.009 +- 0.002 of PPM's; with the first pass's cells alone 0.997 +- 0.002).
-CELL_PASSES = 1
+# Passes whose measurement points add to the chains' visible cells: the first CELL_PASSES, then
+# every CELL_EVERY-th (at 1920x1080 the cells of one pass take about a second to add).
+CELL_PASSES, CELL_EVERY = 4, 8
 
 PASS_STAT_KEYS = ("pass", "elapsed_s", "paths_traced", "photons_recorded", "proposals", "accepted",
                   "acceptance_rate", "mutation_size", "exchanges", "uniform_samples", "uniform_visible",
@@ -785,8 +779,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
                               choices=partial(stratified_choices, choice_salt, i) if stratified else None,
                               should_stop=stop)
 
-    # The Markov chains' visible set: the cells around the measurement points of the first
-    # CELL_PASSES passes (``core/visible_cells.py``); it holds still after them.
+    # The Markov chains' visible set also holds the cells around the measurement points of the
+    # first passes and of every CELL_EVERY-th pass after them (``core/visible_cells.py``): it
+    # barely changes between passes.
     cells = VisibleCells() if is_chain else None
     # Where the photons from afar are aimed (core.lights.Focus), from the first pass's points: the
     # uniform photons', and the chains' uniform samples, whose target and runs then take the weights
@@ -807,7 +802,7 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
         # Points in volumes gather in spheres: radii that shrink as the cube root of the same
         # sequence (r^3 by (i + alpha) / (i + 1), Knaus and Zwicker's rule in three dimensions).
         vol_radius = vol.base_radius * scales[i] ** (2.0 / 3.0) if vol is not None and vol.count else None
-        if cells is not None and i < CELL_PASSES:
+        if cells is not None and (i < CELL_PASSES or i % CELL_EVERY == 0):
             cells = cells.extended(pts.position, pts.ng, pts.base_radius)
             if vol_radius is not None:
                 cells = cells.extended(vol.position, None, vol.base_radius, volume=True)

@@ -21,17 +21,13 @@ samples, which count them directly (``core/mcmc.py``, "Two parts"): V only grows
 chain state ever drops out of it.  Cells are between one and two of the point's initial
 radius r_1 wide (levels of powers of two from a base fixed by the first pass), so on a
 surface the camera sees every cell is overlapped already in the first pass whatever the
-gather radii have shrunk to.  The set is made of the first pass's points alone
-(``integrator.CELL_PASSES``) and then holds still: the chains' states, carried over from pass to
-pass, are uniform over it.  A set that grew later (the points of the first four passes, then of
-every eighth, until the glass parity sweep) held them uniformly over its old part only, the
-added part being reached by exchanges alone, while the normaliser counted all of it: with a glass
-cube in a world-lit open room, whose points seen in and through the glass added cells pass after
-pass (the visible fraction grew by a third over 16 passes), the image came out 1 % too bright.  On
+gather radii have shrunk to, and the union over passes only grows at the edges.  The set is
+therefore almost the same in every pass and the surviving states stay uniform over it.  On
 the floor above, after 24 passes: within 1 % near and far with the default radius, within
 5 % with 1.5 pixels (``tests/core/test_closed_form.py``).  The normal's axis keeps the backs of
 thin walls out; a surface behind another within a cell (a slab thinner than a cell) is in V
-and only costs chain steps.
+and only costs chain steps.  The integrator adds the points of the first passes and then of
+every eighth (``CELL_PASSES``, ``CELL_EVERY``).
 
 Lone points add no cells: a point counts only when the cell four times as wide around it
 holds at least four of the pass's points (``DENSITY_LEVELS``, ``MIN_POINTS``).  Points
