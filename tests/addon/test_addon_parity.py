@@ -383,7 +383,16 @@ def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_p
     Quarters of the lit pixels by brightness in Cycles.  A Principled BSDF (specular 0.5) under the
     map was 0.92 of Cycles until its glossy layer took Cycles' normal kept valid for reflection
     (``valid_reflection_normal``).  With Bump Map Correction off (stop 42; before, noted and
-    rendered on) neither the terminator's softening nor the valid reflection applies."""
+    rendered on) neither the terminator's softening nor the valid reflection applies.
+
+    Cycles' Shadow Terminator Geometry Offset (an object setting, 0.1 by default) starts the shadow
+    rays of smooth-shaded triangles near the terminator from a smooth surface lifted over the
+    facets; ours has no such offset (README, Limitations), so it is 0 here.  With it Cycles was
+    brighter than ours in the darkest quarter (0.89 to 0.96 of Cycles'; without the map 0.96), and
+    with the correction off 2.7 % brighter in the mean (0.9738 +- 0.0012 over 30 seeds: the test at
+    its seed passed by luck, 8 of 30 seeds failed).  Without it, with the correction off: the mean
+    0.9975 +- 0.0025 of Cycles' over 8 seeds, the darkest quarter 0.968 (spread 0.016 over the seeds;
+    within 8 % here), the others within 1.2 %."""
     def build():
         bs.empty_scene(RESOLUTION, **OURS)
         colour = "Color" if bsdf == "ShaderNodeBsdfDiffuse" else "Base Color"
@@ -397,16 +406,19 @@ def test_smooth_sphere_with_and_without_a_normal_map_matches_cycles(addon, tmp_p
         bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=1.0, calc_uvs=True)
         ob = bs.mesh_object("Ball", bm, mat)
         ob.data.shade_smooth()
+        ob.shadow_terminator_geometry_offset = 0.0      # (not ours: README, Limitations)
         bs.camera(location=(0, -6, 0), target=(0, 0, 0), ortho_scale=2.4)
         bs.light("SUN", location=(3, 0, 1), target=(0, 0, 0), energy=3.0, angle=0.0)
-    assert_quarters_match(f"sphere, {bsdf}, map {with_map}", *cycles_and_ours(build, tmp_path))
+    ratios = assert_quarters_match(f"sphere, {bsdf}, map {with_map}", *cycles_and_ours(build, tmp_path))
+    assert abs(ratios[0] - 1.0) < 0.08
 
 
 def assert_quarters_match(name, cycles, ours):
     """Image means within TOLERANCE, and the means of the four quarters of the lit pixels (by
-    their brightness in Cycles) within 8 %, the darkest within 12 % (at a terminator the gather
-    discs blur light into the dark side: 0.91-0.93 in every case): where a bent normal moves
-    light, a mean can hide it."""
+    their brightness in Cycles) within 8 %, the darkest within 12 % (next to a smooth mesh's
+    terminator Cycles' shadow rays start from its Shadow Terminator Geometry Offset, which ours
+    has not: 0.89-0.96 with it on, 0.97-0.99 off; the gather discs' blur is the rest): where a bent
+    normal moves light, a mean can hide it.  Returns the four ratios, darkest quarter first."""
     c, o = cycles[..., :3].mean(axis=2), ours[..., :3].mean(axis=2)
     lit = c > 0.02
     group = np.digitize(c, np.quantile(c[lit], [0.25, 0.5, 0.75]))
@@ -416,6 +428,7 @@ def assert_quarters_match(name, cycles, ours):
     assert o.mean() == pytest.approx(c.mean(), rel=TOLERANCE)
     np.testing.assert_allclose(ratios[1:], 1.0, rtol=0.08)
     assert abs(ratios[0] - 1.0) < 0.12
+    return ratios
 
 
 def sine_along_v_bump(nt, distance):

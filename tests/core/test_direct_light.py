@@ -105,7 +105,12 @@ def test_light_samples_match_the_photons_first_vertices(kind):
 @pytest.mark.parametrize("method", ["ppm", "amcmcppm"])
 def test_cornell_box_is_the_same_with_light_samples(method):
     """The Cornell box, all bounces: the same image mean and 4x4 blocks (within the noise of
-    two seeds each) whether the direct light comes from photons or light samples."""
+    two seeds each) whether the direct light comes from photons or light samples.  The four corner
+    blocks carry the photons' kernel bias (a disc in a corner reaches the brighter light away from
+    it; the light samples see the point's own): over 40 seeds the light samples' corners were 2.2
+    to 4.6 % darker (standard error 0.7 %; PPM the same over 24: 2.2 to 3.6 %), so two seeds put
+    them up to 9 % apart and they are held to 12 %; the other twelve blocks came within 3.2 % and
+    are held to 6 % (the one bound of 6 % before failed 7 to 9 of 20 seed pairs with AMCMCPPM)."""
     scene = cornell_box(resolution=(32, 32))
     images = {}
     for direct in ("photons", "sampled"):
@@ -117,7 +122,11 @@ def test_cornell_box_is_the_same_with_light_samples(method):
             images[direct, seed] = block_means(r.image, 4)
     mean = {d: (images[d, 1] + images[d, 2]) / 2 for d in ("photons", "sampled")}
     assert mean["sampled"].mean() == pytest.approx(mean["photons"].mean(), rel=0.015)
-    assert np.allclose(mean["sampled"], mean["photons"], rtol=0.06)
+    corner = np.zeros((4, 4), bool)
+    corner[::3, ::3] = True
+    ratio = mean["sampled"] / mean["photons"]
+    assert np.all(np.abs(ratio[~corner] - 1.0) < 0.06), ratio
+    assert np.all(np.abs(ratio[corner] - 1.0) < 0.12), ratio
 
 
 def test_spot_over_plane_has_no_kernel_bias():
