@@ -40,7 +40,12 @@ The paths that reach them only count through the uniform samples.
 Cells are exact integer keys (20 bits per axis around the first pass's points, then a
 3-bit normal axis), one sorted array per level; points far outside that range clamp to
 the border cells, which can only make V larger.  The estimate is unbiased whatever the
-cells hold, so the cells affect efficiency, never correctness.
+cells hold, as long as they hold still: the cells then affect efficiency, never correctness.
+Their growth does not hold still: after it the carried states are spread over the old part
+while the normaliser counts all of it, until the chains mix (glass505 of the glass parity
+family: the chains 1.0094 +- 0.0024 of PPM's image).  Cells from the first pass alone remove
+that but cost ``small_view`` 1.6 times the relMSE, so they still grow (README, "A visible set
+that holds still", stops 76 and 77).
 """
 from __future__ import annotations
 
