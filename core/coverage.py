@@ -12,10 +12,11 @@ random angle per point, at the radii of ``RINGS`` (each ring the middle of an eq
 disc's area).  A probe at offset o is covered when a ray from p + h n + o along -n (h =
 ``LIFT`` r) meets, within 2 h, a surface that faces as the point's does (``NORMAL_COS``), whose
 material has a lobe photons deposit on and which is not cut away there by its opacity.  That is
-the grid's own notion of the disc: it gathers photons within the radius whatever lies between
-(a thin wall standing on a floor that runs on under it does not stop the photons on its other
-side), so the probes do not look for walls either; a floor that ends at a wall, or a surface
-that ends at an edge, has nothing below the probes beyond it.
+the grid's own notion of the disc: it gathers photons within the radius and within its slab, h
+above and below the tangent plane, whatever lies between (a thin wall standing on a floor that
+runs on under it does not stop the photons on its other side), so the probes do not look for
+walls either; a floor that ends at a wall, or a surface that ends at an edge, has nothing below
+the probes beyond it.
 
 The share is the covered probes' (each ring weighs the same), kept at least ``MIN_COVERAGE``.
 Inside a surface every probe is covered and c is exactly 1, so the estimate there is unchanged.
@@ -27,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .hash_grid import NORMAL_COS
+from .hash_grid import NORMAL_COS, SLAB
 from .procedural import Rays
 from .sampling import dot
 
@@ -37,7 +38,7 @@ DIRECTIONS = 8
 # distance, rings so placed are off by at most 5.4 % with two rings, 3.7 % with three and 2.8 %
 # with four (probes in the directions being exact there).
 RINGS = tuple(float(np.sqrt((k + 0.5) / 4)) for k in range(4))
-LIFT = 0.5                # height of the probes' rays above the tangent plane, in radii
+LIFT = SLAB               # height of the probes' rays above the tangent plane, in radii: the grid's slab
 MIN_COVERAGE = 0.25       # (a point on a sliver of a surface keeps at most 4 times the kernel)
 PASSES = 3                # surfaces a probe's ray goes through (glass) before it gives up
 

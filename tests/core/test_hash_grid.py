@@ -80,7 +80,7 @@ def test_empty_grid_and_far_photons_return_no_pairs():
     p, j, _ = grid.query(np.zeros((5, 3)), np.tile([0, 0, 1.0], (5, 1)))
     assert len(p) == 0 and len(j) == 0
     grid = HashGrid(np.zeros((1, 3)), np.ones(1), np.array([[0, 0, 1.0]]))
-    p, _, _ = grid.query(np.array([[1e6, 0, 0], [0, 0, 0.5]]), np.tile([0, 0, 1.0], (2, 1)))
+    p, _, _ = grid.query(np.array([[1e6, 0, 0], [0.5, 0, 0]]), np.tile([0, 0, 1.0], (2, 1)))
     assert p.tolist() == [1]
 
 
@@ -104,6 +104,28 @@ def test_back_facing_and_cross_corner_photons_are_rejected():
     normals = np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]])   # same side, back, other wall
     p, _, _ = grid.query(x, normals)
     assert p.tolist() == [0]
+
+
+def test_photons_off_the_points_tangent_plane_by_half_the_radius_are_rejected():
+    """The slab test (``SLAB``): a photon on another surface that faces the same way within the
+    radius (the inside of a small box's far wall behind its near wall's outside, a floor under a
+    low table) is not gathered; one as far off on the plane is, and so is one on a sphere of the
+    radius's size."""
+    r = 0.2
+    grid = HashGrid(np.zeros((1, 3)), np.array([r]), np.array([[0, 0, 1.0]]))
+    x = np.array([[0.0, 0.0, -0.15], [0.0, 0.0, 0.15], [0.15, 0.0, 0.0], [0.05, 0.0, -0.09],
+                  [0.0, 0.05, 0.09]])
+    up = np.tile([0, 0, 1.0], (len(x), 1))
+    p, _, _ = grid.query(x, up)
+    assert sorted(p.tolist()) == [2, 3, 4]
+    # On a sphere of radius r touching the plane at the point: every photon within r of it.
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(4000, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    on_sphere = d * r - [0.0, 0.0, r]
+    near = np.flatnonzero(np.linalg.norm(on_sphere, axis=1) < 0.999 * r)
+    p, _, _ = grid.query(on_sphere[near], np.tile([0, 0, 1.0], (len(near), 1)))
+    assert len(p) == len(near)
 
 
 def test_boxes_wider_than_the_offset_groups_are_found():

@@ -25,7 +25,9 @@ def pair_set(batch, rows_filter=None):
 
 
 def test_the_same_sample_gives_the_same_path():
-    ctx, target = setup(glass_ceiling_room((24, 18)))
+    # (Not glass_ceiling_room at this size: its few visible paths of 4000 reached its points only
+    # through the gather's sphere far off their plane, which the slab test rejects since stop 77.)
+    ctx, target = setup(hole_mirror_glass((24, 18)))
     u = np.random.default_rng(1).random((4000, path_dims(8)))
     a = trace_photons(ctx, target, u.copy(), 8, collect_pairs=True)
     b = trace_photons(ctx, target, u.copy(), 8, collect_pairs=True)
@@ -49,7 +51,7 @@ def brushed_cornell_box(resolution):
 
 def test_resuming_at_the_first_visible_vertex_reproduces_the_suffix():
     # (The Cornell box's paths are nearly all visible, with many pairs each: fewer of them.)
-    for scene, paths in ((glass_ceiling_room((24, 18)), 20000), (hole_mirror_glass((24, 18)), 20000),
+    for scene, paths in ((glass_ceiling_room((32, 24)), 100000), (hole_mirror_glass((24, 18)), 20000),
                          (brushed_cornell_box((24, 18)), 1000)):
         ctx, target = setup(scene)
         rng = np.random.default_rng(2)
