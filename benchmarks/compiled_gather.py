@@ -54,7 +54,7 @@ def recorded_queries(scene, n_paths, settings):
 def compiled_query(numba):
     @numba.njit(cache=False)
     def kernel(x, nrm, dirs, origin, cell_size, dims, cell_keys, cell_start, entry_point, entry_pos,
-               entry_r2, entry_normal, cos_min):
+               entry_r2, entry_normal, cos_min, slab2):
         n = x.shape[0]
         cap = 16 * n + 1024
         out_p = np.empty(cap, np.int64)
@@ -83,6 +83,9 @@ def compiled_query(numba):
                 if (entry_normal[0, e] * nrm[i, 0] + entry_normal[1, e] * nrm[i, 1]
                         + entry_normal[2, e] * nrm[i, 2]) < cos_min:
                     continue
+                h = entry_normal[0, e] * dx + entry_normal[1, e] * dy + entry_normal[2, e] * dz
+                if h * h >= slab2 * entry_r2[e]:
+                    continue
                 if k == cap:
                     cap *= 2
                     out_p = np.concatenate((out_p, np.empty(cap - k, np.int64)))
@@ -104,7 +107,8 @@ def compiled_query(numba):
                 grid.point_normal.take(grid.entry_point, axis=1))
         return kernel(x, normals, normals if directions is None else directions, grid.origin,
                       float(grid.cell_size), grid.dims, grid.cell_keys, grid.cell_start, grid.entry_point,
-                      grid.entry_pos, grid.entry_r2, entry_normal, np.float32(hash_grid.NORMAL_COS))
+                      grid.entry_pos, grid.entry_r2, entry_normal, np.float32(hash_grid.NORMAL_COS),
+                      np.float32(hash_grid.SLAB ** 2))
     return query
 
 
