@@ -1,0 +1,80 @@
+"""Bias of the chains where the visible cells grow: a random-parity case's image mean over seeds.
+
+Stop 76 found the chains' image of glass505 (the glass family of ``random_parity_scenes.py``: an open
+room under a world colour with a smooth glass cube) 0.9 % over PPM's, from the visible cells' growth;
+stop 78's generations (``core/mcmc.py``, "Generations") remove it.  This exports the case through the
+add-on (bpy), renders it with random_parity's settings for ours (16 passes of 100,000 photons, 4096
+chains, initial radius 1.5 pixels, one worker, Cycles' light paths) at each seed, and prints the mean
+and its standard error per method::
+
+    python benchmarks/cell_generations.py --case 505 --seeds 40 --methods amcmcppm ppm
+
+To compare revisions, run it in a worktree of each (``git worktree add``), side by side.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests", "addon"))
+
+
+def export_case(seed, resolution, path):
+    """The glass case ``seed`` as a core Scene saved to ``path`` (.npz), and its RenderSettings."""
+    from fuzz_scenes import load_addon
+    from random_parity_scenes import FAMILIES, build
+    load_addon()
+    import bpy
+    from amcmcppm.amcmcppm_addon.export.scene import export_scene
+    from amcmcppm.amcmcppm_addon.export.settings import render_settings_from
+    spec = FAMILIES["glass"](seed)
+    scene = build(spec, resolution)
+    c = scene.cycles
+    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
+    c.transparent_max_bounces = 8
+    c.volume_bounces = 0
+    for key, value in spec.get("light_paths", {}).items():
+        setattr(c, key, value)
+    a = scene.amcmcppm
+    a.light_paths_from_cycles = True
+    a.workers, a.passes, a.photons_per_pass, a.chains, a.initial_radius_px = 1, 16, 100_000, 4096, 1.5
+    exported = export_scene(bpy.context.evaluated_depsgraph_get())
+    exported.scene.save(path)
+    return render_settings_from(a)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--case", type=int, default=505, help="the glass family's case (its seed)")
+    ap.add_argument("--seeds", type=int, default=40)
+    ap.add_argument("--methods", nargs="+", default=["amcmcppm", "ppm"])
+    ap.add_argument("--resolution", type=int, nargs=2, default=(64, 48))
+    args = ap.parse_args()
+    from core import render
+    from core.scene import Scene
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "case.npz")
+        settings = export_case(args.case, tuple(args.resolution), path)
+        scene = Scene.load(path)
+    for method in args.methods:
+        means, seconds = [], []
+        for seed in range(1, args.seeds + 1):
+            t0 = time.perf_counter()
+            result = render(scene, dataclasses.replace(settings, method=method, seed=seed))
+            means.append(float(result.image[..., :3].astype(np.float64).mean()))
+            seconds.append(time.perf_counter() - t0)
+        m = np.array(means)
+        print(f"glass{args.case:03d} {method}: mean {m.mean():.5f} +- {m.std(ddof=1) / np.sqrt(len(m)):.5f} "
+              f"({len(m)} seeds, {np.mean(seconds):.1f} s a render)", flush=True)
+
+
+if __name__ == "__main__":
+    main()
