@@ -26,11 +26,13 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests", "addon"))
+sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 
 
 def export_case(seed, resolution, path):
     """The glass case ``seed`` as a core Scene saved to ``path`` (.npz), and its RenderSettings."""
     from fuzz_scenes import load_addon
+    from random_parity import set_light_paths, set_ours
     from random_parity_scenes import FAMILIES, build
     load_addon()
     import bpy
@@ -38,18 +40,13 @@ def export_case(seed, resolution, path):
     from amcmcppm.amcmcppm_addon.export.settings import render_settings_from
     spec = FAMILIES["glass"](seed)
     scene = build(spec, resolution)
-    c = scene.cycles
-    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
-    c.transparent_max_bounces = 8
-    c.volume_bounces = 0
-    for key, value in spec.get("light_paths", {}).items():
-        setattr(c, key, value)
-    a = scene.amcmcppm
-    a.light_paths_from_cycles = True
-    a.workers, a.passes, a.photons_per_pass, a.chains, a.initial_radius_px = 1, 16, 100_000, 4096, 1.5
+    set_light_paths(scene, spec)
+    # (random_parity's defaults for ours; the seed is set per render)
+    set_ours(scene, {"spec": spec, "seed": 1, "passes": 16, "photons": 100_000, "chains": 4096,
+                     "initial_radius": 1.5})
     exported = export_scene(bpy.context.evaluated_depsgraph_get())
     exported.scene.save(path)
-    return render_settings_from(a)
+    return render_settings_from(scene.amcmcppm)
 
 
 def main():

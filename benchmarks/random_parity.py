@@ -61,6 +61,32 @@ RESULT_PREFIX = "RENDERED "  # a render process's last line: this and a JSON obj
 
 
 # ------------------------------------------------------------------------------ one render (child)
+def set_light_paths(scene, spec):
+    """Cycles' bounce limits of a case (ours takes them): 8 (volume 0), or the spec's ``light_paths``."""
+    c = scene.cycles
+    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
+    c.transparent_max_bounces = 8
+    c.volume_bounces = 0
+    for key, value in spec.get("light_paths", {}).items():     # (the glass family's limits)
+        setattr(c, key, value)
+
+
+def set_ours(scene, job):
+    """Our settings of a case's render: ``job``'s seed, passes, photons, chains, initial radius, one
+    worker, Cycles' light paths, then the spec's ``ours_settings``."""
+    a = scene.amcmcppm
+    a.light_paths_from_cycles = True
+    a.workers = 1
+    a.seed = job["seed"]
+    a.time_limit = 0.0
+    a.passes = job["passes"]
+    a.photons_per_pass = job["photons"]
+    a.chains = job["chains"]
+    a.initial_radius_px = job["initial_radius"]
+    for key, value in job["spec"].get("ours_settings", {}).items():
+        setattr(a, key, value)
+
+
 def render_child(job):
     """Render ``job["spec"]`` with ``job["engine"]`` ("cycles" or "ours") into ``job["exr"]``; print
     the render's wall time on a last line."""
@@ -75,28 +101,14 @@ def render_child(job):
     c.seed = job["seed"]
     c.use_adaptive_sampling = False
     c.use_denoising = False
-    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
-    c.transparent_max_bounces = 8
-    c.volume_bounces = 0
-    for key, value in job["spec"].get("light_paths", {}).items():     # (the glass family's limits)
-        setattr(c, key, value)
+    set_light_paths(scene, job["spec"])
     c.light_sampling_threshold = 0.0
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
     c.blur_glossy = 0.0
     c.caustics_reflective = c.caustics_refractive = True
     c.use_light_tree = True
     c.samples = job["spp"]
-    a = scene.amcmcppm
-    a.light_paths_from_cycles = True
-    a.workers = 1
-    a.seed = job["seed"]
-    a.time_limit = 0.0
-    a.passes = job["passes"]
-    a.photons_per_pass = job["photons"]
-    a.chains = job["chains"]
-    a.initial_radius_px = job["initial_radius"]
-    for key, value in job["spec"].get("ours_settings", {}).items():
-        setattr(a, key, value)
+    set_ours(scene, job)
     scene.render.engine = "CYCLES" if job["engine"] == "cycles" else "AMCMCPPM"
     t0 = time.time()
     bs.render_exr(job["exr"], scene)
