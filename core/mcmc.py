@@ -193,10 +193,11 @@ class ChainSet:
     adaptations: int = 0            # iterations with proposals so far: the adaptation's step index
     vertex: dict = field(default_factory=dict)  # arrays (C, ...): state at the first visible vertex
     # The uniform samples since the cells' newest generation came: generation -> sum of their w
-    # whose oldest cell is of that generation (those older than the chains' oldest generation
-    # then counted under it; :meth:`generation_shares`).
+    # whose oldest cell is of that generation (those older than ``entry_floor`` counted under it;
+    # :meth:`generation_shares`).
     entry_w: dict = field(default_factory=dict)
     entry_since: int = -1           # the newest generation when entry_w began
+    entry_floor: int = 0            # the oldest generation entry_w tells apart (:meth:`entry_window`)
 
     @staticmethod
     def create(n_chains, dims, theta0, rng) -> "ChainSet":
@@ -223,12 +224,36 @@ class ChainSet:
         """The oldest generation of the chains with a state (``newest`` when none has one)."""
         return int(self.gen[self.valid].min()) if self.valid.any() else int(newest)
 
-    def count_entries(self, newest, entry, w) -> None:
-        """Add uniform samples whose oldest cells are of generations ``entry`` (weights ``w``) to
-        :attr:`entry_w`, which starts again whenever the cells' ``newest`` generation changes."""
+    def entry_window(self, newest) -> int:
+        """The floor of :attr:`entry_w`'s generations; it starts again, with the floor at the chains'
+        oldest generation, whenever the cells' ``newest`` generation changes.  The floor must not
+        follow the chains' oldest up while recordings of older chains wait for their rho (a
+        window whose floor rose with the last old chain's exchange counted the samples of the
+        older generations under a newer one after it: those chains' recordings came out too
+        small, 0.993 of PPM's image on the half-transparent leaf); :meth:`raise_floor` raises it
+        between passes."""
         if newest != self.entry_since:
             self.entry_w, self.entry_since = {}, int(newest)
-        e = np.maximum(entry, self.oldest(newest))
+            self.entry_floor = self.oldest(newest)
+        return self.entry_floor
+
+    def raise_floor(self) -> None:
+        """Raise :attr:`entry_floor` to the chains' oldest generation (once every recording so far
+        has been splatted, e.g. at a pass's start): counts below it merge into it."""
+        if self.entry_since < 0:
+            return
+        floor = self.oldest(self.entry_since)
+        if floor <= self.entry_floor:
+            return
+        merged = {}
+        for k, v in self.entry_w.items():
+            merged[max(k, floor)] = merged.get(max(k, floor), 0.0) + v
+        self.entry_w, self.entry_floor = merged, floor
+
+    def count_entries(self, newest, entry, w) -> None:
+        """Add uniform samples whose oldest cells are of generations ``entry`` (weights ``w``) to
+        :attr:`entry_w` (:meth:`entry_window`)."""
+        e = np.maximum(entry, self.entry_window(newest))
         keys, inverse = np.unique(e, return_inverse=True)
         sums = np.bincount(inverse, weights=w, minlength=len(keys))
         for k, v in zip(keys.tolist(), sums.tolist()):
@@ -382,12 +407,14 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     was_valid = chains.valid.copy()
     counters.iterations += c
     oldest = chains.oldest(generation)
-    newest_c, oldest_c = np.full(c, generation, np.int64), np.full(c, oldest, np.int64)
+    # The uniform samples' oldest cells are told apart down to the window's floor (ChainSet.entry_window).
+    floor = chains.entry_window(generation)
+    newest_c, floor_c = np.full(c, generation, np.int64), np.full(c, floor, np.int64)
     # 1. Uniform samples for every chain.
     refreshed = None
     if prefetched is None:
         u_uniform = rng.random((c, d))
-        batch_u = trace(u_uniform, None, limit=newest_c, floor=oldest_c)
+        batch_u = trace(u_uniform, None, limit=newest_c, floor=floor_c)
         _count_traced(counters, c, batch_u)
         rows_u = np.arange(c)
     else:
@@ -434,7 +461,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
         u_all = np.concatenate(parts) if len(parts) > 1 else proposal
         gen_parts = [chains.gen[lanes]] + ([newest_c] if prefetch else []) + (
             [chains.gen[refreshed[0]]] if refreshed else [])
-        floor_parts = [chains.gen[lanes]] + ([oldest_c] if prefetch else []) + (
+        floor_parts = [chains.gen[lanes]] + ([floor_c] if prefetch else []) + (
             [chains.gen[refreshed[0]]] if refreshed else [])
         batch_p = trace(u_all, refresh, resume=refreshed[2] if refreshed else None,
                         limit=np.concatenate(gen_parts), floor=np.concatenate(floor_parts))

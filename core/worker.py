@@ -147,6 +147,7 @@ class PhotonWorker:
         # The chains' runs keep the generation of the cells they began in (core/mcmc.py, "Generations").
         generation = target.cells.generation if target.cells is not None else 0
         recorder.lane_gen, recorder.shares = chains.gen, chains.generation_shares
+        chains.raise_floor()              # the last pass's recordings are splatted
         begin_pass(chains, trace, recorder, counters)
         iterations = -(-n_photons // chains.count)
         interrupted = False
