@@ -53,9 +53,14 @@ trace reports, ``ChainSet.generation_shares``, applied when :class:`DepositLog` 
 uniform sample whose oldest cell is of generation e counts, as a sample outside V, for the chains of
 older generations: times the sum of their recordings' W in that iteration (``Recorder.newer``), which
 the worker scales by iterations / recordings of the pass.  With one generation (no growth since the
-chains' runs began) nothing changes.  ``tests/core/test_mcmc.py`` grows a box of the sample space
-under chains that found their states in another: 1.005 +- 0.032 of the integral in the pass after,
-0.73 +- 0.02 with every chain in the newest cells at once (as before).
+chains' runs began) nothing changes.  The trace tells the samples' oldest cells apart down to the
+chains' oldest generation when the window began, and that floor rises between passes alone
+(``ChainSet.entry_window``): one that followed the chains' oldest up counted a generation's samples
+under a newer one once its last chain had left, while that chain's recordings of the pass still
+waited for rho (the fast tier's half-transparent leaf 0.9925 +- 0.0016 of PPM's, now 1.0008 +-
+0.0015; ``benchmarks/cell_generations.py --scene leaf``).  ``tests/core/test_mcmc.py`` grows a box
+of the sample space under chains that found their states in another: 1.005 +- 0.032 of the integral
+in the pass after, 0.73 +- 0.02 with every chain in the newest cells at once (as before).
 
 Adaptation.  theta_{i+1} = theta_i + (A_i - A*) / i (``algorithm.md`` 2), i counting the
 iterations with proposals, A_i the acceptance of *all* chains so far: one mutation size for
