@@ -1609,7 +1609,8 @@ def _diffuse_next(table, limits, surf, mats, ns, lobe, kind, wi, under, leave):
 
 
 def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, cell_test,
-                        collect_pairs, refresh_rng, max_bounces, kinds=None, diffuse_next=None, crossings=None):
+                        collect_pairs, refresh_rng, max_bounces, kinds=None, diffuse_next=None,
+                        crossings=None):
     """Deposits of the photons that stopped in scattering volumes at vertex ``bounce`` (``vert``:
     their paths, positions, travel directions, arrival flux and volumes) on the target's volume
     points: flux times the scattering coefficient times the phase function towards each point's
