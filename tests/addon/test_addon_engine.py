@@ -1258,10 +1258,17 @@ def test_shadow_catcher_matches_cycles(scene, tmp_path):
     world seen through the floor darkened by the cube's shadow, and the cube as it is, on an opaque
     film without the pass; the cube over alpha 1 - shadow on a transparent one; with the Shadow
     Catcher pass asked for, the cube alone over alpha 0, and the pass is the floor's light with the
-    cube over without it.  Blocks of 6 x 6 pixels within 0.03 of Cycles' (Combined's colour), 0.06
-    (its alpha, where the cube's edges and the shadow's meet: the pixel filters differ; its mean
-    within 0.01) and 0.08 (the pass, measured 0.056 at the shadow's edge; its mean within 0.01,
-    measured 0.1 %).  Before, the floor rendered as an ordinary surface."""
+    cube over without it.  Before, the floor rendered as an ordinary surface.
+
+    Blocks of 6 x 6 pixels against Cycles', with bounds from 24 renders (seeds 0-11 at two revisions
+    of the chains, stop 80) against 1024 Cycles samples: each bound is the largest over the blocks
+    of the mean offset plus four seed-to-seed deviations.  Combined's colour within 0.065 (0.063:
+    offsets up to 0.023, deviations up to 0.013 in the cube's blocks; the worst single block 0.037)
+    and its means within 0.005 (0.0021); its alpha within 0.08 (0.074, the block where the cube's
+    edge and the shadow's meet, 0.047 +- 0.007: the pixel filters differ) and its mean within 0.01
+    (0.0041); the pass within 0.15 (0.148, the shadow's edge under the cube, 0.048 +- 0.022; the
+    worst single block 0.109) and its mean within 0.01 (0.0054).  The old bounds (0.03, 0.06, 0.08)
+    failed at 5 of the 12 seeds at either revision."""
     def read(path):
         out = render_passes(path)
         return out["ViewLayer.Combined"], out.get("ViewLayer.Shadow Catcher")
@@ -1277,7 +1284,8 @@ def test_shadow_catcher_matches_cycles(scene, tmp_path):
         print(f"film transparent {transparent}, pass {shadow_pass}: Combined blocks up to "
               f"{np.abs(a - b).max(axis=(0, 1))} apart; alpha ours {combined[..., 3].mean():.4f} "
               f"Cycles {c_combined[..., 3].mean():.4f}")
-        assert (np.abs(a - b)[..., :3] < 0.03).all() and (np.abs(a - b)[..., 3] < 0.06).all()
+        assert (np.abs(a - b)[..., :3] < 0.065).all() and (np.abs(a - b)[..., 3] < 0.08).all()
+        np.testing.assert_allclose(a[..., :3].mean(axis=(0, 1)), b[..., :3].mean(axis=(0, 1)), atol=0.005)
         assert abs(combined[..., 3].mean() - c_combined[..., 3].mean()) < 0.01
         if shadow_pass:
             s, t = blocks(shadow), blocks(c_shadow)
@@ -1285,5 +1293,5 @@ def test_shadow_catcher_matches_cycles(scene, tmp_path):
                   f"{shadow.mean(axis=(0, 1))} Cycles {c_shadow.mean(axis=(0, 1))}; darkest block "
                   f"ours {s.mean(axis=-1).min():.3f} Cycles {t.mean(axis=-1).min():.3f}")
             assert t.mean(axis=-1).min() < 0.75            # (the shadow is in view)
-            assert (np.abs(s - t) < 0.08).all()
+            assert (np.abs(s - t) < 0.15).all()
             np.testing.assert_allclose(shadow.mean(axis=(0, 1)), c_shadow.mean(axis=(0, 1)), atol=0.01)
