@@ -803,9 +803,9 @@ def render(scene, settings=None, on_iteration=None, should_stop=None, context=No
         # sequence (r^3 by (i + alpha) / (i + 1), Knaus and Zwicker's rule in three dimensions).
         vol_radius = vol.base_radius * scales[i] ** (2.0 / 3.0) if vol is not None and vol.count else None
         if cells is not None and (i < CELL_PASSES or i % CELL_EVERY == 0):
-            cells = cells.extended(pts.position, pts.ng, pts.base_radius)
+            cells = cells.extended(pts.position, pts.ng, pts.base_radius, generation=i)
             if vol_radius is not None:
-                cells = cells.extended(vol.position, None, vol.base_radius, volume=True)
+                cells = cells.extended(vol.position, None, vol.base_radius, volume=True, generation=i)
         if i == 0 and settings.focus_photons:
             around, reach = [pts.position], [radius]
             if vol_radius is not None:
@@ -1045,6 +1045,8 @@ def _pass_stats(pass_index, elapsed, merged, acc, eye, target, prep_s, workers, 
         "cumulative_acceptance_rate": (merged["total_accepted"] / merged["total_proposed"]
                                        if merged["total_proposed"] else 0.0),
         "chains_with_state": merged["valid_chains"],
+        "older_share": c["recorded_older"] / c["recorded"] if c["recorded"] else 0.0,
+        "uniform_newer": c["uniform_newer"],
         "initialised": c["initialised"],
         "rays": c["rays"] + eye.rays,
         "photon_vertices": c["vertices"],

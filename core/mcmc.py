@@ -37,6 +37,31 @@ chains could not refill it: on ``small_view`` (a 600 mm lens on a glass ball) th
 seen through the ball came out 0.78 of SPPM's at equal radii and the rest 1.024
 (``benchmarks/outside_cells.py``; now 1.02 and 1.006).
 
+Generations.  The cells grow (the integrator adds the points of later passes), and a chain whose
+states were spread over the old cells is not spread over the new ones: counting it with the new
+normaliser made the passes after a growth too dark where the new cells are and too bright elsewhere
+until exchanges mixed the chains (on glass505 of the glass parity family the image 1.0094 +- 0.0024 of
+PPM's; README, "A visible set that holds still").  So every cell has the generation (pass) it came in,
+and a chain's run keeps the generation g of the cells it began in (``ChainSet.gen``): its proposals
+are visible in the cells of generation g or older alone (``trace_photons``'s ``cell_limit``), so its
+states stay uniform over V_g, and a visible uniform sample (visible in the newest cells) begins a new
+run in the newest generation.  The integral splits for each g as in "Two parts": I = |V_g| E_g[f] +
+(paths outside V_g), and the pass's estimate mixes these by the chains' recordings: a recording of a
+chain of generation g counts rho_g = |V_g| / |V_newest| of its deposits (the integrator multiplies by
+the newest Vc; rho from the uniform samples since the newest generation came, whose oldest cells the
+trace reports, ``ChainSet.generation_shares``, applied when :class:`DepositLog` splats), and a visible
+uniform sample whose oldest cell is of generation e counts, as a sample outside V, for the chains of
+older generations: times the sum of their recordings' W in that iteration (``Recorder.newer``), which
+the worker scales by iterations / recordings of the pass.  With one generation (no growth since the
+chains' runs began) nothing changes.  The trace tells the samples' oldest cells apart down to the
+chains' oldest generation when the window began, and that floor rises between passes alone
+(``ChainSet.entry_window``): one that followed the chains' oldest up counted a generation's samples
+under a newer one once its last chain had left, while that chain's recordings of the pass still
+waited for rho (the fast tier's half-transparent leaf 0.9925 +- 0.0016 of PPM's, now 1.0008 +-
+0.0015; ``benchmarks/cell_generations.py --scene leaf``).  ``tests/core/test_mcmc.py`` grows a box
+of the sample space under chains that found their states in another: 1.005 +- 0.032 of the integral
+in the pass after, 0.73 +- 0.02 with every chain in the newest cells at once (as before).
+
 Adaptation.  theta_{i+1} = theta_i + (A_i - A*) / i (``algorithm.md`` 2), i counting the
 iterations with proposals, A_i the acceptance of *all* chains so far: one mutation size for
 the chains of a worker.  Each chain adapting on its own acceptance, as a single chain does in
@@ -134,6 +159,8 @@ class ChainCounters:
     uniform_visible: int = 0     # n_UV of this pass
     uniform_visible_w: float = 0.0  # sum of w over them (the normaliser's; = n_UV without a Focus)
     uniform_outside: int = 0     # uniform samples outside V that deposited (counted directly)
+    recorded_older: int = 0      # recordings of chains whose runs began before the newest cells
+    uniform_newer: int = 0       # visible uniform samples outside some older chains' V ("Generations")
     rays: int = 0                # closest-hit rays of the photon paths
     vertices: int = 0            # photon path vertices (surface hits)
     trace_s: float = 0.0         # seconds spent tracing photon paths (the rest is chain bookkeeping)
@@ -166,8 +193,16 @@ class ChainSet:
     weight: np.ndarray              # (C,) float64 the current state's w under a Focus (1 without)
     run_weight: np.ndarray          # (C,) float64 the weight W of the chain's run: w of its last
     #                                 uniform sample taken (1 without a Focus)
+    gen: np.ndarray                 # (C,) int64 the generation of the visible cells of the chain's
+    #                                 run: its V (module docstring, "Generations")
     adaptations: int = 0            # iterations with proposals so far: the adaptation's step index
     vertex: dict = field(default_factory=dict)  # arrays (C, ...): state at the first visible vertex
+    # The uniform samples since the cells' newest generation came: generation -> sum of their w
+    # whose oldest cell is of that generation (those older than ``entry_floor`` counted under it;
+    # :meth:`generation_shares`).
+    entry_w: dict = field(default_factory=dict)
+    entry_since: int = -1           # the newest generation when entry_w began
+    entry_floor: int = 0            # the oldest generation entry_w tells apart (:meth:`entry_window`)
 
     @staticmethod
     def create(n_chains, dims, theta0, rng) -> "ChainSet":
@@ -176,7 +211,7 @@ class ChainSet:
                         theta=np.full(n_chains, float(theta0)), proposed=np.zeros(n_chains, np.int64),
                         accepted=np.zeros(n_chains, np.int64), hold=np.zeros(n_chains, np.int64),
                         hold_prefix=np.zeros(n_chains, np.int64), weight=np.ones(n_chains),
-                        run_weight=np.ones(n_chains))
+                        run_weight=np.ones(n_chains), gen=np.zeros(n_chains, np.int64))
 
     def forget(self) -> None:
         """Drop every state (the chains search again from uniform samples), e.g. when the map from
@@ -189,6 +224,58 @@ class ChainSet:
     @property
     def count(self) -> int:
         return int(len(self.u))
+
+    def oldest(self, newest) -> int:
+        """The oldest generation of the chains with a state (``newest`` when none has one)."""
+        return int(self.gen[self.valid].min()) if self.valid.any() else int(newest)
+
+    def entry_window(self, newest) -> int:
+        """The floor of :attr:`entry_w`'s generations; it starts again, with the floor at the chains'
+        oldest generation, whenever the cells' ``newest`` generation changes.  The floor must not
+        follow the chains' oldest up while recordings of older chains wait for their rho (a
+        window whose floor rose with the last old chain's exchange counted the samples of the
+        older generations under a newer one after it: those chains' recordings came out too
+        small, 0.993 of PPM's image on the half-transparent leaf); :meth:`raise_floor` raises it
+        between passes."""
+        if newest != self.entry_since:
+            self.entry_w, self.entry_since = {}, int(newest)
+            self.entry_floor = self.oldest(newest)
+        return self.entry_floor
+
+    def raise_floor(self) -> None:
+        """Raise :attr:`entry_floor` to the chains' oldest generation (once every recording so far
+        has been splatted, e.g. at a pass's start): counts below it merge into it."""
+        if self.entry_since < 0:
+            return
+        floor = self.oldest(self.entry_since)
+        if floor <= self.entry_floor:
+            return
+        merged = {}
+        for k, v in self.entry_w.items():
+            merged[max(k, floor)] = merged.get(max(k, floor), 0.0) + v
+        self.entry_w, self.entry_floor = merged, floor
+
+    def count_entries(self, newest, entry, w) -> None:
+        """Add uniform samples whose oldest cells are of generations ``entry`` (weights ``w``) to
+        :attr:`entry_w` (:meth:`entry_window`)."""
+        e = np.maximum(entry, self.entry_window(newest))
+        keys, inverse = np.unique(e, return_inverse=True)
+        sums = np.bincount(inverse, weights=w, minlength=len(keys))
+        for k, v in zip(keys.tolist(), sums.tolist()):
+            self.entry_w[k] = self.entry_w.get(k, 0.0) + v
+
+    def generation_shares(self):
+        """(newest + 1,) float64: rho_g = |V_g| / |V_newest| for every generation g, estimated from
+        :attr:`entry_w`: what a recording of a chain of generation g counts in units of the newest
+        V (all 1 where no visible sample has been counted yet; None before any count)."""
+        if self.entry_since < 0:
+            return None
+        dense = np.zeros(self.entry_since + 1)
+        for k, v in self.entry_w.items():
+            if k <= self.entry_since:
+                dense[k] += v
+        run = np.cumsum(dense)
+        return run / run[-1] if run[-1] > 0 else np.ones(len(run))
 
     @property
     def acceptance_rate(self) -> float:
@@ -215,13 +302,19 @@ class Recorder:
         takes its w here (``batch.aims``)."""
         return rows[:0]
 
+    def newer(self, batch, rows, share):
+        """Visible uniform samples ``rows`` of ``batch`` lie outside the V of older chains, whose
+        recordings this iteration sum to ``share`` (k,): their deposits count times that share
+        (module docstring, "Generations")."""
+
 
 def begin_pass(chains, trace, recorder, counters):
     """Trace every visible state again against the new target; states no longer visible are dropped."""
     lanes = np.flatnonzero(chains.valid)
     if len(lanes) == 0:
         return
-    batch = trace(chains.u[lanes], None)
+    gen = chains.gen[lanes]
+    batch = trace(chains.u[lanes], None, limit=gen, floor=gen)
     counters.paths_traced += len(lanes)
     counters.rays += batch.rays
     counters.vertices += batch.vertices
@@ -251,7 +344,7 @@ def end_pass(chains, recorder, prefetched=None, trace=None, counters=None):
     """
     if prefetched is not None and prefetched.refreshed is not None:
         lanes, u, resume = prefetched.refreshed
-        batch = trace(u, None, resume=resume)
+        batch = trace(u, None, resume=resume, limit=chains.gen[lanes], floor=chains.gen[lanes])
         _count_traced(counters, len(lanes), batch)
         recorder.replace_suffix(lanes, batch, np.arange(len(lanes)))
         prefetched.refreshed = None
@@ -292,7 +385,7 @@ class Prefetched:
 
 
 def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, prefetched=None,
-            prefetch=False):
+            prefetch=False, generation=0):
     """Advance every chain by one iteration (see the module docstring).
 
     ``exchange=False`` switches replica exchange off for chains that already have a
@@ -301,10 +394,14 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     supplies this iteration's uniform samples; with ``prefetch`` the next iteration's
     are traced together with this one's proposals and returned (otherwise None), and
     the Gibbs refresh of this iteration's rejected states is left for the next batch.
+    ``generation``: the newest generation of the target's visible cells (module docstring,
+    "Generations"; 0 without cells).
 
-    ``trace(u, refresh_rng, resume=None)`` traces paths for states ``u`` (n, d) and
-    returns an object with ``visible`` (n,), ``first_dim`` (n,), ``first`` (a dict of
-    per-path arrays describing the first visible vertex), ``rays`` and ``vertices``;
+    ``trace(u, refresh_rng, resume=None, limit=None, floor=None)`` traces paths for states ``u``
+    (n, d) and returns an object with ``visible`` (n,), ``first_dim`` (n,), ``first`` (a dict of
+    per-path arrays describing the first visible vertex), ``rays``, ``vertices`` and ``entry``
+    (None, or (n,) the oldest generation of the cells a path met, tested while it is newer than
+    its ``floor``; ``limit``: the newest generation whose cells make a path visible);
     with ``refresh_rng`` it redraws, in place in ``u``, the dimensions after the first
     visible vertex (low-dimension mutation) of paths not resumed; with ``resume`` (k rows
     of such a dict) it traces the last k paths only from those vertices on.
@@ -314,11 +411,15 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     refresh = rng if mode in ("paper", "exact") else None
     was_valid = chains.valid.copy()
     counters.iterations += c
+    oldest = chains.oldest(generation)
+    # The uniform samples' oldest cells are told apart down to the window's floor (ChainSet.entry_window).
+    floor = chains.entry_window(generation)
+    newest_c, floor_c = np.full(c, generation, np.int64), np.full(c, floor, np.int64)
     # 1. Uniform samples for every chain.
     refreshed = None
     if prefetched is None:
         u_uniform = rng.random((c, d))
-        batch_u = trace(u_uniform, None)
+        batch_u = trace(u_uniform, None, limit=newest_c, floor=floor_c)
         _count_traced(counters, c, batch_u)
         rows_u = np.arange(c)
     else:
@@ -330,6 +431,13 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     counters.uniform_samples += c
     counters.uniform_visible += int(vis.sum())
     counters.uniform_visible_w += float(w_u[vis].sum())
+    newer = None
+    if batch_u.entry is not None:
+        entry = batch_u.entry[rows_u]
+        chains.count_entries(generation, entry, w_u)
+        # Visible samples outside the V of older chains: counted for those as outside samples.
+        newer = np.flatnonzero(vis & (entry > oldest))
+        newer = (rows_u[newer], entry[newer]) if len(newer) else None
     aimed = batch_u.aims is not None
     if aimed:
         sw, sw2, k = aim_moments(batch_u, rows_u)
@@ -356,7 +464,12 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     parts = [proposal] + ([u_next] if prefetch else []) + ([refreshed[1]] if refreshed else [])
     if len(lanes) or prefetch or refreshed:
         u_all = np.concatenate(parts) if len(parts) > 1 else proposal
-        batch_p = trace(u_all, refresh, resume=refreshed[2] if refreshed else None)
+        gen_parts = [chains.gen[lanes]] + ([newest_c] if prefetch else []) + (
+            [chains.gen[refreshed[0]]] if refreshed else [])
+        floor_parts = [chains.gen[lanes]] + ([floor_c] if prefetch else []) + (
+            [chains.gen[refreshed[0]]] if refreshed else [])
+        batch_p = trace(u_all, refresh, resume=refreshed[2] if refreshed else None,
+                        limit=np.concatenate(gen_parts), floor=np.concatenate(floor_parts))
         _count_traced(counters, len(u_all), batch_p)
         if prefetch:
             upcoming = Prefetched(u_all[len(lanes):len(lanes) + c], batch_p, len(lanes))
@@ -369,7 +482,7 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     # mutated, so the batch is the same either way.
     if len(take):
         _switch(chains, recorder, take, u_uniform[take], batch_u.first_dim[rows_u[take]], batch_u,
-                rows_u[take], w_u[take], new_run=True)
+                rows_u[take], w_u[take], new_run=True, generation=generation)
         counters.exchanges += int(was_valid[take].sum())
         counters.initialised += int((~was_valid[take]).sum())
     if len(lanes):
@@ -407,7 +520,8 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
             if upcoming is not None:
                 upcoming.refreshed = (rejected, new_u, resume)
             else:
-                batch_g = trace(new_u, None, resume=resume)
+                batch_g = trace(new_u, None, resume=resume, limit=chains.gen[rejected],
+                                floor=chains.gen[rejected])
                 _count_traced(counters, len(rejected), batch_g)
                 recorder.replace_suffix(rejected, batch_g, np.arange(len(rejected)))
     # 5. Every chain with a state records it once.
@@ -415,6 +529,16 @@ def iterate(chains, trace, recorder, rng, settings, counters, exchange=True, pre
     chains.hold_prefix[chains.valid] += 1
     counters.recorded += int(chains.valid.sum())
     counters.recorded_w += float(chains.run_weight[chains.valid].sum())
+    counters.recorded_older += int((chains.gen[chains.valid] < generation).sum())
+    if newer is not None:
+        counters.uniform_newer += len(newer[0])
+        # Each such sample counts for the chains (this iteration's recordings, by their W) whose V
+        # it is outside: share_t(e) = sum of W over the recorded chains of generations before e.
+        lanes_v = np.flatnonzero(chains.valid)
+        order = np.argsort(chains.gen[lanes_v], kind="stable")
+        gens = chains.gen[lanes_v].take(order)
+        run = np.concatenate([[0.0], np.cumsum(chains.run_weight[lanes_v].take(order))])
+        recorder.newer(batch_u, newer[0], run[np.searchsorted(gens, newer[1], side="left")])
     return upcoming
 
 
@@ -424,9 +548,11 @@ def _count_traced(counters, n, batch):
     counters.vertices += batch.vertices
 
 
-def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights, new_run=False):
+def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights, new_run=False,
+            generation=0):
     """Make traced paths ``rows`` of ``batch`` (weights w ``weights``) the current states of chains
-    ``lanes``; with ``new_run`` (uniform samples) they begin new runs of weight W = w."""
+    ``lanes``; with ``new_run`` (uniform samples) they begin new runs of weight W = w in the cells'
+    ``generation``."""
     old = lanes[chains.valid[lanes]]
     _commit(chains, recorder, old)
     chains.hold[lanes] = 0
@@ -437,6 +563,7 @@ def _switch(chains, recorder, lanes, new_u, new_first_dim, batch, rows, weights,
     chains.weight[lanes] = weights
     if new_run:
         chains.run_weight[lanes] = weights
+        chains.gen[lanes] = generation
     _store_vertex(chains, lanes, batch, rows)
     recorder.replace(lanes, batch, rows)
 
@@ -466,6 +593,11 @@ class DepositLog(Recorder):
     ``main_slots``: the pairs on slots from it on (``DepositTarget``'s inner slots) do not count
     towards a flush or a splat (:meth:`PointSums.add`'s ``counted``), so that the other slots
     are summed in the same groups, to the same bits, with or without them (None: all count).
+
+    Generations: ``lane_gen`` (the chains' :attr:`ChainSet.gen`, read when a part becomes current)
+    and ``shares`` (a callable giving :meth:`ChainSet.generation_shares`, called at every flush)
+    scale each part's recordings by rho of its chain's generation; ``newer_sums`` holds the
+    visible uniform samples outside older chains' V times their shares (:meth:`newer`).
     """
 
     def __init__(self, n_points, n_chains, flush_pairs=1 << 21, halves=False, main_slots=None):
@@ -486,6 +618,12 @@ class DepositLog(Recorder):
         self._halves = PointSums(n_points) if halves else None
         self.half_sums = self._halves.total if halves else None      # (m, 3), after flush()
         self.sign = np.zeros(len(self.count)) if halves else None   # +1 (even chain) or -1 per state id
+        self.lane_gen = None                    # (C,) the chains' generations (ChainSet.gen), or None
+        self.shares = None                      # callable -> rho per generation (or None), or None
+        self.gen_of = np.zeros(len(self.count), np.int64)           # the generation of each state id
+        self._newer = PointSums(n_points)
+        self.newer_sums = self._newer.total     # (m, 3), complete after flush()
+        self.newer_pairs = 0
 
     def replace(self, lanes, batch, rows):
         if len(lanes) == 0:
@@ -524,6 +662,17 @@ class DepositLog(Recorder):
         self.outside_pairs += len(sel)
         return np.unique(batch.pair_path.take(sel))
 
+    def newer(self, batch, rows, share):
+        scale = np.zeros(len(batch.visible))
+        scale[rows] = share if batch.aims is None else share * path_weights(batch, rows)
+        sel = np.flatnonzero(scale.take(batch.pair_path) > 0)
+        if len(sel) == 0:
+            return
+        value = batch.pair_value.take(sel, axis=0) * scale.take(batch.pair_path.take(sel))[:, None]
+        point = batch.pair_point.take(sel)
+        self._newer.add(point, [value[:, c] for c in range(3)], self._counted(point))
+        self.newer_pairs += len(sel)
+
     def _append(self, slots, batch, rows, is_suffix):
         """New part ids for ``slots``; log their pairs.  With ``is_suffix`` (per pair) the first
         half of ``slots`` takes a row's prefix pairs and the second half its suffix pairs."""
@@ -537,7 +686,12 @@ class DepositLog(Recorder):
                 sign = np.zeros(len(grown))
                 sign[:len(self.sign)] = self.sign
                 self.sign = sign
+            gen_of = np.zeros(len(grown), np.int64)
+            gen_of[:len(self.gen_of)] = self.gen_of
+            self.gen_of = gen_of
         self.state_of_lane[slots] = ids
+        if self.lane_gen is not None:
+            self.gen_of[ids] = self.lane_gen.take(slots % self.n_chains)
         if self.sign is not None:
             self.sign[ids] = 1.0 - 2.0 * (slots % self.n_chains % 2)
         k = len(rows)
@@ -571,8 +725,10 @@ class DepositLog(Recorder):
         recorded zero times add zeros.
         """
         self._outside.flush()
+        self._newer.flush()
         if not self.chunks:
             return
+        rho = self.shares() if self.shares is not None else None
         current = self.state_of_lane[self.state_of_lane >= 0]
         alive = np.zeros(len(self.count), bool)
         alive[current] = True
@@ -580,6 +736,8 @@ class DepositLog(Recorder):
         for chunk in self.chunks:
             state, point = chunk[0], chunk[1]
             w = self.count.take(state)
+            if rho is not None and len(rho) > 1:
+                w = w * rho.take(np.minimum(self.gen_of.take(state), len(rho) - 1))
             value = chunk[2]
             counted = self._counted(point)
             self._sums.add(point, [value[:, c] * w for c in range(3)], counted)

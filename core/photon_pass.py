@@ -46,7 +46,7 @@ from .settings import BounceLimits
 from .shadow_catcher import CATCHER_HIT
 from .sampling import cosine_hemisphere, dot, luminance, tangent_axes, to_world
 from .texture_hash import float_as_uint, hash_uint3, hash_uint3_to_float
-from .visible_cells import VisibleCells
+from .visible_cells import NEVER, VisibleCells
 
 ISOTROPIC_PHASE = 1.0 / (4.0 * np.pi)      # hg_phase at g = 0, to the bit
 
@@ -976,6 +976,8 @@ class PhotonBatch:
     rays: int                    # closest-hit rays traced (= photon path vertices attempted)
     vertices: int                # surface hits (photon path vertices)
     aims: np.ndarray | None = None  # (n,) with a Focus: each path's w from afar, 0 for the others and resumed
+    entry: np.ndarray | None = None  # (n,) int64 with visible cells: the oldest generation of the cells
+    #                                  that held a tested vertex (VisibleCells.NEVER: none; trace_photons)
 
 
 # Per-path state at a vertex before it scatters, enough to resume a trace there.
@@ -1008,7 +1010,7 @@ def _vertex_arrays(n, lobes, tangents=False, coat_normals=False, kinds=False, ca
 
 
 def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pairs=False, resume=None,
-                  sums=None, unweighted=False):
+                  sums=None, unweighted=False, cell_limit=None, cell_floor=None):
     """Trace photon paths for primary samples ``u`` (n, d) and deposit them on ``target``.
 
     With ``collect_pairs`` the deposits are returned per pair (for Markov chains) together
@@ -1026,6 +1028,12 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     ``unweighted`` (the Markov chains, whose target takes the weights instead): the paths from
     afar under ``target.focus`` carry their flux without the focus's weight w
     (``LightSampler.sample_aimed``); ``PhotonBatch.aims`` has the weights either way.
+
+    ``cell_limit`` (n,) int64 (with ``target.cells``; None: no limit): a path is visible from its
+    first vertex in a cell of that generation or older (the Markov chains' generations,
+    ``core/mcmc.py``).  ``cell_floor`` (n,) int64 (None: none): a visible path's later vertices are
+    still tested while the oldest generation found so far is newer than it.  ``PhotonBatch.entry``
+    holds that oldest generation per path (resumed paths: -1).
     """
     focus = target.focus
     n = len(u)
@@ -1046,6 +1054,13 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
         visible[fresh:] = True
         first_dim[fresh:] = bounce_offset(resume["bounce"])
         last_join = int(resume["bounce"].max())
+    cell_test = None
+    if target.cells is not None:
+        entry = np.full(n, NEVER, np.int64)
+        entry[fresh:] = -1
+        limit = np.full(n, NEVER - 1, np.int64) if cell_limit is None else np.asarray(cell_limit, np.int64)
+        floor = None if cell_floor is None else np.asarray(cell_floor, np.int64)
+        cell_test = (limit, floor, entry)
     m = target.points.count
     pairs = {"path": [], "point": [], "value": [], "bounce": []}
     # Bounce limits: the bounces of each kind every path took after its first vertex, where some
@@ -1269,15 +1284,16 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                 if target.cells is None:
                     seen[lane] = True
             if target.cells is not None:
-                open_ = np.flatnonzero(~visible[idx.take(dep)])
+                lane = idx.take(dep)
+                open_ = _cell_open(visible, cell_test, lane)
                 if len(open_):
-                    inside = target.cells.contains(x_dep.take(open_, axis=0), nrm.take(open_, axis=0))
+                    gen = target.cells.entry(x_dep.take(open_, axis=0), nrm.take(open_, axis=0))
                     if sides is not None and len(sides):
                         # (or seen on the other side of a translucent surface)
                         t = np.flatnonzero(table.translucent.take(surf.mat_ids.take(dep.take(open_))))
-                        inside[t] |= target.cells.contains(x_dep.take(open_[t], axis=0),
-                                                           -nrm.take(open_[t], axis=0))
-                    seen[dep.take(open_[inside])] = True
+                        gen[t] = np.minimum(gen[t], target.cells.entry(x_dep.take(open_[t], axis=0),
+                                                                        -nrm.take(open_[t], axis=0)))
+                    seen[dep.take(open_[_cell_inside(cell_test, lane.take(open_), gen)])] = True
             if seen.any():
                 rows = np.flatnonzero(seen)
                 rows = rows[~visible[idx[rows]]]
@@ -1308,7 +1324,7 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
                     u[new, start:] = refresh_rng.random((len(new), u.shape[1] - start))
         if vert is not None:
             _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums,
-                                collect_pairs, refresh_rng, max_bounces, kinds, diffuse_next,
+                                cell_test, collect_pairs, refresh_rng, max_bounces, kinds, diffuse_next,
                                 None if crossings is None else (crossings, first_crossings))
         if resume is not None and bounce <= last_join:
             # Resumed paths join at their recorded vertex, after its (unchanged) deposits.
@@ -1432,7 +1448,25 @@ def trace_photons(ctx, target, u, max_bounces, *, refresh_rng=None, collect_pair
     if focus is not None and n_resumed:
         aims = np.concatenate([aims, np.zeros(n_resumed)])
     return PhotonBatch(visible, first_dim, pp, pj, pv, pb, first, total, rays, vertices,
-                       aims if focus is not None else None)
+                       aims if focus is not None else None, None if cell_test is None else cell_test[2])
+
+
+def _cell_open(visible, cell_test, lane):
+    """Rows of the vertices of paths ``lane`` that the visible cells test: those of paths not yet
+    visible, and of those whose oldest generation so far is newer than their floor."""
+    test = ~visible.take(lane)
+    _, floor, entry = cell_test
+    if floor is not None:
+        test |= entry.take(lane) > floor.take(lane)
+    return np.flatnonzero(test)
+
+
+def _cell_inside(cell_test, paths, gen):
+    """(k,) bool: which vertices (of paths ``paths``, in cells of generations ``gen``) make their
+    paths visible; keeps the paths' oldest generations (``PhotonBatch.entry``)."""
+    limit, _, entry = cell_test
+    entry[paths] = np.minimum(entry.take(paths), gen)
+    return gen <= limit.take(paths)
 
 
 def aim_moments(batch, rows):
@@ -1574,8 +1608,9 @@ def _diffuse_next(table, limits, surf, mats, ns, lobe, kind, wi, under, leave):
     return out
 
 
-def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, collect_pairs,
-                        refresh_rng, max_bounces, kinds=None, diffuse_next=None, crossings=None):
+def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first, pairs, sums, cell_test,
+                        collect_pairs, refresh_rng, max_bounces, kinds=None, diffuse_next=None,
+                        crossings=None):
     """Deposits of the photons that stopped in scattering volumes at vertex ``bounce`` (``vert``:
     their paths, positions, travel directions, arrival flux and volumes) on the target's volume
     points: flux times the scattering coefficient times the phase function towards each point's
@@ -1584,7 +1619,8 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
     ``first`` (``volume`` set) and have their later dimensions redrawn with ``refresh_rng``.
     ``kinds`` and ``diffuse_next`` as in :func:`trace_photons` (pairs keep to the limits:
     DepositTarget.bounce_filter; a volume point's scattering is not a diffuse bounce), and
-    ``crossings`` its (crossings, first_crossings) (DepositTarget.crossing_filter) or None."""
+    ``crossings`` its (crossings, first_crossings) (DepositTarget.crossing_filter) or None.
+    ``cell_test``: None, or the trace's (limit, floor, entry) for the visible cells (``_cell_open``)."""
     idx, x, d, vmed = vert["idx"], vert["position"], vert["d"], vert["medium"]
     seen = np.zeros(len(idx), bool)
     if target.volume is not None:
@@ -1628,9 +1664,10 @@ def _deposit_in_volumes(ctx, target, vert, bounce, u, visible, first_dim, first,
             if target.cells is None:
                 seen[pi] = True
     if target.cells is not None:
-        open_ = np.flatnonzero(~visible[idx])
+        open_ = _cell_open(visible, cell_test, idx)
         if len(open_):
-            seen[open_[target.cells.contains_volume(x.take(open_, axis=0))]] = True
+            gen = target.cells.entry(x.take(open_, axis=0), None, volume=True)
+            seen[open_[_cell_inside(cell_test, idx.take(open_), gen)]] = True
     rows = np.flatnonzero(seen & ~visible[idx])
     if len(rows) == 0:
         return

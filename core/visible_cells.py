@@ -41,11 +41,13 @@ Cells are exact integer keys (20 bits per axis around the first pass's points, t
 3-bit normal axis), one sorted array per level; points far outside that range clamp to
 the border cells, which can only make V larger.  The estimate is unbiased whatever the
 cells hold, as long as they hold still: the cells then affect efficiency, never correctness.
-Their growth does not hold still: after it the carried states are spread over the old part
-while the normaliser counts all of it, until the chains mix (glass505 of the glass parity
-family: the chains 1.0094 +- 0.0024 of PPM's image).  Cells from the first pass alone remove
-that but cost ``small_view`` 1.6 times the relMSE, so they still grow (README, "A visible set
-that holds still", stops 76 and 77).
+Their growth does not hold still: after it the carried states were spread over the old part
+while the normaliser counted all of it, until the chains mixed (glass505 of the glass parity
+family: the chains 1.0094 +- 0.0024 of PPM's image).  Cells from the first pass alone removed
+that but cost ``small_view`` 1.6 times the relMSE (README, "A visible set that holds still",
+stops 76 and 77).  So each cell keeps the generation it came in (``extended``'s ``generation``,
+:meth:`entry`), and a chain's run keeps the generation it began in: for it the set holds still
+(``core/mcmc.py``, "Generations").
 """
 from __future__ import annotations
 
@@ -56,6 +58,7 @@ AXIS_OFFSET = 1 << (AXIS_BITS - 1)        # cell 0 of the first pass sits mid-ra
 LEVEL_RANGE = 24                           # levels -24..24: cell sizes of 2^-24..2^24 base
 MIN_POINTS = 4                             # a pass's points in the cell 2^DENSITY_LEVELS times
 DENSITY_LEVELS = 2                         # as wide around a point, for the point to count
+NEVER = np.iinfo(np.int64).max           # the generation of a vertex in no cell (VisibleCells.entry)
 VOLUME_AXIS = 6                            # the "normal axis" of points in scattering volumes
 
 
@@ -72,11 +75,20 @@ def normal_axis(normals):
 class VisibleCells:
     """Sorted cell keys per level; :meth:`extended` adds a pass's points, :meth:`contains` tests photons."""
 
-    def __init__(self, base=0.0, origin=None, levels=None):
+    def __init__(self, base=0.0, origin=None, levels=None, gens=None):
         self.base = float(base)                             # cell size of level 0 (0: no points yet)
         self.origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         self.levels = dict(levels or {})                    # level -> sorted unique int64 keys
+        # level -> (keys,) int64: the generation each cell was added in (``extended``'s
+        # ``generation``; all 0 where not given)
+        self.gens = dict(gens) if gens is not None else {
+            lv: np.zeros(len(k), np.int64) for lv, k in self.levels.items()}
         self._box = None                                    # world bounds of all cells, on demand
+
+    @property
+    def generation(self) -> int:
+        """The newest generation of the cells (0 for an empty set)."""
+        return max((int(g.max()) for g in self.gens.values() if len(g)), default=0)
 
     @property
     def key_count(self) -> int:
@@ -138,11 +150,13 @@ class VisibleCells:
                 keys.append((((n[0] << AXIS_BITS | n[1]) << AXIS_BITS | n[2]) << 3) | axis.take(sel))
         return np.unique(np.concatenate(keys))
 
-    def extended(self, positions, normals, radii, min_points=MIN_POINTS, volume=False) -> "VisibleCells":
+    def extended(self, positions, normals, radii, min_points=MIN_POINTS, volume=False,
+                 generation=0) -> "VisibleCells":
         """A new set: these cells plus those of points (positions, oriented normals) each in a cell
         at least ``radii`` wide, counting only points with ``min_points`` of them in the cell
         2^DENSITY_LEVELS times as wide around them (1: every point).  ``volume``: the points lie
-        in scattering volumes (no normals; cells of their own, :meth:`contains_volume`)."""
+        in scattering volumes (no normals; cells of their own, :meth:`contains_volume`).  The new
+        cells are of ``generation`` (the integrator's pass; :meth:`entry`)."""
         positions = np.asarray(positions, np.float64)
         radii = np.asarray(radii, np.float64)
         ok = np.isfinite(radii) & (radii > 0) & np.isfinite(positions).all(axis=1)
@@ -155,7 +169,7 @@ class VisibleCells:
         base, origin = self.base, self.origin
         if base <= 0:
             base, origin = float(np.median(radii)), positions.min(axis=0)
-        out = VisibleCells(base, origin, self.levels)
+        out = VisibleCells(base, origin, self.levels, self.gens)
         # The smallest level whose cells are at least as large as the point's radius.
         level = np.clip(np.ceil(np.log2(radii / base) - 1e-9), -LEVEL_RANGE, LEVEL_RANGE).astype(np.int64)
         axis = (np.full(len(radii), VOLUME_AXIS, np.int64) if volume
@@ -170,12 +184,18 @@ class VisibleCells:
                 continue
             keys = out._ball_keys(positions.take(sel, axis=0), radii.take(sel), lv, axis.take(sel))
             old = out.levels.get(lv)
+            gens = np.full(len(keys), generation, np.int64)
             if old is not None:
                 keys = keys[~_in_sorted(keys, old)]          # after the first passes, mostly none
                 if len(keys) == 0:
                     continue
-                keys = np.sort(np.concatenate([old, keys]))
+                keys = np.concatenate([old, keys])
+                order = np.argsort(keys, kind="stable")
+                keys = keys.take(order)
+                gens = np.concatenate([out.gens[lv], np.full(len(order) - len(old), generation,
+                                                             np.int64)]).take(order)
             out.levels[lv] = keys
+            out.gens[lv] = gens
         return out
 
     def bounds(self):
@@ -203,7 +223,12 @@ class VisibleCells:
 
     def contains(self, x, normals, volume=False):
         """(n,) bool: the photon vertices ``x`` with oriented normals ``normals`` lie in a visible cell."""
-        inside = np.zeros(len(x), bool)
+        return self.entry(x, normals, volume) < NEVER
+
+    def entry(self, x, normals, volume=False):
+        """(n,) int64: the oldest generation of the visible cells that hold the photon vertices ``x``
+        with oriented normals ``normals`` (``NEVER`` for none)."""
+        inside = np.full(len(x), NEVER, np.int64)
         if not self.levels or len(x) == 0:
             return inside
         # Most photon vertices of a big scene are far from what the camera sees: a box test first.
@@ -218,9 +243,15 @@ class VisibleCells:
             x = x.take(sel, axis=0)
             normals = None if volume else normals.take(sel, axis=0)
         axis = np.full(len(x), VOLUME_AXIS, np.int64) if volume else normal_axis(normals)
-        found = np.zeros(len(sel), bool)
+        found = np.full(len(sel), NEVER, np.int64)
         for lv, keys in self.levels.items():
-            found |= _in_sorted(self._keys(x, lv, axis), keys)
+            if len(keys) == 0:
+                continue
+            q = self._keys(x, lv, axis)
+            i = np.searchsorted(keys, q)
+            np.minimum(i, len(keys) - 1, out=i)
+            gen = np.where(keys.take(i) == q, self.gens[lv].take(i), NEVER)
+            np.minimum(found, gen, out=found)
         inside[sel] = found
         return inside
 
@@ -230,13 +261,16 @@ class VisibleCells:
         keys = [self.levels[int(v)] for v in lv]
         return {"base": np.float64(self.base), "origin": self.origin, "levels": lv,
                 "counts": np.array([len(k) for k in keys], np.int64),
-                "keys": np.concatenate(keys) if keys else np.zeros(0, np.int64)}
+                "keys": np.concatenate(keys) if keys else np.zeros(0, np.int64),
+                "gens": (np.concatenate([self.gens[int(v)] for v in lv]) if keys
+                         else np.zeros(0, np.int64))}
 
     @staticmethod
     def from_arrays(d) -> "VisibleCells":
         bounds = np.concatenate([[0], np.cumsum(d["counts"])])
         levels = {int(v): d["keys"][bounds[i]:bounds[i + 1]] for i, v in enumerate(d["levels"])}
-        return VisibleCells(float(d["base"]), d["origin"], levels)
+        gens = {int(v): d["gens"][bounds[i]:bounds[i + 1]] for i, v in enumerate(d["levels"])}
+        return VisibleCells(float(d["base"]), d["origin"], levels, gens)
 
 
 def _in_sorted(q, keys):

@@ -136,13 +136,18 @@ class PhotonWorker:
             chains.forget()
             self.chain_focus = focus
 
-        def trace(u, refresh_rng, resume=None):
+        def trace(u, refresh_rng, resume=None, limit=None, floor=None):
             t0 = time.perf_counter()
             batch = trace_photons(self.ctx, target, u, s.max_bounces, refresh_rng=refresh_rng,
-                                  collect_pairs=True, resume=resume, unweighted=True)
+                                  collect_pairs=True, resume=resume, unweighted=True, cell_limit=limit,
+                                  cell_floor=floor)
             counters.trace_s += time.perf_counter() - t0
             return batch
 
+        # The chains' runs keep the generation of the cells they began in (core/mcmc.py, "Generations").
+        generation = target.cells.generation if target.cells is not None else 0
+        recorder.lane_gen, recorder.shares = chains.gen, chains.generation_shares
+        chains.raise_floor()              # the last pass's recordings are splatted
         begin_pass(chains, trace, recorder, counters)
         iterations = -(-n_photons // chains.count)
         interrupted = False
@@ -152,12 +157,17 @@ class PhotonWorker:
                 interrupted = True
                 break
             prefetched = iterate(chains, trace, recorder, self.chain_rng, s, counters,
-                                 prefetched=prefetched, prefetch=i + 1 < iterations)
+                                 prefetched=prefetched, prefetch=i + 1 < iterations, generation=generation)
         end_pass(chains, recorder, prefetched, trace, counters)
         recorder.flush()
         if focus is not None:
             counters.aiming_workers += 1
         outside = recorder.outside_sums if recorder.outside_pairs else None
+        if recorder.newer_pairs and counters.recorded_w > 0:
+            # Shares of this iteration's recordings, per recording of the pass and iteration: the
+            # integrator divides by n_U = C T (mcmc.py, "Generations").
+            newer = recorder.newer_sums * (counters.iterations / chains.count / counters.recorded_w)
+            outside = newer if outside is None else outside + newer
         halves = recorder.half_sums if halves else None
         return recorder.sums, outside, halves, interrupted
 

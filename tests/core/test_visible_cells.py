@@ -136,3 +136,57 @@ def test_the_bounding_box_test_changes_nothing():
     np.testing.assert_array_equal(cells.contains(q, nq), expected)
     lo, hi = cells.bounds()
     assert (lo < x.min(axis=0)).all() and (hi > x.max(axis=0)).all()
+
+
+def test_cells_keep_the_generation_they_came_in():
+    """``entry`` gives the oldest generation of the cells that hold a vertex: a point's own pass, or
+    an earlier one whose cells it shares; a worker's copy keeps them."""
+    rng = np.random.default_rng(6)
+    xa, na, ra = random_points(rng, 1000)
+    xb, nb, rb = random_points(rng, 1000)
+    xb += 500.0                                              # apart from the first points
+    first = VisibleCells().extended(xa, na, ra, min_points=1, generation=3)
+    both = first.extended(xb, nb, rb, min_points=1, generation=11)
+    both = both.extended(xa, na, ra, min_points=1, generation=19)          # adds no cell
+    assert first.generation == 3 and both.generation == 11
+    np.testing.assert_array_equal(both.entry(xa, na), 3)
+    np.testing.assert_array_equal(both.entry(xb, nb), 11)
+    assert (both.entry(xa + 1e4, na) == np.iinfo(np.int64).max).all()
+    again = VisibleCells.from_arrays(both.to_arrays())
+    q, nq = np.concatenate([xa, xb, xa + 1e4]), np.concatenate([na, nb, na])
+    np.testing.assert_array_equal(again.entry(q, nq), both.entry(q, nq))
+    np.testing.assert_array_equal(both.contains(q, nq), both.entry(q, nq) <= 11)
+
+
+def test_a_paths_limit_keeps_newer_cells_out_of_its_v():
+    """``trace_photons``'s ``cell_limit``: a path is visible in the cells of that generation or
+    older; ``entry`` is the oldest generation it met, looked for after visibility while it is
+    newer than the path's ``cell_floor``.  The deposits do not change."""
+    scene = cornell_box((24, 18))
+    ctx = RenderContext(scene)
+    eye = trace_eye_pass(ctx, np.random.default_rng(0), 4.0, 8)
+    pts = eye.points
+    w, h = scene.camera.resolution
+    left = pts.position[:, 0] < np.median(pts.position[:, 0])
+    cells = VisibleCells().extended(pts.position[left], pts.ng[left], pts.base_radius[left], generation=0)
+    cells = cells.extended(pts.position[~left], pts.ng[~left], pts.base_radius[~left], generation=1)
+    target = DepositTarget(pts, 0.1 * pts.base_radius, ctx.table, w * h, ctx.has_shading_normals, cells=cells)
+    u = np.random.default_rng(1).random((4000, path_dims(8)))
+    n = len(u)
+    newest = trace_photons(ctx, target, u.copy(), 8, collect_pairs=True)
+    oldest = trace_photons(ctx, target, u.copy(), 8, collect_pairs=True, cell_limit=np.zeros(n, np.int64))
+    floor = trace_photons(ctx, target, u.copy(), 8, collect_pairs=True, cell_limit=np.ones(n, np.int64),
+                          cell_floor=np.zeros(n, np.int64))
+    np.testing.assert_array_equal(newest.visible, floor.visible)
+    np.testing.assert_array_equal(newest.first_dim, floor.first_dim)
+    np.testing.assert_array_equal(newest.pair_value, oldest.pair_value)
+    # In the older cells alone: fewer paths, each at its first vertex in them, never earlier.
+    assert oldest.visible.sum() < newest.visible.sum()
+    assert not (oldest.visible & ~newest.visible).any()
+    both = oldest.visible
+    assert (oldest.first_dim[both] >= newest.first_dim[both]).all()
+    np.testing.assert_array_equal(oldest.visible, floor.entry == 0)
+    np.testing.assert_array_equal(newest.visible, floor.entry <= 1)
+    # Without a floor, a path visible in the newer cells at its first vertex stops looking there.
+    late = newest.visible & oldest.visible & (oldest.first_dim > newest.first_dim)
+    assert late.any() and (newest.entry[late] == 1).all()
